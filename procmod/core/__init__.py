@@ -1,0 +1,18 @@
+"""procmod's runtime: models, rules, derivations, choice maps, distributions.
+
+This package imports nothing else of procmod.
+"""
+
+from .choicemap import ChoiceMap, format_address, is_within
+from .distributions import (Bernoulli, Categorical, Distribution, GaussianMixture, Normal,
+                            TruncatedNormal, Uniform)
+from .errors import (DerivationFormatError, InvalidArgumentError, ModelError, ProcmodError,
+                     UnknownModelError)
+from .model import Model
+from .runtime import (Choice, Context, Derivation, Future, Node, ReplayResult, SpawnRecord,
+                      finish, follow_order, program_order, random_order, regenerate, replay,
+                      run_forward, set_maybe, start, step)
+from .serialize import (derivation_from_dict, derivation_to_dict, load_derivation,
+                        save_derivation, write_text_atomic)
+
+__all__ = [name for name in dir() if not name.startswith("_")]

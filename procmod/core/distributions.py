@@ -1,0 +1,255 @@
+"""Distributions for random choices: each can ``sample(rng)`` and give ``log_prob(x)``.
+
+All of them are scalar and implemented with :mod:`math` rather than numpy array code,
+because a procedural model draws one value at a time and the per-call overhead of
+numpy on scalars would dominate. Randomness always comes from a
+``numpy.random.Generator`` passed in by the caller; nothing here keeps global state.
+
+Values are plain Python objects (``float``, ``bool``, ``int`` or a label ``str``) so that
+derivations serialise to JSON exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from statistics import NormalDist
+
+import numpy as np
+
+from .errors import ModelError
+
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+_STANDARD_NORMAL = NormalDist()
+
+
+def _normal_log_pdf(x: float, mu: float, sigma: float) -> float:
+    z = (x - mu) / sigma
+    return -0.5 * z * z - math.log(sigma) - _LOG_SQRT_2PI
+
+
+def _is_real(x) -> bool:
+    return isinstance(x, (float, int)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+class Distribution:
+    """Base class. Subclasses define ``sample``, ``log_prob`` and ``contains``.
+
+    Attributes
+    ----------
+    discrete : bool
+        True for distributions over a finite set (MCMC diffusion moves skip these).
+    """
+
+    discrete = False
+
+    def sample(self, rng: np.random.Generator):
+        raise NotImplementedError
+
+    def log_prob(self, value) -> float:
+        raise NotImplementedError
+
+    def contains(self, value) -> bool:
+        """Whether ``value`` is in the support (a replayed value must be)."""
+        return self.log_prob(value) > -math.inf
+
+    def _params(self) -> dict:
+        return {}
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self._params().items())
+        return f"{type(self).__name__}({args})"
+
+
+class Normal(Distribution):
+    """Gaussian with mean ``mu`` and standard deviation ``sigma`` (> 0)."""
+
+    __slots__ = ("mu", "sigma")
+
+    def __init__(self, mu: float, sigma: float):
+        if not sigma > 0:
+            raise ModelError(f"Normal needs sigma > 0, got {sigma!r}")
+        self.mu = float(mu)
+        self.sigma = float(sigma)
+
+    def sample(self, rng):
+        return self.mu + self.sigma * rng.standard_normal()
+
+    def log_prob(self, value):
+        if not _is_real(value):
+            return -math.inf
+        return _normal_log_pdf(value, self.mu, self.sigma)
+
+    def _params(self):
+        return {"mu": self.mu, "sigma": self.sigma}
+
+
+class TruncatedNormal(Distribution):
+    """Gaussian ``Normal(mu, sigma)`` restricted to ``[low, high]`` and renormalised."""
+
+    __slots__ = ("mu", "sigma", "low", "high", "_cdf_low", "_mass", "_log_mass")
+
+    def __init__(self, mu: float, sigma: float, low: float, high: float):
+        if not sigma > 0:
+            raise ModelError(f"TruncatedNormal needs sigma > 0, got {sigma!r}")
+        if not low < high:
+            raise ModelError(f"TruncatedNormal needs low < high, got [{low!r}, {high!r}]")
+        self.mu, self.sigma, self.low, self.high = float(mu), float(sigma), float(low), float(high)
+        self._cdf_low = _STANDARD_NORMAL.cdf((self.low - self.mu) / self.sigma)
+        self._mass = _STANDARD_NORMAL.cdf((self.high - self.mu) / self.sigma) - self._cdf_low
+        if not self._mass > 1e-300:
+            raise ModelError(
+                f"TruncatedNormal({mu}, {sigma}, {low}, {high}) has no probability mass in its"
+                " interval; move the interval towards mu or widen sigma")
+        self._log_mass = math.log(self._mass)
+
+    def sample(self, rng):
+        if self._mass > 0.25:
+            # Rejection from the untruncated normal: exact, and cheap when the mass is large.
+            for _ in range(32):
+                x = self.mu + self.sigma * rng.standard_normal()
+                if self.low <= x <= self.high:
+                    return x
+        # Inverse CDF (also the fallback after 32 rejections, which has probability < 1e-4).
+        u = self._cdf_low + rng.random() * self._mass
+        u = min(max(u, 1e-16), 1.0 - 1e-16)
+        x = self.mu + self.sigma * _STANDARD_NORMAL.inv_cdf(u)
+        return min(max(x, self.low), self.high)
+
+    def log_prob(self, value):
+        if not _is_real(value) or not self.low <= value <= self.high:
+            return -math.inf
+        return _normal_log_pdf(value, self.mu, self.sigma) - self._log_mass
+
+    def _params(self):
+        return {"mu": self.mu, "sigma": self.sigma, "low": self.low, "high": self.high}
+
+
+class Uniform(Distribution):
+    """Continuous uniform on ``[low, high]``."""
+
+    __slots__ = ("low", "high", "_log_width")
+
+    def __init__(self, low: float, high: float):
+        if not low < high:
+            raise ModelError(f"Uniform needs low < high, got [{low!r}, {high!r}]")
+        self.low, self.high = float(low), float(high)
+        self._log_width = math.log(self.high - self.low)
+
+    def sample(self, rng):
+        return self.low + (self.high - self.low) * rng.random()
+
+    def log_prob(self, value):
+        if not _is_real(value) or not self.low <= value <= self.high:
+            return -math.inf
+        return -self._log_width
+
+    def _params(self):
+        return {"low": self.low, "high": self.high}
+
+
+class Bernoulli(Distribution):
+    """A coin with probability ``p`` of ``True``."""
+
+    discrete = True
+    __slots__ = ("p", "_log_p", "_log_q")
+
+    def __init__(self, p: float):
+        if not 0.0 <= p <= 1.0:
+            raise ModelError(f"Bernoulli needs 0 <= p <= 1, got {p!r}")
+        self.p = float(p)
+        self._log_p = math.log(p) if p > 0 else -math.inf
+        self._log_q = math.log1p(-p) if p < 1 else -math.inf
+
+    def sample(self, rng):
+        return bool(rng.random() < self.p)
+
+    def log_prob(self, value):
+        if value is True:
+            return self._log_p
+        if value is False:
+            return self._log_q
+        return -math.inf
+
+    def _params(self):
+        return {"p": self.p}
+
+
+class Categorical(Distribution):
+    """A draw from a finite set with probabilities ``probs`` (normalised here).
+
+    The value is the index ``0..k-1``, or the matching entry of ``labels`` when given
+    (labels must be distinct strings, ints or bools, so they serialise to JSON).
+    """
+
+    discrete = True
+    __slots__ = ("probs", "labels", "_cumulative", "_log_probs", "_index")
+
+    def __init__(self, probs, labels=None):
+        probs = [float(p) for p in probs]
+        if not probs or any(not (p >= 0.0 and math.isfinite(p)) for p in probs) or sum(probs) <= 0:
+            raise ModelError(f"Categorical needs non-negative probabilities with a positive sum, got {probs!r}")
+        total = sum(probs)
+        self.probs = tuple(p / total for p in probs)
+        if labels is None:
+            labels = tuple(range(len(probs)))
+        labels = tuple(labels)
+        if len(labels) != len(probs) or len(set(labels)) != len(labels):
+            raise ModelError(f"Categorical needs one distinct label per probability, got {labels!r}")
+        self.labels = labels
+        self._index = {label: i for i, label in enumerate(labels)}
+        acc, cumulative = 0.0, []
+        for p in self.probs:
+            acc += p
+            cumulative.append(acc)
+        cumulative[-1] = 1.0
+        self._cumulative = tuple(cumulative)
+        self._log_probs = tuple(math.log(p) if p > 0 else -math.inf for p in self.probs)
+
+    def sample(self, rng):
+        u = rng.random()
+        for i, c in enumerate(self._cumulative):
+            if u < c:
+                return self.labels[i]
+        return self.labels[-1]
+
+    def log_prob(self, value):
+        if isinstance(value, bool) and not isinstance(self.labels[0], bool):
+            return -math.inf
+        i = self._index.get(value)
+        return -math.inf if i is None else self._log_probs[i]
+
+    def _params(self):
+        return {"probs": self.probs, "labels": self.labels}
+
+
+class GaussianMixture(Distribution):
+    """A one-dimensional mixture of Gaussians: weights, means and standard deviations."""
+
+    __slots__ = ("weights", "means", "sigmas", "_log_weights", "_component")
+
+    def __init__(self, weights, means, sigmas):
+        weights, means, sigmas = list(weights), list(means), list(sigmas)
+        if not (len(weights) == len(means) == len(sigmas) >= 1):
+            raise ModelError("GaussianMixture needs equally many weights, means and sigmas (at least one)")
+        if any(not s > 0 for s in sigmas):
+            raise ModelError(f"GaussianMixture needs every sigma > 0, got {sigmas!r}")
+        self._component = Categorical(weights)
+        self.weights = self._component.probs
+        self.means = tuple(float(m) for m in means)
+        self.sigmas = tuple(float(s) for s in sigmas)
+        self._log_weights = self._component._log_probs
+
+    def sample(self, rng):
+        k = self._component.sample(rng)
+        return self.means[k] + self.sigmas[k] * rng.standard_normal()
+
+    def log_prob(self, value):
+        if not _is_real(value):
+            return -math.inf
+        terms = [lw + _normal_log_pdf(value, m, s)
+                 for lw, m, s in zip(self._log_weights, self.means, self.sigmas) if lw > -math.inf]
+        top = max(terms)
+        return top + math.log(sum(math.exp(t - top) for t in terms))
+
+    def _params(self):
+        return {"weights": self.weights, "means": self.means, "sigmas": self.sigmas}

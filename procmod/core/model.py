@@ -1,0 +1,78 @@
+"""A procedural model: a root rule, named parameters, and a factory for its output.
+
+A *rule* is a plain Python function ``rule(ctx, *args)`` that makes random choices with
+``ctx.sample``, emits geometry with ``ctx.emit`` and spawns child rule calls with
+``ctx.spawn`` / ``ctx.maybe`` (see :class:`procmod.core.runtime.Context`). A rule must be
+a deterministic function of its arguments and of the values its choices return: the
+runtime re-executes a rule call to resume it after a pause and to replay it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Mapping
+
+from .errors import InvalidArgumentError
+
+
+@dataclass(frozen=True)
+class Model:
+    """A procedural model that every engine can run.
+
+    Parameters
+    ----------
+    name : str
+        Registry name, also stored in saved derivations.
+    description : str
+        One line shown by ``procmod models``.
+    root : callable
+        The rule called first, as ``root(ctx, *root_args(params))``.
+    root_args : callable
+        Maps the parameter dict to the root rule's positional arguments.
+    new_output : callable
+        ``new_output(params) -> accumulator``: a fresh, empty output (e.g. a raster
+        canvas) into which emitted geometry is drawn. It needs ``add(geometry)`` and a
+        cheap ``copy()``.
+    params : mapping
+        Parameter values (e.g. start point and direction); change them with
+        :meth:`configure`. Values must be JSON-serialisable.
+    rules : tuple of callables
+        Every rule of the model (its generator graph's nodes), for documentation and for
+        engines that reason about spawn sites.
+    choices_doc : str
+        Documentation of the random choices and their distributions.
+    """
+
+    name: str
+    description: str
+    root: Callable
+    root_args: Callable[[Mapping[str, Any]], tuple]
+    new_output_from: Callable[[Mapping[str, Any]], Any]
+    params: Mapping[str, Any] = field(default_factory=dict)
+    rules: tuple = ()
+    choices_doc: str = ""
+
+    def configure(self, **params) -> "Model":
+        """Return a copy of the model with some parameters changed.
+
+        Raises
+        ------
+        InvalidArgumentError
+            If a name is not one of the model's parameters.
+        """
+        unknown = sorted(set(params) - set(self.params))
+        if unknown:
+            raise InvalidArgumentError(
+                f"model {self.name!r} has no parameter {unknown[0]!r}; "
+                f"its parameters are: {', '.join(sorted(self.params)) or 'none'}")
+        merged = dict(self.params)
+        merged.update(params)
+        return replace(self, params=merged)
+
+    def new_output(self):
+        """A fresh, empty output accumulator for one derivation."""
+        return self.new_output_from(self.params)
+
+    def initial_args(self) -> tuple:
+        """The root rule's arguments under the current parameters."""
+        return tuple(self.root_args(self.params))

@@ -1,0 +1,551 @@
+"""The runtime: rule calls, derivation trees and the operations every engine uses.
+
+A run of a model is a :class:`Derivation`, a tree of rule calls (:class:`Node`). It is
+built one rule call at a time: spawned calls are *futures* (:class:`Future`) kept in a
+pending list, and the caller decides which pending future runs next (program order, or
+uniformly at random for stochastically-ordered SMC).
+
+Design notes
+------------
+* **Cheap copies.** Expanded nodes are immutable and shared between copies: a derivation
+  keeps them in a persistent linked list, so :meth:`Derivation.copy` copies only the
+  pending list, the output accumulator and a few numbers.
+* **Pausing at emits.** :func:`step` returns after a rule call has emitted geometry, so
+  SMC can score and resample there. A paused call is resumed by re-executing its rule
+  with the choices it already made replayed and its earlier emits skipped; that keeps a
+  paused call copyable (a Python frame is not) at the cost of re-running the rule's
+  cheap prefix. The pause is taken lazily, just before the call's next random choice or
+  emit, so a call that ends with its emit is never re-executed. Rules must therefore be
+  deterministic given their arguments and choice values.
+* **Addresses** are structural: the spawn-site names from the root to a call, plus the
+  choice name (see :mod:`procmod.core.choicemap`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, Callable, NamedTuple
+
+import numpy as np
+
+from .choicemap import ChoiceMap, format_address
+from .distributions import Bernoulli, Distribution
+from .errors import ModelError
+from .model import Model
+
+_MISSING = object()
+
+
+class _Pause(BaseException):
+    """Raised inside a rule call to suspend it (BaseException so user code can't catch it)."""
+
+
+@lru_cache(maxsize=1024)
+def _bernoulli(p: float) -> Bernoulli:
+    return Bernoulli(p)
+
+
+class Choice(NamedTuple):
+    """One random choice of a rule call: its value, log-probability and distribution."""
+
+    value: Any
+    log_prob: float
+    dist: Distribution
+
+
+class SpawnRecord(NamedTuple):
+    """A child rule call requested by ``ctx.spawn`` (probability 1) or ``ctx.maybe``."""
+
+    site: str
+    rule: Callable
+    args: tuple
+    probability: float
+    on: bool
+
+
+class Future:
+    """A pending rule call: where it sits in the tree, which rule, with which arguments."""
+
+    __slots__ = ("address", "rule", "args")
+
+    def __init__(self, address: tuple, rule: Callable, args: tuple):
+        self.address = address
+        self.rule = rule
+        self.args = args
+
+    def __repr__(self) -> str:
+        return f"Future({format_address(self.address)}, {self.rule.__name__})"
+
+
+class Node:
+    """An expanded rule call; immutable once built and shared between derivation copies.
+
+    Attributes
+    ----------
+    address : tuple of str
+        Spawn-site names from the root call to this one.
+    rule : callable
+        The rule that ran.
+    args : tuple
+        Its arguments.
+    choices : dict
+        ``name -> Choice`` in the order the choices were made (``maybe`` sites included,
+        as Bernoulli choices named after the site).
+    geometry : tuple
+        The geometry the call emitted, in order.
+    spawns : tuple of SpawnRecord
+        The child calls it requested, in order (``on`` is False for a ``maybe`` that came
+        out False).
+    """
+
+    __slots__ = ("address", "rule", "args", "choices", "geometry", "spawns")
+
+    def __init__(self, address, rule, args, choices, geometry, spawns):
+        self.address = address
+        self.rule = rule
+        self.args = args
+        self.choices = choices
+        self.geometry = geometry
+        self.spawns = spawns
+
+    @property
+    def log_prob(self) -> float:
+        """Sum of the log-probabilities of this call's own choices."""
+        return sum(c.log_prob for c in self.choices.values())
+
+    def __repr__(self) -> str:
+        return f"Node({format_address(self.address)}, {self.rule.__name__}, {len(self.choices)} choices)"
+
+
+class Context:
+    """What a rule sees: ``ctx.sample``, ``ctx.emit``, ``ctx.spawn``, ``ctx.maybe``, ``ctx.at``.
+
+    One context exists per execution of one rule call. Choice and spawn-site names share
+    one namespace per call and must be unique within it.
+    """
+
+    __slots__ = ("_state", "_rng", "address", "_choices", "_names", "_geometry", "_spawns",
+                 "_prefix", "_skip", "_emits", "_pause", "_armed", "_fresh_emit", "rule")
+
+    def __init__(self, state, rng, future, prefix, skip, pause):
+        self._state = state
+        self._rng = rng
+        self.address = future.address
+        self.rule = future.rule
+        self._choices = {}
+        self._names = set()
+        self._geometry = []
+        self._spawns = []
+        self._prefix = prefix
+        self._skip = skip
+        self._emits = 0
+        self._pause = pause
+        self._armed = False
+        self._fresh_emit = False
+
+    @property
+    def depth(self) -> int:
+        """Number of spawn sites between the root call and this one."""
+        return len(self.address)
+
+    def _claim(self, name: str, what: str) -> None:
+        if name in self._names:
+            raise ModelError(
+                f"rule {self.rule.__name__!r} uses the name {name!r} twice in one call "
+                f"(at {format_address(self.address)}); give each {what} of a call a distinct name")
+        self._names.add(name)
+
+    def sample(self, name: str, dist: Distribution):
+        """Make the random choice ``name`` from ``dist`` and return its value."""
+        if self._armed:
+            raise _Pause()
+        self._claim(name, "choice or spawn site")
+        prefix = self._prefix
+        if prefix is not None:
+            old = prefix.get(name)
+            if old is not None:  # already made (and counted) before this call was paused
+                self._choices[name] = old
+                return old[0]
+        state = self._state
+        constraints = state.constraints
+        if constraints is not None:
+            key = (self.address, name)
+            value = constraints.get(key, _MISSING)
+            if value is not _MISSING:
+                log_prob = dist.log_prob(value)
+                if log_prob > -math.inf:
+                    state._reused.add(key)
+                    state.log_reused += log_prob
+                    state.log_prior += log_prob
+                    self._choices[name] = Choice(value, log_prob, dist)
+                    return value
+            value = dist.sample(self._rng)
+            log_prob = dist.log_prob(value)
+            state.log_fresh += log_prob
+        else:
+            value = dist.sample(self._rng)
+            log_prob = dist.log_prob(value)
+        state.log_prior += log_prob
+        self._choices[name] = Choice(value, log_prob, dist)
+        return value
+
+    def emit(self, geometry) -> None:
+        """Draw ``geometry`` into the output; engines may score and resample after it."""
+        if self._armed:
+            raise _Pause()
+        self._geometry.append(geometry)
+        index = self._emits
+        self._emits = index + 1
+        if index < self._skip:  # drawn before this call was paused
+            return
+        state = self._state
+        state.output.add(geometry)
+        state.n_emits += 1
+        self._fresh_emit = True
+        if self._pause:
+            self._armed = True
+
+    def spawn(self, site: str, rule: Callable, *args) -> None:
+        """Request the child call ``rule(ctx, *args)`` at spawn site ``site``."""
+        self._claim(site, "choice or spawn site")
+        if not self._state.stopped:
+            self._spawns.append(SpawnRecord(site, rule, args, 1.0, True))
+
+    def maybe(self, site: str, p: float, rule: Callable, *args) -> bool:
+        """With probability ``p`` spawn ``rule(ctx, *args)`` at ``site``; return whether it did.
+
+        The coin is a Bernoulli choice named ``site``. After :meth:`stop` nothing is
+        drawn and False is returned.
+        """
+        if self._state.stopped:
+            return False
+        on = self.sample(site, _bernoulli(float(p)))
+        self._spawns.append(SpawnRecord(site, rule, args, float(p), on))
+        return on
+
+    def at(self, position) -> None:
+        """Report the current position (neural guides look at the output around it)."""
+        self._state.position = position
+
+    def stop(self) -> None:
+        """Stop the whole derivation: no pending or later-spawned call will run."""
+        self._state.stopped = True
+
+
+class Derivation:
+    """A partial or complete run of a model.
+
+    Attributes
+    ----------
+    model : Model
+    output : accumulator
+        Everything emitted so far, drawn (e.g. a raster canvas).
+    pending : list of Future
+        Calls waiting to run. The **last** element is the next one in program order.
+    log_prior : float
+        Sum of the log-probabilities of all choices made so far.
+    stopped : bool
+        True once a rule called ``ctx.stop()``.
+    position : object
+        The last position a rule reported with ``ctx.at``.
+    n_emits : int
+        Number of emits drawn into ``output``.
+    """
+
+    __slots__ = ("model", "output", "pending", "active", "log_prior", "stopped", "position",
+                 "n_emits", "n_nodes", "_chain", "constraints", "_reused", "log_reused",
+                 "log_fresh")
+
+    def __init__(self, model: Model, output=None, constraints=None):
+        self.model = model
+        self.output = model.new_output() if output is None else output
+        self.pending = [Future((), model.root, model.initial_args())]
+        self.active = None  # (future, choices made, emits drawn) of a paused call
+        self.log_prior = 0.0
+        self.stopped = False
+        self.position = None
+        self.n_emits = 0
+        self.n_nodes = 0
+        self._chain = None  # persistent list (node, rest) of expanded nodes, newest first
+        self.constraints = None if constraints is None else dict(constraints)
+        self._reused = set()
+        self.log_reused = 0.0
+        self.log_fresh = 0.0
+
+    @property
+    def done(self) -> bool:
+        """True when no call is paused and nothing is left to run."""
+        return self.active is None and (self.stopped or not self.pending)
+
+    def copy(self) -> "Derivation":
+        """A copy that shares every expanded node; only pending calls and output are copied."""
+        other = Derivation.__new__(Derivation)
+        other.model = self.model
+        other.output = self.output.copy()
+        other.pending = self.pending.copy()
+        other.active = self.active
+        other.log_prior = self.log_prior
+        other.stopped = self.stopped
+        other.position = self.position
+        other.n_emits = self.n_emits
+        other.n_nodes = self.n_nodes
+        other._chain = self._chain
+        other.constraints = self.constraints
+        other._reused = self._reused.copy() if self.constraints is not None else self._reused
+        other.log_reused = self.log_reused
+        other.log_fresh = self.log_fresh
+        return other
+
+    def nodes(self) -> list:
+        """Expanded nodes in the order they ran."""
+        out = []
+        chain = self._chain
+        while chain is not None:
+            out.append(chain[0])
+            chain = chain[1]
+        out.reverse()
+        return out
+
+    def tree(self) -> dict:
+        """``node_address -> Node`` for every expanded call."""
+        return {node.address: node for node in self.nodes()}
+
+    def choice_map(self) -> ChoiceMap:
+        """All choices of the expanded calls, keyed by ``(node_address, name)``."""
+        return ChoiceMap({(node.address, name): choice.value
+                          for node in self.nodes() for name, choice in node.choices.items()})
+
+    def geometry(self) -> list:
+        """All emitted geometry of the expanded calls, in the order it was emitted."""
+        return [g for node in self.nodes() for g in node.geometry]
+
+    def order(self) -> list:
+        """Addresses of the expanded calls in the order they ran (replay them in this order)."""
+        return [node.address for node in self.nodes()]
+
+    def __repr__(self) -> str:
+        state = "done" if self.done else f"{len(self.pending)} pending"
+        return (f"Derivation({self.model.name}, {self.n_nodes} calls, {state}, "
+                f"log_prior={self.log_prior:.4f})")
+
+
+Pick = Callable[[list, np.random.Generator], int]
+
+
+def program_order(pending: list, rng: np.random.Generator) -> int:
+    """Pick the next pending call in program (depth-first) order."""
+    return len(pending) - 1
+
+
+def random_order(pending: list, rng: np.random.Generator) -> int:
+    """Pick a pending call uniformly at random (stochastically-ordered SMC)."""
+    return int(rng.random() * len(pending))
+
+
+def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> bool:
+    """Run (or resume) one call. Returns True if it drew a new emit."""
+    ctx = Context(state, rng, future, prefix, skip, pause)
+    try:
+        future.rule(ctx, *future.args)
+    except _Pause:
+        state.active = (future, ctx._choices, ctx._emits)
+        return True
+    except TypeError as exc:
+        # A wrong argument count is a model bug worth a clear message; other TypeErrors pass.
+        if exc.__traceback__ is not None and exc.__traceback__.tb_next is None:
+            raise ModelError(f"rule {future.rule.__name__!r} at {format_address(future.address)}"
+                             f" cannot be called with {len(future.args)} arguments: {exc}") from exc
+        raise
+    node = Node(future.address, future.rule, future.args, ctx._choices,
+                tuple(ctx._geometry), tuple(ctx._spawns))
+    state._chain = (node, state._chain)
+    state.n_nodes += 1
+    if state.stopped:
+        state.pending.clear()
+    else:
+        pending = state.pending
+        address = future.address
+        for spawn in reversed(node.spawns):
+            if spawn.on:
+                pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
+    return ctx._fresh_emit
+
+
+def start(model: Model, output=None, constraints=None) -> Derivation:
+    """A new, empty partial derivation of ``model`` (only the root call pending).
+
+    ``output`` replaces the model's fresh output accumulator (e.g. a canvas with a target
+    attached). ``constraints`` is a choice map whose values are reused where they fit.
+    """
+    return Derivation(model, output, constraints)
+
+
+def _next_future(state: Derivation, rng, pick):
+    pending = state.pending
+    index = len(pending) - 1 if pick is None else pick(pending, rng)
+    return pending.pop(index)
+
+
+def step(state: Derivation, rng: np.random.Generator, pick: Pick | None = None) -> bool:
+    """Advance a partial derivation in place until its next emit has been drawn.
+
+    Pending calls run one after another (calls that emit nothing run straight through)
+    until one draws an emit; that call is left paused just before its next random choice
+    or emit, or complete if it has none. ``pick(pending, rng)`` chooses which pending call
+    runs next (default: program order; :func:`random_order` for SOSMC); a paused call is
+    always resumed first.
+
+    Returns
+    -------
+    bool
+        True if an emit was drawn, False if the derivation finished without one (or was
+        already done). The increase of ``state.log_prior`` is the log-prior probability of
+        the choices made in this step.
+    """
+    while True:
+        if state.active is not None:
+            future, prefix, skip = state.active
+            state.active = None
+        elif state.stopped or not state.pending:
+            state.pending.clear()
+            return False
+        else:
+            future = _next_future(state, rng, pick)
+            prefix, skip = None, 0
+        if _execute(state, future, rng, prefix, skip, True):
+            return True
+
+
+def finish(state: Derivation, rng: np.random.Generator, pick: Pick | None = None) -> Derivation:
+    """Run a partial derivation in place to completion, without pausing; returns it."""
+    while True:
+        if state.active is not None:
+            future, prefix, skip = state.active
+            state.active = None
+        elif state.stopped or not state.pending:
+            state.pending.clear()
+            return state
+        else:
+            future = _next_future(state, rng, pick)
+            prefix, skip = None, 0
+        _execute(state, future, rng, prefix, skip, False)
+
+
+def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None,
+                output=None) -> Derivation:
+    """Run ``model`` forward with fresh choices (depth-first program order by default).
+
+    Returns
+    -------
+    Derivation
+        Complete. Its ``log_prior`` is the log-weight of this run: the total
+        log-probability of every choice made, i.e. ``log p(derivation)`` under the model.
+    """
+    return finish(start(model, output), rng, pick)
+
+
+@dataclass
+class ReplayResult:
+    """A derivation re-run under a choice map, with the split of its log-probability.
+
+    Attributes
+    ----------
+    derivation : Derivation
+        The new, complete derivation.
+    log_reused : float
+        Sum of log-probabilities (under the new run) of choices taken from the map.
+    log_fresh : float
+        Sum of log-probabilities of choices the map lacked (or held values outside the
+        choice's support) and that were therefore sampled from the prior.
+        ``log_reused + log_fresh == derivation.log_prior``.
+    unused : list
+        Addresses ``(node_address, name)`` of map entries the new run did not use.
+    """
+
+    derivation: Derivation
+    log_reused: float
+    log_fresh: float
+    unused: list
+
+
+def follow_order(order: list) -> Pick:
+    """A pick function that expands calls in a recorded order (program order once it ends
+    or when the recorded next call is not pending)."""
+    position = {address: i for i, address in enumerate(order)}
+
+    def pick(pending, rng):
+        best, best_rank = len(pending) - 1, math.inf
+        for i, future in enumerate(pending):
+            rank = position.get(future.address, math.inf)
+            if rank < best_rank:
+                best, best_rank = i, rank
+        return best
+
+    return pick
+
+
+def replay(model: Model, choices, rng: np.random.Generator, order: list | None = None,
+           output=None) -> ReplayResult:
+    """Run ``model`` reusing the choices in ``choices`` and sampling only the missing ones.
+
+    ``choices`` is a :class:`ChoiceMap` (or a dict with the same keys). A value is reused
+    when a call at its address makes a choice of that name and the value lies in the
+    choice's support; otherwise the choice is sampled fresh. Entries no call asks for are
+    dropped and listed in ``unused``. ``order`` (a list of node addresses, as returned by
+    :meth:`Derivation.order`) replays a derivation made in another expansion order;
+    program order is the default.
+
+    Returns
+    -------
+    ReplayResult
+        ``log_reused`` and ``log_fresh`` are the log-probabilities of the reused and the
+        freshly sampled parts; they sum to the new derivation's log-prior.
+    """
+    raw = choices.raw if isinstance(choices, ChoiceMap) else dict(choices)
+    state = start(model, output, raw)
+    finish(state, rng, None if order is None else follow_order(order))
+    unused = [key for key in raw if key not in state._reused]
+    state.constraints = None
+    return ReplayResult(state, state.log_reused, state.log_fresh, unused)
+
+
+def regenerate(model: Model, derivation: Derivation, node_address: tuple,
+               rng: np.random.Generator) -> ReplayResult:
+    """Resample the subtree rooted at ``node_address`` from the prior, keeping the rest.
+
+    Returns
+    -------
+    ReplayResult
+        ``log_fresh`` is the log-probability of the new subtree's choices (the forward
+        proposal density of an RJMCMC jump); ``unused`` lists the old subtree's choices.
+    """
+    node_address = tuple(node_address)
+    tree = derivation.tree()
+    if node_address not in tree:
+        raise ModelError(f"the derivation has no rule call at {format_address(node_address)}")
+    return replay(model, derivation.choice_map().without_subtree(node_address), rng)
+
+
+def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: str, on: bool,
+              rng: np.random.Generator) -> ReplayResult:
+    """Turn the ``maybe`` site ``site`` of the call at ``node_address`` on or off.
+
+    Turning it on grows a fresh subtree from the prior; turning it off cuts the subtree.
+    Everything else is reused.
+
+    Returns
+    -------
+    ReplayResult
+        ``log_fresh`` is the log-probability of the grown subtree (0 when cutting);
+        ``log_reused`` includes the new value of the site's Bernoulli choice.
+    """
+    node_address = tuple(node_address)
+    node = derivation.tree().get(node_address)
+    if node is None:
+        raise ModelError(f"the derivation has no rule call at {format_address(node_address)}")
+    if not any(s.site == site and s.probability < 1.0 for s in node.spawns):
+        raise ModelError(f"the call at {format_address(node_address)} has no maybe site {site!r}")
+    choices = derivation.choice_map().without_subtree(node_address + (site,))
+    return replay(model, choices.with_value(node_address, site, bool(on)), rng)
