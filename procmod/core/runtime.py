@@ -504,9 +504,14 @@ def replay(model: Model, choices, rng: np.random.Generator, order: list | None =
         freshly sampled parts; they sum to the new derivation's log-prior.
     """
     raw = choices.raw if isinstance(choices, ChoiceMap) else dict(choices)
-    state = start(model, output, raw)
+    return _replay(model, raw, rng, order, output, raw)
+
+
+def _replay(model, constraints, rng, order, output, previous) -> ReplayResult:
+    """Replay under ``constraints``; ``unused`` lists the keys of ``previous`` not reused."""
+    state = start(model, output, constraints)
     finish(state, rng, None if order is None else follow_order(order))
-    unused = [key for key in raw if key not in state._reused]
+    unused = [key for key in previous if key not in state._reused]
     state.constraints = None
     return ReplayResult(state, state.log_reused, state.log_fresh, unused)
 
@@ -522,10 +527,10 @@ def regenerate(model: Model, derivation: Derivation, node_address: tuple,
         proposal density of an RJMCMC jump); ``unused`` lists the old subtree's choices.
     """
     node_address = tuple(node_address)
-    tree = derivation.tree()
-    if node_address not in tree:
+    if node_address not in derivation.tree():
         raise ModelError(f"the derivation has no rule call at {format_address(node_address)}")
-    return replay(model, derivation.choice_map().without_subtree(node_address), rng)
+    old = derivation.choice_map()
+    return _replay(model, old.without_subtree(node_address).raw, rng, None, None, old.raw)
 
 
 def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: str, on: bool,
@@ -539,7 +544,8 @@ def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: s
     -------
     ReplayResult
         ``log_fresh`` is the log-probability of the grown subtree (0 when cutting);
-        ``log_reused`` includes the new value of the site's Bernoulli choice.
+        ``log_reused`` includes the new value of the site's Bernoulli choice; ``unused``
+        lists the cut subtree's choices.
     """
     node_address = tuple(node_address)
     node = derivation.tree().get(node_address)
@@ -547,5 +553,6 @@ def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: s
         raise ModelError(f"the derivation has no rule call at {format_address(node_address)}")
     if not any(s.site == site and s.probability < 1.0 for s in node.spawns):
         raise ModelError(f"the call at {format_address(node_address)} has no maybe site {site!r}")
-    choices = derivation.choice_map().without_subtree(node_address + (site,))
-    return replay(model, choices.with_value(node_address, site, bool(on)), rng)
+    old = derivation.choice_map()
+    choices = old.without_subtree(node_address + (site,)).with_value(node_address, site, bool(on))
+    return _replay(model, choices.raw, rng, None, None, old.raw)

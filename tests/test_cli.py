@@ -1,0 +1,99 @@
+import json
+import subprocess
+import sys
+
+import pytest
+
+from procmod.cli import main
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_models_lists_all(capsys):
+    code, out, _ = _run(capsys, "models")
+    assert code == 0
+    names = [line.split()[0] for line in out.splitlines()]
+    assert names == ["chain", "lightning", "vines"]
+
+
+def test_sample_writes_files_and_is_byte_identical(tmp_path, capsys):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert _run(capsys, "sample", "vines", "-n", "4", "--seed", "7", "--out", str(a), "--size", "64")[0] == 0
+    assert _run(capsys, "sample", "vines", "-n", "4", "--seed", "7", "--out", str(b), "--size", "64")[0] == 0
+    names = sorted(p.name for p in a.iterdir())
+    assert names == sorted(["contact_sheet.png"] + [f"sample_{i:03d}.{ext}" for i in range(4)
+                                                     for ext in ("png", "svg", "json")])
+    for name in names:
+        assert (a / name).read_bytes() == (b / name).read_bytes()
+    # Sample i depends only on (seed, i).
+    c = tmp_path / "c"
+    _run(capsys, "sample", "vines", "-n", "2", "--seed", "7", "--out", str(c), "--size", "64")
+    assert (c / "sample_001.json").read_bytes() == (a / "sample_001.json").read_bytes()
+    d = tmp_path / "d"
+    _run(capsys, "sample", "vines", "-n", "4", "--seed", "8", "--out", str(d), "--size", "64")
+    assert any((d / f"sample_{i:03d}.json").read_bytes() != (a / f"sample_{i:03d}.json").read_bytes()
+               for i in range(4))
+
+
+def test_render_png_and_svg(tmp_path, capsys):
+    _run(capsys, "sample", "lightning", "-n", "1", "--out", str(tmp_path))
+    src = tmp_path / "sample_000.json"
+    assert _run(capsys, "render", str(src), "--size", "100", "--out", str(tmp_path / "r.png"))[0] == 0
+    assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert _run(capsys, "render", str(src), "--out", str(tmp_path / "r.svg"))[0] == 0
+    assert (tmp_path / "r.svg").read_text().startswith("<svg")
+
+
+def _bad(tmp_path, capsys, *argv, out_name="out"):
+    code, out, err = _run(capsys, *argv)
+    assert code == 2
+    assert err.startswith("procmod: error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    assert not (tmp_path / out_name).exists()
+    return err
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["sample", "teapot"], "unknown model"),
+    (["sample", "vines", "-n", "-3"], "-n must be a positive"),
+    (["sample", "vines", "-n", "0"], "-n must be a positive"),
+    (["sample", "vines", "--seed", "-1"], "--seed"),
+    (["sample", "vines", "-n", "many"], "expected an integer"),
+    (["sample", "vines", "--size", "2"], "size must be"),
+])
+def test_bad_sample_arguments(tmp_path, capsys, argv, message):
+    err = _bad(tmp_path, capsys, *argv, "--out", str(tmp_path / "out"))
+    assert message in err
+
+
+def test_bad_derivation_files(tmp_path, capsys):
+    out = str(tmp_path / "out.png")
+    assert "cannot read" in _bad(tmp_path, capsys, "render", str(tmp_path / "none.json"), "--out", out,
+                                 out_name="out.png")
+    (tmp_path / "bad.json").write_text("{oops")
+    assert "not valid JSON" in _bad(tmp_path, capsys, "render", str(tmp_path / "bad.json"), "--out", out,
+                                    out_name="out.png")
+    (tmp_path / "wrong.json").write_text(json.dumps({"format": "procmod-derivation/1", "model": "vines",
+                                                     "params": {}, "order": [], "choices": [[[], "x", 1]]}))
+    assert "does not replay" in _bad(tmp_path, capsys, "render", str(tmp_path / "wrong.json"), "--out", out,
+                                     out_name="out.png")
+    _run(capsys, "sample", "chain", "-n", "1", "--out", str(tmp_path / "s"))
+    assert ".png or .svg" in _bad(tmp_path, capsys, "render", str(tmp_path / "s" / "sample_000.json"),
+                                  "--out", str(tmp_path / "out.gif"), out_name="out.gif")
+
+
+def test_usage_errors_are_one_line(tmp_path, capsys):
+    _bad(tmp_path, capsys)
+    _bad(tmp_path, capsys, "frobnicate")
+
+
+def test_console_script_exit_code(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "procmod.cli", "sample", "nope", "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
+    assert not (tmp_path / "o").exists()

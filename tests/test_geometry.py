@@ -1,0 +1,84 @@
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from procmod.geometry import (Canvas, Disc, Polygon, Segment, contact_sheet, leaf_polygon,
+                              rasterize, render_image, render_svg)
+
+VP = (0.0, 10.0, 0.0, 10.0)
+
+
+def test_disc_and_segment_areas_match_geometry():
+    size = 400  # 40 px per world unit
+    disc = rasterize([Disc(5, 5, 2)], VP, size)
+    px_area = (10 / size) ** 2
+    assert abs(disc.sum() * px_area - math.pi * 4) / (math.pi * 4) < 0.01
+    seg = rasterize([Segment(2, 5, 8, 5, 1.0)], VP, size)
+    expected = 6 * 1.0 + math.pi * 0.25  # rectangle plus two half-disc caps
+    assert abs(seg.sum() * px_area - expected) / expected < 0.01
+
+
+def test_polygon_area_and_orientation():
+    square = Polygon(((2, 2), (6, 2), (6, 4), (2, 4)))
+    mask = rasterize([square], VP, 100)
+    assert mask.sum() == 40 * 20
+    assert mask[25, 30] and not mask[50, 30]  # row = y, column = x
+    leaf = leaf_polygon(1, 5, 0.0, 4, 1)
+    assert rasterize([leaf], VP, 200).sum() > 0
+
+
+def test_last_changed_and_gain_are_incremental():
+    rng = np.random.default_rng(0)
+    gain = rng.normal(size=50 * 50)
+    canvas = Canvas(VP, 50, 50, gain=gain)
+    shapes = [Segment(1, 1, 9, 8, 0.8), Disc(5, 5, 2), Polygon(((0, 0), (4, 0), (0, 6))),
+              Segment(9, 1, 1, 9, 0.3)]
+    for shape in shapes:
+        before = canvas.pixels.copy()
+        n = canvas.add(shape)
+        changed = np.flatnonzero((before == 0) & (canvas.pixels != 0))
+        assert n == len(changed)
+        assert np.array_equal(np.sort(canvas.last_changed), changed)
+    assert math.isclose(canvas.gain_total, gain[canvas.pixels != 0].sum(), rel_tol=1e-9)
+
+
+def test_thin_strokes_are_at_least_one_pixel():
+    mask = rasterize([Segment(0.5, 5.1, 9.5, 5.1, 0.001)], VP, 10)
+    assert mask.sum() >= 9
+
+
+def test_copy_is_independent():
+    a = Canvas(VP, 20)
+    a.add(Disc(5, 5, 1))
+    b = a.copy()
+    b.add(Disc(2, 2, 1))
+    assert a.filled.sum() < b.filled.sum()
+    assert a.extent != b.extent
+
+
+def test_out_of_bounds_fraction():
+    c = Canvas(VP, 20)
+    c.add(Segment(-1, 5, 5, 5, 0.0))
+    ex, ey = c.out_of_bounds()
+    assert math.isclose(ex, 0.1) and ey == 0.0
+
+
+def test_render_any_resolution_and_svg():
+    shapes = [Segment(1, 1, 9, 9, 0.5, "stem"), Disc(5, 5, 1, "flower"),
+              leaf_polygon(3, 3, 1.0, 2, 1)]
+    small = render_image(shapes, VP, 32)
+    big = render_image(shapes, VP, 300)
+    assert small.size == (32, 32) and big.size == (300, 300)
+    svg = ET.fromstring(render_svg(shapes, VP, 300))
+    tags = [child.tag.split("}")[1] for child in svg]
+    assert tags == ["rect", "line", "circle", "polygon"]
+
+
+def test_contact_sheet_tiles():
+    tile = render_image([Disc(5, 5, 2)], VP, 40)
+    sheet = contact_sheet([tile] * 5, labels=list("abcde"))
+    assert sheet.size[0] == 3 * 46 + 6
+    with pytest.raises(ValueError):
+        contact_sheet([])

@@ -1,0 +1,91 @@
+import json
+
+import numpy as np
+import pytest
+
+from procmod.core import (DerivationFormatError, UnknownModelError, derivation_to_dict,
+                          load_derivation, random_order, run_forward, save_derivation, start, step)
+from procmod.models import get_model
+
+
+@pytest.mark.parametrize("name", ["chain", "vines", "lightning"])
+def test_save_load_replays_exactly(tmp_path, name):
+    model = get_model(name)
+    for seed in range(5):
+        d = run_forward(model, np.random.default_rng(seed))
+        path = tmp_path / f"{seed}.json"
+        save_derivation(d, path)
+        loaded = load_derivation(path, get_model)
+        assert loaded.choice_map() == d.choice_map()
+        assert loaded.geometry() == d.geometry()
+        assert loaded.log_prior == d.log_prior
+        assert np.array_equal(loaded.output.pixels, d.output.pixels)
+
+
+def test_save_load_keeps_a_random_expansion_order(tmp_path):
+    model = get_model("lightning")
+    rng = np.random.default_rng(8)
+    state = start(model)
+    while step(state, rng, random_order):
+        pass
+    save_derivation(state, tmp_path / "d.json")
+    loaded = load_derivation(tmp_path / "d.json", get_model)
+    assert loaded.order() == state.order()
+    assert loaded.geometry() == state.geometry()
+
+
+def test_params_are_saved(tmp_path):
+    model = get_model("vines").configure(start=[0.2, 0.5], direction=[1, 0])
+    d = run_forward(model, np.random.default_rng(0))
+    save_derivation(d, tmp_path / "d.json")
+    loaded = load_derivation(tmp_path / "d.json", get_model)
+    assert loaded.model.params["start"] == [0.2, 0.5]
+    assert loaded.geometry() == d.geometry()
+
+
+def _saved(tmp_path):
+    d = run_forward(get_model("vines"), np.random.default_rng(1))
+    return derivation_to_dict(d)
+
+
+@pytest.mark.parametrize("mutate,message", [
+    (lambda d: d.update(format="procmod-derivation/99"), "format"),
+    (lambda d: d.update(model=5), "model"),
+    (lambda d: d.pop("choices"), "choices"),
+    (lambda d: d["choices"].append([[], "bogus", 1.0]), "does not replay"),
+    (lambda d: d["choices"].pop(0), "does not replay"),
+    (lambda d: d["choices"].__setitem__(0, ["x", 1]), r"choices\[0\]"),
+    (lambda d: d.update(log_prior=d["log_prior"] + 1.0), "log_prior"),
+    (lambda d: d.update(params={"colour": "red"}), "no parameter"),
+])
+def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
+    data = _saved(tmp_path)
+    mutate(data)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(DerivationFormatError, match=message):
+        load_derivation(path, get_model)
+
+
+def test_unreadable_files_are_rejected(tmp_path):
+    with pytest.raises(DerivationFormatError, match="cannot read"):
+        load_derivation(tmp_path / "missing.json", get_model)
+    (tmp_path / "bad.json").write_text("{not json")
+    with pytest.raises(DerivationFormatError, match="not valid JSON"):
+        load_derivation(tmp_path / "bad.json", get_model)
+    (tmp_path / "list.json").write_text("[1, 2]")
+    with pytest.raises(DerivationFormatError, match="JSON object"):
+        load_derivation(tmp_path / "list.json", get_model)
+    data = _saved(tmp_path)
+    data["model"] = "teapot"
+    (tmp_path / "unknown.json").write_text(json.dumps(data))
+    with pytest.raises(UnknownModelError):
+        load_derivation(tmp_path / "unknown.json", get_model)
+
+
+def test_partial_derivations_cannot_be_saved(tmp_path):
+    state = start(get_model("vines"))
+    step(state, np.random.default_rng(0))
+    with pytest.raises(DerivationFormatError, match="complete"):
+        save_derivation(state, tmp_path / "p.json")
+    assert not (tmp_path / "p.json").exists()
