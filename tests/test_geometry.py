@@ -82,3 +82,15 @@ def test_contact_sheet_tiles():
     assert sheet.size[0] == 3 * 46 + 6
     with pytest.raises(ValueError):
         contact_sheet([])
+
+
+def test_ellipse_area_and_bounds():
+    from procmod.geometry import Ellipse, bounds
+    e = Ellipse(5, 5, 0.7, 6, 2)
+    size = 400
+    mask = rasterize([e], VP, size)
+    area = math.pi * 3 * 1
+    assert abs(mask.sum() * (10 / size) ** 2 - area) / area < 0.01
+    x0, x1, y0, y1 = bounds(e)
+    cols = np.flatnonzero(mask.any(axis=0)) * (10 / size)
+    assert x0 - 0.05 <= cols.min() and cols.max() <= x1 + 0.05

@@ -8,13 +8,14 @@ the engines scored, only sharper.
 from __future__ import annotations
 
 import io
+import math
 import os
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
-from .primitives import Disc, Polygon, Segment
+from .primitives import Disc, Ellipse, Polygon, Segment
 from .raster import Canvas, Viewport
 
 BACKGROUND = (255, 255, 255)
@@ -83,6 +84,10 @@ def render_svg(geometries, viewport, width: int) -> str:
                        f'stroke="{colour}" stroke-width="{g.width:.6g}" stroke-linecap="round"/>')
         elif isinstance(g, Disc):
             out.append(f'<circle cx="{g.x:.6g}" cy="{g.y:.6g}" r="{g.radius:.6g}" fill="{colour}"/>')
+        elif isinstance(g, Ellipse):
+            out.append(f'<ellipse cx="{g.x:.6g}" cy="{g.y:.6g}" rx="{0.5 * g.length:.6g}" '
+                       f'ry="{0.5 * g.width:.6g}" transform="rotate({math.degrees(g.angle):.6g} '
+                       f'{g.x:.6g} {g.y:.6g})" fill="{colour}"/>')
         elif isinstance(g, Polygon):
             pts = " ".join(f"{x:.6g},{y:.6g}" for x, y in g.points)
             out.append(f'<polygon points="{pts}" fill="{colour}" fill-rule="evenodd"/>')

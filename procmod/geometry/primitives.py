@@ -30,11 +30,39 @@ class Disc(NamedTuple):
     tag: str = "disc"
 
 
+class Ellipse(NamedTuple):
+    """A filled ellipse centred at (x, y) whose ``length`` axis points along ``angle``."""
+
+    x: float
+    y: float
+    angle: float
+    length: float
+    width: float
+    tag: str = "ellipse"
+
+    def points(self, n: int = 24) -> tuple:
+        """Vertices of an inscribed polygon (for SVG and other vector outputs)."""
+        ca, sa = math.cos(self.angle), math.sin(self.angle)
+        a, b = 0.5 * self.length, 0.5 * self.width
+        out = []
+        for i in range(n):
+            t = 2 * math.pi * i / n
+            u, v = a * math.cos(t), b * math.sin(t)
+            out.append((self.x + u * ca - v * sa, self.y + u * sa + v * ca))
+        return tuple(out)
+
+
 class Polygon(NamedTuple):
     """A filled simple polygon given by its vertices ((x, y), ...), even-odd rule."""
 
     points: tuple
     tag: str = "polygon"
+
+
+def leaf(x: float, y: float, angle: float, length: float, width: float, tag: str = "leaf") -> Ellipse:
+    """An elliptical leaf whose base is at (x, y), pointing along ``angle``."""
+    half = 0.5 * length
+    return Ellipse(x + half * math.cos(angle), y + half * math.sin(angle), angle, length, width, tag)
 
 
 def leaf_polygon(x: float, y: float, angle: float, length: float, width: float,
@@ -60,6 +88,11 @@ def bounds(geometry) -> tuple:
     if isinstance(geometry, Disc):
         r = geometry.radius
         return geometry.x - r, geometry.x + r, geometry.y - r, geometry.y + r
+    if isinstance(geometry, Ellipse):
+        ca, sa = math.cos(geometry.angle), math.sin(geometry.angle)
+        a, b = 0.5 * geometry.length, 0.5 * geometry.width
+        hx, hy = math.hypot(a * ca, b * sa), math.hypot(a * sa, b * ca)
+        return geometry.x - hx, geometry.x + hx, geometry.y - hy, geometry.y + hy
     if isinstance(geometry, Polygon):
         xs = [p[0] for p in geometry.points]
         ys = [p[1] for p in geometry.points]

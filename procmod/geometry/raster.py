@@ -11,12 +11,13 @@ would be, so thin branches do not vanish at low resolution.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numba
 import numpy as np
 
-from .primitives import Disc, Polygon, Segment, bounds
+from .primitives import Disc, Ellipse, Polygon, Segment, bounds
 
 MIN_RADIUS_PX = 0.5
 
@@ -64,6 +65,30 @@ def _draw_capsule(pixels, width, height, value, x0, y0, x1, y1, r, gain, changed
             ex = px - (x0 + t * dx)
             ey = py - (y0 + t * dy)
             if ex * ex + ey * ey <= r2:
+                n_new, gain_sum = _cover(pixels, j * width + i, value, gain, changed, n_new, gain_sum)
+    return n_new, gain_sum
+
+
+@numba.njit(cache=True, nogil=True)
+def _draw_ellipse(pixels, width, height, value, cx, cy, ux, uy, a, b, gain, changed):
+    # (ux, uy): unit vector of the ``a`` axis, in pixel space.
+    n_new = 0
+    gain_sum = 0.0
+    hx = np.sqrt((a * ux) ** 2 + (b * uy) ** 2)
+    hy = np.sqrt((a * uy) ** 2 + (b * ux) ** 2)
+    i_lo = max(int(np.floor(cx - hx)), 0)
+    i_hi = min(int(np.ceil(cx + hx)), width - 1)
+    j_lo = max(int(np.floor(cy - hy)), 0)
+    j_hi = min(int(np.ceil(cy + hy)), height - 1)
+    ia2 = 1.0 / (a * a)
+    ib2 = 1.0 / (b * b)
+    for j in range(j_lo, j_hi + 1):
+        dy = j + 0.5 - cy
+        for i in range(i_lo, i_hi + 1):
+            dx = i + 0.5 - cx
+            u = dx * ux + dy * uy
+            v = -dx * uy + dy * ux
+            if u * u * ia2 + v * v * ib2 <= 1.0:
                 n_new, gain_sum = _cover(pixels, j * width + i, value, gain, changed, n_new, gain_sum)
     return n_new, gain_sum
 
@@ -157,28 +182,35 @@ class Canvas:
         """Boolean ``(height, width)`` image of the non-empty pixels."""
         return (self.pixels != 0).reshape(self.height, self.width)
 
-    def _grow_extent(self, box) -> None:
-        e = self.extent
-        self.extent = box if e is None else (min(e[0], box[0]), max(e[1], box[1]),
-                                            min(e[2], box[2]), max(e[3], box[3]))
-
     def add(self, geometry) -> int:
         """Draw one primitive; returns the number of newly filled pixels."""
         vp = self.viewport
         sx, sy = self._scale_x, self._scale_y
         cls = type(geometry)
         if cls is Segment:
-            r = max(0.25 * geometry.width * (sx + sy), MIN_RADIUS_PX)
+            x0, y0, x1, y1, w = geometry[:5]
+            r = max(0.25 * w * (sx + sy), MIN_RADIUS_PX)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
-                                 (geometry.x0 - vp.xmin) * sx, (geometry.y0 - vp.ymin) * sy,
-                                 (geometry.x1 - vp.xmin) * sx, (geometry.y1 - vp.ymin) * sy,
+                                 (x0 - vp.xmin) * sx, (y0 - vp.ymin) * sy,
+                                 (x1 - vp.xmin) * sx, (y1 - vp.ymin) * sy,
                                  r, self.gain, self._changed)
+            w *= 0.5
+            box = (min(x0, x1) - w, max(x0, x1) + w, min(y0, y1) - w, max(y0, y1) + w)
         elif cls is Disc:
-            r = max(0.5 * geometry.radius * (sx + sy), MIN_RADIUS_PX)
-            x = (geometry.x - vp.xmin) * sx
-            y = (geometry.y - vp.ymin) * sy
+            x, y, radius = geometry[:3]
+            r = max(0.5 * radius * (sx + sy), MIN_RADIUS_PX)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
-                                 x, y, x, y, r, self.gain, self._changed)
+                                 (x - vp.xmin) * sx, (y - vp.ymin) * sy, (x - vp.xmin) * sx,
+                                 (y - vp.ymin) * sy, r, self.gain, self._changed)
+            box = (x - radius, x + radius, y - radius, y + radius)
+        elif cls is Ellipse:
+            s = 0.5 * (sx + sy)  # viewports are assumed to have square pixels here
+            n, g = _draw_ellipse(self.pixels, self.width, self.height, self.value,
+                                 (geometry.x - vp.xmin) * sx, (geometry.y - vp.ymin) * sy,
+                                 math.cos(geometry.angle), math.sin(geometry.angle),
+                                 max(0.5 * geometry.length * s, MIN_RADIUS_PX),
+                                 max(0.5 * geometry.width * s, MIN_RADIUS_PX), self.gain, self._changed)
+            box = bounds(geometry)
         elif cls is Polygon:
             pts = np.asarray(geometry.points, dtype=np.float64)
             if pts.ndim != 2 or pts.shape[0] < 3 or pts.shape[1] != 2:
@@ -186,9 +218,12 @@ class Canvas:
             n, g = _draw_polygon(self.pixels, self.width, self.height, self.value,
                                  (pts[:, 0] - vp.xmin) * sx, (pts[:, 1] - vp.ymin) * sy,
                                  self.gain, self._changed)
+            box = bounds(geometry)
         else:
             raise TypeError(f"a 2D canvas cannot draw {geometry!r}")
-        self._grow_extent(bounds(geometry))
+        e = self.extent
+        self.extent = box if e is None else (min(e[0], box[0]), max(e[1], box[1]),
+                                            min(e[2], box[2]), max(e[3], box[3]))
         self._n_changed = n
         self.gain_total += g
         return n

@@ -7,8 +7,9 @@ Random choices per call of rule ``branch`` (one segment):
 * with leaves and flowers (parameter ``leaves``, default on):
 
   * ``leaf ~ Categorical(none, left, right)`` uniform; for left / right
-    ``leaf_angle ~ Normal(angle +/- pi/4, pi/12)`` and a leaf of width 1.3 x 0.75 and
-    length 2.0986 x that width is emitted with its base at the segment's midpoint;
+    ``leaf_angle ~ Normal(angle +/- pi/4, pi/12)`` and an elliptical leaf of width
+    1.3 x 0.75 and length 2.0986 x that width is emitted with its base at the segment's
+    midpoint, pointing along ``leaf_angle``;
   * ``flower ~ Bernoulli(0.5)``: a disc of radius 0.75 at the segment's end point.
 
 * ``terminate ~ Bernoulli(0.5)``: if true, the *whole* derivation stops (``ctx.stop``).
@@ -32,7 +33,7 @@ from __future__ import annotations
 import math
 
 from ..core import Bernoulli, Categorical, Model, Normal
-from ..geometry import Disc, Segment, leaf_polygon
+from ..geometry import Disc, Segment, leaf
 from .frame import heading, new_canvas, to_world
 
 LENGTH = 2.0
@@ -62,7 +63,7 @@ def branch(ctx, x, y, parent_angle, spread, width, leaves):
         if side != "none":
             offset = math.pi / 4 if side == "left" else -math.pi / 4
             leaf_angle = ctx.sample("leaf_angle", Normal(angle + offset, LEAF_ANGLE_SD))
-            ctx.emit(leaf_polygon(0.5 * (x + x1), 0.5 * (y + y1), leaf_angle, LEAF_LENGTH, LEAF_WIDTH))
+            ctx.emit(leaf(0.5 * (x + x1), 0.5 * (y + y1), leaf_angle, LEAF_LENGTH, LEAF_WIDTH))
         if ctx.sample("flower", _COIN):
             ctx.emit(Disc(x1, y1, FLOWER_RADIUS, "flower"))
     if ctx.sample("terminate", _COIN):
