@@ -125,7 +125,8 @@ _NO_GAIN = np.zeros(0, dtype=np.float64)
 class Canvas:
     """A ``height x width`` raster of a world viewport, drawn into incrementally.
 
-    ``pixels`` is a flat ``uint8`` array (row-major); 0 is empty. :meth:`add` draws a
+    ``pixels`` is a flat ``uint8`` array (row-major); 0 is empty; ``filled_count`` counts
+    the non-empty pixels. :meth:`add` draws a
     primitive and returns how many pixels became non-empty; their flat indices are in
     :attr:`last_changed` until the next draw. If a ``gain`` array is attached (one float
     per pixel), :attr:`gain_total` accumulates ``gain`` over newly filled pixels — the
@@ -134,7 +135,7 @@ class Canvas:
     """
 
     __slots__ = ("viewport", "width", "height", "pixels", "gain", "gain_total", "extent",
-                 "_scale_x", "_scale_y", "_changed", "_n_changed", "value")
+                 "_scale_x", "_scale_y", "_changed", "_n_changed", "value", "filled_count")
 
     def __init__(self, viewport, width: int, height: int | None = None, gain=None, value: int = 1):
         self.viewport = Viewport(*viewport)
@@ -154,10 +155,11 @@ class Canvas:
         self._changed = np.empty(self.pixels.shape[0], dtype=np.int64)  # shared scratch
         self._n_changed = 0
         self.value = value
+        self.filled_count = 0
 
     def copy(self) -> "Canvas":
         """A copy with its own pixels; the gain array and scratch buffer are shared."""
-        other = Canvas.__new__(Canvas)
+        other = type(self).__new__(type(self))
         other.viewport = self.viewport
         other.width = self.width
         other.height = self.height
@@ -170,6 +172,7 @@ class Canvas:
         other._changed = self._changed
         other._n_changed = 0
         other.value = self.value
+        other.filled_count = self.filled_count
         return other
 
     @property
@@ -226,6 +229,7 @@ class Canvas:
                                             min(e[2], box[2]), max(e[3], box[3]))
         self._n_changed = n
         self.gain_total += g
+        self.filled_count += n
         return n
 
     def out_of_bounds(self) -> tuple:

@@ -1,0 +1,16 @@
+"""Targets: what engines control models toward.
+
+Every target has ``configure(model)`` (place the model, e.g. at the target's start
+point), ``new_output(model)`` (an empty output that keeps the target's running sums),
+``score(output)`` (the human-readable figure) and ``log_likelihood(output)`` (what
+probabilistic engines weight by). Scores of partial outputs are incremental: O(pixels
+changed by the last emit).
+"""
+
+from .circuit import Circuit, EdgeCanvas, edge_total
+from .image import (TargetFileError, TargetImage, check_mask, load_target_image,
+                    lowest_point_start, mask_from_image, out_of_bounds_penalty, place_model,
+                    resample_mask)
+from .shape import ShapeMatch, shape_weights, sobel_magnitude
+
+__all__ = [name for name in dir() if not name.startswith("_")]
