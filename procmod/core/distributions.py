@@ -42,6 +42,11 @@ class Distribution:
 
     discrete = False
 
+    @property
+    def scale(self) -> float:
+        """A typical spread of the distribution (step size unit for MCMC diffusion moves)."""
+        raise NotImplementedError(f"{type(self).__name__} has no scale")
+
     def sample(self, rng: np.random.Generator):
         raise NotImplementedError
 
@@ -81,6 +86,10 @@ class Normal(Distribution):
 
     def _params(self):
         return {"mu": self.mu, "sigma": self.sigma}
+
+    @property
+    def scale(self):
+        return self.sigma
 
 
 class TruncatedNormal(Distribution):
@@ -123,6 +132,10 @@ class TruncatedNormal(Distribution):
     def _params(self):
         return {"mu": self.mu, "sigma": self.sigma, "low": self.low, "high": self.high}
 
+    @property
+    def scale(self):
+        return min(self.sigma, (self.high - self.low) / math.sqrt(12.0))
+
 
 class Uniform(Distribution):
     """Continuous uniform on ``[low, high]``."""
@@ -145,6 +158,10 @@ class Uniform(Distribution):
 
     def _params(self):
         return {"low": self.low, "high": self.high}
+
+    @property
+    def scale(self):
+        return (self.high - self.low) / math.sqrt(12.0)
 
 
 class Bernoulli(Distribution):
@@ -253,3 +270,7 @@ class GaussianMixture(Distribution):
 
     def _params(self):
         return {"weights": self.weights, "means": self.means, "sigmas": self.sigmas}
+
+    @property
+    def scale(self):
+        return min(self.sigmas)

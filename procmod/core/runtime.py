@@ -36,6 +36,7 @@ from .errors import ModelError
 from .model import Model
 
 _MISSING = object()
+_new_tuple = tuple.__new__  # builds NamedTuples without their Python-level __new__ (hot path)
 
 
 class _Pause(BaseException):
@@ -126,7 +127,7 @@ class Context:
     one namespace per call and must be unique within it.
     """
 
-    __slots__ = ("_state", "_rng", "address", "_choices", "_names", "_geometry", "_spawns",
+    __slots__ = ("_state", "_rng", "address", "_choices", "_sites", "_geometry", "_spawns",
                  "_prefix", "_skip", "_emits", "_pause", "_armed", "_fresh_emit", "rule")
 
     def __init__(self, state, rng, future, prefix, skip, pause):
@@ -135,7 +136,7 @@ class Context:
         self.address = future.address
         self.rule = future.rule
         self._choices = {}
-        self._names = set()
+        self._sites = None  # names of plain spawn sites (maybe sites are choices)
         self._geometry = []
         self._spawns = []
         self._prefix = prefix
@@ -150,43 +151,49 @@ class Context:
         """Number of spawn sites between the root call and this one."""
         return len(self.address)
 
-    def _claim(self, name: str, what: str) -> None:
-        if name in self._names:
-            raise ModelError(
-                f"rule {self.rule.__name__!r} uses the name {name!r} twice in one call "
-                f"(at {format_address(self.address)}); give each {what} of a call a distinct name")
-        self._names.add(name)
+    def _duplicate(self, name: str) -> ModelError:
+        return ModelError(
+            f"rule {self.rule.__name__!r} uses the name {name!r} twice in one call "
+            f"(at {format_address(self.address)}); give each choice and spawn site of a call "
+            "a distinct name")
 
     def sample(self, name: str, dist: Distribution):
         """Make the random choice ``name`` from ``dist`` and return its value."""
         if self._armed:
             raise _Pause()
-        self._claim(name, "choice or spawn site")
+        choices = self._choices
+        if name in choices or (self._sites is not None and name in self._sites):
+            raise self._duplicate(name)
         prefix = self._prefix
         if prefix is not None:
             old = prefix.get(name)
             if old is not None:  # already made (and counted) before this call was paused
-                self._choices[name] = old
+                choices[name] = old
                 return old[0]
         state = self._state
-        constraints = state.constraints
-        if constraints is not None:
-            key = (self.address, name)
-            value = constraints.get(key, _MISSING)
-            if value is not _MISSING:
-                log_prob = dist.log_prob(value)
-                if log_prob > -math.inf:
-                    state._reused.add(key)
-                    state.log_reused += log_prob
-                    state.log_prior += log_prob
-                    self._choices[name] = Choice(value, log_prob, dist)
-                    return value
-            value = dist.sample(self._rng)
+        if state.constraints is not None:
+            return self._constrained(state, name, dist)
+        value = dist.sample(self._rng)
+        log_prob = dist.log_prob(value)
+        state.log_prior += log_prob
+        choices[name] = _new_tuple(Choice, (value, log_prob, dist))
+        return value
+
+    def _constrained(self, state, name, dist):
+        """``sample`` during replay: reuse the map's value when it fits the choice."""
+        key = (self.address, name)
+        value = state.constraints.get(key, _MISSING)
+        if value is not _MISSING:
             log_prob = dist.log_prob(value)
-            state.log_fresh += log_prob
-        else:
-            value = dist.sample(self._rng)
-            log_prob = dist.log_prob(value)
+            if log_prob > -math.inf:
+                state._reused.add(key)
+                state.log_reused += log_prob
+                state.log_prior += log_prob
+                self._choices[name] = Choice(value, log_prob, dist)
+                return value
+        value = dist.sample(self._rng)
+        log_prob = dist.log_prob(value)
+        state.log_fresh += log_prob
         state.log_prior += log_prob
         self._choices[name] = Choice(value, log_prob, dist)
         return value
@@ -209,9 +216,13 @@ class Context:
 
     def spawn(self, site: str, rule: Callable, *args) -> None:
         """Request the child call ``rule(ctx, *args)`` at spawn site ``site``."""
-        self._claim(site, "choice or spawn site")
+        if self._sites is None:
+            self._sites = set()
+        if site in self._choices or site in self._sites:
+            raise self._duplicate(site)
+        self._sites.add(site)
         if not self._state.stopped:
-            self._spawns.append(SpawnRecord(site, rule, args, 1.0, True))
+            self._spawns.append(_new_tuple(SpawnRecord, (site, rule, args, 1.0, True)))
 
     def maybe(self, site: str, p: float, rule: Callable, *args) -> bool:
         """With probability ``p`` spawn ``rule(ctx, *args)`` at ``site``; return whether it did.
@@ -219,10 +230,14 @@ class Context:
         The coin is a Bernoulli choice named ``site``. After :meth:`stop` nothing is
         drawn and False is returned.
         """
-        if self._state.stopped:
+        state = self._state
+        if state.stopped:
             return False
-        on = self.sample(site, _bernoulli(float(p)))
-        self._spawns.append(SpawnRecord(site, rule, args, float(p), on))
+        if state.maybe_default is not None and (self.address, site) not in state.constraints:
+            state.constraints[(self.address, site)] = state.maybe_default
+        p = float(p)
+        on = self.sample(site, _bernoulli(p))
+        self._spawns.append(_new_tuple(SpawnRecord, (site, rule, args, p, on)))
         return on
 
     def at(self, position) -> None:
@@ -256,7 +271,7 @@ class Derivation:
 
     __slots__ = ("model", "output", "pending", "active", "log_prior", "stopped", "position",
                  "n_emits", "n_nodes", "_chain", "constraints", "_reused", "log_reused",
-                 "log_fresh")
+                 "log_fresh", "maybe_default")
 
     def __init__(self, model: Model, output=None, constraints=None):
         self.model = model
@@ -273,6 +288,7 @@ class Derivation:
         self._reused = set()
         self.log_reused = 0.0
         self.log_fresh = 0.0
+        self.maybe_default = None  # replay only: value of maybe sites the map lacks
 
     @property
     def done(self) -> bool:
@@ -296,6 +312,7 @@ class Derivation:
         other._reused = self._reused.copy() if self.constraints is not None else self._reused
         other.log_reused = self.log_reused
         other.log_fresh = self.log_fresh
+        other.maybe_default = self.maybe_default
         return other
 
     def nodes(self) -> list:
@@ -316,6 +333,11 @@ class Derivation:
         """All choices of the expanded calls, keyed by ``(node_address, name)``."""
         return ChoiceMap({(node.address, name): choice.value
                           for node in self.nodes() for name, choice in node.choices.items()})
+
+    def choice_log_probs(self) -> dict:
+        """``(node_address, name) -> log-probability`` of every choice."""
+        return {(node.address, name): choice.log_prob
+                for node in self.nodes() for name, choice in node.choices.items()}
 
     def geometry(self) -> list:
         """All emitted geometry of the expanded calls, in the order it was emitted."""
@@ -487,7 +509,7 @@ def follow_order(order: list) -> Pick:
 
 
 def replay(model: Model, choices, rng: np.random.Generator, order: list | None = None,
-           output=None) -> ReplayResult:
+           output=None, maybe_default: bool | None = None) -> ReplayResult:
     """Run ``model`` reusing the choices in ``choices`` and sampling only the missing ones.
 
     ``choices`` is a :class:`ChoiceMap` (or a dict with the same keys). A value is reused
@@ -495,7 +517,9 @@ def replay(model: Model, choices, rng: np.random.Generator, order: list | None =
     choice's support; otherwise the choice is sampled fresh. Entries no call asks for are
     dropped and listed in ``unused``. ``order`` (a list of node addresses, as returned by
     :meth:`Derivation.order`) replays a derivation made in another expansion order;
-    program order is the default.
+    program order is the default. ``maybe_default`` (True or False) fixes every ``maybe``
+    site the map lacks instead of flipping its coin (False gives the smallest derivation
+    that agrees with the map, the GA's "empty chromosome"); those sites count as reused.
 
     Returns
     -------
@@ -504,15 +528,17 @@ def replay(model: Model, choices, rng: np.random.Generator, order: list | None =
         freshly sampled parts; they sum to the new derivation's log-prior.
     """
     raw = choices.raw if isinstance(choices, ChoiceMap) else dict(choices)
-    return _replay(model, raw, rng, order, output, raw)
+    return _replay(model, raw, rng, order, output, raw, maybe_default)
 
 
-def _replay(model, constraints, rng, order, output, previous) -> ReplayResult:
+def _replay(model, constraints, rng, order, output, previous, maybe_default=None) -> ReplayResult:
     """Replay under ``constraints``; ``unused`` lists the keys of ``previous`` not reused."""
     state = start(model, output, constraints)
+    state.maybe_default = None if maybe_default is None else bool(maybe_default)
     finish(state, rng, None if order is None else follow_order(order))
     unused = [key for key in previous if key not in state._reused]
     state.constraints = None
+    state.maybe_default = None
     return ReplayResult(state, state.log_reused, state.log_fresh, unused)
 
 

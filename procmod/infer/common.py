@@ -1,0 +1,260 @@
+"""What every engine shares: budgets, the anytime history, results, batched evaluation.
+
+Engine contract (DESIGN.md "Engines")::
+
+    result = engine(model, target, seed=0, budget=Budget(seconds=30), ...)
+    result.best       # the best complete derivation found
+    result.samples    # final particles / population / chain states
+    result.history    # rows (seconds, evaluations, best score, mean score)
+
+An *evaluation* is one scoring of an output by the target: one particle-step for SMC,
+one individual for the GA, one proposal for MCMC, one forward sample for ``forward``.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import contextlib
+import functools
+import gc
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from ..core import Derivation, InvalidArgumentError, replay
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How much an engine may spend: wall seconds, target evaluations, and/or generations.
+
+    The engine stops at the first limit reached. A generation is one SMC run, one GA
+    generation, or one MCMC sweep over the chains.
+    """
+
+    seconds: float | None = None
+    evaluations: int | None = None
+    generations: int | None = None
+
+    def __post_init__(self):
+        for name in ("seconds", "evaluations", "generations"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise InvalidArgumentError(f"budget {name} must be positive, got {value!r}")
+
+    @property
+    def unlimited(self) -> bool:
+        return self.seconds is None and self.evaluations is None and self.generations is None
+
+    def describe(self) -> str:
+        parts = []
+        if self.seconds is not None:
+            parts.append(f"{self.seconds:g}s")
+        if self.evaluations is not None:
+            parts.append(f"{self.evaluations}evals")
+        if self.generations is not None:
+            parts.append(f"{self.generations}gens")
+        return "+".join(parts) or "unlimited"
+
+
+_BUDGET = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(s|sec|seconds|m|min|evals?|evaluations|gens?|generations)\s*$")
+
+
+def parse_budget(text: str) -> Budget:
+    """Parse ``30s``, ``2m``, ``5000evals`` or ``100gens`` (joined with ``+`` for several)."""
+    seconds = evaluations = generations = None
+    for part in str(text).split("+"):
+        match = _BUDGET.match(part.lower())
+        if not match:
+            raise InvalidArgumentError(
+                f"cannot read budget {text!r}: use e.g. 30s, 2m, 5000evals or 100gens")
+        value, unit = float(match.group(1)), match.group(2)
+        if unit in ("s", "sec", "seconds"):
+            seconds = value
+        elif unit in ("m", "min"):
+            seconds = 60 * value
+        elif unit.startswith("eval"):
+            evaluations = int(value)
+        else:
+            generations = int(value)
+    return Budget(seconds, evaluations, generations)
+
+
+class HistoryRow(NamedTuple):
+    """One point of an engine's anytime curve."""
+
+    seconds: float
+    evaluations: int
+    best_score: float
+    mean_score: float
+
+
+class Tracker:
+    """Keeps time, counts evaluations, remembers the best complete derivation, and records
+    the anytime history (at most every ``interval`` seconds, plus at the end)."""
+
+    def __init__(self, budget: Budget | None, progress: Callable | None = None, interval: float = 0.1):
+        self.budget = budget or Budget()
+        self.progress = progress
+        self.interval = interval
+        self.t0 = time.perf_counter()
+        self.evaluations = 0
+        self.generations = 0
+        self.best = None
+        self.best_score = -math.inf
+        self.rows: list[HistoryRow] = []
+        self._last_row = -math.inf
+
+    @property
+    def seconds(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def spent(self) -> bool:
+        """True once any limit of the budget is reached."""
+        b = self.budget
+        return ((b.seconds is not None and self.seconds >= b.seconds)
+                or (b.evaluations is not None and self.evaluations >= b.evaluations)
+                or (b.generations is not None and self.generations >= b.generations))
+
+    def fraction(self) -> float:
+        """How much of the budget is used, in [0, 1] (for progress bars)."""
+        b = self.budget
+        parts = [0.0]
+        if b.seconds is not None:
+            parts.append(self.seconds / b.seconds)
+        if b.evaluations is not None:
+            parts.append(self.evaluations / b.evaluations)
+        if b.generations is not None:
+            parts.append(self.generations / b.generations)
+        return min(1.0, max(parts))
+
+    def offer(self, derivation: Derivation, score: float) -> None:
+        """Consider a complete derivation for ``best``."""
+        if score > self.best_score:
+            self.best_score = score
+            self.best = derivation
+
+    def due(self) -> bool:
+        """Whether a history row is due (cheap; engines compute mean scores only then)."""
+        return self.seconds - self._last_row >= self.interval
+
+    def record(self, mean_score: float) -> None:
+        now = self.seconds
+        self._last_row = now
+        self.rows.append(HistoryRow(now, self.evaluations, self.best_score, float(mean_score)))
+        if self.progress is not None:
+            self.progress(self)
+
+
+@dataclass
+class Result:
+    """What an engine returns (see the module docstring)."""
+
+    engine: str
+    best: Derivation | None
+    best_score: float
+    samples: list
+    history: list
+    seconds: float
+    evaluations: int
+    settings: dict = field(default_factory=dict)
+    log_weights: list | None = None
+    log_marginal_likelihood: float | None = None
+    notes: list = field(default_factory=list)
+
+    def history_csv(self) -> str:
+        """The anytime history as CSV text."""
+        lines = ["seconds,evaluations,best_score,mean_score"]
+        lines += [f"{r.seconds:.6f},{r.evaluations},{r.best_score:.9g},{r.mean_score:.9g}" for r in self.history]
+        return "\n".join(lines) + "\n"
+
+    def score_at(self, seconds: float) -> float:
+        """Best score reached by ``seconds`` (-inf if nothing complete yet)."""
+        best = -math.inf
+        for row in self.history:
+            if row.seconds > seconds:
+                break
+            best = row.best_score
+        return best
+
+
+class InlineExecutor(concurrent.futures.Executor):
+    """An executor that runs each task at once in the calling thread (the default)."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        future = concurrent.futures.Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # delivered through the future, as executors do
+            future.set_exception(exc)
+        return future
+
+
+class Evaluation(NamedTuple):
+    """A replayed, scored derivation."""
+
+    derivation: Derivation
+    log_likelihood: float
+    score: float
+    log_reused: float
+    log_fresh: float
+    unused: list
+
+
+def evaluate(model, target, job) -> Evaluation:
+    """Replay ``job = (choices, seed, maybe_default)`` into the target's output and score it.
+
+    Module-level (and fed only picklable arguments) so process pools and dask can run it.
+    """
+    choices, seed, maybe_default = job
+    result = replay(model, choices, np.random.default_rng(seed), output=target.new_output(model),
+                    maybe_default=maybe_default)
+    d = result.derivation
+    return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
+                      result.log_reused, result.log_fresh, result.unused)
+
+
+def evaluate_all(executor, model, target, jobs: list) -> list:
+    """Evaluate jobs through ``executor`` (in order)."""
+    return list((executor or InlineExecutor()).map(functools.partial(evaluate, model, target), jobs))
+
+
+def new_seed(rng: np.random.Generator) -> int:
+    """A seed for a sub-task, drawn from the engine's generator (keeps runs reproducible)."""
+    return int(rng.integers(0, 2 ** 63 - 1))
+
+
+def check_positive(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
+def log_mean_exp(values) -> float:
+    """log(mean(exp(values))) computed stably; -inf when every value is -inf."""
+    values = np.asarray(values, dtype=np.float64)
+    top = values.max()
+    if top == -math.inf:
+        return -math.inf
+    return float(top + math.log(np.mean(np.exp(values - top))))
+
+
+@contextlib.contextmanager
+def relaxed_gc(threshold: int = 100_000):
+    """Run the cyclic garbage collector rarely while an engine runs.
+
+    Engines allocate and drop many small acyclic objects (contexts, nodes, copies) that
+    reference counting frees at once; the default collector thresholds would scan the
+    whole, growing heap of live particles over and over for nothing (a third of an SMC
+    run's time). Collection still happens, just every ``threshold`` allocations.
+    """
+    old = gc.get_threshold()
+    gc.set_threshold(threshold, old[1], old[2])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*old)
