@@ -205,6 +205,21 @@ class Evaluation(NamedTuple):
     unused: list
 
 
+@dataclass
+class Scored:
+    """A complete derivation with its log-prior, log-likelihood and score (a chain state,
+    a GA individual)."""
+
+    derivation: Derivation
+    log_prior: float
+    log_likelihood: float
+    score: float
+
+    @classmethod
+    def from_evaluation(cls, ev: "Evaluation") -> "Scored":
+        return cls(ev.derivation, ev.derivation.log_prior, ev.log_likelihood, ev.score)
+
+
 def evaluate(model, target, job) -> Evaluation:
     """Replay ``job = (choices, seed, maybe_default)`` into the target's output and score it.
 

@@ -1,0 +1,239 @@
+"""``ga``: the genetic algorithm of ShapeGenetics (seed 002, sections 4-6).
+
+The genome is the derivation tree itself: an individual is a complete derivation, and
+every genetic operation edits its choice map and replays it under the model, so every
+offspring is a valid derivation by construction.
+
+* **grow** — express a ``maybe`` child that is off, chosen with probability proportional
+  to its spawn probability ``p``; the new call's own parameters are drawn from the prior
+  and its own ``maybe`` children start unexpressed (one gene is added);
+* **cut** — unexpress a ``maybe`` child that is on, chosen proportionally to ``1 - p``
+  (children spawned with probability 1 are never cut), removing its subtree;
+* **alter** — pick a call uniformly and redraw all its parameters (its non-structural
+  choices) from the prior;
+* **crossover** — pick a connection (parent rule, spawn site, child rule) of the first
+  parent uniformly, a compatible one of the second, and swap the subtrees below them
+  (up to ``max_retries`` tries when no compatible connection exists).
+
+Selection: one parent by roulette wheel on fitness shifted to be positive (``score -
+min score``), the other by k-tournament (k = 10); the best fifth of the population is
+kept unchanged (elitism). Mutation probability 30%, split 13.5 / 13.5 / 3.0 between grow,
+cut and alter. The initial population starts from minimal derivations (every ``maybe``
+off) grown repeatedly to random sizes. Fitness evaluations (replay + score) go through
+the ``executor``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..core import InvalidArgumentError, is_within
+from .common import (Budget, Result, Scored, Tracker, check_positive, evaluate_all, new_seed,
+                     relaxed_gc)
+
+
+def _weighted_pick(items, weights, rng):
+    total = float(sum(weights))
+    if not items or total <= 0:
+        return None
+    u = rng.random() * total
+    acc = 0.0
+    for item, w in zip(items, weights):
+        acc += w
+        if u < acc:
+            return item
+    return items[-1]
+
+
+def grow_choices(d, rng) -> dict | None:
+    """Choice map with one unexpressed ``maybe`` child turned on (None if there is none)."""
+    sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns if not s.on]
+    pick = _weighted_pick(sites, [p for _, _, p in sites], rng)
+    if pick is None:
+        return None
+    choices = dict(d.choice_map().raw)
+    choices[(pick[0], pick[1])] = True
+    return choices
+
+
+def cut_choices(d, rng) -> dict | None:
+    """Choice map with one expressed ``maybe`` child cut (None if nothing can be cut)."""
+    sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns
+             if s.on and s.probability < 1.0]
+    pick = _weighted_pick(sites, [1.0 - p for _, _, p in sites], rng)
+    if pick is None:
+        return None
+    child = pick[0] + (pick[1],)
+    choices = {k: v for k, v in d.choice_map().raw.items() if not is_within(k[0], child)}
+    choices[(pick[0], pick[1])] = False
+    return choices
+
+
+def alter_choices(d, rng) -> dict | None:
+    """Choice map with one call's parameters removed (so replay redraws them)."""
+    candidates = []
+    for n in d.nodes():
+        structural = {s.site for s in n.spawns}
+        names = [name for name in n.choices if name not in structural]
+        if names:
+            candidates.append((n.address, names))
+    if not candidates:
+        return None
+    address, names = candidates[int(rng.random() * len(candidates))]
+    removed = {(address, name) for name in names}
+    return {k: v for k, v in d.choice_map().raw.items() if k not in removed}
+
+
+def connections(d) -> dict:
+    """``(parent rule, site, child rule) -> [child addresses]`` of a derivation."""
+    tree = d.tree()
+    out = {}
+    for address, node in tree.items():
+        if address:
+            key = (tree[address[:-1]].rule, address[-1], node.rule)
+            out.setdefault(key, []).append(address)
+    return out
+
+
+def _graft(base: dict, at: tuple, donor: dict, source: tuple) -> dict:
+    """``base`` with the subtree at ``at`` replaced by ``donor``'s subtree at ``source``."""
+    out = {k: v for k, v in base.items() if not is_within(k[0], at)}
+    n = len(source)
+    for (address, name), value in donor.items():
+        if is_within(address, source):
+            out[(at + address[n:], name)] = value
+    return out
+
+
+def crossover_choices(d1, d2, rng, max_retries: int = 10):
+    """Two children's choice maps by swapping compatible subtrees (None if none found)."""
+    c1 = [(key, a) for key, addresses in connections(d1).items() for a in addresses]
+    if not c1:
+        return None
+    c2 = connections(d2)
+    for _ in range(max_retries):
+        key, a1 = c1[int(rng.random() * len(c1))]
+        matches = c2.get(key)
+        if not matches:
+            continue
+        a2 = matches[int(rng.random() * len(matches))]
+        m1, m2 = d1.choice_map().raw, d2.choice_map().raw
+        return _graft(m1, a1, m2, a2), _graft(m2, a2, m1, a1)
+    return None
+
+
+def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | None = None,
+       mutation: float = 0.3, split=(13.5, 13.5, 3.0), elitism: float = 0.2, tournament: int = 10,
+       initial_size: int | None = None, max_retries: int = 10, executor=None, progress=None) -> Result:
+    """Genetic algorithm over derivation trees.
+
+    Parameters
+    ----------
+    population : int
+        Individuals per generation.
+    budget : Budget
+        Default: 50 generations.
+    mutation : float
+        Probability that a selected pair is mutated instead of crossed over.
+    split : (grow, cut, alter)
+        Relative weights of the mutation operators (seed 002: 13.5 / 13.5 / 3.0).
+    elitism : float
+        Fraction of the best individuals copied unchanged into the next generation.
+    tournament : int
+        k of the k-tournament selection.
+    initial_size : int, optional
+        Initial individuals are grown to sizes uniform in [1, initial_size] calls
+        (default: twice the mean size of 20 forward samples, at least 5).
+    executor : concurrent.futures.Executor, optional
+        Evaluates offspring (default: in-process).
+    """
+    check_positive("population", population)
+    check_positive("tournament", tournament)
+    if not 0.0 <= mutation <= 1.0:
+        raise InvalidArgumentError(f"mutation must be in [0, 1], got {mutation!r}")
+    if len(split) != 3 or any(w < 0 for w in split) or sum(split) <= 0:
+        raise InvalidArgumentError(f"split must be three non-negative weights (grow, cut, alter), got {split!r}")
+    if not 0.0 <= elitism < 1.0:
+        raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
+    budget = budget or Budget(generations=50)
+    model = target.configure(model)
+    rng = np.random.default_rng(seed)
+    tracker = Tracker(budget, progress)
+    operators = (grow_choices, cut_choices, alter_choices)
+
+    def evaluate(jobs):
+        out = [Scored.from_evaluation(ev) for ev in evaluate_all(executor, model, target, jobs)]
+        tracker.evaluations += len(out)
+        for ind in out:
+            tracker.offer(ind.derivation, ind.score)
+        return out
+
+    with relaxed_gc():
+        if initial_size is None:
+            sizes = [ind.derivation.n_nodes for ind in evaluate([({}, new_seed(rng), None) for _ in range(20)])]
+            initial_size = max(5, int(round(2 * np.mean(sizes))))
+        check_positive("initial_size", initial_size)
+        pop = evaluate([({}, new_seed(rng), False) for _ in range(population)])
+        goals = rng.integers(1, initial_size + 1, size=population)
+        growing = [i for i in range(population) if pop[i].derivation.n_nodes < goals[i]]
+        while growing:  # grow every unfinished individual by one gene per round
+            jobs, owners = [], []
+            for i in growing:
+                choices = grow_choices(pop[i].derivation, rng)
+                if choices is not None:
+                    jobs.append((choices, new_seed(rng), False))
+                    owners.append(i)
+            for i, ind in zip(owners, evaluate(jobs)):
+                pop[i] = ind
+            growing = [i for i in owners if pop[i].derivation.n_nodes < goals[i]]
+        tracker.record(float(np.mean([ind.score for ind in pop])))
+
+        n_elite = int(math.ceil(elitism * population)) if elitism > 0 else 0
+        while not tracker.spent():
+            pop.sort(key=lambda ind: ind.score, reverse=True)
+            scores = np.array([ind.score for ind in pop])
+            fitness = scores - scores.min()
+            fitness = fitness / fitness.sum() if fitness.sum() > 0 else np.full(population, 1.0 / population)
+            cumulative = np.cumsum(fitness)
+
+            def roulette():
+                return pop[min(int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right")),
+                               population - 1)]
+
+            def tournament_pick():
+                return pop[int(min(rng.integers(0, population, size=tournament)))]  # sorted: lowest index wins
+
+            offspring, jobs = list(pop[:n_elite]), []
+            while len(offspring) + len(jobs) < population:
+                p1, p2 = roulette(), tournament_pick()
+                if rng.random() < mutation:
+                    for parent in (p1, p2):
+                        choices = None
+                        first = _weighted_pick([0, 1, 2], split, rng)
+                        for op in [first] + [k for k in (0, 1, 2) if k != first and split[k] > 0]:
+                            choices = operators[op](parent.derivation, rng)
+                            if choices is not None:
+                                break
+                        if choices is None:
+                            offspring.append(parent)
+                        else:
+                            jobs.append((choices, new_seed(rng), False))
+                else:
+                    children = crossover_choices(p1.derivation, p2.derivation, rng, max_retries)
+                    if children is None:
+                        offspring.extend([p1, p2])
+                    else:
+                        jobs.extend((c, new_seed(rng), False) for c in children)
+            offspring.extend(evaluate(jobs))
+            pop = offspring[:population]
+            tracker.generations += 1
+            tracker.record(float(np.mean([ind.score for ind in pop])))
+    pop.sort(key=lambda ind: ind.score, reverse=True)
+    return Result("ga", tracker.best, tracker.best_score, [ind.derivation for ind in pop],
+                  tracker.rows, tracker.seconds, tracker.evaluations,
+                  settings={"population": population, "seed": seed, "budget": budget.describe(),
+                            "mutation": mutation, "split": list(split), "elitism": elitism,
+                            "tournament": tournament, "initial_size": initial_size},
+                  log_weights=[ind.log_likelihood for ind in pop])
