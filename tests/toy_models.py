@@ -81,3 +81,94 @@ def stopper_leaf(ctx, name):
 
 
 STOPPER = Model("stopper", "global stop toy", stopper_root, lambda p: (), canvas)
+
+
+# ---------------------------------------------------------------------------------------
+# Models with exact posteriors, for the engines' correctness tests. Their output is a
+# running sum of emitted numbers; the target is a Gaussian observation of that sum.
+
+
+class Value(float):
+    """An emitted number."""
+
+
+class SumOutput:
+    def __init__(self):
+        self.total = 0.0
+
+    def add(self, value):
+        self.total += float(value)
+
+    def copy(self):
+        other = SumOutput()
+        other.total = self.total
+        return other
+
+
+class SumTarget:
+    """log N(obs; sum, s^2), normalised, so SMC's Z estimate is a real density value."""
+
+    name = "sum"
+
+    def __init__(self, obs, s):
+        self.obs, self.s = obs, s
+
+    def configure(self, model):
+        return model
+
+    def new_output(self, model):
+        return SumOutput()
+
+    def log_likelihood(self, output):
+        d = output.total - self.obs
+        return -0.5 * d * d / self.s ** 2 - 0.5 * math.log(2 * math.pi * self.s ** 2)
+
+    def score(self, output):
+        return -abs(output.total - self.obs)
+
+
+def mix_root(ctx):
+    k = ctx.sample("k", Categorical([0.3, 0.5, 0.2]))
+    x = ctx.sample("x", Normal(0.0, 1.0))
+    ctx.emit(Value(k + x))
+    ctx.maybe("child", 0.5, mix_child)
+
+
+def mix_child(ctx):
+    ctx.emit(Value(ctx.sample("y", Normal(0.0, 1.0))))
+
+
+MIX = Model("mix", "discrete + continuous + maybe toy", mix_root, lambda p: (), lambda p: SumOutput(),
+            rules=(mix_root, mix_child))
+
+
+def _normal_pdf(x, var):
+    return math.exp(-0.5 * x * x / var) / math.sqrt(2 * math.pi * var)
+
+
+def mix_exact(obs, s):
+    """Exact marginal likelihood Z and posterior P(k, child) of MIX under SumTarget(obs, s)."""
+    joint = {}
+    for k, pk in enumerate([0.3, 0.5, 0.2]):
+        for c in (False, True):
+            joint[(k, c)] = pk * 0.5 * _normal_pdf(obs - k, 1 + c + s * s)
+    z = sum(joint.values())
+    return z, {key: v / z for key, v in joint.items()}
+
+
+def count_root(ctx, depth):
+    ctx.emit(Value(ctx.sample("v", Normal(0.0, 1.0))))
+    if depth < 4:
+        ctx.maybe("next", 0.6, count_root, depth + 1)
+
+
+COUNT = Model("count", "trans-dimensional toy: 1-5 calls", count_root, lambda p: (0,),
+              lambda p: SumOutput(), rules=(count_root,))
+
+
+def count_exact(obs, s):
+    """Exact posterior over the number of calls of COUNT under SumTarget(obs, s)."""
+    prior = {n: 0.6 ** (n - 1) * (0.4 if n < 5 else 1.0) for n in range(1, 6)}
+    joint = {n: p * _normal_pdf(obs, n + s * s) for n, p in prior.items()}
+    z = sum(joint.values())
+    return {n: v / z for n, v in joint.items()}

@@ -1,0 +1,179 @@
+"""Engine contract, genetic operators and MCMC proposals on the built-in models."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from procmod.core import InvalidArgumentError, replay, run_forward
+from procmod.infer import ENGINES, Budget, parse_budget
+from procmod.infer.common import Scored, evaluate
+from procmod.infer.ga import alter_choices, connections, crossover_choices, cut_choices, grow_choices
+from procmod.infer.mcmc import propose, temperature_ladder
+from procmod.models import get_model
+from procmod.targets import ShapeMatch, TargetImage
+
+from toy_models import TREE
+
+
+def _bar_target():
+    mask = np.zeros((50, 50), bool)
+    mask[10:45, 22:28] = True
+    return ShapeMatch(TargetImage("bar", mask, (0.5, 0.9), (0, -1)))
+
+
+def _valid(model, d):
+    """A derivation is valid if replaying its choice map reproduces it with finite log-prior."""
+    assert math.isfinite(d.log_prior)
+    r = replay(model, d.choice_map(), np.random.default_rng(0))
+    assert r.log_fresh == 0.0 and r.unused == []
+    assert r.derivation.choice_map() == d.choice_map()
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1), name=st.sampled_from(["vines", "lightning", "chain"]))
+def test_every_ga_offspring_is_a_valid_derivation(seed, name):
+    model = get_model(name)
+    rng = np.random.default_rng(seed)
+    d1, d2 = run_forward(model, rng), run_forward(model, rng)
+    maps = [f(d1, rng) for f in (grow_choices, cut_choices, alter_choices)]
+    children = crossover_choices(d1, d2, rng)
+    if children:
+        maps.extend(children)
+    for choices in maps:
+        if choices is None:
+            continue
+        d = replay(model, choices, rng, maybe_default=False).derivation
+        _valid(model, d)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1), name=st.sampled_from(["vines", "lightning", "chain"]))
+def test_every_mcmc_proposal_is_a_valid_derivation(seed, name):
+    model = get_model(name)
+    target = _bar_target()
+    rng = np.random.default_rng(seed)
+    state = Scored.from_evaluation(evaluate(model, target, ({}, seed, None)))
+    for _ in range(5):
+        p = propose(state, rng, 0.5, 0.1)
+        ev = evaluate(model, target, (p.choices, int(rng.integers(2 ** 62)), None))
+        _valid(model, ev.derivation)
+
+
+def test_grow_and_cut_follow_spawn_probabilities():
+    # Lightning's maybe sites: fork (p = 0.22) and next (p = 0.96 or 0.8). Grow picks an
+    # unexpressed child with probability proportional to p; cut proportional to 1 - p.
+    model = get_model("lightning")
+    rng = np.random.default_rng(3)
+    d = run_forward(model, rng)
+    off = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns if not s.on]
+    assert off
+    counts = {}
+    n = 3000
+    for _ in range(n):
+        choices = grow_choices(d, rng)
+        new = [k for k, v in choices.items() if v is True and d.choice_map().get(k) is False]
+        counts[new[0]] = counts.get(new[0], 0) + 1
+    total = sum(p for _, _, p in off)
+    for address, site, p in off:
+        expected = p / total
+        got = counts.get((address, site), 0) / n
+        assert abs(got - expected) < 5 * math.sqrt(expected * (1 - expected) / n)
+
+
+def test_crossover_swaps_compatible_subtrees():
+    model = get_model("lightning")
+    rng = np.random.default_rng(11)
+    d1, d2 = run_forward(model, rng), run_forward(model, rng)
+    c1, c2 = crossover_choices(d1, d2, rng)
+    r1 = replay(model, c1, rng).derivation
+    # The child keeps every connection type of the model: parent rule, site, child rule.
+    for parent_rule, site, child_rule in connections(r1):
+        assert (parent_rule.__name__, site, child_rule.__name__) in {
+            ("bolt", "next", "bolt"), ("bolt", "fork", "fork"), ("fork", "bolt", "bolt")}
+
+
+@pytest.mark.parametrize("engine,kwargs", [
+    ("forward", {"particles": 20}), ("smc", {"particles": 20}), ("sosmc", {"particles": 20}),
+    ("mcmc", {"chains": 3}), ("ga", {"population": 12})])
+def test_engine_contract_and_determinism(engine, kwargs):
+    model = get_model("vines")
+    target = _bar_target()
+    budget = Budget(evaluations=400)
+    a = ENGINES[engine](model, target, seed=4, budget=budget, **kwargs)
+    b = ENGINES[engine](model, target, seed=4, budget=budget, **kwargs)
+    assert a.best is not None and a.best.done
+    assert a.best_score == max(r.best_score for r in a.history)
+    assert a.best_score == pytest.approx(target.score(replay(target.configure(model), a.best.choice_map(),
+                                                             np.random.default_rng(0), order=a.best.order(),
+                                                             output=target.new_output(model)).derivation.output))
+    assert a.samples and all(s.done for s in a.samples)
+    rows = a.history
+    assert all(r2.seconds >= r1.seconds and r2.evaluations >= r1.evaluations and r2.best_score >= r1.best_score
+               for r1, r2 in zip(rows, rows[1:]))
+    assert a.evaluations >= 400
+    # Same seed, same result.
+    assert a.best.choice_map() == b.best.choice_map() and a.evaluations == b.evaluations
+    assert [s.choice_map() for s in a.samples] == [s.choice_map() for s in b.samples]
+
+
+def test_ga_elitism_never_loses_the_best():
+    result = ENGINES["ga"](get_model("lightning"), _bar_target(), population=20, seed=1,
+                           budget=Budget(generations=8))
+    bests = [r.best_score for r in result.history]
+    assert bests == sorted(bests)
+    assert result.history[-1].best_score == result.best_score
+
+
+def test_all_zero_likelihood_is_reported_not_nan():
+    class Impossible:
+        name = "impossible"
+
+        def configure(self, model):
+            return model
+
+        def new_output(self, model):
+            return model.new_output()
+
+        def log_likelihood(self, output):
+            return -math.inf
+
+        def score(self, output):
+            return 0.0
+
+    result = ENGINES["smc"](TREE, Impossible(), particles=10, seed=0)
+    assert result.log_marginal_likelihood == -math.inf
+    assert result.notes and "zero likelihood" in result.notes[0]
+    assert not any(math.isnan(w) for w in result.log_weights)
+
+
+def test_smc_resampling_options():
+    target = _bar_target()
+    model = get_model("vines")
+    for resampling in ("systematic", "multinomial"):
+        r = ENGINES["smc"](model, target, particles=30, seed=0, resampling=resampling, ess_threshold=0.5)
+        assert r.best is not None and math.isfinite(r.log_marginal_likelihood)
+    with pytest.raises(InvalidArgumentError):
+        ENGINES["smc"](model, target, particles=30, resampling="stratified-ish")
+    with pytest.raises(InvalidArgumentError):
+        ENGINES["smc"](model, target, particles=0)
+
+
+def test_temperature_ladder_matches_seed_002():
+    betas = temperature_ladder(5)
+    assert betas[0] == 1.0
+    # A likelihood ratio accepted 70% in the hottest chain is accepted 1% in the coldest.
+    r = 0.7 ** (1 / betas[-1])
+    assert r ** betas[0] == pytest.approx(0.01)
+
+
+def test_parse_budget():
+    assert parse_budget("30s") == Budget(seconds=30)
+    assert parse_budget("2m") == Budget(seconds=120)
+    assert parse_budget("5000evals") == Budget(evaluations=5000)
+    assert parse_budget("100gens+10s") == Budget(seconds=10, generations=100)
+    for bad in ("", "fast", "-3s", "0evals"):
+        with pytest.raises(InvalidArgumentError):
+            parse_budget(bad)

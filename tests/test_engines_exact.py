@@ -1,0 +1,132 @@
+"""Engines against exact answers on toy models (tolerances from the sample sizes)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from procmod.infer import Budget, mcmc, smc, sosmc
+
+from toy_models import COUNT, MIX, SumTarget, count_exact, mix_exact
+
+OBS, S = 2.3, 0.5
+
+
+def test_smc_marginal_likelihood_is_unbiased():
+    z, _ = mix_exact(OBS, S)
+    runs = 400
+    estimates = np.array([math.exp(smc(MIX, SumTarget(OBS, S), particles=8, seed=i).log_marginal_likelihood)
+                          for i in range(runs)])
+    se = estimates.std(ddof=1) / math.sqrt(runs)
+    assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
+    assert se < 0.1 * z  # the check has power: a 10% bias would be caught
+
+
+def _posterior_from_smc(result):
+    w = np.exp(np.array(result.log_weights) - max(result.log_weights))
+    w /= w.sum()
+    out = {}
+    for weight, d in zip(w, result.samples):
+        cm = d.choice_map()
+        key = (cm[((), "k")], cm[((), "child")])
+        out[key] = out.get(key, 0.0) + weight
+    return out
+
+
+@pytest.mark.parametrize("engine", [smc, sosmc])
+def test_smc_posterior_marginals_match_exact(engine):
+    _, exact = mix_exact(OBS, S)
+    runs = 40
+    estimates = [_posterior_from_smc(engine(MIX, SumTarget(OBS, S), particles=300, seed=100 + i))
+                 for i in range(runs)]
+    for key, p in exact.items():
+        values = np.array([e.get(key, 0.0) for e in estimates])
+        se = values.std(ddof=1) / math.sqrt(runs)
+        # 5 standard errors plus an allowance for SMC's O(1/N) bias in ratio estimates.
+        assert abs(values.mean() - p) < 5 * se + 2.0 / 300, (key, values.mean(), p, se)
+
+
+def _chain_means(samples_per_chain, keys, key_of):
+    means = []
+    for samples in samples_per_chain:
+        counts = {k: 0 for k in keys}
+        for d in samples:
+            counts[key_of(d)] += 1
+        means.append([counts[k] / len(samples) for k in keys])
+    return np.array(means)
+
+
+def _run_chains(model, chains, sweeps, seed, **kwargs):
+    """Independent chains' second halves, sampled every sweep (via many short runs)."""
+    from procmod.infer.common import Scored, evaluate
+    from procmod.infer.mcmc import log_acceptance, propose
+    target = SumTarget(OBS, S)
+    rng = np.random.default_rng(seed)
+    per_chain = []
+    for c in range(chains):
+        state = Scored.from_evaluation(evaluate(model, target, ({}, int(rng.integers(2 ** 62)), None)))
+        kept = []
+        for sweep in range(sweeps):
+            p = propose(state, rng, kwargs.get("p_diffusion", 0.5), kwargs.get("step_scale", 0.5))
+            ev = evaluate(model, target, (p.choices, int(rng.integers(2 ** 62)), None))
+            if math.log(rng.random() + 1e-300) < log_acceptance(state, p, ev, 1.0):
+                state = Scored.from_evaluation(ev)
+            if sweep >= sweeps // 2:
+                kept.append(state.derivation)
+        per_chain.append(kept)
+    return per_chain
+
+
+def test_mcmc_moves_leave_the_trans_dimensional_posterior_invariant():
+    exact = count_exact(OBS, S)
+    keys = sorted(exact)
+    chains = _run_chains(COUNT, chains=40, sweeps=400, seed=5)
+    means = _chain_means(chains, keys, lambda d: d.n_nodes)
+    for j, n in enumerate(keys):
+        se = means[:, j].std(ddof=1) / math.sqrt(len(means))
+        assert abs(means[:, j].mean() - exact[n]) < 5 * se + 0.01, (n, means[:, j].mean(), exact[n], se)
+
+
+def test_mcmc_engine_posterior_marginals_match_exact():
+    _, exact = mix_exact(OBS, S)
+    keys = sorted(exact)
+    per_chain = []
+    for seed in range(24):
+        result = mcmc(MIX, SumTarget(OBS, S), chains=4, seed=seed, budget=Budget(generations=300),
+                      tempering=True, annealing=None, step_scale=0.5)
+        per_chain.append(result.samples[:1])  # the cold chain's final state
+    states = [d for chain in per_chain for d in chain]
+    counts = {k: 0 for k in keys}
+    for d in states:
+        cm = d.choice_map()
+        counts[(cm[((), "k")], cm[((), "child")])] += 1
+    n = len(states)
+    for key, p in exact.items():
+        se = math.sqrt(p * (1 - p) / n)
+        assert abs(counts[key] / n - p) < 5 * se + 0.02, (key, counts[key] / n, p)
+
+
+def test_mcmc_tempered_cold_chain_targets_posterior():
+    exact = count_exact(OBS, S)
+    finals = []
+    for seed in range(60):
+        result = mcmc(COUNT, SumTarget(OBS, S), chains=3, seed=seed, budget=Budget(generations=150),
+                      tempering=True, annealing=None, step_scale=0.5)
+        finals.append(result.samples[0].n_nodes)
+    n = len(finals)
+    for k, p in exact.items():
+        freq = finals.count(k) / n
+        assert abs(freq - p) < 5 * math.sqrt(p * (1 - p) / n) + 0.02, (k, freq, p)
+
+
+def test_delayed_rejection_keeps_the_posterior():
+    exact = count_exact(OBS, S)
+    finals = []
+    for seed in range(60):
+        result = mcmc(COUNT, SumTarget(OBS, S), chains=1, seed=seed, budget=Budget(generations=150),
+                      tempering=False, annealing=None, delayed_rejection=True, p_diffusion=0.3)
+        finals.append(result.samples[0].n_nodes)
+    n = len(finals)
+    for k, p in exact.items():
+        freq = finals.count(k) / n
+        assert abs(freq - p) < 5 * math.sqrt(p * (1 - p) / n) + 0.02, (k, freq, p)

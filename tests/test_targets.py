@@ -1,0 +1,174 @@
+import json
+import math
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from procmod.core import InvalidArgumentError, run_forward, start, step
+from procmod.data import glyph_set, render_glyph, scribble_target, target_image
+from procmod.geometry import Canvas, Disc, Segment
+from procmod.models import get_model
+from procmod.targets import (Circuit, ShapeMatch, TargetFileError, TargetImage, edge_total,
+                             load_target_image, shape_weights)
+
+
+def _disc_mask(n=50, r=12):
+    yy, xx = np.mgrid[:n, :n]
+    return (xx - n / 2) ** 2 + (yy - n / 2) ** 2 <= r * r
+
+
+def test_shape_weights_follow_equation_3():
+    mask = _disc_mask()
+    w = shape_weights(mask, 0.6)
+    assert np.all(w[~mask] == 1.0)
+    interior = mask.copy()
+    interior[1:-1, 1:-1] = mask[:-2, 1:-1] & mask[2:, 1:-1] & mask[1:-1, :-2] & mask[1:-1, 2:] & mask[1:-1, 1:-1]
+    assert np.all(w[mask & ~interior] == 1.0)  # boundary pixels of the shape are edges
+    assert np.isclose(w[25, 25], 0.6)
+    graded = shape_weights(mask, weighting="sobel")
+    assert graded[mask].min() == pytest.approx(1 / 1.5) and graded.max() == pytest.approx(1.0)
+
+
+def test_shape_match_score_is_normalised_and_incremental():
+    mask = _disc_mask()
+    target = ShapeMatch(TargetImage("disc", mask))
+    model = get_model("vines")
+    empty = target.new_output(model)
+    assert target.score(empty) == 0.0
+    # Drawing exactly the target gives similarity 1.
+    perfect = target.new_output(model)
+    perfect.pixels[:] = mask.ravel()
+    perfect.gain_total = float(perfect.gain[mask.ravel()].sum())
+    assert target.score(perfect) == pytest.approx(1.0)
+    # Incremental score (kept by the raster kernels) equals the score from scratch.
+    rng = np.random.default_rng(0)
+    for seed in range(10):
+        d = run_forward(target.configure(model), np.random.default_rng(seed), output=target.new_output(model))
+        plain = Canvas(d.output.viewport, 50)
+        plain.pixels[:] = d.output.pixels
+        assert target.score(d.output) == pytest.approx(target.score(plain), abs=1e-12)
+        agree = (d.output.filled == mask)
+        w = shape_weights(mask)
+        sim = (w * agree).sum() / w.sum()
+        sim0 = (w * ~mask).sum() / w.sum()
+        assert target.score(d.output) == pytest.approx((sim - sim0) / (1 - sim0), abs=1e-12)
+    assert rng is not None
+
+
+def test_shape_match_likelihood_and_out_of_bounds():
+    target = ShapeMatch(TargetImage("disc", _disc_mask()))
+    model = get_model("chain")
+    inside = target.new_output(model)
+    inside.add(Segment(0, -10, 0, -8, 0.5))
+    outside = target.new_output(model)
+    outside.add(Segment(0, -10, 0, -30, 0.5))
+    ll_in = target.log_likelihood(inside)
+    assert ll_in == pytest.approx(-0.5 * (target.score(inside) - 1) ** 2 / 0.02 ** 2)
+    assert target.log_likelihood(outside) < ll_in - 1000
+
+
+def test_circuit_is_incremental_and_prefers_half_fill():
+    circuit = Circuit()
+    model = get_model("lightning")
+    for seed in range(5):
+        state = start(model, circuit.new_output(model))
+        rng = np.random.default_rng(seed)
+        while step(state, rng):
+            c = state.output
+            assert c.edge_sum == pytest.approx(edge_total(c.pixels, c.width, c.height), abs=1e-9)
+    stripes = Canvas((0, 10, 0, 10), 20)
+    for x in np.arange(0.5, 10, 2.0):  # 2-pixel lines every 4 pixels: half filled, all edge
+        stripes.add(Segment(x, -1, x, 11, 0.9))
+    solid = Canvas((0, 10, 0, 10), 20)
+    solid.add(Disc(5, 5, 20))
+    assert stripes.filled_count == 200
+    # Every column but the two at the frame (replicated border) is an edge: edge = 18/20.
+    assert circuit.score(stripes) == pytest.approx(0.9) and circuit.score(solid) == 0.0
+
+
+def test_target_files_and_sidecars(tmp_path):
+    mask = np.zeros((60, 40), bool)
+    mask[10:50, 15:25] = True
+    Image.fromarray(np.where(mask, 0, 255).astype(np.uint8)).save(tmp_path / "bar.png")
+    t = load_target_image(tmp_path / "bar.png")
+    assert t.mask.shape == (60, 60) and t.mask.sum() == mask.sum()  # padded to a square
+    assert t.direction == (0.0, -1.0) and t.start[1] == pytest.approx(49.5 / 60)
+    # Light-on-dark pictures and transparency are read the same way.
+    Image.fromarray(np.where(mask, 255, 0).astype(np.uint8)).save(tmp_path / "inv.png")
+    assert np.array_equal(load_target_image(tmp_path / "inv.png").mask, t.mask)
+    (tmp_path / "bar.json").write_text(json.dumps({"start": [0.5, 0.9], "direction": [1, 0]}))
+    placed = load_target_image(tmp_path / "bar.png")
+    assert placed.direction == (1.0, 0.0)
+    assert placed.start == pytest.approx(((0.5 * 40 + 10) / 60, 0.9))
+    model = ShapeMatch(placed).configure(get_model("vines"))
+    assert model.params["direction"] == [1.0, 0.0]
+
+
+@pytest.mark.parametrize("make,message", [
+    (lambda p: Image.new("L", (20, 20), 255).save(p), "empty"),
+    (lambda p: p.write_bytes(b"not an image"), "not an image"),
+])
+def test_bad_target_files(tmp_path, make, message):
+    path = tmp_path / "t.png"
+    make(path)
+    with pytest.raises(TargetFileError, match=message):
+        load_target_image(path)
+
+
+def test_full_mask_and_missing_and_bad_sidecar(tmp_path):
+    img = np.full((20, 20), 255, np.uint8)
+    img[0, :] = 0  # border dark -> light is foreground -> almost everything
+    Image.fromarray(np.zeros((20, 20), np.uint8) + 255).convert("RGBA").save(tmp_path / "full.png")
+    with pytest.raises(TargetFileError, match="fills the whole frame"):
+        load_target_image(tmp_path / "full.png")
+    with pytest.raises(TargetFileError, match="does not exist"):
+        load_target_image(tmp_path / "nope.png")
+    mask = np.full((20, 20), 255, np.uint8)
+    mask[5:15, 5:15] = 0
+    Image.fromarray(mask).save(tmp_path / "sq.png")
+    (tmp_path / "sq.json").write_text('{"start": [2, 0.5]}')
+    with pytest.raises(TargetFileError, match="start"):
+        load_target_image(tmp_path / "sq.png")
+    (tmp_path / "sq.json").write_text("{")
+    with pytest.raises(TargetFileError, match="sidecar"):
+        load_target_image(tmp_path / "sq.png")
+
+
+def test_glyph_sets_from_two_typefaces():
+    sans, serif = glyph_set("dejavu-sans"), glyph_set("dejavu-serif")
+    assert len(sans) >= 40 and len(serif) >= 40
+    assert not np.array_equal(render_glyph("a", "dejavu-sans"), render_glyph("a", "dejavu-serif"))
+    names = {t.name for t in sans}
+    assert "glyph:dejavu-sans/i" not in names  # two connected parts
+    with pytest.raises(InvalidArgumentError, match="connected parts"):
+        target_image("glyph:i")
+    with pytest.raises(InvalidArgumentError, match="typeface"):
+        target_image("glyph:comic-sans/a")
+    for t in sans[:5]:
+        x, y = t.start
+        h, w = t.mask.shape
+        assert t.mask[int(y * h), int(x * w)]  # the start lies on the glyph
+    assert len(glyph_set("dejavu-sans", mirror=True)) == 2 * len(sans)
+
+
+def test_scribbles_are_deterministic_and_varied():
+    a, b = scribble_target(17), scribble_target(17)
+    assert np.array_equal(a.mask, b.mask)
+    fills = [scribble_target(i).mask.mean() for i in range(20)]
+    assert all(0.06 <= f <= 0.35 for f in fills)
+    assert len({round(f, 4) for f in fills}) == 20
+    with pytest.raises(InvalidArgumentError):
+        target_image("scribble:x")
+
+
+def test_target_specs_and_mirroring():
+    t = target_image("glyph:dejavu-serif/Q")
+    assert t.name == "glyph:dejavu-serif/Q"
+    m = target_image("scribble:3:mirrored")
+    base = target_image("scribble:3")
+    assert np.array_equal(m.mask, base.mask[:, ::-1])
+    assert m.start[0] == pytest.approx(1 - base.start[0]) and m.direction[0] == -base.direction[0]
+    with pytest.raises(TargetFileError):
+        target_image("no/such/file.png")
+    assert math.isfinite(ShapeMatch(t).log_likelihood(ShapeMatch(t).new_output(get_model("vines"))))
