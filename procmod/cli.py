@@ -47,6 +47,20 @@ def _build_parser() -> argparse.ArgumentParser:
     sample.add_argument("--out", required=True, help="output folder (created if missing)")
     sample.add_argument("--size", type=_int_arg, default=256, help="render width in pixels (default 256)")
 
+    infer = sub.add_parser("infer", help="control a model toward a target with an engine")
+    infer.add_argument("model", metavar="MODEL")
+    infer.add_argument("--target", required=True,
+                       help="glyph:CHAR, glyph:FACE/CHAR, scribble:N, circuit, or an image file")
+    infer.add_argument("--engine", default="smc", help="smc, sosmc, mcmc, ga or forward (default smc)")
+    infer.add_argument("--particles", type=_int_arg, help="particles (smc, sosmc, forward)")
+    infer.add_argument("--population", type=_int_arg, help="population (ga)")
+    infer.add_argument("--chains", type=_int_arg, help="chains (mcmc)")
+    infer.add_argument("--budget", help="30s, 2m, 5000evals or 100gens (default: one SMC run, "
+                                        "one forward batch, 200 MCMC sweeps, 50 GA generations)")
+    infer.add_argument("--seed", type=_int_arg, default=0)
+    infer.add_argument("--out", required=True, help="output folder")
+    infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
+
     render = sub.add_parser("render", help="render a saved derivation to PNG or SVG")
     render.add_argument("derivation", metavar="DERIVATION.json")
     render.add_argument("--out", required=True, help="output file, .png or .svg")
@@ -91,7 +105,76 @@ def _cmd_render(args) -> None:
     print(f"wrote {args.out}")
 
 
-_COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render}
+_POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "particles",
+                      "ga": "population", "mcmc": "chains"}
+
+
+def _cmd_infer(args) -> None:
+    from .data import target_image
+    from .infer import ENGINES, parse_budget
+    from .report import write_run
+    from .targets import Circuit, ShapeMatch
+
+    model = get_model(args.model)
+    if args.engine not in ENGINES:
+        raise InvalidArgumentError(f"unknown engine {args.engine!r}; choose one of {', '.join(ENGINES)}")
+    wanted = _POPULATION_OPTION[args.engine]
+    kwargs = {}
+    for option in ("particles", "population", "chains"):
+        value = getattr(args, option)
+        if value is None:
+            continue
+        if option != wanted:
+            raise InvalidArgumentError(f"--{option} does not apply to --engine {args.engine}; use --{wanted}")
+        if value < 1:
+            raise InvalidArgumentError(f"--{option} must be a positive integer, got {value}")
+        kwargs[option] = value
+    if args.seed < 0:
+        raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    size = check_size(args.size)
+    budget = parse_budget(args.budget) if args.budget is not None else None
+    target = Circuit() if args.target == "circuit" else ShapeMatch(target_image(args.target))
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    target.new_output(target.configure(model))  # fail early if the target does not fit the model
+    with _progress_bar(budget) as progress:
+        result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
+    if result.best is None:
+        raise InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
+    command = "procmod " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("procmod") else ""
+    report = write_run(result, target, out, size, command)
+    print(f"{result.engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations "
+          f"in {result.seconds:.1f} s; report: {report}")
+
+
+class _progress_bar:
+    """A tqdm bar on stderr (hidden when stderr is not a terminal), fed by the engine."""
+
+    def __init__(self, budget):
+        self.budget = budget
+
+    def __enter__(self):
+        from tqdm import tqdm
+        self.bar = tqdm(total=100 if self.budget is not None else None, unit="%" if self.budget else " evals",
+                        disable=None, leave=False, file=sys.stderr)
+
+        def update(tracker):
+            if self.budget is not None:
+                self.bar.n = round(100 * tracker.fraction(), 1)
+            else:
+                self.bar.n = tracker.evaluations
+            self.bar.set_postfix(best=f"{tracker.best_score:.3f}", refresh=False)
+            self.bar.refresh()
+
+        return update
+
+    def __exit__(self, *exc):
+        self.bar.close()
+        return False
+
+
+_COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render, "infer": _cmd_infer}
 
 
 def main(argv=None) -> int:

@@ -97,3 +97,50 @@ def test_console_script_exit_code(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
     assert not (tmp_path / "o").exists()
+
+
+def test_infer_writes_a_report(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, stdout, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--engine", "smc",
+                             "--particles", "20", "--seed", "1", "--out", str(out), "--size", "64")
+    assert code == 0, err
+    names = {p.name for p in out.iterdir()}
+    assert {"best.png", "best.svg", "best.json", "history.csv", "convergence.png", "samples.png",
+            "report.html", "target.png", "settings.json"} <= names
+    assert "report:" in stdout
+    html = (out / "report.html").read_text()
+    assert "best.png" in html and "convergence.png" in html and "glyph:dejavu-sans/a" in html
+    # The best derivation replays through `procmod render`.
+    assert _run(capsys, "render", str(out / "best.json"), "--out", str(tmp_path / "b.png"))[0] == 0
+    lines = (out / "history.csv").read_text().splitlines()
+    assert lines[0] == "seconds,evaluations,best_score,mean_score" and len(lines) > 1
+
+
+@pytest.mark.parametrize("engine,option", [("ga", "--population"), ("mcmc", "--chains"), ("sosmc", "--particles"),
+                                           ("forward", "--particles")])
+def test_infer_engines_run_from_the_cli(tmp_path, capsys, engine, option):
+    code, _, err = _run(capsys, "infer", "lightning", "--target", "scribble:2", "--engine", engine, option, "6",
+                        "--budget", "60evals", "--out", str(tmp_path / engine), "--size", "48")
+    assert code == 0, err
+    assert (tmp_path / engine / "best.json").exists()
+
+
+def test_infer_circuit_target(tmp_path, capsys):
+    code, _, err = _run(capsys, "infer", "lightning", "--target", "circuit", "--engine", "smc", "--particles", "5",
+                        "--out", str(tmp_path / "c"), "--size", "48")
+    assert code == 0, err
+    assert not (tmp_path / "c" / "target.png").exists()
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["infer", "vines", "--target", "glyph:a", "--engine", "annealing"], "unknown engine"),
+    (["infer", "vines", "--target", "glyph:a", "--engine", "smc", "--population", "5"], "does not apply"),
+    (["infer", "vines", "--target", "glyph:a", "--particles", "0"], "positive"),
+    (["infer", "vines", "--target", "glyph:a", "--budget", "soon"], "cannot read budget"),
+    (["infer", "vines", "--target", "glyph:i"], "connected parts"),
+    (["infer", "vines", "--target", "missing.png"], "does not exist"),
+    (["infer", "teapot", "--target", "glyph:a"], "unknown model"),
+])
+def test_bad_infer_arguments(tmp_path, capsys, argv, message):
+    err = _bad(tmp_path, capsys, *argv, "--out", str(tmp_path / "out"))
+    assert message in err

@@ -1,0 +1,122 @@
+"""Files a person looks at after an inference run: renders, curves, an HTML report."""
+
+from __future__ import annotations
+
+import html
+import io
+import json
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from PIL import Image  # noqa: E402
+
+from .core import save_derivation, write_text_atomic  # noqa: E402
+from .geometry import contact_sheet, render_image, render_svg, save_image_atomic  # noqa: E402
+
+
+def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") -> None:
+    """Best (solid) and mean (dashed) score over wall time, one colour per run."""
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    for i, (label, result) in enumerate(results.items()):
+        rows = [r for r in result.history if np.isfinite(r.best_score)]
+        if not rows:
+            continue
+        colour = f"C{i}"
+        t = [r.seconds for r in rows]
+        ax.step(t, [r.best_score for r in rows], where="post", color=colour, label=f"{label} best")
+        ax.plot(t, [r.mean_score for r in rows], color=colour, linestyle="--", alpha=0.6,
+                label=f"{label} mean")
+    ax.set_xlabel("seconds")
+    ax.set_ylabel("score")
+    if title:
+        ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110, metadata={"Software": None})
+    plt.close(fig)
+    tmp = Path(path).with_name(f".{Path(path).name}.tmp")
+    tmp.write_bytes(buffer.getvalue())
+    os.replace(tmp, path)
+
+
+def _mask_image(mask, width: int) -> Image.Image:
+    grey = np.where(np.asarray(mask, bool), 60, 255).astype(np.uint8)
+    return Image.fromarray(grey).resize((width, width), Image.NEAREST).convert("RGB")
+
+
+def write_run(result, target, out: str | os.PathLike, size: int = 512, command: str = "") -> Path:
+    """Write every file of an inference run into ``out`` and return the report's path.
+
+    Files: best.png (over the target in grey), best.svg, best.json (derivation),
+    target.png, history.csv, convergence.png, samples.png (contact sheet of the final
+    samples), settings.json and report.html tying them together.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    best = result.best
+    viewport = best.output.viewport
+    underlay = target.display_mask(size)
+    save_image_atomic(render_image(best.geometry(), viewport, size, underlay=underlay), out / "best.png")
+    write_text_atomic(out / "best.svg", render_svg(best.geometry(), viewport, size))
+    save_derivation(best, out / "best.json")
+    if underlay is not None:
+        save_image_atomic(_mask_image(underlay, size), out / "target.png")
+    write_text_atomic(out / "history.csv", result.history_csv())
+    convergence_figure({result.engine: result}, out / "convergence.png", f"{result.engine} on {target.name}")
+    tiles = [render_image(d.geometry(), viewport, 128, underlay=target.display_mask(128))
+             for d in result.samples[:64]]
+    save_image_atomic(contact_sheet(tiles), out / "samples.png")
+    summary = {
+        "engine": result.engine, "target": target.name, "model": best.model.name,
+        "best_score": result.best_score, "seconds": round(result.seconds, 3),
+        "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,
+        "settings": result.settings, "notes": result.notes, "command": command,
+    }
+    write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=str) + "\n")
+    write_text_atomic(out / "report.html", _report_html(summary, underlay is not None))
+    return out / "report.html"
+
+
+def _report_html(summary: dict, has_target: bool) -> str:
+    rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>"
+                   for k, v in summary["settings"].items())
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in summary["notes"])
+    target_cell = ('<figure><img src="target.png" alt="target"><figcaption>target</figcaption></figure>'
+                   if has_target else "")
+    lml = summary["log_marginal_likelihood"]
+    lml_row = f"<tr><th>log marginal likelihood</th><td>{lml:.4f}</td></tr>" if lml is not None else ""
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>procmod: {html.escape(summary['engine'])} on {html.escape(summary['target'])}</title>
+<style>
+body {{ font-family: sans-serif; margin: 2em; color: #222; max-width: 70em; }}
+figure {{ display: inline-block; margin: 0 1em 1em 0; vertical-align: top; }}
+figure img {{ width: 320px; border: 1px solid #ccc; }}
+table {{ border-collapse: collapse; margin: 1em 0; }}
+th, td {{ text-align: left; padding: 0.2em 0.8em; border-bottom: 1px solid #eee; }}
+code {{ background: #f4f4f4; padding: 0.1em 0.3em; }}
+</style></head><body>
+<h1>{html.escape(summary['model'])} &rarr; {html.escape(summary['target'])}</h1>
+<p>Engine <b>{html.escape(summary['engine'])}</b>: best score <b>{summary['best_score']:.4f}</b>
+after {summary['evaluations']} evaluations in {summary['seconds']} s.</p>
+<p><code>{html.escape(summary['command'])}</code></p>
+{target_cell}
+<figure><img src="best.png" alt="best result"><figcaption>best result
+(<a href="best.svg">SVG</a>, <a href="best.json">derivation</a>)</figcaption></figure>
+<figure><img src="convergence.png" alt="convergence" style="width:480px"><figcaption>score over time
+(<a href="history.csv">CSV</a>)</figcaption></figure>
+<h2>Final samples</h2>
+<img src="samples.png" alt="final samples" style="max-width:100%">
+<h2>Settings</h2>
+<table><tr><th>seconds</th><td>{summary['seconds']}</td></tr>
+<tr><th>evaluations</th><td>{summary['evaluations']}</td></tr>{lml_row}{rows}</table>
+{'<h2>Notes</h2><ul>' + notes + '</ul>' if notes else ''}
+</body></html>
+"""
