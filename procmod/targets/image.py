@@ -64,14 +64,25 @@ def resample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
     return small >= 127.5
 
 
-def lowest_point_start(mask: np.ndarray) -> tuple:
-    """Start at the lowest foreground pixel (middle of its run), growing up."""
+def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
+    """Start at the lowest foreground pixel (middle of its run), heading along the shape.
+
+    The direction points from the start to the centroid of the foreground within
+    ``reach`` (a fraction of the image size) of it, so a model starting at the bottom of
+    a "c" grows along the curve rather than straight up into the empty middle. It falls
+    back to straight up.
+    """
     rows = np.flatnonzero(mask.any(axis=1))
     row = rows[-1]
     cols = np.flatnonzero(mask[row])
     col = cols[len(cols) // 2]
     h, w = mask.shape
-    return ((col + 0.5) / w, (row + 0.5) / h), (0.0, -1.0)
+    ys, xs = np.nonzero(mask)
+    near = (xs - col) ** 2 + (ys - row) ** 2 <= (reach * max(h, w)) ** 2
+    dx, dy = xs[near].mean() - col, ys[near].mean() - row
+    norm = float(np.hypot(dx, dy))
+    direction = (float(dx / norm), float(dy / norm)) if norm > 1e-9 else (0.0, -1.0)
+    return ((col + 0.5) / w, (row + 0.5) / h), direction
 
 
 def check_mask(mask: np.ndarray, name: str) -> np.ndarray:
