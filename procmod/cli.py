@@ -15,7 +15,7 @@ import numpy as np
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
 from .models import MODELS, get_model
-from .render import check_format, check_size, write_contact_sheet, write_derivation
+from .render import check_format, check_size, output_formats, write_contact_sheet, write_derivation
 
 
 class _Parser(argparse.ArgumentParser):
@@ -40,7 +40,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("models", help="list the built-in models")
 
-    sample = sub.add_parser("sample", help="sample a model forward; write PNG, SVG and JSON per sample")
+    sample = sub.add_parser("sample", help="sample a model forward; write pictures (2D: PNG+SVG, "
+                                           "3D: PNG+OBJ+GLB) and the derivation JSON per sample")
     sample.add_argument("model", metavar="MODEL")
     sample.add_argument("-n", type=_int_arg, default=16, help="number of samples (default 16)")
     sample.add_argument("--seed", type=_int_arg, default=0, help="random seed (default 0)")
@@ -61,9 +62,9 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
 
-    render = sub.add_parser("render", help="render a saved derivation to PNG or SVG")
+    render = sub.add_parser("render", help="render a saved derivation (2D: .png/.svg; 3D: .png/.obj/.glb)")
     render.add_argument("derivation", metavar="DERIVATION.json")
-    render.add_argument("--out", required=True, help="output file, .png or .svg")
+    render.add_argument("--out", required=True, help="output file: .png or .svg (2D), .png, .obj or .glb (3D)")
     render.add_argument("--size", type=_int_arg, default=512, help="width in pixels (default 512)")
     return parser
 
@@ -91,8 +92,8 @@ def _cmd_sample(args) -> None:
     for i, derivation in enumerate(derivations):
         stem = out / f"sample_{i:0{digits}d}"
         save_derivation(derivation, stem.with_suffix(".json"))
-        write_derivation(derivation, stem.with_suffix(".png"), size)
-        write_derivation(derivation, stem.with_suffix(".svg"), size)
+        for suffix in output_formats(derivation):
+            write_derivation(derivation, stem.with_suffix(suffix), size)
     write_contact_sheet(derivations, out / "contact_sheet.png", labels=[str(i) for i in range(args.n)])
     print(f"wrote {args.n} samples of {model.name} to {out}/ (contact sheet: {out / 'contact_sheet.png'})")
 
@@ -101,6 +102,7 @@ def _cmd_render(args) -> None:
     check_format(args.out)
     size = check_size(args.size)
     derivation = load_derivation(args.derivation, get_model)
+    check_format(args.out, output_formats(derivation))
     write_derivation(derivation, args.out, size)
     print(f"wrote {args.out}")
 

@@ -5,11 +5,18 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from PIL import Image
+
 from .core import Derivation, InvalidArgumentError, write_text_atomic
-from .geometry import contact_sheet, render_image, render_svg, save_image_atomic
+from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic
+from .geometry.camera import framing_camera, shaded_image
+from .geometry.mesh_export import export_mesh
+from .geometry.solid import scene_bounds
 
 MIN_SIZE, MAX_SIZE = 8, 4096
-FORMATS = (".png", ".svg")
+FORMATS_2D = (".png", ".svg")
+FORMATS_3D = (".png", ".obj", ".glb")
+FORMATS = FORMATS_2D + FORMATS_3D[1:]
 
 
 def check_size(size: int) -> int:
@@ -19,25 +26,44 @@ def check_size(size: int) -> int:
     return size
 
 
-def check_format(path: str | os.PathLike) -> str:
-    """The output format implied by a file name (.png or .svg)."""
+def is_2d(derivation: Derivation) -> bool:
+    """True for models that draw into a 2D canvas (they have a viewport)."""
+    return hasattr(derivation.output, "viewport")
+
+
+def output_formats(derivation: Derivation) -> tuple:
+    """The file formats a derivation can be written to."""
+    return FORMATS_2D if is_2d(derivation) else FORMATS_3D
+
+
+def check_format(path: str | os.PathLike, formats=FORMATS) -> str:
+    """The output format implied by a file name."""
     suffix = Path(path).suffix.lower()
-    if suffix not in FORMATS:
-        raise InvalidArgumentError(f"cannot tell the format of {str(path)!r}: name it .png or .svg")
+    if suffix not in formats:
+        raise InvalidArgumentError(f"cannot tell the format of {str(path)!r}: name it "
+                                   + " or ".join(formats))
     return suffix
 
 
-def derivation_image(derivation: Derivation, size: int):
-    """A colour PIL image of a derivation's geometry, ``size`` pixels wide."""
-    return render_image(derivation.geometry(), derivation.output.viewport, check_size(size))
+def derivation_image(derivation: Derivation, size: int, underlay=None):
+    """A colour PIL image of a derivation, ``size`` pixels wide (a shaded view for 3D)."""
+    size = check_size(size)
+    geometry = derivation.geometry()
+    if is_2d(derivation):
+        return render_image(geometry, derivation.output.viewport, size, underlay=underlay)
+    lo, hi = scene_bounds(geometry)
+    return Image.fromarray(shaded_image(geometry, framing_camera(lo, hi, size, size), colour_of))
 
 
 def write_derivation(derivation: Derivation, path: str | os.PathLike, size: int) -> None:
-    """Render a derivation to ``path`` (.png or .svg), written atomically."""
-    if check_format(path) == ".png":
+    """Render or export a derivation to ``path`` (2D: .png, .svg; 3D: .png, .obj, .glb)."""
+    suffix = check_format(path, output_formats(derivation))
+    if suffix == ".png":
         save_image_atomic(derivation_image(derivation, size), path)
-    else:
+    elif suffix == ".svg":
         write_text_atomic(path, render_svg(derivation.geometry(), derivation.output.viewport, check_size(size)))
+    else:
+        export_mesh(derivation.geometry(), path, colour_of)
 
 
 def write_contact_sheet(derivations, path: str | os.PathLike, tile: int = 128, labels=None) -> None:

@@ -17,7 +17,7 @@ def test_models_lists_all(capsys):
     code, out, _ = _run(capsys, "models")
     assert code == 0
     names = [line.split()[0] for line in out.splitlines()]
-    assert names == ["chain", "lightning", "vines"]
+    assert names == ["chain", "lightning", "spaceship", "vines"]
 
 
 def test_sample_writes_files_and_is_byte_identical(tmp_path, capsys):
@@ -144,3 +144,17 @@ def test_infer_circuit_target(tmp_path, capsys):
 def test_bad_infer_arguments(tmp_path, capsys, argv, message):
     err = _bad(tmp_path, capsys, *argv, "--out", str(tmp_path / "out"))
     assert message in err
+
+
+def test_sample_and_render_a_3d_model(tmp_path, capsys):
+    out = tmp_path / "ships"
+    assert _run(capsys, "sample", "spaceship", "-n", "2", "--seed", "3", "--out", str(out), "--size", "64")[0] == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(["contact_sheet.png"] + [f"sample_{i:03d}.{ext}" for i in range(2)
+                                                     for ext in ("png", "obj", "glb", "json")])
+    import trimesh
+    mesh = trimesh.load(out / "sample_000.glb", force="mesh")
+    assert len(mesh.faces) > 12
+    assert _run(capsys, "render", str(out / "sample_000.json"), "--out", str(tmp_path / "s.obj"))[0] == 0
+    assert "name it .png or .obj or .glb" in _bad(tmp_path, capsys, "render", str(out / "sample_000.json"),
+                                                  "--out", str(tmp_path / "s.svg"), out_name="s.svg")

@@ -22,7 +22,7 @@ def test_every_choice_is_documented(name):
         assert f"``{choice}" in model.choices_doc, f"{name}: choice {choice!r} is not documented"
 
 
-@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("name", ["chain", "lightning", "vines"])
 def test_start_and_direction_are_honoured(name):
     model = get_model(name).configure(start=[0.25, 0.5], direction=[1.0, 0.0])
     x, y = to_world([0.25, 0.5])

@@ -1,0 +1,210 @@
+"""Cameras, silhouette rasters and shaded previews of 3D parts.
+
+Parts are triangulated (:func:`procmod.geometry.solid.part_triangles`) and rasterised by
+numba kernels at pixel centres: a silhouette keeps which pixels any part covers (with a
+per-pixel gain for incremental image scores, as the 2D canvas does); a preview keeps a
+z-buffer and Lambert-shaded colours.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from .solid import part_triangles
+
+
+class Camera(NamedTuple):
+    """A camera looking from ``eye`` at ``look_at``.
+
+    ``projection`` is "perspective" (``fov`` = vertical field of view in degrees) or
+    "orthographic" (``fov`` = the height of the view in world units). Images have
+    ``width`` x ``height`` pixels, row 0 at the top.
+    """
+
+    eye: tuple
+    look_at: tuple
+    up: tuple = (0.0, 1.0, 0.0)
+    projection: str = "perspective"
+    fov: float = 40.0
+    width: int = 64
+    height: int = 64
+
+    def basis(self):
+        eye = np.asarray(self.eye, dtype=np.float64)
+        forward = np.asarray(self.look_at, dtype=np.float64) - eye
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, np.asarray(self.up, dtype=np.float64))
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        return eye, right, up, forward
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Pixel x, pixel y and depth of world points ``(..., 3)``; depth <= 0 is behind."""
+        eye, right, up, forward = self.basis()
+        rel = np.asarray(points, dtype=np.float64) - eye
+        x, y, depth = rel @ right, rel @ up, rel @ forward
+        if self.projection == "perspective":
+            scale = 0.5 * self.height / math.tan(math.radians(self.fov) / 2)
+            safe = np.where(depth > 1e-9, depth, 1e-9)
+            px, py = x / safe * scale, y / safe * scale
+        elif self.projection == "orthographic":
+            scale = self.height / self.fov
+            px, py = x * scale, y * scale
+        else:
+            raise ValueError(f"projection must be 'perspective' or 'orthographic', got {self.projection!r}")
+        return np.stack([0.5 * self.width + px, 0.5 * self.height - py, depth], axis=-1)
+
+
+@numba.njit(cache=True)
+def _raster_triangles(pixels, width, height, tri2d, gain, state):
+    """Mark pixels whose centre is inside any triangle; state = [new pixels, gain sum]."""
+    for t in range(tri2d.shape[0]):
+        ax, ay = tri2d[t, 0, 0], tri2d[t, 0, 1]
+        bx, by = tri2d[t, 1, 0], tri2d[t, 1, 1]
+        cx, cy = tri2d[t, 2, 0], tri2d[t, 2, 1]
+        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        if area == 0.0:
+            continue
+        i0 = max(int(np.floor(min(ax, bx, cx))), 0)
+        i1 = min(int(np.ceil(max(ax, bx, cx))), width - 1)
+        j0 = max(int(np.floor(min(ay, by, cy))), 0)
+        j1 = min(int(np.ceil(max(ay, by, cy))), height - 1)
+        for j in range(j0, j1 + 1):
+            py = j + 0.5
+            for i in range(i0, i1 + 1):
+                px = i + 0.5
+                e0 = ((bx - ax) * (py - ay) - (by - ay) * (px - ax)) * area
+                e1 = ((cx - bx) * (py - by) - (cy - by) * (px - bx)) * area
+                e2 = ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * area
+                if e0 >= 0 and e1 >= 0 and e2 >= 0:
+                    k = j * width + i
+                    if pixels[k] == 0:
+                        pixels[k] = 1
+                        state[0] += 1
+                        if gain.shape[0] > 0:
+                            state[1] += gain[k]
+
+
+_NO_GAIN = np.zeros(0)
+
+
+class Silhouettes:
+    """An output accumulator: one silhouette raster per camera, drawn incrementally.
+
+    ``pixels[c]`` is camera ``c``'s flat ``uint8`` raster; ``gains[c]`` an optional
+    per-pixel gain; ``gain_total`` sums the gains of newly covered pixels over all views.
+    Triangles with a vertex behind a perspective camera are skipped (keep the scene in
+    front of the cameras).
+    """
+
+    __slots__ = ("cameras", "pixels", "gains", "gain_total", "filled_count", "extent", "n_parts", "_state")
+
+    def __init__(self, cameras, gains=None):
+        self.cameras = tuple(cameras)
+        self.pixels = [np.zeros(c.width * c.height, dtype=np.uint8) for c in self.cameras]
+        self.gains = [(_NO_GAIN if g is None else np.ascontiguousarray(g, dtype=np.float64).ravel())
+                      for g in (gains or [None] * len(self.cameras))]
+        self.gain_total = 0.0
+        self.filled_count = 0
+        self.extent = None
+        self.n_parts = 0
+        self._state = np.zeros(2)
+
+    def copy(self) -> "Silhouettes":
+        other = type(self).__new__(type(self))
+        for name in self.__slots__:
+            setattr(other, name, getattr(self, name))
+        other.pixels = [p.copy() for p in self.pixels]
+        return other
+
+    def image(self, index: int = 0) -> np.ndarray:
+        """Boolean ``(height, width)`` silhouette of camera ``index``."""
+        c = self.cameras[index]
+        return (self.pixels[index] != 0).reshape(c.height, c.width)
+
+    def add(self, part) -> int:
+        tris = part_triangles(part)
+        lo, hi = tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
+        self.extent = (lo, hi) if self.extent is None else (np.minimum(self.extent[0], lo),
+                                                          np.maximum(self.extent[1], hi))
+        self.n_parts += 1
+        new = 0
+        for camera, pixels, gain in zip(self.cameras, self.pixels, self.gains):
+            projected = camera.project(tris)
+            visible = projected[:, :, 2].min(axis=1) > 1e-6 if camera.projection == "perspective" else slice(None)
+            self._state[:] = 0.0
+            _raster_triangles(pixels, camera.width, camera.height,
+                              np.ascontiguousarray(projected[visible][:, :, :2]), gain, self._state)
+            new += int(self._state[0])
+            self.gain_total += float(self._state[1])
+        self.filled_count += new
+        return new
+
+
+@numba.njit(cache=True)
+def _shade_triangles(depth_buffer, colour_buffer, width, height, tri, shades, colours):
+    for t in range(tri.shape[0]):
+        ax, ay, az = tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2]
+        bx, by, bz = tri[t, 1, 0], tri[t, 1, 1], tri[t, 1, 2]
+        cx, cy, cz = tri[t, 2, 0], tri[t, 2, 1], tri[t, 2, 2]
+        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        if area == 0.0 or min(az, bz, cz) <= 1e-6:
+            continue
+        i0 = max(int(np.floor(min(ax, bx, cx))), 0)
+        i1 = min(int(np.ceil(max(ax, bx, cx))), width - 1)
+        j0 = max(int(np.floor(min(ay, by, cy))), 0)
+        j1 = min(int(np.ceil(max(ay, by, cy))), height - 1)
+        for j in range(j0, j1 + 1):
+            py = j + 0.5
+            for i in range(i0, i1 + 1):
+                px = i + 0.5
+                w0 = ((bx - px) * (cy - py) - (by - py) * (cx - px)) / area
+                w1 = ((cx - px) * (ay - py) - (cy - py) * (ax - px)) / area
+                w2 = 1.0 - w0 - w1
+                if w0 >= 0 and w1 >= 0 and w2 >= 0:
+                    z = w0 * az + w1 * bz + w2 * cz
+                    k = j * width + i
+                    if z < depth_buffer[k]:
+                        depth_buffer[k] = z
+                        for ch in range(3):
+                            colour_buffer[k, ch] = colours[t, ch] * shades[t]
+
+
+def shaded_image(parts, camera: Camera, colour_of, background=(255, 255, 255), supersample: int = 2):
+    """A Lambert-shaded RGB render (``uint8`` array) of parts seen from ``camera``."""
+    w, h = camera.width * supersample, camera.height * supersample
+    cam = camera._replace(width=w, height=h)
+    tris, colours = [], []
+    for part in parts:
+        t = part_triangles(part)
+        tris.append(t)
+        colours.append(np.tile(np.asarray(colour_of(part.tag), dtype=np.float64), (len(t), 1)))
+    depth = np.full(w * h, np.inf)
+    rgb = np.tile(np.asarray(background, dtype=np.float64), (w * h, 1))
+    if tris:
+        world = np.concatenate(tris)
+        normals = np.cross(world[:, 1] - world[:, 0], world[:, 2] - world[:, 0])
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        light = np.array([0.4, 0.8, 0.45])
+        light /= np.linalg.norm(light)
+        shades = 0.35 + 0.65 * np.abs(normals @ light)  # two-sided: triangle winding varies
+        _shade_triangles(depth, rgb, w, h, np.ascontiguousarray(cam.project(world)), shades,
+                         np.concatenate(colours))
+    image = rgb.reshape(camera.height, supersample, camera.width, supersample, 3).mean(axis=(1, 3))
+    return np.round(image).astype(np.uint8)
+
+
+def framing_camera(lo, hi, width: int = 256, height: int = 256, direction=(1.0, 0.8, 1.4),
+                   up=(0.0, 1.0, 0.0), fov: float = 35.0) -> Camera:
+    """A perspective camera that frames the box [lo, hi] from ``direction``."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    centre = 0.5 * (lo + hi)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)
+    d = np.asarray(direction, dtype=np.float64)
+    d /= np.linalg.norm(d)
+    distance = radius / math.sin(math.radians(fov) / 2) * 1.05
+    return Camera(tuple(centre + distance * d), tuple(centre), tuple(up), "perspective", fov, width, height)

@@ -1,0 +1,162 @@
+"""3D parts: oriented boxes, cylinders (and cone frusta) and triangle meshes, each placed
+by a 4x4 affine transform.
+
+Parts are immutable values: transforms are stored as tuples of 16 floats (row-major), so
+parts compare and serialise like the 2D primitives. Helpers build transforms.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+class Box(NamedTuple):
+    """A box of full extents ``size`` = (sx, sy, sz), centred at its local origin."""
+
+    size: tuple
+    transform: tuple = IDENTITY
+    tag: str = "box"
+
+
+class Cylinder(NamedTuple):
+    """A cylinder (or cone frustum) along its local +z axis from z = 0 to z = ``length``,
+    radius ``radius`` at z = 0 and ``top_radius`` at the top (None: same radius)."""
+
+    radius: float
+    length: float
+    transform: tuple = IDENTITY
+    tag: str = "cylinder"
+    top_radius: float | None = None
+
+
+class Mesh(NamedTuple):
+    """A triangle mesh in its local frame: vertices ((x, y, z), ...), faces ((i, j, k), ...)."""
+
+    vertices: tuple
+    faces: tuple
+    transform: tuple = IDENTITY
+    tag: str = "mesh"
+
+
+def matrix(transform) -> np.ndarray:
+    """A transform tuple (or array) as a 4x4 numpy array."""
+    return np.asarray(transform, dtype=np.float64).reshape(4, 4)
+
+
+def as_transform(m) -> tuple:
+    """A 4x4 array as a transform tuple."""
+    return tuple(float(v) for v in np.asarray(m, dtype=np.float64).reshape(16))
+
+
+def translation(x: float, y: float, z: float) -> tuple:
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return as_transform(m)
+
+
+def scaling(sx: float, sy: float, sz: float) -> tuple:
+    return as_transform(np.diag([sx, sy, sz, 1.0]))
+
+
+def rotation(axis: str, angle: float) -> tuple:
+    """Rotation by ``angle`` radians about the x, y or z axis."""
+    c, s = math.cos(angle), math.sin(angle)
+    m = np.eye(4)
+    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return as_transform(m)
+
+
+def compose(*transforms) -> tuple:
+    """The product ``T1 @ T2 @ ...`` (apply the last one first)."""
+    m = np.eye(4)
+    for t in transforms:
+        m = m @ matrix(t)
+    return as_transform(m)
+
+
+def part_triangles(part, segments: int = 24) -> np.ndarray:
+    """World-space triangles ``(n, 3, 3)`` of a part (cylinders as ``segments``-gon prisms)."""
+    if isinstance(part, Box):
+        sx, sy, sz = (0.5 * float(v) for v in part.size)
+        corners = np.array([[x, y, z] for x in (-sx, sx) for y in (-sy, sy) for z in (-sz, sz)])
+        faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+                 (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+        local, tris = corners, np.array(faces)
+    elif isinstance(part, Cylinder):
+        r0 = float(part.radius)
+        r1 = r0 if part.top_radius is None else float(part.top_radius)
+        a = np.linspace(0, 2 * math.pi, segments, endpoint=False)
+        bottom = np.stack([r0 * np.cos(a), r0 * np.sin(a), np.zeros(segments)], 1)
+        top = np.stack([r1 * np.cos(a), r1 * np.sin(a), np.full(segments, float(part.length))], 1)
+        local = np.vstack([bottom, top, [[0, 0, 0], [0, 0, float(part.length)]]])
+        cb, ct = 2 * segments, 2 * segments + 1
+        faces = []
+        for i in range(segments):
+            j = (i + 1) % segments
+            faces += [(i, j, segments + j), (i, segments + j, segments + i), (cb, j, i),
+                      (ct, segments + i, segments + j)]
+        tris = np.array(faces)
+    elif isinstance(part, Mesh):
+        local, tris = np.asarray(part.vertices, dtype=np.float64), np.asarray(part.faces, dtype=np.int64)
+    else:
+        raise TypeError(f"not a 3D part: {part!r}")
+    m = matrix(part.transform)
+    world = local @ m[:3, :3].T + m[:3, 3]
+    return world[tris]
+
+
+def part_bounds(part) -> tuple:
+    """World-space axis-aligned bounds ``(min xyz, max xyz)`` of a part."""
+    if isinstance(part, Mesh):
+        tris = part_triangles(part)
+        return tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
+    m = matrix(part.transform)
+    if isinstance(part, Box):
+        half = 0.5 * np.abs(m[:3, :3]) @ np.asarray(part.size, dtype=np.float64)
+        centre = m[:3, 3]
+        return centre - half, centre + half
+    # Cylinder: bound each end disc exactly (a disc of radius r in a transformed frame).
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    r1 = part.radius if part.top_radius is None else part.top_radius
+    for z, r in ((0.0, part.radius), (part.length, r1)):
+        centre = m[:3, :3] @ np.array([0.0, 0.0, z]) + m[:3, 3]
+        extent = r * np.sqrt(m[:3, 0] ** 2 + m[:3, 1] ** 2)
+        lo, hi = np.minimum(lo, centre - extent), np.maximum(hi, centre + extent)
+    return lo, hi
+
+
+class PartBounds:
+    """The default output of a 3D model when nothing scores it: counts parts and keeps
+    their world bounds (``extent``)."""
+
+    __slots__ = ("extent", "n_parts")
+
+    def __init__(self):
+        self.extent = None
+        self.n_parts = 0
+
+    def copy(self) -> "PartBounds":
+        other = PartBounds()
+        other.extent, other.n_parts = self.extent, self.n_parts
+        return other
+
+    def add(self, part) -> int:
+        lo, hi = part_bounds(part)
+        self.extent = (lo, hi) if self.extent is None else (np.minimum(self.extent[0], lo),
+                                                          np.maximum(self.extent[1], hi))
+        self.n_parts += 1
+        return 0
+
+
+def scene_bounds(parts) -> tuple:
+    """World bounds (min xyz, max xyz) of a list of parts (a unit box if there are none)."""
+    if not parts:
+        return -np.ones(3), np.ones(3)
+    boxes = [part_bounds(p) for p in parts]
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)

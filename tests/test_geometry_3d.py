@@ -1,0 +1,86 @@
+import math
+
+import numpy as np
+import pytest
+
+from procmod.geometry.camera import Camera, Silhouettes, framing_camera, shaded_image
+from procmod.geometry.export import colour_of
+from procmod.geometry.mesh_export import parts_to_trimesh
+from procmod.geometry.solid import (Box, Cylinder, Mesh, compose, part_bounds, part_triangles,
+                                    rotation, scaling, translation)
+from procmod.geometry.voxel import VoxelGrid, VoxelScene, voxelize
+
+H = 0.05
+GRID = VoxelGrid.around((-2, -2, -2), (2, 2, 2), H)
+
+
+def _volume(part):
+    return voxelize([part], GRID).sum() * H ** 3
+
+
+@pytest.mark.parametrize("part,exact", [
+    (Box((2, 1, 0.5), compose(translation(0.1, 0.2, 0), rotation("z", 0.3), rotation("x", 0.7))), 1.0),
+    (Cylinder(0.5, 2.0, compose(translation(0, 0, -1), rotation("x", 0.4))), math.pi * 0.25 * 2),
+    (Cylinder(0.5, 2.0, translation(0, 0, -1), top_radius=0.0), math.pi * 0.25 * 2 / 3),
+    (Box((1, 1, 1), scaling(1.5, 0.5, 2.0)), 1.5),
+])
+def test_voxel_volumes_match_exact_volumes(part, exact):
+    # Point sampling at voxel centres: the error is a thin shell of about surface x h/2.
+    assert abs(_volume(part) - exact) / exact < 0.03
+
+
+def test_mesh_voxelization_matches_the_solid():
+    box = Box((2, 1, 0.5), compose(translation(0.13, 0.07, 0.02), rotation("y", 0.5)))
+    tris = part_triangles(box)
+    mesh = Mesh(tuple(map(tuple, tris.reshape(-1, 3))), tuple((3 * i, 3 * i + 1, 3 * i + 2) for i in range(len(tris))))
+    a, b = voxelize([box], GRID), voxelize([mesh], GRID)
+    assert (a != b).sum() <= 0.002 * a.sum()  # only voxels whose centre is on a face may differ
+
+
+def test_overlaps_outside_and_gain_are_counted():
+    gain = np.arange(np.prod(GRID.shape), dtype=float)
+    scene = VoxelScene(GRID, gain)
+    box = Box((1, 1, 1))
+    n = scene.add(box)
+    assert scene.overlaps == 0 and scene.gain_total == pytest.approx(gain[scene.counts > 0].sum())
+    scene.add(Box((1, 1, 1), translation(0.5, 0, 0)))
+    assert scene.overlaps == pytest.approx(n / 2, rel=0.05)
+    big = VoxelScene(GRID)
+    big.add(Box((6, 1, 1)))
+    assert big.outside * H ** 3 == pytest.approx(2.0, rel=0.01)
+    copy = scene.copy()
+    copy.add(Box((0.2, 0.2, 0.2), translation(1.5, 1.5, 1.5)))
+    assert copy.filled_count > scene.filled_count and copy.counts is not scene.counts
+
+
+def test_bounds_are_tight():
+    for part in (Box((2, 1, 3), rotation("x", 0.3)), Cylinder(0.5, 2, rotation("y", 1.0), top_radius=0.2)):
+        lo, hi = part_bounds(part)
+        pts = part_triangles(part, 256).reshape(-1, 3)
+        assert np.all(pts >= lo - 1e-9) and np.all(pts <= hi + 1e-9)
+        assert np.allclose(pts.min(0), lo, atol=0.01) and np.allclose(pts.max(0), hi, atol=0.01)
+
+
+def test_orthographic_and_perspective_silhouettes():
+    ortho = Camera((0, 0, 20), (0, 0, 0), projection="orthographic", fov=8, width=64, height=64)
+    s = Silhouettes([ortho])
+    assert s.add(Box((2, 1, 4))) == pytest.approx(2 * 1 / (8 / 64) ** 2)
+    assert s.add(Box((1, 0.5, 1), translation(0, 0, 3))) == 0  # hidden behind: nothing new
+    persp = Camera((0, 0, 10), (0, 0, 0), fov=40, width=64, height=64)
+    near, far = Silhouettes([persp]), Silhouettes([persp])
+    near.add(Box((1, 1, 0.01), translation(0, 0, 5)))
+    far.add(Box((1, 1, 0.01), translation(0, 0, -5)))
+    assert near.filled_count > 3 * far.filled_count  # perspective: nearer is bigger
+    img = near.image(0)
+    assert img[32, 32] and not img[0, 0]
+
+
+def test_preview_and_mesh_export():
+    parts = [Box((2, 1, 4), tag="hull"), Cylinder(0.4, 3, translation(1, 0, 0), "wing")]
+    lo = np.min([part_bounds(p)[0] for p in parts], 0)
+    hi = np.max([part_bounds(p)[1] for p in parts], 0)
+    image = shaded_image(parts, framing_camera(lo, hi, 96, 96), colour_of)
+    assert image.shape == (96, 96, 3)
+    assert (image != 255).any(axis=2).mean() > 0.05  # the ship is in view
+    mesh = parts_to_trimesh(parts, colour_of)
+    assert np.allclose(mesh.bounds, [[-1, -0.5, -2], [1.4, 0.5, 3]], atol=1e-6)
