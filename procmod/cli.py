@@ -51,7 +51,8 @@ def _build_parser() -> argparse.ArgumentParser:
     infer = sub.add_parser("infer", help="control a model toward a target with an engine")
     infer.add_argument("model", metavar="MODEL")
     infer.add_argument("--target", required=True,
-                       help="glyph:CHAR, glyph:FACE/CHAR, scribble:N, circuit, or an image file")
+                       help="glyph:CHAR, glyph:FACE/CHAR, scribble:N, circuit, an image file, or a "
+                            "3D target (a procmod-volume/1 JSON, or a folder holding target.json)")
     infer.add_argument("--engine", default="smc", help="smc, sosmc, mcmc, ga or forward (default smc)")
     infer.add_argument("--particles", type=_int_arg, help="particles (smc, sosmc, forward)")
     infer.add_argument("--population", type=_int_arg, help="population (ga)")
@@ -112,10 +113,8 @@ _POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "part
 
 
 def _cmd_infer(args) -> None:
-    from .data import target_image
     from .infer import ENGINES, parse_budget
     from .report import write_run
-    from .targets import Circuit, ShapeMatch
 
     model = get_model(args.model)
     if args.engine not in ENGINES:
@@ -135,7 +134,7 @@ def _cmd_infer(args) -> None:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     size = check_size(args.size)
     budget = parse_budget(args.budget) if args.budget is not None else None
-    target = Circuit() if args.target == "circuit" else ShapeMatch(target_image(args.target))
+    target = _target(args.target)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InvalidArgumentError(f"--out {out} exists and is not a folder")
@@ -148,6 +147,21 @@ def _cmd_infer(args) -> None:
     report = write_run(result, target, out, size, command)
     print(f"{result.engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations "
           f"in {result.seconds:.1f} s; report: {report}")
+
+
+def _target(spec: str):
+    """The target a command-line spec names."""
+    from .data import target_image
+    from .targets import Circuit, ShapeMatch, load_volume_target
+
+    if spec == "circuit":
+        return Circuit()
+    path = Path(spec)
+    if path.is_dir():
+        return load_volume_target(path / "target.json")
+    if path.suffix.lower() == ".json":
+        return load_volume_target(path)
+    return ShapeMatch(target_image(spec))
 
 
 class _progress_bar:

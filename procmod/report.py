@@ -16,7 +16,8 @@ import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from .core import save_derivation, write_text_atomic  # noqa: E402
-from .geometry import contact_sheet, render_image, render_svg, save_image_atomic  # noqa: E402
+from .geometry import contact_sheet, save_image_atomic  # noqa: E402
+from .render import derivation_image, output_formats, write_derivation  # noqa: E402
 
 
 def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") -> None:
@@ -54,24 +55,25 @@ def _mask_image(mask, width: int) -> Image.Image:
 def write_run(result, target, out: str | os.PathLike, size: int = 512, command: str = "") -> Path:
     """Write every file of an inference run into ``out`` and return the report's path.
 
-    Files: best.png (over the target in grey), best.svg, best.json (derivation),
-    target.png, history.csv, convergence.png, samples.png (contact sheet of the final
-    samples), settings.json and report.html tying them together.
+    Files: best.png (2D: over the target in grey; 3D: a shaded view), best.svg (2D) or
+    best.obj and best.glb (3D), best.json (derivation), target.png (image targets),
+    history.csv, convergence.png, samples.png (contact sheet of the final samples),
+    settings.json and report.html tying them together.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     best = result.best
-    viewport = best.output.viewport
     underlay = target.display_mask(size)
-    save_image_atomic(render_image(best.geometry(), viewport, size, underlay=underlay), out / "best.png")
-    write_text_atomic(out / "best.svg", render_svg(best.geometry(), viewport, size))
+    save_image_atomic(derivation_image(best, size, underlay=underlay), out / "best.png")
+    extra = [suffix for suffix in output_formats(best) if suffix != ".png"]
+    for suffix in extra:
+        write_derivation(best, out / f"best{suffix}", size)
     save_derivation(best, out / "best.json")
     if underlay is not None:
         save_image_atomic(_mask_image(underlay, size), out / "target.png")
     write_text_atomic(out / "history.csv", result.history_csv())
     convergence_figure({result.engine: result}, out / "convergence.png", f"{result.engine} on {target.name}")
-    tiles = [render_image(d.geometry(), viewport, 128, underlay=target.display_mask(128))
-             for d in result.samples[:64]]
+    tiles = [derivation_image(d, 128, underlay=target.display_mask(128)) for d in result.samples[:64]]
     save_image_atomic(contact_sheet(tiles), out / "samples.png")
     summary = {
         "engine": result.engine, "target": target.name, "model": best.model.name,
@@ -80,16 +82,17 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
         "settings": result.settings, "notes": result.notes, "command": command,
     }
     write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=str) + "\n")
-    write_text_atomic(out / "report.html", _report_html(summary, underlay is not None))
+    write_text_atomic(out / "report.html", _report_html(summary, underlay is not None, extra))
     return out / "report.html"
 
 
-def _report_html(summary: dict, has_target: bool) -> str:
+def _report_html(summary: dict, has_target: bool, extra: list) -> str:
     rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>"
                    for k, v in summary["settings"].items())
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in summary["notes"])
     target_cell = ('<figure><img src="target.png" alt="target"><figcaption>target</figcaption></figure>'
                    if has_target else "")
+    links = "".join(f'<a href="best{suffix}">{suffix[1:].upper()}</a>, ' for suffix in extra)
     lml = summary["log_marginal_likelihood"]
     lml_row = f"<tr><th>log marginal likelihood</th><td>{lml:.4f}</td></tr>" if lml is not None else ""
     return f"""<!doctype html>
@@ -109,7 +112,7 @@ after {summary['evaluations']} evaluations in {summary['seconds']} s.</p>
 <p><code>{html.escape(summary['command'])}</code></p>
 {target_cell}
 <figure><img src="best.png" alt="best result"><figcaption>best result
-(<a href="best.svg">SVG</a>, <a href="best.json">derivation</a>)</figcaption></figure>
+({links}<a href="best.json">derivation</a>)</figcaption></figure>
 <figure><img src="convergence.png" alt="convergence" style="width:480px"><figcaption>score over time
 (<a href="history.csv">CSV</a>)</figcaption></figure>
 <h2>Final samples</h2>

@@ -158,3 +158,15 @@ def test_sample_and_render_a_3d_model(tmp_path, capsys):
     assert _run(capsys, "render", str(out / "sample_000.json"), "--out", str(tmp_path / "s.obj"))[0] == 0
     assert "name it .png or .obj or .glb" in _bad(tmp_path, capsys, "render", str(out / "sample_000.json"),
                                                   "--out", str(tmp_path / "s.svg"), out_name="s.svg")
+
+
+def test_infer_3d_volume_scene(tmp_path, capsys):
+    from pathlib import Path
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "spaceship_volume"
+    out = tmp_path / "ship"
+    code, _, err = _run(capsys, "infer", "spaceship", "--target", str(scene), "--engine", "ga",
+                        "--population", "8", "--budget", "3gens", "--out", str(out), "--size", "64")
+    assert code == 0, err
+    assert {"best.png", "best.obj", "best.glb", "best.json", "report.html"} <= {p.name for p in out.iterdir()}
+    assert "does not exist" in _bad(tmp_path, capsys, "infer", "spaceship", "--target",
+                                    str(tmp_path / "none.json"), "--out", str(tmp_path / "x"), out_name="x")

@@ -1,0 +1,223 @@
+"""Volume targets for 3D models.
+
+``Volume`` is seed 002's s_vol. Given target volumes ``V_i`` with fill weights ``w_i``
+and avoid weights ``w~_i`` (all voxelized on one grid),
+
+    s_vol(M) = sum_i ( sum_{v in V_i} w_i V_M(v) + sum_{v in V_M} w~_i (1 - V_i(v)) )
+
+so each voxel the model covers adds the combined weight ``sum_i w_i V_i(v) + w~_i (1 -
+V_i(v))``; covered lattice cells outside the grid add ``sum_i w~_i`` each, and every
+extra hit of an already covered voxel (self-intersection) subtracts ``w_self``. All of it
+is kept incrementally by :class:`procmod.geometry.voxel.VoxelScene`. The score is s_vol
+itself (seed 002's fitness); the log-likelihood probabilistic engines use is
+``s_vol / temperature``, with the temperature 1% of the best attainable s_vol by default
+(a change of 1% of the attainable fitness changes the log-likelihood by 1).
+
+``ProxyVolume`` is the score of the original spaceship program (spaceship.md): fraction
+of grid cells where ship and target agree, ``log N(same; 1, 0.005) + log N(outside; 0,
+0.005)`` with ``outside`` how far the ship's bounding box pokes out of the grid (summed
+over the six sides as fractions of the grid's extent), and -inf for any part that
+intersects an earlier one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..core import InvalidArgumentError
+from ..geometry.voxel import VoxelGrid, VoxelScene
+from .image import TargetFileError
+
+
+def _check_3d(model):
+    output = model.new_output()
+    if hasattr(output, "viewport"):
+        raise InvalidArgumentError(f"a volume target needs a 3D model; {model.name!r} is 2D")
+
+
+class Volume:
+    """Seed 002's weighted volume fill/avoid score.
+
+    Parameters
+    ----------
+    grid : VoxelGrid
+    layers : list of (mask, w_fill, w_avoid)
+        Boolean masks of shape ``grid.shape`` with their fill and avoid weights.
+    w_self : float
+        Penalty per extra hit of a covered voxel (0 disables it).
+    temperature : float, optional
+        Divides s_vol to give the log-likelihood (default: 1% of the best attainable s_vol).
+    """
+
+    def __init__(self, grid: VoxelGrid, layers, w_self: float = 0.0, temperature: float | None = None,
+                 name: str = "volume"):
+        self.grid = grid
+        self.name = name
+        self.w_self = float(w_self)
+        if not layers:
+            raise InvalidArgumentError("a volume target needs at least one target volume")
+        combined = np.zeros(grid.shape)
+        self.outside_weight = 0.0
+        for mask, w_fill, w_avoid in layers:
+            mask = np.asarray(mask, dtype=bool)
+            if mask.shape != tuple(grid.shape):
+                raise InvalidArgumentError(f"target volume has shape {mask.shape}, the grid {tuple(grid.shape)}")
+            combined += np.where(mask, float(w_fill), float(w_avoid))
+            self.outside_weight += float(w_avoid)
+        self.combined = combined
+        self._gain = combined.ravel().copy()
+        self.best_attainable = float(np.clip(self._gain, 0, None).sum())
+        if temperature is None:
+            temperature = max(0.01 * self.best_attainable, 1e-9)
+        if not temperature > 0:
+            raise InvalidArgumentError(f"temperature must be positive, got {temperature!r}")
+        self.temperature = float(temperature)
+
+    def configure(self, model):
+        _check_3d(model)
+        return model
+
+    def new_output(self, model) -> VoxelScene:
+        _check_3d(model)
+        return VoxelScene(self.grid, self._gain)
+
+    def score(self, scene: VoxelScene) -> float:
+        """s_vol of the model so far."""
+        return scene.gain_total + scene.outside * self.outside_weight - self.w_self * scene.overlaps
+
+    def log_likelihood(self, scene: VoxelScene) -> float:
+        return self.score(scene) / self.temperature
+
+    def display_mask(self, width: int):
+        return None
+
+
+class ProxyVolume:
+    """The original spaceship program's volume score (see the module docstring)."""
+
+    def __init__(self, grid: VoxelGrid, mask, sigma: float = 0.005, name: str = "proxy"):
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != tuple(grid.shape):
+            raise InvalidArgumentError(f"target volume has shape {mask.shape}, the grid {tuple(grid.shape)}")
+        self.grid, self.mask, self.sigma, self.name = grid, mask, float(sigma), name
+        self._gain = np.where(mask, 1.0, -1.0).ravel()
+        self._empty_agree = float((~mask).sum())
+
+    configure = Volume.configure
+
+    def new_output(self, model) -> VoxelScene:
+        _check_3d(model)
+        return VoxelScene(self.grid, self._gain)
+
+    def score(self, scene: VoxelScene) -> float:
+        """Fraction of grid cells where the ship and the target agree."""
+        return (self._empty_agree + scene.gain_total) / self.mask.size
+
+    def outside(self, scene: VoxelScene) -> float:
+        if scene.extent is None:
+            return 0.0
+        lo, hi = scene.extent
+        g_lo, g_hi = np.asarray(self.grid.origin), self.grid.upper
+        span = g_hi - g_lo
+        return float(np.sum(np.maximum(g_lo - lo, 0) / span) + np.sum(np.maximum(hi - g_hi, 0) / span))
+
+    def log_likelihood(self, scene: VoxelScene) -> float:
+        if scene.overlaps > 0:
+            return -math.inf
+        norm = -math.log(self.sigma * math.sqrt(2 * math.pi))
+        same, out = self.score(scene), self.outside(scene)
+        return 2 * norm - 0.5 * ((same - 1) / self.sigma) ** 2 - 0.5 * (out / self.sigma) ** 2
+
+    def display_mask(self, width: int):
+        return None
+
+
+def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float = 0.1):
+    """Voxelize a watertight mesh file (any format trimesh reads) on a grid around it."""
+    import trimesh
+
+    from ..geometry.solid import Mesh
+    from ..geometry.voxel import voxelize
+
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise TargetFileError(f"{path}: cannot read the mesh ({exc})") from None
+    if len(mesh.faces) == 0:
+        raise TargetFileError(f"{path}: the mesh has no faces")
+    if not mesh.is_watertight:
+        raise TargetFileError(f"{path}: the mesh is not watertight, so its inside is undefined; "
+                              "close its holes or give a voxel grid (.npy) instead")
+    grid = VoxelGrid.around(mesh.bounds[0], mesh.bounds[1], voxel_size, margin)
+    part = Mesh(tuple(map(tuple, mesh.vertices)), tuple(map(tuple, mesh.faces)))
+    return grid, voxelize([part], grid)
+
+
+def load_volume_target(path: str | os.PathLike):
+    """Read a volume target description (``procmod-volume/1`` JSON).
+
+    ::
+
+        {"format": "procmod-volume/1", "score": "svol" | "proxy",
+         "voxel_size": 0.25, "margin": 0.1,             # for meshes
+         "grid": {"origin": [x, y, z], "voxel_size": h},  # for .npy volumes
+         "layers": [{"file": "proxy.obj" | "fill.npy", "w_fill": 1, "w_avoid": -1}],
+         "w_self": 0}
+
+    Files are relative to the JSON file. All layers must lie on one grid: the first layer
+    defines it (a mesh is voxelized on the grid around it; an .npy needs "grid").
+    """
+    path = Path(path)
+    try:
+        spec = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TargetFileError(f"target file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise TargetFileError(f"{path}: cannot read the volume target JSON ({exc})") from None
+    if not isinstance(spec, dict) or spec.get("format") != "procmod-volume/1":
+        raise TargetFileError(f"{path}: expected a JSON object with \"format\": \"procmod-volume/1\"")
+    layers_spec = spec.get("layers")
+    if not isinstance(layers_spec, list) or not layers_spec:
+        raise TargetFileError(f"{path}: \"layers\" must be a non-empty list")
+    grid, layers = None, []
+    for i, layer in enumerate(layers_spec):
+        if not isinstance(layer, dict) or not isinstance(layer.get("file"), str):
+            raise TargetFileError(f"{path}: layers[{i}] needs a \"file\"")
+        file = path.parent / layer["file"]
+        try:
+            w_fill, w_avoid = float(layer.get("w_fill", 1.0)), float(layer.get("w_avoid", 0.0))
+        except (TypeError, ValueError):
+            raise TargetFileError(f"{path}: layers[{i}] weights must be numbers") from None
+        if file.suffix.lower() == ".npy":
+            g = spec.get("grid")
+            if not isinstance(g, dict):
+                raise TargetFileError(f"{path}: a .npy layer needs \"grid\": {{\"origin\": [...], \"voxel_size\": h}}")
+            try:
+                mask = np.load(file, allow_pickle=False)
+            except (OSError, ValueError) as exc:
+                raise TargetFileError(f"{file}: cannot read the voxel grid ({exc})") from None
+            if mask.ndim != 3:
+                raise TargetFileError(f"{file}: a voxel grid must be a 3D array, got shape {mask.shape}")
+            layer_grid = VoxelGrid(tuple(float(v) for v in g["origin"]), float(g["voxel_size"]), mask.shape)
+            mask = mask.astype(bool)
+        else:
+            if not file.exists():
+                raise TargetFileError(f"{path}: layers[{i}] file {file} does not exist")
+            layer_grid, mask = voxelize_mesh_file(file, float(spec.get("voxel_size", 0.25)),
+                                                  float(spec.get("margin", 0.1)))
+        if grid is None:
+            grid = layer_grid
+        elif layer_grid != grid:
+            raise TargetFileError(f"{path}: layers[{i}] is not on the first layer's grid")
+        if not mask.any():
+            raise TargetFileError(f"{file}: the target volume is empty")
+        layers.append((mask, w_fill, w_avoid))
+    name = path.parent.name if path.name == "target.json" else path.stem
+    if spec.get("score", "svol") == "proxy":
+        return ProxyVolume(grid, layers[0][0], name=name)
+    return Volume(grid, layers, float(spec.get("w_self", 0.0)), name=name)
