@@ -17,7 +17,7 @@ def test_models_lists_all(capsys):
     code, out, _ = _run(capsys, "models")
     assert code == 0
     names = [line.split()[0] for line in out.splitlines()]
-    assert names == ["chain", "lightning", "spaceship", "vines"]
+    assert names == ["chain", "city", "lightning", "spaceship", "tree", "vines"]
 
 
 def test_sample_writes_files_and_is_byte_identical(tmp_path, capsys):

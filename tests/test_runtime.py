@@ -19,7 +19,7 @@ def _same(a, b):
         assert np.array_equal(a.output.pixels, b.output.pixels)
 
 
-@pytest.mark.parametrize("name", ["chain", "vines", "lightning", "spaceship"])
+@pytest.mark.parametrize("name", ["chain", "vines", "lightning", "spaceship", "tree", "city"])
 def test_replay_round_trip(name):
     model = get_model(name)
     for seed in range(20):

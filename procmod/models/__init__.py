@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from ..core import Model, UnknownModelError
-from . import chain, lightning, spaceship, vines
+from . import chain, city, lightning, spaceship, tree, vines
 
-MODELS: dict[str, Model] = {m.name: m for m in (chain.MODEL, vines.MODEL, lightning.MODEL, spaceship.MODEL)}
+MODELS: dict[str, Model] = {m.name: m for m in (chain.MODEL, vines.MODEL, lightning.MODEL, spaceship.MODEL, tree.MODEL, city.MODEL)}
 
 
 def get_model(name: str) -> Model:
