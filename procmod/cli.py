@@ -152,15 +152,15 @@ def _cmd_infer(args) -> None:
 def _target(spec: str):
     """The target a command-line spec names."""
     from .data import target_image
-    from .targets import Circuit, ShapeMatch, load_volume_target
+    from .targets import Circuit, ShapeMatch, load_target_file
 
     if spec == "circuit":
         return Circuit()
     path = Path(spec)
     if path.is_dir():
-        return load_volume_target(path / "target.json")
+        return load_target_file(path / "target.json")
     if path.suffix.lower() == ".json":
-        return load_volume_target(path)
+        return load_target_file(path)
     return ShapeMatch(target_image(spec))
 
 

@@ -71,6 +71,11 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
     save_derivation(best, out / "best.json")
     if underlay is not None:
         save_image_atomic(_mask_image(underlay, size), out / "target.png")
+    elif hasattr(target, "overlay_image"):  # silhouettes: the best result seen by the target camera
+        from .core import replay
+        seen = replay(best.model, best.choice_map(), np.random.default_rng(0), order=best.order(),
+                      output=target.new_output(best.model)).derivation
+        save_image_atomic(target.overlay_image(seen.output, 0, size), out / "target.png")
     write_text_atomic(out / "history.csv", result.history_csv())
     convergence_figure({result.engine: result}, out / "convergence.png", f"{result.engine} on {target.name}")
     tiles = [derivation_image(d, 128, underlay=target.display_mask(128)) for d in result.samples[:64]]
@@ -82,7 +87,7 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
         "settings": result.settings, "notes": result.notes, "command": command,
     }
     write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=str) + "\n")
-    write_text_atomic(out / "report.html", _report_html(summary, underlay is not None, extra))
+    write_text_atomic(out / "report.html", _report_html(summary, (out / "target.png").exists(), extra))
     return out / "report.html"
 
 

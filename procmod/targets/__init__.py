@@ -12,6 +12,7 @@ from .image import (TargetFileError, TargetImage, check_mask, load_target_image,
                     lowest_point_start, mask_from_image, out_of_bounds_penalty, place_model,
                     resample_mask)
 from .shape import ShapeMatch, shape_weights, sobel_magnitude
-from .volume import ProxyVolume, Volume, load_volume_target, voxelize_mesh_file
+from .silhouette import Silhouette, load_silhouette_target
+from .volume import ProxyVolume, Volume, load_target_file, load_volume_target, voxelize_mesh_file
 
 __all__ = [name for name in dir() if not name.startswith("_")]

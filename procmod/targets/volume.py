@@ -221,3 +221,22 @@ def load_volume_target(path: str | os.PathLike):
     if spec.get("score", "svol") == "proxy":
         return ProxyVolume(grid, layers[0][0], name=name)
     return Volume(grid, layers, float(spec.get("w_self", 0.0)), name=name)
+
+
+def load_target_file(path: str | os.PathLike):
+    """A 3D target from its JSON description, dispatched on its ``format``."""
+    from .silhouette import load_silhouette_target
+
+    path = Path(path)
+    try:
+        spec = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TargetFileError(f"target file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise TargetFileError(f"{path}: cannot read the target JSON ({exc})") from None
+    kind = spec.get("format") if isinstance(spec, dict) else None
+    if kind == "procmod-silhouette/1":
+        return load_silhouette_target(path)
+    if kind == "procmod-volume/1":
+        return load_volume_target(path)
+    raise TargetFileError(f"{path}: \"format\" must be procmod-volume/1 or procmod-silhouette/1, got {kind!r}")

@@ -1,0 +1,56 @@
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from procmod.core import InvalidArgumentError, run_forward
+from procmod.geometry.camera import Camera
+from procmod.geometry.solid import Box, translation
+from procmod.models import get_model
+from procmod.targets import Silhouette, TargetFileError, load_target_file
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+CAM = Camera((0, 0, 20), (0, 0, 0), projection="orthographic", fov=8, width=32, height=32)
+
+
+def test_s_img_is_the_weighted_sum_of_covered_pixels():
+    rng = np.random.default_rng(0)
+    weights = rng.normal(size=(32, 32))
+    target = Silhouette([(weights, CAM)])
+    out = target.new_output(get_model("city"))
+    out.add(Box((2, 1, 1)))
+    out.add(Box((1, 3, 1), translation(0.5, 0, 0)))
+    assert target.score(out) == pytest.approx(weights[out.image(0)].sum())
+    assert target.log_likelihood(out) == pytest.approx(target.score(out) / target.temperature)
+    with pytest.raises(InvalidArgumentError, match="3D model"):
+        target.new_output(get_model("vines"))
+
+
+@pytest.mark.parametrize("scene", ["spaceship_volume", "spaceship_proxy", "tree_heart", "trees_avoid_cylinder",
+                                   "city_skyline", "city_volume"])
+def test_stored_scenes_load_and_score(scene):
+    target = load_target_file(SCENES / scene / "target.json")
+    model = get_model({"spaceship": "spaceship", "tree": "tree", "trees": "tree", "city": "city"}[scene.split("_")[0]])
+    d = run_forward(model, np.random.default_rng(1), output=target.new_output(model))
+    assert np.isfinite(target.score(d.output))
+
+
+def test_bad_silhouette_files(tmp_path):
+    Image.fromarray(np.full((8, 8), 255, np.uint8)).save(tmp_path / "white.png")
+    cam = {"eye": [0, 0, 5], "look_at": [0, 0, 0]}
+    cases = [
+        ({"format": "procmod-silhouette/1", "views": []}, "non-empty"),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": cam}]}, "nothing to hit"),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "none.png", "camera": cam}]}, "cannot read"),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": {"eye": [0, 0, 0],
+                                                                                      "look_at": [0, 0, 0]}}]},
+         "coincide"),
+        ({"format": "procmod-silhouette/1", "views": [{"camera": cam}]}, "needs \"image\""),
+        ({"format": "something"}, "format"),
+    ]
+    for spec, message in cases:
+        (tmp_path / "t.json").write_text(json.dumps(spec))
+        with pytest.raises(TargetFileError, match=message):
+            load_target_file(tmp_path / "t.json")
