@@ -9,6 +9,7 @@ z-buffer and Lambert-shaded colours.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import numba
@@ -34,6 +35,10 @@ class Camera(NamedTuple):
     height: int = 64
 
     def basis(self):
+        """Eye position and the right, up and forward unit vectors (cached per camera)."""
+        return _basis(self)
+
+    def _compute_basis(self):
         eye = np.asarray(self.eye, dtype=np.float64)
         forward = np.asarray(self.look_at, dtype=np.float64) - eye
         forward /= np.linalg.norm(forward)
@@ -57,6 +62,11 @@ class Camera(NamedTuple):
         else:
             raise ValueError(f"projection must be 'perspective' or 'orthographic', got {self.projection!r}")
         return np.stack([0.5 * self.width + px, 0.5 * self.height - py, depth], axis=-1)
+
+
+@lru_cache(maxsize=64)
+def _basis(camera: Camera):
+    return camera._compute_basis()
 
 
 @numba.njit(cache=True)

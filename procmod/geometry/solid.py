@@ -8,6 +8,7 @@ parts compare and serialise like the 2D primitives. Helpers build transforms.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -80,28 +81,38 @@ def compose(*transforms) -> tuple:
     return as_transform(m)
 
 
+_BOX_CORNERS = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+_BOX_FACES = np.array([(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+                       (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)])
+
+
+@lru_cache(maxsize=8)
+def _cylinder_topology(segments: int):
+    """Unit circle points and the face indices of a ``segments``-gon prism (cached)."""
+    a = np.linspace(0, 2 * math.pi, segments, endpoint=False)
+    faces = []
+    cb, ct = 2 * segments, 2 * segments + 1
+    for i in range(segments):
+        j = (i + 1) % segments
+        faces += [(i, j, segments + j), (i, segments + j, segments + i), (cb, j, i),
+                  (ct, segments + i, segments + j)]
+    return np.cos(a), np.sin(a), np.array(faces)
+
+
 def part_triangles(part, segments: int = 24) -> np.ndarray:
     """World-space triangles ``(n, 3, 3)`` of a part (cylinders as ``segments``-gon prisms)."""
     if isinstance(part, Box):
-        sx, sy, sz = (0.5 * float(v) for v in part.size)
-        corners = np.array([[x, y, z] for x in (-sx, sx) for y in (-sy, sy) for z in (-sz, sz)])
-        faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
-                 (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
-        local, tris = corners, np.array(faces)
+        local, tris = _BOX_CORNERS * np.asarray(part.size, dtype=np.float64), _BOX_FACES
     elif isinstance(part, Cylinder):
         r0 = float(part.radius)
         r1 = r0 if part.top_radius is None else float(part.top_radius)
-        a = np.linspace(0, 2 * math.pi, segments, endpoint=False)
-        bottom = np.stack([r0 * np.cos(a), r0 * np.sin(a), np.zeros(segments)], 1)
-        top = np.stack([r1 * np.cos(a), r1 * np.sin(a), np.full(segments, float(part.length))], 1)
-        local = np.vstack([bottom, top, [[0, 0, 0], [0, 0, float(part.length)]]])
-        cb, ct = 2 * segments, 2 * segments + 1
-        faces = []
-        for i in range(segments):
-            j = (i + 1) % segments
-            faces += [(i, j, segments + j), (i, segments + j, segments + i), (cb, j, i),
-                      (ct, segments + i, segments + j)]
-        tris = np.array(faces)
+        cos, sin, tris = _cylinder_topology(segments)
+        local = np.empty((2 * segments + 2, 3))
+        local[:segments, 0], local[:segments, 1], local[:segments, 2] = r0 * cos, r0 * sin, 0.0
+        local[segments:2 * segments, 0], local[segments:2 * segments, 1] = r1 * cos, r1 * sin
+        local[segments:2 * segments, 2] = float(part.length)
+        local[2 * segments] = (0.0, 0.0, 0.0)
+        local[2 * segments + 1] = (0.0, 0.0, float(part.length))
     elif isinstance(part, Mesh):
         local, tris = np.asarray(part.vertices, dtype=np.float64), np.asarray(part.faces, dtype=np.int64)
     else:
