@@ -19,7 +19,9 @@ Selection: one parent by roulette wheel on fitness shifted to be positive (``sco
 min score``), the other by k-tournament (k = 10); the best fifth of the population is
 kept unchanged (elitism). Mutation probability 30%, split 13.5 / 13.5 / 3.0 between grow,
 cut and alter. The initial population starts from minimal derivations (every ``maybe``
-off) grown repeatedly to random sizes. Fitness evaluations (replay + score) go through
+off) grown repeatedly to random sizes; each round applies up to half of an individual's
+missing grows at once (children created in a round become candidates in the next), so
+large initial individuals cost O(log size) replays instead of one replay per call. Fitness evaluations (replay + score) go through
 the ``executor``.
 """
 
@@ -47,14 +49,23 @@ def _weighted_pick(items, weights, rng):
     return items[-1]
 
 
-def grow_choices(d, rng) -> dict | None:
-    """Choice map with one unexpressed ``maybe`` child turned on (None if there is none)."""
+def grow_choices(d, rng, count: int = 1) -> dict | None:
+    """Choice map with unexpressed ``maybe`` children turned on (None if there is none).
+
+    Each is picked with probability proportional to its spawn probability; ``count`` > 1
+    applies that many grows at once (without replacement), used to build the initial
+    population without one replay per added call.
+    """
     sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns if not s.on]
-    pick = _weighted_pick(sites, [p for _, _, p in sites], rng)
-    if pick is None:
-        return None
-    choices = dict(d.choice_map().raw)
-    choices[(pick[0], pick[1])] = True
+    choices = None
+    for _ in range(count):
+        pick = _weighted_pick(sites, [p for _, _, p in sites], rng)
+        if pick is None:
+            break
+        if choices is None:
+            choices = dict(d.choice_map().raw)
+        choices[(pick[0], pick[1])] = True
+        sites.remove(pick)
     return choices
 
 
@@ -178,10 +189,13 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
         pop = evaluate([({}, new_seed(rng), False) for _ in range(population)])
         goals = rng.integers(1, initial_size + 1, size=population)
         growing = [i for i in range(population) if pop[i].derivation.n_nodes < goals[i]]
-        while growing:  # grow every unfinished individual by one gene per round
+        while growing and not tracker.spent():
+            # Grow every unfinished individual; a round applies up to half the missing
+            # grows at once, so reaching size n takes O(log n) replays rather than n.
             jobs, owners = [], []
             for i in growing:
-                choices = grow_choices(pop[i].derivation, rng)
+                missing = int(goals[i] - pop[i].derivation.n_nodes)
+                choices = grow_choices(pop[i].derivation, rng, max(1, missing // 2))
                 if choices is not None:
                     jobs.append((choices, new_seed(rng), False))
                     owners.append(i)

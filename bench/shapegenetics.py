@@ -1,0 +1,154 @@
+"""Seed 002's evaluation: each 3D scene x {ga, smc, sosmc, mcmc}, several seeds.
+
+    python bench/shapegenetics.py [--seconds 20] [--seeds 5] [--workers 2] [--scenes ...]
+
+Population sizes start from the paper's (Figures 7 and 9: P_RJMCMC, P_SMC, P_SOSMC,
+P_GA); GA mutation splits are the paper's (13.5/13.5/3 for spaceship and trees,
+12.5/10/18 for cities). For each run the anytime curve is the best fitness (the scene's
+score: s_vol, s_img, or the proxy similarity) found by time t. Reports mean +- sd over
+seeds on a time grid (plots like Figures 7 and 9), fitness evaluations per second, the
+time GA needs to reach the mean score RJMCMC has at the end of the budget, and the
+voxelizer's cost per part. Writes bench/results/shapegenetics.json and .png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import json
+import sys
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results"
+SCENES = {  # scene: (model, populations per engine, GA mutation split)
+    "spaceship_volume": ("spaceship", {"mcmc": 70, "smc": 500, "sosmc": 500, "ga": 150}, (13.5, 13.5, 3.0)),
+    "tree_heart": ("tree", {"mcmc": 100, "smc": 1000, "sosmc": 1000, "ga": 200}, (13.5, 13.5, 3.0)),
+    "trees_avoid_cylinder": ("tree", {"mcmc": 50, "smc": 250, "sosmc": 250, "ga": 200}, (13.5, 13.5, 3.0)),
+    "city_skyline": ("city", {"mcmc": 60, "smc": 170, "sosmc": 170, "ga": 180}, (12.5, 10.0, 18.0)),
+    "city_volume": ("city", {"mcmc": 100, "smc": 800, "sosmc": 800, "ga": 300}, (12.5, 10.0, 18.0)),
+}
+ENGINES = ("ga", "smc", "sosmc", "mcmc")
+OPTION = {"ga": "population", "smc": "particles", "sosmc": "particles", "mcmc": "chains"}
+
+
+def run_one(scene: str, engine: str, seed: int, seconds: float) -> dict:
+    from procmod.infer import ENGINES as ALL, Budget
+    from procmod.models import get_model
+    from procmod.targets import load_target_file
+
+    model_name, populations, split = SCENES[scene]
+    model = get_model(model_name)
+    target = load_target_file(ROOT / "scenes" / scene / "target.json")
+    kwargs = {OPTION[engine]: populations[engine]}
+    if engine == "ga":
+        kwargs["split"] = split
+        kwargs["mutation"] = sum(split) / 100.0
+    ALL["forward"](model, target, particles=2, seed=0)  # compile kernels outside the timing
+    result = ALL[engine](model, target, seed=seed, budget=Budget(seconds=seconds), **kwargs)
+    return {"scene": scene, "engine": engine, "seed": seed, "seconds": result.seconds,
+            "evaluations": result.evaluations, "best": result.best_score,
+            "curve": [[r.seconds, r.best_score] for r in result.history]}
+
+
+def best_by(curve, t: float) -> float:
+    best = -np.inf
+    for seconds, score in curve:
+        if seconds > t:
+            break
+        best = max(best, score)
+    return best
+
+
+def voxelizer_cost(repeats: int = 200) -> dict:
+    """Microseconds per part added to a VoxelScene, per model, on the scenes' grids."""
+    from procmod.core import run_forward
+    from procmod.models import get_model
+    from procmod.targets import load_target_file
+    out = {}
+    for scene, model_name in (("spaceship_volume", "spaceship"), ("trees_avoid_cylinder", "tree"),
+                              ("city_volume", "city")):
+        target = load_target_file(ROOT / "scenes" / scene / "target.json")
+        model = get_model(model_name)
+        parts = [g for s in range(20) for g in run_forward(model, np.random.default_rng(s)).geometry()]
+        scene_out = target.new_output(model)
+        t0 = time.perf_counter()
+        for _ in range(max(1, repeats // len(parts) + 1)):
+            fresh = scene_out.copy()
+            for part in parts:
+                fresh.add(part)
+        count = len(parts) * max(1, repeats // len(parts) + 1)
+        out[scene] = {"us_per_part": 1e6 * (time.perf_counter() - t0) / count,
+                      "voxels": int(np.prod(target.grid.shape)), "voxel_size": target.grid.size}
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES))
+    args = parser.parse_args()
+    jobs = [(sc, e, s, args.seconds) for sc in args.scenes for e in ENGINES for s in range(args.seeds)]
+    runs = []
+    with concurrent.futures.ProcessPoolExecutor(args.workers) as pool:
+        for i, future in enumerate(concurrent.futures.as_completed([pool.submit(run_one, *j) for j in jobs]), 1):
+            run = future.result()
+            runs.append(run)
+            print(f"[{i}/{len(jobs)}] {run['scene']:22s} {run['engine']:6s} seed {run['seed']}: "
+                  f"best {run['best']:.2f} ({run['evaluations'] / run['seconds']:.0f} evals/s)", flush=True)
+    grid = np.linspace(0, args.seconds, 81)[1:]
+    summary = {}
+    fig, axes = plt.subplots(1, len(args.scenes), figsize=(4.2 * len(args.scenes), 3.6), squeeze=False)
+    for ax, scene in zip(axes[0], args.scenes):
+        summary[scene] = {}
+        for k, engine in enumerate(ENGINES):
+            curves = [r["curve"] for r in runs if r["scene"] == scene and r["engine"] == engine]
+            table = np.array([[best_by(c, t) for t in grid] for c in curves])
+            finite = np.where(np.isfinite(table), table, np.nan)
+            mean, sd = np.nanmean(finite, axis=0), np.nanstd(finite, axis=0)
+            ax.plot(grid, mean, color=f"C{k}", label=engine)
+            ax.fill_between(grid, mean - sd, mean + sd, color=f"C{k}", alpha=0.15)
+            sel = [r for r in runs if r["scene"] == scene and r["engine"] == engine]
+            summary[scene][engine] = {
+                "population": SCENES[scene][1][engine],
+                "final_mean": float(mean[-1]), "final_sd": float(sd[-1]),
+                "evals_per_second": float(np.mean([r["evaluations"] / r["seconds"] for r in sel])),
+                "mean_curve": [float(v) for v in mean]}
+        mcmc_final = summary[scene]["mcmc"]["final_mean"]
+        ga_mean = np.array(summary[scene]["ga"]["mean_curve"])
+        reached = np.flatnonzero(ga_mean >= mcmc_final)
+        summary[scene]["ga_seconds_to_mcmc_final"] = float(grid[reached[0]]) if len(reached) else None
+        ax.set_title(scene, fontsize=10)
+        ax.set_xlabel("seconds")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("best fitness (mean +- sd)")
+    axes[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    fig.savefig(RESULTS / "shapegenetics.png", dpi=100)
+    costs = voxelizer_cost()
+    (RESULTS / "shapegenetics.json").write_text(json.dumps(
+        {"python": sys.version.split()[0], "seconds": args.seconds, "seeds": args.seeds,
+         "summary": summary, "voxelizer": costs, "runs": runs}, indent=1) + "\n")
+    print("\nscene                  " + "  ".join(f"{e:>16s}" for e in ENGINES) + "  GA->MCMC final")
+    for scene, row in summary.items():
+        cells = "  ".join(f"{row[e]['final_mean']:9.1f}+-{row[e]['final_sd']:5.1f}" for e in ENGINES)
+        t = row["ga_seconds_to_mcmc_final"]
+        print(f"{scene:22s} {cells}  {('%.1f s' % t) if t is not None else 'not reached'}")
+    print("evals/s: " + "; ".join(f"{s}: " + ", ".join(f"{e} {row[e]['evals_per_second']:.0f}" for e in ENGINES)
+                                  for s, row in summary.items()))
+    print("voxelizer: " + ", ".join(f"{k} {v['us_per_part']:.0f} us/part" for k, v in costs.items()))
+    print(f"wrote {RESULTS / 'shapegenetics.json'} and {RESULTS / 'shapegenetics.png'}")
+
+
+if __name__ == "__main__":
+    main()
