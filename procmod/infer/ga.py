@@ -19,9 +19,10 @@ Selection: one parent by roulette wheel on fitness shifted to be positive (``sco
 min score``), the other by k-tournament (k = 10); the best fifth of the population is
 kept unchanged (elitism). Mutation probability 30%, split 13.5 / 13.5 / 3.0 between grow,
 cut and alter. The initial population starts from minimal derivations (every ``maybe``
-off) grown repeatedly to random sizes; each round applies up to half of an individual's
-missing grows at once (children created in a round become candidates in the next), so
-large initial individuals cost O(log size) replays instead of one replay per call. Fitness evaluations (replay + score) go through
+off) grown repeatedly to random sizes; each round applies as many of an individual's
+missing grows as it has unexpressed children (children created in a round become
+candidates in the next), so large initial individuals cost a few replays instead of one
+replay per call. Fitness evaluations (replay + score) go through
 the ``executor``.
 """
 
@@ -190,18 +191,21 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
         goals = rng.integers(1, initial_size + 1, size=population)
         growing = [i for i in range(population) if pop[i].derivation.n_nodes < goals[i]]
         while growing and not tracker.spent():
-            # Grow every unfinished individual; a round applies up to half the missing
-            # grows at once, so reaching size n takes O(log n) replays rather than n.
+            # Grow every unfinished individual; a round applies as many of the missing
+            # grows as there are unexpressed children, so reaching size n takes a few
+            # replays (the candidates multiply each round) rather than n.
             jobs, owners = [], []
             for i in growing:
                 missing = int(goals[i] - pop[i].derivation.n_nodes)
-                choices = grow_choices(pop[i].derivation, rng, max(1, missing // 2))
+                choices = grow_choices(pop[i].derivation, rng, max(1, missing))
                 if choices is not None:
                     jobs.append((choices, new_seed(rng), False))
                     owners.append(i)
             for i, ind in zip(owners, evaluate(jobs)):
                 pop[i] = ind
             growing = [i for i in owners if pop[i].derivation.n_nodes < goals[i]]
+            if tracker.due():
+                tracker.record(float(np.mean([ind.score for ind in pop])))
         tracker.record(float(np.mean([ind.score for ind in pop])))
 
         n_elite = int(math.ceil(elitism * population)) if elitism > 0 else 0
