@@ -4,9 +4,10 @@ The peer is WebPPL running the same program (DESIGN.md "Speed budget", on this 2
 machine): 600 particles ~1.6 s (median normalised similarity 0.82), 200 ~0.5 s (0.75),
 50 ~0.26 s (0.41), 10 ~0.14 s (0.05). procmod's aim: half WebPPL's time at equal quality.
 
-    python bench/smc_vines.py [--targets 10] [--seeds 2]
+    python bench/smc_vines.py [--targets 10] [--seeds 2] [--set glyphs|scribbles]
 
-Targets are the first N usable lower-case glyphs of DejaVu Sans Bold. Similarity is the
+Targets are the first N usable lower-case glyphs of DejaVu Sans Bold, or scribbles
+0..N-1 (procedural brush strokes, the closest thing here to WebPPL's hand-drawn targets). Similarity is the
 normalised similarity of seed 004 eq. 3 (binary edge weights, w_filled 0.6) of one
 particle drawn from the final SMC weights (what SMC returns as a posterior sample); the
 best final particle is reported too. Writes bench/results/smc_vines.json and .png.
@@ -26,7 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from procmod.data import glyph_set  # noqa: E402
+from procmod.data import glyph_set, scribble_set  # noqa: E402
 from procmod.infer import smc  # noqa: E402
 from procmod.models import get_model  # noqa: E402
 from procmod.targets import ShapeMatch  # noqa: E402
@@ -40,8 +41,12 @@ def main() -> None:
     parser.add_argument("--targets", type=int, default=10)
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--particles", type=int, nargs="+", default=[10, 50, 200, 600])
+    parser.add_argument("--set", choices=("glyphs", "scribbles"), default="glyphs")
     args = parser.parse_args()
-    targets = [t for t in glyph_set("dejavu-sans") if t.name[-1].islower()][: args.targets]
+    if args.set == "glyphs":
+        targets = [t for t in glyph_set("dejavu-sans") if t.name[-1].islower()][: args.targets]
+    else:
+        targets = scribble_set(args.targets)
     model = get_model("vines")
     smc(model, ShapeMatch(targets[0]), particles=10, seed=0)  # compile kernels outside the timing
     rows = {}
@@ -73,7 +78,8 @@ def main() -> None:
     RESULTS.mkdir(parents=True, exist_ok=True)
     out = {"python": sys.version.split()[0], "targets": [t.name for t in targets], "seeds": args.seeds,
            "canvas": "50x50", "rows": {str(k): v for k, v in rows.items()}}
-    (RESULTS / "smc_vines.json").write_text(json.dumps(out, indent=1) + "\n")
+    stem = "smc_vines" if args.set == "glyphs" else "smc_vines_scribbles"
+    (RESULTS / f"{stem}.json").write_text(json.dumps(out, indent=1) + "\n")
     fig, ax = plt.subplots(figsize=(6, 4))
     ns = sorted(rows)
     ax.plot([rows[n]["seconds_per_run_mean"] for n in ns], [rows[n]["median_similarity_sample"] for n in ns],
@@ -89,8 +95,8 @@ def main() -> None:
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(RESULTS / "smc_vines.png", dpi=110)
-    print(f"wrote {RESULTS / 'smc_vines.json'} and {RESULTS / 'smc_vines.png'}")
+    fig.savefig(RESULTS / f"{stem}.png", dpi=110)
+    print(f"wrote {RESULTS / (stem + '.json')} and {RESULTS / (stem + '.png')}")
 
 
 if __name__ == "__main__":
