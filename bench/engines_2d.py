@@ -50,7 +50,18 @@ def run_one(engine: str, target_name: str, seed: int, seconds: float) -> dict:
     wall = time.perf_counter() - t0
     return {"engine": engine, "target": target_name, "seed": seed, "wall": wall,
             "evaluations": result.evaluations, "best": result.best_score,
-            "curve": [[r.seconds, r.best_score] for r in result.history]}
+            "curve": improvements(result.history)}
+
+
+def improvements(history) -> list:
+    """The anytime curve reduced to the points where the best score improves (and the last)."""
+    out = []
+    for row in history:
+        if not out or row.best_score > out[-1][1]:
+            out.append([round(row.seconds, 4), row.best_score])
+    if history:
+        out.append([round(history[-1].seconds, 4), history[-1].best_score])
+    return out
 
 
 def score_at(curve, t: float) -> float:

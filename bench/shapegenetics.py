@@ -55,7 +55,18 @@ def run_one(scene: str, engine: str, seed: int, seconds: float) -> dict:
     result = ALL[engine](model, target, seed=seed, budget=Budget(seconds=seconds), **kwargs)
     return {"scene": scene, "engine": engine, "seed": seed, "seconds": result.seconds,
             "evaluations": result.evaluations, "best": result.best_score,
-            "curve": [[r.seconds, r.best_score] for r in result.history]}
+            "curve": improvements(result.history)}
+
+
+def improvements(history) -> list:
+    """The anytime curve reduced to the points where the best score improves (and the last)."""
+    out = []
+    for row in history:
+        if not out or row.best_score > out[-1][1]:
+            out.append([round(row.seconds, 4), row.best_score])
+    if history:
+        out.append([round(history[-1].seconds, 4), history[-1].best_score])
+    return out
 
 
 def best_by(curve, t: float) -> float:
