@@ -25,6 +25,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from _common import best_by, improvements  # noqa: E402
+
 RESULTS = Path(__file__).resolve().parent / "results"
 SETTINGS = {
     "forward": {"particles": 100},
@@ -53,26 +55,6 @@ def run_one(engine: str, target_name: str, seed: int, seconds: float) -> dict:
             "curve": improvements(result.history)}
 
 
-def improvements(history) -> list:
-    """The anytime curve reduced to the points where the best score improves (and the last)."""
-    out = []
-    for row in history:
-        if not out or row.best_score > out[-1][1]:
-            out.append([round(row.seconds, 4), row.best_score])
-    if history:
-        out.append([round(history[-1].seconds, 4), history[-1].best_score])
-    return out
-
-
-def score_at(curve, t: float) -> float:
-    best = 0.0
-    for seconds, score in curve:
-        if seconds > t:
-            break
-        best = max(best, score)
-    return best
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--targets", type=int, default=10)
@@ -97,12 +79,12 @@ def main() -> None:
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for i, engine in enumerate(args.engines):
         curves = [r["curve"] for r in runs if r["engine"] == engine]
-        table = np.array([[score_at(c, t) for t in grid] for c in curves])
+        table = np.array([[best_by(c, t, 0.0) for t in grid] for c in curves])
         median = np.median(table, axis=0)
         lo, hi = np.percentile(table, 25, axis=0), np.percentile(table, 75, axis=0)
         ax.plot(grid, median, color=f"C{i}", label=engine)
         ax.fill_between(grid, lo, hi, color=f"C{i}", alpha=0.15)
-        summary[engine] = {f"{t:g}s": float(np.median([score_at(c, t) for c in curves]))
+        summary[engine] = {f"{t:g}s": float(np.median([best_by(c, t, 0.0) for c in curves]))
                            for t in REPORT_AT if t <= args.seconds}
         summary[engine]["evaluations_median"] = float(np.median([r["evaluations"] for r in runs if r["engine"] == engine]))
     ax.set_xscale("log")

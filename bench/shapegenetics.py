@@ -27,6 +27,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+from _common import best_by, improvements  # noqa: E402
+
 RESULTS = ROOT / "bench" / "results"
 SCENES = {  # scene: (model, populations per engine, GA mutation split)
     "spaceship_volume": ("spaceship", {"mcmc": 70, "smc": 500, "sosmc": 500, "ga": 150}, (13.5, 13.5, 3.0)),
@@ -56,26 +58,6 @@ def run_one(scene: str, engine: str, seed: int, seconds: float) -> dict:
     return {"scene": scene, "engine": engine, "seed": seed, "seconds": result.seconds,
             "evaluations": result.evaluations, "best": result.best_score,
             "curve": improvements(result.history)}
-
-
-def improvements(history) -> list:
-    """The anytime curve reduced to the points where the best score improves (and the last)."""
-    out = []
-    for row in history:
-        if not out or row.best_score > out[-1][1]:
-            out.append([round(row.seconds, 4), row.best_score])
-    if history:
-        out.append([round(history[-1].seconds, 4), history[-1].best_score])
-    return out
-
-
-def best_by(curve, t: float) -> float:
-    best = -np.inf
-    for seconds, score in curve:
-        if seconds > t:
-            break
-        best = max(best, score)
-    return best
 
 
 def voxelizer_cost(repeats: int = 200) -> dict:

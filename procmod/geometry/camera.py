@@ -69,6 +69,13 @@ def _basis(camera: Camera):
     return camera._compute_basis()
 
 
+@numba.njit(cache=True, inline="always")
+def _pixel_box(ax, ay, bx, by, cx, cy, width, height):
+    """Pixel index range (i0, i1, j0, j1) of a triangle's bounding box, clipped to the image."""
+    return (max(int(np.floor(min(ax, bx, cx))), 0), min(int(np.ceil(max(ax, bx, cx))), width - 1),
+            max(int(np.floor(min(ay, by, cy))), 0), min(int(np.ceil(max(ay, by, cy))), height - 1))
+
+
 @numba.njit(cache=True)
 def _raster_triangles(pixels, width, height, tri2d, gain, state):
     """Mark pixels whose centre is inside any triangle; state = [new pixels, gain sum]."""
@@ -79,10 +86,7 @@ def _raster_triangles(pixels, width, height, tri2d, gain, state):
         area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
         if area == 0.0:
             continue
-        i0 = max(int(np.floor(min(ax, bx, cx))), 0)
-        i1 = min(int(np.ceil(max(ax, bx, cx))), width - 1)
-        j0 = max(int(np.floor(min(ay, by, cy))), 0)
-        j1 = min(int(np.ceil(max(ay, by, cy))), height - 1)
+        i0, i1, j0, j1 = _pixel_box(ax, ay, bx, by, cx, cy, width, height)
         for j in range(j0, j1 + 1):
             py = j + 0.5
             for i in range(i0, i1 + 1):
@@ -164,10 +168,7 @@ def _shade_triangles(depth_buffer, colour_buffer, width, height, tri, shades, co
         area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
         if area == 0.0 or min(az, bz, cz) <= 1e-6:
             continue
-        i0 = max(int(np.floor(min(ax, bx, cx))), 0)
-        i1 = min(int(np.ceil(max(ax, bx, cx))), width - 1)
-        j0 = max(int(np.floor(min(ay, by, cy))), 0)
-        j1 = min(int(np.ceil(max(ay, by, cy))), height - 1)
+        i0, i1, j0, j1 = _pixel_box(ax, ay, bx, by, cx, cy, width, height)
         for j in range(j0, j1 + 1):
             py = j + 0.5
             for i in range(i0, i1 + 1):

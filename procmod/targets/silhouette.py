@@ -23,7 +23,6 @@ The camera's resolution is the image's.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -100,11 +99,10 @@ def _camera(spec, where) -> Camera:
 
 def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     """Read a ``procmod-silhouette/1`` target (see the module docstring)."""
+    from .volume import read_target_json
+
     path = Path(path)
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TargetFileError(f"{path}: cannot read the silhouette target JSON ({exc})") from None
+    spec = read_target_json(path)
     views = spec.get("views") if isinstance(spec, dict) else None
     if not isinstance(views, list) or not views:
         raise TargetFileError(f"{path}: \"views\" must be a non-empty list")

@@ -34,6 +34,16 @@ from ..geometry.voxel import VoxelGrid, VoxelScene
 from .image import TargetFileError
 
 
+def read_target_json(path: Path):
+    """The parsed JSON of a target description, or a TargetFileError saying why not."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TargetFileError(f"target file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise TargetFileError(f"{path}: cannot read the target JSON ({exc})") from None
+
+
 def _check_3d(model):
     output = model.new_output()
     if hasattr(output, "viewport"):
@@ -173,12 +183,7 @@ def load_volume_target(path: str | os.PathLike):
     defines it (a mesh is voxelized on the grid around it; an .npy needs "grid").
     """
     path = Path(path)
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise TargetFileError(f"target file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TargetFileError(f"{path}: cannot read the volume target JSON ({exc})") from None
+    spec = read_target_json(path)
     if not isinstance(spec, dict) or spec.get("format") != "procmod-volume/1":
         raise TargetFileError(f"{path}: expected a JSON object with \"format\": \"procmod-volume/1\"")
     layers_spec = spec.get("layers")
@@ -228,12 +233,7 @@ def load_target_file(path: str | os.PathLike):
     from .silhouette import load_silhouette_target
 
     path = Path(path)
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise TargetFileError(f"target file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TargetFileError(f"{path}: cannot read the target JSON ({exc})") from None
+    spec = read_target_json(path)
     kind = spec.get("format") if isinstance(spec, dict) else None
     if kind == "procmod-silhouette/1":
         return load_silhouette_target(path)
