@@ -22,8 +22,10 @@ test-slow: $(STAMP)
 demo: $(STAMP)
 	$(PY) examples/demo.py demo-output
 
+# The quick benchmarks; bench/engines_2d.py and bench/shapegenetics.py take about half an hour each.
 bench: $(STAMP)
 	$(PY) bench/forward.py
+	$(PY) bench/smc_vines.py
 
 clean:
 	rm -rf $(VENV) demo-output .pytest_cache
