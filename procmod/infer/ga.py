@@ -211,8 +211,10 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
         n_elite = int(math.ceil(elitism * population)) if elitism > 0 else 0
         while not tracker.spent():
             pop.sort(key=lambda ind: ind.score, reverse=True)
-            scores = np.array([ind.score for ind in pop])
-            fitness = scores - scores.min()
+            scores = np.array([ind.score for ind in pop], dtype=np.float64)
+            finite = np.isfinite(scores)
+            floor = scores[finite].min() if finite.any() else 0.0
+            fitness = np.where(finite, scores, floor) - floor  # -inf scores get no wheel share
             fitness = fitness / fitness.sum() if fitness.sum() > 0 else np.full(population, 1.0 / population)
             cumulative = np.cumsum(fitness)
 
