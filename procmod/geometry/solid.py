@@ -123,23 +123,36 @@ def part_triangles(part, segments: int = 24) -> np.ndarray:
 
 
 def part_bounds(part) -> tuple:
-    """World-space axis-aligned bounds ``(min xyz, max xyz)`` of a part."""
+    """World-space axis-aligned bounds ``(min xyz, max xyz)`` of a part, as numpy arrays.
+
+    Exact for boxes and cylinders (plain-Python arithmetic on the transform: this runs
+    for every part drawn, where numpy's per-call overhead would dominate).
+    """
     if isinstance(part, Mesh):
         tris = part_triangles(part)
         return tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
-    m = matrix(part.transform)
+    t = part.transform
     if isinstance(part, Box):
-        half = 0.5 * np.abs(m[:3, :3]) @ np.asarray(part.size, dtype=np.float64)
-        centre = m[:3, 3]
-        return centre - half, centre + half
-    # Cylinder: bound each end disc exactly (a disc of radius r in a transformed frame).
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    r1 = part.radius if part.top_radius is None else part.top_radius
-    for z, r in ((0.0, part.radius), (part.length, r1)):
-        centre = m[:3, :3] @ np.array([0.0, 0.0, z]) + m[:3, 3]
-        extent = r * np.sqrt(m[:3, 0] ** 2 + m[:3, 1] ** 2)
-        lo, hi = np.minimum(lo, centre - extent), np.maximum(hi, centre + extent)
-    return lo, hi
+        sx, sy, sz = part.size
+        lo, hi = [], []
+        for row in range(3):
+            a, b, c, d = t[4 * row:4 * row + 4]
+            half = 0.5 * (abs(a) * sx + abs(b) * sy + abs(c) * sz)
+            lo.append(d - half)
+            hi.append(d + half)
+        return np.array(lo), np.array(hi)
+    if isinstance(part, Cylinder):
+        r0 = part.radius
+        r1 = r0 if part.top_radius is None else part.top_radius
+        lo, hi = [], []
+        for row in range(3):
+            a, b, c, d = t[4 * row:4 * row + 4]
+            spread = math.sqrt(a * a + b * b)
+            top = d + c * part.length
+            lo.append(min(d - r0 * spread, top - r1 * spread))
+            hi.append(max(d + r0 * spread, top + r1 * spread))
+        return np.array(lo), np.array(hi)
+    raise TypeError(f"not a 3D part: {part!r}")
 
 
 class PartBounds:

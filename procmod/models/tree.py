@@ -24,26 +24,39 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ..core import Model, Uniform
-from ..geometry.solid import Cylinder, PartBounds, as_transform
+from ..geometry.solid import Cylinder, PartBounds
 
 MAX_DEPTH = 4
 TRUNK_CHILDREN = (0.95, 0.8, 0.6)
 BRANCH_CHILDREN = (0.9, 0.7, 0.45)
 
 
+def _cross(a, b) -> tuple:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _unit(v) -> tuple:
+    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    return (v[0] / n, v[1] / n, v[2] / n)
+
+
+def _axes(axis) -> tuple:
+    """Two unit vectors x, y completing the unit ``axis`` to a right-handed frame (x, y, axis)."""
+    helper = (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0)
+    x = _unit(_cross(helper, axis))
+    return x, _cross(axis, x)
+
+
 def _frame(origin, axis) -> tuple:
-    """Transform whose local +z is ``axis`` (unit) and whose origin is ``origin``."""
-    z = np.asarray(axis, dtype=np.float64)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, z, origin
-    return as_transform(m)
+    """Transform (row-major 4x4 tuple) whose local +z is ``axis`` (unit) at ``origin``.
+
+    Plain-Python vector maths: this runs once per branch call, where numpy's per-call
+    overhead would cost more than the arithmetic.
+    """
+    x, y = _axes(axis)
+    return (x[0], y[0], axis[0], origin[0], x[1], y[1], axis[1], origin[1],
+            x[2], y[2], axis[2], origin[2], 0.0, 0.0, 0.0, 1.0)
 
 
 def _spawn_children(ctx, probabilities, scale, base, axis, radius, length, depth) -> bool:
@@ -71,12 +84,10 @@ def branch(ctx, parent_base, parent_axis, parent_radius, parent_length, depth):
     s = ctx.sample("s", Uniform(0.55, 0.85))
     l = ctx.sample("l", Uniform(0.55, 0.9))
     o = ctx.sample("o", Uniform(0.45, 1.0))
-    pa = np.asarray(parent_axis, dtype=np.float64)
-    frame = np.asarray(_frame(parent_base, pa)).reshape(4, 4)
-    sideways = math.cos(phi) * frame[:3, 0] + math.sin(phi) * frame[:3, 1]
-    axis = math.cos(psi) * pa + math.sin(psi) * sideways
-    axis = tuple(float(v) for v in axis / np.linalg.norm(axis))
-    base = tuple(float(v) for v in np.asarray(parent_base) + o * parent_length * pa)
+    px, py = _axes(parent_axis)
+    cphi, sphi, cpsi, spsi = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
+    axis = _unit(tuple(cpsi * a + spsi * (cphi * u + sphi * v) for a, u, v in zip(parent_axis, px, py)))
+    base = tuple(b + o * parent_length * a for b, a in zip(parent_base, parent_axis))
     radius, length = s * parent_radius, l * parent_length
     ctx.emit(Cylinder(radius, length, _frame(base, axis), "branch", 0.8 * radius))
     tip = tuple(float(b + length * a) for b, a in zip(base, axis))
