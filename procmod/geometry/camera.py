@@ -15,7 +15,9 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .solid import part_triangles
+from .solid import part_bounds, part_triangles
+
+SILHOUETTE_SEGMENTS = 12
 
 
 class Camera(NamedTuple):
@@ -49,24 +51,37 @@ class Camera(NamedTuple):
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixel x, pixel y and depth of world points ``(..., 3)``; depth <= 0 is behind."""
-        eye, right, up, forward = self.basis()
-        rel = np.asarray(points, dtype=np.float64) - eye
-        x, y, depth = rel @ right, rel @ up, rel @ forward
+        linear = _linear_projection(self)  # rows: (x, y, depth) as affine maps of the point
+        q = np.asarray(points, dtype=np.float64) @ linear[:, :3].T + linear[:, 3]
         if self.projection == "perspective":
-            scale = 0.5 * self.height / math.tan(math.radians(self.fov) / 2)
-            safe = np.where(depth > 1e-9, depth, 1e-9)
-            px, py = x / safe * scale, y / safe * scale
-        elif self.projection == "orthographic":
-            scale = self.height / self.fov
-            px, py = x * scale, y * scale
+            depth = q[..., 2:3]
+            q[..., :2] = 0.5 * np.array([self.width, self.height]) + q[..., :2] / np.where(depth > 1e-9, depth, 1e-9)
         else:
-            raise ValueError(f"projection must be 'perspective' or 'orthographic', got {self.projection!r}")
-        return np.stack([0.5 * self.width + px, 0.5 * self.height - py, depth], axis=-1)
+            q[..., :2] += 0.5 * np.array([self.width, self.height])
+        return q
 
 
 @lru_cache(maxsize=64)
 def _basis(camera: Camera):
     return camera._compute_basis()
+
+
+@lru_cache(maxsize=64)
+def _linear_projection(camera: Camera) -> np.ndarray:
+    """3x4 affine map from world points to (scaled x, scaled y, depth) for ``camera``.
+
+    Orthographic: x and y are already pixel offsets from the image centre. Perspective:
+    x and y still need dividing by the depth. Image y grows downwards.
+    """
+    eye, right, up, forward = camera.basis()
+    if camera.projection == "perspective":
+        scale = 0.5 * camera.height / math.tan(math.radians(camera.fov) / 2)
+    elif camera.projection == "orthographic":
+        scale = camera.height / camera.fov
+    else:
+        raise ValueError(f"projection must be 'perspective' or 'orthographic', got {camera.projection!r}")
+    rows = np.array([scale * right, -scale * up, forward])
+    return np.hstack([rows, -(rows @ eye)[:, None]])
 
 
 @numba.njit(cache=True, inline="always")
@@ -141,8 +156,9 @@ class Silhouettes:
         return (self.pixels[index] != 0).reshape(c.height, c.width)
 
     def add(self, part) -> int:
-        tris = part_triangles(part)
-        lo, hi = tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
+        # 12-gon cylinders: silhouette rasters are coarse, and triangles dominate the cost.
+        tris = part_triangles(part, SILHOUETTE_SEGMENTS)
+        lo, hi = part_bounds(part)
         self.extent = (lo, hi) if self.extent is None else (np.minimum(self.extent[0], lo),
                                                           np.maximum(self.extent[1], hi))
         self.n_parts += 1
