@@ -1,6 +1,7 @@
 """What `make demo` shows.
 
-1. A contact sheet of forward samples of every built-in model.
+1. A contact sheet of forward samples of each 2D model and of the spaceship (whose
+   samples also come as OBJ and GLB meshes).
 2. ``vines`` controlled toward the glyph "a" by two engines (SMC and the genetic
    algorithm) at the same wall-time budget, each with an HTML report.
 
@@ -13,7 +14,7 @@ from pathlib import Path
 from procmod.cli import main
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "demo-output")
-models = ("chain", "vines", "lightning")
+models = ("chain", "vines", "lightning", "spaceship")
 for name in models:
     if main(["sample", name, "-n", "16", "--seed", "0", "--out", str(out / name), "--size", "256"]):
         sys.exit(2)
