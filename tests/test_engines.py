@@ -177,3 +177,20 @@ def test_parse_budget():
     for bad in ("", "fast", "-3s", "0evals"):
         with pytest.raises(InvalidArgumentError):
             parse_budget(bad)
+
+
+def test_engines_run_through_a_process_pool_with_the_same_results():
+    import concurrent.futures
+
+    from procmod.targets import load_target_file
+    from pathlib import Path
+    scene = load_target_file(Path(__file__).resolve().parents[1] / "scenes" / "spaceship_volume" / "target.json")
+    cases = [(ENGINES["forward"], get_model("vines"), _bar_target(), {"particles": 6}),
+             (ENGINES["ga"], get_model("spaceship"), scene, {"population": 6, "budget": Budget(generations=2)}),
+             (ENGINES["mcmc"], get_model("lightning"), _bar_target(), {"chains": 2, "budget": Budget(generations=3)})]
+    with concurrent.futures.ProcessPoolExecutor(2) as pool:
+        for engine, model, target, kwargs in cases:
+            pooled = engine(model, target, seed=3, executor=pool, **kwargs)
+            inline = engine(model, target, seed=3, **kwargs)
+            assert pooled.best.choice_map() == inline.best.choice_map()
+            assert pooled.best_score == inline.best_score

@@ -178,6 +178,11 @@ class PartBounds:
         return 0
 
 
+def new_part_bounds(params=None) -> PartBounds:
+    """Output factory of 3D models (a named function, so models pickle for process pools)."""
+    return PartBounds()
+
+
 def scene_bounds(parts) -> tuple:
     """World bounds (min xyz, max xyz) of a list of parts (a unit box if there are none)."""
     if not parts:

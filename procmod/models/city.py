@@ -20,7 +20,7 @@ The constants are ours (the paper gives none).
 from __future__ import annotations
 
 from ..core import Model, Uniform
-from ..geometry.solid import Box, PartBounds, compose, rotation, translation
+from ..geometry.solid import Box, compose, new_part_bounds, rotation, translation
 
 MAX_STEPS = 10
 
@@ -60,12 +60,16 @@ def building(ctx, i, j):
                  "building"))
 
 
+def _root_args(params) -> tuple:
+    return ()
+
+
 MODEL = Model(
     name="city",
     description="a city of buildings on lots reached by street iterators (seed 002, Fig. 8b)",
     root=center,
-    root_args=lambda params: (),
-    new_output_from=lambda params: PartBounds(),
+    root_args=_root_args,
+    new_output_from=new_part_bounds,
     params={},
     rules=(center, straight, diagonal, building),
     choices_doc=__doc__,

@@ -41,7 +41,7 @@ from __future__ import annotations
 import math
 
 from ..core import Bernoulli, Categorical, Model, Uniform
-from ..geometry.solid import Box, Cylinder, PartBounds, translation
+from ..geometry.solid import Box, Cylinder, new_part_bounds, translation
 
 REAR_Z = -5.0
 MAX_DEPTH = 12
@@ -141,12 +141,16 @@ def fin(ctx, j, y_start, zmin, zmax, max_width):
 
 
 
+def _root_args(params) -> tuple:
+    return (0, REAR_Z, None, 0.0, 0.0)
+
+
 MODEL = Model(
     name="spaceship",
     description="spaceships of body segments, wings and fins (SOSMC paper / seed 002 Fig. 4a)",
     root=body,
-    root_args=lambda params: (0, REAR_Z, None, 0.0, 0.0),
-    new_output_from=lambda params: PartBounds(),
+    root_args=_root_args,
+    new_output_from=new_part_bounds,
     params={},
     rules=(body, nose, wing, fin),
     choices_doc=__doc__,

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 
 from ..core import Model, Uniform
-from ..geometry.solid import Cylinder, PartBounds
+from ..geometry.solid import Cylinder, new_part_bounds
 
 MAX_DEPTH = 4
 TRUNK_CHILDREN = (0.95, 0.8, 0.6)
@@ -103,12 +103,16 @@ def foliage(ctx, tip, axis):
     ctx.emit(Cylinder(0.6 * size, size, _frame(back, axis), "foliage", 0.05))
 
 
+def _root_args(params) -> tuple:
+    return ()
+
+
 MODEL = Model(
     name="tree",
     description="trees of tapering branches ending in foliage (seed 002, Fig. 8a)",
     root=trunk,
-    root_args=lambda params: (),
-    new_output_from=lambda params: PartBounds(),
+    root_args=_root_args,
+    new_output_from=new_part_bounds,
     params={},
     rules=(trunk, branch, foliage),
     choices_doc=__doc__,
