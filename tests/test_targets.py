@@ -9,8 +9,8 @@ from procmod.core import InvalidArgumentError, run_forward, start, step
 from procmod.data import glyph_set, render_glyph, scribble_target, target_image
 from procmod.geometry import Canvas, Disc, Segment
 from procmod.models import get_model
-from procmod.targets import (Circuit, ShapeMatch, TargetFileError, TargetImage, edge_total,
-                             load_target_image, shape_weights)
+from procmod.targets import (Circuit, ShapeMatch, TargetFileError, TargetImage, check_mask,
+                             edge_total, load_target_image, shape_weights)
 
 
 def _disc_mask(n=50, r=12):
@@ -97,6 +97,13 @@ def test_target_files_and_sidecars(tmp_path):
     # Light-on-dark pictures and transparency are read the same way.
     Image.fromarray(np.where(mask, 255, 0).astype(np.uint8)).save(tmp_path / "inv.png")
     assert np.array_equal(load_target_image(tmp_path / "inv.png").mask, t.mask)
+    rgba = np.zeros(mask.shape + (4,), np.uint8)
+    rgba[..., 3] = np.where(mask, 255, 0)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "alpha.png")
+    assert np.array_equal(load_target_image(tmp_path / "alpha.png").mask, t.mask)
+    opaque = np.dstack([np.where(mask, 0, 255).astype(np.uint8)] * 3 + [np.full(mask.shape, 255, np.uint8)])
+    Image.fromarray(opaque, "RGBA").save(tmp_path / "opaque.png")  # alpha channel, no transparency
+    assert np.array_equal(load_target_image(tmp_path / "opaque.png").mask, t.mask)
     (tmp_path / "bar.json").write_text(json.dumps({"start": [0.5, 0.9], "direction": [1, 0]}))
     placed = load_target_image(tmp_path / "bar.png")
     assert placed.direction == (1.0, 0.0)
@@ -117,11 +124,13 @@ def test_bad_target_files(tmp_path, make, message):
 
 
 def test_full_mask_and_missing_and_bad_sidecar(tmp_path):
-    img = np.full((20, 20), 255, np.uint8)
-    img[0, :] = 0  # border dark -> light is foreground -> almost everything
-    Image.fromarray(np.zeros((20, 20), np.uint8) + 255).convert("RGBA").save(tmp_path / "full.png")
-    with pytest.raises(TargetFileError, match="fills the whole frame"):
-        load_target_image(tmp_path / "full.png")
+    Image.fromarray(np.full((20, 20), 0, np.uint8)).save(tmp_path / "black.png")
+    # A picture of one colour has no shape against its border.
+    with pytest.raises(TargetFileError, match="empty"):
+        load_target_image(tmp_path / "black.png")
+    # Foreground is defined against the border, so a full frame can only come as a mask.
+    with pytest.raises(TargetFileError, match="full.png: the target mask fills the whole frame"):
+        check_mask(np.ones((5, 5), bool), "full.png")
     with pytest.raises(TargetFileError, match="does not exist"):
         load_target_image(tmp_path / "nope.png")
     mask = np.full((20, 20), 255, np.uint8)

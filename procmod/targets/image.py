@@ -107,8 +107,10 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     Non-square pictures are padded with background to a square, centred, because the
     built-in models' viewport is square.
     """
+    alpha = None
     if image.mode in ("RGBA", "LA", "PA") or "transparency" in image.info:
-        alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
+        alpha = np.asarray(image.convert("RGBA"))[:, :, 3]
+    if alpha is not None and (alpha < 128).any():  # real transparency: the opaque part
         mask = alpha >= 128
     else:
         grey = np.asarray(image.convert("L"), dtype=np.float64)
