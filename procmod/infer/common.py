@@ -13,7 +13,6 @@ one individual for the GA, one proposal for MCMC, one forward sample for ``forwa
 
 from __future__ import annotations
 
-import concurrent.futures
 import contextlib
 import functools
 import gc
@@ -26,6 +25,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..core import Derivation, InvalidArgumentError, replay
+from ..parallel import InlineExecutor
 
 
 @dataclass(frozen=True)
@@ -180,18 +180,6 @@ class Result:
                 break
             best = row.best_score
         return best
-
-
-class InlineExecutor(concurrent.futures.Executor):
-    """An executor that runs each task at once in the calling thread (the default)."""
-
-    def submit(self, fn, /, *args, **kwargs):
-        future = concurrent.futures.Future()
-        try:
-            future.set_result(fn(*args, **kwargs))
-        except BaseException as exc:  # delivered through the future, as executors do
-            future.set_exception(exc)
-        return future
 
 
 class Evaluation(NamedTuple):

@@ -1,0 +1,91 @@
+"""Executors for embarrassingly parallel work: one interface, local or on a cluster.
+
+Everything procmod parallelises (SMC training traces, GA fitness batches, independent
+inference runs, parallel structure searches) goes through a
+:class:`concurrent.futures.Executor`. :func:`open_executor` picks one:
+
+- ``workers <= 1`` and no scheduler: :class:`InlineExecutor` (runs in the caller; the
+  default for library calls, and what tests use);
+- ``workers = W > 1``: a local :class:`concurrent.futures.ProcessPoolExecutor` with W
+  processes;
+- ``scheduler = "tcp://host:8786"``: a dask.distributed cluster through
+  ``Client.get_executor(pure=False)``. ``pure=False`` matters: dask otherwise keys a task
+  by its function and arguments and would run two identical stochastic calls once. Callers
+  still pass each task its own seed, so results do not depend on where a task ran.
+
+Tasks must be module-level functions fed picklable arguments.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import contextlib
+import os
+from typing import Iterator
+
+from .core.errors import InvalidArgumentError, ProcmodError
+
+
+class SchedulerError(ProcmodError):
+    """A dask scheduler that cannot be reached or used."""
+
+
+class InlineExecutor(concurrent.futures.Executor):
+    """An executor that runs each task at once in the calling thread."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        future = concurrent.futures.Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # delivered through the future, as executors do
+            future.set_exception(exc)
+        return future
+
+
+def default_workers() -> int:
+    """The number of CPU cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def open_executor(workers: int | None = None, scheduler: str | None = None,
+                  connect_timeout: float = 10.0) -> Iterator[concurrent.futures.Executor]:
+    """Open an executor for the duration of a ``with`` block.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Local worker processes; ``None`` or 1 runs inline, 0 means one per core.
+    scheduler : str, optional
+        Address of a dask.distributed scheduler (``tcp://host:8786``); overrides
+        ``workers``.
+    connect_timeout : float
+        Seconds to wait for the scheduler before giving up with a :class:`SchedulerError`.
+    """
+    if workers is not None and workers < 0:
+        raise InvalidArgumentError(f"workers must be >= 0, got {workers}; use 0 for one per core")
+    if scheduler:
+        try:
+            from distributed import Client
+        except ImportError as exc:  # pragma: no cover - dask is a dependency
+            raise SchedulerError("dask.distributed is not installed; pip install 'dask[distributed]'") from exc
+        try:
+            client = Client(scheduler, timeout=connect_timeout)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({exc}); "
+                                 "check the address and that `dask scheduler` is running") from exc
+        try:
+            yield client.get_executor(pure=False)
+        finally:
+            client.close()
+        return
+    if workers == 0:
+        workers = default_workers()
+    if workers is None or workers <= 1:
+        yield InlineExecutor()
+        return
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        yield pool
