@@ -47,6 +47,9 @@ def _build_parser() -> argparse.ArgumentParser:
     sample.add_argument("--seed", type=_int_arg, default=0, help="random seed (default 0)")
     sample.add_argument("--out", required=True, help="output folder (created if missing)")
     sample.add_argument("--size", type=_int_arg, default=256, help="render width in pixels (default 256)")
+    sample.add_argument("--format", default="pictures", choices=("pictures", "examples"),
+                        help="pictures (default): a folder of renders + derivations; examples: one "
+                             "procmod-examples/1 JSON file at --out (learned programs)")
 
     infer = sub.add_parser("infer", help="control a model toward a target with an engine")
     infer.add_argument("model", metavar="MODEL")
@@ -67,6 +70,13 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("derivation", metavar="DERIVATION.json")
     render.add_argument("--out", required=True, help="output file: .png or .svg (2D), .png, .obj or .glb (3D)")
     render.add_argument("--size", type=_int_arg, default=512, help="width in pixels (default 512)")
+
+    # Command groups that live beside their subsystem; each parser sets ``handler``.
+    from .guide.cli import register as register_guide
+    from .learn.cli import register as register_learn
+    from .strings.cli import register as register_strings
+    for register in (register_guide, register_learn, register_strings):
+        register(sub, _int_arg)
     return parser
 
 
@@ -76,14 +86,29 @@ def _cmd_models(args) -> None:
         print(f"{name:<{width}}  {MODELS[name].description}")
 
 
+def _model(spec: str):
+    """A built-in model by name, or a learned program by path (program.json or its folder)."""
+    path = Path(spec)
+    if spec not in MODELS and (path.suffix.lower() == ".json" or path.is_dir()):
+        from .learn import load_program
+        return load_program(path)
+    return get_model(spec)
+
+
 def _cmd_sample(args) -> None:
-    model = get_model(args.model)
+    model = _model(args.model)
     if args.n < 1:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     size = check_size(args.size)
     out = Path(args.out)
+    if args.format == "examples":
+        from .learn import write_examples
+        derivations = [run_forward(model, np.random.default_rng([args.seed, i])) for i in range(args.n)]
+        write_examples(model, derivations, out)
+        print(f"wrote {args.n} samples of {model.name} to {out} (procmod-examples/1)")
+        return
     if out.exists() and not out.is_dir():
         raise InvalidArgumentError(f"--out {out} exists and is not a folder")
     # Sample i depends only on (seed, i), so asking for more samples keeps the first ones.
@@ -102,7 +127,7 @@ def _cmd_sample(args) -> None:
 def _cmd_render(args) -> None:
     check_format(args.out)
     size = check_size(args.size)
-    derivation = load_derivation(args.derivation, get_model)
+    derivation = load_derivation(args.derivation, _model)
     check_format(args.out, output_formats(derivation))
     write_derivation(derivation, args.out, size)
     print(f"wrote {args.out}")
@@ -116,7 +141,7 @@ def _cmd_infer(args) -> None:
     from .infer import ENGINES, parse_budget
     from .report import write_run
 
-    model = get_model(args.model)
+    model = _model(args.model)
     if args.engine not in ENGINES:
         raise InvalidArgumentError(f"unknown engine {args.engine!r}; choose one of {', '.join(ENGINES)}")
     wanted = _POPULATION_OPTION[args.engine]
@@ -197,7 +222,8 @@ def main(argv=None) -> int:
     """Entry point of the ``procmod`` console script; returns the exit status."""
     try:
         args = _build_parser().parse_args(argv)
-        _COMMANDS[args.command](args)
+        handler = getattr(args, "handler", None) or _COMMANDS[args.command]
+        handler(args)
     except ProcmodError as exc:
         print(f"procmod: error: {exc}", file=sys.stderr)
         return 2

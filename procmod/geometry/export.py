@@ -7,6 +7,8 @@ the engines scored, only sharper.
 
 from __future__ import annotations
 
+import zlib
+
 import io
 import math
 import os
@@ -40,8 +42,17 @@ PALETTE = {
 
 
 def colour_of(tag: str) -> tuple:
-    """The RGB colour a tag is drawn in."""
-    return PALETTE.get(tag, DEFAULT_COLOUR)
+    """The RGB colour a tag is drawn in: the palette's, else a stable colour picked by the
+    tag's name (so the parts of learned programs and shape sets get distinct colours)."""
+    colour = PALETTE.get(tag)
+    if colour is None:
+        colour = _EXTRA_COLOURS[zlib.crc32(tag.encode()) % len(_EXTRA_COLOURS)] if tag else DEFAULT_COLOUR
+    return colour
+
+
+# Tableau-like colours for tags the palette does not name.
+_EXTRA_COLOURS = ((78, 121, 167), (242, 142, 43), (225, 87, 89), (118, 183, 178), (89, 161, 79),
+                  (237, 201, 72), (176, 122, 161), (255, 157, 167), (156, 117, 95), (186, 176, 172))
 
 
 def canvas_height(viewport, width: int) -> int:

@@ -1,0 +1,154 @@
+"""Part libraries and world-space part instances, as the ``procmod-examples/1`` and
+``procmod-shapes/1`` file formats write them.
+
+A library maps a part name to its shape in the part's own local frame:
+
+- ``{"box": [sx, sy, sz]}`` — a box of those full extents centred at the local origin;
+- ``{"mesh": "parts/wing.obj"}`` — a triangle mesh read from a path relative to the JSON
+  file (anything trimesh reads: OBJ, STL, PLY, GLB, OFF).
+
+An instance is a part name plus a 4x4 affine world transform (row-major, rotation with
+possibly non-uniform or negative scale, then translation). Malformed input raises a
+:class:`PartLibraryError` that names the JSON path of the problem, e.g.
+``examples[3].children[1].transform``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..core.errors import ProcmodError
+from .solid import Box, Mesh, as_transform, matrix, part_triangles
+
+
+class PartLibraryError(ProcmodError):
+    """A part library or part transform that cannot be used; the message names where."""
+
+
+class PartShape(NamedTuple):
+    """One library entry: a box (``size``) or a mesh (``vertices``, ``faces``), local frame.
+
+    ``source`` is what the file said (the box extents or the mesh path as written), so a
+    library writes back exactly as it was read.
+    """
+
+    name: str
+    kind: str  # "box" or "mesh"
+    size: tuple | None = None
+    vertices: tuple | None = None
+    faces: tuple | None = None
+    source: object = None
+
+    def part(self, transform, tag: str | None = None):
+        """The part placed by ``transform`` (a 4x4 array or a 16-tuple), tagged by name."""
+        t = as_transform(transform) if not isinstance(transform, tuple) else transform
+        tag = tag or self.name
+        if self.kind == "box":
+            return Box(self.size, t, tag)
+        return Mesh(self.vertices, self.faces, t, tag)
+
+    def local_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper corner of the shape's local bounding box."""
+        if self.kind == "box":
+            half = np.asarray(self.size) / 2
+            return -half, half
+        v = np.asarray(self.vertices, dtype=np.float64)
+        return v.min(axis=0), v.max(axis=0)
+
+    def local_triangles(self) -> np.ndarray:
+        """Triangles (n, 3, 3) of the shape in its local frame."""
+        return part_triangles(self.part(np.eye(4)))
+
+    def to_json(self):
+        return {self.kind: self.source}
+
+
+def _finite_numbers(value, count: int, where: str) -> list[float]:
+    if not isinstance(value, (list, tuple)) or len(value) != count:
+        raise PartLibraryError(f"{where}: expected a list of {count} numbers, got {value!r:.80}")
+    out = []
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise PartLibraryError(f"{where}[{i}]: expected a finite number, got {v!r}")
+        out.append(float(v))
+    return out
+
+
+def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) -> PartShape:
+    """One library entry from its JSON value (``where`` is its JSON path, for errors)."""
+    if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("box", "mesh"):
+        raise PartLibraryError(f'{where}: a part is {{"box": [sx, sy, sz]}} or {{"mesh": "path"}}, got {spec!r:.80}')
+    kind, value = next(iter(spec.items()))
+    if kind == "box":
+        size = _finite_numbers(value, 3, f"{where}.box")
+        if min(size) <= 0:
+            raise PartLibraryError(f"{where}.box: box extents must be positive, got {size}")
+        return PartShape(name, "box", size=tuple(size), source=list(size))
+    if not isinstance(value, str) or not value:
+        raise PartLibraryError(f"{where}.mesh: expected a path relative to the JSON file, got {value!r}")
+    path = Path(base_dir) / value
+    if not path.is_file():
+        raise PartLibraryError(f"{where}.mesh: mesh file {path} does not exist")
+    try:
+        import trimesh
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise PartLibraryError(f"{where}.mesh: cannot read {path} as a triangle mesh ({exc})") from None
+    if len(getattr(mesh, "faces", ())) == 0:
+        raise PartLibraryError(f"{where}.mesh: {path} holds no triangles")
+    vertices = tuple(tuple(float(c) for c in v) for v in np.asarray(mesh.vertices))
+    faces = tuple(tuple(int(i) for i in f) for f in np.asarray(mesh.faces))
+    return PartShape(name, "mesh", vertices=vertices, faces=faces, source=value)
+
+
+def read_part_library(parts, base_dir: str | os.PathLike, where: str = "parts") -> dict[str, PartShape]:
+    """The ``"parts"`` object of an examples or shapes file, as name -> :class:`PartShape`."""
+    if not isinstance(parts, dict) or not parts:
+        raise PartLibraryError(f"{where}: expected an object mapping part names to shapes, got {parts!r:.80}")
+    library = {}
+    for name, spec in parts.items():
+        if not isinstance(name, str) or not name:
+            raise PartLibraryError(f"{where}: part names must be non-empty strings, got {name!r}")
+        library[name] = read_part_shape(name, spec, base_dir, f"{where}.{name}")
+    return library
+
+
+def part_library_to_json(library: dict[str, PartShape]) -> dict:
+    """The ``"parts"`` object for a library (as it was read)."""
+    return {name: shape.to_json() for name, shape in library.items()}
+
+
+def read_transform(value, where: str) -> np.ndarray:
+    """A 4x4 row-major affine world transform from JSON, checked.
+
+    Rejects anything that is not 4 rows of 4 finite numbers, whose last row is not
+    (0, 0, 0, 1) (not affine), or whose linear part is singular (not invertible).
+    """
+    if not isinstance(value, (list, tuple)) or len(value) != 4:
+        raise PartLibraryError(f"{where}: expected a 4x4 matrix as 4 rows of 4 numbers, got {value!r:.80}")
+    m = np.array([_finite_numbers(row, 4, f"{where}[{i}]") for i, row in enumerate(value)])
+    if not np.allclose(m[3], (0, 0, 0, 1), atol=1e-9):
+        raise PartLibraryError(f"{where}: not an affine transform (last row is {m[3].tolist()}, must be [0, 0, 0, 1])")
+    linear = m[:3, :3]
+    scale = max(float(np.abs(linear).max()), 1e-300)
+    if abs(np.linalg.det(linear / scale)) < 1e-9:
+        raise PartLibraryError(f"{where}: the transform is not invertible (its 3x3 part is singular)")
+    return m
+
+
+def transform_to_json(m) -> list[list[float]]:
+    """A 4x4 transform (array or 16-tuple) as JSON rows."""
+    return [[float(v) for v in row] for row in matrix(m)]
+
+
+def world_bounds(shape: PartShape, transform) -> tuple[np.ndarray, np.ndarray]:
+    """World-space axis-aligned bounds of ``shape`` placed by ``transform``."""
+    lo, hi = shape.local_bounds()
+    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    world = corners @ matrix(transform).T
+    return world[:, :3].min(axis=0), world[:, :3].max(axis=0)

@@ -1,0 +1,1 @@
+"""String-based synthesis of structured shapes (seed 001)."""
