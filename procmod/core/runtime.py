@@ -69,12 +69,13 @@ class SpawnRecord(NamedTuple):
 class Future:
     """A pending rule call: where it sits in the tree, which rule, with which arguments."""
 
-    __slots__ = ("address", "rule", "args")
+    __slots__ = ("address", "rule", "args", "position")
 
-    def __init__(self, address: tuple, rule: Callable, args: tuple):
+    def __init__(self, address: tuple, rule: Callable, args: tuple, position=None):
         self.address = address
         self.rule = rule
         self.args = args
+        self.position = position  # the spawning call's ctx.at position when it spawned this
 
     def __repr__(self) -> str:
         return f"Future({format_address(self.address)}, {self.rule.__name__})"
@@ -128,13 +129,16 @@ class Context:
     """
 
     __slots__ = ("_state", "_rng", "address", "_choices", "_sites", "_geometry", "_spawns",
-                 "_prefix", "_skip", "_emits", "_pause", "_armed", "_fresh_emit", "rule")
+                 "_prefix", "_skip", "_emits", "_pause", "_armed", "_fresh_emit", "rule", "args",
+                 "_positions")
 
     def __init__(self, state, rng, future, prefix, skip, pause):
         self._state = state
         self._rng = rng
         self.address = future.address
         self.rule = future.rule
+        self.args = future.args
+        self._positions = None  # spawn-site name -> position at spawn time (when ctx.at is used)
         self._choices = {}
         self._sites = None  # names of plain spawn sites (maybe sites are choices)
         self._geometry = []
@@ -173,7 +177,12 @@ class Context:
         state = self._state
         if state.constraints is not None:
             return self._constrained(state, name, dist)
-        value = dist.sample(self._rng)
+        proposer = state.proposer
+        if proposer is None:
+            value = dist.sample(self._rng)
+        else:  # a guide proposes the value; engines weight by prior / proposal
+            value, log_q = proposer.propose(self, name, dist, self._rng)
+            state.log_proposal += log_q
         log_prob = dist.log_prob(value)
         state.log_prior += log_prob
         choices[name] = _new_tuple(Choice, (value, log_prob, dist))
@@ -221,8 +230,11 @@ class Context:
         if site in self._choices or site in self._sites:
             raise self._duplicate(site)
         self._sites.add(site)
-        if not self._state.stopped:
+        state = self._state
+        if not state.stopped:
             self._spawns.append(_new_tuple(SpawnRecord, (site, rule, args, 1.0, True)))
+            if state.position is not None:
+                self._remember_position(site, state.position)
 
     def maybe(self, site: str, p: float, rule: Callable, *args) -> bool:
         """With probability ``p`` spawn ``rule(ctx, *args)`` at ``site``; return whether it did.
@@ -238,10 +250,20 @@ class Context:
         p = float(p)
         on = self.sample(site, _bernoulli(p))
         self._spawns.append(_new_tuple(SpawnRecord, (site, rule, args, p, on)))
+        if on and state.position is not None:
+            self._remember_position(site, state.position)
         return on
 
+    def _remember_position(self, site, position) -> None:
+        if self._positions is None:
+            self._positions = {}
+        self._positions[site] = position
+
     def at(self, position) -> None:
-        """Report the current position (neural guides look at the output around it)."""
+        """Report the current position (neural guides look at the output around it).
+
+        A spawned call starts at the position its parent had reported when it spawned it.
+        """
         self._state.position = position
 
     def stop(self) -> None:
@@ -271,7 +293,7 @@ class Derivation:
 
     __slots__ = ("model", "output", "pending", "active", "log_prior", "stopped", "position",
                  "n_emits", "n_nodes", "_chain", "constraints", "_reused", "log_reused",
-                 "log_fresh", "maybe_default")
+                 "log_fresh", "maybe_default", "proposer", "log_proposal")
 
     def __init__(self, model: Model, output=None, constraints=None):
         self.model = model
@@ -289,6 +311,8 @@ class Derivation:
         self.log_reused = 0.0
         self.log_fresh = 0.0
         self.maybe_default = None  # replay only: value of maybe sites the map lacks
+        self.proposer = None  # a guide's proposer: fresh choices come from it, not the prior
+        self.log_proposal = 0.0  # sum of the proposer's log-densities of the values it gave
 
     @property
     def done(self) -> bool:
@@ -313,6 +337,8 @@ class Derivation:
         other.log_reused = self.log_reused
         other.log_fresh = self.log_fresh
         other.maybe_default = self.maybe_default
+        other.proposer = self.proposer
+        other.log_proposal = self.log_proposal
         return other
 
     def nodes(self) -> list:
@@ -369,6 +395,8 @@ def random_order(pending: list, rng: np.random.Generator) -> int:
 def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> bool:
     """Run (or resume) one call. Returns True if it drew a new emit."""
     ctx = Context(state, rng, future, prefix, skip, pause)
+    if future.position is not None:
+        state.position = future.position
     try:
         future.rule(ctx, *future.args)
     except _Pause:
@@ -389,9 +417,11 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
     else:
         pending = state.pending
         address = future.address
+        positions = ctx._positions
         for spawn in reversed(node.spawns):
             if spawn.on:
-                pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
+                position = None if positions is None else positions.get(spawn.site)
+                pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args, position))
     return ctx._fresh_emit
 
 
