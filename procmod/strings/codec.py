@@ -1,0 +1,294 @@
+"""Shape graphs as strings: SMILES' topology syntax (seed 001, section 5.1).
+
+A shape graph is an undirected :class:`networkx.Graph` whose nodes are ``0 .. n-1`` and
+carry a ``"type"`` attribute, one letter ``A-Z`` / ``a-z``. Its strings are SMILES strings
+made of single-letter atoms and single bonds:
+
+- one letter per node, in depth-first order of a spanning tree;
+- a branch in parentheses, the last subtree at a node unbracketed;
+- each non-tree (cycle) edge as one ring-closure label written after both of its nodes:
+  ``1`` .. ``9``, then ``%10`` .. ``%99``; a label is free again once its ring is closed.
+
+Decoding also accepts what any SMILES parser accepts of that subset: the label ``0``,
+explicit single bonds ``-`` (before an atom, a ring label or inside ``(``), and labels reused
+after closing (``C1CC1C1CC1``). Every string :func:`encode` writes uses labels 1-9 then
+``%10``..``%99`` and never reuses a label on the atom that closed it.
+
+Decoding also maps every character to the graph edge it stands for (section 6, "edge
+category mapping"): a letter to the edge to its spanning-tree parent (none for the root),
+each character of a ring label to that ring's edge, and brackets / bonds to nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from ..core.errors import ProcmodError
+
+LETTERS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz")
+MAX_LABEL = 99
+
+
+class StringSyntaxError(ProcmodError):
+    """A string that is not a valid shape-graph string; the message says where it breaks."""
+
+
+class GraphError(ProcmodError):
+    """A graph that cannot be written as a string (bad node type, disconnected, too many rings)."""
+
+
+def _label_text(label: int) -> str:
+    return str(label) if label < 10 else f"%{label:02d}"
+
+
+def _where(text: str, i: int) -> str:
+    return f"at position {i + 1} of {text!r} (…{text[max(0, i - 8):i]}>>{text[i:i + 1]}<<{text[i + 1:i + 9]}…)"
+
+
+@dataclass(frozen=True)
+class ParsedString:
+    """A decoded string: its graph, plus the edge each character stands for.
+
+    ``char_edges[i]`` is ``(u, v)`` for the edge character ``i`` stands for, oriented from
+    the spanning-tree parent to the child (letters) or from the ring's opening node to its
+    closing node (ring labels); ``None`` for brackets, bonds and the root letter.
+    ``char_nodes[i]`` is the node a letter stands for (``None`` elsewhere).
+    """
+
+    text: str
+    graph: nx.Graph
+    char_edges: tuple
+    char_nodes: tuple
+
+
+def parse(text: str) -> ParsedString:
+    """Decode a string into its graph and per-character edge mapping.
+
+    Raises
+    ------
+    StringSyntaxError
+        Naming the position of the first problem: an unknown character, an unbalanced
+        parenthesis, a branch or ring label with no atom before it, an empty branch, a ring
+        label left open (dangling), a ring closing onto its own atom or duplicating an edge.
+    """
+    if not isinstance(text, str) or not text:
+        raise StringSyntaxError("empty string: a shape-graph string has at least one letter")
+    g = nx.Graph()
+    char_edges: list = [None] * len(text)
+    char_nodes: list = [None] * len(text)
+    stack: list[tuple[int | None, int]] = []  # (atom before "(", position of "(")
+    prev: int | None = None  # the atom the next atom bonds to
+    open_rings: dict[int, tuple[int, int]] = {}  # label -> (atom, position of the label)
+    pending_bond: int | None = None  # position of a "-" waiting for its atom / label
+    i, n = 0, len(text)
+    after_close = False  # directly after ")": a ring label here has no atom of its own
+    after_open = False  # directly after "(" (or "(-"): a ")" here is an empty branch
+    while i < n:
+        c = text[i]
+        if c in LETTERS:
+            node = g.number_of_nodes()
+            g.add_node(node, type=c)
+            char_nodes[i] = node
+            if prev is not None:
+                g.add_edge(prev, node)
+                char_edges[i] = (prev, node)
+            elif node > 0:
+                raise StringSyntaxError(f"letter {c!r} is not bonded to anything {_where(text, i)}; "
+                                        "only one connected graph per string ('.' is not supported)")
+            prev, pending_bond, after_open, after_close = node, None, False, False
+            i += 1
+        elif c.isdigit() or c == "%":
+            start = i
+            if c == "%":
+                digits = text[i + 1:i + 3]
+                if len(digits) != 2 or not digits.isdigit():
+                    raise StringSyntaxError(f"'%' must be followed by two digits (%10 .. %99) {_where(text, i)}")
+                label, i = int(digits), i + 3
+            else:
+                label, i = int(c), i + 1
+            if after_close:
+                raise StringSyntaxError(f"ring label {text[start:i]!r} after ')' {_where(text, start)}; a ring "
+                                        "label follows its letter directly")
+            if prev is None or after_open:
+                raise StringSyntaxError(f"ring label {text[start:i]!r} has no atom before it {_where(text, start)}")
+            if label in open_rings:
+                other, opened_at = open_rings.pop(label)
+                if other == prev:
+                    raise StringSyntaxError(f"ring label {text[start:i]!r} closes onto the same atom it opened "
+                                            f"on, {_where(text, start)} (a self-loop)")
+                if g.has_edge(other, prev):
+                    raise StringSyntaxError(f"ring label {text[start:i]!r} duplicates the edge between its two "
+                                            f"atoms {_where(text, start)}; shape graphs have no multi-edges")
+                g.add_edge(other, prev)
+                for k in range(start, i):
+                    char_edges[k] = (other, prev)
+                for k in range(opened_at, opened_at + (3 if text[opened_at] == "%" else 1)):
+                    char_edges[k] = (other, prev)
+            else:
+                open_rings[label] = (prev, start)
+            pending_bond = None
+        elif c == "(":
+            if prev is None:
+                raise StringSyntaxError(f"branch '(' has no atom before it {_where(text, i)}")
+            if after_open:
+                raise StringSyntaxError(f"branch '(' directly after '(' {_where(text, i)}; a branch starts "
+                                        "with a letter")
+            if pending_bond is not None:
+                raise StringSyntaxError(f"bond '-' before '(' {_where(text, pending_bond)}; write the bond "
+                                        "inside the branch")
+            stack.append((prev, i))
+            after_open, after_close = True, False
+            i += 1
+        elif c == ")":
+            if not stack:
+                raise StringSyntaxError(f"unbalanced parenthesis: ')' without a matching '(' {_where(text, i)}")
+            if after_open:
+                raise StringSyntaxError(f"empty branch '()' {_where(text, i)}")
+            if pending_bond is not None:
+                raise StringSyntaxError(f"bond '-' with no atom after it {_where(text, pending_bond)}")
+            prev, _ = stack.pop()
+            after_close = True
+            i += 1
+        elif c == "-":
+            if prev is None:
+                raise StringSyntaxError(f"bond '-' has no atom before it {_where(text, i)}")
+            if pending_bond is not None:
+                raise StringSyntaxError(f"two bonds in a row {_where(text, i)}")
+            pending_bond = i
+            i += 1
+        elif c in "=#$:/\\.":
+            raise StringSyntaxError(f"{c!r} {_where(text, i)}: shape-graph strings use single bonds only "
+                                    "(letters, '(', ')', ring labels, '-')")
+        else:
+            raise StringSyntaxError(f"unknown character {c!r} {_where(text, i)}; node types are single "
+                                    "letters A-Z or a-z")
+    if stack:
+        raise StringSyntaxError(f"unbalanced parenthesis: '(' never closed {_where(text, stack[-1][1])}")
+    if pending_bond is not None:
+        raise StringSyntaxError(f"bond '-' with no atom after it {_where(text, pending_bond)}")
+    if open_rings:
+        label, (_, pos) = min(open_rings.items(), key=lambda item: item[1][1])
+        raise StringSyntaxError(f"dangling ring label {_label_text(label)!r}: opened "
+                                f"{_where(text, pos)} and never closed")
+    if g.number_of_nodes() == 0:
+        raise StringSyntaxError(f"{text!r} has no letters: a shape-graph string has at least one node")
+    return ParsedString(text, g, tuple(char_edges), tuple(char_nodes))
+
+
+def decode(text: str) -> nx.Graph:
+    """The graph a string stands for (nodes numbered in string order, attribute ``type``)."""
+    return parse(text).graph
+
+
+def check_graph(g: nx.Graph) -> None:
+    """Raise :class:`GraphError` unless ``g`` is a connected typed graph with nodes 0..n-1."""
+    if g.number_of_nodes() == 0:
+        raise GraphError("the graph has no nodes")
+    if set(g.nodes) != set(range(g.number_of_nodes())):
+        raise GraphError("graph nodes must be numbered 0 .. n-1")
+    for v, t in g.nodes(data="type"):
+        if not isinstance(t, str) or len(t) != 1 or t not in LETTERS:
+            raise GraphError(f"node {v} has type {t!r}; node types are single letters A-Z or a-z")
+    if any(u == v for u, v in g.edges):
+        raise GraphError("the graph has a self-loop; shape graphs have none")
+    if not nx.is_connected(g):
+        raise GraphError("the graph is not connected; a string encodes one connected graph")
+
+
+def encode(g: nx.Graph, root: int | None = None, rng: np.random.Generator | None = None) -> str:
+    """Write ``g`` as a string.
+
+    Parameters
+    ----------
+    g : networkx.Graph
+        Connected, nodes ``0..n-1`` with a one-letter ``"type"``.
+    root : int, optional
+        Where the depth-first traversal starts; default: node 0 (canonical) or a random
+        node when ``rng`` is given.
+    rng : numpy.random.Generator, optional
+        When given, neighbours are visited in random order (a random string of the graph);
+        otherwise in increasing node order.
+    """
+    check_graph(g)
+    if root is None:
+        root = int(rng.integers(g.number_of_nodes())) if rng is not None else 0
+    if root not in g:
+        raise GraphError(f"root {root} is not a node of the graph")
+
+    def order(nbrs):
+        nbrs = sorted(nbrs)
+        if rng is not None:
+            nbrs = [nbrs[k] for k in rng.permutation(len(nbrs))]
+        return nbrs
+
+    # Depth-first spanning tree (iterative; children in visiting order).
+    children: dict[int, list[int]] = {v: [] for v in g.nodes}
+    seen = {root}
+    preorder = [root]
+    stack = [(root, iter(order(g.neighbors(root))))]
+    while stack:
+        v, it = stack[-1]
+        for u in it:
+            if u not in seen:
+                seen.add(u)
+                children[v].append(u)
+                preorder.append(u)
+                stack.append((u, iter(order(g.neighbors(u)))))
+                break
+        else:
+            stack.pop()
+    pos = {v: k for k, v in enumerate(preorder)}
+    tree = {(min(v, u), max(v, u)) for v in children for u in children[v]}
+    opens: dict[int, list[tuple[int, int]]] = {v: [] for v in g.nodes}
+    closes: dict[int, list[tuple[int, int]]] = {v: [] for v in g.nodes}
+    for a, b in g.edges:
+        if (min(a, b), max(a, b)) in tree:
+            continue
+        first, second = (a, b) if pos[a] < pos[b] else (b, a)
+        opens[first].append((first, second))
+        closes[second].append((first, second))
+    for v in g.nodes:
+        opens[v].sort(key=lambda e: pos[e[1]])
+        closes[v].sort(key=lambda e: pos[e[0]])
+
+    free = list(range(1, MAX_LABEL + 1))  # kept sorted: the lowest free label is used
+    label_of: dict[tuple[int, int], int] = {}
+    out: list[str] = []
+
+    def write_atom(v: int) -> None:
+        out.append(g.nodes[v]["type"])
+        released = []
+        for e in closes[v]:
+            label = label_of.pop(e)
+            out.append(_label_text(label))
+            released.append(label)
+        for e in opens[v]:
+            if not free:
+                raise GraphError(f"more than {MAX_LABEL} rings open at once; the string syntax cannot write "
+                                 "this graph from this root")
+            label = free.pop(0)
+            label_of[e] = label
+            out.append(_label_text(label))
+        free.extend(released)  # freed only after this atom, so no label closes and reopens on one atom
+        free.sort()
+
+    # Iterative writer over an action stack (graphs may be deeper than Python's recursion limit).
+    actions: list = [("node", root)]
+    while actions:
+        kind, v = actions.pop()
+        if kind == "text":
+            out.append(v)
+            continue
+        write_atom(v)
+        kids = children[v]
+        todo: list = []
+        for k, child in enumerate(kids):
+            if k < len(kids) - 1:
+                todo += [("text", "("), ("node", child), ("text", ")")]
+            else:
+                todo.append(("node", child))
+        actions.extend(reversed(todo))
+    return "".join(out)

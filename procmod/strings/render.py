@@ -1,0 +1,51 @@
+"""Pictures and meshes of shapes: shaded PNG previews, contact sheets, GLB/OBJ export."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from PIL import Image
+
+from ..geometry.camera import framing_camera, shaded_image
+from ..geometry.export import colour_of, contact_sheet, save_image_atomic
+from ..geometry.mesh_export import export_mesh
+from ..geometry.solid import scene_bounds
+from .shapes import Shape, ShapeSet
+
+
+PALETTE = ((196, 78, 82), (85, 140, 70), (76, 114, 176), (221, 170, 60), (129, 114, 178), (100, 181, 205),
+           (147, 120, 96), (218, 139, 195), (140, 140, 140), (204, 185, 116))
+
+
+def colours_for(shape_set: ShapeSet):
+    """A colour function: each part name of the library its own palette colour (sorted names)."""
+    table = {name: PALETTE[k % len(PALETTE)] for k, name in enumerate(sorted(shape_set.library))}
+    return lambda tag: table.get(tag, colour_of(tag))
+
+
+def shape_parts(shape_set: ShapeSet, shape: Shape) -> list:
+    """The geometry parts of a shape (tagged by part name)."""
+    return [shape_set.library[p].part(t) for p, t in zip(shape.parts, shape.transforms)]
+
+
+def shape_image(shape_set: ShapeSet, shape: Shape, size: int = 256) -> Image.Image:
+    """A Lambert-shaded preview (z up, seen from above at an angle)."""
+    parts = shape_parts(shape_set, shape)
+    lo, hi = scene_bounds(parts)
+    camera = framing_camera(lo, hi, size, size, direction=(0.9, -1.3, 1.4), up=(0.0, 0.0, 1.0))
+    return Image.fromarray(shaded_image(parts, camera, colours_for(shape_set)), "RGB")
+
+
+def write_shape_png(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike, size: int = 256) -> None:
+    save_image_atomic(shape_image(shape_set, shape, size), path)
+
+
+def write_shape_mesh(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike) -> None:
+    """Write a shape as ``.glb`` or ``.obj`` (by suffix), one colour per part name."""
+    export_mesh(shape_parts(shape_set, shape), path, colours_for(shape_set))
+
+
+def write_sheet(shape_set: ShapeSet, shapes, path: str | os.PathLike, size: int = 160, labels=None) -> None:
+    images = [shape_image(shape_set, s, size) for s in shapes]
+    save_image_atomic(contact_sheet(images, labels=labels), path)

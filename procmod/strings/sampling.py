@@ -1,0 +1,267 @@
+"""Graph-based shape sampling (seed 001, section 4): grow a collection of valid variants.
+
+One attempt: sample a random connected subgraph ``s`` of shape 1; its boundary ``B1`` is
+the set of nodes outside ``s`` adjacent to it. Find nodes ``B2`` in shape 2 of the same
+types with the same pairwise centroid distances (randomised backtracking, first match).
+Dock ``s`` by the least-squares rigid transform taking the centroids of ``B1`` onto those
+of ``B2`` (SVD of the 3x3 covariance). The parts of shape 2 that collide with the docked
+``s`` go, together with their whole component of ``G2 - B2``; other components of
+``G2 - B2`` are kept or dropped as the grammar needs. The merged shape is kept only if its
+geometry validates (its recomputed shape graph is connected and obeys the tiling grammar)
+and its node-type histogram is new.
+
+A round runs ``p`` attempts through a :class:`concurrent.futures.Executor`; each attempt
+is a module-level function with its own seed, so a round's result does not depend on
+where its attempts ran. Rounds repeat on the growing collection.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from .shapes import (Grammar, Shape, ShapeSet, centroids, contact_pairs, part_points, shape_graph, tolerance_for,
+                     type_histogram)
+
+
+def random_connected_subgraph(g: nx.Graph, size: int, rng: np.random.Generator) -> set:
+    """A random connected node set of about ``size`` nodes (random frontier growth)."""
+    nodes = sorted(g.nodes)
+    start = nodes[int(rng.integers(len(nodes)))]
+    chosen = {start}
+    frontier = set(g.neighbors(start))
+    while len(chosen) < size and frontier:
+        options = sorted(frontier)
+        v = options[int(rng.integers(len(options)))]
+        chosen.add(v)
+        frontier.discard(v)
+        frontier.update(u for u in g.neighbors(v) if u not in chosen)
+    return chosen
+
+
+def match_boundary(b1: list, types1: list, c1: np.ndarray, types2: list, c2: np.ndarray, tol: float,
+                   rng: np.random.Generator, max_steps: int = 20000) -> list | None:
+    """Nodes of shape 2 matching ``b1`` (same types, pairwise centroid distances within ``tol``).
+
+    Randomised depth-first search; the first match found is returned, or None.
+    """
+    by_type: dict[str, list[int]] = {}
+    for k, t in enumerate(types2):
+        by_type.setdefault(t, []).append(k)
+    candidates = []
+    for v in b1:
+        pool = by_type.get(types1[v], [])
+        if not pool:
+            return None
+        candidates.append([pool[k] for k in rng.permutation(len(pool))])
+    d1 = np.linalg.norm(c1[b1][:, None] - c1[b1][None], axis=2)
+    assignment: list[int] = []
+    steps = 0
+
+    def extend(i: int) -> bool:
+        nonlocal steps
+        if i == len(b1):
+            return True
+        for w in candidates[i]:
+            steps += 1
+            if steps > max_steps:
+                return False
+            if w in assignment:
+                continue
+            if all(abs(np.linalg.norm(c2[w] - c2[assignment[k]]) - d1[i, k]) <= tol for k in range(i)):
+                assignment.append(w)
+                if extend(i + 1):
+                    return True
+                assignment.pop()
+        return False
+
+    return list(assignment) if extend(0) else None
+
+
+def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float) -> list[np.ndarray]:
+    """Rigid 4x4 transforms taking points ``p`` onto ``q`` in the least-squares sense.
+
+    The SVD solution (Kabsch, with the reflection fix). When the points leave a rotation
+    free (one point, or all on a line), the four quarter turns about the free axis (the
+    world z axis for a single point) are returned too, for validation to choose from.
+    """
+    cp, cq = p.mean(0), q.mean(0)
+    x, y = p - cp, q - cq
+    u, s, vt = np.linalg.svd(x.T @ y)
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    spread = np.linalg.svd(x, compute_uv=False) if len(p) > 1 else np.zeros(3)
+    rotations = [r]
+    if len(p) == 1 or spread[1] <= tol:
+        axis = np.array([0.0, 0.0, 1.0]) if len(p) == 1 or spread[0] <= tol else y[np.argmax(np.linalg.norm(y, axis=1))]
+        rotations = [_rotation_about(axis, k * np.pi / 2) @ r for k in range(4)]
+    out = []
+    for rot in rotations:
+        t = np.eye(4)
+        t[:3, :3] = rot
+        t[:3, 3] = cq - rot @ cp
+        out.append(t)
+    return out
+
+
+@dataclass
+class AugmentParams:
+    """Constants of graph-based sampling (see docs/strings.md for why these values)."""
+
+    tries: int = 30  # subgraph samples per attempt
+    max_boundary: int = 8  # larger boundaries are skipped (matching cost grows fast)
+    distance_tol: float = 1e-3  # relative to the median part diagonal
+    max_subsets: int = 16  # keep/drop choices tried per docking
+    max_parts: int = 120  # variants larger than this are not kept
+
+
+def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Grammar, seed,
+            params: AugmentParams = AugmentParams()) -> Shape | None:
+    """One sampling attempt: up to ``params.tries`` random subgraphs of ``shape_a`` docked
+    into ``shape_b``; the first merged shape that validates, or None. Module-level and
+    picklable, for executors."""
+    rng = np.random.default_rng(seed)
+    tol = tolerance_for(shape_set.library)
+    scale = tol / 1e-3 if tol > 0 else 1.0
+    dtol = params.distance_tol * scale
+    ga, gb = shape_graph(shape_set, shape_a, tol), shape_graph(shape_set, shape_b, tol)
+    ta, tb = shape_set.types(shape_a), shape_set.types(shape_b)
+    ca, cb = centroids(shape_set, shape_a), centroids(shape_set, shape_b)
+    for _ in range(params.tries):
+        size = int(rng.integers(1, max(2, len(shape_a))))
+        s = random_connected_subgraph(ga, size, rng)
+        b1 = sorted({u for v in s for u in ga.neighbors(v)} - s)
+        if not b1 or len(b1) > params.max_boundary:
+            continue
+        b2 = match_boundary(b1, ta, ca, tb, cb, dtol, rng)
+        if b2 is None:
+            continue
+        for dock in docking_transforms(ca[b1], cb[b2], dtol):
+            merged = _merge(shape_set, grammar, ga, gb, shape_a, shape_b, s, b1, b2, dock, tol, rng, params)
+            if merged is not None:
+                return merged
+    return None
+
+
+def _merge(shape_set, grammar, ga, gb, shape_a, shape_b, s, b1, b2, dock, tol, rng, params):
+    s = sorted(s)
+    lib = shape_set.library
+    # The docked boundary must land on shape 2's boundary parts: same pose up to the part's
+    # own symmetry (its vertex set), not just the same centroid.
+    dtol = 10 * tol
+    for u, w in zip(b1, b2):
+        p = part_points(lib, shape_a.parts[u], dock @ shape_a.transforms[u])
+        q = part_points(lib, shape_b.parts[w], shape_b.transforms[w])
+        if np.linalg.norm(p[:, None] - q[None], axis=2).min(1).max() > dtol:
+            return None
+    moved = [dock @ shape_a.transforms[v] for v in s]
+    rest = gb.subgraph(set(gb.nodes) - set(b2))
+    components = [sorted(c) for c in nx.connected_components(rest)]
+    parts = [shape_b.parts[v] for v in range(len(shape_b))] + [shape_a.parts[v] for v in s]
+    transforms = list(shape_b.transforms) + moved
+    nb = len(shape_b)
+    # Collisions between docked s and shape 2 outside B2 force their components out.
+    pairs = [(i, nb + k) for i in range(nb) if i not in set(b2) for k in range(len(s))]
+    hits = contact_pairs(lib, parts, transforms, tol, pairs_of=pairs)
+    hit_nodes = {i for i, _ in hits}
+    forced = [c for c in components if hit_nodes & set(c)]
+    free = [c for c in components if not (hit_nodes & set(c))]
+    # Predicted graph edges between s and B2 mirror those between s and B1.
+    s_index = {v: nb + k for k, v in enumerate(s)}
+    b_map = dict(zip(b1, b2))
+    cross = [(b_map[u], s_index[v]) for v in s for u in ga.neighbors(v) if u in b_map]
+    inner = [(s_index[u], s_index[v]) for u, v in ga.subgraph(s).edges]
+    subsets = [()]
+    for r in range(1, len(free) + 1):
+        subsets += list(itertools.combinations(range(len(free)), r))
+        if len(subsets) >= 4 * params.max_subsets:
+            break
+    order = sorted(range(len(subsets)), key=lambda k: (len(subsets[k]), rng.random()))[:params.max_subsets]
+    types = [shape_set.letters[p] for p in parts]
+    for k in order:
+        drop = set().union(*(set(c) for c in forced), *(set(free[i]) for i in subsets[k]))
+        keep = [i for i in range(nb) if i not in drop] + [nb + k2 for k2 in range(len(s))]
+        if len(keep) > params.max_parts:
+            continue
+        keep_set = set(keep)
+        predicted = nx.Graph()
+        predicted.add_nodes_from((i, {"type": types[i]}) for i in keep)
+        predicted.add_edges_from((u, v) for u, v in gb.edges if u in keep_set and v in keep_set)
+        predicted.add_edges_from(cross + inner)
+        if not grammar.is_valid(predicted):
+            continue
+        candidate = Shape.of([parts[i] for i in keep], [transforms[i] for i in keep])
+        actual = shape_graph(shape_set, candidate, tol)
+        if grammar.is_valid(actual):
+            return candidate
+    return None
+
+
+@dataclass
+class AugmentResult:
+    """A grown collection: the shapes (inputs first) and one row per round."""
+
+    shapes: list
+    rounds: list = field(default_factory=list)  # dicts: round, attempts, new, shapes, seconds
+
+
+def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, max_rounds: int = 50,
+            executor=None, params: AugmentParams = AugmentParams(), progress=None,
+            seconds: float | None = None) -> AugmentResult:
+    """Grow the set's shapes into a collection of ``count`` valid variants (inputs included).
+
+    Parameters
+    ----------
+    shape_set : ShapeSet
+        The input shapes (one or two) and their part library.
+    count : int
+        Stop when the collection holds this many shapes.
+    parallel : int
+        Attempts ``p`` per round (the paper keeps p linear in the processors).
+    executor : concurrent.futures.Executor, optional
+        Runs the attempts of a round (default: inline).
+    seconds : float, optional
+        Stop after this much wall time, whatever the count.
+    """
+    from ..parallel import InlineExecutor
+
+    executor = executor or InlineExecutor()
+    graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
+    grammar = Grammar.from_graphs(graphs)
+    shapes = list(shape_set.shapes)
+    seen = {type_histogram(shape_set.types(s)) for s in shapes}
+    result = AugmentResult(shapes)
+    start = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    for round_ in range(max_rounds):
+        if len(shapes) >= count or (seconds is not None and time.perf_counter() - start > seconds):
+            break
+        pairs = [(int(rng.integers(len(shapes))), int(rng.integers(len(shapes)))) for _ in range(parallel)]
+        futures = [executor.submit(attempt, shape_set, shapes[a], shapes[b], grammar, [seed, round_, k], params)
+                   for k, (a, b) in enumerate(pairs)]
+        new = 0
+        for f in futures:
+            shape = f.result()
+            if shape is None or len(shapes) >= count:
+                continue
+            key = type_histogram(shape_set.types(shape))
+            if key in seen:
+                continue
+            seen.add(key)
+            shapes.append(shape)
+            new += 1
+        result.rounds.append({"round": round_ + 1, "attempts": parallel, "new": new, "shapes": len(shapes),
+                              "seconds": round(time.perf_counter() - start, 3)})
+        if progress is not None:
+            progress(result.rounds[-1])
+    return result
