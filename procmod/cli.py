@@ -63,6 +63,7 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--budget", help="30s, 2m, 5000evals or 100gens (default: one SMC run, "
                                         "one forward batch, 200 MCMC sweeps, 50 GA generations)")
     infer.add_argument("--seed", type=_int_arg, default=0)
+    infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
 
@@ -159,6 +160,13 @@ def _cmd_infer(args) -> None:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     size = check_size(args.size)
     budget = parse_budget(args.budget) if args.budget is not None else None
+    if args.guide is not None:
+        if args.engine not in ("smc", "sosmc"):
+            raise InvalidArgumentError(f"--guide works with --engine smc or sosmc, not {args.engine}")
+        from .guide import Guide
+        guide = Guide.load(args.guide)
+        guide.check_model(model)
+        kwargs["guide"] = guide
     target = _target(args.target)
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -41,6 +41,10 @@ class Model:
         engines that reason about spawn sites.
     choices_doc : str
         Documentation of the random choices and their distributions.
+    arg_ranges : mapping
+        ``rule name -> ((low, high), ...)``, one range per positional argument of the
+        rule (after ``ctx``); neural guides normalise scalar arguments to [-1, 1] with
+        them (``None`` for an argument that is not a scalar feature).
     """
 
     name: str
@@ -51,6 +55,7 @@ class Model:
     params: Mapping[str, Any] = field(default_factory=dict)
     rules: tuple = ()
     choices_doc: str = ""
+    arg_ranges: Mapping[str, tuple] = field(default_factory=dict)
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.

@@ -293,7 +293,7 @@ class Derivation:
 
     __slots__ = ("model", "output", "pending", "active", "log_prior", "stopped", "position",
                  "n_emits", "n_nodes", "_chain", "constraints", "_reused", "log_reused",
-                 "log_fresh", "maybe_default", "proposer", "log_proposal")
+                 "log_fresh", "maybe_default", "proposer", "log_proposal", "guide_cache")
 
     def __init__(self, model: Model, output=None, constraints=None):
         self.model = model
@@ -313,6 +313,7 @@ class Derivation:
         self.maybe_default = None  # replay only: value of maybe sites the map lacks
         self.proposer = None  # a guide's proposer: fresh choices come from it, not the prior
         self.log_proposal = 0.0  # sum of the proposer's log-densities of the values it gave
+        self.guide_cache = None  # the proposer's per-derivation cache (shared by copies; replaced, never mutated)
 
     @property
     def done(self) -> bool:
@@ -339,6 +340,7 @@ class Derivation:
         other.maybe_default = self.maybe_default
         other.proposer = self.proposer
         other.log_proposal = self.log_proposal
+        other.guide_cache = self.guide_cache
         return other
 
     def nodes(self) -> list:

@@ -1,10 +1,93 @@
-"""The ``procmod guide ...`` command (registered into :mod:`procmod.cli`)."""
+"""The ``procmod guide traces`` and ``procmod guide train`` commands (registered into
+:mod:`procmod.cli`)."""
 
 from __future__ import annotations
 
+import sys
+
+from ..core import InvalidArgumentError
+
 
 def register(sub, int_arg) -> None:
-    """Add the ``guide`` subcommand group to the argparse subparsers ``sub``.
+    """Add the ``guide`` subcommand group to the argparse subparsers ``sub``."""
+    guide = sub.add_parser("guide", help="neural guides: make SMC training traces, train a guide")
+    group = guide.add_subparsers(dest="guide_command", metavar="SUBCOMMAND", parser_class=type(guide))
+    group.required = True
 
-    Each parser sets ``handler`` (a function of the parsed args) with ``set_defaults``.
-    """
+    traces = group.add_parser("traces", help="generate training traces with SMC (resumes an interrupted job)")
+    traces.add_argument("model", metavar="MODEL")
+    traces.add_argument("--targets", default="scribble", help="scribble (default) or circuit")
+    traces.add_argument("--count", type=int_arg, required=True, help="number of traces")
+    traces.add_argument("--particles", type=int_arg, default=600, help="SMC particles per trace (default 600)")
+    traces.add_argument("--seed", type=int_arg, default=0)
+    traces.add_argument("--out", required=True, help="traces folder (created; rerun to resume)")
+    where = traces.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int_arg, help="local worker processes (default: one per core)")
+    where.add_argument("--scheduler", help="dask scheduler address, e.g. tcp://host:8786")
+    traces.set_defaults(handler=_cmd_traces)
+
+    train = group.add_parser("train", help="train a guide on traces (resumes from its checkpoint)")
+    train.add_argument("model", metavar="MODEL")
+    train.add_argument("--traces", required=True, help="traces folder made by 'procmod guide traces'")
+    train.add_argument("--out", required=True, help="guide path: writes OUT.pt + OUT.json")
+    train.add_argument("--features", default="all",
+                       help="constant, local, local+target or all (default; seed 004 Figure 5)")
+    train.add_argument("--mixture", type=int_arg, default=4, help="Gaussian components per continuous choice (default 4)")
+    train.add_argument("--iterations", type=int_arg, default=20000, help="Adam steps (default 20000, as the papers)")
+    train.add_argument("--batch", type=int_arg, default=1, help="traces per minibatch (default 1, as the papers)")
+    train.add_argument("--lr", type=float, default=0.01, help="Adam step size (default 0.01)")
+    train.add_argument("--limit", type=int_arg, help="use only the first N traces")
+    train.add_argument("--seed", type=int_arg, default=0)
+    train.set_defaults(handler=_cmd_train)
+
+
+def _tqdm(total, unit):
+    from tqdm import tqdm
+    return tqdm(total=total, unit=unit, disable=None, leave=False, file=sys.stderr)
+
+
+def _cmd_traces(args) -> None:
+    from ..parallel import open_executor
+    from .traces import generate_traces
+
+    if args.seed < 0:
+        raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    workers = 0 if args.workers is None and args.scheduler is None else args.workers
+    bar = _tqdm(args.count, " traces")
+    try:
+        def progress(done, total):
+            bar.n = done
+            bar.refresh()
+
+        with open_executor(workers=workers, scheduler=args.scheduler) as executor:
+            summary = generate_traces(args.model, args.targets, args.count, args.out, args.particles,
+                                      args.seed, executor, progress=progress)
+    finally:
+        bar.close()
+    rate = summary["traces_per_hour"]
+    print(f"{summary['made']} traces made, {summary['present']} already there, in {summary['seconds']:.1f} s"
+          + (f" ({rate:.0f} traces/hour)" if rate else "") + f"; folder: {args.out}")
+
+
+def _cmd_train(args) -> None:
+    from ..models import get_model
+    from .features import FeatureSettings
+    from .train import train_guide
+
+    model = get_model(args.model)
+    settings = FeatureSettings.condition(args.features)
+    bar = _tqdm(args.iterations, " steps")
+    try:
+        def progress(done, loss):
+            bar.n = done
+            bar.set_postfix(nll=f"{loss:.2f}", refresh=False)
+            bar.refresh()
+
+        guide, report = train_guide(model, args.traces, args.out, settings=settings, mixture=args.mixture,
+                                    iterations=args.iterations, batch=args.batch, lr=args.lr,
+                                    limit=args.limit, seed=args.seed, progress=progress)
+    finally:
+        bar.close()
+    print(f"trained {len(guide.sites)} site networks on {report['traces']} traces "
+          f"({report['choices']} choices) in {report['seconds']:.1f} s; "
+          f"mean negative log-likelihood per trace {report['final_nll']:.2f}; wrote {report['weights']} + {report['metadata']}")

@@ -53,12 +53,16 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
     return float(1.0 / np.sum(w * w))
 
 
-def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tracker):
+def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tracker, proposer=None):
     """One SMC run; returns (states, final log-weights, log Z estimate)."""
     states = [start(model, target.new_output(model)) for _ in range(particles)]
+    for state in states:
+        state.proposer = proposer
     # Plain lists in the per-particle loop: numpy scalar indexing would cost more than the step.
     log_lik = [0.0] * particles
     log_w = [0.0] * particles
+    # Guided: each step also weighs by prior / proposal of the choices it made.
+    log_ratio = [0.0] * particles if proposer is not None else None
     finished = [False] * particles
     log_z = 0.0
     log_likelihood = target.log_likelihood
@@ -72,6 +76,10 @@ def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tr
             new = log_likelihood(state.output)
             log_w[i] += new - log_lik[i]
             log_lik[i] = new
+            if log_ratio is not None:
+                ratio = state.log_prior - state.log_proposal
+                log_w[i] += ratio - log_ratio[i]
+                log_ratio[i] = ratio
             if state.done:
                 finished[i] = True
                 tracker.offer(state, target.score(state.output))
@@ -97,6 +105,8 @@ def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tr
                     new_states.append(states[a])
             states = new_states
             log_lik = [log_lik[a] for a in ancestors]
+            if log_ratio is not None:
+                log_ratio = [log_ratio[a] for a in ancestors]
             finished = [finished[a] for a in ancestors]
             log_w = [0.0] * particles
         if tracker.due():
@@ -107,7 +117,7 @@ def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tr
 
 def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
         resampling: str = "systematic", ess_threshold: float | None = None,
-        order: str = "program", progress=None) -> "Result":
+        order: str = "program", progress=None, guide=None) -> "Result":
     """Sequential Monte Carlo, resampling at every emit.
 
     Parameters
@@ -124,6 +134,10 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
         particles`` (default: resample at every emit).
     order : {"program", "random"}
         Which pending future runs next; "random" is SOSMC.
+    guide : procmod.guide.Guide, optional
+        Neurally-guided SMC (seeds 003/004): each fresh choice is drawn from the guide's
+        proposal and particles are weighted by prior / proposal x likelihood, so the
+        estimate stays unbiased however poor the guide.
 
     Returns
     -------
@@ -140,29 +154,35 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
         raise InvalidArgumentError(f"order must be 'program' or 'random', got {order!r}")
     pick = None if order == "program" else random_order
     model = target.configure(model)
+    proposer = None
+    if guide is not None:
+        image = getattr(target, "image", None)
+        proposer = guide.proposer(model, None if image is None else image.mask)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     notes = []
     with relaxed_gc():
         while True:
             states, log_w, log_z = _run_once(model, target, particles, rng, pick, resampling,
-                                             ess_threshold, tracker)
+                                             ess_threshold, tracker, proposer)
             tracker.generations += 1
             tracker.record(float(np.mean([target.score(s.output) for s in states])))
             if log_z == -math.inf:
                 notes.append("every particle reached zero likelihood; the log marginal-likelihood is -inf")
             if budget is None or tracker.spent():
                 break
-    engine = "smc" if order == "program" else "sosmc"
+    engine = ("smc" if order == "program" else "sosmc") + ("+guide" if guide is not None else "")
     return Result(engine, tracker.best, tracker.best_score, states, tracker.rows, tracker.seconds,
                   tracker.evaluations,
                   settings={"particles": particles, "seed": seed, "resampling": resampling,
                             "ess_threshold": ess_threshold, "order": order,
-                            "budget": (budget or Budget()).describe()},
+                            "budget": (budget or Budget()).describe(),
+                            "guide": None if guide is None else guide.settings.name},
                   log_weights=list(log_w), log_marginal_likelihood=log_z, notes=notes)
 
 
 def sosmc(model, target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
-          resampling: str = "systematic", ess_threshold: float | None = None, progress=None) -> Result:
+          resampling: str = "systematic", ess_threshold: float | None = None, progress=None,
+          guide=None) -> Result:
     """Stochastically-ordered SMC: :func:`smc` expanding a random pending future per step."""
-    return smc(model, target, particles, seed, budget, resampling, ess_threshold, "random", progress)
+    return smc(model, target, particles, seed, budget, resampling, ess_threshold, "random", progress, guide)

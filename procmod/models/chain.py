@@ -35,6 +35,7 @@ MAX_SEGMENTS = 100
 
 def chain(ctx, x, y, angle, count):
     """One segment, then maybe the rest of the chain."""
+    ctx.at((x, y))
     new_angle = ctx.sample("angle", Normal(angle, TURN_SD))
     x1 = x + LENGTH * math.cos(new_angle)
     y1 = y + LENGTH * math.sin(new_angle)
@@ -58,4 +59,5 @@ MODEL = Model(
     params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50},
     rules=(chain,),
     choices_doc=__doc__,
+    arg_ranges={"chain": ((-12.0, 12.0), (-22.0, 2.0), (-2.5 * math.pi, 1.5 * math.pi), (0.0, MAX_SEGMENTS))},
 )

@@ -38,6 +38,7 @@ _SPREAD = GaussianMixture([0.5, 0.5], [math.pi / 4, -math.pi / 4], [math.pi / 12
 
 def bolt(ctx, x, y, bolt_heading, width, remaining):
     """One segment of a bolt, then maybe a fork and maybe the next segment."""
+    ctx.at((x, y))
     angle = ctx.sample("angle", Normal(bolt_heading, math.pi / 6))
     length = ctx.sample("length", _LENGTH)
     x1 = x + length * math.cos(angle)
@@ -73,4 +74,8 @@ MODEL = Model(
     params={"start": [0.5, 0.04], "direction": [0.0, 1.0], "size": 50},
     rules=(bolt, fork),
     choices_doc=__doc__,
+    arg_ranges={"bolt": ((-12.0, 12.0), (-22.0, 2.0), (-1.5 * math.pi, 2.5 * math.pi), (0.0, INITIAL_WIDTH),
+                         (0.0, MAX_SEGMENTS)),
+                "fork": ((-12.0, 12.0), (-22.0, 2.0), (-1.5 * math.pi, 2.5 * math.pi), (0.0, INITIAL_WIDTH),
+                         (0.0, MAX_SEGMENTS))},
 )

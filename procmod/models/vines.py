@@ -53,6 +53,7 @@ _COIN = Bernoulli(0.5)
 
 def branch(ctx, x, y, parent_angle, spread, width, leaves):
     """One vine segment, its leaf and flower, then termination or continuations."""
+    ctx.at((x, y))
     angle = ctx.sample("angle", Normal(parent_angle, spread))
     x1 = x + LENGTH * math.cos(angle)
     y1 = y + LENGTH * math.sin(angle)
@@ -89,4 +90,7 @@ MODEL = Model(
     params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50, "leaves": True},
     rules=(branch,),
     choices_doc=__doc__,
+    # x, y, parent_angle, spread, width, leaves: for the local-state features of guides
+    arg_ranges={"branch": ((-12.0, 12.0), (-22.0, 2.0), (-2.5 * math.pi, 1.5 * math.pi), (0.0, START_SD),
+                           (0.0, INITIAL_WIDTH), (0.0, 1.0))},
 )

@@ -1,0 +1,247 @@
+"""Features a neural guide sees at each random choice (seed 003 section 5.1, seed 004 4.1).
+
+Three sources, each optional (the ablation conditions of seed 004 Figure 5):
+
+- **local state**: the scalar arguments of the rule call the choice occurs in, mapped to
+  [-1, 1] with the ranges the model declares (``Model.arg_ranges``) and clipped;
+- **target image**: 3x3 windows of the target mask around the current position
+  (``ctx.at``) at four resolutions (36 features);
+- **partial output**: the same windows on the image the derivation has drawn so far.
+
+Each resolution level is the previous one convolved with a 3x3 kernel, then downsampled
+by a 2x2 box filter. The papers learn the kernels jointly with each network; procmod fixes
+them to a binomial blur ([1 2 1] x [1 2 1] / 16), shared by every site. That design change
+is deliberate: the partial-output pyramid then depends only on the drawn pixels, so it is
+computed once per emit (after an emit, the first choice that needs it rebuilds it in one
+numba pass over the 50x50 raster, a few microseconds; every later choice until the next
+emit, in this particle and in every copy of it made by resampling, reuses it), and a
+training trace's features can be computed once and reused for every gradient step. The
+networks keep their learned first layer, which mixes the window values freely.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from ..core import ProcmodError
+
+LEVELS = 4
+WINDOW = 3
+FEATURES_PER_IMAGE = LEVELS * WINDOW * WINDOW  # 36 per channel
+
+
+class GuideError(ProcmodError):
+    """A guide that does not fit its model, target or settings."""
+
+
+CONDITIONS = {
+    # seed 004 Figure 5's conditions: name -> (local state, target image, partial output)
+    "constant": (False, False, False),
+    "local": (True, False, False),
+    "local+target": (True, True, False),
+    "all": (True, True, True),
+}
+
+
+@dataclass(frozen=True)
+class FeatureSettings:
+    """Which feature sources a guide's networks see."""
+
+    local: bool = True
+    target: bool = True
+    partial: bool = True
+
+    @classmethod
+    def condition(cls, name: str) -> "FeatureSettings":
+        """Settings for one of seed 004's conditions: constant, local, local+target, all."""
+        try:
+            return cls(*CONDITIONS[name])
+        except KeyError:
+            raise GuideError(f"unknown feature condition {name!r}; choose one of {', '.join(CONDITIONS)}") from None
+
+    @property
+    def name(self) -> str:
+        for name, flags in CONDITIONS.items():
+            if flags == (self.local, self.target, self.partial):
+                return name
+        return "+".join(n for n, on in (("local", self.local), ("target", self.target),
+                                        ("partial", self.partial)) if on) or "constant"
+
+    def to_json(self) -> dict:
+        return {"local": self.local, "target": self.target, "partial": self.partial}
+
+
+@numba.njit(cache=True)
+def _blur_down(src, dst):
+    """dst = 2x2 box downsampling of (src convolved with the binomial 3x3 kernel), zero padded."""
+    h, w = src.shape
+    dh, dw = dst.shape
+    for i in range(dh):
+        for j in range(dw):
+            total = 0.0
+            for a in range(2):
+                for b in range(2):
+                    r = 2 * i + a
+                    c = 2 * j + b
+                    acc = 0.0
+                    for di in range(-1, 2):
+                        rr = r + di
+                        if rr < 0 or rr >= h:
+                            continue
+                        wi = 2.0 if di == 0 else 1.0
+                        for dj in range(-1, 2):
+                            cc = c + dj
+                            if cc < 0 or cc >= w:
+                                continue
+                            wj = 2.0 if dj == 0 else 1.0
+                            acc += wi * wj * src[rr, cc]
+                    total += acc
+            dst[i, j] = total / 64.0  # /16 for the kernel, /4 for the box
+
+
+@numba.njit(cache=True)
+def _window(level, cx, cy, out, offset):
+    h, w = level.shape
+    k = offset
+    for di in range(-1, 2):
+        r = cy + di
+        for dj in range(-1, 2):
+            c = cx + dj
+            if 0 <= r < h and 0 <= c < w:
+                out[k] = level[r, c]
+            else:
+                out[k] = 0.0
+            k += 1
+
+
+@numba.njit(cache=True)
+def _windows(l0, l1, l2, l3, px, py, out, offset):
+    """The 3x3 windows around pixel position (px, py) at the four levels, into out[offset:]."""
+    scale = 1.0
+    k = offset
+    for level in (l0, l1, l2, l3):
+        _window(level, int(math.floor(px / scale)), int(math.floor(py / scale)), out, k)
+        k += 9
+        scale *= 2.0
+
+
+class Pyramid:
+    """The four resolution levels of one image (level 0 is the image itself)."""
+
+    __slots__ = ("levels",)
+
+    def __init__(self, image: np.ndarray):
+        level = np.ascontiguousarray(image, dtype=np.float64)
+        levels = [level]
+        for _ in range(LEVELS - 1):
+            h, w = level.shape
+            nxt = np.zeros((max(h // 2, 1), max(w // 2, 1)))
+            _blur_down(level, nxt)
+            levels.append(nxt)
+            level = nxt
+        self.levels = tuple(levels)
+
+    def windows_into(self, px: float, py: float, out: np.ndarray, offset: int) -> None:
+        l0, l1, l2, l3 = self.levels
+        _windows(l0, l1, l2, l3, px, py, out, offset)
+
+
+def local_ranges(model, rule_name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(argument indices, lows, spans) of the scalar arguments a rule's guide sees."""
+    ranges = model.arg_ranges.get(rule_name)
+    if ranges is None:
+        return None
+    idx = [i for i, r in enumerate(ranges) if r is not None]
+    lows = np.array([ranges[i][0] for i in idx], dtype=np.float64)
+    spans = np.array([ranges[i][1] - ranges[i][0] for i in idx], dtype=np.float64)
+    return np.array(idx, dtype=np.int64), lows, spans
+
+
+class FeatureExtractor:
+    """Builds the feature vector of a choice from the context, output and target.
+
+    One extractor serves every particle of a run: per-particle state (the partial-output
+    pyramid) is cached on the derivation and shared by its copies.
+    """
+
+    def __init__(self, model, settings: FeatureSettings, target_mask: np.ndarray | None):
+        self.model = model
+        self.settings = settings
+        if settings.target and target_mask is None:
+            raise GuideError("this guide looks at a target image, but the target has none "
+                             "(train a guide with --features local or constant for image-free targets)")
+        self.target_pyramid = Pyramid(target_mask.astype(np.float64)) if settings.target else None
+        self._local = {}
+
+    def n_local(self, rule_name: str) -> int:
+        """Number of local-state features of a rule's choices (0 without local features)."""
+        if not self.settings.local:
+            return 0
+        ranges = self._ranges(rule_name)
+        return len(ranges[0])
+
+    def size(self, rule_name: str) -> int:
+        """Length of the feature vector of a rule's choices."""
+        n = self.n_local(rule_name)
+        if self.settings.target:
+            n += FEATURES_PER_IMAGE
+        if self.settings.partial:
+            n += FEATURES_PER_IMAGE
+        return n
+
+    def _ranges(self, rule_name):
+        ranges = self._local.get(rule_name)
+        if ranges is None:
+            ranges = local_ranges(self.model, rule_name)
+            if ranges is None:
+                raise GuideError(f"model {self.model.name!r} declares no argument ranges for rule "
+                                 f"{rule_name!r}; give the Model arg_ranges={{{rule_name!r}: ((low, high), ...)}} "
+                                 "or use guide features without local state")
+            self._local[rule_name] = ranges
+        return ranges
+
+    def features(self, state, rule_name: str, args: tuple) -> np.ndarray:
+        """The feature vector for a choice made now by a call of ``rule_name(args)``."""
+        settings = self.settings
+        out = np.empty(self.size(rule_name))
+        k = 0
+        if settings.local:
+            idx, lows, spans = self._ranges(rule_name)
+            n = len(idx)
+            for j in range(n):
+                v = 2.0 * (float(args[idx[j]]) - lows[j]) / spans[j] - 1.0
+                out[j] = -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
+            k = n
+        if settings.target or settings.partial:
+            px, py = self._pixel_position(state)
+            if settings.target:
+                self.target_pyramid.windows_into(px, py, out, k)
+                k += FEATURES_PER_IMAGE
+            if settings.partial:
+                partial_pyramid(state).windows_into(px, py, out, k)
+        return out
+
+    @staticmethod
+    def _pixel_position(state):
+        canvas = state.output
+        position = state.position
+        vp = canvas.viewport
+        if position is None:  # nothing reported yet: look from the centre
+            position = (0.5 * (vp.xmin + vp.xmax), 0.5 * (vp.ymin + vp.ymax))
+        return ((position[0] - vp.xmin) * canvas.width / (vp.xmax - vp.xmin),
+                (position[1] - vp.ymin) * canvas.height / (vp.ymax - vp.ymin))
+
+
+def partial_pyramid(state) -> Pyramid:
+    """The pyramid of what ``state`` has drawn, rebuilt only after a new emit."""
+    cached = state.guide_cache
+    if cached is not None and cached[0] == state.n_emits:
+        return cached[1]
+    canvas = state.output
+    pyramid = Pyramid((canvas.pixels != 0).reshape(canvas.height, canvas.width))
+    state.guide_cache = (state.n_emits, pyramid)
+    return pyramid

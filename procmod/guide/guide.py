@@ -1,0 +1,205 @@
+"""A trained guide (networks + metadata), its file format, and the proposers that use it.
+
+Files: ``NAME.pt`` holds the networks' torch state dict (tensors only, loaded with
+``weights_only=True``); ``NAME.json`` (``procmod-guide/1``) says which model the guide is
+for, its feature settings, mixture size and sites, and how it was trained.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..core.serialize import write_text_atomic
+from .features import FeatureExtractor, FeatureSettings, GuideError
+from .network import SiteNet, base_params, encode_value, head_kind, initial_bias, n_outputs, propose
+
+FORMAT = "procmod-guide/1"
+
+
+def site_key(rule_name: str, choice: str) -> str:
+    """The name of a random-choice site: ``rule:choice``."""
+    return f"{rule_name}:{choice}"
+
+
+class Guide:
+    """Networks for every site of one model, with the settings they were trained under.
+
+    Parameters
+    ----------
+    model_name : str
+        The model the guide was trained for.
+    settings : FeatureSettings
+    mixture : int
+        Gaussian components per continuous choice (1 = no mixture).
+    sites : dict
+        ``site key -> {"kind": ..., "n_in": ..., "n_out": ...}``.
+    seed : int
+        Seeds the networks' initial weights.
+    info : dict
+        Free-form training record (traces, iterations, loss) saved in the metadata.
+    """
+
+    def __init__(self, model_name: str, settings: FeatureSettings, mixture: int, sites: dict,
+                 seed: int = 0, info: dict | None = None):
+        if mixture < 1:
+            raise GuideError(f"mixture must be at least 1 component, got {mixture}")
+        self.model_name = model_name
+        self.settings = settings
+        self.mixture = mixture
+        self.sites = dict(sites)
+        self.info = dict(info or {})
+        generator = torch.Generator().manual_seed(seed)
+        self.nets = torch.nn.ModuleDict({
+            key: SiteNet(spec["n_in"], spec["n_out"], initial_bias(spec["kind"], mixture), generator)
+            for key, spec in sorted(self.sites.items())})
+        self._numpy = None
+
+    # ---- files ---------------------------------------------------------------------
+
+    def metadata(self) -> dict:
+        return {"format": FORMAT, "model": self.model_name, "features": self.settings.to_json(),
+                "mixture": self.mixture, "sites": self.sites, "info": self.info}
+
+    def save(self, path: str | os.PathLike) -> tuple[Path, Path]:
+        """Write ``STEM.pt`` and ``STEM.json`` (atomically); returns both paths."""
+        weights, meta = guide_paths(path)
+        weights.parent.mkdir(parents=True, exist_ok=True)
+        tmp = weights.with_name(f".{weights.name}.tmp")
+        torch.save(self.nets.state_dict(), tmp)
+        os.replace(tmp, weights)
+        write_text_atomic(meta, json.dumps(self.metadata(), indent=1) + "\n")
+        return weights, meta
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Guide":
+        """Read a guide saved by :meth:`save` (``STEM``, ``STEM.pt`` or ``STEM.json``)."""
+        weights, meta = guide_paths(path)
+        for p in (weights, meta):
+            if not p.is_file():
+                raise GuideError(f"guide file {p} does not exist (a guide is a .pt + .json pair "
+                                 "written by 'procmod guide train')")
+        try:
+            data = json.loads(meta.read_text())
+        except (OSError, ValueError) as exc:
+            raise GuideError(f"{meta}: not readable as JSON ({exc})") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise GuideError(f"{meta}: format is {data.get('format') if isinstance(data, dict) else None!r}, "
+                             f"expected {FORMAT!r}")
+        try:
+            settings = FeatureSettings(**data["features"])
+            guide = cls(data["model"], settings, int(data["mixture"]), data["sites"], 0, data.get("info"))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise GuideError(f"{meta}: malformed guide metadata ({exc})") from None
+        try:
+            state = torch.load(weights, weights_only=True)
+            guide.nets.load_state_dict(state)
+        except Exception as exc:  # torch raises several types for bad files
+            raise GuideError(f"{weights}: cannot load the guide's weights ({exc})") from None
+        return guide
+
+    # ---- use -----------------------------------------------------------------------
+
+    def check_model(self, model) -> None:
+        """Raise a :class:`GuideError` unless the guide was trained for ``model``."""
+        if model.name != self.model_name:
+            raise GuideError(f"this guide was trained for model {self.model_name!r}, not {model.name!r}; "
+                             f"train one with 'procmod guide train {model.name} ...'")
+
+    def numpy_weights(self) -> dict:
+        """Per-site numpy weights for fast one-choice-at-a-time inference (cached)."""
+        if self._numpy is None:
+            self._numpy = {key: net.numpy_weights() for key, net in self.nets.items()}
+        return self._numpy
+
+    def invalidate(self) -> None:
+        """Forget cached numpy weights (after training changed the networks)."""
+        self._numpy = None
+
+    def proposer(self, model, target_mask: np.ndarray | None) -> "GuidedProposer":
+        """A proposer for derivations of ``model`` matching a target with mask ``target_mask``."""
+        self.check_model(model)
+        return GuidedProposer(self, FeatureExtractor(model, self.settings, target_mask))
+
+
+def guide_paths(path: str | os.PathLike) -> tuple[Path, Path]:
+    """(weights .pt, metadata .json) for a guide path given with or without a suffix."""
+    path = Path(path)
+    stem = path.with_suffix("") if path.suffix.lower() in (".pt", ".json") else path
+    return stem.with_name(stem.name + ".pt"), stem.with_name(stem.name + ".json")
+
+
+class GuidedProposer:
+    """Proposes each fresh choice from the guide's network for its site.
+
+    Installed as ``derivation.proposer``; the runtime adds each proposal's log-density to
+    ``derivation.log_proposal`` so engines can weight by prior / proposal.
+    """
+
+    def __init__(self, guide: Guide, extractor: FeatureExtractor):
+        self.guide = guide
+        self.extractor = extractor
+        self.mixture = guide.mixture
+        weights = guide.numpy_weights()
+        self._sites = {}
+        for key, spec in guide.sites.items():
+            rule_name, choice = key.split(":", 1)
+            n_in = extractor.size(rule_name)
+            if n_in != spec["n_in"]:
+                raise GuideError(f"site {key} of the guide expects {spec['n_in']} features but the model "
+                                 f"gives {n_in}; the model's arguments changed since the guide was trained")
+            self._sites[(rule_name, choice)] = (spec["kind"], weights[key])
+
+    def propose(self, ctx, name, dist, rng):
+        rule_name = ctx.rule.__name__
+        site = self._sites.get((rule_name, name))
+        if site is None:  # never seen in training: the prior
+            value = dist.sample(rng)
+            return value, dist.log_prob(value)
+        kind, (w1, b1, w2, b2) = site
+        if head_kind(dist) != kind:
+            raise GuideError(f"site {site_key(rule_name, name)} draws a {type(dist).__name__} now but the "
+                             f"guide learned a {kind} proposal for it; retrain the guide")
+        if w1 is None:
+            out = b2
+        else:
+            x = self.extractor.features(ctx._state, rule_name, ctx.args)
+            out = w2 @ np.tanh(w1 @ x + b1) + b2
+        return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
+
+
+class RecordingProposer:
+    """Replays a trace's choices (log q = 0) and records what training needs per choice:
+    site, features, the prior's base parameters and the encoded value."""
+
+    def __init__(self, choices: dict, extractor: FeatureExtractor):
+        self.choices = choices
+        self.extractor = extractor
+        self.rows = []  # (site key, kind, features, base, value)
+
+    def propose(self, ctx, name, dist, rng):
+        key = (ctx.address, name)
+        if key not in self.choices:
+            raise GuideError(f"trace has no value for choice {name!r} at {ctx.address}; "
+                             "was it made by another version of the model?")
+        value = self.choices[key]
+        kind = head_kind(dist)
+        rule_name = ctx.rule.__name__
+        self.rows.append((site_key(rule_name, name), kind,
+                          self.extractor.features(ctx._state, rule_name, ctx.args),
+                          base_params(kind, dist), encode_value(kind, dist, value)))
+        return value, 0.0
+
+
+def new_guide_for(model, settings: FeatureSettings, mixture: int, site_kinds: dict, seed: int) -> Guide:
+    """A fresh guide with one network per site in ``site_kinds`` (key -> kind)."""
+    extractor = FeatureExtractor(model, settings, np.zeros((1, 1)) if settings.target else None)
+    sites = {}
+    for key, kind in site_kinds.items():
+        rule_name = key.split(":", 1)[0]
+        sites[key] = {"kind": kind, "n_in": extractor.size(rule_name), "n_out": n_outputs(kind, mixture)}
+    return Guide(model.name, settings, mixture, sites, seed)

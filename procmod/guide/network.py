@@ -1,0 +1,227 @@
+"""Guide networks: one small MLP per random-choice site, and the proposal each one sets.
+
+A *site* is a rule plus a choice name (``branch:angle``). Its network (seed 004 4.1) maps
+the site's n_f features through one tanh hidden layer of n_f / 2 units to the parameters
+of a proposal distribution; with no features (the "constant" condition) the network is
+just a learned parameter vector.
+
+Outputs are *relative to the prior the program asked for*, so an untrained network
+proposes roughly the prior and training learns corrections:
+
+- ``real`` (Normal, GaussianMixture priors): a mixture of K Gaussians, component k with
+  weight softmax(a)_k, mean mu0 + s0 m_k and sd s0 exp(l_k), where mu0, s0 are the prior's
+  mean and spread (the bounding transforms are softmax and exp);
+- ``interval`` (Uniform, TruncatedNormal with finite bounds): the same mixture over the
+  logit of the value's position in [low, high] (so proposals never leave the support),
+  with the change-of-variables term in the density;
+- ``bernoulli``: p = sigmoid(logit(p0) + o);
+- ``categorical``: probabilities softmax(log p0 + o).
+
+Sites the guide never saw in training propose from the prior.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from ..core.distributions import Bernoulli, Categorical, GaussianMixture, Normal, TruncatedNormal, Uniform
+from .features import GuideError
+
+LOGISTIC_SD = math.pi / math.sqrt(3.0)  # spread of the logit of a uniform variable
+LOG_SCALE_MIN, LOG_SCALE_MAX = -7.0, 4.0
+EDGE = 1e-9  # keeps logits of interval values finite
+
+
+def head_kind(dist) -> str:
+    """The proposal family for a prior distribution."""
+    if isinstance(dist, Bernoulli):
+        return "bernoulli"
+    if isinstance(dist, Categorical):
+        return f"categorical:{len(dist.probs)}"
+    if isinstance(dist, (Normal, GaussianMixture)):
+        return "real"
+    if isinstance(dist, Uniform):
+        return "interval"
+    if isinstance(dist, TruncatedNormal):
+        if math.isfinite(dist.low) and math.isfinite(dist.high):
+            return "interval"
+        return "real"  # half-bounded: proposals outside the support get weight zero
+    raise GuideError(f"neural guides do not support {type(dist).__name__} choices yet")
+
+
+def n_outputs(kind: str, mixture: int) -> int:
+    if kind in ("real", "interval"):
+        return 3 * mixture
+    if kind == "bernoulli":
+        return 1
+    return int(kind.split(":")[1])
+
+
+def _mixture_mean_sd(dist: GaussianMixture) -> tuple[float, float]:
+    mean = sum(w * m for w, m in zip(dist.weights, dist.means))
+    var = sum(w * (s * s + (m - mean) ** 2) for w, m, s in zip(dist.weights, dist.means, dist.sigmas))
+    return mean, math.sqrt(var)
+
+
+def base_params(kind: str, dist) -> tuple:
+    """The prior's parameters the network's outputs are relative to."""
+    if kind == "real":
+        if isinstance(dist, GaussianMixture):
+            return _mixture_mean_sd(dist)
+        return (dist.mu, dist.sigma)
+    if kind == "interval":
+        mean = 0.5 * (dist.low + dist.high) if isinstance(dist, Uniform) else dist.mu
+        frac = min(max((mean - dist.low) / (dist.high - dist.low), 0.05), 0.95)
+        return (dist.low, dist.high, math.log(frac / (1.0 - frac)))
+    if kind == "bernoulli":
+        p = min(max(dist.p, 1e-12), 1.0 - 1e-12)
+        return (math.log(p / (1.0 - p)),)
+    return tuple(max(lp, -1e9) for lp in dist._log_probs)
+
+
+def encode_value(kind: str, dist, value) -> float:
+    """A choice value as the number the training loss reads (category index, 0/1)."""
+    if kind == "bernoulli":
+        return 1.0 if value else 0.0
+    if kind.startswith("categorical"):
+        return float(dist._index[value])
+    return float(value)
+
+
+def initial_bias(kind: str, mixture: int) -> np.ndarray:
+    """Output-layer bias that makes an untrained network propose about the prior."""
+    if kind in ("real", "interval"):
+        means = np.linspace(-0.5, 0.5, mixture) if mixture > 1 else np.zeros(1)
+        return np.concatenate([np.zeros(mixture), means, np.zeros(mixture)])
+    return np.zeros(n_outputs(kind, mixture))
+
+
+class SiteNet(torch.nn.Module):
+    """The network of one site: n_in -> tanh(n_in / 2) -> n_out (or a constant vector)."""
+
+    def __init__(self, n_in: int, n_out: int, bias: np.ndarray, generator: torch.Generator):
+        super().__init__()
+        self.n_in = n_in
+        if n_in > 0:
+            hidden = max(n_in // 2, 1)
+            self.hidden = torch.nn.Linear(n_in, hidden, dtype=torch.float64)
+            self.out = torch.nn.Linear(hidden, n_out, dtype=torch.float64)
+            with torch.no_grad():
+                bound = 1.0 / math.sqrt(n_in)
+                self.hidden.weight.uniform_(-bound, bound, generator=generator)
+                self.hidden.bias.uniform_(-bound, bound, generator=generator)
+                self.out.weight.normal_(0.0, 0.01, generator=generator)
+                self.out.bias.copy_(torch.as_tensor(bias))
+        else:
+            self.constant = torch.nn.Parameter(torch.as_tensor(bias, dtype=torch.float64).clone())
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.n_in > 0:
+            return self.out(torch.tanh(self.hidden(x)))
+        return self.constant.expand(x.shape[0], -1)
+
+    def numpy_weights(self) -> tuple:
+        """(W1, b1, W2, b2) as numpy arrays, or (None, None, None, constant)."""
+        if self.n_in > 0:
+            return tuple(t.detach().numpy().copy() for t in
+                         (self.hidden.weight, self.hidden.bias, self.out.weight, self.out.bias))
+        return None, None, None, self.constant.detach().numpy().copy()
+
+
+def _mixture_parts(out: torch.Tensor, k: int):
+    logits = out[:, :k]
+    means = out[:, k:2 * k]
+    log_scales = out[:, 2 * k:3 * k].clamp(LOG_SCALE_MIN, LOG_SCALE_MAX)
+    return torch.log_softmax(logits, dim=1), means, log_scales
+
+
+def log_q_torch(kind: str, mixture: int, out: torch.Tensor, base: torch.Tensor, value: torch.Tensor) -> torch.Tensor:
+    """Log-density (or mass) of each row's value under the proposal the outputs set."""
+    if kind == "bernoulli":
+        logit = base[:, 0] + out[:, 0]
+        return -torch.nn.functional.softplus(torch.where(value > 0.5, -logit, logit))
+    if kind.startswith("categorical"):
+        log_p = torch.log_softmax(base + out, dim=1)
+        return log_p.gather(1, value.long().unsqueeze(1)).squeeze(1)
+    log_w, m, l = _mixture_parts(out, mixture)
+    if kind == "real":
+        mu0, s0 = base[:, 0:1], base[:, 1:2]
+        x = value.unsqueeze(1)
+        centre, log_sd = mu0 + s0 * m, torch.log(s0) + l
+        jacobian = 0.0
+    else:
+        low, high, c = base[:, 0], base[:, 1], base[:, 2:3]
+        frac = ((value - low) / (high - low)).clamp(EDGE, 1.0 - EDGE)
+        x = torch.log(frac / (1.0 - frac)).unsqueeze(1)
+        centre, log_sd = c + LOGISTIC_SD * m, math.log(LOGISTIC_SD) + l
+        jacobian = -torch.log(frac) - torch.log1p(-frac) - torch.log(high - low)
+    z = (x - centre) * torch.exp(-log_sd)
+    comp = log_w - 0.5 * z * z - log_sd - 0.5 * math.log(2 * math.pi)
+    return torch.logsumexp(comp, dim=1) + jacobian
+
+
+# ---- inference side: plain numpy / math, one choice at a time -----------------------
+
+def _log_softmax(v: np.ndarray) -> np.ndarray:
+    top = v.max()
+    return v - (top + math.log(np.exp(v - top).sum()))
+
+
+def _sample_mixture(log_w, centres, sds, rng) -> float:
+    u = rng.random()
+    acc = 0.0
+    k = len(log_w) - 1
+    for j in range(len(log_w)):
+        acc += math.exp(log_w[j])
+        if u < acc:
+            k = j
+            break
+    return centres[k] + sds[k] * rng.standard_normal()
+
+
+def _mixture_log_density(x, log_w, centres, sds) -> float:
+    terms = [log_w[j] - 0.5 * ((x - centres[j]) / sds[j]) ** 2 - math.log(sds[j]) for j in range(len(log_w))]
+    top = max(terms)
+    return top + math.log(sum(math.exp(t - top) for t in terms)) - 0.5 * math.log(2 * math.pi)
+
+
+def propose(kind: str, mixture: int, out: np.ndarray, base: tuple, dist, rng: np.random.Generator):
+    """Draw a value from the proposal the outputs set; returns (value, log q(value))."""
+    if kind == "bernoulli":
+        logit = base[0] + out[0]
+        p = 1.0 / (1.0 + math.exp(-logit)) if logit > -700 else 0.0
+        on = rng.random() < p
+        lq = -math.log1p(math.exp(-logit)) if on else -math.log1p(math.exp(logit))
+        return bool(on), lq
+    if kind.startswith("categorical"):
+        log_p = _log_softmax(np.asarray(base) + out)
+        i = len(log_p) - 1
+        u, acc = rng.random(), 0.0
+        for j, lp in enumerate(log_p):
+            acc += math.exp(lp)
+            if u < acc:
+                i = j
+                break
+        return dist.labels[i], float(log_p[i])
+    k = mixture
+    log_w = _log_softmax(out[:k])
+    log_scales = np.clip(out[2 * k:3 * k], LOG_SCALE_MIN, LOG_SCALE_MAX)
+    if kind == "real":
+        mu0, s0 = base
+        centres = mu0 + s0 * out[k:2 * k]
+        sds = s0 * np.exp(log_scales)
+        x = _sample_mixture(log_w, centres, sds, rng)
+        return x, _mixture_log_density(x, log_w, centres, sds)
+    low, high, c = base
+    centres = c + LOGISTIC_SD * out[k:2 * k]
+    sds = LOGISTIC_SD * np.exp(log_scales)
+    u = _sample_mixture(log_w, centres, sds, rng)
+    frac = 1.0 / (1.0 + math.exp(-u)) if u > -700 else 0.0
+    frac = min(max(frac, EDGE), 1.0 - EDGE)
+    u = math.log(frac / (1.0 - frac))
+    x = low + (high - low) * frac
+    lq = _mixture_log_density(u, log_w, centres, sds) - math.log(frac) - math.log1p(-frac) - math.log(high - low)
+    return x, lq

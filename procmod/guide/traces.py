@@ -1,0 +1,175 @@
+"""Training traces: SMC samples from the constrained model (seed 004 eq. 1).
+
+Each trace is one final particle of an SMC run (600 particles by default) on a target
+drawn from a training set (scribbles, or the circuit score), picked with probability
+proportional to its weight. A trace file (``procmod-trace/1``) holds the target spec and
+the particle's derivation (``procmod-derivation/1``): enough to recompute every feature
+the networks are trained on.
+
+Generation is embarrassingly parallel and goes through a ``concurrent.futures.Executor``
+(:func:`procmod.parallel.open_executor`: inline, a local process pool, or dask). Trace i
+depends only on (seed, i), so it does not matter where or in which order traces run.
+Each finished trace is written at once, atomically; a rerun of the same job skips the
+traces already on disk, so a killed job loses nothing it had finished.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import json
+import os
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..core import InvalidArgumentError
+from ..core.serialize import derivation_to_dict, write_text_atomic
+from .features import GuideError
+
+TRACE_FORMAT = "procmod-trace/1"
+JOB_FORMAT = "procmod-traces/1"
+TARGET_SETS = ("scribble", "circuit")
+SCRIBBLE_SET_SIZE = 49  # seed 004's 49 hand-drawn scribbles, each also mirrored
+_TRACE_NAME = re.compile(r"^trace_(\d{5,})\.json$")
+
+
+def trace_target_spec(targets: str, seed: int, index: int, set_size: int = SCRIBBLE_SET_SIZE) -> str:
+    """The target of trace ``index``: drawn uniformly from the training set."""
+    if targets == "circuit":
+        return "circuit"
+    if targets == "scribble":
+        rng = np.random.default_rng([seed, index, 2])
+        j = int(rng.integers(set_size))
+        return f"scribble:{j}" + (":mirrored" if rng.random() < 0.5 else "")
+    raise InvalidArgumentError(f"--targets must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
+
+
+def make_target(spec: str):
+    """The target object a trace's target spec names."""
+    from ..data import target_image
+    from ..targets import Circuit, ShapeMatch
+
+    return Circuit() if spec == "circuit" else ShapeMatch(target_image(spec))
+
+
+def generate_trace(model_name: str, target_spec: str, particles: int, seed: int, index: int) -> dict:
+    """Run SMC on one target and keep one final particle, picked by weight.
+
+    Module-level and fed plain values, so process pools and dask workers can run it.
+    """
+    from ..infer import smc
+    from ..models import get_model
+
+    began = time.perf_counter()
+    model = get_model(model_name)
+    target = make_target(target_spec)
+    result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
+    weights = np.asarray(result.log_weights, dtype=np.float64)
+    rng = np.random.default_rng([seed, index, 1])
+    if np.all(weights == -np.inf):
+        chosen = int(rng.integers(len(weights)))
+    else:
+        p = np.exp(weights - weights.max())
+        chosen = int(rng.choice(len(weights), p=p / p.sum()))
+    particle = result.samples[chosen]
+    return {"format": TRACE_FORMAT, "index": index, "target": target_spec, "particles": particles,
+            "seed": seed, "score": float(target.score(particle.output)),
+            "seconds": time.perf_counter() - began, "derivation": derivation_to_dict(particle)}
+
+
+def trace_path(out: Path, index: int) -> Path:
+    return out / f"trace_{index:05d}.json"
+
+
+def _job_settings(model_name, targets, particles, seed, set_size) -> dict:
+    return {"format": JOB_FORMAT, "model": model_name, "targets": targets, "particles": particles,
+            "seed": seed, "set_size": set_size}
+
+
+def generate_traces(model_name: str, targets: str, count: int, out: str | os.PathLike, particles: int = 600,
+                    seed: int = 0, executor: concurrent.futures.Executor | None = None,
+                    set_size: int = SCRIBBLE_SET_SIZE, progress=None) -> dict:
+    """Make ``count`` traces in ``out`` (resuming a previous run of the same job).
+
+    Returns a summary: traces made now, already present, seconds, traces per hour.
+    """
+    from ..models import get_model
+    from ..parallel import InlineExecutor
+
+    get_model(model_name)  # fail early on an unknown model
+    for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
+    trace_target_spec(targets, seed, 0, set_size)  # validates the target set
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    settings = _job_settings(model_name, targets, particles, seed, set_size)
+    job_file = out / "traces.json"
+    if job_file.exists():
+        try:
+            previous = json.loads(job_file.read_text())
+        except (OSError, ValueError):
+            previous = None
+        if previous != settings:
+            raise GuideError(f"{out} holds traces of another job ({previous}); "
+                             "give a new --out folder or the same settings to resume")
+    else:
+        write_text_atomic(job_file, json.dumps(settings, indent=1) + "\n")
+    missing = [i for i in range(count) if not trace_path(out, i).exists()]
+    present = count - len(missing)
+    executor = executor or InlineExecutor()
+    # A bounded number of tasks in flight: finished traces are written while others run
+    # (an inline executor runs a task as it is submitted, so it gets one at a time).
+    in_flight = 1 if isinstance(executor, InlineExecutor) else 32
+    began = time.perf_counter()
+    queue = list(reversed(missing))
+    running = {}
+    done = 0
+    while queue or running:
+        while queue and len(running) < in_flight:
+            i = queue.pop()
+            spec = trace_target_spec(targets, seed, i, set_size)
+            running[executor.submit(generate_trace, model_name, spec, particles, seed, i)] = i
+        finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
+        for future in finished:
+            index = running.pop(future)
+            write_text_atomic(trace_path(out, index), json.dumps(future.result()) + "\n")
+            done += 1
+            if progress is not None:
+                progress(present + done, count)
+    seconds = time.perf_counter() - began
+    return {"made": done, "present": present, "seconds": seconds,
+            "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None}
+
+
+def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[dict, list]:
+    """The job settings and the traces of a folder (sorted by index; the first ``limit``)."""
+    folder = Path(folder)
+    job_file = folder / "traces.json"
+    if not job_file.is_file():
+        raise GuideError(f"{folder} is not a traces folder (no traces.json); make one with 'procmod guide traces'")
+    try:
+        settings = json.loads(job_file.read_text())
+    except (OSError, ValueError) as exc:
+        raise GuideError(f"{job_file}: not readable as JSON ({exc})") from None
+    if not isinstance(settings, dict) or settings.get("format") != JOB_FORMAT:
+        raise GuideError(f"{job_file}: expected format {JOB_FORMAT!r}")
+    names = sorted((int(m.group(1)), p) for p in folder.iterdir() if (m := _TRACE_NAME.match(p.name)))
+    if limit is not None:
+        names = names[:limit]
+    traces = []
+    for _, path in names:
+        try:
+            trace = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise GuideError(f"{path}: not readable as JSON ({exc}); delete it and rerun the traces job") from None
+        if not isinstance(trace, dict) or trace.get("format") != TRACE_FORMAT:
+            raise GuideError(f"{path}: expected format {TRACE_FORMAT!r}")
+        traces.append(trace)
+    if not traces:
+        raise GuideError(f"{folder} holds no traces yet; run 'procmod guide traces' first")
+    return settings, traces

@@ -1,0 +1,286 @@
+"""Neural guides: features, proposals, guided SMC's unbiasedness, training, files, CLI."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+from scipy import ndimage
+
+from procmod.cli import main
+from procmod.core import Bernoulli, Categorical, Normal, TruncatedNormal, Uniform, run_forward
+from procmod.guide import FeatureExtractor, FeatureSettings, Guide, GuideError, new_guide_for
+from procmod.guide.features import Pyramid
+from procmod.guide.network import head_kind, base_params, encode_value, log_q_torch, n_outputs, propose
+from procmod.guide.traces import generate_traces, load_traces
+from procmod.guide.train import build_dataset, train_guide
+from procmod.infer import smc
+from procmod.models import get_model
+
+from toy_models import MIX, SumTarget, mix_exact
+
+VINES = get_model("vines")
+
+
+def _reference_pyramid(image):
+    kernel = np.outer([1, 2, 1], [1, 2, 1]) / 16.0
+    levels = [image.astype(float)]
+    for _ in range(3):
+        blurred = ndimage.convolve(levels[-1], kernel, mode="constant", cval=0.0)
+        h, w = blurred.shape[0] // 2, blurred.shape[1] // 2
+        levels.append(blurred[:2 * h, :2 * w].reshape(h, 2, w, 2).mean(axis=(1, 3)))
+    return levels
+
+
+def test_pyramid_levels_are_blur_then_box_downsampling():
+    rng = np.random.default_rng(0)
+    image = rng.random((50, 50)) < 0.3
+    ours = Pyramid(image).levels
+    for got, want in zip(ours, _reference_pyramid(image)):
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+@pytest.mark.parametrize("px,py", [(10.3, 20.7), (0.2, 0.1), (49.9, 49.5), (-3.0, 60.0)])
+def test_windows_are_3x3_around_the_position_at_each_level(px, py):
+    image = np.random.default_rng(1).random((50, 50))
+    pyramid = Pyramid(image)
+    out = np.empty(36)
+    pyramid.windows_into(px, py, out, 0)
+    for k, level in enumerate(pyramid.levels):
+        cx, cy = int(math.floor(px / 2 ** k)), int(math.floor(py / 2 ** k))
+        want = [level[r, c] if 0 <= r < level.shape[0] and 0 <= c < level.shape[1] else 0.0
+                for r in (cy - 1, cy, cy + 1) for c in (cx - 1, cx, cx + 1)]
+        np.testing.assert_allclose(out[9 * k:9 * k + 9], want)
+
+
+def test_feature_vector_layout_and_local_state_normalisation():
+    model = VINES
+    mask = np.zeros((50, 50), dtype=bool)
+    mask[10:40, 20:30] = True
+    extractor = FeatureExtractor(model, FeatureSettings(), mask)
+    d = run_forward(model, np.random.default_rng(3))
+    args = (0.0, -22.0, 100.0, math.pi / 12, 0.75, True)
+    f = extractor.features(d, "branch", args)
+    assert f.shape == (6 + 36 + 36,) == (extractor.size("branch"),)
+    # x mid-range -> 0, y at its low end -> -1, an angle far out of range is clipped to 1
+    np.testing.assert_allclose(f[:6], [0.0, -1.0, 1.0, 0.0, 1.0, 1.0])
+    assert FeatureExtractor(model, FeatureSettings.condition("constant"), None).size("branch") == 0
+    assert FeatureExtractor(model, FeatureSettings.condition("local"), None).size("branch") == 6
+    with pytest.raises(GuideError, match="target image"):
+        FeatureExtractor(model, FeatureSettings.condition("local+target"), None)
+    with pytest.raises(GuideError, match="argument ranges"):
+        FeatureExtractor(MIX, FeatureSettings.condition("local"), None).size("mix_root")
+
+
+def test_partial_output_features_follow_the_drawing():
+    model = VINES
+    extractor = FeatureExtractor(model, FeatureSettings.condition("all"), np.zeros((50, 50), dtype=bool))
+    d = run_forward(model, np.random.default_rng(5))
+    d.position = d.geometry()[0][:2]  # the first segment's start: it is drawn there
+    f = extractor.features(d, "branch", VINES.initial_args())
+    assert f[6:42].sum() == 0.0  # empty target
+    assert f[42 + 4] == 1.0  # the centre pixel of the finest partial-output window is drawn
+
+
+DISTS = [Normal(0.3, 2.0), Uniform(-1.0, 3.0), TruncatedNormal(1.0, 0.5, 0.0, 2.0)]
+
+
+@pytest.mark.parametrize("dist", DISTS, ids=lambda d: type(d).__name__)
+@pytest.mark.parametrize("mixture", [1, 4])
+def test_continuous_proposals_are_normalised_and_match_training_density(dist, mixture):
+    kind = head_kind(dist)
+    rng = np.random.default_rng(7)
+    out = rng.normal(0, 0.7, n_outputs(kind, mixture))
+    base = base_params(kind, dist)
+    # numpy sampler's log q == torch training density
+    draws = [propose(kind, mixture, out, base, dist, rng) for _ in range(200)]
+    values = torch.tensor([v for v, _ in draws], dtype=torch.float64)
+    lq = log_q_torch(kind, mixture, torch.tensor(out, dtype=torch.float64).expand(200, -1), torch.tensor(base, dtype=torch.float64).expand(200, -1), values)
+    np.testing.assert_allclose(lq.numpy(), [q for _, q in draws], rtol=1e-9, atol=1e-9)
+    # the density integrates to one over the support
+    lo, hi = (-30.0, 30.0) if kind == "real" else (dist.low, dist.high)
+    grid = torch.linspace(lo + 1e-7, hi - 1e-7, 200001, dtype=torch.float64)
+    dens = torch.exp(log_q_torch(kind, mixture, torch.tensor(out, dtype=torch.float64).expand(len(grid), -1),
+                                 torch.tensor(base, dtype=torch.float64).expand(len(grid), -1), grid))
+    assert abs(float(torch.trapezoid(dens, grid)) - 1.0) < 2e-3
+    # and the samples follow it: the sample mean is within 5 standard errors of its mean
+    mean = float(torch.trapezoid(dens * grid, grid))
+    sd = math.sqrt(float(torch.trapezoid(dens * (grid - mean) ** 2, grid)))
+    more = np.array([propose(kind, mixture, out, base, dist, rng)[0] for _ in range(4000)])
+    assert abs(more.mean() - mean) < 5 * sd / math.sqrt(len(more))
+
+
+@pytest.mark.parametrize("dist", [Bernoulli(0.3), Categorical([0.2, 0.5, 0.3], labels=("a", "b", "c"))],
+                         ids=lambda d: type(d).__name__)
+def test_discrete_proposals_match_training_mass(dist):
+    kind = head_kind(dist)
+    rng = np.random.default_rng(8)
+    out = rng.normal(0, 1.0, n_outputs(kind, 4))
+    base = base_params(kind, dist)
+    draws = [propose(kind, 4, out, base, dist, rng) for _ in range(4000)]
+    values = torch.tensor([encode_value(kind, dist, v) for v, _ in draws], dtype=torch.float64)
+    lq = log_q_torch(kind, 4, torch.tensor(out, dtype=torch.float64).expand(len(draws), -1),
+                     torch.tensor(base, dtype=torch.float64).expand(len(draws), -1), values)
+    np.testing.assert_allclose(lq.numpy(), [q for _, q in draws], rtol=1e-9, atol=1e-9)
+    # empirical frequencies follow the proposal's probabilities (5 sigma)
+    for value in set(v for v, _ in draws):
+        p = math.exp(next(q for v, q in draws if v == value))
+        freq = sum(v == value for v, _ in draws) / len(draws)
+        assert abs(freq - p) < 5 * math.sqrt(p * (1 - p) / len(draws))
+
+
+def _poor_guide():
+    """A constant guide for MIX whose proposals disagree with the prior and the posterior."""
+    kinds = {"mix_root:k": "categorical:3", "mix_root:x": "real", "mix_root:child": "bernoulli",
+             "mix_child:y": "real"}
+    guide = new_guide_for(MIX, FeatureSettings.condition("constant"), 2, kinds, seed=0)
+    with torch.no_grad():
+        guide.nets["mix_root:k"].constant.copy_(torch.tensor([1.5, -1.5, 0.5]))
+        guide.nets["mix_root:x"].constant.copy_(torch.tensor([0.0, 0.0, -1.0, 0.5, 0.4, 0.2]))
+        guide.nets["mix_root:child"].constant.copy_(torch.tensor([-1.5]))
+        guide.nets["mix_child:y"].constant.copy_(torch.tensor([0.0, 1.0, 1.2, -0.8, 0.3, 0.3]))
+    guide.invalidate()
+    return guide
+
+
+def test_guided_smc_stays_unbiased_with_a_poor_guide():
+    obs, s = 2.3, 0.5
+    z, exact = mix_exact(obs, s)
+    guide = _poor_guide()
+    runs = 400
+    estimates = np.array([math.exp(smc(MIX, SumTarget(obs, s), particles=8, seed=i, guide=guide)
+                                   .log_marginal_likelihood) for i in range(runs)])
+    se = estimates.std(ddof=1) / math.sqrt(runs)
+    assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
+    assert se < 0.1 * z
+    # the posterior over (k, child) too
+    runs, particles = 30, 300
+    sums = {key: [] for key in exact}
+    for i in range(runs):
+        r = smc(MIX, SumTarget(obs, s), particles=particles, seed=1000 + i, guide=guide)
+        w = np.exp(np.array(r.log_weights) - max(r.log_weights))
+        w /= w.sum()
+        got = {}
+        for weight, d in zip(w, r.samples):
+            cm = d.choice_map()
+            key = (cm[((), "k")], cm[((), "child")])
+            got[key] = got.get(key, 0.0) + weight
+        for key in exact:
+            sums[key].append(got.get(key, 0.0))
+    for key, p in exact.items():
+        values = np.array(sums[key])
+        se = values.std(ddof=1) / math.sqrt(runs)
+        assert abs(values.mean() - p) < 5 * se + 2.0 / particles, (key, values.mean(), p, se)
+
+
+def test_a_guide_changes_what_smc_proposes():
+    # Guard against a guide that is silently ignored: the poor guide's k-proposal puts
+    # 0.75 on k=0, so before any resampling most particles pick k=0.
+    from procmod.core import start, step
+    guide = _poor_guide()
+    proposer = guide.proposer(MIX, None)
+    rng = np.random.default_rng(0)
+    picks = []
+    for _ in range(2000):
+        state = start(MIX, SumTarget(0, 1).new_output(MIX))
+        state.proposer = proposer
+        step(state, rng)
+        picks.append(state.nodes()[0].choices["k"].value if state.nodes() else state.active[1]["k"][0])
+    p0 = math.exp(1.5 + math.log(0.3)) / sum(math.exp(a + math.log(b)) for a, b in
+                                               zip([1.5, -1.5, 0.5], [0.3, 0.5, 0.2]))
+    freq = np.mean(np.array(picks) == 0)
+    assert abs(freq - p0) < 5 * math.sqrt(p0 * (1 - p0) / 2000)
+
+
+@pytest.fixture(scope="module")
+def few_traces(tmp_path_factory):
+    out = tmp_path_factory.mktemp("traces")
+    generate_traces("vines", "scribble", 6, out, particles=40, seed=3)
+    return out
+
+
+def test_traces_are_smc_particles_that_replay(few_traces):
+    settings, traces = load_traces(few_traces)
+    assert settings["particles"] == 40 and len(traces) == 6
+    assert all(t["target"].startswith("scribble:") for t in traces)
+    data, kinds, n = build_dataset(VINES, traces, FeatureSettings())
+    assert set(kinds) >= {"branch:angle", "branch:leaf", "branch:terminate"}
+    assert n == sum(len(t["derivation"]["choices"]) for t in traces)
+    assert data["branch:angle"].x.shape[1] == 6 + 72
+
+
+def test_training_raises_the_traces_likelihood_and_resumes_exactly(few_traces, tmp_path):
+    _, traces = load_traces(few_traces)
+    untrained = new_guide_for(VINES, FeatureSettings(), 4, build_dataset(VINES, traces, FeatureSettings())[1], seed=0)
+    data, _, _ = build_dataset(VINES, traces, FeatureSettings())
+    from procmod.guide.train import _nll
+    with torch.no_grad():
+        before = float(_nll(untrained, data, np.arange(len(traces))))
+    guide, report = train_guide(VINES, few_traces, tmp_path / "a", iterations=300, checkpoint_every=100)
+    assert report["final_nll"] < before - 10.0, (before, report["final_nll"])
+
+    class Killed(Exception):
+        pass
+
+    def kill_at_200(step, loss):
+        if step == 200:  # after the checkpoint at 100, before the one at 200
+            raise Killed()
+
+    with pytest.raises(Killed):
+        train_guide(VINES, few_traces, tmp_path / "b", iterations=300, checkpoint_every=100, progress=kill_at_200)
+    assert (tmp_path / "b.ckpt.pt").exists() and not (tmp_path / "b.pt").exists()
+    resumed, _ = train_guide(VINES, few_traces, tmp_path / "b", iterations=300, checkpoint_every=100)
+    for key, tensor in guide.nets.state_dict().items():
+        assert torch.equal(tensor, resumed.nets.state_dict()[key]), key
+    assert not (tmp_path / "b.ckpt.pt").exists()
+
+
+def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path):
+    guide, _ = train_guide(VINES, few_traces, tmp_path / "g", iterations=20)
+    meta = json.loads((tmp_path / "g.json").read_text())
+    assert meta["format"] == "procmod-guide/1" and meta["model"] == "vines"
+    loaded = Guide.load(tmp_path / "g.pt")
+    for key, tensor in guide.nets.state_dict().items():
+        assert torch.equal(tensor, loaded.nets.state_dict()[key])
+    from procmod.data import target_image
+    from procmod.targets import ShapeMatch
+    target = ShapeMatch(target_image("glyph:a"))
+    a = smc(VINES, target, particles=10, seed=4, guide=guide)
+    b = smc(VINES, target, particles=10, seed=4, guide=loaded)
+    assert a.best.choice_map() == b.best.choice_map()  # same seed, same result
+    with pytest.raises(GuideError, match="trained for model 'vines', not 'chain'"):
+        smc(get_model("chain"), target, particles=4, guide=loaded)
+    with pytest.raises(GuideError, match="does not exist"):
+        Guide.load(tmp_path / "missing")
+    (tmp_path / "bad.json").write_text("{}")
+    (tmp_path / "bad.pt").write_bytes(b"x")
+    with pytest.raises(GuideError, match="format"):
+        Guide.load(tmp_path / "bad")
+
+
+def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
+    assert main(["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "g"),
+                 "--iterations", "30"]) == 0
+    assert main(["infer", "vines", "--target", "glyph:a", "--engine", "smc", "--particles", "10",
+                 "--guide", str(tmp_path / "g"), "--out", str(tmp_path / "run")]) == 0
+    assert (tmp_path / "run" / "best.png").exists()
+    capsys.readouterr()
+    for argv, message in [
+        (["infer", "vines", "--target", "glyph:a", "--engine", "ga", "--guide", str(tmp_path / "g"),
+          "--out", str(tmp_path / "x")], "--guide works with --engine smc"),
+        (["infer", "chain", "--target", "glyph:a", "--guide", str(tmp_path / "g"), "--out", str(tmp_path / "x")],
+         "trained for model 'vines'"),
+        (["guide", "train", "vines", "--traces", str(tmp_path), "--out", str(tmp_path / "h")], "not a traces folder"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
+          "--features", "pixels"], "unknown feature condition"),
+        (["guide", "traces", "vines", "--count", "2", "--targets", "glyphs", "--out", str(tmp_path / "t")],
+         "--targets must be one of"),
+        (["guide", "traces", "vines", "--count", "2", "--particles", "7", "--out", str(few_traces)],
+         "holds traces of another job"),
+    ]:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and message in err, (argv, err)
+    assert not (tmp_path / "x").exists() and not (tmp_path / "h.pt").exists()
