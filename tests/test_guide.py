@@ -284,3 +284,30 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and message in err, (argv, err)
     assert not (tmp_path / "x").exists() and not (tmp_path / "h.pt").exists()
+
+
+def test_fused_fast_path_matches_the_reference_features_and_mixture():
+    from procmod.guide.fast import mixture_draw
+    from procmod.guide.network import LOG_SCALE_MAX, LOG_SCALE_MIN
+    kinds = {"branch:angle": "real", "branch:terminate": "bernoulli"}
+    guide = new_guide_for(VINES, FeatureSettings(), 4, kinds, seed=1)
+    with torch.no_grad():
+        for p in guide.nets.parameters():
+            p.normal_(0, 0.3, generator=torch.Generator().manual_seed(p.numel()))
+    guide.invalidate()
+    mask = np.random.default_rng(2).random((50, 50)) < 0.4
+    proposer = guide.proposer(VINES, mask)
+    d = run_forward(VINES, np.random.default_rng(11))
+    for position in [(0.0, 0.0), (-11.5, -21.0), (3.3, -7.7)]:
+        d.position = position
+        args = (position[0], position[1], -1.0, 0.3, 0.5, True)
+        weights = guide.numpy_weights()["branch:angle"]
+        fast = proposer.outputs(d, "branch", args, weights)
+        x = proposer.extractor.features(d, "branch", args)
+        with torch.no_grad():
+            reference = guide.nets["branch:angle"](torch.tensor(x[None, :])).numpy()[0]
+        np.testing.assert_allclose(fast, reference, rtol=1e-10, atol=1e-12)
+        value, lq = mixture_draw(fast, 4, -1.0, 0.4, LOG_SCALE_MIN, LOG_SCALE_MAX, 0.37, 0.8)
+        want = log_q_torch("real", 4, torch.tensor(fast[None, :]), torch.tensor([[-1.0, 0.4]], dtype=torch.float64),
+                           torch.tensor([value], dtype=torch.float64))
+        assert abs(lq - float(want)) < 1e-9

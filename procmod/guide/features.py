@@ -181,7 +181,7 @@ class FeatureExtractor:
         """Number of local-state features of a rule's choices (0 without local features)."""
         if not self.settings.local:
             return 0
-        ranges = self._ranges(rule_name)
+        ranges = self.ranges(rule_name)
         return len(ranges[0])
 
     def size(self, rule_name: str) -> int:
@@ -193,7 +193,8 @@ class FeatureExtractor:
             n += FEATURES_PER_IMAGE
         return n
 
-    def _ranges(self, rule_name):
+    def ranges(self, rule_name: str):
+        """(argument indices, lows, spans) of a rule's local-state features."""
         ranges = self._local.get(rule_name)
         if ranges is None:
             ranges = local_ranges(self.model, rule_name)
@@ -204,20 +205,23 @@ class FeatureExtractor:
             self._local[rule_name] = ranges
         return ranges
 
+    def local_values(self, rule_name: str, args: tuple) -> np.ndarray:
+        """A call's scalar arguments mapped to [-1, 1] by the declared ranges (clipped)."""
+        idx, lows, spans = self.ranges(rule_name)
+        values = np.array([float(args[i]) for i in idx])
+        return np.clip(2.0 * (values - lows) / spans - 1.0, -1.0, 1.0)
+
     def features(self, state, rule_name: str, args: tuple) -> np.ndarray:
         """The feature vector for a choice made now by a call of ``rule_name(args)``."""
         settings = self.settings
         out = np.empty(self.size(rule_name))
         k = 0
         if settings.local:
-            idx, lows, spans = self._ranges(rule_name)
-            n = len(idx)
-            for j in range(n):
-                v = 2.0 * (float(args[idx[j]]) - lows[j]) / spans[j] - 1.0
-                out[j] = -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
-            k = n
+            local = self.local_values(rule_name, args)
+            k = len(local)
+            out[:k] = local
         if settings.target or settings.partial:
-            px, py = self._pixel_position(state)
+            px, py = self.pixel_position(state)
             if settings.target:
                 self.target_pyramid.windows_into(px, py, out, k)
                 k += FEATURES_PER_IMAGE
@@ -226,7 +230,8 @@ class FeatureExtractor:
         return out
 
     @staticmethod
-    def _pixel_position(state):
+    def pixel_position(state) -> tuple[float, float]:
+        """The current position (``ctx.at``) in the output raster's pixel coordinates."""
         canvas = state.output
         position = state.position
         vp = canvas.viewport

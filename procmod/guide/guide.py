@@ -15,8 +15,10 @@ import numpy as np
 import torch
 
 from ..core.serialize import write_text_atomic
-from .features import FeatureExtractor, FeatureSettings, GuideError
-from .network import SiteNet, base_params, encode_value, head_kind, initial_bias, n_outputs, propose
+from .fast import mixture_draw, site_outputs
+from .features import FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
+from .network import (LOG_SCALE_MAX, LOG_SCALE_MIN, SiteNet, base_params, encode_value, head_kind,
+                      initial_bias, n_outputs, propose)
 
 FORMAT = "procmod-guide/1"
 
@@ -144,6 +146,12 @@ class GuidedProposer:
         self.guide = guide
         self.extractor = extractor
         self.mixture = guide.mixture
+        settings = extractor.settings
+        self._use_local, self._use_target, self._use_partial = settings.local, settings.target, settings.partial
+        empty = np.zeros((1, 1))
+        self._target_levels = extractor.target_pyramid.levels if settings.target else (empty,) * 4
+        self._no_levels = (empty,) * 4
+        self._no_local = np.zeros(0)
         weights = guide.numpy_weights()
         self._sites = {}
         for key, spec in guide.sites.items():
@@ -154,21 +162,42 @@ class GuidedProposer:
                                  f"gives {n_in}; the model's arguments changed since the guide was trained")
             self._sites[(rule_name, choice)] = (spec["kind"], weights[key])
 
+    def outputs(self, state, rule_name: str, args: tuple, weights) -> np.ndarray:
+        """The site network's outputs for a choice made now (the fused fast path)."""
+        w1, b1, w2, b2 = weights
+        if w1 is None:
+            return b2
+        extractor = self.extractor
+        if self._use_local:
+            idx, lows, spans = extractor.ranges(rule_name)
+            raw = np.array([float(args[i]) for i in idx])
+        else:
+            raw = lows = spans = self._no_local
+        if self._use_target or self._use_partial:
+            px, py = extractor.pixel_position(state)
+        else:
+            px = py = 0.0
+        partial = partial_pyramid(state).levels if self._use_partial else self._no_levels
+        t0, t1, t2, t3 = self._target_levels
+        p0, p1, p2, p3 = partial
+        return site_outputs(raw, lows, spans, self._use_target, t0, t1, t2, t3, self._use_partial,
+                            p0, p1, p2, p3, px, py, w1, b1, w2, b2)
+
     def propose(self, ctx, name, dist, rng):
         rule_name = ctx.rule.__name__
         site = self._sites.get((rule_name, name))
         if site is None:  # never seen in training: the prior
             value = dist.sample(rng)
             return value, dist.log_prob(value)
-        kind, (w1, b1, w2, b2) = site
+        kind, weights = site
         if head_kind(dist) != kind:
             raise GuideError(f"site {site_key(rule_name, name)} draws a {type(dist).__name__} now but the "
                              f"guide learned a {kind} proposal for it; retrain the guide")
-        if w1 is None:
-            out = b2
-        else:
-            x = self.extractor.features(ctx._state, rule_name, ctx.args)
-            out = w2 @ np.tanh(w1 @ x + b1) + b2
+        out = self.outputs(ctx._state, rule_name, ctx.args, weights)
+        if kind == "real":
+            mu0, s0 = base_params(kind, dist)
+            return mixture_draw(out, self.mixture, mu0, s0, LOG_SCALE_MIN, LOG_SCALE_MAX,
+                                rng.random(), rng.standard_normal())
         return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
 
 

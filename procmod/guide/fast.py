@@ -1,0 +1,102 @@
+"""The guided proposal's hot path, fused into numba kernels.
+
+Guided SMC asks a network for every random choice of every particle, so the cost per
+choice bounds its speed (DESIGN.md, "Speed budget"). Building the feature vector, running
+the MLP and drawing from a Gaussian mixture as separate numpy calls costs ~30 us per
+choice, almost all of it call overhead on tiny arrays; one kernel call does the same work
+in a few microseconds. :mod:`procmod.guide.features` and :mod:`procmod.guide.network`
+remain the readable reference (and what training uses); tests check these kernels
+against them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .features import _window
+
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+@numba.njit(cache=True)
+def site_outputs(raw_local, lows, spans, use_target, t0, t1, t2, t3, use_partial, p0, p1, p2, p3, px, py,
+                 w1, b1, w2, b2):
+    """Features (local state, target windows, partial-output windows) -> MLP outputs.
+
+    ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by ``lows`` and
+    ``spans`` and clipped, as :meth:`FeatureExtractor.local_values` does.
+    """
+    n_in = w1.shape[1]
+    x = np.empty(n_in)
+    n_local = raw_local.shape[0]
+    for j in range(n_local):
+        v = 2.0 * (raw_local[j] - lows[j]) / spans[j] - 1.0
+        x[j] = min(max(v, -1.0), 1.0)
+    k = n_local
+    if use_target:
+        scale = 1.0
+        for level in (t0, t1, t2, t3):
+            _window(level, int(math.floor(px / scale)), int(math.floor(py / scale)), x, k)
+            k += 9
+            scale *= 2.0
+    if use_partial:
+        scale = 1.0
+        for level in (p0, p1, p2, p3):
+            _window(level, int(math.floor(px / scale)), int(math.floor(py / scale)), x, k)
+            k += 9
+            scale *= 2.0
+    n_hidden = w1.shape[0]
+    h = np.empty(n_hidden)
+    for i in range(n_hidden):
+        acc = b1[i]
+        for j in range(n_in):
+            acc += w1[i, j] * x[j]
+        h[i] = math.tanh(acc)
+    n_out = w2.shape[0]
+    out = np.empty(n_out)
+    for i in range(n_out):
+        acc = b2[i]
+        for j in range(n_hidden):
+            acc += w2[i, j] * h[j]
+        out[i] = acc
+    return out
+
+
+@numba.njit(cache=True)
+def mixture_draw(out, k, centre0, scale0, log_scale_min, log_scale_max, u, z):
+    """Draw from the mixture the outputs set (component by uniform ``u``, then ``centre +
+    sd * z``); returns (x, log density of x) in the mixture's own space."""
+    top = out[0]
+    for j in range(1, k):
+        if out[j] > top:
+            top = out[j]
+    total = 0.0
+    for j in range(k):
+        total += math.exp(out[j] - top)
+    log_norm = top + math.log(total)
+    chosen = k - 1
+    acc = 0.0
+    for j in range(k):
+        acc += math.exp(out[j] - log_norm)
+        if u < acc:
+            chosen = j
+            break
+    ls = min(max(out[2 * k + chosen], log_scale_min), log_scale_max)
+    x = centre0 + scale0 * out[k + chosen] + scale0 * math.exp(ls) * z
+    # log density: logsumexp over components
+    best = -np.inf
+    terms = np.empty(k)
+    for j in range(k):
+        lsj = min(max(out[2 * k + j], log_scale_min), log_scale_max)
+        sd = scale0 * math.exp(lsj)
+        d = (x - (centre0 + scale0 * out[k + j])) / sd
+        terms[j] = out[j] - log_norm - 0.5 * d * d - math.log(sd)
+        if terms[j] > best:
+            best = terms[j]
+    s = 0.0
+    for j in range(k):
+        s += math.exp(terms[j] - best)
+    return x, best + math.log(s) - _LOG_SQRT_2PI
