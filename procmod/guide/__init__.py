@@ -6,7 +6,8 @@ prior / proposal x likelihood.
 """
 
 from .features import CONDITIONS, FeatureExtractor, FeatureSettings, GuideError
-from .guide import Guide, GuidedProposer, RecordingProposer, guide_paths, new_guide_for, site_key
+from .guide import (Guide, GuidedProposer, RecordingProposer, guide_paths, new_guide_for, pretrained_guides,
+                    site_key)
 
 __all__ = ["CONDITIONS", "FeatureExtractor", "FeatureSettings", "Guide", "GuideError", "GuidedProposer",
-           "RecordingProposer", "guide_paths", "new_guide_for", "site_key"]
+           "RecordingProposer", "guide_paths", "new_guide_for", "pretrained_guides", "site_key"]

@@ -83,8 +83,9 @@ class Guide:
         weights, meta = guide_paths(path)
         for p in (weights, meta):
             if not p.is_file():
+                shipped = ", ".join(pretrained_guides()) or "none"
                 raise GuideError(f"guide file {p} does not exist (a guide is a .pt + .json pair "
-                                 "written by 'procmod guide train')")
+                                 f"written by 'procmod guide train', or a shipped guide: {shipped})")
         try:
             data = json.loads(meta.read_text())
         except (OSError, ValueError) as exc:
@@ -128,9 +129,21 @@ class Guide:
         return GuidedProposer(self, FeatureExtractor(model, self.settings, target_mask))
 
 
+PRETRAINED = Path(__file__).resolve().parent / "pretrained"
+
+
+def pretrained_guides() -> list[str]:
+    """Names of the guides shipped with procmod (usable wherever a guide path is)."""
+    return sorted(p.stem for p in PRETRAINED.glob("*.json"))
+
+
 def guide_paths(path: str | os.PathLike) -> tuple[Path, Path]:
-    """(weights .pt, metadata .json) for a guide path given with or without a suffix."""
+    """(weights .pt, metadata .json) for a guide path given with or without a suffix, or
+    the name of a shipped guide (e.g. ``vines-scribbles``)."""
     path = Path(path)
+    if path.name in pretrained_guides() and not path.with_name(path.name + ".json").exists() \
+            and len(path.parts) == 1:
+        path = PRETRAINED / path.name
     stem = path.with_suffix("") if path.suffix.lower() in (".pt", ".json") else path
     return stem.with_name(stem.name + ".pt"), stem.with_name(stem.name + ".json")
 
