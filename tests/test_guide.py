@@ -180,7 +180,7 @@ def test_a_guide_changes_what_smc_proposes():
     # 0.75 on k=0, so before any resampling most particles pick k=0.
     from procmod.core import start, step
     guide = _poor_guide()
-    proposer = guide.proposer(MIX, None)
+    proposer = guide.proposer(MIX, SumTarget(0, 1))
     rng = np.random.default_rng(0)
     picks = []
     for _ in range(2000):
@@ -296,7 +296,12 @@ def test_fused_fast_path_matches_the_reference_features_and_mixture():
             p.normal_(0, 0.3, generator=torch.Generator().manual_seed(p.numel()))
     guide.invalidate()
     mask = np.random.default_rng(2).random((50, 50)) < 0.4
-    proposer = guide.proposer(VINES, mask)
+
+    class MaskTarget:
+        def mask(self, width, height):
+            return mask
+
+    proposer = guide.proposer(VINES, MaskTarget())
     d = run_forward(VINES, np.random.default_rng(11))
     for position in [(0.0, 0.0), (-11.5, -21.0), (3.3, -7.7)]:
         d.position = position
@@ -311,3 +316,19 @@ def test_fused_fast_path_matches_the_reference_features_and_mixture():
         want = log_q_torch("real", 4, torch.tensor(fast[None, :]), torch.tensor([[-1.0, 0.4]], dtype=torch.float64),
                            torch.tensor([value], dtype=torch.float64))
         assert abs(lq - float(want)) < 1e-9
+
+
+def test_incremental_pyramid_updates_equal_a_rebuild():
+    from procmod.guide.features import partial_pyramid
+    d = run_forward(VINES, np.random.default_rng(21))
+    canvas = VINES.new_output()
+    from procmod.core import start, step
+    state = start(VINES, canvas)
+    rng = np.random.default_rng(21)
+    checked = 0
+    while step(state, rng):
+        incremental = partial_pyramid(state)
+        scratch = Pyramid(state.output.pixels.reshape(state.output.height, state.output.width))
+        np.testing.assert_allclose(incremental.flat, scratch.flat, atol=1e-12)
+        checked += 1
+    assert checked > 3 and d is not None

@@ -16,18 +16,19 @@ import math
 import numba
 import numpy as np
 
-from .features import _window
+from .features import windows_flat
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 @numba.njit(cache=True)
-def site_outputs(raw_local, lows, spans, use_target, t0, t1, t2, t3, use_partial, p0, p1, p2, p3, px, py,
+def site_outputs(raw_local, lows, spans, use_target, target, use_partial, partial, layout, px, py,
                  w1, b1, w2, b2):
     """Features (local state, target windows, partial-output windows) -> MLP outputs.
 
     ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by ``lows`` and
-    ``spans`` and clipped, as :meth:`FeatureExtractor.local_values` does.
+    ``spans`` and clipped, as :meth:`FeatureExtractor.local_values` does; ``target`` and
+    ``partial`` are flat pyramids laid out by ``layout``.
     """
     n_in = w1.shape[1]
     x = np.empty(n_in)
@@ -37,17 +38,10 @@ def site_outputs(raw_local, lows, spans, use_target, t0, t1, t2, t3, use_partial
         x[j] = min(max(v, -1.0), 1.0)
     k = n_local
     if use_target:
-        scale = 1.0
-        for level in (t0, t1, t2, t3):
-            _window(level, int(math.floor(px / scale)), int(math.floor(py / scale)), x, k)
-            k += 9
-            scale *= 2.0
+        windows_flat(target, layout, px, py, x, k)
+        k += 36
     if use_partial:
-        scale = 1.0
-        for level in (p0, p1, p2, p3):
-            _window(level, int(math.floor(px / scale)), int(math.floor(py / scale)), x, k)
-            k += 9
-            scale *= 2.0
+        windows_flat(partial, layout, px, py, x, k)
     n_hidden = w1.shape[0]
     h = np.empty(n_hidden)
     for i in range(n_hidden):

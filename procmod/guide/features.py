@@ -75,19 +75,30 @@ class FeatureSettings:
         return {"local": self.local, "target": self.target, "partial": self.partial}
 
 
+def level_layout(height: int, width: int) -> np.ndarray:
+    """Rows of (offset, height, width) of the four levels inside one flat array."""
+    rows, offset, h, w = [], 0, height, width
+    for _ in range(LEVELS):
+        rows.append((offset, h, w))
+        offset += h * w
+        h, w = max(h // 2, 1), max(w // 2, 1)
+    return np.array(rows, dtype=np.int64)
+
+
 @numba.njit(cache=True)
-def _blur_down(src, dst):
-    """dst = 2x2 box downsampling of (src convolved with the binomial 3x3 kernel), zero padded."""
-    h, w = src.shape
-    dh, dw = dst.shape
-    for i in range(dh):
-        for j in range(dw):
+def _blur_down_region(flat, src, dst, r0, r1, c0, c1):
+    """Recompute rows r0..r1, columns c0..c1 of the level ``dst`` (offset, h, w) as the 2x2
+    box downsampling of the level ``src`` convolved with the binomial 3x3 kernel (zero
+    padded)."""
+    so, h, w = src[0], src[1], src[2]
+    do, dw = dst[0], dst[2]
+    for i in range(r0, r1 + 1):
+        for j in range(c0, c1 + 1):
             total = 0.0
             for a in range(2):
                 for b in range(2):
                     r = 2 * i + a
                     c = 2 * j + b
-                    acc = 0.0
                     for di in range(-1, 2):
                         rr = r + di
                         if rr < 0 or rr >= h:
@@ -98,56 +109,93 @@ def _blur_down(src, dst):
                             if cc < 0 or cc >= w:
                                 continue
                             wj = 2.0 if dj == 0 else 1.0
-                            acc += wi * wj * src[rr, cc]
-                    total += acc
-            dst[i, j] = total / 64.0  # /16 for the kernel, /4 for the box
+                            total += wi * wj * flat[so + rr * w + cc]
+            flat[do + i * dw + j] = total / 64.0  # /16 for the kernel, /4 for the box
 
 
 @numba.njit(cache=True)
-def _window(level, cx, cy, out, offset):
-    h, w = level.shape
-    k = offset
-    for di in range(-1, 2):
-        r = cy + di
-        for dj in range(-1, 2):
-            c = cx + dj
-            if 0 <= r < h and 0 <= c < w:
-                out[k] = level[r, c]
-            else:
-                out[k] = 0.0
-            k += 1
+def pyramid_update(pixels, old, new, layout):
+    """``new`` = the pyramid of ``pixels`` (non-zero = 1), given ``old``, the pyramid of an
+    earlier state of the same raster: only the region whose pixels changed is recomputed,
+    level by level. Returns whether anything changed."""
+    new[:] = old
+    h, w = layout[0, 1], layout[0, 2]
+    rmin, rmax, cmin, cmax = h, -1, w, -1
+    for i in range(h):
+        for j in range(w):
+            v = 1.0 if pixels[i * w + j] != 0 else 0.0
+            if v != new[i * w + j]:
+                new[i * w + j] = v
+                rmin = min(rmin, i)
+                rmax = max(rmax, i)
+                cmin = min(cmin, j)
+                cmax = max(cmax, j)
+    if rmax < 0:
+        return False
+    for k in range(1, layout.shape[0]):
+        dh, dw = layout[k, 1], layout[k, 2]
+        # a blurred pixel changes up to one pixel away; a coarse pixel covers 2x2 of them
+        rmin, rmax = max((rmin - 1) // 2, 0), min((rmax + 1) // 2, dh - 1)
+        cmin, cmax = max((cmin - 1) // 2, 0), min((cmax + 1) // 2, dw - 1)
+        if rmin > rmax or cmin > cmax:
+            break
+        _blur_down_region(new, layout[k - 1], layout[k], rmin, rmax, cmin, cmax)
+    return True
 
 
 @numba.njit(cache=True)
-def _windows(l0, l1, l2, l3, px, py, out, offset):
-    """The 3x3 windows around pixel position (px, py) at the four levels, into out[offset:]."""
+def windows_flat(flat, layout, px, py, out, offset):
+    """The 3x3 windows around pixel position (px, py) at every level, into out[offset:]
+    (zero outside the image)."""
     scale = 1.0
     k = offset
-    for level in (l0, l1, l2, l3):
-        _window(level, int(math.floor(px / scale)), int(math.floor(py / scale)), out, k)
-        k += 9
+    for level in range(layout.shape[0]):
+        o, h, w = layout[level, 0], layout[level, 1], layout[level, 2]
+        cx = int(math.floor(px / scale))
+        cy = int(math.floor(py / scale))
+        for di in range(-1, 2):
+            r = cy + di
+            for dj in range(-1, 2):
+                c = cx + dj
+                out[k] = flat[o + r * w + c] if (0 <= r < h and 0 <= c < w) else 0.0
+                k += 1
         scale *= 2.0
 
 
 class Pyramid:
-    """The four resolution levels of one image (level 0 is the image itself)."""
+    """The four resolution levels of one image (level 0 is the image itself), stored in
+    one flat array (``flat``, laid out by ``layout``)."""
 
-    __slots__ = ("levels",)
+    __slots__ = ("flat", "layout")
 
-    def __init__(self, image: np.ndarray):
-        level = np.ascontiguousarray(image, dtype=np.float64)
-        levels = [level]
-        for _ in range(LEVELS - 1):
-            h, w = level.shape
-            nxt = np.zeros((max(h // 2, 1), max(w // 2, 1)))
-            _blur_down(level, nxt)
-            levels.append(nxt)
-            level = nxt
-        self.levels = tuple(levels)
+    def __init__(self, image: np.ndarray | None = None, *, flat=None, layout=None):
+        if image is not None:
+            image = np.asarray(image)
+            layout = level_layout(*image.shape)
+            flat = np.zeros(int(layout[-1, 0] + layout[-1, 1] * layout[-1, 2]))
+            pixels = np.ascontiguousarray((image != 0).ravel(), dtype=np.uint8)
+            pyramid_update(pixels, flat.copy(), flat, layout)
+        self.flat, self.layout = flat, layout
+
+    @classmethod
+    def empty(cls, height: int, width: int) -> "Pyramid":
+        layout = level_layout(height, width)
+        return cls(flat=np.zeros(int(layout[-1, 0] + layout[-1, 1] * layout[-1, 2])), layout=layout)
+
+    def updated(self, pixels: np.ndarray) -> "Pyramid":
+        """The pyramid of ``pixels`` (flat raster of the same size), computed incrementally
+        from this one (which is left unchanged: copies of a particle share it)."""
+        new = np.empty_like(self.flat)
+        pyramid_update(pixels, self.flat, new, self.layout)
+        return Pyramid(flat=new, layout=self.layout)
+
+    @property
+    def levels(self) -> tuple:
+        """The levels as 2D arrays (views)."""
+        return tuple(self.flat[o:o + h * w].reshape(h, w) for o, h, w in self.layout)
 
     def windows_into(self, px: float, py: float, out: np.ndarray, offset: int) -> None:
-        l0, l1, l2, l3 = self.levels
-        _windows(l0, l1, l2, l3, px, py, out, offset)
+        windows_flat(self.flat, self.layout, px, py, out, offset)
 
 
 def local_ranges(model, rule_name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -242,11 +290,13 @@ class FeatureExtractor:
 
 
 def partial_pyramid(state) -> Pyramid:
-    """The pyramid of what ``state`` has drawn, rebuilt only after a new emit."""
+    """The pyramid of what ``state`` has drawn, updated only after a new emit and only
+    where the emit changed pixels."""
     cached = state.guide_cache
     if cached is not None and cached[0] == state.n_emits:
         return cached[1]
     canvas = state.output
-    pyramid = Pyramid((canvas.pixels != 0).reshape(canvas.height, canvas.width))
+    previous = cached[1] if cached is not None else Pyramid.empty(canvas.height, canvas.width)
+    pyramid = previous.updated(canvas.pixels)
     state.guide_cache = (state.n_emits, pyramid)
     return pyramid

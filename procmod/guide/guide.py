@@ -123,10 +123,11 @@ class Guide:
         """Forget cached numpy weights (after training changed the networks)."""
         self._numpy = None
 
-    def proposer(self, model, target_mask: np.ndarray | None) -> "GuidedProposer":
-        """A proposer for derivations of ``model`` matching a target with mask ``target_mask``."""
+    def proposer(self, model, target) -> "GuidedProposer":
+        """A proposer for derivations of ``model`` (already configured by the target) under
+        ``target``, whose mask (if it has one) the networks look at."""
         self.check_model(model)
-        return GuidedProposer(self, FeatureExtractor(model, self.settings, target_mask))
+        return GuidedProposer(self, FeatureExtractor(model, self.settings, target_mask_for(target, model)))
 
 
 PRETRAINED = Path(__file__).resolve().parent / "pretrained"
@@ -135,6 +136,14 @@ PRETRAINED = Path(__file__).resolve().parent / "pretrained"
 def pretrained_guides() -> list[str]:
     """Names of the guides shipped with procmod (usable wherever a guide path is)."""
     return sorted(p.stem for p in PRETRAINED.glob("*.json"))
+
+
+def target_mask_for(target, model) -> np.ndarray | None:
+    """The target's mask at the resolution ``model`` draws at (None for image-free targets)."""
+    if target is None or not hasattr(target, "mask"):
+        return None
+    canvas = model.new_output()
+    return target.mask(canvas.width, canvas.height)
 
 
 def guide_paths(path: str | os.PathLike) -> tuple[Path, Path]:
@@ -161,9 +170,8 @@ class GuidedProposer:
         self.mixture = guide.mixture
         settings = extractor.settings
         self._use_local, self._use_target, self._use_partial = settings.local, settings.target, settings.partial
-        empty = np.zeros((1, 1))
-        self._target_levels = extractor.target_pyramid.levels if settings.target else (empty,) * 4
-        self._no_levels = (empty,) * 4
+        self._target_flat = extractor.target_pyramid.flat if settings.target else np.zeros(1)
+        self._layout = extractor.target_pyramid.layout if settings.target else np.zeros((4, 3), dtype=np.int64)
         self._no_local = np.zeros(0)
         weights = guide.numpy_weights()
         self._sites = {}
@@ -190,11 +198,19 @@ class GuidedProposer:
             px, py = extractor.pixel_position(state)
         else:
             px = py = 0.0
-        partial = partial_pyramid(state).levels if self._use_partial else self._no_levels
-        t0, t1, t2, t3 = self._target_levels
-        p0, p1, p2, p3 = partial
-        return site_outputs(raw, lows, spans, self._use_target, t0, t1, t2, t3, self._use_partial,
-                            p0, p1, p2, p3, px, py, w1, b1, w2, b2)
+        if self._use_partial:
+            pyramid = partial_pyramid(state)
+            partial, layout = pyramid.flat, pyramid.layout
+            if self._use_target and layout is not self._layout:
+                if not np.array_equal(layout, self._layout):
+                    raise GuideError(f"the target image is {self._layout[0, 2]}x{self._layout[0, 1]} pixels but "
+                                     f"the model draws {layout[0, 2]}x{layout[0, 1]}; give the model the "
+                                     "target's size")
+                self._layout = layout  # same sizes: later calls skip the comparison
+        else:
+            partial, layout = self._target_flat, self._layout
+        return site_outputs(raw, lows, spans, self._use_target, self._target_flat, self._use_partial, partial,
+                            layout, px, py, w1, b1, w2, b2)
 
     def propose(self, ctx, name, dist, rng):
         rule_name = ctx.rule.__name__

@@ -28,18 +28,17 @@ from ..core import start
 from ..core.runtime import finish
 from ..core.serialize import write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, GuideError
-from .guide import Guide, RecordingProposer, guide_paths, new_guide_for
+from .guide import Guide, RecordingProposer, guide_paths, new_guide_for, target_mask_for
 from .network import log_q_torch
 from .traces import load_traces
 
 ADAM_BETAS = (0.75, 0.75)  # seed 003 5.2: "alpha = beta = 0.75"
 
 
-def _target_mask(spec: str):
+def _target_mask(spec: str, model):
     from .traces import make_target
 
-    image = getattr(make_target(spec), "image", None)
-    return None if image is None else image.mask
+    return target_mask_for(make_target(spec), model)
 
 
 def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None = None) -> list:
@@ -53,7 +52,7 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     if masks is not None and spec in masks:
         mask = masks[spec]
     else:
-        mask = _target_mask(spec) if settings.target else None
+        mask = _target_mask(spec, configured) if settings.target else None
         if masks is not None:
             masks[spec] = mask
     extractor = FeatureExtractor(configured, settings, mask)

@@ -156,8 +156,7 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
     model = target.configure(model)
     proposer = None
     if guide is not None:
-        image = getattr(target, "image", None)
-        proposer = guide.proposer(model, None if image is None else image.mask)
+        proposer = guide.proposer(model, target)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     notes = []
