@@ -2,9 +2,56 @@
 
 from __future__ import annotations
 
+import sys
+
+from ..core.errors import InvalidArgumentError
+
 
 def register(sub, int_arg) -> None:
     """Add the ``learn`` subcommand to the argparse subparsers ``sub``.
 
     Each parser sets ``handler`` (a function of the parsed args) with ``set_defaults``.
     """
+    learn = sub.add_parser(
+        "learn", help="learn a probabilistic program from part-based examples (procmod-examples/1)")
+    learn.add_argument("examples", metavar="EXAMPLES.json", help="a procmod-examples/1 file")
+    learn.add_argument("--out", required=True, help="output folder: program.json (+ program.pt), "
+                                                    "contact_sheet.png, report.html; resumes a killed run")
+    learn.add_argument("--particles", type=int_arg, default=4,
+                       help="parallel structure searches (particle filter; default 4)")
+    group = learn.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=int_arg, default=None,
+                       help="local worker processes (default: inline; 0 = one per core)")
+    group.add_argument("--scheduler", default=None, help="dask scheduler address (tcp://host:8786)")
+    learn.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
+    learn.add_argument("--estimator", default="exact", choices=("exact", "vi"),
+                       help="parameter estimation: exact marginal likelihood (default) or the paper's VI")
+    learn.add_argument("--samples", type=int_arg, default=10, help="samples on the contact sheet (default 10)")
+    learn.set_defaults(handler=_cmd_learn)
+
+
+def _cmd_learn(args) -> None:
+    from .pipeline import learn
+    from .search import SearchOptions
+
+    if args.particles < 1:
+        raise InvalidArgumentError(f"--particles must be a positive integer, got {args.particles}")
+    if args.seed < 0:
+        raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    if args.workers is not None and args.workers < 0:
+        raise InvalidArgumentError(f"--workers must be >= 0 (0 = one per core), got {args.workers}")
+    tty = sys.stderr.isatty()
+
+    def progress(line: str) -> None:
+        if tty:
+            print(f"\r{line:<78}", end="", file=sys.stderr, flush=True)
+
+    command = "procmod " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("procmod") else ""
+    out = learn(args.examples, args.out, particles=args.particles, workers=args.workers,
+                scheduler=args.scheduler, seed=args.seed, options=SearchOptions(estimator=args.estimator),
+                samples=args.samples, progress=progress, command=command)
+    if tty:
+        print(file=sys.stderr)
+    t = out["table"]
+    print(f"learned {t['A_star']} abstractions (P0: {t['A0']}); O_D {t['O_P0']:.2f} -> {t['O_Pstar']:.2f} "
+          f"in {t['seconds']:.1f} s; program: {out['program']}; report: {out['report']}")

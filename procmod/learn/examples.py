@@ -1,0 +1,189 @@
+"""The ``procmod-examples/1`` format: part-based example hierarchies.
+
+::
+
+    {"format": "procmod-examples/1",
+     "parts": {"body": {"box": [2.0, 0.5, 4.0]}, "wing": {"mesh": "parts/wing.obj"}},
+     "examples": [{"part": "body", "transform": [[...4 rows of 4...]],
+                   "children": [{"part": "wing", "transform": ..., "children": []}]}]}
+
+A part is a box (full extents, centred at its local origin) or a triangle mesh (path
+relative to the JSON file) in its own local frame. ``transform`` is the node's
+world-space 4x4 affine matrix (row-major). Children nest to any depth.
+
+Reading checks everything a learner relies on and names the JSON path of the first
+problem (``examples[3].children[1].transform``): wrong format tag, unknown part,
+non-affine or singular matrix, a transform with shear (the learner models rotation x
+scale x translation only), missing mesh file, a node that contains itself (a cycle,
+possible when a Python object is passed in) and nesting deeper than :data:`MAX_DEPTH`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import ProcmodError
+from ..core.serialize import write_text_atomic
+from ..geometry.part_library import (PartShape, read_part_library, read_transform,
+                                     transform_to_json)
+
+FORMAT = "procmod-examples/1"
+MAX_DEPTH = 256
+SHEAR_TOLERANCE = 1e-6
+
+
+class ExamplesError(ProcmodError):
+    """An examples file (or object) that cannot be read; the message names where."""
+
+
+@dataclass
+class ExampleNode:
+    """One part of an example hierarchy: its part name, world transform and children."""
+
+    part: str
+    transform: np.ndarray
+    children: list = field(default_factory=list)
+
+    def walk(self):
+        """This node and all its descendants, depth first."""
+        yield self
+        for child in self.children:
+            yield from child.walk()
+
+    def size(self) -> int:
+        return sum(1 for _ in self.walk())
+
+
+@dataclass
+class ExampleSet:
+    """A part library and the example hierarchies built from it."""
+
+    parts: dict  # name -> PartShape
+    examples: list  # of ExampleNode
+    base_dir: Path = Path(".")
+
+
+def has_shear(m: np.ndarray) -> bool:
+    """True when the 3x3 part of ``m`` is not a rotation times a (signed) axis scaling."""
+    linear = np.asarray(m, dtype=np.float64)[:3, :3]
+    gram = linear.T @ linear  # diagonal exactly when the columns are orthogonal
+    diag = np.sqrt(np.outer(np.diag(gram), np.diag(gram)))
+    off = np.abs(gram - np.diag(np.diag(gram))) / np.maximum(diag, 1e-300)
+    return bool(off.max() > SHEAR_TOLERANCE)
+
+
+def _read_node(value, parts: dict, where: str, depth: int, seen: set) -> ExampleNode:
+    if not isinstance(value, dict):
+        raise ExamplesError(f"{where}: expected a node object with 'part' and 'transform', got {value!r:.60}")
+    if id(value) in seen:
+        raise ExamplesError(f"{where}: this node contains itself (a cycle); example hierarchies must be trees")
+    if depth > MAX_DEPTH:
+        raise ExamplesError(f"{where}: hierarchy deeper than {MAX_DEPTH} levels; is it cyclic?")
+    unknown = sorted(set(value) - {"part", "transform", "children"})
+    if unknown:
+        raise ExamplesError(f"{where}: unknown field {unknown[0]!r} (a node has 'part', 'transform', 'children')")
+    part = value.get("part")
+    if not isinstance(part, str):
+        raise ExamplesError(f"{where}.part: expected a part name (a string), got {part!r:.60}")
+    if part not in parts:
+        raise ExamplesError(f"{where}.part: unknown part {part!r}; the file's parts are: "
+                            f"{', '.join(sorted(parts))}")
+    if "transform" not in value:
+        raise ExamplesError(f"{where}: missing 'transform' (a 4x4 world matrix, row-major)")
+    transform = read_transform(value["transform"], f"{where}.transform")
+    if has_shear(transform):
+        raise ExamplesError(f"{where}.transform: the matrix shears (its 3x3 part is not a rotation times "
+                            "an axis scaling); procmod learn models rotation, scale and translation only")
+    children_value = value.get("children", [])
+    if not isinstance(children_value, list):
+        raise ExamplesError(f"{where}.children: expected a list of nodes, got {children_value!r:.60}")
+    seen.add(id(value))
+    children = [_read_node(c, parts, f"{where}.children[{i}]", depth + 1, seen)
+                for i, c in enumerate(children_value)]
+    seen.discard(id(value))
+    return ExampleNode(part, transform, children)
+
+
+def examples_from_dict(data, base_dir: str | os.PathLike = ".", source: str = "examples") -> ExampleSet:
+    """Check and read a parsed ``procmod-examples/1`` object.
+
+    Raises
+    ------
+    ExamplesError, PartLibraryError
+        Naming the JSON path of the first problem.
+    """
+    if not isinstance(data, dict):
+        raise ExamplesError(f"{source}: expected a JSON object with 'format', 'parts' and 'examples'")
+    if data.get("format") != FORMAT:
+        raise ExamplesError(f"{source}: format is {data.get('format')!r}, expected {FORMAT!r}")
+    parts = read_part_library(data.get("parts"), base_dir)
+    examples = data.get("examples")
+    if not isinstance(examples, list) or not examples:
+        raise ExamplesError(f"{source}: 'examples' must be a non-empty list of hierarchies")
+    nodes = [_read_node(e, parts, f"examples[{i}]", 0, set()) for i, e in enumerate(examples)]
+    return ExampleSet(parts, nodes, Path(base_dir))
+
+
+def read_examples(path: str | os.PathLike) -> ExampleSet:
+    """Read and check a ``procmod-examples/1`` file (mesh paths relative to it)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ExamplesError(f"examples file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ExamplesError(f"cannot read examples file {path}: {exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ExamplesError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    return examples_from_dict(data, path.parent, str(path))
+
+
+def node_to_json(node: ExampleNode) -> dict:
+    return {"part": node.part, "transform": transform_to_json(node.transform),
+            "children": [node_to_json(c) for c in node.children]}
+
+
+def parts_json_relative(parts: dict, base_dir: Path, out_dir: Path) -> dict:
+    """The "parts" object with mesh paths rewritten relative to ``out_dir``."""
+    out = {}
+    for name, shape in parts.items():
+        if shape.kind == "box":
+            out[name] = {"box": list(shape.size)}
+        else:
+            mesh = (Path(base_dir) / shape.source).resolve()
+            out[name] = {"mesh": os.path.relpath(mesh, Path(out_dir).resolve())}
+    return out
+
+
+def examples_to_dict(example_set: ExampleSet, out_dir: str | os.PathLike | None = None) -> dict:
+    """The JSON object of an example set (mesh paths relative to ``out_dir``)."""
+    out_dir = example_set.base_dir if out_dir is None else Path(out_dir)
+    return {"format": FORMAT,
+            "parts": parts_json_relative(example_set.parts, example_set.base_dir, out_dir),
+            "examples": [node_to_json(e) for e in example_set.examples]}
+
+
+def write_examples_file(example_set: ExampleSet, path: str | os.PathLike) -> None:
+    """Write an example set as ``procmod-examples/1`` JSON, atomically."""
+    path = Path(path)
+    if path.exists() and path.is_dir():
+        raise ExamplesError(f"{path} is a folder; give a file name ending in .json")
+    if not path.parent.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(path, json.dumps(examples_to_dict(example_set, path.parent)) + "\n")
+
+
+def example_parts(node: ExampleNode, parts: dict) -> list:
+    """World-space parts (Box / Mesh) of a hierarchy, tagged by part name."""
+    return [parts[n.part].part(n.transform) for n in node.walk()]
+
+
+__all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
+           "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]

@@ -1,0 +1,150 @@
+"""``procmod learn``: examples file in, program folder out.
+
+``DIR/program.json`` + ``DIR/program.pt`` (the program; meshes copied to ``DIR/parts/``),
+``DIR/contact_sheet.png`` (the examples, then samples of the program), ``DIR/report.json``
+and ``DIR/report.html`` (Table-1 figures, the search trace, an objective-per-round plot
+``DIR/search.png``), and ``DIR/checkpoint/`` (resumes a killed run).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import html
+import io
+import json
+import os
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from ..core import run_forward
+from ..core.errors import InvalidArgumentError
+from ..core.serialize import write_text_atomic
+from ..geometry import contact_sheet, save_image_atomic
+from ..geometry.camera import framing_camera, shaded_image
+from ..geometry.export import colour_of
+from ..geometry.solid import scene_bounds
+from .examples import ExampleSet, example_parts, read_examples
+from .program import program_model, save_program
+from .search import SearchOptions, run_search
+
+
+def render_parts(parts, size: int = 160):
+    """A shaded PIL image of world-space parts."""
+    from PIL import Image
+    lo, hi = scene_bounds(parts)
+    return Image.fromarray(shaded_image(parts, framing_camera(lo, hi, size, size), colour_of))
+
+
+def examples_and_samples_sheet(example_set: ExampleSet, derivations, path, tile: int = 160) -> None:
+    """One contact sheet: every example, then every sample."""
+    images = [render_parts(example_parts(e, example_set.parts), tile) for e in example_set.examples]
+    labels = [f"example {i}" for i in range(len(images))]
+    images += [render_parts(d.geometry(), tile) for d in derivations]
+    labels += [f"sample {i}" for i in range(len(derivations))]
+    save_image_atomic(contact_sheet(images, columns=len(example_set.examples), labels=labels), path)
+
+
+def sample_program(program, name: str, n: int, seed: int) -> list:
+    model = program_model(program, name)
+    return [run_forward(model, np.random.default_rng([seed, i])) for i in range(n)]
+
+
+def _search_plot(rounds, path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
+    for ax, phase in zip(axes, ("discrete", "fixed")):
+        rows = [r for r in rounds if r["phase"] == phase and r["event"] == "step"]
+        if rows:
+            ax.plot([r["round"] for r in rows], [max(r["objectives"]) for r in rows], "o-", ms=3)
+        ax.set_title(f"phase {'1 (discrete)' if phase == 'discrete' else '2 (fixed sigmas)'}")
+        ax.set_xlabel("round")
+        ax.set_ylabel("best O_D")
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100, metadata={"Software": None})
+    plt.close(fig)
+    tmp = Path(path).with_name(f".{Path(path).name}.tmp")
+    tmp.write_bytes(buffer.getvalue())
+    os.replace(tmp, path)
+
+
+def _report_html(table: dict, trace: list, examples_path: str, command: str) -> str:
+    rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{v:.2f}</td></tr>" if isinstance(v, float)
+                   else f"<tr><td>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>"
+                   for k, v in table.items())
+    trace_rows = "".join("<tr>" + "".join(f"<td>{html.escape(str(r.get(k, '')))}</td>" for k in
+                                          ("phase", "split", "accepted", "proposed", "objective", "abstractions",
+                                           "complexity", "seconds")) + "</tr>" for r in trace)
+    return f"""<!doctype html><html><head><meta charset="utf-8"><title>procmod learn</title>
+<style>body{{font-family:sans-serif;margin:2em}} td{{padding:2px 8px}} table{{border-collapse:collapse}}
+tr:nth-child(even){{background:#f2f2f2}}</style></head><body>
+<h1>Learned program</h1><p>from <code>{html.escape(examples_path)}</code></p>
+<p><code>{html.escape(command)}</code></p>
+<h2>Examples (top) and samples</h2><img src="contact_sheet.png" style="max-width:100%">
+<h2>Summary (seed 000 Table 1)</h2><table>{rows}</table>
+<h2>Structure search</h2><img src="search.png">
+<table><tr><th>phase</th><th>split</th><th>accepted</th><th>O_D proposed</th><th>O_D</th><th>|A|</th><th>C(P)</th><th>s</th></tr>
+{trace_rows}</table></body></html>
+"""
+
+
+def learn(examples: str | os.PathLike, out: str | os.PathLike, particles: int = 4, workers: int | None = None,
+          scheduler: str | None = None, seed: int = 0, options: SearchOptions | None = None,
+          samples: int = 10, progress=None, command: str = "") -> dict:
+    """Learn a program from an examples file and write the program folder ``out``.
+
+    Parameters
+    ----------
+    examples : path
+        A ``procmod-examples/1`` file.
+    out : path
+        Output folder (created); a checkpoint left there by a killed run with the same
+        examples and options is resumed.
+    particles : int
+        Parallel structure searches (particle filter), default 4.
+    workers, scheduler
+        Where the searches run (:func:`procmod.parallel.open_executor`).
+    options : SearchOptions, optional
+        Search constants (``particles`` and ``seed`` here override its fields).
+
+    Returns
+    -------
+    dict
+        Table-1 figures and the paths written.
+    """
+    from ..parallel import open_executor
+    examples = Path(examples)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    if samples < 1:
+        raise InvalidArgumentError(f"samples must be positive, got {samples}")
+    example_set = read_examples(examples)
+    options = options or SearchOptions()
+    options.particles, options.seed = particles, seed
+    options.check()
+    text = examples.read_bytes()
+    fingerprint = hashlib.sha256(text).hexdigest()[:16]
+    out.mkdir(parents=True, exist_ok=True)
+    with open_executor(workers, scheduler) as executor:
+        result = run_search(example_set, options, executor, out / "checkpoint", fingerprint, progress)
+    program = result.program
+    program.info["examples"] = str(examples)
+    json_path = save_program(program, out)
+    name = str(json_path.resolve())
+    derivations = sample_program(program, name, samples, seed)
+    examples_and_samples_sheet(example_set, derivations, out / "contact_sheet.png")
+    _search_plot(result.rounds, out / "search.png")
+    report = {"format": "procmod-learn-report/1", "examples": str(examples), "table": result.table,
+              "options": asdict(options), "trace": result.trace, "rounds": result.rounds,
+              "resumed": result.resumed}
+    write_text_atomic(out / "report.json", json.dumps(report, indent=1) + "\n")
+    write_text_atomic(out / "report.html", _report_html(result.table, result.trace, str(examples), command))
+    return {"table": result.table, "program": str(json_path), "report": str(out / "report.html"),
+            "contact_sheet": str(out / "contact_sheet.png"), "result": result}

@@ -1,0 +1,457 @@
+"""The learnable program of seed 000 section 5 (Algorithm 1), as a procmod model.
+
+A :class:`Program` holds
+
+* the part library and the preprocessed slot structure (slots and slot groups per part
+  type, the child type of every symmetry type, the members counts seen);
+* abstractions, each typed as a part node (``kind="part"``, generating one part type) or
+  a reflection / translation / rotation symmetry node, with for each slot the set
+  ``A(a, s)`` of abstractions it may call;
+* parameters (numpy arrays, keyed ``"<abs>.<what>"``; ``root`` for the root call):
+
+  - ``<a>.g<g>.{W,c,V,b}`` — Bernoulli NADE over the use bits of slot group g (hidden
+    layer the size of the group, sigmoid);
+  - ``<a>.s<s>.callee`` — logits over ``A(a, s)``;
+  - ``<a>.s<s>.xf.{W,c,Vm,bm,Vs,bs}`` — Gaussian NADE over the 9 transform components
+    of the child in slot s (hidden 9, tanh; log-scales, then rotations, then
+    translations, each category in decreasing order of the data's variance), and
+    ``<a>.s<s>.sg.{W,c,V,b}`` — Bernoulli NADE over the three scale signs (hidden 3);
+  - ``<a>.sym.{mu,rs}`` — independent Gaussians over the symmetry parameters, and
+    ``<a>.count`` — logits over the member count.
+
+Standard deviations are ``floor + exp(raw)``; during phase 2 of the search they are
+fixed (:data:`procmod.learn.transforms.FIXED_SIGMA`). Every part abstraction generates
+exactly one part type (splits preserve types), so its part distribution is a point mass
+and contributes nothing to likelihoods; it is stored in the JSON for completeness.
+
+The transform distribution of a child is indexed by (calling abstraction, slot), as in
+Algorithm 1; a child of a symmetry node is placed in the frame of the nearest part
+ancestor, and the symmetry node's maps copy the whole generated subtree.
+
+As a model: one rule, :func:`gen_node`, called with (program, caller, slot, frame,
+copies). It picks its abstraction (choice ``abs``), then for a part abstraction samples
+its transform (``x.ls0`` ... ``x.t2``, ``x.sg0..2``), emits its part once per copy, and
+flips one ``maybe`` per slot (``s<slot>``, probability from the group's NADE given the
+earlier bits) whose child call it spawns; for a symmetry abstraction it samples
+``sym.<param>`` and ``count`` and spawns its one child (site ``c``) with the copies
+multiplied by the group's maps. Calls deeper than :data:`MAX_DEPTH` spawn nothing.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import os
+import shutil
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from ..core import Bernoulli, Categorical, Model, Normal
+from ..core.errors import ProcmodError
+from ..core.serialize import write_text_atomic
+from ..geometry.part_library import read_part_library
+from ..geometry.solid import as_transform, new_part_bounds
+from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SYM_PARAMS, WORLD_FRAME,
+                         Frame, frame_of, sym_maps, xform_matrix)
+
+PROGRAM_FORMAT = "procmod-program/1"
+MAX_DEPTH = 40
+ROOT = -1
+
+
+class ProgramError(ProcmodError):
+    """A program file that cannot be read or used; the message says why."""
+
+
+@dataclass
+class Abstraction:
+    """One abstraction: its id, kind, generated node type and callable sets per slot."""
+
+    id: int
+    kind: str  # "part", "refl", "trans", "rot"
+    type: str
+    callees: list  # per slot: list of abstraction ids
+
+
+def _sigmoid(x):
+    return 1.0 / (1.0 + math.exp(-x)) if x >= 0 else math.exp(x) / (1.0 + math.exp(x))
+
+
+def _softmax(logits) -> np.ndarray:
+    z = np.asarray(logits, dtype=np.float64)
+    z = np.exp(z - z.max())
+    return z / z.sum()
+
+
+def sym_sigma_categories(kind: str) -> list:
+    return [cat for _, cat in SYM_PARAMS[kind]]
+
+
+@dataclass
+class Program:
+    """A learned (or learnable) program; see the module docstring."""
+
+    parts: dict  # name -> PartShape
+    slots: dict  # part type -> list of slot types
+    groups: dict  # part type -> list of lists of slot indices
+    sym_inner: dict  # symmetry type -> child type
+    count_support: dict  # symmetry type -> list of member counts
+    orders: dict  # xform key -> permutation of the 9 components (NADE order)
+    abstractions: dict = field(default_factory=dict)  # id -> Abstraction
+    root_callees: list = field(default_factory=list)
+    params: dict = field(default_factory=dict)
+    sigma_mode: str = "free"  # "free" or "fixed" (phase 2)
+    next_id: int = 0
+    info: dict = field(default_factory=dict)
+    parts_json: dict = field(default_factory=dict)
+
+    # ---- structure helpers -----------------------------------------------------------
+
+    def kind_of_type(self, type_: str) -> str:
+        return type_.split("(", 1)[0] if "(" in type_ else "part"
+
+    def slot_types(self, a: Abstraction) -> list:
+        return self.slots.get(a.type, []) if a.kind == "part" else [self.sym_inner[a.type]]
+
+    def xform_key(self, caller: int, slot: int) -> str:
+        """Key of the NADE order for the child in (caller abstraction, slot)."""
+        if caller == ROOT:
+            return "root"
+        a = self.abstractions[caller]
+        return f"{a.type}#{slot}" if a.kind == "part" else a.type
+
+    def slot_is_part(self, type_: str) -> bool:
+        return self.kind_of_type(type_) == "part"
+
+    def complexity(self) -> int:
+        """C(P) = |A| + sum over abstractions and slots of |A(a, s)| (+ the root's set)."""
+        return len(self.abstractions) + len(self.root_callees) + sum(
+            len(c) for a in self.abstractions.values() for c in a.callees)
+
+    def callers_of(self, target: int) -> list:
+        """(caller id or ROOT, slot) pairs whose callable set holds ``target``."""
+        out = [(ROOT, 0)] if target in self.root_callees else []
+        for a in self.abstractions.values():
+            for s, callees in enumerate(a.callees):
+                if target in callees:
+                    out.append((a.id, s))
+        return out
+
+    def callee_list(self, caller: int, slot: int) -> list:
+        return self.root_callees if caller == ROOT else self.abstractions[caller].callees[slot]
+
+    def prefix(self, caller: int) -> str:
+        return "root" if caller == ROOT else str(caller)
+
+    def copy(self) -> "Program":
+        other = copy.copy(self)
+        other.abstractions = {k: Abstraction(a.id, a.kind, a.type, [list(c) for c in a.callees])
+                              for k, a in self.abstractions.items()}
+        other.root_callees = list(self.root_callees)
+        other.params = {k: v.copy() for k, v in self.params.items()}
+        other.info = dict(self.info)
+        return other
+
+    def sigma(self, raw: float, category: int) -> float:
+        if self.sigma_mode == "fixed":
+            return FIXED_SIGMA[category]
+        return SIGMA_FLOOR[category] + math.exp(min(raw, 50.0))
+
+    # ---- sampling helpers (plain numpy, one derivation at a time) --------------------
+
+    def callee_dist(self, caller: int, slot: int) -> Categorical:
+        ids = self.callee_list(caller, slot)
+        probs = _softmax(self.params[f"{self.prefix(caller)}.s{slot}.callee"])
+        return Categorical(probs, labels=tuple(ids))
+
+
+# ---- the rule ------------------------------------------------------------------------------
+
+def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame) -> np.ndarray:
+    pre = f"{program.prefix(caller)}.s{slot}"
+    p = program.params
+    order = program.orders[program.xform_key(caller, slot)]
+    W, c, Vm, bm, Vs, bs = (p[f"{pre}.xf.{k}"] for k in ("W", "c", "Vm", "bm", "Vs", "bs"))
+    x = np.zeros(9)
+    a = c.copy()
+    for i in range(9):
+        h = np.tanh(a)
+        mu = float(Vm[i] @ h + bm[i])
+        dim = order[i]
+        sd = program.sigma(float(Vs[i] @ h + bs[i]), CATEGORY[dim])
+        v = ctx.sample(f"x.{COMPONENTS[dim]}", Normal(mu, sd))
+        x[dim] = v
+        a = a + W[:, i] * v
+    sW, sc, sV, sb = (p[f"{pre}.sg.{k}"] for k in ("W", "c", "V", "b"))
+    signs = np.zeros(3, dtype=bool)
+    a = sc.copy()
+    for i in range(3):
+        h = 1.0 / (1.0 + np.exp(-a))
+        prob = _sigmoid(float(sV[i] @ h + sb[i]))
+        bit = ctx.sample(f"x.sg{i}", Bernoulli(prob))
+        signs[i] = bit
+        a = a + sW[:, i] * float(bit)
+    return xform_matrix(x, signs, frame)
+
+
+def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies: tuple):
+    """Generate one node: pick the abstraction that ``caller`` calls at ``slot``, then run it."""
+    a_id = ctx.sample("abs", program.callee_dist(caller, slot))
+    a = program.abstractions[a_id]
+    p = program.params
+    if a.kind == "part":
+        world = _sample_xform(ctx, program, caller, slot, frame)
+        shape = program.parts[a.type]
+        for g in copies:
+            ctx.emit(shape.part(as_transform(np.asarray(g).reshape(4, 4) @ world)))
+        if ctx.depth >= MAX_DEPTH:
+            return
+        lo, hi = shape.local_bounds()
+        own = frame_of(world, lo, hi)
+        slot_types = program.slots.get(a.type, [])
+        for g_index, group in enumerate(program.groups.get(a.type, [])):
+            pre = f"{a_id}.g{g_index}"
+            W, c, V, b = p[f"{pre}.W"], p[f"{pre}.c"], p[f"{pre}.V"], p[f"{pre}.b"]
+            act = c.copy()
+            for i, s in enumerate(group):
+                h = 1.0 / (1.0 + np.exp(-act))
+                prob = _sigmoid(float(V[i] @ h + b[i]))
+                on = ctx.maybe(f"s{s}", prob, gen_node, program, a_id, s, own, copies)
+                act = act + W[:, i] * float(on)
+        return
+    # a symmetry node
+    pre = f"{a_id}.sym"
+    cats = sym_sigma_categories(a.kind)
+    values = []
+    for k, (name, cat) in enumerate(SYM_PARAMS[a.kind]):
+        values.append(ctx.sample(f"sym.{name}", Normal(float(p[f"{pre}.mu"][k]),
+                                                        program.sigma(float(p[f"{pre}.rs"][k]), cats[k]))))
+    support = program.count_support[a.type]
+    count = ctx.sample("count", Categorical(_softmax(p[f"{a_id}.count"]), labels=tuple(support)))
+    maps = sym_maps(a.kind, values, count, frame)
+    new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
+    if ctx.depth < MAX_DEPTH:
+        ctx.spawn("c", gen_node, program, a_id, 0, frame, new_copies)
+
+
+IDENTITY_COPIES = (as_transform(np.eye(4)),)
+
+
+def program_root_args(program: Program, params) -> tuple:
+    """Root arguments of a learned program's model (a named function, so models pickle)."""
+    return (program, ROOT, 0, WORLD_FRAME, IDENTITY_COPIES)
+
+
+def is_learned(model: Model) -> bool:
+    return model.root is gen_node
+
+
+def program_model(program: Program, name: str) -> Model:
+    """The procmod model of a program (``name`` should be the program.json path)."""
+    return Model(name=name, description=f"learned program ({len(program.abstractions)} abstractions)",
+                 root=gen_node, root_args=partial(program_root_args, program),
+                 new_output_from=new_part_bounds, params={}, rules=(gen_node,),
+                 choices_doc=__doc__)
+
+
+# ---- derivations -> example hierarchies -----------------------------------------------------
+
+def derivation_hierarchies(derivation) -> list:
+    """The example hierarchies (procmod-examples/1 nodes as dicts) of a learned program's
+    derivation: one hierarchy per root copy (normally one)."""
+    from ..geometry.part_library import transform_to_json
+    from ..geometry.solid import matrix
+    nodes = derivation.nodes()
+    part_calls = {}
+    roots = []
+    for node in nodes:
+        if not node.geometry:
+            continue
+        # the nearest ancestor call that emitted parts is the parent part node
+        address = node.address
+        parent = None
+        for k in range(len(address) - 1, -1, -1):
+            if address[:k] in part_calls:
+                parent = part_calls[address[:k]]
+                break
+        entries = [{"part": g.tag, "transform": transform_to_json(matrix(g.transform)), "children": []}
+                   for g in node.geometry]
+        part_calls[address] = entries
+        if parent is None:
+            roots.extend(entries)
+            continue
+        per_parent = len(entries) // len(parent)
+        for i, e in enumerate(entries):
+            parent[i // per_parent]["children"].append(e)
+    return roots
+
+
+# ---- save / load --------------------------------------------------------------------------------
+
+def _tensor_path(json_path: Path) -> Path:
+    return json_path.with_name(json_path.stem + ".pt")
+
+
+def program_to_json(program: Program, tensors_name: str) -> dict:
+    return {
+        "format": PROGRAM_FORMAT,
+        "tensors": tensors_name,
+        "parts": program.parts_json,
+        "slots": program.slots,
+        "groups": program.groups,
+        "sym_inner": program.sym_inner,
+        "count_support": program.count_support,
+        "orders": {k: list(map(int, v)) for k, v in program.orders.items()},
+        "sigma_mode": program.sigma_mode,
+        "next_id": program.next_id,
+        "root_callees": list(map(int, program.root_callees)),
+        "abstractions": [{"id": a.id, "kind": a.kind, "type": a.type,
+                          "part_distribution": {a.type: 1.0} if a.kind == "part" else None,
+                          "callees": a.callees} for a in sorted(program.abstractions.values(), key=lambda a: a.id)],
+        "info": program.info,
+        "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
+    }
+
+
+def save_program(program: Program, out_dir: str | os.PathLike, source_dir: str | os.PathLike | None = None) -> Path:
+    """Write ``out_dir/program.json`` and ``out_dir/program.pt`` (a torch state dict),
+    copying mesh parts into ``out_dir/parts/``. Both files are written atomically."""
+    import torch
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    parts_json = {}
+    for name, shape in program.parts.items():
+        if shape.kind == "box":
+            parts_json[name] = {"box": list(shape.size)}
+        else:
+            (out_dir / "parts").mkdir(exist_ok=True)
+            target = out_dir / "parts" / f"{name}.obj"
+            _write_obj_atomic(target, shape)
+            parts_json[name] = {"mesh": f"parts/{name}.obj"}
+    program.parts_json = parts_json
+    json_path = out_dir / "program.json"
+    pt_path = _tensor_path(json_path)
+    state = {k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in sorted(program.params.items())}
+    tmp = pt_path.with_name(f".{pt_path.name}.tmp")
+    torch.save(state, tmp)
+    os.replace(tmp, pt_path)
+    write_text_atomic(json_path, json.dumps(program_to_json(program, pt_path.name), indent=1) + "\n")
+    return json_path
+
+
+def _write_obj_atomic(path: Path, shape) -> None:
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in shape.vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in shape.faces]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def _fail(path, problem) -> ProgramError:
+    return ProgramError(f"{path}: {problem}")
+
+
+def read_program(path: str | os.PathLike) -> Program:
+    """Read a program saved by :func:`save_program` (``program.json`` or its folder)."""
+    import torch
+    path = Path(path)
+    if path.is_dir():
+        path = path / "program.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ProgramError(f"program file {path} does not exist; give a program.json written by "
+                           "'procmod learn' or its folder") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProgramError(f"cannot read program file {path}: {exc}") from None
+    if not isinstance(data, dict) or data.get("format") != PROGRAM_FORMAT:
+        raise _fail(path, f"format is {data.get('format') if isinstance(data, dict) else None!r}, "
+                          f"expected {PROGRAM_FORMAT!r}")
+    try:
+        parts = read_part_library(data["parts"], path.parent)
+        program = program_from_json(data, parts)
+        shapes = data["param_shapes"]
+    except ProcmodError as exc:
+        raise _fail(path, str(exc)) from None
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise _fail(path, f"malformed program ({type(exc).__name__}: {exc}); rewrite it with 'procmod learn'") from None
+    pt_path = path.with_name(str(data.get("tensors", "program.pt")))
+    try:
+        state = torch.load(pt_path, weights_only=True)
+    except FileNotFoundError:
+        raise _fail(path, f"its tensors file {pt_path} is missing") from None
+    except Exception as exc:  # torch raises many types for bad files
+        raise _fail(path, f"cannot read its tensors file {pt_path} ({exc})") from None
+    for key, shape in shapes.items():
+        if key not in state or list(state[key].shape) != list(shape):
+            raise _fail(path, f"tensor {key!r} is missing from {pt_path.name} or has the wrong shape")
+        program.params[key] = state[key].numpy().astype(np.float64)
+    _check_program(program, path)
+    return program
+
+
+def program_from_json(data: dict, parts: dict) -> Program:
+    """The structure of a program from its JSON (parameters are filled in separately)."""
+    abstractions = {}
+    for entry in data["abstractions"]:
+        a = Abstraction(int(entry["id"]), str(entry["kind"]), str(entry["type"]),
+                        [[int(i) for i in c] for c in entry["callees"]])
+        abstractions[a.id] = a
+    return Program(parts=parts, slots={k: list(v) for k, v in data["slots"].items()},
+                   groups={k: [list(map(int, g)) for g in v] for k, v in data["groups"].items()},
+                   sym_inner=dict(data["sym_inner"]),
+                   count_support={k: list(map(int, v)) for k, v in data["count_support"].items()},
+                   orders={k: list(map(int, v)) for k, v in data["orders"].items()},
+                   abstractions=abstractions, root_callees=[int(i) for i in data["root_callees"]],
+                   sigma_mode=str(data.get("sigma_mode", "free")), next_id=int(data["next_id"]),
+                   info=dict(data.get("info", {})), parts_json=data.get("parts", {}))
+
+
+def _check_program(program: Program, path) -> None:
+    ids = set(program.abstractions)
+    for a in program.abstractions.values():
+        if len(a.callees) != len(program.slot_types(a)):
+            raise _fail(path, f"abstraction {a.id} has {len(a.callees)} slots, its type {len(program.slot_types(a))}")
+        for s, callees in enumerate(a.callees):
+            if not callees or not set(callees) <= ids:
+                raise _fail(path, f"abstraction {a.id} slot {s} calls unknown abstractions {callees}")
+    if not program.root_callees or not set(program.root_callees) <= ids:
+        raise _fail(path, "the root calls no (or unknown) abstractions")
+
+
+def fingerprint(text: bytes) -> str:
+    return hashlib.sha256(text).hexdigest()[:16]
+
+
+def example_choice_map(program: Program, data, root: int, assignment: dict) -> dict:
+    """The choice map under which the program's model regenerates one preprocessed example.
+
+    ``assignment`` maps node id -> abstraction id (it must be type-correct and allowed by
+    the callable sets). Replaying the model under this map reproduces the example's parts
+    exactly, and its log-prior is log p(example, assignment | P).
+    """
+    from .transforms import SYM_PARAMS as _SP
+    choices = {}
+
+    def visit(node, address):
+        choices[(address, "abs")] = int(assignment[node.id])
+        if node.kind == "part":
+            for k, name in enumerate(COMPONENTS):
+                choices[(address, f"x.{name}")] = float(node.x[k])
+            for k in range(3):
+                choices[(address, f"x.sg{k}")] = bool(node.signs[k])
+            for s in range(len(program.slots.get(node.type, []))):
+                choices[(address, f"s{s}")] = bool(node.used[s])
+            for s, child in node.children:
+                visit(child, address + (f"s{s}",))
+        else:
+            for k, (name, _) in enumerate(_SP[node.kind]):
+                choices[(address, f"sym.{name}")] = float(node.sym[k])
+            choices[(address, "count")] = int(node.count)
+            visit(node.children[0][1], address + ("c",))
+
+    visit(data.nodes[root], ())
+    return choices

@@ -1,0 +1,428 @@
+"""Structure search (seed 000 section 6.2) with particle filtering and checkpoints.
+
+One search (a *particle*) holds a program, its objective
+``O_D = log p(D | P) - lambda C(P)`` (lambda = 1), a queue of abstractions to try to
+split (ordered by how many example nodes each generates, most first) and the set of
+rejected ones. A step pops the first abstraction, splits it (:func:`structure.split`),
+re-optimises (warm-up steps with the tie-breaking bias, then plain steps), snaps, and
+accepts when O_D rises. On acceptance both copies go back into the queue, and every
+rejected abstraction that can call one of them is re-queued.
+
+Phases, in lockstep across particles: (1) ``discrete`` — the likelihood has only the
+discrete variables; (2) ``fixed`` — all variables, standard deviations fixed to
+(log 1.1, pi/8, 0.2), and only abstractions whose least probable Gaussian variable
+(``exp(-z^2/2)`` at the MAP assignment) is below tau_gauss = exp(-1) are queued;
+(3) a final pass frees the standard deviations. After every round (one proposal per
+particle) the particles are resampled by ``exp(O_D)`` (systematic resampling); particles
+whose queue is empty wait for the others. The best final particle wins.
+
+Every round's tasks run through :func:`procmod.parallel.open_executor` (inline, a local
+process pool, or dask); each task is a module-level function with its own seed, so the
+result does not depend on where it ran. After every round the state is checkpointed in
+``DIR/checkpoint/`` (JSON + a torch state dict, written atomically); a killed run
+started again with the same examples and options resumes from the last round.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.serialize import write_text_atomic
+from .examples import ExampleSet
+from .likelihood import Compiled, fit, log_likelihood, sigmas_from_residuals
+from .preprocess import Dataset, preprocess
+from .program import ROOT, Program, program_from_json, program_to_json
+from .structure import TAU_SNAP, initial_program, snap, split
+
+CHECKPOINT_FORMAT = "procmod-learn-checkpoint/1"
+TAU_GAUSS = math.exp(-1)
+
+
+class LearnError(ProcmodError):
+    """A learning run that cannot start or resume; the message says why."""
+
+
+@dataclass
+class SearchOptions:
+    """Knobs of the structure search (defaults are what ``procmod learn`` uses).
+
+    ``init_iterations`` Adam steps set P0 and start phase 2 (the paper: 500);
+    ``split_iterations`` re-optimise after a split (the paper: 500, from scratch; we warm
+    start from the pre-split parameters, see docs/learn.md); ``warm_iterations`` of them
+    carry the tie-breaking bias; ``final_iterations`` free the sigmas at the end.
+    """
+
+    particles: int = 4
+    seed: int = 0
+    lam: float = 1.0
+    tau_snap: float = TAU_SNAP
+    tau_gauss: float = TAU_GAUSS
+    init_iterations: int = 200
+    split_iterations: int = 100
+    warm_iterations: int = 25
+    final_iterations: int = 300
+    lr: float = 0.05
+    estimator: str = "exact"
+    max_rounds: int = 400
+
+    def check(self) -> "SearchOptions":
+        if self.particles < 1:
+            raise InvalidArgumentError(f"--particles must be at least 1, got {self.particles}")
+        if self.estimator not in ("exact", "vi"):
+            raise InvalidArgumentError(f"estimator must be 'exact' or 'vi', got {self.estimator!r}")
+        for name in ("init_iterations", "split_iterations", "final_iterations", "max_rounds"):
+            if getattr(self, name) < 1:
+                raise InvalidArgumentError(f"{name} must be positive, got {getattr(self, name)}")
+        return self
+
+
+@dataclass
+class Particle:
+    program: Program
+    objective: float
+    loglik: float
+    usage: dict  # abstraction id -> expected number of nodes it generates
+    queue: list = field(default_factory=list)
+    rejected: list = field(default_factory=list)
+    done: bool = False
+    trace: list = field(default_factory=list)
+
+
+def _objective(ll: float, program: Program, lam: float) -> float:
+    return ll - lam * program.complexity()
+
+
+def _responsibilities(program: Program, data: Dataset, mode: str):
+    comp = Compiled(program, data, mode)
+    return comp.responsibilities(), comp.ids
+
+
+def _usage_order(ids: list, usage: dict) -> list:
+    return sorted(ids, key=lambda a: (-usage.get(a, 0.0), a))
+
+
+def _seed(*parts) -> int:
+    return int.from_bytes(hashlib.sha256(repr(parts).encode()).digest()[:8], "little")
+
+
+def _torch_threads():
+    import torch
+    torch.set_num_threads(1)
+
+
+# ---- tasks (module-level, picklable arguments) -------------------------------------------
+
+def task_initial(data: Dataset, options: SearchOptions) -> dict:
+    """P0, fitted on the discrete likelihood (the search start) and, for reporting, a copy
+    fitted on the full likelihood."""
+    _torch_threads()
+    start = time.perf_counter()
+    rng = np.random.default_rng(_seed(options.seed, "P0"))
+    p0 = initial_program(data, rng)
+    fit(p0, data, "discrete", options.init_iterations, lr=options.lr, estimator=options.estimator,
+        seed=_seed(options.seed, "P0fit"))
+    resp, ids = _responsibilities(p0, data, "discrete")
+    ll = log_likelihood(p0, data, "discrete")
+    usage = dict(zip(ids, resp.sum(0).tolist()))
+    full = p0.copy()
+    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
+            seed=_seed(options.seed, "P0free"))
+    return {"p0": p0, "loglik": ll, "usage": usage, "p0_free": full, "p0_free_loglik": r["log_likelihood"],
+            "seconds": time.perf_counter() - start}
+
+
+def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int) -> Particle:
+    """One split proposal of one particle."""
+    _torch_threads()
+    start = time.perf_counter()
+    program = particle.program
+    while particle.queue and particle.queue[0] not in program.abstractions:
+        particle.queue.pop(0)
+    if not particle.queue:
+        particle.done = True
+        return particle
+    target = particle.queue.pop(0)
+    rng = np.random.default_rng(seed)
+    resp, ids = _responsibilities(program, data, mode)
+    proposal, a2, bias = split(program, target, data, resp, ids, rng, continuous=mode != "discrete")
+    fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator,
+        seed=seed, warm_bias=bias, warm_iterations=options.warm_iterations)
+    resp2, ids2 = _responsibilities(proposal, data, mode)
+    snapped = snap(proposal, data, resp2, ids2, options.tau_snap)
+    ll = log_likelihood(snapped, data, mode)
+    objective = _objective(ll, snapped, options.lam)
+    accepted = objective > particle.objective + 1e-9
+    row = {"phase": mode, "split": target, "accepted": bool(accepted), "proposed": round(objective, 4),
+           "loglik_proposed": round(ll, 4), "complexity_proposed": snapped.complexity(),
+           "abstractions_proposed": len(snapped.abstractions), "seconds": round(time.perf_counter() - start, 3)}
+    if accepted:
+        resp3, ids3 = _responsibilities(snapped, data, mode)
+        particle.program, particle.objective, particle.loglik = snapped, objective, ll
+        particle.usage = dict(zip(ids3, resp3.sum(0).tolist()))
+        new = [a for a in (target, a2) if a in snapped.abstractions]
+        requeue = [b for b in particle.rejected if b in snapped.abstractions and
+                   any(a in c for c in snapped.abstractions[b].callees for a in new)]
+        particle.rejected = [b for b in particle.rejected if b not in requeue]
+        pending = [a for a in particle.queue if a in snapped.abstractions]
+        particle.queue = _usage_order(sorted(set(pending + new + requeue)), particle.usage)
+    else:
+        particle.rejected.append(target)
+    row.update(objective=round(particle.objective, 4), abstractions=len(particle.program.abstractions),
+               complexity=particle.program.complexity())
+    particle.trace.append(row)
+    particle.done = not particle.queue
+    return particle
+
+
+def gaussian_filter(program: Program, data: Dataset, tau: float) -> dict:
+    """Abstraction id -> its least probable Gaussian variable, ``exp(-z^2 / 2)`` with the
+    phase-2 fixed sigmas, over the nodes it generates (MAP assignment)."""
+    comp = Compiled(program, data, "fixed")
+    resp = comp.responsibilities()
+    _, _, zinfo = comp.local_table(want_z=True)
+    lowest = {a: 1.0 for a in comp.ids}
+    for nodes, cols, zsq in zinfo:
+        nodes, cols, zsq = nodes.numpy(), cols.numpy(), zsq.numpy()
+        for n, c, z in zip(nodes, cols, zsq.max(1)):
+            if resp[n, c] > 0.5:
+                a = comp.ids[c]
+                lowest[a] = min(lowest[a], math.exp(-0.5 * float(z)))
+    return lowest
+
+
+def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase: str, seed: int) -> Particle:
+    """Start phase 2 (``"fixed"``) or run the final pass (``"free"``) for one particle."""
+    _torch_threads()
+    start = time.perf_counter()
+    program = particle.program.copy()
+    iterations = options.init_iterations if phase == "fixed" else options.final_iterations
+    if phase == "free":
+        sigmas_from_residuals(program, data)
+    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, seed=seed)
+    ll = log_likelihood(program, data, phase)
+    particle.program, particle.loglik = program, ll
+    particle.objective = _objective(ll, program, options.lam)
+    resp, ids = _responsibilities(program, data, phase)
+    particle.usage = dict(zip(ids, resp.sum(0).tolist()))
+    particle.rejected = []
+    if phase == "fixed":
+        lowest = gaussian_filter(program, data, options.tau_gauss)
+        particle.queue = _usage_order([a for a, v in lowest.items() if v < options.tau_gauss], particle.usage)
+    else:
+        particle.queue = []
+    particle.done = not particle.queue
+    particle.trace.append({"phase": phase, "start": True, "objective": round(particle.objective, 4),
+                           "loglik": round(ll, 4), "queued": list(particle.queue),
+                           "abstractions": len(program.abstractions), "complexity": program.complexity(),
+                           "seconds": round(time.perf_counter() - start, 3)})
+    return particle
+
+
+# ---- checkpoints -----------------------------------------------------------------------------
+
+def _program_state(program: Program, prefix: str, tensors: dict) -> dict:
+    import torch
+    for k, v in program.params.items():
+        tensors[f"{prefix}/{k}"] = torch.from_numpy(np.ascontiguousarray(v))
+    return program_to_json(program, "")
+
+
+def _program_from_state(state: dict, prefix: str, tensors: dict, parts: dict) -> Program:
+    program = program_from_json(state, parts)
+    for key in state["param_shapes"]:
+        program.params[key] = tensors[f"{prefix}/{key}"].numpy().astype(np.float64)
+    return program
+
+
+def save_checkpoint(folder: Path, state: dict) -> None:
+    import torch
+    folder.mkdir(parents=True, exist_ok=True)
+    tensors = {}
+    doc = {k: v for k, v in state.items() if k not in ("particles", "programs")}
+    doc["format"] = CHECKPOINT_FORMAT
+    doc["programs"] = {name: _program_state(p, f"prog.{name}", tensors) for name, p in state["programs"].items()}
+    doc["particles"] = []
+    for k, part in enumerate(state["particles"]):
+        doc["particles"].append({"program": _program_state(part.program, f"part{k}", tensors),
+                                 "objective": part.objective, "loglik": part.loglik,
+                                 "usage": {str(a): u for a, u in part.usage.items()},
+                                 "queue": part.queue, "rejected": part.rejected, "done": part.done,
+                                 "trace": part.trace})
+    name = f"tensors_{state['round']:05d}.pt"
+    tmp = folder / f".{name}.tmp"
+    torch.save(tensors, tmp)
+    os.replace(tmp, folder / name)
+    doc["tensors"] = name
+    write_text_atomic(folder / "state.json", json.dumps(doc) + "\n")
+    for old in folder.glob("tensors_*.pt"):
+        if old.name != name:
+            old.unlink()
+
+
+def load_checkpoint(folder: Path, parts: dict) -> dict | None:
+    import torch
+    path = folder / "state.json"
+    if not path.exists():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        if doc.get("format") != CHECKPOINT_FORMAT:
+            raise ValueError(f"format {doc.get('format')!r}")
+        tensors = torch.load(folder / doc["tensors"], weights_only=True)
+        programs = {name: _program_from_state(s, f"prog.{name}", tensors, parts)
+                    for name, s in doc["programs"].items()}
+        particles = []
+        for k, p in enumerate(doc["particles"]):
+            particles.append(Particle(_program_from_state(p["program"], f"part{k}", tensors, parts),
+                                      p["objective"], p["loglik"], {int(a): u for a, u in p["usage"].items()},
+                                      list(p["queue"]), list(p["rejected"]), bool(p["done"]), list(p["trace"])))
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
+        raise LearnError(f"cannot resume from {folder}: {exc}; delete that folder to start afresh") from None
+    doc["programs"], doc["particles"] = programs, particles
+    return doc
+
+
+# ---- the driver --------------------------------------------------------------------------------
+
+@dataclass
+class LearnResult:
+    """What a learning run produced."""
+
+    program: Program
+    data: Dataset
+    p0: Program  # P0 with all parameters fitted (for Table 1 and figure 6)
+    after_phase1: Program  # best program after phase 1, all parameters fitted
+    table: dict
+    trace: list
+    rounds: list
+    seconds: float
+    resumed: bool = False
+
+
+def _copy_particle(p: Particle) -> Particle:
+    return Particle(p.program.copy(), p.objective, p.loglik, dict(p.usage), list(p.queue), list(p.rejected),
+                    p.done, [dict(r) for r in p.trace])
+
+
+def _resample(particles: list, rng: np.random.Generator) -> tuple[list, list]:
+    """Systematic resampling by exp(O_D); returns the new list and the chosen indices."""
+    scores = np.array([p.objective for p in particles])
+    w = np.exp(scores - scores.max())
+    w /= w.sum()
+    n = len(particles)
+    positions = (rng.random() + np.arange(n)) / n
+    idx = np.minimum(np.searchsorted(np.cumsum(w), positions), n - 1)
+    out, seen = [], set()
+    for i in idx:
+        out.append(particles[i] if i not in seen else _copy_particle(particles[i]))
+        seen.add(int(i))
+    return out, [int(i) for i in idx]
+
+
+def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkpoint: Path | None = None,
+               fingerprint: str = "", progress=None) -> LearnResult:
+    """Preprocess the examples and run the particle-filtered structure search.
+
+    Parameters
+    ----------
+    executor : concurrent.futures.Executor
+        Runs the per-particle tasks (see :func:`procmod.parallel.open_executor`).
+    checkpoint : Path, optional
+        Folder for checkpoints; an existing checkpoint with the same ``fingerprint`` is
+        resumed.
+    progress : callable, optional
+        Called with a one-line status after every round.
+    """
+    options.check()
+    t0 = time.perf_counter()
+    data = preprocess(example_set)
+    state = load_checkpoint(checkpoint, data.parts) if checkpoint is not None else None
+    resumed = state is not None
+    if state is not None and (state.get("fingerprint") != fingerprint or state.get("options") != asdict(options)):
+        raise LearnError(f"{checkpoint} holds a run with other examples or options; delete it to start afresh, "
+                         "or rerun with the same examples and options to resume")
+    rng = np.random.default_rng(_seed(options.seed, "resample"))
+    if state is None:
+        init = executor.submit(task_initial, data, options).result()
+        particles = [Particle(init["p0"].copy(), _objective(init["loglik"], init["p0"], options.lam),
+                              init["loglik"], dict(init["usage"]),
+                              _usage_order(sorted(init["p0"].abstractions), init["usage"]))
+                     for _ in range(options.particles)]
+        state = {"fingerprint": fingerprint, "options": asdict(options), "round": 0, "phase": "discrete",
+                 "rng": rng.bit_generator.state, "rounds": [], "elapsed": time.perf_counter() - t0,
+                 "p0_free_loglik": init["p0_free_loglik"], "p0_loglik": init["loglik"],
+                 "programs": {"p0": init["p0"], "p0_free": init["p0_free"]}, "particles": particles}
+        if checkpoint is not None:
+            save_checkpoint(checkpoint, state)
+    else:
+        rng.bit_generator.state = state["rng"]
+        particles = state["particles"]
+    elapsed0 = state["elapsed"]
+    t_resume = time.perf_counter()
+    while state["phase"] != "finished":
+        phase = state["phase"]
+        r = state["round"]
+        active = [k for k, p in enumerate(particles) if not p.done]
+        if not active or r >= options.max_rounds:
+            nxt = {"discrete": "fixed", "fixed": "free", "free": "finished"}[phase]
+            if phase == "discrete":
+                best = max(particles, key=lambda p: p.objective)
+                p1 = best.program.copy()
+                fit(p1, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
+                    seed=_seed(options.seed, "P1free"))
+                state["programs"]["after_phase1"] = p1
+            if nxt != "finished":
+                futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt))
+                           for k, p in enumerate(particles)]
+                particles = [f.result() for f in futures]
+            state["phase"] = nxt
+            row = {"round": r, "phase": nxt, "event": "phase", "objectives": [round(p.objective, 3) for p in particles],
+                   "seconds": round(elapsed0 + time.perf_counter() - t_resume, 3)}
+        else:
+            futures = {k: executor.submit(task_step, particles[k], data, options, phase,
+                                          _seed(options.seed, r, k)) for k in active}
+            for k, f in futures.items():
+                particles[k] = f.result()
+            chosen = list(range(len(particles)))
+            if len(particles) > 1:
+                particles, chosen = _resample(particles, rng)
+            row = {"round": r, "phase": phase, "event": "step", "objectives": [round(p.objective, 3) for p in particles],
+                   "resampled_from": chosen, "seconds": round(elapsed0 + time.perf_counter() - t_resume, 3)}
+        state["rounds"].append(row)
+        state["round"] = r + 1
+        state["particles"] = particles
+        state["rng"] = rng.bit_generator.state
+        state["elapsed"] = elapsed0 + time.perf_counter() - t_resume
+        if checkpoint is not None:
+            save_checkpoint(checkpoint, state)
+        if progress is not None:
+            best = max(p.objective for p in particles)
+            progress(f"round {r}: phase {state['phase']}, best O_D {best:.2f}, "
+                     f"{sum(not p.done for p in particles)} searching")
+    best = max(particles, key=lambda p: p.objective)
+    program = best.program
+    p0 = state["programs"]["p0_free"]
+    lam = options.lam
+    table = {
+        "parts": len(data.parts),
+        "A0": len(p0.abstractions),
+        "O_P0": _objective(state["p0_free_loglik"], p0, lam), "L_P0": state["p0_free_loglik"], "C_P0": p0.complexity(),
+        "A_star": len(program.abstractions),
+        "O_Pstar": best.objective, "L_Pstar": best.loglik, "C_Pstar": program.complexity(),
+        "seconds": state["elapsed"],
+        "rounds": state["round"],
+        "splits_proposed": sum(1 for r in best.trace if "split" in r),
+        "splits_accepted": sum(1 for r in best.trace if r.get("accepted")),
+    }
+    program.info = {"table": table, "options": asdict(options)}
+    return LearnResult(program, data, p0, state["programs"].get("after_phase1", p0), table, best.trace,
+                       state["rounds"], state["elapsed"], resumed)

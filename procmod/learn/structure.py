@@ -1,0 +1,304 @@
+"""Program structures: the initial program P0, abstraction splits, snapping.
+
+* :func:`initial_program` — seed 000's P0: one part abstraction per part type and, for
+  every slot holding symmetry nodes, one symmetry abstraction per symmetry level (so a
+  ``trans(refl(panel))`` slot gets a translation abstraction calling a reflection
+  abstraction calling the ``panel`` abstraction). Parameters start at the data's
+  statistics: NADE output biases at the mean (transforms) or the log-odds (bits), small
+  random weights (so the hidden units can learn), uniform callee choices.
+* :func:`split` — replace abstraction a by two copies, dividing every caller's
+  probability of a evenly between them. The exact likelihood is symmetric in the two
+  copies, so something must break the tie (the paper's VI does it by sampling noise):
+  the nodes a currently generates are split in two by 2-means on what a controls
+  (the node's place in its parent, its slot-use bits, its children's transforms and
+  abstractions, its symmetry parameters) and a warm-up bias keeps each cluster off the
+  other copy for the first optimisation steps. The 2-means seed comes from the search's
+  random generator, so parallel searches try different splits.
+* :func:`snap` — callee probabilities below ``tau_snap`` = 0.02 are set to zero (the
+  abstraction leaves ``A(a, s)``); a slot the abstraction never uses (expected use below
+  1e-3 under the posterior) keeps only its most probable callee, and an abstraction that
+  generates no example node is removed. Both only remove terms that cannot affect the
+  likelihood of the examples, so the complexity C(P) counts what the data support.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .preprocess import Dataset
+from .program import ROOT, Abstraction, Program
+from .transforms import CATEGORY, SIGMA_FLOOR, SYM_PARAMS
+
+TAU_SNAP = 0.02
+WARM_BIAS = 30.0
+
+
+def _logit(p: float) -> float:
+    p = min(max(p, 0.02), 0.98)
+    return math.log(p / (1 - p))
+
+
+def xform_data(data: Dataset) -> dict:
+    """Key -> (x rows (n, 9), sign rows (n, 3)) of the children placed under that key."""
+    out = {}
+
+    def add(key, node):
+        xs, ss = out.setdefault(key, ([], []))
+        xs.append(node.x)
+        ss.append(node.signs)
+
+    for r in data.roots:
+        add("root", data.nodes[r])
+    for n in data.nodes:
+        for s, child in n.children:
+            if child.kind != "part":
+                continue
+            add(f"{n.type}#{s}" if n.kind == "part" else n.type, child)
+    return {k: (np.array(v[0]), np.array(v[1], dtype=float)) for k, v in out.items()}
+
+
+def nade_order(x: np.ndarray) -> list:
+    """Log-scales, then rotations, then translations; each in decreasing data variance."""
+    var = x.var(axis=0) if len(x) > 1 else np.zeros(9)
+    order = []
+    for cat in (0, 1, 2):
+        dims = [d for d in range(9) if CATEGORY[d] == cat]
+        order += sorted(dims, key=lambda d: (-var[d], d))
+    return order
+
+
+def _init_xform(params: dict, pre: str, x: np.ndarray, signs: np.ndarray, order: list, rng) -> None:
+    xo = x[:, order]
+    mean = xo.mean(0)
+    std = xo.std(0) if len(xo) > 1 else np.zeros(9)
+    floor = np.array([SIGMA_FLOOR[CATEGORY[d]] for d in order])
+    params[f"{pre}.xf.W"] = 0.1 * rng.standard_normal((9, 9))
+    params[f"{pre}.xf.c"] = np.zeros(9)
+    params[f"{pre}.xf.Vm"] = 0.01 * rng.standard_normal((9, 9))
+    params[f"{pre}.xf.bm"] = mean
+    params[f"{pre}.xf.Vs"] = 0.01 * rng.standard_normal((9, 9))
+    params[f"{pre}.xf.bs"] = np.log(np.maximum(std - floor, 1e-5))
+    params[f"{pre}.sg.W"] = 0.1 * rng.standard_normal((3, 3))
+    params[f"{pre}.sg.c"] = np.zeros(3)
+    params[f"{pre}.sg.V"] = 0.1 * rng.standard_normal((3, 3))
+    params[f"{pre}.sg.b"] = np.array([_logit(f) for f in signs.mean(0)])
+
+
+def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
+    """P0 (see the module docstring), parameters initialised from the data."""
+    part_types = sorted({n.type for n in data.nodes if n.kind == "part"})
+    stats = xform_data(data)
+    orders = {key: nade_order(x) for key, (x, _) in stats.items()}
+    program = Program(parts=data.parts, slots=data.slots, groups=data.groups, sym_inner=data.sym_inner,
+                      count_support={t: list(range(2, m + 1)) for t, m in data.max_count.items()},
+                      orders=orders)
+    ids = {}
+    for t in part_types:
+        ids[t] = program.next_id
+        program.abstractions[program.next_id] = Abstraction(program.next_id, "part", t, [])
+        program.next_id += 1
+
+    def sym_chain(type_: str) -> int:
+        kind = type_.split("(", 1)[0]
+        inner = data.sym_inner[type_]
+        callee = ids[inner] if inner in ids else sym_chain(inner)
+        a = program.next_id
+        program.abstractions[a] = Abstraction(a, kind, type_, [[callee]])
+        program.next_id += 1
+        return a
+
+    for t in part_types:
+        a = program.abstractions[ids[t]]
+        a.callees = [[ids[st]] if st in ids else [sym_chain(st)] for st in data.slots.get(t, [])]
+    program.root_callees = sorted({ids[data.nodes[r].type] for r in data.roots})
+    # parameters
+    p = program.params
+    nodes_of = {}
+    for n in data.nodes:
+        nodes_of.setdefault(n.type, []).append(n)
+    for a in sorted(program.abstractions.values(), key=lambda a: a.id):
+        own = nodes_of.get(a.type, [])
+        if a.kind == "part":
+            for g, group in enumerate(data.groups.get(a.type, [])):
+                k = len(group)
+                used = np.array([n.used[group] for n in own], dtype=float).reshape(-1, k)
+                p[f"{a.id}.g{g}.W"] = 0.1 * rng.standard_normal((k, k))
+                p[f"{a.id}.g{g}.c"] = np.zeros(k)
+                p[f"{a.id}.g{g}.V"] = 0.1 * rng.standard_normal((k, k))
+                p[f"{a.id}.g{g}.b"] = np.array([_logit(f) for f in used.mean(0)])
+        else:
+            D = len(SYM_PARAMS[a.kind])
+            values = np.array([n.sym for n in own]).reshape(-1, D)
+            cats = [c for _, c in SYM_PARAMS[a.kind]]
+            floor = np.array([SIGMA_FLOOR[c] for c in cats])
+            std = values.std(0) if len(values) > 1 else np.zeros(D)
+            p[f"{a.id}.sym.mu"] = values.mean(0)
+            p[f"{a.id}.sym.rs"] = np.log(np.maximum(std - floor, 1e-5))
+            support = program.count_support[a.type]
+            counts = np.array([sum(n.count == c for n in own) for c in support], dtype=float)
+            p[f"{a.id}.count"] = np.log(counts / max(counts.sum(), 1) + 0.05)
+        for s, callees in enumerate(a.callees):
+            p[f"{a.id}.s{s}.callee"] = np.zeros(len(callees))
+            if program.slot_is_part(program.slot_types(a)[s]):
+                key = program.xform_key(a.id, s)
+                x, signs = stats.get(key, (np.zeros((1, 9)), np.zeros((1, 3))))
+                _init_xform(p, f"{a.id}.s{s}", x, signs, orders.setdefault(key, list(range(9))), rng)
+    p["root.s0.callee"] = np.zeros(len(program.root_callees))
+    x, signs = stats["root"]
+    _init_xform(p, "root.s0", x, signs, orders["root"], rng)
+    return program
+
+
+# ---- splitting -----------------------------------------------------------------------------
+
+def node_features(data: Dataset, assignment: np.ndarray, continuous: bool) -> np.ndarray:
+    """Per node: its place in the parent, slot-use bits, children's MAP abstractions and
+    (``continuous``) transforms, symmetry parameters; one row per node, unscaled."""
+    places = sorted({(data.nodes[n.parent].type, n.parent_slot) for n in data.nodes if n.parent >= 0})
+    place_index = {p: i for i, p in enumerate(places)}
+    top = int(assignment.max()) + 1 if len(assignment) else 1
+    rows = []
+    for n in data.nodes:
+        f = np.zeros(len(places))
+        if n.parent >= 0:
+            f[place_index[(data.nodes[n.parent].type, n.parent_slot)]] = 1
+        parts = [f]
+        width = len(data.slots.get(n.type, [])) if n.kind == "part" else 1
+        used = n.used.astype(float) if n.used is not None else np.ones(1)
+        parts.append(used)
+        kids = np.zeros((width, top))
+        kx = np.zeros((width, 9))
+        for s, child in n.children:
+            kids[s, assignment[child.id]] = 1
+            if child.x is not None:
+                kx[s] = child.x
+        parts.append(kids.ravel())
+        if continuous:
+            parts.append(kx.ravel())
+            parts.append(np.zeros(6) if n.sym is None else np.pad(n.sym, (0, 6 - len(n.sym))))
+        rows.append(np.concatenate(parts))
+    width = max(len(r) for r in rows)
+    return np.array([np.pad(r, (0, width - len(r))) for r in rows])
+
+
+def _two_means(x: np.ndarray, rng: np.random.Generator, iterations: int = 20) -> np.ndarray:
+    """Labels 0/1 of a 2-means clustering (k-means++ start from ``rng``)."""
+    n = len(x)
+    if n < 2:
+        return np.zeros(n, dtype=int)
+    scale = x.std(0)
+    z = x[:, scale > 1e-9] / scale[scale > 1e-9]
+    if z.shape[1] == 0:
+        return (rng.random(n) < 0.5).astype(int)
+    first = int(rng.integers(n))
+    d = ((z - z[first]) ** 2).sum(1)
+    second = int(rng.choice(n, p=d / d.sum())) if d.sum() > 0 else int(rng.integers(n))
+    centres = z[[first, second]]
+    labels = np.zeros(n, dtype=int)
+    for _ in range(iterations):
+        dist = ((z[:, None, :] - centres[None]) ** 2).sum(-1)
+        new = dist.argmin(1)
+        if (new == labels).all() and _ > 0:
+            break
+        labels = new
+        for k in (0, 1):
+            if (labels == k).any():
+                centres[k] = z[labels == k].mean(0)
+    if labels.min() == labels.max():  # degenerate: split at random
+        labels = (rng.random(n) < 0.5).astype(int)
+    return labels
+
+
+def split(program: Program, target: int, data: Dataset, resp: np.ndarray, ids: list,
+          rng: np.random.Generator, continuous: bool) -> tuple[Program, int, np.ndarray]:
+    """A copy of ``program`` with abstraction ``target`` split in two; returns the new
+    program, the new abstraction's id and the warm-up bias (N, M') for its columns."""
+    new = program.copy()
+    a2 = new.next_id
+    new.next_id += 1
+    old = new.abstractions[target]
+    new.abstractions[a2] = Abstraction(a2, old.kind, old.type, [list(c) for c in old.callees])
+    for key in [k for k in new.params if k.startswith(f"{target}.")]:
+        new.params[f"{a2}." + key.split(".", 1)[1]] = new.params[key].copy()
+    half = math.log(0.5)
+    for caller, slot in program.callers_of(target):
+        callees = new.callee_list(caller, slot)
+        pos = callees.index(target)
+        key = f"{new.prefix(caller)}.s{slot}.callee"
+        logits = new.params[key]
+        callees.insert(pos + 1, a2)
+        value = logits[pos] + half
+        new.params[key] = np.concatenate([logits[:pos], [value, value], logits[pos + 1:]])
+    # tie-break: 2-means over the nodes the abstraction generates
+    col = ids.index(target)
+    assignment = resp.argmax(1)
+    mine = np.flatnonzero(resp[:, col] > 0.5)
+    feats = node_features(data, assignment, continuous)
+    labels = _two_means(feats[mine], rng)
+    new_ids = sorted(new.abstractions)
+    bias = np.zeros((len(data.nodes), len(new_ids)))
+    c1, c2 = new_ids.index(target), new_ids.index(a2)
+    for n, lab in zip(mine, labels):
+        bias[n, c2 if lab == 0 else c1] = -WARM_BIAS
+    return new, a2, bias
+
+
+def snap(program: Program, data: Dataset, resp: np.ndarray, ids: list, tau: float = TAU_SNAP) -> Program:
+    """Snap small callee probabilities to zero, collapse unused slots, drop unused
+    abstractions (see the module docstring); returns a new program."""
+    new = program.copy()
+    usage = resp.sum(0)
+    col = {a: k for k, a in enumerate(ids)}
+    used_slots = {}
+    for a in ids:
+        ab = new.abstractions[a]
+        if ab.kind == "part":
+            own = [n for n in data.nodes if n.type == ab.type]
+            for s in range(len(ab.callees)):
+                used_slots[(a, s)] = sum(resp[n.id, col[a]] * float(n.used[s]) for n in own)
+        else:
+            used_slots[(a, 0)] = usage[col[a]]
+    used_slots[(ROOT, 0)] = float(len(data.roots))
+    for (caller, slot), expected in used_slots.items():
+        callees = new.callee_list(caller, slot)
+        key = f"{new.prefix(caller)}.s{slot}.callee"
+        logits = new.params[key]
+        probs = np.exp(logits - logits.max())
+        probs /= probs.sum()
+        keep = [i for i, pr in enumerate(probs) if pr >= tau] if expected >= 1e-3 else [int(probs.argmax())]
+        if not keep:
+            keep = [int(probs.argmax())]
+        if len(keep) < len(callees):
+            kept = probs[keep] / probs[keep].sum()
+            callees[:] = [callees[i] for i in keep]
+            new.params[key] = np.log(kept)
+    # abstractions that generate nothing and that nothing needs
+    changed = True
+    while changed:
+        changed = False
+        for a in ids:
+            if usage[col[a]] < 1e-3 and a in new.abstractions:
+                if all(a not in c or len(c) > 1 for c in _all_callee_lists(new)):
+                    _remove(new, a)
+                    changed = True
+    return new
+
+
+def _all_callee_lists(program: Program):
+    yield program.root_callees
+    for ab in program.abstractions.values():
+        yield from ab.callees
+
+
+def _remove(program: Program, a: int) -> None:
+    for caller, slot in program.callers_of(a):
+        callees = program.callee_list(caller, slot)
+        key = f"{program.prefix(caller)}.s{slot}.callee"
+        pos = callees.index(a)
+        del callees[pos]
+        program.params[key] = np.delete(program.params[key], pos)
+    del program.abstractions[a]
+    for key in [k for k in program.params if k.startswith(f"{a}.")]:
+        del program.params[key]

@@ -1,0 +1,218 @@
+"""Transform parameterisation of seed 000 section 5, and symmetry parameters.
+
+A node's world transform ``W = [Rot diag(s) | t]`` is decomposed canonically: ``|s_i|`` is
+the length of column i, ``Rot`` the normalised columns, and when ``Rot`` is improper the
+x scale and column are negated (so a reflection shows up as a negative x scale).
+
+A child is described relative to its nearest part ancestor's *frame*: the ancestor's
+rotation ``Rp``, translation ``tp`` and bounding-box extents ``E`` (its part's local box
+scaled by ``|s|``). The 9 continuous components, in the Gaussian NADE's category order:
+
+* ``ls0..2`` — log ``|s|`` (absolute scale of the child),
+* ``r0..2`` — xyz Euler angles (scipy's extrinsic "xyz") of ``Rp^T Rot``,
+* ``t0..2`` — ``Rp^T (t - tp) / E`` (translation as a fraction of the parent's box),
+
+plus three sign bits (``s_i < 0``). Symmetry maps are handled in the same frame.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+COMPONENTS = ("ls0", "ls1", "ls2", "r0", "r1", "r2", "t0", "t1", "t2")
+CATEGORY = (0, 0, 0, 1, 1, 1, 2, 2, 2)  # 0 log-scale, 1 rotation, 2 translation
+# Phase-2 fixed standard deviations (seed 000 section 6.2): log-scale, rotation, translation.
+FIXED_SIGMA = (math.log(1.1), math.pi / 8, 0.2)
+# Floors on learned standard deviations (the final pass frees them): keeps densities finite
+# for variables that are constant across the examples.
+SIGMA_FLOOR = (0.01, 0.01, 0.01)
+
+
+class Frame(NamedTuple):
+    """A part node's frame: proper rotation, translation, bounding-box extents."""
+
+    rot: np.ndarray
+    t: np.ndarray
+    extent: np.ndarray
+
+    def matrix(self) -> np.ndarray:
+        m = np.eye(4)
+        m[:3, :3] = self.rot
+        m[:3, 3] = self.t
+        return m
+
+
+WORLD_FRAME = Frame(np.eye(3), np.zeros(3), np.ones(3))
+
+
+def decompose(m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Canonical (proper rotation, signed scales, translation) of an affine 4x4 without shear."""
+    m = np.asarray(m, dtype=np.float64)
+    linear = m[:3, :3]
+    s = np.linalg.norm(linear, axis=0)
+    rot = linear / s
+    if np.linalg.det(rot) < 0:
+        s = s.copy()
+        s[0] = -s[0]
+        rot = rot.copy()
+        rot[:, 0] = -rot[:, 0]
+    # re-orthonormalise against rounding
+    u, _, vt = np.linalg.svd(rot)
+    rot = u @ vt
+    return rot, s, m[:3, 3].copy()
+
+
+def frame_of(world, local_lo, local_hi) -> Frame:
+    """The frame of a part placed by ``world`` whose local box is [lo, hi]."""
+    rot, s, t = decompose(world)
+    extent = np.maximum(np.abs(s) * (np.asarray(local_hi) - np.asarray(local_lo)), 1e-6)
+    return Frame(rot, t, extent)
+
+
+def euler_of(rot: np.ndarray) -> np.ndarray:
+    with warnings.catch_warnings():  # gimbal lock: scipy zeroes the third angle, still exact
+        warnings.simplefilter("ignore", UserWarning)
+        return Rotation.from_matrix(rot).as_euler("xyz")
+
+
+def rot_of(angles) -> np.ndarray:
+    return Rotation.from_euler("xyz", np.asarray(angles, dtype=np.float64)).as_matrix()
+
+
+def xform_params(world, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+    """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``."""
+    rot, s, t = decompose(world)
+    x = np.empty(9)
+    x[0:3] = np.log(np.abs(s))
+    x[3:6] = euler_of(frame.rot.T @ rot)
+    x[6:9] = (frame.rot.T @ (t - frame.t)) / frame.extent
+    return x, s < 0
+
+
+def xform_matrix(x, signs, frame: Frame) -> np.ndarray:
+    """Inverse of :func:`xform_params`: the world 4x4 of a child."""
+    x = np.asarray(x, dtype=np.float64)
+    s = np.exp(x[0:3]) * np.where(np.asarray(signs, dtype=bool), -1.0, 1.0)
+    rot = frame.rot @ rot_of(x[3:6])
+    m = np.eye(4)
+    m[:3, :3] = rot * s
+    m[:3, 3] = frame.t + frame.rot @ (x[6:9] * frame.extent)
+    return m
+
+
+# ---- symmetry maps -------------------------------------------------------------------
+
+SYM_KINDS = ("refl", "trans", "rot")
+# Parameter names and categories (1 angle, 2 translation fraction) of each symmetry kind.
+SYM_PARAMS = {
+    "refl": (("polar", 1), ("azimuth", 1), ("offset", 2)),
+    "trans": (("d0", 2), ("d1", 2), ("d2", 2)),
+    "rot": (("polar", 1), ("azimuth", 1), ("c0", 2), ("c1", 2), ("c2", 2), ("angle", 1)),
+}
+
+
+def canonical_direction(v: np.ndarray) -> tuple[np.ndarray, float]:
+    """``v`` flipped so that its largest-magnitude component is positive, and the sign used."""
+    v = np.asarray(v, dtype=np.float64)
+    sign = 1.0 if v[int(np.argmax(np.abs(v)))] >= 0 else -1.0
+    return sign * v, sign
+
+
+def direction_angles(n: np.ndarray) -> tuple[float, float]:
+    n = n / np.linalg.norm(n)
+    return math.acos(max(-1.0, min(1.0, n[2]))), math.atan2(n[1], n[0])
+
+
+def angles_direction(polar: float, azimuth: float) -> np.ndarray:
+    return np.array([math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar)])
+
+
+def in_frame(g_world: np.ndarray, frame: Frame) -> np.ndarray:
+    """A world map expressed in the frame's (rigid, unnormalised) coordinates."""
+    f = frame.matrix()
+    return np.linalg.inv(f) @ g_world @ f
+
+
+def to_world(g_frame: np.ndarray, frame: Frame) -> np.ndarray:
+    f = frame.matrix()
+    return f @ g_frame @ np.linalg.inv(f)
+
+
+def reflection_params(g_world: np.ndarray, frame: Frame) -> np.ndarray:
+    """(polar, azimuth, offset fraction) of the mirror plane n.x = d in the frame."""
+    g = in_frame(g_world, frame)
+    w, v = np.linalg.eigh(0.5 * (g[:3, :3] + g[:3, :3].T))
+    n, sign = canonical_direction(v[:, int(np.argmin(w))])
+    d = 0.5 * float(n @ g[:3, 3])  # translation of the reflection is 2 d n
+    polar, azimuth = direction_angles(n)
+    return np.array([polar, azimuth, d / float(np.abs(n) @ frame.extent)])
+
+
+def reflection_map(p, frame: Frame) -> np.ndarray:
+    n = angles_direction(p[0], p[1])
+    d = p[2] * float(np.abs(n) @ frame.extent)
+    g = np.eye(4)
+    g[:3, :3] -= 2 * np.outer(n, n)
+    g[:3, 3] = 2 * d * n
+    return to_world(g, frame)
+
+
+def translation_params(g_world: np.ndarray, frame: Frame) -> np.ndarray:
+    g = in_frame(g_world, frame)
+    return g[:3, 3] / frame.extent
+
+
+def translation_map(p, frame: Frame) -> np.ndarray:
+    g = np.eye(4)
+    g[:3, 3] = np.asarray(p[:3]) * frame.extent
+    return to_world(g, frame)
+
+
+def rotation_axis_angle(g_frame: np.ndarray) -> tuple[np.ndarray, float]:
+    """Canonical axis (largest component positive) and signed angle of a rotation map."""
+    rotvec = Rotation.from_matrix(g_frame[:3, :3]).as_rotvec()
+    angle = float(np.linalg.norm(rotvec))
+    if angle < 1e-12:
+        return np.array([0.0, 0.0, 1.0]), 0.0
+    axis, sign = canonical_direction(rotvec / angle)
+    return axis, sign * angle
+
+
+def rotation_params(g_world: np.ndarray, frame: Frame) -> np.ndarray:
+    """(polar, azimuth, centre fractions x3, angle) of a rotation map about an axis."""
+    g = in_frame(g_world, frame)
+    axis, angle = rotation_axis_angle(g)
+    centre, *_ = np.linalg.lstsq(np.eye(3) - g[:3, :3], g[:3, 3], rcond=None)
+    centre = centre - (centre @ axis) * axis  # the axis point nearest the frame origin
+    polar, azimuth = direction_angles(axis)
+    return np.array([polar, azimuth, *(centre / frame.extent), angle])
+
+
+def rotation_map(p, frame: Frame) -> np.ndarray:
+    axis = angles_direction(p[0], p[1])
+    centre = np.asarray(p[2:5]) * frame.extent
+    rot = Rotation.from_rotvec(axis * p[5]).as_matrix()
+    g = np.eye(4)
+    g[:3, :3] = rot
+    g[:3, 3] = centre - rot @ centre
+    return to_world(g, frame)
+
+
+def sym_params(kind: str, g_world: np.ndarray, frame: Frame) -> np.ndarray:
+    return {"refl": reflection_params, "trans": translation_params, "rot": rotation_params}[kind](g_world, frame)
+
+
+def sym_maps(kind: str, params, count: int, frame: Frame) -> list[np.ndarray]:
+    """World maps of the members: identity first, then the group's generator powers."""
+    if kind == "refl":
+        return [np.eye(4), reflection_map(params, frame)]
+    g = (translation_map if kind == "trans" else rotation_map)(params, frame)
+    maps = [np.eye(4)]
+    for _ in range(count - 1):
+        maps.append(g @ maps[-1])
+    return maps

@@ -1,0 +1,116 @@
+"""procmod-examples/1: reading, writing, every malformed-input error, the authored sets."""
+
+import copy
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from procmod.core.errors import ProcmodError
+from procmod.learn import ExamplesError, examples_from_dict, read_examples, write_examples_file
+from procmod.learn.examples import examples_to_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+SETS = ("spaceships", "castles", "ornaments", "stations")
+
+
+def eye(t=(0, 0, 0)):
+    m = np.eye(4)
+    m[:3, 3] = t
+    return m.tolist()
+
+
+def small():
+    return {"format": "procmod-examples/1",
+            "parts": {"base": {"box": [2, 1, 2]}, "arm": {"box": [1, 0.2, 0.2]}},
+            "examples": [{"part": "base", "transform": eye(),
+                          "children": [{"part": "arm", "transform": eye((1.5, 0, 0)), "children": []}]}]}
+
+
+def test_reads_a_valid_object():
+    s = examples_from_dict(small())
+    assert list(s.parts) == ["base", "arm"]
+    assert s.examples[0].children[0].part == "arm"
+    assert s.examples[0].size() == 2
+
+
+@pytest.mark.parametrize("edit, where", [
+    (lambda d: d.update(format="procmod-examples/2"), "format"),
+    (lambda d: d["examples"][0]["children"][0].update(part="wing"), "examples[0].children[0].part"),
+    (lambda d: d["examples"][0].update(transform=[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1]]),
+     "examples[0].transform"),  # singular
+    (lambda d: d["examples"][0]["children"][0].update(transform=[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]),
+     "examples[0].children[0].transform"),  # not affine
+    (lambda d: d["examples"][0].update(transform=[[1, 1, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]),
+     "examples[0].transform"),  # shear
+    (lambda d: d["examples"][0].update(transform=[[1, 0, 0], [0, 1, 0], [0, 0, 1]]), "examples[0].transform"),
+    (lambda d: d["examples"][0].pop("transform"), "examples[0]"),
+    (lambda d: d["examples"][0].update(children={"part": "arm"}), "examples[0].children"),
+    (lambda d: d["examples"][0].update(colour="red"), "examples[0]"),
+    (lambda d: d.update(examples=[]), "examples"),
+    (lambda d: d["parts"].update(arm={"sphere": 1}), "parts.arm"),
+    (lambda d: d["parts"].update(arm={"mesh": "parts/missing.obj"}), "parts.arm.mesh"),
+])
+def test_malformed_input_names_the_json_path(edit, where):
+    data = small()
+    edit(data)
+    with pytest.raises(ProcmodError) as info:
+        examples_from_dict(data)
+    assert where in str(info.value)
+
+
+def test_a_cycle_is_rejected():
+    data = small()
+    child = data["examples"][0]["children"][0]
+    child["children"].append(data["examples"][0])  # the root inside its own child
+    with pytest.raises(ExamplesError, match=r"examples\[0\].children\[0\].children\[0\].*cycle"):
+        examples_from_dict(data)
+
+
+def test_missing_file_and_bad_json(tmp_path):
+    with pytest.raises(ExamplesError, match="does not exist"):
+        read_examples(tmp_path / "nope.json")
+    bad = tmp_path / "bad.json"
+    bad.write_text("{")
+    with pytest.raises(ExamplesError, match="not valid JSON"):
+        read_examples(bad)
+
+
+def test_write_read_round_trip_rewrites_mesh_paths(tmp_path):
+    s = read_examples(ROOT / "examples_sets/learn/spaceships/examples.json")
+    out = tmp_path / "deep" / "copy.json"
+    write_examples_file(s, out)
+    again = read_examples(out)
+    assert again.parts["wing"].vertices == s.parts["wing"].vertices
+    assert len(again.examples) == len(s.examples)
+    for a, b in zip(s.examples, again.examples):
+        ta = [n.transform for n in a.walk()]
+        tb = [n.transform for n in b.walk()]
+        assert all(np.array_equal(x, y) for x, y in zip(ta, tb))
+    assert examples_to_dict(again, out.parent)["examples"] == examples_to_dict(s, out.parent)["examples"]
+
+
+@pytest.mark.parametrize("name", SETS)
+def test_authored_sets(name):
+    s = read_examples(ROOT / f"examples_sets/learn/{name}/examples.json")
+    assert len(s.examples) == 10
+    structures = {json.dumps(_shape(e)) for e in s.examples}
+    assert len(structures) >= 5, "structural variety"
+    assert any(shape.kind == "mesh" for shape in s.parts.values())
+
+
+def _shape(node):
+    return [node.part, sorted(json.dumps(_shape(c)) for c in node.children)]
+
+
+def test_sets_are_made_by_their_script(tmp_path):
+    code = ("import sys; sys.path.insert(0, 'examples_sets/learn'); import make_sets; from pathlib import Path; "
+            f"[make_sets.make(n, Path({str(tmp_path)!r})) for n in make_sets.SETS]")
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True)
+    for name in SETS:
+        stored = json.loads((ROOT / f"examples_sets/learn/{name}/examples.json").read_text())
+        made = json.loads((tmp_path / name / "examples.json").read_text())
+        assert made == stored

@@ -1,0 +1,147 @@
+"""Preprocessing: symmetry groups, eq. 1 slot assignment, slot groups by overlap."""
+
+import math
+
+import numpy as np
+import pytest
+
+from procmod.learn import examples_from_dict, preprocess
+from procmod.learn.transforms import (WORLD_FRAME, decompose, frame_of, sym_maps, sym_params, xform_matrix,
+                                      xform_params)
+
+
+def T(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def Ry(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1.0]])
+
+
+def Rz(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+MX = np.diag([-1.0, 1, 1, 1])
+
+
+def node(part, m, children=()):
+    return {"part": part, "transform": np.asarray(m).tolist(), "children": list(children)}
+
+
+def dataset(examples, parts=None):
+    parts = parts or {"base": {"box": [2, 1, 2]}, "arm": {"box": [1, 0.2, 0.2]}, "cap": {"box": [0.3, 0.3, 0.3]}}
+    return preprocess(examples_from_dict({"format": "procmod-examples/1", "parts": parts, "examples": examples}))
+
+
+def test_transform_parameters_round_trip(rng):
+    for _ in range(20):
+        world = T(*rng.normal(size=3)) @ Rz(rng.normal()) @ Ry(rng.normal()) @ np.diag([*rng.uniform(0.5, 2, 3), 1])
+        if rng.random() < 0.5:
+            world = MX @ world
+        parent = T(*rng.normal(size=3)) @ Ry(rng.normal()) @ np.diag([1.5, 0.7, 2.0, 1])
+        frame = frame_of(parent, -np.ones(3), np.ones(3))
+        x, signs = xform_params(world, frame)
+        assert np.allclose(xform_matrix(x, signs, frame), world, atol=1e-9)
+        rot, s, t = decompose(world)
+        assert np.isclose(np.linalg.det(rot), 1.0)
+
+
+@pytest.mark.parametrize("kind, g, count", [
+    ("refl", MX @ T(0.3, 0, 0), 2),
+    ("trans", T(0.5, 0.2, -1.0), 4),
+    ("rot", T(1, 0, 2) @ Ry(2 * math.pi / 5) @ T(-1, 0, -2), 5),
+])
+def test_symmetry_maps_round_trip(kind, g, count):
+    frame = frame_of(T(0.2, 0.1, 0.3) @ Ry(0.4) @ np.diag([2, 1, 3, 1]), -np.ones(3) / 2, np.ones(3) / 2)
+    p = sym_params(kind, g, frame)
+    maps = sym_maps(kind, p, count, frame)
+    assert np.allclose(maps[1], g, atol=1e-9)
+    assert len(maps) == count
+
+
+def arm_pair(z, angle=0.3, cap=False, part="arm"):
+    right = node(part, T(1.5, 0, z) @ Rz(angle), [node("cap", T(2.0, 0.2, z))] if cap else [])
+    left = node(part, MX @ np.array(right["transform"]),
+                [node("cap", MX @ T(2.0, 0.2, z))] if cap else [])
+    return [right, left]
+
+
+def test_reflection_pairs_with_subtrees_become_one_symmetry_node():
+    d = dataset([node("base", np.eye(4), arm_pair(0.0, cap=True))])
+    root = d.nodes[d.roots[0]]
+    assert d.slots["base"] == ["refl(arm)"]
+    (slot, sym), = root.children
+    assert sym.kind == "refl" and sym.count == 2
+    polar, azimuth, offset = sym.sym
+    assert np.isclose(polar, math.pi / 2) and np.isclose(azimuth, 0) and np.isclose(offset, 0)
+    arm = sym.children[0][1]
+    assert arm.part == "arm" and arm.x[6] > 0  # member 0 is on the plane's positive side
+    assert [c.part for _, c in arm.children] == ["cap"]
+
+
+def test_rotation_and_translation_groups_and_nesting():
+    tower = node("arm", T(2, 0, 0.5))
+    towers = [node("arm", Ry(k * math.pi / 2) @ T(2, 0, 0.5)) for k in range(4)]
+    caps = [node("cap", T(-0.6 + 0.4 * k, 0.7, 0)) for k in range(4)]
+    rows = [p for k in range(3) for p in arm_pair(-0.5 + 0.5 * k, angle=0.0, part="post")]
+    parts = {"base": {"box": [2, 1, 2]}, "arm": {"box": [1, 0.2, 0.2]}, "cap": {"box": [0.3, 0.3, 0.3]},
+             "post": {"box": [0.2, 0.2, 0.2]}}
+    d = dataset([node("base", np.eye(4), towers + caps + rows)], parts)
+    assert sorted(d.slots["base"]) == ["rot(arm)", "trans(cap)", "trans(refl(post))"]
+    kinds = {c.type: c for _, c in d.nodes[d.roots[0]].children}
+    assert kinds["rot(arm)"].count == 4 and np.isclose(kinds["rot(arm)"].sym[5], math.pi / 2)
+    assert kinds["trans(cap)"].count == 4
+    nested = kinds["trans(refl(post))"]
+    assert nested.count == 3 and nested.children[0][1].kind == "refl"
+    assert d.sym_inner["trans(refl(post))"] == "refl(post)"
+    del tower
+
+
+def test_slots_follow_eq1_correspondence():
+    # two arms per base, listed in opposite orders: the front arm always shares a slot
+    front, back = T(0, 0.8, 0.8), T(0, 0.8, -0.8)
+    ex = [node("base", np.eye(4), [node("arm", front), node("arm", back)]),
+          node("base", np.eye(4), [node("arm", back @ T(0.05, 0, 0)), node("arm", front @ T(0.05, 0, 0))]),
+          node("base", np.eye(4), [node("arm", front @ T(-0.1, 0, 0))])]
+    d = dataset(ex)
+    assert d.slots["base"] == ["arm", "arm"]
+    slot_of = {}
+    for r in d.roots:
+        for s, c in d.nodes[r].children:
+            slot_of.setdefault(s, []).append(c.x[8] > 0)  # z fraction: front or back
+    assert all(len(set(v)) == 1 for v in slot_of.values())
+    assert d.hausdorff_objective[("base", "arm")] < 0.25
+
+
+def test_slot_groups_from_overlaps_outside_the_parent():
+    parts = {"base": {"box": [2, 1, 2]}, "arm": {"box": [1, 0.2, 0.2]}, "cap": {"box": [0.6, 0.6, 0.6]}}
+    # arm at x=1.5 pokes out of the base; cap overlaps it outside the base in some examples;
+    # a second cap slot sits deep inside the base together with a part inside the base too
+    ex = [node("base", np.eye(4), [node("arm", T(1.5, 0, 0)), node("cap", T(1.8, 0, 0))]),
+          node("base", np.eye(4), [node("arm", T(1.5, 0, 0))]),
+          node("base", np.eye(4), [node("cap", T(-1.4, 0, 0))])]
+    d = dataset(ex, parts)
+    slots = d.slots["base"]
+    arm, cap = slots.index("arm"), slots.index("cap")
+    assert any(arm in g and cap in g for g in d.groups["base"])
+    ex2 = [node("base", np.eye(4), [node("arm", T(1.5, 0, 0)), node("cap", T(-1.4, 0, 0))]),
+           node("base", np.eye(4), [node("arm", T(0.2, 0, 0)), node("cap", T(0.0, 0, 0))])]  # overlap only inside
+    d2 = dataset(ex2, parts)
+    assert sorted(map(len, d2.groups["base"])) == [1, 1]
+
+
+def test_real_sets_preprocess():
+    from pathlib import Path
+    from procmod.learn import read_examples
+    root = Path(__file__).resolve().parents[1]
+    d = preprocess(read_examples(root / "examples_sets/learn/spaceships/examples.json"))
+    body = d.slots["body"]
+    assert body.count("refl(wing)") == 2
+    groups = [sorted(body[i] for i in g) for g in d.groups["body"]]
+    assert ["engine", "refl(engine)"] in groups  # centre engine and side pair overlap
+    assert ["refl(wing)", "refl(wing)"] in groups  # one wide pair vs two thin pairs
