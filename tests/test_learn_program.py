@@ -1,0 +1,182 @@
+"""The learned program as a procmod model, and the exact / VI likelihoods."""
+
+import itertools
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from procmod.core import load_derivation, replay, run_forward, save_derivation
+from procmod.core.errors import ProcmodError
+from procmod.learn import (NotALearnedProgramError, load_program, preprocess, read_examples,
+                           write_examples)
+from procmod.learn.likelihood import Compiled, fit, log_likelihood
+from procmod.learn.program import (derivation_hierarchies, example_choice_map, program_model, read_program,
+                                   save_program)
+from procmod.learn.structure import initial_program, snap, split
+
+ROOT = Path(__file__).resolve().parents[1]
+SETS = ("spaceships", "castles", "ornaments", "stations")
+
+
+def load(name, which=None):
+    s = read_examples(ROOT / f"examples_sets/learn/{name}/examples.json")
+    if which is not None:
+        s = type(s)(s.parts, [s.examples[k] for k in which], s.base_dir)
+    return s
+
+
+def _flatten(node_dict):
+    out = [(node_dict["part"], np.array(node_dict["transform"]))]
+    for c in node_dict["children"]:
+        out += _flatten(c)
+    return out
+
+
+@pytest.mark.parametrize("name", SETS)
+def test_dp_equals_the_replayed_derivation_and_regenerates_the_example(name):
+    s = load(name, [1])
+    d = preprocess(s)
+    p = initial_program(d, np.random.default_rng(0))
+    fit(p, d, "free", 15)
+    model = program_model(p, "test")
+    assign = {n.id: next(a.id for a in p.abstractions.values() if a.type == n.type) for n in d.nodes}
+    r = replay(model, example_choice_map(p, d, d.roots[0], assign), np.random.default_rng(0))
+    assert not r.unused and r.log_fresh == 0.0
+    assert r.derivation.log_prior == pytest.approx(log_likelihood(p, d, "free"), rel=1e-9, abs=1e-9)
+    got = _flatten(derivation_hierarchies(r.derivation)[0])
+    want = [(n.part, n.transform) for n in s.examples[0].walk()]
+    assert len(got) == len(want)
+    free = list(range(len(got)))
+    for part, t in want:  # every example node regenerated exactly (symmetric copies included)
+        j = min((k for k in free if got[k][0] == part), key=lambda k: np.abs(got[k][1] - t).max())
+        assert np.abs(got[j][1] - t).max() < 1e-9
+        free.remove(j)
+
+
+def test_dp_marginalises_over_latent_abstractions_exactly():
+    s = load("spaceships", [0, 4])
+    d = preprocess(s)
+    p = initial_program(d, np.random.default_rng(1))
+    comp = Compiled(p, d, "free")
+    resp = comp.responsibilities()
+    wing = next(a for a in p.abstractions.values() if a.type == "wing").id
+    p2, a2, _ = split(p, wing, d, resp, comp.ids, np.random.default_rng(0), continuous=True)
+    fit(p2, d, "free", 30)
+    exact = log_likelihood(p2, d, "free")
+    model = program_model(p2, "test")
+    wings = [n.id for n in d.nodes if n.type == "wing"]
+    base = {n.id: next(a.id for a in p2.abstractions.values() if a.type == n.type) for n in d.nodes}
+    terms = []
+    for choice in itertools.product([wing, a2], repeat=len(wings)):
+        assign = {**base, **dict(zip(wings, choice))}
+        total = 0.0
+        for root in d.roots:
+            r = replay(model, example_choice_map(p2, d, root, assign), np.random.default_rng(0))
+            total += r.derivation.log_prior
+        terms.append(total)
+    brute = float(np.logaddexp.reduce(terms))
+    assert exact == pytest.approx(brute, rel=1e-9)
+    resp2 = Compiled(p2, d, "free").responsibilities()
+    assert np.allclose(resp2.sum(1), 1.0)
+
+
+def test_fit_raises_the_likelihood_and_vi_reaches_a_comparable_value():
+    d = preprocess(load("castles", [0, 1, 2]))
+    p = initial_program(d, np.random.default_rng(0))
+    before = log_likelihood(p, d, "fixed")
+    q = p.copy()
+    r = fit(q, d, "fixed", 60)
+    assert r["log_likelihood"] > before
+    v = p.copy()
+    rv = fit(v, d, "fixed", 60, estimator="vi", seed=3)
+    assert math.isfinite(rv["elbo"]) and rv["log_likelihood"] > before
+
+
+def test_snap_drops_small_callee_probabilities():
+    d = preprocess(load("spaceships", [0, 1, 2]))
+    p = initial_program(d, np.random.default_rng(0))
+    comp = Compiled(p, d, "discrete")
+    resp = comp.responsibilities()
+    wing = next(a for a in p.abstractions.values() if a.type == "wing").id
+    p2, a2, _ = split(p, wing, d, resp, comp.ids, np.random.default_rng(0), continuous=False)
+    caller, slot = p2.callers_of(a2)[0]
+    key = f"{p2.prefix(caller)}.s{slot}.callee"
+    pos = p2.callee_list(caller, slot).index(a2)
+    p2.params[key][pos] = -10.0  # probability ~ e^-10 / (1 + e^-10) < tau_snap
+    comp2 = Compiled(p2, d, "discrete")
+    snapped = snap(p2, d, comp2.responsibilities(), comp2.ids)
+    assert a2 not in snapped.callee_list(caller, slot)
+    assert snapped.complexity() < p2.complexity()
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory):
+    out = tmp_path_factory.mktemp("prog")
+    d = preprocess(load("stations", [0, 1, 2]))
+    p = initial_program(d, np.random.default_rng(0))
+    fit(p, d, "free", 20)
+    save_program(p, out)
+    return out, p
+
+
+def test_save_load_and_the_model_contract(saved, tmp_path):
+    out, p = saved
+    model = load_program(out)
+    assert model.name == str((out / "program.json").resolve())
+    again = read_program(out / "program.json")
+    assert all(np.array_equal(again.params[k], v) for k, v in p.params.items())
+    a = run_forward(model, np.random.default_rng(5))
+    b = run_forward(program_model(p, model.name), np.random.default_rng(5))
+    assert a.log_prior == b.log_prior and len(a.geometry()) == len(b.geometry()) > 0
+    path = tmp_path / "d.json"
+    save_derivation(a, path)
+    loaded = load_derivation(path, lambda name: load_program(name))
+    assert loaded.log_prior == pytest.approx(a.log_prior) and loaded.order() == a.order()
+    # writing samples as examples: readable by the examples reader, one hierarchy each
+    ex = tmp_path / "sub" / "samples.json"
+    write_examples(model, [a, b], ex)
+    back = read_examples(ex)
+    assert len(back.examples) == 2 and back.examples[0].size() == len(a.geometry())
+
+
+def test_write_examples_rejects_other_models(tmp_path):
+    from procmod.models import get_model
+    m = get_model("spaceship")
+    with pytest.raises(NotALearnedProgramError):
+        write_examples(m, [run_forward(m, np.random.default_rng(0))], tmp_path / "x.json")
+
+
+def test_engines_control_a_learned_program(saved):
+    from procmod.infer import Budget, ga
+    from procmod.geometry.voxel import VoxelGrid
+    from procmod.targets import Volume
+    out, _ = saved
+    model = load_program(out)
+    grid = VoxelGrid((-4.0, -2.0, -4.0), 0.5, (16, 8, 16))
+    mask = np.zeros(grid.shape, dtype=bool)
+    mask[4:12, 2:6, 4:12] = True
+    target = Volume(grid, [(mask, 1.0, -0.5)])
+    result = ga(model, target, population=12, budget=Budget(generations=3), seed=0)
+    assert result.best is not None and math.isfinite(result.best_score)
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda j, d: j.update(format="x"), "format"),
+    (lambda j, d: j["abstractions"][0].update(callees=[[999]] * len(j["abstractions"][0]["callees"])), "unknown"),
+    (lambda j, d: (d / "program.pt").unlink(), "missing"),
+    (lambda j, d: j["param_shapes"].update({"root.s0.callee": [7]}), "wrong shape"),
+])
+def test_malformed_programs(saved, tmp_path, damage, message):
+    import shutil
+    out, _ = saved
+    d = tmp_path / "p"
+    shutil.copytree(out, d)
+    j = json.loads((d / "program.json").read_text())
+    if j["abstractions"][0]["callees"] or message != "unknown":
+        damage(j, d)
+        (d / "program.json").write_text(json.dumps(j))
+        with pytest.raises(ProcmodError, match=message):
+            load_program(d)

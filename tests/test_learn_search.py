@@ -1,0 +1,129 @@
+"""Structure search: splits that capture distinct modes, determinism, checkpoint/resume, CLI."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from procmod.cli import main
+from procmod.core import run_forward
+from procmod.learn import examples_from_dict, load_program, read_examples
+from procmod.learn.program import derivation_hierarchies, program_model
+from procmod.learn.search import LearnError, SearchOptions, run_search
+from procmod.parallel import InlineExecutor, open_executor
+
+QUICK = dict(init_iterations=80, split_iterations=40, warm_iterations=10, final_iterations=80)
+PARTS = {"base": {"box": [3.0, 0.4, 1.0]}, "post": {"box": [0.3, 1.0, 0.3]}, "cap": {"box": [0.5, 0.2, 0.5]}}
+
+
+def T(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def tiny_set(n=6, seed=0):
+    """A base with a row of 2-4 posts; every post of an example carries a cap either on
+    top or at the bottom (two distinct modes of one slot)."""
+    rng = np.random.default_rng(seed)
+    examples = []
+    for k in range(n):
+        count = int(rng.integers(3, 5))
+        cap_y = 0.6 if k % 2 == 0 else -0.6
+        posts = []
+        for j in range(count):
+            x = -1.2 + 0.8 * j
+            posts.append({"part": "post", "transform": (T(x, 0.7, 0)).tolist(),
+                          "children": [{"part": "cap", "transform": T(x, 0.7 + cap_y, 0).tolist(), "children": []}]})
+        examples.append({"part": "base", "transform": np.diag([1, 1, 1 + 0.1 * k, 1.0]).tolist(), "children": posts})
+    return {"format": "procmod-examples/1", "parts": PARTS, "examples": examples}
+
+
+@pytest.fixture(scope="module")
+def learned():
+    s = examples_from_dict(tiny_set())
+    return s, run_search(s, SearchOptions(particles=2, **QUICK), InlineExecutor())
+
+
+def test_search_splits_distinct_modes_and_raises_the_objective(learned):
+    s, r = learned
+    t = r.table
+    assert t["O_Pstar"] > t["O_P0"] + 10
+    assert t["A_star"] > t["A0"] and t["splits_accepted"] >= 1
+    assert any(row.get("accepted") and row["phase"] == "fixed" for row in r.trace)
+    # samples put caps on top of or below their posts, never halfway (the two modes)
+    model = program_model(r.program, "tiny")
+    offsets = []
+    for i in range(30):
+        d = run_forward(model, np.random.default_rng([1, i]))
+        for h in derivation_hierarchies(d):
+            for post in h["children"]:
+                for cap in post["children"]:
+                    offsets.append(cap["transform"][1][3] - post["transform"][1][3])
+    offsets = np.abs(offsets)
+    assert len(offsets) > 20
+    # half-way would be |offset| < 0.3; with sigma learned at the floor, none should be
+    assert (offsets > 0.3).mean() > 0.95
+
+
+def test_same_seed_same_search(learned):
+    s, r = learned
+    again = run_search(s, SearchOptions(particles=2, **QUICK), InlineExecutor())
+    assert again.table["O_Pstar"] == r.table["O_Pstar"]
+    assert [row.get("proposed") for row in again.trace] == [row.get("proposed") for row in r.trace]
+
+
+class _Kill(Exception):
+    pass
+
+
+def test_a_killed_search_resumes_from_its_checkpoint(learned, tmp_path):
+    s, r = learned
+    options = SearchOptions(particles=2, **QUICK)
+    seen = []
+
+    def progress(line):
+        seen.append(line)
+        if len(seen) == 3:
+            raise _Kill()
+
+    with pytest.raises(_Kill):
+        run_search(s, options, InlineExecutor(), tmp_path / "ck", "fp", progress)
+    assert (tmp_path / "ck" / "state.json").exists()
+    resumed = run_search(s, SearchOptions(particles=2, **QUICK), InlineExecutor(), tmp_path / "ck", "fp")
+    assert resumed.resumed
+    assert resumed.table["O_Pstar"] == pytest.approx(r.table["O_Pstar"], abs=1e-6)
+    with pytest.raises(LearnError, match="other examples or options"):
+        run_search(s, SearchOptions(particles=3, **QUICK), InlineExecutor(), tmp_path / "ck", "fp")
+
+
+@pytest.mark.slow
+def test_process_pool_gives_the_same_result(learned):
+    s, r = learned
+    with open_executor(2) as ex:
+        pooled = run_search(s, SearchOptions(particles=2, **QUICK), ex)
+    assert pooled.table["O_Pstar"] == r.table["O_Pstar"]
+
+
+def test_cli_learn_sample_and_errors(tmp_path, capsys):
+    ex = tmp_path / "tiny.json"
+    ex.write_text(json.dumps(tiny_set(4)))
+    out = tmp_path / "run"
+    assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3"]) == 0
+    for name in ("program.json", "program.pt", "contact_sheet.png", "report.html", "report.json", "search.png"):
+        assert (out / name).exists(), name
+    report = json.loads((out / "report.json").read_text())
+    assert report["table"]["A0"] >= 3 and report["trace"]
+    samples = tmp_path / "samples.json"
+    assert main(["sample", str(out / "program.json"), "-n", "5", "--seed", "2", "--out", str(samples),
+                 "--format", "examples"]) == 0
+    assert len(read_examples(samples).examples) == 5
+    # a second run with the same arguments finds the finished checkpoint
+    assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3"]) == 0
+    capsys.readouterr()
+    assert main(["learn", str(tmp_path / "missing.json"), "--out", str(out)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["learn", str(ex), "--out", str(out), "--particles", "0"]) == 2
+    assert main(["sample", "spaceship", "--format", "examples", "--out", str(tmp_path / "x.json")]) == 2
+    assert "not a learned program" in capsys.readouterr().err
