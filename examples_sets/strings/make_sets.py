@@ -70,8 +70,18 @@ def octagon_tower(path: Path, apothem=0.5, height=3.0):
 
 
 def castle_shape(cells, links, gates):
+    """Towers at cells (a corner tower where the walls turn), walls or gates on links."""
     spacing = 2.0
-    nodes = [node("tower", placed(spacing * i, spacing * j, 1.5)) for i, j in cells]
+    linked = {c: set() for c in cells}
+    for a, b in links:
+        linked[a].add((b[0] - a[0], b[1] - a[1]))
+        linked[b].add((a[0] - b[0], a[1] - b[1]))
+    nodes = []
+    for i, j in cells:
+        dirs = linked[(i, j)]
+        corner = \
+            len(dirs) == 2 and (sum(d[0] for d in dirs), sum(d[1] for d in dirs)) != (0, 0)
+        nodes.append(node("corner" if corner else "tower", placed(spacing * i, spacing * j, 1.5)))
     for a, b in links:
         part = "gate" if (a, b) in gates else "wall"
         z = 1.1 if part == "gate" else 0.8
@@ -89,7 +99,7 @@ def castle():
     s2_links = grid_links(s2_cells)
     s2 = castle_shape(s2_cells, s2_links, {((0, 1), (0, 2)), ((4, 2), (5, 2))})
     return {"format": "procmod-shapes/1",
-            "parts": {"tower": {"mesh": "parts/tower.obj"}, "wall": {"box": [1.0, 0.4, 1.6]},
+            "parts": {"tower": {"mesh": "parts/tower.obj"}, "corner": {"box": [1.0, 1.0, 3.4]}, "wall": {"box": [1.0, 0.4, 1.6]},
                       "gate": {"box": [1.0, 0.7, 2.2]}},
             "shapes": [s1, s2]}
 

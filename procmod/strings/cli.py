@@ -2,9 +2,287 @@
 
 from __future__ import annotations
 
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InvalidArgumentError
+
 
 def register(sub, int_arg) -> None:
     """Add the ``strings`` subcommand group to the argparse subparsers ``sub``.
 
     Each leaf parser sets ``handler`` (a function of the parsed args) with ``set_defaults``.
     """
+    group = sub.add_parser("strings", help="string-based synthesis of structured shapes (shape graphs, "
+                                           "graph sampling, string VAE, instantiation)")
+    leaves = group.add_subparsers(dest="strings_command", metavar="STRINGS_COMMAND", parser_class=type(group))
+    leaves.required = True
+
+    p = leaves.add_parser("graph", help="shape graphs of a procmod-shapes/1 file: one procmod-graph/1 JSON per shape")
+    p.add_argument("shapes", metavar="SHAPES.json")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--tolerance", type=float, help="contact tolerance in world units (default: 0.001 x the "
+                                                   "median part diagonal)")
+    p.set_defaults(handler=_graph)
+
+    p = leaves.add_parser("encode", help="strings of a graph, one a line (the canonical one by default)")
+    p.add_argument("graph", metavar="GRAPH.json")
+    p.add_argument("--random", type=int_arg, metavar="N", help="N distinct random strings instead (fewer if the "
+                                                               "graph has fewer)")
+    p.add_argument("--seed", type=int_arg, default=0)
+    p.set_defaults(handler=_encode)
+
+    p = leaves.add_parser("decode", help="the procmod-graph/1 JSON of a string, to stdout")
+    p.add_argument("string", metavar="STRING")
+    p.set_defaults(handler=_decode)
+
+    p = leaves.add_parser("augment", help="grow a collection of valid shape variants by graph-based sampling")
+    p.add_argument("shapes", metavar="SHAPES.json")
+    p.add_argument("--count", type=int_arg, required=True, help="shapes in the collection (inputs included)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--parallel", type=int_arg, default=8, help="random subgraphs per round (default 8)")
+    p.add_argument("--rounds", type=int_arg, default=200, help="at most this many rounds (default 200)")
+    p.add_argument("--seconds", type=float, help="stop after this many seconds")
+    p.add_argument("--workers", type=int_arg, help="local worker processes (0: one per core; default inline)")
+    p.add_argument("--scheduler", help="dask scheduler address tcp://host:8786 (overrides --workers)")
+    p.add_argument("--strings-per-shape", type=int_arg, default=8)
+    p.add_argument("--rotate", action="store_true", help="allow docking rotations (default: translations only, "
+                                                         "so every variant keeps the inputs' orientation)")
+    p.set_defaults(handler=_augment)
+
+    p = leaves.add_parser("train", help="train the string VAE and the edge-category tagger on a collection")
+    p.add_argument("collection", metavar="DIR", help="a folder made by 'strings augment' (or a shapes file)")
+    p.add_argument("--out", required=True, help="model folder (an interrupted training resumes from it)")
+    p.add_argument("--epochs", type=int_arg, default=40, help="VAE epochs (default 40)")
+    p.add_argument("--tagger-epochs", type=int_arg, default=30)
+    p.add_argument("--latent", type=int_arg, default=24)
+    p.add_argument("--hidden", type=int_arg, default=128)
+    p.add_argument("--layers", type=int_arg, default=1)
+    p.add_argument("--cell", choices=("gru", "lstm"), default="gru")
+    p.add_argument("--kl-weight", type=float, default=0.5, help="final KL weight beta (default 0.5)")
+    p.add_argument("--kl-warmup", type=int_arg, default=10, help="epochs of linear beta warm-up (default 10)")
+    p.add_argument("--strings-per-shape", type=int_arg, default=8)
+    p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2)")
+    p.add_argument("--seed", type=int_arg, default=0)
+    p.set_defaults(handler=_train)
+
+    p = leaves.add_parser("sample", help="sample strings from a trained model; write graphs, strings and meshes")
+    p.add_argument("model", metavar="MODEL")
+    p.add_argument("-n", type=int_arg, default=16, help="latent points to decode (default 16)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--mode", choices=("prior", "perturb", "interpolate", "path"), default="prior",
+                   help="prior: z ~ N(0, I); perturb / interpolate / path: seed 001 section 5.2")
+    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--unconstrained", action="store_true", help="decode without grammar masks (checked after)")
+    p.add_argument("--no-meshes", action="store_true", help="do not instantiate the valid samples")
+    p.set_defaults(handler=_sample)
+
+    p = leaves.add_parser("instantiate", help="build a string as a 3D shape (GLB or OBJ)")
+    p.add_argument("model", metavar="MODEL")
+    p.add_argument("string", metavar="STRING")
+    p.add_argument("--out", required=True, metavar="FILE.glb")
+    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--votes", type=int_arg, default=8, help="strings of the graph the tagger votes over")
+    p.set_defaults(handler=_instantiate)
+
+
+def _seed(seed: int) -> int:
+    if seed < 0:
+        raise InvalidArgumentError(f"--seed must be a non-negative integer, got {seed}")
+    return seed
+
+
+def _graph(args) -> None:
+    from .shapes import Grammar, read_shapes, shape_graph, write_graph
+
+    shape_set = read_shapes(args.shapes)
+    if args.tolerance is not None and not args.tolerance >= 0:
+        raise InvalidArgumentError(f"--tolerance must be >= 0, got {args.tolerance}")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    graphs = [shape_graph(shape_set, s, args.tolerance) for s in shape_set.shapes]
+    for i, g in enumerate(graphs):
+        write_graph(g, out / f"shape_{i:03d}.json")
+    grammar = Grammar.from_graphs(graphs)
+    types = ", ".join(f"{name}={letter}" for name, letter in sorted(shape_set.letters.items()))
+    for i, g in enumerate(graphs):
+        cycles = g.number_of_edges() - g.number_of_nodes() + 1
+        print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
+    print(f"types: {types}")
+    print("rules: " + "; ".join(f"{t}: {' | '.join(k or '-' for k in keys)}" for t, keys in grammar.to_json().items()))
+    print(f"wrote {len(graphs)} graphs to {out}/")
+
+
+def _encode(args) -> None:
+    from .codec import encode, strings_of
+    from .shapes import read_graph
+
+    g = read_graph(args.graph)
+    if args.random is None:
+        print(encode(g))
+        return
+    if args.random < 1:
+        raise InvalidArgumentError(f"--random must be a positive number of strings, got {args.random}")
+    for s in strings_of(g, args.random, np.random.default_rng(_seed(args.seed)), canonical=False):
+        print(s)
+
+
+def _decode(args) -> None:
+    from .codec import decode
+    from .shapes import graph_to_dict
+
+    print(json.dumps(graph_to_dict(decode(args.string))))
+
+
+def _augment(args) -> None:
+    from tqdm import tqdm
+
+    from ..parallel import open_executor
+    from .pipeline import write_collection
+    from .sampling import AugmentParams, augment
+    from .shapes import read_shapes
+
+    shape_set = read_shapes(args.shapes)
+    if args.count < 1 or args.parallel < 1 or args.rounds < 1:
+        raise InvalidArgumentError("--count, --parallel and --rounds must be positive integers")
+    if len(shape_set.shapes) > 2:
+        print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    bar = tqdm(total=args.count, unit=" shapes", disable=None, leave=False, file=sys.stderr)
+    bar.update(len(shape_set.shapes))
+
+    def progress(row):
+        bar.n = row["shapes"]
+        bar.refresh()
+
+    with open_executor(args.workers, args.scheduler) as executor:
+        result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
+                         max_rounds=args.rounds, executor=executor, params=AugmentParams(rotate=args.rotate),
+                         progress=progress, seconds=args.seconds)
+    bar.close()
+    strings = write_collection(shape_set, result.shapes, out, result.rounds, args.strings_per_shape, args.seed)
+    seconds = result.rounds[-1]["seconds"] if result.rounds else 0.0
+    print(f"{len(result.shapes)} shapes ({len(result.shapes) - len(shape_set.shapes)} new) after "
+          f"{len(result.rounds)} rounds in {seconds:.1f} s; {len(strings)} strings; wrote {out}/")
+
+
+def _train(args) -> None:
+    from tqdm import tqdm
+
+    from .instantiate import TaggerConfig
+    from .pipeline import train_model
+    from .vae import VAEConfig
+
+    if not 0 <= args.held_out < 1:
+        raise InvalidArgumentError(f"--held-out must be in [0, 1), got {args.held_out}")
+    vae = VAEConfig(cell=args.cell, hidden=args.hidden, layers=args.layers, latent=args.latent,
+                    kl_weight=args.kl_weight, kl_warmup=args.kl_warmup, epochs=args.epochs)
+    vae.check()
+    tagger = TaggerConfig(epochs=args.tagger_epochs)
+    bars = {}
+
+    def progress(stage, row):
+        total = args.epochs if stage == "vae" else args.tagger_epochs
+        bar = bars.get(stage)
+        if bar is None:
+            bar = bars[stage] = tqdm(total=total, unit=" epochs", desc=stage, disable=None, leave=False,
+                                     file=sys.stderr)
+        bar.n = row["epoch"]
+        bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in ("epoch", "seconds")}, refresh=False)
+        bar.refresh()
+
+    meta = train_model(args.collection, args.out, vae, tagger, args.strings_per_shape, args.held_out,
+                       _seed(args.seed), progress)
+    for bar in bars.values():
+        bar.close()
+    acc = meta.get("tagger_held_out_accuracy")
+    print(f"trained on {meta['training_strings']} strings of {meta['train_shapes']} shapes; "
+          f"{meta['categories']} edge categories; tagger accuracy on held-out strings: "
+          f"{'n/a' if acc is None else f'{100 * acc:.1f}%'}; model in {args.out}/")
+
+
+def _sample(args) -> None:
+    from ..core.serialize import write_text_atomic
+    from .codec import decode
+    from .latent import interpolate, latent_path, perturb, sample_path
+    from .pipeline import TrainedModel
+    from .render import write_shape_mesh, write_shape_png, write_sheet
+    from .shapes import graph_to_dict
+
+    if args.n < 1:
+        raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
+    model = TrainedModel(args.model)
+    rng = np.random.default_rng(_seed(args.seed))
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    train = model.training_strings
+    vae = model.vae
+    if args.mode == "prior":
+        z = rng.standard_normal((args.n, vae.net.config.latent))
+        decoded = vae.decode(z, constrained=not args.unconstrained, rng=rng)
+    else:
+        anchors = vae.encode(train)
+        decoded = []
+        for _ in range(args.n):
+            i, j = (int(k) for k in rng.integers(len(train), size=2))
+            if args.mode == "perturb":
+                decoded.append(perturb(vae, anchors[i], train[i], rng))
+            elif args.mode == "interpolate":
+                found = interpolate(vae, anchors[i], anchors[j], 5, rng)
+                decoded.append(found[len(found) // 2] if found else None)
+            else:
+                path = latent_path(anchors[i], anchors[j], anchors, 8)
+                found = sample_path(vae, path, 2, rng)
+                decoded.append(found[int(rng.integers(len(found)))] if found else None)
+    valid = [s for s in decoded if vae.is_valid(s)]
+    unique = list(dict.fromkeys(valid))
+    known = set(train)
+    novel = [s for s in unique if s not in known]
+    out.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(out / "samples.txt", "\n".join(unique) + ("\n" if unique else ""))
+    built, shapes = 0, []
+    for k, s in enumerate(unique):
+        write_text_atomic(out / f"sample_{k:03d}.json", json.dumps(graph_to_dict(decode(s))) + "\n")
+        if args.no_meshes:
+            continue
+        result = model.instantiate(s, rng)
+        if result.success:
+            built += 1
+            write_shape_mesh(model.shape_set, result.shape, out / f"sample_{k:03d}.glb")
+            write_shape_png(model.shape_set, result.shape, out / f"sample_{k:03d}.png", 200)
+            shapes.append((k, result.shape))
+    if shapes:
+        write_sheet(model.shape_set, [s for _, s in shapes], out / "contact_sheet.png", 160,
+                    labels=[str(k) for k, _ in shapes])
+    summary = {"mode": args.mode, "decoded": len(decoded), "valid": len(valid), "unique": len(unique),
+               "novel": len(novel), "instantiated": built}
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
+    print(f"{args.n} points: {len(valid)} valid, {len(unique)} unique, {len(novel)} novel; "
+          + ("" if args.no_meshes else f"{built} instantiated; ") + f"wrote {out}/")
+
+
+def _instantiate(args) -> None:
+    from .pipeline import InstantiationError, TrainedModel
+    from .render import write_shape_mesh
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".glb", ".obj"):
+        raise InvalidArgumentError(f"--out must end in .glb or .obj, got {out.name!r}")
+    if args.votes < 1:
+        raise InvalidArgumentError(f"--votes must be a positive integer, got {args.votes}")
+    model = TrainedModel(args.model)
+    result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes)
+    if not result.success:
+        raise InstantiationError(f"could not build {args.string!r}: {result.reason}; try another --seed")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_shape_mesh(model.shape_set, result.shape, out)
+    print(f"wrote {out} ({len(result.shape)} parts, {result.fallbacks} Monte Carlo fallbacks)")

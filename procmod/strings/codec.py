@@ -199,7 +199,14 @@ def check_graph(g: nx.Graph) -> None:
 
 
 def encode(g: nx.Graph, root: int | None = None, rng: np.random.Generator | None = None) -> str:
-    """Write ``g`` as a string.
+    """Write ``g`` as a string (see :func:`encode_with_order`)."""
+    return encode_with_order(g, root, rng)[0]
+
+
+def encode_with_order(g: nx.Graph, root: int | None = None,
+                      rng: np.random.Generator | None = None) -> tuple[str, list[int]]:
+    """Write ``g`` as a string; also return the graph node of each letter, in string order
+    (the ``k``-th letter is node ``order[k]``; decoding numbers it ``k``).
 
     Parameters
     ----------
@@ -258,7 +265,10 @@ def encode(g: nx.Graph, root: int | None = None, rng: np.random.Generator | None
     label_of: dict[tuple[int, int], int] = {}
     out: list[str] = []
 
+    written: list[int] = []
+
     def write_atom(v: int) -> None:
+        written.append(v)
         out.append(g.nodes[v]["type"])
         released = []
         for e in closes[v]:
@@ -291,4 +301,19 @@ def encode(g: nx.Graph, root: int | None = None, rng: np.random.Generator | None
             else:
                 todo.append(("node", child))
         actions.extend(reversed(todo))
-    return "".join(out)
+    return "".join(out), written
+
+
+def strings_of(g: nx.Graph, count: int, rng: np.random.Generator, canonical: bool = True) -> list[str]:
+    """Up to ``count`` distinct strings of ``g``: the canonical one first (if asked), then
+    random ones (random roots and neighbour orders); gives up after ``4 * count`` draws."""
+    out = [encode(g)] if canonical else []
+    seen = set(out)
+    for _ in range(4 * count):
+        if len(out) >= count:
+            break
+        s = encode(g, rng=rng)
+        if s not in seen:
+            seen.add(s)
+            out.append(s)
+    return out[:count]

@@ -123,6 +123,7 @@ class AugmentParams:
     distance_tol: float = 1e-3  # relative to the median part diagonal
     max_subsets: int = 16  # keep/drop choices tried per docking
     max_parts: int = 120  # variants larger than this are not kept
+    rotate: bool = False  # allow docking rotations (else translations only: one orientation)
 
 
 def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Grammar, seed,
@@ -146,7 +147,10 @@ def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Gramma
         b2 = match_boundary(b1, ta, ca, tb, cb, dtol, rng)
         if b2 is None:
             continue
-        for dock in docking_transforms(ca[b1], cb[b2], dtol):
+        docks = docking_transforms(ca[b1], cb[b2], dtol)
+        if not params.rotate:
+            docks = [d for d in docks if np.allclose(d[:3, :3], np.eye(3), atol=1e-6)]
+        for dock in docks:
             merged = _merge(shape_set, grammar, ga, gb, shape_a, shape_b, s, b1, b2, dock, tol, rng, params)
             if merged is not None:
                 return merged

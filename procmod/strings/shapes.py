@@ -61,6 +61,7 @@ class ShapeSet:
     library: dict  # name -> PartShape
     shapes: list  # of Shape
     letters: dict  # part name -> one-letter type
+    base_dir: Path | None = None  # where mesh paths are relative to
 
     @property
     def part_of_letter(self) -> dict:
@@ -148,7 +149,7 @@ def shapes_from_dict(data, base_dir, source: str = "shapes") -> ShapeSet:
                 raise ShapesFormatError(f"{source}: {exc}") from None
             names.append(name)
         shapes.append(Shape.of(names, transforms))
-    return ShapeSet(library, shapes, type_letters(library))
+    return ShapeSet(library, shapes, type_letters(library), Path(base_dir))
 
 
 def shapes_to_dict(shape_set: ShapeSet, shapes=None) -> dict:
@@ -160,8 +161,18 @@ def shapes_to_dict(shape_set: ShapeSet, shapes=None) -> dict:
 
 
 def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> None:
-    """Write a shapes file atomically (mesh paths are written as they were read)."""
-    write_text_atomic(path, json.dumps(shapes_to_dict(shape_set, shapes), indent=1) + "\n")
+    """Write a shapes file atomically. Mesh paths are written as they were read; mesh files
+    are copied beside the new file when it goes to another folder."""
+    import shutil
+
+    path = Path(path)
+    if shape_set.base_dir is not None and path.parent.resolve() != Path(shape_set.base_dir).resolve():
+        for shape in shape_set.library.values():
+            if shape.kind == "mesh":
+                target = path.parent / shape.source
+                target.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(Path(shape_set.base_dir) / shape.source, target)
+    write_text_atomic(path, json.dumps(shapes_to_dict(shape_set, shapes)) + "\n")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,0 +1,583 @@
+"""Instantiation of shape graphs (seed 001, section 6).
+
+1. **Local frames** by the extremal-point ("diagonal") method: the vertex ``v`` farthest
+   from the centre of gravity, the vertex ``w`` farthest from ``v``, the vertex ``u``
+   farthest from the line ``vw``; tied vertices are averaged, and when the average
+   collapses (a box's corners all tie) the tied vertex listed first in the part library
+   is taken, which keeps the frame attached to the part however it is placed.
+2. **Edge categories**: per pair of node types, the relative poses of neighbours (one
+   part's frame seen from the other's) are clustered by mean shift (scikit-learn);
+   same-type pairs take the unordered pair of both directions' clusters.
+3. A **tagger** (bidirectional recurrent net + linear layer) maps a string to one category
+   per character (a dummy one for brackets, bonds and the root); logits of categories the
+   edge's type pair does not have are set to -inf. Several strings of one graph vote.
+4. **Instantiation**: from a random edge, parts are added by transplanting a relative
+   transform seen in the training shapes for the edge's category; a part that collides
+   with placed non-neighbours, misses a placed neighbour, or sits at a pose no example
+   shows, is retried with other examples of the category, then (Monte Carlo fallback)
+   with examples of any category of that type pair.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import torch
+from torch import nn
+
+from ..core.errors import InvalidArgumentError
+from ..core.serialize import write_text_atomic
+from .codec import encode_with_order, parse, strings_of
+from .shapes import Shape, ShapeSet, contact_pairs, part_points, shape_graph, tolerance_for
+from .vae import ModelFileError, Vocab
+
+# ---------------------------------------------------------------------------------------------
+# Local frames
+
+
+def _extreme(points: np.ndarray, dist: np.ndarray, eps: float) -> np.ndarray:
+    """The average of the points at maximal ``dist``; the first of them if they average out."""
+    top = np.nonzero(dist >= dist.max() - eps)[0]
+    return points[top].mean(0), points[top[0]]
+
+
+def local_frame(points: np.ndarray, eps_rel: float = 1e-6) -> np.ndarray:
+    """A rigid 4x4 frame (origin = vertex mean) from a part's world vertices, by the
+    extremal-point method (see the module docstring)."""
+    p = np.asarray(points, dtype=np.float64)
+    c = p.mean(0)
+    scale = max(float(np.linalg.norm(p - c, axis=1).max()), 1e-12)
+    eps = eps_rel * scale
+    avg, first = _extreme(p, np.linalg.norm(p - c, axis=1), eps)
+    v = avg if np.linalg.norm(avg - c) > 1e-3 * scale else first
+    avg, first = _extreme(p, np.linalg.norm(p - v, axis=1), eps)
+    w = avg if np.linalg.norm(avg - v) > 1e-3 * scale else first
+    a1 = (w - v) / max(np.linalg.norm(w - v), 1e-12)
+    rel = p - v
+    foot = v + np.outer(rel @ a1, a1)
+    off = np.linalg.norm(p - foot, axis=1)
+    avg, first = _extreme(p, off, eps)
+    u = avg if np.linalg.norm(avg - (v + ((avg - v) @ a1) * a1)) > 1e-3 * scale else first
+    a2 = u - (v + ((u - v) @ a1) * a1)
+    if np.linalg.norm(a2) < 1e-9 * scale:  # all points on one line: any perpendicular
+        a2 = np.cross(a1, [1.0, 0.0, 0.0] if abs(a1[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a2 /= np.linalg.norm(a2)
+    a3 = np.cross(a1, a2)
+    f = np.eye(4)
+    f[:3, 0], f[:3, 1], f[:3, 2], f[:3, 3] = a1, a2, a3, c
+    return f
+
+
+def _candidate_rotations() -> list[np.ndarray]:
+    """The 24 rotations of the cube, each also composed with quarter-of-a-quarter turns
+    (45 degrees) about z: the symmetries :func:`symmetry_group` looks for."""
+    mats = []
+    for perm in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (1, 0, 2), (0, 2, 1), (2, 1, 0)):
+        for signs in np.ndindex(2, 2, 2):
+            m = np.zeros((3, 3))
+            for r, c in enumerate(perm):
+                m[r, c] = 1 - 2 * signs[r]
+            if np.linalg.det(m) > 0:
+                mats.append(m)
+    out = []
+    for k in range(8):
+        c, s_ = np.cos(k * np.pi / 4), np.sin(k * np.pi / 4)
+        rz = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+        out += [rz @ m for m in mats]
+    uniq = []
+    for m in out:
+        if not any(np.allclose(m, u, atol=1e-9) for u in uniq):
+            uniq.append(m)
+    return uniq
+
+
+_CANDIDATES = None
+
+
+def symmetry_group(local_points: np.ndarray, rel_tol: float = 1e-4) -> list[np.ndarray]:
+    """Rotations (about the vertex mean, in the part's library frame) that map its vertex
+    set onto itself, among the cube's and 45-degree turns about z (boxes, prisms, cylinders)."""
+    global _CANDIDATES
+    if _CANDIDATES is None:
+        _CANDIDATES = _candidate_rotations()
+    p = np.asarray(local_points, dtype=np.float64)
+    p = p - p.mean(0)
+    tol = rel_tol * max(float(np.linalg.norm(p, axis=1).max()), 1e-12)
+    group = []
+    for r in _CANDIDATES:
+        q = p @ r.T
+        if np.linalg.norm(q[:, None] - p[None], axis=2).min(1).max() <= tol:
+            group.append(r)
+    return group
+
+
+def canonical_frame(library: dict, name: str, transform: np.ndarray, groups: dict) -> np.ndarray:
+    """The extremal-point frame of a placed part, turned by the part's own symmetry to the
+    equivalent frame closest to the world axes (so a symmetric part gets the same frame
+    however it was turned into place). ``groups`` caches each part's symmetries."""
+    f = local_frame(part_points(library, name, transform))
+    group = groups.get(name)
+    if group is None:
+        local = part_points(library, name, np.eye(4))
+        r_local = local_frame(local)[:3, :3]
+        # A symmetry S of the part turns its frame R_L into S R_L: in frame terms R_L^T S R_L.
+        group = groups[name] = [r_local.T @ sym @ r_local for sym in symmetry_group(local)] or [np.eye(3)]
+    best, best_score = f, -np.inf
+    for g in group:
+        rot = _orthonormal(f[:3, :3] @ g)
+        score = float(np.trace(rot))
+        if score > best_score + 1e-9:
+            best_score = score
+            best = f.copy()
+            best[:3, :3] = rot
+    return best
+
+
+def _orthonormal(m: np.ndarray) -> np.ndarray:
+    u, _, vt = np.linalg.svd(m)
+    return u @ vt
+
+
+def _pose_feature(fa: np.ndarray, fb: np.ndarray, length: float, rot_weight: float) -> np.ndarray:
+    rel = np.linalg.inv(fa) @ fb
+    return np.concatenate([rel[:3, 3] / length, rot_weight * rel[:3, :3].reshape(9)])
+
+
+# ---------------------------------------------------------------------------------------------
+# Edge categories
+
+
+@dataclass
+class CategoryParams:
+    bandwidth: float = 0.15  # mean-shift bandwidth in units of the median part diagonal
+    rot_weight: float = 0.5  # weight of the rotation entries against normalised offsets
+    examples_per_category: int = 24
+
+
+class EdgeCategories:
+    """Edge categories per type pair, fitted on shapes; the relative transforms that
+    realise each category, for transplanting.
+
+    ``names[k]`` = ``(A, B, key)`` for category ``k >= 1`` (``A <= B``); category 0 is the
+    dummy of characters that stand for no edge.
+    """
+
+    def __init__(self, names, centres, examples, length, params: CategoryParams):
+        self.names = [tuple(n) if n is not None else None for n in names]
+        self.centres = centres  # (A, B) -> cluster centres (k, 12)
+        self.examples = examples  # category -> list of 4x4 (A-part -> B-part relative transforms)
+        self.length = length
+        self.params = params
+        self.groups: dict = {}  # part name -> symmetry rotations in frame terms (cache)
+        self.index = {n: k for k, n in enumerate(self.names) if n is not None}
+        self.by_pair: dict[tuple, list[int]] = {}
+        for k, n in enumerate(self.names):
+            if n is not None:
+                self.by_pair.setdefault((n[0], n[1]), []).append(k)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    # -- fitting ------------------------------------------------------------------------------
+
+    @staticmethod
+    def fit(shape_set: ShapeSet, shapes, graphs, params: CategoryParams = CategoryParams()) -> "EdgeCategories":
+        from sklearn.cluster import MeanShift
+
+        lib = shape_set.library
+        diag = [float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in lib.values()]
+        length = float(np.median(diag))
+        groups: dict = {}
+        per_pair: dict[tuple, list] = {}  # (A, B) -> rows (feature, shape, a, b) with a of type A
+        for si, (shape, g) in enumerate(zip(shapes, graphs)):
+            frames = [canonical_frame(lib, p, t, groups) for p, t in zip(shape.parts, shape.transforms)]
+            for a, b in g.edges:
+                ta, tb = g.nodes[a]["type"], g.nodes[b]["type"]
+                for x, y in ((a, b), (b, a)) if ta == tb else (((a, b),) if ta < tb else ((b, a),)):
+                    f = _pose_feature(frames[x], frames[y], length, params.rot_weight)
+                    per_pair.setdefault((g.nodes[x]["type"], g.nodes[y]["type"]), []).append((f, si, x, y))
+        centres = {}
+        labels_of: dict[tuple, np.ndarray] = {}
+        for pair, rows in sorted(per_pair.items()):
+            feats = np.array([r[0] for r in rows])
+            uniq, inverse = np.unique(np.round(feats, 4), axis=0, return_inverse=True)
+            ms = MeanShift(bandwidth=params.bandwidth, bin_seeding=False).fit(uniq)
+            centres[pair] = ms.cluster_centers_
+            labels_of[pair] = ms.labels_[inverse.reshape(-1)]
+        names: list = [None]
+        examples: dict[int, list] = {}
+        index: dict[tuple, int] = {}
+        assignments = {}  # (shape, a, b) sorted pair -> category
+        for pair, rows in sorted(per_pair.items()):
+            labels = labels_of[pair]
+            if pair[0] != pair[1]:
+                keyed = [((int(l),), r) for l, r in zip(labels, rows)]
+            else:
+                both: dict[tuple, dict] = {}
+                for l, r in zip(labels, rows):
+                    both.setdefault((r[1], min(r[2], r[3]), max(r[2], r[3])), {})[(r[2], r[3])] = (int(l), r)
+                keyed = []
+                for (si, lo, hi), d in both.items():
+                    (l1, r1), (l2, _) = d[(lo, hi)], d[(hi, lo)]
+                    keyed.append(((min(l1, l2), max(l1, l2)), r1))
+            for key, r in keyed:
+                name = (pair[0], pair[1], "-".join(map(str, key)))
+                if name not in index:
+                    index[name] = len(names)
+                    names.append(name)
+                k = index[name]
+                _, si, x, y = r
+                assignments[(si, min(x, y), max(x, y))] = k
+                ex = examples.setdefault(k, [])
+                if len(ex) < 4 * params.examples_per_category:
+                    shape = shapes[si]
+                    ex.append(np.linalg.inv(shape.transforms[x]) @ shape.transforms[y])
+        for k, ex in examples.items():
+            uniq = np.unique(np.round(np.array(ex), 6), axis=0)
+            examples[k] = [m for m in uniq[:params.examples_per_category]]
+        cats = EdgeCategories(names, centres, examples, length, params)
+        cats._fit_assignments = assignments
+        return cats
+
+    def edge_categories(self, shape_set: ShapeSet, shape: Shape, g: nx.Graph) -> dict:
+        """Category of every edge of a shape: ``{(min, max): k}`` (nearest cluster centre)."""
+        lib = shape_set.library
+        frames = [canonical_frame(lib, p, t, self.groups) for p, t in zip(shape.parts, shape.transforms)]
+        out = {}
+        for a, b in g.edges:
+            ta, tb = g.nodes[a]["type"], g.nodes[b]["type"]
+            if ta > tb:
+                a, b, ta, tb = b, a, tb, ta
+            centres = self.centres.get((ta, tb))
+            if centres is None:
+                continue
+            near = lambda x, y: int(np.argmin(np.linalg.norm(
+                centres - _pose_feature(frames[x], frames[y], self.length, self.params.rot_weight), axis=1)))
+            key = (near(a, b),) if ta != tb else tuple(sorted((near(a, b), near(b, a))))
+            k = self.index.get((ta, tb, "-".join(map(str, key))))
+            if k is not None:
+                out[(min(a, b), max(a, b))] = k
+        return out
+
+    def pose_seen(self, fa: np.ndarray, fb: np.ndarray, ta: str, tb: str) -> bool:
+        """Is ``b``'s pose in ``a``'s frame within one bandwidth of a cluster for its type pair?"""
+        if ta > tb:
+            fa, fb, ta, tb = fb, fa, tb, ta
+        centres = self.centres.get((ta, tb))
+        if centres is None:
+            return False
+        f = _pose_feature(fa, fb, self.length, self.params.rot_weight)
+        return float(np.linalg.norm(centres - f, axis=1).min()) <= self.params.bandwidth
+
+    def allowed(self, ta: str, tb: str) -> list[int]:
+        return self.by_pair.get((min(ta, tb), max(ta, tb)), [])
+
+    def to_json(self) -> dict:
+        return {"names": [list(n) if n else None for n in self.names],
+                "centres": {f"{a}|{b}": c.tolist() for (a, b), c in self.centres.items()},
+                "examples": {str(k): [m.tolist() for m in v] for k, v in self.examples.items()},
+                "length": self.length, "params": asdict(self.params)}
+
+    @staticmethod
+    def from_json(data) -> "EdgeCategories":
+        centres = {tuple(k.split("|")): np.asarray(v) for k, v in data["centres"].items()}
+        examples = {int(k): [np.asarray(m) for m in v] for k, v in data["examples"].items()}
+        return EdgeCategories(data["names"], centres, examples, data["length"], CategoryParams(**data["params"]))
+
+
+# ---------------------------------------------------------------------------------------------
+# Tagger
+
+
+@dataclass
+class TaggerConfig:
+    cell: str = "lstm"
+    embed: int = 32
+    hidden: int = 64
+    layers: int = 1
+    epochs: int = 30
+    batch: int = 32
+    lr: float = 3e-3
+
+
+class Tagger(nn.Module):
+    """Bidirectional recurrent tagger: characters -> category logits per character."""
+
+    def __init__(self, vocab_size: int, categories: int, config: TaggerConfig):
+        super().__init__()
+        self.config = config
+        self.embedding = nn.Embedding(vocab_size, config.embed, padding_idx=0)
+        kind = nn.LSTM if config.cell == "lstm" else nn.GRU
+        self.rnn = kind(config.embed, config.hidden, num_layers=config.layers, batch_first=True, bidirectional=True)
+        self.out = nn.Linear(2 * config.hidden, categories)
+
+    def forward(self, tokens: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """Masked logits ``(B, T, K)``: -inf where ``mask`` is False."""
+        h, _ = self.rnn(self.embedding(tokens))
+        return self.out(h).masked_fill(~mask, float("-inf"))
+
+
+def string_mask(text: str, categories: EdgeCategories) -> tuple[np.ndarray, list]:
+    """Allowed categories per character ``(T, K)`` and each character's edge (or None)."""
+    parsed = parse(text)
+    types = [parsed.graph.nodes[v]["type"] for v in parsed.graph.nodes]
+    mask = np.zeros((len(text), len(categories)), dtype=bool)
+    for i, e in enumerate(parsed.char_edges):
+        allowed = categories.allowed(types[e[0]], types[e[1]]) if e is not None else []
+        if e is None or not allowed:
+            mask[i, 0] = True
+        else:
+            mask[i, allowed] = True
+    return mask, list(parsed.char_edges)
+
+
+def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: EdgeCategories, per_shape: int,
+                     rng: np.random.Generator) -> list[tuple[str, list[int]]]:
+    """(string, target category per character) pairs from shapes, ``per_shape`` strings each."""
+    out = []
+    for shape, g in zip(shapes, graphs):
+        cats = categories.edge_categories(shape_set, shape, g)
+        seen = set()
+        for k in range(4 * per_shape):
+            if len(seen) >= per_shape:
+                break
+            text, order = encode_with_order(g, None if k else 0, rng if k else None)
+            if text in seen:
+                continue
+            seen.add(text)
+            parsed = parse(text)
+            targets = [0 if e is None else cats.get((min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]])), 0)
+                       for e in parsed.char_edges]
+            out.append((text, targets))
+    return out
+
+
+class TaggerModel:
+    def __init__(self, net: Tagger, vocab: Vocab, categories: EdgeCategories):
+        self.net, self.vocab, self.categories = net, vocab, categories
+
+    def _tensors(self, texts, targets=None):
+        t = max(len(x) for x in texts)
+        tok = torch.zeros((len(texts), t), dtype=torch.long)
+        mask = torch.zeros((len(texts), t, len(self.categories)), dtype=torch.bool)
+        mask[:, :, 0] = True
+        tgt = torch.full((len(texts), t), -100, dtype=torch.long)
+        for k, text in enumerate(texts):
+            tok[k, :len(text)] = torch.tensor(self.vocab.encode(text))
+            m, _ = string_mask(text, self.categories)
+            mask[k, :len(text)] = torch.from_numpy(m)
+            if targets is not None:
+                tgt[k, :len(text)] = torch.tensor(targets[k])
+        return tok, mask, tgt
+
+    @torch.no_grad()
+    def predict(self, texts: list[str]) -> list[np.ndarray]:
+        """Per-character category probabilities ``(len, K)`` of each string."""
+        self.net.eval()
+        tok, mask, _ = self._tensors(texts)
+        prob = torch.softmax(self.net(tok, mask), dim=2).numpy()
+        return [prob[k, :len(t)] for k, t in enumerate(texts)]
+
+    def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator) -> dict:
+        """Majority vote over ``strings`` strings of ``g``: ``{(min, max): category}``."""
+        texts, orders = [], []
+        for k in range(strings):
+            text, order = encode_with_order(g, None if k else 0, rng if k else None)
+            texts.append(text)
+            orders.append(order)
+        votes: dict[tuple, np.ndarray] = {}
+        for text, order, prob in zip(texts, orders, self.predict(texts)):
+            for i, e in enumerate(parse(text).char_edges):
+                if e is None:
+                    continue
+                key = (min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))
+                v = votes.setdefault(key, np.zeros(len(self.categories)))
+                v[int(np.argmax(prob[i]))] += 1
+        return {e: int(np.argmax(v)) for e, v in votes.items()}
+
+    def save(self, folder, state=None, optimizer=None) -> None:
+        folder = Path(folder)
+        payload = {"model": self.net.state_dict()}
+        if optimizer is not None:
+            payload["optimizer"] = optimizer.state_dict()
+        tmp = folder / ".tagger.pt.tmp"
+        torch.save(payload, tmp)
+        os.replace(tmp, folder / "tagger.pt")
+        meta = {"format": "procmod-string-tagger/1", "config": asdict(self.net.config), "vocab": self.vocab.chars,
+                "categories": self.categories.to_json(), "train": state or {"epoch": 0, "history": []}}
+        write_text_atomic(folder / "tagger.json", json.dumps(meta) + "\n")
+
+    @staticmethod
+    def load(folder, with_optimizer: bool = False):
+        folder = Path(folder)
+        try:
+            meta = json.loads((folder / "tagger.json").read_text())
+            payload = torch.load(folder / "tagger.pt", weights_only=True)
+        except (OSError, json.JSONDecodeError, RuntimeError) as exc:
+            raise ModelFileError(f"cannot read the edge-category tagger in {folder} ({exc})") from None
+        cats = EdgeCategories.from_json(meta["categories"])
+        vocab = Vocab(meta["vocab"])
+        net = Tagger(len(vocab), len(cats), TaggerConfig(**meta["config"]))
+        net.load_state_dict(payload["model"])
+        model = TaggerModel(net, vocab, cats)
+        if with_optimizer:
+            return model, meta["train"], payload.get("optimizer")
+        return model
+
+
+def train_tagger(examples: list, vocab: Vocab, categories: EdgeCategories, folder, config: TaggerConfig = TaggerConfig(),
+                 seed: int = 0, progress=None) -> TaggerModel:
+    """Train (or resume) the tagger on (string, targets) pairs, checkpointing every epoch."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(seed)
+    if (folder / "tagger.json").is_file() and (folder / "tagger.pt").is_file():
+        model, state, opt_state = TaggerModel.load(folder, with_optimizer=True)
+        if asdict(model.net.config) != asdict(config):
+            raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new --out")
+    else:
+        model, state, opt_state = TaggerModel(Tagger(len(vocab), len(categories), config), vocab, categories), \
+            {"epoch": 0, "history": []}, None
+    optimizer = torch.optim.Adam(model.net.parameters(), lr=config.lr)
+    if opt_state is not None:
+        optimizer.load_state_dict(opt_state)
+    while state["epoch"] < config.epochs:
+        gen = torch.Generator().manual_seed(seed * 7919 + state["epoch"])
+        order = torch.randperm(len(examples), generator=gen).tolist()
+        model.net.train()
+        total, n_chars, correct, t0 = 0.0, 0, 0, time.perf_counter()
+        for k in range(0, len(order), config.batch):
+            batch = [examples[i] for i in order[k:k + config.batch]]
+            tok, mask, tgt = model._tensors([b[0] for b in batch], [b[1] for b in batch])
+            logits = model.net(tok, mask)
+            # -inf logits of disallowed categories: use log_softmax and gather the target's only.
+            logp = torch.log_softmax(logits, dim=2)
+            valid = tgt >= 0
+            picked = logp.gather(2, tgt.clamp(min=0)[..., None])[..., 0]
+            loss = -(picked * valid).sum() / valid.sum()
+            optimizer.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(model.net.parameters(), 5.0)
+            optimizer.step()
+            edge = valid & (tgt > 0)
+            correct += int(((logits.argmax(2) == tgt) & edge).sum())
+            n_chars += int(edge.sum())
+            total += float(loss.detach()) * len(batch)
+        state["epoch"] += 1
+        row = {"epoch": state["epoch"], "loss": total / len(order), "train_accuracy": correct / max(n_chars, 1),
+               "seconds": round(time.perf_counter() - t0, 2)}
+        state["history"].append(row)
+        model.save(folder, state, optimizer)
+        if progress is not None:
+            progress(row)
+    return model
+
+
+def tagging_accuracy(model: TaggerModel, examples: list) -> float:
+    """Fraction of edge characters (targets > 0) whose predicted category is right."""
+    right = total = 0
+    for k in range(0, len(examples), 128):
+        batch = examples[k:k + 128]
+        probs = model.predict([b[0] for b in batch])
+        for (text, targets), prob in zip(batch, probs):
+            pred = prob.argmax(1)
+            for i, t in enumerate(targets):
+                if t > 0:
+                    total += 1
+                    right += int(pred[i] == t)
+    return right / max(total, 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Graph instantiation
+
+
+@dataclass
+class InstantiateResult:
+    shape: Shape | None
+    success: bool
+    fallbacks: int = 0
+    reason: str = ""
+
+
+def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, shape_set: ShapeSet,
+                      rng: np.random.Generator, start_pose: dict | None = None,
+                      tries_per_edge: int = 24) -> InstantiateResult:
+    """Embed a typed graph in 3D by transplanting edges with the given categories.
+
+    ``edge_cats`` maps ``(min, max)`` node pairs to categories (from the tagger's vote);
+    ``shape_set`` supplies the part library; ``start_pose`` maps a type to the 4x4 pose of
+    the first part (default: identity). Success means the recomputed shape graph is ``g``.
+    """
+    part_of = shape_set.part_of_letter
+    for v in g.nodes:
+        if g.nodes[v]["type"] not in part_of:
+            return InstantiateResult(None, False, reason=f"type {g.nodes[v]['type']!r} is not a part of the library")
+    lib = shape_set.library
+    tol = tolerance_for(lib)
+    n = g.number_of_nodes()
+    types = [g.nodes[v]["type"] for v in range(n)]
+    parts = [part_of[t] for t in types]
+    poses: dict[int, np.ndarray] = {}
+    frames: dict[int, np.ndarray] = {}
+    edges = sorted(g.edges)
+    if not edges:
+        return InstantiateResult(Shape.of(parts, [np.eye(4)]), True)
+    u0, _ = edges[int(rng.integers(len(edges)))]
+    poses[u0] = np.asarray((start_pose or {}).get(types[u0], np.eye(4)))
+    frames[u0] = canonical_frame(lib, parts[u0], poses[u0], categories.groups)
+    fallbacks = 0
+
+    def candidates(x: int, y: int, k: int | None) -> list[np.ndarray]:
+        """World poses for y next to placed x, from examples of category k (None: any)."""
+        a_type, b_type = min(types[x], types[y]), max(types[x], types[y])
+        cats = [k] if k is not None else categories.allowed(types[x], types[y])
+        out = []
+        for c in cats:
+            for rel in categories.examples.get(c, []):
+                if types[x] == a_type:
+                    out.append(poses[x] @ rel)  # x plays the A part
+                if types[y] == a_type:
+                    out.append(poses[x] @ np.linalg.inv(rel))  # x plays the B part
+        return [out[i] for i in rng.permutation(len(out))][:tries_per_edge * max(1, len(cats))]
+
+    def fits(y: int, pose: np.ndarray) -> bool:
+        placed = sorted(poses)
+        names = [parts[v] for v in placed] + [parts[y]]
+        trans = [poses[v] for v in placed] + [pose]
+        m = len(placed)
+        touching = {placed[i] for i, _ in contact_pairs(lib, names, trans, tol, pairs_of=[(i, m) for i in range(m)])}
+        nbrs = {v for v in g.neighbors(y) if v in poses}
+        if touching != nbrs:
+            return False
+        fy = canonical_frame(lib, parts[y], pose, categories.groups)
+        return all(categories.pose_seen(frames[v], fy, types[v], types[y]) for v in nbrs)
+
+    queue = [u0]
+    while queue:
+        x = queue.pop(0)
+        nbrs = sorted(g.neighbors(x))
+        for y in [nbrs[i] for i in rng.permutation(len(nbrs))]:
+            if y in poses:
+                continue
+            k = edge_cats.get((min(x, y), max(x, y)))
+            chosen = next((p for p in candidates(x, y, k) if fits(y, p)), None) if k else None
+            if chosen is None:
+                fallbacks += 1  # Monte Carlo edge insertion: any example of the type pair
+                chosen = next((p for p in candidates(x, y, None) if fits(y, p)), None)
+            if chosen is None:
+                return InstantiateResult(None, False, fallbacks,
+                                         f"no example edge places node {y} ({types[y]}) next to node {x} ({types[x]})")
+            poses[y] = chosen
+            frames[y] = canonical_frame(lib, parts[y], chosen, categories.groups)
+            queue.append(y)
+    shape = Shape.of(parts, [poses[v] for v in range(n)])
+    actual = shape_graph(shape_set, shape, tol)
+    same = set(map(tuple, map(sorted, actual.edges))) == set(map(tuple, map(sorted, g.edges)))
+    return InstantiateResult(shape, same, fallbacks, "" if same else "the built shape's contacts differ from the graph")

@@ -1,0 +1,189 @@
+"""The whole seed-001 pipeline as folders: a collection (``augment``), a trained model
+(``train``), samples and instantiated meshes.
+
+A collection folder holds ``shapes.json`` (``procmod-shapes/1``: the input shapes first,
+then the variants, mesh files copied beside it), ``graphs/`` (one ``procmod-graph/1`` per
+shape), ``strings.txt`` (strings of every shape, one a line), ``growth.json`` (one row per
+sampling round) and ``contact_sheet.png``.
+
+A model folder holds ``model.json`` (``procmod-string-model/1``: grammar, settings,
+training history), ``collection.json`` (the training shapes, for transplanting),
+``vae.json`` + ``vae.pt`` and ``tagger.json`` + ``tagger.pt`` (torch state dicts, loaded
+with ``weights_only=True``). Training checkpoints after every epoch, and a run started
+again on the same folder resumes where the last one stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.serialize import write_text_atomic
+from .codec import StringSyntaxError, parse, strings_of
+from .instantiate import (CategoryParams, EdgeCategories, InstantiateResult, TaggerConfig, TaggerModel,
+                          instantiate_graph, tagging_accuracy, tagging_examples, train_tagger)
+from .sampling import AugmentParams, augment
+from .shapes import (Grammar, ShapeSet, ShapesFormatError, graph_to_dict, read_shapes, shape_graph, type_histogram,
+                     write_shapes)
+from .vae import ModelFileError, StringModel, VAEConfig, Vocab, train_vae
+
+MODEL_FORMAT = "procmod-string-model/1"
+
+
+class InstantiationError(ProcmodError):
+    """A string that could not be built from the model's parts."""
+
+
+def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds=None, strings_per_shape: int = 8,
+                     seed: int = 0, sheet: bool = True) -> list[str]:
+    """Write a collection folder (see the module docstring); returns the strings written."""
+    from .render import write_sheet
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    (out / "graphs").mkdir(parents=True, exist_ok=True)
+    write_shapes(shape_set, out / "shapes.json", shapes)
+    rng = np.random.default_rng([seed, 1])
+    strings = []
+    for i, shape in enumerate(shapes):
+        g = shape_graph(shape_set, shape)
+        write_text_atomic(out / "graphs" / f"shape_{i:04d}.json", json.dumps(graph_to_dict(g)) + "\n")
+        strings += strings_of(g, strings_per_shape, rng)
+    write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
+    write_text_atomic(out / "growth.json", json.dumps({"rounds": rounds or []}, indent=1) + "\n")
+    if sheet:
+        write_sheet(shape_set, shapes[:36], out / "contact_sheet.png", size=140, labels=[str(i) for i in range(36)])
+    return strings
+
+
+def read_collection(path: str | os.PathLike) -> ShapeSet:
+    """The shapes of a collection folder (or of a shapes file given directly)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "shapes.json"
+    if not path.is_file():
+        raise ShapesFormatError(f"{path} does not exist; give a collection folder made by 'procmod strings augment' "
+                                "or a procmod-shapes/1 file")
+    return read_shapes(path)
+
+
+def split_shapes(n: int, held_out: float, seed: int) -> tuple[list[int], list[int]]:
+    """Indices of training and held-out shapes (the input shapes always train)."""
+    rng = np.random.default_rng([seed, 2])
+    rest = [int(i) for i in rng.permutation(np.arange(2, n))] if n > 2 else []
+    k = int(round(held_out * len(rest)))
+    return sorted(list(range(min(n, 2))) + rest[k:]), sorted(rest[:k])
+
+
+def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_config: VAEConfig = VAEConfig(),
+                tagger_config: TaggerConfig = TaggerConfig(), strings_per_shape: int = 8, held_out: float = 0.2,
+                seed: int = 0, progress=None, stop_after: int | None = None) -> dict:
+    """Train the VAE and the edge-category tagger on a collection, into a model folder.
+
+    ``held_out`` of the variants (never the inputs) are kept out of both trainings and
+    used for the tagger's held-out accuracy. Returns the model's ``model.json`` content.
+    """
+    shape_set = read_collection(collection)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
+    grammar = Grammar.from_graphs(graphs)
+    train_idx, test_idx = split_shapes(len(graphs), held_out, seed)
+    rng = np.random.default_rng([seed, 3])
+    strings = [s for i in train_idx for s in strings_of(graphs[i], strings_per_shape, rng)]
+    if not (out / "collection.json").is_file():
+        write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
+    report = progress or (lambda stage, row: None)
+    vae = train_vae(strings, grammar, out, vae_config, seed, progress=lambda row: report("vae", row),
+                    stop_after=stop_after)
+    if len(vae_history(out)) < vae_config.epochs:
+        return {}
+    cats_path = out / "categories.json"
+    train_shapes = [shape_set.shapes[i] for i in train_idx]
+    train_graphs = [graphs[i] for i in train_idx]
+    if cats_path.is_file():
+        categories = EdgeCategories.from_json(json.loads(cats_path.read_text()))
+    else:
+        categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
+        write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
+    trng = np.random.default_rng([seed, 4])
+    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, strings_per_shape, trng)
+    held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
+                            categories, 4, trng)
+    tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
+                          progress=lambda row: report("tagger", row))
+    meta = {"format": MODEL_FORMAT, "grammar": grammar.to_json(), "seed": seed,
+            "strings_per_shape": strings_per_shape, "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),
+            "training_strings": len(strings), "categories": len(categories) - 1,
+            "tagger_held_out_accuracy": tagging_accuracy(tagger, held) if held else None,
+            "vae": asdict(vae_config), "tagger": asdict(tagger_config),
+            "start_pose": _start_poses(shape_set)}
+    write_text_atomic(out / "model.json", json.dumps(meta, indent=1) + "\n")
+    write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
+    return meta
+
+
+def vae_history(folder) -> list:
+    try:
+        return json.loads((Path(folder) / "vae.json").read_text()).get("train", {}).get("history", [])
+    except (OSError, json.JSONDecodeError):
+        return []
+
+
+def _start_poses(shape_set: ShapeSet) -> dict:
+    """Per type, the pose of its first instance in the inputs: the first part of an
+    instantiation is placed like that."""
+    out = {}
+    for shape in shape_set.shapes:
+        for p, t in zip(shape.parts, shape.transforms):
+            out.setdefault(shape_set.letters[p], t.tolist())
+    return out
+
+
+class TrainedModel:
+    """A model folder, loaded: VAE, tagger, categories, grammar and the training shapes."""
+
+    def __init__(self, folder: str | os.PathLike):
+        folder = Path(folder)
+        if not (folder / "model.json").is_file():
+            raise ModelFileError(f"{folder} is not a trained string model (no model.json); make one with "
+                                 "'procmod strings train COLLECTION --out MODEL' (an interrupted training resumes "
+                                 "when run again)")
+        self.folder = folder
+        self.meta = json.loads((folder / "model.json").read_text())
+        if self.meta.get("format") != MODEL_FORMAT:
+            raise ModelFileError(f"{folder / 'model.json'}: not a {MODEL_FORMAT} file")
+        self.vae = StringModel.load(folder)
+        self.tagger = TaggerModel.load(folder)
+        self.categories = self.tagger.categories
+        self.grammar = Grammar.from_json(self.meta["grammar"])
+        self.shape_set = read_shapes(folder / "collection.json")
+        self.training_strings = (folder / "strings.txt").read_text().split()
+        self.start_pose = {t: np.asarray(m) for t, m in self.meta["start_pose"].items()}
+
+    def check_string(self, text: str):
+        """The graph of ``text``; raises if it is not a string or breaks the grammar."""
+        g = parse(text).graph
+        problems = self.grammar.violations(g)
+        if problems:
+            raise InstantiationError(f"{text!r} breaks the tiling grammar: {'; '.join(problems)}")
+        return g
+
+    def instantiate(self, text: str, rng: np.random.Generator, votes: int = 8, attempts: int = 8) -> InstantiateResult:
+        """Build a shape for a string: tagger vote, then transplanting (several attempts)."""
+        g = self.check_string(text)
+        cats = self.tagger.vote(g, votes, rng)
+        result = InstantiateResult(None, False, reason="no attempt")
+        for _ in range(attempts):
+            result = instantiate_graph(g, cats, self.categories, self.shape_set, rng, self.start_pose)
+            if result.success:
+                return result
+        return result

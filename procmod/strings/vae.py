@@ -1,0 +1,594 @@
+"""A sequence VAE over shape-graph strings (seed 001, section 5).
+
+Characters are tokens (letters, ``(``, ``)``, ring-label digits and ``%``), plus three
+specials: padding, start and end. The encoder is a recurrent network (GRU or LSTM,
+``layers`` deep) whose last hidden state gives the mean and log-variance of a diagonal
+Gaussian over a ``latent``-dimensional z; the decoder is a recurrent network started from
+a linear map of z that also sees z at every step, trained with teacher forcing. Loss =
+cross-entropy + beta * KL, beta rising linearly from 0 to ``kl_weight`` over the first
+``kl_warmup`` epochs (so the decoder learns to use z before the KL term pulls it to the
+prior).
+
+Decoding checks what it writes against the tiling grammar. With ``constrained=True`` each
+step masks (logit -inf) the tokens that cannot continue a valid string: the SMILES syntax
+(balanced brackets, ring labels after a letter, no self-loops or duplicate edges), node
+type pairs that never touch in the inputs, and neighbour multisets that no rule can still
+complete. Every decoded string is then checked in full (:meth:`Grammar.is_valid`);
+``constrained=False`` decodes freely, as the paper does, and only checks afterwards.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import torch
+from torch import nn
+
+from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.serialize import write_text_atomic
+from .codec import LETTERS, StringSyntaxError, parse
+from .shapes import Grammar
+
+PAD, SOS, EOS = 0, 1, 2
+SPECIALS = ("<pad>", "<s>", "</s>")
+
+
+class ModelFileError(ProcmodError):
+    """A trained model folder or checkpoint that cannot be read."""
+
+
+@dataclass
+class VAEConfig:
+    """Sizes and training constants of the string VAE (see docs/strings.md)."""
+
+    cell: str = "gru"  # "gru" or "lstm"
+    embed: int = 32
+    hidden: int = 128
+    layers: int = 1
+    latent: int = 24
+    kl_weight: float = 0.5  # final beta
+    kl_warmup: int = 10  # epochs of linear beta warm-up
+    epochs: int = 40
+    batch: int = 64
+    lr: float = 2e-3
+    max_len: int = 320
+    word_dropout: float = 0.1  # decoder inputs replaced by padding (Bowman et al.'s trick)
+
+    def check(self) -> None:
+        if self.cell not in ("gru", "lstm"):
+            raise InvalidArgumentError(f"cell must be 'gru' or 'lstm', got {self.cell!r}")
+        for name in ("embed", "hidden", "layers", "latent", "epochs", "batch", "max_len"):
+            if getattr(self, name) < 1:
+                raise InvalidArgumentError(f"{name} must be a positive integer, got {getattr(self, name)}")
+        if self.kl_weight < 0 or self.kl_warmup < 0 or self.lr <= 0 or not 0 <= self.word_dropout < 1:
+            raise InvalidArgumentError("kl_weight, kl_warmup must be >= 0, lr > 0, word_dropout in [0, 1)")
+
+
+class Vocab:
+    """Token ids of the characters strings use."""
+
+    def __init__(self, chars):
+        self.chars = sorted(set(chars))
+        self.itos = list(SPECIALS) + self.chars
+        self.stoi = {c: i for i, c in enumerate(self.itos)}
+
+    def __len__(self) -> int:
+        return len(self.itos)
+
+    def encode(self, text: str) -> list[int]:
+        try:
+            return [self.stoi[c] for c in text]
+        except KeyError as exc:
+            raise InvalidArgumentError(f"character {exc.args[0]!r} of {text!r} is not in the model's vocabulary "
+                                       f"({''.join(self.chars)})") from None
+
+    def decode(self, ids) -> str:
+        return "".join(self.itos[i] for i in ids if i > EOS)
+
+
+def _rnn(cell: str, input_size: int, hidden: int, layers: int):
+    kind = nn.GRU if cell == "gru" else nn.LSTM
+    return kind(input_size, hidden, num_layers=layers, batch_first=True)
+
+
+class StringVAE(nn.Module):
+    """Recurrent encoder -> Gaussian latent -> recurrent decoder conditioned on z."""
+
+    def __init__(self, vocab_size: int, config: VAEConfig):
+        super().__init__()
+        self.config = config
+        c = config
+        self.embedding = nn.Embedding(vocab_size, c.embed, padding_idx=PAD)
+        self.encoder = _rnn(c.cell, c.embed, c.hidden, c.layers)
+        self.to_mu = nn.Linear(c.hidden * c.layers, c.latent)
+        self.to_logvar = nn.Linear(c.hidden * c.layers, c.latent)
+        self.from_z = nn.Linear(c.latent, c.hidden * c.layers)
+        self.decoder = _rnn(c.cell, c.embed + c.latent, c.hidden, c.layers)
+        self.out = nn.Linear(c.hidden, vocab_size)
+
+    def encode(self, tokens: torch.Tensor, lengths: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean and log-variance ``(B, latent)`` of q(z | string)."""
+        packed = nn.utils.rnn.pack_padded_sequence(self.embedding(tokens), lengths.cpu(), batch_first=True,
+                                                   enforce_sorted=False)
+        _, h = self.encoder(packed)
+        if isinstance(h, tuple):
+            h = h[0]
+        h = h.transpose(0, 1).reshape(tokens.shape[0], -1)
+        return self.to_mu(h), self.to_logvar(h)
+
+    def initial_state(self, z: torch.Tensor):
+        c = self.config
+        h = torch.tanh(self.from_z(z)).reshape(z.shape[0], c.layers, c.hidden).transpose(0, 1).contiguous()
+        return (h, torch.zeros_like(h)) if c.cell == "lstm" else h
+
+    def decode_logits(self, z: torch.Tensor, inputs: torch.Tensor) -> torch.Tensor:
+        """Teacher-forced logits ``(B, T, vocab)`` for decoder inputs ``(B, T)``."""
+        e = self.embedding(inputs)
+        zz = z[:, None, :].expand(-1, inputs.shape[1], -1)
+        out, _ = self.decoder(torch.cat([e, zz], dim=2), self.initial_state(z))
+        return self.out(out)
+
+    def step(self, z, token, state):
+        e = self.embedding(token)[:, None, :]
+        out, state = self.decoder(torch.cat([e, z[:, None, :]], dim=2), state)
+        return self.out(out[:, 0]), state
+
+
+def _batch(vocab: Vocab, strings: list[str]):
+    ids = [vocab.encode(s) for s in strings]
+    t = max(len(x) for x in ids) + 1
+    enc = torch.full((len(ids), t - 1), PAD, dtype=torch.long)
+    dec_in = torch.full((len(ids), t), PAD, dtype=torch.long)
+    dec_out = torch.full((len(ids), t), PAD, dtype=torch.long)
+    for k, x in enumerate(ids):
+        enc[k, :len(x)] = torch.tensor(x)
+        dec_in[k, 0] = SOS
+        dec_in[k, 1:len(x) + 1] = torch.tensor(x)
+        dec_out[k, :len(x)] = torch.tensor(x)
+        dec_out[k, len(x)] = EOS
+    lengths = torch.tensor([len(x) for x in ids])
+    return enc, lengths, dec_in, dec_out
+
+
+# ---------------------------------------------------------------------------------------------
+# Constrained decoding state
+
+
+class _Prefix:
+    """What a decoded prefix has built so far, to mask impossible next tokens."""
+
+    __slots__ = ("types", "edges", "nbrs", "prev", "stack", "rings", "after_open", "after_close", "percent",
+                 "labels_here", "done", "incomplete")
+
+    def __init__(self):
+        self.types: list[str] = []
+        self.edges: set = set()
+        self.nbrs: list[list[str]] = []
+        self.prev = None
+        self.stack: list = []
+        self.rings: dict[int, int] = {}
+        self.after_open = self.after_close = False
+        self.percent = None  # "%" or "%d" inside a two-digit label, else None
+        self.labels_here: set = set()
+        self.done = False
+        self.incomplete: set = set()  # atoms whose neighbours are not yet a complete rule
+
+
+class Constraint:
+    """Per-step token masks from the string syntax and the tiling grammar."""
+
+    def __init__(self, vocab: Vocab, grammar: Grammar, max_nodes: int | None = None):
+        self.vocab, self.grammar, self.max_nodes = vocab, grammar, max_nodes
+        self.pairs = set()
+        self.max_count: dict[str, dict[str, int]] = {}
+        for t, keys in grammar.rules.items():
+            for key in keys:
+                for u in key:
+                    self.pairs.add((t, u))
+        # Partial neighbour multisets that some rule can still complete.
+        self.completable: dict[str, set] = {}
+        for t, keys in grammar.rules.items():
+            sub = set()
+            for key in keys:
+                counts = {}
+                for ch in key:
+                    counts[ch] = counts.get(ch, 0) + 1
+                sub.add(tuple(sorted(counts.items())))
+            self.completable[t] = sub
+        self._fit_cache: dict = {}
+        self.letters = [c for c in vocab.chars if c in LETTERS]
+        self.digits = [c for c in vocab.chars if c.isdigit()]
+
+    def _fits(self, t: str, nbrs: list[str]) -> bool:
+        key = (t, "".join(sorted(nbrs)))
+        hit = self._fit_cache.get(key)
+        if hit is None:
+            counts = {}
+            for ch in nbrs:
+                counts[ch] = counts.get(ch, 0) + 1
+            hit = t in self.completable and any(all(dict(k).get(ch, 0) >= n for ch, n in counts.items())
+                                                for k in self.completable[t])
+            self._fit_cache[key] = hit
+        return hit
+
+    def _edge_ok(self, p: _Prefix, a: int, b_type: str, b: int | None) -> bool:
+        ta = p.types[a]
+        if (ta, b_type) not in self.pairs:
+            return False
+        if not self._fits(ta, p.nbrs[a] + [b_type]):
+            return False
+        if b is not None:
+            if b == a or (min(a, b), max(a, b)) in p.edges:
+                return False
+            return self._fits(b_type, p.nbrs[b] + [ta])
+        return True
+
+    def allowed(self, p: _Prefix) -> list[str]:
+        """Characters (and '' for end) that may follow the prefix without a dead end one
+        step later (see :meth:`viable_after`)."""
+        return [c for c in self._allowed(p) if self.viable_after(p, c)]
+
+    def _allowed(self, p: _Prefix) -> list[str]:
+        if p.percent == "%":
+            return [d for d in self.digits if d != "0"]
+        if p.percent is not None:
+            return [d for d in self.digits if self._label_ok(p, int(p.percent[1] + d))]
+        out = []
+        budget_left = self.max_nodes is None or len(p.types) < self.max_nodes
+        for c in self.letters if budget_left else ():
+            if p.prev is None:
+                if not p.types:
+                    out.append(c)
+            elif self._edge_ok(p, p.prev, c, None):
+                out.append(c)
+        if p.prev is None:
+            return out
+        letter_next = bool(out)  # some letter may bond to the current atom
+        if not p.after_open:
+            if not p.after_close:
+                out += [d for d in self.digits if d != "0" and self._label_ok(p, int(d))]
+                if "%" in self.vocab.chars and any(self._label_ok(p, k) for k in range(10, 100)):
+                    out.append("%")
+            if letter_next:
+                out.append("(")  # a branch must be able to start with a letter
+        if p.stack and not p.after_open:
+            out.append(")")
+        if not p.stack and not p.rings and not p.after_open:
+            if all("".join(sorted(n)) in self.grammar.rules.get(t, ()) for t, n in zip(p.types, p.nbrs)):
+                out.append("")
+        return out
+
+    def _complete(self, t: str, nbrs: list[str]) -> bool:
+        return "".join(sorted(nbrs)) in self.grammar.rules.get(t, ())
+
+    def _has_room(self, p: _Prefix, a: int, extra: dict) -> bool:
+        nb = extra.get(a, p.nbrs[a])
+        return any(self._fits(p.types[a], nb + [u]) for u in self.completable)
+
+    def viable_after(self, p: _Prefix, c: str) -> bool:
+        """One-step look-ahead: after ``c``, can every unfinished atom still get neighbours?
+
+        Atoms that may still gain neighbours are the current one, the branch points on the
+        stack and atoms with an open ring label; an unfinished atom outside them is a dead end.
+        """
+        if c in ("", "(", "%") or (p.percent == "%"):
+            return True
+        current, stack, openers = p.prev, list(p.stack), dict(p.rings)
+        changed: dict[int, list[str]] = {}
+        new_type = None
+        if c in LETTERS:
+            new_type = c
+            current = len(p.types)
+            if p.prev is not None:
+                changed[p.prev] = p.nbrs[p.prev] + [c]
+        elif c == ")":
+            current = stack.pop()
+        else:  # a ring label digit
+            label = int(p.percent[1] + c) if p.percent is not None else int(c)
+            if label in openers:
+                b = openers.pop(label)
+                changed[b] = p.nbrs[b] + [p.types[p.prev]]
+                changed[p.prev] = p.nbrs[p.prev] + [p.types[b]]
+            else:
+                openers[label] = p.prev
+        incomplete = set(p.incomplete)
+        for a, nb in changed.items():
+            if self._complete(p.types[a], nb):
+                incomplete.discard(a)
+            else:
+                incomplete.add(a)
+        types = p.types if new_type is None else p.types + [new_type]
+        nbrs_of = dict(changed)
+        if new_type is not None:
+            nbrs_of[current] = [p.types[p.prev]] if p.prev is not None else []
+            if not self._complete(new_type, nbrs_of[current]):
+                incomplete.add(current)
+        active = {current, *stack, *openers.values()}
+        if not incomplete <= active:
+            return False
+        if incomplete or openers:
+            budget = self.max_nodes is None or len(types) < self.max_nodes
+            def room(a):
+                nb = nbrs_of.get(a, p.nbrs[a] if a < len(p.nbrs) else [])
+                return any(self._fits(types[a], nb + [u]) for u in self.completable)
+            if not any(room(a) for a in {current, *stack}):
+                return False
+            if not budget and incomplete - set(openers.values()) - {current, *stack}:
+                return False
+        return True
+
+    def _label_ok(self, p: _Prefix, label: int) -> bool:
+        a = p.prev
+        if label in p.labels_here:
+            return False
+        if label in p.rings:
+            b = p.rings[label]
+            return self._edge_ok(p, b, p.types[a], a)
+        # opening: the atom must be able to take one more neighbour of some type, and the node
+        # budget must leave room to write the ring's other end
+        if self.max_nodes is not None and len(p.types) >= self.max_nodes:
+            return False
+        return len(p.rings) < 99 and any(self._fits(p.types[a], p.nbrs[a] + [u]) for u in self.completable)
+
+    def advance(self, p: _Prefix, c: str) -> None:
+        if c == "":
+            p.done = True
+        elif c in LETTERS:
+            v = len(p.types)
+            p.types.append(c)
+            p.nbrs.append([])
+            p.incomplete.add(v)
+            if p.prev is not None:
+                self._add_edge(p, p.prev, v)
+            p.prev, p.after_open, p.after_close, p.labels_here = v, False, False, set()
+        elif c == "(":
+            p.stack.append(p.prev)
+            p.after_open = True
+        elif c == ")":
+            p.prev = p.stack.pop()
+            p.after_close = True
+        elif c == "%":
+            p.percent = "%"
+        elif c.isdigit():
+            if p.percent == "%":
+                p.percent = "%" + c
+                return
+            label = int(p.percent[1] + c) if p.percent is not None else int(c)
+            p.percent = None
+            p.labels_here.add(label)
+            if label in p.rings:
+                self._add_edge(p, p.rings.pop(label), p.prev)
+            else:
+                p.rings[label] = p.prev
+
+    def _add_edge(self, p, a, b):
+        p.edges.add((min(a, b), max(a, b)))
+        p.nbrs[a].append(p.types[b])
+        p.nbrs[b].append(p.types[a])
+        for x in (a, b):
+            if self._complete(p.types[x], p.nbrs[x]):
+                p.incomplete.discard(x)
+            else:
+                p.incomplete.add(x)
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass
+class TrainState:
+    epoch: int = 0
+    history: list = field(default_factory=list)  # rows: epoch, loss, recon, kl, beta, seconds
+
+
+class StringModel:
+    """A trained VAE with its vocabulary and grammar; decoding and latent sampling."""
+
+    def __init__(self, net: StringVAE, vocab: Vocab, grammar: Grammar, max_nodes: int | None = None):
+        self.net, self.vocab, self.grammar, self.max_nodes = net, vocab, grammar, max_nodes
+        self.constraint = Constraint(vocab, grammar, max_nodes)
+
+    @torch.no_grad()
+    def encode(self, strings: list[str]) -> np.ndarray:
+        """Posterior means of ``strings``, ``(n, latent)``."""
+        self.net.eval()
+        out = []
+        for k in range(0, len(strings), 256):
+            enc, lengths, _, _ = _batch(self.vocab, strings[k:k + 256])
+            mu, _ = self.net.encode(enc, lengths)
+            out.append(mu.numpy())
+        return np.concatenate(out).astype(np.float64)
+
+    @torch.no_grad()
+    def decode(self, z: np.ndarray, constrained: bool = True, greedy: bool = False,
+               rng: np.random.Generator | None = None, max_len: int | None = None,
+               temperature: float = 1.0) -> list[str | None]:
+        """Decode latent points; a string per point, or None when decoding ran past
+        ``max_len`` or (constrained) reached a prefix no token can continue.
+
+        Tokens are sampled (``rng`` required) at ``temperature``; ``greedy=True`` takes the
+        argmax instead (which tends to loop on periodic strings). Constrained decoding also
+        stops adding letters once a string has the model's ``max_nodes`` nodes (1.25 times
+        the largest training graph), so it must close its rings and branches.
+        """
+        if not greedy and rng is None:
+            raise InvalidArgumentError("sampled decoding needs a numpy Generator (rng)")
+        self.net.eval()
+        max_len = max_len or self.net.config.max_len
+        zt = torch.as_tensor(np.asarray(z, dtype=np.float32))
+        n = zt.shape[0]
+        state = self.net.initial_state(zt)
+        token = torch.full((n,), SOS, dtype=torch.long)
+        prefixes = [_Prefix() for _ in range(n)]
+        texts = [[] for _ in range(n)]
+        alive = np.ones(n, dtype=bool)
+        ok = np.ones(n, dtype=bool)
+        for _ in range(max_len + 1):
+            logits, state = self.net.step(zt, token, state)
+            logits = logits.numpy().astype(np.float64)
+            nxt = np.full(n, PAD, dtype=np.int64)
+            for k in np.nonzero(alive)[0]:
+                row = logits[k]
+                if constrained:
+                    allowed = self.constraint.allowed(prefixes[k])
+                    if not allowed:
+                        alive[k], ok[k] = False, False
+                        continue
+                    ids = [EOS if c == "" else self.vocab.stoi[c] for c in allowed]
+                    masked = np.full_like(row, -np.inf)
+                    masked[ids] = row[ids]
+                    row = masked
+                else:
+                    row = row.copy()
+                    row[[PAD, SOS]] = -np.inf
+                if greedy:
+                    t = int(np.argmax(row))
+                else:
+                    row = row / temperature
+                    p = np.exp(row - row.max())
+                    p /= p.sum()
+                    t = int(rng.choice(len(p), p=p))
+                nxt[k] = t
+                if t == EOS:
+                    alive[k] = False
+                    continue
+                c = self.vocab.itos[t]
+                texts[k].append(c)
+                if constrained:
+                    self.constraint.advance(prefixes[k], c)
+            if not alive.any():
+                break
+            token = torch.as_tensor(nxt)
+        out = []
+        for k in range(n):
+            if alive[k] or not ok[k]:
+                out.append(None)  # ran past max_len or dead-ended
+                continue
+            out.append("".join(texts[k]))
+        return out
+
+    def is_valid(self, text: str | None) -> bool:
+        if not text:
+            return False
+        try:
+            return self.grammar.is_valid(parse(text).graph)
+        except StringSyntaxError:
+            return False
+
+    def save(self, folder: str | os.PathLike, state: TrainState | None = None, optimizer=None) -> None:
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        meta = {"format": "procmod-string-vae/1", "config": asdict(self.net.config), "vocab": self.vocab.chars,
+                "grammar": self.grammar.to_json(), "max_nodes": self.max_nodes,
+                "train": asdict(state) if state is not None else None}
+        payload = {"model": self.net.state_dict()}
+        if optimizer is not None:
+            payload["optimizer"] = optimizer.state_dict()
+        tmp = folder / ".vae.pt.tmp"
+        torch.save(payload, tmp)
+        os.replace(tmp, folder / "vae.pt")
+        write_text_atomic(folder / "vae.json", json.dumps(meta, indent=1) + "\n")
+
+    @staticmethod
+    def load(folder: str | os.PathLike, with_optimizer: bool = False):
+        folder = Path(folder)
+        try:
+            meta = json.loads((folder / "vae.json").read_text())
+            payload = torch.load(folder / "vae.pt", weights_only=True)
+        except (OSError, json.JSONDecodeError, RuntimeError) as exc:
+            raise ModelFileError(f"cannot read the string VAE in {folder} ({exc}); train one with "
+                                 "'procmod strings train'") from None
+        if meta.get("format") != "procmod-string-vae/1":
+            raise ModelFileError(f"{folder / 'vae.json'}: not a procmod-string-vae/1 file")
+        config = VAEConfig(**meta["config"])
+        vocab = Vocab(meta["vocab"])
+        net = StringVAE(len(vocab), config)
+        net.load_state_dict(payload["model"])
+        model = StringModel(net, vocab, Grammar.from_json(meta["grammar"]), meta.get("max_nodes"))
+        state = TrainState(**meta["train"]) if meta.get("train") else TrainState()
+        if with_optimizer:
+            return model, state, payload.get("optimizer")
+        return model
+
+
+def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, config: VAEConfig = VAEConfig(),
+              seed: int = 0, progress=None, stop_after: int | None = None) -> StringModel:
+    """Train (or resume training) a string VAE, checkpointing into ``folder`` every epoch.
+
+    A folder that already holds a checkpoint of the same configuration resumes from its
+    last finished epoch. ``stop_after`` ends after that many epochs of this call (tests use
+    it to simulate a kill). Same strings, config and seed: same weights.
+    """
+    config.check()
+    folder = Path(folder)
+    if not strings:
+        raise InvalidArgumentError("no training strings")
+    chars = sorted({c for s in strings for c in s} | set("()") | set("123456789"))
+    resume = (folder / "vae.json").is_file() and (folder / "vae.pt").is_file()
+    torch.manual_seed(seed)
+    if resume:
+        model, state, opt_state = StringModel.load(folder, with_optimizer=True)
+        if asdict(model.net.config) != asdict(config) or model.vocab.chars != sorted(set(chars)):
+            raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new --out "
+                                 "or delete it")
+    else:
+        max_nodes = int(math.ceil(1.25 * max(sum(c.isalpha() for c in s) for s in strings)))
+        model, state, opt_state = StringModel(StringVAE(len(Vocab(chars)), config), Vocab(chars), grammar,
+                                              max_nodes), TrainState(), None
+    net = model.net
+    optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
+    if opt_state is not None:
+        optimizer.load_state_dict(opt_state)
+    done_now = 0
+    while state.epoch < config.epochs:
+        epoch = state.epoch
+        gen = torch.Generator().manual_seed(seed * 100003 + epoch)
+        order = torch.randperm(len(strings), generator=gen).tolist()
+        # Length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding).
+        chunk = 8 * config.batch
+        batches = []
+        for k in range(0, len(order), chunk):
+            part = sorted(order[k:k + chunk], key=lambda i: len(strings[i]))
+            batches += [part[j:j + config.batch] for j in range(0, len(part), config.batch)]
+        batches = [batches[i] for i in torch.randperm(len(batches), generator=gen).tolist()]
+        beta = config.kl_weight * min(1.0, (epoch + 1) / config.kl_warmup) if config.kl_warmup else config.kl_weight
+        net.train()
+        tot = rec_tot = kl_tot = 0.0
+        t0 = time.perf_counter()
+        for batch in batches:
+            enc, lengths, dec_in, dec_out = _batch(model.vocab, [strings[i] for i in batch])
+            mu, logvar = net.encode(enc, lengths)
+            eps = torch.randn(mu.shape, generator=gen)
+            z = mu + eps * torch.exp(0.5 * logvar)
+            if config.word_dropout > 0:
+                drop = (torch.rand(dec_in.shape, generator=gen) < config.word_dropout) & (dec_in > EOS)
+                dec_in = dec_in.masked_fill(drop, PAD)
+            logits = net.decode_logits(z, dec_in)
+            rec = nn.functional.cross_entropy(logits.reshape(-1, logits.shape[-1]), dec_out.reshape(-1),
+                                              ignore_index=PAD, reduction="sum") / enc.shape[0]
+            kl = -0.5 * torch.sum(1 + logvar - mu.pow(2) - logvar.exp()) / enc.shape[0]
+            loss = rec + beta * kl
+            optimizer.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(net.parameters(), 5.0)
+            optimizer.step()
+            n = enc.shape[0]
+            tot, rec_tot, kl_tot = tot + loss.item() * n, rec_tot + rec.item() * n, kl_tot + kl.item() * n
+        state.epoch += 1
+        row = {"epoch": state.epoch, "loss": tot / len(order), "recon": rec_tot / len(order),
+               "kl": kl_tot / len(order), "beta": beta, "seconds": round(time.perf_counter() - t0, 2)}
+        state.history.append(row)
+        model.save(folder, state, optimizer)
+        if progress is not None:
+            progress(row)
+        done_now += 1
+        if stop_after is not None and done_now >= stop_after:
+            break
+    return model
