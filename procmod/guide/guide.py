@@ -181,21 +181,43 @@ class GuidedProposer:
             if n_in != spec["n_in"]:
                 raise GuideError(f"site {key} of the guide expects {spec['n_in']} features but the model "
                                  f"gives {n_in}; the model's arguments changed since the guide was trained")
-            self._sites[(rule_name, choice)] = (spec["kind"], weights[key])
+            if settings.local:
+                idx, lows, spans = extractor.ranges(rule_name)
+                prefix = len(idx) if np.array_equal(idx, np.arange(len(idx))) else None
+            else:
+                idx = lows = spans = self._no_local
+                prefix = 0
+            # the distribution class last checked against the site's kind (None: not yet)
+            self._sites[(rule_name, choice)] = [spec["kind"], weights[key], idx, lows, spans, prefix, None]
+        self._pixel_frame = None  # (xmin, ymin, x scale, y scale) of the output raster
+        self._bases = {}  # shared discrete distributions -> their base parameters
 
-    def outputs(self, state, rule_name: str, args: tuple, weights) -> np.ndarray:
+    def _frame(self, canvas):
+        vp = canvas.viewport
+        self._pixel_frame = (vp.xmin, vp.ymin, canvas.width / (vp.xmax - vp.xmin),
+                             canvas.height / (vp.ymax - vp.ymin), 0.5 * (vp.xmin + vp.xmax),
+                             0.5 * (vp.ymin + vp.ymax))
+        return self._pixel_frame
+
+    def outputs(self, state, site, args: tuple) -> np.ndarray:
         """The site network's outputs for a choice made now (the fused fast path)."""
-        w1, b1, w2, b2 = weights
+        w1, b1, w2, b2 = site[1]
         if w1 is None:
             return b2
-        extractor = self.extractor
-        if self._use_local:
-            idx, lows, spans = extractor.ranges(rule_name)
-            raw = np.array([float(args[i]) for i in idx])
+        prefix = site[5]
+        if prefix is None:
+            raw = np.array([float(args[i]) for i in site[2]])
+        elif prefix:
+            raw = np.array(args[:prefix], dtype=np.float64)
         else:
-            raw = lows = spans = self._no_local
+            raw = self._no_local
         if self._use_target or self._use_partial:
-            px, py = extractor.pixel_position(state)
+            frame = self._pixel_frame or self._frame(state.output)
+            position = state.position
+            if position is None:  # nothing reported yet: look from the centre
+                position = (frame[4], frame[5])
+            px = (position[0] - frame[0]) * frame[2]
+            py = (position[1] - frame[1]) * frame[3]
         else:
             px = py = 0.0
         if self._use_partial:
@@ -209,7 +231,7 @@ class GuidedProposer:
                 self._layout = layout  # same sizes: later calls skip the comparison
         else:
             partial, layout = self._target_flat, self._layout
-        return site_outputs(raw, lows, spans, self._use_target, self._target_flat, self._use_partial, partial,
+        return site_outputs(raw, site[3], site[4], self._use_target, self._target_flat, self._use_partial, partial,
                             layout, px, py, w1, b1, w2, b2)
 
     def propose(self, ctx, name, dist, rng):
@@ -218,16 +240,26 @@ class GuidedProposer:
         if site is None:  # never seen in training: the prior
             value = dist.sample(rng)
             return value, dist.log_prob(value)
-        kind, weights = site
-        if head_kind(dist) != kind:
-            raise GuideError(f"site {site_key(rule_name, name)} draws a {type(dist).__name__} now but the "
-                             f"guide learned a {kind} proposal for it; retrain the guide")
-        out = self.outputs(ctx._state, rule_name, ctx.args, weights)
+        kind = site[0]
+        if type(dist) is not site[6]:
+            if head_kind(dist) != kind:
+                raise GuideError(f"site {site_key(rule_name, name)} draws a {type(dist).__name__} now but the "
+                                 f"guide learned a {kind} proposal for it; retrain the guide")
+            if not kind.startswith("categorical"):  # categoricals: check the size every time
+                site[6] = type(dist)
+        out = self.outputs(ctx._state, site, ctx.args)
         if kind == "real":
             mu0, s0 = base_params(kind, dist)
             return mixture_draw(out, self.mixture, mu0, s0, LOG_SCALE_MIN, LOG_SCALE_MAX,
                                 rng.random(), rng.standard_normal())
-        return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
+        if kind == "interval":
+            return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
+        base = self._bases.get(dist)
+        if base is None:
+            if len(self._bases) > 4096:  # a model that builds its coins afresh: don't grow forever
+                self._bases.clear()
+            base = self._bases[dist] = base_params(kind, dist)
+        return propose(kind, self.mixture, out, base, dist, rng)
 
 
 class RecordingProposer:
