@@ -2,6 +2,7 @@
 
 import json
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -106,7 +107,17 @@ def test_process_pool_gives_the_same_result(learned):
     assert pooled.table["O_Pstar"] == r.table["O_Pstar"]
 
 
-def test_cli_learn_sample_and_errors(tmp_path, capsys):
+@dataclass
+class _QuickOptions(SearchOptions):
+    init_iterations: int = 80
+    split_iterations: int = 40
+    warm_iterations: int = 10
+    final_iterations: int = 80
+
+
+def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
+    import procmod.learn.search
+    monkeypatch.setattr(procmod.learn.search, "SearchOptions", _QuickOptions)  # a fast search
     ex = tmp_path / "tiny.json"
     ex.write_text(json.dumps(tiny_set(4)))
     out = tmp_path / "run"

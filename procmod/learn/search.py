@@ -41,6 +41,7 @@ from .examples import ExampleSet
 from .likelihood import Compiled, fit, log_likelihood, sigmas_from_residuals
 from .preprocess import Dataset, preprocess
 from .program import ROOT, Program, program_from_json, program_to_json
+from ..parallel import InlineExecutor as _Inline
 from .structure import TAU_SNAP, initial_program, snap, split
 
 CHECKPOINT_FORMAT = "procmod-learn-checkpoint/1"
@@ -95,6 +96,7 @@ class Particle:
     rejected: list = field(default_factory=list)
     done: bool = False
     trace: list = field(default_factory=list)
+    cpu: float = 0.0  # CPU seconds of the last task run on this particle
 
 
 def _objective(ll: float, program: Program, lam: float) -> float:
@@ -125,7 +127,7 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
     """P0, fitted on the discrete likelihood (the search start) and, for reporting, a copy
     fitted on the full likelihood."""
     _torch_threads()
-    start = time.perf_counter()
+    start, cpu0 = time.perf_counter(), time.process_time()
     rng = np.random.default_rng(_seed(options.seed, "P0"))
     p0 = initial_program(data, rng)
     fit(p0, data, "discrete", options.init_iterations, lr=options.lr, estimator=options.estimator,
@@ -137,18 +139,19 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
     r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
             seed=_seed(options.seed, "P0free"))
     return {"p0": p0, "loglik": ll, "usage": usage, "p0_free": full, "p0_free_loglik": r["log_likelihood"],
-            "seconds": time.perf_counter() - start}
+            "seconds": time.perf_counter() - start, "cpu": time.process_time() - cpu0}
 
 
 def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int) -> Particle:
     """One split proposal of one particle."""
     _torch_threads()
-    start = time.perf_counter()
+    start, cpu0 = time.perf_counter(), time.process_time()
     program = particle.program
     while particle.queue and particle.queue[0] not in program.abstractions:
         particle.queue.pop(0)
     if not particle.queue:
         particle.done = True
+        particle.cpu = time.process_time() - cpu0
         return particle
     target = particle.queue.pop(0)
     rng = np.random.default_rng(seed)
@@ -180,6 +183,7 @@ def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: s
                complexity=particle.program.complexity())
     particle.trace.append(row)
     particle.done = not particle.queue
+    particle.cpu = time.process_time() - cpu0
     return particle
 
 
@@ -202,7 +206,7 @@ def gaussian_filter(program: Program, data: Dataset, tau: float) -> dict:
 def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase: str, seed: int) -> Particle:
     """Start phase 2 (``"fixed"``) or run the final pass (``"free"``) for one particle."""
     _torch_threads()
-    start = time.perf_counter()
+    start, cpu0 = time.perf_counter(), time.process_time()
     program = particle.program.copy()
     iterations = options.init_iterations if phase == "fixed" else options.final_iterations
     if phase == "free":
@@ -224,6 +228,7 @@ def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase:
                            "loglik": round(ll, 4), "queued": list(particle.queue),
                            "abstractions": len(program.abstractions), "complexity": program.complexity(),
                            "seconds": round(time.perf_counter() - start, 3)})
+    particle.cpu = time.process_time() - cpu0
     return particle
 
 
@@ -360,14 +365,16 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         state = {"fingerprint": fingerprint, "options": asdict(options), "round": 0, "phase": "discrete",
                  "rng": rng.bit_generator.state, "rounds": [], "elapsed": time.perf_counter() - t0,
                  "p0_free_loglik": init["p0_free_loglik"], "p0_loglik": init["loglik"],
-                 "programs": {"p0": init["p0"], "p0_free": init["p0_free"]}, "particles": particles}
+                 "programs": {"p0": init["p0"], "p0_free": init["p0_free"]}, "particles": particles,
+                 "cpu": init["cpu"]}
         if checkpoint is not None:
             save_checkpoint(checkpoint, state)
     else:
         rng.bit_generator.state = state["rng"]
         particles = state["particles"]
     elapsed0 = state["elapsed"]
-    t_resume = time.perf_counter()
+    t_resume, cpu_resume, cpu0 = time.perf_counter(), time.process_time(), state.get("cpu", 0.0)
+    task_cpu = 0.0
     while state["phase"] != "finished":
         phase = state["phase"]
         r = state["round"]
@@ -384,6 +391,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                 futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt))
                            for k, p in enumerate(particles)]
                 particles = [f.result() for f in futures]
+                task_cpu += sum(p.cpu for p in particles)
             state["phase"] = nxt
             row = {"round": r, "phase": nxt, "event": "phase", "objectives": [round(p.objective, 3) for p in particles],
                    "seconds": round(elapsed0 + time.perf_counter() - t_resume, 3)}
@@ -392,6 +400,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                                           _seed(options.seed, r, k)) for k in active}
             for k, f in futures.items():
                 particles[k] = f.result()
+                task_cpu += particles[k].cpu
             chosen = list(range(len(particles)))
             if len(particles) > 1:
                 particles, chosen = _resample(particles, rng)
@@ -402,6 +411,10 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         state["particles"] = particles
         state["rng"] = rng.bit_generator.state
         state["elapsed"] = elapsed0 + time.perf_counter() - t_resume
+        # CPU of the tasks plus this process (inline tasks are counted in both: subtract)
+        own = time.process_time() - cpu_resume
+        inline = isinstance(executor, _Inline)
+        state["cpu"] = cpu0 + (own if inline else own + task_cpu)
         if checkpoint is not None:
             save_checkpoint(checkpoint, state)
         if progress is not None:
@@ -419,6 +432,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         "A_star": len(program.abstractions),
         "O_Pstar": best.objective, "L_Pstar": best.loglik, "C_Pstar": program.complexity(),
         "seconds": state["elapsed"],
+        "cpu_seconds": state["cpu"],
         "rounds": state["round"],
         "splits_proposed": sum(1 for r in best.trace if "split" in r),
         "splits_accepted": sum(1 for r in best.trace if r.get("accepted")),

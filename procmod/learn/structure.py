@@ -24,6 +24,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -154,61 +155,77 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
 # ---- splitting -----------------------------------------------------------------------------
 
 def node_features(data: Dataset, assignment: np.ndarray, continuous: bool) -> np.ndarray:
-    """Per node: its place in the parent, slot-use bits, children's MAP abstractions and
-    (``continuous``) transforms, symmetry parameters; one row per node, unscaled."""
+    """Per node, what its abstraction controls, one row per node (unscaled).
+
+    Discrete phase: the node's place in its parent (parent type and slot), its slot-use
+    bits and its children's MAP abstractions. Continuous phase: the transforms of the
+    children it places and its symmetry parameters only (the modes phase 2 separates).
+    """
     places = sorted({(data.nodes[n.parent].type, n.parent_slot) for n in data.nodes if n.parent >= 0})
     place_index = {p: i for i, p in enumerate(places)}
     top = int(assignment.max()) + 1 if len(assignment) else 1
     rows = []
     for n in data.nodes:
+        width = len(data.slots.get(n.type, [])) if n.kind == "part" else 1
+        if continuous:
+            kx = np.full((width, 9), np.nan)  # unused slots: missing, imputed before clustering
+            for s, child in n.children:
+                if child.x is not None:
+                    kx[s] = child.x
+            sym = np.zeros(6) if n.sym is None else np.pad(n.sym, (0, 6 - len(n.sym)))
+            rows.append(np.concatenate([kx.ravel(), sym]))
+            continue
         f = np.zeros(len(places))
         if n.parent >= 0:
             f[place_index[(data.nodes[n.parent].type, n.parent_slot)]] = 1
-        parts = [f]
-        width = len(data.slots.get(n.type, [])) if n.kind == "part" else 1
         used = n.used.astype(float) if n.used is not None else np.ones(1)
-        parts.append(used)
         kids = np.zeros((width, top))
-        kx = np.zeros((width, 9))
         for s, child in n.children:
             kids[s, assignment[child.id]] = 1
-            if child.x is not None:
-                kx[s] = child.x
-        parts.append(kids.ravel())
-        if continuous:
-            parts.append(kx.ravel())
-            parts.append(np.zeros(6) if n.sym is None else np.pad(n.sym, (0, 6 - len(n.sym))))
-        rows.append(np.concatenate(parts))
+        rows.append(np.concatenate([f, used, kids.ravel()]))
     width = max(len(r) for r in rows)
-    return np.array([np.pad(r, (0, width - len(r))) for r in rows])
+    return np.array([np.pad(r, (0, width - len(r)), constant_values=np.nan) for r in rows])
 
 
-def _two_means(x: np.ndarray, rng: np.random.Generator, iterations: int = 20) -> np.ndarray:
-    """Labels 0/1 of a 2-means clustering (k-means++ start from ``rng``)."""
+def _two_means(x: np.ndarray, rng: np.random.Generator, iterations: int = 20, restarts: int = 4) -> np.ndarray:
+    """Labels 0/1 of a 2-means clustering: standardised features (missing values imputed
+    with the column mean) with a mild random weight per feature, k-means++ starts, the
+    best of ``restarts`` runs; all randomness from ``rng``."""
     n = len(x)
     if n < 2:
         return np.zeros(n, dtype=int)
+    x = np.array(x, dtype=np.float64)
+    if np.isnan(x).any():
+        with warnings.catch_warnings():  # all-missing columns: "mean of empty slice"
+            warnings.simplefilter("ignore", RuntimeWarning)
+            means = np.nanmean(x, axis=0)
+        x = np.where(np.isnan(x), np.nan_to_num(means)[None, :], x)
     scale = x.std(0)
-    z = x[:, scale > 1e-9] / scale[scale > 1e-9]
-    if z.shape[1] == 0:
+    keep = scale > 1e-9
+    if not keep.any():
         return (rng.random(n) < 0.5).astype(int)
-    first = int(rng.integers(n))
-    d = ((z - z[first]) ** 2).sum(1)
-    second = int(rng.choice(n, p=d / d.sum())) if d.sum() > 0 else int(rng.integers(n))
-    centres = z[[first, second]]
-    labels = np.zeros(n, dtype=int)
-    for _ in range(iterations):
-        dist = ((z[:, None, :] - centres[None]) ** 2).sum(-1)
-        new = dist.argmin(1)
-        if (new == labels).all() and _ > 0:
-            break
-        labels = new
-        for k in (0, 1):
-            if (labels == k).any():
-                centres[k] = z[labels == k].mean(0)
-    if labels.min() == labels.max():  # degenerate: split at random
-        labels = (rng.random(n) < 0.5).astype(int)
-    return labels
+    z = x[:, keep] / scale[keep] * rng.uniform(0.75, 1.25, int(keep.sum()))
+    best, best_cost = None, np.inf
+    for _ in range(restarts):
+        first = int(rng.integers(n))
+        d = ((z - z[first]) ** 2).sum(1)
+        second = int(rng.choice(n, p=d / d.sum())) if d.sum() > 0 else int(rng.integers(n))
+        centres = z[[first, second]].copy()
+        labels = -np.ones(n, dtype=int)
+        for _ in range(iterations):
+            new = ((z[:, None, :] - centres[None]) ** 2).sum(-1).argmin(1)
+            if (new == labels).all():
+                break
+            labels = new
+            for k in (0, 1):
+                if (labels == k).any():
+                    centres[k] = z[labels == k].mean(0)
+        cost = float(((z - centres[labels]) ** 2).sum())
+        if labels.min() != labels.max() and cost < best_cost - 1e-12:
+            best, best_cost = labels, cost
+    if best is None:  # degenerate: split at random
+        best = (rng.random(n) < 0.5).astype(int)
+    return best
 
 
 def split(program: Program, target: int, data: Dataset, resp: np.ndarray, ids: list,
@@ -223,7 +240,7 @@ def split(program: Program, target: int, data: Dataset, resp: np.ndarray, ids: l
     for key in [k for k in new.params if k.startswith(f"{target}.")]:
         new.params[f"{a2}." + key.split(".", 1)[1]] = new.params[key].copy()
     half = math.log(0.5)
-    for caller, slot in program.callers_of(target):
+    for caller, slot in new.callers_of(target):  # includes the new copy's own recursive slots
         callees = new.callee_list(caller, slot)
         pos = callees.index(target)
         key = f"{new.prefix(caller)}.s{slot}.callee"
