@@ -138,6 +138,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
             raise GuideError(f"{name} must be a positive integer, got {value!r}")
     if not lr > 0:
         raise GuideError(f"the learning rate must be positive, got {lr!r}")
+    job = None
     if traces is None:
         job, traces = load_traces(traces_dir, limit)
         if job.get("model") != model.name:
@@ -194,7 +195,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     guide.invalidate()
     guide.info = {"traces": n, "choices": n_choices, "iterations": iterations, "batch": batch, "lr": lr,
                   "adam_betas": list(ADAM_BETAS), "seed": seed, "final_nll": final, "seconds": seconds,
-                  "curve": curve}
+                  "trace_job": job, "curve": curve}
     weights, meta = guide.save(out)
     for p in (ckpt, ckpt_meta):
         if p.exists():
