@@ -138,3 +138,13 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     assert main(["learn", str(ex), "--out", str(out), "--particles", "0"]) == 2
     assert main(["sample", "spaceship", "--format", "examples", "--out", str(tmp_path / "x.json")]) == 2
     assert "not a learned program" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_dask_scheduler_gives_the_same_result(learned):
+    distributed = pytest.importorskip("distributed")
+    s, r = learned
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with open_executor(scheduler=cluster.scheduler_address) as ex:
+            on_dask = run_search(s, SearchOptions(particles=2, **QUICK), ex)
+    assert on_dask.table["O_Pstar"] == r.table["O_Pstar"]
