@@ -21,7 +21,9 @@ from .features import windows_flat
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
-@numba.njit(cache=True)
+# fastmath lets numba vectorise the dot products (reassociating the sums: results differ
+# from torch's in the last bits only); it is most of the cost of a guided choice.
+@numba.njit(cache=True, fastmath=True)
 def site_outputs(raw_local, lows, spans, use_target, target, use_partial, partial, layout, px, py,
                  w1, b1, w2, b2):
     """Features (local state, target windows, partial-output windows) -> MLP outputs.
