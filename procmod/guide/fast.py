@@ -17,6 +17,8 @@ import numba
 import numpy as np
 
 from .features import windows_flat
+from .network import LOG_SCALE_MAX as _LOG_SCALE_MAX
+from .network import LOG_SCALE_MIN as _LOG_SCALE_MIN
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -59,6 +61,46 @@ def site_outputs(raw_local, lows, spans, use_target, target, use_partial, partia
             acc += w2[i, j] * h[j]
         out[i] = acc
     return out
+
+
+@numba.njit(cache=True, fastmath=True)
+def guided_draw(kind, k, c0, s0, base, u, z, raw_local, lows, spans, use_target, target, use_partial, partial,
+                layout, px, py, w1, b1, w2, b2):
+    """One guided choice in one call: features -> MLP -> a draw from the proposal.
+
+    ``kind`` 0: real (mixture of ``k`` Gaussians around ``c0`` with unit ``s0``),
+    1: Bernoulli (prior logit ``base[0]``), 2: categorical (prior log-probabilities
+    ``base``). ``u`` (uniform) and ``z`` (standard normal) come from the caller's
+    generator. Returns (value, log q): the value is the real number, 1.0/0.0, or the
+    category index.
+    """
+    out = site_outputs(raw_local, lows, spans, use_target, target, use_partial, partial, layout, px, py,
+                       w1, b1, w2, b2)
+    if kind == 0:
+        return mixture_draw(out, k, c0, s0, _LOG_SCALE_MIN, _LOG_SCALE_MAX, u, z)
+    if kind == 1:
+        logit = base[0] + out[0]
+        # log sigmoid(+-logit), computed stably
+        log_on = -(max(-logit, 0.0) + math.log1p(math.exp(-abs(logit))))
+        log_off = -(max(logit, 0.0) + math.log1p(math.exp(-abs(logit))))
+        if u < math.exp(log_on):
+            return 1.0, log_on
+        return 0.0, log_off
+    n = out.shape[0]
+    top = base[0] + out[0]
+    for j in range(1, n):
+        top = max(top, base[j] + out[j])
+    total = 0.0
+    for j in range(n):
+        total += math.exp(base[j] + out[j] - top)
+    log_norm = top + math.log(total)
+    acc = 0.0
+    for j in range(n):
+        lp = base[j] + out[j] - log_norm
+        acc += math.exp(lp)
+        if u < acc:
+            return float(j), lp
+    return float(n - 1), base[n - 1] + out[n - 1] - log_norm
 
 
 @numba.njit(cache=True)

@@ -15,9 +15,9 @@ import numpy as np
 import torch
 
 from ..core.serialize import write_text_atomic
-from .fast import mixture_draw, site_outputs
+from .fast import guided_draw, site_outputs
 from .features import FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
-from .network import (LOG_SCALE_MAX, LOG_SCALE_MIN, SiteNet, base_params, encode_value, head_kind,
+from .network import (SiteNet, base_params, encode_value, head_kind,
                       initial_bias, n_outputs, propose)
 
 FORMAT = "procmod-guide/1"
@@ -199,11 +199,9 @@ class GuidedProposer:
                              0.5 * (vp.ymin + vp.ymax))
         return self._pixel_frame
 
-    def outputs(self, state, site, args: tuple) -> np.ndarray:
-        """The site network's outputs for a choice made now (the fused fast path)."""
+    def _inputs(self, state, site, args: tuple) -> tuple:
+        """The kernel arguments (features' sources + network) of a choice made now."""
         w1, b1, w2, b2 = site[1]
-        if w1 is None:
-            return b2
         prefix = site[5]
         if prefix is None:
             raw = np.array([float(args[i]) for i in site[2]])
@@ -231,8 +229,12 @@ class GuidedProposer:
                 self._layout = layout  # same sizes: later calls skip the comparison
         else:
             partial, layout = self._target_flat, self._layout
-        return site_outputs(raw, site[3], site[4], self._use_target, self._target_flat, self._use_partial, partial,
-                            layout, px, py, w1, b1, w2, b2)
+        return (raw, site[3], site[4], self._use_target, self._target_flat, self._use_partial, partial,
+                layout, px, py, w1, b1, w2, b2)
+
+    def outputs(self, state, site, args: tuple) -> np.ndarray:
+        """The site network's outputs for a choice made now (the fused fast path)."""
+        return site_outputs(*self._inputs(state, site, args))
 
     def propose(self, ctx, name, dist, rng):
         rule_name = ctx.rule.__name__
@@ -247,19 +249,23 @@ class GuidedProposer:
                                  f"guide learned a {kind} proposal for it; retrain the guide")
             if not kind.startswith("categorical"):  # categoricals: check the size every time
                 site[6] = type(dist)
-        out = self.outputs(ctx._state, site, ctx.args)
         if kind == "real":
             mu0, s0 = base_params(kind, dist)
-            return mixture_draw(out, self.mixture, mu0, s0, LOG_SCALE_MIN, LOG_SCALE_MAX,
-                                rng.random(), rng.standard_normal())
+            return guided_draw(0, self.mixture, mu0, s0, self._no_local, rng.random(), rng.standard_normal(),
+                               *self._inputs(ctx._state, site, ctx.args))
         if kind == "interval":
+            out = self.outputs(ctx._state, site, ctx.args)
             return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
         base = self._bases.get(dist)
         if base is None:
             if len(self._bases) > 4096:  # a model that builds its coins afresh: don't grow forever
                 self._bases.clear()
-            base = self._bases[dist] = base_params(kind, dist)
-        return propose(kind, self.mixture, out, base, dist, rng)
+            base = self._bases[dist] = np.array(base_params(kind, dist), dtype=np.float64)
+        if kind == "bernoulli":
+            value, lq = guided_draw(1, 0, 0.0, 0.0, base, rng.random(), 0.0, *self._inputs(ctx._state, site, ctx.args))
+            return value == 1.0, lq
+        index, lq = guided_draw(2, 0, 0.0, 0.0, base, rng.random(), 0.0, *self._inputs(ctx._state, site, ctx.args))
+        return dist.labels[int(index)], lq
 
 
 class RecordingProposer:

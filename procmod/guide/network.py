@@ -124,11 +124,13 @@ class SiteNet(torch.nn.Module):
         return self.constant.expand(x.shape[0], -1)
 
     def numpy_weights(self) -> tuple:
-        """(W1, b1, W2, b2) as numpy arrays, or (None, None, None, constant)."""
+        """(W1, b1, W2, b2) as numpy arrays; a constant network has no hidden units
+        (empty W1, b1, W2) and its vector as b2."""
         if self.n_in > 0:
-            return tuple(t.detach().numpy().copy() for t in
+            return tuple(np.ascontiguousarray(t.detach().numpy()).copy() for t in
                          (self.hidden.weight, self.hidden.bias, self.out.weight, self.out.bias))
-        return None, None, None, self.constant.detach().numpy().copy()
+        constant = self.constant.detach().numpy().copy()
+        return np.zeros((0, 0)), np.zeros(0), np.zeros((len(constant), 0)), constant
 
 
 def _mixture_parts(out: torch.Tensor, k: int):
