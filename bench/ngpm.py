@@ -14,7 +14,7 @@ mean over targets with a 95% bootstrap interval (over targets).
 runs; a finished guide is reused, an interrupted one resumes from its checkpoint):
 the four feature conditions (constant, local, local+target, all; 4-component mixtures,
 all traces), the no-mixture ablation, training-set sizes for Figure 6b, and a circuit
-guide (local features; the circuit score has no target image). ``eval`` runs the
+guide (local state + partial-output features; the circuit score has no target image). ``eval`` runs the
 comparisons; ``rate`` times trace generation with 2 worker processes. Results:
 bench/results/ngpm.json, ngpm.png, ngpm_circuit.png.
 """
@@ -71,7 +71,7 @@ def train_all(model, traces_dir: Path, circuit_dir: Path | None, iterations: int
     jobs = [(name, traces, *spec) for name, spec in guide_specs(count or len(traces)).items()]
     if circuit_dir is not None:
         _, circuit = load_traces(circuit_dir)
-        jobs.append(("circuit", circuit, "local", 4, len(circuit)))
+        jobs.append(("circuit", circuit, "local+partial", 4, len(circuit)))
     for name, trace_list, features, mixture, used in jobs:
         if only and name not in only:
             continue
@@ -279,6 +279,9 @@ def main() -> None:
             train_all(model, args.traces, args.circuit_traces, args.iterations, args.count, args.only))
     if "eval" in args.stages:
         results.update(evaluate(model, args))
+        # every guide's training record, from its metadata (training jobs may run in parallel)
+        results["training"] = {p.stem: {k: v for k, v in json.loads(p.read_text())["info"].items() if k != "curve"}
+                               for p in sorted(GUIDES.glob("*.json")) if not p.name.endswith(".ckpt.json")}
     if "rate" in args.stages:
         results["trace_rate_2_workers"] = measure_rate()
     RESULTS.mkdir(parents=True, exist_ok=True)

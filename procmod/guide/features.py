@@ -57,11 +57,16 @@ class FeatureSettings:
 
     @classmethod
     def condition(cls, name: str) -> "FeatureSettings":
-        """Settings for one of seed 004's conditions: constant, local, local+target, all."""
-        try:
+        """Settings by name: seed 004's conditions (constant, local, local+target, all) or
+        any ``+``-joined set of local, target and partial (e.g. ``local+partial`` for a
+        score without a target image, such as the circuit)."""
+        if name in CONDITIONS:
             return cls(*CONDITIONS[name])
-        except KeyError:
-            raise GuideError(f"unknown feature condition {name!r}; choose one of {', '.join(CONDITIONS)}") from None
+        parts = name.split("+")
+        if not name or any(p not in ("local", "target", "partial") for p in parts):
+            raise GuideError(f"unknown feature condition {name!r}; choose one of {', '.join(CONDITIONS)}, "
+                             "or join local, target and partial with '+'")
+        return cls("local" in parts, "target" in parts, "partial" in parts)
 
     @property
     def name(self) -> str:
