@@ -143,5 +143,5 @@ def test_real_sets_preprocess():
     body = d.slots["body"]
     assert body.count("refl(wing)") == 2
     groups = [sorted(body[i] for i in g) for g in d.groups["body"]]
-    assert ["engine", "refl(engine)"] in groups  # centre engine and side pair overlap
+    assert ["engine", "refl(engine)", "trans(engine)"] in groups  # the three engine layouts overlap
     assert ["refl(wing)", "refl(wing)"] in groups  # one wide pair vs two thin pairs

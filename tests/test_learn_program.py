@@ -28,6 +28,20 @@ def load(name, which=None):
     return s
 
 
+def valid_assignment(p, d):
+    """Node id -> abstraction: for every node the first abstraction its caller may call."""
+    out = {}
+
+    def visit(node, a):
+        out[node.id] = a
+        for slot, child in node.children:
+            visit(child, p.abstractions[a].callees[slot][0])
+
+    for r in d.roots:
+        visit(d.nodes[r], p.root_callees[0])
+    return out
+
+
 def _flatten(node_dict):
     out = [(node_dict["part"], np.array(node_dict["transform"]))]
     for c in node_dict["children"]:
@@ -42,7 +56,7 @@ def test_dp_equals_the_replayed_derivation_and_regenerates_the_example(name):
     p = initial_program(d, np.random.default_rng(0))
     fit(p, d, "free", 15)
     model = program_model(p, "test")
-    assign = {n.id: next(a.id for a in p.abstractions.values() if a.type == n.type) for n in d.nodes}
+    assign = valid_assignment(p, d)
     r = replay(model, example_choice_map(p, d, d.roots[0], assign), np.random.default_rng(0))
     assert not r.unused and r.log_fresh == 0.0
     assert r.derivation.log_prior == pytest.approx(log_likelihood(p, d, "free"), rel=1e-9, abs=1e-9)
@@ -68,7 +82,7 @@ def test_dp_marginalises_over_latent_abstractions_exactly():
     exact = log_likelihood(p2, d, "free")
     model = program_model(p2, "test")
     wings = [n.id for n in d.nodes if n.type == "wing"]
-    base = {n.id: next(a.id for a in p2.abstractions.values() if a.type == n.type) for n in d.nodes}
+    base = valid_assignment(p2, d)
     terms = []
     for choice in itertools.product([wing, a2], repeat=len(wings)):
         assign = {**base, **dict(zip(wings, choice))}

@@ -8,13 +8,14 @@ nothing of procmod) and writes the format directly.
 
 Sets (world y is up):
 
-* ``spaceships`` — a body with one wide reflected pair of wings or two thin pairs (with
-  optional reflected guns above or below their tips), a rear engine or a reflected pair
-  of side engines (they overlap: co-occurrence conflict), an optional tilted fin on top
-  or keel below, a cockpit.
-* ``castles`` — a keep with four corner towers (a rotational group of four) with
-  optional roofs, an outer wall built recursively from 2-5 segments bent left or right
-  by a per-castle angle, an optional gate and flag.
+* ``spaceships`` — a body with one wide reflected pair of wings or two thin pairs (each
+  pair with optional reflected guns, above or below the tips), a rear engine, a
+  reflected pair of side engines or a row of three small ones (they overlap:
+  co-occurrence conflict), an optional tilted fin on top or keel below, optional
+  reflected tail fins, a cockpit with an optional antenna.
+* ``castles`` — a keep with 4-6 towers around it (a rotational group) with optional
+  roofs and flags, an outer wall built recursively from 2-5 segments bent left or right
+  by a per-wall angle, an optional second wall behind, an optional gate.
 * ``ornaments`` — a centre disc with a rotational group of 3-6 stems; each stem is a
   recursive chain of 1-4 segments curling left or right, with optional reflected leaf
   pairs, ending in a flower (a rotational group of five petals) or a bud.
@@ -149,25 +150,45 @@ def spaceship(rng):
     else:  # two thin pairs, front and back
         pairs = [(half * rng.uniform(0.15, 0.4), rng.uniform(1.2, 1.8), 0.8),
                  (-half * rng.uniform(0.25, 0.5), rng.uniform(1.2, 1.8), 0.8)]
-    guns = rng.random() < 0.5
     gun_side = 1.0 if rng.random() < 0.5 else -1.0  # guns above or below the wing tips
     for z, span, chord in pairs:
         theta = rng.uniform(-0.35, 0.35)
         frame = T(0.55, 0.0, z) @ R("z", theta)
+        guns = rng.random() < 0.5
         wing = node("wing", frame @ S(span, 1.0, chord),
                     [node("gun", frame @ T(0.8 * span, 0.12 * gun_side, 0.2))] if guns else [])
         children += [wing, mapped(MX, wing)]
-    if rng.random() < 0.5:
+    kind = rng.integers(3)
+    if kind == 0:  # one big rear engine
         children.append(node("engine", T(0, 0, -half - 0.3) @ S(1.4, 1.4, 1.0)))
-    else:
+    elif kind == 1:  # a reflected pair of side engines
         engine = node("engine", T(0.45, 0, -half - 0.2) @ S(0.8, 0.8, 1.2))
         children += [engine, mapped(MX, engine)]
+    else:  # a row of three small engines
+        children += [node("engine", T(-0.4 + 0.4 * j, 0, -half - 0.25) @ S(0.45, 0.45, 0.8)) for j in range(3)]
     if rng.random() < 0.6:
         side = 1.0 if rng.random() < 0.5 else -1.0  # a fin on top or a keel below
         children.append(node("fin", T(0, 0.7 * side, -half * rng.uniform(0.3, 0.7)) @ R("x", side * rng.uniform(-0.4, 0.0))))
-    children.append(node("cockpit", T(0, 0.15, half - 0.3) @ S(0.7, 0.5, rng.uniform(0.8, 1.4))))
+    if rng.random() < 0.4:  # a reflected pair of tail fins
+        tail = node("fin", T(0.45, 0.55, -half * 0.8) @ R("z", -0.5))
+        children += [tail, mapped(MX, tail)]
+    cz = rng.uniform(0.8, 1.4)
+    antenna = [node("antenna", T(0, 0.6, half - 0.3 + 0.3 * cz))] if rng.random() < 0.5 else []
+    children.append(node("cockpit", T(0, 0.15, half - 0.3) @ S(0.7, 0.5, cz), antenna))
     order = rng.permutation(len(children))
     return node("body", S(1.0, 1.0, L), [children[i] for i in order])
+
+
+def wall_chain(start, n_walls, bend):
+    """A recursive wall: each segment's child is the next one, turned by ``bend``."""
+    segments, frame = [], start
+    for i in range(n_walls):
+        segments.append(frame @ T(1.0, 0, 0))
+        frame = frame @ T(2.0, 0, 0) @ R("y", -bend)
+    wall = None
+    for m in reversed(segments):
+        wall = node("wall", m, [wall] if wall else [])
+    return wall
 
 
 def castle(rng):
@@ -175,28 +196,24 @@ def castle(rng):
     children = []
     h = rng.uniform(3.5, 5.0)
     roof = rng.random() < 0.7
+    flag = rng.random() < 0.5
     roof_h = rng.uniform(1.0, 1.8)
     c = 2.0 * kx
-    tower = node("tower", T(c, h / 2, c) @ S(1.2, h, 1.2),
-                 [node("roof", T(c, h, c) @ S(1.6, roof_h, 1.6))] if roof else [])
-    for j in range(4):
-        children.append(mapped(R("y", j * math.pi / 2), tower))
-    n_walls = int(rng.integers(2, 6))
-    bend = rng.uniform(0.4, 0.6) * (1 if rng.random() < 0.5 else -1)  # curving one way or the other
-    start = T(-c - 1.0, 0.6, c + 2.5) @ R("y", 0.3)
-    segments = []
-    frame = start
-    for i in range(n_walls):
-        segments.append(frame @ T(1.0, 0, 0))
-        frame = frame @ T(2.0, 0, 0) @ R("y", -bend)
-    wall = None
-    for m in reversed(segments):
-        wall = node("wall", m, [wall] if wall else [])
-    children.append(wall)
+    kids = [node("roof", T(c, h, c) @ S(1.6, roof_h, 1.6))] if roof else []
+    if flag:
+        kids.append(node("flag", T(c, h + (roof_h if roof else 0.0) + 0.3, c)))
+    tower = node("tower", T(c, h / 2, c) @ S(1.2, h, 1.2), kids)
+    n_towers = int(rng.integers(4, 7))
+    for j in range(n_towers):
+        children.append(mapped(R("y", j * 2 * math.pi / n_towers), tower))
+    sign = lambda: 1 if rng.random() < 0.5 else -1  # noqa: E731 - walls curve one way or the other
+    children.append(wall_chain(T(-c - 1.0, 0.6, c + 2.5) @ R("y", 0.3), int(rng.integers(2, 6)),
+                               rng.uniform(0.4, 0.6) * sign()))
+    if rng.random() < 0.5:  # a second wall behind the keep
+        children.append(wall_chain(T(c + 1.0, 0.6, -c - 2.5) @ R("y", math.pi + 0.3), int(rng.integers(2, 5)),
+                                   rng.uniform(0.4, 0.6) * sign()))
     if rng.random() < 0.5:
         children.append(node("gate", T(rng.uniform(-0.5, 0.5), 0.75, c + 0.1)))
-    if rng.random() < 0.5:
-        children.append(node("flag", T(rng.uniform(-1, 1), 3.0 * ky + 0.3, rng.uniform(-1, 1))))
     order = rng.permutation(len(children))
     return node("keep", T(0, 1.5 * ky, 0) @ S(kx, ky, kx), [children[i] for i in order])
 
@@ -281,6 +298,7 @@ SETS = {
         "fin": {"box": [0.1, 0.8, 1.0]},
         "gun": {"box": [0.12, 0.12, 1.2]},
         "cockpit": {"mesh": "parts/cockpit.obj"},
+        "antenna": {"box": [0.05, 0.6, 0.05]},
     }, {
         "wing": extrude([(0, -0.5), (1, -0.1), (1, 0.2), (0, 0.5)], 0.1, "y"),
         "engine": prism(6, 0.5, -0.5, 0.5, "z"),
