@@ -54,31 +54,37 @@ def as_transform(m) -> tuple:
     return tuple(float(v) for v in np.asarray(m, dtype=np.float64).reshape(16))
 
 
+# The transform helpers run for every part a 3D model emits, so they work on plain tuples
+# (numpy's per-call overhead on 4x4 arrays cost more than the voxelization of a part).
+
 def translation(x: float, y: float, z: float) -> tuple:
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return as_transform(m)
+    return (1.0, 0.0, 0.0, float(x), 0.0, 1.0, 0.0, float(y), 0.0, 0.0, 1.0, float(z), 0.0, 0.0, 0.0, 1.0)
 
 
 def scaling(sx: float, sy: float, sz: float) -> tuple:
-    return as_transform(np.diag([sx, sy, sz, 1.0]))
+    return (float(sx), 0.0, 0.0, 0.0, 0.0, float(sy), 0.0, 0.0, 0.0, 0.0, float(sz), 0.0, 0.0, 0.0, 0.0, 1.0)
 
 
 def rotation(axis: str, angle: float) -> tuple:
     """Rotation by ``angle`` radians about the x, y or z axis."""
     c, s = math.cos(angle), math.sin(angle)
-    m = np.eye(4)
+    m = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
     i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-    return as_transform(m)
+    m[4 * i + i], m[4 * i + j], m[4 * j + i], m[4 * j + j] = c, -s, s, c
+    return tuple(m)
+
+
+def _product(a: tuple, b: tuple) -> tuple:
+    return tuple(sum(a[4 * r + k] * b[4 * k + c] for k in range(4)) for r in range(4) for c in range(4))
 
 
 def compose(*transforms) -> tuple:
     """The product ``T1 @ T2 @ ...`` (apply the last one first)."""
-    m = np.eye(4)
+    m = IDENTITY
     for t in transforms:
-        m = m @ matrix(t)
-    return as_transform(m)
+        t = t if isinstance(t, tuple) and len(t) == 16 else as_transform(t)
+        m = _product(m, tuple(float(v) for v in t))
+    return m
 
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])

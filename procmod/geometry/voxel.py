@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .solid import Box, Cylinder, Mesh, matrix, part_bounds, part_triangles
+from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles
 
 
 class VoxelGrid(NamedTuple):
@@ -44,12 +44,16 @@ class VoxelGrid(NamedTuple):
 
 
 @numba.njit(cache=True, inline="always")
-def _hit(counts, nx, ny, nz, i, j, k, gain, state):
-    # state: [new voxels, overlaps, outside] as floats, plus gain sum at index 3
+def _hit(counts, nx, ny, nz, i, j, k, gain, state, record):
+    # state: [new voxels, overlaps, outside] as floats, gain sum at index 3, and at index 4
+    # the number of voxel indices written to ``record`` (when it is not empty)
     if i < 0 or j < 0 or k < 0 or i >= nx or j >= ny or k >= nz:
         state[2] += 1
         return
     v = (i * ny + j) * nz + k
+    if record.shape[0] > 0:
+        record[int(state[4])] = v
+        state[4] += 1
     c = counts[v]
     if c == 0:
         state[0] += 1
@@ -62,7 +66,7 @@ def _hit(counts, nx, ny, nz, i, j, k, gain, state):
 
 
 @numba.njit(cache=True)
-def _voxelize_solid(counts, shape, origin, h, inv, kind, p0, p1, p2, lo, hi, gain, state):
+def _voxelize_solid(counts, shape, origin, h, inv, kind, p0, p1, p2, lo, hi, gain, state, record):
     """kind 0: box with half extents (p0, p1, p2); kind 1: frustum r0=p0, r1=p1, length=p2."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     i0 = int(np.floor((lo[0] - origin[0]) / h - 0.5)) + 1
@@ -88,11 +92,11 @@ def _voxelize_solid(counts, shape, origin, h, inv, kind, p0, p1, p2, lo, hi, gai
                         r = p0 + (p1 - p0) * (lz / p2 if p2 > 0 else 0.0)
                         inside = lx * lx + ly * ly <= r * r
                 if inside:
-                    _hit(counts, nx, ny, nz, i, j, k, gain, state)
+                    _hit(counts, nx, ny, nz, i, j, k, gain, state, record)
 
 
 @numba.njit(cache=True)
-def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state):
+def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state, record):
     """Ray parity along +z through every voxel column of the mesh's bounding box."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     i0 = int(np.floor((lo[0] - origin[0]) / h - 0.5))
@@ -126,10 +130,76 @@ def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state):
                 k_lo = int(np.ceil((zz[p] - origin[2]) / h - 0.5))
                 k_hi = int(np.floor((zz[p + 1] - origin[2]) / h - 0.5))
                 for k in range(k_lo, k_hi + 1):
-                    _hit(counts, nx, ny, nz, i, j, k, gain, state)
+                    _hit(counts, nx, ny, nz, i, j, k, gain, state, record)
 
 
+@numba.njit(cache=True)
+def _add_voxels(counts, voxels, gain, state):
+    """Add a part already voxelized (its in-grid voxel indices) to the hit counts."""
+    for v in voxels:
+        c = counts[v]
+        if c == 0:
+            state[0] += 1
+            if gain.shape[0] > 0:
+                state[3] += gain[v]
+        else:
+            state[1] += 1
+        if c < 255:
+            counts[v] = c + 1
+
+
+def _inverse(t: tuple) -> np.ndarray:
+    """Inverse of an affine 4x4 transform tuple (plain-Python 3x3 cofactors: faster than
+    numpy's general inverse on one small matrix)."""
+    a, b, c, tx, d, e, f, ty, g, h, i, tz = t[:12]
+    A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
+    det = a * A + b * B + c * C
+    if det == 0.0:
+        raise ValueError("a part's transform is singular")
+    r = 1.0 / det
+    m00, m01, m02 = A * r, -(b * i - c * h) * r, (b * f - c * e) * r
+    m10, m11, m12 = B * r, (a * i - c * g) * r, -(a * f - c * d) * r
+    m20, m21, m22 = C * r, -(a * h - b * g) * r, (a * e - b * d) * r
+    return np.array(((m00, m01, m02, -(m00 * tx + m01 * ty + m02 * tz)),
+                     (m10, m11, m12, -(m10 * tx + m11 * ty + m12 * tz)),
+                     (m20, m21, m22, -(m20 * tx + m21 * ty + m22 * tz)),
+                     (0.0, 0.0, 0.0, 1.0)))
+
+
+class PartCache:
+    """Voxelized parts by value, for engines that replay whole derivations.
+
+    GA offspring and MCMC proposals are evaluated by replaying the full derivation, and
+    most of their parts are the parent's, unchanged: an equal part (same shape, transform
+    and tag) on the same grid covers the same voxels, so its voxel indices are looked up
+    instead of voxelized again. Bounded: past ``max_voxels`` stored indices it starts over.
+    """
+
+    def __init__(self, max_voxels: int = 10_000_000):
+        self.max_voxels = max_voxels
+        self.entries = {}
+        self.stored = 0
+        self.hits = self.misses = 0
+
+    def get(self, part):
+        entry = self.entries.get(part)
+        if entry is None:
+            self.misses += 1
+        else:
+            self.hits += 1
+        return entry
+
+    def put(self, part, entry) -> None:
+        if self.stored + len(entry[0]) > self.max_voxels:
+            self.entries.clear()
+            self.stored = 0
+        self.entries[part] = entry
+        self.stored += len(entry[0])
+
+
+_PART_CACHES: dict = {}  # grid -> PartCache (one per process)
 _NO_GAIN = np.zeros(0)
+_NO_RECORD = np.zeros(0, dtype=np.int64)
 
 
 class VoxelScene:
@@ -149,7 +219,7 @@ class VoxelScene:
     """
 
     __slots__ = ("grid", "counts", "gain", "gain_total", "filled_count", "overlaps", "outside",
-                 "extent", "n_parts", "_shape", "_origin", "_state")
+                 "extent", "n_parts", "_shape", "_origin", "_state", "part_cache")
 
     def __init__(self, grid: VoxelGrid, gain=None):
         self.grid = VoxelGrid(tuple(grid.origin), float(grid.size), tuple(int(n) for n in grid.shape))
@@ -162,7 +232,12 @@ class VoxelScene:
         self.extent = None
         self._shape = np.array(self.grid.shape, dtype=np.int64)
         self._origin = np.array(self.grid.origin, dtype=np.float64)
-        self._state = np.zeros(4)
+        self._state = np.zeros(5)
+        self.part_cache = None
+
+    def use_part_cache(self) -> None:
+        """Look parts up in this process's cache for the grid (see :class:`PartCache`)."""
+        self.part_cache = _PART_CACHES.setdefault(self.grid, PartCache())
 
     def copy(self) -> "VoxelScene":
         other = type(self).__new__(type(self))
@@ -176,26 +251,42 @@ class VoxelScene:
         """Boolean ``shape`` array of covered voxels."""
         return (self.counts > 0).reshape(self.grid.shape)
 
-    def add(self, part) -> int:
-        """Voxelize one part; returns the number of newly covered voxels."""
-        lo, hi = part_bounds(part)
-        state = self._state
-        state[:] = 0.0
+    def _voxelize(self, part, lo, hi, state, record) -> None:
         h = self.grid.size
         if isinstance(part, (Box, Cylinder)):
-            inv = np.linalg.inv(matrix(part.transform))
+            inv = _inverse(part.transform)
             if isinstance(part, Box):
                 kind, p = 0, [0.5 * float(s) for s in part.size]
             else:
                 top = part.radius if part.top_radius is None else part.top_radius
                 kind, p = 1, [float(part.radius), float(top), float(part.length)]
             _voxelize_solid(self.counts, self._shape, self._origin, h, inv, kind, p[0], p[1], p[2],
-                            lo, hi, self.gain, state)
+                            lo, hi, self.gain, state, record)
         elif isinstance(part, Mesh):
             _voxelize_mesh(self.counts, self._shape, self._origin, h, part_triangles(part), lo, hi,
-                           self.gain, state)
+                           self.gain, state, record)
         else:
             raise TypeError(f"a voxel scene cannot add {part!r}")
+
+    def add(self, part) -> int:
+        """Voxelize one part; returns the number of newly covered voxels."""
+        state = self._state
+        state[:] = 0.0
+        cache = self.part_cache
+        entry = cache.get(part) if cache is not None else None
+        if entry is not None:
+            voxels, outside, lo, hi = entry
+            _add_voxels(self.counts, voxels, self.gain, state)
+            state[2] = outside
+        else:
+            lo, hi = part_bounds(part)
+            record = _NO_RECORD
+            if cache is not None:  # room for every voxel centre in the part's bounding box
+                span = (np.asarray(hi) - np.asarray(lo)) / self.grid.size + 3.0
+                record = np.empty(int(np.prod(np.maximum(span, 1.0))) + 8, dtype=np.int64)
+            self._voxelize(part, lo, hi, state, record)
+            if cache is not None:
+                cache.put(part, (record[:int(state[4])].copy(), int(state[2]), lo, hi))
         n = int(state[0])
         self.filled_count += n
         self.overlaps += int(state[1])

@@ -214,8 +214,10 @@ def evaluate(model, target, job) -> Evaluation:
     Module-level (and fed only picklable arguments) so process pools and dask can run it.
     """
     choices, seed, maybe_default = job
-    result = replay(model, choices, np.random.default_rng(seed), output=target.new_output(model),
-                    maybe_default=maybe_default)
+    output = target.new_output(model)
+    if hasattr(output, "use_part_cache"):  # full replays re-add mostly the same parts
+        output.use_part_cache()
+    result = replay(model, choices, np.random.default_rng(seed), output=output, maybe_default=maybe_default)
     d = result.derivation
     return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
                       result.log_reused, result.log_fresh, result.unused)
