@@ -47,7 +47,7 @@ def _extreme(points: np.ndarray, dist: np.ndarray, eps: float) -> np.ndarray:
     return points[top].mean(0), points[top[0]]
 
 
-def local_frame(points: np.ndarray, eps_rel: float = 1e-6) -> np.ndarray:
+def local_frame(points: np.ndarray, eps_rel: float = 1e-5) -> np.ndarray:
     """A rigid 4x4 frame (origin = vertex mean) from a part's world vertices, by the
     extremal-point method (see the module docstring)."""
     p = np.asarray(points, dtype=np.float64)
@@ -128,15 +128,24 @@ def canonical_frame(library: dict, name: str, transform: np.ndarray, groups: dic
         r_local = local_frame(local)[:3, :3]
         # A symmetry S of the part turns its frame R_L into S R_L: in frame terms R_L^T S R_L.
         group = groups[name] = [r_local.T @ sym @ r_local for sym in symmetry_group(local)] or [np.eye(3)]
-    best, best_score = f, -np.inf
+    # The closest to the world axes (largest trace); ties broken by the rounded entries, so
+    # the choice depends only on the set of equivalent frames, not on how the part was turned.
+    best, best_score = f, None
     for g in group:
         rot = _orthonormal(f[:3, :3] @ g)
-        score = float(np.trace(rot))
-        if score > best_score + 1e-9:
+        score = (round(float(np.trace(rot)), 6), tuple(np.round(rot, 6).reshape(9).tolist()))
+        if best_score is None or score > best_score:
             best_score = score
             best = f.copy()
             best[:3, :3] = rot
     return best
+
+
+def _rigid_inverse(f: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = f[:3, :3].T
+    out[:3, 3] = -f[:3, :3].T @ f[:3, 3]
+    return out
 
 
 def _orthonormal(m: np.ndarray) -> np.ndarray:
@@ -187,8 +196,15 @@ class EdgeCategories:
     # -- fitting ------------------------------------------------------------------------------
 
     @staticmethod
-    def fit(shape_set: ShapeSet, shapes, graphs, params: CategoryParams = CategoryParams()) -> "EdgeCategories":
+    def fit(shape_set: ShapeSet, shapes, graphs, params: CategoryParams = CategoryParams(),
+            symmetric: bool = True) -> "EdgeCategories":
+        """Cluster the relative poses of neighbours in ``shapes`` (and, when ``symmetric``,
+        in their copies turned by :func:`world_symmetries`)."""
         from sklearn.cluster import MeanShift
+
+        if symmetric:
+            shapes = [c for s in shapes for c in symmetric_copies(s)]
+            graphs = [g for g in graphs for _ in range(len(world_symmetries()))]
 
         lib = shape_set.library
         diag = [float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in lib.values()]
@@ -237,10 +253,21 @@ class EdgeCategories:
                 ex = examples.setdefault(k, [])
                 if len(ex) < 4 * params.examples_per_category:
                     shape = shapes[si]
-                    ex.append(np.linalg.inv(shape.transforms[x]) @ shape.transforms[y])
+                    fx = canonical_frame(lib, shape.parts[x], shape.transforms[x], groups)
+                    fy = canonical_frame(lib, shape.parts[y], shape.transforms[y], groups)
+                    # each part's transform in the other's canonical frame (A -> B, B -> A)
+                    ax = shape.transforms[x].copy()
+                    ax[:3, 3] = 0.0  # how the A part was turned (for symmetry_permutations)
+                    ex.append(np.stack([_rigid_inverse(fx) @ shape.transforms[y],
+                                        _rigid_inverse(fy) @ shape.transforms[x], ax]))
         for k, ex in examples.items():
-            uniq = np.unique(np.round(np.array(ex), 6), axis=0)
-            examples[k] = [m for m in uniq[:params.examples_per_category]]
+            kept, keys = [], set()
+            for m in ex:  # distinct examples, kept at full precision (frames of them must tie exactly)
+                key = tuple(np.round(m, 5).reshape(-1).tolist())
+                if key not in keys and len(kept) < params.examples_per_category:
+                    keys.add(key)
+                    kept.append(m)
+            examples[k] = kept
         cats = EdgeCategories(names, centres, examples, length, params)
         cats._fit_assignments = assignments
         return cats
@@ -264,6 +291,40 @@ class EdgeCategories:
             if k is not None:
                 out[(min(a, b), max(a, b))] = k
         return out
+
+    def _category_of_pair(self, shape_set: ShapeSet, pa: str, ma: np.ndarray, pb: str, mb: np.ndarray):
+        lib = shape_set.library
+        fa, fb = canonical_frame(lib, pa, ma, self.groups), canonical_frame(lib, pb, mb, self.groups)
+        ta, tb = shape_set.letters[pa], shape_set.letters[pb]
+        if ta > tb:
+            fa, fb, ta, tb = fb, fa, tb, ta
+        centres = self.centres.get((ta, tb))
+        if centres is None:
+            return None
+        near = lambda x, y: int(np.argmin(np.linalg.norm(
+            centres - _pose_feature(x, y, self.length, self.params.rot_weight), axis=1)))
+        key = (near(fa, fb),) if ta != tb else tuple(sorted((near(fa, fb), near(fb, fa))))
+        return self.index.get((ta, tb, "-".join(map(str, key))))
+
+    def symmetry_permutations(self, shape_set: ShapeSet) -> list[dict]:
+        """For each of :func:`world_symmetries`, where it sends each category (turning an
+        example edge of the category and classifying it again)."""
+        if getattr(self, "_perms", None) is not None:
+            return self._perms
+        part_of = shape_set.part_of_letter
+        perms = []
+        for g in world_symmetries():
+            perm = {0: 0}
+            for k, name in enumerate(self.names):
+                if name is None or not self.examples.get(k):
+                    continue
+                pa, pb = part_of[name[0]], part_of[name[1]]
+                rel_ab, _, ma = self.examples[k][0]
+                mb = canonical_frame(shape_set.library, pa, ma, self.groups) @ rel_ab
+                perm[k] = self._category_of_pair(shape_set, pa, g @ ma, pb, g @ mb)
+            perms.append(perm)
+        self._perms = perms
+        return perms
 
     def pose_seen(self, fa: np.ndarray, fb: np.ndarray, ta: str, tb: str) -> bool:
         """Is ``b``'s pose in ``a``'s frame within one bandwidth of a cluster for its type pair?"""
@@ -337,12 +398,69 @@ def string_mask(text: str, categories: EdgeCategories) -> tuple[np.ndarray, list
     return mask, list(parsed.char_edges)
 
 
-def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: EdgeCategories, per_shape: int,
+def world_symmetries() -> list[np.ndarray]:
+    """The 4 quarter turns of a whole shape about the vertical (z) axis: moves a string
+    cannot tell apart. (Mirror images are left out: a mirrored shape needs mirrored parts.)"""
+    out = []
+    for k in range(4):
+        c, s_ = [(1, 0), (0, 1), (-1, 0), (0, -1)][k]
+        m = np.eye(4)
+        m[:2, :2] = [[c, -s_], [s_, c]]
+        out.append(m)
+    return out
+
+
+def symmetric_copies(shape: Shape) -> list[Shape]:
+    """A shape turned by each of :func:`world_symmetries` (about its centroid)."""
+    centre = np.mean([t[:3, 3] for t in shape.transforms], axis=0)
+    to, back = np.eye(4), np.eye(4)
+    to[:3, 3], back[:3, 3] = -centre, centre
+    return [Shape.of(shape.parts, [back @ g @ to @ t for t in shape.transforms]) for g in world_symmetries()]
+
+
+def canonical_targets(text: str, order: list[int], labelings: list[dict]) -> list[int]:
+    """Target category per character: among the labelings of the symmetric copies of a
+    shape that cover every edge, the one whose sequence (in string order) is smallest.
+
+    A string fixes its shape only up to these symmetries, so this makes the target a
+    function of the string (and of the shape up to symmetry)."""
+    parsed = parse(text)
+    best = None
+    for cats in labelings:
+        seq = []
+        for e in parsed.char_edges:
+            if e is None:
+                seq.append(0)
+                continue
+            k = cats.get((min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]])))
+            if k is None:
+                break
+            seq.append(k)
+        else:
+            if best is None or seq < best:
+                best = seq
+    return best
+
+
+def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: "EdgeCategories") -> list[dict]:
+    """Edge categories of each symmetric copy of a shape that all its edges fall in."""
+    out = []
+    for copy in symmetric_copies(shape):
+        cats = categories.edge_categories(shape_set, copy, g)
+        if len(cats) == g.number_of_edges():
+            out.append(cats)
+    return out
+
+
+def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCategories", per_shape: int,
                      rng: np.random.Generator) -> list[tuple[str, list[int]]]:
-    """(string, target category per character) pairs from shapes, ``per_shape`` strings each."""
+    """(string, target category per character) pairs from shapes, ``per_shape`` strings each
+    (targets by :func:`canonical_targets`)."""
     out = []
     for shape, g in zip(shapes, graphs):
-        cats = categories.edge_categories(shape_set, shape, g)
+        labelings = shape_labelings(shape_set, shape, g, categories)
+        if not labelings:
+            continue
         seen = set()
         for k in range(4 * per_shape):
             if len(seen) >= per_shape:
@@ -351,10 +469,7 @@ def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: EdgeCatego
             if text in seen:
                 continue
             seen.add(text)
-            parsed = parse(text)
-            targets = [0 if e is None else cats.get((min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]])), 0)
-                       for e in parsed.char_edges]
-            out.append((text, targets))
+            out.append((text, canonical_targets(text, order, labelings)))
     return out
 
 
@@ -384,21 +499,47 @@ class TaggerModel:
         prob = torch.softmax(self.net(tok, mask), dim=2).numpy()
         return [prob[k, :len(t)] for k, t in enumerate(texts)]
 
-    def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator) -> dict:
-        """Majority vote over ``strings`` strings of ``g``: ``{(min, max): category}``."""
+    def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator, shape_set: ShapeSet | None = None) -> dict:
+        """Majority vote over ``strings`` strings of ``g``: ``{(min, max): category}``.
+
+        Each string's prediction fixes the shape only up to a turn / mirror about the
+        vertical axis, so (given ``shape_set``) every string's prediction is first turned
+        by the symmetry that agrees best with the first string's, then votes are counted.
+        """
         texts, orders = [], []
         for k in range(strings):
             text, order = encode_with_order(g, None if k else 0, rng if k else None)
             texts.append(text)
             orders.append(order)
-        votes: dict[tuple, np.ndarray] = {}
+        preds = []
         for text, order, prob in zip(texts, orders, self.predict(texts)):
+            pred = {}
             for i, e in enumerate(parse(text).char_edges):
                 if e is None:
                     continue
                 key = (min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))
-                v = votes.setdefault(key, np.zeros(len(self.categories)))
-                v[int(np.argmax(prob[i]))] += 1
+                pred.setdefault(key, []).append(int(np.argmax(prob[i])))
+            preds.append(pred)
+        perms = self.categories.symmetry_permutations(shape_set) if shape_set is not None else [None]
+        votes: dict[tuple, np.ndarray] = {}
+        reference = None
+        for pred in preds:
+            best, best_agree = pred, -1
+            for perm in perms:
+                turned = pred if perm is None else {e: [perm.get(c) for c in cs] for e, cs in pred.items()}
+                if reference is None:
+                    best = pred
+                    break
+                agree = sum(c == reference.get(e) for e, cs in turned.items() for c in cs)
+                if agree > best_agree:
+                    best, best_agree = turned, agree
+            if reference is None:
+                reference = {e: cs[0] for e, cs in best.items()}
+            for e, cs in best.items():
+                v = votes.setdefault(e, np.zeros(len(self.categories)))
+                for c in cs:
+                    if c is not None:
+                        v[c] += 1
         return {e: int(np.argmax(v)) for e, v in votes.items()}
 
     def save(self, folder, state=None, optimizer=None) -> None:
@@ -508,7 +649,7 @@ class InstantiateResult:
 
 def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, shape_set: ShapeSet,
                       rng: np.random.Generator, start_pose: dict | None = None,
-                      tries_per_edge: int = 24) -> InstantiateResult:
+                      tries_per_edge: int = 24, debug: list | None = None) -> InstantiateResult:
     """Embed a typed graph in 3D by transplanting edges with the given categories.
 
     ``edge_cats`` maps ``(min, max)`` node pairs to categories (from the tagger's vote);
@@ -542,9 +683,9 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
         for c in cats:
             for rel in categories.examples.get(c, []):
                 if types[x] == a_type:
-                    out.append(poses[x] @ rel)  # x plays the A part
-                if types[y] == a_type:
-                    out.append(poses[x] @ np.linalg.inv(rel))  # x plays the B part
+                    out.append(frames[x] @ rel[0])  # x plays the A part
+                if types[x] == b_type:
+                    out.append(frames[x] @ rel[1])  # x plays the B part
         return [out[i] for i in rng.permutation(len(out))][:tries_per_edge * max(1, len(cats))]
 
     def fits(y: int, pose: np.ndarray) -> bool:
@@ -555,9 +696,14 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
         touching = {placed[i] for i, _ in contact_pairs(lib, names, trans, tol, pairs_of=[(i, m) for i in range(m)])}
         nbrs = {v for v in g.neighbors(y) if v in poses}
         if touching != nbrs:
+            if debug is not None:
+                debug.append((y, "touching", sorted(touching), sorted(nbrs)))
             return False
         fy = canonical_frame(lib, parts[y], pose, categories.groups)
-        return all(categories.pose_seen(frames[v], fy, types[v], types[y]) for v in nbrs)
+        seen = all(categories.pose_seen(frames[v], fy, types[v], types[y]) for v in nbrs)
+        if debug is not None and not seen:
+            debug.append((y, "pose not seen", sorted(nbrs)))
+        return seen
 
     queue = [u0]
     while queue:
@@ -575,6 +721,8 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
                 return InstantiateResult(None, False, fallbacks,
                                          f"no example edge places node {y} ({types[y]}) next to node {x} ({types[x]})")
             poses[y] = chosen
+            if debug is not None:
+                debug.append(("placed", x, y, k, chosen))
             frames[y] = canonical_frame(lib, parts[y], chosen, categories.groups)
             queue.append(y)
     shape = Shape.of(parts, [poses[v] for v in range(n)])

@@ -180,7 +180,7 @@ class TrainedModel:
     def instantiate(self, text: str, rng: np.random.Generator, votes: int = 8, attempts: int = 8) -> InstantiateResult:
         """Build a shape for a string: tagger vote, then transplanting (several attempts)."""
         g = self.check_string(text)
-        cats = self.tagger.vote(g, votes, rng)
+        cats = self.tagger.vote(g, votes, rng, self.shape_set)
         result = InstantiateResult(None, False, reason="no attempt")
         for _ in range(attempts):
             result = instantiate_graph(g, cats, self.categories, self.shape_set, rng, self.start_pose)

@@ -1,0 +1,235 @@
+"""Seed 001 evaluation: Table 1 (inputs, collection growth), edge-category accuracy,
+Table 2 (naive vs latent search graph), VAE prior samples, instantiation success.
+
+    .venv/bin/python bench/strings.py                       # all three example sets
+    .venv/bin/python bench/strings.py --sets castle --count 60 --epochs 5   # a quick look
+
+Writes ``bench/results/strings.json`` and ``bench/results/strings.png`` (plus a contact
+sheet of instantiated prior samples per set, ``strings_<set>.png``). Work folders (the
+collections and models) go to ``--work`` (default: a temporary folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from procmod.parallel import open_executor  # noqa: E402
+from procmod.strings.codec import encode, parse  # noqa: E402
+from procmod.strings.instantiate import (TaggerConfig, shape_labelings, tagging_accuracy,  # noqa: E402
+                                        tagging_examples)
+from procmod.strings.latent import naive_graph, path_statistics, perturb, search_graph  # noqa: E402
+from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
+from procmod.strings.render import write_sheet  # noqa: E402
+from procmod.strings.sampling import augment  # noqa: E402
+from procmod.strings.shapes import part_points, read_shapes, shape_graph  # noqa: E402
+from procmod.strings.vae import VAEConfig  # noqa: E402
+
+SETS = ROOT / "examples_sets" / "strings"
+
+
+def triangles(shape_set, shape) -> int:
+    return sum(12 if shape_set.library[p].kind == "box" else len(shape_set.library[p].faces) for p in shape.parts)
+
+
+def graph_index(graphs):
+    index = {}
+    for g in graphs:
+        index.setdefault(nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=4), []).append(g)
+    return index
+
+
+def is_known(g, index) -> bool:
+    key = nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=4)
+    return any(nx.is_isomorphic(g, h, node_match=lambda a, b: a["type"] == b["type"]) for h in index.get(key, []))
+
+
+def rates(model, strings, known_index):
+    valid = [s for s in strings if model.vae.is_valid(s)]
+    unique = list(dict.fromkeys(valid))
+    novel = [s for s in unique if not is_known(parse(s).graph, known_index)]
+    n = max(len(strings), 1)
+    return {"decoded": len(strings), "valid": len(valid) / n, "unique": len(unique) / max(len(valid), 1),
+            "novel_of_valid": len(novel) / max(len(unique), 1), "valid_count": len(valid),
+            "unique_count": len(unique), "novel_count": len(novel)}, novel
+
+
+def run_set(name: str, args, work: Path) -> dict:
+    print(f"== {name}", flush=True)
+    shape_set = read_shapes(SETS / f"{name}.json")
+    graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
+    row: dict = {"inputs": [{"parts": len(s), "triangles": triangles(shape_set, s),
+                             "cycles": g.number_of_edges() - g.number_of_nodes() + 1}
+                            for s, g in zip(shape_set.shapes, graphs)]}
+    # Table 1: growth
+    t0 = time.perf_counter()
+    with open_executor(args.workers) as executor:
+        grown = augment(shape_set, args.count, seed=args.seed, parallel=args.parallel, max_rounds=400,
+                        executor=executor, seconds=args.augment_seconds)
+    seconds = time.perf_counter() - t0
+    coll = work / name / "collection"
+    strings = write_collection(shape_set, grown.shapes, coll, grown.rounds, args.strings_per_shape, args.seed,
+                               sheet=False)
+    new = len(grown.shapes) - len(shape_set.shapes)
+    per_round = []
+    for r in grown.rounds:
+        per_round.append({"round": r["round"], "shapes": r["shapes"], "seconds": r["seconds"]})
+    row["growth"] = {"rounds": per_round, "shapes": len(grown.shapes), "strings": len(strings),
+                     "seconds": round(seconds, 2), "variants_per_minute": round(60 * new / max(seconds, 1e-9), 1),
+                     "parallel": args.parallel, "workers": args.workers,
+                     "parts_min": min(len(s) for s in grown.shapes), "parts_max": max(len(s) for s in grown.shapes)}
+    print(f"  growth: {len(grown.shapes)} shapes, {len(strings)} strings in {seconds:.1f} s", flush=True)
+    # Training
+    model_dir = work / name / "model"
+    t0 = time.perf_counter()
+    meta = train_model(coll, model_dir, VAEConfig(epochs=args.epochs), TaggerConfig(epochs=args.tagger_epochs),
+                       args.strings_per_shape, 0.2, args.seed)
+    row["training"] = {"seconds": round(time.perf_counter() - t0, 1), "strings": meta["training_strings"],
+                       "shapes": meta["train_shapes"], "categories": meta["categories"]}
+    model = TrainedModel(model_dir)
+    row["training"]["vae_history"] = json.loads((model_dir / "vae.json").read_text())["train"]["history"]
+    print(f"  trained in {row['training']['seconds']} s", flush=True)
+    # Edge categories on held-out strings
+    all_graphs = [shape_graph(shape_set, s) for s in grown.shapes]
+    _, test_idx = split_shapes(len(grown.shapes), 0.2, args.seed)
+    rng = np.random.default_rng(args.seed)
+    held_shapes = [grown.shapes[i] for i in test_idx]
+    held_graphs = [all_graphs[i] for i in test_idx]
+    held = tagging_examples(shape_set, held_shapes, held_graphs, model.categories, 4, rng)
+    voted_right = voted_total = 0
+    for s, g in zip(held_shapes, held_graphs):
+        vote = model.tagger.vote(g, 8, rng, model.shape_set)
+        truths = shape_labelings(shape_set, s, g, model.categories)  # the shape up to its symmetric copies
+        voted_right += max((sum(vote.get(e) == c for e, c in t.items()) for t in truths), default=0)
+        voted_total += g.number_of_edges()
+    row["edge_categories"] = {"held_out_shapes": len(held_shapes), "held_out_strings": len(held),
+                              "per_character_accuracy": tagging_accuracy(model.tagger, held) if held else None,
+                              "voted_edge_accuracy": voted_right / max(voted_total, 1),
+                              "categories": meta["categories"]}
+    print(f"  edge categories: {row['edge_categories']}", flush=True)
+    # Prior samples
+    known = graph_index(all_graphs)
+    z = rng.standard_normal((args.samples, model.vae.net.config.latent))
+    prior = {}
+    novel_strings = []
+    for constrained in (True, False):
+        t0 = time.perf_counter()
+        decoded = model.vae.decode(z, constrained=constrained, rng=rng)
+        r, novel = rates(model, decoded, known)
+        r["seconds"] = round(time.perf_counter() - t0, 1)
+        prior["constrained" if constrained else "unconstrained"] = r
+        if constrained:
+            novel_strings = novel
+    row["prior_samples"] = prior
+    print(f"  prior: {prior}", flush=True)
+    # Perturbation sampling around training strings
+    anchors_idx = rng.choice(len(model.training_strings), size=min(args.perturb, len(model.training_strings)),
+                             replace=False)
+    anchor_strings = [model.training_strings[int(i)] for i in anchors_idx]
+    anchor_z = model.vae.encode(anchor_strings)
+    found = [perturb(model.vae, zz, s, rng) for zz, s in zip(anchor_z, anchor_strings)]
+    r, _ = rates(model, [f for f in found], known)
+    row["perturbation_samples"] = r
+    # Table 2: search graphs over the same valid strings
+    pool = list(dict.fromkeys(model.training_strings))
+    pool = [pool[int(i)] for i in rng.permutation(len(pool))[:args.graph_size]]
+    extra = [f for f in found if f is not None and f not in pool]
+    nodes = pool + extra
+    zs = model.vae.encode(nodes)
+    t2 = {"ours": path_statistics(search_graph(zs, nodes, 3), 200, rng),
+          "naive": path_statistics(naive_graph(nodes, 3), 200, rng)}
+    row["search_graph"] = t2
+    print(f"  table 2: {t2}", flush=True)
+    # Instantiation
+    inst = {}
+    for label, texts in (("held_out", [encode(g) for g in held_graphs][:args.instantiate]),
+                         ("novel_prior_samples", novel_strings[:args.instantiate])):
+        ok, fallbacks, shapes = 0, 0, []
+        for text in texts:
+            res = model.instantiate(text, rng)
+            ok += res.success
+            fallbacks += res.fallbacks
+            if res.success:
+                shapes.append(res.shape)
+        inst[label] = {"tried": len(texts), "succeeded": ok, "rate": ok / max(len(texts), 1),
+                       "fallbacks_per_string": fallbacks / max(len(texts), 1)}
+        if label == "novel_prior_samples" and shapes:
+            write_sheet(model.shape_set, shapes[:16], args.out / f"strings_{name}.png", 160)
+    row["instantiation"] = inst
+    print(f"  instantiation: {inst}", flush=True)
+    return row
+
+
+def plot(results: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    for name, row in results["sets"].items():
+        rounds = row["growth"]["rounds"]
+        axes[0].plot([r["seconds"] for r in rounds], [r["shapes"] for r in rounds], label=name)
+        hist = row["training"]["vae_history"]
+        axes[1].plot([h["epoch"] for h in hist], [h["recon"] for h in hist], label=f"{name} recon")
+    axes[0].set(xlabel="seconds", ylabel="shapes in collection", title="Collection growth (Table 1)")
+    axes[1].set(xlabel="epoch", ylabel="reconstruction (nats / string)", title="VAE training")
+    names = list(results["sets"])
+    x = np.arange(len(names))
+    metrics = [("valid", lambda r: r["prior_samples"]["constrained"]["valid"]),
+               ("valid (free)", lambda r: r["prior_samples"]["unconstrained"]["valid"]),
+               ("novel of valid", lambda r: r["prior_samples"]["constrained"]["novel_of_valid"]),
+               ("edge cat. acc.", lambda r: r["edge_categories"]["per_character_accuracy"] or 0),
+               ("instantiated", lambda r: r["instantiation"]["held_out"]["rate"])]
+    for k, (label, f) in enumerate(metrics):
+        axes[2].bar(x + k * 0.16 - 0.32, [f(results["sets"][n]) for n in names], 0.16, label=label)
+    axes[2].set_xticks(x, names)
+    axes[2].set(ylim=(0, 1.05), title="Rates per set")
+    for ax in axes:
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sets", nargs="+", default=["castle", "moonbase", "colonnade"])
+    ap.add_argument("--count", type=int, default=150, help="collection size per set")
+    ap.add_argument("--augment-seconds", type=float, default=120)
+    ap.add_argument("--parallel", type=int, default=8)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--strings-per-shape", type=int, default=8)
+    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--tagger-epochs", type=int, default=30)
+    ap.add_argument("--samples", type=int, default=200)
+    ap.add_argument("--perturb", type=int, default=40)
+    ap.add_argument("--graph-size", type=int, default=300)
+    ap.add_argument("--instantiate", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--work", type=Path)
+    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
+    args = ap.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    work = args.work or Path(tempfile.mkdtemp(prefix="procmod-strings-bench-"))
+    results = {"command": "python bench/strings.py " + " ".join(sys.argv[1:]), "settings": {
+        k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}, "sets": {}}
+    t0 = time.perf_counter()
+    for name in args.sets:
+        results["sets"][name] = run_set(name, args, work)
+        results["seconds"] = round(time.perf_counter() - t0, 1)
+        (args.out / "strings.json").write_text(json.dumps(results, indent=1) + "\n")
+    plot(results, args.out / "strings.png")
+    print(f"wrote {args.out / 'strings.json'} and {args.out / 'strings.png'} in {results['seconds']} s")
+
+
+if __name__ == "__main__":
+    main()
