@@ -34,6 +34,7 @@ from .program import ROOT, Program, sym_sigma_categories
 from .transforms import CATEGORY, FIXED_SIGMA, SIGMA_FLOOR, SYM_PARAMS
 
 NEG = -1e30
+INVALID_CALL = -50.0
 LOG_SQRT_2PI = 0.5 * math.log(2 * math.pi)
 DTYPE = torch.float64
 
@@ -355,8 +356,11 @@ class Compiled:
     def joint(self, x):
         """log p(x, y) for sampled assignments ``x`` (S, N) of columns (VI)."""
         local, const, _ = self.local_table()
+        # a mean-field q cannot express which abstractions a caller may call: a sampled
+        # call outside the callable set costs INVALID_CALL nats instead of -inf, so the
+        # score-function gradient stays finite and pushes q towards valid assignments
         logpi = self.callee_logprobs()
-        S = x.shape[0]
+        logpi = torch.where(logpi < -1e20, torch.tensor(INVALID_CALL, dtype=DTYPE), logpi)
         total = local.gather(1, x.T).sum(0)  # (S,)
         parent, slot, child = self.edges
         if len(parent):
@@ -400,22 +404,28 @@ class Compiled:
 
 def sigmas_from_residuals(program: Program, data: Dataset) -> None:
     """Set every Gaussian's standard-deviation bias to the RMS residual of the data it
-    generates (posterior-weighted) under the current means: the starting point of the
-    final pass, which would otherwise need hundreds of steps to shrink sigmas of
-    variables that an abstraction holds constant."""
+    generates (posterior-weighted; the root transform with weight 1) under the current
+    means: the starting point of the final pass, which would otherwise need hundreds of
+    steps to shrink the sigmas of variables an abstraction holds constant."""
     comp = Compiled(program, data, "fixed")
     resp = comp.responsibilities()
+    groups = []
     with torch.no_grad():
-        _, _, zinfo = comp.local_table(want_z=True)
-    pi, pn, pc, _, _ = comp.xf_pairs
-    groups = [("xf", comp.xf_inst, pi.numpy(), comp.xf_fixed.numpy(), comp.xf_floor.numpy())]
-    if comp.sym_inst:
-        groups.append(("sym", comp.sym_inst, comp.sym_pairs[0].numpy(), comp.sym_fixed.numpy(), comp.sym_floor.numpy()))
-    for (kind, inst, pair_inst, fixed, floor), (nodes, cols, zsq) in zip(groups, zinfo):
-        nodes, cols, zsq = nodes.numpy(), cols.numpy(), zsq.numpy()
-        if kind == "xf":  # the root's pairs were dropped from zinfo
-            pair_inst = pair_inst[pc.numpy() >= 0]
-        w = resp[nodes, cols]
+        pi, pn, pc, px, _ = comp.xf_pairs
+        if len(pi):
+            xf = {k: v[pi] for k, v in comp.xf.items()}
+            _, zsq = _gauss_nade(xf["W"], xf["c"], xf["Vm"], xf["bm"], xf["Vs"], xf["bs"], px,
+                                 comp.xf_fixed[pi], comp.xf_floor[pi], True)
+            pn_, pc_ = pn.numpy(), pc.numpy()
+            w = np.where(pc_ < 0, 1.0, resp[pn_, np.maximum(pc_, 0)])
+            groups.append(("xf", comp.xf_inst, pi.numpy(), w, zsq.numpy(), comp.xf_fixed.numpy(),
+                           comp.xf_floor.numpy()))
+        if comp.sym_inst:
+            si, sn, sc, sv = comp.sym_pairs
+            zsq = (((sv - comp.sym_mu[si]) / comp.sym_fixed[si]) ** 2 * comp.sym_mask[si]).numpy()
+            groups.append(("sym", comp.sym_inst, si.numpy(), resp[sn.numpy(), sc.numpy()], zsq,
+                           comp.sym_fixed.numpy(), comp.sym_floor.numpy()))
+    for kind, inst, pair_inst, w, zsq, fixed, floor in groups:
         for i, key in enumerate(inst):
             sel = pair_inst == i
             if not sel.any() or w[sel].sum() < 1e-9:

@@ -25,6 +25,7 @@ started again with the same examples and options resumes from the last round.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -116,17 +117,27 @@ def _seed(*parts) -> int:
     return int.from_bytes(hashlib.sha256(repr(parts).encode()).digest()[:8], "little")
 
 
-def _torch_threads():
-    import torch
-    torch.set_num_threads(1)
+def _single_threaded(task):
+    """Run a task with one torch thread (deterministic sums, no oversubscription of the
+    pool's processes), restoring the caller's setting afterwards (inline executors)."""
+    @functools.wraps(task)
+    def wrapper(*args, **kwargs):
+        import torch
+        before = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            return task(*args, **kwargs)
+        finally:
+            torch.set_num_threads(before)
+    return wrapper
 
 
 # ---- tasks (module-level, picklable arguments) -------------------------------------------
 
+@_single_threaded
 def task_initial(data: Dataset, options: SearchOptions) -> dict:
     """P0, fitted on the discrete likelihood (the search start) and, for reporting, a copy
     fitted on the full likelihood."""
-    _torch_threads()
     start, cpu0 = time.perf_counter(), time.process_time()
     rng = np.random.default_rng(_seed(options.seed, "P0"))
     p0 = initial_program(data, rng)
@@ -142,9 +153,9 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
             "seconds": time.perf_counter() - start, "cpu": time.process_time() - cpu0}
 
 
+@_single_threaded
 def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int) -> Particle:
     """One split proposal of one particle."""
-    _torch_threads()
     start, cpu0 = time.perf_counter(), time.process_time()
     program = particle.program
     while particle.queue and particle.queue[0] not in program.abstractions:
@@ -203,9 +214,9 @@ def gaussian_filter(program: Program, data: Dataset, tau: float) -> dict:
     return lowest
 
 
+@_single_threaded
 def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase: str, seed: int) -> Particle:
     """Start phase 2 (``"fixed"``) or run the final pass (``"free"``) for one particle."""
-    _torch_threads()
     start, cpu0 = time.perf_counter(), time.process_time()
     program = particle.program.copy()
     iterations = options.init_iterations if phase == "fixed" else options.final_iterations
@@ -384,7 +395,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
             if phase == "discrete":
                 best = max(particles, key=lambda p: p.objective)
                 p1 = best.program.copy()
-                fit(p1, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
+                _single_threaded(fit)(p1, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
                     seed=_seed(options.seed, "P1free"))
                 state["programs"]["after_phase1"] = p1
             if nxt != "finished":

@@ -319,3 +319,27 @@ def _remove(program: Program, a: int) -> None:
     del program.abstractions[a]
     for key in [k for k in program.params if k.startswith(f"{a}.")]:
         del program.params[key]
+
+
+def reset_parameters(program: Program, data: Dataset, rng: np.random.Generator) -> Program:
+    """A copy of ``program`` with every parameter re-initialised as in P0 (data
+    statistics for the NADE biases, uniform callee choices): the starting point for
+    comparing parameter estimators on a learned structure."""
+    template = initial_program(data, rng)
+    by_type = {}
+    for t in template.abstractions.values():
+        by_type.setdefault((t.kind, t.type), t.id)
+    new = program.copy()
+    new.params = {}
+    for a in new.abstractions.values():
+        t = by_type[(a.kind, a.type)]
+        for key, value in template.params.items():
+            if key.startswith(f"{t}.") and not key.endswith(".callee"):
+                new.params[f"{a.id}." + key.split(".", 1)[1]] = value.copy()
+        for s, callees in enumerate(a.callees):
+            new.params[f"{a.id}.s{s}.callee"] = np.zeros(len(callees))
+    for key, value in template.params.items():
+        if key.startswith("root.") and not key.endswith(".callee"):
+            new.params[key] = value.copy()
+    new.params["root.s0.callee"] = np.zeros(len(new.root_callees))
+    return new
