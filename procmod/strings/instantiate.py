@@ -35,7 +35,7 @@ from ..core.errors import InvalidArgumentError
 from ..core.serialize import write_text_atomic
 from .codec import encode_with_order, parse, strings_of
 from .shapes import Shape, ShapeSet, contact_pairs, part_points, shape_graph, tolerance_for
-from .vae import ModelFileError, Vocab
+from .vae import ModelFileError, Vocab, torch_threads
 
 # ---------------------------------------------------------------------------------------------
 # Local frames
@@ -360,8 +360,8 @@ class EdgeCategories:
 class TaggerConfig:
     cell: str = "lstm"
     embed: int = 32
-    hidden: int = 64
-    layers: int = 1
+    hidden: int = 96
+    layers: int = 2
     epochs: int = 30
     batch: int = 32
     lr: float = 3e-3
@@ -494,6 +494,10 @@ class TaggerModel:
     @torch.no_grad()
     def predict(self, texts: list[str]) -> list[np.ndarray]:
         """Per-character category probabilities ``(len, K)`` of each string."""
+        with torch_threads():
+            return self._predict(texts)
+
+    def _predict(self, texts):
         self.net.eval()
         tok, mask, _ = self._tensors(texts)
         prob = torch.softmax(self.net(tok, mask), dim=2).numpy()
@@ -575,12 +579,17 @@ class TaggerModel:
 def train_tagger(examples: list, vocab: Vocab, categories: EdgeCategories, folder, config: TaggerConfig = TaggerConfig(),
                  seed: int = 0, progress=None) -> TaggerModel:
     """Train (or resume) the tagger on (string, targets) pairs, checkpointing every epoch."""
+    with torch_threads():
+        return _train_tagger(examples, vocab, categories, folder, config, seed, progress)
+
+
+def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -> TaggerModel:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(seed)
     if (folder / "tagger.json").is_file() and (folder / "tagger.pt").is_file():
         model, state, opt_state = TaggerModel.load(folder, with_optimizer=True)
-        if asdict(model.net.config) != asdict(config):
+        if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0}:
             raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new --out")
     else:
         model, state, opt_state = TaggerModel(Tagger(len(vocab), len(categories), config), vocab, categories), \

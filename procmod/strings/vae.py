@@ -37,6 +37,22 @@ from .codec import LETTERS, StringSyntaxError, parse
 from .shapes import Grammar
 
 PAD, SOS, EOS = 0, 1, 2
+TORCH_THREADS = 1  # these nets are small: one thread is much faster than two on a busy 2-core machine
+
+
+class torch_threads:
+    """Run torch with ``n`` intra-op threads inside a ``with`` block (restored after)."""
+
+    def __init__(self, n: int = TORCH_THREADS):
+        self.n = n
+
+    def __enter__(self):
+        self.old = torch.get_num_threads()
+        torch.set_num_threads(self.n)
+
+    def __exit__(self, *exc):
+        torch.set_num_threads(self.old)
+        return False
 SPECIALS = ("<pad>", "<s>", "</s>")
 
 
@@ -398,6 +414,10 @@ class StringModel:
     @torch.no_grad()
     def encode(self, strings: list[str]) -> np.ndarray:
         """Posterior means of ``strings``, ``(n, latent)``."""
+        with torch_threads():
+            return self._encode(strings)
+
+    def _encode(self, strings):
         self.net.eval()
         out = []
         for k in range(0, len(strings), 256):
@@ -420,6 +440,10 @@ class StringModel:
         """
         if not greedy and rng is None:
             raise InvalidArgumentError("sampled decoding needs a numpy Generator (rng)")
+        with torch_threads():
+            return self._decode(z, constrained, greedy, rng, max_len, temperature)
+
+    def _decode(self, z, constrained, greedy, rng, max_len, temperature):
         self.net.eval()
         max_len = max_len or self.net.config.max_len
         zt = torch.as_tensor(np.asarray(z, dtype=np.float32))
@@ -520,6 +544,12 @@ class StringModel:
 
 def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, config: VAEConfig = VAEConfig(),
               seed: int = 0, progress=None, stop_after: int | None = None) -> StringModel:
+    """Train (or resume training) a string VAE (see :func:`_train_vae`)."""
+    with torch_threads():
+        return _train_vae(strings, grammar, folder, config, seed, progress, stop_after)
+
+
+def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> StringModel:
     """Train (or resume training) a string VAE, checkpointing into ``folder`` every epoch.
 
     A folder that already holds a checkpoint of the same configuration resumes from its
@@ -535,7 +565,8 @@ def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, c
     torch.manual_seed(seed)
     if resume:
         model, state, opt_state = StringModel.load(folder, with_optimizer=True)
-        if asdict(model.net.config) != asdict(config) or model.vocab.chars != sorted(set(chars)):
+        if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0} or \
+                model.vocab.chars != sorted(set(chars)):
             raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new --out "
                                  "or delete it")
     else:
@@ -547,6 +578,7 @@ def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, c
     if opt_state is not None:
         optimizer.load_state_dict(opt_state)
     done_now = 0
+    net.config = config  # more epochs than a checkpoint was trained for: train on
     while state.epoch < config.epochs:
         epoch = state.epoch
         gen = torch.Generator().manual_seed(seed * 100003 + epoch)

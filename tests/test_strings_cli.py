@@ -1,0 +1,71 @@
+import json
+from pathlib import Path
+
+import pytest
+
+from procmod.cli import main
+
+SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
+
+
+def _run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_graph_encode_decode(tmp_path, capsys):
+    code, out, _ = _run(capsys, "strings", "graph", SETS / "castle.json", "--out", tmp_path / "g")
+    assert code == 0 and "shape 0: 28 parts" in out
+    graph = tmp_path / "g" / "shape_000.json"
+    data = json.loads(graph.read_text())
+    assert data["format"] == "procmod-graph/1" and len(data["types"]) == 28
+    code, canonical, _ = _run(capsys, "strings", "encode", graph)
+    assert code == 0 and len(canonical.split()) == 1
+    code, out, _ = _run(capsys, "strings", "encode", graph, "--random", 3, "--seed", 2)
+    assert code == 0 and len(out.split()) == 3
+    code, out, _ = _run(capsys, "strings", "decode", canonical.strip())
+    back = json.loads(out)
+    assert sorted(back["types"]) == sorted(data["types"]) and len(back["edges"]) == len(data["edges"])
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["strings", "decode", "C1CC(N"], ["unbalanced parenthesis", "position 5"]),
+    (["strings", "decode", "C1CC"], ["dangling ring label"]),
+    (["strings", "decode", "C?C"], ["unknown character"]),
+    (["strings", "graph", "nope.json", "--out", "x"], ["does not exist"]),
+    (["strings", "sample", "nope", "-n", "2", "--out", "x"], ["not a trained string model"]),
+])
+def test_errors_are_one_line_exit_2(tmp_path, capsys, monkeypatch, argv, words):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = _run(capsys, *argv)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    for w in words:
+        assert w in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_augment_train_sample_instantiate(tmp_path, capsys):
+    col = tmp_path / "col"
+    code, out, _ = _run(capsys, "strings", "augment", SETS / "moonbase.json", "--count", 6, "--out", col,
+                        "--seed", 1, "--parallel", 4, "--strings-per-shape", 4)
+    assert code == 0, out
+    shapes = json.loads((col / "shapes.json").read_text())
+    assert shapes["format"] == "procmod-shapes/1" and len(shapes["shapes"]) >= 3
+    assert (col / "strings.txt").read_text().split() and (col / "growth.json").is_file()
+    model = tmp_path / "model"
+    code, out, err = _run(capsys, "strings", "train", col, "--out", model, "--epochs", 1, "--tagger-epochs", 1,
+                          "--hidden", 16, "--latent", 4, "--strings-per-shape", 4)
+    assert code == 0, err
+    assert {"model.json", "vae.pt", "tagger.pt", "collection.json"} <= {p.name for p in model.iterdir()}
+    code, out, err = _run(capsys, "strings", "sample", model, "-n", 3, "--out", tmp_path / "s", "--no-meshes")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "s" / "summary.json").read_text())
+    assert summary["decoded"] == 3 and summary["valid"] <= 3
+    # a small tree: module with a dome, corridor, module with a dome
+    glb = tmp_path / "x.glb"
+    code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
+    assert code == 0, err
+    assert glb.read_bytes()[:4] == b"glTF"
+    code, out, err = _run(capsys, "strings", "instantiate", model, "MMM", "--out", tmp_path / "y.glb")
+    assert code == 2 and "breaks the tiling grammar" in err and not (tmp_path / "y.glb").exists()

@@ -1,0 +1,127 @@
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from procmod.strings.codec import parse, strings_of
+from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
+                                         tagging_examples, train_tagger)
+from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
+from procmod.strings.shapes import Grammar, read_shapes, shape_graph
+from procmod.strings.vae import Constraint, StringModel, VAEConfig, Vocab, _Prefix, train_vae
+
+SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
+TINY = VAEConfig(embed=8, hidden=16, latent=4, epochs=2, batch=16, kl_warmup=1)
+
+
+@pytest.fixture(scope="module")
+def moonbase():
+    ss = read_shapes(SETS / "moonbase.json")
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    rng = np.random.default_rng(0)
+    strings = [s for g in graphs for s in strings_of(g, 6, rng)]
+    return ss, graphs, Grammar.from_graphs(graphs), strings
+
+
+@pytest.fixture(scope="module")
+def categories(moonbase):
+    ss, graphs, _, _ = moonbase
+    return EdgeCategories.fit(ss, ss.shapes, graphs)
+
+
+def _weights(model):
+    return {k: v.clone() for k, v in model.net.state_dict().items()}
+
+
+def test_vae_training_resumes_bit_identically(tmp_path, moonbase):
+    _, _, grammar, strings = moonbase
+    straight = train_vae(strings, grammar, tmp_path / "a", TINY, seed=5)
+    train_vae(strings, grammar, tmp_path / "b", TINY, seed=5, stop_after=1)  # "killed" after one epoch
+    meta = json.loads((tmp_path / "b" / "vae.json").read_text())
+    assert meta["train"]["epoch"] == 1
+    resumed = train_vae(strings, grammar, tmp_path / "b", TINY, seed=5)
+    a, b = _weights(straight), _weights(resumed)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    loaded = StringModel.load(tmp_path / "b")
+    assert all(torch.equal(a[k], v) for k, v in loaded.net.state_dict().items())
+    hist = meta["train"]["history"]
+    assert hist[0]["beta"] == pytest.approx(TINY.kl_weight)  # warm-up of one epoch
+
+
+def test_constrained_decoding_only_ends_on_valid_strings(tmp_path, moonbase):
+    _, _, grammar, strings = moonbase
+    model = train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
+    rng = np.random.default_rng(0)
+    z = rng.standard_normal((20, TINY.latent))
+    out = model.decode(z, constrained=True, rng=rng, max_len=120)
+    finished = [s for s in out if s is not None]
+    assert all(model.is_valid(s) for s in finished)
+    # same seed, same strings
+    again = model.decode(z, constrained=True, rng=np.random.default_rng(0), max_len=120)
+    assert again == model.decode(z, constrained=True, rng=np.random.default_rng(0), max_len=120)
+
+
+def test_constraint_masks_follow_syntax_and_rules(moonbase):
+    _, _, grammar, strings = moonbase
+    c = Constraint(Vocab(set("".join(strings)) | set("()123456789")), grammar)
+    p = _Prefix()
+    assert "(" not in c.allowed(p) and "" not in c.allowed(p)
+    for ch in "AD":
+        assert ch in c.allowed(p)
+        c.advance(p, ch)
+    # an antenna (A) touches only a dome (D): after "AD" the dome needs its module next
+    allowed = c.allowed(p)
+    assert "M" in allowed and "A" not in allowed and "" not in allowed and ")" not in allowed
+
+
+def test_tagger_masks_are_minus_infinity_and_training_learns(tmp_path, moonbase, categories):
+    ss, graphs, _, strings = moonbase
+    cats = categories
+    text = strings[0]
+    mask, edges = string_mask(text, cats)
+    assert mask[[i for i, e in enumerate(edges) if e is None]].sum(1).tolist() == \
+        [1] * sum(e is None for e in edges)
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    net = Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1))
+    model = TaggerModel(net, vocab, cats)
+    tok, m, _ = model._tensors([text])
+    logits = net(tok, m)
+    assert torch.isneginf(logits[~m]).all() and torch.isfinite(logits[m]).all()
+    prob = model.predict([text])[0]
+    assert np.all(prob[~mask] == 0)
+    examples = tagging_examples(ss, ss.shapes, graphs, cats, 6, np.random.default_rng(0))
+    assert all(len(t) == len(s) for s, t in examples)
+    first = train_tagger(examples, vocab, cats, tmp_path / "t", TaggerConfig(epochs=1, hidden=16, embed=8, layers=1))
+    loss1 = json.loads((tmp_path / "t" / "tagger.json").read_text())["train"]["history"][-1]["loss"]
+    train_tagger(examples, vocab, cats, tmp_path / "t", TaggerConfig(epochs=6, hidden=16, embed=8, layers=1))
+    loss6 = json.loads((tmp_path / "t" / "tagger.json").read_text())["train"]["history"][-1]["loss"]
+    assert loss6 < loss1
+    assert first is not None
+
+
+def test_vote_maps_every_edge(moonbase, categories):
+    ss, graphs, _, strings = moonbase
+    cats = categories
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    model = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
+    vote = model.vote(graphs[0], 4, np.random.default_rng(0), ss)
+    assert set(vote) == {(min(e), max(e)) for e in graphs[0].edges}
+    for (a, b), k in vote.items():
+        name = cats.names[k]
+        ta, tb = sorted((graphs[0].nodes[a]["type"], graphs[0].nodes[b]["type"]))
+        assert name is not None and name[:2] == (ta, tb)
+
+
+def test_search_graphs_and_paths(rng):
+    strings = ["AB", "ABB", "BA", "ABBB", "AAB", "BBA"]
+    z = rng.normal(size=(len(strings), 3))
+    ours = search_graph(z, strings, k=2)
+    assert ours.has_edge(0, 2) and ours.edges[0, 2]["weight"] == 0  # AB and BA are one graph
+    stats = path_statistics(ours, 20, rng)
+    assert stats["components"] == 1 and stats["avg_weight"] <= stats["max_weight"]
+    naive = naive_graph(strings, k=1)
+    assert naive.number_of_nodes() == len(strings)
+    path = latent_path(z[0], z[1], z, 5)
+    assert len(path) == 5 and np.allclose(path[0], z[0]) and np.allclose(path[-1], z[1])

@@ -1,0 +1,212 @@
+import json
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from procmod.strings.codec import encode
+from procmod.strings.instantiate import (EdgeCategories, canonical_frame, instantiate_graph, local_frame,
+                                         symmetry_group)
+from procmod.strings.sampling import AugmentParams, attempt, augment, docking_transforms, match_boundary
+from procmod.strings.shapes import (Grammar, Shape, ShapesFormatError, boxes_touch, graph_from_dict,
+                                    histogram_distance, part_points, read_shapes, shape_graph, shapes_from_dict,
+                                    type_histogram, type_letters, validate_shape)
+
+SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
+
+
+def _box_shapes(placements, size=(1.0, 1.0, 1.0)):
+    return {"format": "procmod-shapes/1", "parts": {"block": {"box": list(size)}},
+            "shapes": [{"nodes": [{"part": "block", "transform": t} for t in placements]}]}
+
+
+def _at(x, y=0.0, z=0.0, yaw=0.0):
+    c, s = np.cos(yaw), np.sin(yaw)
+    return [[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1]]
+
+
+def test_box_contacts_exact_with_tolerance(tmp_path):
+    data = _box_shapes([_at(0), _at(1.0), _at(2.0005), _at(3.0006)])
+    ss = shapes_from_dict(data, tmp_path)
+    g = shape_graph(ss, ss.shapes[0], tol=1e-3)
+    assert sorted(g.edges) == [(0, 1), (1, 2), (2, 3)]
+    g = shape_graph(ss, ss.shapes[0], tol=1e-5)
+    assert sorted(g.edges) == [(0, 1)]
+
+
+def test_rotated_boxes_separating_axis():
+    # A box turned 45 degrees about z, corner towards a unit cube: touches only when the
+    # corner reaches the face (an axis-aligned bounding-box test would say yes much earlier).
+    big = np.array(_at(0, 0, 0))
+    half_diag = np.sqrt(2) / 2
+    for gap, expected in ((0.05, False), (-0.01, True)):
+        turned = np.array(_at(0.5 + half_diag + gap, 0, 0, np.pi / 4))
+        a = np.array([[x, y, z] for x in (-.5, .5) for y in (-.5, .5) for z in (-.5, .5)])
+        pa = a @ big[:3, :3].T + big[:3, 3]
+        pb = a @ turned[:3, :3].T + turned[:3, 3]
+        assert boxes_touch(pa, big, pb, turned, 1e-3) is expected
+
+
+def test_mesh_contacts_use_fcl():
+    ss = read_shapes(SETS / "castle.json")
+    assert ss.library["tower"].kind == "mesh"
+    g = shape_graph(ss, ss.shapes[0])
+    assert g.number_of_nodes() == 28 and nx.is_connected(g)
+    assert len(nx.cycle_basis(g)) >= 1
+    # every tower touches exactly its walls or gates
+    for v in g.nodes:
+        if g.nodes[v]["type"] == "T":
+            assert {g.nodes[u]["type"] for u in g.neighbors(v)} <= {"W", "G"}
+
+
+@pytest.mark.parametrize("name", ["castle", "moonbase", "colonnade"])
+def test_example_sets_are_valid_with_cycles(name):
+    ss = read_shapes(SETS / f"{name}.json")
+    assert 1 <= len(ss.shapes) <= 2
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    grammar = Grammar.from_graphs(graphs)
+    for s, g in zip(ss.shapes, graphs):
+        assert 23 <= len(s) <= 70
+        assert nx.is_connected(g) and g.number_of_edges() >= g.number_of_nodes()  # at least one cycle
+        assert validate_shape(ss, s, grammar) == []
+
+
+def test_example_sets_are_made_by_the_script(tmp_path):
+    import subprocess
+    import sys
+    subprocess.run([sys.executable, str(SETS / "make_sets.py"), str(tmp_path)], check=True, capture_output=True)
+    for name in ("castle", "moonbase", "colonnade"):
+        assert json.loads((tmp_path / f"{name}.json").read_text()) == json.loads((SETS / f"{name}.json").read_text())
+
+
+@pytest.mark.parametrize("mutate, words", [
+    (lambda d: d.update(format="nope"), ["format"]),
+    (lambda d: d["shapes"][0]["nodes"][1].update(part="spire"), ["shapes[0].nodes[1].part", "unknown part"]),
+    (lambda d: d["shapes"][0]["nodes"][0].update(transform=[[1, 0, 0]]), ["shapes[0].nodes[0].transform"]),
+    (lambda d: d["shapes"][0]["nodes"][0]["transform"][3].__setitem__(0, 2), ["not an affine"]),
+    (lambda d: d.update(shapes=[]), ["non-empty list"]),
+    (lambda d: d["parts"].update(block={"box": [1, -1, 1]}), ["positive"]),
+])
+def test_shapes_file_errors_name_the_place(tmp_path, mutate, words):
+    data = _box_shapes([_at(0), _at(1)])
+    mutate(data)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ShapesFormatError) as info:
+        read_shapes(path)
+    for w in words:
+        assert w in str(info.value)
+
+
+def test_graph_file_errors():
+    with pytest.raises(ShapesFormatError, match="not connected"):
+        graph_from_dict({"format": "procmod-graph/1", "types": ["A", "B"], "edges": []})
+    with pytest.raises(ShapesFormatError, match=r"types\[1\]"):
+        graph_from_dict({"format": "procmod-graph/1", "types": ["A", "BB"], "edges": [[0, 1]]})
+    with pytest.raises(ShapesFormatError, match=r"edges\[0\]"):
+        graph_from_dict({"format": "procmod-graph/1", "types": ["A", "B"], "edges": [[0, 5]]})
+
+
+def test_type_letters_distinct_and_stable():
+    letters = type_letters(["tower", "tunnel", "T", "wall"])
+    assert letters["T"] == "T" and len(set(letters.values())) == 4
+    assert letters == type_letters(["wall", "T", "tunnel", "tower"])
+
+
+def test_grammar_rules_and_violations():
+    g = nx.Graph()
+    g.add_nodes_from([(0, {"type": "T"}), (1, {"type": "W"}), (2, {"type": "T"})])
+    g.add_edges_from([(0, 1), (1, 2)])
+    grammar = Grammar.from_graphs([g])
+    assert grammar.to_json() == {"T": ["W"], "W": ["TT"]}
+    assert grammar.is_valid(g)
+    h = g.copy()
+    h.add_node(3, type="W")
+    h.add_edge(2, 3)
+    assert not grammar.is_valid(h)
+    assert any("node 2 (T) has neighbours WW" in v for v in grammar.violations(h))
+    assert Grammar.from_json(grammar.to_json()).rules == grammar.rules
+
+
+def test_histogram_metric():
+    assert histogram_distance("AAB", "AAB") == 0
+    assert histogram_distance("AA", "BB") == pytest.approx(1.0)
+    assert histogram_distance("AAB", "AB") == pytest.approx(1 / 5)
+    assert type_histogram("BAA") == (("A", 2), ("B", 1))
+
+
+def test_docking_recovers_rigid_motion(rng):
+    p = rng.normal(size=(5, 3))
+    angle = 0.7
+    r = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    q = p @ r.T + [1, 2, 3]
+    t = docking_transforms(p, q, 1e-6)[0]
+    assert np.allclose(t[:3, :3], r) and np.allclose(t[:3, 3] + 0, q.mean(0) - r @ p.mean(0))
+    # one point: four quarter turns about z
+    assert len(docking_transforms(p[:1], q[:1], 1e-6)) == 4
+
+
+def test_boundary_match_respects_types_and_distances(rng):
+    c1 = np.array([[0, 0, 0], [2, 0, 0], [0, 3, 0.0]])
+    c2 = np.array([[10, 0, 0], [12, 0, 0], [10, 3, 0], [10, 0, 5.0]])
+    m = match_boundary([0, 1], ["A", "B", "A"], c1, ["A", "B", "A", "B"], c2, 1e-6, rng)
+    assert m == [0, 1]
+    assert match_boundary([0, 2], ["A", "B", "A"], c1, ["A", "B", "A", "B"], c2, 1e-6, rng) in ([0, 2], [2, 0])
+    assert match_boundary([0, 1, 2], ["A", "B", "A"], c1, ["A", "B", "A", "B"], 2 * c2, 1e-6, rng) is None
+    assert match_boundary([0, 1], ["A", "B", "A"], c1, ["B", "B", "B", "B"], c2, 1e-6, rng) is None
+
+
+def test_augment_grows_valid_new_variants_deterministically():
+    ss = read_shapes(SETS / "moonbase.json")
+    a = augment(ss, 8, seed=3, parallel=4, max_rounds=6)
+    b = augment(ss, 8, seed=3, parallel=4, max_rounds=6)
+    assert len(a.shapes) > 2
+    assert [type_histogram(ss.types(s)) for s in a.shapes] == [type_histogram(ss.types(s)) for s in b.shapes]
+    grammar = Grammar.from_graphs([shape_graph(ss, s) for s in ss.shapes])
+    hists = set()
+    for s in a.shapes:
+        assert validate_shape(ss, s, grammar) == []
+        hists.add(type_histogram(ss.types(s)))
+    assert len(hists) == len(a.shapes)  # duplicates by type histogram are discarded
+
+
+def test_augment_through_a_process_pool_matches_inline():
+    from procmod.parallel import open_executor
+    ss = read_shapes(SETS / "castle.json")
+    inline = augment(ss, 5, seed=1, parallel=2, max_rounds=3)
+    with open_executor(2) as pool:
+        pooled = augment(ss, 5, seed=1, parallel=2, max_rounds=3, executor=pool)
+    assert [len(s) for s in inline.shapes] == [len(s) for s in pooled.shapes]
+
+
+def test_local_frame_is_covariant_and_symmetry_canonical(rng):
+    ss = read_shapes(SETS / "castle.json")
+    lib = ss.library
+    pts = part_points(lib, "wall", np.eye(4))
+    assert len(symmetry_group(pts)) == 4  # a box with three different extents
+    assert len(symmetry_group(part_points(lib, "tower", np.eye(4)))) == 16  # octagonal prism
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = q, [1, 2, 3]
+    assert np.allclose(local_frame(part_points(lib, "wall", m)), m @ local_frame(pts), atol=1e-9)
+    groups = {}
+    turned = np.array(_at(5, 1, 0, np.pi / 2)) @ np.array(_at(0, 0, 0, np.pi / 2))
+    a = canonical_frame(lib, "tower", np.array(_at(5, 1, 0)), groups)
+    b = canonical_frame(lib, "tower", turned, groups)  # a half turn of an octagon: same part, same frame
+    assert np.allclose(a, b, atol=1e-9)
+
+
+def test_instantiation_with_true_categories_rebuilds_inputs():
+    for name in ("castle", "colonnade"):
+        ss = read_shapes(SETS / f"{name}.json")
+        graphs = [shape_graph(ss, s) for s in ss.shapes]
+        cats = EdgeCategories.fit(ss, ss.shapes, graphs)
+        for s, g in zip(ss.shapes, graphs):
+            truth = cats.edge_categories(ss, s, g)
+            assert len(truth) == g.number_of_edges()
+            result = instantiate_graph(g, truth, cats, ss, np.random.default_rng(0))
+            assert result.success and result.fallbacks == 0
+            assert nx.is_isomorphic(shape_graph(ss, result.shape), g,
+                                    node_match=lambda a, b: a["type"] == b["type"])
