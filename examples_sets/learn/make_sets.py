@@ -12,7 +12,7 @@ Sets (world y is up):
   pair with optional reflected guns, above or below the tips), a rear engine, a
   reflected pair of side engines or a row of three small ones (they overlap:
   co-occurrence conflict), an optional tilted fin on top or keel below, optional
-  reflected tail fins, a cockpit with an optional antenna.
+  reflected tail fins and belly guns, a cockpit with an optional antenna.
 * ``castles`` — a keep with 4-6 towers around it (a rotational group) with optional
   roofs and flags, an outer wall built recursively from 2-5 segments bent left or right
   by a per-wall angle, an optional second wall behind, an optional gate.
@@ -169,6 +169,9 @@ def spaceship(rng):
     if rng.random() < 0.6:
         side = 1.0 if rng.random() < 0.5 else -1.0  # a fin on top or a keel below
         children.append(node("fin", T(0, 0.7 * side, -half * rng.uniform(0.3, 0.7)) @ R("x", side * rng.uniform(-0.4, 0.0))))
+    if rng.random() < 0.5:  # a reflected pair of guns under the body
+        belly = node("gun", T(0.35, -0.5, half * rng.uniform(0.0, 0.4)))
+        children += [belly, mapped(MX, belly)]
     if rng.random() < 0.4:  # a reflected pair of tail fins
         tail = node("fin", T(0.45, 0.55, -half * 0.8) @ R("z", -0.5))
         children += [tail, mapped(MX, tail)]

@@ -449,7 +449,7 @@ def log_likelihood(program: Program, data: Dataset, mode: str = "free") -> float
 
 def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float = 0.05,
         estimator: str = "exact", seed: int = 0, warm_bias: np.ndarray | None = None,
-        warm_iterations: int = 0, vi_samples: int = 8) -> dict:
+        warm_iterations: int = 0, vi_samples: int = 8, ramp: int = 0) -> dict:
     """Optimise the program's parameters in place with Adam; returns a summary.
 
     Parameters
@@ -463,6 +463,8 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
         maximises the mean-field ELBO with a score-function gradient (``vi_samples``
         assignments per step, leave-one-out baseline, softmax temperature of the q's
         decreased linearly from 1 to 0.05 as in the paper).
+    ramp : int
+        Linear learning-rate warm-up steps (the final pass uses it).
     warm_bias : array (N, M), optional
         Added to the local terms for the first ``warm_iterations`` steps (used after a
         split to push the two copies of an abstraction apart).
@@ -482,7 +484,10 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     total = warm_iterations + iterations
     # exponential decay to 5% of ``lr``: densities with floored sigmas are sharp, and a
     # constant step keeps oscillating around their means
-    decay = lambda it: 0.05 ** (it / max(total - 1, 1))
+    # (``ramp`` > 0: the rate also rises linearly over the first ``ramp`` steps — Adam's
+    # first steps move every parameter by about ``lr``, too much for means whose sigma
+    # starts at its floor)
+    decay = lambda it: min(1.0, (it + 1) / ramp if ramp else 1.0) * 0.05 ** (it / max(total - 1, 1))
     if estimator == "exact":
         sched = torch.optim.lr_scheduler.LambdaLR(opt, decay)
         for it in range(total):

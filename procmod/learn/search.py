@@ -148,7 +148,7 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
     usage = dict(zip(ids, resp.sum(0).tolist()))
     full = p0.copy()
     r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
-            seed=_seed(options.seed, "P0free"))
+            ramp=options.final_iterations // 10, seed=_seed(options.seed, "P0free"))
     return {"p0": p0, "loglik": ll, "usage": usage, "p0_free": full, "p0_free_loglik": r["log_likelihood"],
             "seconds": time.perf_counter() - start, "cpu": time.process_time() - cpu0}
 
@@ -222,7 +222,8 @@ def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase:
     iterations = options.init_iterations if phase == "fixed" else options.final_iterations
     if phase == "free":
         sigmas_from_residuals(program, data)
-    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, seed=seed)
+    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, seed=seed,
+        ramp=options.final_iterations // 10 if phase == "free" else 0)
     ll = log_likelihood(program, data, phase)
     particle.program, particle.loglik = program, ll
     particle.objective = _objective(ll, program, options.lam)
@@ -395,8 +396,9 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
             if phase == "discrete":
                 best = max(particles, key=lambda p: p.objective)
                 p1 = best.program.copy()
-                _single_threaded(fit)(p1, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
-                    seed=_seed(options.seed, "P1free"))
+                _single_threaded(fit)(p1, data, "free", options.final_iterations, lr=options.lr,
+                                      estimator=options.estimator, ramp=options.final_iterations // 10,
+                                      seed=_seed(options.seed, "P1free"))
                 state["programs"]["after_phase1"] = p1
             if nxt != "finished":
                 futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt))
