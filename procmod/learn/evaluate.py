@@ -4,11 +4,13 @@
   common (same part at the root, children matched one-to-one by a maximum-weight
   assignment, recursively), divided by the larger of the two hierarchies' sizes (their
   self-similarities).
-* ``s_vis(A, B)`` — in place of the paper's CNN descriptor: binary silhouettes from six
+* ``s_vis(A, B)`` — in place of the paper's CNN descriptor: silhouettes from six
   orthographic views (the three axes and three diagonals, 32 x 32 pixels, one framing
-  shared by the whole set) concatenated into a descriptor; the Euclidean distance is
-  divided by the mean of each object's distance to the descriptor of its own root part,
-  clipped to [0, 1], and ``s_vis = 1 - distance``.
+  shared by the whole set), blurred (Gaussian, 1.5 px) so that distances grade with
+  displacement, concatenated into a descriptor. As in the paper the distance is
+  normalised by distances to the root part's descriptor: ``d(A, B) / (d(A, root_A) +
+  d(B, root_B))``, which the triangle inequality keeps in [0, 1] when the roots agree
+  (clipped otherwise), and ``s_vis = 1 - that``.
 """
 
 from __future__ import annotations
@@ -81,11 +83,13 @@ def view_cameras(lo, hi, pixels: int = 32) -> list:
     return cams
 
 
-def descriptor(parts, cameras) -> np.ndarray:
+def descriptor(parts, cameras, blur: float = 1.5) -> np.ndarray:
+    from scipy.ndimage import gaussian_filter
     out = Silhouettes(cameras)
     for p in parts:
         out.add(p)
-    return np.concatenate([out.image(i).ravel() for i in range(len(cameras))]).astype(np.float64)
+    return np.concatenate([gaussian_filter(out.image(i).astype(np.float64), blur).ravel()
+                           for i in range(len(cameras))])
 
 
 def parts_of(node: ExampleNode, library: dict) -> list:
@@ -109,7 +113,7 @@ class VisualSimilarity:
     @staticmethod
     def similarity(fa, fb) -> float:
         (da, ra), (db, rb) = fa, fb
-        dist = float(np.linalg.norm(da - db)) / (0.5 * (ra + rb))
+        dist = float(np.linalg.norm(da - db)) / (ra + rb)
         return 1.0 - min(dist, 1.0)
 
 

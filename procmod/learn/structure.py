@@ -323,8 +323,9 @@ def _remove(program: Program, a: int) -> None:
 
 def reset_parameters(program: Program, data: Dataset, rng: np.random.Generator) -> Program:
     """A copy of ``program`` with every parameter re-initialised as in P0 (data
-    statistics for the NADE biases, uniform callee choices): the starting point for
-    comparing parameter estimators on a learned structure."""
+    statistics for the NADE biases) and random callee logits (N(0, 1), so that copies of
+    an abstraction are not exactly symmetric): the starting point for comparing
+    parameter estimators on a learned structure."""
     template = initial_program(data, rng)
     by_type = {}
     for t in template.abstractions.values():
@@ -337,9 +338,9 @@ def reset_parameters(program: Program, data: Dataset, rng: np.random.Generator) 
             if key.startswith(f"{t}.") and not key.endswith(".callee"):
                 new.params[f"{a.id}." + key.split(".", 1)[1]] = value.copy()
         for s, callees in enumerate(a.callees):
-            new.params[f"{a.id}.s{s}.callee"] = np.zeros(len(callees))
+            new.params[f"{a.id}.s{s}.callee"] = rng.standard_normal(len(callees))
     for key, value in template.params.items():
         if key.startswith("root.") and not key.endswith(".callee"):
             new.params[key] = value.copy()
-    new.params["root.s0.callee"] = np.zeros(len(new.root_callees))
+    new.params["root.s0.callee"] = rng.standard_normal(len(new.root_callees))
     return new
