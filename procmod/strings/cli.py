@@ -63,7 +63,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--hidden", type=int_arg, default=128)
     p.add_argument("--layers", type=int_arg, default=1)
     p.add_argument("--cell", choices=("gru", "lstm"), default="gru")
-    p.add_argument("--kl-weight", type=float, default=0.5, help="final KL weight beta (default 0.5)")
+    p.add_argument("--kl-weight", type=float, default=0.1, help="final KL weight beta (default 0.1)")
     p.add_argument("--kl-warmup", type=int_arg, default=10, help="epochs of linear beta warm-up (default 10)")
     p.add_argument("--strings-per-shape", type=int_arg, default=8)
     p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2)")

@@ -203,8 +203,9 @@ class EdgeCategories:
         from sklearn.cluster import MeanShift
 
         if symmetric:
-            shapes = [c for s in shapes for c in symmetric_copies(s)]
-            graphs = [g for g in graphs for _ in range(len(world_symmetries()))]
+            pairs = [(c, g) for s, g in zip(shapes, graphs) for c in symmetric_copies(s, shape_set.library)
+                     if c is not None]
+            shapes, graphs = [c for c, _ in pairs], [g for _, g in pairs]
 
         lib = shape_set.library
         diag = [float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in lib.values()]
@@ -321,7 +322,9 @@ class EdgeCategories:
                 pa, pb = part_of[name[0]], part_of[name[1]]
                 rel_ab, _, ma = self.examples[k][0]
                 mb = canonical_frame(shape_set.library, pa, ma, self.groups) @ rel_ab
-                perm[k] = self._category_of_pair(shape_set, pa, g @ ma, pb, g @ mb)
+                ga = proper_placement(shape_set.library, pa, g @ ma, _MIRROR_CACHE)
+                gb = proper_placement(shape_set.library, pb, g @ mb, _MIRROR_CACHE)
+                perm[k] = None if ga is None or gb is None else self._category_of_pair(shape_set, pa, ga, pb, gb)
             perms.append(perm)
         self._perms = perms
         return perms
@@ -399,23 +402,66 @@ def string_mask(text: str, categories: EdgeCategories) -> tuple[np.ndarray, list
 
 
 def world_symmetries() -> list[np.ndarray]:
-    """The 4 quarter turns of a whole shape about the vertical (z) axis: moves a string
-    cannot tell apart. (Mirror images are left out: a mirrored shape needs mirrored parts.)"""
+    """The 8 quarter turns of a whole shape about the vertical (z) axis, with and without a
+    mirror in x: moves a string cannot tell apart (mirrors apply to shapes whose parts are
+    mirror-symmetric, see :func:`proper_placement`)."""
     out = []
-    for k in range(4):
-        c, s_ = [(1, 0), (0, 1), (-1, 0), (0, -1)][k]
-        m = np.eye(4)
-        m[:2, :2] = [[c, -s_], [s_, c]]
-        out.append(m)
+    for mirror in (1.0, -1.0):
+        for k in range(4):
+            c, s_ = [(1, 0), (0, 1), (-1, 0), (0, -1)][k]
+            m = np.eye(4)
+            m[:2, :2] = [[c, -s_], [s_, c]]
+            out.append(m @ np.diag([mirror, 1.0, 1.0, 1.0]))
     return out
 
 
-def symmetric_copies(shape: Shape) -> list[Shape]:
-    """A shape turned by each of :func:`world_symmetries` (about its centroid)."""
+_MIRROR = np.diag([-1.0, 1.0, 1.0, 1.0])
+
+
+def proper_placement(library: dict, name: str, m: np.ndarray, cache: dict) -> np.ndarray | None:
+    """``m`` if it turns without mirroring; else the proper transform that puts the part's
+    points in the same place (``m`` times a mirror of the part in its own x), when the part
+    is mirror-symmetric; None when it is not (a mirrored copy would need a mirrored part)."""
+    if np.linalg.det(m[:3, :3]) > 0:
+        return m
+    key = ("mirror", name)
+    if key not in cache:
+        p = part_points(library, name, np.eye(4))
+        c = p.mean(0)
+        q = (p - c) * [-1.0, 1.0, 1.0] + c
+        scale = max(float(np.linalg.norm(p - c, axis=1).max()), 1e-12)
+        cache[key] = np.linalg.norm(q[:, None] - p[None], axis=2).min(1).max() <= 1e-6 * scale
+        if cache[key]:
+            about = np.eye(4)
+            about[:3, 3] = c
+            back = np.eye(4)
+            back[:3, 3] = -c
+            cache[("mirror-t", name)] = about @ _MIRROR @ back
+    return m @ cache[("mirror-t", name)] if cache[key] else None
+
+
+_MIRROR_CACHE: dict = {}
+
+
+def symmetric_copies(shape: Shape, library: dict | None = None) -> list[Shape | None]:
+    """A shape turned by each of :func:`world_symmetries` (about its centroid); None for a
+    mirror when a part is not mirror-symmetric (needs ``library``; without it mirrors are None)."""
     centre = np.mean([t[:3, 3] for t in shape.transforms], axis=0)
     to, back = np.eye(4), np.eye(4)
     to[:3, 3], back[:3, 3] = -centre, centre
-    return [Shape.of(shape.parts, [back @ g @ to @ t for t in shape.transforms]) for g in world_symmetries()]
+    out = []
+    for g in world_symmetries():
+        moved = [back @ g @ to @ t for t in shape.transforms]
+        if np.linalg.det(g[:3, :3]) < 0:
+            if library is None:
+                out.append(None)
+                continue
+            moved = [proper_placement(library, p, m, _MIRROR_CACHE) for p, m in zip(shape.parts, moved)]
+            if any(m is None for m in moved):
+                out.append(None)
+                continue
+        out.append(Shape.of(shape.parts, moved))
+    return out
 
 
 def canonical_targets(text: str, order: list[int], labelings: list[dict]) -> list[int]:
@@ -445,7 +491,9 @@ def canonical_targets(text: str, order: list[int], labelings: list[dict]) -> lis
 def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: "EdgeCategories") -> list[dict]:
     """Edge categories of each symmetric copy of a shape that all its edges fall in."""
     out = []
-    for copy in symmetric_copies(shape):
+    for copy in symmetric_copies(shape, shape_set.library):
+        if copy is None:
+            continue
         cats = categories.edge_categories(shape_set, copy, g)
         if len(cats) == g.number_of_edges():
             out.append(cats)

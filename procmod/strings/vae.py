@@ -69,13 +69,13 @@ class VAEConfig:
     hidden: int = 128
     layers: int = 1
     latent: int = 24
-    kl_weight: float = 0.5  # final beta
+    kl_weight: float = 0.1  # final beta
     kl_warmup: int = 10  # epochs of linear beta warm-up
     epochs: int = 40
     batch: int = 64
     lr: float = 2e-3
     max_len: int = 320
-    word_dropout: float = 0.1  # decoder inputs replaced by padding (Bowman et al.'s trick)
+    word_dropout: float = 0.3  # decoder inputs replaced by padding (Bowman et al.'s trick)
 
     def check(self) -> None:
         if self.cell not in ("gru", "lstm"):
