@@ -356,3 +356,17 @@ def test_the_shipped_vines_guide_beats_unguided_smc_at_ten_particles():
     differences = np.array(differences)
     se = differences.std(ddof=1) / math.sqrt(len(differences))
     assert differences.mean() > 3 * se, (differences.mean(), se)
+
+
+def test_the_shipped_circuit_guide_beats_unguided_smc():
+    from procmod.targets import Circuit
+    guide = Guide.load("vines-circuit")
+    assert not guide.settings.target and guide.settings.partial
+    target = Circuit()
+    differences = []
+    for seed in range(8):
+        best = [smc(VINES, target, particles=10, seed=seed, guide=g).best_score for g in (None, guide)]
+        differences.append(best[1] - best[0])
+    differences = np.array(differences)
+    se = differences.std(ddof=1) / math.sqrt(len(differences))
+    assert differences.mean() > 3 * se, (differences.mean(), se)
