@@ -194,3 +194,18 @@ def test_malformed_programs(saved, tmp_path, damage, message):
         (d / "program.json").write_text(json.dumps(j))
         with pytest.raises(ProcmodError, match=message):
             load_program(d)
+
+
+def test_samples_stay_near_the_examples(saved):
+    """Capped sigmas: no sample part lands far outside the examples' extent."""
+    from procmod.geometry.solid import scene_bounds
+    from procmod.learn.examples import example_parts
+    out, _ = saved
+    s = load("stations", [0, 1, 2])
+    lo, hi = scene_bounds([q for e in s.examples for q in example_parts(e, s.parts)])
+    size = float((hi - lo).max())
+    model = load_program(out)
+    for i in range(30):
+        g = run_forward(model, np.random.default_rng([9, i])).geometry()
+        a, b = scene_bounds(g)
+        assert float(np.abs(np.concatenate([a, b])).max()) < 10 * size

@@ -121,7 +121,7 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     ex = tmp_path / "tiny.json"
     ex.write_text(json.dumps(tiny_set(4)))
     out = tmp_path / "run"
-    assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3"]) == 0
+    assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0
     for name in ("program.json", "program.pt", "contact_sheet.png", "report.html", "report.json", "search.png"):
         assert (out / name).exists(), name
     report = json.loads((out / "report.json").read_text())
@@ -131,7 +131,7 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
                  "--format", "examples"]) == 0
     assert len(read_examples(samples).examples) == 5
     # a second run with the same arguments finds the finished checkpoint
-    assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3"]) == 0
+    assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0
     capsys.readouterr()
     assert main(["learn", str(tmp_path / "missing.json"), "--out", str(out)]) == 2
     assert "does not exist" in capsys.readouterr().err

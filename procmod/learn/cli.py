@@ -21,7 +21,8 @@ def register(sub, int_arg) -> None:
                        help="parallel structure searches (particle filter; default 4)")
     group = learn.add_mutually_exclusive_group()
     group.add_argument("--workers", type=int_arg, default=None,
-                       help="local worker processes (default: inline; 0 = one per core)")
+                       help="local worker processes for the parallel searches (default 0: one per "
+                            "core; 1 runs them in this process)")
     group.add_argument("--scheduler", default=None, help="dask scheduler address (tcp://host:8786)")
     learn.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     learn.add_argument("--estimator", default="exact", choices=("exact", "vi"),
@@ -47,7 +48,8 @@ def _cmd_learn(args) -> None:
             print(f"\r{line:<78}", end="", file=sys.stderr, flush=True)
 
     command = "procmod " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("procmod") else ""
-    out = learn(args.examples, args.out, particles=args.particles, workers=args.workers,
+    workers = 0 if args.workers is None and args.scheduler is None else args.workers
+    out = learn(args.examples, args.out, particles=args.particles, workers=workers,
                 scheduler=args.scheduler, seed=args.seed, options=SearchOptions(estimator=args.estimator),
                 samples=args.samples, progress=progress, command=command)
     if tty:

@@ -31,7 +31,7 @@ import torch
 
 from .preprocess import Dataset
 from .program import ROOT, Program, sym_sigma_categories
-from .transforms import CATEGORY, FIXED_SIGMA, SIGMA_FLOOR, SYM_PARAMS
+from .transforms import CATEGORY, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS
 
 NEG = -1e30
 INVALID_CALL = -50.0
@@ -61,7 +61,7 @@ def _bernoulli_nade(W, c, V, b, x, mask):
     return (mask * lp).sum(1)
 
 
-def _gauss_nade(W, c, Vm, bm, Vs, bs, x, fixed_sigma, floor, sigma_fixed: bool):
+def _gauss_nade(W, c, Vm, bm, Vs, bs, x, fixed_sigma, floor, sigma_fixed: bool, cap=None):
     """log p of ``x`` (P, 9) under per-pair Gaussian NADEs (hidden tanh); also z^2 (P, 9)."""
     h = torch.tanh(_activations(W, c, x)).transpose(1, 2)  # (P, D, H)
     mu = (Vm * h).sum(-1) + bm
@@ -69,6 +69,8 @@ def _gauss_nade(W, c, Vm, bm, Vs, bs, x, fixed_sigma, floor, sigma_fixed: bool):
         sigma = fixed_sigma
     else:
         sigma = floor + torch.exp(torch.clamp((Vs * h).sum(-1) + bs, max=50.0))
+        if cap is not None:
+            sigma = torch.minimum(sigma, cap)
     z = (x - mu) / sigma
     total = (-0.5 * z * z - torch.log(sigma) - LOG_SQRT_2PI).sum(1)
     return total, (z * z).detach()
@@ -207,7 +209,7 @@ class Compiled:
         I = len(inst)
         arrays = {k: [] for k in XF_KEYS}
         sg = {k: [] for k in SG_KEYS}
-        fixed, floor = np.zeros((I, 9)), np.zeros((I, 9))
+        fixed, floor, cap = np.zeros((I, 9)), np.zeros((I, 9)), np.zeros((I, 9))
         for i, (a, s) in enumerate(inst):
             pre = f"{p.prefix(a)}.s{s}"
             for k in XF_KEYS:
@@ -217,6 +219,8 @@ class Compiled:
             order = p.orders[p.xform_key(a, s)]
             fixed[i] = [FIXED_SIGMA[CATEGORY[dim]] for dim in order]
             floor[i] = [SIGMA_FLOOR[CATEGORY[dim]] for dim in order]
+            cap[i] = [SIGMA_MAX[CATEGORY[dim]] for dim in order]
+        self.xf_cap = _t(cap)
         self.xf = {k: self._leaf(f"xf.{k}", np.array(v)) for k, v in arrays.items()}
         self.sg = {k: self._leaf(f"sg.{k}", np.array(v)) for k, v in sg.items()}
         self.xf_fixed, self.xf_floor = _t(fixed), _t(floor)
@@ -243,9 +247,10 @@ class Compiled:
         inst = [a for a in self.ids if p.abstractions[a].kind != "part"]
         self.sym_inst = inst
         I = len(inst)
-        mu, rs, mask, fixed, floor = (np.zeros((I, 6)) for _ in range(5))
+        mu, rs, mask, fixed, floor, cap = (np.zeros((I, 6)) for _ in range(6))
         floor += 1.0
         fixed += 1.0
+        cap += 2.0
         pi, pn, pc, pv = [], [], [], []
         for i, a in enumerate(inst):
             ab = p.abstractions[a]
@@ -254,12 +259,13 @@ class Compiled:
             cats = sym_sigma_categories(ab.kind)
             fixed[i, :D] = [FIXED_SIGMA[c] for c in cats]
             floor[i, :D] = [SIGMA_FLOOR[c] for c in cats]
+            cap[i, :D] = [SIGMA_MAX[c] for c in cats]
             for n in self.by_type.get(ab.type, []):
                 v = np.zeros(6)
                 v[:D] = d.nodes[n].sym
                 pi.append(i); pn.append(n); pc.append(self.col[a]); pv.append(v)
         self.sym_mu, self.sym_rs = self._leaf("sym.mu", mu), self._leaf("sym.rs", rs)
-        self.sym_mask, self.sym_fixed, self.sym_floor = _t(mask), _t(fixed), _t(floor)
+        self.sym_mask, self.sym_fixed, self.sym_floor, self.sym_cap = _t(mask), _t(fixed), _t(floor), _t(cap)
         self.sym_pairs = (torch.as_tensor(pi, dtype=torch.long), torch.as_tensor(pn, dtype=torch.long),
                           torch.as_tensor(pc, dtype=torch.long), _t(np.array(pv).reshape(-1, 6)))
 
@@ -310,7 +316,8 @@ class Compiled:
             if len(pi):
                 xf = {k: v[pi] for k, v in self.xf.items()}
                 lp, zsq = _gauss_nade(xf["W"], xf["c"], xf["Vm"], xf["bm"], xf["Vs"], xf["bs"], px,
-                                      self.xf_fixed[pi], self.xf_floor[pi], self.mode == "fixed")
+                                      self.xf_fixed[pi], self.xf_floor[pi], self.mode == "fixed",
+                                      self.xf_cap[pi])
                 sg = {k: v[pi] for k, v in self.sg.items()}
                 lp = lp + _bernoulli_nade(sg["W"], sg["c"], sg["V"], sg["b"], ps, torch.ones_like(ps))
                 is_root = pc < 0
@@ -325,7 +332,8 @@ class Compiled:
                 if self.mode == "fixed":
                     sigma = self.sym_fixed[si]
                 else:
-                    sigma = self.sym_floor[si] + torch.exp(torch.clamp(self.sym_rs[si], max=50.0))
+                    sigma = torch.minimum(self.sym_floor[si] + torch.exp(torch.clamp(self.sym_rs[si], max=50.0)),
+                                          self.sym_cap[si])
                 z = (sv - mu) / sigma
                 lp = (self.sym_mask[si] * (-0.5 * z * z - torch.log(sigma) - LOG_SQRT_2PI)).sum(1)
                 local = local.index_put((sn, sc), lp, accumulate=True)

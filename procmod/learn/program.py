@@ -19,7 +19,7 @@ A :class:`Program` holds
   - ``<a>.sym.{mu,rs}`` — independent Gaussians over the symmetry parameters, and
     ``<a>.count`` — logits over the member count.
 
-Standard deviations are ``floor + exp(raw)``; during phase 2 of the search they are
+Standard deviations are ``min(floor + exp(raw), cap)``; during phase 2 of the search they are
 fixed (:data:`procmod.learn.transforms.FIXED_SIGMA`). Every part abstraction generates
 exactly one part type (splits preserve types), so its part distribution is a point mass
 and contributes nothing to likelihoods; it is stored in the JSON for completeness.
@@ -56,7 +56,7 @@ from ..core.errors import ProcmodError
 from ..core.serialize import write_text_atomic
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
-from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SYM_PARAMS, WORLD_FRAME,
+from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, WORLD_FRAME,
                          Frame, frame_of, sym_maps, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
@@ -160,7 +160,7 @@ class Program:
     def sigma(self, raw: float, category: int) -> float:
         if self.sigma_mode == "fixed":
             return FIXED_SIGMA[category]
-        return SIGMA_FLOOR[category] + math.exp(min(raw, 50.0))
+        return min(SIGMA_FLOOR[category] + math.exp(min(raw, 50.0)), SIGMA_MAX[category])
 
     # ---- sampling helpers (plain numpy, one derivation at a time) --------------------
 

@@ -31,6 +31,9 @@ FIXED_SIGMA = (math.log(1.1), math.pi / 8, 0.2)
 # Floors on learned standard deviations (the final pass frees them): keeps densities finite
 # for variables that are constant across the examples.
 SIGMA_FLOOR = (0.01, 0.01, 0.01)
+# Caps on learned standard deviations: a NADE's sigma output can explode for inputs
+# unlike its (few) training values, and a sample then lands kilometres away.
+SIGMA_MAX = (0.5, math.pi / 2, 1.0)
 
 
 class Frame(NamedTuple):
