@@ -130,6 +130,11 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     assert main(["sample", str(out / "program.json"), "-n", "5", "--seed", "2", "--out", str(samples),
                  "--format", "examples"]) == 0
     assert len(read_examples(samples).examples) == 5
+    # same arguments, another folder: the same program, byte for byte
+    other = tmp_path / "run2"
+    assert main(["learn", str(ex), "--out", str(other), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0
+    for name in ("program.json", "program.pt"):
+        assert (out / name).read_bytes() == (other / name).read_bytes(), name
     # a second run with the same arguments finds the finished checkpoint
     assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0
     capsys.readouterr()

@@ -450,6 +450,8 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         "splits_proposed": sum(1 for r in best.trace if "split" in r),
         "splits_accepted": sum(1 for r in best.trace if r.get("accepted")),
     }
-    program.info = {"table": table, "options": asdict(options)}
+    # timings stay out of the program file, so the same run writes the same bytes
+    program.info = {"table": {k: v for k, v in table.items() if k not in ("seconds", "cpu_seconds")},
+                    "options": asdict(options)}
     return LearnResult(program, data, p0, state["programs"].get("after_phase1", p0), table, best.trace,
                        state["rounds"], state["elapsed"], resumed)
