@@ -54,6 +54,12 @@ def _hit(counts, nx, ny, nz, i, j, k, gain, state, record):
     if record.shape[0] > 0:
         record[int(state[4])] = v
         state[4] += 1
+    _count(counts, v, gain, state)
+
+
+@numba.njit(cache=True, inline="always")
+def _count(counts, v, gain, state):
+    """One more hit of in-grid voxel ``v``: a new voxel (and its gain) or an overlap."""
     c = counts[v]
     if c == 0:
         state[0] += 1
@@ -137,15 +143,7 @@ def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state, record):
 def _add_voxels(counts, voxels, gain, state):
     """Add a part already voxelized (its in-grid voxel indices) to the hit counts."""
     for v in voxels:
-        c = counts[v]
-        if c == 0:
-            state[0] += 1
-            if gain.shape[0] > 0:
-                state[3] += gain[v]
-        else:
-            state[1] += 1
-        if c < 255:
-            counts[v] = c + 1
+        _count(counts, v, gain, state)
 
 
 def _inverse(t: tuple) -> np.ndarray:

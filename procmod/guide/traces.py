@@ -146,30 +146,28 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None}
 
 
+def _read_versioned(path: Path, fmt: str, advice: str) -> dict:
+    """A JSON object with ``"format": fmt`` from ``path``, or a :class:`GuideError`."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise GuideError(f"{path}: not readable as JSON ({exc}){advice}") from None
+    if not isinstance(data, dict) or data.get("format") != fmt:
+        raise GuideError(f"{path}: expected format {fmt!r}{advice}")
+    return data
+
+
 def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[dict, list]:
     """The job settings and the traces of a folder (sorted by index; the first ``limit``)."""
     folder = Path(folder)
     job_file = folder / "traces.json"
     if not job_file.is_file():
         raise GuideError(f"{folder} is not a traces folder (no traces.json); make one with 'procmod guide traces'")
-    try:
-        settings = json.loads(job_file.read_text())
-    except (OSError, ValueError) as exc:
-        raise GuideError(f"{job_file}: not readable as JSON ({exc})") from None
-    if not isinstance(settings, dict) or settings.get("format") != JOB_FORMAT:
-        raise GuideError(f"{job_file}: expected format {JOB_FORMAT!r}")
+    settings = _read_versioned(job_file, JOB_FORMAT, "")
     names = sorted((int(m.group(1)), p) for p in folder.iterdir() if (m := _TRACE_NAME.match(p.name)))
     if limit is not None:
         names = names[:limit]
-    traces = []
-    for _, path in names:
-        try:
-            trace = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise GuideError(f"{path}: not readable as JSON ({exc}); delete it and rerun the traces job") from None
-        if not isinstance(trace, dict) or trace.get("format") != TRACE_FORMAT:
-            raise GuideError(f"{path}: expected format {TRACE_FORMAT!r}")
-        traces.append(trace)
+    traces = [_read_versioned(path, TRACE_FORMAT, "; delete it and rerun the traces job") for _, path in names]
     if not traces:
         raise GuideError(f"{folder} holds no traces yet; run 'procmod guide traces' first")
     return settings, traces
