@@ -136,8 +136,7 @@ def _single_threaded(task):
 
 @_single_threaded
 def task_initial(data: Dataset, options: SearchOptions) -> dict:
-    """P0, fitted on the discrete likelihood (the search start) and, for reporting, a copy
-    fitted on the full likelihood."""
+    """P0, fitted on the discrete likelihood (the search start)."""
     start, cpu0 = time.perf_counter(), time.process_time()
     rng = np.random.default_rng(_seed(options.seed, "P0"))
     p0 = initial_program(data, rng)
@@ -146,11 +145,19 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
     resp, ids = _responsibilities(p0, data, "discrete")
     ll = log_likelihood(p0, data, "discrete")
     usage = dict(zip(ids, resp.sum(0).tolist()))
-    full = p0.copy()
-    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
-            ramp=options.final_iterations // 10, seed=_seed(options.seed, "P0free"))
-    return {"p0": p0, "loglik": ll, "usage": usage, "p0_free": full, "p0_free_loglik": r["log_likelihood"],
+    return {"p0": p0, "loglik": ll, "usage": usage,
             "seconds": time.perf_counter() - start, "cpu": time.process_time() - cpu0}
+
+
+@_single_threaded
+def task_free_copy(program: Program, data: Dataset, options: SearchOptions, seed: int) -> dict:
+    """A copy of ``program`` with all parameters fitted, sigmas free (for Table 1 and the
+    figure-6 samples of P0 and of the phase-1 program; runs beside the search)."""
+    cpu0 = time.process_time()
+    full = program.copy()
+    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
+            ramp=options.final_iterations // 10, seed=seed)
+    return {"program": full, "loglik": r["log_likelihood"], "cpu": time.process_time() - cpu0}
 
 
 @_single_threaded
@@ -376,9 +383,8 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                      for _ in range(options.particles)]
         state = {"fingerprint": fingerprint, "options": asdict(options), "round": 0, "phase": "discrete",
                  "rng": rng.bit_generator.state, "rounds": [], "elapsed": time.perf_counter() - t0,
-                 "p0_free_loglik": init["p0_free_loglik"], "p0_loglik": init["loglik"],
-                 "programs": {"p0": init["p0"], "p0_free": init["p0_free"]}, "particles": particles,
-                 "cpu": init["cpu"]}
+                 "p0_loglik": init["loglik"], "side_logliks": {},
+                 "programs": {"p0": init["p0"]}, "particles": particles, "cpu": init["cpu"]}
         if checkpoint is not None:
             save_checkpoint(checkpoint, state)
     else:
@@ -387,6 +393,22 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     elapsed0 = state["elapsed"]
     t_resume, cpu_resume, cpu0 = time.perf_counter(), time.process_time(), state.get("cpu", 0.0)
     task_cpu = 0.0
+    # fits made only for reporting run beside the search: name -> future
+    side = {}
+    if "p0_free" not in state["programs"]:
+        side["p0_free"] = executor.submit(task_free_copy, state["programs"]["p0"], data, options,
+                                          _seed(options.seed, "P0free"))
+
+    def collect(wait: bool) -> float:
+        cpu = 0.0
+        for name in list(side):
+            if wait or side[name].done():
+                out = side.pop(name).result()
+                state["programs"][name] = out["program"]
+                state["side_logliks"][name] = out["loglik"]
+                cpu += out["cpu"]
+        return cpu
+
     while state["phase"] != "finished":
         phase = state["phase"]
         r = state["round"]
@@ -395,11 +417,9 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
             nxt = {"discrete": "fixed", "fixed": "free", "free": "finished"}[phase]
             if phase == "discrete":
                 best = max(particles, key=lambda p: p.objective)
-                p1 = best.program.copy()
-                _single_threaded(fit)(p1, data, "free", options.final_iterations, lr=options.lr,
-                                      estimator=options.estimator, ramp=options.final_iterations // 10,
-                                      seed=_seed(options.seed, "P1free"))
-                state["programs"]["after_phase1"] = p1
+                state["programs"]["phase1"] = best.program
+                side["after_phase1"] = executor.submit(task_free_copy, best.program, data, options,
+                                                       _seed(options.seed, "P1free"))
             if nxt != "finished":
                 futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt))
                            for k, p in enumerate(particles)]
@@ -419,6 +439,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                 particles, chosen = _resample(particles, rng)
             row = {"round": r, "phase": phase, "event": "step", "objectives": [round(p.objective, 3) for p in particles],
                    "resampled_from": chosen, "seconds": round(elapsed0 + time.perf_counter() - t_resume, 3)}
+        task_cpu += collect(wait=state["phase"] == "finished")
         state["rounds"].append(row)
         state["round"] = r + 1
         state["particles"] = particles
@@ -434,9 +455,16 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
             best = max(p.objective for p in particles)
             progress(f"round {r}: phase {state['phase']}, best O_D {best:.2f}, "
                      f"{sum(not p.done for p in particles)} searching")
+    # a run resumed after its last checkpoint may still lack a reporting fit
+    for name, source, key in (("p0_free", "p0", "P0free"), ("after_phase1", "phase1", "P1free")):
+        if name not in state["programs"] and source in state["programs"]:
+            side[name] = executor.submit(task_free_copy, state["programs"][source], data, options,
+                                         _seed(options.seed, key))
+    collect(wait=True)
     best = max(particles, key=lambda p: p.objective)
     program = best.program
     p0 = state["programs"]["p0_free"]
+    state["p0_free_loglik"] = state["side_logliks"]["p0_free"]
     lam = options.lam
     table = {
         "parts": len(data.parts),
