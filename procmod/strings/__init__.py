@@ -1,1 +1,17 @@
-"""String-based synthesis of structured shapes (seed 001)."""
+"""String-based synthesis of structured shapes (seed 001).
+
+Modules: :mod:`.codec` (graph <-> SMILES-topology strings), :mod:`.shapes` (shapes files,
+contact graphs, tiling grammar), :mod:`.sampling` (graph-based shape sampling),
+:mod:`.vae` (sequence VAE with grammar-constrained decoding), :mod:`.latent` (latent
+sampling, search graphs), :mod:`.instantiate` (frames, edge categories, tagger,
+instantiation), :mod:`.pipeline` (collection and model folders), :mod:`.render` (previews,
+GLB). See docs/strings.md.
+"""
+
+from .codec import GraphError, StringSyntaxError, decode, encode, parse, strings_of
+from .shapes import (Grammar, Shape, ShapeSet, ShapesFormatError, read_graph, read_shapes, shape_graph,
+                     validate_shape, write_graph, write_shapes)
+
+__all__ = ["GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of", "Grammar", "Shape",
+           "ShapeSet", "ShapesFormatError", "read_graph", "read_shapes", "shape_graph", "validate_shape",
+           "write_graph", "write_shapes"]
