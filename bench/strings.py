@@ -28,7 +28,7 @@ from procmod.parallel import open_executor  # noqa: E402
 from procmod.strings.codec import encode, parse  # noqa: E402
 from procmod.strings.instantiate import (TaggerConfig, shape_labelings, tagging_accuracy,  # noqa: E402
                                         tagging_examples)
-from procmod.strings.latent import naive_graph, path_statistics, perturb, search_graph  # noqa: E402
+from procmod.strings.latent import GraphIndex, naive_graph, path_statistics, perturb, search_graph  # noqa: E402
 from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
 from procmod.strings.render import write_sheet  # noqa: E402
 from procmod.strings.sampling import augment  # noqa: E402
@@ -43,15 +43,11 @@ def triangles(shape_set, shape) -> int:
 
 
 def graph_index(graphs):
-    index = {}
-    for g in graphs:
-        index.setdefault(nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=4), []).append(g)
-    return index
+    return GraphIndex(graphs)
 
 
 def is_known(g, index) -> bool:
-    key = nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=4)
-    return any(nx.is_isomorphic(g, h, node_match=lambda a, b: a["type"] == b["type"]) for h in index.get(key, []))
+    return g in index
 
 
 def rates(model, strings, known_index):

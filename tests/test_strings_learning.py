@@ -125,3 +125,12 @@ def test_search_graphs_and_paths(rng):
     assert naive.number_of_nodes() == len(strings)
     path = latent_path(z[0], z[1], z, 5)
     assert len(path) == 5 and np.allclose(path[0], z[0]) and np.allclose(path[-1], z[1])
+
+
+def test_graph_index_knows_graphs_up_to_isomorphism():
+    from procmod.strings.codec import decode
+    from procmod.strings.latent import GraphIndex
+    index = GraphIndex([decode("C1CC(N)CC1O")])
+    assert decode("OC1CCC(N)CC1") not in index  # a 6-ring, not the 5-ring
+    assert decode("NC1CCC(O)C1") in index  # the same graph written from another root
+    assert decode("C1CC(O)CC1N") in index

@@ -212,7 +212,7 @@ def _train(args) -> None:
 def _sample(args) -> None:
     from ..core.serialize import write_text_atomic
     from .codec import decode
-    from .latent import interpolate, latent_path, perturb, sample_path
+    from .latent import GraphIndex, interpolate, latent_path, perturb, sample_path
     from .pipeline import TrainedModel
     from .render import write_shape_mesh, write_shape_png, write_sheet
     from .shapes import graph_to_dict
@@ -245,8 +245,8 @@ def _sample(args) -> None:
                 decoded.append(found[int(rng.integers(len(found)))] if found else None)
     valid = [s for s in decoded if vae.is_valid(s)]
     unique = list(dict.fromkeys(valid))
-    known = set(train)
-    novel = [s for s in unique if s not in known]
+    known = GraphIndex(decode(s) for s in dict.fromkeys(train))
+    novel = [s for s in unique if decode(s) not in known]  # a graph no training string has
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out / "samples.txt", "\n".join(unique) + ("\n" if unique else ""))
     built, shapes = 0, []

@@ -368,6 +368,7 @@ class TaggerConfig:
     epochs: int = 30
     batch: int = 32
     lr: float = 3e-3
+    dropout: float = 0.0  # between recurrent layers and before the output layer
 
 
 class Tagger(nn.Module):
@@ -378,13 +379,15 @@ class Tagger(nn.Module):
         self.config = config
         self.embedding = nn.Embedding(vocab_size, config.embed, padding_idx=0)
         kind = nn.LSTM if config.cell == "lstm" else nn.GRU
-        self.rnn = kind(config.embed, config.hidden, num_layers=config.layers, batch_first=True, bidirectional=True)
+        self.rnn = kind(config.embed, config.hidden, num_layers=config.layers, batch_first=True, bidirectional=True,
+                        dropout=config.dropout if config.layers > 1 else 0.0)
+        self.drop = nn.Dropout(config.dropout)
         self.out = nn.Linear(2 * config.hidden, categories)
 
     def forward(self, tokens: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """Masked logits ``(B, T, K)``: -inf where ``mask`` is False."""
         h, _ = self.rnn(self.embedding(tokens))
-        return self.out(h).masked_fill(~mask, float("-inf"))
+        return self.out(self.drop(h)).masked_fill(~mask, float("-inf"))
 
 
 def string_mask(text: str, categories: EdgeCategories) -> tuple[np.ndarray, list]:

@@ -162,3 +162,24 @@ def path_statistics(g: nx.Graph, pairs: int, rng: np.random.Generator) -> dict:
     return {"nodes": g.number_of_nodes(), "edges": g.number_of_edges(), "components": len(comps),
             "avg_weight": float(np.mean(weights)) if weights else 0.0,
             "max_weight": float(np.max(weights)) if weights else 0.0, "paths": len(weights)}
+
+
+class GraphIndex:
+    """Typed graphs indexed by Weisfeiler-Lehman hash, for "is this graph new?" checks
+    (exact isomorphism with node types within a hash bucket)."""
+
+    def __init__(self, graphs=()):
+        self.buckets: dict[str, list] = {}
+        for g in graphs:
+            self.add(g)
+
+    @staticmethod
+    def _key(g) -> str:
+        return nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=4)
+
+    def add(self, g) -> None:
+        self.buckets.setdefault(self._key(g), []).append(g)
+
+    def __contains__(self, g) -> bool:
+        return any(nx.is_isomorphic(g, h, node_match=lambda a, b: a["type"] == b["type"])
+                   for h in self.buckets.get(self._key(g), []))
