@@ -175,6 +175,11 @@ def test_engines_control_a_learned_program(saved):
     target = Volume(grid, [(mask, 1.0, -0.5)])
     result = ga(model, target, population=12, budget=Budget(generations=3), seed=0)
     assert result.best is not None and math.isfinite(result.best_score)
+    from procmod.infer import mcmc, smc
+    result = smc(model, target, particles=10, seed=0)
+    assert result.best is not None and math.isfinite(result.best_score)
+    result = mcmc(model, target, chains=2, budget=Budget(evaluations=20), seed=0)
+    assert result.best is not None
 
 
 @pytest.mark.parametrize("damage, message", [
