@@ -55,7 +55,8 @@ def test_augment_train_sample_instantiate(tmp_path, capsys):
     assert (col / "strings.txt").read_text().split() and (col / "growth.json").is_file()
     model = tmp_path / "model"
     code, out, err = _run(capsys, "strings", "train", col, "--out", model, "--epochs", 1, "--tagger-epochs", 1,
-                          "--hidden", 16, "--latent", 4, "--strings-per-shape", 4)
+                          "--hidden", 16, "--latent", 4, "--strings-per-shape", 4,
+                          "--tagger-strings-per-shape", 4)
     assert code == 0, err
     assert {"model.json", "vae.pt", "tagger.pt", "collection.json"} <= {p.name for p in model.iterdir()}
     code, out, err = _run(capsys, "strings", "sample", model, "-n", 3, "--out", tmp_path / "s", "--no-meshes")

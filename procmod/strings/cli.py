@@ -65,7 +65,9 @@ def register(sub, int_arg) -> None:
     p.add_argument("--cell", choices=("gru", "lstm"), default="gru")
     p.add_argument("--kl-weight", type=float, default=0.1, help="final KL weight beta (default 0.1)")
     p.add_argument("--kl-warmup", type=int_arg, default=10, help="epochs of linear beta warm-up (default 10)")
-    p.add_argument("--strings-per-shape", type=int_arg, default=8)
+    p.add_argument("--strings-per-shape", type=int_arg, default=8, help="VAE training strings per shape (default 8)")
+    p.add_argument("--tagger-strings-per-shape", type=int_arg, default=16,
+                   help="tagger training strings per shape (default 16)")
     p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2)")
     p.add_argument("--seed", type=int_arg, default=0)
     p.set_defaults(handler=_train)
@@ -199,8 +201,10 @@ def _train(args) -> None:
         bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in ("epoch", "seconds")}, refresh=False)
         bar.refresh()
 
+    if args.strings_per_shape < 1 or args.tagger_strings_per_shape < 1:
+        raise InvalidArgumentError("--strings-per-shape and --tagger-strings-per-shape must be positive integers")
     meta = train_model(args.collection, args.out, vae, tagger, args.strings_per_shape, args.held_out,
-                       _seed(args.seed), progress)
+                       _seed(args.seed), progress, tagger_strings_per_shape=args.tagger_strings_per_shape)
     for bar in bars.values():
         bar.close()
     acc = meta.get("tagger_held_out_accuracy")

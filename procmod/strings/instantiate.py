@@ -368,7 +368,7 @@ class TaggerConfig:
     epochs: int = 30
     batch: int = 32
     lr: float = 3e-3
-    dropout: float = 0.0  # between recurrent layers and before the output layer
+    dropout: float = 0.3  # between recurrent layers and before the output layer
 
 
 class Tagger(nn.Module):

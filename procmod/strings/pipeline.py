@@ -83,7 +83,8 @@ def split_shapes(n: int, held_out: float, seed: int) -> tuple[list[int], list[in
 
 def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_config: VAEConfig = VAEConfig(),
                 tagger_config: TaggerConfig = TaggerConfig(), strings_per_shape: int = 8, held_out: float = 0.2,
-                seed: int = 0, progress=None, stop_after: int | None = None) -> dict:
+                seed: int = 0, progress=None, stop_after: int | None = None,
+                tagger_strings_per_shape: int = 16) -> dict:
     """Train the VAE and the edge-category tagger on a collection, into a model folder.
 
     ``held_out`` of the variants (never the inputs) are kept out of both trainings and
@@ -115,13 +116,14 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
         categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
         write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
     trng = np.random.default_rng([seed, 4])
-    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, strings_per_shape, trng)
+    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, tagger_strings_per_shape, trng)
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
                             categories, 4, trng)
     tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
                           progress=lambda row: report("tagger", row))
     meta = {"format": MODEL_FORMAT, "grammar": grammar.to_json(), "seed": seed,
-            "strings_per_shape": strings_per_shape, "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),
+            "strings_per_shape": strings_per_shape, "tagger_strings_per_shape": tagger_strings_per_shape,
+            "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),
             "training_strings": len(strings), "categories": len(categories) - 1,
             "tagger_held_out_accuracy": tagging_accuracy(tagger, held) if held else None,
             "vae": asdict(vae_config), "tagger": asdict(tagger_config),
