@@ -74,17 +74,27 @@ def rotation(axis: str, angle: float) -> tuple:
     return tuple(m)
 
 
-def _product(a: tuple, b: tuple) -> tuple:
-    return tuple(sum(a[4 * r + k] * b[4 * k + c] for k in range(4)) for r in range(4) for c in range(4))
+def _affine_product(a: tuple, b: tuple) -> tuple:
+    """``a @ b`` for affine 4x4 tuples (last rows 0 0 0 1), written out."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11 = a[:12]
+    b0, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11 = b[:12]
+    return (a0 * b0 + a1 * b4 + a2 * b8, a0 * b1 + a1 * b5 + a2 * b9, a0 * b2 + a1 * b6 + a2 * b10,
+            a0 * b3 + a1 * b7 + a2 * b11 + a3,
+            a4 * b0 + a5 * b4 + a6 * b8, a4 * b1 + a5 * b5 + a6 * b9, a4 * b2 + a5 * b6 + a6 * b10,
+            a4 * b3 + a5 * b7 + a6 * b11 + a7,
+            a8 * b0 + a9 * b4 + a10 * b8, a8 * b1 + a9 * b5 + a10 * b9, a8 * b2 + a9 * b6 + a10 * b10,
+            a8 * b3 + a9 * b7 + a10 * b11 + a11,
+            0.0, 0.0, 0.0, 1.0)
 
 
 def compose(*transforms) -> tuple:
-    """The product ``T1 @ T2 @ ...`` (apply the last one first)."""
-    m = IDENTITY
+    """The product ``T1 @ T2 @ ...`` (apply the last one first) of affine transforms."""
+    m = None
     for t in transforms:
-        t = t if isinstance(t, tuple) and len(t) == 16 else as_transform(t)
-        m = _product(m, tuple(float(v) for v in t))
-    return m
+        if not (isinstance(t, tuple) and len(t) == 16):
+            t = as_transform(t)
+        m = t if m is None else _affine_product(m, t)
+    return IDENTITY if m is None else tuple(float(v) for v in m)
 
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
