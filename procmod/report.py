@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import html
-import io
 import json
 import os
 from pathlib import Path
@@ -16,7 +15,7 @@ import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from .core import save_derivation, write_text_atomic  # noqa: E402
-from .geometry import contact_sheet, save_image_atomic  # noqa: E402
+from .geometry import contact_sheet, save_figure_atomic, save_image_atomic  # noqa: E402
 from .render import derivation_image, output_formats, write_derivation  # noqa: E402
 
 
@@ -39,12 +38,8 @@ def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") 
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110, metadata={"Software": None})
+    save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
-    tmp = Path(path).with_name(f".{Path(path).name}.tmp")
-    tmp.write_bytes(buffer.getvalue())
-    os.replace(tmp, path)
 
 
 def _mask_image(mask, width: int) -> Image.Image:

@@ -139,11 +139,23 @@ def contact_sheet(images, columns: int | None = None, pad: int = 6,
     return sheet
 
 
+def _write_bytes_atomic(data: bytes, path: str | os.PathLike) -> None:
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
 def save_image_atomic(image: Image.Image, path: str | os.PathLike) -> None:
     """Save a PNG through a temporary file and a rename; deterministic bytes."""
-    path = Path(path)
     buffer = io.BytesIO()
     image.save(buffer, format="PNG", optimize=False)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(buffer.getvalue())
-    os.replace(tmp, path)
+    _write_bytes_atomic(buffer.getvalue(), path)
+
+
+def save_figure_atomic(fig, path: str | os.PathLike, dpi: int = 110) -> None:
+    """Save a matplotlib figure as PNG through a temporary file and a rename (no
+    timestamp or software tag in the file, so the same figure gives the same bytes)."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+    _write_bytes_atomic(buffer.getvalue(), path)

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import html
-import io
 import json
 import os
 import time
@@ -22,7 +21,7 @@ import numpy as np
 from ..core import run_forward
 from ..core.errors import InvalidArgumentError
 from ..core.serialize import write_text_atomic
-from ..geometry import contact_sheet, save_image_atomic
+from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.camera import framing_camera, shaded_image
 from ..geometry.export import colour_of
 from ..geometry.solid import scene_bounds
@@ -66,12 +65,8 @@ def _search_plot(rounds, path) -> None:
         ax.set_ylabel("best O_D")
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100, metadata={"Software": None})
+    save_figure_atomic(fig, path, dpi=100)
     plt.close(fig)
-    tmp = Path(path).with_name(f".{Path(path).name}.tmp")
-    tmp.write_bytes(buffer.getvalue())
-    os.replace(tmp, path)
 
 
 def _report_html(table: dict, trace: list, examples_path: str, command: str) -> str:
