@@ -229,6 +229,7 @@ class FeatureExtractor:
                              "(train a guide with --features local or constant for image-free targets)")
         self.target_pyramid = Pyramid(target_mask.astype(np.float64)) if settings.target else None
         self._local = {}
+        self._frame = None  # (xmin, ymin, x scale, y scale, centre) of the output raster
 
     def n_local(self, rule_name: str) -> int:
         """Number of local-state features of a rule's choices (0 without local features)."""
@@ -282,16 +283,21 @@ class FeatureExtractor:
                 partial_pyramid(state).windows_into(px, py, out, k)
         return out
 
-    @staticmethod
-    def pixel_position(state) -> tuple[float, float]:
-        """The current position (``ctx.at``) in the output raster's pixel coordinates."""
-        canvas = state.output
+    def pixel_position(self, state) -> tuple[float, float]:
+        """The current position (``ctx.at``) in the output raster's pixel coordinates
+        (the centre of the raster before any position is reported). Every particle of a
+        run draws on the same raster frame, so it is worked out once."""
+        frame = self._frame
+        if frame is None:
+            canvas = state.output
+            vp = canvas.viewport
+            frame = self._frame = (vp.xmin, vp.ymin, canvas.width / (vp.xmax - vp.xmin),
+                                   canvas.height / (vp.ymax - vp.ymin),
+                                   (0.5 * (vp.xmin + vp.xmax), 0.5 * (vp.ymin + vp.ymax)))
         position = state.position
-        vp = canvas.viewport
-        if position is None:  # nothing reported yet: look from the centre
-            position = (0.5 * (vp.xmin + vp.xmax), 0.5 * (vp.ymin + vp.ymax))
-        return ((position[0] - vp.xmin) * canvas.width / (vp.xmax - vp.xmin),
-                (position[1] - vp.ymin) * canvas.height / (vp.ymax - vp.ymin))
+        if position is None:
+            position = frame[4]
+        return (position[0] - frame[0]) * frame[2], (position[1] - frame[1]) * frame[3]
 
 
 def partial_pyramid(state) -> Pyramid:

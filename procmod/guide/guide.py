@@ -189,15 +189,7 @@ class GuidedProposer:
                 prefix = 0
             # the distribution class last checked against the site's kind (None: not yet)
             self._sites[(rule_name, choice)] = [spec["kind"], weights[key], idx, lows, spans, prefix, None]
-        self._pixel_frame = None  # (xmin, ymin, x scale, y scale) of the output raster
         self._bases = {}  # shared discrete distributions -> their base parameters
-
-    def _frame(self, canvas):
-        vp = canvas.viewport
-        self._pixel_frame = (vp.xmin, vp.ymin, canvas.width / (vp.xmax - vp.xmin),
-                             canvas.height / (vp.ymax - vp.ymin), 0.5 * (vp.xmin + vp.xmax),
-                             0.5 * (vp.ymin + vp.ymax))
-        return self._pixel_frame
 
     def _inputs(self, state, site, args: tuple) -> tuple:
         """The kernel arguments (features' sources + network) of a choice made now."""
@@ -210,12 +202,7 @@ class GuidedProposer:
         else:
             raw = self._no_local
         if self._use_target or self._use_partial:
-            frame = self._pixel_frame or self._frame(state.output)
-            position = state.position
-            if position is None:  # nothing reported yet: look from the centre
-                position = (frame[4], frame[5])
-            px = (position[0] - frame[0]) * frame[2]
-            py = (position[1] - frame[1]) * frame[3]
+            px, py = self.extractor.pixel_position(state)
         else:
             px = py = 0.0
         if self._use_partial:
