@@ -53,12 +53,19 @@ def _activations(W, c, x):
     return c[:, :, None] + torch.cumsum(contrib, dim=2) - contrib
 
 
-def _bernoulli_nade(W, c, V, b, x, mask):
-    """log p of bits ``x`` (P, D) under per-pair Bernoulli NADEs (hidden sigmoid)."""
+def _bernoulli_nade(W, c, V, b, x, mask, want_prior: bool = False):
+    """log p of bits ``x`` (P, D) under per-pair Bernoulli NADEs (hidden sigmoid).
+
+    With ``want_prior`` also, per pair, ``sum_d log p(x_d = 1 | x_<d) + log p(x_d = 0 |
+    x_<d)``: the log density of a Beta(2, 2) prior on every conditional, at this pair's
+    context (see :meth:`Compiled.slot_prior`)."""
     h = torch.sigmoid(_activations(W, c, x))  # (P, H, D)
     logit = (V * h.transpose(1, 2)).sum(-1) + b  # (P, D)
-    lp = x * torch.nn.functional.logsigmoid(logit) + (1 - x) * torch.nn.functional.logsigmoid(-logit)
-    return (mask * lp).sum(1)
+    on, off = torch.nn.functional.logsigmoid(logit), torch.nn.functional.logsigmoid(-logit)
+    lp = (mask * (x * on + (1 - x) * off)).sum(1)
+    if want_prior:
+        return lp, (mask * (on + off)).sum(1)
+    return lp
 
 
 def _gauss_nade(W, c, Vm, bm, Vs, bs, x, fixed_sigma, floor, sigma_fixed: bool, cap=None):
@@ -294,16 +301,22 @@ class Compiled:
         dense = dense.index_put((self.callee_rows, self.callee_cols), self.callee_flat)
         return torch.log_softmax(dense, dim=1)
 
-    def local_table(self, want_z: bool = False):
+    def local_table(self, want_z: bool = False, want_prior: bool = False):
         """(N, M) local log-probabilities, the root-transform constant, and optionally the
-        per-pair z^2 of the Gaussian terms with their (node, column) indices."""
+        per-pair z^2 of the Gaussian terms with their (node, column) indices; with
+        ``want_prior`` a fourth value, the (N, M) slot-use prior table of
+        :meth:`slot_prior`."""
         local = torch.where(self.compat, torch.zeros((), dtype=DTYPE), torch.tensor(NEG, dtype=DTYPE))
+        prior = torch.zeros((self.N, self.M), dtype=DTYPE) if want_prior else None
         pi, pn, pc, px, pm = self.slot_pairs
         if len(pi):
             W = (self.slot_W * self.slot_mask3)[pi]
             V = (self.slot_V * self.slot_mask3)[pi]
             c = (self.slot_c * self.slot_hm)[pi]
-            lp = _bernoulli_nade(W, c, V, self.slot_b[pi], px, pm)
+            lp = _bernoulli_nade(W, c, V, self.slot_b[pi], px, pm, want_prior)
+            if want_prior:
+                lp, pr = lp
+                prior = prior.index_put((pn, pc), pr, accumulate=True)
             local = local.index_put((pn, pc), lp, accumulate=True)
         ci, cn, cc, ck = self.count_pairs
         if len(ci):
@@ -339,11 +352,17 @@ class Compiled:
                 local = local.index_put((sn, sc), lp, accumulate=True)
                 if want_z:
                     zinfo.append((sn, sc, (z * z * self.sym_mask[si]).detach()))
+        if want_prior:
+            return local, const, zinfo, prior
         return local, const, zinfo
 
-    def log_likelihood(self, bias=None):
-        """Exact log p(D | P) by dynamic programming over the hierarchies."""
-        local, const, _ = self.local_table()
+    def log_likelihood(self, bias=None, local=None):
+        """Exact log p(D | P) by dynamic programming over the hierarchies (``local``: a
+        precomputed local table, as :meth:`local_table` returns it)."""
+        if local is None:
+            local, const, _ = self.local_table()
+        else:
+            local, const = local
         if bias is not None:
             local = local + bias
         logpi = self.callee_logprobs()
@@ -354,16 +373,36 @@ class Compiled:
         root = torch.logsumexp(logpi[0][None, :] + beta[self.roots], dim=1)
         return root.sum() + const
 
-    def responsibilities(self) -> np.ndarray:
-        """Posterior probability (N, M) that abstraction ``ids[m]`` generated node n."""
+    def map_objective(self, weights, alpha: float, bias=None):
+        """``log p(D | P) + alpha * slot prior`` and the local table (for its gradient).
+
+        The slot prior is a Beta(1 + alpha, 1 + alpha) prior, in MAP form, on every
+        conditional of every slot-use NADE, i.e. ``alpha`` pseudo-observations of each
+        outcome. A NADE conditional depends on the earlier bits, so the prior is spread
+        over the contexts the abstraction actually sees: ``weights`` (N, M) holds, per
+        abstraction, its nodes' posterior responsibilities normalised to sum to one (see
+        :func:`prior_weights`). An abstraction fitted to few nodes is thereby pulled
+        towards 1/2 more than one fitted to many, as with counts and pseudo-counts."""
+        local, const, _, prior = self.local_table(want_prior=True)
+        local.retain_grad()
+        ll = self.log_likelihood(bias, local=(local, const))
+        return ll + alpha * (weights * prior).sum(), ll, local
+
+    def responsibilities(self, extra=None) -> np.ndarray:
+        """Posterior probability (N, M) that abstraction ``ids[m]`` generated node n
+        (``extra``: a bias (N, M) added to the local terms, e.g. a split's warm-up bias)."""
         bias = torch.zeros((self.N, self.M), dtype=DTYPE, requires_grad=True)
-        ll = self.log_likelihood(bias)
+        ll = self.log_likelihood(bias if extra is None else bias + extra)
         (grad,) = torch.autograd.grad(ll, bias)
         return grad.numpy()
 
-    def joint(self, x):
-        """log p(x, y) for sampled assignments ``x`` (S, N) of columns (VI)."""
-        local, const, _ = self.local_table()
+    def joint(self, x, prior_weights=None):
+        """log p(x, y) for sampled assignments ``x`` (S, N) of columns (VI); with
+        ``prior_weights`` (N, M) also the weighted slot prior of :meth:`map_objective`."""
+        if prior_weights is None:
+            local, const, _ = self.local_table()
+        else:
+            local, const, _, prior = self.local_table(want_prior=True)
         # a mean-field q cannot express which abstractions a caller may call: a sampled
         # call outside the callable set costs INVALID_CALL nats instead of -inf, so the
         # score-function gradient stays finite and pushes q towards valid assignments
@@ -375,6 +414,8 @@ class Compiled:
             inst = self.inst_table[x[:, parent], slot[None, :]]  # (S, E)
             total = total + logpi[inst, x[:, child]].sum(1)
         total = total + logpi[0][x[:, self.roots]].sum(1)
+        if prior_weights is not None:
+            return total + const, (prior_weights * prior).sum()
         return total + const
 
     # ---- write back ------------------------------------------------------------------
@@ -408,6 +449,14 @@ class Compiled:
                     D = len(SYM_PARAMS[p.abstractions[a].kind])
                     p.params[f"{a}.sym.mu"] = self.sym_mu[i, :D].numpy().copy()
                     p.params[f"{a}.sym.rs"] = self.sym_rs[i, :D].numpy().copy()
+
+
+def prior_weights(resp) -> torch.Tensor:
+    """Per abstraction (column), its nodes' responsibilities normalised to sum to one
+    (all zero for an abstraction that generates nothing)."""
+    resp = torch.as_tensor(resp, dtype=DTYPE)
+    usage = resp.sum(0, keepdim=True)
+    return torch.where(usage > 1e-6, resp / torch.clamp(usage, min=1e-6), torch.zeros((), dtype=DTYPE))
 
 
 def sigmas_from_residuals(program: Program, data: Dataset) -> None:
@@ -449,6 +498,39 @@ def sigmas_from_residuals(program: Program, data: Dataset) -> None:
                 program.params[f"{key}.sym.rs"] = raw[:D]
 
 
+class _Adam:
+    """Adam (Kingma & Ba; torch's defaults betas (0.9, 0.999), eps 1e-8, the same update
+    as ``torch.optim.Adam(foreach=True)``) with the learning rate passed per step.
+
+    Written out because the fits are short (100-300 steps on small tensors): the torch
+    optimizer's per-step bookkeeping and its scheduler cost as much as the likelihood's
+    forward pass, and its constructor imports ``torch._dynamo`` (2+ s per process)."""
+
+    def __init__(self, params, betas=(0.9, 0.999), eps=1e-8):
+        self.params = list(params)
+        self.b1, self.b2, self.eps = betas[0], betas[1], eps
+        self.m = [torch.zeros_like(p) for p in self.params]
+        self.v = [torch.zeros_like(p) for p in self.params]
+        self.t = 0
+
+    def zero_grad(self):
+        for p in self.params:
+            p.grad = None
+
+    @torch.no_grad()
+    def step(self, lr: float):
+        self.t += 1
+        grads = [p.grad if p.grad is not None else torch.zeros_like(p) for p in self.params]
+        torch._foreach_lerp_(self.m, grads, 1 - self.b1)
+        torch._foreach_mul_(self.v, self.b2)
+        torch._foreach_addcmul_(self.v, grads, grads, value=1 - self.b2)
+        bc1, bc2 = 1 - self.b1 ** self.t, 1 - self.b2 ** self.t
+        denom = torch._foreach_sqrt(self.v)
+        torch._foreach_div_(denom, math.sqrt(bc2))
+        torch._foreach_add_(denom, self.eps)
+        torch._foreach_addcdiv_(self.params, self.m, denom, value=-lr / bc1)
+
+
 def log_likelihood(program: Program, data: Dataset, mode: str = "free") -> float:
     """Exact log p(D | P) of a program (no optimisation)."""
     with torch.no_grad():
@@ -457,7 +539,7 @@ def log_likelihood(program: Program, data: Dataset, mode: str = "free") -> float
 
 def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float = 0.05,
         estimator: str = "exact", seed: int = 0, warm_bias: np.ndarray | None = None,
-        warm_iterations: int = 0, vi_samples: int = 8, ramp: int = 0) -> dict:
+        warm_iterations: int = 0, vi_samples: int = 8, ramp: int = 0, slot_prior: float = 0.0) -> dict:
     """Optimise the program's parameters in place with Adam; returns a summary.
 
     Parameters
@@ -476,6 +558,13 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     warm_bias : array (N, M), optional
         Added to the local terms for the first ``warm_iterations`` steps (used after a
         split to push the two copies of an abstraction apart).
+    slot_prior : float
+        Pseudo-count ``alpha`` of the Beta(1 + alpha, 1 + alpha) prior on the slot-use
+        NADE conditionals (:meth:`Compiled.map_objective`; 0: maximum likelihood). The
+        exact estimator maximises ``log p(D|P) + log prior`` (MAP), weighting the prior
+        by the previous step's responsibilities; the VI estimator weights it by q.
+        Without it, the slot-use probabilities of an abstraction that generates three
+        or four nodes go to 0 or 1 and samples copy the examples' structures.
 
     Returns
     -------
@@ -486,7 +575,7 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     program.sigma_mode = "fixed" if mode == "fixed" else "free"
     comp = Compiled(program, data, mode)
     leaves = list(comp.leaves.values())
-    opt = torch.optim.Adam(leaves, lr=lr, foreach=True)
+    opt = _Adam(leaves)
     bias = None if warm_bias is None else torch.as_tensor(warm_bias, dtype=DTYPE)
     elbo = None
     total = warm_iterations + iterations
@@ -497,35 +586,46 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     # starts at its floor)
     decay = lambda it: min(1.0, (it + 1) / ramp if ramp else 1.0) * 0.05 ** (it / max(total - 1, 1))
     if estimator == "exact":
-        sched = torch.optim.lr_scheduler.LambdaLR(opt, decay)
+        weights = None
+        if slot_prior > 0:
+            start_bias = bias if warm_iterations > 0 else None
+            weights = prior_weights(comp.responsibilities(start_bias))
         for it in range(total):
             opt.zero_grad()
-            loss = -comp.log_likelihood(bias if it < warm_iterations else None)
-            loss.backward()
-            opt.step()
-            sched.step()
+            b = bias if it < warm_iterations else None
+            if weights is None:
+                loss = -comp.log_likelihood(b)
+                loss.backward()
+            else:
+                objective, _, local = comp.map_objective(weights, slot_prior, b)
+                (-objective).backward()
+                # d log p(D|P) / d local = the posterior responsibilities (the prior term
+                # does not pass through ``local``): next step's weights, one step behind
+                weights = prior_weights(-local.grad.detach())
+            opt.step(lr * decay(it))
     elif estimator == "vi":
         gen = torch.Generator().manual_seed(int(seed))
         q = torch.zeros((comp.N, comp.M), dtype=DTYPE)
         if bias is not None:
             q = q + torch.clamp(bias, min=-20.0)
         q = q.clone().requires_grad_(True)
-        opt = torch.optim.Adam(leaves + [q], lr=lr, foreach=True)
-        sched = torch.optim.lr_scheduler.LambdaLR(opt, decay)
+        opt = _Adam(leaves + [q])
         mask = torch.where(comp.compat, torch.zeros((), dtype=DTYPE), torch.tensor(NEG, dtype=DTYPE))
         for it in range(total):
             temperature = 1.0 - (1.0 - 0.05) * it / max(total - 1, 1)
             logq = torch.log_softmax(q / temperature + mask, dim=1)
             x = torch.multinomial(logq.detach().exp(), vi_samples, replacement=True, generator=gen).T
             lq = logq.gather(1, x.T).sum(0)
-            joint = comp.joint(x)
+            if slot_prior > 0:
+                joint, prior = comp.joint(x, prior_weights(logq.detach().exp()))
+            else:
+                joint, prior = comp.joint(x), 0.0
             f = (joint - lq).detach()
             baseline = (f.sum() - f) / max(vi_samples - 1, 1)
-            surrogate = ((f - baseline) * lq + joint).mean()
+            surrogate = ((f - baseline) * lq + joint).mean() + slot_prior * prior
             opt.zero_grad()
             (-surrogate).backward()
-            opt.step()
-            sched.step()
+            opt.step(lr * decay(it))
         elbo = float(f.mean())
     else:
         raise ValueError(f"unknown estimator {estimator!r}")

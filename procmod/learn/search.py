@@ -61,6 +61,8 @@ class SearchOptions:
     ``split_iterations`` re-optimise after a split (the paper: 500, from scratch; we warm
     start from the pre-split parameters, see docs/learn.md); ``warm_iterations`` of them
     carry the tie-breaking bias; ``final_iterations`` free the sigmas at the end.
+    ``slot_prior`` is the pseudo-count of the Beta prior on slot-use probabilities
+    (:func:`likelihood.fit`; 0: maximum likelihood, as the paper).
     """
 
     particles: int = 4
@@ -75,6 +77,7 @@ class SearchOptions:
     lr: float = 0.05
     estimator: str = "exact"
     max_rounds: int = 400
+    slot_prior: float = 1.0
 
     def check(self) -> "SearchOptions":
         if self.particles < 1:
@@ -84,6 +87,8 @@ class SearchOptions:
         for name in ("init_iterations", "split_iterations", "final_iterations", "max_rounds"):
             if getattr(self, name) < 1:
                 raise InvalidArgumentError(f"{name} must be positive, got {getattr(self, name)}")
+        if not (self.slot_prior >= 0 and math.isfinite(self.slot_prior)):
+            raise InvalidArgumentError(f"slot_prior must be a finite number >= 0, got {self.slot_prior}")
         return self
 
 
@@ -140,7 +145,7 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
     start, cpu0 = time.perf_counter(), time.process_time()
     rng = np.random.default_rng(_seed(options.seed, "P0"))
     p0 = initial_program(data, rng)
-    fit(p0, data, "discrete", options.init_iterations, lr=options.lr, estimator=options.estimator,
+    fit(p0, data, "discrete", options.init_iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior,
         seed=_seed(options.seed, "P0fit"))
     resp, ids = _responsibilities(p0, data, "discrete")
     ll = log_likelihood(p0, data, "discrete")
@@ -155,7 +160,7 @@ def task_free_copy(program: Program, data: Dataset, options: SearchOptions, seed
     figure-6 samples of P0 and of the phase-1 program; runs beside the search)."""
     cpu0 = time.process_time()
     full = program.copy()
-    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
+    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior,
             ramp=options.final_iterations // 10, seed=seed)
     return {"program": full, "loglik": r["log_likelihood"], "cpu": time.process_time() - cpu0}
 
@@ -175,16 +180,20 @@ def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: s
     rng = np.random.default_rng(seed)
     resp, ids = _responsibilities(program, data, mode)
     proposal, a2, bias = split(program, target, data, resp, ids, rng, continuous=mode != "discrete")
-    fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator,
+    fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior,
         seed=seed, warm_bias=bias, warm_iterations=options.warm_iterations)
     resp2, ids2 = _responsibilities(proposal, data, mode)
     snapped = snap(proposal, data, resp2, ids2, options.tau_snap)
     ll = log_likelihood(snapped, data, mode)
     objective = _objective(ll, snapped, options.lam)
-    accepted = objective > particle.objective + 1e-9
+    # a split that snapping undid (one of the copies dropped) changes no structure: it is
+    # only a refit of the current program, so it is not accepted (accepting it re-queued
+    # the same abstraction for another no-op round)
+    survived = target in snapped.abstractions and a2 in snapped.abstractions
+    accepted = survived and objective > particle.objective + 1e-9
     row = {"phase": mode, "split": target, "accepted": bool(accepted), "proposed": round(objective, 4),
            "loglik_proposed": round(ll, 4), "complexity_proposed": snapped.complexity(),
-           "abstractions_proposed": len(snapped.abstractions), "seconds": round(time.perf_counter() - start, 3)}
+           "abstractions_proposed": len(snapped.abstractions), "split_survived": bool(survived), "seconds": round(time.perf_counter() - start, 3)}
     if accepted:
         resp3, ids3 = _responsibilities(snapped, data, mode)
         particle.program, particle.objective, particle.loglik = snapped, objective, ll
@@ -229,7 +238,7 @@ def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase:
     iterations = options.init_iterations if phase == "fixed" else options.final_iterations
     if phase == "free":
         sigmas_from_residuals(program, data)
-    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, seed=seed,
+    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior, seed=seed,
         ramp=options.final_iterations // 10 if phase == "free" else 0)
     ll = log_likelihood(program, data, phase)
     particle.program, particle.loglik = program, ll
