@@ -614,3 +614,154 @@ def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: s
     old = derivation.choice_map()
     choices = old.without_subtree(node_address + (site,)).with_value(node_address, site, bool(on))
     return _replay(model, choices.raw, rng, None, None, old.raw)
+
+
+class _NoOutput:
+    """Swallows emits: :func:`replay_reusing` draws the geometry itself, once it knows
+    which calls changed."""
+
+    __slots__ = ()
+
+    def add(self, geometry) -> int:
+        return 0
+
+
+_NO_OUTPUT = _NoOutput()
+
+
+def _same_args(a: tuple, b: tuple) -> bool:
+    if a is b:
+        return True
+    try:
+        return bool(a == b)
+    except (ValueError, TypeError):  # e.g. numpy arrays among the arguments: don't reuse
+        return False
+
+
+def _map_agrees(node: Node, constraints: dict, maybe_default) -> bool:
+    """Whether replaying under ``constraints`` would give ``node``'s call exactly its
+    choices (a site the map lacks only agrees when it is a ``maybe`` set by
+    ``maybe_default`` to the node's value)."""
+    address = node.address
+    for name, choice in node.choices.items():
+        value = constraints.get((address, name), _MISSING)
+        if value is _MISSING:
+            if maybe_default is None or choice.value != maybe_default or not any(
+                    s.site == name for s in node.spawns):  # only maybe sites take the default
+                return False
+        elif value is not choice.value:
+            try:
+                if not value == choice.value:
+                    return False
+            except (ValueError, TypeError):
+                return False
+    return True
+
+
+def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.Generator, output,
+                   maybe_default: bool | None = None, changed=None, unused: bool = True) -> ReplayResult:
+    """:func:`replay` in program order that reuses the calls of ``previous`` and its drawn output.
+
+    ``output`` must hold exactly ``previous``'s geometry (e.g. ``previous.output.copy()``)
+    and have a ``remove(geometry)`` that undoes ``add`` exactly. A call of ``previous`` is
+    reused as it is, without running its rule, when the new run reaches its address with
+    the same rule and arguments and ``choices`` (with ``maybe_default``) holds exactly the
+    values it chose: rules are deterministic given their arguments and choice values, so
+    running it again would make the same choices, emits and spawns. Every other call runs
+    as in :func:`replay`. The geometry of ``previous``'s calls that were not kept is then
+    removed from ``output`` and that of the new calls drawn (a call that ran again and
+    emitted exactly its old geometry is left as drawn).
+
+    The result equals ``replay(model, choices, rng, output=<fresh output>,
+    maybe_default=maybe_default)`` — same calls in the same order, same choices, same
+    geometry and output, same log-prior up to rounding — except that choices the map
+    lacks are drawn from ``rng`` in a different sequence (fresh choices differ in value,
+    not in distribution). Cheap when ``choices`` differs from ``previous``'s choice map
+    in few calls: the cost is the changed calls plus a walk over the kept ones.
+
+    ``changed`` (optional) lists the node addresses whose choices in ``choices`` may
+    differ from ``previous``'s; the caller vouches that every other call of ``previous``
+    has exactly its values in the map. Subtrees without a changed call are then spliced
+    in whole, without checking their choices. ``unused=False`` skips computing
+    ``ReplayResult.unused`` (left empty).
+
+    ``previous`` must be complete and not stopped (ModelError otherwise). Positions
+    reported with ``ctx.at`` are not restored, so use it without a guide's proposer.
+    """
+    if not previous.done or previous.stopped:
+        raise ModelError("replay_reusing needs a complete derivation that was not stopped")
+    raw = choices.raw if isinstance(choices, ChoiceMap) else dict(choices)
+    old_nodes = previous.nodes()
+    old = {node.address: node for node in old_nodes}
+    dirty = None
+    if changed is not None:  # every call on the path to a changed one
+        changed = set(changed)
+        dirty = {address[:k] for address in changed for k in range(len(address) + 1)}
+    state = start(model, _NO_OUTPUT, raw)
+    state.maybe_default = None if maybe_default is None else bool(maybe_default)
+    constraints, pending = state.constraints, state.pending
+    kept, still_drawn, drawn = set(), set(), []  # ids of reused old nodes / of old nodes whose
+    # geometry stays drawn; new geometry to draw
+    chain, n_kept, emits_kept = state._chain, 0, 0
+    while pending and not state.stopped:
+        future = pending.pop()
+        address = future.address
+        node = old.get(address)
+        if node is not None and node.rule is future.rule and _same_args(node.args, future.args):
+            if dirty is not None and address not in dirty:  # a trusted subtree: splice it in whole
+                stack = [node]
+                while stack:
+                    n = stack.pop()
+                    chain = (n, chain)
+                    n_kept += 1
+                    emits_kept += len(n.geometry)
+                    kept.add(id(n))
+                    a = n.address
+                    for spawn in reversed(n.spawns):
+                        if spawn.on:
+                            stack.append(old[a + (spawn.site,)])
+                continue
+            if (address not in changed) if changed is not None else _map_agrees(node, constraints, state.maybe_default):
+                chain = (node, chain)
+                n_kept += 1
+                emits_kept += len(node.geometry)
+                kept.add(id(node))
+                for spawn in reversed(node.spawns):
+                    if spawn.on:
+                        pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
+                continue
+        state._chain = chain
+        _execute(state, future, rng, None, 0, False)
+        chain = state._chain
+        new = chain[0]
+        if node is not None and new.geometry == node.geometry:
+            still_drawn.add(id(node))  # the call is replaced, its geometry stays drawn
+        else:
+            drawn.extend(new.geometry)
+    pending.clear()
+    log_removed = 0.0
+    for node in old_nodes:
+        if id(node) not in kept:
+            log_removed += node.log_prob
+            if id(node) not in still_drawn:
+                for geometry in node.geometry:
+                    output.remove(geometry)
+    for geometry in drawn:
+        output.add(geometry)
+    state._chain = chain
+    state.n_nodes += n_kept
+    state.n_emits += emits_kept
+    state.output = output
+    # log-prior: the previous one, less the calls that were not reused, plus the new ones
+    kept_lp = previous.log_prior - log_removed
+    state.log_prior += kept_lp
+    state.log_reused += kept_lp
+    out_unused = []
+    if unused:
+        reused = state._reused
+        by_address = {n.address: n.choices for n in old_nodes if id(n) in kept}
+        out_unused = [key for key in raw if key not in reused
+                      and key[1] not in by_address.get(key[0], ())]
+    state.constraints = None
+    state.maybe_default = None
+    return ReplayResult(state, state.log_reused, state.log_fresh, out_unused)

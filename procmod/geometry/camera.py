@@ -92,8 +92,14 @@ def _pixel_box(ax, ay, bx, by, cx, cy, width, height):
 
 
 @numba.njit(cache=True)
-def _raster_triangles(pixels, width, height, tri2d, gain, state):
-    """Mark pixels whose centre is inside any triangle; state = [new pixels, gain sum]."""
+def _raster_part(counts, mark, width, height, tri2d, gain, state, out):
+    """Count one more hit on every pixel whose centre is inside any of a part's triangles.
+
+    Each pixel counts once per part (``mark``, all zero on entry and on return, dedupes
+    pixels shared by several triangles); their indices go to ``out``. state = [new
+    pixels, gain sum, saturated flag]. Returns how many indices were written.
+    """
+    n = 0
     for t in range(tri2d.shape[0]):
         ax, ay = tri2d[t, 0, 0], tri2d[t, 0, 1]
         bx, by = tri2d[t, 1, 0], tri2d[t, 1, 1]
@@ -111,11 +117,43 @@ def _raster_triangles(pixels, width, height, tri2d, gain, state):
                 e2 = ((ax - cx) * (py - cy) - (ay - cy) * (px - cx)) * area
                 if e0 >= 0 and e1 >= 0 and e2 >= 0:
                     k = j * width + i
-                    if pixels[k] == 0:
-                        pixels[k] = 1
-                        state[0] += 1
-                        if gain.shape[0] > 0:
-                            state[1] += gain[k]
+                    if mark[k] == 0:
+                        mark[k] = 1
+                        out[n] = k
+                        n += 1
+    for q in range(n):
+        mark[out[q]] = 0
+    _count_pixels(counts, out[:n], gain, state)
+    return n
+
+
+@numba.njit(cache=True)
+def _count_pixels(counts, pixels, gain, state):
+    """One more hit on each pixel index (state as in :func:`_raster_part`)."""
+    for k in pixels:
+        c = counts[k]
+        if c == 0:
+            state[0] += 1
+            if gain.shape[0] > 0:
+                state[1] += gain[k]
+        if c < 65535:
+            counts[k] = c + 1
+        else:
+            state[2] = 1.0
+
+
+@numba.njit(cache=True)
+def _uncount_pixels(counts, pixels, gain, state):
+    """One hit less on each pixel index: state[0] counts pixels left uncovered, state[1]
+    their gain."""
+    for k in pixels:
+        c = counts[k]
+        if c == 1:
+            state[0] += 1
+            if gain.shape[0] > 0:
+                state[1] += gain[k]
+        if c > 0:
+            counts[k] = c - 1
 
 
 _NO_GAIN = np.zeros(0)
@@ -124,24 +162,34 @@ _NO_GAIN = np.zeros(0)
 class Silhouettes:
     """An output accumulator: one silhouette raster per camera, drawn incrementally.
 
-    ``pixels[c]`` is camera ``c``'s flat ``uint8`` raster; ``gains[c]`` an optional
-    per-pixel gain; ``gain_total`` sums the gains of newly covered pixels over all views.
-    Triangles with a vertex behind a perspective camera are skipped (keep the scene in
-    front of the cameras).
+    ``pixels[c]`` is camera ``c``'s flat ``uint16`` raster of per-pixel part counts (how
+    many parts cover the pixel; 0 = empty); ``gains[c]`` an optional per-pixel gain;
+    ``gain_total`` sums the gains of covered pixels over all views. Because pixels are
+    counted, :meth:`remove` is the exact inverse of :meth:`add` (until a count saturates,
+    see ``saturated``). Triangles with a vertex behind a perspective camera are skipped
+    (keep the scene in front of the cameras). With :meth:`use_part_cache`, the pixels a
+    part covers are looked up by value instead of projected and rasterised again (full
+    replays re-add mostly the same parts).
     """
 
-    __slots__ = ("cameras", "pixels", "gains", "gain_total", "filled_count", "extent", "n_parts", "_state")
+    __slots__ = ("cameras", "pixels", "gains", "gain_total", "filled_count", "extent", "n_parts", "_state",
+                 "_scratch", "part_cache", "saturated")
 
     def __init__(self, cameras, gains=None):
         self.cameras = tuple(cameras)
-        self.pixels = [np.zeros(c.width * c.height, dtype=np.uint8) for c in self.cameras]
+        self.pixels = [np.zeros(c.width * c.height, dtype=np.uint16) for c in self.cameras]
         self.gains = [(_NO_GAIN if g is None else np.ascontiguousarray(g, dtype=np.float64).ravel())
                       for g in (gains or [None] * len(self.cameras))]
         self.gain_total = 0.0
         self.filled_count = 0
         self.extent = None
         self.n_parts = 0
-        self._state = np.zeros(2)
+        self._state = np.zeros(3)
+        # per-camera (mark, index buffer) work arrays, shared by copies (kernels hold the GIL)
+        self._scratch = [(np.zeros(c.width * c.height, dtype=np.uint8), np.empty(c.width * c.height, dtype=np.int64))
+                         for c in self.cameras]
+        self.part_cache = None
+        self.saturated = False
 
     def copy(self) -> "Silhouettes":
         other = type(self).__new__(type(self))
@@ -150,29 +198,82 @@ class Silhouettes:
         other.pixels = [p.copy() for p in self.pixels]
         return other
 
+    def use_part_cache(self) -> None:
+        """Look parts' pixels up in this process's cache for these cameras."""
+        from .voxel import PartCache
+        self.part_cache = _PIXEL_CACHES.setdefault(self.cameras, PartCache())
+
     def image(self, index: int = 0) -> np.ndarray:
         """Boolean ``(height, width)`` silhouette of camera ``index``."""
         c = self.cameras[index]
         return (self.pixels[index] != 0).reshape(c.height, c.width)
 
-    def add(self, part) -> int:
+    def _rasterise(self, part, cache):
+        """Draw a part (one more count on each pixel it covers); returns its per-camera
+        pixel indices when ``cache`` wants them, else None."""
         # 12-gon cylinders: silhouette rasters are coarse, and triangles dominate the cost.
         tris = part_triangles(part, SILHOUETTE_SEGMENTS)
+        state = self._state
+        entry = [] if cache else None
+        for camera, pixels, gain, (mark, out) in zip(self.cameras, self.pixels, self.gains, self._scratch):
+            projected = camera.project(tris)
+            visible = projected[:, :, 2].min(axis=1) > 1e-6 if camera.projection == "perspective" else slice(None)
+            n = _raster_part(pixels, mark, camera.width, camera.height,
+                             np.ascontiguousarray(projected[visible][:, :, :2]), gain, state, out)
+            if entry is not None:
+                entry.append(out[:n].copy())
+        return entry
+
+    def add(self, part) -> int:
         lo, hi = part_bounds(part)
         self.extent = (lo, hi) if self.extent is None else (np.minimum(self.extent[0], lo),
                                                           np.maximum(self.extent[1], hi))
         self.n_parts += 1
-        new = 0
-        for camera, pixels, gain in zip(self.cameras, self.pixels, self.gains):
-            projected = camera.project(tris)
-            visible = projected[:, :, 2].min(axis=1) > 1e-6 if camera.projection == "perspective" else slice(None)
-            self._state[:] = 0.0
-            _raster_triangles(pixels, camera.width, camera.height,
-                              np.ascontiguousarray(projected[visible][:, :, :2]), gain, self._state)
-            new += int(self._state[0])
-            self.gain_total += float(self._state[1])
+        state = self._state
+        state[:] = 0.0
+        cache = self.part_cache
+        entry = cache.get(part) if cache is not None else None
+        if entry is not None:
+            for pixels, gain, idx in zip(self.pixels, self.gains, entry):
+                _count_pixels(pixels, idx, gain, state)
+        else:
+            entry = self._rasterise(part, cache is not None)
+            if cache is not None:
+                cache.put(part, tuple(entry), sum(len(e) for e in entry) + 1)
+        new = int(state[0])
+        self.gain_total += float(state[1])
+        if state[2]:
+            self.saturated = True
         self.filled_count += new
         return new
+
+    def remove(self, part) -> int:
+        """Take out one part added earlier (the exact inverse of :meth:`add`, except that
+        ``extent`` is left as it is). Returns the number of pixels left uncovered.
+
+        Raises ValueError once the rasters are saturated (a count hit 65535).
+        """
+        if self.saturated:
+            raise ValueError("saturated silhouettes (a count reached 65535) cannot remove parts exactly")
+        cache = self.part_cache
+        entry = cache.get(part) if cache is not None else None
+        if entry is None:
+            scratch = Silhouettes(self.cameras)
+            entry = scratch._rasterise(part, True)
+            if cache is not None:
+                cache.put(part, tuple(entry), sum(len(e) for e in entry) + 1)
+        state = self._state
+        state[:] = 0.0
+        for pixels, gain, idx in zip(self.pixels, self.gains, entry):
+            _uncount_pixels(pixels, idx, gain, state)
+        gone = int(state[0])
+        self.gain_total -= float(state[1])
+        self.filled_count -= gone
+        self.n_parts -= 1
+        return gone
+
+
+_PIXEL_CACHES: dict = {}  # cameras -> PartCache of per-camera pixel indices (one per process)
 
 
 @numba.njit(cache=True)

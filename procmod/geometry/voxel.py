@@ -5,7 +5,9 @@ cylinders (a point-in-solid test in the part's local frame) and for closed meshe
 parity along z). The numba kernels visit only the voxels of a part's bounding box, keep
 a per-voxel hit count (so voxels hit more than once — self-intersections — are counted),
 count covered lattice cells that fall outside the grid, and accumulate a per-voxel gain
-for the first hit, which is how volume scores stay O(voxels changed) per part.
+for the first hit, which is how volume scores stay O(voxels changed) per part. Parts can
+also be removed again (:meth:`VoxelScene.remove`, the exact inverse of ``add`` while no
+count has saturated), which lets the GA derive an offspring's scene from its parent's.
 """
 
 from __future__ import annotations
@@ -45,8 +47,9 @@ class VoxelGrid(NamedTuple):
 
 @numba.njit(cache=True, inline="always")
 def _hit(counts, nx, ny, nz, i, j, k, gain, state, record):
-    # state: [new voxels, overlaps, outside] as floats, gain sum at index 3, and at index 4
-    # the number of voxel indices written to ``record`` (when it is not empty)
+    # state: [new voxels, overlaps, outside] as floats, gain sum at index 3, at index 4
+    # the number of voxel indices written to ``record`` (when it is not empty), and at
+    # index 5 a flag set when a saturated count (255) could not be incremented
     if i < 0 or j < 0 or k < 0 or i >= nx or j >= ny or k >= nz:
         state[2] += 1
         return
@@ -69,6 +72,24 @@ def _count(counts, v, gain, state):
         state[1] += 1
     if c < 255:
         counts[v] = c + 1
+    else:
+        state[5] = 1.0
+
+
+@numba.njit(cache=True)
+def _remove_voxels(counts, voxels, gain, state):
+    """Take one hit of each voxel in ``voxels`` off the counts: state[0] counts voxels
+    left uncovered, state[1] removed overlaps, state[3] the gain of the uncovered ones."""
+    for v in voxels:
+        c = counts[v]
+        if c == 1:
+            state[0] += 1
+            if gain.shape[0] > 0:
+                state[3] += gain[v]
+        elif c > 1:
+            state[1] += 1
+        if c > 0:
+            counts[v] = c - 1
 
 
 @numba.njit(cache=True)
@@ -187,12 +208,15 @@ class PartCache:
             self.hits += 1
         return entry
 
-    def put(self, part, entry) -> None:
-        if self.stored + len(entry[0]) > self.max_voxels:
+    def put(self, part, entry, size: int | None = None) -> None:
+        """Store ``entry`` for ``part``; ``size`` (default ``len(entry[0])``) counts
+        towards ``max_voxels``."""
+        size = len(entry[0]) if size is None else int(size)
+        if self.stored + size > self.max_voxels:
             self.entries.clear()
             self.stored = 0
         self.entries[part] = entry
-        self.stored += len(entry[0])
+        self.stored += size
 
 
 _PART_CACHES: dict = {}  # grid -> PartCache (one per process)
@@ -213,11 +237,14 @@ class VoxelScene:
     gain_total : float
         Sum of ``gain`` over voxels at their first hit (when a gain array is attached).
     extent : tuple or None
-        World bounds (min xyz, max xyz) of everything added.
+        World bounds (min xyz, max xyz) of everything added (not shrunk by ``remove``).
+    saturated : bool
+        True once a hit could not be counted because a voxel's count was already 255;
+        from then on ``remove`` is no longer exact and refuses.
     """
 
     __slots__ = ("grid", "counts", "gain", "gain_total", "filled_count", "overlaps", "outside",
-                 "extent", "n_parts", "_shape", "_origin", "_state", "part_cache")
+                 "extent", "n_parts", "_shape", "_origin", "_state", "part_cache", "saturated")
 
     def __init__(self, grid: VoxelGrid, gain=None):
         self.grid = VoxelGrid(tuple(grid.origin), float(grid.size), tuple(int(n) for n in grid.shape))
@@ -230,8 +257,9 @@ class VoxelScene:
         self.extent = None
         self._shape = np.array(self.grid.shape, dtype=np.int64)
         self._origin = np.array(self.grid.origin, dtype=np.float64)
-        self._state = np.zeros(5)
+        self._state = np.zeros(6)
         self.part_cache = None
+        self.saturated = False
 
     def use_part_cache(self) -> None:
         """Look parts up in this process's cache for the grid (see :class:`PartCache`)."""
@@ -291,8 +319,47 @@ class VoxelScene:
         self.outside += int(state[2])
         self.gain_total += float(state[3])
         self.n_parts += 1
+        if state[5]:
+            self.saturated = True
         self.extent = (lo, hi) if self.extent is None else (np.minimum(self.extent[0], lo),
                                                           np.maximum(self.extent[1], hi))
+        return n
+
+    def _entry(self, part):
+        """``(voxel indices, outside count, lo, hi)`` of a part: from the part cache, or
+        voxelized on a scratch grid (and then cached when this scene has a cache)."""
+        cache = self.part_cache
+        entry = cache.get(part) if cache is not None else None
+        if entry is None:
+            scratch = VoxelScene(self.grid)
+            scratch.part_cache = PartCache()
+            scratch.add(part)
+            entry = scratch.part_cache.entries[part]
+            if cache is not None:
+                cache.put(part, entry)
+        return entry
+
+    def remove(self, part) -> int:
+        """Take out one part added earlier (the exact inverse of :meth:`add`: counts,
+        ``filled_count``, ``overlaps``, ``outside`` and ``gain_total`` are as if it had
+        never been added; ``extent`` is left as it is). Returns the number of voxels
+        left uncovered.
+
+        Raises ValueError when the scene is saturated (some count hit 255), where the
+        counts no longer say how many parts cover a voxel.
+        """
+        if self.saturated:
+            raise ValueError("a saturated voxel scene (a count reached 255) cannot remove parts exactly")
+        voxels, outside, _, _ = self._entry(part)
+        state = self._state
+        state[:] = 0.0
+        _remove_voxels(self.counts, voxels, self.gain, state)
+        n = int(state[0])
+        self.filled_count -= n
+        self.overlaps -= int(state[1])
+        self.outside -= int(outside)
+        self.gain_total -= float(state[3])
+        self.n_parts -= 1
         return n
 
 

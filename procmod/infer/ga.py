@@ -22,8 +22,19 @@ cut and alter. The initial population starts from minimal derivations (every ``m
 off) grown repeatedly to random sizes; each round applies as many of an individual's
 missing grows as it has unexpressed children (children created in a round become
 candidates in the next), so large initial individuals cost a few replays instead of one
-replay per call. Fitness evaluations (replay + score) go through
-the ``executor``.
+replay per call.
+
+Offspring evaluation is incremental when it runs in-process (no ``executor``) and the
+target's score survives removing parts exactly (``target.exact_removal``: Volume,
+Silhouette): every offspring differs from one parent in a few calls (grow, cut and alter
+change one call and what hangs below it; a crossover child differs from its first parent
+below the swapped connection), so it is built by :func:`procmod.core.runtime.replay_reusing`
+from that parent: the parent's calls and drawn output (voxel or pixel counts) are reused,
+the geometry of the replaced calls is removed and that of the new ones drawn. The result is
+the derivation and score a full replay of the offspring's choice map gives (tested); only
+the changed calls cost rule executions and voxelization. Otherwise (an executor, or a
+target such as ProxyVolume that reads the bounding box) fitness evaluations are full
+replays through the ``executor``.
 """
 
 from __future__ import annotations
@@ -33,8 +44,9 @@ import math
 import numpy as np
 
 from ..core import InvalidArgumentError, is_within
-from .common import (Budget, Result, Scored, Tracker, check_positive, evaluate_all, new_seed,
-                     relaxed_gc)
+from ..core.runtime import replay_reusing
+from .common import (Budget, Evaluation, Result, Scored, Tracker, check_positive, evaluate_all,
+                     new_seed, relaxed_gc)
 
 
 def _weighted_pick(items, weights, rng):
@@ -50,15 +62,12 @@ def _weighted_pick(items, weights, rng):
     return items[-1]
 
 
-def grow_choices(d, rng, count: int = 1) -> dict | None:
-    """Choice map with unexpressed ``maybe`` children turned on (None if there is none).
+# Each operator has a private form returning ``(choices, changed)``: ``changed`` lists the
+# calls whose choices differ from the parent's (what replay_reusing must run again).
 
-    Each is picked with probability proportional to its spawn probability; ``count`` > 1
-    applies that many grows at once (without replacement), used to build the initial
-    population without one replay per added call.
-    """
+def _grow(d, rng, count: int = 1):
     sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns if not s.on]
-    choices = None
+    choices, changed = None, set()
     for _ in range(count):
         pick = _weighted_pick(sites, [p for _, _, p in sites], rng)
         if pick is None:
@@ -66,25 +75,42 @@ def grow_choices(d, rng, count: int = 1) -> dict | None:
         if choices is None:
             choices = dict(d.choice_map().raw)
         choices[(pick[0], pick[1])] = True
+        changed.add(pick[0])
         sites.remove(pick)
-    return choices
+    return None if choices is None else (choices, changed)
 
 
-def cut_choices(d, rng) -> dict | None:
-    """Choice map with one expressed ``maybe`` child cut (None if nothing can be cut)."""
+def grow_choices(d, rng, count: int = 1) -> dict | None:
+    """Choice map with unexpressed ``maybe`` children turned on (None if there is none).
+
+    Each is picked with probability proportional to its spawn probability; ``count`` > 1
+    applies that many grows at once (without replacement), used to build the initial
+    population without one replay per added call.
+    """
+    out = _grow(d, rng, count)
+    return None if out is None else out[0]
+
+
+def _cut(d, rng):
     sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns
              if s.on and s.probability < 1.0]
     pick = _weighted_pick(sites, [1.0 - p for _, _, p in sites], rng)
     if pick is None:
         return None
     child = pick[0] + (pick[1],)
-    choices = {k: v for k, v in d.choice_map().raw.items() if not is_within(k[0], child)}
+    n = len(child)
+    choices = {k: v for k, v in d.choice_map().raw.items() if k[0][:n] != child}
     choices[(pick[0], pick[1])] = False
-    return choices
+    return choices, {pick[0]}
 
 
-def alter_choices(d, rng) -> dict | None:
-    """Choice map with one call's parameters removed (so replay redraws them)."""
+def cut_choices(d, rng) -> dict | None:
+    """Choice map with one expressed ``maybe`` child cut (None if nothing can be cut)."""
+    out = _cut(d, rng)
+    return None if out is None else out[0]
+
+
+def _alter(d, rng):
     candidates = []
     for n in d.nodes():
         structural = {s.site for s in n.spawns}
@@ -95,7 +121,13 @@ def alter_choices(d, rng) -> dict | None:
         return None
     address, names = candidates[int(rng.random() * len(candidates))]
     removed = {(address, name) for name in names}
-    return {k: v for k, v in d.choice_map().raw.items() if k not in removed}
+    return {k: v for k, v in d.choice_map().raw.items() if k not in removed}, {address}
+
+
+def alter_choices(d, rng) -> dict | None:
+    """Choice map with one call's parameters removed (so replay redraws them)."""
+    out = _alter(d, rng)
+    return None if out is None else out[0]
 
 
 def connections(d) -> dict:
@@ -111,16 +143,16 @@ def connections(d) -> dict:
 
 def _graft(base: dict, at: tuple, donor: dict, source: tuple) -> dict:
     """``base`` with the subtree at ``at`` replaced by ``donor``'s subtree at ``source``."""
-    out = {k: v for k, v in base.items() if not is_within(k[0], at)}
+    m = len(at)
+    out = {k: v for k, v in base.items() if k[0][:m] != at}
     n = len(source)
     for (address, name), value in donor.items():
-        if is_within(address, source):
+        if address[:n] == source:
             out[(at + address[n:], name)] = value
     return out
 
 
-def crossover_choices(d1, d2, rng, max_retries: int = 10):
-    """Two children's choice maps by swapping compatible subtrees (None if none found)."""
+def _crossover(d1, d2, rng, max_retries: int = 10):
     c1 = [(key, a) for key, addresses in connections(d1).items() for a in addresses]
     if not c1:
         return None
@@ -132,8 +164,38 @@ def crossover_choices(d1, d2, rng, max_retries: int = 10):
             continue
         a2 = matches[int(rng.random() * len(matches))]
         m1, m2 = d1.choice_map().raw, d2.choice_map().raw
-        return _graft(m1, a1, m2, a2), _graft(m2, a2, m1, a1)
+        # Child i differs from parent i only below the swapped connection.
+        return ((_graft(m1, a1, m2, a2), {n.address for n in d1.nodes() if is_within(n.address, a1)}),
+                (_graft(m2, a2, m1, a1), {n.address for n in d2.nodes() if is_within(n.address, a2)}))
     return None
+
+
+def crossover_choices(d1, d2, rng, max_retries: int = 10):
+    """Two children's choice maps by swapping compatible subtrees (None if none found)."""
+    out = _crossover(d1, d2, rng, max_retries)
+    return None if out is None else (out[0][0], out[1][0])
+
+
+def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Evaluation:
+    """Score the offspring ``choices`` of ``parent`` (a complete derivation whose output
+    supports exact removal) by :func:`replay_reusing` from a copy of the parent's output;
+    ``changed``: the calls whose choices differ from the parent's (None: compare them all).
+
+    Same derivation and score as ``common.evaluate(model, target, (choices, seed, False))``
+    up to the values of fresh choices (drawn from ``seed`` in another order).
+    """
+    result = replay_reusing(model, parent, choices, np.random.default_rng(seed), parent.output.copy(),
+                            maybe_default=False, changed=changed, unused=False)
+    d = result.derivation
+    return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
+                      result.log_reused, result.log_fresh, result.unused)
+
+
+def _reusable(parent) -> bool:
+    """Whether an offspring can be evaluated from ``parent`` incrementally."""
+    output = parent.output
+    return (parent.done and not parent.stopped and hasattr(output, "remove")
+            and not getattr(output, "saturated", True))
 
 
 def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | None = None,
@@ -173,10 +235,22 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
     model = target.configure(model)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
-    operators = (grow_choices, cut_choices, alter_choices)
+    operators = (_grow, _cut, _alter)
+    incremental = executor is None and bool(getattr(target, "exact_removal", False))
 
-    def evaluate(jobs):
-        out = [Scored.from_evaluation(ev) for ev in evaluate_all(executor, model, target, jobs)]
+    def evaluate(jobs, parents=None):
+        """Evaluate ``(choices, seed, maybe_default)`` jobs; ``parents[i]`` is None or
+        ``(derivation, changed calls)``: the individual job i was derived from, reused
+        when possible."""
+        evaluations = [None] * len(jobs)
+        if incremental and parents is not None:
+            for i, (job, parent) in enumerate(zip(jobs, parents)):
+                if parent is not None and job[2] is False and _reusable(parent[0]):
+                    evaluations[i] = evaluate_from(model, target, parent[0], job[0], job[1], parent[1])
+        rest = [i for i, ev in enumerate(evaluations) if ev is None]
+        for i, ev in zip(rest, evaluate_all(executor, model, target, [jobs[i] for i in rest])):
+            evaluations[i] = ev
+        out = [Scored.from_evaluation(ev) for ev in evaluations]
         tracker.evaluations += len(out)
         for ind in out:
             tracker.offer(ind.derivation, ind.score)
@@ -194,14 +268,15 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
             # Grow every unfinished individual; a round applies as many of the missing
             # grows as there are unexpressed children, so reaching size n takes a few
             # replays (the candidates multiply each round) rather than n.
-            jobs, owners = [], []
+            jobs, owners, parents = [], [], []
             for i in growing:
                 missing = int(goals[i] - pop[i].derivation.n_nodes)
-                choices = grow_choices(pop[i].derivation, rng, max(1, missing))
-                if choices is not None:
-                    jobs.append((choices, new_seed(rng), False))
+                grown = _grow(pop[i].derivation, rng, max(1, missing))
+                if grown is not None:
+                    jobs.append((grown[0], new_seed(rng), False))
+                    parents.append((pop[i].derivation, grown[1]))
                     owners.append(i)
-            for i, ind in zip(owners, evaluate(jobs)):
+            for i, ind in zip(owners, evaluate(jobs, parents)):
                 pop[i] = ind
             growing = [i for i in owners if pop[i].derivation.n_nodes < goals[i]]
             if tracker.due():
@@ -225,7 +300,7 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
             def tournament_pick():
                 return pop[int(min(rng.integers(0, population, size=tournament)))]  # sorted: lowest index wins
 
-            offspring, jobs = list(pop[:n_elite]), []
+            offspring, jobs, parents = list(pop[:n_elite]), [], []
             while len(offspring) + len(jobs) < population:
                 p1, p2 = roulette(), tournament_pick()
                 if rng.random() < mutation:
@@ -239,14 +314,17 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
                         if choices is None:
                             offspring.append(parent)
                         else:
-                            jobs.append((choices, new_seed(rng), False))
+                            jobs.append((choices[0], new_seed(rng), False))
+                            parents.append((parent.derivation, choices[1]))
                 else:
-                    children = crossover_choices(p1.derivation, p2.derivation, rng, max_retries)
+                    children = _crossover(p1.derivation, p2.derivation, rng, max_retries)
                     if children is None:
                         offspring.extend([p1, p2])
                     else:
-                        jobs.extend((c, new_seed(rng), False) for c in children)
-            offspring.extend(evaluate(jobs))
+                        jobs.extend((c, new_seed(rng), False) for c, _ in children)
+                        # child i is parent i but below the swapped connection
+                        parents.extend([(p1.derivation, children[0][1]), (p2.derivation, children[1][1])])
+            offspring.extend(evaluate(jobs, parents))
             pop = offspring[:population]
             tracker.generations += 1
             tracker.record(float(np.mean([ind.score for ind in pop])))
@@ -255,5 +333,6 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={"population": population, "seed": seed, "budget": budget.describe(),
                             "mutation": mutation, "split": list(split), "elitism": elitism,
-                            "tournament": tournament, "initial_size": initial_size},
+                            "tournament": tournament, "initial_size": initial_size,
+                            "incremental": incremental},
                   log_weights=[ind.log_likelihood for ind in pop])

@@ -35,7 +35,13 @@ from .image import TargetFileError
 
 
 class Silhouette:
-    """Weighted silhouette images under given cameras (seed 002's s_img)."""
+    """Weighted silhouette images under given cameras (seed 002's s_img).
+
+    ``exact_removal``: the score is the silhouettes' ``gain_total``, which
+    :meth:`Silhouettes.remove` restores exactly (see :class:`procmod.targets.Volume`).
+    """
+
+    exact_removal = True
 
     def __init__(self, views, temperature: float | None = None, name: str = "silhouette"):
         if not views:

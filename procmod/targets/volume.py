@@ -53,6 +53,10 @@ def _check_3d(model):
 class Volume:
     """Seed 002's weighted volume fill/avoid score.
 
+    The score reads only what :meth:`VoxelScene.remove` restores exactly (gain, outside
+    and overlap counts), so ``exact_removal`` is True: the GA may derive an offspring's
+    scene from its parent's by removing and adding parts.
+
     Parameters
     ----------
     grid : VoxelGrid
@@ -87,6 +91,8 @@ class Volume:
         if not temperature > 0:
             raise InvalidArgumentError(f"temperature must be positive, got {temperature!r}")
         self.temperature = float(temperature)
+
+    exact_removal = True
 
     def configure(self, model):
         _check_3d(model)
