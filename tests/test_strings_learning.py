@@ -7,7 +7,7 @@ import torch
 
 from procmod.strings.codec import parse, strings_of
 from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
-                                         tagging_examples, train_tagger)
+                                         string_structure, tagging_examples, train_tagger)
 from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
 from procmod.strings.shapes import Grammar, read_shapes, shape_graph
 from procmod.strings.vae import Constraint, StringModel, VAEConfig, Vocab, _Prefix, train_vae
@@ -76,6 +76,67 @@ def test_constraint_masks_follow_syntax_and_rules(moonbase):
     assert "M" in allowed and "A" not in allowed and "" not in allowed and ")" not in allowed
 
 
+def test_constraint_counts_open_ring_labels_as_neighbours(moonbase):
+    _, _, grammar, strings = moonbase
+    c = Constraint(Vocab(set("".join(strings)) | set("()123456789")), grammar)
+    p = _Prefix()
+    for ch in "C1MC":  # corridor C M corridor; the first corridor's ring label promises its 2nd module
+        assert ch in c.allowed(p), ch
+        c.advance(p, ch)
+    assert "M" in c.allowed(p)
+    # opening label 2 here would promise this corridor a second module besides its M, so no
+    # letter could follow it: the look-ahead rejects it; and the rule check alone, after
+    # "C1MC2", must not let an M bond to the corridor (M + M + the open label = 3 neighbours)
+    assert "2" not in c.allowed(p)
+    c.advance(p, "2")
+    assert "M" not in c._allowed(p) and "(" not in c._allowed(p)
+
+
+def test_constraint_rejects_branches_and_leaves_that_strand_an_open_ring(moonbase):
+    _, _, grammar, strings = moonbase
+    c = Constraint(Vocab(set("".join(strings)) | set("()123456789")), grammar)
+    p = _Prefix()
+    for ch in "M1CMCM(CMD)D":  # ring 1 is open on the first module; the dome can take only an antenna
+        c.advance(p, ch)
+    allowed = c.allowed(p)
+    # "(A" or "A" would end the path at a leaf with ring 1 still open: a dead end
+    assert "(" not in allowed and "A" not in allowed and "" not in allowed
+
+
+def test_wrap_up_stops_opening_rings_and_branches(moonbase):
+    _, _, grammar, strings = moonbase
+    c = Constraint(Vocab(set("".join(strings)) | set("()123456789")), grammar)
+    p = _Prefix()
+    for ch in "M1CM":
+        c.advance(p, ch)
+    free = c.allowed(p)
+    assert "(" in free and "2" in free and "C" in free
+    wrapped = c.allowed(p, wrap_nodes=3)
+    assert "(" not in wrapped and "2" not in wrapped and "C" in wrapped
+    assert c.closes(p, "1") and not c.closes(p, "2") and c.closes(p, ")") and not c.closes(p, "C")
+
+
+def test_string_structure_and_tree_states(moonbase, categories):
+    st = string_structure("C1CC(N)CC1O")
+    assert st[:, 0].tolist() == [0, 1, 1, 3, 4, 4, 4, 4, 8, 9, 9]
+    assert st[1].tolist()[1:] == [1, 9] and st[9].tolist()[1:] == [1, 9]  # the ring edge: C0 - C8
+    assert st[2].tolist()[1:] == [1, 3] and st[0].tolist()[1:] == [0, 0]
+    _, _, _, strings = moonbase
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    torch.manual_seed(0)
+    net = Tagger(len(vocab), len(categories), TaggerConfig(hidden=8, embed=8, layers=1))
+    model = TaggerModel(net, vocab, categories)
+    tok, _, _, struct = model._tensors(strings[:5])
+    emb = net.embedding(tok)
+    fast = net._tree_states(emb, struct)
+    # the same states, computed character by character from the parent's state
+    slow = torch.zeros((tok.shape[0], tok.shape[1] + 1, 8))
+    rows = torch.arange(tok.shape[0])
+    for i in range(tok.shape[1]):
+        slow[:, i + 1] = net.tree_cell(emb[:, i], slow[rows, struct[:, i, 0]])
+    assert torch.allclose(fast, slow[:, 1:], atol=1e-6)
+
+
 def test_tagger_masks_are_minus_infinity_and_training_learns(tmp_path, moonbase, categories):
     ss, graphs, _, strings = moonbase
     cats = categories
@@ -86,8 +147,8 @@ def test_tagger_masks_are_minus_infinity_and_training_learns(tmp_path, moonbase,
     vocab = Vocab(set("".join(strings)) | set("()123456789"))
     net = Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1))
     model = TaggerModel(net, vocab, cats)
-    tok, m, _ = model._tensors([text])
-    logits = net(tok, m)
+    tok, m, _, st = model._tensors([text])
+    logits = net(tok, m, st)
     assert torch.isneginf(logits[~m]).all() and torch.isfinite(logits[m]).all()
     prob = model.predict([text])[0]
     assert np.all(prob[~mask] == 0)

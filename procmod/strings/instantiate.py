@@ -369,25 +369,110 @@ class TaggerConfig:
     batch: int = 32
     lr: float = 3e-3
     dropout: float = 0.3  # between recurrent layers and before the output layer
+    tree: bool = True  # a top-down pass along the spanning tree before the string pass
 
 
 class Tagger(nn.Module):
-    """Bidirectional recurrent tagger: characters -> category logits per character."""
+    """Recurrent tagger: characters -> category logits per character.
+
+    With ``config.tree`` (the default) a GRU cell first runs *down the spanning tree the
+    string writes*: a letter's state is computed from its tree parent's state (not from the
+    previous character), so what an edge's category depends on along the path from the
+    root (which way the walls run after three corners) is a short recurrence, however many
+    branches the string wrote in between. A bidirectional LSTM then runs over the string
+    (embedding + tree state) for context from anywhere in the string; the output layer sees
+    the string state of the character and of both ends of its edge (a ring label's edge
+    ends are far apart in the string). Without ``tree`` it is a plain bidirectional LSTM.
+    """
 
     def __init__(self, vocab_size: int, categories: int, config: TaggerConfig):
         super().__init__()
         self.config = config
         self.embedding = nn.Embedding(vocab_size, config.embed, padding_idx=0)
         kind = nn.LSTM if config.cell == "lstm" else nn.GRU
-        self.rnn = kind(config.embed, config.hidden, num_layers=config.layers, batch_first=True, bidirectional=True,
+        rnn_in = config.embed
+        if config.tree:
+            self.tree_cell = nn.GRUCell(config.embed, config.hidden)
+            rnn_in += config.hidden
+        self.rnn = kind(rnn_in, config.hidden, num_layers=config.layers, batch_first=True, bidirectional=True,
                         dropout=config.dropout if config.layers > 1 else 0.0)
         self.drop = nn.Dropout(config.dropout)
-        self.out = nn.Linear(2 * config.hidden, categories)
+        self.out = nn.Linear((6 if config.tree else 2) * config.hidden, categories)
 
-    def forward(self, tokens: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        """Masked logits ``(B, T, K)``: -inf where ``mask`` is False."""
-        h, _ = self.rnn(self.embedding(tokens))
-        return self.out(self.drop(h)).masked_fill(~mask, float("-inf"))
+    def forward(self, tokens: torch.Tensor, mask: torch.Tensor, structure: torch.Tensor | None = None) -> torch.Tensor:
+        """Masked logits ``(B, T, K)``: -inf where ``mask`` is False. ``structure`` ``(B, T, 3)``
+        (from :func:`string_structure`, needed with ``config.tree``): per character, 1 + the
+        position of its tree parent's letter and of the letters at both ends of its edge (0: none)."""
+        emb = self.embedding(tokens)
+        if not self.config.tree:
+            h, _ = self.rnn(emb)
+            return self.out(self.drop(h)).masked_fill(~mask, float("-inf"))
+        if structure is None:
+            raise InvalidArgumentError("the tree tagger needs the strings' structure (string_structure)")
+        b, t = tokens.shape
+        rows = torch.arange(b)
+        tree = self._tree_states(emb, structure)
+        h, _ = self.rnn(torch.cat([emb, tree], dim=2))
+        h = torch.cat([h.new_zeros((b, 1, h.shape[2])), h], dim=1)  # slot 0: no letter
+        ends = [h[rows[:, None], structure[:, :, k]] for k in (1, 2)]
+        feats = torch.cat([h[:, 1:]] + ends, dim=2)
+        return self.out(self.drop(feats)).masked_fill(~mask, float("-inf"))
+
+    def _tree_states(self, emb: torch.Tensor, structure: torch.Tensor) -> torch.Tensor:
+        """GRU states down the spanning tree ``(B, T, hidden)``, one tree level at a time
+        (a character's parent is always one level up), so the cost is linear in the length."""
+        b, t, _ = emb.shape
+        parent = structure[:, :, 0].numpy()  # 1 + parent position, 0: none
+        depth = np.zeros((b, t), dtype=np.int64)
+        for i in range(t):  # parents come before children in the string
+            has = parent[:, i] > 0
+            depth[has, i] = depth[np.nonzero(has)[0], parent[has, i] - 1] + 1
+        flat_emb = emb.reshape(b * t, -1)
+        row_of = np.zeros(b * t, dtype=np.int64)  # flat position -> row in its level's output
+        outs, flats = [], []
+        prev = None
+        for d in range(int(depth.max()) + 1 if t else 0):
+            bs, js = np.nonzero(depth == d)
+            flat = bs * t + js
+            row_of[flat] = np.arange(len(flat))
+            x = flat_emb[torch.from_numpy(flat)]
+            if d == 0:
+                h = x.new_zeros((len(flat), self.config.hidden))
+            else:
+                h = prev[torch.from_numpy(row_of[bs * t + parent[bs, js] - 1])]
+            prev = self.tree_cell(x, h)
+            outs.append(prev)
+            flats.append(flat)
+        states = torch.cat(outs)
+        order = torch.from_numpy(np.concatenate(flats))
+        return emb.new_zeros((b * t, self.config.hidden)).index_copy(0, order, states).reshape(b, t, -1)
+
+
+def string_structure(text: str) -> np.ndarray:
+    """Per character ``(T, 3)``: 1 + the string position of the letter of its tree parent
+    (letters) or of the atom it follows (other characters), and of the letters at the two
+    ends of the edge it stands for; 0 where there is none."""
+    parsed = parse(text)
+    pos = {v: i for i, v in enumerate(parsed.char_nodes) if v is not None}
+    out = np.zeros((len(text), 3), dtype=np.int64)
+    atom = None
+    depth_atoms: list = []
+    for i, c in enumerate(text):
+        node = parsed.char_nodes[i]
+        e = parsed.char_edges[i]
+        if node is not None:
+            if e is not None:
+                out[i, 0] = pos[e[0]] + 1
+            atom = node
+        elif c == "(":
+            depth_atoms.append(atom)
+        elif c == ")":
+            atom = depth_atoms.pop() if depth_atoms else atom
+        if node is None and atom is not None:
+            out[i, 0] = pos[atom] + 1
+        if e is not None:
+            out[i, 1], out[i, 2] = pos[e[0]] + 1, pos[e[1]] + 1
+    return out
 
 
 def string_mask(text: str, categories: EdgeCategories) -> tuple[np.ndarray, list]:
@@ -529,18 +614,21 @@ class TaggerModel:
         self.net, self.vocab, self.categories = net, vocab, categories
 
     def _tensors(self, texts, targets=None):
+        """Token ids, masks ``(B, T, K)``, targets (-100: padding) and structure ``(B, T, 3)``."""
         t = max(len(x) for x in texts)
         tok = torch.zeros((len(texts), t), dtype=torch.long)
         mask = torch.zeros((len(texts), t, len(self.categories)), dtype=torch.bool)
         mask[:, :, 0] = True
         tgt = torch.full((len(texts), t), -100, dtype=torch.long)
+        struct = torch.zeros((len(texts), t, 3), dtype=torch.long)
         for k, text in enumerate(texts):
             tok[k, :len(text)] = torch.tensor(self.vocab.encode(text))
             m, _ = string_mask(text, self.categories)
             mask[k, :len(text)] = torch.from_numpy(m)
+            struct[k, :len(text)] = torch.from_numpy(string_structure(text))
             if targets is not None:
                 tgt[k, :len(text)] = torch.tensor(targets[k])
-        return tok, mask, tgt
+        return tok, mask, tgt, struct
 
     @torch.no_grad()
     def predict(self, texts: list[str]) -> list[np.ndarray]:
@@ -550,8 +638,8 @@ class TaggerModel:
 
     def _predict(self, texts):
         self.net.eval()
-        tok, mask, _ = self._tensors(texts)
-        prob = torch.softmax(self.net(tok, mask), dim=2).numpy()
+        tok, mask, _, struct = self._tensors(texts)
+        prob = torch.softmax(self.net(tok, mask, struct), dim=2).numpy()
         return [prob[k, :len(t)] for k, t in enumerate(texts)]
 
     def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator, shape_set: ShapeSet | None = None) -> dict:
@@ -619,7 +707,8 @@ class TaggerModel:
             raise ModelFileError(f"cannot read the edge-category tagger in {folder} ({exc})") from None
         cats = EdgeCategories.from_json(meta["categories"])
         vocab = Vocab(meta["vocab"])
-        net = Tagger(len(vocab), len(cats), TaggerConfig(**meta["config"]))
+        # taggers saved before the tree pass existed are plain bidirectional LSTMs
+        net = Tagger(len(vocab), len(cats), TaggerConfig(**{"tree": False, **meta["config"]}))
         net.load_state_dict(payload["model"])
         model = TaggerModel(net, vocab, cats)
         if with_optimizer:
@@ -655,8 +744,8 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
         total, n_chars, correct, t0 = 0.0, 0, 0, time.perf_counter()
         for k in range(0, len(order), config.batch):
             batch = [examples[i] for i in order[k:k + config.batch]]
-            tok, mask, tgt = model._tensors([b[0] for b in batch], [b[1] for b in batch])
-            logits = model.net(tok, mask)
+            tok, mask, tgt, struct = model._tensors([b[0] for b in batch], [b[1] for b in batch])
+            logits = model.net(tok, mask, struct)
             # -inf logits of disallowed categories: use log_softmax and gather the target's only.
             logp = torch.log_softmax(logits, dim=2)
             valid = tgt >= 0

@@ -38,6 +38,8 @@ from .shapes import Grammar
 
 PAD, SOS, EOS = 0, 1, 2
 TORCH_THREADS = 1  # these nets are small: one thread is much faster than two on a busy 2-core machine
+WRAP_FRACTION = 0.8  # constrained decoding wraps up from 0.8 x the largest training graph (nodes)
+WRAP_BIAS = 0.5  # logit bonus per node past that, for tokens that close a ring, a branch or the string
 
 
 class torch_threads:
@@ -219,37 +221,68 @@ class Constraint:
                 sub.add(tuple(sorted(counts.items())))
             self.completable[t] = sub
         self._fit_cache: dict = {}
+        # (t, u): an atom of type u bonded to one of type t can take further neighbours
+        self.through = {(t, u) for u, keys in grammar.rules.items() for key in keys if len(key) >= 2 for t in set(key)}
         self.letters = [c for c in vocab.chars if c in LETTERS]
         self.digits = [c for c in vocab.chars if c.isdigit()]
 
-    def _fits(self, t: str, nbrs: list[str]) -> bool:
-        key = (t, "".join(sorted(nbrs)))
+    def _fits(self, t: str, nbrs: list[str], wild: int = 0) -> bool:
+        """Can some rule of type ``t`` hold the neighbours ``nbrs`` plus ``wild`` more of
+        any type (the atom's open ring labels, each a neighbour still to come)?"""
+        key = (t, "".join(sorted(nbrs)), wild)
         hit = self._fit_cache.get(key)
         if hit is None:
             counts = {}
             for ch in nbrs:
                 counts[ch] = counts.get(ch, 0) + 1
-            hit = t in self.completable and any(all(dict(k).get(ch, 0) >= n for ch, n in counts.items())
-                                                for k in self.completable[t])
+            hit = t in self.completable and any(
+                all(dict(k).get(ch, 0) >= n for ch, n in counts.items()) and sum(n for _, n in k) >= len(nbrs) + wild
+                for k in self.completable[t])
             self._fit_cache[key] = hit
         return hit
 
+    @staticmethod
+    def _pending(rings: dict, a: int) -> int:
+        """Open ring labels on atom ``a``: neighbours it has promised."""
+        return sum(1 for x in rings.values() if x == a)
+
     def _edge_ok(self, p: _Prefix, a: int, b_type: str, b: int | None) -> bool:
+        """May atom ``a`` bond to a new atom of type ``b_type`` (``b`` None), or, closing a
+        ring ``a`` opened, to the current atom ``b``? Open ring labels count as neighbours."""
         ta = p.types[a]
         if (ta, b_type) not in self.pairs:
             return False
-        if not self._fits(ta, p.nbrs[a] + [b_type]):
+        wild_a = self._pending(p.rings, a) - (b is not None)  # closing consumes one of a's labels
+        if not self._fits(ta, p.nbrs[a] + [b_type], wild_a):
             return False
         if b is not None:
             if b == a or (min(a, b), max(a, b)) in p.edges:
                 return False
-            return self._fits(b_type, p.nbrs[b] + [ta])
+            return self._fits(b_type, p.nbrs[b] + [ta], self._pending(p.rings, b))
         return True
 
-    def allowed(self, p: _Prefix) -> list[str]:
+    def allowed(self, p: _Prefix, wrap_nodes: int | None = None) -> list[str]:
         """Characters (and '' for end) that may follow the prefix without a dead end one
-        step later (see :meth:`viable_after`)."""
-        return [c for c in self._allowed(p) if self.viable_after(p, c)]
+        step later (see :meth:`viable_after`). From ``wrap_nodes`` nodes on, no new ring
+        label or branch is opened (unless nothing else is allowed)."""
+        out = [c for c in self._allowed(p) if self.viable_after(p, c)]
+        if wrap_nodes is not None and len(p.types) >= wrap_nodes and p.percent is None:
+            closing = [c for c in out if self.closes(p, c) or c in LETTERS or (c == "%" and any(k >= 10 for k in p.rings))]
+            out = closing or out
+        return out
+
+    @staticmethod
+    def closes(p: _Prefix, c: str) -> bool:
+        """Does ``c`` end something open: the string, a branch, or a ring (a label digit
+        that completes an open label)?"""
+        if c in ("", ")"):
+            return True
+        if not c.isdigit():
+            return False
+        if p.percent == "%":
+            return False
+        label = int(p.percent[1] + c) if p.percent is not None else int(c)
+        return label in p.rings
 
     def _allowed(self, p: _Prefix) -> list[str]:
         if p.percent == "%":
@@ -286,7 +319,7 @@ class Constraint:
 
     def _has_room(self, p: _Prefix, a: int, extra: dict) -> bool:
         nb = extra.get(a, p.nbrs[a])
-        return any(self._fits(p.types[a], nb + [u]) for u in self.completable)
+        return self._fits(p.types[a], nb, self._pending(p.rings, a) + 1)
 
     def viable_after(self, p: _Prefix, c: str) -> bool:
         """One-step look-ahead: after ``c``, can every unfinished atom still get neighbours?
@@ -294,7 +327,14 @@ class Constraint:
         Atoms that may still gain neighbours are the current one, the branch points on the
         stack and atoms with an open ring label; an unfinished atom outside them is a dead end.
         """
-        if c in ("", "(", "%") or (p.percent == "%"):
+        if c == "(" and p.percent is None:
+            # a branch must be able to go on: some letter after it must pass this same check
+            q = _Prefix()
+            for name in _Prefix.__slots__:
+                setattr(q, name, getattr(p, name))
+            q.stack, q.after_open = p.stack + [p.prev], True
+            return any(self._edge_ok(q, q.prev, l, None) and self.viable_after(q, l) for l in self.letters)
+        if c in ("", "%") or (p.percent == "%"):
             return True
         current, stack, openers = p.prev, list(p.stack), dict(p.rings)
         changed: dict[int, list[str]] = {}
@@ -333,12 +373,32 @@ class Constraint:
             budget = self.max_nodes is None or len(types) < self.max_nodes
             def room(a):
                 nb = nbrs_of.get(a, p.nbrs[a] if a < len(p.nbrs) else [])
-                return any(self._fits(types[a], nb + [u]) for u in self.completable)
+                return self._fits(types[a], nb, self._pending(openers, a) + 1)
             if not any(room(a) for a in {current, *stack}):
+                return False
+            if openers and not self._can_close(types, nbrs_of, p, current, stack, openers):
                 return False
             if not budget and incomplete - set(openers.values()) - {current, *stack}:
                 return False
         return True
+
+    def _can_close(self, types, nbrs_of, p, current, stack, openers) -> bool:
+        """Can the open rings still be reached? The current atom closes one now, or some
+        atom on the active path can take a neighbour that either bonds to an opener's type
+        or is not a leaf (a path can go on through it). A necessary condition only."""
+        nb = lambda a: nbrs_of.get(a, p.nbrs[a] if a < len(p.nbrs) else [])
+        opener_types = {types[o] for o in openers.values()}
+        for o in set(openers.values()):
+            if o != current and (types[current], types[o]) in self.pairs and \
+                    self._fits(types[current], nb(current) + [types[o]], self._pending(openers, current)) and \
+                    self._fits(types[o], nb(o) + [types[current]], self._pending(openers, o) - 1):
+                return True
+        for a in {current, *stack}:
+            for u in self.letters:
+                if (types[a], u) in self.pairs and self._fits(types[a], nb(a) + [u], self._pending(openers, a)) and \
+                        ((types[a], u) in self.through or any((u, t) in self.pairs for t in opener_types)):
+                    return True
+        return False
 
     def _label_ok(self, p: _Prefix, label: int) -> bool:
         a = p.prev
@@ -351,7 +411,7 @@ class Constraint:
         # budget must leave room to write the ring's other end
         if self.max_nodes is not None and len(p.types) >= self.max_nodes:
             return False
-        return len(p.rings) < 99 and any(self._fits(p.types[a], p.nbrs[a] + [u]) for u in self.completable)
+        return len(p.rings) < 99 and self._fits(p.types[a], p.nbrs[a], self._pending(p.rings, a) + 1)
 
     def advance(self, p: _Prefix, c: str) -> None:
         if c == "":
@@ -410,6 +470,8 @@ class StringModel:
     def __init__(self, net: StringVAE, vocab: Vocab, grammar: Grammar, max_nodes: int | None = None):
         self.net, self.vocab, self.grammar, self.max_nodes = net, vocab, grammar, max_nodes
         self.constraint = Constraint(vocab, grammar, max_nodes)
+        # the largest training graph is max_nodes / 1.25; wrapping up starts at 0.8 of it
+        self.wrap_nodes = None if max_nodes is None else max(1, int(round(WRAP_FRACTION * max_nodes / 1.25)))
 
     @torch.no_grad()
     def encode(self, strings: list[str]) -> np.ndarray:
@@ -429,21 +491,24 @@ class StringModel:
     @torch.no_grad()
     def decode(self, z: np.ndarray, constrained: bool = True, greedy: bool = False,
                rng: np.random.Generator | None = None, max_len: int | None = None,
-               temperature: float = 1.0) -> list[str | None]:
+               temperature: float = 1.0, wrap_bias: float = WRAP_BIAS) -> list[str | None]:
         """Decode latent points; a string per point, or None when decoding ran past
         ``max_len`` or (constrained) reached a prefix no token can continue.
 
         Tokens are sampled (``rng`` required) at ``temperature``; ``greedy=True`` takes the
         argmax instead (which tends to loop on periodic strings). Constrained decoding also
         stops adding letters once a string has the model's ``max_nodes`` nodes (1.25 times
-        the largest training graph), so it must close its rings and branches.
+        the largest training graph), so it must close its rings and branches; and it *wraps
+        up* from ``wrap_nodes`` nodes on (0.8 times the largest training graph): no new ring
+        labels or branches, and the logits of tokens that close something (a ring label's
+        second end, ``)``, the end) get ``wrap_bias`` per node past ``wrap_nodes``.
         """
         if not greedy and rng is None:
             raise InvalidArgumentError("sampled decoding needs a numpy Generator (rng)")
         with torch_threads():
-            return self._decode(z, constrained, greedy, rng, max_len, temperature)
+            return self._decode(z, constrained, greedy, rng, max_len, temperature, wrap_bias)
 
-    def _decode(self, z, constrained, greedy, rng, max_len, temperature):
+    def _decode(self, z, constrained, greedy, rng, max_len, temperature, wrap_bias):
         self.net.eval()
         max_len = max_len or self.net.config.max_len
         zt = torch.as_tensor(np.asarray(z, dtype=np.float32))
@@ -461,7 +526,8 @@ class StringModel:
             for k in np.nonzero(alive)[0]:
                 row = logits[k]
                 if constrained:
-                    allowed = self.constraint.allowed(prefixes[k])
+                    pk = prefixes[k]
+                    allowed = self.constraint.allowed(pk, self.wrap_nodes)
                     if not allowed:
                         alive[k], ok[k] = False, False
                         continue
@@ -469,6 +535,11 @@ class StringModel:
                     masked = np.full_like(row, -np.inf)
                     masked[ids] = row[ids]
                     row = masked
+                    over = len(pk.types) - self.wrap_nodes + 1 if self.wrap_nodes is not None else 0
+                    if over > 0 and wrap_bias:
+                        for c, i in zip(allowed, ids):
+                            if self.constraint.closes(pk, c):
+                                row[i] += wrap_bias * over
                 else:
                     row = row.copy()
                     row[[PAD, SOS]] = -np.inf
