@@ -118,13 +118,15 @@ def run_set(name: str, args, work: Path) -> dict:
     z = rng.standard_normal((args.samples, model.vae.net.config.latent))
     prior = {}
     novel_strings = []
-    for constrained in (True, False):
+    # constrained (with wrap-up, the default), constrained without wrap-up, free decoding
+    for label, kw in (("constrained", {}), ("constrained_no_wrap", {"wrap": False}),
+                      ("unconstrained", {"constrained": False})):
         t0 = time.perf_counter()
-        decoded = model.vae.decode(z, constrained=constrained, rng=rng)
+        decoded = model.vae.decode(z, rng=rng, **kw)
         r, novel = rates(model, decoded, known)
         r["seconds"] = round(time.perf_counter() - t0, 1)
-        prior["constrained" if constrained else "unconstrained"] = r
-        if constrained:
+        prior[label] = r
+        if label == "constrained":
             novel_strings = novel
     row["prior_samples"] = prior
     print(f"  prior: {prior}", flush=True)

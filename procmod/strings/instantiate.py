@@ -740,10 +740,17 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
     while state["epoch"] < config.epochs:
         gen = torch.Generator().manual_seed(seed * 7919 + state["epoch"])
         order = torch.randperm(len(examples), generator=gen).tolist()
+        # length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding)
+        chunk = 8 * config.batch
+        batches = []
+        for k in range(0, len(order), chunk):
+            part = sorted(order[k:k + chunk], key=lambda i: len(examples[i][0]))
+            batches += [part[j:j + config.batch] for j in range(0, len(part), config.batch)]
+        batches = [batches[i] for i in torch.randperm(len(batches), generator=gen).tolist()]
         model.net.train()
         total, n_chars, correct, t0 = 0.0, 0, 0, time.perf_counter()
-        for k in range(0, len(order), config.batch):
-            batch = [examples[i] for i in order[k:k + config.batch]]
+        for ids in batches:
+            batch = [examples[i] for i in ids]
             tok, mask, tgt, struct = model._tensors([b[0] for b in batch], [b[1] for b in batch])
             logits = model.net(tok, mask, struct)
             # -inf logits of disallowed categories: use log_softmax and gather the target's only.

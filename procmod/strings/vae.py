@@ -491,7 +491,7 @@ class StringModel:
     @torch.no_grad()
     def decode(self, z: np.ndarray, constrained: bool = True, greedy: bool = False,
                rng: np.random.Generator | None = None, max_len: int | None = None,
-               temperature: float = 1.0, wrap_bias: float = WRAP_BIAS) -> list[str | None]:
+               temperature: float = 1.0, wrap_bias: float = WRAP_BIAS, wrap: bool = True) -> list[str | None]:
         """Decode latent points; a string per point, or None when decoding ran past
         ``max_len`` or (constrained) reached a prefix no token can continue.
 
@@ -501,14 +501,16 @@ class StringModel:
         the largest training graph), so it must close its rings and branches; and it *wraps
         up* from ``wrap_nodes`` nodes on (0.8 times the largest training graph): no new ring
         labels or branches, and the logits of tokens that close something (a ring label's
-        second end, ``)``, the end) get ``wrap_bias`` per node past ``wrap_nodes``.
+        second end, ``)``, the end) get ``wrap_bias`` per node past ``wrap_nodes``
+        (``wrap=False``: no wrapping up, only the hard budget).
         """
         if not greedy and rng is None:
             raise InvalidArgumentError("sampled decoding needs a numpy Generator (rng)")
         with torch_threads():
-            return self._decode(z, constrained, greedy, rng, max_len, temperature, wrap_bias)
+            return self._decode(z, constrained, greedy, rng, max_len, temperature, wrap_bias if wrap else 0.0,
+                                self.wrap_nodes if wrap else None)
 
-    def _decode(self, z, constrained, greedy, rng, max_len, temperature, wrap_bias):
+    def _decode(self, z, constrained, greedy, rng, max_len, temperature, wrap_bias, wrap_nodes):
         self.net.eval()
         max_len = max_len or self.net.config.max_len
         zt = torch.as_tensor(np.asarray(z, dtype=np.float32))
@@ -527,7 +529,7 @@ class StringModel:
                 row = logits[k]
                 if constrained:
                     pk = prefixes[k]
-                    allowed = self.constraint.allowed(pk, self.wrap_nodes)
+                    allowed = self.constraint.allowed(pk, wrap_nodes)
                     if not allowed:
                         alive[k], ok[k] = False, False
                         continue
@@ -535,7 +537,7 @@ class StringModel:
                     masked = np.full_like(row, -np.inf)
                     masked[ids] = row[ids]
                     row = masked
-                    over = len(pk.types) - self.wrap_nodes + 1 if self.wrap_nodes is not None else 0
+                    over = len(pk.types) - wrap_nodes + 1 if wrap_nodes is not None else 0
                     if over > 0 and wrap_bias:
                         for c, i in zip(allowed, ids):
                             if self.constraint.closes(pk, c):
