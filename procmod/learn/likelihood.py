@@ -53,18 +53,19 @@ def _activations(W, c, x):
     return c[:, :, None] + torch.cumsum(contrib, dim=2) - contrib
 
 
-def _bernoulli_nade(W, c, V, b, x, mask, want_prior: bool = False):
+def _bernoulli_nade(W, c, V, b, x, mask, target=None):
     """log p of bits ``x`` (P, D) under per-pair Bernoulli NADEs (hidden sigmoid).
 
-    With ``want_prior`` also, per pair, ``sum_d log p(x_d = 1 | x_<d) + log p(x_d = 0 |
-    x_<d)``: the log density of a Beta(2, 2) prior on every conditional, at this pair's
-    context (see :meth:`Compiled.slot_prior`)."""
+    With ``target`` (P, D) probabilities also, per pair, ``sum_d t_d log p(x_d = 1 |
+    x_<d) + (1 - t_d) log p(x_d = 0 | x_<d)``: the log density, up to a constant, of a
+    Beta(1 + t, 2 - t) prior on every conditional at this pair's context (see
+    :meth:`Compiled.map_objective`)."""
     h = torch.sigmoid(_activations(W, c, x))  # (P, H, D)
     logit = (V * h.transpose(1, 2)).sum(-1) + b  # (P, D)
     on, off = torch.nn.functional.logsigmoid(logit), torch.nn.functional.logsigmoid(-logit)
     lp = (mask * (x * on + (1 - x) * off)).sum(1)
-    if want_prior:
-        return lp, (mask * (on + off)).sum(1)
+    if target is not None:
+        return lp, (mask * (target * on + (1 - target) * off)).sum(1)
     return lp
 
 
@@ -153,6 +154,7 @@ class Compiled:
         self.slot_V, self.slot_b = self._leaf("slot.V", V), self._leaf("slot.b", b)
         self.slot_mask3 = _t(hm[:, :, None] * hm[:, None, :])
         self.slot_hm = _t(hm)
+        self.slot_pair_group = torch.as_tensor([inst[i][1] for i in pi], dtype=torch.long)
         self.slot_pairs = (torch.as_tensor(pi, dtype=torch.long), torch.as_tensor(pn, dtype=torch.long),
                            torch.as_tensor(pc, dtype=torch.long), _t(np.array(px).reshape(-1, K)),
                            _t(np.array(pm).reshape(-1, K)))
@@ -301,22 +303,25 @@ class Compiled:
         dense = dense.index_put((self.callee_rows, self.callee_cols), self.callee_flat)
         return torch.log_softmax(dense, dim=1)
 
-    def local_table(self, want_z: bool = False, want_prior: bool = False):
+    def local_table(self, want_z: bool = False, target=None):
         """(N, M) local log-probabilities, the root-transform constant, and optionally the
-        per-pair z^2 of the Gaussian terms with their (node, column) indices; with
-        ``want_prior`` a fourth value, the (N, M) slot-use prior table of
-        :meth:`slot_prior`."""
+        per-pair z^2 of the Gaussian terms with their (node, column) indices; with a
+        slot-use ``target`` (see :meth:`map_objective`) a fourth value, the (N, M) table
+        of the prior's terms."""
         local = torch.where(self.compat, torch.zeros((), dtype=DTYPE), torch.tensor(NEG, dtype=DTYPE))
-        prior = torch.zeros((self.N, self.M), dtype=DTYPE) if want_prior else None
+        prior = None if target is None else torch.zeros((self.N, self.M), dtype=DTYPE)
         pi, pn, pc, px, pm = self.slot_pairs
         if len(pi):
             W = (self.slot_W * self.slot_mask3)[pi]
             V = (self.slot_V * self.slot_mask3)[pi]
             c = (self.slot_c * self.slot_hm)[pi]
-            lp = _bernoulli_nade(W, c, V, self.slot_b[pi], px, pm, want_prior)
-            if want_prior:
-                lp, pr = lp
+            if target is not None:
+                t = torch.as_tensor(target, dtype=DTYPE)[pn, self.slot_pair_group]
+                t = torch.where(torch.isnan(t), torch.full_like(t, 0.5), t)
+                lp, pr = _bernoulli_nade(W, c, V, self.slot_b[pi], px, pm, t)
                 prior = prior.index_put((pn, pc), pr, accumulate=True)
+            else:
+                lp = _bernoulli_nade(W, c, V, self.slot_b[pi], px, pm)
             local = local.index_put((pn, pc), lp, accumulate=True)
         ci, cn, cc, ck = self.count_pairs
         if len(ci):
@@ -352,7 +357,7 @@ class Compiled:
                 local = local.index_put((sn, sc), lp, accumulate=True)
                 if want_z:
                     zinfo.append((sn, sc, (z * z * self.sym_mask[si]).detach()))
-        if want_prior:
+        if target is not None:
             return local, const, zinfo, prior
         return local, const, zinfo
 
@@ -373,17 +378,21 @@ class Compiled:
         root = torch.logsumexp(logpi[0][None, :] + beta[self.roots], dim=1)
         return root.sum() + const
 
-    def map_objective(self, weights, alpha: float, bias=None):
-        """``log p(D | P) + alpha * slot prior`` and the local table (for its gradient).
+    def map_objective(self, weights, alpha: float, target, bias=None):
+        """``log p(D | P) + alpha * slot prior``, ``log p(D | P)`` and the local table
+        (whose gradient is the responsibilities).
 
-        The slot prior is a Beta(1 + alpha, 1 + alpha) prior, in MAP form, on every
-        conditional of every slot-use NADE, i.e. ``alpha`` pseudo-observations of each
-        outcome. A NADE conditional depends on the earlier bits, so the prior is spread
-        over the contexts the abstraction actually sees: ``weights`` (N, M) holds, per
-        abstraction, its nodes' posterior responsibilities normalised to sum to one (see
-        :func:`prior_weights`). An abstraction fitted to few nodes is thereby pulled
-        towards 1/2 more than one fitted to many, as with counts and pseudo-counts."""
-        local, const, _, prior = self.local_table(want_prior=True)
+        The slot prior shrinks every conditional of every slot-use NADE towards a
+        *target*: ``target[n, g, d]``, the probability that node n's slot bit d of group
+        g is set given its earlier bits under the pooled model (P0, one abstraction per
+        part type, fitted to all nodes of the type). In MAP form it is a Beta(1 + alpha
+        t, 1 + alpha (1 - t)) prior, i.e. ``alpha`` pseudo-observations drawn from the
+        pooled model; it is spread over the contexts each abstraction actually sees:
+        ``weights`` (N, M) holds per abstraction its nodes' posterior responsibilities
+        normalised to sum to one (:func:`prior_weights`). An abstraction that a split
+        left with three or four nodes is pulled back towards its type's pooled
+        probabilities; one with many nodes hardly moves."""
+        local, const, _, prior = self.local_table(target=target)
         local.retain_grad()
         ll = self.log_likelihood(bias, local=(local, const))
         return ll + alpha * (weights * prior).sum(), ll, local
@@ -396,13 +405,14 @@ class Compiled:
         (grad,) = torch.autograd.grad(ll, bias)
         return grad.numpy()
 
-    def joint(self, x, prior_weights=None):
+    def joint(self, x, prior_weights=None, target=None):
         """log p(x, y) for sampled assignments ``x`` (S, N) of columns (VI); with
-        ``prior_weights`` (N, M) also the weighted slot prior of :meth:`map_objective`."""
+        ``prior_weights`` (N, M) and ``target`` also the weighted slot prior of
+        :meth:`map_objective`."""
         if prior_weights is None:
             local, const, _ = self.local_table()
         else:
-            local, const, _, prior = self.local_table(want_prior=True)
+            local, const, _, prior = self.local_table(target=target)
         # a mean-field q cannot express which abstractions a caller may call: a sampled
         # call outside the callable set costs INVALID_CALL nats instead of -inf, so the
         # score-function gradient stays finite and pushes q towards valid assignments
@@ -457,6 +467,33 @@ def prior_weights(resp) -> torch.Tensor:
     resp = torch.as_tensor(resp, dtype=DTYPE)
     usage = resp.sum(0, keepdim=True)
     return torch.where(usage > 1e-6, resp / torch.clamp(usage, min=1e-6), torch.zeros((), dtype=DTYPE))
+
+
+def pooled_slot_target(pooled: Program, data: Dataset) -> np.ndarray:
+    """(N, G, K) probabilities: for every part node, slot group g of its type and bit d,
+    ``p(bit d set | its earlier bits)`` under the abstraction of ``pooled`` (P0: one per
+    part type) of the node's type; NaN where undefined. The target of the slot prior."""
+    comp = Compiled(pooled, data, "discrete")
+    pi, pn, pc, px, pm = comp.slot_pairs
+    G = max([len(g) for g in data.groups.values()] + [1])
+    K = px.shape[1] if len(pi) else 1
+    out = np.full((len(data.nodes), G, K), np.nan)
+    if not len(pi):
+        return out
+    with torch.no_grad():
+        W = (comp.slot_W * comp.slot_mask3)[pi]
+        V = (comp.slot_V * comp.slot_mask3)[pi]
+        c = (comp.slot_c * comp.slot_hm)[pi]
+        h = torch.sigmoid(_activations(W, c, px))
+        prob = torch.sigmoid((V * h.transpose(1, 2)).sum(-1) + comp.slot_b[pi]).numpy()
+    seen = set()
+    for j, (n, g) in enumerate(zip(pn.tolist(), comp.slot_pair_group.tolist())):
+        if (n, g) in seen:
+            raise ValueError("the pooled program has two abstractions of one part type")
+        seen.add((n, g))
+        k = comp.slot_inst[int(pi[j])][2]
+        out[n, g, :k] = prob[j, :k]
+    return out
 
 
 def sigmas_from_residuals(program: Program, data: Dataset) -> None:
@@ -539,7 +576,8 @@ def log_likelihood(program: Program, data: Dataset, mode: str = "free") -> float
 
 def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float = 0.05,
         estimator: str = "exact", seed: int = 0, warm_bias: np.ndarray | None = None,
-        warm_iterations: int = 0, vi_samples: int = 8, ramp: int = 0, slot_prior: float = 0.0) -> dict:
+        warm_iterations: int = 0, vi_samples: int = 8, ramp: int = 0, slot_prior: float = 0.0,
+        slot_target: np.ndarray | None = None) -> dict:
     """Optimise the program's parameters in place with Adam; returns a summary.
 
     Parameters
@@ -558,13 +596,15 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     warm_bias : array (N, M), optional
         Added to the local terms for the first ``warm_iterations`` steps (used after a
         split to push the two copies of an abstraction apart).
-    slot_prior : float
-        Pseudo-count ``alpha`` of the Beta(1 + alpha, 1 + alpha) prior on the slot-use
-        NADE conditionals (:meth:`Compiled.map_objective`; 0: maximum likelihood). The
-        exact estimator maximises ``log p(D|P) + log prior`` (MAP), weighting the prior
-        by the previous step's responsibilities; the VI estimator weights it by q.
-        Without it, the slot-use probabilities of an abstraction that generates three
-        or four nodes go to 0 or 1 and samples copy the examples' structures.
+    slot_prior, slot_target
+        Pseudo-count ``alpha`` and pooled probabilities (N, G, K) of the prior on the
+        slot-use NADE conditionals (:meth:`Compiled.map_objective`,
+        :func:`pooled_slot_target`); without a target, or with ``alpha`` 0, the fit is
+        maximum likelihood. The exact estimator maximises ``log p(D|P) + log prior``
+        (MAP), weighting the prior by the previous step's responsibilities; the VI
+        estimator weights it by q. Without it, the slot-use probabilities of an
+        abstraction that a split left with three or four nodes go to 0 or 1, and
+        samples copy the examples' structures.
 
     Returns
     -------
@@ -576,6 +616,8 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     comp = Compiled(program, data, mode)
     leaves = list(comp.leaves.values())
     opt = _Adam(leaves)
+    use_prior = slot_prior > 0 and slot_target is not None
+    target = torch.as_tensor(slot_target, dtype=DTYPE) if use_prior else None
     bias = None if warm_bias is None else torch.as_tensor(warm_bias, dtype=DTYPE)
     elbo = None
     total = warm_iterations + iterations
@@ -587,7 +629,7 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
     decay = lambda it: min(1.0, (it + 1) / ramp if ramp else 1.0) * 0.05 ** (it / max(total - 1, 1))
     if estimator == "exact":
         weights = None
-        if slot_prior > 0:
+        if use_prior:
             start_bias = bias if warm_iterations > 0 else None
             weights = prior_weights(comp.responsibilities(start_bias))
         for it in range(total):
@@ -597,7 +639,7 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
                 loss = -comp.log_likelihood(b)
                 loss.backward()
             else:
-                objective, _, local = comp.map_objective(weights, slot_prior, b)
+                objective, _, local = comp.map_objective(weights, slot_prior, target, b)
                 (-objective).backward()
                 # d log p(D|P) / d local = the posterior responsibilities (the prior term
                 # does not pass through ``local``): next step's weights, one step behind
@@ -616,8 +658,8 @@ def fit(program: Program, data: Dataset, mode: str, iterations: int, lr: float =
             logq = torch.log_softmax(q / temperature + mask, dim=1)
             x = torch.multinomial(logq.detach().exp(), vi_samples, replacement=True, generator=gen).T
             lq = logq.gather(1, x.T).sum(0)
-            if slot_prior > 0:
-                joint, prior = comp.joint(x, prior_weights(logq.detach().exp()))
+            if use_prior:
+                joint, prior = comp.joint(x, prior_weights(logq.detach().exp()), target)
             else:
                 joint, prior = comp.joint(x), 0.0
             f = (joint - lq).detach()

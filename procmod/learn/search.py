@@ -39,7 +39,7 @@ import numpy as np
 from ..core.errors import InvalidArgumentError, ProcmodError
 from ..core.serialize import write_text_atomic
 from .examples import ExampleSet
-from .likelihood import Compiled, fit, log_likelihood, sigmas_from_residuals
+from .likelihood import Compiled, fit, log_likelihood, pooled_slot_target, sigmas_from_residuals
 from .preprocess import Dataset, preprocess
 from .program import ROOT, Program, program_from_json, program_to_json
 from ..parallel import InlineExecutor as _Inline
@@ -61,8 +61,9 @@ class SearchOptions:
     ``split_iterations`` re-optimise after a split (the paper: 500, from scratch; we warm
     start from the pre-split parameters, see docs/learn.md); ``warm_iterations`` of them
     carry the tie-breaking bias; ``final_iterations`` free the sigmas at the end.
-    ``slot_prior`` is the pseudo-count of the Beta prior on slot-use probabilities
-    (:func:`likelihood.fit`; 0: maximum likelihood, as the paper).
+    ``slot_prior`` is the pseudo-count of the prior that shrinks slot-use probabilities
+    towards P0's pooled ones (:func:`likelihood.fit`; 0: maximum likelihood, as the
+    paper).
     """
 
     particles: int = 4
@@ -77,7 +78,7 @@ class SearchOptions:
     lr: float = 0.05
     estimator: str = "exact"
     max_rounds: int = 400
-    slot_prior: float = 1.0
+    slot_prior: float = 2.0
 
     def check(self) -> "SearchOptions":
         if self.particles < 1:
@@ -145,7 +146,7 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
     start, cpu0 = time.perf_counter(), time.process_time()
     rng = np.random.default_rng(_seed(options.seed, "P0"))
     p0 = initial_program(data, rng)
-    fit(p0, data, "discrete", options.init_iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior,
+    fit(p0, data, "discrete", options.init_iterations, lr=options.lr, estimator=options.estimator,
         seed=_seed(options.seed, "P0fit"))
     resp, ids = _responsibilities(p0, data, "discrete")
     ll = log_likelihood(p0, data, "discrete")
@@ -155,19 +156,22 @@ def task_initial(data: Dataset, options: SearchOptions) -> dict:
 
 
 @_single_threaded
-def task_free_copy(program: Program, data: Dataset, options: SearchOptions, seed: int) -> dict:
+def task_free_copy(program: Program, data: Dataset, options: SearchOptions, seed: int, slot_target=None) -> dict:
     """A copy of ``program`` with all parameters fitted, sigmas free (for Table 1 and the
     figure-6 samples of P0 and of the phase-1 program; runs beside the search)."""
     cpu0 = time.process_time()
     full = program.copy()
-    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior,
+    r = fit(full, data, "free", options.final_iterations, lr=options.lr, estimator=options.estimator,
+            slot_prior=options.slot_prior, slot_target=slot_target,
             ramp=options.final_iterations // 10, seed=seed)
     return {"program": full, "loglik": r["log_likelihood"], "cpu": time.process_time() - cpu0}
 
 
 @_single_threaded
-def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int) -> Particle:
-    """One split proposal of one particle."""
+def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int,
+              slot_target=None) -> Particle:
+    """One split proposal of one particle (``slot_target``: the slot prior's, see
+    :func:`likelihood.pooled_slot_target`)."""
     start, cpu0 = time.perf_counter(), time.process_time()
     program = particle.program
     while particle.queue and particle.queue[0] not in program.abstractions:
@@ -180,7 +184,8 @@ def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: s
     rng = np.random.default_rng(seed)
     resp, ids = _responsibilities(program, data, mode)
     proposal, a2, bias = split(program, target, data, resp, ids, rng, continuous=mode != "discrete")
-    fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior,
+    fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator,
+        slot_prior=options.slot_prior, slot_target=slot_target,
         seed=seed, warm_bias=bias, warm_iterations=options.warm_iterations)
     resp2, ids2 = _responsibilities(proposal, data, mode)
     snapped = snap(proposal, data, resp2, ids2, options.tau_snap)
@@ -231,14 +236,16 @@ def gaussian_filter(program: Program, data: Dataset, tau: float) -> dict:
 
 
 @_single_threaded
-def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase: str, seed: int) -> Particle:
+def task_phase(particle: Particle, data: Dataset, options: SearchOptions, phase: str, seed: int,
+               slot_target=None) -> Particle:
     """Start phase 2 (``"fixed"``) or run the final pass (``"free"``) for one particle."""
     start, cpu0 = time.perf_counter(), time.process_time()
     program = particle.program.copy()
     iterations = options.init_iterations if phase == "fixed" else options.final_iterations
     if phase == "free":
         sigmas_from_residuals(program, data)
-    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, slot_prior=options.slot_prior, seed=seed,
+    fit(program, data, phase, iterations, lr=options.lr, estimator=options.estimator, seed=seed,
+        slot_prior=options.slot_prior, slot_target=slot_target,
         ramp=options.final_iterations // 10 if phase == "free" else 0)
     ll = log_likelihood(program, data, phase)
     particle.program, particle.loglik = program, ll
@@ -399,6 +406,8 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     else:
         rng.bit_generator.state = state["rng"]
         particles = state["particles"]
+    # the slot prior's target: P0's pooled slot-use probabilities (recomputed on resume)
+    slot_target = pooled_slot_target(state["programs"]["p0"], data)
     elapsed0 = state["elapsed"]
     t_resume, cpu_resume, cpu0 = time.perf_counter(), time.process_time(), state.get("cpu", 0.0)
     task_cpu = 0.0
@@ -428,9 +437,9 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                 best = max(particles, key=lambda p: p.objective)
                 state["programs"]["phase1"] = best.program
                 side["after_phase1"] = executor.submit(task_free_copy, best.program, data, options,
-                                                       _seed(options.seed, "P1free"))
+                                                       _seed(options.seed, "P1free"), slot_target)
             if nxt != "finished":
-                futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt))
+                futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt), slot_target)
                            for k, p in enumerate(particles)]
                 particles = [f.result() for f in futures]
                 task_cpu += sum(p.cpu for p in particles)
@@ -439,7 +448,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                    "seconds": round(elapsed0 + time.perf_counter() - t_resume, 3)}
         else:
             futures = {k: executor.submit(task_step, particles[k], data, options, phase,
-                                          _seed(options.seed, r, k)) for k in active}
+                                          _seed(options.seed, r, k), slot_target) for k in active}
             for k, f in futures.items():
                 particles[k] = f.result()
                 task_cpu += particles[k].cpu
@@ -468,7 +477,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     for name, source, key in (("p0_free", "p0", "P0free"), ("after_phase1", "phase1", "P1free")):
         if name not in state["programs"] and source in state["programs"]:
             side[name] = executor.submit(task_free_copy, state["programs"][source], data, options,
-                                         _seed(options.seed, key))
+                                         _seed(options.seed, key), slot_target if name == "after_phase1" else None)
     collect(wait=True)
     best = max(particles, key=lambda p: p.objective)
     program = best.program
