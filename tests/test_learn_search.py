@@ -153,3 +153,15 @@ def test_dask_scheduler_gives_the_same_result(learned):
         with open_executor(scheduler=cluster.scheduler_address) as ex:
             on_dask = run_search(s, SearchOptions(particles=2, **QUICK), ex)
     assert on_dask.table["O_Pstar"] == r.table["O_Pstar"]
+
+
+def test_shared_fits_give_the_same_search(learned):
+    """Particles with identical tasks share one fit; the search is the one that runs
+    every fit (the exact estimator's fits use no random numbers)."""
+    s, r = learned
+    assert r.table["fits_shared"] > 0
+    alone = run_search(s, SearchOptions(particles=2, share_fits=False, **QUICK), InlineExecutor())
+    assert alone.table["fits_shared"] == 0
+    assert alone.table["fits_run"] == r.table["fits_run"] + r.table["fits_shared"]
+    assert alone.table["O_Pstar"] == r.table["O_Pstar"]
+    assert [row.get("proposed") for row in alone.trace] == [row.get("proposed") for row in r.trace]

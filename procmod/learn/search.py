@@ -64,6 +64,10 @@ class SearchOptions:
     ``slot_prior`` is the pseudo-count of the prior that shrinks slot-use probabilities
     towards P0's pooled ones (:func:`likelihood.fit`; 0: maximum likelihood, as the
     paper).
+    ``share_fits``: particles whose tasks have identical inputs (resampled
+    copies making the same split) run one fit and share its result; with the exact
+    estimator the result is the same as running each (VI never shares: its fits draw
+    random numbers from per-particle seeds).
     """
 
     particles: int = 4
@@ -79,6 +83,7 @@ class SearchOptions:
     estimator: str = "exact"
     max_rounds: int = 400
     slot_prior: float = 2.0
+    share_fits: bool = True
 
     def check(self) -> "SearchOptions":
         if self.particles < 1:
@@ -168,22 +173,39 @@ def task_free_copy(program: Program, data: Dataset, options: SearchOptions, seed
 
 
 @_single_threaded
-def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int,
-              slot_target=None) -> Particle:
-    """One split proposal of one particle (``slot_target``: the slot prior's, see
-    :func:`likelihood.pooled_slot_target`)."""
-    start, cpu0 = time.perf_counter(), time.process_time()
+def prepare_step(particle: Particle, data: Dataset, mode: str, seed: int):
+    """Pop the particle's next split target and make the split (cheap: no fitting).
+
+    Returns ``(target, proposal, a2, bias)`` or None when the queue is empty. The driver
+    calls it before submitting :func:`task_step`, so that particles that would make the
+    same proposal (resampled copies of one program choosing the same partition) share
+    one fit instead of repeating it."""
     program = particle.program
     while particle.queue and particle.queue[0] not in program.abstractions:
         particle.queue.pop(0)
     if not particle.queue:
-        particle.done = True
-        particle.cpu = time.process_time() - cpu0
-        return particle
+        return None
     target = particle.queue.pop(0)
     rng = np.random.default_rng(seed)
     resp, ids = _responsibilities(program, data, mode)
     proposal, a2, bias = split(program, target, data, resp, ids, rng, continuous=mode != "discrete")
+    return target, proposal, a2, bias
+
+
+@_single_threaded
+def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: str, seed: int,
+              slot_target=None, prepared=None) -> Particle:
+    """One split proposal of one particle (``slot_target``: the slot prior's, see
+    :func:`likelihood.pooled_slot_target`; ``prepared``: what :func:`prepare_step`
+    returned for this particle and seed, when the driver already called it)."""
+    start, cpu0 = time.perf_counter(), time.process_time()
+    if prepared is None:
+        prepared = prepare_step(particle, data, mode, seed)
+    if prepared is None:
+        particle.done = True
+        particle.cpu = time.process_time() - cpu0
+        return particle
+    target, proposal, a2, bias = prepared
     fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator,
         slot_prior=options.slot_prior, slot_target=slot_target,
         seed=seed, warm_bias=bias, warm_iterations=options.warm_iterations)
@@ -348,6 +370,43 @@ class LearnResult:
     resumed: bool = False
 
 
+def _fingerprint(p: Particle, *extra) -> str:
+    """A digest of everything a task's result depends on (besides the data, the options
+    and, for VI, the seed): structure, parameters, queue, rejected list, objective."""
+    prog = p.program
+    h = hashlib.sha256()
+    h.update(repr((sorted((a.id, a.kind, a.type, a.callees) for a in prog.abstractions.values()),
+                   prog.root_callees, prog.next_id, getattr(prog, "sigma_mode", None), p.queue, p.rejected,
+                   p.done, p.objective, p.loglik, extra)).encode())
+    for k in sorted(prog.params):
+        h.update(k.encode())
+        h.update(np.ascontiguousarray(prog.params[k], dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def _share(result: Particle, new_rows: int, own_trace: list) -> Particle:
+    """A particle whose task was identical to the one that produced ``result``: the
+    result's state, with its own history ``own_trace`` plus the task's ``new_rows``
+    trace rows."""
+    out = _copy_particle(result)
+    out.trace = [dict(r) for r in own_trace] + [dict(r) for r in result.trace[len(result.trace) - new_rows:]]
+    out.cpu = 0.0
+    return out
+
+
+def _run_deduplicated(keys: dict, submit) -> tuple[dict, dict]:
+    """Call ``submit(k)`` (a future) once per distinct ``keys[k]`` (None: always);
+    returns the results of those that ran, {k: result}, and {key: the k that ran}."""
+    first, futures = {}, {}
+    for k, key in keys.items():
+        if key is not None and key in first:
+            continue
+        if key is not None:
+            first[key] = k
+        futures[k] = submit(k)
+    return {k: f.result() for k, f in futures.items()}, first
+
+
 def _copy_particle(p: Particle) -> Particle:
     return Particle(p.program.copy(), p.objective, p.loglik, dict(p.usage), list(p.queue), list(p.rejected),
                     p.done, [dict(r) for r in p.trace])
@@ -391,6 +450,9 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         raise LearnError(f"{checkpoint} holds a run with other examples or options; delete it to start afresh, "
                          "or rerun with the same examples and options to resume")
     rng = np.random.default_rng(_seed(options.seed, "resample"))
+    # tasks with identical inputs give identical results with the exact estimator (its
+    # fits use no random numbers), so they run once; VI's fits depend on their seeds
+    dedup = options.share_fits and options.estimator == "exact"
     if state is None:
         init = executor.submit(task_initial, data, options).result()
         particles = [Particle(init["p0"].copy(), _objective(init["loglik"], init["p0"], options.lam),
@@ -439,19 +501,47 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                 side["after_phase1"] = executor.submit(task_free_copy, best.program, data, options,
                                                        _seed(options.seed, "P1free"), slot_target)
             if nxt != "finished":
-                futures = [executor.submit(task_phase, p, data, options, nxt, _seed(options.seed, r, k, nxt), slot_target)
-                           for k, p in enumerate(particles)]
-                particles = [f.result() for f in futures]
+                keys = {k: _fingerprint(p, nxt) if dedup else None for k, p in enumerate(particles)}
+                before = list(particles)
+                lengths = [len(p.trace) for p in before]
+                traces = [list(p.trace) for p in before]
+                done, first = _run_deduplicated(keys, lambda k: executor.submit(
+                    task_phase, before[k], data, options, nxt, _seed(options.seed, r, k, nxt), slot_target))
+                particles = [done[k] if k in done else
+                             _share(done[first[keys[k]]], len(done[first[keys[k]]].trace) - lengths[first[keys[k]]],
+                                    traces[k]) for k in range(len(before))]
+                state["fits_run"] = state.get("fits_run", 0) + len(done)
+                state["fits_shared"] = state.get("fits_shared", 0) + len(before) - len(done)
                 task_cpu += sum(p.cpu for p in particles)
             state["phase"] = nxt
             row = {"round": r, "phase": nxt, "event": "phase", "objectives": [round(p.objective, 3) for p in particles],
                    "seconds": round(elapsed0 + time.perf_counter() - t_resume, 3)}
         else:
-            futures = {k: executor.submit(task_step, particles[k], data, options, phase,
-                                          _seed(options.seed, r, k), slot_target) for k in active}
-            for k, f in futures.items():
-                particles[k] = f.result()
+            # the split is made here (cheap), so identical proposals share one fit
+            keys, prepared = {}, {}
+            for k in active:
+                key = _fingerprint(particles[k], phase) if dedup else None
+                prepared[k] = prepare_step(particles[k], data, phase, _seed(options.seed, r, k))
+                if key is not None and prepared[k] is not None:
+                    t, _, a2, bias = prepared[k]
+                    key = (key, t, a2, hashlib.sha256(np.ascontiguousarray(bias).tobytes()).hexdigest())
+                keys[k] = key
+            before = {k: particles[k] for k in active}
+            lengths = {k: len(particles[k].trace) for k in active}
+            traces = {k: list(particles[k].trace) for k in active}
+            done, first = _run_deduplicated(keys, lambda k: executor.submit(
+                task_step, before[k], data, options, phase, _seed(options.seed, r, k), slot_target, prepared[k]))
+            for k in active:
+                if k in done:
+                    particles[k] = done[k]
+                else:
+                    src = first[keys[k]]
+                    particles[k] = _share(done[src], len(done[src].trace) - lengths[src], traces[k])
                 task_cpu += particles[k].cpu
+            real = sum(1 for k in done if prepared[k] is not None)
+            state["fits_run"] = state.get("fits_run", 0) + real
+            state["fits_shared"] = state.get("fits_shared", 0) + sum(
+                1 for k in active if k not in done and prepared[k] is not None)
             chosen = list(range(len(particles)))
             if len(particles) > 1:
                 particles, chosen = _resample(particles, rng)
@@ -495,6 +585,8 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         "rounds": state["round"],
         "splits_proposed": sum(1 for r in best.trace if "split" in r),
         "splits_accepted": sum(1 for r in best.trace if r.get("accepted")),
+        "fits_run": state.get("fits_run", 0),
+        "fits_shared": state.get("fits_shared", 0),
     }
     # timings stay out of the program file, so the same run writes the same bytes
     program.info = {"table": {k: v for k, v in table.items() if k not in ("seconds", "cpu_seconds")},
