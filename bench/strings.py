@@ -101,7 +101,7 @@ def run_set(name: str, args, work: Path) -> dict:
     rng = np.random.default_rng(args.seed)
     held_shapes = [grown.shapes[i] for i in test_idx]
     held_graphs = [all_graphs[i] for i in test_idx]
-    held = tagging_examples(shape_set, held_shapes, held_graphs, model.categories, 4, rng)
+    held = tagging_examples(shape_set, held_shapes, held_graphs, model.categories, 4, rng, every_symmetry=True)
     voted_right = voted_total = 0
     for s, g in zip(held_shapes, held_graphs):
         vote = model.tagger.vote(g, 8, rng, model.shape_set)
@@ -110,6 +110,7 @@ def run_set(name: str, args, work: Path) -> dict:
         voted_total += g.number_of_edges()
     row["edge_categories"] = {"held_out_shapes": len(held_shapes), "held_out_strings": len(held),
                               "per_character_accuracy": tagging_accuracy(model.tagger, held) if held else None,
+                              "all_characters_accuracy": tagging_accuracy(model.tagger, held, True) if held else None,
                               "voted_edge_accuracy": voted_right / max(voted_total, 1),
                               "categories": meta["categories"]}
     print(f"  edge categories: {row['edge_categories']}", flush=True)

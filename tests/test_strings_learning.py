@@ -7,7 +7,7 @@ import torch
 
 from procmod.strings.codec import parse, strings_of
 from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
-                                         string_structure, tagging_examples, train_tagger)
+                                         string_structure, tagging_accuracy, tagging_examples, train_tagger)
 from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
 from procmod.strings.shapes import Grammar, read_shapes, shape_graph
 from procmod.strings.vae import Constraint, StringModel, VAEConfig, Vocab, _Prefix, train_vae
@@ -154,6 +154,19 @@ def test_tagger_masks_are_minus_infinity_and_training_learns(tmp_path, moonbase,
     assert np.all(prob[~mask] == 0)
     examples = tagging_examples(ss, ss.shapes, graphs, cats, 6, np.random.default_rng(0))
     assert all(len(t) == len(s) for s, t in examples)
+    every = tagging_examples(ss, ss.shapes, graphs, cats, 6, np.random.default_rng(0), every_symmetry=True)
+    # the same strings; the canonical target sequence comes first among the symmetric ones
+    assert [s for s, _ in every] == [s for s, _ in examples]
+    assert all(t[0] == c and all(len(x) == len(s) for x in t) for (s, t), (_, c) in zip(every, examples))
+    assert any(len(t) > 1 for _, t in every)  # a turned copy of a moon base labels differently
+    # accuracy takes the closest symmetric sequence: predicting any one of them is right
+    untrained = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
+    text, seqs = next((s, t) for s, t in every if len(t) > 1)
+    pred = untrained.predict([text])[0].argmax(1)
+    best = max(sum(int(pred[i] == q[i]) for i in range(len(q)) if q[i] > 0) for q in seqs)
+    n = sum(1 for k in seqs[0] if k > 0)
+    assert tagging_accuracy(untrained, [(text, seqs)]) == pytest.approx(best / n)
+    examples = every
     first = train_tagger(examples, vocab, cats, tmp_path / "t", TaggerConfig(epochs=1, hidden=16, embed=8, layers=1))
     loss1 = json.loads((tmp_path / "t" / "tagger.json").read_text())["train"]["history"][-1]["loss"]
     train_tagger(examples, vocab, cats, tmp_path / "t", TaggerConfig(epochs=6, hidden=16, embed=8, layers=1))

@@ -369,6 +369,7 @@ class TaggerConfig:
     batch: int = 32
     lr: float = 3e-3
     dropout: float = 0.3  # between recurrent layers and before the output layer
+    symmetric_loss: bool = True  # loss against the closest of a string's symmetric target sequences
     tree: bool = True  # a top-down pass along the spanning tree before the string pass
 
 
@@ -588,10 +589,28 @@ def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: 
     return out
 
 
+def symmetric_targets(text: str, order: list[int], labelings: list[dict]) -> list[list[int]]:
+    """Every distinct target sequence of ``text`` (one per symmetric copy of the shape that
+    covers every edge), smallest first: the first is :func:`canonical_targets`."""
+    parsed = parse(text)
+    out = set()
+    for cats in labelings:
+        seq = []
+        for e in parsed.char_edges:
+            k = 0 if e is None else cats.get((min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]])))
+            if k is None:
+                break
+            seq.append(k)
+        else:
+            out.add(tuple(seq))
+    return [list(t) for t in sorted(out)]
+
+
 def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCategories", per_shape: int,
-                     rng: np.random.Generator) -> list[tuple[str, list[int]]]:
+                     rng: np.random.Generator, every_symmetry: bool = False) -> list[tuple[str, list]]:
     """(string, target category per character) pairs from shapes, ``per_shape`` strings each
-    (targets by :func:`canonical_targets`)."""
+    (targets by :func:`canonical_targets`); with ``every_symmetry`` the targets are the list
+    of :func:`symmetric_targets` instead (the canonical one first)."""
     out = []
     for shape, g in zip(shapes, graphs):
         labelings = shape_labelings(shape_set, shape, g, categories)
@@ -605,8 +624,16 @@ def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCateg
             if text in seen:
                 continue
             seen.add(text)
-            out.append((text, canonical_targets(text, order, labelings)))
+            if every_symmetry:
+                out.append((text, symmetric_targets(text, order, labelings)))
+            else:
+                out.append((text, canonical_targets(text, order, labelings)))
     return out
+
+
+def _target_sets(targets) -> list[list[int]]:
+    """A string's targets as a list of sequences (one, or one per symmetric copy)."""
+    return targets if targets and isinstance(targets[0], (list, tuple)) else [targets]
 
 
 class TaggerModel:
@@ -614,20 +641,24 @@ class TaggerModel:
         self.net, self.vocab, self.categories = net, vocab, categories
 
     def _tensors(self, texts, targets=None):
-        """Token ids, masks ``(B, T, K)``, targets (-100: padding) and structure ``(B, T, 3)``."""
+        """Token ids, masks ``(B, T, K)``, targets ``(B, S, T)`` (S target sequences per string;
+        -100: padding) and structure ``(B, T, 3)``."""
         t = max(len(x) for x in texts)
         tok = torch.zeros((len(texts), t), dtype=torch.long)
         mask = torch.zeros((len(texts), t, len(self.categories)), dtype=torch.bool)
         mask[:, :, 0] = True
-        tgt = torch.full((len(texts), t), -100, dtype=torch.long)
+        sets = [_target_sets(x) for x in targets] if targets is not None else None
+        n_sets = max(len(x) for x in sets) if sets else 1
+        tgt = torch.full((len(texts), n_sets, t), -100, dtype=torch.long)
         struct = torch.zeros((len(texts), t, 3), dtype=torch.long)
         for k, text in enumerate(texts):
             tok[k, :len(text)] = torch.tensor(self.vocab.encode(text))
             m, _ = string_mask(text, self.categories)
             mask[k, :len(text)] = torch.from_numpy(m)
             struct[k, :len(text)] = torch.from_numpy(string_structure(text))
-            if targets is not None:
-                tgt[k, :len(text)] = torch.tensor(targets[k])
+            if sets is not None:
+                for j in range(n_sets):  # fewer symmetric sequences: repeat the first
+                    tgt[k, j, :len(text)] = torch.tensor(sets[k][j if j < len(sets[k]) else 0])
         return tok, mask, tgt, struct
 
     @torch.no_grad()
@@ -754,16 +785,22 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
             tok, mask, tgt, struct = model._tensors([b[0] for b in batch], [b[1] for b in batch])
             logits = model.net(tok, mask, struct)
             # -inf logits of disallowed categories: use log_softmax and gather the target's only.
+            if not config.symmetric_loss:
+                tgt = tgt[:, :1]
             logp = torch.log_softmax(logits, dim=2)
-            valid = tgt >= 0
-            picked = logp.gather(2, tgt.clamp(min=0)[..., None])[..., 0]
-            loss = -(picked * valid).sum() / valid.sum()
+            valid = tgt >= 0  # (B, S, T)
+            b_, s_, t_ = tgt.shape
+            picked = logp[:, None].expand(b_, s_, t_, logp.shape[2]).gather(3, tgt.clamp(min=0)[..., None])[..., 0]
+            per_seq = -(picked * valid).sum(2)  # (B, S): each symmetric target sequence's loss
+            best = per_seq.argmin(1)
+            loss = per_seq.min(1).values.sum() / valid[:, 0].sum()
             optimizer.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(model.net.parameters(), 5.0)
             optimizer.step()
-            edge = valid & (tgt > 0)
-            correct += int(((logits.argmax(2) == tgt) & edge).sum())
+            chosen = tgt[torch.arange(b_), best]
+            edge = chosen > 0
+            correct += int(((logits.argmax(2) == chosen) & edge).sum())
             n_chars += int(edge.sum())
             total += float(loss.detach()) * len(batch)
         state["epoch"] += 1
@@ -776,18 +813,25 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
     return model
 
 
-def tagging_accuracy(model: TaggerModel, examples: list) -> float:
-    """Fraction of edge characters (targets > 0) whose predicted category is right."""
+def tagging_accuracy(model: TaggerModel, examples: list, all_characters: bool = False) -> float:
+    """Fraction of edge characters (targets > 0) whose predicted category is right (against
+    the closest of the string's target sequences, when it has several: the shape up to the
+    symmetries a string cannot tell apart); with
+    ``all_characters`` every character counts, also brackets, bonds and the root, whose
+    dummy category the mask makes certain (a per-timestep accuracy, for comparison only)."""
     right = total = 0
     for k in range(0, len(examples), 128):
         batch = examples[k:k + 128]
         probs = model.predict([b[0] for b in batch])
         for (text, targets), prob in zip(batch, probs):
             pred = prob.argmax(1)
-            for i, t in enumerate(targets):
-                if t > 0:
-                    total += 1
-                    right += int(pred[i] == t)
+            scores = []  # (right, counted) against each symmetric target sequence
+            for seq in _target_sets(targets):
+                counted = [i for i, t in enumerate(seq) if t > 0 or all_characters]
+                scores.append((sum(int(pred[i] == seq[i]) for i in counted), len(counted)))
+            r, c = max(scores)
+            right += r
+            total += c
     return right / max(total, 1)
 
 

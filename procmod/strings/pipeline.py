@@ -116,9 +116,10 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
         categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
         write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
     trng = np.random.default_rng([seed, 4])
-    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, tagger_strings_per_shape, trng)
+    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, tagger_strings_per_shape, trng,
+                                every_symmetry=True)
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
-                            categories, 4, trng)
+                            categories, 4, trng, every_symmetry=True)
     tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
                           progress=lambda row: report("tagger", row))
     meta = {"format": MODEL_FORMAT, "grammar": grammar.to_json(), "seed": seed,
