@@ -208,7 +208,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--strings-per-shape", type=int, default=8)
     ap.add_argument("--epochs", type=int, default=30)
-    ap.add_argument("--tagger-epochs", type=int, default=30)
+    ap.add_argument("--tagger-epochs", type=int, default=24)
     ap.add_argument("--samples", type=int, default=200)
     ap.add_argument("--perturb", type=int, default=40)
     ap.add_argument("--graph-size", type=int, default=300)

@@ -58,7 +58,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("collection", metavar="DIR", help="a folder made by 'strings augment' (or a shapes file)")
     p.add_argument("--out", required=True, help="model folder (an interrupted training resumes from it)")
     p.add_argument("--epochs", type=int_arg, default=40, help="VAE epochs (default 40)")
-    p.add_argument("--tagger-epochs", type=int_arg, default=30)
+    p.add_argument("--tagger-epochs", type=int_arg, default=24, help="tagger epochs (default 24)")
     p.add_argument("--latent", type=int_arg, default=24)
     p.add_argument("--hidden", type=int_arg, default=128)
     p.add_argument("--layers", type=int_arg, default=1)

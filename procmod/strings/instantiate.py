@@ -364,11 +364,11 @@ class TaggerConfig:
     cell: str = "lstm"
     embed: int = 32
     hidden: int = 96
-    layers: int = 2
-    epochs: int = 30
+    layers: int = 1
+    epochs: int = 24
     batch: int = 32
-    lr: float = 3e-3
-    dropout: float = 0.3  # between recurrent layers and before the output layer
+    lr: float = 5e-3
+    dropout: float = 0.1  # between recurrent layers and before the output layer
     symmetric_loss: bool = True  # loss against the closest of a string's symmetric target sequences
     tree: bool = True  # a top-down pass along the spanning tree before the string pass
 
