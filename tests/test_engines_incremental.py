@@ -15,7 +15,7 @@ from procmod.geometry.solid import Box, Cylinder, translation
 from procmod.geometry.voxel import VoxelGrid, VoxelScene
 from procmod.infer import ENGINES, Budget
 from procmod.infer.common import evaluate
-from procmod.infer.ga import _alter, _crossover, _cut, _grow, evaluate_from
+from procmod.infer.ga import _alter, _crossover, _cut, _grow, _View, evaluate_from
 from procmod.models import get_model
 from procmod.parallel import InlineExecutor
 from procmod.targets import Silhouette, Volume, load_target_file
@@ -73,21 +73,28 @@ def test_incremental_offspring_equal_full_replays(seed, name, kind, hinted):
     model, target = get_model(name), TARGETS[kind]
     rng = np.random.default_rng(seed)
     parents = [evaluate(model, target, ({}, int(rng.integers(2 ** 31)), None)).derivation for _ in range(2)]
-    offspring = [op(parents[0], rng) for op in (_grow, _cut, _alter)]
-    offspring.append(_grow(parents[1], rng, 4))
+    views = [_View(p) for p in parents]
+    offspring = [op(views[0], rng) for op in (_grow, _cut, _alter)]
+    offspring.append(_grow(views[1], rng, 4))
     pairs = [(parents[0], o) for o in offspring[:3]] + [(parents[1], offspring[3])]
-    crossed = _crossover(parents[0], parents[1], rng)
+    crossed = _crossover(views[0], views[1], rng)
     if crossed is not None:
         pairs += list(zip(parents, crossed))
     for parent, out in pairs:
         if out is None:
             continue
         choices, changed = out
-        ev = evaluate_from(model, target, parent, choices, int(rng.integers(2 ** 31)),
+        full_map = choices.materialize()  # what the operator means, as a plain choice map
+        ev = evaluate_from(model, target, parent, choices if hinted else full_map, int(rng.integers(2 ** 31)),
                            changed if hinted else None)
         _check_against_full_replay(model, target, ev)
+        direct = evaluate(model, target, (full_map, 0, False))
+        if all(k in full_map and full_map[k] == v for k, v in direct.derivation.choice_map().raw.items()):
+            # nothing was drawn fresh: the very same derivation
+            assert ev.derivation.choice_map() == direct.derivation.choice_map()
+            assert ev.score == pytest.approx(direct.score, abs=1e-9)
         # and once more from the offspring (its output was itself built incrementally)
-        again = _grow(ev.derivation, rng) or _cut(ev.derivation, rng)
+        again = _grow(_View(ev.derivation), rng) or _cut(_View(ev.derivation), rng)
         if again is not None:
             _check_against_full_replay(model, target, evaluate_from(model, target, ev.derivation, *again[:1],
                                                                     1, again[1] if hinted else None))

@@ -659,7 +659,8 @@ def _map_agrees(node: Node, constraints: dict, maybe_default) -> bool:
 
 
 def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.Generator, output,
-                   maybe_default: bool | None = None, changed=None, unused: bool = True) -> ReplayResult:
+                   maybe_default: bool | None = None, changed=None, unused: bool = True,
+                   index: dict | None = None) -> ReplayResult:
     """:func:`replay` in program order that reuses the calls of ``previous`` and its drawn output.
 
     ``output`` must hold exactly ``previous``'s geometry (e.g. ``previous.output.copy()``)
@@ -685,21 +686,34 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
     in whole, without checking their choices. ``unused=False`` skips computing
     ``ReplayResult.unused`` (left empty).
 
+    ``choices`` may also be any mapping with ``get``, ``in`` and item assignment (e.g. a
+    lazy view of an edited choice map); it is then used as it is, not copied (``maybe``
+    defaults are written into it), and ``unused`` must be False. ``index`` (optional)
+    is ``{node.address: node for node in previous.nodes()}`` when the caller has it.
+
     ``previous`` must be complete and not stopped (ModelError otherwise). Positions
     reported with ``ctx.at`` are not restored, so use it without a guide's proposer.
     """
     if not previous.done or previous.stopped:
         raise ModelError("replay_reusing needs a complete derivation that was not stopped")
-    raw = choices.raw if isinstance(choices, ChoiceMap) else dict(choices)
-    old_nodes = previous.nodes()
-    old = {node.address: node for node in old_nodes}
+    if isinstance(choices, (ChoiceMap, dict)):
+        raw = choices.raw if isinstance(choices, ChoiceMap) else choices
+        constraints = dict(raw)  # maybe defaults are written into it
+    else:
+        if unused:
+            raise ModelError("replay_reusing computes unused only for a ChoiceMap or dict")
+        raw = constraints = choices  # a lazy mapping, used as it is
+    if index is None:
+        index = {node.address: node for node in previous.nodes()}
+    old, old_nodes = index, index.values()
     dirty = None
     if changed is not None:  # every call on the path to a changed one
         changed = set(changed)
         dirty = {address[:k] for address in changed for k in range(len(address) + 1)}
-    state = start(model, _NO_OUTPUT, raw)
+    state = start(model, _NO_OUTPUT)
+    state.constraints = constraints
     state.maybe_default = None if maybe_default is None else bool(maybe_default)
-    constraints, pending = state.constraints, state.pending
+    pending = state.pending
     kept, still_drawn, drawn = set(), set(), []  # ids of reused old nodes / of old nodes whose
     # geometry stays drawn; new geometry to draw
     chain, n_kept, emits_kept = state._chain, 0, 0

@@ -62,22 +62,144 @@ def _weighted_pick(items, weights, rng):
     return items[-1]
 
 
-# Each operator has a private form returning ``(choices, changed)``: ``changed`` lists the
-# calls whose choices differ from the parent's (what replay_reusing must run again).
+class _View:
+    """What the operators read off one individual, computed once: its nodes, choice map
+    (a dict the operators copy, never change), connections and mutation sites. The GA
+    keeps one per individual, so a parent selected several times is indexed once."""
 
-def _grow(d, rng, count: int = 1):
-    sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns if not s.on]
-    choices, changed = None, set()
+    __slots__ = ("d", "_nodes", "_raw", "_index", "_connections", "_grow", "_cut", "_alter")
+
+    def __init__(self, d):
+        self.d = d
+        self._nodes = self._raw = self._index = self._connections = self._grow = self._cut = self._alter = None
+
+    def nodes(self) -> list:
+        if self._nodes is None:
+            self._nodes = self.d.nodes()
+        return self._nodes
+
+    def index(self) -> dict:
+        """``node address -> node``, in program order."""
+        if self._index is None:
+            self._index = {n.address: n for n in self.nodes()}
+        return self._index
+
+    def get(self, key, default=None):
+        """The value of choice ``key`` (a choice-map lookup without building the map)."""
+        node = self.index().get(key[0])
+        if node is None:
+            return default
+        choice = node.choices.get(key[1])
+        return default if choice is None else choice.value
+
+    def raw(self) -> dict:
+        if self._raw is None:
+            self._raw = {(n.address, name): c.value for n in self.nodes() for name, c in n.choices.items()}
+        return self._raw
+
+    def connections(self) -> dict:
+        if self._connections is None:
+            rules = {n.address: n.rule for n in self.nodes()}
+            out = {}
+            for n in self.nodes():
+                if n.address:
+                    out.setdefault((rules[n.address[:-1]], n.address[-1], n.rule), []).append(n.address)
+            self._connections = out
+        return self._connections
+
+    def grow_sites(self) -> list:
+        if self._grow is None:
+            self._grow = [(n.address, s.site, s.probability) for n in self.nodes() for s in n.spawns if not s.on]
+        return self._grow
+
+    def cut_sites(self) -> list:
+        if self._cut is None:
+            self._cut = [(n.address, s.site, s.probability) for n in self.nodes() for s in n.spawns
+                         if s.on and s.probability < 1.0]
+        return self._cut
+
+    def alter_sites(self) -> list:
+        if self._alter is None:
+            out = []
+            for n in self.nodes():
+                structural = {s.site for s in n.spawns}
+                names = [name for name in n.choices if name not in structural]
+                if names:
+                    out.append((n.address, names))
+            self._alter = out
+        return self._alter
+
+
+_DROP = object()
+_MISSING = object()
+
+
+class _Offspring:
+    """An offspring's choice map as edits of its parent's, built lazily.
+
+    Lookups go to ``changes`` (a value, or ``_DROP`` for a removed choice), then — for
+    addresses below ``at`` — to ``donor`` (a _View) at ``source`` (a crossover graft; no
+    donor: the subtree is cut), then to ``base`` (the parent's _View). So an operator costs
+    O(edits), not O(choice map). :meth:`materialize` builds the full dict (what the
+    public operators return and full replays use).
+    """
+
+    __slots__ = ("base", "changes", "at", "donor", "source")
+
+    def __init__(self, base, changes=None, at=None, donor=None, source=None):
+        self.base, self.changes, self.at, self.donor, self.source = base, changes or {}, at, donor, source
+
+    def get(self, key, default=None):
+        value = self.changes.get(key, _MISSING)
+        if value is not _MISSING:
+            return default if value is _DROP else value
+        at = self.at
+        if at is not None and key[0][:len(at)] == at:
+            if self.donor is None:
+                return default
+            return self.donor.get((self.source + key[0][len(at):], key[1]), default)
+        return self.base.get(key, default)
+
+    def __contains__(self, key) -> bool:
+        return self.get(key, _MISSING) is not _MISSING
+
+    def __setitem__(self, key, value) -> None:
+        self.changes[key] = value
+
+    def materialize(self) -> dict:
+        at = self.at
+        if at is None:
+            out = dict(self.base.raw())
+        else:
+            m = len(at)
+            out = {k: v for k, v in self.base.raw().items() if k[0][:m] != at}
+            if self.donor is not None:
+                source, n = self.source, len(self.source)
+                for (address, name), value in self.donor.raw().items():
+                    if address[:n] == source:
+                        out[(at + address[n:], name)] = value
+        for key, value in self.changes.items():
+            if value is _DROP:
+                out.pop(key, None)
+            else:
+                out[key] = value
+        return out
+
+
+# Each operator has a private form on a _View returning ``(offspring, changed)``: ``changed``
+# lists the calls whose choices differ from the parent's (what replay_reusing runs again).
+
+def _grow(v: _View, rng, count: int = 1):
+    sites = list(v.grow_sites())
+    changes, changed = {}, set()
     for _ in range(count):
         pick = _weighted_pick(sites, [p for _, _, p in sites], rng)
         if pick is None:
             break
-        if choices is None:
-            choices = dict(d.choice_map().raw)
-        choices[(pick[0], pick[1])] = True
+        changes[(pick[0], pick[1])] = True
         changed.add(pick[0])
         sites.remove(pick)
-    return None if choices is None else (choices, changed)
+    return (_Offspring(v, changes), changed) if changes else None
 
 
 def grow_choices(d, rng, count: int = 1) -> dict | None:
@@ -87,108 +209,87 @@ def grow_choices(d, rng, count: int = 1) -> dict | None:
     applies that many grows at once (without replacement), used to build the initial
     population without one replay per added call.
     """
-    out = _grow(d, rng, count)
-    return None if out is None else out[0]
+    out = _grow(_View(d), rng, count)
+    return None if out is None else out[0].materialize()
 
 
-def _cut(d, rng):
-    sites = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns
-             if s.on and s.probability < 1.0]
+def _cut(v: _View, rng):
+    sites = v.cut_sites()
     pick = _weighted_pick(sites, [1.0 - p for _, _, p in sites], rng)
     if pick is None:
         return None
-    child = pick[0] + (pick[1],)
-    n = len(child)
-    choices = {k: v for k, v in d.choice_map().raw.items() if k[0][:n] != child}
-    choices[(pick[0], pick[1])] = False
-    return choices, {pick[0]}
+    return _Offspring(v, {(pick[0], pick[1]): False}, at=pick[0] + (pick[1],)), {pick[0]}
 
 
 def cut_choices(d, rng) -> dict | None:
     """Choice map with one expressed ``maybe`` child cut (None if nothing can be cut)."""
-    out = _cut(d, rng)
-    return None if out is None else out[0]
+    out = _cut(_View(d), rng)
+    return None if out is None else out[0].materialize()
 
 
-def _alter(d, rng):
-    candidates = []
-    for n in d.nodes():
-        structural = {s.site for s in n.spawns}
-        names = [name for name in n.choices if name not in structural]
-        if names:
-            candidates.append((n.address, names))
+def _alter(v: _View, rng):
+    candidates = v.alter_sites()
     if not candidates:
         return None
     address, names = candidates[int(rng.random() * len(candidates))]
-    removed = {(address, name) for name in names}
-    return {k: v for k, v in d.choice_map().raw.items() if k not in removed}, {address}
+    return _Offspring(v, {(address, name): _DROP for name in names}), {address}
 
 
 def alter_choices(d, rng) -> dict | None:
     """Choice map with one call's parameters removed (so replay redraws them)."""
-    out = _alter(d, rng)
-    return None if out is None else out[0]
+    out = _alter(_View(d), rng)
+    return None if out is None else out[0].materialize()
 
 
 def connections(d) -> dict:
     """``(parent rule, site, child rule) -> [child addresses]`` of a derivation."""
-    tree = d.tree()
-    out = {}
-    for address, node in tree.items():
-        if address:
-            key = (tree[address[:-1]].rule, address[-1], node.rule)
-            out.setdefault(key, []).append(address)
-    return out
+    return _View(d).connections()
 
 
-def _graft(base: dict, at: tuple, donor: dict, source: tuple) -> dict:
-    """``base`` with the subtree at ``at`` replaced by ``donor``'s subtree at ``source``."""
-    m = len(at)
-    out = {k: v for k, v in base.items() if k[0][:m] != at}
-    n = len(source)
-    for (address, name), value in donor.items():
-        if address[:n] == source:
-            out[(at + address[n:], name)] = value
-    return out
-
-
-def _crossover(d1, d2, rng, max_retries: int = 10):
-    c1 = [(key, a) for key, addresses in connections(d1).items() for a in addresses]
+def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
+    c1 = [(key, a) for key, addresses in v1.connections().items() for a in addresses]
     if not c1:
         return None
-    c2 = connections(d2)
+    c2 = v2.connections()
     for _ in range(max_retries):
         key, a1 = c1[int(rng.random() * len(c1))]
         matches = c2.get(key)
         if not matches:
             continue
         a2 = matches[int(rng.random() * len(matches))]
-        m1, m2 = d1.choice_map().raw, d2.choice_map().raw
+        n1, n2 = len(a1), len(a2)
         # Child i differs from parent i only below the swapped connection.
-        return ((_graft(m1, a1, m2, a2), {n.address for n in d1.nodes() if is_within(n.address, a1)}),
-                (_graft(m2, a2, m1, a1), {n.address for n in d2.nodes() if is_within(n.address, a2)}))
+        return ((_Offspring(v1, at=a1, donor=v2, source=a2), {a for a in v1.index() if a[:n1] == a1}),
+                (_Offspring(v2, at=a2, donor=v1, source=a1), {a for a in v2.index() if a[:n2] == a2}))
     return None
 
 
 def crossover_choices(d1, d2, rng, max_retries: int = 10):
     """Two children's choice maps by swapping compatible subtrees (None if none found)."""
-    out = _crossover(d1, d2, rng, max_retries)
-    return None if out is None else (out[0][0], out[1][0])
+    out = _crossover(_View(d1), _View(d2), rng, max_retries)
+    return None if out is None else (out[0][0].materialize(), out[1][0].materialize())
 
 
 def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Evaluation:
-    """Score the offspring ``choices`` of ``parent`` (a complete derivation whose output
-    supports exact removal) by :func:`replay_reusing` from a copy of the parent's output;
-    ``changed``: the calls whose choices differ from the parent's (None: compare them all).
+    """Score the offspring ``choices`` (a dict, or an operator's lazy _Offspring) of
+    ``parent`` (a complete derivation whose output supports exact removal, or its _View)
+    by :func:`replay_reusing` from a copy of the parent's output; ``changed``: the calls
+    whose choices differ from the parent's (None: compare them all).
 
     Same derivation and score as ``common.evaluate(model, target, (choices, seed, False))``
     up to the values of fresh choices (drawn from ``seed`` in another order).
     """
+    view = parent if isinstance(parent, _View) else _View(parent)
+    parent = view.d
     result = replay_reusing(model, parent, choices, np.random.default_rng(seed), parent.output.copy(),
-                            maybe_default=False, changed=changed, unused=False)
+                            maybe_default=False, changed=changed, unused=False, index=view.index())
     d = result.derivation
     return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
                       result.log_reused, result.log_fresh, result.unused)
+
+
+def _materialize(choices) -> dict:
+    return choices.materialize() if isinstance(choices, _Offspring) else choices
 
 
 def _reusable(parent) -> bool:
@@ -237,18 +338,26 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
     tracker = Tracker(budget, progress)
     operators = (_grow, _cut, _alter)
     incremental = executor is None and bool(getattr(target, "exact_removal", False))
+    views = {}  # id(derivation) -> _View, for the current population
+
+    def view(d) -> _View:
+        v = views.get(id(d))
+        if v is None or v.d is not d:
+            v = views[id(d)] = _View(d)
+        return v
 
     def evaluate(jobs, parents=None):
         """Evaluate ``(choices, seed, maybe_default)`` jobs; ``parents[i]`` is None or
-        ``(derivation, changed calls)``: the individual job i was derived from, reused
+        ``(parent's _View, changed calls)``: the individual job i was derived from, reused
         when possible."""
         evaluations = [None] * len(jobs)
         if incremental and parents is not None:
             for i, (job, parent) in enumerate(zip(jobs, parents)):
-                if parent is not None and job[2] is False and _reusable(parent[0]):
+                if parent is not None and job[2] is False and _reusable(parent[0].d):
                     evaluations[i] = evaluate_from(model, target, parent[0], job[0], job[1], parent[1])
         rest = [i for i, ev in enumerate(evaluations) if ev is None]
-        for i, ev in zip(rest, evaluate_all(executor, model, target, [jobs[i] for i in rest])):
+        full_jobs = [(_materialize(jobs[i][0]),) + tuple(jobs[i][1:]) for i in rest]
+        for i, ev in zip(rest, evaluate_all(executor, model, target, full_jobs)):
             evaluations[i] = ev
         out = [Scored.from_evaluation(ev) for ev in evaluations]
         tracker.evaluations += len(out)
@@ -271,10 +380,11 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
             jobs, owners, parents = [], [], []
             for i in growing:
                 missing = int(goals[i] - pop[i].derivation.n_nodes)
-                grown = _grow(pop[i].derivation, rng, max(1, missing))
+                parent = _View(pop[i].derivation)
+                grown = _grow(parent, rng, max(1, missing))
                 if grown is not None:
                     jobs.append((grown[0], new_seed(rng), False))
-                    parents.append((pop[i].derivation, grown[1]))
+                    parents.append((parent, grown[1]))
                     owners.append(i)
             for i, ind in zip(owners, evaluate(jobs, parents)):
                 pop[i] = ind
@@ -308,24 +418,25 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
                         choices = None
                         first = _weighted_pick([0, 1, 2], split, rng)
                         for op in [first] + [k for k in (0, 1, 2) if k != first and split[k] > 0]:
-                            choices = operators[op](parent.derivation, rng)
+                            choices = operators[op](view(parent.derivation), rng)
                             if choices is not None:
                                 break
                         if choices is None:
                             offspring.append(parent)
                         else:
                             jobs.append((choices[0], new_seed(rng), False))
-                            parents.append((parent.derivation, choices[1]))
+                            parents.append((view(parent.derivation), choices[1]))
                 else:
-                    children = _crossover(p1.derivation, p2.derivation, rng, max_retries)
+                    children = _crossover(view(p1.derivation), view(p2.derivation), rng, max_retries)
                     if children is None:
                         offspring.extend([p1, p2])
                     else:
                         jobs.extend((c, new_seed(rng), False) for c, _ in children)
                         # child i is parent i but below the swapped connection
-                        parents.extend([(p1.derivation, children[0][1]), (p2.derivation, children[1][1])])
+                        parents.extend([(view(p1.derivation), children[0][1]), (view(p2.derivation), children[1][1])])
             offspring.extend(evaluate(jobs, parents))
             pop = offspring[:population]
+            views = {id(ind.derivation): views[id(ind.derivation)] for ind in pop if id(ind.derivation) in views}
             tracker.generations += 1
             tracker.record(float(np.mean([ind.score for ind in pop])))
     pop.sort(key=lambda ind: ind.score, reverse=True)
