@@ -5,15 +5,18 @@ Guides are trained on SMC traces of scribble targets and tested only on glyphs (
 Sans Bold; never trained on). For each target and particle count, SMC runs ``--reps``
 times; a run's similarity is seed 004's normalised similarity of one particle drawn from
 the final weights; a target's figure is the median over its runs, and the curves show the
-mean over targets with a 95% bootstrap interval (over targets).
+mean over targets with a 95% bootstrap interval (over targets). Every run, guided or
+unguided, resamples adaptively (when the effective sample size drops below half the
+particles; ``--ess every`` resamples at every emit instead).
 
     python bench/ngpm.py --traces DIR [--circuit-traces DIR] [--targets 30] [--reps 3]
-                         [--iterations 20000] [--stages train eval rate]
+                         [--iterations 20000] [--stages train eval rate] [--ess 0.5]
 
 ``train`` fits every guide the figures need into bench/results/ngpm_guides/ (kept between
 runs; a finished guide is reused, an interrupted one resumes from its checkpoint):
 the four feature conditions (constant, local, local+target, all; 4-component mixtures,
-all traces), the no-mixture ablation, training-set sizes for Figure 6b, and a circuit
+all traces), the no-mixture ablation, the papers' constant Adam step size (procmod anneals
+it by default), training-set sizes for Figure 6b, and a circuit
 guide (local state + partial-output features; the circuit score has no target image). ``eval`` runs the
 comparisons; ``rate`` times trace generation with 2 worker processes. Results:
 bench/results/ngpm.json, ngpm.png, ngpm_circuit.png.
@@ -51,15 +54,17 @@ PARTICLES_5A = tuple(range(1, 11))
 UNGUIDED_5B = (10, 20, 50, 100, 200, 400, 600)
 GUIDED_5B = (1, 2, 3, 5, 10, 20, 40)
 CIRCUIT_PARTICLES = (1, 2, 5, 10, 20, 50)
+ESS_THRESHOLD = 0.5  # every SMC run, guided or not, resamples when ESS < 0.5 N (--ess)
 
 
 def guide_specs(n_traces: int) -> dict:
-    """name -> (features, mixture, traces used)."""
-    specs = {c: (c, 4, n_traces) for c in CONDITIONS}
-    specs["all-k1"] = ("all", 1, n_traces)
+    """name -> (features, mixture, traces used, step-size schedule)."""
+    specs = {c: (c, 4, n_traces, "cosine") for c in CONDITIONS}
+    specs["all-k1"] = ("all", 1, n_traces, "cosine")
+    specs["all-constant-lr"] = ("all", 4, n_traces, "constant")  # the papers' training exactly
     for size in SIZES:
         if size < n_traces:
-            specs[f"all-n{size}"] = ("all", 4, size)
+            specs[f"all-n{size}"] = ("all", 4, size, "cosine")
     return specs
 
 
@@ -71,10 +76,10 @@ def train_all(model, traces_dir: Path, circuit_dir: Path | None, iterations: int
     jobs = [(name, traces, *spec) for name, spec in guide_specs(count or len(traces)).items()]
     if circuit_dir is not None:
         _, circuit = load_traces(circuit_dir)
-        jobs.append(("circuit", circuit, "local+partial", 4, len(circuit)))
-    for name, trace_list, features, mixture, used in jobs:
-        if only and name not in only:
-            continue
+        jobs.append(("circuit", circuit, "local+partial", 4, len(circuit), "cosine"))
+    if only:  # in the order given
+        jobs = sorted((job for job in jobs if job[0] in only), key=lambda job: only.index(job[0]))
+    for name, trace_list, features, mixture, used, schedule in jobs:
         if len(trace_list) < used:
             raise SystemExit(f"guide {name} needs {used} traces; {len(trace_list)} are ready")
         out = GUIDES / name
@@ -84,7 +89,7 @@ def train_all(model, traces_dir: Path, circuit_dir: Path | None, iterations: int
         else:
             t0 = time.perf_counter()
             _, info = train_guide(model, None, out, settings=FeatureSettings.condition(features), mixture=mixture,
-                                  iterations=iterations, traces=trace_list[:used], seed=0)
+                                  iterations=iterations, schedule=schedule, traces=trace_list[:used], seed=0)
             print(f"guide {name}: {used} traces, {iterations} steps, {time.perf_counter() - t0:.0f} s, "
                   f"final nll {info['final_nll']:.1f}")
         reports[name] = {k: v for k, v in info.items() if k not in ("curve", "weights", "metadata")}
@@ -106,7 +111,8 @@ def run_grid(model, targets, particles, reps: int, guide=None) -> dict:
             sims = []
             for rep in range(reps):
                 t0 = time.perf_counter()
-                result = smc(model, shape, particles=n, seed=1000 * rep + n, guide=guide)
+                result = smc(model, shape, particles=n, seed=1000 * rep + n, guide=guide,
+                             ess_threshold=ESS_THRESHOLD)
                 seconds.append(time.perf_counter() - t0)
                 sims.append(_similarity_of_sample(result, shape, rep))
             medians.append(float(np.median(sims)))
@@ -148,9 +154,10 @@ def evaluate(model, args) -> dict:
     smc(model, targets[0], particles=5, seed=0)  # compile kernels outside the timing
     rng = np.random.default_rng(0)
     guides = {name: Guide.load(GUIDES / name) for name in
-              list(CONDITIONS) + ["all-k1"] + [f"all-n{s}" for s in SIZES] if (GUIDES / f"{name}.json").exists()}
+              list(CONDITIONS) + ["all-k1", "all-constant-lr"] + [f"all-n{s}" for s in SIZES]
+              if (GUIDES / f"{name}.json").exists()}
     smc(model, targets[0], particles=5, seed=0, guide=guides["all"])
-    results = {"targets": [t.name for t in targets], "reps": args.reps}
+    results = {"targets": [t.name for t in targets], "reps": args.reps, "ess_threshold": ESS_THRESHOLD}
     print("Figure 5a: similarity vs particles")
     fig5a = {"unguided": summarise(run_grid(model, targets, PARTICLES_5A, args.reps), rng)}
     for c in CONDITIONS:
@@ -161,6 +168,11 @@ def evaluate(model, args) -> dict:
     print("Figure 6a: mixtures")
     results["fig6a"] = {"4 components": fig5a["all"],
                         "no mixture": summarise(run_grid(model, targets, PARTICLES_5A, args.reps, guides["all-k1"]), rng)}
+    if "all-constant-lr" in guides:  # training ablation: the papers' constant Adam step size
+        results["fig6a"]["constant step size"] = summarise(
+            run_grid(model, targets, PARTICLES_5A, args.reps, guides["all-constant-lr"]), rng)
+    for name, rows in results["fig6a"].items():
+        print(f"  {name:19s} " + " ".join(f"{rows[str(n)]['similarity']:.2f}" for n in PARTICLES_5A))
     print("Figure 6b: training-set size (10 particles)")
     sizes = {}
     for size in SIZES:
@@ -229,7 +241,7 @@ def plot(results: dict) -> None:
         ns = [int(n) for n in rows]
         ax.plot(ns, [rows[str(n)]["similarity"] for n in ns], marker="o", label=name)
         ax.fill_between(ns, [rows[str(n)]["low"] for n in ns], [rows[str(n)]["high"] for n in ns], alpha=0.15)
-    ax.set(title="6a: mixture proposals", xlabel="particles", ylabel="similarity")
+    ax.set(title="6a: mixture proposals; training schedule", xlabel="particles", ylabel="similarity")
     ax.legend()
     ax = axes[3]
     sizes = sorted(int(k) for k in results["fig6b"])
@@ -256,7 +268,7 @@ def plot(results: dict) -> None:
 
 
 def main() -> None:
-    global RESULTS, GUIDES
+    global RESULTS, GUIDES, ESS_THRESHOLD
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--traces", type=Path, required=True, help="scribble traces of vines (procmod guide traces)")
     parser.add_argument("--circuit-traces", type=Path, help="circuit traces of vines")
@@ -265,10 +277,14 @@ def main() -> None:
     parser.add_argument("--circuit-reps", type=int, default=20)
     parser.add_argument("--iterations", type=int, default=20000)
     parser.add_argument("--count", type=int, help="use the first COUNT traces (default: all)")
-    parser.add_argument("--only", nargs="+", help="train only these guides")
+    parser.add_argument("--only", nargs="+", help="train only these guides, in this order")
     parser.add_argument("--stages", nargs="+", default=["train", "eval", "rate"], choices=("train", "eval", "rate"))
     parser.add_argument("--results", type=Path, default=RESULTS, help="where results and guides go")
+    parser.add_argument("--ess", default=str(ESS_THRESHOLD),
+                        help="resample when the effective sample size falls below ESS x particles, in every "
+                             "run, guided or not (default 0.5; 'every' resamples at every emit)")
     args = parser.parse_args()
+    ESS_THRESHOLD = None if args.ess == "every" else float(args.ess)
     RESULTS, GUIDES = args.results, args.results / "ngpm_guides"
     model = get_model("vines")
     path = RESULTS / "ngpm.json"

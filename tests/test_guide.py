@@ -62,12 +62,16 @@ def test_feature_vector_layout_and_local_state_normalisation():
     extractor = FeatureExtractor(model, FeatureSettings(), mask)
     d = run_forward(model, np.random.default_rng(3))
     args = (0.0, -22.0, 100.0, math.pi / 12, 0.75, True)
+    d.position = (3.0, -10.0, -2.0)  # vines reports (x, y, heading) with ctx.at
     f = extractor.features(d, "branch", args)
-    assert f.shape == (6 + 36 + 36,) == (extractor.size("branch"),)
-    # x mid-range -> 0, y at its low end -> -1, an angle far out of range is clipped to 1
-    np.testing.assert_allclose(f[:6], [0.0, -1.0, 1.0, 0.0, 1.0, 1.0])
+    assert f.shape == (9 + 36 + 36,) == (extractor.size("branch"),)
+    # x mid-range -> 0, y at its low end -> -1, the parent angle (an "angle") as its cosine
+    # and sine however many turns it has made, spread pi/12 of pi/6 -> 0, width at its top
+    # -> 1, leaves on -> 1, then the heading ctx.at reported, as cosine and sine
+    np.testing.assert_allclose(f[:9], [0.0, -1.0, math.cos(100.0), math.sin(100.0), 0.0, 1.0, 1.0,
+                                       math.cos(-2.0), math.sin(-2.0)])
     assert FeatureExtractor(model, FeatureSettings.condition("constant"), None).size("branch") == 0
-    assert FeatureExtractor(model, FeatureSettings.condition("local"), None).size("branch") == 6
+    assert FeatureExtractor(model, FeatureSettings.condition("local"), None).size("branch") == 9
     with pytest.raises(GuideError, match="target image"):
         FeatureExtractor(model, FeatureSettings.condition("local+target"), None)
     with pytest.raises(GuideError, match="argument ranges"):
@@ -80,8 +84,8 @@ def test_partial_output_features_follow_the_drawing():
     d = run_forward(model, np.random.default_rng(5))
     d.position = d.geometry()[0][:2]  # the first segment's start: it is drawn there
     f = extractor.features(d, "branch", VINES.initial_args())
-    assert f[6:42].sum() == 0.0  # empty target
-    assert f[42 + 4] == 1.0  # the centre pixel of the finest partial-output window is drawn
+    assert f[9:45].sum() == 0.0  # empty target
+    assert f[45 + 4] == 1.0  # the centre pixel of the finest partial-output window is drawn
 
 
 DISTS = [Normal(0.3, 2.0), Uniform(-1.0, 3.0), TruncatedNormal(1.0, 0.5, 0.0, 2.0)]
@@ -208,7 +212,7 @@ def test_traces_are_smc_particles_that_replay(few_traces):
     data, kinds, n = build_dataset(VINES, traces, FeatureSettings())
     assert set(kinds) >= {"branch:angle", "branch:leaf", "branch:terminate"}
     assert n == sum(len(t["derivation"]["choices"]) for t in traces)
-    assert data["branch:angle"].x.shape[1] == 6 + 72
+    assert data["branch:angle"].x.shape[1] == 9 + 72
 
 
 def test_training_raises_the_traces_likelihood_and_resumes_exactly(few_traces, tmp_path):
@@ -235,6 +239,22 @@ def test_training_raises_the_traces_likelihood_and_resumes_exactly(few_traces, t
     for key, tensor in guide.nets.state_dict().items():
         assert torch.equal(tensor, resumed.nets.state_dict()[key]), key
     assert not (tmp_path / "b.ckpt.pt").exists()
+
+
+def test_step_size_schedules(few_traces, tmp_path):
+    from procmod.guide.train import step_size
+    # cosine: the full step at the start, half way down at the middle, ~0 at the end
+    assert step_size(0.01, "cosine", 0, 1000) == 0.01
+    assert abs(step_size(0.01, "cosine", 500, 1000) - 0.005) < 1e-12
+    assert step_size(0.01, "cosine", 999, 1000) < 1e-7
+    assert {step_size(0.01, "constant", t, 1000) for t in (0, 500, 999)} == {0.01}
+    # the two schedules train different guides; a bad name is a clear error
+    a, _ = train_guide(VINES, few_traces, tmp_path / "a", iterations=30, schedule="cosine")
+    b, info = train_guide(VINES, few_traces, tmp_path / "b", iterations=30, schedule="constant")
+    assert info["schedule"] == "constant"
+    assert any(not torch.equal(x, y) for x, y in zip(a.nets.parameters(), b.nets.parameters()))
+    with pytest.raises(GuideError, match="schedule"):
+        train_guide(VINES, few_traces, tmp_path / "c", iterations=30, schedule="linear")
 
 
 def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path):
@@ -303,9 +323,12 @@ def test_fused_fast_path_matches_the_reference_features_and_mixture():
 
     proposer = guide.proposer(VINES, MaskTarget())
     d = run_forward(VINES, np.random.default_rng(11))
-    for position in [(0.0, 0.0), (-11.5, -21.0), (3.3, -7.7)]:
+    call_args = (1.0, -5.0, -1.0, 0.3, 0.5, True)
+    # positions with and without a heading; the last two are choices of one call (same
+    # arguments) whose heading turned between them
+    for position, args in [((0.0, 0.0), (0.0, 0.0, -1.0, 0.3, 0.5, True)), ((-11.5, -21.0, 2.5), call_args),
+                           ((3.3, -7.7, -0.4), call_args)]:
         d.position = position
-        args = (position[0], position[1], -1.0, 0.3, 0.5, True)
         fast = proposer.outputs(d, proposer._sites[("branch", "angle")], args)
         x = proposer.extractor.features(d, "branch", args)
         with torch.no_grad():

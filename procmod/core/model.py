@@ -44,7 +44,14 @@ class Model:
     arg_ranges : mapping
         ``rule name -> ((low, high), ...)``, one range per positional argument of the
         rule (after ``ctx``); neural guides normalise scalar arguments to [-1, 1] with
-        them (``None`` for an argument that is not a scalar feature).
+        them (``None`` for an argument that is not a scalar feature, ``"angle"`` for a
+        direction in radians, which guides see as its cosine and sine).
+    heading_rules : tuple of str
+        Rules (2D models) whose ``ctx.at`` positions are ``(x, y, heading)``: the heading,
+        in radians, of the rule's local frame at that point. Neural guides see its cosine
+        and sine as two more local-state features (seed 003: local state includes "the
+        current orientation of any local reference frame"); unlike a rule argument it
+        follows the call as it turns, e.g. to the angle a segment was just drawn at.
     """
 
     name: str
@@ -56,6 +63,7 @@ class Model:
     rules: tuple = ()
     choices_doc: str = ""
     arg_ranges: Mapping[str, tuple] = field(default_factory=dict)
+    heading_rules: tuple = ()
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.

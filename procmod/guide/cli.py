@@ -37,6 +37,9 @@ def register(sub, int_arg) -> None:
     train.add_argument("--iterations", type=int_arg, default=20000, help="Adam steps (default 20000, as the papers)")
     train.add_argument("--batch", type=int_arg, default=1, help="traces per minibatch (default 1, as the papers)")
     train.add_argument("--lr", type=float, default=0.01, help="Adam step size (default 0.01)")
+    train.add_argument("--lr-schedule", choices=("cosine", "constant"), default="cosine",
+                       help="cosine (default): the step size anneals to zero over the run; "
+                            "constant: the papers' setting")
     train.add_argument("--limit", type=int_arg, help="use only the first N traces")
     train.add_argument("--seed", type=int_arg, default=0)
     train.set_defaults(handler=_cmd_train)
@@ -86,6 +89,7 @@ def _cmd_train(args) -> None:
 
         guide, report = train_guide(model, args.traces, args.out, settings=settings, mixture=args.mixture,
                                     iterations=args.iterations, batch=args.batch, lr=args.lr,
+                                    schedule=args.lr_schedule,
                                     limit=args.limit, seed=args.seed, progress=progress)
     finally:
         bar.close()

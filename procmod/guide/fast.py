@@ -16,7 +16,7 @@ import math
 import numba
 import numpy as np
 
-from .features import windows_flat
+from .features import local_features, windows_flat
 from .network import LOG_SCALE_MAX as _LOG_SCALE_MAX
 from .network import LOG_SCALE_MIN as _LOG_SCALE_MIN
 
@@ -26,21 +26,17 @@ _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 # fastmath lets numba vectorise the dot products (reassociating the sums: results differ
 # from torch's in the last bits only); it is most of the cost of a guided choice.
 @numba.njit(cache=True, fastmath=True)
-def site_outputs(raw_local, lows, spans, use_target, target, use_partial, partial, layout, px, py,
+def site_outputs(raw_local, lows, spans, angular, use_target, target, use_partial, partial, layout, px, py,
                  w1, b1, w2, b2):
     """Features (local state, target windows, partial-output windows) -> MLP outputs.
 
     ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by ``lows`` and
-    ``spans`` and clipped, as :meth:`FeatureExtractor.local_values` does; ``target`` and
-    ``partial`` are flat pyramids laid out by ``layout``.
+    ``spans`` and clipped (angles to cos, sin), as :meth:`FeatureExtractor.local_values`
+    does; ``target`` and ``partial`` are flat pyramids laid out by ``layout``.
     """
     n_in = w1.shape[1]
     x = np.empty(n_in)
-    n_local = raw_local.shape[0]
-    for j in range(n_local):
-        v = 2.0 * (raw_local[j] - lows[j]) / spans[j] - 1.0
-        x[j] = min(max(v, -1.0), 1.0)
-    k = n_local
+    k = local_features(raw_local, lows, spans, angular, x)
     if use_target:
         windows_flat(target, layout, px, py, x, k)
         k += 36
@@ -64,8 +60,8 @@ def site_outputs(raw_local, lows, spans, use_target, target, use_partial, partia
 
 
 @numba.njit(cache=True, fastmath=True)
-def guided_draw(kind, k, c0, s0, base, u, z, raw_local, lows, spans, use_target, target, use_partial, partial,
-                layout, px, py, w1, b1, w2, b2):
+def guided_draw(kind, k, c0, s0, base, u, z, raw_local, lows, spans, angular, use_target, target, use_partial,
+                partial, layout, px, py, w1, b1, w2, b2):
     """One guided choice in one call: features -> MLP -> a draw from the proposal.
 
     ``kind`` 0: real (mixture of ``k`` Gaussians around ``c0`` with unit ``s0``),
@@ -74,7 +70,7 @@ def guided_draw(kind, k, c0, s0, base, u, z, raw_local, lows, spans, use_target,
     generator. Returns (value, log q): the value is the real number, 1.0/0.0, or the
     category index.
     """
-    out = site_outputs(raw_local, lows, spans, use_target, target, use_partial, partial, layout, px, py,
+    out = site_outputs(raw_local, lows, spans, angular, use_target, target, use_partial, partial, layout, px, py,
                        w1, b1, w2, b2)
     if kind == 0:
         return mixture_draw(out, k, c0, s0, _LOG_SCALE_MIN, _LOG_SCALE_MAX, u, z)

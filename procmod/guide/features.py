@@ -3,7 +3,9 @@
 Three sources, each optional (the ablation conditions of seed 004 Figure 5):
 
 - **local state**: the scalar arguments of the rule call the choice occurs in, mapped to
-  [-1, 1] with the ranges the model declares (``Model.arg_ranges``) and clipped;
+  [-1, 1] with the ranges the model declares (``Model.arg_ranges``) and clipped; an
+  argument declared as an angle (``"angle"``) becomes its cosine and sine instead (see
+  :func:`local_ranges`);
 - **target image**: 3x3 windows of the target mask around the current position
   (``ctx.at``) at four resolutions (36 features);
 - **partial output**: the same windows on the image the derivation has drawn so far.
@@ -203,15 +205,58 @@ class Pyramid:
         windows_flat(self.flat, self.layout, px, py, out, offset)
 
 
-def local_ranges(model, rule_name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(argument indices, lows, spans) of the scalar arguments a rule's guide sees."""
+ANGLE = "angle"  # an arg_ranges entry for a direction in radians
+HEADING = -1  # the local-state entry of the heading a rule reports with ctx.at
+
+
+def local_ranges(model, rule_name: str) -> tuple | None:
+    """(argument indices, lows, spans, angular) of the local-state features of a rule.
+
+    One entry per scalar argument the model gives a range for, in order, then, for a rule
+    in ``model.heading_rules``, one for the heading its ``ctx.at`` reports (index -1). An
+    argument declared ``"angle"`` and the heading are fed as (cos, sin) rather than
+    clipped to a range: a heading is periodic, and a vine that has turned twice round
+    would otherwise sit at the clip while its direction keeps changing. (A design
+    extension of the papers, which normalise every argument linearly; README has its
+    effect.)
+    """
     ranges = model.arg_ranges.get(rule_name)
     if ranges is None:
         return None
     idx = [i for i, r in enumerate(ranges) if r is not None]
-    lows = np.array([ranges[i][0] for i in idx], dtype=np.float64)
-    spans = np.array([ranges[i][1] - ranges[i][0] for i in idx], dtype=np.float64)
-    return np.array(idx, dtype=np.int64), lows, spans
+    angular = [ranges[i] == ANGLE for i in idx]
+    lows = [0.0 if a else ranges[i][0] for i, a in zip(idx, angular)]
+    spans = [1.0 if a else ranges[i][1] - ranges[i][0] for i, a in zip(idx, angular)]
+    if rule_name in model.heading_rules:
+        idx.append(HEADING)
+        angular.append(True)
+        lows.append(0.0)
+        spans.append(1.0)
+    return (np.array(idx, dtype=np.int64), np.array(lows, dtype=np.float64),
+            np.array(spans, dtype=np.float64), np.array(angular, dtype=np.bool_))
+
+
+def heading_of(state) -> float:
+    """The heading the last ``ctx.at`` reported (a position ``(x, y, heading)``), else 0."""
+    position = state.position
+    return float(position[2]) if position is not None and len(position) > 2 else 0.0
+
+
+@numba.njit(cache=True)
+def local_features(raw, lows, spans, angular, out):
+    """Write a call's local-state features into ``out`` (from index 0); returns how many:
+    ranged arguments mapped to [-1, 1] and clipped, angles as (cos, sin)."""
+    k = 0
+    for j in range(raw.shape[0]):
+        if angular[j]:
+            out[k] = math.cos(raw[j])
+            out[k + 1] = math.sin(raw[j])
+            k += 2
+        else:
+            v = 2.0 * (raw[j] - lows[j]) / spans[j] - 1.0
+            out[k] = min(max(v, -1.0), 1.0)
+            k += 1
+    return k
 
 
 class FeatureExtractor:
@@ -235,8 +280,8 @@ class FeatureExtractor:
         """Number of local-state features of a rule's choices (0 without local features)."""
         if not self.settings.local:
             return 0
-        ranges = self.ranges(rule_name)
-        return len(ranges[0])
+        idx, _, _, angular = self.ranges(rule_name)
+        return len(idx) + int(angular.sum())
 
     def size(self, rule_name: str) -> int:
         """Length of the feature vector of a rule's choices."""
@@ -248,7 +293,7 @@ class FeatureExtractor:
         return n
 
     def ranges(self, rule_name: str):
-        """(argument indices, lows, spans) of a rule's local-state features."""
+        """(argument indices, lows, spans, angular) of a rule's local-state features."""
         ranges = self._local.get(rule_name)
         if ranges is None:
             ranges = local_ranges(self.model, rule_name)
@@ -259,11 +304,16 @@ class FeatureExtractor:
             self._local[rule_name] = ranges
         return ranges
 
-    def local_values(self, rule_name: str, args: tuple) -> np.ndarray:
-        """A call's scalar arguments mapped to [-1, 1] by the declared ranges (clipped)."""
-        idx, lows, spans = self.ranges(rule_name)
-        values = np.array([float(args[i]) for i in idx])
-        return np.clip(2.0 * (values - lows) / spans - 1.0, -1.0, 1.0)
+    def local_values(self, rule_name: str, args: tuple, heading: float = 0.0) -> np.ndarray:
+        """A call's scalar arguments mapped to [-1, 1] by the declared ranges (clipped),
+        angles and the reported ``heading`` as (cos, sin)."""
+        idx, lows, spans, angular = self.ranges(rule_name)
+        values = np.array([float(heading) if i == HEADING else float(args[i]) for i in idx])
+        linear = np.clip(2.0 * (values - lows) / spans - 1.0, -1.0, 1.0)
+        out = []
+        for value, scaled, is_angle in zip(values, linear, angular):
+            out.extend((math.cos(value), math.sin(value)) if is_angle else (scaled,))
+        return np.array(out, dtype=np.float64)
 
     def features(self, state, rule_name: str, args: tuple) -> np.ndarray:
         """The feature vector for a choice made now by a call of ``rule_name(args)``."""
@@ -271,7 +321,7 @@ class FeatureExtractor:
         out = np.empty(self.size(rule_name))
         k = 0
         if settings.local:
-            local = self.local_values(rule_name, args)
+            local = self.local_values(rule_name, args, heading_of(state))
             k = len(local)
             out[:k] = local
         if settings.target or settings.partial:

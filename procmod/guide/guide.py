@@ -16,7 +16,7 @@ import torch
 
 from ..core.serialize import write_text_atomic
 from .fast import guided_draw, site_outputs
-from .features import FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
+from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
 from .network import (SiteNet, base_params, encode_value, head_kind,
                       initial_bias, n_outputs, propose)
 
@@ -175,32 +175,50 @@ class GuidedProposer:
         self._no_local = np.zeros(0)
         weights = guide.numpy_weights()
         self._sites = {}
+        local = {}  # rule -> its local-state layout, shared by the rule's sites
         for key, spec in guide.sites.items():
             rule_name, choice = key.split(":", 1)
             n_in = extractor.size(rule_name)
             if n_in != spec["n_in"]:
                 raise GuideError(f"site {key} of the guide expects {spec['n_in']} features but the model "
                                  f"gives {n_in}; the model's arguments changed since the guide was trained")
-            if settings.local:
-                idx, lows, spans = extractor.ranges(rule_name)
-                prefix = len(idx) if np.array_equal(idx, np.arange(len(idx))) else None
-            else:
-                idx = lows = spans = self._no_local
-                prefix = 0
-            # the distribution class last checked against the site's kind (None: not yet)
-            self._sites[(rule_name, choice)] = [spec["kind"], weights[key], idx, lows, spans, prefix, None]
+            if rule_name not in local:
+                local[rule_name] = self._local_layout(extractor, rule_name) if settings.local else (
+                    self._no_local, self._no_local, self._no_local, np.zeros(0, dtype=np.bool_), 0, False)
+            arg_idx, lows, spans, angular, prefix, heading = local[rule_name]
+            # [kind, network, argument indices, lows, spans, prefix length (None: gather by
+            #  index), distribution class last checked against the kind (None: not yet),
+            #  angular flags, whether the heading follows the arguments]
+            self._sites[(rule_name, choice)] = [spec["kind"], weights[key], arg_idx, lows, spans, prefix, None,
+                                                angular, heading]
         self._bases = {}  # shared discrete distributions -> their base parameters
+        self._raw_of = (None, None, None)  # (call arguments, argument indices, their array)
+
+    @staticmethod
+    def _local_layout(extractor, rule_name: str) -> tuple:
+        """(argument indices, lows, spans, angular, prefix, heading) of a rule's local state."""
+        idx, lows, spans, angular = extractor.ranges(rule_name)
+        heading = len(idx) > 0 and idx[-1] == HEADING
+        arg_idx = idx[:-1] if heading else idx
+        # the common case, the first n arguments, takes a slice of the call's tuple
+        prefix = len(arg_idx) if np.array_equal(arg_idx, np.arange(len(arg_idx))) else None
+        return arg_idx, lows, spans, angular, prefix, heading
 
     def _inputs(self, state, site, args: tuple) -> tuple:
         """The kernel arguments (features' sources + network) of a choice made now."""
         w1, b1, w2, b2 = site[1]
-        prefix = site[5]
-        if prefix is None:
-            raw = np.array([float(args[i]) for i in site[2]])
-        elif prefix:
-            raw = np.array(args[:prefix], dtype=np.float64)
-        else:
+        prefix, heading = site[5], site[8]
+        if not prefix and prefix is not None and not heading:
             raw = self._no_local
+        elif args is self._raw_of[0] and site[2] is self._raw_of[1]:
+            raw = self._raw_of[2]  # another choice of the same call: same arguments
+        else:
+            values = [float(args[i]) for i in site[2]] if prefix is None else list(args[:prefix])
+            raw = np.array(values + [0.0] if heading else values, dtype=np.float64)
+            # holding ``args`` keeps its identity from being reused by a later call's tuple
+            self._raw_of = (args, site[2], raw)
+        if heading:  # the heading may turn between two choices of one call
+            raw[-1] = heading_of(state)
         if self._use_target or self._use_partial:
             px, py = self.extractor.pixel_position(state)
         else:
@@ -216,7 +234,7 @@ class GuidedProposer:
                 self._layout = layout  # same sizes: later calls skip the comparison
         else:
             partial, layout = self._target_flat, self._layout
-        return (raw, site[3], site[4], self._use_target, self._target_flat, self._use_partial, partial,
+        return (raw, site[3], site[4], site[7], self._use_target, self._target_flat, self._use_partial, partial,
                 layout, px, py, w1, b1, w2, b2)
 
     def outputs(self, state, site, args: tuple) -> np.ndarray:

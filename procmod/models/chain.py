@@ -59,5 +59,5 @@ MODEL = Model(
     params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50},
     rules=(chain,),
     choices_doc=__doc__,
-    arg_ranges={"chain": ((-12.0, 12.0), (-22.0, 2.0), (-2.5 * math.pi, 1.5 * math.pi), (0.0, MAX_SEGMENTS))},
+    arg_ranges={"chain": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, MAX_SEGMENTS))},
 )

@@ -74,8 +74,8 @@ MODEL = Model(
     params={"start": [0.5, 0.04], "direction": [0.0, 1.0], "size": 50},
     rules=(bolt, fork),
     choices_doc=__doc__,
-    arg_ranges={"bolt": ((-12.0, 12.0), (-22.0, 2.0), (-1.5 * math.pi, 2.5 * math.pi), (0.0, INITIAL_WIDTH),
+    arg_ranges={"bolt": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, INITIAL_WIDTH),
                          (0.0, MAX_SEGMENTS)),
-                "fork": ((-12.0, 12.0), (-22.0, 2.0), (-1.5 * math.pi, 2.5 * math.pi), (0.0, INITIAL_WIDTH),
+                "fork": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, INITIAL_WIDTH),
                          (0.0, MAX_SEGMENTS))},
 )

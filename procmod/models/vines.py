@@ -53,12 +53,12 @@ _COIN = Bernoulli(0.5)
 
 def branch(ctx, x, y, parent_angle, spread, width, leaves):
     """One vine segment, its leaf and flower, then termination or continuations."""
-    ctx.at((x, y))
+    ctx.at((x, y, parent_angle))  # position and heading: where guides look
     angle = ctx.sample("angle", Normal(parent_angle, spread))
     x1 = x + LENGTH * math.cos(angle)
     y1 = y + LENGTH * math.sin(angle)
     ctx.emit(Segment(x, y, x1, y1, width, "stem"))
-    ctx.at((x1, y1))
+    ctx.at((x1, y1, angle))
     if leaves:
         side = ctx.sample("leaf", _LEAF_SIDE)
         if side != "none":
@@ -91,6 +91,7 @@ MODEL = Model(
     rules=(branch,),
     choices_doc=__doc__,
     # x, y, parent_angle, spread, width, leaves: for the local-state features of guides
-    arg_ranges={"branch": ((-12.0, 12.0), (-22.0, 2.0), (-2.5 * math.pi, 1.5 * math.pi), (0.0, START_SD),
+    arg_ranges={"branch": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, START_SD),
                            (0.0, INITIAL_WIDTH), (0.0, 1.0))},
+    heading_rules=("branch",),
 )
