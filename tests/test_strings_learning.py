@@ -61,6 +61,10 @@ def test_constrained_decoding_only_ends_on_valid_strings(tmp_path, moonbase):
     # same seed, same strings
     again = model.decode(z, constrained=True, rng=np.random.default_rng(0), max_len=120)
     assert again == model.decode(z, constrained=True, rng=np.random.default_rng(0), max_len=120)
+    # without wrap-up too, whatever ends is valid
+    plain = model.decode(z, constrained=True, rng=np.random.default_rng(0), max_len=120, wrap=False)
+    assert all(model.is_valid(s) for s in plain if s is not None)
+    assert model.wrap_nodes == round(0.8 * model.max_nodes / 1.25)
 
 
 def test_constraint_masks_follow_syntax_and_rules(moonbase):
