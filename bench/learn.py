@@ -106,7 +106,8 @@ def main(argv=None):
             entry["vi_search"] = dict(rv.table, wall_seconds=time.perf_counter() - t0)
         results["sets"][name] = entry
         print(f"{name}: |A0| {r.table['A0']} O_D(P0) {r.table['O_P0']:.1f} -> |A*| {r.table['A_star']} "
-              f"O_D(P*) {r.table['O_Pstar']:.1f} in {r.table['seconds']:.1f} s; s_struc {t2['s_struc_examples']:.2f} "
+              f"O_D(P*) {r.table['O_Pstar']:.1f} in {r.table['seconds']:.1f} s ({r.table['cpu_seconds']:.1f} CPU s, "
+              f"{r.table['fits_run']} fits run, {r.table['fits_shared']} shared); s_struc {t2['s_struc_examples']:.2f} "
               f"vs {t2['s_struc_samples']:.2f} (p={t2['s_struc_p_value']:.2g}), new {t2['pct_new_structures']:.0f}%",
               flush=True)
         stages = [("P0", r.p0), ("after phase 1", r.after_phase1), ("after phase 2", r.program)]

@@ -468,7 +468,12 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     else:
         rng.bit_generator.state = state["rng"]
         particles = state["particles"]
-    # the slot prior's target: P0's pooled slot-use probabilities (recomputed on resume)
+    # the slot prior's target: P0's pooled slot-use probabilities (recomputed on resume).
+    # It enters only the final pass (and the free fit of the phase-1 program, its
+    # figure-6 counterpart): the splits are judged by the paper's maximum-likelihood fits
+    # (with the prior, each split whose copies differ in slot use paid about alpha nats
+    # per differing bit, an extra complexity charge that cost castles three abstractions),
+    # and the program that is sampled does not memorise its abstractions' few nodes.
     slot_target = pooled_slot_target(state["programs"]["p0"], data)
     elapsed0 = state["elapsed"]
     t_resume, cpu_resume, cpu0 = time.perf_counter(), time.process_time(), state.get("cpu", 0.0)
@@ -506,7 +511,8 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                 lengths = [len(p.trace) for p in before]
                 traces = [list(p.trace) for p in before]
                 done, first = _run_deduplicated(keys, lambda k: executor.submit(
-                    task_phase, before[k], data, options, nxt, _seed(options.seed, r, k, nxt), slot_target))
+                    task_phase, before[k], data, options, nxt, _seed(options.seed, r, k, nxt),
+                    slot_target if nxt == "free" else None))
                 particles = [done[k] if k in done else
                              _share(done[first[keys[k]]], len(done[first[keys[k]]].trace) - lengths[first[keys[k]]],
                                     traces[k]) for k in range(len(before))]
@@ -530,7 +536,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
             lengths = {k: len(particles[k].trace) for k in active}
             traces = {k: list(particles[k].trace) for k in active}
             done, first = _run_deduplicated(keys, lambda k: executor.submit(
-                task_step, before[k], data, options, phase, _seed(options.seed, r, k), slot_target, prepared[k]))
+                task_step, before[k], data, options, phase, _seed(options.seed, r, k), None, prepared[k]))
             for k in active:
                 if k in done:
                     particles[k] = done[k]
