@@ -190,15 +190,20 @@ class _Offspring:
 # lists the calls whose choices differ from the parent's (what replay_reusing runs again).
 
 def _grow(v: _View, rng, count: int = 1):
-    sites = list(v.grow_sites())
+    sites = v.grow_sites()
+    if count == 1:
+        picks = [_weighted_pick(sites, [p for _, _, p in sites], rng)]
+    else:  # successive picks without replacement, proportional to p (numpy: not quadratic)
+        weights = np.array([p for _, _, p in sites], dtype=np.float64)
+        live = np.flatnonzero(weights > 0)
+        k = min(count, len(live))
+        picks = ([sites[i] for i in rng.choice(live, size=k, replace=False, p=weights[live] / weights[live].sum())]
+                 if k else [])
     changes, changed = {}, set()
-    for _ in range(count):
-        pick = _weighted_pick(sites, [p for _, _, p in sites], rng)
-        if pick is None:
-            break
-        changes[(pick[0], pick[1])] = True
-        changed.add(pick[0])
-        sites.remove(pick)
+    for pick in picks:
+        if pick is not None:
+            changes[(pick[0], pick[1])] = True
+            changed.add(pick[0])
     return (_Offspring(v, changes), changed) if changes else None
 
 
