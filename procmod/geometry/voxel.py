@@ -308,8 +308,11 @@ class VoxelScene:
             lo, hi = part_bounds(part)
             record = _NO_RECORD
             if cache is not None:  # room for every voxel centre in the part's bounding box
-                span = (np.asarray(hi) - np.asarray(lo)) / self.grid.size + 3.0
-                record = np.empty(int(np.prod(np.maximum(span, 1.0))) + 8, dtype=np.int64)
+                h = self.grid.size  # plain floats: numpy's per-call overhead exceeds the arithmetic
+                n = 1.0
+                for a in range(3):
+                    n *= max((float(hi[a]) - float(lo[a])) / h + 3.0, 1.0)
+                record = np.empty(int(n) + 8, dtype=np.int64)
             self._voxelize(part, lo, hi, state, record)
             if cache is not None:
                 cache.put(part, (record[:int(state[4])].copy(), int(state[2]), lo, hi))
