@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from procmod.core import ModelError, replay, run_forward
+from procmod.core import ModelError, replay
 from procmod.core.runtime import replay_reusing
 from procmod.geometry.camera import Camera, Silhouettes
 from procmod.geometry.solid import Box, Cylinder, translation

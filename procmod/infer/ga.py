@@ -34,7 +34,9 @@ the geometry of the replaced calls is removed and that of the new ones drawn. Th
 the derivation and score a full replay of the offspring's choice map gives (tested); only
 the changed calls cost rule executions and voxelization. Otherwise (an executor, or a
 target such as ProxyVolume that reads the bounding box) fitness evaluations are full
-replays through the ``executor``.
+replays through the ``executor``. The operators do not copy choice maps either: an
+offspring is its parent's map plus a few edits (:class:`_Offspring`, over a per-individual
+:class:`_View` indexed once per generation), materialized only for full replays.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ import math
 
 import numpy as np
 
-from ..core import InvalidArgumentError, is_within
+from ..core import InvalidArgumentError
 from ..core.runtime import replay_reusing
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_positive, evaluate_all,
                      new_seed, relaxed_gc)
