@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..core.distributions import Normal
 from ..core.serialize import write_text_atomic
 from .fast import guided_draw, site_outputs
 from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
@@ -131,6 +132,7 @@ class Guide:
 
 
 PRETRAINED = Path(__file__).resolve().parent / "pretrained"
+DRAW_BLOCK = 256  # random numbers a proposer draws from the run's generator at a time
 
 
 def pretrained_guides() -> list[str]:
@@ -193,6 +195,8 @@ class GuidedProposer:
                                                 angular, heading]
         self._bases = {}  # shared discrete distributions -> their base parameters
         self._raw_of = (None, None, None)  # (call arguments, argument indices, their array)
+        self._draws_of = self._uniforms = self._normals = None  # see _draws
+        self._next_draw = DRAW_BLOCK
 
     @staticmethod
     def _local_layout(extractor, rule_name: str) -> tuple:
@@ -255,8 +259,9 @@ class GuidedProposer:
             if not kind.startswith("categorical"):  # categoricals: check the size every time
                 site[6] = type(dist)
         if kind == "real":
-            mu0, s0 = base_params(kind, dist)
-            return guided_draw(0, self.mixture, mu0, s0, self._no_local, rng.random(), rng.standard_normal(),
+            mu0, s0 = (dist.mu, dist.sigma) if type(dist) is Normal else base_params(kind, dist)
+            u, z = self._draws(rng)
+            return guided_draw(0, self.mixture, mu0, s0, self._no_local, u, z,
                                *self._inputs(ctx._state, site, ctx.args))
         if kind == "interval":
             out = self.outputs(ctx._state, site, ctx.args)
@@ -266,11 +271,25 @@ class GuidedProposer:
             if len(self._bases) > 4096:  # a model that builds its coins afresh: don't grow forever
                 self._bases.clear()
             base = self._bases[dist] = np.array(base_params(kind, dist), dtype=np.float64)
+        u = self._draws(rng)[0]
         if kind == "bernoulli":
-            value, lq = guided_draw(1, 0, 0.0, 0.0, base, rng.random(), 0.0, *self._inputs(ctx._state, site, ctx.args))
+            value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx._state, site, ctx.args))
             return value == 1.0, lq
-        index, lq = guided_draw(2, 0, 0.0, 0.0, base, rng.random(), 0.0, *self._inputs(ctx._state, site, ctx.args))
+        index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx._state, site, ctx.args))
         return dist.labels[int(index)], lq
+
+    def _draws(self, rng) -> tuple[float, float]:
+        """A uniform and a standard normal from ``rng``, drawn in blocks: two generator
+        calls per choice cost about as much as the network. Deterministic given the
+        generator's seed, like single draws."""
+        i = self._next_draw
+        if i == DRAW_BLOCK or rng is not self._draws_of:
+            self._uniforms = rng.random(DRAW_BLOCK).tolist()
+            self._normals = rng.standard_normal(DRAW_BLOCK).tolist()
+            self._draws_of = rng
+            i = 0
+        self._next_draw = i + 1
+        return self._uniforms[i], self._normals[i]
 
 
 class RecordingProposer:
