@@ -9,10 +9,13 @@ nothing of procmod) and writes the format directly.
 Sets (world y is up):
 
 * ``spaceships`` — a body with one wide reflected pair of wings or two thin pairs (each
-  pair with optional reflected guns, above or below the tips), a rear engine, a
-  reflected pair of side engines or a row of three small ones (they overlap:
-  co-occurrence conflict), an optional tilted fin on top or keel below, optional
-  reflected tail fins and belly guns, a cockpit with an optional antenna.
+  pair with no tip weapon, reflected guns above or below the tips, or reflected
+  missiles under them), a rear hull built recursively from 0-2 tapering segments, on
+  the last of which (or on the body) sit a rear engine, a reflected pair of side engines
+  or a row of three small ones (they overlap: co-occurrence conflict), an optional
+  tilted fin on top or keel below, optional reflected tail fins and belly guns, an
+  optional sensor dish, a cockpit with an optional antenna. The structural choices are
+  independent draws (``SPACESHIP_CHOICES``), made before the continuous ones.
 * ``castles`` — a keep with 4-6 towers around it (a rotational group) with optional
   roofs and flags, an outer wall built recursively from 2-5 segments bent left or right
   by a per-wall angle, an optional second wall behind, an optional gate.
@@ -141,45 +144,92 @@ def write_obj(path: Path, mesh) -> None:
 MX = mirror((1, 0, 0))
 
 
-def spaceship(rng):
+# The spaceship generator's independent structural choices and their probabilities
+# (``novelty_bound.py`` reads them: an ideal learner fits exactly these).
+SPACESHIP_CHOICES = {
+    "two_pairs": 0.5,                  # one wide wing pair, or two thin pairs
+    "tip": (1 / 3, 1 / 3, 1 / 3),      # per wing pair: no tip weapon, reflected guns, reflected missiles
+    "engines": (1 / 3, 1 / 3, 1 / 3),  # one rear engine, a reflected pair, a row of three
+    "segments": (1 / 3, 1 / 3, 1 / 3),  # 0, 1 or 2 rear hull segments (recursive chain)
+    "fin": 0.6,                        # a fin on top or a keel below
+    "belly": 0.5,                      # reflected guns under the body
+    "tail": 0.5,                       # reflected tail fins
+    "dish": 0.5,                       # a sensor dish on the body's back
+    "antenna": 0.5,                    # an antenna on the cockpit
+}
+
+
+def spaceship_choices(rng, p=SPACESHIP_CHOICES) -> dict:
+    """Draw a spaceship's structural choices (independent; probabilities ``p``)."""
+    two = bool(rng.random() < p["two_pairs"])
+    return {"two_pairs": two,
+            "tips": [int(rng.choice(3, p=p["tip"])) for _ in range(2 if two else 1)],
+            "engines": int(rng.choice(3, p=p["engines"])),
+            "segments": int(rng.choice(3, p=p["segments"])),
+            **{k: bool(rng.random() < p[k]) for k in ("fin", "belly", "tail", "dish", "antenna")}}
+
+
+def spaceship_from(c: dict, rng):
+    """A spaceship with structural choices ``c``; continuous variety drawn from ``rng``."""
     L = rng.uniform(0.8, 1.3)
     half = 2.0 * L
     children = []
-    if rng.random() < 0.5:  # one wide pair of wings
-        pairs = [(rng.uniform(-0.3, 0.3) * L, rng.uniform(2.2, 3.0), 1.5)]
-    else:  # two thin pairs, front and back
+    if c["two_pairs"]:  # two thin pairs, front and back
         pairs = [(half * rng.uniform(0.15, 0.4), rng.uniform(1.2, 1.8), 0.8),
                  (-half * rng.uniform(0.25, 0.5), rng.uniform(1.2, 1.8), 0.8)]
+    else:  # one wide pair
+        pairs = [(rng.uniform(-0.3, 0.3) * L, rng.uniform(2.2, 3.0), 1.5)]
     gun_side = 1.0 if rng.random() < 0.5 else -1.0  # guns above or below the wing tips
-    for z, span, chord in pairs:
+    for (z, span, chord), tip in zip(pairs, c["tips"]):
         theta = rng.uniform(-0.35, 0.35)
         frame = T(0.55, 0.0, z) @ R("z", theta)
-        guns = rng.random() < 0.5
-        wing = node("wing", frame @ S(span, 1.0, chord),
-                    [node("gun", frame @ T(0.8 * span, 0.12 * gun_side, 0.2))] if guns else [])
+        kids = []
+        if tip == 1:
+            kids.append(node("gun", frame @ T(0.8 * span, 0.12 * gun_side, 0.2)))
+        elif tip == 2:  # a missile hung under the wing tip, pointing forward
+            kids.append(node("missile", frame @ T(span * rng.uniform(0.85, 1.0), -0.15, 0.1)))
+        wing = node("wing", frame @ S(span, 1.0, chord), kids)
         children += [wing, mapped(MX, wing)]
-    kind = rng.integers(3)
-    if kind == 0:  # one big rear engine
-        children.append(node("engine", T(0, 0, -half - 0.3) @ S(1.4, 1.4, 1.0)))
-    elif kind == 1:  # a reflected pair of side engines
-        engine = node("engine", T(0.45, 0, -half - 0.2) @ S(0.8, 0.8, 1.2))
-        children += [engine, mapped(MX, engine)]
+    # rear hull: a recursive chain of 0-2 tapering segments; the engines sit on the last
+    taper = rng.uniform(0.8, 0.95)
+    rear, width, frames = -half, 1.0, []
+    for _ in range(c["segments"]):
+        width *= taper
+        frames.append(T(0, 0, rear - 0.8) @ S(width, width, 1.0))
+        rear -= 1.6
+    back = T(0, 0, rear) @ S(width, width, 1.0)
+    if c["engines"] == 0:  # one big rear engine
+        engines = [node("engine", back @ T(0, 0, -0.3) @ S(1.4, 1.4, 1.0))]
+    elif c["engines"] == 1:  # a reflected pair of side engines
+        engine = node("engine", back @ T(0.45, 0, -0.2) @ S(0.8, 0.8, 1.2))
+        engines = [engine, mapped(MX, engine)]
     else:  # a row of three small engines
-        children += [node("engine", T(-0.4 + 0.4 * j, 0, -half - 0.25) @ S(0.45, 0.45, 0.8)) for j in range(3)]
-    if rng.random() < 0.6:
+        engines = [node("engine", back @ T(-0.4 + 0.4 * j, 0, -0.25) @ S(0.45, 0.45, 0.8)) for j in range(3)]
+    tail = engines
+    for m in reversed(frames):
+        tail = [node("segment", m, tail)]
+    children += tail
+    if c["fin"]:
         side = 1.0 if rng.random() < 0.5 else -1.0  # a fin on top or a keel below
         children.append(node("fin", T(0, 0.7 * side, -half * rng.uniform(0.3, 0.7)) @ R("x", side * rng.uniform(-0.4, 0.0))))
-    if rng.random() < 0.5:  # a reflected pair of guns under the body
+    if c["belly"]:  # a reflected pair of guns under the body
         belly = node("gun", T(0.35, -0.5, half * rng.uniform(0.0, 0.4)))
         children += [belly, mapped(MX, belly)]
-    if rng.random() < 0.4:  # a reflected pair of tail fins
-        tail = node("fin", T(0.45, 0.55, -half * 0.8) @ R("z", -0.5))
-        children += [tail, mapped(MX, tail)]
+    if c["tail"]:  # a reflected pair of tail fins
+        fin = node("fin", T(0.45, 0.55, -half * 0.8) @ R("z", -0.5))
+        children += [fin, mapped(MX, fin)]
+    if c["dish"]:  # a sensor dish on the back, tilted forward or back
+        children.append(node("dish", T(0, 0.5, half * rng.uniform(-0.2, 0.3)) @ R("x", rng.uniform(-0.5, 0.5))))
     cz = rng.uniform(0.8, 1.4)
-    antenna = [node("antenna", T(0, 0.6, half - 0.3 + 0.3 * cz))] if rng.random() < 0.5 else []
+    antenna = [node("antenna", T(0, 0.6, half - 0.3 + 0.3 * cz))] if c["antenna"] else []
     children.append(node("cockpit", T(0, 0.15, half - 0.3) @ S(0.7, 0.5, cz), antenna))
     order = rng.permutation(len(children))
     return node("body", S(1.0, 1.0, L), [children[i] for i in order])
+
+
+def spaceship(rng):
+    """A spaceship: structural choices first (``spaceship_choices``), then its shape."""
+    return spaceship_from(spaceship_choices(rng), rng)
 
 
 def wall_chain(start, n_walls, bend):
@@ -302,10 +352,15 @@ SETS = {
         "gun": {"box": [0.12, 0.12, 1.2]},
         "cockpit": {"mesh": "parts/cockpit.obj"},
         "antenna": {"box": [0.05, 0.6, 0.05]},
+        "missile": {"mesh": "parts/missile.obj"},
+        "segment": {"box": [1.0, 0.7, 1.6]},
+        "dish": {"mesh": "parts/dish.obj"},
     }, {
         "wing": extrude([(0, -0.5), (1, -0.1), (1, 0.2), (0, 0.5)], 0.1, "y"),
         "engine": prism(6, 0.5, -0.5, 0.5, "z"),
         "cockpit": pyramid(1.0, 1.0, "z"),
+        "missile": prism(6, 0.07, -0.6, 0.6, "z"),
+        "dish": prism(10, 0.4, -0.04, 0.04, "y"),
     }),
     "castles": (castle, {
         "keep": {"box": [4.0, 3.0, 4.0]},
