@@ -211,15 +211,15 @@ def spaceship_from(c: dict, rng):
     children += tail
     if c["fin"]:
         side = 1.0 if rng.random() < 0.5 else -1.0  # a fin on top or a keel below
-        children.append(node("fin", T(0, 0.7 * side, -half * rng.uniform(0.3, 0.7)) @ R("x", side * rng.uniform(-0.4, 0.0))))
+        children.append(node("fin", T(0, 0.7 * side, -half * rng.uniform(0.35, 0.7)) @ R("x", side * rng.uniform(-0.4, 0.0))))
     if c["belly"]:  # a reflected pair of guns under the body
         belly = node("gun", T(0.35, -0.5, half * rng.uniform(0.0, 0.4)))
         children += [belly, mapped(MX, belly)]
     if c["tail"]:  # a reflected pair of tail fins
-        fin = node("fin", T(0.45, 0.55, -half * 0.8) @ R("z", -0.5))
+        fin = node("fin", T(0.45, 0.55, -half + 1.0) @ R("z", -0.5))  # clear of the engines and rear hull
         children += [fin, mapped(MX, fin)]
     if c["dish"]:  # a sensor dish on the back, tilted forward or back
-        children.append(node("dish", T(0, 0.5, half * rng.uniform(-0.2, 0.3)) @ R("x", rng.uniform(-0.5, 0.5))))
+        children.append(node("dish", T(0, 0.5, half * rng.uniform(0.3, 0.45)) @ R("x", rng.uniform(-0.5, 0.5))))
     cz = rng.uniform(0.8, 1.4)
     antenna = [node("antenna", T(0, 0.6, half - 0.3 + 0.3 * cz))] if c["antenna"] else []
     children.append(node("cockpit", T(0, 0.15, half - 0.3) @ S(0.7, 0.5, cz), antenna))
