@@ -143,5 +143,10 @@ def test_real_sets_preprocess():
     body = d.slots["body"]
     assert body.count("refl(wing)") == 2
     groups = [sorted(body[i] for i in g) for g in d.groups["body"]]
-    assert ["engine", "refl(engine)", "trans(engine)"] in groups  # the three engine layouts overlap
     assert ["refl(wing)", "refl(wing)"] in groups  # one wide pair vs two thin pairs
+    # the engines sit on the last rear hull segment (or on the body when there is none):
+    # the three engine layouts and the next segment overlap (recursion with a conflict)
+    seg = d.slots["segment"]
+    assert [sorted(seg[i] for i in g) for g in d.groups["segment"]] == [
+        ["engine", "refl(engine)", "segment", "trans(engine)"]]
+    assert any("segment" in [body[i] for i in g] and "engine" in [body[i] for i in g] for g in d.groups["body"])
