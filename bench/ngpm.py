@@ -10,7 +10,7 @@ unguided, resamples adaptively (when the effective sample size drops below half 
 particles; ``--ess every`` resamples at every emit instead).
 
     python bench/ngpm.py --traces DIR [--circuit-traces DIR] [--targets 30] [--reps 3]
-                         [--iterations 20000] [--stages train eval rate] [--ess 0.5]
+                         [--iterations 20000] [--stages train eval speed rate] [--ess 0.5]
 
 ``train`` fits every guide the figures need into bench/results/ngpm_guides/ (kept between
 runs; a finished guide is reused, an interrupted one resumes from its checkpoint):
@@ -18,7 +18,8 @@ the four feature conditions (constant, local, local+target, all; 4-component mix
 all traces), the no-mixture ablation, the papers' constant Adam step size (procmod anneals
 it by default), training-set sizes for Figure 6b, and a circuit
 guide (local state + partial-output features; the circuit score has no target image). ``eval`` runs the
-comparisons; ``rate`` times trace generation with 2 worker processes. Results:
+quality comparisons (5a, 6a, 6b); ``speed`` the timed ones (5b, circuit), which want a quiet
+machine; ``rate`` times trace generation with 2 worker processes. Results:
 bench/results/ngpm.json, ngpm.png, ngpm_circuit.png.
 """
 
@@ -51,8 +52,8 @@ GUIDES = RESULTS / "ngpm_guides"
 CONDITIONS = ("constant", "local", "local+target", "all")
 SIZES = (10, 100, 500, 1000)  # plus all traces
 PARTICLES_5A = tuple(range(1, 11))
-UNGUIDED_5B = (10, 20, 50, 100, 200, 400, 600)
-GUIDED_5B = (1, 2, 3, 5, 10, 20, 40)
+UNGUIDED_5B = (1, 2, 5, 10, 20, 50, 100, 150, 200, 300, 400, 600)
+GUIDED_5B = (1, 2, 3, 5, 7, 10, 15, 20, 40)
 CIRCUIT_PARTICLES = (1, 2, 5, 10, 20, 50)
 ESS_THRESHOLD = 0.5  # every SMC run, guided or not, resamples when ESS < 0.5 N (--ess)
 
@@ -149,14 +150,21 @@ def time_to_reach(curve: dict, level: float) -> float | None:
     return None
 
 
-def evaluate(model, args) -> dict:
+def _setup(model, args) -> tuple:
+    """Test targets and trained guides; compiles the kernels outside any timing."""
     targets = [ShapeMatch(t) for t in glyph_set("dejavu-sans")][: args.targets]
-    smc(model, targets[0], particles=5, seed=0)  # compile kernels outside the timing
-    rng = np.random.default_rng(0)
     guides = {name: Guide.load(GUIDES / name) for name in
-              list(CONDITIONS) + ["all-k1", "all-constant-lr"] + [f"all-n{s}" for s in SIZES]
+              list(CONDITIONS) + ["all-k1", "all-constant-lr", "circuit"] + [f"all-n{s}" for s in SIZES]
               if (GUIDES / f"{name}.json").exists()}
+    smc(model, targets[0], particles=5, seed=0)
     smc(model, targets[0], particles=5, seed=0, guide=guides["all"])
+    return targets, guides
+
+
+def evaluate(model, args) -> dict:
+    """Figures 5a, 6a and 6b: similarity at 1-10 particles (seconds recorded, not the point)."""
+    targets, guides = _setup(model, args)
+    rng = np.random.default_rng(0)
     results = {"targets": [t.name for t in targets], "reps": args.reps, "ess_threshold": ESS_THRESHOLD}
     print("Figure 5a: similarity vs particles")
     fig5a = {"unguided": summarise(run_grid(model, targets, PARTICLES_5A, args.reps), rng)}
@@ -182,12 +190,18 @@ def evaluate(model, args) -> dict:
     results["fig6b"] = {str(k): v for k, v in sorted(sizes.items())}
     for k, v in sorted(sizes.items()):
         print(f"  {k:5d} traces: {v['similarity']:.3f}")
+    return results
+
+
+def evaluate_speed(model, args) -> dict:
+    """Figure 5b (wall time to reach a similarity, guided vs unguided) and the circuit
+    comparison of Figure 12: the timed stage, for a quiet machine."""
+    targets, guides = _setup(model, args)
+    rng = np.random.default_rng(1)
+    results = {"speed_targets": len(targets), "speed_reps": args.reps, "speed_ess_threshold": ESS_THRESHOLD}
     print("Figure 5b: time to reach a similarity")
     unguided = summarise(run_grid(model, targets, UNGUIDED_5B, args.reps), rng)
     guided = summarise(run_grid(model, targets, GUIDED_5B, args.reps, guides["all"]), rng)
-    for n in PARTICLES_5A:  # more points for the curves
-        unguided.setdefault(str(n), fig5a["unguided"][str(n)])
-        guided.setdefault(str(n), fig5a["all"][str(n)])
     levels = [round(x, 2) for x in np.arange(0.05, 0.96, 0.05)]
     speedups = []
     for level in levels:
@@ -195,17 +209,18 @@ def evaluate(model, args) -> dict:
         speedups.append({"similarity": level, "unguided_seconds": tu, "guided_seconds": tg,
                          "speedup": (tu / tg) if tu and tg else None})
     results["fig5b"] = {"unguided": unguided, "guided": guided, "speedups": speedups}
+    for name, rows in (("unguided", unguided), ("guided", guided)):
+        print(f"  {name:9s} " + " ".join(f"{n}:{r['similarity']:.2f}/{r['seconds']:.3f}s" for n, r in rows.items()))
     for row in speedups:
         if row["speedup"]:
             print(f"  similarity {row['similarity']:.2f}: unguided {row['unguided_seconds']:.3f} s, "
                   f"guided {row['guided_seconds']:.3f} s, {row['speedup']:.1f}x")
-    if (GUIDES / "circuit.json").exists():
+    if "circuit" in guides:
         print("Circuit (Figure 12): score vs particles")
-        circuit_guide = Guide.load(GUIDES / "circuit")
         target = [Circuit()]
         results["circuit"] = {
             "unguided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps), rng),
-            "guided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps, circuit_guide), rng)}
+            "guided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps, guides["circuit"]), rng)}
         for name, rows in results["circuit"].items():
             print(f"  {name:9s} " + " ".join(f"{n}:{rows[str(n)]['similarity']:.2f}/{rows[str(n)]['seconds']:.2f}s"
                                              for n in CIRCUIT_PARTICLES))
@@ -278,7 +293,7 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=20000)
     parser.add_argument("--count", type=int, help="use the first COUNT traces (default: all)")
     parser.add_argument("--only", nargs="+", help="train only these guides, in this order")
-    parser.add_argument("--stages", nargs="+", default=["train", "eval", "rate"], choices=("train", "eval", "rate"))
+    parser.add_argument("--stages", nargs="+", default=["train", "eval", "speed", "rate"], choices=("train", "eval", "speed", "rate"))
     parser.add_argument("--results", type=Path, default=RESULTS, help="where results and guides go")
     parser.add_argument("--ess", default=str(ESS_THRESHOLD),
                         help="resample when the effective sample size falls below ESS x particles, in every "
@@ -298,6 +313,8 @@ def main() -> None:
         # every guide's training record, from its metadata (training jobs may run in parallel)
         results["training"] = {p.stem: {k: v for k, v in json.loads(p.read_text())["info"].items() if k != "curve"}
                                for p in sorted(GUIDES.glob("*.json")) if not p.name.endswith(".ckpt.json")}
+    if "speed" in args.stages:
+        results.update(evaluate_speed(model, args))
     if "rate" in args.stages:
         results["trace_rate_2_workers"] = measure_rate()
     RESULTS.mkdir(parents=True, exist_ok=True)
