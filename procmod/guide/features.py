@@ -4,8 +4,9 @@ Three sources, each optional (the ablation conditions of seed 004 Figure 5):
 
 - **local state**: the scalar arguments of the rule call the choice occurs in, mapped to
   [-1, 1] with the ranges the model declares (``Model.arg_ranges``) and clipped; an
-  argument declared as an angle (``"angle"``) becomes its cosine and sine instead (see
-  :func:`local_ranges`);
+  argument declared as an angle (``"angle"``) becomes its cosine and sine instead, and a
+  rule in ``Model.heading_rules`` adds the cosine and sine of the heading its ``ctx.at``
+  reports (see :func:`local_ranges`);
 - **target image**: 3x3 windows of the target mask around the current position
   (``ctx.at``) at four resolutions (36 features);
 - **partial output**: the same windows on the image the derivation has drawn so far.
