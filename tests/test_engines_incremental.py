@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from procmod.core import ModelError, replay
+from procmod.core import InvalidArgumentError, ModelError, replay
 from procmod.core.runtime import replay_reusing
 from procmod.geometry.camera import Camera, Silhouettes
 from procmod.geometry.solid import Box, Cylinder, translation
@@ -167,7 +167,7 @@ def test_saturated_counts_refuse_removal():
     scene.add(box)
     scene.add(box)  # the 256th hit cannot be counted
     assert scene.saturated
-    with pytest.raises(ValueError, match="saturated"):
+    with pytest.raises(InvalidArgumentError, match="saturated"):
         scene.remove(box)
 
 

@@ -1,5 +1,5 @@
 """Neural guides: features, proposals, guided SMC's unbiasedness, training, files, CLI."""
-
+import dataclasses
 import json
 import math
 
@@ -76,6 +76,9 @@ def test_feature_vector_layout_and_local_state_normalisation():
         FeatureExtractor(model, FeatureSettings.condition("local+target"), None)
     with pytest.raises(GuideError, match="argument ranges"):
         FeatureExtractor(MIX, FeatureSettings.condition("local"), None).size("mix_root")
+    typo = dataclasses.replace(model, arg_ranges={"branch": ((-12.0, 12.0), "radians")})
+    with pytest.raises(GuideError, match=r"arg_ranges\['branch'\]\[1\] is 'radians'"):
+        FeatureExtractor(typo, FeatureSettings.condition("local"), None).size("branch")
 
 
 def test_partial_output_features_follow_the_drawing():

@@ -674,11 +674,14 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
     emitted exactly its old geometry is left as drawn).
 
     The result equals ``replay(model, choices, rng, output=<fresh output>,
-    maybe_default=maybe_default)`` — same calls in the same order, same choices, same
-    geometry and output, same log-prior up to rounding — except that choices the map
-    lacks are drawn from ``rng`` in a different sequence (fresh choices differ in value,
-    not in distribution). Cheap when ``choices`` differs from ``previous``'s choice map
-    in few calls: the cost is the changed calls plus a walk over the kept ones.
+    maybe_default=maybe_default)`` — same calls in the same order, same choices (reused
+    calls draw nothing; calls that run again draw in program order, as ``replay``
+    does), same geometry and counts, same log-prior up to rounding. Two differences:
+    sums the output keeps (e.g. ``gain_total``) are updated rather than recomputed, so
+    scores agree up to rounding in the last bits, and the output's ``extent`` is an upper
+    bound (removing a part does not shrink it). Cheap when ``choices`` differs from
+    ``previous``'s choice map in few calls: the cost is the changed calls plus a walk
+    over ``previous``'s nodes.
 
     ``changed`` (optional) lists the node addresses whose choices in ``choices`` may
     differ from ``previous``'s; the caller vouches that every other call of ``previous``

@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from .solid import part_bounds, part_triangles
 
 SILHOUETTE_SEGMENTS = 12
@@ -251,10 +252,10 @@ class Silhouettes:
         """Take out one part added earlier (the exact inverse of :meth:`add`, except that
         ``extent`` is left as it is). Returns the number of pixels left uncovered.
 
-        Raises ValueError once the rasters are saturated (a count hit 65535).
+        Raises InvalidArgumentError once the rasters are saturated (a count hit 65535).
         """
         if self.saturated:
-            raise ValueError("saturated silhouettes (a count reached 65535) cannot remove parts exactly")
+            raise InvalidArgumentError("saturated silhouettes (a count reached 65535) cannot remove parts exactly")
         cache = self.part_cache
         entry = cache.get(part) if cache is not None else None
         if entry is None:

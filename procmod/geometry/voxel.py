@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles
 
 
@@ -188,8 +189,9 @@ def _inverse(t: tuple) -> np.ndarray:
 class PartCache:
     """Voxelized parts by value, for engines that replay whole derivations.
 
-    GA offspring and MCMC proposals are evaluated by replaying the full derivation, and
-    most of their parts are the parent's, unchanged: an equal part (same shape, transform
+    MCMC proposals (and GA offspring when they are full replays: with an executor, or a
+    target without exact removal) replay the full derivation, and most of their parts
+    are the parent's, unchanged: an equal part (same shape, transform
     and tag) on the same grid covers the same voxels, so its voxel indices are looked up
     instead of voxelized again. Bounded: past ``max_voxels`` stored indices it starts over.
     """
@@ -348,11 +350,11 @@ class VoxelScene:
         never been added; ``extent`` is left as it is). Returns the number of voxels
         left uncovered.
 
-        Raises ValueError when the scene is saturated (some count hit 255), where the
-        counts no longer say how many parts cover a voxel.
+        Raises InvalidArgumentError when the scene is saturated (some count hit 255),
+        where the counts no longer say how many parts cover a voxel.
         """
         if self.saturated:
-            raise ValueError("a saturated voxel scene (a count reached 255) cannot remove parts exactly")
+            raise InvalidArgumentError("a saturated voxel scene (a count reached 255) cannot remove parts exactly")
         voxels, outside, _, _ = self._entry(part)
         state = self._state
         state[:] = 0.0

@@ -224,6 +224,11 @@ def local_ranges(model, rule_name: str) -> tuple | None:
     ranges = model.arg_ranges.get(rule_name)
     if ranges is None:
         return None
+    for i, r in enumerate(ranges):
+        if not (r is None or r == ANGLE or (isinstance(r, (tuple, list)) and len(r) == 2
+                                           and all(isinstance(v, (int, float)) for v in r) and r[1] > r[0])):
+            raise GuideError(f"model {model.name!r}: arg_ranges[{rule_name!r}][{i}] is {r!r}; each entry must be "
+                             f"(low, high) with low < high, None (not a feature) or {ANGLE!r}")
     idx = [i for i, r in enumerate(ranges) if r is not None]
     angular = [ranges[i] == ANGLE for i in idx]
     lows = [0.0 if a else ranges[i][0] for i, a in zip(idx, angular)]
@@ -310,11 +315,9 @@ class FeatureExtractor:
         angles and the reported ``heading`` as (cos, sin)."""
         idx, lows, spans, angular = self.ranges(rule_name)
         values = np.array([float(heading) if i == HEADING else float(args[i]) for i in idx])
-        linear = np.clip(2.0 * (values - lows) / spans - 1.0, -1.0, 1.0)
-        out = []
-        for value, scaled, is_angle in zip(values, linear, angular):
-            out.extend((math.cos(value), math.sin(value)) if is_angle else (scaled,))
-        return np.array(out, dtype=np.float64)
+        out = np.empty(len(idx) + int(angular.sum()))
+        local_features(values, lows, spans, angular, out)  # the kernel inference uses
+        return out
 
     def features(self, state, rule_name: str, args: tuple) -> np.ndarray:
         """The feature vector for a choice made now by a call of ``rule_name(args)``."""

@@ -283,8 +283,8 @@ def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Ev
     by :func:`replay_reusing` from a copy of the parent's output; ``changed``: the calls
     whose choices differ from the parent's (None: compare them all).
 
-    Same derivation and score as ``common.evaluate(model, target, (choices, seed, False))``
-    up to the values of fresh choices (drawn from ``seed`` in another order).
+    Same derivation and score as ``common.evaluate(model, target, (choices, seed, False))``,
+    the score up to rounding in the last bits (see :func:`replay_reusing`).
     """
     view = parent if isinstance(parent, _View) else _View(parent)
     parent = view.d

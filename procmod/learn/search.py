@@ -63,7 +63,8 @@ class SearchOptions:
     carry the tie-breaking bias; ``final_iterations`` free the sigmas at the end.
     ``slot_prior`` is the pseudo-count of the prior that shrinks slot-use probabilities
     towards P0's pooled ones (:func:`likelihood.fit`; 0: maximum likelihood, as the
-    paper).
+    paper); it enters only the final pass and the free-sigma fit of the phase-1 program,
+    not the fits that decide splits.
     ``share_fits``: particles whose tasks have identical inputs (resampled
     copies making the same split) run one fit and share its result; with the exact
     estimator the result is the same as running each (VI never shares: its fits draw

@@ -501,7 +501,7 @@ class StringModel:
         the largest training graph), so it must close its rings and branches; and it *wraps
         up* from ``wrap_nodes`` nodes on (0.8 times the largest training graph): no new ring
         labels or branches, and the logits of tokens that close something (a ring label's
-        second end, ``)``, the end) get ``wrap_bias`` per node past ``wrap_nodes``
+        second end, ``)``, the end) get ``wrap_bias`` times (nodes - ``wrap_nodes`` + 1)
         (``wrap=False``: no wrapping up, only the hard budget).
         """
         if not greedy and rng is None:
