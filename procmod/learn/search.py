@@ -528,7 +528,9 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
             keys, prepared = {}, {}
             for k in active:
                 key = _fingerprint(particles[k], phase) if dedup else None
-                prepared[k] = prepare_step(particles[k], data, phase, _seed(options.seed, r, k))
+                # made here only when fits may be shared; otherwise task_step makes it in
+                # the worker (same seed, same split), so preparations run in parallel too
+                prepared[k] = prepare_step(particles[k], data, phase, _seed(options.seed, r, k)) if dedup else None
                 if key is not None and prepared[k] is not None:
                     t, _, a2, bias = prepared[k]
                     key = (key, t, a2, hashlib.sha256(np.ascontiguousarray(bias).tobytes()).hexdigest())
@@ -545,7 +547,8 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
                     src = first[keys[k]]
                     particles[k] = _share(done[src], len(done[src].trace) - lengths[src], traces[k])
                 task_cpu += particles[k].cpu
-            real = sum(1 for k in done if prepared[k] is not None)
+            # a fit ran where a split was proposed, i.e. where the particle's trace grew
+            real = sum(1 for k in done if len(done[k].trace) > lengths[k])
             state["fits_run"] = state.get("fits_run", 0) + real
             state["fits_shared"] = state.get("fits_shared", 0) + sum(
                 1 for k in active if k not in done and prepared[k] is not None)
