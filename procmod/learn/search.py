@@ -475,7 +475,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     # (with the prior, each split whose copies differ in slot use paid about alpha nats
     # per differing bit, an extra complexity charge that cost castles three abstractions),
     # and the program that is sampled does not memorise its abstractions' few nodes.
-    slot_target = pooled_slot_target(state["programs"]["p0"], data)
+    slot_target = pooled_slot_target(state["programs"]["p0"], data) if options.slot_prior > 0 else None
     elapsed0 = state["elapsed"]
     t_resume, cpu_resume, cpu0 = time.perf_counter(), time.process_time(), state.get("cpu", 0.0)
     task_cpu = 0.0
