@@ -258,12 +258,19 @@ class Silhouettes:
             raise InvalidArgumentError("saturated silhouettes (a count reached 65535) cannot remove parts exactly")
         cache = self.part_cache
         entry = cache.get(part) if cache is not None else None
+        state = self._state
         if entry is None:
-            scratch = Silhouettes(self.cameras)
-            entry = scratch._rasterise(part, True)
+            # Learn the part's pixels by drawing it once more into these rasters and taking
+            # that count off again (no scratch rasters to allocate per removed part).
+            state[:] = 0.0
+            entry = self._rasterise(part, True)
+            for pixels, gain, idx in zip(self.pixels, self.gains, entry):
+                _uncount_pixels(pixels, idx, gain, state)
+            if state[2]:  # a count was already at its limit: the rasters are no longer exact
+                self.saturated = True
+                raise InvalidArgumentError("saturated silhouettes (a count reached 65535) cannot remove parts exactly")
             if cache is not None:
                 cache.put(part, tuple(entry), sum(len(e) for e in entry) + 1)
-        state = self._state
         state[:] = 0.0
         for pixels, gain, idx in zip(self.pixels, self.gains, entry):
             _uncount_pixels(pixels, idx, gain, state)
