@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 from procmod.core import InvalidArgumentError, replay, run_forward
 from procmod.infer import ENGINES, Budget, parse_budget
 from procmod.infer.common import Scored, evaluate
-from procmod.infer.ga import alter_choices, connections, crossover_choices, cut_choices, grow_choices
+from procmod.infer.ga import (alter_choices, connections, crossover_choices, cut_choices, grow_choices,
+                              nudge_choices)
 from procmod.infer.mcmc import propose, temperature_ladder
 from procmod.models import get_model
 from procmod.targets import ShapeMatch, TargetImage
@@ -38,7 +39,7 @@ def test_every_ga_offspring_is_a_valid_derivation(seed, name):
     model = get_model(name)
     rng = np.random.default_rng(seed)
     d1, d2 = run_forward(model, rng), run_forward(model, rng)
-    maps = [f(d1, rng) for f in (grow_choices, cut_choices, alter_choices)]
+    maps = [f(d1, rng) for f in (grow_choices, cut_choices, alter_choices, nudge_choices)]
     children = crossover_choices(d1, d2, rng)
     if children:
         maps.extend(children)
@@ -95,9 +96,49 @@ def test_crossover_swaps_compatible_subtrees():
             ("bolt", "next", "bolt"), ("bolt", "fork", "fork"), ("fork", "bolt", "bolt")}
 
 
+def test_nudge_moves_one_calls_continuous_choices_within_their_support():
+    model = get_model("spaceship")
+    rng = np.random.default_rng(2)
+    d = run_forward(model, rng)
+    before = d.choice_map().raw
+    dists = {(n.address, name): c.dist for n in d.nodes() for name, c in n.choices.items()}
+    moved_calls, steps = set(), []
+    for _ in range(300):
+        after = nudge_choices(d, rng, step=0.5)
+        changed = [k for k in before if after[k] != before[k]]
+        assert changed and set(after) == set(before)
+        assert len({k[0] for k in changed}) == 1  # one call
+        for k in changed:
+            dist = dists[k]
+            assert not dist.discrete and dist.contains(after[k])  # reflected into the support
+            steps.append(abs(after[k] - before[k]) / dist.scale)
+        moved_calls.add(changed[0][0])
+    assert len(moved_calls) > 1
+    # Gaussian steps of 0.5 x scale (folded at the bounds): mean |step| is at most 0.5 * sqrt(2 / pi)
+    assert 0.2 < float(np.mean(steps)) < 0.45
+
+
+def test_crossover_never_swaps_equal_subtrees():
+    # A derivation crossed with itself: a swap at the same connection would change nothing,
+    # so the children must differ from the parents (or there is no crossover at all).
+    model = get_model("spaceship")
+    rng = np.random.default_rng(0)
+    tried = 0
+    for _ in range(40):
+        d = run_forward(model, rng)
+        children = crossover_choices(d, d, rng, max_retries=50)
+        if children is None:
+            continue
+        tried += 1
+        raw = d.choice_map().raw
+        assert children[0] != raw or children[1] != raw
+    assert tried > 5
+
+
 @pytest.mark.parametrize("engine,kwargs", [
     ("forward", {"particles": 20}), ("smc", {"particles": 20}), ("sosmc", {"particles": 20}),
-    ("mcmc", {"chains": 3}), ("ga", {"population": 12})])
+    ("mcmc", {"chains": 3}), ("ga", {"population": 12}),
+    ("ga", {"population": 12, "split": (10.0, 10.0, 3.0, 10.0), "nudge_step": 0.2})])
 def test_engine_contract_and_determinism(engine, kwargs):
     model = get_model("vines")
     target = _bar_target()

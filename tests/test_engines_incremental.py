@@ -15,7 +15,7 @@ from procmod.geometry.solid import Box, Cylinder, translation
 from procmod.geometry.voxel import VoxelGrid, VoxelScene
 from procmod.infer import ENGINES, Budget
 from procmod.infer.common import evaluate
-from procmod.infer.ga import _alter, _crossover, _cut, _grow, _View, evaluate_from
+from procmod.infer.ga import _alter, _crossover, _cut, _grow, _nudge, _same_subtree, _View, evaluate_from
 from procmod.models import get_model
 from procmod.parallel import InlineExecutor
 from procmod.targets import Silhouette, Volume, load_target_file
@@ -74,9 +74,9 @@ def test_incremental_offspring_equal_full_replays(seed, name, kind, hinted):
     rng = np.random.default_rng(seed)
     parents = [evaluate(model, target, ({}, int(rng.integers(2 ** 31)), None)).derivation for _ in range(2)]
     views = [_View(p) for p in parents]
-    offspring = [op(views[0], rng) for op in (_grow, _cut, _alter)]
+    offspring = [op(views[0], rng) for op in (_grow, _cut, _alter, _nudge)]
     offspring.append(_grow(views[1], rng, 4))
-    pairs = [(parents[0], o) for o in offspring[:3]] + [(parents[1], offspring[3])]
+    pairs = [(parents[0], o) for o in offspring[:4]] + [(parents[1], offspring[4])]
     crossed = _crossover(views[0], views[1], rng)
     if crossed is not None:
         pairs += list(zip(parents, crossed))
@@ -98,6 +98,22 @@ def test_incremental_offspring_equal_full_replays(seed, name, kind, hinted):
         if again is not None:
             _check_against_full_replay(model, target, evaluate_from(model, target, ev.derivation, *again[:1],
                                                                     1, again[1] if hinted else None))
+
+
+def test_same_subtree_tells_equal_subtrees_from_changed_ones():
+    model, target = get_model("spaceship"), TARGETS["volume"]
+    parent = max((evaluate(model, target, ({}, s, None)).derivation for s in range(8)), key=lambda d: d.n_nodes)
+    view = _View(parent)
+    assert all(_same_subtree(view, a, view, a) for a in view.index())
+    for seed in range(8):
+        choices, changed = _nudge(view, np.random.default_rng(seed), 0.5)
+        (address,) = changed
+        child = _View(evaluate_from(model, target, view, choices, 0, changed).derivation)
+        for a in view.index():
+            if address[:len(a)] == a:  # the nudged call and the calls above it changed
+                assert not _same_subtree(view, a, child, a)
+            elif a[:len(address)] != address:  # calls beside it did not (those below may)
+                assert _same_subtree(view, a, child, a)
 
 
 def test_replay_reusing_checks_the_map_when_not_told_what_changed():

@@ -11,9 +11,18 @@ offspring is a valid derivation by construction.
   (children spawned with probability 1 are never cut), removing its subtree;
 * **alter** — pick a call uniformly and redraw all its parameters (its non-structural
   choices) from the prior;
+* **nudge** (not in seed 002; weight 0 unless ``split`` has a fourth entry) — pick a call
+  with continuous choices uniformly and move each of them by a Gaussian step of
+  ``nudge_step`` x the distribution's scale, reflected into its bounds: the GA analogue of
+  an MCMC diffusion move (seed 002, section 7, describes diffusion as alter mutations).
+  Alter redraws a call from the prior, so it rarely improves a fitted individual; a nudge
+  fine-tunes one;
 * **crossover** — pick a connection (parent rule, spawn site, child rule) of the first
   parent uniformly, a compatible one of the second, and swap the subtrees below them
-  (up to ``max_retries`` tries when no compatible connection exists).
+  (up to ``max_retries`` tries when no compatible connection exists, or when the two
+  subtrees are equal — same rule and arguments at the top, same choices below — so the
+  children would only be copies of their parents: in a converging population that was a
+  quarter of all crossovers, each costing an evaluation).
 
 Selection: one parent by roulette wheel on fitness shifted to be positive (``score -
 min score``), the other by k-tournament (k = 10); the best fifth of the population is
@@ -32,7 +41,9 @@ below the swapped connection), so it is built by :func:`procmod.core.runtime.rep
 from that parent: the parent's calls and drawn output (voxel or pixel counts) are reused,
 the geometry of the replaced calls is removed and that of the new ones drawn. The result is
 the derivation and score a full replay of the offspring's choice map gives (tested); only
-the changed calls cost rule executions and voxelization. Otherwise (an executor, or a
+the changed calls cost rule executions and voxelization. An offspring's random generator is
+seeded only when a call draws a fresh value (grow, alter), not for cut, nudge or crossover
+offspring (seeding costs about 10% of an incremental evaluation). Otherwise (an executor, or a
 target such as ProxyVolume that reads the bounding box) fitness evaluations are full
 replays through the ``executor``. The operators do not copy choice maps either: an
 offspring is its parent's map plus a few edits (:class:`_Offspring`, over a per-individual
@@ -46,7 +57,7 @@ import math
 import numpy as np
 
 from ..core import InvalidArgumentError
-from ..core.runtime import replay_reusing
+from ..core.runtime import _same_args, replay_reusing
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_positive, evaluate_all,
                      new_seed, relaxed_gc)
 
@@ -69,11 +80,12 @@ class _View:
     (a dict the operators copy, never change), connections and mutation sites. The GA
     keeps one per individual, so a parent selected several times is indexed once."""
 
-    __slots__ = ("d", "_nodes", "_raw", "_index", "_connections", "_grow", "_cut", "_alter")
+    __slots__ = ("d", "_nodes", "_raw", "_index", "_connections", "_grow", "_cut", "_alter", "_nudge")
 
     def __init__(self, d):
         self.d = d
         self._nodes = self._raw = self._index = self._connections = self._grow = self._cut = self._alter = None
+        self._nudge = None
 
     def nodes(self) -> list:
         if self._nodes is None:
@@ -130,6 +142,19 @@ class _View:
                     out.append((n.address, names))
             self._alter = out
         return self._alter
+
+    def nudge_sites(self) -> list:
+        """``(address, [(name, value, dist)])`` of the calls with continuous choices."""
+        if self._nudge is None:
+            out = []
+            for n in self.nodes():
+                structural = {s.site for s in n.spawns}
+                cont = [(name, c.value, c.dist) for name, c in n.choices.items()
+                        if name not in structural and not c.dist.discrete and isinstance(c.value, float)]
+                if cont:
+                    out.append((n.address, cont))
+            self._nudge = out
+        return self._nudge
 
 
 _DROP = object()
@@ -248,9 +273,65 @@ def alter_choices(d, rng) -> dict | None:
     return None if out is None else out[0].materialize()
 
 
+def _reflect(x: float, low: float, high: float) -> float:
+    """``x`` folded into ``[low, high]`` by reflection at the bounds."""
+    width = high - low
+    if width <= 0:
+        return low
+    y = (x - low) % (2.0 * width)
+    return low + (y if y <= width else 2.0 * width - y)
+
+
+def _nudge(v: _View, rng, step: float = 0.1):
+    candidates = v.nudge_sites()
+    if not candidates:
+        return None
+    address, choices = candidates[int(rng.random() * len(candidates))]
+    changes = {}
+    for name, value, dist in choices:
+        x = value + step * dist.scale * rng.standard_normal()
+        low, high = getattr(dist, "low", None), getattr(dist, "high", None)
+        if low is not None and high is not None:
+            x = _reflect(x, low, high)
+        changes[(address, name)] = x
+    return _Offspring(v, changes), {address}
+
+
+def nudge_choices(d, rng, step: float = 0.1) -> dict | None:
+    """Choice map with one call's continuous parameters moved by a Gaussian step."""
+    out = _nudge(_View(d), rng, step)
+    return None if out is None else out[0].materialize()
+
+
 def connections(d) -> dict:
     """``(parent rule, site, child rule) -> [child addresses]`` of a derivation."""
     return _View(d).connections()
+
+
+def _same_subtree(v1: _View, a1: tuple, v2: _View, a2: tuple) -> bool:
+    """Whether the subtree of ``v1`` at ``a1`` equals that of ``v2`` at ``a2`` (same rule and
+    arguments at the top, same rules and choice values below): swapping them changes nothing."""
+    i1, i2 = v1.index(), v2.index()
+    x, y = i1[a1], i2[a2]
+    if x.rule is not y.rule or not _same_args(x.args, y.args):
+        return False
+    stack = [(x, y)]
+    while stack:
+        x, y = stack.pop()
+        if x.rule is not y.rule or len(x.choices) != len(y.choices):
+            return False
+        yc = y.choices
+        for name, c in x.choices.items():
+            d = yc.get(name)
+            if d is None or d.value != c.value:
+                return False
+        for spawn in x.spawns:
+            if spawn.on:
+                cx, cy = i1.get(x.address + (spawn.site,)), i2.get(y.address + (spawn.site,))
+                if cx is None or cy is None:  # a call that never ran (a stopped derivation)
+                    return False
+                stack.append((cx, cy))
+    return True
 
 
 def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
@@ -264,6 +345,8 @@ def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
         if not matches:
             continue
         a2 = matches[int(rng.random() * len(matches))]
+        if _same_subtree(v1, a1, v2, a2):  # the children would be copies of the parents
+            continue
         n1, n2 = len(a1), len(a2)
         # Child i differs from parent i only below the swapped connection.
         return ((_Offspring(v1, at=a1, donor=v2, source=a2), {a for a in v1.index() if a[:n1] == a1}),
@@ -277,6 +360,23 @@ def crossover_choices(d1, d2, rng, max_retries: int = 10):
     return None if out is None else (out[0][0].materialize(), out[1][0].materialize())
 
 
+class _LazyRng:
+    """``numpy.random.default_rng(seed)``, created on first use: most offspring (cut, nudge,
+    crossover) replay without a fresh draw, and seeding a Generator costs more than
+    replaying a few calls. Draws are those of the Generator itself."""
+
+    __slots__ = ("_seed", "_rng")
+
+    def __init__(self, seed: int):
+        self._seed, self._rng = seed, None
+
+    def __getattr__(self, name):
+        rng = self._rng
+        if rng is None:
+            rng = self._rng = np.random.default_rng(self._seed)
+        return getattr(rng, name)
+
+
 def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Evaluation:
     """Score the offspring ``choices`` (a dict, or an operator's lazy _Offspring) of
     ``parent`` (a complete derivation whose output supports exact removal, or its _View)
@@ -288,7 +388,7 @@ def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Ev
     """
     view = parent if isinstance(parent, _View) else _View(parent)
     parent = view.d
-    result = replay_reusing(model, parent, choices, np.random.default_rng(seed), parent.output.copy(),
+    result = replay_reusing(model, parent, choices, _LazyRng(seed), parent.output.copy(),
                             maybe_default=False, changed=changed, unused=False, index=view.index())
     d = result.derivation
     return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
@@ -308,7 +408,8 @@ def _reusable(parent) -> bool:
 
 def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | None = None,
        mutation: float = 0.3, split=(13.5, 13.5, 3.0), elitism: float = 0.2, tournament: int = 10,
-       initial_size: int | None = None, max_retries: int = 10, executor=None, progress=None) -> Result:
+       initial_size: int | None = None, max_retries: int = 10, nudge_step: float = 0.1,
+       executor=None, progress=None) -> Result:
     """Genetic algorithm over derivation trees.
 
     Parameters
@@ -319,8 +420,8 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
         Default: 50 generations.
     mutation : float
         Probability that a selected pair is mutated instead of crossed over.
-    split : (grow, cut, alter)
-        Relative weights of the mutation operators (seed 002: 13.5 / 13.5 / 3.0).
+    split : (grow, cut, alter[, nudge])
+        Relative weights of the mutation operators (seed 002: 13.5 / 13.5 / 3.0, no nudge).
     elitism : float
         Fraction of the best individuals copied unchanged into the next generation.
     tournament : int
@@ -328,6 +429,8 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
     initial_size : int, optional
         Initial individuals are grown to sizes uniform in [1, initial_size] calls
         (default: twice the mean size of 20 forward samples, at least 5).
+    nudge_step : float
+        Nudge step as a fraction of each choice distribution's scale.
     executor : concurrent.futures.Executor, optional
         Evaluates offspring (default: in-process).
     """
@@ -335,15 +438,19 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
     check_positive("tournament", tournament)
     if not 0.0 <= mutation <= 1.0:
         raise InvalidArgumentError(f"mutation must be in [0, 1], got {mutation!r}")
-    if len(split) != 3 or any(w < 0 for w in split) or sum(split) <= 0:
-        raise InvalidArgumentError(f"split must be three non-negative weights (grow, cut, alter), got {split!r}")
+    if len(split) not in (3, 4) or any(w < 0 for w in split) or sum(split) <= 0:
+        raise InvalidArgumentError("split must be three or four non-negative weights (grow, cut, alter[, nudge]), "
+                                   f"got {split!r}")
+    split = tuple(float(w) for w in split) + (0.0,) * (4 - len(split))
+    if not nudge_step > 0:
+        raise InvalidArgumentError(f"nudge_step must be positive, got {nudge_step!r}")
     if not 0.0 <= elitism < 1.0:
         raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
     budget = budget or Budget(generations=50)
     model = target.configure(model)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
-    operators = (_grow, _cut, _alter)
+    operators = (_grow, _cut, _alter, lambda v, r: _nudge(v, r, nudge_step))
     incremental = executor is None and bool(getattr(target, "exact_removal", False))
     views = {}  # id(derivation) -> _View, for the current population
 
@@ -423,8 +530,8 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
                 if rng.random() < mutation:
                     for parent in (p1, p2):
                         choices = None
-                        first = _weighted_pick([0, 1, 2], split, rng)
-                        for op in [first] + [k for k in (0, 1, 2) if k != first and split[k] > 0]:
+                        first = _weighted_pick([0, 1, 2, 3], split, rng)
+                        for op in [first] + [k for k in (0, 1, 2, 3) if k != first and split[k] > 0]:
                             choices = operators[op](view(parent.derivation), rng)
                             if choices is not None:
                                 break
@@ -451,6 +558,6 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={"population": population, "seed": seed, "budget": budget.describe(),
                             "mutation": mutation, "split": list(split), "elitism": elitism,
-                            "tournament": tournament, "initial_size": initial_size,
+                            "tournament": tournament, "initial_size": initial_size, "nudge_step": nudge_step,
                             "incremental": incremental},
                   log_weights=[ind.log_likelihood for ind in pop])
