@@ -102,16 +102,19 @@ def run_set(name: str, args, work: Path) -> dict:
     held_shapes = [grown.shapes[i] for i in test_idx]
     held_graphs = [all_graphs[i] for i in test_idx]
     held = tagging_examples(shape_set, held_shapes, held_graphs, model.categories, 4, rng, every_symmetry=True)
-    voted_right = voted_total = 0
+    voted_right = voted_total = all_right = 0
     for s, g in zip(held_shapes, held_graphs):
         vote = model.tagger.vote(g, 8, rng, model.shape_set)
         truths = shape_labelings(shape_set, s, g, model.categories)  # the shape up to its symmetric copies
-        voted_right += max((sum(vote.get(e) == c for e, c in t.items()) for t in truths), default=0)
+        best = max((sum(vote.get(e) == c for e, c in t.items()) for t in truths), default=0)
+        voted_right += best
+        all_right += best == g.number_of_edges()
         voted_total += g.number_of_edges()
     row["edge_categories"] = {"held_out_shapes": len(held_shapes), "held_out_strings": len(held),
                               "per_character_accuracy": tagging_accuracy(model.tagger, held) if held else None,
                               "all_characters_accuracy": tagging_accuracy(model.tagger, held, True) if held else None,
                               "voted_edge_accuracy": voted_right / max(voted_total, 1),
+                              "voted_graphs_all_right": all_right,
                               "categories": meta["categories"]}
     print(f"  edge categories: {row['edge_categories']}", flush=True)
     # Prior samples
@@ -153,15 +156,21 @@ def run_set(name: str, args, work: Path) -> dict:
     inst = {}
     for label, texts in (("held_out", [encode(g) for g in held_graphs][:args.instantiate]),
                          ("novel_prior_samples", novel_strings[:args.instantiate])):
-        ok, fallbacks, shapes = 0, 0, []
+        ok, fallbacks, shapes, impossible, budget, t0 = 0, 0, [], 0, 0, time.perf_counter()
         for text in texts:
             res = model.instantiate(text, rng)
             ok += res.success
             fallbacks += res.fallbacks
+            # the search either finds a shape, proves that no choice of example poses realises
+            # the graph (every candidate tried), or runs out of its placement budget
+            impossible += "every candidate pose tried" in res.reason
+            budget += "budget" in res.reason
             if res.success:
                 shapes.append(res.shape)
         inst[label] = {"tried": len(texts), "succeeded": ok, "rate": ok / max(len(texts), 1),
-                       "fallbacks_per_string": fallbacks / max(len(texts), 1)}
+                       "fallbacks_per_string": fallbacks / max(len(texts), 1),
+                       "proven_impossible": impossible, "budget_spent": budget,
+                       "seconds": round(time.perf_counter() - t0, 1)}
         if label == "novel_prior_samples" and shapes:
             write_sheet(model.shape_set, shapes[:16], args.out / f"strings_{name}.png", 160)
     row["instantiation"] = inst

@@ -190,6 +190,11 @@ def test_vote_maps_every_edge(moonbase, categories):
         name = cats.names[k]
         ta, tb = sorted((graphs[0].nodes[a]["type"], graphs[0].nodes[b]["type"]))
         assert name is not None and name[:2] == (ta, tb)
+    # ranked: every category that got a vote, most votes first; the first is the vote
+    ranked = model.vote(graphs[0], 4, np.random.default_rng(0), ss, ranked=True)
+    assert {e: r[0] for e, r in ranked.items()} == vote
+    assert all(len(set(r)) == len(r) and set(r) <= set(cats.allowed(*sorted(
+        (graphs[0].nodes[e[0]]["type"], graphs[0].nodes[e[1]]["type"])))) for e, r in ranked.items())
 
 
 def test_search_graphs_and_paths(rng):

@@ -180,13 +180,17 @@ class TrainedModel:
             raise InstantiationError(f"{text!r} breaks the tiling grammar: {'; '.join(problems)}")
         return g
 
-    def instantiate(self, text: str, rng: np.random.Generator, votes: int = 8, attempts: int = 8) -> InstantiateResult:
-        """Build a shape for a string: tagger vote, then transplanting (several attempts)."""
+    def instantiate(self, text: str, rng: np.random.Generator, votes: int = 8, attempts: int = 2,
+                    budget: int = 4000) -> InstantiateResult:
+        """Build a shape for a string: tagger vote (categories ranked by votes), then the
+        transplanting search from a random edge, ``budget`` placements an attempt; another
+        attempt (another start) only when the budget ran out, not when the search proved that
+        no placement realises the graph."""
         g = self.check_string(text)
-        cats = self.tagger.vote(g, votes, rng, self.shape_set)
+        cats = self.tagger.vote(g, votes, rng, self.shape_set, ranked=True)
         result = InstantiateResult(None, False, reason="no attempt")
         for _ in range(attempts):
-            result = instantiate_graph(g, cats, self.categories, self.shape_set, rng, self.start_pose)
-            if result.success:
+            result = instantiate_graph(g, cats, self.categories, self.shape_set, rng, self.start_pose, budget=budget)
+            if result.success or "budget" not in result.reason:
                 return result
         return result
