@@ -88,8 +88,9 @@ def run_set(name: str, args, work: Path) -> dict:
     # Training
     model_dir = work / name / "model"
     t0 = time.perf_counter()
-    meta = train_model(coll, model_dir, VAEConfig(epochs=args.epochs), TaggerConfig(epochs=args.tagger_epochs),
-                       args.strings_per_shape, 0.2, args.seed)
+    tagger = TaggerConfig(epochs=args.tagger_epochs, hidden=args.tagger_hidden, lr_final=args.tagger_lr_final)
+    meta = train_model(coll, model_dir, VAEConfig(epochs=args.epochs), tagger, args.strings_per_shape, 0.2, args.seed,
+                       tagger_strings_per_shape=args.tagger_strings_per_shape)
     row["training"] = {"seconds": round(time.perf_counter() - t0, 1), "strings": meta["training_strings"],
                        "shapes": meta["train_shapes"], "categories": meta["categories"]}
     model = TrainedModel(model_dir)
@@ -153,12 +154,22 @@ def run_set(name: str, args, work: Path) -> dict:
     row["search_graph"] = t2
     print(f"  table 2: {t2}", flush=True)
     # Instantiation
+    # Every ring of these sets' shapes alternates cells (towers, modules, columns) and links
+    # (walls, corridors, beams) on a square grid, so its length is a multiple of 4 (an even
+    # number of grid steps); the grammar (neighbour multisets) cannot see that, and a sampled
+    # graph with a ring of another length has no embedding. Counted from the collection, not
+    # assumed: the residues of cycle-basis lengths mod 4 that the collection's graphs show.
+    seen_residues = {len(c) % 4 for g in all_graphs for c in nx.cycle_basis(g)}
     inst = {}
     for label, texts in (("held_out", [encode(g) for g in held_graphs][:args.instantiate]),
                          ("novel_prior_samples", novel_strings[:args.instantiate])):
         ok, fallbacks, shapes, impossible, budget, t0 = 0, 0, [], 0, 0, time.perf_counter()
+        odd, ok_regular = 0, 0
         for text in texts:
             res = model.instantiate(text, rng)
+            unseen = any(len(c) % 4 not in seen_residues for c in nx.cycle_basis(parse(text).graph))
+            odd += unseen
+            ok_regular += res.success and not unseen
             ok += res.success
             fallbacks += res.fallbacks
             # the search either finds a shape, proves that no choice of example poses realises
@@ -170,6 +181,8 @@ def run_set(name: str, args, work: Path) -> dict:
         inst[label] = {"tried": len(texts), "succeeded": ok, "rate": ok / max(len(texts), 1),
                        "fallbacks_per_string": fallbacks / max(len(texts), 1),
                        "proven_impossible": impossible, "budget_spent": budget,
+                       "ring_length_unseen_mod4": odd, "succeeded_of_the_rest": ok_regular,
+                       "ring_residues_in_collection": sorted(seen_residues),
                        "seconds": round(time.perf_counter() - t0, 1)}
         if label == "novel_prior_samples" and shapes:
             write_sheet(model.shape_set, shapes[:16], args.out / f"strings_{name}.png", 160)
@@ -218,6 +231,10 @@ def main() -> None:
     ap.add_argument("--strings-per-shape", type=int, default=8)
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--tagger-epochs", type=int, default=24)
+    ap.add_argument("--tagger-hidden", type=int, default=TaggerConfig.hidden)
+    ap.add_argument("--tagger-lr-final", type=float, default=TaggerConfig.lr_final,
+                    help="tagger learning rate at the last epoch, as a fraction of the first (cosine)")
+    ap.add_argument("--tagger-strings-per-shape", type=int, default=16)
     ap.add_argument("--samples", type=int, default=200)
     ap.add_argument("--perturb", type=int, default=40)
     ap.add_argument("--graph-size", type=int, default=300)

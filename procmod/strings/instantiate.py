@@ -369,6 +369,9 @@ class TaggerConfig:
     epochs: int = 24
     batch: int = 32
     lr: float = 5e-3
+    # learning rate at the last epoch, as a fraction of ``lr`` (cosine in between; 1: constant).
+    # The loss plateaus at the constant rate (castle, 288 shapes: 86% training accuracy).
+    lr_final: float = 1.0
     dropout: float = 0.1  # between recurrent layers and before the output layer
     symmetric_loss: bool = True  # loss against the closest of a string's symmetric target sequences
     tree: bool = True  # a top-down pass along the spanning tree before the string pass
@@ -775,6 +778,10 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
     if opt_state is not None:
         optimizer.load_state_dict(opt_state)
     while state["epoch"] < config.epochs:
+        # a function of the epoch only, so a resumed run continues the same schedule
+        progress_ = state["epoch"] / max(config.epochs - 1, 1)
+        for group in optimizer.param_groups:
+            group["lr"] = config.lr * (config.lr_final + (1 - config.lr_final) * 0.5 * (1 + np.cos(np.pi * progress_)))
         gen = torch.Generator().manual_seed(seed * 7919 + state["epoch"])
         order = torch.randperm(len(examples), generator=gen).tolist()
         # length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding)
