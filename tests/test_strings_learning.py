@@ -10,7 +10,7 @@ from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, T
                                          string_structure, tagging_accuracy, tagging_examples, train_tagger)
 from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
 from procmod.strings.shapes import Grammar, read_shapes, shape_graph
-from procmod.strings.vae import Constraint, StringModel, VAEConfig, Vocab, _Prefix, train_vae
+from procmod.strings.vae import Constraint, ModelFileError, StringModel, VAEConfig, Vocab, _Prefix, train_vae
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 TINY = VAEConfig(embed=8, hidden=16, latent=4, epochs=2, batch=16, kl_warmup=1)
@@ -217,3 +217,22 @@ def test_graph_index_knows_graphs_up_to_isomorphism():
     assert decode("OC1CCC(N)CC1") not in index  # a 6-ring, not the 5-ring
     assert decode("NC1CCC(O)C1") in index  # the same graph written from another root
     assert decode("C1CC(O)CC1N") in index
+
+
+def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, categories):
+    ss, graphs, _, strings = moonbase
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    examples = tagging_examples(ss, ss.shapes, graphs, categories, 2, np.random.default_rng(0), every_symmetry=True)
+    cfg = TaggerConfig(epochs=3, hidden=8, embed=8, lr_final=0.1)
+    straight = train_tagger(examples, vocab, categories, tmp_path / "a", cfg)
+    train_tagger(examples, vocab, categories, tmp_path / "b", TaggerConfig(**{**cfg.__dict__, "epochs": 1}))
+    with pytest.raises(ModelFileError):  # another configuration in the folder (epochs aside) is refused
+        train_tagger(examples, vocab, categories, tmp_path / "b", TaggerConfig(**{**cfg.__dict__, "lr_final": 0.5}))
+    train_tagger(examples, vocab, categories, tmp_path / "b", cfg)
+    assert straight is not None
+    # the schedule is a function of the epoch: a resumed run ends at the same rate (loaded
+    # with weights_only=True, so the rate must be stored as a plain float)
+    for folder in ("a", "b"):
+        _, state, opt = TaggerModel.load(tmp_path / folder, with_optimizer=True)
+        assert opt["param_groups"][0]["lr"] == pytest.approx(cfg.lr * 0.1)
+        assert state["epoch"] == 3

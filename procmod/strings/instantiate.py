@@ -781,7 +781,9 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
         # a function of the epoch only, so a resumed run continues the same schedule
         progress_ = state["epoch"] / max(config.epochs - 1, 1)
         for group in optimizer.param_groups:
-            group["lr"] = config.lr * (config.lr_final + (1 - config.lr_final) * 0.5 * (1 + np.cos(np.pi * progress_)))
+            # a plain float: the optimizer state is saved and loaded with weights_only=True
+            scale = config.lr_final + (1 - config.lr_final) * 0.5 * (1 + np.cos(np.pi * progress_))
+            group["lr"] = float(config.lr * scale)
         gen = torch.Generator().manual_seed(seed * 7919 + state["epoch"])
         order = torch.randperm(len(examples), generator=gen).tolist()
         # length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding)
