@@ -15,7 +15,7 @@ from procmod.geometry.solid import Box, Cylinder, translation
 from procmod.geometry.voxel import VoxelGrid, VoxelScene
 from procmod.infer import ENGINES, Budget
 from procmod.infer.common import evaluate
-from procmod.infer.ga import _alter, _crossover, _cut, _grow, _nudge, _same_subtree, _View, evaluate_from
+from procmod.infer.ga import COPIES, _alter, _crossover, _cut, _grow, _nudge, _same_subtree, _View, evaluate_from
 from procmod.models import get_model
 from procmod.parallel import InlineExecutor
 from procmod.targets import Silhouette, Volume, load_target_file
@@ -78,7 +78,7 @@ def test_incremental_offspring_equal_full_replays(seed, name, kind, hinted):
     offspring.append(_grow(views[1], rng, 4))
     pairs = [(parents[0], o) for o in offspring[:4]] + [(parents[1], offspring[4])]
     crossed = _crossover(views[0], views[1], rng)
-    if crossed is not None:
+    if crossed is not None and crossed is not COPIES:
         pairs += list(zip(parents, crossed))
     for parent, out in pairs:
         if out is None:
@@ -204,3 +204,11 @@ def test_ga_is_incremental_only_where_removal_is_exact():
         full = evaluate(model, target, (d.choice_map().raw, 0, False))
         assert full.score == pytest.approx(target.score(d.output), abs=1e-9)
         assert math.isfinite(d.log_prior)
+
+
+def test_lazy_offspring_generator_draws_what_the_seeded_generator_draws():
+    from procmod.infer.ga import _LazyRng
+    lazy, eager = _LazyRng(12345), np.random.default_rng(12345)
+    draws = [lambda g: g.random(), lambda g: g.standard_normal(), lambda g: g.exponential(),
+             lambda g: int(g.integers(0, 100)), lambda g: g.random()]
+    assert [f(lazy) for f in draws] == [f(eager) for f in draws]

@@ -19,10 +19,11 @@ offspring is a valid derivation by construction.
   fine-tunes one;
 * **crossover** — pick a connection (parent rule, spawn site, child rule) of the first
   parent uniformly, a compatible one of the second, and swap the subtrees below them
-  (up to ``max_retries`` tries when no compatible connection exists, or when the two
-  subtrees are equal — same rule and arguments at the top, same choices below — so the
-  children would only be copies of their parents: in a converging population that was a
-  quarter of all crossovers, each costing an evaluation).
+  (up to ``max_retries`` tries when no compatible connection exists). When the two
+  subtrees are equal (same rule and arguments at the top, same choices below) the children
+  are copies of their parents, which join the next generation without an evaluation: in a
+  converging population that is a quarter of all crossovers. (Retrying for a different
+  subtree instead was no better: 3960 vs 4092 after 8 CPU-s on spaceship_volume, 16 seeds.)
 
 Selection: one parent by roulette wheel on fitness shifted to be positive (``score -
 min score``), the other by k-tournament (k = 10); the best fifth of the population is
@@ -334,6 +335,9 @@ def _same_subtree(v1: _View, a1: tuple, v2: _View, a2: tuple) -> bool:
     return True
 
 
+COPIES = "copies"  # what _crossover returns when the swap changes nothing
+
+
 def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
     c1 = [(key, a) for key, addresses in v1.connections().items() for a in addresses]
     if not c1:
@@ -345,8 +349,8 @@ def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
         if not matches:
             continue
         a2 = matches[int(rng.random() * len(matches))]
-        if _same_subtree(v1, a1, v2, a2):  # the children would be copies of the parents
-            continue
+        if _same_subtree(v1, a1, v2, a2):  # the children are copies of the parents
+            return COPIES
         n1, n2 = len(a1), len(a2)
         # Child i differs from parent i only below the swapped connection.
         return ((_Offspring(v1, at=a1, donor=v2, source=a2), {a for a in v1.index() if a[:n1] == a1}),
@@ -356,7 +360,10 @@ def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
 
 def crossover_choices(d1, d2, rng, max_retries: int = 10):
     """Two children's choice maps by swapping compatible subtrees (None if none found)."""
-    out = _crossover(_View(d1), _View(d2), rng, max_retries)
+    v1, v2 = _View(d1), _View(d2)
+    out = _crossover(v1, v2, rng, max_retries)
+    if out is COPIES:
+        return dict(v1.raw()), dict(v2.raw())
     return None if out is None else (out[0][0].materialize(), out[1][0].materialize())
 
 
@@ -365,15 +372,17 @@ class _LazyRng:
     crossover) replay without a fresh draw, and seeding a Generator costs more than
     replaying a few calls. Draws are those of the Generator itself."""
 
-    __slots__ = ("_seed", "_rng")
-
     def __init__(self, seed: int):
-        self._seed, self._rng = seed, None
+        self._seed = seed
 
-    def __getattr__(self, name):
-        rng = self._rng
-        if rng is None:
+    def __getattr__(self, name):  # only for names not bound yet
+        if name.startswith("_"):
+            raise AttributeError(name)
+        rng = self.__dict__.get("_rng")
+        if rng is None:  # first use: bind the common methods to this object
             rng = self._rng = np.random.default_rng(self._seed)
+            for method in ("random", "standard_normal", "integers", "choice", "uniform", "normal"):
+                setattr(self, method, getattr(rng, method))
         return getattr(rng, name)
 
 
@@ -542,7 +551,7 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
                             parents.append((view(parent.derivation), choices[1]))
                 else:
                     children = _crossover(view(p1.derivation), view(p2.derivation), rng, max_retries)
-                    if children is None:
+                    if children is None or children is COPIES:  # copies need no evaluation
                         offspring.extend([p1, p2])
                     else:
                         jobs.extend((c, new_seed(rng), False) for c, _ in children)
