@@ -13,9 +13,11 @@
    edge's type pair does not have are set to -inf. Several strings of one graph vote.
 4. **Instantiation**: from a random edge, parts are added by transplanting a relative
    transform seen in the training shapes for the edge's category; a part that collides
-   with placed non-neighbours, misses a placed neighbour, or sits at a pose no example
-   shows, is retried with other examples of the category, then (Monte Carlo fallback)
-   with examples of any category of that type pair.
+   with placed non-neighbours, misses a placed neighbour, sits at a pose no example shows,
+   or leaves a placed part it must still join out of reach, is retried with other examples
+   of the category, then of the other voted categories, then (Monte Carlo fallback) of any
+   category of that type pair; when none fits, the search backjumps to the placed part the
+   failures were owed to (see :func:`instantiate_graph`).
 """
 
 from __future__ import annotations
@@ -894,15 +896,20 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
     ``shape_set`` supplies the part library; ``start_pose`` maps a type to the 4x4 pose of
     the first part (default: identity). Success means the recomputed shape graph is ``g``.
 
-    Parts are placed in breadth-first order from a random edge. Each part's candidate poses
-    are the example edges of its voted category (shuffled), then (the Monte Carlo fallback)
-    those of every other category of its type pair; a pose is accepted when the part touches
-    exactly its placed graph neighbours, each at a pose some category shows, and when every
-    placed part it is still to be joined to (through parts not yet placed) is within reach
-    (the sum of the largest example distances along the shortest such path). When no
-    candidate of a part is accepted the search backtracks to the previous part's next
-    candidate (the paper's construction has no backtracking: a ring that does not close with
-    the first choices fails). ``budget`` bounds the candidates tried; ``tries_per_edge``
+    Parts are placed in breadth-first order from a random edge, rings first. Each part's
+    candidate poses are the example edges of its voted category, then those of the other
+    categories that got votes, then (the Monte Carlo fallback) those of every other category
+    of its type pair; a pose is accepted when the part touches exactly its placed graph
+    neighbours, each at a pose some category shows, and when every placed part it is still
+    to be joined to (through parts not yet placed) is within reach (the sum of the largest
+    example distances along the shortest such path). When no candidate of a part is
+    accepted, the search jumps back to the latest placed part one of the failures was owed
+    to (conflict-directed backjumping) and tries that part's next candidate; the paper's
+    construction never revises a placed part, so a ring that does not close with the first
+    choices fails. The search is complete (from the first part's pose, with
+    ``tries_per_edge`` at least the examples kept per category, as by default): a failure with
+    reason "every candidate pose tried" means no choice of example poses realises the graph.
+    ``budget`` bounds the candidates tried (a failure then says so); ``tries_per_edge``
     bounds the candidates per category.
     """
     part_of = shape_set.part_of_letter
