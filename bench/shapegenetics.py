@@ -15,7 +15,9 @@ spaceship_volume, 16 seeds, 8 CPU-s: 3290 -> 3548 at 1 s, 3442 -> 3762 at 2 s, 3
 4058 at 8 s (seeds 0-15; SOSMC 3424 / 3574 / 3741 on seeds 0-7); on fresh seeds 100-115,
 10 CPU-s, GA without -> with nudge vs SOSMC: 3297 -> 3486 vs 3345 at 1 s, 3418 -> 3706 vs
 3477 at 2 s, 3591 -> 3822 vs 3599 at 4 s, 3744 -> 3934 vs 3717 at 10 s (a tie with
-SOSMC at 0.25-0.5 s: 2704 vs 2710, 3183 vs 3236). The other scenes
+SOSMC at 0.25-0.5 s: 2704 vs 2710, 3183 vs 3236; on 32 more seeds, 200-231, 1.5 CPU-s:
+3110 vs 2922 at 0.375 s, 3268 vs 3115 at 0.5 s, 3558 vs 3312 at 1 s; nudge weight 20,
+population 30 or initial size 16 were no better). The other scenes
 changed within noise in 4 CPU-s runs (8 seeds, base -> nudge at 1 s / 4 s): tree_heart
 1018 -> 984 / 1489 -> 1498, trees_avoid_cylinder 1105 -> 1004 / 2058 -> 2028,
 city_skyline 530 -> 528 / 554 -> 554, city_volume 1491 -> 1613 / 1882 -> 1884 — GA
