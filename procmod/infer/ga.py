@@ -145,13 +145,23 @@ class _View:
         return self._alter
 
     def nudge_sites(self) -> list:
-        """``(address, [(name, value, dist)])`` of the calls with continuous choices."""
+        """``(address, [(name, value, scale, low, high)])`` of the calls with continuous
+        choices (float values of non-discrete distributions that have a scale; ``low`` and
+        ``high`` are the bounds, None when the distribution has none)."""
         if self._nudge is None:
             out = []
             for n in self.nodes():
                 structural = {s.site for s in n.spawns}
-                cont = [(name, c.value, c.dist) for name, c in n.choices.items()
-                        if name not in structural and not c.dist.discrete and isinstance(c.value, float)]
+                cont = []
+                for name, c in n.choices.items():
+                    dist = c.dist
+                    if name in structural or dist.discrete or not isinstance(c.value, float):
+                        continue
+                    try:
+                        scale = float(dist.scale)
+                    except NotImplementedError:
+                        continue
+                    cont.append((name, c.value, scale, getattr(dist, "low", None), getattr(dist, "high", None)))
                 if cont:
                     out.append((n.address, cont))
             self._nudge = out
@@ -289,9 +299,8 @@ def _nudge(v: _View, rng, step: float = 0.1):
         return None
     address, choices = candidates[int(rng.random() * len(candidates))]
     changes = {}
-    for name, value, dist in choices:
-        x = value + step * dist.scale * rng.standard_normal()
-        low, high = getattr(dist, "low", None), getattr(dist, "high", None)
+    for name, value, scale, low, high in choices:
+        x = value + step * scale * rng.standard_normal()
         if low is not None and high is not None:
             x = _reflect(x, low, high)
         changes[(address, name)] = x
