@@ -226,6 +226,9 @@ _NO_GAIN = np.zeros(0)
 _NO_RECORD = np.zeros(0, dtype=np.int64)
 
 
+_SCRATCH_COUNTS: dict = {}  # number of voxels -> an all-zero count grid (VoxelScene._entry)
+
+
 class VoxelScene:
     """An output accumulator that voxelizes every part added to it.
 
@@ -279,7 +282,10 @@ class VoxelScene:
         """Boolean ``shape`` array of covered voxels."""
         return (self.counts > 0).reshape(self.grid.shape)
 
-    def _voxelize(self, part, lo, hi, state, record) -> None:
+    def _voxelize(self, part, lo, hi, state, record, counts=None) -> None:
+        """Count one more hit on the voxels ``part`` covers (in ``counts``, default this
+        scene's); their indices go to ``record`` when it is not empty."""
+        counts = self.counts if counts is None else counts
         h = self.grid.size
         if isinstance(part, (Box, Cylinder)):
             inv = _inverse(part.transform)
@@ -288,10 +294,10 @@ class VoxelScene:
             else:
                 top = part.radius if part.top_radius is None else part.top_radius
                 kind, p = 1, [float(part.radius), float(top), float(part.length)]
-            _voxelize_solid(self.counts, self._shape, self._origin, h, inv, kind, p[0], p[1], p[2],
+            _voxelize_solid(counts, self._shape, self._origin, h, inv, kind, p[0], p[1], p[2],
                             lo, hi, self.gain, state, record)
         elif isinstance(part, Mesh):
-            _voxelize_mesh(self.counts, self._shape, self._origin, h, part_triangles(part), lo, hi,
+            _voxelize_mesh(counts, self._shape, self._origin, h, part_triangles(part), lo, hi,
                            self.gain, state, record)
         else:
             raise TypeError(f"a voxel scene cannot add {part!r}")
@@ -308,13 +314,7 @@ class VoxelScene:
             state[2] = outside
         else:
             lo, hi = part_bounds(part)
-            record = _NO_RECORD
-            if cache is not None:  # room for every voxel centre in the part's bounding box
-                h = self.grid.size  # plain floats: numpy's per-call overhead exceeds the arithmetic
-                n = 1.0
-                for a in range(3):
-                    n *= max((float(hi[a]) - float(lo[a])) / h + 3.0, 1.0)
-                record = np.empty(int(n) + 8, dtype=np.int64)
+            record = self._record_for(lo, hi) if cache is not None else _NO_RECORD
             self._voxelize(part, lo, hi, state, record)
             if cache is not None:
                 cache.put(part, (record[:int(state[4])].copy(), int(state[2]), lo, hi))
@@ -330,16 +330,34 @@ class VoxelScene:
                                                           np.maximum(self.extent[1], hi))
         return n
 
+    def _record_for(self, lo, hi) -> np.ndarray:
+        """An index buffer with room for every voxel centre in the box ``[lo, hi]``."""
+        h = self.grid.size  # plain floats: numpy's per-call overhead exceeds the arithmetic
+        n = 1.0
+        for a in range(3):
+            n *= max((float(hi[a]) - float(lo[a])) / h + 3.0, 1.0)
+        return np.empty(int(n) + 8, dtype=np.int64)
+
     def _entry(self, part):
         """``(voxel indices, outside count, lo, hi)`` of a part: from the part cache, or
-        voxelized on a scratch grid (and then cached when this scene has a cache)."""
+        voxelized (and then cached when this scene has a cache).
+
+        A miss voxelizes the part into a zeroed scratch count grid kept per grid shape (and
+        zeroes the voxels it hit again), so no grid is allocated per removed part."""
         cache = self.part_cache
         entry = cache.get(part) if cache is not None else None
         if entry is None:
-            scratch = VoxelScene(self.grid)
-            scratch.part_cache = PartCache()
-            scratch.add(part)
-            entry = scratch.part_cache.entries[part]
+            lo, hi = part_bounds(part)
+            record = self._record_for(lo, hi)
+            scratch = _SCRATCH_COUNTS.get(self.counts.shape[0])
+            if scratch is None:
+                scratch = _SCRATCH_COUNTS[self.counts.shape[0]] = np.zeros_like(self.counts)
+            state = self._state
+            state[:] = 0.0
+            self._voxelize(part, lo, hi, state, record, scratch)
+            voxels = record[:int(state[4])].copy()
+            scratch[voxels] = 0
+            entry = (voxels, int(state[2]), lo, hi)
             if cache is not None:
                 cache.put(part, entry)
         return entry
