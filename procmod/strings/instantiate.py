@@ -366,14 +366,15 @@ class EdgeCategories:
 class TaggerConfig:
     cell: str = "lstm"
     embed: int = 32
-    hidden: int = 96
+    hidden: int = 128
     layers: int = 1
     epochs: int = 24
     batch: int = 32
     lr: float = 5e-3
     # learning rate at the last epoch, as a fraction of ``lr`` (cosine in between; 1: constant).
-    # The loss plateaus at the constant rate (castle, 288 shapes: 86% training accuracy).
-    lr_final: float = 1.0
+    # The loss plateaus at a constant rate (castle, 288 shapes: 86% training accuracy with 96
+    # hidden units; 97% with 128 and a decay to 0.05, held-out 83% -> 89%).
+    lr_final: float = 0.05
     dropout: float = 0.1  # between recurrent layers and before the output layer
     symmetric_loss: bool = True  # loss against the closest of a string's symmetric target sequences
     tree: bool = True  # a top-down pass along the spanning tree before the string pass
