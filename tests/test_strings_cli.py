@@ -70,3 +70,6 @@ def test_augment_train_sample_instantiate(tmp_path, capsys):
     assert glb.read_bytes()[:4] == b"glTF"
     code, out, err = _run(capsys, "strings", "instantiate", model, "MMM", "--out", tmp_path / "y.glb")
     assert code == 2 and "breaks the tiling grammar" in err and not (tmp_path / "y.glb").exists()
+    # grammar-valid, but a ring of three modules cannot close on the corridors' grid
+    code, out, err = _run(capsys, "strings", "instantiate", model, "M1CMCMC1", "--out", tmp_path / "z.glb")
+    assert code == 2 and "no choice of the example poses realises" in err and not (tmp_path / "z.glb").exists()

@@ -286,7 +286,10 @@ def _instantiate(args) -> None:
     model = TrainedModel(args.model)
     result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes)
     if not result.success:
-        raise InstantiationError(f"could not build {args.string!r}: {result.reason}; try another --seed")
+        hint = ("no choice of the example poses realises this graph (often a ring of a length the example "
+                "shapes never show); sample another string" if "every candidate pose tried" in result.reason
+                else "try another --seed")
+        raise InstantiationError(f"could not build {args.string!r}: {result.reason}; {hint}")
     out.parent.mkdir(parents=True, exist_ok=True)
     write_shape_mesh(model.shape_set, result.shape, out)
     print(f"wrote {out} ({len(result.shape)} parts, {result.fallbacks} Monte Carlo fallbacks)")
