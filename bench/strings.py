@@ -88,7 +88,8 @@ def run_set(name: str, args, work: Path) -> dict:
     # Training
     model_dir = work / name / "model"
     t0 = time.perf_counter()
-    tagger = TaggerConfig(epochs=args.tagger_epochs, hidden=args.tagger_hidden, lr_final=args.tagger_lr_final)
+    tagger = TaggerConfig(epochs=args.tagger_epochs, hidden=args.tagger_hidden, lr_final=args.tagger_lr_final,
+                          graph_rounds=args.tagger_graph_rounds)
     meta = train_model(coll, model_dir, VAEConfig(epochs=args.epochs), tagger, args.strings_per_shape, 0.2, args.seed,
                        tagger_strings_per_shape=args.tagger_strings_per_shape)
     row["training"] = {"seconds": round(time.perf_counter() - t0, 1), "strings": meta["training_strings"],
@@ -234,6 +235,8 @@ def main() -> None:
     ap.add_argument("--tagger-hidden", type=int, default=TaggerConfig.hidden)
     ap.add_argument("--tagger-lr-final", type=float, default=TaggerConfig.lr_final,
                     help="tagger learning rate at the last epoch, as a fraction of the first (cosine)")
+    ap.add_argument("--tagger-graph-rounds", type=int, default=TaggerConfig.graph_rounds,
+                    help="tagger rounds of message passing over the string's graph")
     ap.add_argument("--tagger-strings-per-shape", type=int, default=16)
     ap.add_argument("--samples", type=int, default=200)
     ap.add_argument("--perturb", type=int, default=40)

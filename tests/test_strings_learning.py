@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import torch
 
+from procmod.core.errors import InvalidArgumentError
 from procmod.strings.codec import parse, strings_of
 from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
                                          string_structure, tagging_accuracy, tagging_examples, train_tagger)
@@ -236,3 +237,27 @@ def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, catego
         _, state, opt = TaggerModel.load(tmp_path / folder, with_optimizer=True)
         assert opt["param_groups"][0]["lr"] == pytest.approx(cfg.lr * 0.1)
         assert state["epoch"] == 3
+
+
+def test_graph_rounds_pass_messages_along_graph_edges(moonbase, categories):
+    """One round of message passing: a letter's state depends on its graph neighbours'
+    string states (tree and ring edges, however far apart in the string) and on nothing
+    else; the result equals a node-by-node computation of the mean-message GRU update."""
+    _, _, _, strings = moonbase
+    vocab = Vocab(set("".join(strings)) | set("()123456789") | set("CNO"))
+    torch.manual_seed(0)
+    net = Tagger(len(vocab), len(categories), TaggerConfig(hidden=4, embed=4, graph_rounds=1))
+    text = "C1CC(N)CC1O"  # letters at 0, 2, 3, 5, 7, 8, 10; ring edge 0-8
+    struct = torch.from_numpy(string_structure(text))[None]
+    h = torch.randn((1, len(text), 8), requires_grad=True)
+    g = net._graph_states(h, struct)
+    neighbours = {0: [2, 8], 2: [0, 3], 3: [2, 5, 7], 5: [3], 7: [3, 8], 8: [7, 0, 10], 10: [8]}
+    for v, nb in neighbours.items():
+        msg = net.message(h[0, nb]).mean(0)
+        assert torch.allclose(g[0, v], net.graph_cell(msg[None], h[0, v][None])[0], atol=1e-6)
+    grad = torch.autograd.grad(g[0, 0].sum(), h)[0][0].abs().sum(1)
+    assert grad[8] > 0 and grad[2] > 0  # the ring partner and the tree child
+    assert grad[3] == 0 and grad[5] == 0 and grad[10] == 0  # two or more steps away
+    assert torch.equal(g[0, 1], h[0, 1])  # non-letters keep their string state
+    with pytest.raises(InvalidArgumentError):
+        Tagger(len(vocab), len(categories), TaggerConfig(tree=False, graph_rounds=1))

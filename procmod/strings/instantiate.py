@@ -378,6 +378,11 @@ class TaggerConfig:
     dropout: float = 0.1  # between recurrent layers and before the output layer
     symmetric_loss: bool = True  # loss against the closest of a string's symmetric target sequences
     tree: bool = True  # a top-down pass along the spanning tree before the string pass
+    # rounds of message passing over the string's graph (tree and ring edges) after the
+    # string pass (0: none, as in taggers saved before this option existed). Held-out
+    # accuracy per character at 360 shapes, 0 -> 3 rounds: castle 89% -> 94%, moon base
+    # 81% -> 89% (docs/strings.md).
+    graph_rounds: int = 3
 
 
 class Tagger(nn.Module):
@@ -405,6 +410,11 @@ class Tagger(nn.Module):
         self.rnn = kind(rnn_in, config.hidden, num_layers=config.layers, batch_first=True, bidirectional=True,
                         dropout=config.dropout if config.layers > 1 else 0.0)
         self.drop = nn.Dropout(config.dropout)
+        if config.graph_rounds:
+            if not config.tree:
+                raise InvalidArgumentError("graph_rounds needs the tree tagger (tree=True)")
+            self.message = nn.Linear(2 * config.hidden, 2 * config.hidden)
+            self.graph_cell = nn.GRUCell(2 * config.hidden, 2 * config.hidden)
         self.out = nn.Linear((6 if config.tree else 2) * config.hidden, categories)
 
     def forward(self, tokens: torch.Tensor, mask: torch.Tensor, structure: torch.Tensor | None = None) -> torch.Tensor:
@@ -421,10 +431,38 @@ class Tagger(nn.Module):
         rows = torch.arange(b)
         tree = self._tree_states(emb, structure)
         h, _ = self.rnn(torch.cat([emb, tree], dim=2))
-        h = torch.cat([h.new_zeros((b, 1, h.shape[2])), h], dim=1)  # slot 0: no letter
-        ends = [h[rows[:, None], structure[:, :, k]] for k in (1, 2)]
-        feats = torch.cat([h[:, 1:]] + ends, dim=2)
+        g = self._graph_states(h, structure) if self.config.graph_rounds else h
+        g = torch.cat([g.new_zeros((b, 1, g.shape[2])), g], dim=1)  # slot 0: no letter
+        ends = [g[rows[:, None], structure[:, :, k]] for k in (1, 2)]
+        feats = torch.cat([h] + ends, dim=2)
         return self.out(self.drop(feats)).masked_fill(~mask, float("-inf"))
+
+    def _graph_states(self, h: torch.Tensor, structure: torch.Tensor) -> torch.Tensor:
+        """``config.graph_rounds`` rounds of gated message passing over the graph the string
+        writes (every letter a node; tree and ring edges both ways): each letter's state
+        becomes a GRU update of its string state by the mean of its neighbours' messages.
+        The string pass sees a ring neighbour or a sibling only through the characters
+        between them; here a part sees its graph neighbourhood (radius = rounds) directly,
+        the same for every string of the graph."""
+        b, t, d = h.shape
+        ends = structure[:, :, 1:].numpy()  # 1 + positions of both ends of each character's edge
+        rows, cols = np.nonzero(ends[:, :, 0] > 0)
+        pairs = {(int(r), int(ends[r, c, 0]) - 1, int(ends[r, c, 1]) - 1) for r, c in zip(rows, cols)}  # ring edges twice
+        if not pairs:
+            return h
+        arr = np.array(sorted(pairs), dtype=np.int64)
+        src = np.concatenate([arr[:, 0] * t + arr[:, 1], arr[:, 0] * t + arr[:, 2]])
+        dst = np.concatenate([arr[:, 0] * t + arr[:, 2], arr[:, 0] * t + arr[:, 1]])
+        src_t, dst_t = torch.from_numpy(src), torch.from_numpy(dst)
+        degree = np.bincount(dst, minlength=b * t).astype(np.float32)
+        nodes = torch.from_numpy(np.nonzero(degree)[0])
+        inv_degree = torch.from_numpy(1.0 / degree[nodes.numpy()])[:, None]
+        flat = h.reshape(b * t, d)
+        for _ in range(self.config.graph_rounds):
+            msg = flat.new_zeros((b * t, d)).index_add_(0, dst_t, self.message(flat)[src_t])
+            updated = self.graph_cell(msg[nodes] * inv_degree, flat[nodes])
+            flat = flat.index_copy(0, nodes, updated)
+        return flat.reshape(b, t, d)
 
     def _tree_states(self, emb: torch.Tensor, structure: torch.Tensor) -> torch.Tensor:
         """GRU states down the spanning tree ``(B, T, hidden)``, one tree level at a time
@@ -751,7 +789,8 @@ class TaggerModel:
         cats = EdgeCategories.from_json(meta["categories"])
         vocab = Vocab(meta["vocab"])
         # taggers saved before the tree pass existed are plain bidirectional LSTMs
-        net = Tagger(len(vocab), len(cats), TaggerConfig(**{"tree": False, **meta["config"]}))
+        # and before the graph pass existed, taggers had none
+        net = Tagger(len(vocab), len(cats), TaggerConfig(**{"tree": False, "graph_rounds": 0, **meta["config"]}))
         net.load_state_dict(payload["model"])
         model = TaggerModel(net, vocab, cats)
         if with_optimizer:
