@@ -38,6 +38,7 @@ from .shapes import Grammar
 
 PAD, SOS, EOS = 0, 1, 2
 TORCH_THREADS = 1  # these nets are small: one thread is much faster than two on a busy 2-core machine
+NODE_BUDGET = 1.25  # constrained decoding stops adding letters at 1.25 x the largest training graph (nodes)
 WRAP_FRACTION = 0.8  # constrained decoding wraps up from 0.8 x the largest training graph (nodes)
 WRAP_BIAS = 0.5  # logit bonus per node past that, for tokens that close a ring, a branch or the string
 
@@ -470,8 +471,8 @@ class StringModel:
     def __init__(self, net: StringVAE, vocab: Vocab, grammar: Grammar, max_nodes: int | None = None):
         self.net, self.vocab, self.grammar, self.max_nodes = net, vocab, grammar, max_nodes
         self.constraint = Constraint(vocab, grammar, max_nodes)
-        # the largest training graph is max_nodes / 1.25; wrapping up starts at 0.8 of it
-        self.wrap_nodes = None if max_nodes is None else max(1, int(round(WRAP_FRACTION * max_nodes / 1.25)))
+        # models store only the budget; the largest training graph is max_nodes / NODE_BUDGET
+        self.wrap_nodes = None if max_nodes is None else max(1, int(round(WRAP_FRACTION * max_nodes / NODE_BUDGET)))
 
     @torch.no_grad()
     def encode(self, strings: list[str]) -> np.ndarray:
@@ -643,7 +644,7 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> 
             raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new --out "
                                  "or delete it")
     else:
-        max_nodes = int(math.ceil(1.25 * max(sum(c.isalpha() for c in s) for s in strings)))
+        max_nodes = int(math.ceil(NODE_BUDGET * max(sum(c.isalpha() for c in s) for s in strings)))
         model, state, opt_state = StringModel(StringVAE(len(Vocab(chars)), config), Vocab(chars), grammar,
                                               max_nodes), TrainState(), None
     net = model.net
