@@ -60,6 +60,27 @@ def rates(model, strings, known_index):
             "unique_count": len(unique), "novel_count": len(novel)}, novel
 
 
+def edge_category_figures(tagger, shape_set, collection_set, held_shapes, held_graphs, rng) -> dict:
+    """Held-out edge-category accuracy: per character of 4 strings of each held-out graph
+    (against the closest of the string's turn/mirror-equivalent target sequences), and per
+    edge after the majority vote over 8 strings (aligned by symmetry). ``shape_set`` gives
+    the part library for the truth, ``collection_set`` the one the vote aligns with."""
+    held = tagging_examples(shape_set, held_shapes, held_graphs, tagger.categories, 4, rng, every_symmetry=True)
+    voted_right = voted_total = all_right = 0
+    for s, g in zip(held_shapes, held_graphs):
+        vote = tagger.vote(g, 8, rng, collection_set)
+        truths = shape_labelings(shape_set, s, g, tagger.categories)  # the shape up to its symmetric copies
+        best = max((sum(vote.get(e) == c for e, c in t.items()) for t in truths), default=0)
+        voted_right += best
+        all_right += best == g.number_of_edges()
+        voted_total += g.number_of_edges()
+    return {"held_out_shapes": len(held_shapes), "held_out_strings": len(held),
+            "per_character_accuracy": tagging_accuracy(tagger, held) if held else None,
+            "all_characters_accuracy": tagging_accuracy(tagger, held, True) if held else None,
+            "voted_edge_accuracy": voted_right / max(voted_total, 1),
+            "voted_graphs_all_right": all_right}
+
+
 def run_set(name: str, args, work: Path) -> dict:
     print(f"== {name}", flush=True)
     shape_set = read_shapes(SETS / f"{name}.json")
@@ -103,20 +124,8 @@ def run_set(name: str, args, work: Path) -> dict:
     rng = np.random.default_rng(args.seed)
     held_shapes = [grown.shapes[i] for i in test_idx]
     held_graphs = [all_graphs[i] for i in test_idx]
-    held = tagging_examples(shape_set, held_shapes, held_graphs, model.categories, 4, rng, every_symmetry=True)
-    voted_right = voted_total = all_right = 0
-    for s, g in zip(held_shapes, held_graphs):
-        vote = model.tagger.vote(g, 8, rng, model.shape_set)
-        truths = shape_labelings(shape_set, s, g, model.categories)  # the shape up to its symmetric copies
-        best = max((sum(vote.get(e) == c for e, c in t.items()) for t in truths), default=0)
-        voted_right += best
-        all_right += best == g.number_of_edges()
-        voted_total += g.number_of_edges()
-    row["edge_categories"] = {"held_out_shapes": len(held_shapes), "held_out_strings": len(held),
-                              "per_character_accuracy": tagging_accuracy(model.tagger, held) if held else None,
-                              "all_characters_accuracy": tagging_accuracy(model.tagger, held, True) if held else None,
-                              "voted_edge_accuracy": voted_right / max(voted_total, 1),
-                              "voted_graphs_all_right": all_right,
+    row["edge_categories"] = {**edge_category_figures(model.tagger, shape_set, model.shape_set, held_shapes,
+                                                      held_graphs, rng),
                               "categories": meta["categories"]}
     print(f"  edge categories: {row['edge_categories']}", flush=True)
     # Prior samples

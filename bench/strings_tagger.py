@@ -1,0 +1,127 @@
+"""Edge-category tagger only: held-out accuracy of the string tagger on a grown collection.
+
+The tagger part of ``bench/strings.py`` without the VAE, prior samples, Table 2 and
+instantiation, for tagger settings and collection sizes the full bench does not run: the
+same growth, split, categories, training strings, vocabulary and measurement as
+``train_model`` and ``bench/strings.py`` (for the same collection and settings it gives the
+same figures).
+
+    .venv/bin/python bench/strings_tagger.py --set castle --count 720 --work /tmp/tagger_work
+    .venv/bin/python bench/strings_tagger.py --set moonbase --count 360 --graph-rounds 0   # the tagger before the graph pass
+
+Writes ``bench/results/strings_tagger_<set>_<count>.json`` and ``.png`` (training curve).
+A run on the same ``--work`` folder reuses the grown collection and resumes the training.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent
+sys.path.insert(0, str(ROOT.parent))
+sys.path.insert(0, str(ROOT))
+
+from strings import SETS, edge_category_figures  # noqa: E402
+
+from procmod.parallel import open_executor  # noqa: E402
+from procmod.strings.codec import strings_of  # noqa: E402
+from procmod.strings.instantiate import (CategoryParams, EdgeCategories, TaggerConfig,  # noqa: E402
+                                        tagging_examples, train_tagger)
+from procmod.strings.pipeline import read_collection, split_shapes, write_collection  # noqa: E402
+from procmod.strings.sampling import augment  # noqa: E402
+from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
+from procmod.strings.vae import Vocab  # noqa: E402
+
+
+def grown_collection(args, folder: Path):
+    """The set grown to ``--count`` shapes (read back when ``folder`` already holds it)."""
+    inputs = read_shapes(SETS / f"{args.set}.json")
+    if (folder / "shapes.json").is_file():
+        return read_collection(folder), None
+    t0 = time.perf_counter()
+    with open_executor(args.workers) as executor:
+        grown = augment(inputs, args.count, seed=args.seed, parallel=args.parallel, max_rounds=400,
+                        executor=executor, seconds=args.augment_seconds)
+    seconds = time.perf_counter() - t0
+    write_collection(inputs, grown.shapes, folder, grown.rounds, 8, args.seed, sheet=False)
+    return read_collection(folder), round(seconds, 1)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--set", default="castle", choices=("castle", "moonbase", "colonnade"))
+    ap.add_argument("--count", type=int, default=360, help="collection size")
+    ap.add_argument("--augment-seconds", type=float, default=600)
+    ap.add_argument("--parallel", type=int, default=8)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--epochs", type=int, default=24)
+    ap.add_argument("--hidden", type=int, default=TaggerConfig.hidden)
+    ap.add_argument("--lr-final", type=float, default=TaggerConfig.lr_final)
+    ap.add_argument("--dropout", type=float, default=TaggerConfig.dropout)
+    ap.add_argument("--graph-rounds", type=int, default=TaggerConfig.graph_rounds)
+    ap.add_argument("--strings-per-shape", type=int, default=16, help="tagger training strings per shape")
+    ap.add_argument("--work", type=Path, required=True, help="folder for the collection and the tagger")
+    ap.add_argument("--out", type=Path, default=ROOT / "results")
+    args = ap.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    work = args.work / f"{args.set}_{args.count}"
+    shape_set, growth_seconds = grown_collection(args, work / "collection")
+    graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
+    train_idx, test_idx = split_shapes(len(graphs), 0.2, args.seed)
+    train_shapes, train_graphs = [shape_set.shapes[i] for i in train_idx], [graphs[i] for i in train_idx]
+    # as train_model: the vocabulary is the VAE's (8 strings a training shape), the
+    # categories are fitted on the training shapes, the training strings drawn with [seed, 4]
+    vae_rng = np.random.default_rng([args.seed, 3])
+    chars = {c for i in train_idx for s in strings_of(graphs[i], 8, vae_rng) for c in s}
+    vocab = Vocab(chars | set("()") | set("123456789"))
+    categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
+    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, args.strings_per_shape,
+                                np.random.default_rng([args.seed, 4]), every_symmetry=True)
+    config = TaggerConfig(epochs=args.epochs, hidden=args.hidden, lr_final=args.lr_final, dropout=args.dropout,
+                          graph_rounds=args.graph_rounds)
+    t0 = time.perf_counter()
+    tagger = train_tagger(examples, vocab, categories, work / f"tagger_{args.graph_rounds}_{args.hidden}",
+                          config, args.seed, progress=lambda row: print(row, flush=True))
+    train_seconds = time.perf_counter() - t0
+    history = json.loads((work / f"tagger_{args.graph_rounds}_{args.hidden}" / "tagger.json").read_text())
+    history = history["train"]["history"]
+    rng = np.random.default_rng(args.seed)  # the bench's measurement, in the bench's order
+    figures = edge_category_figures(tagger, shape_set, shape_set, [shape_set.shapes[i] for i in test_idx],
+                                    [graphs[i] for i in test_idx], rng)
+    result = {"command": "python bench/strings_tagger.py " + " ".join(sys.argv[1:]), "set": args.set,
+              "shapes": len(shape_set.shapes), "train_shapes": len(train_idx), "training_strings": len(examples),
+              "growth_seconds": growth_seconds, "tagger": asdict(config), "train_seconds": round(train_seconds, 1),
+              "history": history, "categories": len(categories) - 1, **figures}
+    stem = args.out / f"strings_tagger_{args.set}_{args.count}"
+    stem.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    plot(result, stem.with_suffix(".png"))
+    print(json.dumps({k: v for k, v in result.items() if k != "history"}), flush=True)
+
+
+def plot(result: dict, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    hist = result["history"]
+    ax.plot([h["epoch"] for h in hist], [h["train_accuracy"] for h in hist], label="training strings")
+    ax.axhline(result["per_character_accuracy"], color="C1", ls="--", label="held out, per character")
+    ax.axhline(result["voted_edge_accuracy"], color="C2", ls=":", label="held out, voted")
+    ax.set(xlabel="epoch", ylabel="edge-category accuracy", ylim=(0.5, 1.0),
+           title=f"{result['set']}, {result['shapes']} shapes, {result['tagger']['graph_rounds']} graph rounds")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    main()
