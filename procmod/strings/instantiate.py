@@ -412,7 +412,8 @@ class Tagger(nn.Module):
         self.drop = nn.Dropout(config.dropout)
         if config.graph_rounds:
             if not config.tree:
-                raise InvalidArgumentError("graph_rounds needs the tree tagger (tree=True)")
+                raise InvalidArgumentError("graph_rounds needs the tree tagger: use tree=True, or graph_rounds=0 for the plain "
+                                           "bidirectional LSTM")
             self.message = nn.Linear(2 * config.hidden, 2 * config.hidden)
             self.graph_cell = nn.GRUCell(2 * config.hidden, 2 * config.hidden)
         self.out = nn.Linear((6 if config.tree else 2) * config.hidden, categories)
