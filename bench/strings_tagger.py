@@ -7,7 +7,7 @@ same growth, split, categories, training strings, vocabulary and measurement as
 same figures).
 
     .venv/bin/python bench/strings_tagger.py --set castle --count 720 --work /tmp/tagger_work
-    .venv/bin/python bench/strings_tagger.py --set moonbase --count 360 --graph-rounds 0   # the tagger before the graph pass
+    .venv/bin/python bench/strings_tagger.py --set moonbase --graph-rounds 0 --work W  # no graph pass
 
 Writes ``bench/results/strings_tagger_<set>_<count>.json`` and ``.png`` (training curve).
 A run on the same ``--work`` folder reuses the grown collection and resumes the training.

@@ -412,8 +412,8 @@ class Tagger(nn.Module):
         self.drop = nn.Dropout(config.dropout)
         if config.graph_rounds:
             if not config.tree:
-                raise InvalidArgumentError("graph_rounds needs the tree tagger: use tree=True, or graph_rounds=0 for the plain "
-                                           "bidirectional LSTM")
+                raise InvalidArgumentError("graph_rounds needs the tree tagger: use tree=True, or "
+                                           "graph_rounds=0 for the plain bidirectional LSTM")
             self.message = nn.Linear(2 * config.hidden, 2 * config.hidden)
             self.graph_cell = nn.GRUCell(2 * config.hidden, 2 * config.hidden)
         self.out = nn.Linear((6 if config.tree else 2) * config.hidden, categories)
@@ -448,7 +448,8 @@ class Tagger(nn.Module):
         b, t, d = h.shape
         ends = structure[:, :, 1:].numpy()  # 1 + positions of both ends of each character's edge
         rows, cols = np.nonzero(ends[:, :, 0] > 0)
-        pairs = {(int(r), int(ends[r, c, 0]) - 1, int(ends[r, c, 1]) - 1) for r, c in zip(rows, cols)}  # ring edges twice
+        # (row, end, end) per edge; a set, since a ring edge has two characters
+        pairs = {(int(r), int(ends[r, c, 0]) - 1, int(ends[r, c, 1]) - 1) for r, c in zip(rows, cols)}
         if not pairs:
             return h
         arr = np.array(sorted(pairs), dtype=np.int64)
@@ -791,7 +792,8 @@ class TaggerModel:
         vocab = Vocab(meta["vocab"])
         # taggers saved before the tree pass existed are plain bidirectional LSTMs
         # and before the graph pass existed, taggers had none
-        net = Tagger(len(vocab), len(cats), TaggerConfig(**{"tree": False, "graph_rounds": 0, **meta["config"]}))
+        config = TaggerConfig(**{"tree": False, "graph_rounds": 0, **meta["config"]})
+        net = Tagger(len(vocab), len(cats), config)
         net.load_state_dict(payload["model"])
         model = TaggerModel(net, vocab, cats)
         if with_optimizer:
