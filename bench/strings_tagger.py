@@ -87,12 +87,14 @@ def main() -> None:
                                 np.random.default_rng([args.seed, 4]), every_symmetry=True)
     config = TaggerConfig(epochs=args.epochs, hidden=args.hidden, lr_final=args.lr_final, dropout=args.dropout,
                           graph_rounds=args.graph_rounds)
+    # one folder per setting (the training strings too: a resumed run must see the same data)
+    folder = work / (f"tagger_g{args.graph_rounds}_h{args.hidden}_d{args.dropout}_lr{args.lr_final}"
+                     f"_s{args.strings_per_shape}")
     t0 = time.perf_counter()
-    tagger = train_tagger(examples, vocab, categories, work / f"tagger_{args.graph_rounds}_{args.hidden}",
-                          config, args.seed, progress=lambda row: print(row, flush=True))
+    tagger = train_tagger(examples, vocab, categories, folder, config, args.seed,
+                          progress=lambda row: print(row, flush=True))
     train_seconds = time.perf_counter() - t0
-    history = json.loads((work / f"tagger_{args.graph_rounds}_{args.hidden}" / "tagger.json").read_text())
-    history = history["train"]["history"]
+    history = json.loads((folder / "tagger.json").read_text())["train"]["history"]
     rng = np.random.default_rng(args.seed)  # the bench's measurement, in the bench's order
     figures = edge_category_figures(tagger, shape_set, shape_set, [shape_set.shapes[i] for i in test_idx],
                                     [graphs[i] for i in test_idx], rng)
