@@ -31,13 +31,12 @@ sys.path.insert(0, str(ROOT))
 from strings import SETS, edge_category_figures  # noqa: E402
 
 from procmod.parallel import open_executor  # noqa: E402
-from procmod.strings.codec import strings_of  # noqa: E402
-from procmod.strings.instantiate import (CategoryParams, EdgeCategories, TaggerConfig,  # noqa: E402
-                                        tagging_examples, train_tagger)
-from procmod.strings.pipeline import read_collection, split_shapes, write_collection  # noqa: E402
+from procmod.strings.instantiate import TaggerConfig, train_tagger  # noqa: E402
+from procmod.strings.pipeline import (read_collection, split_shapes, tagger_training_set,  # noqa: E402
+                                      vae_training_strings, write_collection)
 from procmod.strings.sampling import augment  # noqa: E402
 from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
-from procmod.strings.vae import Vocab  # noqa: E402
+from procmod.strings.vae import vocab_of  # noqa: E402
 
 
 def grown_collection(args, folder: Path):
@@ -76,15 +75,9 @@ def main() -> None:
     shape_set, growth_seconds = grown_collection(args, work / "collection")
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     train_idx, test_idx = split_shapes(len(graphs), 0.2, args.seed)
-    train_shapes, train_graphs = [shape_set.shapes[i] for i in train_idx], [graphs[i] for i in train_idx]
-    # as train_model: the vocabulary is the VAE's (8 strings a training shape), the
-    # categories are fitted on the training shapes, the training strings drawn with [seed, 4]
-    vae_rng = np.random.default_rng([args.seed, 3])
-    chars = {c for i in train_idx for s in strings_of(graphs[i], 8, vae_rng) for c in s}
-    vocab = Vocab(chars | set("()") | set("123456789"))
-    categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
-    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, args.strings_per_shape,
-                                np.random.default_rng([args.seed, 4]), every_symmetry=True)
+    # as train_model: the tagger shares the VAE's vocabulary (8 strings a training shape)
+    vocab = vocab_of(vae_training_strings(graphs, train_idx, 8, args.seed))
+    categories, examples, _ = tagger_training_set(shape_set, graphs, train_idx, args.strings_per_shape, args.seed)
     config = TaggerConfig(epochs=args.epochs, hidden=args.hidden, lr_final=args.lr_final, dropout=args.dropout,
                           graph_rounds=args.graph_rounds)
     # one folder per setting (the training strings too: a resumed run must see the same data)

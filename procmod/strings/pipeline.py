@@ -98,8 +98,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)
     train_idx, test_idx = split_shapes(len(graphs), held_out, seed)
-    rng = np.random.default_rng([seed, 3])
-    strings = [s for i in train_idx for s in strings_of(graphs[i], strings_per_shape, rng)]
+    strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
     if not (out / "collection.json").is_file():
         write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
     report = progress or (lambda stage, row: None)
@@ -108,16 +107,11 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     if len(vae_history(out)) < vae_config.epochs:
         return {}
     cats_path = out / "categories.json"
-    train_shapes = [shape_set.shapes[i] for i in train_idx]
-    train_graphs = [graphs[i] for i in train_idx]
-    if cats_path.is_file():
-        categories = EdgeCategories.from_json(json.loads(cats_path.read_text()))
-    else:
-        categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
+    categories = EdgeCategories.from_json(json.loads(cats_path.read_text())) if cats_path.is_file() else None
+    categories, examples, trng = tagger_training_set(shape_set, graphs, train_idx, tagger_strings_per_shape, seed,
+                                                     categories)
+    if not cats_path.is_file():
         write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
-    trng = np.random.default_rng([seed, 4])
-    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, tagger_strings_per_shape, trng,
-                                every_symmetry=True)
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
                             categories, 4, trng, every_symmetry=True)
     tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
@@ -132,6 +126,29 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     write_text_atomic(out / "model.json", json.dumps(meta, indent=1) + "\n")
     write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
     return meta
+
+
+def vae_training_strings(graphs: list, train_idx: list[int], strings_per_shape: int, seed: int) -> list[str]:
+    """The VAE's training strings as :func:`train_model` draws them: up to
+    ``strings_per_shape`` distinct strings of each training graph."""
+    rng = np.random.default_rng([seed, 3])
+    return [s for i in train_idx for s in strings_of(graphs[i], strings_per_shape, rng)]
+
+
+def tagger_training_set(shape_set: ShapeSet, graphs: list, train_idx: list[int], strings_per_shape: int, seed: int,
+                        categories: EdgeCategories | None = None):
+    """The tagger's training data as :func:`train_model` makes it: edge categories fitted on
+    the training shapes (unless given), ``strings_per_shape`` strings of each with every
+    symmetric target sequence. Returns ``(categories, examples, rng)``; the generator has
+    drawn the strings and goes on to draw the held-out ones."""
+    train_shapes = [shape_set.shapes[i] for i in train_idx]
+    train_graphs = [graphs[i] for i in train_idx]
+    if categories is None:
+        categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
+    rng = np.random.default_rng([seed, 4])
+    examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, strings_per_shape, rng,
+                                every_symmetry=True)
+    return categories, examples, rng
 
 
 def vae_history(folder) -> list:

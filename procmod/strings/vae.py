@@ -616,6 +616,12 @@ class StringModel:
         return model
 
 
+def vocab_of(strings: list[str]) -> Vocab:
+    """The vocabulary a model trained on ``strings`` uses: their characters, both brackets
+    and the ring digits 1-9 (a sample may open a ring the training strings never needed)."""
+    return Vocab({c for s in strings for c in s} | set("()") | set("123456789"))
+
+
 def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, config: VAEConfig = VAEConfig(),
               seed: int = 0, progress=None, stop_after: int | None = None) -> StringModel:
     """Train (or resume training) a string VAE (see :func:`_train_vae`)."""
@@ -634,18 +640,18 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> 
     folder = Path(folder)
     if not strings:
         raise InvalidArgumentError("no training strings")
-    chars = sorted({c for s in strings for c in s} | set("()") | set("123456789"))
+    vocab = vocab_of(strings)
     resume = (folder / "vae.json").is_file() and (folder / "vae.pt").is_file()
     torch.manual_seed(seed)
     if resume:
         model, state, opt_state = StringModel.load(folder, with_optimizer=True)
         if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0} or \
-                model.vocab.chars != sorted(set(chars)):
+                model.vocab.chars != vocab.chars:
             raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new --out "
                                  "or delete it")
     else:
         max_nodes = int(math.ceil(NODE_BUDGET * max(sum(c.isalpha() for c in s) for s in strings)))
-        model, state, opt_state = StringModel(StringVAE(len(Vocab(chars)), config), Vocab(chars), grammar,
+        model, state, opt_state = StringModel(StringVAE(len(vocab), config), vocab, grammar,
                                               max_nodes), TrainState(), None
     net = model.net
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
