@@ -32,7 +32,7 @@ from procmod.strings.latent import GraphIndex, naive_graph, path_statistics, per
 from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
 from procmod.strings.render import write_sheet  # noqa: E402
 from procmod.strings.sampling import augment  # noqa: E402
-from procmod.strings.shapes import part_points, read_shapes, shape_graph  # noqa: E402
+from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
 from procmod.strings.vae import VAEConfig  # noqa: E402
 
 SETS = ROOT / "examples_sets" / "strings"

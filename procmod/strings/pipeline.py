@@ -24,13 +24,11 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError
 from ..core.serialize import write_text_atomic
-from .codec import StringSyntaxError, parse, strings_of
+from .codec import parse, strings_of
 from .instantiate import (CategoryParams, EdgeCategories, InstantiateResult, TaggerConfig, TaggerModel,
                           instantiate_graph, tagging_accuracy, tagging_examples, train_tagger)
-from .sampling import AugmentParams, augment
-from .shapes import (Grammar, ShapeSet, ShapesFormatError, graph_to_dict, read_shapes, shape_graph, type_histogram,
-                     write_shapes)
-from .vae import ModelFileError, StringModel, VAEConfig, Vocab, train_vae
+from .shapes import Grammar, ShapeSet, ShapesFormatError, graph_to_dict, read_shapes, shape_graph, write_shapes
+from .vae import ModelFileError, StringModel, VAEConfig, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
 
