@@ -7,6 +7,7 @@ import torch
 
 from procmod.core.errors import InvalidArgumentError
 from procmod.strings.codec import parse, strings_of
+from procmod.strings.decoding import star_set
 from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
                                          string_structure, tagging_accuracy, tagging_examples, train_tagger)
 from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
@@ -170,13 +171,15 @@ def test_tagger_masks_are_minus_infinity_and_training_learns(tmp_path, moonbase,
     pred = untrained.predict([text])[0].argmax(1)
     best = max(sum(int(pred[i] == q[i]) for i in range(len(q)) if q[i] > 0) for q in seqs)
     n = sum(1 for k in seqs[0] if k > 0)
-    assert tagging_accuracy(untrained, [(text, seqs)]) == pytest.approx(best / n)
+    assert tagging_accuracy(untrained, [(text, seqs)], structured=False) == pytest.approx(best / n)
     examples = every
     first = train_tagger(examples, vocab, cats, tmp_path / "t", TaggerConfig(epochs=1, hidden=16, embed=8, layers=1))
     loss1 = json.loads((tmp_path / "t" / "tagger.json").read_text())["train"]["history"][-1]["loss"]
     train_tagger(examples, vocab, cats, tmp_path / "t", TaggerConfig(epochs=6, hidden=16, embed=8, layers=1))
     loss6 = json.loads((tmp_path / "t" / "tagger.json").read_text())["train"]["history"][-1]["loss"]
     assert loss6 < loss1
+    # the stars of the training labellings are kept with the tagger, for structured decoding
+    assert TaggerModel.load(tmp_path / "t").stars == star_set(examples)
     assert first is not None
 
 

@@ -10,7 +10,9 @@
    same-type pairs take the unordered pair of both directions' clusters.
 3. A **tagger** (bidirectional recurrent net + linear layer) maps a string to one category
    per character (a dummy one for brackets, bonds and the root); logits of categories the
-   edge's type pair does not have are set to -inf. Several strings of one graph vote.
+   edge's type pair does not have are set to -inf. A string's labels are decoded jointly
+   (:mod:`procmod.strings.decoding`: every part's star of categories seen in training,
+   every ring closed), then several strings of one graph vote.
 4. **Instantiation**: from a random edge, parts are added by transplanting a relative
    transform seen in the training shapes for the edge's category; a part that collides
    with placed non-neighbours, misses a placed neighbour, sits at a pose no example shows,
@@ -26,7 +28,7 @@ import heapq
 import json
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import networkx as nx
@@ -36,8 +38,9 @@ from torch import nn
 
 from ..core.errors import InvalidArgumentError
 from ..core.serialize import write_text_atomic
-from .codec import encode_with_order, parse, strings_of
-from .shapes import Shape, ShapeSet, contact_pairs, part_points, shape_graph, tolerance_for
+from .codec import encode_with_order, parse
+from .decoding import CategoryDecoder, star_set
+from .shapes import Shape, ShapeSet, contact_pairs, first_poses, part_points, shape_graph, tolerance_for
 from .vae import ModelFileError, Vocab, torch_threads
 
 # ---------------------------------------------------------------------------------------------
@@ -282,24 +285,15 @@ class EdgeCategories:
         frames = [canonical_frame(lib, p, t, self.groups) for p, t in zip(shape.parts, shape.transforms)]
         out = {}
         for a, b in g.edges:
-            ta, tb = g.nodes[a]["type"], g.nodes[b]["type"]
-            if ta > tb:
-                a, b, ta, tb = b, a, tb, ta
-            centres = self.centres.get((ta, tb))
-            if centres is None:
-                continue
-            near = lambda x, y: int(np.argmin(np.linalg.norm(
-                centres - _pose_feature(frames[x], frames[y], self.length, self.params.rot_weight), axis=1)))
-            key = (near(a, b),) if ta != tb else tuple(sorted((near(a, b), near(b, a))))
-            k = self.index.get((ta, tb, "-".join(map(str, key))))
+            k = self.category_of_frames(frames[a], frames[b], g.nodes[a]["type"], g.nodes[b]["type"])
             if k is not None:
                 out[(min(a, b), max(a, b))] = k
         return out
 
-    def _category_of_pair(self, shape_set: ShapeSet, pa: str, ma: np.ndarray, pb: str, mb: np.ndarray):
-        lib = shape_set.library
-        fa, fb = canonical_frame(lib, pa, ma, self.groups), canonical_frame(lib, pb, mb, self.groups)
-        ta, tb = shape_set.letters[pa], shape_set.letters[pb]
+    def category_of_frames(self, fa: np.ndarray, fb: np.ndarray, ta: str, tb: str) -> int | None:
+        """Category of two neighbours of types ``ta``, ``tb`` with canonical frames ``fa``,
+        ``fb`` (the nearest cluster centre of their relative pose), or None when their type
+        pair has no categories."""
         if ta > tb:
             fa, fb, ta, tb = fb, fa, tb, ta
         centres = self.centres.get((ta, tb))
@@ -309,6 +303,11 @@ class EdgeCategories:
             centres - _pose_feature(x, y, self.length, self.params.rot_weight), axis=1)))
         key = (near(fa, fb),) if ta != tb else tuple(sorted((near(fa, fb), near(fb, fa))))
         return self.index.get((ta, tb, "-".join(map(str, key))))
+
+    def _category_of_pair(self, shape_set: ShapeSet, pa: str, ma: np.ndarray, pb: str, mb: np.ndarray):
+        lib = shape_set.library
+        fa, fb = canonical_frame(lib, pa, ma, self.groups), canonical_frame(lib, pb, mb, self.groups)
+        return self.category_of_frames(fa, fb, shape_set.letters[pa], shape_set.letters[pb])
 
     def symmetry_permutations(self, shape_set: ShapeSet) -> list[dict]:
         """For each of :func:`world_symmetries`, where it sends each category (turning an
@@ -683,9 +682,30 @@ def _target_sets(targets) -> list[list[int]]:
     return targets if targets and isinstance(targets[0], (list, tuple)) else [targets]
 
 
+def category_decoder(categories: EdgeCategories, stars: list | None = None,
+                     shape_set: ShapeSet | None = None) -> CategoryDecoder:
+    """A structured decoder of edge categories (:mod:`procmod.strings.decoding`): stars
+    (when given) and, with ``shape_set`` (the shapes the categories were fitted on, for the
+    part library and the parts' poses), ring closure, the first part of a string placed in
+    its input pose under every turn and mirror of :func:`world_symmetries`."""
+    frame_of, roots = None, None
+    if shape_set is not None:
+        lib, part_of = shape_set.library, shape_set.part_of_letter
+        frame_of = lambda t, pose: canonical_frame(lib, part_of[t], pose, categories.groups)  # noqa: E731
+        roots = {t: [m for g in world_symmetries()
+                     if (m := proper_placement(lib, part_of[t], g @ pose, _MIRROR_CACHE)) is not None]
+                 for t, pose in first_poses(shape_set).items()}
+    return CategoryDecoder(categories, stars, frame_of, roots)
+
+
 class TaggerModel:
-    def __init__(self, net: Tagger, vocab: Vocab, categories: EdgeCategories):
-        self.net, self.vocab, self.categories = net, vocab, categories
+    """A trained tagger with its vocabulary, edge categories and the stars (the multisets
+    of edge categories at one part) its training shapes show, which structured decoding
+    (:mod:`procmod.strings.decoding`) keeps labellings to."""
+
+    def __init__(self, net: Tagger, vocab: Vocab, categories: EdgeCategories, stars: list | None = None):
+        self.net, self.vocab, self.categories, self.stars = net, vocab, categories, stars
+        self._decoders: dict = {}
 
     def _tensors(self, texts, targets=None):
         """Token ids, masks ``(B, T, K)``, targets ``(B, S, T)`` (S target sequences per string;
@@ -720,11 +740,29 @@ class TaggerModel:
         prob = torch.softmax(self.net(tok, mask, struct), dim=2).numpy()
         return [prob[k, :len(t)] for k, t in enumerate(texts)]
 
+    def decoder(self, shape_set: ShapeSet | None = None) -> CategoryDecoder:
+        """The structured decoder (:func:`category_decoder`) of this tagger's categories and
+        stars; ``shape_set``: the training shapes (ring closure needs their part library)."""
+        key = id(shape_set)
+        if key not in self._decoders:
+            self._decoders = {key: (shape_set, category_decoder(self.categories, self.stars, shape_set))}
+        return self._decoders[key][1]
+
+    def labels(self, texts: list[str], shape_set: ShapeSet | None = None, structured: bool = True) -> list[np.ndarray]:
+        """Category per character of each string: by structured decoding (:meth:`decoder`),
+        or with ``structured=False`` each character's most probable category."""
+        probs = self.predict(texts)
+        if not structured:
+            return [p.argmax(1) for p in probs]
+        decoder = self.decoder(shape_set)
+        return [decoder.decode(t, p) for t, p in zip(texts, probs)]
+
     def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator, shape_set: ShapeSet | None = None,
-             ranked: bool = False) -> dict:
+             ranked: bool = False, structured: bool = True) -> dict:
         """Majority vote over ``strings`` strings of ``g``: ``{(min, max): category}``; with
         ``ranked``, ``{(min, max): [categories]}``, every category that got a vote, most
         votes first (ties: the lower category), for the instantiation to try in that order.
+        Each string is labelled by :meth:`labels` (``shape_set``: the training shapes).
 
         Each string's prediction fixes the shape only up to a turn / mirror about the
         vertical axis, so (given ``shape_set``) every string's prediction is first turned
@@ -736,13 +774,13 @@ class TaggerModel:
             texts.append(text)
             orders.append(order)
         preds = []
-        for text, order, prob in zip(texts, orders, self.predict(texts)):
+        for text, order, labels in zip(texts, orders, self.labels(texts, shape_set, structured)):
             pred = {}
             for i, e in enumerate(parse(text).char_edges):
                 if e is None:
                     continue
                 key = (min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))
-                pred.setdefault(key, []).append(int(np.argmax(prob[i])))
+                pred.setdefault(key, []).append(int(labels[i]))
             preds.append(pred)
         perms = self.categories.symmetry_permutations(shape_set) if shape_set is not None else [None]
         votes: dict[tuple, np.ndarray] = {}
@@ -778,6 +816,8 @@ class TaggerModel:
         os.replace(tmp, folder / "tagger.pt")
         meta = {"format": "procmod-string-tagger/1", "config": asdict(self.net.config), "vocab": self.vocab.chars,
                 "categories": self.categories.to_json(), "train": state or {"epoch": 0, "history": []}}
+        if self.stars is not None:
+            meta["stars"] = [[t, list(ks)] for t, ks in self.stars]
         write_text_atomic(folder / "tagger.json", json.dumps(meta) + "\n")
 
     @staticmethod
@@ -795,7 +835,9 @@ class TaggerModel:
         config = TaggerConfig(**{"tree": False, "graph_rounds": 0, **meta["config"]})
         net = Tagger(len(vocab), len(cats), config)
         net.load_state_dict(payload["model"])
-        model = TaggerModel(net, vocab, cats)
+        # taggers saved before structured decoding existed have no stars (rings are still checked)
+        stars = [(t, tuple(ks)) for t, ks in meta["stars"]] if "stars" in meta else None
+        model = TaggerModel(net, vocab, cats, stars)
         if with_optimizer:
             return model, meta["train"], payload.get("optimizer")
         return model
@@ -822,6 +864,10 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.lr)
     if opt_state is not None:
         optimizer.load_state_dict(opt_state)
+    stars = star_set(examples)
+    if model.stars != stars:  # a new tagger, or one trained before stars were kept
+        model.stars = stars
+        model.save(folder, state, optimizer)
     while state["epoch"] < config.epochs:
         # a function of the epoch only, so a resumed run continues the same schedule
         progress_ = state["epoch"] / max(config.epochs - 1, 1)
@@ -873,18 +919,19 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
     return model
 
 
-def tagging_accuracy(model: TaggerModel, examples: list, all_characters: bool = False) -> float:
-    """Fraction of edge characters (targets > 0) whose predicted category is right (against
+def tagging_accuracy(model: TaggerModel, examples: list, all_characters: bool = False,
+                     shape_set: ShapeSet | None = None, structured: bool = True) -> float:
+    """Fraction of edge characters (targets > 0) whose category is right (against
     the closest of the string's target sequences, when it has several: the shape up to the
-    symmetries a string cannot tell apart); with
+    symmetries a string cannot tell apart), labelled by :meth:`TaggerModel.labels`
+    (``shape_set``, ``structured`` as there); with
     ``all_characters`` every character counts, also brackets, bonds and the root, whose
     dummy category the mask makes certain (a per-timestep accuracy, for comparison only)."""
     right = total = 0
     for k in range(0, len(examples), 128):
         batch = examples[k:k + 128]
-        probs = model.predict([b[0] for b in batch])
-        for (text, targets), prob in zip(batch, probs):
-            pred = prob.argmax(1)
+        labels = model.labels([b[0] for b in batch], shape_set, structured)
+        for (text, targets), pred in zip(batch, labels):
             scores = []  # (right, counted) against each symmetric target sequence
             for seq in _target_sets(targets):
                 counted = [i for i, t in enumerate(seq) if t > 0 or all_characters]

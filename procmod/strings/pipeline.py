@@ -27,7 +27,8 @@ from ..core.serialize import write_text_atomic
 from .codec import parse, strings_of
 from .instantiate import (CategoryParams, EdgeCategories, InstantiateResult, TaggerConfig, TaggerModel,
                           instantiate_graph, tagging_accuracy, tagging_examples, train_tagger)
-from .shapes import Grammar, ShapeSet, ShapesFormatError, graph_to_dict, read_shapes, shape_graph, write_shapes
+from .shapes import (Grammar, ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shape_graph,
+                     write_shapes)
 from .vae import ModelFileError, StringModel, VAEConfig, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
@@ -118,7 +119,10 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
             "strings_per_shape": strings_per_shape, "tagger_strings_per_shape": tagger_strings_per_shape,
             "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),
             "training_strings": len(strings), "categories": len(categories) - 1,
-            "tagger_held_out_accuracy": tagging_accuracy(tagger, held) if held else None,
+            # per character, structured decoding (stars, rings) and each character alone
+            "tagger_held_out_accuracy": tagging_accuracy(tagger, held, shape_set=shape_set) if held else None,
+            "tagger_held_out_accuracy_per_character_argmax":
+                tagging_accuracy(tagger, held, structured=False) if held else None,
             "vae": asdict(vae_config), "tagger": asdict(tagger_config),
             "start_pose": _start_poses(shape_set)}
     write_text_atomic(out / "model.json", json.dumps(meta, indent=1) + "\n")
@@ -159,11 +163,7 @@ def vae_history(folder) -> list:
 def _start_poses(shape_set: ShapeSet) -> dict:
     """Per type, the pose of its first instance in the inputs: the first part of an
     instantiation is placed like that."""
-    out = {}
-    for shape in shape_set.shapes:
-        for p, t in zip(shape.parts, shape.transforms):
-            out.setdefault(shape_set.letters[p], t.tolist())
-    return out
+    return {t: m.tolist() for t, m in first_poses(shape_set).items()}
 
 
 class TrainedModel:

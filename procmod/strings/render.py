@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
 from PIL import Image
 
 from ..geometry.camera import framing_camera, shaded_image

@@ -297,7 +297,6 @@ def contact_pairs(library: dict, parts, transforms, tol: float, pairs_of=None) -
 
     ``pairs_of`` optionally restricts the test to the given candidate pairs.
     """
-    n = len(parts)
     points = [part_points(library, p, t) for p, t in zip(parts, transforms)]
     lo = np.array([q.min(0) for q in points]) - tol
     hi = np.array([q.max(0) for q in points]) + tol
@@ -346,6 +345,16 @@ def centroids(shape_set: ShapeSet, shape: Shape) -> np.ndarray:
 
 # ---------------------------------------------------------------------------------------------
 # Tiling grammar
+
+
+def first_poses(shape_set: ShapeSet) -> dict[str, np.ndarray]:
+    """Per type letter, the pose of its first instance in the set's shapes (where an
+    instantiation places its first part)."""
+    out: dict[str, np.ndarray] = {}
+    for shape in shape_set.shapes:
+        for p, t in zip(shape.parts, shape.transforms):
+            out.setdefault(shape_set.letters[p], np.asarray(t, dtype=np.float64))
+    return out
 
 
 def neighbour_key(g: nx.Graph, v) -> str:

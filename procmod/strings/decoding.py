@@ -1,0 +1,239 @@
+"""Structured decoding of a string's edge categories (a design extension to seed 001).
+
+The tagger gives each character a distribution over edge categories, one character at a
+time. Taken one by one (the argmax), the labels of one string need not describe any shape:
+a wall whose two neighbours both sit on its left, or a ring of walls whose turns do not
+close. Seed 001 leaves such labellings to the instantiation, which then falls back to
+other categories part by part. This module instead picks, per string, the labelling with
+the highest total log-probability among those that
+
+1. give every part a **star** (the multiset of its edges' categories) that some training
+   shape shows for a part of its type and number of neighbours, and
+2. **close every ring**: placing the parts along the string's spanning tree by the
+   relative pose of each tree edge's category (the transplanting of section 6, one
+   example per category), every ring edge's two ends must sit in the relative pose of its
+   category.
+
+Both are soft: each part with an unseen star and each ring edge that does not close
+costs ``penalty`` nats, so a string that no labelling fits (a novel graph with a new kind
+of part neighbourhood) still gets the best one. The search is a beam search over the
+string's edges in the order their last character is written (so both ends of a ring edge
+are placed when it is decided), keeping ``beam`` partial labellings, each edge trying its
+``candidates`` most probable categories.
+
+Measured on held-out strings (docs/strings.md): castle 93.9% -> 95.6% per character,
+moon base 88.2% -> 91.7%.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .codec import parse
+
+# (type letter, the sorted categories of its edges)
+Star = tuple[str, tuple[int, ...]]
+
+
+@dataclass(frozen=True)
+class DecoderParams:
+    beam: int = 32  # partial labellings kept
+    candidates: int = 6  # categories tried per edge, most probable first
+    penalty: float = 20.0  # nats per part with an unseen star and per ring edge that does not close
+
+
+def stars_of_labelling(text: str, labels) -> list[Star]:
+    """The star of every node of ``text``'s graph under per-character ``labels`` (a category
+    per character; characters that stand for no edge are ignored)."""
+    parsed = parse(text)
+    edge_label = {}
+    for i, e in enumerate(parsed.char_edges):
+        if e is not None:
+            edge_label[(min(e), max(e))] = int(labels[i])
+    incident: dict[int, list[int]] = {v: [] for v in parsed.graph.nodes}
+    for (a, b), k in edge_label.items():
+        incident[a].append(k)
+        incident[b].append(k)
+    return [(parsed.graph.nodes[v]["type"], tuple(sorted(ks))) for v, ks in incident.items() if ks]
+
+
+def star_set(examples) -> list[Star]:
+    """Every star the (string, targets) training pairs show, under every target sequence a
+    string has (the shape's symmetric copies), sorted."""
+    out: set = set()
+    for text, targets in examples:
+        seqs = targets if targets and isinstance(targets[0], (list, tuple)) else [targets]
+        for seq in seqs:
+            out.update(stars_of_labelling(text, seq))
+    return sorted(out)
+
+
+class CategoryDecoder:
+    """Joint labelling of one string's edges (see the module docstring).
+
+    ``categories`` is the :class:`~procmod.strings.instantiate.EdgeCategories`; ``stars``
+    the stars seen in training (None: no star check); ``frame_of(letter, pose)`` the
+    canonical frame of a part of that type placed at ``pose``, and ``root_poses`` per type
+    the poses a string's first part may have (identity when missing) — without ``frame_of``
+    rings are not checked.
+
+    A string does not say how its shape is turned, and the categories of a turned or
+    mirrored copy of a shape differ (a symmetric part's canonical frame is the one closest to
+    the world axes), so the search starts from every root pose given: a part's pose in the
+    inputs under each turn and mirror about the vertical axis.
+    """
+
+    def __init__(self, categories, stars: list[Star] | None = None,
+                 frame_of: Callable[[str, np.ndarray], np.ndarray] | None = None,
+                 root_poses: dict | None = None, params: DecoderParams = DecoderParams()):
+        self.categories = categories
+        self.frame_of = frame_of
+        self.root_poses = root_poses or {}
+        self.params = params
+        self._stars: dict[tuple[str, int], list[Counter]] | None = None
+        if stars is not None:
+            self._stars = {}
+            for t, ks in stars:
+                self._stars.setdefault((t, len(ks)), []).append(Counter(ks))
+        self._extendable: dict = {}
+        self._steps: dict = {}
+
+    def extendable(self, t: str, degree: int, partial: tuple[int, ...]) -> bool:
+        """Can a part of type ``t`` with ``degree`` edges, of which ``partial`` (sorted
+        categories) are decided, still get a seen star?"""
+        key = (t, degree, partial)
+        hit = self._extendable.get(key)
+        if hit is None:
+            have = Counter(partial)
+            hit = self._extendable[key] = any(all(star[k] >= n for k, n in have.items())
+                                              for star in self._stars.get((t, degree), []))
+        return hit
+
+    def _next_frames(self, fx: np.ndarray, tx: str, ty: str, k: int) -> list[np.ndarray]:
+        """Frames of a ``ty`` part joined to a ``tx`` part at frame ``fx`` by category ``k``
+        (two when both types are the same: either end may be the category's first part)."""
+        a, b = self.categories.names[k][:2]
+        # canonical frames depend on the orientation only: cache by (k, x's type, x's rotation)
+        key = (k, tx, np.round(fx[:3, :3], 4).tobytes())
+        steps = self._steps.get(key)
+        if steps is None:
+            turn = np.eye(4)
+            turn[:3, :3] = fx[:3, :3]
+            rel = self.categories.examples[k][0]  # B's pose in A's frame, A's pose in B's frame
+            steps = []
+            for side, x_plays in ((0, a), (1, b)):
+                if tx == x_plays:
+                    f = self.frame_of(ty, turn @ rel[side])
+                    steps.append((f[:3, :3], f[:3, 3]))
+            self._steps[key] = steps
+        out = []
+        for rot, offset in steps:
+            f = np.eye(4)
+            f[:3, :3] = rot
+            f[:3, 3] = fx[:3, 3] + offset
+            out.append(f)
+        return out
+
+    def decode(self, text: str, prob: np.ndarray) -> np.ndarray:
+        """Category per character of ``text`` given the tagger's per-character
+        probabilities ``prob`` ``(len(text), K)``; characters that stand for no edge keep
+        their argmax (the dummy category)."""
+        parsed = parse(text)
+        with np.errstate(divide="ignore"):
+            logprob = np.log(prob)
+        logp: dict[tuple, np.ndarray] = {}
+        for i, e in enumerate(parsed.char_edges):
+            if e is not None:
+                key = (min(e), max(e))
+                logp[key] = logp.get(key, 0.0) + logprob[i]  # a ring edge is written twice
+        labels, _ = self._search(parsed, logp, self.params.beam, self.params.candidates)
+        out = prob.argmax(1)
+        for i, e in enumerate(parsed.char_edges):
+            if e is not None:
+                out[i] = labels[(min(e), max(e))]
+        return out
+
+    def faults(self, text: str, labels) -> int:
+        """How many parts of ``text`` get a star no training shape shows, plus how many ring
+        edges do not close, under per-character ``labels`` (a diagnostic; 0 for the labels of
+        a training shape). A ring edge's two characters must agree."""
+        parsed = parse(text)
+        size = len(self.categories) if self.categories is not None else int(max(labels, default=0)) + 1
+        logp: dict[tuple, np.ndarray] = {}
+        for i, e in enumerate(parsed.char_edges):
+            if e is not None:
+                key = (min(e), max(e))
+                one = logp.setdefault(key, np.zeros(size))
+                one[[k for k in range(len(one)) if k != int(labels[i])]] = -np.inf
+        _, faults = self._search(parsed, logp, len(self._root_frames(parsed)), 1)
+        return faults
+
+    def _root_frames(self, parsed) -> list[dict]:
+        """The frames the search starts from: ``{root: frame}`` per root pose (one empty
+        start without geometry)."""
+        if self.frame_of is None or parsed.graph.number_of_edges() == 0:
+            return [{}]
+        root = next(v for v in parsed.char_nodes if v is not None)
+        t = parsed.graph.nodes[root]["type"]
+        out, seen = [], set()
+        for pose in self.root_poses.get(t, [np.eye(4)]):
+            f = self.frame_of(t, np.asarray(pose, dtype=np.float64))
+            key = np.round(f[:3, :3], 4).tobytes()
+            if key not in seen:  # poses a symmetric part cannot tell apart
+                seen.add(key)
+                out.append({root: f})
+        return out
+
+    def _search(self, parsed, logp: dict, beam_size: int, candidates: int) -> tuple[dict, int]:
+        """Beam search for the labelling of ``parsed``'s edges (``logp``: per edge, the
+        log-probability of each category) with the highest log-probability less
+        ``penalty`` per fault; returns it and its number of faults."""
+        g = parsed.graph
+        types = [g.nodes[v]["type"] for v in g.nodes]
+        degree = dict(g.degree)
+        last = {}
+        for i, e in enumerate(parsed.char_edges):
+            if e is not None:
+                last[(min(e), max(e))] = i
+        # decided in the order the string finishes writing them: a tree edge when its child is
+        # written (its parent is placed by then), a ring edge at its second label (both placed)
+        edges = sorted(logp, key=last.get)
+        # a partial labelling: (score, faults, labels, partial stars, parts with a fault, frames)
+        beam = [(0.0, 0, {}, {}, frozenset(), frames) for frames in self._root_frames(parsed)]
+        for e in edges:
+            lp = logp[e]
+            order = np.argsort(-lp, kind="stable")
+            cands = [int(c) for c in order[:candidates] if np.isfinite(lp[c])]
+            grown = []
+            for score, faults, labels, stars, broken, frames in beam:
+                for k in cands:
+                    f = faults
+                    new_stars = dict(stars)
+                    new_broken = broken
+                    if self._stars is not None:
+                        for v in e:
+                            new_stars[v] = tuple(sorted(stars.get(v, ()) + (k,)))
+                            if v not in broken and not self.extendable(types[v], degree[v], new_stars[v]):
+                                f += 1  # counted once, when the part's star can no longer be a seen one
+                                new_broken = new_broken | {v}
+                    x, y = e
+                    if y in frames and x not in frames:
+                        x, y = y, x
+                    new_frames = [frames]
+                    if x in frames and y in frames:  # a ring edge: does it close?
+                        f += self.categories.category_of_frames(frames[x], frames[y], types[x], types[y]) != k
+                    elif x in frames and self.categories.examples.get(k):  # a tree edge: place its new end
+                        # (a type pair without categories leaves the part unplaced)
+                        new_frames = [{**frames, y: fy} for fy in self._next_frames(frames[x], types[x], types[y], k)] \
+                            or new_frames
+                    s = score + float(lp[k]) - self.params.penalty * (f - faults)
+                    grown += [(s, f, {**labels, e: k}, new_stars, new_broken, nf) for nf in new_frames]
+            if not grown:
+                raise ValueError("an edge of the string has no category of positive probability")
+            grown.sort(key=lambda h: -h[0])  # stable: ties keep the more probable category first
+            beam = grown[:beam_size]
+        return beam[0][2], beam[0][1]

@@ -1,0 +1,130 @@
+"""Structured decoding of edge categories: stars seen in training and ring closure."""
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from procmod.strings.codec import parse
+from procmod.strings.decoding import CategoryDecoder, DecoderParams, star_set, stars_of_labelling
+from procmod.strings.instantiate import EdgeCategories, category_decoder, string_mask, tagging_examples
+from procmod.strings.shapes import read_shapes, shape_graph
+
+SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
+
+
+def _edge_chars(text):
+    """Per edge (min, max), the characters that write it."""
+    out = {}
+    for i, e in enumerate(parse(text).char_edges):
+        if e is not None:
+            out.setdefault((min(e), max(e)), []).append(i)
+    return out
+
+
+def test_stars_of_a_labelling():
+    text = "C1CC(N)CC1O"  # a six-ring with two branches
+    chars = _edge_chars(text)
+    labels = np.zeros(len(text), dtype=int)
+    for n, (_, idx) in enumerate(sorted(chars.items())):
+        labels[idx] = n + 1
+    stars = dict(enumerate(stars_of_labelling(text, labels)))
+    edges = sorted(chars)
+    for v in range(parse(text).graph.number_of_nodes()):
+        mine = tuple(sorted(n + 1 for n, e in enumerate(edges) if v in e))
+        assert stars[v] == (parse(text).graph.nodes[v]["type"], mine)
+    # every symmetric target sequence contributes its stars
+    other = np.where(labels > 0, 9, 0)
+    assert set(star_set([(text, [labels.tolist(), other.tolist()])])) == \
+        set(stars_of_labelling(text, labels)) | set(stars_of_labelling(text, other))
+
+
+def _objective(text, prob, labels, seen, penalty):
+    """Log-probability of a labelling of the edges less the penalty per unseen star."""
+    chars = _edge_chars(text)
+    per_char = np.zeros(len(text), dtype=int)
+    for e, idx in chars.items():
+        per_char[idx] = labels[e]
+    score = sum(np.log(prob[i, per_char[i]]) for idx in chars.values() for i in idx)
+    unseen = sum(s not in seen for s in stars_of_labelling(text, per_char))
+    return score - penalty * unseen
+
+
+def test_decoding_with_a_wide_beam_is_the_exact_optimum(rng):
+    """With a beam holding every labelling, the result is the brute-force optimum of
+    log-probability less the penalty per part with an unseen star."""
+    text = "A1BAB1(A)B"  # a four-ring with two pendant parts: 6 edges
+    chars = _edge_chars(text)
+    k = 3  # categories 1, 2 (0 is the dummy)
+    seen = [("A", (1, 2)), ("A", (1, 1, 2)), ("A", (1,)), ("B", (1, 2)), ("B", (2, 2, 2)), ("B", (1,)), ("B", (2,))]
+    params = DecoderParams(beam=2 ** len(chars), candidates=2, penalty=3.0)
+    decoder = CategoryDecoder(None, seen, params=params)
+    for _ in range(20):
+        prob = np.zeros((len(text), k))
+        for idx in chars.values():
+            p = rng.dirichlet([1.0, 1.0])
+            prob[idx, 1:] = p
+        prob[prob.sum(1) == 0, 0] = 1.0
+        out = decoder.decode(text, prob)
+        got = {e: int(out[idx[0]]) for e, idx in chars.items()}
+        assert all(len({int(out[i]) for i in idx}) == 1 for idx in chars.values())  # a ring edge agrees
+        best = max(_objective(text, prob, dict(zip(chars, c)), set(seen), 3.0)
+                   for c in itertools.product((1, 2), repeat=len(chars)))
+        assert _objective(text, prob, got, set(seen), 3.0) == pytest.approx(best)
+
+
+def test_an_unseen_star_is_repaired_at_its_least_sure_edge():
+    text = "ABA"  # a B between two As; seen: a B has one edge of each category
+    prob = np.zeros((3, 3))
+    prob[0, 0] = 1.0
+    prob[1] = [0.0, 0.9, 0.1]  # A-B: surely 1
+    prob[2] = [0.0, 0.6, 0.4]  # B-A: argmax 1 too, but B with (1, 1) is unseen
+    decoder = CategoryDecoder(None, [("B", (1, 2)), ("A", (1,)), ("A", (2,))])
+    assert prob.argmax(1).tolist() == [0, 1, 1]
+    assert decoder.decode(text, prob).tolist() == [0, 1, 2]
+    assert decoder.faults(text, [0, 1, 1]) == 1 and decoder.faults(text, [0, 1, 2]) == 0
+    # without stars the decoder keeps the argmax
+    assert CategoryDecoder(None).decode(text, prob).tolist() == [0, 1, 1]
+
+
+@pytest.fixture(scope="module")
+def moonbase_labelled():
+    ss = read_shapes(SETS / "moonbase.json")
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    cats = EdgeCategories.fit(ss, ss.shapes, graphs)
+    examples = tagging_examples(ss, ss.shapes, graphs, cats, 3, np.random.default_rng(0), every_symmetry=True)
+    decoder = category_decoder(cats, None, ss)
+    return cats, examples, decoder
+
+
+def test_training_labellings_close_their_rings_and_a_wrong_ring_edge_does_not(moonbase_labelled):
+    """The labellings of training shapes close every ring; a ring edge whose category does not
+    close is set right by decoding, even where the tagger prefers it."""
+    cats, examples, decoder = moonbase_labelled
+    tried = 0
+    for text, seqs in examples:
+        for seq in seqs:  # every symmetric copy of a shape closes its rings
+            assert decoder.faults(text, seq) == 0
+        chars = _edge_chars(text)
+        ring_edges = [e for e, idx in chars.items() if len(idx) == 2]
+        assert ring_edges  # the moon base inputs have rings
+        truth = np.array(seqs[0])
+        allowed, _ = string_mask(text, cats)
+        for e in ring_edges:
+            for wrong in np.flatnonzero(allowed[chars[e][0]]):
+                if wrong == truth[chars[e][0]]:
+                    continue
+                bad = truth.copy()
+                bad[chars[e]] = wrong
+                if decoder.faults(text, bad) == 0:
+                    continue  # the labelling of another shape (a turned root reads categories differently)
+                # the tagger prefers the wrong category on this edge only: decoding restores the truth
+                prob = np.where(allowed, 0.01, 0.0)
+                prob[np.arange(len(text)), truth] = 1.0
+                prob[chars[e], wrong], prob[chars[e], truth[chars[e][0]]] = 0.6, 0.3
+                prob /= prob.sum(1, keepdims=True)
+                assert prob.argmax(1)[chars[e][0]] == wrong
+                assert decoder.decode(text, prob).tolist() == truth.tolist()
+                tried += 1
+    assert tried > 0
