@@ -194,11 +194,68 @@ def test_vote_maps_every_edge(moonbase, categories):
         name = cats.names[k]
         ta, tb = sorted((graphs[0].nodes[a]["type"], graphs[0].nodes[b]["type"]))
         assert name is not None and name[:2] == (ta, tb)
-    # ranked: every category that got a vote, most votes first; the first is the vote
-    ranked = model.vote(graphs[0], 4, np.random.default_rng(0), ss, ranked=True)
-    assert {e: r[0] for e, r in ranked.items()} == vote
-    assert all(len(set(r)) == len(r) and set(r) <= set(cats.allowed(*sorted(
-        (graphs[0].nodes[e[0]]["type"], graphs[0].nodes[e[1]]["type"])))) for e, r in ranked.items())
+    # ranked: the voted category first, then the others (soft: by averaged probability;
+    # majority vote: every category that got a vote, most votes first)
+    for soft in (True, False):
+        vote = model.vote(graphs[0], 4, np.random.default_rng(0), ss, soft=soft)
+        ranked = model.vote(graphs[0], 4, np.random.default_rng(0), ss, ranked=True, soft=soft)
+        assert {e: r[0] for e, r in ranked.items()} == vote
+        assert all(len(set(r)) == len(r) and set(r) <= set(cats.allowed(*sorted(
+            (graphs[0].nodes[e[0]]["type"], graphs[0].nodes[e[1]]["type"])))) for e, r in ranked.items())
+
+
+def test_soft_vote_weighs_confident_strings(moonbase, categories):
+    """One confident string against four that lean the other way: the majority vote follows
+    the four, the soft vote (averaged probabilities) the confident one."""
+    ss, graphs, _, strings = moonbase
+    cats = categories
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    model = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
+
+    def predict(texts):
+        out = []
+        for k, text in enumerate(texts):
+            parsed = parse(text)
+            types = [parsed.graph.nodes[v]["type"] for v in parsed.graph.nodes]
+            prob = np.zeros((len(text), len(cats)))
+            for i, e in enumerate(parsed.char_edges):
+                allowed = cats.allowed(*sorted((types[e[0]], types[e[1]]))) if e is not None else []
+                if len(allowed) < 2:
+                    prob[i, allowed[0] if allowed else 0] = 1.0
+                    continue
+                first, second = (0.95, 0.05) if k == 0 else (0.45, 0.55)
+                prob[i, allowed] = (1 - first - second) / max(len(allowed) - 2, 1)
+                prob[i, allowed[0]], prob[i, allowed[1]] = first, second
+            out.append(prob / prob.sum(1, keepdims=True))
+        return out
+
+    model.predict = predict
+    g = graphs[0]
+    pair = {e: cats.allowed(*sorted((g.nodes[e[0]]["type"], g.nodes[e[1]]["type"]))) for e in
+            ((min(e), max(e)) for e in g.edges)}
+    contested = [e for e, allowed in pair.items() if len(allowed) >= 2]
+    assert contested
+    hard = model.vote(g, 5, np.random.default_rng(0), None, structured=False, soft=False)
+    soft = model.vote(g, 5, np.random.default_rng(0), None, structured=False, soft=True)
+    assert all(hard[e] == pair[e][1] for e in contested)
+    assert all(soft[e] == pair[e][0] for e in contested)
+
+
+def test_tagger_reads_ring_labels_past_nine(moonbase, categories):
+    """A string with a ring label from %10 on is read by a tagger whose training strings
+    never needed one (the ring pairs come from the structure input)."""
+    ss, graphs, _, strings = moonbase
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    assert "%" not in vocab.chars and "0" not in vocab.chars
+    text = next(s for s in strings if "1" in s)
+    wide = text.replace("1", "%10")
+    assert set(parse(wide).graph.edges) == set(parse(text).graph.edges)  # the same graph
+    model = TaggerModel(Tagger(len(vocab), len(categories), TaggerConfig(hidden=8, embed=8, layers=1)), vocab,
+                        categories)
+    prob, wide_prob = model.predict([text, wide])
+    assert wide_prob.shape[0] == len(wide) and np.allclose(wide_prob.sum(1), 1)
+    with pytest.raises(InvalidArgumentError, match="not in the model's vocabulary"):
+        vocab.encode(wide)
 
 
 def test_search_graphs_and_paths(rng):

@@ -151,12 +151,19 @@ class CategoryDecoder:
             if e is not None:
                 key = (min(e), max(e))
                 logp[key] = logp.get(key, 0.0) + logprob[i]  # a ring edge is written twice
-        labels, _ = self._search(parsed, logp, self.params.beam, self.params.candidates)
+        labels = self.decode_edges(text, logp)
         out = prob.argmax(1)
         for i, e in enumerate(parsed.char_edges):
             if e is not None:
                 out[i] = labels[(min(e), max(e))]
         return out
+
+    def decode_edges(self, text: str, logp: dict) -> dict:
+        """The best labelling of ``text``'s edges given, per edge ``(min, max)`` of its
+        parsed nodes (string order), the log-probability of each category (e.g. summed over
+        several strings of one graph): ``{(min, max): category}``."""
+        labels, _ = self._search(parse(text), logp, self.params.beam, self.params.candidates)
+        return labels
 
     def faults(self, text: str, labels) -> int:
         """How many parts of ``text`` get a star no training shape shows, plus how many ring

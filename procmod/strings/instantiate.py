@@ -719,7 +719,8 @@ class TaggerModel:
         tgt = torch.full((len(texts), n_sets, t), -100, dtype=torch.long)
         struct = torch.zeros((len(texts), t, 3), dtype=torch.long)
         for k, text in enumerate(texts):
-            tok[k, :len(text)] = torch.tensor(self.vocab.encode(text))
+            # ring labels are paired by the structure input: a label past 9 reads like one below
+            tok[k, :len(text)] = torch.tensor(self.vocab.encode(text, any_ring_label=True))
             m, _ = string_mask(text, self.categories)
             mask[k, :len(text)] = torch.from_numpy(m)
             struct[k, :len(text)] = torch.from_numpy(string_structure(text))
@@ -758,50 +759,86 @@ class TaggerModel:
         return [decoder.decode(t, p) for t, p in zip(texts, probs)]
 
     def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator, shape_set: ShapeSet | None = None,
-             ranked: bool = False, structured: bool = True) -> dict:
-        """Majority vote over ``strings`` strings of ``g``: ``{(min, max): category}``; with
-        ``ranked``, ``{(min, max): [categories]}``, every category that got a vote, most
-        votes first (ties: the lower category), for the instantiation to try in that order.
-        Each string is labelled by :meth:`labels` (``shape_set``: the training shapes).
+             ranked: bool = False, structured: bool = True, soft: bool = True) -> dict:
+        """Vote over ``strings`` strings of ``g`` (the canonical one, then random ones):
+        ``{(min, max): category}``; with ``ranked``, ``{(min, max): [categories]}``, best
+        first, for the instantiation to try in that order.
 
         Each string's prediction fixes the shape only up to a turn / mirror about the
-        vertical axis, so (given ``shape_set``) every string's prediction is first turned
-        by the symmetry that agrees best with the first string's, then votes are counted.
+        vertical axis, so (given ``shape_set``, the training shapes) every string's
+        prediction is first turned by the symmetry that agrees best with the first string's.
+
+        ``soft`` (the default): the tagger's probabilities of each edge are averaged over
+        every character that writes it in every string (soft voting), and the whole graph
+        is labelled once by structured decoding of those averages (``structured``; else
+        each edge's most probable category); ranked: that label, then the rest by averaged
+        probability. With ``soft=False``, the paper's majority vote: each string is labelled
+        on its own (:meth:`labels`) and each edge gets the category most strings gave it;
+        ranked: every category that got a vote, most votes first (ties: the lower category).
         """
         texts, orders = [], []
         for k in range(strings):
             text, order = encode_with_order(g, None if k else 0, rng if k else None)
             texts.append(text)
             orders.append(order)
-        preds = []
-        for text, order, labels in zip(texts, orders, self.labels(texts, shape_set, structured)):
-            pred = {}
+        probs = self.predict(texts)
+        if soft:
+            labels = [p.argmax(1) for p in probs]  # for the alignment only
+        else:
+            decoder = self.decoder(shape_set) if structured else None
+            labels = [decoder.decode(t, p) if decoder else p.argmax(1) for t, p in zip(texts, probs)]
+        # per string: graph edge -> [(label, probabilities)] of each character that writes it
+        per_string = []
+        for text, order, lab, prob in zip(texts, orders, labels, probs):
+            seen: dict[tuple, list] = {}
             for i, e in enumerate(parse(text).char_edges):
-                if e is None:
-                    continue
-                key = (min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))
-                pred.setdefault(key, []).append(int(labels[i]))
-            preds.append(pred)
+                if e is not None:
+                    key = (min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))
+                    seen.setdefault(key, []).append((int(lab[i]), prob[i]))
+            per_string.append(seen)
         perms = self.categories.symmetry_permutations(shape_set) if shape_set is not None else [None]
+        size = len(self.categories)
         votes: dict[tuple, np.ndarray] = {}
         reference = None
-        for pred in preds:
-            best, best_agree = pred, -1
-            for perm in perms:
-                turned = pred if perm is None else {e: [perm.get(c) for c in cs] for e, cs in pred.items()}
-                if reference is None:
-                    best = pred
-                    break
-                agree = sum(c == reference.get(e) for e, cs in turned.items() for c in cs)
-                if agree > best_agree:
-                    best, best_agree = turned, agree
-            if reference is None:
-                reference = {e: cs[0] for e, cs in best.items()}
-            for e, cs in best.items():
-                v = votes.setdefault(e, np.zeros(len(self.categories)))
-                for c in cs:
-                    if c is not None:
-                        v[c] += 1
+        for seen in per_string:
+            perm = None
+            if reference is not None:
+                best_agree = -1
+                for candidate in perms:
+                    agree = sum((c if candidate is None else candidate.get(c)) == reference.get(e)
+                                for e, obs in seen.items() for c, _ in obs)
+                    if agree > best_agree:
+                        perm, best_agree = candidate, agree
+            else:
+                reference = {e: obs[0][0] for e, obs in seen.items()}
+            for e, obs in seen.items():
+                v = votes.setdefault(e, np.zeros(size))
+                for c, p in obs:
+                    if soft:
+                        if perm is None:
+                            v += p
+                        else:  # probability of category c goes to its image under the turn
+                            for c0, c1 in perm.items():
+                                if c1 is not None:
+                                    v[c1] += p[c0]
+                    else:
+                        c = c if perm is None else perm.get(c)
+                        if c is not None:
+                            v[c] += 1
+        if soft:
+            if structured:
+                order = orders[0]
+                with np.errstate(divide="ignore"):
+                    logp = {(min(a, b), max(a, b)): np.log(votes[(min(order[a], order[b]), max(order[a], order[b]))])
+                            for a, b in parse(texts[0]).graph.edges}
+                decoded = self.decoder(shape_set).decode_edges(texts[0], logp)
+                best = {(min(order[a], order[b]), max(order[a], order[b])): k for (a, b), k in decoded.items()}
+            else:
+                best = {e: int(np.argmax(v)) for e, v in votes.items()}
+            if ranked:
+                return {e: [best[e]] + [int(c) for c in np.argsort(-v, kind="stable") if v[c] > 0 and c != best[e]]
+                        for e, v in votes.items()}
+            return best
         if ranked:
             return {e: [int(c) for c in np.argsort(-v, kind="stable") if v[c] > 0] for e, v in votes.items()}
         return {e: int(np.argmax(v)) for e, v in votes.items()}

@@ -197,7 +197,7 @@ class TrainedModel:
 
     def instantiate(self, text: str, rng: np.random.Generator, votes: int = 8, attempts: int = 2,
                     budget: int = 4000) -> InstantiateResult:
-        """Build a shape for a string: tagger vote (categories ranked by votes), then the
+        """Build a shape for a string: tagger vote (categories ranked by the soft vote), then the
         transplanting search from a random edge, ``budget`` placements an attempt; another
         attempt (another start) only when the budget ran out, not when the search proved that
         no placement realises the graph."""

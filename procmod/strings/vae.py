@@ -100,8 +100,16 @@ class Vocab:
     def __len__(self) -> int:
         return len(self.itos)
 
-    def encode(self, text: str) -> list[int]:
+    def encode(self, text: str, any_ring_label: bool = False) -> list[int]:
+        """Token ids of ``text``. With ``any_ring_label``, a ring-label character the
+        vocabulary lacks (``%`` or ``0`` of a label from ``%10`` on, which strings need only
+        when ten rings are open at once) is read as the ring digit ``1``: for a model that
+        is given which characters pair up by other means (the tagger's string structure)."""
         try:
+            if any_ring_label:
+                ring = self.stoi.get("1")
+                return [self.stoi[c] if c in self.stoi or ring is None or not (c.isdigit() or c == "%") else ring
+                        for c in text]
             return [self.stoi[c] for c in text]
         except KeyError as exc:
             raise InvalidArgumentError(f"character {exc.args[0]!r} of {text!r} is not in the model's vocabulary "
