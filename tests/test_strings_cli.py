@@ -68,6 +68,10 @@ def test_augment_train_sample_instantiate(tmp_path, capsys):
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
     assert code == 0, err
     assert glb.read_bytes()[:4] == b"glTF"
+    code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", tmp_path / "m.glb",
+                          "--majority-vote")
+    assert code == 0, err
+    assert (tmp_path / "m.glb").read_bytes()[:4] == b"glTF"
     code, out, err = _run(capsys, "strings", "instantiate", model, "MMM", "--out", tmp_path / "y.glb")
     assert code == 2 and "breaks the tiling grammar" in err and not (tmp_path / "y.glb").exists()
     # grammar-valid, but a ring of three modules cannot close on the corridors' grid

@@ -89,6 +89,8 @@ def register(sub, int_arg) -> None:
     p.add_argument("--out", required=True, metavar="FILE.glb")
     p.add_argument("--seed", type=int_arg, default=0)
     p.add_argument("--votes", type=int_arg, default=8, help="strings of the graph the tagger votes over")
+    p.add_argument("--majority-vote", action="store_true",
+                   help="count each string's labels (seed 001) instead of averaging the tagger's probabilities")
     p.set_defaults(handler=_instantiate)
 
 
@@ -284,7 +286,8 @@ def _instantiate(args) -> None:
     if args.votes < 1:
         raise InvalidArgumentError(f"--votes must be a positive integer, got {args.votes}")
     model = TrainedModel(args.model)
-    result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes)
+    result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes,
+                               soft_vote=not args.majority_vote)
     if not result.success:
         hint = ("no choice of the example poses realises this graph (often a ring of a length the example "
                 "shapes never show); sample another string" if "every candidate pose tried" in result.reason

@@ -196,13 +196,14 @@ class TrainedModel:
         return g
 
     def instantiate(self, text: str, rng: np.random.Generator, votes: int = 8, attempts: int = 2,
-                    budget: int = 4000) -> InstantiateResult:
-        """Build a shape for a string: tagger vote (categories ranked by the soft vote), then the
-        transplanting search from a random edge, ``budget`` placements an attempt; another
-        attempt (another start) only when the budget ran out, not when the search proved that
-        no placement realises the graph."""
+                    budget: int = 4000, soft_vote: bool = True) -> InstantiateResult:
+        """Build a shape for a string: the tagger's vote over ``votes`` strings of its graph
+        (categories ranked; ``soft_vote=False``: the paper's majority vote, see
+        :meth:`TaggerModel.vote`), then the transplanting search from a random edge,
+        ``budget`` placements an attempt; another attempt (another start) only when the
+        budget ran out, not when the search proved that no placement realises the graph."""
         g = self.check_string(text)
-        cats = self.tagger.vote(g, votes, rng, self.shape_set, ranked=True)
+        cats = self.tagger.vote(g, votes, rng, self.shape_set, ranked=True, soft=soft_vote)
         result = InstantiateResult(None, False, reason="no attempt")
         for _ in range(attempts):
             result = instantiate_graph(g, cats, self.categories, self.shape_set, rng, self.start_pose, budget=budget)
