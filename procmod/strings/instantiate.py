@@ -1025,7 +1025,7 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
 
     Parts are placed in breadth-first order from a random edge, rings first. Each part's
     candidate poses are the example edges of its voted category, then those of the other
-    categories that got votes, then (the Monte Carlo fallback) those of every other category
+    ranked categories, then (the Monte Carlo fallback) those of every other category
     of its type pair; a pose is accepted when the part touches exactly its placed graph
     neighbours, each at a pose some category shows, and when every placed part it is still
     to be joined to (through parts not yet placed) is within reach (the sum of the largest
@@ -1099,7 +1099,7 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
         allowed = categories.allowed(types[x], types[y])
         ranked = [c for c in ([k] if isinstance(k, (int, np.integer)) else list(k or [])) if c in allowed]
         out, keys = [], set()
-        # the voted category, then the other categories that got votes (most first), then the rest
+        # the voted category, then the other ranked ones (best first), then the rest of the pair
         for voted, cats in ([(True, ranked[:1])] + [(False, [c]) for c in ranked[1:]]
                             + [(False, [c for c in allowed if c not in ranked])]):
             group = []
