@@ -45,7 +45,7 @@ def test_errors_are_one_line_exit_2(tmp_path, capsys, monkeypatch, argv, words):
     assert not (tmp_path / "x").exists()
 
 
-def test_augment_train_sample_instantiate(tmp_path, capsys):
+def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     col = tmp_path / "col"
     code, out, _ = _run(capsys, "strings", "augment", SETS / "moonbase.json", "--count", 6, "--out", col,
                         "--seed", 1, "--parallel", 4, "--strings-per-shape", 4)
@@ -68,9 +68,18 @@ def test_augment_train_sample_instantiate(tmp_path, capsys):
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
     assert code == 0, err
     assert glb.read_bytes()[:4] == b"glTF"
+    from procmod.strings.instantiate import TaggerModel
+    vote, kinds = TaggerModel.vote, []
+
+    def recording_vote(self, *args, **kwargs):
+        kinds.append(kwargs.get("soft", True))
+        return vote(self, *args, **kwargs)
+
+    monkeypatch.setattr(TaggerModel, "vote", recording_vote)
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", tmp_path / "m.glb",
                           "--majority-vote")
     assert code == 0, err
+    assert kinds == [False]  # the seed's majority vote
     assert (tmp_path / "m.glb").read_bytes()[:4] == b"glTF"
     code, out, err = _run(capsys, "strings", "instantiate", model, "MMM", "--out", tmp_path / "y.glb")
     assert code == 2 and "breaks the tiling grammar" in err and not (tmp_path / "y.glb").exists()

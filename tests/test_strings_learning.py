@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from procmod.core.errors import InvalidArgumentError
-from procmod.strings.codec import parse, strings_of
+from procmod.strings.codec import encode_with_order, parse, strings_of
 from procmod.strings.decoding import star_set
 from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
                                          string_structure, tagging_accuracy, tagging_examples, train_tagger)
@@ -224,7 +224,6 @@ def test_soft_vote_weighs_confident_strings(moonbase, categories):
                     prob[i, allowed[0] if allowed else 0] = 1.0
                     continue
                 first, second = (0.95, 0.05) if k == 0 else (0.45, 0.55)
-                prob[i, allowed] = (1 - first - second) / max(len(allowed) - 2, 1)
                 prob[i, allowed[0]], prob[i, allowed[1]] = first, second
             out.append(prob / prob.sum(1, keepdims=True))
         return out
@@ -241,6 +240,50 @@ def test_soft_vote_weighs_confident_strings(moonbase, categories):
     assert all(soft[e] == pair[e][0] for e in contested)
 
 
+def test_soft_vote_turns_each_string_back_before_averaging(moonbase, categories, monkeypatch):
+    """Strings that see the shape turned by a quarter turn (their labels permuted) are turned
+    back before their probabilities are added: four turned strings and one upright one give
+    the upright labelling, with and without structured decoding."""
+    import procmod.strings.instantiate as inst
+
+    ss, graphs, _, strings = moonbase
+    cats = categories
+    g = graphs[0]
+    truth = cats.edge_categories(ss, ss.shapes[0], g)
+    turn = cats.symmetry_permutations(ss)[1]  # a quarter turn about the vertical
+    assert all(turn.get(k) is not None for k in truth.values())
+    assert any(turn[k] != k for k in truth.values())
+    assert any(turn.get(turn[k]) != k for k in truth.values())  # not its own inverse
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    model = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
+    orders = {}
+
+    def recording_encode(graph, root=None, rng=None):
+        text, order = encode_with_order(graph, root, rng)
+        orders[text] = order
+        return text, order
+
+    def predict(texts):
+        out = []
+        for k, text in enumerate(texts):
+            parsed, order = parse(text), orders[text]
+            prob = np.zeros((len(text), len(cats)))
+            for i, e in enumerate(parsed.char_edges):
+                if e is None:
+                    prob[i, 0] = 1.0
+                    continue
+                c = truth[(min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))]
+                prob[i, c if k == 0 else turn[c]] = 1.0
+            out.append(0.9 * prob + 0.1 / len(cats))
+        return out
+
+    monkeypatch.setattr(inst, "encode_with_order", recording_encode)
+    model.predict = predict
+    for structured in (False, True):
+        vote = model.vote(g, 5, np.random.default_rng(0), ss, structured=structured)
+        assert vote == truth
+
+
 def test_tagger_reads_ring_labels_past_nine(moonbase, categories):
     """A string with a ring label from %10 on is read by a tagger whose training strings
     never needed one (the ring pairs come from the structure input)."""
@@ -252,7 +295,7 @@ def test_tagger_reads_ring_labels_past_nine(moonbase, categories):
     assert set(parse(wide).graph.edges) == set(parse(text).graph.edges)  # the same graph
     model = TaggerModel(Tagger(len(vocab), len(categories), TaggerConfig(hidden=8, embed=8, layers=1)), vocab,
                         categories)
-    prob, wide_prob = model.predict([text, wide])
+    wide_prob = model.predict([wide])[0]
     assert wide_prob.shape[0] == len(wide) and np.allclose(wide_prob.sum(1), 1)
     with pytest.raises(InvalidArgumentError, match="not in the model's vocabulary"):
         vocab.encode(wide)

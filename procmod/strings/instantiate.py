@@ -768,11 +768,11 @@ class TaggerModel:
         vertical axis, so (given ``shape_set``, the training shapes) every string's
         prediction is first turned by the symmetry that agrees best with the first string's.
 
-        ``soft`` (the default): the tagger's probabilities of each edge are averaged over
-        every character that writes it in every string (soft voting), and the whole graph
-        is labelled once by structured decoding of those averages (``structured``; else
-        each edge's most probable category); ranked: that label, then the rest by averaged
-        probability. With ``soft=False``, the paper's majority vote: each string is labelled
+        ``soft`` (the default): the tagger's probabilities of each edge are summed over
+        every character that writes it in every string (soft voting; a ring edge's two
+        labels count as two), and the whole graph is labelled once by structured decoding
+        of the logs of those sums (``structured``; else each edge's most probable category);
+        ranked: that label, then the rest by summed probability. With ``soft=False``, the paper's majority vote: each string is labelled
         on its own (:meth:`labels`) and each edge gets the category most strings gave it;
         ranked: every category that got a vote, most votes first (ties: the lower category).
         """
