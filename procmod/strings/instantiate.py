@@ -772,9 +772,10 @@ class TaggerModel:
         every character that writes it in every string (soft voting; a ring edge's two
         labels count as two), and the whole graph is labelled once by structured decoding
         of the logs of those sums (``structured``; else each edge's most probable category);
-        ranked: that label, then the rest by summed probability. With ``soft=False``, the paper's majority vote: each string is labelled
-        on its own (:meth:`labels`) and each edge gets the category most strings gave it;
-        ranked: every category that got a vote, most votes first (ties: the lower category).
+        ranked: that label, then the rest by summed probability. With ``soft=False``, the
+        paper's majority vote: each string is labelled on its own (:meth:`labels`) and each
+        edge gets the category most strings gave it; ranked: every category that got a vote,
+        most votes first (ties: the lower category).
         """
         texts, orders = [], []
         for k in range(strings):
