@@ -66,9 +66,9 @@ def edge_category_figures(tagger, shape_set, collection_set, held_shapes, held_g
     (against the closest of the string's turn/mirror-equivalent target sequences), labelled
     by structured decoding (``_argmax``: each character's most probable category alone), and
     per edge after the vote over 8 strings (aligned by symmetry): the soft vote with structured
-    decoding (``voted_``, the default) and the paper's majority vote (``majority_voted_``). ``shape_set`` gives
-    the part library for the truth, ``collection_set`` the training shapes the decoding and
-    the vote use."""
+    decoding (``voted_``, the default) and the paper's majority vote (``majority_voted_``).
+    ``shape_set`` gives the part library for the truth, ``collection_set`` the training
+    shapes the decoding and the vote use."""
     held = tagging_examples(shape_set, held_shapes, held_graphs, tagger.categories, 4, rng, every_symmetry=True)
     t0 = time.perf_counter()
     structured = tagging_accuracy(tagger, held, shape_set=collection_set) if held else None

@@ -151,7 +151,7 @@ class CategoryDecoder:
             if e is not None:
                 key = (min(e), max(e))
                 logp[key] = logp.get(key, 0.0) + logprob[i]  # a ring edge is written twice
-        labels = self.decode_edges(text, logp)
+        labels, _ = self._search(parsed, logp, self.params.beam, self.params.candidates)
         out = prob.argmax(1)
         for i, e in enumerate(parsed.char_edges):
             if e is not None:
