@@ -128,7 +128,7 @@ def run_set(name: str, args, work: Path) -> dict:
     tagger = TaggerConfig(epochs=args.tagger_epochs, hidden=args.tagger_hidden, lr_final=args.tagger_lr_final,
                           graph_rounds=args.tagger_graph_rounds)
     meta = train_model(coll, model_dir, VAEConfig(epochs=args.epochs), tagger, args.strings_per_shape, 0.2, args.seed,
-                       tagger_strings_per_shape=args.tagger_strings_per_shape)
+                       tagger_strings_per_shape=args.tagger_strings_per_shape, device=args.device)
     row["training"] = {"seconds": round(time.perf_counter() - t0, 1), "strings": meta["training_strings"],
                        "shapes": meta["train_shapes"], "categories": meta["categories"]}
     model = TrainedModel(model_dir)
@@ -268,6 +268,7 @@ def main() -> None:
     ap.add_argument("--graph-size", type=int, default=300)
     ap.add_argument("--instantiate", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--device", default="cpu", help="torch device to train the VAE and the tagger on (cpu, cuda)")
     ap.add_argument("--work", type=Path)
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
     args = ap.parse_args()

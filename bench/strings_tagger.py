@@ -11,11 +11,17 @@ same figures).
 
 Writes ``bench/results/strings_tagger_<set>_<count>.json`` and ``.png`` (training curve).
 A run on the same ``--work`` folder reuses the grown collection and resumes the training.
+To train on a GPU machine: ``--prepare-only`` here, ``--train-only --device cuda`` there
+on a copy of the work folder (needs torch and procmod only), the tagger folder copied back,
+then the same command here without either flag: the checkpoint holds CPU tensors and only
+the measurement runs. ``train_seconds`` counts
+this run's training only: the epochs' own times are in ``history``.
 """
 
 from __future__ import annotations
 
 import argparse
+import gzip
 import json
 import sys
 import time
@@ -31,12 +37,12 @@ sys.path.insert(0, str(ROOT))
 from strings import SETS, edge_category_figures  # noqa: E402
 
 from procmod.parallel import open_executor  # noqa: E402
-from procmod.strings.instantiate import TaggerConfig, train_tagger  # noqa: E402
+from procmod.strings.instantiate import EdgeCategories, TaggerConfig, train_tagger  # noqa: E402
 from procmod.strings.pipeline import (read_collection, split_shapes, tagger_training_set,  # noqa: E402
                                       vae_training_strings, write_collection)
 from procmod.strings.sampling import augment  # noqa: E402
 from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
-from procmod.strings.vae import vocab_of  # noqa: E402
+from procmod.strings.vae import Vocab, vocab_of  # noqa: E402
 
 
 def grown_collection(args, folder: Path):
@@ -46,11 +52,25 @@ def grown_collection(args, folder: Path):
         return read_collection(folder), None
     t0 = time.perf_counter()
     with open_executor(args.workers) as executor:
-        grown = augment(inputs, args.count, seed=args.seed, parallel=args.parallel, max_rounds=400,
+        grown = augment(inputs, args.count, seed=args.seed, parallel=args.parallel, max_rounds=args.max_rounds,
                         executor=executor, seconds=args.augment_seconds)
     seconds = time.perf_counter() - t0
     write_collection(inputs, grown.shapes, folder, grown.rounds, 8, args.seed, sheet=False)
     return read_collection(folder), round(seconds, 1)
+
+
+def write_training_inputs(path: Path, vocab, categories, examples) -> None:
+    """The tagger's vocabulary, categories and (string, targets) pairs, for a machine that
+    only trains (``--prepare-only`` here, ``--train-only`` there)."""
+    data = {"vocab": vocab.chars, "categories": categories.to_json(), "examples": examples}
+    with gzip.open(path, "wt") as f:
+        json.dump(data, f)
+
+
+def read_training_inputs(path: Path):
+    with gzip.open(path, "rt") as f:
+        data = json.load(f)
+    return Vocab(data["vocab"]), EdgeCategories.from_json(data["categories"]), data["examples"]
 
 
 def main() -> None:
@@ -58,6 +78,8 @@ def main() -> None:
     ap.add_argument("--set", default="castle", choices=("castle", "moonbase", "colonnade"))
     ap.add_argument("--count", type=int, default=360, help="collection size")
     ap.add_argument("--augment-seconds", type=float, default=600)
+    ap.add_argument("--max-rounds", type=int, default=400,
+                    help="growth rounds at most (400, as bench/strings.py; colonnade needs more past 184 shapes)")
     ap.add_argument("--parallel", type=int, default=8)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
@@ -68,16 +90,32 @@ def main() -> None:
     ap.add_argument("--graph-rounds", type=int, default=TaggerConfig.graph_rounds)
     ap.add_argument("--strings-per-shape", type=int, default=16, help="tagger training strings per shape")
     ap.add_argument("--work", type=Path, required=True, help="folder for the collection and the tagger")
+    ap.add_argument("--device", default="cpu", help="torch device to train the tagger on (cpu, cuda)")
+    ap.add_argument("--prepare-only", action="store_true",
+                    help="grow the collection and write the tagger's training strings into --work, then stop")
+    ap.add_argument("--train-only", action="store_true",
+                    help="stop after training (reads what --prepare-only wrote, if there: no geometry is "
+                         "computed); a rerun without this flag on the same --work finds the tagger trained")
     ap.add_argument("--out", type=Path, default=ROOT / "results")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     work = args.work / f"{args.set}_{args.count}"
-    shape_set, growth_seconds = grown_collection(args, work / "collection")
-    graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
-    train_idx, test_idx = split_shapes(len(graphs), 0.2, args.seed)
-    # as train_model: the tagger shares the VAE's vocabulary (8 strings a training shape)
-    vocab = vocab_of(vae_training_strings(graphs, train_idx, 8, args.seed))
-    categories, examples, _ = tagger_training_set(shape_set, graphs, train_idx, args.strings_per_shape, args.seed)
+    cache = work / f"tagger_inputs_s{args.strings_per_shape}_seed{args.seed}.json.gz"
+    if args.train_only and cache.is_file():  # prepared elsewhere: no collection, no geometry needed
+        vocab, categories, examples = read_training_inputs(cache)
+        shape_set = graphs = None
+    else:
+        shape_set, growth_seconds = grown_collection(args, work / "collection")
+        graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
+        train_idx, test_idx = split_shapes(len(graphs), 0.2, args.seed)
+        # as train_model: the tagger shares the VAE's vocabulary (8 strings a training shape)
+        vocab = vocab_of(vae_training_strings(graphs, train_idx, 8, args.seed))
+        categories, examples, _ = tagger_training_set(shape_set, graphs, train_idx, args.strings_per_shape,
+                                                      args.seed)
+    if args.prepare_only:
+        write_training_inputs(cache, vocab, categories, examples)
+        print(f"collection and training strings in {work}", flush=True)
+        return
     config = TaggerConfig(epochs=args.epochs, hidden=args.hidden, lr_final=args.lr_final, dropout=args.dropout,
                           graph_rounds=args.graph_rounds)
     # one folder per setting (the training strings too: a resumed run must see the same data)
@@ -85,9 +123,12 @@ def main() -> None:
                      f"_s{args.strings_per_shape}")
     t0 = time.perf_counter()
     tagger = train_tagger(examples, vocab, categories, folder, config, args.seed,
-                          progress=lambda row: print(row, flush=True))
+                          progress=lambda row: print(row, flush=True), device=args.device)
     train_seconds = time.perf_counter() - t0
     history = json.loads((folder / "tagger.json").read_text())["train"]["history"]
+    if args.train_only:
+        print(f"trained in {train_seconds:.0f} s: {folder}", flush=True)
+        return
     rng = np.random.default_rng(args.seed)  # the bench's measurement, in the bench's order
     figures = edge_category_figures(tagger, shape_set, shape_set, [shape_set.shapes[i] for i in test_idx],
                                     [graphs[i] for i in test_idx], rng)

@@ -2,6 +2,7 @@ import json
 from pathlib import Path
 
 import pytest
+import torch
 
 from procmod.cli import main
 
@@ -35,6 +36,10 @@ def test_graph_encode_decode(tmp_path, capsys):
     (["strings", "decode", "C?C"], ["unknown character"]),
     (["strings", "graph", "nope.json", "--out", "x"], ["does not exist"]),
     (["strings", "sample", "nope", "-n", "2", "--out", "x"], ["not a trained string model"]),
+    (["strings", "train", "nope", "--out", "x", "--device", "tpu:0"], ["not a torch device"]),
+    (["strings", "train", "nope", "--out", "x", "--device", "meta"], ["cpu or cuda only"]),
+    pytest.param(["strings", "train", "nope", "--out", "x", "--device", "cuda"], ["sees no CUDA device"],
+                 marks=pytest.mark.skipif(torch.cuda.is_available(), reason="a CUDA device is visible")),
 ])
 def test_errors_are_one_line_exit_2(tmp_path, capsys, monkeypatch, argv, words):
     monkeypatch.chdir(tmp_path)

@@ -342,6 +342,31 @@ def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, catego
         assert state["epoch"] == 3
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_training_on_cuda_saves_cpu_checkpoints_that_resume_anywhere(tmp_path, moonbase, categories):
+    """Tagger and VAE trained on the GPU: the checkpoints hold CPU tensors, the models come
+    back on the CPU, predict what a reloaded copy predicts, and resume on the CPU."""
+    ss, graphs, grammar, strings = moonbase
+    vocab = Vocab(set("".join(strings)) | set("()123456789"))
+    examples = tagging_examples(ss, ss.shapes, graphs, categories, 2, np.random.default_rng(0), every_symmetry=True)
+    cfg = TaggerConfig(epochs=2, hidden=8, embed=8)
+    tagger = train_tagger(examples, vocab, categories, tmp_path / "t", cfg, device="cuda")
+    assert all(p.device.type == "cpu" for p in tagger.net.parameters())
+    payload = torch.load(tmp_path / "t" / "tagger.pt", weights_only=True)
+    assert all(v.device.type == "cpu" for v in payload["model"].values())
+    texts = [s for s, _ in examples[:5]]
+    again = TaggerModel.load(tmp_path / "t")
+    assert all(np.allclose(a, b, atol=1e-5) for a, b in zip(tagger.predict(texts), again.predict(texts)))
+    train_tagger(examples, vocab, categories, tmp_path / "t", TaggerConfig(**{**cfg.__dict__, "epochs": 3}))
+    assert json.loads((tmp_path / "t" / "tagger.json").read_text())["train"]["epoch"] == 3
+    vae = train_vae(strings, grammar, tmp_path / "v", TINY, seed=2, device="cuda")
+    assert all(p.device.type == "cpu" for p in vae.net.parameters())
+    loaded = StringModel.load(tmp_path / "v")
+    assert all(torch.equal(a, b) for a, b in zip(vae.net.state_dict().values(), loaded.net.state_dict().values()))
+    train_vae(strings, grammar, tmp_path / "v", VAEConfig(**{**TINY.__dict__, "epochs": 3}), seed=2)
+    assert json.loads((tmp_path / "v" / "vae.json").read_text())["train"]["epoch"] == 3
+
+
 def test_graph_rounds_pass_messages_along_graph_edges(moonbase, categories):
     """One round of message passing: a letter's state depends on its graph neighbours'
     string states (tree and ring edges, however far apart in the string) and on nothing

@@ -69,6 +69,8 @@ def register(sub, int_arg) -> None:
     p.add_argument("--tagger-strings-per-shape", type=int_arg, default=16,
                    help="tagger training strings per shape (default 16)")
     p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2)")
+    p.add_argument("--device", default="cpu",
+                   help="torch device to train on: cpu (default), cuda or cuda:N; the model is saved for the CPU")
     p.add_argument("--seed", type=int_arg, default=0)
     p.set_defaults(handler=_train)
 
@@ -200,13 +202,15 @@ def _train(args) -> None:
             bar = bars[stage] = tqdm(total=total, unit=" epochs", desc=stage, disable=None, leave=False,
                                      file=sys.stderr)
         bar.n = row["epoch"]
-        bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in ("epoch", "seconds")}, refresh=False)
+        bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in ("epoch", "seconds", "device")},
+                       refresh=False)
         bar.refresh()
 
     if args.strings_per_shape < 1 or args.tagger_strings_per_shape < 1:
         raise InvalidArgumentError("--strings-per-shape and --tagger-strings-per-shape must be positive integers")
     meta = train_model(args.collection, args.out, vae, tagger, args.strings_per_shape, args.held_out,
-                       _seed(args.seed), progress, tagger_strings_per_shape=args.tagger_strings_per_shape)
+                       _seed(args.seed), progress, tagger_strings_per_shape=args.tagger_strings_per_shape,
+                       device=args.device)
     for bar in bars.values():
         bar.close()
     acc = meta.get("tagger_held_out_accuracy")

@@ -41,7 +41,7 @@ from ..core.serialize import write_text_atomic
 from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .shapes import Shape, ShapeSet, contact_pairs, first_poses, part_points, shape_graph, tolerance_for
-from .vae import ModelFileError, Vocab, torch_threads
+from .vae import ModelFileError, Vocab, cpu_state, torch_threads, training_device
 
 # ---------------------------------------------------------------------------------------------
 # Local frames
@@ -428,7 +428,7 @@ class Tagger(nn.Module):
         if structure is None:
             raise InvalidArgumentError("the tree tagger needs the strings' structure (string_structure)")
         b, t = tokens.shape
-        rows = torch.arange(b)
+        rows = torch.arange(b, device=tokens.device)
         tree = self._tree_states(emb, structure)
         h, _ = self.rnn(torch.cat([emb, tree], dim=2))
         g = self._graph_states(h, structure) if self.config.graph_rounds else h
@@ -445,7 +445,7 @@ class Tagger(nn.Module):
         between them; here a part sees its graph neighbourhood (radius = rounds) directly,
         the same for every string of the graph."""
         b, t, d = h.shape
-        ends = structure[:, :, 1:].numpy()  # 1 + positions of both ends of each character's edge
+        ends = structure[:, :, 1:].cpu().numpy()  # 1 + positions of both ends of each character's edge
         rows, cols = np.nonzero(ends[:, :, 0] > 0)
         # (row, end, end) per edge; a set, since a ring edge has two characters
         pairs = {(int(r), int(ends[r, c, 0]) - 1, int(ends[r, c, 1]) - 1) for r, c in zip(rows, cols)}
@@ -454,10 +454,12 @@ class Tagger(nn.Module):
         arr = np.array(sorted(pairs), dtype=np.int64)
         src = np.concatenate([arr[:, 0] * t + arr[:, 1], arr[:, 0] * t + arr[:, 2]])
         dst = np.concatenate([arr[:, 0] * t + arr[:, 2], arr[:, 0] * t + arr[:, 1]])
-        src_t, dst_t = torch.from_numpy(src), torch.from_numpy(dst)
+        dev = h.device
+        src_t, dst_t = torch.from_numpy(src).to(dev), torch.from_numpy(dst).to(dev)
         degree = np.bincount(dst, minlength=b * t).astype(np.float32)
-        nodes = torch.from_numpy(np.nonzero(degree)[0])
-        inv_degree = torch.from_numpy(1.0 / degree[nodes.numpy()])[:, None]
+        node_ids = np.nonzero(degree)[0]
+        nodes = torch.from_numpy(node_ids).to(dev)
+        inv_degree = torch.from_numpy(1.0 / degree[node_ids])[:, None].to(dev)
         flat = h.reshape(b * t, d)
         for _ in range(self.config.graph_rounds):
             msg = flat.new_zeros((b * t, d)).index_add_(0, dst_t, self.message(flat)[src_t])
@@ -469,7 +471,8 @@ class Tagger(nn.Module):
         """GRU states down the spanning tree ``(B, T, hidden)``, one tree level at a time
         (a character's parent is always one level up), so the cost is linear in the length."""
         b, t, _ = emb.shape
-        parent = structure[:, :, 0].numpy()  # 1 + parent position, 0: none
+        dev = emb.device
+        parent = structure[:, :, 0].cpu().numpy()  # 1 + parent position, 0: none
         depth = np.zeros((b, t), dtype=np.int64)
         for i in range(t):  # parents come before children in the string
             has = parent[:, i] > 0
@@ -482,16 +485,16 @@ class Tagger(nn.Module):
             bs, js = np.nonzero(depth == d)
             flat = bs * t + js
             row_of[flat] = np.arange(len(flat))
-            x = flat_emb[torch.from_numpy(flat)]
+            x = flat_emb[torch.from_numpy(flat).to(dev)]
             if d == 0:
                 h = x.new_zeros((len(flat), self.config.hidden))
             else:
-                h = prev[torch.from_numpy(row_of[bs * t + parent[bs, js] - 1])]
+                h = prev[torch.from_numpy(row_of[bs * t + parent[bs, js] - 1]).to(dev)]
             prev = self.tree_cell(x, h)
             outs.append(prev)
             flats.append(flat)
         states = torch.cat(outs)
-        order = torch.from_numpy(np.concatenate(flats))
+        order = torch.from_numpy(np.concatenate(flats)).to(dev)
         return emb.new_zeros((b * t, self.config.hidden)).index_copy(0, order, states).reshape(b, t, -1)
 
 
@@ -846,9 +849,9 @@ class TaggerModel:
 
     def save(self, folder, state=None, optimizer=None) -> None:
         folder = Path(folder)
-        payload = {"model": self.net.state_dict()}
+        payload = {"model": cpu_state(self.net)}
         if optimizer is not None:
-            payload["optimizer"] = optimizer.state_dict()
+            payload["optimizer"] = cpu_state(optimizer)
         tmp = folder / ".tagger.pt.tmp"
         torch.save(payload, tmp)
         os.replace(tmp, folder / "tagger.pt")
@@ -863,7 +866,7 @@ class TaggerModel:
         folder = Path(folder)
         try:
             meta = json.loads((folder / "tagger.json").read_text())
-            payload = torch.load(folder / "tagger.pt", weights_only=True)
+            payload = torch.load(folder / "tagger.pt", weights_only=True, map_location="cpu")
         except (OSError, json.JSONDecodeError, RuntimeError) as exc:
             raise ModelFileError(f"cannot read the edge-category tagger in {folder} ({exc})") from None
         cats = EdgeCategories.from_json(meta["categories"])
@@ -882,13 +885,18 @@ class TaggerModel:
 
 
 def train_tagger(examples: list, vocab: Vocab, categories: EdgeCategories, folder, config: TaggerConfig = TaggerConfig(),
-                 seed: int = 0, progress=None) -> TaggerModel:
-    """Train (or resume) the tagger on (string, targets) pairs, checkpointing every epoch."""
+                 seed: int = 0, progress=None, device: str | None = None) -> TaggerModel:
+    """Train (or resume, on any device) the tagger on (string, targets) pairs, checkpointing
+    every epoch; ``device``: see :func:`~procmod.strings.vae.training_device` (the model
+    comes back on the CPU)."""
+    dev = training_device(device)
     with torch_threads():
-        return _train_tagger(examples, vocab, categories, folder, config, seed, progress)
+        model = _train_tagger(examples, vocab, categories, folder, config, seed, progress, dev)
+    model.net.to("cpu")
+    return model
 
 
-def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -> TaggerModel:
+def _train_tagger(examples, vocab, categories, folder, config, seed, progress, device) -> TaggerModel:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(seed)
@@ -899,9 +907,10 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
     else:
         model, state, opt_state = TaggerModel(Tagger(len(vocab), len(categories), config), vocab, categories), \
             {"epoch": 0, "history": []}, None
+    model.net.to(device)
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.lr)
     if opt_state is not None:
-        optimizer.load_state_dict(opt_state)
+        optimizer.load_state_dict(opt_state)  # moves the moments to the parameters' device
     stars = star_set(examples)
     if model.stars != stars:  # a new tagger, or one trained before stars were kept
         model.stars = stars
@@ -926,7 +935,8 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
         total, n_chars, correct, t0 = 0.0, 0, 0, time.perf_counter()
         for ids in batches:
             batch = [examples[i] for i in ids]
-            tok, mask, tgt, struct = model._tensors([b[0] for b in batch], [b[1] for b in batch])
+            tok, mask, tgt, struct = (x.to(device) for x in
+                                      model._tensors([b[0] for b in batch], [b[1] for b in batch]))
             logits = model.net(tok, mask, struct)
             # -inf logits of disallowed categories: use log_softmax and gather the target's only.
             if not config.symmetric_loss:
@@ -942,14 +952,14 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress) -
             loss.backward()
             nn.utils.clip_grad_norm_(model.net.parameters(), 5.0)
             optimizer.step()
-            chosen = tgt[torch.arange(b_), best]
+            chosen = tgt[torch.arange(b_, device=device), best]
             edge = chosen > 0
             correct += int(((logits.argmax(2) == chosen) & edge).sum())
             n_chars += int(edge.sum())
             total += float(loss.detach()) * len(batch)
         state["epoch"] += 1
         row = {"epoch": state["epoch"], "loss": total / len(order), "train_accuracy": correct / max(n_chars, 1),
-               "seconds": round(time.perf_counter() - t0, 2)}
+               "seconds": round(time.perf_counter() - t0, 2), "device": str(device)}
         state["history"].append(row)
         model.save(folder, state, optimizer)
         if progress is not None:

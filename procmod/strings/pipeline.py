@@ -29,7 +29,7 @@ from .instantiate import (CategoryParams, EdgeCategories, InstantiateResult, Tag
                           instantiate_graph, tagging_accuracy, tagging_examples, train_tagger)
 from .shapes import (Grammar, ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shape_graph,
                      write_shapes)
-from .vae import ModelFileError, StringModel, VAEConfig, train_vae
+from .vae import ModelFileError, StringModel, VAEConfig, train_vae, training_device
 
 MODEL_FORMAT = "procmod-string-model/1"
 
@@ -83,12 +83,16 @@ def split_shapes(n: int, held_out: float, seed: int) -> tuple[list[int], list[in
 def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_config: VAEConfig = VAEConfig(),
                 tagger_config: TaggerConfig = TaggerConfig(), strings_per_shape: int = 8, held_out: float = 0.2,
                 seed: int = 0, progress=None, stop_after: int | None = None,
-                tagger_strings_per_shape: int = 16) -> dict:
+                tagger_strings_per_shape: int = 16, device: str | None = None) -> dict:
     """Train the VAE and the edge-category tagger on a collection, into a model folder.
+
+    ``device``: where both train (``"cpu"``, ``"cuda"``; see
+    :func:`~procmod.strings.vae.training_device`); the saved model loads on any machine.
 
     ``held_out`` of the variants (never the inputs) are kept out of both trainings and
     used for the tagger's held-out accuracy. Returns the model's ``model.json`` content.
     """
+    training_device(device)  # a device this machine lacks fails before anything is written
     shape_set = read_collection(collection)
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -102,7 +106,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
         write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
     report = progress or (lambda stage, row: None)
     vae = train_vae(strings, grammar, out, vae_config, seed, progress=lambda row: report("vae", row),
-                    stop_after=stop_after)
+                    stop_after=stop_after, device=device)
     if len(vae_history(out)) < vae_config.epochs:
         return {}
     cats_path = out / "categories.json"
@@ -114,7 +118,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
                             categories, 4, trng, every_symmetry=True)
     tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
-                          progress=lambda row: report("tagger", row))
+                          progress=lambda row: report("tagger", row), device=device)
     meta = {"format": MODEL_FORMAT, "grammar": grammar.to_json(), "seed": seed,
             "strings_per_shape": strings_per_shape, "tagger_strings_per_shape": tagger_strings_per_shape,
             "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),

@@ -62,6 +62,42 @@ class ModelFileError(ProcmodError):
     """A trained model folder or checkpoint that cannot be read."""
 
 
+def training_device(name: str | None) -> torch.device:
+    """The torch device to train on: ``None`` or ``"cpu"``, ``"cuda"``, ``"cuda:N"``.
+
+    Training runs there; checkpoints are always written with CPU tensors and every trained
+    model is handed back on the CPU, where sampling, decoding and instantiation run (their
+    per-step work is small and branchy), so a model trained on a GPU loads anywhere.
+    """
+    if name is None or name == "cpu":
+        return torch.device("cpu")
+    try:
+        device = torch.device(name)
+    except (RuntimeError, TypeError):
+        raise InvalidArgumentError(f"--device {name!r} is not a torch device; use cpu, cuda or cuda:N") from None
+    if device.type != "cuda":
+        raise InvalidArgumentError(f"--device {name!r}: training runs on cpu or cuda only")
+    if not torch.cuda.is_available():
+        raise InvalidArgumentError(f"--device {name}: torch sees no CUDA device here "
+                                   f"(torch {torch.__version__}); train with --device cpu")
+    if device.index is not None and device.index >= torch.cuda.device_count():
+        raise InvalidArgumentError(f"--device {name}: only {torch.cuda.device_count()} CUDA device(s) visible")
+    return device
+
+
+def cpu_state(module_or_optimizer) -> dict:
+    """A state dict with every tensor on the CPU (checkpoints load on any machine)."""
+    def to_cpu(x):
+        if isinstance(x, torch.Tensor):
+            return x.detach().cpu()
+        if isinstance(x, dict):
+            return {k: to_cpu(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return type(x)(to_cpu(v) for v in x)
+        return x
+    return to_cpu(module_or_optimizer.state_dict())
+
+
 @dataclass
 class VAEConfig:
     """Sizes and training constants of the string VAE (see docs/strings.md)."""
@@ -469,7 +505,7 @@ class Constraint:
 @dataclass
 class TrainState:
     epoch: int = 0
-    history: list = field(default_factory=list)  # rows: epoch, loss, recon, kl, beta, seconds
+    history: list = field(default_factory=list)  # rows: epoch, loss, recon, kl, beta, seconds, device
 
 
 class StringModel:
@@ -593,9 +629,9 @@ class StringModel:
         meta = {"format": "procmod-string-vae/1", "config": asdict(self.net.config), "vocab": self.vocab.chars,
                 "grammar": self.grammar.to_json(), "max_nodes": self.max_nodes,
                 "train": asdict(state) if state is not None else None}
-        payload = {"model": self.net.state_dict()}
+        payload = {"model": cpu_state(self.net)}
         if optimizer is not None:
-            payload["optimizer"] = optimizer.state_dict()
+            payload["optimizer"] = cpu_state(optimizer)
         tmp = folder / ".vae.pt.tmp"
         torch.save(payload, tmp)
         os.replace(tmp, folder / "vae.pt")
@@ -606,7 +642,7 @@ class StringModel:
         folder = Path(folder)
         try:
             meta = json.loads((folder / "vae.json").read_text())
-            payload = torch.load(folder / "vae.pt", weights_only=True)
+            payload = torch.load(folder / "vae.pt", weights_only=True, map_location="cpu")
         except (OSError, json.JSONDecodeError, RuntimeError) as exc:
             raise ModelFileError(f"cannot read the string VAE in {folder} ({exc}); train one with "
                                  "'procmod strings train'") from None
@@ -630,18 +666,24 @@ def vocab_of(strings: list[str]) -> Vocab:
 
 
 def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, config: VAEConfig = VAEConfig(),
-              seed: int = 0, progress=None, stop_after: int | None = None) -> StringModel:
-    """Train (or resume training) a string VAE (see :func:`_train_vae`)."""
+              seed: int = 0, progress=None, stop_after: int | None = None, device: str | None = None) -> StringModel:
+    """Train (or resume training) a string VAE (see :func:`_train_vae`); ``device``: see
+    :func:`training_device` (the model comes back on the CPU)."""
+    dev = training_device(device)
     with torch_threads():
-        return _train_vae(strings, grammar, folder, config, seed, progress, stop_after)
+        model = _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev)
+    model.net.to("cpu")
+    return model
 
 
-def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> StringModel:
+def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, device) -> StringModel:
     """Train (or resume training) a string VAE, checkpointing into ``folder`` every epoch.
 
     A folder that already holds a checkpoint of the same configuration resumes from its
-    last finished epoch. ``stop_after`` ends after that many epochs of this call (tests use
-    it to simulate a kill). Same strings, config and seed: same weights.
+    last finished epoch (on any device). ``stop_after`` ends after that many epochs of this
+    call (tests use it to simulate a kill). Same strings, config, seed and device: same
+    weights. The batches and the latent noise are drawn on the CPU, so the random stream
+    is the same on every device.
     """
     config.check()
     folder = Path(folder)
@@ -660,10 +702,10 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> 
         max_nodes = int(math.ceil(NODE_BUDGET * max(sum(c.isalpha() for c in s) for s in strings)))
         model, state, opt_state = StringModel(StringVAE(len(vocab), config), vocab, grammar,
                                               max_nodes), TrainState(), None
-    net = model.net
+    net = model.net.to(device)
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
     if opt_state is not None:
-        optimizer.load_state_dict(opt_state)
+        optimizer.load_state_dict(opt_state)  # moves the moments to the parameters' device
     done_now = 0
     net.config = config  # more epochs than a checkpoint was trained for: train on
     while state.epoch < config.epochs:
@@ -683,12 +725,13 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> 
         t0 = time.perf_counter()
         for batch in batches:
             enc, lengths, dec_in, dec_out = _batch(model.vocab, [strings[i] for i in batch])
-            mu, logvar = net.encode(enc, lengths)
-            eps = torch.randn(mu.shape, generator=gen)
-            z = mu + eps * torch.exp(0.5 * logvar)
+            eps = torch.randn((enc.shape[0], config.latent), generator=gen)
             if config.word_dropout > 0:
                 drop = (torch.rand(dec_in.shape, generator=gen) < config.word_dropout) & (dec_in > EOS)
                 dec_in = dec_in.masked_fill(drop, PAD)
+            enc, dec_in, dec_out, eps = enc.to(device), dec_in.to(device), dec_out.to(device), eps.to(device)
+            mu, logvar = net.encode(enc, lengths)
+            z = mu + eps * torch.exp(0.5 * logvar)
             logits = net.decode_logits(z, dec_in)
             rec = nn.functional.cross_entropy(logits.reshape(-1, logits.shape[-1]), dec_out.reshape(-1),
                                               ignore_index=PAD, reduction="sum") / enc.shape[0]
@@ -702,7 +745,8 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after) -> 
             tot, rec_tot, kl_tot = tot + loss.item() * n, rec_tot + rec.item() * n, kl_tot + kl.item() * n
         state.epoch += 1
         row = {"epoch": state.epoch, "loss": tot / len(order), "recon": rec_tot / len(order),
-               "kl": kl_tot / len(order), "beta": beta, "seconds": round(time.perf_counter() - t0, 2)}
+               "kl": kl_tot / len(order), "beta": beta, "seconds": round(time.perf_counter() - t0, 2),
+               "device": str(device)}
         state.history.append(row)
         model.save(folder, state, optimizer)
         if progress is not None:
