@@ -182,9 +182,10 @@ def run_set(name: str, args, work: Path) -> dict:
     # Instantiation
     # Every ring of these sets' shapes alternates cells (towers, modules, columns) and links
     # (walls, corridors, beams) on a square grid, so its length is a multiple of 4 (an even
-    # number of grid steps); the grammar (neighbour multisets) cannot see that, and a sampled
-    # graph with a ring of another length has no embedding. Counted from the collection, not
-    # assumed: the residues of cycle-basis lengths mod 4 that the collection's graphs show.
+    # number of grid steps), and a sampled graph with a ring of another length has no
+    # embedding. The grammar's learned ring-length rule (Grammar.ring_multiple) keeps decoded
+    # samples to it; the count below checks that, from the residues of cycle-basis lengths
+    # mod 4 that the collection's graphs show (not assumed).
     seen_residues = {len(c) % 4 for g in all_graphs for c in nx.cycle_basis(g)}
     inst = {}
     for label, texts in (("held_out", [encode(g) for g in held_graphs][:args.instantiate]),

@@ -52,6 +52,21 @@ def test_vae_training_resumes_bit_identically(tmp_path, moonbase):
     assert hist[0]["beta"] == pytest.approx(TINY.kl_weight)  # warm-up of one epoch
 
 
+def test_resumed_vae_takes_the_ring_rule_and_refuses_other_rules(tmp_path, moonbase):
+    _, _, grammar, strings = moonbase
+    assert grammar.ring_multiple == 4  # moon-base rings: 8, 12
+    train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
+    meta = json.loads((tmp_path / "m" / "vae.json").read_text())
+    del meta["grammar"]["ring_length_multiple"]  # as saved before the rule existed
+    (tmp_path / "m" / "vae.json").write_text(json.dumps(meta))
+    assert StringModel.load(tmp_path / "m").grammar.ring_multiple == 1
+    resumed = train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
+    assert resumed.grammar == grammar and resumed.constraint.ring_multiple == 4
+    other = Grammar({**grammar.rules, "Z": frozenset({""})}, grammar.ring_multiple)
+    with pytest.raises(ModelFileError, match="other tiling rules"):
+        train_vae(strings, other, tmp_path / "m", TINY, seed=1)
+
+
 def test_constrained_decoding_only_ends_on_valid_strings(tmp_path, moonbase):
     _, _, grammar, strings = moonbase
     model = train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
@@ -80,6 +95,22 @@ def test_constraint_masks_follow_syntax_and_rules(moonbase):
     # an antenna (A) touches only a dome (D): after "AD" the dome needs its module next
     allowed = c.allowed(p)
     assert "M" in allowed and "A" not in allowed and "" not in allowed and ")" not in allowed
+
+
+@pytest.mark.parametrize("text, closes", [("A1AA2AAA(AAAA2)AA1", False), ("A1AAA2AA(AAAAA2)AA1", True),
+                                          ("A1AAAAAA1", False), ("A1AAAAAAA1", True)])
+def test_constraint_closes_rings_only_as_the_ring_rule_allows(text, closes):
+    """With every ring a multiple of 4 long, a ring label closes only a ring of such a length
+    that, with the rings closed before it, shares an even number of contacts (else the ring
+    around both has the wrong length: 8 + 8 - 2 * 3 = 10)."""
+    grammar = Grammar({"A": frozenset({"AA", "AAA"})}, ring_multiple=4)
+    constraint = Constraint(Vocab(set("A()12")), grammar)
+    p = _Prefix()
+    for c in text[:-1]:
+        assert c in constraint.allowed(p), (text, c)
+        constraint.advance(p, c)
+    assert ("1" in constraint.allowed(p)) == closes
+    assert Grammar({"A": frozenset({"AA", "AAA"})}).is_valid(parse(text).graph)  # only the rule decides
 
 
 def test_constraint_counts_open_ring_labels_as_neighbours(moonbase):

@@ -5,11 +5,11 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from procmod.strings.codec import encode
+from procmod.strings.codec import encode, parse
 from procmod.strings.instantiate import (EdgeCategories, canonical_frame, instantiate_graph, local_frame,
                                          symmetry_group)
 from procmod.strings.sampling import AugmentParams, attempt, augment, docking_transforms, match_boundary
-from procmod.strings.shapes import (Grammar, Shape, ShapesFormatError, boxes_touch, graph_from_dict,
+from procmod.strings.shapes import (Grammar, ring_multiple_of, ring_rule_breaks, Shape, ShapesFormatError, boxes_touch, graph_from_dict,
                                     histogram_distance, part_points, read_shapes, shape_graph, shapes_from_dict,
                                     type_histogram, type_letters, validate_shape)
 
@@ -127,6 +127,32 @@ def test_grammar_rules_and_violations():
     assert not grammar.is_valid(h)
     assert any("node 2 (T) has neighbours WW" in v for v in grammar.violations(h))
     assert Grammar.from_json(grammar.to_json()).rules == grammar.rules
+
+
+ODD_SHARE = "A1AA2AAA(AAAA2)AA1"  # two 8-rings sharing 3 contacts: the ring around both is 10 long
+EVEN_SHARE = "A1AAA2AA(AAAAA2)AA1"  # two 8-rings sharing 2 contacts: around both 12
+
+
+def test_ring_rule_is_learned_capped_and_checked_on_every_ring():
+    assert [ring_multiple_of(x) for x in ([], [28], [16, 20, 28], [6, 10], [6, 9], [12, 24])] == [1, 4, 4, 2, 1, 4]
+    chain = nx.cycle_graph(8)
+    nx.set_node_attributes(chain, "A", "type")
+    grammar = Grammar.from_graphs([chain, parse(EVEN_SHARE).graph])
+    assert grammar.ring_multiple == 4
+    assert grammar.is_valid(parse(EVEN_SHARE).graph)
+    odd = parse(ODD_SHARE).graph  # every neighbour multiset is allowed; only the outer ring is wrong
+    assert all(grammar.node_ok(odd, v) for v in odd) and not grammar.is_valid(odd)
+    # (which cycle basis networkx picks decides which of the two reasons it reads)
+    assert any("ring of 10 parts" in v or ("share 3 contacts" in v and "10 long" in v) for v in grammar.violations(odd))
+    eights = [{frozenset(e) for e in zip(c, c[1:] + c[:1])} for c in ([0, 1, 2, 3, 4, 5, 6, 7], [4, 5, 6, 7, 8, 9, 10, 11])]
+    assert ring_rule_breaks(eights, 4) == ["rings of 8 and 8 parts share 3 contacts, so the ring around both is 10 "
+                                           "long; every ring of the input shapes is a multiple of 4 parts long"]
+    assert ring_rule_breaks(eights, 2) == []
+    six = nx.cycle_graph(6)
+    nx.set_node_attributes(six, "A", "type")
+    assert grammar.violations(six) == ["a ring of 6 parts; every ring of the input shapes is a multiple of 4 parts long"]
+    back = Grammar.from_json(json.loads(json.dumps(grammar.to_json())))
+    assert back == grammar and Grammar.from_json({"A": ["AA"]}).ring_multiple == 1  # saved before the rule
 
 
 def test_histogram_metric():

@@ -121,7 +121,10 @@ def _graph(args) -> None:
         cycles = g.number_of_edges() - g.number_of_nodes() + 1
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
     print(f"types: {types}")
-    print("rules: " + "; ".join(f"{t}: {' | '.join(k or '-' for k in keys)}" for t, keys in grammar.to_json().items()))
+    print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
+                                for t, keys in sorted(grammar.rules.items())))
+    if grammar.ring_multiple > 1:
+        print(f"rings: every ring is a multiple of {grammar.ring_multiple} parts long")
     print(f"wrote {len(graphs)} graphs to {out}/")
 
 

@@ -187,6 +187,7 @@ class TrainedModel:
         self.tagger = TaggerModel.load(folder)
         self.categories = self.tagger.categories
         self.grammar = Grammar.from_json(self.meta["grammar"])
+        self.vae.grammar = self.grammar  # one grammar per model folder: model.json's
         self.shape_set = read_shapes(folder / "collection.json")
         self.training_strings = (folder / "strings.txt").read_text().split()
         self.start_pose = {t: np.asarray(m) for t, m in self.meta["start_pose"].items()}

@@ -227,10 +227,13 @@ class _Prefix:
     """What a decoded prefix has built so far, to mask impossible next tokens."""
 
     __slots__ = ("types", "edges", "nbrs", "prev", "stack", "rings", "after_open", "after_close", "percent",
-                 "labels_here", "done", "incomplete")
+                 "labels_here", "done", "incomplete", "parent", "depth", "ring_paths")
 
     def __init__(self):
         self.types: list[str] = []
+        self.parent: list[int] = []  # spanning-tree parent of each atom (-1: the root)
+        self.depth: list[int] = []
+        self.ring_paths: list[frozenset] = []  # per closed ring: its tree edges (by child atom)
         self.edges: set = set()
         self.nbrs: list[list[str]] = []
         self.prev = None
@@ -269,6 +272,33 @@ class Constraint:
         self.through = {(t, u) for u, keys in grammar.rules.items() for key in keys if len(key) >= 2 for t in set(key)}
         self.letters = [c for c in vocab.chars if c in LETTERS]
         self.digits = [c for c in vocab.chars if c.isdigit()]
+        self.ring_multiple = grammar.ring_multiple
+
+    @staticmethod
+    def _tree_path(p: _Prefix, a: int, b: int) -> frozenset:
+        """The spanning-tree edges between atoms ``a`` and ``b``, each named by its child
+        atom; ``a`` may be the atom about to be written (``len(p.types)``, a child of ``p.prev``)."""
+        path = set()
+        if a == len(p.types):
+            path.add(a)
+            a = p.prev
+        while a != b:
+            if p.depth[a] < p.depth[b]:
+                a, b = b, a
+            path.add(a)
+            a = p.parent[a]
+        return frozenset(path)
+
+    def _ring_length_ok(self, p: _Prefix, a: int, b: int) -> bool:
+        """Would a ring edge from ``a`` to ``b`` keep the grammar's ring-length rule? Its
+        ring (tree path + itself) and the rings closed before it are the string's cycle
+        basis; see :func:`~procmod.strings.shapes.ring_rule_breaks` for the test."""
+        if self.ring_multiple == 1:
+            return True
+        path = self._tree_path(p, a, b)
+        if (len(path) + 1) % self.ring_multiple:
+            return False
+        return self.ring_multiple != 4 or all(len(path & q) % 2 == 0 for q in p.ring_paths)
 
     def _fits(self, t: str, nbrs: list[str], wild: int = 0) -> bool:
         """Can some rule of type ``t`` hold the neighbours ``nbrs`` plus ``wild`` more of
@@ -433,7 +463,7 @@ class Constraint:
         nb = lambda a: nbrs_of.get(a, p.nbrs[a] if a < len(p.nbrs) else [])
         opener_types = {types[o] for o in openers.values()}
         for o in set(openers.values()):
-            if o != current and (types[current], types[o]) in self.pairs and \
+            if o != current and self._ring_length_ok(p, current, o) and (types[current], types[o]) in self.pairs and \
                     self._fits(types[current], nb(current) + [types[o]], self._pending(openers, current)) and \
                     self._fits(types[o], nb(o) + [types[current]], self._pending(openers, o) - 1):
                 return True
@@ -450,7 +480,7 @@ class Constraint:
             return False
         if label in p.rings:
             b = p.rings[label]
-            return self._edge_ok(p, b, p.types[a], a)
+            return self._ring_length_ok(p, a, b) and self._edge_ok(p, b, p.types[a], a)
         # opening: the atom must be able to take one more neighbour of some type, and the node
         # budget must leave room to write the ring's other end
         if self.max_nodes is not None and len(p.types) >= self.max_nodes:
@@ -464,6 +494,8 @@ class Constraint:
             v = len(p.types)
             p.types.append(c)
             p.nbrs.append([])
+            p.parent.append(-1 if p.prev is None else p.prev)
+            p.depth.append(0 if p.prev is None else p.depth[p.prev] + 1)
             p.incomplete.add(v)
             if p.prev is not None:
                 self._add_edge(p, p.prev, v)
@@ -484,7 +516,10 @@ class Constraint:
             p.percent = None
             p.labels_here.add(label)
             if label in p.rings:
-                self._add_edge(p, p.rings.pop(label), p.prev)
+                b = p.rings.pop(label)
+                if self.ring_multiple > 1:
+                    p.ring_paths.append(self._tree_path(p, p.prev, b))
+                self._add_edge(p, b, p.prev)
             else:
                 p.rings[label] = p.prev
 
@@ -512,10 +547,20 @@ class StringModel:
     """A trained VAE with its vocabulary and grammar; decoding and latent sampling."""
 
     def __init__(self, net: StringVAE, vocab: Vocab, grammar: Grammar, max_nodes: int | None = None):
-        self.net, self.vocab, self.grammar, self.max_nodes = net, vocab, grammar, max_nodes
-        self.constraint = Constraint(vocab, grammar, max_nodes)
+        self.net, self.vocab, self.max_nodes = net, vocab, max_nodes
+        self.grammar = grammar
         # models store only the budget; the largest training graph is max_nodes / NODE_BUDGET
         self.wrap_nodes = None if max_nodes is None else max(1, int(round(WRAP_FRACTION * max_nodes / NODE_BUDGET)))
+
+    @property
+    def grammar(self) -> Grammar:
+        """The tiling grammar decoding keeps to (setting it rebuilds the decoding masks)."""
+        return self._grammar
+
+    @grammar.setter
+    def grammar(self, grammar: Grammar) -> None:
+        self._grammar = grammar
+        self.constraint = Constraint(self.vocab, grammar, self.max_nodes)
 
     @torch.no_grad()
     def encode(self, strings: list[str]) -> np.ndarray:
@@ -698,6 +743,10 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
                 model.vocab.chars != vocab.chars:
             raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new --out "
                                  "or delete it")
+        if model.grammar.rules != grammar.rules:
+            raise ModelFileError(f"{folder} holds a checkpoint trained on other shapes (other tiling rules); use a "
+                                 "new --out or delete it")
+        model.grammar = grammar  # a checkpoint saved before the ring-length rule learns it here
     else:
         max_nodes = int(math.ceil(NODE_BUDGET * max(sum(c.isalpha() for c in s) for s in strings)))
         model, state, opt_state = StringModel(StringVAE(len(vocab), config), vocab, grammar,
