@@ -124,12 +124,15 @@ def run_set(name: str, args, work: Path) -> dict:
     print(f"  growth: {len(grown.shapes)} shapes, {len(strings)} strings in {seconds:.1f} s", flush=True)
     # Training
     model_dir = work / name / "model"
+    # a work folder from an earlier run with the same settings: training only checks and reloads
+    reused = (model_dir / "model.json").is_file()
     t0 = time.perf_counter()
     tagger = TaggerConfig(epochs=args.tagger_epochs, hidden=args.tagger_hidden, lr_final=args.tagger_lr_final,
                           graph_rounds=args.tagger_graph_rounds)
     meta = train_model(coll, model_dir, VAEConfig(epochs=args.epochs), tagger, args.strings_per_shape, 0.2, args.seed,
                        tagger_strings_per_shape=args.tagger_strings_per_shape, device=args.device)
-    row["training"] = {"seconds": round(time.perf_counter() - t0, 1), "strings": meta["training_strings"],
+    row["training"] = {"seconds": round(time.perf_counter() - t0, 1), "reused_trained_model": reused,
+                       "strings": meta["training_strings"],
                        "shapes": meta["train_shapes"], "categories": meta["categories"]}
     model = TrainedModel(model_dir)
     row["training"]["vae_history"] = json.loads((model_dir / "vae.json").read_text())["train"]["history"]
