@@ -1,5 +1,6 @@
 """Seed 001 evaluation: Table 1 (inputs, collection growth), edge-category accuracy,
-Table 2 (naive vs latent search graph), VAE prior samples, instantiation success.
+Table 2 (naive vs latent search graph), VAE prior samples, instantiation success, latent
+walks (interpolation and latent paths).
 
     .venv/bin/python bench/strings.py                       # all three example sets
     .venv/bin/python bench/strings.py --sets castle --count 60 --epochs 5   # a quick look
@@ -29,14 +30,16 @@ from procmod.parallel import open_executor  # noqa: E402
 from procmod.strings.codec import encode, parse  # noqa: E402
 from procmod.strings.instantiate import (TaggerConfig, shape_labelings, tagging_accuracy,  # noqa: E402
                                         tagging_examples)
-from procmod.strings.latent import GraphIndex, naive_graph, path_statistics, perturb, search_graph  # noqa: E402
+from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_graph, path_statistics,  # noqa: E402
+                                   perturb, sample_path, search_graph)
 from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
 from procmod.strings.render import write_sheet  # noqa: E402
 from procmod.strings.sampling import augment  # noqa: E402
-from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
+from procmod.strings.shapes import histogram_distance, read_shapes, shape_graph  # noqa: E402
 from procmod.strings.vae import VAEConfig  # noqa: E402
 
 SETS = ROOT / "examples_sets" / "strings"
+WALK_POINTS = 8  # points a latent walk decodes at: the segment's (interpolation) or the path's (latent path)
 
 
 def triangles(shape_set, shape) -> int:
@@ -218,7 +221,43 @@ def run_set(name: str, args, work: Path) -> dict:
             write_sheet(model.shape_set, shapes[:16], args.out / f"strings_{name}.png", 160)
     row["instantiation"] = inst
     print(f"  instantiation: {inst}", flush=True)
+    # Section 5.2's latent walks, last (the random stream above stays that of earlier runs)
+    row["latent_walks"] = latent_walks(model, known, rng, args.walks)
+    print(f"  latent walks: {row['latent_walks']}", flush=True)
     return row
+
+
+def latent_walks(model, known, rng, pairs: int) -> dict:
+    """Interpolation and latent-path sampling (seed 001, section 5.2) between ``pairs`` random
+    pairs of training strings: how many points on the way decode to a valid string, the
+    valid / unique / novel rates of what they decode to, and how large the steps between
+    consecutive shapes are (type-histogram metric E, the pair's two ends included), which
+    is what a path through the training encodings is meant to keep small."""
+    train = model.training_strings
+    anchors = model.vae.encode(train)
+    out = {}
+    for mode in ("interpolate", "path"):
+        found_all, steps, points, t0 = [], [], 0, time.perf_counter()
+        for _ in range(pairs):
+            i, j = (int(k) for k in rng.integers(len(train), size=2))
+            if mode == "interpolate":
+                found = interpolate(model.vae, anchors[i], anchors[j], WALK_POINTS, rng)
+                points += WALK_POINTS
+            else:
+                path = latent_path(anchors[i], anchors[j], anchors, WALK_POINTS)
+                found = sample_path(model.vae, path, 2, rng)
+                points += 2 * (len(path) - 1)
+            found_all += found
+            walk = [train[i]] + found + [train[j]]
+            steps += [histogram_distance([c for c in a if c.isalpha()], [c for c in b if c.isalpha()])
+                      for a, b in zip(walk, walk[1:])]
+        r, _ = rates(model, found_all, known)
+        out[mode] = {"pairs": pairs, "points": points, "points_with_valid_string": len(found_all) / max(points, 1),
+                     **{k: r[k] for k in ("unique", "novel_of_valid", "unique_count", "novel_count")},
+                     "mean_step_E": float(np.mean(steps)) if steps else None,
+                     "max_step_E": float(np.max(steps)) if steps else None,
+                     "seconds": round(time.perf_counter() - t0, 1)}
+    return out
 
 
 def plot(results: dict, path: Path) -> None:
@@ -271,6 +310,7 @@ def main() -> None:
     ap.add_argument("--perturb", type=int, default=40)
     ap.add_argument("--graph-size", type=int, default=300)
     ap.add_argument("--instantiate", type=int, default=20)
+    ap.add_argument("--walks", type=int, default=20, help="pairs for interpolation and latent-path sampling")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--device", default="cpu", help="torch device to train the VAE and the tagger on (cpu, cuda)")
     ap.add_argument("--work", type=Path)
