@@ -414,7 +414,7 @@ class Grammar:
     length has no embedding: in the example sets every ring alternates cells (towers,
     modules, columns) and links (walls, corridors, beams) on a square grid, so every ring
     is a multiple of 4 long, and before this rule most novel VAE samples had a ring that no
-    placement of the parts realises (docs/strings.md, "Ring lengths")."""
+    placement of the parts realises (docs/strings.md, "Ring-length rule")."""
 
     rules: dict
     ring_multiple: int = 1
