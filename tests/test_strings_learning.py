@@ -113,6 +113,24 @@ def test_constraint_closes_rings_only_as_the_ring_rule_allows(text, closes):
     assert Grammar({"A": frozenset({"AA", "AAA"})}).is_valid(parse(text).graph)  # only the rule decides
 
 
+def test_constraint_does_not_count_a_leaf_as_a_way_to_close_a_ring():
+    """A column (C) with three beams can only take a floor tile (F), a leaf: that closes no
+    ring, so with ring 1 open (and too short to close here) the decoder must not get there."""
+    grammar = Grammar({"B": frozenset({"CC"}), "C": frozenset({"BBBF", "BBF", "BF"}), "F": frozenset({"C"})}, 4)
+    constraint = Constraint(Vocab(set("BCF()12")), grammar)
+    p = _Prefix()
+    text = "FC1BC(BCF)(BC(F)BC(F)BC(BCF)F)"  # ends with no token allowed: a dead end
+    refused = None
+    for i, c in enumerate(text):
+        allowed = constraint.allowed(p)
+        assert allowed, f"dead end after {text[:i]!r}"
+        if c not in allowed:
+            refused = i
+            break
+        constraint.advance(p, c)
+    assert refused is not None and refused < len(text)
+
+
 def test_constraint_counts_open_ring_labels_as_neighbours(moonbase):
     _, _, grammar, strings = moonbase
     c = Constraint(Vocab(set("".join(strings)) | set("()123456789")), grammar)

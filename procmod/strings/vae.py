@@ -458,10 +458,13 @@ class Constraint:
 
     def _can_close(self, types, nbrs_of, p, current, stack, openers) -> bool:
         """Can the open rings still be reached? The current atom closes one now, or some
-        atom on the active path can take a neighbour that either bonds to an opener's type
-        or is not a leaf (a path can go on through it). A necessary condition only."""
+        atom on the active path can take a neighbour that is not a leaf there (some rule of
+        its type holds that atom and more): a path goes on through it, or it closes a ring
+        itself. (A leaf that bonds to an opener's type closes nothing: the ring edge would be
+        its second neighbour. Counting it let colonnade decoding run into dead ends — a
+        column with its three beams, a floor tile left to add, a ring still open.) A
+        necessary condition only."""
         nb = lambda a: nbrs_of.get(a, p.nbrs[a] if a < len(p.nbrs) else [])
-        opener_types = {types[o] for o in openers.values()}
         for o in set(openers.values()):
             if o != current and self._ring_length_ok(p, current, o) and (types[current], types[o]) in self.pairs and \
                     self._fits(types[current], nb(current) + [types[o]], self._pending(openers, current)) and \
@@ -470,7 +473,7 @@ class Constraint:
         for a in {current, *stack}:
             for u in self.letters:
                 if (types[a], u) in self.pairs and self._fits(types[a], nb(a) + [u], self._pending(openers, a)) and \
-                        ((types[a], u) in self.through or any((u, t) in self.pairs for t in opener_types)):
+                        (types[a], u) in self.through:
                     return True
         return False
 
