@@ -14,8 +14,8 @@ A run on the same ``--work`` folder reuses the grown collection and resumes the 
 To train on a GPU machine: ``--prepare-only`` here, ``--train-only --device cuda`` there
 on a copy of the work folder (needs torch and procmod only), the tagger folder copied back,
 then the same command here without either flag: the checkpoint holds CPU tensors and only
-the measurement runs. ``train_seconds`` counts
-this run's training only: the epochs' own times are in ``history``.
+the measurement runs. ``train_seconds`` counts this run's training only: the epochs' own
+times (and devices) are in ``history``.
 """
 
 from __future__ import annotations
@@ -103,7 +103,6 @@ def main() -> None:
     cache = work / f"tagger_inputs_s{args.strings_per_shape}_seed{args.seed}.json.gz"
     if args.train_only and cache.is_file():  # prepared elsewhere: no collection, no geometry needed
         vocab, categories, examples = read_training_inputs(cache)
-        shape_set = graphs = None
     else:
         shape_set, growth_seconds = grown_collection(args, work / "collection")
         graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
