@@ -272,7 +272,11 @@ class Constraint:
         self.through = {(t, u) for u, keys in grammar.rules.items() for key in keys if len(key) >= 2 for t in set(key)}
         self.letters = [c for c in vocab.chars if c in LETTERS]
         self.digits = [c for c in vocab.chars if c.isdigit()]
-        self.ring_multiple = grammar.ring_multiple
+
+    @property
+    def ring_multiple(self) -> int:
+        """The grammar's ring-length rule (1: none)."""
+        return self.grammar.ring_multiple
 
     @staticmethod
     def _tree_path(p: _Prefix, a: int, b: int) -> frozenset:
