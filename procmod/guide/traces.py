@@ -107,6 +107,10 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     if out.exists() and not out.is_dir():
         raise InvalidArgumentError(f"--out {out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
+    # a job killed (SIGKILL) while writing a trace leaves write_text_atomic's temporary file
+    # behind (never a half-written trace): a resumed job clears them
+    for stale in out.glob(".trace_*.json.*"):
+        stale.unlink(missing_ok=True)
     settings = _job_settings(model_name, targets, particles, seed, set_size)
     job_file = out / "traces.json"
     if job_file.exists():
