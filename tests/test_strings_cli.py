@@ -64,6 +64,21 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
                           "--tagger-strings-per-shape", 4)
     assert code == 0, err
     assert {"model.json", "vae.pt", "tagger.pt", "collection.json"} <= {p.name for p in model.iterdir()}
+    # a model trained before clearances were kept gets them when training is run again
+    cats = json.loads((model / "categories.json").read_text())
+    tagger_meta = json.loads((model / "tagger.json").read_text())
+    clearance = cats["clearance"]
+    assert clearance and tagger_meta["categories"]["clearance"] == clearance
+    for name, data in (("categories.json", cats), ("tagger.json", tagger_meta)):
+        held = data["categories"] if name == "tagger.json" else data
+        held.pop("clearance")
+        (model / name).write_text(json.dumps(data))
+    code, out, err = _run(capsys, "strings", "train", col, "--out", model, "--epochs", 1, "--tagger-epochs", 1,
+                          "--hidden", 16, "--latent", 4, "--strings-per-shape", 4,
+                          "--tagger-strings-per-shape", 4)
+    assert code == 0, err
+    assert json.loads((model / "categories.json").read_text())["clearance"] == clearance
+    assert json.loads((model / "tagger.json").read_text())["categories"]["clearance"] == clearance
     code, out, err = _run(capsys, "strings", "sample", model, "-n", 3, "--out", tmp_path / "s", "--no-meshes")
     assert code == 0, err
     summary = json.loads((tmp_path / "s" / "summary.json").read_text())

@@ -128,3 +128,94 @@ def test_training_labellings_close_their_rings_and_a_wrong_ring_edge_does_not(mo
                 assert decoder.decode(text, prob).tolist() == truth.tolist()
                 tried += 1
     assert tried > 0
+
+
+# -- colonnade: a chain of columns and beams whose turns the graph does not fix ---------------
+
+def _colonnade_chain(cells):
+    """A column (with its floor) at each cell and a beam between consecutive cells, written as
+    a string whose node order is ``parts``' order; transforms as in make_sets.py."""
+    def placed(x, y, z, quarter=0):
+        c, s = [(1, 0), (0, 1)][quarter]
+        return np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1]], dtype=float)
+    parts, text = [], ""
+    for n, (i, j) in enumerate(cells):
+        if n:
+            (i0, j0) = cells[n - 1]
+            parts.append(("beam", placed(i0 + i, j0 + j, 2.95, 0 if j == j0 else 1)))
+            text += "B"
+        parts += [("column", placed(2 * i, 2 * j, 1.55)), ("floor", placed(2 * i, 2 * j, 0.15))]
+        text += "C(F)" if n < len(cells) - 1 else "CF"
+    return text, parts
+
+
+def _labels_of_placement(cats, ss, text, parts):
+    """Per-character categories of ``text`` read off the parts' placement."""
+    from procmod.strings.instantiate import canonical_frame
+
+    frames = [canonical_frame(ss.library, p, m, cats.groups) for p, m in parts]
+    letters = [ss.letters[p] for p, _ in parts]
+    labels = np.zeros(len(text), dtype=int)
+    for i, e in enumerate(parse(text).char_edges):
+        if e is not None:
+            a, b = e
+            labels[i] = cats.category_of_frames(frames[a], frames[b], letters[a], letters[b])
+    return labels
+
+
+@pytest.fixture(scope="module")
+def colonnade_fitted():
+    ss = read_shapes(SETS / "colonnade.json")
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    return ss, EdgeCategories.fit(ss, ss.shapes, graphs)
+
+
+def test_clearances_are_the_closest_non_neighbours(colonnade_fitted):
+    ss, cats = colonnade_fitted
+    # columns stand on a 2 m grid and never touch; a beam's two columns are its neighbours,
+    # so the closest column that is not is the one round a corner: 1 m along the beam, 2 m
+    # across, 1.4 m down
+    assert cats.clearance[("C", "C")] == pytest.approx(2.0)
+    assert cats.clearance[("F", "F")] == pytest.approx(2.0)
+    assert cats.clearance[("B", "C")] == pytest.approx(np.sqrt(1.0 + 4.0 + 1.4 ** 2))
+    # kept through JSON; categories saved before clearances load without them
+    assert EdgeCategories.from_json(cats.to_json()).clearance == cats.clearance
+    old = cats.to_json()
+    del old["clearance"]
+    assert EdgeCategories.from_json(old).clearance is None
+
+
+def test_a_chain_that_turns_back_onto_itself_is_a_fault(colonnade_fitted):
+    """Three left turns bring a fifth column onto the first: no ring says so, the
+    clearance does (and only with clearances kept)."""
+    ss, cats = colonnade_fitted
+    decoder = category_decoder(cats, None, ss)
+    text, parts = _colonnade_chain([(0, 0), (1, 0), (1, 1), (0, 1)])  # a U: nothing clashes
+    assert decoder.faults(text, _labels_of_placement(cats, ss, text, parts)) == 0
+    text, parts = _colonnade_chain([(0, 0), (1, 0), (1, 1), (0, 1), (0, 0)])
+    labels = _labels_of_placement(cats, ss, text, parts)
+    # pairs that clash: the fifth column with the first, its floor with the first floor, each
+    # of those with the other's column / floor, the last beam with the first column and the
+    # first beam with the fifth column
+    assert decoder.faults(text, labels) == 6
+    old = EdgeCategories.from_json({k: v for k, v in cats.to_json().items() if k != "clearance"})
+    assert category_decoder(old, None, ss).faults(text, labels) == 0
+
+
+def test_a_ring_closes_only_where_its_last_part_lands(colonnade_fitted):
+    """The closing edge's category must be its parts' pose, not merely the nearest category
+    to a pose metres off (which would let any ring close)."""
+    from procmod.strings.instantiate import canonical_frame
+
+    ss, cats = colonnade_fitted
+    decoder = category_decoder(cats, None, ss)
+    column = canonical_frame(ss.library, "column", np.eye(4), cats.groups)
+    beam_pose = np.eye(4)
+    beam_pose[:3, 3] = [1.0, 0.0, 1.4]
+    beam = canonical_frame(ss.library, "beam", beam_pose, cats.groups)
+    k = cats.category_of_frames(column, beam, "C", "B")
+    assert decoder._closes(column, beam, "C", "B", k)
+    far = beam.copy()
+    far[:3, 3] += [4.0, 2.0, 0.0]
+    assert cats.category_of_frames(column, far, "C", "B") == k  # the nearest category is still k
+    assert not decoder._closes(column, far, "C", "B", k)

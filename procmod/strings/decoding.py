@@ -12,14 +12,18 @@ the highest total log-probability among those that
 2. **close every ring**: placing the parts along the string's spanning tree by the
    relative pose of each tree edge's category (the transplanting of section 6, one
    example per category), every ring edge's two ends must sit in the relative pose of its
-   category.
+   category, and
+3. **keep parts apart**: in that placement, two parts that are not neighbours must be no
+   closer than any two parts of their types that are not neighbours in the training shapes
+   (the categories' ``clearance``): a wrong turn of a chain that closes its ring can still
+   put two columns on one spot.
 
-Both are soft: each part with an unseen star and each ring edge that does not close
-costs ``penalty`` nats, so a string that no labelling fits (a novel graph with a new kind
-of part neighbourhood) still gets the best one. The search is a beam search over the
-string's edges in the order their last character is written (so both ends of a ring edge
-are placed when it is decided), keeping ``beam`` partial labellings, each edge trying its
-``candidates`` most probable categories.
+All are soft: each part with an unseen star, each ring edge that does not close and each
+pair of parts too close costs ``penalty`` nats, so a string that no labelling fits (a
+novel graph with a new kind of part neighbourhood) still gets the best one. The search is
+a beam search over the string's edges in the order their last character is written (so
+both ends of a ring edge are placed when it is decided), keeping ``beam`` partial
+labellings, each edge trying its ``candidates`` most probable categories.
 
 Measured on held-out strings (bench/strings.py, docs/strings.md): the tagger's argmax ->
 decoded, per character: castle 93.8% -> 95.4%, moon base 88.7% -> 92.3%, colonnade
@@ -39,12 +43,18 @@ from .codec import parse
 # (type letter, the sorted categories of its edges)
 Star = tuple[str, tuple[int, ...]]
 
+# where the search keeps a part not placed yet: far from everything (no clash), and finite
+_UNPLACED = 1e9
+
 
 @dataclass(frozen=True)
 class DecoderParams:
-    beam: int = 32  # partial labellings kept
+    beam: int = 128  # partial labellings kept
     candidates: int = 6  # categories tried per edge, most probable first
-    penalty: float = 20.0  # nats per part with an unseen star and per ring edge that does not close
+    penalty: float = 20.0  # nats per fault: a part with an unseen star, a ring edge that does not
+    # close, two parts closer than their types' clearance
+    clearance_slack: float = 0.1  # a part may sit this fraction of the clearance closer (placing by
+    # one example per category drifts a little on sets off a grid)
 
 
 def stars_of_labelling(text: str, labels) -> list[Star]:
@@ -114,29 +124,34 @@ class CategoryDecoder:
                                               for star in self._stars.get((t, degree), []))
         return hit
 
-    def _next_frames(self, fx: np.ndarray, tx: str, ty: str, k: int) -> list[np.ndarray]:
-        """Frames of a ``ty`` part joined to a ``tx`` part at frame ``fx`` by category ``k``
-        (two when both types are the same: either end may be the category's first part)."""
-        a, b = self.categories.names[k][:2]
+    @staticmethod
+    def _turn_key(f: np.ndarray) -> bytes:
+        """A frame's rotation, rounded, as a dictionary key."""
+        return np.round(f[:3, :3], 4).tobytes()
+
+    def _next_frames(self, fx: np.ndarray, turn_x: bytes, tx: str, ty: str, k: int) -> list[tuple]:
+        """``(frame, turn key)`` of a ``ty`` part joined to a ``tx`` part at frame ``fx``
+        (turn key ``turn_x``) by category ``k`` (two when both types are the same: either end
+        may be the category's first part)."""
         # canonical frames depend on the orientation only: cache by (k, x's type, x's rotation)
-        key = (k, tx, np.round(fx[:3, :3], 4).tobytes())
+        key = (k, tx, turn_x)
         steps = self._steps.get(key)
         if steps is None:
+            a, b = self.categories.names[k][:2]
             turn = np.eye(4)
             turn[:3, :3] = fx[:3, :3]
             rel = self.categories.examples[k][0]  # B's pose in A's frame, A's pose in B's frame
             steps = []
             for side, x_plays in ((0, a), (1, b)):
                 if tx == x_plays:
-                    f = self.frame_of(ty, turn @ rel[side])
-                    steps.append((f[:3, :3], f[:3, 3]))
+                    f = self.frame_of(ty, turn @ rel[side])  # at x's origin: f's offset is y's from x
+                    steps.append((f, self._turn_key(f)))
             self._steps[key] = steps
         out = []
-        for rot, offset in steps:
-            f = np.eye(4)
-            f[:3, :3] = rot
-            f[:3, 3] = fx[:3, 3] + offset
-            out.append(f)
+        for f0, turn_y in steps:
+            f = f0.copy()
+            f[:3, 3] += fx[:3, 3]
+            out.append((f, turn_y))
         return out
 
     def decode(self, text: str, prob: np.ndarray) -> np.ndarray:
@@ -167,8 +182,9 @@ class CategoryDecoder:
 
     def faults(self, text: str, labels) -> int:
         """How many parts of ``text`` get a star no training shape shows, plus how many ring
-        edges do not close, under per-character ``labels`` (a diagnostic; 0 for the labels of
-        a training shape). A ring edge's two characters must agree."""
+        edges do not close and how many pairs of parts clash, under per-character ``labels``
+        (a diagnostic; 0 for the labels of a training shape). A ring edge's two characters
+        must agree."""
         parsed = parse(text)
         size = len(self.categories) if self.categories is not None else int(max(labels, default=0)) + 1
         logp: dict[tuple, np.ndarray] = {}
@@ -181,8 +197,8 @@ class CategoryDecoder:
         return faults
 
     def _root_frames(self, parsed) -> list[dict]:
-        """The frames the search starts from: ``{root: frame}`` per root pose (one empty
-        start without geometry)."""
+        """The frames the search starts from: ``{root: (frame, turn key)}`` per root pose
+        (one empty start without geometry)."""
         if self.frame_of is None or parsed.graph.number_of_edges() == 0:
             return [{}]
         root = next(v for v in parsed.char_nodes if v is not None)
@@ -190,11 +206,46 @@ class CategoryDecoder:
         out, seen = [], set()
         for pose in self.root_poses.get(t, [np.eye(4)]):
             f = self.frame_of(t, np.asarray(pose, dtype=np.float64))
-            key = np.round(f[:3, :3], 4).tobytes()
+            key = self._turn_key(f)
             if key not in seen:  # poses a symmetric part cannot tell apart
                 seen.add(key)
-                out.append({root: f})
+                out.append({root: (f, key)})
         return out
+
+    def _too_near(self, types: list[str], g) -> np.ndarray | None:
+        """Per pair of parts, the *squared* distance below which their frame origins clash:
+        their types' clearance less the slack for parts that are not neighbours, 0 for
+        neighbours and for type pairs without one (None: no clearances, or no geometry)."""
+        clearance = getattr(self.categories, "clearance", None)
+        if not clearance or self.frame_of is None:
+            return None
+        keep = 1.0 - self.params.clearance_slack
+        kinds = sorted(set(types))
+        code = np.array([kinds.index(t) for t in types])
+        table = np.zeros((len(kinds), len(kinds)))
+        for i, a in enumerate(kinds):
+            for j, b in enumerate(kinds):
+                table[i, j] = keep * clearance.get((min(a, b), max(a, b)), 0.0)
+        near = table[code[:, None], code[None, :]]
+        for a, b in g.edges:
+            near[a, b] = near[b, a] = 0.0
+        return near ** 2
+
+    def _closes(self, fx: np.ndarray, fy: np.ndarray, tx: str, ty: str, k: int) -> bool:
+        """Do parts at frames ``fx``, ``fy`` sit in a pose of category ``k``? Its nearest
+        cluster centre must be ``k``'s and within one bandwidth of it: the nearest alone would
+        let a ring "close" with its last part metres away."""
+        cats = self.categories
+        return cats.category_of_frames(fx, fy, tx, ty) == k and cats.pose_seen(fx, fy, tx, ty)
+
+    @staticmethod
+    def _clashes(y: int, fy: np.ndarray, origins: np.ndarray, near2: np.ndarray | None) -> int:
+        """How many placed parts (``origins``; parts not placed sit at ``_UNPLACED``) part
+        ``y`` at frame ``fy`` would clash with (``near2``: :meth:`_too_near`)."""
+        if near2 is None:
+            return 0
+        d = origins - fy[:3, 3]
+        return int(np.count_nonzero((d * d).sum(1) < near2[y]))
 
     def _search(self, parsed, logp: dict, beam_size: int, candidates: int) -> tuple[dict, int]:
         """Beam search for the labelling of ``parsed``'s edges (``logp``: per edge, the
@@ -210,38 +261,57 @@ class CategoryDecoder:
         # decided in the order the string finishes writing them: a tree edge when its child is
         # written (its parent is placed by then), a ring edge at its second label (both placed)
         edges = sorted(logp, key=last.get)
-        # a partial labelling: (score, faults, labels, partial stars, parts with a fault, frames)
-        beam = [(0.0, 0, {}, {}, frozenset(), frames) for frames in self._root_frames(parsed)]
+        near2 = self._too_near(types, g)  # (n, n) squared distances below which two parts clash
+        # a partial labelling: (score, faults, labels, partial stars, parts with a fault,
+        # {part: (frame, turn key)}, frame origins (n, 3))
+        beam = []
+        for frames in self._root_frames(parsed):
+            origins = np.full((len(types), 3), _UNPLACED)
+            for v, (f, _) in frames.items():
+                origins[v] = f[:3, 3]
+            beam.append((0.0, 0, {}, {}, frozenset(), frames, origins))
         for e in edges:
             lp = logp[e]
             order = np.argsort(-lp, kind="stable")
             cands = [int(c) for c in order[:candidates] if np.isfinite(lp[c])]
+            # every way to extend every partial labelling, scored first and built only if kept:
+            # (score, faults, its partial labelling, category, new part, its frame, the edge's
+            # ends' new stars, parts whose star broke)
             grown = []
-            for score, faults, labels, stars, broken, frames in beam:
+            for h, (score, faults, _, stars, broken, frames, origins) in enumerate(beam):
+                x, y = e
+                if y in frames and x not in frames:
+                    x, y = y, x
                 for k in cands:
                     f = faults
-                    new_stars = dict(stars)
-                    new_broken = broken
+                    ends, newly_broken = {}, ()
                     if self._stars is not None:
                         for v in e:
-                            new_stars[v] = tuple(sorted(stars.get(v, ()) + (k,)))
-                            if v not in broken and not self.extendable(types[v], degree[v], new_stars[v]):
+                            ends[v] = star = tuple(sorted(stars.get(v, ()) + (k,)))
+                            if v not in broken and not self.extendable(types[v], degree[v], star):
                                 f += 1  # counted once, when the part's star can no longer be a seen one
-                                new_broken = new_broken | {v}
-                    x, y = e
-                    if y in frames and x not in frames:
-                        x, y = y, x
-                    new_frames = [frames]
+                                newly_broken += (v,)
+                    new_frames: list = [None]  # the new part's (frame, turn key), for each way to place it
                     if x in frames and y in frames:  # a ring edge: does it close?
-                        f += self.categories.category_of_frames(frames[x], frames[y], types[x], types[y]) != k
+                        f += not self._closes(frames[x][0], frames[y][0], types[x], types[y], k)
                     elif x in frames and self.categories.examples.get(k):  # a tree edge: place its new end
                         # (a type pair without categories leaves the part unplaced)
-                        new_frames = [{**frames, y: fy} for fy in self._next_frames(frames[x], types[x], types[y], k)] \
-                            or new_frames
-                    s = score + float(lp[k]) - self.params.penalty * (f - faults)
-                    grown += [(s, f, {**labels, e: k}, new_stars, new_broken, nf) for nf in new_frames]
+                        new_frames = self._next_frames(*frames[x], types[x], types[y], k) or new_frames
+                    for fy in new_frames:
+                        f_ = f if fy is None else f + self._clashes(y, fy[0], origins, near2)
+                        s = score + float(lp[k]) - self.params.penalty * (f_ - faults)
+                        grown.append((s, f_, h, k, y, fy, ends, newly_broken))
             if not grown:
                 raise ValueError("an edge of the string has no category of positive probability")
-            grown.sort(key=lambda h: -h[0])  # stable: ties keep the more probable category first
-            beam = grown[:beam_size]
+            grown.sort(key=lambda o: -o[0])  # stable: ties keep the more probable category first
+            kept = []
+            for s, f, h, k, y, fy, ends, newly_broken in grown[:beam_size]:
+                _, _, labels, stars, broken, frames, origins = beam[h]
+                if fy is not None:
+                    origins = origins.copy()
+                    origins[y] = fy[0][:3, 3]
+                    frames = {**frames, y: fy}
+                kept.append((s, f, {**labels, e: k}, {**stars, **ends}, broken.union(newly_broken), frames,
+                             origins))
+            beam = kept
         return beam[0][2], beam[0][1]

@@ -180,15 +180,20 @@ class EdgeCategories:
     realise each category, for transplanting.
 
     ``names[k]`` = ``(A, B, key)`` for category ``k >= 1`` (``A <= B``); category 0 is the
-    dummy of characters that stand for no edge.
+    dummy of characters that stand for no edge. ``clearance[(A, B)]`` (``A <= B``): the
+    smallest distance between the frame origins of two parts of those types that are *not*
+    neighbours, over the fitted shapes (:func:`part_clearances`; None for categories saved
+    before it was kept).
     """
 
-    def __init__(self, names, centres, examples, length, params: CategoryParams):
+    def __init__(self, names, centres, examples, length, params: CategoryParams,
+                 clearance: dict | None = None):
         self.names = [tuple(n) if n is not None else None for n in names]
         self.centres = centres  # (A, B) -> cluster centres (k, 12)
         self.examples = examples  # category -> list of 4x4 (A-part -> B-part relative transforms)
         self.length = length
         self.params = params
+        self.clearance = clearance
         self.groups: dict = {}  # part name -> symmetry rotations in frame terms (cache)
         self.index = {n: k for k, n in enumerate(self.names) if n is not None}
         self.by_pair: dict[tuple, list[int]] = {}
@@ -208,6 +213,7 @@ class EdgeCategories:
         in their copies turned by :func:`world_symmetries`)."""
         from sklearn.cluster import MeanShift
 
+        clearance = part_clearances(shape_set, shapes, graphs)  # turns and mirrors keep distances
         if symmetric:
             pairs = [(c, g) for s, g in zip(shapes, graphs) for c in symmetric_copies(s, shape_set.library)
                      if c is not None]
@@ -275,7 +281,7 @@ class EdgeCategories:
                     keys.add(key)
                     kept.append(m)
             examples[k] = kept
-        cats = EdgeCategories(names, centres, examples, length, params)
+        cats = EdgeCategories(names, centres, examples, length, params, clearance)
         cats._fit_assignments = assignments
         return cats
 
@@ -345,16 +351,56 @@ class EdgeCategories:
         return self.by_pair.get((min(ta, tb), max(ta, tb)), [])
 
     def to_json(self) -> dict:
-        return {"names": [list(n) if n else None for n in self.names],
-                "centres": {f"{a}|{b}": c.tolist() for (a, b), c in self.centres.items()},
-                "examples": {str(k): [m.tolist() for m in v] for k, v in self.examples.items()},
-                "length": self.length, "params": asdict(self.params)}
+        out = {"names": [list(n) if n else None for n in self.names],
+               "centres": {f"{a}|{b}": c.tolist() for (a, b), c in self.centres.items()},
+               "examples": {str(k): [m.tolist() for m in v] for k, v in self.examples.items()},
+               "length": self.length, "params": asdict(self.params)}
+        if self.clearance is not None:
+            out["clearance"] = {f"{a}|{b}": d for (a, b), d in sorted(self.clearance.items())}
+        return out
 
     @staticmethod
     def from_json(data) -> "EdgeCategories":
         centres = {tuple(k.split("|")): np.asarray(v) for k, v in data["centres"].items()}
         examples = {int(k): [np.asarray(m) for m in v] for k, v in data["examples"].items()}
-        return EdgeCategories(data["names"], centres, examples, data["length"], CategoryParams(**data["params"]))
+        clearance = data.get("clearance")  # absent in categories fitted before it was kept
+        if clearance is not None:
+            clearance = {tuple(k.split("|")): float(d) for k, d in clearance.items()}
+        return EdgeCategories(data["names"], centres, examples, data["length"], CategoryParams(**data["params"]),
+                              clearance)
+
+
+def part_clearances(shape_set: ShapeSet, shapes, graphs) -> dict[tuple[str, str], float]:
+    """Per type pair ``(A, B)`` (letters, ``A <= B``), the smallest distance between the
+    frame origins (vertex means) of two parts of those types that are not neighbours in
+    their shape's graph, over ``shapes``. Structured decoding counts a labelling that puts
+    two such parts closer as a fault: it places a part where the generator never put one
+    (e.g. two columns on one spot after a wrong turn). Pairs never seen apart are absent."""
+    lib = shape_set.library
+    out: dict[tuple[str, str], float] = {}
+    centre_of: dict = {}  # part name -> vertex mean in the part's own coordinates
+    for shape, g in zip(shapes, graphs):
+        n = len(shape.parts)
+        if n < 2:
+            continue
+        for p in set(shape.parts):
+            if p not in centre_of:
+                centre_of[p] = part_points(lib, p, np.eye(4)).mean(0)
+        centres = np.array([t[:3, :3] @ centre_of[p] + t[:3, 3] for p, t in zip(shape.parts, shape.transforms)])
+        dist = np.linalg.norm(centres[:, None] - centres[None], axis=2)
+        apart = ~np.eye(n, dtype=bool)
+        for a, b in g.edges:
+            apart[a, b] = apart[b, a] = False
+        letters = np.array([shape_set.letters[p] for p in shape.parts])
+        kinds = sorted(set(letters.tolist()))
+        for i, a in enumerate(kinds):
+            for b in kinds[i:]:
+                pick = apart & np.outer(letters == a, letters == b)
+                if pick.any():
+                    d = float(dist[pick].min())
+                    if d < out.get((a, b), np.inf):
+                        out[(a, b)] = d
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -914,6 +960,9 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
     stars = star_set(examples)
     if model.stars != stars:  # a new tagger, or one trained before stars were kept
         model.stars = stars
+        model.save(folder, state, optimizer)
+    if model.categories.clearance is None and categories.clearance is not None:  # saved before clearances
+        model.categories.clearance = categories.clearance
         model.save(folder, state, optimizer)
     while state["epoch"] < config.epochs:
         # a function of the epoch only, so a resumed run continues the same schedule

@@ -26,7 +26,7 @@ from ..core.errors import InvalidArgumentError, ProcmodError
 from ..core.serialize import write_text_atomic
 from .codec import parse, strings_of
 from .instantiate import (CategoryParams, EdgeCategories, InstantiateResult, TaggerConfig, TaggerModel,
-                          instantiate_graph, tagging_accuracy, tagging_examples, train_tagger)
+                          instantiate_graph, part_clearances, tagging_accuracy, tagging_examples, train_tagger)
 from .shapes import (Grammar, ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shape_graph,
                      write_shapes)
 from .vae import ModelFileError, StringModel, VAEConfig, train_vae, training_device
@@ -111,9 +111,10 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
         return {}
     cats_path = out / "categories.json"
     categories = EdgeCategories.from_json(json.loads(cats_path.read_text())) if cats_path.is_file() else None
+    upgrade = categories is not None and categories.clearance is None
     categories, examples, trng = tagger_training_set(shape_set, graphs, train_idx, tagger_strings_per_shape, seed,
                                                      categories)
-    if not cats_path.is_file():
+    if upgrade or not cats_path.is_file():
         write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
                             categories, 4, trng, every_symmetry=True)
@@ -151,6 +152,8 @@ def tagger_training_set(shape_set: ShapeSet, graphs: list, train_idx: list[int],
     train_graphs = [graphs[i] for i in train_idx]
     if categories is None:
         categories = EdgeCategories.fit(shape_set, train_shapes, train_graphs, CategoryParams())
+    elif categories.clearance is None:  # fitted before clearances were kept: add them
+        categories.clearance = part_clearances(shape_set, train_shapes, train_graphs)
     rng = np.random.default_rng([seed, 4])
     examples = tagging_examples(shape_set, train_shapes, train_graphs, categories, strings_per_shape, rng,
                                 every_symmetry=True)
