@@ -132,20 +132,26 @@ def test_training_labellings_close_their_rings_and_a_wrong_ring_edge_does_not(mo
 
 # -- colonnade: a chain of columns and beams whose turns the graph does not fix ---------------
 
-def _colonnade_chain(cells):
-    """A column (with its floor) at each cell and a beam between consecutive cells, written as
-    a string whose node order is ``parts``' order; transforms as in make_sets.py."""
+def _colonnade_chain(cells, ring=False):
+    """A column (with its floor) at each cell and a beam between consecutive cells (and,
+    with ``ring``, from the last cell back to the first), written as a string whose node
+    order is ``parts``' order; transforms as in make_sets.py."""
     def placed(x, y, z, quarter=0):
         c, s = [(1, 0), (0, 1)][quarter]
         return np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1]], dtype=float)
+
+    def beam(a, b):
+        return "beam", placed(a[0] + b[0], a[1] + b[1], 2.95, 0 if a[1] == b[1] else 1)
     parts, text = [], ""
     for n, (i, j) in enumerate(cells):
         if n:
-            (i0, j0) = cells[n - 1]
-            parts.append(("beam", placed(i0 + i, j0 + j, 2.95, 0 if j == j0 else 1)))
+            parts.append(beam(cells[n - 1], (i, j)))
             text += "B"
         parts += [("column", placed(2 * i, 2 * j, 1.55)), ("floor", placed(2 * i, 2 * j, 0.15))]
-        text += "C(F)" if n < len(cells) - 1 else "CF"
+        text += ("C1(F)" if ring and not n else "C(F)") if n < len(cells) - 1 or ring else "CF"
+    if ring:
+        parts.append(beam(cells[-1], cells[0]))
+        text += "B1"
     return text, parts
 
 
@@ -219,3 +225,34 @@ def test_a_ring_closes_only_where_its_last_part_lands(colonnade_fitted):
     far[:3, 3] += [4.0, 2.0, 0.0]
     assert cats.category_of_frames(column, far, "C", "B") == k  # the nearest category is still k
     assert not decoder._closes(column, far, "C", "B", k)
+
+
+def test_a_fault_found_late_is_searched_again_wider(colonnade_fitted):
+    """The tagger prefers a wrong turn early in a ring of columns: a beam of one has dropped
+    the right turn by the time the ring fails to close; the wider retry, made only because
+    the labelling found has a fault, keeps it."""
+    ss, cats = colonnade_fitted
+    cells = [(0, 0), (1, 0), (2, 0), (2, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
+    text, parts = _colonnade_chain(cells, ring=True)
+    truth = _labels_of_placement(cats, ss, text, parts)
+    narrow = CategoryDecoder(cats, None, *_geometry(cats, ss), DecoderParams(beam=1, retry_beam=0))
+    assert narrow.faults(text, truth) == 0
+    # the beam leaving the corner column at (2, 0): the tagger would go straight on
+    straight, straight_parts = _colonnade_chain(cells[:3] + [(3, 0)])  # numbered as the ring
+    turn = _edge_chars(text)[(6, 8)][0]  # column 6 (the third cell's) to beam 8
+    wrong = _labels_of_placement(cats, ss, straight, straight_parts)[_edge_chars(straight)[(6, 8)][0]]
+    assert wrong != truth[turn]
+    allowed, _ = string_mask(text, cats)
+    prob = np.where(allowed, 0.01, 0.0)
+    prob[np.arange(len(text)), truth] = 1.0
+    prob[turn, wrong], prob[turn, truth[turn]] = 1.0, 0.5
+    prob /= prob.sum(1, keepdims=True)
+    assert narrow.faults(text, narrow.decode(text, prob)) > 0
+    retried = CategoryDecoder(cats, None, *_geometry(cats, ss), DecoderParams(beam=1, retry_beam=64))
+    assert retried.decode(text, prob).tolist() == truth.tolist()
+
+
+def _geometry(cats, ss):
+    """``frame_of`` and ``root_poses`` of :func:`category_decoder` for ``ss``."""
+    d = category_decoder(cats, None, ss)
+    return d.frame_of, d.root_poses

@@ -50,6 +50,7 @@ _UNPLACED = 1e9
 @dataclass(frozen=True)
 class DecoderParams:
     beam: int = 128  # partial labellings kept
+    retry_beam: int = 512  # when the best labelling found has a fault, search again this wide (0: never)
     candidates: int = 6  # categories tried per edge, most probable first
     penalty: float = 20.0  # nats per fault: a part with an unseen star, a ring edge that does not
     # close, two parts closer than their types' clearance
@@ -166,7 +167,7 @@ class CategoryDecoder:
             if e is not None:
                 key = (min(e), max(e))
                 logp[key] = logp.get(key, 0.0) + logprob[i]  # a ring edge is written twice
-        labels, _ = self._search(parsed, logp, self.params.beam, self.params.candidates)
+        labels = self._best(parsed, logp)
         out = prob.argmax(1)
         for i, e in enumerate(parsed.char_edges):
             if e is not None:
@@ -177,8 +178,7 @@ class CategoryDecoder:
         """The best labelling of ``text``'s edges given, per edge ``(min, max)`` of its
         parsed nodes (string order), the log-probability of each category (e.g. summed over
         several strings of one graph): ``{(min, max): category}``."""
-        labels, _ = self._search(parse(text), logp, self.params.beam, self.params.candidates)
-        return labels
+        return self._best(parse(text), logp)
 
     def faults(self, text: str, labels) -> int:
         """How many parts of ``text`` get a star no training shape shows, plus how many ring
@@ -193,7 +193,7 @@ class CategoryDecoder:
                 key = (min(e), max(e))
                 one = logp.setdefault(key, np.zeros(size))
                 one[[k for k in range(len(one)) if k != int(labels[i])]] = -np.inf
-        _, faults = self._search(parsed, logp, len(self._root_frames(parsed)), 1)
+        _, faults, _ = self._search(parsed, logp, len(self._root_frames(parsed)), 1)
         return faults
 
     def _root_frames(self, parsed) -> list[dict]:
@@ -247,10 +247,23 @@ class CategoryDecoder:
         d = origins - fy[:3, 3]
         return int(np.count_nonzero((d * d).sum(1) < near2[y]))
 
-    def _search(self, parsed, logp: dict, beam_size: int, candidates: int) -> tuple[dict, int]:
+    def _best(self, parsed, logp: dict) -> dict:
+        """The labelling :meth:`_search` finds with the configured beam, or, when that one
+        has a fault, the better of it and a search ``retry_beam`` wide: most strings have a
+        labelling without faults (every training shape's has none), and the fault-free one is
+        often lost from a narrow beam because a clash shows only many edges after its cause."""
+        p = self.params
+        labels, faults, score = self._search(parsed, logp, p.beam, p.candidates)
+        if faults and p.retry_beam > p.beam:
+            wide, _, wide_score = self._search(parsed, logp, p.retry_beam, p.candidates)
+            if wide_score > score:
+                return wide
+        return labels
+
+    def _search(self, parsed, logp: dict, beam_size: int, candidates: int) -> tuple[dict, int, float]:
         """Beam search for the labelling of ``parsed``'s edges (``logp``: per edge, the
         log-probability of each category) with the highest log-probability less
-        ``penalty`` per fault; returns it and its number of faults."""
+        ``penalty`` per fault; returns it, its number of faults and its score."""
         g = parsed.graph
         types = [g.nodes[v]["type"] for v in g.nodes]
         degree = dict(g.degree)
@@ -314,4 +327,4 @@ class CategoryDecoder:
                 kept.append((s, f, {**labels, e: k}, {**stars, **ends}, broken.union(newly_broken), frames,
                              origins))
             beam = kept
-        return beam[0][2], beam[0][1]
+        return beam[0][2], beam[0][1], beam[0][0]
