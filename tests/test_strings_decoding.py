@@ -256,3 +256,48 @@ def _geometry(cats, ss):
     """``frame_of`` and ``root_poses`` of :func:`category_decoder` for ``ss``."""
     d = category_decoder(cats, None, ss)
     return d.frame_of, d.root_poses
+
+
+def test_a_ring_has_its_rotations_and_reflections_as_automorphisms():
+    from procmod.strings.shapes import type_automorphisms
+
+    path = parse("CBC").graph  # its two ends swap
+    assert len(type_automorphisms(path)) == 2
+    ring = parse("C1BCBCBCB1").graph  # four columns, four beams: turns by two places, mirrors
+    auts = type_automorphisms(ring)
+    assert len(auts) == 8 and auts[0] == {v: v for v in ring.nodes}
+    for m in auts:
+        assert all(ring.nodes[m[v]]["type"] == ring.nodes[v]["type"] for v in ring.nodes)
+        assert {(min(m[a], m[b]), max(m[a], m[b])) for a, b in ring.edges} == \
+            {(min(a, b), max(a, b)) for a, b in ring.edges}
+    assert len(type_automorphisms(ring, limit=3)) == 3
+    mixed = parse("C1BCBCBNB1").graph  # one column is another type: only the mirror through it
+    assert len(type_automorphisms(mixed)) == 2
+
+
+def test_shape_labellings_include_the_same_shape_with_its_parts_renamed(colonnade_fitted):
+    """A colonnade ring's parts look alike to its graph: moving every part to the place of
+    its image under an automorphism gives the same shape, whose categories are the
+    labelling moved by that automorphism; every such labelling is among the shape's."""
+    from procmod.strings.instantiate import shape_labelings
+    from procmod.strings.shapes import Shape, type_automorphisms
+
+    ss, cats = colonnade_fitted
+    shape = ss.shapes[0]  # a ring of 14 columns round a 5 x 4 court
+    g = shape_graph(ss, shape)
+    auts = type_automorphisms(g)
+    assert len(auts) == 28  # the ring's 14 turns and 14 mirrors
+    plain = shape_labelings(ss, shape, g, cats, automorphisms=1)
+    every = shape_labelings(ss, shape, g, cats)
+    keys = {tuple(sorted(lab.items())) for lab in every}
+    assert len(keys) == len(every) > len(plain)
+    for m in auts:
+        renamed = Shape.of(shape.parts, [shape.transforms[m[v]] for v in range(len(shape))])
+        assert shape_graph(ss, renamed).edges == g.edges  # the same shape, parts renamed
+        assert tuple(sorted(cats.edge_categories(ss, renamed, g).items())) in keys
+    # only the court's own symmetries (itself, its half turn, its two mirrors) are a turn or
+    # mirror of the whole shape; the other 24 move its corners along the ring
+    def moved(m):
+        return {(a, b): plain[0][(min(m[a], m[b]), max(m[a], m[b]))] for a, b in plain[0]}
+    assert sum(moved(m) in plain for m in auts) == 4
+    assert all(moved(m) in every for m in auts)

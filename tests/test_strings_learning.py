@@ -333,6 +333,58 @@ def test_soft_vote_turns_each_string_back_before_averaging(moonbase, categories,
         assert vote == truth
 
 
+def test_vote_moves_each_string_by_the_automorphism_that_agrees(monkeypatch):
+    """A colonnade ring's strings cannot say which columns are its corners: four strings
+    labelled with the corners one place along the ring (the same court, parts renamed) and
+    one with the true corners give the true labelling once each string is moved back by
+    the ring's automorphism; left unmoved (``automorphisms=1``) they mix two courts."""
+    import procmod.strings.instantiate as inst
+    from procmod.strings.instantiate import shape_labelings
+    from procmod.strings.shapes import type_automorphisms
+
+    ss = read_shapes(SETS / "colonnade.json")
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    cats = EdgeCategories.fit(ss, ss.shapes, graphs)
+    g = graphs[0]
+    truth = cats.edge_categories(ss, ss.shapes[0], g)
+    plain = shape_labelings(ss, ss.shapes[0], g, cats, automorphisms=1)
+    renamed = None
+    for m in type_automorphisms(g):
+        renamed = {(a, b): truth[(min(m[a], m[b]), max(m[a], m[b]))] for a, b in truth}
+        if renamed not in plain:  # corners moved: not a turn or mirror of the court
+            break
+    strings = [s for g_ in graphs for s in strings_of(g_, 4, np.random.default_rng(0))]
+    vocab = Vocab(set("".join(strings)) | set("()123456789%0"))
+    model = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
+    orders = {}
+
+    def recording_encode(graph, root=None, rng=None):
+        text, order = encode_with_order(graph, root, rng)
+        orders[text] = order
+        return text, order
+
+    def predict(texts):
+        out = []
+        for k, text in enumerate(texts):
+            parsed, order = parse(text), orders[text]
+            said = truth if k == 0 else renamed
+            prob = np.zeros((len(text), len(cats)))
+            for i, e in enumerate(parsed.char_edges):
+                if e is None:
+                    prob[i, 0] = 1.0
+                    continue
+                prob[i, said[(min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))]] = 1.0
+            out.append(0.9 * prob + 0.1 / len(cats))
+        return out
+
+    monkeypatch.setattr(inst, "encode_with_order", recording_encode)
+    model.predict = predict
+    for structured in (False, True):
+        assert model.vote(g, 5, np.random.default_rng(0), ss, structured=structured) == truth
+    unmoved = model.vote(g, 5, np.random.default_rng(0), ss, structured=False, automorphisms=1)
+    assert unmoved != truth and unmoved not in plain
+
+
 def test_tagger_reads_ring_labels_past_nine(moonbase, categories):
     """A string with a ring label from %10 on is read by a tagger whose training strings
     never needed one (the ring pairs come from the structure input)."""

@@ -235,8 +235,7 @@ class CategoryDecoder:
         """Do parts at frames ``fx``, ``fy`` sit in a pose of category ``k``? Its nearest
         cluster centre must be ``k``'s and within one bandwidth of it: the nearest alone would
         let a ring "close" with its last part metres away."""
-        cats = self.categories
-        return cats.category_of_frames(fx, fy, tx, ty) == k and cats.pose_seen(fx, fy, tx, ty)
+        return self.categories.category_of_frames(fx, fy, tx, ty, seen_only=True) == k
 
     @staticmethod
     def _clashes(y: int, fy: np.ndarray, origins: np.ndarray, near2: np.ndarray | None) -> int:

@@ -40,7 +40,8 @@ from ..core.errors import InvalidArgumentError
 from ..core.serialize import write_text_atomic
 from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
-from .shapes import Shape, ShapeSet, contact_pairs, first_poses, part_points, shape_graph, tolerance_for
+from .shapes import (Shape, ShapeSet, contact_pairs, first_poses, part_points, shape_graph, tolerance_for,
+                     type_automorphisms)
 from .vae import ModelFileError, Vocab, cpu_state, torch_threads, training_device
 
 # ---------------------------------------------------------------------------------------------
@@ -296,18 +297,24 @@ class EdgeCategories:
                 out[(min(a, b), max(a, b))] = k
         return out
 
-    def category_of_frames(self, fa: np.ndarray, fb: np.ndarray, ta: str, tb: str) -> int | None:
+    def category_of_frames(self, fa: np.ndarray, fb: np.ndarray, ta: str, tb: str,
+                           seen_only: bool = False) -> int | None:
         """Category of two neighbours of types ``ta``, ``tb`` with canonical frames ``fa``,
         ``fb`` (the nearest cluster centre of their relative pose), or None when their type
-        pair has no categories."""
+        pair has no categories; with ``seen_only`` also None when that centre is farther than
+        one bandwidth (the pose is not one of the category's: :meth:`pose_seen`)."""
         if ta > tb:
             fa, fb, ta, tb = fb, fa, tb, ta
         centres = self.centres.get((ta, tb))
         if centres is None:
             return None
-        near = lambda x, y: int(np.argmin(np.linalg.norm(
-            centres - _pose_feature(x, y, self.length, self.params.rot_weight), axis=1)))
-        key = (near(fa, fb),) if ta != tb else tuple(sorted((near(fa, fb), near(fb, fa))))
+        dist = lambda x, y: np.linalg.norm(  # noqa: E731
+            centres - _pose_feature(x, y, self.length, self.params.rot_weight), axis=1)
+        forward = dist(fa, fb)
+        near = int(np.argmin(forward))
+        if seen_only and forward[near] > self.params.bandwidth:
+            return None
+        key = (near,) if ta != tb else tuple(sorted((near, int(np.argmin(dist(fb, fa))))))
         return self.index.get((ta, tb, "-".join(map(str, key))))
 
     def _category_of_pair(self, shape_set: ShapeSet, pa: str, ma: np.ndarray, pb: str, mb: np.ndarray):
@@ -672,15 +679,27 @@ def canonical_targets(text: str, order: list[int], labelings: list[dict]) -> lis
     return best
 
 
-def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: "EdgeCategories") -> list[dict]:
-    """Edge categories of each symmetric copy of a shape that all its edges fall in."""
-    out = []
+def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: "EdgeCategories",
+                    automorphisms: int = 64) -> list[dict]:
+    """Edge categories of each symmetric copy of a shape that all its edges fall in, and
+    of each of those relabelled by an automorphism of ``g`` (at most ``automorphisms`` of
+    them, :func:`~procmod.strings.shapes.type_automorphisms`; 1: none): every labelling a
+    string of ``g`` could be right to give, without duplicates."""
+    out, seen = [], set()
+    auts = type_automorphisms(g, automorphisms) if automorphisms > 1 else [{v: v for v in g.nodes}]
     for copy in symmetric_copies(shape, shape_set.library):
         if copy is None:
             continue
         cats = categories.edge_categories(shape_set, copy, g)
-        if len(cats) == g.number_of_edges():
-            out.append(cats)
+        if len(cats) != g.number_of_edges():
+            continue
+        for sigma in auts:
+            # the part at a takes the place of sigma[a]: edge (a, b) gets sigma's image's category
+            moved = {(a, b): cats[(min(sigma[a], sigma[b]), max(sigma[a], sigma[b]))] for a, b in cats}
+            key = tuple(sorted(moved.items()))
+            if key not in seen:
+                seen.add(key)
+                out.append(moved)
     return out
 
 
@@ -702,13 +721,16 @@ def symmetric_targets(text: str, order: list[int], labelings: list[dict]) -> lis
 
 
 def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCategories", per_shape: int,
-                     rng: np.random.Generator, every_symmetry: bool = False) -> list[tuple[str, list]]:
+                     rng: np.random.Generator, every_symmetry: bool = False,
+                     automorphisms: int = 64) -> list[tuple[str, list]]:
     """(string, target category per character) pairs from shapes, ``per_shape`` strings each
     (targets by :func:`canonical_targets`); with ``every_symmetry`` the targets are the list
-    of :func:`symmetric_targets` instead (the canonical one first)."""
+    of :func:`symmetric_targets` instead (the canonical one first). The labellings are the
+    shape's up to its turns, mirrors and graph automorphisms (``automorphisms``, as
+    :func:`shape_labelings`); the strings drawn do not depend on them."""
     out = []
     for shape, g in zip(shapes, graphs):
-        labelings = shape_labelings(shape_set, shape, g, categories)
+        labelings = shape_labelings(shape_set, shape, g, categories, automorphisms)
         if not labelings:
             continue
         seen = set()
@@ -808,14 +830,16 @@ class TaggerModel:
         return [decoder.decode(t, p) for t, p in zip(texts, probs)]
 
     def vote(self, g: nx.Graph, strings: int, rng: np.random.Generator, shape_set: ShapeSet | None = None,
-             ranked: bool = False, structured: bool = True, soft: bool = True) -> dict:
+             ranked: bool = False, structured: bool = True, soft: bool = True, automorphisms: int = 64) -> dict:
         """Vote over ``strings`` strings of ``g`` (the canonical one, then random ones):
         ``{(min, max): category}``; with ``ranked``, ``{(min, max): [categories]}``, best
         first, for the instantiation to try in that order.
 
         Each string's prediction fixes the shape only up to a turn / mirror about the
         vertical axis, so (given ``shape_set``, the training shapes) every string's
-        prediction is first turned by the symmetry that agrees best with the first string's.
+        prediction is first turned by the symmetry that agrees best with the first string's,
+        and moved by the automorphism of ``g`` (at most ``automorphisms`` tried) that does:
+        a ring's strings cannot say which of its alike parts is a corner.
 
         ``soft`` (the default): the tagger's probabilities of each edge are summed over
         every character that writes it in every string (soft voting; a ring edge's two
@@ -847,22 +871,28 @@ class TaggerModel:
                     seen.setdefault(key, []).append((int(lab[i]), prob[i]))
             per_string.append(seen)
         perms = self.categories.symmetry_permutations(shape_set) if shape_set is not None else [None]
+        # a string names g only up to its automorphisms: two strings may be right with
+        # labellings that differ by one, so each is moved onto the first string's as well
+        auts = [None] + [{(a, b): (min(m[a], m[b]), max(m[a], m[b])) for a, b in (
+            (min(e), max(e)) for e in g.edges)} for m in type_automorphisms(g, automorphisms)[1:]]
         size = len(self.categories)
         votes: dict[tuple, np.ndarray] = {}
         reference = None
         for seen in per_string:
-            perm = None
+            perm, moved = None, None
             if reference is not None:
                 best_agree = -1
-                for candidate in perms:
-                    agree = sum((c if candidate is None else candidate.get(c)) == reference.get(e)
-                                for e, obs in seen.items() for c, _ in obs)
-                    if agree > best_agree:
-                        perm, best_agree = candidate, agree
+                for edge_map in auts:
+                    for candidate in perms:
+                        agree = sum((c if candidate is None else candidate.get(c))
+                                    == reference.get(e if edge_map is None else edge_map[e])
+                                    for e, obs in seen.items() for c, _ in obs)
+                        if agree > best_agree:
+                            perm, moved, best_agree = candidate, edge_map, agree
             else:
                 reference = {e: obs[0][0] for e, obs in seen.items()}
             for e, obs in seen.items():
-                v = votes.setdefault(e, np.zeros(size))
+                v = votes.setdefault(e if moved is None else moved[e], np.zeros(size))
                 for c, p in obs:
                     if soft:
                         if perm is None:
@@ -1017,17 +1047,20 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
 
 
 def tagging_accuracy(model: TaggerModel, examples: list, all_characters: bool = False,
-                     shape_set: ShapeSet | None = None, structured: bool = True) -> float:
+                     shape_set: ShapeSet | None = None, structured: bool = True,
+                     predicted: list | None = None) -> float:
     """Fraction of edge characters (targets > 0) whose category is right (against
     the closest of the string's target sequences, when it has several: the shape up to the
     symmetries a string cannot tell apart), labelled by :meth:`TaggerModel.labels`
-    (``shape_set``, ``structured`` as there); with
+    (``shape_set``, ``structured`` as there) unless ``predicted`` gives the labels of each
+    example's string; with
     ``all_characters`` every character counts, also brackets, bonds and the root, whose
     dummy category the mask makes certain (a per-timestep accuracy, for comparison only)."""
     right = total = 0
     for k in range(0, len(examples), 128):
         batch = examples[k:k + 128]
-        labels = model.labels([b[0] for b in batch], shape_set, structured)
+        labels = (predicted[k:k + 128] if predicted is not None
+                  else model.labels([b[0] for b in batch], shape_set, structured))
         for (text, targets), pred in zip(batch, labels):
             scores = []  # (right, counted) against each symmetric target sequence
             for seq in _target_sets(targets):
