@@ -289,12 +289,41 @@ def test_soft_vote_weighs_confident_strings(moonbase, categories):
     assert all(soft[e] == pair[e][0] for e in contested)
 
 
+def _script_tagger(model, monkeypatch, labelling_of):
+    """Make ``model.predict`` say, for the k-th string a vote draws, the labelling
+    ``labelling_of(k)`` (``{graph edge (min, max): category}``) with 0.9 confidence: the
+    strings' node orders are recorded as the vote encodes them."""
+    import procmod.strings.instantiate as inst
+
+    orders = {}
+    size = len(model.categories)
+
+    def recording_encode(graph, root=None, rng=None):
+        text, order = encode_with_order(graph, root, rng)
+        orders[text] = order
+        return text, order
+
+    def predict(texts):
+        out = []
+        for k, text in enumerate(texts):
+            said, order = labelling_of(k), orders[text]
+            prob = np.zeros((len(text), size))
+            for i, e in enumerate(parse(text).char_edges):
+                if e is None:
+                    prob[i, 0] = 1.0
+                    continue
+                prob[i, said[(min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))]] = 1.0
+            out.append(0.9 * prob + 0.1 / size)
+        return out
+
+    monkeypatch.setattr(inst, "encode_with_order", recording_encode)
+    model.predict = predict
+
+
 def test_soft_vote_turns_each_string_back_before_averaging(moonbase, categories, monkeypatch):
     """Strings that see the shape turned by a quarter turn (their labels permuted) are turned
     back before their probabilities are added: four turned strings and one upright one give
     the upright labelling, with and without structured decoding."""
-    import procmod.strings.instantiate as inst
-
     ss, graphs, _, strings = moonbase
     cats = categories
     g = graphs[0]
@@ -305,29 +334,8 @@ def test_soft_vote_turns_each_string_back_before_averaging(moonbase, categories,
     assert any(turn.get(turn[k]) != k for k in truth.values())  # not its own inverse
     vocab = Vocab(set("".join(strings)) | set("()123456789"))
     model = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
-    orders = {}
-
-    def recording_encode(graph, root=None, rng=None):
-        text, order = encode_with_order(graph, root, rng)
-        orders[text] = order
-        return text, order
-
-    def predict(texts):
-        out = []
-        for k, text in enumerate(texts):
-            parsed, order = parse(text), orders[text]
-            prob = np.zeros((len(text), len(cats)))
-            for i, e in enumerate(parsed.char_edges):
-                if e is None:
-                    prob[i, 0] = 1.0
-                    continue
-                c = truth[(min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))]
-                prob[i, c if k == 0 else turn[c]] = 1.0
-            out.append(0.9 * prob + 0.1 / len(cats))
-        return out
-
-    monkeypatch.setattr(inst, "encode_with_order", recording_encode)
-    model.predict = predict
+    turned = {e: turn[c] for e, c in truth.items()}
+    _script_tagger(model, monkeypatch, lambda k: truth if k == 0 else turned)
     for structured in (False, True):
         vote = model.vote(g, 5, np.random.default_rng(0), ss, structured=structured)
         assert vote == truth
@@ -338,7 +346,6 @@ def test_vote_moves_each_string_by_the_automorphism_that_agrees(monkeypatch):
     labelled with the corners one place along the ring (the same court, parts renamed) and
     one with the true corners give the true labelling once each string is moved back by
     the ring's automorphism; left unmoved (``automorphisms=1``) they mix two courts."""
-    import procmod.strings.instantiate as inst
     from procmod.strings.instantiate import shape_labelings
     from procmod.strings.shapes import type_automorphisms
 
@@ -356,29 +363,7 @@ def test_vote_moves_each_string_by_the_automorphism_that_agrees(monkeypatch):
     strings = [s for g_ in graphs for s in strings_of(g_, 4, np.random.default_rng(0))]
     vocab = Vocab(set("".join(strings)) | set("()123456789%0"))
     model = TaggerModel(Tagger(len(vocab), len(cats), TaggerConfig(hidden=8, embed=8, layers=1)), vocab, cats)
-    orders = {}
-
-    def recording_encode(graph, root=None, rng=None):
-        text, order = encode_with_order(graph, root, rng)
-        orders[text] = order
-        return text, order
-
-    def predict(texts):
-        out = []
-        for k, text in enumerate(texts):
-            parsed, order = parse(text), orders[text]
-            said = truth if k == 0 else renamed
-            prob = np.zeros((len(text), len(cats)))
-            for i, e in enumerate(parsed.char_edges):
-                if e is None:
-                    prob[i, 0] = 1.0
-                    continue
-                prob[i, said[(min(order[e[0]], order[e[1]]), max(order[e[0]], order[e[1]]))]] = 1.0
-            out.append(0.9 * prob + 0.1 / len(cats))
-        return out
-
-    monkeypatch.setattr(inst, "encode_with_order", recording_encode)
-    model.predict = predict
+    _script_tagger(model, monkeypatch, lambda k: truth if k == 0 else renamed)
     for structured in (False, True):
         assert model.vote(g, 5, np.random.default_rng(0), ss, structured=structured) == truth
     unmoved = model.vote(g, 5, np.random.default_rng(0), ss, structured=False, automorphisms=1)

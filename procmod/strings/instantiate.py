@@ -305,17 +305,22 @@ class EdgeCategories:
         one bandwidth (the pose is not one of the category's: :meth:`pose_seen`)."""
         if ta > tb:
             fa, fb, ta, tb = fb, fa, tb, ta
-        centres = self.centres.get((ta, tb))
-        if centres is None:
+        forward = self._pose_distances(fa, fb, ta, tb)
+        if forward is None:
             return None
-        dist = lambda x, y: np.linalg.norm(  # noqa: E731
-            centres - _pose_feature(x, y, self.length, self.params.rot_weight), axis=1)
-        forward = dist(fa, fb)
         near = int(np.argmin(forward))
         if seen_only and forward[near] > self.params.bandwidth:
             return None
-        key = (near,) if ta != tb else tuple(sorted((near, int(np.argmin(dist(fb, fa))))))
+        key = (near,) if ta != tb else tuple(sorted((near, int(np.argmin(self._pose_distances(fb, fa, tb, ta))))))
         return self.index.get((ta, tb, "-".join(map(str, key))))
+
+    def _pose_distances(self, fa: np.ndarray, fb: np.ndarray, ta: str, tb: str) -> np.ndarray | None:
+        """Distances of ``b``'s pose in ``a``'s frame to the cluster centres of the type pair
+        ``(ta, tb)``, ``ta <= tb`` (None: the pair has no categories)."""
+        centres = self.centres.get((ta, tb))
+        if centres is None:
+            return None
+        return np.linalg.norm(centres - _pose_feature(fa, fb, self.length, self.params.rot_weight), axis=1)
 
     def _category_of_pair(self, shape_set: ShapeSet, pa: str, ma: np.ndarray, pb: str, mb: np.ndarray):
         lib = shape_set.library
@@ -348,11 +353,8 @@ class EdgeCategories:
         """Is ``b``'s pose in ``a``'s frame within one bandwidth of a cluster for its type pair?"""
         if ta > tb:
             fa, fb, ta, tb = fb, fa, tb, ta
-        centres = self.centres.get((ta, tb))
-        if centres is None:
-            return False
-        f = _pose_feature(fa, fb, self.length, self.params.rot_weight)
-        return float(np.linalg.norm(centres - f, axis=1).min()) <= self.params.bandwidth
+        dist = self._pose_distances(fa, fb, ta, tb)
+        return dist is not None and float(dist.min()) <= self.params.bandwidth
 
     def allowed(self, ta: str, tb: str) -> list[int]:
         return self.by_pair.get((min(ta, tb), max(ta, tb)), [])
