@@ -28,8 +28,8 @@ sys.path.insert(0, str(ROOT))
 
 from procmod.parallel import open_executor  # noqa: E402
 from procmod.strings.codec import encode, parse  # noqa: E402
-from procmod.strings.instantiate import (TaggerConfig, shape_labelings, tagging_accuracy,  # noqa: E402
-                                        tagging_examples)
+from procmod.strings.categories import shape_labelings  # noqa: E402
+from procmod.strings.tagger import TaggerConfig, tagging_accuracy, tagging_examples  # noqa: E402
 from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_graph, path_statistics,  # noqa: E402
                                    perturb, sample_path, search_graph)
 from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402

@@ -37,7 +37,8 @@ sys.path.insert(0, str(ROOT))
 from strings import SETS, edge_category_figures  # noqa: E402
 
 from procmod.parallel import open_executor  # noqa: E402
-from procmod.strings.instantiate import EdgeCategories, TaggerConfig, train_tagger  # noqa: E402
+from procmod.strings.categories import EdgeCategories  # noqa: E402
+from procmod.strings.tagger import TaggerConfig, train_tagger  # noqa: E402
 from procmod.strings.pipeline import (read_collection, split_shapes, tagger_training_set,  # noqa: E402
                                       vae_training_strings, write_collection)
 from procmod.strings.sampling import augment  # noqa: E402

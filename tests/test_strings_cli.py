@@ -88,7 +88,7 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
     assert code == 0, err
     assert glb.read_bytes()[:4] == b"glTF"
-    from procmod.strings.instantiate import TaggerModel
+    from procmod.strings.tagger import TaggerModel
     vote, kinds = TaggerModel.vote, []
 
     def recording_vote(self, *args, **kwargs):

@@ -8,7 +8,8 @@ import pytest
 
 from procmod.strings.codec import parse
 from procmod.strings.decoding import CategoryDecoder, DecoderParams, star_set, stars_of_labelling
-from procmod.strings.instantiate import EdgeCategories, category_decoder, string_mask, tagging_examples
+from procmod.strings.categories import EdgeCategories
+from procmod.strings.tagger import category_decoder, string_mask, tagging_examples
 from procmod.strings.shapes import read_shapes, shape_graph
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
@@ -157,7 +158,7 @@ def _colonnade_chain(cells, ring=False):
 
 def _labels_of_placement(cats, ss, text, parts):
     """Per-character categories of ``text`` read off the parts' placement."""
-    from procmod.strings.instantiate import canonical_frame
+    from procmod.strings.frames import canonical_frame
 
     frames = [canonical_frame(ss.library, p, m, cats.groups) for p, m in parts]
     letters = [ss.letters[p] for p, _ in parts]
@@ -211,7 +212,7 @@ def test_a_chain_that_turns_back_onto_itself_is_a_fault(colonnade_fitted):
 def test_a_ring_closes_only_where_its_last_part_lands(colonnade_fitted):
     """The closing edge's category must be its parts' pose, not merely the nearest category
     to a pose metres off (which would let any ring close)."""
-    from procmod.strings.instantiate import canonical_frame
+    from procmod.strings.frames import canonical_frame
 
     ss, cats = colonnade_fitted
     decoder = category_decoder(cats, None, ss)
@@ -279,7 +280,7 @@ def test_shape_labellings_include_the_same_shape_with_its_parts_renamed(colonnad
     """A colonnade ring's parts look alike to its graph: moving every part to the place of
     its image under an automorphism gives the same shape, whose categories are the
     labelling moved by that automorphism; every such labelling is among the shape's."""
-    from procmod.strings.instantiate import shape_labelings
+    from procmod.strings.categories import shape_labelings
     from procmod.strings.shapes import Shape, type_automorphisms
 
     ss, cats = colonnade_fitted

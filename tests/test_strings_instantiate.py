@@ -7,7 +7,8 @@ import pytest
 
 from procmod.core.errors import InvalidArgumentError
 from procmod.strings.codec import decode
-from procmod.strings.instantiate import EdgeCategories, instantiate_graph
+from procmod.strings.categories import EdgeCategories
+from procmod.strings.instantiate import instantiate_graph
 from procmod.strings.shapes import read_shapes, shape_graph
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"

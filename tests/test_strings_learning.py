@@ -8,8 +8,9 @@ import torch
 from procmod.core.errors import InvalidArgumentError
 from procmod.strings.codec import encode_with_order, parse, strings_of
 from procmod.strings.decoding import star_set
-from procmod.strings.instantiate import (EdgeCategories, Tagger, TaggerConfig, TaggerModel, string_mask,
-                                         string_structure, tagging_accuracy, tagging_examples, train_tagger)
+from procmod.strings.categories import EdgeCategories
+from procmod.strings.tagger import (Tagger, TaggerConfig, TaggerModel, string_mask, string_structure, tagging_accuracy,
+                                    tagging_examples, train_tagger)
 from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
 from procmod.strings.shapes import Grammar, read_shapes, shape_graph
 from procmod.strings.vae import Constraint, ModelFileError, StringModel, VAEConfig, Vocab, _Prefix, train_vae
@@ -293,7 +294,7 @@ def _script_tagger(model, monkeypatch, labelling_of):
     """Make ``model.predict`` say, for the k-th string a vote draws, the labelling
     ``labelling_of(k)`` (``{graph edge (min, max): category}``) with 0.9 confidence: the
     strings' node orders are recorded as the vote encodes them."""
-    import procmod.strings.instantiate as inst
+    import procmod.strings.tagger as tagger_module
 
     orders = {}
     size = len(model.categories)
@@ -316,7 +317,7 @@ def _script_tagger(model, monkeypatch, labelling_of):
             out.append(0.9 * prob + 0.1 / size)
         return out
 
-    monkeypatch.setattr(inst, "encode_with_order", recording_encode)
+    monkeypatch.setattr(tagger_module, "encode_with_order", recording_encode)
     model.predict = predict
 
 
@@ -346,7 +347,7 @@ def test_vote_moves_each_string_by_the_automorphism_that_agrees(monkeypatch):
     labelled with the corners one place along the ring (the same court, parts renamed) and
     one with the true corners give the true labelling once each string is moved back by
     the ring's automorphism; left unmoved (``automorphisms=1``) they mix two courts."""
-    from procmod.strings.instantiate import shape_labelings
+    from procmod.strings.categories import shape_labelings
     from procmod.strings.shapes import type_automorphisms
 
     ss = read_shapes(SETS / "colonnade.json")

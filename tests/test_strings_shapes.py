@@ -5,11 +5,12 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from procmod.strings.codec import encode, parse
-from procmod.strings.instantiate import (EdgeCategories, canonical_frame, instantiate_graph, local_frame,
-                                         symmetry_group)
-from procmod.strings.sampling import AugmentParams, attempt, augment, docking_transforms, match_boundary
-from procmod.strings.shapes import (Grammar, ring_multiple_of, ring_rule_breaks, Shape, ShapesFormatError, boxes_touch, graph_from_dict,
+from procmod.strings.categories import EdgeCategories
+from procmod.strings.codec import parse
+from procmod.strings.frames import canonical_frame, local_frame, symmetry_group
+from procmod.strings.instantiate import instantiate_graph
+from procmod.strings.sampling import augment, docking_transforms, match_boundary
+from procmod.strings.shapes import (Grammar, ring_multiple_of, ring_rule_breaks, ShapesFormatError, boxes_touch, graph_from_dict,
                                     histogram_distance, part_points, read_shapes, shape_graph, shapes_from_dict,
                                     type_histogram, type_letters, validate_shape)
 
@@ -236,3 +237,23 @@ def test_instantiation_with_true_categories_rebuilds_inputs():
             assert result.success and result.fallbacks == 0
             assert nx.is_isomorphic(shape_graph(ss, result.shape), g,
                                     node_match=lambda a, b: a["type"] == b["type"])
+
+
+def test_mirror_placement_depends_on_the_part_not_its_name():
+    """A mirrored placement of a mirror-symmetric part is turned into a proper one; an
+    asymmetric part has none, even after a symmetric part of the same name was seen (the
+    answer is remembered per part geometry, not per name)."""
+    from procmod.geometry.part_library import PartShape
+    from procmod.strings.frames import proper_placement
+
+    mirror = np.diag([-1.0, 1.0, 1.0, 1.0])
+    box = {"wedge": PartShape("wedge", "box", size=(1.0, 2.0, 0.5))}
+    fixed = proper_placement(box, "wedge", mirror)
+    assert fixed is not None and np.linalg.det(fixed[:3, :3]) > 0
+    assert np.allclose(part_points(box, "wedge", fixed)[np.lexsort(part_points(box, "wedge", fixed).T)],
+                       part_points(box, "wedge", mirror)[np.lexsort(part_points(box, "wedge", mirror).T)])
+    # a tetrahedron with its apex off the x = 0 plane: no mirror in x maps it onto itself
+    tet = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.3, 0.2, 1.0))
+    mesh = {"wedge": PartShape("wedge", "mesh", vertices=tet, faces=((0, 1, 2), (0, 1, 3), (1, 2, 3), (0, 2, 3)))}
+    assert proper_placement(mesh, "wedge", mirror) is None
+    assert proper_placement(mesh, "wedge", np.eye(4)) is not None  # a proper turn is kept as it is

@@ -3,9 +3,11 @@
 Modules: :mod:`.codec` (graph <-> SMILES-topology strings), :mod:`.shapes` (shapes files,
 contact graphs, tiling grammar), :mod:`.sampling` (graph-based shape sampling),
 :mod:`.vae` (sequence VAE with grammar-constrained decoding), :mod:`.latent` (latent
-sampling, search graphs), :mod:`.instantiate` (frames, edge categories, tagger,
-instantiation), :mod:`.pipeline` (collection and model folders), :mod:`.render` (previews,
-GLB). See docs/strings.md.
+sampling, search graphs), :mod:`.frames` (part frames, whole-shape symmetries),
+:mod:`.categories` (edge categories), :mod:`.tagger` (strings -> edge categories, the
+vote), :mod:`.decoding` (structured decoding of a string's categories),
+:mod:`.instantiate` (graph -> 3D shape), :mod:`.pipeline` (collection and model folders),
+:mod:`.render` (previews, GLB). See docs/strings.md.
 """
 
 from .codec import GraphError, StringSyntaxError, decode, encode, parse, strings_of

@@ -186,7 +186,7 @@ def _augment(args) -> None:
 def _train(args) -> None:
     from tqdm import tqdm
 
-    from .instantiate import TaggerConfig
+    from .tagger import TaggerConfig
     from .pipeline import train_model
     from .vae import VAEConfig
 

@@ -87,7 +87,7 @@ def star_set(examples) -> list[Star]:
 class CategoryDecoder:
     """Joint labelling of one string's edges (see the module docstring).
 
-    ``categories`` is the :class:`~procmod.strings.instantiate.EdgeCategories`; ``stars``
+    ``categories`` is the :class:`~procmod.strings.categories.EdgeCategories`; ``stars``
     the stars seen in training (None: no star check); ``frame_of(letter, pose)`` the
     canonical frame of a part of that type placed at ``pose``, and ``root_poses`` per type
     the poses a string's first part may have (identity when missing) — without ``frame_of``

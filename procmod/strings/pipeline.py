@@ -24,11 +24,12 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError
 from ..core.serialize import write_text_atomic
+from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
-from .instantiate import (CategoryParams, EdgeCategories, InstantiateResult, TaggerConfig, TaggerModel,
-                          instantiate_graph, part_clearances, tagging_accuracy, tagging_examples, train_tagger)
+from .instantiate import InstantiateResult, instantiate_graph
 from .shapes import (Grammar, ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shape_graph,
                      write_shapes)
+from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
 from .vae import ModelFileError, StringModel, VAEConfig, train_vae, training_device
 
 MODEL_FORMAT = "procmod-string-model/1"

@@ -1,0 +1,201 @@
+"""Part frames and whole-shape symmetries (seed 001, section 6).
+
+**Local frames** by the extremal-point ("diagonal") method: the vertex ``v`` farthest from
+the centre of gravity, the vertex ``w`` farthest from ``v``, the vertex ``u`` farthest from
+the line ``vw``; tied vertices are averaged, and when the average collapses (a box's
+corners all tie) the tied vertex listed first in the part library is taken, which keeps
+the frame attached to the part however it is placed. A symmetric part's frame is then
+turned by its own symmetry to the equivalent frame closest to the world axes
+(:func:`canonical_frame`), so one pose has one frame.
+
+**World symmetries**: the turns about the vertical axis and mirrors of a whole shape,
+which a string cannot tell apart (:func:`world_symmetries`, :func:`symmetric_copies`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .shapes import Shape, part_points
+
+
+def _extreme(points: np.ndarray, dist: np.ndarray, eps: float) -> np.ndarray:
+    """The average of the points at maximal ``dist``; the first of them if they average out."""
+    top = np.nonzero(dist >= dist.max() - eps)[0]
+    return points[top].mean(0), points[top[0]]
+
+
+def local_frame(points: np.ndarray, eps_rel: float = 1e-5) -> np.ndarray:
+    """A rigid 4x4 frame (origin = vertex mean) from a part's world vertices, by the
+    extremal-point method (see the module docstring)."""
+    p = np.asarray(points, dtype=np.float64)
+    c = p.mean(0)
+    scale = max(float(np.linalg.norm(p - c, axis=1).max()), 1e-12)
+    eps = eps_rel * scale
+    avg, first = _extreme(p, np.linalg.norm(p - c, axis=1), eps)
+    v = avg if np.linalg.norm(avg - c) > 1e-3 * scale else first
+    avg, first = _extreme(p, np.linalg.norm(p - v, axis=1), eps)
+    w = avg if np.linalg.norm(avg - v) > 1e-3 * scale else first
+    a1 = (w - v) / max(np.linalg.norm(w - v), 1e-12)
+    rel = p - v
+    foot = v + np.outer(rel @ a1, a1)
+    off = np.linalg.norm(p - foot, axis=1)
+    avg, first = _extreme(p, off, eps)
+    u = avg if np.linalg.norm(avg - (v + ((avg - v) @ a1) * a1)) > 1e-3 * scale else first
+    a2 = u - (v + ((u - v) @ a1) * a1)
+    if np.linalg.norm(a2) < 1e-9 * scale:  # all points on one line: any perpendicular
+        a2 = np.cross(a1, [1.0, 0.0, 0.0] if abs(a1[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a2 /= np.linalg.norm(a2)
+    a3 = np.cross(a1, a2)
+    f = np.eye(4)
+    f[:3, 0], f[:3, 1], f[:3, 2], f[:3, 3] = a1, a2, a3, c
+    return f
+
+
+def _candidate_rotations() -> list[np.ndarray]:
+    """The 24 rotations of the cube, each also composed with quarter-of-a-quarter turns
+    (45 degrees) about z: the symmetries :func:`symmetry_group` looks for."""
+    mats = []
+    for perm in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (1, 0, 2), (0, 2, 1), (2, 1, 0)):
+        for signs in np.ndindex(2, 2, 2):
+            m = np.zeros((3, 3))
+            for r, c in enumerate(perm):
+                m[r, c] = 1 - 2 * signs[r]
+            if np.linalg.det(m) > 0:
+                mats.append(m)
+    out = []
+    for k in range(8):
+        c, s_ = np.cos(k * np.pi / 4), np.sin(k * np.pi / 4)
+        rz = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+        out += [rz @ m for m in mats]
+    uniq = []
+    for m in out:
+        if not any(np.allclose(m, u, atol=1e-9) for u in uniq):
+            uniq.append(m)
+    return uniq
+
+
+_CANDIDATES = None
+
+
+def symmetry_group(local_points: np.ndarray, rel_tol: float = 1e-4) -> list[np.ndarray]:
+    """Rotations (about the vertex mean, in the part's library frame) that map its vertex
+    set onto itself, among the cube's and 45-degree turns about z (boxes, prisms, cylinders)."""
+    global _CANDIDATES
+    if _CANDIDATES is None:
+        _CANDIDATES = _candidate_rotations()
+    p = np.asarray(local_points, dtype=np.float64)
+    p = p - p.mean(0)
+    tol = rel_tol * max(float(np.linalg.norm(p, axis=1).max()), 1e-12)
+    group = []
+    for r in _CANDIDATES:
+        q = p @ r.T
+        if np.linalg.norm(q[:, None] - p[None], axis=2).min(1).max() <= tol:
+            group.append(r)
+    return group
+
+
+def canonical_frame(library: dict, name: str, transform: np.ndarray, groups: dict) -> np.ndarray:
+    """The extremal-point frame of a placed part, turned by the part's own symmetry to the
+    equivalent frame closest to the world axes (so a symmetric part gets the same frame
+    however it was turned into place). ``groups`` caches each part's symmetries."""
+    f = local_frame(part_points(library, name, transform))
+    group = groups.get(name)
+    if group is None:
+        local = part_points(library, name, np.eye(4))
+        r_local = local_frame(local)[:3, :3]
+        # A symmetry S of the part turns its frame R_L into S R_L: in frame terms R_L^T S R_L.
+        group = groups[name] = [r_local.T @ sym @ r_local for sym in symmetry_group(local)] or [np.eye(3)]
+    # The closest to the world axes (largest trace); ties broken by the rounded entries, so
+    # the choice depends only on the set of equivalent frames, not on how the part was turned.
+    best, best_score = f, None
+    for g in group:
+        rot = _orthonormal(f[:3, :3] @ g)
+        score = (round(float(np.trace(rot)), 6), tuple(np.round(rot, 6).reshape(9).tolist()))
+        if best_score is None or score > best_score:
+            best_score = score
+            best = f.copy()
+            best[:3, :3] = rot
+    return best
+
+
+def rigid_inverse(f: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid 4x4 transform (rotation transposed, translation turned back)."""
+    out = np.eye(4)
+    out[:3, :3] = f[:3, :3].T
+    out[:3, 3] = -f[:3, :3].T @ f[:3, 3]
+    return out
+
+
+def _orthonormal(m: np.ndarray) -> np.ndarray:
+    u, _, vt = np.linalg.svd(m)
+    return u @ vt
+
+
+def world_symmetries() -> list[np.ndarray]:
+    """The 8 quarter turns of a whole shape about the vertical (z) axis, with and without a
+    mirror in x: moves a string cannot tell apart (mirrors apply to shapes whose parts are
+    mirror-symmetric, see :func:`proper_placement`)."""
+    out = []
+    for mirror in (1.0, -1.0):
+        for k in range(4):
+            c, s_ = [(1, 0), (0, 1), (-1, 0), (0, -1)][k]
+            m = np.eye(4)
+            m[:2, :2] = [[c, -s_], [s_, c]]
+            out.append(m @ np.diag([mirror, 1.0, 1.0, 1.0]))
+    return out
+
+
+_MIRROR = np.diag([-1.0, 1.0, 1.0, 1.0])
+
+# part geometry (its library-frame vertices) -> the part's own mirror about its vertex mean
+# (a 4x4), or None when the part is not mirror-symmetric. Keyed by the points, not the part
+# name: two libraries may give one name different parts.
+_OWN_MIRROR: dict[bytes, np.ndarray | None] = {}
+
+
+def _own_mirror(library: dict, name: str) -> np.ndarray | None:
+    p = part_points(library, name, np.eye(4))
+    key = p.tobytes()
+    if key not in _OWN_MIRROR:
+        c = p.mean(0)
+        q = (p - c) * [-1.0, 1.0, 1.0] + c
+        scale = max(float(np.linalg.norm(p - c, axis=1).max()), 1e-12)
+        mirror = None
+        if np.linalg.norm(q[:, None] - p[None], axis=2).min(1).max() <= 1e-6 * scale:
+            about, back = np.eye(4), np.eye(4)
+            about[:3, 3], back[:3, 3] = c, -c
+            mirror = about @ _MIRROR @ back
+        _OWN_MIRROR[key] = mirror
+    return _OWN_MIRROR[key]
+
+
+def proper_placement(library: dict, name: str, m: np.ndarray) -> np.ndarray | None:
+    """``m`` if it turns without mirroring; else the proper transform that puts the part's
+    points in the same place (``m`` times a mirror of the part in its own x), when the part
+    is mirror-symmetric; None when it is not (a mirrored copy would need a mirrored part)."""
+    if np.linalg.det(m[:3, :3]) > 0:
+        return m
+    mirror = _own_mirror(library, name)
+    return None if mirror is None else m @ mirror
+
+
+def symmetric_copies(shape: Shape, library: dict | None = None) -> list[Shape | None]:
+    """A shape turned by each of :func:`world_symmetries` (about its centroid); None for a
+    mirror when a part is not mirror-symmetric (needs ``library``; without it mirrors are None)."""
+    centre = np.mean([t[:3, 3] for t in shape.transforms], axis=0)
+    to, back = np.eye(4), np.eye(4)
+    to[:3, 3], back[:3, 3] = -centre, centre
+    out = []
+    for g in world_symmetries():
+        moved = [back @ g @ to @ t for t in shape.transforms]
+        if np.linalg.det(g[:3, :3]) < 0:
+            if library is None:
+                out.append(None)
+                continue
+            moved = [proper_placement(library, p, m) for p, m in zip(shape.parts, moved)]
+            if any(m is None for m in moved):
+                out.append(None)
+                continue
+        out.append(Shape.of(shape.parts, moved))
+    return out
