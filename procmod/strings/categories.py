@@ -64,7 +64,7 @@ class EdgeCategories:
     def fit(shape_set: ShapeSet, shapes, graphs, params: CategoryParams = CategoryParams(),
             symmetric: bool = True) -> "EdgeCategories":
         """Cluster the relative poses of neighbours in ``shapes`` (and, when ``symmetric``,
-        in their copies turned by :func:`world_symmetries`)."""
+        in their copies turned by :func:`~procmod.strings.frames.world_symmetries`)."""
         from sklearn.cluster import MeanShift
 
         clearance = part_clearances(shape_set, shapes, graphs)  # turns and mirrors keep distances
@@ -181,8 +181,8 @@ class EdgeCategories:
         return self.category_of_frames(fa, fb, shape_set.letters[pa], shape_set.letters[pb])
 
     def symmetry_permutations(self, shape_set: ShapeSet) -> list[dict]:
-        """For each of :func:`world_symmetries`, where it sends each category (turning an
-        example edge of the category and classifying it again)."""
+        """For each of :func:`~procmod.strings.frames.world_symmetries`, where it sends each
+        category (turning an example edge of the category and classifying it again)."""
         if getattr(self, "_perms", None) is not None:
             return self._perms
         part_of = shape_set.part_of_letter

@@ -256,7 +256,7 @@ def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCateg
     (targets by :func:`canonical_targets`); with ``every_symmetry`` the targets are the list
     of :func:`symmetric_targets` instead (the canonical one first). The labellings are the
     shape's up to its turns, mirrors and graph automorphisms (``automorphisms``, as
-    :func:`shape_labelings`); the strings drawn do not depend on them."""
+    :func:`~procmod.strings.categories.shape_labelings`); the strings drawn do not depend on them."""
     out = []
     for shape, g in zip(shapes, graphs):
         labelings = shape_labelings(shape_set, shape, g, categories, automorphisms)
@@ -287,7 +287,7 @@ def category_decoder(categories: EdgeCategories, stars: list | None = None,
     """A structured decoder of edge categories (:mod:`procmod.strings.decoding`): stars
     (when given) and, with ``shape_set`` (the shapes the categories were fitted on, for the
     part library and the parts' poses), ring closure, the first part of a string placed in
-    its input pose under every turn and mirror of :func:`world_symmetries`."""
+    its input pose under every turn and mirror of :func:`~procmod.strings.frames.world_symmetries`."""
     frame_of, roots = None, None
     if shape_set is not None:
         lib, part_of = shape_set.library, shape_set.part_of_letter
