@@ -302,3 +302,14 @@ def test_shape_labellings_include_the_same_shape_with_its_parts_renamed(colonnad
         return {(a, b): plain[0][(min(m[a], m[b]), max(m[a], m[b]))] for a, b in plain[0]}
     assert sum(moved(m) in plain for m in auts) == 4
     assert all(moved(m) in every for m in auts)
+
+
+@pytest.mark.parametrize("bad", [{"penalty": -1.0}, {"penalty": float("inf")}, {"penalty": float("nan")},
+                                 {"beam": 0}, {"candidates": 0}])
+def test_decoder_params_are_checked(bad):
+    """The search stops building extensions by a bound that holds only for a finite penalty
+    >= 0; such settings are refused with a message, not searched wrongly."""
+    from procmod.core.errors import ProcmodError
+
+    with pytest.raises(ProcmodError, match="must be"):
+        DecoderParams(**bad)

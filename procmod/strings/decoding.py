@@ -39,6 +39,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from .codec import parse
 
 # (type letter, the sorted categories of its edges)
@@ -57,6 +58,13 @@ class DecoderParams:
     # close, two parts closer than their types' clearance
     clearance_slack: float = 0.1  # a part may sit this fraction of the clearance closer (placing by
     # one example per category drifts a little on sets off a grid)
+
+    def __post_init__(self):
+        # the search's bound (a fault only lowers a score) needs a finite penalty >= 0
+        if not (np.isfinite(self.penalty) and self.penalty >= 0):
+            raise InvalidArgumentError(f"penalty must be a finite number >= 0 (got {self.penalty})")
+        if self.beam < 1 or self.candidates < 1:
+            raise InvalidArgumentError(f"beam and candidates must be at least 1 (got {self.beam}, {self.candidates})")
 
 
 def stars_of_labelling(text: str, labels) -> list[Star]:
@@ -133,9 +141,9 @@ class CategoryDecoder:
 
     def _steps_to(self, fx: np.ndarray, turn_x: bytes, tx: str, ty: str, k: int) -> list[tuple]:
         """``(frame, turn key)`` of a ``ty`` part joined to a ``tx`` part at frame ``fx``
-        (turn key ``turn_x``) by category ``k``, with the frame's origin at ``fx``'s (add
-        ``fx``'s origin to place it); two when both types are the same: either end may be the
-        category's first part."""
+        (turn key ``turn_x``) by category ``k``, relative to ``fx``'s origin: the frame's
+        translation is y's offset from x (add ``fx[:3, 3]`` to place it); two when both types
+        are the same: either end may be the category's first part."""
         # canonical frames depend on the orientation only: cache by (k, x's type, x's rotation)
         key = (k, tx, turn_x)
         steps = self._steps.get(key)
@@ -201,7 +209,7 @@ class CategoryDecoder:
         root = next(v for v in parsed.char_nodes if v is not None)
         t = parsed.graph.nodes[root]["type"]
         out, seen = [], set()
-        for pose in self.root_poses.get(t, [np.eye(4)]):
+        for pose in self.root_poses.get(t) or [np.eye(4)]:
             f = self.frame_of(t, np.asarray(pose, dtype=np.float64))
             key = self._turn_key(f)
             if key not in seen:  # poses a symmetric part cannot tell apart
@@ -240,7 +248,7 @@ class CategoryDecoder:
         ``at[i]`` among the placed parts ``origins[i]`` ``(n, 3)`` (parts not placed sit at
         ``_UNPLACED``): how many of them it would clash with (``near2``: :meth:`_too_near`)."""
         d = origins - at[:, None, :]
-        return np.count_nonzero(np.einsum("mnk,mnk->mn", d, d) < near2[parts], axis=1)
+        return np.count_nonzero((d * d).sum(-1) < near2[parts], axis=1)
 
     def _best(self, parsed, logp: dict) -> dict:
         """The labelling :meth:`_search` finds with the configured beam, or, when that one
@@ -296,22 +304,34 @@ class CategoryDecoder:
             bound = np.array([b[0] for b in beam])[:, None] + lp[cands][None, :]
             hs, cs = np.nonzero(np.ones_like(bound, dtype=bool))
             units = np.lexsort((cs, hs, -bound[hs, cs]))
-            # extensions built: (score, faults, h, category, new part, its (frame, turn key),
-            # the edge's ends' new stars, parts whose star broke)
+            # The step cache keeps the first frame computed for a rounded rotation; filled here
+            # in (h, k) order, as building every extension would, so which extensions are built
+            # cannot move a frame in its last digits (and flip a closure or clash test).
+            for h in range(len(beam)):
+                frames = beam[h][5]
+                x, y = e
+                if frames[y] is not None and frames[x] is None:
+                    x, y = y, x
+                if frames[x] is not None and frames[y] is None:
+                    for k in cands:
+                        if self.categories.examples.get(k):
+                            self._steps_to(*frames[x], types[x], types[y], k)
+            # extensions built: (score, faults, h, category, new part, (x's origin, (its frame
+            # relative to that origin, turn key)), the edge's ends' new stars, parts whose star broke)
             grown = []
-            worst: list = []  # heap of the beam_size best keys so far, worst on top: (score, -h, -ci, -j, index)
+            best_keys: list = []  # heap of the beam_size best keys so far, worst on top: (score, -h, -ci, -j, index)
             placed = np.stack([b[6] for b in beam])  # every partial labelling's frame origins (B, n, 3)
             start = 0
             while start < len(units):
-                if len(worst) >= beam_size:
-                    s_w, h_w, c_w, j_w, _ = worst[0]
+                if len(best_keys) >= beam_size:
+                    s_w, h_w, c_w, j_w, _ = best_keys[0]
                     unit = units[start]
                     if (-bound[hs[unit], cs[unit]], hs[unit], cs[unit], 0) > (-s_w, -h_w, -c_w, -j_w):
                         break  # this extension and every later one rank below the beam
                 # in chunks (the first fills the beam), so clashes are counted for many at once
                 chunk = units[start:start + (beam_size if start == 0 else 32)]
                 start += len(chunk)
-                pending = []  # (score, faults, faults but clashes, h, ci, j, y, (frame, turn key), ends, broken)
+                pending = []  # (score, faults, faults but clashes, h, ci, j, y, placement as in grown, ends, broken)
                 for unit in chunk:
                     h, ci = int(hs[unit]), int(cs[unit])
                     k = cands[ci]
@@ -328,7 +348,7 @@ class CategoryDecoder:
                             if v not in broken and not self.extendable(types[v], degree[v], star):
                                 f += 1  # counted once, when the part's star can no longer be a seen one
                                 newly_broken += (v,)
-                    new_frames: list = [None]  # the new part's (frame, turn key), for each way to place it
+                    new_frames: list = [None]  # the new part's placement (as in grown), for each way
                     if frames[x] is not None and frames[y] is not None:  # a ring edge: does it close?
                         f += not self._closes(frames[x][0], frames[y][0], types[x], types[y], k)
                     elif frames[x] is not None and self.categories.examples.get(k):  # a tree edge: place y
@@ -348,12 +368,12 @@ class CategoryDecoder:
                 for (score, faults, f, h, ci, j, y, fy, ends, newly_broken), extra in zip(pending, clashes):
                     f_ = f + int(extra)
                     s_ = score + float(lp[cands[ci]]) - self.params.penalty * (f_ - faults)
-                    heapq.heappush(worst, (s_, -h, -ci, -j, len(grown)))
-                    if len(worst) > beam_size:
-                        heapq.heappop(worst)
+                    heapq.heappush(best_keys, (s_, -h, -ci, -j, len(grown)))
+                    if len(best_keys) > beam_size:
+                        heapq.heappop(best_keys)
                     grown.append((s_, f_, h, cands[ci], y, fy, ends, newly_broken))
             kept = []
-            for _, _, _, _, index in sorted(worst, key=lambda o: (-o[0], -o[1], -o[2], -o[3])):
+            for _, _, _, _, index in sorted(best_keys, key=lambda o: (-o[0], -o[1], -o[2], -o[3])):
                 s_, f, h, k, y, fy, ends, newly_broken = grown[index]
                 _, _, labels, stars, broken, frames, origins = beam[h]
                 if fy is not None:

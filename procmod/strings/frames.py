@@ -155,6 +155,8 @@ _OWN_MIRROR: dict[bytes, np.ndarray | None] = {}
 
 
 def _own_mirror(library: dict, name: str) -> np.ndarray | None:
+    """The part's mirror in its own x about its vertex mean (4x4, in library coordinates)
+    when that maps its vertices onto themselves, else None; remembered per geometry."""
     p = part_points(library, name, np.eye(4))
     key = p.tobytes()
     if key not in _OWN_MIRROR:
