@@ -1,6 +1,7 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -107,3 +108,22 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     # corridors' grid: the learned ring-length rule says so before any placement is tried
     code, out, err = _run(capsys, "strings", "instantiate", model, "M1CMCMC1", "--out", tmp_path / "z.glb")
     assert code == 2 and "a ring of 6 parts" in err and "multiple of 4" in err and not (tmp_path / "z.glb").exists()
+    # the transplanting search starts again (another start edge) only when its budget ran out
+    import procmod.strings.pipeline as pipeline
+    calls = []
+
+    def failing_with(reason):
+        def search(*args, **kwargs):
+            calls.append(kwargs["budget"])
+            return pipeline.InstantiateResult(None, False, reason=reason)
+        return search
+
+    trained = pipeline.TrainedModel(model)
+    monkeypatch.setattr(pipeline, "instantiate_graph", failing_with("search budget of 5 placements spent at node 1"))
+    assert not trained.instantiate("DMCMD", np.random.default_rng(0), attempts=3, budget=5).success
+    assert calls == [5, 5, 5]
+    calls.clear()
+    monkeypatch.setattr(pipeline, "instantiate_graph", failing_with("no placement of the parts realises the graph "
+                                                                     "(every candidate pose tried)"))
+    assert not trained.instantiate("DMCMD", np.random.default_rng(0), attempts=3, budget=5).success
+    assert calls == [5]  # proven impossible: no restart
