@@ -84,6 +84,9 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     summary = json.loads((tmp_path / "s" / "summary.json").read_text())
     assert summary["decoded"] == 3 and summary["valid"] <= 3
+    written = (tmp_path / "s" / "samples.txt").read_text().split()
+    assert [r["string"] for r in summary["samples"]] == written and len(written) == summary["unique"]
+    assert sum(r["novel"] for r in summary["samples"]) == summary["novel"]
     # a small tree: module with a dome, corridor, module with a dome
     glb = tmp_path / "x.glb"
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)

@@ -262,12 +262,18 @@ def _sample(args) -> None:
     novel = [s for s in unique if decode(s) not in known]  # a graph no training string has
     out.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out / "samples.txt", "\n".join(unique) + ("\n" if unique else ""))
-    built, shapes = 0, []
+    built, shapes, rows = 0, [], []
+    novel_set = set(novel)
     for k, s in enumerate(unique):
         write_text_atomic(out / f"sample_{k:03d}.json", json.dumps(graph_to_dict(decode(s))) + "\n")
+        row = {"sample": k, "string": s, "novel": s in novel_set}
+        rows.append(row)
         if args.no_meshes:
             continue
         result = model.instantiate(s, rng)
+        row["instantiated"] = result.success
+        if not result.success:  # why not: the search's own words (budget spent, proven impossible, ...)
+            row["reason"] = result.reason
         if result.success:
             built += 1
             write_shape_mesh(model.shape_set, result.shape, out / f"sample_{k:03d}.glb")
@@ -277,7 +283,7 @@ def _sample(args) -> None:
         write_sheet(model.shape_set, [s for _, s in shapes], out / "contact_sheet.png", 160,
                     labels=[str(k) for k, _ in shapes])
     summary = {"mode": args.mode, "decoded": len(decoded), "valid": len(valid), "unique": len(unique),
-               "novel": len(novel), "instantiated": built}
+               "novel": len(novel), "instantiated": built, "samples": rows}
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     print(f"{args.n} points: {len(valid)} valid, {len(unique)} unique, {len(novel)} novel; "
           + ("" if args.no_meshes else f"{built} instantiated; ") + f"wrote {out}/")
