@@ -80,6 +80,15 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     assert json.loads((model / "categories.json").read_text())["clearance"] == clearance
     assert json.loads((model / "tagger.json").read_text())["categories"]["clearance"] == clearance
+    # trained already: a rerun only measures the held-out strings, and says how far it is
+    from procmod.strings.pipeline import train_model
+    from procmod.strings.tagger import TaggerConfig
+    from procmod.strings.vae import VAEConfig
+    stages = []
+    meta = train_model(col, model, VAEConfig(hidden=16, latent=4, epochs=1), TaggerConfig(epochs=1), 4,
+                       tagger_strings_per_shape=4, progress=lambda stage, row: stages.append((stage, row)))
+    held = [row for stage, row in stages if stage == "held-out"]
+    assert held and held[-1]["done"] == held[-1]["total"] > 0 and 0 <= meta["tagger_held_out_accuracy"] <= 1
     code, out, err = _run(capsys, "strings", "sample", model, "-n", 3, "--out", tmp_path / "s", "--no-meshes")
     assert code == 0, err
     summary = json.loads((tmp_path / "s" / "summary.json").read_text())

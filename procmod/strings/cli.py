@@ -199,13 +199,15 @@ def _train(args) -> None:
     bars = {}
 
     def progress(stage, row):
-        total = args.epochs if stage == "vae" else args.tagger_epochs
+        # epochs of the VAE and the tagger, then the held-out strings the tagger labels
+        counted = "done" if stage == "held-out" else "epoch"
+        total = row["total"] if stage == "held-out" else args.epochs if stage == "vae" else args.tagger_epochs
         bar = bars.get(stage)
         if bar is None:
-            bar = bars[stage] = tqdm(total=total, unit=" epochs", desc=stage, disable=None, leave=False,
-                                     file=sys.stderr)
-        bar.n = row["epoch"]
-        bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in ("epoch", "seconds", "device")},
+            unit = " strings" if stage == "held-out" else " epochs"
+            bar = bars[stage] = tqdm(total=total, unit=unit, desc=stage, disable=None, leave=False, file=sys.stderr)
+        bar.n = row[counted]
+        bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in (counted, "total", "seconds", "device")},
                        refresh=False)
         bar.refresh()
 
