@@ -281,8 +281,8 @@ class CategoryDecoder:
         near2 = self._too_near(types, g)  # (n, n) squared distances below which two parts clash
         # A partial labelling: (score, faults, category per decided edge, star per part (the
         # sorted categories decided at it), parts with a fault, (frame, turn key) per part
-        # (None: not placed), frame origins (n, 3)). Lists, copied whole when extended: a
-        # list copy is far cheaper than a dict's.
+        # (None: not placed), frame origins (n, 3)). Lists indexed by edge order and node,
+        # copied whole when a kept extension changes them.
         beam = []
         for root, f, key in self._root_frames(parsed) or [(None, None, None)]:
             frames = [None] * n
