@@ -41,7 +41,7 @@ from procmod.strings.categories import EdgeCategories  # noqa: E402
 from procmod.strings.tagger import TaggerConfig, train_tagger  # noqa: E402
 from procmod.strings.pipeline import (read_collection, split_shapes, tagger_training_set,  # noqa: E402
                                       vae_training_strings, write_collection)
-from procmod.strings.sampling import augment  # noqa: E402
+from procmod.strings.sampling import DISTINCT_MODES, AugmentParams, augment  # noqa: E402
 from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
 from procmod.strings.vae import Vocab, vocab_of  # noqa: E402
 
@@ -54,7 +54,8 @@ def grown_collection(args, folder: Path):
     t0 = time.perf_counter()
     with open_executor(args.workers) as executor:
         grown = augment(inputs, args.count, seed=args.seed, parallel=args.parallel, max_rounds=args.max_rounds,
-                        executor=executor, seconds=args.augment_seconds)
+                        executor=executor, seconds=args.augment_seconds,
+                        params=AugmentParams(distinct=args.distinct))
     seconds = time.perf_counter() - t0
     write_collection(inputs, grown.shapes, folder, grown.rounds, 8, args.seed, sheet=False)
     return read_collection(folder), round(seconds, 1)
@@ -81,6 +82,8 @@ def main() -> None:
     ap.add_argument("--augment-seconds", type=float, default=600)
     ap.add_argument("--max-rounds", type=int, default=400,
                     help="growth rounds at most (400, as bench/strings.py; colonnade needs more past 184 shapes)")
+    ap.add_argument("--distinct", choices=DISTINCT_MODES, default="histogram",
+                    help="which grown variants are duplicates (histogram: seed 001's rule; graph: isomorphic graphs)")
     ap.add_argument("--parallel", type=int, default=8)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
@@ -100,7 +103,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=ROOT / "results")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    work = args.work / f"{args.set}_{args.count}"
+    name = f"{args.set}_{args.count}" + ("" if args.distinct == "histogram" else f"_{args.distinct}")
+    work = args.work / name
     cache = work / f"tagger_inputs_s{args.strings_per_shape}_seed{args.seed}.json.gz"
     if args.train_only and cache.is_file():  # prepared elsewhere: no collection, no geometry needed
         vocab, categories, examples = read_training_inputs(cache)
@@ -133,10 +137,10 @@ def main() -> None:
     figures = edge_category_figures(tagger, shape_set, shape_set, [shape_set.shapes[i] for i in test_idx],
                                     [graphs[i] for i in test_idx], rng)
     result = {"command": "python bench/strings_tagger.py " + " ".join(sys.argv[1:]), "set": args.set,
-              "shapes": len(shape_set.shapes), "train_shapes": len(train_idx), "training_strings": len(examples),
+              "distinct": args.distinct, "shapes": len(shape_set.shapes), "train_shapes": len(train_idx), "training_strings": len(examples),
               "growth_seconds": growth_seconds, "tagger": asdict(config), "train_seconds": round(train_seconds, 1),
               "history": history, "categories": len(categories) - 1, **figures}
-    stem = args.out / f"strings_tagger_{args.set}_{args.count}"
+    stem = args.out / f"strings_tagger_{name}"
     stem.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
     plot(result, stem.with_suffix(".png"))
     print(json.dumps({k: v for k, v in result.items() if k != "history"}), flush=True)

@@ -51,6 +51,17 @@ def test_errors_are_one_line_exit_2(tmp_path, capsys, monkeypatch, argv, words):
     assert not (tmp_path / "x").exists()
 
 
+def test_augment_distinct_graph_keeps_variants_with_a_seen_histogram(tmp_path, capsys):
+    from procmod.strings.shapes import read_shapes, type_histogram
+    col = tmp_path / "col"
+    code, out, _ = _run(capsys, "strings", "augment", SETS / "colonnade.json", "--count", 24, "--out", col,
+                        "--parallel", 8, "--rounds", 40, "--distinct", "graph")
+    assert code == 0, out
+    grown = read_shapes(col / "shapes.json")
+    hists = [type_histogram(grown.types(s)) for s in grown.shapes]
+    assert len(grown.shapes) == 24 and len(set(hists)) < len(hists)
+
+
 def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     col = tmp_path / "col"
     code, out, _ = _run(capsys, "strings", "augment", SETS / "moonbase.json", "--count", 6, "--out", col,

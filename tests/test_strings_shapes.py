@@ -1,3 +1,4 @@
+import itertools
 import json
 from pathlib import Path
 
@@ -9,8 +10,9 @@ from procmod.strings.categories import EdgeCategories
 from procmod.strings.codec import parse
 from procmod.strings.frames import canonical_frame, local_frame, symmetry_group
 from procmod.strings.instantiate import instantiate_graph
-from procmod.strings.sampling import augment, docking_transforms, match_boundary
-from procmod.strings.shapes import (Grammar, ring_multiple_of, ring_rule_breaks, ShapesFormatError, boxes_touch, graph_from_dict,
+from procmod.core.errors import InvalidArgumentError
+from procmod.strings.sampling import AugmentParams, SeenShapes, augment, docking_transforms, match_boundary
+from procmod.strings.shapes import (Grammar, Shape, ring_multiple_of, ring_rule_breaks, ShapesFormatError, boxes_touch, graph_from_dict,
                                     histogram_distance, part_points, read_shapes, shape_graph, shapes_from_dict,
                                     type_histogram, type_letters, validate_shape)
 
@@ -196,6 +198,32 @@ def test_augment_grows_valid_new_variants_deterministically():
         assert validate_shape(ss, s, grammar) == []
         hists.add(type_histogram(ss.types(s)))
     assert len(hists) == len(a.shapes)  # duplicates by type histogram are discarded
+
+
+def _is_isomorphic(ss, a, b) -> bool:
+    match = nx.algorithms.isomorphism.categorical_node_match("type", None)
+    return nx.is_isomorphic(shape_graph(ss, a), shape_graph(ss, b), node_match=match)
+
+
+def test_graph_distinct_keeps_same_histogram_shapes_and_drops_isomorphic_ones():
+    ss = read_shapes(SETS / "colonnade.json")
+    seen = SeenShapes(ss, "graph")
+    first, second = ss.shapes
+    assert seen.add(first) and seen.add(second)
+    moved = Shape.of(first.parts, [np.asarray(t) + np.pad(np.array([[0, 0, 0, 7.0]]), ((0, 3), (0, 0)))
+                                   for t in first.transforms])
+    assert not seen.add(moved)  # a translated copy: the same graph
+    order = np.random.default_rng(0).permutation(len(first))
+    assert not seen.add(Shape.of([first.parts[i] for i in order], [first.transforms[i] for i in order]))
+    # grown with the graph rule, the collection has variants the histogram rule would drop
+    grown = augment(ss, 30, seed=0, parallel=8, max_rounds=40, params=AugmentParams(distinct="graph"))
+    hists = [type_histogram(ss.types(s)) for s in grown.shapes]
+    assert len(set(hists)) < len(hists)
+    for i, j in itertools.combinations(range(len(grown.shapes)), 2):
+        if hists[i] == hists[j]:
+            assert not _is_isomorphic(ss, grown.shapes[i], grown.shapes[j])
+    with pytest.raises(InvalidArgumentError, match="distinct must be one of"):
+        AugmentParams(distinct="types")
 
 
 def test_augment_through_a_process_pool_matches_inline():

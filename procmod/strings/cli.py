@@ -52,6 +52,9 @@ def register(sub, int_arg) -> None:
     p.add_argument("--strings-per-shape", type=int_arg, default=8)
     p.add_argument("--rotate", action="store_true", help="allow docking rotations (default: translations only, "
                                                          "so every variant keeps the inputs' orientation)")
+    p.add_argument("--distinct", choices=("histogram", "graph"), default="histogram",
+                   help="which variants are duplicates: 'histogram' (default, seed 001's conservative rule: "
+                        "a node-type histogram seen before) or 'graph' (a shape graph isomorphic to one seen)")
     p.set_defaults(handler=_augment)
 
     p = leaves.add_parser("train", help="train the string VAE and the edge-category tagger on a collection")
@@ -174,7 +177,7 @@ def _augment(args) -> None:
 
     with open_executor(args.workers, args.scheduler) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
-                         max_rounds=args.rounds, executor=executor, params=AugmentParams(rotate=args.rotate),
+                         max_rounds=args.rounds, executor=executor, params=AugmentParams(rotate=args.rotate, distinct=args.distinct),
                          progress=progress, seconds=args.seconds)
     bar.close()
     strings = write_collection(shape_set, result.shapes, out, result.rounds, args.strings_per_shape, args.seed)

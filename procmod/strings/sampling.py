@@ -8,7 +8,8 @@ of ``B2`` (SVD of the 3x3 covariance). The parts of shape 2 that collide with th
 ``s`` go, together with their whole component of ``G2 - B2``; other components of
 ``G2 - B2`` are kept or dropped as the grammar needs. The merged shape is kept only if its
 geometry validates (its recomputed shape graph is connected and obeys the tiling grammar)
-and its node-type histogram is new.
+and it is not a duplicate: by default its node-type histogram is new (seed 001's
+conservative rule); ``AugmentParams(distinct="graph")`` only asks for a new graph.
 
 A round runs ``p`` attempts through a :class:`concurrent.futures.Executor`; each attempt
 is a module-level function with its own seed, so a round's result does not depend on
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from .shapes import (Grammar, Shape, ShapeSet, centroids, contact_pairs, part_points, shape_graph, tolerance_for,
                      type_histogram)
 
@@ -114,6 +116,9 @@ def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float) -> list[np.ndar
     return out
 
 
+DISTINCT_MODES = ("histogram", "graph")  # AugmentParams.distinct, see SeenShapes
+
+
 @dataclass
 class AugmentParams:
     """Constants of graph-based sampling (see docs/strings.md for why these values)."""
@@ -124,6 +129,15 @@ class AugmentParams:
     max_subsets: int = 16  # keep/drop choices tried per docking
     max_parts: int = 120  # variants larger than this are not kept
     rotate: bool = False  # allow docking rotations (else translations only: one orientation)
+    # Which variants count as duplicates: "histogram" (seed 001: any shape whose node-type
+    # histogram was seen, conservative) or "graph" (only a shape whose typed shape graph is
+    # isomorphic to one seen). See docs/strings.md, "Duplicates".
+    distinct: str = "histogram"
+
+    def __post_init__(self):
+        if self.distinct not in DISTINCT_MODES:
+            raise InvalidArgumentError(f"distinct must be one of {', '.join(DISTINCT_MODES)}, "
+                                       f"got {self.distinct!r}")
 
 
 def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Grammar, seed,
@@ -211,6 +225,42 @@ def _merge(shape_set, grammar, ga, gb, shape_a, shape_b, s, b1, b2, dock, tol, r
     return None
 
 
+class SeenShapes:
+    """The duplicate test of a growing collection (``AugmentParams.distinct``).
+
+    ``"histogram"`` is seed 001's rule: a shape is a duplicate when its node-type histogram
+    was seen. It is conservative: on a set whose type counts are tied (a colonnade has one
+    column per floor tile) it admits only one shape per (floor, beam) count pair, so the
+    collection stops growing early. ``"graph"`` discards only shapes whose typed shape graph
+    is isomorphic to one seen (Weisfeiler-Lehman hash to bucket, exact isomorphism within
+    a bucket), which is what "the same shape" means to the string model: isomorphic graphs
+    have the same strings.
+    """
+
+    def __init__(self, shape_set: ShapeSet, distinct: str = "histogram"):
+        self.shape_set = shape_set
+        self.distinct = distinct
+        self._histograms: set = set()
+        self._graphs: dict[str, list[nx.Graph]] = {}
+
+    def add(self, shape: Shape) -> bool:
+        """Record ``shape``; False (and nothing recorded) if it duplicates a seen one."""
+        if self.distinct == "histogram":
+            key = type_histogram(self.shape_set.types(shape))
+            if key in self._histograms:
+                return False
+            self._histograms.add(key)
+            return True
+        g = shape_graph(self.shape_set, shape)
+        key = nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=3)
+        bucket = self._graphs.setdefault(key, [])
+        same_type = nx.algorithms.isomorphism.categorical_node_match("type", None)
+        if any(nx.is_isomorphic(g, other, node_match=same_type) for other in bucket):
+            return False
+        bucket.append(g)
+        return True
+
+
 @dataclass
 class AugmentResult:
     """A grown collection: the shapes (inputs first) and one row per round."""
@@ -243,7 +293,9 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)
     shapes = list(shape_set.shapes)
-    seen = {type_histogram(shape_set.types(s)) for s in shapes}
+    seen = SeenShapes(shape_set, params.distinct)
+    for s in shapes:
+        seen.add(s)
     result = AugmentResult(shapes)
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
@@ -258,10 +310,8 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
             shape = f.result()
             if shape is None or len(shapes) >= count:
                 continue
-            key = type_histogram(shape_set.types(shape))
-            if key in seen:
+            if not seen.add(shape):
                 continue
-            seen.add(key)
             shapes.append(shape)
             new += 1
         result.rounds.append({"round": round_ + 1, "attempts": parallel, "new": new, "shapes": len(shapes),
