@@ -68,6 +68,21 @@ def test_resumed_vae_takes_the_ring_rule_and_refuses_other_rules(tmp_path, moonb
         train_vae(strings, other, tmp_path / "m", TINY, seed=1)
 
 
+def test_resumed_vae_refuses_other_strings_and_adopts_old_checkpoints(tmp_path, moonbase):
+    _, _, grammar, strings = moonbase
+    train_vae(strings, grammar, tmp_path / "m", TINY, seed=1, stop_after=1)
+    # same vocabulary and tiling rules, other strings (a collection grown again): refused
+    with pytest.raises(ModelFileError, match="other strings"):
+        train_vae(strings[1:], grammar, tmp_path / "m", TINY, seed=1)
+    meta = json.loads((tmp_path / "m" / "vae.json").read_text())
+    del meta["train"]["data"]  # as saved before the fingerprint was kept: resumed, then checked
+    (tmp_path / "m" / "vae.json").write_text(json.dumps(meta))
+    train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
+    assert json.loads((tmp_path / "m" / "vae.json").read_text())["train"]["data"]
+    with pytest.raises(ModelFileError, match="other strings"):
+        train_vae(strings[1:], grammar, tmp_path / "m", TINY, seed=1)
+
+
 def test_constrained_decoding_only_ends_on_valid_strings(tmp_path, moonbase):
     _, _, grammar, strings = moonbase
     model = train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
@@ -419,6 +434,8 @@ def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, catego
     train_tagger(examples, vocab, categories, tmp_path / "b", TaggerConfig(**{**cfg.__dict__, "epochs": 1}))
     with pytest.raises(ModelFileError):  # another configuration in the folder (epochs aside) is refused
         train_tagger(examples, vocab, categories, tmp_path / "b", TaggerConfig(**{**cfg.__dict__, "lr_final": 0.5}))
+    with pytest.raises(ModelFileError, match="other strings"):  # another collection in the folder
+        train_tagger(examples[1:], vocab, categories, tmp_path / "b", cfg)
     train_tagger(examples, vocab, categories, tmp_path / "b", cfg)
     assert straight is not None
     # the schedule is a function of the epoch: a resumed run ends at the same rate (loaded

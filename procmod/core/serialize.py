@@ -15,6 +15,7 @@ that does not replay without fresh or left-over choices is rejected.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -62,6 +63,12 @@ def _current_umask() -> int:
 
 
 _UMASK = _current_umask()
+
+
+def fingerprint(data: bytes | str) -> str:
+    """A short content digest (16 hex digits of SHA-256): a checkpoint stores the one of its
+    training data, so a resume on other data is refused instead of silently mixed."""
+    return hashlib.sha256(data.encode() if isinstance(data, str) else data).hexdigest()[:16]
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:

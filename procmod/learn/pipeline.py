@@ -8,11 +8,9 @@ and ``DIR/report.html`` (Table-1 figures, the search trace, an objective-per-rou
 
 from __future__ import annotations
 
-import hashlib
 import html
 import json
 import os
-import time
 from dataclasses import asdict
 from pathlib import Path
 
@@ -20,7 +18,7 @@ import numpy as np
 
 from ..core import run_forward
 from ..core.errors import InvalidArgumentError
-from ..core.serialize import write_text_atomic
+from ..core.serialize import fingerprint, write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.camera import framing_camera, shaded_image
 from ..geometry.export import colour_of
@@ -125,10 +123,9 @@ def learn(examples: str | os.PathLike, out: str | os.PathLike, particles: int = 
     options.particles, options.seed = particles, seed
     options.check()
     text = examples.read_bytes()
-    fingerprint = hashlib.sha256(text).hexdigest()[:16]
     out.mkdir(parents=True, exist_ok=True)
     with open_executor(workers, scheduler) as executor:
-        result = run_search(example_set, options, executor, out / "checkpoint", fingerprint, progress)
+        result = run_search(example_set, options, executor, out / "checkpoint", fingerprint(text), progress)
     program = result.program
     program.info["examples"] = str(examples)
     json_path = save_program(program, out)

@@ -40,11 +40,9 @@ multiplied by the group's maps. Calls deeper than :data:`MAX_DEPTH` spawn nothin
 from __future__ import annotations
 
 import copy
-import hashlib
 import json
 import math
 import os
-import shutil
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -213,7 +211,6 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
             return
         lo, hi = shape.local_bounds()
         own = frame_of(world, lo, hi)
-        slot_types = program.slots.get(a.type, [])
         for g_index, group in enumerate(program.groups.get(a.type, [])):
             pre = f"{a_id}.g{g_index}"
             W, c, V, b = p[f"{pre}.W"], p[f"{pre}.c"], p[f"{pre}.V"], p[f"{pre}.b"]
@@ -420,10 +417,6 @@ def _check_program(program: Program, path) -> None:
                 raise _fail(path, f"abstraction {a.id} slot {s} calls unknown abstractions {callees}")
     if not program.root_callees or not set(program.root_callees) <= ids:
         raise _fail(path, "the root calls no (or unknown) abstractions")
-
-
-def fingerprint(text: bytes) -> str:
-    return hashlib.sha256(text).hexdigest()[:16]
 
 
 def example_choice_map(program: Program, data, root: int, assignment: dict) -> dict:

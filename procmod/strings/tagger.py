@@ -21,7 +21,7 @@ import torch
 from torch import nn
 
 from ..core.errors import InvalidArgumentError
-from ..core.serialize import write_text_atomic
+from ..core.serialize import fingerprint, write_text_atomic
 from .categories import EdgeCategories, shape_labelings
 from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
@@ -501,17 +501,28 @@ def train_tagger(examples: list, vocab: Vocab, categories: EdgeCategories, folde
     return model
 
 
+def examples_fingerprint(examples: list) -> str:
+    """The fingerprint of (string, targets) training pairs (targets may hold numpy ints)."""
+    plain = lambda o: o.tolist() if hasattr(o, "tolist") else int(o)  # noqa: E731
+    return fingerprint(json.dumps([[text, targets] for text, targets in examples], default=plain))
+
+
 def _train_tagger(examples, vocab, categories, folder, config, seed, progress, device) -> TaggerModel:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(seed)
+    data = examples_fingerprint(examples)
     if (folder / "tagger.json").is_file() and (folder / "tagger.pt").is_file():
         model, state, opt_state = TaggerModel.load(folder, with_optimizer=True)
         if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0}:
             raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new --out")
+        if state.get("data") not in (None, data):  # None: saved before the fingerprint was kept
+            raise ModelFileError(f"{folder} holds a tagger trained on other strings (another collection, or one "
+                                 "grown again); use a new --out or delete it")
+        state["data"] = data
     else:
         model, state, opt_state = TaggerModel(Tagger(len(vocab), len(categories), config), vocab, categories), \
-            {"epoch": 0, "history": []}, None
+            {"epoch": 0, "history": [], "data": data}, None
     model.net.to(device)
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.lr)
     if opt_state is not None:

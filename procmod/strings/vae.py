@@ -31,7 +31,7 @@ import torch
 from torch import nn
 
 from ..core.errors import InvalidArgumentError, ProcmodError
-from ..core.serialize import write_text_atomic
+from ..core.serialize import fingerprint, write_text_atomic
 from .codec import LETTERS, StringSyntaxError, parse
 from .shapes import Grammar
 
@@ -548,6 +548,7 @@ class Constraint:
 class TrainState:
     epoch: int = 0
     history: list = field(default_factory=list)  # rows: epoch, loss, recon, kl, beta, seconds, device
+    data: str | None = None  # fingerprint of the training strings (None: saved before it was kept)
 
 
 class StringModel:
@@ -742,6 +743,7 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
     if not strings:
         raise InvalidArgumentError("no training strings")
     vocab = vocab_of(strings)
+    data = fingerprint("\n".join(strings))
     resume = (folder / "vae.json").is_file() and (folder / "vae.pt").is_file()
     torch.manual_seed(seed)
     if resume:
@@ -754,10 +756,14 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
             raise ModelFileError(f"{folder} holds a checkpoint trained on other shapes (other tiling rules); use a "
                                  "new --out or delete it")
         model.grammar = grammar  # a checkpoint saved before the ring-length rule learns it here
+        if state.data not in (None, data):
+            raise ModelFileError(f"{folder} holds a checkpoint trained on other strings (another collection, "
+                                 "or one grown again); use a new --out or delete it")
+        state.data = data
     else:
         max_nodes = int(math.ceil(NODE_BUDGET * max(sum(c.isalpha() for c in s) for s in strings)))
         model, state, opt_state = StringModel(StringVAE(len(vocab), config), vocab, grammar,
-                                              max_nodes), TrainState(), None
+                                              max_nodes), TrainState(data=data), None
     net = model.net.to(device)
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
     if opt_state is not None:
