@@ -34,7 +34,7 @@ from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_
                                    perturb, sample_path, search_graph)
 from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
 from procmod.strings.render import write_sheet  # noqa: E402
-from procmod.strings.sampling import augment  # noqa: E402
+from procmod.strings.sampling import DISTINCT_MODES, AugmentParams, augment  # noqa: E402
 from procmod.strings.shapes import histogram_distance, read_shapes, shape_graph  # noqa: E402
 from procmod.strings.vae import VAEConfig  # noqa: E402
 
@@ -126,7 +126,8 @@ def run_set(name: str, args, work: Path) -> dict:
     t0 = time.perf_counter()
     with open_executor(args.workers) as executor:
         grown = augment(shape_set, args.count, seed=args.seed, parallel=args.parallel, max_rounds=400,
-                        executor=executor, seconds=args.augment_seconds)
+                        executor=executor, seconds=args.augment_seconds,
+                        params=AugmentParams(distinct=args.distinct))
     seconds = time.perf_counter() - t0
     coll = work / name / "collection"
     strings = write_collection(shape_set, grown.shapes, coll, grown.rounds, args.strings_per_shape, args.seed,
@@ -310,6 +311,9 @@ def main() -> None:
     ap.add_argument("--sets", nargs="+", default=["castle", "moonbase", "colonnade"])
     ap.add_argument("--count", type=int, default=150, help="collection size per set")
     ap.add_argument("--augment-seconds", type=float, default=120)
+    ap.add_argument("--distinct", choices=DISTINCT_MODES, default="histogram",
+                    help="which grown variants are duplicates (histogram: seed 001's rule; graph: isomorphic "
+                         "graphs); not the default: results go to strings_<distinct>.json")
     ap.add_argument("--parallel", type=int, default=8)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--strings-per-shape", type=int, default=8)
@@ -335,13 +339,14 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="procmod-strings-bench-"))
     results = {"command": "python bench/strings.py " + " ".join(sys.argv[1:]), "settings": {
         k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}, "sets": {}}
+    stem = args.out / ("strings" if args.distinct == "histogram" else f"strings_{args.distinct}")
     t0 = time.perf_counter()
     for name in args.sets:
         results["sets"][name] = run_set(name, args, work)
         results["seconds"] = round(time.perf_counter() - t0, 1)
-        (args.out / "strings.json").write_text(json.dumps(results, indent=1) + "\n")
-    plot(results, args.out / "strings.png")
-    print(f"wrote {args.out / 'strings.json'} and {args.out / 'strings.png'} in {results['seconds']} s")
+        stem.with_suffix(".json").write_text(json.dumps(results, indent=1) + "\n")
+    plot(results, stem.with_suffix(".png"))
+    print(f"wrote {stem.with_suffix('.json')} and {stem.with_suffix('.png')} in {results['seconds']} s")
 
 
 if __name__ == "__main__":
