@@ -74,7 +74,9 @@ def test_resumed_vae_refuses_other_strings_and_adopts_old_checkpoints(tmp_path, 
     # same vocabulary and tiling rules, other strings (a collection grown again): refused
     with pytest.raises(ModelFileError, match="other strings"):
         train_vae(strings[1:], grammar, tmp_path / "m", TINY, seed=1)
+    train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)  # trained to the end
     meta = json.loads((tmp_path / "m" / "vae.json").read_text())
+    assert meta["train"]["epoch"] == TINY.epochs
     del meta["train"]["data"]  # as saved before the fingerprint was kept: resumed, then checked
     (tmp_path / "m" / "vae.json").write_text(json.dumps(meta))
     train_vae(strings, grammar, tmp_path / "m", TINY, seed=1)
@@ -437,6 +439,12 @@ def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, catego
     with pytest.raises(ModelFileError, match="other strings"):  # another collection in the folder
         train_tagger(examples[1:], vocab, categories, tmp_path / "b", cfg)
     train_tagger(examples, vocab, categories, tmp_path / "b", cfg)
+    meta = json.loads((tmp_path / "a" / "tagger.json").read_text())
+    del meta["train"]["data"]  # a finished tagger saved before the fingerprint was kept
+    (tmp_path / "a" / "tagger.json").write_text(json.dumps(meta))
+    train_tagger(examples, vocab, categories, tmp_path / "a", cfg)
+    with pytest.raises(ModelFileError, match="other strings"):
+        train_tagger(examples[1:], vocab, categories, tmp_path / "a", cfg)
     assert straight is not None
     # the schedule is a function of the epoch: a resumed run ends at the same rate (loaded
     # with weights_only=True, so the rate must be stored as a plain float)

@@ -519,14 +519,18 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
         if state.get("data") not in (None, data):  # None: saved before the fingerprint was kept
             raise ModelFileError(f"{folder} holds a tagger trained on other strings (another collection, or one "
                                  "grown again); use a new --out or delete it")
+        adopt = state.get("data") is None  # saved before the fingerprint was kept: keep it from now on
         state["data"] = data
     else:
+        adopt = False
         model, state, opt_state = TaggerModel(Tagger(len(vocab), len(categories), config), vocab, categories), \
             {"epoch": 0, "history": [], "data": data}, None
     model.net.to(device)
     optimizer = torch.optim.Adam(model.net.parameters(), lr=config.lr)
     if opt_state is not None:
         optimizer.load_state_dict(opt_state)  # moves the moments to the parameters' device
+    if adopt:
+        model.save(folder, state, optimizer)
     stars = star_set(examples)
     if model.stars != stars:  # a new tagger, or one trained before stars were kept
         model.stars = stars

@@ -759,6 +759,7 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
         if state.data not in (None, data):
             raise ModelFileError(f"{folder} holds a checkpoint trained on other strings (another collection, "
                                  "or one grown again); use a new --out or delete it")
+        adopt = state.data is None  # saved before the fingerprint was kept: keep it from now on
         state.data = data
     else:
         max_nodes = int(math.ceil(NODE_BUDGET * max(sum(c.isalpha() for c in s) for s in strings)))
@@ -768,6 +769,8 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
     optimizer = torch.optim.Adam(net.parameters(), lr=config.lr)
     if opt_state is not None:
         optimizer.load_state_dict(opt_state)  # moves the moments to the parameters' device
+    if resume and adopt:
+        model.save(folder, state, optimizer)
     done_now = 0
     net.config = config  # more epochs than a checkpoint was trained for: train on
     while state.epoch < config.epochs:
