@@ -157,7 +157,9 @@ def plot(result: dict, path: Path) -> None:
     ax.axhline(result["per_character_accuracy"], color="C1", ls="--", label="held out, per character")
     ax.axhline(result["voted_edge_accuracy"], color="C2", ls=":", label="held out, voted")
     ax.set(xlabel="epoch", ylabel="edge-category accuracy", ylim=(0.5, 1.0),
-           title=f"{result['set']}, {result['shapes']} shapes, {result['tagger']['graph_rounds']} graph rounds")
+           title=f"{result['set']}, {result['shapes']} shapes"
+                 + (f" (duplicates by {result['distinct']})" if result.get("distinct", "histogram") != "histogram" else "")
+                 + f", {result['tagger']['graph_rounds']} graph rounds")
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
