@@ -177,7 +177,8 @@ def _augment(args) -> None:
 
     with open_executor(args.workers, args.scheduler) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
-                         max_rounds=args.rounds, executor=executor, params=AugmentParams(rotate=args.rotate, distinct=args.distinct),
+                         max_rounds=args.rounds, executor=executor,
+                         params=AugmentParams(rotate=args.rotate, distinct=args.distinct),
                          progress=progress, seconds=args.seconds)
     bar.close()
     strings = write_collection(shape_set, result.shapes, out, result.rounds, args.strings_per_shape, args.seed)

@@ -131,7 +131,7 @@ class AugmentParams:
     rotate: bool = False  # allow docking rotations (else translations only: one orientation)
     # Which variants count as duplicates: "histogram" (seed 001: any shape whose node-type
     # histogram was seen, conservative) or "graph" (only a shape whose typed shape graph is
-    # isomorphic to one seen). See docs/strings.md, "Duplicates".
+    # isomorphic to one seen). See SeenShapes and docs/strings.md ("Sampling").
     distinct: str = "histogram"
 
     def __post_init__(self):
