@@ -60,6 +60,8 @@ def test_augment_distinct_graph_keeps_variants_with_a_seen_histogram(tmp_path, c
     grown = read_shapes(col / "shapes.json")
     hists = [type_histogram(grown.types(s)) for s in grown.shapes]
     assert len(grown.shapes) == 24 and len(set(hists)) < len(hists)
+    settings = json.loads((col / "growth.json").read_text())["settings"]
+    assert settings["distinct"] == "graph" and settings["count"] == 24 and settings["seed"] == 0
 
 
 def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -175,13 +176,16 @@ def _augment(args) -> None:
         bar.n = row["shapes"]
         bar.refresh()
 
+    params = AugmentParams(rotate=args.rotate, distinct=args.distinct)
     with open_executor(args.workers, args.scheduler) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
-                         max_rounds=args.rounds, executor=executor,
-                         params=AugmentParams(rotate=args.rotate, distinct=args.distinct),
+                         max_rounds=args.rounds, executor=executor, params=params,
                          progress=progress, seconds=args.seconds)
     bar.close()
-    strings = write_collection(shape_set, result.shapes, out, result.rounds, args.strings_per_shape, args.seed)
+    settings = {"shapes": str(args.shapes), "count": args.count, "seed": args.seed, "parallel": args.parallel,
+                "max_rounds": args.rounds, "seconds": args.seconds, **asdict(params)}
+    strings = write_collection(shape_set, result.shapes, out, result.rounds, args.strings_per_shape, args.seed,
+                               settings=settings)
     seconds = result.rounds[-1]["seconds"] if result.rounds else 0.0
     print(f"{len(result.shapes)} shapes ({len(result.shapes) - len(shape_set.shapes)} new) after "
           f"{len(result.rounds)} rounds in {seconds:.1f} s; {len(strings)} strings; wrote {out}/")

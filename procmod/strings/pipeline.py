@@ -3,8 +3,8 @@
 
 A collection folder holds ``shapes.json`` (``procmod-shapes/1``: the input shapes first,
 then the variants, mesh files copied beside it), ``graphs/`` (one ``procmod-graph/1`` per
-shape), ``strings.txt`` (strings of every shape, one a line), ``growth.json`` (one row per
-sampling round) and ``contact_sheet.png``.
+shape), ``strings.txt`` (strings of every shape, one a line), ``growth.json`` (the settings
+it was grown with and one row per sampling round) and ``contact_sheet.png``.
 
 A model folder holds ``model.json`` (``procmod-string-model/1``: grammar, settings,
 training history), ``collection.json`` (the training shapes, for transplanting),
@@ -40,8 +40,10 @@ class InstantiationError(ProcmodError):
 
 
 def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds=None, strings_per_shape: int = 8,
-                     seed: int = 0, sheet: bool = True) -> list[str]:
-    """Write a collection folder (see the module docstring); returns the strings written."""
+                     seed: int = 0, sheet: bool = True, settings: dict | None = None) -> list[str]:
+    """Write a collection folder (see the module docstring); returns the strings written.
+    ``settings`` (how the collection was grown: seed, sampling constants, duplicate rule)
+    go into ``growth.json`` beside the rounds."""
     from .render import write_sheet
 
     out = Path(out)
@@ -56,7 +58,8 @@ def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds
         write_text_atomic(out / "graphs" / f"shape_{i:04d}.json", json.dumps(graph_to_dict(g)) + "\n")
         strings += strings_of(g, strings_per_shape, rng)
     write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
-    write_text_atomic(out / "growth.json", json.dumps({"rounds": rounds or []}, indent=1) + "\n")
+    growth = {"rounds": rounds or []} if settings is None else {"settings": settings, "rounds": rounds or []}
+    write_text_atomic(out / "growth.json", json.dumps(growth, indent=1) + "\n")
     if sheet:
         write_sheet(shape_set, shapes[:36], out / "contact_sheet.png", size=140, labels=[str(i) for i in range(36)])
     return strings
