@@ -129,7 +129,10 @@ def run_set(name: str, args, work: Path) -> dict:
                         executor=executor, seconds=args.augment_seconds,
                         params=AugmentParams(distinct=args.distinct))
     seconds = time.perf_counter() - t0
-    coll = work / name / "collection"
+    # one folder per duplicate rule: the rules grow different collections, and a model
+    # folder refuses to resume on other strings
+    folder = work / (name if args.distinct == "histogram" else f"{name}_{args.distinct}")
+    coll = folder / "collection"
     strings = write_collection(shape_set, grown.shapes, coll, grown.rounds, args.strings_per_shape, args.seed,
                                sheet=False)
     new = len(grown.shapes) - len(shape_set.shapes)
@@ -142,7 +145,7 @@ def run_set(name: str, args, work: Path) -> dict:
                      "parts_min": min(len(s) for s in grown.shapes), "parts_max": max(len(s) for s in grown.shapes)}
     print(f"  growth: {len(grown.shapes)} shapes, {len(strings)} strings in {seconds:.1f} s", flush=True)
     # Training
-    model_dir = work / name / "model"
+    model_dir = folder / "model"
     # a work folder from an earlier run with the same settings: training only checks and reloads
     reused = (model_dir / "model.json").is_file()
     t0 = time.perf_counter()

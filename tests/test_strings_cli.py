@@ -60,6 +60,10 @@ def test_augment_distinct_graph_keeps_variants_with_a_seen_histogram(tmp_path, c
     grown = read_shapes(col / "shapes.json")
     hists = [type_histogram(grown.types(s)) for s in grown.shapes]
     assert len(grown.shapes) == 24 and len(set(hists)) < len(hists)
+    from procmod.strings.sampling import DISTINCT_MODES
+    code, _, err = _run(capsys, "strings", "augment", SETS / "colonnade.json", "--count", 3, "--out", col,
+                        "--distinct", "nope")
+    assert code == 2 and all(mode in err for mode in DISTINCT_MODES)  # the CLI offers the library's rules
     settings = json.loads((col / "growth.json").read_text())["settings"]
     assert settings["distinct"] == "graph" and settings["count"] == 24 and settings["seed"] == 0
 

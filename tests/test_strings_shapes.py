@@ -224,6 +224,19 @@ def test_graph_distinct_keeps_same_histogram_shapes_and_drops_isomorphic_ones():
             assert not _is_isomorphic(ss, grown.shapes[i], grown.shapes[j])
     with pytest.raises(InvalidArgumentError, match="distinct must be one of"):
         AugmentParams(distinct="types")
+    with pytest.raises(InvalidArgumentError, match="distinct must be one of"):
+        SeenShapes(ss, "types")
+
+
+def test_graph_distinct_tells_graphs_apart_by_their_types(tmp_path):
+    # three blocks in a row: a-b-a and a-a-b are the same path graph with other types at
+    # its nodes, and b-a-a is a-a-b written from the other end
+    data = {"format": "procmod-shapes/1", "parts": {"a": {"box": [1, 1, 1]}, "b": {"box": [1, 1, 1]}},
+            "shapes": [{"nodes": [{"part": p, "transform": _at(x)} for x, p in enumerate(kinds)]}
+                       for kinds in ("aba", "aab", "baa")]}
+    ss = shapes_from_dict(data, tmp_path)
+    seen = SeenShapes(ss, "graph")
+    assert [seen.add(s) for s in ss.shapes] == [True, True, False]
 
 
 def test_augment_through_a_process_pool_matches_inline():

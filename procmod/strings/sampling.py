@@ -238,6 +238,8 @@ class SeenShapes:
     """
 
     def __init__(self, shape_set: ShapeSet, distinct: str = "histogram"):
+        if distinct not in DISTINCT_MODES:
+            raise InvalidArgumentError(f"distinct must be one of {', '.join(DISTINCT_MODES)}, got {distinct!r}")
         self.shape_set = shape_set
         self.distinct = distinct
         self._histograms: set = set()

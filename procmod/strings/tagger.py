@@ -517,8 +517,9 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
         if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0}:
             raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new --out")
         if state.get("data") not in (None, data):  # None: saved before the fingerprint was kept
-            raise ModelFileError(f"{folder} holds a tagger trained on other strings (another collection, or one "
-                                 "grown again); use a new --out or delete it")
+            raise ModelFileError(f"{folder} holds a tagger trained on other strings: another collection (or one "
+                                 "grown again), or other --seed / --tagger-strings-per-shape / --held-out than it "
+                                 "was trained with; repeat those, or use a new --out")
         adopt = state.get("data") is None  # saved before the fingerprint was kept: keep it from now on
         state["data"] = data
     else:

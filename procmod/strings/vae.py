@@ -757,8 +757,9 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
                                  "new --out or delete it")
         model.grammar = grammar  # a checkpoint saved before the ring-length rule learns it here
         if state.data not in (None, data):
-            raise ModelFileError(f"{folder} holds a checkpoint trained on other strings (another collection, "
-                                 "or one grown again); use a new --out or delete it")
+            raise ModelFileError(f"{folder} holds a VAE trained on other strings: another collection (or one grown "
+                                 "again), or other --seed / --strings-per-shape / --held-out than it was trained "
+                                 "with; repeat those, or use a new --out")
         adopt = state.data is None  # saved before the fingerprint was kept: keep it from now on
         state.data = data
     else:
