@@ -141,10 +141,10 @@ class AugmentParams:
 
 
 def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Grammar, seed,
-            params: AugmentParams = AugmentParams()) -> Shape | None:
+            params: AugmentParams = AugmentParams()) -> tuple[Shape, nx.Graph] | None:
     """One sampling attempt: up to ``params.tries`` random subgraphs of ``shape_a`` docked
-    into ``shape_b``; the first merged shape that validates, or None. Module-level and
-    picklable, for executors."""
+    into ``shape_b``; the first merged shape that validates and its (recomputed) shape
+    graph, or None. Module-level and picklable, for executors."""
     rng = np.random.default_rng(seed)
     tol = tolerance_for(shape_set.library)
     scale = tol / 1e-3 if tol > 0 else 1.0
@@ -221,7 +221,7 @@ def _merge(shape_set, grammar, ga, gb, shape_a, shape_b, s, b1, b2, dock, tol, r
         candidate = Shape.of([parts[i] for i in keep], [transforms[i] for i in keep])
         actual = shape_graph(shape_set, candidate, tol)
         if grammar.is_valid(actual):
-            return candidate
+            return candidate, actual
     return None
 
 
@@ -245,15 +245,16 @@ class SeenShapes:
         self._histograms: set = set()
         self._graphs: dict[str, list[nx.Graph]] = {}
 
-    def add(self, shape: Shape) -> bool:
-        """Record ``shape``; False (and nothing recorded) if it duplicates a seen one."""
+    def add(self, shape: Shape, graph: nx.Graph | None = None) -> bool:
+        """Record ``shape``; False (and nothing recorded) if it duplicates a seen one.
+        ``graph``: its shape graph, if already computed (the graph rule needs it)."""
         if self.distinct == "histogram":
             key = type_histogram(self.shape_set.types(shape))
             if key in self._histograms:
                 return False
             self._histograms.add(key)
             return True
-        g = shape_graph(self.shape_set, shape)
+        g = shape_graph(self.shape_set, shape) if graph is None else graph
         key = nx.weisfeiler_lehman_graph_hash(g, node_attr="type", iterations=3)
         bucket = self._graphs.setdefault(key, [])
         same_type = nx.algorithms.isomorphism.categorical_node_match("type", None)
@@ -309,10 +310,11 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
                    for k, (a, b) in enumerate(pairs)]
         new = 0
         for f in futures:
-            shape = f.result()
-            if shape is None or len(shapes) >= count:
+            found = f.result()
+            if found is None or len(shapes) >= count:
                 continue
-            if not seen.add(shape):
+            shape, graph = found
+            if not seen.add(shape, graph):
                 continue
             shapes.append(shape)
             new += 1
