@@ -10,7 +10,6 @@ the held-out accuracy are here too.
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,7 +26,7 @@ from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement, world_symmetries
 from .shapes import ShapeSet, first_poses, type_automorphisms
-from .vae import ModelFileError, Vocab, cpu_state, torch_threads, training_device
+from .vae import ModelFileError, Vocab, save_weights, torch_threads, training_device
 
 
 @dataclass
@@ -454,12 +453,7 @@ class TaggerModel:
 
     def save(self, folder, state=None, optimizer=None) -> None:
         folder = Path(folder)
-        payload = {"model": cpu_state(self.net)}
-        if optimizer is not None:
-            payload["optimizer"] = cpu_state(optimizer)
-        tmp = folder / ".tagger.pt.tmp"
-        torch.save(payload, tmp)
-        os.replace(tmp, folder / "tagger.pt")
+        save_weights(folder / "tagger.pt", self.net, optimizer)
         meta = {"format": "procmod-string-tagger/1", "config": asdict(self.net.config), "vocab": self.vocab.chars,
                 "categories": self.categories.to_json(), "train": state or {"epoch": 0, "history": []}}
         if self.stars is not None:

@@ -98,6 +98,17 @@ def cpu_state(module_or_optimizer) -> dict:
     return to_cpu(module_or_optimizer.state_dict())
 
 
+def save_weights(path: Path, net, optimizer=None) -> None:
+    """Write a net's (and optionally its optimizer's) CPU state dicts to ``path`` through a
+    temporary file and a rename: a kill mid-write leaves the previous checkpoint whole."""
+    payload = {"model": cpu_state(net)}
+    if optimizer is not None:
+        payload["optimizer"] = cpu_state(optimizer)
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+
+
 @dataclass
 class VAEConfig:
     """Sizes and training constants of the string VAE (see docs/strings.md)."""
@@ -682,12 +693,7 @@ class StringModel:
         meta = {"format": "procmod-string-vae/1", "config": asdict(self.net.config), "vocab": self.vocab.chars,
                 "grammar": self.grammar.to_json(), "max_nodes": self.max_nodes,
                 "train": asdict(state) if state is not None else None}
-        payload = {"model": cpu_state(self.net)}
-        if optimizer is not None:
-            payload["optimizer"] = cpu_state(optimizer)
-        tmp = folder / ".vae.pt.tmp"
-        torch.save(payload, tmp)
-        os.replace(tmp, folder / "vae.pt")
+        save_weights(folder / "vae.pt", self.net, optimizer)
         write_text_atomic(folder / "vae.json", json.dumps(meta, indent=1) + "\n")
 
     @staticmethod
