@@ -398,10 +398,27 @@ SETS = {
 }
 
 
+# Floats are written with 12 significant digits: another CPU or BLAS kernel may change
+# the last of a double's 17 (e.g. -0.47960647900962994 vs -0.47960647900963016), and
+# the stored sets must be what this script makes on any machine.
+SIGNIFICANT_DIGITS = 12
+
+
+def rounded(data):
+    """``data`` with every float rounded to ``SIGNIFICANT_DIGITS`` significant digits."""
+    if isinstance(data, float):
+        return float(f"{data:.{SIGNIFICANT_DIGITS}g}") + 0.0  # + 0.0: no negative zeros
+    if isinstance(data, dict):
+        return {k: rounded(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [rounded(v) for v in data]
+    return data
+
+
 def write_json_atomic(path: Path, data) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     with os.fdopen(fd, "w") as handle:
-        json.dump(data, handle, indent=None)
+        json.dump(rounded(data), handle, indent=None)
         handle.write("\n")
     os.replace(tmp, path)
 

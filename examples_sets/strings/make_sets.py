@@ -152,9 +152,25 @@ def colonnade():
 SETS = {"castle": castle, "moonbase": moonbase, "colonnade": colonnade}
 
 
+# Floats are written with 12 significant digits, so the stored sets are what this script
+# makes on any machine (another CPU's libm or BLAS may change a double's last digits).
+SIGNIFICANT_DIGITS = 12
+
+
+def rounded(data):
+    """``data`` with every float rounded to ``SIGNIFICANT_DIGITS`` significant digits."""
+    if isinstance(data, float):
+        return float(f"{data:.{SIGNIFICANT_DIGITS}g}") + 0.0  # + 0.0: no negative zeros
+    if isinstance(data, dict):
+        return {k: rounded(v) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [rounded(v) for v in data]
+    return data
+
+
 def main(out: Path = HERE) -> None:
     for name, make in SETS.items():
-        (out / f"{name}.json").write_text(json.dumps(make(), indent=1) + "\n")
+        (out / f"{name}.json").write_text(json.dumps(rounded(make()), indent=1) + "\n")
         print(f"wrote {out / (name + '.json')}")
 
 
