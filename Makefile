@@ -3,15 +3,29 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+# The versions the suite last passed with; `make lock` refreshes it (see README "Installing").
+LOCK   := constraints.txt
 
-.PHONY: install test test-slow demo bench clean
+.PHONY: install lock test test-slow demo bench clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c $(LOCK) -e '.[test]'
 	touch $(STAMP)
 
 install: $(STAMP)
+
+# Resolve the newest versions pyproject.toml allows in a scratch venv and pin them in
+# $(LOCK) (procmod itself left out; local version labels such as +cpu dropped so the pin
+# also matches the machine's own torch file). Run `make test` afterwards and commit both.
+lock:
+	rm -rf .venv-lock
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet -e '.[test]'
+	{ echo "# pip constraints: the versions 'make test' last passed with. Refresh: make lock"; \
+	  .venv-lock/bin/python -m pip freeze --exclude-editable | sed -e 's/+[A-Za-z0-9.]*$$//'; } > $(LOCK).new
+	mv $(LOCK).new $(LOCK)
+	rm -rf .venv-lock
 
 test: $(STAMP)
 	$(PY) -m pytest -q
