@@ -90,10 +90,65 @@ def test_crossover_swaps_compatible_subtrees():
     d1, d2 = run_forward(model, rng), run_forward(model, rng)
     c1, c2 = crossover_choices(d1, d2, rng)
     r1 = replay(model, c1, rng).derivation
-    # The child keeps every connection type of the model: parent rule, site, child rule.
-    for parent_rule, site, child_rule in connections(r1):
-        assert (parent_rule.__name__, site, child_rule.__name__) in {
-            ("bolt", "next", "bolt"), ("bolt", "fork", "fork"), ("fork", "bolt", "bolt")}
+    # The child keeps every connection of the model's generator graph: parent rule, site, child rule.
+    for (parent_rule, child_rule), addresses in connections(r1).items():
+        for address in addresses:
+            assert (parent_rule.__name__, address[-1], child_rule.__name__) in {
+                ("bolt", "next", "bolt"), ("bolt", "fork", "fork"), ("fork", "bolt", "bolt")}
+
+
+def _cross_site_crossover(model, seed: int, top_level: bool):
+    """Search crossovers of forward samples for one that swaps subtrees at two different
+    spawn sites: ``(v1, v2, offspring 1)`` with ``offspring.at`` (receiving site in parent 1)
+    and ``offspring.source`` (donor site in parent 2), or None."""
+    rng = np.random.default_rng(seed)
+    for _ in range(300):
+        v1, v2 = _View(run_forward(model, rng)), _View(run_forward(model, rng))
+        out = _crossover(v1, v2, rng)
+        if out is None or out is COPIES:
+            continue
+        child = out[0][0]
+        if child.at[-1] != child.source[-1] and (not top_level or len(child.at) == len(child.source) == 1):
+            return v1, v2, child
+    return None
+
+
+def test_crossover_pairs_sibling_sites_of_one_connection_type():
+    # Seed 002: compatible connections are those of one generator-graph edge. The tree's
+    # trunk spawns a branch at b0, b1 and b2: one edge (trunk -> branch), so a crossover
+    # can put parent 2's b1 subtree under parent 1's b0 (a site-keyed match never could).
+    model = get_model("tree")
+    found = _cross_site_crossover(model, 0, top_level=True)
+    assert found is not None
+    v1, v2, child = found
+    at, source = child.at, child.source
+    child_map = child.materialize()
+    donor = {(a[len(source):], name): value for (a, name), value in v2.raw().items() if a[:len(source)] == source}
+    below = {(a[len(at):], name): value for (a, name), value in child_map.items() if a[:len(at)] == at}
+    assert donor and below == donor  # re-addressed under the receiving site, all of it
+    outside = {k: v for k, v in child_map.items() if k[0][:len(at)] != at}
+    assert outside == {k: v for k, v in v1.raw().items() if k[0][:len(at)] != at}
+    # Replayed, the subtree keeps its choices and runs from the receiving parent's context.
+    r = replay(model, child_map, np.random.default_rng(0), maybe_default=False)
+    assert r.log_fresh == 0.0 and r.unused == []
+    nodes = {n.address: n for n in r.derivation.nodes()}
+    assert nodes[at].args == v1.index()[at].args  # the receiving trunk's position, radius, length
+    assert {n: c.value for n, c in nodes[at].choices.items()} == {
+        n: c.value for n, c in v2.index()[source].choices.items()}
+    _valid(model, r.derivation)
+
+
+def test_crossover_pairs_vines_branch_sites():
+    # Vines spawn a branch from a branch at branch1 and at branch2: one connection type.
+    model = get_model("vines")
+    found = _cross_site_crossover(model, 1, top_level=False)
+    assert found is not None
+    v1, v2, child = found
+    assert {child.at[-1], child.source[-1]} == {"branch1", "branch2"}
+    r = replay(model, child.materialize(), np.random.default_rng(0), maybe_default=False)
+    _valid(model, r.derivation)
+    top = {n.address: n for n in r.derivation.nodes()}[child.at]
+    assert top.choices["angle"].value == v2.index()[child.source].choices["angle"].value
 
 
 def test_nudge_moves_one_calls_continuous_choices_within_their_support():

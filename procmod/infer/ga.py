@@ -17,9 +17,20 @@ offspring is a valid derivation by construction.
   an MCMC diffusion move (seed 002, section 7, describes diffusion as alter mutations).
   Alter redraws a call from the prior, so it rarely improves a fitted individual; a nudge
   fine-tunes one;
-* **crossover** — pick a connection (parent rule, spawn site, child rule) of the first
-  parent uniformly, a compatible one of the second, and swap the subtrees below them
-  (up to ``max_retries`` tries when no compatible connection exists). When the two
+* **crossover** — pick a connection of the first parent uniformly, a compatible one of
+  the second, and swap the subtrees below them (up to ``max_retries`` tries when no
+  compatible connection exists). Connections are compatible when they are of one type, an
+  edge of the generator graph: the same parent rule and the same child rule, whatever the
+  spawn sites are called (seed 002, section 5: "those that describe the same edge in the
+  generator graph"). So sibling sites that spawn one rule from one rule pair — the tree's
+  ``b0``/``b1``/``b2``, vines' ``branch1``/``branch2`` — and a crossover can copy a
+  branch's partial solution onto another branch, which seed 002 (section 8) credits for
+  the GA's result on the tree. Addresses are structural, so the donor's subtree is
+  re-addressed under the receiving site and replayed there: its own choices (for the tree,
+  angles, scales and offsets relative to its parent) are kept, the arguments it is called
+  with are the receiving parent's, so its geometry is recomputed from the new position;
+  choices that the new context no longer reaches are dropped and missing ones drawn, as in
+  any replay, so the children are valid derivations. When the two
   subtrees are equal (same rule and arguments at the top, same choices below) the children
   are copies of their parents, which join the next generation without an evaluation: in a
   converging population that is a quarter of all crossovers. (Retrying for a different
@@ -117,8 +128,8 @@ class _View:
             rules = {n.address: n.rule for n in self.nodes()}
             out = {}
             for n in self.nodes():
-                if n.address:
-                    out.setdefault((rules[n.address[:-1]], n.address[-1], n.rule), []).append(n.address)
+                if n.address:  # the type of a connection: its generator-graph edge, not its site
+                    out.setdefault((rules[n.address[:-1]], n.rule), []).append(n.address)
             self._connections = out
         return self._connections
 
@@ -314,7 +325,8 @@ def nudge_choices(d, rng, step: float = 0.1) -> dict | None:
 
 
 def connections(d) -> dict:
-    """``(parent rule, site, child rule) -> [child addresses]`` of a derivation."""
+    """``(parent rule, child rule) -> [child addresses]`` of a derivation: its connections
+    grouped by type (generator-graph edge), the sets crossover pairs within."""
     return _View(d).connections()
 
 
@@ -368,7 +380,8 @@ def _crossover(v1: _View, v2: _View, rng, max_retries: int = 10):
 
 
 def crossover_choices(d1, d2, rng, max_retries: int = 10):
-    """Two children's choice maps by swapping compatible subtrees (None if none found)."""
+    """Two children's choice maps by swapping the subtrees below two connections of one
+    type (same parent rule and child rule, any spawn sites; None if none found)."""
     v1, v2 = _View(d1), _View(d2)
     out = _crossover(v1, v2, rng, max_retries)
     if out is COPIES:
