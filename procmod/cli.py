@@ -15,7 +15,6 @@ import numpy as np
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
 from .models import MODELS, get_model
-from .render import check_format, check_size, output_formats, write_contact_sheet, write_derivation
 
 
 class _Parser(argparse.ArgumentParser):
@@ -97,6 +96,8 @@ def _model(spec: str):
 
 
 def _cmd_sample(args) -> None:
+    from .render import check_size, output_formats, write_contact_sheet, write_derivation
+
     model = _model(args.model)
     if args.n < 1:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
@@ -126,6 +127,8 @@ def _cmd_sample(args) -> None:
 
 
 def _cmd_render(args) -> None:
+    from .render import check_format, check_size, output_formats, write_derivation
+
     check_format(args.out)
     size = check_size(args.size)
     derivation = load_derivation(args.derivation, _model)
@@ -140,6 +143,7 @@ _POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "part
 
 def _cmd_infer(args) -> None:
     from .infer import ENGINES, parse_budget
+    from .render import check_size
     from .report import write_run
 
     model = _model(args.model)

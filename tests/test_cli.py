@@ -170,3 +170,20 @@ def test_infer_3d_volume_scene(tmp_path, capsys):
     assert {"best.png", "best.obj", "best.glb", "best.json", "report.html"} <= {p.name for p in out.iterdir()}
     assert "does not exist" in _bad(tmp_path, capsys, "infer", "spaceship", "--target",
                                     str(tmp_path / "none.json"), "--out", str(tmp_path / "x"), out_name="x")
+
+
+def test_help_and_models_import_nothing_heavy():
+    # `procmod --help` and `procmod models` must start in a fraction of a second: building the
+    # parser and listing models may not import torch, matplotlib, trimesh, scipy or numba.
+    code = ("import sys, contextlib, io\n"
+            "from procmod.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    assert main(['models']) == 0\n"
+            "    try:\n"
+            "        main(['--help'])\n"
+            "    except SystemExit:\n"
+            "        pass\n"
+            "heavy = ('torch', 'matplotlib', 'trimesh', 'scipy', 'numba', 'PIL', 'sklearn', 'networkx', 'dask')\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

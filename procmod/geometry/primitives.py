@@ -10,6 +10,15 @@ import math
 from typing import NamedTuple
 
 
+class Viewport(NamedTuple):
+    """The world-space rectangle a canvas shows; pixel row 0 is at ``ymin``."""
+
+    xmin: float
+    xmax: float
+    ymin: float
+    ymax: float
+
+
 class Segment(NamedTuple):
     """A thick line from (x0, y0) to (x1, y1) with round caps; ``width`` is its full width."""
 

@@ -17,18 +17,9 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .primitives import Disc, Ellipse, Polygon, Segment, bounds
+from .primitives import Disc, Ellipse, Polygon, Segment, Viewport, bounds
 
 MIN_RADIUS_PX = 0.5
-
-
-class Viewport(NamedTuple):
-    """The world-space rectangle a canvas shows; pixel row 0 is at ``ymin``."""
-
-    xmin: float
-    xmax: float
-    ymin: float
-    ymax: float
 
 
 @numba.njit(cache=True, nogil=True)

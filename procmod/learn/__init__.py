@@ -15,13 +15,28 @@ import json
 import os
 from pathlib import Path
 
+import importlib
+
 from ..core import Derivation, Model
 from ..core.errors import ProcmodError
 from ..core.serialize import write_text_atomic
-from .examples import (FORMAT, ExampleNode, ExampleSet, ExamplesError, examples_from_dict,
-                       examples_to_dict, read_examples, write_examples_file)
-from .preprocess import Dataset, preprocess
-from .program import Program, ProgramError, derivation_hierarchies, is_learned, program_model, read_program
+
+# Imported on first use (scipy, trimesh and numba kernels are slow to import; the command
+# line's parser registers ``procmod learn`` without them).
+_LAZY = {**dict.fromkeys(("FORMAT", "ExampleNode", "ExampleSet", "ExamplesError", "examples_from_dict",
+                          "examples_to_dict", "read_examples", "write_examples_file"), "examples"),
+         **dict.fromkeys(("Dataset", "preprocess"), "preprocess"),
+         **dict.fromkeys(("Program", "ProgramError", "derivation_hierarchies", "is_learned", "program_model",
+                          "read_program"), "program")}
+
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups skip this hook
+    return value
 
 
 class NotALearnedProgramError(ProcmodError):
@@ -34,6 +49,8 @@ def load_program(path: str | os.PathLike) -> Model:
     The model's name is the absolute path of ``program.json``, so saved derivations of it
     load again through ``procmod render`` and :func:`procmod.core.load_derivation`.
     """
+    from .program import program_model, read_program
+
     path = Path(path)
     if path.is_dir():
         path = path / "program.json"
@@ -51,6 +68,9 @@ def write_examples(model: Model, derivations, path: str | os.PathLike) -> None:
     NotALearnedProgramError
         If ``model`` is not a learned program.
     """
+    from .examples import FORMAT, ExamplesError
+    from .program import derivation_hierarchies, is_learned
+
     if not is_learned(model):
         raise NotALearnedProgramError(
             f"model {model.name!r} is not a learned program; '--format examples' writes samples of "

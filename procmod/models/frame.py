@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from ..core import InvalidArgumentError
-from ..geometry import Canvas, Viewport
+from ..geometry import Viewport
 
 VIEWPORT = Viewport(-12.0, 12.0, -22.0, 2.0)
 DEFAULT_SIZE = 50
@@ -46,4 +46,6 @@ def new_canvas(params) -> Canvas:
     size = params.get("size", DEFAULT_SIZE)
     if not isinstance(size, int) or isinstance(size, bool) or size < 1:
         raise InvalidArgumentError(f"size must be a positive number of pixels, got {size!r}")
+    from ..geometry.raster import Canvas  # numba kernels: imported on first use
+
     return Canvas(VIEWPORT, size, size)

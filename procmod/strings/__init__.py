@@ -10,9 +10,22 @@ vote), :mod:`.decoding` (structured decoding of a string's categories),
 :mod:`.render` (previews, GLB). See docs/strings.md.
 """
 
-from .codec import GraphError, StringSyntaxError, decode, encode, parse, strings_of
-from .shapes import (Grammar, Shape, ShapeSet, ShapesFormatError, read_graph, read_shapes, shape_graph,
-                     validate_shape, write_graph, write_shapes)
+import importlib
+
+# Imported on first use, so the command line's parser does not import the subsystem.
+_LAZY = {**dict.fromkeys(("GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of"), "codec"),
+         **dict.fromkeys(("Grammar", "Shape", "ShapeSet", "ShapesFormatError", "read_graph", "read_shapes",
+                          "shape_graph", "validate_shape", "write_graph", "write_shapes"), "shapes")}
+
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups skip this hook
+    return value
+
 
 __all__ = ["GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of", "Grammar", "Shape",
            "ShapeSet", "ShapesFormatError", "read_graph", "read_shapes", "shape_graph", "validate_shape",
