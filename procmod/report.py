@@ -42,6 +42,29 @@ def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") 
     plt.close(fig)
 
 
+SAMPLE_TILES = 16
+
+
+def sample_of_final(result, count: int = SAMPLE_TILES) -> list:
+    """At most ``count`` of the engine's final samples, for the report's contact sheet.
+
+    A fixed-size sample, so writing the report costs the same at 10 or 10,000
+    particles. With final log-weights (SMC) the sample is drawn by weight (systematic,
+    a fixed seed: the report of a seeded run is reproducible); otherwise it is the first
+    ``count`` (GA population, MCMC chains: already ordered as the engine keeps them).
+    """
+    samples = list(result.samples)
+    if len(samples) <= count:
+        return samples
+    weights = result.log_weights
+    if weights is None or len(weights) != len(samples) or not np.isfinite(np.max(weights)):
+        return samples[:count]
+    from .infer.smc import resample
+
+    chosen = resample(weights, np.random.default_rng(0), "systematic", count)
+    return [samples[i] for i in sorted(set(chosen.tolist()))]
+
+
 def _mask_image(mask, width: int) -> Image.Image:
     grey = np.where(np.asarray(mask, bool), 60, 255).astype(np.uint8)
     return Image.fromarray(grey).resize((width, width), Image.NEAREST).convert("RGB")
@@ -52,7 +75,8 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
 
     Files: best.png (2D: over the target in grey; 3D: a shaded view), best.svg (2D) or
     best.obj and best.glb (3D), best.json (derivation), target.png (image targets),
-    history.csv, convergence.png, samples.png (contact sheet of the final samples),
+    history.csv, convergence.png, samples.png (contact sheet of at most 16 of the final
+    samples, drawn by weight: see :func:`sample_of_final`),
     settings.json and report.html tying them together.
     """
     out = Path(out)
@@ -73,7 +97,7 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
         save_image_atomic(target.overlay_image(seen.output, 0, size), out / "target.png")
     write_text_atomic(out / "history.csv", result.history_csv())
     convergence_figure({result.engine: result}, out / "convergence.png", f"{result.engine} on {target.name}")
-    tiles = [derivation_image(d, 128, underlay=target.display_mask(128)) for d in result.samples[:64]]
+    tiles = [derivation_image(d, 128, underlay=target.display_mask(128)) for d in sample_of_final(result)]
     save_image_atomic(contact_sheet(tiles), out / "samples.png")
     summary = {
         "engine": result.engine, "target": target.name, "model": best.model.name,

@@ -29,19 +29,21 @@ def _normalised(log_weights: np.ndarray) -> np.ndarray:
     return w / w.sum()
 
 
-def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "systematic") -> np.ndarray:
-    """Ancestor indices for ``len(log_weights)`` offspring.
+def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "systematic",
+             count: int | None = None) -> np.ndarray:
+    """Ancestor indices for ``count`` offspring (default ``len(log_weights)``), sorted.
 
     ``systematic`` uses one uniform for evenly spaced pointers (lower variance);
     ``multinomial`` draws every offspring independently.
     """
     n = len(log_weights)
-    cumulative = np.cumsum(_normalised(log_weights))
+    m = n if count is None else count
+    cumulative = np.cumsum(_normalised(np.asarray(log_weights, dtype=np.float64)))
     cumulative[-1] = 1.0
     if method == "systematic":
-        pointers = (rng.random() + np.arange(n)) / n
+        pointers = (rng.random() + np.arange(m)) / m
     elif method == "multinomial":
-        pointers = np.sort(rng.random(n))
+        pointers = np.sort(rng.random(m))
     else:
         raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {method!r}")
     return np.minimum(np.searchsorted(cumulative, pointers, side="right"), n - 1)
