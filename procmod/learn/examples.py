@@ -7,9 +7,10 @@
      "examples": [{"part": "body", "transform": [[...4 rows of 4...]],
                    "children": [{"part": "wing", "transform": ..., "children": []}]}]}
 
-A part is a box (full extents, centred at its local origin) or a triangle mesh (path
-relative to the JSON file) in its own local frame. ``transform`` is the node's
-world-space 4x4 affine matrix (row-major). Children nest to any depth.
+A part is a box (full extents, centred at its local origin) or a triangle mesh (a path
+relative to the JSON file's folder; see :mod:`procmod.core.paths`) in its own local
+frame. ``transform`` is the node's world-space 4x4 affine matrix (row-major). Children
+nest to any depth.
 
 Reading checks everything a learner relies on and names the JSON path of the first
 problem (``examples[3].children[1].transform``): wrong format tag, unknown part,
@@ -29,7 +30,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.serialize import write_text_atomic
-from ..geometry.part_library import (PartShape, read_part_library, read_transform,
+from ..geometry.part_library import (PartLibraryError, PartShape, read_part_library, read_transform,
                                      transform_to_json)
 
 FORMAT = "procmod-examples/1"
@@ -114,18 +115,21 @@ def examples_from_dict(data, base_dir: str | os.PathLike = ".", source: str = "e
 
     Raises
     ------
-    ExamplesError, PartLibraryError
-        Naming the JSON path of the first problem.
+    ExamplesError
+        Naming ``source`` and the JSON path of the first problem.
     """
     if not isinstance(data, dict):
         raise ExamplesError(f"{source}: expected a JSON object with 'format', 'parts' and 'examples'")
     if data.get("format") != FORMAT:
         raise ExamplesError(f"{source}: format is {data.get('format')!r}, expected {FORMAT!r}")
-    parts = read_part_library(data.get("parts"), base_dir)
     examples = data.get("examples")
     if not isinstance(examples, list) or not examples:
         raise ExamplesError(f"{source}: 'examples' must be a non-empty list of hierarchies")
-    nodes = [_read_node(e, parts, f"examples[{i}]", 0, set()) for i, e in enumerate(examples)]
+    try:  # the messages name the field; the file is named here
+        parts = read_part_library(data.get("parts"), base_dir)
+        nodes = [_read_node(e, parts, f"examples[{i}]", 0, set()) for i, e in enumerate(examples)]
+    except (ExamplesError, PartLibraryError) as exc:
+        raise ExamplesError(f"{source}: {exc}") from None
     return ExampleSet(parts, nodes, Path(base_dir))
 
 

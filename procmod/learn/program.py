@@ -51,6 +51,7 @@ import numpy as np
 
 from ..core import Bernoulli, Categorical, Model, Normal
 from ..core.errors import ProcmodError
+from ..core.paths import FileNames, UnsafePathError, named_file
 from ..core.serialize import write_text_atomic
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
@@ -317,19 +318,26 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
 
 def save_program(program: Program, out_dir: str | os.PathLike, source_dir: str | os.PathLike | None = None) -> Path:
     """Write ``out_dir/program.json`` and ``out_dir/program.pt`` (a torch state dict),
-    copying mesh parts into ``out_dir/parts/``. Both files are written atomically."""
+    copying mesh parts into ``out_dir/parts/``. Both files are written atomically.
+
+    A part's mesh file is named after the part when the name is a plain file name
+    (``wing.obj``); any other name (path separators, ``..``, reserved or very long names,
+    one that differs from another only in case) gets a safe name of its own
+    (:class:`procmod.core.paths.FileNames`), so nothing is written outside ``out_dir`` and
+    no part's mesh overwrites another's. ``program.json`` records which file is whose."""
     import torch
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     parts_json = {}
+    files = FileNames(".obj", source=str(out_dir / "program.json"), field="part name")
     for name, shape in program.parts.items():
         if shape.kind == "box":
             parts_json[name] = {"box": list(shape.size)}
         else:
             (out_dir / "parts").mkdir(exist_ok=True)
-            target = out_dir / "parts" / f"{name}.obj"
-            _write_obj_atomic(target, shape)
-            parts_json[name] = {"mesh": f"parts/{name}.obj"}
+            file = files.name_for(name)
+            _write_obj_atomic(out_dir / "parts" / file, shape)
+            parts_json[name] = {"mesh": f"parts/{file}"}
     program.parts_json = parts_json
     json_path = out_dir / "program.json"
     pt_path = _tensor_path(json_path)
@@ -370,20 +378,26 @@ def read_program(path: str | os.PathLike) -> Program:
     try:
         parts = read_part_library(data["parts"], path.parent)
         program = program_from_json(data, parts)
-        shapes = data["param_shapes"]
+        shapes = dict(data["param_shapes"])
     except ProcmodError as exc:
         raise _fail(path, str(exc)) from None
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise _fail(path, f"malformed program ({type(exc).__name__}: {exc}); rewrite it with 'procmod learn'") from None
-    pt_path = path.with_name(str(data.get("tensors", "program.pt")))
+    try:  # procmod writes the tensors beside program.json; nothing else is read
+        pt_path = named_file(path.parent, data.get("tensors", "program.pt"), f"{path}: tensors", {".pt"},
+                             "tensors", same_folder=True)
+    except UnsafePathError as exc:
+        raise ProgramError(str(exc)) from None
     try:
         state = torch.load(pt_path, weights_only=True)
-    except FileNotFoundError:
-        raise _fail(path, f"its tensors file {pt_path} is missing") from None
-    except Exception as exc:  # torch raises many types for bad files
-        raise _fail(path, f"cannot read its tensors file {pt_path} ({exc})") from None
+    except Exception as exc:  # torch raises many types for bad files, with several lines of advice
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+        raise _fail(path, f"cannot read its tensors file {pt_path.name} ({reason})") from None
+    if not isinstance(state, dict):
+        raise _fail(path, f"tensors: {pt_path.name} is not a tensors file written by 'procmod learn' "
+                          f"(it holds a {type(state).__name__}, not named tensors)")
     for key, shape in shapes.items():
-        if key not in state or list(state[key].shape) != list(shape):
+        if key not in state or not hasattr(state[key], "numpy") or list(state[key].shape) != list(shape):
             raise _fail(path, f"tensor {key!r} is missing from {pt_path.name} or has the wrong shape")
         program.params[key] = state[key].numpy().astype(np.float64)
     _check_program(program, path)

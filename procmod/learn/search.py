@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import write_text_atomic
 from .examples import ExampleSet
 from .likelihood import Compiled, fit, log_likelihood, pooled_slot_target, sigmas_from_residuals
@@ -340,7 +341,9 @@ def load_checkpoint(folder: Path, parts: dict) -> dict | None:
         doc = json.loads(path.read_text(encoding="utf-8"))
         if doc.get("format") != CHECKPOINT_FORMAT:
             raise ValueError(f"format {doc.get('format')!r}")
-        tensors = torch.load(folder / doc["tensors"], weights_only=True)
+        # written beside state.json by save_checkpoint; a name that leads elsewhere is refused
+        tensors = torch.load(named_file(folder, doc["tensors"], "tensors", {".pt"}, "tensors", same_folder=True),
+                             weights_only=True)
         programs = {name: _program_from_state(s, f"prog.{name}", tensors, parts)
                     for name, s in doc["programs"].items()}
         particles = []
@@ -348,7 +351,7 @@ def load_checkpoint(folder: Path, parts: dict) -> dict | None:
             particles.append(Particle(_program_from_state(p["program"], f"part{k}", tensors, parts),
                                       p["objective"], p["loglik"], {int(a): u for a, u in p["usage"].items()},
                                       list(p["queue"]), list(p["rejected"]), bool(p["done"]), list(p["trace"])))
-    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError, UnsafePathError) as exc:
         raise LearnError(f"cannot resume from {folder}: {exc}; delete that folder to start afresh") from None
     doc["programs"], doc["particles"] = programs, particles
     return doc
