@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import math
 import os
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from ..core.errors import ProcmodError
+from ..core.paths import UnsafePathError, named_file
 from .solid import Box, Mesh, as_transform, matrix, part_triangles
 
 
@@ -89,11 +89,10 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
         if min(size) <= 0:
             raise PartLibraryError(f"{where}.box: box extents must be positive, got {size}")
         return PartShape(name, "box", size=tuple(size), source=list(size))
-    if not isinstance(value, str) or not value:
-        raise PartLibraryError(f"{where}.mesh: expected a path relative to the JSON file, got {value!r}")
-    path = Path(base_dir) / value
-    if not path.is_file():
-        raise PartLibraryError(f"{where}.mesh: mesh file {path} does not exist")
+    try:  # relative to the JSON file's folder, an existing regular file (see core.paths)
+        path = named_file(base_dir, value, f"{where}.mesh", kind="mesh")
+    except UnsafePathError as exc:
+        raise PartLibraryError(str(exc)) from None
     try:
         import trimesh
         mesh = trimesh.load(path, force="mesh", process=False)

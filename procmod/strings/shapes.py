@@ -26,6 +26,7 @@ import networkx as nx
 import numpy as np
 
 from ..core.errors import ProcmodError
+from ..core.paths import contained_path, named_file
 from ..core.serialize import write_text_atomic
 from ..geometry.part_library import (PartLibraryError, PartShape, part_library_to_json, read_part_library,
                                      read_transform, transform_to_json)
@@ -170,9 +171,10 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> N
     if shape_set.base_dir is not None and path.parent.resolve() != Path(shape_set.base_dir).resolve():
         for shape in shape_set.library.values():
             if shape.kind == "mesh":
-                target = path.parent / shape.source
+                # inside the new file's folder only (a mesh the shapes file reached with ".." is refused)
+                target = contained_path(path.parent, shape.source, f"parts.{shape.name}.mesh")
                 target.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(Path(shape_set.base_dir) / shape.source, target)
+                shutil.copyfile(named_file(shape_set.base_dir, shape.source, f"parts.{shape.name}.mesh"), target)
     write_text_atomic(path, json.dumps(shapes_to_dict(shape_set, shapes)) + "\n")
 
 
