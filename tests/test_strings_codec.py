@@ -131,3 +131,102 @@ def test_round_trip_isomorphic(g, seed):
         assert encode(back) == encode(back)
         # labels written are 1-9 then %10..%99, never 0
         assert "0" not in re.sub(r"%[0-9][0-9]", "", s)
+
+
+def _renumbered(g, rng):
+    """``g`` with its nodes renumbered by a random permutation (inserted in the new order)."""
+    p = rng.permutation(g.number_of_nodes())
+    h = nx.Graph()
+    h.add_nodes_from(sorted((int(p[v]), {"type": t}) for v, t in g.nodes(data="type")))
+    h.add_edges_from((int(p[a]), int(p[b])) for a, b in g.edges)
+    return h
+
+
+def _typed(g, types="K"):
+    """A networkx generator's graph, nodes 0..n-1, types cycling through ``types``."""
+    g = nx.convert_node_labels_to_integers(nx.Graph(g))
+    nx.set_node_attributes(g, {v: types[v % len(types)] for v in g}, "type")
+    return g
+
+
+def test_canonical_string_of_the_issue_ring_is_one_string():
+    # the same ring, renumbered, wrote C1CC(N)CC1O and C1C(CC(O)C1)N before canonical ranks
+    g = decode("C1CC(N)CC1O")
+    rng = np.random.default_rng(0)
+    strings = {encode(_renumbered(g, rng)) for _ in range(200)}
+    assert strings == {encode(g)}
+    assert _iso(decode(encode(g)), g)
+
+
+# Symmetric graphs, graphs whose ties colour refinement cannot break (regular graphs, the
+# Frucht graph: 3-regular with no symmetry at all, so no tie left by refinement is an
+# automorphism), and graphs with tied types.
+SYMMETRIC = {
+    "ring of one type": _typed(nx.cycle_graph(12)),
+    "ring of two alternating types": _typed(nx.cycle_graph(12), "AB"),
+    "star": _typed(nx.star_graph(30)),
+    "complete": _typed(nx.complete_graph(9)),
+    "complete bipartite": _typed(nx.complete_bipartite_graph(4, 5)),
+    "petersen": _typed(nx.petersen_graph()),
+    "frucht": _typed(nx.frucht_graph()),
+    "cube": _typed(nx.hypercube_graph(4)),
+    "grid": _typed(nx.grid_2d_graph(5, 4), "AAB"),
+    "circular ladder": _typed(nx.circular_ladder_graph(8)),
+    "moebius ladder": _typed(nx.circulant_graph(16, [1, 8])),
+    "dodecahedron": _typed(nx.dodecahedral_graph(), "XY"),
+    "balanced tree": _typed(nx.balanced_tree(3, 3)),
+    "wheel": _typed(nx.wheel_graph(15)),
+    **{f"random 3-regular {seed}": _typed(nx.random_regular_graph(3, 16, seed=seed)) for seed in range(3)},
+}
+
+
+@pytest.mark.parametrize("name", sorted(SYMMETRIC))
+def test_canonical_string_is_invariant_on_symmetric_graphs(name):
+    g = SYMMETRIC[name]
+    rng = np.random.default_rng(1)
+    s = encode(g)
+    assert all(encode(_renumbered(g, rng)) == s for _ in range(20))
+    assert _iso(decode(s), g)
+
+
+def test_graphs_refinement_cannot_tell_apart_get_different_strings():
+    # cube and Moebius ladder on 8 nodes: both 3-regular, so colour refinement leaves every
+    # node tied in both; they are not isomorphic, so their strings must differ
+    cube, moebius = _typed(nx.hypercube_graph(3)), _typed(nx.circulant_graph(8, [1, 4]))
+    assert not _iso(cube, moebius)
+    assert encode(cube) != encode(moebius)
+    rng = np.random.default_rng(2)
+    for g in (cube, moebius):
+        assert {encode(_renumbered(g, rng)) for _ in range(20)} == {encode(g)}
+
+
+@st.composite
+def symmetric_graphs(draw):
+    """Graphs rich in ties: a ring, a grid, a complete bipartite graph, a ladder or a random
+    3-regular graph (colour refinement splits nothing in it, and its ties are mostly not
+    symmetries) with few types, plus a few random chords."""
+    kind = draw(st.sampled_from(["ring", "grid", "bipartite", "ladder", "regular"]))
+    a, b = draw(st.integers(3, 7)), draw(st.integers(2, 5))
+    if kind == "regular":
+        base = nx.random_regular_graph(3, 2 * (a + b), seed=draw(st.integers(0, 2**16)))
+        if not nx.is_connected(base):
+            base = nx.cycle_graph(2 * (a + b))
+    else:
+        base = {"ring": nx.cycle_graph(a + b), "grid": nx.grid_2d_graph(a, b),
+                "bipartite": nx.complete_bipartite_graph(a, b), "ladder": nx.circular_ladder_graph(a)}[kind]
+    g = _typed(base, draw(st.sampled_from(["A", "A", "AB", "AAB", "ABC"])))
+    n = g.number_of_nodes()
+    chords = draw(st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=3))
+    g.add_edges_from((x, y) for x, y in chords if x != y)
+    return g
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.one_of(typed_graphs(), symmetric_graphs()), st.integers(0, 2**32 - 1))
+def test_canonical_string_is_a_function_of_the_graph(g, seed):
+    rng = np.random.default_rng(seed)
+    s = encode(g)
+    for _ in range(3):
+        assert encode(_renumbered(g, rng)) == s
+    assert _iso(decode(s), g)
+    assert encode(decode(s)) == s  # the canonical string of its own decoding

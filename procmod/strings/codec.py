@@ -17,6 +17,17 @@ after closing (``C1CC1C1CC1``). Every string :func:`encode` writes uses labels 1
 Decoding also maps every character to the graph edge it stands for (section 6, "edge
 category mapping"): a letter to the edge to its spanning-tree parent (none for the root),
 each character of a ring label to that ring's edge, and brackets / bonds to nothing.
+
+The canonical string (:func:`encode` with no root and no ``rng``) is a function of the
+graph up to isomorphism (with node types): renumbering the nodes gives the same string,
+and only isomorphic graphs share one. It is written from the canonical ranks of
+:func:`procmod.strings.canon.canonical_ranks` (colour refinement, with every tie left
+after refinement broken by trying each tied node and keeping the smallest certificate;
+see that module): the depth-first traversal starts at the node of rank 0 and visits
+neighbours in increasing rank, and everything after that (branches, ring labels) follows
+from the traversal. Given a ``root`` and no ``rng``, :func:`encode` writes the string from
+that root with neighbours in node-number order instead: deterministic, but a function of
+the numbering, not canonical.
 """
 
 from __future__ import annotations
@@ -27,6 +38,7 @@ import networkx as nx
 import numpy as np
 
 from ..core.errors import ProcmodError
+from .canon import canonical_ranks
 
 LETTERS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz")
 MAX_LABEL = 99
@@ -213,20 +225,27 @@ def encode_with_order(g: nx.Graph, root: int | None = None,
     g : networkx.Graph
         Connected, nodes ``0..n-1`` with a one-letter ``"type"``.
     root : int, optional
-        Where the depth-first traversal starts; default: node 0 (canonical) or a random
-        node when ``rng`` is given.
+        Where the depth-first traversal starts. Default: the canonical string (the node of
+        canonical rank 0, neighbours in canonical rank order; see the module docstring),
+        or a random node when ``rng`` is given.
     rng : numpy.random.Generator, optional
         When given, neighbours are visited in random order (a random string of the graph);
-        otherwise in increasing node order.
+        otherwise in increasing canonical rank (no ``root``) or node number (a ``root``).
     """
     check_graph(g)
+    key = None  # neighbour order: node number, or canonical rank for the canonical string
     if root is None:
-        root = int(rng.integers(g.number_of_nodes())) if rng is not None else 0
+        if rng is not None:
+            root = int(rng.integers(g.number_of_nodes()))
+        else:
+            ranks = canonical_ranks(g)
+            key = ranks.__getitem__
+            root = ranks.index(0)
     if root not in g:
         raise GraphError(f"root {root} is not a node of the graph")
 
     def order(nbrs):
-        nbrs = sorted(nbrs)
+        nbrs = sorted(nbrs, key=key)
         if rng is not None:
             nbrs = [nbrs[k] for k in rng.permutation(len(nbrs))]
         return nbrs
