@@ -4,9 +4,9 @@
   until a valid string different from the original comes out (or the largest step).
 - :func:`interpolate`: equidistant points on the segment between two encodings, each
   perturbed as above with smaller steps.
-- :func:`latent_path`: a path of ``length`` points made by repeatedly splitting every
-  segment at the training encoding closest to the segment's midpoint, then sampled along
-  every segment like :func:`interpolate`.
+- :func:`latent_path`: a path of exactly ``length`` points from one encoding to another,
+  made by repeatedly splitting every segment at the training encoding closest to both its
+  endpoints; :func:`sample_path` samples along every segment like :func:`interpolate`.
 - :func:`search_graph`: valid decoded points as nodes, each joined to its ``k`` nearest
   neighbours in latent space and to every node whose string is the same graph; edge
   weights are the type-histogram metric E; interpolation is a shortest path.
@@ -21,10 +21,12 @@ import difflib
 import networkx as nx
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from .codec import parse
 from .shapes import histogram_distance
 
 PERTURB_STEPS = (0.05, 0.1, 0.15, 0.2, 0.25)  # the paper's maximum offset is 0.25
+_SAME_POINT = 1e-9  # latent points closer than this are one point (encodings are O(1) in size)
 
 
 def _types(text: str) -> list[str]:
@@ -54,29 +56,53 @@ def interpolate(model, za: np.ndarray, zb: np.ndarray, points: int, rng: np.rand
 
 
 def latent_path(za: np.ndarray, zb: np.ndarray, anchors: np.ndarray, length: int = 32) -> np.ndarray:
-    """Path points from ``za`` to ``zb``: segments split at the anchor closest to their midpoint."""
-    path = [za, zb]
-    used: set[int] = set()
+    """Seed 001's latent path: ``length`` points from ``za`` to ``zb`` (both included, first
+    and last) through training encodings.
+
+    The path starts as the segment ``[za, zb]``; each round splits every segment
+    ``(a, b)`` at the training encoding (a row of ``anchors``) closest to both its
+    endpoints, i.e. whose larger distance to ``a`` and ``b`` is smallest, so 2 points
+    become 3, 5, 9, 17, 33. Only encodings not on the path yet are used (the endpoints are
+    usually training encodings themselves), each at most once. The last round splits only
+    as many segments as ``length`` still needs, the longest first, so the path has exactly
+    ``length`` points (seed 001 uses 32; a path of ``2^k + 1`` points needs no partial round).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``length`` is below 2, or ``anchors`` holds fewer than ``length - 2`` points
+        off the path's ends.
+    """
+    if length < 2:
+        raise InvalidArgumentError(f"a latent path has at least its 2 endpoints; got length {length}")
+    anchors = np.asarray(anchors, dtype=float)
+    path = [np.asarray(za, dtype=float), np.asarray(zb, dtype=float)]
+    # encodings at the endpoints (or repeated) would give zero-length segments: not candidates
+    free = np.ones(len(anchors), dtype=bool)
+    for p in path:
+        free &= np.linalg.norm(anchors - p, axis=1) > _SAME_POINT
+    if free.sum() < length - 2:
+        raise InvalidArgumentError(f"a latent path of {length} points needs {length - 2} training encodings "
+                                   f"besides its endpoints; got {int(free.sum())} (ask for a shorter path or "
+                                   "give more anchors)")
     while len(path) < length:
+        segments = list(zip(path[:-1], path[1:]))
+        split = set(range(len(segments)))
+        if len(path) + len(segments) > length:  # the last round: the longest segments only
+            by_length = sorted(range(len(segments)), key=lambda k: -np.linalg.norm(segments[k][1] - segments[k][0]))
+            split = set(by_length[:length - len(path)])
         new = [path[0]]
-        grew = False
-        for a, b in zip(path[:-1], path[1:]):
-            if len(new) + (len(path) - len(new)) >= length:
-                new.append(b)
-                continue
-            mid = 0.5 * (a + b)
-            d = np.linalg.norm(anchors - mid, axis=1)
-            for k in np.argsort(d):
-                if int(k) not in used:
-                    used.add(int(k))
-                    new.append(anchors[k])
-                    grew = True
-                    break
+        for k, (a, b) in enumerate(segments):
+            if k in split:
+                far = np.maximum(np.linalg.norm(anchors - a, axis=1), np.linalg.norm(anchors - b, axis=1))
+                far[~free] = np.inf
+                pick = int(np.argmin(far))
+                new.append(anchors[pick])
+                # used once; its duplicates would repeat the point
+                free &= np.linalg.norm(anchors - anchors[pick], axis=1) > _SAME_POINT
             new.append(b)
         path = new
-        if not grew:
-            break
-    return np.array(path[:length] if len(path) > length else path)
+    return np.array(path)
 
 
 def sample_path(model, path: np.ndarray, per_segment: int, rng: np.random.Generator) -> list[str]:
