@@ -52,13 +52,32 @@ def test_vines_depth_is_bounded_by_width():
 
 
 def test_vines_segment_count_matches_termination_probability():
-    # Each segment terminates the whole derivation with probability 1/2, and the run also
-    # ends when no continuation is pending; so P(exactly one segment) = 1/2 + 1/2 * P(no
-    # continuation) = 1/2 + 1/2 * (0.34 * 0.5).
+    # Each segment terminates the whole derivation with probability 1/2; otherwise branch1
+    # (0.66) decides whether anything continues (branch2 is drawn only inside branch1's
+    # true case, vines.md). So P(exactly one segment) = 1/2 + 1/2 * 0.34 = 0.67; drawing
+    # branch2 regardless of branch1 (a different model) gives 0.585, 11 standard errors off.
     n = 4000
     ones = sum(run_forward(MODELS["vines"], np.random.default_rng(s)).n_nodes == 1 for s in range(n))
-    p = 0.5 + 0.5 * 0.34 * 0.5
+    p = 0.5 + 0.5 * 0.34
     assert abs(ones - n * p) < 5 * math.sqrt(n * p * (1 - p))
+
+
+def test_vines_continues_with_none_one_or_two_branches_about_equally():
+    # Among calls that did not terminate and could continue: no continuation 0.34, one
+    # 0.66 * 0.5 = 0.33, two 0.33 (vines.md); branch2 without branch1 never happens.
+    counts = np.zeros(3)
+    for s in range(3000):
+        for node in run_forward(MODELS["vines"], np.random.default_rng(s)).nodes():
+            if node.choices["terminate"].value:
+                continue
+            on = {spawn.site: spawn.on for spawn in node.spawns}
+            assert on.get("branch1", False) or not on.get("branch2", False)
+            if "branch1" in on:
+                counts[on["branch1"] + on.get("branch2", False)] += 1
+    n = counts.sum()
+    expected = np.array([0.34, 0.33, 0.33])
+    assert n > 2000  # about 2400: the tolerance is then about 0.05
+    assert np.all(np.abs(counts / n - expected) < 5 * np.sqrt(expected * (1 - expected) / n))
 
 
 def test_bad_parameters():

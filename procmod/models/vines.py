@@ -14,18 +14,20 @@ Random choices per call of rule ``branch`` (one segment):
 
 * ``terminate ~ Bernoulli(0.5)``: if true, the *whole* derivation stops (``ctx.stop``).
 * otherwise, if the child width ``0.975 x width`` is above ``0.15 x 0.75``:
-  ``branch1 ~ Bernoulli(0.66)`` and ``branch2 ~ Bernoulli(0.5)``, ``maybe`` sites that
-  continue from the end point.
+  ``branch1 ~ Bernoulli(0.66)``, a ``maybe`` site that continues from the end point, and
+  **only if branch1 is true** ``branch2 ~ Bernoulli(0.5)``, a second continuation from
+  the same point: no, one or two further branches, each with probability about 1/3, as
+  in the original program (vines.md).
 
 Segments have length 2 and start with width 0.75; the width bound limits depth to 75.
 
-One difference from the original program, with no effect on the distribution of
-outputs: the original draws ``branch2`` only after the ``branch1`` subtree has finished
-and only if that subtree did not terminate. Here spawned calls are futures, so
-``branch2`` is drawn with ``branch1``; if ``branch1``'s subtree terminates, the pending
-``branch2`` call is dropped. The coin is independent of everything else, so the outputs
-are distributed exactly as in the original; only the log-prior of a derivation counts
-that one extra coin.
+The original draws ``branch2`` after ``branch1``'s subtree has run, and only if that
+subtree did not terminate the vine. Here spawned calls are futures run in program order,
+so ``branch2``'s coin is drawn with ``branch1``'s and its call runs after ``branch1``'s
+subtree, or never if that subtree called ``ctx.stop``. The coin is independent of
+everything in between, so derivations and outputs are distributed as in the original; a
+derivation whose ``branch1`` subtree terminated carries one coin more (its log-prior
+counts it; the output is the same).
 """
 
 from __future__ import annotations
@@ -72,8 +74,8 @@ def branch(ctx, x, y, parent_angle, spread, width, leaves):
         return
     child_width = width * WIDTH_DECAY
     if child_width > MIN_WIDTH:
-        ctx.maybe("branch1", 0.66, branch, x1, y1, angle, TURN_SD, child_width, leaves)
-        ctx.maybe("branch2", 0.5, branch, x1, y1, angle, TURN_SD, child_width, leaves)
+        if ctx.maybe("branch1", 0.66, branch, x1, y1, angle, TURN_SD, child_width, leaves):
+            ctx.maybe("branch2", 0.5, branch, x1, y1, angle, TURN_SD, child_width, leaves)
 
 
 def _root_args(params):
