@@ -172,3 +172,108 @@ def count_exact(obs, s):
     joint = {n: p * _normal_pdf(obs, n + s * s) for n, p in prior.items()}
     z = sum(joint.values())
     return {n: v / z for n, v in joint.items()}
+
+
+# ---------------------------------------------------------------------------------------
+# Models whose states differ in which MCMC moves they offer: some states have no `maybe`
+# site, some no continuous choice. An MCMC whose acceptance ratio ignores how likely each
+# move type is in the old and in the new state samples them with the wrong frequencies.
+
+
+class FlatTarget(SumTarget):
+    """A constant likelihood: the posterior is the prior."""
+
+    name = "flat"
+
+    def __init__(self):
+        super().__init__(0.0, 1.0)
+
+    def log_likelihood(self, output):
+        return 0.0
+
+
+def gate_root(ctx):
+    """coin ~ Bernoulli(0.5); only a True coin opens a maybe site (p = 0.5) for a leaf."""
+    if ctx.sample("coin", Bernoulli(0.5)):
+        ctx.maybe("leaf", 0.5, gate_leaf)
+
+
+def gate_leaf(ctx):
+    ctx.emit(Value(1.0))
+
+
+GATE = Model("gate", "a coin that gates the only maybe site", gate_root, lambda p: (),
+             lambda p: SumOutput(), rules=(gate_root, gate_leaf))
+
+
+def gate_exact(target):
+    """Exact posterior over (coin, leaf) of GATE; leaf is None where there is no site."""
+    like = {False: math.exp(target.log_likelihood(_total(0.0))),
+            True: math.exp(target.log_likelihood(_total(1.0)))}
+    joint = {(False, None): 0.5 * like[False], (True, False): 0.25 * like[False],
+             (True, True): 0.25 * like[True]}
+    z = sum(joint.values())
+    return {key: v / z for key, v in joint.items()}
+
+
+def _total(value):
+    out = SumOutput()
+    out.add(value)
+    return out
+
+
+SWITCH_K = (0.3, 0.4, 0.3)
+
+
+def switch_root(ctx):
+    """k ~ Categorical(SWITCH_K) picks what the state offers MCMC: k = 0 nothing to move but
+    k; k = 1 one continuous choice x ~ Normal(0, 1), no maybe site; k = 2 a maybe site
+    (p = 0.5) for MIX's child (one continuous choice y ~ Normal(0, 1)). Emits k, then x or y."""
+    k = ctx.sample("k", Categorical(list(SWITCH_K)))
+    ctx.emit(Value(k))
+    if k == 1:
+        ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0))))
+    elif k == 2:
+        ctx.maybe("child", 0.5, mix_child)
+
+
+SWITCH = Model("switch", "states with and without maybe sites and continuous choices", switch_root,
+               lambda p: (), lambda p: SumOutput(), rules=(switch_root, mix_child))
+
+
+def switch_key(derivation):
+    """(k, child) of a SWITCH derivation; child is None where there is no maybe site."""
+    cm = derivation.choice_map()
+    return cm[((), "k")], cm.get(((), "child"))
+
+
+def switch_exact(obs, s):
+    """Exact posterior over (k, child) of SWITCH under SumTarget(obs, s)."""
+    p0, p1, p2 = SWITCH_K
+    joint = {(0, None): p0 * _normal_pdf(obs, s * s),
+             (1, None): p1 * _normal_pdf(obs - 1, 1 + s * s),
+             (2, False): p2 * 0.5 * _normal_pdf(obs - 2, s * s),
+             (2, True): p2 * 0.5 * _normal_pdf(obs - 2, 1 + s * s)}
+    z = sum(joint.values())
+    return {key: v / z for key, v in joint.items()}
+
+
+FAN_N = (0.2, 0.2, 0.2, 0.2, 0.2)
+
+
+def fan_root(ctx):
+    """n ~ Categorical(FAN_N) plain spawns of a leaf with b ~ Bernoulli(0.5) that emits b:
+    no maybe site and no continuous choice, so every MCMC move regenerates a subtree, and
+    the states differ in their number of calls, n + 1."""
+    n = ctx.sample("n", Categorical(list(FAN_N)))
+    for i in range(n):
+        ctx.spawn(f"c{i}", fan_leaf)
+
+
+def fan_leaf(ctx):
+    ctx.emit(Value(float(ctx.sample("b", Bernoulli(0.5)))))
+
+
+FAN = Model("fan", "a random number of plain spawns", fan_root, lambda p: (), lambda p: SumOutput(),
+            rules=(fan_root, fan_leaf))
+

@@ -10,19 +10,40 @@ Moves, all built from replay under a modified choice map:
 * **toggle** (jump) — pick a ``maybe`` site uniformly and flip it: grow a fresh subtree
   from the prior or cut the existing one.
 
+Move selection depends on what the state offers. With ``D`` calls that have a continuous
+choice, ``M`` ``maybe`` sites (on or off) and ``N`` calls, :func:`propose` picks::
+
+    P(kind)     diffusion: p_diffusion if D > 0, else 0
+                toggle:    (1 - P(diffusion)) / 2 if M > 0, else 0
+                regenerate: the rest, 1 - P(diffusion) - P(toggle)
+    P(move)  =  P(kind) / (D, M or N respectively)
+
+(:func:`log_select`). States differ in ``D`` and ``M`` — a vine whose root terminates
+has no ``maybe`` site, a derivation may have no continuous choice at all — so both the
+kind's probability and the count enter the ratio, evaluated in the old state for the
+move and in the new state for its reverse (the same kind at the same site).
+
+Jump sites are chosen uniformly among the calls: Talton et al.'s basic jump (every rule
+call is a nonterminal of the derivation). Their *nonterminal selection* optimisation
+reweights that choice; seed 002 describes it only as "altering the probability with
+which the mutations choose genes", without the weights, so it is not implemented here.
+Any site distribution would fit the acceptance below, with :func:`log_select` returning
+its probability of the site in each state.
+
 Acceptance. Replaying a map reuses some choices and samples the rest from the prior, so
-for every move the forward proposal density is (selection probability) x (symmetric
-kernel, diffusion only) x (prior of the freshly sampled choices), and the reverse move
-resamples exactly the choices that were dropped. The Metropolis-Hastings ratio for the
-tempered target ``prior x likelihood^beta`` therefore reduces to::
+for every move the forward proposal density is P(move | old) x (symmetric kernel,
+diffusion only) x (prior of the freshly sampled choices), and the reverse move resamples
+exactly the choices that were dropped. The Metropolis-Hastings ratio for the tempered
+target ``prior x likelihood^beta`` therefore reduces to::
 
     log alpha = log p(reused choices of the new derivation)
               - log p(old choices that were reused)
               + beta (log L(new) - log L(old))
-              + log n_candidates(old) - log n_candidates(new)
+              + log P(move | new) - log P(move | old)
 
 which includes the dimension-matching terms of reversible jump (the prior of a grown
-subtree cancels against its proposal density).
+subtree cancels against its proposal density). ``P(move | new)`` is zero, and the move
+rejected, when the new state does not offer the reverse move.
 
 Parallel tempering uses seed 002's ladder: temperatures spaced geometrically so that a
 move accepted 70% of the time in the hottest chain is accepted 1% of the time in the
@@ -31,13 +52,16 @@ so ``T_hot / T_cold = ln 0.01 / ln 0.7``); after each sweep a random adjacent pa
 proposes to swap states. Annealing multiplies every chain's inverse temperature by 1.1
 every ``anneal_every`` sweeps. Delayed rejection (optional): when a regenerate jump is
 rejected, a second independent regeneration of the same call is tried and accepted with
-the Tierney-Mira two-stage probability.
+the Tierney-Mira two-stage probability, in which the site's selection probability enters
+once per first-stage move (the second stage reuses the site, so it has no selection
+factor of its own; see :func:`delayed_rejection_log_alpha`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,6 +72,9 @@ from .common import (Budget, Evaluation, Result, Scored, Tracker, check_positive
 HOTTEST_ACCEPTANCE = 0.7
 COLDEST_ACCEPTANCE = 0.01
 T_MAX = math.log(COLDEST_ACCEPTANCE) / math.log(HOTTEST_ACCEPTANCE)  # ~12.9
+TOGGLE_SHARE = 0.5  # of the jumps, where the state has a maybe site
+
+MOVES = ("diffusion", "regenerate", "toggle")
 
 
 def temperature_ladder(chains: int) -> np.ndarray:
@@ -59,8 +86,7 @@ def temperature_ladder(chains: int) -> np.ndarray:
 
 def diffusion_candidates(derivation) -> list:
     """Calls with at least one continuous choice."""
-    return [n for n in derivation.nodes()
-            if any(not c.dist.discrete for c in n.choices.values())]
+    return [n for n in derivation.nodes() if _has_continuous(n)]
 
 
 def maybe_sites(derivation) -> list:
@@ -68,52 +94,92 @@ def maybe_sites(derivation) -> list:
     return [(n.address, s.site) for n in derivation.nodes() for s in n.spawns if s.probability < 1.0]
 
 
+def _has_continuous(node) -> bool:
+    for c in node.choices.values():
+        if not c.dist.discrete:
+            return True
+    return False
+
+
+class MoveCounts(NamedTuple):
+    """What a state offers each move: calls, calls with a continuous choice, maybe sites."""
+
+    calls: int
+    diffusion: int
+    maybe: int
+
+
+def move_counts(derivation) -> MoveCounts:
+    """:class:`MoveCounts` of a derivation (one walk over its calls)."""
+    calls = diffusion = maybe = 0
+    for node in derivation.nodes():
+        calls += 1
+        if _has_continuous(node):
+            diffusion += 1
+        for s in node.spawns:
+            if s.probability < 1.0:
+                maybe += 1
+    return MoveCounts(calls, diffusion, maybe)
+
+
+def log_select(counts: MoveCounts, kind: str, p_diffusion: float) -> float:
+    """Log-probability that :func:`propose` picks one given move of ``kind`` (one call or
+    site) in a state with ``counts``; -inf where the state does not offer the move."""
+    p_diff = p_diffusion if counts.diffusion else 0.0
+    if kind == "diffusion":
+        p, n = p_diff, counts.diffusion
+    else:
+        toggle = (1.0 - p_diff) * (TOGGLE_SHARE if counts.maybe else 0.0)
+        if kind == "toggle":
+            p, n = toggle, counts.maybe
+        else:
+            p, n = 1.0 - p_diff - toggle, counts.calls
+    return math.log(p / n) if p > 0.0 and n > 0 else -math.inf
+
+
 @dataclass
 class Proposal:
+    """One move: the choice map to replay, and where and how likely the move was picked.
+
+    ``log_select`` is :func:`log_select` in the old state; ``perturbed`` the choices a
+    diffusion moved."""
+
     kind: str
     choices: dict
-    n_before: int
+    log_select: float
+    p_diffusion: float
     address: tuple = ()
     perturbed: tuple = ()
 
 
-def _counter(kind: str):
-    if kind == "diffusion":
-        return lambda d: len(diffusion_candidates(d))
-    if kind == "toggle":
-        return lambda d: len(maybe_sites(d))
-    return lambda d: d.n_nodes
-
-
 def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_scale: float) -> Proposal:
-    """Build one move's choice map from a chain state."""
+    """Build one move's choice map from a chain state (selection as in the module docstring)."""
     d = state.derivation
     old = d.choice_map().raw
-    kind = "diffusion" if rng.random() < p_diffusion else "jump"
-    if kind == "diffusion":
-        candidates = diffusion_candidates(d)
-        if not candidates:
-            kind = "jump"
-        else:
-            node = candidates[int(rng.random() * len(candidates))]
-            choices = dict(old)
-            perturbed = []
-            for name, c in node.choices.items():
-                if not c.dist.discrete:
-                    choices[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
-                    perturbed.append((node.address, name))
-            return Proposal("diffusion", choices, len(candidates), node.address, tuple(perturbed))
-    sites = maybe_sites(d)
-    if sites and rng.random() < 0.5:
+    nodes = d.nodes()
+    candidates = [n for n in nodes if _has_continuous(n)]
+    sites = [(n.address, s.site) for n in nodes for s in n.spawns if s.probability < 1.0]
+    counts = MoveCounts(len(nodes), len(candidates), len(sites))
+    if rng.random() < p_diffusion and candidates:
+        node = candidates[int(rng.random() * len(candidates))]
+        choices = dict(old)
+        perturbed = []
+        for name, c in node.choices.items():
+            if not c.dist.discrete:
+                choices[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
+                perturbed.append((node.address, name))
+        return Proposal("diffusion", choices, log_select(counts, "diffusion", p_diffusion), p_diffusion,
+                        node.address, tuple(perturbed))
+    if sites and rng.random() < TOGGLE_SHARE:
         address, site = sites[int(rng.random() * len(sites))]
         child = address + (site,)
         choices = {k: v for k, v in old.items() if not is_within(k[0], child)}
         choices[(address, site)] = not old[(address, site)]
-        return Proposal("toggle", choices, len(sites), address)
-    nodes = d.nodes()
+        return Proposal("toggle", choices, log_select(counts, "toggle", p_diffusion), p_diffusion, address)
     node = nodes[int(rng.random() * len(nodes))]
     choices = {k: v for k, v in old.items() if not is_within(k[0], node.address)}
-    return Proposal("regenerate", choices, len(nodes), node.address)
+    return Proposal("regenerate", choices, log_select(counts, "regenerate", p_diffusion), p_diffusion,
+                    node.address)
 
 
 def _kept_log_prob(state: Scored, proposal: Proposal, ev: Evaluation) -> float:
@@ -129,20 +195,21 @@ def log_acceptance(state: Scored, proposal: Proposal, ev: Evaluation, beta: floa
         return -math.inf
     if proposal.perturbed and not set(proposal.perturbed).isdisjoint(ev.unused):
         return -math.inf  # a random-walk step left the choice's support: zero target density
-    n_after = _counter(proposal.kind)(ev.derivation)
-    if n_after == 0:
-        return -math.inf
+    log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion)
+    if log_back == -math.inf:
+        return -math.inf  # the new state does not offer the reverse move
     return (ev.log_reused - _kept_log_prob(state, proposal, ev)
             + beta * (ev.log_likelihood - state.log_likelihood)
-            + math.log(proposal.n_before) - math.log(n_after))
+            + log_back - proposal.log_select)
 
 
-def _log_q_regenerate(src, dst, address) -> float:
-    """Log density of proposing ``dst`` by regenerating ``address`` in ``src``."""
+def _log_fresh_regenerate(src, dst, address) -> float:
+    """Log density of the choices that regenerating ``address`` in ``src`` samples to give
+    ``dst`` (the site's selection probability not included)."""
     if address not in src.tree():
         return -math.inf
     old = src.choice_map().raw
-    total = -math.log(src.n_nodes)
+    total = 0.0
     for node in dst.nodes():
         inside = is_within(node.address, address)
         for name, c in node.choices.items():
@@ -159,27 +226,108 @@ def _log_pi(state: Scored, beta: float) -> float:
     return state.log_prior + beta * state.log_likelihood
 
 
-def _log_alpha1(src: Scored, dst: Scored, address, beta) -> float:
-    return min(0.0, _log_pi(dst, beta) - _log_pi(src, beta)
-               + _log_q_regenerate(dst.derivation, src.derivation, address)
-               - _log_q_regenerate(src.derivation, dst.derivation, address))
+def _log_alpha1(src: Scored, dst: Scored, address, beta, select_src, select_dst) -> float:
+    """First-stage acceptance of regenerating ``address`` from ``src`` to ``dst``."""
+    return min(0.0, _log_pi(dst, beta) + select_dst + _log_fresh_regenerate(dst.derivation, src.derivation, address)
+               - _log_pi(src, beta) - select_src - _log_fresh_regenerate(src.derivation, dst.derivation, address))
 
 
 def _log1m_exp(x: float) -> float:
     return -math.inf if x >= 0 else math.log1p(-math.exp(x))
 
 
-def delayed_rejection_log_alpha(x: Scored, y1: Scored, y2: Scored, address, beta) -> float:
-    """Tierney-Mira second-stage acceptance for an independent second regeneration."""
-    num = (_log_pi(y2, beta) + _log_q_regenerate(y2.derivation, y1.derivation, address)
-           + _log_q_regenerate(y2.derivation, x.derivation, address)
-           + _log1m_exp(_log_alpha1(y2, y1, address, beta)))
-    den = (_log_pi(x, beta) + _log_q_regenerate(x.derivation, y1.derivation, address)
-           + _log_q_regenerate(x.derivation, y2.derivation, address)
-           + _log1m_exp(_log_alpha1(x, y1, address, beta)))
+def delayed_rejection_log_alpha(x: Scored, y1: Scored, y2: Scored, address, beta,
+                                p_diffusion: float) -> float:
+    """Tierney-Mira second-stage acceptance for an independent second regeneration.
+
+    The path ``x -> y1`` (rejected) ``-> y2`` has density ``pi(x) s(x) g(x, y1) (1 -
+    alpha1(x, y1)) g(x, y2)``, where ``s`` is the probability of selecting the regenerate
+    move at ``address`` (:func:`log_select`) and ``g`` the density of the freshly sampled
+    choices; the second stage regenerates the same call, so it has no selection factor.
+    ``alpha2`` balances it against the reverse path ``y2 -> y1 -> x``.
+    """
+    s_x, s_y1, s_y2 = (log_select(move_counts(s.derivation), "regenerate", p_diffusion) for s in (x, y1, y2))
+    if s_y2 == -math.inf or _log_pi(y2, beta) == -math.inf:
+        return -math.inf  # y2 has zero target density or does not offer the reverse move
+    num = (_log_pi(y2, beta) + s_y2 + _log_fresh_regenerate(y2.derivation, y1.derivation, address)
+           + _log_fresh_regenerate(y2.derivation, x.derivation, address)
+           + _log1m_exp(_log_alpha1(y2, y1, address, beta, s_y2, s_y1)))
+    den = (_log_pi(x, beta) + s_x + _log_fresh_regenerate(x.derivation, y1.derivation, address)
+           + _log_fresh_regenerate(x.derivation, y2.derivation, address)
+           + _log1m_exp(_log_alpha1(x, y1, address, beta, s_x, s_y1)))
     if num == -math.inf:
         return -math.inf
     return min(0.0, num - den)
+
+
+class Chains:
+    """The chains of one :func:`mcmc` run and their sweep (the engine's loop body).
+
+    ``states[c]`` is chain ``c``'s state at inverse temperature ``betas[c]``. Each
+    :meth:`sweep` proposes one move per chain (evaluated through ``executor`` as one
+    batch), accepts or rejects it, tries delayed rejection for rejected regenerate jumps,
+    and then proposes one swap of adjacent chains when ``tempering``.
+    """
+
+    def __init__(self, model, target, states: list, betas, rng: np.random.Generator,
+                 p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
+                 delayed_rejection: bool = False, executor=None, tracker: Tracker | None = None):
+        self.model, self.target, self.states = model, target, states
+        self.betas = np.asarray(betas, dtype=np.float64)
+        self.rng, self.executor = rng, executor
+        self.p_diffusion, self.step_scale = p_diffusion, step_scale
+        self.tempering, self.delayed_rejection = tempering, delayed_rejection
+        self.tracker = tracker or Tracker(None)
+        self.accepted = dict.fromkeys(MOVES + ("swap", "delayed"), 0)
+        self.proposed = dict.fromkeys(self.accepted, 0)
+
+    def _evaluate(self, maps: list) -> list:
+        rng = self.rng
+        evaluations = evaluate_all(self.executor, self.model, self.target,
+                                   [(choices, new_seed(rng), None) for choices in maps])
+        self.tracker.evaluations += len(maps)
+        return evaluations
+
+    def _accept(self, log_alpha: float) -> bool:
+        return math.log(self.rng.random() + 1e-300) < log_alpha
+
+    def sweep(self) -> None:
+        """One move per chain, then one proposed swap."""
+        rng, states, betas, tracker = self.rng, self.states, self.betas, self.tracker
+        accepted, proposed = self.accepted, self.proposed
+        proposals = [propose(s, rng, self.p_diffusion, self.step_scale) for s in states]
+        evaluations = self._evaluate([p.choices for p in proposals])
+        second = []
+        for c, (s, p, ev) in enumerate(zip(states, proposals, evaluations)):
+            proposed[p.kind] += 1
+            tracker.offer(ev.derivation, ev.score)
+            if self._accept(log_acceptance(s, p, ev, betas[c])):
+                states[c] = Scored.from_evaluation(ev)
+                accepted[p.kind] += 1
+            elif self.delayed_rejection and p.kind == "regenerate":
+                second.append((c, p, ev))
+        if second:
+            retries = self._evaluate([p.choices for _, p, _ in second])
+            for (c, p, ev1), ev2 in zip(second, retries):
+                proposed["delayed"] += 1
+                tracker.offer(ev2.derivation, ev2.score)
+                y1, y2 = Scored.from_evaluation(ev1), Scored.from_evaluation(ev2)
+                if self._accept(delayed_rejection_log_alpha(states[c], y1, y2, p.address, betas[c],
+                                                            self.p_diffusion)):
+                    states[c] = y2
+                    accepted["delayed"] += 1
+        chains = len(states)
+        if chains > 1 and self.tempering:
+            i = int(rng.random() * (chains - 1))
+            proposed["swap"] += 1
+            log_swap = (betas[i] - betas[i + 1]) * (states[i + 1].log_likelihood - states[i].log_likelihood)
+            if self._accept(log_swap):
+                states[i], states[i + 1] = states[i + 1], states[i]
+                accepted["swap"] += 1
+
+    def acceptance_rates(self) -> dict:
+        """Accepted / proposed per move kind (None where none was proposed)."""
+        return {k: (self.accepted[k] / self.proposed[k] if self.proposed[k] else None) for k in self.accepted}
 
 
 def mcmc(model, target, chains: int = 8, seed: int = 0, budget: Budget | None = None,
@@ -196,7 +344,8 @@ def mcmc(model, target, chains: int = 8, seed: int = 0, budget: Budget | None = 
     budget : Budget
         Default: 200 sweeps (generations). One sweep proposes one move per chain.
     p_diffusion : float
-        Probability of a diffusion move (otherwise a jump).
+        Probability of a diffusion move where the state has a continuous choice
+        (otherwise a jump; see the module docstring).
     step_scale : float
         Diffusion step as a fraction of each choice distribution's scale.
     annealing : float or None
@@ -217,59 +366,27 @@ def mcmc(model, target, chains: int = 8, seed: int = 0, budget: Budget | None = 
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
-    accepted = {"diffusion": 0, "regenerate": 0, "toggle": 0, "swap": 0, "delayed": 0}
-    proposed = dict.fromkeys(accepted, 0)
     with relaxed_gc():
         states = [Scored.from_evaluation(ev) for ev in
                   evaluate_all(executor, model, target, [({}, new_seed(rng), None) for _ in range(chains)])]
         tracker.evaluations += chains
         for s in states:
             tracker.offer(s.derivation, s.score)
+        run = Chains(model, target, states, betas, rng, p_diffusion, step_scale, tempering,
+                     delayed_rejection, executor, tracker)
         while not tracker.spent():
-            proposals = [propose(s, rng, p_diffusion, step_scale) for s in states]
-            evaluations = evaluate_all(executor, model, target,
-                                       [(p.choices, new_seed(rng), None) for p in proposals])
-            tracker.evaluations += chains
-            second = []
-            for c, (s, p, ev) in enumerate(zip(states, proposals, evaluations)):
-                proposed[p.kind] += 1
-                tracker.offer(ev.derivation, ev.score)
-                if math.log(rng.random() + 1e-300) < log_acceptance(s, p, ev, betas[c]):
-                    states[c] = Scored.from_evaluation(ev)
-                    accepted[p.kind] += 1
-                elif delayed_rejection and p.kind == "regenerate":
-                    second.append((c, p, ev))
-            if second:
-                retries = evaluate_all(executor, model, target,
-                                       [(p.choices, new_seed(rng), None) for _, p, _ in second])
-                tracker.evaluations += len(second)
-                for (c, p, ev1), ev2 in zip(second, retries):
-                    proposed["delayed"] += 1
-                    tracker.offer(ev2.derivation, ev2.score)
-                    y1, y2 = Scored.from_evaluation(ev1), Scored.from_evaluation(ev2)
-                    if math.log(rng.random() + 1e-300) < delayed_rejection_log_alpha(
-                            states[c], y1, y2, p.address, betas[c]):
-                        states[c] = y2
-                        accepted["delayed"] += 1
-            if chains > 1 and tempering:
-                i = int(rng.random() * (chains - 1))
-                proposed["swap"] += 1
-                log_swap = (betas[i] - betas[i + 1]) * (states[i + 1].log_likelihood - states[i].log_likelihood)
-                if math.log(rng.random() + 1e-300) < log_swap:
-                    states[i], states[i + 1] = states[i + 1], states[i]
-                    accepted["swap"] += 1
+            run.sweep()
             tracker.generations += 1
             if annealing is not None and tracker.generations % anneal_every == 0:
-                betas = betas * annealing
+                run.betas = run.betas * annealing
             if tracker.due():
-                tracker.record(float(np.mean([s.score for s in states])))
-        tracker.record(float(np.mean([s.score for s in states])))
-    rates = {k: (accepted[k] / proposed[k] if proposed[k] else None) for k in accepted}
-    return Result("mcmc", tracker.best, tracker.best_score, [s.derivation for s in states],
+                tracker.record(float(np.mean([s.score for s in run.states])))
+        tracker.record(float(np.mean([s.score for s in run.states])))
+    return Result("mcmc", tracker.best, tracker.best_score, [s.derivation for s in run.states],
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={"chains": chains, "seed": seed, "budget": budget.describe(),
                             "p_diffusion": p_diffusion, "step_scale": step_scale,
                             "tempering": tempering, "annealing": annealing,
                             "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
-                            "acceptance_rates": rates},
-                  log_weights=[s.log_likelihood for s in states])
+                            "acceptance_rates": run.acceptance_rates()},
+                  log_weights=[s.log_likelihood for s in run.states])
