@@ -18,21 +18,34 @@ def _mask(*parts):
     return voxelize(list(parts), GRID)
 
 
+def _inside_box(centres, centre, size):
+    """Brute force: which voxel centres lie in the closed axis-aligned box (by coordinates)."""
+    return np.all(np.abs(centres - np.asarray(centre)) <= 0.5 * np.asarray(size), axis=-1)
+
+
 def test_svol_matches_its_definition():
-    fill = _mask(Box((2, 2, 2)))
-    avoid = _mask(Box((1, 1, 1), translation(1.4, 1.4, 1.4)))
+    assert GRID.origin == (-2.0, -2.0, -2.0) and GRID.shape == (40, 40, 40)  # centres at -1.95 + 0.1 k
+    centres = GRID.centres()
+    fill = _inside_box(centres, (0, 0, 0), (2, 2, 2))
+    avoid = _inside_box(centres, (1.4, 1.4, 1.4), (1, 1, 1))
     target = Volume(GRID, [(fill, 2.0, -0.5), (avoid, -3.0, 0.0)], w_self=0.25)
     scene = target.new_output(SHIP)
-    parts = [Box((1, 1, 1), translation(0.5, 0.5, 0.5)), Box((1, 1, 1), translation(1.0, 1.0, 1.0)),
-             Box((1, 1, 5), translation(-1.5, 0, 0))]
-    for p in parts:
-        scene.add(p)
-    model = scene.occupancy
-    expected = (2.0 * (fill & model).sum() + -0.5 * (model & ~fill).sum()
-                + -3.0 * (avoid & model).sum() + 0.0)
-    expected += scene.outside * (-0.5) - 0.25 * scene.overlaps
-    assert scene.outside > 0 and scene.overlaps > 0
-    assert target.score(scene) == pytest.approx(expected)
+    boxes = [((0.5, 0.5, 0.5), (1, 1, 1)), ((1.0, 1.0, 1.0), (1, 1, 1)), ((-1.5, 0, 0), (1, 1, 5))]
+    for (x, y, z), size in boxes:
+        scene.add(Box(size, translation(x, y, z)))
+    # Worked out by hand: the first two boxes share [0.5, 1]^3, 5 centres a side (0.55 ..
+    # 0.95), so 125 voxels are hit twice; the third, z in [-2.5, 2.5], covers 5 lattice
+    # cells beyond each end of the grid's z range [-2, 2] on 10 x 10 centres in x and y.
+    overlaps, outside = 5 ** 3, 2 * 5 * 10 * 10
+    hits = sum(_inside_box(centres, c, size).astype(int) for c, size in boxes)
+    assert int(np.maximum(hits - 1, 0).sum()) == overlaps  # the brute force agrees
+    covered = hits > 0
+    expected = (2.0 * (fill & covered).sum() - 0.5 * (covered & ~fill).sum()
+                - 3.0 * (avoid & covered).sum() + 0.0 * (covered & ~avoid).sum())
+    expected += outside * (-0.5 + 0.0) - 0.25 * overlaps  # outside cells get the avoid weights
+    assert (scene.overlaps, scene.outside) == (overlaps, outside)
+    assert np.array_equal(scene.occupancy, covered)
+    assert target.score(scene) == pytest.approx(expected, abs=1e-9)
     assert target.log_likelihood(scene) == pytest.approx(target.score(scene) / target.temperature)
 
 
@@ -49,6 +62,61 @@ def test_proxy_score_of_the_original_program():
     poking = target.new_output(SHIP)
     poking.add(Box((1, 1, 6)))
     assert target.outside(poking) == pytest.approx(2 * (3 - 2) / 4)  # 1 beyond each end of a 4-long grid
+
+
+QUARTER = VoxelGrid((-2.0, -2.0, -2.0), 0.25, (16, 16, 16))  # centres at -1.875 + 0.25 k
+HALF = VoxelGrid((-2.25, -2.25, -2.25), 0.5, (9, 9, 9))  # centres at -2 + 0.5 k: on x = 0.5
+
+
+def _proxy_ll(grid, *parts):
+    """ProxyVolume log-likelihood of ``parts`` and the voxel overlap count they give."""
+    target = ProxyVolume(grid, voxelize([Box((2, 2, 2))], grid))
+    scene = target.new_output(SHIP)
+    for p in parts:
+        scene.add(p)
+    return target.log_likelihood(scene), scene.overlaps
+
+
+def test_proxy_intersections_are_exact_not_shared_voxels():
+    from procmod.geometry.solid import Cylinder, compose, rotation
+    unit = Box((1, 1, 1))
+    # Two unit boxes overlapping by 0.1 (x in [0.4, 0.5]): no voxel centre there on a 0.25 grid
+    ll, overlaps = _proxy_ll(QUARTER, unit, Box((1, 1, 1), translation(0.9, 0, 0)))
+    assert overlaps == 0 and ll == -math.inf
+    # Touching boxes (x = 0.5 shared) are not intersecting, even where voxel centres lie on
+    # the shared face and count in both parts.
+    ll, overlaps = _proxy_ll(HALF, unit, Box((1, 1, 1), translation(1.0, 0, 0)))
+    assert overlaps > 0 and math.isfinite(ll)
+    ll, _ = _proxy_ll(QUARTER, unit, Box((1, 1, 1), translation(1.0, 0, 0)))
+    assert math.isfinite(ll)
+    # Rotated: a unit cube turned 45 degrees about z reaches x = 0.707; a box from x = 0.65
+    # meets only its edge region (x in [0.65, 0.707], |y| < 0.057): no centre there.
+    turned = Box((1, 1, 1), rotation("z", math.pi / 4))
+    ll, overlaps = _proxy_ll(QUARTER, turned, Box((1, 1, 1), translation(1.15, 0, 0)))
+    assert overlaps == 0 and ll == -math.inf
+    ll, _ = _proxy_ll(QUARTER, turned, Box((1, 1, 1), translation(math.sqrt(0.5) + 0.5, 0, 0)))  # edge on face
+    assert math.isfinite(ll)
+    # A cylinder's side 0.1 into a box (x in [0.4, 0.5]) and a cylinder tangent to it
+    ll, overlaps = _proxy_ll(QUARTER, Cylinder(0.5, 1.0, translation(0, 0, -0.5)), Box((1, 1, 1), translation(0.9, 0, 0)))
+    assert overlaps == 0 and ll == -math.inf
+    ll, _ = _proxy_ll(QUARTER, Cylinder(0.5, 1.0, translation(0, 0, -0.5)), Box((1, 1, 1), translation(1.0, 0, 0)))
+    assert math.isfinite(ll)
+    # and the cylinder's bounding box overlaps the box's corner region, the solids do not
+    ll, _ = _proxy_ll(QUARTER, Cylinder(0.5, 1.0, translation(0, 0, -0.5)),
+                      Box((0.3, 0.3, 1), compose(translation(0.55, 0.55, 0), rotation("z", 0.0))))
+    assert math.isfinite(ll)
+
+
+def test_proxy_scene_copies_and_removes_its_intersections():
+    target = ProxyVolume(QUARTER, voxelize([Box((2, 2, 2))], QUARTER))
+    scene = target.new_output(SHIP)
+    scene.add(Box((1, 1, 1)))
+    copy = scene.copy()
+    scene.add(Box((1, 1, 1), translation(0.9, 0, 0)))
+    assert target.log_likelihood(scene) == -math.inf and math.isfinite(target.log_likelihood(copy))
+    assert np.array_equal(copy.occupancy, voxelize([Box((1, 1, 1))], QUARTER))  # the voxels were copied
+    scene.remove(Box((1, 1, 1), translation(0.9, 0, 0)))
+    assert target.log_likelihood(scene) == pytest.approx(target.log_likelihood(copy))
 
 
 def test_volume_targets_need_3d_models():

@@ -17,7 +17,11 @@ itself (seed 002's fitness); the log-likelihood probabilistic engines use is
 of grid cells where ship and target agree, ``log N(same; 1, 0.005) + log N(outside; 0,
 0.005)`` with ``outside`` how far the ship's bounding box pokes out of the grid (summed
 over the six sides as fractions of the grid's extent), and -inf for any part that
-intersects an earlier one.
+intersects an earlier one. Intersection is the exact part-part test of
+:mod:`procmod.geometry.collide` (bounding boxes first, then the parts, as spaceship.md
+says the original does), not shared voxels: two parts that overlap between voxel centres
+intersect, and parts that only touch (the spaceship's stacked segments, wings and fins) do
+not. :class:`ProxyScene` keeps that count incrementally beside the voxels.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import InvalidArgumentError
+from ..geometry.collide import PartIntersections
 from ..geometry.voxel import VoxelGrid, VoxelScene
 from .image import TargetFileError
 
@@ -113,6 +118,30 @@ class Volume:
         return None
 
 
+class ProxyScene(VoxelScene):
+    """A :class:`VoxelScene` that also counts the pairs of its parts that intersect
+    exactly (``intersections``, a :class:`procmod.geometry.collide.PartIntersections`):
+    each part added is tested against the earlier ones whose bounding boxes overlap it."""
+
+    def __init__(self, grid: VoxelGrid, gain=None):
+        super().__init__(grid, gain)
+        self.intersections = PartIntersections()
+
+    def copy(self) -> "ProxyScene":
+        other = VoxelScene.copy(self)  # the voxel state (VoxelScene's slots)
+        other.intersections = self.intersections.copy()
+        return other
+
+    def add(self, part) -> int:
+        self.intersections.add(part)
+        return super().add(part)
+
+    def remove(self, part) -> int:
+        n = super().remove(part)
+        self.intersections.remove(part)
+        return n
+
+
 class ProxyVolume:
     """The original spaceship program's volume score (see the module docstring)."""
 
@@ -126,9 +155,9 @@ class ProxyVolume:
 
     configure = Volume.configure
 
-    def new_output(self, model) -> VoxelScene:
+    def new_output(self, model) -> ProxyScene:
         _check_3d(model)
-        return VoxelScene(self.grid, self._gain)
+        return ProxyScene(self.grid, self._gain)
 
     def score(self, scene: VoxelScene) -> float:
         """Fraction of grid cells where the ship and the target agree."""
@@ -142,8 +171,8 @@ class ProxyVolume:
         span = g_hi - g_lo
         return float(np.sum(np.maximum(g_lo - lo, 0) / span) + np.sum(np.maximum(hi - g_hi, 0) / span))
 
-    def log_likelihood(self, scene: VoxelScene) -> float:
-        if scene.overlaps > 0:
+    def log_likelihood(self, scene: ProxyScene) -> float:
+        if scene.intersections.count > 0:  # some part intersects an earlier one
             return -math.inf
         norm = -math.log(self.sigma * math.sqrt(2 * math.pi))
         same, out = self.score(scene), self.outside(scene)
