@@ -20,7 +20,7 @@ def _disc_mask(n=50, r=12):
 
 def test_shape_weights_follow_equation_3():
     mask = _disc_mask()
-    w = shape_weights(mask, 0.6)
+    w = shape_weights(mask, 0.6, weighting="edge")
     assert np.all(w[~mask] == 1.0)
     interior = mask.copy()
     interior[1:-1, 1:-1] = mask[:-2, 1:-1] & mask[2:, 1:-1] & mask[1:-1, :-2] & mask[1:-1, 2:] & mask[1:-1, 1:-1]
@@ -49,7 +49,7 @@ def test_shape_match_score_is_normalised_and_incremental():
         plain.pixels[:] = d.output.pixels
         assert target.score(d.output) == pytest.approx(target.score(plain), abs=1e-12)
         agree = (d.output.filled == mask)
-        w = shape_weights(mask)
+        w = shape_weights(mask, weighting="sobel")  # the default: the original program's weights
         sim = (w * agree).sum() / w.sum()
         sim0 = (w * ~mask).sum() / w.sum()
         assert target.score(d.output) == pytest.approx((sim - sim0) / (1 - sim0), abs=1e-12)
@@ -64,8 +64,12 @@ def test_shape_match_likelihood_and_out_of_bounds():
     outside = target.new_output(model)
     outside.add(Segment(0, -10, 0, -30, 0.5))
     ll_in = target.log_likelihood(inside)
-    assert ll_in == pytest.approx(-0.5 * (target.score(inside) - 1) ** 2 / 0.02 ** 2)
+    assert ll_in == pytest.approx(-(target.score(inside) - 1) ** 2 / 0.02 ** 2)  # the original program's
     assert target.log_likelihood(outside) < ll_in - 1000
+    paper = ShapeMatch(TargetImage("disc", _disc_mask()), weighting="edge", likelihood="gaussian")
+    assert paper.log_likelihood(inside) == pytest.approx(-0.5 * (paper.score(inside) - 1) ** 2 / 0.02 ** 2)
+    with pytest.raises(InvalidArgumentError):
+        ShapeMatch(TargetImage("disc", _disc_mask()), likelihood="laplace")
 
 
 def test_circuit_is_incremental_and_prefers_half_fill():

@@ -1,18 +1,24 @@
 """``ShapeMatch``: seed 004 eq. 3, the shape-matching likelihood of the vines experiments.
 
 ``sim(I, c)`` is the weighted fraction of pixels where output ``I`` and target ``c``
-agree; weights are 1 where the target is empty and on its Sobel edge, ``w_filled``
-(0.6) in its filled interior. The score is ``sim`` normalised against the empty image,
-``(sim - sim_empty) / (1 - sim_empty)``, and the log-likelihood is a Gaussian around 1
-with ``sigma`` = 0.02 plus vines.md's out-of-bounds term ``-(ex^2 + ey^2) / 0.001^2``.
+agree; the score is ``sim`` normalised against the empty image,
+``(sim - sim_empty) / (1 - sim_empty)``. Two readings of eq. 3 exist, and both are here:
+
+* **the original program** (the default; shared/seeds/vines.md): weight 1 where the target
+  is empty and ``flat + (1 - flat) * sobel`` on its filled pixels (``flat = 1/1.5``,
+  ``sobel`` the target's Sobel magnitude normalised to [0, 1]); log-likelihood
+  ``-(sim - 1)^2 / sigma^2``. This is what the authors' experiments computed, so procmod's
+  numbers compare with theirs and with WebPPL running the same program;
+* **the paper as written** (``weighting="edge", likelihood="gaussian"``): weights 1 on the
+  empty pixels and on the binary Sobel edge, ``w_filled`` (0.6) in the filled interior;
+  log-likelihood the Gaussian ``N(sim; 1, sigma)``, i.e. ``-(sim - 1)^2 / (2 sigma^2)``.
+
+Both add vines.md's out-of-bounds term ``-(ex^2 + ey^2) / 0.001^2``; sigma is 0.02.
 
 Incremental by construction: filling pixel p changes the agreement sum by
 ``+w(p)`` if the target is filled there and ``-w(p)`` if not, so the canvas accumulates
 that per-pixel *gain* in its raster kernel; the normalised similarity is then
 ``gain_total / (sum of w over the target's filled pixels)`` — O(1) per score.
-
-``weighting="sobel"`` uses the original program's graded weights instead
-(``flat + (1 - flat) * sobel`` on filled pixels, ``flat = 1/1.5``; see vines.md).
 """
 
 from __future__ import annotations
@@ -32,7 +38,11 @@ def sobel_magnitude(mask: np.ndarray) -> np.ndarray:
     return np.hypot(gx, gy)
 
 
-def shape_weights(mask: np.ndarray, w_filled: float = 0.6, weighting: str = "edge") -> np.ndarray:
+WEIGHTINGS = ("sobel", "edge")
+LIKELIHOODS = ("original", "gaussian")
+
+
+def shape_weights(mask: np.ndarray, w_filled: float = 0.6, weighting: str = "sobel") -> np.ndarray:
     """Per-pixel weights of eq. 3 for a target mask."""
     mask = np.asarray(mask, dtype=bool)
     sobel = sobel_magnitude(mask)
@@ -45,7 +55,7 @@ def shape_weights(mask: np.ndarray, w_filled: float = 0.6, weighting: str = "edg
         graded = sobel / top if top > 0 else sobel
         weights[mask] = flat + (1 - flat) * graded[mask]
     else:
-        raise InvalidArgumentError(f"weighting must be 'edge' or 'sobel', got {weighting!r}")
+        raise InvalidArgumentError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
     return weights
 
 
@@ -56,24 +66,34 @@ class ShapeMatch:
     ----------
     image : TargetImage
     w_filled : float
-        Weight of the target's filled interior (edge and empty pixels weigh 1).
+        Weight of the target's filled interior with ``weighting="edge"`` (edge and empty
+        pixels weigh 1).
     sigma : float
-        Standard deviation of the Gaussian likelihood around similarity 1.
-    weighting : {"edge", "sobel"}
-        The paper's binary edge mask, or the original program's graded Sobel weights.
+        Width of the likelihood around similarity 1.
+    weighting : {"sobel", "edge"}
+        The original program's graded Sobel weights (default), or the paper's binary edge
+        mask.
+    likelihood : {"original", "gaussian"}
+        ``-(sim - 1)^2 / sigma^2`` as the original program computes it (default), or the
+        paper's Gaussian ``-(sim - 1)^2 / (2 sigma^2)``.
     oob_sigma : float
         Scale of the out-of-bounds penalty; ``None`` disables it.
     """
 
     def __init__(self, image: TargetImage, w_filled: float = 0.6, sigma: float = 0.02,
-                 weighting: str = "edge", oob_sigma: float | None = 0.001):
+                 weighting: str = "sobel", oob_sigma: float | None = 0.001, likelihood: str = "original"):
         if not sigma > 0:
             raise InvalidArgumentError(f"sigma must be positive, got {sigma!r}")
+        if likelihood not in LIKELIHOODS:
+            raise InvalidArgumentError(f"likelihood must be one of {', '.join(LIKELIHOODS)}, got {likelihood!r}")
         self.image = image
         self.name = image.name
         self.w_filled = w_filled
         self.sigma = sigma
         self.weighting = weighting
+        self.likelihood = likelihood
+        # log-likelihood = -(sim - 1)^2 * _sharpness
+        self._sharpness = (1.0 if likelihood == "original" else 0.5) / (sigma * sigma)
         self.oob_sigma = oob_sigma
         shape_weights(np.zeros((3, 3), bool), w_filled, weighting)  # validate options early
         self._cache = {}
@@ -113,10 +133,9 @@ class ShapeMatch:
         return float(gain[canvas.pixels != 0].sum()) / filled_weight
 
     def log_likelihood(self, canvas) -> float:
-        """Gaussian log-likelihood of the similarity plus the out-of-bounds penalty."""
+        """Log-likelihood of the similarity (see ``likelihood``) less the out-of-bounds penalty."""
         d = self.score(canvas) - 1.0
-        ll = -0.5 * d * d / (self.sigma * self.sigma)
-        return ll - out_of_bounds_penalty(canvas, self.oob_sigma)
+        return -d * d * self._sharpness - out_of_bounds_penalty(canvas, self.oob_sigma)
 
     def display_mask(self, width: int) -> np.ndarray:
         """The target mask for pictures (at ``width`` pixels)."""
