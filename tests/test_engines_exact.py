@@ -1,13 +1,15 @@
 """Engines against exact answers on toy models (tolerances from the sample sizes)."""
 
+import importlib
 import math
 
 import numpy as np
 import pytest
 
+from procmod.core import program_order
 from procmod.infer import Budget, mcmc, smc, sosmc
 
-from toy_models import COUNT, MIX, SumTarget, count_exact, mix_exact
+from toy_models import COUNT, MIX, ORDER, SumOutput, SumTarget, count_exact, mix_exact
 
 OBS, S = 2.3, 0.5
 
@@ -45,6 +47,110 @@ def test_smc_posterior_marginals_match_exact(engine):
         # 5 standard errors plus an allowance for SMC's O(1/N) bias in ratio estimates.
         assert abs(values.mean() - p) < 5 * se + 2.0 / 300, (key, values.mean(), p, se)
 
+
+# SOSMC where the order of the futures matters. On MIX at most one future is ever pending,
+# so SOSMC runs there as SMC does. ORDER is MIX split over two sibling calls (a draws k
+# and maybe the child, b draws x): after the root both are pending, and whichever SOSMC
+# expands first is scored first, so the order changes every intermediate weight. The
+# final target does not depend on the order, so the weighted particles must show the
+# exact P(k, child), an unbiased Z, and the order drawn as SOSMC draws it: a before b
+# with probability 1/2, whatever the data.
+ORDER_OBS, ORDER_S = 1.5, 1.0  # a gentle likelihood: a sharp one of the first partial sum
+# would starve the states the second emit favours, a finite-N bias far beyond O(1/N)
+
+
+def _sosmc_on_order(target, runs=40, particles=200):
+    """Per run of SOSMC on ORDER: the Z estimate, weighted P(k, child), weighted P(a first)."""
+    zs, posteriors, a_first = [], [], []
+    for i in range(runs):
+        result = sosmc(ORDER, target, particles=particles, seed=300 + i)
+        zs.append(math.exp(result.log_marginal_likelihood))
+        w = np.exp(np.array(result.log_weights) - max(result.log_weights))
+        w /= w.sum()
+        posterior, first = {}, 0.0
+        for weight, d in zip(w, result.samples):
+            cm = d.choice_map()
+            key = (cm[(("a",), "k")], cm[(("a",), "child")])
+            posterior[key] = posterior.get(key, 0.0) + weight
+            if d.order()[1] == ("a",):  # calls are recorded in the order they ran
+                first += weight
+        posteriors.append(posterior)
+        a_first.append(first)
+    return np.array(zs), posteriors, np.array(a_first)
+
+
+def _check_sosmc_on_order(target=None, particles=200):
+    """Runs are independent, so their spread gives each standard error; 5 of them, plus
+    2 / particles for SMC's O(1/N) bias in ratio estimates (none for Z, which is unbiased)."""
+    target = target or SumTarget(ORDER_OBS, ORDER_S)
+    z, exact = mix_exact(ORDER_OBS, ORDER_S)
+    zs, posteriors, a_first = _sosmc_on_order(target, particles=particles)
+    runs = len(zs)
+    se = zs.std(ddof=1) / math.sqrt(runs)
+    assert abs(zs.mean() - z) < 5 * se, ("Z", zs.mean(), z, se)
+    assert 5 * se < 0.1 * z  # the check has power: a 10% bias would be caught
+    se = a_first.std(ddof=1) / math.sqrt(runs)
+    assert abs(a_first.mean() - 0.5) < 5 * se + 2.0 / particles, ("a first", a_first.mean(), se)
+    for key, p in exact.items():
+        values = np.array([e.get(key, 0.0) for e in posteriors])
+        se = values.std(ddof=1) / math.sqrt(runs)
+        assert abs(values.mean() - p) < 5 * se + 2.0 / particles, (key, values.mean(), p, se)
+
+
+def test_sosmc_matches_exact_where_the_order_of_futures_matters():
+    _check_sosmc_on_order()
+
+
+class _Misweighted:
+    """Makes SOSMC weigh each random pick by 1 / (number pending), as if the order were an
+    importance proposal to correct for (it is part of the target; no correction is due).
+    The pick charges the derivation being stepped through its output's ``log_penalty``,
+    which the target adds to the log-likelihood, so the engine's own weights carry it."""
+
+    def __init__(self, smc_module):
+        self.step, self.current = smc_module.step, None
+
+    def stepping(self, state, rng, pick=None):
+        self.current = state
+        return self.step(state, rng, pick)
+
+    def pick(self, pending, rng):
+        self.current.output.log_penalty -= math.log(len(pending))
+        return int(rng.random() * len(pending))
+
+
+class _PenalisedOutput(SumOutput):
+    log_penalty = 0.0
+
+    def copy(self):
+        other = _PenalisedOutput()
+        other.total, other.log_penalty = self.total, self.log_penalty
+        return other
+
+
+class _PenalisedTarget(SumTarget):
+    def new_output(self, model):
+        return _PenalisedOutput()
+
+    def log_likelihood(self, output):
+        return super().log_likelihood(output) + output.log_penalty
+
+
+@pytest.mark.parametrize("bug", ["program order", "mis-weighted picks"])
+def test_the_sosmc_check_catches_a_wrong_sosmc(bug, monkeypatch):
+    # Both bugs pass the MIX check above (one future pending at a time: nothing to order,
+    # and 1 / (number pending) = 1).
+    smc_module = importlib.import_module("procmod.infer.smc")
+    target = None
+    if bug == "program order":  # a valid SMC, but not one that draws the order
+        monkeypatch.setattr(smc_module, "random_order", program_order)
+    else:
+        wrong = _Misweighted(smc_module)
+        monkeypatch.setattr(smc_module, "step", wrong.stepping)
+        monkeypatch.setattr(smc_module, "random_order", wrong.pick)
+        target = _PenalisedTarget(ORDER_OBS, ORDER_S)
+    with pytest.raises(AssertionError):
+        _check_sosmc_on_order(target)
 
 def _chain_means(samples_per_chain, keys, key_of):
     means = []

@@ -156,6 +156,28 @@ def mix_exact(obs, s):
     return z, {key: v / z for key, v in joint.items()}
 
 
+
+def order_root(ctx):
+    """MIX split over two sibling calls: ``a`` draws k (and maybe MIX's child), ``b`` draws
+    x; each emits what it drew. The same prior over the same sum as MIX (so ``mix_exact``
+    gives Z and P(k, child)), but two futures are pending after the root, and the order in
+    which SOSMC expands them changes the intermediate weights (k is scored first, or x)."""
+    ctx.spawn("a", order_a)
+    ctx.spawn("b", order_b)
+
+
+def order_a(ctx):
+    ctx.emit(Value(ctx.sample("k", Categorical([0.3, 0.5, 0.2]))))
+    ctx.maybe("child", 0.5, mix_child)
+
+
+def order_b(ctx):
+    ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0))))
+
+
+ORDER = Model("order", "MIX as sibling futures", order_root, lambda p: (), lambda p: SumOutput(),
+              rules=(order_root, order_a, order_b, mix_child))
+
 def count_root(ctx, depth):
     ctx.emit(Value(ctx.sample("v", Normal(0.0, 1.0))))
     if depth < 4:
