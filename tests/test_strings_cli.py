@@ -1,11 +1,14 @@
 import json
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
 import pytest
 import torch
 
+import procmod.strings.pipeline as pipeline
 from procmod.cli import main
+from procmod.strings.codec import parse
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 
@@ -14,6 +17,26 @@ def _run(capsys, *argv):
     code = main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def _held_out_accuracy(collection, model, strings_per_shape: int, seed: int = 0) -> float:
+    """Per-character accuracy of a trained model's tagger (structured decoding) on the
+    held-out strings of a collection, as train_model draws them: right characters over the
+    edge characters (category > 0), against the closest of each string's target sequences."""
+    shape_set = pipeline.read_collection(collection)
+    graphs = [pipeline.shape_graph(shape_set, s) for s in shape_set.shapes]
+    train_idx, test_idx = pipeline.split_shapes(len(graphs), 0.2, seed)
+    trained = pipeline.TrainedModel(model)
+    _, _, rng = pipeline.tagger_training_set(shape_set, graphs, train_idx, strings_per_shape, seed, trained.categories)
+    held = pipeline.tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
+                                     trained.categories, 4, rng, every_symmetry=True)
+    assert held, "no held-out strings"
+    right = total = 0
+    for (text, targets), labels in zip(held, trained.tagger.labels([t for t, _ in held], shape_set)):
+        best = max((sum(labels[i] == t for i, t in enumerate(seq) if t > 0), sum(t > 0 for t in seq))
+                   for seq in targets)
+        right, total = right + best[0], total + best[1]
+    return right / total
 
 
 def test_graph_encode_decode(tmp_path, capsys):
@@ -105,14 +128,39 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     meta = train_model(col, model, VAEConfig(hidden=16, latent=4, epochs=1), TaggerConfig(epochs=1), 4,
                        tagger_strings_per_shape=4, progress=lambda stage, row: stages.append((stage, row)))
     held = [row for stage, row in stages if stage == "held-out"]
-    assert held and held[-1]["done"] == held[-1]["total"] > 0 and 0 <= meta["tagger_held_out_accuracy"] <= 1
-    code, out, err = _run(capsys, "strings", "sample", model, "-n", 3, "--out", tmp_path / "s", "--no-meshes")
+    assert held and held[-1]["done"] == held[-1]["total"] > 0
+    # the accuracy is that of the held-out strings, counted here character by character
+    assert meta["tagger_held_out_accuracy"] == pytest.approx(_held_out_accuracy(col, model, 4), abs=1e-12)
+    code, out, err = _run(capsys, "strings", "sample", model, "-n", 12, "--out", tmp_path / "s", "--no-meshes")
     assert code == 0, err
     summary = json.loads((tmp_path / "s" / "summary.json").read_text())
-    assert summary["decoded"] == 3 and summary["valid"] <= 3
+    # what the prior mode decodes, drawn here from the same seed (the CLI's default, 0)
+    trained = pipeline.TrainedModel(model)
+    rng = np.random.default_rng(0)
+    decoded = trained.vae.decode(rng.standard_normal((12, trained.vae.net.config.latent)), rng=rng)
+    valid = [s for s in decoded if s is not None and trained.grammar.is_valid(parse(s).graph)]
+    assert summary["decoded"] == 12 and summary["valid"] == len(valid)
     written = (tmp_path / "s" / "samples.txt").read_text().split()
-    assert [r["string"] for r in summary["samples"]] == written and len(written) == summary["unique"]
-    assert sum(r["novel"] for r in summary["samples"]) == summary["novel"]
+    assert written == list(dict.fromkeys(valid)) and summary["unique"] == len(written)
+    assert [r["string"] for r in summary["samples"]] == written
+    # a one-epoch model decodes next to nothing valid, so the counts are checked again on
+    # decoded strings given here: a training string twice, a new graph twice, one that
+    # breaks the grammar, one that did not finish
+    train = trained.training_strings
+    fake = [train[0], "DMCMD", train[0], "MMM", None, "DMCMD"]
+    assert trained.vae.is_valid(train[0]) and trained.vae.is_valid("DMCMD") and not trained.vae.is_valid("MMM")
+    same = lambda a, b: nx.is_isomorphic(a, b, node_match=lambda x, y: x["type"] == y["type"])  # noqa: E731
+    assert not any(same(parse("DMCMD").graph, parse(t).graph) for t in train)  # a graph no training string has
+    from procmod.strings.vae import StringModel
+    monkeypatch.setattr(StringModel, "decode", lambda self, z, **kw: fake[:len(z)])
+    code, out, err = _run(capsys, "strings", "sample", model, "-n", 6, "--out", tmp_path / "f", "--no-meshes")
+    assert code == 0, err
+    monkeypatch.undo()
+    summary = json.loads((tmp_path / "f" / "summary.json").read_text())
+    assert {k: summary[k] for k in ("decoded", "valid", "unique", "novel")} == {
+        "decoded": 6, "valid": 4, "unique": 2, "novel": 1}
+    assert [(r["string"], r["novel"]) for r in summary["samples"]] == [(train[0], False), ("DMCMD", True)]
+    assert (tmp_path / "f" / "samples.txt").read_text().split() == [train[0], "DMCMD"]
     # a small tree: module with a dome, corridor, module with a dome
     glb = tmp_path / "x.glb"
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
@@ -138,7 +186,6 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     code, out, err = _run(capsys, "strings", "instantiate", model, "M1CMCMC1", "--out", tmp_path / "z.glb")
     assert code == 2 and "a ring of 6 parts" in err and "multiple of 4" in err and not (tmp_path / "z.glb").exists()
     # the transplanting search starts again (another start edge) only when its budget ran out
-    import procmod.strings.pipeline as pipeline
     calls = []
 
     def failing_with(reason):
@@ -147,7 +194,6 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
             return pipeline.InstantiateResult(None, False, reason=reason)
         return search
 
-    trained = pipeline.TrainedModel(model)
     monkeypatch.setattr(pipeline, "instantiate_graph", failing_with("search budget of 5 placements spent at node 1"))
     assert not trained.instantiate("DMCMD", np.random.default_rng(0), attempts=3, budget=5).success
     assert calls == [5, 5, 5]
