@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import shlex
 import sys
 import tempfile
 import time
@@ -309,7 +310,8 @@ def plot(results: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
+    """The bench's options (``settings`` in the results file are these, parsed from its ``command``)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", nargs="+", default=["castle", "moonbase", "colonnade"])
     ap.add_argument("--count", type=int, default=150, help="collection size per set")
@@ -337,10 +339,15 @@ def main() -> None:
     ap.add_argument("--device", default="cpu", help="torch device to train the VAE and the tagger on (cpu, cuda)")
     ap.add_argument("--work", type=Path)
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
-    args = ap.parse_args()
+    return ap
+
+
+def main() -> None:
+    args = parser().parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     work = args.work or Path(tempfile.mkdtemp(prefix="procmod-strings-bench-"))
-    results = {"command": "python bench/strings.py " + " ".join(sys.argv[1:]), "settings": {
+    # exactly what ran, and nothing else: explanations of a run go in docs/strings.md
+    results = {"command": "python bench/strings.py " + shlex.join(sys.argv[1:]), "settings": {
         k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}, "sets": {}}
     stem = args.out / ("strings" if args.distinct == "histogram" else f"strings_{args.distinct}")
     t0 = time.perf_counter()

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
+import shlex
 import sys
 import time
 from dataclasses import asdict
@@ -75,7 +76,8 @@ def read_training_inputs(path: Path):
     return Vocab(data["vocab"]), EdgeCategories.from_json(data["categories"]), data["examples"]
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
+    """The script's options (the results file's ``command`` parses with these)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", default="castle", choices=("castle", "moonbase", "colonnade"))
     ap.add_argument("--count", type=int, default=360, help="collection size")
@@ -101,7 +103,11 @@ def main() -> None:
                     help="stop after training (reads what --prepare-only wrote, if there: no geometry is "
                          "computed); a rerun without this flag on the same --work finds the tagger trained")
     ap.add_argument("--out", type=Path, default=ROOT / "results")
-    args = ap.parse_args()
+    return ap
+
+
+def main() -> None:
+    args = parser().parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     name = f"{args.set}_{args.count}" + ("" if args.distinct == "histogram" else f"_{args.distinct}")
     work = args.work / name
@@ -136,7 +142,8 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)  # the bench's measurement, in the bench's order
     figures = edge_category_figures(tagger, shape_set, shape_set, [shape_set.shapes[i] for i in test_idx],
                                     [graphs[i] for i in test_idx], rng)
-    result = {"command": "python bench/strings_tagger.py " + " ".join(sys.argv[1:]), "set": args.set,
+    # exactly what ran, and nothing else: explanations of a run go in docs/strings.md
+    result = {"command": "python bench/strings_tagger.py " + shlex.join(sys.argv[1:]), "set": args.set,
               "distinct": args.distinct, "shapes": len(shape_set.shapes), "train_shapes": len(train_idx), "training_strings": len(examples),
               "growth_seconds": growth_seconds, "tagger": asdict(config), "train_seconds": round(train_seconds, 1),
               "history": history, "categories": len(categories) - 1, **figures}
