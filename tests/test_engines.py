@@ -150,17 +150,18 @@ def test_crossover_pairs_sibling_sites_of_one_connection_type():
     _valid(model, r.derivation)
 
 
-def test_crossover_pairs_vines_branch_sites():
-    # Vines spawn a branch from a branch at branch1 and at branch2: one connection type.
-    model = get_model("vines")
-    found = _cross_site_crossover(model, 1, top_level=False)
+def test_crossover_pairs_sibling_sites_of_a_recursive_rule():
+    # The toy tree spawns itself at "a" and at "b" (as vines' branch1 / branch2 once were):
+    # one connection type, so subtrees move between the two sites, at any depth.
+    found = _cross_site_crossover(TREE, 1, top_level=False)
     assert found is not None
     v1, v2, child = found
-    assert {child.at[-1], child.source[-1]} == {"branch1", "branch2"}
-    r = replay(model, child.materialize(), np.random.default_rng(0), maybe_default=False)
-    _valid(model, r.derivation)
+    assert {child.at[-1], child.source[-1]} == {"a", "b"}
+    r = replay(TREE, child.materialize(), np.random.default_rng(0), maybe_default=False)
+    _valid(TREE, r.derivation)
     top = {n.address: n for n in r.derivation.nodes()}[child.at]
-    assert top.choices["angle"].value == v2.index()[child.source].choices["angle"].value
+    assert top.args == v1.index()[child.at].args  # the receiving site's depth
+    assert top.choices["v"].value == v2.index()[child.source].choices["v"].value
 
 
 def test_nudge_moves_one_calls_continuous_choices_within_their_support():

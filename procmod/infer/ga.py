@@ -23,9 +23,10 @@ offspring is a valid derivation by construction.
   edge of the generator graph: the same parent rule and the same child rule, whatever the
   spawn sites are called (seed 002, section 5: "those that describe the same edge in the
   generator graph"). So sibling sites that spawn one rule from one rule pair — the tree's
-  ``b0``/``b1``/``b2``, vines' ``branch1``/``branch2`` — and a crossover can copy a
-  branch's partial solution onto another branch, which seed 002 (section 8) credits for
-  the GA's result on the tree. Addresses are structural, so the donor's subtree is
+  ``b0``/``b1``/``b2`` — and a crossover can copy a branch's partial solution onto
+  another branch, which seed 002 (section 8) credits for the GA's result on the tree (on
+  procmod's tree scenes it changed nothing measurable: bench/shapegenetics.py
+  ``--evaluations``, README). Addresses are structural, so the donor's subtree is
   re-addressed under the receiving site and replayed there: its own choices (for the tree,
   angles, scales and offsets relative to its parent) are kept, the arguments it is called
   with are the receiving parent's, so its geometry is recomputed from the new position;
