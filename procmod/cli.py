@@ -1,12 +1,16 @@
 """The ``procmod`` command.
 
 Every error a user can cause prints one line on stderr and exits with status 2, leaving
-no partial output file behind.
+no partial output file behind. Output folders follow :mod:`procmod.core.runfolder`:
+checked before the work, replaced whole (an earlier run of the same command, or any
+folder with ``--overwrite``) or refused, never mixed.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import shlex
 import sys
 from pathlib import Path
 
@@ -24,11 +28,23 @@ class _Parser(argparse.ArgumentParser):
         raise InvalidArgumentError(f"{message} (see '{self.prog} --help')")
 
 
+def _shown(text: str, limit: int = 60) -> str:
+    """``repr`` of a command-line string cut to a readable length."""
+    shown = repr(text)
+    return shown if len(shown) <= limit else shown[:limit - 3] + "..."
+
+
 def _int_arg(text: str) -> int:
     try:
         return int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected an integer, got {_shown(text)}") from None
+
+
+def _add_overwrite(parser) -> None:
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace --out whole even if it holds something other than an earlier run of "
+                             "this command (an earlier run is replaced without it)")
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -49,6 +65,7 @@ def _build_parser() -> argparse.ArgumentParser:
     sample.add_argument("--format", default="pictures", choices=("pictures", "examples"),
                         help="pictures (default): a folder of renders + derivations; examples: one "
                              "procmod-examples/1 JSON file at --out (learned programs)")
+    _add_overwrite(sample)
 
     infer = sub.add_parser("infer", help="control a model toward a target with an engine")
     infer.add_argument("model", metavar="MODEL")
@@ -65,6 +82,7 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
+    _add_overwrite(infer)
 
     render = sub.add_parser("render", help="render a saved derivation (2D: .png/.svg; 3D: .png/.obj/.glb)")
     render.add_argument("derivation", metavar="DERIVATION.json")
@@ -86,16 +104,32 @@ def _cmd_models(args) -> None:
         print(f"{name:<{width}}  {MODELS[name].description}")
 
 
+def _is_dir(path: Path) -> bool:
+    """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
 def _model(spec: str):
     """A built-in model by name, or a learned program by path (program.json or its folder)."""
     path = Path(spec)
-    if spec not in MODELS and (path.suffix.lower() == ".json" or path.is_dir()):
+    if spec not in MODELS and (path.suffix.lower() == ".json" or _is_dir(path)):
         from .learn import load_program
         return load_program(path)
     return get_model(spec)
 
 
+CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact sheet
+
+
 def _cmd_sample(args) -> None:
+    import json
+
+    from .core.limits import check_disk, check_memory
+    from .core.runfolder import SAMPLE_RUN, RunFolder, check_output_file
+    from .core.serialize import derivation_to_dict
     from .render import check_size, output_formats, write_contact_sheet, write_derivation
 
     model = _model(args.model)
@@ -105,31 +139,47 @@ def _cmd_sample(args) -> None:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     size = check_size(args.size)
     out = Path(args.out)
+
+    def sample(i: int):
+        # Sample i depends only on (seed, i), so asking for more samples keeps the first ones.
+        return run_forward(model, np.random.default_rng([args.seed, i]))
+
     if args.format == "examples":
         from .learn import write_examples
-        derivations = [run_forward(model, np.random.default_rng([args.seed, i])) for i in range(args.n)]
-        write_examples(model, derivations, out)
+        check_output_file(out)
+        first = sample(0)
+        check_memory(f"-n {args.n:,} samples", args.n * len(json.dumps(derivation_to_dict(first))),
+                     "ask for fewer samples")
+        write_examples(model, [first] + [sample(i) for i in range(1, args.n)], out)
         print(f"wrote {args.n} samples of {model.name} to {out} (procmod-examples/1)")
         return
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
-    # Sample i depends only on (seed, i), so asking for more samples keeps the first ones.
-    derivations = [run_forward(model, np.random.default_rng([args.seed, i])) for i in range(args.n)]
-    out.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out, SAMPLE_RUN, args.overwrite)
     digits = max(3, len(str(args.n - 1)))
-    for i, derivation in enumerate(derivations):
-        stem = out / f"sample_{i:0{digits}d}"
-        save_derivation(derivation, stem.with_suffix(".json"))
-        for suffix in output_formats(derivation):
-            write_derivation(derivation, stem.with_suffix(suffix), size)
-    write_contact_sheet(derivations, out / "contact_sheet.png", labels=[str(i) for i in range(args.n)])
-    print(f"wrote {args.n} samples of {model.name} to {out}/ (contact sheet: {out / 'contact_sheet.png'})")
+    shown = []  # the first samples, for the contact sheet: the rest are written and dropped
+    with folder.writing() as tmp:
+        for i in range(args.n):
+            derivation = sample(i)
+            stem = tmp / f"sample_{i:0{digits}d}"
+            save_derivation(derivation, stem.with_suffix(".json"))
+            for suffix in output_formats(derivation):
+                write_derivation(derivation, stem.with_suffix(suffix), size)
+            if i == 0:  # the first sample's files tell what all of them need on disk
+                each = sum(p.stat().st_size for p in tmp.iterdir())
+                check_disk(f"-n {args.n:,} samples", float(args.n) * each, tmp.parent,
+                           f"each takes about {each:,} bytes; ask for fewer samples or a smaller --size")
+            if i < CONTACT_SHEET_TILES:
+                shown.append(derivation)
+        write_contact_sheet(shown, tmp / "contact_sheet.png", labels=[str(i) for i in range(len(shown))])
+    more = f"; the first {len(shown)} on" if len(shown) < args.n else "; contact sheet:"
+    print(f"wrote {args.n} samples of {model.name} to {out}/{more} {out / 'contact_sheet.png'}")
 
 
 def _cmd_render(args) -> None:
+    from .core.runfolder import check_output_file
     from .render import check_format, check_size, output_formats, write_derivation
 
     check_format(args.out)
+    check_output_file(args.out)
     size = check_size(args.size)
     derivation = load_derivation(args.derivation, _model)
     check_format(args.out, output_formats(derivation))
@@ -142,13 +192,15 @@ _POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "part
 
 
 def _cmd_infer(args) -> None:
+    from .core.runfolder import INFER_RUN, RunFolder
     from .infer import ENGINES, parse_budget
+    from .infer.common import check_population
     from .render import check_size
     from .report import write_run
 
     model = _model(args.model)
     if args.engine not in ENGINES:
-        raise InvalidArgumentError(f"unknown engine {args.engine!r}; choose one of {', '.join(ENGINES)}")
+        raise InvalidArgumentError(f"unknown engine {_shown(args.engine)}; choose one of {', '.join(ENGINES)}")
     wanted = _POPULATION_OPTION[args.engine]
     kwargs = {}
     for option in ("particles", "population", "chains"):
@@ -172,16 +224,17 @@ def _cmd_infer(args) -> None:
         guide.check_model(model)
         kwargs["guide"] = guide
     target = _target(args.target)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
-    target.new_output(target.configure(model))  # fail early if the target does not fit the model
+    folder = RunFolder(args.out, INFER_RUN, args.overwrite, inputs=[args.target, args.model, args.guide])
+    empty = target.new_output(target.configure(model))  # fail early if the target does not fit the model
+    if wanted in kwargs:
+        check_population(f"--{wanted}", kwargs[wanted], empty)
     with _progress_bar(budget) as progress:
         result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
     if result.best is None:
         raise InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
-    command = "procmod " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("procmod") else ""
-    report = write_run(result, target, out, size, command)
+    with folder.writing() as tmp:
+        write_run(result, target, tmp, size, args.command_line)
+    report = Path(args.out) / "report.html"
     print(f"{result.engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations "
           f"in {result.seconds:.1f} s; report: {report}")
 
@@ -194,7 +247,7 @@ def _target(spec: str):
     if spec == "circuit":
         return Circuit()
     path = Path(spec)
-    if path.is_dir():
+    if _is_dir(path):
         return load_target_file(path / "target.json")
     if path.suffix.lower() == ".json":
         return load_target_file(path)
@@ -230,14 +283,26 @@ class _progress_bar:
 _COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render, "infer": _cmd_infer}
 
 
+def one_line(message: str, limit: int = 600) -> str:
+    """An error message as one readable line: line breaks (a library's multi-line advice)
+    become spaces, and a message longer than ``limit`` keeps its start and its end (the
+    advice) around a cut."""
+    text = re.sub(r"\s*\n\s*", " ", str(message)).strip()
+    if len(text) > limit:
+        text = text[:limit // 2 - 3] + " ... " + text[-(limit // 2 - 3):]
+    return text
+
+
 def main(argv=None) -> int:
     """Entry point of the ``procmod`` console script; returns the exit status."""
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     try:
         args = _build_parser().parse_args(argv)
+        args.command_line = "procmod " + shlex.join(argv)  # recorded in reports
         handler = getattr(args, "handler", None) or _COMMANDS[args.command]
         handler(args)
     except ProcmodError as exc:
-        print(f"procmod: error: {exc}", file=sys.stderr)
+        print(f"procmod: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("procmod: interrupted", file=sys.stderr)

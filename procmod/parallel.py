@@ -21,6 +21,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import os
+import re
 from typing import Iterator
 
 from .core.errors import InvalidArgumentError, ProcmodError
@@ -50,6 +51,20 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):\d{1,5}$"
+                      r"|^inproc://\S+$")
+
+
+def check_scheduler(address: str) -> str:
+    """``address`` if it reads as a dask scheduler address (``tcp://host:8786``,
+    ``host:8786``, ``tls://...``), else a SchedulerError; checked before any work."""
+    if not isinstance(address, str) or not _ADDRESS.match(address.strip()):
+        shown = repr(address) if len(repr(address)) <= 60 else repr(address)[:57] + "..."
+        raise SchedulerError(f"--scheduler {shown} is not a dask scheduler address; give one like "
+                             "tcp://host:8786 (the address 'dask scheduler' prints)")
+    return address.strip()
+
+
 @contextlib.contextmanager
 def open_executor(workers: int | None = None, scheduler: str | None = None,
                   connect_timeout: float = 10.0) -> Iterator[concurrent.futures.Executor]:
@@ -68,14 +83,15 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     if workers is not None and workers < 0:
         raise InvalidArgumentError(f"workers must be >= 0, got {workers}; use 0 for one per core")
     if scheduler:
+        scheduler = check_scheduler(scheduler)
         try:
             from distributed import Client
         except ImportError as exc:  # pragma: no cover - dask is a dependency
             raise SchedulerError("dask.distributed is not installed; pip install 'dask[distributed]'") from exc
         try:
             client = Client(scheduler, timeout=connect_timeout)
-        except (OSError, TimeoutError) as exc:
-            raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({exc}); "
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({str(exc)[:200]}); "
                                  "check the address and that `dask scheduler` is running") from exc
         try:
             yield client.get_executor(pure=False)

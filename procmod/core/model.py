@@ -9,6 +9,7 @@ runtime re-executes a rule call to resume it after a pause and to replay it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
@@ -52,6 +53,14 @@ class Model:
         and sine as two more local-state features (seed 003: local state includes "the
         current orientation of any local reference frame"); unlike a rule argument it
         follows the call as it turns, e.g. to the angle a segment was just drawn at.
+    param_ranges : mapping
+        ``parameter name -> (low, high)``: the inclusive range of a numeric parameter (of
+        each number of a list parameter). :meth:`configure` refuses a value outside it,
+        e.g. a canvas ``size`` whose pixels no machine holds.
+
+    :meth:`configure` also checks each value against the parameter's default: a bool
+    stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
+    number a finite number, a list a list of as many items, each checked the same way.
     """
 
     name: str
@@ -64,6 +73,7 @@ class Model:
     choices_doc: str = ""
     arg_ranges: Mapping[str, tuple] = field(default_factory=dict)
     heading_rules: tuple = ()
+    param_ranges: Mapping[str, tuple] = field(default_factory=dict)
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.
@@ -71,13 +81,16 @@ class Model:
         Raises
         ------
         InvalidArgumentError
-            If a name is not one of the model's parameters.
+            If a name is not one of the model's parameters, or a value does not fit the
+            parameter (see the class docstring); the message names the parameter.
         """
         unknown = sorted(set(params) - set(self.params))
         if unknown:
             raise InvalidArgumentError(
-                f"model {self.name!r} has no parameter {unknown[0]!r}; "
+                f"model {self.name!r} has no parameter {_shown(unknown[0])}; "
                 f"its parameters are: {', '.join(sorted(self.params)) or 'none'}")
+        for name, value in params.items():
+            _check_param(name, value, self.params[name], self.param_ranges.get(name))
         merged = dict(self.params)
         merged.update(params)
         return replace(self, params=merged)
@@ -89,3 +102,40 @@ class Model:
     def initial_args(self) -> tuple:
         """The root rule's arguments under the current parameters."""
         return tuple(self.root_args(self.params))
+
+
+def _shown(value, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _check_param(name: str, value, default, bounds=None) -> None:
+    """Refuse ``value`` for parameter ``name`` unless it has the default's JSON type (and
+    shape) and lies within ``bounds``; the message names the parameter (``size``,
+    ``start[1]``)."""
+    def fail(expected: str):
+        raise InvalidArgumentError(f"parameter {name} must be {expected}, got {_shown(value)}")
+
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            fail("true or false")
+        return
+    if isinstance(default, (int, float)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            fail("an integer" if isinstance(default, int) else "a number")
+        if isinstance(default, int) and not isinstance(value, int):
+            fail("an integer")
+        if not math.isfinite(value):
+            fail("a finite number")
+        if bounds is not None and not bounds[0] <= value <= bounds[1]:
+            fail(f"between {bounds[0]} and {bounds[1]}")
+        return
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            fail("a string")
+        return
+    if isinstance(default, (list, tuple)):
+        if not isinstance(value, (list, tuple)) or len(value) != len(default):
+            fail(f"a list of {len(default)} items")
+        for i, (item, item_default) in enumerate(zip(value, default)):
+            _check_param(f"{name}[{i}]", item, item_default, bounds)

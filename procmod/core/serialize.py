@@ -86,6 +86,34 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> None:
         raise
 
 
+def parse_json(text: str, source: str, error: type = DerivationFormatError):
+    """``json.loads(text)``, with every way it fails (bad syntax, nesting deeper than
+    Python's stack: a file of 100,000 ``[``) raised as ``error(f"{source}: ...")``, one line."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise error(f"{source}: JSON nested too deeply (procmod's files nest a few levels; this one nests "
+                    "more than Python can read)") from None
+
+
+def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
+    """The parsed JSON of ``path``; a missing, unreadable or malformed file is ``error``
+    with one line naming the file (see :func:`parse_json`)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(f"{what} {_cut(str(path))} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"cannot read {what} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") from None
+    return parse_json(text, f"{what} {_cut(str(path))}" if what != "file" else _cut(str(path)), error)
+
+
+def _cut(text: str, limit: int = 200) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
     """Write a complete derivation to ``path`` as ``procmod-derivation/1`` JSON."""
     write_text_atomic(path, json.dumps(derivation_to_dict(derivation), indent=1) + "\n")
@@ -126,7 +154,13 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         order.append(tuple(address))
     # Replaying needs no randomness when the file matches; a fixed generator keeps any
     # mismatch reproducible while we report it.
-    result = replay(model, choices, np.random.default_rng(0), order=order)
+    try:
+        result = replay(model, choices, np.random.default_rng(0), order=order)
+    except ProcmodError as exc:  # e.g. a parameter the model's rules refuse
+        raise _fail(source, str(exc)) from None
+    except MemoryError as exc:  # numpy refuses an absurd allocation at once (params.size 10^9)
+        raise _fail(source, f"replaying it under params {_cut(json.dumps(data['params']), 120)} needs more "
+                            f"memory than this machine has ({exc})") from None
     if result.unused or result.log_fresh != 0.0 or result.derivation.order() != order:
         what = (f"{len(result.unused)} stored choices were not used" if result.unused
                 else "choices were missing" if result.log_fresh != 0.0 or
@@ -147,9 +181,6 @@ def load_derivation(path: str | os.PathLike, resolve_model: Callable[[str], Mode
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise DerivationFormatError(f"cannot read derivation file {path}: {exc.strerror or exc}") from exc
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DerivationFormatError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from exc
-    return derivation_from_dict(data, resolve_model, source=str(path))
+        raise DerivationFormatError(f"cannot read derivation file {_cut(str(path))}: "
+                                    f"{getattr(exc, 'strerror', None) or exc}") from None
+    return derivation_from_dict(parse_json(text, _cut(str(path))), resolve_model, source=_cut(str(path)))

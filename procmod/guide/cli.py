@@ -24,6 +24,9 @@ def register(sub, int_arg) -> None:
     where = traces.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int_arg, help="local worker processes (default: one per core)")
     where.add_argument("--scheduler", help="dask scheduler address, e.g. tcp://host:8786")
+    traces.add_argument("--overwrite", action="store_true",
+                        help="replace --out whole if it holds anything but traces of this same job "
+                             "(which are resumed)")
     traces.set_defaults(handler=_cmd_traces)
 
     train = group.add_parser("train", help="train a guide on traces (resumes from its checkpoint)")
@@ -51,11 +54,13 @@ def _tqdm(total, unit):
 
 
 def _cmd_traces(args) -> None:
-    from ..parallel import open_executor
+    from ..parallel import check_scheduler, open_executor
     from .traces import generate_traces
 
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    if args.scheduler is not None:
+        check_scheduler(args.scheduler)
     workers = 0 if args.workers is None and args.scheduler is None else args.workers
     bar = _tqdm(args.count, " traces")
     try:
@@ -65,7 +70,7 @@ def _cmd_traces(args) -> None:
 
         with open_executor(workers=workers, scheduler=args.scheduler) as executor:
             summary = generate_traces(args.model, args.targets, args.count, args.out, args.particles,
-                                      args.seed, executor, progress=progress)
+                                      args.seed, executor, progress=progress, overwrite=args.overwrite)
     finally:
         bar.close()
     rate = summary["traces_per_hour"]

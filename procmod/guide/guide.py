@@ -9,19 +9,108 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
+import re
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from ..core.distributions import Normal
-from ..core.serialize import write_text_atomic
+from ..core.limits import check_memory
+from ..core.serialize import read_json, write_text_atomic
 from .fast import guided_draw, site_outputs
 from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
 from .network import (SiteNet, base_params, encode_value, head_kind,
                       initial_bias, n_outputs, propose)
 
 FORMAT = "procmod-guide/1"
+MAX_MIXTURE = 64  # Gaussian components per continuous choice (the papers use 4)
+MAX_FEATURES = 100_000  # inputs of one site network (the built-in models have under 200)
+MAX_CATEGORIES = 100_000
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _shown(value, limit: int = 60) -> str:
+    return _cut(repr(value), limit)
+
+
+def check_mixture(mixture, where: str = "mixture") -> int:
+    """``mixture`` if it is an integer in [1, MAX_MIXTURE], else a GuideError naming ``where``."""
+    if isinstance(mixture, bool) or not isinstance(mixture, int) or not 1 <= mixture <= MAX_MIXTURE:
+        raise GuideError(f"{where} must be a whole number of Gaussian components from 1 to {MAX_MIXTURE}, "
+                         f"got {_shown(mixture)}")
+    return mixture
+
+
+def _site_kind(kind, where: str) -> str:
+    if kind in ("real", "interval", "bernoulli"):
+        return kind
+    match = re.fullmatch(r"categorical:(\d{1,7})", kind) if isinstance(kind, str) else None
+    if match is None or not 2 <= int(match.group(1)) <= MAX_CATEGORIES:
+        raise GuideError(f"{where}.kind must be real, interval, bernoulli or categorical:K (2 <= K <= "
+                         f"{MAX_CATEGORIES}), got {_shown(kind)}")
+    return kind
+
+
+def check_metadata(data, source: str) -> dict:
+    """The fields of a ``procmod-guide/1`` metadata object, each checked, or a GuideError
+    in one line naming the file and the field. The networks' total size is checked
+    against the machine's memory before any is built."""
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        found = data.get("format") if isinstance(data, dict) else None
+        raise GuideError(f"{source}: format is {_shown(found)}, expected {FORMAT!r}")
+    if not isinstance(data.get("model"), str):
+        raise GuideError(f"{source}: model must be a model name, got {_shown(data.get('model'))}")
+    features = data.get("features")
+    if (not isinstance(features, dict) or set(features) != {"local", "target", "partial"}
+            or not all(isinstance(v, bool) for v in features.values())):
+        raise GuideError(f"{source}: features must be {{\"local\": bool, \"target\": bool, \"partial\": bool}}, "
+                         f"got {_shown(features)}")
+    mixture = check_mixture(data.get("mixture"), f"{source}: mixture")
+    sites = data.get("sites")
+    if not isinstance(sites, dict):
+        raise GuideError(f"{source}: sites must be an object (site -> kind, n_in, n_out)")
+    weights = 0
+    for key, spec in sites.items():
+        where = f"{source}: sites[{_shown(key)}]"
+        if not isinstance(spec, dict) or ":" not in key:
+            raise GuideError(f"{where} must be an object {{kind, n_in, n_out}} under a 'rule:choice' name")
+        kind = _site_kind(spec.get("kind"), where)
+        n_in = spec.get("n_in")
+        if isinstance(n_in, bool) or not isinstance(n_in, int) or not 0 <= n_in <= MAX_FEATURES:
+            raise GuideError(f"{where}.n_in must be a whole number of features from 0 to {MAX_FEATURES}, "
+                             f"got {_shown(n_in)}")
+        n_out = n_outputs(kind, mixture)
+        if spec.get("n_out") != n_out:
+            raise GuideError(f"{where}.n_out must be {n_out} for a {kind} site with mixture {mixture}, "
+                             f"got {_shown(spec.get('n_out'))}")
+        hidden = max(n_in // 2, 1)
+        weights += (n_in * hidden + hidden + hidden * n_out + n_out) if n_in else n_out
+    check_memory(f"{source}: the guide's networks", 8.0 * weights * 3, "the metadata is not a guide procmod wrote")
+    if data.get("info") is not None and not isinstance(data.get("info"), dict):
+        raise GuideError(f"{source}: info must be an object")
+    return data
+
+
+def load_tensors(path: Path, what: str = "weights"):
+    """``torch.load(path, weights_only=True)`` with every refusal in one line: a file that
+    holds Python objects besides tensors (which may run code when unpickled) is refused,
+    without torch's advice on loading it unsafely."""
+    try:
+        return torch.load(path, weights_only=True)
+    except pickle.UnpicklingError as exc:
+        found = re.search(r"Unsupported global: GLOBAL [\w.]+|Unsupported operand \S+", str(exc))
+        detail = f" ({_cut(found.group(0), 120)})" if found else ""
+        raise GuideError(f"{path}: refused to load the {what}: the file holds Python objects, not only tensors"
+                         f"{detail}; procmod never writes such a file and loading it could run its code. Use "
+                         "a guide written by 'procmod guide train'") from None
+    except Exception as exc:  # torch raises several types for truncated or foreign files
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise GuideError(f"{path}: cannot load the {what} ({_cut(first, 160)})") from None
 
 
 def site_key(rule_name: str, choice: str) -> str:
@@ -49,8 +138,7 @@ class Guide:
 
     def __init__(self, model_name: str, settings: FeatureSettings, mixture: int, sites: dict,
                  seed: int = 0, info: dict | None = None):
-        if mixture < 1:
-            raise GuideError(f"mixture must be at least 1 component, got {mixture}")
+        check_mixture(mixture)
         self.model_name = model_name
         self.settings = settings
         self.mixture = mixture
@@ -87,23 +175,16 @@ class Guide:
                 shipped = ", ".join(pretrained_guides()) or "none"
                 raise GuideError(f"guide file {p} does not exist (a guide is a .pt + .json pair "
                                  f"written by 'procmod guide train', or a shipped guide: {shipped})")
+        data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
+        settings = FeatureSettings(**data["features"])
+        guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
+        state = load_tensors(weights, "guide's weights")
         try:
-            data = json.loads(meta.read_text())
-        except (OSError, ValueError) as exc:
-            raise GuideError(f"{meta}: not readable as JSON ({exc})") from None
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise GuideError(f"{meta}: format is {data.get('format') if isinstance(data, dict) else None!r}, "
-                             f"expected {FORMAT!r}")
-        try:
-            settings = FeatureSettings(**data["features"])
-            guide = cls(data["model"], settings, int(data["mixture"]), data["sites"], 0, data.get("info"))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise GuideError(f"{meta}: malformed guide metadata ({exc})") from None
-        try:
-            state = torch.load(weights, weights_only=True)
             guide.nets.load_state_dict(state)
-        except Exception as exc:  # torch raises several types for bad files
-            raise GuideError(f"{weights}: cannot load the guide's weights ({exc})") from None
+        except (RuntimeError, KeyError, TypeError, AttributeError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise GuideError(f"{weights}: the weights do not match {meta.name} ({_cut(first, 160)}); "
+                             "keep the .pt and .json that 'procmod guide train' wrote together") from None
         return guide
 
     # ---- use -----------------------------------------------------------------------

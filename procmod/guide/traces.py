@@ -10,7 +10,9 @@ Generation is embarrassingly parallel and goes through a ``concurrent.futures.Ex
 (:func:`procmod.parallel.open_executor`: inline, a local process pool, or dask). Trace i
 depends only on (seed, i), so it does not matter where or in which order traces run.
 Each finished trace is written at once, atomically; a rerun of the same job skips the
-traces already on disk, so a killed job loses nothing it had finished.
+traces already on disk, so a killed job loses nothing it had finished. A folder of
+another job (or holding anything else) is refused unless ``overwrite``, which replaces it
+whole; a job that fails before its first trace leaves nothing behind.
 """
 
 from __future__ import annotations
@@ -19,13 +21,15 @@ import concurrent.futures
 import json
 import os
 import re
+import shutil
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ..core import InvalidArgumentError
-from ..core.serialize import derivation_to_dict, write_text_atomic
+from ..core import InvalidArgumentError, ProcmodError
+from ..core.runfolder import TRACES_JOB, RunFolder
+from ..core.serialize import derivation_to_dict, read_json, write_text_atomic
 from .features import GuideError
 
 TRACE_FORMAT = "procmod-trace/1"
@@ -90,38 +94,45 @@ def _job_settings(model_name, targets, particles, seed, set_size) -> dict:
 
 def generate_traces(model_name: str, targets: str, count: int, out: str | os.PathLike, particles: int = 600,
                     seed: int = 0, executor: concurrent.futures.Executor | None = None,
-                    set_size: int = SCRIBBLE_SET_SIZE, progress=None) -> dict:
+                    set_size: int = SCRIBBLE_SET_SIZE, progress=None, overwrite: bool = False) -> dict:
     """Make ``count`` traces in ``out`` (resuming a previous run of the same job).
 
+    Everything is checked before the folder is touched: the settings, that the training
+    targets fit the model, and ``out`` (see :class:`procmod.core.runfolder.RunFolder`).
     Returns a summary: traces made now, already present, seconds, traces per hour.
     """
+    from ..infer.common import check_population
     from ..models import get_model
     from ..parallel import InlineExecutor
 
-    get_model(model_name)  # fail early on an unknown model
+    model = get_model(model_name)  # fail early on an unknown model
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
-    trace_target_spec(targets, seed, 0, set_size)  # validates the target set
+    first = make_target(trace_target_spec(targets, seed, 0, set_size))  # validates the target set
+    try:
+        empty = first.new_output(first.configure(model))
+    except ProcmodError as exc:
+        raise GuideError(f"--targets {targets} does not fit model {model_name!r}: {exc}") from None
+    check_population("particles", particles, empty)
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out, TRACES_JOB, overwrite)
+    settings = _job_settings(model_name, targets, particles, seed, set_size)
+    job_file = out / "traces.json"
+    resume = False
+    if TRACES_JOB.recognises(out):
+        previous = read_json(job_file, GuideError, "traces job file")
+        resume = previous == settings
+        if not resume and not overwrite:
+            raise GuideError(f"{out} holds traces of another job ({str(previous)[:200]}); give a new --out "
+                             "folder, the same settings to resume, or --overwrite to replace it")
+    created = not out.exists()
+    folder.prepare_in_place(keep=resume)
     # a job killed (SIGKILL) while writing a trace leaves write_text_atomic's temporary file
     # behind (never a half-written trace): a resumed job clears them
     for stale in out.glob(".trace_*.json.*"):
         stale.unlink(missing_ok=True)
-    settings = _job_settings(model_name, targets, particles, seed, set_size)
-    job_file = out / "traces.json"
-    if job_file.exists():
-        try:
-            previous = json.loads(job_file.read_text())
-        except (OSError, ValueError):
-            previous = None
-        if previous != settings:
-            raise GuideError(f"{out} holds traces of another job ({previous}); "
-                             "give a new --out folder or the same settings to resume")
-    else:
+    if not resume:
         write_text_atomic(job_file, json.dumps(settings, indent=1) + "\n")
     missing = [i for i in range(count) if not trace_path(out, i).exists()]
     present = count - len(missing)
@@ -133,18 +144,28 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     queue = list(reversed(missing))
     running = {}
     done = 0
-    while queue or running:
-        while queue and len(running) < in_flight:
-            i = queue.pop()
-            spec = trace_target_spec(targets, seed, i, set_size)
-            running[executor.submit(generate_trace, model_name, spec, particles, seed, i)] = i
-        finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
-        for future in finished:
-            index = running.pop(future)
-            write_text_atomic(trace_path(out, index), json.dumps(future.result()) + "\n")
-            done += 1
-            if progress is not None:
-                progress(present + done, count)
+    try:
+        while queue or running:
+            while queue and len(running) < in_flight:
+                i = queue.pop()
+                spec = trace_target_spec(targets, seed, i, set_size)
+                running[executor.submit(generate_trace, model_name, spec, particles, seed, i)] = i
+            finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
+            for future in finished:
+                index = running.pop(future)
+                write_text_atomic(trace_path(out, index), json.dumps(future.result()) + "\n")
+                done += 1
+                if progress is not None:
+                    progress(present + done, count)
+    except BaseException:
+        for future in running:  # don't wait for traces nobody will write
+            future.cancel()
+        if done == 0 and present == 0 and not resume:  # nothing made: leave nothing
+            if created:
+                shutil.rmtree(out, ignore_errors=True)
+            else:
+                job_file.unlink(missing_ok=True)
+        raise
     seconds = time.perf_counter() - began
     return {"made": done, "present": present, "seconds": seconds,
             "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None}
@@ -153,9 +174,9 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
 def _read_versioned(path: Path, fmt: str, advice: str) -> dict:
     """A JSON object with ``"format": fmt`` from ``path``, or a :class:`GuideError`."""
     try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise GuideError(f"{path}: not readable as JSON ({exc}){advice}") from None
+        data = read_json(path, GuideError)
+    except GuideError as exc:
+        raise GuideError(f"{exc}{advice}") from None
     if not isinstance(data, dict) or data.get("format") != fmt:
         raise GuideError(f"{path}: expected format {fmt!r}{advice}")
     return data

@@ -33,7 +33,8 @@ from ..core import start
 from ..core.runtime import finish
 from ..core.serialize import write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, GuideError
-from .guide import Guide, RecordingProposer, guide_paths, new_guide_for, target_mask_for
+from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, load_tensors, new_guide_for,
+                    target_mask_for)
 from .network import log_q_torch
 from .traces import load_traces
 
@@ -150,8 +151,9 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     for name, value in (("iterations", iterations), ("batch", batch), ("mixture", mixture)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise GuideError(f"{name} must be a positive integer, got {value!r}")
-    if not lr > 0:
-        raise GuideError(f"the learning rate must be positive, got {lr!r}")
+    check_mixture(mixture)
+    if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
+        raise GuideError(f"the learning rate must be a finite positive number, got {lr!r}")
     if schedule not in SCHEDULES:
         raise GuideError(f"the step-size schedule must be one of {', '.join(SCHEDULES)}, got {schedule!r}")
     job = None
@@ -173,19 +175,18 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     fingerprint = {"model": model.name, "features": settings.to_json(), "mixture": mixture, "batch": batch,
                    "lr": lr, "schedule": schedule, "seed": seed, "iterations": iterations, "traces": len(traces),
                    "sites": sorted(kinds)}
-    step, curve = 0, []
+    step, curve, running = 0, [], None
     if ckpt.exists() and ckpt_meta.exists():
         try:
             saved = json.loads(ckpt_meta.read_text())
-        except (OSError, ValueError):
+        except (OSError, ValueError, RecursionError):
             saved = None
-        if saved is not None and saved.get("fingerprint") == fingerprint:
-            state = torch.load(ckpt, weights_only=True)
+        if isinstance(saved, dict) and saved.get("fingerprint") == fingerprint:
+            state = load_tensors(ckpt, "training checkpoint")
             guide.nets.load_state_dict(state["nets"])
             optimiser.load_state_dict(state["optimiser"])
             step, curve = int(saved["step"]), list(saved["curve"])
     n = len(traces)
-    running = None
     while step < iterations:
         picked = np.random.default_rng([seed, step]).integers(n, size=batch)
         for group in optimiser.param_groups:

@@ -150,6 +150,39 @@ class Tracker:
             self.progress(self)
 
 
+# A lower bound of what one particle, individual or chain state costs beside its output:
+# its derivation's nodes, choices and contexts (a few small Python objects each).
+MEMBER_OVERHEAD = 2048
+
+
+def output_bytes(output) -> int:
+    """A lower bound of the memory one more copy of ``output`` takes: the numpy arrays
+    its ``copy()`` does not share with it (a canvas's pixels, not its target's gains)."""
+    copy = output.copy() if hasattr(output, "copy") else output
+    total = 0
+    for name, value in vars(copy).items() if hasattr(copy, "__dict__") else ():
+        if isinstance(value, np.ndarray) and value is not getattr(output, name, None):
+            total += value.nbytes
+    return total
+
+
+def check_population(option: str, count, output) -> int:
+    """Refuse a population (``--particles``, ``--population``, ``--chains``) that cannot
+    fit in memory, before an engine allocates it; returns ``count``.
+
+    ``output`` is an empty output of the configured model (``target.new_output(model)``):
+    each member holds a copy. Engines can call this on their own population argument
+    (``check_population("particles", particles, target.new_output(model))``).
+    """
+    from ..core.limits import check_memory
+
+    check_positive(option, count)
+    per_member = output_bytes(output) + MEMBER_OVERHEAD
+    check_memory(f"{option} {count:,}", float(count) * per_member,
+                 f"each of them holds at least {per_member:,} bytes; use fewer")
+    return count
+
+
 @dataclass
 class Result:
     """What an engine returns (see the module docstring)."""
@@ -234,6 +267,7 @@ def new_seed(rng: np.random.Generator) -> int:
 
 
 def check_positive(name: str, value) -> int:
+    """``value`` if it is a positive integer, else an InvalidArgumentError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
     return value

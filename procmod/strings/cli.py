@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -27,6 +28,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--tolerance", type=float, help="contact tolerance in world units (default: 0.001 x the "
                                                    "median part diagonal)")
+    _add_overwrite(p)
     p.set_defaults(handler=_graph)
 
     p = leaves.add_parser("encode", help="strings of a graph, one a line (the canonical one by default)")
@@ -56,6 +58,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--distinct", choices=("histogram", "graph"), default="histogram",
                    help="which variants are duplicates: 'histogram' (default, seed 001's conservative rule: "
                         "a node-type histogram seen before) or 'graph' (a shape graph isomorphic to one seen)")
+    _add_overwrite(p)
     p.set_defaults(handler=_augment)
 
     p = leaves.add_parser("train", help="train the string VAE and the edge-category tagger on a collection")
@@ -87,6 +90,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--seed", type=int_arg, default=0)
     p.add_argument("--unconstrained", action="store_true", help="decode without grammar masks (checked after)")
     p.add_argument("--no-meshes", action="store_true", help="do not instantiate the valid samples")
+    _add_overwrite(p)
     p.set_defaults(handler=_sample)
 
     p = leaves.add_parser("instantiate", help="build a string as a 3D shape (GLB or OBJ)")
@@ -100,6 +104,12 @@ def register(sub, int_arg) -> None:
     p.set_defaults(handler=_instantiate)
 
 
+def _add_overwrite(parser) -> None:
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace --out whole even if it holds something other than an earlier output of "
+                             "this command (an earlier one is replaced without it)")
+
+
 def _seed(seed: int) -> int:
     if seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {seed}")
@@ -107,18 +117,18 @@ def _seed(seed: int) -> int:
 
 
 def _graph(args) -> None:
+    from ..core.runfolder import GRAPHS_FOLDER, RunFolder
     from .shapes import Grammar, read_shapes, shape_graph, write_graph
 
     shape_set = read_shapes(args.shapes)
-    if args.tolerance is not None and not args.tolerance >= 0:
-        raise InvalidArgumentError(f"--tolerance must be >= 0, got {args.tolerance}")
+    if args.tolerance is not None and not (math.isfinite(args.tolerance) and args.tolerance >= 0):
+        raise InvalidArgumentError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out, GRAPHS_FOLDER, args.overwrite, inputs=[args.shapes])
     graphs = [shape_graph(shape_set, s, args.tolerance) for s in shape_set.shapes]
-    for i, g in enumerate(graphs):
-        write_graph(g, out / f"shape_{i:03d}.json")
+    with folder.writing() as tmp:
+        for i, g in enumerate(graphs):
+            write_graph(g, tmp / f"shape_{i:03d}.json")
     grammar = Grammar.from_graphs(graphs)
     types = ", ".join(f"{name}={letter}" for name, letter in sorted(shape_set.letters.items()))
     for i, g in enumerate(graphs):
@@ -133,7 +143,7 @@ def _graph(args) -> None:
 
 
 def _encode(args) -> None:
-    from .codec import encode, strings_of
+    from .codec import encode
     from .shapes import read_graph
 
     g = read_graph(args.graph)
@@ -142,8 +152,38 @@ def _encode(args) -> None:
         return
     if args.random < 1:
         raise InvalidArgumentError(f"--random must be a positive number of strings, got {args.random}")
-    for s in strings_of(g, args.random, np.random.default_rng(_seed(args.seed)), canonical=False):
+    for s in random_strings(g, args.random, np.random.default_rng(_seed(args.seed))):
         print(s)
+
+
+# ``strings encode --random N`` stops drawing once this many draws in a row (and at least
+# as many as it has strings) found nothing new: a graph with 56 distinct strings would
+# otherwise be encoded 4N times (400,000 for N = 100,000: minutes) to find no more.
+PATIENCE = 1000
+
+
+def random_strings(g, count: int, rng: np.random.Generator) -> list[str]:
+    """Up to ``count`` distinct random strings of ``g``, drawn as
+    :func:`~procmod.strings.codec.strings_of` draws them (``canonical=False``: same
+    generator, same order, same strings), but giving up after ``max(PATIENCE, strings
+    found)`` draws in a row without a new one, not only after ``4 * count`` draws.
+
+    Each draw is one root and neighbour order: a string missed by that many draws in a
+    row is rarer than one in about ``PATIENCE`` draws."""
+    from .codec import encode
+
+    out, seen, stale = [], set(), 0
+    for _ in range(4 * count):
+        if len(out) >= count or stale >= max(PATIENCE, len(out)):
+            break
+        s = encode(g, rng=rng)
+        if s in seen:
+            stale += 1
+            continue
+        seen.add(s)
+        out.append(s)
+        stale = 0
+    return out
 
 
 def _decode(args) -> None:
@@ -156,7 +196,8 @@ def _decode(args) -> None:
 def _augment(args) -> None:
     from tqdm import tqdm
 
-    from ..parallel import open_executor
+    from ..core.runfolder import COLLECTION, RunFolder
+    from ..parallel import check_scheduler, open_executor
     from .pipeline import write_collection
     from .sampling import AugmentParams, augment
     from .shapes import read_shapes
@@ -164,11 +205,19 @@ def _augment(args) -> None:
     shape_set = read_shapes(args.shapes)
     if args.count < 1 or args.parallel < 1 or args.rounds < 1:
         raise InvalidArgumentError("--count, --parallel and --rounds must be positive integers")
+    if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise InvalidArgumentError(f"--seconds must be a positive number of seconds, got {args.seconds}")
+    if args.strings_per_shape < 1:
+        raise InvalidArgumentError(f"--strings-per-shape must be a positive integer, got {args.strings_per_shape}")
+    if args.workers is not None and args.workers < 0:
+        raise InvalidArgumentError(f"--workers must be >= 0 (0 = one per core), got {args.workers}")
+    if args.scheduler is not None:
+        check_scheduler(args.scheduler)
+    _seed(args.seed)
+    folder = RunFolder(args.out, COLLECTION, args.overwrite, inputs=[args.shapes])
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
     bar = tqdm(total=args.count, unit=" shapes", disable=None, leave=False, file=sys.stderr)
     bar.update(len(shape_set.shapes))
 
@@ -184,8 +233,9 @@ def _augment(args) -> None:
     bar.close()
     settings = {"shapes": str(args.shapes), "count": args.count, "seed": args.seed, "parallel": args.parallel,
                 "max_rounds": args.rounds, "seconds": args.seconds, **asdict(params)}
-    strings = write_collection(shape_set, result.shapes, out, result.rounds, args.strings_per_shape, args.seed,
-                               settings=settings)
+    with folder.writing() as tmp:
+        strings = write_collection(shape_set, result.shapes, tmp, result.rounds, args.strings_per_shape, args.seed,
+                                   settings=settings)
     seconds = result.rounds[-1]["seconds"] if result.rounds else 0.0
     print(f"{len(result.shapes)} shapes ({len(result.shapes) - len(shape_set.shapes)} new) after "
           f"{len(result.rounds)} rounds in {seconds:.1f} s; {len(strings)} strings; wrote {out}/")
@@ -240,13 +290,18 @@ def _sample(args) -> None:
     from .render import write_shape_mesh, write_shape_png, write_sheet
     from .shapes import graph_to_dict
 
+    from ..core.limits import check_memory
+    from ..core.runfolder import STRING_SAMPLES, RunFolder
+
     if args.n < 1:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
     model = TrainedModel(args.model)
     rng = np.random.default_rng(_seed(args.seed))
+    folder = RunFolder(args.out, STRING_SAMPLES, args.overwrite, inputs=[args.model])
+    # the latent points and their decoded strings are held together: a lower bound per point
+    check_memory(f"-n {args.n:,} latent points", 8.0 * args.n * (model.vae.net.config.latent + 64),
+                 "ask for fewer")
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
     train = model.training_strings
     vae = model.vae
     if args.mode == "prior":
@@ -270,31 +325,31 @@ def _sample(args) -> None:
     unique = list(dict.fromkeys(valid))
     known = GraphIndex(decode(s) for s in dict.fromkeys(train))
     novel = [s for s in unique if decode(s) not in known]  # a graph no training string has
-    out.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(out / "samples.txt", "\n".join(unique) + ("\n" if unique else ""))
-    built, shapes, rows = 0, [], []
-    novel_set = set(novel)
-    for k, s in enumerate(unique):
-        write_text_atomic(out / f"sample_{k:03d}.json", json.dumps(graph_to_dict(decode(s))) + "\n")
-        row = {"sample": k, "string": s, "novel": s in novel_set}
-        rows.append(row)
-        if args.no_meshes:
-            continue
-        result = model.instantiate(s, rng)
-        row["instantiated"] = result.success
-        if not result.success:  # why not: the search's own words (budget spent, proven impossible, ...)
-            row["reason"] = result.reason
-        if result.success:
-            built += 1
-            write_shape_mesh(model.shape_set, result.shape, out / f"sample_{k:03d}.glb")
-            write_shape_png(model.shape_set, result.shape, out / f"sample_{k:03d}.png", 200)
-            shapes.append((k, result.shape))
-    if shapes:
-        write_sheet(model.shape_set, [s for _, s in shapes], out / "contact_sheet.png", 160,
-                    labels=[str(k) for k, _ in shapes])
-    summary = {"mode": args.mode, "decoded": len(decoded), "valid": len(valid), "unique": len(unique),
-               "novel": len(novel), "instantiated": built, "samples": rows}
-    write_text_atomic(out / "summary.json", json.dumps(summary, indent=1) + "\n")
+    with folder.writing() as tmp:
+        write_text_atomic(tmp / "samples.txt", "\n".join(unique) + ("\n" if unique else ""))
+        built, shapes, rows = 0, [], []
+        novel_set = set(novel)
+        for k, s in enumerate(unique):
+            write_text_atomic(tmp / f"sample_{k:03d}.json", json.dumps(graph_to_dict(decode(s))) + "\n")
+            row = {"sample": k, "string": s, "novel": s in novel_set}
+            rows.append(row)
+            if args.no_meshes:
+                continue
+            result = model.instantiate(s, rng)
+            row["instantiated"] = result.success
+            if not result.success:  # why not: the search's own words (budget spent, proven impossible, ...)
+                row["reason"] = result.reason
+            if result.success:
+                built += 1
+                write_shape_mesh(model.shape_set, result.shape, tmp / f"sample_{k:03d}.glb")
+                write_shape_png(model.shape_set, result.shape, tmp / f"sample_{k:03d}.png", 200)
+                shapes.append((k, result.shape))
+        if shapes:
+            write_sheet(model.shape_set, [s for _, s in shapes], tmp / "contact_sheet.png", 160,
+                        labels=[str(k) for k, _ in shapes])
+        summary = {"mode": args.mode, "decoded": len(decoded), "valid": len(valid), "unique": len(unique),
+                   "novel": len(novel), "instantiated": built, "samples": rows}
+        write_text_atomic(tmp / "summary.json", json.dumps(summary, indent=1) + "\n")
     print(f"{args.n} points: {len(valid)} valid, {len(unique)} unique, {len(novel)} novel; "
           + ("" if args.no_meshes else f"{built} instantiated; ") + f"wrote {out}/")
 

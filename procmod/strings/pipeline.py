@@ -4,7 +4,11 @@
 A collection folder holds ``shapes.json`` (``procmod-shapes/1``: the input shapes first,
 then the variants, mesh files copied beside it), ``graphs/`` (one ``procmod-graph/1`` per
 shape), ``strings.txt`` (strings of every shape, one a line), ``growth.json`` (the settings
-it was grown with and one row per sampling round) and ``contact_sheet.png``.
+it was grown with and one row per sampling round) and ``contact_sheet.png``. A collection
+grown twice with the same seed and a round limit (``--rounds``, no ``--seconds``) is the
+same file for file, byte for byte, except the rounds' ``"seconds"`` in growth.json (wall
+time since the growth began: the one timing field). ``procmod strings augment`` writes it
+into a fresh folder that then replaces ``--out`` whole (:mod:`procmod.core.runfolder`).
 
 A model folder holds ``model.json`` (``procmod-string-model/1``: grammar, settings,
 training history), ``collection.json`` (the training shapes, for transplanting),

@@ -6,9 +6,10 @@ target is bound to a model, so one target serves any ``--size``.
 
 from __future__ import annotations
 
-import json
 import math
 import os
+import re
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -16,10 +17,62 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from ..core import InvalidArgumentError, ProcmodError
+from ..core.serialize import read_json
+
+# The largest picture procmod reads as a target: Pillow's own decompression-bomb limit
+# (89 megapixels, about 9500 x 9500). A mask this size already costs 89 MB per copy, and
+# the models draw at 50 x 50 pixels; a larger picture is refused before it is decoded.
+MAX_IMAGE_PIXELS = 89_478_485
 
 
 class TargetFileError(ProcmodError):
     """A target image or its sidecar JSON cannot be used."""
+
+
+def _cut(text: str, limit: int = 200) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def open_image(path: str | os.PathLike, where: str | None = None, square: bool = False) -> Image.Image:
+    """A picture file, decoded, or a :class:`TargetFileError` in one line naming ``where``
+    (default: the path). A picture over :data:`MAX_IMAGE_PIXELS` (a decompression bomb,
+    or just too big) is refused from its header, before its pixels are decoded; with
+    ``square``, so is one whose padding to a square (a target mask) would be."""
+    path = Path(path)
+    where = where or _cut(str(path))
+    try:
+        with warnings.catch_warnings():
+            # Pillow warns between its limit and twice it, and raises above: both are refused
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(path) as image:
+                if image.width * image.height > MAX_IMAGE_PIXELS:
+                    raise _too_big(where, image.width, image.height)
+                side = max(image.width, image.height)
+                if square and side * side > MAX_IMAGE_PIXELS:
+                    raise TargetFileError(
+                        f"{where}: the picture is {image.width}x{image.height} pixels; padded to the square frame "
+                        f"the models draw in it would be {side}x{side} ({side * side / 1e6:.0f} megapixels, more "
+                        f"than the {MAX_IMAGE_PIXELS / 1e6:.0f} procmod reads): crop or scale it down")
+                image.load()
+                return image.copy()
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
+        # Pillow refuses before we see the size; its message holds the pixel count
+        found = re.search(r"\((\d+) pixels\)", str(exc))
+        size = f"{int(found.group(1)) / 1e6:.0f} megapixels" if found else "too large"
+        raise TargetFileError(f"{where}: the picture is {size}; procmod reads pictures up to "
+                              f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels (about 9500x9500): scale it down") from None
+    except FileNotFoundError:
+        raise TargetFileError(f"{where}: image file {_cut(str(path))} does not exist") from None
+    except IsADirectoryError:
+        raise TargetFileError(f"{where}: {_cut(str(path))} is a folder, not an image file") from None
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        raise TargetFileError(f"{where}: not an image Pillow can read ({_cut(str(exc), 120)})") from None
+
+
+def _too_big(where: str, width: int, height: int) -> TargetFileError:
+    return TargetFileError(f"{where}: the picture is {width}x{height} pixels ({width * height / 1e6:.0f} "
+                           f"megapixels); procmod reads pictures up to {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels "
+                           "(about 9500x9500): scale it down")
 
 
 @dataclass(frozen=True)
@@ -50,8 +103,20 @@ class TargetImage:
                        direction=(-self.direction[0], self.direction[1]))
 
     def at_size(self, width: int, height: int) -> np.ndarray:
-        """The mask resampled to ``height x width`` (area average, then threshold 1/2)."""
-        return resample_mask(self.mask, width, height)
+        """The mask resampled to ``height x width`` (area average, then threshold 1/2).
+
+        Raises a :class:`TargetFileError` when the shape vanishes at that size (too thin,
+        or too small in its frame): the remedy is the picture, not a render size."""
+        small = resample_mask(self.mask, width, height)
+        if not small.any() and self.mask.any():
+            rows, cols = np.flatnonzero(self.mask.any(axis=1)), np.flatnonzero(self.mask.any(axis=0))
+            h, w = self.mask.shape
+            raise TargetFileError(
+                f"target {_cut(self.name, 80)}: its shape ({cols[-1] - cols[0] + 1}x{rows[-1] - rows[0] + 1} "
+                f"pixels of a {w}x{h} frame; a picture that is not square is padded to a square) vanishes "
+                f"when the frame is scaled to the model's {width}x{height} canvas; crop the picture "
+                "closer to the shape, or draw the shape thicker")
+        return small
 
 
 def resample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -128,10 +193,7 @@ def _read_sidecar(path: Path, shape_padding) -> tuple | None:
     sidecar = path.with_suffix(".json")
     if not sidecar.exists():
         return None
-    try:
-        data = json.loads(sidecar.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TargetFileError(f"{sidecar}: cannot read the sidecar JSON ({exc})") from exc
+    data = read_json(sidecar, TargetFileError, "sidecar JSON")
     if not isinstance(data, dict):
         raise TargetFileError(f"{sidecar}: expected an object like "
                               '{"start": [0.5, 0.9166], "direction": [0, -1]}')
@@ -140,7 +202,7 @@ def _read_sidecar(path: Path, shape_padding) -> tuple | None:
     for key, value in (("start", start), ("direction", direction)):
         if (not isinstance(value, (list, tuple)) or len(value) != 2
                 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)):
-            raise TargetFileError(f"{sidecar}: {key!r} must be two numbers, got {value!r}")
+            raise TargetFileError(f"{sidecar}: {key!r} must be two finite numbers, got {_cut(repr(value), 60)}")
     if not all(0.0 <= v <= 1.0 for v in start):
         raise TargetFileError(f"{sidecar}: 'start' is in normalised image coordinates and must lie in [0, 1]")
     if direction[0] == 0 and direction[1] == 0:
@@ -157,15 +219,14 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     """Read a target picture (any format Pillow reads) and its optional sidecar JSON."""
     path = Path(path)
     try:
-        with Image.open(path) as image:
-            image.load()
-            shape = (image.height, image.width)
-            mask = mask_from_image(image)
-    except FileNotFoundError:
-        raise TargetFileError(f"target file {path} does not exist") from None
-    except (UnidentifiedImageError, OSError, ValueError) as exc:
-        raise TargetFileError(f"{path}: not an image Pillow can read ({exc})") from None
-    mask = check_mask(mask, str(path))
+        exists = path.exists()
+    except (OSError, ValueError):  # a name too long to look up
+        exists = False
+    if not exists:
+        raise TargetFileError(f"target file {_cut(str(path))} does not exist") from None
+    image = open_image(path, square=True)
+    shape = (image.height, image.width)
+    mask = check_mask(mask_from_image(image), _cut(str(path)))
     placement = _read_sidecar(path, shape)
     start, direction = placement if placement else lowest_point_start(mask)
     return TargetImage(path.name, mask, tuple(start), tuple(direction))

@@ -1,0 +1,269 @@
+"""Output folders of commands (``--out``): checked before the work, written whole.
+
+A command that writes a folder of results (``sample``, ``infer``, ``strings graph``,
+``strings augment``, ``strings sample``) follows three rules:
+
+**Checked first.** :class:`RunFolder` checks ``--out`` when the command starts, before
+any expensive work: a file where a folder should be, a location that cannot be written
+(``/proc/x``, a read-only disk), or a folder that may not be replaced is refused with
+one line.
+
+**Never mixed.** An existing ``--out`` folder is replaced *whole* or refused, never
+written into: new results beside an earlier run's (``sample_004..015`` of a 16-sample
+run beside 4 new ones, an old ``target.png`` in a new report) would be read as one
+run. A non-empty folder is replaced only if it is an earlier run of the same command
+(every entry is a file that command writes, and its marker file is there: see
+:class:`RunKind`) or the user passed ``--overwrite``; otherwise the command refuses,
+naming ``--overwrite``. Even ``--overwrite`` never replaces a folder holding the current
+folder, the home folder, or one of the command's input files.
+
+**Nothing half-written.** The files are written into a hidden temporary folder beside
+``--out`` (``.NAME.XXXX.tmp``) that is renamed to ``--out`` when every file is written;
+a failure removes it. A job killed outright (SIGKILL) can leave that hidden folder, never
+a half-written ``--out``.
+
+Resumable jobs (``guide traces``, ``strings train``, ``learn``) write into ``--out`` as
+they go, so that a killed job keeps what it finished; :meth:`RunFolder.prepare_in_place`
+applies the first two rules to them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+from .errors import InvalidArgumentError
+
+
+class OutputLocationError(InvalidArgumentError):
+    """An output location that cannot be written, or a folder that may not be replaced."""
+
+
+def _cut(text: str, limit: int = 120) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+@dataclass(frozen=True)
+class RunKind:
+    """What an earlier run of one command leaves in its folder.
+
+    Attributes
+    ----------
+    name : str
+        For messages: ``"procmod infer run"``.
+    marker : str
+        A file every run of the kind writes (``settings.json``).
+    patterns : tuple of str
+        Regular expressions; every entry (file or folder) directly inside an earlier run's
+        folder matches one of them.
+    marker_key : str, optional
+        The marker is a JSON object with this key (``"engine"``).
+    """
+
+    name: str
+    marker: str
+    patterns: tuple
+    marker_key: str | None = None
+
+    def recognises(self, folder: str | os.PathLike) -> bool:
+        """True when ``folder`` holds an earlier run of this kind and nothing else."""
+        folder = Path(folder)
+        try:
+            names = [p.name for p in folder.iterdir()]
+        except OSError:
+            return False
+        if self.marker not in names:
+            return False
+        if not all(any(re.fullmatch(p, name) for p in self.patterns) for name in names):
+            return False
+        if self.marker_key is None:
+            return True
+        try:
+            data = json.loads((folder / self.marker).read_text(encoding="utf-8"))
+        except (OSError, ValueError, RecursionError):
+            return False
+        return isinstance(data, dict) and self.marker_key in data
+
+
+def _nearest_existing(path: Path) -> Path:
+    while not path.exists() and path.parent != path:
+        path = path.parent
+    return path
+
+
+def _probe_writable(folder: Path, option: str, out: Path) -> None:
+    """Refuse unless a file can be created in ``folder`` (tried, then removed)."""
+    if not folder.is_dir():
+        raise OutputLocationError(f"cannot write {option} {_cut(str(out))}: {_cut(str(folder))} is not a folder")
+    try:
+        probe = tempfile.mkdtemp(prefix=".procmod-probe-", dir=folder)
+        os.rmdir(probe)
+    except OSError as exc:
+        raise OutputLocationError(f"cannot write {option} {_cut(str(out))}: cannot create files in "
+                                  f"{_cut(str(folder))} ({exc.strerror or exc})") from None
+
+
+def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
+    """A single output file (``render --out x.png``): its folder must exist and be
+    writable, and the path must not be a folder. Returns the path."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputLocationError(f"{option} {_cut(str(path))} is a folder; give a file name")
+    parent = path.parent
+    if not parent.exists():
+        raise OutputLocationError(f"cannot write {option} {_cut(str(path))}: the folder {_cut(str(parent))} "
+                                  "does not exist; create it first")
+    _probe_writable(parent, option, path)
+    return path
+
+
+def _holds(folder: Path, path: Path) -> bool:
+    """True when ``path`` is ``folder`` or lies inside it (both resolved)."""
+    try:
+        path.resolve().relative_to(folder.resolve())
+        return True
+    except (ValueError, OSError):
+        return False
+
+
+class RunFolder:
+    """The ``--out`` folder of one command, checked at construction (see the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The folder the user named.
+    kind : RunKind
+        What the command writes, to recognise an earlier run.
+    overwrite : bool
+        ``--overwrite``: replace a non-empty folder that is not an earlier run of ``kind``.
+    inputs : iterable of path-like
+        The command's input files; a folder holding one is never replaced.
+    option : str
+        The option's name, for messages.
+
+    Use::
+
+        folder = RunFolder(args.out, INFER_RUN, args.overwrite, inputs=[args.target])
+        ...                                   # the expensive work
+        with folder.writing() as tmp:         # a new, empty folder beside --out
+            write_files(tmp)                  # replaces --out whole when the block ends
+    """
+
+    def __init__(self, path: str | os.PathLike, kind: RunKind, overwrite: bool = False, inputs=(),
+                 option: str = "--out"):
+        self.path = Path(path)
+        self.kind = kind
+        self.option = option
+        shown = _cut(str(self.path))
+        if self.path.exists() and not self.path.is_dir():
+            raise OutputLocationError(f"{option} {shown} exists and is not a folder")
+        self.replaces = self.path.is_dir() and any(self.path.iterdir())
+        if self.replaces:
+            if not (overwrite or kind.recognises(self.path)):
+                example = sorted(p.name for p in self.path.iterdir())[0]
+                raise OutputLocationError(
+                    f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
+                    f"give a new or empty folder, or pass --overwrite to replace it whole")
+            self._check_replaceable(inputs)
+        self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
+        _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
+
+    def _check_replaceable(self, inputs) -> None:
+        shown = _cut(str(self.path))
+        for protected, what in ((Path.cwd(), "the current folder"), (Path.home(), "your home folder")):
+            if _holds(self.path, protected):
+                raise OutputLocationError(f"{self.option} {shown} holds {what}; it cannot be replaced: give "
+                                          "a new or empty folder")
+        for item in inputs:
+            if item is not None and Path(item).exists() and _holds(self.path, Path(item)):
+                raise OutputLocationError(f"{self.option} {shown} holds the input {_cut(str(item))}; replacing "
+                                          "the folder would delete it: give another folder")
+
+    @contextlib.contextmanager
+    def writing(self) -> Iterator[Path]:
+        """A new, empty folder to write every file into; it becomes ``path`` (replacing what
+        was there) when the block ends without an exception, and is removed otherwise."""
+        if self.in_place:  # --out is (or holds) the current folder, so it is empty: write there
+            yield self.path
+            return
+        created = self._make_parents()
+        tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent))
+        try:
+            os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700 folders
+            yield tmp
+            self._replace_with(tmp)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            for folder in reversed(created):  # parents made for this run, if still empty
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
+            raise
+
+    def prepare_in_place(self, keep: bool = True) -> Path:
+        """For a resumable job: the folder, created, written into directly. An earlier run
+        is kept to resume when ``keep``; anything else there (allowed by ``--overwrite``)
+        is removed first."""
+        if self.replaces and not (keep and self.kind.recognises(self.path)):
+            shutil.rmtree(self.path)
+        self.path.mkdir(parents=True, exist_ok=True)
+        return self.path
+
+    def _make_parents(self) -> list[Path]:
+        missing = []
+        parent = self.path.parent
+        while not parent.exists():
+            missing.append(parent)
+            parent = parent.parent
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        return list(reversed(missing))
+
+    def _replace_with(self, tmp: Path) -> None:
+        if not self.path.exists():
+            os.rename(tmp, self.path)
+            return
+        old = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".old", dir=self.path.parent))
+        os.rename(self.path, old / "run")
+        try:
+            os.rename(tmp, self.path)
+        except BaseException:
+            os.rename(old / "run", self.path)  # put the earlier run back
+            old.rmdir()
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# ---- the folders procmod's commands write ----------------------------------------------
+
+SAMPLE_RUN = RunKind("procmod sample folder", "contact_sheet.png",
+                     (r"contact_sheet\.png", r"sample_\d+\.(json|png|svg|obj|glb)"))
+INFER_RUN = RunKind("procmod infer run", "settings.json",
+                    (r"best\.(png|svg|obj|glb|json)", r"target\.png", r"history\.csv", r"convergence\.png",
+                     r"samples\.png", r"settings\.json", r"report\.html"), marker_key="engine")
+TRACES_JOB = RunKind("procmod guide traces folder", "traces.json",
+                     (r"traces\.json", r"trace_\d+\.json", r"\.trace_\d+\.json\..*", r"\.traces\.json\..*"),
+                     marker_key="format")
+GRAPHS_FOLDER = RunKind("procmod strings graph folder", "shape_000.json", (r"shape_\d+\.json",))
+# a collection copies the mesh files its shapes file names (any relative path) beside it
+COLLECTION = RunKind("procmod strings augment collection", "growth.json",
+                     (r"shapes\.json", r"graphs", r"strings\.txt", r"growth\.json", r"contact_sheet\.png",
+                      r"[^.].*"), marker_key="rounds")
+STRING_SAMPLES = RunKind("procmod strings sample folder", "summary.json",
+                         (r"samples\.txt", r"summary\.json", r"contact_sheet\.png",
+                          r"sample_\d+\.(json|glb|png)"), marker_key="samples")
+
+__all__ = ["COLLECTION", "GRAPHS_FOLDER", "INFER_RUN", "OutputLocationError", "RunFolder", "RunKind",
+           "SAMPLE_RUN", "STRING_SAMPLES", "TRACES_JOB", "check_output_file"]

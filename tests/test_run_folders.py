@@ -1,0 +1,188 @@
+"""Run folders (issue 28.3): an --out folder is replaced whole or refused, never mixed; a
+failure leaves nothing half-written (procmod.core.runfolder and the commands using it)."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+import procmod.infer
+from procmod.cli import main
+from procmod.core.runfolder import INFER_RUN, SAMPLE_RUN, OutputLocationError, RunFolder
+
+SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
+
+
+def _run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _names(folder):
+    return sorted(p.name for p in Path(folder).iterdir())
+
+
+def test_sample_into_an_earlier_sample_folder_replaces_it_whole(tmp_path, capsys):
+    out = tmp_path / "s"
+    assert _run(capsys, "sample", "chain", "-n", "16", "--size", "16", "--out", out)[0] == 0
+    assert _run(capsys, "sample", "chain", "-n", "4", "--size", "16", "--out", out)[0] == 0
+    # the 16-sample run's sample_004..015 are gone, not kept beside the 4 new ones
+    assert _names(out) == sorted(["contact_sheet.png"] + [f"sample_{i:03d}.{e}" for i in range(4)
+                                                          for e in ("json", "png", "svg")])
+    assert _names(tmp_path) == ["s"]  # no temporary folder left beside it
+
+
+def test_infer_into_an_earlier_run_keeps_nothing_of_it(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, _, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--particles", "8", "--size", "32",
+                        "--out", out)
+    assert code == 0, err
+    assert (out / "target.png").exists() and (out / "best.svg").exists()
+    # a circuit run writes no target.png and a 3D-less model no .svg: the old ones must go
+    code, _, err = _run(capsys, "infer", "lightning", "--target", "circuit", "--particles", "4", "--size", "32",
+                        "--out", out)
+    assert code == 0, err
+    assert not (out / "target.png").exists()
+    assert "circuit" in json.loads((out / "settings.json").read_text())["target"]
+    assert "target.png" not in (out / "report.html").read_text()
+
+
+def test_a_folder_that_is_not_an_earlier_run_is_refused_unless_overwrite(tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    for argv in (["sample", "chain", "-n", "2", "--size", "16"],
+                 ["infer", "chain", "--target", "glyph:a", "--particles", "4", "--size", "32"]):
+        code, _, err = _run(capsys, *argv, "--out", out)
+        assert code == 2 and err.count("\n") == 1 and "--overwrite" in err and "notes.txt" in err, err
+        assert _names(out) == ["notes.txt"]
+    # an infer run is not a sample folder: refused too, named
+    run = tmp_path / "run"
+    assert _run(capsys, "infer", "chain", "--target", "glyph:a", "--particles", "4", "--size", "32",
+                "--out", run)[0] == 0
+    code, _, err = _run(capsys, "sample", "chain", "-n", "2", "--size", "16", "--out", run)
+    assert code == 2 and "not an earlier procmod sample folder" in err
+    # --overwrite replaces it whole
+    assert _run(capsys, "sample", "chain", "-n", "2", "--size", "16", "--out", out, "--overwrite")[0] == 0
+    assert "notes.txt" not in _names(out) and "contact_sheet.png" in _names(out)
+
+
+def test_overwrite_never_deletes_an_input_or_the_current_folder(tmp_path, capsys, monkeypatch):
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    import shutil
+    shutil.copy(Path(__file__).resolve().parents[1] / "scenes" / "spaceship_volume" / "target.json",
+                scene / "target.json")
+    for extra in (Path(__file__).resolve().parents[1] / "scenes" / "spaceship_volume").iterdir():
+        if extra.name != "target.json":
+            shutil.copy(extra, scene / extra.name)
+    code, _, err = _run(capsys, "infer", "spaceship", "--target", scene, "--engine", "ga", "--population", "4",
+                        "--budget", "1gens", "--out", scene, "--overwrite")
+    assert code == 2 and "holds the input" in err, err
+    assert (scene / "target.json").exists()
+    monkeypatch.chdir(scene)
+    code, _, err = _run(capsys, "sample", "chain", "-n", "1", "--out", ".", "--overwrite")
+    assert code == 2 and "current folder" in err
+    assert (scene / "target.json").exists()
+
+
+def test_a_failure_while_writing_leaves_the_earlier_run_and_no_temporary_folder(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "s"
+    assert _run(capsys, "sample", "chain", "-n", "3", "--size", "16", "--out", out)[0] == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    import procmod.render
+
+    def broken(*args, **kwargs):
+        raise KeyboardInterrupt  # a failure half way through writing the new run
+
+    monkeypatch.setattr(procmod.render, "write_contact_sheet", broken)
+    assert _run(capsys, "sample", "chain", "-n", "5", "--size", "16", "--out", out)[0] == 130
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert _names(tmp_path) == ["s"]
+
+
+def test_run_folder_replacement_is_whole_and_parents_are_made(tmp_path):
+    target = tmp_path / "a" / "b" / "run"
+    folder = RunFolder(target, SAMPLE_RUN)
+    assert not (tmp_path / "a").exists()  # checking creates nothing
+    with folder.writing() as tmp:
+        assert tmp.parent == target.parent and tmp.name.startswith(".run.")
+        (tmp / "contact_sheet.png").write_bytes(b"x")
+        (tmp / "sample_000.json").write_text("{}")
+    assert _names(target) == ["contact_sheet.png", "sample_000.json"]
+    with RunFolder(target, SAMPLE_RUN).writing() as tmp:  # an earlier run: replaced
+        (tmp / "contact_sheet.png").write_bytes(b"y")
+    assert _names(target) == ["contact_sheet.png"] and _names(target.parent) == ["run"]
+    # a failure in the block removes the new folder and the parents it made
+    with pytest.raises(RuntimeError):
+        with RunFolder(tmp_path / "c" / "d" / "run", SAMPLE_RUN).writing() as tmp:
+            (tmp / "x").write_text("half")
+            raise RuntimeError("boom")
+    assert not (tmp_path / "c").exists()
+
+
+def test_run_kinds_recognise_only_their_own_folders(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "settings.json").write_text(json.dumps({"engine": "smc"}))
+    (run / "report.html").write_text("")
+    assert INFER_RUN.recognises(run) and not SAMPLE_RUN.recognises(run)
+    (run / "settings.json").write_text(json.dumps({"something": "else"}))
+    assert not INFER_RUN.recognises(run)  # the marker must be procmod's
+    (run / "settings.json").write_text(json.dumps({"engine": "smc"}))
+    (run / "thesis.tex").write_text("")
+    assert not INFER_RUN.recognises(run)  # a file the command never writes
+    with pytest.raises(OutputLocationError, match="--overwrite"):
+        RunFolder(run, INFER_RUN)
+
+
+def test_guide_traces_refuses_another_job_leaving_it_and_overwrite_replaces_it(tmp_path, capsys):
+    out = tmp_path / "traces"
+    argv = ["guide", "traces", "lightning", "--count", "1", "--particles", "5", "--workers", "1", "--out", out]
+    assert _run(capsys, *argv)[0] == 0
+    first = {p.name: p.read_bytes() for p in out.iterdir()}
+    code, _, err = _run(capsys, *argv[:-2], "--seed", "4", "--out", out)
+    assert code == 2 and "another job" in err and "--overwrite" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == first
+    assert _run(capsys, *argv[:-2], "--seed", "4", "--out", out, "--overwrite")[0] == 0
+    assert json.loads((out / "traces.json").read_text())["seed"] == 4
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("")
+    code, _, err = _run(capsys, *argv[:-1], other)
+    assert code == 2 and "--overwrite" in err and _names(other) == ["notes.txt"]
+
+
+def test_guide_traces_that_fails_before_its_first_trace_leaves_nothing(tmp_path, capsys, monkeypatch):
+    import procmod.guide.traces as traces
+
+    def broken(*args, **kwargs):
+        raise procmod.core.InvalidArgumentError("the first trace failed")
+
+    monkeypatch.setattr(traces, "generate_trace", broken)
+    code, _, err = _run(capsys, "guide", "traces", "lightning", "--count", "2", "--particles", "5",
+                        "--workers", "1", "--out", tmp_path / "t")
+    assert code == 2 and "the first trace failed" in err
+    assert _names(tmp_path) == []  # no traces.json left behind
+
+
+def test_strings_augment_into_an_earlier_collection_replaces_it_whole(tmp_path, capsys):
+    out = tmp_path / "col"
+    base = ["strings", "augment", SETS / "moonbase.json", "--rounds", "30", "--seed", "2", "--out", out]
+    assert _run(capsys, *base, "--count", "10")[0] == 0
+    assert _run(capsys, *base[:-2], "--count", "4", "--out", out)[0] == 0
+    shapes = json.loads((out / "shapes.json").read_text())
+    graphs = _names(out / "graphs")
+    assert len(graphs) == len(shapes["shapes"]) <= 4  # no graph of the 10-shape collection is left
+
+
+def test_strings_graph_into_a_folder_of_more_graphs_replaces_it(tmp_path, capsys):
+    out = tmp_path / "g"
+    out.mkdir()
+    for i in range(5):
+        (out / f"shape_{i:03d}.json").write_text("{}")
+    assert _run(capsys, "strings", "graph", SETS / "castle.json", "--out", out)[0] == 0
+    made = _names(out)
+    assert made == [f"shape_{i:03d}.json" for i in range(len(made))] and len(made) < 5
+    assert all(json.loads((out / n).read_text()).get("format") == "procmod-graph/1" for n in made)
