@@ -14,14 +14,23 @@ inference runs, parallel structure searches) goes through a
   still pass each task its own seed, so results do not depend on where a task ran.
 
 Tasks must be module-level functions fed picklable arguments.
+
+Local pool workers end when the process that opened the pool dies, even by SIGKILL
+(which runs no clean-up): each worker watches its parent (:func:`_exit_with_parent`), so
+a killed ``procmod guide traces --workers 2`` or ``procmod learn`` leaves no process
+behind.
 """
 
 from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import ctypes
 import os
 import re
+import signal
+import sys
+import threading
 from typing import Iterator
 
 from .core.errors import InvalidArgumentError, ProcmodError
@@ -65,6 +74,59 @@ def check_scheduler(address: str) -> str:
     return address.strip()
 
 
+# ---- workers that end with their parent ---------------------------------------------
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+WATCH_INTERVAL = 0.25  # seconds between checks of the fallback watcher
+
+
+def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
+    """Pool worker initializer: end this worker as soon as process ``parent`` (the one
+    that opened the pool) is gone.
+
+    On Linux the kernel sends the worker SIGKILL when its parent dies
+    (``prctl(PR_SET_PDEATHSIG)``, through ctypes). Everywhere, and in case prctl is not
+    available, a daemon thread checks every :data:`WATCH_INTERVAL` seconds: a worker
+    forked by ``parent`` sees its parent pid change when it is re-parented; a worker
+    started by a fork server checks that ``parent`` still exists.
+    """
+    direct = os.getppid() == parent
+    if use_prctl and direct and sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):  # no libc prctl: the thread below still watches
+            pass
+    if direct and os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent, direct), name="procmod-parent-watch",
+                     daemon=True).start()
+
+
+def _parent_alive(parent: int, direct: bool) -> bool:
+    if direct:
+        return os.getppid() == parent
+    try:
+        os.kill(parent, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else (the pid was reused): treat as gone
+        return False
+    return True
+
+
+def _watch_parent(parent: int, direct: bool) -> None:
+    import time
+
+    while _parent_alive(parent, direct):
+        time.sleep(WATCH_INTERVAL)
+    os._exit(1)  # no clean-up to do: results go to the parent, which is gone
+
+
+def _ready() -> int:
+    return os.getpid()
+
+
 @contextlib.contextmanager
 def open_executor(workers: int | None = None, scheduler: str | None = None,
                   connect_timeout: float = 10.0) -> Iterator[concurrent.futures.Executor]:
@@ -103,5 +165,9 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     if workers is None or workers <= 1:
         yield InlineExecutor()
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
+                                                initargs=(os.getpid(),)) as pool:
+        # start the workers now, from this thread: the kernel's parent-death signal follows
+        # the thread that forked a worker, and this one outlives the pool
+        pool.submit(_ready).result()
         yield pool

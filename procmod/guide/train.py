@@ -15,7 +15,9 @@ at 10 particles; ``bench/ngpm.py`` trains both, README has the figures).
 ``schedule="constant"`` is the papers' setting exactly. The job writes a checkpoint every
 ``checkpoint_every`` steps (``OUT.ckpt.pt`` + ``OUT.ckpt.json``) and resumes from it when
 rerun with the same settings; the minibatch of step t depends only on (seed, t), so a
-resumed run ends with the same guide as an uninterrupted one.
+resumed run ends with the same guide as an uninterrupted one, and with the same loss curve:
+the checkpoint keeps the smoothed loss the curve reports (an exponential average over
+about 100 steps) as well as the weights and Adam's state.
 """
 
 from __future__ import annotations
@@ -186,6 +188,9 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
             guide.nets.load_state_dict(state["nets"])
             optimiser.load_state_dict(state["optimiser"])
             step, curve = int(saved["step"]), list(saved["curve"])
+            # the smoothed loss goes on from where it was (a checkpoint from before it was
+            # kept restarts it: its curve then differs from an uninterrupted run's)
+            running = saved.get("running")
     n = len(traces)
     while step < iterations:
         picked = np.random.default_rng([seed, step]).integers(n, size=batch)
@@ -207,7 +212,8 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
             tmp = ckpt.with_name(f".{ckpt.name}.tmp")
             torch.save({"nets": guide.nets.state_dict(), "optimiser": optimiser.state_dict()}, tmp)
             os.replace(tmp, ckpt)
-            write_text_atomic(ckpt_meta, json.dumps({"fingerprint": fingerprint, "step": step, "curve": curve}))
+            write_text_atomic(ckpt_meta, json.dumps({"fingerprint": fingerprint, "step": step, "curve": curve,
+                                                     "running": running}))
     with torch.no_grad():
         final = float(_nll(guide, data, np.arange(n)))
     seconds = time.perf_counter() - began

@@ -1,0 +1,108 @@
+"""Killed jobs leave nothing running and resume exactly (issue 28.4): pool workers end
+when their parent is SIGKILLed; a resumed guide training ends with the loss history of an
+uninterrupted one."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from procmod.guide.traces import generate_traces
+from procmod.guide.train import train_guide
+from procmod.models import get_model
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and process states")
+
+
+def _alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, exited but not reaped by its new parent, is gone)."""
+    try:
+        with open(f"/proc/{pid}/status") as handle:
+            return not any(line.startswith("State:") and "Z" in line.split()[1] for line in handle)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+
+# A parent that opens a pool, has each worker report its pid and then block for a minute
+# (a long task), prints the worker pids and waits to be killed.
+PARENT = textwrap.dedent("""
+    import concurrent.futures, os, sys, time
+    from procmod import parallel
+
+    def task(i):
+        time.sleep(60)
+        return i
+
+    if __name__ == "__main__":
+        mode = sys.argv[1]
+        if mode == "open_executor":
+            pools = parallel.open_executor(workers=2)
+            pool = pools.__enter__()
+        else:  # the watcher thread alone, without prctl
+            pool = concurrent.futures.ProcessPoolExecutor(
+                2, initializer=parallel._exit_with_parent, initargs=(os.getpid(), False))
+            pool.submit(os.getpid).result()
+        pids = {p for p in pool._processes}
+        for i in range(2):
+            pool.submit(task, i)
+        print(" ".join(map(str, sorted(pids))), flush=True)
+        time.sleep(120)
+""")
+
+
+@pytest.mark.parametrize("mode", ["open_executor", "watcher_only"])
+def test_pool_workers_exit_when_their_parent_is_killed(tmp_path, mode):
+    script = tmp_path / "parent.py"
+    script.write_text(PARENT)
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    parent = subprocess.Popen([sys.executable, str(script), mode], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        workers = [int(p) for p in parent.stdout.readline().split()]
+        assert len(workers) == 2 and all(_alive(p) for p in workers)
+        time.sleep(0.5)  # the tasks are running
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + 10
+        while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not [p for p in workers if _alive(p)], "workers outlived their killed parent"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+        for pid in locals().get("workers", []):
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+def test_resumed_training_ends_with_the_loss_history_of_an_uninterrupted_run(tmp_path):
+    model = get_model("lightning")
+    traces = tmp_path / "traces"
+    generate_traces("lightning", "scribble", 4, traces, particles=20, seed=2)
+    _, whole = train_guide(model, traces, tmp_path / "whole", iterations=300, checkpoint_every=100)
+
+    class Killed(Exception):
+        pass
+
+    def kill_at_300(step, loss):
+        if step == 300:  # the progress report of the last step: resumed from the checkpoint at 200
+            raise Killed()
+
+    with pytest.raises(Killed):
+        train_guide(model, traces, tmp_path / "resumed", iterations=300, checkpoint_every=100,
+                    progress=kill_at_300)
+    _, resumed = train_guide(model, traces, tmp_path / "resumed", iterations=300, checkpoint_every=100)
+    assert [s for s, _ in resumed["curve"]] == [s for s, _ in whole["curve"]] == [100, 200, 300]
+    # one process, the same arithmetic in the same order: equal up to the last bits
+    for (_, a), (_, b) in zip(resumed["curve"], whole["curve"]):
+        assert a == pytest.approx(b, rel=1e-12, abs=0)
