@@ -53,10 +53,11 @@ PARENT = textwrap.dedent("""
             pool = concurrent.futures.ProcessPoolExecutor(
                 2, initializer=parallel._exit_with_parent, initargs=(os.getpid(), False))
             pool.submit(os.getpid).result()
-        pids = {p for p in pool._processes}
         for i in range(2):
             pool.submit(task, i)
-        print(" ".join(map(str, sorted(pids))), flush=True)
+        while len(pool._processes) < 2:
+            time.sleep(0.01)
+        print(" ".join(map(str, sorted(pool._processes))), flush=True)
         time.sleep(120)
 """)
 
@@ -67,6 +68,7 @@ def test_pool_workers_exit_when_their_parent_is_killed(tmp_path, mode):
     script.write_text(PARENT)
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     parent = subprocess.Popen([sys.executable, str(script), mode], stdout=subprocess.PIPE, text=True, env=env)
+    workers = []
     try:
         workers = [int(p) for p in parent.stdout.readline().split()]
         assert len(workers) == 2 and all(_alive(p) for p in workers)
@@ -80,7 +82,7 @@ def test_pool_workers_exit_when_their_parent_is_killed(tmp_path, mode):
     finally:
         if parent.poll() is None:
             parent.kill()
-        for pid in locals().get("workers", []):
+        for pid in workers:  # never leave one behind, even when the check failed
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
 
