@@ -19,25 +19,52 @@ from .geometry import contact_sheet, save_figure_atomic, save_image_atomic  # no
 from .render import derivation_image, output_formats, write_derivation  # noqa: E402
 
 
+# What the curves' "mean" is, per engine: for SMC most particles are still partial
+# derivations, scored as drawn so far, while "best" counts only complete ones; so the mean
+# can lie above the best without anything being wrong.
+MEAN_MEANING = {
+    "smc": "mean: all current particles, most of them partial (scored as drawn so far); best: complete "
+           "derivations only, so the mean can lie above it",
+    "ga": "mean: the current population", "mcmc": "mean: the current chain states",
+    "forward": "mean: the latest batch of forward samples",
+}
+
+
+def mean_meaning(engine: str) -> str:
+    """What the "mean" curve of an engine's history averages (for captions)."""
+    base = engine.split("+", 1)[0]
+    return MEAN_MEANING.get("smc" if base == "sosmc" else base, "mean: the current population")
+
+
 def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") -> None:
-    """Best (solid) and mean (dashed) score over wall time, one colour per run."""
+    """Best (solid) and mean (dashed) score against evaluations, one colour per run.
+
+    The x axis is evaluations, not seconds: the history's rows are recorded at points of
+    the work done, so a seeded run with a work budget draws the same figure, byte for
+    byte, however fast the machine ran it (the wall time is in history.csv).
+    """
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    engines = []
     for i, (label, result) in enumerate(results.items()):
         rows = [r for r in result.history if np.isfinite(r.best_score)]
         if not rows:
             continue
+        engines.append(result.engine)
         colour = f"C{i}"
-        t = [r.seconds for r in rows]
-        ax.step(t, [r.best_score for r in rows], where="post", color=colour, label=f"{label} best")
-        ax.plot(t, [r.mean_score for r in rows], color=colour, linestyle="--", alpha=0.6,
+        x = [r.evaluations for r in rows]
+        ax.step(x, [r.best_score for r in rows], where="post", color=colour, label=f"{label} best")
+        ax.plot(x, [r.mean_score for r in rows], color=colour, linestyle="--", alpha=0.6,
                 label=f"{label} mean")
-    ax.set_xlabel("seconds")
+    ax.set_xlabel("evaluations")
     ax.set_ylabel("score")
     if title:
         ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
+    notes = list(dict.fromkeys(mean_meaning(e) for e in engines))
+    if notes:
+        fig.text(0.01, 0.01, "\n".join(notes), fontsize=6.5, color="0.35", va="bottom", wrap=True)
+    fig.tight_layout(rect=(0, 0.04 * len(notes), 1, 1))
     save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
 
@@ -74,15 +101,23 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
     """Write every file of an inference run into ``out`` and return the report's path.
 
     Files: best.png (2D: over the target in grey; 3D: a shaded view), best.svg (2D) or
-    best.obj and best.glb (3D), best.json (derivation), target.png (image targets),
+    best.obj and best.glb (3D), best.json (derivation), target.png (image targets: the
+    mask; silhouette targets: the first view with the best result's silhouette over it),
     history.csv, convergence.png, samples.png (contact sheet of at most 16 of the final
     samples, drawn by weight: see :func:`sample_of_final`),
     settings.json and report.html tying them together.
+
+    ``out`` is written into as it is (the CLI passes a fresh folder: see
+    :class:`procmod.core.runfolder.RunFolder`). A seeded run with a budget in evaluations
+    or generations writes the same bytes every time except its timing fields: the
+    ``seconds`` column of history.csv, ``"seconds"`` of settings.json and the
+    ``<span class="seconds">`` of report.html.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     best = result.best
     underlay = target.display_mask(size)
+    target_caption = "target"
     save_image_atomic(derivation_image(best, size, underlay=underlay), out / "best.png")
     extra = [suffix for suffix in output_formats(best) if suffix != ".png"]
     for suffix in extra:
@@ -95,27 +130,33 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
         seen = replay(best.model, best.choice_map(), np.random.default_rng(0), order=best.order(),
                       output=target.new_output(best.model)).derivation
         save_image_atomic(target.overlay_image(seen.output, 0, size), out / "target.png")
+        target_caption = ("target view 1: the best result's silhouette (green) over the image "
+                          "(blue: hit, yellow: avoid)")
     write_text_atomic(out / "history.csv", result.history_csv())
     convergence_figure({result.engine: result}, out / "convergence.png", f"{result.engine} on {target.name}")
     tiles = [derivation_image(d, 128, underlay=target.display_mask(128)) for d in sample_of_final(result)]
     save_image_atomic(contact_sheet(tiles), out / "samples.png")
     summary = {
         "engine": result.engine, "target": target.name, "model": best.model.name,
-        "best_score": result.best_score, "seconds": round(result.seconds, 3),
+        "best_score": result.best_score, "seconds": round(result.seconds, 3),  # the one timing field
         "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,
         "settings": result.settings, "notes": result.notes, "command": command,
     }
     write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=str) + "\n")
-    write_text_atomic(out / "report.html", _report_html(summary, (out / "target.png").exists(), extra))
+    caption = target_caption if (out / "target.png").exists() else None
+    write_text_atomic(out / "report.html", _report_html(summary, caption, extra, mean_meaning(result.engine)))
     return out / "report.html"
 
 
-def _report_html(summary: dict, has_target: bool, extra: list) -> str:
+def _report_html(summary: dict, target_caption: str | None, extra: list, mean_note: str) -> str:
+    """The report page. Its one timing field is the wall time, written only inside
+    ``<span class="seconds">``, so two runs of one seeded job differ only there."""
     rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>"
                    for k, v in summary["settings"].items())
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in summary["notes"])
-    target_cell = ('<figure><img src="target.png" alt="target"><figcaption>target</figcaption></figure>'
-                   if has_target else "")
+    target_cell = (f'<figure><img src="target.png" alt="target"><figcaption>{html.escape(target_caption)}'
+                   '</figcaption></figure>' if target_caption else "")
+    seconds = f'<span class="seconds">{summary["seconds"]}</span>'
     links = "".join(f'<a href="best{suffix}">{suffix[1:].upper()}</a>, ' for suffix in extra)
     lml = summary["log_marginal_likelihood"]
     lml_row = f"<tr><th>log marginal likelihood</th><td>{lml:.4f}</td></tr>" if lml is not None else ""
@@ -132,17 +173,17 @@ code {{ background: #f4f4f4; padding: 0.1em 0.3em; }}
 </style></head><body>
 <h1>{html.escape(summary['model'])} &rarr; {html.escape(summary['target'])}</h1>
 <p>Engine <b>{html.escape(summary['engine'])}</b>: best score <b>{summary['best_score']:.4f}</b>
-after {summary['evaluations']} evaluations in {summary['seconds']} s.</p>
+after {summary['evaluations']} evaluations in {seconds} s.</p>
 <p><code>{html.escape(summary['command'])}</code></p>
 {target_cell}
 <figure><img src="best.png" alt="best result"><figcaption>best result
 ({links}<a href="best.json">derivation</a>)</figcaption></figure>
-<figure><img src="convergence.png" alt="convergence" style="width:480px"><figcaption>score over time
-(<a href="history.csv">CSV</a>)</figcaption></figure>
+<figure><img src="convergence.png" alt="convergence" style="width:480px"><figcaption>score against
+evaluations ({html.escape(mean_note)}; <a href="history.csv">CSV</a>, with wall seconds)</figcaption></figure>
 <h2>Final samples</h2>
 <img src="samples.png" alt="final samples" style="max-width:100%">
 <h2>Settings</h2>
-<table><tr><th>seconds</th><td>{summary['seconds']}</td></tr>
+<table><tr><th>seconds</th><td>{seconds}</td></tr>
 <tr><th>evaluations</th><td>{summary['evaluations']}</td></tr>{lml_row}{rows}</table>
 {'<h2>Notes</h2><ul>' + notes + '</ul>' if notes else ''}
 </body></html>
