@@ -276,13 +276,34 @@ def test_all_zero_likelihood_is_reported_not_nan():
 def test_smc_resampling_options():
     target = _bar_target()
     model = get_model("vines")
-    for resampling in ("systematic", "multinomial"):
+    for resampling in ("systematic", "multinomial", "residual"):
         r = ENGINES["smc"](model, target, particles=30, seed=0, resampling=resampling, ess_threshold=0.5)
         assert r.best is not None and math.isfinite(r.log_marginal_likelihood)
     with pytest.raises(InvalidArgumentError):
         ENGINES["smc"](model, target, particles=30, resampling="stratified-ish")
     with pytest.raises(InvalidArgumentError):
         ENGINES["smc"](model, target, particles=0)
+
+
+@pytest.mark.parametrize("method", ["systematic", "multinomial", "residual"])
+def test_resampling_offspring_counts_follow_the_weights(method):
+    from procmod.infer.smc import resample
+    w = np.array([0.0625, 0.375, 0.0, 0.3125, 0.25])  # exact in binary: floor(10 w) is exact
+    log_w = np.log(np.where(w > 0, w, 1.0)) + np.where(w > 0, 0.0, -np.inf)
+    rng = np.random.default_rng(3)
+    draws = 4000
+    counts = np.zeros(5)
+    for _ in range(draws):
+        ancestors = resample(log_w, rng, method, count=10)
+        assert len(ancestors) == 10 and np.all(np.diff(ancestors) >= 0)
+        c = np.bincount(ancestors, minlength=5)
+        if method != "multinomial":  # residual and systematic keep floor(m w) copies at least
+            assert np.all(c >= np.floor(10 * w))
+        if method == "systematic":  # ... and systematic at most ceil(m w)
+            assert np.all(c <= np.ceil(10 * w))
+        counts += c
+    # unbiased: mean offspring 10 w_i; the per-draw sd is at most sqrt(10 w (1 - w)) (multinomial)
+    assert np.all(np.abs(counts / draws - 10 * w) < 5 * np.sqrt(10 * w * (1 - w) / draws) + 1e-12)
 
 
 def test_temperature_ladder_matches_seed_002():

@@ -126,9 +126,10 @@ class Canvas:
     """
 
     __slots__ = ("viewport", "width", "height", "pixels", "gain", "gain_total", "extent",
-                 "_scale_x", "_scale_y", "_changed", "_n_changed", "value", "filled_count")
+                 "_scale_x", "_scale_y", "_changed", "_n_changed", "value", "filled_count", "min_radius_px")
 
-    def __init__(self, viewport, width: int, height: int | None = None, gain=None, value: int = 1):
+    def __init__(self, viewport, width: int, height: int | None = None, gain=None, value: int = 1,
+                 min_radius_px: float = MIN_RADIUS_PX):
         self.viewport = Viewport(*viewport)
         self.width = int(width)
         self.height = int(width if height is None else height)
@@ -147,6 +148,7 @@ class Canvas:
         self._n_changed = 0
         self.value = value
         self.filled_count = 0
+        self.min_radius_px = float(min_radius_px)
 
     def copy(self) -> "Canvas":
         """A copy with its own pixels; the gain array and scratch buffer are shared."""
@@ -164,6 +166,7 @@ class Canvas:
         other._n_changed = 0
         other.value = self.value
         other.filled_count = self.filled_count
+        other.min_radius_px = self.min_radius_px
         return other
 
     @property
@@ -180,10 +183,11 @@ class Canvas:
         """Draw one primitive; returns the number of newly filled pixels."""
         vp = self.viewport
         sx, sy = self._scale_x, self._scale_y
+        least = self.min_radius_px
         cls = type(geometry)
         if cls is Segment:
             x0, y0, x1, y1, w = geometry[:5]
-            r = max(0.25 * w * (sx + sy), MIN_RADIUS_PX)
+            r = max(0.25 * w * (sx + sy), least)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
                                  (x0 - vp.xmin) * sx, (y0 - vp.ymin) * sy,
                                  (x1 - vp.xmin) * sx, (y1 - vp.ymin) * sy,
@@ -192,7 +196,7 @@ class Canvas:
             box = (min(x0, x1) - w, max(x0, x1) + w, min(y0, y1) - w, max(y0, y1) + w)
         elif cls is Disc:
             x, y, radius = geometry[:3]
-            r = max(0.5 * radius * (sx + sy), MIN_RADIUS_PX)
+            r = max(0.5 * radius * (sx + sy), least)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
                                  (x - vp.xmin) * sx, (y - vp.ymin) * sy, (x - vp.xmin) * sx,
                                  (y - vp.ymin) * sy, r, self.gain, self._changed)
@@ -202,8 +206,8 @@ class Canvas:
             n, g = _draw_ellipse(self.pixels, self.width, self.height, self.value,
                                  (geometry.x - vp.xmin) * sx, (geometry.y - vp.ymin) * sy,
                                  math.cos(geometry.angle), math.sin(geometry.angle),
-                                 max(0.5 * geometry.length * s, MIN_RADIUS_PX),
-                                 max(0.5 * geometry.width * s, MIN_RADIUS_PX), self.gain, self._changed)
+                                 max(0.5 * geometry.length * s, least),
+                                 max(0.5 * geometry.width * s, least), self.gain, self._changed)
             box = bounds(geometry)
         elif cls is Polygon:
             pts = np.asarray(geometry.points, dtype=np.float64)

@@ -20,7 +20,7 @@ import numpy as np
 from ..core import InvalidArgumentError, random_order, start, step
 from .common import Budget, Result, Tracker, check_positive, log_mean_exp, relaxed_gc
 
-RESAMPLING = ("systematic", "multinomial")
+RESAMPLING = ("systematic", "multinomial", "residual")
 
 
 def _normalised(log_weights: np.ndarray) -> np.ndarray:
@@ -34,7 +34,9 @@ def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "s
     """Ancestor indices for ``count`` offspring (default ``len(log_weights)``), sorted.
 
     ``systematic`` uses one uniform for evenly spaced pointers (lower variance);
-    ``multinomial`` draws every offspring independently.
+    ``multinomial`` draws every offspring independently; ``residual`` keeps
+    ``floor(count w_i)`` copies of each and draws the rest multinomially from what is left
+    (WebPPL's scheme).
     """
     n = len(log_weights)
     m = n if count is None else count
@@ -44,6 +46,20 @@ def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "s
         pointers = (rng.random() + np.arange(m)) / m
     elif method == "multinomial":
         pointers = np.sort(rng.random(m))
+    elif method == "residual":
+        # Liu (2008) 3.4.4, as WebPPL: floor(m w_i) copies of each particle, the rest
+        # drawn multinomially from the residual weights.
+        w = _normalised(np.asarray(log_weights, dtype=np.float64))
+        kept = np.floor(m * w).astype(np.int64)
+        rest = m - int(kept.sum())
+        out = np.repeat(np.arange(n), kept)
+        if rest > 0:
+            residual = m * w - kept
+            cum = np.cumsum(residual / residual.sum())
+            cum[-1] = 1.0
+            extra = np.minimum(np.searchsorted(cum, rng.random(rest), side="right"), n - 1)
+            out = np.sort(np.concatenate([out, extra]))
+        return out
     else:
         raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {method!r}")
     return np.minimum(np.searchsorted(cumulative, pointers, side="right"), n - 1)
@@ -130,7 +146,7 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
         Without one, a single run. With one, independent runs are repeated until it is
         spent (each run completes; the budget is checked between runs), and the best
         derivation over all runs is returned; ``samples`` are the last run's particles.
-    resampling : {"systematic", "multinomial"}
+    resampling : {"systematic", "multinomial", "residual"}
     ess_threshold : float, optional
         Resample only when the effective sample size drops below ``ess_threshold *
         particles`` (default: resample at every emit).

@@ -41,11 +41,19 @@ def _pair(value, what) -> tuple:
     return a, b
 
 
-def new_canvas(params) -> Canvas:
-    """The scoring canvas of a 2D model: ``params['size']`` pixels square."""
+def new_canvas(params):
+    """The scoring canvas of a 2D model: ``params['size']`` pixels square.
+
+    ``params['min_radius_px']`` (default 0.5) is the smallest radius, in pixels, a stroke,
+    disc or ellipse is drawn with, so thin branches stay visible; 0 covers a pixel only
+    when its centre lies inside the primitive, as the original vines program does.
+    """
+    from ..geometry.raster import MIN_RADIUS_PX, Canvas  # numba kernels: imported on first use
+
     size = params.get("size", DEFAULT_SIZE)
     if not isinstance(size, int) or isinstance(size, bool) or size < 1:
         raise InvalidArgumentError(f"size must be a positive number of pixels, got {size!r}")
-    from ..geometry.raster import Canvas  # numba kernels: imported on first use
-
-    return Canvas(VIEWPORT, size, size)
+    least = params.get("min_radius_px", MIN_RADIUS_PX)
+    if isinstance(least, bool) or not isinstance(least, (int, float)) or not 0 <= least <= 10:
+        raise InvalidArgumentError(f"min_radius_px must be a number of pixels in [0, 10], got {least!r}")
+    return Canvas(VIEWPORT, size, size, min_radius_px=least)

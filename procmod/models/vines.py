@@ -14,20 +14,24 @@ Random choices per call of rule ``branch`` (one segment):
 
 * ``terminate ~ Bernoulli(0.5)``: if true, the *whole* derivation stops (``ctx.stop``).
 * otherwise, if the child width ``0.975 x width`` is above ``0.15 x 0.75``:
-  ``branch1 ~ Bernoulli(0.66)``, a ``maybe`` site that continues from the end point, and
-  **only if branch1 is true** ``branch2 ~ Bernoulli(0.5)``, a second continuation from
-  the same point: no, one or two further branches, each with probability about 1/3, as
-  in the original program (vines.md).
+  ``branch1 ~ Bernoulli(0.66)``, a ``maybe`` site that continues from the end point; only
+  if branch1 is true, a call of rule ``second_branch`` (spawn site ``then``) follows it.
+
+Rule ``second_branch`` (no geometry) runs once ``branch1``'s subtree has run, unless that
+subtree stopped the vine, and draws ``branch2 ~ Bernoulli(0.5)``, a second continuation
+from the same point: no, one or two further branches, each with probability about 1/3,
+as in the original program (vines.md).
 
 Segments have length 2 and start with width 0.75; the width bound limits depth to 75.
 
-The original draws ``branch2`` after ``branch1``'s subtree has run, and only if that
-subtree did not terminate the vine. Here spawned calls are futures run in program order,
-so ``branch2``'s coin is drawn with ``branch1``'s and its call runs after ``branch1``'s
-subtree, or never if that subtree called ``ctx.stop``. The coin is independent of
-everything in between, so derivations and outputs are distributed as in the original; a
-derivation whose ``branch1`` subtree terminated carries one coin more (its log-prior
-counts it; the output is the same).
+Why ``branch2`` is a call of its own: the original program draws its coin after
+``branch1``'s subtree has run, and for SMC *when* a coin is drawn matters, not only its
+distribution. Drawn at the end of the parent's call (an earlier procmod did that), the
+coin is fixed before the particle is resampled at the subtree's emits, so every copy of a
+particle inherits it; drawn when the subtree is done, each copy draws its own, so copies
+whose tip has left the target resume from different points of the stem. Same model,
+same outputs; on the bench's glyphs, SMC-200's median similarity went from 0.30 to 0.79
+(bench/vs_webppl.py; docs/vines_smc.md).
 """
 
 from __future__ import annotations
@@ -75,7 +79,12 @@ def branch(ctx, x, y, parent_angle, spread, width, leaves):
     child_width = width * WIDTH_DECAY
     if child_width > MIN_WIDTH:
         if ctx.maybe("branch1", 0.66, branch, x1, y1, angle, TURN_SD, child_width, leaves):
-            ctx.maybe("branch2", 0.5, branch, x1, y1, angle, TURN_SD, child_width, leaves)
+            ctx.spawn("then", second_branch, x1, y1, angle, child_width, leaves)
+
+
+def second_branch(ctx, x, y, angle, width, leaves):
+    """``branch2``: drawn once ``branch1``'s subtree has run, if the vine still grows."""
+    ctx.maybe("branch2", 0.5, branch, x, y, angle, TURN_SD, width, leaves)
 
 
 def _root_args(params):
@@ -89,11 +98,13 @@ MODEL = Model(
     root=branch,
     root_args=_root_args,
     new_output_from=new_canvas,
-    params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50, "leaves": True},
-    rules=(branch,),
+    params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50, "leaves": True, "min_radius_px": 0.0},
+    rules=(branch, second_branch),
     choices_doc=__doc__,
     # x, y, parent_angle, spread, width, leaves: for the local-state features of guides
     arg_ranges={"branch": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, START_SD),
-                           (0.0, INITIAL_WIDTH), (0.0, 1.0))},
+                           (0.0, INITIAL_WIDTH), (0.0, 1.0)),
+                # x, y, angle, width, leaves
+                "second_branch": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, INITIAL_WIDTH), (0.0, 1.0))},
     heading_rules=("branch",),
 )
