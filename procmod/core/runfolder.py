@@ -110,17 +110,18 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
                                   f"{_cut(str(folder))} ({exc.strerror or exc})") from None
 
 
-def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
-    """A single output file (``render --out x.png``): its folder must exist and be
-    writable, and the path must not be a folder. Returns the path."""
+def check_output_file(path: str | os.PathLike, option: str = "--out", make_parent: bool = False) -> Path:
+    """A single output file (``render --out x.png``): the path must not be a folder, and
+    its folder must exist (or, with ``make_parent``, be creatable: the command makes it
+    when it writes) and be writable. Checks only, creates nothing; returns the path."""
     path = Path(path)
     if path.is_dir():
         raise OutputLocationError(f"{option} {_cut(str(path))} is a folder; give a file name")
     parent = path.parent
-    if not parent.exists():
+    if not parent.exists() and not make_parent:
         raise OutputLocationError(f"cannot write {option} {_cut(str(path))}: the folder {_cut(str(parent))} "
                                   "does not exist; create it first")
-    _probe_writable(parent, option, path)
+    _probe_writable(_nearest_existing(parent), option, path)
     return path
 
 

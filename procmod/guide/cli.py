@@ -85,6 +85,10 @@ def _cmd_train(args) -> None:
 
     model = get_model(args.model)
     settings = FeatureSettings.condition(args.features)
+    from ..core.runfolder import check_output_file
+    from .guide import guide_paths
+    for path in guide_paths(args.out):  # checked now, written after the training
+        check_output_file(path, make_parent=True)
     bar = _tqdm(args.iterations, " steps")
     try:
         def progress(done, loss):

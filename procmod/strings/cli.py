@@ -363,6 +363,8 @@ def _instantiate(args) -> None:
         raise InvalidArgumentError(f"--out must end in .glb or .obj, got {out.name!r}")
     if args.votes < 1:
         raise InvalidArgumentError(f"--votes must be a positive integer, got {args.votes}")
+    from ..core.runfolder import check_output_file
+    check_output_file(out, make_parent=True)
     model = TrainedModel(args.model)
     result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes,
                                soft_vote=not args.majority_vote)
