@@ -36,7 +36,7 @@ from procmod.learn import read_examples  # noqa: E402
 from procmod.learn.evaluate import hierarchy_from_dict, table2  # noqa: E402
 from procmod.learn.likelihood import fit, log_likelihood  # noqa: E402
 from procmod.learn.pipeline import render_parts  # noqa: E402
-from procmod.learn.preprocess import preprocess  # noqa: E402
+from procmod.learn.preprocessing import preprocess  # noqa: E402
 from procmod.learn.program import derivation_hierarchies, program_model  # noqa: E402
 from procmod.learn.search import SearchOptions, run_search  # noqa: E402
 from procmod.learn.structure import reset_parameters  # noqa: E402

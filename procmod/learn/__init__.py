@@ -22,10 +22,11 @@ from ..core.errors import ProcmodError
 from ..core.serialize import write_text_atomic
 
 # Imported on first use (scipy, trimesh and numba kernels are slow to import; the command
-# line's parser registers ``procmod learn`` without them).
+# line's parser registers ``procmod learn`` without them). No submodule may share a name
+# with one of these: importing it would rebind the package attribute to the module.
 _LAZY = {**dict.fromkeys(("FORMAT", "ExampleNode", "ExampleSet", "ExamplesError", "examples_from_dict",
                           "examples_to_dict", "read_examples", "write_examples_file"), "examples"),
-         **dict.fromkeys(("Dataset", "preprocess"), "preprocess"),
+         **dict.fromkeys(("Dataset", "preprocess"), "preprocessing"),
          **dict.fromkeys(("Program", "ProgramError", "derivation_hierarchies", "is_learned", "program_model",
                           "read_program"), "program")}
 

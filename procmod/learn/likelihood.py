@@ -29,7 +29,7 @@ import time
 import numpy as np
 import torch
 
-from .preprocess import Dataset
+from .preprocessing import Dataset
 from .program import ROOT, Program, sym_sigma_categories
 from .transforms import CATEGORY, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS
 

@@ -41,7 +41,7 @@ from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import write_text_atomic
 from .examples import ExampleSet
 from .likelihood import Compiled, fit, log_likelihood, pooled_slot_target, sigmas_from_residuals
-from .preprocess import Dataset, preprocess
+from .preprocessing import Dataset, preprocess
 from .program import ROOT, Program, program_from_json, program_to_json
 from ..parallel import InlineExecutor as _Inline
 from .structure import TAU_SNAP, initial_program, snap, split

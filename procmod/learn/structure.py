@@ -28,7 +28,7 @@ import warnings
 
 import numpy as np
 
-from .preprocess import Dataset
+from .preprocessing import Dataset
 from .program import ROOT, Abstraction, Program
 from .transforms import CATEGORY, SIGMA_FLOOR, SYM_PARAMS
 
