@@ -126,7 +126,8 @@ class Canvas:
     """
 
     __slots__ = ("viewport", "width", "height", "pixels", "gain", "gain_total", "extent",
-                 "_scale_x", "_scale_y", "_changed", "_n_changed", "value", "filled_count", "min_radius_px")
+                 "_scale_x", "_scale_y", "_changed", "_n_changed", "value", "filled_count", "min_radius_px",
+                 "_ox", "_oy", "_xmax", "_ymax", "_outside")
 
     def __init__(self, viewport, width: int, height: int | None = None, gain=None, value: int = 1,
                  min_radius_px: float = MIN_RADIUS_PX):
@@ -149,6 +150,8 @@ class Canvas:
         self.value = value
         self.filled_count = 0
         self.min_radius_px = float(min_radius_px)
+        self._ox, self._oy, self._xmax, self._ymax = vp.xmin, vp.ymin, vp.xmax, vp.ymax
+        self._outside = False  # has anything been drawn beyond the viewport?
 
     def copy(self) -> "Canvas":
         """A copy with its own pixels; the gain array and scratch buffer are shared."""
@@ -167,6 +170,8 @@ class Canvas:
         other.value = self.value
         other.filled_count = self.filled_count
         other.min_radius_px = self.min_radius_px
+        other._ox, other._oy, other._xmax, other._ymax = self._ox, self._oy, self._xmax, self._ymax
+        other._outside = self._outside
         return other
 
     @property
@@ -181,47 +186,61 @@ class Canvas:
 
     def add(self, geometry) -> int:
         """Draw one primitive; returns the number of newly filled pixels."""
-        vp = self.viewport
+        # The hot path of every 2D engine: plain floats in locals, no namedtuple lookups.
+        ox, oy = self._ox, self._oy
         sx, sy = self._scale_x, self._scale_y
         least = self.min_radius_px
         cls = type(geometry)
         if cls is Segment:
             x0, y0, x1, y1, w = geometry[:5]
-            r = max(0.25 * w * (sx + sy), least)
+            r = 0.25 * w * (sx + sy)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
-                                 (x0 - vp.xmin) * sx, (y0 - vp.ymin) * sy,
-                                 (x1 - vp.xmin) * sx, (y1 - vp.ymin) * sy,
-                                 r, self.gain, self._changed)
+                                 (x0 - ox) * sx, (y0 - oy) * sy, (x1 - ox) * sx, (y1 - oy) * sy,
+                                 r if r > least else least, self.gain, self._changed)
             w *= 0.5
-            box = (min(x0, x1) - w, max(x0, x1) + w, min(y0, y1) - w, max(y0, y1) + w)
+            if x0 < x1:
+                bx0, bx1 = x0 - w, x1 + w
+            else:
+                bx0, bx1 = x1 - w, x0 + w
+            if y0 < y1:
+                by0, by1 = y0 - w, y1 + w
+            else:
+                by0, by1 = y1 - w, y0 + w
         elif cls is Disc:
             x, y, radius = geometry[:3]
-            r = max(0.5 * radius * (sx + sy), least)
-            n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
-                                 (x - vp.xmin) * sx, (y - vp.ymin) * sy, (x - vp.xmin) * sx,
-                                 (y - vp.ymin) * sy, r, self.gain, self._changed)
-            box = (x - radius, x + radius, y - radius, y + radius)
+            r = 0.5 * radius * (sx + sy)
+            px, py = (x - ox) * sx, (y - oy) * sy
+            n, g = _draw_capsule(self.pixels, self.width, self.height, self.value, px, py, px, py,
+                                 r if r > least else least, self.gain, self._changed)
+            bx0, bx1, by0, by1 = x - radius, x + radius, y - radius, y + radius
         elif cls is Ellipse:
+            x, y, angle, length, width = geometry[:5]
             s = 0.5 * (sx + sy)  # viewports are assumed to have square pixels here
+            ha, hb = 0.5 * length, 0.5 * width
+            a, b = ha * s, hb * s
+            ca, sa = math.cos(angle), math.sin(angle)
             n, g = _draw_ellipse(self.pixels, self.width, self.height, self.value,
-                                 (geometry.x - vp.xmin) * sx, (geometry.y - vp.ymin) * sy,
-                                 math.cos(geometry.angle), math.sin(geometry.angle),
-                                 max(0.5 * geometry.length * s, least),
-                                 max(0.5 * geometry.width * s, least), self.gain, self._changed)
-            box = bounds(geometry)
+                                 (x - ox) * sx, (y - oy) * sy, ca, sa,
+                                 a if a > least else least, b if b > least else least,
+                                 self.gain, self._changed)
+            hx, hy = math.hypot(ha * ca, hb * sa), math.hypot(ha * sa, hb * ca)  # as bounds()
+            bx0, bx1, by0, by1 = x - hx, x + hx, y - hy, y + hy
         elif cls is Polygon:
             pts = np.asarray(geometry.points, dtype=np.float64)
             if pts.ndim != 2 or pts.shape[0] < 3 or pts.shape[1] != 2:
                 raise ValueError("a Polygon needs at least three (x, y) points")
             n, g = _draw_polygon(self.pixels, self.width, self.height, self.value,
-                                 (pts[:, 0] - vp.xmin) * sx, (pts[:, 1] - vp.ymin) * sy,
-                                 self.gain, self._changed)
-            box = bounds(geometry)
+                                 (pts[:, 0] - ox) * sx, (pts[:, 1] - oy) * sy, self.gain, self._changed)
+            bx0, bx1, by0, by1 = bounds(geometry)
         else:
             raise TypeError(f"a 2D canvas cannot draw {geometry!r}")
         e = self.extent
-        self.extent = box if e is None else (min(e[0], box[0]), max(e[1], box[1]),
-                                            min(e[2], box[2]), max(e[3], box[3]))
+        if e is None:
+            self.extent = (bx0, bx1, by0, by1)
+        elif bx0 < e[0] or bx1 > e[1] or by0 < e[2] or by1 > e[3]:
+            self.extent = (min(e[0], bx0), max(e[1], bx1), min(e[2], by0), max(e[3], by1))
+        if bx0 < ox or bx1 > self._xmax or by0 < oy or by1 > self._ymax:
+            self._outside = True
         self._n_changed = n
         self.gain_total += g
         self.filled_count += n
@@ -229,7 +248,7 @@ class Canvas:
 
     def out_of_bounds(self) -> tuple:
         """How far the drawn geometry extends beyond the viewport, as fractions (ex, ey)."""
-        if self.extent is None:
+        if not self._outside:
             return 0.0, 0.0
         vp = self.viewport
         x0, x1, y0, y1 = self.extent

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from ..core import InvalidArgumentError, random_order, start, step
+from ..core.random import BlockGenerator
 from .common import Budget, Result, Tracker, check_positive, log_mean_exp, relaxed_gc
 
 RESAMPLING = ("systematic", "multinomial", "residual")
@@ -175,7 +176,7 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
     proposer = None
     if guide is not None:
         proposer = guide.proposer(model, target)
-    rng = np.random.default_rng(seed)
+    rng = BlockGenerator(np.random.default_rng(seed))  # scalar draws from blocks: the hot loop
     tracker = Tracker(budget, progress)
     notes = []
     with relaxed_gc():

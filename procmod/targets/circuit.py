@@ -87,7 +87,7 @@ class EdgeCanvas(Canvas):
     @classmethod
     def wrap(cls, canvas: Canvas) -> "EdgeCanvas":
         """An empty EdgeCanvas with ``canvas``'s viewport and size."""
-        out = cls(canvas.viewport, canvas.width, canvas.height)
+        out = cls(canvas.viewport, canvas.width, canvas.height, min_radius_px=canvas.min_radius_px)
         out.edge_sum = 0.0
         out._mark = np.zeros(out.pixels.shape[0], dtype=np.bool_)
         out._stamp = np.zeros(out.pixels.shape[0], dtype=np.int64)

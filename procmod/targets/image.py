@@ -244,9 +244,11 @@ def place_model(model, image: TargetImage):
 
 def out_of_bounds_penalty(canvas, oob_sigma: float | None) -> float:
     """vines.md's penalty ``(ex^2 + ey^2) / oob_sigma^2`` for geometry beyond the viewport."""
-    if oob_sigma is None or canvas.extent is None:
+    if oob_sigma is None:
         return 0.0
     ex, ey = canvas.out_of_bounds()
+    if ex == 0.0 and ey == 0.0:  # the usual case, cheaply
+        return 0.0
     return (ex * ex + ey * ey) / (oob_sigma * oob_sigma)
 
 
