@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import (Budget, Result, Tracker, check_positive, evaluate_all, log_mean_exp,
+from .common import (Budget, Result, Tracker, check_population, check_positive, evaluate_all, log_mean_exp,
                      new_seed, relaxed_gc)
 
 
@@ -19,6 +19,7 @@ def forward(model, target, particles: int = 100, seed: int = 0, budget: Budget |
     """
     check_positive("particles", particles)
     model = target.configure(model)
+    check_population("particles", particles, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     all_log_weights = []

@@ -71,8 +71,8 @@ import numpy as np
 
 from ..core import InvalidArgumentError
 from ..core.runtime import _same_args, replay_reusing
-from .common import (Budget, Evaluation, Result, Scored, Tracker, check_positive, evaluate_all,
-                     new_seed, relaxed_gc)
+from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
+                     evaluate_all, new_seed, relaxed_gc)
 
 
 def _weighted_pick(items, weights, rng):
@@ -480,6 +480,7 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
         raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
     budget = budget or Budget(generations=50)
     model = target.configure(model)
+    check_population("population", population, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     operators = (_grow, _cut, _alter, lambda v, r: _nudge(v, r, nudge_step))

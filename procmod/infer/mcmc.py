@@ -66,7 +66,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core import InvalidArgumentError, is_within
-from .common import (Budget, Evaluation, Result, Scored, Tracker, check_positive,
+from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
 
 HOTTEST_ACCEPTANCE = 0.7
@@ -363,6 +363,7 @@ def mcmc(model, target, chains: int = 8, seed: int = 0, budget: Budget | None = 
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
     budget = budget or Budget(generations=200)
     model = target.configure(model)
+    check_population("chains", chains, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core import InvalidArgumentError, random_order, start, step
 from ..core.random import BlockGenerator
-from .common import Budget, Result, Tracker, check_positive, log_mean_exp, relaxed_gc
+from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
 
 RESAMPLING = ("systematic", "multinomial", "residual")
 
@@ -173,6 +173,7 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
         raise InvalidArgumentError(f"order must be 'program' or 'random', got {order!r}")
     pick = None if order == "program" else random_order
     model = target.configure(model)
+    check_population("particles", particles, target.new_output(model))  # refuse what memory cannot hold
     proposer = None
     if guide is not None:
         proposer = guide.proposer(model, target)

@@ -14,6 +14,8 @@ from ..geometry import Viewport
 
 VIEWPORT = Viewport(-12.0, 12.0, -22.0, 2.0)
 DEFAULT_SIZE = 50
+# Bounds Model.configure checks (a 10^9-pixel canvas is refused, not allocated).
+SIZE_RANGES = {"size": (1, 4096), "min_radius_px": (0.0, 10.0)}
 
 
 def to_world(point) -> tuple:

@@ -26,7 +26,6 @@ not. :class:`ProxyScene` keeps that count incrementally beside the voxels.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -34,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import InvalidArgumentError
+from ..core.serialize import read_json
 from ..geometry.collide import PartIntersections
 from ..geometry.voxel import VoxelGrid, VoxelScene
 from .image import TargetFileError
@@ -41,12 +41,7 @@ from .image import TargetFileError
 
 def read_target_json(path: Path):
     """The parsed JSON of a target description, or a TargetFileError saying why not."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise TargetFileError(f"target file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TargetFileError(f"{path}: cannot read the target JSON ({exc})") from None
+    return read_json(path, TargetFileError, "target file")  # one line also for absurdly deep JSON
 
 
 def _check_3d(model):
