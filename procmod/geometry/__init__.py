@@ -5,8 +5,7 @@ exporters (Pillow) on first use, so that a command which only lists models or pr
 help does not pay for them (``procmod models`` starts in a fraction of a second).
 """
 
-import importlib
-
+from ..core.lazy import lazy_getattr
 from .primitives import Disc, Ellipse, Polygon, Segment, Viewport, bounds, leaf, leaf_polygon
 
 _LAZY = {
@@ -17,13 +16,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value  # later lookups skip this hook
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["Disc", "Ellipse", "Polygon", "Segment", "Viewport", "bounds", "leaf", "leaf_polygon", *_LAZY]

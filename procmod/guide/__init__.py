@@ -5,7 +5,7 @@ guide=g)`` draws every choice from the guide's proposal and weights particles by
 prior / proposal x likelihood.
 """
 
-import importlib
+from ..core.lazy import lazy_getattr
 
 # Imported on first use (torch is slow to import; ``procmod --help`` must not wait for it).
 _LAZY = {**dict.fromkeys(("CONDITIONS", "FeatureExtractor", "FeatureSettings", "GuideError"), "features"),
@@ -13,13 +13,7 @@ _LAZY = {**dict.fromkeys(("CONDITIONS", "FeatureExtractor", "FeatureSettings", "
                           "pretrained_guides", "site_key"), "guide")}
 
 
-def __getattr__(name):
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value  # later lookups skip this hook
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["CONDITIONS", "FeatureExtractor", "FeatureSettings", "Guide", "GuideError", "GuidedProposer",

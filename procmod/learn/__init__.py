@@ -15,10 +15,9 @@ import json
 import os
 from pathlib import Path
 
-import importlib
-
 from ..core import Derivation, Model
 from ..core.errors import ProcmodError
+from ..core.lazy import lazy_getattr
 from ..core.serialize import write_text_atomic
 
 # Imported on first use (scipy, trimesh and numba kernels are slow to import; the command
@@ -30,14 +29,7 @@ _LAZY = {**dict.fromkeys(("FORMAT", "ExampleNode", "ExampleSet", "ExamplesError"
          **dict.fromkeys(("Program", "ProgramError", "derivation_hierarchies", "is_learned", "program_model",
                           "read_program"), "program")}
 
-
-def __getattr__(name):
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value  # later lookups skip this hook
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 class NotALearnedProgramError(ProcmodError):

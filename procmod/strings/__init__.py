@@ -10,7 +10,7 @@ vote), :mod:`.decoding` (structured decoding of a string's categories),
 :mod:`.render` (previews, GLB). See docs/strings.md.
 """
 
-import importlib
+from ..core.lazy import lazy_getattr
 
 # Imported on first use, so the command line's parser does not import the subsystem.
 _LAZY = {**dict.fromkeys(("GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of"), "codec"),
@@ -18,13 +18,7 @@ _LAZY = {**dict.fromkeys(("GraphError", "StringSyntaxError", "decode", "encode",
                           "shape_graph", "validate_shape", "write_graph", "write_shapes"), "shapes")}
 
 
-def __getattr__(name):
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value  # later lookups skip this hook
-    return value
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of", "Grammar", "Shape",
