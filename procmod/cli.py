@@ -58,6 +58,8 @@ def _build_parser() -> argparse.ArgumentParser:
     sample = sub.add_parser("sample", help="sample a model forward; write pictures (2D: PNG+SVG, "
                                            "3D: PNG+OBJ+GLB) and the derivation JSON per sample")
     sample.add_argument("model", metavar="MODEL")
+    sample.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="set a model parameter (repeatable), e.g. --param leaves=false")
     sample.add_argument("-n", type=_int_arg, default=16, help="number of samples (default 16)")
     sample.add_argument("--seed", type=_int_arg, default=0, help="random seed (default 0)")
     sample.add_argument("--out", required=True, help="output folder (created if missing)")
@@ -69,6 +71,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     infer = sub.add_parser("infer", help="control a model toward a target with an engine")
     infer.add_argument("model", metavar="MODEL")
+    infer.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                       help="set a model parameter (repeatable), e.g. --param leaves=false")
     infer.add_argument("--target", required=True,
                        help="glyph:CHAR, glyph:FACE/CHAR, scribble:N, circuit, an image file, or a "
                             "3D target (a procmod-volume/1 JSON, or a folder holding target.json)")
@@ -112,13 +116,30 @@ def _is_dir(path: Path) -> bool:
         return False
 
 
-def _model(spec: str):
-    """A built-in model by name, or a learned program by path (program.json or its folder)."""
+def _model(spec: str, params=()):
+    """A built-in model by name, or a learned program by path (program.json or its folder),
+    with the ``--param NAME=VALUE`` settings applied (values read as JSON: ``false``, ``64``,
+    ``[0.5, 0.9]``; anything else is a string)."""
     path = Path(spec)
     if spec not in MODELS and (path.suffix.lower() == ".json" or _is_dir(path)):
         from .learn import load_program
-        return load_program(path)
-    return get_model(spec)
+        model = load_program(path)
+    else:
+        model = get_model(spec)
+    if not params:
+        return model
+    import json
+
+    settings = {}
+    for item in params:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise InvalidArgumentError(f"--param takes NAME=VALUE, got {_shown(item)}")
+        try:
+            settings[name] = json.loads(text)
+        except json.JSONDecodeError:
+            settings[name] = text
+    return model.configure(**settings)
 
 
 CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact sheet
@@ -132,7 +153,7 @@ def _cmd_sample(args) -> None:
     from .core.serialize import derivation_to_dict
     from .render import check_size, output_formats, write_contact_sheet, write_derivation
 
-    model = _model(args.model)
+    model = _model(args.model, args.param)
     if args.n < 1:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
     if args.seed < 0:
@@ -198,7 +219,7 @@ def _cmd_infer(args) -> None:
     from .render import check_size
     from .report import write_run
 
-    model = _model(args.model)
+    model = _model(args.model, args.param)
     if args.engine not in ENGINES:
         raise InvalidArgumentError(f"unknown engine {_shown(args.engine)}; choose one of {', '.join(ENGINES)}")
     wanted = _POPULATION_OPTION[args.engine]

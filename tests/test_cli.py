@@ -187,3 +187,15 @@ def test_help_and_models_import_nothing_heavy():
             "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_param_sets_model_parameters(tmp_path, capsys):
+    out = tmp_path / "s"
+    assert _run(capsys, "sample", "vines", "-n", "2", "--param", "leaves=false", "--param", "size=64",
+                "--out", str(out), "--size", "64")[0] == 0
+    params = json.loads((out / "sample_000.json").read_text())["params"]
+    assert params["leaves"] is False and params["size"] == 64
+    for bad, words in (("leaves=yes", "leaves"), ("colour=red", "colour"), ("nonsense", "NAME=VALUE")):
+        code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--param", bad, "--out", str(tmp_path / "x"))
+        assert code == 2 and words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
