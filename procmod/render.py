@@ -9,9 +9,6 @@ from PIL import Image
 
 from .core import Derivation, InvalidArgumentError, write_text_atomic
 from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic
-from .geometry.camera import framing_camera, shaded_image
-from .geometry.mesh_export import export_mesh
-from .geometry.solid import scene_bounds
 
 MIN_SIZE, MAX_SIZE = 8, 4096
 FORMATS_2D = (".png", ".svg")
@@ -51,6 +48,9 @@ def derivation_image(derivation: Derivation, size: int, underlay=None):
     geometry = derivation.geometry()
     if is_2d(derivation):
         return render_image(geometry, derivation.output.viewport, size, underlay=underlay)
+    from .geometry.camera import framing_camera, shaded_image  # 3D only: numba kernels
+    from .geometry.solid import scene_bounds
+
     lo, hi = scene_bounds(geometry)
     return Image.fromarray(shaded_image(geometry, framing_camera(lo, hi, size, size), colour_of))
 
@@ -63,6 +63,8 @@ def write_derivation(derivation: Derivation, path: str | os.PathLike, size: int)
     elif suffix == ".svg":
         write_text_atomic(path, render_svg(derivation.geometry(), derivation.output.viewport, check_size(size)))
     else:
+        from .geometry.mesh_export import export_mesh  # trimesh: a second to import, 3D only
+
         export_mesh(derivation.geometry(), path, colour_of)
 
 

@@ -7,16 +7,12 @@ import json
 import os
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from PIL import Image
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from PIL import Image  # noqa: E402
-
-from .core import save_derivation, write_text_atomic  # noqa: E402
-from .geometry import contact_sheet, save_figure_atomic, save_image_atomic  # noqa: E402
-from .render import derivation_image, output_formats, write_derivation  # noqa: E402
+from .core import save_derivation, write_text_atomic
+from .geometry import contact_sheet, save_figure_atomic, save_image_atomic
+from .render import derivation_image, output_formats, write_derivation
 
 
 # What the curves' "mean" is, per engine: for SMC most particles are still partial
@@ -43,7 +39,11 @@ def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") 
     the work done, so a seeded run with a work budget draws the same figure, byte for
     byte, however fast the machine ran it (the wall time is in history.csv).
     """
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    # matplotlib's Figure directly, not pyplot (which costs a second import and global state)
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 3.8))
+    ax = fig.subplots()
     engines = []
     for i, (label, result) in enumerate(results.items()):
         rows = [r for r in result.history if np.isfinite(r.best_score)]
@@ -66,7 +66,6 @@ def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") 
         fig.text(0.01, 0.01, "\n".join(notes), fontsize=6.5, color="0.35", va="bottom", wrap=True)
     fig.tight_layout(rect=(0, 0.04 * len(notes), 1, 1))
     save_figure_atomic(fig, path, dpi=110)
-    plt.close(fig)
 
 
 SAMPLE_TILES = 16

@@ -194,3 +194,13 @@ def test_target_specs_and_mirroring():
     with pytest.raises(TargetFileError):
         target_image("no/such/file.png")
     assert math.isfinite(ShapeMatch(t).log_likelihood(ShapeMatch(t).new_output(get_model("vines"))))
+
+
+def test_sobel_magnitude_matches_scipy():
+    from scipy import ndimage
+
+    from procmod.targets import sobel_magnitude
+    mask = np.random.default_rng(0).random((37, 41)) < 0.4
+    image = mask.astype(np.float64)
+    expected = np.hypot(ndimage.sobel(image, axis=1, mode="nearest"), ndimage.sobel(image, axis=0, mode="nearest"))
+    np.testing.assert_allclose(sobel_magnitude(mask), expected, atol=1e-12)

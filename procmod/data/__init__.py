@@ -12,9 +12,13 @@ Append ``:mirrored`` to any spec for its horizontally mirrored copy.
 from __future__ import annotations
 
 from ..core import InvalidArgumentError
+from ..core.lazy import lazy_getattr
 from ..targets import TargetImage, load_target_image
-from .glyphs import DEFAULT_TYPEFACE, TYPEFACES, glyph_set, glyph_target, render_glyph
-from .scribbles import scribble_set, scribble_target
+
+# Glyphs need fonts, Pillow's FreeType and scipy; a target picture needs none of them.
+_LAZY = {**dict.fromkeys(("DEFAULT_TYPEFACE", "TYPEFACES", "glyph_set", "glyph_target", "render_glyph"), "glyphs"),
+         **dict.fromkeys(("scribble_set", "scribble_target"), "scribbles")}
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 MIRROR_SUFFIX = ":mirrored"
 
@@ -27,12 +31,16 @@ def target_image(spec: str) -> TargetImage:
         return target_image(spec[: -len(MIRROR_SUFFIX)]).mirrored()
     if spec.startswith("glyph:"):
         rest = spec[len("glyph:"):]
+        from .glyphs import DEFAULT_TYPEFACE, glyph_target
+
         typeface, char = rest.rsplit("/", 1) if "/" in rest[:-1] else (DEFAULT_TYPEFACE, rest)
         return glyph_target(char, typeface)
     if spec.startswith("scribble:"):
         number = spec[len("scribble:"):]
         if not number.isdigit():
             raise InvalidArgumentError(f"scribble:N needs a non-negative integer, got {spec!r}")
+        from .scribbles import scribble_target
+
         return scribble_target(int(number))
     return load_target_image(spec)
 
