@@ -72,3 +72,20 @@ def write_contact_sheet(derivations, path: str | os.PathLike, tile: int = 128, l
     """A grid of renders of many derivations, one PNG."""
     images = [derivation_image(d, tile) for d in derivations]
     save_image_atomic(contact_sheet(images, labels=labels), path)
+
+
+def write_contact_page(derivations, path: str | os.PathLike, labels=None, links=None,
+                       title: str = "procmod samples") -> None:
+    """An HTML page of 3D derivations, each in its own orbitable view (``contact_sheet.html``
+    of a 3D sample folder; see :mod:`procmod.viewer`): the models are inline, so the page
+    opens from disk with no network. ``links`` (optional) are file names the captions link to."""
+    from .viewer.layers import parts_glb
+    from .viewer.pages import contact_page_html
+
+    derivations = list(derivations)
+    if any(is_2d(d) for d in derivations):
+        raise InvalidArgumentError("a contact page of orbitable views is for 3D models; 2D samples have "
+                                   "contact_sheet.png")
+    labels = [str(i) for i in range(len(derivations))] if labels is None else labels
+    glbs = [parts_glb(d.geometry()) for d in derivations]
+    write_text_atomic(path, contact_page_html(glbs, labels, links, title))

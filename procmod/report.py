@@ -143,11 +143,28 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
     }
     write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=str) + "\n")
     caption = target_caption if (out / "target.png").exists() else None
-    write_text_atomic(out / "report.html", _report_html(summary, caption, extra, mean_meaning(result.engine)))
+    viewer = run_viewer_html(out / "best.glb", target) if ".glb" in extra else ""
+    write_text_atomic(out / "report.html", _report_html(summary, caption, extra, mean_meaning(result.engine),
+                                                        viewer))
     return out / "report.html"
 
 
-def _report_html(summary: dict, target_caption: str | None, extra: list, mean_note: str) -> str:
+VIEW_WIDTH, VIEW_HEIGHT = 720, 480
+
+
+def run_viewer_html(best_glb: str | os.PathLike, target) -> str:
+    """The report's orbitable 3D view of a 3D run (:mod:`procmod.viewer`): the best result
+    (the bytes of ``best.glb``) and the target (volumes as translucent surfaces, silhouette
+    views as cut-outs where their cameras see them), everything inline."""
+    from .viewer import viewer_html
+    from .viewer.layers import run_view
+
+    view = run_view(Path(best_glb).read_bytes(), target)
+    return ("<h2>3D view</h2>\n<p>Drag to turn, scroll to zoom, right-drag to pan, double-click to reset; "
+            "the boxes in the corner show or hide each layer.</p>\n" + viewer_html([view], VIEW_WIDTH, VIEW_HEIGHT))
+
+
+def _report_html(summary: dict, target_caption: str | None, extra: list, mean_note: str, viewer: str = "") -> str:
     """The report page. Its one timing field is the wall time, written only inside
     ``<span class="seconds">``, so two runs of one seeded job differ only there."""
     rows = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>"
@@ -174,7 +191,7 @@ code {{ background: #f4f4f4; padding: 0.1em 0.3em; }}
 <p>Engine <b>{html.escape(summary['engine'])}</b>: best score <b>{summary['best_score']:.4f}</b>
 after {summary['evaluations']} evaluations in {seconds} s.</p>
 <p><code>{html.escape(summary['command'])}</code></p>
-{target_cell}
+{viewer}{target_cell}
 <figure><img src="best.png" alt="best result"><figcaption>best result
 ({links}<a href="best.json">derivation</a>)</figcaption></figure>
 <figure><img src="convergence.png" alt="convergence" style="width:480px"><figcaption>score against
