@@ -1,4 +1,4 @@
-"""Engine contract, genetic operators and MCMC proposals on the built-in models."""
+"""Engine contract and MCMC proposals on the built-in models (the GA's operators: tests/test_ga_*.py)."""
 
 import math
 
@@ -7,11 +7,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from procmod.core import InvalidArgumentError, replay, run_forward
+from procmod.core import InvalidArgumentError, replay
 from procmod.infer import ENGINES, Budget, parse_budget
 from procmod.infer.common import Scored, evaluate
-from procmod.infer.ga import (COPIES, _crossover, _View, alter_choices, connections, crossover_choices,
-                              cut_choices, grow_choices, nudge_choices)
 from procmod.infer.mcmc import propose, temperature_ladder
 from procmod.models import get_model
 from procmod.targets import ShapeMatch, TargetImage
@@ -35,35 +33,6 @@ def _valid(model, d):
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), name=st.sampled_from(["vines", "lightning", "chain"]))
-def test_every_ga_offspring_is_a_valid_derivation(seed, name):
-    model = get_model(name)
-    rng = np.random.default_rng(seed)
-    d1, d2 = run_forward(model, rng), run_forward(model, rng)
-    v1, v2 = _View(d1), _View(d2)
-    # An operator may return None only when the derivation offers it nothing to do.
-    possible = {grow_choices: any(p > 0 for _, _, p in v1.grow_sites()), cut_choices: bool(v1.cut_sites()),
-                alter_choices: bool(v1.alter_sites()), nudge_choices: bool(v1.nudge_sites())}
-    maps = []
-    for op, can in possible.items():
-        choices = op(d1, rng)
-        assert (choices is not None) == can, op.__name__
-        if choices is not None:
-            maps.append(choices)
-    # Crossover retries random connections of d1; with 50 x as many tries as d1 has
-    # connections, missing a compatible one that exists has probability below e^-50.
-    n1 = sum(len(a) for a in v1.connections().values())
-    children = crossover_choices(d1, d2, rng, max_retries=50 * max(n1, 1))
-    assert (children is not None) == bool(set(v1.connections()) & set(v2.connections()))
-    if children:
-        maps.extend(children)
-    assert maps  # every model here has a root with parameters: alter always applies
-    for choices in maps:
-        d = replay(model, choices, rng, maybe_default=False).derivation
-        _valid(model, d)
-
-
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2 ** 32 - 1), name=st.sampled_from(["vines", "lightning", "chain"]))
 def test_every_mcmc_proposal_is_a_valid_derivation(seed, name):
     model = get_model(name)
     target = _bar_target()
@@ -73,135 +42,6 @@ def test_every_mcmc_proposal_is_a_valid_derivation(seed, name):
         p = propose(state, rng, 0.5, 0.1)
         ev = evaluate(model, target, (p.choices, int(rng.integers(2 ** 62)), None))
         _valid(model, ev.derivation)
-
-
-def test_grow_and_cut_follow_spawn_probabilities():
-    # Lightning's maybe sites: fork (p = 0.22) and next (p = 0.96 or 0.8). Grow picks an
-    # unexpressed child with probability proportional to p; cut proportional to 1 - p.
-    model = get_model("lightning")
-    rng = np.random.default_rng(3)
-    d = run_forward(model, rng)
-    off = [(n.address, s.site, s.probability) for n in d.nodes() for s in n.spawns if not s.on]
-    assert off
-    counts = {}
-    n = 3000
-    for _ in range(n):
-        choices = grow_choices(d, rng)
-        new = [k for k, v in choices.items() if v is True and d.choice_map().get(k) is False]
-        counts[new[0]] = counts.get(new[0], 0) + 1
-    total = sum(p for _, _, p in off)
-    for address, site, p in off:
-        expected = p / total
-        got = counts.get((address, site), 0) / n
-        assert abs(got - expected) < 5 * math.sqrt(expected * (1 - expected) / n)
-
-
-def test_crossover_swaps_compatible_subtrees():
-    model = get_model("lightning")
-    rng = np.random.default_rng(11)
-    d1, d2 = run_forward(model, rng), run_forward(model, rng)
-    c1, c2 = crossover_choices(d1, d2, rng)
-    r1 = replay(model, c1, rng).derivation
-    # The child keeps every connection of the model's generator graph: parent rule, site, child rule.
-    for (parent_rule, child_rule), addresses in connections(r1).items():
-        for address in addresses:
-            assert (parent_rule.__name__, address[-1], child_rule.__name__) in {
-                ("bolt", "next", "bolt"), ("bolt", "fork", "fork"), ("fork", "bolt", "bolt")}
-
-
-def _cross_site_crossover(model, seed: int, top_level: bool):
-    """Search crossovers of forward samples for one that swaps subtrees at two different
-    spawn sites: ``(v1, v2, offspring 1)`` with ``offspring.at`` (receiving site in parent 1)
-    and ``offspring.source`` (donor site in parent 2), or None."""
-    rng = np.random.default_rng(seed)
-    for _ in range(300):
-        v1, v2 = _View(run_forward(model, rng)), _View(run_forward(model, rng))
-        out = _crossover(v1, v2, rng)
-        if out is None or out is COPIES:
-            continue
-        child = out[0][0]
-        if child.at[-1] != child.source[-1] and (not top_level or len(child.at) == len(child.source) == 1):
-            return v1, v2, child
-    return None
-
-
-def test_crossover_pairs_sibling_sites_of_one_connection_type():
-    # Seed 002: compatible connections are those of one generator-graph edge. The tree's
-    # trunk spawns a branch at b0, b1 and b2: one edge (trunk -> branch), so a crossover
-    # can put parent 2's b1 subtree under parent 1's b0 (a site-keyed match never could).
-    model = get_model("tree")
-    found = _cross_site_crossover(model, 0, top_level=True)
-    assert found is not None
-    v1, v2, child = found
-    at, source = child.at, child.source
-    child_map = child.materialize()
-    donor = {(a[len(source):], name): value for (a, name), value in v2.raw().items() if a[:len(source)] == source}
-    below = {(a[len(at):], name): value for (a, name), value in child_map.items() if a[:len(at)] == at}
-    assert donor and below == donor  # re-addressed under the receiving site, all of it
-    outside = {k: v for k, v in child_map.items() if k[0][:len(at)] != at}
-    assert outside == {k: v for k, v in v1.raw().items() if k[0][:len(at)] != at}
-    # Replayed, the subtree keeps its choices and runs from the receiving parent's context.
-    r = replay(model, child_map, np.random.default_rng(0), maybe_default=False)
-    assert r.log_fresh == 0.0 and r.unused == []
-    nodes = {n.address: n for n in r.derivation.nodes()}
-    assert nodes[at].args == v1.index()[at].args  # the receiving trunk's position, radius, length
-    assert {n: c.value for n, c in nodes[at].choices.items()} == {
-        n: c.value for n, c in v2.index()[source].choices.items()}
-    _valid(model, r.derivation)
-
-
-def test_crossover_pairs_sibling_sites_of_a_recursive_rule():
-    # The toy tree spawns itself at "a" and at "b" (as vines' branch1 / branch2 once were):
-    # one connection type, so subtrees move between the two sites, at any depth.
-    found = _cross_site_crossover(TREE, 1, top_level=False)
-    assert found is not None
-    v1, v2, child = found
-    assert {child.at[-1], child.source[-1]} == {"a", "b"}
-    r = replay(TREE, child.materialize(), np.random.default_rng(0), maybe_default=False)
-    _valid(TREE, r.derivation)
-    top = {n.address: n for n in r.derivation.nodes()}[child.at]
-    assert top.args == v1.index()[child.at].args  # the receiving site's depth
-    assert top.choices["v"].value == v2.index()[child.source].choices["v"].value
-
-
-def test_nudge_moves_one_calls_continuous_choices_within_their_support():
-    model = get_model("spaceship")
-    rng = np.random.default_rng(2)
-    d = run_forward(model, rng)
-    before = d.choice_map().raw
-    dists = {(n.address, name): c.dist for n in d.nodes() for name, c in n.choices.items()}
-    moved_calls, steps = set(), []
-    for _ in range(300):
-        after = nudge_choices(d, rng, step=0.5)
-        changed = [k for k in before if after[k] != before[k]]
-        assert changed and set(after) == set(before)
-        assert len({k[0] for k in changed}) == 1  # one call
-        for k in changed:
-            dist = dists[k]
-            assert not dist.discrete and dist.contains(after[k])  # reflected into the support
-            steps.append(abs(after[k] - before[k]) / dist.scale)
-        moved_calls.add(changed[0][0])
-    assert len(moved_calls) > 1
-    # Gaussian steps of 0.5 x scale (folded at the bounds): mean |step| is at most 0.5 * sqrt(2 / pi)
-    assert 0.2 < float(np.mean(steps)) < 0.45
-
-
-def test_crossover_of_equal_subtrees_gives_copies():
-    # A derivation crossed with itself: a swap at the same connection changes nothing and
-    # gives COPIES (no evaluation needed); any other swap gives children that differ.
-    model = get_model("spaceship")
-    rng = np.random.default_rng(0)
-    kinds = []
-    for _ in range(40):
-        d = run_forward(model, rng)
-        out = _crossover(_View(d), _View(d), rng)
-        if out is None:
-            continue
-        kinds.append(out is COPIES)
-        if out is not COPIES:
-            raw = d.choice_map().raw
-            assert out[0][0].materialize() != raw and out[1][0].materialize() != raw
-    assert any(kinds) and not all(kinds)
 
 
 @pytest.mark.parametrize("engine,kwargs", [

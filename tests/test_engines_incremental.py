@@ -15,7 +15,7 @@ from procmod.geometry.solid import Box, Cylinder, translation
 from procmod.geometry.voxel import VoxelGrid, VoxelScene
 from procmod.infer import ENGINES, Budget
 from procmod.infer.common import evaluate
-from procmod.infer.ga import COPIES, _alter, _crossover, _cut, _grow, _nudge, _same_subtree, _View, evaluate_from
+from procmod.infer.ga import COPIES, Genome, alter, crossover, cut, evaluate_from, grow, nudge, same_subtree
 from procmod.models import get_model
 from procmod.parallel import InlineExecutor
 from procmod.targets import Silhouette, Volume, load_target_file
@@ -73,20 +73,19 @@ def test_incremental_offspring_equal_full_replays(seed, name, kind, hinted):
     model, target = get_model(name), TARGETS[kind]
     rng = np.random.default_rng(seed)
     parents = [evaluate(model, target, ({}, int(rng.integers(2 ** 31)), None)).derivation for _ in range(2)]
-    views = [_View(p) for p in parents]
-    offspring = [op(views[0], rng) for op in (_grow, _cut, _alter, _nudge)]
-    offspring.append(_grow(views[1], rng, 4))
+    genomes = [Genome(p) for p in parents]
+    offspring = [op(genomes[0], rng) for op in (grow, cut, alter, nudge)]
+    offspring.append(grow(genomes[1], rng, 4))
     pairs = [(parents[0], o) for o in offspring[:4]] + [(parents[1], offspring[4])]
-    crossed = _crossover(views[0], views[1], rng)
+    crossed = crossover(genomes[0], genomes[1], rng)
     if crossed is not None and crossed is not COPIES:
         pairs += list(zip(parents, crossed))
-    for parent, out in pairs:
-        if out is None:
+    for parent, choices in pairs:
+        if choices is None:
             continue
-        choices, changed = out
         full_map = choices.materialize()  # what the operator means, as a plain choice map
         ev = evaluate_from(model, target, parent, choices if hinted else full_map, int(rng.integers(2 ** 31)),
-                           changed if hinted else None)
+                           choices.changed if hinted else None)
         _check_against_full_replay(model, target, ev)
         direct = evaluate(model, target, (full_map, 0, False))
         if all(k in full_map and full_map[k] == v for k, v in direct.derivation.choice_map().raw.items()):
@@ -94,26 +93,26 @@ def test_incremental_offspring_equal_full_replays(seed, name, kind, hinted):
             assert ev.derivation.choice_map() == direct.derivation.choice_map()
             assert ev.score == pytest.approx(direct.score, abs=1e-9)
         # and once more from the offspring (its output was itself built incrementally)
-        again = _grow(_View(ev.derivation), rng) or _cut(_View(ev.derivation), rng)
+        again = grow(Genome(ev.derivation), rng) or cut(Genome(ev.derivation), rng)
         if again is not None:
-            _check_against_full_replay(model, target, evaluate_from(model, target, ev.derivation, *again[:1],
-                                                                    1, again[1] if hinted else None))
+            _check_against_full_replay(model, target, evaluate_from(model, target, ev.derivation, again,
+                                                                    1, again.changed if hinted else None))
 
 
 def test_same_subtree_tells_equal_subtrees_from_changed_ones():
     model, target = get_model("spaceship"), TARGETS["volume"]
     parent = max((evaluate(model, target, ({}, s, None)).derivation for s in range(8)), key=lambda d: d.n_nodes)
-    view = _View(parent)
-    assert all(_same_subtree(view, a, view, a) for a in view.index())
+    genome = Genome(parent)
+    assert all(same_subtree(genome, a, genome, a) for a in genome.index())
     for seed in range(8):
-        choices, changed = _nudge(view, np.random.default_rng(seed), 0.5)
-        (address,) = changed
-        child = _View(evaluate_from(model, target, view, choices, 0, changed).derivation)
-        for a in view.index():
+        choices = nudge(genome, np.random.default_rng(seed), 0.5)
+        (address,) = choices.changed
+        child = Genome(evaluate_from(model, target, genome, choices, 0, choices.changed).derivation)
+        for a in genome.index():
             if address[:len(a)] == a:  # the nudged call and the calls above it changed
-                assert not _same_subtree(view, a, child, a)
+                assert not same_subtree(genome, a, child, a)
             elif a[:len(address)] != address:  # calls beside it did not (those below may)
-                assert _same_subtree(view, a, child, a)
+                assert same_subtree(genome, a, child, a)
 
 
 def test_replay_reusing_checks_the_map_when_not_told_what_changed():
@@ -205,10 +204,3 @@ def test_ga_is_incremental_only_where_removal_is_exact():
         assert full.score == pytest.approx(target.score(d.output), abs=1e-9)
         assert math.isfinite(d.log_prior)
 
-
-def test_lazy_offspring_generator_draws_what_the_seeded_generator_draws():
-    from procmod.infer.ga import _LazyRng
-    lazy, eager = _LazyRng(12345), np.random.default_rng(12345)
-    draws = [lambda g: g.random(), lambda g: g.standard_normal(), lambda g: g.exponential(),
-             lambda g: int(g.integers(0, 100)), lambda g: g.random()]
-    assert [f(lazy) for f in draws] == [f(eager) for f in draws]

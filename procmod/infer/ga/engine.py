@@ -1,0 +1,163 @@
+"""``ga()``: the generational loop that composes selection, variation and evaluation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...core import InvalidArgumentError
+from ..common import Budget, Result, Tracker, check_population, check_positive, new_seed, relaxed_gc
+from .evaluation import Evaluator
+from .genome import Genome, Genomes
+from .selection import elite_count, roulette, roulette_wheel, tournament
+from .variation import COPIES, crossover, grow, mutate
+
+
+def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | None = None,
+       mutation: float = 0.3, split=(13.5, 13.5, 3.0), elitism: float = 0.2, tournament: int = 10,
+       initial_size: int | None = None, max_retries: int = 10, nudge_step: float = 0.1,
+       executor=None, progress=None) -> Result:
+    """Genetic algorithm over derivation trees (seed 002, sections 4-6).
+
+    Parameters
+    ----------
+    population : int
+        Individuals per generation.
+    budget : Budget
+        Default: 50 generations.
+    mutation : float
+        Probability that a selected pair is mutated instead of crossed over.
+    split : (grow, cut, alter[, nudge])
+        Relative weights of the mutation operators (seed 002: 13.5 / 13.5 / 3.0, no nudge).
+    elitism : float
+        Fraction of the best individuals copied unchanged into the next generation.
+    tournament : int
+        k of the k-tournament selection.
+    initial_size : int, optional
+        Initial individuals are grown to sizes uniform in [1, initial_size] calls
+        (default: twice the mean size of 20 forward samples, at least 5).
+    max_retries : int
+        Connections of the first parent a crossover tries before giving up.
+    nudge_step : float
+        Nudge step as a fraction of each choice distribution's scale.
+    executor : concurrent.futures.Executor, optional
+        Evaluates offspring (default: in-process, incrementally where the target allows).
+    """
+    check_positive("population", population)
+    check_positive("tournament", tournament)
+    check_positive("max_retries", max_retries)
+    if not 0.0 <= mutation <= 1.0:
+        raise InvalidArgumentError(f"mutation must be in [0, 1], got {mutation!r}")
+    split = _check_split(split)
+    if not nudge_step > 0:
+        raise InvalidArgumentError(f"nudge_step must be positive, got {nudge_step!r}")
+    if not 0.0 <= elitism < 1.0:
+        raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
+    budget = budget or Budget(generations=50)
+    model = target.configure(model)
+    check_population("population", population, target.new_output(model))  # refuse what memory cannot hold
+    rng = np.random.default_rng(seed)
+    tracker = Tracker(budget, progress)
+    evaluate = Evaluator(model, target, executor, tracker)
+    genomes = Genomes()
+
+    with relaxed_gc():
+        if initial_size is None:
+            initial_size = default_initial_size(evaluate, rng)
+        check_positive("initial_size", initial_size)
+        pop = initial_population(evaluate, population, initial_size, rng, tracker)
+        n_elite = elite_count(elitism, population)
+        while not tracker.spent():
+            pop.sort(key=lambda ind: ind.score, reverse=True)
+            kept, jobs = breed(pop, genomes, rng, n_elite, tournament, mutation, split, nudge_step, max_retries)
+            pop = (kept + evaluate(jobs))[:population]
+            genomes.keep(ind.derivation for ind in pop)
+            tracker.generations += 1
+            _record(tracker, pop)
+    pop.sort(key=lambda ind: ind.score, reverse=True)
+    return Result("ga", tracker.best, tracker.best_score, [ind.derivation for ind in pop],
+                  tracker.rows, tracker.seconds, tracker.evaluations,
+                  settings={"population": population, "seed": seed, "budget": budget.describe(),
+                            "mutation": mutation, "split": list(split), "elitism": elitism,
+                            "tournament": tournament, "initial_size": initial_size, "nudge_step": nudge_step,
+                            "incremental": evaluate.incremental},
+                  log_weights=[ind.log_likelihood for ind in pop])
+
+
+def _check_split(split) -> tuple:
+    """``split`` as four weights (grow, cut, alter, nudge), or an InvalidArgumentError."""
+    try:
+        weights = [float(w) for w in split]
+    except (TypeError, ValueError):
+        weights = None
+    if (weights is None or len(weights) not in (3, 4) or not all(math.isfinite(w) and w >= 0 for w in weights)
+            or sum(weights) <= 0):
+        raise InvalidArgumentError("split must be three or four finite non-negative weights (grow, cut, alter"
+                                   f"[, nudge]) that are not all zero, got {split!r}")
+    return tuple(weights) + (0.0,) * (4 - len(weights))
+
+
+def default_initial_size(evaluate: Evaluator, rng) -> int:
+    """Twice the mean size (in calls) of 20 forward samples, at least 5."""
+    sizes = [ind.derivation.n_nodes for ind in evaluate([({}, new_seed(rng), None) for _ in range(20)])]
+    return max(5, int(round(2 * np.mean(sizes))))
+
+
+def initial_population(evaluate: Evaluator, population: int, initial_size: int, rng, tracker: Tracker) -> list:
+    """Minimal derivations (every ``maybe`` off) grown to sizes uniform in [1, initial_size]
+    calls (seed 002, section 6). Each round applies as many of an individual's missing
+    grows as it has unexpressed children (children created in a round become candidates in
+    the next), so a large individual costs a few replays instead of one per call."""
+    pop = evaluate([({}, new_seed(rng), False) for _ in range(population)])
+    goals = rng.integers(1, initial_size + 1, size=population)
+    growing = [i for i in range(population) if pop[i].derivation.n_nodes < goals[i]]
+    while growing and not tracker.spent():
+        jobs, owners = [], []
+        for i in growing:
+            missing = int(goals[i] - pop[i].derivation.n_nodes)
+            child = grow(Genome(pop[i].derivation), rng, max(1, missing))
+            if child is not None:
+                jobs.append((child, new_seed(rng), False))
+                owners.append(i)
+        for i, ind in zip(owners, evaluate(jobs)):
+            pop[i] = ind
+        growing = [i for i in owners if pop[i].derivation.n_nodes < goals[i]]
+        if tracker.due():
+            _record(tracker, pop)
+    _record(tracker, pop)
+    return pop
+
+
+def breed(pop: list, genomes: Genomes, rng, n_elite: int, k: int, mutation: float, split, nudge_step: float,
+          max_retries: int) -> tuple[list, list]:
+    """Selection and variation for the next generation of ``pop`` (ranked best first):
+    ``(kept, jobs)``, the individuals that pass unchanged (the elite, then parents that a
+    mutation or crossover left as they were) and the offspring to evaluate, as jobs
+    ``(Offspring, seed, False)``; together they are at least as many as ``pop``.
+
+    Each pair of parents is one roulette pick and one k-tournament pick; with probability
+    ``mutation`` both are mutated (:func:`mutate`), otherwise crossed over."""
+    size = len(pop)
+    wheel = roulette_wheel([ind.score for ind in pop])
+    kept, jobs = list(pop[:n_elite]), []
+    while len(kept) + len(jobs) < size:
+        p1, p2 = pop[roulette(wheel, rng)], pop[tournament(size, k, rng)]
+        if rng.random() < mutation:
+            for parent in (p1, p2):
+                child = mutate(genomes.of(parent.derivation), rng, split, nudge_step)
+                if child is None:
+                    kept.append(parent)
+                else:
+                    jobs.append((child, new_seed(rng), False))
+        else:
+            children = crossover(genomes.of(p1.derivation), genomes.of(p2.derivation), rng, max_retries)
+            if children is None or children is COPIES:  # copies need no evaluation
+                kept.extend([p1, p2])
+            else:
+                jobs.extend((child, new_seed(rng), False) for child in children)
+    return kept, jobs
+
+
+def _record(tracker: Tracker, pop: list) -> None:
+    tracker.record(float(np.mean([ind.score for ind in pop])))

@@ -1,0 +1,44 @@
+"""The GA's selection (seed 002, section 6): one parent by roulette wheel, the other by
+k-tournament, and the best individuals kept unchanged (elitism).
+
+Each function works on a population ranked best first (the GA sorts it by score once a
+generation) and returns indices into it, drawing from the generator it is given.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def roulette_wheel(scores) -> np.ndarray:
+    """The cumulative wheel of a population with these scores: individual i's share is
+    its fitness, the score shifted to be non-negative (``score - min score``: similarities
+    can be negative), over the total; individuals whose score is not finite get no share,
+    and when no fitness is positive every individual gets an equal one."""
+    scores = np.asarray(scores, dtype=np.float64)
+    finite = np.isfinite(scores)
+    floor = scores[finite].min() if finite.any() else 0.0
+    fitness = np.where(finite, scores, floor) - floor
+    total = fitness.sum()
+    fitness = fitness / total if total > 0 else np.full(len(scores), 1.0 / len(scores))
+    return np.cumsum(fitness)
+
+
+def roulette(wheel: np.ndarray, rng) -> int:
+    """The index of the individual the ball of one spin stops at: probability
+    proportional to its share of :func:`roulette_wheel`."""
+    return min(int(np.searchsorted(wheel, rng.random() * wheel[-1], side="right")), len(wheel) - 1)
+
+
+def tournament(size: int, k: int, rng) -> int:
+    """The winner of a k-tournament in a population of ``size`` ranked best first: ``k``
+    entrants drawn uniformly (with replacement), the best-ranked one wins."""
+    return int(min(rng.integers(0, size, size=k)))
+
+
+def elite_count(elitism: float, size: int) -> int:
+    """How many of the best individuals elitism keeps: the fraction ``elitism`` of the
+    population, rounded up."""
+    return int(math.ceil(elitism * size)) if elitism > 0 else 0
