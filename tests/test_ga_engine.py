@@ -61,7 +61,8 @@ def test_breed_keeps_the_elite_and_fills_the_generation(mutation):
     pop = initial_population(evaluate, 20, 10, np.random.default_rng(1), tracker)
     pop.sort(key=lambda ind: ind.score, reverse=True)
     members = {id(ind) for ind in pop}
-    kept, jobs = breed(pop, Genomes(), np.random.default_rng(2), 4, 10, mutation, (0.0, 0.0, 1.0, 0.0), 0.1, 10)
+    kept, jobs = breed(pop, Genomes(), np.random.default_rng(2), n_elite=4, k=10, mutation=mutation,
+                       split=(0.0, 0.0, 1.0, 0.0), nudge_step=0.1, max_retries=10)
     assert kept[:4] == pop[:4]  # the elite, best first
     assert all(id(ind) in members for ind in kept)  # the others kept are unchanged parents
     assert len(kept) + len(jobs) in (20, 21)  # pairs of parents: one too many at most

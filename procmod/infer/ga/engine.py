@@ -70,7 +70,8 @@ def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | Non
         n_elite = elite_count(elitism, population)
         while not tracker.spent():
             pop.sort(key=lambda ind: ind.score, reverse=True)
-            kept, jobs = breed(pop, genomes, rng, n_elite, tournament, mutation, split, nudge_step, max_retries)
+            kept, jobs = breed(pop, genomes, rng, n_elite=n_elite, k=tournament, mutation=mutation, split=split,
+                               nudge_step=nudge_step, max_retries=max_retries)
             pop = (kept + evaluate(jobs))[:population]
             genomes.keep(ind.derivation for ind in pop)
             tracker.generations += 1
@@ -129,7 +130,7 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
     return pop
 
 
-def breed(pop: list, genomes: Genomes, rng, n_elite: int, k: int, mutation: float, split, nudge_step: float,
+def breed(pop: list, genomes: Genomes, rng, *, n_elite: int, k: int, mutation: float, split, nudge_step: float,
           max_retries: int) -> tuple[list, list]:
     """Selection and variation for the next generation of ``pop`` (ranked best first):
     ``(kept, jobs)``, the individuals that pass unchanged (the elite, then parents that a
