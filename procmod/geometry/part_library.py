@@ -145,6 +145,31 @@ def transform_to_json(m) -> list[list[float]]:
     return [[float(v) for v in row] for row in matrix(m)]
 
 
+def surface_samples(shape: PartShape, count: int) -> np.ndarray:
+    """``count`` points (count, 3) on the shape's surface, in its local frame.
+
+    Area-weighted: triangles are drawn in proportion to their area (stratified: the
+    i-th point uses the quantile (i + 1/2) / count of the cumulative area), and each
+    point's barycentric coordinates come from a generator with a fixed seed, so the same
+    shape always gets the same points. They spread over the whole surface, whatever the
+    order of a mesh's vertices; a degenerate (zero-area) shape gets its vertices.
+    """
+    tris = shape.local_triangles()
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    total = float(area.sum())
+    if not np.isfinite(total) or total <= 0:
+        v = tris.reshape(-1, 3)
+        return v[np.linspace(0, len(v) - 1, count).astype(int)]
+    cum = np.cumsum(area) / total
+    which = np.minimum(np.searchsorted(cum, (np.arange(count) + 0.5) / count), len(tris) - 1)
+    rng = np.random.default_rng(0)
+    u, v = rng.random(count), rng.random(count)
+    flip = u + v > 1  # fold the unit square onto the triangle
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    t = tris[which]
+    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+
+
 def world_bounds(shape: PartShape, transform) -> tuple[np.ndarray, np.ndarray]:
     """World-space axis-aligned bounds of ``shape`` placed by ``transform``."""
     lo, hi = shape.local_bounds()

@@ -1,0 +1,419 @@
+"""Approximate symmetry groups among sibling parts (seed 000 section 4, first step).
+
+Hand-placed parts are never exact copies, so symmetry is decided by geometry, with a
+tolerance, not by comparing matrices:
+
+* Every node contributes its part's eight local bounding-box corners, mapped to world
+  space by its transform (``Unit.corners``): these see position, rotation, scale and
+  mirroring alike.
+* Two sibling units (a node with its subtree, or an already-found group) of the same
+  structure are related by a map ``G`` of a kind (reflection; translation; rotation about
+  an axis) when, with their parts put in one-to-one correspondence (per part name, a
+  minimum-cost assignment), the best *exact* map of that kind (:func:`fit_map`: least
+  squares over all corresponding corners) brings every corner of one within
+  ``SYMMETRY_TOLERANCE`` x the unit's size of its counterpart. The unit's size is the
+  diagonal of its world bounding box (for a single part, the part's own size).
+* The group then stores the fitted exact map, so the learner models (and regenerates) an
+  exact symmetry; the examples' deviations from it are the noise it ignores.
+
+Passes, in order: reflection pairs (each unit with its first partner in order), then translation and
+rotation chains of at least :data:`MIN_CHAIN` units with one constant ``G`` (longest
+chain first, refitting ``G`` to the whole chain as it grows), then reflection pairs again
+(mirrored rows), so groups nest (``trans(refl(panel))``). A rotation chain whose angles
+come close to closing a circle is snapped to ``2 pi / n`` when the snapped map still fits
+within the tolerance. Groups are canonicalised in the parent's frame: mirror normals,
+translation steps and rotation axes point along their largest component, rotation angles
+are positive, and full circles start at the member first reached from a fixed reference
+direction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial.transform import Rotation
+
+from .examples import ExampleNode
+from .transforms import Frame, canonical_direction, in_frame, rotation_axis_angle
+
+# A symmetry holds when the fitted map brings every corner within this fraction of the
+# unit's size of its counterpart. 5%: what a modeller places "by eye" (a 2 m wing off by
+# 10 cm), and 20x the Gaussian placement noise of 1e-3 x the model's diagonal on the
+# smallest parts of the shipped sets (model diagonal / part diagonal <= 25).
+SYMMETRY_TOLERANCE = 0.05
+MIN_CHAIN = 3
+
+_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
+
+
+def box_corners(lo, hi) -> np.ndarray:
+    """The eight corners (8, 3) of the box [lo, hi]."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    return lo + _CORNERS * (hi - lo)
+
+
+def _raw_signature(node: ExampleNode) -> str:
+    return f"{node.part}[{','.join(sorted(_raw_signature(c) for c in node.children))}]"
+
+
+@dataclass
+class Unit:
+    """A child of a part node: one node (with its subtree) or a symmetry group of units.
+
+    ``corners``: world bounding-box corners (n, 8, 3) of every node in the unit's
+    subtrees, ``blocks``: part name -> indices into ``corners``; ``size``: the diagonal
+    of their world bounding box.
+    """
+
+    kind: str  # "node", "refl", "trans" or "rot"
+    node: ExampleNode | None = None
+    members: list = field(default_factory=list)
+    g: np.ndarray | None = None  # exact world map from member 0 to member 1
+    sig: str = ""
+    type: str = ""
+    corners: np.ndarray | None = None
+    blocks: dict = field(default_factory=dict)
+    names: list = field(default_factory=list)
+    size: float = 0.0
+
+    def top_parts(self) -> list:
+        """(part, world) of the unit's own parts (all members, not their descendants)."""
+        if self.kind == "node":
+            return [(self.node.part, self.node.transform)]
+        return [t for m in self.members for t in m.top_parts()]
+
+    def first(self) -> np.ndarray:
+        return self.node.transform if self.kind == "node" else self.members[0].first()
+
+    def representative(self) -> "Unit":
+        return self if self.kind == "node" else self.members[0].representative()
+
+
+def _finish(unit: Unit, names: list, corners: np.ndarray) -> Unit:
+    unit.corners = corners
+    for k, name in enumerate(names):
+        unit.blocks.setdefault(name, []).append(k)
+    unit.blocks = {name: np.array(v) for name, v in sorted(unit.blocks.items())}
+    flat = corners.reshape(-1, 3)
+    unit.size = max(float(np.linalg.norm(flat.max(0) - flat.min(0))), 1e-12)
+    unit.names = names
+    return unit
+
+
+def leaf_unit(node: ExampleNode, corners: dict) -> Unit:
+    """A unit of one node and its subtree; ``corners[part]`` is the part's local (8, 3) box."""
+    nodes = list(node.walk())
+    world = np.stack([corners[n.part] @ n.transform[:3, :3].T + n.transform[:3, 3] for n in nodes])
+    return _finish(Unit("node", node=node, sig=_raw_signature(node), type=node.part), [n.part for n in nodes], world)
+
+
+def group_unit(kind: str, members: list, g: np.ndarray) -> Unit:
+    unit = Unit(kind, members=members, g=g, sig=f"{kind}{len(members)}({members[0].sig})",
+                type=f"{kind}({members[0].type})")
+    return _finish(unit, [n for m in members for n in m.names], np.concatenate([m.corners for m in members]))
+
+
+def _apply(g: np.ndarray, p: np.ndarray) -> np.ndarray:
+    return p @ g[:3, :3].T + g[:3, 3]
+
+
+def correspond(g: np.ndarray, a: Unit, b: Unit) -> np.ndarray | None:
+    """Pair ``a``'s nodes with ``b``'s (same part name) after mapping ``a`` by ``g``:
+    per part name, the assignment minimising the summed largest corner distance.
+
+    Returns ``match`` with ``match[i]`` the node of ``b`` paired with ``a``'s node ``i``,
+    or None when the units' parts do not pair up.
+    """
+    if len(a.corners) != len(b.corners) or a.blocks.keys() != b.blocks.keys():
+        return None
+    mapped = _apply(g, a.corners)
+    match = np.empty(len(a.corners), dtype=int)
+    for name, ia in a.blocks.items():
+        ib = b.blocks[name]
+        if len(ia) != len(ib):
+            return None
+        if len(ia) == 1:
+            match[ia] = ib
+            continue
+        # cost[i, j]: the largest corner distance of a's i-th part of this name to b's j-th
+        cost = np.linalg.norm(mapped[ia][:, None] - b.corners[ib][None], axis=-1).max(-1)
+        rows, cols = linear_sum_assignment(cost)
+        match[ia[rows]] = ib[cols]
+    return match
+
+
+def _aligned(chain: list, units: list, g: np.ndarray) -> list | None:
+    """The corners (n, 8, 3) of each member of ``chain``, its nodes in the order of the
+    first member's (pairing consecutive members under ``g``), or None."""
+    order = np.arange(len(units[chain[0]].corners))
+    out = [units[chain[0]].corners]
+    for a, b in zip(chain, chain[1:]):
+        match = correspond(g, units[a], units[b])
+        if match is None:
+            return None
+        order = match[order]
+        out.append(units[b].corners[order])
+    return out
+
+
+# ---- exact maps of each kind fitted to corresponding points ---------------------------------
+
+def _kabsch(p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Proper rotation R and translation t minimising sum |R p + t - q|^2."""
+    pc, qc = p.mean(0), q.mean(0)
+    u, _, vt = np.linalg.svd((p - pc).T @ (q - qc))
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return r, qc - r @ pc
+
+
+def fit_map(kind: str, members: list, angle: float | None = None) -> np.ndarray | None:
+    """The exact map ``G`` of ``kind`` with member k ~ G^k member 0, fitted to the aligned
+    corners of the members (least squares).
+
+    ``refl`` (two members): a mirror plane, its normal the principal direction of the
+    corner displacements, its offset through their midpoints; ``trans``: the step of a
+    straight-line fit of every corner against k; ``rot``: the Kabsch rotation of all
+    consecutive pairs, with the translation along its axis removed (a rotation about an
+    axis, not a screw motion), its angle replaced by ``angle`` when given. None when the
+    corners do not define such a map (members that coincide).
+    """
+    g = np.eye(4)
+    pts = [m.reshape(-1, 3) for m in members]
+    if kind == "trans":
+        k = np.arange(len(pts), dtype=np.float64)
+        k -= k.mean()
+        stack = np.stack(pts)
+        g[:3, 3] = np.tensordot(k, stack - stack.mean(0), axes=1).mean(0) / float(k @ k)
+        return g
+    p, q = np.concatenate(pts[:-1]), np.concatenate(pts[1:])
+    if kind == "refl":
+        diff = q - p
+        if float(np.abs(diff).max()) < 1e-12:
+            return None
+        _, _, vt = np.linalg.svd(diff, full_matrices=False)
+        n = vt[0]
+        d = float(np.mean(0.5 * (p + q) @ n))
+        g[:3, :3] -= 2 * np.outer(n, n)
+        g[:3, 3] = 2 * d * n
+        return g
+    r, t = _kabsch(p, q)
+    rotvec = Rotation.from_matrix(r).as_rotvec()
+    theta = float(np.linalg.norm(rotvec))
+    if theta < 1e-9:
+        return None
+    axis = rotvec / theta
+    # the axis passes through c with (I - R) c = t less its component along the axis
+    centre, *_ = np.linalg.lstsq(np.eye(3) - r, t - (t @ axis) * axis, rcond=None)
+    if angle is not None:
+        r = Rotation.from_rotvec(axis * angle).as_matrix()
+    g[:3, :3] = r
+    g[:3, 3] = centre - r @ centre
+    return g
+
+
+def deviation(g: np.ndarray, members: list, size: float) -> float:
+    """How far the members are from an exact group generated by ``g``: the exact group
+    ``G^k X`` nearest them (``X`` the mean of ``G^-k member_k``) and the largest distance
+    of a member's corner from its place there, as a fraction of ``size``. (For a mirror
+    pair that is half the distance between one member's mirror image and the other.)"""
+    powers = [np.eye(4)]
+    for _ in members[1:]:
+        powers.append(g @ powers[-1])
+    base = np.mean([_apply(np.linalg.inv(gk), m) for gk, m in zip(powers, members)], axis=0)
+    worst = max(float(np.linalg.norm(m - _apply(gk, base), axis=-1).max()) for gk, m in zip(powers, members))
+    return worst / size
+
+
+def _fit_chain(kind: str, chain: list, units: list, g: np.ndarray, angle: float | None = None):
+    """(map, deviation) of ``chain`` as one group of ``kind``: members paired under
+    ``g``, the map fitted, the pairing redone under the fitted map and the map refitted
+    (the first pairing may be off when ``g`` came from noisy first parts); or None."""
+    size = max(units[k].size for k in chain)
+    for _ in range(2):
+        members = _aligned(chain, units, g)
+        if members is None:
+            return None
+        fitted = fit_map(kind, members, angle)
+        if fitted is None:
+            return None
+        g = fitted
+    return g, deviation(g, members, size)
+
+
+def _nontrivial(g: np.ndarray, unit: Unit, tol: float) -> bool:
+    """Whether ``g`` moves the unit visibly (else the two units coincide: not a symmetry)."""
+    here = unit.corners.reshape(-1, 3)
+    return float(np.linalg.norm(_apply(g, here) - here, axis=1).max()) > tol * unit.size
+
+
+def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE):
+    """(kind, exact map, deviation) relating ``a`` to ``b`` for the first of ``kinds``
+    that fits within ``tol`` (:func:`deviation`), or None. The parts are first paired
+    under the raw map of the first parts, ``W_b W_a^-1``."""
+    if a.sig != b.sig:
+        return None
+    g0 = b.first() @ np.linalg.inv(a.first())
+    improper = np.linalg.det(g0[:3, :3]) < 0
+    for kind in kinds:
+        if (kind == "refl") != improper:
+            continue
+        units = [a, b]
+        fitted = _fit_chain(kind, [0, 1], units, g0)
+        if fitted is not None and fitted[1] <= tol and _nontrivial(fitted[0], a, tol):
+            return kind, fitted[0], fitted[1]
+    return None
+
+
+# ---- passes -------------------------------------------------------------------------------
+
+def _pair_reflections(units: list, frame: Frame, tol: float) -> list:
+    """Reflection pairs: each unit, in order, with the first later free unit it mirrors
+    within the tolerance. Order, not the smallest deviation, decides between several
+    partners (a row of mirrored pairs also mirrors along the row): deviations of exact
+    copies differ only by rounding, and noise within the tolerance must not change the
+    pairing."""
+    out, used = [], set()
+    for i, a in enumerate(units):
+        if i in used:
+            continue
+        for j in range(i + 1, len(units)):
+            if j in used:
+                continue
+            r = relate(a, units[j], ("refl",), tol)
+            if r is None:
+                continue
+            b, g = units[j], r[1]
+            used.update((i, j))
+            # canonical order: member 0 on the positive side of the (canonical) plane
+            gf = in_frame(g, frame)
+            w, v = np.linalg.eigh(0.5 * (gf[:3, :3] + gf[:3, :3].T))
+            n, _ = canonical_direction(v[:, int(np.argmin(w))])
+            d = 0.5 * float(n @ gf[:3, 3])
+            pa = np.linalg.inv(frame.matrix()) @ a.first()
+            members = [a, b] if float(n @ pa[:3, 3]) - d >= 0 else [b, a]
+            out.append(group_unit("refl", members, g))
+            break
+        else:
+            out.append(a)
+    return out
+
+
+def _extend(kind: str, g: np.ndarray, chain: list, units: list, free: set, tol: float) -> tuple[list, np.ndarray]:
+    """Grow ``chain`` forward while a free unit (the first in order) continues it: the
+    longer chain, refitted as one group, stays within the tolerance."""
+    while True:
+        for k in sorted(free - set(chain)):
+            if units[k].sig != units[chain[0]].sig:
+                continue
+            last = units[chain[-1]]
+            match = correspond(g, last, units[k])
+            if match is None:  # cheap test first: k is near where g puts the last member
+                continue
+            gap = float(np.linalg.norm(_apply(g, last.corners) - units[k].corners[match], axis=-1).max())
+            if gap > 4 * tol * max(last.size, units[k].size):
+                continue
+            fitted = _fit_chain(kind, chain + [k], units, g)
+            if fitted is not None and fitted[1] <= tol:
+                chain, g = chain + [k], fitted[0]
+                break
+        else:
+            return chain, g
+
+
+def _chains(units: list, frame: Frame, tol: float) -> list:
+    free = set(range(len(units)))
+    groups = []
+    related = {}  # (i, j) -> relate(...) (units do not change between rounds)
+    while True:
+        best = None
+        for i in sorted(free):
+            for j in sorted(free):
+                if i == j:
+                    continue
+                if (i, j) not in related:
+                    related[(i, j)] = relate(units[i], units[j], ("trans", "rot"), tol)
+                if related[(i, j)] is None:
+                    continue
+                kind, g, _ = related[(i, j)]
+                forward, g = _extend(kind, g, [i, j], units, free, tol)
+                backward, _ = _extend(kind, np.linalg.inv(g), [i], units, free - set(forward[1:]), tol)
+                chain = list(reversed(backward[1:])) + forward
+                if len(backward) > 1:
+                    fitted = _fit_chain(kind, chain, units, g)
+                    if fitted is None or fitted[1] > tol:
+                        chain = forward
+                    else:
+                        g = fitted[0]
+                if best is None or len(chain) > len(best[0]):  # ties: the first found
+                    best = (chain, g, kind)
+        if best is None or len(best[0]) < MIN_CHAIN:
+            break
+        chain, g, kind = best
+        if kind == "rot":
+            g = _snap_circle(chain, units, g, tol)
+        free -= set(chain)
+        groups.append((chain, g, kind))
+    out = [units[k] for k in sorted(free)]
+    for chain, g, kind in groups:
+        members = [units[k] for k in chain]
+        gf = in_frame(g, frame)
+        if kind == "trans":
+            _, sign = canonical_direction(gf[:3, 3])
+            if sign < 0:
+                members, g = members[::-1], np.linalg.inv(g)
+        else:
+            _, angle = rotation_axis_angle(gf)
+            if angle < 0:
+                members, g = members[::-1], np.linalg.inv(g)
+                angle = -angle
+            if abs(len(members) * angle - 2 * np.pi) < 1e-9:
+                members = _start_nearest_reference(members, g, frame)
+        out.append(group_unit(kind, members, g))
+    return out
+
+
+def _snap_circle(chain: list, units: list, g: np.ndarray, tol: float) -> np.ndarray:
+    """``g`` with its angle set to exactly 2 pi / n when the chain of n nearly closes a
+    circle and the snapped map still fits within the tolerance."""
+    n = len(chain)
+    angle = abs(rotation_axis_angle(g)[1])
+    if abs(n * angle - 2 * np.pi) > 0.5 * angle:
+        return g
+    fitted = _fit_chain("rot", chain, units, g, angle=2 * np.pi / n)
+    if fitted is not None and fitted[1] <= tol:
+        return fitted[0]
+    return g
+
+
+def _start_nearest_reference(members: list, g: np.ndarray, frame: Frame) -> list:
+    """Roll a full-circle rotation group to start at the member first reached, turning
+    the group's way, from a reference direction perpendicular to the axis."""
+    gf = in_frame(g, frame)
+    axis, _ = rotation_axis_angle(gf)
+    centre, *_ = np.linalg.lstsq(np.eye(3) - gf[:3, :3], gf[:3, 3], rcond=None)
+    ref = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    ref = ref - (ref @ axis) * axis
+    ref /= np.linalg.norm(ref)
+    finv = np.linalg.inv(frame.matrix())
+    best, best_angle = 0, np.inf
+    for k, m in enumerate(members):
+        p = (finv @ m.first())[:3, 3] - centre
+        p = p - (p @ axis) * axis
+        angle = np.arctan2(np.cross(ref, p) @ axis, ref @ p) % (2 * np.pi)
+        if angle < best_angle - 1e-9:
+            best, best_angle = k, angle
+    return members[best:] + members[:best]
+
+
+def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE) -> list:
+    """Symmetry groups among sibling nodes (a list of :class:`Unit`).
+
+    ``corners[part]``: the part's local bounding-box corners (:func:`box_corners`).
+    """
+    units = [leaf_unit(c, corners) for c in children]
+    units = _pair_reflections(units, frame, tol)
+    units = _chains(units, frame, tol)
+    return _pair_reflections(units, frame, tol)
