@@ -1,0 +1,406 @@
+"""procmod against WebPPL 0.9.15 on the vines program, end to end, judged by one neutral scorer.
+
+    python bench/vs_webppl.py                       # glyphs + scribbles, SMC at 10/50/200/600, 3 seeds
+    python bench/vs_webppl.py --targets-dir DIR     # also every target picture in DIR
+    python bench/vs_webppl.py --mcmc                # also MCMC vs WebPPL's MH (+ SOSMC, GA) at equal time
+    python bench/vs_webppl.py --guide vines-scribbles --guided-particles 1 5 10 20
+
+Both systems run the vines program of shared/seeds/vines.md (with leaves and flowers by
+default; ``--no-leaves`` for the plain one) as whole processes on the same target files:
+procmod as ``procmod infer vines --target T.png --engine smc --particles N --seed S --out
+DIR`` (renders, report and all), WebPPL as ``webppl bench/peers/webppl/vines.wppl`` with
+``Infer({method: 'SMC', particles: N})``. WebPPL is installed by this script from npm into
+``bench/.cache/`` (node and npm must be on the machine).
+
+Time: the wall time of a run beyond a 1-particle run of the same command (same target and
+seed), so start-up and report costs that do not depend on the particles cancel. Quality:
+every run's best complete output (procmod: ``best.json``; WebPPL: the complete particle of
+highest similarity, recorded as particles finish) is judged by ``bench/peers/scorer.py``,
+the original program's normalised similarity on a 50x50 mask of the output geometry,
+which shares no code with procmod. Targets are 50x50 masks written once as PNG (+ sidecar
+start/direction) for procmod and as JSON for WebPPL: the same pixels for both.
+
+Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``, procmod's
+procedural scribbles from number 49 on (0-48 train the guides). Results:
+``bench/results/vs_webppl.json`` and ``.png`` (``--name`` changes the stem).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from PIL import Image  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE / "peers"))
+import scorer  # noqa: E402
+
+ROOT = HERE.parent
+RESULTS = HERE / "results"
+WEBPPL_VERSION = "0.9.15"
+WEBPPL_CACHE = HERE / ".cache" / f"webppl-{WEBPPL_VERSION}"
+PEER = HERE / "peers" / "webppl"
+SIZE = 50
+
+
+# ---- the peer -------------------------------------------------------------------------
+
+def ensure_webppl() -> list:
+    """The command that runs WebPPL, installing it from npm into the cache on first use."""
+    binary = WEBPPL_CACHE / "node_modules" / "webppl" / "webppl"
+    if not binary.exists():
+        if shutil.which("npm") is None or shutil.which("node") is None:
+            sys.exit("vs_webppl: node and npm are needed to install the WebPPL peer")
+        WEBPPL_CACHE.mkdir(parents=True, exist_ok=True)
+        print(f"installing webppl@{WEBPPL_VERSION} into {WEBPPL_CACHE} ...", flush=True)
+        subprocess.run(["npm", "install", "--prefix", str(WEBPPL_CACHE), "--no-audit", "--no-fund",
+                        "--no-save", f"webppl@{WEBPPL_VERSION}"], check=True, stdout=subprocess.DEVNULL)
+    return ["node", str(binary)]
+
+
+def procmod_command() -> list:
+    """``procmod`` as this interpreter imports it (so a bench run from another checkout,
+    with PYTHONPATH pointing at it, times that checkout)."""
+    return [sys.executable, "-m", "procmod.cli"]
+
+
+# ---- targets --------------------------------------------------------------------------
+
+def target_images(sets: list, count: int, targets_dir: Path | None, scribble_first: int) -> dict:
+    """``set name -> [TargetImage]``."""
+    from procmod.data import glyph_set, scribble_set
+    from procmod.targets import load_target_image
+
+    out = {}
+    if "glyphs" in sets:
+        out["glyphs"] = [t for t in glyph_set("dejavu-sans") if t.name[-1].islower()][:count]
+    if "scribbles" in sets:
+        out["scribbles"] = scribble_set(count, first=scribble_first)
+    if targets_dir is not None:
+        files = sorted(p for p in targets_dir.iterdir()
+                       if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff"))
+        if not files:
+            sys.exit(f"vs_webppl: no target pictures in {targets_dir}")
+        out[targets_dir.name] = [load_target_image(p) for p in files]
+    return out
+
+
+def write_targets(images: dict, folder: Path) -> dict:
+    """Write each target as NAME.png + NAME.json (procmod) and NAME.mask.json (WebPPL).
+
+    Returns ``set -> [(name, target label, png path, mask json path, 50x50 mask)]``.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for set_name, targets in images.items():
+        rows = []
+        for k, target in enumerate(targets):
+            mask = target.at_size(SIZE, SIZE)
+            name = f"{set_name}_{k:02d}"
+            png = folder / f"{name}.png"
+            Image.fromarray(np.where(mask, 0, 255).astype(np.uint8)).save(png)
+            placement = {"start": [float(v) for v in target.start],
+                         "direction": [float(v) for v in target.direction]}
+            png.with_suffix(".json").write_text(json.dumps(placement))
+            spec = {"width": SIZE, "height": SIZE, "mask": mask.astype(int).ravel().tolist(), **placement}
+            mask_json = folder / f"{name}.mask.json"
+            mask_json.write_text(json.dumps(spec))
+            rows.append((name, target.name, png, mask_json, mask))
+        out[set_name] = rows
+    return out
+
+
+# ---- one run of each system -----------------------------------------------------------
+
+def procmod_geometry(derivation_path: Path) -> list:
+    """The primitives of a saved procmod derivation, as the scorer's dicts."""
+    from procmod.core import load_derivation
+    from procmod.geometry import Disc, Ellipse, Segment
+    from procmod.models import get_model
+
+    out = []
+    for g in load_derivation(derivation_path, get_model).geometry():
+        if isinstance(g, Segment):
+            out.append({"type": "segment", "x0": g.x0, "y0": g.y0, "x1": g.x1, "y1": g.y1, "width": g.width})
+        elif isinstance(g, Ellipse):
+            out.append({"type": "ellipse", "x": g.x, "y": g.y, "angle": g.angle, "length": g.length,
+                        "width": g.width})
+        elif isinstance(g, Disc):
+            out.append({"type": "disc", "x": g.x, "y": g.y, "radius": g.radius})
+        else:
+            raise ValueError(f"the scorer does not know {type(g).__name__}")
+    return out
+
+
+def timed(command: list) -> float:
+    t0 = time.perf_counter()
+    done = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    seconds = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
+    return seconds
+
+
+def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, leaves: bool,
+                budget: str | None = None, guide: str | None = None) -> dict:
+    out = work / "run"
+    if out.exists():
+        shutil.rmtree(out)
+    command = procmod_command() + ["infer", "vines", "--target", str(png), "--engine", engine,
+                                   "--seed", str(seed), "--out", str(out)]
+    if not leaves:
+        command += ["--param", "leaves=false"]
+    option = {"smc": "--particles", "sosmc": "--particles", "mcmc": "--chains", "ga": "--population"}[engine]
+    if n is not None:
+        command += [option, str(n)]
+    if budget is not None:
+        command += ["--budget", budget]
+    if guide is not None:
+        command += ["--guide", guide]
+    seconds = timed(command)
+    geometry = procmod_geometry(out / "best.json")
+    own = json.loads((out / "settings.json").read_text())["best_score"]
+    return {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": own,
+            "primitives": len(geometry)}
+
+
+def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: int, seed: int,
+               leaves: bool) -> dict:
+    out = work / "webppl.json"
+    command = webppl + [str(PEER / "vines.wppl"), "--require", str(PEER / "vines_peer"),
+                        "--random-seed", str(seed + 1), "--", "--target", str(mask_json), "--out", str(out),
+                        "--leaves", "1" if leaves else "0", "--method", method]
+    command += ["--particles", str(n)] if method == "SMC" else ["--samples", str(n)]
+    seconds = timed(command)
+    result = json.loads(out.read_text())
+    return {"seconds": seconds, "similarity": scorer.score(result["geometry"], mask),
+            "own_score": result["similarity"], "primitives": len(result["geometry"]),
+            "infer_seconds": result["inferSeconds"]}
+
+
+# ---- summaries ------------------------------------------------------------------------
+
+def median_interval(values, rng, draws: int = 2000) -> list:
+    """Median with a 95% bootstrap interval."""
+    v = np.asarray(values, dtype=np.float64)
+    boots = np.median(rng.choice(v, size=(draws, len(v)), replace=True), axis=1)
+    return [float(np.median(v)), float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]
+
+
+def summarise(rows: list, key_fields: tuple) -> list:
+    rng = np.random.default_rng(0)
+    groups = {}
+    for row in rows:
+        groups.setdefault(tuple(row[k] for k in key_fields), []).append(row)
+    out = []
+    for key, group in sorted(groups.items(), key=lambda kv: tuple(str(v) for v in kv[0])):
+        beyond = [r["beyond_seconds"] for r in group]
+        n_seeds = len({r["seed"] for r in group})
+        out.append({**dict(zip(key_fields, key)), "runs": len(group),
+                    "similarity_median": median_interval([r["similarity"] for r in group], rng),
+                    "beyond_seconds_median": float(np.median(beyond)),
+                    "beyond_seconds_per_set": float(np.sum(beyond) / n_seeds),
+                    "wall_seconds_median": float(np.median([r["seconds"] for r in group]))})
+    return out
+
+
+def plot(summary: list, sets: list, path: Path, title: str) -> None:
+    fig, axes = plt.subplots(len(sets), 2, figsize=(11, 3.8 * len(sets)), squeeze=False)
+    for row, set_name in enumerate(sets):
+        for system, colour in (("procmod", "C0"), ("webppl", "C1"), ("procmod+guide", "C2")):
+            pts = sorted((s for s in summary if s["set"] == set_name and s["system"] == system
+                          and s["method"] in ("smc", "SMC")), key=lambda s: s["n"])
+            if not pts:
+                continue
+            n = [s["n"] for s in pts]
+            med = np.array([s["similarity_median"] for s in pts])
+            err = [med[:, 0] - med[:, 1], med[:, 2] - med[:, 0]]
+            axes[row, 0].errorbar(n, med[:, 0], yerr=err, marker="o", capsize=3, color=colour, label=system)
+            secs = [max(s["beyond_seconds_per_set"], 1e-3) for s in pts]
+            axes[row, 1].errorbar(secs, med[:, 0], yerr=err, marker="o", capsize=3, color=colour, label=system)
+            for s, x, y in zip(pts, secs, med[:, 0]):
+                axes[row, 1].annotate(str(s["n"]), (x, y), fontsize=7, xytext=(3, -9), textcoords="offset points")
+        axes[row, 0].set_xscale("log")
+        axes[row, 0].set_xlabel("particles")
+        axes[row, 0].set_ylabel(f"{set_name}: median similarity")
+        axes[row, 1].set_xscale("log")
+        axes[row, 1].set_xlabel("seconds beyond a 1-particle run, whole set")
+        for ax in axes[row]:
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_mcmc(rows: list, path: Path) -> None:
+    systems = sorted({(r["system"], r["method"]) for r in rows})
+    sets = sorted({r["set"] for r in rows})
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    width = 0.8 / max(len(systems), 1)
+    rng = np.random.default_rng(0)
+    for i, (system, method) in enumerate(systems):
+        for j, set_name in enumerate(sets):
+            sims = [r["similarity"] for r in rows if r["system"] == system and r["method"] == method
+                    and r["set"] == set_name]
+            if not sims:
+                continue
+            m, lo, hi = median_interval(sims, rng)
+            ax.bar(j + i * width, m, width, yerr=[[m - lo], [hi - m]], capsize=3, color=f"C{i}",
+                   label=f"{system} {method}" if j == 0 else None)
+    ax.set_xticks([j + 0.4 - width / 2 for j in range(len(sets))], sets)
+    ax.set_ylabel("median similarity at equal wall time")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---- main -----------------------------------------------------------------------------
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles"))
+    parser.add_argument("--targets-dir", type=Path, help="a folder of target pictures (added as its own set)")
+    parser.add_argument("--count", type=int, default=12, help="targets per built-in set (default 12)")
+    parser.add_argument("--scribble-first", type=int, default=49, help="first scribble number (default 49)")
+    parser.add_argument("--particles", type=int, nargs="*", default=[10, 50, 200, 600])
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--no-leaves", dest="leaves", action="store_false", help="the vines program without leaves/flowers")
+    parser.add_argument("--systems", nargs="+", default=["procmod", "webppl"], choices=("procmod", "webppl"))
+    parser.add_argument("--mcmc", action="store_true",
+                        help="also WebPPL MH (--mh-samples) vs procmod mcmc, sosmc and ga at WebPPL's wall time")
+    parser.add_argument("--mh-samples", type=int, default=20000)
+    parser.add_argument("--mcmc-targets", type=int, default=4, help="targets per set for the MCMC comparison")
+    parser.add_argument("--guide", help="also guided procmod SMC with this guide (name or GUIDE.pt)")
+    parser.add_argument("--guided-particles", type=int, nargs="*", default=[1, 5, 10, 20])
+    parser.add_argument("--name", default="vs_webppl", help="results file stem (default vs_webppl)")
+    parser.add_argument("--work", type=Path, help="work folder (default: a temporary one)")
+    args = parser.parse_args()
+
+    webppl = ensure_webppl() if "webppl" in args.systems else None
+    work = args.work or Path(tempfile.mkdtemp(prefix="vs_webppl_"))
+    work.mkdir(parents=True, exist_ok=True)
+    targets = write_targets(target_images(args.sets, args.count, args.targets_dir, args.scribble_first),
+                            work / "targets")
+    sets = list(targets)
+    rows = []
+    started = time.time()
+    # Rows are appended to WORK/rows.jsonl as they are measured; a rerun with the same
+    # --work skips the runs already there (a long bench survives an interruption).
+    log_path = work / "rows.jsonl"
+    done = {}
+    if log_path.exists():
+        for line in log_path.read_text().splitlines():
+            row = json.loads(line)
+            done[(row["system"], row["method"], row["set"], row["target"], row["n"], row["seed"])] = row
+
+    def record(row):
+        rows.append(row)
+        with log_path.open("a") as handle:
+            handle.write(json.dumps(row) + "\n")
+        print(f"{row['system']:>13} {row['method']:>5} {row['set']:>10} {row['target']:>22} n={row['n']:<6} "
+              f"seed={row['seed']} {row['seconds']:6.2f} s (beyond {row['beyond_seconds']:6.2f}) "
+              f"similarity {row['similarity']:.3f}", flush=True)
+
+    # SMC at every particle count; a 1-particle run of each (system, target, seed) is the baseline.
+    for set_name, items in targets.items():
+        for name, label, png, mask_json, mask in items:
+            for seed in range(args.seeds):
+                plans = []
+                if "procmod" in args.systems:
+                    plans.append(("procmod", "smc", args.particles,
+                                  lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves)))
+                    if args.guide:
+                        plans.append(("procmod+guide", "smc", args.guided_particles,
+                                      lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
+                                                            guide=args.guide)))
+                if webppl is not None:
+                    plans.append(("webppl", "SMC", args.particles,
+                                  lambda n: run_webppl(webppl, mask_json, mask, work, "SMC", n, seed, args.leaves)))
+                for system, method, counts, run in plans:
+                    keys = [(system, method, set_name, label, n, seed) for n in counts]
+                    if all(k in done for k in keys):
+                        rows.extend(done[k] for k in keys)
+                        continue
+                    base = run(1)["seconds"]
+                    for n in counts:
+                        r = run(n)
+                        record({"system": system, "method": method, "set": set_name, "target": label,
+                                "n": n, "seed": seed, **r, "baseline_seconds": base,
+                                "beyond_seconds": r["seconds"] - base})
+
+    mcmc_rows = []
+    mcmc_path = work / "mcmc_rows.jsonl"
+    mcmc_done = {}
+    if mcmc_path.exists():
+        for line in mcmc_path.read_text().splitlines():
+            row = json.loads(line)
+            mcmc_done.setdefault((row["set"], row["target"], row["seed"]), []).append(row)
+    if args.mcmc and webppl is not None and "procmod" in args.systems:
+        for set_name, items in targets.items():
+            for name, label, png, mask_json, mask in items[: args.mcmc_targets]:
+                for seed in range(args.seeds):
+                    if (set_name, label, seed) in mcmc_done:
+                        mcmc_rows.extend(mcmc_done[(set_name, label, seed)])
+                        continue
+                    first = len(mcmc_rows)
+                    base_w = run_webppl(webppl, mask_json, mask, work, "MH", 1, seed, args.leaves)["seconds"]
+                    r = run_webppl(webppl, mask_json, mask, work, "MH", args.mh_samples, seed, args.leaves)
+                    budget = max(r["seconds"] - base_w, 0.05)
+                    mcmc_rows.append({"system": "webppl", "method": "MH", "set": set_name, "target": label,
+                                      "seed": seed, "n": args.mh_samples, **r, "beyond_seconds": budget})
+                    for engine in ("mcmc", "sosmc", "ga"):
+                        p = run_procmod(png, mask, work, engine, None, seed, args.leaves, budget=f"{budget:.3f}s")
+                        mcmc_rows.append({"system": "procmod", "method": engine, "set": set_name, "target": label,
+                                          "seed": seed, "n": None, **p, "budget_seconds": budget})
+                    with mcmc_path.open("a") as handle:
+                        handle.writelines(json.dumps(row) + "\n" for row in mcmc_rows[first:])
+                    print(f"  mcmc {set_name} {label} seed {seed}: MH {r['similarity']:.3f} in {budget:.2f} s; "
+                          + ", ".join(f"{m['method']} {m['similarity']:.3f}" for m in mcmc_rows[-3:]), flush=True)
+
+    summary = summarise(rows, ("system", "method", "set", "n"))
+    RESULTS.mkdir(exist_ok=True)
+    result = {
+        "command": "python bench/vs_webppl.py " + " ".join(sys.argv[1:]),
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version(),
+                    "node": subprocess.run(["node", "--version"], capture_output=True, text=True).stdout.strip()
+                    if shutil.which("node") else None},
+        "webppl_version": WEBPPL_VERSION, "leaves": args.leaves, "seeds": args.seeds,
+        "targets": {s: [label for _, label, *_ in items] for s, items in targets.items()},
+        "seconds_total": round(time.time() - started, 1),
+        "summary": summary, "runs": rows,
+        "mcmc_summary": summarise(mcmc_rows, ("system", "method", "set")) if mcmc_rows else [],
+        "mcmc_runs": mcmc_rows,
+    }
+    (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=1) + "\n")
+    title = f"vines {'with' if args.leaves else 'without'} leaves and flowers: procmod vs WebPPL {WEBPPL_VERSION}"
+    plot(summary, sets, RESULTS / f"{args.name}.png", title)
+    if mcmc_rows:
+        plot_mcmc(mcmc_rows, RESULTS / f"{args.name}_mcmc.png")
+    for s in summary:
+        m = s["similarity_median"]
+        print(f"{s['system']:>13} {s['set']:>10} n={s['n']:<5} median {m[0]:.3f} [{m[1]:.3f}, {m[2]:.3f}]  "
+              f"beyond-1 per set {s['beyond_seconds_per_set']:7.2f} s")
+    print(f"wrote {RESULTS / (args.name + '.json')}")
+
+
+if __name__ == "__main__":
+    main()
