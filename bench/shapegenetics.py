@@ -7,7 +7,7 @@ Population sizes start from the paper's (Figures 7 and 9: P_RJMCMC, P_SMC, P_SOS
 P_GA); GA mutation splits are the paper's (13.5/13.5/3 for spaceship and trees,
 12.5/10/18 for cities) plus a fourth mutation, nudge, with weight ``NUDGE`` = 10 on
 every scene (so the mutation probability is 40% for spaceship and trees, 50.5% for
-cities). A nudge (procmod/infer/ga.py) moves one call's continuous parameters by a
+cities). A nudge (procmod/infer/ga/variation.py) moves one call's continuous parameters by a
 Gaussian step of ``NUDGE_STEP`` = 0.2 x each prior's scale, as an MCMC diffusion move
 does; the paper's alter redraws a call from the prior, which rarely improves a fitted
 individual (about 5% of alters beat their parent on spaceship_volume). CPU-time A-B
@@ -30,7 +30,7 @@ time (556 -> 555 at 20 s) and 464 -> 449 at 0.5 s, below SMC's first finished ru
 So city_skyline keeps the paper's split without nudge (``"nudge": 0`` in GA_SETTINGS).
 
 GA settings are tuned per scene, as the paper tuned P_GA (``GA_SETTINGS``). Since GA
-offspring are evaluated incrementally (procmod/infer/ga.py), a generation costs a few
+offspring are evaluated incrementally (procmod/infer/ga/evaluation.py), a generation costs a few
 calls per individual, and smaller populations than the paper's (which ran every
 engine in one C++ generator) converge fastest from the start without stalling later:
 populations of 40-80 instead of 150-300 were better at every time point in short

@@ -192,7 +192,7 @@ def output_bytes(output) -> int:
 
 
 def check_population(option: str, count, output) -> int:
-    """Refuse a population (``--particles``, ``--population``, ``--chains``) that cannot
+    """Refuse a population (``particles``, ``population``, ``chains``) that cannot
     fit in memory, before an engine allocates it; returns ``count``.
 
     ``output`` is an empty output of the configured model (``target.new_output(model)``):
