@@ -36,7 +36,8 @@ from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_
 from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
 from procmod.strings.render import write_sheet  # noqa: E402
 from procmod.strings.sampling import DISTINCT_MODES, AugmentParams, augment  # noqa: E402
-from procmod.strings.shapes import histogram_distance, read_shapes, shape_graph  # noqa: E402
+from procmod.strings.contacts import shape_graph  # noqa: E402
+from procmod.strings.shapes import histogram_distance, read_shapes  # noqa: E402
 from procmod.strings.vae import VAEConfig  # noqa: E402
 
 SETS = ROOT / "examples_sets" / "strings"

@@ -43,7 +43,8 @@ from procmod.strings.tagger import TaggerConfig, train_tagger  # noqa: E402
 from procmod.strings.pipeline import (read_collection, split_shapes, tagger_training_set,  # noqa: E402
                                       vae_training_strings, write_collection)
 from procmod.strings.sampling import DISTINCT_MODES, AugmentParams, augment  # noqa: E402
-from procmod.strings.shapes import read_shapes, shape_graph  # noqa: E402
+from procmod.strings.contacts import shape_graph  # noqa: E402
+from procmod.strings.shapes import read_shapes  # noqa: E402
 from procmod.strings.vae import Vocab, vocab_of  # noqa: E402
 
 

@@ -10,7 +10,8 @@ from procmod.strings.codec import parse
 from procmod.strings.decoding import CategoryDecoder, DecoderParams, star_set, stars_of_labelling
 from procmod.strings.categories import EdgeCategories
 from procmod.strings.tagger import category_decoder, string_mask, tagging_examples
-from procmod.strings.shapes import read_shapes, shape_graph
+from procmod.strings.contacts import shape_graph
+from procmod.strings.shapes import read_shapes
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 
@@ -260,7 +261,7 @@ def _geometry(cats, ss):
 
 
 def test_a_ring_has_its_rotations_and_reflections_as_automorphisms():
-    from procmod.strings.shapes import type_automorphisms
+    from procmod.strings.automorphisms import type_automorphisms
 
     path = parse("CBC").graph  # its two ends swap
     assert len(type_automorphisms(path)) == 2
@@ -281,7 +282,8 @@ def test_shape_labellings_include_the_same_shape_with_its_parts_renamed(colonnad
     its image under an automorphism gives the same shape, whose categories are the
     labelling moved by that automorphism; every such labelling is among the shape's."""
     from procmod.strings.categories import shape_labelings
-    from procmod.strings.shapes import Shape, type_automorphisms
+    from procmod.strings.automorphisms import type_automorphisms
+    from procmod.strings.shapes import Shape
 
     ss, cats = colonnade_fitted
     shape = ss.shapes[0]  # a ring of 14 columns round a 5 x 4 court

@@ -9,7 +9,8 @@ from procmod.core.errors import InvalidArgumentError
 from procmod.strings.codec import decode
 from procmod.strings.categories import EdgeCategories
 from procmod.strings.instantiate import instantiate_graph
-from procmod.strings.shapes import read_shapes, shape_graph
+from procmod.strings.contacts import shape_graph
+from procmod.strings.shapes import read_shapes
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 

@@ -12,8 +12,12 @@ from procmod.strings.categories import EdgeCategories
 from procmod.strings.tagger import (Tagger, TaggerConfig, TaggerModel, string_mask, string_structure, tagging_accuracy,
                                     tagging_examples, train_tagger)
 from procmod.strings.latent import latent_path, naive_graph, path_statistics, search_graph
-from procmod.strings.shapes import Grammar, read_shapes, shape_graph
-from procmod.strings.vae import Constraint, ModelFileError, StringModel, VAEConfig, Vocab, _Prefix, train_vae
+from procmod.strings.automaton import Constraint, _Prefix
+from procmod.strings.contacts import shape_graph
+from procmod.strings.grammar import Grammar
+from procmod.strings.shapes import read_shapes
+from procmod.strings.torch_utils import ModelFileError
+from procmod.strings.vae import StringModel, VAEConfig, Vocab, train_vae
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 TINY = VAEConfig(embed=8, hidden=16, latent=4, epochs=2, batch=16, kl_warmup=1)
@@ -383,7 +387,7 @@ def test_vote_moves_each_string_by_the_automorphism_that_agrees(monkeypatch):
     one with the true corners give the true labelling once each string is moved back by
     the ring's automorphism; left unmoved (``automorphisms=1``) they mix two courts."""
     from procmod.strings.categories import shape_labelings
-    from procmod.strings.shapes import type_automorphisms
+    from procmod.strings.automorphisms import type_automorphisms
 
     ss = read_shapes(SETS / "colonnade.json")
     graphs = [shape_graph(ss, s) for s in ss.shapes]

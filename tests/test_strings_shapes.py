@@ -13,9 +13,10 @@ from procmod.strings.frames import canonical_frame, local_frame, symmetry_group
 from procmod.strings.instantiate import instantiate_graph
 from procmod.core.errors import InvalidArgumentError
 from procmod.strings.sampling import AugmentParams, SeenShapes, augment, docking_transforms, match_boundary
-from procmod.strings.shapes import (Grammar, Shape, ring_multiple_of, ring_rule_breaks, ShapesFormatError, boxes_touch, graph_from_dict,
-                                    histogram_distance, part_points, read_shapes, shape_graph, shapes_from_dict,
-                                    type_histogram, type_letters, validate_shape)
+from procmod.strings.contacts import boxes_touch, part_points, shape_graph
+from procmod.strings.grammar import Grammar, ring_multiple_of, ring_rule_breaks, validate_shape
+from procmod.strings.shapes import (Shape, ShapesFormatError, graph_from_dict, histogram_distance, read_shapes,
+                                    shapes_from_dict, type_histogram, type_letters)
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 

@@ -14,7 +14,9 @@ import networkx as nx
 import numpy as np
 
 from .frames import canonical_frame, proper_placement, rigid_inverse, symmetric_copies, world_symmetries
-from .shapes import Shape, ShapeSet, part_points, type_automorphisms
+from .automorphisms import type_automorphisms
+from .contacts import part_points
+from .shapes import Shape, ShapeSet
 
 
 def _pose_feature(fa: np.ndarray, fb: np.ndarray, length: float, rot_weight: float) -> np.ndarray:
@@ -269,7 +271,7 @@ def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: 
                     automorphisms: int = 64) -> list[dict]:
     """Edge categories of each symmetric copy of a shape that all its edges fall in, and
     of each of those relabelled by an automorphism of ``g`` (at most ``automorphisms`` of
-    them, :func:`~procmod.strings.shapes.type_automorphisms`; 1: none): every labelling a
+    them, :func:`~procmod.strings.automorphisms.type_automorphisms`; 1: none): every labelling a
     string of ``g`` could be right to give, without duplicates."""
     out, seen = [], set()
     auts = type_automorphisms(g, automorphisms) if automorphisms > 1 else [{v: v for v in g.nodes}]

@@ -118,7 +118,9 @@ def _seed(seed: int) -> int:
 
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .shapes import Grammar, read_shapes, shape_graph, write_graph
+    from .contacts import shape_graph
+    from .grammar import Grammar
+    from .shapes import read_shapes, write_graph
 
     shape_set = read_shapes(args.shapes)
     if args.tolerance is not None and not (math.isfinite(args.tolerance) and args.tolerance >= 0):

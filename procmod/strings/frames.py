@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .shapes import Shape, part_points
+from .contacts import part_points
+from .shapes import Shape
 
 
 def _extreme(points: np.ndarray, dist: np.ndarray, eps: float) -> np.ndarray:

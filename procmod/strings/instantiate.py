@@ -21,7 +21,8 @@ import numpy as np
 from ..core.errors import InvalidArgumentError
 from .categories import EdgeCategories
 from .frames import canonical_frame
-from .shapes import Shape, ShapeSet, contact_pairs, part_points, shape_graph, tolerance_for
+from .contacts import contact_pairs, part_points, shape_graph, tolerance_for
+from .shapes import Shape, ShapeSet
 
 
 @dataclass

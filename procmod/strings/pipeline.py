@@ -31,10 +31,12 @@ from ..core.serialize import write_text_atomic
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
-from .shapes import (Grammar, ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shape_graph,
-                     write_shapes)
+from .contacts import shape_graph
+from .grammar import Grammar
+from .shapes import ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, write_shapes
 from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
-from .vae import ModelFileError, StringModel, VAEConfig, train_vae, training_device
+from .torch_utils import ModelFileError, training_device
+from .vae import StringModel, VAEConfig, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
 
@@ -95,7 +97,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     """Train the VAE and the edge-category tagger on a collection, into a model folder.
 
     ``device``: where both train (``"cpu"``, ``"cuda"``; see
-    :func:`~procmod.strings.vae.training_device`); the saved model loads on any machine.
+    :func:`~procmod.strings.torch_utils.training_device`); the saved model loads on any machine.
 
     ``held_out`` of the variants (never the inputs) are kept out of both trainings and
     used for the tagger's held-out accuracy. Returns the model's ``model.json`` content.

@@ -26,8 +26,9 @@ import networkx as nx
 import numpy as np
 
 from ..core.errors import InvalidArgumentError
-from .shapes import (Grammar, Shape, ShapeSet, centroids, contact_pairs, part_points, shape_graph, tolerance_for,
-                     type_histogram)
+from .contacts import centroids, contact_pairs, part_points, shape_graph, tolerance_for
+from .grammar import Grammar
+from .shapes import Shape, ShapeSet, type_histogram
 
 
 def random_connected_subgraph(g: nx.Graph, size: int, rng: np.random.Generator) -> set:

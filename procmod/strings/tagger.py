@@ -21,12 +21,14 @@ from torch import nn
 
 from ..core.errors import InvalidArgumentError
 from ..core.serialize import fingerprint, write_text_atomic
+from .automorphisms import type_automorphisms
 from .categories import EdgeCategories, shape_labelings
 from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement, world_symmetries
-from .shapes import ShapeSet, first_poses, type_automorphisms
-from .vae import ModelFileError, Vocab, save_weights, torch_threads, training_device
+from .shapes import ShapeSet, first_poses
+from .torch_utils import ModelFileError, save_weights, torch_threads, training_device
+from .vae import Vocab
 
 
 @dataclass
@@ -486,7 +488,7 @@ class TaggerModel:
 def train_tagger(examples: list, vocab: Vocab, categories: EdgeCategories, folder, config: TaggerConfig = TaggerConfig(),
                  seed: int = 0, progress=None, device: str | None = None) -> TaggerModel:
     """Train (or resume, on any device) the tagger on (string, targets) pairs, checkpointing
-    every epoch; ``device``: see :func:`~procmod.strings.vae.training_device` (the model
+    every epoch; ``device``: see :func:`~procmod.strings.torch_utils.training_device` (the model
     comes back on the CPU)."""
     dev = training_device(device)
     with torch_threads():

@@ -1,0 +1,126 @@
+"""Contact geometry (seed 001, section 3): which parts of a shape touch.
+
+Two parts are neighbours iff their surfaces intersect, within a tolerance
+(:func:`shape_graph`; default :func:`tolerance_for` the library): an exact separating-axis
+test for two boxes, python-fcl on triangle meshes otherwise, after an axis-aligned
+bounding-box pre-filter.
+"""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+
+from ..geometry.part_library import PartShape
+from .shapes import Shape, ShapeSet
+
+DEFAULT_TOLERANCE = 1e-3  # times the median part diagonal
+
+
+_BOX_CORNERS = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+
+
+def part_points(library: dict, name: str, transform: np.ndarray) -> np.ndarray:
+    """World-space vertices of a part (a box's 8 corners, a mesh's vertices), in library order."""
+    shape: PartShape = library[name]
+    local = _BOX_CORNERS * np.asarray(shape.size) if shape.kind == "box" else np.asarray(shape.vertices)
+    return local @ transform[:3, :3].T + transform[:3, 3]
+
+
+def _box_axes(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Face normals and edge directions of a (possibly sheared) box placed by ``t``."""
+    edges = t[:3, :3].T  # rows: images of the local x, y, z axes
+    normals = np.array([np.cross(edges[1], edges[2]), np.cross(edges[2], edges[0]), np.cross(edges[0], edges[1])])
+    return normals, edges
+
+
+def boxes_touch(corners_a, t_a, corners_b, t_b, tol: float) -> bool:
+    """Exact separating-axis test: do two boxes (parallelepipeds) intersect or lie within ``tol``?"""
+    na, ea = _box_axes(t_a)
+    nb, eb = _box_axes(t_b)
+    cross = np.cross(ea[:, None, :], eb[None, :, :]).reshape(9, 3)
+    axes = np.concatenate([na, nb, cross])
+    norms = np.linalg.norm(axes, axis=1)
+    keep = norms > 1e-9 * max(norms.max(), 1e-300)
+    axes = axes[keep] / norms[keep, None]
+    pa, pb = corners_a @ axes.T, corners_b @ axes.T
+    gap = np.maximum(pb.min(0) - pa.max(0), pa.min(0) - pb.max(0))
+    return bool(np.all(gap <= tol))
+
+
+def _fcl_object(points: np.ndarray, faces: np.ndarray):
+    import fcl
+    model = fcl.BVHModel()
+    model.beginModel(len(points), len(faces))
+    model.addSubModel(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int32))
+    model.endModel()
+    return fcl.CollisionObject(model, fcl.Transform())
+
+
+_BOX_FACES = np.array([(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+                       (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)])
+
+
+def meshes_touch(obj_a, obj_b, tol: float) -> bool:
+    """Do two fcl triangle meshes' surfaces intersect or come within ``tol``?"""
+    import fcl
+    if fcl.collide(obj_a, obj_b, fcl.CollisionRequest(), fcl.CollisionResult()):
+        return True
+    return fcl.distance(obj_a, obj_b, fcl.DistanceRequest(), fcl.DistanceResult()) <= tol
+
+
+def tolerance_for(library: dict) -> float:
+    """The default contact tolerance: :data:`DEFAULT_TOLERANCE` times the median part diagonal."""
+    diagonals = [float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in library.values()]
+    return DEFAULT_TOLERANCE * float(np.median(diagonals))
+
+
+def contact_pairs(library: dict, parts, transforms, tol: float, pairs_of=None) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, ``i < j``, of parts whose surfaces intersect (within ``tol``).
+
+    ``pairs_of`` optionally restricts the test to the given candidate pairs.
+    """
+    points = [part_points(library, p, t) for p, t in zip(parts, transforms)]
+    lo = np.array([q.min(0) for q in points]) - tol
+    hi = np.array([q.max(0) for q in points]) + tol
+    if pairs_of is None:
+        overlap = np.all((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :]), axis=2)
+        ii, jj = np.nonzero(np.triu(overlap, 1))
+        candidates = zip(ii.tolist(), jj.tolist())
+    else:
+        candidates = [(i, j) for i, j in pairs_of if np.all(lo[i] <= hi[j]) and np.all(lo[j] <= hi[i])]
+    fcl_objects: dict[int, object] = {}
+
+    def obj(k):
+        if k not in fcl_objects:
+            shape = library[parts[k]]
+            faces = _BOX_FACES if shape.kind == "box" else np.asarray(shape.faces)
+            fcl_objects[k] = _fcl_object(points[k], faces)
+        return fcl_objects[k]
+
+    out = []
+    for i, j in candidates:
+        if library[parts[i]].kind == "box" and library[parts[j]].kind == "box":
+            hit = boxes_touch(points[i], transforms[i], points[j], transforms[j], tol)
+        else:
+            hit = meshes_touch(obj(i), obj(j), tol)
+        if hit:
+            out.append((min(i, j), max(i, j)))
+    return sorted(out)
+
+
+def shape_graph(shape_set: ShapeSet, shape: Shape, tol: float | None = None) -> nx.Graph:
+    """The shape graph: one node per part (``type`` = its letter, ``part`` = its name),
+    an edge per pair of parts whose surfaces intersect within ``tol`` (default
+    :func:`tolerance_for` the library)."""
+    tol = tolerance_for(shape_set.library) if tol is None else tol
+    g = nx.Graph()
+    for k, name in enumerate(shape.parts):
+        g.add_node(k, type=shape_set.letters[name], part=name)
+    g.add_edges_from(contact_pairs(shape_set.library, shape.parts, shape.transforms, tol))
+    return g
+
+
+def centroids(shape_set: ShapeSet, shape: Shape) -> np.ndarray:
+    """Centroid (vertex mean) of each part, ``(n, 3)``."""
+    return np.array([part_points(shape_set.library, p, t).mean(0) for p, t in zip(shape.parts, shape.transforms)])

@@ -1,0 +1,148 @@
+"""Tiling-grammar rules (seed 001, section 3) and the ring-length rule.
+
+The tiling grammar (:class:`Grammar`) is what the input shapes show: for each node type,
+the multisets of neighbour types a node of that type may have. A graph is valid when it is
+connected and every node's neighbour multiset was seen for its type; a shape is valid when
+the graph recomputed from its geometry is (:func:`validate_shape`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import networkx as nx
+
+from .contacts import shape_graph
+from .shapes import Shape, ShapeSet
+
+
+def neighbour_key(g: nx.Graph, v) -> str:
+    """The sorted letters of ``v``'s neighbours' types (its neighbour multiset)."""
+    return "".join(sorted(g.nodes[u]["type"] for u in g.neighbors(v)))
+
+
+RING_MULTIPLE_KEY = "ring_length_multiple"  # in the rules' JSON: never a type letter
+
+
+def ring_multiple_of(lengths) -> int:
+    """The ring-length rule learned from cycle lengths: their greatest common divisor,
+    capped to a divisor of 4 (1: no rule).
+
+    Why capped: 2 (even rings, as in any bipartite pattern) and 4 (cells and links
+    alternating on a square grid: an even number of grid steps, two edges each) are facts
+    about a set's lattice; a larger common divisor is what a handful of rings happen to
+    share (one input ring 28 long must not make every ring 28 long). Only 2 and 4 are
+    used because for them "every cycle" can be checked on a cycle basis (see
+    :func:`ring_rule_breaks`)."""
+    g = 0
+    for n in lengths:
+        g = math.gcd(g, int(n))
+    return math.gcd(g, 4) if g else 1
+
+
+def ring_rule_breaks(cycles: list[set], multiple: int) -> list[str]:
+    """Why the cycles spanned by a cycle basis (each basis cycle as its set of edges) are not
+    all a multiple of ``multiple`` (2 or 4) long; empty when they are.
+
+    Every cycle is a sum (symmetric difference) of basis cycles, and
+    ``|A + B| = |A| + |B| - 2 |A & B|`` (further terms are multiples of 4), so every cycle is
+    a multiple of 2 long iff every basis cycle is, and a multiple of 4 iff every basis cycle
+    is and every two share an even number of edges."""
+    out = [f"a ring of {len(c)} parts; every ring of the input shapes is a multiple of {multiple} parts long"
+           for c in cycles if len(c) % multiple]
+    if multiple == 4 and not out:
+        for i, a in enumerate(cycles):
+            for b in cycles[i + 1:]:
+                k = len(a & b)
+                if k % 2:
+                    out.append(f"rings of {len(a)} and {len(b)} parts share {k} contacts, so the ring around "
+                               f"both is {len(a) + len(b) - 2 * k} long; every ring of the input shapes is a "
+                               f"multiple of 4 parts long")
+    return out
+
+
+@dataclass
+class Grammar:
+    """Tiling-grammar rules: node type -> the neighbour multisets seen for it (sorted letters);
+    and the ring-length rule: every cycle's length (parts) is a multiple of
+    ``ring_multiple`` (learned by :func:`ring_multiple_of` from the graphs' cycle bases; 1:
+    no rule).
+
+    The neighbour multisets say nothing about how long a ring is, yet a ring of the wrong
+    length has no embedding: in the example sets every ring alternates cells (towers,
+    modules, columns) and links (walls, corridors, beams) on a square grid, so every ring
+    is a multiple of 4 long, and before this rule most novel VAE samples had a ring that no
+    placement of the parts realises (docs/strings.md, "Ring-length rule")."""
+
+    rules: dict
+    ring_multiple: int = 1
+
+    @staticmethod
+    def from_graphs(graphs) -> "Grammar":
+        rules: dict[str, set] = {}
+        lengths = set()
+        for g in graphs:
+            for v in g.nodes:
+                rules.setdefault(g.nodes[v]["type"], set()).add(neighbour_key(g, v))
+            lengths.update(len(c) for c in nx.cycle_basis(g))
+        return Grammar({t: frozenset(keys) for t, keys in rules.items()}, ring_multiple_of(lengths))
+
+    def bad_rings(self, g: nx.Graph) -> list[str]:
+        """Why ``g``'s rings break the ring-length rule (empty: they keep it)."""
+        if self.ring_multiple == 1:
+            return []
+        cycles = [{frozenset(e) for e in zip(c, c[1:] + c[:1])} for c in nx.cycle_basis(g)]
+        return ring_rule_breaks(cycles, self.ring_multiple)
+
+    @property
+    def types(self) -> list[str]:
+        return sorted(self.rules)
+
+    def violations(self, g: nx.Graph, limit: int = 5) -> list[str]:
+        """Why ``g`` breaks the grammar (empty when it is valid); at most ``limit`` reasons."""
+        out = []
+        if g.number_of_nodes() == 0:
+            return ["the graph has no nodes"]
+        if not nx.is_connected(g):
+            out.append(f"the graph has {nx.number_connected_components(g)} connected parts, not one")
+        for v in g.nodes:
+            t = g.nodes[v]["type"]
+            if t not in self.rules:
+                out.append(f"node {v}: type {t!r} does not occur in the input shapes")
+            else:
+                key = neighbour_key(g, v)
+                if key not in self.rules[t]:
+                    allowed = ", ".join(sorted(k or "-" for k in self.rules[t]))
+                    out.append(f"node {v} ({t}) has neighbours {key or '-'}; the rules allow {allowed}")
+            if len(out) >= limit:
+                return out
+        return out + self.bad_rings(g)[:limit - len(out)]
+
+    def is_valid(self, g: nx.Graph) -> bool:
+        if g.number_of_nodes() == 0 or not nx.is_connected(g):
+            return False
+        return all(g.nodes[v]["type"] in self.rules and neighbour_key(g, v) in self.rules[g.nodes[v]["type"]]
+                   for v in g.nodes) and not self.bad_rings(g)
+
+    def node_ok(self, g: nx.Graph, v) -> bool:
+        t = g.nodes[v]["type"]
+        return t in self.rules and neighbour_key(g, v) in self.rules[t]
+
+    def to_json(self) -> dict:
+        """``{type: [neighbour keys]}``, plus ``"ring_length_multiple"`` when there is a ring rule."""
+        out = {t: sorted(keys) for t, keys in sorted(self.rules.items())}
+        if self.ring_multiple > 1:
+            out[RING_MULTIPLE_KEY] = self.ring_multiple
+        return out
+
+    @staticmethod
+    def from_json(data) -> "Grammar":
+        """The inverse of :meth:`to_json` (grammars saved before the ring rule have none)."""
+        rules = {t: frozenset(keys) for t, keys in data.items() if t != RING_MULTIPLE_KEY}
+        return Grammar(rules, int(data.get(RING_MULTIPLE_KEY, 1)))
+
+
+def validate_shape(shape_set: ShapeSet, shape: Shape, grammar: Grammar, tol: float | None = None) -> list[str]:
+    """Geometric validation: recompute the shape graph and check it against ``grammar``."""
+    return grammar.violations(shape_graph(shape_set, shape, tol))

@@ -1,0 +1,78 @@
+"""Torch utilities of the string models: thread count, training device, checkpoints."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+
+from ..core.errors import InvalidArgumentError, ProcmodError
+
+TORCH_THREADS = 1  # these nets are small: one thread is much faster than two on a busy 2-core machine
+
+
+class torch_threads:
+    """Run torch with ``n`` intra-op threads inside a ``with`` block (restored after)."""
+
+    def __init__(self, n: int = TORCH_THREADS):
+        self.n = n
+
+    def __enter__(self):
+        self.old = torch.get_num_threads()
+        torch.set_num_threads(self.n)
+
+    def __exit__(self, *exc):
+        torch.set_num_threads(self.old)
+        return False
+
+
+class ModelFileError(ProcmodError):
+    """A trained model folder or checkpoint that cannot be read."""
+
+
+def training_device(name: str | None) -> torch.device:
+    """The torch device to train on: ``None`` or ``"cpu"``, ``"cuda"``, ``"cuda:N"``.
+
+    Training runs there; checkpoints are always written with CPU tensors and every trained
+    model is handed back on the CPU, where sampling, decoding and instantiation run (their
+    per-step work is small and branchy), so a model trained on a GPU loads anywhere.
+    """
+    if name is None or name == "cpu":
+        return torch.device("cpu")
+    try:
+        device = torch.device(name)
+    except (RuntimeError, TypeError):
+        raise InvalidArgumentError(f"--device {name!r} is not a torch device; use cpu, cuda or cuda:N") from None
+    if device.type != "cuda":
+        raise InvalidArgumentError(f"--device {name!r}: training runs on cpu or cuda only")
+    if not torch.cuda.is_available():
+        raise InvalidArgumentError(f"--device {name}: torch sees no CUDA device here "
+                                   f"(torch {torch.__version__}); train with --device cpu")
+    if device.index is not None and device.index >= torch.cuda.device_count():
+        raise InvalidArgumentError(f"--device {name}: only {torch.cuda.device_count()} CUDA device(s) visible")
+    return device
+
+
+def cpu_state(module_or_optimizer) -> dict:
+    """A state dict with every tensor on the CPU (checkpoints load on any machine)."""
+    def to_cpu(x):
+        if isinstance(x, torch.Tensor):
+            return x.detach().cpu()
+        if isinstance(x, dict):
+            return {k: to_cpu(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return type(x)(to_cpu(v) for v in x)
+        return x
+    return to_cpu(module_or_optimizer.state_dict())
+
+
+def save_weights(path: Path, net, optimizer=None) -> None:
+    """Write a net's (and optionally its optimizer's) CPU state dicts to ``path`` through a
+    temporary file and a rename: a kill mid-write leaves the previous checkpoint whole."""
+    payload = {"model": cpu_state(net)}
+    if optimizer is not None:
+        payload["optimizer"] = cpu_state(optimizer)
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
