@@ -43,11 +43,16 @@ def test_bad_silhouette_files(tmp_path):
     cases = [
         ({"format": "procmod-silhouette/1", "views": []}, "non-empty"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": cam}]}, "nothing to hit"),
-        ({"format": "procmod-silhouette/1", "views": [{"image": "none.png", "camera": cam}]}, "cannot read"),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "none.png", "camera": cam}]},
+         "views\\[0\\].image: image file .* does not exist"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": {"eye": [0, 0, 0],
                                                                                       "look_at": [0, 0, 0]}}]},
          "coincide"),
         ({"format": "procmod-silhouette/1", "views": [{"camera": cam}]}, "needs \"image\""),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "weights": "w.npy", "camera": cam}]},
+         "gives 'weights' and 'image'; give one of them"),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": dict(cam, width=8)}]},
+         "views\\[0\\].camera.width: a picture's or weights' size is its own"),
         ({"format": "something"}, "format"),
     ]
     for spec, message in cases:

@@ -149,7 +149,7 @@ def test_load_volume_target_files(tmp_path):
     ({"format": "procmod-volume/1", "layers": []}, "non-empty"),
     ({"format": "procmod-volume/1", "layers": [{"file": "nope.obj"}]}, "does not exist"),
     ({"format": "procmod-volume/1", "layers": [{"file": "v.npy"}]}, "needs \"grid\""),
-    ({"format": "procmod-volume/1", "layers": [{"file": "open.obj"}]}, "not watertight"),
+    ({"format": "procmod-volume/1", "layers": [{"file": "open.obj"}]}, "need \"voxel_size\""),
 ])
 def test_malformed_volume_targets(tmp_path, spec, message):
     import trimesh
@@ -160,6 +160,19 @@ def test_malformed_volume_targets(tmp_path, spec, message):
     (tmp_path / "t.json").write_text(json.dumps(spec))
     with pytest.raises(TargetFileError, match=message):
         load_volume_target(tmp_path / "t.json")
+
+
+def test_an_open_mesh_is_a_volume_layer(tmp_path):
+    # a box with one side missing used to be refused ("not watertight"); its winding number
+    # keeps the box's inside (procmod.geometry.inside; tests/test_mesh_targets.py for the rest)
+    import trimesh
+    open_mesh = trimesh.creation.box((1, 1, 1))
+    open_mesh.faces = open_mesh.faces[:-2]
+    open_mesh.export(tmp_path / "open.obj")
+    (tmp_path / "t.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": 0.1,
+                                                 "layers": [{"file": "open.obj"}], "score": "proxy"}))
+    proxy = load_volume_target(tmp_path / "t.json")
+    assert 900 < proxy.mask.sum() <= 1000  # of the 10 x 10 x 10 voxel centres in the box
 
 
 def test_part_cache_gives_the_same_scene_as_voxelizing():

@@ -12,7 +12,8 @@ from .image import (TargetFileError, TargetImage, check_mask, load_target_image,
                     lowest_point_start, mask_from_image, out_of_bounds_penalty, place_model,
                     resample_mask)
 from .shape import ShapeMatch, shape_weights, sobel_magnitude
-from .silhouette import Silhouette, load_silhouette_target
-from .volume import ProxyVolume, Volume, load_target_file, load_volume_target, voxelize_mesh_file
+from .files import load_silhouette_target, load_target_file, load_volume_target, read_mesh, voxelize_mesh_file
+from .silhouette import Silhouette
+from .volume import ProxyVolume, Volume
 
 __all__ = [name for name in dir() if not name.startswith("_")]

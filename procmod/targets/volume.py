@@ -27,21 +27,12 @@ not. :class:`ProxyScene` keeps that count incrementally beside the voxels.
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 
 from ..core import InvalidArgumentError
-from ..core.serialize import read_json
 from ..geometry.collide import PartIntersections
 from ..geometry.voxel import VoxelGrid, VoxelScene
-from .image import TargetFileError
-
-
-def read_target_json(path: Path):
-    """The parsed JSON of a target description, or a TargetFileError saying why not."""
-    return read_json(path, TargetFileError, "target file")  # one line also for absurdly deep JSON
 
 
 def _check_3d(model):
@@ -175,98 +166,3 @@ class ProxyVolume:
 
     def display_mask(self, width: int):
         return None
-
-
-def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float = 0.1):
-    """Voxelize a watertight mesh file (any format trimesh reads) on a grid around it."""
-    import trimesh
-
-    from ..geometry.solid import Mesh
-    from ..geometry.voxel import voxelize
-
-    try:
-        mesh = trimesh.load(path, force="mesh")
-    except Exception as exc:  # trimesh raises many types for unreadable files
-        raise TargetFileError(f"{path}: cannot read the mesh ({exc})") from None
-    if len(mesh.faces) == 0:
-        raise TargetFileError(f"{path}: the mesh has no faces")
-    if not mesh.is_watertight:
-        raise TargetFileError(f"{path}: the mesh is not watertight, so its inside is undefined; "
-                              "close its holes or give a voxel grid (.npy) instead")
-    grid = VoxelGrid.around(mesh.bounds[0], mesh.bounds[1], voxel_size, margin)
-    part = Mesh(tuple(map(tuple, mesh.vertices)), tuple(map(tuple, mesh.faces)))
-    return grid, voxelize([part], grid)
-
-
-def load_volume_target(path: str | os.PathLike):
-    """Read a volume target description (``procmod-volume/1`` JSON).
-
-    ::
-
-        {"format": "procmod-volume/1", "score": "svol" | "proxy",
-         "voxel_size": 0.25, "margin": 0.1,             # for meshes
-         "grid": {"origin": [x, y, z], "voxel_size": h},  # for .npy volumes
-         "layers": [{"file": "proxy.obj" | "fill.npy", "w_fill": 1, "w_avoid": -1}],
-         "w_self": 0}
-
-    Files are relative to the JSON file. All layers must lie on one grid: the first layer
-    defines it (a mesh is voxelized on the grid around it; an .npy needs "grid").
-    """
-    path = Path(path)
-    spec = read_target_json(path)
-    if not isinstance(spec, dict) or spec.get("format") != "procmod-volume/1":
-        raise TargetFileError(f"{path}: expected a JSON object with \"format\": \"procmod-volume/1\"")
-    layers_spec = spec.get("layers")
-    if not isinstance(layers_spec, list) or not layers_spec:
-        raise TargetFileError(f"{path}: \"layers\" must be a non-empty list")
-    grid, layers = None, []
-    for i, layer in enumerate(layers_spec):
-        if not isinstance(layer, dict) or not isinstance(layer.get("file"), str):
-            raise TargetFileError(f"{path}: layers[{i}] needs a \"file\"")
-        file = path.parent / layer["file"]
-        try:
-            w_fill, w_avoid = float(layer.get("w_fill", 1.0)), float(layer.get("w_avoid", 0.0))
-        except (TypeError, ValueError):
-            raise TargetFileError(f"{path}: layers[{i}] weights must be numbers") from None
-        if file.suffix.lower() == ".npy":
-            g = spec.get("grid")
-            if not isinstance(g, dict):
-                raise TargetFileError(f"{path}: a .npy layer needs \"grid\": {{\"origin\": [...], \"voxel_size\": h}}")
-            try:
-                mask = np.load(file, allow_pickle=False)
-            except (OSError, ValueError) as exc:
-                raise TargetFileError(f"{file}: cannot read the voxel grid ({exc})") from None
-            if mask.ndim != 3:
-                raise TargetFileError(f"{file}: a voxel grid must be a 3D array, got shape {mask.shape}")
-            layer_grid = VoxelGrid(tuple(float(v) for v in g["origin"]), float(g["voxel_size"]), mask.shape)
-            mask = mask.astype(bool)
-        else:
-            if not file.exists():
-                raise TargetFileError(f"{path}: layers[{i}] file {file} does not exist")
-            layer_grid, mask = voxelize_mesh_file(file, float(spec.get("voxel_size", 0.25)),
-                                                  float(spec.get("margin", 0.1)))
-        if grid is None:
-            grid = layer_grid
-        elif layer_grid != grid:
-            raise TargetFileError(f"{path}: layers[{i}] is not on the first layer's grid")
-        if not mask.any():
-            raise TargetFileError(f"{file}: the target volume is empty")
-        layers.append((mask, w_fill, w_avoid))
-    name = path.parent.name if path.name == "target.json" else path.stem
-    if spec.get("score", "svol") == "proxy":
-        return ProxyVolume(grid, layers[0][0], name=name)
-    return Volume(grid, layers, float(spec.get("w_self", 0.0)), name=name)
-
-
-def load_target_file(path: str | os.PathLike):
-    """A 3D target from its JSON description, dispatched on its ``format``."""
-    from .silhouette import load_silhouette_target
-
-    path = Path(path)
-    spec = read_target_json(path)
-    kind = spec.get("format") if isinstance(spec, dict) else None
-    if kind == "procmod-silhouette/1":
-        return load_silhouette_target(path)
-    if kind == "procmod-volume/1":
-        return load_volume_target(path)
-    raise TargetFileError(f"{path}: \"format\" must be procmod-volume/1 or procmod-silhouette/1, got {kind!r}")

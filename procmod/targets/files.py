@@ -1,0 +1,614 @@
+"""Reading 3D target files: ``procmod-volume/1`` and ``procmod-silhouette/1`` JSON, and the
+voxel grids, weight images, pictures and meshes they name.
+
+Everything a file says is checked when it is read, before any work: a bad field is refused
+with one line naming the file and the field by its JSON path, e.g.
+``T.json: layers[1].w_fill must be a finite number, got inf``; a size the machine cannot
+hold (a voxel grid, a mesh, an image) is refused from what the file declares, before it
+is loaded. Files named inside a target file follow :func:`procmod.core.paths.named_file`:
+relative to the target file's folder, an existing regular file of the expected kind.
+
+Meshes (``.obj .glb .gltf .ply .stl .off``, read by trimesh) are taken as modelling tools
+write them (:func:`read_mesh`): UV and normal seams, which split vertices, are merged;
+faces are wound consistently and outward per connected piece; a volume layer's inside is
+then decided by the generalised winding number (:mod:`procmod.geometry.inside`), so
+overlapping pieces, flipped faces, small holes and non-manifold edges need no repair. A
+mesh is refused only when no inside exists (no faces, every face of zero area, vertices
+that are not numbers) or when it is too large (more than :data:`MAX_MESH_FACES` faces).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import math
+import os
+import struct
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..core.limits import ResourceLimitError, check_memory, format_bytes
+from ..core.paths import UnsafePathError, named_file
+from ..core.serialize import read_json
+from ..geometry.camera import Camera, Silhouettes
+from ..geometry.voxel import VoxelGrid
+from .image import MAX_IMAGE_PIXELS, TargetFileError, open_image
+from .silhouette import Silhouette
+from .volume import ProxyVolume, Volume
+
+MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off"})
+# The largest mesh procmod reads as a target. Reading costs about BYTES_PER_FACE of memory
+# per face at its peak (trimesh's parser, the merged copy, the half-edge sort) and some
+# 10 s per million faces of OBJ; a voxel grid does not resolve more detail than this.
+MAX_MESH_FACES = 4_000_000
+BYTES_PER_FACE = 400
+# Memory per voxel of a volume target: the combined weights and the engine's gain copy
+# (float64 each), the layer masks, the inside test's crossing counts (int32), the scene's
+# hit counts.
+BYTES_PER_VOXEL = 24
+SCORES = ("svol", "proxy")
+DEFAULT_MESH_VIEW = 128  # pixels a side of a silhouette view drawn from a mesh, unless given
+
+
+def _cut(text: str, limit: int = 200) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _shown(value, limit: int = 60) -> str:
+    """``repr`` of a value from a file, cut to a readable length."""
+    return _cut(repr(value), limit)
+
+
+def read_target_json(path: str | os.PathLike):
+    """The parsed JSON of a target description, or a TargetFileError saying why not."""
+    return read_json(path, TargetFileError, "target file")  # one line also for absurdly deep JSON
+
+
+# --- fields --------------------------------------------------------------------------------
+
+def number(value, where: str, positive: bool = False, minimum: float | None = None) -> float:
+    """A finite number from a file (not a bool), else TargetFileError naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise TargetFileError(f"{where} must be a finite number, got {_shown(value)}")
+    if positive and not value > 0:
+        raise TargetFileError(f"{where} must be positive, got {value:g}")
+    if minimum is not None and value < minimum:
+        raise TargetFileError(f"{where} must be at least {minimum:g}, got {value:g}")
+    return float(value)
+
+
+def vector3(value, where: str) -> tuple:
+    """Three finite numbers from a file."""
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise TargetFileError(f"{where} must be three numbers, got {_shown(value)}")
+    return tuple(number(v, f"{where}[{i}]") for i, v in enumerate(value))
+
+
+def _count(value, where: str, largest: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= largest:
+        raise TargetFileError(f"{where} must be a whole number from 1 to {largest:,}, got {_shown(value)}")
+    return value
+
+
+def _object(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise TargetFileError(f"{where} must be a JSON object, got {_shown(value)}")
+    return value
+
+
+def _file(path: Path, value, where: str, suffixes, kind: str) -> Path:
+    """The file a target file names (see :func:`procmod.core.paths.named_file`)."""
+    try:
+        return named_file(path.parent, value, where, suffixes, kind)
+    except UnsafePathError as exc:
+        raise TargetFileError(str(exc)) from None
+
+
+# --- .npy arrays ---------------------------------------------------------------------------
+
+def npy_header(file: Path, where: str, what: str):
+    """``(shape, dtype)`` from an .npy file's header, without reading its data."""
+    try:
+        with open(file, "rb") as handle:
+            version = np.lib.format.read_magic(handle)
+            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, _, dtype = read(handle)
+    except (OSError, ValueError, TypeError, SyntaxError) as exc:
+        raise TargetFileError(f"{where}: cannot read the {what} ({_cut(str(exc), 120)})") from None
+    return tuple(int(n) for n in shape), dtype
+
+
+def load_npy(file: Path, where: str, what: str) -> np.ndarray:
+    """An .npy array of numbers (its header checked first by the caller), refusing NaN."""
+    try:
+        array = np.load(file, allow_pickle=False)
+    except (OSError, ValueError, TypeError, EOFError) as exc:
+        raise TargetFileError(f"{where}: cannot read the {what} ({_cut(str(exc), 120)})") from None
+    if array.dtype.kind == "f" and not np.isfinite(array).all():
+        raise TargetFileError(f"{where}: the {what} holds NaN or infinity; it must hold finite numbers")
+    return array
+
+
+def _numeric(dtype, where: str, what: str) -> None:
+    if dtype.kind not in "biuf":
+        raise TargetFileError(f"{where}: the {what} must hold numbers, got dtype {dtype}")
+
+
+# --- meshes --------------------------------------------------------------------------------
+
+def _scan_count(file: Path, token: bytes) -> int:
+    """Occurrences of ``token`` in a file, read in blocks (a lower bound on a text mesh's faces)."""
+    count, tail = 0, b""
+    with open(file, "rb") as handle:
+        while block := handle.read(1 << 24):
+            data = tail + block
+            count += data.count(token)
+            tail = data[-(len(token) - 1):] if len(token) > 1 else b""
+            # a token straddling blocks is counted once: ``tail`` is shorter than the token
+    return count
+
+
+def declared_faces(file: Path) -> int | None:
+    """The number of faces a mesh file declares or holds, read without parsing it (None
+    where the format gives no cheap count): a binary STL's header, a PLY's or OFF's
+    element counts, OBJ ``f`` lines, a glTF's index accessors (ignoring instancing)."""
+    suffix = file.suffix.lower()
+    try:
+        if suffix == ".stl":
+            with open(file, "rb") as handle:
+                head = handle.read(84)
+            if len(head) == 84 and not head.lstrip().lower().startswith(b"solid"):
+                return struct.unpack("<I", head[80:84])[0]
+            return _scan_count(file, b"endfacet")
+        if suffix == ".ply":
+            with open(file, "rb") as handle:
+                header = handle.read(1 << 16).split(b"end_header", 1)[0]
+            for line in header.splitlines():
+                parts = line.split()
+                if len(parts) == 3 and parts[0] == b"element" and parts[1] == b"face":
+                    return int(parts[2])
+            return None
+        if suffix == ".off":
+            with open(file, "rb") as handle:
+                lines = [l.split(b"#", 1)[0].split() for l in handle.read(1 << 16).splitlines()]
+            lines = [l for l in lines if l]
+            if lines and lines[0][0].upper().endswith(b"OFF"):
+                counts = lines[0][1:] if len(lines[0]) > 1 else (lines[1] if len(lines) > 1 else [])
+                return int(counts[1]) if len(counts) >= 2 else None
+            return None
+        if suffix == ".obj":
+            with open(file, "rb") as handle:
+                first = handle.read(2)
+            return _scan_count(file, b"\nf ") + (first == b"f ")
+        if suffix in (".glb", ".gltf"):
+            return _gltf_faces(file)
+    except (OSError, ValueError, struct.error):
+        return None  # trimesh will say what is wrong with it
+    return None
+
+
+def _gltf_faces(file: Path) -> int | None:
+    with open(file, "rb") as handle:
+        head = handle.read(20)
+        if head[:4] == b"glTF":
+            length, kind = struct.unpack("<I4s", head[12:20])
+            if kind != b"JSON" or length > 1 << 26:
+                return None
+            text = handle.read(length)
+        else:
+            if os.path.getsize(file) > 1 << 26:
+                return None
+            text = head + handle.read()
+    try:
+        spec = json.loads(text)
+        accessors = spec.get("accessors", [])
+        faces = 0
+        for mesh in spec.get("meshes", []):
+            for primitive in mesh.get("primitives", []):
+                if primitive.get("mode", 4) != 4:
+                    continue  # points and lines have no faces
+                index = primitive.get("indices", primitive.get("attributes", {}).get("POSITION"))
+                if isinstance(index, int) and 0 <= index < len(accessors):
+                    faces += int(accessors[index].get("count", 0)) // 3
+        return faces
+    except (ValueError, TypeError, AttributeError, RecursionError):
+        return None
+
+
+def _too_many_faces(where: str, file: Path, faces: int, exact: bool) -> ResourceLimitError:
+    return ResourceLimitError(
+        f"{where}: {_cut(str(file), 120)} has {'' if exact else 'at least '}{faces:,} faces; procmod reads target "
+        f"meshes of up to {MAX_MESH_FACES:,} faces (reading this one would need about "
+        f"{format_bytes(faces * BYTES_PER_FACE)} of memory, and a voxel or pixel grid does not resolve that much "
+        "detail): decimate it first (e.g. Blender's Decimate modifier)")
+
+
+@contextlib.contextmanager
+def _quiet():
+    """trimesh logs warnings (a missing material file) and numpy warns on odd data: neither
+    belongs on procmod's one-line error channel."""
+    logger = logging.getLogger("trimesh")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logger.setLevel(level)
+
+
+def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = True):
+    """``(vertices (n, 3) float64, faces (m, 3) int64)`` of a mesh file, ready for
+    :func:`procmod.geometry.inside.inside_voxels`.
+
+    trimesh reads it (a scene is flattened with its transforms); vertices that UV or
+    normal seams split are merged (``merge_vertices(merge_tex=True, merge_norm=True)``);
+    faces with a repeated vertex or zero area are dropped; with ``orient``, faces are wound
+    consistently and outward (:func:`procmod.geometry.inside.orient_faces`). Refused in one
+    line naming ``where``: a file trimesh cannot read, no faces, vertices that are NaN or
+    infinite, every face of zero area, more than :data:`MAX_MESH_FACES` faces.
+    """
+    import trimesh
+
+    from ..geometry.inside import orient_faces
+
+    file = Path(file)
+    where = where or _cut(str(file))
+    try:
+        size = file.stat().st_size
+    except OSError as exc:
+        raise TargetFileError(f"{where}: cannot read the mesh {_cut(str(file), 120)} ({exc.strerror})") from None
+    if size == 0:
+        raise TargetFileError(f"{where}: {_cut(str(file), 120)} is empty")
+    declared = declared_faces(file)
+    if declared is not None and declared > MAX_MESH_FACES:
+        raise _too_many_faces(where, file, declared, exact=file.suffix.lower() in (".stl", ".ply", ".off"))
+    if declared is not None:
+        check_memory(f"{where}: reading {declared:,} faces", declared * BYTES_PER_FACE)
+    try:
+        with _quiet():
+            mesh = trimesh.load(file, force="mesh", process=False)
+    except Exception as exc:  # noqa: BLE001 -- trimesh raises many types for unreadable files
+        raise TargetFileError(f"{where}: cannot read the mesh ({_cut(str(exc) or type(exc).__name__, 120)})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise TargetFileError(f"{where}: {_cut(str(file), 120)} holds no triangle faces (nothing to take an "
+                              "inside or a silhouette of; is it a mesh file?)")
+    if len(mesh.faces) > MAX_MESH_FACES:
+        raise _too_many_faces(where, file, len(mesh.faces), exact=True)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise TargetFileError(f"{where}: a face refers to a vertex the mesh does not have")
+    used = np.unique(faces)
+    bad = used[~np.isfinite(vertices[used]).all(axis=1)]
+    if len(bad):
+        raise TargetFileError(f"{where}: {len(bad):,} vertices of the mesh are not finite numbers (NaN or "
+                              f"infinity), e.g. vertex {int(bad[0])} = {vertices[bad[0]].tolist()}; fix or delete "
+                              "them in a modelling tool")
+    with _quiet():
+        # split seams: vertices at one place that differ only in UV or normal become one
+        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+        mesh.merge_vertices(merge_tex=True, merge_norm=True)
+    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+    tris = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    extent = float(np.ptp(tris.reshape(-1, 3), axis=0).max()) if len(tris) else 0.0
+    nonzero = area > 1e-14 * extent * extent
+    if not nonzero.any():
+        raise TargetFileError(f"{where}: every face of the mesh has zero area (its triangles are points or lines), "
+                              "so it has neither an inside nor a silhouette")
+    faces = faces[nonzero]
+    if orient:
+        faces, _ = orient_faces(vertices, faces)
+    return vertices, faces
+
+
+def mesh_bounds(vertices: np.ndarray, faces: np.ndarray) -> tuple:
+    """World bounds (lo, hi) of the vertices the faces use."""
+    used = vertices[np.unique(faces)]
+    return used.min(axis=0), used.max(axis=0)
+
+
+def check_grid(grid: VoxelGrid, where: str, advice: str) -> None:
+    """Refuse a voxel grid memory cannot hold, before anything is allocated."""
+    count = math.prod(int(n) for n in grid.shape)
+    check_memory(f"{where} ({'x'.join(str(int(n)) for n in grid.shape)} = {count:,} voxels)",
+                 count * BYTES_PER_VOXEL, advice)
+
+
+def grid_around(lo, hi, voxel_size: float, margin: float, where: str) -> VoxelGrid:
+    """The grid of voxel edge ``voxel_size`` around [lo, hi] grown by ``margin``, refused
+    (naming ``where``) when memory cannot hold it; its shape is counted in Python integers
+    first, so that a tiny voxel size is refused instead of overflowing."""
+    lo = np.asarray(lo, dtype=np.float64) - margin
+    hi = np.asarray(hi, dtype=np.float64) + margin
+    # at most 1e18 a side (a voxel size of 1e-300 is refused by the memory check, not an overflow)
+    shape = tuple(max(1, math.ceil(min(float(hi[a] - lo[a]) / voxel_size, 1e18))) for a in range(3))
+    grid = VoxelGrid(tuple(float(v) for v in lo), float(voxel_size), shape)
+    check_grid(grid, where, "use a larger voxel_size")
+    return grid
+
+
+def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
+    """The voxels of ``grid`` inside a mesh from :func:`read_mesh` (generalised winding
+    number >= 1/2), refused when none is."""
+    from ..geometry.inside import inside_voxels
+
+    mask = inside_voxels(vertices, faces, grid, what=where)
+    if not mask.any():
+        raise TargetFileError(
+            f"{where}: no voxel centre of the {'x'.join(map(str, grid.shape))} grid (voxel size {grid.size:g}) lies "
+            "inside the mesh: an open sheet or a flat mesh has no inside, and parts thinner than a voxel fall "
+            "between voxel centres; use a smaller voxel_size, or close the mesh")
+    return mask
+
+
+def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float = 0.1):
+    """``(grid, mask)``: a mesh file (any format :func:`read_mesh` takes) voxelized on the
+    grid of edge ``voxel_size`` around it grown by ``margin``."""
+    where = _cut(str(path))
+    voxel_size = number(voxel_size, f"{where}: voxel_size", positive=True)
+    margin = number(margin, f"{where}: margin", minimum=0.0)
+    vertices, faces = read_mesh(path, where)
+    grid = grid_around(*mesh_bounds(vertices, faces), voxel_size, margin, f"{where}: voxel size {voxel_size:g}")
+    return grid, mesh_inside(vertices, faces, grid, where)
+
+
+# --- volume targets ------------------------------------------------------------------------
+
+def _given_grid(spec: dict, where: str):
+    """``(origin, voxel size, shape or None)`` of a volume file's ``"grid"``."""
+    g = _object(spec["grid"], f"{where}: grid")
+    for key in ("origin", "voxel_size"):
+        if key not in g:
+            raise TargetFileError(f"{where}: grid needs {key!r} "
+                                  "(\"grid\": {\"origin\": [x, y, z], \"voxel_size\": h})")
+    origin = vector3(g["origin"], f"{where}: grid.origin")
+    size = number(g["voxel_size"], f"{where}: grid.voxel_size", positive=True)
+    shape = None
+    if "shape" in g:
+        if not isinstance(g["shape"], list) or len(g["shape"]) != 3:
+            raise TargetFileError(f"{where}: grid.shape must be three whole numbers, got {_shown(g['shape'])}")
+        shape = tuple(_count(n, f"{where}: grid.shape[{i}]", 10 ** 12) for i, n in enumerate(g["shape"]))
+    return origin, size, shape
+
+
+def load_volume_target(path: str | os.PathLike):
+    """Read a volume target description (``procmod-volume/1`` JSON).
+
+    ::
+
+        {"format": "procmod-volume/1", "score": "svol" | "proxy",
+         "layers": [{"file": "ship.obj" | "fill.npy", "w_fill": 1, "w_avoid": -1}, ...],
+         "grid": {"origin": [x, y, z], "voxel_size": h},   # needed with .npy layers
+         "voxel_size": 0.25, "margin": 0.1,                # meshes only, without "grid"
+         "w_self": 0}
+
+    Files are relative to the JSON file. All layers lie on one grid: the ``"grid"`` when
+    given (its shape that of the .npy layers, or ``"shape": [nx, ny, nz]`` with meshes
+    only; meshes are voxelized on it), else the grid of edge ``voxel_size`` around every
+    mesh layer grown by ``margin`` (default 0.1). An .npy layer is a 3D array, nonzero
+    inside. ``w_fill`` (default 1), ``w_avoid`` (default 0) and ``w_self`` (default 0, at
+    least 0) are finite numbers; ``"score": "proxy"`` takes one layer.
+    """
+    path = Path(path)
+    where = _cut(str(path))
+    spec = read_target_json(path)
+    if not isinstance(spec, dict) or spec.get("format") != "procmod-volume/1":
+        raise TargetFileError(f"{where}: expected a JSON object with \"format\": \"procmod-volume/1\"")
+    score = spec.get("score", "svol")
+    if score not in SCORES:
+        raise TargetFileError(f"{where}: score must be \"svol\" or \"proxy\", got {_shown(score)}")
+    layers_spec = spec.get("layers")
+    if not isinstance(layers_spec, list) or not layers_spec:
+        raise TargetFileError(f"{where}: layers must be a non-empty list of {{\"file\": ...}} objects")
+    if score == "proxy" and len(layers_spec) != 1:
+        raise TargetFileError(f"{where}: \"score\": \"proxy\" compares the ship with one target volume; "
+                              f"layers has {len(layers_spec)}")
+    w_self = number(spec.get("w_self", 0.0), f"{where}: w_self", minimum=0.0)
+    # every field first, then the files' headers, then the work
+    entries = []
+    for i, layer in enumerate(layers_spec):
+        at = f"{where}: layers[{i}]"
+        _object(layer, at)
+        if "file" not in layer:
+            raise TargetFileError(f"{at} needs \"file\" (an .npy voxel grid or a mesh file)")
+        file = _file(path, layer["file"], f"{at}.file", MESH_SUFFIXES | {".npy"}, "voxel grid (.npy) or mesh")
+        w_fill = number(layer.get("w_fill", 1.0), f"{at}.w_fill")
+        w_avoid = number(layer.get("w_avoid", 0.0), f"{at}.w_avoid")
+        entries.append((at, file, w_fill, w_avoid))
+    arrays = [e for e in entries if e[1].suffix.lower() == ".npy"]
+    meshes = [e for e in entries if e[1].suffix.lower() != ".npy"]
+    given = _given_grid(spec, where) if "grid" in spec else None
+    if given is not None and "voxel_size" in spec and spec["voxel_size"] != spec["grid"].get("voxel_size"):
+        raise TargetFileError(f"{where}: voxel_size {_shown(spec['voxel_size'])} and grid.voxel_size "
+                              f"{_shown(spec['grid'].get('voxel_size'))} disagree: give the voxel size once")
+    shape = None
+    if arrays:
+        if given is None:
+            raise TargetFileError(f"{where}: an .npy layer needs \"grid\": {{\"origin\": [x, y, z], "
+                                  "\"voxel_size\": h}} (where its voxel [0, 0, 0] lies, and the voxel edge)")
+        for at, file, _, _ in arrays:
+            layer_shape, dtype = npy_header(file, f"{at}.file", "voxel grid")
+            if len(layer_shape) != 3:
+                raise TargetFileError(f"{at}.file: a voxel grid must be a 3D array, got shape {layer_shape}")
+            _numeric(dtype, f"{at}.file", "voxel grid")
+            if shape is None:
+                shape = layer_shape
+                check_grid(VoxelGrid(given[0], given[1], shape), f"{at}.file: a voxel grid of shape {shape}",
+                           "use a coarser voxel grid")
+            elif layer_shape != shape:
+                raise TargetFileError(f"{at}.file: shape {layer_shape} differs from the first .npy layer's {shape}; "
+                                      "all layers lie on one grid")
+        if given[2] is not None and given[2] != shape:
+            raise TargetFileError(f"{where}: grid.shape {list(given[2])} differs from the .npy layers' {list(shape)}")
+    elif given is not None and given[2] is None:
+        raise TargetFileError(f"{where}: with only mesh layers, \"grid\" needs \"shape\": [nx, ny, nz] (or leave "
+                              "\"grid\" out and give \"voxel_size\": the grid then fits the meshes)")
+    grid = None
+    if given is not None:
+        grid = VoxelGrid(given[0], given[1], shape or given[2])
+        check_grid(grid, f"{where}: grid", "use a larger grid.voxel_size")
+    elif "voxel_size" not in spec:
+        raise TargetFileError(f"{where}: mesh layers need \"voxel_size\": the voxel edge, in the mesh's units "
+                              "(the grid then fits the meshes)")
+    else:
+        voxel_size = number(spec["voxel_size"], f"{where}: voxel_size", positive=True)
+        margin = number(spec.get("margin", 0.1), f"{where}: margin", minimum=0.0)
+    read = {}
+    for at, file, _, _ in meshes:
+        read[at] = read_mesh(file, f"{at}.file")
+    if grid is None:
+        bounds = [mesh_bounds(*read[at]) for at, _, _, _ in meshes]
+        lo = np.min([b[0] for b in bounds], axis=0)
+        hi = np.max([b[1] for b in bounds], axis=0)
+        grid = grid_around(lo, hi, voxel_size, margin, f"{where}: voxel_size {voxel_size:g} around the mesh layers")
+    layers = []
+    for at, file, w_fill, w_avoid in entries:
+        if at in read:
+            mask = mesh_inside(*read[at], grid, f"{at}.file")
+        else:
+            mask = load_npy(file, f"{at}.file", "voxel grid") != 0
+            if not mask.any():
+                raise TargetFileError(f"{at}.file: the voxel grid is empty (no nonzero voxel)")
+        layers.append((mask, w_fill, w_avoid))
+    name = path.parent.name if path.name == "target.json" else path.stem
+    if score == "proxy":
+        return ProxyVolume(grid, layers[0][0], name=name)
+    return Volume(grid, layers, w_self, name=name)
+
+
+# --- silhouette targets --------------------------------------------------------------------
+
+def _camera(spec, where: str, sized: bool) -> Camera:
+    """A view's camera; ``sized``: it may give ``width`` and ``height`` (a mesh view's pixels)."""
+    if not isinstance(spec, dict):
+        raise TargetFileError(f"{where}: \"camera\" must be an object with eye, look_at, ...")
+    where = f"{where}.camera"
+    for key in ("eye", "look_at"):
+        if key not in spec:
+            raise TargetFileError(f"{where} needs {key!r} (three numbers)")
+    eye, look_at = vector3(spec["eye"], f"{where}.eye"), vector3(spec["look_at"], f"{where}.look_at")
+    up = vector3(spec.get("up", (0, 1, 0)), f"{where}.up")
+    projection = spec.get("projection", "perspective")
+    if projection not in ("perspective", "orthographic"):
+        raise TargetFileError(f"{where}.projection must be perspective or orthographic, got {_shown(projection)}")
+    fov = number(spec.get("fov", 40.0), f"{where}.fov")
+    if projection == "perspective" and not 0 < fov < 180:
+        raise TargetFileError(f"{where}.fov is the vertical field of view in degrees and must lie strictly "
+                              f"between 0 and 180, got {fov:g}")
+    if projection == "orthographic" and not fov > 0:
+        raise TargetFileError(f"{where}.fov is the height of the view in world units and must be positive, "
+                              f"got {fov:g}")
+    forward = np.subtract(look_at, eye)
+    if np.allclose(eye, look_at):
+        raise TargetFileError(f"{where}: the camera's eye and look_at coincide")
+    length = np.linalg.norm(up)
+    if length == 0 or np.linalg.norm(np.cross(forward / np.linalg.norm(forward), np.divide(up, length))) < 1e-9:
+        raise TargetFileError(f"{where}.up must be a non-zero vector not along the view direction "
+                              f"(look_at - eye), got {list(up)}")
+    size = {}
+    for key in ("width", "height"):
+        if key in spec:
+            if not sized:
+                raise TargetFileError(f"{where}.{key}: a picture's or weights' size is its own; width and height "
+                                      "are for views drawn from a \"mesh\"")
+            size[key] = _count(spec[key], f"{where}.{key}", 100_000)
+    width, height = size.get("width", DEFAULT_MESH_VIEW), size.get("height", DEFAULT_MESH_VIEW)
+    if width * height > MAX_IMAGE_PIXELS:
+        raise TargetFileError(f"{where}: a {width}x{height} view is {width * height / 1e6:.0f} megapixels; procmod "
+                              f"draws views up to {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels")
+    return Camera(eye, look_at, up, projection, fov, width, height)
+
+
+def _load_weights(file: Path, where: str) -> np.ndarray:
+    """A 2D float array from an .npy file, its size checked from the header before it is read."""
+    shape, dtype = npy_header(file, where, "weights")
+    if len(shape) != 2:
+        raise TargetFileError(f"{where}: weights must be a 2D array, got shape {shape}")
+    if shape[0] * shape[1] > MAX_IMAGE_PIXELS:
+        raise TargetFileError(f"{where}: the weights are {shape[1]}x{shape[0]} pixels; procmod reads views up to "
+                              f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels: scale them down")
+    _numeric(dtype, where, "weights")
+    return load_npy(file, where, "weights").astype(np.float64)
+
+
+def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
+    """Boolean ``(height, width)`` image of the pixels whose centres the mesh's triangles
+    cover seen through ``camera`` (the silhouette of the solid it bounds)."""
+    from ..geometry.solid import Mesh
+
+    out = Silhouettes([camera])
+    out.add(Mesh(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)))
+    return out.image(0)
+
+
+def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
+    """Read a ``procmod-silhouette/1`` target (see :mod:`procmod.targets.silhouette`)."""
+    path = Path(path)
+    where = _cut(str(path))
+    spec = read_target_json(path)
+    views = spec.get("views") if isinstance(spec, dict) else None
+    if not isinstance(views, list) or not views:
+        raise TargetFileError(f"{where}: \"views\" must be a non-empty list")
+    parsed = []
+    for i, view in enumerate(views):
+        at = f"{where}: views[{i}]"
+        if not isinstance(view, dict):
+            raise TargetFileError(f"{at} must be an object")
+        kinds = [k for k in ("weights", "image", "mesh") if k in view]
+        if not kinds:
+            raise TargetFileError(f"{at} needs \"image\", \"weights\" or \"mesh\" (what the view should show)")
+        if len(kinds) > 1:
+            raise TargetFileError(f"{at} gives {' and '.join(repr(k) for k in kinds)}; give one of them")
+        kind = kinds[0]
+        camera = _camera(view.get("camera"), at, sized=kind == "mesh")
+        hit = number(view.get("hit", 1.0), f"{at}.hit")
+        avoid = number(view.get("avoid", -1.0), f"{at}.avoid")
+        suffixes = {"weights": {".npy"}, "image": None, "mesh": MESH_SUFFIXES}[kind]
+        file = _file(path, view[kind], f"{at}.{kind}", suffixes, {"weights": "weights", "image": "image",
+                                                                  "mesh": "mesh"}[kind])
+        parsed.append((at, kind, file, camera, hit, avoid))
+    out = []
+    for at, kind, file, camera, hit, avoid in parsed:
+        if kind == "weights":
+            weights = _load_weights(file, f"{at}.weights")
+        elif kind == "image":
+            grey = np.asarray(open_image(file, f"{at}.image").convert("L"), dtype=np.float64)
+            weights = np.where(grey < 85, hit, np.where(grey > 170, avoid, 0.0))
+        else:
+            covered = mesh_silhouette(*read_mesh(file, f"{at}.mesh", orient=False), camera)
+            if not covered.any():
+                raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"
+                                      f"{camera.height} view: point the camera at it (look_at its centre), or "
+                                      "give more pixels")
+            weights = np.where(covered, hit, avoid)
+        if not (weights > 0).any():
+            raise TargetFileError(f"{at}: nothing to hit (no positive weight)")
+        out.append((weights, camera))
+    name = path.parent.name if path.name == "target.json" else path.stem
+    return Silhouette(out, name=name)
+
+
+def load_target_file(path: str | os.PathLike):
+    """A 3D target from its JSON description, dispatched on its ``format``."""
+    path = Path(path)
+    spec = read_target_json(path)
+    kind = spec.get("format") if isinstance(spec, dict) else None
+    if kind == "procmod-silhouette/1":
+        return load_silhouette_target(path)
+    if kind == "procmod-volume/1":
+        return load_volume_target(path)
+    raise TargetFileError(f"{_cut(str(path))}: \"format\" must be procmod-volume/1 or procmod-silhouette/1, "
+                          f"got {_shown(kind)}")
+
+
+__all__ = ["BYTES_PER_FACE", "BYTES_PER_VOXEL", "MAX_MESH_FACES", "MESH_SUFFIXES", "declared_faces",
+           "load_silhouette_target", "load_target_file", "load_volume_target", "mesh_inside", "mesh_silhouette",
+           "read_mesh", "read_target_json", "voxelize_mesh_file"]
