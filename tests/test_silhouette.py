@@ -44,7 +44,7 @@ def test_bad_silhouette_files(tmp_path):
         ({"format": "procmod-silhouette/1", "views": []}, "non-empty"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": cam}]}, "nothing to hit"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "none.png", "camera": cam}]},
-         "views\\[0\\].image: image file .* does not exist"),
+         "views\\[0\\].image: picture file .* does not exist"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": {"eye": [0, 0, 0],
                                                                                       "look_at": [0, 0, 0]}}]},
          "coincide"),

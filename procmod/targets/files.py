@@ -572,7 +572,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         hit = number(view.get("hit", 1.0), f"{at}.hit")
         avoid = number(view.get("avoid", -1.0), f"{at}.avoid")
         suffixes = {"weights": {".npy"}, "image": None, "mesh": MESH_SUFFIXES}[kind]
-        file = _file(path, view[kind], f"{at}.{kind}", suffixes, {"weights": "weights", "image": "image",
+        file = _file(path, view[kind], f"{at}.{kind}", suffixes, {"weights": "weights", "image": "picture",
                                                                   "mesh": "mesh"}[kind])
         parsed.append((at, kind, file, camera, hit, avoid))
     out = []
