@@ -1,0 +1,382 @@
+"""Between Blender's scene and procmod's files (imports bpy; no procmod library code).
+
+procmod's models are y-up (the glTF convention), Blender is z-up: a procmod point (x, y, z)
+is the Blender point (x, -z, y), as Blender's glTF importer places it. Everything that
+crosses goes through :data:`TO_BLENDER` / :data:`TO_PROCMOD`.
+
+Errors the scene can cause (a non-mesh target, an empty selection, a mask of the wrong
+shape) raise :class:`SceneError` with one line for the operator to report.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+TO_BLENDER = Matrix(((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1)))
+TO_PROCMOD = TO_BLENDER.inverted()
+CYLINDER_SEGMENTS = 24
+MESH_TYPES = {"MESH"}
+
+
+class SceneError(Exception):
+    """Something in the scene that procmod cannot use; the message is one line."""
+
+
+def _matrix16(values) -> Matrix:
+    return Matrix([values[0:4], values[4:8], values[8:12], values[12:16]])
+
+
+def to_procmod_rows(matrix: Matrix) -> list:
+    """A Blender world matrix as procmod's row-major 4x4 (y-up)."""
+    m = TO_PROCMOD @ matrix
+    return [[float(m[i][j]) for j in range(4)] for i in range(4)]
+
+
+def to_procmod_point(point) -> list:
+    return [float(v) for v in (TO_PROCMOD @ Vector(point))]
+
+
+def to_procmod_direction(direction) -> list:
+    return [float(v) for v in (TO_PROCMOD.to_3x3() @ Vector(direction))]
+
+
+# ---- parts -> objects ----------------------------------------------------------------------------
+
+def _srgb_to_linear(c: float) -> float:
+    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+
+
+def material_for(tag: str, colour) -> bpy.types.Material:
+    """The material of a part tag, ``procmod <tag>``: reused when the file has one (so a
+    restyled material stays), else made in the tag's colour (procmod's palette, sRGB)."""
+    name = f"procmod {tag}"
+    material = bpy.data.materials.get(name)
+    if material is not None:
+        return material
+    material = bpy.data.materials.new(name)
+    rgba = tuple(_srgb_to_linear(c / 255) for c in colour) + (1.0,)
+    material.diffuse_color = rgba  # the viewport's solid mode
+    material.use_nodes = True
+    bsdf = material.node_tree.nodes.get("Principled BSDF")
+    if bsdf is not None:
+        bsdf.inputs["Base Color"].default_value = rgba
+        bsdf.inputs["Roughness"].default_value = 0.7
+    return material
+
+
+def _unit_box():
+    vertices = [(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return vertices, faces
+
+
+def _unit_cylinder(top: float, segments: int = CYLINDER_SEGMENTS):
+    """Radius 1 at z = 0 and ``top`` at z = 1 (a cone when ``top`` is 0), closed."""
+    ring = [(math.cos(2 * math.pi * i / segments), math.sin(2 * math.pi * i / segments)) for i in range(segments)]
+    vertices = [(x, y, 0.0) for x, y in ring]
+    if top > 0:
+        vertices += [(top * x, top * y, 1.0) for x, y in ring]
+        faces = [(i, (i + 1) % segments, segments + (i + 1) % segments, segments + i) for i in range(segments)]
+        faces += [tuple(range(segments - 1, -1, -1)), tuple(range(segments, 2 * segments))]
+    else:
+        vertices.append((0.0, 0.0, 1.0))
+        faces = [(i, (i + 1) % segments, segments) for i in range(segments)]
+        faces.append(tuple(range(segments - 1, -1, -1)))
+    return vertices, faces
+
+
+def _part_mesh(part: dict, sample: dict, cache: dict, colours: dict) -> tuple:
+    """The (shared) mesh data and the local matrix (procmod frame) of a part."""
+    kind, tag = part["kind"], part["tag"]
+    transform = _matrix16(part["transform"])
+    if kind == "box":
+        key, build = ("box", tag), _unit_box
+        local = Matrix.Diagonal((*part["size"], 1.0))
+    elif kind == "cylinder":
+        radius, length = part["radius"], part["length"]
+        top = 1.0 if part.get("top_radius") is None else part["top_radius"] / radius
+        key, build = ("cylinder", tag, round(top, 6)), (lambda: _unit_cylinder(top))
+        local = Matrix.Diagonal((radius, radius, length, 1.0))
+    else:
+        entry = sample["meshes"][part["mesh"]]
+        key = ("mesh", tag, hashlib.sha1(json.dumps(entry).encode()).hexdigest())  # alike across samples
+        build, local = (lambda: (entry["vertices"], entry["faces"])), Matrix.Identity(4)
+    mesh = cache.get(key)
+    if mesh is None:
+        vertices, faces = build()
+        mesh = bpy.data.meshes.new(f"procmod {kind} {tag}")
+        mesh.from_pydata([tuple(v) for v in vertices], [], [tuple(f) for f in faces])
+        mesh.validate()
+        mesh.update()
+        mesh.materials.append(material_for(tag, colours.get(tag, (128, 128, 128))))
+        cache[key] = mesh
+    return mesh, transform @ local
+
+
+def build_sample(context, sample: dict, name: str, origin=(0.0, 0.0, 0.0), cache=None):
+    """One collection holding a root empty at ``origin`` and an object per part (parented as
+    the derivation's calls nest, mesh data shared between alike parts, a material per tag).
+    Returns the collection."""
+    cache = {} if cache is None else cache
+    collection = bpy.data.collections.new(name)
+    context.scene.collection.children.link(collection)
+    root = bpy.data.objects.new(name, None)
+    root.empty_display_type = "PLAIN_AXES"
+    root.location = origin
+    root["procmod_sample"] = sample.get("label", name)
+    collection.objects.link(root)
+    root_world = Matrix.Translation(Vector(origin))
+    objects, worlds = [], []
+    for part in sample["parts"]:
+        mesh, local = _part_mesh(part, sample, cache, sample.get("colours", {}))
+        obj = bpy.data.objects.new(f"{part['tag']}", mesh)
+        obj["procmod_tag"] = part["tag"]
+        obj["procmod_part"] = len(objects)  # the part's index in its derivation's geometry
+        collection.objects.link(obj)
+        world = root_world @ TO_BLENDER @ local
+        parent, parent_world = (root, root_world) if part.get("parent") is None else \
+            (objects[part["parent"]], worlds[part["parent"]])
+        obj.parent = parent
+        # Keep-transform parenting: the inverse of the parent's world matrix goes in the
+        # parent-inverse slot, so a non-uniformly scaled parent (a box) does not shear its children.
+        obj.matrix_parent_inverse = parent_world.inverted()
+        obj.matrix_basis = world
+        objects.append(obj)
+        worlds.append(world)
+    return collection
+
+
+def build_samples(context, samples: list, prefix: str, start=None, gap: float = 1.0) -> list:
+    """Collections for several samples, side by side along +x from ``start`` (the 3D cursor)."""
+    start = Vector(context.scene.cursor.location) if start is None else Vector(start)
+    cache, collections, x = {}, [], 0.0
+    for i, sample in enumerate(samples):
+        lo, hi = sample.get("bounds", [[-1, -1, -1], [1, 1, 1]])
+        if i > 0:
+            x += -lo[0]  # the sample's left edge touches the gap after the previous one
+        origin = start + Vector((x, 0.0, 0.0))
+        collections.append(build_sample(context, sample, f"{prefix} {sample.get('label', i)}", origin, cache))
+        x += hi[0] + gap * max(hi[0] - lo[0], 1e-3) * 0.25
+    return collections
+
+
+# ---- objects -> files ----------------------------------------------------------------------------
+
+def describe(obj) -> str:
+    return f"{obj.name!r} ({obj.type.lower()})"
+
+
+def check_mesh_object(obj, role: str) -> None:
+    if obj is None:
+        raise SceneError(f"{role} has no object (was it deleted?): pick a mesh or remove the layer")
+    if obj.type not in MESH_TYPES:
+        raise SceneError(f"{role} {describe(obj)} is not a mesh: pick a mesh object")
+
+
+def write_obj(path: Path, vertices, triangles) -> None:
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in triangles]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def mesh_triangles(mesh) -> tuple:
+    """Vertices (local) and triangles of a mesh datablock."""
+    mesh.calc_loop_triangles()
+    vertices = [tuple(v.co) for v in mesh.vertices]
+    triangles = [tuple(t.vertices) for t in mesh.loop_triangles]
+    return vertices, triangles
+
+
+def _open_edges(mesh) -> int:
+    """How many edges of a mesh do not join exactly two faces (0 for a closed surface)."""
+    import bmesh
+
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(mesh)
+        return sum(1 for edge in bm.edges if len(edge.link_faces) != 2)
+    finally:
+        bm.free()
+
+
+def write_world_mesh(context, obj, path: Path) -> None:
+    """An object's evaluated mesh (modifiers applied) in procmod's world frame, as OBJ."""
+    evaluated = obj.evaluated_get(context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    try:
+        vertices, triangles = mesh_triangles(mesh)
+        if not triangles:
+            raise SceneError(f"the mesh of {describe(obj)} has no faces")
+        open_edges = _open_edges(mesh)
+        if open_edges:
+            raise SceneError(f"target layer {describe(obj)} is not a closed mesh ({open_edges} edges with other than "
+                             "two faces), so its inside is undefined: close its holes (Select > Select All by Trait > "
+                             "Non Manifold shows them) or use another object")
+        m = TO_PROCMOD @ evaluated.matrix_world
+        vertices = [tuple(m @ Vector(v)) for v in vertices]
+        write_obj(path, vertices, triangles)
+    finally:
+        evaluated.to_mesh_clear()
+
+
+def camera_spec(context, camera_obj, width: int, height: int, look_distance: float | None = None) -> dict:
+    """A Blender camera as a ``procmod-silhouette/1`` camera seeing ``width`` x ``height`` pixels.
+
+    Blender's camera looks down its local -z with +y up; its field of view spans the larger
+    side of the frame (sensor fit Auto) or the side the fit names. ``look_at`` lies on the
+    view axis at ``look_distance`` (default: where the axis passes the world origin).
+    """
+    if camera_obj is None:
+        raise SceneError("no camera: set the scene's camera or pick one for the silhouette target")
+    if camera_obj.type != "CAMERA":
+        raise SceneError(f"the silhouette camera {describe(camera_obj)} is not a camera")
+    cam = camera_obj.data
+    if cam.type not in ("PERSP", "ORTHO"):
+        raise SceneError(f"camera {camera_obj.name!r} is {cam.type.lower()}; use a perspective or orthographic camera")
+    if abs(cam.shift_x) > 1e-6 or abs(cam.shift_y) > 1e-6:
+        raise SceneError(f"camera {camera_obj.name!r} has a lens shift, which procmod's cameras lack; set it to 0")
+    render = context.scene.render
+    aspect = (render.resolution_x * render.pixel_aspect_x) / (render.resolution_y * render.pixel_aspect_y)
+    if abs(width / height - aspect) > 0.02 * aspect:
+        raise SceneError(f"the mask is {width}x{height} pixels but the camera frame (the scene's render size) is "
+                         f"{render.resolution_x}x{render.resolution_y}: give the mask the frame's shape "
+                         "('New mask' makes one)")
+    world = camera_obj.matrix_world.normalized()
+    eye = world.translation
+    forward = -(world.to_3x3() @ Vector((0, 0, 1))).normalized()
+    up = (world.to_3x3() @ Vector((0, 1, 0))).normalized()
+    if look_distance is None:
+        look_distance = forward.dot(-eye)
+        if not look_distance > 1e-3:
+            look_distance = 10.0
+    look_at = eye + forward * look_distance
+    fit = cam.sensor_fit
+    horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and aspect >= 1)
+    if cam.type == "ORTHO":
+        fov = cam.ortho_scale / aspect if horizontal else cam.ortho_scale
+        projection = "orthographic"
+    else:
+        sensor = cam.sensor_height if fit == "VERTICAL" else cam.sensor_width
+        half = sensor / (2 * cam.lens)  # tan of half the angle across the fitted side
+        fov = math.degrees(2 * math.atan(half / aspect if horizontal else half))
+        projection = "perspective"
+    return {"eye": to_procmod_point(eye), "look_at": to_procmod_point(look_at), "up": to_procmod_direction(up),
+            "projection": projection, "fov": float(fov)}
+
+
+def mask_weights(image, hit: float, avoid: float) -> np.ndarray:
+    """A mask image as silhouette weights (row 0 at the top): dark = ``hit``, light =
+    ``avoid``, mid grey or transparent = don't care (procmod's reading of a picture)."""
+    if image is None:
+        raise SceneError("no mask image: make one with 'New mask' and paint where the model should be in black")
+    width, height = image.size
+    if width == 0 or height == 0:
+        raise SceneError(f"the mask image {image.name!r} has no pixels (is its file missing?)")
+    pixels = np.empty(width * height * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    rgba = pixels.reshape(height, width, 4)[::-1]
+    grey = rgba[..., :3].mean(axis=-1)
+    weights = np.where(grey < 1 / 3, hit, np.where(grey > 2 / 3, avoid, 0.0))
+    weights[rgba[..., 3] < 0.5] = 0.0
+    if not (weights > 0).any():
+        raise SceneError(f"the mask {image.name!r} has no dark pixel to hit: paint where the model should be in black")
+    return weights.astype(np.float64)
+
+
+def new_mask(context, name: str = "procmod mask", height: int = 128):
+    """A white image (all 'avoid') in the shape of the camera frame, to paint into."""
+    render = context.scene.render
+    aspect = (render.resolution_x * render.pixel_aspect_x) / (render.resolution_y * render.pixel_aspect_y)
+    image = bpy.data.images.new(name, width=max(1, round(height * aspect)), height=height, alpha=False)
+    image.generated_color = (1.0, 1.0, 1.0, 1.0)
+    return image
+
+
+# ---- example hierarchies -------------------------------------------------------------------------
+
+def _mesh_descendants(obj) -> list:
+    """The nearest mesh objects below ``obj`` (through empties and other non-mesh objects)."""
+    out = []
+    for child in obj.children:
+        if child.type in MESH_TYPES:
+            out.append(child)
+        else:
+            out.extend(_mesh_descendants(child))
+    return out
+
+
+def example_roots(selected) -> list:
+    """The root part of each selected hierarchy: a selected object under no other selected
+    one; an empty stands for the one mesh below it."""
+    selected = list(selected)
+    if not selected:
+        raise SceneError("nothing is selected: select the root object of each example hierarchy")
+    chosen = set(selected)
+    roots = []
+    for obj in selected:
+        parent, inside = obj.parent, False
+        while parent is not None:
+            inside = inside or parent in chosen
+            parent = parent.parent
+        if inside:
+            continue
+        if obj.type in MESH_TYPES:
+            roots.append(obj)
+            continue
+        below = _mesh_descendants(obj)
+        if len(below) != 1:
+            raise SceneError(f"{describe(obj)} is not a mesh and has {len(below)} top-level mesh parts below it; an "
+                             "example is one root part with its children: parent the parts under one of them")
+        roots.append(below[0])
+    roots.sort(key=lambda o: o.name)
+    return roots
+
+
+def write_examples(roots, folder: Path) -> tuple:
+    """Write ``folder/examples.json`` (``procmod-examples/1``) + ``folder/parts/*.obj`` from
+    example hierarchies; returns ``(examples file, names file)``.
+
+    A part type is a mesh: objects that share mesh data (linked duplicates) are one part, and
+    so are meshes with equal vertices and faces. Its shape is the mesh in its own frame
+    (modifiers left out); each object's world matrix places it. ``names.json`` maps each
+    node's JSON path to its object, so the learner's messages can name objects.
+    """
+    (folder / "parts").mkdir(parents=True, exist_ok=True)
+    parts, by_data, by_shape, names = {}, {}, {}, {}
+
+    def part_name(obj) -> str:
+        mesh = obj.data
+        if mesh.name in by_data:
+            return by_data[mesh.name]
+        vertices, triangles = mesh_triangles(mesh)
+        if not triangles:
+            raise SceneError(f"the mesh of {describe(obj)} has no faces; an example part needs some")
+        shape = (tuple(tuple(round(c, 6) for c in v) for v in vertices), tuple(triangles))
+        name = by_shape.get(shape)
+        if name is None:
+            name = mesh.name
+            file = f"parts/part{len(parts)}.obj"
+            write_obj(folder / file, vertices, triangles)
+            parts[name] = {"mesh": file}
+            by_shape[shape] = name
+        by_data[mesh.name] = name
+        return name
+
+    def node(obj, path: str) -> dict:
+        names[path] = obj.name
+        children = [node(child, f"{path}.children[{i}]")
+                    for i, child in enumerate(sorted(_mesh_descendants(obj), key=lambda o: o.name))]
+        return {"part": part_name(obj), "transform": to_procmod_rows(obj.matrix_world), "children": children}
+
+    examples = [node(root, f"examples[{i}]") for i, root in enumerate(roots)]
+    data = {"format": "procmod-examples/1", "parts": parts, "examples": examples}
+    (folder / "examples.json").write_text(json.dumps(data), encoding="utf-8")
+    (folder / "names.json").write_text(json.dumps(names), encoding="utf-8")
+    return folder / "examples.json", folder / "names.json"

@@ -1,0 +1,407 @@
+"""The procmod side of the Blender add-on: one job in its own process.
+
+    python -m procmod.blender.worker JOB_FOLDER
+
+Blender runs this in a separate process (so long work never freezes its UI, a job can be
+stopped or killed, and procmod's dependencies need not be installed into Blender's own
+Python) with the Python of an environment where procmod is installed. The add-on writes
+``JOB_FOLDER/job.json`` (``procmod-blender-job/1``) and the files it names, then reads:
+
+- ``progress.json`` — ``{"fraction": 0.42 or null, "message": "..."}``, replaced as the job
+  goes (atomically: the add-on never reads half a file);
+- ``result.json`` — written last: ``{"ok": true, ...}`` or ``{"ok": false, "error": "one
+  line"}`` (the line a ``procmod`` command would print; a traceback only goes to the log);
+- a file ``stop`` that the add-on creates asks an engine to end early: it finishes the
+  current step and writes its run with the best result so far.
+
+Commands (``job["command"]``), each with the library's own functions:
+
+- ``sample``: ``count`` derivations of ``model`` from ``seed`` (sample i from ``(seed, i)``,
+  as ``procmod sample``);
+- ``infer``: the target is built from the scene's files (``volume``: closed meshes voxelized
+  onto one grid and written as a ``procmod-volume/1`` folder; ``silhouette``: a camera and a
+  weight image written as ``procmod-silhouette/1``), then an engine runs and the run folder
+  is written as ``procmod infer`` writes it (:func:`procmod.report.write_run`), its command
+  line recorded so the CLI can repeat it;
+- ``learn``: :func:`procmod.learn.learn` on a ``procmod-examples/1`` file made from the
+  scene, then ``count`` samples of the learned program.
+
+Every result holds the parts of its derivations (``samples``) in the form
+:func:`derivation_parts` writes, for the add-on to build objects from.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shlex
+import sys
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from .jobs import JOB_FORMAT
+
+MAX_VOXELS = 4_000_000  # a target grid above this is refused (each voxel is scored per part drawn)
+AUTO_VOXELS = 40_000  # voxel_size 0 picks the size that gives about this many voxels
+POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "particles",
+                     "ga": "population", "mcmc": "chains"}
+
+
+class JobError(Exception):
+    """A job file the add-on wrote wrongly (a bug, not the user's doing)."""
+
+
+# ---- files -------------------------------------------------------------------------------------
+
+def write_json_atomic(path: Path, data) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+class Progress:
+    """Writes ``progress.json`` at most every ``interval`` seconds, and sees the stop file."""
+
+    def __init__(self, folder: Path, interval: float = 0.2):
+        self.folder, self.interval = folder, interval
+        self._last = -math.inf
+
+    def __call__(self, fraction, message: str, force: bool = False) -> None:
+        import time
+        now = time.monotonic()
+        if force or now - self._last >= self.interval:
+            self._last = now
+            write_json_atomic(self.folder / "progress.json", {"fraction": fraction, "message": message})
+
+    @property
+    def stop_requested(self) -> bool:
+        return (self.folder / "stop").exists()
+
+
+# ---- derivations as parts ----------------------------------------------------------------------
+
+def derivation_parts(derivation) -> dict:
+    """The parts of a derivation for Blender.
+
+    ``{"parts": [...], "meshes": [...], "colours": {tag: [r, g, b]}, "bounds": [lo, hi]}`` — each part is
+    ``{"kind": "box" | "cylinder" | "mesh", "tag", "transform": 16 floats (row-major, procmod's
+    y-up frame), "parent": index or null}`` plus ``size`` (box), ``radius``, ``length``,
+    ``top_radius`` (cylinder) or ``mesh`` (an index into ``meshes``, shared by parts with the
+    same local mesh). A part's parent is a part of the nearest ancestor rule call that drew
+    parts (with as many parts as the call has, part i of a call hangs under part i // k of
+    its parent's, as learned programs' copies do; otherwise under the first).
+    """
+    from ..geometry.export import colour_of
+    from ..geometry.solid import Box, Cylinder, Mesh, scene_bounds
+
+    parts, meshes, mesh_index, calls = [], [], {}, {}
+    for node in derivation.nodes():
+        if not node.geometry:
+            continue
+        parent_parts = None
+        for k in range(len(node.address) - 1, -1, -1):
+            if node.address[:k] in calls:
+                parent_parts = calls[node.address[:k]]
+                break
+        mine = []
+        for i, part in enumerate(node.geometry):
+            entry = {"tag": part.tag, "transform": [float(v) for v in part.transform], "parent": None}
+            if parent_parts:
+                per = len(node.geometry) // len(parent_parts)
+                entry["parent"] = parent_parts[i // per] if per and len(node.geometry) % len(parent_parts) == 0 \
+                    else parent_parts[0]
+            if isinstance(part, Box):
+                entry.update(kind="box", size=[float(v) for v in part.size])
+            elif isinstance(part, Cylinder):
+                entry.update(kind="cylinder", radius=float(part.radius), length=float(part.length),
+                             top_radius=None if part.top_radius is None else float(part.top_radius))
+            elif isinstance(part, Mesh):
+                key = (part.vertices, part.faces)
+                if key not in mesh_index:
+                    mesh_index[key] = len(meshes)
+                    meshes.append({"vertices": [list(map(float, v)) for v in part.vertices],
+                                   "faces": [list(map(int, f)) for f in part.faces]})
+                entry.update(kind="mesh", mesh=mesh_index[key])
+            else:
+                continue  # 2D geometry never reaches here: models are checked to be 3D first
+            mine.append(len(parts))
+            parts.append(entry)
+        calls[node.address] = mine
+    colours = {p["tag"]: list(colour_of(p["tag"])) for p in parts}
+    lo, hi = scene_bounds(derivation.geometry())
+    return {"parts": parts, "meshes": meshes, "colours": colours,
+            "bounds": [[float(v) for v in lo], [float(v) for v in hi]]}
+
+
+# ---- models and targets --------------------------------------------------------------------------
+
+def resolve_model(spec: str):
+    """A built-in model by name, or a learned program (program.json or its folder)."""
+    from ..core import InvalidArgumentError
+    from ..models import MODELS, get_model
+
+    if spec in MODELS:
+        model = get_model(spec)
+    elif spec.lower().endswith(".json") or Path(spec).is_dir():
+        from ..learn import load_program
+        model = load_program(spec)
+    else:
+        model = get_model(spec)  # the library's one-line message lists the models
+    if hasattr(model.new_output(), "viewport"):
+        raise InvalidArgumentError(f"model {model.name!r} draws 2D pictures; Blender takes 3D models "
+                                   "(spaceship, tree, city, or a learned program)")
+    return model
+
+
+def _auto_voxel_size(lo, hi) -> float:
+    volume = float(np.prod(np.maximum(hi - lo, 1e-6)))
+    return (volume / AUTO_VOXELS) ** (1 / 3)
+
+
+def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
+    """Voxelize the layers' meshes (procmod frame, closed) onto one grid around all of them and
+    write ``out/target.json`` + ``out/layer<i>.npy`` (``procmod-volume/1``); returns the file."""
+    import trimesh
+
+    from ..core import InvalidArgumentError
+    from ..geometry.solid import Mesh
+    from ..geometry.voxel import VoxelGrid, voxelize
+
+    layers = spec.get("layers") or []
+    if not layers:
+        raise InvalidArgumentError("the volume target has no layers: add the scene's meshes as fill or avoid layers")
+    meshes = []
+    for layer in layers:
+        name = layer.get("object", layer["mesh"])
+        try:
+            mesh = trimesh.load(job_folder / layer["mesh"], force="mesh", process=True)
+        except Exception as exc:  # trimesh raises many types for unreadable files
+            raise InvalidArgumentError(f"cannot read the mesh of target layer {name!r} ({exc})") from None
+        if len(mesh.faces) == 0:
+            raise InvalidArgumentError(f"target layer {name!r} has no faces")
+        if not mesh.is_watertight:
+            raise InvalidArgumentError(
+                f"target layer {name!r} is not a closed mesh, so its inside is undefined: close its holes "
+                "(Select > Select All by Trait > Non Manifold shows them) or use another object")
+        meshes.append((name, mesh))
+    lo = np.min([m.bounds[0] for _, m in meshes], axis=0)
+    hi = np.max([m.bounds[1] for _, m in meshes], axis=0)
+    size = float(spec.get("voxel_size") or 0) or _auto_voxel_size(lo, hi)
+    if not (math.isfinite(size) and size > 0):
+        raise InvalidArgumentError(f"the voxel size must be a positive number, got {size!r}")
+    grid = VoxelGrid.around(lo, hi, size, 2 * size)
+    count = int(np.prod(grid.shape))
+    if count > MAX_VOXELS:
+        raise InvalidArgumentError(f"a voxel size of {size:g} gives {count:,} voxels around the target layers "
+                                   f"(at most {MAX_VOXELS:,}); give a larger voxel size")
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    # The voxelizer's parity rays run along z through voxel centres; one that passes exactly
+    # through a triangle edge (the diagonal of a box face centred on the lattice, as a cube at
+    # the origin has) is counted wrongly. A shift far below a voxel moves the edges off them.
+    shift = np.array([math.sqrt(2), math.sqrt(3), 0.0]) * 1e-6 * size
+    for i, ((name, mesh), layer) in enumerate(zip(meshes, layers)):
+        vertices = tuple(map(tuple, np.asarray(mesh.vertices) + shift))
+        mask = voxelize([Mesh(vertices, tuple(map(tuple, mesh.faces)))], grid)
+        if not mask.any():
+            raise InvalidArgumentError(f"target layer {name!r} holds no voxel centre at voxel size {size:g}; "
+                                       "give a smaller voxel size")
+        np.save(out / f"layer{i}.npy", mask.astype(bool))
+        files.append({"file": f"layer{i}.npy", "w_fill": float(layer.get("w_fill", 1.0)),
+                      "w_avoid": float(layer.get("w_avoid", 0.0)), "object": name})
+    target = {"format": "procmod-volume/1", "score": "svol",
+              "grid": {"origin": list(grid.origin), "voxel_size": grid.size}, "layers": files,
+              "w_self": float(spec.get("w_self", 0.0))}
+    write_json_atomic(out / "target.json", target)
+    return out / "target.json"
+
+
+def build_silhouette_target(spec: dict, job_folder: Path, out: Path) -> Path:
+    """Write the views (camera + weights .npy from the scene) as ``out/target.json``."""
+    import shutil
+
+    from ..core import InvalidArgumentError
+
+    views = spec.get("views") or []
+    if not views:
+        raise InvalidArgumentError("the silhouette target has no view: pick a camera and a mask")
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for i, view in enumerate(views):
+        name = f"view{i}.npy"
+        shutil.copy(job_folder / view["weights"], out / name)
+        written.append({"weights": name, "camera": view["camera"]})
+    write_json_atomic(out / "target.json", {"format": "procmod-silhouette/1", "views": written})
+    return out / "target.json"
+
+
+# ---- commands ------------------------------------------------------------------------------------
+
+def cmd_sample(job: dict, folder: Path, progress: Progress) -> dict:
+    from ..core import InvalidArgumentError
+
+    model = resolve_model(job["model"])
+    count, seed = int(job.get("count", 1)), int(job.get("seed", 0))
+    if not 1 <= count <= 1000:
+        raise InvalidArgumentError(f"ask for 1 to 1000 samples at a time, not {count}")
+    samples = []
+    for i in range(count):
+        progress(i / count, f"sampling {model.name}: {i} of {count}")
+        samples.append({"label": f"sample {i} (seed {seed})", **derivation_parts(_sample_one(model, seed, i))})
+    return {"samples": samples, "message": f"{count} samples of {_short(model.name)} from seed {seed}"}
+
+
+def _sample_one(model, seed: int, i: int):
+    from ..core import run_forward
+    return run_forward(model, np.random.default_rng([seed, i]))
+
+
+def _short(name: str) -> str:
+    return Path(name).parent.name if name.endswith("program.json") else name
+
+
+def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
+    from ..core import InvalidArgumentError
+    from ..core.runfolder import INFER_RUN, RunFolder
+    from ..infer import ENGINES, Budget, parse_budget
+    from ..infer.common import check_population
+    from ..report import write_run
+    from ..targets import load_target_file
+
+    model = resolve_model(job["model"])
+    engine = job.get("engine", "ga")
+    if engine not in ENGINES:
+        raise InvalidArgumentError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
+    budget = parse_budget(job["budget"]) if job.get("budget") else None
+    seed = int(job.get("seed", 0))
+    option = POPULATION_OPTION[engine]
+    kwargs = {}
+    if job.get("population"):
+        kwargs[option] = int(job["population"])
+    out = Path(job["out"])
+    target_spec = job["target"]
+    target_folder = Path(job["target_folder"])
+    progress(None, "building the target")
+    if target_spec["kind"] == "volume":
+        target_file = build_volume_target(target_spec, folder, target_folder)
+    elif target_spec["kind"] == "silhouette":
+        target_file = build_silhouette_target(target_spec, folder, target_folder)
+    else:
+        raise JobError(f"unknown target kind {target_spec['kind']!r}")
+    target = load_target_file(target_file)
+    run_folder = RunFolder(out, INFER_RUN, bool(job.get("overwrite")), inputs=[target_folder, job["model"]])
+    empty = target.new_output(target.configure(model))
+    if option in kwargs:
+        check_population(f"--{option}", kwargs[option], empty)
+    stopped = []
+
+    def report(tracker):
+        if progress.stop_requested and not stopped:
+            # End the engine at its next budget check with what it has: a budget already spent.
+            stopped.append(tracker.evaluations)
+            tracker.budget = Budget(evaluations=max(1, tracker.evaluations))
+        fraction = tracker.fraction() if budget is not None else None
+        best = "none yet" if tracker.best is None else f"{tracker.best_score:.4g}"
+        progress(fraction, f"{engine}: {tracker.evaluations:,} evaluations, best {best}"
+                 + (" (stopping)" if stopped else ""))
+
+    result = ENGINES[engine](model, target, seed=seed, budget=budget, progress=report, **kwargs)
+    if result.best is None:
+        raise InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
+    argv = ["infer", job["model"], "--target", str(target_folder), "--engine", engine]
+    if option in kwargs:
+        argv += [f"--{option}", str(kwargs[option])]
+    if budget is not None:
+        argv += ["--budget", job["budget"]]
+    argv += ["--seed", str(seed), "--out", str(out)]
+    if stopped:
+        result.notes.append(f"stopped from Blender after {stopped[0]:,} evaluations")
+    progress(1.0, "writing the run folder", force=True)
+    with run_folder.writing() as tmp:
+        write_run(result, target, tmp, int(job.get("size", 512)), "procmod " + shlex.join(argv))
+    return {"samples": [{"label": f"best {engine} {result.best_score:.4g}", **derivation_parts(result.best)}],
+            "run": str(out), "report": str(out / "report.html"), "score": result.best_score,
+            "stopped": bool(stopped),
+            "message": (f"{engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations in "
+                        f"{result.seconds:.1f} s{' (stopped early)' if stopped else ''}; report: {out / 'report.html'}")}
+
+
+def _name_objects(message: str, names: dict) -> str:
+    """An examples error names a JSON path (``examples[2].children[0]``); say which object it is."""
+    paths = re.findall(r"examples\[\d+\](?:\.children\[\d+\])*", message)
+    for path in sorted(set(paths), key=len, reverse=True):
+        if path in names:
+            return f"{message} (object {names[path]!r})"
+    return message
+
+
+def cmd_learn(job: dict, folder: Path, progress: Progress) -> dict:
+    from ..core import InvalidArgumentError, ProcmodError
+    from ..learn import load_program
+    from ..learn import learn as learn_program
+
+    count, seed = int(job.get("count", 4)), int(job.get("seed", 0))
+    names = json.loads((folder / job["names"]).read_text(encoding="utf-8")) if job.get("names") else {}
+    out = Path(job["out"])
+    if out.exists() and any(out.iterdir()) and not (out / "checkpoint").exists():
+        raise InvalidArgumentError(f"{out} is not empty and not an earlier procmod learn folder; give another")
+
+    def report(line: str) -> None:
+        progress(None, line.strip())
+
+    try:
+        learned = learn_program(folder / job["examples"], out, particles=int(job.get("particles", 2)),
+                                workers=int(job.get("workers", 1)), seed=seed, samples=max(count, 1),
+                                progress=report, command=job.get("command", ""))
+    except ProcmodError as exc:
+        raise type(exc)(_name_objects(str(exc), names)) from None
+    model = load_program(learned["program"])
+    samples = [{"label": f"learned sample {i} (seed {seed})", **derivation_parts(_sample_one(model, seed, i))}
+               for i in range(count)]
+    t = learned["table"]
+    return {"samples": samples, "program": learned["program"], "report": learned["report"],
+            "message": (f"learned {t['A_star']} abstractions from {job.get('n_examples', '')} examples in "
+                        f"{t['seconds']:.1f} s; program: {learned['program']}")}
+
+
+def one_line(message, limit: int = 600) -> str:
+    """An error message as one line (as the command line prints it)."""
+    text = re.sub(r"\s*\n\s*", " ", str(message)).strip()
+    return text if len(text) <= limit else text[:limit // 2 - 3] + " ... " + text[-(limit // 2 - 3):]
+
+
+COMMANDS = {"sample": cmd_sample, "infer": cmd_infer, "learn": cmd_learn}
+
+
+def run_job(folder: str | os.PathLike) -> int:
+    """Run the job in ``folder``; always leaves ``result.json`` behind. Returns the exit status."""
+    from ..core import ProcmodError
+
+    folder = Path(folder)
+    progress = Progress(folder)
+    try:
+        job = json.loads((folder / "job.json").read_text(encoding="utf-8"))
+        if job.get("format") != JOB_FORMAT or job.get("command") not in COMMANDS:
+            raise JobError(f"not a {JOB_FORMAT} job with a known command")
+        progress(None, f"{job['command']}: starting", force=True)
+        result = {"ok": True, **COMMANDS[job["command"]](job, folder, progress)}
+        status = 0
+    except ProcmodError as exc:
+        result, status = {"ok": False, "error": one_line(exc)}, 2
+    except Exception as exc:  # a bug: the one line says where the details are
+        traceback.print_exc()
+        result = {"ok": False, "error": f"internal error ({type(exc).__name__}: {one_line(exc, 200)}); "
+                                        f"the traceback is in {folder / 'worker.log'}"}
+        status = 1
+    write_json_atomic(folder / "result.json", result)
+    return status
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        sys.exit("usage: python -m procmod.blender.worker JOB_FOLDER")
+    sys.exit(run_job(sys.argv[1]))

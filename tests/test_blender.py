@@ -1,0 +1,359 @@
+"""The Blender add-on in real Blender (the ``bpy`` module from PyPI, headless).
+
+Every operator runs as a script calls it (``bpy.ops.procmod.*()``): jobs that run procmod go
+to a worker process with this interpreter, and the operator returns once the objects are in
+the scene. What the modal (UI) path adds is only a timer calling the same
+:meth:`Runner.tick`; a test checks that a tick never blocks while the worker works.
+"""
+
+import json
+import math
+import re
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy", reason="the bpy module (Blender 4.5 as a Python module) is not installed: "
+                                        "pip install --no-deps bpy==4.5.15 (.ci/run installs it)")
+from mathutils import Matrix, Vector  # noqa: E402  (comes with bpy)
+
+from procmod.core import run_forward  # noqa: E402
+from procmod.geometry.camera import Camera  # noqa: E402
+from procmod.geometry.solid import part_triangles  # noqa: E402
+from procmod.models import get_model  # noqa: E402
+from procmod.targets import load_target_file  # noqa: E402
+
+import procmod.blender as addon_package  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def registered():
+    addon_package.register()
+    from procmod.blender import addon
+    yield addon
+    addon_package.unregister()
+
+
+@pytest.fixture
+def context(registered, tmp_path):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.procmod.output_dir = str(tmp_path / "runs")
+    return bpy.context
+
+
+def _one_line_error(call, match):
+    with pytest.raises(RuntimeError) as info:
+        call()
+    message = str(info.value)
+    assert re.search(match, message), message
+    assert "Traceback" not in message and message.strip().count("\n") == 0, message
+    return message
+
+
+def _mesh_object(name, kind="cube", location=(0, 0, 0), scale=(1, 1, 1)):
+    if kind == "cube":
+        bpy.ops.mesh.primitive_cube_add(size=2, location=location)
+    elif kind == "plane":
+        bpy.ops.mesh.primitive_plane_add(size=2, location=location)
+    else:
+        bpy.ops.mesh.primitive_cylinder_add(radius=0.3, depth=3, vertices=12, location=location)
+    obj = bpy.context.active_object
+    obj.name = name
+    obj.scale = scale
+    bpy.context.view_layer.update()
+    return obj
+
+
+def _select(*objects):
+    bpy.ops.object.select_all(action="DESELECT")
+    for obj in objects:
+        obj.select_set(True)
+
+
+def _world_vertices(obj):
+    return np.array([tuple(obj.matrix_world @ v.co) for v in obj.data.vertices])
+
+
+# ---- registration ------------------------------------------------------------------------------------
+
+def test_register_adds_the_operators_and_the_panel_and_unregister_removes_them(registered):
+    names = ("sample", "infer", "learn", "stop", "add_layers", "remove_layer", "new_mask", "open_report")
+    assert all(hasattr(bpy.types, f"PROCMOD_OT_{n}") for n in names)
+    assert hasattr(bpy.types, "PROCMOD_PT_panel") and bpy.types.PROCMOD_PT_panel.bl_category == "procmod"
+    addon_package.unregister()
+    try:
+        assert not hasattr(bpy.types, "PROCMOD_OT_sample") and not hasattr(bpy.types.Scene, "procmod")
+    finally:
+        addon_package.register()
+    assert bpy.ops.procmod.sample.poll()
+
+
+# ---- sample -----------------------------------------------------------------------------------------
+
+def test_samples_become_collections_of_parts_placed_as_procmod_places_them(context):
+    settings = context.scene.procmod
+    settings.model, settings.seed, settings.count = "spaceship", 3, 2
+    assert bpy.ops.procmod.sample() == {"FINISHED"}
+    collections = sorted(bpy.data.collections, key=lambda c: c.name)
+    assert [c.name for c in collections] == ["procmod spaceship sample 0 (seed 3)", "procmod spaceship sample 1 (seed 3)"]
+    context.view_layer.update()
+    to_blender = Matrix(((1, 0, 0), (0, 0, -1), (0, 1, 0)))
+    for i, collection in enumerate(collections):
+        roots = [o for o in collection.objects if o.type == "EMPTY"]
+        parts = sorted((o for o in collection.objects if o.type == "MESH"), key=lambda o: o["procmod_part"])
+        assert len(roots) == 1
+        origin = np.array(roots[0].matrix_world.translation)
+        geometry = run_forward(get_model("spaceship"), np.random.default_rng([3, i])).geometry()
+        assert len(parts) == len(geometry)
+        for obj, part in zip(parts, geometry):
+            assert obj["procmod_tag"] == part.tag and obj.active_material.name == f"procmod {part.tag}"
+            # the object's vertices are procmod's triangles' corners, turned z-up, at the root
+            expected = part_triangles(part, 24).reshape(-1, 3) @ np.array(to_blender).T + origin
+            got = _world_vertices(obj)
+            assert np.allclose(got.min(0), expected.min(0), atol=1e-4)
+            assert np.allclose(got.max(0), expected.max(0), atol=1e-4)
+        assert all(o.parent is not None for o in parts)  # under the root or their call's parent part
+    hulls = {o.data.name for c in collections for o in c.objects if o.get("procmod_tag") == "hull"
+             and len(o.data.vertices) == 8}
+    assert len(hulls) == 1  # every box hull of both samples shares one mesh
+
+
+def test_a_learned_model_needs_its_program(context):
+    context.scene.procmod.model = "PROGRAM"
+    _one_line_error(lambda: bpy.ops.procmod.sample(), "choose the learned program")
+
+
+# ---- control: volume ----------------------------------------------------------------------------------
+
+def test_control_toward_a_scene_mesh_stops_early_keeping_the_best_and_writes_the_cli_run(context, registered,
+                                                                                         monkeypatch):
+    settings = context.scene.procmod
+    # a slab where spaceships are built (procmod z in [-5, 5] is Blender y), and a pillar to avoid
+    fill = _mesh_object("Slab", location=(0, 0, 0.5), scale=(1.5, 4.5, 0.6))
+    avoid = _mesh_object("Pillar", location=(3, 0, 0.5), scale=(0.5, 0.5, 1.0))
+    _select(fill)
+    assert bpy.ops.procmod.add_layers(role="FILL") == {"FINISHED"}
+    _select(avoid)
+    assert bpy.ops.procmod.add_layers(role="AVOID") == {"FINISHED"}
+    settings.engine, settings.population, settings.budget, settings.voxel_size = "ga", 10, "120s", 0.25
+    ticks = []
+    tick = registered.Runner.tick
+
+    def timed_tick(self, context):
+        start = time.perf_counter()
+        done = tick(self, context)
+        ticks.append(time.perf_counter() - start)
+        if "evaluations" in self.job.message and not (self.job.folder / "stop").exists():
+            bpy.ops.procmod.stop()  # what the panel's Stop button does, once the engine is running
+        return done
+
+    monkeypatch.setattr(registered.Runner, "tick", timed_tick)
+    start = time.perf_counter()
+    assert bpy.ops.procmod.infer() == {"FINISHED"}
+    assert time.perf_counter() - start < 60  # stopped long before the budget
+    assert max(ticks) < 0.2 and len(ticks) > 5  # the UI's timer never waits for the work
+    (best,) = bpy.data.collections
+    assert best.name.startswith("procmod best ga")
+    status = context.window_manager.procmod_status
+    run = Path(status.report).parent
+    assert {p.name for p in run.iterdir()} == {"best.glb", "best.json", "best.obj", "best.png", "convergence.png",
+                                               "history.csv", "report.html", "samples.png", "settings.json"}
+    settings_json = json.loads((run / "settings.json").read_text())
+    assert any("stopped from Blender" in n for n in settings_json["notes"])
+    command = settings_json["command"]
+    assert command.startswith("procmod infer spaceship --target ") and "--budget 120s" in command
+    target = load_target_file(Path(command.split("--target ")[1].split(" ")[0]) / "target.json")
+    # the slab is 3 x 9 x 1.2 units in Blender (x, y, z): 3 x 1.2 x 9 in procmod's y-up frame
+    layer0 = np.load(run.with_name(run.name + ".target") / "layer0.npy")
+    assert layer0.sum() == 12 * 5 * 36 or layer0.sum() == 12 * 4 * 36
+    assert target.combined.max() == 1 and target.combined.min() == -3
+
+
+def test_bad_volume_targets_are_one_line_reports(context):
+    settings = context.scene.procmod
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "no layers")
+    camera = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    context.scene.collection.objects.link(camera)
+    _select(camera)
+    _one_line_error(lambda: bpy.ops.procmod.add_layers(role="FILL"), "'Cam' \\(camera\\) is not a mesh")
+    bpy.ops.object.select_all(action="DESELECT")
+    _one_line_error(lambda: bpy.ops.procmod.add_layers(role="FILL"), "nothing is selected")
+    plane = _mesh_object("Sheet", kind="plane")
+    _select(plane)
+    bpy.ops.procmod.add_layers(role="FILL")
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "'Sheet' \\(mesh\\) is not a closed mesh")
+    bpy.data.objects.remove(plane)
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "target layer 1 has no object")
+    assert bpy.ops.procmod.remove_layer() == {"FINISHED"} and len(settings.layers) == 0
+
+
+# ---- control: silhouette ------------------------------------------------------------------------------
+
+def _camera(kind, location, look_at, aspect=(160, 120)):
+    data = bpy.data.cameras.new(kind)
+    data.type = kind
+    if kind == "ORTHO":
+        data.ortho_scale = 14.0
+    else:
+        data.lens = 35.0
+    obj = bpy.data.objects.new(kind, data)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.location = location
+    obj.rotation_euler = (Vector(look_at) - Vector(location)).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.render.resolution_x, bpy.context.scene.render.resolution_y = aspect
+    bpy.context.view_layer.update()
+    return obj
+
+
+@pytest.mark.parametrize("kind,aspect", [("PERSP", (160, 120)), ("PERSP", (90, 160)), ("ORTHO", (160, 120))])
+def test_a_blender_camera_sees_points_where_procmods_camera_does(context, kind, aspect):
+    from bpy_extras.object_utils import world_to_camera_view
+
+    from procmod.blender import scene
+    obj = _camera(kind, (9, -14, 7), (0.5, 0.3, 2.0), aspect)
+    width, height = aspect
+    spec = scene.camera_spec(context, obj, width, height)
+    camera = Camera(tuple(spec["eye"]), tuple(spec["look_at"]), tuple(spec["up"]), spec["projection"], spec["fov"],
+                    width, height)
+    rng = np.random.default_rng(0)
+    for point in rng.uniform(-3, 3, size=(20, 3)):
+        ndc = world_to_camera_view(context.scene, obj, Vector(point))
+        pixel = camera.project(np.array(scene.to_procmod_point(point)))
+        assert pixel[0] == pytest.approx(ndc.x * width, abs=1e-3)
+        assert pixel[1] == pytest.approx((1 - ndc.y) * height, abs=1e-3)
+
+
+def _painted_mask(width, height, box):
+    image = bpy.data.images.new("mask", width=width, height=height, alpha=False)
+    pixels = np.ones((height, width, 4), dtype=np.float32)
+    x0, y0, x1, y1 = box  # rows from the top, as the mask is seen
+    pixels[y0:y1, x0:x1, :3] = 0.0
+    image.pixels.foreach_set(pixels[::-1].ravel())  # Blender's rows run bottom-up
+    return image
+
+
+def test_control_toward_a_painted_mask_under_the_active_camera(context):
+    settings = context.scene.procmod
+    camera = _camera("ORTHO", (0, -30, 4), (0, 0, 4), (80, 80))
+    context.scene.camera = camera
+    settings.target_kind, settings.model, settings.engine = "SILHOUETTE", "tree", "ga"
+    settings.population, settings.budget = 10, "2gens"
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "no mask image")
+    settings.mask = _painted_mask(60, 80, (20, 10, 40, 70))
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "60x80 pixels but the camera frame")
+    assert bpy.ops.procmod.new_mask() == {"FINISHED"}
+    assert tuple(settings.mask.size) == (128, 128)
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "no dark pixel")
+    settings.mask = _painted_mask(80, 80, (30, 10, 50, 70))
+    assert bpy.ops.procmod.infer() == {"FINISHED"}
+    (best,) = bpy.data.collections
+    assert best.name.startswith("procmod best ga")
+    run = Path(context.window_manager.procmod_status.report).parent
+    target = json.loads((run.with_name(run.name + ".target") / "target.json").read_text())
+    assert target["format"] == "procmod-silhouette/1"
+    view = target["views"][0]["camera"]
+    assert view["projection"] == "orthographic" and view["fov"] == pytest.approx(14.0)
+    assert np.allclose(view["eye"], [0, 4, 30], atol=1e-6) and np.allclose(view["up"], [0, 1, 0], atol=1e-6)
+    scene_camera = context.scene.camera
+    context.scene.camera = None
+    settings.camera = None
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "no camera")
+    context.scene.camera = scene_camera
+
+
+# ---- learn -----------------------------------------------------------------------------------------------
+
+def _castles(count=4):
+    """Keeps (a shared cube mesh) each with towers (a shared cylinder mesh) parented to it."""
+    keep_mesh = _mesh_object("k", "cube").data
+    tower_mesh = _mesh_object("t", "cylinder").data
+    for name in ("k", "t"):
+        bpy.data.objects.remove(bpy.data.objects[name])
+    roots = []
+    for e in range(count):
+        keep = bpy.data.objects.new(f"keep{e}", keep_mesh)
+        bpy.context.scene.collection.objects.link(keep)
+        keep.location, keep.scale = (8 * e, 0, 1), (1 + 0.1 * e, 1, 1)
+        bpy.context.view_layer.update()
+        towers = 2 + e % 3
+        for i in range(towers):
+            tower = bpy.data.objects.new(f"tower{e}_{i}", tower_mesh)
+            bpy.context.scene.collection.objects.link(tower)
+            angle = 2 * math.pi * i / towers
+            tower.location = (8 * e + 1.5 * math.cos(angle), 1.5 * math.sin(angle), 1.5)
+            tower.parent = keep
+            tower.matrix_parent_inverse = keep.matrix_world.inverted()
+        roots.append(keep)
+    bpy.context.view_layer.update()
+    return roots
+
+
+def test_selected_hierarchies_become_examples_with_one_part_per_shared_mesh(context, tmp_path):
+    from procmod.blender import scene
+    from procmod.learn import read_examples
+    roots = _castles(3)
+    _select(roots[0], roots[1], roots[2], *roots[1].children)  # children of a selected root are in it already
+    chosen = scene.example_roots(context.selected_objects)
+    assert chosen == roots
+    examples, names = scene.write_examples(chosen, tmp_path)
+    example_set = read_examples(examples)  # procmod's own reader checks the file
+    assert sorted(example_set.parts) == ["Cube", "Cylinder"]
+    assert [e.size() for e in example_set.examples] == [3, 4, 5]
+    tower = example_set.examples[1].children[0]
+    blender_tower = bpy.data.objects["tower1_0"]
+    world = scene.TO_BLENDER @ Matrix(tower.transform.tolist())
+    assert np.allclose(np.array(world), np.array(blender_tower.matrix_world), atol=1e-6)
+    assert json.loads(names.read_text())["examples[1].children[0]"] == "tower1_0"
+
+
+def test_learning_needs_a_selection_of_hierarchies(context):
+    _one_line_error(lambda: bpy.ops.procmod.learn(), "nothing is selected")
+    empty = bpy.data.objects.new("group", None)
+    context.scene.collection.objects.link(empty)
+    for name in ("a", "b"):
+        _mesh_object(name).parent = empty
+    _select(empty)
+    _one_line_error(lambda: bpy.ops.procmod.learn(), "'group' \\(empty\\) is not a mesh and has 2 top-level")
+
+
+@pytest.mark.slow
+def test_learn_from_the_scene_then_sample_the_learned_program(context):
+    settings = context.scene.procmod
+    roots = _castles(4)
+    _select(*roots)
+    settings.count, settings.learn_particles = 2, 1
+    assert bpy.ops.procmod.learn() == {"FINISHED"}
+    assert settings.model == "PROGRAM" and Path(settings.program).name == "program.json"
+    learned = [c for c in bpy.data.collections if "learned sample" in c.name]
+    assert len(learned) == 2
+    meshes = {o.data.name for c in learned for o in c.objects if o.type == "MESH"}
+    assert meshes == {"procmod mesh Cube", "procmod mesh Cylinder"}  # alike parts share their mesh
+    settings.seed = 5
+    assert bpy.ops.procmod.sample() == {"FINISHED"}
+    assert sum("sample" in c.name for c in bpy.data.collections) == 4
+
+
+# ---- the add-on zip in Blender -----------------------------------------------------------------------------
+
+def test_the_addon_zip_installs_and_enables_in_blender(tmp_path):
+    from procmod.blender.package import write_addon_zip
+    archive = write_addon_zip(tmp_path / "procmod_blender.zip")
+    script = f"""
+import bpy, addon_utils
+bpy.ops.preferences.addon_install(filepath={str(archive)!r})
+addon_utils.enable("procmod_blender", default_set=True)
+assert hasattr(bpy.types, "PROCMOD_PT_panel")
+bpy.context.scene.procmod.count = 1
+assert bpy.ops.procmod.sample() == {{"FINISHED"}}
+print("objects", len(bpy.data.objects))
+"""
+    env = {"BLENDER_USER_RESOURCES": str(tmp_path / "user"), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, env=env)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
+    assert re.search(r"objects \d+", run.stdout)
+    assert list((tmp_path / "user").rglob("procmod_blender/default_python.txt"))

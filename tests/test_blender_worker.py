@@ -1,0 +1,135 @@
+"""The Blender add-on's procmod side, which needs no Blender: the worker's jobs and results,
+the job protocol, and that procmod itself never imports bpy."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from procmod.blender import jobs, worker
+from procmod.core import run_forward
+from procmod.geometry.solid import Box
+from procmod.models import get_model
+from procmod.targets import Volume, load_target_file
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_procmod_and_its_help_import_no_bpy():
+    code = ("import sys, procmod, procmod.cli, procmod.blender, procmod.blender.jobs, procmod.blender.worker; "
+            "import procmod.blender.package; assert 'bpy' not in sys.modules, 'bpy imported'")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    run = subprocess.run([sys.executable, "-m", "procmod.cli", "--help"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and "procmod" in run.stdout
+
+
+def test_parts_of_a_derivation_follow_its_geometry_and_calls():
+    derivation = run_forward(get_model("spaceship"), np.random.default_rng([0, 2]))
+    data = worker.derivation_parts(derivation)
+    geometry = derivation.geometry()
+    assert len(data["parts"]) == len(geometry)
+    for i, (part, solid) in enumerate(zip(data["parts"], geometry)):
+        assert part["tag"] == solid.tag and part["transform"] == list(solid.transform)
+        assert part["kind"] == ("box" if isinstance(solid, Box) else "cylinder")
+        assert part["parent"] is None or 0 <= part["parent"] < i
+    assert sum(p["parent"] is None for p in data["parts"]) >= 1
+    assert set(data["colours"]) == {s.tag for s in geometry}
+
+
+def _job(tmp_path, **spec):
+    folder = tmp_path / "job"
+    folder.mkdir()
+    (folder / "job.json").write_text(json.dumps({"format": jobs.JOB_FORMAT, **spec}))
+    status = worker.run_job(folder)
+    return status, json.loads((folder / "result.json").read_text())
+
+
+def test_a_2d_model_is_refused_in_one_line(tmp_path):
+    status, result = _job(tmp_path, command="sample", model="vines", count=1)
+    assert status == 2 and not result["ok"]
+    assert "2D" in result["error"] and "\n" not in result["error"]
+
+
+def test_an_unknown_model_names_the_known_ones(tmp_path):
+    status, result = _job(tmp_path, command="sample", model="spaceshp", count=1)
+    assert status == 2 and "spaceship" in result["error"]
+
+
+def _box_obj(path, lo, hi):
+    mesh = trimesh.creation.box(bounds=[lo, hi])
+    mesh.export(path)
+
+
+def test_volume_layers_share_one_grid_and_load_as_the_cli_loads_them(tmp_path):
+    _box_obj(tmp_path / "fill.obj", [-1, 0, -4], [1, 1, 4])
+    _box_obj(tmp_path / "avoid.obj", [-3, 0, 0], [3, 2, 1])
+    spec = {"layers": [{"mesh": "fill.obj", "object": "Fill", "w_fill": 1, "w_avoid": -1},
+                       {"mesh": "avoid.obj", "object": "Avoid", "w_fill": -2, "w_avoid": 0}], "voxel_size": 0.25}
+    path = worker.build_volume_target(spec, tmp_path, tmp_path / "target")
+    target = load_target_file(path)
+    assert isinstance(target, Volume)
+    grid = target.grid
+    assert np.all(np.asarray(grid.origin) <= [-3, 0, -4]) and np.all(grid.upper >= [3, 2, 4])
+    # the fill box covers 2 x 1 x 8 units: 8 x 4 x 32 voxels, less the part the avoid box takes
+    mask0 = np.load(tmp_path / "target" / "layer0.npy")
+    mask1 = np.load(tmp_path / "target" / "layer1.npy")
+    assert mask0.sum() == 8 * 4 * 32 and mask1.sum() == 24 * 8 * 4
+    # inside the fill box only: 1 (its w_fill) + 0 (the avoid box's w_avoid); inside the avoid
+    # box only: -1 (the fill box's w_avoid) - 2 (its w_fill)
+    assert set(np.unique(target.combined[mask0 & ~mask1])) == {1.0}
+    assert set(np.unique(target.combined[mask1 & ~mask0])) == {-3.0}
+
+
+def test_a_cube_on_the_lattice_gets_every_voxel(tmp_path):
+    # a 2-unit cube at the origin: at voxel size 0.25 its faces' diagonals pass through the
+    # centres of 64 of its 512 voxels, which the plain parity test lost
+    _box_obj(tmp_path / "cube.obj", [-1, -1, -1], [1, 1, 1])
+    path = worker.build_volume_target({"layers": [{"mesh": "cube.obj"}], "voxel_size": 0.25}, tmp_path, tmp_path / "t")
+    assert np.load(path.parent / "layer0.npy").sum() == 512
+
+
+def test_an_open_target_mesh_is_refused_in_one_line(tmp_path):
+    mesh = trimesh.creation.box()
+    mesh.update_faces(np.arange(len(mesh.faces)) > 1)  # a hole
+    mesh.export(tmp_path / "open.obj")
+    with pytest.raises(Exception, match="not a closed mesh") as info:
+        worker.build_volume_target({"layers": [{"mesh": "open.obj", "object": "Plane"}]}, tmp_path, tmp_path / "t")
+    assert "'Plane'" in str(info.value)
+
+
+def test_a_grid_too_large_is_refused_before_voxelizing(tmp_path):
+    _box_obj(tmp_path / "big.obj", [0, 0, 0], [100, 100, 100])
+    with pytest.raises(Exception, match="larger voxel size"):
+        worker.build_volume_target({"layers": [{"mesh": "big.obj"}], "voxel_size": 0.1}, tmp_path, tmp_path / "t")
+
+
+def test_a_job_whose_python_cannot_start_ends_with_one_line(tmp_path):
+    job = jobs.Job("sample", {"model": "spaceship"}, str(tmp_path / "no-python"), folder=tmp_path / "j").start()
+    result = job.wait(timeout=30)
+    assert not result["ok"] and "Python preference" in result["error"]
+
+
+def test_a_worker_that_dies_is_reported_with_its_last_line(tmp_path):
+    fake = tmp_path / "python"
+    fake.write_text("#!/bin/sh\necho 'Segmentation fault' >&2\nexit 139\n")
+    fake.chmod(0o755)
+    job = jobs.Job("sample", {"model": "spaceship"}, str(fake), folder=tmp_path / "j").start()
+    result = job.wait(timeout=30)
+    assert not result["ok"] and "status 139" in result["error"] and "Segmentation fault" in result["error"]
+
+
+def test_the_addon_zip_holds_the_blender_side_and_its_python(tmp_path):
+    import zipfile
+
+    from procmod.blender.package import write_addon_zip
+    path = write_addon_zip(tmp_path / "addon.zip", "/opt/env/bin/python")
+    with zipfile.ZipFile(path) as archive:
+        names = set(archive.namelist())
+        assert names == {f"procmod_blender/{n}" for n in ("__init__.py", "addon.py", "scene.py", "jobs.py",
+                                                          "default_python.txt")}
+        assert archive.read("procmod_blender/default_python.txt").decode().strip() == "/opt/env/bin/python"
+        assert "bl_info" in archive.read("procmod_blender/__init__.py").decode()
