@@ -192,3 +192,25 @@ def test_slots_compare_whole_surfaces_not_the_first_vertices():
         for slot, c in d.nodes[r].children:
             slot_dir.setdefault(slot, set()).add(bool(abs(c.x[5]) > 1))  # z angle pi: the -x shaft
     assert all(len(v) == 1 for v in slot_dir.values()), slot_dir
+
+
+def test_a_leg_turned_over_is_the_mirror_image_when_its_parts_allow_it():
+    """A robot's left leg as URDF files write it: the hip is the right hip turned half
+    over (a proper rotation; the hip box looks the same mirrored), the thigh a mirrored
+    mesh. No translation or rotation maps one leg onto the other; a mirror does, once the
+    hip's own symmetry is allowed."""
+    from asset_writers import wedge_mesh
+    v, f = wedge_mesh(0.6)
+    parts = {"base": {"box": [2, 1, 2]}, "hip": {"box": [0.3, 0.2, 0.2]}, "thigh": {"box": [1, 1, 1]}}
+    legs = []
+    for side in (1, -1):
+        hip = T(0.5, 0, 0.8 * side) @ (np.diag([1.0, -1, -1, 1]) if side < 0 else np.eye(4))  # Rx(pi)
+        thigh = T(0.5, -0.3, 0.9 * side) @ (np.diag([1.0, 1, -1, 1]) if side < 0 else np.eye(4))  # mirrored
+        legs.append(node("hip", hip, [node("thigh", thigh)]))
+    s = example_set([node("base", np.eye(4), legs)], parts)
+    s.parts["thigh"] = PartShape("thigh", "mesh", vertices=tuple(map(tuple, v.tolist())),
+                                 faces=tuple(map(tuple, f.tolist())), source="thigh.obj")
+    assert sym_types(preprocess(s)) == Counter({"refl(hip)": 1})
+    # two boxes side by side are translates: no mirror pair (a pair of chance is no group)
+    twins = [node("hip", T(0.5, 0, 0.8)), node("hip", T(0.5, 0, -0.8))]
+    assert sym_types(preprocess(example_set([node("base", np.eye(4), twins)], parts))) == Counter()

@@ -170,6 +170,40 @@ def surface_samples(shape: PartShape, count: int) -> np.ndarray:
     return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
 
 
+def flip_matrix(mask: int) -> np.ndarray:
+    """The diagonal 3x3 flip of mask ``mask`` (bits 4, 2, 1: negate x, y, z)."""
+    return np.diag([-1.0 if mask & 4 else 1.0, -1.0 if mask & 2 else 1.0, -1.0 if mask & 1 else 1.0])
+
+
+def flip_deviations(shape: PartShape, count: int = 256, exact_below: float = 0.1) -> np.ndarray:
+    """How far the shape is from its own image under each flip of its axes about its
+    bounding-box centre (``out[mask]``, see :func:`flip_matrix`; ``out[0] = 0``): the
+    largest distance of a flipped surface sample from the surface, as a fraction of the
+    bounding-box diagonal (all 0 for a box).
+
+    Distances are first taken to the nearest of 4096 surface samples (an upper bound);
+    those below ``exact_below`` are then measured exactly, to the triangles."""
+    out = np.zeros(8)
+    if shape.kind == "box":
+        return out
+    from scipy.spatial import cKDTree
+    lo, hi = shape.local_bounds()
+    centre, diag = 0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 1e-300)
+    local = surface_samples(shape, count) - centre
+    flipped = [local @ flip_matrix(m) + centre for m in range(1, 8)]
+    tree = cKDTree(surface_samples(shape, 4096))
+    out[1:] = [float(tree.query(p)[0].max()) / diag for p in flipped]
+    near = [m for m in range(1, 8) if out[m] < exact_below]
+    if near:
+        from trimesh import Trimesh
+        from trimesh.proximity import closest_point
+        mesh = Trimesh(np.asarray(shape.vertices, dtype=np.float64), np.asarray(shape.faces), process=False)
+        pts = np.concatenate([flipped[m - 1] for m in near])
+        gaps = np.linalg.norm(np.asarray(closest_point(mesh, pts)[0]) - pts, axis=1).reshape(len(near), count)
+        out[near] = gaps.max(1) / diag
+    return out
+
+
 def world_bounds(shape: PartShape, transform) -> tuple[np.ndarray, np.ndarray]:
     """World-space axis-aligned bounds of ``shape`` placed by ``transform``."""
     lo, hi = shape.local_bounds()

@@ -13,8 +13,11 @@ def register(sub, int_arg) -> None:
     Each parser sets ``handler`` (a function of the parsed args) with ``set_defaults``.
     """
     learn = sub.add_parser(
-        "learn", help="learn a probabilistic program from part-based examples (procmod-examples/1)")
-    learn.add_argument("examples", metavar="EXAMPLES.json", help="a procmod-examples/1 file")
+        "learn", help="learn a probabilistic program from part-based examples (procmod-examples/1, or "
+                      "glTF / GLB / URDF files, one example each)")
+    learn.add_argument("examples", metavar="EXAMPLES", nargs="+",
+                       help="a procmod-examples/1 JSON file, or asset files (.gltf, .glb, .urdf) and folders of "
+                            "them: one example per file, parts shared by geometry")
     learn.add_argument("--out", required=True, help="output folder: program.json (+ program.pt), "
                                                     "contact_sheet.png, report.html; resumes a killed run")
     learn.add_argument("--particles", type=int_arg, default=4,

@@ -1,4 +1,5 @@
-"""The ``procmod-examples/1`` format: part-based example hierarchies.
+"""The ``procmod-examples/1`` format: part-based example hierarchies; and example sets from
+asset files (glTF, GLB, URDF: :func:`read_example_inputs`, :func:`examples_from_assets`).
 
 ::
 
@@ -149,6 +150,98 @@ def read_examples(path: str | os.PathLike) -> ExampleSet:
     return examples_from_dict(data, path.parent, str(path))
 
 
+def _asset_node(node, path: Path, depth: int) -> ExampleNode:
+    if depth > MAX_DEPTH:
+        raise ExamplesError(f"{path}: hierarchy deeper than {MAX_DEPTH} levels")
+    m = node.transform
+    where = f"{path}: node {node.name!r}"
+    linear = m[:3, :3]
+    scale = max(float(np.abs(linear).max()), 1e-300)
+    if abs(np.linalg.det(linear / scale)) < 1e-9:
+        raise ExamplesError(f"{where}: its world transform is singular (a scale of zero); procmod learn needs "
+                            "every part to have a volume's worth of placement")
+    if has_shear(m):
+        raise ExamplesError(f"{where}: its world transform shears (a non-uniform scale applied to a rotated part, "
+                            "or under a rotated parent); procmod learn models rotation, scale and translation only: apply the "
+                            "scale in the modelling tool (Blender: Object > Apply > Scale) and export again")
+    return ExampleNode(node.part, np.array(m, dtype=np.float64),
+                       [_asset_node(c, path, depth + 1) for c in node.children])
+
+
+def examples_from_assets(asset_set) -> ExampleSet:
+    """An example set from asset files read by :func:`procmod.geometry.assets.read_assets`:
+    its part library, and one example per file (the file's single top-level part).
+
+    Raises
+    ------
+    ExamplesError
+        For a file with no or several top-level parts, or a transform the learner cannot
+        model (singular, or shearing).
+    """
+    examples = []
+    for asset in asset_set.assets:
+        if len(asset.roots) != 1:
+            names = ", ".join(repr(r.name) for r in asset.roots[:5])
+            raise ExamplesError(f"{asset.path}: {len(asset.roots)} top-level parts ({names}{', ...' if len(asset.roots) > 5 else ''}); "
+                                "an example is one hierarchy: parent them under one part (the body)")
+        examples.append(_asset_node(asset.roots[0], asset.path, 0))
+    base = asset_set.assets[0].path.parent if asset_set.assets else Path(".")
+    return ExampleSet(dict(asset_set.parts), examples, base)
+
+
+def read_example_inputs(paths) -> tuple[ExampleSet, str]:
+    """The example set of ``procmod learn``'s inputs, and a digest of what was read.
+
+    ``paths``: one ``procmod-examples/1`` JSON file, or asset files and folders of them
+    (glTF, GLB, URDF: one example per file; see :mod:`procmod.geometry.assets`). The
+    digest covers the part library and every transform, so a checkpoint made from other
+    inputs is refused.
+    """
+    from ..core.serialize import fingerprint
+    from ..geometry.assets import AssetError, asset_files, read_assets
+
+    paths = [Path(p) for p in ([paths] if isinstance(paths, (str, os.PathLike)) else paths)]
+    if not paths:
+        raise ExamplesError("no examples given: name a procmod-examples/1 JSON file, or asset files or folders")
+    json_files = [p for p in paths if p.suffix.lower() == ".json"]
+    if json_files:
+        if len(paths) > 1:
+            raise ExamplesError(f"{json_files[0]}: give one procmod-examples/1 JSON file on its own, or asset "
+                                "files (.gltf, .glb, .urdf) and folders of them, not both or several JSON files")
+        example_set = read_examples(paths[0])
+        return example_set, fingerprint(paths[0].read_bytes())
+    try:
+        example_set = examples_from_assets(read_assets(asset_files(paths)))
+    except AssetError as exc:
+        raise ExamplesError(str(exc)) from None
+    return example_set, example_set_digest(example_set)
+
+
+def example_set_digest(example_set: ExampleSet) -> str:
+    """A digest of an example set's parts (shapes) and hierarchies (parts, transforms)."""
+    import hashlib
+    h = hashlib.sha256()
+    for name in sorted(example_set.parts):
+        shape = example_set.parts[name]
+        h.update(f"{name}\0{shape.kind}\0".encode())
+        if shape.kind == "box":
+            h.update(np.asarray(shape.size, dtype=np.float64).tobytes())
+        else:
+            h.update(np.asarray(shape.vertices, dtype=np.float64).tobytes())
+            h.update(np.asarray(shape.faces, dtype=np.int64).tobytes())
+
+    def visit(node):
+        h.update(f"({node.part}\0".encode())
+        h.update(np.asarray(node.transform, dtype=np.float64).tobytes())
+        for c in node.children:
+            visit(c)
+        h.update(b")")
+
+    for e in example_set.examples:
+        visit(e)
+    return h.hexdigest()[:16]
+
+
 def node_to_json(node: ExampleNode) -> dict:
     return {"part": node.part, "transform": transform_to_json(node.transform),
             "children": [node_to_json(c) for c in node.children]}
@@ -160,6 +253,9 @@ def parts_json_relative(parts: dict, base_dir: Path, out_dir: Path) -> dict:
     for name, shape in parts.items():
         if shape.kind == "box":
             out[name] = {"box": list(shape.size)}
+        elif shape.source is None:
+            raise ExamplesError(f"part {name!r} is a mesh read from an asset file and has no mesh file of its own; "
+                                "it cannot be written as procmod-examples/1")
         else:
             mesh = (Path(base_dir) / shape.source).resolve()
             out[name] = {"mesh": os.path.relpath(mesh, Path(out_dir).resolve())}
@@ -190,4 +286,5 @@ def example_parts(node: ExampleNode, parts: dict) -> list:
 
 
 __all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
+           "read_example_inputs", "examples_from_assets", "example_set_digest",
            "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]

@@ -1,4 +1,4 @@
-"""``procmod learn``: examples file in, program folder out.
+"""``procmod learn``: examples (a procmod-examples/1 file, or asset files) in, program folder out.
 
 ``DIR/program.json`` + ``DIR/program.pt`` (the program; meshes copied to ``DIR/parts/``),
 ``DIR/contact_sheet.png`` (the examples, then samples of the program), ``DIR/report.json``
@@ -18,12 +18,12 @@ import numpy as np
 
 from ..core import run_forward
 from ..core.errors import InvalidArgumentError
-from ..core.serialize import fingerprint, write_text_atomic
+from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.camera import framing_camera, shaded_image
 from ..geometry.export import colour_of
 from ..geometry.solid import scene_bounds
-from .examples import ExampleSet, example_parts, read_examples
+from .examples import ExampleSet, example_parts, read_example_inputs
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -87,15 +87,16 @@ tr:nth-child(even){{background:#f2f2f2}}</style></head><body>
 """
 
 
-def learn(examples: str | os.PathLike, out: str | os.PathLike, particles: int = 4, workers: int | None = None,
+def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | None = None,
           scheduler: str | None = None, seed: int = 0, options: SearchOptions | None = None,
           samples: int = 10, progress=None, command: str = "") -> dict:
     """Learn a program from an examples file and write the program folder ``out``.
 
     Parameters
     ----------
-    examples : path
-        A ``procmod-examples/1`` file.
+    examples : path or list of paths
+        A ``procmod-examples/1`` file, or asset files (glTF, GLB, URDF) and folders of
+        them, one example per file (:func:`procmod.learn.examples.read_example_inputs`).
     out : path
         Output folder (created); a checkpoint left there by a killed run with the same
         examples and options is resumed.
@@ -112,31 +113,31 @@ def learn(examples: str | os.PathLike, out: str | os.PathLike, particles: int = 
         Table-1 figures and the paths written.
     """
     from ..parallel import open_executor
-    examples = Path(examples)
+    inputs = [Path(examples)] if isinstance(examples, (str, os.PathLike)) else [Path(p) for p in examples]
+    shown = str(inputs[0]) if len(inputs) == 1 else " ".join(map(str, inputs))
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InvalidArgumentError(f"--out {out} exists and is not a folder")
     if samples < 1:
         raise InvalidArgumentError(f"samples must be positive, got {samples}")
-    example_set = read_examples(examples)
+    example_set, digest = read_example_inputs(inputs)  # everything is read and checked before --out is made
     options = options or SearchOptions()
     options.particles, options.seed = particles, seed
     options.check()
-    text = examples.read_bytes()
     out.mkdir(parents=True, exist_ok=True)
     with open_executor(workers, scheduler) as executor:
-        result = run_search(example_set, options, executor, out / "checkpoint", fingerprint(text), progress)
+        result = run_search(example_set, options, executor, out / "checkpoint", digest, progress)
     program = result.program
-    program.info["examples"] = str(examples)
+    program.info["examples"] = shown
     json_path = save_program(program, out)
     name = str(json_path.resolve())
     derivations = sample_program(program, name, samples, seed)
     examples_and_samples_sheet(example_set, derivations, out / "contact_sheet.png")
     _search_plot(result.rounds, out / "search.png")
-    report = {"format": "procmod-learn-report/1", "examples": str(examples), "table": result.table,
+    report = {"format": "procmod-learn-report/1", "examples": shown, "table": result.table,
               "options": asdict(options), "trace": result.trace, "rounds": result.rounds,
               "resumed": result.resumed}
     write_text_atomic(out / "report.json", json.dumps(report, indent=1) + "\n")
-    write_text_atomic(out / "report.html", _report_html(result.table, result.trace, str(examples), command))
+    write_text_atomic(out / "report.html", _report_html(result.table, result.trace, shown, command))
     return {"table": result.table, "program": str(json_path), "report": str(out / "report.html"),
             "contact_sheet": str(out / "contact_sheet.png"), "result": result}

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from ..geometry.part_library import surface_samples
+from ..geometry.part_library import flip_deviations, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .symmetry import SYMMETRY_TOLERANCE, Unit, box_corners, group_children
@@ -222,12 +222,16 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     bounds = {name: shape.local_bounds() for name, shape in parts.items()}
     corners = {name: box_corners(lo, hi) for name, (lo, hi) in bounds.items()}
     samples = {name: surface_samples(shape, SLOT_SAMPLES) for name, shape in parts.items()}
+    # a part's own symmetries (flips of its axes it looks the same under, within the
+    # symmetry tolerance): a placement turned over may then be a mirror image
+    flips = {name: tuple(int(m) for m in np.flatnonzero(flip_deviations(shape) <= tolerance))
+             for name, shape in parts.items()}
     infos = []  # every part node that is a unit representative or a root
 
     def visit(node: ExampleNode) -> _PartInfo:
         lo, hi = bounds[node.part]
         frame = frame_of(node.transform, lo, hi)
-        info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance))
+        info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips))
         infos.append(info)
         for unit in info.units:
             visit(unit.representative().node)

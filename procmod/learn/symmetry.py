@@ -77,6 +77,7 @@ class Unit:
     blocks: dict = field(default_factory=dict)
     names: list = field(default_factory=list)
     size: float = 0.0
+    flips: dict = field(default_factory=dict)  # part name -> its self-symmetries (corner XOR masks)
 
     def top_parts(self) -> list:
         """(part, world) of the unit's own parts (all members, not their descendants)."""
@@ -102,16 +103,19 @@ def _finish(unit: Unit, names: list, corners: np.ndarray) -> Unit:
     return unit
 
 
-def leaf_unit(node: ExampleNode, corners: dict) -> Unit:
-    """A unit of one node and its subtree; ``corners[part]`` is the part's local (8, 3) box."""
+def leaf_unit(node: ExampleNode, corners: dict, flips: dict | None = None) -> Unit:
+    """A unit of one node and its subtree; ``corners[part]`` is the part's local (8, 3) box,
+    ``flips[part]`` the corner masks of its self-symmetries (flips of its axes about its
+    box centre it looks the same under; bits 4, 2, 1: x, y, z, as corner k = 4x + 2y + z)."""
     nodes = list(node.walk())
     world = np.stack([corners[n.part] @ n.transform[:3, :3].T + n.transform[:3, 3] for n in nodes])
-    return _finish(Unit("node", node=node, sig=_raw_signature(node), type=node.part), [n.part for n in nodes], world)
+    unit = Unit("node", node=node, sig=_raw_signature(node), type=node.part, flips=flips or {})
+    return _finish(unit, [n.part for n in nodes], world)
 
 
 def group_unit(kind: str, members: list, g: np.ndarray) -> Unit:
     unit = Unit(kind, members=members, g=g, sig=f"{kind}{len(members)}({members[0].sig})",
-                type=f"{kind}({members[0].type})")
+                type=f"{kind}({members[0].type})", flips=members[0].flips)
     return _finish(unit, [n for m in members for n in m.names], np.concatenate([m.corners for m in members]))
 
 
@@ -119,42 +123,55 @@ def _apply(g: np.ndarray, p: np.ndarray) -> np.ndarray:
     return p @ g[:3, :3].T + g[:3, 3]
 
 
-def correspond(g: np.ndarray, a: Unit, b: Unit) -> np.ndarray | None:
-    """Pair ``a``'s nodes with ``b``'s (same part name) after mapping ``a`` by ``g``:
-    per part name, the assignment minimising the summed largest corner distance.
+_XOR = np.arange(8)[None, :] ^ np.arange(8)[:, None]  # _XOR[f, k] = k ^ f
+_MASKS = {(0,): np.zeros(1, dtype=int)}  # flip tuples as index arrays
 
-    Returns ``match`` with ``match[i]`` the node of ``b`` paired with ``a``'s node ``i``,
-    or None when the units' parts do not pair up.
+
+def correspond(g: np.ndarray, a: Unit, b: Unit):
+    """Pair ``a``'s nodes with ``b``'s (same part name) after mapping ``a`` by ``g``:
+    per part name, the assignment minimising the summed largest corner distance, each
+    pair compared under the best of the part's self-symmetries.
+
+    Returns ``(match, flip)``: ``a``'s node ``i`` pairs with ``b``'s node ``match[i]``,
+    its corner ``k`` with that node's corner ``k ^ flip[i]``; or None when the units'
+    parts do not pair up.
     """
     if len(a.corners) != len(b.corners) or a.blocks.keys() != b.blocks.keys():
         return None
     mapped = _apply(g, a.corners)
     match = np.empty(len(a.corners), dtype=int)
+    flip = np.zeros(len(a.corners), dtype=int)
     for name, ia in a.blocks.items():
         ib = b.blocks[name]
         if len(ia) != len(ib):
             return None
-        if len(ia) == 1:
-            match[ia] = ib
-            continue
-        # cost[i, j]: the largest corner distance of a's i-th part of this name to b's j-th
-        cost = np.linalg.norm(mapped[ia][:, None] - b.corners[ib][None], axis=-1).max(-1)
-        rows, cols = linear_sum_assignment(cost)
+        masks = _MASKS.get(a.flips.get(name, (0,)))
+        if masks is None:
+            masks = _MASKS[a.flips[name]] = np.asarray(a.flips[name])
+        # cost[f, i, j]: the largest distance of a's i-th part's corners k ^ f to b's j-th part's k
+        d = mapped[ia][:, _XOR[masks]][None] - b.corners[ib][:, None, None]  # (j, i, f, k, xyz)
+        cost = np.sqrt((d * d).sum(-1).max(-1)).transpose(2, 1, 0)
+        best = cost.min(0)
+        rows, cols = (np.zeros(1, dtype=int),) * 2 if len(ia) == 1 else linear_sum_assignment(best)
         match[ia[rows]] = ib[cols]
-    return match
+        flip[ia[rows]] = masks[cost[:, rows, cols].argmin(0)]
+    return match, flip
 
 
 def _aligned(chain: list, units: list, g: np.ndarray) -> list | None:
-    """The corners (n, 8, 3) of each member of ``chain``, its nodes in the order of the
-    first member's (pairing consecutive members under ``g``), or None."""
+    """The corners (n, 8, 3) of each member of ``chain``, its nodes and their corners in
+    the order of the first member's (pairing consecutive members under ``g``), or None."""
     order = np.arange(len(units[chain[0]].corners))
+    acc = np.zeros(len(order), dtype=int)
     out = [units[chain[0]].corners]
     for a, b in zip(chain, chain[1:]):
-        match = correspond(g, units[a], units[b])
-        if match is None:
+        paired = correspond(g, units[a], units[b])
+        if paired is None:
             return None
+        match, flip = paired
+        acc = acc ^ flip[order]
         order = match[order]
-        out.append(units[b].corners[order])
+        out.append(units[b].corners[order[:, None], _XOR[acc]])
     return out
 
 
@@ -249,19 +266,40 @@ def _nontrivial(g: np.ndarray, unit: Unit, tol: float) -> bool:
     return float(np.linalg.norm(_apply(g, here) - here, axis=1).max()) > tol * unit.size
 
 
-def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE):
+def _bisector(a: Unit, b: Unit) -> np.ndarray | None:
+    """The mirror through the midpoint of the units' centres, normal to their offset."""
+    ca, cb = a.corners.reshape(-1, 3).mean(0), b.corners.reshape(-1, 3).mean(0)
+    n = cb - ca
+    if float(np.linalg.norm(n)) < 1e-12:
+        return None
+    n /= np.linalg.norm(n)
+    g = np.eye(4)
+    g[:3, :3] -= 2 * np.outer(n, n)
+    g[:3, 3] = 2 * float(n @ (0.5 * (ca + cb))) * n
+    return g
+
+
+def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE, any_handedness: bool = False):
     """(kind, exact map, deviation) relating ``a`` to ``b`` for the first of ``kinds``
     that fits within ``tol`` (:func:`deviation`), or None. The parts are first paired
-    under the raw map of the first parts, ``W_b W_a^-1``."""
+    under the raw map of the first parts, ``W_b W_a^-1``; a reflection is tried only when
+    that map is improper, unless ``any_handedness`` (then from the mirror bisecting the
+    units: parts whose own symmetry hides the mirror, a left hip that is the right one
+    turned over)."""
     if a.sig != b.sig:
         return None
     g0 = b.first() @ np.linalg.inv(a.first())
     improper = np.linalg.det(g0[:3, :3]) < 0
     for kind in kinds:
+        start = g0
         if (kind == "refl") != improper:
-            continue
+            if not (kind == "refl" and any_handedness):
+                continue
+            start = _bisector(a, b)
+            if start is None:
+                continue
         units = [a, b]
-        fitted = _fit_chain(kind, [0, 1], units, g0)
+        fitted = _fit_chain(kind, [0, 1], units, start)
         if fitted is not None and fitted[1] <= tol and _nontrivial(fitted[0], a, tol):
             return kind, fitted[0], fitted[1]
     return None
@@ -269,12 +307,14 @@ def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE):
 
 # ---- passes -------------------------------------------------------------------------------
 
-def _pair_reflections(units: list, frame: Frame, tol: float) -> list:
+def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: bool = False) -> list:
     """Reflection pairs: each unit, in order, with the first later free unit it mirrors
     within the tolerance. Order, not the smallest deviation, decides between several
     partners (a row of mirrored pairs also mirrors along the row): deviations of exact
     copies differ only by rounding, and noise within the tolerance must not change the
-    pairing."""
+    pairing. With ``any_handedness`` (the last pass) a pair whose placements are proper
+    (no mirror in their matrices) is a mirror pair too, when the parts' own symmetries
+    make it one and no translation or rotation relates the two."""
     out, used = [], set()
     for i, a in enumerate(units):
         if i in used:
@@ -283,6 +323,8 @@ def _pair_reflections(units: list, frame: Frame, tol: float) -> list:
             if j in used:
                 continue
             r = relate(a, units[j], ("refl",), tol)
+            if r is None and any_handedness and relate(a, units[j], ("trans", "rot"), tol) is None:
+                r = relate(a, units[j], ("refl",), tol, any_handedness=True)
             if r is None:
                 continue
             b, g = units[j], r[1]
@@ -309,10 +351,12 @@ def _extend(kind: str, g: np.ndarray, chain: list, units: list, free: set, tol: 
             if units[k].sig != units[chain[0]].sig:
                 continue
             last = units[chain[-1]]
-            match = correspond(g, last, units[k])
-            if match is None:  # cheap test first: k is near where g puts the last member
+            paired = correspond(g, last, units[k])
+            if paired is None:  # cheap test first: k is near where g puts the last member
                 continue
-            gap = float(np.linalg.norm(_apply(g, last.corners) - units[k].corners[match], axis=-1).max())
+            match, flip = paired
+            gap = float(np.linalg.norm(_apply(g, last.corners) - units[k].corners[match[:, None], _XOR[flip]],
+                                       axis=-1).max())
             if gap > 4 * tol * max(last.size, units[k].size):
                 continue
             fitted = _fit_chain(kind, chain + [k], units, g)
@@ -408,12 +452,14 @@ def _start_nearest_reference(members: list, g: np.ndarray, frame: Frame) -> list
     return members[best:] + members[:best]
 
 
-def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE) -> list:
+def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE,
+                   flips: dict | None = None) -> list:
     """Symmetry groups among sibling nodes (a list of :class:`Unit`).
 
-    ``corners[part]``: the part's local bounding-box corners (:func:`box_corners`).
+    ``corners[part]``: the part's local bounding-box corners (:func:`box_corners`);
+    ``flips[part]``: its self-symmetries (see :func:`leaf_unit`; none when omitted).
     """
-    units = [leaf_unit(c, corners) for c in children]
+    units = [leaf_unit(c, corners, flips) for c in children]
     units = _pair_reflections(units, frame, tol)
     units = _chains(units, frame, tol)
-    return _pair_reflections(units, frame, tol)
+    return _pair_reflections(units, frame, tol, any_handedness=True)

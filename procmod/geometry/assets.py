@@ -1,0 +1,794 @@
+"""Part hierarchies from asset files: glTF / GLB scenes and URDF robots.
+
+:func:`read_assets` reads one or more asset files (or the asset files of a folder) into a
+neutral structure that both the learner (``procmod learn``) and the string-based
+synthesis (``procmod strings``) use:
+
+* a **part library** (:class:`~procmod.geometry.part_library.PartShape` by name): one part
+  per *distinct geometry*, shared across all the files read together;
+* per file, a **forest** of :class:`AssetNode` — part name, 4x4 world transform (placing
+  the library part), children, and the node's name in the file.
+
+Readers (no file format is parsed here): trimesh reads glTF / GLB (geometry, and the
+scene graph's world transforms); yourdfpy reads URDF (links, visuals, joints), trimesh
+its mesh files. Only the glTF's JSON node list is looked at directly — to refuse a node
+hierarchy with a cycle or a node with two parents, and to count triangles before any
+buffer is decoded — because trimesh's loader silently breaks cycles.
+
+**Hierarchy.** glTF: the node tree of the default scene; a node with a mesh is a part
+node, a node without one (an empty, a bone) passes its children to its nearest ancestor
+with a mesh (world transforms lose nothing). A mesh with several primitives (one per
+material) is one part. URDF: the link tree of the joints, at the zero configuration
+(every joint at 0); a link's first visual is its node, further visuals are children of
+it, and a link without visuals passes its children on like an empty. Cylinders and
+spheres become meshes (32 sections; an icosphere of 320 faces), boxes stay boxes; a
+shape of size zero (a marker some robots carry) is no part.
+
+**Distinct geometry** (:data:`GEOMETRY_TOLERANCE`). Two meshes are one part when a rigid
+motion (and, with ``mirror=True``, a reflection: a left and a right wing) maps one onto
+the other to within ``GEOMETRY_TOLERANCE`` x the bounding-box diagonal, measured both
+ways as the largest distance from points of one (512 area-weighted surface samples and
+up to 1024 vertices) to the other's surface. The alignment: principal axes of the
+area-weighted surface (every sign choice; about a degenerate axis, every 30 degrees),
+each refined by ICP (to 8192 samples of the other surface, then to their tangent planes). A mesh used by several nodes (glTF nodes sharing mesh
+data; URDF visuals naming one file at one scale) is one geometry without any test. Boxes
+are one part when their extents agree up to a permutation (a quarter turn). A part is
+named after its geometry as the tool named it — the glTF mesh name, the URDF mesh file's
+stem, for a URDF box, cylinder or sphere its visual's name or else its link's — the
+shortest name among the geometries it merges (``arm`` for meshes ``arm`` and ``arm.001``); different geometries with one name
+get ``_2``, ``_3``, ... in the order they were read.
+
+**Bad files** raise :class:`AssetError` with one line naming the file and the problem:
+unreadable or not the format its suffix says, no mesh, a mesh with non-finite
+coordinates or zero surface area, a node hierarchy with a cycle (or a node with two
+parents), more than :data:`MAX_FACES` triangles or :data:`MAX_NODES` nodes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import ProcmodError
+from ..core.paths import UnsafePathError, named_file
+from .part_library import PartShape
+
+GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
+MAX_FACES = 2_000_000  # triangles of the distinct meshes of one file
+MAX_NODES = 10_000  # nodes (glTF) or links + visuals (URDF) of one file
+MAX_MESH_BYTES = 512 * 2 ** 20  # a URDF's mesh file
+ASSET_SUFFIXES = (".gltf", ".glb", ".urdf")
+MESH_SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf", ".dae"}
+_SAMPLES = 512
+_CHECK_VERTICES = 1024
+_DENSE = 8192
+
+
+class AssetError(ProcmodError):
+    """An asset file (glTF, GLB, URDF, or a mesh one names) that cannot be used."""
+
+
+@dataclass
+class AssetNode:
+    """A part placed in an asset: library part, world transform, children, file name."""
+
+    name: str  # the node's name in the file (glTF node, URDF link)
+    part: str  # the library part it places
+    transform: np.ndarray  # 4x4 world transform of the part's local frame
+    children: list = field(default_factory=list)
+
+    def walk(self):
+        """This node and its descendants, depth first."""
+        yield self
+        for child in self.children:
+            yield from child.walk()
+
+
+@dataclass
+class Asset:
+    """One file's hierarchy: its top-level part nodes."""
+
+    path: Path
+    roots: list  # of AssetNode
+
+    def nodes(self) -> list:
+        return [n for r in self.roots for n in r.walk()]
+
+
+@dataclass
+class AssetSet:
+    """Files read together: one shared part library and a hierarchy per file."""
+
+    parts: dict  # name -> PartShape
+    assets: list  # of Asset
+    tolerance: float = GEOMETRY_TOLERANCE
+
+
+# ---- which files ------------------------------------------------------------------------------
+
+def is_asset_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` names a file :func:`read_assets` reads (by its suffix)."""
+    return Path(path).suffix.lower() in ASSET_SUFFIXES
+
+
+def asset_files(paths) -> list[Path]:
+    """The asset files named by ``paths`` (files, or folders: their asset files, sorted)."""
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    out = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(f for f in p.iterdir() if f.is_file() and is_asset_file(f))
+            if not found:
+                raise AssetError(f"folder {p} holds no {', '.join(ASSET_SUFFIXES)} file")
+            out += found
+        elif not p.exists():
+            raise AssetError(f"asset file {p} does not exist")
+        elif not p.is_file():
+            raise AssetError(f"{p} is not a regular file")
+        elif not is_asset_file(p):
+            raise AssetError(f"{p}: not an asset file (expected a name ending in {', '.join(ASSET_SUFFIXES)})")
+        else:
+            out.append(p)
+    if not out:
+        raise AssetError("no asset files given")
+    return out
+
+
+# ---- raw geometry and nodes, as each reader finds them ------------------------------------------
+
+@dataclass
+class _Geometry:
+    key: tuple  # identity within the whole read: nodes with one key share the geometry
+    name: str
+    where: str  # for messages
+    kind: str = "mesh"  # or "box"
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+    size: np.ndarray | None = None
+
+
+@dataclass
+class _Raw:
+    name: str
+    geometry: tuple | None  # a _Geometry key, or None (an empty)
+    world: np.ndarray
+    children: list = field(default_factory=list)
+
+
+def _clean_mesh(vertices, faces, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """Checked float64 vertices and int faces; merged duplicate vertices (UV seams)."""
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0 or len(v) == 0:
+        raise AssetError(f"{where} holds no triangles")
+    if not np.isfinite(v).all():
+        raise AssetError(f"{where} has non-finite vertex coordinates (NaN or infinity); fix or re-export it")
+    if f.min() < 0 or f.max() >= len(v):
+        raise AssetError(f"{where}: a triangle refers to a vertex that does not exist")
+    uniq, inverse = np.unique(v, axis=0, return_inverse=True)
+    f = inverse.reshape(-1)[f]
+    used = np.unique(f)
+    remap = np.full(len(uniq), -1)
+    remap[used] = np.arange(len(used))
+    v, f = uniq[used], remap[f]
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    if not area.sum() > 1e-12 * max(float(np.ptp(v, axis=0).max()), 1e-300) ** 2:
+        raise AssetError(f"{where} has zero surface area (every triangle is degenerate)")
+    return v, f
+
+
+# ---- glTF / GLB -------------------------------------------------------------------------------
+
+def _gltf_json(path: Path) -> dict:
+    """The JSON of a .gltf file, or of a .glb file's first chunk (glTF 2.0 container:
+    12-byte header 'glTF', version, length; then chunk length, type 'JSON', data)."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise AssetError(f"cannot read {path} ({exc.strerror})") from None
+    if path.suffix.lower() == ".glb":
+        if len(data) < 20 or data[:4] != b"glTF":
+            raise AssetError(f"{path} is not a GLB file (no 'glTF' header); is it damaged or another format?")
+        length, kind = struct.unpack_from("<I4s", data, 12)
+        if kind != b"JSON" or 20 + length > len(data):
+            raise AssetError(f"{path}: damaged GLB file (its JSON chunk is missing or cut off)")
+        data = data[20:20 + length]
+    try:
+        header = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise AssetError(f"{path} is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
+    if not isinstance(header, dict):
+        raise AssetError(f"{path} is not a glTF file (its JSON is not an object)")
+    return header
+
+
+def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:
+    """The default scene's root node indices and every node's children, checked: a tree
+    (each node has one parent, none is its own ancestor), at most MAX_NODES nodes."""
+    nodes = header.get("nodes", [])
+    if not isinstance(nodes, list) or not all(isinstance(n, dict) for n in nodes):
+        raise AssetError(f"{path}: 'nodes' is not a list of node objects")
+    if len(nodes) > MAX_NODES:
+        raise AssetError(f"{path} has {len(nodes)} nodes, more than procmod reads ({MAX_NODES}); join objects "
+                         "that belong together before exporting")
+    scenes = header.get("scenes", [])
+    scene = header.get("scene", 0)
+    if not scenes:
+        raise AssetError(f"{path} holds no scene (and so no mesh)")
+    if not isinstance(scene, int) or not 0 <= scene < len(scenes) or not isinstance(scenes[scene], dict):
+        raise AssetError(f"{path}: its default scene {scene!r} does not exist")
+    roots = scenes[scene].get("nodes", [])
+
+    def index(i, where):
+        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < len(nodes):
+            raise AssetError(f"{path}: {where} refers to node {i!r}, which does not exist")
+        return i
+
+    for k, n in enumerate(nodes):  # trimesh replaces a non-finite matrix by the identity, silently
+        for key, size in (("matrix", 16), ("translation", 3), ("rotation", 4), ("scale", 3)):
+            value = n.get(key)
+            if value is None:
+                continue
+            if (not isinstance(value, list) or len(value) != size
+                    or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                               for x in value)):
+                raise AssetError(f"{path}: node {k} ({n.get('name', 'unnamed')!r}) has a non-finite or malformed "
+                                 f"transform ({key} must be {size} finite numbers)")
+    roots = [index(i, f"scene {scene}") for i in roots]
+    children = [[index(c, f"node {k} ({n.get('name', 'unnamed')!r})") for c in n.get("children", [])]
+                for k, n in enumerate(nodes)]
+    parent = {}
+    for k, cs in enumerate(children):
+        for c in cs:
+            if c in parent or c in roots:
+                raise AssetError(f"{path}: node {c} ({nodes[c].get('name', 'unnamed')!r}) has two parents; a glTF "
+                                 "node hierarchy must be a tree")
+            parent[c] = k
+    for start in range(len(nodes)):  # a cycle: following parents comes back to the start
+        seen, k = {start}, start
+        while k in parent:
+            k = parent[k]
+            if k in seen:
+                raise AssetError(f"{path}: the node hierarchy has a cycle (node {k}, "
+                                 f"{nodes[k].get('name', 'unnamed')!r}, is its own ancestor)")
+            seen.add(k)
+    return roots, children
+
+
+def _gltf_triangles(header: dict, path: Path) -> int:
+    """Triangles the file's meshes declare (accessor counts), before any buffer is read."""
+    accessors = header.get("accessors", [])
+    total = 0
+    for m in header.get("meshes", []) if isinstance(header.get("meshes"), list) else []:
+        for p in m.get("primitives", []) if isinstance(m, dict) else []:
+            if not isinstance(p, dict):
+                continue
+            mode = p.get("mode", 4)
+            acc = p.get("indices", (p.get("attributes") or {}).get("POSITION"))
+            if isinstance(acc, int) and 0 <= acc < len(accessors) and isinstance(accessors[acc], dict):
+                count = accessors[acc].get("count", 0)
+                if isinstance(count, int) and count > 0:
+                    total += count // 3 if mode == 4 else max(count - 2, 0) if mode in (5, 6) else 0
+    return total
+
+
+def _read_gltf(path: Path, geometries: dict) -> list:
+    """The forest of _Raw nodes of a glTF / GLB file; its geometries into ``geometries``."""
+    import trimesh
+    from trimesh.util import unique_name
+
+    header = _gltf_json(path)
+    roots, children = _gltf_nodes(header, path)
+    declared = _gltf_triangles(header, path)
+    if declared > MAX_FACES:
+        raise AssetError(f"{path} has {declared} triangles, more than procmod reads ({MAX_FACES}); "
+                         "decimate the meshes (Blender: Decimate modifier) before exporting")
+    try:
+        scene = trimesh.load(path, force="scene", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise AssetError(f"cannot read {path} as glTF ({type(exc).__name__}: {str(exc)[:120]})") from None
+    nodes = header.get("nodes", [])
+    # trimesh names a node as its loader does: the file's name made unique, in index order
+    names, taken, counts = {}, {}, {}
+    for i, n in enumerate(nodes):
+        name = unique_name(n.get("name", str(i)), taken, counts=counts)
+        taken[name] = i
+        names[i] = name
+    if "world" in taken:  # trimesh renames a node that collides with its base frame
+        names[taken["world"]] = unique_name("world", set(names.values()))
+    graph = scene.graph
+    data = graph.transforms.node_data
+    meshes = header.get("meshes", [])
+
+    def geometry_of(i: int):
+        node = nodes[i]
+        if "mesh" not in node:
+            return None
+        frame = names[i]
+        own = data.get(frame, {}).get("geometry")
+        parts = [own] if own is not None else sorted(
+            data[c]["geometry"] for c in graph.transforms.children.get(frame, [])
+            if c.startswith(frame + "_") and data.get(c, {}).get("geometry") is not None)
+        if not parts:
+            return None  # a mesh of points or lines only: nothing to place
+        mesh_index = node["mesh"]
+        if isinstance(mesh_index, bool) or not isinstance(mesh_index, int) or not 0 <= mesh_index < len(meshes):
+            raise AssetError(f"{path}: node {frame!r} refers to mesh {mesh_index!r}, which does not exist")
+        mesh_name = meshes[mesh_index].get("name") if isinstance(meshes[mesh_index], dict) else None
+        key = ("gltf", str(path), tuple(parts))
+        if key not in geometries:
+            where = f"{path}: mesh {mesh_name or parts[0]!r}"
+            pieces = [scene.geometry[g] for g in parts]
+            if not all(hasattr(p, "faces") for p in pieces):
+                return None
+            v = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in pieces])
+            offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])
+            f = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(pieces, offsets)])
+            v, f = _clean_mesh(v, f, where)
+            geometries[key] = _Geometry(key, mesh_name or parts[0], where, "mesh", v, f)
+        return key
+
+    def build(i: int) -> _Raw:
+        frame = names[i]
+        if frame not in graph.nodes:
+            raise AssetError(f"{path}: node {i} ({nodes[i].get('name', 'unnamed')!r}) is missing from the "
+                             "scene trimesh read; the file may use a feature procmod cannot read")
+        world = np.asarray(graph.get(frame)[0], dtype=np.float64)
+        if not np.isfinite(world).all():
+            raise AssetError(f"{path}: node {frame!r} has a non-finite transform (NaN or infinity)")
+        return _Raw(frame, geometry_of(i), world, [build(c) for c in children[i]])
+
+    forest = [build(r) for r in roots]
+    if not any(n.geometry for r in forest for n in _walk(r)):
+        raise AssetError(f"{path} holds no mesh (nothing to use as a part)")
+    return forest
+
+
+def _walk(raw: _Raw):
+    yield raw
+    for c in raw.children:
+        yield from _walk(c)
+
+
+# ---- URDF -------------------------------------------------------------------------------------
+
+def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
+    """A URDF mesh file name resolved against the URDF's folder: plain relative paths,
+    ``file://`` and ``package://PKG/rest`` (``rest`` or ``PKG/rest`` under the URDF's
+    folder or one of its ancestors, as a ROS workspace lays packages out)."""
+    base = urdf.parent
+    name = filename
+    if name.startswith("file://"):
+        name = name[len("file://"):]
+    candidates = []
+    if name.startswith("package://"):
+        pkg, _, rest = name[len("package://"):].partition("/")
+        for folder in [base, *base.parents]:
+            candidates += [(folder, rest), (folder, f"{pkg}/{rest}")]
+    else:
+        candidates.append((base, name))
+    for folder, rel in candidates:
+        try:
+            return named_file(folder, rel, where, suffixes=MESH_SUFFIXES, kind="mesh")
+        except UnsafePathError as exc:
+            last = exc
+    raise AssetError(str(last)) from None
+
+
+def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+    size = path.stat().st_size
+    if size > MAX_MESH_BYTES:
+        raise AssetError(f"{where}: {path} is {size / 2 ** 20:.0f} MiB, more than procmod reads "
+                         f"({MAX_MESH_BYTES // 2 ** 20} MiB); decimate it")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False, skip_materials=True)
+    except Exception as exc:
+        raise AssetError(f"{where}: cannot read {path} as a triangle mesh ({type(exc).__name__}: "
+                         f"{str(exc)[:100]})") from None
+    faces = getattr(mesh, "faces", None)
+    if faces is None or len(faces) == 0:
+        raise AssetError(f"{where}: {path} holds no triangles")
+    if len(faces) > MAX_FACES:
+        raise AssetError(f"{where}: {path} has {len(faces)} triangles, more than procmod reads ({MAX_FACES}); "
+                         "decimate it")
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
+def _read_urdf(path: Path, geometries: dict) -> list:
+    import logging
+
+    import trimesh
+    import yourdfpy
+    from lxml import etree
+
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise AssetError(f"cannot read {path} ({exc.strerror})") from None
+    try:  # strict XML first: yourdfpy recovers from broken XML and reads half a robot. The
+        # declaration is left out of the check: robots ship with <?xml version="0.0" ?>
+        body = re.sub(rb"^\s*<\?xml[^>]*\?>", b"", data, count=1)
+        etree.fromstring(body, etree.XMLParser(resolve_entities=False, no_network=True))
+    except etree.XMLSyntaxError as exc:
+        raise AssetError(f"cannot read {path} as URDF (not well-formed XML: {str(exc)[:120]})") from None
+    quiet = logging.getLogger("yourdfpy")
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)  # it logs the XML declaration it had to recover from
+    try:
+        robot = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+                                   build_collision_scene_graph=False, load_collision_meshes=False).robot
+    except Exception as exc:
+        raise AssetError(f"cannot read {path} as URDF ({type(exc).__name__}: {str(exc)[:120]})") from None
+    finally:
+        quiet.setLevel(level)
+    links = {link.name: link for link in robot.links}
+    if not links:
+        raise AssetError(f"{path} holds no link")
+    if len(links) + sum(len(link.visuals) for link in robot.links) > MAX_NODES:
+        raise AssetError(f"{path} has more than {MAX_NODES} links and visuals, more than procmod reads")
+    parent_joint, kids = {}, {name: [] for name in links}
+    for j in robot.joints:
+        for end in (j.parent, j.child):
+            if end not in links:
+                raise AssetError(f"{path}: joint {j.name!r} refers to link {end!r}, which does not exist")
+        if j.child in parent_joint:
+            raise AssetError(f"{path}: link {j.child!r} is the child of two joints ({parent_joint[j.child].name!r}, "
+                             f"{j.name!r}); a URDF's links must form a tree")
+        parent_joint[j.child] = j
+        kids[j.parent].append(j.child)
+    for start in links:
+        seen, k = {start}, start
+        while k in parent_joint:
+            k = parent_joint[k].parent
+            if k in seen:
+                raise AssetError(f"{path}: the joints form a cycle (link {k!r} is its own ancestor)")
+            seen.add(k)
+    faces_read = [0]
+
+    def geometry_of(visual, link: str, k: int):
+        g = visual.geometry
+        where = f"{path}: link {link!r} visual {k}"
+        if g is None:
+            return None, np.eye(4)
+        if g.box is not None:
+            size = np.asarray(g.box.size, dtype=np.float64)
+            if size.shape != (3,) or not np.isfinite(size).all() or (size < 0).any():
+                raise AssetError(f"{where}: box size must be three positive numbers, got {g.box.size}")
+            if (size == 0).any():  # a flat or empty box: an invisible marker
+                return None, np.eye(4)
+            key = ("box", tuple(size))
+            geometries.setdefault(key, _Geometry(key, visual.name or link, where, "box", size=size))
+            return key, np.eye(4)
+        if g.cylinder is not None or g.sphere is not None:
+            if g.cylinder is not None:
+                r, h = float(g.cylinder.radius), float(g.cylinder.length)
+                ok, key, make = r > 0 and h > 0, ("cylinder", r, h), lambda: trimesh.creation.cylinder(r, h, sections=32)
+            else:
+                r = float(g.sphere.radius)
+                ok, key, make = r > 0, ("sphere", r), lambda: trimesh.creation.icosphere(2, r)
+            if not all(map(math.isfinite, key[1:])) or min(key[1:]) < 0:
+                raise AssetError(f"{where}: {key[0]} dimensions must be positive numbers, got {key[1:]}")
+            if not ok:  # zero size: an invisible marker (laikago's toes); nothing to place
+                return None, np.eye(4)
+            if key not in geometries:
+                m = make()
+                geometries[key] = _Geometry(key, visual.name or link, where, "mesh",
+                                            *_clean_mesh(m.vertices, m.faces, where))
+            return key, np.eye(4)
+        if g.mesh is not None:
+            file = _urdf_mesh_path(g.mesh.filename, path, f"{where}: mesh")
+            scale = np.ones(3) if g.mesh.scale is None else np.broadcast_to(
+                np.asarray(g.mesh.scale, dtype=np.float64), 3)
+            if not np.isfinite(scale).all() or (scale == 0).any():
+                raise AssetError(f"{where}: mesh scale must be non-zero numbers, got {g.mesh.scale}")
+            key = ("file", str(file.resolve()))
+            if key not in geometries:
+                v, f = _load_mesh_file(file, where)
+                faces_read[0] += len(f)
+                if faces_read[0] > MAX_FACES:
+                    raise AssetError(f"{path}: its meshes have more than {MAX_FACES} triangles, more than procmod "
+                                     "reads; decimate them")
+                geometries[key] = _Geometry(key, visual.name or file.stem, f"{where}: {file.name}", "mesh",
+                                            *_clean_mesh(v, f, f"{where}: {file.name}"))
+            return key, np.diag([*scale, 1.0])
+        return None, np.eye(4)
+
+    def build(link_name: str, world: np.ndarray) -> list:
+        link = links[link_name]
+        below = []
+        for child in kids[link_name]:
+            j = parent_joint[child]
+            origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
+            below += build(child, world @ origin)
+        nodes = []
+        for k, visual in enumerate(link.visuals):
+            key, scale = geometry_of(visual, link_name, k)
+            if key is None:
+                continue
+            origin = np.eye(4) if visual.origin is None else np.asarray(visual.origin, dtype=np.float64)
+            m = world @ origin @ scale
+            if not np.isfinite(m).all():
+                raise AssetError(f"{path}: link {link_name!r} has a non-finite transform (NaN or infinity)")
+            nodes.append(_Raw(link_name if not nodes else f"{link_name}#{k}", key, m))
+        if not nodes:
+            return below  # an empty link passes its children on
+        nodes[0].children = nodes[1:] + below
+        return [nodes[0]]
+
+    forest = [n for root in links if root not in parent_joint for n in build(root, np.eye(4))]
+    if not forest:
+        raise AssetError(f"{path} holds no visual geometry (nothing to use as a part)")
+    return forest
+
+
+# ---- distinct geometry ------------------------------------------------------------------------
+
+class _Surface:
+    """What alignment needs of a mesh: samples, a few vertices, moments, a proximity query."""
+
+    def __init__(self, g: _Geometry):
+        import trimesh
+        self.mesh = trimesh.Trimesh(g.vertices, g.faces, process=False)
+        tri = g.vertices[g.faces]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        self.area = float(area.sum())
+        w = area / self.area
+        self.centroid = (w[:, None] * tri.mean(1)).sum(0)
+        # second moment of the uniform distribution over each triangle, area-weighted
+        c = tri - self.centroid
+        s = c.sum(1)
+        second = (np.einsum("n,nki,nkj->ij", w, c, c) + np.einsum("n,ni,nj->ij", w, s, s)) / 12
+        self.moments, self.axes = np.linalg.eigh(second)
+        self.diagonal = float(np.linalg.norm(np.ptp(g.vertices, axis=0)))
+        self.samples, _ = self._sample(tri, w, _SAMPLES)
+        # a denser sampling with normals: ICP matches to its tangent planes
+        self.dense, which = self._sample(tri, w, _DENSE)
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.normals = n[which] / np.maximum(np.linalg.norm(n[which], axis=1, keepdims=True), 1e-300)
+        step = max(1, len(g.vertices) // _CHECK_VERTICES)
+        self.check = np.concatenate([self.samples, g.vertices[::step]])
+        from scipy.spatial import cKDTree
+        self.tree = cKDTree(self.dense)
+
+    @staticmethod
+    def _sample(tri: np.ndarray, w: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """``count`` area-weighted points (stratified, fixed seed) and their triangles."""
+        cum = np.cumsum(w)
+        which = np.minimum(np.searchsorted(cum, (np.arange(count) + 0.5) / count), len(tri) - 1)
+        rng = np.random.default_rng(0)
+        u, v = rng.random(count), rng.random(count)
+        flip = u + v > 1
+        u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+        t = tri[which]
+        return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0]), which
+
+    def match(self, points: np.ndarray, plane: bool) -> np.ndarray:
+        """Points of (an approximation of) this surface matching ``points``: the nearest
+        dense sample, or (``plane``) the point's projection onto that sample's tangent plane."""
+        _, idx = self.tree.query(points)
+        q = self.dense[idx]
+        if not plane:
+            return q
+        n = self.normals[idx]
+        return points - ((points - q) * n).sum(1, keepdims=True) * n
+
+    def closest(self, points: np.ndarray) -> np.ndarray:
+        """The closest points of this surface to ``points``."""
+        from trimesh.proximity import closest_point
+        return np.asarray(closest_point(self.mesh, points)[0])
+
+    def distance_to(self, points: np.ndarray) -> float:
+        """The largest distance from ``points`` to this surface."""
+        return float(np.linalg.norm(self.closest(points) - points, axis=1).max())
+
+    def similar(self, other: "_Surface") -> bool:
+        """A cheap necessary condition: areas and principal radii agree within 5%."""
+        if abs(self.area - other.area) > 0.05 * max(self.area, other.area):
+            return False
+        radii = np.sqrt(np.maximum(self.moments, 0)), np.sqrt(np.maximum(other.moments, 0))
+        return bool(np.abs(radii[0] - radii[1]).max() <= 0.05 * max(self.diagonal, other.diagonal))
+
+
+def _kabsch(p: np.ndarray, q: np.ndarray, improper: bool) -> np.ndarray:
+    """The orthogonal map (det -1 when ``improper``) + translation taking p closest to q."""
+    pc, qc = p.mean(0), q.mean(0)
+    u, _, vt = np.linalg.svd((p - pc).T @ (q - qc))
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    want = -1.0 if improper else 1.0
+    r = vt.T @ np.diag([1.0, 1.0, d * want]) @ u.T
+    m = np.eye(4)
+    m[:3, :3] = r
+    m[:3, 3] = qc - r @ pc
+    return m
+
+
+def _starts(a: _Surface, b: _Surface, improper: bool) -> list:
+    """Rotations taking b's principal axes onto a's (every sign choice of the given
+    handedness; every 30 degrees about an axis whose two partners are degenerate)."""
+    out = []
+    scale = max(float(a.moments.max()), 1e-300)
+    gaps = np.diff(a.moments) / scale
+    spins = [np.eye(3)]
+    for k, axis in ((0, 2), (1, 0)):  # moments k, k+1 degenerate: spin about the third axis
+        if gaps[k] < 1e-2:
+            from scipy.spatial.transform import Rotation
+            spins = [Rotation.from_rotvec(b.axes[:, axis] * t).as_matrix() for t in np.arange(12) * np.pi / 6]
+    for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1)):
+        base = a.axes @ np.diag(signs) @ b.axes.T
+        if (np.linalg.det(base) < 0) != improper:
+            continue
+        for spin in spins:
+            r = base @ spin
+            m = np.eye(4)
+            m[:3, :3] = r
+            m[:3, 3] = a.centroid - r @ b.centroid
+            out.append(m)
+    return out
+
+
+def _icp(a: _Surface, b: _Surface, m: np.ndarray, improper: bool, plane: bool, steps: int) -> np.ndarray:
+    """Refine ``m`` (b onto a) by ICP: b's samples matched to a's dense samples
+    (``plane`` False: coarse) or to their tangent planes (fine)."""
+    for _ in range(steps):
+        moved = b.samples @ m[:3, :3].T + m[:3, 3]
+        m_new = _kabsch(b.samples, a.match(moved, plane), improper)
+        if np.abs(m_new - m).max() <= 1e-12 * max(a.diagonal, 1.0):
+            return m_new
+        m = m_new
+    return m
+
+
+def _align(a: _Surface, b: _Surface, tol: float, mirror: bool) -> np.ndarray | None:
+    """A rigid map M (improper only when no proper one fits and ``mirror``) with
+    M(b) = a within ``tol`` x the diagonal, or None. Every start is refined by coarse
+    ICP; the two best by point-to-plane ICP, then checked exactly (point to surface)."""
+    if not a.similar(b):
+        return None
+    limit = tol * max(a.diagonal, b.diagonal)
+
+    def fits(m):
+        inv = np.linalg.inv(m)
+        return (a.distance_to(b.check @ m[:3, :3].T + m[:3, 3]) <= limit
+                and b.distance_to(a.check @ inv[:3, :3].T + inv[:3, 3]) <= limit)
+
+    same = np.eye(4)
+    same[:3, 3] = a.centroid - b.centroid
+    if np.abs(same[:3, 3]).max() <= limit and fits(np.eye(4)):
+        return np.eye(4)  # the same geometry (a duplicate): exactly the identity
+    for improper in ((False, True) if mirror else (False,)):
+        coarse = []
+        for m in _starts(a, b, improper):
+            m = _icp(a, b, m, improper, plane=False, steps=20)
+            moved = b.samples @ m[:3, :3].T + m[:3, 3]
+            coarse.append((float(np.linalg.norm(a.match(moved, True) - moved, axis=1).mean()), len(coarse), m))
+        for _, _, m in sorted(coarse, key=lambda c: c[:2])[:2]:
+            m = _icp(a, b, m, improper, plane=True, steps=30)
+            moved = b.samples @ m[:3, :3].T + m[:3, 3]
+            if float(np.linalg.norm(a.match(moved, True) - moved, axis=1).mean()) > limit:
+                continue  # apart on average, so surely somewhere: skip the exact check
+            snapped = _snap(m, a, b)
+            if snapped is not None and fits(snapped):
+                return snapped
+            if fits(m):
+                return m
+    return None
+
+
+def _snap(m: np.ndarray, a: _Surface, b: _Surface) -> np.ndarray | None:
+    """``m`` with its rotation rounded to the nearest signed axis permutation (a quarter
+    turn, a flip), when it is one up to ICP's error; None otherwise. An exact quarter
+    turn commutes with axis scalings, so a node's non-uniform scale does not shear it."""
+    r = m[:3, :3]
+    p = np.round(r)
+    if np.abs(r - p).max() > 0.05 or not np.allclose(np.abs(p).sum(0), 1) or not np.allclose(np.abs(p).sum(1), 1):
+        return None
+    out = np.eye(4)
+    out[:3, :3] = p
+    out[:3, 3] = a.centroid - p @ b.centroid
+    return out
+
+
+def _box_map(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray | None:
+    """A proper axis permutation M with M(box b) = box a (extents within tolerance)."""
+    import itertools
+    limit = tol * max(float(np.linalg.norm(a)), float(np.linalg.norm(b)))
+    for perm in itertools.permutations(range(3)):
+        if np.abs(a[list(perm)] - b).max() <= limit:
+            m = np.zeros((4, 4))
+            m[3, 3] = 1
+            for j, i in enumerate(perm):  # b's axis j becomes a's axis perm[j]
+                m[i, j] = 1.0
+            if np.linalg.det(m[:3, :3]) < 0:
+                m[:3, 0] *= -1  # a box is symmetric: flip an axis to keep the map proper
+            return m
+    return None
+
+
+def _library(geometries: list, tol: float, mirror: bool) -> tuple[dict, dict]:
+    """Part library and, per geometry key, (part name, M) with geometry = M(part)."""
+    classes = []  # [representative, surface, [(geometry, M: geometry = M(representative))]]
+    for g in geometries:
+        placed = None
+        surface = _Surface(g) if g.kind == "mesh" else None
+        for cls in classes:
+            rep = cls[0]
+            if rep.kind != g.kind:
+                continue
+            m = (_box_map(g.size, rep.size, tol) if g.kind == "box" else _align(surface, cls[1], tol, mirror))
+            if m is not None:
+                cls[2].append((g, m))
+                placed = cls
+                break
+        if placed is None:
+            classes.append([g, surface, [(g, np.eye(4))]])
+    parts, of_key, used = {}, {}, set()
+    for rep, _, members in classes:
+        # the part takes the shortest (then first in order) of its geometries' names, and
+        # that geometry's local frame
+        canon, m_canon = min(members, key=lambda gm: (len(gm[0].name), gm[0].name))
+        name, k = canon.name or "part", 1
+        while name in used:
+            k += 1
+            name = f"{canon.name or 'part'}_{k}"
+        used.add(name)
+        if canon.kind == "box":
+            parts[name] = PartShape(name, "box", size=tuple(float(s) for s in canon.size),
+                                    source=[float(s) for s in canon.size])
+        else:
+            parts[name] = PartShape(name, "mesh", vertices=tuple(map(tuple, canon.vertices.tolist())),
+                                    faces=tuple(map(tuple, canon.faces.tolist())), source=None)
+        inv = np.linalg.inv(m_canon)
+        for g, m in members:  # g = m(rep) and canon = m_canon(rep), so g = m m_canon^-1 (canon)
+            of_key[g.key] = (name, m @ inv)
+    return parts, of_key
+
+
+def _place(raw: _Raw, of_key: dict) -> list:
+    below = [n for c in raw.children for n in _place(c, of_key)]
+    if raw.geometry is None:
+        return below
+    part, m = of_key[raw.geometry]
+    return [AssetNode(raw.name, part, raw.world @ m, below)]
+
+
+def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = True) -> AssetSet:
+    """Read asset files (glTF, GLB, URDF; or folders of them) into one part library and
+    one hierarchy per file (see the module docstring).
+
+    Parameters
+    ----------
+    paths : path or list of paths
+        Files, or folders whose asset files (by suffix) are read in name order.
+    tolerance : float
+        Two meshes are one part when a rigid motion maps one onto the other within this
+        fraction of the bounding-box diagonal.
+    mirror : bool
+        Also identify mirror images (the mirrored one is placed with a negative scale).
+
+    Raises
+    ------
+    AssetError
+        For a file that cannot be used; the message names it and the problem.
+    """
+    files = asset_files(paths)
+    geometries, forests = {}, []
+    for path in files:
+        reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
+        forests.append(reader(path, geometries))
+    parts, of_key = _library(list(geometries.values()), tolerance, mirror)
+    assets = [Asset(path, [n for r in forest for n in _place(r, of_key)]) for path, forest in zip(files, forests)]
+    return AssetSet(parts, assets, tolerance)
+
+
+__all__ = ["ASSET_SUFFIXES", "Asset", "AssetError", "AssetNode", "AssetSet", "GEOMETRY_TOLERANCE", "MAX_FACES",
+           "MAX_NODES", "asset_files", "is_asset_file", "read_assets"]

@@ -1,0 +1,326 @@
+"""procmod.geometry.assets: glTF / GLB / URDF hierarchies, one part per distinct geometry,
+and every kind of bad asset file as a one-line AssetError."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from procmod.geometry import assets
+from procmod.geometry.assets import GEOMETRY_TOLERANCE, AssetError, read_assets
+from procmod.geometry.solid import part_triangles
+
+from asset_writers import (box_mesh, column_major, gltf_json, transformed, urdf, wedge_mesh, write_glb,
+                           write_gltf, write_obj)
+
+
+def T(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def R(rotvec):
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    return m
+
+
+MX = np.diag([-1.0, 1, 1, 1])
+
+
+def world_triangles(s, node):
+    return part_triangles(s.parts[node.part].part(node.transform))
+
+
+def same_surface(a, b, tol):
+    """Every vertex of triangles ``a`` is within ``tol`` of one of ``b`` and back."""
+    pa, pb = a.reshape(-1, 3), b.reshape(-1, 3)
+    d = np.linalg.norm(pa[:, None] - pb[None], axis=-1)
+    return max(d.min(1).max(), d.min(0).max()) <= tol
+
+
+def ship_gltf(path, twist=np.eye(4)):
+    """A body with two wings: node 'wing' uses mesh 'wing'; node 'wing.001' (the mirror
+    side) uses its own mesh 'wing.001', the wing's vertices mirrored and moved by
+    ``twist`` (Blender's unlinked duplicate after 'apply transform'), its node placing it
+    as the wing's mirror image; an empty 'Empty' holds the body; a 'gun' mesh has two
+    primitives."""
+    wing = wedge_mesh(1.5)
+    right = T(1.0, 0, 0)
+    data = twist @ MX  # wing.001's vertices: data(wing)
+    left = MX @ right @ np.linalg.inv(data)  # so that left(data(wing)) = MX right (wing)
+    meshes = [("body", [box_mesh((2, 0.5, 3))]), ("wing", [wing]), ("wing.001", [transformed(wing, data)]),
+              ("gun", [box_mesh((0.1, 0.1, 0.5)), box_mesh((0.2, 0.2, 0.1), (0, 0, 0.3))])]
+    nodes = [{"name": "Empty", "children": [1]},
+             {"name": "body", "mesh": 0, "children": [2, 3, 4]},
+             {"name": "wing", "mesh": 1, "matrix": column_major(right)},
+             {"name": "wing.001", "mesh": 2, "matrix": column_major(left)},
+             {"name": "gun", "mesh": 3, "translation": [0, 0.4, 1.0]}]
+    return write_gltf(path, meshes, nodes), wing, right
+
+
+def test_gltf_hierarchy_and_one_part_per_distinct_geometry(tmp_path):
+    twist = T(0.3, -0.2, 0.5) @ R([0.4, -0.9, 0.2])
+    path, wing, right = ship_gltf(tmp_path / "ship.gltf", twist)
+    s = read_assets(path)
+    assert sorted(s.parts) == ["body", "gun", "wing"]  # 'wing.001' is the wing; the gun's primitives one part
+    (root,) = s.assets[0].roots  # the empty passed its child on
+    assert (root.name, root.part) == ("body", "body")
+    kids = {c.name: c for c in root.children}
+    assert sorted(kids) == ["gun", "wing", "wing.001"]
+    assert kids["wing.001"].part == "wing" and kids["gun"].part == "gun"
+    assert len(s.parts["gun"].faces) == 24
+    # the mirrored copy is placed with a negative determinant, and reproduces its geometry
+    assert np.linalg.det(kids["wing.001"].transform[:3, :3]) < 0
+    want = transformed(wing, MX @ right)
+    got = world_triangles(s, kids["wing.001"])
+    assert same_surface(got, want[0][want[1]], 2 * GEOMETRY_TOLERANCE * 1.6)
+    # float32 file coordinates: the plain wing is placed as written
+    assert np.allclose(kids["wing"].transform, right, atol=1e-6)
+
+
+def test_mirror_images_are_separate_parts_with_mirror_false(tmp_path):
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    assert sorted(read_assets(path, mirror=False).parts) == ["body", "gun", "wing", "wing.001"]
+
+
+def test_geometry_beyond_the_tolerance_is_its_own_part_and_names_stay_distinct(tmp_path):
+    a, _, _ = ship_gltf(tmp_path / "a.gltf")
+    # b: the same names, but its wing 2% longer and its body a rigid motion of a's body
+    wing = wedge_mesh(1.5 * 1.02)
+    meshes = [("body", [transformed(box_mesh((2, 0.5, 3)), R([0, 0, math.pi / 2]))]), ("wing", [wing])]
+    nodes = [{"name": "body", "mesh": 0, "children": [1]}, {"name": "wing", "mesh": 1, "translation": [1, 0, 0]}]
+    b = write_gltf(tmp_path / "b.gltf", meshes, nodes)
+    s = read_assets([a, b])
+    assert sorted(s.parts) == ["body", "gun", "wing", "wing_2"]
+    rb = s.assets[1].roots[0]
+    assert rb.part == "body" and rb.children[0].part == "wing_2"
+
+
+def test_a_folder_reads_its_asset_files_in_name_order_and_glb_reads_like_gltf(tmp_path):
+    path, _, _ = ship_gltf(tmp_path / "b_ship.gltf")
+    write_glb(tmp_path / "a_ship.glb", json.loads(path.read_text()))
+    (tmp_path / "notes.txt").write_text("not an asset")
+    s = read_assets(tmp_path)
+    assert [a.path.name for a in s.assets] == ["a_ship.glb", "b_ship.gltf"]
+    for asset in s.assets:
+        assert sorted(c.part for c in asset.roots[0].children) == ["gun", "wing", "wing"]
+    # reading is deterministic: same names, same transforms
+    again = read_assets(tmp_path)
+    assert list(again.parts) == list(s.parts)
+    for x, y in zip(again.assets[1].nodes(), s.assets[1].nodes()):
+        assert x.part == y.part and np.array_equal(x.transform, y.transform)
+
+
+ROBOT_LINKS = {
+    "base": [],  # a link without visuals: its children attach to the trunk's parent (none)
+    "trunk": ['<origin xyz="0 0 0.1"/><geometry><box size="0.6 0.3 0.2"/></geometry>'],
+    "hip_l": ['<geometry><box size="0.1 0.2 0.3"/></geometry>'],
+    "hip_r": ['<geometry><box size="0.3 0.1 0.2"/></geometry>'],  # a quarter turn of the left hip
+    "leg_l": ['<origin xyz="0 0 -0.2" rpy="0.3 0 0"/><geometry><mesh filename="package://bot/meshes/leg.obj" '
+              'scale="2 2 2"/></geometry>',
+              '<origin xyz="0 0 -0.45"/><geometry><sphere radius="0.05"/></geometry>'],
+    "leg_r": ['<origin xyz="0 0 -0.2" rpy="0.3 0 0"/><geometry><mesh filename="meshes/leg_mirror.obj" '
+              'scale="2 2 2"/></geometry>'],
+}
+ROBOT_JOINTS = [("j0", "base", "trunk", (0, 0, 0.5), (0, 0, 0)),
+                ("jl", "trunk", "hip_l", (0.2, 0.2, 0), (0, 0, 0.1)),
+                ("jr", "trunk", "hip_r", (0.2, -0.2, 0), (0, 0, -0.1)),
+                ("kl", "hip_l", "leg_l", (0, 0.05, -0.1), (0, 0.2, 0)),
+                ("kr", "hip_r", "leg_r", (0, -0.05, -0.1), (0, 0.2, 0))]
+
+
+def robot(tmp_path, links=ROBOT_LINKS, joints=ROBOT_JOINTS):
+    (tmp_path / "meshes").mkdir(exist_ok=True)
+    leg = wedge_mesh(0.2)
+    write_obj(tmp_path / "meshes" / "leg.obj", leg)
+    write_obj(tmp_path / "meshes" / "leg_mirror.obj", transformed(leg, np.diag([1.0, -1, 1, 1])))  # mirrored
+    path = tmp_path / "bot.urdf"
+    path.write_text(urdf(links, joints))
+    return path
+
+
+def rpy(r, p, y):
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_euler("xyz", [r, p, y]).as_matrix()
+    return m
+
+
+def test_urdf_links_joints_visuals_and_shared_geometry(tmp_path):
+    s = read_assets(robot(tmp_path))
+    (trunk,) = s.assets[0].roots
+    assert (trunk.name, trunk.part) == ("trunk", "trunk")
+    assert np.allclose(trunk.transform, T(0, 0, 0.6))  # joint origin, then the visual's
+    hips = {c.name: c for c in trunk.children}
+    assert sorted(hips) == ["hip_l", "hip_r"]
+    assert hips["hip_r"].part == "hip_l"  # the same box up to a quarter turn
+    for name in hips:  # both place a box of the right's shape where the file says
+        want = T(0.2, 0.2 if name == "hip_l" else -0.2, 0.5) @ rpy(0, 0, 0.1 if name == "hip_l" else -0.1)
+        size = (0.1, 0.2, 0.3) if name == "hip_l" else (0.3, 0.1, 0.2)
+        box = part_triangles(s.parts["hip_l"].part(hips[name].transform))
+        want_box = transformed(box_mesh(size), want)
+        assert same_surface(box, want_box[0][want_box[1]], 1e-9)
+    leg_l = hips["hip_l"].children[0]
+    leg_r = hips["hip_r"].children[0]
+    assert leg_l.part == leg_r.part == "leg"  # the mirror file is the mirrored leg (at the same scale)
+    assert np.linalg.det(leg_l.transform[:3, :3]) > 0 > np.linalg.det(leg_r.transform[:3, :3])
+    world_l = T(0.2, 0.2, 0.5) @ rpy(0, 0, 0.1) @ T(0, 0.05, -0.1) @ rpy(0, 0.2, 0) @ T(0, 0, -0.2) @ rpy(0.3, 0, 0)
+    want = transformed(wedge_mesh(0.2), world_l @ np.diag([2.0, 2, 2, 1]))
+    assert same_surface(world_triangles(s, leg_l), want[0][want[1]], 1e-9)
+    (toe,) = leg_l.children  # a link's second visual is a child of its first
+    assert toe.name == "leg_l#1" and toe.part == "leg_l"  # a sphere, named after its link
+    assert s.parts["leg_l"].kind == "mesh" and s.parts["trunk"].kind == "box"
+
+
+# ---- bad asset files: one line each ------------------------------------------------------------
+
+def one_line(exc_info):
+    message = str(exc_info.value)
+    assert "\n" not in message and len(message) < 400
+    return message
+
+
+def ship(tmp_path):
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    return json.loads(path.read_text())
+
+
+def edit_gltf(tmp_path, edit, name="bad.gltf"):
+    data = ship(tmp_path)
+    edit(data)
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    return path
+
+
+def nan_wing(data):
+    mesh = gltf_json([("wing", [(np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]]), [[0, 1, 2]])])], [], [0])
+    data["buffers"], data["bufferViews"], data["accessors"] = mesh["buffers"], mesh["bufferViews"], mesh["accessors"]
+    data["meshes"] = [{"name": n, "primitives": mesh["meshes"][0]["primitives"]} for n in ("body", "wing", "w2", "gun")]
+
+
+def flat_mesh(data):
+    mesh = gltf_json([("flat", [(np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]]), [[0, 1, 2]])])], [], [0])
+    data["buffers"], data["bufferViews"], data["accessors"] = mesh["buffers"], mesh["bufferViews"], mesh["accessors"]
+    data["meshes"] = [{"name": n, "primitives": mesh["meshes"][0]["primitives"]} for n in ("body", "wing", "w2", "gun")]
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["nodes"][2].update(children=[1]), "two parents"),  # body under the empty and the wing
+    (lambda d: d["nodes"].extend([{"name": "a", "children": [6]}, {"name": "b", "children": [5]}]), "cycle"),
+    (lambda d: d["nodes"][3].update(children=[4]), "two parents"),  # gun under body and wing.001
+    (lambda d: d.update(meshes=[], nodes=[{"name": "empty"}]), "no mesh"),
+    (lambda d: d["accessors"][1].update(count=3 * 10 ** 7), "has 10000\\d+ triangles"),
+    (nan_wing, "non-finite vertex"),
+    (flat_mesh, "zero surface area"),
+    (lambda d: d["nodes"][2].update(matrix=[float("nan")] * 16), "non-finite or malformed transform"),
+    (lambda d: d["nodes"][2].update(children=[99]), "does not exist"),
+    (lambda d: d.update(scenes=[]), "no scene"),
+])
+def test_bad_gltf_files_are_one_line_errors(tmp_path, edit, message):
+    with pytest.raises(AssetError) as exc:
+        read_assets(edit_gltf(tmp_path, edit))
+    assert __import__("re").search(message, one_line(exc)), str(exc.value)
+    assert "bad.gltf" in str(exc.value)
+
+
+def test_ten_million_triangles_are_refused_before_any_buffer_is_read(tmp_path, monkeypatch):
+    # the file declares 10^7 triangles and has a buffer of a few bytes: decoding it would
+    # fail or take the memory of the real thing; the declared count is checked first
+    import trimesh
+    calls = []
+    monkeypatch.setattr(trimesh, "load", lambda *a, **k: calls.append(a))
+    path = edit_gltf(tmp_path, lambda d: d["accessors"][1].update(count=3 * 10 ** 7))
+    with pytest.raises(AssetError, match="more than procmod reads"):
+        read_assets(path)
+    assert calls == []
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"\x00\x01 not a glb" * 10, "not a GLB file"),
+    (b"glTF\x02\x00\x00\x00\xff\x00\x00\x00\x10\x00\x00\x00JSON{", "damaged GLB"),
+    (b"", "not a GLB file"),
+])
+def test_unreadable_glb(tmp_path, content, message):
+    path = tmp_path / "bad.glb"
+    path.write_bytes(content)
+    with pytest.raises(AssetError, match=message) as exc:
+        read_assets(path)
+    one_line(exc)
+
+
+@pytest.mark.parametrize("text, message", [("{not json", "does not parse"), ("[1, 2]", "not an object"),
+                                           ("", "does not parse")])
+def test_unreadable_gltf(tmp_path, text, message):
+    path = tmp_path / "bad.gltf"
+    path.write_text(text)
+    with pytest.raises(AssetError, match=message) as exc:
+        read_assets(path)
+    one_line(exc)
+
+
+def urdf_edit(tmp_path, links=None, joints=None):
+    return robot(tmp_path, links if links is not None else ROBOT_LINKS, joints if joints is not None else ROBOT_JOINTS)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda p: urdf_edit(p, joints=ROBOT_JOINTS + [("loop", "leg_l", "trunk", (0, 0, 0), (0, 0, 0))]),
+     "child of two joints"),
+    (lambda p: urdf_edit(p, links={"a": ROBOT_LINKS["trunk"], "b": ROBOT_LINKS["hip_l"]},
+                         joints=[("x", "a", "b", (0, 0, 0), (0, 0, 0)), ("y", "b", "a", (0, 0, 0), (0, 0, 0))]),
+     "cycle"),
+    (lambda p: urdf_edit(p, joints=ROBOT_JOINTS + [("z", "trunk", "nowhere", (0, 0, 0), (0, 0, 0))]),
+     "does not exist"),
+    (lambda p: urdf_edit(p, links={**ROBOT_LINKS, "leg_r": ['<geometry><mesh filename="meshes/missing.obj"/></geometry>']}),
+     "does not exist"),
+    (lambda p: urdf_edit(p, links={"a": []}, joints=[]), "no visual geometry"),
+    (lambda p: urdf_edit(p, links={**ROBOT_LINKS, "hip_l": ['<geometry><box size="0.1 -1 0.3"/></geometry>']}),
+     "box size"),
+])
+def test_bad_urdf_files_are_one_line_errors(tmp_path, make, message):
+    with pytest.raises(AssetError, match=message) as exc:
+        read_assets(make(tmp_path))
+    assert "bot.urdf" in one_line(exc)
+
+
+def test_broken_xml_is_refused_not_half_read(tmp_path):
+    path = robot(tmp_path)
+    text = path.read_text()
+    path.write_text(text[: len(text) // 2])  # yourdfpy alone would recover the first links
+    with pytest.raises(AssetError, match="not well-formed XML") as exc:
+        read_assets(path)
+    one_line(exc)
+
+
+def test_urdf_mesh_files_are_checked(tmp_path, monkeypatch):
+    path = robot(tmp_path)
+    v, f = wedge_mesh(0.2)
+    v = v.copy()
+    v[3, 1] = np.nan
+    write_obj(tmp_path / "meshes" / "leg.obj", (v, f))
+    with pytest.raises(AssetError, match="non-finite") as exc:
+        read_assets(path)
+    one_line(exc)
+    robot(tmp_path)
+    monkeypatch.setattr(assets, "MAX_FACES", 11)  # the wedge has 12
+    with pytest.raises(AssetError, match="more than procmod reads") as exc:
+        read_assets(path)
+    one_line(exc)
+    monkeypatch.undo()
+    (tmp_path / "meshes" / "leg.obj").write_text("this is no mesh\n")
+    with pytest.raises(AssetError, match="leg.obj") as exc:
+        read_assets(path)
+    one_line(exc)
+
+
+def test_file_lists(tmp_path):
+    with pytest.raises(AssetError, match="holds no .gltf"):
+        read_assets(tmp_path)
+    (tmp_path / "x.obj").write_text("v 0 0 0\n")
+    with pytest.raises(AssetError, match="not an asset file"):
+        read_assets(tmp_path / "x.obj")
+    with pytest.raises(AssetError, match="does not exist"):
+        read_assets(tmp_path / "missing.glb")

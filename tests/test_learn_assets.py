@@ -1,0 +1,179 @@
+"""``procmod learn`` on asset files (glTF, GLB, URDF): one example per file, parts shared by
+geometry, bad files as one-line errors (exit 2) that leave no output behind."""
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from procmod.cli import main
+from procmod.learn import preprocess
+from procmod.learn.examples import read_example_inputs
+from procmod.learn.search import SearchOptions
+
+from asset_writers import box_mesh, column_major, transformed, urdf, wedge_mesh, write_glb, gltf_json, write_gltf
+
+MX = np.diag([-1.0, 1, 1, 1])
+
+
+def T(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def ship_file(path, k: int, rng):
+    """Ship k: a body (its length set by the node's scale), a mirrored wing pair (the left wing its own mesh 'wing.001', the
+    mirrored vertex data of 'wing'), and in odd ships a gun on top; placement noise of a
+    hand-made model (1e-3 of the ship's size) on every node."""
+    noise = lambda m: T(*rng.normal(0, 3e-3, 3)) @ m  # noqa: E731
+    length = 3 + 0.3 * k
+    right = T(1.0, 0, 0.2 * k - 0.5)
+    meshes = [("body", [box_mesh((2, 0.5, 3))]), ("wing", [wedge_mesh(1.5)]),
+              ("wing.001", [transformed(wedge_mesh(1.5), MX)]), ("gun", [box_mesh((0.1, 0.1, 0.6))])]
+    nodes = [{"name": "body", "mesh": 0, "scale": [1, 1, length / 3], "children": [1, 2] + ([3] if k % 2 else [])},
+             {"name": "wing", "mesh": 1, "matrix": column_major(noise(right))},
+             {"name": "wing.001", "mesh": 2, "matrix": column_major(noise(MX @ right @ MX))},
+             {"name": "gun", "mesh": 3, "matrix": column_major(noise(T(0, 0.4, 0.3 * k)))}]
+    data = gltf_json(meshes, nodes, [0])
+    if path.suffix == ".glb":
+        return write_glb(path, data)
+    path.write_text(json.dumps(data))
+    return path
+
+
+def fleet(folder, n=6):
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(7)
+    return [ship_file(folder / f"ship_{k}.{'glb' if k % 3 == 0 else 'gltf'}", k, rng) for k in range(n)]
+
+
+@dataclass
+class _QuickOptions(SearchOptions):
+    init_iterations: int = 80
+    split_iterations: int = 40
+    warm_iterations: int = 10
+    final_iterations: int = 80
+
+
+def test_learn_a_folder_of_gltf_and_glb_files(tmp_path, monkeypatch, capsys):
+    import procmod.learn.search
+    monkeypatch.setattr(procmod.learn.search, "SearchOptions", _QuickOptions)
+    files = fleet(tmp_path / "ships")
+    out = tmp_path / "run"
+    assert main(["learn", str(tmp_path / "ships"), "--out", str(out), "--particles", "1", "--workers", "1",
+                 "--samples", "2"]) == 0
+    program = json.loads((out / "program.json").read_text())
+    assert sorted(program["parts"]) == ["body", "gun", "wing"]  # wing.001 is the mirrored wing
+    # the wings of every ship, noisy and from two meshes, are one mirror pair of one part
+    assert program["slots"]["body"].count("refl(wing)") == 1 and "wing" not in program["slots"]["body"]
+    assert (out / "parts" / "wing.obj").exists()
+    # several files given one by one are the same examples (same digest: the run resumes)
+    _, by_folder = read_example_inputs([tmp_path / "ships"])
+    _, by_files = read_example_inputs(sorted(files))
+    assert by_folder == by_files
+    capsys.readouterr()
+    assert main(["learn", *map(str, sorted(files)), "--out", str(out), "--particles", "1", "--workers", "1",
+                 "--samples", "2"]) == 0
+    assert "holds a run with other examples" not in capsys.readouterr().err
+
+
+def test_read_example_inputs_refuses_mixed_inputs(tmp_path, capsys):
+    files = fleet(tmp_path / "ships", 2)
+    ex = tmp_path / "examples.json"
+    ex.write_text("{}")
+    assert main(["learn", str(ex), str(files[0]), "--out", str(tmp_path / "out")]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def _two_roots(p):
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])], [{"name": "a", "mesh": 0}, {"name": "b", "mesh": 0}], [0, 1])
+    p.write_text(json.dumps(data))
+
+
+def _shear(p):
+    # a rotated child under a non-uniformly scaled parent: its world transform shears
+    c, s = math.cos(0.5), math.sin(0.5)
+    rot = [c, s, 0, 0, -s, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])],
+                     [{"name": "a", "mesh": 0, "scale": [3, 1, 1], "children": [1]}, {"name": "b", "mesh": 0, "matrix": rot}],
+                     [0])
+    p.write_text(json.dumps(data))
+
+
+def _cycle(p):
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])],
+                     [{"name": "a", "mesh": 0}, {"name": "b", "children": [2]}, {"name": "c", "children": [1]}], [0])
+    p.write_text(json.dumps(data))
+
+
+def _nan(p):
+    v, f = box_mesh((1, 1, 1))
+    v[2, 0] = np.nan
+    p.write_text(json.dumps(gltf_json([("body", [(v, f)])], [{"name": "a", "mesh": 0}], [0])))
+
+
+def _zero_area(p):
+    v = np.zeros((3, 3))
+    p.write_text(json.dumps(gltf_json([("body", [(v, [[0, 1, 2]])])], [{"name": "a", "mesh": 0}], [0])))
+
+
+def _huge(p):
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])], [{"name": "a", "mesh": 0}], [0])
+    data["accessors"][1]["count"] = 3 * 10 ** 7  # 10^7 triangles declared
+    p.write_text(json.dumps(data))
+
+
+def _empty(p):
+    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}))
+
+
+def _unreadable(p):
+    p.write_bytes(b"\x89PNG\r\n not a scene at all")
+
+
+def _urdf_two_parents(p):
+    box = '<geometry><box size="1 1 1"/></geometry>'
+    p.write_text(urdf({"a": [box], "b": [box], "c": [box]},
+                      [("x", "a", "c", (0, 0, 0), (0, 0, 0)), ("y", "b", "c", (0, 0, 0), (0, 0, 0))]))
+
+
+@pytest.mark.parametrize("make, suffix, message", [
+    (_unreadable, ".glb", "not a GLB file"),
+    (_unreadable, ".gltf", "not a glTF file"),
+    (_empty, ".gltf", "no mesh"),
+    (_zero_area, ".gltf", "zero surface area"),
+    (_nan, ".gltf", "non-finite vertex"),
+    (_cycle, ".gltf", "cycle"),
+    (_urdf_two_parents, ".urdf", "child of two joints"),
+    (_huge, ".gltf", "more than procmod reads"),
+    (_two_roots, ".gltf", "2 top-level parts"),
+    (_shear, ".gltf", "shears"),
+])
+def test_bad_asset_files_are_one_line_errors_and_write_nothing(tmp_path, capsys, make, suffix, message):
+    folder = tmp_path / "in"
+    fleet(folder, 2)  # good files beside the bad one: the bad one still stops the run
+    make(folder / f"zz_bad{suffix}")
+    out = tmp_path / "out"
+    assert main(["learn", str(folder), "--out", str(out), "--particles", "1", "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err and "zz_bad" in err, err
+    assert err.startswith("procmod: error:")
+    assert not out.exists()
+
+
+def test_pybullet_quadrupeds_read_as_examples_with_mirrored_legs():
+    """The robots the pybullet wheel ships (read from the installed package, not copied)."""
+    pybullet_data = pytest.importorskip("pybullet_data")
+    from pathlib import Path
+    root = Path(pybullet_data.getDataPath())
+    s, _ = read_example_inputs([root / "a1" / "a1.urdf", root / "laikago" / "laikago_toes.urdf"])
+    assert [e.part for e in s.examples] == ["trunk", "chassis"]
+    assert "thigh_mirror" not in s.parts  # a1's mirrored thigh mesh is its thigh (within 0.5%)
+    d = preprocess(s)
+    kinds = [n.type for n in d.nodes if n.kind != "part"]
+    # left and right legs (hip with thigh and calf below) are mirror pairs on both robots
+    assert kinds.count("refl(hip)") >= 1 and any(k.startswith("refl(") for k in kinds if "hip_motor" in k)
