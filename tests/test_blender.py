@@ -168,10 +168,10 @@ def test_control_toward_a_scene_mesh_stops_early_keeping_the_best_and_writes_the
     command = settings_json["command"]
     assert command.startswith("procmod infer spaceship --target ") and "--budget 120s" in command
     target = load_target_file(Path(command.split("--target ")[1].split(" ")[0]) / "target.json")
-    # the slab is 3 x 9 x 1.2 units in Blender (x, y, z): 3 x 1.2 x 9 in procmod's y-up frame
-    layer0 = np.load(run.with_name(run.name + ".target") / "layer0.npy")
-    assert layer0.sum() == 12 * 5 * 36 or layer0.sum() == 12 * 4 * 36
-    assert target.combined.max() == 1 and target.combined.min() == -3
+    # the slab is 3 x 9 x 1.2 units in Blender (x, y, z): 3 x 1.2 x 9 in procmod's y-up frame,
+    # 12 x 4 x 36 voxel centres of 0.25 (4 of the 1.2: the grid starts 2 voxels below the pillar)
+    assert (target.combined == 1).sum() == 12 * 4 * 36
+    assert target.combined.min() == -3  # the pillar: the slab's outside (-1) and its own inside (-2)
 
 
 def test_bad_volume_targets_are_one_line_reports(context):
@@ -186,7 +186,7 @@ def test_bad_volume_targets_are_one_line_reports(context):
     plane = _mesh_object("Sheet", kind="plane")
     _select(plane)
     bpy.ops.procmod.add_layers(role="FILL")
-    _one_line_error(lambda: bpy.ops.procmod.infer(), "'Sheet' \\(mesh\\) is not a closed mesh")
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "'Sheet' \\(mesh\\) is flat, so it has no inside")
     bpy.data.objects.remove(plane)
     _one_line_error(lambda: bpy.ops.procmod.infer(), "target layer 1 has no object")
     assert bpy.ops.procmod.remove_layer() == {"FINISHED"} and len(settings.layers) == 0

@@ -42,7 +42,7 @@ def test_parts_of_a_derivation_follow_its_geometry_and_calls():
 
 def _job(tmp_path, **spec):
     folder = tmp_path / "job"
-    folder.mkdir()
+    folder.mkdir(parents=True)
     (folder / "job.json").write_text(json.dumps({"format": jobs.JOB_FORMAT, **spec}))
     status = worker.run_job(folder)
     return status, json.loads((folder / "result.json").read_text())
@@ -74,31 +74,32 @@ def test_volume_layers_share_one_grid_and_load_as_the_cli_loads_them(tmp_path):
     assert isinstance(target, Volume)
     grid = target.grid
     assert np.all(np.asarray(grid.origin) <= [-3, 0, -4]) and np.all(grid.upper >= [3, 2, 4])
-    # the fill box covers 2 x 1 x 8 units: 8 x 4 x 32 voxels, less the part the avoid box takes
-    mask0 = np.load(tmp_path / "target" / "layer0.npy")
-    mask1 = np.load(tmp_path / "target" / "layer1.npy")
-    assert mask0.sum() == 8 * 4 * 32 and mask1.sum() == 24 * 8 * 4
-    # inside the fill box only: 1 (its w_fill) + 0 (the avoid box's w_avoid); inside the avoid
-    # box only: -1 (the fill box's w_avoid) - 2 (its w_fill)
-    assert set(np.unique(target.combined[mask0 & ~mask1])) == {1.0}
-    assert set(np.unique(target.combined[mask1 & ~mask0])) == {-3.0}
+    # fill box 2 x 1 x 8 units = 8 x 4 x 32 voxels, avoid box 6 x 2 x 1 = 24 x 8 x 4, both
+    # holding 2 x 1 x 1 = 128: inside the fill box only 1 (its w_fill) + 0 (the avoid box's
+    # w_avoid); inside the avoid box only -1 (the fill box's w_avoid) - 2 (its w_fill)
+    assert (target.combined == 1).sum() == 8 * 4 * 32 - 128
+    assert (target.combined == -3).sum() == 24 * 8 * 4 - 128
 
 
 def test_a_cube_on_the_lattice_gets_every_voxel(tmp_path):
     # a 2-unit cube at the origin: at voxel size 0.25 its faces' diagonals pass through the
-    # centres of 64 of its 512 voxels, which the plain parity test lost
+    # centres of 64 of its 512 voxels (plain ray parity lost them)
     _box_obj(tmp_path / "cube.obj", [-1, -1, -1], [1, 1, 1])
-    path = worker.build_volume_target({"layers": [{"mesh": "cube.obj"}], "voxel_size": 0.25}, tmp_path, tmp_path / "t")
-    assert np.load(path.parent / "layer0.npy").sum() == 512
+    spec = {"layers": [{"mesh": "cube.obj", "w_fill": 1, "w_avoid": 0}], "voxel_size": 0.25}
+    target = load_target_file(worker.build_volume_target(spec, tmp_path, tmp_path / "t"))
+    assert (target.combined == 1).sum() == 512
 
 
-def test_an_open_target_mesh_is_refused_in_one_line(tmp_path):
-    mesh = trimesh.creation.box()
-    mesh.update_faces(np.arange(len(mesh.faces)) > 1)  # a hole
-    mesh.export(tmp_path / "open.obj")
-    with pytest.raises(Exception, match="not a closed mesh") as info:
-        worker.build_volume_target({"layers": [{"mesh": "open.obj", "object": "Plane"}]}, tmp_path, tmp_path / "t")
-    assert "'Plane'" in str(info.value)
+def test_a_target_layer_without_an_inside_is_named_by_its_object(tmp_path):
+    folder = tmp_path / "mesh"
+    folder.mkdir()
+    trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.5], [1, 1, 0.5]], [[0, 1, 2], [1, 3, 2]]).export(folder / "sheet.obj")
+    status, result = _job(tmp_path / "run", command="infer", model="spaceship", engine="ga", budget="1gens",
+                          out=str(tmp_path / "out"), target_folder=str(tmp_path / "out.target"),
+                          target={"kind": "volume", "layers": [{"mesh": str(folder / "sheet.obj"), "object": "Sheet"}],
+                                  "voxel_size": 0.1})
+    assert status == 2 and "target layer 'Sheet'" in result["error"] and "inside" in result["error"]
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_grid_too_large_is_refused_before_voxelizing(tmp_path):

@@ -52,10 +52,10 @@ def _is_camera(self, obj) -> bool:
 
 
 class PROCMOD_PG_layer(bpy.types.PropertyGroup):
-    """One layer of a volume target: a closed mesh and its weights (seed 002's s_vol)."""
+    """One layer of a volume target: a mesh and its weights (seed 002 s s_vol)."""
 
     object: PointerProperty(name="Object", type=bpy.types.Object, poll=_is_mesh,
-                            description="a closed mesh whose inside is the layer")
+                            description="a mesh whose inside is the layer (holes and overlaps are fine)")
     w_fill: FloatProperty(name="Inside", default=1.0, description="score per voxel the model covers inside the mesh")
     w_avoid: FloatProperty(name="Outside", default=-1.0,
                            description="score per voxel the model covers outside the mesh")
@@ -376,7 +376,7 @@ class PROCMOD_OT_add_layers(bpy.types.Operator):
             return {"CANCELLED"}
         for obj in selected:
             if obj.type != "MESH":
-                self.report({"ERROR"}, f"{scene.describe(obj)} is not a mesh: a target layer is a closed mesh")
+                self.report({"ERROR"}, f"{scene.describe(obj)} is not a mesh: a target layer is a mesh object")
                 return {"CANCELLED"}
         settings = context.scene.procmod
         for obj in selected:

@@ -194,18 +194,6 @@ def mesh_triangles(mesh) -> tuple:
     return vertices, triangles
 
 
-def _open_edges(mesh) -> int:
-    """How many edges of a mesh do not join exactly two faces (0 for a closed surface)."""
-    import bmesh
-
-    bm = bmesh.new()
-    try:
-        bm.from_mesh(mesh)
-        return sum(1 for edge in bm.edges if len(edge.link_faces) != 2)
-    finally:
-        bm.free()
-
-
 def write_world_mesh(context, obj, path: Path) -> None:
     """An object's evaluated mesh (modifiers applied) in procmod's world frame, as OBJ."""
     evaluated = obj.evaluated_get(context.evaluated_depsgraph_get())
@@ -214,13 +202,12 @@ def write_world_mesh(context, obj, path: Path) -> None:
         vertices, triangles = mesh_triangles(mesh)
         if not triangles:
             raise SceneError(f"the mesh of {describe(obj)} has no faces")
-        open_edges = _open_edges(mesh)
-        if open_edges:
-            raise SceneError(f"target layer {describe(obj)} is not a closed mesh ({open_edges} edges with other than "
-                             "two faces), so its inside is undefined: close its holes (Select > Select All by Trait > "
-                             "Non Manifold shows them) or use another object")
         m = TO_PROCMOD @ evaluated.matrix_world
         vertices = [tuple(m @ Vector(v)) for v in vertices]
+        extent = np.ptp(np.asarray(vertices), axis=0)
+        if extent.min() <= 1e-9 * max(extent.max(), 1e-300):
+            raise SceneError(f"target layer {describe(obj)} is flat, so it has no inside to fill or avoid: give it "
+                             "thickness (Solidify) or use another object")
         write_obj(path, vertices, triangles)
     finally:
         evaluated.to_mesh_clear()

@@ -18,9 +18,9 @@ Commands (``job["command"]``), each with the library's own functions:
 
 - ``sample``: ``count`` derivations of ``model`` from ``seed`` (sample i from ``(seed, i)``,
   as ``procmod sample``);
-- ``infer``: the target is built from the scene's files (``volume``: closed meshes voxelized
-  onto one grid and written as a ``procmod-volume/1`` folder; ``silhouette``: a camera and a
-  weight image written as ``procmod-silhouette/1``), then an engine runs and the run folder
+- ``infer``: the target is built from the scene's files (``volume``: the meshes, in procmod's
+  frame, written as a ``procmod-volume/1`` folder that the library voxelizes onto one grid;
+  ``silhouette``: a camera and a weight image written as ``procmod-silhouette/1``), then an engine runs and the run folder
   is written as ``procmod infer`` writes it (:func:`procmod.report.write_run`), its command
   line recorded so the CLI can repeat it;
 - ``learn``: :func:`procmod.learn.learn` on a ``procmod-examples/1`` file made from the
@@ -163,61 +163,57 @@ def _auto_voxel_size(lo, hi) -> float:
 
 
 def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
-    """Voxelize the layers' meshes (procmod frame, closed) onto one grid around all of them and
-    write ``out/target.json`` + ``out/layer<i>.npy`` (``procmod-volume/1``); returns the file."""
+    """Write the layers' meshes (procmod frame) and ``out/target.json`` (``procmod-volume/1``
+    with mesh layers: the library voxelizes them onto one grid around all of them, with
+    winding numbers, so holes and overlaps need no repair); returns the file."""
+    import shutil
+
     import trimesh
 
     from ..core import InvalidArgumentError
-    from ..geometry.solid import Mesh
-    from ..geometry.voxel import VoxelGrid, voxelize
 
     layers = spec.get("layers") or []
     if not layers:
         raise InvalidArgumentError("the volume target has no layers: add the scene's meshes as fill or avoid layers")
-    meshes = []
+    bounds = []
     for layer in layers:
         name = layer.get("object", layer["mesh"])
         try:
-            mesh = trimesh.load(job_folder / layer["mesh"], force="mesh", process=True)
+            mesh = trimesh.load(job_folder / layer["mesh"], force="mesh", process=False)
         except Exception as exc:  # trimesh raises many types for unreadable files
             raise InvalidArgumentError(f"cannot read the mesh of target layer {name!r} ({exc})") from None
-        if len(mesh.faces) == 0:
+        if len(getattr(mesh, "faces", ())) == 0:
             raise InvalidArgumentError(f"target layer {name!r} has no faces")
-        if not mesh.is_watertight:
-            raise InvalidArgumentError(
-                f"target layer {name!r} is not a closed mesh, so its inside is undefined: close its holes "
-                "(Select > Select All by Trait > Non Manifold shows them) or use another object")
-        meshes.append((name, mesh))
-    lo = np.min([m.bounds[0] for _, m in meshes], axis=0)
-    hi = np.max([m.bounds[1] for _, m in meshes], axis=0)
+        bounds.append(mesh.bounds)
+    lo = np.min([b[0] for b in bounds], axis=0)
+    hi = np.max([b[1] for b in bounds], axis=0)
     size = float(spec.get("voxel_size") or 0) or _auto_voxel_size(lo, hi)
     if not (math.isfinite(size) and size > 0):
         raise InvalidArgumentError(f"the voxel size must be a positive number, got {size!r}")
-    grid = VoxelGrid.around(lo, hi, size, 2 * size)
-    count = int(np.prod(grid.shape))
+    margin = 2 * size
+    count = math.prod(max(1, math.ceil((h - l + 2 * margin) / size)) for l, h in zip(lo, hi))
     if count > MAX_VOXELS:
         raise InvalidArgumentError(f"a voxel size of {size:g} gives {count:,} voxels around the target layers "
                                    f"(at most {MAX_VOXELS:,}); give a larger voxel size")
     out.mkdir(parents=True, exist_ok=True)
     files = []
-    # The voxelizer's parity rays run along z through voxel centres; one that passes exactly
-    # through a triangle edge (the diagonal of a box face centred on the lattice, as a cube at
-    # the origin has) is counted wrongly. A shift far below a voxel moves the edges off them.
-    shift = np.array([math.sqrt(2), math.sqrt(3), 0.0]) * 1e-6 * size
-    for i, ((name, mesh), layer) in enumerate(zip(meshes, layers)):
-        vertices = tuple(map(tuple, np.asarray(mesh.vertices) + shift))
-        mask = voxelize([Mesh(vertices, tuple(map(tuple, mesh.faces)))], grid)
-        if not mask.any():
-            raise InvalidArgumentError(f"target layer {name!r} holds no voxel centre at voxel size {size:g}; "
-                                       "give a smaller voxel size")
-        np.save(out / f"layer{i}.npy", mask.astype(bool))
-        files.append({"file": f"layer{i}.npy", "w_fill": float(layer.get("w_fill", 1.0)),
-                      "w_avoid": float(layer.get("w_avoid", 0.0)), "object": name})
-    target = {"format": "procmod-volume/1", "score": "svol",
-              "grid": {"origin": list(grid.origin), "voxel_size": grid.size}, "layers": files,
+    for i, layer in enumerate(layers):
+        shutil.copy(job_folder / layer["mesh"], out / f"layer{i}.obj")
+        files.append({"file": f"layer{i}.obj", "w_fill": float(layer.get("w_fill", 1.0)),
+                      "w_avoid": float(layer.get("w_avoid", 0.0))})
+    target = {"format": "procmod-volume/1", "score": "svol", "voxel_size": size, "margin": margin, "layers": files,
               "w_self": float(spec.get("w_self", 0.0))}
     write_json_atomic(out / "target.json", target)
     return out / "target.json"
+
+
+def _name_layers(message: str, spec: dict) -> str:
+    """A target file's message names ``layers[i]``; say which scene object that is."""
+    names = [layer.get("object") for layer in spec.get("layers") or ()]
+    found = re.search(r"layers\[(\d+)\]", message)
+    if found and int(found.group(1)) < len(names) and names[int(found.group(1))]:
+        return f"target layer {names[int(found.group(1))]!r}: {message}"
+    return message
 
 
 def build_silhouette_target(spec: dict, job_folder: Path, out: Path) -> Path:
@@ -265,7 +261,7 @@ def _short(name: str) -> str:
 
 
 def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
-    from ..core import InvalidArgumentError
+    from ..core import InvalidArgumentError, ProcmodError
     from ..core.runfolder import INFER_RUN, RunFolder
     from ..infer import ENGINES, Budget, parse_budget
     from ..infer.common import check_population
@@ -292,7 +288,10 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
         target_file = build_silhouette_target(target_spec, folder, target_folder)
     else:
         raise JobError(f"unknown target kind {target_spec['kind']!r}")
-    target = load_target_file(target_file)
+    try:
+        target = load_target_file(target_file)
+    except ProcmodError as exc:
+        raise type(exc)(_name_layers(str(exc), target_spec)) from None
     run_folder = RunFolder(out, INFER_RUN, bool(job.get("overwrite")), inputs=[target_folder, job["model"]])
     empty = target.new_output(target.configure(model))
     if option in kwargs:
