@@ -102,6 +102,19 @@ def test_winding_matters_without_orientation():
     assert np.array_equal(inside_voxels(box.vertices, fixed, grid), _in_boxes(grid, [BOX]))
 
 
+def test_a_cavity_stays_hollow_and_an_inverted_shell_is_turned(tmp_path):
+    # a hollow box: outer shell facing out, inner shell facing in (a cavity); and the same
+    # inner box on its own, inverted by mistake, which is turned over
+    outer, inner = _box((1.0, 1.0, 1.0), (0, 0, 0)), _box((0.6, 0.4, 0.6), (0, 0, 0))
+    inner.invert()
+    hollow = trimesh.util.concatenate([outer, inner])
+    grid, mask = _voxelize(tmp_path, hollow.vertices, hollow.faces, "hollow.obj")
+    expected = _in_boxes(grid, [((1.0, 1.0, 1.0), (0, 0, 0))]) & ~_in_boxes(grid, [((0.6, 0.4, 0.6), (0, 0, 0))])
+    assert np.array_equal(mask, expected)
+    grid, mask = _voxelize(tmp_path, inner.vertices, inner.faces, "inverted.obj")
+    assert np.array_equal(mask, _in_boxes(grid, [((0.6, 0.4, 0.6), (0, 0, 0))]))
+
+
 @pytest.mark.parametrize("missing", [[0], [0, 1], [0, 5]])
 def test_missing_faces(tmp_path, missing):
     # one triangle, one whole side (two triangles), two triangles of different sides: the
