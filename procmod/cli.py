@@ -151,7 +151,7 @@ def _cmd_sample(args) -> None:
     from .core.limits import check_disk, check_memory
     from .core.runfolder import SAMPLE_RUN, RunFolder, check_output_file
     from .core.serialize import derivation_to_dict
-    from .render import check_size, output_formats, write_contact_sheet, write_derivation
+    from .render import check_size, is_2d, output_formats, write_contact_page, write_contact_sheet, write_derivation
 
     model = _model(args.model, args.param)
     if args.n < 1:
@@ -191,6 +191,10 @@ def _cmd_sample(args) -> None:
             if i < CONTACT_SHEET_TILES:
                 shown.append(derivation)
         write_contact_sheet(shown, tmp / "contact_sheet.png", labels=[str(i) for i in range(len(shown))])
+        if not is_2d(shown[0]):  # 3D: also a page of samples to turn in a browser
+            write_contact_page(shown, tmp / "contact_sheet.html", labels=[str(i) for i in range(len(shown))],
+                               links=[f"sample_{i:0{digits}d}.glb" for i in range(len(shown))],
+                               title=f"{model.name}: {args.n} samples, seed {args.seed}")
     more = f"; the first {len(shown)} on" if len(shown) < args.n else "; contact sheet:"
     print(f"wrote {args.n} samples of {model.name} to {out}/{more} {out / 'contact_sheet.png'}")
 

@@ -199,3 +199,14 @@ def test_param_sets_model_parameters(tmp_path, capsys):
         code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--param", bad, "--out", str(tmp_path / "x"))
         assert code == 2 and words in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
+
+
+def test_sample_of_a_3d_model_writes_a_page_to_turn_in_a_browser(tmp_path, capsys):
+    out = tmp_path / "ships"
+    assert _run(capsys, "sample", "spaceship", "-n", "2", "--out", str(out), "--size", "32")[0] == 0
+    page = (out / "contact_sheet.html").read_text()
+    assert page.count("sample_0") >= 2 and "<script" in page  # one view per sample, the viewer inline
+    assert _run(capsys, "sample", "spaceship", "-n", "2", "--out", str(out), "--size", "32")[0] == 0  # a rerun replaces it
+    two_d = tmp_path / "vines"
+    assert _run(capsys, "sample", "vines", "-n", "1", "--out", str(two_d), "--size", "32")[0] == 0
+    assert not (two_d / "contact_sheet.html").exists()

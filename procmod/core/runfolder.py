@@ -250,7 +250,7 @@ def _umask() -> int:
 # ---- the folders procmod's commands write ----------------------------------------------
 
 SAMPLE_RUN = RunKind("procmod sample folder", "contact_sheet.png",
-                     (r"contact_sheet\.png", r"sample_\d+\.(json|png|svg|obj|glb)"))
+                     (r"contact_sheet\.(png|html)", r"sample_\d+\.(json|png|svg|obj|glb)"))
 INFER_RUN = RunKind("procmod infer run", "settings.json",
                     (r"best\.(png|svg|obj|glb|json)", r"target\.png", r"history\.csv", r"convergence\.png",
                      r"samples\.png", r"settings\.json", r"report\.html"), marker_key="engine")
