@@ -179,3 +179,15 @@ def test_engines_run_through_a_process_pool_with_the_same_results():
             inline = engine(model, target, seed=3, **kwargs)
             assert pooled.best.choice_map() == inline.best.choice_map()
             assert pooled.best_score == inline.best_score
+
+
+def test_a_requested_stop_ends_an_engine_at_its_next_budget_check():
+    model = get_model("vines")
+    target = _bar_target()
+
+    def stop_at_once(tracker):
+        tracker.request_stop()
+
+    for engine, kw in (("ga", {"population": 10}), ("mcmc", {"chains": 2}), ("smc", {"particles": 10})):
+        r = ENGINES[engine](model, target, seed=0, budget=Budget(generations=10 ** 6), progress=stop_at_once, **kw)
+        assert r.best is not None and r.evaluations < 1000

@@ -263,7 +263,7 @@ def _short(name: str) -> str:
 def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
     from ..core import InvalidArgumentError, ProcmodError
     from ..core.runfolder import INFER_RUN, RunFolder
-    from ..infer import ENGINES, Budget, parse_budget
+    from ..infer import ENGINES, parse_budget
     from ..infer.common import check_population
     from ..report import write_run
     from ..targets import load_target_file
@@ -300,9 +300,8 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
 
     def report(tracker):
         if progress.stop_requested and not stopped:
-            # End the engine at its next budget check with what it has: a budget already spent.
             stopped.append(tracker.evaluations)
-            tracker.budget = Budget(evaluations=max(1, tracker.evaluations))
+            tracker.request_stop()  # the engine ends at its next budget check with what it has
         fraction = tracker.fraction() if budget is not None else None
         best = "none yet" if tracker.best is None else f"{tracker.best_score:.4g}"
         progress(fraction, f"{engine}: {tracker.evaluations:,} evaluations, best {best}"

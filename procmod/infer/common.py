@@ -116,6 +116,7 @@ class Tracker:
     def __init__(self, budget: Budget | None, progress: Callable | None = None,
                  rows_per_doubling: int = ROWS_PER_DOUBLING, progress_interval: float = 0.1):
         self.budget = budget or Budget()
+        self.stop_requested = False
         self.progress = progress
         self.progress_interval = progress_interval
         self._ratio = 2.0 ** (1.0 / check_positive("rows_per_doubling", rows_per_doubling))
@@ -132,10 +133,16 @@ class Tracker:
     def seconds(self) -> float:
         return time.perf_counter() - self.t0
 
+    def request_stop(self) -> None:
+        """End the run at the engine's next budget check, keeping what it has found (e.g. a
+        Stop button, from the progress callback)."""
+        self.stop_requested = True
+
     def spent(self) -> bool:
-        """True once any limit of the budget is reached."""
+        """True once any limit of the budget is reached, or a stop was requested."""
         b = self.budget
-        return ((b.seconds is not None and self.seconds >= b.seconds)
+        return (self.stop_requested
+                or (b.seconds is not None and self.seconds >= b.seconds)
                 or (b.evaluations is not None and self.evaluations >= b.evaluations)
                 or (b.generations is not None and self.generations >= b.generations))
 
