@@ -283,8 +283,12 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise TargetFileError(f"{where}: a face refers to a vertex the mesh does not have")
-    used = np.unique(faces)
-    bad = used[~np.isfinite(vertices[used]).all(axis=1)]
+    finite = np.isfinite(vertices).all(axis=1)
+    bad = np.zeros(0, dtype=np.int64)
+    if not finite.all():  # a vertex no face uses may be anything
+        used = np.zeros(len(vertices), dtype=bool)
+        used[faces.ravel()] = True
+        bad = np.flatnonzero(used & ~finite)
     if len(bad):
         raise TargetFileError(f"{where}: {len(bad):,} vertices of the mesh are not finite numbers (NaN or "
                               f"infinity), e.g. vertex {int(bad[0])} = {vertices[bad[0]].tolist()}; fix or delete "
@@ -311,8 +315,9 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
 
 def mesh_bounds(vertices: np.ndarray, faces: np.ndarray) -> tuple:
     """World bounds (lo, hi) of the vertices the faces use."""
-    used = vertices[np.unique(faces)]
-    return used.min(axis=0), used.max(axis=0)
+    used = np.zeros(len(vertices), dtype=bool)
+    used[np.asarray(faces).ravel()] = True
+    return vertices[used].min(axis=0), vertices[used].max(axis=0)
 
 
 def check_grid(grid: VoxelGrid, where: str, advice: str) -> None:
