@@ -150,7 +150,7 @@ def test_sample_and_render_a_3d_model(tmp_path, capsys):
     out = tmp_path / "ships"
     assert _run(capsys, "sample", "spaceship", "-n", "2", "--seed", "3", "--out", str(out), "--size", "64")[0] == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == sorted(["contact_sheet.png"] + [f"sample_{i:03d}.{ext}" for i in range(2)
+    assert names == sorted(["contact_sheet.png", "contact_sheet.html"] + [f"sample_{i:03d}.{ext}" for i in range(2)
                                                      for ext in ("png", "obj", "glb", "json")])
     import trimesh
     mesh = trimesh.load(out / "sample_000.glb", force="mesh")
