@@ -31,7 +31,7 @@ from scipy.spatial.distance import cdist
 from ..geometry.part_library import flip_deviations, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
-from .symmetry import SYMMETRY_TOLERANCE, Unit, box_corners, group_children
+from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
 from .transforms import WORLD_FRAME, Frame, frame_of, sym_params, xform_params
 
 OVERLAP_VOXELS = 40
@@ -226,18 +226,32 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     # symmetry tolerance): a placement turned over may then be a mirror image
     flips = {name: tuple(int(m) for m in np.flatnonzero(flip_deviations(shape) <= tolerance))
              for name, shape in parts.items()}
-    infos = []  # every part node that is a unit representative or a root
+    # generation by generation (roots, then the representatives of their units, ...), so
+    # that the rings of one type, wherever they are, start at corresponding members
+    # before their first members are looked into
+    made = {}
+    frontier = list(example_set.examples)
+    consensus = {}
+    while frontier:
+        generation = []
+        for node in frontier:
+            lo, hi = bounds[node.part]
+            frame = frame_of(node.transform, lo, hi)
+            info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips))
+            made[id(node)] = info
+            generation.append(info)
+        align_ring_starts([(u, info.frame) for info in generation for u in info.units], consensus)
+        frontier = [u.representative().node for info in generation for u in info.units]
+    infos = []  # every part node that is a unit representative or a root, depth first
 
-    def visit(node: ExampleNode) -> _PartInfo:
-        lo, hi = bounds[node.part]
-        frame = frame_of(node.transform, lo, hi)
-        info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips))
+    def order(node: ExampleNode) -> _PartInfo:
+        info = made[id(node)]
         infos.append(info)
         for unit in info.units:
-            visit(unit.representative().node)
+            order(unit.representative().node)
         return info
 
-    root_infos = [visit(e) for e in example_set.examples]
+    root_infos = [order(e) for e in example_set.examples]
     by_node = {id(i.node): i for i in infos}
     by_type = {}
     for info in infos:
@@ -295,4 +309,54 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         return pnode
 
     roots = [convert_part(info, WORLD_FRAME, k).id for k, info in enumerate(root_infos)]
+    unwrap_angles(nodes)
     return Dataset(parts, slots, groups, nodes, roots, sym_inner, max_count, objective)
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def _circular_mean(a: np.ndarray) -> np.ndarray:
+    return np.arctan2(np.sin(a).mean(0), np.cos(a).mean(0))
+
+
+def unwrap_angles(nodes: list) -> None:
+    """Angles that mean one rotation written near one another, per place (parent type and
+    slot): the learner models Euler angles and symmetry angles with Gaussians, and a
+    constant half turn written +pi in one example and -pi in the next (as rounding or
+    placement noise decides) would look like the widest possible spread.
+
+    Euler angles: of the two xyz triples of a rotation, (a, b, c) and (a + pi, pi - b,
+    c + pi), each node takes the one nearer the place's circular means (two rounds), then
+    every angle is moved by a multiple of 2 pi to within pi of its mean. Symmetry
+    azimuths and rotation angles are moved likewise. The rotations are unchanged."""
+    places = {}
+    for n in nodes:
+        if n.x is not None:
+            key = ("x", nodes[n.parent].type if n.parent >= 0 else None, n.parent_slot)
+            places.setdefault(key, []).append(n)
+        if n.sym is not None and n.kind in ("refl", "rot"):
+            places.setdefault(("sym", n.type), []).append(n)
+    for key, group in places.items():
+        if key[0] == "x":
+            e = np.array([n.x[3:6] for n in group])
+            dual = _wrap(e + np.array([np.pi, 0.0, np.pi]))
+            dual[:, 1] = _wrap(np.pi - e[:, 1])
+            for _ in range(2):
+                mu = _circular_mean(e)
+                pick = (np.abs(_wrap(dual - mu)) ** 2).sum(1) < (np.abs(_wrap(e - mu)) ** 2).sum(1) - 1e-12
+                e = np.where(pick[:, None], dual, e)
+            mu = _circular_mean(e)
+            e = mu + _wrap(e - mu)
+            for n, angles in zip(group, e):
+                n.x = n.x.copy()
+                n.x[3:6] = angles
+        else:
+            which = [1] if group[0].kind == "refl" else [1, 5]  # azimuth; rotation angle
+            a = np.array([n.sym[which] for n in group])
+            mu = _circular_mean(a)
+            a = mu + _wrap(a - mu)
+            for n, values in zip(group, a):
+                n.sym = n.sym.copy()
+                n.sym[which] = values

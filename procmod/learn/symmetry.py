@@ -23,12 +23,13 @@ chain first, refitting ``G`` to the whole chain as it grows), then reflection pa
 come close to closing a circle is snapped to ``2 pi / n`` when the snapped map still fits
 within the tolerance. Groups are canonicalised in the parent's frame: mirror normals,
 translation steps and rotation axes point along their largest component, rotation angles
-are positive, and full circles start at the member first reached from a fixed reference
-direction.
+are positive, and the full circles of one type start at corresponding members across all
+examples (:func:`align_ring_starts`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -433,23 +434,92 @@ def _snap_circle(chain: list, units: list, g: np.ndarray, tol: float) -> np.ndar
 
 
 def _start_nearest_reference(members: list, g: np.ndarray, frame: Frame) -> list:
-    """Roll a full-circle rotation group to start at the member first reached, turning
-    the group's way, from a reference direction perpendicular to the axis."""
+    """Roll a full-circle rotation group to start at the member nearest (in angle, either
+    way round) a reference direction perpendicular to the axis."""
     gf = in_frame(g, frame)
     axis, _ = rotation_axis_angle(gf)
     centre, *_ = np.linalg.lstsq(np.eye(3) - gf[:3, :3], gf[:3, 3], rcond=None)
-    ref = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    # the first coordinate axis at least 45 degrees from the ring's axis (not the one most
+    # perpendicular to it: for an axis along y, noise would pick x or z at random)
+    ref = next(e for e in np.eye(3) if abs(float(e @ axis)) < math.sqrt(0.5))
     ref = ref - (ref @ axis) * axis
     ref /= np.linalg.norm(ref)
     finv = np.linalg.inv(frame.matrix())
     best, best_angle = 0, np.inf
     for k, m in enumerate(members):
-        p = (finv @ m.first())[:3, 3] - centre
+        # the member's centre (not its origin, which may lie on the axis: petals turned
+        # about the flower's centre), in the frame
+        c = m.corners.reshape(-1, 3).mean(0)
+        p = finv[:3, :3] @ c + finv[:3, 3] - centre
         p = p - (p @ axis) * axis
-        angle = np.arctan2(np.cross(ref, p) @ axis, ref @ p) % (2 * np.pi)
+        # the member nearest the reference either way round: a member sitting on the
+        # reference stays first when noise moves it a little before or after it
+        angle = abs(float(np.arctan2(np.cross(ref, p) @ axis, ref @ p)))
         if angle < best_angle - 1e-9:
             best, best_angle = k, angle
     return members[best:] + members[:best]
+
+
+def _ring_angles(unit: Unit, frame: Frame) -> np.ndarray | None:
+    """The angles of a full ring's members' centres about its axis (from the reference
+    direction of :func:`_start_nearest_reference`, turning the group's way), or None for
+    a unit that is not a full ring."""
+    if unit.kind != "rot":
+        return None
+    gf = in_frame(unit.g, frame)
+    axis, angle = rotation_axis_angle(gf)
+    if abs(len(unit.members) * abs(angle) - 2 * np.pi) > 1e-9:
+        return None
+    if angle < 0:
+        axis = -axis
+    centre, *_ = np.linalg.lstsq(np.eye(3) - gf[:3, :3], gf[:3, 3], rcond=None)
+    ref = next(e for e in np.eye(3) if abs(float(e @ axis)) < math.sqrt(0.5))
+    ref = ref - (ref @ axis) * axis
+    ref /= np.linalg.norm(ref)
+    finv = np.linalg.inv(frame.matrix())
+    out = []
+    for m in unit.members:
+        c = m.corners.reshape(-1, 3).mean(0)
+        p = finv[:3, :3] @ c + finv[:3, 3] - centre
+        out.append(float(np.arctan2(np.cross(ref, p) @ axis, ref @ p)))
+    return np.array(out)
+
+
+def _rings(units: list, frame: Frame):
+    for u in units:
+        if u.kind != "node":
+            angles = _ring_angles(u, frame)
+            if angles is not None:
+                yield u, angles
+            yield from _rings(u.members, frame)
+
+
+def align_ring_starts(units: list, consensus: dict) -> None:
+    """Let every full ring of one type start at corresponding members.
+
+    Which member of a ring comes first decides what the learner models (member 0's
+    transform), and any fixed rule (nearest a reference direction) has a direction where
+    two members tie and noise picks one. Here the rings of a type agree on an angle
+    ``c`` about their axes — the one nearest a member of every ring (least squares of
+    the circular distances to each ring's nearest member, on a grid of 0.1 degree), kept
+    in ``consensus[type]`` for rings found later — and each starts at its member nearest
+    ``c``. ``units``: (unit, parent frame) pairs; nested groups are looked into."""
+    found = {}
+    for unit, frame in units:
+        for ring, angles in _rings([unit], frame):
+            found.setdefault(ring.type, []).append((ring, angles))
+    grid = np.arange(3600) * (2 * np.pi / 3600)
+    for type_, rings in found.items():
+        if type_ not in consensus:
+            cost = np.zeros(len(grid))
+            for _, angles in rings:
+                d = np.abs((grid[:, None] - angles[None] + np.pi) % (2 * np.pi) - np.pi)
+                cost += d.min(1) ** 2
+            consensus[type_] = float(grid[int(np.argmin(cost))])
+        c = consensus[type_]
+        for ring, angles in rings:
+            start = int(np.argmin(np.abs((c - angles + np.pi) % (2 * np.pi) - np.pi)))
+            ring.members = ring.members[start:] + ring.members[:start]
 
 
 def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE,
