@@ -13,6 +13,18 @@ paper's score-function VI, both from the same re-initialised parameters of the l
 structure P* and for the same number of Adam steps (exact log p(D|P) reached, time).
 ``--vi-search SET`` also runs the whole search with VI on that set.
 
+**Noisy sets** (``--noise R``, default 1e-3; 0 skips them): every transform of every
+example of an authored set gets Gaussian placement noise of R x the example's
+bounding-box diagonal (:func:`procmod.learn.perturb.perturb_examples`), and the set runs
+again as ``NAME+noise``: its Tables 1-2, the differences of its Table 2 figures from the
+noise-free run (% new as a fraction), and the symmetry nodes preprocessing finds, as a
+fraction of the noise-free ones (per symmetry type, the smaller count), over
+``--noise-draws`` noise draws (the first draw is the one searched).
+
+**quadrupeds**: the ten robots listed in ``examples_sets/learn/quadrupeds/robots.txt``,
+read as URDF from the installed ``pybullet_data`` (``pip install pybullet``); skipped
+with a note when pybullet is not installed.
+
 Writes ``bench/results/learn.json`` and ``bench/results/learn.png`` (Figure 6).
 """
 
@@ -33,6 +45,8 @@ sys.path.insert(0, str(ROOT))
 
 from procmod.core import run_forward  # noqa: E402
 from procmod.learn import read_examples  # noqa: E402
+from procmod.learn.examples import read_example_inputs  # noqa: E402
+from procmod.learn.perturb import perturb_examples  # noqa: E402
 from procmod.learn.evaluate import hierarchy_from_dict, table2  # noqa: E402
 from procmod.learn.likelihood import fit, log_likelihood  # noqa: E402
 from procmod.learn.pipeline import render_parts  # noqa: E402
@@ -43,6 +57,54 @@ from procmod.learn.structure import reset_parameters  # noqa: E402
 from procmod.parallel import open_executor  # noqa: E402
 
 SETS = ("spaceships", "castles", "ornaments", "stations")
+EXTERNAL = ("quadrupeds",)
+TABLE2_FIGURES = ("s_struc_examples", "s_struc_samples", "pct_new_structures", "s_max_struc", "s_vis_examples",
+                  "s_vis_samples", "s_max_vis")
+
+
+def quadruped_files() -> list | None:
+    """The URDF files of the quadruped set, in the installed pybullet_data; None without pybullet."""
+    try:
+        import pybullet_data
+    except ImportError:
+        return None
+    root = Path(pybullet_data.getDataPath())
+    listing = ROOT / "examples_sets/learn/quadrupeds/robots.txt"
+    return [root / line.strip() for line in listing.read_text().splitlines()
+            if line.strip() and not line.startswith("#")]
+
+
+def load_set(name: str):
+    """An authored set, or the external quadruped set (None when pybullet is missing)."""
+    if name == "quadrupeds":
+        files = quadruped_files()
+        return None if files is None else read_example_inputs(files)[0]
+    return read_examples(ROOT / f"examples_sets/learn/{name}/examples.json")
+
+
+def symmetry_counts(data) -> dict:
+    counts = {}
+    for n in data.nodes:
+        if n.kind != "part":
+            counts[n.type] = counts.get(n.type, 0) + 1
+    return counts
+
+
+def symmetry_under_noise(example_set, noise: float, draws: int, seed: int, index: int) -> dict:
+    """Symmetry nodes found in noisy copies, as a fraction of the noise-free ones."""
+    clean = symmetry_counts(preprocess(example_set))
+    total = sum(clean.values())
+    out = []
+    for d in range(draws):
+        noisy = symmetry_counts(preprocess(perturb_examples(example_set, noise, noise_rng(seed, index, d))))
+        found = sum(min(c, noisy.get(t, 0)) for t, c in clean.items())
+        out.append({"found": found, "noisy_total": sum(noisy.values()), "fraction": found / total if total else 1.0})
+    return {"clean_total": total, "clean_by_type": clean, "draws": out,
+            "min_fraction": min(o["fraction"] for o in out), "mean_fraction": float(np.mean([o["fraction"] for o in out]))}
+
+
+def noise_rng(seed: int, index: int, draw: int):
+    return np.random.default_rng([seed, 1000 + index, draw])
 
 
 def samples_of(program, n, seed):
@@ -65,12 +127,16 @@ def estimator_comparison(program, data, iterations: int, seed: int) -> dict:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sets", default=",".join(SETS))
+    ap.add_argument("--sets", default=",".join(SETS + EXTERNAL))
     ap.add_argument("--particles", type=int, default=4)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--samples", type=int, default=100)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--vi-search", default="", help="comma-separated sets to also search with VI")
+    ap.add_argument("--noise", type=float, default=1e-3,
+                    help="placement noise (x each example's diagonal) for the NAME+noise runs of the authored "
+                         "sets; 0: none")
+    ap.add_argument("--noise-draws", type=int, default=5, help="noise draws for the symmetry-node figure")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -80,8 +146,24 @@ def main(argv=None):
     results = {"command": "python bench/learn.py " + " ".join(argv if argv is not None else sys.argv[1:]),
                "machine": f"{os.cpu_count()} cores (shared)", "sets": {}}
     figure = []
+    runs = []  # (label, example set, noise-free label or None)
     for name in args.sets.split(","):
-        example_set = read_examples(ROOT / f"examples_sets/learn/{name}/examples.json")
+        index = (SETS + EXTERNAL).index(name) if name in SETS + EXTERNAL else -1
+        example_set = load_set(name)
+        if example_set is None:
+            print(f"{name}: skipped (pip install pybullet to read pybullet_data's robots)", flush=True)
+            results["sets"][name] = {"skipped": "pybullet is not installed"}
+            continue
+        runs.append((name, example_set, None))
+        if args.noise > 0 and name in SETS:
+            runs.append((f"{name}+noise", perturb_examples(example_set, args.noise, noise_rng(args.seed, index, 0)),
+                         name))
+            results.setdefault("symmetry_under_noise", {})[name] = symmetry_under_noise(
+                example_set, args.noise, args.noise_draws, args.seed, index)
+            sym = results["symmetry_under_noise"][name]
+            print(f"{name}: symmetry nodes under noise {args.noise:g}: {sym['min_fraction']:.0%} (min) / "
+                  f"{sym['mean_fraction']:.0%} (mean) of {sym['clean_total']} over {args.noise_draws} draws", flush=True)
+    for name, example_set, clean in runs:
         options = SearchOptions(particles=args.particles, seed=args.seed)
         t0 = time.perf_counter()
         with open_executor(args.workers) as ex:
@@ -96,8 +178,13 @@ def main(argv=None):
         t2["pct_new_structures"] = 100 * float(np.mean([signature(h) not in sigs for h in sample_h]))
         t2["n_samples_new"] = len(sample_h)
         entry = {"table1": dict(r.table, wall_seconds=wall), "table2": t2,
+                 "symmetry_nodes": sum(symmetry_counts(r.data).values()),
                  "estimators": estimator_comparison(r.program, r.data, 2 * options.final_iterations, args.seed),
                  "trace": r.trace}
+        if clean is not None and clean in results["sets"]:
+            base = results["sets"][clean]["table2"]
+            entry["table2_delta"] = {k: (t2[k] - base[k]) / (100 if k.startswith("pct") else 1) for k in TABLE2_FIGURES}
+            entry["noise"] = args.noise
         if name in args.vi_search.split(","):
             t0 = time.perf_counter()
             with open_executor(args.workers) as ex:
@@ -105,15 +192,18 @@ def main(argv=None):
                                                            estimator="vi"), ex)
             entry["vi_search"] = dict(rv.table, wall_seconds=time.perf_counter() - t0)
         results["sets"][name] = entry
+        delta = entry.get("table2_delta")
         print(f"{name}: |A0| {r.table['A0']} O_D(P0) {r.table['O_P0']:.1f} -> |A*| {r.table['A_star']} "
               f"O_D(P*) {r.table['O_Pstar']:.1f} in {r.table['seconds']:.1f} s ({r.table['cpu_seconds']:.1f} CPU s, "
               f"{r.table['fits_run']} fits run, {r.table['fits_shared']} shared); s_struc {t2['s_struc_examples']:.2f} "
-              f"vs {t2['s_struc_samples']:.2f} (p={t2['s_struc_p_value']:.2g}), new {t2['pct_new_structures']:.0f}%",
+              f"vs {t2['s_struc_samples']:.2f} (p={t2['s_struc_p_value']:.2g}), new {t2['pct_new_structures']:.0f}%"
+              + (f"; largest Table 2 change from noise-free {max(abs(v) for v in delta.values()):.3f}" if delta else ""),
               flush=True)
-        stages = [("P0", r.p0), ("after phase 1", r.after_phase1), ("after phase 2", r.program)]
-        for label, prog in stages:
-            ds = samples_of(prog, 5, args.seed + 1)
-            figure.append((f"{name}: {label}", [render_parts(d.geometry(), 128) for d in ds]))
+        if clean is None:  # Figure 6: the noise-free and external sets
+            stages = [("P0", r.p0), ("after phase 1", r.after_phase1), ("after phase 2", r.program)]
+            for label, prog in stages:
+                ds = samples_of(prog, 5, args.seed + 1)
+                figure.append((f"{name}: {label}", [render_parts(d.geometry(), 128) for d in ds]))
     (out / "learn.json").write_text(json.dumps(results, indent=1) + "\n")
     write_figure(figure, out / "learn.png")
     print(f"wrote {out / 'learn.json'} and {out / 'learn.png'}")
