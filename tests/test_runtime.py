@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from procmod.core import (ChoiceMap, ModelError, finish, random_order, regenerate, replay,
-                          run_forward, set_maybe, start, step)
+                          run_forward, same_args, set_maybe, start, step)
 from procmod.models import get_model
 
 from toy_models import DUPLICATE, STOPPER, TOY, TREE, toy_log_prior
@@ -129,6 +129,39 @@ def test_copy_shares_nodes_and_is_independent():
     # Finishing the original with the same generator the twin used reproduces the twin.
     finish(state, np.random.default_rng(2))
     _same(state, twin)
+
+
+def test_a_proposer_sees_the_derivation_being_built_through_ctx():
+    seen, refused = [], []
+
+    class Watching:  # a Proposer that draws from the prior and records what it saw
+        def propose(self, ctx, name, dist, rng):
+            seen.append((ctx.derivation, ctx.derivation.n_emits, ctx.derivation.output.filled_count))
+            try:
+                ctx.derivation = None
+            except AttributeError:
+                refused.append(name)
+            value = dist.sample(rng)
+            return value, dist.log_prob(value)
+
+    state = start(TREE)
+    state.proposer = Watching()
+    finish(state, np.random.default_rng(3))
+    assert len(seen) == len(state.choice_map()) > 1
+    assert all(d is state for d, _, _ in seen)
+    emits = [n for _, n, _ in seen]
+    assert emits[0] == 0 and emits[-1] > 0 and emits == sorted(emits)  # it watched the output grow
+    assert seen[-1][2] > 0
+    assert len(refused) == len(seen)  # a read-only view
+
+
+def test_same_args_compares_plain_arguments_and_refuses_arrays():
+    args = (1.0, "a", (2, 3))
+    assert same_args(args, args) and same_args(args, (1.0, "a", (2, 3)))
+    assert not same_args(args, (1.0, "b", (2, 3)))
+    a = (np.array([1.0, 2.0]),)
+    assert same_args(a, a)  # the same tuple
+    assert not same_args(a, (np.array([1.0, 2.0]),))  # equal arrays, but no plain bool
 
 
 def test_random_order_reaches_same_distribution_as_program_order():

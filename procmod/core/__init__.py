@@ -1,4 +1,5 @@
-"""procmod's runtime: models, rules, derivations, choice maps, distributions.
+"""procmod's runtime: models, rules, derivations, choice maps, distributions, and the
+contracts (:mod:`.protocols`) outputs, targets and proposers fulfil.
 
 This package imports nothing else of procmod.
 """
@@ -9,9 +10,11 @@ from .distributions import (Bernoulli, Categorical, Distribution, GaussianMixtur
 from .errors import (DerivationFormatError, InvalidArgumentError, ModelError, ProcmodError,
                      UnknownModelError)
 from .model import Model
+from .protocols import (MaskedTarget, Output, OverlayTarget, PartCachingOutput, Proposer, RemovableOutput,
+                        Target, check_declared)
 from .runtime import (Choice, Context, Derivation, Future, Node, ReplayResult, SpawnRecord,
                       finish, follow_order, program_order, random_order, regenerate, replay,
-                      run_forward, set_maybe, start, step)
+                      run_forward, same_args, set_maybe, start, step)
 from .serialize import (derivation_from_dict, derivation_to_dict, load_derivation,
                         save_derivation, write_text_atomic)
 

@@ -31,9 +31,9 @@ class Model:
     root_args : callable
         Maps the parameter dict to the root rule's positional arguments.
     new_output : callable
-        ``new_output(params) -> accumulator``: a fresh, empty output (e.g. a raster
-        canvas) into which emitted geometry is drawn. It needs ``add(geometry)`` and a
-        cheap ``copy()``.
+        ``new_output(params) -> Output``: a fresh, empty output (e.g. a raster
+        canvas) into which emitted geometry is drawn: ``add(geometry)``, a cheap
+        ``copy()`` and declared capabilities (:class:`procmod.core.protocols.Output`).
     params : mapping
         Parameter values (e.g. start point and direction); change them with
         :meth:`configure`. Values must be JSON-serialisable.

@@ -155,6 +155,18 @@ class Context:
         """Number of spawn sites between the root call and this one."""
         return len(self.address)
 
+    @property
+    def derivation(self) -> "Derivation":
+        """The derivation this call belongs to, as built so far: what a
+        :class:`~procmod.core.protocols.Proposer` (a neural guide) looks at when it
+        proposes a choice (``output``, ``position``, ``n_emits``).
+
+        Read it; do not change it. The one exception is ``guide_cache``, the proposer's
+        per-derivation cache: copies share it, so a proposer replaces its value, never
+        mutates it. Rules do not need it (``ctx.sample``, ``ctx.emit``, ... are theirs).
+        """
+        return self._state
+
     def _duplicate(self, name: str) -> ModelError:
         return ModelError(
             f"rule {self.rule.__name__!r} uses the name {name!r} twice in one call "
@@ -277,8 +289,9 @@ class Derivation:
     Attributes
     ----------
     model : Model
-    output : accumulator
-        Everything emitted so far, drawn (e.g. a raster canvas).
+    output : Output
+        Everything emitted so far, drawn (e.g. a raster canvas); see
+        :class:`procmod.core.protocols.Output`.
     pending : list of Future
         Calls waiting to run. The **last** element is the next one in program order.
     log_prior : float
@@ -289,6 +302,10 @@ class Derivation:
         The last position a rule reported with ``ctx.at``.
     n_emits : int
         Number of emits drawn into ``output``.
+    proposer : Proposer or None
+        Draws the fresh choices instead of the prior when set (a neural guide; see
+        :class:`procmod.core.protocols.Proposer`); ``log_proposal`` sums the log-densities
+        of the values it gave.
     """
 
     __slots__ = ("model", "output", "pending", "active", "log_prior", "stopped", "position",
@@ -629,7 +646,10 @@ class _NoOutput:
 _NO_OUTPUT = _NoOutput()
 
 
-def _same_args(a: tuple, b: tuple) -> bool:
+def same_args(a: tuple, b: tuple) -> bool:
+    """Whether two rule calls' argument tuples are equal, so a call with ``b`` may be taken
+    for the call with ``a`` (:func:`replay_reusing`, the GA's crossover). Arguments that
+    cannot be compared to a plain bool (numpy arrays) are never equal."""
     if a is b:
         return True
     try:
@@ -664,7 +684,8 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
     """:func:`replay` in program order that reuses the calls of ``previous`` and its drawn output.
 
     ``output`` must hold exactly ``previous``'s geometry (e.g. ``previous.output.copy()``)
-    and have a ``remove(geometry)`` that undoes ``add`` exactly. A call of ``previous`` is
+    and support exact removal (``supports_removal``: its ``remove(geometry)`` undoes ``add``
+    exactly; :class:`procmod.core.protocols.RemovableOutput`). A call of ``previous`` is
     reused as it is, without running its rule, when the new run reaches its address with
     the same rule and arguments and ``choices`` (with ``maybe_default``) holds exactly the
     values it chose: rules are deterministic given their arguments and choice values, so
@@ -724,7 +745,7 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
         future = pending.pop()
         address = future.address
         node = old.get(address)
-        if node is not None and node.rule is future.rule and _same_args(node.args, future.args):
+        if node is not None and node.rule is future.rule and same_args(node.args, future.args):
             if dirty is not None and address not in dirty:  # a trusted subtree: splice it in whole
                 stack = [node]
                 while stack:

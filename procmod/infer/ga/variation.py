@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...core.runtime import _same_args
+from ...core.runtime import same_args
 from .genome import DROP, Genome, Offspring
 
 COPIES = "copies"  # what crossover returns when the swap changes nothing
@@ -156,7 +156,7 @@ def same_subtree(g1: Genome, a1: tuple, g2: Genome, a2: tuple) -> bool:
     arguments at the top, same rules and choice values below): swapping them changes nothing."""
     i1, i2 = g1.index(), g2.index()
     x, y = i1[a1], i2[a2]
-    if x.rule is not y.rule or not _same_args(x.args, y.args):
+    if x.rule is not y.rule or not same_args(x.args, y.args):
         return False
     stack = [(x, y)]
     while stack:
