@@ -15,17 +15,18 @@ that does not replay without fresh or left-over choices is rejected.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from .errors import DerivationFormatError, ProcmodError
+# The file recipes live in .io; these names are kept here for the modules that import them
+# from serialize.
+from .io import _cut, check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
 from .model import Model
 from .runtime import Derivation, replay
 
@@ -56,64 +57,6 @@ def derivation_to_dict(derivation: Derivation) -> dict:
     }
 
 
-def _current_umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-_UMASK = _current_umask()
-
-
-def fingerprint(data: bytes | str) -> str:
-    """A short content digest (16 hex digits of SHA-256): a checkpoint stores the one of its
-    training data, so a resume on other data is refused instead of silently mixed."""
-    return hashlib.sha256(data.encode() if isinstance(data, str) else data).hexdigest()[:16]
-
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename (no half-written file)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600 files; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def parse_json(text: str, source: str, error: type = DerivationFormatError):
-    """``json.loads(text)``, with every way it fails (bad syntax, nesting deeper than
-    Python's stack: a file of 100,000 ``[``) raised as ``error(f"{source}: ...")``, one line."""
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise error(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    except RecursionError:
-        raise error(f"{source}: JSON nested too deeply (procmod's files nest a few levels; this one nests "
-                    "more than Python can read)") from None
-
-
-def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
-    """The parsed JSON of ``path``; a missing, unreadable or malformed file is ``error``
-    with one line naming the file (see :func:`parse_json`)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise error(f"{what} {_cut(str(path))} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise error(f"cannot read {what} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") from None
-    return parse_json(text, f"{what} {_cut(str(path))}" if what != "file" else _cut(str(path)), error)
-
-
-def _cut(text: str, limit: int = 200) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
 def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
     """Write a complete derivation to ``path`` as ``procmod-derivation/1`` JSON."""
     write_text_atomic(path, json.dumps(derivation_to_dict(derivation), indent=1) + "\n")
@@ -130,8 +73,7 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
     """
     if not isinstance(data, dict):
         raise _fail(source, "expected a JSON object")
-    if data.get("format") != FORMAT:
-        raise _fail(source, f"format is {data.get('format')!r}, expected {FORMAT!r}")
+    check_format(data, FORMAT, source)
     for key, kind in (("model", str), ("params", dict), ("order", list), ("choices", list)):
         if not isinstance(data.get(key), kind):
             raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")

@@ -1,0 +1,231 @@
+"""procmod's file I/O recipes, each written once: atomic writes, JSON reading, tensors.
+
+**Atomic writes.** Every file procmod writes goes through :func:`open_atomic`: a temporary
+file beside the target (``.NAME.XXXX.tmp``, in the same folder so the rename never crosses
+file systems), renamed over the target with :func:`os.replace` once it is whole. A reader
+(or a kill mid-write) sees the old file or the new one, never half of one; a writer that
+raises leaves the old file and no temporary behind. :func:`write_bytes_atomic`,
+:func:`write_text_atomic`, :func:`save_image_atomic`, :func:`save_figure_atomic` and
+:func:`save_tensors` are built on it.
+
+**JSON.** :func:`read_json` and :func:`read_versioned_json` turn every way a file fails
+(missing, unreadable, not UTF-8, bad syntax, nested deeper than Python's stack, the wrong
+``"format"``) into one line of the caller's :class:`ProcmodError` subclass naming the file.
+
+**Tensors.** :func:`load_tensors` is the only place procmod calls ``torch.load``: always
+with ``weights_only=True`` (a file holding Python objects, which could run code when
+unpickled, is refused), every refusal one line. torch is imported inside the tensor
+functions, so importing this module (and ``procmod``) stays light.
+
+This module imports nothing of procmod but :mod:`procmod.core.errors`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterator
+
+from .errors import DerivationFormatError, ProcmodError
+
+
+def _current_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# Read once at import: os.umask can only be read by setting it, which is not thread-safe.
+_UMASK = _current_umask()
+
+
+def _cut(text: str, limit: int = 200) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+# ---- atomic writes -----------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def open_atomic(path: str | os.PathLike, mode: str = "wb", fsync: bool = False) -> Iterator:
+    """A file handle whose contents replace ``path`` when the ``with`` block ends.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write; its folder must exist.
+    mode : {"wb", "w"}
+        Binary, or text (UTF-8, the platform's newlines).
+    fsync : bool
+        Flush the file (and then its folder) to disk before returning, for files that must
+        survive a power cut, not only a killed process.
+
+    The data go to a temporary file in ``path``'s folder that is renamed over ``path``
+    (:func:`os.replace`) once the block ends normally; if the block raises, the temporary
+    file is removed and ``path`` is left as it was. The file gets the usual permissions
+    (``0666`` less the umask), not :func:`tempfile.mkstemp`'s ``0600``.
+    """
+    if mode not in ("wb", "w"):
+        raise ValueError(f"open_atomic writes in mode 'wb' or 'w', not {mode!r}")
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, **({"encoding": "utf-8"} if mode == "w" else {})) as handle:
+            yield handle
+            if fsync:
+                handle.flush()
+                os.fsync(handle.fileno())
+        os.chmod(tmp, 0o666 & ~_UMASK)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    if fsync:
+        _fsync_folder(path.parent)
+
+
+def _fsync_folder(folder: Path) -> None:
+    # the rename is durable only once the folder's entry is on disk; not every system
+    # lets a folder be opened for this (Windows), and there the rename is all we can do
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes, fsync: bool = False) -> None:
+    """Write ``data`` to ``path`` atomically (see :func:`open_atomic`)."""
+    with open_atomic(path, "wb", fsync) as handle:
+        handle.write(data)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str, fsync: bool = False) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`open_atomic`)."""
+    with open_atomic(path, "w", fsync) as handle:
+        handle.write(text)
+
+
+def save_image_atomic(image, path: str | os.PathLike) -> None:
+    """Save a PIL image as PNG, atomically; the same image gives the same bytes."""
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG", optimize=False)
+    write_bytes_atomic(path, buffer.getvalue())
+
+
+def save_figure_atomic(fig, path: str | os.PathLike, dpi: int = 110) -> None:
+    """Save a matplotlib figure as PNG, atomically (no timestamp or software tag in the
+    file, so the same figure gives the same bytes)."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+    write_bytes_atomic(path, buffer.getvalue())
+
+
+def fingerprint(data: bytes | str) -> str:
+    """A short content digest (16 hex digits of SHA-256): a checkpoint stores the one of its
+    training data, so a resume on other data is refused instead of silently mixed."""
+    return hashlib.sha256(data.encode() if isinstance(data, str) else data).hexdigest()[:16]
+
+
+# ---- JSON --------------------------------------------------------------------------------------
+
+def parse_json(text: str, source: str, error: type = DerivationFormatError):
+    """``json.loads(text)``, with every way it fails (bad syntax, nesting deeper than
+    Python's stack: a file of 100,000 ``[``) raised as ``error(f"{source}: ...")``, one line."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise error(f"{source}: JSON nested too deeply (procmod's files nest a few levels; this one nests "
+                    "more than Python can read)") from None
+
+
+def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
+    """The parsed JSON of ``path``; a missing, unreadable or malformed file is ``error``
+    with one line naming the file (see :func:`parse_json`)."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise error(f"{what} {_cut(str(path))} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"cannot read {what} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") from None
+    return parse_json(text, f"{what} {_cut(str(path))}" if what != "file" else _cut(str(path)), error)
+
+
+def check_format(data, fmt: str, source: str, error: type = DerivationFormatError, advice: str = "") -> dict:
+    """``data`` if it is a JSON object whose ``"format"`` is ``fmt``, else ``error``:
+    ``"{source}: format is X, expected fmt{advice}"`` (``advice`` starts with ``"; "``)."""
+    found = data.get("format") if isinstance(data, dict) else None
+    if found != fmt:
+        shown = _cut(repr(found), 80) if isinstance(data, dict) else "missing (not a JSON object)"
+        raise error(f"{source}: format is {shown}, expected {fmt!r}{advice}")
+    return data
+
+
+def read_versioned_json(path: str | os.PathLike, fmt: str, error: type = DerivationFormatError,
+                        what: str = "file", advice: str = "") -> dict:
+    """The JSON object of ``path``, checked to say ``"format": fmt``; every failure (see
+    :func:`read_json`, :func:`check_format`) is one line of ``error`` ending in ``advice``."""
+    try:
+        data = read_json(path, error, what)
+    except error as exc:
+        raise error(f"{exc}{advice}") from None
+    return check_format(data, fmt, _cut(str(path)), error, advice)
+
+
+# ---- tensors -----------------------------------------------------------------------------------
+
+def save_tensors(obj, path: str | os.PathLike, fsync: bool = False) -> None:
+    """``torch.save(obj, path)`` atomically: a kill mid-write leaves the previous file whole.
+
+    ``obj`` should hold only tensors, numbers, strings and containers of them, so that
+    :func:`load_tensors` (``weights_only=True``) reads it back.
+    """
+    import torch  # only the commands that save tensors pay for importing torch
+
+    with open_atomic(path, "wb", fsync) as handle:
+        torch.save(obj, handle)
+
+
+def load_tensors(path: str | os.PathLike, error: type = ProcmodError, what: str = "tensors", advice: str = "",
+                 source: str | None = None):
+    """``torch.load(path, weights_only=True, map_location="cpu")`` with every refusal one
+    line of ``error``: ``"{source}: ... the {what} ...{advice}"``, where ``source`` defaults
+    to ``path`` and ``advice`` starts with ``"; "``.
+
+    A file that holds Python objects besides tensors (which may run code when unpickled) is
+    refused, without torch's several lines of advice on loading it unsafely; a missing,
+    truncated or foreign file "cannot be read". Tensors come back on the CPU (procmod saves
+    CPU tensors, and its readers use numpy).
+    """
+    import pickle
+    import re
+
+    import torch
+
+    source = _cut(str(path) if source is None else source)
+    try:
+        return torch.load(path, weights_only=True, map_location="cpu")
+    except pickle.UnpicklingError as exc:
+        operand = re.search(r"Unsupported operand (\d+)", str(exc))
+        if operand:  # not a pickle torch's safe reader knows: text, JSON, a newer pickle protocol
+            raise error(f"{source}: cannot read the {what} (not a file of tensors torch wrote: unsupported "
+                        f"pickle operand {operand.group(1)}){advice}") from None
+        found = re.search(r"GLOBAL [\w.]+", str(exc))  # the Python name the file would load
+        detail = f" ({_cut(found.group(0), 120)})" if found else ""
+        raise error(f"{source}: refused to load the {what}: the file holds Python objects, not only tensors"
+                    f"{detail}; procmod never writes such a file and loading it could run its code{advice}") from None
+    except Exception as exc:  # torch raises several types for truncated or foreign files
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise error(f"{source}: cannot read the {what} ({_cut(first, 160)}){advice}") from None
