@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.io import write_text_atomic
 from .jobs import JOB_FORMAT
 
 MAX_VOXELS = 4_000_000  # a target grid above this is refused (each voxel is scored per part drawn)
@@ -58,9 +59,8 @@ class JobError(Exception):
 # ---- files -------------------------------------------------------------------------------------
 
 def write_json_atomic(path: Path, data) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data), encoding="utf-8")
-    os.replace(tmp, path)
+    """``data`` as JSON in ``path``, atomically: the add-on never reads half a file."""
+    write_text_atomic(path, json.dumps(data))
 
 
 class Progress:

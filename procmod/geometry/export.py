@@ -7,16 +7,14 @@ the engines scored, only sharper.
 
 from __future__ import annotations
 
-import zlib
-
-import io
 import math
-import os
-from pathlib import Path
+import zlib
 
 import numpy as np
 from PIL import Image, ImageDraw
 
+# PNG writes are core's (atomic, deterministic bytes); kept importable from here
+from ..core.io import save_figure_atomic, save_image_atomic  # noqa: F401
 from .primitives import Disc, Ellipse, Polygon, Segment
 from .raster import Canvas, Viewport
 
@@ -139,23 +137,13 @@ def contact_sheet(images, columns: int | None = None, pad: int = 6,
     return sheet
 
 
-def _write_bytes_atomic(data: bytes, path: str | os.PathLike) -> None:
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+def shaded_preview(parts, size: int, colour_of, direction=(1.0, 0.8, 1.4), up=(0.0, 1.0, 0.0)) -> Image.Image:
+    """A ``size`` x ``size`` picture of 3D parts, framed whole from ``direction`` (with
+    ``up`` up) and Lambert-shaded (:func:`procmod.geometry.camera.shaded_image`): the one
+    preview recipe of 3D samples, learned programs' examples and string shapes."""
+    from .camera import framing_camera, shaded_image  # numba kernels: 2D renders never load them
+    from .solid import scene_bounds
 
-
-def save_image_atomic(image: Image.Image, path: str | os.PathLike) -> None:
-    """Save a PNG through a temporary file and a rename; deterministic bytes."""
-    buffer = io.BytesIO()
-    image.save(buffer, format="PNG", optimize=False)
-    _write_bytes_atomic(buffer.getvalue(), path)
-
-
-def save_figure_atomic(fig, path: str | os.PathLike, dpi: int = 110) -> None:
-    """Save a matplotlib figure as PNG through a temporary file and a rename (no
-    timestamp or software tag in the file, so the same figure gives the same bytes)."""
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
-    _write_bytes_atomic(buffer.getvalue(), path)
+    lo, hi = scene_bounds(parts)
+    camera = framing_camera(lo, hi, size, size, direction=direction, up=up)
+    return Image.fromarray(shaded_image(parts, camera, colour_of))

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..core.io import write_bytes_atomic
 from .solid import part_triangles
 
 
@@ -26,12 +27,6 @@ def parts_to_trimesh(parts, colour_of, segments: int = 24) -> trimesh.Trimesh:
     return trimesh.util.concatenate(meshes)
 
 
-def _write_bytes_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
-
-
 def export_mesh(parts, path: str | os.PathLike, colour_of) -> None:
     """Write parts as ``.obj`` or ``.glb`` (chosen by the suffix), atomically."""
     path = Path(path)
@@ -40,4 +35,4 @@ def export_mesh(parts, path: str | os.PathLike, colour_of) -> None:
         raise ValueError(f"mesh export writes .obj or .glb, not {path.suffix!r}")
     mesh = parts_to_trimesh(parts, colour_of)
     data = mesh.export(file_type=kind)
-    _write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)
+    write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)

@@ -20,9 +20,7 @@ from ..core import run_forward
 from ..core.errors import InvalidArgumentError
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
-from ..geometry.camera import framing_camera, shaded_image
-from ..geometry.export import colour_of
-from ..geometry.solid import scene_bounds
+from ..geometry.export import colour_of, shaded_preview
 from .examples import ExampleSet, example_parts, read_example_inputs
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
@@ -30,9 +28,7 @@ from .search import SearchOptions, run_search
 
 def render_parts(parts, size: int = 160):
     """A shaded PIL image of world-space parts."""
-    from PIL import Image
-    lo, hi = scene_bounds(parts)
-    return Image.fromarray(shaded_image(parts, framing_camera(lo, hi, size, size), colour_of))
+    return shaded_preview(parts, size, colour_of)
 
 
 def examples_and_samples_sheet(example_set: ExampleSet, derivations, path, tile: int = 160) -> None:

@@ -6,10 +6,8 @@ import os
 
 from PIL import Image
 
-from ..geometry.camera import framing_camera, shaded_image
-from ..geometry.export import colour_of, contact_sheet, save_image_atomic
+from ..geometry.export import colour_of, contact_sheet, save_image_atomic, shaded_preview
 from ..geometry.mesh_export import export_mesh
-from ..geometry.solid import scene_bounds
 from .shapes import Shape, ShapeSet
 
 
@@ -30,10 +28,8 @@ def shape_parts(shape_set: ShapeSet, shape: Shape) -> list:
 
 def shape_image(shape_set: ShapeSet, shape: Shape, size: int = 256) -> Image.Image:
     """A Lambert-shaded preview (z up, seen from above at an angle)."""
-    parts = shape_parts(shape_set, shape)
-    lo, hi = scene_bounds(parts)
-    camera = framing_camera(lo, hi, size, size, direction=(0.9, -1.3, 1.4), up=(0.0, 0.0, 1.0))
-    return Image.fromarray(shaded_image(parts, camera, colours_for(shape_set)), "RGB")
+    return shaded_preview(shape_parts(shape_set, shape), size, colours_for(shape_set),
+                          direction=(0.9, -1.3, 1.4), up=(0.0, 0.0, 1.0))
 
 
 def write_shape_png(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike, size: int = 256) -> None:
