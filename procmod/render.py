@@ -24,8 +24,8 @@ def check_size(size: int) -> int:
 
 
 def is_2d(derivation: Derivation) -> bool:
-    """True for models that draw into a 2D canvas (they have a viewport)."""
-    return hasattr(derivation.output, "viewport")
+    """True for models that draw into a 2D raster canvas (an output of dimension 2)."""
+    return derivation.output.dimension == 2
 
 
 def output_formats(derivation: Derivation) -> tuple:

@@ -11,6 +11,7 @@ import numpy as np
 from PIL import Image
 
 from .core import save_derivation, write_text_atomic
+from .core.protocols import Target, check_declared
 from .geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from .render import derivation_image, output_formats, write_derivation
 
@@ -96,7 +97,7 @@ def _mask_image(mask, width: int) -> Image.Image:
     return Image.fromarray(grey).resize((width, width), Image.NEAREST).convert("RGB")
 
 
-def write_run(result, target, out: str | os.PathLike, size: int = 512, command: str = "") -> Path:
+def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, command: str = "") -> Path:
     """Write every file of an inference run into ``out`` and return the report's path.
 
     Files: best.png (2D: over the target in grey; 3D: a shaded view), best.svg (2D) or
@@ -112,6 +113,7 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
     ``seconds`` column of history.csv, ``"seconds"`` of settings.json and the
     ``<span class="seconds">`` of report.html.
     """
+    check_declared(target, Target, "the target")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     best = result.best
@@ -124,7 +126,7 @@ def write_run(result, target, out: str | os.PathLike, size: int = 512, command: 
     save_derivation(best, out / "best.json")
     if underlay is not None:
         save_image_atomic(_mask_image(underlay, size), out / "target.png")
-    elif hasattr(target, "overlay_image"):  # silhouettes: the best result seen by the target camera
+    elif target.has_overlay:  # silhouettes: the best result seen by the target camera
         from .core import replay
         seen = replay(best.model, best.choice_map(), np.random.default_rng(0), order=best.order(),
                       output=target.new_output(best.model)).derivation

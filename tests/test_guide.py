@@ -321,6 +321,8 @@ def test_fused_fast_path_matches_the_reference_features_and_mixture():
     mask = np.random.default_rng(2).random((50, 50)) < 0.4
 
     class MaskTarget:
+        has_mask = True
+
         def mask(self, width, height):
             return mask
 

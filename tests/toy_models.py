@@ -2,7 +2,7 @@
 
 import math
 
-from procmod.core import Bernoulli, Categorical, Model, Normal, Uniform
+from procmod.core import Bernoulli, Categorical, Model, Normal, Output, Target, Uniform
 from procmod.geometry import Canvas, Segment
 
 VIEWPORT = (-10.0, 10.0, -10.0, 10.0)
@@ -92,7 +92,11 @@ class Value(float):
     """An emitted number."""
 
 
-class SumOutput:
+class SumOutput(Output):
+    """A running sum: neither a 2D canvas nor 3D parts; the Output defaults otherwise."""
+
+    dimension = 0
+
     def __init__(self):
         self.total = 0.0
 
@@ -105,8 +109,9 @@ class SumOutput:
         return other
 
 
-class SumTarget:
-    """log N(obs; sum, s^2), normalised, so SMC's Z estimate is a real density value."""
+class SumTarget(Target):
+    """log N(obs; sum, s^2), normalised, so SMC's Z estimate is a real density value.
+    Subclasses Target for its default capabilities (as a user's target would)."""
 
     name = "sum"
 

@@ -38,9 +38,15 @@ class Distribution:
     ----------
     discrete : bool
         True for distributions over a finite set (MCMC diffusion moves skip these).
+    low, high : float or None
+        The bounds of a continuous support (``Uniform``, ``TruncatedNormal``; either may
+        be infinite there), None for a distribution without them (the GA's nudge reflects
+        a value at the bounds a distribution declares).
     """
 
     discrete = False
+    low = None  # subclasses with bounds hold them in slots of these names
+    high = None
 
     @property
     def scale(self) -> float:

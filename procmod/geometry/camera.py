@@ -176,6 +176,11 @@ class Silhouettes:
     __slots__ = ("cameras", "pixels", "gains", "gain_total", "filled_count", "extent", "n_parts", "_state",
                  "_scratch", "part_cache", "saturated")
 
+    # capabilities (procmod.core.protocols.Output): pixels are counted, so remove is exact
+    dimension = 3
+    supports_removal = True
+    supports_part_cache = True
+
     def __init__(self, cameras, gains=None):
         self.cameras = tuple(cameras)
         self.pixels = [np.zeros(c.width * c.height, dtype=np.uint16) for c in self.cameras]

@@ -129,6 +129,11 @@ class Canvas:
                  "_scale_x", "_scale_y", "_changed", "_n_changed", "value", "filled_count", "min_radius_px",
                  "_ox", "_oy", "_xmax", "_ymax", "_outside")
 
+    # capabilities (procmod.core.protocols.Output)
+    dimension = 2
+    supports_removal = False  # pixels are covered or not: a drawn primitive cannot be taken back
+    supports_part_cache = False
+
     def __init__(self, viewport, width: int, height: int | None = None, gain=None, value: int = 1,
                  min_radius_px: float = MIN_RADIUS_PX):
         self.viewport = Viewport(*viewport)

@@ -177,6 +177,11 @@ class PartBounds:
 
     __slots__ = ("extent", "n_parts")
 
+    # capabilities (procmod.core.protocols.Output)
+    dimension = 3
+    supports_removal = False
+    supports_part_cache = False
+
     def __init__(self):
         self.extent = None
         self.n_parts = 0

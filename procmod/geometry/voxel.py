@@ -251,6 +251,11 @@ class VoxelScene:
     __slots__ = ("grid", "counts", "gain", "gain_total", "filled_count", "overlaps", "outside",
                  "extent", "n_parts", "_shape", "_origin", "_state", "part_cache", "saturated")
 
+    # capabilities (procmod.core.protocols.Output): hits are counted, so remove is exact
+    dimension = 3
+    supports_removal = True
+    supports_part_cache = True
+
     def __init__(self, grid: VoxelGrid, gain=None):
         self.grid = VoxelGrid(tuple(grid.origin), float(grid.size), tuple(int(n) for n in grid.shape))
         self.counts = np.zeros(int(np.prod(self.grid.shape)), dtype=np.uint8)

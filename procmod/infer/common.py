@@ -24,7 +24,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ..core import Derivation, InvalidArgumentError, replay
+from ..core import Derivation, InvalidArgumentError, Model, replay
+from ..core.protocols import Output, Target, check_declared
 from ..parallel import InlineExecutor
 
 
@@ -187,10 +188,10 @@ class Tracker:
 MEMBER_OVERHEAD = 2048
 
 
-def output_bytes(output) -> int:
+def output_bytes(output: Output) -> int:
     """A lower bound of the memory one more copy of ``output`` takes: the numpy arrays
     its ``copy()`` does not share with it (a canvas's pixels, not its target's gains)."""
-    copy = output.copy() if hasattr(output, "copy") else output
+    copy = output.copy()
     total = 0
     for name, value in vars(copy).items() if hasattr(copy, "__dict__") else ():
         if isinstance(value, np.ndarray) and value is not getattr(output, name, None):
@@ -198,17 +199,20 @@ def output_bytes(output) -> int:
     return total
 
 
-def check_population(option: str, count, output) -> int:
+def check_population(option: str, count, output: Output) -> int:
     """Refuse a population (``particles``, ``population``, ``chains``) that cannot
     fit in memory, before an engine allocates it; returns ``count``.
 
     ``output`` is an empty output of the configured model (``target.new_output(model)``):
-    each member holds a copy. Engines can call this on their own population argument
+    each member holds a copy. It must declare its capabilities
+    (:func:`procmod.core.protocols.check_declared`): engines read them later. Engines can
+    call this on their own population argument
     (``check_population("particles", particles, target.new_output(model))``).
     """
     from ..core.limits import check_memory
 
     check_positive(option, count)
+    check_declared(output, Output, "the target's output")
     per_member = output_bytes(output) + MEMBER_OVERHEAD
     check_memory(f"{option} {count:,}", float(count) * per_member,
                  f"each of them holds at least {per_member:,} bytes; use fewer")
@@ -273,14 +277,14 @@ class Scored:
         return cls(ev.derivation, ev.derivation.log_prior, ev.log_likelihood, ev.score)
 
 
-def evaluate(model, target, job) -> Evaluation:
+def evaluate(model: Model, target: Target, job) -> Evaluation:
     """Replay ``job = (choices, seed, maybe_default)`` into the target's output and score it.
 
     Module-level (and fed only picklable arguments) so process pools and dask can run it.
     """
     choices, seed, maybe_default = job
     output = target.new_output(model)
-    if hasattr(output, "use_part_cache"):  # full replays re-add mostly the same parts
+    if output.supports_part_cache:  # full replays re-add mostly the same parts
         output.use_part_cache()
     result = replay(model, choices, np.random.default_rng(seed), output=output, maybe_default=maybe_default)
     d = result.derivation
@@ -288,7 +292,7 @@ def evaluate(model, target, job) -> Evaluation:
                       result.log_reused, result.log_fresh, result.unused)
 
 
-def evaluate_all(executor, model, target, jobs: list) -> list:
+def evaluate_all(executor, model: Model, target: Target, jobs: list) -> list:
     """Evaluate jobs through ``executor`` (in order)."""
     return list((executor or InlineExecutor()).map(functools.partial(evaluate, model, target), jobs))
 

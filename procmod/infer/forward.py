@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core import Model
+from ..core.protocols import Target
 from .common import (Budget, Result, Tracker, check_population, check_positive, evaluate_all, log_mean_exp,
                      new_seed, relaxed_gc)
 
 
-def forward(model, target, particles: int = 100, seed: int = 0, budget: Budget | None = None,
+def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, budget: Budget | None = None,
             executor=None, progress=None) -> Result:
     """Draw derivations from the prior and weight them by the target's likelihood.
 

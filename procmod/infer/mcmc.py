@@ -65,7 +65,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..core import InvalidArgumentError, is_within
+from ..core import InvalidArgumentError, Model, is_within
+from ..core.protocols import Target
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
 
@@ -269,7 +270,7 @@ class Chains:
     and then proposes one swap of adjacent chains when ``tempering``.
     """
 
-    def __init__(self, model, target, states: list, betas, rng: np.random.Generator,
+    def __init__(self, model: Model, target: Target, states: list, betas, rng: np.random.Generator,
                  p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
                  delayed_rejection: bool = False, executor=None, tracker: Tracker | None = None):
         self.model, self.target, self.states = model, target, states
@@ -330,7 +331,7 @@ class Chains:
         return {k: (self.accepted[k] / self.proposed[k] if self.proposed[k] else None) for k in self.accepted}
 
 
-def mcmc(model, target, chains: int = 8, seed: int = 0, budget: Budget | None = None,
+def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: Budget | None = None,
          p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
          annealing: float | None = 1.1, anneal_every: int = 50, delayed_rejection: bool = False,
          executor=None, progress=None) -> Result:

@@ -1,10 +1,11 @@
 """Targets: what engines control models toward.
 
-Every target has ``configure(model)`` (place the model, e.g. at the target's start
-point), ``new_output(model)`` (an empty output that keeps the target's running sums),
-``score(output)`` (the human-readable figure) and ``log_likelihood(output)`` (what
-probabilistic engines weight by). Scores of partial outputs are incremental: O(pixels
-changed by the last emit).
+Every target is a :class:`procmod.core.Target`: ``configure(model)`` (place the model,
+e.g. at the target's start point), ``new_output(model)`` (an empty output that keeps the
+target's running sums), ``score(output)`` (the human-readable figure),
+``log_likelihood(output)`` (what probabilistic engines weight by), ``display_mask(width)``
+and its declared capabilities (``exact_removal``, ``has_mask``, ``has_overlay``). Scores
+of partial outputs are incremental: O(pixels changed by the last emit).
 """
 
 from .circuit import Circuit, EdgeCanvas, edge_total

@@ -125,6 +125,10 @@ class Circuit:
     """
 
     name = "circuit"
+    # capabilities (procmod.core.protocols.Target): no target image
+    exact_removal = False
+    has_mask = False
+    has_overlay = False
 
     def __init__(self, tau: float = 0.5, sigma: float = 0.01, oob_sigma: float | None = 0.001):
         if not 0 < tau <= 1:

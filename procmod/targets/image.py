@@ -253,7 +253,8 @@ def out_of_bounds_penalty(canvas, oob_sigma: float | None) -> float:
 
 
 def check_canvas(output, what: str):
-    """The scoring canvas of a 2D model, or a clear error for other models."""
-    if not hasattr(output, "gain") or not hasattr(output, "pixels"):
+    """The scoring canvas of a 2D model (an output of dimension 2: a raster
+    :class:`procmod.geometry.Canvas`), or a clear error for other models."""
+    if output.dimension != 2:
         raise InvalidArgumentError(f"{what} needs a 2D model that draws into a raster canvas")
     return output

@@ -81,6 +81,11 @@ class ShapeMatch:
         Scale of the out-of-bounds penalty; ``None`` disables it.
     """
 
+    # capabilities (procmod.core.protocols.Target): the target mask is what guides look at
+    exact_removal = False  # a canvas cannot take a primitive back
+    has_mask = True
+    has_overlay = False
+
     def __init__(self, image: TargetImage, w_filled: float = 0.6, sigma: float = 0.02,
                  weighting: str = "sobel", oob_sigma: float | None = 0.001, likelihood: str = "original"):
         if not sigma > 0:

@@ -45,7 +45,10 @@ class Silhouette:
     :meth:`Silhouettes.remove` restores exactly (see :class:`procmod.targets.Volume`).
     """
 
+    # capabilities (procmod.core.protocols.Target)
     exact_removal = True
+    has_mask = False
+    has_overlay = True  # overlay_image: a result's silhouette over a view
 
     def __init__(self, views, temperature: float | None = None, name: str = "silhouette"):
         if not views:
@@ -62,8 +65,10 @@ class Silhouette:
         self.temperature = float(temperature if temperature is not None else max(0.01 * self.best_attainable, 1e-9))
 
     def configure(self, model):
-        if hasattr(model.new_output(), "viewport"):
-            raise InvalidArgumentError(f"a silhouette target needs a 3D model; {model.name!r} is 2D")
+        dimension = model.new_output().dimension
+        if dimension != 3:
+            raise InvalidArgumentError(f"a silhouette target needs a 3D model; {model.name!r} "
+                                       + ("is 2D" if dimension == 2 else "draws no 3D parts"))
         return model
 
     def new_output(self, model) -> Silhouettes:

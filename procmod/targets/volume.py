@@ -36,9 +36,11 @@ from ..geometry.voxel import VoxelGrid, VoxelScene
 
 
 def _check_3d(model):
-    output = model.new_output()
-    if hasattr(output, "viewport"):
-        raise InvalidArgumentError(f"a volume target needs a 3D model; {model.name!r} is 2D")
+    """Refuse a model that does not draw 3D parts (InvalidArgumentError)."""
+    dimension = model.new_output().dimension
+    if dimension != 3:
+        raise InvalidArgumentError(f"a volume target needs a 3D model; {model.name!r} "
+                                   + ("is 2D" if dimension == 2 else "draws no 3D parts"))
 
 
 class Volume:
@@ -83,7 +85,10 @@ class Volume:
             raise InvalidArgumentError(f"temperature must be positive, got {temperature!r}")
         self.temperature = float(temperature)
 
+    # capabilities (procmod.core.protocols.Target)
     exact_removal = True
+    has_mask = False
+    has_overlay = False
 
     def configure(self, model):
         _check_3d(model)
@@ -130,6 +135,12 @@ class ProxyScene(VoxelScene):
 
 class ProxyVolume:
     """The original spaceship program's volume score (see the module docstring)."""
+
+    # capabilities (procmod.core.protocols.Target): ``outside`` reads the scene's extent,
+    # which ``remove`` does not shrink, so removal is not exact for this score
+    exact_removal = False
+    has_mask = False
+    has_overlay = False
 
     def __init__(self, grid: VoxelGrid, mask, sigma: float = 0.005, name: str = "proxy"):
         mask = np.asarray(mask, dtype=bool)

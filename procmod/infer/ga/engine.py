@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from ...core import InvalidArgumentError
+from ...core import InvalidArgumentError, Model
+from ...core.protocols import Target
 from ..common import Budget, Result, Tracker, check_population, check_positive, new_seed, relaxed_gc
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
@@ -14,7 +15,7 @@ from .selection import elite_count, roulette, roulette_wheel, tournament
 from .variation import COPIES, crossover, grow, mutate
 
 
-def ga(model, target, population: int = 200, seed: int = 0, budget: Budget | None = None,
+def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budget: Budget | None = None,
        mutation: float = 0.3, split=(13.5, 13.5, 3.0), elitism: float = 0.2, tournament: int = 10,
        initial_size: int | None = None, max_retries: int = 10, nudge_step: float = 0.1,
        executor=None, progress=None) -> Result:

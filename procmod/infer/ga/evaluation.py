@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...core import Model
+from ...core.protocols import Target, check_declared
 from ...core.runtime import replay_reusing
 from ..common import Evaluation, Scored, Tracker, evaluate_all
 from .genome import Genome, Offspring
@@ -44,7 +46,7 @@ class LazyRng:
         return getattr(rng, name)
 
 
-def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Evaluation:
+def evaluate_from(model: Model, target: Target, parent, choices, seed: int, changed=None) -> Evaluation:
     """Score the offspring ``choices`` (a dict, or an operator's lazy Offspring) of
     ``parent`` (a complete derivation whose output supports exact removal, or its Genome)
     by :func:`replay_reusing` from a copy of the parent's output; ``changed``: the calls
@@ -64,10 +66,10 @@ def evaluate_from(model, target, parent, choices, seed: int, changed=None) -> Ev
 
 def reusable(parent) -> bool:
     """Whether an offspring can be evaluated from the derivation ``parent`` incrementally:
-    it is complete and its output can take parts away exactly."""
+    it is complete and its output can take parts away exactly (``supports_removal``, and
+    no count has saturated)."""
     output = parent.output
-    return (parent.done and not parent.stopped and hasattr(output, "remove")
-            and not getattr(output, "saturated", True))
+    return parent.done and not parent.stopped and output.supports_removal and not output.saturated
 
 
 class Evaluator:
@@ -77,9 +79,10 @@ class Evaluator:
     parent allows it (:func:`reusable`; ``maybe_default`` False), else materialized and
     replayed in full."""
 
-    def __init__(self, model, target, executor, tracker: Tracker):
+    def __init__(self, model: Model, target: Target, executor, tracker: Tracker):
+        check_declared(target, Target, "the target")
         self.model, self.target, self.executor, self.tracker = model, target, executor, tracker
-        self.incremental = executor is None and bool(getattr(target, "exact_removal", False))
+        self.incremental = executor is None and bool(target.exact_removal)
 
     def __call__(self, jobs: list) -> list[Scored]:
         model, target = self.model, self.target

@@ -107,7 +107,7 @@ class Genome:
                         scale = float(dist.scale)
                     except NotImplementedError:
                         continue
-                    cont.append((name, c.value, scale, getattr(dist, "low", None), getattr(dist, "high", None)))
+                    cont.append((name, c.value, scale, dist.low, dist.high))
                 if cont:
                     out.append((n.address, cont))
             self._nudge = out
