@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-from ..core import InvalidArgumentError, random_order, start, step
+from ..core import InvalidArgumentError, Model, random_order, start, step
+from ..core.protocols import Proposer, Target
 from ..core.random import BlockGenerator
 from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
 
@@ -72,7 +73,8 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
     return float(1.0 / np.sum(w * w))
 
 
-def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tracker, proposer=None):
+def _run_once(model: Model, target: Target, particles, rng, pick, resampling, ess_threshold, tracker,
+              proposer: Proposer | None = None):
     """One SMC run; returns (states, final log-weights, log Z estimate)."""
     states = [start(model, target.new_output(model)) for _ in range(particles)]
     for state in states:
@@ -134,7 +136,7 @@ def _run_once(model, target, particles, rng, pick, resampling, ess_threshold, tr
     return states, weights, log_z + log_mean_exp(weights)
 
 
-def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
+def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
         resampling: str = "systematic", ess_threshold: float | None = None,
         order: str = "program", progress=None, guide=None) -> "Result":
     """Sequential Monte Carlo, resampling at every emit.
@@ -200,7 +202,7 @@ def smc(model, target, particles: int = 600, seed: int = 0, budget: Budget | Non
                   log_weights=list(log_w), log_marginal_likelihood=log_z, notes=notes)
 
 
-def sosmc(model, target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
+def sosmc(model: Model, target: Target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
           resampling: str = "systematic", ess_threshold: float | None = None, progress=None,
           guide=None) -> Result:
     """Stochastically-ordered SMC: :func:`smc` expanding a random pending future per step."""
