@@ -151,7 +151,7 @@ def resolve_model(spec: str):
         model = load_program(spec)
     else:
         model = get_model(spec)  # the library's one-line message lists the models
-    if hasattr(model.new_output(), "viewport"):
+    if model.new_output().dimension != 3:
         raise InvalidArgumentError(f"model {model.name!r} draws 2D pictures; Blender takes 3D models "
                                    "(spaceship, tree, city, or a learned program)")
     return model
@@ -295,7 +295,7 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
     run_folder = RunFolder(out, INFER_RUN, bool(job.get("overwrite")), inputs=[target_folder, job["model"]])
     empty = target.new_output(target.configure(model))
     if option in kwargs:
-        check_population(f"--{option}", kwargs[option], empty)
+        check_population(option, kwargs[option], empty)  # the panel's field, not a command-line flag
     stopped = []
 
     def report(tracker):
