@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
 import re
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import torch
 
 from ..core.distributions import Normal
 from ..core.limits import check_memory
-from ..core.serialize import read_json, write_text_atomic
+from ..core.io import load_tensors, read_json, save_tensors, write_text_atomic
 from .fast import guided_draw, site_outputs
 from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
 from .network import (SiteNet, base_params, encode_value, head_kind,
@@ -96,23 +95,6 @@ def check_metadata(data, source: str) -> dict:
     return data
 
 
-def load_tensors(path: Path, what: str = "weights"):
-    """``torch.load(path, weights_only=True)`` with every refusal in one line: a file that
-    holds Python objects besides tensors (which may run code when unpickled) is refused,
-    without torch's advice on loading it unsafely."""
-    try:
-        return torch.load(path, weights_only=True)
-    except pickle.UnpicklingError as exc:
-        found = re.search(r"Unsupported global: GLOBAL [\w.]+|Unsupported operand \S+", str(exc))
-        detail = f" ({_cut(found.group(0), 120)})" if found else ""
-        raise GuideError(f"{path}: refused to load the {what}: the file holds Python objects, not only tensors"
-                         f"{detail}; procmod never writes such a file and loading it could run its code. Use "
-                         "a guide written by 'procmod guide train'") from None
-    except Exception as exc:  # torch raises several types for truncated or foreign files
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise GuideError(f"{path}: cannot load the {what} ({_cut(first, 160)})") from None
-
-
 def site_key(rule_name: str, choice: str) -> str:
     """The name of a random-choice site: ``rule:choice``."""
     return f"{rule_name}:{choice}"
@@ -160,9 +142,7 @@ class Guide:
         """Write ``STEM.pt`` and ``STEM.json`` (atomically); returns both paths."""
         weights, meta = guide_paths(path)
         weights.parent.mkdir(parents=True, exist_ok=True)
-        tmp = weights.with_name(f".{weights.name}.tmp")
-        torch.save(self.nets.state_dict(), tmp)
-        os.replace(tmp, weights)
+        save_tensors(self.nets.state_dict(), weights)
         write_text_atomic(meta, json.dumps(self.metadata(), indent=1) + "\n")
         return weights, meta
 
@@ -178,7 +158,7 @@ class Guide:
         data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
-        state = load_tensors(weights, "guide's weights")
+        state = load_tensors(weights, GuideError, "guide's weights", "; use a guide written by 'procmod guide train'")
         try:
             guide.nets.load_state_dict(state)
         except (RuntimeError, KeyError, TypeError, AttributeError) as exc:

@@ -52,7 +52,7 @@ import numpy as np
 from ..core import Bernoulli, Categorical, Model, Normal
 from ..core.errors import ProcmodError
 from ..core.paths import FileNames, UnsafePathError, named_file
-from ..core.serialize import write_text_atomic
+from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
 from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, WORLD_FRAME,
@@ -342,9 +342,7 @@ def save_program(program: Program, out_dir: str | os.PathLike, source_dir: str |
     json_path = out_dir / "program.json"
     pt_path = _tensor_path(json_path)
     state = {k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in sorted(program.params.items())}
-    tmp = pt_path.with_name(f".{pt_path.name}.tmp")
-    torch.save(state, tmp)
-    os.replace(tmp, pt_path)
+    save_tensors(state, pt_path)
     write_text_atomic(json_path, json.dumps(program_to_json(program, pt_path.name), indent=1) + "\n")
     return json_path
 
@@ -361,20 +359,11 @@ def _fail(path, problem) -> ProgramError:
 
 def read_program(path: str | os.PathLike) -> Program:
     """Read a program saved by :func:`save_program` (``program.json`` or its folder)."""
-    import torch
     path = Path(path)
     if path.is_dir():
         path = path / "program.json"
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ProgramError(f"program file {path} does not exist; give a program.json written by "
-                           "'procmod learn' or its folder") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ProgramError(f"cannot read program file {path}: {exc}") from None
-    if not isinstance(data, dict) or data.get("format") != PROGRAM_FORMAT:
-        raise _fail(path, f"format is {data.get('format') if isinstance(data, dict) else None!r}, "
-                          f"expected {PROGRAM_FORMAT!r}")
+    data = read_versioned_json(path, PROGRAM_FORMAT, ProgramError, "program file",
+                               "; give a program.json written by 'procmod learn' or its folder")
     try:
         parts = read_part_library(data["parts"], path.parent)
         program = program_from_json(data, parts)
@@ -388,11 +377,7 @@ def read_program(path: str | os.PathLike) -> Program:
                              "tensors", same_folder=True)
     except UnsafePathError as exc:
         raise ProgramError(str(exc)) from None
-    try:
-        state = torch.load(pt_path, weights_only=True)
-    except Exception as exc:  # torch raises many types for bad files, with several lines of advice
-        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
-        raise _fail(path, f"cannot read its tensors file {pt_path.name} ({reason})") from None
+    state = load_tensors(pt_path, ProgramError, f"tensors file {pt_path.name}", source=str(path))
     if not isinstance(state, dict):
         raise _fail(path, f"tensors: {pt_path.name} is not a tensors file written by 'procmod learn' "
                           f"(it holds a {type(state).__name__}, not named tensors)")

@@ -20,7 +20,7 @@ import torch
 from torch import nn
 
 from ..core.errors import InvalidArgumentError
-from ..core.serialize import fingerprint, write_text_atomic
+from ..core.io import fingerprint, load_tensors, read_json, write_text_atomic
 from .automorphisms import type_automorphisms
 from .categories import EdgeCategories, shape_labelings
 from .codec import encode_with_order, parse
@@ -465,11 +465,8 @@ class TaggerModel:
     @staticmethod
     def load(folder, with_optimizer: bool = False):
         folder = Path(folder)
-        try:
-            meta = json.loads((folder / "tagger.json").read_text())
-            payload = torch.load(folder / "tagger.pt", weights_only=True, map_location="cpu")
-        except (OSError, json.JSONDecodeError, RuntimeError) as exc:
-            raise ModelFileError(f"cannot read the edge-category tagger in {folder} ({exc})") from None
+        meta = read_json(folder / "tagger.json", ModelFileError, "edge-category tagger metadata")
+        payload = load_tensors(folder / "tagger.pt", ModelFileError, "edge-category tagger's weights")
         cats = EdgeCategories.from_json(meta["categories"])
         vocab = Vocab(meta["vocab"])
         # taggers saved before the tree pass existed are plain bidirectional LSTMs

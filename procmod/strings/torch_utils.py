@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import torch
 
 from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.io import save_tensors
 
 TORCH_THREADS = 1  # these nets are small: one thread is much faster than two on a busy 2-core machine
 
@@ -73,6 +73,4 @@ def save_weights(path: Path, net, optimizer=None) -> None:
     payload = {"model": cpu_state(net)}
     if optimizer is not None:
         payload["optimizer"] = cpu_state(optimizer)
-    tmp = path.with_name(f".{path.name}.tmp")
-    torch.save(payload, tmp)
-    os.replace(tmp, path)
+    save_tensors(payload, path)

@@ -33,7 +33,7 @@ import torch
 from torch import nn
 
 from ..core.errors import InvalidArgumentError
-from ..core.serialize import fingerprint, write_text_atomic
+from ..core.io import fingerprint, load_tensors, read_versioned_json, write_text_atomic
 from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
 from .grammar import Grammar
@@ -314,14 +314,10 @@ class StringModel:
     @staticmethod
     def load(folder: str | os.PathLike, with_optimizer: bool = False):
         folder = Path(folder)
-        try:
-            meta = json.loads((folder / "vae.json").read_text())
-            payload = torch.load(folder / "vae.pt", weights_only=True, map_location="cpu")
-        except (OSError, json.JSONDecodeError, RuntimeError) as exc:
-            raise ModelFileError(f"cannot read the string VAE in {folder} ({exc}); train one with "
-                                 "'procmod strings train'") from None
-        if meta.get("format") != "procmod-string-vae/1":
-            raise ModelFileError(f"{folder / 'vae.json'}: not a procmod-string-vae/1 file")
+        advice = "; train one with 'procmod strings train'"
+        meta = read_versioned_json(folder / "vae.json", "procmod-string-vae/1", ModelFileError,
+                                   "string VAE metadata", advice)
+        payload = load_tensors(folder / "vae.pt", ModelFileError, "string VAE's weights", advice)
         config = VAEConfig(**meta["config"])
         vocab = Vocab(meta["vocab"])
         net = StringVAE(len(vocab), config)
