@@ -248,7 +248,9 @@ def _cmd_infer(args) -> None:
         guide = Guide.load(args.guide)
         guide.check_model(model)
         kwargs["guide"] = guide
-    target = _target(args.target)
+    from .data import target_from_spec
+
+    target = target_from_spec(args.target)
     folder = RunFolder(args.out, INFER_RUN, args.overwrite, inputs=[args.target, args.model, args.guide])
     empty = target.new_output(target.configure(model))  # fail early if the target does not fit the model
     if wanted in kwargs:
@@ -262,21 +264,6 @@ def _cmd_infer(args) -> None:
     report = Path(args.out) / "report.html"
     print(f"{result.engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations "
           f"in {result.seconds:.1f} s; report: {report}")
-
-
-def _target(spec: str):
-    """The target a command-line spec names."""
-    from .data import target_image
-    from .targets import Circuit, ShapeMatch, load_target_file
-
-    if spec == "circuit":
-        return Circuit()
-    path = Path(spec)
-    if _is_dir(path):
-        return load_target_file(path / "target.json")
-    if path.suffix.lower() == ".json":
-        return load_target_file(path)
-    return ShapeMatch(target_image(spec))
 
 
 class _progress_bar:

@@ -1,19 +1,25 @@
-"""Target sets made at run time (glyphs, scribbles) and the target-spec parser.
+"""Target sets made at run time (glyphs, scribbles) and the target-spec parsers.
 
-A target spec names one target image:
+A target-image spec (:func:`target_image`) names one target image:
 
 * ``glyph:a`` — a glyph of the default typeface; ``glyph:dejavu-serif/Q`` names the face;
 * ``scribble:17`` — procedurally drawn scribble number 17;
 * any other string is a path to a picture (with an optional sidecar ``NAME.json``).
 
 Append ``:mirrored`` to any spec for its horizontally mirrored copy.
+
+A target spec (:func:`target_from_spec`: ``procmod infer --target``, a guide trace's
+``"target"``) is ``circuit``, a target file (``.json``) or a folder holding
+``target.json``, or else a target-image spec, scored by shape match.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from ..core import InvalidArgumentError
 from ..core.lazy import lazy_getattr
-from ..targets import TargetImage, load_target_image
+from ..targets import Circuit, ShapeMatch, TargetImage, load_target_file, load_target_image
 
 # Glyphs need fonts, Pillow's FreeType and scipy; a target picture needs none of them.
 _LAZY = {**dict.fromkeys(("DEFAULT_TYPEFACE", "TYPEFACES", "glyph_set", "glyph_target", "render_glyph"), "glyphs"),
@@ -45,5 +51,28 @@ def target_image(spec: str) -> TargetImage:
     return load_target_image(spec)
 
 
-__all__ = ["target_image", "glyph_target", "glyph_set", "render_glyph", "scribble_target",
+def _is_dir(path: Path) -> bool:
+    """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
+def target_from_spec(spec: str):
+    """The target a target spec names (see the module docstring): the one parser of
+    ``procmod infer --target`` and of the targets guide traces were made on."""
+    if not isinstance(spec, str) or not spec:
+        return target_image(spec)  # refuses it, naming the forms a spec takes
+    if spec == "circuit":
+        return Circuit()
+    path = Path(spec)
+    if _is_dir(path):
+        return load_target_file(path / "target.json")
+    if path.suffix.lower() == ".json":
+        return load_target_file(path)
+    return ShapeMatch(target_image(spec))
+
+
+__all__ = ["target_image", "target_from_spec", "glyph_target", "glyph_set", "render_glyph", "scribble_target",
            "scribble_set", "TYPEFACES", "DEFAULT_TYPEFACE"]

@@ -29,7 +29,8 @@ import numpy as np
 
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.runfolder import TRACES_JOB, RunFolder
-from ..core.serialize import derivation_to_dict, read_json, write_text_atomic
+from ..core.io import read_json, read_versioned_json, write_text_atomic
+from ..core.serialize import derivation_to_dict
 from .features import GuideError
 
 TRACE_FORMAT = "procmod-trace/1"
@@ -50,25 +51,18 @@ def trace_target_spec(targets: str, seed: int, index: int, set_size: int = SCRIB
     raise InvalidArgumentError(f"--targets must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
 
 
-def make_target(spec: str):
-    """The target object a trace's target spec names."""
-    from ..data import target_image
-    from ..targets import Circuit, ShapeMatch
-
-    return Circuit() if spec == "circuit" else ShapeMatch(target_image(spec))
-
-
 def generate_trace(model_name: str, target_spec: str, particles: int, seed: int, index: int) -> dict:
     """Run SMC on one target and keep one final particle, picked by weight.
 
     Module-level and fed plain values, so process pools and dask workers can run it.
     """
+    from ..data import target_from_spec
     from ..infer import smc
     from ..models import get_model
 
     began = time.perf_counter()
     model = get_model(model_name)
-    target = make_target(target_spec)
+    target = target_from_spec(target_spec)
     result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
     weights = np.asarray(result.log_weights, dtype=np.float64)
     rng = np.random.default_rng([seed, index, 1])
@@ -101,6 +95,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     targets fit the model, and ``out`` (see :class:`procmod.core.runfolder.RunFolder`).
     Returns a summary: traces made now, already present, seconds, traces per hour.
     """
+    from ..data import target_from_spec
     from ..infer.common import check_population
     from ..models import get_model
     from ..parallel import InlineExecutor
@@ -109,7 +104,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
-    first = make_target(trace_target_spec(targets, seed, 0, set_size))  # validates the target set
+    first = target_from_spec(trace_target_spec(targets, seed, 0, set_size))  # validates the target set
     try:
         empty = first.new_output(first.configure(model))
     except ProcmodError as exc:
@@ -171,28 +166,18 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None}
 
 
-def _read_versioned(path: Path, fmt: str, advice: str) -> dict:
-    """A JSON object with ``"format": fmt`` from ``path``, or a :class:`GuideError`."""
-    try:
-        data = read_json(path, GuideError)
-    except GuideError as exc:
-        raise GuideError(f"{exc}{advice}") from None
-    if not isinstance(data, dict) or data.get("format") != fmt:
-        raise GuideError(f"{path}: expected format {fmt!r}{advice}")
-    return data
-
-
 def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[dict, list]:
     """The job settings and the traces of a folder (sorted by index; the first ``limit``)."""
     folder = Path(folder)
     job_file = folder / "traces.json"
     if not job_file.is_file():
         raise GuideError(f"{folder} is not a traces folder (no traces.json); make one with 'procmod guide traces'")
-    settings = _read_versioned(job_file, JOB_FORMAT, "")
+    settings = read_versioned_json(job_file, JOB_FORMAT, GuideError)
     names = sorted((int(m.group(1)), p) for p in folder.iterdir() if (m := _TRACE_NAME.match(p.name)))
     if limit is not None:
         names = names[:limit]
-    traces = [_read_versioned(path, TRACE_FORMAT, "; delete it and rerun the traces job") for _, path in names]
+    traces = [read_versioned_json(path, TRACE_FORMAT, GuideError, advice="; delete it and rerun the traces job")
+              for _, path in names]
     if not traces:
         raise GuideError(f"{folder} holds no traces yet; run 'procmod guide traces' first")
     return settings, traces

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from pathlib import Path
 
@@ -33,9 +32,9 @@ import torch
 
 from ..core import start
 from ..core.runtime import finish
-from ..core.serialize import write_text_atomic
+from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, GuideError
-from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, load_tensors, new_guide_for,
+from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_guide_for,
                     target_mask_for)
 from .network import log_q_torch
 from .traces import load_traces
@@ -52,9 +51,9 @@ def step_size(lr: float, schedule: str, step: int, iterations: int) -> float:
 
 
 def _target_mask(spec: str, model):
-    from .traces import make_target
+    from ..data import target_from_spec
 
-    return target_mask_for(make_target(spec), model)
+    return target_mask_for(target_from_spec(spec), model)
 
 
 def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None = None) -> list:
@@ -184,7 +183,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
         except (OSError, ValueError, RecursionError):
             saved = None
         if isinstance(saved, dict) and saved.get("fingerprint") == fingerprint:
-            state = load_tensors(ckpt, "training checkpoint")
+            state = load_tensors(ckpt, GuideError, "training checkpoint")
             guide.nets.load_state_dict(state["nets"])
             optimiser.load_state_dict(state["optimiser"])
             step, curve = int(saved["step"]), list(saved["curve"])
@@ -209,9 +208,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                 progress(step, running)
         if step % checkpoint_every == 0 and step < iterations:
             weights_path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = ckpt.with_name(f".{ckpt.name}.tmp")
-            torch.save({"nets": guide.nets.state_dict(), "optimiser": optimiser.state_dict()}, tmp)
-            os.replace(tmp, ckpt)
+            save_tensors({"nets": guide.nets.state_dict(), "optimiser": optimiser.state_dict()}, ckpt)
             write_text_atomic(ckpt_meta, json.dumps({"fingerprint": fingerprint, "step": step, "curve": curve,
                                                      "running": running}))
     with torch.no_grad():
