@@ -18,6 +18,7 @@ import numpy as np
 
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
+from .core.errors import spelled
 from .models import MODELS, get_model
 
 
@@ -166,12 +167,17 @@ def _cmd_sample(args) -> None:
         return run_forward(model, np.random.default_rng([args.seed, i]))
 
     if args.format == "examples":
-        from .learn import write_examples
+        from .learn import NotALearnedProgramError, is_learned, write_examples
+        if not is_learned(model):
+            raise NotALearnedProgramError(
+                f"model {model.name!r} is not a learned program; '--format examples' writes samples of "
+                "programs made by 'procmod learn' (give the program.json path or its folder)")
         check_output_file(out)
         first = sample(0)
         check_memory(f"-n {args.n:,} samples", args.n * len(json.dumps(derivation_to_dict(first))),
                      "ask for fewer samples")
-        write_examples(model, [first] + [sample(i) for i in range(1, args.n)], out)
+        with spelled({"path": "--out"}):  # write_examples names its file argument
+            write_examples(model, [first] + [sample(i) for i in range(1, args.n)], out)
         print(f"wrote {args.n} samples of {model.name} to {out} (procmod-examples/1)")
         return
     folder = RunFolder(out, SAMPLE_RUN, args.overwrite)
@@ -292,6 +298,10 @@ class _progress_bar:
         return False
 
 
+# How the command line spells the API arguments that library messages name (see
+# procmod.core.errors.argument): every command's output is --out (the functions' ``out``).
+CLI_SPELLING = {"out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler"}
+
 _COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render, "infer": _cmd_infer}
 
 
@@ -312,7 +322,8 @@ def main(argv=None) -> int:
         args = _build_parser().parse_args(argv)
         args.command_line = "procmod " + shlex.join(argv)  # recorded in reports
         handler = getattr(args, "handler", None) or _COMMANDS[args.command]
-        handler(args)
+        with spelled(CLI_SPELLING):  # library messages name API arguments; here they read as flags
+            handler(args)
     except ProcmodError as exc:
         print(f"procmod: error: {one_line(exc)}", file=sys.stderr)
         return 2

@@ -33,7 +33,7 @@ import sys
 import threading
 from typing import Iterator
 
-from .core.errors import InvalidArgumentError, ProcmodError
+from .core.errors import InvalidArgumentError, ProcmodError, argument
 
 
 class SchedulerError(ProcmodError):
@@ -69,7 +69,7 @@ def check_scheduler(address: str) -> str:
     ``host:8786``, ``tls://...``), else a SchedulerError; checked before any work."""
     if not isinstance(address, str) or not _ADDRESS.match(address.strip()):
         shown = repr(address) if len(repr(address)) <= 60 else repr(address)[:57] + "..."
-        raise SchedulerError(f"--scheduler {shown} is not a dask scheduler address; give one like "
+        raise SchedulerError(f"{argument('scheduler')} {shown} is not a dask scheduler address; give one like "
                              "tcp://host:8786 (the address 'dask scheduler' prints)")
     return address.strip()
 

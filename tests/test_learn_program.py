@@ -225,12 +225,19 @@ def test_save_load_and_the_model_contract(saved, tmp_path):
     write_examples(model, [a, b], ex)
     back = read_examples(ex)
     assert len(back.examples) == 2 and back.examples[0].size() == len(a.geometry())
+    # the file argument is named as the API names it, or as a front end spells it
+    from procmod.core.errors import spelled
+    from procmod.learn import ExamplesError
+    with pytest.raises(ExamplesError, match=r"^path .*samples\.txt: name the examples file with a \.json suffix"):
+        write_examples(model, [a], tmp_path / "samples.txt")
+    with spelled({"path": "--out"}), pytest.raises(ExamplesError, match=r"^--out .* is a folder"):
+        write_examples(model, [a], tmp_path)
 
 
 def test_write_examples_rejects_other_models(tmp_path):
     from procmod.models import get_model
     m = get_model("spaceship")
-    with pytest.raises(NotALearnedProgramError):
+    with pytest.raises(NotALearnedProgramError, match="write_examples writes samples of programs learned"):
         write_examples(m, [run_forward(m, np.random.default_rng(0))], tmp_path / "x.json")
 
 

@@ -133,8 +133,47 @@ def test_run_kinds_recognise_only_their_own_folders(tmp_path):
     (run / "settings.json").write_text(json.dumps({"engine": "smc"}))
     (run / "thesis.tex").write_text("")
     assert not INFER_RUN.recognises(run)  # a file the command never writes
-    with pytest.raises(OutputLocationError, match="--overwrite"):
+    with pytest.raises(OutputLocationError, match="overwrite=True"):  # the API's argument, not the flag
         RunFolder(run, INFER_RUN)
+
+
+def test_library_messages_name_api_arguments_and_the_command_line_its_flags(tmp_path, capsys):
+    """Issue 27.6: the same check reads ``out`` / ``overwrite=True`` from Python and
+    ``--out`` / ``--overwrite`` from the shell."""
+    from procmod.core.runfolder import check_output_file
+    from procmod.learn import learn
+    from procmod.parallel import SchedulerError, check_scheduler
+
+    taken = tmp_path / "taken"
+    taken.mkdir()
+    (taken / "notes.txt").write_text("mine")
+    with pytest.raises(OutputLocationError) as python:
+        RunFolder(taken, SAMPLE_RUN)
+    assert "out " in str(python.value) and "overwrite=True" in str(python.value) and "--" not in str(python.value)
+    code, _, err = _run(capsys, "sample", "chain", "-n", "1", "--size", "16", "--out", taken)
+    assert code == 2 and "--out " in err and "--overwrite" in err and "overwrite=True" not in err
+    with pytest.raises(OutputLocationError, match=r"^out .* is a folder; give a file name"):
+        check_output_file(taken)
+    with pytest.raises(SchedulerError, match=r"^scheduler 'nowhere' is not a dask scheduler address"):
+        check_scheduler("nowhere")
+    with pytest.raises(Exception, match=r"^out .* exists and is not a folder"):
+        learn(tmp_path / "missing.json", taken / "notes.txt")
+    assert _names(taken) == ["notes.txt"]
+    # the command line rewords what only it can say: its --format option
+    code, _, err = _run(capsys, "sample", "spaceship", "--format", "examples", "--out", tmp_path / "x.json")
+    assert code == 2 and "not a learned program; '--format examples' writes samples" in err
+
+
+def test_a_front_end_spells_api_arguments_within_its_block_only():
+    from procmod.core.errors import argument, spelled
+
+    assert argument("out") == "out"
+    with spelled({"out": "--out"}):
+        assert argument("out") == "--out" and argument("seed") == "seed"
+        with spelled({"seed": "--seed"}):  # nested blocks add to the outer spelling
+            assert (argument("out"), argument("seed")) == ("--out", "--seed")
+        assert argument("seed") == "seed"
+    assert argument("out") == "out"
 
 
 def test_guide_traces_refuses_another_job_leaving_it_and_overwrite_replaces_it(tmp_path, capsys):

@@ -2,7 +2,39 @@
 
 Every user-caused error is a :class:`ProcmodError`; its message says what was wrong and
 how to fix it, so the command-line tool can print it as one line and exit with status 2.
+
+Messages name the Python API's arguments (``out``, ``overwrite=True``), never
+command-line flags: only the command line speaks of flags. Where a message names an
+argument a front end sets for its user, it goes through :func:`argument`, and the front
+end says how its user knows that argument (:func:`spelled`): ``procmod.cli.main`` spells
+``out`` as ``--out`` while it runs a command, so the same check reads right from Python
+and from the shell.
 """
+
+import contextlib
+from contextvars import ContextVar
+from types import MappingProxyType
+
+_SPELLING: ContextVar = ContextVar("procmod_argument_spelling", default=MappingProxyType({}))
+
+
+def argument(name: str) -> str:
+    """How an error message names the API argument ``name`` (e.g. ``"out"``, or
+    ``"overwrite=True"`` for a flag to set): as written, or as the front end running the
+    library spells it (see :func:`spelled`)."""
+    return _SPELLING.get().get(name, name)
+
+
+@contextlib.contextmanager
+def spelled(spelling: dict):
+    """Within the block, :func:`argument` spells the API arguments in ``spelling`` (API
+    name -> what the user typed, e.g. ``{"out": "--out", "overwrite=True": "--overwrite"}``);
+    nested blocks add to the outer spelling."""
+    token = _SPELLING.set(MappingProxyType({**_SPELLING.get(), **spelling}))
+    try:
+        yield
+    finally:
+        _SPELLING.reset(token)
 
 
 class ProcmodError(Exception):

@@ -45,7 +45,7 @@ def format_bytes(n: float) -> str:
 def check_memory(what: str, needed: float, advice: str = "") -> None:
     """Refuse ``what`` if it needs more than :data:`MEMORY_SHARE` of physical memory.
 
-    ``needed`` is a lower bound in bytes; ``advice`` (e.g. "use fewer --particles") ends
+    ``needed`` is a lower bound in bytes; ``advice`` (e.g. "use fewer particles") ends
     the message.
     """
     total = physical_memory()

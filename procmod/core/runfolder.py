@@ -1,4 +1,5 @@
-"""Output folders of commands (``--out``): checked before the work, written whole.
+"""Output folders of commands (``--out``; ``out`` in the Python API): checked before the
+work, written whole.
 
 A command that writes a folder of results (``sample``, ``infer``, ``strings graph``,
 ``strings augment``, ``strings sample``) follows three rules:
@@ -25,6 +26,9 @@ a half-written ``--out``.
 Resumable jobs (``guide traces``, ``strings train``, ``learn``) write into ``--out`` as
 they go, so that a killed job keeps what it finished; :meth:`RunFolder.prepare_in_place`
 applies the first two rules to them.
+
+Messages name the API's arguments (``out``, ``overwrite=True``) through
+:func:`procmod.core.errors.argument`, which the command line spells as its flags.
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
-from .errors import InvalidArgumentError
+from .errors import InvalidArgumentError, argument
 
 
 class OutputLocationError(InvalidArgumentError):
@@ -100,6 +104,7 @@ def _nearest_existing(path: Path) -> Path:
 
 def _probe_writable(folder: Path, option: str, out: Path) -> None:
     """Refuse unless a file can be created in ``folder`` (tried, then removed)."""
+    option = argument(option)
     if not folder.is_dir():
         raise OutputLocationError(f"cannot write {option} {_cut(str(out))}: {_cut(str(folder))} is not a folder")
     try:
@@ -110,16 +115,18 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
                                   f"{_cut(str(folder))} ({exc.strerror or exc})") from None
 
 
-def check_output_file(path: str | os.PathLike, option: str = "--out", make_parent: bool = False) -> Path:
+def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False) -> Path:
     """A single output file (``render --out x.png``): the path must not be a folder, and
     its folder must exist (or, with ``make_parent``, be creatable: the command makes it
-    when it writes) and be writable. Checks only, creates nothing; returns the path."""
+    when it writes) and be writable. Checks only, creates nothing; returns the path.
+    ``option`` is the API argument the path was given as, for messages."""
     path = Path(path)
+    shown = argument(option)
     if path.is_dir():
-        raise OutputLocationError(f"{option} {_cut(str(path))} is a folder; give a file name")
+        raise OutputLocationError(f"{shown} {_cut(str(path))} is a folder; give a file name")
     parent = path.parent
     if not parent.exists() and not make_parent:
-        raise OutputLocationError(f"cannot write {option} {_cut(str(path))}: the folder {_cut(str(parent))} "
+        raise OutputLocationError(f"cannot write {shown} {_cut(str(path))}: the folder {_cut(str(parent))} "
                                   "does not exist; create it first")
     _probe_writable(_nearest_existing(parent), option, path)
     return path
@@ -135,7 +142,7 @@ def _holds(folder: Path, path: Path) -> bool:
 
 
 class RunFolder:
-    """The ``--out`` folder of one command, checked at construction (see the module docstring).
+    """The output folder of one command, checked at construction (see the module docstring).
 
     Parameters
     ----------
@@ -144,11 +151,12 @@ class RunFolder:
     kind : RunKind
         What the command writes, to recognise an earlier run.
     overwrite : bool
-        ``--overwrite``: replace a non-empty folder that is not an earlier run of ``kind``.
+        Replace a non-empty folder that is not an earlier run of ``kind`` (``--overwrite``).
     inputs : iterable of path-like
         The command's input files; a folder holding one is never replaced.
     option : str
-        The option's name, for messages.
+        The API argument that named the folder, for messages (default ``out``; shown
+        through :func:`procmod.core.errors.argument`, so ``--out`` on the command line).
 
     Use::
 
@@ -159,10 +167,10 @@ class RunFolder:
     """
 
     def __init__(self, path: str | os.PathLike, kind: RunKind, overwrite: bool = False, inputs=(),
-                 option: str = "--out"):
+                 option: str = "out"):
         self.path = Path(path)
         self.kind = kind
-        self.option = option
+        self.option = option = argument(option)
         shown = _cut(str(self.path))
         if self.path.exists() and not self.path.is_dir():
             raise OutputLocationError(f"{option} {shown} exists and is not a folder")
@@ -172,7 +180,7 @@ class RunFolder:
                 example = sorted(p.name for p in self.path.iterdir())[0]
                 raise OutputLocationError(
                     f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
-                    f"give a new or empty folder, or pass --overwrite to replace it whole")
+                    f"give a new or empty folder, or pass {argument('overwrite=True')} to replace it whole")
             self._check_replaceable(inputs)
         self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)

@@ -277,7 +277,7 @@ class FeatureExtractor:
         self.settings = settings
         if settings.target and target_mask is None:
             raise GuideError("this guide looks at a target image, but the target has none "
-                             "(train a guide with --features local or constant for image-free targets)")
+                             "(for image-free targets, train a guide with the feature condition local or constant)")
         self.target_pyramid = Pyramid(target_mask.astype(np.float64)) if settings.target else None
         self._local = {}
         self._frame = None  # (xmin, ymin, x scale, y scale, centre) of the output raster

@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 
 from ..core import Derivation, Model
-from ..core.errors import ProcmodError
+from ..core.errors import ProcmodError, argument
 from ..core.lazy import lazy_getattr
 from ..core.serialize import write_text_atomic
 
@@ -66,13 +66,13 @@ def write_examples(model: Model, derivations, path: str | os.PathLike) -> None:
 
     if not is_learned(model):
         raise NotALearnedProgramError(
-            f"model {model.name!r} is not a learned program; '--format examples' writes samples of "
-            "programs made by 'procmod learn' (give the program.json path or its folder)")
+            f"model {model.name!r} is not a learned program; write_examples writes samples of programs "
+            "learned from examples (procmod.learn.learn; read one with procmod.learn.load_program)")
     path = Path(path)
     if path.exists() and path.is_dir():
-        raise ExamplesError(f"--out {path} is a folder; give a file name ending in .json")
+        raise ExamplesError(f"{argument('path')} {path} is a folder; give a file name ending in .json")
     if path.suffix.lower() != ".json":
-        raise ExamplesError(f"--out {path}: name the examples file with a .json suffix")
+        raise ExamplesError(f"{argument('path')} {path}: name the examples file with a .json suffix")
     program = model.root_args.args[0]
     examples = []
     for d in derivations:

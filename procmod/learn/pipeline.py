@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import run_forward
-from ..core.errors import InvalidArgumentError
+from ..core.errors import InvalidArgumentError, argument
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
@@ -113,10 +113,10 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     shown = str(inputs[0]) if len(inputs) == 1 else " ".join(map(str, inputs))
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+        raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
     if samples < 1:
         raise InvalidArgumentError(f"samples must be positive, got {samples}")
-    example_set, digest = read_example_inputs(inputs)  # everything is read and checked before --out is made
+    example_set, digest = read_example_inputs(inputs)  # everything is read and checked before out is made
     options = options or SearchOptions()
     options.particles, options.seed = particles, seed
     options.check()

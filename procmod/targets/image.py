@@ -1,7 +1,7 @@
 """Target images: a binary mask plus the start point and direction a model grows from.
 
 Masks are kept at their source resolution and resampled to a model's canvas size when a
-target is bound to a model, so one target serves any ``--size``.
+target is bound to a model, so one target serves any canvas size.
 """
 
 from __future__ import annotations

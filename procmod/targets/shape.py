@@ -108,9 +108,10 @@ class ShapeMatch:
         key = (width, height)
         if key not in self._cache:
             mask = self.image.at_size(width, height)
-            if not mask.any():
+            if not mask.any():  # (at_size refuses a shape that vanishes: the mask itself is empty)
                 raise InvalidArgumentError(
-                    f"target {self.name} vanishes at {width}x{height} pixels; use a larger --size")
+                    f"target {self.name} has no foreground pixels (none at the model's {width}x{height} "
+                    "canvas); give a target picture with the shape drawn in it")
             weights = shape_weights(mask, self.w_filled, self.weighting)
             gain = np.where(mask, weights, -weights).ravel()
             self._cache[key] = (mask, gain, float(weights[mask].sum()))
