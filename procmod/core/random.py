@@ -7,11 +7,16 @@ them out one by one. It is deterministic given the generator's seed, like the ge
 itself, but its stream differs from the generator's own scalar calls (blocks of each kind
 are drawn when first needed). Everything else (arrays, ``integers``, ``choice``, ...) is
 passed to the wrapped generator.
+
+:func:`resample` draws the ancestor indices of a particle population (systematic,
+multinomial or residual), for every particle method: SMC and learn's structure search.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .errors import InvalidArgumentError
 
 
 class BlockGenerator:
@@ -45,3 +50,50 @@ class BlockGenerator:
 
     def __getattr__(self, name):
         return getattr(self.generator, name)
+
+
+RESAMPLING = ("systematic", "multinomial", "residual")
+
+
+def normalised_weights(log_weights: np.ndarray) -> np.ndarray:
+    """``exp(log_weights)`` scaled to sum to one (computed from the largest, so large
+    log-weights do not overflow)."""
+    top = log_weights.max()
+    w = np.exp(log_weights - top)
+    return w / w.sum()
+
+
+def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "systematic",
+             count: int | None = None) -> np.ndarray:
+    """Ancestor indices for ``count`` offspring (default ``len(log_weights)``), sorted.
+
+    ``systematic`` uses one uniform for evenly spaced pointers (lower variance);
+    ``multinomial`` draws every offspring independently; ``residual`` keeps
+    ``floor(count w_i)`` copies of each and draws the rest multinomially from what is left
+    (WebPPL's scheme).
+    """
+    n = len(log_weights)
+    m = n if count is None else count
+    cumulative = np.cumsum(normalised_weights(np.asarray(log_weights, dtype=np.float64)))
+    cumulative[-1] = 1.0
+    if method == "systematic":
+        pointers = (rng.random() + np.arange(m)) / m
+    elif method == "multinomial":
+        pointers = np.sort(rng.random(m))
+    elif method == "residual":
+        # Liu (2008) 3.4.4, as WebPPL: floor(m w_i) copies of each particle, the rest
+        # drawn multinomially from the residual weights.
+        w = normalised_weights(np.asarray(log_weights, dtype=np.float64))
+        kept = np.floor(m * w).astype(np.int64)
+        rest = m - int(kept.sum())
+        out = np.repeat(np.arange(n), kept)
+        if rest > 0:
+            residual = m * w - kept
+            cum = np.cumsum(residual / residual.sum())
+            cum[-1] = 1.0
+            extra = np.minimum(np.searchsorted(cum, rng.random(rest), side="right"), n - 1)
+            out = np.sort(np.concatenate([out, extra]))
+        return out
+    else:
+        raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {method!r}")
+    return np.minimum(np.searchsorted(cumulative, pointers, side="right"), n - 1)

@@ -19,57 +19,13 @@ import numpy as np
 
 from ..core import InvalidArgumentError, Model, random_order, start, step
 from ..core.protocols import Proposer, Target
-from ..core.random import BlockGenerator
+# the resampler lives in core so that other particle methods (learn's search) share it
+from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample  # noqa: F401
 from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
-
-RESAMPLING = ("systematic", "multinomial", "residual")
-
-
-def _normalised(log_weights: np.ndarray) -> np.ndarray:
-    top = log_weights.max()
-    w = np.exp(log_weights - top)
-    return w / w.sum()
-
-
-def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "systematic",
-             count: int | None = None) -> np.ndarray:
-    """Ancestor indices for ``count`` offspring (default ``len(log_weights)``), sorted.
-
-    ``systematic`` uses one uniform for evenly spaced pointers (lower variance);
-    ``multinomial`` draws every offspring independently; ``residual`` keeps
-    ``floor(count w_i)`` copies of each and draws the rest multinomially from what is left
-    (WebPPL's scheme).
-    """
-    n = len(log_weights)
-    m = n if count is None else count
-    cumulative = np.cumsum(_normalised(np.asarray(log_weights, dtype=np.float64)))
-    cumulative[-1] = 1.0
-    if method == "systematic":
-        pointers = (rng.random() + np.arange(m)) / m
-    elif method == "multinomial":
-        pointers = np.sort(rng.random(m))
-    elif method == "residual":
-        # Liu (2008) 3.4.4, as WebPPL: floor(m w_i) copies of each particle, the rest
-        # drawn multinomially from the residual weights.
-        w = _normalised(np.asarray(log_weights, dtype=np.float64))
-        kept = np.floor(m * w).astype(np.int64)
-        rest = m - int(kept.sum())
-        out = np.repeat(np.arange(n), kept)
-        if rest > 0:
-            residual = m * w - kept
-            cum = np.cumsum(residual / residual.sum())
-            cum[-1] = 1.0
-            extra = np.minimum(np.searchsorted(cum, rng.random(rest), side="right"), n - 1)
-            out = np.sort(np.concatenate([out, extra]))
-        return out
-    else:
-        raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {method!r}")
-    return np.minimum(np.searchsorted(cumulative, pointers, side="right"), n - 1)
-
 
 def effective_sample_size(log_weights: np.ndarray) -> float:
     """Kish's effective sample size of a set of log-weights."""
-    w = _normalised(log_weights)
+    w = normalised_weights(log_weights)
     return float(1.0 / np.sum(w * w))
 
 

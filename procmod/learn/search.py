@@ -29,7 +29,6 @@ import functools
 import hashlib
 import json
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -37,8 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError
-from ..core.paths import UnsafePathError, named_file
-from ..core.serialize import write_text_atomic
+from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
+from ..core.paths import named_file
+from ..core.random import resample
 from .examples import ExampleSet
 from .likelihood import Compiled, fit, log_likelihood, pooled_slot_target, sigmas_from_residuals
 from .preprocessing import Dataset, preprocess
@@ -308,7 +308,6 @@ def _program_from_state(state: dict, prefix: str, tensors: dict, parts: dict) ->
 
 
 def save_checkpoint(folder: Path, state: dict) -> None:
-    import torch
     folder.mkdir(parents=True, exist_ok=True)
     tensors = {}
     doc = {k: v for k, v in state.items() if k not in ("particles", "programs")}
@@ -322,9 +321,7 @@ def save_checkpoint(folder: Path, state: dict) -> None:
                                  "queue": part.queue, "rejected": part.rejected, "done": part.done,
                                  "trace": part.trace})
     name = f"tensors_{state['round']:05d}.pt"
-    tmp = folder / f".{name}.tmp"
-    torch.save(tensors, tmp)
-    os.replace(tmp, folder / name)
+    save_tensors(tensors, folder / name)
     doc["tensors"] = name
     write_text_atomic(folder / "state.json", json.dumps(doc) + "\n")
     for old in folder.glob("tensors_*.pt"):
@@ -333,17 +330,14 @@ def save_checkpoint(folder: Path, state: dict) -> None:
 
 
 def load_checkpoint(folder: Path, parts: dict) -> dict | None:
-    import torch
     path = folder / "state.json"
     if not path.exists():
         return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        if doc.get("format") != CHECKPOINT_FORMAT:
-            raise ValueError(f"format {doc.get('format')!r}")
+        doc = read_versioned_json(path, CHECKPOINT_FORMAT, LearnError)
         # written beside state.json by save_checkpoint; a name that leads elsewhere is refused
-        tensors = torch.load(named_file(folder, doc["tensors"], "tensors", {".pt"}, "tensors", same_folder=True),
-                             weights_only=True)
+        tensors = load_tensors(named_file(folder, doc["tensors"], "tensors", {".pt"}, "tensors", same_folder=True),
+                               LearnError)
         programs = {name: _program_from_state(s, f"prog.{name}", tensors, parts)
                     for name, s in doc["programs"].items()}
         particles = []
@@ -351,7 +345,7 @@ def load_checkpoint(folder: Path, parts: dict) -> dict | None:
             particles.append(Particle(_program_from_state(p["program"], f"part{k}", tensors, parts),
                                       p["objective"], p["loglik"], {int(a): u for a, u in p["usage"].items()},
                                       list(p["queue"]), list(p["rejected"]), bool(p["done"]), list(p["trace"])))
-    except (OSError, ValueError, KeyError, TypeError, RuntimeError, UnsafePathError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError, ProcmodError) as exc:
         raise LearnError(f"cannot resume from {folder}: {exc}; delete that folder to start afresh") from None
     doc["programs"], doc["particles"] = programs, particles
     return doc
@@ -418,12 +412,7 @@ def _copy_particle(p: Particle) -> Particle:
 
 def _resample(particles: list, rng: np.random.Generator) -> tuple[list, list]:
     """Systematic resampling by exp(O_D); returns the new list and the chosen indices."""
-    scores = np.array([p.objective for p in particles])
-    w = np.exp(scores - scores.max())
-    w /= w.sum()
-    n = len(particles)
-    positions = (rng.random() + np.arange(n)) / n
-    idx = np.minimum(np.searchsorted(np.cumsum(w), positions), n - 1)
+    idx = resample(np.array([p.objective for p in particles], dtype=np.float64), rng, "systematic")
     out, seen = [], set()
     for i in idx:
         out.append(particles[i] if i not in seen else _copy_particle(particles[i]))
