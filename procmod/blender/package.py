@@ -17,6 +17,8 @@ import sys
 import zipfile
 from pathlib import Path
 
+from ..core.io import open_atomic
+
 HERE = Path(__file__).resolve().parent
 ADDON_NAME = "procmod_blender"
 FILES = ("__init__.py", "addon.py", "scene.py", "jobs.py")  # the modules Blender imports
@@ -27,12 +29,10 @@ def write_addon_zip(out: str | Path, python: str | None = None) -> Path:
     out = Path(out)
     python = python or sys.executable
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp")
-    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+    with open_atomic(out, "wb") as handle, zipfile.ZipFile(handle, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in FILES:
             archive.write(HERE / name, f"{ADDON_NAME}/{name}")
         archive.writestr(f"{ADDON_NAME}/default_python.txt", python + "\n")
-    tmp.replace(out)
     return out
 
 
