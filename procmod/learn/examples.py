@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import ProcmodError
-from ..core.serialize import write_text_atomic
+from ..core.io import read_json, write_text_atomic
 from ..geometry.part_library import (PartLibraryError, PartShape, read_part_library, read_transform,
                                      transform_to_json)
 
@@ -137,17 +137,7 @@ def examples_from_dict(data, base_dir: str | os.PathLike = ".", source: str = "e
 def read_examples(path: str | os.PathLike) -> ExampleSet:
     """Read and check a ``procmod-examples/1`` file (mesh paths relative to it)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ExamplesError(f"examples file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ExamplesError(f"cannot read examples file {path}: {exc}") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ExamplesError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    return examples_from_dict(data, path.parent, str(path))
+    return examples_from_dict(read_json(path, ExamplesError, "examples file"), path.parent, str(path))
 
 
 def _asset_node(node, path: Path, depth: int) -> ExampleNode:

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError
-from ..core.serialize import write_text_atomic
+from ..core.io import read_versioned_json, write_text_atomic
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
@@ -206,9 +206,7 @@ class TrainedModel:
                                  "'procmod strings train COLLECTION --out MODEL' (an interrupted training resumes "
                                  "when run again)")
         self.folder = folder
-        self.meta = json.loads((folder / "model.json").read_text())
-        if self.meta.get("format") != MODEL_FORMAT:
-            raise ModelFileError(f"{folder / 'model.json'}: not a {MODEL_FORMAT} file")
+        self.meta = read_versioned_json(folder / "model.json", MODEL_FORMAT, ModelFileError, "string model file")
         self.vae = StringModel.load(folder)
         self.tagger = TaggerModel.load(folder)
         self.categories = self.tagger.categories

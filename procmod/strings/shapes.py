@@ -21,7 +21,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.paths import contained_path, named_file
-from ..core.serialize import write_text_atomic
+from ..core.io import read_json, write_text_atomic
 from ..geometry.part_library import (PartLibraryError, part_library_to_json, read_part_library, read_transform,
                                      transform_to_json)
 from .codec import LETTERS, GraphError, check_graph
@@ -104,11 +104,7 @@ def read_shapes(path: str | os.PathLike) -> ShapeSet:
     path = Path(path)
     if not path.is_file():
         raise ShapesFormatError(f"shapes file {path} does not exist")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ShapesFormatError(f"{path} is not JSON ({exc})") from None
-    return shapes_from_dict(data, path.parent, str(path))
+    return shapes_from_dict(read_json(path, ShapesFormatError, "shapes file"), path.parent, str(path))
 
 
 def shapes_from_dict(data, base_dir, source: str = "shapes") -> ShapeSet:
@@ -215,11 +211,7 @@ def read_graph(path: str | os.PathLike) -> nx.Graph:
     path = Path(path)
     if not path.is_file():
         raise ShapesFormatError(f"graph file {path} does not exist")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ShapesFormatError(f"{path} is not JSON ({exc})") from None
-    return graph_from_dict(data, str(path))
+    return graph_from_dict(read_json(path, ShapesFormatError, "graph file"), str(path))
 
 
 def write_graph(g: nx.Graph, path: str | os.PathLike) -> None:
