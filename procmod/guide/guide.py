@@ -203,7 +203,7 @@ def pretrained_guides() -> list[str]:
 
 def target_mask_for(target, model) -> np.ndarray | None:
     """The target's mask at the resolution ``model`` draws at (None for image-free targets)."""
-    if target is None or not hasattr(target, "mask"):
+    if target is None or not target.has_mask:
         return None
     canvas = model.new_output()
     return target.mask(canvas.width, canvas.height)
@@ -323,9 +323,9 @@ class GuidedProposer:
             mu0, s0 = (dist.mu, dist.sigma) if type(dist) is Normal else base_params(kind, dist)
             u, z = self._draws(rng)
             return guided_draw(0, self.mixture, mu0, s0, self._no_local, u, z,
-                               *self._inputs(ctx._state, site, ctx.args))
+                               *self._inputs(ctx.derivation, site, ctx.args))
         if kind == "interval":
-            out = self.outputs(ctx._state, site, ctx.args)
+            out = self.outputs(ctx.derivation, site, ctx.args)
             return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
         base = self._bases.get(dist)
         if base is None:
@@ -334,9 +334,9 @@ class GuidedProposer:
             base = self._bases[dist] = np.array(base_params(kind, dist), dtype=np.float64)
         u = self._draws(rng)[0]
         if kind == "bernoulli":
-            value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx._state, site, ctx.args))
+            value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, ctx.args))
             return value == 1.0, lq
-        index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx._state, site, ctx.args))
+        index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, ctx.args))
         return dist.labels[int(index)], lq
 
     def _draws(self, rng) -> tuple[float, float]:
@@ -371,7 +371,7 @@ class RecordingProposer:
         kind = head_kind(dist)
         rule_name = ctx.rule.__name__
         self.rows.append((site_key(rule_name, name), kind,
-                          self.extractor.features(ctx._state, rule_name, ctx.args),
+                          self.extractor.features(ctx.derivation, rule_name, ctx.args),
                           base_params(kind, dist), encode_value(kind, dist, value)))
         return value, 0.0
 
