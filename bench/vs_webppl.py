@@ -21,7 +21,9 @@ which shares no code with procmod. Targets are 50x50 masks written once as PNG (
 start/direction) for procmod and as JSON for WebPPL: the same pixels for both.
 
 Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``, procmod's
-procedural scribbles from number 49 on (0-48 train the guides). Results:
+procedural scribbles from number 49 on (0-48 train the guides); ``stix`` (not in the
+default), the first lower-case glyphs of STIX General Bold, a serif typeface whose
+hairlines and serifs neither the guides' training scribbles nor DejaVu Sans have. Results:
 ``bench/results/vs_webppl.json`` and ``.png`` (``--name`` changes the stem).
 """
 
@@ -91,6 +93,8 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         out["glyphs"] = [t for t in glyph_set("dejavu-sans") if t.name[-1].islower()][:count]
     if "scribbles" in sets:
         out["scribbles"] = scribble_set(count, first=scribble_first)
+    if "stix" in sets:  # another typeface: serifs and hairlines, unlike the training scribbles
+        out["stix"] = [t for t in glyph_set("stix") if t.name[-1].islower()][:count]
     if targets_dir is not None:
         files = sorted(p for p in targets_dir.iterdir()
                        if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff"))
@@ -174,9 +178,10 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
         command += ["--guide", guide]
     seconds = timed(command)
     geometry = procmod_geometry(out / "best.json")
-    own = json.loads((out / "settings.json").read_text())["best_score"]
-    return {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": own,
-            "primitives": len(geometry)}
+    settings = json.loads((out / "settings.json").read_text())
+    # infer_seconds: the engine's own time, as procmod reports it (WebPPL's rows: its Infer call)
+    return {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": settings["best_score"],
+            "primitives": len(geometry), "infer_seconds": settings["seconds"]}
 
 
 def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: int, seed: int,
@@ -210,12 +215,61 @@ def summarise(rows: list, key_fields: tuple) -> list:
     out = []
     for key, group in sorted(groups.items(), key=lambda kv: tuple(str(v) for v in kv[0])):
         beyond = [r["beyond_seconds"] for r in group]
+        infer = [r["infer_seconds"] for r in group if r.get("infer_seconds") is not None]
         n_seeds = len({r["seed"] for r in group})
         out.append({**dict(zip(key_fields, key)), "runs": len(group),
                     "similarity_median": median_interval([r["similarity"] for r in group], rng),
                     "beyond_seconds_median": float(np.median(beyond)),
                     "beyond_seconds_per_set": float(np.sum(beyond) / n_seeds),
+                    # in-process inference time (rows that recorded it): procmod's engine, WebPPL's Infer
+                    "infer_seconds_median": float(np.median(infer)) if infer else None,
                     "wall_seconds_median": float(np.median([r["seconds"] for r in group]))})
+    return out
+
+
+THRESHOLDS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+
+
+def time_to_similarity(summary: list, set_name: str, system: str, clock: str) -> dict:
+    """Seconds (``clock``: a summary field) at which ``system``'s median similarity on
+    ``set_name`` first reaches each threshold, interpolated linearly between its particle
+    counts (seed 004 Fig. 5b); None where it never does."""
+    pts = sorted((s for s in summary if s["set"] == set_name and s["system"] == system
+                  and s["method"] in ("smc", "SMC") and s.get(clock) is not None), key=lambda s: s["n"])
+    out = {}
+    for threshold in THRESHOLDS:
+        out[threshold] = None
+        prev = None
+        for s in pts:
+            sim, sec = s["similarity_median"][0], max(s[clock], 0.0)
+            if sim >= threshold:
+                if prev is None or prev[0] >= threshold:
+                    out[threshold] = sec
+                else:
+                    f = (threshold - prev[0]) / (sim - prev[0])
+                    out[threshold] = prev[1] + f * (sec - prev[1])
+                break
+            prev = (sim, sec)
+    return out
+
+
+def speedups(summary: list, sets: list) -> list:
+    """Guided procmod against WebPPL's unguided SMC: the time each needs to reach each
+    similarity (per run: whole process beyond a 1-particle run, and in-process inference
+    time) and the ratio, where both reach it."""
+    out = []
+    for set_name in sets:
+        for clock in ("beyond_seconds_median", "infer_seconds_median"):
+            web = time_to_similarity(summary, set_name, "webppl", clock)
+            for system in ("procmod+guide", "procmod"):
+                own = time_to_similarity(summary, set_name, system, clock)
+                if not any(v is not None for v in own.values()):
+                    continue
+                for threshold in THRESHOLDS:
+                    a, b = own[threshold], web[threshold]
+                    out.append({"set": set_name, "system": system, "clock": clock, "similarity": threshold,
+                                "seconds": a, "webppl_seconds": b,
+                                "speedup": (b / a) if a and b else None})
     return out
 
 
@@ -277,7 +331,7 @@ def plot_mcmc(rows: list, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles"))
+    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles", "stix"))
     parser.add_argument("--targets-dir", type=Path, help="a folder of target pictures (added as its own set)")
     parser.add_argument("--count", type=int, default=12, help="targets per built-in set (default 12)")
     parser.add_argument("--scribble-first", type=int, default=49, help="first scribble number (default 49)")
@@ -387,6 +441,7 @@ def main() -> None:
         "targets": {s: [label for _, label, *_ in items] for s, items in targets.items()},
         "seconds_total": round(time.time() - started, 1),
         "summary": summary, "runs": rows,
+        "speedups": speedups(summary, sets),
         "mcmc_summary": summarise(mcmc_rows, ("system", "method", "set")) if mcmc_rows else [],
         "mcmc_runs": mcmc_rows,
     }
