@@ -1,6 +1,9 @@
 """Neural guides: features, proposals, guided SMC's unbiasedness, training, files, CLI."""
 import dataclasses
 import json
+import shutil
+import subprocess
+import sys
 import math
 
 import numpy as np
@@ -397,3 +400,43 @@ def test_the_shipped_circuit_guide_beats_unguided_smc():
     differences = np.array(differences)
     se = differences.std(ddof=1) / math.sqrt(len(differences))
     assert differences.mean() > 3 * se, (differences.mean(), se)
+
+
+def test_running_a_saved_guide_does_not_import_torch():
+    # Importing torch takes seconds, more than a 10-particle guided run: a shipped guide's
+    # weights are read from its .npz and its proposals run in numpy / numba.
+    code = ("import sys\n"
+            "from procmod.guide import Guide\n"
+            "from procmod.infer import smc\n"
+            "from procmod.models import get_model\n"
+            "from procmod.data import glyph_target\n"
+            "from procmod.targets import ShapeMatch\n"
+            "guide = Guide.load('vines-scribbles')\n"
+            "r = smc(get_model('vines'), ShapeMatch(glyph_target('a')), particles=3, seed=0, guide=guide)\n"
+            "assert r.best_score > 0\n"
+            "print('torch' in sys.modules)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "False"
+
+
+def test_a_guide_whose_npz_does_not_match_is_read_from_its_pt(tmp_path):
+    from procmod.guide.guide import PRETRAINED
+    for suffix in (".pt", ".json", ".npz"):
+        shutil.copy(PRETRAINED / f"vines-scribbles{suffix}", tmp_path / f"g{suffix}")
+    fast = Guide.load(tmp_path / "g")
+    assert fast._nets is None  # from the .npz
+    arrays = dict(np.load(tmp_path / "g.npz"))
+    first = sorted(arrays)[0]
+    arrays[first] = arrays[first] + 1.0  # a changed file: its digest no longer matches
+    np.savez(tmp_path / "g.npz", **arrays)
+    slow = Guide.load(tmp_path / "g")
+    assert slow._nets is not None  # from the .pt
+    for key, weights in fast.numpy_weights().items():
+        for a, b in zip(weights, slow.numpy_weights()[key]):
+            np.testing.assert_array_equal(a, b)
+    # networks built from the .npz hold the same weights as the .pt's
+    rebuilt = {k: net.numpy_weights() for k, net in fast.nets.items()}
+    for key, weights in rebuilt.items():
+        for a, b in zip(weights, slow.numpy_weights()[key]):
+            np.testing.assert_array_equal(a, b)

@@ -2,26 +2,29 @@
 
 Files: ``NAME.pt`` holds the networks' torch state dict (tensors only, loaded with
 ``weights_only=True``); ``NAME.json`` (``procmod-guide/1``) says which model the guide is
-for, its feature settings, mixture size and sites, and how it was trained.
+for, its feature settings, mixture size and sites, and how it was trained; ``NAME.npz``
+holds the same weights as plain arrays (``numpy.load`` without pickles), its digest in
+the metadata (``numpy_weights``), so that running a guide needs no torch: importing torch
+takes seconds, longer than a 10-particle guided run. A guide without it (or whose
+``.npz`` does not match its digest) is read from the ``.pt``.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from ..core.distributions import Normal
 from ..core.limits import check_memory
-from ..core.io import load_tensors, read_json, save_tensors, write_text_atomic
+from ..core.io import fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from .fast import guided_draw, site_outputs
 from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
-from .network import (SiteNet, base_params, encode_value, head_kind,
-                      initial_bias, n_outputs, propose)
+from .network import base_params, encode_value, head_kind, initial_bias, n_outputs, propose
 
 FORMAT = "procmod-guide/1"
 MAX_MIXTURE = 64  # Gaussian components per continuous choice (the papers use 4)
@@ -126,11 +129,36 @@ class Guide:
         self.mixture = mixture
         self.sites = dict(sites)
         self.info = dict(info or {})
-        generator = torch.Generator().manual_seed(seed)
-        self.nets = torch.nn.ModuleDict({
-            key: SiteNet(spec["n_in"], spec["n_out"], initial_bias(spec["kind"], mixture), generator)
-            for key, spec in sorted(self.sites.items())})
+        self._seed = seed
+        self._nets = None  # torch modules, built on first use (training, saving)
+        self._weights_path = None  # the .pt it was read from (for messages)
         self._numpy = None
+
+    @property
+    def nets(self):
+        """The site networks (``torch.nn.ModuleDict``), built on first use: a guide read for
+        inference only (:meth:`load` with a matching ``.npz``) never imports torch."""
+        if self._nets is None:
+            import torch
+
+            from .nets import SiteNet
+
+            generator = torch.Generator().manual_seed(self._seed)
+            nets = torch.nn.ModuleDict({
+                key: SiteNet(spec["n_in"], spec["n_out"], initial_bias(spec["kind"], self.mixture), generator)
+                for key, spec in sorted(self.sites.items())})
+            if self._numpy is not None:  # read from the .npz only: the networks take its weights
+                with torch.no_grad():
+                    for key, net in nets.items():
+                        w1, b1, w2, b2 = self._numpy[key]
+                        if net.n_in > 0:
+                            for t, v in ((net.hidden.weight, w1), (net.hidden.bias, b1), (net.out.weight, w2),
+                                         (net.out.bias, b2)):
+                                t.copy_(torch.as_tensor(v))
+                        else:
+                            net.constant.copy_(torch.as_tensor(b2))
+            self._nets = nets
+        return self._nets
 
     # ---- files ---------------------------------------------------------------------
 
@@ -139,11 +167,20 @@ class Guide:
                 "mixture": self.mixture, "sites": self.sites, "info": self.info}
 
     def save(self, path: str | os.PathLike) -> tuple[Path, Path]:
-        """Write ``STEM.pt`` and ``STEM.json`` (atomically); returns both paths."""
+        """Write ``STEM.pt``, ``STEM.npz`` and ``STEM.json`` (each atomically, the metadata
+        last); returns the ``.pt`` and ``.json`` paths."""
         weights, meta = guide_paths(path)
         weights.parent.mkdir(parents=True, exist_ok=True)
         save_tensors(self.nets.state_dict(), weights)
-        write_text_atomic(meta, json.dumps(self.metadata(), indent=1) + "\n")
+        self.invalidate()
+        buffer = io.BytesIO()
+        np.savez(buffer, **{f"{key}|{i}": a for key, arrays in sorted(self.numpy_weights().items())
+                            for i, a in enumerate(arrays)})
+        arrays = buffer.getvalue()
+        write_bytes_atomic(weights.with_suffix(".npz"), arrays)
+        data = self.metadata()
+        data["numpy_weights"] = {"sha256_16": fingerprint(arrays)}  # of STEM.npz
+        write_text_atomic(meta, json.dumps(data, indent=1) + "\n")
         return weights, meta
 
     @classmethod
@@ -158,14 +195,22 @@ class Guide:
         data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
-        state = load_tensors(weights, GuideError, "guide's weights", "; use a guide written by 'procmod guide train'")
+        guide._weights_path = weights
+        guide._numpy = _numpy_weights(data, weights.with_suffix(".npz"))
+        if guide._numpy is None:  # no matching .npz: the .pt (torch)
+            state = load_tensors(weights, GuideError, "guide's weights",
+                                 "; use a guide written by 'procmod guide train'")
+            guide._load_state(guide.nets, state, weights)
+        return guide
+
+    def _load_state(self, nets, state, weights: Path) -> None:
         try:
-            guide.nets.load_state_dict(state)
+            nets.load_state_dict(state)
         except (RuntimeError, KeyError, TypeError, AttributeError) as exc:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise GuideError(f"{weights}: the weights do not match {meta.name} ({_cut(first, 160)}); "
-                             "keep the .pt and .json that 'procmod guide train' wrote together") from None
-        return guide
+            raise GuideError(f"{weights}: the weights do not match {weights.with_suffix('.json').name} "
+                             f"({_cut(first, 160)}); keep the files that 'procmod guide train' wrote "
+                             "together") from None
 
     # ---- use -----------------------------------------------------------------------
 
@@ -190,6 +235,40 @@ class Guide:
         ``target``, whose mask (if it has one) the networks look at."""
         self.check_model(model)
         return GuidedProposer(self, FeatureExtractor(model, self.settings, target_mask_for(target, model)))
+
+
+def _numpy_weights(data: dict, path: Path) -> dict | None:
+    """The per-site ``(W1, b1, W2, b2)`` of a guide's ``.npz``, or None when the metadata
+    names none, the file is missing or not the one the metadata's digest names, or its
+    arrays do not have the sites' shapes (the caller then reads the ``.pt``)."""
+    named = data.get("numpy_weights")
+    if not isinstance(named, dict) or not path.is_file():
+        return None
+    count = sum((s["n_in"] * max(s["n_in"] // 2, 1) + max(s["n_in"] // 2, 1) * (1 + s["n_out"]) + s["n_out"])
+                if s["n_in"] else s["n_out"] for s in data["sites"].values())
+    if path.stat().st_size > 16 * count + (1 << 20):  # not these networks' weights (and not read)
+        return None
+    raw = path.read_bytes()
+    if fingerprint(raw) != named.get("sha256_16"):
+        return None
+    try:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as arrays:
+            stored = {name: arrays[name] for name in arrays.files}
+    except (ValueError, OSError, EOFError, KeyError):
+        return None
+    out = {}
+    for key, spec in data["sites"].items():
+        parts = [stored.get(f"{key}|{i}") for i in range(4)]
+        if any(p is None or p.dtype != np.float64 for p in parts):
+            return None
+        n_in, n_out = spec["n_in"], spec["n_out"]
+        hidden = max(n_in // 2, 1)
+        shapes = ([(hidden, n_in), (hidden,), (n_out, hidden), (n_out,)] if n_in > 0
+                  else [(0, 0), (0,), (n_out, 0), (n_out,)])
+        if [p.shape for p in parts] != shapes or not all(np.isfinite(p).all() for p in parts):
+            return None
+        out[key] = tuple(np.ascontiguousarray(p) for p in parts)
+    return out
 
 
 PRETRAINED = Path(__file__).resolve().parent / "pretrained"

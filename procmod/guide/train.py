@@ -36,7 +36,7 @@ from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, GuideError
 from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_guide_for,
                     target_mask_for)
-from .network import log_q_torch
+from .nets import log_q_torch
 from .traces import load_traces
 
 ADAM_BETAS = (0.75, 0.75)  # seed 003 5.2: "alpha = beta = 0.75"
