@@ -5,10 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from PIL import Image
-
 from .core import Derivation, InvalidArgumentError, write_text_atomic
-from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic
+from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic, shaded_preview
 
 MIN_SIZE, MAX_SIZE = 8, 4096
 FORMATS_2D = (".png", ".svg")
@@ -48,11 +46,7 @@ def derivation_image(derivation: Derivation, size: int, underlay=None):
     geometry = derivation.geometry()
     if is_2d(derivation):
         return render_image(geometry, derivation.output.viewport, size, underlay=underlay)
-    from .geometry.camera import framing_camera, shaded_image  # 3D only: numba kernels
-    from .geometry.solid import scene_bounds
-
-    lo, hi = scene_bounds(geometry)
-    return Image.fromarray(shaded_image(geometry, framing_camera(lo, hi, size, size), colour_of))
+    return shaded_preview(geometry, size, colour_of)  # loads the numba kernels for 3D only
 
 
 def write_derivation(derivation: Derivation, path: str | os.PathLike, size: int) -> None:

@@ -12,7 +12,7 @@ _LAZY = {
     "Canvas": "raster", "rasterize": "raster",
     "PALETTE": "export", "canvas_height": "export", "colour_of": "export", "contact_sheet": "export",
     "render_image": "export", "render_svg": "export", "save_figure_atomic": "export",
-    "save_image_atomic": "export",
+    "save_image_atomic": "export", "shaded_preview": "export",
 }
 
 
