@@ -300,7 +300,19 @@ class _progress_bar:
 
 # How the command line spells the API arguments that library messages name (see
 # procmod.core.errors.argument): every command's output is --out (the functions' ``out``).
-CLI_SPELLING = {"out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler"}
+# Each flag here means the same argument in every command that has it (guide, learn and
+# strings subcommands run under main too). The last three keys are written out, not
+# imported, so that the command line loads no torch to start: guide.train.LOCAL_FEATURES,
+# strings.torch_utils.CPU_DEVICE and strings.pipeline.TRAIN_MODEL.
+CLI_SPELLING = {
+    "out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler", "seed": "--seed",
+    "particles": "--particles", "targets": "--targets", "device": "--device",
+    "strings_per_shape": "--strings-per-shape", "tagger_strings_per_shape": "--tagger-strings-per-shape",
+    "held_out": "--held-out",
+    "settings=FeatureSettings.condition('local')": "--features local",
+    "device='cpu'": "--device cpu",
+    "train_model(COLLECTION, out=MODEL)": "'procmod strings train COLLECTION --out MODEL'",
+}
 
 _COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render, "infer": _cmd_infer}
 

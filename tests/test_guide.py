@@ -440,3 +440,30 @@ def test_a_guide_whose_npz_does_not_match_is_read_from_its_pt(tmp_path):
     for key, weights in rebuilt.items():
         for a, b in zip(weights, slow.numpy_weights()[key]):
             np.testing.assert_array_equal(a, b)
+
+
+def test_guide_messages_name_api_arguments_and_the_command_line_its_flags(tmp_path, capsys):
+    """Issue 27.6: the traces and training checks read ``targets``, ``out``,
+    ``overwrite=True`` and ``settings=...`` from Python, and the flags from the shell."""
+    from procmod.cli import CLI_SPELLING
+    from procmod.core.errors import InvalidArgumentError, spelled
+
+    with pytest.raises(InvalidArgumentError, match=r"^targets must be one of"):
+        generate_traces("vines", "glyphs", 2, tmp_path / "t")
+    assert main(["guide", "traces", "vines", "--count", "2", "--targets", "glyphs", "--out", str(tmp_path / "t")]) == 2
+    assert "procmod: error: --targets must be one of" in capsys.readouterr().err
+    traces = tmp_path / "traces"
+    generate_traces("vines", "scribble", 1, traces, particles=4)
+    with pytest.raises(GuideError) as python:
+        generate_traces("vines", "scribble", 1, traces, particles=5)
+    assert "give a new out folder" in str(python.value) and "pass overwrite=True" in str(python.value)
+    assert "--" not in str(python.value)
+    assert main(["guide", "traces", "vines", "--count", "1", "--particles", "5", "--out", str(traces)]) == 2
+    err = capsys.readouterr().err
+    assert "give a new --out folder" in err and "pass --overwrite" in err and "overwrite=True" not in err
+    circuit = [{"target": "circuit"}]
+    with pytest.raises(GuideError, match=r"train with settings=FeatureSettings\.condition\('local'\) \(or"):
+        train_guide(VINES, None, tmp_path / "g", traces=circuit)
+    with spelled(CLI_SPELLING), pytest.raises(GuideError, match=r"train with --features local \(or 'constant'\)$"):
+        train_guide(VINES, None, tmp_path / "g", traces=circuit)
+    assert not (tmp_path / "t").exists() and not (tmp_path / "g.pt").exists()

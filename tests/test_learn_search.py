@@ -165,3 +165,14 @@ def test_shared_fits_give_the_same_search(learned):
     assert alone.table["fits_run"] == r.table["fits_run"] + r.table["fits_shared"]
     assert alone.table["O_Pstar"] == r.table["O_Pstar"]
     assert [row.get("proposed") for row in alone.trace] == [row.get("proposed") for row in r.trace]
+
+
+def test_search_options_name_the_api_argument_and_the_command_line_its_flag():
+    """Issue 27.6: ``particles`` from Python, ``--particles`` under the command line's spelling."""
+    from procmod.cli import CLI_SPELLING
+    from procmod.core.errors import InvalidArgumentError, spelled
+
+    with pytest.raises(InvalidArgumentError, match=r"^particles must be at least 1, got 0"):
+        SearchOptions(particles=0).check()
+    with spelled(CLI_SPELLING), pytest.raises(InvalidArgumentError, match=r"^--particles must be at least 1"):
+        SearchOptions(particles=0).check()

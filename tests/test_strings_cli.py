@@ -202,3 +202,33 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
                                                                      "(every candidate pose tried)"))
     assert not trained.instantiate("DMCMD", np.random.default_rng(0), attempts=3, budget=5).success
     assert calls == [5]  # proven impossible: no restart
+
+
+def test_strings_messages_name_api_arguments_and_the_command_line_its_flags(tmp_path, capsys, monkeypatch):
+    """Issue 27.6: ``device``, ``out`` and the trainings' ``folder`` (``train_model``'s
+    ``out``) from Python, their flags from the shell."""
+    from procmod.core.errors import InvalidArgumentError, argument
+    from procmod.strings.torch_utils import ModelFileError, training_device
+
+    with pytest.raises(InvalidArgumentError, match=r"^device 'tpu:0' is not a torch device"):
+        training_device("tpu:0")
+    with pytest.raises(ModelFileError, match=r"make one with train_model\(COLLECTION, out=MODEL\)"):
+        pipeline.TrainedModel(tmp_path)
+    code, _, err = _run(capsys, "strings", "sample", tmp_path, "-n", 1, "--out", tmp_path / "s")
+    assert code == 2 and "make one with 'procmod strings train COLLECTION --out MODEL'" in err
+    taken = tmp_path / "taken"
+    taken.write_text("mine")
+    with pytest.raises(InvalidArgumentError, match=r"^out .* exists and is not a folder"):
+        pipeline.train_model(SETS / "moonbase.json", taken)
+    code, _, err = _run(capsys, "strings", "train", SETS / "moonbase.json", "--out", taken)
+    assert code == 2 and "procmod: error: --out " in err and taken.read_text() == "mine"
+
+    def refused(*args, **kwargs):  # what train_vae says of a folder holding another checkpoint
+        raise ModelFileError(f"use a new {argument('folder')} or {argument('seed')}")
+    monkeypatch.setattr(pipeline, "train_vae", refused)
+    with pytest.raises(ModelFileError, match=r"^use a new out or seed$"):
+        pipeline.train_model(SETS / "moonbase.json", tmp_path / "m")
+    code, _, err = _run(capsys, "strings", "train", SETS / "moonbase.json", "--out", tmp_path / "m")
+    assert code == 2 and "procmod: error: use a new --out or --seed" in err
+    with pytest.raises(ModelFileError, match=r"^use a new folder or seed$"):  # train_vae's own argument
+        refused()

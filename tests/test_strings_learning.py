@@ -456,9 +456,11 @@ def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, catego
     cfg = TaggerConfig(epochs=3, hidden=8, embed=8, lr_final=0.1)
     straight = train_tagger(examples, vocab, categories, tmp_path / "a", cfg)
     train_tagger(examples, vocab, categories, tmp_path / "b", TaggerConfig(**{**cfg.__dict__, "epochs": 1}))
-    with pytest.raises(ModelFileError):  # another configuration in the folder (epochs aside) is refused
+    # another configuration in the folder (epochs aside) is refused, naming train_tagger's argument
+    with pytest.raises(ModelFileError, match=r"another configuration; use a new folder$"):
         train_tagger(examples, vocab, categories, tmp_path / "b", TaggerConfig(**{**cfg.__dict__, "lr_final": 0.5}))
-    with pytest.raises(ModelFileError, match="other strings"):  # another collection in the folder
+    with pytest.raises(ModelFileError, match=r"other strings.*other seed / tagger_strings_per_shape / held_out "
+                                             r"than it was trained with; repeat those, or use a new folder$"):
         train_tagger(examples[1:], vocab, categories, tmp_path / "b", cfg)
     train_tagger(examples, vocab, categories, tmp_path / "b", cfg)
     meta = json.loads((tmp_path / "a" / "tagger.json").read_text())

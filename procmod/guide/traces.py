@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import InvalidArgumentError, ProcmodError
+from ..core.errors import argument
 from ..core.runfolder import TRACES_JOB, RunFolder
 from ..core.io import read_json, read_versioned_json, write_text_atomic
 from ..core.serialize import derivation_to_dict
@@ -48,7 +49,7 @@ def trace_target_spec(targets: str, seed: int, index: int, set_size: int = SCRIB
         rng = np.random.default_rng([seed, index, 2])
         j = int(rng.integers(set_size))
         return f"scribble:{j}" + (":mirrored" if rng.random() < 0.5 else "")
-    raise InvalidArgumentError(f"--targets must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
+    raise InvalidArgumentError(f"{argument('targets')} must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
 
 
 def generate_trace(model_name: str, target_spec: str, particles: int, seed: int, index: int) -> dict:
@@ -108,7 +109,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     try:
         empty = first.new_output(first.configure(model))
     except ProcmodError as exc:
-        raise GuideError(f"--targets {targets} does not fit model {model_name!r}: {exc}") from None
+        raise GuideError(f"{argument('targets')} {targets!r} does not fit model {model_name!r}: {exc}") from None
     check_population("particles", particles, empty)
     out = Path(out)
     folder = RunFolder(out, TRACES_JOB, overwrite)
@@ -119,8 +120,9 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
         previous = read_json(job_file, GuideError, "traces job file")
         resume = previous == settings
         if not resume and not overwrite:
-            raise GuideError(f"{out} holds traces of another job ({str(previous)[:200]}); give a new --out "
-                             "folder, the same settings to resume, or --overwrite to replace it")
+            raise GuideError(f"{out} holds traces of another job ({str(previous)[:200]}); give a new "
+                             f"{argument('out')} folder, the same settings to resume, or pass "
+                             f"{argument('overwrite=True')} to replace it")
     created = not out.exists()
     folder.prepare_in_place(keep=resume)
     # a job killed (SIGKILL) while writing a trace leaves write_text_atomic's temporary file

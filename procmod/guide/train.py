@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from ..core import start
+from ..core.errors import argument
 from ..core.runtime import finish
 from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, GuideError
@@ -41,6 +42,9 @@ from .traces import load_traces
 
 ADAM_BETAS = (0.75, 0.75)  # seed 003 5.2: "alpha = beta = 0.75"
 SCHEDULES = ("cosine", "constant")
+# how an error message names the local-only feature setting (the command line spells it
+# --features local: procmod.cli.CLI_SPELLING)
+LOCAL_FEATURES = "settings=FeatureSettings.condition('local')"
 
 
 def step_size(lr: float, schedule: str, step: int, iterations: int) -> float:
@@ -165,7 +169,8 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     elif limit is not None:
         traces = traces[:limit]
     if settings.target and any(t["target"] == "circuit" for t in traces):
-        raise GuideError("circuit traces have no target image; train with --features local (or constant)")
+        raise GuideError("circuit traces have no target image; train with "
+                         f"{argument(LOCAL_FEATURES)} (or 'constant')")
     began = time.perf_counter()
     torch.set_num_threads(1)  # tiny networks: threads cost more than they give
     data, kinds, n_choices = build_dataset(model, traces, settings)

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.errors import InvalidArgumentError, ProcmodError, argument
 from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
 from ..core.paths import named_file
 from ..core.random import resample
@@ -89,7 +89,7 @@ class SearchOptions:
 
     def check(self) -> "SearchOptions":
         if self.particles < 1:
-            raise InvalidArgumentError(f"--particles must be at least 1, got {self.particles}")
+            raise InvalidArgumentError(f"{argument('particles')} must be at least 1, got {self.particles}")
         if self.estimator not in ("exact", "vi"):
             raise InvalidArgumentError(f"estimator must be 'exact' or 'vi', got {self.estimator!r}")
         for name in ("init_iterations", "split_iterations", "final_iterations", "max_rounds"):

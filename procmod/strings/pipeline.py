@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.errors import InvalidArgumentError, ProcmodError, argument, spelled
 from ..core.io import read_versioned_json, write_text_atomic
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
@@ -39,6 +39,8 @@ from .torch_utils import ModelFileError, training_device
 from .vae import StringModel, VAEConfig, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
+# how an error message says to train a model folder (the command line: procmod strings train)
+TRAIN_MODEL = "train_model(COLLECTION, out=MODEL)"
 
 
 class InstantiationError(ProcmodError):
@@ -54,7 +56,7 @@ def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds
 
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+        raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
     (out / "graphs").mkdir(parents=True, exist_ok=True)
     write_shapes(shape_set, out / "shapes.json", shapes)
     rng = np.random.default_rng([seed, 1])
@@ -106,7 +108,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     shape_set = read_collection(collection)
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"--out {out} exists and is not a folder")
+        raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)
@@ -115,8 +117,11 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     if not (out / "collection.json").is_file():
         write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
     report = progress or (lambda stage, row: None)
-    vae = train_vae(strings, grammar, out, vae_config, seed, progress=lambda row: report("vae", row),
-                    stop_after=stop_after, device=device)
+    # the trainings' messages name their folder: here it is this function's out
+    names = {"folder": argument("out")}
+    with spelled(names):
+        vae = train_vae(strings, grammar, out, vae_config, seed, progress=lambda row: report("vae", row),
+                        stop_after=stop_after, device=device)
     if len(vae_history(out)) < vae_config.epochs:
         return {}
     cats_path = out / "categories.json"
@@ -128,8 +133,9 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
         write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
                             categories, 4, trng, every_symmetry=True)
-    tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
-                          progress=lambda row: report("tagger", row), device=device)
+    with spelled(names):
+        tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
+                              progress=lambda row: report("tagger", row), device=device)
     meta = {"format": MODEL_FORMAT, "grammar": grammar.to_json(), "seed": seed,
             "strings_per_shape": strings_per_shape, "tagger_strings_per_shape": tagger_strings_per_shape,
             "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),
@@ -203,8 +209,7 @@ class TrainedModel:
         folder = Path(folder)
         if not (folder / "model.json").is_file():
             raise ModelFileError(f"{folder} is not a trained string model (no model.json); make one with "
-                                 "'procmod strings train COLLECTION --out MODEL' (an interrupted training resumes "
-                                 "when run again)")
+                                 f"{argument(TRAIN_MODEL)} (an interrupted training resumes when run again)")
         self.folder = folder
         self.meta = read_versioned_json(folder / "model.json", MODEL_FORMAT, ModelFileError, "string model file")
         self.vae = StringModel.load(folder)

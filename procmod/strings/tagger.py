@@ -19,7 +19,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..core.errors import InvalidArgumentError
+from ..core.errors import InvalidArgumentError, argument
 from ..core.io import fingerprint, load_tensors, read_json, write_text_atomic
 from .automorphisms import type_automorphisms
 from .categories import EdgeCategories, shape_labelings
@@ -508,11 +508,13 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
     if (folder / "tagger.json").is_file() and (folder / "tagger.pt").is_file():
         model, state, opt_state = TaggerModel.load(folder, with_optimizer=True)
         if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0}:
-            raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new --out")
+            raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new "
+                                 f"{argument('folder')}")
         if state.get("data") not in (None, data):  # None: saved before the fingerprint was kept
             raise ModelFileError(f"{folder} holds a tagger trained on other strings: another collection (or one "
-                                 "grown again), or other --seed / --tagger-strings-per-shape / --held-out than it "
-                                 "was trained with; repeat those, or use a new --out")
+                                 f"grown again), or other {argument('seed')} / {argument('tagger_strings_per_shape')} "
+                                 f"/ {argument('held_out')} than it was trained with; repeat those, or use a new "
+                                 f"{argument('folder')}")
         adopt = state.get("data") is None  # saved before the fingerprint was kept: keep it from now on
         state["data"] = data
     else:

@@ -6,9 +6,11 @@ from pathlib import Path
 
 import torch
 
-from ..core.errors import InvalidArgumentError, ProcmodError
+from ..core.errors import InvalidArgumentError, ProcmodError, argument
 from ..core.io import save_tensors
 
+# how an error message names training on the CPU (the command line: --device cpu)
+CPU_DEVICE = "device='cpu'"
 TORCH_THREADS = 1  # these nets are small: one thread is much faster than two on a busy 2-core machine
 
 
@@ -40,17 +42,18 @@ def training_device(name: str | None) -> torch.device:
     """
     if name is None or name == "cpu":
         return torch.device("cpu")
+    option = argument("device")
     try:
         device = torch.device(name)
     except (RuntimeError, TypeError):
-        raise InvalidArgumentError(f"--device {name!r} is not a torch device; use cpu, cuda or cuda:N") from None
+        raise InvalidArgumentError(f"{option} {name!r} is not a torch device; use cpu, cuda or cuda:N") from None
     if device.type != "cuda":
-        raise InvalidArgumentError(f"--device {name!r}: training runs on cpu or cuda only")
+        raise InvalidArgumentError(f"{option} {name!r}: training runs on cpu or cuda only")
     if not torch.cuda.is_available():
-        raise InvalidArgumentError(f"--device {name}: torch sees no CUDA device here "
-                                   f"(torch {torch.__version__}); train with --device cpu")
+        raise InvalidArgumentError(f"{option} {name!r}: torch sees no CUDA device here "
+                                   f"(torch {torch.__version__}); train with {argument(CPU_DEVICE)}")
     if device.index is not None and device.index >= torch.cuda.device_count():
-        raise InvalidArgumentError(f"--device {name}: only {torch.cuda.device_count()} CUDA device(s) visible")
+        raise InvalidArgumentError(f"{option} {name!r}: only {torch.cuda.device_count()} CUDA device(s) visible")
     return device
 
 

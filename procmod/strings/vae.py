@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..core.errors import InvalidArgumentError
+from ..core.errors import InvalidArgumentError, argument
 from ..core.io import fingerprint, load_tensors, read_versioned_json, write_text_atomic
 from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
@@ -367,16 +367,17 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
         model, state, opt_state = StringModel.load(folder, with_optimizer=True)
         if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0} or \
                 model.vocab.chars != vocab.chars:
-            raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new --out "
-                                 "or delete it")
+            raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new "
+                                 f"{argument('folder')} or delete it")
         if model.grammar.rules != grammar.rules:
             raise ModelFileError(f"{folder} holds a checkpoint trained on other shapes (other tiling rules); use a "
-                                 "new --out or delete it")
+                                 f"new {argument('folder')} or delete it")
         model.grammar = grammar  # a checkpoint saved before the ring-length rule learns it here
         if state.data not in (None, data):
             raise ModelFileError(f"{folder} holds a VAE trained on other strings: another collection (or one grown "
-                                 "again), or other --seed / --strings-per-shape / --held-out than it was trained "
-                                 "with; repeat those, or use a new --out")
+                                 f"again), or other {argument('seed')} / {argument('strings_per_shape')} / "
+                                 f"{argument('held_out')} than it was trained with; repeat those, or use a new "
+                                 f"{argument('folder')}")
         adopt = state.data is None  # saved before the fingerprint was kept: keep it from now on
         state.data = data
     else:
