@@ -15,7 +15,8 @@ from procmod.cli import main
 from procmod.core import Bernoulli, Categorical, Normal, TruncatedNormal, Uniform, run_forward
 from procmod.guide import FeatureExtractor, FeatureSettings, Guide, GuideError, new_guide_for
 from procmod.guide.features import Pyramid
-from procmod.guide.network import head_kind, base_params, encode_value, log_q_torch, n_outputs, propose
+from procmod.guide.network import head_kind, base_params, encode_value, n_outputs, propose
+from procmod.guide.nets import log_q_torch
 from procmod.guide.traces import generate_traces, load_traces
 from procmod.guide.train import build_dataset, train_guide
 from procmod.infer import smc
@@ -467,3 +468,13 @@ def test_guide_messages_name_api_arguments_and_the_command_line_its_flags(tmp_pa
     with spelled(CLI_SPELLING), pytest.raises(GuideError, match=r"train with --features local \(or 'constant'\)$"):
         train_guide(VINES, None, tmp_path / "g", traces=circuit)
     assert not (tmp_path / "t").exists() and not (tmp_path / "g.pt").exists()
+
+
+def test_invalidating_a_guide_read_from_its_npz_keeps_its_weights():
+    # its weights live only in the numpy cache until the networks are built
+    guide = Guide.load("vines-scribbles")
+    before = {k: [a.copy() for a in v] for k, v in guide.numpy_weights().items()}
+    guide.invalidate()
+    for key, weights in guide.numpy_weights().items():
+        for a, b in zip(weights, before[key]):
+            np.testing.assert_array_equal(a, b)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import re
 from pathlib import Path
@@ -58,6 +59,16 @@ def _site_kind(kind, where: str) -> str:
     return kind
 
 
+def weight_shapes(n_in: int, n_out: int) -> list[tuple]:
+    """Shapes of a site network's (W1, b1, W2, b2): n_in -> tanh(max(n_in // 2, 1)) ->
+    n_out, or a constant vector (empty W1, b1, W2) when it has no inputs
+    (:meth:`~procmod.guide.nets.SiteNet.numpy_weights`)."""
+    if n_in == 0:
+        return [(0, 0), (0,), (n_out, 0), (n_out,)]
+    hidden = max(n_in // 2, 1)
+    return [(hidden, n_in), (hidden,), (n_out, hidden), (n_out,)]
+
+
 def check_metadata(data, source: str) -> dict:
     """The fields of a ``procmod-guide/1`` metadata object, each checked, or a GuideError
     in one line naming the file and the field. The networks' total size is checked
@@ -90,8 +101,7 @@ def check_metadata(data, source: str) -> dict:
         if spec.get("n_out") != n_out:
             raise GuideError(f"{where}.n_out must be {n_out} for a {kind} site with mixture {mixture}, "
                              f"got {_shown(spec.get('n_out'))}")
-        hidden = max(n_in // 2, 1)
-        weights += (n_in * hidden + hidden + hidden * n_out + n_out) if n_in else n_out
+        weights += sum(math.prod(shape) for shape in weight_shapes(n_in, n_out))
     check_memory(f"{source}: the guide's networks", 8.0 * weights * 3, "the metadata is not a guide procmod wrote")
     if data.get("info") is not None and not isinstance(data.get("info"), dict):
         raise GuideError(f"{source}: info must be an object")
@@ -131,7 +141,6 @@ class Guide:
         self.info = dict(info or {})
         self._seed = seed
         self._nets = None  # torch modules, built on first use (training, saving)
-        self._weights_path = None  # the .pt it was read from (for messages)
         self._numpy = None
 
     @property
@@ -148,15 +157,8 @@ class Guide:
                 key: SiteNet(spec["n_in"], spec["n_out"], initial_bias(spec["kind"], self.mixture), generator)
                 for key, spec in sorted(self.sites.items())})
             if self._numpy is not None:  # read from the .npz only: the networks take its weights
-                with torch.no_grad():
-                    for key, net in nets.items():
-                        w1, b1, w2, b2 = self._numpy[key]
-                        if net.n_in > 0:
-                            for t, v in ((net.hidden.weight, w1), (net.hidden.bias, b1), (net.out.weight, w2),
-                                         (net.out.bias, b2)):
-                                t.copy_(torch.as_tensor(v))
-                        else:
-                            net.constant.copy_(torch.as_tensor(b2))
+                for key, net in nets.items():
+                    net.set_numpy_weights(self._numpy[key])
             self._nets = nets
         return self._nets
 
@@ -195,22 +197,18 @@ class Guide:
         data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
-        guide._weights_path = weights
         guide._numpy = _numpy_weights(data, weights.with_suffix(".npz"))
-        if guide._numpy is None:  # no matching .npz: the .pt (torch)
-            state = load_tensors(weights, GuideError, "guide's weights",
-                                 "; use a guide written by 'procmod guide train'")
-            guide._load_state(guide.nets, state, weights)
-        return guide
-
-    def _load_state(self, nets, state, weights: Path) -> None:
-        try:
-            nets.load_state_dict(state)
+        if guide._numpy is not None:
+            return guide
+        state = load_tensors(weights, GuideError, "guide's weights", "; use a guide written by 'procmod guide train'")
+        try:  # no matching .npz: the .pt (torch)
+            guide.nets.load_state_dict(state)
         except (RuntimeError, KeyError, TypeError, AttributeError) as exc:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             raise GuideError(f"{weights}: the weights do not match {weights.with_suffix('.json').name} "
                              f"({_cut(first, 160)}); keep the files that 'procmod guide train' wrote "
                              "together") from None
+        return guide
 
     # ---- use -----------------------------------------------------------------------
 
@@ -228,6 +226,7 @@ class Guide:
 
     def invalidate(self) -> None:
         """Forget cached numpy weights (after training changed the networks)."""
+        self.nets  # a guide read from its .npz holds its weights only there: build the nets first
         self._numpy = None
 
     def proposer(self, model, target) -> "GuidedProposer":
@@ -244,8 +243,7 @@ def _numpy_weights(data: dict, path: Path) -> dict | None:
     named = data.get("numpy_weights")
     if not isinstance(named, dict) or not path.is_file():
         return None
-    count = sum((s["n_in"] * max(s["n_in"] // 2, 1) + max(s["n_in"] // 2, 1) * (1 + s["n_out"]) + s["n_out"])
-                if s["n_in"] else s["n_out"] for s in data["sites"].values())
+    count = sum(math.prod(shape) for s in data["sites"].values() for shape in weight_shapes(s["n_in"], s["n_out"]))
     if path.stat().st_size > 16 * count + (1 << 20):  # not these networks' weights (and not read)
         return None
     raw = path.read_bytes()
@@ -261,11 +259,7 @@ def _numpy_weights(data: dict, path: Path) -> dict | None:
         parts = [stored.get(f"{key}|{i}") for i in range(4)]
         if any(p is None or p.dtype != np.float64 for p in parts):
             return None
-        n_in, n_out = spec["n_in"], spec["n_out"]
-        hidden = max(n_in // 2, 1)
-        shapes = ([(hidden, n_in), (hidden,), (n_out, hidden), (n_out,)] if n_in > 0
-                  else [(0, 0), (0,), (n_out, 0), (n_out,)])
-        if [p.shape for p in parts] != shapes or not all(np.isfinite(p).all() for p in parts):
+        if [p.shape for p in parts] != weight_shapes(spec["n_in"], spec["n_out"]) or not all(np.isfinite(p).all() for p in parts):
             return None
         out[key] = tuple(np.ascontiguousarray(p) for p in parts)
     return out

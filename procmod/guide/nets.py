@@ -48,6 +48,16 @@ class SiteNet(torch.nn.Module):
         constant = self.constant.detach().numpy().copy()
         return np.zeros((0, 0)), np.zeros(0), np.zeros((len(constant), 0)), constant
 
+    def set_numpy_weights(self, weights: tuple) -> None:
+        """Take the weights :meth:`numpy_weights` returns (its inverse)."""
+        w1, b1, w2, b2 = weights
+        with torch.no_grad():
+            if self.n_in > 0:
+                for t, v in ((self.hidden.weight, w1), (self.hidden.bias, b1), (self.out.weight, w2), (self.out.bias, b2)):
+                    t.copy_(torch.as_tensor(v))
+            else:
+                self.constant.copy_(torch.as_tensor(b2))
+
 
 def _mixture_parts(out: torch.Tensor, k: int):
     logits = out[:, :k]

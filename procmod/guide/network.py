@@ -160,12 +160,3 @@ def propose(kind: str, mixture: int, out: np.ndarray, base: tuple, dist, rng: np
     x = low + (high - low) * frac
     lq = _mixture_log_density(u, log_w, centres, sds) - math.log(frac) - math.log1p(-frac) - math.log(high - low)
     return x, lq
-
-
-def __getattr__(name: str):
-    # The training side (torch) lives in .nets, so that inference with a saved guide never
-    # imports torch (it takes seconds); these names stay importable from here.
-    if name in ("SiteNet", "log_q_torch"):
-        from . import nets
-        return getattr(nets, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
