@@ -19,6 +19,7 @@ import numpy as np
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
 from .core.errors import spelled
+from .core.paths import is_dir_quietly
 from .models import MODELS, get_model
 
 
@@ -109,20 +110,13 @@ def _cmd_models(args) -> None:
         print(f"{name:<{width}}  {MODELS[name].description}")
 
 
-def _is_dir(path: Path) -> bool:
-    """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
-    try:
-        return path.is_dir()
-    except (OSError, ValueError):
-        return False
-
 
 def _model(spec: str, params=()):
     """A built-in model by name, or a learned program by path (program.json or its folder),
     with the ``--param NAME=VALUE`` settings applied (values read as JSON: ``false``, ``64``,
     ``[0.5, 0.9]``; anything else is a string)."""
     path = Path(spec)
-    if spec not in MODELS and (path.suffix.lower() == ".json" or _is_dir(path)):
+    if spec not in MODELS and (path.suffix.lower() == ".json" or is_dir_quietly(path)):
         from .learn import load_program
         model = load_program(path)
     else:

@@ -86,7 +86,7 @@ def sample_of_final(result, count: int = SAMPLE_TILES) -> list:
     weights = result.log_weights
     if weights is None or len(weights) != len(samples) or not np.isfinite(np.max(weights)):
         return samples[:count]
-    from .infer.smc import resample
+    from .core.random import resample
 
     chosen = resample(weights, np.random.default_rng(0), "systematic", count)
     return [samples[i] for i in sorted(set(chosen.tolist()))]

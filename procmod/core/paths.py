@@ -186,3 +186,11 @@ def named_file(base_dir: str | os.PathLike, value, where: str, suffixes=None, ki
 
 
 __all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file"]
+
+
+def is_dir_quietly(path: Path) -> bool:
+    """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False

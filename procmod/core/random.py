@@ -74,8 +74,7 @@ def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "s
     """
     n = len(log_weights)
     m = n if count is None else count
-    cumulative = np.cumsum(normalised_weights(np.asarray(log_weights, dtype=np.float64)))
-    cumulative[-1] = 1.0
+    w = normalised_weights(np.asarray(log_weights, dtype=np.float64))
     if method == "systematic":
         pointers = (rng.random() + np.arange(m)) / m
     elif method == "multinomial":
@@ -83,7 +82,6 @@ def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "s
     elif method == "residual":
         # Liu (2008) 3.4.4, as WebPPL: floor(m w_i) copies of each particle, the rest
         # drawn multinomially from the residual weights.
-        w = normalised_weights(np.asarray(log_weights, dtype=np.float64))
         kept = np.floor(m * w).astype(np.int64)
         rest = m - int(kept.sum())
         out = np.repeat(np.arange(n), kept)
@@ -96,4 +94,6 @@ def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "s
         return out
     else:
         raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {method!r}")
+    cumulative = np.cumsum(w)
+    cumulative[-1] = 1.0
     return np.minimum(np.searchsorted(cumulative, pointers, side="right"), n - 1)

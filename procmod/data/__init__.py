@@ -19,6 +19,7 @@ from pathlib import Path
 
 from ..core import InvalidArgumentError
 from ..core.lazy import lazy_getattr
+from ..core.paths import is_dir_quietly
 from ..targets import Circuit, ShapeMatch, TargetImage, load_target_file, load_target_image
 
 # Glyphs need fonts, Pillow's FreeType and scipy; a target picture needs none of them.
@@ -51,13 +52,6 @@ def target_image(spec: str) -> TargetImage:
     return load_target_image(spec)
 
 
-def _is_dir(path: Path) -> bool:
-    """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
-    try:
-        return path.is_dir()
-    except (OSError, ValueError):
-        return False
-
 
 def target_from_spec(spec: str):
     """The target a target spec names (see the module docstring): the one parser of
@@ -67,7 +61,7 @@ def target_from_spec(spec: str):
     if spec == "circuit":
         return Circuit()
     path = Path(spec)
-    if _is_dir(path):
+    if is_dir_quietly(path):
         return load_target_file(path / "target.json")
     if path.suffix.lower() == ".json":
         return load_target_file(path)

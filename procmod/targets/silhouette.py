@@ -36,6 +36,7 @@ from PIL import Image
 
 from ..core import InvalidArgumentError
 from ..geometry.camera import Silhouettes
+from .volume import check_3d
 
 
 class Silhouette:
@@ -65,10 +66,7 @@ class Silhouette:
         self.temperature = float(temperature if temperature is not None else max(0.01 * self.best_attainable, 1e-9))
 
     def configure(self, model):
-        dimension = model.new_output().dimension
-        if dimension != 3:
-            raise InvalidArgumentError(f"a silhouette target needs a 3D model; {model.name!r} "
-                                       + ("is 2D" if dimension == 2 else "draws no 3D parts"))
+        check_3d(model, "silhouette")
         return model
 
     def new_output(self, model) -> Silhouettes:

@@ -35,11 +35,12 @@ from ..geometry.collide import PartIntersections
 from ..geometry.voxel import VoxelGrid, VoxelScene
 
 
-def _check_3d(model):
-    """Refuse a model that does not draw 3D parts (InvalidArgumentError)."""
+def check_3d(model, what: str = "volume"):
+    """Refuse a model that does not draw 3D parts (InvalidArgumentError): a ``what``
+    target (volume, silhouette) needs one."""
     dimension = model.new_output().dimension
     if dimension != 3:
-        raise InvalidArgumentError(f"a volume target needs a 3D model; {model.name!r} "
+        raise InvalidArgumentError(f"a {what} target needs a 3D model; {model.name!r} "
                                    + ("is 2D" if dimension == 2 else "draws no 3D parts"))
 
 
@@ -91,11 +92,11 @@ class Volume:
     has_overlay = False
 
     def configure(self, model):
-        _check_3d(model)
+        check_3d(model)
         return model
 
     def new_output(self, model) -> VoxelScene:
-        _check_3d(model)
+        check_3d(model)
         return VoxelScene(self.grid, self._gain)
 
     def score(self, scene: VoxelScene) -> float:
@@ -153,7 +154,7 @@ class ProxyVolume:
     configure = Volume.configure
 
     def new_output(self, model) -> ProxyScene:
-        _check_3d(model)
+        check_3d(model)
         return ProxyScene(self.grid, self._gain)
 
     def score(self, scene: VoxelScene) -> float:
