@@ -86,6 +86,9 @@ def _build_parser() -> argparse.ArgumentParser:
                                         "one forward batch, 200 MCMC sweeps, 50 GA generations)")
     infer.add_argument("--seed", type=_int_arg, default=0)
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
+    infer.add_argument("--workers", type=_int_arg,
+                       help="processes that step the particles (smc, sosmc; default: one per 100 "
+                            "particles, up to the cores available; 1 keeps the run in one process)")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
     _add_overwrite(infer)
@@ -153,6 +156,12 @@ def _cmd_sample(args) -> None:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    if args.engine in ("smc", "sosmc"):
+        if args.workers is not None and args.workers < 1:
+            raise InvalidArgumentError(f"--workers must be a positive integer, got {args.workers}")
+        kwargs["workers"] = args.workers  # None: one per 100 particles, up to the cores
+    elif args.workers is not None:
+        raise InvalidArgumentError(f"--workers applies to --engine smc or sosmc, not {args.engine}")
     size = check_size(args.size)
     out = Path(args.out)
 
@@ -239,6 +248,12 @@ def _cmd_infer(args) -> None:
         kwargs[option] = value
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    if args.engine in ("smc", "sosmc"):
+        if args.workers is not None and args.workers < 1:
+            raise InvalidArgumentError(f"--workers must be a positive integer, got {args.workers}")
+        kwargs["workers"] = args.workers  # None: one per 100 particles, up to the cores
+    elif args.workers is not None:
+        raise InvalidArgumentError(f"--workers applies to --engine smc or sosmc, not {args.engine}")
     size = check_size(args.size)
     budget = parse_budget(args.budget) if args.budget is not None else None
     if args.guide is not None:

@@ -803,3 +803,87 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
     state.constraints = None
     state.maybe_default = None
     return ReplayResult(state, state.log_reused, state.log_fresh, out_unused)
+
+
+# ---- moving a particle between processes ----------------------------------------------
+# A parallel particle method keeps each particle in one process and moves only the few
+# that resampling sends elsewhere. A particle's history (its expanded nodes) is what makes
+# it expensive to move, and stepping never reads it, so it stays behind: the moved copy
+# carries a HistoryRef to it, and the whole derivation is put back together at the end
+# (:func:`graft_history`).
+
+
+class HistoryRef:
+    """Stands for the older expanded calls of a derivation, kept by ``owner`` under ``key``.
+
+    It ends the derivation's chain of nodes where ``None`` would; :func:`graft_history`
+    replaces it with the nodes it stands for.
+    """
+
+    __slots__ = ("owner", "key")
+
+    def __init__(self, owner: int, key: int):
+        self.owner = owner
+        self.key = key
+
+    def __reduce__(self):
+        return HistoryRef, (self.owner, self.key)
+
+    def __repr__(self) -> str:
+        return f"HistoryRef({self.owner}, {self.key})"
+
+
+_PACKED = tuple(s for s in Derivation.__slots__ if s not in ("model", "_chain"))
+
+
+def pack_particle(state: Derivation, ref: HistoryRef | None) -> tuple:
+    """A partial derivation as plain data for another process: its state without the
+    model, with its expanded calls replaced by ``ref`` (the caller keeps
+    :func:`history` of it under that reference) or, with ``ref=None``, with them listed
+    oldest first, ending in whatever reference ended them."""
+    if ref is None:
+        nodes, tail = history(state)
+    else:
+        nodes, tail = None, ref
+    return tuple(getattr(state, s) for s in _PACKED) + (nodes, tail)
+
+
+def unpack_particle(model: Model, packed: tuple) -> Derivation:
+    """The derivation :func:`pack_particle` packed, for ``model``."""
+    state = Derivation.__new__(Derivation)
+    state.model = model
+    for name, value in zip(_PACKED, packed):
+        setattr(state, name, value)
+    nodes, tail = packed[-2], packed[-1]
+    state._chain = chain_of(nodes or (), tail)
+    return state
+
+
+def history(state: Derivation) -> tuple:
+    """``(nodes, tail)``: the derivation's expanded calls held here, oldest first, and what
+    ends them (None, or a :class:`HistoryRef` to calls kept elsewhere)."""
+    nodes = []
+    chain = state._chain
+    while chain is not None and not isinstance(chain, HistoryRef):
+        nodes.append(chain[0])
+        chain = chain[1]
+    nodes.reverse()
+    return nodes, chain
+
+
+def chain_of(nodes, tail=None):
+    """The persistent list of ``nodes`` (oldest first) on top of ``tail``."""
+    chain = tail
+    for node in nodes:
+        chain = (node, chain)
+    return chain
+
+
+def graft_history(state: Derivation, lookup) -> None:
+    """Replace the :class:`HistoryRef` that ends ``state``'s calls, in place, by the calls
+    ``lookup(ref) -> (nodes, tail)`` gives for it (oldest first), until none is left."""
+    nodes, tail = history(state)
+    while tail is not None:
+        older, tail = lookup(tail)
+        nodes = list(older) + nodes
+    state._chain = chain_of(nodes)

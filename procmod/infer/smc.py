@@ -17,11 +17,31 @@ import math
 
 import numpy as np
 
-from ..core import InvalidArgumentError, Model, random_order, start, step
-from ..core.protocols import Proposer, Target
+from ..core import InvalidArgumentError, Model, random_order
+from ..core.protocols import Target
+from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample  # noqa: F401
 from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
+from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects
+
+# Automatic worker count (``workers=None``): one more process per this many particles, up
+# to the cores this process may use. Below it a worker's per-generation messages cost
+# more than the steps it takes over (bench/smc_workers.py).
+PARTICLES_PER_WORKER = 100
+
+
+def worker_count(workers: int | None, particles: int) -> int:
+    """The processes an SMC run of ``particles`` uses for ``workers`` (None: automatic)."""
+    from ..parallel import default_workers
+
+    if workers is None:
+        workers = min(default_workers(), max(1, particles // PARTICLES_PER_WORKER))
+    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InvalidArgumentError(f"workers must be a positive integer or None (automatic), got {workers!r}")
+    if workers > 1 and not fork_available():
+        return 1  # worker shards are forked; elsewhere the run stays in this process
+    return max(1, min(workers, particles))
 
 def effective_sample_size(log_weights: np.ndarray) -> float:
     """Kish's effective sample size of a set of log-weights."""
@@ -29,72 +49,124 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
     return float(1.0 / np.sum(w * w))
 
 
-def _run_once(model: Model, target: Target, particles, rng, pick, resampling, ess_threshold, tracker,
-              proposer: Proposer | None = None):
-    """One SMC run; returns (states, final log-weights, log Z estimate)."""
-    states = [start(model, target.new_output(model)) for _ in range(particles)]
-    for state in states:
-        state.proposer = proposer
-    # Plain lists in the per-particle loop: numpy scalar indexing would cost more than the step.
-    log_lik = [0.0] * particles
-    log_w = [0.0] * particles
-    # Guided: each step also weighs by prior / proposal of the choices it made.
-    log_ratio = [0.0] * particles if proposer is not None else None
-    finished = [False] * particles
+def _split(total: int, shards: int) -> list:
+    """``total`` particles in ``shards`` near-equal parts."""
+    return [total // shards + (1 if s < total % shards else 0) for s in range(shards)]
+
+
+class _RemoteBest:
+    """Stands in the tracker for a best derivation a worker shard holds (fetched at the end
+    of the run)."""
+
+    __slots__ = ("shard",)
+
+    def __init__(self, shard):
+        self.shard = shard
+
+
+def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampling, ess_threshold,
+              tracker) -> tuple:
+    """One SMC run over the shards; returns (states, final log-weights, log Z estimate)."""
+    sizes = _split(particles, 1 + len(workers))
+    for worker, size in zip(workers, sizes[1:]):
+        worker.send("reset", size)
+    local.reset(sizes[0])
     log_z = 0.0
-    log_likelihood = target.log_likelihood
     while True:
-        active = stepped = 0
-        for i, state in enumerate(states):
-            if finished[i]:
-                continue
-            stepped += 1
-            step(state, rng, pick)
-            new = log_likelihood(state.output)
-            log_w[i] += new - log_lik[i]
-            log_lik[i] = new
-            if log_ratio is not None:
-                ratio = state.log_prior - state.log_proposal
-                log_w[i] += ratio - log_ratio[i]
-                log_ratio[i] = ratio
-            if state.done:
-                finished[i] = True
-                tracker.offer(state, target.score(state.output))
-            else:
-                active += 1
+        for worker in workers:  # workers step while this process steps its own shard
+            worker.send("step")
+        log_w, finished, stepped, active = local.step()
+        if workers:
+            log_w, finished = list(log_w), list(finished)
+            for worker in workers:
+                w_log_w, w_finished, w_stepped, w_active, w_best = worker.receive()
+                log_w += w_log_w
+                finished += w_finished
+                stepped += w_stepped
+                active += w_active
+                if w_best > tracker.best_score:
+                    tracker.offer(_RemoteBest(worker), w_best)
         tracker.evaluations += stepped
         if active == 0:
             break
         weights = np.array(log_w)
         if weights.max() == -math.inf:
-            return states, weights, -math.inf  # every particle has zero likelihood
+            return _collect(local, workers, tracker), weights, -math.inf  # every particle has zero likelihood
         if ess_threshold is None or effective_sample_size(weights) < ess_threshold * particles:
             log_z += log_mean_exp(weights)
             ancestors = resample(weights, rng, resampling).tolist()
-            taken = set()
-            new_states = []
-            for a in ancestors:
-                # The first offspring of an ancestor takes it over; the rest are copies.
-                if a in taken:
-                    new_states.append(states[a].copy())
-                else:
-                    taken.add(a)
-                    new_states.append(states[a])
-            states = new_states
-            log_lik = [log_lik[a] for a in ancestors]
-            if log_ratio is not None:
-                log_ratio = [log_ratio[a] for a in ancestors]
-            finished = [finished[a] for a in ancestors]
-            log_w = [0.0] * particles
+            if workers:
+                sizes = _regroup(local, workers, ancestors, sizes, finished)
+            else:
+                local.regroup(ancestors, ())
         if tracker.due():
-            tracker.record(float(np.mean([target.score(s.output) for s in states])))
+            total = local.score_sum() + sum(worker.call("scores") for worker in workers)
+            tracker.record(total / particles)
     weights = np.array(log_w)
-    return states, weights, log_z + log_mean_exp(weights)
+    return _collect(local, workers, tracker), weights, log_z + log_mean_exp(weights)
+
+
+def _regroup(local: ParticleShard, workers: list, ancestors: list, sizes: list, finished: list) -> list:
+    """Regroup every shard after a resampling, moving the offspring that balance the
+    shards' active particles; returns the shards' new sizes."""
+    shards = [local] + workers
+    keep, sends = plan_offspring(ancestors, sizes, finished)
+    incoming = [[] for _ in shards]
+    for s, shard_sends in enumerate(sends):
+        if shard_sends:
+            indices = [a for a, _, _ in shard_sends]
+            packed = local.export(indices) if s == 0 else shards[s].call("export", indices)
+            for (_, destination, count), (particle, lik, ratio) in zip(shard_sends, packed):
+                incoming[destination].append((count, particle, lik, ratio))
+    for w, worker in enumerate(workers, 1):
+        worker.send("regroup", keep[w], incoming[w])  # answered by nothing: the pipe keeps order
+    local.regroup(keep[0], incoming[0])
+    return [len(k) + sum(count for count, *_ in inc) for k, inc in zip(keep, incoming)]
+
+
+def _collect(local: ParticleShard, workers: list, tracker) -> list:
+    """Every shard's particles, whole (histories grafted back), in shard order; also
+    fetches the tracker's best when a worker holds it. The final log-weights of the
+    workers' particles are appended to ``local.log_w``'s copy returned by the caller."""
+    states = list(local.states)
+    if not workers:
+        return states
+    model = local.model
+    for worker in workers:
+        packed, log_w = worker.call("collect")
+        states += [unpack_particle(model, p) for p in packed]
+    if isinstance(tracker.best, _RemoteBest):
+        packed, _ = tracker.best.shard.call("best")
+        tracker.best = unpack_particle(model, packed)
+    _graft(states + [tracker.best], local, workers)
+    return states
+def _graft(states: list, local: ParticleShard, workers: list) -> None:
+    """Put the histories that moved particles left in other shards back into ``states``."""
+    cache = {}
+
+    def unresolved(tails):
+        return {(t.owner, t.key) for t in tails if t is not None and (t.owner, t.key) not in cache}
+
+    todo = unresolved(history(s)[1] for s in states if s is not None)
+    while todo:
+        by_owner = {}
+        for owner, key in sorted(todo):
+            by_owner.setdefault(owner, []).append(key)
+        fetched = []
+        for owner, keys in by_owner.items():
+            got = local.histories(keys) if owner == 0 else workers[owner - 1].call("histories", keys)
+            for key, entry in zip(keys, got):
+                cache[(owner, key)] = entry
+                fetched.append(entry[1])
+        todo = unresolved(fetched)
+    for state in states:
+        if state is not None:
+            graft_history(state, lambda ref: cache[(ref.owner, ref.key)])
 
 
 def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
         resampling: str = "systematic", ess_threshold: float | None = None,
-        order: str = "program", progress=None, guide=None) -> "Result":
+        order: str = "program", progress=None, guide=None, workers: int | None = 1) -> "Result":
     """Sequential Monte Carlo, resampling at every emit.
 
     Parameters
@@ -115,6 +187,13 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         Neurally-guided SMC (seeds 003/004): each fresh choice is drawn from the guide's
         proposal and particles are weighted by prior / proposal x likelihood, so the
         estimate stays unbiased however poor the guide.
+    workers : int or None
+        Processes that step the particles (default 1: this one). With ``W > 1`` the
+        population is split into ``W`` shards stepped in parallel by forked worker
+        processes and resampled as one population (:mod:`procmod.infer.particles`);
+        ``None`` picks one per :data:`PARTICLES_PER_WORKER` particles, up to the cores
+        available. A seeded run is reproducible for a given ``workers``; different
+        worker counts draw different random numbers.
 
     Returns
     -------
@@ -135,31 +214,46 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     proposer = None
     if guide is not None:
         proposer = guide.proposer(model, target)
+    n_workers = worker_count(workers, particles)
     rng = BlockGenerator(np.random.default_rng(seed))  # scalar draws from blocks: the hot loop
     tracker = Tracker(budget, progress)
+    template = target.new_output(model)
+    local = ParticleShard(0, model, target, template, rng, pick, proposer, tracker.offer)
     notes = []
+    remote = []
     with relaxed_gc():
-        while True:
-            states, log_w, log_z = _run_once(model, target, particles, rng, pick, resampling,
-                                             ess_threshold, tracker, proposer)
-            tracker.generations += 1
-            tracker.record(float(np.mean([target.score(s.output) for s in states])))
-            if log_z == -math.inf:
-                notes.append("every particle reached zero likelihood; the log marginal-likelihood is -inf")
-            if budget is None or tracker.spent():
-                break
+        try:
+            if n_workers > 1:
+                shared = shared_objects(model, target, template, proposer)
+                for w in range(1, n_workers):
+                    shard_rng = BlockGenerator(np.random.default_rng([seed, w]))
+                    remote.append(WorkerShard(ParticleShard(w, model, target, template, shard_rng, pick,
+                                                            proposer, None), shared))
+            while True:
+                states, log_w, log_z = _run_once(local, remote, particles, rng, resampling, ess_threshold,
+                                                 tracker)
+                tracker.generations += 1
+                tracker.record(float(np.mean([target.score(s.output) for s in states])))
+                if log_z == -math.inf:
+                    notes.append("every particle reached zero likelihood; the log marginal-likelihood is -inf")
+                if budget is None or tracker.spent():
+                    break
+        finally:
+            for worker in remote:
+                worker.close()
     engine = ("smc" if order == "program" else "sosmc") + ("+guide" if guide is not None else "")
     return Result(engine, tracker.best, tracker.best_score, states, tracker.rows, tracker.seconds,
                   tracker.evaluations,
                   settings={"particles": particles, "seed": seed, "resampling": resampling,
                             "ess_threshold": ess_threshold, "order": order,
                             "budget": (budget or Budget()).describe(),
-                            "guide": None if guide is None else guide.settings.name},
+                            "guide": None if guide is None else guide.settings.name, "workers": n_workers},
                   log_weights=list(log_w), log_marginal_likelihood=log_z, notes=notes)
 
 
 def sosmc(model: Model, target: Target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
           resampling: str = "systematic", ess_threshold: float | None = None, progress=None,
-          guide=None) -> Result:
+          guide=None, workers: int | None = 1) -> Result:
     """Stochastically-ordered SMC: :func:`smc` expanding a random pending future per step."""
-    return smc(model, target, particles, seed, budget, resampling, ess_threshold, "random", progress, guide)
+    return smc(model, target, particles, seed, budget, resampling, ess_threshold, "random", progress, guide,
+               workers)

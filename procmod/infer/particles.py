@@ -1,0 +1,358 @@
+"""A particle population split into shards, stepped in one process or in several.
+
+SMC spends nearly all of its time stepping particles, and particles step independently
+between two resampling points, so the population can be split among processes: each
+process (a *shard*) steps its own particles, the coordinator gathers their weights,
+resamples the whole population, and tells each shard which of its particles to keep and
+how often. Only the offspring that would leave a shard with more active particles than
+its share move to another process, and a moved particle travels without its history (its
+expanded calls stay where they were and come back only at the end; see
+:func:`procmod.core.runtime.pack_particle`), so a generation costs one small message per
+worker plus, usually, one or two moved particles.
+
+:class:`ParticleShard` is one shard in this process (the coordinator's own, or the only
+one); :class:`WorkerShard` drives a shard in a forked worker process over a pipe. Objects
+every process already holds (the model, its rules, the target, a guide, the arrays the
+outputs share) are sent by reference, never copied (:class:`_SharedObjects`).
+
+Which particles a run ends with, and which it returns as best, depend on the number of
+shards (each shard draws its own random numbers); with the same seed and the same number
+of workers a run is the same, bit for bit.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import multiprocessing
+import os
+import pickle
+
+from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
+
+_ATOMS = (int, float, str, bytes, bool, type(None))
+
+
+class ParticleShard:
+    """Some of a population's particles, with their weights since the last resampling.
+
+    Parameters
+    ----------
+    index : int
+        This shard's number (0 for the coordinator's own).
+    template : Output
+        An empty output of the configured model; every particle starts from a copy.
+    rng : numpy.random.Generator
+        This shard's random numbers.
+    pick : callable or None
+        Which pending call runs next (None: program order).
+    proposer : Proposer or None
+        A guide's proposer: each step also weighs by prior / proposal.
+    offer : callable
+        ``offer(derivation, score)`` for every particle that completes.
+    """
+
+    def __init__(self, index, model, target, template, rng, pick, proposer, offer):
+        self.index = index
+        self.model, self.target, self.template = model, target, template
+        self.rng, self.pick, self.proposer, self.offer = rng, pick, proposer, offer
+        self.states, self.log_lik, self.log_w, self.log_ratio, self.finished = [], [], [], None, []
+        self.exported = {}  # key -> history chain of a particle sent elsewhere
+        self._next_key = 0
+
+    def reset(self, count: int) -> None:
+        """``count`` fresh particles (the root call pending), weights zero."""
+        self.states = []
+        for _ in range(count):
+            state = start(self.model, self.template.copy())
+            state.proposer = self.proposer
+            self.states.append(state)
+        self.log_lik = [0.0] * count
+        self.log_w = [0.0] * count
+        self.log_ratio = [0.0] * count if self.proposer is not None else None
+        self.finished = [False] * count
+        self.exported = {}
+
+    def step(self) -> tuple:
+        """Step every unfinished particle to its next emit and reweigh it.
+
+        Returns ``(log-weights since the last resampling, finished flags, particles
+        stepped, particles still active)``.
+        """
+        rng, pick, target, offer = self.rng, self.pick, self.target, self.offer
+        log_likelihood = target.log_likelihood
+        log_lik, log_w, log_ratio, finished = self.log_lik, self.log_w, self.log_ratio, self.finished
+        active = stepped = 0
+        for i, state in enumerate(self.states):
+            if finished[i]:
+                continue
+            stepped += 1
+            step(state, rng, pick)
+            new = log_likelihood(state.output)
+            log_w[i] += new - log_lik[i]
+            log_lik[i] = new
+            if log_ratio is not None:  # guided: weigh by prior / proposal of this step's choices
+                ratio = state.log_prior - state.log_proposal
+                log_w[i] += ratio - log_ratio[i]
+                log_ratio[i] = ratio
+            if state.done:
+                finished[i] = True
+                offer(state, target.score(state.output))
+            else:
+                active += 1
+        return log_w, finished, stepped, active
+
+    def regroup(self, keep: list, incoming: list) -> None:
+        """The shard's particles after resampling: the particles at local indices ``keep``
+        (an index repeated for each offspring, in order), then ``count`` copies of each
+        packed particle in ``incoming`` (``(count, packed, log_lik, log_ratio)``).
+        Weights restart at zero."""
+        states, old_lik, old_ratio, old_finished = self.states, self.log_lik, self.log_ratio, self.finished
+        new_states, taken = [], set()
+        for a in keep:
+            # The first offspring of an ancestor takes it over; the rest are copies. A
+            # finished particle is never changed again, so its offspring share it.
+            if a in taken and not old_finished[a]:
+                new_states.append(states[a].copy())
+            else:
+                taken.add(a)
+                new_states.append(states[a])
+        log_lik = [old_lik[a] for a in keep]
+        log_ratio = None if old_ratio is None else [old_ratio[a] for a in keep]
+        finished = [old_finished[a] for a in keep]
+        for count, packed, lik, ratio in incoming:
+            state = unpack_particle(self.model, packed)
+            state.proposer = self.proposer
+            for k in range(count):
+                new_states.append(state if k == 0 else state.copy())
+                log_lik.append(lik)
+                finished.append(False)
+                if log_ratio is not None:
+                    log_ratio.append(ratio)
+        self.states, self.log_lik, self.log_ratio, self.finished = new_states, log_lik, log_ratio, finished
+        self.log_w = [0.0] * len(new_states)
+
+    def export(self, indices: list) -> list:
+        """The particles at ``indices``, packed to move to another shard: ``(packed,
+        log_lik, log_ratio)`` each. Their histories stay here, under keys in
+        :attr:`exported`."""
+        out = []
+        for i in indices:
+            state = self.states[i]
+            key = self._next_key
+            self._next_key += 1
+            nodes, tail = history(state)
+            self.exported[key] = (nodes, tail)
+            out.append((pack_particle(state, HistoryRef(self.index, key)), self.log_lik[i],
+                        None if self.log_ratio is None else self.log_ratio[i]))
+        return out
+
+    def histories(self, keys: list) -> list:
+        """The exported histories under ``keys``: ``(nodes oldest first, tail)`` each."""
+        return [self.exported[k] for k in keys]
+
+    def score_sum(self) -> float:
+        """Sum of the target's score over the shard's particles (for history rows)."""
+        score = self.target.score
+        return float(sum(score(s.output) for s in self.states))
+
+    def packed_states(self) -> list:
+        """Every particle packed with the history held here (for the coordinator)."""
+        return [pack_particle(s, None) for s in self.states]
+
+
+# ---- shards in worker processes --------------------------------------------------------
+
+class _SharedObjects:
+    """Objects every process holds from before the fork, sent by reference.
+
+    A worker is forked after these exist, so each sits at the same place in every
+    process and its ``id`` names it everywhere. Everything else is pickled by value.
+    """
+
+    def __init__(self, objects):
+        self.by_id = {}
+        for obj in objects:
+            if obj is not None and not isinstance(obj, _ATOMS):
+                self.by_id[id(obj)] = obj
+
+    def dumps(self, message) -> bytes:
+        buffer = io.BytesIO()
+        pickler = pickle.Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL)
+        by_id = self.by_id
+        pickler.persistent_id = lambda obj: id(obj) if id(obj) in by_id else None
+        pickler.dump(message)
+        return buffer.getvalue()
+
+    def loads(self, data: bytes):
+        unpickler = pickle.Unpickler(io.BytesIO(data))
+        unpickler.persistent_load = self.by_id.__getitem__
+        return unpickler.load()
+
+
+def shared_objects(model, target, template, proposer) -> _SharedObjects:
+    """What a forked worker already has: model, rules, target, proposer, the root call's
+    arguments, and the parts of an output that its copies share (e.g. a canvas's gains)."""
+    objects = [model, target, proposer, model.root, *model.rules, *model.initial_args()]
+    copy = template.copy()
+    names = getattr(type(template), "__slots__", ()) or tuple(getattr(template, "__dict__", {}))
+    for name in names:
+        value = getattr(template, name, None)
+        if value is not None and getattr(copy, name, None) is value:
+            objects.append(value)
+    return _SharedObjects(objects)
+
+
+def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int) -> None:
+    from ..parallel import _exit_with_parent
+
+    _exit_with_parent(parent)
+    best = [-math.inf, None]
+
+    def offer(derivation, score):
+        if score > best[0]:
+            best[0], best[1] = score, derivation
+
+    shard.offer = offer
+    while True:
+        try:
+            data = conn.recv_bytes()
+        except EOFError:
+            return
+        command, *args = shared.loads(data)
+        if command == "stop":
+            return
+        try:
+            if command == "regroup":  # no answer: the next request comes after it
+                shard.regroup(*args)
+                continue
+            if command == "reset":
+                shard.reset(*args)
+                best[:] = [-math.inf, None]
+                continue
+            if command == "step":
+                log_w, finished, stepped, active = shard.step()
+                reply = (log_w, finished, stepped, active, best[0])
+            elif command == "export":
+                reply = shard.export(*args)
+            elif command == "histories":
+                reply = shard.histories(*args)
+            elif command == "scores":
+                reply = shard.score_sum()
+            elif command == "collect":
+                reply = (shard.packed_states(), shard.log_w)
+            elif command == "best":
+                reply = None if best[1] is None else (pack_particle(best[1], None), best[0])
+            else:  # pragma: no cover - the coordinator sends only the commands above
+                raise ValueError(f"unknown command {command!r}")
+            message = ("ok", reply)
+        except BaseException as exc:  # raised again in the coordinator at its next answer
+            message = ("error", exc)
+        try:
+            conn.send_bytes(shared.dumps(message))
+        except (pickle.PicklingError, TypeError, AttributeError):
+            error = message[1]
+            conn.send_bytes(shared.dumps(("error", RuntimeError(f"{type(error).__name__}: {error}"))))
+
+
+class WorkerShard:
+    """A :class:`ParticleShard` in a forked worker process, driven over a pipe.
+
+    Requests are sent first and answered later (:meth:`send` / :meth:`receive`) so that
+    the coordinator steps its own shard while the workers step theirs.
+    """
+
+    def __init__(self, shard: ParticleShard, shared: _SharedObjects):
+        context = multiprocessing.get_context("fork")
+        self.index = shard.index
+        self.shared = shared
+        self.conn, child = context.Pipe()
+        self.process = context.Process(target=_worker_main, args=(child, shard, shared, os.getpid()),
+                                       name=f"procmod-smc-shard-{shard.index}", daemon=True)
+        self.process.start()
+        child.close()
+
+    def send(self, *message) -> None:
+        self.conn.send_bytes(self.shared.dumps(message))
+
+    def receive(self):
+        status, reply = self.shared.loads(self.conn.recv_bytes())
+        if status == "error":
+            raise reply
+        return reply
+
+    def call(self, *message):
+        self.send(*message)
+        return self.receive()
+
+    def close(self) -> None:
+        try:
+            self.send("stop")
+        except (BrokenPipeError, OSError):
+            pass
+        self.conn.close()
+        self.process.join(timeout=5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+
+
+def fork_available() -> bool:
+    """Whether worker shards can be forked here (they need the ``fork`` start method)."""
+    return "fork" in multiprocessing.get_all_start_methods()
+
+
+def plan_offspring(ancestors: list, sizes: list, finished: list) -> tuple:
+    """Where each offspring of a resampling lives.
+
+    Global particle indices run shard by shard, in local order; shard ``s`` holds
+    ``sizes[s]`` particles. ``ancestors`` are the global indices of the new population's
+    parents (sorted), ``finished[g]`` whether particle ``g`` has finished. Offspring stay
+    with their ancestor's shard, except that a shard left with more *active* (unfinished)
+    offspring than its share sends the surplus — its last ones — to the shards below
+    their share: finished particles cost nothing to step, so only active ones are balanced.
+
+    Returns ``(keep, sends)``: ``keep[s]`` the local indices shard ``s`` keeps, in order,
+    one per offspring; ``sends[s]`` a list of ``(local index, destination, count)``.
+    """
+    shards = len(sizes)
+    offsets = [0] * shards
+    owner = []
+    for s, size in enumerate(sizes):
+        offsets[s] = len(owner)
+        owner.extend([s] * size)
+    kept = [[] for _ in range(shards)]
+    active = [0] * shards
+    for a in ancestors:
+        s = owner[a]
+        kept[s].append(a)
+        if not finished[a]:
+            active[s] += 1
+    total = sum(active)
+    quota = [total // shards + (1 if s < total % shards else 0) for s in range(shards)]
+    deficits = [[s, quota[s] - active[s]] for s in range(shards) if active[s] < quota[s]]
+    sends = [[] for _ in range(shards)]
+    for s in range(shards):
+        surplus = active[s] - quota[s]
+        mine = kept[s]
+        moving = {}  # ancestor -> offspring to send, taken from the end of the shard's list
+        position = len(mine) - 1
+        while surplus > 0:
+            a = mine[position]
+            if not finished[a]:
+                moving[a] = moving.get(a, 0) + 1
+                del mine[position]
+                surplus -= 1
+            position -= 1
+        for a in sorted(moving):
+            count = moving[a]
+            while count > 0:
+                destination = deficits[0]
+                n = min(count, destination[1])
+                sends[s].append((a - offsets[s], destination[0], n))
+                count -= n
+                destination[1] -= n
+                if destination[1] == 0:
+                    deficits.pop(0)
+    keep = [[a - offsets[s] for a in kept[s]] for s in range(shards)]
+    return keep, sends

@@ -1,0 +1,170 @@
+"""SMC with its population split among worker processes (procmod.infer.particles)."""
+
+import math
+import multiprocessing
+import os
+
+import numpy as np
+import pytest
+
+from procmod.core import Model, ModelError, Normal, replay
+from procmod.infer import smc, sosmc
+from procmod.infer.particles import fork_available, plan_offspring
+from procmod.infer.smc import worker_count
+from procmod.models import get_model
+from procmod.targets import ShapeMatch
+from procmod.data import scribble_set
+
+from toy_models import MIX, SumOutput, SumTarget, Value, mix_exact
+
+pytestmark = pytest.mark.skipif(not fork_available(), reason="worker shards are forked processes")
+
+OBS, S = 2.3, 0.5
+
+
+# ---- the plan: who keeps which offspring ------------------------------------------------
+
+def _check_plan(ancestors, sizes, finished):
+    keep, sends = plan_offspring(ancestors, sizes, finished)
+    offsets = np.cumsum([0] + sizes)[:-1]
+    got = {}  # global ancestor -> offspring, wherever they went
+    active = [0] * len(sizes)
+    for s, kept in enumerate(keep):
+        for local in kept:
+            a = offsets[s] + local
+            got[a] = got.get(a, 0) + 1
+            active[s] += not finished[a]
+        for local, destination, count in sends[s]:
+            a = offsets[s] + local
+            assert not finished[a], "a finished particle never moves"
+            assert destination != s
+            got[a] = got.get(a, 0) + count
+            active[destination] += count
+    want = {}
+    for a in ancestors:
+        want[a] = want.get(a, 0) + 1
+    assert got == want  # every offspring placed exactly once
+    assert max(active) - min(active) <= 1  # active particles balanced
+    return keep, sends
+
+
+def test_plan_keeps_offspring_home_when_balanced():
+    # shard 0 holds 0..3, shard 1 holds 4..7; two offspring each side: nothing moves
+    keep, sends = _check_plan([0, 0, 5, 6], [4, 4], [False] * 8)
+    assert keep == [[0, 0], [1, 2]] and sends == [[], []]
+
+
+def test_plan_moves_the_surplus_of_a_collapsed_population():
+    # every offspring descends from particle 1 (shard 0): half of them move to shard 1
+    keep, sends = _check_plan([1] * 6, [3, 3], [False] * 6)
+    assert keep == [[1, 1, 1], []]
+    assert sends == [[(1, 1, 3)], []]
+
+
+def test_plan_balances_only_active_particles():
+    finished = [False, True, False, False, False, False, True, True]
+    _check_plan([1, 1, 1, 1, 2, 6, 6, 7], [4, 4], finished)
+    rng = np.random.default_rng(0)
+    for _ in range(200):  # random populations, 2-4 shards
+        shards = int(rng.integers(2, 5))
+        sizes = [int(v) for v in rng.integers(1, 9, shards)]
+        n = sum(sizes)
+        finished = [bool(v) for v in rng.random(n) < 0.3]
+        ancestors = sorted(int(v) for v in rng.integers(0, n, n))
+        _check_plan(ancestors, sizes, finished)
+
+
+# ---- runs --------------------------------------------------------------------------------
+
+def _vines_target():
+    return ShapeMatch(scribble_set(1, first=49)[0])
+
+
+def test_worker_count_is_checked_and_automatic():
+    assert worker_count(1, 600) == 1
+    assert worker_count(4, 3) == 3  # never more workers than particles
+    assert 1 <= worker_count(None, 600) <= 6
+    assert worker_count(None, 50) == 1
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(Exception, match="workers"):
+            worker_count(bad, 100)
+
+
+def test_a_run_with_workers_returns_whole_derivations_and_repeats_exactly():
+    model, target = get_model("vines"), _vines_target()
+    runs = [smc(model, target, particles=60, seed=3, workers=2) for _ in range(2)]
+    a, b = runs
+    assert a.settings["workers"] == 2
+    assert len(a.samples) == 60 and len(a.log_weights) == 60
+    for result in (a,):
+        for d in [result.best] + result.samples:
+            nodes = d.nodes()
+            assert len(nodes) == d.n_nodes  # the histories left in the other process came back
+            assert sum(len(n.geometry) for n in nodes) == d.n_emits
+            assert d.done
+        # the best is what its choices give when replayed from scratch, and its score is the target's
+        again = replay(target.configure(model), result.best.choice_map(), np.random.default_rng(0),
+                       output=target.new_output(target.configure(model))).derivation
+        assert again.geometry() == result.best.geometry()
+        assert target.score(again.output) == pytest.approx(result.best_score, abs=1e-12)
+    # same seed, same workers: the same run
+    assert a.best.choice_map() == b.best.choice_map() and a.best_score == b.best_score
+    assert a.log_weights == b.log_weights and a.evaluations == b.evaluations
+    assert not multiprocessing.active_children()  # the workers are gone
+
+
+def test_sosmc_with_workers_runs():
+    result = sosmc(get_model("vines"), _vines_target(), particles=40, seed=1, workers=2)
+    assert result.best is not None and len(result.samples) == 40
+    assert len(result.best.nodes()) == result.best.n_nodes
+
+
+def test_workers_estimate_the_marginal_likelihood_without_bias():
+    # The same check as the single-process one (test_engines_exact): resampling moves
+    # particles between the shards, and a bias in the weights or a lost particle shows.
+    z, _ = mix_exact(OBS, S)
+    runs = 150
+    estimates = np.array([math.exp(smc(MIX, SumTarget(OBS, S), particles=16, seed=i, workers=2)
+                                   .log_marginal_likelihood) for i in range(runs)])
+    se = estimates.std(ddof=1) / math.sqrt(runs)
+    assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
+    assert se < 0.1 * z  # the check has power: a 10% bias would be caught
+
+
+def test_workers_give_the_exact_posterior():
+    _, exact = mix_exact(OBS, S)
+    runs, particles = 20, 300
+    estimates = []
+    for i in range(runs):
+        result = smc(MIX, SumTarget(OBS, S), particles=particles, seed=500 + i, workers=2)
+        w = np.exp(np.array(result.log_weights) - max(result.log_weights))
+        w /= w.sum()
+        posterior = {}
+        for weight, d in zip(w, result.samples):
+            cm = d.choice_map()
+            key = (cm[((), "k")], cm[((), "child")])
+            posterior[key] = posterior.get(key, 0.0) + weight
+        estimates.append(posterior)
+    for key, p in exact.items():
+        values = np.array([e.get(key, 0.0) for e in estimates])
+        se = values.std(ddof=1) / math.sqrt(runs)
+        assert abs(values.mean() - p) < 5 * se + 2.0 / particles, (key, values.mean(), p, se)
+
+
+CALLER = os.getpid()
+
+
+def _broken_rule(ctx, depth):
+    # fails only in a worker process, so the error has to travel back to the caller
+    ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0))))
+    if depth == 3 and os.getpid() != CALLER:
+        raise ModelError("this rule is broken")
+    ctx.spawn("next", _broken_rule, depth + 1)
+
+
+def test_an_error_in_a_worker_is_raised_in_the_caller():
+    broken = Model("broken", "a rule that raises", _broken_rule, lambda p: (0,), lambda p: SumOutput(),
+                   rules=(_broken_rule,))
+    with pytest.raises(ModelError, match="this rule is broken"):
+        smc(broken, SumTarget(OBS, S), particles=8, seed=0, workers=2)
+    assert not multiprocessing.active_children()
