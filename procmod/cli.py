@@ -156,12 +156,6 @@ def _cmd_sample(args) -> None:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
-    if args.engine in ("smc", "sosmc"):
-        if args.workers is not None and args.workers < 1:
-            raise InvalidArgumentError(f"--workers must be a positive integer, got {args.workers}")
-        kwargs["workers"] = args.workers  # None: one per 100 particles, up to the cores
-    elif args.workers is not None:
-        raise InvalidArgumentError(f"--workers applies to --engine smc or sosmc, not {args.engine}")
     size = check_size(args.size)
     out = Path(args.out)
 

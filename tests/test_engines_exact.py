@@ -107,8 +107,8 @@ class _Misweighted:
     The pick charges the derivation being stepped through its output's ``log_penalty``,
     which the target adds to the log-likelihood, so the engine's own weights carry it."""
 
-    def __init__(self, smc_module):
-        self.step, self.current = smc_module.step, None
+    def __init__(self, stepping_module):
+        self.step, self.current = stepping_module.step, None
 
     def stepping(self, state, rng, pick=None):
         self.current = state
@@ -145,8 +145,9 @@ def test_the_sosmc_check_catches_a_wrong_sosmc(bug, monkeypatch):
     if bug == "program order":  # a valid SMC, but not one that draws the order
         monkeypatch.setattr(smc_module, "random_order", program_order)
     else:
-        wrong = _Misweighted(smc_module)
-        monkeypatch.setattr(smc_module, "step", wrong.stepping)
+        particles_module = importlib.import_module("procmod.infer.particles")  # where particles step
+        wrong = _Misweighted(particles_module)
+        monkeypatch.setattr(particles_module, "step", wrong.stepping)
         monkeypatch.setattr(smc_module, "random_order", wrong.pick)
         target = _PenalisedTarget(ORDER_OBS, ORDER_S)
     with pytest.raises(AssertionError):

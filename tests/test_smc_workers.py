@@ -1,5 +1,6 @@
 """SMC with its population split among worker processes (procmod.infer.particles)."""
 
+import json
 import math
 import multiprocessing
 import os
@@ -168,3 +169,15 @@ def test_an_error_in_a_worker_is_raised_in_the_caller():
     with pytest.raises(ModelError, match="this rule is broken"):
         smc(broken, SumTarget(OBS, S), particles=8, seed=0, workers=2)
     assert not multiprocessing.active_children()
+
+
+def test_infer_with_workers_from_the_cli(tmp_path, capsys):
+    from procmod.cli import main
+
+    out = tmp_path / "run"
+    code = main(["infer", "vines", "--target", "scribble:49", "--particles", "40", "--workers", "2",
+                 "--out", str(out), "--size", "64"])
+    assert code == 0, capsys.readouterr().err
+    settings = json.loads((out / "settings.json").read_text())
+    assert settings["settings"]["workers"] == 2
+    assert (out / "best.json").exists() and (out / "report.html").exists()
