@@ -73,14 +73,18 @@ def render_image(geometries, viewport, width: int, supersample: int = 3,
     for geometry in geometries:
         canvas.value = index[geometry.tag]
         canvas.add(geometry)
-    lut = np.array([background] + [colour_of(t) for t in tags], dtype=np.float64)
-    rgb = lut[canvas.pixels].reshape(height, supersample, width, supersample, 3).mean(axis=(1, 3))
+    lut = np.array([background] + [colour_of(t) for t in tags], dtype=np.uint8)
+    big = lut[canvas.pixels].reshape(height * supersample, width * supersample, 3)
+    # the mean of each supersample x supersample block (PIL's box filter: C, not a numpy reduction)
+    image = Image.fromarray(big, "RGB").resize((width, height), Image.BOX)
     if underlay is not None:
         mask = np.asarray(Image.fromarray(np.asarray(underlay, dtype=np.uint8) * 255)
                           .resize((width, height), Image.NEAREST)) > 0
         empty = (canvas.pixels == 0).reshape(height, supersample, width, supersample).all(axis=(1, 3))
+        rgb = np.array(image)
         rgb[mask & empty] = (215, 215, 215)
-    return Image.fromarray(np.round(rgb).astype(np.uint8), "RGB")
+        image = Image.fromarray(rgb, "RGB")
+    return image
 
 
 def _hex(colour) -> str:
