@@ -181,3 +181,19 @@ def test_infer_with_workers_from_the_cli(tmp_path, capsys):
     settings = json.loads((out / "settings.json").read_text())
     assert settings["settings"]["workers"] == 2
     assert (out / "best.json").exists() and (out / "report.html").exists()
+
+
+def _dying_rule(ctx, depth):
+    # a worker process that dies (as from a crash or the OOM killer) mid-run
+    ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0))))
+    if depth == 3 and os.getpid() != CALLER:
+        os._exit(3)
+    ctx.spawn("next", _dying_rule, depth + 1)
+
+
+def test_a_worker_that_dies_is_reported():
+    dying = Model("dying", "a worker exits", _dying_rule, lambda p: (0,), lambda p: SumOutput(),
+                  rules=(_dying_rule,))
+    with pytest.raises(RuntimeError, match="ended unexpectedly.*exit code 3"):
+        smc(dying, SumTarget(OBS, S), particles=8, seed=0, workers=2)
+    assert not multiprocessing.active_children()

@@ -293,7 +293,13 @@ class WorkerShard:
         self.conn.send_bytes(self.shared.dumps(message))
 
     def receive(self):
-        status, reply = self.shared.loads(self.conn.recv_bytes())
+        try:
+            data = self.conn.recv_bytes()
+        except (EOFError, ConnectionResetError) as exc:
+            self.process.join(timeout=1)
+            raise RuntimeError(f"SMC worker process {self.index} ended unexpectedly (exit code "
+                               f"{self.process.exitcode}); rerun with workers=1 to run in one process") from exc
+        status, reply = self.shared.loads(data)
         if status == "error":
             raise reply
         return reply
