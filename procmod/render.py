@@ -40,12 +40,15 @@ def check_format(path: str | os.PathLike, formats=FORMATS) -> str:
     return suffix
 
 
-def derivation_image(derivation: Derivation, size: int, underlay=None):
-    """A colour PIL image of a derivation, ``size`` pixels wide (a shaded view for 3D)."""
+def derivation_image(derivation: Derivation, size: int, underlay=None, supersample: int = 3):
+    """A colour PIL image of a derivation, ``size`` pixels wide (a shaded view for 3D).
+
+    2D renders are antialiased by drawing ``supersample`` x ``supersample`` pixels per
+    output pixel (small tiles of a contact sheet need fewer than a full-size render)."""
     size = check_size(size)
     geometry = derivation.geometry()
     if is_2d(derivation):
-        return render_image(geometry, derivation.output.viewport, size, underlay=underlay)
+        return render_image(geometry, derivation.output.viewport, size, supersample=supersample, underlay=underlay)
     return shaded_preview(geometry, size, colour_of)  # loads the numba kernels for 3D only
 
 
