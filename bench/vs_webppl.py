@@ -161,7 +161,7 @@ def timed(command: list) -> float:
 
 
 def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, leaves: bool,
-                budget: str | None = None, guide: str | None = None) -> dict:
+                budget: str | None = None, guide: str | None = None, workers: int | None = None) -> dict:
     out = work / "run"
     if out.exists():
         shutil.rmtree(out)
@@ -176,12 +176,15 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
         command += ["--budget", budget]
     if guide is not None:
         command += ["--guide", guide]
+    if workers is not None and engine in ("smc", "sosmc"):
+        command += ["--workers", str(workers)]
     seconds = timed(command)
     geometry = procmod_geometry(out / "best.json")
     settings = json.loads((out / "settings.json").read_text())
     # infer_seconds: the engine's own time, as procmod reports it (WebPPL's rows: its Infer call)
     return {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": settings["best_score"],
-            "primitives": len(geometry), "infer_seconds": settings["seconds"]}
+            "primitives": len(geometry), "infer_seconds": settings["seconds"],
+            "workers": settings["settings"].get("workers")}
 
 
 def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: int, seed: int,
@@ -347,6 +350,8 @@ def main() -> None:
     parser.add_argument("--mcmc-targets", type=int, default=4, help="targets per set for the MCMC comparison")
     parser.add_argument("--guide", help="also guided procmod SMC with this guide (name or GUIDE.pt)")
     parser.add_argument("--guided-particles", type=int, nargs="*", default=[1, 5, 10, 20])
+    parser.add_argument("--workers", type=int, help="procmod's --workers for SMC (default: the CLI's, one "
+                                                     "per 100 particles up to the cores)")
     parser.add_argument("--name", default="vs_webppl", help="results file stem (default vs_webppl)")
     parser.add_argument("--work", type=Path, help="work folder (default: a temporary one)")
     args = parser.parse_args()
@@ -383,11 +388,12 @@ def main() -> None:
                 plans = []
                 if "procmod" in args.systems:
                     plans.append(("procmod", "smc", args.particles,
-                                  lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves)))
+                                  lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
+                                                        workers=args.workers)))
                     if args.guide:
                         plans.append(("procmod+guide", "smc", args.guided_particles,
                                       lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
-                                                            guide=args.guide)))
+                                                            guide=args.guide, workers=args.workers)))
                 if webppl is not None:
                     plans.append(("webppl", "SMC", args.particles,
                                   lambda n: run_webppl(webppl, mask_json, mask, work, "SMC", n, seed, args.leaves)))
@@ -439,7 +445,7 @@ def main() -> None:
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version(),
                     "node": subprocess.run(["node", "--version"], capture_output=True, text=True).stdout.strip()
                     if shutil.which("node") else None},
-        "webppl_version": WEBPPL_VERSION, "leaves": args.leaves, "seeds": args.seeds,
+        "webppl_version": WEBPPL_VERSION, "leaves": args.leaves, "seeds": args.seeds, "workers": args.workers,
         "targets": {s: [label for _, label, *_ in items] for s, items in targets.items()},
         "seconds_total": round(time.time() - started, 1),
         "summary": summary, "runs": rows,
