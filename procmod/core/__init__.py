@@ -12,7 +12,8 @@ from .errors import (DerivationFormatError, InvalidArgumentError, ModelError, Pr
 from .model import Model
 from .protocols import (MaskedTarget, Output, OverlayTarget, PartCachingOutput, Proposer, RemovableOutput,
                         Target, check_declared)
-from .runtime import (Choice, Context, Derivation, Future, Node, ReplayResult, SpawnRecord,
+from .runtime import (Choice, ChoicePolicy, Context, Derivation, Future, GuidedPolicy, Node, ReplayPolicy,
+                      ReplayResult, SpawnRecord,
                       finish, follow_order, program_order, random_order, regenerate, replay,
                       run_forward, same_args, set_maybe, start, step)
 from .serialize import (derivation_from_dict, derivation_to_dict, load_derivation,

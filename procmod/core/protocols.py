@@ -165,10 +165,10 @@ class OverlayTarget(Target, Protocol):
 class Proposer(Protocol):
     """Draws a derivation's fresh choices instead of the prior (a neural guide's proposal).
 
-    Installed as ``derivation.proposer`` (:func:`procmod.infer.smc` does it for a guide);
-    the runtime calls :meth:`propose` for every choice a replay does not fix and adds the
-    returned log-density to ``derivation.log_proposal``, so engines weight by prior /
-    proposal. ``ctx.derivation`` is the derivation as built so far (its output, position,
+    Installed as ``derivation.proposer`` (:func:`procmod.infer.smc` does it for a guide),
+    which gives the derivation a :class:`~procmod.core.runtime.GuidedPolicy`: the runtime
+    calls :meth:`propose` for every fresh choice and adds the returned log-density to
+    ``derivation.log_proposal``, so engines weight by prior / proposal. ``ctx.derivation`` is the derivation as built so far (its output, position,
     emit count); a proposer may keep per-derivation state in ``derivation.guide_cache``,
     which copies share, so it replaces the value rather than mutating it.
     """

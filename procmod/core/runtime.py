@@ -19,6 +19,11 @@ Design notes
   deterministic given their arguments and choice values.
 * **Addresses** are structural: the spawn-site names from the root to a call, plus the
   choice name (see :mod:`procmod.core.choicemap`).
+* **Choice policies.** How a fresh choice is made is a policy object the derivation holds
+  (``Derivation.policy``), in the manner of Pyro's effect handlers: ``None`` is the prior
+  (handled inline, the hot path), :class:`ReplayPolicy` reuses a choice map's values and
+  keeps the reuse bookkeeping, :class:`GuidedPolicy` asks a proposer (a neural guide) and
+  keeps its log-density sum and cache. The derivation itself holds only the run.
 """
 
 from __future__ import annotations
@@ -187,36 +192,14 @@ class Context:
                 choices[name] = old
                 return old[0]
         state = self._state
-        if state.constraints is not None:
-            return self._constrained(state, name, dist)
-        proposer = state.proposer
-        if proposer is None:
+        policy = state.policy
+        if policy is None:  # the prior, inline
             value = dist.sample(self._rng)
-        else:  # a guide proposes the value; engines weight by prior / proposal
-            value, log_q = proposer.propose(self, name, dist, self._rng)
-            state.log_proposal += log_q
-        log_prob = dist.log_prob(value)
+            log_prob = dist.log_prob(value)
+        else:  # replay under a choice map, or a guide's proposal
+            value, log_prob = policy.choose(self, name, dist)
         state.log_prior += log_prob
         choices[name] = _new_tuple(Choice, (value, log_prob, dist))
-        return value
-
-    def _constrained(self, state, name, dist):
-        """``sample`` during replay: reuse the map's value when it fits the choice."""
-        key = (self.address, name)
-        value = state.constraints.get(key, _MISSING)
-        if value is not _MISSING:
-            log_prob = dist.log_prob(value)
-            if log_prob > -math.inf:
-                state._reused.add(key)
-                state.log_reused += log_prob
-                state.log_prior += log_prob
-                self._choices[name] = Choice(value, log_prob, dist)
-                return value
-        value = dist.sample(self._rng)
-        log_prob = dist.log_prob(value)
-        state.log_fresh += log_prob
-        state.log_prior += log_prob
-        self._choices[name] = Choice(value, log_prob, dist)
         return value
 
     def emit(self, geometry) -> None:
@@ -257,8 +240,9 @@ class Context:
         state = self._state
         if state.stopped:
             return False
-        if state.maybe_default is not None and (self.address, site) not in state.constraints:
-            state.constraints[(self.address, site)] = state.maybe_default
+        policy = state.policy
+        if policy is not None:
+            policy.before_maybe(self.address, site)
         p = float(p)
         on = self.sample(site, _bernoulli(p))
         self._spawns.append(_new_tuple(SpawnRecord, (site, rule, args, p, on)))
@@ -283,6 +267,103 @@ class Context:
         self._state.stopped = True
 
 
+class ChoicePolicy:
+    """How a derivation's fresh choices are made when not from the prior (an effect
+    handler for ``ctx.sample``), with the bookkeeping that goes with it.
+
+    A derivation holds one in ``Derivation.policy``; ``None`` there is the prior, which the
+    runtime handles inline. A policy belongs to one derivation: :meth:`copy` gives the
+    copy's (sums and bookkeeping of its own, read-only parts shared). ``guide_cache`` is a
+    guide's per-derivation cache (see :attr:`Derivation.guide_cache`).
+    """
+
+    __slots__ = ("guide_cache",)
+
+    def choose(self, ctx: Context, name: str, dist: Distribution) -> tuple:
+        """``(value, log_prob)`` of the fresh choice ``name`` of the call ``ctx``, whose
+        prior is ``dist``; ``log_prob`` is ``dist.log_prob(value)``."""
+        raise NotImplementedError
+
+    def before_maybe(self, address: tuple, site: str) -> None:
+        """Called by ``ctx.maybe`` before it draws the coin of ``site``."""
+
+    def copy(self) -> "ChoicePolicy":
+        raise NotImplementedError
+
+
+class GuidedPolicy(ChoicePolicy):
+    """Fresh choices come from ``proposer`` (a neural guide; ``None``: the prior);
+    ``log_proposal`` sums the log-densities of the values it gave."""
+
+    __slots__ = ("proposer", "log_proposal")
+
+    def __init__(self, proposer=None, log_proposal: float = 0.0, guide_cache=None):
+        self.proposer = proposer
+        self.log_proposal = log_proposal
+        self.guide_cache = guide_cache
+
+    def choose(self, ctx, name, dist):
+        proposer = self.proposer
+        if proposer is None:
+            value = dist.sample(ctx._rng)
+        else:  # engines weight by prior / proposal
+            value, log_q = proposer.propose(ctx, name, dist, ctx._rng)
+            self.log_proposal += log_q
+        return value, dist.log_prob(value)
+
+    def copy(self) -> "GuidedPolicy":
+        return GuidedPolicy(self.proposer, self.log_proposal, self.guide_cache)
+
+
+class ReplayPolicy(ChoicePolicy):
+    """Reuse the value ``constraints`` (``(node_address, name) -> value``) holds for a
+    choice when it lies in the choice's support, else sample from the prior.
+
+    ``reused`` collects the keys reused; ``log_reused`` and ``log_fresh`` sum the
+    log-probabilities of the reused and of the freshly sampled choices.
+    ``maybe_default`` (True or False) fixes every ``maybe`` site the map lacks (written
+    into ``constraints``, so those count as reused).
+    """
+
+    __slots__ = ("constraints", "maybe_default", "reused", "log_reused", "log_fresh")
+
+    def __init__(self, constraints, maybe_default=None):
+        self.constraints = constraints
+        self.maybe_default = maybe_default
+        self.reused = set()
+        self.log_reused = 0.0
+        self.log_fresh = 0.0
+        self.guide_cache = None
+
+    def choose(self, ctx, name, dist):
+        key = (ctx.address, name)
+        value = self.constraints.get(key, _MISSING)
+        if value is not _MISSING:
+            log_prob = dist.log_prob(value)
+            if log_prob > -math.inf:
+                self.reused.add(key)
+                self.log_reused += log_prob
+                return value, log_prob
+        value = dist.sample(ctx._rng)
+        log_prob = dist.log_prob(value)
+        self.log_fresh += log_prob
+        return value, log_prob
+
+    def before_maybe(self, address, site):
+        if self.maybe_default is not None and (address, site) not in self.constraints:
+            self.constraints[(address, site)] = self.maybe_default
+
+    def copy(self) -> "ReplayPolicy":
+        other = ReplayPolicy.__new__(ReplayPolicy)
+        other.constraints = self.constraints  # shared, as the map is
+        other.maybe_default = self.maybe_default
+        other.reused = self.reused.copy()
+        other.log_reused = self.log_reused
+        other.log_fresh = self.log_fresh
+        other.guide_cache = self.guide_cache
+        return other
+
+
 class Derivation:
     """A partial or complete run of a model.
 
@@ -302,15 +383,17 @@ class Derivation:
         The last position a rule reported with ``ctx.at``.
     n_emits : int
         Number of emits drawn into ``output``.
+    policy : ChoicePolicy or None
+        How fresh choices are made: ``None`` for the prior, a :class:`ReplayPolicy` while
+        replaying a choice map, a :class:`GuidedPolicy` under a guide.
     proposer : Proposer or None
         Draws the fresh choices instead of the prior when set (a neural guide; see
         :class:`procmod.core.protocols.Proposer`); ``log_proposal`` sums the log-densities
-        of the values it gave.
+        of the values it gave. Both live in the derivation's :class:`GuidedPolicy`.
     """
 
     __slots__ = ("model", "output", "pending", "active", "log_prior", "stopped", "position",
-                 "n_emits", "n_nodes", "_chain", "constraints", "_reused", "log_reused",
-                 "log_fresh", "maybe_default", "proposer", "log_proposal", "guide_cache")
+                 "n_emits", "n_nodes", "_chain", "policy")
 
     def __init__(self, model: Model, output=None, constraints=None):
         self.model = model
@@ -323,14 +406,49 @@ class Derivation:
         self.n_emits = 0
         self.n_nodes = 0
         self._chain = None  # persistent list (node, rest) of expanded nodes, newest first
-        self.constraints = None if constraints is None else dict(constraints)
-        self._reused = set()
-        self.log_reused = 0.0
-        self.log_fresh = 0.0
-        self.maybe_default = None  # replay only: value of maybe sites the map lacks
-        self.proposer = None  # a guide's proposer: fresh choices come from it, not the prior
-        self.log_proposal = 0.0  # sum of the proposer's log-densities of the values it gave
-        self.guide_cache = None  # the proposer's per-derivation cache (shared by copies; replaced, never mutated)
+        self.policy = None if constraints is None else ReplayPolicy(dict(constraints))
+
+    @property
+    def proposer(self):
+        """The guide's proposer that draws the fresh choices, or None (the prior)."""
+        policy = self.policy
+        return policy.proposer if type(policy) is GuidedPolicy else None
+
+    @proposer.setter
+    def proposer(self, proposer) -> None:
+        policy = self.policy
+        if type(policy) is GuidedPolicy:
+            policy.proposer = proposer
+        elif policy is None:
+            if proposer is not None:
+                self.policy = GuidedPolicy(proposer)
+        elif proposer is not None:
+            raise ModelError("a derivation that replays a choice map takes no proposer")
+
+    @property
+    def log_proposal(self) -> float:
+        """Sum of the proposer's log-densities of the values it gave."""
+        policy = self.policy
+        return policy.log_proposal if type(policy) is GuidedPolicy else 0.0
+
+    @log_proposal.setter
+    def log_proposal(self, value: float) -> None:
+        if self.policy is None:
+            self.policy = GuidedPolicy()
+        self.policy.log_proposal = value
+
+    @property
+    def guide_cache(self):
+        """A proposer's per-derivation cache: shared by copies, so it is replaced, never
+        mutated."""
+        policy = self.policy
+        return None if policy is None else policy.guide_cache
+
+    @guide_cache.setter
+    def guide_cache(self, value) -> None:
+        if self.policy is None:
+            self.policy = GuidedPolicy()  # the prior, with a cache
+        self.policy.guide_cache = value
 
     @property
     def done(self) -> bool:
@@ -350,14 +468,8 @@ class Derivation:
         other.n_emits = self.n_emits
         other.n_nodes = self.n_nodes
         other._chain = self._chain
-        other.constraints = self.constraints
-        other._reused = self._reused.copy() if self.constraints is not None else self._reused
-        other.log_reused = self.log_reused
-        other.log_fresh = self.log_fresh
-        other.maybe_default = self.maybe_default
-        other.proposer = self.proposer
-        other.log_proposal = self.log_proposal
-        other.guide_cache = self.guide_cache
+        policy = self.policy
+        other.policy = policy if policy is None else policy.copy()
         return other
 
     def nodes(self) -> list:
@@ -582,13 +694,12 @@ def replay(model: Model, choices, rng: np.random.Generator, order: list | None =
 
 def _replay(model, constraints, rng, order, output, previous, maybe_default=None) -> ReplayResult:
     """Replay under ``constraints``; ``unused`` lists the keys of ``previous`` not reused."""
-    state = start(model, output, constraints)
-    state.maybe_default = None if maybe_default is None else bool(maybe_default)
+    state = start(model, output)
+    policy = state.policy = ReplayPolicy(dict(constraints), None if maybe_default is None else bool(maybe_default))
     finish(state, rng, None if order is None else follow_order(order))
-    unused = [key for key in previous if key not in state._reused]
-    state.constraints = None
-    state.maybe_default = None
-    return ReplayResult(state, state.log_reused, state.log_fresh, unused)
+    unused = [key for key in previous if key not in policy.reused]
+    state.policy = None
+    return ReplayResult(state, policy.log_reused, policy.log_fresh, unused)
 
 
 def regenerate(model: Model, derivation: Derivation, node_address: tuple,
@@ -735,8 +846,7 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
         changed = set(changed)
         dirty = {address[:k] for address in changed for k in range(len(address) + 1)}
     state = start(model, _NO_OUTPUT)
-    state.constraints = constraints
-    state.maybe_default = None if maybe_default is None else bool(maybe_default)
+    policy = state.policy = ReplayPolicy(constraints, None if maybe_default is None else bool(maybe_default))
     pending = state.pending
     kept, still_drawn, drawn = set(), set(), []  # ids of reused old nodes / of old nodes whose
     # geometry stays drawn; new geometry to draw
@@ -759,7 +869,7 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
                         if spawn.on:
                             stack.append(old[a + (spawn.site,)])
                 continue
-            if (address not in changed) if changed is not None else _map_agrees(node, constraints, state.maybe_default):
+            if (address not in changed) if changed is not None else _map_agrees(node, constraints, policy.maybe_default):
                 chain = (node, chain)
                 n_kept += 1
                 emits_kept += len(node.geometry)
@@ -793,16 +903,15 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
     # log-prior: the previous one, less the calls that were not reused, plus the new ones
     kept_lp = previous.log_prior - log_removed
     state.log_prior += kept_lp
-    state.log_reused += kept_lp
+    policy.log_reused += kept_lp
     out_unused = []
     if unused:
-        reused = state._reused
+        reused = policy.reused
         by_address = {n.address: n.choices for n in old_nodes if id(n) in kept}
         out_unused = [key for key in raw if key not in reused
                       and key[1] not in by_address.get(key[0], ())]
-    state.constraints = None
-    state.maybe_default = None
-    return ReplayResult(state, state.log_reused, state.log_fresh, out_unused)
+    state.policy = None
+    return ReplayResult(state, policy.log_reused, policy.log_fresh, out_unused)
 
 
 # ---- moving a particle between processes ----------------------------------------------
