@@ -155,6 +155,50 @@ def test_a_proposer_sees_the_derivation_being_built_through_ctx():
     assert len(refused) == len(seen)  # a read-only view
 
 
+def test_fresh_choices_are_a_policy_the_derivation_holds_not_fields_of_it():
+    from procmod.core import ChoicePolicy, Derivation, GuidedPolicy, ReplayPolicy
+    assert Derivation.__slots__ == ("model", "output", "pending", "active", "log_prior", "stopped", "position",
+                                    "n_emits", "n_nodes", "_chain", "policy")
+
+    class Low(ChoicePolicy):  # a policy of one's own: every fresh choice at its lowest value seen so far
+        __slots__ = ("calls",)
+
+        def __init__(self):
+            self.calls, self.guide_cache = 0, None
+
+        def choose(self, ctx, name, dist):
+            self.calls += 1
+            value = min(dist.sample(ctx._rng) for _ in range(3))
+            return value, dist.log_prob(value)
+
+        def copy(self):
+            other = Low()
+            other.calls = self.calls
+            return other
+
+    state = start(TREE)
+    assert state.policy is None and state.proposer is None and state.log_proposal == 0.0
+    state.policy = Low()
+    step(state, np.random.default_rng(0))
+    twin = state.copy()
+    assert twin.policy is not state.policy and twin.policy.calls == state.policy.calls > 0
+    finish(state, np.random.default_rng(1))
+    assert state.policy.calls == len(state.choice_map())
+    assert math.isclose(state.log_prior, sum(state.choice_log_probs().values()), abs_tol=1e-12)
+    # the guide's state lives in a GuidedPolicy; a cache alone gives the prior one
+    bare = start(TREE)
+    bare.guide_cache = (0, "pyramid")
+    assert type(bare.policy) is GuidedPolicy and bare.proposer is None and bare.copy().guide_cache == (0, "pyramid")
+    _same(finish(bare, np.random.default_rng(5)), run_forward(TREE, np.random.default_rng(5)))
+    # a replay's bookkeeping lives in its ReplayPolicy; a proposer does not mix with it
+    replaying = start(TREE, constraints={((), "v"): 0.5})
+    assert type(replaying.policy) is ReplayPolicy
+    with pytest.raises(ModelError, match="takes no proposer"):
+        replaying.proposer = object()
+    r = replay(TREE, run_forward(TREE, np.random.default_rng(2)).choice_map(), np.random.default_rng(0))
+    assert r.derivation.policy is None
+
+
 def test_same_args_compares_plain_arguments_and_refuses_arrays():
     args = (1.0, "a", (2, 3))
     assert same_args(args, args) and same_args(args, (1.0, "a", (2, 3)))
