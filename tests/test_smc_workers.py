@@ -16,6 +16,7 @@ from procmod.models import get_model
 from procmod.targets import ShapeMatch
 from procmod.data import scribble_set
 
+from test_engines_exact import _posterior_from_smc
 from toy_models import MIX, SumOutput, SumTarget, Value, mix_exact
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="worker shards are forked processes")
@@ -120,13 +121,26 @@ def test_sosmc_with_workers_runs():
     assert len(result.best.nodes()) == result.best.n_nodes
 
 
+class _OffsetTarget(SumTarget):
+    """SumTarget's likelihood times exp(OFFSET): the same posterior, Z scaled by exp(OFFSET).
+    A particle that moved between shards with a wrong log-likelihood (0, or another
+    particle's) would be off by about OFFSET at its next step: the Z check below would
+    show it at once (with the plain target the error is a nat or two, within the noise)."""
+
+    OFFSET = -40.0
+
+    def log_likelihood(self, output):
+        return super().log_likelihood(output) + self.OFFSET
+
+
 def test_workers_estimate_the_marginal_likelihood_without_bias():
     # The same check as the single-process one (test_engines_exact): resampling moves
     # particles between the shards, and a bias in the weights or a lost particle shows.
     z, _ = mix_exact(OBS, S)
     runs = 150
-    estimates = np.array([math.exp(smc(MIX, SumTarget(OBS, S), particles=16, seed=i, workers=2)
-                                   .log_marginal_likelihood) for i in range(runs)])
+    target = _OffsetTarget(OBS, S)
+    estimates = np.array([math.exp(smc(MIX, target, particles=16, seed=i, workers=2).log_marginal_likelihood
+                                   - target.OFFSET) for i in range(runs)])
     se = estimates.std(ddof=1) / math.sqrt(runs)
     assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
     assert se < 0.1 * z  # the check has power: a 10% bias would be caught
@@ -137,15 +151,8 @@ def test_workers_give_the_exact_posterior():
     runs, particles = 20, 300
     estimates = []
     for i in range(runs):
-        result = smc(MIX, SumTarget(OBS, S), particles=particles, seed=500 + i, workers=2)
-        w = np.exp(np.array(result.log_weights) - max(result.log_weights))
-        w /= w.sum()
-        posterior = {}
-        for weight, d in zip(w, result.samples):
-            cm = d.choice_map()
-            key = (cm[((), "k")], cm[((), "child")])
-            posterior[key] = posterior.get(key, 0.0) + weight
-        estimates.append(posterior)
+        estimates.append(_posterior_from_smc(smc(MIX, SumTarget(OBS, S), particles=particles, seed=500 + i,
+                                                 workers=2)))
     for key, p in exact.items():
         values = np.array([e.get(key, 0.0) for e in estimates])
         se = values.std(ddof=1) / math.sqrt(runs)
@@ -155,19 +162,25 @@ def test_workers_give_the_exact_posterior():
 CALLER = os.getpid()
 
 
-def _broken_rule(ctx, depth):
-    # fails only in a worker process, so the error has to travel back to the caller
+def _failing_rule(ctx, depth, how):
+    # fails only in a worker process, deep into the run: the failure has to reach the caller
     ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0))))
     if depth == 3 and os.getpid() != CALLER:
-        raise ModelError("this rule is broken")
-    ctx.spawn("next", _broken_rule, depth + 1)
+        if how == "raise":
+            raise ModelError("this rule is broken")
+        os._exit(3)  # a worker that dies, as from a crash or the OOM killer
+    ctx.spawn("next", _failing_rule, depth + 1, how)
 
 
-def test_an_error_in_a_worker_is_raised_in_the_caller():
-    broken = Model("broken", "a rule that raises", _broken_rule, lambda p: (0,), lambda p: SumOutput(),
-                   rules=(_broken_rule,))
-    with pytest.raises(ModelError, match="this rule is broken"):
-        smc(broken, SumTarget(OBS, S), particles=8, seed=0, workers=2)
+@pytest.mark.parametrize("how,error,message", [
+    ("raise", ModelError, "this rule is broken"),
+    ("die", RuntimeError, "ended unexpectedly.*exit code 3"),
+])
+def test_a_failure_in_a_worker_is_raised_in_the_caller(how, error, message):
+    failing = Model("failing", "a rule that fails in a worker", _failing_rule, lambda p: (0, how),
+                    lambda p: SumOutput(), rules=(_failing_rule,))
+    with pytest.raises(error, match=message):
+        smc(failing, SumTarget(OBS, S), particles=8, seed=0, workers=2)
     assert not multiprocessing.active_children()
 
 
@@ -181,19 +194,3 @@ def test_infer_with_workers_from_the_cli(tmp_path, capsys):
     settings = json.loads((out / "settings.json").read_text())
     assert settings["settings"]["workers"] == 2
     assert (out / "best.json").exists() and (out / "report.html").exists()
-
-
-def _dying_rule(ctx, depth):
-    # a worker process that dies (as from a crash or the OOM killer) mid-run
-    ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0))))
-    if depth == 3 and os.getpid() != CALLER:
-        os._exit(3)
-    ctx.spawn("next", _dying_rule, depth + 1)
-
-
-def test_a_worker_that_dies_is_reported():
-    dying = Model("dying", "a worker exits", _dying_rule, lambda p: (0,), lambda p: SumOutput(),
-                  rules=(_dying_rule,))
-    with pytest.raises(RuntimeError, match="ended unexpectedly.*exit code 3"):
-        smc(dying, SumTarget(OBS, S), particles=8, seed=0, workers=2)
-    assert not multiprocessing.active_children()
