@@ -69,13 +69,14 @@ from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
+from .traced import DROP, EditedChoices, Traced, TracedReplay, replay_traced, trace
 
 HOTTEST_ACCEPTANCE = 0.7
 COLDEST_ACCEPTANCE = 0.01
 T_MAX = math.log(COLDEST_ACCEPTANCE) / math.log(HOTTEST_ACCEPTANCE)  # ~12.9
 TOGGLE_SHARE = 0.5  # of the jumps, where the state has a maybe site
 
-MOVES = ("diffusion", "regenerate", "toggle")
+MOVES = ("diffusion", "resample", "regenerate", "toggle")
 
 
 def temperature_ladder(chains: int) -> np.ndarray:
@@ -103,84 +104,163 @@ def _has_continuous(node) -> bool:
 
 
 class MoveCounts(NamedTuple):
-    """What a state offers each move: calls, calls with a continuous choice, maybe sites."""
+    """What a state offers each move: calls, calls with a continuous choice, maybe sites,
+    choices."""
 
     calls: int
     diffusion: int
     maybe: int
+    choices: int = 0
+
+
+def _node_counts(node) -> tuple:
+    """(1 if the call has a continuous choice else 0, its maybe sites, its choices)."""
+    cont = 0
+    for c in node.choices.values():
+        if not c.dist.discrete:
+            cont = 1
+            break
+    maybe = 0
+    for s in node.spawns:
+        if s.probability < 1.0:
+            maybe += 1
+    return cont, maybe, len(node.choices)
 
 
 def move_counts(derivation) -> MoveCounts:
     """:class:`MoveCounts` of a derivation (one walk over its calls)."""
-    calls = diffusion = maybe = 0
-    for node in derivation.nodes():
-        calls += 1
-        if _has_continuous(node):
-            diffusion += 1
-        for s in node.spawns:
-            if s.probability < 1.0:
-                maybe += 1
-    return MoveCounts(calls, diffusion, maybe)
+    return _counts_of(derivation.nodes())
 
 
-def log_select(counts: MoveCounts, kind: str, p_diffusion: float) -> float:
-    """Log-probability that :func:`propose` picks one given move of ``kind`` (one call or
-    site) in a state with ``counts``; -inf where the state does not offer the move."""
+def _counts_of(nodes) -> MoveCounts:
+    diffusion = maybe = choices = 0
+    for node in nodes:
+        c, m, k = _node_counts(node)
+        diffusion += c
+        maybe += m
+        choices += k
+    return MoveCounts(len(nodes), diffusion, maybe, choices)
+
+
+def log_select(counts: MoveCounts, kind: str, p_diffusion: float, p_resample: float = 0.0) -> float:
+    """Log-probability that :func:`propose` picks one given move of ``kind`` (one call,
+    site or choice) in a state with ``counts``; -inf where the state does not offer the
+    move."""
     p_diff = p_diffusion if counts.diffusion else 0.0
+    p_res = p_resample if counts.choices else 0.0
     if kind == "diffusion":
         p, n = p_diff, counts.diffusion
+    elif kind == "resample":
+        p, n = p_res, counts.choices
     else:
-        toggle = (1.0 - p_diff) * (TOGGLE_SHARE if counts.maybe else 0.0)
+        toggle = (1.0 - p_diff - p_res) * (TOGGLE_SHARE if counts.maybe else 0.0)
         if kind == "toggle":
             p, n = toggle, counts.maybe
         else:
-            p, n = 1.0 - p_diff - toggle, counts.calls
+            p, n = 1.0 - p_diff - p_res - toggle, counts.calls
     return math.log(p / n) if p > 0.0 and n > 0 else -math.inf
 
 
 @dataclass
 class Proposal:
-    """One move: the choice map to replay, and where and how likely the move was picked.
+    """One move: the edit of the choice map to replay, and where and how likely the move
+    was picked.
 
-    ``log_select`` is :func:`log_select` in the old state; ``perturbed`` the choices a
-    diffusion moved."""
+    The edited map is the old one without the subtree at ``removed`` (None: nothing
+    dropped), with ``overrides`` applied (a value, or :data:`DROP` for a choice dropped
+    so that the replay samples it afresh); every edit lies within the call at
+    ``address``. ``choices`` is that map as a dict where :func:`propose` built it (from a
+    plain :class:`Scored` state; None from a :class:`~procmod.infer.traced.Traced` one,
+    which replays the edit without building it). ``log_select`` is :func:`log_select`
+    in the old state; ``perturbed`` the choices a diffusion moved."""
 
     kind: str
-    choices: dict
+    choices: dict | None
     log_select: float
     p_diffusion: float
     address: tuple = ()
     perturbed: tuple = ()
+    p_resample: float = 0.0
+    overrides: dict | None = None
+    removed: tuple | None = None
 
 
-def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_scale: float) -> Proposal:
-    """Build one move's choice map from a chain state (selection as in the module docstring)."""
-    d = state.derivation
-    old = d.choice_map().raw
-    nodes = d.nodes()
+
+
+class Moves(NamedTuple):
+    """What :func:`propose` picks from in a state (built once per state)."""
+
+    nodes: list
+    candidates: list
+    sites: list
+    keys: list
+    counts: MoveCounts
+
+
+def moves_of(state: Scored) -> Moves:
+    """The :class:`Moves` of a state (cached on a traced state: it is proposed from until a
+    move is accepted)."""
+    cached = getattr(state, "_moves", None)
+    if cached is not None:
+        return cached
+    nodes = state.nodes if isinstance(state, Traced) else state.derivation.nodes()
     candidates = [n for n in nodes if _has_continuous(n)]
     sites = [(n.address, s.site) for n in nodes for s in n.spawns if s.probability < 1.0]
-    counts = MoveCounts(len(nodes), len(candidates), len(sites))
-    if rng.random() < p_diffusion and candidates:
-        node = candidates[int(rng.random() * len(candidates))]
+    keys = [(n.address, name) for n in nodes for name in n.choices]
+    moves = Moves(nodes, candidates, sites, keys, MoveCounts(len(nodes), len(candidates), len(sites), len(keys)))
+    if isinstance(state, Traced):
+        state._moves = moves
+    return moves
+
+
+def _edited_dict(derivation, overrides: dict, removed) -> dict:
+    old = derivation.choice_map().raw
+    if removed is not None:
+        choices = {k: v for k, v in old.items() if not is_within(k[0], removed)}
+    else:
         choices = dict(old)
+    for key, value in overrides.items():
+        if value is DROP:
+            choices.pop(key, None)
+        else:
+            choices[key] = value
+    return choices
+
+
+def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_scale: float,
+            p_resample: float = 0.0) -> Proposal:
+    """Build one move's edit of the choice map from a chain state (selection as in the
+    module docstring)."""
+    moves = moves_of(state)
+    nodes, candidates, sites, keys, counts = moves
+    traced = isinstance(state, Traced)
+    u = rng.random()
+    if u < p_diffusion and candidates:
+        node = candidates[int(rng.random() * len(candidates))]
+        overrides = {}
         perturbed = []
         for name, c in node.choices.items():
             if not c.dist.discrete:
-                choices[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
+                overrides[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
                 perturbed.append((node.address, name))
-        return Proposal("diffusion", choices, log_select(counts, "diffusion", p_diffusion), p_diffusion,
-                        node.address, tuple(perturbed))
-    if sites and rng.random() < TOGGLE_SHARE:
+        kind, address, removed = "diffusion", node.address, None
+    elif p_diffusion <= u < p_diffusion + p_resample and keys:
+        key = keys[int(rng.random() * len(keys))]
+        overrides, perturbed = {key: DROP}, ()
+        kind, address, removed = "resample", key[0], None
+    elif sites and rng.random() < TOGGLE_SHARE:
         address, site = sites[int(rng.random() * len(sites))]
-        child = address + (site,)
-        choices = {k: v for k, v in old.items() if not is_within(k[0], child)}
-        choices[(address, site)] = not old[(address, site)]
-        return Proposal("toggle", choices, log_select(counts, "toggle", p_diffusion), p_diffusion, address)
-    node = nodes[int(rng.random() * len(nodes))]
-    choices = {k: v for k, v in old.items() if not is_within(k[0], node.address)}
-    return Proposal("regenerate", choices, log_select(counts, "regenerate", p_diffusion), p_diffusion,
-                    node.address)
+        value = state.derivation.tree()[address].choices[site].value if not traced else \
+            nodes[state.index[address]].choices[site].value
+        overrides, perturbed = {(address, site): not value}, ()
+        kind, removed = "toggle", address + (site,)
+    else:
+        node = nodes[int(rng.random() * len(nodes))]
+        overrides, perturbed = {}, ()
+        kind, address, removed = "regenerate", node.address, node.address
+    choices = None if traced else _edited_dict(state.derivation, overrides, removed)
+    return Proposal(kind, choices, log_select(counts, kind, p_diffusion, p_resample), p_diffusion,
+                    address, tuple(perturbed), p_resample, overrides, removed)
 
 
 def _kept_log_prob(state: Scored, proposal: Proposal, ev: Evaluation) -> float:
@@ -196,12 +276,46 @@ def log_acceptance(state: Scored, proposal: Proposal, ev: Evaluation, beta: floa
         return -math.inf
     if proposal.perturbed and not set(proposal.perturbed).isdisjoint(ev.unused):
         return -math.inf  # a random-walk step left the choice's support: zero target density
-    log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion)
+    log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion, proposal.p_resample)
     if log_back == -math.inf:
         return -math.inf  # the new state does not offer the reverse move
     return (ev.log_reused - _kept_log_prob(state, proposal, ev)
             + beta * (ev.log_likelihood - state.log_likelihood)
             + log_back - proposal.log_select)
+
+
+def log_acceptance_traced(state: Traced, proposal: Proposal, replayed: TracedReplay, beta: float) -> float:
+    """:func:`log_acceptance` of a move replayed by
+    :func:`~procmod.infer.traced.replay_traced`.
+
+    The same ratio, summed over what differs: a call the replay took over unchanged
+    contributes the same log-probabilities to both states, so the prior term is the sum,
+    over the choices that the calls run again took from the map, of their new less their
+    old log-probability; the move counts of the new state are the old ones less the
+    calls from ``replayed.first`` on plus the new calls from there.
+    """
+    new = replayed.state
+    if new.log_likelihood == -math.inf:
+        return -math.inf
+    reused, old_nodes, old_index = replayed.reused, state.nodes, state.index
+    for key in proposal.perturbed:
+        if key not in reused:
+            return -math.inf  # a random-walk step left the choice's support: zero target density
+    log_prior = 0.0
+    for node in replayed.ran:
+        address = node.address
+        for name, c in node.choices.items():
+            if (address, name) in reused:
+                log_prior += c.log_prob - old_nodes[old_index[address]].choices[name].log_prob
+    first = replayed.first
+    old = moves_of(state).counts
+    gone, added = _counts_of(old_nodes[first:]), _counts_of(new.nodes[first:])
+    counts = MoveCounts(len(new.nodes), old.diffusion - gone.diffusion + added.diffusion,
+                        old.maybe - gone.maybe + added.maybe, old.choices - gone.choices + added.choices)
+    log_back = log_select(counts, proposal.kind, proposal.p_diffusion, proposal.p_resample)
+    if log_back == -math.inf:
+        return -math.inf  # the new state does not offer the reverse move
+    return log_prior + beta * (new.log_likelihood - state.log_likelihood) + log_back - proposal.log_select
 
 
 def _log_fresh_regenerate(src, dst, address) -> float:
@@ -238,7 +352,7 @@ def _log1m_exp(x: float) -> float:
 
 
 def delayed_rejection_log_alpha(x: Scored, y1: Scored, y2: Scored, address, beta,
-                                p_diffusion: float) -> float:
+                                p_diffusion: float, p_resample: float = 0.0) -> float:
     """Tierney-Mira second-stage acceptance for an independent second regeneration.
 
     The path ``x -> y1`` (rejected) ``-> y2`` has density ``pi(x) s(x) g(x, y1) (1 -
@@ -247,7 +361,8 @@ def delayed_rejection_log_alpha(x: Scored, y1: Scored, y2: Scored, address, beta
     choices; the second stage regenerates the same call, so it has no selection factor.
     ``alpha2`` balances it against the reverse path ``y2 -> y1 -> x``.
     """
-    s_x, s_y1, s_y2 = (log_select(move_counts(s.derivation), "regenerate", p_diffusion) for s in (x, y1, y2))
+    s_x, s_y1, s_y2 = (log_select(move_counts(s.derivation), "regenerate", p_diffusion, p_resample)
+                       for s in (x, y1, y2))
     if s_y2 == -math.inf or _log_pi(y2, beta) == -math.inf:
         return -math.inf  # y2 has zero target density or does not offer the reverse move
     num = (_log_pi(y2, beta) + s_y2 + _log_fresh_regenerate(y2.derivation, y1.derivation, address)
@@ -272,8 +387,13 @@ class Chains:
 
     def __init__(self, model: Model, target: Target, states: list, betas, rng: np.random.Generator,
                  p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
-                 delayed_rejection: bool = False, executor=None, tracker: Tracker | None = None):
+                 delayed_rejection: bool = False, executor=None, tracker: Tracker | None = None,
+                 p_resample: float = 0.0, incremental: bool = False):
+        if incremental and (executor is not None or delayed_rejection):
+            raise InvalidArgumentError("incremental MCMC runs in process and without delayed rejection; "
+                                       "pass incremental=False for an executor or delayed_rejection")
         self.model, self.target, self.states = model, target, states
+        self.p_resample, self.incremental = p_resample, incremental
         self.betas = np.asarray(betas, dtype=np.float64)
         self.rng, self.executor = rng, executor
         self.p_diffusion, self.step_scale = p_diffusion, step_scale
@@ -292,11 +412,33 @@ class Chains:
     def _accept(self, log_alpha: float) -> bool:
         return math.log(self.rng.random() + 1e-300) < log_alpha
 
+    def _sweep_traced(self) -> None:
+        """The chains' moves of one sweep, each replayed from its state's checkpoints."""
+        rng, states, betas, tracker = self.rng, self.states, self.betas, self.tracker
+        model, target = self.model, self.target
+        for c, s in enumerate(states):
+            if not isinstance(s, Traced):
+                s = states[c] = trace(model, target, s.derivation.choice_map().raw, rng)
+            p = propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample)
+            replayed = replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed), rng,
+                                     edited=p.address)
+            tracker.evaluations += 1
+            new = replayed.state
+            self.proposed[p.kind] += 1
+            tracker.offer(new.derivation, new.score)
+            if self._accept(log_acceptance_traced(s, p, replayed, betas[c])):
+                states[c] = new
+                self.accepted[p.kind] += 1
+
     def sweep(self) -> None:
         """One move per chain, then one proposed swap."""
         rng, states, betas, tracker = self.rng, self.states, self.betas, self.tracker
         accepted, proposed = self.accepted, self.proposed
-        proposals = [propose(s, rng, self.p_diffusion, self.step_scale) for s in states]
+        if self.incremental:
+            self._sweep_traced()
+            self._swap()
+            return
+        proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
         evaluations = self._evaluate([p.choices for p in proposals])
         second = []
         for c, (s, p, ev) in enumerate(zip(states, proposals, evaluations)):
@@ -314,9 +456,13 @@ class Chains:
                 tracker.offer(ev2.derivation, ev2.score)
                 y1, y2 = Scored.from_evaluation(ev1), Scored.from_evaluation(ev2)
                 if self._accept(delayed_rejection_log_alpha(states[c], y1, y2, p.address, betas[c],
-                                                            self.p_diffusion)):
+                                                            self.p_diffusion, self.p_resample)):
                     states[c] = y2
                     accepted["delayed"] += 1
+        self._swap()
+
+    def _swap(self) -> None:
+        rng, states, betas, proposed = self.rng, self.states, self.betas, self.proposed
         chains = len(states)
         if chains > 1 and self.tempering:
             i = int(rng.random() * (chains - 1))
@@ -324,7 +470,7 @@ class Chains:
             log_swap = (betas[i] - betas[i + 1]) * (states[i + 1].log_likelihood - states[i].log_likelihood)
             if self._accept(log_swap):
                 states[i], states[i + 1] = states[i + 1], states[i]
-                accepted["swap"] += 1
+                self.accepted["swap"] += 1
 
     def acceptance_rates(self) -> dict:
         """Accepted / proposed per move kind (None where none was proposed)."""
@@ -334,7 +480,7 @@ class Chains:
 def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: Budget | None = None,
          p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
          annealing: float | None = 1.1, anneal_every: int = 50, delayed_rejection: bool = False,
-         executor=None, progress=None) -> Result:
+         executor=None, progress=None, p_resample: float = 0.0, incremental: bool | None = None) -> Result:
     """Reversible-jump MCMC with parallel tempering and annealing.
 
     Parameters
@@ -356,10 +502,23 @@ def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: B
         Try a second regeneration when a regenerate jump is rejected.
     executor : concurrent.futures.Executor, optional
         Evaluates the chains' proposals of a sweep (default: in-process).
+    p_resample : float
+        Probability of a single-site move: one choice, uniform among all the state's
+        choices, drawn afresh from its prior (discrete ones included: the move that
+        flips one coin). ``p_diffusion + p_resample`` must be at most 1.
+    incremental : bool or None
+        Replay each move from the state's checkpoints (:mod:`procmod.infer.traced`):
+        the same chain, bit for bit, at a cost proportional to what the move changes.
+        Default: on, unless an ``executor`` or ``delayed_rejection`` is given (both
+        replay whole derivations).
     """
     check_positive("chains", chains)
     if not 0.0 <= p_diffusion <= 1.0:
         raise InvalidArgumentError(f"p_diffusion must be in [0, 1], got {p_diffusion!r}")
+    if not 0.0 <= p_resample <= 1.0 - p_diffusion:
+        raise InvalidArgumentError(f"p_resample must be in [0, 1 - p_diffusion], got {p_resample!r}")
+    if incremental is None:
+        incremental = executor is None and not delayed_rejection
     if annealing is not None and not annealing >= 1.0:
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
     budget = budget or Budget(generations=200)
@@ -369,13 +528,16 @@ def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: B
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
     with relaxed_gc():
-        states = [Scored.from_evaluation(ev) for ev in
-                  evaluate_all(executor, model, target, [({}, new_seed(rng), None) for _ in range(chains)])]
+        if incremental:  # the same initial states as evaluate_all's forward runs
+            states = [trace(model, target, {}, np.random.default_rng(new_seed(rng))) for _ in range(chains)]
+        else:
+            states = [Scored.from_evaluation(ev) for ev in
+                      evaluate_all(executor, model, target, [({}, new_seed(rng), None) for _ in range(chains)])]
         tracker.evaluations += chains
         for s in states:
             tracker.offer(s.derivation, s.score)
         run = Chains(model, target, states, betas, rng, p_diffusion, step_scale, tempering,
-                     delayed_rejection, executor, tracker)
+                     delayed_rejection, executor, tracker, p_resample, incremental)
         while not tracker.spent():
             run.sweep()
             tracker.generations += 1
@@ -390,5 +552,6 @@ def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: B
                             "p_diffusion": p_diffusion, "step_scale": step_scale,
                             "tempering": tempering, "annealing": annealing,
                             "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
+                            "p_resample": p_resample, "incremental": incremental,
                             "acceptance_rates": run.acceptance_rates()},
                   log_weights=[s.log_likelihood for s in run.states])

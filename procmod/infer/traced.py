@@ -1,0 +1,246 @@
+"""Incremental replay for MCMC: a proposal costs what it changes, not the whole derivation.
+
+A chain state is a :class:`Traced` derivation: besides the derivation it keeps, for the
+calls in program order, *checkpoints* — the output drawn so far, the pending calls and
+the running log-prior just before each call ran. A move edits the choices of one call
+``X`` (and maybe drops its subtree); in program order every call before ``X`` makes the
+same choices with the same arguments, so :func:`replay_traced` restores the checkpoint
+before ``X`` instead of running those calls again. From there it goes on in program
+order as :func:`procmod.core.replay` would, except that a call whose address, rule,
+arguments and choice values are those of a call of the old derivation is not run again:
+its recorded choices, geometry and spawns are taken as they are (rules are deterministic
+given their arguments and choice values — the same contract that lets the runtime
+resume a paused call by re-execution), and only its geometry is drawn, in program order.
+
+The result is the derivation a full replay gives, bit for bit: the same calls in the same
+order, the same choices, and the output, the log-prior and the likelihood summed in the
+same order from the same values (``tests/test_mcmc_incremental.py`` checks it). What a
+move then costs is a copy of one checkpoint, the changed calls run again, and for the
+calls after them a draw of their geometry: on vines about the second half of the
+derivation drawn and the edited subtree run, where a full replay ran every call.
+
+Checkpoints take memory (one output copy per call), so they are kept every ``stride``
+calls, with ``stride`` chosen from the output's size (every call for a 50x50 canvas;
+a 3D output keeps fewer and draws the calls between them again).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from ..core import is_within
+from ..core.runtime import Derivation, Future, _execute, _map_agrees, same_args, start
+from .common import Scored, output_bytes
+
+_MISSING = object()
+DROP = _MISSING  # an override that drops a choice: the replay samples it afresh
+
+# Memory of checkpoints per chain state, about: a checkpoint every call while its output
+# copy is at most this / 256 bytes (a 50x50 canvas: 2.5 kB), fewer calls apart beyond.
+CHECKPOINT_BYTES = 4 << 20
+
+
+def checkpoint_stride(output) -> int:
+    """Calls between checkpoints for an output like ``output`` (see CHECKPOINT_BYTES)."""
+    return max(1, math.ceil(256 * (output_bytes(output) + 512) / CHECKPOINT_BYTES))
+
+
+class Checkpoint(NamedTuple):
+    """A partial derivation just before a call ran (program order)."""
+
+    output: object  # never drawn into: restored by copying it
+    pending: tuple
+    log_prior: float
+    n_emits: int
+    chain: object
+
+
+class Traced(Scored):
+    """A chain state: a complete derivation with its checkpoints (module docstring).
+
+    Attributes
+    ----------
+    nodes : list
+        The calls in program order.
+    marks : list
+        ``marks[i]``: :class:`Checkpoint` before ``nodes[i]`` ran, or None between
+        checkpoints (``marks[0]`` is always one).
+    stride : int
+        Calls between checkpoints.
+    """
+
+    def __init__(self, derivation, log_prior, log_likelihood, score, nodes, marks, stride):
+        super().__init__(derivation, log_prior, log_likelihood, score)
+        self.nodes, self.marks, self.stride = nodes, marks, stride
+        self._index = None
+        self._moves = None
+
+    @property
+    def index(self) -> dict:
+        """``address -> position`` of the calls in ``nodes`` (built on first use)."""
+        if self._index is None:
+            self._index = {n.address: i for i, n in enumerate(self.nodes)}
+        return self._index
+
+
+class EditedChoices:
+    """The choice map of a derivation with one move's edits, without building it.
+
+    ``get((address, name))`` answers ``overrides`` first (a value, or ``_MISSING`` for a
+    dropped choice), then nothing inside the dropped subtree ``removed``, then the old
+    derivation's value.
+    """
+
+    __slots__ = ("nodes", "index", "overrides", "removed")
+
+    def __init__(self, traced: Traced, overrides: dict, removed: tuple | None):
+        self.nodes, self.index = traced.nodes, traced.index
+        self.overrides, self.removed = overrides, removed
+
+    def get(self, key, default=None):
+        value = self.overrides.get(key, _MISSING)
+        if value is not _MISSING:
+            return value
+        if key in self.overrides:  # dropped
+            return default
+        address, name = key
+        removed = self.removed
+        if removed is not None and address[: len(removed)] == removed:
+            return default
+        i = self.index.get(address)
+        if i is None:
+            return default
+        choice = self.nodes[i].choices.get(name)
+        return default if choice is None else choice.value
+
+    def __contains__(self, key) -> bool:
+        return self.get(key, _MISSING) is not _MISSING
+
+
+def _mark(state: Derivation) -> Checkpoint:
+    return Checkpoint(state.output.copy(), tuple(state.pending), state.log_prior, state.n_emits, state._chain)
+
+
+def _reuse(state: Derivation, node, stops: bool) -> None:
+    """What running ``node``'s call again would do, without running it (module docstring):
+    the same log-probabilities added in the same order, the same geometry drawn, the same
+    spawns pending (their ``ctx.at`` positions, read only by guides, are not kept)."""
+    lp_prior, lp_reused = state.log_prior, state.log_reused
+    for choice in node.choices.values():
+        lp = choice.log_prob
+        lp_reused += lp
+        lp_prior += lp
+    state.log_prior, state.log_reused = lp_prior, lp_reused
+    output = state.output
+    for geometry in node.geometry:
+        output.add(geometry)
+    state.n_emits += len(node.geometry)
+    state._chain = (node, state._chain)
+    state.n_nodes += 1
+    if stops:
+        state.stopped = True
+        state.pending.clear()
+        return
+    pending, address = state.pending, node.address
+    for spawn in reversed(node.spawns):
+        if spawn.on:
+            pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
+
+
+class TracedReplay(NamedTuple):
+    """What :func:`replay_traced` returns: the new state, the calls that ran again (new
+    nodes) and, of their choices, the keys taken from the map (what the acceptance ratio
+    needs: :func:`procmod.infer.mcmc.log_acceptance_traced`)."""
+
+    state: Traced
+    ran: list
+    reused: set
+    first: int  # position in both states' ``nodes`` from which they may differ
+
+
+def replay_traced(model, target, previous: Traced | None, choices, rng, edited: tuple | None = None,
+                  stride: int | None = None) -> TracedReplay:
+    """Replay ``choices`` in program order from ``previous``'s checkpoint before the call
+    at ``edited`` (module docstring); from the start when ``previous`` is None.
+
+    ``choices`` is any mapping with ``get`` and ``in`` (an :class:`EditedChoices`, a
+    dict). The caller vouches that it holds exactly ``previous``'s values for every call
+    outside the subtree at ``edited`` (calls inside it are compared value by value).
+    ``stride`` (calls between checkpoints) defaults to ``previous``'s, or
+    :func:`checkpoint_stride` of the target's output.
+    """
+    old_nodes = previous.nodes if previous is not None else []
+    old_index = previous.index if previous is not None else {}
+    if previous is None or edited is None or edited not in old_index:
+        first = 0
+    else:
+        first = old_index[edited]
+    if previous is not None:
+        stride = previous.stride
+        j = first - first % stride
+        mark = previous.marks[j]
+        state = Derivation.__new__(Derivation)
+        state.model = model
+        state.output = mark.output.copy()
+        state.pending = list(mark.pending)
+        state.active = None
+        state.log_prior = mark.log_prior
+        state.stopped = False
+        state.position = None
+        state.n_emits = mark.n_emits
+        state.n_nodes = j
+        state._chain = mark.chain
+        state._reused = set()
+        # every call before j takes all its choices from the map: a full replay's reused
+        # sum is the same additions in the same order as the log-prior's
+        state.log_reused = mark.log_prior
+        state.log_fresh = 0.0
+        state.maybe_default = None
+        state.proposer = None
+        state.log_proposal = 0.0
+        state.guide_cache = None
+        nodes = old_nodes[:j]
+        marks = previous.marks[:j]
+        stopper = old_nodes[-1] if previous.derivation.stopped else None
+    else:
+        output = target.new_output(model)
+        if output.supports_part_cache:
+            output.use_part_cache()
+        if stride is None:
+            stride = checkpoint_stride(output)
+        state = start(model, output)
+        j, nodes, marks, stopper = 0, [], [], None
+    state.constraints = choices
+    pending = state.pending
+    ran = []
+    while pending and not state.stopped:
+        marks.append(_mark(state) if state.n_nodes % stride == 0 else None)
+        future = pending[-1]
+        address = future.address
+        i = old_index.get(address)
+        if i is not None:
+            node = old_nodes[i]
+            if (node.rule is future.rule and same_args(node.args, future.args)
+                    and (edited is None or not is_within(address, edited)
+                         or _map_agrees(node, choices, None))):
+                pending.pop()
+                _reuse(state, node, node is stopper)
+                nodes.append(node)
+                continue
+        pending.pop()
+        _execute(state, future, rng, None, 0, False)
+        node = state._chain[0]
+        nodes.append(node)
+        ran.append(node)
+    pending.clear()
+    state.constraints = None
+    output = state.output
+    traced = Traced(state, state.log_prior, target.log_likelihood(output), target.score(output),
+                    nodes, marks, stride)
+    return TracedReplay(traced, ran, state._reused, j)
+
+
+def trace(model, target, choices, rng) -> Traced:
+    """A :class:`Traced` state from a choice map (e.g. ``{}``: a fresh forward run)."""
+    return replay_traced(model, target, None, choices, rng).state
