@@ -60,6 +60,7 @@ factor of its own; see :func:`delayed_rejection_log_alpha`).
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -69,7 +70,7 @@ from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
-from .traced import DROP, EditedChoices, Traced, TracedReplay, replay_traced, trace
+from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
 
 HOTTEST_ACCEPTANCE = 0.7
 COLDEST_ACCEPTANCE = 0.01
@@ -113,20 +114,6 @@ class MoveCounts(NamedTuple):
     choices: int = 0
 
 
-def _node_counts(node) -> tuple:
-    """(1 if the call has a continuous choice else 0, its maybe sites, its choices)."""
-    cont = 0
-    for c in node.choices.values():
-        if not c.dist.discrete:
-            cont = 1
-            break
-    maybe = 0
-    for s in node.spawns:
-        if s.probability < 1.0:
-            maybe += 1
-    return cont, maybe, len(node.choices)
-
-
 def move_counts(derivation) -> MoveCounts:
     """:class:`MoveCounts` of a derivation (one walk over its calls)."""
     return _counts_of(derivation.nodes())
@@ -135,7 +122,7 @@ def move_counts(derivation) -> MoveCounts:
 def _counts_of(nodes) -> MoveCounts:
     diffusion = maybe = choices = 0
     for node in nodes:
-        c, m, k = _node_counts(node)
+        c, m, k = node_counts(node)
         diffusion += c
         maybe += m
         choices += k
@@ -187,30 +174,51 @@ class Proposal:
 
 
 
-class Moves(NamedTuple):
-    """What :func:`propose` picks from in a state (built once per state)."""
-
-    nodes: list
-    candidates: list
-    sites: list
-    keys: list
-    counts: MoveCounts
+def traced_counts(state: Traced) -> MoveCounts:
+    """:class:`MoveCounts` of a traced state, from its running counts."""
+    cum_d, cum_m, cum_k = state.cum
+    return MoveCounts(len(state.nodes), cum_d[-1], cum_m[-1], cum_k[-1])
 
 
-def moves_of(state: Scored) -> Moves:
-    """The :class:`Moves` of a state (cached on a traced state: it is proposed from until a
-    move is accepted)."""
-    cached = getattr(state, "_moves", None)
-    if cached is not None:
-        return cached
-    nodes = state.nodes if isinstance(state, Traced) else state.derivation.nodes()
-    candidates = [n for n in nodes if _has_continuous(n)]
-    sites = [(n.address, s.site) for n in nodes for s in n.spawns if s.probability < 1.0]
-    keys = [(n.address, name) for n in nodes for name in n.choices]
-    moves = Moves(nodes, candidates, sites, keys, MoveCounts(len(nodes), len(candidates), len(sites), len(keys)))
-    if isinstance(state, Traced):
-        state._moves = moves
-    return moves
+class _Picks:
+    """The ``i``-th call with a continuous choice, ``maybe`` site or choice of a state, in
+    program order: from lists built from the derivation (a :class:`Scored` state) or by
+    bisecting a traced state's running counts (no walk over its calls)."""
+
+    def __init__(self, state: Scored):
+        if isinstance(state, Traced):
+            self.nodes, self.cum = state.nodes, state.cum
+            self.counts = traced_counts(state)
+        else:
+            nodes = state.derivation.nodes()
+            self.nodes, self.cum = nodes, None
+            self.candidates = [n for n in nodes if _has_continuous(n)]
+            self.sites = [(n, s.site) for n in nodes for s in n.spawns if s.probability < 1.0]
+            self.keys = [(n, name) for n in nodes for name in n.choices]
+            self.counts = MoveCounts(len(nodes), len(self.candidates), len(self.sites), len(self.keys))
+
+    def candidate(self, i: int):
+        if self.cum is None:
+            return self.candidates[i]
+        return self.nodes[bisect_right(self.cum[0], i) - 1]
+
+    def site(self, i: int) -> tuple:
+        """``(node, site name)`` of the ``i``-th maybe site."""
+        if self.cum is None:
+            return self.sites[i]
+        cum = self.cum[1]
+        k = bisect_right(cum, i) - 1
+        node = self.nodes[k]
+        return node, [s.site for s in node.spawns if s.probability < 1.0][i - cum[k]]
+
+    def key(self, i: int) -> tuple:
+        """``(node, choice name)`` of the ``i``-th choice."""
+        if self.cum is None:
+            return self.keys[i]
+        cum = self.cum[2]
+        k = bisect_right(cum, i) - 1
+        node = self.nodes[k]
+        return node, list(node.choices)[i - cum[k]]
 
 
 def _edited_dict(derivation, overrides: dict, removed) -> dict:
@@ -231,12 +239,11 @@ def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_sc
             p_resample: float = 0.0) -> Proposal:
     """Build one move's edit of the choice map from a chain state (selection as in the
     module docstring)."""
-    moves = moves_of(state)
-    nodes, candidates, sites, keys, counts = moves
-    traced = isinstance(state, Traced)
+    picks = _Picks(state)
+    counts = picks.counts
     u = rng.random()
-    if u < p_diffusion and candidates:
-        node = candidates[int(rng.random() * len(candidates))]
+    if u < p_diffusion and counts.diffusion:
+        node = picks.candidate(int(rng.random() * counts.diffusion))
         overrides = {}
         perturbed = []
         for name, c in node.choices.items():
@@ -244,21 +251,20 @@ def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_sc
                 overrides[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
                 perturbed.append((node.address, name))
         kind, address, removed = "diffusion", node.address, None
-    elif p_diffusion <= u < p_diffusion + p_resample and keys:
-        key = keys[int(rng.random() * len(keys))]
-        overrides, perturbed = {key: DROP}, ()
-        kind, address, removed = "resample", key[0], None
-    elif sites and rng.random() < TOGGLE_SHARE:
-        address, site = sites[int(rng.random() * len(sites))]
-        value = state.derivation.tree()[address].choices[site].value if not traced else \
-            nodes[state.index[address]].choices[site].value
-        overrides, perturbed = {(address, site): not value}, ()
+    elif p_diffusion <= u < p_diffusion + p_resample and counts.choices:
+        node, name = picks.key(int(rng.random() * counts.choices))
+        overrides, perturbed = {(node.address, name): DROP}, ()
+        kind, address, removed = "resample", node.address, None
+    elif counts.maybe and rng.random() < TOGGLE_SHARE:
+        node, site = picks.site(int(rng.random() * counts.maybe))
+        address = node.address
+        overrides, perturbed = {(address, site): not node.choices[site].value}, ()
         kind, removed = "toggle", address + (site,)
     else:
-        node = nodes[int(rng.random() * len(nodes))]
+        node = picks.nodes[int(rng.random() * counts.calls)]
         overrides, perturbed = {}, ()
         kind, address, removed = "regenerate", node.address, node.address
-    choices = None if traced else _edited_dict(state.derivation, overrides, removed)
+    choices = None if isinstance(state, Traced) else _edited_dict(state.derivation, overrides, removed)
     return Proposal(kind, choices, log_select(counts, kind, p_diffusion, p_resample), p_diffusion,
                     address, tuple(perturbed), p_resample, overrides, removed)
 
@@ -291,8 +297,7 @@ def log_acceptance_traced(state: Traced, proposal: Proposal, replayed: TracedRep
     The same ratio, summed over what differs: a call the replay took over unchanged
     contributes the same log-probabilities to both states, so the prior term is the sum,
     over the choices that the calls run again took from the map, of their new less their
-    old log-probability; the move counts of the new state are the old ones less the
-    calls from ``replayed.first`` on plus the new calls from there.
+    old log-probability; the new state's move counts are its running counts' totals.
     """
     new = replayed.state
     if new.log_likelihood == -math.inf:
@@ -307,12 +312,7 @@ def log_acceptance_traced(state: Traced, proposal: Proposal, replayed: TracedRep
         for name, c in node.choices.items():
             if (address, name) in reused:
                 log_prior += c.log_prob - old_nodes[old_index[address]].choices[name].log_prob
-    first = replayed.first
-    old = moves_of(state).counts
-    gone, added = _counts_of(old_nodes[first:]), _counts_of(new.nodes[first:])
-    counts = MoveCounts(len(new.nodes), old.diffusion - gone.diffusion + added.diffusion,
-                        old.maybe - gone.maybe + added.maybe, old.choices - gone.choices + added.choices)
-    log_back = log_select(counts, proposal.kind, proposal.p_diffusion, proposal.p_resample)
+    log_back = log_select(traced_counts(new), proposal.kind, proposal.p_diffusion, proposal.p_resample)
     if log_back == -math.inf:
         return -math.inf  # the new state does not offer the reverse move
     return log_prior + beta * (new.log_likelihood - state.log_likelihood) + log_back - proposal.log_select
@@ -413,16 +413,21 @@ class Chains:
         return math.log(self.rng.random() + 1e-300) < log_alpha
 
     def _sweep_traced(self) -> None:
-        """The chains' moves of one sweep, each replayed from its state's checkpoints."""
+        """The chains' moves of one sweep, each replayed from its state's checkpoints.
+
+        Random numbers are drawn in the order of the full-replay sweep (every proposal,
+        then one seed per replay, then the acceptances), so both give the same chain."""
         rng, states, betas, tracker = self.rng, self.states, self.betas, self.tracker
         model, target = self.model, self.target
         for c, s in enumerate(states):
-            if not isinstance(s, Traced):
-                s = states[c] = trace(model, target, s.derivation.choice_map().raw, rng)
-            p = propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample)
-            replayed = replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed), rng,
-                                     edited=p.address)
-            tracker.evaluations += 1
+            if not isinstance(s, Traced):  # e.g. a state handed in by a caller
+                states[c] = trace(model, target, s.derivation.choice_map().raw, np.random.default_rng(0))
+        proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
+        replays = [replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed),
+                                 np.random.default_rng(new_seed(rng)), edited=p.address)
+                   for s, p in zip(states, proposals)]
+        tracker.evaluations += len(states)
+        for c, (s, p, replayed) in enumerate(zip(states, proposals, replays)):
             new = replayed.state
             self.proposed[p.kind] += 1
             tracker.offer(new.derivation, new.score)

@@ -68,13 +68,16 @@ class Traced(Scored):
         checkpoints (``marks[0]`` is always one).
     stride : int
         Calls between checkpoints.
+    cum : tuple of three lists
+        Running counts over ``nodes`` (``n + 1`` entries each, from 0) of the calls with a
+        continuous choice, of ``maybe`` sites and of choices (:func:`node_counts`): what
+        MCMC picks its moves from, and what the reverse move's probability needs.
     """
 
-    def __init__(self, derivation, log_prior, log_likelihood, score, nodes, marks, stride):
+    def __init__(self, derivation, log_prior, log_likelihood, score, nodes, marks, stride, cum):
         super().__init__(derivation, log_prior, log_likelihood, score)
-        self.nodes, self.marks, self.stride = nodes, marks, stride
+        self.nodes, self.marks, self.stride, self.cum = nodes, marks, stride, cum
         self._index = None
-        self._moves = None
 
     @property
     def index(self) -> dict:
@@ -116,6 +119,20 @@ class EditedChoices:
 
     def __contains__(self, key) -> bool:
         return self.get(key, _MISSING) is not _MISSING
+
+
+def node_counts(node) -> tuple:
+    """(1 if the call has a continuous choice else 0, its ``maybe`` sites, its choices)."""
+    cont = 0
+    for c in node.choices.values():
+        if not c.dist.discrete:
+            cont = 1
+            break
+    maybe = 0
+    for s in node.spawns:
+        if s.probability < 1.0:
+            maybe += 1
+    return cont, maybe, len(node.choices)
 
 
 def _mark(state: Derivation) -> Checkpoint:
@@ -202,6 +219,8 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
         state.guide_cache = None
         nodes = old_nodes[:j]
         marks = previous.marks[:j]
+        old_d, old_m, old_k = previous.cum
+        cum_d, cum_m, cum_k = old_d[: j + 1], old_m[: j + 1], old_k[: j + 1]
         stopper = old_nodes[-1] if previous.derivation.stopped else None
     else:
         output = target.new_output(model)
@@ -211,6 +230,7 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
             stride = checkpoint_stride(output)
         state = start(model, output)
         j, nodes, marks, stopper = 0, [], [], None
+        cum_d, cum_m, cum_k = [0], [0], [0]
     state.constraints = choices
     pending = state.pending
     ran = []
@@ -227,17 +247,24 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
                 pending.pop()
                 _reuse(state, node, node is stopper)
                 nodes.append(node)
+                cum_d.append(cum_d[-1] + old_d[i + 1] - old_d[i])
+                cum_m.append(cum_m[-1] + old_m[i + 1] - old_m[i])
+                cum_k.append(cum_k[-1] + old_k[i + 1] - old_k[i])
                 continue
         pending.pop()
         _execute(state, future, rng, None, 0, False)
         node = state._chain[0]
         nodes.append(node)
         ran.append(node)
+        d, m, k = node_counts(node)
+        cum_d.append(cum_d[-1] + d)
+        cum_m.append(cum_m[-1] + m)
+        cum_k.append(cum_k[-1] + k)
     pending.clear()
     state.constraints = None
     output = state.output
     traced = Traced(state, state.log_prior, target.log_likelihood(output), target.score(output),
-                    nodes, marks, stride)
+                    nodes, marks, stride, (cum_d, cum_m, cum_k))
     return TracedReplay(traced, ran, state._reused, j)
 
 
