@@ -29,21 +29,26 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from ..core import is_within
 from ..core.runtime import Derivation, Future, _execute, _map_agrees, same_args, start
 from .common import Scored, output_bytes
 
 _MISSING = object()
 DROP = _MISSING  # an override that drops a choice: the replay samples it afresh
 
-# Memory of checkpoints per chain state, about: a checkpoint every call while its output
-# copy is at most this / 256 bytes (a 50x50 canvas: 2.5 kB), fewer calls apart beyond.
+# Calls between checkpoints, at least: a checkpoint (an output copy, ~3 us for a 50x50
+# canvas) is made for every call a replay passes, while a restore from a checkpoint k
+# calls before the edited call draws those k calls again (~8 us each on vines); with ~40
+# calls after the edited one, every 4th call costs least (vines: 1060 -> 900 us a move).
+MIN_STRIDE = 4
+# Memory of checkpoints per chain state, about: fewer of them for outputs larger than this
+# / 256 bytes (a 50x50 canvas is 2.5 kB).
 CHECKPOINT_BYTES = 4 << 20
 
 
 def checkpoint_stride(output) -> int:
-    """Calls between checkpoints for an output like ``output`` (see CHECKPOINT_BYTES)."""
-    return max(1, math.ceil(256 * (output_bytes(output) + 512) / CHECKPOINT_BYTES))
+    """Calls between checkpoints for an output like ``output`` (MIN_STRIDE, more where
+    CHECKPOINT_BYTES requires). Results do not depend on it, only time and memory do."""
+    return max(MIN_STRIDE, math.ceil(256 * (output_bytes(output) + 512) / CHECKPOINT_BYTES))
 
 
 class Checkpoint(NamedTuple):
@@ -135,36 +140,6 @@ def node_counts(node) -> tuple:
     return cont, maybe, len(node.choices)
 
 
-def _mark(state: Derivation) -> Checkpoint:
-    return Checkpoint(state.output.copy(), tuple(state.pending), state.log_prior, state.n_emits, state._chain)
-
-
-def _reuse(state: Derivation, node, stops: bool) -> None:
-    """What running ``node``'s call again would do, without running it (module docstring):
-    the same log-probabilities added in the same order, the same geometry drawn, the same
-    spawns pending (their ``ctx.at`` positions, read only by guides, are not kept)."""
-    lp_prior, lp_reused = state.log_prior, state.log_reused
-    for choice in node.choices.values():
-        lp = choice.log_prob
-        lp_reused += lp
-        lp_prior += lp
-    state.log_prior, state.log_reused = lp_prior, lp_reused
-    output = state.output
-    for geometry in node.geometry:
-        output.add(geometry)
-    state.n_emits += len(node.geometry)
-    state._chain = (node, state._chain)
-    state.n_nodes += 1
-    if stops:
-        state.stopped = True
-        state.pending.clear()
-        return
-    pending, address = state.pending, node.address
-    for spawn in reversed(node.spawns):
-        if spawn.on:
-            pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
-
-
 class TracedReplay(NamedTuple):
     """What :func:`replay_traced` returns: the new state, the calls that ran again (new
     nodes) and, of their choices, the keys taken from the map (what the acceptance ratio
@@ -234,35 +209,69 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
     state.constraints = choices
     pending = state.pending
     ran = []
-    while pending and not state.stopped:
-        marks.append(_mark(state) if state.n_nodes % stride == 0 else None)
-        future = pending[-1]
+    output = state.output
+    draw = output.add
+    copy_output = output.copy
+    # The state's running fields live in locals while calls are taken over (this loop is
+    # the cost of a move) and are written back around each call that runs.
+    lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, state.log_reused, state.n_emits,
+                                                    state.n_nodes, state._chain)
+    depth = None if edited is None else len(edited)
+    stopped = False
+    while pending:
+        marks.append(Checkpoint(copy_output(), tuple(pending), lp_prior, n_emits, chain)
+                     if n_nodes % stride == 0 else None)
+        future = pending.pop()
         address = future.address
         i = old_index.get(address)
         if i is not None:
             node = old_nodes[i]
             if (node.rule is future.rule and same_args(node.args, future.args)
-                    and (edited is None or not is_within(address, edited)
-                         or _map_agrees(node, choices, None))):
-                pending.pop()
-                _reuse(state, node, node is stopper)
+                    and (depth is None or address[:depth] != edited or _map_agrees(node, choices, None))):
+                # take the call over (module docstring): what running it again would do,
+                # the same log-probabilities added in the same order, the same geometry
+                # drawn, the same spawns pending (their ctx.at positions, read only by
+                # guides, are not kept)
+                for choice in node.choices.values():
+                    lp = choice[1]
+                    lp_reused += lp
+                    lp_prior += lp
+                for geometry in node.geometry:
+                    draw(geometry)
+                n_emits += len(node.geometry)
+                chain = (node, chain)
+                n_nodes += 1
                 nodes.append(node)
                 cum_d.append(cum_d[-1] + old_d[i + 1] - old_d[i])
                 cum_m.append(cum_m[-1] + old_m[i + 1] - old_m[i])
                 cum_k.append(cum_k[-1] + old_k[i + 1] - old_k[i])
+                if node is stopper:
+                    stopped = True
+                    break
+                for spawn in reversed(node.spawns):
+                    if spawn.on:
+                        pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
                 continue
-        pending.pop()
+        state.log_prior, state.log_reused, state.n_emits, state.n_nodes, state._chain = (
+            lp_prior, lp_reused, n_emits, n_nodes, chain)
         _execute(state, future, rng, None, 0, False)
-        node = state._chain[0]
+        lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, state.log_reused, state.n_emits,
+                                                        state.n_nodes, state._chain)
+        node = chain[0]
         nodes.append(node)
         ran.append(node)
         d, m, k = node_counts(node)
         cum_d.append(cum_d[-1] + d)
         cum_m.append(cum_m[-1] + m)
         cum_k.append(cum_k[-1] + k)
+        if state.stopped:
+            stopped = True
+            break
+    state.log_prior, state.log_reused, state.n_emits, state.n_nodes, state._chain = (
+        lp_prior, lp_reused, n_emits, n_nodes, chain)
+    state.stopped = stopped
     pending.clear()
     state.constraints = None
-    output = state.output
     traced = Traced(state, state.log_prior, target.log_likelihood(output), target.score(output),
                     nodes, marks, stride, (cum_d, cum_m, cum_k))
     return TracedReplay(traced, ran, state._reused, j)
