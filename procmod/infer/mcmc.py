@@ -8,15 +8,23 @@ Moves, all built from replay under a modified choice map:
   with a Gaussian random walk (``step_scale`` x each distribution's scale);
 * **regenerate** (jump) — pick a call uniformly and resample its subtree from the prior;
 * **toggle** (jump) — pick a ``maybe`` site uniformly and flip it: grow a fresh subtree
-  from the prior or cut the existing one.
+  from the prior or cut the existing one;
+* **resample** (single-site) — pick one choice uniformly among all the state's choices
+  and draw it afresh from its prior, keeping every other value (WebPPL's single-site MH
+  move): the move that flips one coin, e.g. a vine's ``terminate``, growing the vine
+  from its last segment on, which a regenerate jump reaches only with the call's other
+  choices redrawn too. It drops the choice from the map, so it is a jump like the
+  others: the reverse move drops the same choice in the new state.
 
 Move selection depends on what the state offers. With ``D`` calls that have a continuous
-choice, ``M`` ``maybe`` sites (on or off) and ``N`` calls, :func:`propose` picks::
+choice, ``M`` ``maybe`` sites (on or off), ``K`` choices and ``N`` calls,
+:func:`propose` picks::
 
     P(kind)     diffusion: p_diffusion if D > 0, else 0
-                toggle:    (1 - P(diffusion)) / 2 if M > 0, else 0
-                regenerate: the rest, 1 - P(diffusion) - P(toggle)
-    P(move)  =  P(kind) / (D, M or N respectively)
+                resample:  p_resample if K > 0, else 0
+                toggle:    (1 - P(diffusion) - P(resample)) / 2 if M > 0, else 0
+                regenerate: the rest, 1 - P(diffusion) - P(resample) - P(toggle)
+    P(move)  =  P(kind) / (D, K, M or N respectively)
 
 (:func:`log_select`). States differ in ``D`` and ``M`` — a vine whose root terminates
 has no ``maybe`` site, a derivation may have no continuous choice at all — so both the
@@ -55,6 +63,12 @@ rejected, a second independent regeneration of the same call is tried and accept
 the Tierney-Mira two-stage probability, in which the site's selection probability enters
 once per first-stage move (the second stage reuses the site, so it has no selection
 factor of its own; see :func:`delayed_rejection_log_alpha`).
+
+Cost. By default each move is replayed incrementally (:mod:`procmod.infer.traced`):
+from a checkpoint before the edited call, taking over the unchanged calls after it
+without running them — the same chain, bit for bit, as replaying the whole derivation
+(``incremental=False``, and always with an executor or delayed rejection), at a cost
+that grows with what the move changes.
 """
 
 from __future__ import annotations
@@ -482,19 +496,27 @@ class Chains:
         return {k: (self.accepted[k] / self.proposed[k] if self.proposed[k] else None) for k in self.accepted}
 
 
-def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: Budget | None = None,
-         p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
+def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: Budget | None = None,
+         p_diffusion: float = 0.3, step_scale: float = 0.1, tempering: bool = True,
          annealing: float | None = 1.1, anneal_every: int = 50, delayed_rejection: bool = False,
-         executor=None, progress=None, p_resample: float = 0.0, incremental: bool | None = None) -> Result:
+         executor=None, progress=None, p_resample: float = 0.3, incremental: bool | None = None) -> Result:
     """Reversible-jump MCMC with parallel tempering and annealing.
+
+    The defaults (one chain; diffusion 0.3, single-site resample 0.3, jumps the rest)
+    are what did best on vines at equal wall time (docs/vines_smc.md, "MCMC"): every
+    chain of a ladder costs as much as the coldest, and on a likelihood as sharp as an
+    image match the hot chains' states are rarely swapped down, so 8 chains gave the
+    cold one an eighth of the moves for nothing. Pass ``chains=8`` for seed 002's ladder.
 
     Parameters
     ----------
     chains : int
-        Number of chains; with ``tempering`` they form one temperature ladder (coldest
-        first), otherwise they are independent chains at temperature 1.
+        Number of chains; with ``tempering`` (and more than one) they form one
+        temperature ladder (coldest first), otherwise they are independent chains at
+        temperature 1.
     budget : Budget
         Default: 200 sweeps (generations). One sweep proposes one move per chain.
+        Annealing counts sweeps, so with more chains it is slower per move.
     p_diffusion : float
         Probability of a diffusion move where the state has a continuous choice
         (otherwise a jump; see the module docstring).
