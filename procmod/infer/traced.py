@@ -35,10 +35,11 @@ from .common import Scored, output_bytes
 _MISSING = object()
 DROP = _MISSING  # an override that drops a choice: the replay samples it afresh
 
-# Calls between checkpoints, at least: a checkpoint (an output copy, ~3 us for a 50x50
-# canvas) is made for every call a replay passes, while a restore from a checkpoint k
-# calls before the edited call draws those k calls again (~8 us each on vines); with ~40
-# calls after the edited one, every 4th call costs least (vines: 1060 -> 900 us a move).
+# Calls between checkpoints, at least: a checkpoint (an output copy, ~2-3 us for a 50x50
+# canvas) is made for every call a replay passes after the edited one (~40 on a
+# 100-call vine), while a restore from a checkpoint k calls before the edited call draws
+# those k calls again (~5-8 us each on vines): every 4th call balances the two (an
+# estimate from those per-call costs; the load on the machine hid the difference).
 MIN_STRIDE = 4
 # Memory of checkpoints per chain state, about: fewer of them for outputs larger than this
 # / 256 bytes (a 50x50 canvas is 2.5 kB).
