@@ -455,7 +455,8 @@ def main() -> None:
     }
     (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=1) + "\n")
     title = f"vines {'with' if args.leaves else 'without'} leaves and flowers: procmod vs WebPPL {WEBPPL_VERSION}"
-    plot(summary, sets, RESULTS / f"{args.name}.png", title)
+    if summary:  # (`--particles` with no counts: the MCMC comparison alone)
+        plot(summary, sets, RESULTS / f"{args.name}.png", title)
     if mcmc_rows:
         plot_mcmc(mcmc_rows, RESULTS / f"{args.name}_mcmc.png")
     for s in summary:

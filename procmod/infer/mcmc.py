@@ -8,15 +8,23 @@ Moves, all built from replay under a modified choice map:
   with a Gaussian random walk (``step_scale`` x each distribution's scale);
 * **regenerate** (jump) — pick a call uniformly and resample its subtree from the prior;
 * **toggle** (jump) — pick a ``maybe`` site uniformly and flip it: grow a fresh subtree
-  from the prior or cut the existing one.
+  from the prior or cut the existing one;
+* **resample** (single-site) — pick one choice uniformly among all the state's choices
+  and draw it afresh from its prior, keeping every other value (WebPPL's single-site MH
+  move): the move that flips one coin, e.g. a vine's ``terminate``, growing the vine
+  from its last segment on, which a regenerate jump reaches only with the call's other
+  choices redrawn too. It drops the choice from the map, so it is a jump like the
+  others: the reverse move drops the same choice in the new state.
 
 Move selection depends on what the state offers. With ``D`` calls that have a continuous
-choice, ``M`` ``maybe`` sites (on or off) and ``N`` calls, :func:`propose` picks::
+choice, ``M`` ``maybe`` sites (on or off), ``K`` choices and ``N`` calls,
+:func:`propose` picks::
 
     P(kind)     diffusion: p_diffusion if D > 0, else 0
-                toggle:    (1 - P(diffusion)) / 2 if M > 0, else 0
-                regenerate: the rest, 1 - P(diffusion) - P(toggle)
-    P(move)  =  P(kind) / (D, M or N respectively)
+                resample:  p_resample if K > 0, else 0
+                toggle:    (1 - P(diffusion) - P(resample)) / 2 if M > 0, else 0
+                regenerate: the rest, 1 - P(diffusion) - P(resample) - P(toggle)
+    P(move)  =  P(kind) / (D, K, M or N respectively)
 
 (:func:`log_select`). States differ in ``D`` and ``M`` — a vine whose root terminates
 has no ``maybe`` site, a derivation may have no continuous choice at all — so both the
@@ -55,11 +63,18 @@ rejected, a second independent regeneration of the same call is tried and accept
 the Tierney-Mira two-stage probability, in which the site's selection probability enters
 once per first-stage move (the second stage reuses the site, so it has no selection
 factor of its own; see :func:`delayed_rejection_log_alpha`).
+
+Cost. By default each move is replayed incrementally (:mod:`procmod.infer.traced`):
+from a checkpoint before the edited call, taking over the unchanged calls after it
+without running them — the same chain, bit for bit, as replaying the whole derivation
+(``incremental=False``, and always with an executor or delayed rejection), at a cost
+that grows with what the move changes.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -69,13 +84,14 @@ from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
+from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
 
 HOTTEST_ACCEPTANCE = 0.7
 COLDEST_ACCEPTANCE = 0.01
 T_MAX = math.log(COLDEST_ACCEPTANCE) / math.log(HOTTEST_ACCEPTANCE)  # ~12.9
 TOGGLE_SHARE = 0.5  # of the jumps, where the state has a maybe site
 
-MOVES = ("diffusion", "regenerate", "toggle")
+MOVES = ("diffusion", "resample", "regenerate", "toggle")
 
 
 def temperature_ladder(chains: int) -> np.ndarray:
@@ -103,84 +119,168 @@ def _has_continuous(node) -> bool:
 
 
 class MoveCounts(NamedTuple):
-    """What a state offers each move: calls, calls with a continuous choice, maybe sites."""
+    """What a state offers each move: calls, calls with a continuous choice, maybe sites,
+    choices."""
 
     calls: int
     diffusion: int
     maybe: int
+    choices: int = 0
 
 
 def move_counts(derivation) -> MoveCounts:
     """:class:`MoveCounts` of a derivation (one walk over its calls)."""
-    calls = diffusion = maybe = 0
-    for node in derivation.nodes():
-        calls += 1
-        if _has_continuous(node):
-            diffusion += 1
-        for s in node.spawns:
-            if s.probability < 1.0:
-                maybe += 1
-    return MoveCounts(calls, diffusion, maybe)
+    return _counts_of(derivation.nodes())
 
 
-def log_select(counts: MoveCounts, kind: str, p_diffusion: float) -> float:
-    """Log-probability that :func:`propose` picks one given move of ``kind`` (one call or
-    site) in a state with ``counts``; -inf where the state does not offer the move."""
+def _counts_of(nodes) -> MoveCounts:
+    diffusion = maybe = choices = 0
+    for node in nodes:
+        c, m, k = node_counts(node)
+        diffusion += c
+        maybe += m
+        choices += k
+    return MoveCounts(len(nodes), diffusion, maybe, choices)
+
+
+def log_select(counts: MoveCounts, kind: str, p_diffusion: float, p_resample: float = 0.0) -> float:
+    """Log-probability that :func:`propose` picks one given move of ``kind`` (one call,
+    site or choice) in a state with ``counts``; -inf where the state does not offer the
+    move."""
     p_diff = p_diffusion if counts.diffusion else 0.0
+    p_res = p_resample if counts.choices else 0.0
     if kind == "diffusion":
         p, n = p_diff, counts.diffusion
+    elif kind == "resample":
+        p, n = p_res, counts.choices
     else:
-        toggle = (1.0 - p_diff) * (TOGGLE_SHARE if counts.maybe else 0.0)
+        toggle = (1.0 - p_diff - p_res) * (TOGGLE_SHARE if counts.maybe else 0.0)
         if kind == "toggle":
             p, n = toggle, counts.maybe
         else:
-            p, n = 1.0 - p_diff - toggle, counts.calls
+            p, n = 1.0 - p_diff - p_res - toggle, counts.calls
     return math.log(p / n) if p > 0.0 and n > 0 else -math.inf
 
 
 @dataclass
 class Proposal:
-    """One move: the choice map to replay, and where and how likely the move was picked.
+    """One move: the edit of the choice map to replay, and where and how likely the move
+    was picked.
 
-    ``log_select`` is :func:`log_select` in the old state; ``perturbed`` the choices a
-    diffusion moved."""
+    The edited map is the old one without the subtree at ``removed`` (None: nothing
+    dropped), with ``overrides`` applied (a value, or :data:`DROP` for a choice dropped
+    so that the replay samples it afresh); every edit lies within the call at
+    ``address``. ``choices`` is that map as a dict where :func:`propose` built it (from a
+    plain :class:`Scored` state; None from a :class:`~procmod.infer.traced.Traced` one,
+    which replays the edit without building it). ``log_select`` is :func:`log_select`
+    in the old state; ``perturbed`` the choices a diffusion moved."""
 
     kind: str
-    choices: dict
+    choices: dict | None
     log_select: float
     p_diffusion: float
     address: tuple = ()
     perturbed: tuple = ()
+    p_resample: float = 0.0
+    overrides: dict | None = None
+    removed: tuple | None = None
 
 
-def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_scale: float) -> Proposal:
-    """Build one move's choice map from a chain state (selection as in the module docstring)."""
-    d = state.derivation
-    old = d.choice_map().raw
-    nodes = d.nodes()
-    candidates = [n for n in nodes if _has_continuous(n)]
-    sites = [(n.address, s.site) for n in nodes for s in n.spawns if s.probability < 1.0]
-    counts = MoveCounts(len(nodes), len(candidates), len(sites))
-    if rng.random() < p_diffusion and candidates:
-        node = candidates[int(rng.random() * len(candidates))]
+
+
+def traced_counts(state: Traced) -> MoveCounts:
+    """:class:`MoveCounts` of a traced state, from its running counts."""
+    cum_d, cum_m, cum_k = state.cum
+    return MoveCounts(len(state.nodes), cum_d[-1], cum_m[-1], cum_k[-1])
+
+
+class _Picks:
+    """The ``i``-th call with a continuous choice, ``maybe`` site or choice of a state, in
+    program order: from lists built from the derivation (a :class:`Scored` state) or by
+    bisecting a traced state's running counts (no walk over its calls)."""
+
+    def __init__(self, state: Scored):
+        if isinstance(state, Traced):
+            self.nodes, self.cum = state.nodes, state.cum
+            self.counts = traced_counts(state)
+        else:
+            nodes = state.derivation.nodes()
+            self.nodes, self.cum = nodes, None
+            self.candidates = [n for n in nodes if _has_continuous(n)]
+            self.sites = [(n, s.site) for n in nodes for s in n.spawns if s.probability < 1.0]
+            self.keys = [(n, name) for n in nodes for name in n.choices]
+            self.counts = MoveCounts(len(nodes), len(self.candidates), len(self.sites), len(self.keys))
+
+    def candidate(self, i: int):
+        if self.cum is None:
+            return self.candidates[i]
+        return self.nodes[bisect_right(self.cum[0], i) - 1]
+
+    def site(self, i: int) -> tuple:
+        """``(node, site name)`` of the ``i``-th maybe site."""
+        if self.cum is None:
+            return self.sites[i]
+        cum = self.cum[1]
+        k = bisect_right(cum, i) - 1
+        node = self.nodes[k]
+        return node, [s.site for s in node.spawns if s.probability < 1.0][i - cum[k]]
+
+    def key(self, i: int) -> tuple:
+        """``(node, choice name)`` of the ``i``-th choice."""
+        if self.cum is None:
+            return self.keys[i]
+        cum = self.cum[2]
+        k = bisect_right(cum, i) - 1
+        node = self.nodes[k]
+        return node, list(node.choices)[i - cum[k]]
+
+
+def _edited_dict(derivation, overrides: dict, removed) -> dict:
+    old = derivation.choice_map().raw
+    if removed is not None:
+        choices = {k: v for k, v in old.items() if not is_within(k[0], removed)}
+    else:
         choices = dict(old)
+    for key, value in overrides.items():
+        if value is DROP:
+            choices.pop(key, None)
+        else:
+            choices[key] = value
+    return choices
+
+
+def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_scale: float,
+            p_resample: float = 0.0) -> Proposal:
+    """Build one move's edit of the choice map from a chain state (selection as in the
+    module docstring)."""
+    picks = _Picks(state)
+    counts = picks.counts
+    u = rng.random()
+    if u < p_diffusion and counts.diffusion:
+        node = picks.candidate(int(rng.random() * counts.diffusion))
+        overrides = {}
         perturbed = []
         for name, c in node.choices.items():
             if not c.dist.discrete:
-                choices[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
+                overrides[(node.address, name)] = c.value + step_scale * c.dist.scale * rng.standard_normal()
                 perturbed.append((node.address, name))
-        return Proposal("diffusion", choices, log_select(counts, "diffusion", p_diffusion), p_diffusion,
-                        node.address, tuple(perturbed))
-    if sites and rng.random() < TOGGLE_SHARE:
-        address, site = sites[int(rng.random() * len(sites))]
-        child = address + (site,)
-        choices = {k: v for k, v in old.items() if not is_within(k[0], child)}
-        choices[(address, site)] = not old[(address, site)]
-        return Proposal("toggle", choices, log_select(counts, "toggle", p_diffusion), p_diffusion, address)
-    node = nodes[int(rng.random() * len(nodes))]
-    choices = {k: v for k, v in old.items() if not is_within(k[0], node.address)}
-    return Proposal("regenerate", choices, log_select(counts, "regenerate", p_diffusion), p_diffusion,
-                    node.address)
+        kind, address, removed = "diffusion", node.address, None
+    elif p_diffusion <= u < p_diffusion + p_resample and counts.choices:
+        node, name = picks.key(int(rng.random() * counts.choices))
+        overrides, perturbed = {(node.address, name): DROP}, ()
+        kind, address, removed = "resample", node.address, None
+    elif counts.maybe and rng.random() < TOGGLE_SHARE:
+        node, site = picks.site(int(rng.random() * counts.maybe))
+        address = node.address
+        overrides, perturbed = {(address, site): not node.choices[site].value}, ()
+        kind, removed = "toggle", address + (site,)
+    else:
+        node = picks.nodes[int(rng.random() * counts.calls)]
+        overrides, perturbed = {}, ()
+        kind, address, removed = "regenerate", node.address, node.address
+    choices = None if isinstance(state, Traced) else _edited_dict(state.derivation, overrides, removed)
+    return Proposal(kind, choices, log_select(counts, kind, p_diffusion, p_resample), p_diffusion,
+                    address, tuple(perturbed), p_resample, overrides, removed)
 
 
 def _kept_log_prob(state: Scored, proposal: Proposal, ev: Evaluation) -> float:
@@ -196,12 +296,40 @@ def log_acceptance(state: Scored, proposal: Proposal, ev: Evaluation, beta: floa
         return -math.inf
     if proposal.perturbed and not set(proposal.perturbed).isdisjoint(ev.unused):
         return -math.inf  # a random-walk step left the choice's support: zero target density
-    log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion)
+    log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion, proposal.p_resample)
     if log_back == -math.inf:
         return -math.inf  # the new state does not offer the reverse move
     return (ev.log_reused - _kept_log_prob(state, proposal, ev)
             + beta * (ev.log_likelihood - state.log_likelihood)
             + log_back - proposal.log_select)
+
+
+def log_acceptance_traced(state: Traced, proposal: Proposal, replayed: TracedReplay, beta: float) -> float:
+    """:func:`log_acceptance` of a move replayed by
+    :func:`~procmod.infer.traced.replay_traced`.
+
+    The same ratio, summed over what differs: a call the replay took over unchanged
+    contributes the same log-probabilities to both states, so the prior term is the sum,
+    over the choices that the calls run again took from the map, of their new less their
+    old log-probability; the new state's move counts are its running counts' totals.
+    """
+    new = replayed.state
+    if new.log_likelihood == -math.inf:
+        return -math.inf
+    reused, old_nodes, old_index = replayed.reused, state.nodes, state.index
+    for key in proposal.perturbed:
+        if key not in reused:
+            return -math.inf  # a random-walk step left the choice's support: zero target density
+    log_prior = 0.0
+    for node in replayed.ran:
+        address = node.address
+        for name, c in node.choices.items():
+            if (address, name) in reused:
+                log_prior += c.log_prob - old_nodes[old_index[address]].choices[name].log_prob
+    log_back = log_select(traced_counts(new), proposal.kind, proposal.p_diffusion, proposal.p_resample)
+    if log_back == -math.inf:
+        return -math.inf  # the new state does not offer the reverse move
+    return log_prior + beta * (new.log_likelihood - state.log_likelihood) + log_back - proposal.log_select
 
 
 def _log_fresh_regenerate(src, dst, address) -> float:
@@ -238,7 +366,7 @@ def _log1m_exp(x: float) -> float:
 
 
 def delayed_rejection_log_alpha(x: Scored, y1: Scored, y2: Scored, address, beta,
-                                p_diffusion: float) -> float:
+                                p_diffusion: float, p_resample: float = 0.0) -> float:
     """Tierney-Mira second-stage acceptance for an independent second regeneration.
 
     The path ``x -> y1`` (rejected) ``-> y2`` has density ``pi(x) s(x) g(x, y1) (1 -
@@ -247,7 +375,8 @@ def delayed_rejection_log_alpha(x: Scored, y1: Scored, y2: Scored, address, beta
     choices; the second stage regenerates the same call, so it has no selection factor.
     ``alpha2`` balances it against the reverse path ``y2 -> y1 -> x``.
     """
-    s_x, s_y1, s_y2 = (log_select(move_counts(s.derivation), "regenerate", p_diffusion) for s in (x, y1, y2))
+    s_x, s_y1, s_y2 = (log_select(move_counts(s.derivation), "regenerate", p_diffusion, p_resample)
+                       for s in (x, y1, y2))
     if s_y2 == -math.inf or _log_pi(y2, beta) == -math.inf:
         return -math.inf  # y2 has zero target density or does not offer the reverse move
     num = (_log_pi(y2, beta) + s_y2 + _log_fresh_regenerate(y2.derivation, y1.derivation, address)
@@ -272,8 +401,13 @@ class Chains:
 
     def __init__(self, model: Model, target: Target, states: list, betas, rng: np.random.Generator,
                  p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
-                 delayed_rejection: bool = False, executor=None, tracker: Tracker | None = None):
+                 delayed_rejection: bool = False, executor=None, tracker: Tracker | None = None,
+                 p_resample: float = 0.0, incremental: bool = False):
+        if incremental and (executor is not None or delayed_rejection):
+            raise InvalidArgumentError("incremental MCMC runs in process and without delayed rejection; "
+                                       "pass incremental=False for an executor or delayed_rejection")
         self.model, self.target, self.states = model, target, states
+        self.p_resample, self.incremental = p_resample, incremental
         self.betas = np.asarray(betas, dtype=np.float64)
         self.rng, self.executor = rng, executor
         self.p_diffusion, self.step_scale = p_diffusion, step_scale
@@ -292,11 +426,38 @@ class Chains:
     def _accept(self, log_alpha: float) -> bool:
         return math.log(self.rng.random() + 1e-300) < log_alpha
 
+    def _sweep_traced(self) -> None:
+        """The chains' moves of one sweep, each replayed from its state's checkpoints.
+
+        Random numbers are drawn in the order of the full-replay sweep (every proposal,
+        then one seed per replay, then the acceptances), so both give the same chain."""
+        rng, states, betas, tracker = self.rng, self.states, self.betas, self.tracker
+        model, target = self.model, self.target
+        for c, s in enumerate(states):
+            if not isinstance(s, Traced):  # e.g. a state handed in by a caller
+                states[c] = trace(model, target, s.derivation.choice_map().raw, np.random.default_rng(0))
+        proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
+        replays = [replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed),
+                                 np.random.default_rng(new_seed(rng)), edited=p.address)
+                   for s, p in zip(states, proposals)]
+        tracker.evaluations += len(states)
+        for c, (s, p, replayed) in enumerate(zip(states, proposals, replays)):
+            new = replayed.state
+            self.proposed[p.kind] += 1
+            tracker.offer(new.derivation, new.score)
+            if self._accept(log_acceptance_traced(s, p, replayed, betas[c])):
+                states[c] = new
+                self.accepted[p.kind] += 1
+
     def sweep(self) -> None:
         """One move per chain, then one proposed swap."""
         rng, states, betas, tracker = self.rng, self.states, self.betas, self.tracker
         accepted, proposed = self.accepted, self.proposed
-        proposals = [propose(s, rng, self.p_diffusion, self.step_scale) for s in states]
+        if self.incremental:
+            self._sweep_traced()
+            self._swap()
+            return
+        proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
         evaluations = self._evaluate([p.choices for p in proposals])
         second = []
         for c, (s, p, ev) in enumerate(zip(states, proposals, evaluations)):
@@ -314,9 +475,13 @@ class Chains:
                 tracker.offer(ev2.derivation, ev2.score)
                 y1, y2 = Scored.from_evaluation(ev1), Scored.from_evaluation(ev2)
                 if self._accept(delayed_rejection_log_alpha(states[c], y1, y2, p.address, betas[c],
-                                                            self.p_diffusion)):
+                                                            self.p_diffusion, self.p_resample)):
                     states[c] = y2
                     accepted["delayed"] += 1
+        self._swap()
+
+    def _swap(self) -> None:
+        rng, states, betas, proposed = self.rng, self.states, self.betas, self.proposed
         chains = len(states)
         if chains > 1 and self.tempering:
             i = int(rng.random() * (chains - 1))
@@ -324,26 +489,34 @@ class Chains:
             log_swap = (betas[i] - betas[i + 1]) * (states[i + 1].log_likelihood - states[i].log_likelihood)
             if self._accept(log_swap):
                 states[i], states[i + 1] = states[i + 1], states[i]
-                accepted["swap"] += 1
+                self.accepted["swap"] += 1
 
     def acceptance_rates(self) -> dict:
         """Accepted / proposed per move kind (None where none was proposed)."""
         return {k: (self.accepted[k] / self.proposed[k] if self.proposed[k] else None) for k in self.accepted}
 
 
-def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: Budget | None = None,
-         p_diffusion: float = 0.5, step_scale: float = 0.1, tempering: bool = True,
+def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: Budget | None = None,
+         p_diffusion: float = 0.3, step_scale: float = 0.1, tempering: bool = True,
          annealing: float | None = 1.1, anneal_every: int = 50, delayed_rejection: bool = False,
-         executor=None, progress=None) -> Result:
+         executor=None, progress=None, p_resample: float = 0.3, incremental: bool | None = None) -> Result:
     """Reversible-jump MCMC with parallel tempering and annealing.
+
+    The defaults (one chain; diffusion 0.3, single-site resample 0.3, jumps the rest)
+    are what did best on vines at equal wall time (docs/vines_smc.md, "MCMC"): every
+    chain of a ladder costs as much as the coldest, and on a likelihood as sharp as an
+    image match the hot chains' states are rarely swapped down, so 8 chains gave the
+    cold one an eighth of the moves for nothing. Pass ``chains=8`` for seed 002's ladder.
 
     Parameters
     ----------
     chains : int
-        Number of chains; with ``tempering`` they form one temperature ladder (coldest
-        first), otherwise they are independent chains at temperature 1.
+        Number of chains; with ``tempering`` (and more than one) they form one
+        temperature ladder (coldest first), otherwise they are independent chains at
+        temperature 1.
     budget : Budget
         Default: 200 sweeps (generations). One sweep proposes one move per chain.
+        Annealing counts sweeps, so with more chains it is slower per move.
     p_diffusion : float
         Probability of a diffusion move where the state has a continuous choice
         (otherwise a jump; see the module docstring).
@@ -356,10 +529,23 @@ def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: B
         Try a second regeneration when a regenerate jump is rejected.
     executor : concurrent.futures.Executor, optional
         Evaluates the chains' proposals of a sweep (default: in-process).
+    p_resample : float
+        Probability of a single-site move: one choice, uniform among all the state's
+        choices, drawn afresh from its prior (discrete ones included: the move that
+        flips one coin). ``p_diffusion + p_resample`` must be at most 1.
+    incremental : bool or None
+        Replay each move from the state's checkpoints (:mod:`procmod.infer.traced`):
+        the same chain, bit for bit, at a cost proportional to what the move changes.
+        Default: on, unless an ``executor`` or ``delayed_rejection`` is given (both
+        replay whole derivations).
     """
     check_positive("chains", chains)
     if not 0.0 <= p_diffusion <= 1.0:
         raise InvalidArgumentError(f"p_diffusion must be in [0, 1], got {p_diffusion!r}")
+    if not 0.0 <= p_resample <= 1.0 - p_diffusion:
+        raise InvalidArgumentError(f"p_resample must be in [0, 1 - p_diffusion], got {p_resample!r}")
+    if incremental is None:
+        incremental = executor is None and not delayed_rejection
     if annealing is not None and not annealing >= 1.0:
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
     budget = budget or Budget(generations=200)
@@ -369,13 +555,16 @@ def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: B
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
     with relaxed_gc():
-        states = [Scored.from_evaluation(ev) for ev in
-                  evaluate_all(executor, model, target, [({}, new_seed(rng), None) for _ in range(chains)])]
+        if incremental:  # the same initial states as evaluate_all's forward runs
+            states = [trace(model, target, {}, np.random.default_rng(new_seed(rng))) for _ in range(chains)]
+        else:
+            states = [Scored.from_evaluation(ev) for ev in
+                      evaluate_all(executor, model, target, [({}, new_seed(rng), None) for _ in range(chains)])]
         tracker.evaluations += chains
         for s in states:
             tracker.offer(s.derivation, s.score)
         run = Chains(model, target, states, betas, rng, p_diffusion, step_scale, tempering,
-                     delayed_rejection, executor, tracker)
+                     delayed_rejection, executor, tracker, p_resample, incremental)
         while not tracker.spent():
             run.sweep()
             tracker.generations += 1
@@ -390,5 +579,6 @@ def mcmc(model: Model, target: Target, chains: int = 8, seed: int = 0, budget: B
                             "p_diffusion": p_diffusion, "step_scale": step_scale,
                             "tempering": tempering, "annealing": annealing,
                             "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
+                            "p_resample": p_resample, "incremental": incremental,
                             "acceptance_rates": run.acceptance_rates()},
                   log_weights=[s.log_likelihood for s in run.states])

@@ -1,0 +1,185 @@
+"""Incremental MCMC (procmod/infer/traced.py): a move replayed from the state's checkpoints
+is the full replay, bit for bit, its acceptance ratio is the full one, and chains built
+from it (with the single-site resample move) sample exact posteriors."""
+
+import dataclasses
+import math
+from itertools import product
+
+import numpy as np
+import pytest
+
+from procmod.core import InvalidArgumentError, replay
+from procmod.infer import Budget, mcmc
+from procmod.infer.common import Scored, evaluate
+from procmod.infer.mcmc import Chains, _edited_dict, log_acceptance, log_acceptance_traced, propose
+from procmod.infer.traced import EditedChoices, replay_traced, trace
+from procmod.models import get_model
+from procmod.targets import ShapeMatch, TargetImage
+
+from test_engines_incremental import TARGETS
+from test_mcmc_exact import assert_matches, fan_key, gate_key
+from toy_models import (FAN, FAN_N, GATE, MIX, SWITCH, FlatTarget, SumTarget, gate_exact, mix_exact, switch_exact,
+                        switch_key)
+
+
+def _bar_target():
+    mask = np.zeros((50, 50), bool)
+    mask[10:45, 22:28] = True
+    return ShapeMatch(TargetImage("bar", mask, (0.5, 0.9), (0, -1)))
+
+
+def _walk(model, target, steps, seed, p_diffusion=0.3, p_resample=0.3, step_scale=0.3):
+    """A chain of ``steps`` moves; each move is replayed incrementally and in full from the
+    same seed, compared, and accepted with the incremental ratio."""
+    model = target.configure(model)
+    rng = np.random.default_rng(seed)
+    state = trace(model, target, {}, np.random.default_rng(seed + 1))
+    kinds = set()
+    for _ in range(steps):
+        p = propose(state, rng, p_diffusion, step_scale, p_resample)
+        seed_replay = int(rng.integers(2 ** 62))
+        inc = replay_traced(model, target, state, EditedChoices(state, p.overrides, p.removed),
+                            np.random.default_rng(seed_replay), edited=p.address)
+        choices = _edited_dict(state.derivation, p.overrides, p.removed)
+        full = evaluate(model, target, (choices, seed_replay, None))
+        n, f = inc.state.derivation, full.derivation
+        assert n.order() == f.order()
+        assert n.choice_map() == f.choice_map()
+        assert n.geometry() == f.geometry()
+        assert (n.n_nodes, n.n_emits, n.stopped) == (f.n_nodes, f.n_emits, f.stopped)
+        # bit for bit: the same sums in the same order
+        assert inc.state.log_prior == f.log_prior
+        assert inc.state.log_likelihood == full.log_likelihood
+        assert inc.state.score == full.score
+        if getattr(n.output, "pixels", None) is not None and model.name != "spaceship":
+            assert np.array_equal(np.asarray(n.output.pixels), np.asarray(f.output.pixels))
+        scored = Scored(state.derivation, state.log_prior, state.log_likelihood, state.score)
+        a_inc = log_acceptance_traced(state, p, inc, 1.0)
+        a_full = log_acceptance(scored, dataclasses.replace(p, choices=choices), full, 1.0)
+        assert a_inc == pytest.approx(a_full, abs=1e-9) or a_inc == a_full == -math.inf
+        kinds.add(p.kind)
+        if math.log(rng.random() + 1e-300) < a_inc:
+            state = inc.state
+    return state, kinds
+
+
+@pytest.mark.parametrize("name,seed", [("vines", 0), ("vines", 7), ("lightning", 1), ("chain", 2)])
+def test_incremental_move_is_the_full_replay_bit_for_bit(name, seed):
+    state, kinds = _walk(get_model(name), _bar_target(), 150, seed)
+    assert kinds == {"diffusion", "resample", "regenerate", "toggle"} or name != "vines"
+
+
+def test_incremental_move_on_a_grown_vine():
+    # a long vine (a state of a run), so that moves restore checkpoints deep in the derivation
+    model, target = get_model("vines"), _bar_target()
+    grown = mcmc(model, target, chains=1, seed=1, budget=Budget(evaluations=1500), p_resample=0.3,
+                 p_diffusion=0.3)
+    assert grown.samples[0].n_nodes >= 15
+    configured = target.configure(model)
+    state = trace(configured, target, grown.samples[0].choice_map().raw, np.random.default_rng(0))
+    assert state.derivation.choice_map() == grown.samples[0].choice_map()
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        p = propose(state, rng, 0.3, 0.3, 0.3)
+        inc = replay_traced(configured, target, state, EditedChoices(state, p.overrides, p.removed),
+                            np.random.default_rng(5), edited=p.address)
+        full = evaluate(configured, target, (_edited_dict(state.derivation, p.overrides, p.removed), 5, None))
+        assert inc.state.derivation.choice_map() == full.derivation.choice_map()
+        assert (inc.state.log_prior, inc.state.log_likelihood) == (full.derivation.log_prior, full.log_likelihood)
+
+
+@pytest.mark.parametrize("name", ["spaceship", "city"])
+def test_incremental_move_on_3d_models(name):
+    # 3D outputs are large: checkpoints every few calls, the calls between drawn again
+    state, _ = _walk(get_model(name), TARGETS["volume"], 12, 4)
+    assert state.stride >= 1
+
+
+@pytest.mark.parametrize("kwargs", [{"chains": 3}, {"chains": 1, "p_resample": 0.3, "p_diffusion": 0.3},
+                                    {"chains": 2, "p_resample": 0.5, "p_diffusion": 0.0, "annealing": None}])
+def test_incremental_engine_is_the_full_replay_engine(kwargs):
+    # the same random numbers in the same order: the same chain, bit for bit
+    model, target = get_model("vines"), _bar_target()
+    a = mcmc(model, target, seed=3, budget=Budget(generations=120), incremental=True, **kwargs)
+    b = mcmc(model, target, seed=3, budget=Budget(generations=120), incremental=False, **kwargs)
+    assert a.settings["incremental"] and not b.settings["incremental"]
+    assert a.best_score == b.best_score
+    assert [s.choice_map() for s in a.samples] == [s.choice_map() for s in b.samples]
+    assert a.settings["acceptance_rates"] == b.settings["acceptance_rates"]
+    assert [r[1:] for r in a.history] == [r[1:] for r in b.history]
+
+
+def visit_frequencies(model, target, key, keys, chains=20, sweeps=300, seed=0, **settings):
+    """As test_mcmc_exact's, with incremental chains."""
+    rng = np.random.default_rng(seed)
+    states = [trace(model, target, {}, np.random.default_rng(int(rng.integers(2 ** 62)))) for _ in range(chains)]
+    run = Chains(model, target, states, np.ones(chains), rng, tempering=False, incremental=True, **settings)
+    counts = np.zeros((chains, len(keys)))
+    index = {k: j for j, k in enumerate(keys)}
+    burn_in = sweeps // 5
+    for sweep in range(sweeps):
+        run.sweep()
+        if sweep >= burn_in:
+            for c, s in enumerate(run.states):
+                counts[c, index[key(s.derivation)]] += 1
+    return counts / (sweeps - burn_in), sweeps - burn_in
+
+
+@pytest.mark.parametrize("p_diffusion,p_resample", [(0.0, 0.5), (0.3, 0.3)])
+def test_resample_move_on_gate(p_diffusion, p_resample):
+    exact = gate_exact(FlatTarget())
+    keys = list(exact)
+    assert_matches(visit_frequencies(GATE, FlatTarget(), gate_key, keys, seed=11, p_diffusion=p_diffusion,
+                                     p_resample=p_resample), exact, keys)
+
+
+@pytest.mark.parametrize("p_resample", [0.3, 0.8])
+def test_resample_move_on_switch(p_resample):
+    obs, s = 1.5, 0.7
+    exact = switch_exact(obs, s)
+    keys = list(exact)
+    assert_matches(visit_frequencies(SWITCH, SumTarget(obs, s), switch_key, keys, seed=12, p_diffusion=0.2,
+                                     p_resample=p_resample, step_scale=0.5), exact, keys)
+
+
+def test_resample_move_on_fan():
+    # FAN's calls come and go with n: the choice count enters the reverse move's probability
+    target = SumTarget(0.5, 0.5)
+    keys = list(range(len(FAN_N)))
+    exact = _fan_exact(target)
+    assert_matches(visit_frequencies(FAN, target, fan_key, keys, seed=13, p_diffusion=0.0, p_resample=0.5),
+                   exact, keys)
+
+
+def _fan_exact(target):
+    """P(n) of FAN under ``target`` by enumeration over its coins."""
+    joint = {}
+    for n, pn in enumerate(FAN_N):
+        total = 0.0
+        for bs in product([False, True], repeat=n):
+            choices = {((), "n"): n}
+            choices.update({((f"c{i}",), "b"): b for i, b in enumerate(bs)})
+            d = replay(FAN, choices, np.random.default_rng(0)).derivation
+            total += math.exp(d.log_prior + target.log_likelihood(d.output))
+        joint[n] = total
+    z = sum(joint.values())
+    return {n: v / z for n, v in joint.items()}
+
+
+def test_resample_move_on_mix_marginals():
+    obs, s = 1.2, 0.8
+    _, exact = mix_exact(obs, s)
+    keys = list(exact)
+
+    def key(d):
+        cm = d.choice_map()
+        return cm[((), "k")], cm[((), "child")]
+
+    assert_matches(visit_frequencies(MIX, SumTarget(obs, s), key, keys, seed=14, p_diffusion=0.3,
+                                     p_resample=0.4, step_scale=0.5), exact, keys)
+
+
+def test_resample_needs_room_beside_diffusion():
+    with pytest.raises(InvalidArgumentError, match="p_resample"):
+        mcmc(MIX, SumTarget(0.0, 1.0), p_diffusion=0.7, p_resample=0.5)
