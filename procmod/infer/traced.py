@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from ..core.runtime import Derivation, Future, _execute, _map_agrees, same_args, start
+from ..core.runtime import Derivation, Future, ReplayPolicy, _execute, _map_agrees, same_args, start
 from .common import Scored, output_bytes
 
 _MISSING = object()
@@ -184,15 +184,10 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
         state.n_emits = mark.n_emits
         state.n_nodes = j
         state._chain = mark.chain
-        state._reused = set()
+        state.policy = policy = ReplayPolicy(choices)
         # every call before j takes all its choices from the map: a full replay's reused
         # sum is the same additions in the same order as the log-prior's
-        state.log_reused = mark.log_prior
-        state.log_fresh = 0.0
-        state.maybe_default = None
-        state.proposer = None
-        state.log_proposal = 0.0
-        state.guide_cache = None
+        policy.log_reused = mark.log_prior
         nodes = old_nodes[:j]
         marks = previous.marks[:j]
         old_d, old_m, old_k = previous.cum
@@ -205,9 +200,9 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
         if stride is None:
             stride = checkpoint_stride(output)
         state = start(model, output)
+        state.policy = policy = ReplayPolicy(choices)
         j, nodes, marks, stopper = 0, [], [], None
         cum_d, cum_m, cum_k = [0], [0], [0]
-    state.constraints = choices
     pending = state.pending
     ran = []
     output = state.output
@@ -215,7 +210,7 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
     copy_output = output.copy
     # The state's running fields live in locals while calls are taken over (this loop is
     # the cost of a move) and are written back around each call that runs.
-    lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, state.log_reused, state.n_emits,
+    lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, policy.log_reused, state.n_emits,
                                                     state.n_nodes, state._chain)
     depth = None if edited is None else len(edited)
     stopped = False
@@ -253,10 +248,10 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
                     if spawn.on:
                         pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
                 continue
-        state.log_prior, state.log_reused, state.n_emits, state.n_nodes, state._chain = (
+        state.log_prior, policy.log_reused, state.n_emits, state.n_nodes, state._chain = (
             lp_prior, lp_reused, n_emits, n_nodes, chain)
         _execute(state, future, rng, None, 0, False)
-        lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, state.log_reused, state.n_emits,
+        lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, policy.log_reused, state.n_emits,
                                                         state.n_nodes, state._chain)
         node = chain[0]
         nodes.append(node)
@@ -268,14 +263,14 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
         if state.stopped:
             stopped = True
             break
-    state.log_prior, state.log_reused, state.n_emits, state.n_nodes, state._chain = (
+    state.log_prior, policy.log_reused, state.n_emits, state.n_nodes, state._chain = (
         lp_prior, lp_reused, n_emits, n_nodes, chain)
     state.stopped = stopped
     pending.clear()
-    state.constraints = None
+    state.policy = None
     traced = Traced(state, state.log_prior, target.log_likelihood(output), target.score(output),
                     nodes, marks, stride, (cum_d, cum_m, cum_k))
-    return TracedReplay(traced, ran, state._reused, j)
+    return TracedReplay(traced, ran, policy.reused, j)
 
 
 def trace(model, target, choices, rng) -> Traced:
