@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
@@ -53,8 +54,10 @@ def register(sub, int_arg) -> None:
     p.add_argument("--workers", type=int_arg, help="local worker processes (0: one per core; default inline)")
     p.add_argument("--scheduler", help="dask scheduler address tcp://host:8786 (overrides --workers)")
     p.add_argument("--strings-per-shape", type=int_arg, default=8)
-    p.add_argument("--rotate", action="store_true", help="allow docking rotations (default: translations only, "
-                                                         "so every variant keeps the inputs' orientation)")
+    p.add_argument("--translations-only", action="store_true",
+                   help="dock by translations only, so every variant keeps the inputs' orientation (default: keep "
+                        "the rotation docking computes, at whatever angle the parts are)")
+    p.add_argument("--rotate", action="store_true", help=argparse.SUPPRESS)  # the default now; kept for old scripts
     p.add_argument("--distinct", choices=("histogram", "graph"), default="histogram",
                    help="which variants are duplicates: 'histogram' (default, seed 001's conservative rule: "
                         "a node-type histogram seen before) or 'graph' (a shape graph isomorphic to one seen)")
@@ -227,7 +230,7 @@ def _augment(args) -> None:
         bar.n = row["shapes"]
         bar.refresh()
 
-    params = AugmentParams(rotate=args.rotate, distinct=args.distinct)
+    params = AugmentParams(rotate=not args.translations_only, distinct=args.distinct)
     with open_executor(args.workers, args.scheduler) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
                          max_rounds=args.rounds, executor=executor, params=params,
