@@ -128,7 +128,7 @@ def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
     from .contacts import shape_graph
     from .assets import read_shape_inputs
-    from .grammar import Grammar
+    from .grammar import Grammar, ring_rule_note
     from .shapes import write_graph
 
     shape_set = read_shape_inputs(args.shapes)
@@ -148,8 +148,7 @@ def _graph(args) -> None:
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                 for t, keys in sorted(grammar.rules.items())))
-    if grammar.ring_multiple > 1:
-        print(f"rings: every ring is a multiple of {grammar.ring_multiple} parts long")
+    print(ring_rule_note(graphs, grammar))
     print(f"wrote {len(graphs)} graphs to {out}/")
 
 
