@@ -213,3 +213,12 @@ def test_json_and_asset_files_are_not_mixed(tmp_path, capsys):
         read_shape_inputs([shapes, folder / "a_ring.glb"])
     assert main(["strings", "graph", str(shapes), str(folder), "--out", str(tmp_path / "out")]) == 2
     assert "not both" in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_augment_translations_only_is_recorded(tmp_path, capsys):
+    folder = fence_folder(tmp_path / "fences")
+    for flag, rotate in (([], True), (["--translations-only"], False)):
+        out = tmp_path / f"coll{int(rotate)}"
+        assert main(["strings", "augment", str(folder), "--count", "3", "--rounds", "2", "--out", str(out), *flag]) == 0
+        assert json.loads((out / "growth.json").read_text())["settings"]["rotate"] is rotate
+    capsys.readouterr()
