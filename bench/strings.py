@@ -4,6 +4,7 @@ walks (interpolation and latent paths).
 
     .venv/bin/python bench/strings.py                       # all three example sets
     .venv/bin/python bench/strings.py --sets castle --count 60 --epochs 5   # a quick look
+    .venv/bin/python bench/strings.py --sets pavilion --results strings_pavilion ...   # the off-grid set
 
 Writes ``bench/results/strings.json`` and ``bench/results/strings.png`` (plus a contact
 sheet of instantiated prior samples per set, ``strings_<set>.png``). Work folders (the
@@ -129,7 +130,7 @@ def run_set(name: str, args, work: Path) -> dict:
     with open_executor(args.workers) as executor:
         grown = augment(shape_set, args.count, seed=args.seed, parallel=args.parallel, max_rounds=400,
                         executor=executor, seconds=args.augment_seconds,
-                        params=AugmentParams(distinct=args.distinct))
+                        params=AugmentParams(distinct=args.distinct, rotate=not args.translations_only))
     seconds = time.perf_counter() - t0
     # one folder per duplicate rule: the rules grow different collections, and a model
     # folder refuses to resume on other strings
@@ -320,6 +321,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--distinct", choices=DISTINCT_MODES, default="histogram",
                     help="which grown variants are duplicates (histogram: seed 001's rule; graph: isomorphic "
                          "graphs); not the default: results go to strings_<distinct>.json")
+    ap.add_argument("--translations-only", action="store_true",
+                    help="dock by translations only (sampling's default before off-grid sets: keep the rotations)")
+    ap.add_argument("--results", help="results file stem in --out (default: strings, or strings_<distinct>)")
     ap.add_argument("--parallel", type=int, default=8)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--strings-per-shape", type=int, default=8)
@@ -350,7 +354,7 @@ def main() -> None:
     # exactly what ran, and nothing else: explanations of a run go in docs/strings.md
     results = {"command": "python bench/strings.py " + shlex.join(sys.argv[1:]), "settings": {
         k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}, "sets": {}}
-    stem = args.out / ("strings" if args.distinct == "histogram" else f"strings_{args.distinct}")
+    stem = args.out / (args.results or ("strings" if args.distinct == "histogram" else f"strings_{args.distinct}"))
     t0 = time.perf_counter()
     for name in args.sets:
         results["sets"][name] = run_set(name, args, work)

@@ -12,9 +12,10 @@ from procmod.strings.codec import parse
 from procmod.strings.frames import canonical_frame, local_frame, symmetry_group
 from procmod.strings.instantiate import instantiate_graph
 from procmod.core.errors import InvalidArgumentError
-from procmod.strings.sampling import AugmentParams, SeenShapes, augment, docking_transforms, match_boundary
+from procmod.strings.sampling import (AugmentParams, SeenShapes, attempt, augment, docking_transforms,
+                                     match_boundary, part_docks)
 from procmod.strings.contacts import boxes_touch, part_points, shape_graph
-from procmod.strings.grammar import Grammar, ring_multiple_of, ring_rule_breaks, validate_shape
+from procmod.strings.grammar import Grammar, ring_multiple_of, ring_rule_breaks, ring_rule_note, validate_shape
 from procmod.strings.shapes import (Shape, ShapesFormatError, graph_from_dict, histogram_distance, read_shapes,
                                     shapes_from_dict, type_histogram, type_letters)
 
@@ -65,14 +66,14 @@ def test_mesh_contacts_use_fcl():
             assert {g.nodes[u]["type"] for u in g.neighbors(v)} <= {"W", "G"}
 
 
-@pytest.mark.parametrize("name", ["castle", "moonbase", "colonnade"])
+@pytest.mark.parametrize("name", ["castle", "moonbase", "colonnade", "pavilion"])
 def test_example_sets_are_valid_with_cycles(name):
     ss = read_shapes(SETS / f"{name}.json")
     assert 1 <= len(ss.shapes) <= 2
     graphs = [shape_graph(ss, s) for s in ss.shapes]
     grammar = Grammar.from_graphs(graphs)
     for s, g in zip(ss.shapes, graphs):
-        assert 23 <= len(s) <= 70
+        assert 20 <= len(s) <= 70
         assert nx.is_connected(g) and g.number_of_edges() >= g.number_of_nodes()  # at least one cycle
         assert validate_shape(ss, s, grammar) == []
 
@@ -81,9 +82,26 @@ def test_example_sets_are_made_by_the_script(tmp_path):
     import subprocess
     import sys
     subprocess.run([sys.executable, str(SETS / "make_sets.py"), str(tmp_path)], check=True, capture_output=True)
-    for name in ("castle", "moonbase", "colonnade"):
+    for name in ("castle", "moonbase", "colonnade", "pavilion"):
         assert_json_close(json.loads((tmp_path / f"{name}.json").read_text()),
                           json.loads((SETS / f"{name}.json").read_text()))
+    made, stored = read_shapes(tmp_path / "pavilion.json"), read_shapes(SETS / "pavilion.json")
+    for part in ("post", "beam"):  # the meshes procmod read from the script's glTF files
+        assert np.allclose(np.asarray(made.library[part].vertices), np.asarray(stored.library[part].vertices),
+                           atol=1e-6)
+        assert made.library[part].faces == stored.library[part].faces
+
+
+def test_pavilion_is_off_the_grid_with_mesh_parts_and_no_ring_rule():
+    ss = read_shapes(SETS / "pavilion.json")
+    assert {s.kind for s in ss.library.values()} == {"mesh"}
+    assert sum(len(ss.library[p].faces) for s in ss.shapes[:1] for p in s.parts) > 10_000
+    yaws = {round(float(np.degrees(np.arctan2(t[1, 0], t[0, 0]))) % 90, 3) for s in ss.shapes for t in s.transforms}
+    assert len(yaws) >= 2 and not yaws & {0.0}  # no part at a quarter turn
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    rings = [len(c) for g in graphs for c in nx.cycle_basis(g)]
+    assert len(rings) == 11 and 6 in rings and all(n % 2 == 0 for n in rings)  # triangles: 3 posts, 3 beams
+    assert Grammar.from_graphs(graphs).ring_multiple == 1
 
 
 @pytest.mark.parametrize("mutate, words", [
@@ -139,8 +157,26 @@ ODD_SHARE = "A1AA2AAA(AAAA2)AA1"  # two 8-rings sharing 3 contacts: the ring aro
 EVEN_SHARE = "A1AAA2AA(AAAAA2)AA1"  # two 8-rings sharing 2 contacts: around both 12
 
 
-def test_ring_rule_is_learned_capped_and_checked_on_every_ring():
-    assert [ring_multiple_of(x) for x in ([], [28], [16, 20, 28], [6, 10], [6, 9], [12, 24])] == [1, 4, 4, 2, 1, 4]
+def test_ring_rule_is_learned_only_where_the_rings_support_it():
+    # chance of k rings all multiples of m, were it no rule: (forced / m) ** k, adopted at <= 5%
+    assert [ring_multiple_of(x) for x in ([], [28], [16, 20, 28], [6, 10], [6, 10, 14, 18, 22], [6, 9])] == \
+        [1, 1, 4, 1, 2, 1]
+    # types that alternate make every ring even without a rule: only 4 is learned then
+    assert [ring_multiple_of(x, forced=2) for x in ([28], [8, 12, 16, 20], [8, 12, 16, 20, 24], [6, 8, 10, 12, 14])] \
+        == [1, 1, 4, 1]
+    assert ring_multiple_of([12, 24, 36, 48, 60, 72]) == 4  # capped: 12 is what these rings happen to share
+    # two cells-and-links grids: the types alternate (rings even, no data needed); two rings
+    # of 8 and 12 do not make every ring a multiple of 4 (another set closes one of 10)
+    grid = parse("C1WCWCWCW1").graph
+    two = Grammar.from_graphs([grid, parse("C1WCWCWCWCWCW1").graph])
+    assert two.ring_multiple == 1 and "too few to make that a rule" in ring_rule_note([grid], two)
+    many = Grammar.from_graphs([grid] * 5)
+    assert many.ring_multiple == 4 and "chance 0.031" in ring_rule_note([grid] * 5, many)
+    ten = parse("C1WCWCWCWCW1").graph
+    assert two.is_valid(ten) and not many.is_valid(ten)
+
+
+def test_ring_rule_is_checked_on_every_ring():
     chain = nx.cycle_graph(8)
     nx.set_node_attributes(chain, "A", "type")
     grammar = Grammar.from_graphs([chain, parse(EVEN_SHARE).graph])
@@ -175,8 +211,68 @@ def test_docking_recovers_rigid_motion(rng):
     q = p @ r.T + [1, 2, 3]
     t = docking_transforms(p, q, 1e-6)[0]
     assert np.allclose(t[:3, :3], r) and np.allclose(t[:3, 3] + 0, q.mean(0) - r @ p.mean(0))
-    # one point: four quarter turns about z
-    assert len(docking_transforms(p[:1], q[:1], 1e-6)) == 4
+    # one point leaves the rotation free: the points alone give only the Kabsch solution
+    assert len(docking_transforms(p[:1], q[:1], 1e-6)) == 1
+
+
+def test_docking_reads_a_free_rotation_off_the_parts_poses(tmp_path):
+    # one boundary part (a rail, symmetric under half turns) placed at 37 degrees in shape 1
+    # and at 37 + 101 degrees in shape 2: the dock turns by 101 degrees (or 101 - 180: the
+    # rail's own half turn), not by a quarter turn
+    ss = shapes_from_dict(_box_shapes([_at(0)], size=(1.6, 0.2, 0.3)), tmp_path)
+    a, b = np.array(_at(1.0, 2.0, 0.5, np.radians(37))), np.array(_at(-3.0, 0.5, 0.5, np.radians(138)))
+    docks = part_docks(ss.library, "block", a, b)
+    assert len(docks) == 4  # a box's four symmetries: identity and half turns about its axes
+    upright = [d for d in docks if d[2, 2] > 0.5]  # the others turn the world upside down
+    angles = sorted(round(float(np.degrees(np.arctan2(d[1, 0], d[0, 0]))), 6) for d in upright)
+    assert angles == [-79.0, 101.0]
+    for d in docks:
+        assert np.allclose(d[:3, :3] @ d[:3, :3].T, np.eye(3), atol=1e-9)
+        assert np.allclose(part_points(ss.library, "block", d @ a)[[0, 7]].mean(0), b[:3, 3], atol=1e-9)
+    centre_a, centre_b = a[:3, 3][None], b[:3, 3][None]
+    kept = docking_transforms(centre_a, centre_b, 1e-6, docks)
+    assert len(kept) == 5 and np.allclose(kept[0][:3, :3], np.eye(3))  # Kabsch, then the four poses
+    # a placement that differs by more than a rigid motion (scaled) gives no dock
+    assert part_docks(ss.library, "block", a, b @ np.diag([1.0, 2.0, 1.0, 1.0])) == []
+
+
+def _rail_lattice(cells, yaw, offset, spacing=2.0):
+    """Posts at grid cells and rails between 4-neighbours, the whole turned by ``yaw``
+    (radians) and moved by ``offset``: a grid shape off the world axes."""
+    turn = np.array(_at(*offset, yaw=yaw))
+    nodes = [{"part": "post", "transform": (turn @ np.array(_at(spacing * i, spacing * j, 1.0))).tolist()}
+             for i, j in cells]
+    cs = set(cells)
+    for i, j in sorted(cs):
+        for di, dj in ((1, 0), (0, 1)):
+            if (i + di, j + dj) in cs:
+                at = _at(spacing * (i + di / 2), spacing * (j + dj / 2), 1.0, 0.0 if dj == 0 else np.pi / 2)
+                nodes.append({"part": "rail", "transform": (turn @ np.array(at)).tolist()})
+    return {"nodes": nodes}
+
+
+def _rails(yaws=(np.radians(17), np.radians(-52))):
+    ring = [(i, j) for i in range(3) for j in range(3) if (i, j) != (1, 1)]
+    tail = [(0, 0), (1, 0), (2, 0), (0, 1), (2, 1), (0, 2), (1, 2), (2, 2), (3, 2), (4, 2)]
+    return {"format": "procmod-shapes/1",
+            "parts": {"post": {"box": [0.4, 0.4, 2.0]}, "rail": {"box": [1.6, 0.2, 0.3]}},
+            "shapes": [_rail_lattice(ring, yaws[0], (0.3, 0.1, 0.0)), _rail_lattice(tail, yaws[1], (20.0, 5.0, 0.0))]}
+
+
+def test_docking_keeps_its_rotations_so_shapes_at_other_angles_combine(tmp_path):
+    # the two inputs lie at 17 and -52 degrees: only a turned dock puts a piece of one into
+    # the other (translations alone, the old default, never do)
+    ss = shapes_from_dict(_rails(), tmp_path)
+    grammar = Grammar.from_graphs([shape_graph(ss, s) for s in ss.shapes])
+    a, b = ss.shapes
+    assert all(attempt(ss, a, b, grammar, seed, AugmentParams(rotate=False)) is None for seed in range(6))
+    merged = [m for m in (attempt(ss, a, b, grammar, seed) for seed in range(6)) if m is not None]
+    assert len(merged) >= 3
+    for shape, graph in merged:
+        assert validate_shape(ss, shape, grammar) == []
+        yaws = {round(float(np.degrees(np.arctan2(t[1, 0], t[0, 0]))) % 90, 6) for t in shape.transforms}
+        assert yaws == {38.0}  # all on shape 2's lattice (-52 = 38 mod 90): shape 1's pieces turned rigidly
+    assert len(augment(ss, 6, seed=0, parallel=4, max_rounds=5).shapes) == 6
 
 
 def test_boundary_match_respects_types_and_distances(rng):

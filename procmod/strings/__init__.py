@@ -1,7 +1,7 @@
 """String-based synthesis of structured shapes (seed 001).
 
 Modules: :mod:`.codec` (graph <-> SMILES-topology strings), :mod:`.shapes` (shapes and
-graph files), :mod:`.contacts` (contact graphs), :mod:`.grammar` (tiling grammar),
+graph files), :mod:`.assets` (shapes from glTF / GLB / URDF files), :mod:`.contacts` (contact graphs), :mod:`.grammar` (tiling grammar),
 :mod:`.automorphisms` (graph symmetries), :mod:`.sampling` (graph-based shape sampling),
 :mod:`.vae` (sequence VAE), :mod:`.automaton` (the grammar automaton of constrained
 decoding), :mod:`.torch_utils` (threads, devices, checkpoints), :mod:`.latent` (latent
@@ -18,6 +18,7 @@ from ..core.lazy import lazy_getattr
 _LAZY = {**dict.fromkeys(("GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of"), "codec"),
          **dict.fromkeys(("Shape", "ShapeSet", "ShapesFormatError", "read_graph", "read_shapes", "write_graph",
                           "write_shapes"), "shapes"),
+         **dict.fromkeys(("read_shape_inputs", "shapes_from_assets"), "assets"),
          "shape_graph": "contacts", **dict.fromkeys(("Grammar", "validate_shape"), "grammar")}
 
 
@@ -25,5 +26,6 @@ __getattr__ = lazy_getattr(__name__, _LAZY, globals())
 
 
 __all__ = ["GraphError", "StringSyntaxError", "decode", "encode", "parse", "strings_of", "Grammar", "Shape",
-           "ShapeSet", "ShapesFormatError", "read_graph", "read_shapes", "shape_graph", "validate_shape",
+           "ShapeSet", "ShapesFormatError", "read_graph", "read_shape_inputs", "read_shapes", "shape_graph",
+           "shapes_from_assets", "validate_shape",
            "write_graph", "write_shapes"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
@@ -11,6 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InvalidArgumentError
+
+
+SHAPES_HELP = ("a procmod-shapes/1 JSON file, or asset files (.gltf, .glb, .urdf) and folders of them: one shape "
+               "per file, one part per distinct mesh (docs/strings.md)")
 
 
 def register(sub, int_arg) -> None:
@@ -23,8 +28,9 @@ def register(sub, int_arg) -> None:
     leaves = group.add_subparsers(dest="strings_command", metavar="STRINGS_COMMAND", parser_class=type(group))
     leaves.required = True
 
-    p = leaves.add_parser("graph", help="shape graphs of a procmod-shapes/1 file: one procmod-graph/1 JSON per shape")
-    p.add_argument("shapes", metavar="SHAPES.json")
+    p = leaves.add_parser("graph", help="shape graphs of a procmod-shapes/1 file or of asset files (glTF, GLB, URDF; "
+                                        "one shape per file): one procmod-graph/1 JSON per shape")
+    p.add_argument("shapes", metavar="SHAPES", nargs="+", help=SHAPES_HELP)
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--tolerance", type=float, help="contact tolerance in world units (default: 0.001 x the "
                                                    "median part diagonal)")
@@ -43,7 +49,7 @@ def register(sub, int_arg) -> None:
     p.set_defaults(handler=_decode)
 
     p = leaves.add_parser("augment", help="grow a collection of valid shape variants by graph-based sampling")
-    p.add_argument("shapes", metavar="SHAPES.json")
+    p.add_argument("shapes", metavar="SHAPES", nargs="+", help=SHAPES_HELP)
     p.add_argument("--count", type=int_arg, required=True, help="shapes in the collection (inputs included)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--seed", type=int_arg, default=0)
@@ -53,8 +59,10 @@ def register(sub, int_arg) -> None:
     p.add_argument("--workers", type=int_arg, help="local worker processes (0: one per core; default inline)")
     p.add_argument("--scheduler", help="dask scheduler address tcp://host:8786 (overrides --workers)")
     p.add_argument("--strings-per-shape", type=int_arg, default=8)
-    p.add_argument("--rotate", action="store_true", help="allow docking rotations (default: translations only, "
-                                                         "so every variant keeps the inputs' orientation)")
+    p.add_argument("--translations-only", action="store_true",
+                   help="dock by translations only, so every variant keeps the inputs' orientation (default: keep "
+                        "the rotation docking computes, at whatever angle the parts are)")
+    p.add_argument("--rotate", action="store_true", help=argparse.SUPPRESS)  # the default now; kept for old scripts
     p.add_argument("--distinct", choices=("histogram", "graph"), default="histogram",
                    help="which variants are duplicates: 'histogram' (default, seed 001's conservative rule: "
                         "a node-type histogram seen before) or 'graph' (a shape graph isomorphic to one seen)")
@@ -119,14 +127,15 @@ def _seed(seed: int) -> int:
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
     from .contacts import shape_graph
-    from .grammar import Grammar
-    from .shapes import read_shapes, write_graph
+    from .assets import read_shape_inputs
+    from .grammar import Grammar, ring_rule_note
+    from .shapes import write_graph
 
-    shape_set = read_shapes(args.shapes)
+    shape_set = read_shape_inputs(args.shapes)
     if args.tolerance is not None and not (math.isfinite(args.tolerance) and args.tolerance >= 0):
         raise InvalidArgumentError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     out = Path(args.out)
-    folder = RunFolder(out, GRAPHS_FOLDER, args.overwrite, inputs=[args.shapes])
+    folder = RunFolder(out, GRAPHS_FOLDER, args.overwrite, inputs=args.shapes)
     graphs = [shape_graph(shape_set, s, args.tolerance) for s in shape_set.shapes]
     with folder.writing() as tmp:
         for i, g in enumerate(graphs):
@@ -139,8 +148,7 @@ def _graph(args) -> None:
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                 for t, keys in sorted(grammar.rules.items())))
-    if grammar.ring_multiple > 1:
-        print(f"rings: every ring is a multiple of {grammar.ring_multiple} parts long")
+    print(ring_rule_note(graphs, grammar))
     print(f"wrote {len(graphs)} graphs to {out}/")
 
 
@@ -201,10 +209,10 @@ def _augment(args) -> None:
     from ..core.runfolder import COLLECTION, RunFolder
     from ..parallel import check_scheduler, open_executor
     from .pipeline import write_collection
+    from .assets import read_shape_inputs
     from .sampling import AugmentParams, augment
-    from .shapes import read_shapes
 
-    shape_set = read_shapes(args.shapes)
+    shape_set = read_shape_inputs(args.shapes)
     if args.count < 1 or args.parallel < 1 or args.rounds < 1:
         raise InvalidArgumentError("--count, --parallel and --rounds must be positive integers")
     if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
@@ -216,7 +224,7 @@ def _augment(args) -> None:
     if args.scheduler is not None:
         check_scheduler(args.scheduler)
     _seed(args.seed)
-    folder = RunFolder(args.out, COLLECTION, args.overwrite, inputs=[args.shapes])
+    folder = RunFolder(args.out, COLLECTION, args.overwrite, inputs=args.shapes)
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     out = Path(args.out)
@@ -227,13 +235,14 @@ def _augment(args) -> None:
         bar.n = row["shapes"]
         bar.refresh()
 
-    params = AugmentParams(rotate=args.rotate, distinct=args.distinct)
+    params = AugmentParams(rotate=not args.translations_only, distinct=args.distinct)
     with open_executor(args.workers, args.scheduler) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
                          max_rounds=args.rounds, executor=executor, params=params,
                          progress=progress, seconds=args.seconds)
     bar.close()
-    settings = {"shapes": str(args.shapes), "count": args.count, "seed": args.seed, "parallel": args.parallel,
+    shapes_read = str(args.shapes[0]) if len(args.shapes) == 1 else [str(p) for p in args.shapes]
+    settings = {"shapes": shapes_read, "count": args.count, "seed": args.seed, "parallel": args.parallel,
                 "max_rounds": args.rounds, "seconds": args.seconds, **asdict(params)}
     with folder.writing() as tmp:
         strings = write_collection(shape_set, result.shapes, tmp, result.rounds, args.strings_per_shape, args.seed,

@@ -61,6 +61,26 @@ _BOX_FACES = np.array([(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0
                        (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)])
 
 
+_LOCAL_MODELS: dict[int, tuple] = {}  # id(PartShape) -> (the PartShape, its fcl BVH in its own frame)
+
+
+def _local_model(shape: PartShape):
+    """The fcl BVH of a library part in its own frame (built once per part object)."""
+    import fcl
+    held = _LOCAL_MODELS.get(id(shape))
+    if held is None or held[0] is not shape:
+        local = _BOX_CORNERS * np.asarray(shape.size) if shape.kind == "box" else np.asarray(shape.vertices)
+        faces = _BOX_FACES if shape.kind == "box" else np.asarray(shape.faces)
+        model = fcl.BVHModel()
+        model.beginModel(len(local), len(faces))
+        model.addSubModel(np.ascontiguousarray(local, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int32))
+        model.endModel()
+        if len(_LOCAL_MODELS) > 256:
+            _LOCAL_MODELS.clear()
+        held = _LOCAL_MODELS[id(shape)] = (shape, model)
+    return held[1]
+
+
 def meshes_touch(obj_a, obj_b, tol: float) -> bool:
     """Do two fcl triangle meshes' surfaces intersect or come within ``tol``?"""
     import fcl
@@ -94,8 +114,15 @@ def contact_pairs(library: dict, parts, transforms, tol: float, pairs_of=None) -
     def obj(k):
         if k not in fcl_objects:
             shape = library[parts[k]]
-            faces = _BOX_FACES if shape.kind == "box" else np.asarray(shape.faces)
-            fcl_objects[k] = _fcl_object(points[k], faces)
+            t = np.asarray(transforms[k], dtype=np.float64)
+            r = t[:3, :3]
+            if np.abs(r @ r.T - np.eye(3)).max() <= 1e-9 and np.linalg.det(r) > 0:
+                # a rigid placement: the part's own BVH, built once, placed by fcl
+                import fcl
+                fcl_objects[k] = fcl.CollisionObject(_local_model(shape), fcl.Transform(r, t[:3, 3]))
+            else:
+                faces = _BOX_FACES if shape.kind == "box" else np.asarray(shape.faces)
+                fcl_objects[k] = _fcl_object(points[k], faces)
         return fcl_objects[k]
 
     out = []

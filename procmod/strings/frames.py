@@ -53,9 +53,19 @@ def local_frame(points: np.ndarray, eps_rel: float = 1e-5) -> np.ndarray:
     return f
 
 
+def _turn(axis: int, angle: float) -> np.ndarray:
+    c, s_ = np.cos(angle), np.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    m = np.eye(3)
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s_, s_, c
+    return m
+
+
 def _candidate_rotations() -> list[np.ndarray]:
-    """The 24 rotations of the cube, each also composed with quarter-of-a-quarter turns
-    (45 degrees) about z: the symmetries :func:`symmetry_group` looks for."""
+    """The 24 rotations of the cube, each also composed with turns by multiples of 30 and
+    of 45 degrees about the library x, y and z axes: the symmetries :func:`symmetry_group`
+    looks for (boxes, prisms and cylinders of 4, 6, 8 or 12 sides, whichever axis a mesh
+    was modelled along: glTF meshes stand along y)."""
     mats = []
     for perm in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (1, 0, 2), (0, 2, 1), (2, 1, 0)):
         for signs in np.ndindex(2, 2, 2):
@@ -64,16 +74,17 @@ def _candidate_rotations() -> list[np.ndarray]:
                 m[r, c] = 1 - 2 * signs[r]
             if np.linalg.det(m) > 0:
                 mats.append(m)
-    out = []
-    for k in range(8):
-        c, s_ = np.cos(k * np.pi / 4), np.sin(k * np.pi / 4)
-        rz = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
-        out += [rz @ m for m in mats]
-    uniq = []
-    for m in out:
-        if not any(np.allclose(m, u, atol=1e-9) for u in uniq):
-            uniq.append(m)
-    return uniq
+    angles = sorted({k * np.pi / 6 for k in range(12)} | {k * np.pi / 4 for k in range(8)})
+    turns = [_turn(axis, a) for axis in (2, 0, 1) for a in angles]
+    out, keys = [], set()
+    for t in turns:
+        for m in mats:
+            r = t @ m
+            key = tuple(np.round(r, 6).reshape(9).tolist())
+            if key not in keys:
+                keys.add(key)
+                out.append(r)
+    return out
 
 
 _CANDIDATES = None
@@ -81,17 +92,25 @@ _CANDIDATES = None
 
 def symmetry_group(local_points: np.ndarray, rel_tol: float = 1e-4) -> list[np.ndarray]:
     """Rotations (about the vertex mean, in the part's library frame) that map its vertex
-    set onto itself, among the cube's and 45-degree turns about z (boxes, prisms, cylinders)."""
+    set onto itself, among :func:`_candidate_rotations` (boxes, prisms, cylinders)."""
+    from scipy.spatial import cKDTree
+
     global _CANDIDATES
     if _CANDIDATES is None:
         _CANDIDATES = _candidate_rotations()
     p = np.asarray(local_points, dtype=np.float64)
     p = p - p.mean(0)
     tol = rel_tol * max(float(np.linalg.norm(p, axis=1).max()), 1e-12)
+    cov = p.T @ p / len(p)
+    scale = max(float(np.abs(cov).max()), 1e-300)
+    tree = cKDTree(p)
     group = []
     for r in _CANDIDATES:
-        q = p @ r.T
-        if np.linalg.norm(q[:, None] - p[None], axis=2).min(1).max() <= tol:
+        # a symmetry keeps the second moments: a cheap test before the point query
+        if np.abs(r @ cov @ r.T - cov).max() > 1e-3 * scale:
+            continue
+        dist, _ = tree.query(p @ r.T, distance_upper_bound=2 * tol + 1e-300)
+        if np.all(dist <= tol):
             group.append(r)
     return group
 

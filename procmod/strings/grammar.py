@@ -25,20 +25,70 @@ def neighbour_key(g: nx.Graph, v) -> str:
 RING_MULTIPLE_KEY = "ring_length_multiple"  # in the rules' JSON: never a type letter
 
 
-def ring_multiple_of(lengths) -> int:
-    """The ring-length rule learned from cycle lengths: their greatest common divisor,
-    capped to a divisor of 4 (1: no rule).
+# A ring-length rule "every ring is a multiple of m parts long" is adopted only when the
+# graphs it is learned from would show it by chance with at most this probability (see
+# ring_multiple_of).
+RING_RULE_CHANCE = 0.05
 
-    Why capped: 2 (even rings, as in any bipartite pattern) and 4 (cells and links
-    alternating on a square grid: an even number of grid steps, two edges each) are facts
-    about a set's lattice; a larger common divisor is what a handful of rings happen to
-    share (one input ring 28 long must not make every ring 28 long). Only 2 and 4 are
-    used because for them "every cycle" can be checked on a cycle basis (see
-    :func:`ring_rule_breaks`)."""
+
+def forced_ring_multiple(rules: dict) -> int:
+    """2 when the type rules alone make every ring even (the types that touch split in two
+    classes, every contact across: cells and links), else 1. No data is needed for that."""
+    types = nx.Graph()
+    for t, keys in rules.items():
+        types.add_node(t)
+        for key in keys:
+            for u in key:
+                types.add_edge(t, u)
+    return 2 if types.number_of_nodes() and nx.is_bipartite(types) else 1
+
+
+def ring_multiple_of(lengths, forced: int = 1) -> int:
+    """The ring-length rule learned from the cycle-basis lengths of some graphs: the largest
+    ``m`` in 4, 2 that divides every length, that the data support and that the type rules
+    do not force already (``forced``, :func:`forced_ring_multiple`: what they make every
+    ring a multiple of, which needs no rule); else 1 (no rule).
+
+    The data support ``m`` when so many rings being multiples of ``m`` would be unlikely
+    were it no rule: if each ring's length were as likely to leave any remainder mod ``m``
+    that the type rules allow (``forced`` of them fixed), ``k`` rings would all be
+    multiples with probability ``(forced / m) ** k``; the rule is adopted when that is at
+    most :data:`RING_RULE_CHANCE` (5%). So 4 needs 5 rings when the rules force even rings
+    (3 when they do not), 2 needs 5. Grids of cells and links have rings of 4n parts, but
+    two rings of 8 and 12 parts prove nothing: another set may close a ring of 10 parts.
+
+    Only 2 and 4: for them "every cycle" can be checked on a cycle basis (see
+    :func:`ring_rule_breaks`); a larger common divisor is what a handful of rings happen to
+    share (one input ring 28 long must not make every ring 28 long)."""
+    lengths = [int(n) for n in lengths]
     g = 0
     for n in lengths:
-        g = math.gcd(g, int(n))
-    return math.gcd(g, 4) if g else 1
+        g = math.gcd(g, n)
+    for m in (4, 2):
+        if m <= forced:
+            break
+        if g and g % m == 0 and (forced / m) ** len(lengths) <= RING_RULE_CHANCE:
+            return m
+    return 1
+
+
+def ring_rule_note(graphs, grammar: "Grammar") -> str:
+    """One line on the ring-length rule ``grammar`` learned from ``graphs``, and why."""
+    lengths = [len(c) for g in graphs for c in nx.cycle_basis(g)]
+    forced = forced_ring_multiple(grammar.rules)
+    m = grammar.ring_multiple
+    g = 0
+    for n in lengths:
+        g = math.gcd(g, n)
+    top = math.gcd(g, 4) if g else 1
+    even = "; every ring is even: the types that touch alternate in two classes" if forced == 2 else ""
+    if m > 1:
+        return (f"rings: every ring is a multiple of {m} parts long ({len(lengths)} rings, all multiples: chance "
+                f"{(forced / m) ** len(lengths):.2g} <= {RING_RULE_CHANCE} were it no rule)")
+    if top > forced:
+        return (f"rings: all {len(lengths)} are multiples of {top} parts long, too few to make that a rule "
+                f"(chance {(forced / top) ** len(lengths):.2g} > {RING_RULE_CHANCE})" + even)
+    return f"rings: no ring-length rule ({len(lengths)} rings{', all even' if lengths and g % 2 == 0 else ''})" + even
 
 
 def ring_rule_breaks(cycles: list[set], multiple: int) -> list[str]:
@@ -80,13 +130,17 @@ class Grammar:
 
     @staticmethod
     def from_graphs(graphs) -> "Grammar":
+        """The rules the graphs show; the ring-length rule where the type rules force it or
+        the graphs' rings (every cycle-basis ring of every graph) support it
+        (:func:`ring_multiple_of`)."""
         rules: dict[str, set] = {}
-        lengths = set()
+        lengths = []
         for g in graphs:
             for v in g.nodes:
                 rules.setdefault(g.nodes[v]["type"], set()).add(neighbour_key(g, v))
-            lengths.update(len(c) for c in nx.cycle_basis(g))
-        return Grammar({t: frozenset(keys) for t, keys in rules.items()}, ring_multiple_of(lengths))
+            lengths += [len(c) for c in nx.cycle_basis(g)]
+        rules = {t: frozenset(keys) for t, keys in rules.items()}
+        return Grammar(rules, ring_multiple_of(lengths, forced_ring_multiple(rules)))
 
     def bad_rings(self, g: nx.Graph) -> list[str]:
         """Why ``g``'s rings break the ring-length rule (empty: they keep it)."""

@@ -4,7 +4,10 @@ One attempt: sample a random connected subgraph ``s`` of shape 1; its boundary `
 the set of nodes outside ``s`` adjacent to it. Find nodes ``B2`` in shape 2 of the same
 types with the same pairwise centroid distances (randomised backtracking, first match).
 Dock ``s`` by the least-squares rigid transform taking the centroids of ``B1`` onto those
-of ``B2`` (SVD of the 3x3 covariance). The parts of shape 2 that collide with the docked
+of ``B2`` (SVD of the 3x3 covariance), keeping the rotation it computes, at whatever
+angle (``AugmentParams(rotate=False)``: translations only); where the centroids leave a
+rotation free (one boundary node, or a line of them) the boundary part's own pose fixes it
+(:func:`part_docks`). The parts of shape 2 that collide with the docked
 ``s`` go, together with their whole component of ``G2 - B2``; other components of
 ``G2 - B2`` are kept or dropped as the grammar needs. The merged shape is kept only if its
 geometry validates (its recomputed shape graph is connected and obeys the tiling grammar)
@@ -85,35 +88,65 @@ def match_boundary(b1: list, types1: list, c1: np.ndarray, types2: list, c2: np.
     return list(assignment) if extend(0) else None
 
 
-def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
-    axis = axis / np.linalg.norm(axis)
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float, part_docks=()) -> list[np.ndarray]:
+    """Rigid 4x4 transforms taking points ``p`` onto ``q``: the least-squares one (Kabsch:
+    SVD of the covariance, with the reflection fix), then those of ``part_docks`` that also
+    take every point of ``p`` to within ``tol`` of its ``q``.
 
-
-def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float) -> list[np.ndarray]:
-    """Rigid 4x4 transforms taking points ``p`` onto ``q`` in the least-squares sense.
-
-    The SVD solution (Kabsch, with the reflection fix). When the points leave a rotation
-    free (one point, or all on a line), the four quarter turns about the free axis (the
-    world z axis for a single point) are returned too, for validation to choose from.
+    ``part_docks`` are the motions that lay a boundary part exactly onto its match, up to
+    the part's own symmetries (:func:`part_docks`). They matter where the points leave a
+    rotation free (one point, or all on a line): the rotation is then read off the parts'
+    own poses, whatever angle that is, instead of assumed (quarter turns, as before: a
+    property of grids).
     """
     cp, cq = p.mean(0), q.mean(0)
     x, y = p - cp, q - cq
-    u, s, vt = np.linalg.svd(x.T @ y)
+    u, _, vt = np.linalg.svd(x.T @ y)
     d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
     r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    spread = np.linalg.svd(x, compute_uv=False) if len(p) > 1 else np.zeros(3)
-    rotations = [r]
-    if len(p) == 1 or spread[1] <= tol:
-        axis = np.array([0.0, 0.0, 1.0]) if len(p) == 1 or spread[0] <= tol else y[np.argmax(np.linalg.norm(y, axis=1))]
-        rotations = [_rotation_about(axis, k * np.pi / 2) @ r for k in range(4)]
+    t = np.eye(4)
+    t[:3, :3] = r
+    t[:3, 3] = cq - r @ cp
+    out = [t]
+    for m in part_docks:
+        if np.linalg.norm(p @ m[:3, :3].T + m[:3, 3] - q, axis=1).max() <= tol and \
+                not any(np.abs(m - o).max() <= 1e-9 for o in out):
+            out.append(m)
+    return out
+
+
+# part geometry (library-frame vertices) -> its symmetries as 4x4 maps in library coordinates
+_SYMMETRIES: dict[bytes, list] = {}
+
+
+def _part_symmetries(library: dict, name: str) -> list[np.ndarray]:
+    from .frames import symmetry_group
+
+    p = part_points(library, name, np.eye(4))
+    key = p.tobytes()
+    if key not in _SYMMETRIES:
+        c = p.mean(0)
+        out = []
+        for r in symmetry_group(p) or [np.eye(3)]:
+            m = np.eye(4)
+            m[:3, :3] = r
+            m[:3, 3] = c - r @ c
+            out.append(m)
+        _SYMMETRIES[key] = out
+    return _SYMMETRIES[key]
+
+
+def part_docks(library: dict, part: str, t_a: np.ndarray, t_b: np.ndarray) -> list[np.ndarray]:
+    """The rigid motions ``D`` that put a part placed by ``t_a`` exactly where the same part
+    placed by ``t_b`` is: ``D t_a S = t_b`` for each symmetry ``S`` of the part (its vertex
+    set mapped onto itself); none when the placements differ by more than a rigid motion."""
     out = []
-    for rot in rotations:
-        t = np.eye(4)
-        t[:3, :3] = rot
-        t[:3, 3] = cq - rot @ cp
-        out.append(t)
+    inv_a = np.linalg.inv(t_a)
+    for sym in _part_symmetries(library, part):
+        m = t_b @ np.linalg.inv(sym) @ inv_a
+        r = m[:3, :3]
+        if np.abs(r @ r.T - np.eye(3)).max() <= 1e-6 and np.linalg.det(r) > 0:
+            out.append(m)
     return out
 
 
@@ -129,7 +162,9 @@ class AugmentParams:
     distance_tol: float = 1e-3  # relative to the median part diagonal
     max_subsets: int = 16  # keep/drop choices tried per docking
     max_parts: int = 120  # variants larger than this are not kept
-    rotate: bool = False  # allow docking rotations (else translations only: one orientation)
+    # keep the rotations docking computes (False: translations only, every variant in the
+    # inputs' orientation: what sampling did before off-grid sets, docs/strings.md)
+    rotate: bool = True
     # Which variants count as duplicates: "histogram" (seed 001: any shape whose node-type
     # histogram was seen, conservative) or "graph" (only a shape whose typed shape graph is
     # isomorphic to one seen). See SeenShapes and docs/strings.md ("Sampling").
@@ -162,9 +197,16 @@ def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Gramma
         b2 = match_boundary(b1, ta, ca, tb, cb, dtol, rng)
         if b2 is None:
             continue
-        docks = docking_transforms(ca[b1], cb[b2], dtol)
-        if not params.rotate:
-            docks = [d for d in docks if np.allclose(d[:3, :3], np.eye(3), atol=1e-6)]
+        if params.rotate:
+            # where the boundary's centroids leave a rotation free, the parts' own poses fix it
+            spread = np.linalg.svd(ca[b1] - ca[b1].mean(0), compute_uv=False)
+            extra = [] if len(b1) > 1 and spread[1] > dtol else \
+                part_docks(shape_set.library, shape_a.parts[b1[0]], shape_a.transforms[b1[0]],
+                           shape_b.transforms[b2[0]]) if shape_a.parts[b1[0]] == shape_b.parts[b2[0]] else []
+            docks = docking_transforms(ca[b1], cb[b2], dtol, extra)
+        else:
+            docks = [d for d in docking_transforms(ca[b1], cb[b2], dtol)
+                     if np.allclose(d[:3, :3], np.eye(3), atol=1e-6)]
         for dock in docks:
             merged = _merge(shape_set, grammar, ga, gb, shape_a, shape_b, s, b1, b2, dock, tol, rng, params)
             if merged is not None:

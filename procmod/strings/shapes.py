@@ -56,7 +56,7 @@ class ShapeSet:
     library: dict  # name -> PartShape
     shapes: list  # of Shape
     letters: dict  # part name -> one-letter type
-    base_dir: Path | None = None  # where mesh paths are relative to
+    base_dir: Path | None = None  # where mesh paths are relative to (None: meshes from asset files, held here)
 
     @property
     def part_of_letter(self) -> dict:
@@ -151,13 +151,28 @@ def shapes_to_dict(shape_set: ShapeSet, shapes=None) -> dict:
                                   for p, t in zip(s.parts, s.transforms)]} for s in shapes]}
 
 
+def mesh_obj_text(vertices, faces) -> str:
+    """A triangle mesh as OBJ text that reads back exactly (every float as Python writes
+    it back, vertices in order, no normals or texture coordinates)."""
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    return "\n".join(lines) + "\n"
+
+
 def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> None:
     """Write a shapes file atomically. Mesh paths are written as they were read; mesh files
-    are copied beside the new file when it goes to another folder."""
+    are copied beside the new file when it goes to another folder; meshes read from asset
+    files (``base_dir`` None) are written as OBJ files at their ``parts/NAME.obj``."""
     import shutil
 
     path = Path(path)
-    if shape_set.base_dir is not None and path.parent.resolve() != Path(shape_set.base_dir).resolve():
+    if shape_set.base_dir is None:  # meshes read from asset files: written out as they are held
+        for shape in shape_set.library.values():
+            if shape.kind == "mesh":
+                target = contained_path(path.parent, shape.source, f"parts.{shape.name}.mesh")
+                target.parent.mkdir(parents=True, exist_ok=True)
+                write_text_atomic(target, mesh_obj_text(shape.vertices, shape.faces))
+    elif path.parent.resolve() != Path(shape_set.base_dir).resolve():
         for shape in shape_set.library.values():
             if shape.kind == "mesh":
                 # inside the new file's folder only (a mesh the shapes file reached with ".." is refused)

@@ -1,0 +1,172 @@
+"""Shapes from asset files: glTF / GLB scenes (and URDF robots) as a :class:`ShapeSet`.
+
+``procmod strings graph|augment`` take, besides a ``procmod-shapes/1`` JSON file, asset
+files or folders of them, **one shape per file**. They are read by
+:func:`procmod.geometry.assets.read_assets` (trimesh; the reader ``procmod learn`` uses):
+
+* the node tree becomes the parts placed at their **world transforms** (a string's shape
+  graph comes from contacts, so the hierarchy itself is not kept);
+* the meshes become the **part library**, one part per distinct geometry up to a rigid
+  motion (proper: a mirror image is another part, since a string's parts are placed by
+  rotations) within :data:`~procmod.geometry.assets.GEOMETRY_TOLERANCE` of the
+  geometry's bounding-box diagonal, named after its mesh data (the glTF mesh name);
+* glTF is y-up (its specification), procmod strings is z-up (the whole-shape turns of
+  :mod:`.frames` are about z): a glTF scene is turned +90 degrees about x as it is read,
+  as Blender's importer does. URDF is z-up already;
+* a placement that scales (a node's scale, or a parent's) is split into a rotation and a
+  scale; the scale is applied to the part's geometry, so every placement is rigid. Nodes
+  that place one mesh at different scales get one part per scale (``tower``,
+  ``tower_2``, ...): they are different geometries.
+
+Mesh parts have no file of their own; writing the set (:func:`~.shapes.write_shapes`)
+writes each as ``parts/NAME.obj`` beside the shapes file, exactly (every float as Python
+writes it back).
+
+Bad files raise :class:`~procmod.geometry.assets.AssetError` (a
+:class:`~procmod.ProcmodError`) naming the file: unreadable, empty, zero-area, NaN
+vertices, a hierarchy with a cycle, too many triangles (see that module).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.assets import GEOMETRY_TOLERANCE, AssetError, asset_files, read_assets
+from ..geometry.part_library import PartShape
+from .shapes import Shape, ShapeSet, ShapesFormatError, read_shapes, type_letters
+
+# glTF y-up to procmod's z-up: +90 degrees about x (y -> z, z -> -y)
+Y_UP_TO_Z_UP = np.array([[1.0, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]])
+SCALE_TOLERANCE = 1e-5  # two placements' scales agree within this fraction of the larger
+
+
+def _rotation_and_scale(linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``linear = R S`` with ``R`` a proper rotation and ``S`` symmetric (polar decomposition;
+    ``S`` has a negative eigenvalue when ``linear`` mirrors)."""
+    u, sigma, vt = np.linalg.svd(linear)
+    d = np.ones(3)
+    if np.linalg.det(u @ vt) < 0:
+        d[2] = -1.0
+    r = u @ np.diag(d) @ vt
+    return r, r.T @ linear
+
+
+def _scaled_part(shape: PartShape, name: str, s: np.ndarray) -> PartShape:
+    """``shape`` with the linear map ``s`` applied to its geometry (about its local origin)."""
+    if shape.kind == "box" and np.allclose(s, np.diag(np.diag(s)), atol=1e-12) and (np.diag(s) > 0).all():
+        size = tuple(float(a * b) for a, b in zip(shape.size, np.diag(s)))
+        return PartShape(name, "box", size=size, source=list(size))
+    triangles = shape.local_triangles().reshape(-1, 3) if shape.kind == "box" else None
+    if triangles is not None:
+        v, f = np.unique(triangles, axis=0, return_inverse=True)
+        f = f.reshape(-1, 3)
+    else:
+        v, f = np.asarray(shape.vertices, dtype=np.float64), np.asarray(shape.faces, dtype=np.int64)
+    v = v @ s.T
+    if np.linalg.det(s) < 0:
+        f = f[:, ::-1]  # keep the winding outward
+    return PartShape(name, "mesh", vertices=tuple(map(tuple, v.tolist())), faces=tuple(map(tuple, f.tolist())))
+
+
+def _file_name(name: str, taken: set) -> str:
+    """A file name for part ``name`` (letters, digits, ``_ . -``; never hidden), unused."""
+    base = re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".") or "part"
+    out, k = base, 1
+    while out.lower() in taken:
+        k += 1
+        out = f"{base}_{k}"
+    taken.add(out.lower())
+    return out
+
+
+def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet:
+    """A :class:`ShapeSet` from asset files (or folders of them), one shape per file (see
+    the module docstring). Raises :class:`AssetError` for a file that cannot be used."""
+    files = asset_files(paths)
+    asset_set = read_assets(files, tolerance=tolerance, mirror=False)
+    placed = []  # per file: [(part, rotation 4x4, scale 3x3)]
+    for asset in asset_set.assets:
+        up = Y_UP_TO_Z_UP if asset.path.suffix.lower() in (".gltf", ".glb") else np.eye(4)
+        rows = []
+        for node in asset.nodes():
+            m = up @ np.asarray(node.transform, dtype=np.float64)
+            r, s = _rotation_and_scale(m[:3, :3])
+            if abs(np.linalg.det(s)) < 1e-12 * max(float(np.abs(s).max()), 1e-300) ** 3:
+                raise AssetError(f"{asset.path}: node {node.name!r} has a scale of zero (a flat placement); "
+                                 "give it a size or remove it")
+            rigid = np.eye(4)
+            rigid[:3, :3], rigid[:3, 3] = r, m[:3, 3]
+            rows.append((node.part, rigid, s))
+        placed.append(rows)
+    # one part per (geometry, scale): the scales each geometry is placed at, in reading order
+    scales: dict[str, list] = {}
+    for rows in placed:
+        for part, _, s in rows:
+            known = scales.setdefault(part, [])
+            if not any(np.abs(s - k).max() <= SCALE_TOLERANCE * max(float(np.abs(k).max()), 1.0) for k in known):
+                known.append(s)
+    names_taken = set(asset_set.parts)
+    library: dict[str, PartShape] = {}
+    renamed: dict[tuple, str] = {}
+    for part, known in scales.items():
+        for k, s in enumerate(known):
+            name = part
+            if k:
+                j = k + 1
+                while f"{part}_{j}" in names_taken:
+                    j += 1
+                name = f"{part}_{j}"
+                names_taken.add(name)
+            shape = asset_set.parts[part]
+            unit = np.abs(s - np.eye(3)).max() <= SCALE_TOLERANCE
+            library[name] = shape._replace(name=name) if unit else _scaled_part(shape, name, s)
+            renamed[(part, k)] = name
+    files_taken: set = set()
+    for name, shape in list(library.items()):
+        if shape.kind == "mesh":
+            library[name] = shape._replace(source=f"parts/{_file_name(name, files_taken)}.obj")
+    shapes = []
+    for rows in placed:
+        parts, transforms = [], []
+        for part, rigid, s in rows:
+            k = next(i for i, known in enumerate(scales[part])
+                     if np.abs(s - known).max() <= SCALE_TOLERANCE * max(float(np.abs(known).max()), 1.0))
+            parts.append(renamed[(part, k)])
+            transforms.append(rigid)
+        shapes.append(Shape.of(parts, transforms))
+    return ShapeSet(library, shapes, type_letters(library), None)
+
+
+def read_shape_inputs(paths) -> ShapeSet:
+    """The shapes of ``procmod strings graph|augment``'s inputs: one ``procmod-shapes/1``
+    JSON file, or asset files (``.gltf``, ``.glb``, ``.urdf``) and folders of them, one
+    shape per file (:func:`shapes_from_assets`).
+
+    Raises
+    ------
+    ShapesFormatError
+        For a bad shapes file, a mix of JSON and asset files, or a bad asset file (the
+        message names the file and the problem).
+    """
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise ShapesFormatError("no shapes given: name a procmod-shapes/1 JSON file, or asset files or folders")
+    json_files = [p for p in paths if p.suffix.lower() == ".json"]
+    if json_files:
+        if len(paths) > 1:
+            raise ShapesFormatError(f"{json_files[0]}: give one procmod-shapes/1 JSON file on its own, or asset "
+                                    "files (.gltf, .glb, .urdf) and folders of them, not both or several JSON files")
+        return read_shapes(paths[0])
+    try:
+        return shapes_from_assets(paths)
+    except AssetError as exc:
+        raise ShapesFormatError(str(exc)) from None
+
+
+__all__ = ["Y_UP_TO_Z_UP", "read_shape_inputs", "shapes_from_assets"]

@@ -1,0 +1,224 @@
+"""``procmod strings graph|augment`` on asset files (glTF, GLB): one shape per file, one part
+per distinct mesh (named after its mesh data), y-up scenes turned z-up, scaled placements
+made rigid, bad files as one-line errors (exit 2) that leave no output behind."""
+
+import json
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from procmod.cli import main
+from procmod.strings.assets import Y_UP_TO_Z_UP, read_shape_inputs, shapes_from_assets
+from procmod.strings.contacts import part_points, shape_graph
+from procmod.strings.shapes import ShapesFormatError, read_shapes, shapes_from_dict
+
+from asset_writers import box_mesh, column_major, gltf_json, transformed, write_glb
+
+Z_TO_Y = np.linalg.inv(Y_UP_TO_Z_UP)
+
+
+def prism_mesh(sides=12, radius=0.25, height=2.0):
+    """A closed prism standing along y (as glTF meshes are modelled), ``sides`` faces round."""
+    angles = np.pi / sides + 2 * np.pi * np.arange(sides) / sides
+    ring = np.stack([radius * np.cos(angles), np.zeros(sides), -radius * np.sin(angles)], 1)
+    v = np.concatenate([ring + [0, -height / 2, 0], ring + [0, height / 2, 0]])
+    f = []
+    for k in range(sides):
+        n = (k + 1) % sides
+        f += [(k, n, sides + n), (k, sides + n, sides + k)]
+    for k in range(1, sides - 1):
+        f += [(0, k + 1, k), (sides, sides + k, sides + k + 1)]
+    return v, np.array(f)
+
+
+def yaw(x, y, z, angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0, x], [s, c, 0, y], [0, 0, 1, z], [0, 0, 0, 1.0]])
+
+
+def fence(cells, angle, offset, spacing=2.0):
+    """Posts at grid cells, rails between 4-neighbours, the whole turned by ``angle`` about
+    the vertical: (part, z-up world placement of the part's z-up frame) pairs."""
+    turn = yaw(*offset, angle)
+    out = [("post", turn @ yaw(spacing * i, spacing * j, 1.0, 0.0)) for i, j in cells]
+    cs = set(cells)
+    for i, j in sorted(cs):
+        for di, dj in ((1, 0), (0, 1)):
+            if (i + di, j + dj) in cs:
+                out.append(("rail", turn @ yaw(spacing * (i + di / 2), spacing * (j + dj / 2), 1.0,
+                                               0.0 if dj == 0 else np.pi / 2)))
+    return out
+
+
+RING = [(i, j) for i in range(3) for j in range(3) if (i, j) != (1, 1)]
+TAIL = [(0, 0), (1, 0), (2, 0), (0, 1), (2, 1), (0, 2), (1, 2), (2, 2), (3, 2), (4, 2)]
+# a rail modelled along x in z-up terms: 1.6 long, 0.2 wide, 0.3 high, as y-up mesh data
+RAIL = transformed(box_mesh((1.6, 0.2, 0.3)), Z_TO_Y)
+
+
+def fence_file(path, placements, scale_rails=1.0, second_rail_mesh=False):
+    """A y-up glTF (GLB by suffix) of a fence: an empty root with the parts as children.
+    ``second_rail_mesh``: every other rail uses 'rail.001', the rail's vertex data turned a
+    quarter turn (a copy a modeller made): the same part up to a rigid motion."""
+    quarter = yaw(0, 0, 0, np.pi / 2)
+    meshes = [("post", [prism_mesh()]), ("rail", [RAIL]), ("rail.001", [transformed(RAIL, Z_TO_Y @ quarter @ Y_UP_TO_Z_UP)])]
+    nodes = [{"name": "fence", "children": list(range(1, len(placements) + 1))}]
+    k = 0
+    for part, m in placements:
+        mesh = 0 if part == "post" else 1
+        node_m = m @ np.diag([1.0, scale_rails, 1.0, 1.0]) if part == "rail" else m
+        if part == "rail" and second_rail_mesh and k % 2:
+            mesh, node_m = 2, node_m @ np.linalg.inv(quarter)  # rail.001 placed to look the same
+        k += part == "rail"
+        nodes.append({"name": f"{part}{len(nodes)}", "mesh": mesh,
+                      "matrix": column_major(Z_TO_Y @ node_m @ Y_UP_TO_Z_UP)})
+    data = gltf_json(meshes, nodes, [0])
+    if path.suffix == ".glb":
+        return write_glb(path, data)
+    path.write_text(json.dumps(data))
+    return path
+
+
+def fence_folder(folder):
+    folder.mkdir(parents=True, exist_ok=True)
+    fence_file(folder / "a_ring.glb", fence(RING, np.radians(17), (0.3, 0.1, 0.0)), second_rail_mesh=True)
+    fence_file(folder / "b_tail.gltf", fence(TAIL, np.radians(-52), (20.0, 5.0, 0.0)))
+    return folder
+
+
+def test_gltf_scenes_read_as_shapes_one_per_file(tmp_path):
+    folder = fence_folder(tmp_path / "fences")
+    ss = read_shape_inputs([folder])
+    assert sorted(ss.library) == ["post", "rail"]  # rail.001 is the rail turned: one part
+    assert ss.letters == {"post": "P", "rail": "R"}
+    assert [len(s) for s in ss.shapes] == [8 + 8, 10 + 10]
+    # the same fences written as a shapes file with box parts, z-up: the same contact graphs
+    ref = shapes_from_dict({"format": "procmod-shapes/1",
+                            "parts": {"post": {"box": [0.4, 0.4, 2.0]}, "rail": {"box": [1.6, 0.2, 0.3]}},
+                            "shapes": [{"nodes": [{"part": p, "transform": m.tolist()} for p, m in fence(cells, a, o)]}
+                                       for cells, a, o in ((RING, np.radians(17), (0.3, 0.1, 0.0)),
+                                                           (TAIL, np.radians(-52), (20.0, 5.0, 0.0)))]}, tmp_path)
+    same = nx.algorithms.isomorphism.categorical_node_match("type", None)
+    for shape, other in zip(ss.shapes, ref.shapes):
+        g, h = shape_graph(ss, shape), shape_graph(ref, other)
+        assert sorted(g.edges) == sorted(h.edges) and nx.is_isomorphic(g, h, node_match=same)
+        assert nx.cycle_basis(g)
+        for part, t in zip(shape.parts, shape.transforms):
+            assert np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9)  # rigid placements
+            p = part_points(ss.library, part, t)
+            if part == "post":  # stands along z (the y-up scene was turned)
+                assert np.ptp(p[:, 2]) == pytest.approx(2.0, abs=1e-5)
+    # the files one by one read the same as their folder
+    by_files = read_shape_inputs(sorted(folder.iterdir()))
+    assert all(np.allclose(a, b) for s, t in zip(ss.shapes, by_files.shapes) for a, b in zip(s.transforms, t.transforms))
+
+
+def test_a_mesh_placed_at_two_scales_is_two_parts(tmp_path):
+    fence_file(tmp_path / "a.gltf", fence(RING, 0.3, (0, 0, 0)))
+    fence_file(tmp_path / "b.gltf", fence(RING, 0.3, (0, 0, 0)), scale_rails=1.5)  # rails 1.5 times as wide
+    ss = shapes_from_assets([tmp_path / "a.gltf", tmp_path / "b.gltf"])
+    assert sorted(ss.library) == ["post", "rail", "rail_2"]
+    assert set(ss.shapes[1].parts) == {"post", "rail_2"}
+    wide = part_points(ss.library, "rail_2", np.eye(4))
+    assert sorted(np.round(np.ptp(wide, axis=0), 6).tolist()) == [0.3, 0.3, 1.6]  # the scale is in the part
+    assert all(np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9) for t in ss.shapes[1].transforms)
+
+
+def test_graph_and_augment_take_asset_folders(tmp_path, capsys):
+    folder = fence_folder(tmp_path / "fences")
+    assert main(["strings", "graph", str(folder), "--out", str(tmp_path / "graphs")]) == 0
+    out = capsys.readouterr().out
+    assert "shape 0: 16 parts, 16 contacts, 1 independent cycles" in out and "post=P, rail=R" in out
+    assert sorted(p.name for p in (tmp_path / "graphs").iterdir()) == ["shape_000.json", "shape_001.json"]
+    coll = tmp_path / "coll"
+    assert main(["strings", "augment", str(folder / "a_ring.glb"), str(folder / "b_tail.gltf"), "--count", "5",
+                 "--rounds", "8", "--out", str(coll)]) == 0
+    capsys.readouterr()
+    # the collection's shapes file names mesh files written beside it, which read back exactly
+    data = json.loads((coll / "shapes.json").read_text())
+    assert data["parts"]["post"] == {"mesh": "parts/post.obj"} and data["parts"]["rail"] == {"mesh": "parts/rail.obj"}
+    back = read_shapes(coll / "shapes.json")
+    ss = read_shape_inputs([folder])
+    assert np.array_equal(np.asarray(back.library["post"].vertices), np.asarray(ss.library["post"].vertices))
+    assert np.array_equal(np.asarray(back.library["post"].faces), np.asarray(ss.library["post"].faces))
+    assert len(back.shapes) == 5
+    assert json.loads((coll / "growth.json").read_text())["settings"]["shapes"] == [
+        str(folder / "a_ring.glb"), str(folder / "b_tail.gltf")]
+
+
+def _cycle(p):
+    data = gltf_json([("post", [prism_mesh()])],
+                     [{"name": "a", "mesh": 0}, {"name": "b", "children": [2]}, {"name": "c", "children": [1]}], [0])
+    p.write_text(json.dumps(data))
+
+
+def _nan(p):
+    v, f = prism_mesh()
+    v[2, 0] = np.nan
+    p.write_text(json.dumps(gltf_json([("post", [(v, f)])], [{"name": "a", "mesh": 0}], [0])))
+
+
+def _zero_area(p):
+    p.write_text(json.dumps(gltf_json([("post", [(np.zeros((3, 3)), [[0, 1, 2]])])], [{"name": "a", "mesh": 0}], [0])))
+
+
+def _huge(p):
+    data = gltf_json([("post", [prism_mesh()])], [{"name": "a", "mesh": 0}], [0])
+    data["accessors"][1]["count"] = 3 * 10 ** 7  # 10^7 triangles declared
+    p.write_text(json.dumps(data))
+
+
+def _empty(p):
+    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}))
+
+
+def _unreadable(p):
+    p.write_bytes(b"\x89PNG\r\n not a scene at all")
+
+
+def _flat(p):
+    data = gltf_json([("post", [prism_mesh()])], [{"name": "a", "mesh": 0, "scale": [1, 0, 1]}], [0])
+    p.write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize("make, suffix, message", [
+    (_unreadable, ".glb", "not a GLB file"),
+    (_unreadable, ".gltf", "not a glTF file"),
+    (_empty, ".gltf", "no mesh"),
+    (_zero_area, ".gltf", "zero surface area"),
+    (_nan, ".gltf", "non-finite vertex"),
+    (_cycle, ".gltf", "cycle"),
+    (_huge, ".gltf", "more than procmod reads"),
+    (_flat, ".gltf", "scale of zero"),
+])
+@pytest.mark.parametrize("command", ["graph", "augment"])
+def test_bad_asset_files_are_one_line_errors_and_write_nothing(tmp_path, capsys, make, suffix, message, command):
+    folder = fence_folder(tmp_path / "in")  # good files beside the bad one: the bad one still stops the run
+    make(folder / f"zz_bad{suffix}")
+    out = tmp_path / "out"
+    argv = ["strings", command, str(folder), "--out", str(out)] + (["--count", "4"] if command == "augment" else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err and "zz_bad" in err, err
+    assert err.startswith("procmod: error:")
+    assert not out.exists()
+
+
+def test_json_and_asset_files_are_not_mixed(tmp_path, capsys):
+    folder = fence_folder(tmp_path / "in")
+    shapes = tmp_path / "shapes.json"
+    shapes.write_text("{}")
+    with pytest.raises(ShapesFormatError, match="not both"):
+        read_shape_inputs([shapes, folder / "a_ring.glb"])
+    assert main(["strings", "graph", str(shapes), str(folder), "--out", str(tmp_path / "out")]) == 2
+    assert "not both" in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_augment_translations_only_is_recorded(tmp_path, capsys):
+    folder = fence_folder(tmp_path / "fences")
+    for flag, rotate in (([], True), (["--translations-only"], False)):
+        out = tmp_path / f"coll{int(rotate)}"
+        assert main(["strings", "augment", str(folder), "--count", "3", "--rounds", "2", "--out", str(out), *flag]) == 0
+        assert json.loads((out / "growth.json").read_text())["settings"]["rotate"] is rotate
+    capsys.readouterr()
