@@ -87,8 +87,8 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--seed", type=_int_arg, default=0)
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
     infer.add_argument("--workers", type=_int_arg,
-                       help="processes that step the particles (smc, sosmc; default: one per 100 "
-                            "particles, up to the cores available; 1 keeps the run in one process)")
+                       help="processes that step the particles (smc, sosmc; default 1: this one); "
+                            "more help where the cores are real and idle (README, 'SMC on several cores')")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
     _add_overwrite(infer)
@@ -245,7 +245,7 @@ def _cmd_infer(args) -> None:
     if args.engine in ("smc", "sosmc"):
         if args.workers is not None and args.workers < 1:
             raise InvalidArgumentError(f"--workers must be a positive integer, got {args.workers}")
-        kwargs["workers"] = args.workers  # None: one per 100 particles, up to the cores
+        kwargs["workers"] = 1 if args.workers is None else args.workers
     elif args.workers is not None:
         raise InvalidArgumentError(f"--workers applies to --engine smc or sosmc, not {args.engine}")
     size = check_size(args.size)

@@ -23,6 +23,7 @@ of workers a run is the same, bit for bit.
 from __future__ import annotations
 
 import io
+from array import array
 import math
 import multiprocessing
 import os
@@ -233,7 +234,8 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
                 continue
             if command == "step":
                 log_w, finished, stepped, active = shard.step()
-                reply = (log_w, finished, stepped, active, best[0])
+                # flat arrays: one object each for the pickler, not one per particle
+                reply = (array("d", log_w), bytes(finished), stepped, active, best[0])
             elif command == "export":
                 reply = shard.export(*args)
             elif command == "histories":

@@ -14,6 +14,7 @@ incremental weight, which is unbiased for the marginal likelihood ``Z`` (not its
 from __future__ import annotations
 
 import math
+from array import array
 
 import numpy as np
 
@@ -81,7 +82,7 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
             for worker in workers:
                 w_log_w, w_finished, w_stepped, w_active, w_best = worker.receive()
                 log_w += w_log_w
-                finished += w_finished
+                finished += map(bool, w_finished)
                 stepped += w_stepped
                 active += w_active
                 if w_best > tracker.best_score:
@@ -118,8 +119,8 @@ def _regroup(local: ParticleShard, workers: list, ancestors: list, sizes: list, 
             packed = local.export(indices) if s == 0 else shards[s].call("export", indices)
             for (_, destination, count), (particle, lik, ratio) in zip(shard_sends, packed):
                 incoming[destination].append((count, particle, lik, ratio))
-    for w, worker in enumerate(workers, 1):
-        worker.send("regroup", keep[w], incoming[w])  # answered by nothing: the pipe keeps order
+    for w, worker in enumerate(workers, 1):  # answered by nothing: the pipe keeps the order
+        worker.send("regroup", array("l", keep[w]), incoming[w])
     local.regroup(keep[0], incoming[0])
     return [len(k) + sum(count for count, *_ in inc) for k, inc in zip(keep, incoming)]
 
