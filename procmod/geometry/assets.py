@@ -142,6 +142,25 @@ def asset_files(paths) -> list[Path]:
     return out
 
 
+def json_or_assets(paths, what: str, json_format: str) -> tuple[Path | None, list[Path]]:
+    """Split a command's inputs: ``(json_file, [])`` for one ``json_format`` JSON file
+    given on its own, else ``(None, paths)`` for asset files and folders of them.
+
+    ``paths`` is one path or several. An empty list, or a JSON file beside other inputs, is
+    an :class:`AssetError` naming ``what`` the inputs are (e.g. "shapes", "examples").
+    """
+    paths = [Path(p) for p in ([paths] if isinstance(paths, (str, os.PathLike)) else paths)]
+    if not paths:
+        raise AssetError(f"no {what} given: name a {json_format} JSON file, or asset files or folders")
+    json_files = [p for p in paths if p.suffix.lower() == ".json"]
+    if not json_files:
+        return None, paths
+    if len(paths) > 1:
+        raise AssetError(f"{json_files[0]}: give one {json_format} JSON file on its own, or asset files "
+                         "(.gltf, .glb, .urdf) and folders of them, not both or several JSON files")
+    return paths[0], []
+
+
 # ---- raw geometry and nodes, as each reader finds them ------------------------------------------
 
 @dataclass

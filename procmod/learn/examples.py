@@ -188,20 +188,17 @@ def read_example_inputs(paths) -> tuple[ExampleSet, str]:
     inputs is refused.
     """
     from ..core.serialize import fingerprint
-    from ..geometry.assets import AssetError, asset_files, read_assets
+    from ..geometry.assets import AssetError, asset_files, json_or_assets, read_assets
 
-    paths = [Path(p) for p in ([paths] if isinstance(paths, (str, os.PathLike)) else paths)]
-    if not paths:
-        raise ExamplesError("no examples given: name a procmod-examples/1 JSON file, or asset files or folders")
-    json_files = [p for p in paths if p.suffix.lower() == ".json"]
-    if json_files:
-        if len(paths) > 1:
-            raise ExamplesError(f"{json_files[0]}: give one procmod-examples/1 JSON file on its own, or asset "
-                                "files (.gltf, .glb, .urdf) and folders of them, not both or several JSON files")
-        example_set = read_examples(paths[0])
-        return example_set, fingerprint(paths[0].read_bytes())
     try:
-        example_set = examples_from_assets(read_assets(asset_files(paths)))
+        json_file, assets = json_or_assets(paths, "examples", "procmod-examples/1")
+    except AssetError as exc:
+        raise ExamplesError(str(exc)) from None
+    if json_file is not None:
+        example_set = read_examples(json_file)
+        return example_set, fingerprint(json_file.read_bytes())
+    try:
+        example_set = examples_from_assets(read_assets(asset_files(assets)))
     except AssetError as exc:
         raise ExamplesError(str(exc)) from None
     return example_set, example_set_digest(example_set)

@@ -29,13 +29,11 @@ vertices, a hierarchy with a cycle, too many triangles (see that module).
 
 from __future__ import annotations
 
-import os
 import re
-from pathlib import Path
 
 import numpy as np
 
-from ..geometry.assets import GEOMETRY_TOLERANCE, AssetError, asset_files, read_assets
+from ..geometry.assets import GEOMETRY_TOLERANCE, AssetError, asset_files, json_or_assets, read_assets
 from ..geometry.part_library import PartShape
 from .shapes import Shape, ShapeSet, ShapesFormatError, read_shapes, type_letters
 
@@ -152,19 +150,11 @@ def read_shape_inputs(paths) -> ShapeSet:
         For a bad shapes file, a mix of JSON and asset files, or a bad asset file (the
         message names the file and the problem).
     """
-    if isinstance(paths, (str, os.PathLike)):
-        paths = [paths]
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise ShapesFormatError("no shapes given: name a procmod-shapes/1 JSON file, or asset files or folders")
-    json_files = [p for p in paths if p.suffix.lower() == ".json"]
-    if json_files:
-        if len(paths) > 1:
-            raise ShapesFormatError(f"{json_files[0]}: give one procmod-shapes/1 JSON file on its own, or asset "
-                                    "files (.gltf, .glb, .urdf) and folders of them, not both or several JSON files")
-        return read_shapes(paths[0])
     try:
-        return shapes_from_assets(paths)
+        json_file, assets = json_or_assets(paths, "shapes", "procmod-shapes/1")
+        if json_file is not None:
+            return read_shapes(json_file)
+        return shapes_from_assets(assets)
     except AssetError as exc:
         raise ShapesFormatError(str(exc)) from None
 
