@@ -28,13 +28,21 @@ def fan_key(d):
     return d.choice_map()[((), "n")]
 
 
-def visit_frequencies(model, target, key, keys, chains=20, sweeps=300, seed=0, **settings):
+def visit_frequencies(model, target, key, keys, chains=20, sweeps=300, seed=0, incremental=False, **settings):
     """Per-chain visit frequencies of ``keys`` over the last 4/5 of ``sweeps`` sweeps of
-    ``chains`` independent chains started from the prior (the engine's own sweep)."""
+    ``chains`` independent chains started from the prior (the engine's own sweep; with
+    ``incremental``, its moves replayed from per-call checkpoints)."""
+    from procmod.infer.traced import trace
+
     rng = np.random.default_rng(seed)
-    states = [Scored.from_evaluation(evaluate(model, target, ({}, int(rng.integers(2 ** 62)), None)))
-              for _ in range(chains)]
-    run = Chains(model, target, states, np.ones(chains), rng, tempering=False, **settings)
+    if incremental:
+        states = [trace(model, target, {}, np.random.default_rng(int(rng.integers(2 ** 62))))
+                  for _ in range(chains)]
+    else:
+        states = [Scored.from_evaluation(evaluate(model, target, ({}, int(rng.integers(2 ** 62)), None)))
+                  for _ in range(chains)]
+    run = Chains(model, target, states, np.ones(chains), rng, tempering=False, incremental=incremental,
+                 **settings)
     counts = np.zeros((chains, len(keys)))
     index = {k: j for j, k in enumerate(keys)}
     burn_in = sweeps // 5

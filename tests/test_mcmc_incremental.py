@@ -18,7 +18,7 @@ from procmod.models import get_model
 from procmod.targets import ShapeMatch, TargetImage
 
 from test_engines_incremental import TARGETS
-from test_mcmc_exact import assert_matches, fan_key, gate_key
+from test_mcmc_exact import assert_matches, fan_key, gate_key, visit_frequencies
 from toy_models import (FAN, FAN_N, GATE, MIX, SWITCH, FlatTarget, SumTarget, gate_exact, mix_exact, switch_exact,
                         switch_key)
 
@@ -110,28 +110,12 @@ def test_incremental_engine_is_the_full_replay_engine(kwargs):
     assert [r[1:] for r in a.history] == [r[1:] for r in b.history]
 
 
-def visit_frequencies(model, target, key, keys, chains=20, sweeps=300, seed=0, **settings):
-    """As test_mcmc_exact's, with incremental chains."""
-    rng = np.random.default_rng(seed)
-    states = [trace(model, target, {}, np.random.default_rng(int(rng.integers(2 ** 62)))) for _ in range(chains)]
-    run = Chains(model, target, states, np.ones(chains), rng, tempering=False, incremental=True, **settings)
-    counts = np.zeros((chains, len(keys)))
-    index = {k: j for j, k in enumerate(keys)}
-    burn_in = sweeps // 5
-    for sweep in range(sweeps):
-        run.sweep()
-        if sweep >= burn_in:
-            for c, s in enumerate(run.states):
-                counts[c, index[key(s.derivation)]] += 1
-    return counts / (sweeps - burn_in), sweeps - burn_in
-
-
 @pytest.mark.parametrize("p_diffusion,p_resample", [(0.0, 0.5), (0.3, 0.3)])
 def test_resample_move_on_gate(p_diffusion, p_resample):
     exact = gate_exact(FlatTarget())
     keys = list(exact)
-    assert_matches(visit_frequencies(GATE, FlatTarget(), gate_key, keys, seed=11, p_diffusion=p_diffusion,
-                                     p_resample=p_resample), exact, keys)
+    assert_matches(visit_frequencies(GATE, FlatTarget(), gate_key, keys, seed=11, incremental=True,
+                                     p_diffusion=p_diffusion, p_resample=p_resample), exact, keys)
 
 
 @pytest.mark.parametrize("p_resample", [0.3, 0.8])
@@ -139,8 +123,8 @@ def test_resample_move_on_switch(p_resample):
     obs, s = 1.5, 0.7
     exact = switch_exact(obs, s)
     keys = list(exact)
-    assert_matches(visit_frequencies(SWITCH, SumTarget(obs, s), switch_key, keys, seed=12, p_diffusion=0.2,
-                                     p_resample=p_resample, step_scale=0.5), exact, keys)
+    assert_matches(visit_frequencies(SWITCH, SumTarget(obs, s), switch_key, keys, seed=12, incremental=True,
+                                     p_diffusion=0.2, p_resample=p_resample, step_scale=0.5), exact, keys)
 
 
 def test_resample_move_on_fan():
@@ -148,8 +132,8 @@ def test_resample_move_on_fan():
     target = SumTarget(0.5, 0.5)
     keys = list(range(len(FAN_N)))
     exact = _fan_exact(target)
-    assert_matches(visit_frequencies(FAN, target, fan_key, keys, seed=13, p_diffusion=0.0, p_resample=0.5),
-                   exact, keys)
+    assert_matches(visit_frequencies(FAN, target, fan_key, keys, seed=13, incremental=True, p_diffusion=0.0,
+                                     p_resample=0.5), exact, keys)
 
 
 def _fan_exact(target):
@@ -176,8 +160,8 @@ def test_resample_move_on_mix_marginals():
         cm = d.choice_map()
         return cm[((), "k")], cm[((), "child")]
 
-    assert_matches(visit_frequencies(MIX, SumTarget(obs, s), key, keys, seed=14, p_diffusion=0.3,
-                                     p_resample=0.4, step_scale=0.5), exact, keys)
+    assert_matches(visit_frequencies(MIX, SumTarget(obs, s), key, keys, seed=14, incremental=True,
+                                     p_diffusion=0.3, p_resample=0.4, step_scale=0.5), exact, keys)
 
 
 def test_resample_needs_room_beside_diffusion():
