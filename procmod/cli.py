@@ -83,7 +83,7 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--population", type=_int_arg, help="population (ga)")
     infer.add_argument("--chains", type=_int_arg, help="chains (mcmc)")
     infer.add_argument("--budget", help="30s, 2m, 5000evals or 100gens (default: one SMC run, "
-                                        "one forward batch, 200 MCMC sweeps, 50 GA generations)")
+                                        "one forward batch, 1600 MCMC sweeps, 50 GA generations)")
     infer.add_argument("--seed", type=_int_arg, default=0)
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
     infer.add_argument("--workers", type=_int_arg,

@@ -515,7 +515,8 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
         temperature ladder (coldest first), otherwise they are independent chains at
         temperature 1.
     budget : Budget
-        Default: 200 sweeps (generations). One sweep proposes one move per chain.
+        Default: 1,600 sweeps (generations), as many moves as the 200 sweeps of the eight
+        chains this engine used to default to. One sweep proposes one move per chain.
         Annealing counts sweeps, so with more chains it is slower per move.
     p_diffusion : float
         Probability of a diffusion move where the state has a continuous choice
@@ -548,7 +549,7 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
         incremental = executor is None and not delayed_rejection
     if annealing is not None and not annealing >= 1.0:
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
-    budget = budget or Budget(generations=200)
+    budget = budget or Budget(generations=1600)
     model = target.configure(model)
     check_population("chains", chains, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)
