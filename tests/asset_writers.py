@@ -106,3 +106,27 @@ def write_obj(path, mesh):
     path.write_text("\n".join([f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(v, dtype=float).tolist()] +
                               [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(f)]) + "\n")
     return path
+
+
+# ---- bad assets, shared by the learn and strings tests -------------------------------------
+
+def write_zero_area_gltf(p, name: str) -> None:
+    """A glTF whose only mesh ``name`` is one degenerate triangle."""
+    p.write_text(json.dumps(gltf_json([(name, [(np.zeros((3, 3)), [[0, 1, 2]])])], [{"name": "a", "mesh": 0}], [0])))
+
+
+def write_huge_gltf(p, name: str, mesh) -> None:
+    """A glTF whose mesh ``name`` declares 10^7 triangles (its data holds ``mesh``)."""
+    data = gltf_json([(name, [mesh])], [{"name": "a", "mesh": 0}], [0])
+    data["accessors"][1]["count"] = 3 * 10 ** 7
+    p.write_text(json.dumps(data))
+
+
+def write_empty_gltf(p) -> None:
+    """A glTF scene with no nodes."""
+    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}))
+
+
+def write_unreadable(p) -> None:
+    """Bytes that are no scene at all."""
+    p.write_bytes(b"\x89PNG\r\n not a scene at all")

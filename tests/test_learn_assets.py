@@ -13,7 +13,8 @@ from procmod.learn import preprocess
 from procmod.learn.examples import read_example_inputs
 from procmod.learn.search import SearchOptions
 
-from asset_writers import box_mesh, column_major, transformed, urdf, wedge_mesh, write_glb, gltf_json, write_gltf
+from asset_writers import (box_mesh, column_major, gltf_json, transformed, urdf, wedge_mesh, write_empty_gltf, write_glb,
+                           write_gltf, write_huge_gltf, write_unreadable, write_zero_area_gltf)
 
 MX = np.diag([-1.0, 1, 1, 1])
 
@@ -117,22 +118,14 @@ def _nan(p):
 
 
 def _zero_area(p):
-    v = np.zeros((3, 3))
-    p.write_text(json.dumps(gltf_json([("body", [(v, [[0, 1, 2]])])], [{"name": "a", "mesh": 0}], [0])))
+    write_zero_area_gltf(p, "body")
 
 
 def _huge(p):
-    data = gltf_json([("body", [box_mesh((1, 1, 1))])], [{"name": "a", "mesh": 0}], [0])
-    data["accessors"][1]["count"] = 3 * 10 ** 7  # 10^7 triangles declared
-    p.write_text(json.dumps(data))
+    write_huge_gltf(p, "body", box_mesh((1, 1, 1)))
 
 
-def _empty(p):
-    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}))
-
-
-def _unreadable(p):
-    p.write_bytes(b"\x89PNG\r\n not a scene at all")
+_empty, _unreadable = write_empty_gltf, write_unreadable
 
 
 def _urdf_two_parents(p):

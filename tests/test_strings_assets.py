@@ -13,7 +13,8 @@ from procmod.strings.assets import Y_UP_TO_Z_UP, read_shape_inputs, shapes_from_
 from procmod.strings.contacts import part_points, shape_graph
 from procmod.strings.shapes import ShapesFormatError, read_shapes, shapes_from_dict
 
-from asset_writers import box_mesh, column_major, gltf_json, transformed, write_glb
+from asset_writers import (box_mesh, column_major, gltf_json, transformed, write_empty_gltf, write_glb, write_huge_gltf,
+                           write_unreadable, write_zero_area_gltf)
 
 Z_TO_Y = np.linalg.inv(Y_UP_TO_Z_UP)
 
@@ -160,21 +161,14 @@ def _nan(p):
 
 
 def _zero_area(p):
-    p.write_text(json.dumps(gltf_json([("post", [(np.zeros((3, 3)), [[0, 1, 2]])])], [{"name": "a", "mesh": 0}], [0])))
+    write_zero_area_gltf(p, "post")
 
 
 def _huge(p):
-    data = gltf_json([("post", [prism_mesh()])], [{"name": "a", "mesh": 0}], [0])
-    data["accessors"][1]["count"] = 3 * 10 ** 7  # 10^7 triangles declared
-    p.write_text(json.dumps(data))
+    write_huge_gltf(p, "post", prism_mesh())
 
 
-def _empty(p):
-    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scenes": [{"nodes": []}], "scene": 0}))
-
-
-def _unreadable(p):
-    p.write_bytes(b"\x89PNG\r\n not a scene at all")
+_empty, _unreadable = write_empty_gltf, write_unreadable
 
 
 def _flat(p):
