@@ -27,8 +27,9 @@ from .common import Budget, Result, Tracker, check_population, check_positive, l
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
-# to the cores this process may use. Below it a worker's per-generation messages cost
-# more than the steps it takes over (bench/smc_workers.py).
+# to the cores this process may use, so that a shard has enough steps per generation to
+# outweigh its messages. A guess, not a measured crossover: on the 2-vCPU machine
+# bench/smc_workers.py was measured on, two workers gained nothing at 600 particles.
 PARTICLES_PER_WORKER = 100
 
 
