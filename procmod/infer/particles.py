@@ -243,7 +243,7 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
             elif command == "scores":
                 reply = shard.score_sum()
             elif command == "collect":
-                reply = (shard.packed_states(), shard.log_w)
+                reply = shard.packed_states()
             elif command == "best":
                 reply = None if best[1] is None else (pack_particle(best[1], None), best[0])
             else:  # pragma: no cover - the coordinator sends only the commands above

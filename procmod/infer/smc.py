@@ -45,6 +45,7 @@ def worker_count(workers: int | None, particles: int) -> int:
         return 1  # worker shards are forked; elsewhere the run stays in this process
     return max(1, min(workers, particles))
 
+
 def effective_sample_size(log_weights: np.ndarray) -> float:
     """Kish's effective sample size of a set of log-weights."""
     w = normalised_weights(log_weights)
@@ -127,21 +128,21 @@ def _regroup(local: ParticleShard, workers: list, ancestors: list, sizes: list, 
 
 
 def _collect(local: ParticleShard, workers: list, tracker) -> list:
-    """Every shard's particles, whole (histories grafted back), in shard order; also
-    fetches the tracker's best when a worker holds it. The final log-weights of the
-    workers' particles are appended to ``local.log_w``'s copy returned by the caller."""
+    """Every shard's particles, whole (histories grafted back), in shard order (the order
+    of the run's log-weights); also fetches the tracker's best when a worker holds it."""
     states = list(local.states)
     if not workers:
         return states
     model = local.model
     for worker in workers:
-        packed, log_w = worker.call("collect")
-        states += [unpack_particle(model, p) for p in packed]
+        states += [unpack_particle(model, p) for p in worker.call("collect")]
     if isinstance(tracker.best, _RemoteBest):
         packed, _ = tracker.best.shard.call("best")
         tracker.best = unpack_particle(model, packed)
     _graft(states + [tracker.best], local, workers)
     return states
+
+
 def _graft(states: list, local: ParticleShard, workers: list) -> None:
     """Put the histories that moved particles left in other shards back into ``states``."""
     cache = {}
@@ -212,14 +213,14 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         raise InvalidArgumentError(f"order must be 'program' or 'random', got {order!r}")
     pick = None if order == "program" else random_order
     model = target.configure(model)
-    check_population("particles", particles, target.new_output(model))  # refuse what memory cannot hold
+    template = target.new_output(model)  # every particle starts from a copy of it
+    check_population("particles", particles, template)  # refuse what memory cannot hold
     proposer = None
     if guide is not None:
         proposer = guide.proposer(model, target)
     n_workers = worker_count(workers, particles)
     rng = BlockGenerator(np.random.default_rng(seed))  # scalar draws from blocks: the hot loop
     tracker = Tracker(budget, progress)
-    template = target.new_output(model)
     local = ParticleShard(0, model, target, template, rng, pick, proposer, tracker.offer)
     notes = []
     remote = []
