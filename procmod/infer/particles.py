@@ -93,7 +93,7 @@ class ParticleShard:
             log_w[i] += new - log_lik[i]
             log_lik[i] = new
             if log_ratio is not None:  # guided: weigh by prior / proposal of this step's choices
-                ratio = state.log_prior - state.log_proposal
+                ratio = state.log_prior - state.policy.log_proposal  # the GuidedPolicy reset() installed
                 log_w[i] += ratio - log_ratio[i]
                 log_ratio[i] = ratio
             if state.done:
@@ -327,6 +327,11 @@ def fork_available() -> bool:
     return "fork" in multiprocessing.get_all_start_methods()
 
 
+def split_evenly(total: int, shards: int) -> list:
+    """``total`` in ``shards`` near-equal parts (the first ones one larger)."""
+    return [total // shards + (1 if s < total % shards else 0) for s in range(shards)]
+
+
 def plan_offspring(ancestors: list, sizes: list, finished: list) -> tuple:
     """Where each offspring of a resampling lives.
 
@@ -353,8 +358,7 @@ def plan_offspring(ancestors: list, sizes: list, finished: list) -> tuple:
         kept[s].append(a)
         if not finished[a]:
             active[s] += 1
-    total = sum(active)
-    quota = [total // shards + (1 if s < total % shards else 0) for s in range(shards)]
+    quota = split_evenly(sum(active), shards)
     deficits = [[s, quota[s] - active[s]] for s in range(shards) if active[s] < quota[s]]
     sends = [[] for _ in range(shards)]
     for s in range(shards):

@@ -24,7 +24,7 @@ from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample  # noqa: F401
 from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
-from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects
+from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
 # to the cores this process may use, so that a shard has enough steps per generation to
@@ -52,11 +52,6 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
     return float(1.0 / np.sum(w * w))
 
 
-def _split(total: int, shards: int) -> list:
-    """``total`` particles in ``shards`` near-equal parts."""
-    return [total // shards + (1 if s < total % shards else 0) for s in range(shards)]
-
-
 class _RemoteBest:
     """Stands in the tracker for a best derivation a worker shard holds (fetched at the end
     of the run)."""
@@ -70,7 +65,7 @@ class _RemoteBest:
 def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampling, ess_threshold,
               tracker) -> tuple:
     """One SMC run over the shards; returns (states, final log-weights, log Z estimate)."""
-    sizes = _split(particles, 1 + len(workers))
+    sizes = split_evenly(particles, 1 + len(workers))
     for worker, size in zip(workers, sizes[1:]):
         worker.send("reset", size)
     local.reset(sizes[0])

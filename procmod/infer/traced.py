@@ -185,9 +185,6 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
         state.n_nodes = j
         state._chain = mark.chain
         state.policy = policy = ReplayPolicy(choices)
-        # every call before j takes all its choices from the map: a full replay's reused
-        # sum is the same additions in the same order as the log-prior's
-        policy.log_reused = mark.log_prior
         nodes = old_nodes[:j]
         marks = previous.marks[:j]
         old_d, old_m, old_k = previous.cum
@@ -210,8 +207,7 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
     copy_output = output.copy
     # The state's running fields live in locals while calls are taken over (this loop is
     # the cost of a move) and are written back around each call that runs.
-    lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, policy.log_reused, state.n_emits,
-                                                    state.n_nodes, state._chain)
+    lp_prior, n_emits, n_nodes, chain = state.log_prior, state.n_emits, state.n_nodes, state._chain
     depth = None if edited is None else len(edited)
     stopped = False
     while pending:
@@ -229,9 +225,7 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
                 # drawn, the same spawns pending (their ctx.at positions, read only by
                 # guides, are not kept)
                 for choice in node.choices.values():
-                    lp = choice[1]
-                    lp_reused += lp
-                    lp_prior += lp
+                    lp_prior += choice[1]
                 for geometry in node.geometry:
                     draw(geometry)
                 n_emits += len(node.geometry)
@@ -248,11 +242,10 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
                     if spawn.on:
                         pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args))
                 continue
-        state.log_prior, policy.log_reused, state.n_emits, state.n_nodes, state._chain = (
-            lp_prior, lp_reused, n_emits, n_nodes, chain)
+        state.log_prior, state.n_emits, state.n_nodes, state._chain = (
+            lp_prior, n_emits, n_nodes, chain)
         _execute(state, future, rng, None, 0, False)
-        lp_prior, lp_reused, n_emits, n_nodes, chain = (state.log_prior, policy.log_reused, state.n_emits,
-                                                        state.n_nodes, state._chain)
+        lp_prior, n_emits, n_nodes, chain = state.log_prior, state.n_emits, state.n_nodes, state._chain
         node = chain[0]
         nodes.append(node)
         ran.append(node)
@@ -263,8 +256,8 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
         if state.stopped:
             stopped = True
             break
-    state.log_prior, policy.log_reused, state.n_emits, state.n_nodes, state._chain = (
-        lp_prior, lp_reused, n_emits, n_nodes, chain)
+    state.log_prior, state.n_emits, state.n_nodes, state._chain = (
+        lp_prior, n_emits, n_nodes, chain)
     state.stopped = stopped
     pending.clear()
     state.policy = None
