@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import json
 import os
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,8 @@ from PIL import Image
 
 from .core import save_derivation, write_text_atomic
 from .core.protocols import Target, check_declared
-from .geometry import contact_sheet, save_figure_atomic, save_image_atomic
+from .chart import COLOURS, Series, line_chart_svg
+from .geometry import contact_sheet, save_image_atomic
 from .render import derivation_image, output_formats, write_derivation
 
 
@@ -34,39 +36,27 @@ def mean_meaning(engine: str) -> str:
 
 
 def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") -> None:
-    """Best (solid) and mean (dashed) score against evaluations, one colour per run.
+    """Best (solid, stepped) and mean (dashed) score against evaluations, one colour per
+    run, as an SVG chart (:mod:`procmod.chart`).
 
     The x axis is evaluations, not seconds: the history's rows are recorded at points of
     the work done, so a seeded run with a work budget draws the same figure, byte for
     byte, however fast the machine ran it (the wall time is in history.csv).
     """
-    # matplotlib's Figure directly, not pyplot (which costs a second import and global state)
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(6.4, 3.8))
-    ax = fig.subplots()
+    series = []
     engines = []
     for i, (label, result) in enumerate(results.items()):
         rows = [r for r in result.history if np.isfinite(r.best_score)]
         if not rows:
             continue
         engines.append(result.engine)
-        colour = f"C{i}"
+        colour = COLOURS[i % len(COLOURS)]
         x = [r.evaluations for r in rows]
-        ax.step(x, [r.best_score for r in rows], where="post", color=colour, label=f"{label} best")
-        ax.plot(x, [r.mean_score for r in rows], color=colour, linestyle="--", alpha=0.6,
-                label=f"{label} mean")
-    ax.set_xlabel("evaluations")
-    ax.set_ylabel("score")
-    if title:
-        ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    notes = list(dict.fromkeys(mean_meaning(e) for e in engines))
-    if notes:
-        fig.text(0.01, 0.01, "\n".join(notes), fontsize=6.5, color="0.35", va="bottom", wrap=True)
-    fig.tight_layout(rect=(0, 0.04 * len(notes), 1, 1))
-    save_figure_atomic(fig, path, dpi=110)
+        series.append(Series(f"{label} best", x, [r.best_score for r in rows], colour, step=True))
+        series.append(Series(f"{label} mean", x, [r.mean_score for r in rows], colour, dashed=True, opacity=0.6))
+    notes = [textwrap.fill(n, 118) for n in dict.fromkeys(mean_meaning(e) for e in engines)]
+    svg = line_chart_svg(series, title, "evaluations", "score", "\n".join(notes))
+    write_text_atomic(path, svg)
 
 
 SAMPLE_TILES = 16
@@ -103,7 +93,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     Files: best.png (2D: over the target in grey; 3D: a shaded view), best.svg (2D) or
     best.obj and best.glb (3D), best.json (derivation), target.png (image targets: the
     mask; silhouette targets: the first view with the best result's silhouette over it),
-    history.csv, convergence.png, samples.png (contact sheet of at most 16 of the final
+    history.csv, convergence.svg, samples.png (contact sheet of at most 16 of the final
     samples, drawn by weight: see :func:`sample_of_final`),
     settings.json and report.html tying them together.
 
@@ -134,7 +124,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
         target_caption = ("target view 1: the best result's silhouette (green) over the image "
                           "(blue: hit, yellow: avoid)")
     write_text_atomic(out / "history.csv", result.history_csv())
-    convergence_figure({result.engine: result}, out / "convergence.png", f"{result.engine} on {target.name}")
+    convergence_figure({result.engine: result}, out / "convergence.svg", f"{result.engine} on {target.name}")
     # 128 px tiles at 2x2 supersampling: the one part of the report whose cost grows with the
     # particles (up to 16 tiles), so kept cheap (~5 ms a vine tile here)
     tile_underlay = target.display_mask(128)
@@ -199,7 +189,7 @@ after {summary['evaluations']} evaluations in {seconds} s.</p>
 {viewer}{target_cell}
 <figure><img src="best.png" alt="best result"><figcaption>best result
 ({links}<a href="best.json">derivation</a>)</figcaption></figure>
-<figure><img src="convergence.png" alt="convergence" style="width:480px"><figcaption>score against
+<figure><img src="convergence.svg" alt="convergence" style="width:480px"><figcaption>score against
 evaluations ({html.escape(mean_note)}; <a href="history.csv">CSV</a>, with wall seconds)</figcaption></figure>
 <h2>Final samples</h2>
 <img src="samples.png" alt="final samples" style="max-width:100%">

@@ -161,7 +161,7 @@ def test_control_toward_a_scene_mesh_stops_early_keeping_the_best_and_writes_the
     assert best.name.startswith("procmod best ga")
     status = context.window_manager.procmod_status
     run = Path(status.report).parent
-    assert {p.name for p in run.iterdir()} == {"best.glb", "best.json", "best.obj", "best.png", "convergence.png",
+    assert {p.name for p in run.iterdir()} == {"best.glb", "best.json", "best.obj", "best.png", "convergence.svg",
                                                "history.csv", "report.html", "samples.png", "settings.json"}
     settings_json = json.loads((run / "settings.json").read_text())
     assert any("stopped from Blender" in n for n in settings_json["notes"])

@@ -105,11 +105,11 @@ def test_infer_writes_a_report(tmp_path, capsys):
                              "--particles", "20", "--seed", "1", "--out", str(out), "--size", "64")
     assert code == 0, err
     names = {p.name for p in out.iterdir()}
-    assert {"best.png", "best.svg", "best.json", "history.csv", "convergence.png", "samples.png",
+    assert {"best.png", "best.svg", "best.json", "history.csv", "convergence.svg", "samples.png",
             "report.html", "target.png", "settings.json"} <= names
     assert "report:" in stdout
     html = (out / "report.html").read_text()
-    assert "best.png" in html and "convergence.png" in html and "glyph:dejavu-sans/a" in html
+    assert "best.png" in html and "convergence.svg" in html and "glyph:dejavu-sans/a" in html
     # The best derivation replays through `procmod render`.
     assert _run(capsys, "render", str(out / "best.json"), "--out", str(tmp_path / "b.png"))[0] == 0
     lines = (out / "history.csv").read_text().splitlines()

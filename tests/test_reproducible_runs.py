@@ -81,7 +81,7 @@ def _same_but_timings(a: Path, b: Path) -> list:
 def test_two_seeded_infer_runs_differ_only_in_timing_fields(tmp_path, monkeypatch, capsys, argv):
     a, b = _run_twice(tmp_path, monkeypatch, capsys, argv + ["--size", "48", "--out", "run"])
     names = _same_but_timings(a, b)
-    assert {"history.csv", "convergence.png", "report.html", "settings.json", "best.json"} <= set(names)
+    assert {"history.csv", "convergence.svg", "report.html", "settings.json", "best.json"} <= set(names)
     rows = (a / "history.csv").read_text().splitlines()
     assert len(rows) > 3  # enough rows for the check to mean something
 
