@@ -23,7 +23,9 @@ start/direction) for procmod and as JSON for WebPPL: the same pixels for both.
 Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``, procmod's
 procedural scribbles from number 49 on (0-48 train the guides); ``stix`` (not in the
 default), the first lower-case glyphs of STIX General Bold, a serif typeface whose
-hairlines and serifs neither the guides' training scribbles nor DejaVu Sans have. Results:
+hairlines and serifs neither the guides' training scribbles nor DejaVu Sans have;
+``silhouettes`` (not in the default; ``pip install pybullet``), 50x50 silhouettes of the
+objects and robots pybullet_data ships (bench/peers/silhouettes.py). Results:
 ``bench/results/vs_webppl.json`` and ``.png`` (``--name`` changes the stem).
 """
 
@@ -95,6 +97,12 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         out["scribbles"] = scribble_set(count, first=scribble_first)
     if "stix" in sets:  # another typeface: serifs and hairlines, unlike the training scribbles
         out["stix"] = [t for t in glyph_set("stix") if t.name[-1].islower()][:count]
+    if "silhouettes" in sets:  # real 3D assets, not drawn strokes (bench/peers/silhouettes.py)
+        from silhouettes import silhouette_targets
+
+        out["silhouettes"] = silhouette_targets(count)
+        if not out["silhouettes"]:
+            sys.exit("vs_webppl: the silhouettes set reads pybullet_data's assets: pip install pybullet")
     if targets_dir is not None:
         files = sorted(p for p in targets_dir.iterdir()
                        if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff"))
@@ -336,7 +344,7 @@ def plot_mcmc(rows: list, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles", "stix"))
+    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles", "stix", "silhouettes"))
     parser.add_argument("--targets-dir", type=Path, help="a folder of target pictures (added as its own set)")
     parser.add_argument("--count", type=int, default=12, help="targets per built-in set (default 12)")
     parser.add_argument("--scribble-first", type=int, default=49, help="first scribble number (default 49)")
