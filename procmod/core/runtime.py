@@ -431,12 +431,6 @@ class Derivation:
         policy = self.policy
         return policy.log_proposal if type(policy) is GuidedPolicy else 0.0
 
-    @log_proposal.setter
-    def log_proposal(self, value: float) -> None:
-        if self.policy is None:
-            self.policy = GuidedPolicy()
-        self.policy.log_proposal = value
-
     @property
     def guide_cache(self):
         """A proposer's per-derivation cache: shared by copies, so it is replaced, never

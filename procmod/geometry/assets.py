@@ -733,6 +733,19 @@ def _box_map(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray | None:
     return None
 
 
+def unused_name(base: str, taken: set, fold=None) -> str:
+    """``base``, else ``base_2``, ``base_3``, ...: the first whose ``fold(name)`` (the name
+    itself without ``fold``) is not in ``taken``; that key is added to ``taken``."""
+    name, k = base, 1
+    key = name if fold is None else fold(name)
+    while key in taken:
+        k += 1
+        name = f"{base}_{k}"
+        key = name if fold is None else fold(name)
+    taken.add(key)
+    return name
+
+
 def _library(geometries: list, tol: float, mirror: bool) -> tuple[dict, dict]:
     """Part library and, per geometry key, (part name, M) with geometry = M(part)."""
     classes = []  # [representative, surface, [(geometry, M: geometry = M(representative))]]
@@ -755,11 +768,7 @@ def _library(geometries: list, tol: float, mirror: bool) -> tuple[dict, dict]:
         # the part takes the shortest (then first in order) of its geometries' names, and
         # that geometry's local frame
         canon, m_canon = min(members, key=lambda gm: (len(gm[0].name), gm[0].name))
-        name, k = canon.name or "part", 1
-        while name in used:
-            k += 1
-            name = f"{canon.name or 'part'}_{k}"
-        used.add(name)
+        name = unused_name(canon.name or "part", used)
         if canon.kind == "box":
             parts[name] = PartShape(name, "box", size=tuple(float(s) for s in canon.size),
                                     source=[float(s) for s in canon.size])

@@ -101,16 +101,6 @@ def temperature_ladder(chains: int) -> np.ndarray:
     return 1.0 / T_MAX ** (np.arange(chains) / (chains - 1))
 
 
-def diffusion_candidates(derivation) -> list:
-    """Calls with at least one continuous choice."""
-    return [n for n in derivation.nodes() if _has_continuous(n)]
-
-
-def maybe_sites(derivation) -> list:
-    """``(node_address, site)`` of every ``maybe`` site, on or off."""
-    return [(n.address, s.site) for n in derivation.nodes() for s in n.spawns if s.probability < 1.0]
-
-
 def _has_continuous(node) -> bool:
     for c in node.choices.values():
         if not c.dist.discrete:
@@ -125,7 +115,7 @@ class MoveCounts(NamedTuple):
     calls: int
     diffusion: int
     maybe: int
-    choices: int = 0
+    choices: int
 
 
 def move_counts(derivation) -> MoveCounts:
@@ -211,28 +201,31 @@ class _Picks:
             self.keys = [(n, name) for n in nodes for name in n.choices]
             self.counts = MoveCounts(len(nodes), len(self.candidates), len(self.sites), len(self.keys))
 
+    def _locate(self, which: int, i: int) -> tuple:
+        """``(node, j)``: the traced state's call holding the ``i``-th item counted by
+        running count ``which``, and the item's position within that call."""
+        cum = self.cum[which]
+        k = bisect_right(cum, i) - 1
+        return self.nodes[k], i - cum[k]
+
     def candidate(self, i: int):
         if self.cum is None:
             return self.candidates[i]
-        return self.nodes[bisect_right(self.cum[0], i) - 1]
+        return self._locate(0, i)[0]
 
     def site(self, i: int) -> tuple:
         """``(node, site name)`` of the ``i``-th maybe site."""
         if self.cum is None:
             return self.sites[i]
-        cum = self.cum[1]
-        k = bisect_right(cum, i) - 1
-        node = self.nodes[k]
-        return node, [s.site for s in node.spawns if s.probability < 1.0][i - cum[k]]
+        node, j = self._locate(1, i)
+        return node, [s.site for s in node.spawns if s.probability < 1.0][j]
 
     def key(self, i: int) -> tuple:
         """``(node, choice name)`` of the ``i``-th choice."""
         if self.cum is None:
             return self.keys[i]
-        cum = self.cum[2]
-        k = bisect_right(cum, i) - 1
-        node = self.nodes[k]
-        return node, list(node.choices)[i - cum[k]]
+        node, j = self._locate(2, i)
+        return node, list(node.choices)[j]
 
 
 def _edited_dict(derivation, overrides: dict, removed) -> dict:

@@ -33,7 +33,8 @@ import re
 
 import numpy as np
 
-from ..geometry.assets import GEOMETRY_TOLERANCE, AssetError, asset_files, json_or_assets, read_assets
+from ..geometry.assets import (GEOMETRY_TOLERANCE, AssetError, asset_files, json_or_assets, read_assets,
+                               unused_name)
 from ..geometry.part_library import PartShape
 from .shapes import Shape, ShapeSet, ShapesFormatError, read_shapes, type_letters
 
@@ -73,12 +74,18 @@ def _scaled_part(shape: PartShape, name: str, s: np.ndarray) -> PartShape:
 def _file_name(name: str, taken: set) -> str:
     """A file name for part ``name`` (letters, digits, ``_ . -``; never hidden), unused."""
     base = re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".") or "part"
-    out, k = base, 1
-    while out.lower() in taken:
-        k += 1
-        out = f"{base}_{k}"
-    taken.add(out.lower())
-    return out
+    return unused_name(base, taken, str.lower)  # one name per file on a case-blind file system
+
+
+def _scale_index(known: list, s: np.ndarray) -> int:
+    """The position in ``known`` of the first scale that ``s`` agrees with (entries within
+    :data:`SCALE_TOLERANCE` times the known scale's largest entry, or 1), ``s`` appended
+    when none does."""
+    for i, k in enumerate(known):
+        if np.abs(s - k).max() <= SCALE_TOLERANCE * max(float(np.abs(k).max()), 1.0):
+            return i
+    known.append(s)
+    return len(known) - 1
 
 
 def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet:
@@ -86,7 +93,9 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
     the module docstring). Raises :class:`AssetError` for a file that cannot be used."""
     files = asset_files(paths)
     asset_set = read_assets(files, tolerance=tolerance, mirror=False)
-    placed = []  # per file: [(part, rotation 4x4, scale 3x3)]
+    placed = []  # per file: [(part, rigid 4x4, index of its scale in scales[part])]
+    # one part per (geometry, scale): the scales each geometry is placed at, in reading order
+    scales: dict[str, list] = {}
     for asset in asset_set.assets:
         up = Y_UP_TO_Z_UP if asset.path.suffix.lower() in (".gltf", ".glb") else np.eye(4)
         rows = []
@@ -98,27 +107,14 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
                                  "give it a size or remove it")
             rigid = np.eye(4)
             rigid[:3, :3], rigid[:3, 3] = r, m[:3, 3]
-            rows.append((node.part, rigid, s))
+            rows.append((node.part, rigid, _scale_index(scales.setdefault(node.part, []), s)))
         placed.append(rows)
-    # one part per (geometry, scale): the scales each geometry is placed at, in reading order
-    scales: dict[str, list] = {}
-    for rows in placed:
-        for part, _, s in rows:
-            known = scales.setdefault(part, [])
-            if not any(np.abs(s - k).max() <= SCALE_TOLERANCE * max(float(np.abs(k).max()), 1.0) for k in known):
-                known.append(s)
     names_taken = set(asset_set.parts)
     library: dict[str, PartShape] = {}
     renamed: dict[tuple, str] = {}
     for part, known in scales.items():
         for k, s in enumerate(known):
-            name = part
-            if k:
-                j = k + 1
-                while f"{part}_{j}" in names_taken:
-                    j += 1
-                name = f"{part}_{j}"
-                names_taken.add(name)
+            name = unused_name(part, names_taken) if k else part  # part is taken: part_2, part_3, ...
             shape = asset_set.parts[part]
             unit = np.abs(s - np.eye(3)).max() <= SCALE_TOLERANCE
             library[name] = shape._replace(name=name) if unit else _scaled_part(shape, name, s)
@@ -130,9 +126,7 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
     shapes = []
     for rows in placed:
         parts, transforms = [], []
-        for part, rigid, s in rows:
-            k = next(i for i, known in enumerate(scales[part])
-                     if np.abs(s - known).max() <= SCALE_TOLERANCE * max(float(np.abs(known).max()), 1.0))
+        for part, rigid, k in rows:
             parts.append(renamed[(part, k)])
             transforms.append(rigid)
         shapes.append(Shape.of(parts, transforms))

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.solid import matrix, rotation
 from .contacts import part_points
 from .shapes import Shape
 
@@ -53,14 +54,6 @@ def local_frame(points: np.ndarray, eps_rel: float = 1e-5) -> np.ndarray:
     return f
 
 
-def _turn(axis: int, angle: float) -> np.ndarray:
-    c, s_ = np.cos(angle), np.sin(angle)
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m = np.eye(3)
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s_, s_, c
-    return m
-
-
 def _candidate_rotations() -> list[np.ndarray]:
     """The 24 rotations of the cube, each also composed with turns by multiples of 30 and
     of 45 degrees about the library x, y and z axes: the symmetries :func:`symmetry_group`
@@ -75,7 +68,7 @@ def _candidate_rotations() -> list[np.ndarray]:
             if np.linalg.det(m) > 0:
                 mats.append(m)
     angles = sorted({k * np.pi / 6 for k in range(12)} | {k * np.pi / 4 for k in range(8)})
-    turns = [_turn(axis, a) for axis in (2, 0, 1) for a in angles]
+    turns = [matrix(rotation(axis, a))[:3, :3] for axis in "zxy" for a in angles]
     out, keys = [], set()
     for t in turns:
         for m in mats:
