@@ -19,7 +19,10 @@ bounding-box diagonal (:func:`procmod.learn.perturb.perturb_examples`), and the 
 again as ``NAME+noise``: its Tables 1-2, the differences of its Table 2 figures from the
 noise-free run (% new as a fraction), and the symmetry nodes preprocessing finds, as a
 fraction of the noise-free ones (per symmetry type, the smaller count), over
-``--noise-draws`` noise draws (the first draw is the one searched).
+``--noise-draws`` noise draws (the first draw is the one searched). Table 2's figures come
+from a searched program and 40 of its samples, so they move between seeds with no noise
+at all: each set also runs noise-free with the next seed (``NAME+reseed``), whose
+differences from the first run are the yardstick for the noisy run's.
 
 **quadrupeds**: the ten robots listed in ``examples_sets/learn/quadrupeds/robots.txt``,
 read as URDF from the installed ``pybullet_data`` (``pip install pybullet``); skipped
@@ -151,7 +154,7 @@ def main(argv=None):
     results = {"command": "python bench/learn.py " + " ".join(argv if argv is not None else sys.argv[1:]),
                "machine": f"{os.cpu_count()} cores (shared)", "sets": {}}
     figure = []
-    runs = []  # (label, example set, noise-free label or None)
+    runs = []  # (label, example set, noise-free label or None, seed)
     for name in args.sets.split(","):
         index = (SETS + EXTERNAL).index(name) if name in SETS + EXTERNAL else -1
         example_set = load_set(name)
@@ -159,10 +162,13 @@ def main(argv=None):
             print(f"{name}: skipped (pip install pybullet to read pybullet_data's robots)", flush=True)
             results["sets"][name] = {"skipped": "pybullet is not installed"}
             continue
-        runs.append((name, example_set, None))
+        runs.append((name, example_set, None, args.seed))
         if args.noise > 0 and name in SETS:
             runs.append((f"{name}+noise", perturb_examples(example_set, args.noise, noise_rng(args.seed, index, 0)),
-                         name))
+                         name, args.seed))
+            # the same noise-free set searched and sampled with the next seed: how far Table 2's
+            # figures move with no noise at all, the yardstick for the noisy run's changes
+            runs.append((f"{name}+reseed", example_set, name, args.seed + 1))
             results.setdefault("symmetry_under_noise", {})[name] = symmetry_under_noise(
                 example_set, args.noise, args.noise_draws, args.seed, index)
             sym = results["symmetry_under_noise"][name]
@@ -173,13 +179,13 @@ def main(argv=None):
             {k: results[k] for k in ("command", "machine", "symmetry_under_noise") if k in results}, indent=1) + "\n")
         print(f"wrote {out / 'learn_symmetry_noise.json'}")
         return
-    for name, example_set, clean in runs:
-        options = SearchOptions(particles=args.particles, seed=args.seed)
+    for name, example_set, clean, seed in runs:
+        options = SearchOptions(particles=args.particles, seed=seed)
         t0 = time.perf_counter()
         with open_executor(args.workers) as ex:
             r = run_search(example_set, options, ex)
         wall = time.perf_counter() - t0
-        samples = samples_of(r.program, args.samples, args.seed)
+        samples = samples_of(r.program, args.samples, seed)
         sample_h = [hierarchy_from_dict(h) for d in samples for h in derivation_hierarchies(d)]
         t2 = table2(example_set.examples, sample_h[:40], example_set.parts)
         # % new structures over all samples (cheap); the pairwise tables use 40 of them
@@ -189,12 +195,13 @@ def main(argv=None):
         t2["n_samples_new"] = len(sample_h)
         entry = {"table1": dict(r.table, wall_seconds=wall), "table2": t2,
                  "symmetry_nodes": sum(symmetry_counts(r.data).values()),
-                 "estimators": estimator_comparison(r.program, r.data, 2 * options.final_iterations, args.seed),
+                 "estimators": estimator_comparison(r.program, r.data, 2 * options.final_iterations, seed),
                  "trace": r.trace}
         if clean is not None and clean in results["sets"]:
             base = results["sets"][clean]["table2"]
             entry["table2_delta"] = {k: (t2[k] - base[k]) / (100 if k.startswith("pct") else 1) for k in TABLE2_FIGURES}
-            entry["noise"] = args.noise
+            entry["noise"] = args.noise if name.endswith("+noise") else 0.0
+            entry["seed"] = seed
         if name in args.vi_search.split(","):
             t0 = time.perf_counter()
             with open_executor(args.workers) as ex:
@@ -207,7 +214,8 @@ def main(argv=None):
               f"O_D(P*) {r.table['O_Pstar']:.1f} in {r.table['seconds']:.1f} s ({r.table['cpu_seconds']:.1f} CPU s, "
               f"{r.table['fits_run']} fits run, {r.table['fits_shared']} shared); s_struc {t2['s_struc_examples']:.2f} "
               f"vs {t2['s_struc_samples']:.2f} (p={t2['s_struc_p_value']:.2g}), new {t2['pct_new_structures']:.0f}%"
-              + (f"; largest Table 2 change from noise-free {max(abs(v) for v in delta.values()):.3f}" if delta else ""),
+              + (f"; largest Table 2 change from {clean} (seed {args.seed}) {max(abs(v) for v in delta.values()):.3f}"
+                 f" ({max(delta, key=lambda k: abs(delta[k]))})" if delta else ""),
               flush=True)
         if clean is None:  # Figure 6: the noise-free and external sets
             stages = [("P0", r.p0), ("after phase 1", r.after_phase1), ("after phase 2", r.program)]
