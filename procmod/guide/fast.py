@@ -23,45 +23,71 @@ from .network import LOG_SCALE_MIN as _LOG_SCALE_MIN
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
+# A site's constants travel packed in one float array (see pack_site): numba unboxes every
+# argument of every call, ~0.1-0.2 us each, and a choice used to pass 22 of them.
+_HEAD = 6  # params[0:6]: raw local values, inputs, hidden units, outputs, use target, use partial
+
+
+def pack_site(lows, spans, angular, weights, use_target: bool, use_partial: bool) -> np.ndarray:
+    """One site's feature ranges and network ``(W1, b1, W2, b2)`` as the flat array the
+    kernels read (a constant network has ``W1`` of shape ``(0, 0)``)."""
+    w1, b1, w2, b2 = weights
+    n_hidden, n_in = w1.shape
+    head = [len(lows), n_in, n_hidden, w2.shape[0], float(use_target), float(use_partial)]
+    parts = [head, lows, spans, np.asarray(angular, dtype=np.float64), w1.ravel(), b1, w2.ravel(), b2]
+    return np.ascontiguousarray(np.concatenate([np.asarray(p, dtype=np.float64).ravel() for p in parts]))
+
+
 # fastmath lets numba vectorise the dot products (reassociating the sums: results differ
 # from torch's in the last bits only); it is most of the cost of a guided choice.
 @numba.njit(cache=True, fastmath=True)
-def site_outputs(raw_local, lows, spans, angular, use_target, target, use_partial, partial, layout, px, py,
-                 w1, b1, w2, b2):
+def site_outputs(raw_local, params, target, partial, layout, px, py):
     """Features (local state, target windows, partial-output windows) -> MLP outputs.
 
-    ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by ``lows`` and
-    ``spans`` and clipped (angles to cos, sin), as :meth:`FeatureExtractor.local_values`
-    does; ``target`` and ``partial`` are flat pyramids laid out by ``layout``.
+    ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by the site's ranges
+    and clipped (angles to cos, sin), as :meth:`FeatureExtractor.local_values` does;
+    ``target`` and ``partial`` are flat pyramids laid out by ``layout``; ``params`` is
+    :func:`pack_site`'s array.
     """
-    n_in = w1.shape[1]
+    n_raw, n_in, n_hidden, n_out = int(params[0]), int(params[1]), int(params[2]), int(params[3])
+    o = _HEAD
+    lows = params[o:o + n_raw]
+    spans = params[o + n_raw:o + 2 * n_raw]
+    angular = params[o + 2 * n_raw:o + 3 * n_raw]
+    o += 3 * n_raw
+    w1 = params[o:o + n_hidden * n_in]
+    o += n_hidden * n_in
+    b1 = params[o:o + n_hidden]
+    o += n_hidden
+    w2 = params[o:o + n_out * n_hidden]
+    o += n_out * n_hidden
+    b2 = params[o:o + n_out]
     x = np.empty(n_in)
     k = local_features(raw_local, lows, spans, angular, x)
-    if use_target:
+    if params[4] != 0.0:
         windows_flat(target, layout, px, py, x, k)
         k += 36
-    if use_partial:
+    if params[5] != 0.0:
         windows_flat(partial, layout, px, py, x, k)
-    n_hidden = w1.shape[0]
     h = np.empty(n_hidden)
     for i in range(n_hidden):
         acc = b1[i]
+        row = i * n_in
         for j in range(n_in):
-            acc += w1[i, j] * x[j]
+            acc += w1[row + j] * x[j]
         h[i] = math.tanh(acc)
-    n_out = w2.shape[0]
     out = np.empty(n_out)
     for i in range(n_out):
         acc = b2[i]
+        row = i * n_hidden
         for j in range(n_hidden):
-            acc += w2[i, j] * h[j]
+            acc += w2[row + j] * h[j]
         out[i] = acc
     return out
 
 
 @numba.njit(cache=True, fastmath=True)
-def guided_draw(kind, k, c0, s0, base, u, z, raw_local, lows, spans, angular, use_target, target, use_partial,
-                partial, layout, px, py, w1, b1, w2, b2):
+def guided_draw(kind, k, c0, s0, base, u, z, raw_local, params, target, partial, layout, px, py):
     """One guided choice in one call: features -> MLP -> a draw from the proposal.
 
     ``kind`` 0: real (mixture of ``k`` Gaussians around ``c0`` with unit ``s0``),
@@ -70,8 +96,7 @@ def guided_draw(kind, k, c0, s0, base, u, z, raw_local, lows, spans, angular, us
     generator. Returns (value, log q): the value is the real number, 1.0/0.0, or the
     category index.
     """
-    out = site_outputs(raw_local, lows, spans, angular, use_target, target, use_partial, partial, layout, px, py,
-                       w1, b1, w2, b2)
+    out = site_outputs(raw_local, params, target, partial, layout, px, py)
     if kind == 0:
         return mixture_draw(out, k, c0, s0, _LOG_SCALE_MIN, _LOG_SCALE_MAX, u, z)
     if kind == 1:

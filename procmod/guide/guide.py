@@ -23,7 +23,7 @@ import numpy as np
 from ..core.distributions import Normal
 from ..core.limits import check_memory
 from ..core.io import fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
-from .fast import guided_draw, site_outputs
+from .fast import guided_draw, pack_site, site_outputs
 from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
 from .network import base_params, encode_value, head_kind, initial_bias, n_outputs, propose
 
@@ -322,11 +322,12 @@ class GuidedProposer:
                 local[rule_name] = self._local_layout(extractor, rule_name) if settings.local else (
                     self._no_local, self._no_local, self._no_local, np.zeros(0, dtype=np.bool_), 0, False)
             arg_idx, lows, spans, angular, prefix, heading = local[rule_name]
-            # [kind, network, argument indices, lows, spans, prefix length (None: gather by
-            #  index), distribution class last checked against the kind (None: not yet),
-            #  angular flags, whether the heading follows the arguments]
-            self._sites[(rule_name, choice)] = [spec["kind"], weights[key], arg_idx, lows, spans, prefix, None,
-                                                angular, heading]
+            params = pack_site(lows, spans, angular, weights[key], self._use_target, self._use_partial)
+            # [kind, packed ranges + network (fast.pack_site), argument indices, prefix length
+            #  (None: gather by index), distribution class last checked against the kind
+            #  (None: not yet), whether the heading follows the arguments]
+            self._sites[(rule_name, choice)] = [spec["kind"], params, arg_idx, prefix, None, heading]
+        self._by_rule = {}  # (rule function, choice) -> its site (or None): the hot path's lookup
         self._bases = {}  # shared discrete distributions -> their base parameters
         self._raw_of = (None, None, None)  # (call arguments, argument indices, their array)
         self._draws_of = self._uniforms = self._normals = None  # see _draws
@@ -343,9 +344,9 @@ class GuidedProposer:
         return arg_idx, lows, spans, angular, prefix, heading
 
     def _inputs(self, state, site, args: tuple) -> tuple:
-        """The kernel arguments (features' sources + network) of a choice made now."""
-        w1, b1, w2, b2 = site[1]
-        prefix, heading = site[5], site[8]
+        """The kernel arguments after the draw's own (features' sources + packed network)
+        of a choice made now."""
+        prefix, heading = site[3], site[5]
         if not prefix and prefix is not None and not heading:
             raw = self._no_local
         elif args is self._raw_of[0] and site[2] is self._raw_of[1]:
@@ -372,26 +373,30 @@ class GuidedProposer:
                 self._layout = layout  # same sizes: later calls skip the comparison
         else:
             partial, layout = self._target_flat, self._layout
-        return (raw, site[3], site[4], site[7], self._use_target, self._target_flat, self._use_partial, partial,
-                layout, px, py, w1, b1, w2, b2)
+        return raw, site[1], self._target_flat, partial, layout, px, py
 
     def outputs(self, state, site, args: tuple) -> np.ndarray:
         """The site network's outputs for a choice made now (the fused fast path)."""
         return site_outputs(*self._inputs(state, site, args))
 
     def propose(self, ctx, name, dist, rng):
-        rule_name = ctx.rule.__name__
-        site = self._sites.get((rule_name, name))
+        key = (ctx.rule, name)
+        site = self._by_rule.get(key, False)
+        if site is False:  # first time this rule function makes this choice
+            if len(self._by_rule) > 4096:  # a model that builds its rules afresh: don't grow forever
+                self._by_rule.clear()
+            site = self._by_rule[key] = self._sites.get((ctx.rule.__name__, name))
         if site is None:  # never seen in training: the prior
             value = dist.sample(rng)
             return value, dist.log_prob(value)
         kind = site[0]
-        if type(dist) is not site[6]:
+        if type(dist) is not site[4]:
             if head_kind(dist) != kind:
+                rule_name = ctx.rule.__name__
                 raise GuideError(f"site {site_key(rule_name, name)} draws a {type(dist).__name__} now but the "
                                  f"guide learned a {kind} proposal for it; retrain the guide")
             if not kind.startswith("categorical"):  # categoricals: check the size every time
-                site[6] = type(dist)
+                site[4] = type(dist)
         if kind == "real":
             mu0, s0 = (dist.mu, dist.sigma) if type(dist) is Normal else base_params(kind, dist)
             u, z = self._draws(rng)
