@@ -174,7 +174,7 @@ def test_sphere_with_small_holes(tmp_path):
     assert np.array_equal(mask, closed)
 
 
-@pytest.mark.parametrize("suffix", [".obj", ".glb", ".ply", ".stl", ".off"])
+@pytest.mark.parametrize("suffix", [".obj", ".glb", ".ply", ".stl", ".off", ".dae"])
 def test_every_format_gives_the_same_solid(tmp_path, suffix):
     # 1.74 + 2 x 0.1 across, off a whole number of voxels: float32 files (STL, GLB) get the same grid
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.87)
@@ -187,6 +187,19 @@ def test_every_format_gives_the_same_solid(tmp_path, suffix):
     assert grid.shape == grid_ref.shape and np.allclose(grid.origin, grid_ref.origin, atol=1e-6)
     assert np.array_equal(mask, ref)
     assert 0.9 * (4 / 3) * math.pi * 0.87 ** 3 < mask.sum() * H ** 3 < 1.1 * (4 / 3) * math.pi * 0.87 ** 3
+
+
+def test_collada_face_count_is_read_before_the_mesh(tmp_path, monkeypatch):
+    from procmod.core.errors import ProcmodError
+    from procmod.targets import files
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    sphere.export(tmp_path / "s.dae")
+    assert files.declared_faces(tmp_path / "s.dae") == len(sphere.faces)
+    monkeypatch.setattr(files, "MAX_MESH_FACES", len(sphere.faces) - 1)
+    monkeypatch.setattr(trimesh, "load", lambda *a, **k: pytest.fail("the mesh was read"))
+    with pytest.raises(ProcmodError, match="faces"):
+        files.read_mesh(tmp_path / "s.dae")
 
 
 def test_fast_winding_matches_direct_summation():

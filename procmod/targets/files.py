@@ -8,7 +8,7 @@ hold (a voxel grid, a mesh, an image) is refused from what the file declares, be
 is loaded. Files named inside a target file follow :func:`procmod.core.paths.named_file`:
 relative to the target file's folder, an existing regular file of the expected kind.
 
-Meshes (``.obj .glb .gltf .ply .stl .off``, read by trimesh) are taken as modelling tools
+Meshes (``.obj .glb .gltf .ply .stl .off .dae``, read by trimesh; COLLADA through pycollada) are taken as modelling tools
 write them (:func:`read_mesh`): UV and normal seams, which split vertices, are merged;
 faces are wound consistently and outward per connected piece; a volume layer's inside is
 then decided by the generalised winding number (:mod:`procmod.geometry.inside`), so
@@ -24,6 +24,7 @@ import json
 import logging
 import math
 import os
+import re
 import struct
 import warnings
 from pathlib import Path
@@ -39,7 +40,7 @@ from .image import MAX_IMAGE_PIXELS, TargetFileError, open_image
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
-MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off"})
+MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off", ".dae"})
 # The largest mesh procmod reads as a target. Reading costs about BYTES_PER_FACE of memory
 # per face at its peak (trimesh's parser, the merged copy, the half-edge sort) and some
 # 10 s per million faces of OBJ; a voxel grid does not resolve more detail than this.
@@ -154,7 +155,8 @@ def _scan_count(file: Path, token: bytes) -> int:
 def declared_faces(file: Path) -> int | None:
     """The number of faces a mesh file declares or holds, read without parsing it (None
     where the format gives no cheap count): a binary STL's header, a PLY's or OFF's
-    element counts, OBJ ``f`` lines, a glTF's index accessors (ignoring instancing)."""
+    element counts, OBJ ``f`` lines, a glTF's index accessors (ignoring instancing), a COLLADA file's
+    primitive counts."""
     suffix = file.suffix.lower()
     try:
         if suffix == ".stl":
@@ -185,9 +187,30 @@ def declared_faces(file: Path) -> int | None:
             return _scan_count(file, b"\nf ") + (first == b"f ")
         if suffix in (".glb", ".gltf"):
             return _gltf_faces(file)
+        if suffix == ".dae":
+            return _collada_faces(file)
     except (OSError, ValueError, struct.error):
         return None  # trimesh will say what is wrong with it
     return None
+
+
+_COLLADA_PRIMITIVE = re.compile(rb"<(triangles|polylist|polygons)\b[^>]*?\bcount\s*=\s*[\"'](\d+)")
+
+
+def _collada_faces(file: Path) -> int:
+    """The faces a COLLADA file's triangle, polylist and polygon elements declare (each
+    polygon counted once: a lower bound on the triangles), read in blocks."""
+    faces, tail = 0, b""
+    with open(file, "rb") as handle:
+        while block := handle.read(1 << 24):
+            data = tail + block
+            cut = data.rfind(b"<")  # an element cut by the block's end is read with the next block
+            if cut <= 0 or len(data) - cut > 4096:
+                cut = len(data)
+            faces += sum(int(m.group(2)) for m in _COLLADA_PRIMITIVE.finditer(data, 0, cut))
+            tail = data[cut:]
+    faces += sum(int(m.group(2)) for m in _COLLADA_PRIMITIVE.finditer(tail))
+    return faces
 
 
 def _gltf_faces(file: Path) -> int | None:

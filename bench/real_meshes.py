@@ -1,0 +1,96 @@
+"""Every mesh file the pybullet wheel ships, as a volume target: loads, or one line.
+
+    python bench/real_meshes.py [--random-urdfs 60] [--voxels 24]
+
+Meshes nobody here made — robots' links (STL, OBJ, COLLADA), objects (the Stanford bunny,
+a duck, a teddy as a convex decomposition of overlapping pieces), the 1000 random URDF
+objects (a seeded sample of ``--random-urdfs``), planes, terrain, a cloth sheet — each copied
+into a folder of its own with a ``procmod-volume/1`` file naming it as the one layer,
+voxel size 1/``--voxels`` of its largest extent (trimesh's reading of it), and loaded as
+``procmod infer`` would load it. Every file must either load with an inside or be refused
+by a :class:`procmod.core.ProcmodError` (one line); anything else is a bug. Files over 3 MB
+are left out (reading them is slow, not different). Needs ``pip install pybullet``.
+
+Writes bench/results/real_meshes.json: counts, each refusal's message, each bug, and the
+load time of the slowest files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from procmod.core import ProcmodError  # noqa: E402
+from procmod.data import target_from_spec  # noqa: E402
+
+SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf", ".dae"}
+MAX_BYTES = 3 << 20
+
+
+def mesh_files(root: Path, random_urdfs: int) -> list:
+    files = sorted(p for p in root.rglob("*") if p.suffix.lower() in SUFFIXES and p.is_file()
+                   and p.stat().st_size <= MAX_BYTES)
+    sampled = [p for p in files if "random_urdfs" in p.parts]
+    random.Random(0).shuffle(sampled)
+    return [p for p in files if "random_urdfs" not in p.parts] + sorted(sampled[:random_urdfs])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--random-urdfs", type=int, default=60)
+    parser.add_argument("--voxels", type=int, default=24, help="voxels along the largest extent (default 24)")
+    args = parser.parse_args()
+    try:
+        import pybullet_data
+    except ImportError:
+        sys.exit("real_meshes: pip install pybullet (its pybullet_data holds the meshes)")
+    import trimesh
+
+    root = Path(pybullet_data.getDataPath())
+    rows = []
+    with tempfile.TemporaryDirectory() as work:
+        for i, path in enumerate(mesh_files(root, args.random_urdfs)):
+            folder = Path(work) / f"m{i}"
+            folder.mkdir()
+            shutil.copy(path, folder / path.name)
+            try:
+                extent = float(max(trimesh.load(str(path), force="mesh").extents))
+            except Exception:  # noqa: BLE001 -- whatever trimesh makes of it, procmod must say it in one line
+                extent = 1.0
+            spec = {"format": "procmod-volume/1", "score": "svol",
+                    "voxel_size": extent / args.voxels if extent > 0 else 1.0,
+                    "layers": [{"file": path.name, "w_fill": 1.0, "w_avoid": 0.0}]}
+            (folder / "target.json").write_text(json.dumps(spec))
+            t0 = time.perf_counter()
+            try:
+                target_from_spec(str(folder / "target.json"))
+                outcome, message = "loaded", ""
+            except ProcmodError as exc:
+                outcome, message = "refused", str(exc).replace(str(folder), "FOLDER")
+            except Exception as exc:  # noqa: BLE001 -- the bench's whole point
+                outcome, message = "bug", f"{type(exc).__name__}: {exc}"
+            rows.append({"file": str(path.relative_to(root)), "outcome": outcome, "message": message,
+                         "one_line": "\n" not in message, "seconds": round(time.perf_counter() - t0, 3)})
+            if outcome != "loaded":
+                print(f"{rows[-1]['file']}: {outcome}: {message[:150]}", flush=True)
+    counts = {k: sum(r["outcome"] == k for r in rows) for k in ("loaded", "refused", "bug")}
+    result = {"command": "python bench/real_meshes.py " + " ".join(sys.argv[1:]), "files": len(rows),
+              "counts": counts, "multi_line_messages": sum(not r["one_line"] for r in rows),
+              "not_loaded": [r for r in rows if r["outcome"] != "loaded"],
+              "slowest": sorted(rows, key=lambda r: -r["seconds"])[:5]}
+    out = ROOT / "bench" / "results" / "real_meshes.json"
+    out.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"{len(rows)} meshes: {counts}; wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
