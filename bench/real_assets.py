@@ -1,6 +1,6 @@
-"""Every mesh file the pybullet wheel ships, as a volume target: loads, or one line.
+"""Every mesh and URDF file the pybullet wheel ships, read by procmod: loads, or one line.
 
-    python bench/real_meshes.py [--random-urdfs 60] [--voxels 24]
+    python bench/real_assets.py [--random-urdfs 60] [--voxels 24]
 
 Meshes nobody here made — robots' links (STL, OBJ, COLLADA), objects (the Stanford bunny,
 a duck, a teddy as a convex decomposition of overlapping pieces), the 1000 random URDF
@@ -9,9 +9,12 @@ into a folder of its own with a ``procmod-volume/1`` file naming it as the one l
 voxel size 1/``--voxels`` of its largest extent (trimesh's reading of it), and loaded as
 ``procmod infer`` would load it. Every file must either load with an inside or be refused
 by a :class:`procmod.core.ProcmodError` (one line); anything else is a bug. Files over 3 MB
-are left out (reading them is slow, not different). Needs ``pip install pybullet``.
+are left out (reading them is slow, not different). Then every URDF (the random objects'
+sampled the same way) is read as ``procmod learn`` and ``procmod strings`` read an example
+hierarchy (:func:`procmod.geometry.assets.read_assets`): links, joints, their meshes, the
+part library; the same rule holds. Needs ``pip install pybullet``.
 
-Writes bench/results/real_meshes.json: counts, each refusal's message, each bug, and the
+Writes bench/results/real_assets.json: counts, each refusal's message, each bug, and the
 load time of the slowest files.
 """
 
@@ -31,13 +34,15 @@ sys.path.insert(0, str(ROOT))
 
 from procmod.core import ProcmodError  # noqa: E402
 from procmod.data import target_from_spec  # noqa: E402
+from procmod.geometry.assets import read_assets  # noqa: E402
 
 SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf", ".dae"}
 MAX_BYTES = 3 << 20
 
 
-def mesh_files(root: Path, random_urdfs: int) -> list:
-    files = sorted(p for p in root.rglob("*") if p.suffix.lower() in SUFFIXES and p.is_file()
+def asset_files(root: Path, suffixes: set, random_urdfs: int) -> list:
+    """The files with these suffixes, those of random_urdfs/ a seeded sample."""
+    files = sorted(p for p in root.rglob("*") if p.suffix.lower() in suffixes and p.is_file()
                    and p.stat().st_size <= MAX_BYTES)
     sampled = [p for p in files if "random_urdfs" in p.parts]
     random.Random(0).shuffle(sampled)
@@ -58,7 +63,7 @@ def main() -> None:
     root = Path(pybullet_data.getDataPath())
     rows = []
     with tempfile.TemporaryDirectory() as work:
-        for i, path in enumerate(mesh_files(root, args.random_urdfs)):
+        for i, path in enumerate(asset_files(root, SUFFIXES, args.random_urdfs)):
             folder = Path(work) / f"m{i}"
             folder.mkdir()
             shutil.copy(path, folder / path.name)
@@ -82,14 +87,31 @@ def main() -> None:
                          "one_line": "\n" not in message, "seconds": round(time.perf_counter() - t0, 3)})
             if outcome != "loaded":
                 print(f"{rows[-1]['file']}: {outcome}: {message[:150]}", flush=True)
-    counts = {k: sum(r["outcome"] == k for r in rows) for k in ("loaded", "refused", "bug")}
-    result = {"command": "python bench/real_meshes.py " + " ".join(sys.argv[1:]), "files": len(rows),
-              "counts": counts, "multi_line_messages": sum(not r["one_line"] for r in rows),
-              "not_loaded": [r for r in rows if r["outcome"] != "loaded"],
-              "slowest": sorted(rows, key=lambda r: -r["seconds"])[:5]}
-    out = ROOT / "bench" / "results" / "real_meshes.json"
+    urdf_rows = []
+    for path in asset_files(root, {".urdf"}, args.random_urdfs // 3):
+        t0 = time.perf_counter()
+        try:
+            assets = read_assets([path])
+            outcome, message = "loaded", f"{len(assets.assets[0].nodes())} parts, {len(assets.parts)} distinct"
+        except ProcmodError as exc:
+            outcome, message = "refused", str(exc).replace(str(root), "pybullet_data")
+        except Exception as exc:  # noqa: BLE001
+            outcome, message = "bug", f"{type(exc).__name__}: {exc}"
+        urdf_rows.append({"file": str(path.relative_to(root)), "outcome": outcome, "message": message,
+                          "one_line": "\n" not in message, "seconds": round(time.perf_counter() - t0, 3)})
+        if outcome != "loaded":
+            print(f"{urdf_rows[-1]['file']}: {outcome}: {message[:150]}", flush=True)
+    result = {"command": "python bench/real_assets.py " + " ".join(sys.argv[1:])}
+    for kind, table in (("volume_targets", rows), ("urdf_hierarchies", urdf_rows)):
+        counts = {k: sum(r["outcome"] == k for r in table) for k in ("loaded", "refused", "bug")}
+        result[kind] = {"files": len(table), "counts": counts,
+                        "multi_line_messages": sum(not r["one_line"] for r in table),
+                        "not_loaded": [r for r in table if r["outcome"] != "loaded"],
+                        "slowest": sorted(table, key=lambda r: -r["seconds"])[:5]}
+        print(f"{kind}: {len(table)} files: {counts}")
+    out = ROOT / "bench" / "results" / "real_assets.json"
     out.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"{len(rows)} meshes: {counts}; wrote {out}")
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":
