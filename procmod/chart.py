@@ -47,10 +47,13 @@ def nice_ticks(low: float, high: float, count: int = 5) -> list:
 
 
 def _label(value: float) -> str:
-    if value != 0 and (abs(value) >= 1e5 or abs(value) < 1e-3):
+    """A tick label: 250k, 1.5M, 0.25, 1e-05."""
+    for scale, suffix in ((1e9, "G"), (1e6, "M"), (1e4, "k")):
+        if abs(value) >= scale:
+            return f"{value / (scale if suffix != 'k' else 1e3):.6g}{suffix}"
+    if value != 0 and abs(value) < 1e-3:
         return f"{value:.0e}"
-    text = f"{value:.6g}"
-    return text
+    return f"{value:.6g}"
 
 
 def line_chart_svg(series: list, title: str = "", xlabel: str = "", ylabel: str = "", note: str = "",
