@@ -262,9 +262,14 @@ def estimate_world_symmetries(shape_set: ShapeSet, shapes, graphs, steps: int = 
     def keeps(images: np.ndarray) -> bool:
         return bool(_angle_gap(images, dirs).min(1).max() <= tol_degrees)
 
-    turns = [turn_about_z(360.0 * k / steps) for k in range(steps) if keeps(dirs + 360.0 * k / steps)]
-    mirrors = [mirror_across(a) for a in (dirs[0] + 180.0 * j / steps for j in range(steps)) if keeps(2 * a - dirs)]
-    return turns + mirrors
+    # mirrors as a turn after the mirror across the plane square to the first direction
+    # (on a square grid: the mirror in x), in the order of world_symmetries
+    base = dirs[0] + 90.0
+    angles = [360.0 * k / steps for k in range(steps)]
+    turns = [turn_about_z(a) for a in angles if keeps(dirs + a)]
+    mirrors = [turn_about_z(a) @ mirror_across(base) for a in angles if keeps(2 * base - dirs + a)]
+    # exact zeros and ones where a turn is a quarter turn (cos 90 degrees is 6e-17 in floats)
+    return [np.round(m, 12) + 0.0 for m in turns + mirrors]
 
 
 def symmetric_copies(shape: Shape, library: dict | None = None,
