@@ -397,3 +397,60 @@ def test_mirror_placement_depends_on_the_part_not_its_name():
     mesh = {"wedge": PartShape("wedge", "mesh", vertices=tet, faces=((0, 1, 2), (0, 1, 3), (1, 2, 3), (0, 2, 3)))}
     assert proper_placement(mesh, "wedge", mirror) is None
     assert proper_placement(mesh, "wedge", np.eye(4)) is not None  # a proper turn is kept as it is
+
+
+def _turned_shape(shape, degrees):
+    from procmod.strings.frames import turn_about_z
+    return Shape.of(shape.parts, [turn_about_z(degrees) @ t for t in shape.transforms])
+
+
+@pytest.mark.parametrize("name, turn, mirrors", [("castle", 90, 4), ("moonbase", 90, 4), ("colonnade", 90, 4),
+                                                 ("pavilion", 30, 12)])
+def test_whole_shape_symmetries_are_estimated_from_the_set(name, turn, mirrors):
+    """The grid sets keep the quarter turns and their mirrors (as before); the pavilion's
+    triangular lattice of 12-sided posts turns by 30 degrees, at its own angle; the same
+    group, turned, for the set turned by an angle of no lattice."""
+    from procmod.strings.frames import estimate_world_symmetries, world_symmetries
+
+    ss = read_shapes(SETS / f"{name}.json")
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    sym = estimate_world_symmetries(ss, ss.shapes, graphs)
+    turns = [m for m in sym if np.linalg.det(m[:3, :3]) > 0]
+    angles = sorted(round(float(np.degrees(np.arctan2(m[1, 0], m[0, 0]))) % 360, 6) for m in turns)
+    assert angles == [float(a) for a in range(0, 360, turn)] and np.allclose(sym[0], np.eye(4))
+    assert len(sym) - len(turns) == mirrors
+    if name != "pavilion":  # exactly the fixed quarter turns and mirrors, in their order
+        assert len(sym) == 8 and all(np.array_equal(a, b) for a, b in zip(sym, world_symmetries()))
+    turned = [_turned_shape(s, 17.0) for s in ss.shapes]
+    again = estimate_world_symmetries(ss, turned, graphs)
+    assert len(again) == len(sym) and sum(np.linalg.det(m[:3, :3]) > 0 for m in again) == len(turns)
+
+
+def test_a_shape_turned_by_a_lattice_turn_gets_the_same_labellings():
+    """The pavilion turned by 30 or 60 degrees (turns its lattice and posts allow, a quarter
+    turn does not make) is labelled by the same set of edge-category labellings, so the
+    tagger's canonical target of a string does not depend on the turn. With the fixed
+    quarter turns (categories saved before the symmetries were estimated) it was not."""
+    from procmod.strings.categories import shape_labelings
+    from procmod.strings.frames import world_symmetries
+
+    ss = read_shapes(SETS / "pavilion.json")
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    cats = EdgeCategories.fit(ss, ss.shapes, graphs)
+    data = cats.to_json()
+    assert len(data["symmetries"]) == 24
+    again = EdgeCategories.from_json(json.loads(json.dumps(data)))
+    assert all(np.allclose(a, b, atol=1e-9) for a, b in zip(again.symmetries, cats.symmetries))
+    data.pop("symmetries")
+    old = EdgeCategories.from_json(data)  # the quarter turns and mirrors the pipeline had fixed
+    assert len(old.symmetries) == len(world_symmetries())
+
+    def labellings(c, shape, g):
+        return {tuple(sorted(lab.items())) for lab in shape_labelings(ss, shape, g, c, automorphisms=1)}
+
+    for shape, g in zip(ss.shapes, graphs):
+        base = labellings(cats, shape, g)
+        assert base
+        for degrees in (30.0, 60.0, 120.0):
+            assert labellings(cats, _turned_shape(shape, degrees), g) == base
+        assert labellings(old, _turned_shape(shape, 60.0), g) != labellings(old, shape, g)

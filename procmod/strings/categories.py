@@ -13,7 +13,8 @@ from dataclasses import asdict, dataclass
 import networkx as nx
 import numpy as np
 
-from .frames import canonical_frame, proper_placement, rigid_inverse, symmetric_copies, world_symmetries
+from .frames import (canonical_frame, estimate_world_symmetries, proper_placement, rigid_inverse, symmetric_copies,
+                     world_symmetries)
 from .automorphisms import type_automorphisms
 from .contacts import part_points
 from .shapes import Shape, ShapeSet
@@ -39,17 +40,22 @@ class EdgeCategories:
     dummy of characters that stand for no edge. ``clearance[(A, B)]`` (``A <= B``): the
     smallest distance between the frame origins of two parts of those types that are *not*
     neighbours, over the fitted shapes (:func:`part_clearances`; None for categories saved
-    before it was kept).
+    before it was kept). ``symmetries``: the whole-shape turns and mirrors (4x4) a string
+    cannot tell apart, estimated from the fitted shapes
+    (:func:`~procmod.strings.frames.estimate_world_symmetries`; default, and for categories
+    saved before they were kept: :func:`~procmod.strings.frames.world_symmetries`).
     """
 
     def __init__(self, names, centres, examples, length, params: CategoryParams,
-                 clearance: dict | None = None):
+                 clearance: dict | None = None, symmetries: list | None = None):
         self.names = [tuple(n) if n is not None else None for n in names]
         self.centres = centres  # (A, B) -> cluster centres (k, 12)
         self.examples = examples  # category -> list of 4x4 (A-part -> B-part relative transforms)
         self.length = length
         self.params = params
         self.clearance = clearance
+        self.symmetries = [np.asarray(m, dtype=np.float64) for m in
+                           (world_symmetries() if symmetries is None else symmetries)]
         self.groups: dict = {}  # part name -> symmetry rotations in frame terms (cache)
         self.index = {n: k for k, n in enumerate(self.names) if n is not None}
         self.by_pair: dict[tuple, list[int]] = {}
@@ -66,13 +72,16 @@ class EdgeCategories:
     def fit(shape_set: ShapeSet, shapes, graphs, params: CategoryParams = CategoryParams(),
             symmetric: bool = True) -> "EdgeCategories":
         """Cluster the relative poses of neighbours in ``shapes`` (and, when ``symmetric``,
-        in their copies turned by :func:`~procmod.strings.frames.world_symmetries`)."""
+        in their copies moved by the whole-shape symmetries the shapes show:
+        :func:`~procmod.strings.frames.estimate_world_symmetries`; without ``symmetric`` the
+        categories keep the identity alone)."""
         from sklearn.cluster import MeanShift
 
         clearance = part_clearances(shape_set, shapes, graphs)  # turns and mirrors keep distances
+        symmetries = estimate_world_symmetries(shape_set, shapes, graphs) if symmetric else [np.eye(4)]
         if symmetric:
-            pairs = [(c, g) for s, g in zip(shapes, graphs) for c in symmetric_copies(s, shape_set.library)
-                     if c is not None]
+            pairs = [(c, g) for s, g in zip(shapes, graphs)
+                     for c in symmetric_copies(s, shape_set.library, symmetries) if c is not None]
             shapes, graphs = [c for c, _ in pairs], [g for _, g in pairs]
 
         lib = shape_set.library
@@ -137,7 +146,7 @@ class EdgeCategories:
                     keys.add(key)
                     kept.append(m)
             examples[k] = kept
-        cats = EdgeCategories(names, centres, examples, length, params, clearance)
+        cats = EdgeCategories(names, centres, examples, length, params, clearance, symmetries)
         cats._fit_assignments = assignments
         return cats
 
@@ -183,13 +192,13 @@ class EdgeCategories:
         return self.category_of_frames(fa, fb, shape_set.letters[pa], shape_set.letters[pb])
 
     def symmetry_permutations(self, shape_set: ShapeSet) -> list[dict]:
-        """For each of :func:`~procmod.strings.frames.world_symmetries`, where it sends each
-        category (turning an example edge of the category and classifying it again)."""
+        """For each of :attr:`symmetries`, where it sends each category (turning an example
+        edge of the category and classifying it again)."""
         if getattr(self, "_perms", None) is not None:
             return self._perms
         part_of = shape_set.part_of_letter
         perms = []
-        for g in world_symmetries():
+        for g in self.symmetries:
             perm = {0: 0}
             for k, name in enumerate(self.names):
                 if name is None or not self.examples.get(k):
@@ -221,6 +230,7 @@ class EdgeCategories:
                "length": self.length, "params": asdict(self.params)}
         if self.clearance is not None:
             out["clearance"] = {f"{a}|{b}": d for (a, b), d in sorted(self.clearance.items())}
+        out["symmetries"] = [np.round(m, 12).tolist() for m in self.symmetries]
         return out
 
     @staticmethod
@@ -230,8 +240,9 @@ class EdgeCategories:
         clearance = data.get("clearance")  # absent in categories fitted before it was kept
         if clearance is not None:
             clearance = {tuple(k.split("|")): float(d) for k, d in clearance.items()}
+        symmetries = data.get("symmetries")  # absent in categories fitted before they were estimated
         return EdgeCategories(data["names"], centres, examples, data["length"], CategoryParams(**data["params"]),
-                              clearance)
+                              clearance, symmetries)
 
 
 def part_clearances(shape_set: ShapeSet, shapes, graphs) -> dict[tuple[str, str], float]:
@@ -269,13 +280,13 @@ def part_clearances(shape_set: ShapeSet, shapes, graphs) -> dict[tuple[str, str]
 
 def shape_labelings(shape_set: ShapeSet, shape: Shape, g: nx.Graph, categories: "EdgeCategories",
                     automorphisms: int = 64) -> list[dict]:
-    """Edge categories of each symmetric copy of a shape that all its edges fall in, and
+    """Edge categories of each symmetric copy of a shape (``categories.symmetries``) that all its edges fall in, and
     of each of those relabelled by an automorphism of ``g`` (at most ``automorphisms`` of
     them, :func:`~procmod.strings.automorphisms.type_automorphisms`; 1: none): every labelling a
     string of ``g`` could be right to give, without duplicates."""
     out, seen = [], set()
     auts = type_automorphisms(g, automorphisms) if automorphisms > 1 else [{v: v for v in g.nodes}]
-    for copy in symmetric_copies(shape, shape_set.library):
+    for copy in symmetric_copies(shape, shape_set.library, categories.symmetries):
         if copy is None:
             continue
         cats = categories.edge_categories(shape_set, copy, g)

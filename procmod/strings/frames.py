@@ -9,7 +9,11 @@ turned by its own symmetry to the equivalent frame closest to the world axes
 (:func:`canonical_frame`), so one pose has one frame.
 
 **World symmetries**: the turns about the vertical axis and mirrors of a whole shape,
-which a string cannot tell apart (:func:`world_symmetries`, :func:`symmetric_copies`).
+which a string cannot tell apart (:func:`symmetric_copies`). Which ones a set has is
+estimated from its shapes (:func:`estimate_world_symmetries`: the turns and mirrors that
+map the horizontal directions between neighbouring parts onto themselves: quarter turns on
+a square grid, 30-degree turns on a triangular lattice of 12-sided posts);
+:func:`world_symmetries` (quarter turns, mirrors) is the default for sets without any.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ import numpy as np
 
 from ..geometry.solid import matrix, rotation
 from .contacts import part_points
-from .shapes import Shape
+from .shapes import Shape, ShapeSet
 
 
 def _extreme(points: np.ndarray, dist: np.ndarray, eps: float) -> np.ndarray:
@@ -195,14 +199,82 @@ def proper_placement(library: dict, name: str, m: np.ndarray) -> np.ndarray | No
     return None if mirror is None else m @ mirror
 
 
-def symmetric_copies(shape: Shape, library: dict | None = None) -> list[Shape | None]:
-    """A shape turned by each of :func:`world_symmetries` (about its centroid); None for a
-    mirror when a part is not mirror-symmetric (needs ``library``; without it mirrors are None)."""
+def turn_about_z(degrees: float) -> np.ndarray:
+    """The 4x4 turn by ``degrees`` about the vertical (z) axis."""
+    m = np.eye(4)
+    m[:3, :3] = _turn(2, np.radians(degrees))
+    return m
+
+
+def mirror_across(degrees: float) -> np.ndarray:
+    """The 4x4 mirror across the vertical plane through the origin at ``degrees`` from the
+    x axis (a horizontal direction at angle t goes to 2 * degrees - t)."""
+    return turn_about_z(2.0 * degrees) @ np.diag([1.0, -1.0, 1.0, 1.0])
+
+
+def neighbour_directions(shape_set: ShapeSet, shapes, graphs, min_rel: float = 0.01) -> np.ndarray:
+    """The distinct horizontal directions (degrees in [0, 360)) from a part's vertex mean to
+    each neighbour's, over ``shapes`` (both ways round); offsets whose horizontal part is
+    shorter than ``min_rel`` times the median part diagonal (a part on top of another) count
+    for none."""
+    lib = shape_set.library
+    length = float(np.median([np.linalg.norm(np.subtract(*s.local_bounds()[::-1])) for s in lib.values()]))
+    centre_of = {p: part_points(lib, p, np.eye(4)).mean(0) for p in lib}
+    out = []
+    for shape, g in zip(shapes, graphs):
+        centres = [t[:3, :3] @ centre_of[p] + t[:3, 3] for p, t in zip(shape.parts, shape.transforms)]
+        for a, b in g.edges:
+            d = centres[b] - centres[a]
+            if np.hypot(d[0], d[1]) >= min_rel * length:
+                out += [np.degrees(np.arctan2(d[1], d[0])), np.degrees(np.arctan2(-d[1], -d[0]))]
+    return np.unique(np.mod(np.round(np.mod(out, 360.0), 6), 360.0))
+
+
+def _angle_gap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Circular distance in degrees between every angle of ``a`` and every angle of ``b``."""
+    d = np.abs(np.mod(a[:, None] - b[None, :], 360.0))
+    return np.minimum(d, 360.0 - d)
+
+
+def estimate_world_symmetries(shape_set: ShapeSet, shapes, graphs, steps: int = 120,
+                              tol_degrees: float = 0.25) -> list[np.ndarray]:
+    """The whole-shape symmetries a set's shapes show (4x4, about the origin; the identity
+    first, then the other turns, then the mirrors): the turns about the vertical by a
+    multiple of ``360 / steps`` degrees and the mirrors across vertical planes (at an
+    observed direction plus a multiple of ``180 / steps`` degrees) that map the set of
+    horizontal directions between neighbours (:func:`neighbour_directions`) onto itself,
+    within ``tol_degrees``. A square grid gives the quarter turns and their 4 mirrors, a
+    triangular lattice of 12-sided posts the 12 turns by 30 degrees and 12 mirrors, at
+    whatever angle the lattice is turned. Without horizontal contacts:
+    :func:`world_symmetries`. The default ``steps`` (3-degree turns) covers turns of order
+    2, 3, 4, 5, 6, 8, 10, 12, 24, ...; tolerances are angles, so independent of part size."""
+    dirs = neighbour_directions(shape_set, shapes, graphs)
+    if len(dirs) == 0:
+        return world_symmetries()
+
+    def keeps(images: np.ndarray) -> bool:
+        return bool(_angle_gap(images, dirs).min(1).max() <= tol_degrees)
+
+    # mirrors as a turn after the mirror across the plane square to the first direction
+    # (on a square grid: the mirror in x), in the order of world_symmetries
+    base = dirs[0] + 90.0
+    angles = [360.0 * k / steps for k in range(steps)]
+    turns = [turn_about_z(a) for a in angles if keeps(dirs + a)]
+    mirrors = [turn_about_z(a) @ mirror_across(base) for a in angles if keeps(2 * base - dirs + a)]
+    # exact zeros and ones where a turn is a quarter turn (cos 90 degrees is 6e-17 in floats)
+    return [np.round(m, 12) + 0.0 for m in turns + mirrors]
+
+
+def symmetric_copies(shape: Shape, library: dict | None = None,
+                     symmetries: list[np.ndarray] | None = None) -> list[Shape | None]:
+    """A shape moved by each of ``symmetries`` (default :func:`world_symmetries`; about its
+    centroid); None for a mirror when a part is not mirror-symmetric (needs ``library``;
+    without it mirrors are None)."""
     centre = np.mean([t[:3, 3] for t in shape.transforms], axis=0)
     to, back = np.eye(4), np.eye(4)
     to[:3, 3], back[:3, 3] = -centre, centre
     out = []
-    for g in world_symmetries():
+    for g in world_symmetries() if symmetries is None else symmetries:
         moved = [back @ g @ to @ t for t in shape.transforms]
         if np.linalg.det(g[:3, :3]) < 0:
             if library is None:

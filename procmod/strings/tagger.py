@@ -25,7 +25,7 @@ from .automorphisms import type_automorphisms
 from .categories import EdgeCategories, shape_labelings
 from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
-from .frames import canonical_frame, proper_placement, world_symmetries
+from .frames import canonical_frame, proper_placement
 from .shapes import ShapeSet, first_poses
 from .torch_utils import ModelFileError, save_weights, torch_threads, training_device
 from .vae import Vocab
@@ -288,12 +288,12 @@ def category_decoder(categories: EdgeCategories, stars: list | None = None,
     """A structured decoder of edge categories (:mod:`procmod.strings.decoding`): stars
     (when given) and, with ``shape_set`` (the shapes the categories were fitted on, for the
     part library and the parts' poses), ring closure, the first part of a string placed in
-    its input pose under every turn and mirror of :func:`~procmod.strings.frames.world_symmetries`."""
+    its input pose under every turn and mirror of ``categories.symmetries``."""
     frame_of, roots = None, None
     if shape_set is not None:
         lib, part_of = shape_set.library, shape_set.part_of_letter
         frame_of = lambda t, pose: canonical_frame(lib, part_of[t], pose, categories.groups)  # noqa: E731
-        roots = {t: [m for g in world_symmetries()
+        roots = {t: [m for g in categories.symmetries
                      if (m := proper_placement(lib, part_of[t], g @ pose)) is not None]
                  for t, pose in first_poses(shape_set).items()}
     return CategoryDecoder(categories, stars, frame_of, roots)
