@@ -260,7 +260,7 @@ def _umask() -> int:
 SAMPLE_RUN = RunKind("procmod sample folder", "contact_sheet.png",
                      (r"contact_sheet\.(png|html)", r"sample_\d+\.(json|png|svg|obj|glb)"))
 INFER_RUN = RunKind("procmod infer run", "settings.json",
-                    (r"best\.(png|svg|obj|glb|json)", r"target\.png", r"history\.csv", r"convergence\.png",
+                    (r"best\.(png|svg|obj|glb|json)", r"target\.png", r"history\.csv", r"convergence\.(svg|png)",
                      r"samples\.png", r"settings\.json", r"report\.html"), marker_key="engine")
 TRACES_JOB = RunKind("procmod guide traces folder", "traces.json",
                      (r"traces\.json", r"trace_\d+\.json", r"\.trace_\d+\.json\..*", r"\.traces\.json\..*"),
