@@ -62,6 +62,8 @@ def _solids(path: Path) -> tuple[list, np.ndarray]:
         for node in assets.assets[0].nodes():
             shape = assets.parts[node.part]
             solids.append(shape.part(node.transform))
+            # a mesh's own vertices (geometry.part_library.world_bounds would take its local
+            # box's corners, a looser frame when the part is turned)
             local = (np.asarray(shape.vertices, dtype=np.float64) if shape.kind == "mesh" else
                      0.5 * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
                      * np.asarray(shape.size, dtype=np.float64))
@@ -78,9 +80,8 @@ def _solids(path: Path) -> tuple[list, np.ndarray]:
 def silhouette_mask(solids: list, points: np.ndarray, size: int) -> np.ndarray:
     """The ``size`` x ``size`` boolean silhouette of ``solids`` from their broadest side
     (``points`` span their extent)."""
-    from procmod.geometry.camera import Camera
+    from procmod.geometry.camera import Camera, Silhouettes
     from procmod.targets.image import resample_mask
-    from procmod.geometry.camera import Silhouettes
 
     low, high = points.min(axis=0), points.max(axis=0)
     centre, extent = 0.5 * (low + high), high - low
