@@ -201,9 +201,7 @@ def proper_placement(library: dict, name: str, m: np.ndarray) -> np.ndarray | No
 
 def turn_about_z(degrees: float) -> np.ndarray:
     """The 4x4 turn by ``degrees`` about the vertical (z) axis."""
-    m = np.eye(4)
-    m[:3, :3] = matrix(rotation("z", np.radians(degrees)))[:3, :3]
-    return m
+    return matrix(rotation("z", np.radians(degrees)))
 
 
 def mirror_across(degrees: float) -> np.ndarray:
