@@ -263,7 +263,8 @@ def _cmd_infer(args) -> None:
     folder = RunFolder(args.out, INFER_RUN, args.overwrite, inputs=[args.target, args.model, args.guide])
     empty = target.new_output(target.configure(model))  # fail early if the target does not fit the model
     if wanted in kwargs:
-        check_population(f"--{wanted}", kwargs[wanted], empty)
+        # an incremental MCMC chain holds three outputs at least (procmod.infer.mcmc)
+        check_population(f"--{wanted}", kwargs[wanted], empty, copies=3 if wanted == "chains" else 1)
     with _progress_bar(budget) as progress:
         result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
     if result.best is None:

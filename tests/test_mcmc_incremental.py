@@ -167,3 +167,22 @@ def test_resample_move_on_mix_marginals():
 def test_resample_needs_room_beside_diffusion():
     with pytest.raises(InvalidArgumentError, match="p_resample"):
         mcmc(MIX, SumTarget(0.0, 1.0), p_diffusion=0.7, p_resample=0.5)
+
+
+def test_chain_memory_check_counts_the_checkpoints(monkeypatch):
+    """An incremental chain holds a checkpoint and a proposal beside its state: a chain
+    count whose states alone fit but whose three outputs each do not is refused before
+    any chain is made (the full-replay engine, one output per chain, is let through)."""
+    from procmod.core import limits
+    from procmod.infer.common import MEMBER_OVERHEAD, output_bytes
+
+    model, target = get_model("vines"), _bar_target()
+    per_copy = output_bytes(target.new_output(target.configure(model)))
+    chains = 1000
+    # room for 2 copies per chain: enough for the full replay's one, not the incremental three
+    room = chains * (2 * per_copy + MEMBER_OVERHEAD)
+    monkeypatch.setattr(limits, "physical_memory", lambda: int(room / limits.MEMORY_SHARE))
+    with pytest.raises(limits.ResourceLimitError, match="chains 1,000 would need at least"):
+        mcmc(model, target, chains=chains, budget=Budget(generations=1))
+    mcmc(model, target, chains=2, budget=Budget(generations=1))  # a small ladder still runs
+    limits.check_memory("one copy per chain", chains * (per_copy + MEMBER_OVERHEAD))  # what incremental=False asks

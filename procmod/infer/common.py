@@ -192,19 +192,27 @@ def output_bytes(output: Output) -> int:
     """A lower bound of the memory one more copy of ``output`` takes: the numpy arrays
     its ``copy()`` does not share with it (a canvas's pixels, not its target's gains)."""
     copy = output.copy()
+    # the fields of the copy: its __dict__ and, for a class with __slots__ (a Canvas),
+    # the slots of every class it derives from
+    names = set(vars(copy)) if hasattr(copy, "__dict__") else set()
+    for cls in type(copy).__mro__:
+        slots = cls.__dict__.get("__slots__", ())
+        names.update((slots,) if isinstance(slots, str) else slots)
     total = 0
-    for name, value in vars(copy).items() if hasattr(copy, "__dict__") else ():
+    for name in names:
+        value = getattr(copy, name, None)
         if isinstance(value, np.ndarray) and value is not getattr(output, name, None):
             total += value.nbytes
     return total
 
 
-def check_population(option: str, count, output: Output) -> int:
+def check_population(option: str, count, output: Output, copies: int = 1) -> int:
     """Refuse a population (``particles``, ``population``, ``chains``) that cannot
     fit in memory, before an engine allocates it; returns ``count``.
 
     ``output`` is an empty output of the configured model (``target.new_output(model)``):
-    each member holds a copy. It must declare its capabilities
+    each member holds ``copies`` copies of it at least (incremental MCMC: a chain's state,
+    its first checkpoint and the proposal's output). It must declare its capabilities
     (:func:`procmod.core.protocols.check_declared`): engines read them later. Engines can
     call this on their own population argument
     (``check_population("particles", particles, target.new_output(model))``).
@@ -213,7 +221,7 @@ def check_population(option: str, count, output: Output) -> int:
 
     check_positive(option, count)
     check_declared(output, Output, "the target's output")
-    per_member = output_bytes(output) + MEMBER_OVERHEAD
+    per_member = copies * output_bytes(output) + MEMBER_OVERHEAD
     check_memory(f"{option} {count:,}", float(count) * per_member,
                  f"each of them holds at least {per_member:,} bytes; use fewer")
     return count

@@ -544,7 +544,9 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
     budget = budget or Budget(generations=1600)
     model = target.configure(model)
-    check_population("chains", chains, target.new_output(model))  # refuse what memory cannot hold
+    # refuse what memory cannot hold: an incremental chain holds its state's output, the
+    # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
+    check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
