@@ -146,6 +146,24 @@ def test_resampling_offspring_counts_follow_the_weights(method):
     assert np.all(np.abs(counts / draws - 10 * w) < 5 * np.sqrt(10 * w * (1 - w) / draws) + 1e-12)
 
 
+def test_small_population_resampling_picks_what_numpy_picks():
+    """SMC steps of up to SMALL_POPULATION particles weigh and resample on Python floats;
+    they pick the ancestors the numpy resampler picks from the same uniform."""
+    from procmod.infer.smc import SMALL_POPULATION, _systematic_small, resample
+    gen = np.random.default_rng(11)
+    for trial in range(300):
+        n = int(gen.integers(1, SMALL_POPULATION + 1))
+        log_w = gen.normal(0, 3, n) - 40
+        log_w[gen.random(n) < 0.3] = -np.inf
+        if not np.isfinite(log_w).any():
+            log_w[0] = 0.0
+        top = max(log_w)
+        relative = [math.exp(v - top) for v in log_w]
+        expected = resample(log_w, np.random.default_rng(trial), "systematic").tolist()
+        assert _systematic_small(relative, sum(relative), np.random.default_rng(trial)) == expected
+        assert all(relative[a] > 0 for a in expected)  # never a zero-weight ancestor
+
+
 def test_temperature_ladder_matches_seed_002():
     betas = temperature_ladder(5)
     assert betas[0] == 1.0
