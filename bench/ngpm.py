@@ -50,7 +50,7 @@ from procmod.targets import Circuit, ShapeMatch  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results"
 GUIDES = RESULTS / "ngpm_guides"
 CONDITIONS = ("constant", "local", "local+target", "all")
-SIZES = (10, 100, 500, 1000)  # plus all traces
+SIZES = (10, 100, 500, 1000, 2000, 5000)  # plus all traces (seed 004 Fig. 6b goes to 10,000)
 PARTICLES_5A = tuple(range(1, 11))
 UNGUIDED_5B = (1, 2, 5, 10, 20, 50, 100, 150, 200, 300, 400, 600)
 GUIDED_5B = (1, 2, 3, 5, 7, 10, 15, 20, 40)
