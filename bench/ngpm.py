@@ -10,7 +10,7 @@ unguided, resamples adaptively (when the effective sample size drops below half 
 particles; ``--ess every`` resamples at every emit instead).
 
     python bench/ngpm.py --traces DIR [--circuit-traces DIR] [--targets 30] [--reps 3]
-                         [--iterations 20000] [--stages train eval speed rate] [--ess 0.5]
+                         [--iterations 20000] [--stages train eval speed circuit rate] [--ess 0.5]
 
 ``train`` fits every guide the figures need into bench/results/ngpm_guides/ (kept between
 runs; a finished guide is reused, an interrupted one resumes from its checkpoint):
@@ -18,8 +18,8 @@ the four feature conditions (constant, local, local+target, all; 4-component mix
 all traces), the no-mixture ablation, the papers' constant Adam step size (procmod anneals
 it by default), training-set sizes for Figure 6b, and a circuit
 guide (local state + partial-output features; the circuit score has no target image). ``eval`` runs the
-quality comparisons (5a, 6a, 6b); ``speed`` the timed ones (5b, circuit), which want a quiet
-machine; ``rate`` times trace generation with 2 worker processes. Results:
+quality comparisons (5a, 6a, 6b); ``speed`` (5b) and ``circuit`` (Fig. 12) the timed ones,
+which want a quiet machine; ``rate`` times trace generation with 2 worker processes. Results:
 bench/results/ngpm.json, ngpm.png, ngpm_circuit.png.
 """
 
@@ -205,8 +205,8 @@ def evaluate(model, args) -> dict:
 
 
 def evaluate_speed(model, args) -> dict:
-    """Figure 5b (wall time to reach a similarity, guided vs unguided) and the circuit
-    comparison of Figure 12: the timed stage, for a quiet machine."""
+    """Figure 5b (wall time to reach a similarity, guided vs unguided): timed, for a quiet
+    machine."""
     targets, guides = _setup(model, args)
     rng = np.random.default_rng(1)
     results = {"speed_targets": len(targets), "speed_reps": args.reps, "speed_ess_threshold": ESS_THRESHOLD}
@@ -226,15 +226,24 @@ def evaluate_speed(model, args) -> dict:
         if row["speedup"]:
             print(f"  similarity {row['similarity']:.2f}: unguided {row['unguided_seconds']:.3f} s, "
                   f"guided {row['guided_seconds']:.3f} s, {row['speedup']:.1f}x")
-    if "circuit" in guides:
-        print("Circuit (Figure 12): score vs particles")
-        target = [Circuit()]
-        results["circuit"] = {
-            "unguided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps), rng),
-            "guided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps, guides["circuit"]), rng)}
-        for name, rows in results["circuit"].items():
-            print(f"  {name:9s} " + " ".join(f"{n}:{rows[str(n)]['similarity']:.2f}/{rows[str(n)]['seconds']:.2f}s"
-                                             for n in CIRCUIT_PARTICLES))
+    return results
+
+
+def evaluate_circuit(model, args) -> dict:
+    """The circuit comparison of Figure 12 (timed: wants a quiet machine)."""
+    _, guides = _setup(model, args)
+    if "circuit" not in guides:
+        print("no circuit guide: train one with --circuit-traces DIR --only circuit --stages train")
+        return {}
+    rng = np.random.default_rng(2)
+    print("Circuit (Figure 12): score vs particles")
+    target = [Circuit()]
+    results = {"circuit_traces": guides["circuit"].info["traces"], "circuit": {
+        "unguided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps), rng),
+        "guided": summarise(run_grid(model, target, CIRCUIT_PARTICLES, args.circuit_reps, guides["circuit"]), rng)}}
+    for name, rows in results["circuit"].items():
+        print(f"  {name:9s} " + " ".join(f"{n}:{rows[str(n)]['similarity']:.2f}/{rows[str(n)]['seconds']:.2f}s"
+                                         for n in CIRCUIT_PARTICLES))
     return results
 
 
@@ -309,7 +318,8 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=20000)
     parser.add_argument("--count", type=int, help="use the first COUNT traces (default: all)")
     parser.add_argument("--only", nargs="+", help="train only these guides, in this order")
-    parser.add_argument("--stages", nargs="+", default=["train", "eval", "speed", "rate"], choices=("train", "eval", "speed", "rate"))
+    parser.add_argument("--stages", nargs="+", default=["train", "eval", "speed", "circuit", "rate"],
+                        choices=("train", "eval", "speed", "circuit", "rate"))
     parser.add_argument("--results", type=Path, default=RESULTS, help="where results and guides go")
     parser.add_argument("--ess", default=str(ESS_THRESHOLD),
                         help="resample when the effective sample size falls below ESS x particles, in every "
@@ -331,6 +341,8 @@ def main() -> None:
                                for p in sorted(GUIDES.glob("*.json")) if not p.name.endswith(".ckpt.json")}
     if "speed" in args.stages:
         results.update(evaluate_speed(model, args))
+    if "circuit" in args.stages:
+        results.update(evaluate_circuit(model, args))
     if "rate" in args.stages:
         results["trace_rate_2_workers"] = measure_rate()
     RESULTS.mkdir(parents=True, exist_ok=True)
