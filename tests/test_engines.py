@@ -149,7 +149,8 @@ def test_resampling_offspring_counts_follow_the_weights(method):
 def test_small_population_resampling_picks_what_numpy_picks():
     """SMC steps of up to SMALL_POPULATION particles weigh and resample on Python floats;
     they pick the ancestors the numpy resampler picks from the same uniform."""
-    from procmod.infer.smc import SMALL_POPULATION, _systematic_small, resample
+    from procmod.core.random import resample, systematic_small
+    from procmod.infer.smc import SMALL_POPULATION
     gen = np.random.default_rng(11)
     for trial in range(300):
         n = int(gen.integers(1, SMALL_POPULATION + 1))
@@ -160,7 +161,7 @@ def test_small_population_resampling_picks_what_numpy_picks():
         top = max(log_w)
         relative = [math.exp(v - top) for v in log_w]
         expected = resample(log_w, np.random.default_rng(trial), "systematic").tolist()
-        assert _systematic_small(relative, sum(relative), np.random.default_rng(trial)) == expected
+        assert systematic_small(relative, sum(relative), np.random.default_rng(trial)) == expected
         assert all(relative[a] > 0 for a in expected)  # never a zero-weight ancestor
 
 

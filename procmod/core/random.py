@@ -97,3 +97,24 @@ def resample(log_weights: np.ndarray, rng: np.random.Generator, method: str = "s
     cumulative = np.cumsum(w)
     cumulative[-1] = 1.0
     return np.minimum(np.searchsorted(cumulative, pointers, side="right"), n - 1)
+
+
+def systematic_small(weights: list, total: float, rng) -> list:
+    """Systematic resampling of a short list of (unnormalised) weights: the ancestors
+    :func:`resample` picks for them, from the same single uniform."""
+    n = len(weights)
+    u = rng.random()
+    cumulative = []
+    acc = 0.0
+    for w in weights:
+        acc += w / total
+        cumulative.append(acc)
+    cumulative[-1] = 1.0
+    out = []
+    j = 0
+    for k in range(n):
+        pointer = (u + k) / n
+        while j < n - 1 and cumulative[j] <= pointer:
+            j += 1
+        out.append(j)
+    return out

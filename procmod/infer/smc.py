@@ -22,7 +22,7 @@ from ..core import InvalidArgumentError, Model, random_order
 from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
-from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample  # noqa: F401
+from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
 from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
@@ -56,27 +56,6 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
 # per-call overhead (about 20 us a step over the 6-8 calls) outweighs the arithmetic
 # there, and a guided run of 1-20 particles takes a step per particle-emit.
 SMALL_POPULATION = 32
-
-
-def _systematic_small(weights: list, total: float, rng) -> list:
-    """Systematic resampling of a short list of (unnormalised) weights: the ancestors
-    :func:`procmod.core.random.resample` picks for them, from the same single uniform."""
-    n = len(weights)
-    u = rng.random()
-    cumulative = []
-    acc = 0.0
-    for w in weights:
-        acc += w / total
-        cumulative.append(acc)
-    cumulative[-1] = 1.0
-    out = []
-    j = 0
-    for k in range(n):
-        pointer = (u + k) / n
-        while j < n - 1 and cumulative[j] <= pointer:
-            j += 1
-        out.append(j)
-    return out
 
 
 class _RemoteBest:
@@ -123,7 +102,7 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
             total = sum(relative)
             if ess_threshold is None or total * total / sum(w * w for w in relative) < ess_threshold * particles:
                 log_z += top + math.log(total / particles)
-                ancestors = _systematic_small(relative, total, rng)
+                ancestors = systematic_small(relative, total, rng)
         else:
             weights = np.array(log_w)
             if weights.max() == -math.inf:
