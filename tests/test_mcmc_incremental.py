@@ -3,6 +3,7 @@ is the full replay, bit for bit, its acceptance ratio is the full one, and chain
 from it (with the single-site resample move) sample exact posteriors."""
 
 import dataclasses
+import importlib
 import math
 from itertools import product
 
@@ -186,3 +187,23 @@ def test_chain_memory_check_counts_the_checkpoints(monkeypatch):
         mcmc(model, target, chains=chains, budget=Budget(generations=1))
     mcmc(model, target, chains=2, budget=Budget(generations=1))  # a small ladder still runs
     limits.check_memory("one copy per chain", chains * (per_copy + MEMBER_OVERHEAD))  # what incremental=False asks
+
+
+def test_redrawing_a_coins_old_value_costs_no_replay(monkeypatch):
+    # GATE's choices are all fair coins, so a single-site resample redraws the old value
+    # half the time; those moves keep the state without a replay (WebPPL's MH shortcut)
+    engine = importlib.import_module("procmod.infer.mcmc")  # the module (the package exports the function)
+    replays = []
+    real = engine.replay_traced
+
+    def counting(*args, **kwargs):
+        replays.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(engine, "replay_traced", counting)
+    moves = 2000
+    result = mcmc(GATE, FlatTarget(), seed=5, budget=Budget(evaluations=moves + 1), p_diffusion=0.0,
+                  p_resample=1.0, annealing=None)
+    assert result.evaluations == moves + 1  # the first state, then one proposal per move
+    # Binomial(moves, 1/2) replays; five standard deviations either side
+    assert abs(len(replays) - moves / 2) < 5 * math.sqrt(moves / 4)

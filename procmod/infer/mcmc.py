@@ -14,7 +14,11 @@ Moves, all built from replay under a modified choice map:
   move): the move that flips one coin, e.g. a vine's ``terminate``, growing the vine
   from its last segment on, which a regenerate jump reaches only with the call's other
   choices redrawn too. It drops the choice from the map, so it is a jump like the
-  others: the reverse move drops the same choice in the new state.
+  others: the reverse move drops the same choice in the new state. A discrete choice's
+  new value is drawn when the move is proposed: when it is the old value the move leaves
+  the state as it is and is accepted without a replay (WebPPL's MH does the same; half
+  the redraws of a fair coin), otherwise the replay takes it as an override and the
+  acceptance ratio leaves out its prior, which its proposal density cancels.
 
 Move selection depends on what the state offers. With ``D`` calls that have a continuous
 choice, ``M`` ``maybe`` sites (on or off), ``K`` choices and ``N`` calls,
@@ -174,6 +178,10 @@ class Proposal:
     p_resample: float = 0.0
     overrides: dict | None = None
     removed: tuple | None = None
+    # a single-site resample of a discrete choice: log p(new value) - log p(old value),
+    # which the ratio leaves out (the value was drawn from that prior); None otherwise
+    log_redrawn: float | None = None
+    unchanged: bool = False  # the redrawn value is the old one: the move keeps the state
 
 
 
@@ -248,6 +256,7 @@ def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_sc
     module docstring)."""
     picks = _Picks(state)
     counts = picks.counts
+    log_redrawn = None
     u = rng.random()
     if u < p_diffusion and counts.diffusion:
         node = picks.candidate(int(rng.random() * counts.diffusion))
@@ -260,8 +269,17 @@ def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_sc
         kind, address, removed = "diffusion", node.address, None
     elif p_diffusion <= u < p_diffusion + p_resample and counts.choices:
         node, name = picks.key(int(rng.random() * counts.choices))
-        overrides, perturbed = {(node.address, name): DROP}, ()
-        kind, address, removed = "resample", node.address, None
+        kind, address, removed, perturbed = "resample", node.address, None, ()
+        old = node.choices[name]
+        if old.dist.discrete:  # drawn now, so that redrawing the old value costs no replay
+            value = old.dist.sample(rng)
+            if value == old.value:
+                return Proposal(kind, None, log_select(counts, kind, p_diffusion, p_resample), p_diffusion,
+                                address, perturbed, p_resample, {}, removed, 0.0, True)
+            overrides = {(address, name): value}
+            log_redrawn = old.dist.log_prob(value) - old.log_prob
+        else:
+            overrides = {(address, name): DROP}
     elif counts.maybe and rng.random() < TOGGLE_SHARE:
         node, site = picks.site(int(rng.random() * counts.maybe))
         address = node.address
@@ -273,7 +291,7 @@ def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_sc
         kind, address, removed = "regenerate", node.address, node.address
     choices = None if isinstance(state, Traced) else _edited_dict(state.derivation, overrides, removed)
     return Proposal(kind, choices, log_select(counts, kind, p_diffusion, p_resample), p_diffusion,
-                    address, tuple(perturbed), p_resample, overrides, removed)
+                    address, tuple(perturbed), p_resample, overrides, removed, log_redrawn)
 
 
 def _kept_log_prob(state: Scored, proposal: Proposal, ev: Evaluation) -> float:
@@ -292,7 +310,7 @@ def log_acceptance(state: Scored, proposal: Proposal, ev: Evaluation, beta: floa
     log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion, proposal.p_resample)
     if log_back == -math.inf:
         return -math.inf  # the new state does not offer the reverse move
-    return (ev.log_reused - _kept_log_prob(state, proposal, ev)
+    return (ev.log_reused - _kept_log_prob(state, proposal, ev) - (proposal.log_redrawn or 0.0)
             + beta * (ev.log_likelihood - state.log_likelihood)
             + log_back - proposal.log_select)
 
@@ -322,6 +340,7 @@ def log_acceptance_traced(state: Traced, proposal: Proposal, replayed: TracedRep
     log_back = log_select(traced_counts(new), proposal.kind, proposal.p_diffusion, proposal.p_resample)
     if log_back == -math.inf:
         return -math.inf  # the new state does not offer the reverse move
+    log_prior -= proposal.log_redrawn or 0.0  # a redrawn value's prior cancels its proposal density
     return log_prior + beta * (new.log_likelihood - state.log_likelihood) + log_back - proposal.log_select
 
 
@@ -430,13 +449,17 @@ class Chains:
             if not isinstance(s, Traced):  # e.g. a state handed in by a caller
                 states[c] = trace(model, target, s.derivation.choice_map().raw, np.random.default_rng(0))
         proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
-        replays = [replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed),
+        replays = [None if p.unchanged else
+                   replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed),
                                  np.random.default_rng(new_seed(rng)), edited=p.address)
                    for s, p in zip(states, proposals)]
         tracker.evaluations += len(states)
         for c, (s, p, replayed) in enumerate(zip(states, proposals, replays)):
-            new = replayed.state
             self.proposed[p.kind] += 1
+            if p.unchanged:  # the state proposed itself: accepted, nothing to replay
+                self.accepted[p.kind] += 1
+                continue
+            new = replayed.state
             tracker.offer(new.derivation, new.score)
             if self._accept(log_acceptance_traced(s, p, replayed, betas[c])):
                 states[c] = new
@@ -451,10 +474,15 @@ class Chains:
             self._swap()
             return
         proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
-        evaluations = self._evaluate([p.choices for p in proposals])
+        evaluations = iter(self._evaluate([p.choices for p in proposals if not p.unchanged]))
+        tracker.evaluations += sum(p.unchanged for p in proposals)
         second = []
-        for c, (s, p, ev) in enumerate(zip(states, proposals, evaluations)):
+        for c, (s, p) in enumerate(zip(states, proposals)):
             proposed[p.kind] += 1
+            if p.unchanged:  # the state proposed itself: accepted, nothing to evaluate
+                accepted[p.kind] += 1
+                continue
+            ev = next(evaluations)
             tracker.offer(ev.derivation, ev.score)
             if self._accept(log_acceptance(s, p, ev, betas[c])):
                 states[c] = Scored.from_evaluation(ev)
