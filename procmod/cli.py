@@ -87,8 +87,9 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--seed", type=_int_arg, default=0)
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
     infer.add_argument("--workers", type=_int_arg,
-                       help="processes that step the particles (smc, sosmc; default 1: this one); "
-                            "more help where the cores are real and idle (README, 'SMC on several cores')")
+                       help="processes that step the particles (smc, sosmc) or run the chains (mcmc: "
+                            "one chain each unless --chains says otherwise); default 1: this one; more help "
+                            "where the cores are real and idle (README, 'SMC on several cores')")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
     _add_overwrite(infer)
@@ -242,12 +243,14 @@ def _cmd_infer(args) -> None:
         kwargs[option] = value
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
-    if args.engine in ("smc", "sosmc"):
+    if args.engine in ("smc", "sosmc", "mcmc"):
         if args.workers is not None and args.workers < 1:
             raise InvalidArgumentError(f"--workers must be a positive integer, got {args.workers}")
         kwargs["workers"] = 1 if args.workers is None else args.workers
+        if args.engine == "mcmc" and "chains" not in kwargs:
+            kwargs["chains"] = kwargs["workers"]  # one chain per worker
     elif args.workers is not None:
-        raise InvalidArgumentError(f"--workers applies to --engine smc or sosmc, not {args.engine}")
+        raise InvalidArgumentError(f"--workers applies to --engine smc, sosmc or mcmc, not {args.engine}")
     size = check_size(args.size)
     budget = parse_budget(args.budget) if args.budget is not None else None
     if args.guide is not None:

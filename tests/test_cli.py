@@ -140,7 +140,7 @@ def test_infer_circuit_target(tmp_path, capsys):
     (["infer", "vines", "--target", "glyph:i"], "connected parts"),
     (["infer", "vines", "--target", "missing.png"], "does not exist"),
     (["infer", "teapot", "--target", "glyph:a"], "unknown model"),
-    (["infer", "vines", "--target", "glyph:a", "--engine", "mcmc", "--workers", "2"], "--workers applies"),
+    (["infer", "vines", "--target", "glyph:a", "--engine", "ga", "--workers", "2"], "--workers applies"),
     (["infer", "vines", "--target", "glyph:a", "--workers", "0"], "--workers must be a positive"),
 ])
 def test_bad_infer_arguments(tmp_path, capsys, argv, message):

@@ -78,6 +78,7 @@ that grows with what the move changes.
 from __future__ import annotations
 
 import math
+import time
 from bisect import bisect_right
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -88,6 +89,8 @@ from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
+from .mcmc_workers import run_groups
+from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
 
 HOTTEST_ACCEPTANCE = 0.7
@@ -517,10 +520,11 @@ class Chains:
         return {k: (self.accepted[k] / self.proposed[k] if self.proposed[k] else None) for k in self.accepted}
 
 
-def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: Budget | None = None,
+def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0, budget: Budget | None = None,
          p_diffusion: float = 0.3, step_scale: float = 0.1, tempering: bool = True,
          annealing: float | None = 1.1, anneal_every: int = 50, delayed_rejection: bool = False,
-         executor=None, progress=None, p_resample: float = 0.3, incremental: bool | None = None) -> Result:
+         executor=None, progress=None, p_resample: float = 0.3, incremental: bool | None = None,
+         workers: int = 1) -> Result:
     """Reversible-jump MCMC with parallel tempering and annealing.
 
     The defaults (one chain; diffusion 0.3, single-site resample 0.3, jumps the rest)
@@ -531,10 +535,11 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
 
     Parameters
     ----------
-    chains : int
-        Number of chains; with ``tempering`` (and more than one) they form one
-        temperature ladder (coldest first), otherwise they are independent chains at
-        temperature 1.
+    chains : int, optional
+        Number of chains (default: one per worker, so 1); with ``tempering`` (and more
+        than one) they form one temperature ladder (coldest first), otherwise they are
+        independent chains at temperature 1. Split over ``workers``, each worker's chains
+        form a ladder of their own.
     budget : Budget
         Default: 1,600 sweeps (generations), as many moves as the 200 sweeps of the eight
         chains this engine used to default to. One sweep proposes one move per chain.
@@ -560,7 +565,20 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
         the same chain, bit for bit, at a cost proportional to what the move changes.
         Default: on, unless an ``executor`` or ``delayed_rejection`` is given (both
         replay whole derivations).
+    workers : int
+        Processes that run chains (default 1: this one). With ``W > 1`` the chains are
+        split into ``W`` groups run side by side, this process running the first and
+        forked workers the others, each under the same budget in seconds and sweeps
+        (evaluations are shared out); chains of different groups never swap, and the best
+        derivation of any group is returned (:mod:`procmod.infer.mcmc_workers`). With one
+        chain per worker that is the best of ``W`` independent chains in the wall time of
+        one: worth it where the cores are idle. The first group is the chain a one-process
+        run would make; each worker's group is seeded from ``(seed, worker)``.
     """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InvalidArgumentError(f"workers must be a positive integer, got {workers!r}")
+    if chains is None:
+        chains = workers
     check_positive("chains", chains)
     if not 0.0 <= p_diffusion <= 1.0:
         raise InvalidArgumentError(f"p_diffusion must be in [0, 1], got {p_diffusion!r}")
@@ -575,6 +593,17 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
     check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)
+    settings = {"chains": chains, "seed": seed, "budget": budget.describe(),
+                "p_diffusion": p_diffusion, "step_scale": step_scale,
+                "tempering": tempering, "annealing": annealing,
+                "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
+                "p_resample": p_resample, "incremental": incremental}
+    workers = min(workers, chains) if fork_available() else 1  # groups are forked processes
+    if workers > 1:
+        if executor is not None:
+            raise InvalidArgumentError("pass either an executor (proposals evaluated in a pool) or workers > 1 "
+                                       "(chains in processes of their own), not both")
+        return _mcmc_on_workers(model, target, chains, workers, seed, budget, settings, progress)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
@@ -597,12 +626,27 @@ def mcmc(model: Model, target: Target, chains: int = 1, seed: int = 0, budget: B
             if tracker.due():
                 tracker.record(float(np.mean([s.score for s in run.states])))
         tracker.record(float(np.mean([s.score for s in run.states])))
+    moves = {kind: (run.accepted[kind], run.proposed[kind]) for kind in run.accepted}
     return Result("mcmc", tracker.best, tracker.best_score, [s.derivation for s in run.states],
                   tracker.rows, tracker.seconds, tracker.evaluations,
-                  settings={"chains": chains, "seed": seed, "budget": budget.describe(),
-                            "p_diffusion": p_diffusion, "step_scale": step_scale,
-                            "tempering": tempering, "annealing": annealing,
-                            "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
-                            "p_resample": p_resample, "incremental": incremental,
-                            "acceptance_rates": run.acceptance_rates()},
+                  settings={**settings, "workers": 1, "acceptance_rates": run.acceptance_rates(), "moves": moves},
                   log_weights=[s.log_likelihood for s in run.states])
+
+
+def _mcmc_on_workers(model, target, chains: int, workers: int, seed, budget: Budget, settings: dict,
+                     progress) -> Result:
+    """:func:`mcmc` with its chains in ``workers`` groups (:mod:`procmod.infer.mcmc_workers`)."""
+    options = {k: settings[k] for k in ("p_diffusion", "step_scale", "tempering", "annealing", "anneal_every",
+                                        "delayed_rejection", "p_resample", "incremental")}
+
+    def run_group(group: int, group_chains: int, group_budget: Budget) -> Result:
+        return mcmc(model, target, chains=group_chains, seed=seed if group == 0 else [seed, group],
+                    budget=group_budget, progress=progress if group == 0 else None, **options)
+
+    t0 = time.perf_counter()
+    best, best_score, samples, log_weights, history, evaluations, moves, notes = run_groups(
+        run_group, model, target, chains, workers, budget)
+    rates = {kind: (accepted / proposed if proposed else None) for kind, (accepted, proposed) in moves.items()}
+    return Result("mcmc", best, best_score, samples, history, time.perf_counter() - t0, evaluations,
+                  settings={**settings, "workers": workers, "acceptance_rates": rates, "moves": moves},
+                  log_weights=log_weights, notes=notes)
