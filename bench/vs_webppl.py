@@ -3,6 +3,7 @@
     python bench/vs_webppl.py                       # glyphs + scribbles, SMC at 10/50/200/600, 3 seeds
     python bench/vs_webppl.py --targets-dir DIR     # also every target picture in DIR
     python bench/vs_webppl.py --mcmc                # also MCMC vs WebPPL's MH (+ SOSMC, GA) at equal time
+    python bench/vs_webppl.py --mcmc --mcmc-workers 1 2   # ... and procmod's MCMC on two cores
     python bench/vs_webppl.py --guide vines-scribbles --guided-particles 1 5 10 20
 
 Both systems run the vines program of shared/seeds/vines.md (with leaves and flowers by
@@ -184,7 +185,7 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
         command += ["--budget", budget]
     if guide is not None:
         command += ["--guide", guide]
-    if workers is not None and engine in ("smc", "sosmc"):
+    if workers is not None and engine in ("smc", "sosmc", "mcmc"):
         command += ["--workers", str(workers)]
     seconds = timed(command)
     geometry = procmod_geometry(out / "best.json")
@@ -356,6 +357,9 @@ def main() -> None:
                         help="also WebPPL MH (--mh-samples) vs procmod mcmc, sosmc and ga at WebPPL's wall time")
     parser.add_argument("--mh-samples", type=int, default=20000)
     parser.add_argument("--mcmc-targets", type=int, default=4, help="targets per set for the MCMC comparison")
+    parser.add_argument("--mcmc-workers", type=int, nargs="+", default=[1],
+                        help="procmod mcmc runs with these --workers (one chain each; default 1); W > 1 is "
+                             "reported as method mcmc-wW: W chains on W cores in the same wall time")
     parser.add_argument("--guide", help="also guided procmod SMC with this guide (name or GUIDE.pt)")
     parser.add_argument("--guided-particles", type=int, nargs="*", default=[1, 5, 10, 20])
     parser.add_argument("--workers", type=int, help="procmod's --workers for SMC (default: the CLI's, one "
@@ -437,14 +441,18 @@ def main() -> None:
                     budget = max(r["seconds"] - base_w, 0.05)
                     mcmc_rows.append({"system": "webppl", "method": "MH", "set": set_name, "target": label,
                                       "seed": seed, "n": args.mh_samples, **r, "beyond_seconds": budget})
-                    for engine in ("mcmc", "sosmc", "ga"):
-                        p = run_procmod(png, mask, work, engine, None, seed, args.leaves, budget=f"{budget:.3f}s")
-                        mcmc_rows.append({"system": "procmod", "method": engine, "set": set_name, "target": label,
+                    plans = [("mcmc" if w == 1 else f"mcmc-w{w}", "mcmc", w) for w in args.mcmc_workers]
+                    plans += [("sosmc", "sosmc", None), ("ga", "ga", None)]
+                    for method, engine, workers in plans:
+                        p = run_procmod(png, mask, work, engine, None, seed, args.leaves, budget=f"{budget:.3f}s",
+                                        workers=workers)
+                        mcmc_rows.append({"system": "procmod", "method": method, "set": set_name, "target": label,
                                           "seed": seed, "n": None, **p, "budget_seconds": budget})
                     with mcmc_path.open("a") as handle:
                         handle.writelines(json.dumps(row) + "\n" for row in mcmc_rows[first:])
                     print(f"  mcmc {set_name} {label} seed {seed}: MH {r['similarity']:.3f} in {budget:.2f} s; "
-                          + ", ".join(f"{m['method']} {m['similarity']:.3f}" for m in mcmc_rows[-3:]), flush=True)
+                          + ", ".join(f"{m['method']} {m['similarity']:.3f}" for m in mcmc_rows[first + 1:]),
+                          flush=True)
 
     summary = summarise(rows, ("system", "method", "set", "n"))
     RESULTS.mkdir(exist_ok=True)
