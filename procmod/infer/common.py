@@ -26,6 +26,7 @@ import numpy as np
 
 from ..core import Derivation, InvalidArgumentError, Model, replay
 from ..core.protocols import Output, Target, check_declared
+from ..core.random import LazyGenerator
 from ..parallel import InlineExecutor
 
 
@@ -294,7 +295,7 @@ def evaluate(model: Model, target: Target, job) -> Evaluation:
     output = target.new_output(model)
     if output.supports_part_cache:  # full replays re-add mostly the same parts
         output.use_part_cache()
-    result = replay(model, choices, np.random.default_rng(seed), output=output, maybe_default=maybe_default)
+    result = replay(model, choices, LazyGenerator(seed), output=output, maybe_default=maybe_default)
     d = result.derivation
     return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
                       result.log_reused, result.log_fresh, result.unused)

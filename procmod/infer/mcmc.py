@@ -87,6 +87,7 @@ import numpy as np
 
 from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
+from ..core.random import LazyGenerator
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
                      evaluate_all, new_seed, relaxed_gc)
 from .mcmc_workers import run_groups
@@ -454,7 +455,7 @@ class Chains:
         proposals = [propose(s, rng, self.p_diffusion, self.step_scale, self.p_resample) for s in states]
         replays = [None if p.unchanged else
                    replay_traced(model, target, s, EditedChoices(s, p.overrides, p.removed),
-                                 np.random.default_rng(new_seed(rng)), edited=p.address)
+                                 LazyGenerator(new_seed(rng)), edited=p.address)
                    for s, p in zip(states, proposals)]
         tracker.evaluations += len(states)
         for c, (s, p, replayed) in enumerate(zip(states, proposals, replays)):
