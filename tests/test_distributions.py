@@ -88,6 +88,16 @@ def test_values_outside_support_have_zero_probability():
     assert Uniform(0, 1).log_prob(1.5) == -math.inf
 
 
+def test_a_bool_label_is_only_itself():
+    # True == 1 in Python: a bool value matches a bool label only, wherever it stands
+    mixed = Categorical([1, 3], labels=(0, True))
+    assert mixed.log_prob(True) == pytest.approx(math.log(0.75))
+    assert mixed.log_prob(1) == -math.inf and mixed.log_prob(False) == -math.inf
+    assert mixed.log_prob(0) == pytest.approx(math.log(0.25))
+    assert Categorical([1, 1], labels=(True, False)).log_prob(1) == -math.inf
+    assert Categorical([1, 1], labels=(0, 1)).log_prob(True) == -math.inf
+
+
 @pytest.mark.parametrize("make", [
     lambda: Normal(0, 0), lambda: Uniform(1, 1), lambda: Bernoulli(1.2),
     lambda: Categorical([]), lambda: Categorical([1, -1]), lambda: TruncatedNormal(0, 1, 2, 1),

@@ -1,6 +1,8 @@
 """MCMC with its chains in groups run by forked worker processes (procmod.infer.mcmc_workers)."""
 
 import json
+import os
+import time
 
 import pytest
 
@@ -69,6 +71,34 @@ FAILING = Model("failing", "a rule that raises", _failing_root, lambda p: (), la
 def test_a_failure_in_a_worker_reaches_the_caller():
     with pytest.raises(ModelError, match="always fails"):
         mcmc(FAILING, SumTarget(0.0, 1.0), seed=0, budget=Budget(evaluations=50), workers=2)
+
+
+def _fails_in_workers(ctx, parent):
+    ctx.sample("x", Normal(0.0, 1.0))
+    ctx.emit(Value(1.0))
+    if os.getpid() != parent:
+        raise ModelError("this rule fails in a worker process")
+
+
+def _worker_failing_model():
+    parent = os.getpid()
+    return Model("fails-in-workers", "a rule that raises in forked workers only", _fails_in_workers,
+                 lambda p: (parent,), lambda p: SumOutput(), rules=(_fails_in_workers,))
+
+
+def test_a_failing_worker_stops_this_process_early():
+    started = time.perf_counter()
+    with pytest.raises(ModelError, match="fails in a worker"):
+        mcmc(_worker_failing_model(), SumTarget(0.0, 1.0), seed=0, budget=Budget(seconds=60), workers=2)
+    assert time.perf_counter() - started < 30  # not the whole minute of this process's own group
+
+
+def test_a_stop_request_reaches_every_worker(scribble):
+    started = time.perf_counter()
+    result = mcmc(get_model("vines"), scribble, seed=0, budget=Budget(seconds=60), workers=2,
+                  progress=lambda tracker: tracker.request_stop())
+    assert time.perf_counter() - started < 30
+    assert len(result.samples) == 2 and result.best is not None
 
 
 def test_group_budget_shares_the_evaluations_only():

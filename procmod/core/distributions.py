@@ -236,10 +236,11 @@ class Categorical(Distribution):
         return self.labels[-1]
 
     def log_prob(self, value):
-        if isinstance(value, bool) and not isinstance(self.labels[0], bool):
-            return -math.inf
         i = self._index.get(value)
-        return -math.inf if i is None else self._log_probs[i]
+        # True == 1 and False == 0 in Python: a bool is only its own label, never an int's
+        if i is None or isinstance(value, bool) != isinstance(self.labels[i], bool):
+            return -math.inf
+        return self._log_probs[i]
 
     def _params(self):
         return {"probs": self.probs, "labels": self.labels}

@@ -275,15 +275,17 @@ def propose(state: Scored, rng: np.random.Generator, p_diffusion: float, step_sc
         node, name = picks.key(int(rng.random() * counts.choices))
         kind, address, removed, perturbed = "resample", node.address, None, ()
         old = node.choices[name]
+        overrides = {(address, name): DROP}
         if old.dist.discrete:  # drawn now, so that redrawing the old value costs no replay
             value = old.dist.sample(rng)
             if value == old.value:
                 return Proposal(kind, None, log_select(counts, kind, p_diffusion, p_resample), p_diffusion,
                                 address, perturbed, p_resample, {}, removed, 0.0, True)
-            overrides = {(address, name): value}
             log_redrawn = old.dist.log_prob(value) - old.log_prob
-        else:
-            overrides = {(address, name): DROP}
+            if math.isfinite(log_redrawn):  # (else a distribution that samples what it scores
+                overrides = {(address, name): value}  # impossible: the replay draws it afresh)
+            else:
+                log_redrawn = None
     elif counts.maybe and rng.random() < TOGGLE_SHARE:
         node, site = picks.site(int(rng.random() * counts.maybe))
         address = node.address
@@ -578,6 +580,8 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InvalidArgumentError(f"workers must be a positive integer, got {workers!r}")
+    if not fork_available():
+        workers = 1  # groups are forked processes; elsewhere the run stays in this one
     if chains is None:
         chains = workers
     check_positive("chains", chains)
@@ -590,7 +594,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     if annealing is not None and not annealing >= 1.0:
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
     budget = budget or Budget(generations=1600)
-    model = target.configure(model)
+    unconfigured, model = model, target.configure(model)
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
     check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)
@@ -599,12 +603,12 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                 "tempering": tempering, "annealing": annealing,
                 "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
                 "p_resample": p_resample, "incremental": incremental}
-    workers = min(workers, chains) if fork_available() else 1  # groups are forked processes
+    workers = min(workers, chains)
     if workers > 1:
         if executor is not None:
             raise InvalidArgumentError("pass either an executor (proposals evaluated in a pool) or workers > 1 "
                                        "(chains in processes of their own), not both")
-        return _mcmc_on_workers(model, target, chains, workers, seed, budget, settings, progress)
+        return _mcmc_on_workers(unconfigured, target, chains, workers, seed, budget, settings, progress)
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
@@ -640,13 +644,13 @@ def _mcmc_on_workers(model, target, chains: int, workers: int, seed, budget: Bud
     options = {k: settings[k] for k in ("p_diffusion", "step_scale", "tempering", "annealing", "anneal_every",
                                         "delayed_rejection", "p_resample", "incremental")}
 
-    def run_group(group: int, group_chains: int, group_budget: Budget) -> Result:
+    def run_group(group: int, group_chains: int, group_budget: Budget, group_progress) -> Result:
         return mcmc(model, target, chains=group_chains, seed=seed if group == 0 else [seed, group],
-                    budget=group_budget, progress=progress if group == 0 else None, **options)
+                    budget=group_budget, progress=group_progress, **options)
 
     t0 = time.perf_counter()
     best, best_score, samples, log_weights, history, evaluations, moves, notes = run_groups(
-        run_group, model, target, chains, workers, budget)
+        run_group, model, target, chains, workers, budget, progress)
     rates = {kind: (accepted / proposed if proposed else None) for kind, (accepted, proposed) in moves.items()}
     return Result("mcmc", best, best_score, samples, history, time.perf_counter() - t0, evaluations,
                   settings={**settings, "workers": workers, "acceptance_rates": rates, "moves": moves},

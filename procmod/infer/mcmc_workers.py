@@ -43,14 +43,27 @@ class _Group:
                                        name=f"procmod-mcmc-group-{index}", daemon=True)
         self.process.start()
         child.close()
+        self._reply = None
+
+    def _receive(self) -> tuple:
+        if self._reply is None:
+            try:
+                self._reply = self.conn.recv()
+            except (EOFError, ConnectionResetError, OSError):
+                self.process.join(timeout=1)
+                self._reply = ("error", RuntimeError(
+                    f"MCMC worker process {self.index} ended unexpectedly (exit code {self.process.exitcode}); "
+                    "rerun with workers=1 to run in one process"))
+        return self._reply
+
+    def failed(self) -> bool:
+        """Whether the worker has answered with a failure (or died), without waiting."""
+        if self._reply is None and not self.conn.poll():
+            return False
+        return self._receive()[0] == "error"
 
     def result(self) -> dict:
-        try:
-            status, reply = self.conn.recv()
-        except (EOFError, ConnectionResetError) as exc:
-            self.process.join(timeout=1)
-            raise RuntimeError(f"MCMC worker process {self.index} ended unexpectedly (exit code "
-                               f"{self.process.exitcode}); rerun with workers=1 to run in one process") from exc
+        status, reply = self._receive()
         if status == "error":
             raise reply
         return reply
@@ -122,19 +135,36 @@ def merged_history(histories: list, chains: list) -> list:
     return out
 
 
-def run_groups(run_group, model, target, chains: int, workers: int, budget: Budget) -> tuple:
-    """Run ``workers`` groups of the ``chains`` chains: ``run_group(group, chains, budget)``
-    returns a group's :class:`Result` (group 0 runs here, the others in forked workers).
+def run_groups(run_group, model, target, chains: int, workers: int, budget: Budget, progress=None) -> tuple:
+    """Run ``workers`` groups of the ``chains`` chains: ``run_group(group, chains, budget,
+    progress)`` returns a group's :class:`Result` (group 0 runs here, with ``progress``,
+    the others in forked workers).
+
+    A stop requested through ``progress`` (:meth:`Tracker.request_stop`) reaches every
+    group, and a group that fails stops the others, each at its next budget check.
 
     Returns ``(best derivation, best score, samples, log-weights, history, evaluations,
     move counts, notes)`` over all groups."""
     sizes = split_evenly(chains, workers)
+    stop = multiprocessing.get_context("fork").Event()
     remote = []
+
+    def follow(tracker):  # the workers' progress callback: only listens for a stop
+        if stop.is_set():
+            tracker.request_stop()
+
+    def watch(tracker):  # this process's: the caller's callback, then stops both ways
+        if progress is not None:
+            progress(tracker)
+        if tracker.stop_requested or any(group.failed() for group in remote):
+            tracker.request_stop()
+            stop.set()
+
     done = False
     try:
         for g in range(1, workers):
-            remote.append(_Group(g, lambda g=g: run_group(g, sizes[g], group_budget(budget, g, workers))))
-        local = run_group(0, sizes[0], group_budget(budget, 0, workers))
+            remote.append(_Group(g, lambda g=g: run_group(g, sizes[g], group_budget(budget, g, workers), follow)))
+        local = run_group(0, sizes[0], group_budget(budget, 0, workers), watch)
         packs = [_packed(local)] + [group.result() for group in remote]
         done = True
     finally:
