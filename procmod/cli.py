@@ -90,6 +90,9 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="processes that step the particles (smc, sosmc) or run the chains (mcmc: "
                             "one chain each unless --chains says otherwise); default 1: this one; more help "
                             "where the cores are real and idle (README, 'SMC on several cores')")
+    infer.add_argument("--init-particles", type=_int_arg,
+                       help="mcmc: the chains start from the best derivations of an SMC run of this many "
+                            "particles (default 100; it counts against --budget); 0: from forward samples")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
     _add_overwrite(infer)
@@ -251,6 +254,12 @@ def _cmd_infer(args) -> None:
             kwargs["chains"] = kwargs["workers"]  # one chain per worker
     elif args.workers is not None:
         raise InvalidArgumentError(f"--workers applies to --engine smc, sosmc or mcmc, not {args.engine}")
+    if args.init_particles is not None:
+        if args.engine != "mcmc":
+            raise InvalidArgumentError(f"--init-particles applies to --engine mcmc, not {args.engine}")
+        if args.init_particles < 0:
+            raise InvalidArgumentError(f"--init-particles must be 0 or more, got {args.init_particles}")
+        kwargs["init_particles"] = args.init_particles
     size = check_size(args.size)
     budget = parse_budget(args.budget) if args.budget is not None else None
     if args.guide is not None:

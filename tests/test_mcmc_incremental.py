@@ -207,3 +207,25 @@ def test_redrawing_a_coins_old_value_costs_no_replay(monkeypatch):
     assert result.evaluations == moves + 1  # the first state, then one proposal per move
     # Binomial(moves, 1/2) replays; five standard deviations either side
     assert abs(len(replays) - moves / 2) < 5 * math.sqrt(moves / 4)
+
+
+def test_chains_start_from_the_best_derivations_of_an_smc_run():
+    from procmod.infer import smc
+    from procmod.infer.common import new_seed
+
+    model, target = get_model("vines"), _bar_target()
+    # a budget the start already spends: the chains are where they started
+    result = mcmc(model, target, chains=3, seed=4, budget=Budget(evaluations=1), tempering=False)
+    start = smc(model, target, particles=100, seed=new_seed(np.random.default_rng(4)))
+    assert result.evaluations == start.evaluations + 3  # the SMC run's, then one per chain's first state
+    assert result.best_score == start.best_score
+    assert result.samples[0].choice_map() == start.best.choice_map()
+    ranked = sorted(start.samples, key=lambda s: -target.score(s.output))
+    assert result.samples[1].choice_map() != result.samples[0].choice_map()
+    assert target.score(result.samples[1].output) <= start.best_score
+    assert target.score(result.samples[2].output) <= target.score(ranked[0].output) + 1e-12
+    # init_particles=0: forward samples, as before
+    prior = mcmc(model, target, chains=3, seed=4, budget=Budget(evaluations=1), tempering=False, init_particles=0)
+    assert prior.evaluations == 3 and prior.best_score < start.best_score
+    with pytest.raises(InvalidArgumentError, match="init_particles"):
+        mcmc(model, target, init_particles=-1)

@@ -28,8 +28,9 @@ def scribble():
 
 def test_first_group_is_the_one_process_chain(scribble):
     model = get_model("vines")
-    both = mcmc(model, scribble, seed=3, budget=Budget(evaluations=600), workers=2)
-    alone = mcmc(model, scribble, seed=3, budget=Budget(evaluations=300))
+    # started from forward samples (init_particles=0), so that the budget is all moves
+    both = mcmc(model, scribble, seed=3, budget=Budget(evaluations=600), workers=2, init_particles=0)
+    alone = mcmc(model, scribble, seed=3, budget=Budget(evaluations=300), init_particles=0)
     assert both.settings["workers"] == 2 and both.settings["chains"] == 2
     assert both.evaluations == 600 and len(both.samples) == 2 and len(both.log_weights) == 2
     assert both.samples[0].choice_map() == alone.samples[0].choice_map()

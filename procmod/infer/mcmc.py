@@ -98,6 +98,8 @@ HOTTEST_ACCEPTANCE = 0.7
 COLDEST_ACCEPTANCE = 0.01
 T_MAX = math.log(COLDEST_ACCEPTANCE) / math.log(HOTTEST_ACCEPTANCE)  # ~12.9
 TOGGLE_SHARE = 0.5  # of the jumps, where the state has a maybe site
+# SMC particles whose best derivations the chains start from (mcmc's init_particles)
+INIT_PARTICLES = 100
 
 MOVES = ("diffusion", "resample", "regenerate", "toggle")
 
@@ -527,7 +529,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
          p_diffusion: float = 0.3, step_scale: float = 0.1, tempering: bool = True,
          annealing: float | None = 1.1, anneal_every: int = 50, delayed_rejection: bool = False,
          executor=None, progress=None, p_resample: float = 0.3, incremental: bool | None = None,
-         workers: int = 1) -> Result:
+         workers: int = 1, init_particles: int = INIT_PARTICLES) -> Result:
     """Reversible-jump MCMC with parallel tempering and annealing.
 
     The defaults (one chain; diffusion 0.3, single-site resample 0.3, jumps the rest)
@@ -568,6 +570,14 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
         the same chain, bit for bit, at a cost proportional to what the move changes.
         Default: on, unless an ``executor`` or ``delayed_rejection`` is given (both
         replay whole derivations).
+    init_particles : int
+        Where the chains start: the best complete derivations of one SMC run of this many
+        particles on the same target (default 100; chain ``c`` takes the ``c``-th best), or,
+        with 0, forward samples from the prior (Talton et al.'s and WebPPL's MH start). A
+        chain started from a forward sample spends its first moves, often all of them on an
+        image target, growing what SMC finds in a fraction of a second (docs/vines_smc.md).
+        The SMC run's evaluations and time count against the budget; the stationary
+        distribution is the same either way.
     workers : int
         Processes that run chains (default 1: this one). With ``W > 1`` the chains are
         split into ``W`` groups run side by side, this process running the first and
@@ -580,6 +590,8 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InvalidArgumentError(f"workers must be a positive integer, got {workers!r}")
+    if isinstance(init_particles, bool) or not isinstance(init_particles, int) or init_particles < 0:
+        raise InvalidArgumentError(f"init_particles must be a non-negative integer, got {init_particles!r}")
     if not fork_available():
         workers = 1  # groups are forked processes; elsewhere the run stays in this one
     if chains is None:
@@ -602,7 +614,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                 "p_diffusion": p_diffusion, "step_scale": step_scale,
                 "tempering": tempering, "annealing": annealing,
                 "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
-                "p_resample": p_resample, "incremental": incremental}
+                "p_resample": p_resample, "incremental": incremental, "init_particles": init_particles}
     workers = min(workers, chains)
     if workers > 1:
         if executor is not None:
@@ -613,11 +625,13 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
     with relaxed_gc():
-        if incremental:  # the same initial states as evaluate_all's forward runs
-            states = [trace(model, target, {}, np.random.default_rng(new_seed(rng))) for _ in range(chains)]
+        starts = ([{}] * chains if not init_particles else
+                  _smc_starts(unconfigured, target, init_particles, new_seed(rng), chains, tracker))
+        if incremental:  # the same initial states as evaluate_all's runs
+            states = [trace(model, target, starts[c], np.random.default_rng(new_seed(rng))) for c in range(chains)]
         else:
             states = [Scored.from_evaluation(ev) for ev in
-                      evaluate_all(executor, model, target, [({}, new_seed(rng), None) for _ in range(chains)])]
+                      evaluate_all(executor, model, target, [(starts[c], new_seed(rng), None) for c in range(chains)])]
         tracker.evaluations += chains
         for s in states:
             tracker.offer(s.derivation, s.score)
@@ -638,11 +652,36 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                   log_weights=[s.log_likelihood for s in run.states])
 
 
+def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: Tracker) -> list:
+    """The choice maps ``chains`` chains start from: the best complete derivations of one
+    SMC run of ``particles`` particles, best first, repeated if there are fewer distinct
+    ones than chains. The run's evaluations count in ``tracker``; its best is offered."""
+    from .smc import smc  # (smc imports nothing of mcmc; imported here to keep start-up light)
+
+    result = smc(model, target, particles=particles, seed=seed)
+    tracker.evaluations += result.evaluations
+    if result.best is None:
+        return [{}] * chains
+    tracker.offer(result.best, result.best_score)
+    score = target.score
+    ranked = [result.best] + sorted(result.samples, key=lambda s: -score(s.output))
+    maps, seen = [], set()
+    for derivation in ranked:
+        choices = derivation.choice_map().raw
+        key = tuple(sorted(choices.items(), key=repr))
+        if key not in seen:
+            seen.add(key)
+            maps.append(choices)
+        if len(maps) == chains:
+            break
+    return [maps[c % len(maps)] for c in range(chains)]
+
+
 def _mcmc_on_workers(model, target, chains: int, workers: int, seed, budget: Budget, settings: dict,
                      progress) -> Result:
     """:func:`mcmc` with its chains in ``workers`` groups (:mod:`procmod.infer.mcmc_workers`)."""
     options = {k: settings[k] for k in ("p_diffusion", "step_scale", "tempering", "annealing", "anneal_every",
-                                        "delayed_rejection", "p_resample", "incremental")}
+                                        "delayed_rejection", "p_resample", "incremental", "init_particles")}
 
     def run_group(group: int, group_chains: int, group_budget: Budget, group_progress) -> Result:
         return mcmc(model, target, chains=group_chains, seed=seed if group == 0 else [seed, group],
