@@ -277,6 +277,8 @@ def _cmd_infer(args) -> None:
     if wanted in kwargs:
         # an incremental MCMC chain holds three outputs at least (procmod.infer.mcmc)
         check_population(f"--{wanted}", kwargs[wanted], empty, copies=3 if wanted == "chains" else 1)
+    if kwargs.get("init_particles"):
+        check_population("--init-particles", kwargs["init_particles"], empty)
     with _progress_bar(budget) as progress:
         result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
     if result.best is None:

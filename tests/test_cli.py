@@ -144,6 +144,8 @@ def test_infer_circuit_target(tmp_path, capsys):
     (["infer", "vines", "--target", "glyph:a", "--workers", "0"], "--workers must be a positive"),
     (["infer", "vines", "--target", "glyph:a", "--init-particles", "10"], "--init-particles applies"),
     (["infer", "vines", "--target", "glyph:a", "--engine", "mcmc", "--init-particles", "-1"], "0 or more"),
+    (["infer", "vines", "--target", "glyph:a", "--engine", "mcmc", "--init-particles", "900000000"],
+     "--init-particles 900,000,000 would need"),
 ])
 def test_bad_infer_arguments(tmp_path, capsys, argv, message):
     err = _bad(tmp_path, capsys, *argv, "--out", str(tmp_path / "out"))

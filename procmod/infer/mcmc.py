@@ -618,6 +618,8 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
     check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)
+    if init_particles:  # the SMC run the chains start from holds its particles at once
+        check_population("init_particles", init_particles, target.new_output(model))
     settings = {"chains": chains, "seed": seed, "budget": budget.describe(),
                 "p_diffusion": p_diffusion, "step_scale": step_scale,
                 "tempering": tempering, "annealing": annealing,
