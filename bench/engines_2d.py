@@ -32,7 +32,7 @@ SETTINGS = {
     "forward": {"particles": 100},
     "smc": {"particles": 600},
     "sosmc": {"particles": 600},
-    "mcmc": {"chains": 8},
+    "mcmc": {"chains": 8, "init_particles": 0},  # as measured before chains started from an SMC run
     "ga": {"population": 200},
 }
 REPORT_AT = (1.0, 5.0, 30.0)
