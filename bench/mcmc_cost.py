@@ -45,7 +45,7 @@ def main() -> None:
     configured = target.configure(model)
     rows = []
     for evaluations in args.runs:
-        run = mcmc(model, target, seed=1, budget=Budget(evaluations=evaluations))
+        run = mcmc(model, target, seed=1, budget=Budget(evaluations=evaluations), init_particles=0)  # grown by moves
         state = trace(configured, target, run.samples[0].choice_map().raw, np.random.default_rng(0))
         rng = np.random.default_rng(0)
         moves = [propose(state, rng, 0.3, 0.1, 0.3) for _ in range(args.moves)]

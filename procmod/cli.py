@@ -92,7 +92,7 @@ def _build_parser() -> argparse.ArgumentParser:
                             "where the cores are real and idle (README, 'SMC on several cores')")
     infer.add_argument("--init-particles", type=_int_arg,
                        help="mcmc: the chains start from the best derivations of an SMC run of this many "
-                            "particles (default 100; it counts against --budget); 0: from forward samples")
+                            "particles (default 100; its time counts against --budget); 0: from forward samples")
     infer.add_argument("--out", required=True, help="output folder")
     infer.add_argument("--size", type=_int_arg, default=512, help="render width in pixels (default 512)")
     _add_overwrite(infer)

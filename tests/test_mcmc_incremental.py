@@ -214,10 +214,11 @@ def test_chains_start_from_the_best_derivations_of_an_smc_run():
     from procmod.infer.common import new_seed
 
     model, target = get_model("vines"), _bar_target()
-    # a budget the start already spends: the chains are where they started
+    # a budget of one evaluation: the chains' first states (an MCMC evaluation is a proposal;
+    # the SMC run's particle-steps are reported apart), so they are where they started
     result = mcmc(model, target, chains=3, seed=4, budget=Budget(evaluations=1), tempering=False)
     start = smc(model, target, particles=100, seed=new_seed(np.random.default_rng(4)))
-    assert result.evaluations == start.evaluations + 3  # the SMC run's, then one per chain's first state
+    assert result.evaluations == 3 and result.settings["init_evaluations"] == start.evaluations
     assert result.best_score == start.best_score
     assert result.samples[0].choice_map() == start.best.choice_map()
     ranked = sorted(start.samples, key=lambda s: -target.score(s.output))
@@ -227,5 +228,9 @@ def test_chains_start_from_the_best_derivations_of_an_smc_run():
     # init_particles=0: forward samples, as before
     prior = mcmc(model, target, chains=3, seed=4, budget=Budget(evaluations=1), tempering=False, init_particles=0)
     assert prior.evaluations == 3 and prior.best_score < start.best_score
+    assert prior.settings["init_evaluations"] == 0
+    # an evaluations budget is one in moves, whatever the start cost
+    moved = mcmc(model, target, seed=4, budget=Budget(evaluations=200))
+    assert moved.evaluations == 200 and sum(p for _, p in moved.settings["moves"].values()) == 199
     with pytest.raises(InvalidArgumentError, match="init_particles"):
         mcmc(model, target, init_particles=-1)

@@ -28,7 +28,7 @@ def scribble():
 
 def test_first_group_is_the_one_process_chain(scribble):
     model = get_model("vines")
-    # started from forward samples (init_particles=0), so that the budget is all moves
+    # started from forward samples (init_particles=0): the one-process chain of the same seed
     both = mcmc(model, scribble, seed=3, budget=Budget(evaluations=600), workers=2, init_particles=0)
     alone = mcmc(model, scribble, seed=3, budget=Budget(evaluations=300), init_particles=0)
     assert both.settings["workers"] == 2 and both.settings["chains"] == 2

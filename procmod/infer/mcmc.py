@@ -584,8 +584,9 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
         with 0, forward samples from the prior (Talton et al.'s and WebPPL's MH start). A
         chain started from a forward sample spends its first moves, often all of them on an
         image target, growing what SMC finds in a fraction of a second (docs/vines_smc.md).
-        The SMC run's evaluations and time count against the budget; the stationary
-        distribution is the same either way.
+        The SMC run's time counts against the budget, its particle-steps do not (an MCMC
+        evaluation is one proposal; they are in ``settings["init_evaluations"]``); the
+        stationary distribution is the same either way.
     workers : int
         Processes that run chains (default 1: this one). With ``W > 1`` the chains are
         split into ``W`` groups run side by side, this process running the first and
@@ -635,8 +636,8 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
     with relaxed_gc():
-        starts = ([{}] * chains if not init_particles else
-                  _smc_starts(unconfigured, target, init_particles, new_seed(rng), chains, tracker))
+        starts, init_evaluations = (([{}] * chains, 0) if not init_particles else
+                                    _smc_starts(unconfigured, target, init_particles, new_seed(rng), chains, tracker))
         if incremental:  # the same initial states as evaluate_all's runs
             states = [trace(model, target, starts[c], np.random.default_rng(new_seed(rng))) for c in range(chains)]
         else:
@@ -658,23 +659,28 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     moves = {kind: (run.accepted[kind], run.proposed[kind]) for kind in run.accepted}
     return Result("mcmc", tracker.best, tracker.best_score, [s.derivation for s in run.states],
                   tracker.rows, tracker.seconds, tracker.evaluations,
-                  settings={**settings, "workers": 1, "acceptance_rates": run.acceptance_rates(), "moves": moves},
+                  settings={**settings, "workers": 1, "acceptance_rates": run.acceptance_rates(), "moves": moves,
+                            "init_evaluations": init_evaluations},
                   log_weights=[s.log_likelihood for s in run.states])
 
 
-def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: Tracker) -> list:
-    """The choice maps ``chains`` chains start from: the best complete derivations of one
-    SMC run of ``particles`` particles, best first, repeated if there are fewer distinct
-    ones than chains. The run's evaluations count in ``tracker``; its best is offered."""
+def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: Tracker) -> tuple:
+    """``(choice maps, evaluations)``: the maps ``chains`` chains start from, the best
+    complete derivations of one SMC run of ``particles`` particles, best first, repeated if
+    there are fewer distinct ones than chains; and the particle-steps the run took.
+
+    Its best is offered to ``tracker``; its evaluations are not counted there, because an
+    MCMC evaluation is one proposal (a budget in evaluations is one in moves); its time
+    is, as every second of the run is."""
     from .smc import smc  # (smc imports nothing of mcmc; imported here to keep start-up light)
 
     result = smc(model, target, particles=particles, seed=seed)
-    tracker.evaluations += result.evaluations
     if result.best is None:
-        return [{}] * chains
+        return [{}] * chains, result.evaluations
     tracker.offer(result.best, result.best_score)
     score = target.score
-    ranked = [result.best] + sorted(result.samples, key=lambda s: -score(s.output))
+    # complete particles only (a run where every particle reached zero likelihood ends early)
+    ranked = [result.best] + sorted((s for s in result.samples if s.done), key=lambda s: -score(s.output))
     maps, seen = [], set()
     for derivation in ranked:
         choices = derivation.choice_map().raw
@@ -684,7 +690,7 @@ def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: 
             maps.append(choices)
         if len(maps) == chains:
             break
-    return [maps[c % len(maps)] for c in range(chains)]
+    return [maps[c % len(maps)] for c in range(chains)], result.evaluations
 
 
 def _mcmc_on_workers(model, target, chains: int, workers: int, seed, budget: Budget, settings: dict,
@@ -698,9 +704,10 @@ def _mcmc_on_workers(model, target, chains: int, workers: int, seed, budget: Bud
                     budget=group_budget, progress=group_progress, **options)
 
     t0 = time.perf_counter()
-    best, best_score, samples, log_weights, history, evaluations, moves, notes = run_groups(
+    best, best_score, samples, log_weights, history, evaluations, moves, init_evaluations, notes = run_groups(
         run_group, model, target, chains, workers, budget, progress)
     rates = {kind: (accepted / proposed if proposed else None) for kind, (accepted, proposed) in moves.items()}
     return Result("mcmc", best, best_score, samples, history, time.perf_counter() - t0, evaluations,
-                  settings={**settings, "workers": workers, "acceptance_rates": rates, "moves": moves},
+                  settings={**settings, "workers": workers, "acceptance_rates": rates, "moves": moves,
+                            "init_evaluations": init_evaluations},
                   log_weights=log_weights, notes=notes)

@@ -101,7 +101,8 @@ def _packed(result: Result) -> dict:
             "log_weights": result.log_weights,
             "history": [tuple(r) for r in result.history],
             "evaluations": result.evaluations, "seconds": result.seconds,
-            "moves": result.settings["moves"], "notes": result.notes}
+            "moves": result.settings["moves"], "init_evaluations": result.settings["init_evaluations"],
+            "notes": result.notes}
 
 
 def group_budget(budget: Budget, group: int, groups: int) -> Budget:
@@ -144,7 +145,7 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
     group, and a group that fails stops the others, each at its next budget check.
 
     Returns ``(best derivation, best score, samples, log-weights, history, evaluations,
-    move counts, notes)`` over all groups."""
+    move counts, evaluations of the SMC starts, notes)`` over all groups."""
     sizes = split_evenly(chains, workers)
     stop = multiprocessing.get_context("fork").Event()
     remote = []
@@ -191,6 +192,7 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
             moves[kind] = (a + accepted, p + proposed)
     notes = [n for pack in packs for n in pack["notes"]]
     evaluations = sum(pack["evaluations"] for pack in packs)
+    init_evaluations = sum(pack["init_evaluations"] for pack in packs)
     if best_score == -math.inf:
         best = None
-    return best, best_score, samples, log_weights, history, evaluations, moves, notes
+    return best, best_score, samples, log_weights, history, evaluations, moves, init_evaluations, notes
