@@ -619,14 +619,14 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
     check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)
-    if init_particles:  # the SMC run the chains start from holds its particles at once
-        check_population("init_particles", init_particles, target.new_output(model))
     settings = {"chains": chains, "seed": seed, "budget": budget.describe(),
                 "p_diffusion": p_diffusion, "step_scale": step_scale,
                 "tempering": tempering, "annealing": annealing,
                 "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,
                 "p_resample": p_resample, "incremental": incremental, "init_particles": init_particles}
     workers = min(workers, chains)
+    if init_particles:  # each group's SMC start holds its particles at once, all groups together
+        check_population("init_particles", init_particles, target.new_output(model), copies=workers)
     if workers > 1:
         if executor is not None:
             raise InvalidArgumentError("pass either an executor (proposals evaluated in a pool) or workers > 1 "
