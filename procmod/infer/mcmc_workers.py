@@ -93,16 +93,18 @@ def _group_main(conn, index: int, run, parent: int) -> None:
     conn.close()
 
 
-def _packed(result: Result) -> dict:
-    """What a group's result needs to travel: choice maps, not derivations."""
-    return {"best": None if result.best is None else result.best.choice_map().raw,
-            "best_score": result.best_score,
-            "samples": [s.choice_map().raw for s in result.samples],
-            "log_weights": result.log_weights,
-            "history": [tuple(r) for r in result.history],
-            "evaluations": result.evaluations, "seconds": result.seconds,
+def _summary(result: Result) -> dict:
+    """What the merge reads of every group's result besides its derivations."""
+    return {"best_score": result.best_score, "log_weights": result.log_weights,
+            "history": [tuple(r) for r in result.history], "evaluations": result.evaluations,
             "moves": result.settings["moves"], "init_evaluations": result.settings["init_evaluations"],
             "notes": result.notes}
+
+
+def _packed(result: Result) -> dict:
+    """What a worker's result needs to travel: its summary, and choice maps, not derivations."""
+    return {**_summary(result), "best": None if result.best is None else result.best.choice_map().raw,
+            "samples": [s.choice_map().raw for s in result.samples]}
 
 
 def group_budget(budget: Budget, group: int, groups: int) -> Budget:
@@ -166,7 +168,7 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
         for g in range(1, workers):
             remote.append(_Group(g, lambda g=g: run_group(g, sizes[g], group_budget(budget, g, workers), follow)))
         local = run_group(0, sizes[0], group_budget(budget, 0, workers), watch)
-        packs = [_packed(local)] + [group.result() for group in remote]
+        packs = [_summary(local)] + [group.result() for group in remote]  # this group's stay whole
         done = True
     finally:
         for group in remote:
