@@ -88,6 +88,7 @@ def procmod_command() -> list:
 
 def target_images(sets: list, count: int, targets_dir: Path | None, scribble_first: int) -> dict:
     """``set name -> [TargetImage]``."""
+    from procmod.core import ProcmodError
     from procmod.data import glyph_set, scribble_set
     from procmod.targets import load_target_image
 
@@ -107,9 +108,15 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
     if targets_dir is not None:
         files = sorted(p for p in targets_dir.iterdir()
                        if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff"))
-        if not files:
-            sys.exit(f"vs_webppl: no target pictures in {targets_dir}")
-        out[targets_dir.name] = [load_target_image(p) for p in files]
+        loaded = []
+        for path in files:
+            try:
+                loaded.append(load_target_image(path))
+            except ProcmodError as error:  # a blank or unreadable picture: say so, bench the rest
+                print(f"vs_webppl: skipping {path.name}: {error}", file=sys.stderr)
+        if not loaded:
+            sys.exit(f"vs_webppl: no usable target pictures in {targets_dir}")
+        out[targets_dir.name] = loaded
     return out
 
 
@@ -191,9 +198,12 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
     geometry = procmod_geometry(out / "best.json")
     settings = json.loads((out / "settings.json").read_text())
     # infer_seconds: the engine's own time, as procmod reports it (WebPPL's rows: its Infer call)
-    return {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": settings["best_score"],
-            "primitives": len(geometry), "infer_seconds": settings["seconds"],
-            "workers": settings["settings"].get("workers")}
+    row = {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": settings["best_score"],
+           "primitives": len(geometry), "infer_seconds": settings["seconds"],
+           "workers": settings["settings"].get("workers")}
+    if engine in ("smc", "sosmc"):  # particle-steps: a particle advanced to its next emit or to its end
+        row["steps"] = settings["evaluations"]
+    return row
 
 
 def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: int, seed: int,
@@ -205,9 +215,12 @@ def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: 
     command += ["--particles", str(n)] if method == "SMC" else ["--samples", str(n)]
     seconds = timed(command)
     result = json.loads(out.read_text())
-    return {"seconds": seconds, "similarity": scorer.score(result["geometry"], mask),
-            "own_score": result["similarity"], "primitives": len(result["geometry"]),
-            "infer_seconds": result["inferSeconds"]}
+    row = {"seconds": seconds, "similarity": scorer.score(result["geometry"], mask),
+           "own_score": result["similarity"], "primitives": len(result["geometry"]),
+           "infer_seconds": result["inferSeconds"]}
+    if method == "SMC":  # procmod's unit: a particle advanced to its next factor, or to its end
+        row["steps"] = result["factors"] + result["finished"]
+    return row
 
 
 # ---- summaries ------------------------------------------------------------------------
@@ -230,12 +243,21 @@ def summarise(rows: list, key_fields: tuple) -> list:
         beyond = [r["beyond_seconds"] if "beyond_seconds" in r else r["budget_seconds"] for r in group]
         infer = [r["infer_seconds"] for r in group if r.get("infer_seconds") is not None]
         n_seeds = len({r["seed"] for r in group})
+        # in-process seconds and particle-steps beyond the 1-particle run (its set-up cancels)
+        timed_steps = [(r["infer_seconds"] - r["baseline_infer_seconds"], r["steps"] - r["baseline_steps"])
+                       for r in group if r.get("steps") and r.get("baseline_steps") is not None
+                       and r.get("infer_seconds") is not None and r.get("baseline_infer_seconds") is not None]
         out.append({**dict(zip(key_fields, key)), "runs": len(group),
                     "similarity_median": median_interval([r["similarity"] for r in group], rng),
                     "beyond_seconds_median": float(np.median(beyond)),
                     "beyond_seconds_per_set": float(np.sum(beyond) / n_seeds),
                     # in-process inference time (rows that recorded it): procmod's engine, WebPPL's Infer
                     "infer_seconds_median": float(np.median(infer)) if infer else None,
+                    # the work both systems do, in one unit, and what a unit costs in process
+                    "steps_median": (float(np.median([r["steps"] for r in group])) if all("steps" in r for r in group)
+                                     else None),
+                    "infer_us_per_step": (1e6 * sum(t for t, _ in timed_steps) / sum(n for _, n in timed_steps)
+                                          if timed_steps and sum(n for _, n in timed_steps) > 0 else None),
                     "wall_seconds_median": float(np.median([r["seconds"] for r in group]))})
     return out
 
@@ -414,12 +436,14 @@ def main() -> None:
                     if all(k in done for k in keys):
                         rows.extend(done[k] for k in keys)
                         continue
-                    base = run(1)["seconds"]
+                    base = run(1)
                     for n in counts:
                         r = run(n)
                         record({"system": system, "method": method, "set": set_name, "target": label,
-                                "n": n, "seed": seed, **r, "baseline_seconds": base,
-                                "beyond_seconds": r["seconds"] - base})
+                                "n": n, "seed": seed, **r, "baseline_seconds": base["seconds"],
+                                "beyond_seconds": r["seconds"] - base["seconds"],
+                                "baseline_infer_seconds": base.get("infer_seconds"),
+                                "baseline_steps": base.get("steps")})
 
     mcmc_rows = []
     mcmc_path = work / "mcmc_rows.jsonl"
@@ -478,7 +502,8 @@ def main() -> None:
     for s in summary:
         m = s["similarity_median"]
         print(f"{s['system']:>13} {s['set']:>10} n={s['n']:<5} median {m[0]:.3f} [{m[1]:.3f}, {m[2]:.3f}]  "
-              f"beyond-1 per set {s['beyond_seconds_per_set']:7.2f} s")
+              f"beyond-1 per set {s['beyond_seconds_per_set']:7.2f} s"
+              + (f"  {s['infer_us_per_step']:.1f} us per step beyond 1 particle, in process" if s.get("infer_us_per_step") else ""))
     print(f"wrote {RESULTS / (args.name + '.json')}")
 
 

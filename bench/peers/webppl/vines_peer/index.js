@@ -142,6 +142,7 @@ function similarity(target, canvas) {
 }
 
 function logLikelihood(target, canvas) {
+  best.factors += 1;  // one per emit: the factor count, comparable with procmod's particle-steps
   var d = similarity(target, canvas) - 1;
   var ll = -(d * d) / (SIGMA * SIGMA);
   var b = canvas.bbox;
@@ -156,7 +157,7 @@ function logLikelihood(target, canvas) {
 // The best complete output seen (by the program's own similarity), kept outside the
 // particles: every particle that finishes reports here, as procmod's engines offer every
 // complete derivation to their tracker.
-var best = {similarity: -Infinity, canvas: null, finished: 0};
+var best = {similarity: -Infinity, canvas: null, finished: 0, factors: 0};
 
 function finished(target, canvas) {
   best.finished += 1;
@@ -177,7 +178,7 @@ function geometryList(canvas) {
 }
 
 function writeResult(path, extra) {
-  var result = {similarity: best.similarity, finished: best.finished,
+  var result = {similarity: best.similarity, finished: best.finished, factors: best.factors,
                 geometry: geometryList(best.canvas)};
   for (var key in extra) { result[key] = extra[key]; }
   var tmp = path + '.tmp';
