@@ -9,6 +9,7 @@ folder with ``--overwrite``) or refused, never mixed.
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import shlex
 import sys
@@ -90,6 +91,10 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="processes that step the particles (smc, sosmc) or run the chains (mcmc: "
                             "one chain each unless --chains says otherwise); default 1: this one; more help "
                             "where the cores are real and idle (README, 'SMC on several cores')")
+    infer.add_argument("--ess-threshold", metavar="FRACTION|every|auto",
+                       help="smc, sosmc: resample when the effective sample size falls below this fraction "
+                            "of the particles; 'every': at every emit; default auto: every emit without a "
+                            "guide, below 0.5 with one")
     infer.add_argument("--init-particles", type=_int_arg,
                        help="mcmc: the chains start from the best derivations of an SMC run of this many "
                             "particles (default 100; its time counts against --budget); 0: from forward samples")
@@ -109,6 +114,19 @@ def _build_parser() -> argparse.ArgumentParser:
     for register in (register_guide, register_learn, register_strings):
         register(sub, _int_arg)
     return parser
+
+
+def _ess_threshold_arg(text: str):
+    """``--ess-threshold``: a fraction in (0, 1], ``every`` (None) or ``auto``."""
+    if text in ("every", "auto"):
+        return None if text == "every" else "auto"
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value <= 1:
+        raise InvalidArgumentError(f"--ess-threshold takes a fraction in (0, 1], 'every' or 'auto', got {_shown(text)}")
+    return value
 
 
 def _cmd_models(args) -> None:
@@ -254,6 +272,10 @@ def _cmd_infer(args) -> None:
             kwargs["chains"] = kwargs["workers"]  # one chain per worker
     elif args.workers is not None:
         raise InvalidArgumentError(f"--workers applies to --engine smc, sosmc or mcmc, not {args.engine}")
+    if args.ess_threshold is not None:
+        if args.engine not in ("smc", "sosmc"):
+            raise InvalidArgumentError(f"--ess-threshold applies to --engine smc or sosmc, not {args.engine}")
+        kwargs["ess_threshold"] = _ess_threshold_arg(args.ess_threshold)
     if args.init_particles is not None:
         if args.engine != "mcmc":
             raise InvalidArgumentError(f"--init-particles applies to --engine mcmc, not {args.engine}")

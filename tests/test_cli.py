@@ -146,6 +146,10 @@ def test_infer_circuit_target(tmp_path, capsys):
     (["infer", "vines", "--target", "glyph:a", "--engine", "mcmc", "--init-particles", "-1"], "0 or more"),
     (["infer", "vines", "--target", "glyph:a", "--engine", "mcmc", "--init-particles", "900000000"],
      "--init-particles 900,000,000 would need"),
+    (["infer", "vines", "--target", "glyph:a", "--ess-threshold", "1.5"], "--ess-threshold takes a fraction"),
+    (["infer", "vines", "--target", "glyph:a", "--ess-threshold", "half"], "--ess-threshold takes a fraction"),
+    (["infer", "vines", "--target", "glyph:a", "--engine", "ga", "--ess-threshold", "0.5"],
+     "--ess-threshold applies"),
 ])
 def test_bad_infer_arguments(tmp_path, capsys, argv, message):
     err = _bad(tmp_path, capsys, *argv, "--out", str(tmp_path / "out"))

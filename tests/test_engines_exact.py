@@ -59,6 +59,37 @@ ORDER_OBS, ORDER_S = 1.5, 1.0  # a gentle likelihood: a sharp one of the first p
 # would starve the states the second emit favours, a finite-N bias far beyond O(1/N)
 
 
+def test_smc_resampling_below_an_ess_threshold_matches_exact(monkeypatch):
+    # COUNT emits up to five times. Resampling only when the effective sample size falls
+    # below half the particles carries weights over the emits it skips (the default of
+    # guided runs); the weighted particles must still show the exact posterior over the
+    # number of calls, and skips must happen, or this is the every-emit test again. The
+    # likelihood is ORDER's gentle one (below): a sharp one of the first partial sum starves
+    # the longer derivations' states at 200 particles, every emit or not.
+    smc_module = importlib.import_module("procmod.infer.smc")
+    checks, resamples = [], []
+    real_ess, real_resample = smc_module.effective_sample_size, smc_module.resample
+    monkeypatch.setattr(smc_module, "effective_sample_size", lambda w: checks.append(1) or real_ess(w))
+    monkeypatch.setattr(smc_module, "resample", lambda *a: resamples.append(1) or real_resample(*a))
+    exact = count_exact(ORDER_OBS, ORDER_S)
+    runs, particles = 40, 200
+    estimates = []
+    for i in range(runs):
+        result = smc(COUNT, SumTarget(ORDER_OBS, ORDER_S), particles=particles, seed=700 + i, ess_threshold=0.5)
+        w = np.exp(np.array(result.log_weights) - max(result.log_weights))
+        w /= w.sum()
+        posterior = {}
+        for weight, d in zip(w, result.samples):
+            n = sum(1 for _, name in d.choice_map() if name == "v")
+            posterior[n] = posterior.get(n, 0.0) + weight
+        estimates.append(posterior)
+    assert 0 < len(resamples) < 0.8 * len(checks), (len(resamples), len(checks))
+    for n, p in exact.items():
+        values = np.array([e.get(n, 0.0) for e in estimates])
+        se = values.std(ddof=1) / math.sqrt(runs)
+        assert abs(values.mean() - p) < 5 * se + 2.0 / particles, (n, values.mean(), p, se)
+
+
 def _sosmc_on_order(target, runs=40, particles=200):
     """Per run of SOSMC on ORDER: the Z estimate, weighted P(k, child), weighted P(a first)."""
     zs, posteriors, a_first = [], [], []

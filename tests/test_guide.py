@@ -156,13 +156,15 @@ def _poor_guide():
     return guide
 
 
-def test_guided_smc_stays_unbiased_with_a_poor_guide():
+@pytest.mark.parametrize("ess_threshold", ["auto", None])  # guided default (adaptive), every emit
+def test_guided_smc_stays_unbiased_with_a_poor_guide(ess_threshold):
     obs, s = 2.3, 0.5
     z, exact = mix_exact(obs, s)
     guide = _poor_guide()
     runs = 400
-    estimates = np.array([math.exp(smc(MIX, SumTarget(obs, s), particles=8, seed=i, guide=guide)
-                                   .log_marginal_likelihood) for i in range(runs)])
+    estimates = np.array([math.exp(smc(MIX, SumTarget(obs, s), particles=8, seed=i, guide=guide,
+                                       ess_threshold=ess_threshold).log_marginal_likelihood)
+                          for i in range(runs)])
     se = estimates.std(ddof=1) / math.sqrt(runs)
     assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
     assert se < 0.1 * z
@@ -170,7 +172,8 @@ def test_guided_smc_stays_unbiased_with_a_poor_guide():
     runs, particles = 30, 300
     sums = {key: [] for key in exact}
     for i in range(runs):
-        r = smc(MIX, SumTarget(obs, s), particles=particles, seed=1000 + i, guide=guide)
+        r = smc(MIX, SumTarget(obs, s), particles=particles, seed=1000 + i, guide=guide,
+                ess_threshold=ess_threshold)
         w = np.exp(np.array(r.log_weights) - max(r.log_weights))
         w /= w.sum()
         got = {}
@@ -478,3 +481,16 @@ def test_invalidating_a_guide_read_from_its_npz_keeps_its_weights():
     for key, weights in guide.numpy_weights().items():
         for a, b in zip(weights, before[key]):
             np.testing.assert_array_equal(a, b)
+
+
+def test_guided_runs_resample_below_half_the_particles_by_default():
+    from procmod.core import InvalidArgumentError
+    from procmod.infer.smc import GUIDED_ESS_THRESHOLD
+    target = SumTarget(2.3, 0.5)
+    assert smc(MIX, target, particles=4, seed=0, guide=_poor_guide()).settings["ess_threshold"] \
+        == GUIDED_ESS_THRESHOLD
+    assert smc(MIX, target, particles=4, seed=0).settings["ess_threshold"] is None  # the papers' rule
+    assert smc(MIX, target, particles=4, seed=0, guide=_poor_guide(),
+               ess_threshold=None).settings["ess_threshold"] is None
+    with pytest.raises(InvalidArgumentError, match="ess_threshold"):
+        smc(MIX, target, particles=4, seed=0, ess_threshold="sometimes")
