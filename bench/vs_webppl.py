@@ -200,7 +200,8 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
     # infer_seconds: the engine's own time, as procmod reports it (WebPPL's rows: its Infer call)
     row = {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": settings["best_score"],
            "primitives": len(geometry), "infer_seconds": settings["seconds"],
-           "workers": settings["settings"].get("workers")}
+           "workers": settings["settings"].get("workers"),
+           "ess_threshold": settings["settings"].get("ess_threshold")}  # None: resampled at every emit
     if engine in ("smc", "sosmc"):  # particle-steps: a particle advanced to its next emit or to its end
         row["steps"] = settings["evaluations"]
     return row
@@ -232,6 +233,12 @@ def median_interval(values, rng, draws: int = 2000) -> list:
     return [float(np.median(v)), float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]
 
 
+# A per-step cost is quoted where the runs averaged at least this many particle-steps beyond
+# the 1-particle run (~0.15 s of work): procmod's set-up time jitters by ~0.1 s a run, which
+# would swamp the few milliseconds of work at 10 or 50 particles.
+MIN_STEPS_PER_RUN = 10_000
+
+
 def summarise(rows: list, key_fields: tuple) -> list:
     rng = np.random.default_rng(0)
     groups = {}
@@ -257,7 +264,8 @@ def summarise(rows: list, key_fields: tuple) -> list:
                     "steps_median": (float(np.median([r["steps"] for r in group])) if all("steps" in r for r in group)
                                      else None),
                     "infer_us_per_step": (1e6 * sum(t for t, _ in timed_steps) / sum(n for _, n in timed_steps)
-                                          if timed_steps and sum(n for _, n in timed_steps) > 0 else None),
+                                          if timed_steps and sum(n for _, n in timed_steps)
+                                          >= MIN_STEPS_PER_RUN * len(timed_steps) else None),
                     "wall_seconds_median": float(np.median([r["seconds"] for r in group]))})
     return out
 

@@ -132,6 +132,15 @@ def test_infer_circuit_target(tmp_path, capsys):
     assert not (tmp_path / "c" / "target.png").exists()
 
 
+@pytest.mark.parametrize("given,used", [(None, None), ("every", None), ("0.3", 0.3)])
+def test_the_ess_threshold_reaches_the_engine(tmp_path, capsys, given, used):
+    argv = ["infer", "lightning", "--target", "scribble:2", "--particles", "4", "--out", str(tmp_path / "r"),
+            "--size", "48"]
+    code, _, err = _run(capsys, *argv, *(["--ess-threshold", given] if given else []))
+    assert code == 0, err
+    assert json.loads((tmp_path / "r" / "settings.json").read_text())["settings"]["ess_threshold"] == used
+
+
 @pytest.mark.parametrize("argv,message", [
     (["infer", "vines", "--target", "glyph:a", "--engine", "annealing"], "unknown engine"),
     (["infer", "vines", "--target", "glyph:a", "--engine", "smc", "--population", "5"], "does not apply"),

@@ -8,8 +8,9 @@ import pytest
 
 from procmod.core import program_order
 from procmod.infer import Budget, mcmc, smc, sosmc
+from procmod.infer.particles import ParticleShard
 
-from toy_models import COUNT, MIX, ORDER, SumOutput, SumTarget, count_exact, mix_exact
+from toy_models import COUNT, MIX, ORDER, SumOutput, SumTarget, count_evidence, count_exact, mix_exact
 
 OBS, S = 2.3, 0.5
 
@@ -59,23 +60,37 @@ ORDER_OBS, ORDER_S = 1.5, 1.0  # a gentle likelihood: a sharp one of the first p
 # would starve the states the second emit favours, a finite-N bias far beyond O(1/N)
 
 
+def _count_resampling(monkeypatch):
+    """Counts generations (shard steps) and resamplings (both resamplers) of later runs."""
+    smc_module = importlib.import_module("procmod.infer.smc")
+    counts = {"steps": 0, "resamples": 0}
+
+    def counted(real, key):
+        def wrapper(*args):
+            counts[key] += 1
+            return real(*args)
+        return wrapper
+
+    monkeypatch.setattr(ParticleShard, "step", counted(ParticleShard.step, "steps"))
+    monkeypatch.setattr(smc_module, "resample", counted(smc_module.resample, "resamples"))
+    monkeypatch.setattr(smc_module, "systematic_small", counted(smc_module.systematic_small, "resamples"))
+    return counts
+
+
 def test_smc_resampling_below_an_ess_threshold_matches_exact(monkeypatch):
     # COUNT emits up to five times. Resampling only when the effective sample size falls
     # below half the particles carries weights over the emits it skips (the default of
     # guided runs); the weighted particles must still show the exact posterior over the
-    # number of calls, and skips must happen, or this is the every-emit test again. The
-    # likelihood is ORDER's gentle one (below): a sharp one of the first partial sum starves
-    # the longer derivations' states at 200 particles, every emit or not.
-    smc_module = importlib.import_module("procmod.infer.smc")
-    checks, resamples = [], []
-    real_ess, real_resample = smc_module.effective_sample_size, smc_module.resample
-    monkeypatch.setattr(smc_module, "effective_sample_size", lambda w: checks.append(1) or real_ess(w))
-    monkeypatch.setattr(smc_module, "resample", lambda *a: resamples.append(1) or real_resample(*a))
-    exact = count_exact(ORDER_OBS, ORDER_S)
+    # number of calls and an unbiased Z, and skips must happen, or this is the every-emit
+    # test again. The likelihood is ORDER's gentle one (above): a sharp one of the first
+    # partial sum starves the longer derivations' states at 200 particles, every emit or not.
+    counts = _count_resampling(monkeypatch)
+    exact, z = count_exact(ORDER_OBS, ORDER_S), count_evidence(ORDER_OBS, ORDER_S)
     runs, particles = 40, 200
-    estimates = []
+    estimates, zs = [], []
     for i in range(runs):
         result = smc(COUNT, SumTarget(ORDER_OBS, ORDER_S), particles=particles, seed=700 + i, ess_threshold=0.5)
+        zs.append(math.exp(result.log_marginal_likelihood))
         w = np.exp(np.array(result.log_weights) - max(result.log_weights))
         w /= w.sum()
         posterior = {}
@@ -83,11 +98,46 @@ def test_smc_resampling_below_an_ess_threshold_matches_exact(monkeypatch):
             n = sum(1 for _, name in d.choice_map() if name == "v")
             posterior[n] = posterior.get(n, 0.0) + weight
         estimates.append(posterior)
-    assert 0 < len(resamples) < 0.8 * len(checks), (len(resamples), len(checks))
+    assert 0 < counts["resamples"] < 0.8 * counts["steps"], counts
     for n, p in exact.items():
         values = np.array([e.get(n, 0.0) for e in estimates])
         se = values.std(ddof=1) / math.sqrt(runs)
         assert abs(values.mean() - p) < 5 * se + 2.0 / particles, (n, values.mean(), p, se)
+    zs = np.array(zs)
+    se = zs.std(ddof=1) / math.sqrt(runs)
+    assert abs(zs.mean() - z) < 4.5 * se and 4.5 * se < 0.1 * z, (zs.mean(), z, se)
+
+
+def test_a_small_population_resampling_below_an_ess_threshold_estimates_z_without_bias(monkeypatch):
+    # Up to 32 particles the weights are Python floats (smc.SMALL_POPULATION): the same
+    # check of Z on that path, where guided runs of a few particles go.
+    counts = _count_resampling(monkeypatch)
+    z = count_evidence(ORDER_OBS, ORDER_S)
+    runs = 400
+    zs = np.array([math.exp(smc(COUNT, SumTarget(ORDER_OBS, ORDER_S), particles=8, seed=i,
+                                ess_threshold=0.5).log_marginal_likelihood) for i in range(runs)])
+    assert 0 < counts["resamples"] < 0.8 * counts["steps"], counts
+    se = zs.std(ddof=1) / math.sqrt(runs)
+    assert abs(zs.mean() - z) < 4.5 * se and 4.5 * se < 0.1 * z, (zs.mean(), z, se)
+
+
+class _CeilingTarget(SumTarget):
+    """SumTarget, but a running sum above 1 is impossible (log-likelihood -inf), as a
+    target may declare an output it cannot accept."""
+
+    def log_likelihood(self, output):
+        return -math.inf if output.total > 1.0 else super().log_likelihood(output)
+
+
+def test_an_impossible_particle_left_unresampled_keeps_weight_zero():
+    # Skipping a resampling leaves a particle of zero likelihood in the population; its
+    # next step must keep its weight at zero, not turn it into NaN (-inf - -inf), which
+    # would stop all later resampling and poison Z.
+    for seed in range(20):
+        result = smc(COUNT, _CeilingTarget(0.5, 1.0), particles=50, seed=seed, ess_threshold=0.1)
+        assert not any(math.isnan(w) for w in result.log_weights), seed
+        assert not math.isnan(result.log_marginal_likelihood), seed
+        assert all(d.output.total <= 1.0 for d, w in zip(result.samples, result.log_weights) if w > -math.inf)
 
 
 def _sosmc_on_order(target, runs=40, particles=200):

@@ -16,8 +16,8 @@ from procmod.models import get_model
 from procmod.targets import ShapeMatch
 from procmod.data import scribble_set
 
-from test_engines_exact import _posterior_from_smc
-from toy_models import MIX, SumOutput, SumTarget, Value, mix_exact
+from test_engines_exact import ORDER_OBS, ORDER_S, _count_resampling, _posterior_from_smc
+from toy_models import COUNT, MIX, SumOutput, SumTarget, Value, count_evidence, mix_exact
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="worker shards are forked processes")
 
@@ -144,6 +144,20 @@ def test_workers_estimate_the_marginal_likelihood_without_bias():
     se = estimates.std(ddof=1) / math.sqrt(runs)
     assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
     assert se < 0.1 * z  # the check has power: a 10% bias would be caught
+
+
+def test_workers_resampling_below_an_ess_threshold_estimate_z_without_bias(monkeypatch):
+    # Skipped resamplings carry every shard's weights over to the next gathering (the
+    # default of guided runs); COUNT emits up to five times, so skips happen.
+    counts = _count_resampling(monkeypatch)
+    z = count_evidence(ORDER_OBS, ORDER_S)
+    runs = 150
+    target = _OffsetTarget(ORDER_OBS, ORDER_S)
+    estimates = np.array([math.exp(smc(COUNT, target, particles=16, seed=i, workers=2, ess_threshold=0.5)
+                                   .log_marginal_likelihood - target.OFFSET) for i in range(runs)])
+    assert 0 < counts["resamples"] < 0.8 * counts["steps"], counts
+    se = estimates.std(ddof=1) / math.sqrt(runs)
+    assert abs(estimates.mean() - z) < 4.5 * se and 4.5 * se < 0.1 * z, (estimates.mean(), z, se)
 
 
 def test_workers_give_the_exact_posterior():

@@ -193,12 +193,21 @@ COUNT = Model("count", "trans-dimensional toy: 1-5 calls", count_root, lambda p:
               lambda p: SumOutput(), rules=(count_root,))
 
 
+def _count_joint(obs, s):
+    prior = {n: 0.6 ** (n - 1) * (0.4 if n < 5 else 1.0) for n in range(1, 6)}
+    return {n: p * _normal_pdf(obs, n + s * s) for n, p in prior.items()}
+
+
 def count_exact(obs, s):
     """Exact posterior over the number of calls of COUNT under SumTarget(obs, s)."""
-    prior = {n: 0.6 ** (n - 1) * (0.4 if n < 5 else 1.0) for n in range(1, 6)}
-    joint = {n: p * _normal_pdf(obs, n + s * s) for n, p in prior.items()}
+    joint = _count_joint(obs, s)
     z = sum(joint.values())
     return {n: v / z for n, v in joint.items()}
+
+
+def count_evidence(obs, s):
+    """The marginal likelihood Z of COUNT under SumTarget(obs, s)."""
+    return sum(_count_joint(obs, s).values())
 
 
 # ---------------------------------------------------------------------------------------

@@ -90,7 +90,13 @@ class ParticleShard:
             stepped += 1
             step(state, rng, pick)
             new = log_likelihood(state.output)
-            log_w[i] += new - log_lik[i]
+            old = log_lik[i]
+            if new == -math.inf or old == -math.inf:
+                # zero likelihood stays zero weight (-inf - -inf would be NaN); a particle left
+                # so by a skipped resampling (ess_threshold) must not poison the weights
+                log_w[i] = -math.inf
+            else:
+                log_w[i] += new - old
             log_lik[i] = new
             if log_ratio is not None:  # guided: weigh by prior / proposal of this step's choices
                 ratio = state.log_prior - state.policy.log_proposal  # the GuidedPolicy reset() installed

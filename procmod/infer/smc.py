@@ -3,7 +3,8 @@
 Particles are partial derivations (cheap to copy: expanded nodes are shared). Each
 generation, every unfinished particle is stepped to its next emit and reweighted by the
 change of the target's log-likelihood; particles are then resampled (at every emit by
-default, or when the effective sample size falls below a threshold). ``sosmc`` is the
+default, or when the effective sample size falls below a threshold, the default of
+guided runs). ``sosmc`` is the
 same with a uniformly random pending future expanded at each step (stochastically-ordered
 SMC, Ritchie et al. 2015; seed 002 section 7).
 
@@ -14,6 +15,7 @@ incremental weight, which is unbiased for the marginal likelihood ``Z`` (not its
 from __future__ import annotations
 
 import math
+import numbers
 from array import array
 
 import numpy as np
@@ -55,12 +57,10 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
 # Guided runs resample when the effective sample size falls below this fraction of the
 # particles (``ess_threshold="auto"``); unguided runs resample at every emit, as the papers
 # do. A guide's proposals keep the weights even for several emits, and resampling then only
-# throws away distinct particles: on development sets that are not the bench's (DejaVu
-# Sans Bold capitals, scribbles 61-72; 12 targets x 8 seeds, paired), guided SMC with the
-# shipped guide gained +0.05 median similarity on glyphs and +0.03-0.04 on scribbles at 10
-# and 20 particles (3-4 standard errors), was even at 5, for ~10% more CPU; 10 particles
-# then do about as well as 20 resampled at every emit. 0.2 was worse at 5 particles. For
-# unguided runs the same test was mixed (docs/vines_smc.md), so they keep the papers' rule.
+# throws away distinct particles. Measured by bench/guided_resampling.py on development
+# sets that are not the bench's (README, "Neural guides": mean best similarity up by about
+# 0.03-0.05 at 10 and 20 particles, even at 5, ~10% more CPU; 0.2 lost at 5 particles).
+# For unguided runs the same change was mixed (docs/vines_smc.md): they keep the papers' rule.
 GUIDED_ESS_THRESHOLD = 0.5
 
 
@@ -71,7 +71,7 @@ def resolve_ess_threshold(ess_threshold, guided: bool) -> float | None:
         return GUIDED_ESS_THRESHOLD if guided else None
     if ess_threshold is None:
         return None
-    if isinstance(ess_threshold, bool) or not isinstance(ess_threshold, (int, float)) \
+    if isinstance(ess_threshold, bool) or not isinstance(ess_threshold, numbers.Real) \
             or not 0 < ess_threshold <= 1:
         raise InvalidArgumentError(f"ess_threshold must be in (0, 1], None (resample at every emit) or 'auto', "
                                    f"got {ess_threshold!r}")
@@ -209,7 +209,7 @@ def _graft(states: list, local: ParticleShard, workers: list) -> None:
 def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
         resampling: str = "systematic", ess_threshold: float | str | None = "auto",
         order: str = "program", progress=None, guide=None, workers: int | None = 1) -> "Result":
-    """Sequential Monte Carlo, resampling at every emit.
+    """Sequential Monte Carlo, resampling at every emit (guided: when the ESS falls below half).
 
     Parameters
     ----------
