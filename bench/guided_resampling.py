@@ -112,7 +112,7 @@ def main() -> None:
                             textcoords="offset points", xytext=(3, -9))
         ax.set_title(f"guided SMC ({args.guide}), {set_name}")
         ax.set_xlabel("CPU seconds, all runs (labels: particles)")
-        ax.set_ylabel("mean best similarity (bars: 95% of the paired difference)")
+        ax.set_ylabel("mean best similarity\n(bars: 95% of the paired difference)", fontsize=9)
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(RESULTS / f"{args.name}.png", dpi=120)

@@ -59,7 +59,7 @@ def effective_sample_size(log_weights: np.ndarray) -> float:
 # do. A guide's proposals keep the weights even for several emits, and resampling then only
 # throws away distinct particles. Measured by bench/guided_resampling.py on development
 # sets that are not the bench's (README, "Neural guides": mean best similarity up by about
-# 0.03-0.05 at 10 and 20 particles, even at 5, ~10% more CPU; 0.2 lost at 5 particles).
+# 0.03-0.05 at 10 and 20 particles, even at 5, 5-15% more CPU; 0.2 lost at 5 particles).
 # For unguided runs the same change was mixed (docs/vines_smc.md): they keep the papers' rule.
 GUIDED_ESS_THRESHOLD = 0.5
 
