@@ -94,3 +94,24 @@ def test_ellipse_area_and_bounds():
     x0, x1, y0, y1 = bounds(e)
     cols = np.flatnonzero(mask.any(axis=0)) * (10 / size)
     assert x0 - 0.05 <= cols.min() and cols.max() <= x1 + 0.05
+
+
+def test_pictures_cover_what_the_scoring_raster_covers():
+    # Pictures are drawn by PIL (fast), scores by the raster (a pixel centre inside the
+    # primitive): the two must agree but for edge pixels, or a report would show another
+    # shape than the one that was scored.
+    import numpy as np
+    from procmod.geometry.export import render_image
+    from procmod.geometry.primitives import Disc, Ellipse, Segment, Viewport
+    from procmod.geometry.raster import Canvas
+
+    vp = Viewport(-10.0, 10.0, -10.0, 10.0)
+    shapes = [Segment(-6.0, -5.0, 5.0, 3.0, 1.5), Disc(4.0, -4.0, 2.5, tag="disc"),
+              Ellipse(-3.0, 5.0, 0.7, 6.0, 2.0, tag="leaf"), Segment(2.0, 7.0, 2.0, 7.0, 0.8)]
+    for shape in shapes:
+        picture = np.asarray(render_image([shape], vp, 200, supersample=1)).sum(axis=2) < 3 * 250
+        canvas = Canvas(vp, 200, 200)
+        canvas.add(shape)
+        raster = canvas.pixels.reshape(200, 200) != 0
+        union, both = (picture | raster).sum(), (picture & raster).sum()
+        assert union > 0 and both / union > 0.85, (shape, both / union)

@@ -57,9 +57,24 @@ def derivation_to_dict(derivation: Derivation) -> dict:
     }
 
 
+def derivation_json(data: dict) -> str:
+    """A derivation's dict as JSON text, one field per line and one call or choice per line
+    of its lists: as readable as an indented file and written by json's C encoder (an
+    indented dump goes through the pure-Python one, ~40 ms for a vine of 100 segments,
+    which made the run report's cost grow with the output)."""
+    lines = []
+    for key, value in data.items():
+        if isinstance(value, list) and value:
+            items = ",\n  ".join(json.dumps(item) for item in value)
+            lines.append(f"{json.dumps(key)}: [\n  {items}\n ]")
+        else:
+            lines.append(f"{json.dumps(key)}: {json.dumps(value)}")
+    return "{\n " + ",\n ".join(lines) + "\n}\n"
+
+
 def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
     """Write a complete derivation to ``path`` as ``procmod-derivation/1`` JSON."""
-    write_text_atomic(path, json.dumps(derivation_to_dict(derivation), indent=1) + "\n")
+    write_text_atomic(path, derivation_json(derivation_to_dict(derivation)))
 
 
 def _fail(source: str, problem: str) -> DerivationFormatError:
