@@ -28,3 +28,20 @@ def test_the_sample_follows_the_weights():
 def test_without_weights_the_first_samples_are_shown():
     assert sample_of_final(_result(100, None)) == [f"particle {i}" for i in range(SAMPLE_TILES)]
     assert sample_of_final(_result(100, [-math.inf] * 100)) == [f"particle {i}" for i in range(SAMPLE_TILES)]
+
+
+def test_copies_share_one_picture_and_every_picture_is_the_one_drawn_alone():
+    import numpy as np
+
+    from procmod.core import run_forward
+    from procmod.models import get_model
+    from procmod.render import derivation_image, derivation_images
+
+    model = get_model("vines")
+    outputs = [run_forward(model, np.random.default_rng(seed)) for seed in (1, 2)]
+    derivations = [outputs[0], outputs[0].copy(), outputs[1], outputs[0].copy()]
+    images = derivation_images(derivations, 64, supersample=2)
+    assert images[0] is images[1] is images[3]  # copies of one particle: drawn once
+    assert images[2] is not images[0]
+    for derivation, image in zip(derivations, images):
+        assert image.tobytes() == derivation_image(derivation, 64, supersample=2).tobytes()
