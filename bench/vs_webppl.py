@@ -14,7 +14,10 @@ DIR`` (renders, report and all), WebPPL as ``webppl bench/peers/webppl/vines.wpp
 ``bench/.cache/`` (node and npm must be on the machine).
 
 Time: the wall time of a run beyond a 1-particle run of the same command (same target and
-seed), so start-up and report costs that do not depend on the particles cancel. Quality:
+seed), so start-up and report costs that do not depend on the particles cancel; with
+``--guide``, ``guided_time_ratios`` holds guided procmod's time over WebPPL's at every pair
+of particle counts, summed over the same (target, seed) runs, with a bootstrap interval
+(start-up jitter is larger than a short run's work). Quality:
 every run's best complete output (procmod: ``best.json``; WebPPL: the complete particle of
 highest similarity, recorded as particles finish) is judged by ``bench/peers/scorer.py``,
 the original program's normalised similarity on a 50x50 mask of the output geometry,
@@ -167,20 +170,27 @@ def procmod_geometry(derivation_path: Path) -> list:
     return out
 
 
-def timed(command: list) -> float:
-    t0 = time.perf_counter()
-    done = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    seconds = time.perf_counter() - t0
-    if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
-    return seconds
+def timed(command: list, repeats: int = 1, before=None) -> float:
+    """Wall seconds of ``command``: the least of ``repeats`` runs (a seeded run does the
+    same work each time; what differs is the machine's noise, mostly start-up).
+    ``before()``, untimed, readies each run (e.g. removes the last run's folder)."""
+    best = math.inf
+    for _ in range(repeats):
+        if before is not None:
+            before()
+        t0 = time.perf_counter()
+        done = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        seconds = time.perf_counter() - t0
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
+        best = min(best, seconds)
+    return best
 
 
 def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, leaves: bool,
-                budget: str | None = None, guide: str | None = None, workers: int | None = None) -> dict:
+                budget: str | None = None, guide: str | None = None, workers: int | None = None,
+                repeats: int = 1) -> dict:
     out = work / "run"
-    if out.exists():
-        shutil.rmtree(out)
     command = procmod_command() + ["infer", "vines", "--target", str(png), "--engine", engine,
                                    "--seed", str(seed), "--out", str(out)]
     if not leaves:
@@ -194,7 +204,7 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
         command += ["--guide", guide]
     if workers is not None and engine in ("smc", "sosmc", "mcmc"):
         command += ["--workers", str(workers)]
-    seconds = timed(command)
+    seconds = timed(command, repeats, before=lambda: shutil.rmtree(out, ignore_errors=True))
     geometry = procmod_geometry(out / "best.json")
     settings = json.loads((out / "settings.json").read_text())
     # infer_seconds: the engine's own time, as procmod reports it (WebPPL's rows: its Infer call)
@@ -208,13 +218,13 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
 
 
 def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: int, seed: int,
-               leaves: bool) -> dict:
+               leaves: bool, repeats: int = 1) -> dict:
     out = work / "webppl.json"
     command = webppl + [str(PEER / "vines.wppl"), "--require", str(PEER / "vines_peer"),
                         "--random-seed", str(seed + 1), "--", "--target", str(mask_json), "--out", str(out),
                         "--leaves", "1" if leaves else "0", "--method", method]
     command += ["--particles", str(n)] if method == "SMC" else ["--samples", str(n)]
-    seconds = timed(command)
+    seconds = timed(command, repeats)
     result = json.loads(out.read_text())
     row = {"seconds": seconds, "similarity": scorer.score(result["geometry"], mask),
            "own_score": result["similarity"], "primitives": len(result["geometry"]),
@@ -316,6 +326,40 @@ def speedups(summary: list, sets: list) -> list:
     return out
 
 
+def paired_time_ratios(rows: list, sets: list, draws: int = 4000) -> list:
+    """Guided procmod's time against WebPPL's unguided SMC, per set and pair of particle
+    counts: the sum over (target, seed) pairs both ran of procmod's time beyond its
+    1-particle run, over WebPPL's, with a 95% bootstrap interval over those pairs (whole
+    process, and in-process inference time). A run's start-up jitters by ~0.15 s against
+    a guided run's ~0.05 s of extra work, so the whole-process ratio needs its interval."""
+    rng = np.random.default_rng(0)
+    out = []
+    for set_name in sets:
+        guided = [r for r in rows if r["set"] == set_name and r["system"] == "procmod+guide"]
+        webppl = [r for r in rows if r["set"] == set_name and r["system"] == "webppl" and r["method"] == "SMC"]
+        for n in sorted({r["n"] for r in guided}):
+            own = {(r["target"], r["seed"]): r for r in guided if r["n"] == n}
+            for m in sorted({r["n"] for r in webppl}):
+                peer = {(r["target"], r["seed"]): r for r in webppl if r["n"] == m}
+                keys = sorted(set(own) & set(peer))
+                if not keys:
+                    continue
+                row = {"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys)}
+                for clock, of in (("whole_process", lambda r: r["beyond_seconds"]),
+                                  ("in_process", lambda r: r["infer_seconds"] - r["baseline_infer_seconds"])):
+                    try:
+                        a = np.array([of(own[k]) for k in keys])
+                        b = np.array([of(peer[k]) for k in keys])
+                    except (KeyError, TypeError):  # rows without in-process times
+                        continue
+                    pick = rng.integers(0, len(keys), size=(draws, len(keys)))
+                    ratio = a[pick].sum(axis=1) / b[pick].sum(axis=1)
+                    row[f"{clock}_ratio"] = [float(a.sum() / b.sum()), float(np.quantile(ratio, 0.025)),
+                                             float(np.quantile(ratio, 0.975))]
+                out.append(row)
+    return out
+
+
 def plot(summary: list, sets: list, path: Path, title: str) -> None:
     fig, axes = plt.subplots(len(sets), 2, figsize=(11, 3.8 * len(sets)), squeeze=False)
     for row, set_name in enumerate(sets):
@@ -394,6 +438,8 @@ def main() -> None:
     parser.add_argument("--guided-particles", type=int, nargs="*", default=[1, 5, 10, 20])
     parser.add_argument("--workers", type=int, help="procmod's --workers for SMC (default: the CLI's, one "
                                                      "per 100 particles up to the cores)")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="SMC runs: time each command this many times and keep the least (default 1)")
     parser.add_argument("--name", default="vs_webppl", help="results file stem (default vs_webppl)")
     parser.add_argument("--work", type=Path, help="work folder (default: a temporary one)")
     args = parser.parse_args()
@@ -431,14 +477,16 @@ def main() -> None:
                 if "procmod" in args.systems:
                     plans.append(("procmod", "smc", args.particles,
                                   lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
-                                                        workers=args.workers)))
+                                                        workers=args.workers, repeats=args.repeats)))
                     if args.guide:
                         plans.append(("procmod+guide", "smc", args.guided_particles,
                                       lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
-                                                            guide=args.guide, workers=args.workers)))
+                                                            guide=args.guide, workers=args.workers,
+                                                            repeats=args.repeats)))
                 if webppl is not None:
                     plans.append(("webppl", "SMC", args.particles,
-                                  lambda n: run_webppl(webppl, mask_json, mask, work, "SMC", n, seed, args.leaves)))
+                                  lambda n: run_webppl(webppl, mask_json, mask, work, "SMC", n, seed, args.leaves,
+                                                       repeats=args.repeats)))
                 for system, method, counts, run in plans:
                     keys = [(system, method, set_name, label, n, seed) for n in counts]
                     if all(k in done for k in keys):
@@ -494,10 +542,13 @@ def main() -> None:
                     "node": subprocess.run(["node", "--version"], capture_output=True, text=True).stdout.strip()
                     if shutil.which("node") else None},
         "webppl_version": WEBPPL_VERSION, "leaves": args.leaves, "seeds": args.seeds, "workers": args.workers,
+        "repeats": args.repeats,
         "targets": {s: [label for _, label, *_ in items] for s, items in targets.items()},
-        "seconds_total": round(time.time() - started, 1),
+        "seconds_total": round(time.time() - started, 1),  # of this pass: rows read back from --work took none
+        "rows_read_from_work": len(done) + sum(len(v) for v in mcmc_done.values()),
         "summary": summary, "runs": rows,
         "speedups": speedups(summary, sets),
+        "guided_time_ratios": paired_time_ratios(rows, sets),
         "mcmc_summary": summarise(mcmc_rows, ("system", "method", "set")) if mcmc_rows else [],
         "mcmc_runs": mcmc_rows,
     }
@@ -512,6 +563,11 @@ def main() -> None:
         print(f"{s['system']:>13} {s['set']:>10} n={s['n']:<5} median {m[0]:.3f} [{m[1]:.3f}, {m[2]:.3f}]  "
               f"beyond-1 per set {s['beyond_seconds_per_set']:7.2f} s"
               + (f"  {s['infer_us_per_step']:.1f} us per step beyond 1 particle, in process" if s.get("infer_us_per_step") else ""))
+    for t in result["guided_time_ratios"]:
+        print(f"procmod+guide-{t['guided_particles']} / webppl-{t['webppl_particles']} {t['set']:>10}: time "
+              + ", ".join(f"{clock.replace('_', ' ')} {t[clock + '_ratio'][0]:.2f}x "
+                          f"[{t[clock + '_ratio'][1]:.2f}, {t[clock + '_ratio'][2]:.2f}]"
+                          for clock in ("whole_process", "in_process") if clock + "_ratio" in t))
     print(f"wrote {RESULTS / (args.name + '.json')}")
 
 
