@@ -170,12 +170,13 @@ def procmod_geometry(derivation_path: Path) -> list:
     return out
 
 
-def timed(command: list, repeats: int = 1, before=None) -> float:
-    """Wall seconds of ``command``: the least of ``repeats`` runs (a seeded run does the
-    same work each time; what differs is the machine's noise, mostly start-up).
-    ``before()``, untimed, readies each run (e.g. removes the last run's folder)."""
-    best = math.inf
-    for _ in range(repeats):
+def timed(command: list, repeats: int = 1, before=None, after=None) -> tuple:
+    """``(wall seconds, after())`` of the fastest of ``repeats`` runs of ``command`` (a
+    seeded run does the same work each time; what differs is the machine's noise, mostly
+    start-up). ``before()`` readies each run (e.g. removes the last run's folder) and
+    ``after()`` reads what it wrote; neither is timed."""
+    best, kept = math.inf, None
+    for _ in range(max(repeats, 1)):
         if before is not None:
             before()
         t0 = time.perf_counter()
@@ -183,8 +184,9 @@ def timed(command: list, repeats: int = 1, before=None) -> float:
         seconds = time.perf_counter() - t0
         if done.returncode != 0:
             raise RuntimeError(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
-        best = min(best, seconds)
-    return best
+        if seconds < best:
+            best, kept = seconds, (after() if after is not None else None)
+    return best, kept
 
 
 def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, leaves: bool,
@@ -204,9 +206,14 @@ def run_procmod(png: Path, mask, work: Path, engine: str, n: int, seed: int, lea
         command += ["--guide", guide]
     if workers is not None and engine in ("smc", "sosmc", "mcmc"):
         command += ["--workers", str(workers)]
-    seconds = timed(command, repeats, before=lambda: shutil.rmtree(out, ignore_errors=True))
-    geometry = procmod_geometry(out / "best.json")
-    settings = json.loads((out / "settings.json").read_text())
+    def clear():
+        if out.exists():
+            shutil.rmtree(out)
+
+    def read():  # the kept run's output, its engine time included
+        return procmod_geometry(out / "best.json"), json.loads((out / "settings.json").read_text())
+
+    seconds, (geometry, settings) = timed(command, repeats, before=clear, after=read)
     # infer_seconds: the engine's own time, as procmod reports it (WebPPL's rows: its Infer call)
     row = {"seconds": seconds, "similarity": scorer.score(geometry, mask), "own_score": settings["best_score"],
            "primitives": len(geometry), "infer_seconds": settings["seconds"],
@@ -224,8 +231,7 @@ def run_webppl(webppl: list, mask_json: Path, mask, work: Path, method: str, n: 
                         "--random-seed", str(seed + 1), "--", "--target", str(mask_json), "--out", str(out),
                         "--leaves", "1" if leaves else "0", "--method", method]
     command += ["--particles", str(n)] if method == "SMC" else ["--samples", str(n)]
-    seconds = timed(command, repeats)
-    result = json.loads(out.read_text())
+    seconds, result = timed(command, repeats, after=lambda: json.loads(out.read_text()))
     row = {"seconds": seconds, "similarity": scorer.score(result["geometry"], mask),
            "own_score": result["similarity"], "primitives": len(result["geometry"]),
            "infer_seconds": result["inferSeconds"]}
@@ -329,9 +335,11 @@ def speedups(summary: list, sets: list) -> list:
 def paired_time_ratios(rows: list, sets: list, draws: int = 4000) -> list:
     """Guided procmod's time against WebPPL's unguided SMC, per set and pair of particle
     counts: the sum over (target, seed) pairs both ran of procmod's time beyond its
-    1-particle run, over WebPPL's, with a 95% bootstrap interval over those pairs (whole
-    process, and in-process inference time). A run's start-up jitters by ~0.15 s against
-    a guided run's ~0.05 s of extra work, so the whole-process ratio needs its interval."""
+    1-particle run, over WebPPL's (whole process, and in-process inference time), with a
+    95% bootstrap interval that resamples targets (a target's seeds share its difficulty).
+    A run's start-up jitters by ~0.15 s against a guided run's ~0.05 s of extra work, so
+    the whole-process ratio needs its interval. None where WebPPL's summed time is not
+    positive (its extra time lost in the jitter: no ratio to speak of)."""
     rng = np.random.default_rng(0)
     out = []
     for set_name in sets:
@@ -352,8 +360,19 @@ def paired_time_ratios(rows: list, sets: list, draws: int = 4000) -> list:
                         b = np.array([of(peer[k]) for k in keys])
                     except (KeyError, TypeError):  # rows without in-process times
                         continue
-                    pick = rng.integers(0, len(keys), size=(draws, len(keys)))
-                    ratio = a[pick].sum(axis=1) / b[pick].sum(axis=1)
+                    # per-target sums, then targets drawn with replacement
+                    targets = sorted({t for t, _ in keys})
+                    where = {t: i for i, t in enumerate(targets)}
+                    a_t, b_t = np.zeros(len(targets)), np.zeros(len(targets))
+                    for (t, _), x, y in zip(keys, a, b):
+                        a_t[where[t]] += x
+                        b_t[where[t]] += y
+                    pick = rng.integers(0, len(targets), size=(draws, len(targets)))
+                    bottom = b_t[pick].sum(axis=1)
+                    if b.sum() <= 0 or np.any(bottom <= 0):
+                        row[f"{clock}_ratio"] = None
+                        continue
+                    ratio = a_t[pick].sum(axis=1) / bottom
                     row[f"{clock}_ratio"] = [float(a.sum() / b.sum()), float(np.quantile(ratio, 0.025)),
                                              float(np.quantile(ratio, 0.975))]
                 out.append(row)
@@ -443,6 +462,8 @@ def main() -> None:
     parser.add_argument("--name", default="vs_webppl", help="results file stem (default vs_webppl)")
     parser.add_argument("--work", type=Path, help="work folder (default: a temporary one)")
     args = parser.parse_args()
+    if args.repeats < 1:
+        parser.error(f"--repeats must be 1 or more, got {args.repeats}")
 
     webppl = ensure_webppl() if "webppl" in args.systems else None
     work = args.work or Path(tempfile.mkdtemp(prefix="vs_webppl_"))
@@ -456,6 +477,7 @@ def main() -> None:
     # --work skips the runs already there (a long bench survives an interruption).
     log_path = work / "rows.jsonl"
     done = {}
+    reused = 0  # rows read back from --work instead of measured
     if log_path.exists():
         for line in log_path.read_text().splitlines():
             row = json.loads(line)
@@ -491,6 +513,7 @@ def main() -> None:
                     keys = [(system, method, set_name, label, n, seed) for n in counts]
                     if all(k in done for k in keys):
                         rows.extend(done[k] for k in keys)
+                        reused += len(keys)
                         continue
                     base = run(1)
                     for n in counts:
@@ -514,6 +537,7 @@ def main() -> None:
                 for seed in range(args.seeds):
                     if (set_name, label, seed) in mcmc_done:
                         mcmc_rows.extend(mcmc_done[(set_name, label, seed)])
+                        reused += len(mcmc_done[(set_name, label, seed)])
                         continue
                     first = len(mcmc_rows)
                     base_w = run_webppl(webppl, mask_json, mask, work, "MH", 1, seed, args.leaves)["seconds"]
@@ -545,7 +569,7 @@ def main() -> None:
         "repeats": args.repeats,
         "targets": {s: [label for _, label, *_ in items] for s, items in targets.items()},
         "seconds_total": round(time.time() - started, 1),  # of this pass: rows read back from --work took none
-        "rows_read_from_work": len(done) + sum(len(v) for v in mcmc_done.values()),
+        "rows_read_from_work": reused,
         "summary": summary, "runs": rows,
         "speedups": speedups(summary, sets),
         "guided_time_ratios": paired_time_ratios(rows, sets),
@@ -564,10 +588,11 @@ def main() -> None:
               f"beyond-1 per set {s['beyond_seconds_per_set']:7.2f} s"
               + (f"  {s['infer_us_per_step']:.1f} us per step beyond 1 particle, in process" if s.get("infer_us_per_step") else ""))
     for t in result["guided_time_ratios"]:
+        shown = [f"{clock.replace('_', ' ')} {t[clock + '_ratio'][0]:.2f}x [{t[clock + '_ratio'][1]:.2f}, "
+                 f"{t[clock + '_ratio'][2]:.2f}]" if t.get(clock + "_ratio") else f"{clock.replace('_', ' ')} -"
+                 for clock in ("whole_process", "in_process") if clock + "_ratio" in t]
         print(f"procmod+guide-{t['guided_particles']} / webppl-{t['webppl_particles']} {t['set']:>10}: time "
-              + ", ".join(f"{clock.replace('_', ' ')} {t[clock + '_ratio'][0]:.2f}x "
-                          f"[{t[clock + '_ratio'][1]:.2f}, {t[clock + '_ratio'][2]:.2f}]"
-                          for clock in ("whole_process", "in_process") if clock + "_ratio" in t))
+              + ", ".join(shown))
     print(f"wrote {RESULTS / (args.name + '.json')}")
 
 

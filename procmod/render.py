@@ -57,24 +57,26 @@ def derivation_images(derivations, size: int, underlay=None, supersample: int = 
 
     The final particles of an SMC run are mostly copies of a few ancestors, so a report's
     contact sheet would otherwise draw the same vine up to 16 times (~2 ms a 128 px tile).
-    Two 2D derivations share a picture when their geometry and viewport are equal: the
-    picture is a function of nothing else. 3D outputs are drawn one by one."""
+    Two 2D derivations share a picture when their viewport and their primitives (type and
+    fields) are equal: the picture is a function of nothing else. Shared pictures are one
+    object: copy one before drawing on it. 3D outputs are drawn one by one."""
+    size = check_size(size)
     images, drawn = [], {}
     for derivation in derivations:
-        key = None
-        if is_2d(derivation):
-            geometry = derivation.geometry()
-            try:
-                key = (tuple(derivation.output.viewport), tuple(geometry))
-                hash(key)
-            except TypeError:  # a primitive that is not hashable: draw it, unshared
-                key = None
-        if key is not None and key in drawn:
-            images.append(drawn[key])
+        if not is_2d(derivation):
+            images.append(derivation_image(derivation, size, underlay=underlay, supersample=supersample))
             continue
-        image = derivation_image(derivation, size, underlay=underlay, supersample=supersample)
-        if key is not None:
-            drawn[key] = image
+        geometry = derivation.geometry()
+        viewport = derivation.output.viewport
+        try:
+            key = (tuple(viewport), tuple((type(g), g) for g in geometry))
+            image = drawn.get(key)
+        except TypeError:  # a primitive that is not hashable: draw it, unshared
+            key = image = None
+        if image is None:
+            image = render_image(geometry, viewport, size, supersample=supersample, underlay=underlay)
+            if key is not None:
+                drawn[key] = image
         images.append(image)
     return images
 

@@ -39,6 +39,7 @@ def test_copies_share_one_picture_and_every_picture_is_the_one_drawn_alone():
 
     model = get_model("vines")
     outputs = [run_forward(model, np.random.default_rng(seed)) for seed in (1, 2)]
+    assert outputs[0].geometry() != outputs[1].geometry()
     derivations = [outputs[0], outputs[0].copy(), outputs[1], outputs[0].copy()]
     images = derivation_images(derivations, 64, supersample=2)
     assert images[0] is images[1] is images[3]  # copies of one particle: drawn once
