@@ -204,3 +204,39 @@ def test_sobel_magnitude_matches_scipy():
     image = mask.astype(np.float64)
     expected = np.hypot(ndimage.sobel(image, axis=1, mode="nearest"), ndimage.sobel(image, axis=0, mode="nearest"))
     np.testing.assert_allclose(sobel_magnitude(mask), expected, atol=1e-12)
+
+
+def _letter_b(thickness: int) -> np.ndarray:
+    """A 50x50 "b": a stem on the left and a round bowl of ``thickness`` pixels."""
+    yy, xx = np.mgrid[0:50, 0:50]
+    r = np.hypot(xx - 27.5, yy - 31.5)
+    mask = (r <= 12) & (r > 12 - thickness)
+    mask[5:44, 14:14 + thickness] = True
+    return mask
+
+
+def test_the_start_direction_runs_along_a_thin_bowl_and_up_a_thick_one():
+    from procmod.targets.image import lowest_point_start, ray_runs
+    thin, thick = _letter_b(2), _letter_b(9)
+    for mask in (thin, thick):
+        (sx, sy), _ = lowest_point_start(mask)
+        assert mask[int(sy * 50), int(sx * 50)] and int(sy * 50) == 43  # the bowl's lowest pixel
+    # thin: the nearby foreground's centroid lies across the hollow, straight up leaves the
+    # stroke after its 2 pixels; the start heads along the bowl instead
+    (sx, sy), (dx, dy) = lowest_point_start(thin)
+    x, y = sx * 50, sy * 50
+    up, along = ray_runs(thin, x, y, np.array([-math.pi / 2, math.atan2(dy, dx)]), 10.0)
+    assert up <= 2.5 and along >= 2 * up and abs(dy) < 0.9
+    # thick: the centroid's direction (up into the bowl's wall) stays in the shape: kept
+    (_, _), (dx, dy) = lowest_point_start(thick)
+    assert dy < -0.9
+
+
+def test_ray_runs_measure_how_far_a_ray_stays_in_the_shape():
+    from procmod.targets.image import ray_runs
+    mask = np.zeros((20, 40), bool)
+    mask[8:12, 5:35] = True  # a bar 30 px long, 4 px thick
+    right, up, left = ray_runs(mask, 10.5, 10.5, np.array([0.0, -math.pi / 2, math.pi]), 40.0)
+    assert right == pytest.approx(24.0, abs=0.6) and left == pytest.approx(5.0, abs=0.6)
+    assert up == pytest.approx(2.0, abs=0.6)
+    assert ray_runs(mask, 10.5, 10.5, np.array([0.0]), 8.0)[0] == 8.0  # capped at the length

@@ -134,8 +134,13 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
 
     The direction points from the start to the centroid of the foreground within
     ``reach`` (a fraction of the image size) of it, so a model starting at the bottom of
-    a "c" grows along the curve rather than straight up into the empty middle. It falls
-    back to straight up.
+    a "c" grows along the curve rather than straight up into the empty middle (falling
+    back to straight up) -- unless a ray that way leaves the shape early: at the bottom
+    of a "b" whose bowl is a thin stroke, the nearby foreground's centroid lies across
+    the bowl's hollow. When the ray that way runs through the shape less than half as
+    far as the longest ray from the start (up to ``reach``), the direction is, of those
+    whose ray runs at least 80% as far as the longest, the one closest to the
+    centroid's (see :func:`ray_runs`).
     """
     rows = np.flatnonzero(mask.any(axis=1))
     row = rows[-1]
@@ -146,8 +151,42 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
     near = (xs - col) ** 2 + (ys - row) ** 2 <= (reach * max(h, w)) ** 2
     dx, dy = xs[near].mean() - col, ys[near].mean() - row
     norm = float(np.hypot(dx, dy))
-    direction = (float(dx / norm), float(dy / norm)) if norm > 1e-9 else (0.0, -1.0)
+    if norm > 1e-9:
+        toward, direction = math.atan2(dy, dx), (float(dx / norm), float(dy / norm))
+    else:
+        toward, direction = -0.5 * math.pi, (0.0, -1.0)
+    # candidates every 5 degrees, the centroid's direction first (offset 0)
+    offsets = np.radians(np.concatenate([np.arange(0, 185, 5), -np.arange(5, 180, 5)]))
+    runs = ray_runs(mask, col + 0.5, row + 0.5, toward + offsets, reach * max(h, w))
+    if runs[0] < EARLY_EXIT * runs.max():  # the centroid's way leaves the shape early
+        chosen = np.flatnonzero(runs >= RUN_SHARE * runs.max())
+        angle = toward + offsets[chosen[np.argmin(np.abs(offsets[chosen]))]]
+        direction = (math.cos(angle), math.sin(angle))
     return ((col + 0.5) / w, (row + 0.5) / h), direction
+
+
+# The centroid's direction is kept unless its ray runs under EARLY_EXIT of the longest;
+# then a direction "stays in the shape" when its ray runs RUN_SHARE of the longest.
+EARLY_EXIT = 0.5
+RUN_SHARE = 0.8
+
+
+def ray_runs(mask: np.ndarray, x: float, y: float, angles: np.ndarray, length: float) -> np.ndarray:
+    """How far (pixels, up to ``length``) a ray from (x, y) (pixel units, y down) at each
+    angle runs through the foreground before leaving it or the image. A gap of one
+    sample (half a pixel) is crossed, so that a stroke's ragged edge does not end a run
+    along it."""
+    steps = np.arange(1, max(int(2 * length), 1) + 1) * 0.5
+    px = np.floor(x + np.cos(angles)[:, None] * steps).astype(np.int64)
+    py = np.floor(y + np.sin(angles)[:, None] * steps).astype(np.int64)
+    h, w = mask.shape
+    inside = (px >= 0) & (px < w) & (py >= 0) & (py < h)
+    inside[inside] = mask[py[inside], px[inside]]
+    outside = ~inside
+    ends = outside.copy()
+    ends[:, :-1] &= outside[:, 1:]  # two samples out in a row
+    first = np.where(ends.any(axis=1), ends.argmax(axis=1), len(steps))
+    return np.concatenate([[0.0], steps])[first]
 
 
 def check_mask(mask: np.ndarray, name: str) -> np.ndarray:
