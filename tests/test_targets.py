@@ -240,3 +240,29 @@ def test_ray_runs_measure_how_far_a_ray_stays_in_the_shape():
     assert right == pytest.approx(24.0, abs=0.6) and left == pytest.approx(5.0, abs=0.6)
     assert up == pytest.approx(2.0, abs=0.6)
     assert ray_runs(mask, 10.5, 10.5, np.array([0.0]), 8.0)[0] == 8.0  # capped at the length
+
+
+def test_parts_are_labelled_as_scipy_labels_them():
+    from scipy import ndimage
+
+    from procmod.targets.components import component_labels
+    rng = np.random.default_rng(3)
+    for density in (0.2, 0.45, 0.6):
+        mask = rng.random((40, 57)) < density
+        labels, sizes = component_labels(mask)
+        theirs, n = ndimage.label(mask, structure=np.ones((3, 3)))
+        assert len(sizes) == n and sizes.sum() == mask.sum() and (labels >= 0).sum() == mask.sum()
+        # the same partition: each of our parts is exactly one of theirs
+        pairs = set(zip(labels[mask].tolist(), theirs[mask].tolist()))
+        assert len(pairs) == n
+
+
+def test_a_speck_below_the_shape_does_not_take_the_start():
+    from procmod.targets.image import lowest_point_start
+    mask = np.zeros((100, 100), bool)
+    mask[20:80, 45:55] = True  # a bar
+    clean = lowest_point_start(mask)
+    mask[95, 10] = mask[96, 10] = True  # dust near the bottom of a scan
+    assert lowest_point_start(mask) == clean and clean[0][1] == pytest.approx(79.5 / 100)
+    mask[85:95, 70:80] = True  # a part a sixth of the bar's size is shape, not noise
+    assert lowest_point_start(mask)[0][1] == pytest.approx(94.5 / 100)

@@ -132,6 +132,9 @@ def resample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
 def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
     """Start at the lowest foreground pixel (middle of its run), heading along the shape.
 
+    Parts of the mask under :data:`SPECK_SHARE` of its largest 8-connected part are
+    left out: specks of noise, not the shape.
+
     The direction points from the start to the centroid of the foreground within
     ``reach`` (a fraction of the image size) of it, so a model starting at the bottom of
     a "c" grows along the curve rather than straight up into the empty middle (falling
@@ -142,6 +145,9 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
     whose ray runs at least 80% as far as the longest, the one closest to the
     centroid's (see :func:`ray_runs`).
     """
+    from .components import without_specks  # numba: imported where a start is derived
+
+    mask = without_specks(mask, SPECK_SHARE)  # a stray pixel below the shape is no start
     rows = np.flatnonzero(mask.any(axis=1))
     row = rows[-1]
     cols = np.flatnonzero(mask[row])
@@ -165,6 +171,9 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
     return ((col + 0.5) / w, (row + 0.5) / h), direction
 
 
+# Parts this much smaller than the largest are noise (dust on a scan, a stray pixel);
+# the dot of an "i" is about a tenth of its stem.
+SPECK_SHARE = 0.02
 # The centroid's direction is kept unless its ray runs under EARLY_EXIT of the longest;
 # then a direction "stays in the shape" when its ray runs RUN_SHARE of the longest.
 EARLY_EXIT = 0.5
