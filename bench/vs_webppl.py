@@ -28,14 +28,18 @@ Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``
 procedural scribbles from number 49 on (0-48 train the guides); ``stix`` (not in the
 default), the first lower-case glyphs of STIX General Bold, a serif typeface whose
 hairlines and serifs neither the guides' training scribbles nor DejaVu Sans have;
+``serif`` (not in the default), the same from DejaVu Serif Bold;
 ``silhouettes`` (not in the default; ``pip install pybullet``), 50x50 silhouettes of the
-objects and robots pybullet_data ships (bench/peers/silhouettes.py). Results:
+objects and robots pybullet_data ships (bench/peers/silhouettes.py). ``--bottom-centre``
+starts every target at the bottom centre, growing up, as the original experiments' do.
+Results:
 ``bench/results/vs_webppl.json`` and ``.png`` (``--name`` changes the stem).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -64,6 +68,7 @@ WEBPPL_VERSION = "0.9.15"
 WEBPPL_CACHE = HERE / ".cache" / f"webppl-{WEBPPL_VERSION}"
 PEER = HERE / "peers" / "webppl"
 SIZE = 50
+BOTTOM_CENTRE, UP = (0.5, 0.9166), (0.0, -1.0)  # every original target's start (shared/seeds/vines.md)
 
 
 # ---- the peer -------------------------------------------------------------------------
@@ -102,6 +107,8 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         out["scribbles"] = scribble_set(count, first=scribble_first)
     if "stix" in sets:  # another typeface: serifs and hairlines, unlike the training scribbles
         out["stix"] = [t for t in glyph_set("stix") if t.name[-1].islower()][:count]
+    if "serif" in sets:  # DejaVu Serif: serifs, thinner strokes than DejaVu Sans Bold
+        out["serif"] = [t for t in glyph_set("dejavu-serif") if t.name[-1].islower()][:count]
     if "silhouettes" in sets:  # real 3D assets, not drawn strokes (bench/peers/silhouettes.py)
         from silhouettes import silhouette_targets
 
@@ -438,7 +445,10 @@ def plot_mcmc(rows: list, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles", "stix", "silhouettes"))
+    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles", "stix", "serif", "silhouettes"))
+    parser.add_argument("--bottom-centre", action="store_true",
+                        help="start every target at the bottom centre, growing up, as the original experiments' "
+                             "targets all do (shared/seeds/vines.md), instead of the target's own start")
     parser.add_argument("--targets-dir", type=Path, help="a folder of target pictures (added as its own set)")
     parser.add_argument("--count", type=int, default=12, help="targets per built-in set (default 12)")
     parser.add_argument("--scribble-first", type=int, default=49, help="first scribble number (default 49)")
@@ -468,7 +478,10 @@ def main() -> None:
     webppl = ensure_webppl() if "webppl" in args.systems else None
     work = args.work or Path(tempfile.mkdtemp(prefix="vs_webppl_"))
     work.mkdir(parents=True, exist_ok=True)
-    targets = write_targets(target_images(args.sets, args.count, args.targets_dir, args.scribble_first),
+    images = target_images(args.sets, args.count, args.targets_dir, args.scribble_first)
+    if args.bottom_centre:
+        images = {k: [dataclasses.replace(t, start=BOTTOM_CENTRE, direction=UP) for t in v] for k, v in images.items()}
+    targets = write_targets(images,
                             work / "targets")
     sets = list(targets)
     rows = []
@@ -566,7 +579,7 @@ def main() -> None:
                     "node": subprocess.run(["node", "--version"], capture_output=True, text=True).stdout.strip()
                     if shutil.which("node") else None},
         "webppl_version": WEBPPL_VERSION, "leaves": args.leaves, "seeds": args.seeds, "workers": args.workers,
-        "repeats": args.repeats,
+        "repeats": args.repeats, "bottom_centre": args.bottom_centre,
         "targets": {s: [label for _, label, *_ in items] for s, items in targets.items()},
         "seconds_total": round(time.time() - started, 1),  # of this pass: rows read back from --work took none
         "rows_read_from_work": reused,

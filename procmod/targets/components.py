@@ -20,9 +20,10 @@ def _root(parent, i):
 
 
 @numba.njit(cache=True)
-def _label(mask):
+def _without_specks(mask, share):
     h, w = mask.shape
-    parent = np.arange(h * w)
+    # union-find over the pixels, int32 (8 bytes a pixel in all: pictures may be large)
+    parent = np.arange(h * w, dtype=np.int32)
     for y in range(h):
         for x in range(w):
             if not mask[y, x]:
@@ -35,33 +36,22 @@ def _label(mask):
                     a, b = _root(parent, i), _root(parent, yy * w + xx)
                     if a != b:
                         parent[max(a, b)] = min(a, b)
-    labels = np.full((h, w), -1, dtype=np.int64)
-    ids = np.full(h * w, -1, dtype=np.int64)
-    sizes = np.zeros(h * w, dtype=np.int64)
-    n = 0
+    sizes = np.zeros(h * w, dtype=np.int32)  # by root
+    largest = 0
     for y in range(h):
         for x in range(w):
             if mask[y, x]:
                 r = _root(parent, y * w + x)
-                if ids[r] < 0:
-                    ids[r] = n
-                    n += 1
-                labels[y, x] = ids[r]
-                sizes[ids[r]] += 1
-    return labels, sizes[:n]
-
-
-def component_labels(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(labels, sizes): each foreground pixel's 8-connected part (0, 1, ... in reading
-    order of their first pixels; -1 for background) and each part's pixel count."""
-    return _label(np.ascontiguousarray(mask, dtype=np.bool_))
+                sizes[r] += 1
+                largest = max(largest, sizes[r])
+    keep = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                keep[y, x] = sizes[_root(parent, y * w + x)] >= share * largest
+    return keep
 
 
 def without_specks(mask: np.ndarray, share: float) -> np.ndarray:
-    """``mask`` without its 8-connected parts smaller than ``share`` of the largest (a
-    mask with no foreground is returned as it is)."""
-    labels, sizes = component_labels(mask)
-    if len(sizes) <= 1:
-        return np.asarray(mask, dtype=bool)
-    keep = np.append(sizes >= share * sizes.max(), False)  # index -1: background
-    return keep[labels]
+    """``mask`` without its 8-connected parts smaller than ``share`` of the largest."""
+    return _without_specks(np.ascontiguousarray(mask, dtype=np.bool_), float(share))

@@ -129,8 +129,11 @@ def resample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
     return small >= 127.5
 
 
-def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
-    """Start at the lowest foreground pixel (middle of its run), heading along the shape.
+def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool = True) -> tuple:
+    """Start at the lowest foreground pixel, heading along the shape.
+
+    The start is the median foreground column of the lowest row: the middle of its run
+    when the row has one (a row across two serif feet gives an inner edge of one).
 
     Parts of the mask under :data:`SPECK_SHARE` of its largest 8-connected part are
     left out: specks of noise, not the shape.
@@ -143,7 +146,8 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
     the bowl's hollow. When the ray that way runs through the shape less than half as
     far as the longest ray from the start (up to ``reach``), the direction is, of those
     whose ray runs at least 80% as far as the longest, the one closest to the
-    centroid's (see :func:`ray_runs`).
+    centroid's (see :func:`ray_runs`). ``along_shape=False`` keeps the centroid's
+    direction always (the rule before; bench/start_directions.py compares the two).
     """
     from .components import without_specks  # numba: imported where a start is derived
 
@@ -164,9 +168,10 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2) -> tuple:
     # candidates every 5 degrees, the centroid's direction first (offset 0)
     offsets = np.radians(np.concatenate([np.arange(0, 185, 5), -np.arange(5, 180, 5)]))
     runs = ray_runs(mask, col + 0.5, row + 0.5, toward + offsets, reach * max(h, w))
-    if runs[0] < EARLY_EXIT * runs.max():  # the centroid's way leaves the shape early
+    if along_shape and runs[0] < EARLY_EXIT * runs.max():  # the centroid's way leaves the shape early
         chosen = np.flatnonzero(runs >= RUN_SHARE * runs.max())
-        angle = toward + offsets[chosen[np.argmin(np.abs(offsets[chosen]))]]
+        # the closest to the centroid's; of two as close, the one that runs further
+        angle = toward + offsets[chosen[np.lexsort((-runs[chosen], np.abs(offsets[chosen])))[0]]]
         direction = (math.cos(angle), math.sin(angle))
     return ((col + 0.5) / w, (row + 0.5) / h), direction
 
@@ -182,10 +187,16 @@ RUN_SHARE = 0.8
 
 def ray_runs(mask: np.ndarray, x: float, y: float, angles: np.ndarray, length: float) -> np.ndarray:
     """How far (pixels, up to ``length``) a ray from (x, y) (pixel units, y down) at each
-    angle runs through the foreground before leaving it or the image. A gap of one
-    sample (half a pixel) is crossed, so that a stroke's ragged edge does not end a run
-    along it."""
-    steps = np.arange(1, max(int(2 * length), 1) + 1) * 0.5
+    angle runs through the foreground before leaving it or the image.
+
+    The ray is sampled every half pixel, a quarter pixel off the centres, so that no
+    sample falls on a pixel's edge (where rounding would favour two of the four
+    directions); a run ends midway between its last sample inside and the first of two
+    outside in a row: a gap of one sample is crossed, so that a stroke's ragged edge does
+    not end a run along it.
+    """
+    count = max(int(round(2 * length)), 1)
+    steps = (np.arange(count) + 0.5) * 0.5
     px = np.floor(x + np.cos(angles)[:, None] * steps).astype(np.int64)
     py = np.floor(y + np.sin(angles)[:, None] * steps).astype(np.int64)
     h, w = mask.shape
@@ -194,8 +205,8 @@ def ray_runs(mask: np.ndarray, x: float, y: float, angles: np.ndarray, length: f
     outside = ~inside
     ends = outside.copy()
     ends[:, :-1] &= outside[:, 1:]  # two samples out in a row
-    first = np.where(ends.any(axis=1), ends.argmax(axis=1), len(steps))
-    return np.concatenate([[0.0], steps])[first]
+    first = np.where(ends.any(axis=1), ends.argmax(axis=1), count)
+    return np.minimum(first * 0.5, length)
 
 
 def check_mask(mask: np.ndarray, name: str) -> np.ndarray:
