@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import platform
 import time
 from pathlib import Path
@@ -49,8 +48,7 @@ from procmod.core import start, step  # noqa: E402
 from procmod.core.runtime import finish  # noqa: E402
 from procmod.data import glyph_set, scribble_set  # noqa: E402
 from procmod.guide import Guide  # noqa: E402
-from procmod.guide.fast import guided_draw, mixture_draw  # noqa: E402
-from procmod.guide.features import local_features, windows_flat  # noqa: E402
+from procmod.guide.fast import guided_draw, mixture_draw, network_outputs, site_features  # noqa: E402
 from procmod.guide.network import LOG_SCALE_MAX, LOG_SCALE_MIN  # noqa: E402
 from procmod.infer import smc  # noqa: E402
 from procmod.models import get_model  # noqa: E402
@@ -62,47 +60,17 @@ BATCH_SIZES = (1, 5, 10, 20, 50, 200)
 
 @numba.njit(cache=False)
 def features_into(x, row, raw, params, target, partial, layout, px, py):
-    """Row ``row`` of ``x``: a choice's feature vector, as ``site_outputs`` builds it."""
-    n_raw = int(params[0])
-    o = 6
-    k = local_features(raw, params[o:o + n_raw], params[o + n_raw:o + 2 * n_raw],
-                       params[o + 2 * n_raw:o + 3 * n_raw], x[row])
-    if params[4] != 0.0:
-        windows_flat(target, layout, px, py, x[row], k)
-        k += 36
-    if params[5] != 0.0:
-        windows_flat(partial, layout, px, py, x[row], k)
+    """Row ``row`` of ``x``: a choice's feature vector, as the fused call builds it."""
+    site_features(raw, params, target, partial, layout, px, py, x[row])
 
 
-@numba.njit(cache=False, fastmath=True)
+@numba.njit(cache=False)
 def draw_batch(k, c0, s0, u, z, x, params, values, log_q):
     """Network and draw of a real-valued site for every row of ``x`` (one particle's
-    features each), the layers as ``site_outputs`` computes them."""
-    n_raw, n_in, n_hidden, n_out = int(params[0]), int(params[1]), int(params[2]), int(params[3])
-    o = 6 + 3 * n_raw
-    w1 = params[o:o + n_hidden * n_in]
-    o += n_hidden * n_in
-    b1 = params[o:o + n_hidden]
-    o += n_hidden
-    w2 = params[o:o + n_out * n_hidden]
-    o += n_out * n_hidden
-    b2 = params[o:o + n_out]
-    h = np.empty(n_hidden)
-    out = np.empty(n_out)
+    features each), as the fused call computes them."""
     for r in range(x.shape[0]):
-        for i in range(n_hidden):
-            acc = b1[i]
-            row = i * n_in
-            for j in range(n_in):
-                acc += w1[row + j] * x[r, j]
-            h[i] = math.tanh(acc)
-        for i in range(n_out):
-            acc = b2[i]
-            row = i * n_hidden
-            for j in range(n_hidden):
-                acc += w2[row + j] * h[j]
-            out[i] = acc
-        values[r], log_q[r] = mixture_draw(out, k, c0[r], s0[r], LOG_SCALE_MIN, LOG_SCALE_MAX, u[r], z[r])
+        values[r], log_q[r] = mixture_draw(network_outputs(x[r], params), k, c0[r], s0[r], LOG_SCALE_MIN,
+                                           LOG_SCALE_MAX, u[r], z[r])
 
 
 def record_choices(model, guide, targets, seeds: int) -> list:

@@ -38,23 +38,34 @@ def pack_site(lows, spans, angular, weights, use_target: bool, use_partial: bool
     return np.ascontiguousarray(np.concatenate([np.asarray(p, dtype=np.float64).ravel() for p in parts]))
 
 
-# fastmath lets numba vectorise the dot products (reassociating the sums: results differ
-# from torch's in the last bits only); it is most of the cost of a guided choice.
-@numba.njit(cache=True, fastmath=True)
-def site_outputs(raw_local, params, target, partial, layout, px, py):
-    """Features (local state, target windows, partial-output windows) -> MLP outputs.
+@numba.njit(cache=True)
+def site_features(raw_local, params, target, partial, layout, px, py, x):
+    """A choice's feature vector (local state, target windows, partial-output windows)
+    into ``x`` (length ``n_in``).
 
     ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by the site's ranges
     and clipped (angles to cos, sin), as :meth:`FeatureExtractor.local_values` does;
     ``target`` and ``partial`` are flat pyramids laid out by ``layout``; ``params`` is
     :func:`pack_site`'s array.
     """
-    n_raw, n_in, n_hidden, n_out = int(params[0]), int(params[1]), int(params[2]), int(params[3])
+    n_raw = int(params[0])
     o = _HEAD
-    lows = params[o:o + n_raw]
-    spans = params[o + n_raw:o + 2 * n_raw]
-    angular = params[o + 2 * n_raw:o + 3 * n_raw]
-    o += 3 * n_raw
+    k = local_features(raw_local, params[o:o + n_raw], params[o + n_raw:o + 2 * n_raw],
+                       params[o + 2 * n_raw:o + 3 * n_raw], x)
+    if params[4] != 0.0:
+        windows_flat(target, layout, px, py, x, k)
+        k += 36
+    if params[5] != 0.0:
+        windows_flat(partial, layout, px, py, x, k)
+
+
+# fastmath lets numba vectorise the dot products (reassociating the sums: results differ
+# from torch's in the last bits only); it is most of the cost of a guided choice.
+@numba.njit(cache=True, fastmath=True)
+def network_outputs(x, params):
+    """The site network's outputs for the features ``x`` (``params``: :func:`pack_site`'s)."""
+    n_raw, n_in, n_hidden, n_out = int(params[0]), int(params[1]), int(params[2]), int(params[3])
+    o = _HEAD + 3 * n_raw
     w1 = params[o:o + n_hidden * n_in]
     o += n_hidden * n_in
     b1 = params[o:o + n_hidden]
@@ -62,13 +73,6 @@ def site_outputs(raw_local, params, target, partial, layout, px, py):
     w2 = params[o:o + n_out * n_hidden]
     o += n_out * n_hidden
     b2 = params[o:o + n_out]
-    x = np.empty(n_in)
-    k = local_features(raw_local, lows, spans, angular, x)
-    if params[4] != 0.0:
-        windows_flat(target, layout, px, py, x, k)
-        k += 36
-    if params[5] != 0.0:
-        windows_flat(partial, layout, px, py, x, k)
     h = np.empty(n_hidden)
     for i in range(n_hidden):
         acc = b1[i]
@@ -84,6 +88,14 @@ def site_outputs(raw_local, params, target, partial, layout, px, py):
             acc += w2[row + j] * h[j]
         out[i] = acc
     return out
+
+
+@numba.njit(cache=True)
+def site_outputs(raw_local, params, target, partial, layout, px, py):
+    """Features (:func:`site_features`) -> MLP outputs (:func:`network_outputs`)."""
+    x = np.empty(int(params[1]))
+    site_features(raw_local, params, target, partial, layout, px, py, x)
+    return network_outputs(x, params)
 
 
 @numba.njit(cache=True, fastmath=True)
