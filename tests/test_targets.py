@@ -259,6 +259,7 @@ def test_specks_are_the_parts_scipy_finds_small():
         kept = np.isin(labels, 1 + np.flatnonzero(sizes >= share * sizes.max()))
         ours = without_specks(mask, share)
         assert np.array_equal(ours, kept) and 0 < ours.sum() < mask.sum()
+    assert not without_specks(np.zeros((5, 7), bool), 0.02).any()
 
 
 def test_a_speck_below_the_shape_does_not_take_the_start():

@@ -54,4 +54,10 @@ def _without_specks(mask, share):
 
 def without_specks(mask: np.ndarray, share: float) -> np.ndarray:
     """``mask`` without its 8-connected parts smaller than ``share`` of the largest."""
-    return _without_specks(np.ascontiguousarray(mask, dtype=np.bool_), float(share))
+    mask = np.asarray(mask, dtype=np.bool_)
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    out = np.zeros(mask.shape, dtype=np.bool_)
+    if len(rows):  # only the box around the foreground is labelled: a drawing rarely fills its page
+        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        out[box] = _without_specks(np.ascontiguousarray(mask[box]), float(share))
+    return out
