@@ -21,8 +21,15 @@ of particle counts, summed over the same (target, seed) runs, with a bootstrap i
 every run's best complete output (procmod: ``best.json``; WebPPL: the complete particle of
 highest similarity, recorded as particles finish) is judged by ``bench/peers/scorer.py``,
 the original program's normalised similarity on a 50x50 mask of the output geometry,
-which shares no code with procmod. Targets are 50x50 masks written once as PNG (+ sidecar
-start/direction) for procmod and as JSON for WebPPL: the same pixels for both.
+which shares no code with procmod. Each summary row gives the median over all its runs
+(``similarity_median``) and seed 004's Fig. 5 measure, each target's median averaged over
+the targets (``similarity_target_mean``): the pooled median sees only on which side of
+the middle a run falls, so a target one system fills and the other fails moves it little;
+the mean weighs every target's level. With ``--guide``, ``guided_similarity_differences``
+holds guided procmod's per-target median minus WebPPL's, averaged over targets, on the
+same (target, seed) runs. Intervals are 95% bootstrap intervals. Targets are 50x50 masks
+written once as PNG (+ sidecar start/direction) for procmod and as JSON for WebPPL: the
+same pixels for both.
 
 Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``, procmod's
 procedural scribbles from number 49 on (0-48 train the guides); ``stix`` (not in the
@@ -256,6 +263,25 @@ def median_interval(values, rng, draws: int = 2000) -> list:
     return [float(np.median(v)), float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]
 
 
+def target_mean_interval(by_target: dict, rng, draws: int = 2000) -> list:
+    """Seed 004's Fig. 5 aggregate: each target's median over its runs, averaged over the
+    targets, with a 95% bootstrap interval that resamples targets and, within each, its
+    runs. ``by_target``: target -> values, or -> (a, b) arrays of paired runs, for the
+    difference of a's and b's medians."""
+    point, boots = [], []
+    for values in by_target.values():
+        paired = isinstance(values, tuple)
+        a, b = (np.asarray(values[0], float), np.asarray(values[1], float)) if paired else \
+            (np.asarray(values, float), None)
+        pick = rng.integers(0, len(a), size=(draws, len(a)))  # the same runs of both when paired
+        point.append(np.median(a) - (np.median(b) if paired else 0.0))
+        boots.append(np.median(a[pick], axis=1) - (np.median(b[pick], axis=1) if paired else 0.0))
+    boots = np.array(boots)  # targets x draws
+    chosen = rng.integers(0, len(point), size=(draws, len(point)))
+    means = boots[chosen, np.arange(draws)[:, None]].mean(axis=1)
+    return [float(np.mean(point)), float(np.quantile(means, 0.025)), float(np.quantile(means, 0.975))]
+
+
 # A per-step cost is quoted where the runs averaged at least this many particle-steps beyond
 # the 1-particle run (~0.15 s of work): procmod's set-up time jitters by ~0.1 s a run, which
 # would swamp the few milliseconds of work at 10 or 50 particles.
@@ -264,6 +290,7 @@ MIN_STEPS_PER_RUN = 10_000
 
 def summarise(rows: list, key_fields: tuple) -> list:
     rng = np.random.default_rng(0)
+    per_target_rng = np.random.default_rng(1)  # its own: the other intervals stay as they were
     groups = {}
     for row in rows:
         groups.setdefault(tuple(row[k] for k in key_fields), []).append(row)
@@ -279,6 +306,8 @@ def summarise(rows: list, key_fields: tuple) -> list:
                        and r.get("infer_seconds") is not None and r.get("baseline_infer_seconds") is not None]
         out.append({**dict(zip(key_fields, key)), "runs": len(group),
                     "similarity_median": median_interval([r["similarity"] for r in group], rng),
+                    # seed 004's Fig. 5 measure: per-target medians averaged over the targets
+                    "similarity_target_mean": target_mean_interval(by_target(group), per_target_rng),
                     "beyond_seconds_median": float(np.median(beyond)),
                     "beyond_seconds_per_set": float(np.sum(beyond) / n_seeds),
                     # in-process inference time (rows that recorded it): procmod's engine, WebPPL's Infer
@@ -290,6 +319,47 @@ def summarise(rows: list, key_fields: tuple) -> list:
                                           if timed_steps and sum(n for _, n in timed_steps)
                                           >= MIN_STEPS_PER_RUN * len(timed_steps) else None),
                     "wall_seconds_median": float(np.median([r["seconds"] for r in group]))})
+    return out
+
+
+def by_target(group: list) -> dict:
+    """target -> its runs' similarities."""
+    out = {}
+    for r in group:
+        out.setdefault(r["target"], []).append(r["similarity"])
+    return out
+
+
+def paired_similarity_differences(rows: list, sets: list) -> list:
+    """Guided procmod's similarity against WebPPL's unguided SMC, per set and pair of
+    particle counts, on the (target, seed) runs both made: the pooled medians, and the
+    per-target median differences averaged over targets (seed 004's Fig. 5 measure) with
+    a 95% bootstrap interval that resamples targets, then each target's seeds, paired."""
+    rng = np.random.default_rng(2)
+    out = []
+    for set_name in sets:
+        guided = [r for r in rows if r["set"] == set_name and r["system"] == "procmod+guide"]
+        webppl = [r for r in rows if r["set"] == set_name and r["system"] == "webppl" and r["method"] == "SMC"]
+        for n in sorted({r["n"] for r in guided}):
+            own = {(r["target"], r["seed"]): r["similarity"] for r in guided if r["n"] == n}
+            for m in sorted({r["n"] for r in webppl}):
+                peer = {(r["target"], r["seed"]): r["similarity"] for r in webppl if r["n"] == m}
+                keys = sorted(set(own) & set(peer))
+                if not keys:
+                    continue
+                paired = {}
+                for t, seed in keys:
+                    a, b = paired.setdefault(t, ([], []))
+                    a.append(own[(t, seed)])
+                    b.append(peer[(t, seed)])
+                out.append({"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys),
+                            "targets": len(paired),
+                            "guided_median": float(np.median([own[k] for k in keys])),
+                            "webppl_median": float(np.median([peer[k] for k in keys])),
+                            "target_mean_difference": target_mean_interval(
+                                {t: (a, b) for t, (a, b) in paired.items()}, rng),
+                            "targets_guided_ahead": int(sum(np.median(a) > np.median(b)
+                                                            for a, b in paired.values()))})
     return out
 
 
@@ -586,6 +656,7 @@ def main() -> None:
         "summary": summary, "runs": rows,
         "speedups": speedups(summary, sets),
         "guided_time_ratios": paired_time_ratios(rows, sets),
+        "guided_similarity_differences": paired_similarity_differences(rows, sets),
         "mcmc_summary": summarise(mcmc_rows, ("system", "method", "set")) if mcmc_rows else [],
         "mcmc_runs": mcmc_rows,
     }
@@ -596,8 +667,9 @@ def main() -> None:
     if mcmc_rows:
         plot_mcmc(mcmc_rows, RESULTS / f"{args.name}_mcmc.png")
     for s in summary:
-        m = s["similarity_median"]
+        m, t = s["similarity_median"], s["similarity_target_mean"]
         print(f"{s['system']:>13} {s['set']:>10} n={s['n']:<5} median {m[0]:.3f} [{m[1]:.3f}, {m[2]:.3f}]  "
+              f"target mean {t[0]:.3f} [{t[1]:.3f}, {t[2]:.3f}]  "
               f"beyond-1 per set {s['beyond_seconds_per_set']:7.2f} s"
               + (f"  {s['infer_us_per_step']:.1f} us per step beyond 1 particle, in process" if s.get("infer_us_per_step") else ""))
     for t in result["guided_time_ratios"]:
@@ -606,6 +678,12 @@ def main() -> None:
                  for clock in ("whole_process", "in_process") if clock + "_ratio" in t]
         print(f"procmod+guide-{t['guided_particles']} / webppl-{t['webppl_particles']} {t['set']:>10}: time "
               + ", ".join(shown))
+    for d in result["guided_similarity_differences"]:
+        diff = d["target_mean_difference"]
+        print(f"procmod+guide-{d['guided_particles']} - webppl-{d['webppl_particles']} {d['set']:>10}: similarity "
+              f"per-target mean {diff[0]:+.3f} [{diff[1]:+.3f}, {diff[2]:+.3f}], ahead on "
+              f"{d['targets_guided_ahead']} of {d['targets']} targets; pooled medians "
+              f"{d['guided_median']:.3f} / {d['webppl_median']:.3f}")
     print(f"wrote {RESULTS / (args.name + '.json')}")
 
 
