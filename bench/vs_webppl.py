@@ -337,30 +337,34 @@ def paired_similarity_differences(rows: list, sets: list) -> list:
     a 95% bootstrap interval that resamples targets, then each target's seeds, paired."""
     rng = np.random.default_rng(2)
     out = []
+    for set_name, n, m, own, peer, keys in guided_webppl_pairs(rows, sets):
+        paired = {}
+        for t, seed in keys:
+            a, b = paired.setdefault(t, ([], []))
+            a.append(own[(t, seed)]["similarity"])
+            b.append(peer[(t, seed)]["similarity"])
+        out.append({"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys),
+                    "targets": len(paired),
+                    "guided_median": float(np.median([own[k]["similarity"] for k in keys])),
+                    "webppl_median": float(np.median([peer[k]["similarity"] for k in keys])),
+                    "target_mean_difference": target_mean_interval(paired, rng),
+                    "targets_guided_ahead": int(sum(np.median(a) > np.median(b) for a, b in paired.values()))})
+    return out
+
+
+def guided_webppl_pairs(rows: list, sets: list):
+    """For each set, guided particle count ``n`` and WebPPL SMC count ``m`` that share
+    runs: ``(set, n, m, guided rows, WebPPL rows, shared keys)``, rows by (target, seed)."""
     for set_name in sets:
         guided = [r for r in rows if r["set"] == set_name and r["system"] == "procmod+guide"]
         webppl = [r for r in rows if r["set"] == set_name and r["system"] == "webppl" and r["method"] == "SMC"]
         for n in sorted({r["n"] for r in guided}):
-            own = {(r["target"], r["seed"]): r["similarity"] for r in guided if r["n"] == n}
+            own = {(r["target"], r["seed"]): r for r in guided if r["n"] == n}
             for m in sorted({r["n"] for r in webppl}):
-                peer = {(r["target"], r["seed"]): r["similarity"] for r in webppl if r["n"] == m}
+                peer = {(r["target"], r["seed"]): r for r in webppl if r["n"] == m}
                 keys = sorted(set(own) & set(peer))
-                if not keys:
-                    continue
-                paired = {}
-                for t, seed in keys:
-                    a, b = paired.setdefault(t, ([], []))
-                    a.append(own[(t, seed)])
-                    b.append(peer[(t, seed)])
-                out.append({"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys),
-                            "targets": len(paired),
-                            "guided_median": float(np.median([own[k] for k in keys])),
-                            "webppl_median": float(np.median([peer[k] for k in keys])),
-                            "target_mean_difference": target_mean_interval(
-                                {t: (a, b) for t, (a, b) in paired.items()}, rng),
-                            "targets_guided_ahead": int(sum(np.median(a) > np.median(b)
-                                                            for a, b in paired.values()))})
-    return out
+                if keys:
+                    yield set_name, n, m, own, peer, keys
 
 
 THRESHOLDS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
@@ -422,40 +426,31 @@ def paired_time_ratios(rows: list, sets: list, draws: int = 4000) -> list:
     positive (its extra time lost in the jitter: no ratio to speak of)."""
     rng = np.random.default_rng(0)
     out = []
-    for set_name in sets:
-        guided = [r for r in rows if r["set"] == set_name and r["system"] == "procmod+guide"]
-        webppl = [r for r in rows if r["set"] == set_name and r["system"] == "webppl" and r["method"] == "SMC"]
-        for n in sorted({r["n"] for r in guided}):
-            own = {(r["target"], r["seed"]): r for r in guided if r["n"] == n}
-            for m in sorted({r["n"] for r in webppl}):
-                peer = {(r["target"], r["seed"]): r for r in webppl if r["n"] == m}
-                keys = sorted(set(own) & set(peer))
-                if not keys:
-                    continue
-                row = {"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys)}
-                for clock, of in (("whole_process", lambda r: r["beyond_seconds"]),
-                                  ("in_process", lambda r: r["infer_seconds"] - r["baseline_infer_seconds"])):
-                    try:
-                        a = np.array([of(own[k]) for k in keys])
-                        b = np.array([of(peer[k]) for k in keys])
-                    except (KeyError, TypeError):  # rows without in-process times
-                        continue
-                    # per-target sums, then targets drawn with replacement
-                    targets = sorted({t for t, _ in keys})
-                    where = {t: i for i, t in enumerate(targets)}
-                    a_t, b_t = np.zeros(len(targets)), np.zeros(len(targets))
-                    for (t, _), x, y in zip(keys, a, b):
-                        a_t[where[t]] += x
-                        b_t[where[t]] += y
-                    pick = rng.integers(0, len(targets), size=(draws, len(targets)))
-                    bottom = b_t[pick].sum(axis=1)
-                    if b.sum() <= 0 or np.any(bottom <= 0):
-                        row[f"{clock}_ratio"] = None
-                        continue
-                    ratio = a_t[pick].sum(axis=1) / bottom
-                    row[f"{clock}_ratio"] = [float(a.sum() / b.sum()), float(np.quantile(ratio, 0.025)),
-                                             float(np.quantile(ratio, 0.975))]
-                out.append(row)
+    for set_name, n, m, own, peer, keys in guided_webppl_pairs(rows, sets):
+        row = {"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys)}
+        for clock, of in (("whole_process", lambda r: r["beyond_seconds"]),
+                          ("in_process", lambda r: r["infer_seconds"] - r["baseline_infer_seconds"])):
+            try:
+                a = np.array([of(own[k]) for k in keys])
+                b = np.array([of(peer[k]) for k in keys])
+            except (KeyError, TypeError):  # rows without in-process times
+                continue
+            # per-target sums, then targets drawn with replacement
+            targets = sorted({t for t, _ in keys})
+            where = {t: i for i, t in enumerate(targets)}
+            a_t, b_t = np.zeros(len(targets)), np.zeros(len(targets))
+            for (t, _), x, y in zip(keys, a, b):
+                a_t[where[t]] += x
+                b_t[where[t]] += y
+            pick = rng.integers(0, len(targets), size=(draws, len(targets)))
+            bottom = b_t[pick].sum(axis=1)
+            if b.sum() <= 0 or np.any(bottom <= 0):
+                row[f"{clock}_ratio"] = None
+                continue
+            ratio = a_t[pick].sum(axis=1) / bottom
+            row[f"{clock}_ratio"] = [float(a.sum() / b.sum()), float(np.quantile(ratio, 0.025)),
+                                     float(np.quantile(ratio, 0.975))]
+        out.append(row)
     return out
 
 
