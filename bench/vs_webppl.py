@@ -337,13 +337,13 @@ def paired_similarity_differences(rows: list, sets: list) -> list:
             a, b = paired.setdefault(t, ([], []))
             a.append(own[(t, seed)]["similarity"])
             b.append(peer[(t, seed)]["similarity"])
+        differences = [np.median(a) - np.median(b) for a, b in paired.values()]
         out.append({"set": set_name, "guided_particles": n, "webppl_particles": m, "pairs": len(keys),
                     "targets": len(paired),
                     "guided_median": float(np.median([own[k]["similarity"] for k in keys])),
                     "webppl_median": float(np.median([peer[k]["similarity"] for k in keys])),
-                    "target_mean_difference": mean_over_targets(
-                        [np.median(a) - np.median(b) for a, b in paired.values()], rng),
-                    "targets_guided_ahead": int(sum(np.median(a) > np.median(b) for a, b in paired.values()))})
+                    "target_mean_difference": mean_over_targets(differences, rng),
+                    "targets_guided_ahead": int(sum(d > 0 for d in differences))})
     return out
 
 
