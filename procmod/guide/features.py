@@ -125,19 +125,25 @@ def _blur_down_region(flat, src, dst, r0, r1, c0, c1):
 def pyramid_update(pixels, old, new, layout):
     """``new`` = the pyramid of ``pixels`` (non-zero = 1), given ``old``, the pyramid of an
     earlier state of the same raster: only the region whose pixels changed is recomputed,
-    level by level. Returns whether anything changed."""
-    new[:] = old
+    level by level (``old`` and ``new`` are distinct arrays). Returns whether anything
+    changed."""
     h, w = layout[0, 1], layout[0, 2]
+    new[h * w:] = old[h * w:]
     rmin, rmax, cmin, cmax = h, -1, w, -1
     for i in range(h):
-        for j in range(w):
-            v = 1.0 if pixels[i * w + j] != 0 else 0.0
-            if v != new[i * w + j]:
-                new[i * w + j] = v
-                rmin = min(rmin, i)
-                rmax = max(rmax, i)
-                cmin = min(cmin, j)
-                cmax = max(cmax, j)
+        row = i * w
+        changed = 0
+        for j in range(w):  # branch-free, so that it vectorises: most rows do not change
+            v = 1.0 if pixels[row + j] != 0 else 0.0
+            changed += v != old[row + j]
+            new[row + j] = v
+        if changed:
+            rmin = min(rmin, i)
+            rmax = i
+            for j in range(w):
+                if new[row + j] != old[row + j]:
+                    cmin = min(cmin, j)
+                    cmax = max(cmax, j)
     if rmax < 0:
         return False
     for k in range(1, layout.shape[0]):
