@@ -68,8 +68,9 @@ def _tanh(a):
     """tanh(a) to within 5e-9, by the 16th convergent of Lambert's continued fraction
     (tanh a = a / (1 + a^2 / (3 + a^2 / (5 + ...)))), numerator and denominator by their
     three-term recurrences. A loop of calls of libm's tanh does not vectorise; this,
-    arithmetic only, does: it takes a fifth of the network's time off (an in-run A/B,
-    tests/test_guide.py holds it to torch's outputs)."""
+    arithmetic only, does: about a fifth less network time in a micro-benchmark (81
+    inputs, 40 hidden units), 4-6% less time a guided run in an in-run A/B;
+    tests/test_guide.py holds the outputs to torch's."""
     a = min(max(a, -_TANH_CLAMP), _TANH_CLAMP)
     t = a * a
     num2, num1, den2, den1 = 0.0, a, 1.0, 1.0
