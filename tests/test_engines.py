@@ -1,6 +1,9 @@
 """Engine contract and MCMC proposals on the built-in models (the GA's operators: tests/test_ga_*.py)."""
 
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -210,3 +213,75 @@ def test_a_requested_stop_ends_an_engine_at_its_next_budget_check():
     for engine, kw in (("ga", {"population": 10}), ("mcmc", {"chains": 2}), ("smc", {"particles": 10})):
         r = ENGINES[engine](model, target, seed=0, budget=Budget(generations=10 ** 6), progress=stop_at_once, **kw)
         assert r.best is not None and r.evaluations < 1000
+
+
+_NO_LOADS_IN_THE_RUN = """
+import sys
+from pathlib import Path
+from numba.core.registry import CPUDispatcher
+sys.path.insert(0, {tests!r})
+import procmod.infer.common as common
+from procmod.core import Model, Uniform
+from procmod.data import glyph_target, target_from_spec
+from procmod.guide import FeatureSettings, Guide, new_guide_for
+from procmod.infer import ga, mcmc, smc
+from procmod.infer.common import parse_budget
+from procmod.models import get_model
+from procmod.targets import ShapeMatch
+from toy_models import SumTarget, mix_root, mix_child, Value, SumOutput
+
+
+def kernels():  # every procmod numba kernel -> how many compiled versions it holds
+    return {{f"{{m}}.{{n}}": len(v.signatures) for m, mod in list(sys.modules.items())
+             if m.startswith("procmod") for n, v in vars(mod).items() if isinstance(v, CPUDispatcher)}}
+
+
+at_start = {{}}
+start = common.Tracker.__init__
+def clock_starts(self, *args, **kwargs):  # the engine's clock starts here
+    at_start.clear()
+    at_start.update(kernels())
+    start(self, *args, **kwargs)
+common.Tracker.__init__ = clock_starts
+
+
+def interval_root(ctx):
+    ctx.emit(Value(ctx.sample("u", Uniform(-1.0, 3.0))))
+    ctx.maybe("child", 0.5, mix_child)
+
+
+TOY = Model("interval", "an interval choice", interval_root, lambda p: (), lambda p: SumOutput(),
+            rules=(interval_root, mix_child))
+kinds = {{"interval_root:u": "interval", "interval_root:child": "bernoulli", "mix_child:y": "real"}}
+scenes = Path({tests!r}).parent / "scenes"
+vines = get_model("vines")
+runs = [(smc, vines, ShapeMatch(glyph_target("a")), dict(particles=20)),
+        (smc, vines, ShapeMatch(glyph_target("b")), dict(particles=20, guide=Guide.load("vines-scribbles"))),
+        (smc, TOY, SumTarget(1.0, 0.5),
+         dict(particles=20, guide=new_guide_for(TOY, FeatureSettings.condition("constant"), 2, kinds, 0))),
+        (smc, get_model("chain"), target_from_spec("circuit"), dict(particles=5)),
+        (smc, get_model("spaceship"), target_from_spec(str(scenes / "spaceship_volume")), dict(particles=5)),
+        (mcmc, get_model("city"), target_from_spec(str(scenes / "city_volume")),
+         dict(budget=parse_budget("100evals"), init_particles=0)),
+        (ga, get_model("city"), target_from_spec(str(scenes / "city_skyline")),
+         dict(population=6, budget=parse_budget("2gens")))]
+for engine, model, target, options in runs:
+    engine(model, target, seed=0, **options)
+    grown = sorted(k for k, n in kernels().items() if n != at_start.get(k, 0))
+    print(engine.__name__, model.name, grown)
+"""
+
+
+def test_kernels_are_loaded_before_the_engines_clock_starts():
+    # numba loads a kernel at its first call: ~0.3 s for the first in a process, ~10 ms for
+    # each further one. Made in the clock, that load counted as inference time (a 10-particle
+    # run reported 0.3 s for 5 ms of work) and ate time budgets. The outputs (2D canvas,
+    # circuit canvas, voxel scene, silhouettes) and the guided proposer load theirs when
+    # they are made, with the argument types the run passes: a wrong type would load a
+    # second version during the run, and this would list it.
+    code = _NO_LOADS_IN_THE_RUN.format(tests=str(Path(__file__).resolve().parent))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    expected = ["smc vines []", "smc vines []", "smc interval []", "smc chain []", "smc spaceship []",
+                "mcmc city []", "ga city []"]
+    assert done.stdout.strip().split("\n") == expected, done.stdout

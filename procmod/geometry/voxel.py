@@ -270,6 +270,8 @@ class VoxelScene:
         self._state = np.zeros(6)
         self.part_cache = None
         self.saturated = False
+        if not _kernels_loaded:
+            load_kernels()
 
     def use_part_cache(self) -> None:
         """Look parts up in this process's cache for the grid (see :class:`PartCache`)."""
@@ -389,6 +391,29 @@ class VoxelScene:
         self.gain_total -= float(state[3])
         self.n_parts -= 1
         return n
+
+
+_kernels_loaded = False
+
+
+def load_kernels() -> None:
+    """Load the voxelizing kernels now, once per process; the first :class:`VoxelScene` a
+    process makes calls it, so that numba's loading (~0.3 s for the first kernel of a
+    process) falls in set-up rather than in a timed or budgeted run (as
+    :func:`procmod.geometry.raster.load_kernels` does for the 2D canvas)."""
+    global _kernels_loaded
+    if _kernels_loaded:
+        return
+    _kernels_loaded = True  # first: the scratch scene below must not come back here
+    scene = VoxelScene(VoxelGrid((0.0, 0.0, 0.0), 1.0, (2, 2, 2)))
+    tetrahedron = Mesh(((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+                       ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)))
+    parts = (Box((1.0, 1.0, 1.0)), Cylinder(0.5, 1.0), tetrahedron)
+    for part in parts:
+        scene.add(part)
+    for part in parts:
+        scene.remove(part)
+    _add_voxels(scene.counts, _NO_RECORD, scene.gain, scene._state)  # a part cache's hit
 
 
 def voxelize(parts, grid: VoxelGrid) -> np.ndarray:

@@ -24,7 +24,7 @@ from ..core.distributions import Normal
 from ..core.limits import check_memory
 from ..core.io import fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from .fast import guided_draw, pack_site, site_outputs
-from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, partial_pyramid
+from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, Pyramid, partial_pyramid
 from .network import base_params, encode_value, head_kind, initial_bias, n_outputs, propose
 
 FORMAT = "procmod-guide/1"
@@ -332,6 +332,29 @@ class GuidedProposer:
         self._raw_of = (None, None, None)  # (call arguments, argument indices, their array)
         self._draws_of = self._uniforms = self._normals = None  # see _draws
         self._next_draw = DRAW_BLOCK
+        self._load_kernels()
+
+    def _load_kernels(self) -> None:
+        """Call each kernel the sites will use once, with the argument types they will
+        pass: numba loads a kernel's machine code at its first call (~10 ms each), and the
+        proposer is made before an engine starts its clock (as :func:`load_kernels
+        <procmod.geometry.raster.load_kernels>` does for the canvas)."""
+        codes = {"real": 0, "bernoulli": 1}
+        done = set()
+        for kind, params, *_ in self._sites.values():
+            kernel = "outputs" if kind == "interval" else "draw"
+            if kernel in done:
+                continue
+            done.add(kernel)
+            raw = np.zeros(int(params[0]))  # the site's local values, all at their ranges' centres
+            inputs = (raw, params, self._target_flat, self._target_flat, self._layout, 0.0, 0.0)
+            if kernel == "outputs":
+                site_outputs(*inputs)
+            else:
+                base = self._no_local if kind == "real" else np.zeros(n_outputs(kind, self.mixture))
+                guided_draw(codes.get(kind, 2), self.mixture, 0.0, 1.0, base, 0.5, 0.0, *inputs)
+        if self._use_partial:
+            Pyramid.empty(1, 1).updated(np.zeros(1, dtype=np.uint8))
 
     @staticmethod
     def _local_layout(extractor, rule_name: str) -> tuple:

@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from ..core import InvalidArgumentError
-from ..geometry import Canvas
+from ..geometry import Canvas, Segment, Viewport
 from .image import check_canvas, out_of_bounds_penalty
 
 
@@ -79,6 +79,9 @@ def edge_total(pixels, width, height):
     return total
 
 
+_edge_kernel_loaded = False
+
+
 class EdgeCanvas(Canvas):
     """A canvas that also keeps the summed edge strength of its image up to date."""
 
@@ -92,6 +95,11 @@ class EdgeCanvas(Canvas):
         out._mark = np.zeros(out.pixels.shape[0], dtype=np.bool_)
         out._stamp = np.zeros(out.pixels.shape[0], dtype=np.int64)
         out._counter = np.zeros(1, dtype=np.int64)  # shared by all copies: stamps stay unique
+        global _edge_kernel_loaded
+        if not _edge_kernel_loaded:  # numba loads it at its first call: here, in set-up (see
+            _edge_kernel_loaded = True  # procmod.geometry.raster.load_kernels), not in a run
+            scratch = cls.wrap(Canvas(Viewport(0.0, 1.0, 0.0, 1.0), 1))
+            scratch.add(Segment(0.2, 0.2, 0.8, 0.8, 0.5))
         return out
 
     def copy(self) -> "EdgeCanvas":
