@@ -215,6 +215,20 @@ def test_a_requested_stop_ends_an_engine_at_its_next_budget_check():
         assert r.best is not None and r.evaluations < 1000
 
 
+
+def test_once_per_process_runs_its_load_once_even_when_the_load_calls_it_again():
+    from procmod.core.kernels import once_per_process
+    calls = []
+
+    @once_per_process
+    def load():
+        calls.append(1)
+        load()  # a scratch object whose constructor loads the kernels again
+
+    load()
+    load()
+    assert calls == [1]
+
 _NO_LOADS_IN_THE_RUN = """
 import sys
 from pathlib import Path

@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from ..core.errors import InvalidArgumentError
+from ..core.kernels import once_per_process
 from .solid import Box, part_bounds, part_triangles
 
 SILHOUETTE_SEGMENTS = 12
@@ -196,8 +197,7 @@ class Silhouettes:
                          for c in self.cameras]
         self.part_cache = None
         self.saturated = False
-        if not _kernels_loaded:
-            load_kernels()
+        load_kernels()
 
     def copy(self) -> "Silhouettes":
         other = type(self).__new__(type(self))
@@ -289,18 +289,13 @@ class Silhouettes:
 
 
 _PIXEL_CACHES: dict = {}  # cameras -> PartCache of per-camera pixel indices (one per process)
-_kernels_loaded = False
 
 
+@once_per_process
 def load_kernels() -> None:
-    """Load the silhouette kernels now, once per process; the first :class:`Silhouettes`
-    a process makes calls it, so that numba's loading (~0.3 s for the first kernel of a
-    process) falls in set-up rather than in a timed or budgeted run (as
-    :func:`procmod.geometry.raster.load_kernels` does for the 2D canvas)."""
-    global _kernels_loaded
-    if _kernels_loaded:
-        return
-    _kernels_loaded = True  # first: the scratch rasters below must not come back here
+    """Load the silhouette kernels, with the argument types adding and removing parts
+    pass; the first :class:`Silhouettes` a process makes calls it (see
+    :mod:`procmod.core.kernels`)."""
     scene = Silhouettes([Camera((0.0, 0.0, 5.0), (0.0, 0.0, 0.0), projection="orthographic", fov=2.0,
                                 width=4, height=4)])
     box = Box((1.0, 1.0, 1.0))

@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ..core.kernels import once_per_process
 from .primitives import Disc, Ellipse, Polygon, Segment, Viewport, bounds
 
 MIN_RADIUS_PX = 0.5
@@ -157,8 +158,7 @@ class Canvas:
         self.min_radius_px = float(min_radius_px)
         self._ox, self._oy, self._xmax, self._ymax = vp.xmin, vp.ymin, vp.xmax, vp.ymax
         self._outside = False  # has anything been drawn beyond the viewport?
-        if not _kernels_loaded:
-            load_kernels()
+        load_kernels()
 
     def copy(self) -> "Canvas":
         """A copy with its own pixels; the gain array and scratch buffer are shared."""
@@ -264,23 +264,10 @@ class Canvas:
         return ex, ey
 
 
-_kernels_loaded = False
-
-
+@once_per_process
 def load_kernels() -> None:
-    """Load the drawing kernels' machine code now (compiling it on a fresh install), once
-    per process; the first :class:`Canvas` a process makes calls it.
-
-    numba loads a kernel from its cache at the kernel's first call, and the first load in
-    a process costs ~0.3 s (numba sets up its compiler's context), each further kernel a
-    few milliseconds. Loaded here, with the argument types :meth:`Canvas.add` passes, that
-    cost falls in set-up (the target makes its canvas before an engine starts its clock)
-    rather than in the first draws of a timed or budgeted run.
-    """
-    global _kernels_loaded
-    if _kernels_loaded:
-        return
-    _kernels_loaded = True  # first: the scratch canvas below must not come back here
+    """Load the drawing kernels, with the argument types :meth:`Canvas.add` passes; the
+    first :class:`Canvas` a process makes calls it (see :mod:`procmod.core.kernels`)."""
     scratch = Canvas(Viewport(0.0, 1.0, 0.0, 1.0), 1)
     for primitive in (Segment(0.2, 0.2, 0.8, 0.8, 0.5), Disc(0.5, 0.5, 0.5),
                       Ellipse(0.5, 0.5, 0.0, 1.0, 0.5), Polygon(((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)))):

@@ -18,6 +18,7 @@ import numba
 import numpy as np
 
 from ..core.errors import InvalidArgumentError
+from ..core.kernels import once_per_process
 from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles
 
 
@@ -270,8 +271,7 @@ class VoxelScene:
         self._state = np.zeros(6)
         self.part_cache = None
         self.saturated = False
-        if not _kernels_loaded:
-            load_kernels()
+        load_kernels()
 
     def use_part_cache(self) -> None:
         """Look parts up in this process's cache for the grid (see :class:`PartCache`)."""
@@ -393,18 +393,11 @@ class VoxelScene:
         return n
 
 
-_kernels_loaded = False
-
-
+@once_per_process
 def load_kernels() -> None:
-    """Load the voxelizing kernels now, once per process; the first :class:`VoxelScene` a
-    process makes calls it, so that numba's loading (~0.3 s for the first kernel of a
-    process) falls in set-up rather than in a timed or budgeted run (as
-    :func:`procmod.geometry.raster.load_kernels` does for the 2D canvas)."""
-    global _kernels_loaded
-    if _kernels_loaded:
-        return
-    _kernels_loaded = True  # first: the scratch scene below must not come back here
+    """Load the voxelizing kernels, with the argument types adding and removing parts
+    pass; the first :class:`VoxelScene` a process makes calls it (see
+    :mod:`procmod.core.kernels`)."""
     scene = VoxelScene(VoxelGrid((0.0, 0.0, 0.0), 1.0, (2, 2, 2)))
     tetrahedron = Mesh(((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
                        ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)))

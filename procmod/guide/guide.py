@@ -337,8 +337,7 @@ class GuidedProposer:
     def _load_kernels(self) -> None:
         """Call each kernel the sites will use once, with the argument types they will
         pass: numba loads a kernel's machine code at its first call (~10 ms each), and the
-        proposer is made before an engine starts its clock (as :func:`load_kernels
-        <procmod.geometry.raster.load_kernels>` does for the canvas)."""
+        proposer is made before an engine starts its clock (see :mod:`procmod.core.kernels`)."""
         codes = {"real": 0, "bernoulli": 1}
         done = set()
         for kind, params, *_ in self._sites.values():

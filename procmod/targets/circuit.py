@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from ..core import InvalidArgumentError
+from ..core.kernels import once_per_process
 from ..geometry import Canvas, Segment, Viewport
 from .image import check_canvas, out_of_bounds_penalty
 
@@ -79,7 +80,12 @@ def edge_total(pixels, width, height):
     return total
 
 
-_edge_kernel_loaded = False
+@once_per_process
+def _load_edge_kernel() -> None:
+    """Load the edge kernel with the argument types :meth:`EdgeCanvas.add` passes; the
+    first :class:`EdgeCanvas` a process makes calls it (see :mod:`procmod.core.kernels`)."""
+    scratch = EdgeCanvas.wrap(Canvas(Viewport(0.0, 1.0, 0.0, 1.0), 1))
+    scratch.add(Segment(0.2, 0.2, 0.8, 0.8, 0.5))
 
 
 class EdgeCanvas(Canvas):
@@ -95,11 +101,7 @@ class EdgeCanvas(Canvas):
         out._mark = np.zeros(out.pixels.shape[0], dtype=np.bool_)
         out._stamp = np.zeros(out.pixels.shape[0], dtype=np.int64)
         out._counter = np.zeros(1, dtype=np.int64)  # shared by all copies: stamps stay unique
-        global _edge_kernel_loaded
-        if not _edge_kernel_loaded:  # numba loads it at its first call: here, in set-up (see
-            _edge_kernel_loaded = True  # procmod.geometry.raster.load_kernels), not in a run
-            scratch = cls.wrap(Canvas(Viewport(0.0, 1.0, 0.0, 1.0), 1))
-            scratch.add(Segment(0.2, 0.2, 0.8, 0.8, 0.5))
+        _load_edge_kernel()
         return out
 
     def copy(self) -> "EdgeCanvas":
