@@ -133,7 +133,8 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     save_image_atomic(contact_sheet(tiles), out / "samples.png")
     summary = {
         "engine": result.engine, "target": target.name, "model": best.model.name,
-        "best_score": result.best_score, "seconds": round(result.seconds, 6),  # the one timing field; runs of a few ms need the us
+        # the one timing field, to the microsecond: a short run takes a few milliseconds
+        "best_score": result.best_score, "seconds": round(result.seconds, 6),
         "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,
         "settings": result.settings, "notes": result.notes, "command": command,
     }

@@ -215,7 +215,6 @@ def test_a_requested_stop_ends_an_engine_at_its_next_budget_check():
         assert r.best is not None and r.evaluations < 1000
 
 
-
 def test_once_per_process_runs_its_load_once_even_when_the_load_calls_it_again():
     from procmod.core.kernels import once_per_process
     calls = []
@@ -228,6 +227,7 @@ def test_once_per_process_runs_its_load_once_even_when_the_load_calls_it_again()
     load()
     load()
     assert calls == [1]
+
 
 _NO_LOADS_IN_THE_RUN = """
 import sys
@@ -242,7 +242,7 @@ from procmod.infer import ga, mcmc, smc
 from procmod.infer.common import parse_budget
 from procmod.models import get_model
 from procmod.targets import ShapeMatch
-from toy_models import SumTarget, mix_root, mix_child, Value, SumOutput
+from toy_models import SumTarget, mix_child, Value, SumOutput
 
 
 def kernels():  # every procmod numba kernel -> how many compiled versions it holds
