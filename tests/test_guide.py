@@ -95,6 +95,33 @@ def test_partial_output_features_follow_the_drawing():
     assert f[45 + 4] == 1.0  # the centre pixel of the finest partial-output window is drawn
 
 
+def test_progress_features_count_pending_calls_and_the_covered_target():
+    model = VINES
+    d = run_forward(model, np.random.default_rng(5))
+    drawn = d.output.pixels.reshape(d.output.height, d.output.width) != 0
+    mask = np.zeros((50, 50), dtype=bool)
+    mask[:, :25] = True  # the left half: the vine covers part of it
+    covered = (drawn & mask).sum() / mask.sum()
+    assert 0.0 < covered < 1.0
+    settings = FeatureSettings.condition("all+progress")
+    assert settings == FeatureSettings(progress=True) and settings.name == "all+progress"
+    assert FeatureSettings.condition("local+partial+progress").name == "local+partial+progress"
+    assert FeatureSettings.condition("progress").name == "progress"
+    assert FeatureSettings(**settings.to_json()) == settings
+    assert "progress" not in FeatureSettings().to_json()  # the papers' guides' files as before
+    extractor = FeatureExtractor(model, settings, mask)
+    assert extractor.size("branch") == 9 + 2 + 36 + 36
+    d.position = (0.0, -10.0, 0.0)
+    for pending, want in [(0, -1.0), (2, 0.0), (9, 1.0)]:  # 0..PENDING_SCALE (4) -> -1..1, clipped
+        d.pending = [None] * pending
+        f = extractor.features(d, "branch", VINES.initial_args())
+        np.testing.assert_allclose(f[9:11], [want, 2.0 * covered - 1.0])
+    # without a target image: the pending calls only
+    local_only = FeatureExtractor(model, FeatureSettings.condition("local+progress"), None)
+    assert local_only.size("branch") == 10
+    assert local_only.features(d, "branch", VINES.initial_args())[9] == 1.0
+
+
 DISTS = [Normal(0.3, 2.0), Uniform(-1.0, 3.0), TruncatedNormal(1.0, 0.5, 0.0, 2.0)]
 
 
@@ -267,11 +294,15 @@ def test_step_size_schedules(few_traces, tmp_path):
         train_guide(VINES, few_traces, tmp_path / "c", iterations=30, schedule="linear")
 
 
-def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path):
-    guide, _ = train_guide(VINES, few_traces, tmp_path / "g", iterations=20)
+@pytest.mark.parametrize("condition", ["all", "all+progress"])
+def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path, condition):
+    settings = FeatureSettings.condition(condition)
+    guide, _ = train_guide(VINES, few_traces, tmp_path / "g", settings=settings, iterations=20)
     meta = json.loads((tmp_path / "g.json").read_text())
     assert meta["format"] == "procmod-guide/1" and meta["model"] == "vines"
+    assert meta["features"] == settings.to_json()
     loaded = Guide.load(tmp_path / "g.pt")
+    assert loaded.settings == settings
     for key, tensor in guide.nets.state_dict().items():
         assert torch.equal(tensor, loaded.nets.state_dict()[key])
     from procmod.data import target_image
@@ -316,11 +347,13 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
     assert not (tmp_path / "x").exists() and not (tmp_path / "h.pt").exists()
 
 
-def test_fused_fast_path_matches_the_reference_features_and_mixture():
+@pytest.mark.parametrize("settings", [FeatureSettings(), FeatureSettings(progress=True),
+                                      FeatureSettings(local=False, progress=True)], ids=lambda s: s.name)
+def test_fused_fast_path_matches_the_reference_features_and_mixture(settings):
     from procmod.guide.fast import mixture_draw
     from procmod.guide.network import LOG_SCALE_MAX, LOG_SCALE_MIN
     kinds = {"branch:angle": "real", "branch:terminate": "bernoulli"}
-    guide = new_guide_for(VINES, FeatureSettings(), 4, kinds, seed=1)
+    guide = new_guide_for(VINES, settings, 4, kinds, seed=1)
     with torch.no_grad():
         for p in guide.nets.parameters():
             p.normal_(0, 0.3, generator=torch.Generator().manual_seed(p.numel()))
@@ -337,10 +370,11 @@ def test_fused_fast_path_matches_the_reference_features_and_mixture():
     d = run_forward(VINES, np.random.default_rng(11))
     call_args = (1.0, -5.0, -1.0, 0.3, 0.5, True)
     # positions with and without a heading; the last two are choices of one call (same
-    # arguments) whose heading turned between them
-    for position, args in [((0.0, 0.0), (0.0, 0.0, -1.0, 0.3, 0.5, True)), ((-11.5, -21.0, 2.5), call_args),
-                           ((3.3, -7.7, -0.4), call_args)]:
+    # arguments) whose heading and pending calls changed between them
+    for position, args, pending in [((0.0, 0.0), (0.0, 0.0, -1.0, 0.3, 0.5, True), 0),
+                                    ((-11.5, -21.0, 2.5), call_args, 2), ((3.3, -7.7, -0.4), call_args, 7)]:
         d.position = position
+        d.pending = [None] * pending  # only their number is a feature
         fast = proposer.outputs(d, proposer._sites[("branch", "angle")], args)
         x = proposer.extractor.features(d, "branch", args)
         with torch.no_grad():

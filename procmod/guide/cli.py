@@ -35,7 +35,8 @@ def register(sub, int_arg) -> None:
     train.add_argument("--out", required=True, help="guide path: writes OUT.pt + OUT.json")
     train.add_argument("--features", default="all",
                        help="constant, local, local+target or all (default; seed 004 Figure 5), or any "
-                            "'+'-joined set of local, target, partial (circuit: local+partial)")
+                            "'+'-joined set of local, target, partial and progress (circuit: local+partial; "
+                            "all+progress: all, and the pending calls and covered fraction of the target)")
     train.add_argument("--mixture", type=int_arg, default=4, help="Gaussian components per continuous choice (default 4)")
     train.add_argument("--iterations", type=int_arg, default=20000, help="Adam steps (default 20000, as the papers)")
     train.add_argument("--batch", type=int_arg, default=1, help="traces per minibatch (default 1, as the papers)")

@@ -1,6 +1,7 @@
 """Features a neural guide sees at each random choice (seed 003 section 5.1, seed 004 4.1).
 
-Three sources, each optional (the ablation conditions of seed 004 Figure 5):
+Three sources, each optional (the ablation conditions of seed 004 Figure 5), and a fourth
+off by default:
 
 - **local state**: the scalar arguments of the rule call the choice occurs in, mapped to
   [-1, 1] with the ranges the model declares (``Model.arg_ranges``) and clipped; an
@@ -9,7 +10,15 @@ Three sources, each optional (the ablation conditions of seed 004 Figure 5):
   reports (see :func:`local_ranges`);
 - **target image**: 3x3 windows of the target mask around the current position
   (``ctx.at``) at four resolutions (36 features);
-- **partial output**: the same windows on the image the derivation has drawn so far.
+- **partial output**: the same windows on the image the derivation has drawn so far;
+- **progress** (a design extension of the papers, off unless asked for): how many calls
+  are still pending besides the current one, and, with a target image, the fraction of
+  the target the derivation has drawn on (:meth:`FeatureExtractor.progress_values`),
+  mapped to [-1, 1] like local state and placed after it. The windows only see a few
+  pixels around the current position; a choice that ends the derivation (a vine's
+  ``terminate``, or a ``branch1`` coin that spawns nothing when nothing else is pending)
+  needs to know whether the rest of the target is still empty. README ("Neural guides")
+  has what it gains and costs.
 
 Each resolution level is the previous one convolved with a 3x3 kernel, then downsampled
 by a 2x2 box filter. The papers learn the kernels jointly with each network; procmod fixes
@@ -48,6 +57,7 @@ CONDITIONS = {
     "local+target": (True, True, False),
     "all": (True, True, True),
 }
+SOURCES = ("local", "target", "partial", "progress")
 
 
 @dataclass(frozen=True)
@@ -57,30 +67,36 @@ class FeatureSettings:
     local: bool = True
     target: bool = True
     partial: bool = True
+    progress: bool = False
 
     @classmethod
     def condition(cls, name: str) -> "FeatureSettings":
         """Settings by name: seed 004's conditions (constant, local, local+target, all) or
-        any ``+``-joined set of local, target and partial (e.g. ``local+partial`` for a
-        score without a target image, such as the circuit)."""
+        any ``+``-joined set of local, target, partial and progress (e.g. ``local+partial``
+        for a score without a target image, such as the circuit; ``all+progress``)."""
         if name in CONDITIONS:
             return cls(*CONDITIONS[name])
         parts = name.split("+")
-        if not name or any(p not in ("local", "target", "partial") for p in parts):
+        if parts[0] in CONDITIONS and parts[0] != "constant":  # e.g. all+progress
+            parts = [n for n, on in zip(SOURCES, CONDITIONS[parts[0]]) if on] + parts[1:]
+        if not name or any(p not in SOURCES for p in parts):
             raise GuideError(f"unknown feature condition {name!r}; choose one of {', '.join(CONDITIONS)}, "
-                             "or join local, target and partial with '+'")
-        return cls("local" in parts, "target" in parts, "partial" in parts)
+                             f"or join {', '.join(SOURCES)} with '+'")
+        return cls(*(source in parts for source in SOURCES))
 
     @property
     def name(self) -> str:
-        for name, flags in CONDITIONS.items():
-            if flags == (self.local, self.target, self.partial):
-                return name
-        return "+".join(n for n, on in (("local", self.local), ("target", self.target),
-                                        ("partial", self.partial)) if on) or "constant"
+        flags = (self.local, self.target, self.partial)
+        for name, condition in CONDITIONS.items():
+            if condition == flags:
+                return name + "+progress" if self.progress and name != "constant" else (
+                    "progress" if self.progress else name)
+        return "+".join(n for n, on in zip(SOURCES, flags + (self.progress,)) if on)
 
     def to_json(self) -> dict:
-        return {"local": self.local, "target": self.target, "partial": self.partial}
+        # "progress" only when on: guides of the papers' conditions keep their files as before
+        flags = {"local": self.local, "target": self.target, "partial": self.partial}
+        return {**flags, "progress": True} if self.progress else flags
 
 
 def level_layout(height: int, width: int) -> np.ndarray:
@@ -271,6 +287,23 @@ def local_features(raw, lows, spans, angular, out):
     return k
 
 
+# The progress features' ranges (mapped to [-1, 1] and clipped like local state): the
+# calls pending besides the current one, 0 to this many (more reads as this many), and
+# the covered fraction of the target, 0 to 1.
+PENDING_SCALE = 4.0
+
+
+# fastmath lets the sum vectorise; its terms are 0 or 1, so any order gives the same sum
+@numba.njit(cache=True, fastmath=True)
+def covered_pixels(partial, target, n):
+    """Sum over the first ``n`` entries (a pyramid's level 0) of partial x target: the
+    target pixels the partial output has drawn on."""
+    total = 0.0
+    for i in range(n):
+        total += partial[i] * target[i]
+    return total
+
+
 class FeatureExtractor:
     """Builds the feature vector of a choice from the context, output and target.
 
@@ -285,6 +318,14 @@ class FeatureExtractor:
             raise GuideError("this guide looks at a target image, but the target has none "
                              "(for image-free targets, train a guide with the feature condition local or constant)")
         self.target_pyramid = Pyramid(target_mask.astype(np.float64)) if settings.target else None
+        if self.target_pyramid is not None:
+            level0 = self.target_pyramid.layout[0]
+            self.target_pixels = int(level0[1] * level0[2])
+            self.target_total = max(float(self.target_pyramid.flat[:self.target_pixels].sum()), 1.0)
+        n_progress = self.n_progress()
+        # (lows, spans, angular) of the progress values, for local_features
+        self.progress_ranges = (np.zeros(n_progress), np.array([PENDING_SCALE, 1.0][:n_progress]),
+                                np.zeros(n_progress, dtype=np.bool_))
         self._local = {}
         self._frame = None  # (xmin, ymin, x scale, y scale, centre) of the output raster
 
@@ -295,9 +336,22 @@ class FeatureExtractor:
         idx, _, _, angular = self.ranges(rule_name)
         return len(idx) + int(angular.sum())
 
+    def n_progress(self) -> int:
+        """Number of progress features: the pending calls, then, with a target image, its
+        covered fraction (0 without progress features)."""
+        return (1 + int(self.settings.target)) if self.settings.progress else 0
+
+    def progress_values(self, state) -> list:
+        """The raw progress values of a choice made now (before mapping to [-1, 1])."""
+        values = [float(len(state.pending))]
+        if self.settings.target:
+            partial = partial_pyramid(state).flat
+            values.append(covered_pixels(partial, self.target_pyramid.flat, self.target_pixels) / self.target_total)
+        return values
+
     def size(self, rule_name: str) -> int:
         """Length of the feature vector of a rule's choices."""
-        n = self.n_local(rule_name)
+        n = self.n_local(rule_name) + self.n_progress()
         if self.settings.target:
             n += FEATURES_PER_IMAGE
         if self.settings.partial:
@@ -334,6 +388,8 @@ class FeatureExtractor:
             local = self.local_values(rule_name, args, heading_of(state))
             k = len(local)
             out[:k] = local
+        if settings.progress:
+            k += local_features(np.array(self.progress_values(state)), *self.progress_ranges, out[k:])
         if settings.target or settings.partial:
             px, py = self.pixel_position(state)
             if settings.target:

@@ -24,7 +24,8 @@ from ..core.distributions import Normal
 from ..core.limits import check_memory
 from ..core.io import fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from .fast import guided_draw, pack_site, site_outputs
-from .features import HEADING, heading_of, FeatureExtractor, FeatureSettings, GuideError, Pyramid, partial_pyramid
+from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, covered_pixels,
+                       heading_of, partial_pyramid)
 from .network import base_params, encode_value, head_kind, initial_bias, n_outputs, propose
 
 FORMAT = "procmod-guide/1"
@@ -79,10 +80,10 @@ def check_metadata(data, source: str) -> dict:
     if not isinstance(data.get("model"), str):
         raise GuideError(f"{source}: model must be a model name, got {_shown(data.get('model'))}")
     features = data.get("features")
-    if (not isinstance(features, dict) or set(features) != {"local", "target", "partial"}
+    if (not isinstance(features, dict) or not {"local", "target", "partial"} <= set(features) <= set(SOURCES)
             or not all(isinstance(v, bool) for v in features.values())):
-        raise GuideError(f"{source}: features must be {{\"local\": bool, \"target\": bool, \"partial\": bool}}, "
-                         f"got {_shown(features)}")
+        raise GuideError(f"{source}: features must be {{\"local\": bool, \"target\": bool, \"partial\": bool}} "
+                         f"(and optionally \"progress\": bool), got {_shown(features)}")
     mixture = check_mixture(data.get("mixture"), f"{source}: mixture")
     sites = data.get("sites")
     if not isinstance(sites, dict):
@@ -309,6 +310,9 @@ class GuidedProposer:
         self._target_flat = extractor.target_pyramid.flat if settings.target else np.zeros(1)
         self._layout = extractor.target_pyramid.layout if settings.target else np.zeros((4, 3), dtype=np.int64)
         self._no_local = np.zeros(0)
+        # progress features (features.py): the pending calls, and the target's covered fraction
+        self._n_progress = n_progress = extractor.n_progress()
+        self._coverage_of = (None, 0.0)  # (partial-output pyramid, its covered fraction)
         weights = guide.numpy_weights()
         self._sites = {}
         local = {}  # rule -> its local-state layout, shared by the rule's sites
@@ -322,6 +326,9 @@ class GuidedProposer:
                 local[rule_name] = self._local_layout(extractor, rule_name) if settings.local else (
                     self._no_local, self._no_local, self._no_local, np.zeros(0, dtype=np.bool_), 0, False)
             arg_idx, lows, spans, angular, prefix, heading = local[rule_name]
+            if n_progress:  # the progress values follow the local state in the raw values
+                lows, spans, angular = (np.concatenate(pair) for pair in zip((lows, spans, angular),
+                                                                             extractor.progress_ranges))
             params = pack_site(lows, spans, angular, weights[key], self._use_target, self._use_partial)
             # [kind, packed ranges + network (fast.pack_site), argument indices, prefix length
             #  (None: gather by index), distribution class last checked against the kind
@@ -347,8 +354,10 @@ class GuidedProposer:
                 code = {"real": 0, "bernoulli": 1}.get(kind, 2)
                 base = self._no_local if kind == "real" else np.zeros(n_outputs(kind, self.mixture))
                 guided_draw(code, self.mixture, 0.0, 1.0, base, 0.5, 0.0, *inputs)
-        if self._use_partial:
+        if self._use_partial or self._n_progress == 2:
             Pyramid.empty(1, 1).updated(np.zeros(1, dtype=np.uint8))
+        if self._n_progress == 2:
+            covered_pixels(self._target_flat, self._target_flat, 0)
 
     @staticmethod
     def _local_layout(extractor, rule_name: str) -> tuple:
@@ -363,24 +372,28 @@ class GuidedProposer:
     def _inputs(self, state, site, args: tuple) -> tuple:
         """The kernel arguments after the draw's own (features' sources + packed network)
         of a choice made now."""
-        prefix, heading = site[3], site[5]
-        if not prefix and prefix is not None and not heading:
+        prefix, heading, n_progress = site[3], site[5], self._n_progress
+        if not prefix and prefix is not None and not heading and not n_progress:
             raw = self._no_local
         elif args is self._raw_of[0] and site[2] is self._raw_of[1]:
             raw = self._raw_of[2]  # another choice of the same call: same arguments
         else:
             values = [float(args[i]) for i in site[2]] if prefix is None else list(args[:prefix])
-            raw = np.array(values + [0.0] if heading else values, dtype=np.float64)
+            if heading or n_progress:
+                values += [0.0] * (heading + n_progress)  # filled in below, at every choice
+            raw = np.array(values, dtype=np.float64)
             # holding ``args`` keeps its identity from being reused by a later call's tuple
             self._raw_of = (args, site[2], raw)
+        pyramid = partial_pyramid(state) if self._use_partial or n_progress == 2 else None
         if heading:  # the heading may turn between two choices of one call
-            raw[-1] = heading_of(state)
+            raw[len(raw) - 1 - n_progress] = heading_of(state)
+        if n_progress:  # so may the pending calls and the coverage (an emit between choices)
+            self._fill_progress(state, raw, pyramid)
         if self._use_target or self._use_partial:
             px, py = self.extractor.pixel_position(state)
         else:
             px = py = 0.0
         if self._use_partial:
-            pyramid = partial_pyramid(state)
             partial, layout = pyramid.flat, pyramid.layout
             if self._use_target and layout is not self._layout:
                 if not np.array_equal(layout, self._layout):
@@ -391,6 +404,18 @@ class GuidedProposer:
         else:
             partial, layout = self._target_flat, self._layout
         return raw, site[1], self._target_flat, partial, layout, px, py
+
+    def _fill_progress(self, state, raw: np.ndarray, pyramid) -> None:
+        """Write the progress values (:meth:`FeatureExtractor.progress_values`) into the
+        end of ``raw``; the coverage is worked out once per partial-output ``pyramid``."""
+        n = self._n_progress
+        raw[len(raw) - n] = len(state.pending)
+        if n == 2:
+            if pyramid is not self._coverage_of[0]:
+                extractor = self.extractor
+                covered = covered_pixels(pyramid.flat, self._target_flat, extractor.target_pixels)
+                self._coverage_of = (pyramid, covered / extractor.target_total)
+            raw[-1] = self._coverage_of[1]
 
     def outputs(self, state, site, args: tuple) -> np.ndarray:
         """The site network's outputs for a choice made now (the fused fast path)."""
