@@ -168,8 +168,12 @@ def main() -> None:
               "trace_job": job, "traces_folder": traces.name, "seeds": args.seeds,
               "targets": {s: [t.name for t in ts] for s, ts in development_sets().items()},
               "seconds_total": round(time.time() - started, 1), "training": training,
-              "summary": summary, "differences": differences, "runs": runs}
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=1) + "\n")
+              "summary": summary, "differences": differences}
+    # every run, one compact row each (about 10,000 of them)
+    fields = list(runs[0])
+    rows = ",\n  ".join(json.dumps([r[f] for f in fields]) for r in runs)
+    text = json.dumps({**result, "run_fields": fields}, indent=1)[:-2]
+    (RESULTS / f"{args.name}.json").write_text(f'{text},\n "runs": [\n  {rows}\n ]\n}}\n')
 
     fig, axes = plt.subplots(1, len(sets), figsize=(5.5 * len(sets), 4), squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
