@@ -43,7 +43,7 @@ from procmod.guide.traces import load_traces  # noqa: E402
 from procmod.guide.train import train_guide  # noqa: E402
 from procmod.infer import smc  # noqa: E402
 from procmod.models import get_model  # noqa: E402
-from vs_webppl import mean_over_targets  # noqa: E402
+from vs_webppl import by_target, mean_over_targets  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 GUIDES = Path(__file__).resolve().parent / ".cache" / "guide_features"
@@ -82,18 +82,19 @@ def evaluate(job: tuple) -> list:
     return runs
 
 
-def per_target_medians(runs: list, condition: str, train_seed: int, set_name: str, n: int) -> dict:
-    values = {}
+def cells(runs: list) -> dict:
+    """(set, particles, condition, training seed) -> its runs."""
+    out = {}
     for r in runs:
-        if (r["condition"], r["train_seed"], r["set"], r["particles"]) == (condition, train_seed, set_name, n):
-            values.setdefault(r["target"], []).append(r["similarity"])
-    return {t: float(np.median(v)) for t, v in values.items()}
+        out.setdefault((r["set"], r["particles"], r["condition"], r["train_seed"]), []).append(r)
+    return out
 
 
-def step_cost(runs: list, condition: str, set_name: str, n: int) -> float:
-    """CPU microseconds per particle-step of a condition's runs (all training seeds)."""
-    cell = [r for r in runs if (r["condition"], r["set"], r["particles"]) == (condition, set_name, n)]
-    return 1e6 * sum(r["cpu_seconds"] for r in cell) / sum(r["steps"] for r in cell)
+def step_cost(groups: list) -> float:
+    """CPU microseconds per particle-step over groups of runs. A run's CPU time includes
+    its set-up (~0.1 ms), which weighs most in the short 1-particle runs."""
+    runs = [r for group in groups for r in group]
+    return 1e6 * sum(r["cpu_seconds"] for r in runs) / sum(r["steps"] for r in runs)
 
 
 def main() -> None:
@@ -114,6 +115,9 @@ def main() -> None:
 
     started = time.time()
     GUIDES.mkdir(parents=True, exist_ok=True)
+    # seconds_total counts training only for the guides not already in GUIDES
+    reused = sorted(guide_path(traces, c, s).name for c in args.conditions for s in args.train_seeds
+                    if guide_path(traces, c, s).with_suffix(".json").exists())
     # conditions interleaved: the workers evaluate two conditions side by side, so that the
     # machine's drift hits them alike (CPU time per step is compared too)
     guides = [(traces, c, s) for s in args.train_seeds for c in args.conditions]
@@ -124,52 +128,53 @@ def main() -> None:
 
     rng = np.random.default_rng(0)
     sets = list(development_sets())
+    by_cell = cells(runs)
     summary, differences = [], []
     for set_name in sets:
         for n in args.particles:
-            base = {s: per_target_medians(runs, args.conditions[0], s, set_name, n) for s in args.train_seeds}
+            medians = {}  # (condition, training seed) -> target -> median similarity over the SMC seeds
             for condition in args.conditions:
                 for s in args.train_seeds:
-                    medians = per_target_medians(runs, condition, s, set_name, n)
-                    cell = [r for r in runs if (r["condition"], r["train_seed"], r["set"],
-                                                r["particles"]) == (condition, s, set_name, n)]
-                    sims = [r["similarity"] for r in cell]
-                    cpu, steps = sum(r["cpu_seconds"] for r in cell), sum(r["steps"] for r in cell)
+                    cell = by_cell[(set_name, n, condition, s)]
+                    medians[condition, s] = {t: float(np.median(v)) for t, v in by_target(cell).items()}
+                    sims = np.array([r["similarity"] for r in cell])
                     summary.append({"set": set_name, "particles": n, "condition": condition, "train_seed": s,
-                                    "target_mean_of_medians": float(np.mean(list(medians.values()))),
-                                    "run_mean": float(np.mean(sims)),
-                                    "fraction_below_0.1": float(np.mean(np.array(sims) < 0.1)),
-                                    "cpu_seconds_per_run": cpu / len(cell), "cpu_us_per_step": 1e6 * cpu / steps})
-                if condition == args.conditions[0]:
-                    continue
-                # paired by training seed and target; pooled over the training seeds
+                                    "target_mean_of_medians": float(np.mean(list(medians[condition, s].values()))),
+                                    "run_mean": float(sims.mean()), "fraction_below_0.1": float(np.mean(sims < 0.1)),
+                                    "cpu_seconds_per_run": sum(r["cpu_seconds"] for r in cell) / len(cell),
+                                    "cpu_us_per_step": step_cost([cell])})
+            baseline = args.conditions[0]
+            for condition in args.conditions[1:]:
+                # paired by training seed and target
                 per_seed, pooled = {}, []
                 for s in args.train_seeds:
-                    medians = per_target_medians(runs, condition, s, set_name, n)
-                    d = np.array([medians[t] - base[s][t] for t in sorted(medians)])
+                    d = np.array([medians[condition, s][t] - medians[baseline, s][t]
+                                  for t in sorted(medians[condition, s])])
                     per_seed[s] = {"difference": mean_over_targets(d, rng), "targets_ahead": int((d > 0).sum()),
                                    "targets": len(d)}
                     pooled.append(d)
                 # each target's difference averaged over the training seeds, then over targets
                 difference = mean_over_targets(np.mean(pooled, axis=0), rng)
-                us = {c: step_cost(runs, c, set_name, n) for c in (args.conditions[0], condition)}
-                differences.append({"set": set_name, "particles": n, "condition": condition,
-                                    "baseline": args.conditions[0], "per_train_seed": per_seed,
-                                    "difference": difference, "cpu_us_per_step": us[condition],
-                                    "baseline_cpu_us_per_step": us[args.conditions[0]]})
-                print(f"{set_name:16} n={n:<3} {condition} - {args.conditions[0]}: {difference[0]:+.3f} "
+                us = {c: step_cost([by_cell[(set_name, n, c, s)] for s in args.train_seeds])
+                      for c in (baseline, condition)}
+                differences.append({"set": set_name, "particles": n, "condition": condition, "baseline": baseline,
+                                    "per_train_seed": per_seed, "difference": difference,
+                                    "cpu_us_per_step": us[condition], "baseline_cpu_us_per_step": us[baseline]})
+                print(f"{set_name:16} n={n:<3} {condition} - {baseline}: {difference[0]:+.3f} "
                       f"[{difference[1]:+.3f}, {difference[2]:+.3f}]; by training seed "
                       + ", ".join(f"{s}: {v['difference'][0]:+.3f}" for s, v in per_seed.items())
-                      + f"; CPU {us[condition]:.1f} against {us[args.conditions[0]]:.1f} us a step", flush=True)
+                      + f"; CPU {us[condition]:.1f} against {us[baseline]:.1f} us a step", flush=True)
 
     RESULTS.mkdir(exist_ok=True)
     result = {"command": "python bench/guide_features.py " + " ".join(sys.argv[1:]),
               "machine": {"platform": platform.platform(), "python": platform.python_version()},
               "trace_job": job, "traces_folder": traces.name, "seeds": args.seeds,
+              "guides_reused": reused,
               "targets": {s: [t.name for t in ts] for s, ts in development_sets().items()},
               "seconds_total": round(time.time() - started, 1), "training": training,
               "summary": summary, "differences": differences}
-    # every run, one compact row each (about 10,000 of them)
+    # every run, one compact row each (about 10,000 of them), appended to the indented
+    # rest: json.dumps(..., indent=1) ends its text with "\n}", cut off to add "runs"
     fields = list(runs[0])
     rows = ",\n  ".join(json.dumps([r[f] for f in fields]) for r in runs)
     text = json.dumps({**result, "run_fields": fields}, indent=1)[:-2]

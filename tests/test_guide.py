@@ -107,6 +107,9 @@ def test_progress_features_count_pending_calls_and_the_covered_target():
     assert settings == FeatureSettings(progress=True) and settings.name == "all+progress"
     assert FeatureSettings.condition("local+partial+progress").name == "local+partial+progress"
     assert FeatureSettings.condition("progress").name == "progress"
+    assert FeatureSettings.condition("constant+progress") == FeatureSettings.condition("progress")
+    for name in ("local", "local+target", "all", "local+partial"):  # names round-trip
+        assert FeatureSettings.condition(name + "+progress").name == name + "+progress"
     assert FeatureSettings(**settings.to_json()) == settings
     assert "progress" not in FeatureSettings().to_json()  # the papers' guides' files as before
     extractor = FeatureExtractor(model, settings, mask)
@@ -120,6 +123,26 @@ def test_progress_features_count_pending_calls_and_the_covered_target():
     local_only = FeatureExtractor(model, FeatureSettings.condition("local+progress"), None)
     assert local_only.size("branch") == 10
     assert local_only.features(d, "branch", VINES.initial_args())[9] == 1.0
+
+
+@pytest.mark.parametrize("condition", ["all", "local+target+progress", "all+progress"])
+def test_a_target_image_of_another_size_than_the_canvas_is_refused(condition):
+    class OddSizeTarget:  # a mask that ignores the size asked for
+        has_mask = True
+
+        def mask(self, width, height):
+            return np.ones((60, 60), dtype=bool)
+
+    settings = FeatureSettings.condition(condition)
+    guide = new_guide_for(VINES, settings, 4, {"branch:angle": "real"}, seed=1)
+    proposer = guide.proposer(VINES, OddSizeTarget())
+    d = run_forward(VINES, np.random.default_rng(11))  # draws on a 50x50 canvas
+    d.position = (0.0, -10.0, 0.0)
+    with pytest.raises(GuideError, match="target image is 60x60 pixels but the model draws 50x50"):
+        proposer.outputs(d, proposer._sites[("branch", "angle")], VINES.initial_args())
+    if settings.progress:  # the training path too
+        with pytest.raises(GuideError, match="target image is 60x60 pixels"):
+            proposer.extractor.features(d, "branch", VINES.initial_args())
 
 
 DISTS = [Normal(0.3, 2.0), Uniform(-1.0, 3.0), TruncatedNormal(1.0, 0.5, 0.0, 2.0)]

@@ -43,8 +43,9 @@ def site_features(raw_local, params, target, partial, layout, px, py, x):
     """A choice's feature vector (local state, target windows, partial-output windows)
     into ``x`` (length ``n_in``).
 
-    ``raw_local`` are the call's scalar arguments, mapped to [-1, 1] by the site's ranges
-    and clipped (angles to cos, sin), as :meth:`FeatureExtractor.local_values` does;
+    ``raw_local`` are the call's scalar arguments, then the heading and the progress values
+    where the guide has them, mapped to [-1, 1] by the site's ranges and clipped (angles
+    to cos, sin), as :meth:`FeatureExtractor.features` does;
     ``target`` and ``partial`` are flat pyramids laid out by ``layout``; ``params`` is
     :func:`pack_site`'s array.
     """

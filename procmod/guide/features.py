@@ -77,7 +77,8 @@ class FeatureSettings:
         if name in CONDITIONS:
             return cls(*CONDITIONS[name])
         parts = name.split("+")
-        if parts[0] in CONDITIONS and parts[0] != "constant":  # e.g. all+progress
+        if parts[0] in CONDITIONS:  # a condition and more, e.g. all+progress
+            # (a condition's flags are the first three sources: zip stops at them)
             parts = [n for n, on in zip(SOURCES, CONDITIONS[parts[0]]) if on] + parts[1:]
         if not name or any(p not in SOURCES for p in parts):
             raise GuideError(f"unknown feature condition {name!r}; choose one of {', '.join(CONDITIONS)}, "
@@ -89,8 +90,9 @@ class FeatureSettings:
         flags = (self.local, self.target, self.partial)
         for name, condition in CONDITIONS.items():
             if condition == flags:
-                return name + "+progress" if self.progress and name != "constant" else (
-                    "progress" if self.progress else name)
+                if not self.progress:
+                    return name
+                return "progress" if name == "constant" else name + "+progress"
         return "+".join(n for n, on in zip(SOURCES, flags + (self.progress,)) if on)
 
     def to_json(self) -> dict:
@@ -304,6 +306,14 @@ def covered_pixels(partial, target, n):
     return total
 
 
+def check_same_size(target_layout: np.ndarray, partial_layout: np.ndarray) -> None:
+    """Refuse a partial output whose raster is not the target image's size (pyramid
+    layouts, :func:`level_layout`): the coverage and the windows read both alike."""
+    if not np.array_equal(target_layout, partial_layout):
+        raise GuideError(f"the target image is {target_layout[0, 2]}x{target_layout[0, 1]} pixels but the model "
+                         f"draws {partial_layout[0, 2]}x{partial_layout[0, 1]}; give the model the target's size")
+
+
 class FeatureExtractor:
     """Builds the feature vector of a choice from the context, output and target.
 
@@ -345,8 +355,10 @@ class FeatureExtractor:
         """The raw progress values of a choice made now (before mapping to [-1, 1])."""
         values = [float(len(state.pending))]
         if self.settings.target:
-            partial = partial_pyramid(state).flat
-            values.append(covered_pixels(partial, self.target_pyramid.flat, self.target_pixels) / self.target_total)
+            partial = partial_pyramid(state)
+            check_same_size(self.target_pyramid.layout, partial.layout)
+            covered = covered_pixels(partial.flat, self.target_pyramid.flat, self.target_pixels)
+            values.append(covered / self.target_total)
         return values
 
     def size(self, rule_name: str) -> int:

@@ -24,8 +24,8 @@ from ..core.distributions import Normal
 from ..core.limits import check_memory
 from ..core.io import fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from .fast import guided_draw, pack_site, site_outputs
-from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, covered_pixels,
-                       heading_of, partial_pyramid)
+from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, check_same_size,
+                       covered_pixels, heading_of, partial_pyramid)
 from .network import base_params, encode_value, head_kind, initial_bias, n_outputs, propose
 
 FORMAT = "procmod-guide/1"
@@ -384,7 +384,13 @@ class GuidedProposer:
             raw = np.array(values, dtype=np.float64)
             # holding ``args`` keeps its identity from being reused by a later call's tuple
             self._raw_of = (args, site[2], raw)
-        pyramid = partial_pyramid(state) if self._use_partial or n_progress == 2 else None
+        pyramid = None
+        if self._use_partial or n_progress == 2:
+            pyramid = partial_pyramid(state)
+            if self._use_target and pyramid.layout is not self._layout:
+                # the kernels read both pyramids by the target's layout: sizes must agree
+                check_same_size(self._layout, pyramid.layout)
+                self._layout = pyramid.layout  # same sizes: later calls skip the comparison
         if heading:  # the heading may turn between two choices of one call
             raw[len(raw) - 1 - n_progress] = heading_of(state)
         if n_progress:  # so may the pending calls and the coverage (an emit between choices)
@@ -395,12 +401,6 @@ class GuidedProposer:
             px = py = 0.0
         if self._use_partial:
             partial, layout = pyramid.flat, pyramid.layout
-            if self._use_target and layout is not self._layout:
-                if not np.array_equal(layout, self._layout):
-                    raise GuideError(f"the target image is {self._layout[0, 2]}x{self._layout[0, 1]} pixels but "
-                                     f"the model draws {layout[0, 2]}x{layout[0, 1]}; give the model the "
-                                     "target's size")
-                self._layout = layout  # same sizes: later calls skip the comparison
         else:
             partial, layout = self._target_flat, self._layout
         return raw, site[1], self._target_flat, partial, layout, px, py
