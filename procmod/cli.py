@@ -309,7 +309,7 @@ def _cmd_infer(args) -> None:
         write_run(result, target, tmp, size, args.command_line)
     report = Path(args.out) / "report.html"
     print(f"{result.engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations "
-          f"in {result.seconds:.1f} s; report: {report}")
+          f"in {result.seconds:.3g} s; report: {report}")
 
 
 class _progress_bar:

@@ -325,7 +325,7 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
             "run": str(out), "report": str(out / "report.html"), "score": result.best_score,
             "stopped": bool(stopped),
             "message": (f"{engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations in "
-                        f"{result.seconds:.1f} s{' (stopped early)' if stopped else ''}; report: {out / 'report.html'}")}
+                        f"{result.seconds:.3g} s{' (stopped early)' if stopped else ''}; report: {out / 'report.html'}")}
 
 
 def _name_objects(message: str, names: dict) -> str:
