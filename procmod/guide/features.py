@@ -357,9 +357,13 @@ class FeatureExtractor:
         if self.settings.target:
             partial = partial_pyramid(state)
             check_same_size(self.target_pyramid.layout, partial.layout)
-            covered = covered_pixels(partial.flat, self.target_pyramid.flat, self.target_pixels)
-            values.append(covered / self.target_total)
+            values.append(self.coverage(partial))
         return values
+
+    def coverage(self, partial: Pyramid) -> float:
+        """The fraction of the target's pixels a partial output (of the target's size,
+        :func:`check_same_size`) has drawn on."""
+        return covered_pixels(partial.flat, self.target_pyramid.flat, self.target_pixels) / self.target_total
 
     def size(self, rule_name: str) -> int:
         """Length of the feature vector of a rule's choices."""

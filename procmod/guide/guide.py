@@ -411,10 +411,8 @@ class GuidedProposer:
         n = self._n_progress
         raw[len(raw) - n] = len(state.pending)
         if n == 2:
-            if pyramid is not self._coverage_of[0]:
-                extractor = self.extractor
-                covered = covered_pixels(pyramid.flat, self._target_flat, extractor.target_pixels)
-                self._coverage_of = (pyramid, covered / extractor.target_total)
+            if pyramid is not self._coverage_of[0]:  # sizes were checked in _inputs
+                self._coverage_of = (pyramid, self.extractor.coverage(pyramid))
             raw[-1] = self._coverage_of[1]
 
     def outputs(self, state, site, args: tuple) -> np.ndarray:
