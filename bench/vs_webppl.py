@@ -518,7 +518,9 @@ def main() -> None:
     parser.add_argument("--particles", type=int, nargs="*", default=[10, 50, 200, 600])
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--no-leaves", dest="leaves", action="store_false", help="the vines program without leaves/flowers")
-    parser.add_argument("--systems", nargs="+", default=["procmod", "webppl"], choices=("procmod", "webppl"))
+    parser.add_argument("--systems", nargs="+", default=["procmod", "webppl"], choices=("procmod", "procmod+guide", "webppl"),
+                        help="what to run (default procmod webppl); procmod+guide: only procmod's guided runs "
+                             "(with --guide), e.g. to repeat the guided-against-WebPPL pairs alone")
     parser.add_argument("--mcmc", action="store_true",
                         help="also WebPPL MH (--mh-samples) vs procmod mcmc, sosmc and ga at WebPPL's wall time")
     parser.add_argument("--mh-samples", type=int, default=20000)
@@ -537,6 +539,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error(f"--repeats must be 1 or more, got {args.repeats}")
+    if "procmod+guide" in args.systems and not args.guide:
+        parser.error("--systems procmod+guide needs --guide")
 
     webppl = ensure_webppl() if "webppl" in args.systems else None
     work = args.work or Path(tempfile.mkdtemp(prefix="vs_webppl_"))
@@ -576,11 +580,11 @@ def main() -> None:
                     plans.append(("procmod", "smc", args.particles,
                                   lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
                                                         workers=args.workers, repeats=args.repeats)))
-                    if args.guide:
-                        plans.append(("procmod+guide", "smc", args.guided_particles,
-                                      lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
-                                                            guide=args.guide, workers=args.workers,
-                                                            repeats=args.repeats)))
+                if args.guide and ("procmod" in args.systems or "procmod+guide" in args.systems):
+                    plans.append(("procmod+guide", "smc", args.guided_particles,
+                                  lambda n: run_procmod(png, mask, work, "smc", n, seed, args.leaves,
+                                                        guide=args.guide, workers=args.workers,
+                                                        repeats=args.repeats)))
                 if webppl is not None:
                     plans.append(("webppl", "SMC", args.particles,
                                   lambda n: run_webppl(webppl, mask_json, mask, work, "SMC", n, seed, args.leaves,
