@@ -392,10 +392,13 @@ def test_fused_fast_path_matches_the_reference_features_and_mixture(settings):
     proposer = guide.proposer(VINES, MaskTarget())
     d = run_forward(VINES, np.random.default_rng(11))
     call_args = (1.0, -5.0, -1.0, 0.3, 0.5, True)
-    # positions with and without a heading; the last two are choices of one call (same
-    # arguments) whose heading and pending calls changed between them
-    for position, args, pending in [((0.0, 0.0), (0.0, 0.0, -1.0, 0.3, 0.5, True), 0),
-                                    ((-11.5, -21.0, 2.5), call_args, 2), ((3.3, -7.7, -0.4), call_args, 7)]:
+    first_args = (0.0, 0.0, -1.0, 0.3, 0.5, True)
+    # positions with and without a heading; the middle two are choices of one call (same
+    # arguments) whose heading and pending calls changed between them; the last goes back to
+    # the first call's arguments (the proposer writes a rule's values into one array)
+    for position, args, pending in [((0.0, 0.0), first_args, 0),
+                                    ((-11.5, -21.0, 2.5), call_args, 2), ((3.3, -7.7, -0.4), call_args, 7),
+                                    ((0.5, -3.0, 1.0), first_args, 1)]:
         d.position = position
         d.pending = [None] * pending  # only their number is a feature
         fast = proposer.outputs(d, proposer._sites[("branch", "angle")], args)
