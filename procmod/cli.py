@@ -165,6 +165,20 @@ def _model(spec: str, params=()):
 CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact sheet
 
 
+def _model_inputs(name: str) -> list:
+    """The files a model argument reads: a learned program's file and its folder (which
+    holds its tensors and meshes); nothing for a built-in model's name."""
+    path = Path(name)
+    try:
+        if path.is_file():
+            return [path, path.parent]
+        if path.is_dir():
+            return [path]
+    except (OSError, ValueError):
+        pass
+    return []
+
+
 def _cmd_sample(args) -> None:
     import json
 
@@ -180,6 +194,7 @@ def _cmd_sample(args) -> None:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     size = check_size(args.size)
     out = Path(args.out)
+    inputs = _model_inputs(args.model)
 
     def sample(i: int):
         # Sample i depends only on (seed, i), so asking for more samples keeps the first ones.
@@ -191,7 +206,7 @@ def _cmd_sample(args) -> None:
             raise NotALearnedProgramError(
                 f"model {model.name!r} is not a learned program; '--format examples' writes samples of "
                 "programs made by 'procmod learn' (give the program.json path or its folder)")
-        check_output_file(out)
+        check_output_file(out, inputs=inputs)
         first = sample(0)
         check_memory(f"-n {args.n:,} samples", args.n * len(json.dumps(derivation_to_dict(first))),
                      "ask for fewer samples")
@@ -199,7 +214,7 @@ def _cmd_sample(args) -> None:
             write_examples(model, [first] + [sample(i) for i in range(1, args.n)], out)
         print(f"wrote {args.n} samples of {model.name} to {out} (procmod-examples/1)")
         return
-    folder = RunFolder(out, SAMPLE_RUN, args.overwrite)
+    folder = RunFolder(out, SAMPLE_RUN, args.overwrite, inputs=inputs)
     digits = max(3, len(str(args.n - 1)))
     shown = []  # the first samples, for the contact sheet: the rest are written and dropped
     with folder.writing() as tmp:
@@ -294,7 +309,11 @@ def _cmd_infer(args) -> None:
     from .data import target_from_spec
 
     target = target_from_spec(args.target)
-    folder = RunFolder(args.out, INFER_RUN, args.overwrite, inputs=[args.target, args.model, args.guide])
+    inputs = [args.target, *_model_inputs(args.model)]
+    if args.guide is not None:
+        from .guide import guide_paths
+        inputs += guide_paths(args.guide)  # a guide given as a stem is its .pt and .json
+    folder = RunFolder(args.out, INFER_RUN, args.overwrite, inputs=inputs)
     empty = target.new_output(target.configure(model))  # fail early if the target does not fit the model
     if wanted in kwargs:
         # an incremental MCMC chain holds three outputs at least (procmod.infer.mcmc)

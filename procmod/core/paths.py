@@ -182,10 +182,23 @@ def named_file(base_dir: str | os.PathLike, value, where: str, suffixes=None, ki
             raise UnsafePathError(f"{where}: {shown} is not a regular file")
     except OSError as exc:  # a name too long for the file system, a folder we may not enter
         raise UnsafePathError(f"{where}: cannot use {_shown(value)} as a {kind} file ({exc.strerror})") from None
+    _NAMED_FILES_READ.add(path)
     return path
 
 
-__all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file"]
+# Every file an input file has named in this process: an output folder that holds one is
+# never replaced (procmod.core.runfolder), so that ``--overwrite`` cannot delete a mesh, a
+# layer or a picture the command's own input names, wherever it lies.
+_NAMED_FILES_READ: set = set()
+
+
+def named_files_read() -> list:
+    """The files :func:`named_file` has resolved in this process (that still exist)."""
+    return [p for p in list(_NAMED_FILES_READ) if p.exists()]
+
+
+__all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file",
+           "named_files_read"]
 
 
 def is_dir_quietly(path: Path) -> bool:

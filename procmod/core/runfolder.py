@@ -25,7 +25,8 @@ a half-written ``--out``.
 
 Resumable jobs (``guide traces``, ``strings train``, ``learn``) write into ``--out`` as
 they go, so that a killed job keeps what it finished; :meth:`RunFolder.prepare_in_place`
-applies the first two rules to them.
+applies the first two rules to them. A folder holding a symbolic link is never taken for
+an earlier run (a job writing into it would write wherever the link points).
 
 Messages name the API's arguments (``out``, ``overwrite=True``) through
 :func:`procmod.core.errors.argument`, which the command line spells as its flags.
@@ -41,9 +42,10 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 from .errors import InvalidArgumentError, argument
+from .paths import named_files_read
 
 
 class OutputLocationError(InvalidArgumentError):
@@ -75,6 +77,9 @@ class RunKind:
     marker: str
     patterns: tuple
     marker_key: str | None = None
+    listed: "Callable[[Path], set] | None" = None
+    """Entries a run of the kind lists in its own files (``listed(folder)``: names), also
+    allowed: e.g. the mesh folders a collection's shapes file names."""
 
     def recognises(self, folder: str | os.PathLike) -> bool:
         """True when ``folder`` holds an earlier run of this kind and nothing else."""
@@ -85,7 +90,8 @@ class RunKind:
             return False
         if self.marker not in names:
             return False
-        if not all(any(re.fullmatch(p, name) for p in self.patterns) for name in names):
+        # (a link is foreign: a run writes none, and resuming must not write through one)
+        if self.foreign(folder, names) is not None:
             return False
         if self.marker_key is None:
             return True
@@ -94,6 +100,17 @@ class RunKind:
         except (OSError, ValueError, RecursionError):
             return False
         return isinstance(data, dict) and self.marker_key in data
+
+    def foreign(self, folder: Path, names=None) -> str | None:
+        """The first entry of ``folder`` (sorted) that no run of this kind writes, or None."""
+        if names is None:
+            names = [p.name for p in folder.iterdir()]
+        extra = self.listed(folder) if self.listed is not None else set()
+        for name in sorted(names):
+            if not (name in extra or any(re.fullmatch(p, name) for p in self.patterns)) \
+                    or (folder / name).is_symlink():
+                return name
+        return None
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -115,15 +132,26 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
                                   f"{_cut(str(folder))} ({exc.strerror or exc})") from None
 
 
-def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False) -> Path:
-    """A single output file (``render --out x.png``): the path must not be a folder, and
-    its folder must exist (or, with ``make_parent``, be creatable: the command makes it
-    when it writes) and be writable. Checks only, creates nothing; returns the path.
-    ``option`` is the API argument the path was given as, for messages."""
+def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False,
+                      inputs=()) -> Path:
+    """A single output file (``render --out x.png``): the path must not be a folder, nor
+    one of the command's ``inputs`` or inside an input folder, and its folder must exist
+    (or, with ``make_parent``, be creatable: the command makes it when it writes) and be
+    writable. Checks only, creates nothing; returns the path. ``option`` is the API
+    argument the path was given as, for messages."""
     path = Path(path)
     shown = argument(option)
-    if path.is_dir():
+    try:
+        is_dir = path.is_dir()
+    except (OSError, ValueError) as exc:  # a name too long for the file system
+        raise OutputLocationError(f"cannot write {shown} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") \
+            from None
+    if is_dir:
         raise OutputLocationError(f"{shown} {_cut(str(path))} is a folder; give a file name")
+    for item in inputs:
+        if item is not None and Path(item).exists() and _holds(Path(item), path):
+            raise OutputLocationError(f"{shown} {_cut(str(path))} would overwrite or write into the input "
+                                      f"{_cut(str(item))}; give another file name")
     parent = path.parent
     if not parent.exists() and not make_parent:
         raise OutputLocationError(f"cannot write {shown} {_cut(str(path))}: the folder {_cut(str(parent))} "
@@ -172,27 +200,40 @@ class RunFolder:
         self.kind = kind
         self.option = option = argument(option)
         shown = _cut(str(self.path))
-        if self.path.exists() and not self.path.is_dir():
+        self._inputs = [item for item in inputs if item is not None]
+        try:
+            exists, is_dir = self.path.exists(), self.path.is_dir()
+        except (OSError, ValueError) as exc:  # a name too long for the file system
+            raise OutputLocationError(f"cannot write {option} {shown}: {getattr(exc, 'strerror', None) or exc}") \
+                from None
+        if exists and not is_dir:
             raise OutputLocationError(f"{option} {shown} exists and is not a folder")
-        self.replaces = self.path.is_dir() and any(self.path.iterdir())
+        self.replaces = is_dir and any(self.path.iterdir())
         if self.replaces:
             if not (overwrite or kind.recognises(self.path)):
-                example = sorted(p.name for p in self.path.iterdir())[0]
+                example = kind.foreign(self.path) or sorted(p.name for p in self.path.iterdir())[0]
                 raise OutputLocationError(
                     f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
                     f"give a new or empty folder, or pass {argument('overwrite=True')} to replace it whole")
-            self._check_replaceable(inputs)
+            self._check_replaceable()
         self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
 
-    def _check_replaceable(self, inputs) -> None:
+    def _check_replaceable(self) -> None:
         shown = _cut(str(self.path))
         for protected, what in ((Path.cwd(), "the current folder"), (Path.home(), "your home folder")):
             if _holds(self.path, protected):
                 raise OutputLocationError(f"{self.option} {shown} holds {what}; it cannot be replaced: give "
                                           "a new or empty folder")
-        for item in inputs:
-            if item is not None and Path(item).exists() and _holds(self.path, Path(item)):
+        self._check_inputs()
+
+    def _check_inputs(self) -> None:
+        """Refuse to remove a folder holding one of the command's inputs: those it was
+        given, and every file an input file has named so far (:func:`named_files_read`),
+        which may have been read after the folder was first checked."""
+        shown = _cut(str(self.path))
+        for item in [*self._inputs, *named_files_read()]:
+            if Path(item).exists() and _holds(self.path, Path(item)):
                 raise OutputLocationError(f"{self.option} {shown} holds the input {_cut(str(item))}; replacing "
                                           "the folder would delete it: give another folder")
 
@@ -221,7 +262,11 @@ class RunFolder:
         is kept to resume when ``keep``; anything else there (allowed by ``--overwrite``)
         is removed first."""
         if self.replaces and not (keep and self.kind.recognises(self.path)):
-            shutil.rmtree(self.path)
+            self._check_inputs()
+            if self.path.is_symlink():  # replace the link, never what it points to
+                self.path.unlink()
+            else:
+                shutil.rmtree(self.path)
         self.path.mkdir(parents=True, exist_ok=True)
         return self.path
 
@@ -235,6 +280,8 @@ class RunFolder:
         return list(reversed(missing))
 
     def _replace_with(self, tmp: Path) -> None:
+        if self.replaces:
+            self._check_inputs()  # the work may have read more inputs since the first check
         if not self.path.exists():
             os.rename(tmp, self.path)
             return
@@ -266,13 +313,37 @@ TRACES_JOB = RunKind("procmod guide traces folder", "traces.json",
                      (r"traces\.json", r"trace_\d+\.json", r"\.trace_\d+\.json\..*", r"\.traces\.json\..*"),
                      marker_key="format")
 GRAPHS_FOLDER = RunKind("procmod strings graph folder", "shape_000.json", (r"shape_\d+\.json",))
-# a collection copies the mesh files its shapes file names (any relative path) beside it
+
+
+def _mesh_entries(shapes_file: str):
+    """``listed`` of a folder that copies the mesh files its shapes file (``shapes_file``)
+    names beside it (any relative path inside the folder): the first component of each."""
+    return lambda folder: _mesh_entries_of(folder / shapes_file)
+
+
+def _mesh_entries_of(shapes: Path) -> set:
+    try:
+        data = json.loads(shapes.read_text(encoding="utf-8"))
+        parts = data["parts"].values()
+        meshes = [part["mesh"] for part in parts if isinstance(part, dict) and isinstance(part.get("mesh"), str)]
+    except (OSError, ValueError, RecursionError, KeyError, TypeError, AttributeError):
+        return set()
+    return {re.split(r"[\\/]", mesh, maxsplit=1)[0] for mesh in meshes}
+
+
 COLLECTION = RunKind("procmod strings augment collection", "growth.json",
-                     (r"shapes\.json", r"graphs", r"strings\.txt", r"growth\.json", r"contact_sheet\.png",
-                      r"[^.].*"), marker_key="rounds")
+                     (r"shapes\.json", r"graphs", r"strings\.txt", r"growth\.json", r"contact_sheet\.png"),
+                     marker_key="rounds", listed=_mesh_entries("shapes.json"))
+_ATOMIC_TEMPORARY = r"\..+\.tmp"  # a file being written (core.io.open_atomic) when a job was killed
+STRINGS_MODEL = RunKind("procmod strings train folder", "collection.json",
+                        (r"model\.json", r"collection\.json", r"strings\.txt", r"categories\.json",
+                         r"(vae|tagger)\.(json|pt)", _ATOMIC_TEMPORARY), listed=_mesh_entries("collection.json"))
+LEARN_RUN = RunKind("procmod learn folder", "checkpoint",
+                    (r"program\.(json|pt)", r"parts", r"checkpoint", r"contact_sheet\.png", r"search\.png",
+                     r"report\.(json|html)", _ATOMIC_TEMPORARY))
 STRING_SAMPLES = RunKind("procmod strings sample folder", "summary.json",
                          (r"samples\.txt", r"summary\.json", r"contact_sheet\.png",
                           r"sample_\d+\.(json|glb|png)"), marker_key="samples")
 
-__all__ = ["COLLECTION", "GRAPHS_FOLDER", "INFER_RUN", "OutputLocationError", "RunFolder", "RunKind",
-           "SAMPLE_RUN", "STRING_SAMPLES", "TRACES_JOB", "check_output_file"]
+__all__ = ["COLLECTION", "GRAPHS_FOLDER", "INFER_RUN", "LEARN_RUN", "OutputLocationError", "RunFolder", "RunKind",
+           "SAMPLE_RUN", "STRINGS_MODEL", "STRING_SAMPLES", "TRACES_JOB", "check_output_file"]

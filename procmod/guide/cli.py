@@ -88,8 +88,8 @@ def _cmd_train(args) -> None:
     settings = FeatureSettings.condition(args.features)
     from ..core.runfolder import check_output_file
     from .guide import guide_paths
-    for path in guide_paths(args.out):  # checked now, written after the training
-        check_output_file(path, make_parent=True)
+    for path in guide_paths(args.out, for_writing=True):  # checked now, written after the training
+        check_output_file(path, make_parent=True, inputs=[args.traces])
     bar = _tqdm(args.iterations, " steps")
     try:
         def progress(done, loss):

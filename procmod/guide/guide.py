@@ -171,8 +171,9 @@ class Guide:
 
     def save(self, path: str | os.PathLike) -> tuple[Path, Path]:
         """Write ``STEM.pt``, ``STEM.npz`` and ``STEM.json`` (each atomically, the metadata
-        last); returns the ``.pt`` and ``.json`` paths."""
-        weights, meta = guide_paths(path)
+        last); returns the ``.pt`` and ``.json`` paths. A bare shipped guide's name is a
+        file in the current folder here (:func:`guide_paths`)."""
+        weights, meta = guide_paths(path, for_writing=True)
         weights.parent.mkdir(parents=True, exist_ok=True)
         save_tensors(self.nets.state_dict(), weights)
         self.invalidate()
@@ -283,12 +284,14 @@ def target_mask_for(target, model) -> np.ndarray | None:
     return target.mask(canvas.width, canvas.height)
 
 
-def guide_paths(path: str | os.PathLike) -> tuple[Path, Path]:
-    """(weights .pt, metadata .json) for a guide path given with or without a suffix, or
-    the name of a shipped guide (e.g. ``vines-scribbles``)."""
+def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Path, Path]:
+    """(weights .pt, metadata .json) for a guide path given with or without a suffix, or,
+    to read, the name of a shipped guide (e.g. ``vines-scribbles``). A path to write
+    (``for_writing``) is always the path as given: a bare shipped name writes into the
+    current folder, never over the guides shipped inside the package."""
     path = Path(path)
-    if path.name in pretrained_guides() and not path.with_name(path.name + ".json").exists() \
-            and len(path.parts) == 1:
+    if not for_writing and path.name in pretrained_guides() \
+            and not path.with_name(path.name + ".json").exists() and len(path.parts) == 1:
         path = PRETRAINED / path.name
     stem = path.with_suffix("") if path.suffix.lower() in (".pt", ".json") else path
     return stem.with_name(stem.name + ".pt"), stem.with_name(stem.name + ".json")

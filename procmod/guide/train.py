@@ -40,6 +40,7 @@ from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_gu
 from .nets import log_q_torch
 from .traces import load_traces
 
+MAX_BATCH = 100_000  # traces a step: far beyond any useful minibatch, small enough to hold
 ADAM_BETAS = (0.75, 0.75)  # seed 003 5.2: "alpha = beta = 0.75"
 SCHEDULES = ("cosine", "constant")
 # how an error message names the local-only feature setting (the command line spells it
@@ -157,6 +158,12 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise GuideError(f"{name} must be a positive integer, got {value!r}")
     check_mixture(mixture)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
+        raise GuideError(f"seed must be an integer from 0 to 2**63-1, got {seed!r}")
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
+        raise GuideError(f"limit must be a positive integer (the first traces to train on) or None, got {limit!r}")
+    if batch > MAX_BATCH:
+        raise GuideError(f"batch must be at most {MAX_BATCH:,} traces a step, got {batch:,}")
     if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
         raise GuideError(f"the learning rate must be a finite positive number, got {lr!r}")
     if schedule not in SCHEDULES:
@@ -176,7 +183,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     data, kinds, n_choices = build_dataset(model, traces, settings)
     guide = new_guide_for(model, settings, mixture, kinds, seed)
     optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
-    weights_path, meta_path = guide_paths(out)
+    weights_path, meta_path = guide_paths(out, for_writing=True)
     ckpt, ckpt_meta = weights_path.with_suffix(".ckpt.pt"), weights_path.with_suffix(".ckpt.json")
     fingerprint = {"model": model.name, "features": settings.to_json(), "mixture": mixture, "batch": batch,
                    "lr": lr, "schedule": schedule, "seed": seed, "iterations": iterations, "traces": len(traces),
@@ -205,6 +212,9 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
         loss.backward()
         optimiser.step()
         value = float(loss.detach())
+        if not math.isfinite(value):  # diverged: a guide of NaN weights would be written otherwise
+            raise GuideError(f"training diverged at step {step + 1} (the loss is {value}); use a smaller "
+                             f"learning rate than {lr:g}")
         running = value if running is None else 0.99 * running + 0.01 * value
         step += 1
         if step % 100 == 0 or step == iterations:

@@ -31,6 +31,9 @@ def register(sub, int_arg) -> None:
     learn.add_argument("--estimator", default="exact", choices=("exact", "vi"),
                        help="parameter estimation: exact marginal likelihood (default) or the paper's VI")
     learn.add_argument("--samples", type=int_arg, default=10, help="samples on the contact sheet (default 10)")
+    learn.add_argument("--overwrite", action="store_true",
+                       help="replace a non-empty --out folder that is not an earlier learn run (never one holding "
+                            "an input)")
     learn.set_defaults(handler=_cmd_learn)
 
 
@@ -54,7 +57,7 @@ def _cmd_learn(args) -> None:
     workers = 0 if args.workers is None and args.scheduler is None else args.workers
     out = learn(args.examples, args.out, particles=args.particles, workers=workers,
                 scheduler=args.scheduler, seed=args.seed, options=SearchOptions(estimator=args.estimator),
-                samples=args.samples, progress=progress, command=command)
+                samples=args.samples, progress=progress, command=command, overwrite=args.overwrite)
     if tty:
         print(file=sys.stderr)
     t = out["table"]

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core import run_forward
-from ..core.errors import InvalidArgumentError, argument
+from ..core.errors import InvalidArgumentError
+from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
@@ -85,7 +86,7 @@ tr:nth-child(even){{background:#f2f2f2}}</style></head><body>
 
 def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | None = None,
           scheduler: str | None = None, seed: int = 0, options: SearchOptions | None = None,
-          samples: int = 10, progress=None, command: str = "") -> dict:
+          samples: int = 10, progress=None, command: str = "", overwrite: bool = False) -> dict:
     """Learn a program from an examples file and write the program folder ``out``.
 
     Parameters
@@ -95,7 +96,9 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
         them, one example per file (:func:`procmod.learn.examples.read_example_inputs`).
     out : path
         Output folder (created); a checkpoint left there by a killed run with the same
-        examples and options is resumed.
+        examples and options is resumed. A non-empty folder that is not an earlier
+        ``learn`` folder is refused unless ``overwrite`` (then replaced whole; see
+        :class:`procmod.core.runfolder.RunFolder`).
     particles : int
         Parallel structure searches (particle filter), default 4.
     workers, scheduler
@@ -112,15 +115,14 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     inputs = [Path(examples)] if isinstance(examples, (str, os.PathLike)) else [Path(p) for p in examples]
     shown = str(inputs[0]) if len(inputs) == 1 else " ".join(map(str, inputs))
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
+    folder = RunFolder(out, LEARN_RUN, overwrite, inputs=inputs)
     if samples < 1:
         raise InvalidArgumentError(f"samples must be positive, got {samples}")
     example_set, digest = read_example_inputs(inputs)  # everything is read and checked before out is made
     options = options or SearchOptions()
     options.particles, options.seed = particles, seed
     options.check()
-    out.mkdir(parents=True, exist_ok=True)
+    folder.prepare_in_place(keep=True)
     with open_executor(workers, scheduler) as executor:
         result = run_search(example_set, options, executor, out / "checkpoint", digest, progress)
     program = result.program

@@ -87,6 +87,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--device", default="cpu",
                    help="torch device to train on: cpu (default), cuda or cuda:N; the model is saved for the CPU")
     p.add_argument("--seed", type=int_arg, default=0)
+    _add_overwrite(p)
     p.set_defaults(handler=_train)
 
     p = leaves.add_parser("sample", help="sample strings from a trained model; write graphs, strings and meshes")
@@ -284,7 +285,7 @@ def _train(args) -> None:
         raise InvalidArgumentError("--strings-per-shape and --tagger-strings-per-shape must be positive integers")
     meta = train_model(args.collection, args.out, vae, tagger, args.strings_per_shape, args.held_out,
                        _seed(args.seed), progress, tagger_strings_per_shape=args.tagger_strings_per_shape,
-                       device=args.device)
+                       device=args.device, overwrite=args.overwrite)
     for bar in bars.values():
         bar.close()
     acc = meta.get("tagger_held_out_accuracy")

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError, argument, spelled
 from ..core.io import read_versioned_json, write_text_atomic
+from ..core.runfolder import STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
@@ -95,8 +96,12 @@ def split_shapes(n: int, held_out: float, seed: int) -> tuple[list[int], list[in
 def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_config: VAEConfig = VAEConfig(),
                 tagger_config: TaggerConfig = TaggerConfig(), strings_per_shape: int = 8, held_out: float = 0.2,
                 seed: int = 0, progress=None, stop_after: int | None = None,
-                tagger_strings_per_shape: int = 16, device: str | None = None) -> dict:
+                tagger_strings_per_shape: int = 16, device: str | None = None, overwrite: bool = False) -> dict:
     """Train the VAE and the edge-category tagger on a collection, into a model folder.
+
+    ``out``: an interrupted training there resumes; a non-empty folder that is not an
+    earlier model folder is refused unless ``overwrite`` (then replaced whole; see
+    :class:`procmod.core.runfolder.RunFolder`).
 
     ``device``: where both train (``"cpu"``, ``"cuda"``; see
     :func:`~procmod.strings.torch_utils.training_device`); the saved model loads on any machine.
@@ -107,9 +112,8 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     training_device(device)  # a device this machine lacks fails before anything is written
     shape_set = read_collection(collection)
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    folder = RunFolder(out, STRINGS_MODEL, overwrite, inputs=[collection])
+    folder.prepare_in_place(keep=True)
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)
     train_idx, test_idx = split_shapes(len(graphs), held_out, seed)

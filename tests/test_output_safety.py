@@ -1,0 +1,134 @@
+"""What a command writes or removes stays where the user said (follow-ups of issue 28):
+``--overwrite`` never removes a file an input names, a name of a shipped guide never
+writes into the package, resumable jobs never mix into an unrelated folder nor write
+through a link inside it."""
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from procmod.cli import main
+from procmod.core.runfolder import (COLLECTION, LEARN_RUN, TRACES_JOB, OutputLocationError, RunFolder,
+                                    check_output_file)
+from procmod.guide import Guide, guide_paths
+from procmod.guide.guide import PRETRAINED
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _digest(folder: Path) -> dict:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_a_shipped_guide_name_writes_in_the_current_folder_not_the_package(tmp_path, monkeypatch):
+    before = _digest(PRETRAINED)
+    monkeypatch.chdir(tmp_path)
+    assert guide_paths("vines-scribbles")[0].parent == PRETRAINED  # reading: the shipped guide
+    weights, meta = guide_paths("vines-scribbles", for_writing=True)
+    assert (weights, meta) == (Path("vines-scribbles.pt"), Path("vines-scribbles.json"))
+    Guide.load("vines-scribbles").save("vines-scribbles")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["vines-scribbles.json", "vines-scribbles.npz",
+                                                          "vines-scribbles.pt"]
+    assert _digest(PRETRAINED) == before
+
+
+def test_overwrite_never_removes_a_picture_the_target_names(tmp_path, capsys):
+    scene, pictures = tmp_path / "scene", tmp_path / "pictures"
+    scene.mkdir()
+    pictures.mkdir()
+    shutil.copy(ROOT / "scenes" / "city_skyline" / "sketch.png", pictures / "sketch.png")
+    target = json.loads((ROOT / "scenes" / "city_skyline" / "target.json").read_text())
+    target["views"][0]["image"] = "../pictures/sketch.png"
+    (scene / "target.json").write_text(json.dumps(target))
+    code, _, err = _run(capsys, "infer", "city", "--target", scene / "target.json", "--engine", "forward",
+                        "--particles", "2", "--size", "32", "--out", pictures, "--overwrite")
+    assert code == 2 and err.count("\n") == 1 and "holds the input" in err and "sketch.png" in err, err
+    assert sorted(p.name for p in pictures.iterdir()) == ["sketch.png"]
+
+
+def test_overwrite_never_removes_a_guide_given_as_a_stem(tmp_path, capsys):
+    guides = tmp_path / "guides"
+    guides.mkdir()
+    for suffix in (".pt", ".json", ".npz"):
+        shutil.copy(PRETRAINED / f"vines-scribbles{suffix}", guides / f"mine{suffix}")
+    code, _, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--particles", "2", "--size", "32",
+                        "--guide", guides / "mine", "--out", guides, "--overwrite")
+    assert code == 2 and "holds the input" in err, err
+    assert sorted(p.name for p in guides.iterdir()) == ["mine.json", "mine.npz", "mine.pt"]
+
+
+def test_a_collection_with_other_things_in_it_is_not_taken_for_an_earlier_one(tmp_path, capsys):
+    shapes = ROOT / "examples_sets" / "strings" / "pavilion.json"
+    out = tmp_path / "col"
+    code, _, err = _run(capsys, "strings", "augment", shapes, "--count", "4", "--out", out)
+    assert code == 0, err
+    assert COLLECTION.recognises(out)  # its own mesh folder (named by its shapes file) belongs to it
+    (out / "my_notes").mkdir()
+    (out / "my_notes" / "todo.txt").write_text("keep me")
+    assert not COLLECTION.recognises(out)
+    code, _, err = _run(capsys, "strings", "augment", shapes, "--count", "4", "--out", out)
+    assert code == 2 and "--overwrite" in err and "my_notes" in err, err
+    assert (out / "my_notes" / "todo.txt").read_text() == "keep me"
+
+
+def test_learn_refuses_an_unrelated_folder_and_one_holding_its_input(tmp_path, capsys):
+    castles = tmp_path / "castles"
+    shutil.copytree(ROOT / "examples_sets" / "learn" / "castles", castles)
+    before = _digest(castles / "parts")
+    code, _, err = _run(capsys, "learn", castles / "examples.json", "--out", castles, "--workers", "1")
+    assert code == 2 and err.count("\n") == 1 and "--overwrite" in err, err
+    code, _, err = _run(capsys, "learn", castles / "examples.json", "--out", castles, "--workers", "1",
+                        "--overwrite")
+    assert code == 2 and "holds the input" in err, err
+    assert _digest(castles / "parts") == before
+
+
+def test_learn_never_writes_through_a_link_inside_its_folder(tmp_path, capsys):
+    out, victim = tmp_path / "out", tmp_path / "victim"
+    out.mkdir()
+    victim.mkdir()
+    for name in ("checkpoint", "parts"):
+        os.symlink(victim, out / name)
+    assert not LEARN_RUN.recognises(out)
+    code, _, err = _run(capsys, "learn", ROOT / "examples_sets" / "learn" / "castles" / "examples.json",
+                        "--out", out, "--workers", "1")
+    assert code == 2 and "--overwrite" in err, err
+    assert list(victim.iterdir()) == []
+
+
+def test_a_resumable_job_replaces_a_linked_out_folder_not_what_it_points_to(tmp_path):
+    real = tmp_path / "real"
+    real.mkdir()
+    (real / "keep.txt").write_text("keep me")
+    link = tmp_path / "link"
+    os.symlink(real, link)
+    folder = RunFolder(link, TRACES_JOB, overwrite=True)
+    folder.prepare_in_place(keep=True)
+    assert link.is_dir() and not link.is_symlink()
+    assert (real / "keep.txt").read_text() == "keep me"
+
+
+def test_an_output_file_inside_an_input_folder_is_refused(tmp_path):
+    traces = tmp_path / "traces"
+    traces.mkdir()
+    (traces / "traces.json").write_text("{}")
+    with pytest.raises(OutputLocationError, match="input"):
+        check_output_file(traces / "traces.json", inputs=[traces])
+    check_output_file(tmp_path / "guide.json", inputs=[traces])  # beside it is fine
+
+
+def test_an_out_name_too_long_for_the_file_system_is_one_line(tmp_path, capsys):
+    code, _, err = _run(capsys, "sample", "chain", "-n", "1", "--size", "16", "--out", tmp_path / ("a" * 300))
+    assert code == 2 and err.count("\n") == 1, err
+    with pytest.raises(OutputLocationError):
+        check_output_file(tmp_path / ("b" * 300 + ".png"))
