@@ -157,7 +157,7 @@ def _model(spec: str, params=()):
             raise InvalidArgumentError(f"--param takes NAME=VALUE, got {_shown(item)}")
         try:
             settings[name] = json.loads(text)
-        except json.JSONDecodeError:
+        except ValueError:  # not JSON (also an integer of more than 4300 digits)
             settings[name] = text
     return model.configure(**settings)
 

@@ -324,3 +324,17 @@ def test_file_lists(tmp_path):
         read_assets(tmp_path / "x.obj")
     with pytest.raises(AssetError, match="does not exist"):
         read_assets(tmp_path / "missing.glb")
+
+
+def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, monkeypatch):
+    """``package://`` meshes are looked for in the URDF folder's ancestors: given as a bare
+    ``robot.urdf`` from its own folder, the path has no ancestors until resolved."""
+    package = tmp_path / "ws" / "src" / "my_robot"
+    (package / "meshes").mkdir(parents=True)
+    write_obj(package / "meshes" / "leg.obj", wedge_mesh(0.2))
+    (package / "urdf").mkdir()
+    links = {"leg": ['<geometry><mesh filename="package://my_robot/meshes/leg.obj"/></geometry>']}
+    (package / "urdf" / "robot.urdf").write_text(urdf(links, []))
+    monkeypatch.chdir(package / "urdf")
+    s = read_assets("robot.urdf")
+    assert s.parts["leg"].kind == "mesh"

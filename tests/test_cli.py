@@ -72,7 +72,7 @@ def test_bad_sample_arguments(tmp_path, capsys, argv, message):
 
 def test_bad_derivation_files(tmp_path, capsys):
     out = str(tmp_path / "out.png")
-    assert "cannot read" in _bad(tmp_path, capsys, "render", str(tmp_path / "none.json"), "--out", out,
+    assert "none.json does not exist" in _bad(tmp_path, capsys, "render", str(tmp_path / "none.json"), "--out", out,
                                  out_name="out.png")
     (tmp_path / "bad.json").write_text("{oops")
     assert "not valid JSON" in _bad(tmp_path, capsys, "render", str(tmp_path / "bad.json"), "--out", out,
@@ -229,3 +229,11 @@ def test_sample_of_a_3d_model_writes_a_page_to_turn_in_a_browser(tmp_path, capsy
     two_d = tmp_path / "vines"
     assert _run(capsys, "sample", "vines", "-n", "1", "--out", str(two_d), "--size", "32")[0] == 0
     assert not (two_d / "contact_sheet.html").exists()
+
+
+def test_an_integer_for_a_real_parameter_takes_a_later_real_change(tmp_path, capsys):
+    """``--param direction=[0,-1]`` (what the message for [0,0] suggests) was stored as
+    integers, so the target's real start was then refused as "must be an integer"."""
+    code = main(["infer", "vines", "--target", "glyph:a", "--param", "direction=[0,-1]", "--particles", "2",
+                 "--size", "16", "--out", str(tmp_path / "run")])
+    assert code == 0, capsys.readouterr().err

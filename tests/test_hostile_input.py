@@ -3,6 +3,7 @@ traceback, and leaves nothing behind (no --out, no hidden temporary folder besid
 is refused before the expensive work."""
 
 import json
+import os
 import shutil
 import struct
 import sys
@@ -90,6 +91,11 @@ def inputs(tmp_path_factory):
     shutil.copy(PRETRAINED / "vines-scribbles.pt", d / "bigmix.pt")
     (d / "deepguide.json").write_text("[" * 100_000 + "]" * 100_000)
     shutil.copy(PRETRAINED / "vines-scribbles.pt", d / "deepguide.pt")
+    # an integer of more digits than Python converts (4300), and a file that never ends
+    (d / "bigint.json").write_text(json.dumps(dict(derivation, params=dict(derivation["params"], size=0)))
+                                   .replace('"size": 0', '"size": 1' + "0" * 5000))
+    if hasattr(os, "mkfifo"):
+        os.mkfifo(d / "pipe.json")
     (d / "traces").mkdir()
     (d / "traces" / "traces.json").write_text("[" * 100_000 + "]" * 100_000)
     return d
@@ -165,6 +171,14 @@ CASES = [
      "--particles 1,000,000,000,000,000,000 would need at least"),
     ("long-target-name", ["infer", "vines", "--target", LONG, "--out", "{o}"], "does not exist"),
     ("long-model-name", ["sample", LONG, "--out", "{o}"], "unknown model"),
+    ("derivation-long-integer", ["render", "{i}/bigint.json", "--out", "{o}.png"], "bigint.json: not valid JSON"),
+    ("param-long-integer", ["sample", "vines", "-n", "1", "--param", "size=1" + "0" * 5000, "--out", "{o}"],
+     "parameter size must be an integer"),
+    ("derivation-fifo", ["render", "{i}/pipe.json", "--out", "{o}.png"], "pipe.json is not a regular file"),
+    ("train-seed-negative", ["guide", "train", "vines", "--traces", "{i}/traces", "--seed", "-1", "--out", "{o}"],
+     "seed must be an integer from 0"),
+    ("train-batch-huge", ["guide", "train", "vines", "--traces", "{i}/traces", "--batch", str(10 ** 12),
+                          "--out", "{o}"], "batch must be at most"),
     ("traces-3d-model", ["guide", "traces", "spaceship", "--count", "1", "--particles", "5", "--workers", "1",
                          "--out", "{o}"], "does not fit model 'spaceship'"),
 ] + [(f"silhouette-{name}", ["infer", "spaceship", "--target", f"{{i}}/sil_{name}.json", "--engine", "ga",
@@ -179,6 +193,8 @@ CASES = [
 def test_refused_in_one_line_leaving_nothing(inputs, tmp_path, capsys, monkeypatch, argv, message):
     if "/proc/x" in argv and not Path("/proc").is_dir():
         pytest.skip("no /proc on this system")
+    if any("pipe.json" in str(a) for a in argv) and not (inputs / "pipe.json").exists():
+        pytest.skip("no FIFOs on this system")
 
     def engine_must_not_run(*args, **kwargs):
         raise AssertionError("the engine ran before the refusal")

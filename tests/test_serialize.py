@@ -68,7 +68,7 @@ def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
 
 
 def test_unreadable_files_are_rejected(tmp_path):
-    with pytest.raises(DerivationFormatError, match="cannot read"):
+    with pytest.raises(DerivationFormatError, match="missing.json does not exist"):
         load_derivation(tmp_path / "missing.json", get_model)
     (tmp_path / "bad.json").write_text("{not json")
     with pytest.raises(DerivationFormatError, match="not valid JSON"):

@@ -271,3 +271,34 @@ def test_a_speck_below_the_shape_does_not_take_the_start():
     assert lowest_point_start(mask) == clean and clean[0][1] == pytest.approx(79.5 / 100)
     mask[85:95, 70:80] = True  # a part a sixth of the bar's size is shape, not noise
     assert lowest_point_start(mask)[0][1] == pytest.approx(94.5 / 100)
+
+
+def test_a_16_bit_or_real_valued_picture_keeps_its_greys(tmp_path):
+    """Pillow's convert("L") clips such pictures at 255: every grey turned white and the
+    mask came out empty."""
+    from procmod.targets.image import mask_from_image, open_image
+
+    ink = np.zeros((40, 60), dtype=bool)
+    ink[15:25, 10:50] = True
+    deep = np.where(ink, 15000, 60000).astype(np.uint16)
+    Image.fromarray(deep).save(tmp_path / "deep.png")
+    real = np.where(ink, 0.1, 0.9).astype(np.float32)
+    Image.fromarray(real, mode="F").save(tmp_path / "real.tif")
+    for name in ("deep.png", "real.tif"):
+        mask = mask_from_image(open_image(tmp_path / name))
+        assert mask.sum() == ink.sum(), name
+
+
+def test_a_photo_is_read_the_way_its_exif_orientation_shows_it(tmp_path):
+    from procmod.targets.image import mask_from_image, open_image
+
+    pixels = np.full((40, 60, 3), 255, dtype=np.uint8)
+    pixels[18:22, 5:55] = 0  # stored: a horizontal bar
+    picture = Image.fromarray(pixels)
+    exif = picture.getexif()
+    exif[0x0112] = 6  # shown turned a quarter: a vertical bar
+    picture.save(tmp_path / "photo.jpg", exif=exif)
+    image = open_image(tmp_path / "photo.jpg")
+    assert image.size == (40, 60)
+    rows, cols = np.nonzero(mask_from_image(image))
+    assert rows.max() - rows.min() > 4 * (cols.max() - cols.min())

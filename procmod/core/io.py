@@ -149,12 +149,16 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
     except RecursionError:
         raise error(f"{source}: JSON nested too deeply (procmod's files nest a few levels; this one nests "
                     "more than Python can read)") from None
+    except ValueError as exc:  # e.g. an integer of more digits than Python converts (4300)
+        raise error(f"{source}: not valid JSON ({_cut(str(exc), 100)})") from None
 
 
 def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
     """The parsed JSON of ``path``; a missing, unreadable or malformed file is ``error``
     with one line naming the file (see :func:`parse_json`)."""
     try:
+        if Path(path).exists() and not Path(path).is_file():  # a folder, a FIFO, /dev/zero: never ends or fits
+            raise error(f"{what} {_cut(str(path))} is not a regular file")
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise error(f"{what} {_cut(str(path))} does not exist") from None

@@ -92,7 +92,7 @@ class Model:
         for name, value in params.items():
             _check_param(name, value, self.params[name], self.param_ranges.get(name))
         merged = dict(self.params)
-        merged.update(params)
+        merged.update({name: _like(value, self.params[name]) for name, value in params.items()})
         return replace(self, params=merged)
 
     def new_output(self):
@@ -107,6 +107,17 @@ class Model:
 def _shown(value, limit: int = 60) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _like(value, default):
+    """``value`` (checked by :func:`_check_param`) with the default's number types: an
+    integer given for a real parameter (``direction=[0,-1]``) is stored as a float, so that
+    a later change of it (a target's real start) is checked against a real, not an integer."""
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(default, (list, tuple)) and isinstance(value, (list, tuple)):
+        return type(value)(_like(v, d) for v, d in zip(value, default))
+    return value
 
 
 def _check_param(name: str, value, default, bounds=None) -> None:

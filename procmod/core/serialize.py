@@ -135,9 +135,5 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
 
 def load_derivation(path: str | os.PathLike, resolve_model: Callable[[str], Model]) -> Derivation:
     """Read a ``procmod-derivation/1`` file and replay it exactly."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DerivationFormatError(f"cannot read derivation file {_cut(str(path))}: "
-                                    f"{getattr(exc, 'strerror', None) or exc}") from None
-    return derivation_from_dict(parse_json(text, _cut(str(path))), resolve_model, source=_cut(str(path)))
+    data = read_json(path, DerivationFormatError, "derivation file")
+    return derivation_from_dict(data, resolve_model, source=_cut(str(path)))

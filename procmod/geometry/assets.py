@@ -391,7 +391,9 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
     candidates = []
     if name.startswith("package://"):
         pkg, _, rest = name[len("package://"):].partition("/")
-        for folder in [base, *base.parents]:
+        # ancestors of the resolved folder: "robot.urdf" run from its own folder has a base
+        # of "." whose .parents is empty, and the package lies above it
+        for folder in [base, *base.resolve().parents]:
             candidates += [(folder, rest), (folder, f"{pkg}/{rest}")]
     else:
         candidates.append((base, name))

@@ -36,7 +36,7 @@ from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.voxel import VoxelGrid
-from .image import MAX_IMAGE_PIXELS, TargetFileError, open_image
+from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, open_image
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -608,7 +608,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         if kind == "weights":
             weights = _load_weights(file, f"{at}.weights")
         elif kind == "image":
-            grey = np.asarray(open_image(file, f"{at}.image").convert("L"), dtype=np.float64)
+            grey = grey_levels(open_image(file, f"{at}.image"))
             weights = np.where(grey < 85, hit, np.where(grey > 170, avoid, 0.0))
         else:
             covered = mesh_silhouette(*read_mesh(file, f"{at}.mesh", orient=False), camera)

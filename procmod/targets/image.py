@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from PIL import Image, ImageOps, UnidentifiedImageError
 
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.serialize import read_json
@@ -54,7 +54,10 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
                         f"the models draw in it would be {side}x{side} ({side * side / 1e6:.0f} megapixels, more "
                         f"than the {MAX_IMAGE_PIXELS / 1e6:.0f} procmod reads): crop or scale it down")
                 image.load()
-                return image.copy()
+                # a phone photo stores its pixels sideways and says how to turn them (EXIF):
+                # the mask must be what the user sees
+                return ImageOps.exif_transpose(image) if image.getexif().get(_EXIF_ORIENTATION, 1) != 1 \
+                    else image.copy()
     except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
         # Pillow refuses before we see the size; its message holds the pixel count
         found = re.search(r"\((\d+) pixels\)", str(exc))
@@ -223,6 +226,31 @@ def check_mask(mask: np.ndarray, name: str) -> np.ndarray:
     return mask
 
 
+_EXIF_ORIENTATION = 0x0112
+
+
+def grey_levels(image: Image.Image) -> np.ndarray:
+    """The brightness of a picture, 0 (black) to 255 (white), as floats, whatever its bit
+    depth: 16-bit and 32-bit integer pictures are scaled from their range (65535, or their
+    own maximum above it) and real-valued ones from 0..1 when they lie in it. (Pillow's
+    ``convert("L")`` clips such pictures at 255 instead, so every grey above 255 became
+    white.)"""
+    if image.mode not in ("I", "F") and not image.mode.startswith("I;16"):
+        return np.asarray(image.convert("L"), dtype=np.float64)
+    values = np.asarray(image, dtype=np.float64)
+    finite = values[np.isfinite(values)]
+    top = float(finite.max()) if finite.size else 0.0
+    if image.mode.startswith("I;16"):
+        scale = 255.0 / 65535.0
+    elif image.mode == "F" and top <= 1.0:
+        scale = 255.0
+    elif top <= 255.0:
+        scale = 1.0
+    else:
+        scale = 255.0 / (65535.0 if top <= 65535.0 else top)
+    return np.clip(np.nan_to_num(values, nan=0.0) * scale, 0.0, 255.0)
+
+
 def mask_from_image(image: Image.Image) -> np.ndarray:
     """Binary mask of a picture: foreground = pixels unlike the border.
 
@@ -237,7 +265,7 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     if alpha is not None and (alpha < 128).any():  # real transparency: the opaque part
         mask = alpha >= 128
     else:
-        grey = np.asarray(image.convert("L"), dtype=np.float64)
+        grey = grey_levels(image)
         border = np.concatenate([grey[0], grey[-1], grey[:, 0], grey[:, -1]])
         mask = grey < 128 if border.mean() >= 128 else grey >= 128
     h, w = mask.shape
