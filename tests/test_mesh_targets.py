@@ -310,3 +310,19 @@ def test_a_million_faces_loads_in_seconds(tmp_path):
     seconds = time.perf_counter() - start
     assert abs(mask.sum() * grid.size ** 3 - 4 / 3 * math.pi) < 0.02 * 4 / 3 * math.pi
     assert seconds < 60, seconds  # about 5 s on an idle 2-core machine
+
+
+def test_obj_relative_indices_and_tab_spacing_are_read_as_written(tmp_path):
+    """trimesh resolves ``f -4 -3 -2`` against the whole file and drops a tab-separated
+    ``v\\t...``: the first of two objects vanished (procmod.geometry.mesh_files)."""
+    from procmod.geometry.mesh_files import load_mesh_file
+
+    tetra = "f -4 -2 -3\nf -4 -3 -1\nf -4 -1 -2\nf -3 -2 -1\n"
+    text = ("o A\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv\t0 0 1\n" + tetra
+            + "o B\n  v 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\n" + tetra)
+    (tmp_path / "two.obj").write_text(text)
+    mesh = load_mesh_file(tmp_path / "two.obj", force="mesh", process=False)
+    assert len(mesh.vertices) == 8 and len(mesh.faces) == 8
+    used = np.unique(np.asarray(mesh.faces))
+    assert used.tolist() == list(range(8))  # each object's faces use its own four vertices
+    assert np.allclose(mesh.vertices[mesh.faces[:4]].min(axis=(0, 1)), 0.0)

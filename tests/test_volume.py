@@ -194,3 +194,20 @@ def test_part_cache_gives_the_same_scene_as_voxelizing():
     assert np.array_equal(plain.counts, cached.counts)
     assert (plain.overlaps, plain.outside, plain.filled_count) == (cached.overlaps, cached.outside, cached.filled_count)
     assert abs(plain.gain_total - cached.gain_total) < 1e-9
+
+
+def test_a_part_far_larger_than_the_targets_voxels_is_refused_not_run_for_hours():
+    """A 5 cm target at 1 mm voxels against parts of metres: the kernels would visit some
+    10^10 cells a part (and the record buffer asked for 55 GiB)."""
+    from procmod.geometry.voxel import VoxelScene
+
+    grid = VoxelGrid((-0.06, -0.06, -0.06), 0.001, (121, 121, 121))
+    part = Box((3.0, 1.0, 1.0), translation(0.0, 0.0, 0.0))
+    for cached in (False, True):
+        scene = VoxelScene(grid)
+        if cached:
+            scene.use_part_cache()
+        with pytest.raises(InvalidArgumentError, match="far smaller than the model's parts"):
+            scene.add(part)
+    small = Box((0.02, 0.02, 0.02), translation(0.0, 0.0, 0.0))  # a part of the target's scale is fine
+    assert VoxelScene(grid).add(small) > 0

@@ -58,6 +58,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.paths import UnsafePathError, named_file
+from .mesh_files import load_mesh_file
 from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
@@ -406,13 +407,12 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
 
 
 def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh
     size = path.stat().st_size
     if size > MAX_MESH_BYTES:
         raise AssetError(f"{where}: {path} is {size / 2 ** 20:.0f} MiB, more than procmod reads "
                          f"({MAX_MESH_BYTES // 2 ** 20} MiB); decimate it")
     try:
-        mesh = trimesh.load(path, force="mesh", process=False, skip_materials=True)
+        mesh = load_mesh_file(path, force="mesh", process=False, skip_materials=True)
     except Exception as exc:
         raise AssetError(f"{where}: cannot read {path} as a triangle mesh ({type(exc).__name__}: "
                          f"{str(exc)[:100]})") from None

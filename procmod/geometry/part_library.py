@@ -23,6 +23,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.paths import UnsafePathError, named_file
+from .mesh_files import load_mesh_file
 from .solid import Box, Mesh, as_transform, matrix, part_triangles
 
 
@@ -94,8 +95,7 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
     except UnsafePathError as exc:
         raise PartLibraryError(str(exc)) from None
     try:
-        import trimesh
-        mesh = trimesh.load(path, force="mesh", process=False)
+        mesh = load_mesh_file(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise PartLibraryError(f"{where}.mesh: cannot read {path} as a triangle mesh ({exc})") from None
     if len(getattr(mesh, "faces", ())) == 0:

@@ -47,6 +47,11 @@ class VoxelGrid(NamedTuple):
         return cls(tuple(float(v) for v in lo), float(size), shape)
 
 
+# Lattice cells a part's bounding box may span: the voxel kernels visit each (about 10 ns a
+# cell), so this bounds one part's voxelization to about a second.
+MAX_PART_CELLS = 1e8
+
+
 @numba.njit(cache=True, inline="always")
 def _hit(counts, nx, ny, nz, i, j, k, gain, state, record):
     # state: [new voxels, overlaps, outside] as floats, gain sum at index 3, at index 4
@@ -293,6 +298,8 @@ class VoxelScene:
         """Count one more hit on the voxels ``part`` covers (in ``counts``, default this
         scene's); their indices go to ``record`` when it is not empty."""
         counts = self.counts if counts is None else counts
+        if record is _NO_RECORD:  # (a record was sized by _record_for, which checked the span)
+            self._cells_spanned(lo, hi)
         h = self.grid.size
         if isinstance(part, (Box, Cylinder)):
             inv = _inverse(part.transform)
@@ -337,13 +344,30 @@ class VoxelScene:
                                                           np.maximum(self.extent[1], hi))
         return n
 
-    def _record_for(self, lo, hi) -> np.ndarray:
-        """An index buffer with room for every voxel centre in the box ``[lo, hi]``."""
+    def _cells_spanned(self, lo, hi) -> float:
+        """The lattice cells the box ``[lo, hi]`` spans (with a cell's margin round it).
+
+        Raises InvalidArgumentError above :data:`MAX_PART_CELLS`: the kernels visit every
+        one, so a target far smaller than the model's parts (a 5 cm mesh at 1 mm voxels
+        against a ship of metres) would otherwise run for hours, or ask for terabytes."""
         h = self.grid.size  # plain floats: numpy's per-call overhead exceeds the arithmetic
         n = 1.0
         for a in range(3):
             n *= max((float(hi[a]) - float(lo[a])) / h + 3.0, 1.0)
-        return np.empty(int(n) + 8, dtype=np.int64)
+        if not n <= MAX_PART_CELLS:
+            size = max(float(hi[a]) - float(lo[a]) for a in range(3))
+            raise InvalidArgumentError(
+                f"a part of the model ({size:.3g} units across) spans about {n:.2g} voxels of the target's "
+                f"voxel_size {h:.3g}: the target is far smaller than the model's parts; scale the target to the "
+                f"model's size (its grid is {self.grid.shape[0]}x{self.grid.shape[1]}x{self.grid.shape[2]} voxels "
+                f"from ({', '.join(f'{v:.3g}' for v in self.grid.origin)})), or give it a larger voxel_size")
+        return n
+
+    def _record_for(self, lo, hi) -> np.ndarray:
+        """An index buffer with room for every in-grid voxel centre in the box ``[lo, hi]``:
+        a part hits each in-grid voxel at most once, so never more than the grid holds."""
+        n = self._cells_spanned(lo, hi)
+        return np.empty(int(min(n, self.counts.shape[0])) + 8, dtype=np.int64)
 
     def _entry(self, part):
         """``(voxel indices, outside count, lo, hi)`` of a part: from the part cache, or

@@ -35,6 +35,7 @@ from ..core.limits import ResourceLimitError, check_memory, format_bytes
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
+from ..geometry.mesh_files import load_mesh_file
 from ..geometry.voxel import VoxelGrid
 from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, open_image
 from .silhouette import Silhouette
@@ -294,7 +295,7 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
         check_memory(f"{where}: reading {declared:,} faces", declared * BYTES_PER_FACE)
     try:
         with _quiet():
-            mesh = trimesh.load(file, force="mesh", process=False)
+            mesh = load_mesh_file(file, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 -- trimesh raises many types for unreadable files
         raise TargetFileError(f"{where}: cannot read the mesh ({_cut(str(exc) or type(exc).__name__, 120)})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
