@@ -326,3 +326,28 @@ def test_obj_relative_indices_and_tab_spacing_are_read_as_written(tmp_path):
     used = np.unique(np.asarray(mesh.faces))
     assert used.tolist() == list(range(8))  # each object's faces use its own four vertices
     assert np.allclose(mesh.vertices[mesh.faces[:4]].min(axis=(0, 1)), 0.0)
+
+
+def test_a_flipped_piece_overlapping_another_in_part_is_a_solid_not_a_cavity(tmp_path):
+    """One probe face decided before: with B's first face inside A, the flipped box B was
+    taken for a cavity and carved out of A; by face order, 960 or 1152 voxels."""
+    def box(lo, hi):
+        mesh = trimesh.creation.box(extents=np.subtract(hi, lo))
+        mesh.apply_translation(np.add(lo, hi) / 2)
+        return mesh
+
+    a, b = box([-2, -1, -1], [2, 1, 1]), box([1, -0.5, -0.5], [4, 0.5, 0.5])
+    b.invert()
+    hollow_outer, hollow_inner = box([-2, -2, -2], [2, 2, 2]), box([-1, -1, -1], [1, 1, 1])
+    hollow_inner.invert()  # a real cavity stays one
+    meshes = {f"order{k}": trimesh.util.concatenate([a, trimesh.Trimesh(b.vertices, b.faces[order], process=False)])
+              for k, order in enumerate([np.argsort(b.triangles_center[:, 0]), np.argsort(-b.triangles_center[:, 0])])}
+    meshes["hollow"] = trimesh.util.concatenate([hollow_outer, hollow_inner])
+    inside = {}
+    for name, mesh in meshes.items():
+        mesh.export(tmp_path / f"{name}.obj")
+        (tmp_path / f"{name}.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": 0.25,
+                                                           "layers": [{"file": f"{name}.obj"}]}))
+        inside[name] = int((load_volume_target(tmp_path / f"{name}.json").combined > 0).sum())
+    assert inside["order0"] == inside["order1"] == 16 * 8 * 8 + 8 * 4 * 4  # A, and B's part outside A
+    assert inside["hollow"] == 16 ** 3 - 8 ** 3

@@ -49,8 +49,9 @@ Orientation. Winding numbers need faces wound consistently. :func:`orient_faces`
 every edge-connected component consistent (a breadth-first walk across edges shared by
 exactly two faces, flipping a face whose shared edge runs the same way as its neighbour's)
 and outward: a component enclosing negative volume is turned over, unless it lies inside
-another component (then it is a cavity, such as the inner wall of a hollow part, and is
-kept facing in).
+the other components (then it is a cavity, such as the inner wall of a hollow part, and is
+kept facing in): the centroids of up to :data:`CAVITY_PROBES` of its faces, spread over it,
+must all be inside; a flipped piece overlapping another only in part is turned over.
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ EPS_STEPS = (0.05, 5e-3, 5e-4, 5e-5, 5e-6)
 MAX_CAP_WORK = 6e8
 SAMPLE_VOXELS = 64  # voxels decided first, to estimate the work of the rest
 CAVITY_TESTS = 16  # inward-facing components tested for being cavities (the largest first)
+CAVITY_PROBES = 16  # faces of such a component that must all lie inside the outward ones
 
 
 # --- winding numbers by direct summation (reference, and for a few points) ----------------
@@ -716,16 +718,25 @@ def orient_faces(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     comp, parity, n_comp = _walk(n, ptr, nbr, r)
     turn = parity == 1
     faces[turn] = faces[turn][:, ::-1]
-    volume, span, first_face = _component_stats(vertices, faces, comp, n_comp)
+    volume, span, _ = _component_stats(vertices, faces, comp, n_comp)
     inverted = np.flatnonzero(volume < -1e-9 * span ** 3)
     if len(inverted):
         keep = np.zeros(n_comp, dtype=bool)  # inward-facing components that are cavities
         outward = ~np.isin(comp, inverted)
         tested = inverted[np.argsort(volume[inverted])][:CAVITY_TESTS]
         if outward.any():
-            probes = vertices[faces[first_face[tested]]].mean(axis=1)
-            w = winding_numbers(vertices, faces[outward], probes)
-            keep[tested[w >= 0.5]] = True
+            # several faces of each: one probe decided before, and a piece overlapping an
+            # outward one (partly inside it) was taken for a cavity and carved out of it
+            probes, owner = [], []
+            for c in tested:
+                members = np.flatnonzero(comp == c)
+                picked = members[np.linspace(0, len(members) - 1, min(CAVITY_PROBES, len(members))).astype(np.int64)]
+                probes.append(vertices[faces[picked]].mean(axis=1))
+                owner += [c] * len(picked)
+            w = winding_numbers(vertices, faces[outward], np.concatenate(probes))
+            owner = np.asarray(owner)
+            for c in tested:
+                keep[c] = bool(np.all(w[owner == c] >= 0.5))
         turn = np.isin(comp, inverted[~keep[inverted]])
         faces[turn] = faces[turn][:, ::-1]
     return faces, comp
