@@ -282,6 +282,9 @@ def _cmd_infer(args) -> None:
     if args.engine in ("smc", "sosmc", "mcmc"):
         if args.workers is not None and args.workers < 1:
             raise InvalidArgumentError(f"--workers must be a positive integer, got {args.workers}")
+        if args.workers is not None:
+            from .parallel import check_worker_limit
+            check_worker_limit(args.workers)
         kwargs["workers"] = 1 if args.workers is None else args.workers
         if args.engine == "mcmc" and "chains" not in kwargs:
             kwargs["chains"] = kwargs["workers"]  # one chain per worker
@@ -365,7 +368,7 @@ class _progress_bar:
 # strings.torch_utils.CPU_DEVICE and strings.pipeline.TRAIN_MODEL.
 CLI_SPELLING = {
     "out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler", "seed": "--seed",
-    "particles": "--particles", "targets": "--targets", "device": "--device",
+    "particles": "--particles", "targets": "--targets", "device": "--device", "workers": "--workers",
     "strings_per_shape": "--strings-per-shape", "tagger_strings_per_shape": "--tagger-strings-per-shape",
     "held_out": "--held-out",
     "settings=FeatureSettings.condition('local')": "--features local",

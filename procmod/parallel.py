@@ -60,6 +60,21 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+# Worker processes per core a command may start: a few per core can hide waits, far more
+# only adds memory and start-up (and --workers 100000 would be a fork bomb).
+MAX_WORKERS_PER_CORE = 4
+
+
+def check_worker_limit(workers: int) -> int:
+    """``workers`` if this machine can sensibly run that many processes, else an
+    InvalidArgumentError naming the limit (:data:`MAX_WORKERS_PER_CORE` per core)."""
+    limit = MAX_WORKERS_PER_CORE * default_workers()
+    if workers > limit:
+        raise InvalidArgumentError(f"{argument('workers')} {workers:,} is more processes than this machine's "
+                                   f"{default_workers()} cores can use (at most {limit}); give fewer")
+    return workers
+
+
 _ADDRESS = re.compile(r"^(?:(?:tcp|tls|ucx|ws|wss)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):\d{1,5}$"
                       r"|^inproc://\S+$")
 
@@ -160,6 +175,8 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         finally:
             client.close()
         return
+    if workers is not None:
+        check_worker_limit(workers)
     if workers == 0:
         workers = default_workers()
     if workers is None or workers <= 1:

@@ -599,6 +599,8 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InvalidArgumentError(f"workers must be a positive integer, got {workers!r}")
+    from ..parallel import check_worker_limit
+    check_worker_limit(workers)
     if isinstance(init_particles, bool) or not isinstance(init_particles, int) or init_particles < 0:
         raise InvalidArgumentError(f"init_particles must be a non-negative integer, got {init_particles!r}")
     if not fork_available():

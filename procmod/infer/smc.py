@@ -37,12 +37,13 @@ PARTICLES_PER_WORKER = 100
 
 def worker_count(workers: int | None, particles: int) -> int:
     """The processes an SMC run of ``particles`` uses for ``workers`` (None: automatic)."""
-    from ..parallel import default_workers
+    from ..parallel import check_worker_limit, default_workers
 
     if workers is None:
         workers = min(default_workers(), max(1, particles // PARTICLES_PER_WORKER))
     elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InvalidArgumentError(f"workers must be a positive integer or None (automatic), got {workers!r}")
+    check_worker_limit(workers)
     if workers > 1 and not fork_available():
         return 1  # worker shards are forked; elsewhere the run stays in this process
     return max(1, min(workers, particles))

@@ -111,7 +111,7 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     dict
         Table-1 figures and the paths written.
     """
-    from ..parallel import open_executor
+    from ..parallel import check_worker_limit, open_executor
     inputs = [Path(examples)] if isinstance(examples, (str, os.PathLike)) else [Path(p) for p in examples]
     shown = str(inputs[0]) if len(inputs) == 1 else " ".join(map(str, inputs))
     out = Path(out)
@@ -122,6 +122,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     options = options or SearchOptions()
     options.particles, options.seed = particles, seed
     options.check()
+    if workers:  # refused before the folder is made
+        check_worker_limit(workers)
     folder.prepare_in_place(keep=True)
     with open_executor(workers, scheduler) as executor:
         result = run_search(example_set, options, executor, out / "checkpoint", digest, progress)
