@@ -96,6 +96,8 @@ def inputs(tmp_path_factory):
                                    .replace('"size": 0', '"size": 1' + "0" * 5000))
     if hasattr(os, "mkfifo"):
         os.mkfifo(d / "pipe.json")
+    shutil.copytree(SETS.parent / "learn" / "castles", d / "nan_castles")
+    (d / "nan_castles" / "parts" / "tower.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     (d / "traces").mkdir()
     (d / "traces" / "traces.json").write_text("[" * 100_000 + "]" * 100_000)
     return d
@@ -185,6 +187,8 @@ CASES = [
                        "--out", "{o}"], "--workers 100,000 is more processes than"),
     ("workers-traces", ["guide", "traces", "vines", "--count", "1", "--workers", "100000", "--out", "{o}"],
      "--workers 100,000 is more processes than"),
+    ("learn-nan-vertex", ["learn", "{i}/nan_castles/examples.json", "--workers", "1", "--out", "{o}"],
+     "vertices that are not finite numbers"),
     ("traces-3d-model", ["guide", "traces", "spaceship", "--count", "1", "--particles", "5", "--workers", "1",
                          "--out", "{o}"], "does not fit model 'spaceship'"),
 ] + [(f"silhouette-{name}", ["infer", "spaceship", "--target", f"{{i}}/sil_{name}.json", "--engine", "ga",
