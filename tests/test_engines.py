@@ -299,3 +299,12 @@ def test_kernels_are_loaded_before_the_engines_clock_starts():
     expected = ["smc vines []", "smc vines []", "smc interval []", "smc chain []", "smc spaceship []",
                 "mcmc city []", "ga city []"]
     assert done.stdout.strip().split("\n") == expected, done.stdout
+
+
+@pytest.mark.parametrize("engine", ["ga", "smc", "sosmc", "forward", "mcmc"])
+def test_an_engine_refuses_what_is_not_a_target_in_one_line(engine):
+    from procmod.data import target_image
+
+    for wrong in ("glyph:a", target_image("glyph:a")):
+        with pytest.raises(InvalidArgumentError, match="must be a procmod Target.*target_from_spec"):
+            ENGINES[engine](get_model("vines"), wrong)

@@ -311,6 +311,20 @@ def new_seed(rng: np.random.Generator) -> int:
     return int(rng.integers(0, 2 ** 63 - 1))
 
 
+_TARGET_METHODS = ("configure", "new_output", "score", "log_likelihood")
+
+
+def check_target(target) -> None:
+    """Refuse, in one line, what is not a target (a picture, a spec string, a mask):
+    engines take a :class:`procmod.core.protocols.Target`."""
+    lacking = [m for m in _TARGET_METHODS if not callable(getattr(target, m, None))]
+    if lacking:
+        raise InvalidArgumentError(
+            f"target must be a procmod Target (with {', '.join(_TARGET_METHODS)}), got {type(target).__name__} "
+            f"without {', '.join(lacking)}; make one with procmod.data.target_from_spec('glyph:a') or a class of "
+            "procmod.targets (ShapeMatch(image), Volume, Silhouette, ...)")
+
+
 def check_positive(name: str, value) -> int:
     """``value`` if it is a positive integer, else an InvalidArgumentError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:

@@ -25,7 +25,7 @@ from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
-from .common import Budget, Result, Tracker, check_population, check_positive, log_mean_exp, relaxed_gc
+from .common import Budget, Result, Tracker, check_population, check_positive, check_target, log_mean_exp, relaxed_gc
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
@@ -253,6 +253,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     if order not in ("program", "random"):
         raise InvalidArgumentError(f"order must be 'program' or 'random', got {order!r}")
     pick = None if order == "program" else random_order
+    check_target(target)
     model = target.configure(model)
     template = target.new_output(model)  # every particle starts from a copy of it
     check_population("particles", particles, template)  # refuse what memory cannot hold
