@@ -338,3 +338,34 @@ def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, mo
     monkeypatch.chdir(package / "urdf")
     s = read_assets("robot.urdf")
     assert s.parts["leg"].kind == "mesh"
+
+
+def test_a_gltf_buffer_named_percent_encoded_or_up_a_folder_is_found(tmp_path):
+    """The glTF spec writes a space in a URI as %20; example sets may share buffers (..)."""
+    import base64
+
+    path, _, _ = ship_gltf(tmp_path / "inline.gltf")
+    data = json.loads(path.read_text())
+    blob = base64.b64decode(data["buffers"][0]["uri"].split(",", 1)[1])
+    (tmp_path / "buffers").mkdir()
+    (tmp_path / "buffers" / "my ship.bin").write_bytes(blob)
+    (tmp_path / "models").mkdir()
+    data["buffers"][0]["uri"] = "../buffers/my%20ship.bin"
+    (tmp_path / "models" / "my ship.gltf").write_text(json.dumps(data))
+    inline, external = read_assets(path), read_assets(tmp_path / "models" / "my ship.gltf")
+    assert list(inline.parts) == list(external.parts)
+    for x, y in zip(inline.assets[0].nodes(), external.assets[0].nodes()):
+        assert x.part == y.part and np.allclose(x.transform, y.transform)
+    data["buffers"][0]["uri"] = str(tmp_path / "buffers" / "my ship.bin")  # absolute: refused
+    (tmp_path / "models" / "absolute.gltf").write_text(json.dumps(data))
+    with pytest.raises(AssetError, match="absolute path"):
+        read_assets(tmp_path / "models" / "absolute.gltf")
+
+
+def test_a_draco_compressed_gltf_is_refused_with_what_to_do(tmp_path):
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    data = json.loads(path.read_text())
+    data["extensionsUsed"] = data["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    path.write_text(json.dumps(data))
+    with pytest.raises(AssetError, match="Draco-compressed.*export it without mesh compression"):
+        read_assets(path)

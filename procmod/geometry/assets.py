@@ -303,7 +303,6 @@ def _gltf_triangles(header: dict, path: Path) -> int:
 
 def _read_gltf(path: Path, geometries: dict) -> list:
     """The forest of _Raw nodes of a glTF / GLB file; its geometries into ``geometries``."""
-    import trimesh
     from trimesh.util import unique_name
 
     header = _gltf_json(path)
@@ -313,9 +312,9 @@ def _read_gltf(path: Path, geometries: dict) -> list:
         raise AssetError(f"{path} has {declared} triangles, more than procmod reads ({MAX_FACES}); "
                          "decimate the meshes (Blender: Decimate modifier) before exporting")
     try:
-        scene = trimesh.load(path, force="scene", process=False)
+        scene = load_mesh_file(path, force="scene", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
-        raise AssetError(f"cannot read {path} as glTF ({type(exc).__name__}: {str(exc)[:120]})") from None
+        raise AssetError(f"cannot read {path} as glTF ({type(exc).__name__}: {str(exc)[:200]})") from None
     nodes = header.get("nodes", [])
     # trimesh names a node as its loader does: the file's name made unique, in index order
     names, taken, counts = {}, {}, {}

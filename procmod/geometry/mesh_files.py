@@ -12,13 +12,25 @@ trimesh 4 misreads, in memory (the file is left as it is):
   by trimesh, silently losing those vertices or faces; lines are re-spaced.
 * **Line continuations** (a ``\\`` at the end of a line) are joined first, so that the
   two rules above see whole statements.
+
+For glTF, the files a ``.gltf`` names (buffers, images) are found as procmod finds named
+files (README, "Files that name other files"): relative to the ``.gltf``, ``..`` allowed,
+absolute paths refused, and percent-encoded (``my%20ship.bin``, as the glTF spec writes a
+space) as well as plain. A file whose meshes are Draco-compressed is refused with what to
+do, rather than read as placeholder zeros. trimesh's log messages stay off procmod's
+one-line error channel.
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
+import json
+import logging
 import re
-from pathlib import Path
+import struct
+from pathlib import Path, PurePosixPath, PureWindowsPath
+from urllib.parse import unquote
 
 _INDEXED = ("f", "l", "p")  # statements that index vertices (v/vt/vn per field)
 _COUNTED = {"v": 0, "vt": 1, "vn": 2}
@@ -54,19 +66,87 @@ def normalised_obj(text: str) -> str | None:
     return "\n".join(out) + "\n" if changed else None
 
 
+DRACO = "KHR_draco_mesh_compression"
+
+
+def gltf_header(path: Path) -> dict | None:
+    """The JSON of a ``.gltf`` or the JSON chunk of a ``.glb`` (None when it cannot be read:
+    the loader then says what is wrong)."""
+    try:
+        if path.suffix.lower() == ".glb":
+            with open(path, "rb") as f:
+                head = f.read(20)
+                if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
+                    return None
+                length = struct.unpack("<I", head[12:16])[0]
+                data = json.loads(f.read(min(length, 64 * 2 ** 20)))
+        else:
+            data = json.loads(path.read_bytes())
+    except (OSError, ValueError, RecursionError, struct.error):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _check_gltf(path: Path) -> None:
+    header = gltf_header(path)
+    if header is None:
+        return
+    named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
+    if any(isinstance(names, list) and DRACO in names for names in named):
+        raise ValueError(f"its meshes are Draco-compressed ({DRACO}), which procmod cannot decode; export "
+                         "it without mesh compression")
+
+
+def _resolver(path: Path):
+    """A resolver for the files a ``.gltf`` names (see the module docstring)."""
+    import trimesh
+
+    class NamedFileResolver(trimesh.resolvers.FilePathResolver):
+        def get(self, name: str):
+            for candidate in dict.fromkeys([name, unquote(name)]):
+                if PurePosixPath(candidate).is_absolute() or PureWindowsPath(candidate).is_absolute():
+                    raise ValueError(f"{candidate!r} is an absolute path; a file a glTF names must be relative "
+                                     "to it")
+                try:
+                    return super().get(candidate)
+                except FileNotFoundError:
+                    continue
+            raise FileNotFoundError(name)
+
+    return NamedFileResolver(str(path), allow_anywhere=True)
+
+
+@contextlib.contextmanager
+def _quiet():
+    logger = logging.getLogger("trimesh")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
 def load_mesh_file(path: str | Path, **options):
-    """``trimesh.load(path, **options)``, an OBJ file read through :func:`normalised_obj`
-    (materials and other files it names are still found beside it)."""
+    """``trimesh.load(path, **options)`` (a mesh or, with ``force="scene"``, a scene):
+    OBJ read through :func:`normalised_obj` (materials and other files it names are still
+    found beside it), glTF with procmod's rules for the files it names (module docstring)."""
     import trimesh
 
     path = Path(path)
-    if path.suffix.lower() == ".obj":
-        # latin-1 maps every byte to one character and back: names in other encodings survive
-        fixed = normalised_obj(path.read_bytes().decode("latin-1"))
-        if fixed is not None:
-            resolver = trimesh.resolvers.FilePathResolver(str(path))
-            return trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj", resolver=resolver, **options)
-    return trimesh.load(path, **options)
+    suffix = path.suffix.lower()
+    with _quiet():
+        if suffix == ".obj":
+            # latin-1 maps every byte to one character and back: names in other encodings survive
+            fixed = normalised_obj(path.read_bytes().decode("latin-1"))
+            if fixed is not None:
+                return trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj",
+                                    resolver=trimesh.resolvers.FilePathResolver(str(path)), **options)
+        if suffix in (".gltf", ".glb"):
+            _check_gltf(path)
+            if suffix == ".gltf":
+                return trimesh.load(path, resolver=_resolver(path), **options)
+        return trimesh.load(path, **options)
 
 
-__all__ = ["load_mesh_file", "normalised_obj"]
+__all__ = ["gltf_header", "load_mesh_file", "normalised_obj"]

@@ -297,7 +297,7 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
         with _quiet():
             mesh = load_mesh_file(file, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 -- trimesh raises many types for unreadable files
-        raise TargetFileError(f"{where}: cannot read the mesh ({_cut(str(exc) or type(exc).__name__, 120)})") from None
+        raise TargetFileError(f"{where}: cannot read the mesh ({_cut(str(exc) or type(exc).__name__, 200)})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise TargetFileError(f"{where}: {_cut(str(file), 120)} holds no triangle faces (nothing to take an "
                               "inside or a silhouette of; is it a mesh file?)")
