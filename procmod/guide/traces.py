@@ -87,6 +87,9 @@ def _job_settings(model_name, targets, particles, seed, set_size) -> dict:
             "seed": seed, "set_size": set_size}
 
 
+MAX_TRACES = 10_000_000  # a job's count: its trace files in one folder, its list of the missing ones
+
+
 def generate_traces(model_name: str, targets: str, count: int, out: str | os.PathLike, particles: int = 600,
                     seed: int = 0, executor: concurrent.futures.Executor | None = None,
                     set_size: int = SCRIBBLE_SET_SIZE, progress=None, overwrite: bool = False) -> dict:
@@ -105,6 +108,9 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
+    if count > MAX_TRACES:
+        raise InvalidArgumentError(f"{argument('count')} {count:,} traces is more than one job makes (at most "
+                                   f"{MAX_TRACES:,}; seed 004 trains on 10,000); split it into jobs")
     first = target_from_spec(trace_target_spec(targets, seed, 0, set_size))  # validates the target set
     try:
         empty = first.new_output(first.configure(model))

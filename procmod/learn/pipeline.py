@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import run_forward
-from ..core.errors import InvalidArgumentError
+from ..core.errors import InvalidArgumentError, argument
 from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
@@ -84,6 +84,9 @@ tr:nth-child(even){{background:#f2f2f2}}</style></head><body>
 """
 
 
+MAX_SHEET_SAMPLES = 1000  # samples drawn for the contact sheet (``procmod sample`` draws more)
+
+
 def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | None = None,
           scheduler: str | None = None, seed: int = 0, options: SearchOptions | None = None,
           samples: int = 10, progress=None, command: str = "", overwrite: bool = False) -> dict:
@@ -116,8 +119,9 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     shown = str(inputs[0]) if len(inputs) == 1 else " ".join(map(str, inputs))
     out = Path(out)
     folder = RunFolder(out, LEARN_RUN, overwrite, inputs=inputs)
-    if samples < 1:
-        raise InvalidArgumentError(f"samples must be positive, got {samples}")
+    if not 1 <= samples <= MAX_SHEET_SAMPLES:
+        raise InvalidArgumentError(f"{argument('samples')} must be from 1 to {MAX_SHEET_SAMPLES} (the contact "
+                                   f"sheet's), got {samples:,}")
     example_set, digest = read_example_inputs(inputs)  # everything is read and checked before out is made
     options = options or SearchOptions()
     options.particles, options.seed = particles, seed

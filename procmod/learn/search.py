@@ -90,6 +90,9 @@ class SearchOptions:
     def check(self) -> "SearchOptions":
         if self.particles < 1:
             raise InvalidArgumentError(f"{argument('particles')} must be at least 1, got {self.particles}")
+        if self.particles > MAX_SEARCH_PARTICLES:
+            raise InvalidArgumentError(f"{argument('particles')} {self.particles:,} is more structure searches than "
+                                       f"one run holds (at most {MAX_SEARCH_PARTICLES:,}; the paper uses 4-8)")
         if self.estimator not in ("exact", "vi"):
             raise InvalidArgumentError(f"estimator must be 'exact' or 'vi', got {self.estimator!r}")
         for name in ("init_iterations", "split_iterations", "final_iterations", "max_rounds"):
@@ -98,6 +101,11 @@ class SearchOptions:
         if not (self.slot_prior >= 0 and math.isfinite(self.slot_prior)):
             raise InvalidArgumentError(f"slot_prior must be a finite number >= 0, got {self.slot_prior}")
         return self
+
+
+# Parallel structure searches one run may hold: each keeps a program and its tensors
+# (seed 000 runs 4-8; a million would only exhaust memory before the first round ends).
+MAX_SEARCH_PARTICLES = 10_000
 
 
 @dataclass
