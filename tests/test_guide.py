@@ -566,3 +566,15 @@ def test_guided_runs_resample_below_half_the_particles_by_default():
                ess_threshold=None).settings["ess_threshold"] is None
     with pytest.raises(InvalidArgumentError, match="ess_threshold"):
         smc(MIX, target, particles=4, seed=0, ess_threshold="sometimes")
+
+
+def test_a_guide_of_non_finite_weights_is_refused_at_load(tmp_path):
+    """A training that diverged wrote NaN weights; infer then died in a ZeroDivisionError."""
+    from procmod.guide.guide import PRETRAINED
+
+    shutil.copy(PRETRAINED / "vines-scribbles.json", tmp_path / "nan.json")
+    state = torch.load(PRETRAINED / "vines-scribbles.pt", weights_only=True)
+    next(iter(state.values())).fill_(float("nan"))
+    torch.save(state, tmp_path / "nan.pt")  # no .npz beside it: the .pt is read
+    with pytest.raises(GuideError, match="not all finite"):
+        Guide.load(tmp_path / "nan")

@@ -122,9 +122,12 @@ def test_an_output_file_inside_an_input_folder_is_refused(tmp_path):
     traces = tmp_path / "traces"
     traces.mkdir()
     (traces / "traces.json").write_text("{}")
-    with pytest.raises(OutputLocationError, match="input"):
+    with pytest.raises(OutputLocationError, match="would overwrite the input"):
         check_output_file(traces / "traces.json", inputs=[traces])
-    check_output_file(tmp_path / "guide.json", inputs=[traces])  # beside it is fine
+    with pytest.raises(OutputLocationError, match="would overwrite the input"):
+        check_output_file(traces / "traces.json", inputs=[traces / "traces.json"])
+    check_output_file(traces / "guide.json", inputs=[traces])  # a new file there is fine
+    check_output_file(tmp_path / "guide.json", inputs=[traces])
 
 
 def test_an_out_name_too_long_for_the_file_system_is_one_line(tmp_path, capsys):

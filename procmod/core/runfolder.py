@@ -135,7 +135,8 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
 def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False,
                       inputs=()) -> Path:
     """A single output file (``render --out x.png``): the path must not be a folder, nor
-    one of the command's ``inputs`` or inside an input folder, and its folder must exist
+    one of the command's ``inputs``, nor an existing file inside an input folder (a new
+    file there is fine), and its folder must exist
     (or, with ``make_parent``, be creatable: the command makes it when it writes) and be
     writable. Checks only, creates nothing; returns the path. ``option`` is the API
     argument the path was given as, for messages."""
@@ -149,9 +150,10 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
     if is_dir:
         raise OutputLocationError(f"{shown} {_cut(str(path))} is a folder; give a file name")
     for item in inputs:
-        if item is not None and Path(item).exists() and _holds(Path(item), path):
-            raise OutputLocationError(f"{shown} {_cut(str(path))} would overwrite or write into the input "
-                                      f"{_cut(str(item))}; give another file name")
+        if item is not None and Path(item).exists() and path.exists() and _holds(Path(item), path):
+            raise OutputLocationError(f"{shown} {_cut(str(path))} would overwrite the input "
+                                      f"{_cut(str(item))}{'' if _holds(path, Path(item)) else ' (a file in it)'}; "
+                                      "give another file name")
     parent = path.parent
     if not parent.exists() and not make_parent:
         raise OutputLocationError(f"cannot write {shown} {_cut(str(path))}: the folder {_cut(str(parent))} "

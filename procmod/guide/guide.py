@@ -210,6 +210,9 @@ class Guide:
             raise GuideError(f"{weights}: the weights do not match {weights.with_suffix('.json').name} "
                              f"({_cut(first, 160)}); keep the files that 'procmod guide train' wrote "
                              "together") from None
+        if not all(bool(p.isfinite().all()) for p in guide.nets.parameters()):
+            raise GuideError(f"{weights}: the weights are not all finite numbers (a training that diverged); "
+                             "train the guide again with a smaller learning rate")
         return guide
 
     # ---- use -----------------------------------------------------------------------
