@@ -369,7 +369,7 @@ class _progress_bar:
 CLI_SPELLING = {
     "out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler", "seed": "--seed",
     "particles": "--particles", "targets": "--targets", "device": "--device", "workers": "--workers",
-    "count": "--count", "samples": "--samples",
+    "count": "--count", "samples": "--samples", "size": "--size",
     "strings_per_shape": "--strings-per-shape", "tagger_strings_per_shape": "--tagger-strings-per-shape",
     "held_out": "--held-out",
     "settings=FeatureSettings.condition('local')": "--features local",

@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 from .core import Derivation, InvalidArgumentError, write_text_atomic
+from .core.errors import argument
 from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic, shaded_preview
 
 MIN_SIZE, MAX_SIZE = 8, 4096
@@ -17,7 +18,8 @@ FORMATS = FORMATS_2D + FORMATS_3D[1:]
 def check_size(size: int) -> int:
     """Validate a display size in pixels."""
     if isinstance(size, bool) or not isinstance(size, int) or not MIN_SIZE <= size <= MAX_SIZE:
-        raise InvalidArgumentError(f"size must be between {MIN_SIZE} and {MAX_SIZE} pixels, got {size!r}")
+        raise InvalidArgumentError(f"{argument('size')} must be between {MIN_SIZE} and {MAX_SIZE} pixels, "
+                                   f"got {size!r}")
     return size
 
 
@@ -34,6 +36,10 @@ def output_formats(derivation: Derivation) -> tuple:
 def check_format(path: str | os.PathLike, formats=FORMATS) -> str:
     """The output format implied by a file name."""
     suffix = Path(path).suffix.lower()
+    if suffix in FORMATS and suffix not in formats:
+        kind = "a 2D" if formats == FORMATS_2D else "a 3D"
+        raise InvalidArgumentError(f"{kind} derivation is not written as {suffix}: name the file "
+                                   + " or ".join(formats))
     if suffix not in formats:
         raise InvalidArgumentError(f"cannot tell the format of {str(path)!r}: name it "
                                    + " or ".join(formats))

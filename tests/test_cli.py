@@ -175,7 +175,7 @@ def test_sample_and_render_a_3d_model(tmp_path, capsys):
     mesh = trimesh.load(out / "sample_000.glb", force="mesh")
     assert len(mesh.faces) > 12
     assert _run(capsys, "render", str(out / "sample_000.json"), "--out", str(tmp_path / "s.obj"))[0] == 0
-    assert "name it .png or .obj or .glb" in _bad(tmp_path, capsys, "render", str(out / "sample_000.json"),
+    assert "a 3D derivation is not written as .svg: name the file .png or .obj or .glb" in _bad(tmp_path, capsys, "render", str(out / "sample_000.json"),
                                                   "--out", str(tmp_path / "s.svg"), out_name="s.svg")
 
 

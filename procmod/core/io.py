@@ -162,7 +162,10 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise error(f"{what} {_cut(str(path))} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError:
+        raise error(f"{what} {_cut(str(path))} is not a JSON text file (its bytes are not UTF-8 text: a picture "
+                    "or another binary file?)") from None
+    except OSError as exc:
         raise error(f"cannot read {what} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") from None
     return parse_json(text, f"{what} {_cut(str(path))}" if what != "file" else _cut(str(path)), error)
 

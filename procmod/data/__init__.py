@@ -15,6 +15,7 @@ A target spec (:func:`target_from_spec`: ``procmod infer --target``, a guide tra
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from ..core import InvalidArgumentError
@@ -34,6 +35,9 @@ def target_image(spec: str) -> TargetImage:
     """The target image a spec names (see the module docstring)."""
     if not isinstance(spec, str) or not spec:
         raise InvalidArgumentError("a target spec is glyph:CHAR, glyph:FACE/CHAR, scribble:N or a file path")
+    if spec == "circuit" or spec.startswith("circuit:"):
+        raise InvalidArgumentError("the circuit target is a score, not a picture: give 'circuit' alone (it has no "
+                                   "mirrored copy)")
     if spec.endswith(MIRROR_SUFFIX):
         return target_image(spec[: -len(MIRROR_SUFFIX)]).mirrored()
     if spec.startswith("glyph:"):
@@ -49,6 +53,11 @@ def target_image(spec: str) -> TargetImage:
         from .scribbles import scribble_target
 
         return scribble_target(int(number))
+    if ":" in spec and not Path(spec).exists() and not re.match(r"^[A-Za-z]:[\\/]", spec):  # not C:\...
+        shown = spec if len(spec) <= 60 else spec[:57] + "..."
+        raise InvalidArgumentError(f"unknown target spec {shown!r}: a target is glyph:CHAR, glyph:FACE/CHAR, "
+                                   "scribble:N, circuit, a picture file, or a target JSON file or folder (and a "
+                                   "picture spec may end in :mirrored)")
     return load_target_image(spec)
 
 
