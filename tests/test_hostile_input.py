@@ -75,6 +75,7 @@ def inputs(tmp_path_factory):
     _silhouette(d, "sil_up_along.json", camera_up=[0, 0, 1])
     _silhouette(d, "sil_eye_nan.json", camera_eye=[float("nan"), 4, 20])
     _silhouette(d, "sil_bomb.json", image="bomb30k.png")
+    _silhouette(d, "sil_hit_huge.json", hit=1e308)
     header = "{'descr': '<f8', 'fortran_order': False, 'shape': (1000000, 1000000), }"
     header += " " * (118 - len(header)) + "\n"
     (d / "huge.npy").write_bytes(b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header.encode())
@@ -208,7 +209,7 @@ CASES = [
     ("fov0", "views[0].camera.fov"), ("fov_persp", "views[0].camera.fov"), ("image_number", "views[0].image"),
     ("hit_string", "views[0].hit must be a finite number, got 'lots'"), ("up_zero", "views[0].camera.up"),
     ("up_along", "views[0].camera.up"), ("eye_nan", "views[0].camera.eye[0] must be a finite number"),
-    ("bomb", "views[0].image: the picture is 900 megapixels"), ("npy", "the weights are 1000000x1000000")]]
+    ("bomb", "views[0].image: the picture is 900 megapixels"), ("hit_huge", "views[0].hit must be between"), ("npy", "the weights are 1000000x1000000")]]
 
 
 @pytest.mark.parametrize("argv,message", [c[1:] for c in CASES], ids=[c[0] for c in CASES])

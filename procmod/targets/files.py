@@ -82,6 +82,20 @@ def number(value, where: str, positive: bool = False, minimum: float | None = No
     return float(value)
 
 
+# A weight's magnitude: weights are relative, and a score sums one per voxel or pixel, so a
+# weight near 1e308 made the score infinite (and settings.json invalid JSON).
+MAX_WEIGHT = 1e6
+
+
+def weight(value, where: str, minimum: float | None = None) -> float:
+    """A finite weight from a file of magnitude at most :data:`MAX_WEIGHT`."""
+    value = number(value, where, minimum=minimum)
+    if abs(value) > MAX_WEIGHT:
+        raise TargetFileError(f"{where} must be between -{MAX_WEIGHT:g} and {MAX_WEIGHT:g} (weights are relative), "
+                              f"got {value:g}")
+    return value
+
+
 def vector3(value, where: str) -> tuple:
     """Three finite numbers from a file."""
     if not isinstance(value, (list, tuple)) or len(value) != 3:
@@ -440,7 +454,7 @@ def load_volume_target(path: str | os.PathLike):
     if score == "proxy" and len(layers_spec) != 1:
         raise TargetFileError(f"{where}: \"score\": \"proxy\" compares the ship with one target volume; "
                               f"layers has {len(layers_spec)}")
-    w_self = number(spec.get("w_self", 0.0), f"{where}: w_self", minimum=0.0)
+    w_self = weight(spec.get("w_self", 0.0), f"{where}: w_self", minimum=0.0)
     # every field first, then the files' headers, then the work
     entries = []
     for i, layer in enumerate(layers_spec):
@@ -449,8 +463,8 @@ def load_volume_target(path: str | os.PathLike):
         if "file" not in layer:
             raise TargetFileError(f"{at} needs \"file\" (an .npy voxel grid or a mesh file)")
         file = _file(path, layer["file"], f"{at}.file", MESH_SUFFIXES | {".npy"}, "voxel grid (.npy) or mesh")
-        w_fill = number(layer.get("w_fill", 1.0), f"{at}.w_fill")
-        w_avoid = number(layer.get("w_avoid", 0.0), f"{at}.w_avoid")
+        w_fill = weight(layer.get("w_fill", 1.0), f"{at}.w_fill")
+        w_avoid = weight(layer.get("w_avoid", 0.0), f"{at}.w_avoid")
         entries.append((at, file, w_fill, w_avoid))
     arrays = [e for e in entries if e[1].suffix.lower() == ".npy"]
     meshes = [e for e in entries if e[1].suffix.lower() != ".npy"]
@@ -565,7 +579,11 @@ def _load_weights(file: Path, where: str) -> np.ndarray:
         raise TargetFileError(f"{where}: the weights are {shape[1]}x{shape[0]} pixels; procmod reads views up to "
                               f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels: scale them down")
     _numeric(dtype, where, "weights")
-    return load_npy(file, where, "weights").astype(np.float64)
+    weights = load_npy(file, where, "weights").astype(np.float64)
+    if weights.size and np.nanmax(np.abs(weights)) > MAX_WEIGHT:
+        raise TargetFileError(f"{where}: weights must lie between -{MAX_WEIGHT:g} and {MAX_WEIGHT:g} (they are "
+                              f"relative), got up to {np.nanmax(np.abs(weights)):g}")
+    return weights
 
 
 def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
@@ -598,8 +616,8 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             raise TargetFileError(f"{at} gives {' and '.join(repr(k) for k in kinds)}; give one of them")
         kind = kinds[0]
         camera = _camera(view.get("camera"), at, sized=kind == "mesh")
-        hit = number(view.get("hit", 1.0), f"{at}.hit")
-        avoid = number(view.get("avoid", -1.0), f"{at}.avoid")
+        hit = weight(view.get("hit", 1.0), f"{at}.hit")
+        avoid = weight(view.get("avoid", -1.0), f"{at}.avoid")
         suffixes = {"weights": {".npy"}, "image": None, "mesh": MESH_SUFFIXES}[kind]
         file = _file(path, view[kind], f"{at}.{kind}", suffixes, {"weights": "weights", "image": "picture",
                                                                   "mesh": "mesh"}[kind])
