@@ -454,3 +454,28 @@ def test_a_shape_turned_by_a_lattice_turn_gets_the_same_labellings():
         for degrees in (30.0, 60.0, 120.0):
             assert labellings(cats, _turned_shape(shape, degrees), g) == base
         assert labellings(old, _turned_shape(shape, 60.0), g) != labellings(old, shape, g)
+
+
+def test_a_gltf_part_mesh_is_copied_with_its_external_buffer(tmp_path):
+    """A collection copied a part's .gltf without the .bin it names, and could not be read."""
+    import base64
+
+    from asset_writers import box_mesh, gltf_json
+
+    from procmod.strings.shapes import read_shapes, write_shapes
+
+    data = gltf_json([("post", [box_mesh((0.2, 0.2, 1.0))])], [{"name": "post", "mesh": 0}], (0,))
+    blob = base64.b64decode(data["buffers"][0]["uri"].split(",", 1)[1])
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "post data.bin").write_bytes(blob)
+    data["buffers"][0]["uri"] = "post%20data.bin"
+    (tmp_path / "m" / "post.gltf").write_text(json.dumps(data))
+    identity = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]]
+    (tmp_path / "shapes.json").write_text(json.dumps({
+        "format": "procmod-shapes/1", "parts": {"post": {"mesh": "m/post.gltf"}},
+        "shapes": [{"nodes": [{"part": "post", "transform": identity}]}]}))
+    (tmp_path / "copy").mkdir()
+    write_shapes(read_shapes(tmp_path / "shapes.json"), tmp_path / "copy" / "shapes.json")
+    assert (tmp_path / "copy" / "m" / "post data.bin").read_bytes() == blob
+    copied = read_shapes(tmp_path / "copy" / "shapes.json")
+    assert len(copied.library["post"].faces) == 12

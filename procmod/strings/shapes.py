@@ -159,6 +159,28 @@ def mesh_obj_text(vertices, faces) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _copy_gltf_files(source: Path, target: Path, where: str) -> None:
+    """The files a copied ``.gltf`` names (external buffers, images), copied beside the
+    copy at the same relative places: without them the copy cannot be read."""
+    import shutil
+    from urllib.parse import unquote
+
+    from ..geometry.mesh_files import gltf_header
+
+    if source.suffix.lower() != ".gltf":
+        return
+    header = gltf_header(source) or {}
+    for kind in ("buffers", "images"):
+        for item in header.get(kind) or []:
+            uri = item.get("uri") if isinstance(item, dict) else None
+            if not isinstance(uri, str) or uri.startswith("data:"):
+                continue
+            name = unquote(uri)
+            copy = contained_path(target.parent, name, f"{where}: {source.name}: {kind} {uri!r}")
+            copy.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(named_file(source.parent, name, f"{where}: {source.name}: {kind}"), copy)
+
+
 def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> None:
     """Write a shapes file atomically. Mesh paths are written as they were read; mesh files
     are copied beside the new file when it goes to another folder; meshes read from asset
@@ -178,7 +200,9 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> N
                 # inside the new file's folder only (a mesh the shapes file reached with ".." is refused)
                 target = contained_path(path.parent, shape.source, f"parts.{shape.name}.mesh")
                 target.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(named_file(shape_set.base_dir, shape.source, f"parts.{shape.name}.mesh"), target)
+                source = named_file(shape_set.base_dir, shape.source, f"parts.{shape.name}.mesh")
+                shutil.copyfile(source, target)
+                _copy_gltf_files(source, target, f"parts.{shape.name}.mesh")
     write_text_atomic(path, json.dumps(shapes_to_dict(shape_set, shapes)) + "\n")
 
 
