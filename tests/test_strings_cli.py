@@ -232,3 +232,19 @@ def test_strings_messages_name_api_arguments_and_the_command_line_its_flags(tmp_
     assert code == 2 and "procmod: error: use a new --out or --seed" in err
     with pytest.raises(ModelFileError, match=r"^use a new folder or seed$"):  # train_vae's own argument
         refused()
+
+
+def test_a_shape_in_two_pieces_is_named_by_graph_and_refused_by_augment(tmp_path, capsys):
+    from asset_writers import box_mesh, gltf_json, write_glb
+
+    meshes = [("Body", [box_mesh((2.0, 1.0, 1.0))]), ("Cap", [box_mesh((0.5, 0.5, 0.5))])]
+    nodes = [{"name": "Body", "mesh": 0, "children": [1]}, {"name": "Cap", "mesh": 1, "translation": [5.0, 0, 0]}]
+    write_glb(tmp_path / "gap.glb", gltf_json(meshes, nodes, (0,)))
+    assert main(["strings", "graph", str(tmp_path / "gap.glb"), "--out", str(tmp_path / "g")]) == 0
+    out, err = capsys.readouterr()
+    assert "0 contacts, 0 independent cycles" in out  # E - N + pieces, not -1
+    assert "in 2 pieces: Cap touches no other part" in err
+    code = main(["strings", "augment", str(tmp_path / "gap.glb"), "--count", "3", "--out", str(tmp_path / "a")])
+    out, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1 and "Cap touches no other part" in err, err
+    assert not (tmp_path / "a").exists()

@@ -125,6 +125,16 @@ def _seed(seed: int) -> int:
     return seed
 
 
+def _loose_parts(g, pieces, index: int, inputs, letters: dict) -> str:
+    """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
+    ``letters``: part name -> type letter)."""
+    name_of = {letter: name for name, letter in letters.items()}
+    loose = sorted(name_of.get(g.nodes[v]["type"], g.nodes[v]["type"]) for piece in pieces[1:] for v in piece)
+    shown = ", ".join(loose[:8]) + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
+    source = f" ({inputs[index]})" if inputs else ""
+    return f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} no other part"
+
+
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
     from .contacts import shape_graph
@@ -143,9 +153,16 @@ def _graph(args) -> None:
             write_graph(g, tmp / f"shape_{i:03d}.json")
     grammar = Grammar.from_graphs(graphs)
     types = ", ".join(f"{name}={letter}" for name, letter in sorted(shape_set.letters.items()))
+    import networkx as nx
+
     for i, g in enumerate(graphs):
-        cycles = g.number_of_edges() - g.number_of_nodes() + 1
+        pieces = sorted(nx.connected_components(g), key=len, reverse=True) if len(g) else []
+        cycles = g.number_of_edges() - g.number_of_nodes() + len(pieces)
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
+        if len(pieces) > 1:
+            named = args.shapes if len(args.shapes) == len(graphs) > 1 else None  # one shape a file
+            print(f"note: {_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected shape, so "
+                  "'strings augment' refuses it: move the parts to touch, or raise --tolerance", file=sys.stderr)
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                 for t, keys in sorted(grammar.rules.items())))
@@ -226,6 +243,16 @@ def _augment(args) -> None:
         check_scheduler(args.scheduler)
     _seed(args.seed)
     folder = RunFolder(args.out, COLLECTION, args.overwrite, inputs=args.shapes)
+    import networkx as nx
+
+    from .contacts import shape_graph
+    named = args.shapes if len(args.shapes) == len(shape_set.shapes) > 1 else None  # one shape a file
+    for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
+        g = shape_graph(shape_set, shape)
+        pieces = sorted(nx.connected_components(g), key=len, reverse=True)
+        if len(pieces) > 1:
+            raise InvalidArgumentError(f"{_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
+                                       "shape: move the parts to touch")
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     out = Path(args.out)
