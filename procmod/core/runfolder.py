@@ -217,24 +217,26 @@ class RunFolder:
                 raise OutputLocationError(
                     f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
                     f"give a new or empty folder, or pass {argument('overwrite=True')} to replace it whole")
-            self._check_replaceable()
+            # an earlier run is kept by a resumed job: the files named by inputs are checked
+            # when (and if) the folder is removed; anything else only --overwrite removes
+            self._check_replaceable(named=not kind.recognises(self.path))
         self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
 
-    def _check_replaceable(self) -> None:
+    def _check_replaceable(self, named: bool = True) -> None:
         shown = _cut(str(self.path))
         for protected, what in ((Path.cwd(), "the current folder"), (Path.home(), "your home folder")):
             if _holds(self.path, protected):
                 raise OutputLocationError(f"{self.option} {shown} holds {what}; it cannot be replaced: give "
                                           "a new or empty folder")
-        self._check_inputs()
+        self._check_inputs(named)
 
-    def _check_inputs(self) -> None:
+    def _check_inputs(self, named: bool = True) -> None:
         """Refuse to remove a folder holding one of the command's inputs: those it was
-        given, and every file an input file has named so far (:func:`named_files_read`),
-        which may have been read after the folder was first checked."""
+        given, and (``named``) every file an input file has named so far
+        (:func:`named_files_read`), which may have been read after the folder was first checked."""
         shown = _cut(str(self.path))
-        for item in [*self._inputs, *named_files_read()]:
+        for item in [*self._inputs, *(named_files_read() if named else ())]:
             if Path(item).exists() and _holds(self.path, Path(item)):
                 raise OutputLocationError(f"{self.option} {shown} holds the input {_cut(str(item))}; replacing "
                                           "the folder would delete it: give another folder")
