@@ -166,17 +166,16 @@ CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact
 
 
 def _model_inputs(name: str) -> list:
-    """The files a model argument reads: a learned program's file and its folder (which
-    holds its tensors and meshes); nothing for a built-in model's name."""
+    """The file a model argument names: a learned program's ``program.json`` (its tensors
+    and meshes are files it names, protected as such: core.paths.named_files_read);
+    nothing for a built-in model's name."""
     path = Path(name)
     try:
-        if path.is_file():
-            return [path, path.parent]
         if path.is_dir():
-            return [path]
+            path = path / "program.json"
+        return [path] if path.is_file() else []
     except (OSError, ValueError):
-        pass
-    return []
+        return []
 
 
 def _cmd_sample(args) -> None:

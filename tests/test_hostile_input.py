@@ -197,6 +197,8 @@ CASES = [
     ("traces-count-huge", ["guide", "traces", "vines", "--count", str(10 ** 12), "--workers", "1", "--out", "{o}"],
      "--count 1,000,000,000,000 traces is more than one job makes"),
     ("target-spec-typo", ["infer", "vines", "--target", "glyh:a", "--out", "{o}"], "unknown target spec 'glyh:a'"),
+    ("target-spec-long-with-colon", ["infer", "vines", "--target", "a" * 300 + ":x", "--out", "{o}"],
+     "unknown target spec"),
     ("target-circuit-mirrored", ["infer", "vines", "--target", "circuit:mirrored", "--out", "{o}"],
      "has no mirrored copy"),
     ("size-flag-named", ["infer", "vines", "--target", "glyph:a", "--size", "100000", "--out", "{o}"],

@@ -135,3 +135,62 @@ def test_an_out_name_too_long_for_the_file_system_is_one_line(tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1, err
     with pytest.raises(OutputLocationError):
         check_output_file(tmp_path / ("b" * 300 + ".png"))
+
+
+def test_a_collection_naming_its_meshes_with_dot_slash_or_as_gltf_is_still_its_own(tmp_path, capsys):
+    import base64
+
+    import trimesh
+    from asset_writers import gltf_json
+
+    pavilion = json.loads((ROOT / "examples_sets" / "strings" / "pavilion.json").read_text())
+    shutil.copytree(ROOT / "examples_sets" / "strings" / "parts", tmp_path / "parts")
+    post = trimesh.load(tmp_path / "parts" / "post.obj", force="mesh", process=False)  # the same post, as glTF
+    data = gltf_json([("post", [(post.vertices, post.faces)])], [{"name": "post", "mesh": 0}], (0,))
+    blob = base64.b64decode(data["buffers"][0]["uri"].split(",", 1)[1])
+    (tmp_path / "parts" / "post.bin").write_bytes(blob)
+    data["buffers"][0]["uri"] = "post.bin"
+    (tmp_path / "parts" / "post.gltf").write_text(json.dumps(data))
+    pavilion["parts"]["post"]["mesh"] = "./parts/post.gltf"
+    (tmp_path / "pav.json").write_text(json.dumps(pavilion))
+    out = tmp_path / "col"
+    for _ in range(2):  # the second run replaces the first: it is recognised as one
+        code, _, err = _run(capsys, "strings", "augment", tmp_path / "pav.json", "--count", "3", "--out", out)
+        assert code == 0, err
+    assert (out / "parts" / "post.bin").read_bytes() == blob
+    assert COLLECTION.recognises(out)
+
+
+def test_an_earlier_run_holding_a_named_input_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    import procmod.infer
+
+    run = tmp_path / "run"
+    code, _, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--particles", "2", "--size", "16",
+                        "--out", run)
+    assert code == 0, err
+    target = json.loads((ROOT / "scenes" / "city_skyline" / "target.json").read_text())
+    target["views"][0]["image"] = "run/target.png"  # a picture inside the earlier run
+    (tmp_path / "t.json").write_text(json.dumps(target))
+
+    def engine_must_not_run(*args, **kwargs):
+        raise AssertionError("the engine ran before the refusal")
+
+    monkeypatch.setitem(procmod.infer.ENGINES, "forward", engine_must_not_run)
+    code, _, err = _run(capsys, "infer", "city", "--target", tmp_path / "t.json", "--engine", "forward",
+                        "--particles", "2", "--size", "16", "--out", run)
+    assert code == 2 and "holds the input" in err, err
+    assert (run / "target.png").exists()
+
+
+def test_an_absolute_gltf_buffer_name_is_read_from_beside_the_file(tmp_path):
+    import base64
+
+    from asset_writers import box_mesh, gltf_json
+
+    from procmod.geometry.mesh_files import load_mesh_file
+
+    data = gltf_json([("post", [box_mesh((0.2, 0.2, 2.0))])], [{"name": "post", "mesh": 0}], (0,))
+    (tmp_path / "post.bin").write_bytes(base64.b64decode(data["buffers"][0]["uri"].split(",", 1)[1]))
+    data["buffers"][0]["uri"] = "/home/someone/export/post.bin"  # where the exporter ran
+    (tmp_path / "post.gltf").write_text(json.dumps(data))
+    assert len(load_mesh_file(tmp_path / "post.gltf", force="mesh", process=False).faces) == 12

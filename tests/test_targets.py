@@ -302,3 +302,10 @@ def test_a_photo_is_read_the_way_its_exif_orientation_shows_it(tmp_path):
     assert image.size == (40, 60)
     rows, cols = np.nonzero(mask_from_image(image))
     assert rows.max() - rows.min() > 4 * (cols.max() - cols.min())
+    # a tag Pillow cannot write back (its exif_transpose rewrites the EXIF and raised)
+    exif[0x010F] = "CamCamCamCam"
+    picture.save(tmp_path / "odd.jpg", exif=exif.tobytes())
+    data = (tmp_path / "odd.jpg").read_bytes()
+    at = data.index(b"\x01\x0f\x00\x02")
+    (tmp_path / "odd.jpg").write_bytes(data[:at] + b"\x01\x17" + data[at + 2:])
+    assert open_image(tmp_path / "odd.jpg").size == (40, 60)

@@ -43,6 +43,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
+from urllib.parse import unquote
 
 from .errors import InvalidArgumentError, argument
 from .paths import named_files_read
@@ -80,6 +81,8 @@ class RunKind:
     listed: "Callable[[Path], set] | None" = None
     """Entries a run of the kind lists in its own files (``listed(folder)``: names), also
     allowed: e.g. the mesh folders a collection's shapes file names."""
+    resumes: bool = False
+    """A job of this kind resumes an earlier run in its folder instead of replacing it."""
 
     def recognises(self, folder: str | os.PathLike) -> bool:
         """True when ``folder`` holds an earlier run of this kind and nothing else."""
@@ -135,8 +138,8 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
 def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False,
                       inputs=()) -> Path:
     """A single output file (``render --out x.png``): the path must not be a folder, nor
-    one of the command's ``inputs``, nor an existing file inside an input folder (a new
-    file there is fine), and its folder must exist
+    one of the command's ``inputs`` or a file an input names, nor an existing file inside
+    an input folder (a new file there is fine), and its folder must exist
     (or, with ``make_parent``, be creatable: the command makes it when it writes) and be
     writable. Checks only, creates nothing; returns the path. ``option`` is the API
     argument the path was given as, for messages."""
@@ -149,7 +152,7 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
             from None
     if is_dir:
         raise OutputLocationError(f"{shown} {_cut(str(path))} is a folder; give a file name")
-    for item in inputs:
+    for item in [*inputs, *named_files_read()]:
         if item is not None and Path(item).exists() and path.exists() and _holds(Path(item), path):
             raise OutputLocationError(f"{shown} {_cut(str(path))} would overwrite the input "
                                       f"{_cut(str(item))}{'' if _holds(path, Path(item)) else ' (a file in it)'}; "
@@ -217,9 +220,9 @@ class RunFolder:
                 raise OutputLocationError(
                     f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
                     f"give a new or empty folder, or pass {argument('overwrite=True')} to replace it whole")
-            # an earlier run is kept by a resumed job: the files named by inputs are checked
-            # when (and if) the folder is removed; anything else only --overwrite removes
-            self._check_replaceable(named=not kind.recognises(self.path))
+            # an earlier run a job resumes is kept: the files named by inputs are checked
+            # when (and if) the folder is removed
+            self._check_replaceable(named=not (kind.resumes and kind.recognises(self.path)))
         self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
 
@@ -315,7 +318,7 @@ INFER_RUN = RunKind("procmod infer run", "settings.json",
                      r"samples\.png", r"settings\.json", r"report\.html"), marker_key="engine")
 TRACES_JOB = RunKind("procmod guide traces folder", "traces.json",
                      (r"traces\.json", r"trace_\d+\.json", r"\.trace_\d+\.json\..*", r"\.traces\.json\..*"),
-                     marker_key="format")
+                     marker_key="format", resumes=True)
 GRAPHS_FOLDER = RunKind("procmod strings graph folder", "shape_000.json", (r"shape_\d+\.json",))
 
 
@@ -332,7 +335,28 @@ def _mesh_entries_of(shapes: Path) -> set:
         meshes = [part["mesh"] for part in parts if isinstance(part, dict) and isinstance(part.get("mesh"), str)]
     except (OSError, ValueError, RecursionError, KeyError, TypeError, AttributeError):
         return set()
-    return {re.split(r"[\\/]", mesh, maxsplit=1)[0] for mesh in meshes}
+    paths = list(meshes)
+    for mesh in meshes:  # a .gltf is copied with the buffers and images it names
+        if mesh.lower().endswith(".gltf"):
+            folder = re.split(r"[\\/]", mesh)[:-1]
+            paths += ["/".join(folder + [unquote(uri)]) for uri in _gltf_uris(shapes.parent / mesh)]
+    return {_first_component(p) for p in paths} - {"", ".."}
+
+
+def _first_component(path: str) -> str:
+    parts = [p for p in re.split(r"[\\/]", path) if p not in ("", ".")]
+    return parts[0] if parts else ""
+
+
+def _gltf_uris(path: Path) -> list:
+    """The relative file names a .gltf's buffers and images give (not data: URIs)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        items = [*(data.get("buffers") or []), *(data.get("images") or [])]
+        return [i["uri"] for i in items if isinstance(i, dict) and isinstance(i.get("uri"), str)
+                and not i["uri"].startswith("data:")]
+    except (OSError, ValueError, RecursionError, TypeError, AttributeError):
+        return []
 
 
 COLLECTION = RunKind("procmod strings augment collection", "growth.json",
@@ -341,10 +365,11 @@ COLLECTION = RunKind("procmod strings augment collection", "growth.json",
 _ATOMIC_TEMPORARY = r"\..+\.tmp"  # a file being written (core.io.open_atomic) when a job was killed
 STRINGS_MODEL = RunKind("procmod strings train folder", "collection.json",
                         (r"model\.json", r"collection\.json", r"strings\.txt", r"categories\.json",
-                         r"(vae|tagger)\.(json|pt)", _ATOMIC_TEMPORARY), listed=_mesh_entries("collection.json"))
+                         r"(vae|tagger)\.(json|pt)", _ATOMIC_TEMPORARY), listed=_mesh_entries("collection.json"),
+                        resumes=True)
 LEARN_RUN = RunKind("procmod learn folder", "checkpoint",
                     (r"program\.(json|pt)", r"parts", r"checkpoint", r"contact_sheet\.png", r"search\.png",
-                     r"report\.(json|html)", _ATOMIC_TEMPORARY))
+                     r"report\.(json|html)", _ATOMIC_TEMPORARY), resumes=True)
 STRING_SAMPLES = RunKind("procmod strings sample folder", "summary.json",
                          (r"samples\.txt", r"summary\.json", r"contact_sheet\.png",
                           r"sample_\d+\.(json|glb|png)"), marker_key="samples")

@@ -31,6 +31,13 @@ __getattr__ = lazy_getattr(__name__, _LAZY, globals())
 MIRROR_SUFFIX = ":mirrored"
 
 
+def _exists_quietly(spec: str) -> bool:
+    try:
+        return Path(spec).exists()
+    except (OSError, ValueError):  # a name too long for the file system
+        return False
+
+
 def target_image(spec: str) -> TargetImage:
     """The target image a spec names (see the module docstring)."""
     if not isinstance(spec, str) or not spec:
@@ -53,7 +60,7 @@ def target_image(spec: str) -> TargetImage:
         from .scribbles import scribble_target
 
         return scribble_target(int(number))
-    if ":" in spec and not Path(spec).exists() and not re.match(r"^[A-Za-z]:[\\/]", spec):  # not C:\...
+    if ":" in spec and not _exists_quietly(spec) and not re.match(r"^[A-Za-z]:[\\/]", spec):  # not C:\...
         shown = spec if len(spec) <= 60 else spec[:57] + "..."
         raise InvalidArgumentError(f"unknown target spec {shown!r}: a target is glyph:CHAR, glyph:FACE/CHAR, "
                                    "scribble:N, circuit, a picture file, or a target JSON file or folder (and a "

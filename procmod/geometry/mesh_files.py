@@ -105,8 +105,14 @@ def _resolver(path: Path):
         def get(self, name: str):
             for candidate in dict.fromkeys([name, unquote(name)]):
                 if PurePosixPath(candidate).is_absolute() or PureWindowsPath(candidate).is_absolute():
-                    raise ValueError(f"{candidate!r} is an absolute path; a file a glTF names must be relative "
-                                     "to it")
+                    # an exporter's absolute path: the file of that name beside the .gltf, as
+                    # trimesh looks for it, but nothing elsewhere on the machine
+                    beside = PureWindowsPath(candidate).name
+                    try:
+                        return super().get(beside)
+                    except (FileNotFoundError, ValueError):
+                        raise ValueError(f"{candidate!r} is an absolute path and no {beside!r} lies beside the "
+                                         "file; a file a glTF names must be relative to it") from None
                 try:
                     return super().get(candidate)
                 except FileNotFoundError:

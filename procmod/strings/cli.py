@@ -161,8 +161,8 @@ def _graph(args) -> None:
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
         if len(pieces) > 1:
             named = args.shapes if len(args.shapes) == len(graphs) > 1 else None  # one shape a file
-            print(f"note: {_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected shape, so "
-                  "'strings augment' refuses it: move the parts to touch, or raise --tolerance", file=sys.stderr)
+            print(f"note: {_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
+                  "shape, so 'strings augment' refuses it: move the parts to touch", file=sys.stderr)
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                 for t, keys in sorted(grammar.rules.items())))

@@ -176,9 +176,12 @@ def _copy_gltf_files(source: Path, target: Path, where: str) -> None:
             if not isinstance(uri, str) or uri.startswith("data:"):
                 continue
             name = unquote(uri)
+            found = source.parent / name
+            if kind == "images" and not found.is_file():
+                continue  # the mesh reads without its textures (trimesh skips a missing one)
             copy = contained_path(target.parent, name, f"{where}: {source.name}: {kind} {uri!r}")
             copy.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(named_file(source.parent, name, f"{where}: {source.name}: {kind}"), copy)
+            shutil.copyfile(named_file(source.parent, name, f"{where}: {source.name}", kind=kind[:-1]), copy)
 
 
 def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageOps, UnidentifiedImageError
+from PIL import Image, UnidentifiedImageError
 
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.serialize import read_json
@@ -54,10 +54,7 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
                         f"the models draw in it would be {side}x{side} ({side * side / 1e6:.0f} megapixels, more "
                         f"than the {MAX_IMAGE_PIXELS / 1e6:.0f} procmod reads): crop or scale it down")
                 image.load()
-                # a phone photo stores its pixels sideways and says how to turn them (EXIF):
-                # the mask must be what the user sees
-                return ImageOps.exif_transpose(image) if image.getexif().get(_EXIF_ORIENTATION, 1) != 1 \
-                    else image.copy()
+                return _as_shown(image)
     except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
         # Pillow refuses before we see the size; its message holds the pixel count
         found = re.search(r"\((\d+) pixels\)", str(exc))
@@ -227,6 +224,26 @@ def check_mask(mask: np.ndarray, name: str) -> np.ndarray:
 
 
 _EXIF_ORIENTATION = 0x0112
+# EXIF orientation -> the turn that shows the stored pixels as the camera saw them
+_TURNS = {2: (Image.Transpose.FLIP_LEFT_RIGHT,), 3: (Image.Transpose.ROTATE_180,),
+          4: (Image.Transpose.FLIP_TOP_BOTTOM,), 5: (Image.Transpose.TRANSPOSE,),
+          6: (Image.Transpose.ROTATE_270,), 7: (Image.Transpose.TRANSVERSE,), 8: (Image.Transpose.ROTATE_90,)}
+
+
+def _as_shown(image: Image.Image) -> Image.Image:
+    """A copy of a decoded picture turned the way its EXIF orientation says it is shown (a
+    phone photo stores its pixels sideways): the mask must be what the user sees. Only the
+    pixels are turned (Pillow's exif_transpose also rewrites the EXIF, and fails on tags it
+    cannot write back); an unreadable orientation leaves the picture as stored."""
+    try:
+        orientation = image.getexif().get(_EXIF_ORIENTATION, 1)
+    except Exception:  # noqa: BLE001 -- a malformed EXIF block: keep the stored pixels
+        orientation = 1
+    turns = _TURNS.get(orientation, ()) if isinstance(orientation, int) else ()
+    out = image.copy()
+    for turn in turns:
+        out = out.transpose(turn)
+    return out
 
 
 def grey_levels(image: Image.Image) -> np.ndarray:
