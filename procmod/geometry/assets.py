@@ -58,7 +58,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.paths import UnsafePathError, named_file
-from .mesh_files import load_mesh_file
+from .mesh_files import declared_faces, load_mesh_file
 from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
@@ -410,6 +410,10 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     if size > MAX_MESH_BYTES:
         raise AssetError(f"{where}: {path} is {size / 2 ** 20:.0f} MiB, more than procmod reads "
                          f"({MAX_MESH_BYTES // 2 ** 20} MiB); decimate it")
+    declared = declared_faces(path)  # from the header (a binary STL, PLY, OFF) or a scan, before reading
+    if declared is not None and declared > MAX_FACES:
+        raise AssetError(f"{where}: {path} declares {declared:,} triangles, more than procmod reads "
+                         f"({MAX_FACES:,}); decimate it")
     try:
         mesh = load_mesh_file(path, force="mesh", process=False, skip_materials=True)
     except Exception as exc:

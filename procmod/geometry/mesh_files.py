@@ -27,6 +27,7 @@ import contextlib
 import io
 import json
 import logging
+import os
 import re
 import struct
 from pathlib import Path, PurePosixPath, PureWindowsPath
@@ -64,6 +65,109 @@ def normalised_obj(text: str) -> str | None:
         changed = changed or statement != line
         out.append(statement)
     return "\n".join(out) + "\n" if changed else None
+
+
+# --- face counts, read without parsing ------------------------------------------------
+
+def _scan_count(file: Path, token: bytes) -> int:
+    """Occurrences of ``token`` in a file, read in blocks (a lower bound on a text mesh's faces)."""
+    count, tail = 0, b""
+    with open(file, "rb") as handle:
+        while block := handle.read(1 << 24):
+            data = tail + block
+            count += data.count(token)
+            tail = data[-(len(token) - 1):] if len(token) > 1 else b""
+            # a token straddling blocks is counted once: ``tail`` is shorter than the token
+    return count
+
+
+def declared_faces(file: Path) -> int | None:
+    """The number of faces a mesh file declares or holds, read without parsing it (None
+    where the format gives no cheap count): a binary STL's header, a PLY's or OFF's
+    element counts, OBJ ``f`` lines, a glTF's index accessors (ignoring instancing), a COLLADA file's
+    primitive counts."""
+    suffix = file.suffix.lower()
+    try:
+        if suffix == ".stl":
+            with open(file, "rb") as handle:
+                head = handle.read(84)
+            if len(head) == 84 and not head.lstrip().lower().startswith(b"solid"):
+                return struct.unpack("<I", head[80:84])[0]
+            return _scan_count(file, b"endfacet")
+        if suffix == ".ply":
+            with open(file, "rb") as handle:
+                header = handle.read(1 << 16).split(b"end_header", 1)[0]
+            for line in header.splitlines():
+                parts = line.split()
+                if len(parts) == 3 and parts[0] == b"element" and parts[1] == b"face":
+                    return int(parts[2])
+            return None
+        if suffix == ".off":
+            with open(file, "rb") as handle:
+                lines = [l.split(b"#", 1)[0].split() for l in handle.read(1 << 16).splitlines()]
+            lines = [l for l in lines if l]
+            if lines and lines[0][0].upper().endswith(b"OFF"):
+                counts = lines[0][1:] if len(lines[0]) > 1 else (lines[1] if len(lines) > 1 else [])
+                return int(counts[1]) if len(counts) >= 2 else None
+            return None
+        if suffix == ".obj":
+            with open(file, "rb") as handle:
+                first = handle.read(2)
+            return _scan_count(file, b"\nf ") + (first == b"f ")
+        if suffix in (".glb", ".gltf"):
+            return _gltf_faces(file)
+        if suffix == ".dae":
+            return _collada_faces(file)
+    except (OSError, ValueError, struct.error):
+        return None  # trimesh will say what is wrong with it
+    return None
+
+
+_COLLADA_PRIMITIVE = re.compile(rb"<(triangles|polylist|polygons)\b[^>]*?\bcount\s*=\s*[\"'](\d+)")
+
+
+def _collada_faces(file: Path) -> int:
+    """The faces a COLLADA file's triangle, polylist and polygon elements declare (each
+    polygon counted once: a lower bound on the triangles), read in blocks."""
+    faces, tail = 0, b""
+    with open(file, "rb") as handle:
+        while block := handle.read(1 << 24):
+            data = tail + block
+            cut = data.rfind(b"<")  # an element cut by the block's end is read with the next block
+            if cut <= 0 or len(data) - cut > 4096:
+                cut = len(data)
+            faces += sum(int(m.group(2)) for m in _COLLADA_PRIMITIVE.finditer(data, 0, cut))
+            tail = data[cut:]
+    faces += sum(int(m.group(2)) for m in _COLLADA_PRIMITIVE.finditer(tail))
+    return faces
+
+
+def _gltf_faces(file: Path) -> int | None:
+    with open(file, "rb") as handle:
+        head = handle.read(20)
+        if head[:4] == b"glTF":
+            length, kind = struct.unpack("<I4s", head[12:20])
+            if kind != b"JSON" or length > 1 << 26:
+                return None
+            text = handle.read(length)
+        else:
+            if os.path.getsize(file) > 1 << 26:
+                return None
+            text = head + handle.read()
+    try:
+        spec = json.loads(text)
+        accessors = spec.get("accessors", [])
+        faces = 0
+        for mesh in spec.get("meshes", []):
+            for primitive in mesh.get("primitives", []):
+                if primitive.get("mode", 4) != 4:
+                    continue  # points and lines have no faces
+                index = primitive.get("indices", primitive.get("attributes", {}).get("POSITION"))
+                if isinstance(index, int) and 0 <= index < len(accessors):
+                    faces += int(accessors[index].get("count", 0)) // 3
+        return faces
+    except (ValueError, TypeError, AttributeError, RecursionError):
+        return None
 
 
 DRACO = "KHR_draco_mesh_compression"
@@ -155,4 +259,4 @@ def load_mesh_file(path: str | Path, **options):
         return trimesh.load(path, **options)
 
 
-__all__ = ["gltf_header", "load_mesh_file", "normalised_obj"]
+__all__ = ["declared_faces", "gltf_header", "load_mesh_file", "normalised_obj"]
