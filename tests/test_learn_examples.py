@@ -126,3 +126,29 @@ def test_regenerated_sets_are_compared_to_a_tolerance_that_sees_real_changes():
     noisy = copy.deepcopy(stored)
     noisy["examples"][3]["transform"][0][0] *= 1 + 1e-14  # another CPU's last digits
     assert differences(noisy, stored) == []
+
+
+def test_transforms_written_at_export_precision_are_read_and_real_shear_is_not():
+    """Spaceship transforms rounded to 5 decimals (a tool's export precision) were refused
+    as shearing at a tolerance of 1e-6; a shear of a degree still is, with its size."""
+    data = json.loads((Path(__file__).resolve().parents[1] / "examples_sets" / "learn" / "spaceships"
+                       / "examples.json").read_text())
+
+    def rounded(node, decimals):
+        node["transform"] = np.round(np.array(node["transform"]), decimals).tolist()
+        for child in node["children"]:
+            rounded(child, decimals)
+
+    for decimals in (3, 5):
+        copied = copy.deepcopy(data)
+        for example in copied["examples"]:
+            rounded(example, decimals)
+        examples_from_dict(copied, base_dir=Path(__file__).resolve().parents[1] / "examples_sets" / "learn"
+                           / "spaceships")
+    skew = np.eye(4)
+    skew[0, 1] = np.tan(np.radians(1.0))  # columns a degree off square
+    sheared = copy.deepcopy(data)
+    sheared["examples"][0]["transform"] = skew.tolist()
+    with pytest.raises(ExamplesError, match="shears .*1 degrees off square"):
+        examples_from_dict(sheared, base_dir=Path(__file__).resolve().parents[1] / "examples_sets" / "learn"
+                           / "spaceships")

@@ -23,6 +23,7 @@ possible when a Python object is passed in) and nesting deeper than :data:`MAX_D
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,7 +37,10 @@ from ..geometry.part_library import (PartLibraryError, PartShape, read_part_libr
 
 FORMAT = "procmod-examples/1"
 MAX_DEPTH = 256
-SHEAR_TOLERANCE = 1e-6
+# The cosine between two columns of a transform's 3x3 part above which it shears: 2e-3 is
+# about 0.1 degree, what matrices written at 3-5 decimals leave (rounded spaceship
+# transforms were refused at 1e-6); decompose() re-orthonormalises what is accepted.
+SHEAR_TOLERANCE = 2e-3
 
 
 class ExamplesError(ProcmodError):
@@ -70,13 +74,19 @@ class ExampleSet:
     base_dir: Path = Path(".")
 
 
-def has_shear(m: np.ndarray) -> bool:
-    """True when the 3x3 part of ``m`` is not a rotation times a (signed) axis scaling."""
+def shear_degrees(m: np.ndarray) -> float:
+    """How far from square (degrees) the most skewed pair of columns of ``m``'s 3x3 part is."""
     linear = np.asarray(m, dtype=np.float64)[:3, :3]
     gram = linear.T @ linear  # diagonal exactly when the columns are orthogonal
     diag = np.sqrt(np.outer(np.diag(gram), np.diag(gram)))
     off = np.abs(gram - np.diag(np.diag(gram))) / np.maximum(diag, 1e-300)
-    return bool(off.max() > SHEAR_TOLERANCE)
+    return math.degrees(math.asin(min(float(off.max()), 1.0)))
+
+
+def has_shear(m: np.ndarray) -> bool:
+    """True when the 3x3 part of ``m`` is not a rotation times a (signed) axis scaling, up
+    to :data:`SHEAR_TOLERANCE`."""
+    return shear_degrees(m) > math.degrees(math.asin(SHEAR_TOLERANCE))
 
 
 def _read_node(value, parts: dict, where: str, depth: int, seen: set) -> ExampleNode:
@@ -100,7 +110,8 @@ def _read_node(value, parts: dict, where: str, depth: int, seen: set) -> Example
     transform = read_transform(value["transform"], f"{where}.transform")
     if has_shear(transform):
         raise ExamplesError(f"{where}.transform: the matrix shears (its 3x3 part is not a rotation times "
-                            "an axis scaling); procmod learn models rotation, scale and translation only")
+                            f"an axis scaling: columns {shear_degrees(transform):.2g} degrees off square); procmod "
+                            "learn models rotation, scale and translation only")
     children_value = value.get("children", [])
     if not isinstance(children_value, list):
         raise ExamplesError(f"{where}.children: expected a list of nodes, got {children_value!r:.60}")
