@@ -374,8 +374,20 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
     related = {}  # (i, j) -> relate(...) (units do not change between rounds)
     while True:
         best = None
+        # no chain is longer than the free units of one signature: a chain that long ends
+        # the search (the same result: later candidates only replace a strictly longer one).
+        # A row of identical siblings (a fence's pickets) is then found from its first pair
+        # instead of from every pair, each grown over the whole row (cubic in the siblings)
+        counts = {}
+        for k in free:
+            counts[units[k].sig] = counts.get(units[k].sig, 0) + 1
+        longest = max(counts.values(), default=0)
         for i in sorted(free):
+            if best is not None and len(best[0]) >= longest:
+                break
             for j in sorted(free):
+                if best is not None and len(best[0]) >= longest:
+                    break
                 if i == j:
                     continue
                 if (i, j) not in related:
