@@ -46,11 +46,9 @@ parents), more than :data:`MAX_FACES` triangles or :data:`MAX_NODES` nodes.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
-import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,7 +56,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.paths import UnsafePathError, named_file
-from .mesh_files import declared_faces, load_mesh_file
+from .mesh_files import declared_faces, gltf_header, load_mesh_file
 from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
@@ -209,26 +207,14 @@ def _clean_mesh(vertices, faces, where: str) -> tuple[np.ndarray, np.ndarray]:
 # ---- glTF / GLB -------------------------------------------------------------------------------
 
 def _gltf_json(path: Path) -> dict:
-    """The JSON of a .gltf file, or of a .glb file's first chunk (glTF 2.0 container:
-    12-byte header 'glTF', version, length; then chunk length, type 'JSON', data)."""
+    """The JSON of a .gltf file, or of a .glb file's JSON chunk, as AssetError when it
+    cannot be read (:func:`procmod.geometry.mesh_files.gltf_header`)."""
     try:
-        data = path.read_bytes()
+        return gltf_header(path)
     except OSError as exc:
-        raise AssetError(f"cannot read {path} ({exc.strerror})") from None
-    if path.suffix.lower() == ".glb":
-        if len(data) < 20 or data[:4] != b"glTF":
-            raise AssetError(f"{path} is not a GLB file (no 'glTF' header); is it damaged or another format?")
-        length, kind = struct.unpack_from("<I4s", data, 12)
-        if kind != b"JSON" or 20 + length > len(data):
-            raise AssetError(f"{path}: damaged GLB file (its JSON chunk is missing or cut off)")
-        data = data[20:20 + length]
-    try:
-        header = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise AssetError(f"{path} is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
-    if not isinstance(header, dict):
-        raise AssetError(f"{path} is not a glTF file (its JSON is not an object)")
-    return header
+        raise AssetError(f"cannot read {path} ({exc.strerror or exc})") from None
+    except ValueError as exc:
+        raise AssetError(f"{path} {exc}") from None
 
 
 def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:

@@ -30,8 +30,11 @@ import logging
 import os
 import re
 import struct
+import warnings
 from pathlib import Path, PurePosixPath, PureWindowsPath
 from urllib.parse import unquote
+
+import numpy as np
 
 _INDEXED = ("f", "l", "p")  # statements that index vertices (v/vt/vn per field)
 _COUNTED = {"v": 0, "vt": 1, "vn": 2}
@@ -143,19 +146,11 @@ def _collada_faces(file: Path) -> int:
 
 
 def _gltf_faces(file: Path) -> int | None:
-    with open(file, "rb") as handle:
-        head = handle.read(20)
-        if head[:4] == b"glTF":
-            length, kind = struct.unpack("<I4s", head[12:20])
-            if kind != b"JSON" or length > 1 << 26:
-                return None
-            text = handle.read(length)
-        else:
-            if os.path.getsize(file) > 1 << 26:
-                return None
-            text = head + handle.read()
     try:
-        spec = json.loads(text)
+        spec = gltf_header(file, limit=1 << 26)
+    except (OSError, ValueError):
+        return None
+    try:
         accessors = spec.get("accessors", [])
         faces = 0
         for mesh in spec.get("meshes", []):
@@ -166,35 +161,49 @@ def _gltf_faces(file: Path) -> int | None:
                 if isinstance(index, int) and 0 <= index < len(accessors):
                     faces += int(accessors[index].get("count", 0)) // 3
         return faces
-    except (ValueError, TypeError, AttributeError, RecursionError):
+    except (ValueError, TypeError, AttributeError):
         return None
 
 
 DRACO = "KHR_draco_mesh_compression"
 
 
-def gltf_header(path: Path) -> dict | None:
-    """The JSON of a ``.gltf`` or the JSON chunk of a ``.glb`` (None when it cannot be read:
-    the loader then says what is wrong)."""
-    try:
+def gltf_header(path: Path, limit: int | None = None) -> dict:
+    """The JSON object of a ``.gltf``, or of a ``.glb``'s JSON chunk (glTF 2.0 container:
+    12-byte header 'glTF', version, length; then chunk length, type 'JSON', data).
+
+    Raises OSError (unreadable) or ValueError (not glTF, damaged, or JSON of more than
+    ``limit`` bytes), with a message that continues the file's name ("is not a ...")."""
+    path = Path(path)
+    with open(path, "rb") as handle:
         if path.suffix.lower() == ".glb":
-            with open(path, "rb") as f:
-                head = f.read(20)
-                if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
-                    return None
-                length = struct.unpack("<I", head[12:16])[0]
-                data = json.loads(f.read(min(length, 64 * 2 ** 20)))
+            head = handle.read(20)
+            if len(head) < 20 or head[:4] != b"glTF":
+                raise ValueError("is not a GLB file (no 'glTF' header); is it damaged or another format?")
+            length, kind = struct.unpack("<I4s", head[12:20])
+            if limit is not None and length > limit:
+                raise ValueError(f"has a JSON chunk of {length:,} bytes, more than {limit:,}")
+            text = handle.read(length) if kind == b"JSON" else b""
+            if len(text) < length or kind != b"JSON":
+                raise ValueError("is a damaged GLB file (its JSON chunk is missing or cut off)")
         else:
-            data = json.loads(path.read_bytes())
-    except (OSError, ValueError, RecursionError, struct.error):
-        return None
-    return data if isinstance(data, dict) else None
+            if limit is not None and os.path.getsize(path) > limit:
+                raise ValueError(f"is more than {limit:,} bytes of JSON")
+            text = handle.read()
+    try:
+        header = json.loads(text.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise ValueError(f"is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
+    if not isinstance(header, dict):
+        raise ValueError("is not a glTF file (its JSON is not an object)")
+    return header
 
 
 def _check_gltf(path: Path) -> None:
-    header = gltf_header(path)
-    if header is None:
-        return
+    try:
+        header = gltf_header(path, limit=64 * 2 ** 20)
+    except (OSError, ValueError):
+        return  # the loader says what is wrong with it
     named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
     if any(isinstance(names, list) and DRACO in names for names in named):
         raise ValueError(f"its meshes are Draco-compressed ({DRACO}), which procmod cannot decode; export "
@@ -227,12 +236,16 @@ def _resolver(path: Path):
 
 
 @contextlib.contextmanager
-def _quiet():
+def quiet_trimesh():
+    """trimesh logs warnings (a missing material file, an extension it cannot decode) and
+    numpy warns on odd data: neither belongs on procmod's one-line error channel."""
     logger = logging.getLogger("trimesh")
     level = logger.level
     logger.setLevel(logging.CRITICAL)
     try:
-        yield
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            yield
     finally:
         logger.setLevel(level)
 
@@ -245,7 +258,7 @@ def load_mesh_file(path: str | Path, **options):
 
     path = Path(path)
     suffix = path.suffix.lower()
-    with _quiet():
+    with quiet_trimesh():
         if suffix == ".obj":
             # latin-1 maps every byte to one character and back: names in other encodings survive
             fixed = normalised_obj(path.read_bytes().decode("latin-1"))
@@ -259,4 +272,4 @@ def load_mesh_file(path: str | Path, **options):
         return trimesh.load(path, **options)
 
 
-__all__ = ["declared_faces", "gltf_header", "load_mesh_file", "normalised_obj"]
+__all__ = ["declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh"]

@@ -100,14 +100,14 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
         raise PartLibraryError(f"{where}.mesh: cannot read {path} as a triangle mesh ({exc})") from None
     if len(getattr(mesh, "faces", ())) == 0:
         raise PartLibraryError(f"{where}.mesh: {path} holds no triangles")
-    if not np.isfinite(np.asarray(mesh.vertices, dtype=np.float64)).all():
+    points, indices = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    if not np.isfinite(points).all():
         raise PartLibraryError(f"{where}.mesh: {path} has vertices that are not finite numbers (nan or inf); "
                                "fix or re-export the mesh")
-    used = np.asarray(mesh.faces)
-    if len(used) and np.ptp(np.asarray(mesh.vertices)[np.unique(used)], axis=0).max() == 0.0:
+    if np.ptp(points[np.unique(indices)], axis=0).max() == 0.0:
         raise PartLibraryError(f"{where}.mesh: {path} has no extent (every face's vertices are one point)")
-    vertices = tuple(tuple(float(c) for c in v) for v in np.asarray(mesh.vertices))
-    faces = tuple(tuple(int(i) for i in f) for f in np.asarray(mesh.faces))
+    vertices = tuple(tuple(float(c) for c in v) for v in points)
+    faces = tuple(tuple(int(i) for i in f) for f in indices)
     return PartShape(name, "mesh", vertices=vertices, faces=faces, source=value)
 
 

@@ -169,7 +169,10 @@ def _copy_gltf_files(source: Path, target: Path, where: str) -> None:
 
     if source.suffix.lower() != ".gltf":
         return
-    header = gltf_header(source) or {}
+    try:
+        header = gltf_header(source)
+    except (OSError, ValueError):
+        return  # unreadable: the copy fails to load with the loader's own message
     for kind in ("buffers", "images"):
         for item in header.get(kind) or []:
             uri = item.get("uri") if isinstance(item, dict) else None

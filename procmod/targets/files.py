@@ -19,11 +19,8 @@ that are not numbers) or when it is too large (more than :data:`MAX_MESH_FACES` 
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import math
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +29,7 @@ from ..core.limits import ResourceLimitError, check_memory, format_bytes
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
-from ..geometry.mesh_files import declared_faces, load_mesh_file
+from ..geometry.mesh_files import declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
 from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, open_image
 from .silhouette import Silhouette
@@ -160,21 +157,6 @@ def _too_many_faces(where: str, file: Path, faces: int, exact: bool) -> Resource
         "detail): decimate it first (e.g. Blender's Decimate modifier)")
 
 
-@contextlib.contextmanager
-def _quiet():
-    """trimesh logs warnings (a missing material file) and numpy warns on odd data: neither
-    belongs on procmod's one-line error channel."""
-    logger = logging.getLogger("trimesh")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            yield
-    finally:
-        logger.setLevel(level)
-
-
 def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = True):
     """``(vertices (n, 3) float64, faces (m, 3) int64)`` of a mesh file, ready for
     :func:`procmod.geometry.inside.inside_voxels`.
@@ -204,8 +186,7 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     if declared is not None:
         check_memory(f"{where}: reading {declared:,} faces", declared * BYTES_PER_FACE)
     try:
-        with _quiet():
-            mesh = load_mesh_file(file, force="mesh", process=False)
+        mesh = load_mesh_file(file, force="mesh", process=False)  # quiet: see quiet_trimesh
     except Exception as exc:  # noqa: BLE001 -- trimesh raises many types for unreadable files
         raise TargetFileError(f"{where}: cannot read the mesh ({_cut(str(exc) or type(exc).__name__, 200)})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -227,7 +208,7 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
         raise TargetFileError(f"{where}: {len(bad):,} vertices of the mesh are not finite numbers (NaN or "
                               f"infinity), e.g. vertex {int(bad[0])} = {vertices[bad[0]].tolist()}; fix or delete "
                               "them in a modelling tool")
-    with _quiet():
+    with quiet_trimesh():
         # split seams: vertices at one place that differ only in UV or normal become one
         mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
         mesh.merge_vertices(merge_tex=True, merge_norm=True)
