@@ -30,6 +30,7 @@ examples (:func:`align_ring_starts`).
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -378,10 +379,7 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
         # the search (the same result: later candidates only replace a strictly longer one).
         # A row of identical siblings (a fence's pickets) is then found from its first pair
         # instead of from every pair, each grown over the whole row (cubic in the siblings)
-        counts = {}
-        for k in free:
-            counts[units[k].sig] = counts.get(units[k].sig, 0) + 1
-        longest = max(counts.values(), default=0)
+        longest = max(Counter(units[k].sig for k in free).values(), default=0)
         for i in sorted(free):
             if best is not None and len(best[0]) >= longest:
                 break
