@@ -53,6 +53,20 @@ MAX_PART_CELLS = 1e8
 
 
 @numba.njit(cache=True, inline="always")
+def _too_many_cells(lo, hi, h, state) -> bool:
+    """Whether the box ``[lo, hi]`` spans more than :data:`MAX_PART_CELLS` lattice cells
+    (with a cell's margin round it); if so the count goes to ``state[6]`` and the kernel
+    visits none of them (checked here, in floats, before any index is made an integer)."""
+    n = 1.0
+    for a in range(3):
+        n *= max((hi[a] - lo[a]) / h + 3.0, 1.0)
+    if n <= MAX_PART_CELLS:
+        return False
+    state[6] = n
+    return True
+
+
+@numba.njit(cache=True, inline="always")
 def _hit(counts, nx, ny, nz, i, j, k, gain, state, record):
     # state: [new voxels, overlaps, outside] as floats, gain sum at index 3, at index 4
     # the number of voxel indices written to ``record`` (when it is not empty), and at
@@ -102,6 +116,8 @@ def _remove_voxels(counts, voxels, gain, state):
 @numba.njit(cache=True)
 def _voxelize_solid(counts, shape, origin, h, inv, kind, p0, p1, p2, lo, hi, gain, state, record):
     """kind 0: box with half extents (p0, p1, p2); kind 1: frustum r0=p0, r1=p1, length=p2."""
+    if _too_many_cells(lo, hi, h, state):
+        return
     nx, ny, nz = shape[0], shape[1], shape[2]
     i0 = int(np.floor((lo[0] - origin[0]) / h - 0.5)) + 1
     i1 = int(np.floor((hi[0] - origin[0]) / h - 0.5))
@@ -132,6 +148,8 @@ def _voxelize_solid(counts, shape, origin, h, inv, kind, p0, p1, p2, lo, hi, gai
 @numba.njit(cache=True)
 def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state, record):
     """Ray parity along +z through every voxel column of the mesh's bounding box."""
+    if _too_many_cells(lo, hi, h, state):
+        return
     nx, ny, nz = shape[0], shape[1], shape[2]
     i0 = int(np.floor((lo[0] - origin[0]) / h - 0.5))
     i1 = int(np.floor((hi[0] - origin[0]) / h - 0.5)) + 1
@@ -273,7 +291,7 @@ class VoxelScene:
         self.extent = None
         self._shape = np.array(self.grid.shape, dtype=np.int64)
         self._origin = np.array(self.grid.origin, dtype=np.float64)
-        self._state = np.zeros(6)
+        self._state = np.zeros(7)
         self.part_cache = None
         self.saturated = False
         load_kernels()
@@ -298,8 +316,6 @@ class VoxelScene:
         """Count one more hit on the voxels ``part`` covers (in ``counts``, default this
         scene's); their indices go to ``record`` when it is not empty."""
         counts = self.counts if counts is None else counts
-        if record is _NO_RECORD:  # (a record was sized by _record_for, which checked the span)
-            self._cells_spanned(lo, hi)
         h = self.grid.size
         if isinstance(part, (Box, Cylinder)):
             inv = _inverse(part.transform)
@@ -315,6 +331,8 @@ class VoxelScene:
                            self.gain, state, record)
         else:
             raise TypeError(f"a voxel scene cannot add {part!r}")
+        if state[6]:  # the kernel refused the part's span (see _too_many_cells)
+            self._refuse_span(lo, hi, state[6])
 
     def add(self, part) -> int:
         """Voxelize one part; returns the number of newly covered voxels."""
@@ -344,29 +362,27 @@ class VoxelScene:
                                                           np.maximum(self.extent[1], hi))
         return n
 
-    def _cells_spanned(self, lo, hi) -> float:
-        """The lattice cells the box ``[lo, hi]`` spans (with a cell's margin round it).
+    def _refuse_span(self, lo, hi, cells: float) -> None:
+        """A part spanning ``cells`` > :data:`MAX_PART_CELLS` lattice cells: the kernels
+        would visit every one, so a target far smaller than the model's parts (a 5 cm mesh
+        at 1 mm voxels against a ship of metres) would run for hours, or its record buffer
+        ask for terabytes."""
+        size = max(float(hi[a]) - float(lo[a]) for a in range(3))
+        raise InvalidArgumentError(
+            f"a part of the model ({size:.3g} units across) spans about {cells:.2g} voxels of the target's "
+            f"voxel_size {self.grid.size:.3g}: the target is far smaller than the model's parts; scale the target "
+            f"to the model's size (its grid is {self.grid.shape[0]}x{self.grid.shape[1]}x{self.grid.shape[2]} "
+            f"voxels from ({', '.join(f'{v:.3g}' for v in self.grid.origin)})), or give it a larger voxel_size")
 
-        Raises InvalidArgumentError above :data:`MAX_PART_CELLS`: the kernels visit every
-        one, so a target far smaller than the model's parts (a 5 cm mesh at 1 mm voxels
-        against a ship of metres) would otherwise run for hours, or ask for terabytes."""
+    def _record_for(self, lo, hi) -> np.ndarray:
+        """An index buffer with room for every in-grid voxel centre in the box ``[lo, hi]``:
+        a part hits each in-grid voxel at most once, so never more than the grid holds."""
         h = self.grid.size  # plain floats: numpy's per-call overhead exceeds the arithmetic
         n = 1.0
         for a in range(3):
             n *= max((float(hi[a]) - float(lo[a])) / h + 3.0, 1.0)
         if not n <= MAX_PART_CELLS:
-            size = max(float(hi[a]) - float(lo[a]) for a in range(3))
-            raise InvalidArgumentError(
-                f"a part of the model ({size:.3g} units across) spans about {n:.2g} voxels of the target's "
-                f"voxel_size {h:.3g}: the target is far smaller than the model's parts; scale the target to the "
-                f"model's size (its grid is {self.grid.shape[0]}x{self.grid.shape[1]}x{self.grid.shape[2]} voxels "
-                f"from ({', '.join(f'{v:.3g}' for v in self.grid.origin)})), or give it a larger voxel_size")
-        return n
-
-    def _record_for(self, lo, hi) -> np.ndarray:
-        """An index buffer with room for every in-grid voxel centre in the box ``[lo, hi]``:
-        a part hits each in-grid voxel at most once, so never more than the grid holds."""
-        n = self._cells_spanned(lo, hi)
+            self._refuse_span(lo, hi, n)
         return np.empty(int(min(n, self.counts.shape[0])) + 8, dtype=np.int64)
 
     def _entry(self, part):
