@@ -289,6 +289,27 @@ def test_a_16_bit_or_real_valued_picture_keeps_its_greys(tmp_path):
         assert mask.sum() == ink.sum(), name
 
 
+def test_a_16_bit_picture_is_scaled_by_the_white_its_file_declares(tmp_path):
+    """Pillow opens a PGM with maxval above 255 as a 32-bit "I" picture (rescaled to 65535):
+    a dark one, every value under 256, was taken for an 8-bit picture and read bright."""
+    from procmod.targets.image import grey_levels, mask_from_image, open_image
+
+    def pgm(name, maxval, values):
+        height, width = values.shape
+        (tmp_path / name).write_bytes(b"P5\n%d %d\n%d\n" % (width, height, maxval)
+                                      + values.astype(">u2").tobytes())
+        return open_image(tmp_path / name)
+
+    ink = np.zeros((40, 60), dtype=bool)
+    ink[15:25, 10:50] = True
+    dark = pgm("dark.pgm", 65535, np.where(ink, 40, 200))
+    assert dark.mode == "I" and grey_levels(dark).max() < 1.0
+    # any maxval: white is the file's maxval, not the picture's brightest pixel
+    grey = grey_levels(pgm("thousand.pgm", 1000, np.where(ink, 100, 500)))
+    assert grey[0, 0] == pytest.approx(127.5, abs=0.5) and grey[20, 20] == pytest.approx(25.5, abs=0.5)
+    assert mask_from_image(pgm("mask.pgm", 1000, np.where(ink, 100, 900))).sum() == ink.sum()
+
+
 def test_a_photo_is_read_the_way_its_exif_orientation_shows_it(tmp_path):
     from procmod.targets.image import mask_from_image, open_image
 

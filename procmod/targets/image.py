@@ -243,22 +243,51 @@ def _as_shown(image: Image.Image) -> Image.Image:
     out = image.copy()
     for turn in turns:
         out = out.transpose(turn)
+    white = _white_level(image)
+    if white is not None:
+        out.info[WHITE_LEVEL] = white
     return out
+
+
+WHITE_LEVEL = "procmod_white_level"
+"""The key in a decoded picture's ``info`` of the integer value that is white, where the file
+says it (:func:`_white_level`); :func:`grey_levels` scales by it."""
+
+
+def _white_level(image: Image.Image) -> int | None:
+    """The value of white in a 32-bit integer ("I") picture, from what its file declares:
+    Pillow decodes 16-bit PGM/PPM (any maxval above 255, rescaled to 65535) and, in some
+    versions, 16-bit PNG to "I"; a TIFF states its bits per sample. Without it a dark 16-bit
+    picture (every value under 256) would pass for an 8-bit one and read bright."""
+    if image.mode != "I":
+        return None
+    if image.format in ("PPM", "PNG"):
+        return 65535
+    if image.format == "TIFF":
+        bits = getattr(image, "tag_v2", {}).get(258)
+        bits = bits[0] if isinstance(bits, tuple) and bits else bits
+        if isinstance(bits, int) and 8 < bits <= 32:
+            return 2 ** bits - 1
+    return None
 
 
 def grey_levels(image: Image.Image) -> np.ndarray:
     """The brightness of a picture, 0 (black) to 255 (white), as floats, whatever its bit
-    depth: 16-bit and 32-bit integer pictures are scaled from their range (65535, or their
-    own maximum above it) and real-valued ones from 0..1 when they lie in it. (Pillow's
-    ``convert("L")`` clips such pictures at 255 instead, so every grey above 255 became
-    white.)"""
+    depth: 16-bit and 32-bit integer pictures are scaled from the white level their file
+    declares (:data:`WHITE_LEVEL`) or, where it does not, from their range (65535, or their
+    own maximum above it; under 256, taken as 8-bit values), and real-valued ones from 0..1
+    when they lie in it. (Pillow's ``convert("L")`` clips such pictures at 255 instead, so
+    every grey above 255 became white.)"""
     if image.mode not in ("I", "F") and not image.mode.startswith("I;16"):
         return np.asarray(image.convert("L"), dtype=np.float64)
     values = np.asarray(image, dtype=np.float64)
     finite = values[np.isfinite(values)]
     top = float(finite.max()) if finite.size else 0.0
+    declared = image.info.get(WHITE_LEVEL)
     if image.mode.startswith("I;16"):
         scale = 255.0 / 65535.0
+    elif isinstance(declared, int) and declared > 0:
+        scale = 255.0 / declared
     elif image.mode == "F" and top <= 1.0:
         scale = 255.0
     elif top <= 255.0:
