@@ -322,6 +322,10 @@ def _cmd_infer(args) -> None:
         check_population(f"--{wanted}", kwargs[wanted], empty, copies=3 if wanted == "chains" else 1)
     if kwargs.get("init_particles"):
         check_population("--init-particles", kwargs["init_particles"], empty)
+    from .targets.placement import placement_note
+    note = placement_note(model, target, np.random.default_rng(args.seed))  # its own stream: the run's is untouched
+    if note is not None:
+        print(f"note: {one_line(note)}", file=sys.stderr)
     with _progress_bar(budget) as progress:
         result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
     if result.best is None:

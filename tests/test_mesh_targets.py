@@ -351,3 +351,91 @@ def test_a_flipped_piece_overlapping_another_in_part_is_a_solid_not_a_cavity(tmp
         inside[name] = int((load_volume_target(tmp_path / f"{name}.json").combined > 0).sum())
     assert inside["order0"] == inside["order1"] == 16 * 8 * 8 + 8 * 4 * 4  # A, and B's part outside A
     assert inside["hollow"] == 16 ** 3 - 8 ** 3
+
+
+def _volume_file(folder: Path, mesh: str, **fields) -> Path:
+    spec = {"format": "procmod-volume/1", "voxel_size": 0.25,
+            "layers": [{"file": mesh, "w_fill": 1, "w_avoid": -1}], **fields}
+    (folder / "T.json").write_text(json.dumps(spec))
+    return folder / "T.json"
+
+
+def test_mesh_scale_and_offset_put_a_mesh_in_the_models_frame(tmp_path):
+    """A mesh exported in centimetres, away from the origin, reads as the same mesh in metres
+    at the origin once "mesh_scale" and "mesh_offset" say so (voxel_size in the model's units)."""
+    box = _box((2.0, 1.0, 3.0), (0.0, 0.5, 0.0))
+    _write_obj(tmp_path / "m.obj", box.vertices, box.faces)
+    _write_obj(tmp_path / "cm.obj", box.vertices * 100 + [700.0, 0.0, -300.0], box.faces, split_seams=True)
+    metres = load_volume_target(_volume_file(tmp_path, "m.obj"))
+    placed = load_volume_target(_volume_file(tmp_path, "cm.obj", mesh_scale=0.01, mesh_offset=[-7, 0, 3]))
+    assert placed.grid.shape == metres.grid.shape
+    assert np.allclose(placed.grid.origin, metres.grid.origin)
+    assert np.array_equal(placed.combined, metres.combined)
+    view = {"mesh": "cm.obj", "camera": {"eye": [0, 0, 10], "look_at": [0, 0, 0], "projection": "orthographic",
+                                         "fov": 4, "width": 40, "height": 40}}
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [view],
+                                                 "mesh_scale": 0.01, "mesh_offset": [-7, 0, 3]}))
+    (tmp_path / "S0.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                  "views": [{**view, "mesh": "m.obj"}]}))
+    assert np.array_equal(load_target_file(tmp_path / "S.json").weights[0],
+                          load_target_file(tmp_path / "S0.json").weights[0])
+
+
+@pytest.mark.parametrize("fields, message", [
+    ({"mesh_scale": 0}, "mesh_scale must be positive"),
+    ({"mesh_scale": -0.01}, "mesh_scale must be positive"),
+    ({"mesh_offset": [1, 2]}, "mesh_offset"),
+    ({"mesh_scale": 1e-300}, "mesh_scale must lie in 1e-12..1e12"),
+])
+def test_a_bad_mesh_placement_is_one_line(tmp_path, capsys, fields, message):
+    box = _box(*BOX)
+    _write_obj(tmp_path / "m.obj", box.vertices, box.faces)
+    target = _volume_file(tmp_path, "m.obj", **fields)
+    assert main(["infer", "spaceship", "--target", str(target), "--engine", "forward", "--budget", "5evals",
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and not (tmp_path / "run").exists()
+
+
+def test_mesh_placement_in_a_file_without_meshes_is_refused(tmp_path):
+    from procmod.targets.image import TargetFileError
+    np.save(tmp_path / "a.npy", np.ones((3, 3, 3)))
+    (tmp_path / "T.json").write_text(json.dumps({
+        "format": "procmod-volume/1", "mesh_scale": 0.01, "layers": [{"file": "a.npy"}],
+        "grid": {"origin": [0, 0, 0], "voxel_size": 1}}))
+    with pytest.raises(TargetFileError, match="mesh_scale places mesh layers and this file has none"):
+        load_volume_target(tmp_path / "T.json")
+
+
+def test_a_target_in_other_units_or_elsewhere_gets_a_note_saying_how_to_place_it(tmp_path, capsys):
+    """A spaceship target exported in centimetres (Maya's default) or left 500 units from the
+    origin scored 0 with no word why; the note names the field and the value that fix it,
+    and the same target in the model's frame gets none."""
+    from procmod.cli import _model
+    from procmod.targets.placement import placement_note
+
+    ship = trimesh.util.concatenate([_box((1.0, 0.6, 3.0), (0, 0, 0)), _box((3.0, 0.2, 0.8), (0, 0, -0.5))])
+    _write_obj(tmp_path / "cm.obj", ship.vertices * 100, ship.faces)
+    _write_obj(tmp_path / "far.obj", ship.vertices + [500.0, 0.0, 40.0], ship.faces)
+    model = _model("spaceship")
+
+    def note(mesh, **fields):
+        return placement_note(model, load_volume_target(_volume_file(tmp_path, mesh, **fields)),
+                              np.random.default_rng(0))
+
+    assert "\"mesh_scale\": 0.01" in note("cm.obj", voxel_size=25)
+    assert note("cm.obj", mesh_scale=0.01) is None
+    far = note("far.obj")
+    assert "\"mesh_offset\": [-500," in far
+    offset = json.loads(far[far.index("[", far.index("mesh_offset")):far.index("]", far.index("mesh_offset")) + 1])
+    assert note("far.obj", mesh_offset=offset) is None
+    # the CLI prints it on stderr and still runs
+    code = main(["infer", "spaceship", "--target", str(_volume_file(tmp_path, "cm.obj", voxel_size=25)),
+                 "--engine", "smc", "--particles", "20", "--out", str(tmp_path / "run")])
+    printed = capsys.readouterr()
+    assert code == 0 and printed.err.startswith("note: the target's fill spans") and "mesh_scale" in printed.err
+    # a view of the centimetre mesh framed for centimetres: the model is a speck in it
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [
+        {"mesh": "cm.obj", "camera": {"eye": [0, 300, 2000], "look_at": [0, 0, 0]}}]}))
+    assert "views[0]: the shape to hit spans" in placement_note(model, load_target_file(tmp_path / "S.json"),
+                                                                 np.random.default_rng(0))

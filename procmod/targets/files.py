@@ -282,6 +282,35 @@ def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float
 
 # --- volume targets ------------------------------------------------------------------------
 
+def _mesh_placement(spec: dict, where: str):
+    """``(scale, offset)`` of a target file's ``"mesh_scale"`` (a positive number, default
+    1) and ``"mesh_offset"`` (three numbers, default 0): a mesh's point p is taken at
+    ``p * scale + offset``, in the model's frame (a mesh exported in centimetres for a model
+    in metres takes ``"mesh_scale": 0.01``)."""
+    scale = number(spec.get("mesh_scale", 1.0), f"{where}: mesh_scale", positive=True)
+    offset = np.asarray(vector3(spec.get("mesh_offset", (0.0, 0.0, 0.0)), f"{where}: mesh_offset"))
+    if not (1e-12 <= scale <= 1e12 and np.all(np.abs(offset) <= 1e12)):
+        raise TargetFileError(f"{where}: mesh_scale must lie in 1e-12..1e12 and mesh_offset within +-1e12, got "
+                              f"{scale:g} and {_shown(list(offset))}")
+    return scale, offset
+
+
+def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str) -> None:
+    given = [key for key in ("mesh_scale", "mesh_offset") if key in spec]
+    if given and not has_meshes:
+        raise TargetFileError(f"{where}: {' and '.join(given)} {'place' if len(given) > 1 else 'places'} mesh {what}s and this file has none (an .npy "
+                              "grid or a picture is placed by its own grid or camera)")
+
+
+def _placed(mesh, placement):
+    """A mesh ``(vertices, faces)`` moved by a :func:`_mesh_placement`."""
+    vertices, faces = mesh
+    scale, offset = placement
+    if scale == 1.0 and not offset.any():
+        return mesh
+    return np.asarray(vertices, dtype=np.float64) * scale + offset, faces
+
+
 def _given_grid(spec: dict, where: str):
     """``(origin, voxel size, shape or None)`` of a volume file's ``"grid"``."""
     g = _object(spec["grid"], f"{where}: grid")
@@ -308,6 +337,7 @@ def load_volume_target(path: str | os.PathLike):
          "layers": [{"file": "ship.obj" | "fill.npy", "w_fill": 1, "w_avoid": -1}, ...],
          "grid": {"origin": [x, y, z], "voxel_size": h},   # needed with .npy layers
          "voxel_size": 0.25, "margin": 0.1,                # meshes only, without "grid"
+         "mesh_scale": 1, "mesh_offset": [0, 0, 0],        # meshes only
          "w_self": 0}
 
     Files are relative to the JSON file. All layers lie on one grid: the ``"grid"`` when
@@ -315,7 +345,9 @@ def load_volume_target(path: str | os.PathLike):
     only; meshes are voxelized on it), else the grid of edge ``voxel_size`` around every
     mesh layer grown by ``margin`` (default 0.1). An .npy layer is a 3D array, nonzero
     inside. ``w_fill`` (default 1), ``w_avoid`` (default 0) and ``w_self`` (default 0, at
-    least 0) are finite numbers; ``"score": "proxy"`` takes one layer.
+    least 0) are finite numbers; ``"score": "proxy"`` takes one layer. Mesh layers are
+    placed in the model's frame by ``mesh_scale`` and ``mesh_offset`` (:func:`_mesh_placement`)
+    before anything else: ``grid``, ``voxel_size`` and ``margin`` are in the model's units.
     """
     path = Path(path)
     where = _cut(str(path))
@@ -332,6 +364,7 @@ def load_volume_target(path: str | os.PathLike):
         raise TargetFileError(f"{where}: \"score\": \"proxy\" compares the ship with one target volume; "
                               f"layers has {len(layers_spec)}")
     w_self = weight(spec.get("w_self", 0.0), f"{where}: w_self", minimum=0.0)
+    placement = _mesh_placement(spec, where)
     # every field first, then the files' headers, then the work
     entries = []
     for i, layer in enumerate(layers_spec):
@@ -345,6 +378,7 @@ def load_volume_target(path: str | os.PathLike):
         entries.append((at, file, w_fill, w_avoid))
     arrays = [e for e in entries if e[1].suffix.lower() == ".npy"]
     meshes = [e for e in entries if e[1].suffix.lower() != ".npy"]
+    _placement_needs_meshes(spec, where, bool(meshes), "layer")
     given = _given_grid(spec, where) if "grid" in spec else None
     if given is not None and "voxel_size" in spec and spec["voxel_size"] != spec["grid"].get("voxel_size"):
         raise TargetFileError(f"{where}: voxel_size {_shown(spec['voxel_size'])} and grid.voxel_size "
@@ -383,7 +417,7 @@ def load_volume_target(path: str | os.PathLike):
         margin = number(spec.get("margin", 0.1), f"{where}: margin", minimum=0.0)
     read = {}
     for at, file, _, _ in meshes:
-        read[at] = read_mesh(file, f"{at}.file")
+        read[at] = _placed(read_mesh(file, f"{at}.file"), placement)
     if grid is None:
         bounds = [mesh_bounds(*read[at]) for at, _, _, _ in meshes]
         lo = np.min([b[0] for b in bounds], axis=0)
@@ -481,6 +515,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     views = spec.get("views") if isinstance(spec, dict) else None
     if not isinstance(views, list) or not views:
         raise TargetFileError(f"{where}: \"views\" must be a non-empty list")
+    placement = _mesh_placement(spec, where)
     parsed = []
     for i, view in enumerate(views):
         at = f"{where}: views[{i}]"
@@ -499,6 +534,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         file = _file(path, view[kind], f"{at}.{kind}", suffixes, {"weights": "weights", "image": "picture",
                                                                   "mesh": "mesh"}[kind])
         parsed.append((at, kind, file, camera, hit, avoid))
+    _placement_needs_meshes(spec, where, any(entry[1] == "mesh" for entry in parsed), "view")
     out = []
     for at, kind, file, camera, hit, avoid in parsed:
         if kind == "weights":
@@ -507,7 +543,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             grey = grey_levels(open_image(file, f"{at}.image"))
             weights = np.where(grey < 85, hit, np.where(grey > 170, avoid, 0.0))
         else:
-            covered = mesh_silhouette(*read_mesh(file, f"{at}.mesh", orient=False), camera)
+            covered = mesh_silhouette(*_placed(read_mesh(file, f"{at}.mesh", orient=False), placement), camera)
             if not covered.any():
                 raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"
                                       f"{camera.height} view: point the camera at it (look_at its centre), or "

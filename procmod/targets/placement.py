@@ -1,0 +1,128 @@
+"""Whether a 3D target and a model meet: same place, similar size.
+
+A model builds at its own origin in its own units; a target mesh keeps the frame of the
+tool that exported it (Maya writes centimetres by default, a CAD file millimetres, a
+scene may sit far from its origin). Against such a target every derivation scores about
+nothing and the engines run to the end without saying why. :func:`placement_note`
+compares where the model's prior samples lie with where the target asks for shape and
+says, in one line, what is off and how to put it right. It is advice (the caller prints
+it), not a refusal: a target may deliberately be much larger than one sample (a city
+block for a growing city) or lie beside the origin.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..core.runtime import run_forward
+from .silhouette import Silhouette
+from .volume import ProxyVolume, Volume
+
+SAMPLES = 16
+"""Prior samples whose median bounding box stands for the model's size and place."""
+
+SCALE_FACTOR = 10.0
+"""Sizes differing by more than this factor either way are worth a note."""
+
+
+def model_box(model, rng: np.random.Generator, samples: int = SAMPLES):
+    """The median (over ``samples`` prior derivations with parts) of each corner
+    coordinate of their world bounding boxes, as ``(lo, hi)``, or None when no sample
+    drew a part. The median, not the union: one sample flung far must not stand for all."""
+    boxes = []
+    for _ in range(samples):
+        extent = getattr(run_forward(model, rng).output, "extent", None)
+        if extent is not None:
+            boxes.append(extent)
+    if not boxes:
+        return None
+    return (np.median([b[0] for b in boxes], axis=0), np.median([b[1] for b in boxes], axis=0))
+
+
+def _corners(lo, hi) -> np.ndarray:
+    return np.array([[(lo, hi)[i >> a & 1][a] for a in range(3)] for i in range(8)], dtype=np.float64)
+
+
+def _volume_box(target):
+    """The box of the voxels where the target gains (its fill), in world units."""
+    gain = getattr(target, "combined", None)
+    inside = gain > 0 if gain is not None else np.asarray(target.mask)
+    if not inside.any():
+        return None
+    index = np.argwhere(inside)
+    grid = target.grid
+    origin = np.asarray(grid.origin, dtype=np.float64)
+    return origin + grid.size * index.min(axis=0), origin + grid.size * (index.max(axis=0) + 1)
+
+
+def _size(lo, hi) -> float:
+    return float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+
+
+def _shown(vector) -> str:
+    return "(" + ", ".join(f"{v:.3g}" for v in vector) + ")"
+
+
+def _volume_note(target, lo, hi) -> str | None:
+    box = _volume_box(target)
+    if box is None:
+        return None
+    t_lo, t_hi = box
+    t_size, m_size = _size(t_lo, t_hi), _size(lo, hi)
+    if m_size <= 0:
+        return None
+    ratio = t_size / m_size
+    what = "the target's fill"
+    where = f"spans {_shown(t_lo)} to {_shown(t_hi)}"
+    model = f"about {_shown(lo)} to {_shown(hi)}"
+    if ratio > SCALE_FACTOR or ratio < 1 / SCALE_FACTOR:
+        factor = 10 ** round(math.log10(1 / ratio))
+        return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if the mesh is in "
+                f"other units (Maya's default is centimetres), give \"mesh_scale\": {factor:g} in the target file")
+    if np.any(t_lo > hi) or np.any(t_hi < lo):
+        centre = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
+        return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): give "
+                f"\"mesh_offset\": [{', '.join(f'{v:.3g}' for v in centre)}] in the target file to move the "
+                "meshes onto it")
+    return None
+
+
+def _silhouette_note(target, lo, hi) -> str | None:
+    corners = _corners(lo, hi)
+    for i, (camera, weights) in enumerate(zip(target.cameras, target.weights)):
+        hit = np.argwhere(weights > 0)
+        if not hit.size:
+            continue
+        projected = camera.project(corners)
+        if np.any(projected[:, 2] <= 0):
+            continue  # the camera is inside the model's box: sizes on screen mean nothing
+        p_lo, p_hi = projected[:, :2].min(axis=0), projected[:, :2].max(axis=0)
+        t_lo, t_hi = hit.min(axis=0)[::-1], hit.max(axis=0)[::-1] + 1  # (x, y) pixels
+        t_size, m_size = _size(t_lo, t_hi), _size(p_lo, p_hi)
+        view = f"views[{i}]"
+        if m_size > 0 and not 1 / SCALE_FACTOR <= t_size / m_size <= SCALE_FACTOR:
+            return (f"{view}: the shape to hit spans {t_size:.0f} pixels on screen, the model's samples about "
+                    f"{m_size:.3g} ({t_size / m_size:.3g}x): move the camera so the model (which builds at its "
+                    f"origin, about {_shown(lo)} to {_shown(hi)}) fills the view as the target should (a mesh in "
+                    "other units: \"mesh_scale\", with the camera in the model's units)")
+        if np.all(p_hi < 0) or np.all(p_lo > (camera.width, camera.height)) or np.any(p_hi < t_lo) \
+                or np.any(p_lo > t_hi):
+            return (f"{view}: the model's samples (at its origin, about {_shown(lo)} to {_shown(hi)}) fall "
+                    "beside the shape to hit in the view: point the camera's look_at at the model")
+    return None
+
+
+def placement_note(model, target, rng: np.random.Generator, samples: int = SAMPLES) -> str | None:
+    """One line of advice when the 3D ``target`` and ``model``'s prior samples differ in
+    size by more than :data:`SCALE_FACTOR` or do not meet at all; None when they do meet,
+    or for targets this does not apply to (2D, style scores)."""
+    if not isinstance(target, (Volume, ProxyVolume, Silhouette)):
+        return None
+    box = model_box(model, rng, samples)
+    if box is None:
+        return None
+    if isinstance(target, Silhouette):
+        return _silhouette_note(target, *box)
+    return _volume_note(target, *box)
