@@ -263,3 +263,21 @@ def test_a_long_row_of_identical_siblings_is_one_translation_group():
     data = {"format": "procmod-examples/1", "parts": parts, "examples": [example(60), example(61)]}
     ds = preprocess(examples_from_dict(data))
     assert sorted(n.type for n in ds.nodes) == ["picket", "picket", "rail", "rail", "trans(picket)", "trans(picket)"]
+
+
+def test_a_grid_of_identical_studs_is_one_translation_group_per_row():
+    """A 6 x 8 grid of studs on a plate: no chain takes every stud, so every pair of studs
+    was grown (each step pairing every free stud; 50 studs took about a minute). Now only
+    studs near where the step puts the next are paired, and chains are kept between rounds;
+    the groups are the rows, as before."""
+    def example(rows, cols, jitter):
+        studs = [{"part": "stud", "transform": [[1, 0, 0, c + jitter], [0, 1, 0, 0.2], [0, 0, 1, 1.5 * r],
+                                                [0, 0, 0, 1]], "children": []}
+                 for r in range(rows) for c in range(cols)]
+        return {"part": "plate", "transform": [[cols, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1.5 * rows, 0], [0, 0, 0, 1]],
+                "children": studs}
+
+    parts = {"plate": {"box": [1, 0.2, 1]}, "stud": {"box": [0.3, 0.2, 0.3]}}
+    data = {"format": "procmod-examples/1", "parts": parts, "examples": [example(6, 8, 0.0), example(6, 8, 0.01)]}
+    ds = preprocess(examples_from_dict(data))
+    assert Counter(n.type for n in ds.nodes) == {"plate": 2, "trans(stud)": 12, "stud": 12}  # a stud per row

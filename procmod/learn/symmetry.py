@@ -345,21 +345,46 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
     return out
 
 
-def _extend(kind: str, g: np.ndarray, chain: list, units: list, free: set, tol: float) -> tuple[list, np.ndarray]:
+class _Positions:
+    """Where sibling units lie, for a quick necessary test before pairing them up: the
+    mean of a unit's corners moves no further than its farthest corner, so a unit whose
+    mean lies beyond the allowed gap from where a map puts another's cannot continue a
+    chain from it (a grid of identical studs otherwise paired every free stud with the
+    chain's last at every step)."""
+
+    def __init__(self, units: list, tol: float):
+        self.centres = np.array([u.corners.reshape(-1, 3).mean(axis=0) for u in units])
+        self.sizes = np.array([u.size for u in units])
+        kinds = {}
+        self.kinds = np.array([kinds.setdefault(u.sig, len(kinds)) for u in units])
+        self.tol = tol
+
+    def near(self, g: np.ndarray, chain: list, free: set) -> list:
+        """The free units (in order) of the chain's structure that may continue it under
+        ``g``: their corners' mean within the gap :func:`_extend` allows of the last member's mapped."""
+        candidates = np.array(sorted(free - set(chain)), dtype=np.int64)
+        candidates = candidates[self.kinds[candidates] == self.kinds[chain[0]]]
+        last = chain[-1]
+        reach = 4 * self.tol * np.maximum(self.sizes[last], self.sizes[candidates])
+        distance = np.linalg.norm(self.centres[candidates] - _apply(g, self.centres[last]), axis=1)
+        return candidates[distance <= reach].tolist()
+
+
+def _extend(kind: str, g: np.ndarray, chain: list, units: list, free: set, tol: float,
+            positions: _Positions) -> tuple[list, np.ndarray]:
     """Grow ``chain`` forward while a free unit (the first in order) continues it: the
     longer chain, refitted as one group, stays within the tolerance."""
     while True:
-        for k in sorted(free - set(chain)):
-            if units[k].sig != units[chain[0]].sig:
-                continue
-            last = units[chain[-1]]
+        last = units[chain[-1]]
+        for k in positions.near(g, chain, free):
+            reach = 4 * tol * max(last.size, units[k].size)
             paired = correspond(g, last, units[k])
-            if paired is None:  # cheap test first: k is near where g puts the last member
+            if paired is None:
                 continue
             match, flip = paired
             gap = float(np.linalg.norm(_apply(g, last.corners) - units[k].corners[match[:, None], _XOR[flip]],
                                        axis=-1).max())
-            if gap > 4 * tol * max(last.size, units[k].size):
+            if gap > reach:
                 continue
             fitted = _fit_chain(kind, chain + [k], units, g)
             if fitted is not None and fitted[1] <= tol:
@@ -369,10 +394,28 @@ def _extend(kind: str, g: np.ndarray, chain: list, units: list, free: set, tol: 
             return chain, g
 
 
+def _grow(relation, i: int, j: int, units: list, free: set, tol: float, positions: _Positions):
+    """``(chain, g, kind)``: the chain through units ``i`` and ``j`` (related by
+    ``relation``, from :func:`relate`), grown forward from ``j`` and backward from ``i``."""
+    kind, g, _ = relation
+    forward, g = _extend(kind, g, [i, j], units, free, tol, positions)
+    backward, _ = _extend(kind, np.linalg.inv(g), [i], units, free - set(forward[1:]), tol, positions)
+    chain = list(reversed(backward[1:])) + forward
+    if len(backward) > 1:
+        fitted = _fit_chain(kind, chain, units, g)
+        if fitted is None or fitted[1] > tol:
+            chain = forward
+        else:
+            g = fitted[0]
+    return chain, g, kind
+
+
 def _chains(units: list, frame: Frame, tol: float) -> list:
     free = set(range(len(units)))
     groups = []
     related = {}  # (i, j) -> relate(...) (units do not change between rounds)
+    grown = {}  # (i, j) -> the chain grown from that pair (_grow), while its units are free
+    positions = _Positions(units, tol)
     while True:
         best = None
         # no chain is longer than the free units of one signature: a chain that long ends
@@ -392,16 +435,9 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
                     related[(i, j)] = relate(units[i], units[j], ("trans", "rot"), tol)
                 if related[(i, j)] is None:
                     continue
-                kind, g, _ = related[(i, j)]
-                forward, g = _extend(kind, g, [i, j], units, free, tol)
-                backward, _ = _extend(kind, np.linalg.inv(g), [i], units, free - set(forward[1:]), tol)
-                chain = list(reversed(backward[1:])) + forward
-                if len(backward) > 1:
-                    fitted = _fit_chain(kind, chain, units, g)
-                    if fitted is None or fitted[1] > tol:
-                        chain = forward
-                    else:
-                        g = fitted[0]
+                if (i, j) not in grown:
+                    grown[(i, j)] = _grow(related[(i, j)], i, j, units, free, tol, positions)
+                chain, g, kind = grown[(i, j)]
                 if best is None or len(chain) > len(best[0]):  # ties: the first found
                     best = (chain, g, kind)
         if best is None or len(best[0]) < MIN_CHAIN:
@@ -411,6 +447,9 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
             g = _snap_circle(chain, units, g, tol)
         free -= set(chain)
         groups.append((chain, g, kind))
+        # a chain grows through the first free unit that continues it at each step, so
+        # taking units away changes only the chains that held one of them
+        grown = {pair: value for pair, value in grown.items() if free.issuperset(value[0])}
     out = [units[k] for k in sorted(free)]
     for chain, g, kind in groups:
         members = [units[k] for k in chain]
