@@ -338,15 +338,15 @@ def _cmd_infer(args) -> None:
 
 
 class _progress_bar:
-    """A tqdm bar on stderr (hidden when stderr is not a terminal), fed by the engine."""
+    """A progress bar on stderr (:func:`procmod.progress.progress_bar`), fed by the engine."""
 
     def __init__(self, budget):
         self.budget = budget
 
     def __enter__(self):
-        from tqdm import tqdm
-        self.bar = tqdm(total=100 if self.budget is not None else None, unit="%" if self.budget else " evals",
-                        disable=None, leave=False, file=sys.stderr)
+        from .progress import progress_bar
+        self.bar = progress_bar(total=100 if self.budget is not None else None,
+                                unit="%" if self.budget else " evals")
 
         def update(tracker):
             if self.budget is not None:

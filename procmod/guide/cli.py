@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import sys
-
 from ..core import InvalidArgumentError
 
 
@@ -49,9 +47,9 @@ def register(sub, int_arg) -> None:
     train.set_defaults(handler=_cmd_train)
 
 
-def _tqdm(total, unit):
-    from tqdm import tqdm
-    return tqdm(total=total, unit=unit, disable=None, leave=False, file=sys.stderr)
+def _progress(total, unit):
+    from ..progress import progress_bar
+    return progress_bar(total=total, unit=unit)
 
 
 def _cmd_traces(args) -> None:
@@ -63,7 +61,7 @@ def _cmd_traces(args) -> None:
     if args.scheduler is not None:
         check_scheduler(args.scheduler)
     workers = 0 if args.workers is None and args.scheduler is None else args.workers
-    bar = _tqdm(args.count, " traces")
+    bar = _progress(args.count, " traces")
     try:
         def progress(done, total):
             bar.n = done
@@ -90,7 +88,7 @@ def _cmd_train(args) -> None:
     from .guide import guide_paths
     for path in guide_paths(args.out, for_writing=True):  # checked now, written after the training
         check_output_file(path, make_parent=True, inputs=[args.traces])
-    bar = _tqdm(args.iterations, " steps")
+    bar = _progress(args.iterations, " steps")
     try:
         def progress(done, loss):
             bar.n = done

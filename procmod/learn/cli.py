@@ -47,19 +47,16 @@ def _cmd_learn(args) -> None:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     if args.workers is not None and args.workers < 0:
         raise InvalidArgumentError(f"--workers must be >= 0 (0 = one per core), got {args.workers}")
-    tty = sys.stderr.isatty()
+    from ..progress import progress_lines
 
-    def progress(line: str) -> None:
-        if tty:
-            print(f"\r{line:<78}", end="", file=sys.stderr, flush=True)
+    progress = progress_lines()
 
     command = "procmod " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("procmod") else ""
     workers = 0 if args.workers is None and args.scheduler is None else args.workers
     out = learn(args.examples, args.out, particles=args.particles, workers=workers,
                 scheduler=args.scheduler, seed=args.seed, options=SearchOptions(estimator=args.estimator),
                 samples=args.samples, progress=progress, command=command, overwrite=args.overwrite)
-    if tty:
-        print(file=sys.stderr)
+    progress.end()
     t = out["table"]
     print(f"learned {t['A_star']} abstractions (P0: {t['A0']}); O_D {t['O_P0']:.2f} -> {t['O_Pstar']:.2f} "
           f"in {t['seconds']:.1f} s; program: {out['program']}; report: {out['report']}")

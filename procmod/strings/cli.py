@@ -222,7 +222,7 @@ def _decode(args) -> None:
 
 
 def _augment(args) -> None:
-    from tqdm import tqdm
+    from ..progress import progress_bar
 
     from ..core.runfolder import COLLECTION, RunFolder
     from ..parallel import check_scheduler, open_executor
@@ -256,7 +256,7 @@ def _augment(args) -> None:
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     out = Path(args.out)
-    bar = tqdm(total=args.count, unit=" shapes", disable=None, leave=False, file=sys.stderr)
+    bar = progress_bar(total=args.count, unit=" shapes")
     bar.update(len(shape_set.shapes))
 
     def progress(row):
@@ -281,7 +281,7 @@ def _augment(args) -> None:
 
 
 def _train(args) -> None:
-    from tqdm import tqdm
+    from ..progress import progress_bar
 
     from .tagger import TaggerConfig
     from .pipeline import train_model
@@ -302,7 +302,7 @@ def _train(args) -> None:
         bar = bars.get(stage)
         if bar is None:
             unit = " strings" if stage == "held-out" else " epochs"
-            bar = bars[stage] = tqdm(total=total, unit=unit, desc=stage, disable=None, leave=False, file=sys.stderr)
+            bar = bars[stage] = progress_bar(total=total, unit=unit, desc=stage)
         bar.n = row[counted]
         bar.set_postfix({k: f"{v:.3g}" for k, v in row.items() if k not in (counted, "total", "seconds", "device")},
                        refresh=False)
