@@ -152,3 +152,34 @@ def test_transforms_written_at_export_precision_are_read_and_real_shear_is_not()
     with pytest.raises(ExamplesError, match="shears .*1 degrees off square"):
         examples_from_dict(sheared, base_dir=Path(__file__).resolve().parents[1] / "examples_sets" / "learn"
                            / "spaceships")
+
+
+def test_examples_laid_out_side_by_side_are_learned_where_they_stand_over_the_origin(tmp_path):
+    """Examples modelled side by side in one scene keep their world positions in the file
+    (Blender's "Learn from selection", glTF exports); the learner took the layout for shape
+    variation (castles 25 units apart: 10x the search time, an abstraction per example).
+    Each example is moved rigidly so its root stands over the origin, its height kept."""
+    from procmod.learn.examples import read_example_inputs
+
+    root = Path(__file__).resolve().parent.parent / "examples_sets/learn/castles"
+    data = json.loads((root / "examples.json").read_text())
+    laid_out = copy.deepcopy(data)
+
+    def shift(node, by):
+        for row, d in enumerate(by):
+            node["transform"][row][3] += d
+        for child in node["children"]:
+            shift(child, by)
+
+    for i, example in enumerate(laid_out["examples"]):
+        shift(example, (25.0 * i, 0.0, -8.0 * (i % 3)))
+    (tmp_path / "parts").symlink_to(root / "parts")
+    (tmp_path / "examples.json").write_text(json.dumps(laid_out))
+    original, _ = read_example_inputs([root / "examples.json"])
+    moved, _ = read_example_inputs([tmp_path / "examples.json"])
+    assert len(moved.examples) == len(original.examples) == 10
+    for a, b in zip(original.examples, moved.examples):
+        assert [n.part for n in a.walk()] == [n.part for n in b.walk()]
+        for n, m in zip(a.walk(), b.walk()):
+            assert np.allclose(n.transform, m.transform, atol=1e-9)
+        assert b.transform[0][3] == 0 and b.transform[2][3] == 0 and b.transform[1][3] > 1.4  # height kept

@@ -190,13 +190,35 @@ def examples_from_assets(asset_set) -> ExampleSet:
     return ExampleSet(dict(asset_set.parts), examples, base)
 
 
+def centred_examples(example_set: ExampleSet) -> ExampleSet:
+    """The example set with each example moved, rigidly, so that its root part stands over
+    the origin: the root's x and z (procmod is y-up) become 0, its height is kept.
+
+    Where an example stands in the world is not part of its shape. Examples modelled side
+    by side in one scene (the only way to see them all at once; Blender's "Learn from
+    selection" and glTF exports keep world positions) otherwise made the root's placement
+    a wide Gaussian the learner had to explain: on the castles spread 25 units apart the
+    search ran 10x longer and kept 39 abstractions, one per example, against 11."""
+    def moved(node: ExampleNode, shift: np.ndarray) -> ExampleNode:
+        m = np.array(node.transform, dtype=np.float64)
+        m[:3, 3] -= shift
+        return ExampleNode(node.part, m, [moved(c, shift) for c in node.children])
+
+    examples = []
+    for root in example_set.examples:
+        shift = np.array([root.transform[0][3], 0.0, root.transform[2][3]], dtype=np.float64)
+        examples.append(moved(root, shift) if shift.any() else root)
+    return ExampleSet(example_set.parts, examples, example_set.base_dir)
+
+
 def read_example_inputs(paths) -> tuple[ExampleSet, str]:
     """The example set of ``procmod learn``'s inputs, and a digest of what was read.
 
     ``paths``: one ``procmod-examples/1`` JSON file, or asset files and folders of them
-    (glTF, GLB, URDF: one example per file; see :mod:`procmod.geometry.assets`). The
-    digest covers the part library and every transform, so a checkpoint made from other
-    inputs is refused.
+    (glTF, GLB, URDF: one example per file; see :mod:`procmod.geometry.assets`). Each
+    example is then moved over the origin (:func:`centred_examples`). The digest covers
+    the file (JSON) or the part library and every transform (assets), so a checkpoint made
+    from other inputs is refused.
     """
     from ..core.serialize import fingerprint
     from ..geometry.assets import AssetError, asset_files, json_or_assets, read_assets
@@ -206,10 +228,10 @@ def read_example_inputs(paths) -> tuple[ExampleSet, str]:
     except AssetError as exc:
         raise ExamplesError(str(exc)) from None
     if json_file is not None:
-        example_set = read_examples(json_file)
+        example_set = centred_examples(read_examples(json_file))
         return example_set, fingerprint(json_file.read_bytes())
     try:
-        example_set = examples_from_assets(read_assets(asset_files(assets)))
+        example_set = centred_examples(examples_from_assets(read_assets(asset_files(assets))))
     except AssetError as exc:
         raise ExamplesError(str(exc)) from None
     return example_set, example_set_digest(example_set)
@@ -284,5 +306,5 @@ def example_parts(node: ExampleNode, parts: dict) -> list:
 
 
 __all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
-           "read_example_inputs", "examples_from_assets", "example_set_digest",
+           "read_example_inputs", "centred_examples", "examples_from_assets", "example_set_digest",
            "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]
