@@ -183,3 +183,25 @@ def test_examples_laid_out_side_by_side_are_learned_where_they_stand_over_the_or
         for n, m in zip(a.walk(), b.walk()):
             assert np.allclose(n.transform, m.transform, atol=1e-9)
         assert b.transform[0][3] == 0 and b.transform[2][3] == 0 and b.transform[1][3] > 1.4  # height kept
+
+
+def test_examples_of_very_different_sizes_get_a_note_naming_them():
+    """Half the castles exported 100x larger (centimetres against metres) were learned
+    without a word; the program then sampled castles at both scales."""
+    from procmod.learn.examples import size_note
+
+    root = Path(__file__).resolve().parent.parent / "examples_sets/learn/castles"
+    castles = read_examples(root / "examples.json")
+    assert size_note(castles) is None
+
+    def scaled(node, factor):
+        m = np.array(node.transform)
+        m[:3] *= factor
+        return type(node)(node.part, m, [scaled(c, factor) for c in node.children])
+
+    castles.examples = [scaled(e, 100.0) if i % 2 else e for i, e in enumerate(castles.examples)]
+    note = size_note(castles)
+    assert note.startswith("the examples differ in size up to ") and "examples[" in note
+    ratio = float(note.split("up to ")[1].split("x")[0])
+    assert 50 <= ratio <= 200
+    assert "castle_9.glb is" in size_note(castles, [f"castle_{i}.glb" for i in range(10)])

@@ -55,7 +55,8 @@ def _cmd_learn(args) -> None:
     workers = 0 if args.workers is None and args.scheduler is None else args.workers
     out = learn(args.examples, args.out, particles=args.particles, workers=workers,
                 scheduler=args.scheduler, seed=args.seed, options=SearchOptions(estimator=args.estimator),
-                samples=args.samples, progress=progress, command=command, overwrite=args.overwrite)
+                samples=args.samples, progress=progress, command=command, overwrite=args.overwrite,
+                note=lambda text: print(f"note: {text}", file=sys.stderr))
     progress.end()
     t = out["table"]
     print(f"learned {t['A_star']} abstractions (P0: {t['A0']}); O_D {t['O_P0']:.2f} -> {t['O_Pstar']:.2f} "

@@ -211,6 +211,32 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
     return ExampleSet(example_set.parts, examples, example_set.base_dir)
 
 
+MIXED_SIZES = 10.0
+"""Examples whose sizes differ by more than this factor get a note (:func:`size_note`)."""
+
+
+def size_note(example_set: ExampleSet, labels: list | None = None) -> str | None:
+    """One line when the largest example is over :data:`MIXED_SIZES` times the size (world
+    bounding-box diagonal) of the smallest: likely some exported in other units (cm and m),
+    which the program would learn as variation and sample at both scales. ``labels`` name
+    the examples (default ``examples[i]``). None otherwise."""
+    if len(example_set.examples) < 2:
+        return None
+    from ..geometry.part_library import world_bounds
+
+    sizes = []
+    for root in example_set.examples:
+        boxes = [world_bounds(example_set.parts[n.part], n.transform) for n in root.walk()]
+        sizes.append(float(np.linalg.norm(np.max([b[1] for b in boxes], axis=0) - np.min([b[0] for b in boxes], axis=0))))
+    small, large = int(np.argmin(sizes)), int(np.argmax(sizes))
+    if not sizes[small] > 0 or sizes[large] / sizes[small] <= MIXED_SIZES:
+        return None
+    labels = labels or [f"examples[{i}]" for i in range(len(sizes))]
+    return (f"the examples differ in size up to {sizes[large] / sizes[small]:.0f}x ({labels[large]} is "
+            f"{sizes[large]:.3g} across, {labels[small]} {sizes[small]:.3g}): if some were exported in other "
+            "units, scale them to match; the program learns sizes from all of them")
+
+
 def read_example_inputs(paths) -> tuple[ExampleSet, str]:
     """The example set of ``procmod learn``'s inputs, and a digest of what was read.
 
@@ -306,5 +332,5 @@ def example_parts(node: ExampleNode, parts: dict) -> list:
 
 
 __all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
-           "read_example_inputs", "centred_examples", "examples_from_assets", "example_set_digest",
+           "read_example_inputs", "centred_examples", "size_note", "examples_from_assets", "example_set_digest",
            "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]

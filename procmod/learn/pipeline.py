@@ -22,7 +22,7 @@ from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
-from .examples import ExampleSet, example_parts, read_example_inputs
+from .examples import ExampleSet, example_parts, read_example_inputs, size_note
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -87,9 +87,19 @@ tr:nth-child(even){{background:#f2f2f2}}</style></head><body>
 MAX_SHEET_SAMPLES = 1000  # samples drawn for the contact sheet (``procmod sample`` draws more)
 
 
+def _example_labels(inputs: list, count: int) -> list | None:
+    """The asset files the examples were read from (one example each, in reading order),
+    or None for a JSON examples file (its examples are named ``examples[i]``)."""
+    from ..geometry.assets import asset_files, is_asset_file
+    if not any(p.is_dir() or is_asset_file(p) for p in inputs):
+        return None
+    files = asset_files(inputs)
+    return [f.name for f in files] if len(files) == count else None
+
+
 def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | None = None,
           scheduler: str | None = None, seed: int = 0, options: SearchOptions | None = None,
-          samples: int = 10, progress=None, command: str = "", overwrite: bool = False) -> dict:
+          samples: int = 10, progress=None, command: str = "", overwrite: bool = False, note=None) -> dict:
     """Learn a program from an examples file and write the program folder ``out``.
 
     Parameters
@@ -108,6 +118,9 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
         Where the searches run (:func:`procmod.parallel.open_executor`).
     options : SearchOptions, optional
         Search constants (``particles`` and ``seed`` here override its fields).
+    note : callable, optional
+        Called with a line of advice about the examples before the search (examples of
+        very different sizes: :func:`procmod.learn.examples.size_note`).
 
     Returns
     -------
@@ -128,6 +141,9 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     options.check()
     if workers:  # refused before the folder is made
         check_worker_limit(workers)
+    advice = size_note(example_set, _example_labels(inputs, len(example_set.examples)))
+    if advice is not None and note is not None:
+        note(advice)
     folder.prepare_in_place(keep=True)
     with open_executor(workers, scheduler) as executor:
         result = run_search(example_set, options, executor, out / "checkpoint", digest, progress)
