@@ -281,3 +281,29 @@ def test_a_grid_of_identical_studs_is_one_translation_group_per_row():
     data = {"format": "procmod-examples/1", "parts": parts, "examples": [example(6, 8, 0.0), example(6, 8, 0.01)]}
     ds = preprocess(examples_from_dict(data))
     assert Counter(n.type for n in ds.nodes) == {"plate": 2, "trans(stud)": 12, "stud": 12}  # a stud per row
+
+
+def test_chains_kept_between_rounds_are_regrown_when_a_unit_their_growth_took_is_taken():
+    """A chain is kept from one round to the next only while every unit its growth took is
+    free, including one the backward growth found but the joined chain dropped: keeping it on
+    the chain's own units alone made the third row here a step along z (11, 18, 15) instead
+    of the step along x the search finds from scratch (19, 11, 13). Groups of 7058bab, before
+    the chains were kept."""
+    from procmod.learn.examples import ExampleNode
+    from procmod.learn.symmetry import _chains, box_corners, leaf_unit
+    from procmod.learn.transforms import WORLD_FRAME
+
+    places = [(-2.998, -3.009), (-1.69, 1.754), (-1.989, 8.991), (-2.998, 2.991), (-1.988, 1.522), (-1.988, 3.022),
+              (-1.989, 4.491), (-2.998, -1.509), (-2.998, 1.491), (-1.672, 3.022), (-1.989, 7.491), (-1.989, 1.491),
+              (-3.31, 1.491), (-1.69, 1.522), (-2.998, 4.491), (-1.988, 4.522), (-2.998, -0.009), (-1.989, 5.991),
+              (-1.989, 2.991), (-2.237, 1.491)]
+    nodes = []
+    for x, z in places:
+        m = np.eye(4)
+        m[0, 3], m[2, 3] = x, z
+        nodes.append(ExampleNode("cube", m, []))
+    index = {id(n): k for k, n in enumerate(nodes)}
+    corners = {"cube": box_corners([-0.5] * 3, [0.5] * 3)}
+    units = _chains([leaf_unit(n, corners) for n in nodes], WORLD_FRAME, SYMMETRY_TOLERANCE)
+    groups = [[index[id(m.node)] for m in u.members] for u in units if u.kind != "node"]
+    assert groups == [[0, 7, 16, 8, 3, 14], [4, 5, 6, 17, 10, 2], [19, 11, 13]]

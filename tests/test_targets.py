@@ -308,6 +308,10 @@ def test_a_16_bit_picture_is_scaled_by_the_white_its_file_declares(tmp_path):
     grey = grey_levels(pgm("thousand.pgm", 1000, np.where(ink, 100, 500)))
     assert grey[0, 0] == pytest.approx(127.5, abs=0.5) and grey[20, 20] == pytest.approx(25.5, abs=0.5)
     assert mask_from_image(pgm("mask.pgm", 1000, np.where(ink, 100, 900))).sum() == ink.sum()
+    # Pillow writes its own 32-bit "I" pictures as signed 32-bit TIFF: no declared white there
+    # (white taken as 2^32 - 1 emptied a sketch stored as 0 and 60000)
+    Image.fromarray(np.where(ink, 0, 60000).astype(np.int32)).save(tmp_path / "wide.tif")
+    assert mask_from_image(open_image(tmp_path / "wide.tif")).sum() == ink.sum()
 
 
 def test_a_photo_is_read_the_way_its_exif_orientation_shows_it(tmp_path):

@@ -395,8 +395,10 @@ def _extend(kind: str, g: np.ndarray, chain: list, units: list, free: set, tol: 
 
 
 def _grow(relation, i: int, j: int, units: list, free: set, tol: float, positions: _Positions):
-    """``(chain, g, kind)``: the chain through units ``i`` and ``j`` (related by
-    ``relation``, from :func:`relate`), grown forward from ``j`` and backward from ``i``."""
+    """``(chain, g, kind, taken)``: the chain through units ``i`` and ``j`` (related by
+    ``relation``, from :func:`relate`), grown forward from ``j`` and backward from ``i``;
+    ``taken``: every unit either growth took, the chain's and any the backward growth found
+    but the joined chain could not keep (the result depends on those being free too)."""
     kind, g, _ = relation
     forward, g = _extend(kind, g, [i, j], units, free, tol, positions)
     backward, _ = _extend(kind, np.linalg.inv(g), [i], units, free - set(forward[1:]), tol, positions)
@@ -407,7 +409,7 @@ def _grow(relation, i: int, j: int, units: list, free: set, tol: float, position
             chain = forward
         else:
             g = fitted[0]
-    return chain, g, kind
+    return chain, g, kind, frozenset(forward) | frozenset(backward)
 
 
 def _chains(units: list, frame: Frame, tol: float) -> list:
@@ -437,7 +439,7 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
                     continue
                 if (i, j) not in grown:
                     grown[(i, j)] = _grow(related[(i, j)], i, j, units, free, tol, positions)
-                chain, g, kind = grown[(i, j)]
+                chain, g, kind, _ = grown[(i, j)]
                 if best is None or len(chain) > len(best[0]):  # ties: the first found
                     best = (chain, g, kind)
         if best is None or len(best[0]) < MIN_CHAIN:
@@ -448,8 +450,8 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
         free -= set(chain)
         groups.append((chain, g, kind))
         # a chain grows through the first free unit that continues it at each step, so
-        # taking units away changes only the chains that held one of them
-        grown = {pair: value for pair, value in grown.items() if free.issuperset(value[0])}
+        # taking units away changes only the growths that took one of them
+        grown = {pair: value for pair, value in grown.items() if free.issuperset(value[3])}
     out = [units[k] for k in sorted(free)]
     for chain, g, kind in groups:
         members = [units[k] for k in chain]

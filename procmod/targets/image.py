@@ -257,16 +257,21 @@ says it (:func:`_white_level`); :func:`grey_levels` scales by it."""
 def _white_level(image: Image.Image) -> int | None:
     """The value of white in a 32-bit integer ("I") picture, from what its file declares:
     Pillow decodes 16-bit PGM/PPM (any maxval above 255, rescaled to 65535) and, in some
-    versions, 16-bit PNG to "I"; a TIFF states its bits per sample. Without it a dark 16-bit
-    picture (every value under 256) would pass for an 8-bit one and read bright."""
+    versions, 16-bit PNG to "I"; an unsigned TIFF of up to 16 bits states its bits per
+    sample (a 32-bit one's range is guessed from its values, as where nothing is declared).
+    Without it a dark 16-bit picture (every value under 256) would pass for an 8-bit one
+    and read bright."""
     if image.mode != "I":
         return None
     if image.format in ("PPM", "PNG"):
         return 65535
-    if image.format == "TIFF":
-        bits = getattr(image, "tag_v2", {}).get(258)
+    if image.format == "TIFF":  # unsigned integers of up to 16 bits only: Pillow writes its
+        # own "I" pictures as signed 32-bit TIFF, whatever range their values use
+        tags = getattr(image, "tag_v2", {})
+        bits, sample_format = tags.get(258), tags.get(339, 1)
         bits = bits[0] if isinstance(bits, tuple) and bits else bits
-        if isinstance(bits, int) and 8 < bits <= 32:
+        sample_format = sample_format[0] if isinstance(sample_format, tuple) and sample_format else sample_format
+        if isinstance(bits, int) and 8 < bits <= 16 and sample_format == 1:
             return 2 ** bits - 1
     return None
 
