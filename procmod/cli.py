@@ -330,6 +330,8 @@ def _cmd_infer(args) -> None:
         result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
     if result.best is None:
         raise InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
+    if note is not None:
+        result.notes.append(note)  # in the report too, beside the result it explains
     with folder.writing() as tmp:
         write_run(result, target, tmp, size, args.command_line)
     report = Path(args.out) / "report.html"

@@ -175,8 +175,12 @@ def test_examples_laid_out_side_by_side_are_learned_where_they_stand_over_the_or
         shift(example, (25.0 * i, 0.0, -8.0 * (i % 3)))
     (tmp_path / "parts").symlink_to(root / "parts")
     (tmp_path / "examples.json").write_text(json.dumps(laid_out))
-    original, _ = read_example_inputs([root / "examples.json"])
-    moved, _ = read_example_inputs([tmp_path / "examples.json"])
+    from procmod.core.io import fingerprint
+    original, digest = read_example_inputs([root / "examples.json"])
+    moved, moved_digest = read_example_inputs([tmp_path / "examples.json"])
+    # a checkpoint of the file from before examples were centred must not resume
+    assert digest == fingerprint((root / "examples.json").read_bytes())
+    assert moved_digest != fingerprint((tmp_path / "examples.json").read_bytes())
     assert len(moved.examples) == len(original.examples) == 10
     for a, b in zip(original.examples, moved.examples):
         assert [n.part for n in a.walk()] == [n.part for n in b.walk()]

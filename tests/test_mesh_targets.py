@@ -423,12 +423,27 @@ def test_a_target_in_other_units_or_elsewhere_gets_a_note_saying_how_to_place_it
         return placement_note(model, load_volume_target(_volume_file(tmp_path, mesh, **fields)),
                               np.random.default_rng(0))
 
-    assert "\"mesh_scale\": 0.01" in note("cm.obj", voxel_size=25)
+    def given(text, field):
+        at = text.index(f"\"{field}\": ") + len(field) + 4
+        return json.loads(text[at:text.index(" in the target file", at)].split(" and ")[0])
+
+    assert given(note("cm.obj", voxel_size=25), "mesh_scale") == 0.01
     assert note("cm.obj", mesh_scale=0.01) is None
+    # advice is the value to give, from what the file gives now
+    assert given(note("cm.obj", mesh_scale=10, voxel_size=250), "mesh_scale") == 0.01
     far = note("far.obj")
-    assert "\"mesh_offset\": [-500," in far
-    offset = json.loads(far[far.index("[", far.index("mesh_offset")):far.index("]", far.index("mesh_offset")) + 1])
-    assert note("far.obj", mesh_offset=offset) is None
+    offset = given(far, "mesh_offset")
+    assert offset[0] == pytest.approx(-500, abs=1) and note("far.obj", mesh_offset=offset) is None
+    halfway = note("far.obj", mesh_offset=[-250, 0, 0])
+    assert note("far.obj", mesh_offset=given(halfway, "mesh_offset")) is None
+    # .npy layers lie on the file's grid: the advice moves the grid, which the file can take
+    np.save(tmp_path / "ship.npy", load_volume_target(_volume_file(tmp_path, "far.obj")).combined > 0)
+    far_grid = load_volume_target(_volume_file(tmp_path, "far.obj")).grid
+    (tmp_path / "G.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "ship.npy"}],
+                                                 "grid": {"origin": list(far_grid.origin),
+                                                          "voxel_size": far_grid.size}}))
+    advice = placement_note(model, load_volume_target(tmp_path / "G.json"), np.random.default_rng(0))
+    assert "give grid.origin [" in advice and "mesh_offset" not in advice
     # the CLI prints it on stderr and still runs
     code = main(["infer", "spaceship", "--target", str(_volume_file(tmp_path, "cm.obj", voxel_size=25)),
                  "--engine", "smc", "--particles", "20", "--out", str(tmp_path / "run")])
@@ -439,3 +454,8 @@ def test_a_target_in_other_units_or_elsewhere_gets_a_note_saying_how_to_place_it
         {"mesh": "cm.obj", "camera": {"eye": [0, 300, 2000], "look_at": [0, 0, 0]}}]}))
     assert "views[0]: the shape to hit spans" in placement_note(model, load_target_file(tmp_path / "S.json"),
                                                                  np.random.default_rng(0))
+    # a camera looking away from the model: all of it behind the camera
+    (tmp_path / "B.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [
+        {"mesh": "far.obj", "camera": {"eye": [495, 0, 40], "look_at": [505, 0, 40]}}]}))
+    assert "behind the camera" in placement_note(model, load_target_file(tmp_path / "B.json"),
+                                                 np.random.default_rng(0))

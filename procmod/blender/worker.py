@@ -296,6 +296,8 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
     empty = target.new_output(target.configure(model))
     if option in kwargs:
         check_population(option, kwargs[option], empty)  # the panel's field, not a command-line flag
+    from ..targets.placement import placement_note
+    note = placement_note(model, target, np.random.default_rng(seed))
     stopped = []
 
     def report(tracker):
@@ -318,6 +320,8 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
     argv += ["--seed", str(seed), "--out", str(out)]
     if stopped:
         result.notes.append(f"stopped from Blender after {stopped[0]:,} evaluations")
+    if note is not None:
+        result.notes.append(note)
     progress(1.0, "writing the run folder", force=True)
     with run_folder.writing() as tmp:
         write_run(result, target, tmp, int(job.get("size", 512)), "procmod " + shlex.join(argv))
@@ -325,7 +329,8 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
             "run": str(out), "report": str(out / "report.html"), "score": result.best_score,
             "stopped": bool(stopped),
             "message": (f"{engine}: best score {result.best_score:.4f} after {result.evaluations} evaluations in "
-                        f"{result.seconds:.3g} s{' (stopped early)' if stopped else ''}; report: {out / 'report.html'}")}
+                        f"{result.seconds:.3g} s{' (stopped early)' if stopped else ''}; report: {out / 'report.html'}"
+                        + (f"; note: {note}" if note else ""))}
 
 
 def _name_objects(message: str, names: dict) -> str:
@@ -351,10 +356,11 @@ def cmd_learn(job: dict, folder: Path, progress: Progress) -> dict:
     def report(line: str) -> None:
         progress(None, line.strip())
 
+    notes = []
     try:
         learned = learn_program(folder / job["examples"], out, particles=int(job.get("particles", 2)),
                                 workers=int(job.get("workers", 1)), seed=seed, samples=max(count, 1),
-                                progress=report, command=job.get("command", ""))
+                                progress=report, command=job.get("command", ""), note=notes.append)
     except ProcmodError as exc:
         raise type(exc)(_name_objects(str(exc), names)) from None
     model = load_program(learned["program"])
@@ -363,7 +369,8 @@ def cmd_learn(job: dict, folder: Path, progress: Progress) -> dict:
     t = learned["table"]
     return {"samples": samples, "program": learned["program"], "report": learned["report"],
             "message": (f"learned {t['A_star']} abstractions from {job.get('n_examples', '')} examples in "
-                        f"{t['seconds']:.1f} s; program: {learned['program']}")}
+                        f"{t['seconds']:.1f} s; program: {learned['program']}"
+                        + "".join(f"; note: {_name_objects(n, names)}" for n in notes))}
 
 
 def one_line(message, limit: int = 600) -> str:

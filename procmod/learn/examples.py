@@ -254,8 +254,12 @@ def read_example_inputs(paths) -> tuple[ExampleSet, str]:
     except AssetError as exc:
         raise ExamplesError(str(exc)) from None
     if json_file is not None:
-        example_set = centred_examples(read_examples(json_file))
-        return example_set, fingerprint(json_file.read_bytes())
+        read = read_examples(json_file)
+        example_set = centred_examples(read)
+        moved = any(a is not b for a, b in zip(read.examples, example_set.examples))
+        # a checkpoint of a run from before examples were centred learned them where they
+        # stood: moved examples must not resume it
+        return example_set, fingerprint((b"centred\0" if moved else b"") + json_file.read_bytes())
     try:
         example_set = centred_examples(examples_from_assets(read_assets(asset_files(assets))))
     except AssetError as exc:

@@ -291,7 +291,7 @@ def _mesh_placement(spec: dict, where: str):
     offset = np.asarray(vector3(spec.get("mesh_offset", (0.0, 0.0, 0.0)), f"{where}: mesh_offset"))
     if not (1e-12 <= scale <= 1e12 and np.all(np.abs(offset) <= 1e12)):
         raise TargetFileError(f"{where}: mesh_scale must lie in 1e-12..1e12 and mesh_offset within +-1e12, got "
-                              f"{scale:g} and {_shown(list(offset))}")
+                              f"{scale:g} and {_shown(offset.tolist())}")
     return scale, offset
 
 
@@ -433,9 +433,10 @@ def load_volume_target(path: str | os.PathLike):
                 raise TargetFileError(f"{at}.file: the voxel grid is empty (no nonzero voxel)")
         layers.append((mask, w_fill, w_avoid))
     name = path.parent.name if path.name == "target.json" else path.stem
-    if score == "proxy":
-        return ProxyVolume(grid, layers[0][0], name=name)
-    return Volume(grid, layers, w_self, name=name)
+    target = ProxyVolume(grid, layers[0][0], name=name) if score == "proxy" else Volume(grid, layers, w_self, name=name)
+    # how the file places its shape, for advice when it misses the model (targets.placement)
+    target.placed_by = ("grid" if arrays else "meshes", *placement)
+    return target
 
 
 # --- silhouette targets --------------------------------------------------------------------
@@ -553,7 +554,9 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             raise TargetFileError(f"{at}: nothing to hit (no positive weight)")
         out.append((weights, camera))
     name = path.parent.name if path.name == "target.json" else path.stem
-    return Silhouette(out, name=name)
+    target = Silhouette(out, name=name)
+    target.placed_by = ("meshes", *placement)
+    return target
 
 
 def load_target_file(path: str | os.PathLike):

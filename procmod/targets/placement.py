@@ -13,6 +13,7 @@ block for a growing city) or lie beside the origin.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -27,12 +28,16 @@ SCALE_FACTOR = 10.0
 """Sizes differing by more than this factor either way are worth a note."""
 
 
-def model_box(model, rng: np.random.Generator, samples: int = SAMPLES):
-    """The median (over ``samples`` prior derivations with parts) of each corner
-    coordinate of their world bounding boxes, as ``(lo, hi)``, or None when no sample
-    drew a part. The median, not the union: one sample flung far must not stand for all."""
+def model_box(model, rng: np.random.Generator, samples: int = SAMPLES, seconds: float = 1.0):
+    """The median (over ``samples`` prior derivations with parts, or those drawn within
+    ``seconds``) of each corner coordinate of their world bounding boxes, as ``(lo, hi)``,
+    or None when no sample drew a part. The median, not the union: one sample flung far
+    must not stand for all."""
     boxes = []
+    start = time.perf_counter()
     for _ in range(samples):
+        if boxes and time.perf_counter() - start > seconds:
+            break
         extent = getattr(run_forward(model, rng).output, "extent", None)
         if extent is not None:
             boxes.append(extent)
@@ -65,6 +70,38 @@ def _shown(vector) -> str:
     return "(" + ", ".join(f"{v:.3g}" for v in vector) + ")"
 
 
+def _listed(vector) -> str:
+    return "[" + ", ".join(f"{v:.4g}" for v in vector) + "]"
+
+
+def _rescale_advice(target, factor: float) -> str:
+    """What to write in the target file to scale its shape by ``factor``, from what it holds
+    now (:attr:`placed_by`, set when the file was read)."""
+    placed = getattr(target, "placed_by", None)
+    if placed is None:  # built in Python: no file to edit
+        return f"scale the target by about {factor:g}"
+    kind, scale, offset = placed
+    if kind == "grid":  # .npy layers lie on the file's grid: scale the grid itself
+        grid = target.grid
+        return (f"give grid.voxel_size {grid.size * factor:.4g} and grid.origin "
+                f"{_listed(np.asarray(grid.origin) * factor)} in the target file")
+    advice = f"give \"mesh_scale\": {scale * factor:.4g}"
+    if np.any(offset):
+        advice += f" and \"mesh_offset\": {_listed(np.asarray(offset) * factor)}"
+    return advice + " in the target file"
+
+
+def _move_advice(target, delta) -> str:
+    """What to write in the target file to move its shape by ``delta``."""
+    placed = getattr(target, "placed_by", None)
+    if placed is None:
+        return f"move the target by about {_listed(delta)}"
+    kind, _, offset = placed
+    if kind == "grid":
+        return f"give grid.origin {_listed(np.asarray(target.grid.origin) + delta)} in the target file"
+    return f"give \"mesh_offset\": {_listed(np.asarray(offset) + delta)} in the target file"
+
+
 def _volume_note(target, lo, hi) -> str | None:
     box = _volume_box(target)
     if box is None:
@@ -79,13 +116,12 @@ def _volume_note(target, lo, hi) -> str | None:
     model = f"about {_shown(lo)} to {_shown(hi)}"
     if ratio > SCALE_FACTOR or ratio < 1 / SCALE_FACTOR:
         factor = 10 ** round(math.log10(1 / ratio))
-        return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if the mesh is in "
-                f"other units (Maya's default is centimetres), give \"mesh_scale\": {factor:g} in the target file")
+        return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
+                f"other units (Maya's default is centimetres), {_rescale_advice(target, factor)}")
     if np.any(t_lo > hi) or np.any(t_hi < lo):
-        centre = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
-        return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): give "
-                f"\"mesh_offset\": [{', '.join(f'{v:.3g}' for v in centre)}] in the target file to move the "
-                "meshes onto it")
+        delta = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
+        return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): "
+                f"to move it onto them, {_move_advice(target, delta)}")
     return None
 
 
@@ -96,7 +132,11 @@ def _silhouette_note(target, lo, hi) -> str | None:
         if not hit.size:
             continue
         projected = camera.project(corners)
-        if np.any(projected[:, 2] <= 0):
+        behind = projected[:, 2] <= 0
+        if behind.all():
+            return (f"views[{i}]: the model's samples (at its origin, about {_shown(lo)} to {_shown(hi)}) lie "
+                    "behind the camera: point the camera's look_at at the model")
+        if behind.any():
             continue  # the camera is inside the model's box: sizes on screen mean nothing
         p_lo, p_hi = projected[:, :2].min(axis=0), projected[:, :2].max(axis=0)
         t_lo, t_hi = hit.min(axis=0)[::-1], hit.max(axis=0)[::-1] + 1  # (x, y) pixels
