@@ -170,3 +170,23 @@ def test_pybullet_quadrupeds_read_as_examples_with_mirrored_legs():
     kinds = [n.type for n in d.nodes if n.kind != "part"]
     # left and right legs (hip with thigh and calf below) are mirror pairs on both robots
     assert kinds.count("refl(hip)") >= 1 and any(k.startswith("refl(") for k in kinds if "hip_motor" in k)
+
+
+def test_a_urdf_robot_stands_up_the_y_axis_like_a_gltf_example(tmp_path):
+    """URDF is z-up, procmod (and glTF) y-up: robots were learned lying on their side, and
+    a set mixing a URDF robot with a glTF one disagreed about which way is up."""
+    from procmod.geometry.part_library import world_bounds
+
+    body = '<geometry><box size="0.6 0.3 0.1"/></geometry>'  # long in x, wide in y, flat in z
+    leg = '<geometry><box size="0.05 0.05 0.4"/></geometry>'  # tall in z
+    (tmp_path / "robot.urdf").write_text(urdf(
+        {"body": [body], "leg_a": [leg], "leg_b": [leg]},
+        [("a", "body", "leg_a", (0.25, 0.1, -0.25), (0, 0, 0)), ("b", "body", "leg_b", (-0.25, 0.1, -0.25), (0, 0, 0))]))
+    examples, _ = read_example_inputs([tmp_path / "robot.urdf"])
+    robot = examples.examples[0]
+    boxes = [world_bounds(examples.parts[n.part], n.transform) for n in robot.walk()]
+    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    extent = hi - lo
+    assert np.allclose(extent, [0.6, 0.5, 0.3])  # height (0.05 + 0.45 leg reach) is now y
+    legs = [n for n in robot.walk() if n.part != robot.part]
+    assert all(n.transform[1][3] == pytest.approx(-0.25) for n in legs)  # the legs hang down y

@@ -110,6 +110,12 @@ class AssetSet:
     tolerance: float = GEOMETRY_TOLERANCE
 
 
+# glTF is y-up (its specification), URDF z-up (ROS's REP 103): +90 degrees about x takes
+# a y-up frame to a z-up one (y -> z, z -> -y); its transpose goes back. procmod's models
+# and `learn` are y-up, `strings` z-up: each turns the files it reads.
+Y_UP_TO_Z_UP = np.array([[1.0, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]])
+
+
 # ---- which files ------------------------------------------------------------------------------
 
 def is_asset_file(path: str | os.PathLike) -> bool:
@@ -809,5 +815,5 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
     return AssetSet(parts, assets, tolerance)
 
 
-__all__ = ["ASSET_SUFFIXES", "Asset", "AssetError", "AssetNode", "AssetSet", "GEOMETRY_TOLERANCE", "MAX_FACES",
+__all__ = ["Y_UP_TO_Z_UP", "ASSET_SUFFIXES", "Asset", "AssetError", "AssetNode", "AssetSet", "GEOMETRY_TOLERANCE", "MAX_FACES",
            "MAX_NODES", "asset_files", "is_asset_file", "read_assets"]

@@ -151,10 +151,10 @@ def read_examples(path: str | os.PathLike) -> ExampleSet:
     return examples_from_dict(read_json(path, ExamplesError, "examples file"), path.parent, str(path))
 
 
-def _asset_node(node, path: Path, depth: int) -> ExampleNode:
+def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
     if depth > MAX_DEPTH:
         raise ExamplesError(f"{path}: hierarchy deeper than {MAX_DEPTH} levels")
-    m = node.transform
+    m = up @ np.asarray(node.transform, dtype=np.float64)
     where = f"{path}: node {node.name!r}"
     linear = m[:3, :3]
     scale = max(float(np.abs(linear).max()), 1e-300)
@@ -166,12 +166,15 @@ def _asset_node(node, path: Path, depth: int) -> ExampleNode:
                             "or under a rotated parent); procmod learn models rotation, scale and translation only: apply the "
                             "scale in the modelling tool (Blender: Object > Apply > Scale) and export again")
     return ExampleNode(node.part, np.array(m, dtype=np.float64),
-                       [_asset_node(c, path, depth + 1) for c in node.children])
+                       [_asset_node(c, path, depth + 1, up) for c in node.children])
 
 
 def examples_from_assets(asset_set) -> ExampleSet:
+
     """An example set from asset files read by :func:`procmod.geometry.assets.read_assets`:
-    its part library, and one example per file (the file's single top-level part).
+    its part library, and one example per file (the file's single top-level part). A URDF
+    robot (z-up) is turned up the y axis, procmod's up and glTF's, so robots stand upright
+    in contact sheets and in Blender, and agree with glTF examples in one set.
 
     Raises
     ------
@@ -179,13 +182,16 @@ def examples_from_assets(asset_set) -> ExampleSet:
         For a file with no or several top-level parts, or a transform the learner cannot
         model (singular, or shearing).
     """
+    from ..geometry.assets import Y_UP_TO_Z_UP
+
     examples = []
     for asset in asset_set.assets:
         if len(asset.roots) != 1:
             names = ", ".join(repr(r.name) for r in asset.roots[:5])
             raise ExamplesError(f"{asset.path}: {len(asset.roots)} top-level parts ({names}{', ...' if len(asset.roots) > 5 else ''}); "
                                 "an example is one hierarchy: parent them under one part (the body)")
-        examples.append(_asset_node(asset.roots[0], asset.path, 0))
+        up = Y_UP_TO_Z_UP.T if asset.path.suffix.lower() == ".urdf" else np.eye(4)
+        examples.append(_asset_node(asset.roots[0], asset.path, 0, up))
     base = asset_set.assets[0].path.parent if asset_set.assets else Path(".")
     return ExampleSet(dict(asset_set.parts), examples, base)
 

@@ -33,13 +33,11 @@ import re
 
 import numpy as np
 
-from ..geometry.assets import (GEOMETRY_TOLERANCE, AssetError, asset_files, json_or_assets, read_assets,
-                               unused_name)
+from ..geometry.assets import (GEOMETRY_TOLERANCE, Y_UP_TO_Z_UP, AssetError, asset_files, json_or_assets,
+                               read_assets, unused_name)
 from ..geometry.part_library import PartShape
 from .shapes import Shape, ShapeSet, ShapesFormatError, read_shapes, type_letters
 
-# glTF y-up to procmod's z-up: +90 degrees about x (y -> z, z -> -y)
-Y_UP_TO_Z_UP = np.array([[1.0, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]])
 SCALE_TOLERANCE = 1e-5  # two placements' scales agree within this fraction of the larger
 
 
