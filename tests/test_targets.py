@@ -334,3 +334,102 @@ def test_a_photo_is_read_the_way_its_exif_orientation_shows_it(tmp_path):
     at = data.index(b"\x01\x0f\x00\x02")
     (tmp_path / "odd.jpg").write_bytes(data[:at] + b"\x01\x17" + data[at + 2:])
     assert open_image(tmp_path / "odd.jpg").size == (40, 60)
+
+
+def _vine_ink(size=120):
+    ink = np.zeros((size, size), dtype=bool)
+    ink[20:110, 58:64] = True  # a trunk
+    ink[40:46, 30:90] = True  # a branch
+    return ink
+
+
+@pytest.mark.parametrize("case", ["pencil", "yellow", "light_blue", "underexposed", "vignette", "ruled_paper",
+                                  "page_with_transparent_margin", "faint_layer"])
+def test_what_a_person_sees_drawn_is_the_mask(tmp_path, case):
+    """A fixed grey threshold of 128 lost pencil, pale and yellow ink and dim photos (empty
+    mask); a picture with any transparency took its opaque part for the shape even when that
+    was the page. Each picture here holds the same drawing; the mask must be it."""
+    from procmod.targets.image import mask_from_image
+
+    ink = _vine_ink()
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:120, 0:120]
+    rgb = np.full((120, 120, 3), 245.0)
+    if case == "pencil":
+        rgb[ink] = 150
+    elif case == "yellow":
+        rgb[:] = 255
+        rgb[ink] = (250, 220, 0)
+    elif case == "light_blue":
+        rgb[:] = 255
+        rgb[ink] = (80, 170, 255)
+    elif case == "underexposed":  # a dim phone photo with sensor noise
+        rgb[:] = 115
+        rgb[ink] = 30
+        rgb += rng.normal(0, 4, rgb.shape)
+    elif case == "vignette":  # corners darker than the paper's middle, ink darker still
+        rgb *= (1 - 0.45 * (((xx - 60) ** 2 + (yy - 60) ** 2) / 7200.0))[:, :, None]
+        rgb[ink] = 20
+    elif case == "ruled_paper":  # pale blue ruling under dark ink
+        rgb[::12] = (150, 190, 235)
+        rgb[ink] = (20, 30, 80)
+    picture = Image.fromarray(np.clip(rgb, 0, 255).astype(np.uint8))
+    if case == "page_with_transparent_margin":  # a window screenshot: page opaque, shadow margin clear
+        rgba = np.zeros((120, 120, 4), dtype=np.uint8)
+        rgba[4:116, 4:116] = (255, 255, 255, 255)
+        rgba[ink] = (0, 0, 0, 255)
+        picture = Image.fromarray(rgba)
+    elif case == "faint_layer":  # a drawing layer at 40% opacity, nothing else
+        rgba = np.zeros((120, 120, 4), dtype=np.uint8)
+        rgba[ink] = (0, 0, 0, 102)
+        picture = Image.fromarray(rgba)
+    assert np.array_equal(mask_from_image(picture), ink)
+
+
+def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
+    """A sidecar with only "direction" put the start at a fixed default (in empty space);
+    a typo ("strat") was ignored; a run's best.json beside its best.png (a run used as a
+    target) was read as a sidecar."""
+    from procmod.targets.image import TargetFileError, load_target_image
+
+    ink = _vine_ink()
+    picture = Image.fromarray(np.where(ink, 0, 255).astype(np.uint8))
+    picture.save(tmp_path / "vine.png")
+    automatic = load_target_image(tmp_path / "vine.png")
+    (tmp_path / "vine.json").write_text(json.dumps({"direction": [1, 0]}))
+    given = load_target_image(tmp_path / "vine.png")
+    assert given.start == automatic.start and given.direction == (1.0, 0.0)
+    (tmp_path / "vine.json").write_text(json.dumps({"strat": [0.2, 0.9]}))
+    with pytest.raises(TargetFileError, match="unknown key 'strat'"):
+        load_target_image(tmp_path / "vine.png")
+    (tmp_path / "vine.json").write_text(json.dumps({"format": "procmod-derivation/1", "params": {}}))
+    passed_over = load_target_image(tmp_path / "vine.png")
+    assert (passed_over.start, passed_over.direction) == (automatic.start, automatic.direction)
+    # a multi-page file whose first page is blank: the message says which page was read
+    Image.new("L", (120, 120), 255).save(tmp_path / "pages.gif", save_all=True, append_images=[picture])
+    with pytest.raises(TargetFileError, match="holds 2 frames or pages; procmod reads the first"):
+        load_target_image(tmp_path / "pages.gif")
+
+
+def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_path):
+    """A drawing on paper inside a dark frame (a scanner bed's edge) ran with the paper as
+    the shape; fine-pen strokes beside a marker vanished at the 50x50 canvas. Neither said
+    so; now a note does (and a clean drawing gets none)."""
+    from procmod.cli import _model
+    from procmod.data import target_from_spec
+    from procmod.targets.placement import picture_note
+
+    ink = _vine_ink(400)
+    framed = np.where(ink, 0, 240).astype(np.uint8)
+    framed[:, :30] = framed[:, -30:] = framed[:30] = framed[-30:] = 10
+    Image.fromarray(framed).save(tmp_path / "framed.png")
+    pens = np.full((400, 400), 255, dtype=np.uint8)
+    pens[60:380, 188:212] = 0  # a marker trunk
+    for row in range(80, 300, 20):
+        pens[row:row + 2, 40:180] = 0  # hairline branches
+    Image.fromarray(pens).save(tmp_path / "pens.png")
+    Image.fromarray(np.where(ink, 0, 255).astype(np.uint8)).save(tmp_path / "clean.png")
+    model = _model("vines")
+    assert "covers" in picture_note(target_from_spec(str(tmp_path / "framed.png")), model)
+    assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
+    assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None

@@ -246,7 +246,13 @@ def _as_shown(image: Image.Image) -> Image.Image:
     white = _white_level(image)
     if white is not None:
         out.info[WHITE_LEVEL] = white
+    out.info[FRAMES] = int(getattr(image, "n_frames", 1) or 1)
     return out
+
+
+FRAMES = "procmod_frames"
+"""The key in a decoded picture's ``info`` of how many frames or pages its file holds
+(an animated GIF, a multi-page TIFF): procmod reads the first."""
 
 
 WHITE_LEVEL = "procmod_white_level"
@@ -302,23 +308,87 @@ def grey_levels(image: Image.Image) -> np.ndarray:
     return np.clip(np.nan_to_num(values, nan=0.0) * scale, 0.0, 255.0)
 
 
-def mask_from_image(image: Image.Image) -> np.ndarray:
-    """Binary mask of a picture: foreground = pixels unlike the border.
+INK_PERCENTILE = 0.1
+"""The ink's colour is read at this percentile from the far end of all pixels' (robust to a
+few stray pixels; a shape of fewer pixels than this share is read from its own extreme)."""
 
-    With transparency, foreground is the opaque part. Otherwise the mean brightness of
-    the border decides the convention: dark ink on a light ground or light on dark.
-    Non-square pictures are padded with background to a square, centred, because the
-    built-in models' viewport is square.
+MIN_CONTRAST = 24.0
+"""Grey levels (of 255) ink must differ from the paper by for a picture to hold a shape:
+below it the differences are paper texture, sensor noise or JPEG artefacts."""
+
+_LUMA = np.array([0.299, 0.587, 0.114])  # ITU-R 601, as Pillow's convert("L")
+
+
+def _colours(image: Image.Image) -> np.ndarray:
+    """The picture as floats 0..255, ``(height, width, channels)``: one channel for grey
+    pictures (of any bit depth, :func:`grey_levels`), three for everything else."""
+    if image.mode in ("1", "L", "I", "F") or image.mode.startswith("I;16"):
+        return grey_levels(image)[:, :, None]
+    return np.asarray(image.convert("RGB"), dtype=np.float64)
+
+
+def _beyond_half(values: np.ndarray, paper: float, seen: np.ndarray) -> np.ndarray | None:
+    """Pixels past half way from ``paper`` to the far end of ``seen`` (the values looked
+    at), on the side of the paper where that far end lies: ink darker than the paper, or
+    lighter. None when the far end is within :data:`MIN_CONTRAST` of the paper."""
+    dark = paper - float(np.percentile(seen, INK_PERCENTILE))
+    light = float(np.percentile(seen, 100 - INK_PERCENTILE)) - paper
+    if max(dark, light) < MIN_CONTRAST:
+        return None
+    if dark >= light:
+        return values < paper - 0.5 * dark
+    return values > paper + 0.5 * light
+
+
+def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+    """Pixels that differ from the ``paper`` colour as the picture's ink does.
+
+    By brightness first: half way from the paper to the picture's darkest (or, for light
+    ink on dark paper, lightest) pixels (:func:`_beyond_half`), so that pencil, pale ink
+    and dim photos read as well as black on white, while the lighter-than-paper middle of a
+    vignetted photo or a notebook's pale ruling does not. Where brightness barely differs
+    (yellow on white) by colour: the largest channel difference from the paper, past half
+    its far end. ``where`` limits the pixels looked at (the rest are not ink)."""
+    where = np.ones(colours.shape[:2], dtype=bool) if where is None else where
+    nothing = np.zeros(colours.shape[:2], dtype=bool)
+    if not where.any():
+        return nothing
+    luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA
+    paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
+    ink = _beyond_half(luma, paper_luma, luma[where])
+    if ink is None and colours.shape[2] > 1:
+        distance = np.abs(colours - paper).max(axis=2)
+        ink = _beyond_half(distance, 0.0, distance[where])
+    return nothing if ink is None else ink & where
+
+
+def mask_from_image(image: Image.Image) -> np.ndarray:
+    """Binary mask of a picture: foreground = pixels unlike the paper.
+
+    The paper is the median colour of the picture's border; a pixel is foreground when its
+    colour is nearer the far end of the picture's colours than the paper (:func:`_ink`):
+    dark ink on light paper or light on dark, pencil grey or a pale colour on white, a
+    dim photo. (A fixed grey threshold of 128 lost pencil, yellow and light-blue ink and
+    underexposed photos.) With transparency the opaque part is the shape, unless it covers
+    most of the picture (a page or a window with a transparent margin): then the shape is
+    drawn on it, read as above with the opaque part's median colour as the paper. Non-square
+    pictures are padded with background to a square, centred, because the built-in models'
+    viewport is square.
     """
     alpha = None
     if image.mode in ("RGBA", "LA", "PA") or "transparency" in image.info:
-        alpha = np.asarray(image.convert("RGBA"))[:, :, 3]
-    if alpha is not None and (alpha < 128).any():  # real transparency: the opaque part
-        mask = alpha >= 128
+        alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
+    colours = _colours(image)
+    if alpha is not None and alpha.min() < 0.5 * alpha.max():  # real transparency
+        opaque = alpha >= 0.5 * alpha.max()  # a layer at partial opacity is opaque where it is most
+        if opaque.mean() <= 0.5:
+            mask = opaque
+        else:
+            rgb = np.asarray(image.convert("RGB"), dtype=np.float64)
+            mask = _ink(rgb, np.median(rgb[opaque], axis=0), where=opaque)
     else:
-        grey = grey_levels(image)
-        border = np.concatenate([grey[0], grey[-1], grey[:, 0], grey[:, -1]])
-        mask = grey < 128 if border.mean() >= 128 else grey >= 128
+        border = np.concatenate([colours[0], colours[-1], colours[:, 0], colours[:, -1]])
+        mask = _ink(colours, np.median(border, axis=0))
     h, w = mask.shape
     side = max(h, w)
     square = np.zeros((side, side), dtype=bool)
@@ -327,7 +397,16 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     return square
 
 
-def _read_sidecar(path: Path, shape_padding) -> tuple | None:
+SIDECAR_KEYS = ("start", "direction")
+
+
+def _read_sidecar(path: Path, shape_padding) -> dict | None:
+    """The placement a picture's sidecar ``NAME.json`` gives, as ``{"start": (x, y),
+    "direction": (dx, dy)}`` with either key absent when the file leaves it out (the
+    picture then decides it); None without a sidecar. A JSON file with a ``"format"`` is
+    not a sidecar but one of procmod's own files (``best.json`` beside ``best.png``, a run
+    used as a target) and is passed over; any other key is refused (a typo would otherwise
+    be ignored)."""
     sidecar = path.with_suffix(".json")
     if not sidecar.exists():
         return None
@@ -335,22 +414,29 @@ def _read_sidecar(path: Path, shape_padding) -> tuple | None:
     if not isinstance(data, dict):
         raise TargetFileError(f"{sidecar}: expected an object like "
                               '{"start": [0.5, 0.9166], "direction": [0, -1]}')
-    start = data.get("start", (0.5, 0.9166))
-    direction = data.get("direction", (0.0, -1.0))
-    for key, value in (("start", start), ("direction", direction)):
+    if "format" in data:
+        return None
+    unknown = sorted(set(data) - set(SIDECAR_KEYS))
+    if unknown:
+        raise TargetFileError(f"{sidecar}: unknown key {_cut(repr(unknown[0]), 40)}; a sidecar gives \"start\" "
+                              "and/or \"direction\" (normalised image coordinates, y down)")
+    placement = {}
+    for key, value in data.items():
         if (not isinstance(value, (list, tuple)) or len(value) != 2
                 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)):
             raise TargetFileError(f"{sidecar}: {key!r} must be two finite numbers, got {_cut(repr(value), 60)}")
-    if not all(0.0 <= v <= 1.0 for v in start):
-        raise TargetFileError(f"{sidecar}: 'start' is in normalised image coordinates and must lie in [0, 1]")
-    if direction[0] == 0 and direction[1] == 0:
+        placement[key] = (float(value[0]), float(value[1]))
+    if "start" in placement:
+        if not all(0.0 <= v <= 1.0 for v in placement["start"]):
+            raise TargetFileError(f"{sidecar}: 'start' is in normalised image coordinates and must lie in [0, 1]")
+        # The sidecar refers to the original picture; map it into the padded square.
+        (h, w) = shape_padding
+        side = max(h, w)
+        x, y = placement["start"]
+        placement["start"] = ((x * w + (side - w) // 2) / side, (y * h + (side - h) // 2) / side)
+    if placement.get("direction") == (0.0, 0.0):
         raise TargetFileError(f"{sidecar}: 'direction' must be a non-zero vector")
-    # The sidecar refers to the original picture; map it into the padded square.
-    (h, w) = shape_padding
-    side = max(h, w)
-    sx = (start[0] * w + (side - w) // 2) / side
-    sy = (start[1] * h + (side - h) // 2) / side
-    return (sx, sy), (float(direction[0]), float(direction[1]))
+    return placement
 
 
 def load_target_image(path: str | os.PathLike) -> TargetImage:
@@ -364,10 +450,19 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         raise TargetFileError(f"target file {_cut(str(path))} does not exist") from None
     image = open_image(path, square=True)
     shape = (image.height, image.width)
-    mask = check_mask(mask_from_image(image), _cut(str(path)))
-    placement = _read_sidecar(path, shape)
-    start, direction = placement if placement else lowest_point_start(mask)
-    return TargetImage(path.name, mask, tuple(start), tuple(direction))
+    frames = image.info.get(FRAMES, 1)
+    try:
+        mask = check_mask(mask_from_image(image), _cut(str(path)))
+    except TargetFileError as exc:
+        if frames > 1:  # say which frame was read: the drawing may be on another
+            raise TargetFileError(f"{exc} (the file holds {frames} frames or pages; procmod reads the first: "
+                                  "save the one with the drawing on its own)") from None
+        raise
+    placement = _read_sidecar(path, shape) or {}
+    if len(placement) < len(SIDECAR_KEYS):  # what the sidecar leaves out, the picture decides
+        start, direction = lowest_point_start(mask)
+        placement = {"start": start, "direction": direction, **placement}
+    return TargetImage(path.name, mask, tuple(placement["start"]), tuple(placement["direction"]))
 
 
 def place_model(model, image: TargetImage):

@@ -8,6 +8,11 @@ compares where the model's prior samples lie with where the target asks for shap
 says, in one line, what is off and how to put it right. It is advice (the caller prints
 it), not a refusal: a target may deliberately be much larger than one sample (a city
 block for a growing city) or lie beside the origin.
+
+For a picture (a 2D shape target) the same function says when what procmod read is
+probably not what the user drew: a mask covering most of the picture (a dark frame, a
+table or the paper itself taken for the shape), or strokes too thin to survive the
+model's canvas.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import time
 import numpy as np
 
 from ..core.runtime import run_forward
+from .shape import ShapeMatch
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -154,10 +160,44 @@ def _silhouette_note(target, lo, hi) -> str | None:
     return None
 
 
+MOST_OF_THE_PICTURE = 0.5
+"""A shape read as covering more than this share of its picture gets a note."""
+
+VANISHED = 0.25
+"""A note when more than this share of a picture's shape is lost at the model's canvas."""
+
+
+def picture_note(target: ShapeMatch, model) -> str | None:
+    """One line when a picture target's mask is probably not the drawing (see the module
+    docstring), else None."""
+    mask = target.image.mask
+    fill = float(mask.mean())
+    if fill > MOST_OF_THE_PICTURE:
+        return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
+                "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
+                "a shape trimmed to its own edges needs some paper around it")
+    canvas = model.new_output()
+    width, height = getattr(canvas, "width", None), getattr(canvas, "height", None)
+    if not width or not height or mask.shape == (height, width):
+        return None
+    from PIL import Image
+    small = target.image.at_size(width, height)
+    back = np.asarray(Image.fromarray(small.astype(np.uint8) * 255).resize(mask.shape[::-1], Image.NEAREST)) > 0
+    lost = float((mask & ~back).sum()) / max(int(mask.sum()), 1)
+    if lost > VANISHED:
+        return (f"{lost:.0%} of the shape read from {target.name} (thin strokes) vanishes at the model's "
+                f"{width}x{height} canvas, which scores against what is left: draw those strokes thicker, "
+                "or crop the picture closer to the shape")
+    return None
+
+
 def placement_note(model, target, rng: np.random.Generator, samples: int = SAMPLES) -> str | None:
     """One line of advice when the 3D ``target`` and ``model``'s prior samples differ in
     size by more than :data:`SCALE_FACTOR` or do not meet at all; None when they do meet,
-    or for targets this does not apply to (2D, style scores)."""
+    or for targets this does not apply to (style scores). A picture target gets
+    :func:`picture_note`'s advice."""
+    if isinstance(target, ShapeMatch):
+        return picture_note(target, model)
     if not isinstance(target, (Volume, ProxyVolume, Silhouette)):
         return None
     box = model_box(model, rng, samples)
