@@ -433,3 +433,24 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     assert "covers" in picture_note(target_from_spec(str(tmp_path / "framed.png")), model)
     assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
+
+
+def test_a_target_built_from_python_is_checked_like_a_file():
+    """ShapeMatch("pic.png") raised AttributeError; a grey picture passed as the mask was
+    read with its paper as the shape; a start outside the picture was taken."""
+    from procmod.core import InvalidArgumentError, ProcmodError
+    from procmod.targets import ShapeMatch, TargetImage
+
+    ink = _vine_ink()
+    with pytest.raises(InvalidArgumentError, match="ShapeMatch takes a TargetImage, got str"):
+        ShapeMatch("pic.png")
+    with pytest.raises(InvalidArgumentError, match="the mask must be a boolean array"):
+        TargetImage("grey", np.where(ink, 0, 255).astype(np.uint8))
+    with pytest.raises(InvalidArgumentError, match=r"start must be two finite numbers in \[0, 1\]"):
+        TargetImage("far", ink, start=(3.0, -2.0))
+    with pytest.raises(InvalidArgumentError, match="direction must be a non-zero vector"):
+        TargetImage("still", ink, direction=(0, 0))
+    with pytest.raises(ProcmodError, match="mask is empty"):
+        TargetImage("blank", np.zeros((50, 50), dtype=bool))
+    good = TargetImage("ok", ink, start=[0.5, 0.9], direction=[0, -1])
+    assert good.start == (0.5, 0.9) and good.mirrored().start == (0.5, 0.9)

@@ -96,6 +96,29 @@ class TargetImage:
     start: tuple = (0.5, 0.9166)
     direction: tuple = (0.0, -1.0)
 
+    def __post_init__(self):
+        # built from Python as well as read from files: the checks a sidecar and a picture
+        # get (a grey picture passed as the mask is refused, not read with its paper as shape)
+        mask = np.asarray(self.mask)
+        if mask.dtype != bool:
+            raise InvalidArgumentError(
+                f"TargetImage {_cut(str(self.name), 60)}: the mask must be a boolean array (True = shape), got "
+                f"{mask.dtype}; for a picture use procmod.targets.load_target_image(path) or mask_from_image(image)")
+        object.__setattr__(self, "mask", check_mask(mask, f"TargetImage {_cut(str(self.name), 60)}"))
+        for key, low, high in (("start", 0.0, 1.0), ("direction", -math.inf, math.inf)):
+            value = getattr(self, key)
+            try:
+                pair = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                pair = ()
+            if len(pair) != 2 or not all(math.isfinite(v) and low <= v <= high for v in pair):
+                raise InvalidArgumentError(f"TargetImage {_cut(str(self.name), 60)}: {key} must be two finite numbers"
+                                           + (" in [0, 1] (normalised image coordinates)" if key == "start" else "")
+                                           + f", got {_cut(repr(value), 60)}")
+            object.__setattr__(self, key, pair)
+        if self.direction == (0.0, 0.0):
+            raise InvalidArgumentError(f"TargetImage {_cut(str(self.name), 60)}: direction must be a non-zero vector")
+
     def mirrored(self) -> "TargetImage":
         """The horizontally mirrored target (start and direction mirrored too)."""
         return replace(self, name=f"{self.name}:mirrored", mask=self.mask[:, ::-1].copy(),

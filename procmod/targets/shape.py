@@ -88,6 +88,10 @@ class ShapeMatch:
 
     def __init__(self, image: TargetImage, w_filled: float = 0.6, sigma: float = 0.02,
                  weighting: str = "sobel", oob_sigma: float | None = 0.001, likelihood: str = "original"):
+        if not isinstance(image, TargetImage):
+            raise InvalidArgumentError(
+                f"ShapeMatch takes a TargetImage, got {type(image).__name__}: for a picture file use "
+                "ShapeMatch(procmod.targets.load_target_image(path)), or procmod.data.target_from_spec(spec)")
         if not sigma > 0:
             raise InvalidArgumentError(f"sigma must be positive, got {sigma!r}")
         if likelihood not in LIKELIHOODS:
