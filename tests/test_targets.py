@@ -344,7 +344,7 @@ def _vine_ink(size=120):
 
 
 @pytest.mark.parametrize("case", ["pencil", "yellow", "light_blue", "underexposed", "vignette", "ruled_paper",
-                                  "page_with_transparent_margin", "faint_layer"])
+                                  "side_lit", "page_with_transparent_margin", "faint_layer"])
 def test_what_a_person_sees_drawn_is_the_mask(tmp_path, case):
     """A fixed grey threshold of 128 lost pencil, pale and yellow ink and dim photos (empty
     mask); a picture with any transparency took its opaque part for the shape even when that
@@ -373,6 +373,9 @@ def test_what_a_person_sees_drawn_is_the_mask(tmp_path, case):
     elif case == "ruled_paper":  # pale blue ruling under dark ink
         rgb[::12] = (150, 190, 235)
         rgb[ink] = (20, 30, 80)
+    elif case == "side_lit":  # a photo lit from one side: the paper falls from 240 to 95
+        rgb[:] = (240 - 145 * (xx + yy) / 238.0)[:, :, None]
+        rgb[ink] = 20
     picture = Image.fromarray(np.clip(rgb, 0, 255).astype(np.uint8))
     if case == "page_with_transparent_margin":  # a window screenshot: page opaque, shadow margin clear
         rgba = np.zeros((120, 120, 4), dtype=np.uint8)
@@ -454,3 +457,16 @@ def test_a_target_built_from_python_is_checked_like_a_file():
         TargetImage("blank", np.zeros((50, 50), dtype=bool))
     good = TargetImage("ok", ink, start=[0.5, 0.9], direction=[0, -1])
     assert good.start == (0.5, 0.9) and good.mirrored().start == (0.5, 0.9)
+
+
+def test_a_filled_silhouette_on_the_bottom_edge_is_not_taken_for_uneven_light():
+    """The paper's fall-off is a plane fitted to the border; a skyline standing on the
+    bottom edge fits a plane through the top and bottom rows just as well, and must not
+    be read as light (it lost two thirds of the silhouette)."""
+    from procmod.targets.image import mask_from_image
+
+    sky = np.zeros((200, 400), dtype=bool)
+    for left, top in ((0, 120), (60, 70), (130, 140), (190, 40), (260, 110), (330, 90)):
+        sky[top:, left:left + 70] = True
+    picture = Image.fromarray(np.where(sky, 0, 255).astype(np.uint8))
+    assert np.array_equal(mask_from_image(picture)[100:300], sky)

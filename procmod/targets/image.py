@@ -363,7 +363,37 @@ def _beyond_half(values: np.ndarray, paper: float, seen: np.ndarray) -> np.ndarr
     return values > paper + 0.5 * light
 
 
-def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+def _lighting(luma: np.ndarray) -> np.ndarray | None:
+    """The paper's brightness across the picture when it falls off evenly (a photo lit from
+    one side): a plane fitted to the border's brightness, outliers (ink reaching the
+    border) dropped. None -- the paper is one brightness -- unless the plane fits the paper
+    it kept closely (its pixels within a few grey levels), kept three quarters of each
+    side of the border, and changes by more than :data:`MIN_CONTRAST` over the picture; a
+    shape trimmed to its edges, a vignette or an even page all give None."""
+    h, w = luma.shape
+    if h < 8 or w < 8:
+        return None
+    rows = np.concatenate([np.zeros(w), np.full(w, h - 1), np.arange(h), np.arange(h)])
+    cols = np.concatenate([np.arange(w), np.arange(w), np.zeros(h), np.full(h, w - 1)])
+    values = luma[rows.astype(int), cols.astype(int)]
+    design = np.column_stack([np.ones_like(rows), cols / w, rows / h])
+    keep = np.ones(len(values), dtype=bool)
+    for _ in range(4):
+        coef = np.linalg.lstsq(design[keep], values[keep], rcond=None)[0]
+        residual = values - design @ coef
+        spread = 1.4826 * float(np.median(np.abs(residual[keep])))
+        keep = np.abs(residual) <= max(3 * spread, 4.0)
+    sides = np.split(keep, [w, 2 * w, 2 * w + h])  # top, bottom, left, right
+    # every side mostly paper the plane explains: a shape reaching one side (a skyline on
+    # the bottom edge) is not a fall of light, though a plane can run through it and the top
+    if min(side.mean() for side in sides) < 0.75 or spread > 4.0 or (abs(coef[1]) + abs(coef[2])) < MIN_CONTRAST:
+        return None
+    yy, xx = np.mgrid[0:h, 0:w]
+    return coef[0] + coef[1] * xx / w + coef[2] * yy / h
+
+
+def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None,
+         lighting: bool = False) -> np.ndarray:
     """Pixels that differ from the ``paper`` colour as the picture's ink does.
 
     By brightness first: half way from the paper to the picture's darkest (or, for light
@@ -371,13 +401,18 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     and dim photos read as well as black on white, while the lighter-than-paper middle of a
     vignetted photo or a notebook's pale ruling does not. Where brightness barely differs
     (yellow on white) by colour: the largest channel difference from the paper, past half
-    its far end. ``where`` limits the pixels looked at (the rest are not ink)."""
+    its far end. ``where`` limits the pixels looked at (the rest are not ink). With
+    ``lighting``, brightness is measured from the paper's own where it falls off evenly
+    across the picture (:func:`_lighting`)."""
     where = np.ones(colours.shape[:2], dtype=bool) if where is None else where
     nothing = np.zeros(colours.shape[:2], dtype=bool)
     if not where.any():
         return nothing
     luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA
     paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
+    plane = _lighting(luma) if lighting else None
+    if plane is not None:
+        luma, paper_luma = luma - plane, 0.0
     ink = _beyond_half(luma, paper_luma, luma[where])
     if ink is None and colours.shape[2] > 1:
         distance = np.abs(colours - paper).max(axis=2)
@@ -411,7 +446,7 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
             mask = _ink(rgb, np.median(rgb[opaque], axis=0), where=opaque)
     else:
         border = np.concatenate([colours[0], colours[-1], colours[:, 0], colours[:, -1]])
-        mask = _ink(colours, np.median(border, axis=0))
+        mask = _ink(colours, np.median(border, axis=0), lighting=True)
     h, w = mask.shape
     side = max(h, w)
     square = np.zeros((side, side), dtype=bool)
