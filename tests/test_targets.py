@@ -402,6 +402,9 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
     (tmp_path / "vine.json").write_text(json.dumps({"direction": [1, 0]}))
     given = load_target_image(tmp_path / "vine.png")
     assert given.start == automatic.start and given.direction == (1.0, 0.0)
+    (tmp_path / "vine.json").write_text(json.dumps({"start": [0.5, 0.1]}))
+    own_start = load_target_image(tmp_path / "vine.png")
+    assert own_start.start == (0.5, 0.1) and own_start.direction == (0.0, -1.0)
     (tmp_path / "vine.json").write_text(json.dumps({"strat": [0.2, 0.9]}))
     with pytest.raises(TargetFileError, match="unknown key 'strat'"):
         load_target_image(tmp_path / "vine.png")
@@ -447,7 +450,7 @@ def test_a_target_built_from_python_is_checked_like_a_file():
     ink = _vine_ink()
     with pytest.raises(InvalidArgumentError, match="ShapeMatch takes a TargetImage, got str"):
         ShapeMatch("pic.png")
-    with pytest.raises(InvalidArgumentError, match="the mask must be a boolean array"):
+    with pytest.raises(InvalidArgumentError, match="the mask must be a boolean"):
         TargetImage("grey", np.where(ink, 0, 255).astype(np.uint8))
     with pytest.raises(InvalidArgumentError, match=r"start must be two finite numbers in \[0, 1\]"):
         TargetImage("far", ink, start=(3.0, -2.0))
@@ -470,3 +473,40 @@ def test_a_filled_silhouette_on_the_bottom_edge_is_not_taken_for_uneven_light():
         sky[top:, left:left + 70] = True
     picture = Image.fromarray(np.where(sky, 0, 255).astype(np.uint8))
     assert np.array_equal(mask_from_image(picture)[100:300], sky)
+
+
+@pytest.mark.parametrize("case", ["noisy_blank_page", "tiny_drawing", "chalkboard_with_smudges", "page_on_a_table",
+                                  "icon_with_a_light_dot"])
+def test_pictures_whose_reading_turns_on_noise_size_or_which_side_is_ink(case):
+    """A noisy blank page is no shape (its noise must not pass for ink); a drawing under
+    the percentile's share is read from its extreme; where ink could be either side of the
+    paper, a light paper takes dark ink and a dark board light chalk; a transparent badge
+    with a light detail is the badge."""
+    from procmod.targets.image import mask_from_image
+
+    rng = np.random.default_rng(1)
+    expected = np.zeros((200, 200), dtype=bool)
+    if case == "noisy_blank_page":
+        rgb = np.clip(220 + rng.normal(0, 8, (200, 200, 3)), 0, 255)
+    elif case == "tiny_drawing":  # 25 dark pixels on a 200x200 page: 0.06%
+        rgb = np.full((200, 200, 3), 250.0)
+        expected[100:105, 100:105] = True
+        rgb[expected] = 10
+    elif case == "chalkboard_with_smudges":
+        rgb = np.full((200, 200, 3), 100.0)
+        expected[40:160, 95:103] = expected[60:66, 50:150] = True
+        rgb[expected] = 180
+        rgb[20:24, 20:24] = rgb[170:174, 30:34] = rgb[30:34, 170:174] = 20
+    elif case == "page_on_a_table":  # a white page on a mid-grey table, black ink on the page
+        rgb = np.full((200, 200, 3), 130.0)
+        rgb[20:180, 30:170] = 255
+        expected[50:150, 96:102] = True
+        rgb[expected] = 0
+    picture = Image.fromarray(np.clip(rgb, 0, 255).astype(np.uint8)) if case != "icon_with_a_light_dot" else None
+    if case == "icon_with_a_light_dot":
+        rgba = np.zeros((200, 200, 4), dtype=np.uint8)
+        rgba[10:190, 10:190] = (40, 90, 200, 255)
+        rgba[90:110, 90:110] = (255, 255, 255, 255)
+        expected[10:190, 10:190] = True
+        picture = Image.fromarray(rgba)
+    assert np.array_equal(mask_from_image(picture), expected)

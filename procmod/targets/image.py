@@ -100,10 +100,12 @@ class TargetImage:
         # built from Python as well as read from files: the checks a sidecar and a picture
         # get (a grey picture passed as the mask is refused, not read with its paper as shape)
         mask = np.asarray(self.mask)
+        if mask.dtype != bool and mask.size and np.isin(mask, (0, 1)).all():
+            mask = mask.astype(bool)  # a 0/1 array is a mask too
         if mask.dtype != bool:
             raise InvalidArgumentError(
-                f"TargetImage {_cut(str(self.name), 60)}: the mask must be a boolean array (True = shape), got "
-                f"{mask.dtype}; for a picture use procmod.targets.load_target_image(path) or mask_from_image(image)")
+                f"TargetImage {_cut(str(self.name), 60)}: the mask must be a boolean (or 0/1) array, True = shape, "
+                f"got {mask.dtype} values other than 0 and 1; for a picture use procmod.targets.load_target_image(path) or mask_from_image(image)")
         object.__setattr__(self, "mask", check_mask(mask, f"TargetImage {_cut(str(self.name), 60)}"))
         for key, low, high in (("start", 0.0, 1.0), ("direction", -math.inf, math.inf)):
             value = getattr(self, key)
@@ -333,7 +335,15 @@ def grey_levels(image: Image.Image) -> np.ndarray:
 
 INK_PERCENTILE = 0.1
 """The ink's colour is read at this percentile from the far end of all pixels' (robust to a
-few stray pixels; a shape of fewer pixels than this share is read from its own extreme)."""
+few stray pixels); where nothing that far differs enough from the paper, from the picture's
+own extreme (a drawing smaller than this share of the picture)."""
+
+NOISE_MARGIN = 6.0
+"""Ink must differ from the paper by this many times the noise of the paper (the robust
+spread of the border's pixels) as well as by :data:`MIN_CONTRAST`: a noisy blank page has
+no shape."""
+
+_PERCENTILE_SAMPLES = 1_000_000  # percentiles are read from at most this many pixels
 
 MIN_CONTRAST = 24.0
 """Grey levels (of 255) ink must differ from the paper by for a picture to hold a shape:
@@ -346,21 +356,51 @@ def _colours(image: Image.Image) -> np.ndarray:
     """The picture as floats 0..255, ``(height, width, channels)``: one channel for grey
     pictures (of any bit depth, :func:`grey_levels`), three for everything else."""
     if image.mode in ("1", "L", "I", "F") or image.mode.startswith("I;16"):
-        return grey_levels(image)[:, :, None]
-    return np.asarray(image.convert("RGB"), dtype=np.float64)
+        return grey_levels(image).astype(np.float32)[:, :, None]
+    return np.asarray(image.convert("RGB"), dtype=np.float32)
 
 
-def _beyond_half(values: np.ndarray, paper: float, seen: np.ndarray) -> np.ndarray | None:
+def _far(values: np.ndarray, q: float) -> float:
+    """The ``q`` percentile of ``values``, read from an even sample of at most
+    :data:`_PERCENTILE_SAMPLES` of them (a 36-megapixel photo took seconds sorted whole)."""
+    flat = values.ravel()
+    return float(np.percentile(flat[::max(1, flat.size // _PERCENTILE_SAMPLES)], q))
+
+
+def _beyond_half(values: np.ndarray, paper: float, seen: np.ndarray, noise: float,
+                 light_paper: bool = True) -> np.ndarray | None:
     """Pixels past half way from ``paper`` to the far end of ``seen`` (the values looked
     at), on the side of the paper where that far end lies: ink darker than the paper, or
-    lighter. None when the far end is within :data:`MIN_CONTRAST` of the paper."""
-    dark = paper - float(np.percentile(seen, INK_PERCENTILE))
-    light = float(np.percentile(seen, 100 - INK_PERCENTILE)) - paper
-    if max(dark, light) < MIN_CONTRAST:
-        return None
-    if dark >= light:
-        return values < paper - 0.5 * dark
-    return values > paper + 0.5 * light
+    lighter. Where both ends lie about as far (a white page on a mid-grey table, chalk on
+    a board with dark smudges), the ink is dark on ``light_paper`` and light otherwise, as
+    people draw. None when no pixel differs from the paper by :data:`MIN_CONTRAST` and
+    :data:`NOISE_MARGIN` times the paper's ``noise``."""
+    least = max(MIN_CONTRAST, NOISE_MARGIN * noise)
+    dark = paper - _far(seen, INK_PERCENTILE)
+    light = _far(seen, 100 - INK_PERCENTILE) - paper
+    if max(dark, light) < least:  # a drawing too small for the percentile: its own extreme
+        dark, light = paper - float(seen.min()), float(seen.max()) - paper
+        if max(dark, light) < least:
+            return None
+    if min(dark, light) >= max(least, 0.8 * max(dark, light)):
+        use_dark = light_paper
+    else:
+        use_dark = dark >= light
+    return values < paper - 0.5 * dark if use_dark else values > paper + 0.5 * light
+
+
+def _noise(values: np.ndarray, at: np.ndarray) -> float:
+    """The pixel noise of ``values`` where ``at`` (paper): the robust spread of the
+    differences between neighbours both in ``at``, which a smooth fall of light or a long
+    run of ink (a shape reaching the border) hardly changes, over sqrt 2."""
+    h, w = values.shape
+    # along at most ~256 rows and columns, the first and last always (the border)
+    rows = np.unique(np.append(np.arange(0, h, max(1, h // 256)), h - 1))
+    cols = np.unique(np.append(np.arange(0, w, max(1, w // 256)), w - 1))
+    across = values[rows], at[rows]
+    down = values[:, cols].T, at[:, cols].T
+    steps = np.concatenate([np.abs(np.diff(v, axis=1))[a[:, 1:] & a[:, :-1]] for v, a in (across, down)])
+    return 1.4826 * float(np.median(steps)) / math.sqrt(2) if steps.size else 0.0
 
 
 def _lighting(luma: np.ndarray) -> np.ndarray | None:
@@ -388,12 +428,13 @@ def _lighting(luma: np.ndarray) -> np.ndarray | None:
     # the bottom edge) is not a fall of light, though a plane can run through it and the top
     if min(side.mean() for side in sides) < 0.75 or spread > 4.0 or (abs(coef[1]) + abs(coef[2])) < MIN_CONTRAST:
         return None
-    yy, xx = np.mgrid[0:h, 0:w]
-    return coef[0] + coef[1] * xx / w + coef[2] * yy / h
+    across = (coef[1] * np.arange(w) / w).astype(np.float32)
+    down = (coef[0] + coef[2] * np.arange(h) / h).astype(np.float32)
+    return down[:, None] + across[None, :]
 
 
 def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None,
-         lighting: bool = False) -> np.ndarray:
+         lighting: bool = False, paper_at: np.ndarray | None = None) -> np.ndarray:
     """Pixels that differ from the ``paper`` colour as the picture's ink does.
 
     By brightness first: half way from the paper to the picture's darkest (or, for light
@@ -401,23 +442,39 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     and dim photos read as well as black on white, while the lighter-than-paper middle of a
     vignetted photo or a notebook's pale ruling does not. Where brightness barely differs
     (yellow on white) by colour: the largest channel difference from the paper, past half
-    its far end. ``where`` limits the pixels looked at (the rest are not ink). With
-    ``lighting``, brightness is measured from the paper's own where it falls off evenly
-    across the picture (:func:`_lighting`)."""
+    its far end. ``where`` limits the pixels looked at (the rest are not ink); ``paper_at``
+    marks pixels known to be paper, whose spread is the noise ink must stand out of (the
+    border; default ``where``). With ``lighting``, brightness is measured from the paper's
+    own where it falls off evenly across the picture (:func:`_lighting`)."""
     where = np.ones(colours.shape[:2], dtype=bool) if where is None else where
+    paper_at = where if paper_at is None else paper_at
     nothing = np.zeros(colours.shape[:2], dtype=bool)
     if not where.any():
         return nothing
-    luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA
+    luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA.astype(colours.dtype)
     paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
     plane = _lighting(luma) if lighting else None
     if plane is not None:
         luma, paper_luma = luma - plane, 0.0
-    ink = _beyond_half(luma, paper_luma, luma[where])
+    light_paper = (float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)) >= 128
+    ink = _beyond_half(luma, paper_luma, luma[where], _noise(luma, paper_at), light_paper)
     if ink is None and colours.shape[2] > 1:
-        distance = np.abs(colours - paper).max(axis=2)
-        ink = _beyond_half(distance, 0.0, distance[where])
+        distance = np.abs(colours - paper.astype(colours.dtype)).max(axis=2)
+        # the noise of the noisiest channel: the largest of three noisy differences is
+        # further from zero than any one
+        noise = max(_noise(colours[:, :, c], paper_at) for c in range(colours.shape[2]))
+        ink = _beyond_half(distance, 0.0, distance[where], noise)
     return nothing if ink is None else ink & where
+
+
+def _fills_its_box(mask: np.ndarray, share: float) -> bool:
+    """Whether ``mask`` covers at least ``share`` of its bounding box (a page, a frame's
+    inside), as a drawn shape seldom does."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if not rows.size:
+        return False
+    box = (rows[-1] - rows[0] + 1) * (cols[-1] - cols[0] + 1)
+    return mask.sum() >= share * box
 
 
 def mask_from_image(image: Image.Image) -> np.ndarray:
@@ -427,9 +484,10 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     colour is nearer the far end of the picture's colours than the paper (:func:`_ink`):
     dark ink on light paper or light on dark, pencil grey or a pale colour on white, a
     dim photo. (A fixed grey threshold of 128 lost pencil, yellow and light-blue ink and
-    underexposed photos.) With transparency the opaque part is the shape, unless it covers
-    most of the picture (a page or a window with a transparent margin): then the shape is
-    drawn on it, read as above with the opaque part's median colour as the paper. Non-square
+    underexposed photos.) With transparency the opaque part is the shape, unless it is a
+    page (most of the picture, and nearly all of its own bounding box: a window with a
+    transparent margin) with something drawn on it: then that is, read as above with the
+    page's median colour as the paper. Non-square
     pictures are padded with background to a square, centred, because the built-in models'
     viewport is square.
     """
@@ -439,14 +497,19 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     colours = _colours(image)
     if alpha is not None and alpha.min() < 0.5 * alpha.max():  # real transparency
         opaque = alpha >= 0.5 * alpha.max()  # a layer at partial opacity is opaque where it is most
-        if opaque.mean() <= 0.5:
-            mask = opaque
-        else:
-            rgb = np.asarray(image.convert("RGB"), dtype=np.float64)
-            mask = _ink(rgb, np.median(rgb[opaque], axis=0), where=opaque)
+        mask = opaque
+        if opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
+            rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
+            page = np.median(rgb[opaque], axis=0)
+            drawn = _ink(rgb, page, where=opaque)
+            # ink darker than its page is a drawing on it; a light detail on a dark badge
+            # (an icon's white dot) is part of the shape
+            if drawn.any() and float(np.mean(rgb[drawn] @ _LUMA)) < float(page @ _LUMA):
+                mask = drawn
     else:
-        border = np.concatenate([colours[0], colours[-1], colours[:, 0], colours[:, -1]])
-        mask = _ink(colours, np.median(border, axis=0), lighting=True)
+        on_border = np.zeros(colours.shape[:2], dtype=bool)
+        on_border[0] = on_border[-1] = on_border[:, 0] = on_border[:, -1] = True
+        mask = _ink(colours, np.median(colours[on_border], axis=0), lighting=True, paper_at=on_border)
     h, w = mask.shape
     side = max(h, w)
     square = np.zeros((side, side), dtype=bool)
@@ -517,9 +580,11 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
                                   "save the one with the drawing on its own)") from None
         raise
     placement = _read_sidecar(path, shape) or {}
-    if len(placement) < len(SIDECAR_KEYS):  # what the sidecar leaves out, the picture decides
+    if "start" not in placement:  # the picture decides what the sidecar leaves out
         start, direction = lowest_point_start(mask)
         placement = {"start": start, "direction": direction, **placement}
+    elif "direction" not in placement:  # a start of the user's own: grow up the picture from it
+        placement["direction"] = (0.0, -1.0)
     return TargetImage(path.name, mask, tuple(placement["start"]), tuple(placement["direction"]))
 
 

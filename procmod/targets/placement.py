@@ -170,9 +170,13 @@ VANISHED = 0.25
 def picture_note(target: ShapeMatch, model) -> str | None:
     """One line when a picture target's mask is probably not the drawing (see the module
     docstring), else None."""
+    from .image import _fills_its_box
+
     mask = target.image.mask
     fill = float(mask.mean())
-    if fill > MOST_OF_THE_PICTURE:
+    # a page read as the shape is a near rectangle; a filled silhouette (a mountain, a disc)
+    # covering as much is not
+    if fill > MOST_OF_THE_PICTURE and _fills_its_box(mask, 0.85):
         return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
                 "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
                 "a shape trimmed to its own edges needs some paper around it")
