@@ -510,3 +510,20 @@ def test_pictures_whose_reading_turns_on_noise_size_or_which_side_is_ink(case):
         expected[10:190, 10:190] = True
         picture = Image.fromarray(rgba)
     assert np.array_equal(mask_from_image(picture), expected)
+
+
+@pytest.mark.parametrize("size, sd, colour, jpeg", [(500, 8, False, False), (2000, 10, False, False),
+                                                    (800, 12, True, True), (1500, 8, True, False)])
+def test_a_noisy_blank_page_has_no_shape(tmp_path, size, sd, colour, jpeg):
+    """Ink must stand out of the paper's noise: half way to a single noisy extreme pixel let
+    scattered noise through, and the noise measured in whole grey levels let the margin
+    drop by a sixth of it on some pages."""
+    from procmod.targets.image import mask_from_image
+
+    rng = np.random.default_rng(size)
+    shape = (size, size, 3) if colour else (size, size)
+    picture = Image.fromarray(np.clip(200 + rng.normal(0, sd, shape), 0, 255).astype(np.uint8))
+    if jpeg:
+        picture.save(tmp_path / "page.jpg", quality=70)
+        picture = Image.open(tmp_path / "page.jpg")
+    assert not mask_from_image(picture).any()

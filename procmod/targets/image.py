@@ -378,9 +378,10 @@ def _beyond_half(values: np.ndarray, paper: float, seen: np.ndarray, noise: floa
     least = max(MIN_CONTRAST, NOISE_MARGIN * noise)
     dark = paper - _far(seen, INK_PERCENTILE)
     light = _far(seen, 100 - INK_PERCENTILE) - paper
-    if max(dark, light) < least:  # a drawing too small for the percentile: its own extreme
+    if max(dark, light) < least:  # a drawing too small for the percentile: its own extreme,
+        # twice as far out, since half way to one stray pixel would let the noise through
         dark, light = paper - float(seen.min()), float(seen.max()) - paper
-        if max(dark, light) < least:
+        if max(dark, light) < 2 * least:
             return None
     if min(dark, light) >= max(least, 0.8 * max(dark, light)):
         use_dark = light_paper
@@ -400,7 +401,17 @@ def _noise(values: np.ndarray, at: np.ndarray) -> float:
     across = values[rows], at[rows]
     down = values[:, cols].T, at[:, cols].T
     steps = np.concatenate([np.abs(np.diff(v, axis=1))[a[:, 1:] & a[:, :-1]] for v, a in (across, down)])
-    return 1.4826 * float(np.median(steps)) / math.sqrt(2) if steps.size else 0.0
+    if steps.size < 16:  # a picture too small to have paper apart from its ink
+        return 0.0
+    middle = float(np.median(steps))
+    if np.array_equal(steps, np.round(steps)):
+        # whole grey levels: the median of the grouped data (interpolated within its level),
+        # or the estimate, and the 6x margin with it, would move in steps of a whole level
+        below, level = int((steps < middle).sum()), int((steps == middle).sum())
+        if level:
+            low = max(middle - 0.5, 0.0)
+            middle = low + (middle + 0.5 - low) * (0.5 * steps.size - below) / level
+    return 1.4826 * middle / math.sqrt(2)
 
 
 def _lighting(luma: np.ndarray) -> np.ndarray | None:
