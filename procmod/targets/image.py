@@ -339,9 +339,9 @@ few stray pixels); where nothing that far differs enough from the paper, from th
 own extreme (a drawing smaller than this share of the picture)."""
 
 NOISE_MARGIN = 6.0
-"""Ink must differ from the paper by this many times the noise of the paper (the robust
-spread of the border's pixels) as well as by :data:`MIN_CONTRAST`: a noisy blank page has
-no shape."""
+"""Ink must differ from the paper by this many times the paper's pixel noise (from the
+differences between neighbouring border pixels, :func:`_noise`) as well as by
+:data:`MIN_CONTRAST`: a noisy blank page has no shape."""
 
 _PERCENTILE_SAMPLES = 1_000_000  # percentiles are read from at most this many pixels
 
@@ -464,10 +464,10 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
         return nothing
     luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA.astype(colours.dtype)
     paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
+    light_paper = paper_luma >= 128
     plane = _lighting(luma) if lighting else None
     if plane is not None:
         luma, paper_luma = luma - plane, 0.0
-    light_paper = (float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)) >= 128
     ink = _beyond_half(luma, paper_luma, luma[where], _noise(luma, paper_at), light_paper)
     if ink is None and colours.shape[2] > 1:
         distance = np.abs(colours - paper.astype(colours.dtype)).max(axis=2)
