@@ -405,9 +405,12 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
     (tmp_path / "vine.json").write_text(json.dumps({"start": [0.5, 0.1]}))
     own_start = load_target_image(tmp_path / "vine.png")
     assert own_start.start == (0.5, 0.1) and own_start.direction == (0.0, -1.0)
-    (tmp_path / "vine.json").write_text(json.dumps({"strat": [0.2, 0.9]}))
-    with pytest.raises(TargetFileError, match="unknown key 'strat'"):
-        load_target_image(tmp_path / "vine.png")
+    for typo, meant in (("strat", "start"), ("Start", "start"), ("directon", "direction")):
+        (tmp_path / "vine.json").write_text(json.dumps({typo: [0.2, 0.9]}))
+        with pytest.raises(TargetFileError, match=f"unknown key '{typo}'; did you mean '{meant}'"):
+            load_target_image(tmp_path / "vine.png")
+    (tmp_path / "vine.json").write_text(json.dumps({"start": [0.2, 0.9], "source": "scan 12", "name": "vine"}))
+    assert load_target_image(tmp_path / "vine.png").start == (0.2, 0.9)  # another tool's keys are its own
     (tmp_path / "vine.json").write_text(json.dumps({"format": "procmod-derivation/1", "params": {}}))
     passed_over = load_target_image(tmp_path / "vine.png")
     assert (passed_over.start, passed_over.direction) == (automatic.start, automatic.direction)

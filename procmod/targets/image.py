@@ -6,6 +6,7 @@ target is bound to a model, so one target serves any canvas size.
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import re
@@ -537,8 +538,9 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     "direction": (dx, dy)}`` with either key absent when the file leaves it out (the
     picture then decides it); None without a sidecar. A JSON file with a ``"format"`` is
     not a sidecar but one of procmod's own files (``best.json`` beside ``best.png``, a run
-    used as a target) and is passed over; any other key is refused (a typo would otherwise
-    be ignored)."""
+    used as a target) and is passed over; a key close to ``start`` or ``direction`` is
+    refused as a typo (it would otherwise be ignored); keys unlike both are a tool's own
+    and left alone."""
     sidecar = path.with_suffix(".json")
     if not sidecar.exists():
         return None
@@ -548,12 +550,15 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
                               '{"start": [0.5, 0.9166], "direction": [0, -1]}')
     if "format" in data:
         return None
-    unknown = sorted(set(data) - set(SIDECAR_KEYS))
-    if unknown:
-        raise TargetFileError(f"{sidecar}: unknown key {_cut(repr(unknown[0]), 40)}; a sidecar gives \"start\" "
-                              "and/or \"direction\" (normalised image coordinates, y down)")
+    for key in sorted(set(data) - set(SIDECAR_KEYS)):
+        # a misspelt key would silently leave the start to the picture; other keys (a
+        # tool's own notes: "name", "source") are not ours and are left alone
+        meant = difflib.get_close_matches(str(key).lower(), SIDECAR_KEYS, n=1, cutoff=0.6)
+        if meant:
+            raise TargetFileError(f"{sidecar}: unknown key {_cut(repr(key), 40)}; did you mean {meant[0]!r}? A "
+                                  "sidecar gives \"start\" and/or \"direction\" (normalised image coordinates, y down)")
     placement = {}
-    for key, value in data.items():
+    for key, value in ((k, v) for k, v in data.items() if k in SIDECAR_KEYS):
         if (not isinstance(value, (list, tuple)) or len(value) != 2
                 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)):
             raise TargetFileError(f"{sidecar}: {key!r} must be two finite numbers, got {_cut(repr(value), 60)}")
