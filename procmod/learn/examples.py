@@ -228,12 +228,9 @@ def size_note(example_set: ExampleSet, labels: list | None = None) -> str | None
     the examples (default ``examples[i]``). None otherwise."""
     if len(example_set.examples) < 2:
         return None
-    from ..geometry.part_library import world_bounds
+    from .perturb import example_diagonal  # (perturb imports this module)
 
-    sizes = []
-    for root in example_set.examples:
-        boxes = [world_bounds(example_set.parts[n.part], n.transform) for n in root.walk()]
-        sizes.append(float(np.linalg.norm(np.max([b[1] for b in boxes], axis=0) - np.min([b[0] for b in boxes], axis=0))))
+    sizes = [example_diagonal(root, example_set.parts) for root in example_set.examples]
     small, large = int(np.argmin(sizes)), int(np.argmax(sizes))
     if not sizes[small] > 0 or sizes[large] / sizes[small] <= MIXED_SIZES:
         return None
