@@ -383,3 +383,29 @@ def test_a_urdf_mesh_over_the_face_limit_is_refused_from_its_header(tmp_path, mo
     (tmp_path / "big.urdf").write_text(urdf(links, []))
     with pytest.raises(AssetError, match="declares 5,000 triangles"):
         read_assets(tmp_path / "big.urdf")
+
+
+def test_alignment_ranks_every_start_on_a_subset_and_refines_only_the_best(tmp_path, monkeypatch):
+    """Distinct look-alikes (noisy spheres: every start is tried, none fits) cost a few
+    full-sample ICPs a pair, not one per start (96 here); a rotated, noisy copy of a rock
+    still matches its original."""
+    import trimesh
+
+    full = []
+    icp = assets._icp
+    monkeypatch.setattr(assets, "_icp", lambda a, b, m, improper, plane, steps, points=None: (
+        full.append(points is None), icp(a, b, m, improper, plane, steps, points))[1])
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    rng = np.random.default_rng(0)
+    rock = trimesh.convex.convex_hull(rng.normal(size=(40, 3)) * [1.0, 0.8, 0.6])
+    turned = rock.vertices @ Rotation.from_rotvec([0.4, -1.1, 0.7]).as_matrix().T
+    turned = turned + rng.normal(0, 1e-3 * rock.scale, turned.shape)
+    meshes = [(f"ball{k}", [(sphere.vertices + rng.normal(0, 0.02, sphere.vertices.shape), sphere.faces)])
+              for k in range(2)] + [("rock", [(rock.vertices, rock.faces)]), ("copy", [(turned, rock.faces)])]
+    nodes = [{"name": name, "mesh": k, "translation": [3.0 * k, 0, 0]} for k, (name, _) in enumerate(meshes)]
+    s = read_assets(write_gltf(tmp_path / "look_alikes.gltf", meshes, nodes, roots=range(4)))
+    assert sorted(s.parts) == ["ball0", "ball1", "copy"]  # the shorter name of the two rocks
+    starts = full.count(False)
+    assert starts >= 96  # both handednesses of the spheres' 48 starts were ranked
+    # two pairs reach ICP (the balls; the rocks), each handedness at most the kept starts + 2 fine
+    assert full.count(True) <= 2 * 2 * (assets._KEPT_STARTS + 2)
