@@ -20,6 +20,7 @@ from procmod.cli import main
 from procmod.geometry.inside import inside_voxels, orient_faces, winding_numbers
 from procmod.geometry.voxel import VoxelGrid
 from procmod.targets import Silhouette, Volume, load_target_file, load_volume_target, voxelize_mesh_file
+from procmod.targets.image import TargetFileError
 
 H = 0.1  # voxel size; voxelize_mesh_file's margin 0.1 puts the grid's centres at lo - 0.05 + 0.1 k
 
@@ -459,3 +460,123 @@ def test_a_target_in_other_units_or_elsewhere_gets_a_note_saying_how_to_place_it
         {"mesh": "far.obj", "camera": {"eye": [495, 0, 40], "look_at": [505, 0, 40]}}]}))
     assert "behind the camera" in placement_note(model, load_target_file(tmp_path / "B.json"),
                                                  np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("copies", ["reversed", "same", "both"])
+def test_a_closed_mesh_exported_double_sided_is_its_solid(tmp_path, copies):
+    """Each face also present reversed (SketchUp, 'double-sided' game assets) cancelled
+    in the winding number: no inside at all. Repeated faces are now resolved first."""
+    box = _box(*BOX)
+    extra = {"reversed": [box.faces[:, ::-1]], "same": [box.faces], "both": [box.faces[:, ::-1], box.faces]}[copies]
+    grid, mask = _voxelize(tmp_path, box.vertices, np.vstack([box.faces, *extra]), f"{copies}.obj")
+    assert np.array_equal(mask, _in_boxes(grid, [BOX]))
+
+
+def test_the_shared_wall_of_two_touching_solids_and_a_double_sided_fin_stay_out(tmp_path):
+    """A face with its reverse that does not close up (two boxes' common wall, a fin
+    modelled double-sided) is taken out, which leaves the winding number as it was."""
+    from procmod.geometry.inside import single_sided
+
+    a = _box((0.6, 0.6, 0.6), (0, 0, 0))
+    b = trimesh.Trimesh(a.vertices * [-1, 1, 1] + [0.6, 0, 0], a.faces[:, ::-1])  # a's mirror image in its +x wall
+    both = trimesh.util.concatenate([a, b])
+    both.merge_vertices()
+    faces = np.asarray(both.faces)
+    assert len(single_sided(faces)) == len(faces) - 4  # the wall's two triangles, both ways
+    grid, mask = _voxelize(tmp_path, both.vertices, faces, "touching.obj")
+    assert np.array_equal(mask, _in_boxes(grid, [((0.6, 0.6, 0.6), (0, 0, 0)), ((0.6, 0.6, 0.6), (0.6, 0, 0))]))
+    fin_v = np.vstack([a.vertices, [[0.9, 0.0, 0.0], [0.9, 0.2, 0.0]]])
+    n = len(a.vertices)
+    corner = np.flatnonzero(np.all(np.isclose(a.vertices, [0.3, 0.3, 0.3]), axis=1))[0]
+    fin = [[corner, n, n + 1], [corner, n + 1, n]]
+    grid, mask = _voxelize(tmp_path, fin_v, np.vstack([a.faces, fin]), "fin2.obj")
+    assert np.array_equal(mask, _in_boxes(grid, [((0.6, 0.6, 0.6), (0, 0, 0))]))
+
+
+def _obj_text(mesh, relative=False):
+    n = len(mesh.vertices)
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in mesh.vertices]
+    lines += [f"f {a - n if relative else a + 1} {b - n if relative else b + 1} {c - n if relative else c + 1}"
+              for a, b, c in mesh.faces]
+    return lines
+
+
+@pytest.mark.parametrize("variant", ["bom", "bom_relative", "end_comments", "cr_only"])
+def test_obj_quirks_of_other_tools_read_the_same_solid(tmp_path, variant):
+    """A UTF-8 byte-order mark lost the first vertex (silently a wrong shape with
+    relative indices); ``f 1 2 3 # note`` and lone-CR line ends were refused."""
+    box = _box(*BOX)
+    lines = _obj_text(box, relative=variant == "bom_relative")
+    if variant == "end_comments":
+        lines = [line + "  # from a tool" for line in lines]
+    data = ("\r" if variant == "cr_only" else "\n").join(lines).encode() + b"\n"
+    if variant.startswith("bom"):
+        data = b"\xef\xbb\xbf" + data
+    (tmp_path / "m.obj").write_bytes(data)
+    grid, mask = voxelize_mesh_file(tmp_path / "m.obj", H)
+    assert np.array_equal(mask, _in_boxes(grid, [BOX]))
+
+
+def test_binary_stl_counts_that_disagree_with_the_size(tmp_path):
+    """Bytes after the last triangle, or a count of zero, are read by the size; a file cut
+    off inside its triangles is refused saying so; an ASCII STL without endsolid is read."""
+    box = _box(*BOX)
+    good = trimesh.exchange.stl.export_stl(box)
+    cases = {"padded": good + b"\0" * 16, "no_count": good[:80] + b"\0\0\0\0" + good[84:],
+             "ascii": trimesh.exchange.stl.export_stl_ascii(box).rsplit("endsolid", 1)[0].encode()}
+    for name, data in cases.items():
+        (tmp_path / f"{name}.stl").write_bytes(data)
+        grid, mask = voxelize_mesh_file(tmp_path / f"{name}.stl", H)
+        assert np.array_equal(mask, _in_boxes(grid, [BOX])), name
+    (tmp_path / "cut.stl").write_bytes(good[:-70])
+    (tmp_path / "v.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": H,
+                                                 "layers": [{"file": "cut.stl", "w_fill": 1}]}))
+    with pytest.raises(TargetFileError, match=r"cannot read the mesh \(a cut-off binary STL: its header says 12 "
+                                              "triangles but the file holds 10"):
+        load_volume_target(tmp_path / "v.json")
+
+
+def _gltf_box(folder: Path, normalized=False, uri="box.bin", cut=0):
+    box = _box(*BOX)
+    if normalized:
+        positions = np.round(box.vertices / np.abs(box.vertices).max() * 32767).astype("<i2")
+        positions = np.hstack([positions, np.zeros((len(positions), 1), "<i2")])  # 4-byte aligned rows
+    else:
+        positions = box.vertices.astype("<f4")
+    blob = positions.tobytes() + np.asarray(box.faces, "<u4").tobytes()
+    position = {"bufferView": 0, "componentType": 5122 if normalized else 5126, "count": len(box.vertices),
+                "type": "VEC3", "min": positions[:, :3].min(0).tolist(), "max": positions[:, :3].max(0).tolist()}
+    if normalized:
+        position["normalized"] = True
+    spec = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+            "accessors": [position, {"bufferView": 1, "componentType": 5125, "count": box.faces.size,
+                                     "type": "SCALAR"}],
+            "bufferViews": [{"buffer": 0, "byteLength": positions.nbytes, **({"byteStride": 8} if normalized else {})},
+                            {"buffer": 0, "byteOffset": positions.nbytes, "byteLength": box.faces.size * 4}],
+            "buffers": [{"byteLength": len(blob), "uri": uri}]}
+    (folder / "box.gltf").write_text(json.dumps(spec))
+    if uri == "box.bin":
+        (folder / "box.bin").write_bytes(blob[:len(blob) - cut])
+    (folder / "v.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": H,
+                                               "layers": [{"file": "box.gltf", "w_fill": 1}]}))
+    return folder / "v.json"
+
+
+def test_a_gltf_without_its_buffer_file_or_with_normalized_positions_is_refused_saying_why(tmp_path):
+    assert load_volume_target(_gltf_box(tmp_path)).combined.any()  # the plain file reads
+    for kwargs, message in (({"uri": "gone.bin"}, "the buffer file 'gone.bin' it names is missing .looked for beside box.gltf.; copy it along"),
+                            ({"cut": 40}, "its buffer file 'box.bin' is 200 bytes but the glTF says 240"),
+                            ({"normalized": True}, "quantized to normalized integers .KHR_mesh_quantization.")):
+        with pytest.raises(TargetFileError, match=message):
+            load_volume_target(_gltf_box(tmp_path, **kwargs))
+
+
+def test_a_cut_off_glb_is_refused_saying_so(tmp_path):
+    data = _box(*BOX).export(file_type="glb")
+    (tmp_path / "box.glb").write_bytes(data[:-40])
+    (tmp_path / "v.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": H,
+                                                 "layers": [{"file": "box.glb", "w_fill": 1}]}))
+    with pytest.raises(TargetFileError, match=f"a cut-off GLB file: its header says {len(data):,} bytes but the "
+                                              f"file holds {len(data) - 40:,}"):
+        load_volume_target(tmp_path / "v.json")

@@ -45,6 +45,15 @@ that cannot be bounded away): a mesh made mostly of open pieces (a soup of separ
 triangles) costs the most, and :func:`inside_voxels` refuses one whose work, estimated
 from a sample of voxels, exceeds :data:`MAX_CAP_WORK` steps.
 
+Repeated faces. A face twice with the same winding (a piece duplicated in place) counts
+twice; a face with its reverse (a model exported double-sided, SketchUp's back faces, the
+shared wall of two solids that touch) counts nothing, so a closed model exported
+double-sided has no inside at all. :func:`single_sided` keeps one of each repeated face,
+takes such pairs out (the winding number of the rest is unchanged) and puts one copy back
+of each piece they form that is closed: the double-sided model becomes its closed
+surface, while a shared wall or a double-sided open sheet (a fin) stays out, as it added
+nothing.
+
 Orientation. Winding numbers need faces wound consistently. :func:`orient_faces` makes
 every edge-connected component consistent (a breadth-first walk across edges shared by
 exactly two faces, flipping a face whose shared edge runs the same way as its neighbour's)
@@ -699,6 +708,58 @@ def _component_stats(vertices, faces, comp, n_comp):
     return volume, span, first
 
 
+def single_sided(faces) -> np.ndarray:
+    """``faces`` with repeated and double-sided faces resolved (see the module docstring):
+    a face repeated with the same winding is kept once; a face together with its reverse
+    adds nothing to the winding number, so such pairs are taken out, and one copy is put
+    back of each piece they form that is closed (a closed model exported double-sided).
+    Faces in their original order; ``faces`` itself when that leaves none."""
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(faces) == 0:
+        return faces
+    ordered = np.sort(faces, axis=1)
+    # winding parity: whether the face is an even (cyclic) permutation of its sorted vertices
+    lowest = np.argmin(faces, axis=1)
+    rows = np.arange(len(faces))
+    even = faces[rows, (lowest + 1) % 3] < faces[rows, (lowest + 2) % 3]
+    keyed = np.column_stack([ordered, even])
+    _, first = np.unique(keyed, axis=0, return_index=True)
+    first = np.sort(first)  # one face per (vertices, winding), the first in the file
+    _, group, counts = np.unique(ordered[first], axis=0, return_inverse=True, return_counts=True)
+    paired = counts[group.ravel()] == 2  # both windings of the same three vertices
+    if not paired.any():
+        return faces[first]
+    kept = first[~paired]
+    copies = first[paired]
+    copies = copies[even[copies]]  # one of each pair: the one wound like its sorted vertices
+    closed = copies[_closed_pieces(faces[copies])]
+    out = np.sort(np.concatenate([kept, closed]))
+    return faces[out] if len(out) else faces
+
+
+def _closed_pieces(faces: np.ndarray) -> np.ndarray:
+    """Mask of the faces in edge-connected pieces (across edges of exactly two faces)
+    that have no boundary edge (an edge of one face)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(faces)
+    edges = np.sort(np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
+    _, edge_id, edge_count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    edge_id = edge_id.ravel()
+    owner = np.repeat(np.arange(n), 3)
+    order = np.argsort(edge_id, kind="stable")
+    shared = edge_count[edge_id[order]] == 2
+    pairs = order[shared].reshape(-1, 2)  # the two faces of each edge of exactly two
+    graph = coo_matrix((np.ones(len(pairs)), (owner[pairs[:, 0]], owner[pairs[:, 1]])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    open_face = np.zeros(n, dtype=bool)
+    open_face[owner[edge_count[edge_id] == 1]] = True
+    open_piece = np.zeros(label.max() + 1, dtype=bool)
+    open_piece[label[open_face]] = True
+    return ~open_piece[label]
+
+
 def orient_faces(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """Faces wound consistently and outward, per edge-connected component (see the module
     docstring). Returns ``(faces, component label per face)``."""
@@ -742,4 +803,5 @@ def orient_faces(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     return faces, comp
 
 
-__all__ = ["boundary_chain", "cap_tree", "closed_winding", "inside_voxels", "orient_faces", "winding_numbers"]
+__all__ = ["boundary_chain", "cap_tree", "closed_winding", "inside_voxels", "orient_faces", "single_sided",
+           "winding_numbers"]

@@ -12,13 +12,26 @@ trimesh 4 misreads, in memory (the file is left as it is):
   by trimesh, silently losing those vertices or faces; lines are re-spaced.
 * **Line continuations** (a ``\\`` at the end of a line) are joined first, so that the
   two rules above see whole statements.
+* **Comments at a line's end** (``f 1 2 3 # top``) are cut from vertex and face
+  statements (names in ``o``, ``g``, ``usemtl`` lines may hold a ``#`` and keep it); a
+  UTF-8 byte-order mark (Windows editors, .NET tools) is dropped, and lines ended by a lone
+  carriage return (old Mac files) are split: trimesh read the first as part of the first
+  statement and the last as one long line.
+
+Binary STL files whose header count disagrees with their size are read by their size
+where that is unambiguous (bytes left over after the last triangle; a count of zero);
+a file cut off inside its triangles is refused saying so. An ASCII STL without its
+closing ``endsolid`` gets one.
 
 For glTF, the files a ``.gltf`` names (buffers, images) are found as procmod finds named
 files (README, "Files that name other files"): relative to the ``.gltf``, ``..`` allowed,
 absolute paths refused, and percent-encoded (``my%20ship.bin``, as the glTF spec writes a
 space) as well as plain. A file whose meshes are Draco-compressed is refused with what to
-do, rather than read as placeholder zeros. trimesh's log messages stay off procmod's
-one-line error channel.
+do, rather than read as placeholder zeros; so is one whose positions are quantized to
+normalized integers (``KHR_mesh_quantization``), which trimesh would read tens of
+thousands of times too large. A ``.gltf`` whose buffer file is missing or shorter than it
+declares is refused naming that file. trimesh's log messages stay off procmod's one-line
+error channel.
 """
 
 from __future__ import annotations
@@ -38,20 +51,26 @@ import numpy as np
 
 _INDEXED = ("f", "l", "p")  # statements that index vertices (v/vt/vn per field)
 _COUNTED = {"v": 0, "vt": 1, "vn": 2}
+_BOM = "\xef\xbb\xbf"  # UTF-8's byte-order mark, as latin-1 decodes it
 
 
 def normalised_obj(text: str) -> str | None:
-    """``text`` (an OBJ file) with relative indices made absolute and each statement
-    re-spaced; None when nothing needed changing (trimesh reads the file as it is)."""
+    """``text`` (an OBJ file, decoded as latin-1) with relative indices made absolute,
+    each statement re-spaced and cut at a ``#``, a byte-order mark dropped and lines
+    ended by ``\\n``; None when nothing needed changing (trimesh reads the file as it is)."""
+    changed = text.startswith(_BOM) or bool(re.search(r"\r(?!\n)", text))
+    text = text.removeprefix(_BOM)
     text = re.sub(r"\\\r?\n", " ", text)
     counts = [0, 0, 0]
-    out, changed = [], False
-    for line in text.splitlines():
+    out = []
+    for line in text.splitlines():  # splits at \n, \r\n and a lone \r alike
         fields = line.split()
         if not fields or fields[0].startswith("#"):
             out.append(line)
             continue
         key = fields[0]
+        if key in _COUNTED or key in _INDEXED:
+            fields = line.split("#", 1)[0].split()  # a comment at the end of the statement
         if key in _COUNTED:
             counts[_COUNTED[key]] += 1
         elif key in _INDEXED:
@@ -199,6 +218,11 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
     return header
 
 
+# integer component types (glTF 2.0, accessor.componentType): a normalized one is scaled
+# to [-1, 1] or [0, 1], which trimesh does not do
+_INTEGER_TYPES = {5120, 5121, 5122, 5123}
+
+
 def _check_gltf(path: Path) -> None:
     try:
         header = gltf_header(path, limit=64 * 2 ** 20)
@@ -208,6 +232,85 @@ def _check_gltf(path: Path) -> None:
     if any(isinstance(names, list) and DRACO in names for names in named):
         raise ValueError(f"its meshes are Draco-compressed ({DRACO}), which procmod cannot decode; export "
                          "it without mesh compression")
+    if _normalized_positions(header):
+        raise ValueError("its positions are quantized to normalized integers (KHR_mesh_quantization), which "
+                         "procmod cannot decode; export it without quantization (or run `gltf-transform "
+                         "dequantize` on it)")
+    if path.suffix.lower() == ".gltf":
+        _check_buffer_files(header, path)
+    else:  # a GLB's header gives its whole length
+        with open(path, "rb") as handle:
+            declared = struct.unpack("<I", handle.read(12)[8:12])[0]
+        actual = os.path.getsize(path)
+        if actual < declared:
+            raise ValueError(f"a cut-off GLB file: its header says {declared:,} bytes but the file holds {actual:,}; "
+                             "export or copy it again")
+
+
+def _normalized_positions(header: dict) -> bool:
+    """Whether a mesh's POSITION accessor holds normalized integers."""
+    try:
+        accessors = header.get("accessors", [])
+        for mesh in header.get("meshes", []):
+            for primitive in mesh.get("primitives", []):
+                index = primitive.get("attributes", {}).get("POSITION")
+                if isinstance(index, int) and 0 <= index < len(accessors):
+                    accessor = accessors[index]
+                    if accessor.get("normalized") is True and accessor.get("componentType") in _INTEGER_TYPES:
+                        return True
+    except (AttributeError, TypeError):
+        pass  # a malformed file: the loader says what is wrong with it
+    return False
+
+
+def _check_buffer_files(header: dict, path: Path) -> None:
+    """Refuse a ``.gltf`` whose buffer file (found as :func:`_resolver` finds it) is
+    missing or shorter than the ``byteLength`` the file gives it."""
+    buffers = header.get("buffers")
+    for buffer in buffers if isinstance(buffers, list) else ():
+        uri = buffer.get("uri") if isinstance(buffer, dict) else None
+        if not isinstance(uri, str) or uri.startswith("data:"):
+            continue
+        names = dict.fromkeys([uri, unquote(uri)])
+        absolute = any(PurePosixPath(n).is_absolute() or PureWindowsPath(n).is_absolute() for n in names)
+        if absolute:
+            names = {PureWindowsPath(uri).name: None}  # an exporter's absolute path: looked for beside it
+        sizes = [os.path.getsize(path.parent / n) for n in names if (path.parent / n).is_file()]
+        if not sizes and absolute:
+            raise ValueError(f"{uri!r} is an absolute path and no {next(iter(names))!r} lies beside the file; a "
+                             "file a glTF names must be relative to it")
+        if not sizes:
+            raise ValueError(f"the buffer file {uri!r} it names is missing (looked for beside {path.name}); copy "
+                             "it along, or export a .glb, which holds its buffers")
+        declared = buffer.get("byteLength")
+        if isinstance(declared, int) and not isinstance(declared, bool) and sizes[0] < declared:
+            raise ValueError(f"its buffer file {uri!r} is {sizes[0]:,} bytes but the glTF says {declared:,}: the "
+                             "file is cut off; copy it again or export the model again")
+
+
+def _repaired_stl(data: bytes) -> bytes | None:
+    """A binary STL whose header count disagrees with its size, read by its size where
+    that is unambiguous, or an ASCII STL given its missing ``endsolid``; None when the
+    file needs nothing. Raises ValueError for a binary STL cut off inside its triangles."""
+    head = data[:4096].lstrip().lower()
+    if head.startswith(b"solid") and b"facet" in head:  # ASCII (a binary header may start 'solid' too)
+        if len(data) >= 84 and 84 + 50 * struct.unpack("<I", data[80:84])[0] == len(data):
+            return None  # a binary file after all: its count fits its size exactly
+        return None if b"endsolid" in data[-4096:].lower() else data + b"\nendsolid\n"
+    if len(data) < 84:
+        return None  # the loader says what is wrong with it
+    count = struct.unpack("<I", data[80:84])[0]
+    records = (len(data) - 84) // 50
+    if 84 + 50 * count == len(data):
+        return None
+    if count == 0 and records and (len(data) - 84) % 50 == 0:
+        return data[:80] + struct.pack("<I", records) + data[84:]  # an exporter that left the count out
+    if 0 < count <= records:
+        return data[:84 + 50 * count]  # bytes after the last triangle (padding, a tool's trailer)
+    if count > records:
+        raise ValueError(f"a cut-off binary STL: its header says {count:,} triangles but the file holds "
+                         f"{records:,}; export or copy it again")
+    return None
 
 
 def _resolver(path: Path):
@@ -265,6 +368,10 @@ def load_mesh_file(path: str | Path, **options):
             if fixed is not None:
                 return trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj",
                                     resolver=trimesh.resolvers.FilePathResolver(str(path)), **options)
+        if suffix == ".stl":
+            fixed = _repaired_stl(path.read_bytes())
+            if fixed is not None:
+                return trimesh.load(io.BytesIO(fixed), file_type="stl", **options)
         if suffix in (".gltf", ".glb"):
             _check_gltf(path)
             if suffix == ".gltf":

@@ -163,14 +163,15 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
 
     trimesh reads it (a scene is flattened with its transforms); vertices that UV or
     normal seams split are merged (``merge_vertices(merge_tex=True, merge_norm=True)``);
-    faces with a repeated vertex or zero area are dropped; with ``orient``, faces are wound
-    consistently and outward (:func:`procmod.geometry.inside.orient_faces`). Refused in one
+    faces with a repeated vertex or zero area are dropped; with ``orient``, repeated and
+    double-sided faces are resolved (:func:`procmod.geometry.inside.single_sided`) and faces
+    are wound consistently and outward (:func:`procmod.geometry.inside.orient_faces`). Refused in one
     line naming ``where``: a file trimesh cannot read, no faces, vertices that are NaN or
     infinite, every face of zero area, more than :data:`MAX_MESH_FACES` faces.
     """
     import trimesh
 
-    from ..geometry.inside import orient_faces
+    from ..geometry.inside import orient_faces, single_sided
 
     file = Path(file)
     where = where or _cut(str(file))
@@ -224,7 +225,7 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
                               "so it has neither an inside nor a silhouette")
     faces = faces[nonzero]
     if orient:
-        faces, _ = orient_faces(vertices, faces)
+        faces, _ = orient_faces(vertices, single_sided(faces))
     return vertices, faces
 
 
