@@ -409,3 +409,16 @@ def test_alignment_ranks_every_start_on_a_subset_and_refines_only_the_best(tmp_p
     assert starts >= 96  # both handednesses of the spheres' 48 starts were ranked
     # two pairs reach ICP (the balls; the rocks), each handedness at most the kept starts + 2 fine
     assert full.count(True) <= 2 * 2 * (assets._KEPT_STARTS + 2)
+
+
+def test_a_camera_or_light_beside_the_model_is_passed_over(tmp_path):
+    """Blender and Maya export the scene's camera as a node of its own; trimesh leaves
+    a childless camera node out of its scene, which refused the whole file."""
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    data = json.loads(path.read_text())
+    data["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}]
+    data["nodes"] += [{"name": "Camera", "camera": 0, "translation": [5, 5, 5]}, {"name": "Light"}]
+    data["scenes"][0]["nodes"] += [5, 6]
+    (tmp_path / "with_camera.gltf").write_text(json.dumps(data))
+    plain, with_camera = read_assets(path), read_assets(tmp_path / "with_camera.gltf")
+    assert [n.name for n in with_camera.assets[0].nodes()] == [n.name for n in plain.assets[0].nodes()]

@@ -354,17 +354,19 @@ def _read_gltf(path: Path, geometries: dict) -> list:
             geometries[key] = _Geometry(key, mesh_name or parts[0], where, "mesh", v, f)
         return key
 
-    def build(i: int) -> _Raw:
+    def build(i: int) -> _Raw | None:
         frame = names[i]
         if frame not in graph.nodes:
+            if "mesh" not in nodes[i] and not children[i]:
+                return None  # a leaf with nothing to place (trimesh leaves out a camera's node)
             raise AssetError(f"{path}: node {i} ({nodes[i].get('name', 'unnamed')!r}) is missing from the "
                              "scene trimesh read; the file may use a feature procmod cannot read")
         world = np.asarray(graph.get(frame)[0], dtype=np.float64)
         if not np.isfinite(world).all():
             raise AssetError(f"{path}: node {frame!r} has a non-finite transform (NaN or infinity)")
-        return _Raw(frame, geometry_of(i), world, [build(c) for c in children[i]])
+        return _Raw(frame, geometry_of(i), world, [b for b in map(build, children[i]) if b is not None])
 
-    forest = [build(r) for r in roots]
+    forest = [b for b in map(build, roots) if b is not None]
     if not any(n.geometry for r in forest for n in _walk(r)):
         raise AssetError(f"{path} holds no mesh (nothing to use as a part)")
     return forest
