@@ -103,8 +103,9 @@ def test_rotation_and_translation_groups_and_nesting():
 
 
 def test_slots_follow_eq1_correspondence():
-    # two arms per base, listed in opposite orders: the front arm always shares a slot
-    front, back = T(0, 0.8, 0.8), T(0, 0.8, -0.8)
+    # two arms per base, listed in opposite orders: the front arm always shares a slot (the
+    # back arm turned, so that the two are no mirror pair, which would be one group)
+    front, back = T(0, 0.8, 0.8), T(0, 0.8, -0.8) @ Ry(0.5)
     ex = [node("base", np.eye(4), [node("arm", front), node("arm", back)]),
           node("base", np.eye(4), [node("arm", back @ T(0.05, 0, 0)), node("arm", front @ T(0.05, 0, 0))]),
           node("base", np.eye(4), [node("arm", front @ T(-0.1, 0, 0))])]

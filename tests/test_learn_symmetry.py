@@ -160,8 +160,9 @@ def test_perturbation_is_rotation_scale_translation_and_sized_by_the_diagonal():
 def _shaft_mesh():
     """A shaft 2 long along +x whose end at x = 0 is a finely tessellated cap (1000 vertices)
     and whose far end is four vertices listed second to fifth: any index-spaced pick of 64
-    vertices sees only the cap."""
-    far = [(2.0, y, z) for y in (-0.1, 0.1) for z in (-0.1, 0.1)]
+    vertices sees only the cap. The far end is raised (in y), so that a shaft turned half
+    round about z is not also the other's mirror image (no symmetry group between them)."""
+    far = [(2.0, y + 0.4, z) for y in (-0.1, 0.1) for z in (-0.1, 0.1)]
     near = [(0.0, y, z) for y in (-0.1, 0.1) for z in (-0.1, 0.1)]
     grid = [(0.0, -0.1 + 0.2 * i / 31, -0.1 + 0.2 * j / 31) for i in range(32) for j in range(32)]
     verts = [grid[0]] + far + near + grid[1:]
@@ -211,9 +212,25 @@ def test_a_leg_turned_over_is_the_mirror_image_when_its_parts_allow_it():
     s.parts["thigh"] = PartShape("thigh", "mesh", vertices=tuple(map(tuple, v.tolist())),
                                  faces=tuple(map(tuple, f.tolist())), source="thigh.obj")
     assert sym_types(preprocess(s)) == Counter({"refl(hip)": 1})
-    # two boxes side by side are translates: no mirror pair (a pair of chance is no group)
-    twins = [node("hip", T(0.5, 0, 0.8)), node("hip", T(0.5, 0, -0.8))]
-    assert sym_types(preprocess(example_set([node("base", np.eye(4), twins)], parts))) == Counter()
+
+
+def test_copies_of_a_symmetric_part_moved_apart_are_a_mirror_pair_and_pairs_pair_again():
+    """A table's legs as artists make them: one leg, duplicated and moved (no mirror in
+    any matrix). A pair is no translation chain (three at least), and left ungrouped the
+    two legs were sampled independently, lopsided; four at the corners are a mirrored
+    mirror pair. A part without the mirror symmetry (a wedge) moved apart stays two."""
+    from asset_writers import wedge_mesh
+
+    parts = {"top": {"box": [2, 0.1, 1]}, "leg": {"box": [0.1, 0.8, 0.1]}}
+    two = [node("top", np.eye(4), [node("leg", T(0.9 * x, -0.45, 0)) for x in (-1, 1)])]
+    assert sym_types(preprocess(example_set(two, parts))) == Counter({"refl(leg)": 1})
+    four = [node("top", np.eye(4), [node("leg", T(0.9 * x, -0.45, 0.4 * z)) for x in (-1, 1) for z in (-1, 1)])]
+    assert sym_types(preprocess(example_set(four, parts))) == Counter({"refl(refl(leg))": 1, "refl(leg)": 1})
+    v, f = wedge_mesh(0.6)
+    s = example_set([node("top", np.eye(4), [node("leg", T(0.9 * x, -0.45, 0)) for x in (-1, 1)])], parts)
+    s.parts["leg"] = PartShape("leg", "mesh", vertices=tuple(map(tuple, v.tolist())),
+                               faces=tuple(map(tuple, f.tolist())), source="wedge.obj")
+    assert sym_types(preprocess(s)) == Counter()
 
 
 def test_a_constant_half_turn_is_one_angle_not_plus_and_minus_pi():
@@ -269,7 +286,8 @@ def test_a_grid_of_identical_studs_is_one_translation_group_per_row():
     """A 6 x 8 grid of studs on a plate: no chain takes every stud, so every pair of studs
     was grown (each step pairing every free stud; 50 studs took about a minute). Now only
     studs near where the step puts the next are paired, and chains are kept between rounds;
-    the groups are the rows, as before."""
+    the groups are the rows, as before, and (since chains are also sought among groups) the
+    rows are one translation group of rows."""
     def example(rows, cols, jitter):
         studs = [{"part": "stud", "transform": [[1, 0, 0, c + jitter], [0, 1, 0, 0.2], [0, 0, 1, 1.5 * r],
                                                 [0, 0, 0, 1]], "children": []}
@@ -280,7 +298,8 @@ def test_a_grid_of_identical_studs_is_one_translation_group_per_row():
     parts = {"plate": {"box": [1, 0.2, 1]}, "stud": {"box": [0.3, 0.2, 0.3]}}
     data = {"format": "procmod-examples/1", "parts": parts, "examples": [example(6, 8, 0.0), example(6, 8, 0.01)]}
     ds = preprocess(examples_from_dict(data))
-    assert Counter(n.type for n in ds.nodes) == {"plate": 2, "trans(stud)": 12, "stud": 12}  # a stud per row
+    # a row of rows: one stud and one row stand for the rest
+    assert Counter(n.type for n in ds.nodes) == {"plate": 2, "trans(trans(stud))": 2, "trans(stud)": 2, "stud": 2}
 
 
 def test_chains_kept_between_rounds_are_regrown_when_a_unit_their_growth_took_is_taken():

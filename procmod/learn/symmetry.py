@@ -19,7 +19,10 @@ tolerance, not by comparing matrices:
 Passes, in order: reflection pairs (each unit with its first partner in order), then translation and
 rotation chains of at least :data:`MIN_CHAIN` units with one constant ``G`` (longest
 chain first, refitting ``G`` to the whole chain as it grows), then reflection pairs again
-(mirrored rows), so groups nest (``trans(refl(panel))``). A rotation chain whose angles
+(mirrored rows; also pairs that are mirror images only through their parts' own
+symmetry, such as two copies of a leg moved apart); chains and then pairs again among
+the groups found while that groups anything, so groups nest (``trans(refl(panel))``,
+the rows of a grid ``trans(trans(stud))``, a table's four legs ``refl(refl(leg))``). A rotation chain whose angles
 come close to closing a circle is snapped to ``2 pi / n`` when the snapped map still fits
 within the tolerance. Groups are canonicalised in the parent's frame: mirror normals,
 translation steps and rotation axes point along their largest component, rotation angles
@@ -316,7 +319,9 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
     copies differ only by rounding, and noise within the tolerance must not change the
     pairing. With ``any_handedness`` (the last pass) a pair whose placements are proper
     (no mirror in their matrices) is a mirror pair too, when the parts' own symmetries
-    make it one and no translation or rotation relates the two."""
+    make it one: a left hip that is the right one turned over, and two copies of a
+    symmetric part moved apart (a table's two legs, duplicated and moved across: a pair
+    is no translation chain, and left apart they were sampled independently, lopsided)."""
     out, used = [], set()
     for i, a in enumerate(units):
         if i in used:
@@ -325,7 +330,7 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
             if j in used:
                 continue
             r = relate(a, units[j], ("refl",), tol)
-            if r is None and any_handedness and relate(a, units[j], ("trans", "rot"), tol) is None:
+            if r is None and any_handedness:
                 r = relate(a, units[j], ("refl",), tol, any_handedness=True)
             if r is None:
                 continue
@@ -583,4 +588,8 @@ def group_children(children: list, frame: Frame, corners: dict, tol: float = SYM
     units = [leaf_unit(c, corners, flips) for c in children]
     units = _pair_reflections(units, frame, tol)
     units = _chains(units, frame, tol)
-    return _pair_reflections(units, frame, tol, any_handedness=True)
+    while True:  # groups of groups: a grid's rows in a row, four legs at a table's corners
+        grouped = _pair_reflections(_chains(units, frame, tol), frame, tol, any_handedness=True)
+        if len(grouped) == len(units):
+            return grouped
+        units = grouped
