@@ -59,6 +59,12 @@ CASES = [
     ("voxel-size-negative", _with(MESH, voxel_size=-0.5), "voxel_size must be positive, got -0.5"),
     ("voxel-size-tiny", _with(MESH, voxel_size=1e-4), "voxel_size 0.0001 around the mesh layers (12000x12000x12000"),
     ("grid-voxel-size-0", _with(NPY, grid__voxel_size=0), "grid.voxel_size must be positive, got 0"),
+    # sizes and places float64 cannot square or divide (a division by zero, a traceback)
+    ("grid-voxel-size-1e-300", _with(NPY, grid__voxel_size=1e-300), "grid.voxel_size must lie in 1e-12..1e+12, "
+     "got 1e-300"),
+    ("grid-voxel-size-1e300", _with(NPY, grid__voxel_size=1e300), "grid.voxel_size must lie in 1e-12..1e+12"),
+    ("voxel-size-1e300", _with(MESH, voxel_size=1e300), "voxel_size must lie in 1e-12..1e+12, got 1e+300"),
+    ("origin-1e308", _with(NPY, grid__origin=[1e308, 0, 0]), "grid.origin must lie within +-1e+12, got [1e+308"),
     ("grid-voxel-size-nan", _with(NPY, grid__voxel_size=float("nan")), "grid.voxel_size must be a finite number"),
     ("grid-voxel-size-string", _with(NPY, grid__voxel_size="1"), "grid.voxel_size must be a finite number, got '1'"),
     ("grid-voxel-size-missing", _with(NPY, grid__voxel_size=_DROP), "grid needs 'voxel_size'"),
@@ -121,6 +127,11 @@ CASES = [
     ("mesh-soup", _with(MESH, voxel_size=1 / 64, layers__0__file="soup.ply"), "layers[0].file has 30,000 open edges in "
                                                                               "10,000 boundary loops"),
     # silhouettes
+    ("sil-eye-1e300", _sil({}, {"eye": [0, 4, 1e300]}), "views[0].camera.eye must lie within +-1e+12"),
+    ("sil-fov-tiny", _sil({}, {"fov": 1e-300}), "views[0].camera.fov is the height of the view in world units "
+                                                "and must lie in 1e-12..1e+12, got 1e-300"),
+    ("sil-fov-tiny-perspective", _sil({}, {"fov": 1e-300, "projection": "perspective"}),
+     "views[0].camera.fov is the vertical field of view in degrees and must lie from 1e-06 to under 180"),
     ("sil-image-empty", _sil({}, kind="image", file=""), "views[0].image: expected a relative file path"),
     ("sil-image-dot", _sil({}, kind="image", file="."), "views[0].image: '.' names a folder"),
     ("sil-image-up", _sil({}, kind="image", file="../.."), "views[0].image: "),

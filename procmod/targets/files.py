@@ -90,11 +90,29 @@ def weight(value, where: str, minimum: float | None = None) -> float:
     return value
 
 
+# Coordinates and lengths in a target file: beyond these, squares and ratios of them
+# overflow or vanish in float64 (a voxel of 1e-300 divided by zero, an eye at 1e300 read
+# as a zero view direction); a model's parts are metres or centimetres, not light years.
+MAX_COORDINATE = 1e12
+MIN_LENGTH = 1e-12
+
+
 def vector3(value, where: str) -> tuple:
-    """Three finite numbers from a file."""
+    """Three finite numbers within +-:data:`MAX_COORDINATE` from a file."""
     if not isinstance(value, (list, tuple)) or len(value) != 3:
         raise TargetFileError(f"{where} must be three numbers, got {_shown(value)}")
-    return tuple(number(v, f"{where}[{i}]") for i, v in enumerate(value))
+    out = tuple(number(v, f"{where}[{i}]") for i, v in enumerate(value))
+    if max(abs(v) for v in out) > MAX_COORDINATE:
+        raise TargetFileError(f"{where} must lie within +-{MAX_COORDINATE:g}, got {_shown(list(value))}")
+    return out
+
+
+def length(value, where: str) -> float:
+    """A positive length from a file, from :data:`MIN_LENGTH` to :data:`MAX_COORDINATE`."""
+    value = number(value, where, positive=True)
+    if not MIN_LENGTH <= value <= MAX_COORDINATE:
+        raise TargetFileError(f"{where} must lie in {MIN_LENGTH:g}..{MAX_COORDINATE:g}, got {value:g}")
+    return value
 
 
 def _count(value, where: str, largest: int) -> int:
@@ -274,7 +292,7 @@ def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float
     """``(grid, mask)``: a mesh file (any format :func:`read_mesh` takes) voxelized on the
     grid of edge ``voxel_size`` around it grown by ``margin``."""
     where = _cut(str(path))
-    voxel_size = number(voxel_size, f"{where}: voxel_size", positive=True)
+    voxel_size = length(voxel_size, f"{where}: voxel_size")
     margin = number(margin, f"{where}: margin", minimum=0.0)
     vertices, faces = read_mesh(path, where)
     grid = grid_around(*mesh_bounds(vertices, faces), voxel_size, margin, f"{where}: voxel size {voxel_size:g}")
@@ -320,7 +338,7 @@ def _given_grid(spec: dict, where: str):
             raise TargetFileError(f"{where}: grid needs {key!r} "
                                   "(\"grid\": {\"origin\": [x, y, z], \"voxel_size\": h})")
     origin = vector3(g["origin"], f"{where}: grid.origin")
-    size = number(g["voxel_size"], f"{where}: grid.voxel_size", positive=True)
+    size = length(g["voxel_size"], f"{where}: grid.voxel_size")
     shape = None
     if "shape" in g:
         if not isinstance(g["shape"], list) or len(g["shape"]) != 3:
@@ -414,8 +432,10 @@ def load_volume_target(path: str | os.PathLike):
         raise TargetFileError(f"{where}: mesh layers need \"voxel_size\": the voxel edge, in the mesh's units "
                               "(the grid then fits the meshes)")
     else:
-        voxel_size = number(spec["voxel_size"], f"{where}: voxel_size", positive=True)
+        voxel_size = length(spec["voxel_size"], f"{where}: voxel_size")
         margin = number(spec.get("margin", 0.1), f"{where}: margin", minimum=0.0)
+        if margin > MAX_COORDINATE:
+            raise TargetFileError(f"{where}: margin must be at most {MAX_COORDINATE:g}, got {margin:g}")
     read = {}
     for at, file, _, _ in meshes:
         read[at] = _placed(read_mesh(file, f"{at}.file"), placement)
@@ -456,12 +476,12 @@ def _camera(spec, where: str, sized: bool) -> Camera:
     if projection not in ("perspective", "orthographic"):
         raise TargetFileError(f"{where}.projection must be perspective or orthographic, got {_shown(projection)}")
     fov = number(spec.get("fov", 40.0), f"{where}.fov")
-    if projection == "perspective" and not 0 < fov < 180:
-        raise TargetFileError(f"{where}.fov is the vertical field of view in degrees and must lie strictly "
-                              f"between 0 and 180, got {fov:g}")
-    if projection == "orthographic" and not fov > 0:
-        raise TargetFileError(f"{where}.fov is the height of the view in world units and must be positive, "
-                              f"got {fov:g}")
+    if projection == "perspective" and not 1e-6 <= fov < 180:
+        raise TargetFileError(f"{where}.fov is the vertical field of view in degrees and must lie from 1e-06 "
+                              f"to under 180, got {fov:g}")
+    if projection == "orthographic" and not MIN_LENGTH <= fov <= MAX_COORDINATE:
+        raise TargetFileError(f"{where}.fov is the height of the view in world units and must lie in "
+                              f"{MIN_LENGTH:g}..{MAX_COORDINATE:g}, got {fov:g}")
     forward = np.subtract(look_at, eye)
     if np.allclose(eye, look_at):
         raise TargetFileError(f"{where}: the camera's eye and look_at coincide")

@@ -117,6 +117,8 @@ def _volume_note(target, lo, hi) -> str | None:
     if m_size <= 0:
         return None
     ratio = t_size / m_size
+    if not 0 < ratio < math.inf:
+        return None  # a fill of no size (or beyond float range): nothing to compare
     what = "the target's fill"
     where = f"spans {_shown(t_lo)} to {_shown(t_hi)}"
     model = f"about {_shown(lo)} to {_shown(hi)}"
