@@ -304,11 +304,25 @@ def test_engines_control_a_learned_program():
     assert runs["smc"].best_score >= top_decile
 
 
+def _damage_tensor(folder, value):
+    import torch
+    state = torch.load(folder / "program.pt", weights_only=True)
+    key = sorted(state)[0]
+    state[key] = torch.full_like(state[key], value)
+    torch.save(state, folder / "program.pt")
+
+
 @pytest.mark.parametrize("damage, message", [
     (lambda j, d: j.update(format="x"), "format"),
     (lambda j, d: j["abstractions"][0].update(callees=[[999]] * len(j["abstractions"][0]["callees"])), "unknown"),
     (lambda j, d: (d / "program.pt").unlink(), "tensors.*does not exist"),
     (lambda j, d: j["param_shapes"].update({"root.s0.callee": [7]}), "wrong shape"),
+    # an out-of-range order sampled an IndexError; NaN or huge tensors a Categorical error
+    # that named no file
+    (lambda j, d: j["orders"].update({next(iter(j["orders"])): [99] * 9}), r"orders\[.*\] must be an ordering of 0..8"),
+    (lambda j, d: _damage_tensor(d, float("nan")), "holds NaN, infinity or values beyond 1e6"),
+    (lambda j, d: _damage_tensor(d, 1e300), "holds NaN, infinity or values beyond 1e6"),
+    (lambda j, d: j["parts"].update({next(iter(j["parts"])): {"box": [1e300, 1, 1]}}), "must lie in 1e-12..1e12"),
 ])
 def test_malformed_programs(saved, tmp_path, damage, message):
     import shutil

@@ -407,6 +407,14 @@ def program_from_json(data: dict, parts: dict) -> Program:
 
 
 def _check_program(program: Program, path) -> None:
+    for key, order in program.orders.items():
+        if sorted(order) != list(range(len(COMPONENTS))):
+            raise _fail(path, f"orders[{key!r}] must be an ordering of 0..{len(COMPONENTS) - 1}, got {order}")
+    for key, value in program.params.items():
+        # learned parameters are of order 1 to 1e3; beyond 1e6 exp() overflows in sampling
+        if not np.isfinite(value).all() or np.abs(value).max(initial=0.0) > 1e6:
+            raise _fail(path, f"tensor {key!r} holds NaN, infinity or values beyond 1e6; it was not written "
+                              "by 'procmod learn' (learn again)")
     ids = set(program.abstractions)
     for a in program.abstractions.values():
         if len(a.callees) != len(program.slot_types(a)):
