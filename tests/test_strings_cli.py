@@ -1,4 +1,5 @@
 import json
+import re
 from pathlib import Path
 
 import networkx as nx
@@ -202,6 +203,39 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
                                                                      "(every candidate pose tried)"))
     assert not trained.instantiate("DMCMD", np.random.default_rng(0), attempts=3, budget=5).success
     assert calls == [5]  # proven impossible: no restart
+    monkeypatch.undo()
+    # a hand-edited or damaged model folder is one line (these were some twenty tracebacks,
+    # and a hidden size of 10^6 asked for 12 TB)
+    import shutil
+
+    import torch
+
+    def nan_weights(folder):
+        payload = torch.load(folder / "vae.pt", weights_only=True)
+        key = sorted(payload["model"])[0]
+        payload["model"][key] = torch.full_like(payload["model"][key], float("nan"))
+        torch.save(payload, folder / "vae.pt")
+
+    def edit(name, change):
+        def apply(folder):
+            data = json.loads((folder / name).read_text())
+            change(data)
+            (folder / name).write_text(json.dumps(data))
+        return apply
+
+    for k, (damage, words) in enumerate([
+            (edit("vae.json", lambda d: d["config"].update(hidden=1_000_000)), "hidden must be a whole number from 1"),
+            (edit("vae.json", lambda d: d["config"].update(bogus=1)), "a setting 'bogus' that procmod does not know"),
+            (edit("vae.json", lambda d: d["config"].update(latent="4")), "config.latent must be a whole number"),
+            (edit("vae.json", lambda d: d.update(grammar=5)), "vae.json is malformed"),
+            (edit("tagger.json", lambda d: d.pop("categories")), "tagger.json is malformed .KeyError"),
+            (edit("model.json", lambda d: d.update(start_pose={"M": [1, 2]})), "a start pose must be a 4x4 matrix"),
+            (nan_weights, "holds NaN or infinity")]):
+        bad = tmp_path / f"bad{k}"
+        shutil.copytree(model, bad)
+        damage(bad)
+        code, out, err = _run(capsys, "strings", "sample", bad, "-n", 2, "--out", tmp_path / f"bs{k}", "--no-meshes")
+        assert code == 2 and re.search(words, err) and len(err.strip().splitlines()) == 1, err
 
 
 def test_strings_messages_name_api_arguments_and_the_command_line_its_flags(tmp_path, capsys, monkeypatch):
@@ -248,3 +282,12 @@ def test_a_shape_in_two_pieces_is_named_by_graph_and_refused_by_augment(tmp_path
     out, err = capsys.readouterr()
     assert code == 2 and err.count("\n") == 1 and "Cap touches no other part" in err, err
     assert not (tmp_path / "a").exists()
+
+
+def test_training_constants_that_are_not_numbers_are_refused_before_training(tmp_path, capsys):
+    """--kl-weight nan passed the '>= 0' check (NaN compares false), trained a model of NaN
+    weights and exited 0; sampling it then failed with a traceback."""
+    code, _, err = _run(capsys, "strings", "train", SETS / "moonbase.json", "--out", tmp_path / "m",
+                        "--kl-weight", "nan")
+    assert code == 2 and "kl_weight must be a finite number >= 0 (got nan)" in err
+    assert not (tmp_path / "m").exists()

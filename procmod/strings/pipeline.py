@@ -36,7 +36,7 @@ from .contacts import shape_graph
 from .grammar import Grammar
 from .shapes import ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, write_shapes
 from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
-from .torch_utils import ModelFileError, training_device
+from .torch_utils import ModelFileError, reading_model_file, training_device
 from .vae import StringModel, VAEConfig, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
@@ -206,6 +206,14 @@ def _start_poses(shape_set: ShapeSet) -> dict:
     return {t: m.tolist() for t, m in first_poses(shape_set).items()}
 
 
+def _pose(value) -> np.ndarray:
+    """A 4x4 matrix of finite numbers from a model file."""
+    pose = np.asarray(value, dtype=np.float64)
+    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+        raise ValueError(f"a start pose must be a 4x4 matrix of finite numbers, got {value!r:.60}")
+    return pose
+
+
 class TrainedModel:
     """A model folder, loaded: VAE, tagger, categories, grammar and the training shapes."""
 
@@ -219,11 +227,15 @@ class TrainedModel:
         self.vae = StringModel.load(folder)
         self.tagger = TaggerModel.load(folder)
         self.categories = self.tagger.categories
-        self.grammar = Grammar.from_json(self.meta["grammar"])
-        self.vae.grammar = self.grammar  # one grammar per model folder: model.json's
+        with reading_model_file(str(folder / "model.json")):
+            self.grammar = Grammar.from_json(self.meta["grammar"])
+            self.vae.grammar = self.grammar  # one grammar per model folder: model.json's
+            self.start_pose = {t: _pose(m) for t, m in self.meta["start_pose"].items()}
         self.shape_set = read_shapes(folder / "collection.json")
-        self.training_strings = (folder / "strings.txt").read_text().split()
-        self.start_pose = {t: np.asarray(m) for t, m in self.meta["start_pose"].items()}
+        try:
+            self.training_strings = (folder / "strings.txt").read_text().split()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ModelFileError(f"{folder / 'strings.txt'} cannot be read ({exc}); train the model again") from None
 
     def check_string(self, text: str):
         """The graph of ``text``; raises if it is not a string or breaks the grammar."""

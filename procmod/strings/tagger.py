@@ -10,6 +10,7 @@ the held-out accuracy are here too.
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,8 +28,9 @@ from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement
 from .shapes import ShapeSet, first_poses
-from .torch_utils import ModelFileError, save_weights, torch_threads, training_device
-from .vae import Vocab
+from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, reading_model_file, save_weights,
+                          torch_threads, training_device)
+from .vae import Vocab, _characters, check_sizes
 
 
 @dataclass
@@ -52,6 +54,16 @@ class TaggerConfig:
     # accuracy per character at 360 shapes, 0 -> 3 rounds: castle 89% -> 94%, moon base
     # 81% -> 89% (docs/strings.md).
     graph_rounds: int = 3
+
+    def check(self) -> None:
+        if self.cell not in ("gru", "lstm"):
+            raise InvalidArgumentError(f"cell must be 'gru' or 'lstm', got {self.cell!r}")
+        check_sizes(self, {"embed": 4096, "hidden": 4096, "layers": 16, "epochs": 1_000_000, "batch": 1_000_000})
+        if not 0 <= self.graph_rounds <= 64:
+            raise InvalidArgumentError(f"graph_rounds must be from 0 to 64, got {self.graph_rounds}")
+        if not (0 < self.lr < math.inf and 0 < self.lr_final <= 1 and 0 <= self.dropout < 1):
+            raise InvalidArgumentError(f"lr must be a finite number > 0 (got {self.lr}), lr_final in (0, 1], dropout "
+                                       "in [0, 1)")
 
 
 class Tagger(nn.Module):
@@ -467,16 +479,23 @@ class TaggerModel:
         folder = Path(folder)
         meta = read_json(folder / "tagger.json", ModelFileError, "edge-category tagger metadata")
         payload = load_tensors(folder / "tagger.pt", ModelFileError, "edge-category tagger's weights")
-        cats = EdgeCategories.from_json(meta["categories"])
-        vocab = Vocab(meta["vocab"])
+        where = str(folder / "tagger.json")
+        if not isinstance(meta, dict):
+            raise ModelFileError(f"{where} must hold a JSON object, got {type(meta).__name__}")
+        given = meta.get("config")
         # taggers saved before the tree pass existed are plain bidirectional LSTMs
         # and before the graph pass existed, taggers had none
-        config = TaggerConfig(**{"tree": False, "graph_rounds": 0, **meta["config"]})
-        net = Tagger(len(vocab), len(cats), config)
-        net.load_state_dict(payload["model"])
-        # taggers saved before structured decoding existed have no stars (rings are still checked)
-        stars = [(t, tuple(ks)) for t, ks in meta["stars"]] if "stars" in meta else None
-        model = TaggerModel(net, vocab, cats, stars)
+        config = config_from_json(TaggerConfig, {"tree": False, "graph_rounds": 0, **given}
+                                  if isinstance(given, dict) else given, f"{where}: config")
+        with reading_model_file(where):
+            cats = EdgeCategories.from_json(meta["categories"])
+            vocab = Vocab(_characters(meta["vocab"], f"{where}: vocab"))
+            net = Tagger(len(vocab), len(cats), config)
+            net.load_state_dict(payload["model"])
+            check_finite_weights(net, str(folder / "tagger.pt"))
+            # taggers saved before structured decoding existed have no stars (rings are still checked)
+            stars = [(t, tuple(ks)) for t, ks in meta["stars"]] if "stars" in meta else None
+            model = TaggerModel(net, vocab, cats, stars)
         if with_optimizer:
             return model, meta["train"], payload.get("optimizer")
         return model

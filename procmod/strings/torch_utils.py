@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 from pathlib import Path
 
 import torch
@@ -31,6 +33,58 @@ class torch_threads:
 
 class ModelFileError(ProcmodError):
     """A trained model folder or checkpoint that cannot be read."""
+
+
+# what a damaged or hand-edited model file raises while it is turned into nets (a missing
+# key, a field of the wrong type, weights of another size)
+MALFORMED = (KeyError, TypeError, ValueError, AttributeError, IndexError, RuntimeError)
+
+
+@contextlib.contextmanager
+def reading_model_file(where: str, advice: str = "; train it again with 'procmod strings train'"):
+    """Turn what a malformed model file raises inside the block into one ModelFileError
+    line naming ``where`` (ProcmodErrors pass through)."""
+    try:
+        yield
+    except ProcmodError:
+        raise
+    except MALFORMED as exc:
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        raise ModelFileError(f"{where} is malformed ({type(exc).__name__}: {text[:160]}){advice}") from None
+
+
+def config_from_json(cls, data, where: str):
+    """A config dataclass (``cls``, with a ``check()`` of its values) from a model file's
+    JSON object: only its own settings, each of its default's type (an int where a float
+    is wanted too), then checked, so that a hand-edited size cannot allocate terabytes."""
+    if not isinstance(data, dict):
+        raise ModelFileError(f"{where} must be an object of settings, got {type(data).__name__}")
+    defaults = {f.name: getattr(cls(), f.name) for f in dataclasses.fields(cls)}
+    for key, value in data.items():
+        if key not in defaults:
+            raise ModelFileError(f"{where} has a setting {key!r} that procmod does not know; it was not written "
+                                 "by this version of 'procmod strings train'")
+        want = type(defaults[key])
+        fits = (isinstance(value, want) and (want is bool or not isinstance(value, bool))) or (
+            want is float and isinstance(value, int) and not isinstance(value, bool))
+        if not fits:
+            kind = {"int": "a whole number", "float": "a number", "str": "a string", "bool": "true or false"}.get(
+                want.__name__, want.__name__)
+            raise ModelFileError(f"{where}.{key} must be {kind}, got {value!r:.40}")
+    config = cls(**data)
+    try:
+        config.check()
+    except InvalidArgumentError as exc:
+        raise ModelFileError(f"{where}: {exc}") from None
+    return config
+
+
+def check_finite_weights(net, where: str) -> None:
+    """Refuse weights that are NaN or infinite (a run that diverged; a damaged file)."""
+    for name, value in net.state_dict().items():
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            raise ModelFileError(f"{where}: weight {name!r} holds NaN or infinity (training diverged, or the file "
+                                 "is damaged); train the model again")
 
 
 def training_device(name: str | None) -> torch.device:

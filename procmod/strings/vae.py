@@ -37,7 +37,8 @@ from ..core.io import fingerprint, load_tensors, read_versioned_json, write_text
 from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
 from .grammar import Grammar
-from .torch_utils import ModelFileError, save_weights, torch_threads, training_device
+from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, reading_model_file, save_weights,
+                          torch_threads, training_device)
 
 PAD, SOS, EOS = 0, 1, 2
 NODE_BUDGET = 1.25  # constrained decoding stops adding letters at 1.25 x the largest training graph (nodes)
@@ -66,11 +67,28 @@ class VAEConfig:
     def check(self) -> None:
         if self.cell not in ("gru", "lstm"):
             raise InvalidArgumentError(f"cell must be 'gru' or 'lstm', got {self.cell!r}")
-        for name in ("embed", "hidden", "layers", "latent", "epochs", "batch", "max_len"):
-            if getattr(self, name) < 1:
-                raise InvalidArgumentError(f"{name} must be a positive integer, got {getattr(self, name)}")
-        if self.kl_weight < 0 or self.kl_warmup < 0 or self.lr <= 0 or not 0 <= self.word_dropout < 1:
-            raise InvalidArgumentError("kl_weight, kl_warmup must be >= 0, lr > 0, word_dropout in [0, 1)")
+        check_sizes(self, CONFIG_LIMITS)
+        # written so that NaN fails each test (NaN compares false)
+        if not (0 <= self.kl_weight < math.inf and 0 <= self.kl_warmup and 0 < self.lr < math.inf
+                and 0 <= self.word_dropout < 1):
+            raise InvalidArgumentError(f"kl_weight must be a finite number >= 0 (got {self.kl_weight}), kl_warmup >= 0, "
+                                       f"lr a finite number > 0 (got {self.lr}), word_dropout in [0, 1)")
+
+
+# Largest sizes a string VAE or tagger may have: far beyond what these small nets need
+# (defaults 32-128), small enough that a hand-edited model file cannot allocate terabytes.
+CONFIG_LIMITS = {"embed": 4096, "hidden": 4096, "layers": 16, "latent": 4096, "epochs": 1_000_000,
+                 "batch": 1_000_000, "max_len": 100_000}
+
+
+def check_sizes(config, limits: dict) -> None:
+    """Each of ``limits``' fields of ``config`` a whole number from 1 to its limit."""
+    for name, largest in limits.items():
+        value = getattr(config, name, None)
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= largest:
+            raise InvalidArgumentError(f"{name} must be a whole number from 1 to {largest:,}, got {value!r}")
 
 
 class Vocab:
@@ -318,15 +336,30 @@ class StringModel:
         meta = read_versioned_json(folder / "vae.json", "procmod-string-vae/1", ModelFileError,
                                    "string VAE metadata", advice)
         payload = load_tensors(folder / "vae.pt", ModelFileError, "string VAE's weights", advice)
-        config = VAEConfig(**meta["config"])
-        vocab = Vocab(meta["vocab"])
-        net = StringVAE(len(vocab), config)
-        net.load_state_dict(payload["model"])
-        model = StringModel(net, vocab, Grammar.from_json(meta["grammar"]), meta.get("max_nodes"))
-        state = TrainState(**meta["train"]) if meta.get("train") else TrainState()
+        where = str(folder / "vae.json")
+        config = config_from_json(VAEConfig, meta.get("config"), f"{where}: config")
+        with reading_model_file(where):
+            vocab = Vocab(_characters(meta["vocab"], f"{where}: vocab"))
+            net = StringVAE(len(vocab), config)
+            net.load_state_dict(payload["model"])
+            check_finite_weights(net, str(folder / "vae.pt"))
+            max_nodes = meta.get("max_nodes")
+            if max_nodes is not None and (isinstance(max_nodes, bool) or not isinstance(max_nodes, int)
+                                          or max_nodes < 1):
+                raise ModelFileError(f"{where}: max_nodes must be a positive whole number, got {max_nodes!r:.40}")
+            model = StringModel(net, vocab, Grammar.from_json(meta["grammar"]), max_nodes)
+            state = TrainState(**meta["train"]) if meta.get("train") else TrainState()
         if with_optimizer:
             return model, state, payload.get("optimizer")
         return model
+
+
+def _characters(value, where: str) -> list:
+    """A model file's vocabulary: a list of distinct one-character strings."""
+    if (not isinstance(value, list) or not all(isinstance(c, str) and len(c) == 1 for c in value)
+            or len(set(value)) != len(value)):
+        raise ModelFileError(f"{where} must be a list of distinct characters, got {value!r:.60}")
+    return value
 
 
 def vocab_of(strings: list[str]) -> Vocab:
