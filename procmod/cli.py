@@ -9,9 +9,11 @@ folder with ``--overwrite``) or refused, never mixed.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import re
 import shlex
+import signal
 import sys
 from pathlib import Path
 
@@ -395,18 +397,51 @@ def one_line(message: str, limit: int = 600) -> str:
     return text
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, ``timeout``, a job scheduler) turned into an interrupt, so that a
+    command stops as it does on Ctrl-C: temporary files and folders removed, nothing
+    half-written left (killed outright, a run left its hidden ``.OUT.*.tmp`` folder)."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Install :func:`_terminate` for SIGTERM while a command runs, where nobody else
+    handles SIGTERM (an application that embeds procmod keeps its own handler)."""
+    try:
+        previous = signal.getsignal(signal.SIGTERM)
+        if previous != signal.SIG_DFL:
+            previous = None
+        else:
+            signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread
+        previous = None
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``procmod`` console script; returns the exit status."""
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     try:
-        args = _build_parser().parse_args(argv)
-        args.command_line = "procmod " + shlex.join(argv)  # recorded in reports
-        handler = getattr(args, "handler", None) or _COMMANDS[args.command]
-        with spelled(CLI_SPELLING):  # library messages name API arguments; here they read as flags
-            handler(args)
+        with _sigterm_as_interrupt():
+            args = _build_parser().parse_args(argv)
+            args.command_line = "procmod " + shlex.join(argv)  # recorded in reports
+            handler = getattr(args, "handler", None) or _COMMANDS[args.command]
+            with spelled(CLI_SPELLING):  # library messages name API arguments; here they read as flags
+                handler(args)
     except ProcmodError as exc:
         print(f"procmod: error: {one_line(exc)}", file=sys.stderr)
         return 2
+    except Terminated:
+        print("procmod: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("procmod: interrupted", file=sys.stderr)
         return 130

@@ -105,6 +105,14 @@ def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
     forked by ``parent`` sees its parent pid change when it is re-parented; a worker
     started by a fork server checks that ``parent`` still exists.
     """
+    try:
+        # the coordinator answers Ctrl-C (a terminal sends it to the whole process group):
+        # a worker that also raised KeyboardInterrupt printed its own traceback; and the
+        # coordinator's SIGTERM handler (procmod.cli) is not a worker's
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    except ValueError:  # not this process's main thread: leave its handlers alone
+        pass
     direct = os.getppid() == parent
     if use_prctl and direct and sys.platform.startswith("linux"):
         try:

@@ -108,3 +108,32 @@ def test_resumed_training_ends_with_the_loss_history_of_an_uninterrupted_run(tmp
     # one process, the same arithmetic in the same order: equal up to the last bits
     for (_, a), (_, b) in zip(resumed["curve"], whole["curve"]):
         assert a == pytest.approx(b, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("command, signum, code, line", [
+    (["sample", "vines", "-n", "20000", "--size", "256"], signal.SIGTERM, 143, "procmod: terminated"),
+    (["infer", "vines", "--target", "glyph:a", "--particles", "40", "--workers", "2", "--budget", "60s"],
+     signal.SIGTERM, 143, "procmod: terminated"),
+    (["infer", "vines", "--target", "glyph:a", "--particles", "40", "--workers", "2", "--budget", "60s"],
+     signal.SIGINT, 130, "procmod: interrupted")])
+def test_terminated_or_interrupted_runs_leave_nothing_behind(tmp_path, command, signum, code, line):
+    """SIGTERM (kill, timeout, a scheduler) left a run's hidden .OUT.*.tmp folder, which no
+    later run removed; Ctrl-C, sent to the whole process group, printed the SMC workers'
+    KeyboardInterrupt tracebacks. Both now stop as Ctrl-C did in the coordinator: one
+    line, nothing left, no worker running."""
+    out = tmp_path / "run"
+    job = subprocess.Popen([sys.executable, "-m", "procmod.cli", *command, "--out", str(out)], cwd=tmp_path,
+                           stderr=subprocess.PIPE, text=True, start_new_session=True,
+                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 60
+    while time.time() < deadline and not any(p.name.startswith(".run.") for p in tmp_path.iterdir()) \
+            and "infer" not in command:
+        time.sleep(0.05)  # sample: until its temporary folder exists
+    time.sleep(4 if "infer" in command else 0.5)
+    workers = subprocess.run(["pgrep", "-g", str(job.pid)], capture_output=True, text=True).stdout.split()
+    os.killpg(job.pid, signum)
+    err = job.communicate(timeout=60)[1]
+    assert job.returncode == code and err.strip() == line, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    time.sleep(0.5)
+    assert not [pid for pid in map(int, workers) if _alive(pid)]
