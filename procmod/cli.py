@@ -245,7 +245,7 @@ def _cmd_render(args) -> None:
     from .render import check_format, check_size, output_formats, write_derivation
 
     check_format(args.out)
-    check_output_file(args.out)
+    check_output_file(args.out, inputs=[args.derivation])
     size = check_size(args.size)
     derivation = load_derivation(args.derivation, _model)
     check_format(args.out, output_formats(derivation))

@@ -194,3 +194,20 @@ def test_an_absolute_gltf_buffer_name_is_read_from_beside_the_file(tmp_path):
     data["buffers"][0]["uri"] = "/home/someone/export/post.bin"  # where the exporter ran
     (tmp_path / "post.gltf").write_text(json.dumps(data))
     assert len(load_mesh_file(tmp_path / "post.gltf", force="mesh", process=False).faces) == 12
+
+
+def test_render_never_writes_over_its_input_and_a_guide_never_over_a_users_json(tmp_path, capsys):
+    """``render in.svg --out in.svg`` replaced the derivation it read; ``guide train --out
+    mytarget`` replaced a user's unrelated mytarget.json with guide metadata."""
+    code, _, err = _run(capsys, "sample", "vines", "-n", 1, "--out", tmp_path / "s")
+    assert code == 0, err
+    derivation = tmp_path / "in.svg"  # a derivation whatever its name
+    shutil.copy(next((tmp_path / "s").glob("*.json")), derivation)
+    kept = derivation.read_bytes()
+    code, _, err = _run(capsys, "render", derivation, "--out", derivation)
+    assert code == 2 and "would overwrite the input" in err and derivation.read_bytes() == kept
+    mine = tmp_path / "mytarget.json"
+    mine.write_text('{"format": "procmod-volume/1"}')
+    code, _, err = _run(capsys, "guide", "train", "vines", "--traces", tmp_path / "s", "--iterations", 1,
+                        "--out", tmp_path / "mytarget")
+    assert code == 2 and "which is not a guide" in err and mine.read_text() == '{"format": "procmod-volume/1"}'

@@ -77,6 +77,25 @@ def _cmd_traces(args) -> None:
           + (f" ({rate:.0f} traces/hour)" if rate else "") + f"; folder: {args.out}")
 
 
+def _check_replaces_a_guide(path) -> None:
+    """Refuse to write a guide over an existing file that is not one (a user's JSON that
+    happens to share the name): a guide file is replaced only by a guide."""
+    import json
+
+    from ..core.runfolder import OutputLocationError
+    from .guide import FORMAT
+
+    if not path.is_file() or path.suffix != ".json":
+        return
+    try:
+        found = json.loads(path.read_text(encoding="utf-8")).get("format")
+    except (OSError, ValueError, AttributeError):
+        found = None
+    if found != FORMAT:
+        raise OutputLocationError(f"--out would replace {path}, which is not a guide ({FORMAT}); give another "
+                                  "--out, or move that file")
+
+
 def _cmd_train(args) -> None:
     from ..models import get_model
     from .features import FeatureSettings
@@ -88,6 +107,7 @@ def _cmd_train(args) -> None:
     from .guide import guide_paths
     for path in guide_paths(args.out, for_writing=True):  # checked now, written after the training
         check_output_file(path, make_parent=True, inputs=[args.traces])
+        _check_replaces_a_guide(path)
     bar = _progress(args.iterations, " steps")
     try:
         def progress(done, loss):
