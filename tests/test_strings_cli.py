@@ -61,6 +61,13 @@ def test_graph_encode_decode(tmp_path, capsys):
     (["strings", "decode", "C?C"], ["unknown character"]),
     (["strings", "graph", "nope.json", "--out", "x"], ["does not exist"]),
     (["strings", "sample", "nope", "-n", "2", "--out", "x"], ["not a trained string model"]),
+    # sizes that grew memory without end
+    (["strings", "augment", str(SETS / "castle.json"), "--count", "5", "--parallel", "100000000", "--out", "x"],
+     ["--parallel must be at most 10,000"]),
+    (["strings", "augment", str(SETS / "castle.json"), "--count", "5", "--strings-per-shape", "100000000",
+      "--out", "x"], ["--strings-per-shape must be at most 10,000"]),
+    (["strings", "instantiate", "nope", "DMCMD", "--votes", "100000000", "--out", "x.glb"],
+     ["--votes must be at most 10,000"]),
     (["strings", "train", "nope", "--out", "x", "--device", "tpu:0"], ["not a torch device"]),
     (["strings", "train", "nope", "--out", "x", "--device", "meta"], ["cpu or cuda only"]),
     pytest.param(["strings", "train", "nope", "--out", "x", "--device", "cuda"], ["sees no CUDA device"],

@@ -18,6 +18,18 @@ SHAPES_HELP = ("a procmod-shapes/1 JSON file, or asset files (.gltf, .glb, .urdf
                "per file, one part per distinct mesh (docs/strings.md)")
 
 
+
+# Sizes whose work and memory grow with them and that no use needs in the millions
+# (defaults 8-16): 10^8 random subgraphs a round or strings a shape grew memory without end.
+MAX_PARALLEL = 10_000
+MAX_STRINGS_PER_SHAPE = 10_000
+MAX_VOTES = 10_000
+
+
+def _at_most(value: int, flag: str, largest: int) -> None:
+    if value > largest:
+        raise InvalidArgumentError(f"{flag} must be at most {largest:,}, got {value:,}")
+
 def register(sub, int_arg) -> None:
     """Add the ``strings`` subcommand group to the argparse subparsers ``sub``.
 
@@ -237,6 +249,8 @@ def _augment(args) -> None:
         raise InvalidArgumentError(f"--seconds must be a positive number of seconds, got {args.seconds}")
     if args.strings_per_shape < 1:
         raise InvalidArgumentError(f"--strings-per-shape must be a positive integer, got {args.strings_per_shape}")
+    _at_most(args.parallel, "--parallel", MAX_PARALLEL)
+    _at_most(args.strings_per_shape, "--strings-per-shape", MAX_STRINGS_PER_SHAPE)
     if args.workers is not None and args.workers < 0:
         raise InvalidArgumentError(f"--workers must be >= 0 (0 = one per core), got {args.workers}")
     if args.scheduler is not None:
@@ -310,6 +324,8 @@ def _train(args) -> None:
 
     if args.strings_per_shape < 1 or args.tagger_strings_per_shape < 1:
         raise InvalidArgumentError("--strings-per-shape and --tagger-strings-per-shape must be positive integers")
+    _at_most(args.strings_per_shape, "--strings-per-shape", MAX_STRINGS_PER_SHAPE)
+    _at_most(args.tagger_strings_per_shape, "--tagger-strings-per-shape", MAX_STRINGS_PER_SHAPE)
     meta = train_model(args.collection, args.out, vae, tagger, args.strings_per_shape, args.held_out,
                        _seed(args.seed), progress, tagger_strings_per_shape=args.tagger_strings_per_shape,
                        device=args.device, overwrite=args.overwrite)
@@ -402,6 +418,7 @@ def _instantiate(args) -> None:
         raise InvalidArgumentError(f"--out must end in .glb or .obj, got {out.name!r}")
     if args.votes < 1:
         raise InvalidArgumentError(f"--votes must be a positive integer, got {args.votes}")
+    _at_most(args.votes, "--votes", MAX_VOTES)
     from ..core.runfolder import check_output_file
     check_output_file(out, make_parent=True)
     model = TrainedModel(args.model)
