@@ -77,10 +77,14 @@ class Normal(Distribution):
     __slots__ = ("mu", "sigma")
 
     def __init__(self, mu: float, sigma: float):
-        if not sigma > 0:
-            raise ModelError(f"Normal needs sigma > 0, got {sigma!r}")
-        self.mu = float(mu)
-        self.sigma = float(sigma)
+        try:  # the hot path: one comparison; a non-number fails in it or in float()
+            if sigma > 0:
+                self.mu = float(mu)
+                self.sigma = float(sigma)
+                return
+        except (TypeError, ValueError):
+            pass
+        raise ModelError(f"Normal needs a number mu and a number sigma > 0, got mu={mu!r:.40}, sigma={sigma!r:.40}")
 
     def sample(self, rng):
         return self.mu + self.sigma * rng.standard_normal()
@@ -177,8 +181,12 @@ class Bernoulli(Distribution):
     __slots__ = ("p", "_log_p", "_log_q")
 
     def __init__(self, p: float):
-        if not 0.0 <= p <= 1.0:
-            raise ModelError(f"Bernoulli needs 0 <= p <= 1, got {p!r}")
+        try:
+            valid = 0.0 <= p <= 1.0
+        except TypeError:
+            valid = False
+        if not valid:
+            raise ModelError(f"Bernoulli needs a number 0 <= p <= 1, got {p!r:.40}")
         self.p = float(p)
         self._log_p = math.log(p) if p > 0 else -math.inf
         self._log_q = math.log1p(-p) if p < 1 else -math.inf
@@ -208,7 +216,10 @@ class Categorical(Distribution):
     __slots__ = ("probs", "labels", "_cumulative", "_log_probs", "_index")
 
     def __init__(self, probs, labels=None):
-        probs = [float(p) for p in probs]
+        try:
+            probs = [float(p) for p in probs]
+        except (TypeError, ValueError):
+            raise ModelError(f"Categorical needs a list of numbers, got {probs!r:.60}") from None
         if not probs or any(not (p >= 0.0 and math.isfinite(p)) for p in probs) or sum(probs) <= 0:
             raise ModelError(f"Categorical needs non-negative probabilities with a positive sum, got {probs!r}")
         total = sum(probs)

@@ -156,6 +156,8 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
 def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
     """The parsed JSON of ``path``; a missing, unreadable or malformed file is ``error``
     with one line naming the file (see :func:`parse_json`)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise error(f"{what} must be given as a path (a str or pathlib.Path), got {type(path).__name__} {path!r:.40}")
     try:
         if Path(path).exists() and not Path(path).is_file():  # a folder, a FIFO, /dev/zero: never ends or fits
             raise error(f"{what} {_cut(str(path))} is not a regular file")

@@ -29,6 +29,7 @@ Design notes
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable, NamedTuple
@@ -37,7 +38,7 @@ import numpy as np
 
 from .choicemap import ChoiceMap, format_address
 from .distributions import Bernoulli, Distribution
-from .errors import ModelError
+from .errors import InvalidArgumentError, ModelError
 from .model import Model
 
 _MISSING = object()
@@ -620,7 +621,21 @@ def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None
         Complete. Its ``log_prior`` is the log-weight of this run: the total
         log-probability of every choice made, i.e. ``log p(derivation)`` under the model.
     """
+    _check_call(model, rng)
     return finish(start(model, output), rng, pick)
+
+
+def _check_call(model, rng, derivation=None, needs_derivation: bool = False) -> None:
+    """One-line errors for the public entry points' most likely mistakes: a model's name
+    for the model, a seed for the generator, no derivation."""
+    if not isinstance(model, Model):
+        raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; get "
+                                   "one with procmod.models.get_model(name)")
+    if not callable(getattr(rng, "random", None)) or not callable(getattr(rng, "standard_normal", None)):
+        raise InvalidArgumentError(f"rng must be a numpy Generator (np.random.default_rng(seed)), got "
+                                   f"{type(rng).__name__} {rng!r:.40}")
+    if needs_derivation and not isinstance(derivation, Derivation):
+        raise InvalidArgumentError(f"derivation must be a procmod Derivation, got {type(derivation).__name__}")
 
 
 @dataclass
@@ -682,6 +697,9 @@ def replay(model: Model, choices, rng: np.random.Generator, order: list | None =
         ``log_reused`` and ``log_fresh`` are the log-probabilities of the reused and the
         freshly sampled parts; they sum to the new derivation's log-prior.
     """
+    _check_call(model, rng)
+    if not isinstance(choices, (ChoiceMap, Mapping)):
+        raise InvalidArgumentError(f"choices must be a ChoiceMap or a dict of them, got {type(choices).__name__}")
     raw = choices.raw if isinstance(choices, ChoiceMap) else dict(choices)
     return _replay(model, raw, rng, order, output, raw, maybe_default)
 
@@ -706,6 +724,7 @@ def regenerate(model: Model, derivation: Derivation, node_address: tuple,
         ``log_fresh`` is the log-probability of the new subtree's choices (the forward
         proposal density of an RJMCMC jump); ``unused`` lists the old subtree's choices.
     """
+    _check_call(model, rng, derivation, needs_derivation=True)
     node_address = tuple(node_address)
     if node_address not in derivation.tree():
         raise ModelError(f"the derivation has no rule call at {format_address(node_address)}")

@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import DerivationFormatError, ProcmodError
+from .errors import DerivationFormatError, InvalidArgumentError, ProcmodError
 # The file recipes live in .io; these names are kept here for the modules that import them
 # from serialize.
 from .io import _cut, check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
@@ -73,7 +73,16 @@ def derivation_json(data: dict) -> str:
 
 def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
     """Write a complete derivation to ``path`` as ``procmod-derivation/1`` JSON."""
-    write_text_atomic(path, derivation_json(derivation_to_dict(derivation)))
+    if not isinstance(derivation, Derivation):
+        raise InvalidArgumentError(f"derivation must be a procmod Derivation, got {type(derivation).__name__}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidArgumentError(f"path must be a str or pathlib.Path, got {type(path).__name__}")
+    text = derivation_json(derivation_to_dict(derivation))
+    try:
+        write_text_atomic(path, text)
+    except OSError as exc:  # no such folder, a folder of that name, no permission
+        raise InvalidArgumentError(f"cannot write the derivation to {_cut(str(path))}: "
+                                   f"{getattr(exc, 'strerror', None) or exc}") from None
 
 
 def _fail(source: str, problem: str) -> DerivationFormatError:
@@ -91,7 +100,10 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
     for key, kind in (("model", str), ("params", dict), ("order", list), ("choices", list)):
         if not isinstance(data.get(key), kind):
             raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
-    model = resolve_model(data["model"])
+    try:
+        model = resolve_model(data["model"])
+    except ProcmodError as exc:  # an unknown model: say which file names it (same kind of error)
+        raise type(exc)(f"{source}: {exc}") from None
     try:
         model = model.configure(**data["params"])
     except ProcmodError as exc:

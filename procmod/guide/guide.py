@@ -190,8 +190,13 @@ class Guide:
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Guide":
         """Read a guide saved by :meth:`save` (``STEM``, ``STEM.pt`` or ``STEM.json``)."""
+        if not isinstance(path, (str, os.PathLike)):
+            raise GuideError(f"a guide is given by its name or path, got {type(path).__name__} {path!r:.40}")
         weights, meta = guide_paths(path)
         for p in (weights, meta):
+            if p.exists() and not p.is_file():
+                raise GuideError(f"guide file {p} is not a regular file (a folder, a device or a pipe); a guide is "
+                                 "a .pt + .json pair written by 'procmod guide train'")
             if not p.is_file():
                 shipped = ", ".join(pretrained_guides()) or "none"
                 raise GuideError(f"guide file {p} does not exist (a guide is a .pt + .json pair "

@@ -17,6 +17,7 @@ import contextlib
 import functools
 import gc
 import math
+import numbers
 import re
 import time
 from dataclasses import dataclass, field
@@ -45,8 +46,13 @@ class Budget:
     def __post_init__(self):
         for name in ("seconds", "evaluations", "generations"):
             value = getattr(self, name)
-            if value is not None and not value > 0:
-                raise InvalidArgumentError(f"budget {name} must be positive, got {value!r}")
+            if value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise InvalidArgumentError(f"budget {name} must be a number, got {value!r}")
+            if not 0 < value < math.inf:
+                raise InvalidArgumentError(f"budget {name} must be positive and finite (no budget: None), "
+                                           f"got {value!r}")
 
     @property
     def unlimited(self) -> bool:
@@ -312,6 +318,26 @@ def new_seed(rng: np.random.Generator) -> int:
 
 
 _TARGET_METHODS = ("configure", "new_output", "score", "log_likelihood")
+
+
+def check_run(model, target, seed, budget) -> None:
+    """Refuse, in one line each, what an engine cannot run: a model that is not a procmod
+    Model (a model's name: ``procmod.models.get_model(name)``), a target that is not a
+    Target, a seed that is not a non-negative whole number, a budget that is not a
+    :class:`Budget` (``parse_budget("30s")`` reads the command line's)."""
+    from ..core.model import Model
+
+    if not isinstance(model, Model):
+        raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; "
+                                   "get one with procmod.models.get_model(name) or procmod.learn.load_program(path)")
+    check_target(target)
+    # numpy's seeds: a whole number, or a sequence of them (a worker's (seed, index))
+    entries = list(seed) if isinstance(seed, (list, tuple)) and seed else [seed]
+    if any(isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0 for s in entries):
+        raise InvalidArgumentError(f"seed must be a non-negative whole number, got {seed!r:.40}")
+    if budget is not None and not isinstance(budget, Budget):
+        raise InvalidArgumentError(f"budget must be a Budget (e.g. Budget(seconds=30), or "
+                                   f"procmod.infer.parse_budget('30s')) or None, got {budget!r:.40}")
 
 
 def check_target(target) -> None:

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..core import Model
 from ..core.protocols import Target
-from .common import (Budget, Result, Tracker, check_population, check_positive, check_target, evaluate_all,
+from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, evaluate_all,
                      log_mean_exp, new_seed, relaxed_gc)
 
 
@@ -20,7 +20,7 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
     estimate over every sample drawn. Samples are evaluated through ``executor``.
     """
     check_positive("particles", particles)
-    check_target(target)
+    check_run(model, target, seed, budget)
     model = target.configure(model)
     check_population("particles", particles, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)

@@ -96,7 +96,7 @@ import numpy as np
 from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
 from ..core.random import LazyGenerator
-from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_target,
+from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
                      evaluate_all, new_seed, relaxed_gc)
 from .mcmc_workers import run_groups
 from .particles import fork_available
@@ -617,7 +617,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     if annealing is not None and not annealing >= 1.0:
         raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
     budget = budget or Budget(generations=1600)
-    check_target(target)
+    check_run(model, target, seed, budget)
     unconfigured, model = model, target.configure(model)
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least

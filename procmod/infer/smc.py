@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 from array import array
 
 import numpy as np
@@ -25,7 +26,7 @@ from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
-from .common import Budget, Result, Tracker, check_population, check_positive, check_target, log_mean_exp, relaxed_gc
+from .common import Budget, Result, Tracker, check_population, check_positive, check_run, log_mean_exp, relaxed_gc
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
@@ -253,12 +254,19 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     if order not in ("program", "random"):
         raise InvalidArgumentError(f"order must be 'program' or 'random', got {order!r}")
     pick = None if order == "program" else random_order
-    check_target(target)
+    check_run(model, target, seed, budget)
     model = target.configure(model)
     template = target.new_output(model)  # every particle starts from a copy of it
     check_population("particles", particles, template)  # refuse what memory cannot hold
     proposer = None
+    if isinstance(guide, (str, os.PathLike)):  # a guide's name or path, as the command line takes it
+        from ..guide import Guide
+        guide = Guide.load(guide)
     if guide is not None:
+        if not callable(getattr(guide, "proposer", None)):
+            raise InvalidArgumentError(f"guide must be a procmod Guide, its name or its path, got "
+                                       f"{type(guide).__name__}")
+        guide.check_model(model)
         proposer = guide.proposer(model, target)
     n_workers = worker_count(workers, particles)
     rng = BlockGenerator(np.random.default_rng(seed))  # scalar draws from blocks: the hot loop

@@ -42,8 +42,10 @@ def load_program(path: str | os.PathLike) -> Model:
     The model's name is the absolute path of ``program.json``, so saved derivations of it
     load again through ``procmod render`` and :func:`procmod.core.load_derivation`.
     """
-    from .program import program_model, read_program
+    from .program import ProgramError, program_model, read_program
 
+    if not isinstance(path, (str, os.PathLike)):
+        raise ProgramError(f"a learned program is given by its path, got {type(path).__name__} {path!r:.40}")
     path = Path(path)
     if path.is_dir():
         path = path / "program.json"

@@ -8,7 +8,7 @@ import numpy as np
 
 from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target
-from ..common import Budget, Result, Tracker, check_population, check_positive, check_target, new_seed, relaxed_gc
+from ..common import Budget, Result, Tracker, check_population, check_positive, check_run, new_seed, relaxed_gc
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
@@ -56,7 +56,7 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     if not 0.0 <= elitism < 1.0:
         raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
     budget = budget or Budget(generations=50)
-    check_target(target)
+    check_run(model, target, seed, budget)
     model = target.configure(model)
     check_population("population", population, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)

@@ -1,0 +1,89 @@
+"""The Python API's likely mistakes are one ProcmodError line, not a TypeError or an
+AttributeError from deep inside (an adversarial pass found each of these)."""
+
+import numpy as np
+import pytest
+
+from procmod.core import (Bernoulli, Categorical, Normal, ProcmodError, load_derivation, regenerate, replay,
+                          run_forward, save_derivation)
+from procmod.data import target_from_spec
+from procmod.guide import Guide
+from procmod.infer import Budget
+from procmod.infer.smc import smc
+from procmod.learn import load_program
+from procmod.models import get_model
+
+
+@pytest.fixture(scope="module")
+def vines():
+    return get_model("vines"), target_from_spec("glyph:a")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"seed": "x"}, "seed must be a non-negative whole number"),
+    ({"seed": -1}, "seed must be a non-negative whole number"),
+    ({"seed": 1.5}, "seed must be a non-negative whole number"),
+    ({"budget": 30}, r"budget must be a Budget .e.g. Budget\(seconds=30\)"),
+    ({"budget": "30s"}, "parse_budget"),
+    ({"guide": 5}, "guide must be a procmod Guide, its name or its path"),
+    ({"guide": "no-such-guide"}, "guide file .*does not exist"),
+])
+def test_engine_arguments(vines, kwargs, message):
+    model, target = vines
+    with pytest.raises(ProcmodError, match=message):
+        smc(model, target, particles=2, **kwargs)
+
+
+def test_a_models_name_or_a_guides_name(vines):
+    _, target = vines
+    with pytest.raises(ProcmodError, match="model must be a procmod Model.*get_model"):
+        smc("vines", target, particles=2)
+    # a guide's name is what the command line takes: the API takes it too
+    result = smc(get_model("vines"), target, particles=2, guide="vines-scribbles")
+    assert result.engine == "smc+guide"
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: Budget(seconds="3"), "budget seconds must be a number"),
+    (lambda: Budget(seconds=float("inf")), "must be positive and finite"),
+    (lambda: Normal(0, "x"), "Normal needs a number mu and a number sigma > 0"),
+    (lambda: Normal("a", 1), "Normal needs a number mu"),
+    (lambda: Bernoulli("x"), "Bernoulli needs a number 0 <= p <= 1"),
+    (lambda: Categorical([0.5, "a"]), "Categorical needs a list of numbers"),
+])
+def test_constructors(make, message):
+    with pytest.raises(ProcmodError, match=message):
+        make()
+
+
+def test_runtime_and_files(vines, tmp_path):
+    model, _ = vines
+    with pytest.raises(ProcmodError, match=r"rng must be a numpy Generator \(np.random.default_rng\(seed\)\)"):
+        run_forward(model, 0)
+    rng = np.random.default_rng(0)
+    with pytest.raises(ProcmodError, match="choices must be a ChoiceMap"):
+        replay(model, None, rng)
+    with pytest.raises(ProcmodError, match="derivation must be a procmod Derivation"):
+        regenerate(model, None, (), rng)
+    d = run_forward(model, rng)
+    with pytest.raises(ProcmodError, match="cannot write the derivation to .*No such file"):
+        save_derivation(d, tmp_path / "nope" / "x.json")
+    with pytest.raises(ProcmodError, match="cannot write the derivation to .*"):
+        save_derivation(d, tmp_path)
+    with pytest.raises(ProcmodError, match="derivation must be a procmod Derivation"):
+        save_derivation(None, tmp_path / "x.json")
+    with pytest.raises(ProcmodError, match="must be given as a path"):
+        load_derivation(5, get_model)
+    with pytest.raises(ProcmodError, match="given by its name or path"):
+        Guide.load(5)
+    with pytest.raises(ProcmodError, match="given by its path"):
+        load_program(5)
+    (tmp_path / "folder.pt").mkdir()
+    (tmp_path / "folder.json").write_text("{}")
+    with pytest.raises(ProcmodError, match="is not a regular file"):
+        Guide.load(tmp_path / "folder")
+    save_derivation(d, tmp_path / "d.json")
+    text = (tmp_path / "d.json").read_text().replace('"vines"', '"no-such-model"', 1)
+    (tmp_path / "d.json").write_text(text)
+    with pytest.raises(ProcmodError, match=r"d.json: .*no-such-model"):
+        load_derivation(tmp_path / "d.json", get_model)
