@@ -422,3 +422,26 @@ def test_a_camera_or_light_beside_the_model_is_passed_over(tmp_path):
     (tmp_path / "with_camera.gltf").write_text(json.dumps(data))
     plain, with_camera = read_assets(path), read_assets(tmp_path / "with_camera.gltf")
     assert [n.name for n in with_camera.assets[0].nodes()] == [n.name for n in plain.assets[0].nodes()]
+
+
+def test_copies_of_a_coarse_round_part_turned_by_apply_rotation_are_one_part(tmp_path):
+    """An icosphere of 80 faces (equal moments: its principal axes say nothing) copied
+    with a random rotation baked into each copy's vertices: ICP's basin on a nearly round
+    surface is a few degrees wide, and 16 copies were 14 parts; starts from pairs of
+    vertices (same distances, same number of edges) find the copies' own map."""
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=0.2)
+    meshes, nodes = [("base", [box_mesh((2, 0.2, 1))])], [{"name": "base", "mesh": 0, "children": []}]
+    for k in range(6):
+        turned = ball.vertices @ Rotation.random(random_state=k).as_matrix().T
+        meshes.append((f"knob.{k:03d}", [(turned, ball.faces)]))
+        nodes[0]["children"].append(len(nodes))
+        nodes.append({"name": f"k{k}", "mesh": k + 1, "translation": [-0.75 + 0.3 * k, 0.25, 0]})
+    s = read_assets(write_gltf(tmp_path / "knobs.gltf", meshes, nodes))
+    assert sorted(s.parts) == ["base", "knob.000"]
+    for node in s.assets[0].nodes()[1:]:  # each copy placed where its own vertices were
+        k = int(node.name[1:])
+        want = meshes[k + 1][1][0][0] + [-0.75 + 0.3 * k, 0.25, 0]
+        got = world_triangles(s, node).reshape(-1, 3)
+        assert same_surface(got, want[ball.faces], 1e-5)

@@ -639,16 +639,24 @@ def _kabsch(p: np.ndarray, q: np.ndarray, improper: bool) -> np.ndarray:
 
 def _starts(a: _Surface, b: _Surface, improper: bool) -> list:
     """Rotations taking b's principal axes onto a's (every sign choice of the given
-    handedness; every 30 degrees about an axis whose two partners are degenerate)."""
+    handedness; every 30 degrees about an axis whose two partners are degenerate; when
+    all three are, as for a sphere or a regular solid, whose principal axes say nothing,
+    the 60 rotations of the icosahedral group, spread over all orientations, and maps
+    between pairs of vertices, :func:`_vertex_pair_starts`)."""
+    from scipy.spatial.transform import Rotation
+
     out = []
     scale = max(float(a.moments.max()), 1e-300)
     gaps = np.diff(a.moments) / scale
     spins = [np.eye(3)]
     for k, axis in ((0, 2), (1, 0)):  # moments k, k+1 degenerate: spin about the third axis
         if gaps[k] < 1e-2:
-            from scipy.spatial.transform import Rotation
             spins = [Rotation.from_rotvec(b.axes[:, axis] * t).as_matrix() for t in np.arange(12) * np.pi / 6]
-    for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1)):
+    signs_tried = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1))
+    if gaps.max() < 1e-2:
+        spins = list(Rotation.create_group("I").as_matrix())
+        signs_tried = ((1, 1, 1), (-1, -1, -1))  # the spins cover every rotation: one base a handedness
+    for signs in signs_tried:
         base = a.axes @ np.diag(signs) @ b.axes.T
         if (np.linalg.det(base) < 0) != improper:
             continue
@@ -658,6 +666,71 @@ def _starts(a: _Surface, b: _Surface, improper: bool) -> list:
             m[:3, :3] = r
             m[:3, 3] = a.centroid - r @ b.centroid
             out.append(m)
+    if gaps.max() < 1e-2:
+        out += _vertex_pair_starts(a, b, improper)
+    return out
+
+
+# A coarse polyhedron of equal moments (an icosphere of 80 faces, a die) turned by "Apply
+# rotation" before export: ICP's basin on a nearly round surface is a few degrees wide,
+# narrower than any spread of start rotations, so starts also come from its vertices.
+_PAIR_VERTICES = 2000  # meshes with more vertices are round enough that any start fits
+_PAIR_STARTS = 24
+
+
+def _frame(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The orthonormal frame (columns) of ``u`` and the part of ``v`` across it."""
+    e1 = u / np.linalg.norm(u)
+    e2 = v - (v @ e1) * e1
+    e2 /= np.linalg.norm(e2)
+    return np.column_stack([e1, e2, np.cross(e1, e2)])
+
+
+def _vertices_and_degrees(surface: _Surface) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's distinct vertices about its centroid (seams merged) and the number of
+    edges at each."""
+    vertices, index = np.unique(np.asarray(surface.mesh.vertices), axis=0, return_inverse=True)
+    faces = index.ravel()[np.asarray(surface.mesh.faces)]
+    edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1), axis=0)
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    return vertices - surface.centroid, np.bincount(edges.ravel(), minlength=len(vertices))
+
+
+def _vertex_pair_starts(a: _Surface, b: _Surface, improper: bool) -> list:
+    """Maps taking a pair of b's vertices onto a's farthest vertex and its nearest
+    neighbour away from the centre's line (pairs of b at the same distances, within the
+    tolerance): when b is a copy of a, one of them is the exact map."""
+    if not 3 <= len(a.mesh.vertices) <= _PAIR_VERTICES or not 3 <= len(b.mesh.vertices) <= _PAIR_VERTICES:
+        return []
+    (va, da), (vb, db) = _vertices_and_degrees(a), _vertices_and_degrees(b)
+    eps = 2 * GEOMETRY_TOLERANCE * max(a.diagonal, b.diagonal)
+    ra, rb = np.linalg.norm(va, axis=1), np.linalg.norm(vb, axis=1)
+    i = int(np.argmax(ra))
+    apart = np.linalg.norm(va - va[i], axis=1)
+    across = np.linalg.norm(np.cross(va, va[i]), axis=1) / max(ra[i], 1e-300)  # distance from the centre's line
+    apart[(apart < 2 * eps) | (across < 2 * eps)] = np.inf
+    j = int(np.argmin(apart))
+    if not np.isfinite(apart[j]):
+        return []
+    target = _frame(va[i], va[j])
+    flip = np.diag([1.0, 1.0, -1.0 if improper else 1.0])
+    pairs = []  # (how far the pair's distances are from a's, k, l)
+    # vertices of as many edges as a's pair (a copy's own tessellation): a midpoint of an
+    # icosphere lies as far from its neighbours as a corner does from its own
+    same = (db == da[i]).any() and (db == da[j]).any()
+    for k in np.flatnonzero((np.abs(rb - ra[i]) <= eps) & ((db == da[i]) | (not same))):
+        gap = np.linalg.norm(vb - vb[k], axis=1)
+        off = np.abs(rb - ra[j]) + np.abs(gap - apart[j]) + abs(rb[k] - ra[i])
+        for l in np.flatnonzero((off <= 2 * eps) & ((db == da[j]) | (not same))):
+            if np.linalg.norm(np.cross(vb[l], vb[k])) / max(rb[k], 1e-300) >= eps:
+                pairs.append((float(off[l]), int(k), int(l)))
+    out = []
+    for _, k, l in sorted(pairs)[:_PAIR_STARTS]:  # a copy's own pair first: its distances agree exactly
+        r = target @ flip @ _frame(vb[k], vb[l]).T
+        m = np.eye(4)
+        m[:3, :3] = r
+        m[:3, 3] = a.centroid - r @ b.centroid
+        out.append(m)
     return out
 
 
@@ -701,8 +774,16 @@ def _align(a: _Surface, b: _Surface, tol: float, mirror: bool) -> np.ndarray | N
     if np.abs(same[:3, 3]).max() <= limit and fits(np.eye(4)):
         return np.eye(4)  # the same geometry (a duplicate): exactly the identity
     for improper in ((False, True) if mirror else (False,)):
+        starts = _starts(a, b, improper)
+        # a start that is already the map (a copy's vertex pair; its residual is that of
+        # the tangent planes' sampling): ICP against samples would only move it off by the
+        # samples' spacing
+        raw = [(_residual(a, m, b.subset), k) for k, m in enumerate(starts)]
+        best, k = min(raw, default=(math.inf, 0))
+        if best <= 0.05 * limit and fits(starts[k]):
+            return starts[k]
         ranked = []
-        for m in _starts(a, b, improper):
+        for m in starts:
             m = _icp(a, b, m, improper, plane=False, steps=20, points=b.subset)
             ranked.append((_residual(a, m, b.subset), len(ranked), m))
         coarse = []
