@@ -338,6 +338,11 @@ def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, mo
     monkeypatch.chdir(package / "urdf")
     s = read_assets("robot.urdf")
     assert s.parts["leg"].kind == "mesh"
+    # not found: the URI and where it was sought, not the last place tried (the root folder)
+    (package / "meshes" / "leg.obj").unlink()
+    with pytest.raises(AssetError, match=r"'package://my_robot/meshes/leg.obj' is neither 'meshes/leg.obj' nor "
+                                         r"'my_robot/meshes/leg.obj' under the URDF's folder"):
+        read_assets("robot.urdf")
 
 
 def test_a_gltf_buffer_named_percent_encoded_or_up_a_folder_is_found(tmp_path):

@@ -402,6 +402,10 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
             return named_file(folder, rel, where, suffixes=MESH_SUFFIXES, kind="mesh")
         except UnsafePathError as exc:
             last = exc
+    if len(candidates) > 1 and "does not exist" in str(last):
+        # the last folder tried is the file system's root: name the URI and where it was sought
+        raise AssetError(f"{where} {filename!r} is neither {rest!r} nor {pkg + '/' + rest!r} under the URDF's "
+                         f"folder {base} or a folder above it; copy the package's meshes there") from None
     raise AssetError(str(last)) from None
 
 

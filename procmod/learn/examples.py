@@ -189,7 +189,8 @@ def examples_from_assets(asset_set) -> ExampleSet:
         if len(asset.roots) != 1:
             names = ", ".join(repr(r.name) for r in asset.roots[:5])
             raise ExamplesError(f"{asset.path}: {len(asset.roots)} top-level parts ({names}{', ...' if len(asset.roots) > 5 else ''}); "
-                                "an example is one hierarchy: parent them under one part (the body)")
+                                "an example is one hierarchy: parent them under one part (the body), or, if "
+                                "they are several examples side by side, export each to a file of its own")
         up = Y_UP_TO_Z_UP.T if asset.path.suffix.lower() == ".urdf" else np.eye(4)
         examples.append(_asset_node(asset.roots[0], asset.path, 0, up))
     base = asset_set.assets[0].path.parent if asset_set.assets else Path(".")
