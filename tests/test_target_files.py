@@ -128,6 +128,11 @@ CASES = [
                                                                               "10,000 boundary loops"),
     # silhouettes
     ("sil-eye-1e300", _sil({}, {"eye": [0, 4, 1e300]}), "views[0].camera.eye must lie within +-1e+12"),
+    # keys that were ignored without a word, leaving the view meaning something else
+    ("sil-width-in-view", _sil({"width": 64}), 'views[0].width belongs inside its "camera" object'),
+    ("sil-hits", _sil({"hits": 2.0}), "views[0] has 'hits', which procmod does not read; did you mean 'hit'"),
+    ("sil-look-at", _sil({}, {"look-at": [0, 0, 0]}), "views[0].camera has 'look-at', which procmod does not "
+                                                       "read; did you mean 'look_at'"),
     ("sil-fov-tiny", _sil({}, {"fov": 1e-300}), "views[0].camera.fov is the height of the view in world units "
                                                 "and must lie in 1e-12..1e+12, got 1e-300"),
     ("sil-fov-tiny-perspective", _sil({}, {"fov": 1e-300, "projection": "perspective"}),

@@ -220,12 +220,15 @@ def load_tensors(path: str | os.PathLike, error: type = ProcmodError, what: str 
     """
     import pickle
     import re
+    import warnings
 
     import torch
 
     source = _cut(str(path) if source is None else source)
     try:
-        return torch.load(path, weights_only=True, map_location="cpu")
+        with warnings.catch_warnings():  # torch warns (two lines) about a plain pickle before refusing it
+            warnings.simplefilter("ignore")
+            return torch.load(path, weights_only=True, map_location="cpu")
     except pickle.UnpicklingError as exc:
         operand = re.search(r"Unsupported operand (\d+)", str(exc))
         if operand:  # not a pickle torch's safe reader knows: text, JSON, a newer pickle protocol

@@ -254,8 +254,11 @@ def graph_from_dict(data, source: str = "graph") -> nx.Graph:
 def read_graph(path: str | os.PathLike) -> nx.Graph:
     """Read a ``procmod-graph/1`` file."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ShapesFormatError(f"graph file {path} does not exist")
+    if not path.is_file():
+        raise ShapesFormatError(f"graph file {path} is not a regular file (a folder, a device or a pipe); give a "
+                                "procmod-graph/1 file written by 'procmod strings graph'")
     return graph_from_dict(read_json(path, ShapesFormatError, "graph file"), str(path))
 
 

@@ -529,6 +529,28 @@ def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
     return out.image(0)
 
 
+_VIEW_KEYS = ("weights", "image", "mesh", "camera", "hit", "avoid")
+_CAMERA_KEYS = ("eye", "look_at", "up", "projection", "fov", "width", "height")
+
+
+def _misplaced_keys(spec: dict, known: tuple, at: str, inside: tuple | None = None) -> None:
+    """Refuse a key that is a near miss of one of ``known`` (``"look-at"``, ``"hits"``)
+    or, with ``inside = (name, keys)``, one that belongs in the object ``name`` (a view's
+    ``"width"`` is its camera's): silently ignored, it left the file meaning something
+    else. Other keys (a tool's own notes) are left alone."""
+    import difflib
+
+    for key in spec:
+        if not isinstance(key, str) or key in known:
+            continue
+        if inside is not None and key in inside[1]:
+            raise TargetFileError(f"{at}.{key} belongs inside its \"{inside[0]}\" object (\"{inside[0]}\": "
+                                  f"{{..., \"{key}\": ...}})")
+        meant = difflib.get_close_matches(key.lower().replace("-", "_"), known, n=1, cutoff=0.75)
+        if meant:
+            raise TargetFileError(f"{at} has {key!r}, which procmod does not read; did you mean {meant[0]!r}?")
+
+
 def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     """Read a ``procmod-silhouette/1`` target (see :mod:`procmod.targets.silhouette`)."""
     path = Path(path)
@@ -549,6 +571,9 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         if len(kinds) > 1:
             raise TargetFileError(f"{at} gives {' and '.join(repr(k) for k in kinds)}; give one of them")
         kind = kinds[0]
+        _misplaced_keys(view, _VIEW_KEYS, at, inside=("camera", _CAMERA_KEYS))
+        if isinstance(view.get("camera"), dict):
+            _misplaced_keys(view["camera"], _CAMERA_KEYS, f"{at}.camera")
         camera = _camera(view.get("camera"), at, sized=kind == "mesh")
         hit = weight(view.get("hit", 1.0), f"{at}.hit")
         avoid = weight(view.get("avoid", -1.0), f"{at}.avoid")
