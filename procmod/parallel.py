@@ -105,11 +105,7 @@ def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
     forked by ``parent`` sees its parent pid change when it is re-parented; a worker
     started by a fork server checks that ``parent`` still exists.
     """
-    try:
-        # the coordinator answers Ctrl-C (a terminal sends it to the whole process group):
-        # a worker that also raised KeyboardInterrupt printed its own traceback; and the
-        # coordinator's SIGTERM handler (procmod.cli) is not a worker's
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:  # the coordinator's SIGTERM handler (procmod.cli) is not a worker's
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
     except ValueError:  # not this process's main thread: leave its handlers alone
         pass
@@ -195,4 +191,13 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         # start the workers now, from this thread: the kernel's parent-death signal follows
         # the thread that forked a worker, and this one outlives the pool
         pool.submit(_ready).result()
-        yield pool
+        try:
+            yield pool
+        except BaseException:
+            # interrupted (Ctrl-C, SIGTERM) or failed: end the tasks now rather than wait
+            # for them when the block exits
+            processes = list((pool._processes or {}).values())  # shutdown() forgets them
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
+                process.terminate()
+            raise

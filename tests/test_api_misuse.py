@@ -34,6 +34,12 @@ def test_engine_arguments(vines, kwargs, message):
         smc(model, target, particles=2, **kwargs)
 
 
+@pytest.mark.parametrize("seed", [np.random.SeedSequence(5), np.array([1, 2]), [], [3, 1], np.int64(3)])
+def test_every_seed_numpy_takes_is_taken(vines, seed):
+    model, target = vines
+    assert smc(model, target, particles=2, workers=1, seed=seed).best is not None
+
+
 def test_a_models_name_or_a_guides_name(vines):
     _, target = vines
     with pytest.raises(ProcmodError, match="model must be a procmod Model.*get_model"):

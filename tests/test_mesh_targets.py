@@ -523,7 +523,9 @@ def test_binary_stl_counts_that_disagree_with_the_size(tmp_path):
     box = _box(*BOX)
     good = trimesh.exchange.stl.export_stl(box)
     cases = {"padded": good + b"\0" * 16, "no_count": good[:80] + b"\0\0\0\0" + good[84:],
-             "ascii": trimesh.exchange.stl.export_stl_ascii(box).rsplit("endsolid", 1)[0].encode()}
+             "ascii": trimesh.exchange.stl.export_stl_ascii(box).rsplit("endsolid", 1)[0].encode(),
+             # a solid's name thousands of characters long was read as a binary header
+             "long_name": trimesh.exchange.stl.export_stl_ascii(box).replace("solid", "solid " + "n" * 5000).encode()}
     for name, data in cases.items():
         (tmp_path / f"{name}.stl").write_bytes(data)
         grid, mask = voxelize_mesh_file(tmp_path / f"{name}.stl", H)

@@ -40,6 +40,7 @@ from .choicemap import ChoiceMap, format_address
 from .distributions import Bernoulli, Distribution
 from .errors import InvalidArgumentError, ModelError
 from .model import Model
+from .random import BlockGenerator, LazyGenerator
 
 _MISSING = object()
 _new_tuple = tuple.__new__  # builds NamedTuples without their Python-level __new__ (hot path)
@@ -631,7 +632,10 @@ def _check_call(model, rng, derivation=None, needs_derivation: bool = False) -> 
     if not isinstance(model, Model):
         raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; get "
                                    "one with procmod.models.get_model(name)")
-    if not callable(getattr(rng, "random", None)) or not callable(getattr(rng, "standard_normal", None)):
+    # looked up on the type: a LazyGenerator makes its generator at the first attribute
+    # asked of it, which a replay that draws nothing never needs
+    if not isinstance(rng, (np.random.Generator, LazyGenerator, BlockGenerator)) and not (
+            callable(getattr(type(rng), "random", None)) and callable(getattr(type(rng), "standard_normal", None))):
         raise InvalidArgumentError(f"rng must be a numpy Generator (np.random.default_rng(seed)), got "
                                    f"{type(rng).__name__} {rng!r:.40}")
     if needs_derivation and not isinstance(derivation, Derivation):

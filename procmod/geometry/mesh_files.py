@@ -292,11 +292,13 @@ def _repaired_stl(data: bytes) -> bytes | None:
     """A binary STL whose header count disagrees with its size, read by its size where
     that is unambiguous, or an ASCII STL given its missing ``endsolid``; None when the
     file needs nothing. Raises ValueError for a binary STL cut off inside its triangles."""
-    head = data[:4096].lstrip().lower()
-    if head.startswith(b"solid") and b"facet" in head:  # ASCII (a binary header may start 'solid' too)
+    head = data[:1 << 20].lstrip().lower()
+    # ASCII: 'solid' and then a facet (a binary header may start 'solid' too; a solid's
+    # name may run to thousands of characters before its first facet)
+    if head.startswith(b"solid") and b"facet normal" in head:
         if len(data) >= 84 and 84 + 50 * struct.unpack("<I", data[80:84])[0] == len(data):
             return None  # a binary file after all: its count fits its size exactly
-        return None if b"endsolid" in data[-4096:].lower() else data + b"\nendsolid\n"
+        return None if b"endsolid" in data[-(1 << 20):].lower() else data + b"\nendsolid\n"
     if len(data) < 84:
         return None  # the loader says what is wrong with it
     count = struct.unpack("<I", data[80:84])[0]

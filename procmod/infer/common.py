@@ -331,10 +331,15 @@ def check_run(model, target, seed, budget) -> None:
         raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; "
                                    "get one with procmod.models.get_model(name) or procmod.learn.load_program(path)")
     check_target(target)
-    # numpy's seeds: a whole number, or a sequence of them (a worker's (seed, index))
-    entries = list(seed) if isinstance(seed, (list, tuple)) and seed else [seed]
-    if any(isinstance(s, bool) or not isinstance(s, numbers.Integral) or s < 0 for s in entries):
-        raise InvalidArgumentError(f"seed must be a non-negative whole number, got {seed!r:.40}")
+    # what numpy takes: a whole number, a sequence or array of them (a worker's (seed,
+    # index)), a SeedSequence
+    if not isinstance(seed, np.random.SeedSequence):
+        try:
+            np.random.SeedSequence(seed)  # a 0-d array is refused: smc's workers index the seed
+        except (TypeError, ValueError):
+            shown = " ".join(repr(seed).split())[:40]
+            raise InvalidArgumentError(f"seed must be a non-negative whole number (or a sequence of them), got "
+                                       f"{type(seed).__name__} {shown}") from None
     if budget is not None and not isinstance(budget, Budget):
         raise InvalidArgumentError(f"budget must be a Budget (e.g. Budget(seconds=30), or "
                                    f"procmod.infer.parse_budget('30s')) or None, got {budget!r:.40}")

@@ -28,6 +28,7 @@ import math
 import multiprocessing
 import os
 import pickle
+import signal
 
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
 
@@ -214,6 +215,9 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
     from ..parallel import _exit_with_parent
 
     _exit_with_parent(parent)
+    # the coordinator answers Ctrl-C (a terminal sends it to the whole process group) and
+    # closes the shards; a shard that also raised KeyboardInterrupt printed its traceback
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _pin(shard.index)
     best = [-math.inf, None]
 

@@ -312,7 +312,8 @@ def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE, any_
 
 # ---- passes -------------------------------------------------------------------------------
 
-def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: bool = False) -> list:
+def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: bool = False,
+                      memo: dict | None = None) -> list:
     """Reflection pairs: each unit, in order, with the first later free unit it mirrors
     within the tolerance. Order, not the smallest deviation, decides between several
     partners (a row of mirrored pairs also mirrors along the row): deviations of exact
@@ -329,9 +330,9 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
         for j in range(i + 1, len(units)):
             if j in used:
                 continue
-            r = relate(a, units[j], ("refl",), tol)
+            r = _relate_once(memo, a, units[j], ("refl",), tol)
             if r is None and any_handedness:
-                r = relate(a, units[j], ("refl",), tol, any_handedness=True)
+                r = _relate_once(memo, a, units[j], ("refl",), tol, any_handedness=True)
             if r is None:
                 continue
             b, g = units[j], r[1]
@@ -417,7 +418,18 @@ def _grow(relation, i: int, j: int, units: list, free: set, tol: float, position
     return chain, g, kind, frozenset(forward) | frozenset(backward)
 
 
-def _chains(units: list, frame: Frame, tol: float) -> list:
+def _relate_once(memo: dict | None, a: Unit, b: Unit, kinds: tuple, tol: float, any_handedness: bool = False):
+    """:func:`relate`, remembered in ``memo`` across the passes of one sibling set (a
+    unit is the same object from pass to pass until it is grouped)."""
+    if memo is None:
+        return relate(a, b, kinds, tol, any_handedness)
+    key = (id(a), id(b), kinds, any_handedness)
+    if key not in memo:
+        memo[key] = (a, b, relate(a, b, kinds, tol, any_handedness))  # a, b held: their ids stay theirs
+    return memo[key][2]
+
+
+def _chains(units: list, frame: Frame, tol: float, memo: dict | None = None) -> list:
     free = set(range(len(units)))
     groups = []
     related = {}  # (i, j) -> relate(...) (units do not change between rounds)
@@ -439,7 +451,7 @@ def _chains(units: list, frame: Frame, tol: float) -> list:
                 if i == j:
                     continue
                 if (i, j) not in related:
-                    related[(i, j)] = relate(units[i], units[j], ("trans", "rot"), tol)
+                    related[(i, j)] = _relate_once(memo, units[i], units[j], ("trans", "rot"), tol)
                 if related[(i, j)] is None:
                     continue
                 if (i, j) not in grown:
@@ -586,10 +598,11 @@ def group_children(children: list, frame: Frame, corners: dict, tol: float = SYM
     ``flips[part]``: its self-symmetries (see :func:`leaf_unit`; none when omitted).
     """
     units = [leaf_unit(c, corners, flips) for c in children]
-    units = _pair_reflections(units, frame, tol)
-    units = _chains(units, frame, tol)
+    memo = {}  # relate() of pairs of units, across the passes
+    units = _pair_reflections(units, frame, tol, memo=memo)
+    units = _chains(units, frame, tol, memo)
     while True:  # groups of groups: a grid's rows in a row, four legs at a table's corners
-        grouped = _pair_reflections(_chains(units, frame, tol), frame, tol, any_handedness=True)
+        grouped = _pair_reflections(_chains(units, frame, tol, memo), frame, tol, any_handedness=True, memo=memo)
         if len(grouped) == len(units):
             return grouped
         units = grouped
