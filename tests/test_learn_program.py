@@ -320,8 +320,8 @@ def _damage_tensor(folder, value):
     # an out-of-range order sampled an IndexError; NaN or huge tensors a Categorical error
     # that named no file
     (lambda j, d: j["orders"].update({next(iter(j["orders"])): [99] * 9}), r"orders\[.*\] must be an ordering of 0..8"),
-    (lambda j, d: _damage_tensor(d, float("nan")), "holds NaN, infinity or values beyond 1e6"),
-    (lambda j, d: _damage_tensor(d, 1e300), "holds NaN, infinity or values beyond 1e6"),
+    (lambda j, d: _damage_tensor(d, float("nan")), "holds NaN, infinity or values beyond 1e15"),
+    (lambda j, d: _damage_tensor(d, 1e300), "holds NaN, infinity or values beyond 1e15"),
     (lambda j, d: j["parts"].update({next(iter(j["parts"])): {"box": [1e300, 1, 1]}}), "must lie in 1e-12..1e12"),
 ])
 def test_malformed_programs(saved, tmp_path, damage, message):
@@ -369,3 +369,25 @@ def test_placement_noise_does_not_drive_the_transform_nades_weights():
 
     assert largest_w_row() < 5.0
     assert largest_w_row(nade_prior=0.0) > 10.0  # the failure the prior prevents shows on this data
+
+
+def test_a_program_learned_in_large_units_loads(tmp_path):
+    """Biases are in the examples' units: a table in micrometres (1e7) was refused as a
+    damaged file by a tensor bound of 1e6."""
+    from procmod.learn import learn
+
+    k = 1e7
+
+    def place(x, y):
+        m = np.eye(4)
+        m[:2, 3] = (x, y)
+        return m.tolist()
+
+    examples = [{"part": "top", "transform": place(0, 0.9 * k), "children": [
+        {"part": "leg", "transform": place(side * w * k, 0.45 * k), "children": []} for side in (-1, 1)]}
+        for w in (0.8, 0.9, 1.0, 1.1)]
+    (tmp_path / "tables.json").write_text(json.dumps({"format": "procmod-examples/1", "examples": examples, "parts": {
+        "top": {"box": [2.4 * k, 0.1 * k, k]}, "leg": {"box": [0.1 * k, 0.8 * k, 0.1 * k]}}}))
+    learn(tmp_path / "tables.json", tmp_path / "out", particles=1, workers=1, samples=1)
+    model = load_program(tmp_path / "out")
+    assert run_forward(model, np.random.default_rng(0)).geometry()
