@@ -450,3 +450,14 @@ def test_copies_of_a_coarse_round_part_turned_by_apply_rotation_are_one_part(tmp
         want = meshes[k + 1][1][0][0] + [-0.75 + 0.3 * k, 0.25, 0]
         got = world_triangles(s, node).reshape(-1, 3)
         assert same_surface(got, want[ball.faces], 1e-5)
+
+
+def test_an_unnamed_mesh_is_named_after_its_node(tmp_path):
+    """trimesh names an unnamed glTF mesh "GLTF", "GLTF_1", ...: parts were named so."""
+    meshes = [("", [box_mesh((1, 1, 1))]), ("", [wedge_mesh(0.5)])]
+    nodes = [{"name": "body", "mesh": 0, "children": [1]}, {"name": "fin", "mesh": 1, "translation": [1, 0, 0]}]
+    data = gltf_json(meshes, nodes, (0,))
+    for mesh in data["meshes"]:
+        mesh.pop("name", None)
+    (tmp_path / "unnamed.gltf").write_text(json.dumps(data))
+    assert sorted(read_assets(tmp_path / "unnamed.gltf").parts) == ["body", "fin"]

@@ -343,7 +343,10 @@ def _read_gltf(path: Path, geometries: dict) -> list:
         mesh_name = meshes[mesh_index].get("name") if isinstance(meshes[mesh_index], dict) else None
         key = ("gltf", str(path), tuple(parts))
         if key not in geometries:
-            where = f"{path}: mesh {mesh_name or parts[0]!r}"
+            # an unnamed mesh is named after the first node that places it (trimesh's own
+            # name for it, "GLTF", "GLTF_1", means nothing to the user)
+            name = mesh_name if isinstance(mesh_name, str) and mesh_name else frame
+            where = f"{path}: mesh {name!r}"
             pieces = [scene.geometry[g] for g in parts]
             if not all(hasattr(p, "faces") for p in pieces):
                 return None
@@ -351,7 +354,7 @@ def _read_gltf(path: Path, geometries: dict) -> list:
             offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])
             f = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(pieces, offsets)])
             v, f = _clean_mesh(v, f, where)
-            geometries[key] = _Geometry(key, mesh_name or parts[0], where, "mesh", v, f)
+            geometries[key] = _Geometry(key, name, where, "mesh", v, f)
         return key
 
     def build(i: int) -> _Raw | None:
