@@ -289,6 +289,14 @@ def test_a_shape_in_two_pieces_is_named_by_graph_and_refused_by_augment(tmp_path
     out, err = capsys.readouterr()
     assert code == 2 and err.count("\n") == 1 and "Cap touches no other part" in err, err
     assert not (tmp_path / "a").exists()
+    # a folder of shapes: the message names the file of the shape in pieces
+    (tmp_path / "set").mkdir()
+    write_glb(tmp_path / "set" / "b_gap.glb", gltf_json(meshes, nodes, (0,)))
+    nodes[1]["translation"] = [1.25, 0, 0]  # touching
+    write_glb(tmp_path / "set" / "a_whole.glb", gltf_json(meshes, nodes, (0,)))
+    code = main(["strings", "augment", str(tmp_path / "set"), "--count", "3", "--out", str(tmp_path / "a")])
+    out, err = capsys.readouterr()
+    assert code == 2 and f"shape 1 ({tmp_path / 'set' / 'b_gap.glb'}) is in 2 pieces" in err, err
 
 
 def test_training_constants_that_are_not_numbers_are_refused_before_training(tmp_path, capsys):

@@ -137,6 +137,21 @@ def _seed(seed: int) -> int:
     return seed
 
 
+def _shape_sources(paths, count: int) -> list | None:
+    """The file each of ``count`` shapes came from, when they are asset files one shape
+    a file (folders expanded), for messages; None otherwise (a shapes JSON)."""
+    from ..core.errors import ProcmodError
+    from ..geometry.assets import asset_files, is_asset_file
+
+    if not any(Path(p).is_dir() or is_asset_file(p) for p in paths):
+        return None
+    try:
+        files = asset_files(paths)
+    except ProcmodError:
+        return None
+    return [str(f) for f in files] if len(files) == count > 1 else None
+
+
 def _loose_parts(g, pieces, index: int, inputs, letters: dict) -> str:
     """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
     ``letters``: part name -> type letter)."""
@@ -172,7 +187,7 @@ def _graph(args) -> None:
         cycles = g.number_of_edges() - g.number_of_nodes() + len(pieces)
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
         if len(pieces) > 1:
-            named = args.shapes if len(args.shapes) == len(graphs) > 1 else None  # one shape a file
+            named = _shape_sources(args.shapes, len(graphs))
             print(f"note: {_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
                   "shape, so 'strings augment' refuses it: move the parts to touch", file=sys.stderr)
     print(f"types: {types}")
@@ -260,7 +275,7 @@ def _augment(args) -> None:
     import networkx as nx
 
     from .contacts import shape_graph
-    named = args.shapes if len(args.shapes) == len(shape_set.shapes) > 1 else None  # one shape a file
+    named = _shape_sources(args.shapes, len(shape_set.shapes))
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
         g = shape_graph(shape_set, shape)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
