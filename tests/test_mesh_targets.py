@@ -582,3 +582,24 @@ def test_a_cut_off_glb_is_refused_saying_so(tmp_path):
     with pytest.raises(TargetFileError, match=f"a cut-off GLB file: its header says {len(data):,} bytes but the "
                                               f"file holds {len(data) - 40:,}"):
         load_volume_target(tmp_path / "v.json")
+
+
+def test_a_terrain_read_as_a_volume_gets_a_note_and_a_closed_mesh_none(tmp_path, capsys):
+    """A heightfield given as a volume layer ran without a word and filled a scattered skin
+    under it; now the run says the mesh is mostly an open sheet."""
+    x, z = np.meshgrid(np.linspace(-3, 3, 30), np.linspace(-3, 3, 30))
+    y = np.sin(x) * np.cos(z)
+    vertices = np.stack([x, y, z], axis=-1).reshape(-1, 3)
+    k = np.arange(29 * 29).reshape(29, 29) + np.arange(29)[:, None]
+    faces = np.concatenate([np.stack([k.ravel(), k.ravel() + 30, k.ravel() + 1], axis=1),
+                            np.stack([k.ravel() + 1, k.ravel() + 30, k.ravel() + 31], axis=1)])
+    _write_obj(tmp_path / "terrain.obj", vertices, faces)
+    box = _box(*BOX)
+    _write_obj(tmp_path / "box.obj", box.vertices, box.faces)
+    for name, noted in (("terrain", True), ("box", False)):
+        (tmp_path / f"{name}.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": 0.25,
+                                                           "layers": [{"file": f"{name}.obj", "w_fill": 1}]}))
+        code = main(["infer", "spaceship", "--target", str(tmp_path / f"{name}.json"), "--engine", "smc",
+                     "--particles", "2", "--out", str(tmp_path / f"out_{name}")])
+        err = capsys.readouterr().err
+        assert code == 0 and ("mostly an open sheet" in err) == noted, err

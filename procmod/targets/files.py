@@ -274,6 +274,29 @@ def grid_around(lo, hi, voxel_size: float, margin: float, where: str) -> VoxelGr
     return grid
 
 
+# A mesh whose oriented faces' areas, added as vectors, keep more than half their total is
+# mostly a sheet facing one way: a terrain, a single wall, two triangles (a closed surface
+# adds up to nothing; a box without its lid keeps a fifth).
+OPEN_SHEET = 0.5
+
+
+def open_mesh_note(vertices, faces, where: str) -> str | None:
+    """A line of advice when a mesh from :func:`read_mesh` is mostly an open sheet, whose
+    inside (where the winding number is at least 1/2) is a guess: a terrain read as a
+    volume fills a scattered skin under it."""
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    total = float(np.linalg.norm(normals, axis=1).sum())
+    if total <= 0:
+        return None
+    sheet = float(np.linalg.norm(normals.sum(axis=0))) / total
+    if sheet <= OPEN_SHEET:
+        return None
+    return (f"{where}: the mesh is mostly an open sheet ({100 * sheet:.0f}% of its area faces one way, as a terrain "
+            "or a single wall does), so its inside is a guess; close it in a modelling tool for a solid, or use a "
+            "silhouette view of it")
+
+
 def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
     """The voxels of ``grid`` inside a mesh from :func:`read_mesh` (generalised winding
     number >= 1/2), refused when none is."""
@@ -445,9 +468,13 @@ def load_volume_target(path: str | os.PathLike):
         hi = np.max([b[1] for b in bounds], axis=0)
         grid = grid_around(lo, hi, voxel_size, margin, f"{where}: voxel_size {voxel_size:g} around the mesh layers")
     layers = []
+    notes = []
     for at, file, w_fill, w_avoid in entries:
         if at in read:
             mask = mesh_inside(*read[at], grid, f"{at}.file")
+            note = open_mesh_note(*read[at], f"{at}.file")
+            if note is not None:
+                notes.append(note)
         else:
             mask = load_npy(file, f"{at}.file", "voxel grid") != 0
             if not mask.any():
@@ -457,6 +484,7 @@ def load_volume_target(path: str | os.PathLike):
     target = ProxyVolume(grid, layers[0][0], name=name) if score == "proxy" else Volume(grid, layers, w_self, name=name)
     # how the file places its shape, for advice when it misses the model (targets.placement)
     target.placed_by = ("grid" if arrays else "meshes", *placement)
+    target.file_notes = notes  # said with the placement advice (targets.placement)
     return target
 
 

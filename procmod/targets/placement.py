@@ -206,9 +206,9 @@ def placement_note(model, target, rng: np.random.Generator, samples: int = SAMPL
         return picture_note(target, model)
     if not isinstance(target, (Volume, ProxyVolume, Silhouette)):
         return None
+    notes = list(getattr(target, "file_notes", ()))  # what reading the file found (targets.files)
     box = model_box(model, rng, samples)
-    if box is None:
-        return None
-    if isinstance(target, Silhouette):
-        return _silhouette_note(target, *box)
-    return _volume_note(target, *box)
+    if box is not None:
+        notes.append(_silhouette_note(target, *box) if isinstance(target, Silhouette) else _volume_note(target, *box))
+    notes = [n for n in notes if n]
+    return "; ".join(notes) if notes else None
