@@ -105,7 +105,12 @@ def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
     forked by ``parent`` sees its parent pid change when it is re-parented; a worker
     started by a fork server checks that ``parent`` still exists.
     """
-    try:  # the coordinator's SIGTERM handler (procmod.cli) is not a worker's
+    try:
+        # the coordinator answers Ctrl-C (a terminal sends it to the whole process group)
+        # and ends its workers (open_executor): a worker raising KeyboardInterrupt itself
+        # printed its own lines; and the coordinator's SIGTERM handler (procmod.cli) is
+        # not a worker's
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
     except ValueError:  # not this process's main thread: leave its handlers alone
         pass
@@ -194,10 +199,26 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         try:
             yield pool
         except BaseException:
-            # interrupted (Ctrl-C, SIGTERM) or failed: end the tasks now rather than wait
-            # for them when the block exits
-            processes = list((pool._processes or {}).values())  # shutdown() forgets them
-            pool.shutdown(wait=False, cancel_futures=True)
-            for process in processes:
-                process.terminate()
+            _stop_now(pool)
             raise
+
+
+def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:
+    """End a pool's tasks now, rather than wait for them as leaving its block does: an
+    interrupted command (Ctrl-C, SIGTERM) waited up to a task's length (24 s for traces).
+
+    Its workers are terminated; the pool then marks its pending futures broken. Python
+    3.11 raises (and prints, from the pool's thread) for a future already cancelled, as a
+    caller's clean-up may have done: such a work item gets a fresh future of its own to
+    be marked instead (the pool's thread still looks the item up, so it stays)."""
+    processes = list((pool._processes or {}).values())  # shutdown() forgets them
+    pool.shutdown(wait=False, cancel_futures=False)
+    pending = getattr(pool, "_pending_work_items", None)
+    if isinstance(pending, dict):
+        for item in list(pending.values()):
+            if item.future.cancelled():
+                item.future = concurrent.futures.Future()
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=5)

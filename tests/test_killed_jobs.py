@@ -137,3 +137,30 @@ def test_terminated_or_interrupted_runs_leave_nothing_behind(tmp_path, command, 
     assert sorted(p.name for p in tmp_path.iterdir()) == []
     time.sleep(0.5)
     assert not [pid for pid in map(int, workers) if _alive(pid)]
+
+
+def _sleep(seconds):
+    time.sleep(seconds)
+    return seconds
+
+
+def test_an_interrupted_pool_ends_its_tasks_and_says_nothing(capfd):
+    """Leaving an executor block by an exception (Ctrl-C, SIGTERM, an error) waited for the
+    tasks running (a SIGTERM'd trace job took 24 s to stop); now its workers end at once,
+    even when the caller has cancelled futures first (Python 3.11's pool thread printed a
+    traceback for those), and none is left behind."""
+    from procmod.parallel import open_executor
+
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match="the real error"):
+        with open_executor(workers=2) as pool:
+            futures = [pool.submit(_sleep, 30) for _ in range(8)]
+            pids = list(pool._processes)
+            time.sleep(0.5)
+            for f in futures[4:]:
+                f.cancel()
+            raise ValueError("the real error")
+    assert time.perf_counter() - t0 < 20  # not the 30 s a running task takes
+    time.sleep(0.5)
+    assert not [pid for pid in pids if _alive(pid)]
+    assert "Traceback" not in capfd.readouterr().err

@@ -599,7 +599,9 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         if len(kinds) > 1:
             raise TargetFileError(f"{at} gives {' and '.join(repr(k) for k in kinds)}; give one of them")
         kind = kinds[0]
-        _misplaced_keys(view, _VIEW_KEYS, at, inside=("camera", _CAMERA_KEYS))
+        # a picture's or weights' size is its own: width and height are a mesh view's only
+        camera_keys = _CAMERA_KEYS if kind == "mesh" else tuple(k for k in _CAMERA_KEYS if k not in ("width", "height"))
+        _misplaced_keys(view, _VIEW_KEYS, at, inside=("camera", camera_keys))
         if isinstance(view.get("camera"), dict):
             _misplaced_keys(view["camera"], _CAMERA_KEYS, f"{at}.camera")
         camera = _camera(view.get("camera"), at, sized=kind == "mesh")
