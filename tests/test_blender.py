@@ -321,7 +321,8 @@ def test_learning_needs_a_selection_of_hierarchies(context):
     _one_line_error(lambda: bpy.ops.procmod.learn(), "'group' \\(empty\\) is not a mesh and has 2 top-level")
 
 
-@pytest.mark.slow
+# In the default suite (about 10 s): as a slow test it was skipped, and "Learn from
+# selection" failed for every user for a sitting (procmod.learn.learn lacked `note`)
 def test_learn_from_the_scene_then_sample_the_learned_program(context):
     settings = context.scene.procmod
     roots = _castles(4)

@@ -391,3 +391,14 @@ def test_a_program_learned_in_large_units_loads(tmp_path):
     learn(tmp_path / "tables.json", tmp_path / "out", particles=1, workers=1, samples=1)
     model = load_program(tmp_path / "out")
     assert run_forward(model, np.random.default_rng(0)).geometry()
+
+
+def test_the_package_learn_takes_every_argument_the_pipeline_does():
+    """procmod.learn.learn lists the pipeline's arguments; when `note` was added to the
+    pipeline only, the Blender add-on's "Learn from selection" failed for every user."""
+    import inspect
+
+    from procmod.learn import learn
+    from procmod.learn.pipeline import learn as pipeline_learn
+
+    assert list(inspect.signature(learn).parameters) == list(inspect.signature(pipeline_learn).parameters)

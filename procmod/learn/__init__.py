@@ -95,13 +95,14 @@ def write_examples(model: Model, derivations, path: str | os.PathLike) -> None:
 
 def learn(examples, out, particles: int = 4, workers: int | None = None, scheduler: str | None = None,
           seed: int = 0, options=None, samples: int = 10, progress=None, command: str = "",
-          overwrite: bool = False) -> dict:
+          overwrite: bool = False, note=None) -> dict:
     """Learn a program from examples into the folder ``out``, as ``procmod learn`` does:
     the arguments and result of :func:`procmod.learn.pipeline.learn` (imported on call:
     the search needs torch)."""
     from .pipeline import learn as _learn
     return _learn(examples, out, particles=particles, workers=workers, scheduler=scheduler, seed=seed,
-                  options=options, samples=samples, progress=progress, command=command, overwrite=overwrite)
+                  options=options, samples=samples, progress=progress, command=command, overwrite=overwrite,
+                  note=note)
 
 
 __all__ = ["FORMAT", "Dataset", "ExampleNode", "ExampleSet", "ExamplesError", "NotALearnedProgramError",
