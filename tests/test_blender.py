@@ -358,3 +358,19 @@ print("objects", len(bpy.data.objects))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
     assert re.search(r"objects \d+", run.stdout)
     assert list((tmp_path / "user").rglob("procmod_blender/default_python.txt"))
+
+
+def test_a_relative_runs_folder_is_blenders_working_folder(context, tmp_path, monkeypatch):
+    """A Runs folder typed without // ("my_runs") was taken relative to the job's temporary
+    folder, where the worker wrote the whole run, removed with it: the report said it was
+    written and it did not exist."""
+    monkeypatch.chdir(tmp_path)
+    settings = context.scene.procmod
+    settings.output_dir = "my_runs"
+    slab = _mesh_object("Slab", location=(0, 0, 0.5), scale=(1.5, 4.5, 0.6))
+    _select(slab)
+    assert bpy.ops.procmod.add_layers(role="FILL") == {"FINISHED"}
+    settings.engine, settings.population, settings.budget, settings.voxel_size = "ga", 6, "2gens", 0.5
+    assert bpy.ops.procmod.infer() == {"FINISHED"}
+    report = Path(context.window_manager.procmod_status.report)
+    assert report.is_absolute() and report.is_file() and tmp_path / "my_runs" in report.parents

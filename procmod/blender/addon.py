@@ -126,7 +126,9 @@ def _output_dir(settings) -> Path:
     text = settings.output_dir or "//procmod"
     if text.startswith("//") and not bpy.data.filepath:
         return Path(tempfile.gettempdir()) / "procmod" / text[2:]
-    return Path(bpy.path.abspath(text))
+    # made absolute here: a path relative to Blender's working folder ("my_runs") was taken
+    # relative to the job's temporary folder by the worker, and removed with it
+    return Path(bpy.path.abspath(text)).resolve()
 
 
 def _next_folder(base: Path, stem: str) -> Path:
@@ -203,6 +205,12 @@ class _JobOperator:
             return None
         job = jobs.Job(self.command, {}, _python(context))
         try:
+            # a mesh being edited keeps its edits in edit mode's copy until it is left: the
+            # job reads the mesh data, so write the edits there first (the user stays in
+            # edit mode)
+            for obj in getattr(context, "objects_in_mode", None) or ():
+                if obj.mode == "EDIT":
+                    obj.update_from_editmode()
             spec, on_result = self.prepare(context, job.folder)
         except SceneError as exc:
             self.report({"ERROR"}, str(exc))
