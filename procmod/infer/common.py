@@ -51,8 +51,8 @@ class Budget:
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise InvalidArgumentError(f"budget {name} must be a number, got {value!r}")
             if not 0 < value < math.inf:
-                raise InvalidArgumentError(f"budget {name} must be positive and finite (no budget: None), "
-                                           f"got {value!r}")
+                raise InvalidArgumentError(f"budget {name} must be positive and finite (for no limit, give no "
+                                           f"budget), got {value:g}")
 
     @property
     def unlimited(self) -> bool:
