@@ -19,6 +19,13 @@ from .errors import InvalidArgumentError
 # interpreter, the libraries, and whatever else runs.
 MEMORY_SHARE = 0.8
 
+# Coordinates and lengths an input file may give (targets, part libraries): beyond these,
+# squares and ratios of them overflow or vanish in float64 (a voxel of 1e-300 divided by
+# zero, an eye at 1e300 read as a zero view direction); a model's parts are metres or
+# centimetres, not light years.
+MAX_COORDINATE = 1e12
+MIN_LENGTH = 1e-12
+
 
 class ResourceLimitError(InvalidArgumentError):
     """A request (a count, an image size) that needs more memory or disk than the machine has."""

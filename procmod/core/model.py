@@ -150,3 +150,11 @@ def _check_param(name: str, value, default, bounds=None) -> None:
             fail(f"a list of {len(default)} items")
         for i, (item, item_default) in enumerate(zip(value, default)):
             _check_param(f"{name}[{i}]", item, item_default, bounds)
+
+
+def check_model(model) -> None:
+    """Refuse, in one line, what is not a procmod :class:`Model` (most often a model's
+    name given where the model is wanted)."""
+    if not isinstance(model, Model):
+        raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; "
+                                   "get one with procmod.models.get_model(name) or procmod.learn.load_program(path)")

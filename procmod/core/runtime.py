@@ -39,7 +39,7 @@ import numpy as np
 from .choicemap import ChoiceMap, format_address
 from .distributions import Bernoulli, Distribution
 from .errors import InvalidArgumentError, ModelError
-from .model import Model
+from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
 _MISSING = object()
@@ -629,9 +629,7 @@ def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None
 def _check_call(model, rng, derivation=None, needs_derivation: bool = False) -> None:
     """One-line errors for the public entry points' most likely mistakes: a model's name
     for the model, a seed for the generator, no derivation."""
-    if not isinstance(model, Model):
-        raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; get "
-                                   "one with procmod.models.get_model(name)")
+    check_model(model)
     # looked up on the type: a LazyGenerator makes its generator at the first attribute
     # asked of it, which a replay that draws nothing never needs
     if not isinstance(rng, (np.random.Generator, LazyGenerator, BlockGenerator)) and not (

@@ -271,14 +271,10 @@ def _check_buffer_files(header: dict, path: Path) -> None:
         uri = buffer.get("uri") if isinstance(buffer, dict) else None
         if not isinstance(uri, str) or uri.startswith("data:"):
             continue
-        names = dict.fromkeys([uri, unquote(uri)])
-        absolute = any(PurePosixPath(n).is_absolute() or PureWindowsPath(n).is_absolute() for n in names)
-        if absolute:
-            names = {PureWindowsPath(uri).name: None}  # an exporter's absolute path: looked for beside it
+        names, absolute = _uri_names(uri)
         sizes = [os.path.getsize(path.parent / n) for n in names if (path.parent / n).is_file()]
         if not sizes and absolute:
-            raise ValueError(f"{uri!r} is an absolute path and no {next(iter(names))!r} lies beside the file; a "
-                             "file a glTF names must be relative to it")
+            raise _absolute_uri_error(uri)
         if not sizes:
             raise ValueError(f"the buffer file {uri!r} it names is missing (looked for beside {path.name}); copy "
                              "it along, or export a .glb, which holds its buffers")
@@ -315,26 +311,40 @@ def _repaired_stl(data: bytes) -> bytes | None:
     return None
 
 
+def _uri_names(uri: str) -> tuple[list[str], bool]:
+    """The names, relative to the ``.gltf``, a URI it holds may mean (as written and
+    percent-decoded), and whether it is absolute: an exporter's absolute path means the
+    file of that name beside the ``.gltf``, as trimesh looks for it, and nothing
+    elsewhere on the machine."""
+    names = list(dict.fromkeys([uri, unquote(uri)]))
+    if any(PurePosixPath(n).is_absolute() or PureWindowsPath(n).is_absolute() for n in names):
+        return [PureWindowsPath(unquote(uri)).name], True
+    return names, False
+
+
+def _absolute_uri_error(uri: str) -> ValueError:
+    return ValueError(f"{uri!r} is an absolute path and no {_uri_names(uri)[0][0]!r} lies beside the file; a file a "
+                      "glTF names must be relative to it")
+
+
 def _resolver(path: Path):
     """A resolver for the files a ``.gltf`` names (see the module docstring)."""
     import trimesh
 
     class NamedFileResolver(trimesh.resolvers.FilePathResolver):
         def get(self, name: str):
-            for candidate in dict.fromkeys([name, unquote(name)]):
-                if PurePosixPath(candidate).is_absolute() or PureWindowsPath(candidate).is_absolute():
-                    # an exporter's absolute path: the file of that name beside the .gltf, as
-                    # trimesh looks for it, but nothing elsewhere on the machine
-                    beside = PureWindowsPath(candidate).name
-                    try:
-                        return super().get(beside)
-                    except (FileNotFoundError, ValueError):
-                        raise ValueError(f"{candidate!r} is an absolute path and no {beside!r} lies beside the "
-                                         "file; a file a glTF names must be relative to it") from None
+            names, absolute = _uri_names(name)
+            for candidate in names:
                 try:
                     return super().get(candidate)
                 except FileNotFoundError:
                     continue
+                except ValueError:
+                    if absolute:
+                        break
+                    raise
+            if absolute:
+                raise _absolute_uri_error(name) from None
             raise FileNotFoundError(name)
 
     return NamedFileResolver(str(path), allow_anywhere=True)

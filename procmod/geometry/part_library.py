@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core.errors import ProcmodError
+from ..core.limits import MAX_COORDINATE, MIN_LENGTH
 from ..core.paths import UnsafePathError, named_file
 from .mesh_files import load_mesh_file
 from .solid import Box, Mesh, as_transform, matrix, part_triangles
@@ -89,7 +90,7 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
         size = _finite_numbers(value, 3, f"{where}.box")
         if min(size) <= 0:
             raise PartLibraryError(f"{where}.box: box extents must be positive, got {size}")
-        if not (1e-12 <= min(size) and max(size) <= 1e12):  # squares of them stay finite and nonzero
+        if not (MIN_LENGTH <= min(size) and max(size) <= MAX_COORDINATE):
             raise PartLibraryError(f"{where}.box: box extents must lie in 1e-12..1e12, got {size}")
         return PartShape(name, "box", size=tuple(size), source=list(size))
     try:  # relative to the JSON file's folder, an existing regular file (see core.paths)
@@ -106,7 +107,7 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
     if not np.isfinite(points).all():
         raise PartLibraryError(f"{where}.mesh: {path} has vertices that are not finite numbers (nan or inf); "
                                "fix or re-export the mesh")
-    if np.abs(points[np.unique(indices)]).max() > 1e12:
+    if np.abs(points[np.unique(indices)]).max() > MAX_COORDINATE:
         raise PartLibraryError(f"{where}.mesh: {path} has vertices beyond +-1e12; scale the mesh down")
     if np.ptp(points[np.unique(indices)], axis=0).max() == 0.0:
         raise PartLibraryError(f"{where}.mesh: {path} has no extent (every face's vertices are one point)")

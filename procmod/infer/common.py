@@ -325,11 +325,9 @@ def check_run(model, target, seed, budget) -> None:
     Model (a model's name: ``procmod.models.get_model(name)``), a target that is not a
     Target, a seed that is not a non-negative whole number, a budget that is not a
     :class:`Budget` (``parse_budget("30s")`` reads the command line's)."""
-    from ..core.model import Model
+    from ..core.model import check_model
 
-    if not isinstance(model, Model):
-        raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; "
-                                   "get one with procmod.models.get_model(name) or procmod.learn.load_program(path)")
+    check_model(model)
     check_target(target)
     # what numpy takes: a whole number, a sequence or array of them (a worker's (seed,
     # index)), a SeedSequence

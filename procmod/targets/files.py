@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.limits import ResourceLimitError, check_memory, format_bytes
+from ..core.limits import MAX_COORDINATE, MIN_LENGTH, ResourceLimitError, check_memory, format_bytes
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
-from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, open_image
+from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, meant_key, open_image
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -90,11 +90,6 @@ def weight(value, where: str, minimum: float | None = None) -> float:
     return value
 
 
-# Coordinates and lengths in a target file: beyond these, squares and ratios of them
-# overflow or vanish in float64 (a voxel of 1e-300 divided by zero, an eye at 1e300 read
-# as a zero view direction); a model's parts are metres or centimetres, not light years.
-MAX_COORDINATE = 1e12
-MIN_LENGTH = 1e-12
 
 
 def vector3(value, where: str) -> tuple:
@@ -566,17 +561,15 @@ def _misplaced_keys(spec: dict, known: tuple, at: str, inside: tuple | None = No
     or, with ``inside = (name, keys)``, one that belongs in the object ``name`` (a view's
     ``"width"`` is its camera's): silently ignored, it left the file meaning something
     else. Other keys (a tool's own notes) are left alone."""
-    import difflib
-
     for key in spec:
         if not isinstance(key, str) or key in known:
             continue
         if inside is not None and key in inside[1]:
             raise TargetFileError(f"{at}.{key} belongs inside its \"{inside[0]}\" object (\"{inside[0]}\": "
                                   f"{{..., \"{key}\": ...}})")
-        meant = difflib.get_close_matches(key.lower().replace("-", "_"), known, n=1, cutoff=0.75)
+        meant = meant_key(key, known, cutoff=0.75)
         if meant:
-            raise TargetFileError(f"{at} has {key!r}, which procmod does not read; did you mean {meant[0]!r}?")
+            raise TargetFileError(f"{at} has {key!r}, which procmod does not read; did you mean {meant!r}?")
 
 
 def load_silhouette_target(path: str | os.PathLike) -> Silhouette:

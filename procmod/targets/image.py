@@ -533,6 +533,14 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
 SIDECAR_KEYS = ("start", "direction")
 
 
+
+def meant_key(key, known, cutoff: float) -> str | None:
+    """The key of ``known`` a file's unknown ``key`` is a near miss of (``"strat"``,
+    ``"look-at"``), or None: a file's near misses are refused, its other keys (a tool's
+    own notes) left alone."""
+    found = difflib.get_close_matches(str(key).lower().replace("-", "_"), known, n=1, cutoff=cutoff)
+    return found[0] if found else None
+
 def _read_sidecar(path: Path, shape_padding) -> dict | None:
     """The placement a picture's sidecar ``NAME.json`` gives, as ``{"start": (x, y),
     "direction": (dx, dy)}`` with either key absent when the file leaves it out (the
@@ -553,9 +561,9 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     for key in sorted(set(data) - set(SIDECAR_KEYS)):
         # a misspelt key would silently leave the start to the picture; other keys (a
         # tool's own notes: "name", "source") are not ours and are left alone
-        meant = difflib.get_close_matches(str(key).lower(), SIDECAR_KEYS, n=1, cutoff=0.6)
+        meant = meant_key(key, SIDECAR_KEYS, cutoff=0.6)
         if meant:
-            raise TargetFileError(f"{sidecar}: unknown key {_cut(repr(key), 40)}; did you mean {meant[0]!r}? A "
+            raise TargetFileError(f"{sidecar}: unknown key {_cut(repr(key), 40)}; did you mean {meant!r}? A "
                                   "sidecar gives \"start\" and/or \"direction\" (normalised image coordinates, y down)")
     placement = {}
     for key, value in ((k, v) for k, v in data.items() if k in SIDECAR_KEYS):
