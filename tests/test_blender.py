@@ -181,12 +181,19 @@ def test_bad_volume_targets_are_one_line_reports(context):
     context.scene.collection.objects.link(camera)
     _select(camera)
     _one_line_error(lambda: bpy.ops.procmod.add_layers(role="FILL"), "'Cam' \\(camera\\) is not a mesh")
+    kit = bpy.data.collections.new("Kit")
+    instance = bpy.data.objects.new("Kit.001", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", kit
+    context.scene.collection.objects.link(instance)
+    _select(instance)
+    _one_line_error(lambda: bpy.ops.procmod.add_layers(role="FILL"), "instance of collection 'Kit'")
     bpy.ops.object.select_all(action="DESELECT")
     _one_line_error(lambda: bpy.ops.procmod.add_layers(role="FILL"), "nothing is selected")
     plane = _mesh_object("Sheet", kind="plane")
     _select(plane)
     bpy.ops.procmod.add_layers(role="FILL")
     _one_line_error(lambda: bpy.ops.procmod.infer(), "'Sheet' \\(mesh\\) is flat, so it has no inside")
+    assert not list(Path(settings.output_dir).glob("infer-*")), "a failed job left its run folders"
     bpy.data.objects.remove(plane)
     _one_line_error(lambda: bpy.ops.procmod.infer(), "target layer 1 has no object")
     assert bpy.ops.procmod.remove_layer() == {"FINISHED"} and len(settings.layers) == 0
@@ -319,6 +326,14 @@ def test_learning_needs_a_selection_of_hierarchies(context):
         _mesh_object(name).parent = empty
     _select(empty)
     _one_line_error(lambda: bpy.ops.procmod.learn(), "'group' \\(empty\\) is not a mesh and has 2 top-level")
+    # a collection instance holds meshes that are no objects of the scene: say how to make them real
+    kit = bpy.data.collections.new("Kit")
+    kit.objects.link(bpy.data.objects.new("kit part", bpy.data.meshes.new("kit mesh")))
+    instance = bpy.data.objects.new("Kit.001", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", kit
+    context.scene.collection.objects.link(instance)
+    _select(instance)
+    _one_line_error(lambda: bpy.ops.procmod.learn(), "instance of collection 'Kit'.*Make Instances Real")
 
 
 # In the default suite (about 10 s): as a slow test it was skipped, and "Learn from

@@ -4,6 +4,7 @@ the job protocol, and that procmod itself never imports bpy."""
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,7 @@ def test_parts_of_a_derivation_follow_its_geometry_and_calls():
 
 def _job(tmp_path, **spec):
     folder = tmp_path / "job"
-    folder.mkdir(parents=True)
+    folder.mkdir(parents=True, exist_ok=True)
     (folder / "job.json").write_text(json.dumps({"format": jobs.JOB_FORMAT, **spec}))
     status = worker.run_job(folder)
     return status, json.loads((folder / "result.json").read_text())
@@ -108,6 +109,24 @@ def test_a_grid_too_large_is_refused_before_voxelizing(tmp_path):
         worker.build_volume_target({"layers": [{"mesh": "big.obj"}], "voxel_size": 0.1}, tmp_path, tmp_path / "t")
 
 
+def test_a_sheared_example_names_its_object_not_the_jobs_temporary_file(tmp_path):
+    folder = tmp_path / "job"
+    (folder / "parts").mkdir(parents=True)
+    _box_obj(folder / "parts" / "part0.obj", [-1, -1, -1], [1, 1, 1])
+    shear = [[1, 0.5, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    identity = np.eye(4).tolist()
+    examples = {"format": "procmod-examples/1", "parts": {"Cube": {"mesh": "parts/part0.obj"}},
+                "examples": [{"part": "Cube", "transform": identity,
+                              "children": [{"part": "Cube", "transform": shear}]}]}
+    (folder / "examples.json").write_text(json.dumps(examples))
+    (folder / "names.json").write_text(json.dumps({"examples[0]": "Body", "examples[0].children[0]": "Leg.001"}))
+    status, result = _job(tmp_path, command="learn", examples="examples.json", names="names.json",
+                          out=str(tmp_path / "learned"), count=1)
+    assert status == 2 and result["error"].startswith("object 'Leg.001': ")
+    assert "shears" in result["error"] and "Apply > Scale" in result["error"]
+    assert str(folder) not in result["error"] and "\n" not in result["error"]
+
+
 def test_a_job_whose_python_cannot_start_ends_with_one_line(tmp_path):
     job = jobs.Job("sample", {"model": "spaceship"}, str(tmp_path / "no-python"), folder=tmp_path / "j").start()
     result = job.wait(timeout=30)
@@ -121,6 +140,30 @@ def test_a_worker_that_dies_is_reported_with_its_last_line(tmp_path):
     job = jobs.Job("sample", {"model": "spaceship"}, str(fake), folder=tmp_path / "j").start()
     result = job.wait(timeout=30)
     assert not result["ok"] and "status 139" in result["error"] and "Segmentation fault" in result["error"]
+
+
+def test_a_job_killed_before_its_result_removes_the_run_folders_it_began(tmp_path):
+    # a worker that makes its run folders then hangs (learning, say), and is stopped
+    fake = tmp_path / "python"
+    fake.write_text(f"#!/bin/sh\nmkdir -p {tmp_path}/learn-001/checkpoint {tmp_path}/learn-001.target\n"
+                    f"touch {tmp_path}/made\nsleep 60\n")
+    fake.chmod(0o755)
+    (tmp_path / "earlier").mkdir()
+    job = jobs.Job("learn", {"out": str(tmp_path / "learn-001"), "target_folder": str(tmp_path / "learn-001.target")},
+                   str(fake), folder=tmp_path / "j").start()
+    for _ in range(300):
+        if (tmp_path / "made").exists():
+            break
+        job.poll()
+        time.sleep(0.05)
+    assert (tmp_path / "learn-001" / "checkpoint").is_dir()
+    job.stop()
+    assert job.result["cancelled"]
+    assert not (tmp_path / "learn-001").exists() and not (tmp_path / "learn-001.target").exists()
+    # a folder that was there before the job started is the user's, and stays
+    kept = jobs.Job("learn", {"out": str(tmp_path / "earlier")}, str(fake), folder=tmp_path / "k").start()
+    kept.kill()
+    assert (tmp_path / "earlier").is_dir()
 
 
 def test_the_addon_zip_holds_the_blender_side_and_its_python(tmp_path):

@@ -384,7 +384,8 @@ class PROCMOD_OT_add_layers(bpy.types.Operator):
             return {"CANCELLED"}
         for obj in selected:
             if obj.type != "MESH":
-                self.report({"ERROR"}, f"{scene.describe(obj)} is not a mesh: a target layer is a mesh object")
+                self.report({"ERROR"}, f"{scene.describe(obj)} is not a mesh: a target layer is a mesh object"
+                                       + scene.instance_hint(obj))
                 return {"CANCELLED"}
         settings = context.scene.procmod
         for obj in selected:

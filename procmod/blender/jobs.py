@@ -22,6 +22,7 @@ from pathlib import Path
 JOB_FORMAT = "procmod-blender-job/1"
 DEFAULT_PYTHON_FILE = Path(__file__).with_name("default_python.txt")  # written by package.py
 KILL_AFTER_STOP = 20.0  # seconds a stopped worker may take to write its run before it is killed
+OUTPUT_KEYS = ("out", "target_folder")  # the spec's fields that name folders the worker makes
 
 _RUNNING: set = set()
 
@@ -67,8 +68,14 @@ class Job:
         self.result = None
         self.started = None
         self._stop_time = None
+        self._new_outputs = []
 
     def start(self) -> "Job":
+        # the run folders this job is to make: a job that ends without a result (stopped,
+        # killed, failed) removes what it left of them, so that no half-made run or learn
+        # checkpoint is left for the next job to step around
+        self._new_outputs = [Path(self.spec[key]) for key in OUTPUT_KEYS
+                             if self.spec.get(key) and not Path(self.spec[key]).exists()]
         data = {"format": JOB_FORMAT, "command": self.command, **self.spec}
         (self.folder / "job.json").write_text(json.dumps(data, indent=1), encoding="utf-8")
         log = open(self.folder / "worker.log", "w", encoding="utf-8")
@@ -113,8 +120,14 @@ class Job:
                 return True
             return False
         _RUNNING.discard(self)
-        self.result = self._read_result(code)
+        self._set_result(self._read_result(code))
         return True
+
+    def _set_result(self, result: dict) -> None:
+        self.result = result
+        if not result.get("ok"):
+            for path in self._new_outputs:
+                shutil.rmtree(path, ignore_errors=True)
 
     def _read_result(self, code: int) -> dict:
         try:
@@ -154,7 +167,7 @@ class Job:
             self.process.wait()
         _RUNNING.discard(self)
         if self.result is None:
-            self.result = {"ok": False, "error": f"{self.command} cancelled", "cancelled": True}
+            self._set_result({"ok": False, "error": f"{self.command} cancelled", "cancelled": True})
 
     def wait(self, timeout: float | None = None, interval: float = 0.1, on_progress=None) -> dict:
         """Poll until the job ends (killing it after ``timeout`` seconds); returns the result."""

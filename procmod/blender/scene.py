@@ -173,11 +173,21 @@ def describe(obj) -> str:
     return f"{obj.name!r} ({obj.type.lower()})"
 
 
+def instance_hint(obj) -> str:
+    """For an empty that instances a collection (Shift+A > Collection Instance, or a linked
+    asset): what to do, since its meshes are not objects procmod can read."""
+    collection = getattr(obj, "instance_collection", None)
+    if obj.type == "EMPTY" and getattr(obj, "instance_type", "") == "COLLECTION" and collection is not None:
+        return (f"; it is an instance of collection {collection.name!r}: make its objects real first "
+                "(Object > Apply > Make Instances Real)")
+    return ""
+
+
 def check_mesh_object(obj, role: str) -> None:
     if obj is None:
         raise SceneError(f"{role} has no object (was it deleted?): pick a mesh or remove the layer")
     if obj.type not in MESH_TYPES:
-        raise SceneError(f"{role} {describe(obj)} is not a mesh: pick a mesh object")
+        raise SceneError(f"{role} {describe(obj)} is not a mesh: pick a mesh object{instance_hint(obj)}")
 
 
 def write_obj(path: Path, vertices, triangles) -> None:
@@ -320,7 +330,8 @@ def example_roots(selected) -> list:
         below = _mesh_descendants(obj)
         if len(below) != 1:
             raise SceneError(f"{describe(obj)} is not a mesh and has {len(below)} top-level mesh parts below it; an "
-                             "example is one root part with its children: parent the parts under one of them")
+                             "example is one root part with its children: parent the parts under one of them"
+                             + instance_hint(obj))
         roots.append(below[0])
     roots.sort(key=lambda o: o.name)
     return roots

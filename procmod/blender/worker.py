@@ -333,12 +333,25 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
                         + (f"; note: {note}" if note else ""))}
 
 
-def _name_objects(message: str, names: dict) -> str:
-    """An examples error names a JSON path (``examples[2].children[0]``); say which object it is."""
+# What a Blender user does about a sheared world matrix (the library's message says what it is)
+SHEAR_FIX = ("in Blender, apply the scale of the object's parents (select them, Object > Apply > Scale) "
+             "so that no rotated child sits under a non-uniform scale")
+
+
+def _name_objects(message: str, names: dict, examples_file: Path | None = None) -> str:
+    """An examples error names a JSON path (``examples[2].children[0]``); say which object it is.
+
+    The examples file is the job's own temporary copy of the selection, which means nothing
+    to the user: its name is dropped, and the message names the scene object instead."""
+    if examples_file is not None:
+        message = message.replace(f"{examples_file}: ", "").replace(str(examples_file), "the selection")
     paths = re.findall(r"examples\[\d+\](?:\.children\[\d+\])*", message)
     for path in sorted(set(paths), key=len, reverse=True):
         if path in names:
-            return f"{message} (object {names[path]!r})"
+            message = f"object {names[path]!r}: {message}"
+            break
+    if "shears" in message:
+        message = f"{message}; {SHEAR_FIX}"
     return message
 
 
@@ -349,6 +362,7 @@ def cmd_learn(job: dict, folder: Path, progress: Progress) -> dict:
 
     count, seed = int(job.get("count", 4)), int(job.get("seed", 0))
     names = json.loads((folder / job["names"]).read_text(encoding="utf-8")) if job.get("names") else {}
+    examples_file = folder / job["examples"]
     out = Path(job["out"])
     if out.exists() and any(out.iterdir()) and not (out / "checkpoint").exists():
         raise InvalidArgumentError(f"{out} is not empty and not an earlier procmod learn folder; give another")
@@ -358,11 +372,11 @@ def cmd_learn(job: dict, folder: Path, progress: Progress) -> dict:
 
     notes = []
     try:
-        learned = learn_program(folder / job["examples"], out, particles=int(job.get("particles", 2)),
+        learned = learn_program(examples_file, out, particles=int(job.get("particles", 2)),
                                 workers=int(job.get("workers", 1)), seed=seed, samples=max(count, 1),
                                 progress=report, command=job.get("command", ""), note=notes.append)
     except ProcmodError as exc:
-        raise type(exc)(_name_objects(str(exc), names)) from None
+        raise type(exc)(_name_objects(str(exc), names, examples_file)) from None
     model = load_program(learned["program"])
     samples = [{"label": f"learned sample {i} (seed {seed})", **derivation_parts(_sample_one(model, seed, i))}
                for i in range(count)]
@@ -370,7 +384,7 @@ def cmd_learn(job: dict, folder: Path, progress: Progress) -> dict:
     return {"samples": samples, "program": learned["program"], "report": learned["report"],
             "message": (f"learned {t['A_star']} abstractions from {job.get('n_examples', '')} examples in "
                         f"{t['seconds']:.1f} s; program: {learned['program']}"
-                        + "".join(f"; note: {_name_objects(n, names)}" for n in notes))}
+                        + "".join(f"; note: {_name_objects(n, names, examples_file)}" for n in notes))}
 
 
 def one_line(message, limit: int = 600) -> str:
