@@ -375,6 +375,17 @@ print("objects", len(bpy.data.objects))
     assert list((tmp_path / "user").rglob("procmod_blender/default_python.txt"))
 
 
+def test_a_script_that_leaves_the_addon_registered_still_exits():
+    # the bpy module hung at exit while an operator class was registered
+    script = "import procmod.blender as addon\naddon.register()\nprint('registered')\n"
+    try:
+        run = subprocess.run([sys.executable, "-c", "import bpy\n" + script], capture_output=True, text=True,
+                             timeout=120)
+    except subprocess.TimeoutExpired:
+        pytest.fail("python did not exit with the add-on registered")
+    assert run.returncode == 0 and "registered" in run.stdout, run.stderr[-2000:]
+
+
 def test_a_relative_runs_folder_is_blenders_working_folder(context, tmp_path, monkeypatch):
     """A Runs folder typed without // ("my_runs") was taken relative to the job's temporary
     folder, where the worker wrote the whole run, removed with it: the report said it was

@@ -11,6 +11,7 @@ or the settings is reported in one line (an operator error; from a script, a
 
 from __future__ import annotations
 
+import atexit
 import tempfile
 import time
 import traceback
@@ -516,11 +517,24 @@ CLASSES = (PROCMOD_PG_layer, PROCMOD_PG_settings, PROCMOD_PG_status, PROCMOD_AP_
            PROCMOD_OT_new_mask, PROCMOD_OT_open_report, PROCMOD_UL_layers, PROCMOD_PT_panel)
 
 
+_exit_hook = []  # the atexit hook, once added
+
+
 def register() -> None:
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     bpy.types.Scene.procmod = PointerProperty(type=PROCMOD_PG_settings)
     bpy.types.WindowManager.procmod_status = PointerProperty(type=PROCMOD_PG_status)
+    # Blender as a Python module (the bpy wheel: no binary) never exits while an operator
+    # class is still registered: a script that registered the add-on and did not unregister
+    # it hung at its end. Blender itself unregisters add-ons when it quits.
+    if not bpy.app.binary_path and not _exit_hook:
+        _exit_hook.append(atexit.register(_unregister_at_exit))
+
+
+def _unregister_at_exit() -> None:
+    if hasattr(bpy.types.Scene, "procmod"):
+        unregister()
 
 
 def unregister() -> None:
