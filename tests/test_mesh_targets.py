@@ -9,6 +9,7 @@ the tolerance their polygonal surface (and a hole's rim) needs, stated where it 
 """
 
 import json
+import struct
 import math
 from pathlib import Path
 
@@ -565,13 +566,100 @@ def _gltf_box(folder: Path, normalized=False, uri="box.bin", cut=0):
     return folder / "v.json"
 
 
-def test_a_gltf_without_its_buffer_file_or_with_normalized_positions_is_refused_saying_why(tmp_path):
+def test_a_gltf_without_its_buffer_file_is_refused_saying_why(tmp_path):
     assert load_volume_target(_gltf_box(tmp_path)).combined.any()  # the plain file reads
     for kwargs, message in (({"uri": "gone.bin"}, "the buffer file 'gone.bin' it names is missing .looked for beside box.gltf.; copy it along"),
-                            ({"cut": 40}, "its buffer file 'box.bin' is 200 bytes but the glTF says 240"),
-                            ({"normalized": True}, "quantized to normalized integers .KHR_mesh_quantization.")):
+                            ({"cut": 40}, "its buffer file 'box.bin' is 200 bytes but the glTF says 240")):
         with pytest.raises(TargetFileError, match=message):
             load_volume_target(_gltf_box(tmp_path, **kwargs))
+
+
+def _quantized(spec: dict, blob: bytes, scale: float) -> tuple[dict, bytes]:
+    """The same box with its positions as normalized SHORTs (KHR_mesh_quantization, as
+    gltf-transform quantize writes them), the node scaling them back; and the plain file's
+    bytes with the positions those SHORTs stand for (a power-of-two scale keeps them exact)."""
+    count = spec["accessors"][0]["count"]
+    vertices = np.frombuffer(blob, "<f4", count=count * 3).reshape(-1, 3)
+    shorts = np.round(vertices / scale * 32767).astype("<i2")
+    meant = (shorts / 32767).astype("<f4") * np.float32(scale)
+    rows = np.hstack([shorts, np.zeros((len(shorts), 1), "<i2")]).tobytes()  # rows padded to 4 bytes
+    spec = json.loads(json.dumps(spec))
+    spec["accessors"][0].update(componentType=5122, normalized=True, min=shorts.min(0).tolist(),
+                                max=shorts.max(0).tolist())
+    spec["bufferViews"][0].update(byteLength=len(rows), byteStride=8)
+    spec["bufferViews"][1]["byteOffset"] = len(rows)
+    spec["nodes"][0]["scale"] = [scale] * 3
+    spec["extensionsUsed"] = spec["extensionsRequired"] = ["KHR_mesh_quantization"]
+    data = rows + blob[count * 12:]
+    spec["buffers"][0]["byteLength"] = len(data)
+    return spec, data, meant.tobytes() + blob[count * 12:]
+
+
+def _sparse(spec: dict, blob: bytes) -> tuple[dict, bytes]:
+    """The same box with its positions in a sparse accessor: no bufferView (all zeros) and
+    every vertex given as a replacement, in a shuffled order."""
+    count = spec["accessors"][0]["count"]
+    order = np.random.default_rng(0).permutation(count)
+    vertices = np.frombuffer(blob, "<f4", count=count * 3).reshape(-1, 3)
+    indices, values = order.astype("<u2").tobytes(), vertices[order].astype("<f4").tobytes()
+    faces = blob[count * 12:]
+    spec = json.loads(json.dumps(spec))
+    data = faces + indices + b"\0" * (-len(indices) % 4) + values
+    spec["bufferViews"] = [{"buffer": 0, "byteLength": len(faces)},
+                           {"buffer": 0, "byteOffset": len(faces), "byteLength": len(indices)},
+                           {"buffer": 0, "byteOffset": len(faces) + len(indices) + (-len(indices) % 4),
+                            "byteLength": len(values)}]
+    position = {k: v for k, v in spec["accessors"][0].items() if k != "bufferView"}
+    position["sparse"] = {"count": count, "indices": {"bufferView": 1, "componentType": 5123},
+                          "values": {"bufferView": 2}}
+    spec["accessors"] = [position, {**spec["accessors"][1], "bufferView": 0}]
+    spec["buffers"][0]["byteLength"] = len(data)
+    return spec, data
+
+
+def _glb(spec: dict, data: bytes) -> bytes:
+    spec = json.loads(json.dumps(spec))
+    spec["buffers"] = [{"byteLength": len(data)}]
+    text = json.dumps(spec).encode()
+    text += b" " * (-len(text) % 4)
+    data += b"\0" * (-len(data) % 4)
+    return (struct.pack("<4sII", b"glTF", 2, 28 + len(text) + len(data)) + struct.pack("<I4s", len(text), b"JSON")
+            + text + struct.pack("<I4s", len(data), b"BIN\0") + data)
+
+
+def test_quantized_and_sparse_gltf_positions_read_as_the_plain_file(tmp_path):
+    """trimesh read normalized SHORT positions as the integers themselves (32767 times too
+    large: the file was refused) and a sparse accessor as zeros (refused as no area)."""
+    plain = load_volume_target(_gltf_box(tmp_path)).combined
+    spec, blob = json.loads((tmp_path / "box.gltf").read_text()), (tmp_path / "box.bin").read_bytes()
+    quantized, data, meant = _quantized(spec, blob, 4.0)
+    (tmp_path / "box.bin").write_bytes(meant)
+    rounded = load_volume_target(tmp_path / "v.json").combined  # the box the SHORTs stand for
+    assert rounded.sum() == plain.sum()
+    (tmp_path / "box.bin").write_bytes(blob)
+    for name, (variant, data), expected in (("quantized", (quantized, data), rounded),
+                                            ("sparse", _sparse(spec, blob), plain)):
+        for kind in ("gltf", "glb"):
+            folder = tmp_path / f"{name}-{kind}"
+            folder.mkdir()
+            if kind == "gltf":
+                (folder / "box.bin").write_bytes(data)
+                (folder / "box.gltf").write_text(json.dumps(variant))
+            else:
+                (folder / "box.glb").write_bytes(_glb(variant, data))
+            (folder / "v.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": H,
+                                                       "layers": [{"file": f"box.{kind}", "w_fill": 1}]}))
+            read = load_volume_target(folder / "v.json").combined
+            assert read.shape == expected.shape and np.array_equal(read, expected), (name, kind)
+
+
+def test_a_meshopt_compressed_gltf_is_refused_saying_what_to_do(tmp_path):
+    _gltf_box(tmp_path)
+    spec = json.loads((tmp_path / "box.gltf").read_text())
+    spec["extensionsUsed"] = spec["extensionsRequired"] = ["EXT_meshopt_compression"]
+    (tmp_path / "box.gltf").write_text(json.dumps(spec))
+    with pytest.raises(TargetFileError, match="meshopt-compressed .EXT_meshopt_compression.*without compression"):
+        load_volume_target(tmp_path / "v.json")
 
 
 def test_a_cut_off_glb_is_refused_saying_so(tmp_path):

@@ -27,10 +27,11 @@ For glTF, the files a ``.gltf`` names (buffers, images) are found as procmod fin
 files (README, "Files that name other files"): relative to the ``.gltf``, ``..`` allowed,
 absolute paths refused, and percent-encoded (``my%20ship.bin``, as the glTF spec writes a
 space) as well as plain. A file whose meshes are Draco-compressed is refused with what to
-do, rather than read as placeholder zeros; so is one whose positions are quantized to
-normalized integers (``KHR_mesh_quantization``), which trimesh would read tens of
-thousands of times too large. A ``.gltf`` whose buffer file is missing or shorter than it
-declares is refused naming that file. trimesh's log messages stay off procmod's one-line
+do, rather than read as placeholder zeros, and so is one whose buffers are
+meshopt-compressed. Positions stored as normalized integers (``KHR_mesh_quantization``)
+or in sparse accessors, which trimesh reads wrongly, are decoded first
+(:mod:`procmod.geometry.gltf_accessors`). A ``.gltf`` whose buffer file is missing or
+shorter than it declares is refused naming that file. trimesh's log messages stay off procmod's one-line
 error channel.
 """
 
@@ -48,6 +49,8 @@ from pathlib import Path, PurePosixPath, PureWindowsPath
 from urllib.parse import unquote
 
 import numpy as np
+
+from .gltf_accessors import decoded_gltf
 
 _INDEXED = ("f", "l", "p")  # statements that index vertices (v/vt/vn per field)
 _COUNTED = {"v": 0, "vt": 1, "vn": 2}
@@ -185,6 +188,7 @@ def _gltf_faces(file: Path) -> int | None:
 
 
 DRACO = "KHR_draco_mesh_compression"
+MESHOPT = "EXT_meshopt_compression"
 
 
 def gltf_header(path: Path, limit: int | None = None) -> dict:
@@ -218,24 +222,22 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
     return header
 
 
-# integer component types (glTF 2.0, accessor.componentType): a normalized one is scaled
-# to [-1, 1] or [0, 1], which trimesh does not do
-_INTEGER_TYPES = {5120, 5121, 5122, 5123}
-
-
-def _check_gltf(path: Path) -> None:
+def _check_gltf(path: Path) -> dict | None:
+    """Refuse what cannot be read right; returns the file's JSON (None if it does not parse:
+    the loader says what is wrong with it)."""
     try:
         header = gltf_header(path, limit=64 * 2 ** 20)
     except (OSError, ValueError):
-        return  # the loader says what is wrong with it
+        return None
     named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
     if any(isinstance(names, list) and DRACO in names for names in named):
         raise ValueError(f"its meshes are Draco-compressed ({DRACO}), which procmod cannot decode; export "
                          "it without mesh compression")
-    if _normalized_positions(header):
-        raise ValueError("its positions are quantized to normalized integers (KHR_mesh_quantization), which "
-                         "procmod cannot decode; export it without quantization (or run `gltf-transform "
-                         "dequantize` on it)")
+    required = header.get("extensionsRequired")
+    if isinstance(required, list) and MESHOPT in required:
+        raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
+                         "it without compression (gltfpack without -c, or `gltf-transform copy` after "
+                         "decompressing)")
     if path.suffix.lower() == ".gltf":
         _check_buffer_files(header, path)
     else:  # a GLB's header gives its whole length
@@ -245,22 +247,7 @@ def _check_gltf(path: Path) -> None:
         if actual < declared:
             raise ValueError(f"a cut-off GLB file: its header says {declared:,} bytes but the file holds {actual:,}; "
                              "export or copy it again")
-
-
-def _normalized_positions(header: dict) -> bool:
-    """Whether a mesh's POSITION accessor holds normalized integers."""
-    try:
-        accessors = header.get("accessors", [])
-        for mesh in header.get("meshes", []):
-            for primitive in mesh.get("primitives", []):
-                index = primitive.get("attributes", {}).get("POSITION")
-                if isinstance(index, int) and 0 <= index < len(accessors):
-                    accessor = accessors[index]
-                    if accessor.get("normalized") is True and accessor.get("componentType") in _INTEGER_TYPES:
-                        return True
-    except (AttributeError, TypeError):
-        pass  # a malformed file: the loader says what is wrong with it
-    return False
+    return header
 
 
 def _check_buffer_files(header: dict, path: Path) -> None:
@@ -385,7 +372,10 @@ def load_mesh_file(path: str | Path, **options):
             if fixed is not None:
                 return trimesh.load(io.BytesIO(fixed), file_type="stl", **options)
         if suffix in (".gltf", ".glb"):
-            _check_gltf(path)
+            if _check_gltf(path) is not None:
+                decoded = decoded_gltf(path, _resolver(path))
+                if decoded is not None:  # positions trimesh would misread, rewritten as floats
+                    return trimesh.load(io.BytesIO(decoded), file_type="gltf", resolver=_resolver(path), **options)
             if suffix == ".gltf":
                 return trimesh.load(path, resolver=_resolver(path), **options)
         return trimesh.load(path, **options)

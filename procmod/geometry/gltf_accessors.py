@@ -1,0 +1,200 @@
+"""Vertex positions trimesh reads wrongly from a glTF, decoded here before it reads them.
+
+trimesh 4-5 reads an accessor's bytes as they lie, so two kinds of POSITION accessor that
+real exporters write came out wrong:
+
+* **Normalized integers** (``KHR_mesh_quantization``, as ``gltf-transform quantize`` and
+  other web pipelines write): glTF 2.0 maps a normalized ``SHORT`` ``c`` to
+  ``max(c / 32767, -1)``, ``UNSIGNED_SHORT`` to ``c / 65535``, ``BYTE`` to ``max(c / 127,
+  -1)``, ``UNSIGNED_BYTE`` to ``c / 255``; trimesh took ``c`` itself, tens of thousands of
+  times too large.
+* **Sparse accessors**: the accessor's values (from its ``bufferView``, or zeros without
+  one) with ``sparse.count`` of them replaced at ``sparse.indices``; trimesh ignored the
+  replacements, and an accessor with no ``bufferView`` read as all zeros.
+
+:func:`decoded_gltf` rewrites each such accessor as plain ``FLOAT`` data in a buffer of
+its own (a ``data:`` URI) and returns the glTF JSON, which trimesh then reads as usual
+(the file is left as it is). Everything else — other buffers, images, the node tree — is
+as the file has it.
+"""
+
+from __future__ import annotations
+
+import base64
+import copy
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+
+# glTF 2.0 accessor.componentType -> little-endian numpy dtype
+COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+# what a normalized integer is divided by (signed ones are then clamped at -1)
+NORMALIZED_DIVISOR = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
+COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+SPARSE_INDEX_TYPES = (5121, 5123, 5125)
+
+
+def _positions(header: dict) -> set[int]:
+    """The accessors meshes use as POSITION (morph targets included)."""
+    found = set()
+    for mesh in header.get("meshes") or ():
+        for primitive in (mesh.get("primitives") or ()) if isinstance(mesh, dict) else ():
+            if not isinstance(primitive, dict):
+                continue
+            sets = [primitive.get("attributes") or {}] + list(primitive.get("targets") or ())
+            for attributes in sets:
+                index = attributes.get("POSITION") if isinstance(attributes, dict) else None
+                if isinstance(index, int) and not isinstance(index, bool):
+                    found.add(index)
+    return found
+
+
+def needs_decoding(header: dict) -> list[int]:
+    """The POSITION accessors trimesh would misread: normalized integers, or sparse."""
+    accessors = header.get("accessors") or []
+    chosen = []
+    for index in sorted(_positions(header)):
+        if not 0 <= index < len(accessors) or not isinstance(accessors[index], dict):
+            continue
+        accessor = accessors[index]
+        normalized = accessor.get("normalized") is True and accessor.get("componentType") in NORMALIZED_DIVISOR
+        if normalized or "sparse" in accessor:
+            chosen.append(index)
+    return chosen
+
+
+def _view_bytes(header: dict, buffers: list, view_index, what: str) -> tuple[bytes, int]:
+    """The bytes of a bufferView (and its byteStride, 0 if tight)."""
+    views = header.get("bufferViews") or []
+    if not isinstance(view_index, int) or not 0 <= view_index < len(views) or not isinstance(views[view_index], dict):
+        raise ValueError(f"{what} names bufferView {view_index!r}, which the file does not have")
+    view = views[view_index]
+    buffer_index, offset, length = view.get("buffer"), view.get("byteOffset", 0), view.get("byteLength")
+    if not isinstance(buffer_index, int) or not 0 <= buffer_index < len(buffers):
+        raise ValueError(f"bufferView {view_index} names buffer {buffer_index!r}, which the file does not have")
+    data = buffers[buffer_index]
+    if not (isinstance(offset, int) and isinstance(length, int) and 0 <= offset and offset + length <= len(data)):
+        raise ValueError(f"bufferView {view_index} reaches past the end of buffer {buffer_index}")
+    stride = view.get("byteStride", 0)
+    return data[offset:offset + length], stride if isinstance(stride, int) and stride > 0 else 0
+
+
+def _read_elements(data: bytes, offset, count: int, dtype: np.dtype, width: int, stride: int, what: str):
+    """``count`` elements of ``width`` components from ``data``, ``stride`` bytes apart."""
+    element = dtype.itemsize * width
+    stride = stride or element
+    if not isinstance(offset, int) or offset < 0 or (count and offset + (count - 1) * stride + element > len(data)):
+        raise ValueError(f"{what} reaches past the end of its bufferView")
+    if count == 0:
+        return np.zeros((0, width), dtype)
+    raw = np.frombuffer(data, np.uint8, count=(count - 1) * stride + element, offset=offset)
+    rows = np.lib.stride_tricks.as_strided(raw, (count, element), (stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
+
+
+def accessor_values(header: dict, buffers: list, index: int) -> np.ndarray:
+    """An accessor's values as float64, ``(count, components)``: normalized integers mapped
+    as glTF says and sparse replacements applied."""
+    accessor = header["accessors"][index]
+    what = f"accessor {index}"
+    kind, width = accessor.get("componentType"), COMPONENTS.get(accessor.get("type"))
+    count = accessor.get("count")
+    if kind not in COMPONENT_TYPES or width is None or not isinstance(count, int) or count < 0:
+        raise ValueError(f"{what} has a componentType, type or count glTF 2.0 does not define")
+    dtype = np.dtype(COMPONENT_TYPES[kind])
+    if "bufferView" in accessor:
+        data, stride = _view_bytes(header, buffers, accessor["bufferView"], what)
+        values = _read_elements(data, accessor.get("byteOffset", 0), count, dtype, width, stride, what)
+    else:
+        values = np.zeros((count, width), dtype)  # glTF: a sparse accessor without a bufferView starts at zero
+    values = values.copy()
+    sparse = accessor.get("sparse")
+    if sparse is not None:
+        if not isinstance(sparse, dict) or not isinstance(sparse.get("indices"), dict) \
+                or not isinstance(sparse.get("values"), dict):
+            raise ValueError(f"{what}.sparse needs 'count', 'indices' and 'values'")
+        replaced = sparse.get("count")
+        indices = sparse["indices"]
+        if not isinstance(replaced, int) or not 0 < replaced <= count \
+                or indices.get("componentType") not in SPARSE_INDEX_TYPES:
+            raise ValueError(f"{what}.sparse has a count or an index componentType glTF 2.0 does not allow")
+        data, _ = _view_bytes(header, buffers, indices.get("bufferView"), f"{what}.sparse.indices")
+        where = _read_elements(data, indices.get("byteOffset", 0), replaced,
+                               np.dtype(COMPONENT_TYPES[indices["componentType"]]), 1, 0,
+                               f"{what}.sparse.indices")[:, 0].astype(np.int64)
+        if where.size and where.max() >= count:
+            raise ValueError(f"{what}.sparse replaces element {int(where.max())}, past its count {count}")
+        data, _ = _view_bytes(header, buffers, sparse["values"].get("bufferView"), f"{what}.sparse.values")
+        values[where] = _read_elements(data, sparse["values"].get("byteOffset", 0), replaced, dtype, width, 0,
+                                       f"{what}.sparse.values")
+    out = values.astype(np.float64)
+    if accessor.get("normalized") is True and kind in NORMALIZED_DIVISOR:
+        out /= NORMALIZED_DIVISOR[kind]
+        if dtype.kind == "i":
+            np.maximum(out, -1.0, out=out)
+    return out
+
+
+def _glb_parts(data: bytes) -> tuple[dict, bytes | None]:
+    """A GLB's JSON chunk (parsed) and its BIN chunk (None without one)."""
+    length, kind = struct.unpack_from("<I4s", data, 12)
+    header = json.loads(data[20:20 + length].decode("utf-8"))
+    at = 20 + length
+    while at + 8 <= len(data):
+        chunk_length, chunk_kind = struct.unpack_from("<I4s", data, at)
+        if chunk_kind == b"BIN\x00":
+            return header, data[at + 8:at + 8 + chunk_length]
+        at += 8 + chunk_length
+    return header, None
+
+
+def decoded_gltf(path: Path, resolver) -> bytes | None:
+    """The glTF (JSON, buffers as ``data:`` URIs or the files the original names) with its
+    misread POSITION accessors (:func:`needs_decoding`) rewritten as ``FLOAT``; None when
+    there are none. ``resolver.get(uri)`` gives a buffer file's bytes.
+
+    Raises ValueError for an accessor that reaches past its data."""
+    path = Path(path)
+    raw = path.read_bytes()
+    if path.suffix.lower() == ".glb":
+        header, chunk = _glb_parts(raw)
+    else:
+        header, chunk = json.loads(raw.decode("utf-8")), None
+    chosen = needs_decoding(header)
+    if not chosen:
+        return None
+    buffers = []
+    for i, buffer in enumerate(header.get("buffers") or ()):
+        uri = buffer.get("uri") if isinstance(buffer, dict) else None
+        if isinstance(uri, str) and uri.startswith("data:") and "base64," in uri:
+            buffers.append(base64.b64decode(uri[uri.index("base64,") + 7:]))
+        elif isinstance(uri, str):
+            buffers.append(resolver.get(uri))
+        elif i == 0 and chunk is not None:
+            buffers.append(chunk)
+        else:
+            raise ValueError(f"buffer {i} has no data (no uri, and not a GLB's binary chunk)")
+    decoded = {index: accessor_values(header, buffers, index).astype("<f4") for index in chosen}
+    out = copy.deepcopy(header)
+    blob, views = b"", out.setdefault("bufferViews", [])
+    for index, values in decoded.items():
+        views.append({"buffer": len(buffers), "byteOffset": len(blob), "byteLength": values.nbytes})
+        accessor = {key: value for key, value in out["accessors"][index].items()
+                    if key not in ("bufferView", "byteOffset", "sparse", "normalized", "componentType", "min", "max")}
+        accessor.update(bufferView=len(views) - 1, componentType=5126)
+        if len(values):
+            accessor.update(min=values.min(axis=0).tolist(), max=values.max(axis=0).tolist())
+        out["accessors"][index] = accessor
+        blob += values.tobytes()
+    out["buffers"] = [dict(b) for b in out.get("buffers") or ()]
+    if chunk is not None and out["buffers"] and "uri" not in out["buffers"][0]:
+        # read as a .gltf now: the binary chunk travels as a data URI
+        out["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(chunk).decode()
+    out["buffers"].append({"byteLength": len(blob),
+                           "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()})
+    return json.dumps(out).encode("utf-8")
+
+
+__all__ = ["accessor_values", "decoded_gltf", "needs_decoding"]
