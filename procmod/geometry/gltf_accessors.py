@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.limits import check_memory
+
 # glTF 2.0 accessor.componentType -> little-endian numpy dtype
 COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 # what a normalized integer is divided by (signed ones are then clamped at -1)
@@ -108,7 +110,10 @@ def accessor_values(header: dict, buffers: list, index: int) -> np.ndarray:
         data, stride = _view_bytes(header, buffers, accessor["bufferView"], what)
         values = _read_elements(data, accessor.get("byteOffset", 0), count, dtype, width, stride, what)
     else:
-        values = np.zeros((count, width), dtype)  # glTF: a sparse accessor without a bufferView starts at zero
+        # glTF: a sparse accessor without a bufferView starts at zero; its count is bounded
+        # by no data in the file, only by memory
+        check_memory(f"{what} of {count:,} elements", count * width * 8 * 3)
+        values = np.zeros((count, width), dtype)
     values = values.copy()
     sparse = accessor.get("sparse")
     if sparse is not None:
