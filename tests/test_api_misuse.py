@@ -34,6 +34,28 @@ def test_engine_arguments(vines, kwargs, message):
         smc(model, target, particles=2, **kwargs)
 
 
+@pytest.mark.parametrize("engine", ["smc", "forward", "ga", "mcmc", "sosmc"])
+def test_a_budget_without_a_limit_is_refused_not_run_forever(vines, engine):
+    from procmod.infer import ENGINES
+    model, target = vines
+    with pytest.raises(ProcmodError, match=r"Budget\(\) sets no limit"):
+        ENGINES[engine](model, target, budget=Budget())
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"anneal_every": 0}, "anneal_every must be a positive integer"),
+    ({"anneal_every": 2.5}, "anneal_every must be a positive integer"),
+    ({"step_scale": float("nan")}, "step_scale must be a positive finite number"),
+    ({"step_scale": 0}, "step_scale must be a positive finite number"),
+    ({"annealing": float("inf")}, "annealing must be a finite number >= 1"),
+])
+def test_mcmc_options(vines, kwargs, message):
+    from procmod.infer.mcmc import mcmc
+    model, target = vines
+    with pytest.raises(ProcmodError, match=message):
+        mcmc(model, target, budget=Budget(generations=1), **kwargs)
+
+
 @pytest.mark.parametrize("seed", [np.random.SeedSequence(5), np.array([1, 2]), [], [3, 1], np.int64(3)])
 def test_every_seed_numpy_takes_is_taken(vines, seed):
     model, target = vines
@@ -52,8 +74,9 @@ def test_a_models_name_or_a_guides_name(vines):
 @pytest.mark.parametrize("make, message", [
     (lambda: Budget(seconds="3"), "budget seconds must be a number"),
     (lambda: Budget(seconds=float("inf")), "must be positive and finite"),
-    (lambda: Normal(0, "x"), "Normal needs a number mu and a number sigma > 0"),
-    (lambda: Normal("a", 1), "Normal needs a number mu"),
+    (lambda: Normal(0, "x"), "Normal needs a finite number mu and a finite number sigma > 0"),
+    (lambda: Normal("a", 1), "Normal needs a finite number mu"),
+    (lambda: Budget(evaluations=1.5), "budget evaluations must be a whole number"),
     (lambda: Bernoulli("x"), "Bernoulli needs a number 0 <= p <= 1"),
     (lambda: Categorical([0.5, "a"]), "Categorical needs a list of numbers"),
 ])

@@ -27,8 +27,17 @@ def _normal_log_pdf(x: float, mu: float, sigma: float) -> float:
     return -0.5 * z * z - math.log(sigma) - _LOG_SQRT_2PI
 
 
+_INF = math.inf
+
+
 def _is_real(x) -> bool:
-    return isinstance(x, (float, int)) and not isinstance(x, bool) and math.isfinite(x)
+    """A finite int or float (numpy's too); an int too large for a float is not one."""
+    if not isinstance(x, (float, int, np.floating, np.integer)) or isinstance(x, bool):
+        return False
+    try:
+        return math.isfinite(x)
+    except OverflowError:
+        return False
 
 
 class Distribution:
@@ -77,14 +86,15 @@ class Normal(Distribution):
     __slots__ = ("mu", "sigma")
 
     def __init__(self, mu: float, sigma: float):
-        try:  # the hot path: one comparison; a non-number fails in it or in float()
-            if sigma > 0:
+        try:  # the hot path: two comparisons (NaN fails both); a non-number fails in them or in float()
+            if 0 < sigma < _INF and -_INF < mu < _INF:
                 self.mu = float(mu)
                 self.sigma = float(sigma)
                 return
         except (TypeError, ValueError):
             pass
-        raise ModelError(f"Normal needs a number mu and a number sigma > 0, got mu={mu!r:.40}, sigma={sigma!r:.40}")
+        raise ModelError(f"Normal needs a finite number mu and a finite number sigma > 0, got mu={mu!r:.40}, "
+                         f"sigma={sigma!r:.40}")
 
     def sample(self, rng):
         return self.mu + self.sigma * rng.standard_normal()
@@ -108,8 +118,9 @@ class TruncatedNormal(Distribution):
     __slots__ = ("mu", "sigma", "low", "high", "_cdf_low", "_mass", "_log_mass")
 
     def __init__(self, mu: float, sigma: float, low: float, high: float):
-        if not sigma > 0:
-            raise ModelError(f"TruncatedNormal needs sigma > 0, got {sigma!r}")
+        if not _is_real(mu) or not _is_real(sigma) or not sigma > 0:
+            raise ModelError(f"TruncatedNormal needs a finite mu and a finite sigma > 0, got mu={mu!r:.40}, "
+                             f"sigma={sigma!r:.40}")
         if not low < high:
             raise ModelError(f"TruncatedNormal needs low < high, got [{low!r}, {high!r}]")
         self.mu, self.sigma, self.low, self.high = float(mu), float(sigma), float(low), float(high)
@@ -153,8 +164,8 @@ class Uniform(Distribution):
     __slots__ = ("low", "high", "_log_width")
 
     def __init__(self, low: float, high: float):
-        if not low < high:
-            raise ModelError(f"Uniform needs low < high, got [{low!r}, {high!r}]")
+        if not (_is_real(low) and _is_real(high) and low < high):
+            raise ModelError(f"Uniform needs finite numbers low < high, got [{low!r:.40}, {high!r:.40}]")
         self.low, self.high = float(low), float(high)
         self._log_width = math.log(self.high - self.low)
 
@@ -227,6 +238,9 @@ class Categorical(Distribution):
         if labels is None:
             labels = tuple(range(len(probs)))
         labels = tuple(labels)
+        if any(not isinstance(label, (str, int, np.integer)) for label in labels):
+            raise ModelError(f"Categorical labels must be strings, ints or bools (they are saved as JSON), got "
+                             f"{labels!r:.80}; label by index and look the value up in the rule")
         if len(labels) != len(probs) or len(set(labels)) != len(labels):
             raise ModelError(f"Categorical needs one distinct label per probability, got {labels!r}")
         self.labels = labels
@@ -266,8 +280,9 @@ class GaussianMixture(Distribution):
         weights, means, sigmas = list(weights), list(means), list(sigmas)
         if not (len(weights) == len(means) == len(sigmas) >= 1):
             raise ModelError("GaussianMixture needs equally many weights, means and sigmas (at least one)")
-        if any(not s > 0 for s in sigmas):
-            raise ModelError(f"GaussianMixture needs every sigma > 0, got {sigmas!r}")
+        if any(not (_is_real(s) and s > 0) for s in sigmas) or not all(_is_real(m) for m in means):
+            raise ModelError(f"GaussianMixture needs finite means and finite sigmas > 0, got means={means!r:.60}, "
+                             f"sigmas={sigmas!r:.60}")
         self._component = Categorical(weights)
         self.weights = self._component.probs
         self.means = tuple(float(m) for m in means)

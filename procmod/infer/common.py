@@ -53,6 +53,8 @@ class Budget:
             if not 0 < value < math.inf:
                 raise InvalidArgumentError(f"budget {name} must be positive and finite (for no limit, give no "
                                            f"budget), got {value:g}")
+            if name != "seconds" and value != int(value):
+                raise InvalidArgumentError(f"budget {name} must be a whole number, got {value:g}")
 
     @property
     def unlimited(self) -> bool:
@@ -341,6 +343,9 @@ def check_run(model, target, seed, budget) -> None:
     if budget is not None and not isinstance(budget, Budget):
         raise InvalidArgumentError(f"budget must be a Budget (e.g. Budget(seconds=30), or "
                                    f"procmod.infer.parse_budget('30s')) or None, got {budget!r:.40}")
+    if budget is not None and budget.unlimited:  # the engine would never stop
+        raise InvalidArgumentError("Budget() sets no limit: give seconds=, evaluations= or generations=, or pass "
+                                   "budget=None for the engine's default")
 
 
 def check_target(target) -> None:

@@ -86,6 +86,7 @@ same from any start. ``init_particles=0`` keeps the forward start.
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from bisect import bisect_right
 from dataclasses import dataclass
@@ -614,8 +615,12 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
         raise InvalidArgumentError(f"p_resample must be in [0, 1 - p_diffusion], got {p_resample!r}")
     if incremental is None:
         incremental = executor is None and not delayed_rejection
-    if annealing is not None and not annealing >= 1.0:
-        raise InvalidArgumentError(f"annealing must be >= 1 (or None), got {annealing!r}")
+    if annealing is not None and not 1.0 <= annealing < math.inf:
+        raise InvalidArgumentError(f"annealing must be a finite number >= 1 (or None), got {annealing!r}")
+    check_positive("anneal_every", anneal_every)
+    if isinstance(step_scale, bool) or not isinstance(step_scale, numbers.Real) or not 0 < step_scale < math.inf:
+        raise InvalidArgumentError(f"step_scale must be a positive finite number (the random walk's step, times "
+                                   f"each choice's scale), got {step_scale!r}")
     budget = budget or Budget(generations=1600)
     check_run(model, target, seed, budget)
     unconfigured, model = model, target.configure(model)
