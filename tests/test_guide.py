@@ -301,6 +301,68 @@ def test_training_raises_the_traces_likelihood_and_resumes_exactly(few_traces, t
     assert not (tmp_path / "b.ckpt.pt").exists()
 
 
+def _killed_run(traces_dir, out, at=200):
+    """A training run of 300 steps stopped at ``at`` (after the checkpoint at 100)."""
+    class Killed(Exception):
+        pass
+
+    def kill(step, loss):
+        if step == at:
+            raise Killed()
+
+    with pytest.raises(Killed):
+        train_guide(VINES, traces_dir, out, iterations=300, checkpoint_every=100, progress=kill)
+
+
+def _weights(guide):
+    return {k: v.clone() for k, v in guide.nets.state_dict().items()}
+
+
+def test_a_checkpoint_resumes_only_on_its_own_traces_and_whole(few_traces, tmp_path):
+    import json
+    import shutil
+    clean, _ = train_guide(VINES, few_traces, tmp_path / "clean", iterations=300, checkpoint_every=100)
+    # other traces, as many of them: the checkpoint of the first set was resumed on them
+    other = tmp_path / "other"
+    shutil.copytree(few_traces, other)
+    trace = json.loads((other / "trace_00000.json").read_text())
+    (other / "trace_00000.json").write_text(json.dumps(dict(trace, target="scribble:0")))
+    _killed_run(few_traces, tmp_path / "g")
+    on_other, _ = train_guide(VINES, other, tmp_path / "g", iterations=300, checkpoint_every=100)
+    fresh, _ = train_guide(VINES, other, tmp_path / "fresh", iterations=300, checkpoint_every=100)
+    assert all(torch.equal(v, _weights(fresh)[k]) for k, v in _weights(on_other).items())
+    # edited or damaged metadata, or weights one checkpoint ahead of it (a kill between the
+    # two writes), start over and end as an uninterrupted run does
+    meta = tmp_path / "g.ckpt.json"
+    for damage in ({"step": "abc"}, {"step": -5}, {"curve": 5}, {"running": "x"}, {"step": 99999}, {"step": 200}):
+        _killed_run(few_traces, tmp_path / "g")
+        meta.write_text(json.dumps(dict(json.loads(meta.read_text()), **damage)))
+        resumed, report = train_guide(VINES, few_traces, tmp_path / "g", iterations=300, checkpoint_every=100)
+        assert all(torch.equal(v, _weights(clean)[k]) for k, v in _weights(resumed).items()), damage
+    _killed_run(few_traces, tmp_path / "g")
+    (tmp_path / "g.ckpt.pt").write_bytes(b"not a checkpoint")
+    resumed, _ = train_guide(VINES, few_traces, tmp_path / "g", iterations=300, checkpoint_every=100)
+    assert all(torch.equal(v, _weights(clean)[k]) for k, v in _weights(resumed).items())
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t["derivation"]["choices"][0].__setitem__(2, "abc"), "trace_00001.json is damaged"),
+    (lambda t: t["derivation"].pop("params"), "trace_00001.json is damaged .it lacks 'params'"),
+    (lambda t: t.__setitem__("derivation", [1, 2]), "trace_00001.json is damaged"),
+    (lambda t: t["derivation"]["choices"][0].__setitem__(2, 10 ** 400), "trace_00001.json"),
+])
+def test_a_damaged_trace_is_named_with_what_to_do(few_traces, tmp_path, edit, message):
+    import json
+    import shutil
+    folder = tmp_path / "traces"
+    shutil.copytree(few_traces, folder)
+    trace = json.loads((folder / "trace_00001.json").read_text())
+    edit(trace)
+    (folder / "trace_00001.json").write_text(json.dumps(trace))
+    with pytest.raises(GuideError, match=message + ".*rerun the traces job"):
+        train_guide(VINES, folder, tmp_path / "g", iterations=5)
+
+
 def test_step_size_schedules(few_traces, tmp_path):
     from procmod.guide.train import step_size
     # cosine: the full step at the start, half way down at the middle, ~0 at the end
@@ -345,6 +407,8 @@ def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path,
 
 
 def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
+    (tmp_path / "mine.pt").write_bytes(b"a user's torch model")  # files a guide's --out would replace
+    np.savez(tmp_path / "data.npz", x=np.zeros(3))
     assert main(["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "g"),
                  "--iterations", "30"]) == 0
     assert main(["infer", "vines", "--target", "glyph:a", "--engine", "smc", "--particles", "10",
@@ -363,6 +427,12 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
          "--targets must be one of"),
         (["guide", "traces", "vines", "--count", "2", "--particles", "7", "--out", str(few_traces)],
          "holds traces of another job"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "mine")],
+         "would replace " + str(tmp_path / "mine.pt") + ", which is not part of a guide"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "data")],
+         "would replace " + str(tmp_path / "data.npz") + ", which is not part of a guide"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path) + "/"],
+         "is a folder; a guide is files"),
     ]:
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from ..core import InvalidArgumentError
 
 
@@ -78,22 +80,25 @@ def _cmd_traces(args) -> None:
 
 
 def _check_replaces_a_guide(path) -> None:
-    """Refuse to write a guide over an existing file that is not one (a user's JSON that
-    happens to share the name): a guide file is replaced only by a guide."""
+    """Refuse to write a guide over an existing file that is not one (a user's JSON, torch
+    model or numpy archive that happens to share the name): a guide's files (``.json``,
+    ``.pt``, ``.npz``) are replaced only where ``.json`` beside them is a guide's."""
     import json
 
     from ..core.runfolder import OutputLocationError
     from .guide import FORMAT
 
-    if not path.is_file() or path.suffix != ".json":
+    meta = path.with_suffix(".json")
+    files = [p for p in (meta, path.with_suffix(".pt"), path.with_suffix(".npz")) if p.exists()]
+    if not files:
         return
     try:
-        found = json.loads(path.read_text(encoding="utf-8")).get("format")
+        found = json.loads(meta.read_text(encoding="utf-8")).get("format")
     except (OSError, ValueError, AttributeError):
         found = None
     if found != FORMAT:
-        raise OutputLocationError(f"--out would replace {path}, which is not a guide ({FORMAT}); give another "
-                                  "--out, or move that file")
+        raise OutputLocationError(f"--out would replace {files[0]}, which is not part of a guide ({FORMAT}); give "
+                                  "another --out, or move that file")
 
 
 def _cmd_train(args) -> None:
@@ -105,6 +110,10 @@ def _cmd_train(args) -> None:
     settings = FeatureSettings.condition(args.features)
     from ..core.runfolder import check_output_file
     from .guide import guide_paths
+    if str(args.out).endswith(("/", "\\")) or Path(args.out).is_dir():
+        from ..core.runfolder import OutputLocationError
+        raise OutputLocationError(f"--out {args.out} is a folder; a guide is files OUT.pt, OUT.npz and OUT.json: "
+                                  f"give a name such as {Path(args.out) / 'guide'}")
     for path in guide_paths(args.out, for_writing=True):  # checked now, written after the training
         check_output_file(path, make_parent=True, inputs=[args.traces])
         _check_replaces_a_guide(path)

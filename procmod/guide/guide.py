@@ -225,8 +225,11 @@ class Guide:
     def check_model(self, model) -> None:
         """Raise a :class:`GuideError` unless the guide was trained for ``model``."""
         if model.name != self.model_name:
-            raise GuideError(f"this guide was trained for model {self.model_name!r}, not {model.name!r}; "
-                             f"train one with 'procmod guide train {model.name} ...'")
+            from ..models import MODELS
+            advice = (f"train one with 'procmod guide train {model.name} ...'" if model.name in MODELS else
+                      "guides are trained for the built-in models only (procmod guide traces / train take their "
+                      "names); run this model without --guide")
+            raise GuideError(f"this guide was trained for model {self.model_name!r}, not {model.name!r}; {advice}")
 
     def numpy_weights(self) -> dict:
         """Per-site numpy weights for fast one-choice-at-a-time inference (cached)."""

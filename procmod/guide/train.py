@@ -22,6 +22,7 @@ about 100 steps) as well as the weights and Adam's state.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -86,6 +87,54 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     return recorder.rows
 
 
+def _trace_name(trace) -> str:
+    index = trace.get("index") if isinstance(trace, dict) else None
+    return f"trace_{index:05d}.json" if isinstance(index, int) and not isinstance(index, bool) and index >= 0 \
+        else "a trace"
+
+
+def _checked_rows(model, trace, settings: FeatureSettings, masks: dict) -> list:
+    """:func:`trace_rows`, a damaged or edited trace named with what to do."""
+    from ..core.errors import ProcmodError
+
+    advice = "; delete it and rerun the traces job (procmod guide traces makes it again)"
+    try:
+        if not isinstance(trace.get("derivation"), dict):
+            raise ValueError("its 'derivation' is not a JSON object")
+        return trace_rows(model, trace, settings, masks)
+    except GuideError:
+        raise
+    except ProcmodError as exc:
+        raise GuideError(f"{_trace_name(trace)}: {exc}{advice}") from None
+    except (KeyError, TypeError, ValueError, AttributeError, OverflowError, IndexError) as exc:
+        problem = f"it lacks {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise GuideError(f"{_trace_name(trace)} is damaged ({problem[:160]}){advice}") from None
+
+
+def traces_digest(traces: list) -> str:
+    """A digest of the traces' contents: a checkpoint resumes only on the traces it began with."""
+    digest = hashlib.sha256()
+    for trace in traces:
+        digest.update(json.dumps(trace, sort_keys=True, default=str).encode("utf-8"))
+    return digest.hexdigest()
+
+
+def _resumable(saved, fingerprint: dict, iterations: int) -> bool:
+    """Whether a checkpoint's metadata is this run's and whole (an edited or damaged one,
+    or another run's, is not resumed: training starts over)."""
+    if not isinstance(saved, dict) or saved.get("fingerprint") != fingerprint:
+        return False
+    step, curve, running = saved.get("step"), saved.get("curve"), saved.get("running")
+    if isinstance(step, bool) or not isinstance(step, int) or not 0 < step < iterations:
+        return False
+    if not isinstance(curve, list) or not all(
+            isinstance(c, list) and len(c) == 2 and isinstance(c[0], int) and isinstance(c[1], (int, float))
+            for c in curve):
+        return False
+    return running is None or (isinstance(running, (int, float)) and not isinstance(running, bool)
+                               and math.isfinite(running))
+
+
 class SiteData:
     """All training rows of one site, ordered by trace, as tensors."""
 
@@ -119,7 +168,7 @@ def build_dataset(model, traces: list, settings: FeatureSettings) -> tuple[dict,
     masks = {}
     n_choices = 0
     for t, trace in enumerate(traces):
-        for key, kind, features, base, value in trace_rows(model, trace, settings, masks):
+        for key, kind, features, base, value in _checked_rows(model, trace, settings, masks):
             if kinds.setdefault(key, kind) != kind:
                 raise GuideError(f"site {key} draws both {kinds[key]} and {kind} choices; a guide needs "
                                  "one distribution family per site (give the choices different names)")
@@ -187,21 +236,32 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     ckpt, ckpt_meta = weights_path.with_suffix(".ckpt.pt"), weights_path.with_suffix(".ckpt.json")
     fingerprint = {"model": model.name, "features": settings.to_json(), "mixture": mixture, "batch": batch,
                    "lr": lr, "schedule": schedule, "seed": seed, "iterations": iterations, "traces": len(traces),
-                   "sites": sorted(kinds)}
+                   "sites": sorted(kinds), "traces_sha256": traces_digest(traces)}
     step, curve, running = 0, [], None
     if ckpt.exists() and ckpt_meta.exists():
         try:
             saved = json.loads(ckpt_meta.read_text())
         except (OSError, ValueError, RecursionError):
             saved = None
-        if isinstance(saved, dict) and saved.get("fingerprint") == fingerprint:
-            state = load_tensors(ckpt, GuideError, "training checkpoint")
-            guide.nets.load_state_dict(state["nets"])
-            optimiser.load_state_dict(state["optimiser"])
-            step, curve = int(saved["step"]), list(saved["curve"])
-            # the smoothed loss goes on from where it was (a checkpoint from before it was
-            # kept restarts it: its curve then differs from an uninterrupted run's)
-            running = saved.get("running")
+        state = None
+        if _resumable(saved, fingerprint, iterations):
+            try:
+                state = load_tensors(ckpt, GuideError, "training checkpoint")
+            except GuideError:
+                state = None  # damaged: start over
+        # the weights file holds its step too: a run killed between writing the weights
+        # and the metadata left weights one checkpoint ahead of what the metadata says
+        if isinstance(state, dict) and state.get("step") == saved["step"]:
+            try:
+                guide.nets.load_state_dict(state["nets"])
+                optimiser.load_state_dict(state["optimiser"])
+                step, curve = saved["step"], [list(c) for c in saved["curve"]]
+                # the smoothed loss goes on from where it was (a checkpoint from before it
+                # was kept restarts it: its curve then differs from an uninterrupted run's)
+                running = saved.get("running")
+            except (KeyError, RuntimeError, ValueError, TypeError):
+                guide = new_guide_for(model, settings, mixture, kinds, seed)  # a half-loaded state: start over
+                optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
     n = len(traces)
     while step < iterations:
         picked = np.random.default_rng([seed, step]).integers(n, size=batch)
@@ -223,7 +283,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                 progress(step, running)
         if step % checkpoint_every == 0 and step < iterations:
             weights_path.parent.mkdir(parents=True, exist_ok=True)
-            save_tensors({"nets": guide.nets.state_dict(), "optimiser": optimiser.state_dict()}, ckpt)
+            save_tensors({"nets": guide.nets.state_dict(), "optimiser": optimiser.state_dict(), "step": step}, ckpt)
             write_text_atomic(ckpt_meta, json.dumps({"fingerprint": fingerprint, "step": step, "curve": curve,
                                                      "running": running}))
     with torch.no_grad():
