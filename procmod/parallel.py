@@ -95,6 +95,18 @@ PR_SET_PDEATHSIG = 1  # linux/prctl.h
 WATCH_INTERVAL = 0.25  # seconds between checks of the fallback watcher
 
 
+def note_worker_traceback(exc: BaseException, where: str) -> BaseException:
+    """Add the traceback of ``exc``, raised in a worker process, to it as a note (notes
+    travel with the pickled exception): raised again in the parent, its traceback ends in
+    procmod's code, and the user's line that raised it would otherwise be lost."""
+    import traceback
+
+    if exc.__traceback__ is not None and hasattr(exc, "add_note"):
+        text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)).rstrip()
+        exc.add_note(f"--- raised in {where}:\n{text}")
+    return exc
+
+
 def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
     """Pool worker initializer: end this worker as soon as process ``parent`` (the one
     that opened the pool) is gone.

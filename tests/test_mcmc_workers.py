@@ -89,9 +89,11 @@ def _worker_failing_model():
 
 def test_a_failing_worker_stops_this_process_early():
     started = time.perf_counter()
-    with pytest.raises(ModelError, match="fails in a worker"):
+    with pytest.raises(ModelError, match="fails in a worker") as raised:
         mcmc(_worker_failing_model(), SumTarget(0.0, 1.0), seed=0, budget=Budget(seconds=60), workers=2)
     assert time.perf_counter() - started < 30  # not the whole minute of this process's own group
+    notes = "\n".join(getattr(raised.value, "__notes__", []))  # the worker's traceback, to the user's line
+    assert "raised in MCMC worker process" in notes and "in _fails_in_workers" in notes, notes
 
 
 def test_a_stop_request_reaches_every_worker(scribble):

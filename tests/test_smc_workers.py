@@ -193,9 +193,12 @@ def _failing_rule(ctx, depth, how):
 def test_a_failure_in_a_worker_is_raised_in_the_caller(how, error, message):
     failing = Model("failing", "a rule that fails in a worker", _failing_rule, lambda p: (0, how),
                     lambda p: SumOutput(), rules=(_failing_rule,))
-    with pytest.raises(error, match=message):
+    with pytest.raises(error, match=message) as raised:
         smc(failing, SumTarget(OBS, S), particles=8, seed=0, workers=2)
     assert not multiprocessing.active_children()
+    if how == "raise":  # the worker's traceback, down to the user's line, comes with it
+        notes = "\n".join(getattr(raised.value, "__notes__", []))
+        assert "raised in SMC worker process" in notes and "in _failing_rule" in notes, notes
 
 
 def test_infer_with_workers_from_the_cli(tmp_path, capsys):

@@ -78,14 +78,14 @@ class _Group:
 
 
 def _group_main(conn, index: int, run, parent: int) -> None:
-    from ..parallel import _exit_with_parent
+    from ..parallel import _exit_with_parent, note_worker_traceback
 
     _exit_with_parent(parent)
     _pin(index)  # a core of its own (see procmod.infer.particles._pin)
     try:
         reply = ("ok", _packed(run()))
     except BaseException as exc:  # noqa: BLE001 - every failure goes back to the caller
-        reply = ("error", exc)
+        reply = ("error", note_worker_traceback(exc, f"MCMC worker process {index}"))
     try:
         conn.send(reply)
     except Exception as exc:  # e.g. an exception that cannot be pickled

@@ -212,7 +212,7 @@ def shared_objects(model, target, template, proposer) -> _SharedObjects:
 
 
 def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int) -> None:
-    from ..parallel import _exit_with_parent
+    from ..parallel import _exit_with_parent, note_worker_traceback
 
     _exit_with_parent(parent)
     # the coordinator answers Ctrl-C (a terminal sends it to the whole process group) and
@@ -260,7 +260,7 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
                 raise ValueError(f"unknown command {command!r}")
             message = ("ok", reply)
         except BaseException as exc:  # raised again in the coordinator at its next answer
-            message = ("error", exc)
+            message = ("error", note_worker_traceback(exc, f"SMC worker process {shard.index}"))
         try:
             conn.send_bytes(shared.dumps(message))
         except (pickle.PicklingError, TypeError, AttributeError):
