@@ -116,3 +116,36 @@ def test_runtime_and_files(vines, tmp_path):
     (tmp_path / "d.json").write_text(text)
     with pytest.raises(ProcmodError, match=r"d.json: .*no-such-model"):
         load_derivation(tmp_path / "d.json", get_model)
+
+
+def _partial_root(ctx, n):
+    ctx.sample("x", Normal(0, 1))
+    ctx.sample("x", Normal(0, 1))
+
+
+def _model(root, root_args=lambda p: (), new_output=None):
+    import functools
+
+    from procmod.core import Model
+    from toy_models import canvas
+    rule = functools.partial(root, n=1) if root is _partial_root else root
+    return Model("mistakes", "a user's model with a bug", rule, root_args, new_output or canvas)
+
+
+@pytest.mark.parametrize("root, root_args, new_output, message", [
+    # each of these was an AttributeError or TypeError from inside procmod, some raised
+    # while procmod built its own message
+    (_partial_root, None, None, r"rule 'functools.partial\(.*uses the name 'x' twice"),
+    (lambda ctx: ctx.spawn("c", 42), None, None, r"rule '<lambda>' at / spawns 42 at site 'c', which is not a rule"),
+    (lambda ctx: ctx.sample("x", 3.0), None, None, r"rule '<lambda>' at / samples 'x' from 3.0, which is not a "
+                                                   "distribution"),
+    (lambda ctx: ctx.emit("hello"), None, None, r"rule '<lambda>' at / emits 'hello', which the model's output "
+                                                "cannot draw"),
+    (lambda ctx: None, lambda p: 1.5, None, r"root_args returned 1.5, not a tuple"),
+    (lambda ctx: None, None, lambda p: None, r"new_output returned None, not an output"),
+])
+def test_bugs_in_a_users_model_are_model_errors_that_say_where(root, root_args, new_output, message):
+    from procmod.core import ModelError
+    model = _model(root, root_args or (lambda p: ()), new_output)
+    with pytest.raises(ModelError, match=message):
+        run_forward(model, np.random.default_rng(0))

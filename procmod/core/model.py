@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
-from .errors import InvalidArgumentError
+from .errors import InvalidArgumentError, ModelError
 
 
 @dataclass(frozen=True)
@@ -97,11 +97,19 @@ class Model:
 
     def new_output(self):
         """A fresh, empty output accumulator for one derivation."""
-        return self.new_output_from(self.params)
+        output = self.new_output_from(self.params)
+        if not hasattr(output, "add"):
+            raise ModelError(f"model {self.name!r}: new_output returned {output!r:.40}, not an output (an object "
+                             "with add(geometry) and copy(), e.g. a procmod.geometry canvas); return one")
+        return output
 
     def initial_args(self) -> tuple:
         """The root rule's arguments under the current parameters."""
-        return tuple(self.root_args(self.params))
+        args = self.root_args(self.params)
+        if not isinstance(args, (tuple, list)):
+            raise ModelError(f"model {self.name!r}: root_args returned {args!r:.40}, not a tuple of the root "
+                             "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
+        return tuple(args)
 
 
 def _shown(value, limit: int = 60) -> str:

@@ -42,6 +42,12 @@ from .errors import InvalidArgumentError, ModelError
 from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
+
+def rule_name(rule) -> str:
+    """A rule's name for messages: its ``__name__``, or what it is (a ``functools.partial``,
+    a callable object)."""
+    return getattr(rule, "__name__", None) or repr(rule)[:60]
+
 _MISSING = object()
 _new_tuple = tuple.__new__  # builds NamedTuples without their Python-level __new__ (hot path)
 
@@ -85,7 +91,7 @@ class Future:
         self.position = position  # the spawning call's ctx.at position when it spawned this
 
     def __repr__(self) -> str:
-        return f"Future({format_address(self.address)}, {self.rule.__name__})"
+        return f"Future({format_address(self.address)}, {rule_name(self.rule)})"
 
 
 class Node:
@@ -125,7 +131,7 @@ class Node:
         return sum(c.log_prob for c in self.choices.values())
 
     def __repr__(self) -> str:
-        return f"Node({format_address(self.address)}, {self.rule.__name__}, {len(self.choices)} choices)"
+        return f"Node({format_address(self.address)}, {rule_name(self.rule)}, {len(self.choices)} choices)"
 
 
 class Context:
@@ -174,9 +180,12 @@ class Context:
         """
         return self._state
 
+    def _misuse(self, what: str) -> ModelError:
+        return ModelError(f"rule {rule_name(self.rule)!r} at {format_address(self.address)} {what}")
+
     def _duplicate(self, name: str) -> ModelError:
         return ModelError(
-            f"rule {self.rule.__name__!r} uses the name {name!r} twice in one call "
+            f"rule {rule_name(self.rule)!r} uses the name {name!r} twice in one call "
             f"(at {format_address(self.address)}); give each choice and spawn site of a call "
             "a distinct name")
 
@@ -196,7 +205,13 @@ class Context:
         state = self._state
         policy = state.policy
         if policy is None:  # the prior, inline
-            value = dist.sample(self._rng)
+            try:
+                value = dist.sample(self._rng)
+            except AttributeError:
+                if not isinstance(dist, Distribution):
+                    raise self._misuse(f"samples {name!r} from {dist!r:.40}, which is not a distribution (give "
+                                       "one of procmod.core's: Normal(mu, sigma), Uniform(low, high), ...)") from None
+                raise
             log_prob = dist.log_prob(value)
         else:  # replay under a choice map, or a guide's proposal
             value, log_prob = policy.choose(self, name, dist)
@@ -214,7 +229,10 @@ class Context:
         if index < self._skip:  # drawn before this call was paused
             return
         state = self._state
-        state.output.add(geometry)
+        try:
+            state.output.add(geometry)
+        except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw
+            raise self._misuse(f"emits {geometry!r:.60}, which the model's output cannot draw: {exc}") from exc
         state.n_emits += 1
         self._fresh_emit = True
         if self._pause:
@@ -226,6 +244,9 @@ class Context:
             self._sites = set()
         if site in self._choices or site in self._sites:
             raise self._duplicate(site)
+        if not callable(rule):
+            raise self._misuse(f"spawns {rule!r:.40} at site {site!r}, which is not a rule (a function "
+                               "rule(ctx, ...)); pass the function itself")
         self._sites.add(site)
         state = self._state
         if not state.stopped:
@@ -532,7 +553,7 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
     except TypeError as exc:
         # A wrong argument count is a model bug worth a clear message; other TypeErrors pass.
         if exc.__traceback__ is not None and exc.__traceback__.tb_next is None:
-            raise ModelError(f"rule {future.rule.__name__!r} at {format_address(future.address)}"
+            raise ModelError(f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
                              f" cannot be called with {len(future.args)} arguments: {exc}") from exc
         raise
     node = Node(future.address, future.rule, future.args, ctx._choices,
