@@ -149,3 +149,17 @@ def test_bugs_in_a_users_model_are_model_errors_that_say_where(root, root_args, 
     model = _model(root, root_args or (lambda p: ()), new_output)
     with pytest.raises(ModelError, match=message):
         run_forward(model, np.random.default_rng(0))
+
+
+def test_a_model_a_process_pool_cannot_be_sent_is_one_line():
+    # a raw PicklingError traceback from concurrent.futures before
+    from concurrent.futures import ProcessPoolExecutor
+
+    from procmod.core import Model
+    from procmod.geometry import Canvas
+    from procmod.infer.forward import forward
+    model = Model("lambdas", "rules as lambdas", lambda ctx: ctx.sample("x", Normal(0, 1)), lambda p: (),
+                  lambda p: Canvas((-5, 5, -5, 5), 20))
+    with ProcessPoolExecutor(1) as pool:
+        with pytest.raises(ProcmodError, match="a process pool needs the model's rules.*defined at module level"):
+            forward(model, target_from_spec("glyph:a"), executor=pool, budget=Budget(evaluations=4))

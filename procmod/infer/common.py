@@ -18,6 +18,7 @@ import functools
 import gc
 import math
 import numbers
+import pickle
 import re
 import time
 from dataclasses import dataclass, field
@@ -311,7 +312,18 @@ def evaluate(model: Model, target: Target, job) -> Evaluation:
 
 def evaluate_all(executor, model: Model, target: Target, jobs: list) -> list:
     """Evaluate jobs through ``executor`` (in order)."""
-    return list((executor or InlineExecutor()).map(functools.partial(evaluate, model, target), jobs))
+    try:
+        return list((executor or InlineExecutor()).map(functools.partial(evaluate, model, target), jobs))
+    except (pickle.PicklingError, AttributeError, TypeError) as exc:
+        if executor is None or "pickle" not in str(exc).lower():
+            raise
+        # a process pool sends the model, the target and the derivations (which name the
+        # rules) to its workers by pickling: lambdas and functions defined inside others do
+        # not pickle
+        raise InvalidArgumentError(f"the executor's processes cannot be sent the model {model.name!r} or its "
+                                   f"target ({str(exc)[:160]}): a process pool needs the model's rules, root_args "
+                                   "and new_output, and the target, defined at module level (no lambdas or nested "
+                                   "functions); define them so, or run without an executor") from exc
 
 
 def new_seed(rng: np.random.Generator) -> int:
