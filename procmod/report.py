@@ -12,6 +12,7 @@ import numpy as np
 from PIL import Image
 
 from .core import save_derivation, write_text_atomic
+from .core.serialize import derivation_to_dict
 from .core.protocols import Target, check_declared
 from .chart import COLOURS, Series, line_chart_svg
 from .geometry import contact_sheet, save_image_atomic
@@ -104,9 +105,10 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     ``<span class="seconds">`` of report.html.
     """
     check_declared(target, Target, "the target")
+    best = result.best
+    derivation_to_dict(best)  # refuses what cannot be saved before any file is written
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    best = result.best
     underlay = target.display_mask(size)
     target_caption = "target"
     save_image_atomic(derivation_image(best, size, underlay=underlay), out / "best.png")

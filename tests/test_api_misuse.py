@@ -163,3 +163,18 @@ def test_a_model_a_process_pool_cannot_be_sent_is_one_line():
     with ProcessPoolExecutor(1) as pool:
         with pytest.raises(ProcmodError, match="a process pool needs the model's rules.*defined at module level"):
             forward(model, target_from_spec("glyph:a"), executor=pool, budget=Budget(evaluations=4))
+
+
+def test_a_run_that_cannot_be_saved_writes_no_file(tmp_path):
+    # write_run wrote best.png and best.svg, then failed on best.json
+    from procmod.geometry import Segment
+    from procmod.report import write_run
+
+    def root(ctx):
+        x = ctx.sample(1, Normal(0, 1))  # a name that is not a string
+        ctx.emit(Segment(x, 0, x, 1, 0.5))
+
+    result = smc(_model(root), target_from_spec("glyph:a"), particles=2)
+    with pytest.raises(ProcmodError, match="names a choice 1 .int.; choice names must be strings"):
+        write_run(result, target_from_spec("glyph:a"), tmp_path / "run")
+    assert not (tmp_path / "run").exists()

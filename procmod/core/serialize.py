@@ -51,9 +51,17 @@ def derivation_to_dict(derivation: Derivation) -> dict:
         "params": dict(derivation.model.params),
         "log_prior": derivation.log_prior,
         "order": [list(node.address) for node in nodes],
-        "choices": [[list(node.address), name, _json_value(choice.value)]
+        "choices": [[list(node.address), _json_name(node, name), _json_value(choice.value)]
                     for node in nodes for name, choice in node.choices.items()],
     }
+
+
+def _json_name(node, name):
+    if isinstance(name, str):
+        return name
+    from .runtime import rule_name
+    raise DerivationFormatError(f"rule {rule_name(node.rule)!r} names a choice {name!r} ({type(name).__name__}); "
+                                "choice names must be strings (they are saved as JSON)")
 
 
 def derivation_json(data: dict) -> str:
