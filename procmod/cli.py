@@ -21,7 +21,7 @@ import numpy as np
 
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
-from .core.errors import spelled
+from .core.errors import UnknownModelError, spelled
 from .core.paths import is_dir_quietly
 from .models import MODELS, get_model
 
@@ -146,6 +146,11 @@ def _model(spec: str, params=()):
     if spec not in MODELS and (path.suffix.lower() == ".json" or is_dir_quietly(path)):
         from .learn import load_program
         model = load_program(path)
+    elif spec not in MODELS and path.suffix.lower() == ".py":
+        raise UnknownModelError(f"{spec} is a Python file: the command line runs the built-in models ("
+                                f"{', '.join(sorted(MODELS))}) and learned programs (program.json or its folder); "
+                                "run a model written in Python from Python: procmod.infer.smc(model, target, ...), "
+                                "procmod.run_forward(model, rng), procmod.report.write_run(...)")
     else:
         model = get_model(spec)
     if not params:

@@ -41,6 +41,6 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
     return Result("forward", tracker.best, tracker.best_score, [ev.derivation for ev in batch],
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={"particles": particles, "seed": seed,
-                            "budget": (budget or Budget()).describe()},
+                            "budget": budget.describe() if budget is not None else "one batch"},
                   log_weights=[ev.log_likelihood for ev in batch],
                   log_marginal_likelihood=log_mean_exp(all_log_weights))
