@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from .core import Derivation, InvalidArgumentError, write_text_atomic
 from .core.errors import argument
 from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic, shaded_preview
@@ -87,9 +89,45 @@ def derivation_images(derivations, size: int, underlay=None, supersample: int = 
     return images
 
 
+# fields of the geometry primitives that are sizes: a negative one is a model's bug
+_SIZE_FIELDS = ("width", "radius", "length", "size", "top_radius")
+
+
+def _bad_number(value, size: bool) -> bool:
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False  # not numbers (a tag, a mesh's faces are checked by their readers)
+    return bool(not np.isfinite(array).all() or (size and (array < 0).any()))
+
+
+def check_geometry(derivation: Derivation) -> None:
+    """Refuse a derivation whose geometry holds a NaN or an infinity, or a negative size:
+    the canvas draws such a primitive as nothing (or a dot), an SVG or a mesh file would
+    hold ``nan`` or a negative radius. Names the rule that emitted it."""
+    from .core.choicemap import format_address
+    from .core.errors import ModelError
+    from .core.runtime import rule_name
+
+    for node in derivation.nodes():
+        for part in node.geometry:
+            fields = getattr(part, "_fields", ())
+            for name in fields:
+                if name in ("tag", "faces"):
+                    continue
+                value = getattr(part, name)
+                if value is not None and _bad_number(value, name in _SIZE_FIELDS):
+                    raise ModelError(f"rule {rule_name(node.rule)!r} at {format_address(node.address)} emitted "
+                                     f"{type(part).__name__} with {name} = {value!r:.60}: "
+                                     + ("a size must be finite and not negative" if name in _SIZE_FIELDS
+                                        else "coordinates must be finite numbers")
+                                     + "; find the rule's arithmetic that makes it")
+
+
 def write_derivation(derivation: Derivation, path: str | os.PathLike, size: int) -> None:
     """Render or export a derivation to ``path`` (2D: .png, .svg; 3D: .png, .obj, .glb)."""
     suffix = check_format(path, output_formats(derivation))
+    check_geometry(derivation)
     if suffix == ".png":
         save_image_atomic(derivation_image(derivation, size), path)
     elif suffix == ".svg":

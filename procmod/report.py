@@ -16,7 +16,7 @@ from .core.serialize import derivation_to_dict
 from .core.protocols import Target, check_declared
 from .chart import COLOURS, Series, line_chart_svg
 from .geometry import contact_sheet, save_image_atomic
-from .render import derivation_image, derivation_images, output_formats, write_derivation
+from .render import check_geometry, derivation_image, derivation_images, output_formats, write_derivation
 
 
 # What the curves' "mean" is, per engine: for SMC most particles are still partial
@@ -107,6 +107,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     check_declared(target, Target, "the target")
     best = result.best
     derivation_to_dict(best)  # refuses what cannot be saved before any file is written
+    check_geometry(best)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     underlay = target.display_mask(size)

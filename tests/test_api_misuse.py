@@ -178,3 +178,40 @@ def test_a_run_that_cannot_be_saved_writes_no_file(tmp_path):
     with pytest.raises(ProcmodError, match="names a choice 1 .int.; choice names must be strings"):
         write_run(result, target_from_spec("glyph:a"), tmp_path / "run")
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("emit, message", [
+    (lambda ctx: ctx.emit(__import__("procmod.geometry", fromlist=["Segment"]).Segment(0, 0, float("nan"), 1, 0.5)),
+     r"emitted Segment with x1 = nan: coordinates must be finite"),
+    (lambda ctx: ctx.emit(__import__("procmod.geometry", fromlist=["Disc"]).Disc(0, 0, -3)),
+     r"emitted Disc with radius = -3: a size must be finite and not negative"),
+])
+def test_geometry_a_file_cannot_hold_is_a_model_error_naming_the_rule(tmp_path, emit, message):
+    # the SVG was written with x2="nan" and r="-3"
+    from procmod.report import write_run
+
+    def root(ctx):
+        ctx.sample("x", Normal(0, 1))
+        emit(ctx)
+
+    result = smc(_model(root), target_from_spec("glyph:a"), particles=2)
+    with pytest.raises(ProcmodError, match="rule 'root' at / " + message):
+        write_run(result, target_from_spec("glyph:a"), tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_part_of_nan_size_against_a_volume_names_the_rule_not_the_targets_scale():
+    from procmod.core import Model
+    from procmod.geometry.solid import Box
+    from procmod.geometry.voxel import VoxelGrid
+    from procmod.targets import Volume
+
+    def root(ctx):
+        ctx.sample("x", Normal(0, 1))
+        ctx.emit(Box((1.0, float("nan"), 1.0)))
+
+    grid = VoxelGrid((0.0, 0.0, 0.0), 0.5, (4, 4, 4))
+    target = Volume(grid, [(np.ones(grid.shape, bool), 1.0, -1.0)])
+    model = Model("nan3d", "a 3D bug", root, lambda p: (), get_model("spaceship").new_output_from)
+    with pytest.raises(ProcmodError, match=r"rule 'root' at / emits Box.*not finite .NaN or infinity."):
+        smc(model, target, particles=2)

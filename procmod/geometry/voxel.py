@@ -367,6 +367,11 @@ class VoxelScene:
         would visit every one, so a target far smaller than the model's parts (a 5 cm mesh
         at 1 mm voxels against a ship of metres) would run for hours, or its record buffer
         ask for terabytes."""
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            # a model's bug (a NaN or an infinity in a part's size or transform), not the
+            # target's scale; ValueError: the runtime names the rule that emitted it
+            raise ValueError("the part's position or size is not finite (NaN or infinity); find the rule's "
+                             "arithmetic that makes it")
         size = max(float(hi[a]) - float(lo[a]) for a in range(3))
         raise InvalidArgumentError(
             f"a part of the model ({size:.3g} units across) spans about {cells:.2g} voxels of the target's "
