@@ -216,3 +216,18 @@ def test_augment_translations_only_is_recorded(tmp_path, capsys):
         assert main(["strings", "augment", str(folder), "--count", "3", "--rounds", "2", "--out", str(out), *flag]) == 0
         assert json.loads((out / "growth.json").read_text())["settings"]["rotate"] is rotate
     capsys.readouterr()
+
+
+def test_mesh_names_become_safe_part_file_names(tmp_path):
+    # a 240-character mesh name crashed augment (file name too long); CON, AUX, nul were
+    # written as-is (device names on Windows)
+    from procmod.core.paths import is_plain_name
+    fence_file(tmp_path / "a.gltf", fence(RING, 0.3, (0, 0, 0)))
+    spec = json.loads((tmp_path / "a.gltf").read_text())
+    spec["meshes"][0]["name"], spec["meshes"][1]["name"] = "CON", "L" * 240
+    (tmp_path / "a.gltf").write_text(json.dumps(spec))
+    ss = shapes_from_assets([tmp_path / "a.gltf"])
+    sources = [shape.source for shape in ss.library.values()]
+    assert len(sources) == 2 and all(s.startswith("parts/") and s.endswith(".obj") for s in sources)
+    assert all(is_plain_name(s[len("parts/"):-len(".obj")]) for s in sources), sources
+    assert "parts/CON.obj" not in sources

@@ -29,10 +29,9 @@ vertices, a hierarchy with a cycle, too many triangles (see that module).
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
+from ..core.paths import FileNames
 from ..geometry.assets import (GEOMETRY_TOLERANCE, Y_UP_TO_Z_UP, AssetError, asset_files, json_or_assets,
                                read_assets, unused_name)
 from ..geometry.part_library import PartShape
@@ -67,12 +66,6 @@ def _scaled_part(shape: PartShape, name: str, s: np.ndarray) -> PartShape:
     if np.linalg.det(s) < 0:
         f = f[:, ::-1]  # keep the winding outward
     return PartShape(name, "mesh", vertices=tuple(map(tuple, v.tolist())), faces=tuple(map(tuple, f.tolist())))
-
-
-def _file_name(name: str, taken: set) -> str:
-    """A file name for part ``name`` (letters, digits, ``_ . -``; never hidden), unused."""
-    base = re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".") or "part"
-    return unused_name(base, taken, str.lower)  # one name per file on a case-blind file system
 
 
 def _scale_index(known: list, s: np.ndarray) -> int:
@@ -117,10 +110,12 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
             unit = np.abs(s - np.eye(3)).max() <= SCALE_TOLERANCE
             library[name] = shape._replace(name=name) if unit else _scaled_part(shape, name, s)
             renamed[(part, k)] = name
-    files_taken: set = set()
+    # the project's one rule for file names from untrusted names: plain ones kept, others
+    # (too long, device names such as CON, odd characters) mapped to a safe stem + digest
+    files = FileNames(".obj", source="the asset files", field="mesh name")
     for name, shape in list(library.items()):
         if shape.kind == "mesh":
-            library[name] = shape._replace(source=f"parts/{_file_name(name, files_taken)}.obj")
+            library[name] = shape._replace(source=f"parts/{files.name_for(name)}")
     shapes = []
     for rows in placed:
         parts, transforms = [], []
