@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import re
 import shlex
 import signal
@@ -450,6 +451,15 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("procmod: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of stdout went away (``procmod strings encode ... | head -1``): what it
+        # wanted it has; end quietly, as a Unix filter does, and keep Python's exit-time
+        # flush of stdout from failing again
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
     return 0
 
 

@@ -238,3 +238,14 @@ def test_an_integer_for_a_real_parameter_takes_a_later_real_change(tmp_path, cap
     code = main(["infer", "vines", "--target", "glyph:a", "--param", "direction=[0,-1]", "--particles", "2",
                  "--size", "16", "--out", str(tmp_path / "run")])
     assert code == 0, capsys.readouterr().err
+
+
+def test_a_reader_that_closes_stdout_ends_the_command_quietly():
+    # `procmod strings decode ... | head -c 10` printed a BrokenPipeError traceback
+    import subprocess
+    import sys
+    run = subprocess.Popen([sys.executable, "-m", "procmod.cli", "strings", "decode", "C" + "(C)" * 30000],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    run.stdout.close()
+    err = run.stderr.read().decode()
+    assert run.wait(timeout=120) == 141 and err == "", err

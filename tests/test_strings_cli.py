@@ -1,5 +1,6 @@
 import json
 import re
+import shutil
 from pathlib import Path
 
 import networkx as nx
@@ -69,6 +70,7 @@ def test_graph_encode_decode(tmp_path, capsys):
     (["strings", "instantiate", "nope", "DMCMD", "--votes", "100000000", "--out", "x.glb"],
      ["--votes must be at most 10,000"]),
     (["strings", "train", "nope", "--out", "x", "--device", "tpu:0"], ["not a torch device"]),
+    (["strings", "train", "nope", "--out", "x", "--tagger-epochs", "0"], ["--tagger-epochs must be a whole number"]),
     (["strings", "train", "nope", "--out", "x", "--device", "meta"], ["cpu or cuda only"]),
     pytest.param(["strings", "train", "nope", "--out", "x", "--device", "cuda"], ["sees no CUDA device"],
                  marks=pytest.mark.skipif(torch.cuda.is_available(), reason="a CUDA device is visible")),
@@ -237,6 +239,9 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
             (edit("vae.json", lambda d: d.update(grammar=5)), "vae.json is malformed"),
             (edit("tagger.json", lambda d: d.pop("categories")), "tagger.json is malformed .KeyError"),
             (edit("model.json", lambda d: d.update(start_pose={"M": [1, 2]})), "a start pose must be a 4x4 matrix"),
+            # a ZeroDivisionError traceback before
+            (edit("model.json", lambda d: d["grammar"].update(ring_length_multiple=0)),
+             "ring_length_multiple must be a whole number from 1"),
             (nan_weights, "holds NaN or infinity")]):
         bad = tmp_path / f"bad{k}"
         shutil.copytree(model, bad)
@@ -306,3 +311,27 @@ def test_training_constants_that_are_not_numbers_are_refused_before_training(tmp
                         "--kl-weight", "nan")
     assert code == 2 and "kl_weight must be a finite number >= 0 (got nan)" in err
     assert not (tmp_path / "m").exists()
+
+
+def test_train_leaves_no_folder_when_it_fails_and_keeps_no_training_past_what_was_asked(tmp_path, capsys):
+    """A failed train left a half-written --out that refused the retry; a rerun asking for
+    fewer epochs than a checkpoint had kept it, recorded as trained for fewer."""
+    col = tmp_path / "col"
+    code, out, _ = _run(capsys, "strings", "augment", SETS / "moonbase.json", "--count", 4, "--out", col,
+                        "--seed", 1, "--parallel", 4, "--strings-per-shape", 4)
+    assert code == 0, out
+    # a shape with one part moved away from the rest: named, and nothing written
+    loose = tmp_path / "loose"
+    shutil.copytree(col, loose)
+    data = json.loads((loose / "shapes.json").read_text())
+    data["shapes"][1]["nodes"][-1]["transform"][0][3] += 1000.0
+    (loose / "shapes.json").write_text(json.dumps(data))
+    code, _, err = _run(capsys, "strings", "train", loose, "--out", tmp_path / "m0", "--epochs", 1)
+    assert code == 2 and "shape 1 is in 2 pieces" in err and not (tmp_path / "m0").exists(), err
+    small = ["--hidden", 16, "--latent", 4, "--strings-per-shape", 2, "--tagger-strings-per-shape", 2,
+             "--tagger-epochs", 1]
+    code, _, err = _run(capsys, "strings", "train", col, "--out", tmp_path / "m", "--epochs", 2, *small)
+    assert code == 0, err
+    code, _, err = _run(capsys, "strings", "train", col, "--out", tmp_path / "m", "--epochs", 1, *small)
+    assert code == 2 and "holds a VAE trained 2 epochs, more than the 1 asked" in err, err
+

@@ -135,8 +135,9 @@ def contained_path(folder: str | os.PathLike, relative, where: str) -> Path:
     Used where procmod reproduces a path it read (a mesh copied beside a new file)."""
     parts = _relative_parts(relative, where)
     if ".." in parts:
+        # (``folder`` is not named: it is often a run's temporary folder, a name the user never gave)
         raise UnsafePathError(f"{where}: {_shown(relative)} leads out of its folder, so it cannot be "
-                              f"reproduced inside {folder}; keep the file in (a subfolder of) the "
+                              "reproduced inside the output folder; keep the file in (a subfolder of) the "
                               "folder of the file that names it")
     return Path(folder).joinpath(*parts)
 

@@ -152,19 +152,9 @@ def _shape_sources(paths, count: int) -> list | None:
     return [str(f) for f in files] if len(files) == count > 1 else None
 
 
-def _loose_parts(g, pieces, index: int, inputs, letters: dict) -> str:
-    """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
-    ``letters``: part name -> type letter)."""
-    name_of = {letter: name for name, letter in letters.items()}
-    loose = sorted(name_of.get(g.nodes[v]["type"], g.nodes[v]["type"]) for piece in pieces[1:] for v in piece)
-    shown = ", ".join(loose[:8]) + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
-    source = f" ({inputs[index]})" if inputs else ""
-    return f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} no other part"
-
-
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .contacts import shape_graph
+    from .contacts import loose_parts, shape_graph
     from .assets import read_shape_inputs
     from .grammar import Grammar, ring_rule_note
     from .shapes import write_graph
@@ -188,7 +178,7 @@ def _graph(args) -> None:
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
         if len(pieces) > 1:
             named = _shape_sources(args.shapes, len(graphs))
-            print(f"note: {_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
+            print(f"note: {loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
                   "shape, so 'strings augment' refuses it: move the parts to touch", file=sys.stderr)
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
@@ -274,13 +264,13 @@ def _augment(args) -> None:
     folder = RunFolder(args.out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
-    from .contacts import shape_graph
+    from .contacts import loose_parts, shape_graph
     named = _shape_sources(args.shapes, len(shape_set.shapes))
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
         g = shape_graph(shape_set, shape)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
-            raise InvalidArgumentError(f"{_loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
+            raise InvalidArgumentError(f"{loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
                                        "shape: move the parts to touch")
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
@@ -322,6 +312,9 @@ def _train(args) -> None:
                     kl_weight=args.kl_weight, kl_warmup=args.kl_warmup, epochs=args.epochs)
     vae.check()
     tagger = TaggerConfig(epochs=args.tagger_epochs)
+    if not 1 <= args.tagger_epochs <= 1_000_000:  # 0 or -3 trained nothing, without a word
+        raise InvalidArgumentError(f"--tagger-epochs must be a whole number from 1 to 1,000,000, got "
+                                   f"{args.tagger_epochs}")
     bars = {}
 
     def progress(stage, row):

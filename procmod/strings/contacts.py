@@ -151,3 +151,13 @@ def shape_graph(shape_set: ShapeSet, shape: Shape, tol: float | None = None) -> 
 def centroids(shape_set: ShapeSet, shape: Shape) -> np.ndarray:
     """Centroid (vertex mean) of each part, ``(n, 3)``."""
     return np.array([part_points(shape_set.library, p, t).mean(0) for p, t in zip(shape.parts, shape.transforms)])
+
+
+def loose_parts(g, pieces, index: int, inputs, letters: dict) -> str:
+    """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
+    ``letters``: part name -> type letter)."""
+    name_of = {letter: name for name, letter in letters.items()}
+    loose = sorted(name_of.get(g.nodes[v]["type"], g.nodes[v]["type"]) for piece in pieces[1:] for v in piece)
+    shown = ", ".join(loose[:8]) + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
+    source = f" ({inputs[index]})" if inputs else ""
+    return f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} no other part"

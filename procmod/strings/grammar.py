@@ -194,7 +194,11 @@ class Grammar:
     def from_json(data) -> "Grammar":
         """The inverse of :meth:`to_json` (grammars saved before the ring rule have none)."""
         rules = {t: frozenset(keys) for t, keys in data.items() if t != RING_MULTIPLE_KEY}
-        return Grammar(rules, int(data.get(RING_MULTIPLE_KEY, 1)))
+        multiple = data.get(RING_MULTIPLE_KEY, 1)
+        if isinstance(multiple, bool) or not isinstance(multiple, int) or not 1 <= multiple <= 1_000_000:
+            raise ValueError(f"{RING_MULTIPLE_KEY} must be a whole number from 1 (no ring rule) up, got "
+                             f"{multiple!r:.40}")
+        return Grammar(rules, multiple)
 
 
 def validate_shape(shape_set: ShapeSet, shape: Shape, grammar: Grammar, tol: float | None = None) -> list[str]:

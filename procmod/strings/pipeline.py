@@ -21,18 +21,21 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from dataclasses import asdict
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError, argument, spelled
 from ..core.io import read_versioned_json, write_text_atomic
+from ..core.paths import is_dir_quietly
 from ..core.runfolder import STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
-from .contacts import shape_graph
+from .contacts import loose_parts, shape_graph
 from .grammar import Grammar
 from .shapes import ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, write_shapes
 from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
@@ -110,16 +113,30 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     used for the tagger's held-out accuracy. Returns the model's ``model.json`` content.
     """
     training_device(device)  # a device this machine lacks fails before anything is written
+    vae_config.check()
+    tagger_config.check()
     shape_set = read_collection(collection)
     out = Path(out)
     folder = RunFolder(out, STRINGS_MODEL, overwrite, inputs=[collection])
-    folder.prepare_in_place(keep=True)
+    # what the collection's shapes can refuse (a loose part) is found before the folder is made
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
+    for i, g in enumerate(graphs):
+        pieces = sorted(nx.connected_components(g), key=len, reverse=True)
+        if len(pieces) > 1:
+            raise InvalidArgumentError(f"{loose_parts(g, pieces, i, None, shape_set.letters)} in {collection}; a "
+                                       "string encodes one connected shape: move the parts to touch")
     grammar = Grammar.from_graphs(graphs)
     train_idx, test_idx = split_shapes(len(graphs), held_out, seed)
     strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
+    fresh = not is_dir_quietly(out) or not any(out.iterdir())
+    folder.prepare_in_place(keep=True)
     if not (out / "collection.json").is_file():
-        write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
+        try:
+            write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
+        except BaseException:
+            if fresh:  # what it had copied (a mesh file) made the folder a stranger's to the retry
+                shutil.rmtree(out, ignore_errors=True)
+            raise
     report = progress or (lambda stage, row: None)
     # the trainings' messages name their folder: here it is this function's out
     names = {"folder": argument("out")}

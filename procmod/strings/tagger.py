@@ -534,6 +534,10 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
                                  f"grown again), or other {argument('seed')} / {argument('tagger_strings_per_shape')} "
                                  f"/ {argument('held_out')} than it was trained with; repeat those, or use a new "
                                  f"{argument('folder')}")
+        if state["epoch"] > config.epochs:  # it would be kept as it is, recorded as trained for fewer
+            raise ModelFileError(f"{folder} holds a tagger trained {state['epoch']} epochs, more than the "
+                                 f"{config.epochs} asked: ask for at least {state['epoch']} to go on from it, or "
+                                 f"use a new {argument('folder')}")
         adopt = state.get("data") is None  # saved before the fingerprint was kept: keep it from now on
         state["data"] = data
     else:

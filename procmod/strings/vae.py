@@ -411,6 +411,10 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
                                  f"again), or other {argument('seed')} / {argument('strings_per_shape')} / "
                                  f"{argument('held_out')} than it was trained with; repeat those, or use a new "
                                  f"{argument('folder')}")
+        if state.epoch > config.epochs:  # it would be kept as it is, recorded as trained for fewer
+            raise ModelFileError(f"{folder} holds a VAE trained {state.epoch} epochs, more than the {config.epochs} "
+                                 f"asked: ask for at least {state.epoch} to go on from it, or use a new "
+                                 f"{argument('folder')}")
         adopt = state.data is None  # saved before the fingerprint was kept: keep it from now on
         state.data = data
     else:
