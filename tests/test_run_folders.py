@@ -191,6 +191,11 @@ def test_guide_traces_refuses_another_job_leaving_it_and_overwrite_replaces_it(t
     (other / "notes.txt").write_text("")
     code, _, err = _run(capsys, *argv[:-1], other)
     assert code == 2 and "--overwrite" in err and _names(other) == ["notes.txt"]
+    # a damaged traces.json: said so (it read as a stranger's folder holding 'trace_00000.json')
+    (out / "traces.json").write_text('{"format": "procmod-guide')
+    code, _, err = _run(capsys, *argv)
+    assert code == 2 and "is an earlier procmod guide traces folder whose traces.json is damaged" in err, err
+    assert "restore it to resume, or pass --overwrite" in err
 
 
 def test_guide_traces_that_fails_before_its_first_trace_leaves_nothing(tmp_path, capsys, monkeypatch):

@@ -104,6 +104,15 @@ class RunKind:
             return False
         return isinstance(data, dict) and self.marker_key in data
 
+    def damaged_marker(self, folder: Path) -> bool:
+        """True when ``folder`` holds only this kind's files but its marker does not read
+        (cut off, edited): the folder is an earlier run whose settings are lost."""
+        try:
+            names = [p.name for p in folder.iterdir()]
+        except OSError:
+            return False
+        return self.marker in names and self.foreign(folder, names) is None and not self.recognises(folder)
+
     def foreign(self, folder: Path, names=None) -> str | None:
         """The first entry of ``folder`` (sorted) that no run of this kind writes, or None."""
         if names is None:
@@ -216,6 +225,12 @@ class RunFolder:
         self.replaces = is_dir and any(self.path.iterdir())
         if self.replaces:
             if not (overwrite or kind.recognises(self.path)):
+                if kind.damaged_marker(self.path):
+                    raise OutputLocationError(
+                        f"{option} {shown} is an earlier {kind.name} whose {kind.marker} is damaged (it does not "
+                        f"read as JSON{'' if kind.marker_key is None else ' with ' + repr(kind.marker_key)}); "
+                        f"restore it{' to resume' if kind.resumes else ''}, or pass "
+                        f"{argument('overwrite=True')} to start over")
                 example = kind.foreign(self.path) or sorted(p.name for p in self.path.iterdir())[0]
                 raise OutputLocationError(
                     f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
