@@ -210,4 +210,4 @@ def test_render_never_writes_over_its_input_and_a_guide_never_over_a_users_json(
     mine.write_text('{"format": "procmod-volume/1"}')
     code, _, err = _run(capsys, "guide", "train", "vines", "--traces", tmp_path / "s", "--iterations", 1,
                         "--out", tmp_path / "mytarget")
-    assert code == 2 and "which is not a guide" in err and mine.read_text() == '{"format": "procmod-volume/1"}'
+    assert code == 2 and "which is not part of a guide" in err and mine.read_text() == '{"format": "procmod-volume/1"}'
