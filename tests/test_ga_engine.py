@@ -53,6 +53,37 @@ def test_initial_population_grows_minimal_derivations_to_their_goal_sizes():
     assert tracker.evaluations > 30 and tracker.rows  # grows were evaluated; the population recorded
 
 
+def _link(ctx, i):
+    from procmod.core import Normal
+    from procmod.geometry import Segment
+    x = ctx.sample("x", Normal(0, 1))
+    ctx.emit(Segment(x, 0, x, 1, 0.2))
+    ctx.maybe("next", 0.998, _link, i + 1)
+
+
+def test_a_chain_grows_its_initial_population_in_a_bounded_number_of_replays():
+    # one call a replay: a chain model of ~500 calls took over a minute before generation 1
+    import importlib
+
+    from procmod.core import Model
+    from procmod.geometry import Canvas
+    engine = importlib.import_module("procmod.infer.ga.engine")
+    chain = Model("long-chain", "a maybe chain", _link, lambda p: (0,), lambda p: Canvas((-5, 5, -5, 5), 50))
+    target = _bar_target()
+    tracker = Tracker(Budget())
+    counted = []
+
+    class Counting(Evaluator):
+        def __call__(self, jobs):
+            counted.append(len(jobs))
+            return super().__call__(jobs)
+
+    evaluate = Counting(target.configure(chain), target, None, tracker)
+    pop = initial_population(evaluate, 4, 600, np.random.default_rng(0), tracker)
+    assert len(counted) == 1 + engine.MAX_GROW_ROUNDS  # the minimal derivations, then the rounds
+    assert all(ind.derivation.n_nodes == 1 + engine.MAX_GROW_ROUNDS for ind in pop)  # the goals are far above
+
+
 @pytest.mark.parametrize("mutation", [0.0, 1.0])
 def test_breed_keeps_the_elite_and_fills_the_generation(mutation):
     model, target = get_model("lightning"), _bar_target()

@@ -101,6 +101,9 @@ def _check_split(split) -> tuple:
     return tuple(weights) + (0.0,) * (4 - len(weights))
 
 
+MAX_GROW_ROUNDS = 64  # replays that grow the initial population (see initial_population)
+
+
 def default_initial_size(evaluate: Evaluator, rng) -> int:
     """Twice the mean size (in calls) of 20 forward samples, at least 5."""
     sizes = [ind.derivation.n_nodes for ind in evaluate([({}, new_seed(rng), None) for _ in range(20)])]
@@ -111,11 +114,20 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
     """Minimal derivations (every ``maybe`` off) grown to sizes uniform in [1, initial_size]
     calls (seed 002, section 6). Each round applies as many of an individual's missing
     grows as it has unexpressed children (children created in a round become candidates in
-    the next), so a large individual costs a few replays instead of one per call."""
+    the next), so a large individual costs a few replays instead of one per call.
+
+    A chain (each call's one child a ``maybe`` of the last) has one unexpressed child a
+    round, so it grew by one call a replay: quadratic in its length (a chain model of ~500
+    calls took over a minute before its first generation). Growth stops after
+    :data:`MAX_GROW_ROUNDS` rounds, leaving such individuals shorter than their goal (the
+    generations' mutations, drawn from the prior, make them longer); the built-in models
+    reach their goals in at most 8 rounds."""
     pop = evaluate([({}, new_seed(rng), False) for _ in range(population)])
     goals = rng.integers(1, initial_size + 1, size=population)
     growing = [i for i in range(population) if pop[i].derivation.n_nodes < goals[i]]
-    while growing and not tracker.spent():
+    rounds = 0
+    while growing and not tracker.spent() and rounds < MAX_GROW_ROUNDS:
+        rounds += 1
         jobs, owners = [], []
         for i in growing:
             missing = int(goals[i] - pop[i].derivation.n_nodes)
