@@ -108,6 +108,7 @@ def check_geometry(derivation: Derivation) -> None:
     from .core.choicemap import format_address
     from .core.errors import ModelError
     from .core.runtime import rule_name
+    from .geometry.solid import Cylinder
 
     for node in derivation.nodes():
         for part in node.geometry:
@@ -116,11 +117,13 @@ def check_geometry(derivation: Derivation) -> None:
                 if name in ("tag", "faces"):
                     continue
                 value = getattr(part, name)
-                if value is not None and _bad_number(value, name in _SIZE_FIELDS):
+                # a cylinder of negative length points along -z, and draws so
+                size = name in _SIZE_FIELDS and not (name == "length" and isinstance(part, Cylinder))
+                if value is not None and _bad_number(value, size):
                     raise ModelError(f"rule {rule_name(node.rule)!r} at {format_address(node.address)} emitted "
                                      f"{type(part).__name__} with {name} = {value!r:.60}: "
-                                     + ("a size must be finite and not negative" if name in _SIZE_FIELDS
-                                        else "coordinates must be finite numbers")
+                                     + ("a size must be finite and not negative" if size
+                                        else "it must hold finite numbers")
                                      + "; find the rule's arithmetic that makes it")
 
 

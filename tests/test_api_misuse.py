@@ -1,6 +1,9 @@
 """The Python API's likely mistakes are one ProcmodError line, not a TypeError or an
 AttributeError from deep inside (an adversarial pass found each of these)."""
 
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -182,7 +185,7 @@ def test_a_run_that_cannot_be_saved_writes_no_file(tmp_path):
 
 @pytest.mark.parametrize("emit, message", [
     (lambda ctx: ctx.emit(__import__("procmod.geometry", fromlist=["Segment"]).Segment(0, 0, float("nan"), 1, 0.5)),
-     r"emitted Segment with x1 = nan: coordinates must be finite"),
+     r"emitted Segment with x1 = nan: it must hold finite numbers"),
     (lambda ctx: ctx.emit(__import__("procmod.geometry", fromlist=["Disc"]).Disc(0, 0, -3)),
      r"emitted Disc with radius = -3: a size must be finite and not negative"),
 ])
@@ -215,3 +218,27 @@ def test_a_part_of_nan_size_against_a_volume_names_the_rule_not_the_targets_scal
     model = Model("nan3d", "a 3D bug", root, lambda p: (), get_model("spaceship").new_output_from)
     with pytest.raises(ProcmodError, match=r"rule 'root' at / emits Box.*not finite .NaN or infinity."):
         smc(model, target, particles=2)
+
+
+def test_what_float_takes_and_what_drew_before_is_still_accepted():
+    # a review of the checks above: each of these worked before them
+    from fractions import Fraction
+
+    from procmod.core import GaussianMixture, TruncatedNormal, Uniform
+    from procmod.geometry.solid import Cylinder
+    from procmod.render import write_derivation
+    Categorical([1, 1], labels=(0.5, 1.5))
+    Categorical([1, 1], labels=(np.False_, np.True_))
+    Uniform(np.array(0.0), np.array(1.0))
+    Uniform(Fraction(1, 2), 1)
+    TruncatedNormal(np.array(0.0), 1.0, -1, 1)
+    TruncatedNormal(0.0, 1.0, 0.0, float("inf"))
+    GaussianMixture([1], [np.array(0.0)], [1.0])
+
+    def pointing_down(ctx):
+        ctx.sample("x", Normal(0, 1))
+        ctx.emit(Cylinder(0.5, -2.0))  # along -z
+
+    model = _model(pointing_down, lambda p: np.array([]), get_model("spaceship").new_output_from)  # any iterable
+    write_derivation(run_forward(model, np.random.default_rng(0)), Path(tempfile.mkdtemp()) / "down.obj", 64)
+

@@ -295,7 +295,10 @@ def test_training_raises_the_traces_likelihood_and_resumes_exactly(few_traces, t
     with pytest.raises(Killed):
         train_guide(VINES, few_traces, tmp_path / "b", iterations=300, checkpoint_every=100, progress=kill_at_200)
     assert (tmp_path / "b.ckpt.pt").exists() and not (tmp_path / "b.pt").exists()
-    resumed, _ = train_guide(VINES, few_traces, tmp_path / "b", iterations=300, checkpoint_every=100)
+    steps = []
+    resumed, _ = train_guide(VINES, few_traces, tmp_path / "b", iterations=300, checkpoint_every=100,
+                             progress=lambda step, loss: steps.append(step))
+    assert steps == [200, 300]  # it went on from the checkpoint at 100 (starting over ends alike)
     for key, tensor in guide.nets.state_dict().items():
         assert torch.equal(tensor, resumed.nets.state_dict()[key]), key
     assert not (tmp_path / "b.ckpt.pt").exists()
@@ -328,7 +331,10 @@ def test_a_checkpoint_resumes_only_on_its_own_traces_and_whole(few_traces, tmp_p
     trace = json.loads((other / "trace_00000.json").read_text())
     (other / "trace_00000.json").write_text(json.dumps(dict(trace, target="scribble:0")))
     _killed_run(few_traces, tmp_path / "g")
-    on_other, _ = train_guide(VINES, other, tmp_path / "g", iterations=300, checkpoint_every=100)
+    steps = []
+    on_other, _ = train_guide(VINES, other, tmp_path / "g", iterations=300, checkpoint_every=100,
+                              progress=lambda step, loss: steps.append(step))
+    assert steps == [100, 200, 300]  # started over
     fresh, _ = train_guide(VINES, other, tmp_path / "fresh", iterations=300, checkpoint_every=100)
     assert all(torch.equal(v, _weights(fresh)[k]) for k, v in _weights(on_other).items())
     # edited or damaged metadata, or weights one checkpoint ahead of it (a kill between the
@@ -337,7 +343,10 @@ def test_a_checkpoint_resumes_only_on_its_own_traces_and_whole(few_traces, tmp_p
     for damage in ({"step": "abc"}, {"step": -5}, {"curve": 5}, {"running": "x"}, {"step": 99999}, {"step": 200}):
         _killed_run(few_traces, tmp_path / "g")
         meta.write_text(json.dumps(dict(json.loads(meta.read_text()), **damage)))
-        resumed, report = train_guide(VINES, few_traces, tmp_path / "g", iterations=300, checkpoint_every=100)
+        steps = []
+        resumed, report = train_guide(VINES, few_traces, tmp_path / "g", iterations=300, checkpoint_every=100,
+                                      progress=lambda step, loss: steps.append(step))
+        assert steps == [100, 200, 300], damage  # started over
         assert all(torch.equal(v, _weights(clean)[k]) for k, v in _weights(resumed).items()), damage
     _killed_run(few_traces, tmp_path / "g")
     (tmp_path / "g.ckpt.pt").write_bytes(b"not a checkpoint")

@@ -28,15 +28,29 @@ def _normal_log_pdf(x: float, mu: float, sigma: float) -> float:
 
 
 _INF = math.inf
+# what a derivation's JSON holds as a choice value (procmod.core.serialize._json_value)
+_LABEL_TYPES = (str, int, float, np.integer, np.floating, np.bool_)
 
 
 def _is_real(x) -> bool:
     """A finite int or float (numpy's too); an int too large for a float is not one."""
+    if x.__class__ is float:  # the hot path: log_prob of a value a distribution drew
+        return math.isfinite(x)
     if not isinstance(x, (float, int, np.floating, np.integer)) or isinstance(x, bool):
         return False
     try:
         return math.isfinite(x)
     except OverflowError:
+        return False
+
+
+def _finite(*values) -> bool:
+    """Whether every value compares as a finite number (floats, ints, numpy scalars and
+    0-d arrays, Fractions, ...): comparisons, not type checks, so that what ``float()``
+    takes keeps working; NaN fails every comparison."""
+    try:
+        return all(-_INF < v < _INF for v in values)
+    except (TypeError, ValueError, OverflowError):
         return False
 
 
@@ -118,7 +132,11 @@ class TruncatedNormal(Distribution):
     __slots__ = ("mu", "sigma", "low", "high", "_cdf_low", "_mass", "_log_mass")
 
     def __init__(self, mu: float, sigma: float, low: float, high: float):
-        if not _is_real(mu) or not _is_real(sigma) or not sigma > 0:
+        try:  # chained comparisons: NaN fails them, what float() takes passes
+            ok = -_INF < mu < _INF and 0 < sigma < _INF
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
             raise ModelError(f"TruncatedNormal needs a finite mu and a finite sigma > 0, got mu={mu!r:.40}, "
                              f"sigma={sigma!r:.40}")
         if not low < high:
@@ -164,7 +182,11 @@ class Uniform(Distribution):
     __slots__ = ("low", "high", "_log_width")
 
     def __init__(self, low: float, high: float):
-        if not (_is_real(low) and _is_real(high) and low < high):
+        try:  # the hot path (tree, spaceship, city make one per choice): one chained comparison
+            ok = -_INF < low < high < _INF
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok:
             raise ModelError(f"Uniform needs finite numbers low < high, got [{low!r:.40}, {high!r:.40}]")
         self.low, self.high = float(low), float(high)
         self._log_width = math.log(self.high - self.low)
@@ -220,7 +242,7 @@ class Categorical(Distribution):
     """A draw from a finite set with probabilities ``probs`` (normalised here).
 
     The value is the index ``0..k-1``, or the matching entry of ``labels`` when given
-    (labels must be distinct strings, ints or bools, so they serialise to JSON).
+    (labels must be distinct strings, ints, finite floats or bools, so they serialise to JSON).
     """
 
     discrete = True
@@ -238,8 +260,9 @@ class Categorical(Distribution):
         if labels is None:
             labels = tuple(range(len(probs)))
         labels = tuple(labels)
-        if any(not isinstance(label, (str, int, np.integer)) for label in labels):
-            raise ModelError(f"Categorical labels must be strings, ints or bools (they are saved as JSON), got "
+        if not all(isinstance(label, _LABEL_TYPES) and not (isinstance(label, (float, np.floating))
+                                                              and not math.isfinite(label)) for label in labels):
+            raise ModelError(f"Categorical labels must be strings, numbers or bools (they are saved as JSON), got "
                              f"{labels!r:.80}; label by index and look the value up in the rule")
         if len(labels) != len(probs) or len(set(labels)) != len(labels):
             raise ModelError(f"Categorical needs one distinct label per probability, got {labels!r}")
@@ -280,7 +303,7 @@ class GaussianMixture(Distribution):
         weights, means, sigmas = list(weights), list(means), list(sigmas)
         if not (len(weights) == len(means) == len(sigmas) >= 1):
             raise ModelError("GaussianMixture needs equally many weights, means and sigmas (at least one)")
-        if any(not (_is_real(s) and s > 0) for s in sigmas) or not all(_is_real(m) for m in means):
+        if not (_finite(*means, *sigmas) and all(s > 0 for s in sigmas)):
             raise ModelError(f"GaussianMixture needs finite means and finite sigmas > 0, got means={means!r:.60}, "
                              f"sigmas={sigmas!r:.60}")
         self._component = Categorical(weights)

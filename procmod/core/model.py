@@ -106,10 +106,13 @@ class Model:
     def initial_args(self) -> tuple:
         """The root rule's arguments under the current parameters."""
         args = self.root_args(self.params)
-        if not isinstance(args, (tuple, list)):
-            raise ModelError(f"model {self.name!r}: root_args returned {args!r:.40}, not a tuple of the root "
-                             "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
-        return tuple(args)
+        if not isinstance(args, (str, bytes, Mapping)):
+            try:
+                return tuple(args)
+            except TypeError:
+                pass
+        raise ModelError(f"model {self.name!r}: root_args returned {args!r:.40}, not a tuple of the root "
+                         "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
 
 
 def _shown(value, limit: int = 60) -> str:

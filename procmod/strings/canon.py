@@ -129,8 +129,10 @@ def _twin_swaps(adj: list[list[int]], types: list[str]) -> list[dict[int, int]]:
 # Trees of at least this many nodes are ranked by :func:`_tree_ranks` (the search below took
 # seconds to minutes on large trees: refinement needs as many rounds as the diameter, and a
 # complete binary tree of 511 nodes ties at every level). Smaller trees keep the search, so
-# the canonical strings of the collections made before stay as they were; both rankings
-# are canonical, and which one applies depends only on the graph.
+# the canonical strings of smaller shapes stay as they were (those of trees of 64 or more
+# parts changed with this ranking: a string model whose VAE training began before it, on
+# such shapes, will not resume, its training strings' fingerprint differing); both
+# rankings are canonical, and which one applies depends only on the graph.
 TREE_NODES = 64
 
 
