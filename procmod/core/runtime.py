@@ -48,6 +48,7 @@ def rule_name(rule) -> str:
     a callable object)."""
     return getattr(rule, "__name__", None) or repr(rule)[:60]
 
+
 _MISSING = object()
 _new_tuple = tuple.__new__  # builds NamedTuples without their Python-level __new__ (hot path)
 
