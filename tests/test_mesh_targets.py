@@ -115,6 +115,12 @@ def test_a_cavity_stays_hollow_and_an_inverted_shell_is_turned(tmp_path):
     assert np.array_equal(mask, expected)
     grid, mask = _voxelize(tmp_path, inner.vertices, inner.faces, "inverted.obj")
     assert np.array_equal(mask, _in_boxes(grid, [((0.6, 0.4, 0.6), (0, 0, 0))]))
+    # the hollow box exported inside out (every normal flipped: outer shell facing in, the
+    # cavity's wall facing out) read as filled; it is the hollow box
+    inside_out = hollow.copy()
+    inside_out.invert()
+    grid, mask = _voxelize(tmp_path, inside_out.vertices, inside_out.faces, "inside_out.obj")
+    assert np.array_equal(mask, expected)
 
 
 @pytest.mark.parametrize("missing", [[0], [0, 1], [0, 5]])

@@ -60,7 +60,9 @@ exactly two faces, flipping a face whose shared edge runs the same way as its ne
 and outward: a component enclosing negative volume is turned over, unless it lies inside
 the other components (then it is a cavity, such as the inner wall of a hollow part, and is
 kept facing in): the centroids of up to :data:`CAVITY_PROBES` of its faces, spread over it,
-must all be inside; a flipped piece overlapping another only in part is turned over.
+must all be inside; a flipped piece overlapping another only in part is turned over. An
+outward piece wholly inside a piece that is turned over is turned over with it: it is that
+piece's inner wall (a hollow part exported inside out, all its normals flipped).
 """
 
 from __future__ import annotations
@@ -788,19 +790,36 @@ def orient_faces(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         if outward.any():
             # several faces of each: one probe decided before, and a piece overlapping an
             # outward one (partly inside it) was taken for a cavity and carved out of it
-            probes, owner = [], []
-            for c in tested:
-                members = np.flatnonzero(comp == c)
-                picked = members[np.linspace(0, len(members) - 1, min(CAVITY_PROBES, len(members))).astype(np.int64)]
-                probes.append(vertices[faces[picked]].mean(axis=1))
-                owner += [c] * len(picked)
-            w = winding_numbers(vertices, faces[outward], np.concatenate(probes))
-            owner = np.asarray(owner)
+            w, owner = _probe_winding(vertices, faces, comp, tested, outward)
             for c in tested:
                 keep[c] = bool(np.all(w[owner == c] >= 0.5))
-        turn = np.isin(comp, inverted[~keep[inverted]])
+        flipped = inverted[~keep[inverted]]
+        turn = np.isin(comp, flipped)
+        if len(flipped) and outward.any():
+            # an outward piece wholly inside a piece that is turned over is that piece's inner
+            # wall: a hollow part exported inside out (every normal flipped) has its outer
+            # shell facing in and its cavity's wall facing out, and read as filled
+            facing_out = np.flatnonzero(volume > 1e-9 * span ** 3)
+            candidates = facing_out[np.argsort(-volume[facing_out])][:CAVITY_TESTS]
+            if len(candidates):
+                w, owner = _probe_winding(vertices, faces, comp, candidates, turn)
+                walls = [c for c in candidates if np.all(w[owner == c] <= -0.5)]  # inside, wound inward
+                turn |= np.isin(comp, walls)
         faces[turn] = faces[turn][:, ::-1]
     return faces, comp
+
+
+def _probe_winding(vertices, faces, comp, pieces, around):
+    """Winding numbers of the faces ``around`` (a mask) at the centroids of up to
+    :data:`CAVITY_PROBES` faces of each of ``pieces`` (spread over it); with the piece of
+    each probe."""
+    probes, owner = [], []
+    for c in pieces:
+        members = np.flatnonzero(comp == c)
+        picked = members[np.linspace(0, len(members) - 1, min(CAVITY_PROBES, len(members))).astype(np.int64)]
+        probes.append(vertices[faces[picked]].mean(axis=1))
+        owner += [c] * len(picked)
+    return winding_numbers(vertices, faces[around], np.concatenate(probes)), np.asarray(owner)
 
 
 __all__ = ["boundary_chain", "cap_tree", "closed_winding", "inside_voxels", "orient_faces", "single_sided",
