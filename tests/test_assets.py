@@ -202,6 +202,14 @@ def nan_wing(data):
     data["meshes"] = [{"name": n, "primitives": mesh["meshes"][0]["primitives"]} for n in ("body", "wing", "w2", "gun")]
 
 
+def _deepen(data, levels):
+    """A chain of ``levels`` empty nodes under the last node."""
+    first = len(data["nodes"])
+    data["nodes"][-1]["children"] = data["nodes"][-1].get("children", []) + [first]
+    data["nodes"] += [{"name": f"n{i}", "children": [first + i + 1]} for i in range(levels - 1)]
+    data["nodes"].append({"name": "last"})
+
+
 def flat_mesh(data):
     mesh = gltf_json([("flat", [(np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]]), [[0, 1, 2]])])], [], [0])
     data["buffers"], data["bufferViews"], data["accessors"] = mesh["buffers"], mesh["bufferViews"], mesh["accessors"]
@@ -219,6 +227,10 @@ def flat_mesh(data):
     (lambda d: d["nodes"][2].update(matrix=[float("nan")] * 16), "non-finite or malformed transform"),
     (lambda d: d["nodes"][2].update(children=[99]), "does not exist"),
     (lambda d: d.update(scenes=[]), "no scene"),
+    # trimesh's "No path from world->a!" traceback before
+    (lambda d: d["nodes"][2].update(mesh=5), "refers to mesh 5, which the file does not have"),
+    # refused after minutes of trimesh building the scene graph before
+    (lambda d: _deepen(d, 300), "deeper than 256 levels"),
 ])
 def test_bad_gltf_files_are_one_line_errors(tmp_path, edit, message):
     with pytest.raises(AssetError) as exc:

@@ -55,6 +55,13 @@ def test_reads_a_valid_object():
     (lambda d: d.update(examples=[]), "examples"),
     (lambda d: d["parts"].update(arm={"sphere": 1}), "parts.arm"),
     (lambda d: d["parts"].update(arm={"mesh": "parts/missing.obj"}), "parts.arm.mesh"),
+    # the learner's SVDs spun on the NaN matrices these made, deaf to SIGTERM; an
+    # OverflowError traceback
+    (lambda d: d["examples"][0].update(transform=[[1, 0, 0, 1e300], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]),
+     "examples[0].transform: a number beyond 1e+12"),
+    (lambda d: d["examples"][0]["children"][0].update(transform=[[1, 0, 0, 10 ** 400], [0, 1, 0, 0], [0, 0, 1, 0],
+                                                                 [0, 0, 0, 1]]),
+     "examples[0].children[0].transform[0][3]: expected a finite number"),
 ])
 def test_malformed_input_names_the_json_path(edit, where):
     data = small()

@@ -61,6 +61,7 @@ from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
 MAX_FACES = 2_000_000  # triangles of the distinct meshes of one file
+MAX_DEPTH = 256  # levels of a node hierarchy (as procmod.learn.examples reads example files)
 MAX_NODES = 10_000  # nodes (glTF) or links + visuals (URDF) of one file
 MAX_MESH_BYTES = 512 * 2 ** 20  # a URDF's mesh file
 ASSET_SUFFIXES = (".gltf", ".glb", ".urdf")
@@ -279,6 +280,16 @@ def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:
                 raise AssetError(f"{path}: the node hierarchy has a cycle (node {k}, "
                                  f"{nodes[k].get('name', 'unnamed')!r}, is its own ancestor)")
             seen.add(k)
+        if len(seen) > MAX_DEPTH:  # refused here: trimesh's scene graph took minutes to build first
+            raise AssetError(f"{path}: the node hierarchy is deeper than {MAX_DEPTH} levels (node {start}, "
+                             f"{nodes[start].get('name', 'unnamed')!r}); flatten it before exporting")
+    meshes = header.get("meshes", [])
+    for k, n in enumerate(nodes):
+        mesh = n.get("mesh")
+        if mesh is not None and (isinstance(mesh, bool) or not isinstance(mesh, int)
+                                 or not 0 <= mesh < (len(meshes) if isinstance(meshes, list) else 0)):
+            raise AssetError(f"{path}: node {k} ({n.get('name', 'unnamed')!r}) refers to mesh {mesh!r}, which the "
+                             "file does not have; export it again")
     return roots, children
 
 

@@ -75,8 +75,12 @@ def _finite_numbers(value, count: int, where: str) -> list[float]:
         raise PartLibraryError(f"{where}: expected a list of {count} numbers, got {value!r:.80}")
     out = []
     for i, v in enumerate(value):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise PartLibraryError(f"{where}[{i}]: expected a finite number, got {v!r}")
+        try:
+            ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+        except OverflowError:  # an int too large for a float (10**400)
+            ok = False
+        if not ok:
+            raise PartLibraryError(f"{where}[{i}]: expected a finite number, got {v!r:.40}")
         out.append(float(v))
     return out
 
@@ -144,6 +148,10 @@ def read_transform(value, where: str) -> np.ndarray:
     m = np.array([_finite_numbers(row, 4, f"{where}[{i}]") for i, row in enumerate(value)])
     if not np.allclose(m[3], (0, 0, 0, 1), atol=1e-9):
         raise PartLibraryError(f"{where}: not an affine transform (last row is {m[3].tolist()}, must be [0, 0, 0, 1])")
+    if np.abs(m).max() > MAX_COORDINATE:
+        # squares of such numbers overflow: the learner's SVDs spun on NaN matrices, deaf to SIGTERM
+        raise PartLibraryError(f"{where}: a number beyond {MAX_COORDINATE:g} ({float(np.abs(m).max()):g}); the "
+                               "examples' placements and scales must be ordinary lengths: check the file's units")
     linear = m[:3, :3]
     scale = max(float(np.abs(linear).max()), 1e-300)
     if abs(np.linalg.det(linear / scale)) < 1e-9:

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.io import read_json, write_text_atomic
+from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import (PartLibraryError, PartShape, read_part_library, read_transform,
                                      transform_to_json)
 
@@ -154,8 +155,13 @@ def read_examples(path: str | os.PathLike) -> ExampleSet:
 def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
     if depth > MAX_DEPTH:
         raise ExamplesError(f"{path}: hierarchy deeper than {MAX_DEPTH} levels")
-    m = up @ np.asarray(node.transform, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        m = up @ np.asarray(node.transform, dtype=np.float64)
     where = f"{path}: node {node.name!r}"
+    if not np.isfinite(m).all() or np.abs(m).max() > MAX_COORDINATE:
+        # squares of such numbers overflow: the learner's SVDs spun on NaN matrices, deaf to SIGTERM
+        raise ExamplesError(f"{where}: its world transform holds a number beyond {MAX_COORDINATE:g} (or not finite); "
+                            "placements and scales must be ordinary lengths: check the file's units")
     linear = m[:3, :3]
     scale = max(float(np.abs(linear).max()), 1e-300)
     if abs(np.linalg.det(linear / scale)) < 1e-9:
