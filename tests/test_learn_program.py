@@ -323,6 +323,14 @@ def _damage_tensor(folder, value):
     (lambda j, d: _damage_tensor(d, float("nan")), "holds NaN, infinity or values beyond 1e15"),
     (lambda j, d: _damage_tensor(d, 1e300), "holds NaN, infinity or values beyond 1e15"),
     (lambda j, d: j["parts"].update({next(iter(j["parts"])): {"box": [1e300, 1, 1]}}), "must lie in 1e-12..1e12"),
+    # references that only sampling found (KeyError tracebacks), or nonsense it sampled
+    (lambda j, d: [a for a in j["abstractions"] if a["kind"] == "part" and not a["callees"]][0].update(type="ghost"),
+     "draws part 'ghost', which the program's parts do not hold"),
+    (lambda j, d: j["orders"].pop("root"), r"orders\['root'\] is missing"),
+    (lambda j, d: j["groups"].update({t: [[0, 0]] for t in j["slots"] if j["slots"][t]}),
+     "must name each of the type's slots at most once"),
+    (lambda j, d: j["count_support"].update({t: [-3, -2] for t in j["count_support"]}) if j["count_support"]
+     else j.update(sym_inner=5), "count_support.*must list member counts from 2|malformed program"),
 ])
 def test_malformed_programs(saved, tmp_path, damage, message):
     import shutil

@@ -406,7 +406,74 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    info=dict(data.get("info", {})), parts_json=data.get("parts", {}))
 
 
+MAX_COUNT = 10_000  # members of one symmetry group a program may draw
+
+
 def _check_program(program: Program, path) -> None:
+    try:
+        _check_structure(program, path)
+        _check_references(program, path)
+    except ProgramError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as exc:
+        raise _fail(path, f"malformed program ({type(exc).__name__}: {exc}); rewrite it with 'procmod learn'") from None
+
+
+def _check_references(program: Program, path) -> None:
+    """Everything sampling looks up exists and fits: a hand-edited program failed only
+    when a sample reached the edit (a KeyError or IndexError traceback), or sampled
+    nonsense (a count below 2, a slot calling an abstraction of another type)."""
+    p = program.params
+
+    def need(key: str, size: int | None = None) -> None:
+        if key not in p:
+            raise _fail(path, f"tensor {key!r} is missing; it was not written by 'procmod learn' (learn again)")
+        if size is not None and p[key].shape[0] != size:
+            raise _fail(path, f"tensor {key!r} has {p[key].shape[0]} entries where the program has {size}")
+
+    calls = [(ROOT, 0, program.root_callees, None)]
+    for a in program.abstractions.values():
+        types = program.slot_types(a)
+        calls += [(a.id, s, callees, types[s]) for s, callees in enumerate(a.callees)]
+        if a.kind == "part":
+            if a.type not in program.parts:
+                raise _fail(path, f"abstraction {a.id} draws part {a.type!r}, which the program's parts do not hold")
+            used = [s for group in program.groups.get(a.type, []) for s in group]
+            if len(set(used)) != len(used) or not all(isinstance(s, int) and 0 <= s < len(a.callees) for s in used):
+                raise _fail(path, f"groups[{a.type!r}] must name each of the type's slots at most once")
+            for g in range(len(program.groups.get(a.type, []))):
+                for k in ("W", "c", "V", "b"):
+                    need(f"{a.id}.g{g}.{k}")
+        else:
+            if a.kind not in SYM_PARAMS:
+                raise _fail(path, f"abstraction {a.id} is of an unknown kind {a.kind!r}")
+            support = program.count_support.get(a.type)
+            if not isinstance(support, list) or not support or not all(
+                    isinstance(c, int) and not isinstance(c, bool) and 2 <= c <= MAX_COUNT for c in support):
+                raise _fail(path, f"count_support[{a.type!r}] must list member counts from 2 to {MAX_COUNT:,}, "
+                                  f"got {support!r:.60}")
+            need(f"{a.id}.count", len(support))
+            need(f"{a.id}.sym.mu", len(SYM_PARAMS[a.kind]))
+            need(f"{a.id}.sym.rs", len(SYM_PARAMS[a.kind]))
+    for caller, slot, callees, wanted in calls:
+        need(f"{program.prefix(caller)}.s{slot}.callee", len(callees))
+        for c in callees:
+            callee = program.abstractions[c]
+            if wanted is not None and callee.type != wanted:
+                raise _fail(path, f"abstraction {caller} slot {slot} (of type {wanted!r}) calls abstraction {c} of "
+                                  f"type {callee.type!r}")
+            if callee.kind == "part":
+                key = program.xform_key(caller, slot)
+                if key not in program.orders:
+                    raise _fail(path, f"orders[{key!r}] is missing")
+                pre = f"{program.prefix(caller)}.s{slot}"
+                for k in ("W", "c", "Vm", "bm", "Vs", "bs"):
+                    need(f"{pre}.xf.{k}")
+                for k in ("W", "c", "V", "b"):
+                    need(f"{pre}.sg.{k}")
+
+
+def _check_structure(program: Program, path) -> None:
     for key, order in program.orders.items():
         if sorted(order) != list(range(len(COMPONENTS))):
             raise _fail(path, f"orders[{key!r}] must be an ordering of 0..{len(COMPONENTS) - 1}, got {order}")
