@@ -53,6 +53,7 @@ def test_reads_a_valid_object():
     (lambda d: d["examples"][0].update(children={"part": "arm"}), "examples[0].children"),
     (lambda d: d["examples"][0].update(colour="red"), "examples[0]"),
     (lambda d: d.update(examples=[]), "examples"),
+    (lambda d: d.update(extra=1), "unknown field 'extra'"),  # accepted before, though documented as refused
     (lambda d: d["parts"].update(arm={"sphere": 1}), "parts.arm"),
     (lambda d: d["parts"].update(arm={"mesh": "parts/missing.obj"}), "parts.arm.mesh"),
     # the learner's SVDs spun on the NaN matrices these made, deaf to SIGTERM; an

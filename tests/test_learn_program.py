@@ -327,6 +327,7 @@ def _damage_tensor(folder, value):
     (lambda j, d: [a for a in j["abstractions"] if a["kind"] == "part" and not a["callees"]][0].update(type="ghost"),
      "draws part 'ghost', which the program's parts do not hold"),
     (lambda j, d: j["orders"].pop("root"), r"orders\['root'\] is missing"),
+    (lambda j, d: j.update(root_callees=[c + 0.9 for c in j["root_callees"]]), "expected a whole number"),
     (lambda j, d: j["groups"].update({t: [[0, 0]] for t in j["slots"] if j["slots"][t]}),
      "must name each of the type's slots at most once"),
     (lambda j, d: j["count_support"].update({t: [-3, -2] for t in j["count_support"]}) if j["count_support"]

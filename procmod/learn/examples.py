@@ -135,6 +135,9 @@ def examples_from_dict(data, base_dir: str | os.PathLike = ".", source: str = "e
         raise ExamplesError(f"{source}: expected a JSON object with 'format', 'parts' and 'examples'")
     if data.get("format") != FORMAT:
         raise ExamplesError(f"{source}: format is {data.get('format')!r}, expected {FORMAT!r}")
+    unknown = sorted(map(str, set(data) - {"format", "parts", "examples"}))
+    if unknown:
+        raise ExamplesError(f"{source}: unknown field {unknown[0]!r} (the file has 'format', 'parts', 'examples')")
     examples = data.get("examples")
     if not isinstance(examples, list) or not examples:
         raise ExamplesError(f"{source}: 'examples' must be a non-empty list of hierarchies")

@@ -389,20 +389,27 @@ def read_program(path: str | os.PathLike) -> Program:
     return program
 
 
+def _whole(value) -> int:
+    """An id, slot or count from the JSON: a whole number (int() truncated callee 0.9 to 0)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
+        raise ValueError(f"expected a whole number, got {value!r:.40}")
+    return int(value)
+
+
 def program_from_json(data: dict, parts: dict) -> Program:
     """The structure of a program from its JSON (parameters are filled in separately)."""
     abstractions = {}
     for entry in data["abstractions"]:
-        a = Abstraction(int(entry["id"]), str(entry["kind"]), str(entry["type"]),
-                        [[int(i) for i in c] for c in entry["callees"]])
+        a = Abstraction(_whole(entry["id"]), str(entry["kind"]), str(entry["type"]),
+                        [[_whole(i) for i in c] for c in entry["callees"]])
         abstractions[a.id] = a
     return Program(parts=parts, slots={k: list(v) for k, v in data["slots"].items()},
-                   groups={k: [list(map(int, g)) for g in v] for k, v in data["groups"].items()},
+                   groups={k: [list(map(_whole, g)) for g in v] for k, v in data["groups"].items()},
                    sym_inner=dict(data["sym_inner"]),
-                   count_support={k: list(map(int, v)) for k, v in data["count_support"].items()},
-                   orders={k: list(map(int, v)) for k, v in data["orders"].items()},
-                   abstractions=abstractions, root_callees=[int(i) for i in data["root_callees"]],
-                   sigma_mode=str(data.get("sigma_mode", "free")), next_id=int(data["next_id"]),
+                   count_support={k: list(map(_whole, v)) for k, v in data["count_support"].items()},
+                   orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
+                   abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
+                   sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
                    info=dict(data.get("info", {})), parts_json=data.get("parts", {}))
 
 
