@@ -61,7 +61,7 @@ from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
 MAX_FACES = 2_000_000  # triangles of the distinct meshes of one file
-MAX_DEPTH = 256  # levels of a node hierarchy (as procmod.learn.examples reads example files)
+MAX_DEPTH = 256  # levels of a node hierarchy (asset files, and example files: procmod.learn.examples)
 MAX_NODES = 10_000  # nodes (glTF) or links + visuals (URDF) of one file
 MAX_MESH_BYTES = 512 * 2 ** 20  # a URDF's mesh file
 ASSET_SUFFIXES = (".gltf", ".glb", ".urdf")

@@ -142,34 +142,30 @@ def accessor_values(header: dict, buffers: list, index: int) -> np.ndarray:
     return out
 
 
-def _glb_parts(data: bytes) -> tuple[dict, bytes | None]:
-    """A GLB's JSON chunk (parsed) and its BIN chunk (None without one)."""
-    length, kind = struct.unpack_from("<I4s", data, 12)
-    header = json.loads(data[20:20 + length].decode("utf-8"))
-    at = 20 + length
+def _binary_chunk(data: bytes) -> bytes | None:
+    """A GLB's BIN chunk (None without one); its JSON chunk is read by
+    :func:`procmod.geometry.mesh_files.gltf_header`."""
+    at = 20 + struct.unpack_from("<I", data, 12)[0]
     while at + 8 <= len(data):
         chunk_length, chunk_kind = struct.unpack_from("<I4s", data, at)
         if chunk_kind == b"BIN\x00":
-            return header, data[at + 8:at + 8 + chunk_length]
+            return data[at + 8:at + 8 + chunk_length]
         at += 8 + chunk_length
-    return header, None
+    return None
 
 
-def decoded_gltf(path: Path, resolver) -> bytes | None:
+def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     """The glTF (JSON, buffers as ``data:`` URIs or the files the original names) with its
     misread POSITION accessors (:func:`needs_decoding`) rewritten as ``FLOAT``; None when
-    there are none. ``resolver.get(uri)`` gives a buffer file's bytes.
+    there are none. ``header`` is the file's JSON (``gltf_header``); ``resolver.get(uri)``
+    gives a buffer file's bytes.
 
     Raises ValueError for an accessor that reaches past its data."""
     path = Path(path)
-    raw = path.read_bytes()
-    if path.suffix.lower() == ".glb":
-        header, chunk = _glb_parts(raw)
-    else:
-        header, chunk = json.loads(raw.decode("utf-8")), None
     chosen = needs_decoding(header)
     if not chosen:
         return None
+    chunk = _binary_chunk(path.read_bytes()) if path.suffix.lower() == ".glb" else None
     buffers = []
     for i, buffer in enumerate(header.get("buffers") or ()):
         uri = buffer.get("uri") if isinstance(buffer, dict) else None

@@ -372,8 +372,9 @@ def load_mesh_file(path: str | Path, **options):
             if fixed is not None:
                 return trimesh.load(io.BytesIO(fixed), file_type="stl", **options)
         if suffix in (".gltf", ".glb"):
-            if _check_gltf(path) is not None:
-                decoded = decoded_gltf(path, _resolver(path))
+            header = _check_gltf(path)
+            if header is not None:
+                decoded = decoded_gltf(path, header, _resolver(path))
                 if decoded is not None:  # positions trimesh would misread, rewritten as floats
                     return trimesh.load(io.BytesIO(decoded), file_type="gltf", resolver=_resolver(path), **options)
             if suffix == ".gltf":

@@ -33,11 +33,11 @@ import numpy as np
 from ..core.errors import ProcmodError
 from ..core.io import read_json, write_text_atomic
 from ..core.limits import MAX_COORDINATE
+from ..geometry.assets import MAX_DEPTH  # one depth limit for example files and asset files
 from ..geometry.part_library import (PartLibraryError, PartShape, read_part_library, read_transform,
                                      transform_to_json)
 
 FORMAT = "procmod-examples/1"
-MAX_DEPTH = 256
 # The cosine between two columns of a transform's 3x3 part above which it shears: 2e-3 is
 # about 0.1 degree, what matrices written at 3-5 decimals leave (rounded spaceship
 # transforms were refused at 1e-6); decompose() re-orthonormalises what is accepted.
