@@ -102,6 +102,20 @@ def test_read_versioned_json_names_the_file_and_the_format(tmp_path):
         read_versioned_json(tmp_path / "none.json", "procmod-x/1", Refused)
 
 
+def test_a_key_given_twice_is_refused_not_silently_the_last(tmp_path):
+    # an examples file with two "wing" parts learned from the second one without a word
+    from procmod.learn import ExamplesError, read_examples
+
+    path = tmp_path / "examples.json"
+    path.write_text('{"format": "procmod-examples/1", "parts": {"wing": {"box": [1, 1, 1]}, '
+                    '"wing": {"box": [2, 1, 1]}}, "examples": [{"part": "wing", "transform": '
+                    '[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "children": []}]}')
+    with pytest.raises(ExamplesError, match=r"examples.json: the key 'wing' appears twice in one object; keep one"):
+        read_examples(path)
+    path.write_text('{"format": "procmod-x/1", "a": {"n": 1, "m": 2}, "b": [{"n": 1}, {"n": 2}]}')
+    assert read_versioned_json(path, "procmod-x/1", Refused)["b"] == [{"n": 1}, {"n": 2}]  # same key, two objects
+
+
 def _learn_resample_before(objectives, rng):
     """learn.search._resample's indices as written before it used core.random.resample."""
     scores = np.array(objectives)

@@ -411,3 +411,87 @@ def test_the_package_learn_takes_every_argument_the_pipeline_does():
     from procmod.learn.pipeline import learn as pipeline_learn
 
     assert list(inspect.signature(learn).parameters) == list(inspect.signature(pipeline_learn).parameters)
+
+
+def _scaled(example_set, k):
+    """``example_set`` as exported at ``k`` times its size through the transforms (an FBX
+    or glTF export of a centimetre scene often carries a root scale of 100 or 0.01)."""
+    from procmod.learn.examples import ExampleNode
+
+    scale = np.diag([k, k, k, 1.0])
+
+    def walk(n):
+        return ExampleNode(n.part, scale @ np.asarray(n.transform), [walk(c) for c in n.children])
+
+    return type(example_set)(example_set.parts, [walk(e) for e in example_set.examples], example_set.base_dir)
+
+
+def test_examples_in_other_units_learn_the_same_program():
+    """The same castles exported at 100x (a centimetre scene) saw log-scales shifted by
+    log 100 and root placements past the translation cap, and learned 45 abstractions
+    against 11. Components are now measured in the examples' own units."""
+    s = load("castles", [0, 1, 2])
+    d, big = preprocess(s), preprocess(_scaled(s, 100.0))
+    assert big.units.world_extent == pytest.approx(100 * d.units.world_extent, rel=1e-9)
+    assert big.slots == d.slots and big.groups == d.groups and len(big.nodes) == len(d.nodes)
+    for a, b in zip(d.nodes, big.nodes):
+        assert (a.type, a.count) == (b.type, b.count)
+        for field in ("x", "sym"):
+            if getattr(a, field) is not None:
+                assert np.allclose(getattr(a, field), getattr(b, field), atol=1e-9), (a.type, field)
+    # each part's placements have mean log-scale 0 against its reference
+    xs = {}
+    for n in d.nodes:
+        if n.kind == "part":
+            xs.setdefault(n.part, []).append(n.x[:3])
+    assert all(np.allclose(np.mean(v, axis=0), 0, atol=1e-12) for v in xs.values())
+    # (not fitted: Adam's steps are as large for a gradient of 1e-15 as for 1, so rounding
+    # on a component constant across the examples moves the two fits apart)
+    p, q = (initial_program(data, np.random.default_rng(0)) for data in (d, big))
+    assert log_likelihood(q, big, "free") == pytest.approx(log_likelihood(p, d, "free"), rel=1e-9)
+    # samples of the two programs: the same objects, one 100x the other
+    for seed in range(3):
+        a = derivation_hierarchies(run_forward(program_model(p, "m"), np.random.default_rng(seed)))
+        b = derivation_hierarchies(run_forward(program_model(q, "cm"), np.random.default_rng(seed)))
+        got, want = _flatten(b[0]), _flatten(a[0])
+        assert [g[0] for g in got] == [w[0] for w in want]
+        for (_, tb), (_, ta) in zip(got, want):
+            assert np.allclose(tb, np.diag([100.0, 100, 100, 1]) @ ta, rtol=1e-6, atol=1e-6 * 100)
+
+
+def test_units_are_saved_with_the_program_and_older_programs_read_without_them(saved, tmp_path):
+    import shutil
+    from procmod.learn.transforms import Units
+
+    out, p = saved
+    assert p.units.world_extent > 1.0 and p.units.part_log_scales  # the stations' own size
+    again = read_program(out)
+    assert again.units.world_extent == p.units.world_extent
+    assert all(np.array_equal(again.units.part_log_scales[k], v) for k, v in p.units.part_log_scales.items())
+    d = tmp_path / "old"
+    shutil.copytree(out, d)
+    j = json.loads((d / "program.json").read_text())
+    del j["units"]  # written before units existed: learned with extent 1, no references
+    (d / "program.json").write_text(json.dumps(j))
+    old = read_program(d)
+    assert old.units == Units()
+    assert run_forward(program_model(old, "old"), np.random.default_rng(0)).geometry()
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda u: u.update(world_extent=-1), "units.world_extent must be a positive length"),
+    (lambda u: u.update(world_extent="big"), "malformed program"),
+    (lambda u: u["part_log_scales"].update(ghost=[0, 0, 0]), "units name part 'ghost'"),
+    (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): [0, 1e9, 0]}),
+     r"part_log_scales\[.*\] must be three finite log-scales"),
+])
+def test_malformed_units(saved, tmp_path, damage, message):
+    import shutil
+    out, _ = saved
+    d = tmp_path / "p"
+    shutil.copytree(out, d)
+    j = json.loads((d / "program.json").read_text())
+    damage(j["units"])
+    (d / "program.json").write_text(json.dumps(j))
+    with pytest.raises(ProcmodError, match=message):
+        load_program(d)

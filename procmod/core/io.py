@@ -139,11 +139,34 @@ def fingerprint(data: bytes | str) -> str:
 
 # ---- JSON --------------------------------------------------------------------------------------
 
+class _DuplicateKey(Exception):
+    def __init__(self, key: str):
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_keys(pairs: list) -> dict:
+    """A JSON object's dict, refusing a key given twice: Python's reader keeps the last one
+    silently, so a hand-edited file with two ``"wing"`` parts learned from one of them."""
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise _DuplicateKey(key)
+            seen.add(key)
+    return out
+
+
 def parse_json(text: str, source: str, error: type = DerivationFormatError):
     """``json.loads(text)``, with every way it fails (bad syntax, nesting deeper than
-    Python's stack: a file of 100,000 ``[``) raised as ``error(f"{source}: ...")``, one line."""
+    Python's stack: a file of 100,000 ``[``, a key twice in one object) raised as
+    ``error(f"{source}: ...")``, one line."""
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys)
+    except _DuplicateKey as exc:
+        raise error(f"{source}: the key {_cut(repr(exc.key), 80)} appears twice in one object; keep one of them "
+                    "(which one was meant is not clear, so neither is used)") from None
     except json.JSONDecodeError as exc:
         raise error(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except RecursionError:

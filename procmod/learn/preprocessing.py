@@ -31,8 +31,9 @@ from scipy.spatial.distance import cdist
 from ..geometry.part_library import flip_deviations, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
+from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
-from .transforms import WORLD_FRAME, Frame, frame_of, sym_params, xform_params
+from .transforms import Frame, Units, frame_of, sym_params, xform_params
 
 OVERLAP_VOXELS = 40
 SLOT_SAMPLES = 64  # surface points per part for the Hausdorff distances of eq. 1
@@ -74,7 +75,9 @@ class Dataset:
     ``slots[T]``: the slot types of part type T, in slot order; ``groups[T]``: its slot
     groups (lists of slot indices); ``nodes``: every processed node (``nodes[i].id == i``);
     ``roots``: the root node of each example; ``sym_inner[type]``: the child type of a
-    symmetry type; ``max_count[type]``: the largest member count seen.
+    symmetry type; ``max_count[type]``: the largest member count seen; ``units``: the
+    lengths the transform components are measured against
+    (:class:`procmod.learn.transforms.Units`).
     """
 
     parts: dict
@@ -85,6 +88,7 @@ class Dataset:
     sym_inner: dict
     max_count: dict
     hausdorff_objective: dict = field(default_factory=dict)
+    units: Units = Units()
 
     @property
     def types(self) -> list:
@@ -308,9 +312,33 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         pnode.height = child.height + 1
         return pnode
 
-    roots = [convert_part(info, WORLD_FRAME, k).id for k, info in enumerate(root_infos)]
+    world_extent = set_size(example_set)
+    roots = [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
+    units = Units(world_extent, reference_log_scales(nodes))
+    for n in nodes:
+        if n.kind == "part":
+            n.x[0:3] -= units.log_scale(n.part)
     unwrap_angles(nodes)
-    return Dataset(parts, slots, groups, nodes, roots, sym_inner, max_count, objective)
+    return Dataset(parts, slots, groups, nodes, roots, sym_inner, max_count, objective, units)
+
+
+def set_size(example_set: ExampleSet) -> float:
+    """The world frame's extent (:class:`~procmod.learn.transforms.Units`): the geometric
+    mean of the examples' bounding-box diagonals (1 if they have no size)."""
+    logs = [np.log(d) for d in (example_diagonal(root, example_set.parts) for root in example_set.examples)
+            if d > 0]
+    size = float(np.exp(np.mean(logs))) if logs else 1.0
+    return size if np.isfinite(size) and size > 0 else 1.0
+
+
+def reference_log_scales(nodes: list) -> dict:
+    """Per part name, the mean log-scale (per axis) of its part nodes: the reference
+    their components' log-scales are taken against."""
+    logs = {}
+    for n in nodes:
+        if n.kind == "part":
+            logs.setdefault(n.part, []).append(n.x[0:3])
+    return {part: tuple(float(v) for v in np.mean(values, axis=0)) for part, values in logs.items()}
 
 
 def _wrap(a):

@@ -19,6 +19,11 @@ A :class:`Program` holds
   - ``<a>.sym.{mu,rs}`` — independent Gaussians over the symmetry parameters, and
     ``<a>.count`` — logits over the member count.
 
+Transform components are measured in the program's :class:`~procmod.learn.transforms.Units`
+(the examples' size for the roots' frame, each part's reference log-scale), so that the
+same set modelled in other units learns the same program; a program written before
+units existed reads with extent 1 and no references, as it was learned.
+
 Standard deviations are ``min(floor + exp(raw), cap)``; during phase 2 of the search they are
 fixed (:data:`procmod.learn.transforms.FIXED_SIGMA`). Every part abstraction generates
 exactly one part type (splits preserve types), so its part distribution is a point mass
@@ -55,7 +60,7 @@ from ..core.paths import FileNames, UnsafePathError, named_file
 from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
-from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, WORLD_FRAME,
+from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units,
                          Frame, frame_of, sym_maps, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
@@ -108,6 +113,7 @@ class Program:
     next_id: int = 0
     info: dict = field(default_factory=dict)
     parts_json: dict = field(default_factory=dict)
+    units: Units = Units()  # what the transform components are measured against
 
     # ---- structure helpers -----------------------------------------------------------
 
@@ -171,7 +177,7 @@ class Program:
 
 # ---- the rule ------------------------------------------------------------------------------
 
-def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame) -> np.ndarray:
+def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame, part: str) -> np.ndarray:
     pre = f"{program.prefix(caller)}.s{slot}"
     p = program.params
     order = program.orders[program.xform_key(caller, slot)]
@@ -195,7 +201,7 @@ def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame) -
         bit = ctx.sample(f"x.sg{i}", Bernoulli(prob))
         signs[i] = bit
         a = a + sW[:, i] * float(bit)
-    return xform_matrix(x, signs, frame)
+    return xform_matrix(x, signs, frame, program.units.log_scale(part))
 
 
 def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies: tuple):
@@ -204,7 +210,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
     a = program.abstractions[a_id]
     p = program.params
     if a.kind == "part":
-        world = _sample_xform(ctx, program, caller, slot, frame)
+        world = _sample_xform(ctx, program, caller, slot, frame, a.type)
         shape = program.parts[a.type]
         for g in copies:
             ctx.emit(shape.part(as_transform(np.asarray(g).reshape(4, 4) @ world)))
@@ -242,7 +248,7 @@ IDENTITY_COPIES = (as_transform(np.eye(4)),)
 
 def program_root_args(program: Program, params) -> tuple:
     """Root arguments of a learned program's model (a named function, so models pickle)."""
-    return (program, ROOT, 0, WORLD_FRAME, IDENTITY_COPIES)
+    return (program, ROOT, 0, program.units.world_frame(), IDENTITY_COPIES)
 
 
 def is_learned(model: Model) -> bool:
@@ -312,6 +318,9 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                           "part_distribution": {a.type: 1.0} if a.kind == "part" else None,
                           "callees": a.callees} for a in sorted(program.abstractions.values(), key=lambda a: a.id)],
         "info": program.info,
+        "units": {"world_extent": program.units.world_extent,
+                  "part_log_scales": {k: [float(v) for v in program.units.part_log_scales[k]]
+                                      for k in sorted(program.units.part_log_scales)}},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -410,7 +419,26 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
                    sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
-                   info=dict(data.get("info", {})), parts_json=data.get("parts", {}))
+                   info=dict(data.get("info", {})), parts_json=data.get("parts", {}),
+                   units=_units_from_json(data.get("units")))
+
+
+def _units_from_json(data) -> Units:
+    """A program's units (absent: written before units existed, learned with extent 1 and
+    no reference scales). Checked: a value that is not a positive finite length or a
+    finite log-scale raises ValueError, which the readers report as a malformed program."""
+    if data is None:
+        return Units()
+    extent = float(data["world_extent"])
+    if not math.isfinite(extent) or not 0 < extent <= 1e15:
+        raise ValueError(f"units.world_extent must be a positive length, got {data['world_extent']!r:.40}")
+    logs = {}
+    for part, values in dict(data["part_log_scales"]).items():
+        values = np.array([float(v) for v in values], dtype=np.float64)
+        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 700:
+            raise ValueError(f"units.part_log_scales[{part!r}] must be three finite log-scales")
+        logs[str(part)] = tuple(float(v) for v in values)
+    return Units(extent, logs)
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw
@@ -431,6 +459,9 @@ def _check_references(program: Program, path) -> None:
     when a sample reached the edit (a KeyError or IndexError traceback), or sampled
     nonsense (a count below 2, a slot calling an abstraction of another type)."""
     p = program.params
+    unknown = sorted(set(program.units.part_log_scales) - set(program.parts))
+    if unknown:
+        raise _fail(path, f"units name part {unknown[0]!r}, which the program's parts do not hold")
 
     def need(key: str, size: int | None = None) -> None:
         if key not in p:

@@ -46,7 +46,8 @@ from .program import ROOT, Program, program_from_json, program_to_json
 from ..parallel import InlineExecutor as _Inline
 from .structure import TAU_SNAP, initial_program, snap, split
 
-CHECKPOINT_FORMAT = "procmod-learn-checkpoint/1"
+# /2: transform components measured in the examples' units (a /1 checkpoint's programs were not)
+CHECKPOINT_FORMAT = "procmod-learn-checkpoint/2"
 TAU_GAUSS = math.exp(-1)
 
 

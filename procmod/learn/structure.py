@@ -94,7 +94,7 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
     orders = {key: nade_order(x) for key, (x, _) in stats.items()}
     program = Program(parts=data.parts, slots=data.slots, groups=data.groups, sym_inner=data.sym_inner,
                       count_support={t: list(range(2, m + 1)) for t, m in data.max_count.items()},
-                      orders=orders)
+                      orders=orders, units=data.units)
     ids = {}
     for t in part_types:
         ids[t] = program.next_id

@@ -13,6 +13,18 @@ scaled by ``|s|``). The 9 continuous components, in the Gaussian NADE's category
 * ``t0..2`` — ``Rp^T (t - tp) / E`` (translation as a fraction of the parent's box),
 
 plus three sign bits (``s_i < 0``). Symmetry maps are handled in the same frame.
+
+**Units.** The learned densities must not depend on the units the examples were modelled
+in (metres, or centimetres as Maya and FBX exports carry them, often as a root scale of
+100 or 0.01). Two lengths are therefore measured against the example set itself
+(:class:`Units`, found by :func:`procmod.learn.preprocessing.preprocess` and stored with
+the program): a child's log-scale is taken relative to its part's reference log-scale
+(the mean of ``log |s|`` over the part's placements in the examples), and the roots are
+placed in a world frame whose extent is the examples' size (the geometric mean of their
+bounding-box diagonals) instead of one unit. Before, a set exported at 100x learned 45
+abstractions against 11 (the NADEs' hidden units saw log-scales shifted by log 100, and
+the roots' translations met the absolute sigma cap). With both, a set and its copy at
+any scale have the same components, so they learn the same program.
 """
 
 from __future__ import annotations
@@ -51,6 +63,26 @@ class Frame(NamedTuple):
 
 
 WORLD_FRAME = Frame(np.eye(3), np.zeros(3), np.ones(3))
+NO_LOG_SCALE = (0.0, 0.0, 0.0)
+
+
+class Units(NamedTuple):
+    """The lengths an example set's transform components are measured against (see the
+    module docstring): the world frame's extent and, per part name, the reference
+    log-scale of its placements (three floats; a part missing from it has reference 0:
+    scale 1). A program written before units existed has ``Units()``: extent 1, no
+    references. Immutable and comparable with ``==``."""
+
+    world_extent: float = 1.0
+    part_log_scales: dict = {}
+
+    def world_frame(self) -> Frame:
+        """The frame the roots are placed in."""
+        return Frame(np.eye(3), np.zeros(3), np.full(3, float(self.world_extent)))
+
+    def log_scale(self, part: str) -> tuple:
+        """The reference log-scale of ``part``'s placements."""
+        return self.part_log_scales.get(part, NO_LOG_SCALE)
 
 
 def decompose(m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -87,20 +119,21 @@ def rot_of(angles) -> np.ndarray:
     return Rotation.from_euler("xyz", np.asarray(angles, dtype=np.float64)).as_matrix()
 
 
-def xform_params(world, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
-    """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``."""
+def xform_params(world, frame: Frame, log_scale=NO_LOG_SCALE) -> tuple[np.ndarray, np.ndarray]:
+    """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``;
+    the log-scales relative to ``log_scale`` (the part's reference, :class:`Units`)."""
     rot, s, t = decompose(world)
     x = np.empty(9)
-    x[0:3] = np.log(np.abs(s))
+    x[0:3] = np.log(np.abs(s)) - log_scale
     x[3:6] = euler_of(frame.rot.T @ rot)
     x[6:9] = (frame.rot.T @ (t - frame.t)) / frame.extent
     return x, s < 0
 
 
-def xform_matrix(x, signs, frame: Frame) -> np.ndarray:
+def xform_matrix(x, signs, frame: Frame, log_scale=NO_LOG_SCALE) -> np.ndarray:
     """Inverse of :func:`xform_params`: the world 4x4 of a child."""
     x = np.asarray(x, dtype=np.float64)
-    s = np.exp(x[0:3]) * np.where(np.asarray(signs, dtype=bool), -1.0, 1.0)
+    s = np.exp(x[0:3] + log_scale) * np.where(np.asarray(signs, dtype=bool), -1.0, 1.0)
     rot = frame.rot @ rot_of(x[3:6])
     m = np.eye(4)
     m[:3, :3] = rot * s
