@@ -426,11 +426,14 @@ def _scaled(example_set, k):
     return type(example_set)(example_set.parts, [walk(e) for e in example_set.examples], example_set.base_dir)
 
 
-def test_examples_in_other_units_learn_the_same_program():
+@pytest.mark.parametrize("name", ["castles", "ornaments"])
+def test_examples_in_other_units_learn_the_same_program(name):
     """The same castles exported at 100x (a centimetre scene) saw log-scales shifted by
     log 100 and root placements past the translation cap, and learned 45 abstractions
-    against 11. Components are now measured in the examples' own units."""
-    s = load("castles", [0, 1, 2])
+    against 11. Components are now measured in the examples' own units. (The ornaments'
+    rotation axes along z also had azimuths of atan2 of rounding errors, which changed
+    with the units.)"""
+    s = load(name, [0, 1, 2])
     d, big = preprocess(s), preprocess(_scaled(s, 100.0))
     assert big.units.world_extent == pytest.approx(100 * d.units.world_extent, rel=1e-9)
     assert big.slots == d.slots and big.groups == d.groups and len(big.nodes) == len(d.nodes)
@@ -495,3 +498,30 @@ def test_malformed_units(saved, tmp_path, damage, message):
     (d / "program.json").write_text(json.dumps(j))
     with pytest.raises(ProcmodError, match=message):
         load_program(d)
+
+
+def test_a_flat_parent_measures_its_children_in_the_examples_units(tmp_path):
+    """A zero-thickness part (a quad: a decal, a pane, a ground plane) had a frame of
+    extent 1e-6 world units across its plane, so a child 0.5 above it sat at 500,000 of
+    that extent in metres and 50,000,000 in centimetres. The floor is now a fraction of
+    the part's own size."""
+    (tmp_path / "quad.obj").write_text("v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 2 3\nf 1 3 4\n")
+
+    def place(x, y, z, k=1.0):
+        m = np.eye(4)
+        m[:3, 3] = (x, y, z)
+        return np.diag([k, k, k, 1.0]) @ m
+
+    def examples(k):
+        return examples_from_dict({"format": "procmod-examples/1", "parts": {
+            "pane": {"mesh": "quad.obj"}, "knob": {"box": [0.2, 0.2, 0.2]}},
+            "examples": [{"part": "pane", "transform": place(0, 1, 0, k).tolist(), "children": [
+                {"part": "knob", "transform": place(0.3 * i, 1 + h, 0, k).tolist(), "children": []}]}
+                for i, h in enumerate((0.4, 0.5, 0.6))]}, tmp_path)
+
+    d, big = preprocess(examples(1.0)), preprocess(examples(100.0))
+    knobs = [(a.x, b.x) for a, b in zip(d.nodes, big.nodes) if a.part == "knob"]
+    assert len(knobs) == 3
+    for a, b in knobs:
+        assert np.allclose(a, b, atol=1e-9)
+        assert np.abs(a[6:]).max() < 1e3  # heights as a fraction of the pane's size, not of 1e-6

@@ -102,10 +102,19 @@ def decompose(m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return rot, s, m[:3, 3].copy()
 
 
+# A frame's extent along an axis is at least this fraction of its largest: a flat part (a
+# quad has no thickness) measures its children's offsets off its plane in its own size.
+# (An absolute floor of 1e-6 world units made a child 0.5 above a pane sit at 500,000
+# extents in metres and 100x that in centimetres.)
+FLAT_EXTENT = 1e-3
+
+
 def frame_of(world, local_lo, local_hi) -> Frame:
     """The frame of a part placed by ``world`` whose local box is [lo, hi]."""
     rot, s, t = decompose(world)
-    extent = np.maximum(np.abs(s) * (np.asarray(local_hi) - np.asarray(local_lo)), 1e-6)
+    extent = np.abs(s) * (np.asarray(local_hi, dtype=np.float64) - np.asarray(local_lo, dtype=np.float64))
+    largest = float(extent.max())
+    extent = np.maximum(extent, FLAT_EXTENT * largest if largest > 0 else 1.0)
     return Frame(rot, t, extent)
 
 
@@ -159,9 +168,17 @@ def canonical_direction(v: np.ndarray) -> tuple[np.ndarray, float]:
     return sign * v, sign
 
 
+# Below this distance of a unit direction from the z axis its azimuth is 0: at the pole
+# the azimuth is undefined, and atan2 of two rounding errors gave anything in (-pi, pi]
+# (ornaments' flowers, turned about z: their rotation axes' azimuths changed with the
+# units the set was exported in, and so did the program learned).
+POLE = 1e-9
+
+
 def direction_angles(n: np.ndarray) -> tuple[float, float]:
     n = n / np.linalg.norm(n)
-    return math.acos(max(-1.0, min(1.0, n[2]))), math.atan2(n[1], n[0])
+    polar = math.acos(max(-1.0, min(1.0, n[2])))
+    return polar, (math.atan2(n[1], n[0]) if math.hypot(n[0], n[1]) > POLE else 0.0)
 
 
 def angles_direction(polar: float, azimuth: float) -> np.ndarray:
