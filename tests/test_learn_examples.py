@@ -39,6 +39,17 @@ def test_reads_a_valid_object():
     assert s.examples[0].size() == 2
 
 
+def test_a_very_unequal_scale_is_not_taken_for_a_singular_one():
+    # 1 along x and 1e11 along z: the determinant over the largest entry read 1e-22, and
+    # the transform was refused as "singular" though it flattens nothing
+    data = small()
+    data["examples"][0]["children"][0]["transform"] = [[1, 0, 0, 1.5], [0, 1, 0, 0], [0, 0, 1e11, 0], [0, 0, 0, 1]]
+    assert examples_from_dict(data).examples[0].children[0].transform[2][2] == 1e11
+    data["examples"][0]["children"][0]["transform"] = [[1, 1, 0, 0], [0, 1e-12, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    with pytest.raises(ProcmodError, match=r"examples\[0\].children\[0\].transform.*not invertible"):
+        examples_from_dict(data)  # two axes (nearly) parallel: flat however it is scaled
+
+
 @pytest.mark.parametrize("edit, where", [
     (lambda d: d.update(format="procmod-examples/2"), "format"),
     (lambda d: d["examples"][0]["children"][0].update(part="wing"), "examples[0].children[0].part"),

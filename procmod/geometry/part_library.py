@@ -152,11 +152,21 @@ def read_transform(value, where: str) -> np.ndarray:
         # squares of such numbers overflow: the learner's SVDs spun on NaN matrices, deaf to SIGTERM
         raise PartLibraryError(f"{where}: a number beyond {MAX_COORDINATE:g} ({float(np.abs(m).max()):g}); the "
                                "examples' placements and scales must be ordinary lengths: check the file's units")
-    linear = m[:3, :3]
-    scale = max(float(np.abs(linear).max()), 1e-300)
-    if abs(np.linalg.det(linear / scale)) < 1e-9:
+    if is_singular(m[:3, :3]):
         raise PartLibraryError(f"{where}: the transform is not invertible (its 3x3 part is singular)")
     return m
+
+
+def is_singular(linear) -> bool:
+    """Whether a 3x3 linear map flattens space: an axis scaled to zero, or axes (nearly)
+    parallel. Each column is measured against its own length, so a very unequal scale
+    (1 along x, 1e11 along z) is not taken for a flat one, as the determinant over the
+    largest entry took it."""
+    linear = np.asarray(linear, dtype=np.float64)
+    lengths = np.linalg.norm(linear, axis=0)
+    if not lengths.min() > 0:
+        return True
+    return abs(float(np.linalg.det(linear / lengths))) < 1e-9
 
 
 def transform_to_json(m) -> list[list[float]]:

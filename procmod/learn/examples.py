@@ -34,7 +34,7 @@ from ..core.errors import ProcmodError
 from ..core.io import read_json, write_text_atomic
 from ..core.limits import MAX_COORDINATE
 from ..geometry.assets import MAX_DEPTH  # one depth limit for example files and asset files
-from ..geometry.part_library import (PartLibraryError, PartShape, read_part_library, read_transform,
+from ..geometry.part_library import (PartLibraryError, PartShape, is_singular, read_part_library, read_transform,
                                      transform_to_json)
 
 FORMAT = "procmod-examples/1"
@@ -165,9 +165,7 @@ def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
         # squares of such numbers overflow: the learner's SVDs spun on NaN matrices, deaf to SIGTERM
         raise ExamplesError(f"{where}: its world transform holds a number beyond {MAX_COORDINATE:g} (or not finite); "
                             "placements and scales must be ordinary lengths: check the file's units")
-    linear = m[:3, :3]
-    scale = max(float(np.abs(linear).max()), 1e-300)
-    if abs(np.linalg.det(linear / scale)) < 1e-9:
+    if is_singular(m[:3, :3]):
         raise ExamplesError(f"{where}: its world transform is singular (a scale of zero); procmod learn needs "
                             "every part to have a volume's worth of placement")
     if has_shear(m):
