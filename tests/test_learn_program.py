@@ -487,6 +487,14 @@ def test_units_are_saved_with_the_program_and_older_programs_read_without_them(s
     (lambda u: u["part_log_scales"].update(ghost=[0, 0, 0]), "units name part 'ghost'"),
     (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): [0, 1e9, 0]}),
      r"part_log_scales\[.*\] must be three finite log-scales"),
+    # float() took these: true as 1, "100" as 100, "000" as three zeros
+    (lambda u: u.update(world_extent=True), "units.world_extent must be a positive length"),
+    (lambda u: u.update(world_extent="100"), "units.world_extent must be a positive length"),
+    (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): "000"}),
+     r"part_log_scales\[.*\] must be three finite log-scales"),
+    (lambda u: u.update(part_log_scales=[["keep", [0, 0, 0]]]), "units must be an object"),
+    (lambda u: u.clear(), "units must be an object"),
+    (lambda u: ("replace", None), "units must be an object"),  # null was read as no units
 ])
 def test_malformed_units(saved, tmp_path, damage, message):
     import shutil
@@ -494,7 +502,9 @@ def test_malformed_units(saved, tmp_path, damage, message):
     d = tmp_path / "p"
     shutil.copytree(out, d)
     j = json.loads((d / "program.json").read_text())
-    damage(j["units"])
+    replaced = damage(j["units"])
+    if isinstance(replaced, tuple):
+        j["units"] = replaced[1]
     (d / "program.json").write_text(json.dumps(j))
     with pytest.raises(ProcmodError, match=message):
         load_program(d)
@@ -503,8 +513,8 @@ def test_malformed_units(saved, tmp_path, damage, message):
 def test_a_flat_parent_measures_its_children_in_the_examples_units(tmp_path):
     """A zero-thickness part (a quad: a decal, a pane, a ground plane) had a frame of
     extent 1e-6 world units across its plane, so a child 0.5 above it sat at 500,000 of
-    that extent in metres and 50,000,000 in centimetres. The floor is now a fraction of
-    the part's own size."""
+    that extent in metres and 50,000,000 in centimetres. A flat axis is now measured in
+    the part's size; a program learned before keeps the old floor, as it was learned."""
     (tmp_path / "quad.obj").write_text("v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nf 1 2 3\nf 1 3 4\n")
 
     def place(x, y, z, k=1.0):
@@ -524,4 +534,9 @@ def test_a_flat_parent_measures_its_children_in_the_examples_units(tmp_path):
     assert len(knobs) == 3
     for a, b in knobs:
         assert np.allclose(a, b, atol=1e-9)
-        assert np.abs(a[6:]).max() < 1e3  # heights as a fraction of the pane's size, not of 1e-6
+        assert np.abs(a[6:]).max() < 1.0  # heights as a fraction of the pane's size (2), not of 1e-6
+    from procmod.learn.transforms import Units
+    pane = place(0, 1, 0)
+    lo, hi = np.array([-1.0, 0, -1]), np.array([1.0, 0, 1])
+    assert np.allclose(d.units.frame_of(pane, lo, hi).extent, [2, 2, 2])
+    assert np.allclose(Units().frame_of(pane, lo, hi).extent, [2, 1e-6, 2])  # a program learned before units

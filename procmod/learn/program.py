@@ -61,7 +61,7 @@ from ..core.io import load_tensors, read_versioned_json, save_tensors, write_tex
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
 from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units,
-                         Frame, frame_of, sym_maps, xform_matrix)
+                         Frame, sym_maps, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
 MAX_DEPTH = 40
@@ -217,7 +217,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
         if ctx.depth >= MAX_DEPTH:
             return
         lo, hi = shape.local_bounds()
-        own = frame_of(world, lo, hi)
+        own = program.units.frame_of(world, lo, hi)
         for g_index, group in enumerate(program.groups.get(a.type, [])):
             pre = f"{a_id}.g{g_index}"
             W, c, V, b = p[f"{pre}.W"], p[f"{pre}.c"], p[f"{pre}.V"], p[f"{pre}.b"]
@@ -420,25 +420,36 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
                    sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
                    info=dict(data.get("info", {})), parts_json=data.get("parts", {}),
-                   units=_units_from_json(data.get("units")))
+                   units=_units_from_json(data.get("units", _NO_UNITS)))
+
+
+_NO_UNITS = object()
+
+
+def _real(value) -> bool:
+    """A JSON number (not a bool, a string or null), finite."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _units_from_json(data) -> Units:
-    """A program's units (absent: written before units existed, learned with extent 1 and
-    no reference scales). Checked: a value that is not a positive finite length or a
-    finite log-scale raises ValueError, which the readers report as a malformed program."""
-    if data is None:
+    """A program's units. Absent: written before units existed, learned with extent 1, no
+    reference scales and the old floor for flat parts (``Units()``). Present: the units
+    ``preprocess`` found, flat parts measured by their size. Checked: anything but a
+    positive length and three finite log-scales per part raises ValueError, which the
+    readers report as a malformed program."""
+    if data is _NO_UNITS:
         return Units()
-    extent = float(data["world_extent"])
-    if not math.isfinite(extent) or not 0 < extent <= 1e15:
-        raise ValueError(f"units.world_extent must be a positive length, got {data['world_extent']!r:.40}")
+    if not isinstance(data, dict) or not isinstance(data.get("part_log_scales"), dict):
+        raise ValueError(f"units must be an object with world_extent and part_log_scales, got {data!r:.60}")
+    extent = data.get("world_extent")
+    if not _real(extent) or not 0 < extent <= 1e15:
+        raise ValueError(f"units.world_extent must be a positive length, got {extent!r:.40}")
     logs = {}
-    for part, values in dict(data["part_log_scales"]).items():
-        values = np.array([float(v) for v in values], dtype=np.float64)
-        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 700:
-            raise ValueError(f"units.part_log_scales[{part!r}] must be three finite log-scales")
-        logs[str(part)] = tuple(float(v) for v in values)
-    return Units(extent, logs)
+    for part, values in data["part_log_scales"].items():
+        if not isinstance(values, list) or len(values) != 3 or not all(_real(v) and abs(v) <= 700 for v in values):
+            raise ValueError(f"units.part_log_scales[{part!r}] must be three finite log-scales, got {values!r:.60}")
+        logs[part] = tuple(float(v) for v in values)
+    return Units(float(extent), logs, flat_by_size=True)
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw

@@ -68,13 +68,20 @@ NO_LOG_SCALE = (0.0, 0.0, 0.0)
 
 class Units(NamedTuple):
     """The lengths an example set's transform components are measured against (see the
-    module docstring): the world frame's extent and, per part name, the reference
-    log-scale of its placements (three floats; a part missing from it has reference 0:
-    scale 1). A program written before units existed has ``Units()``: extent 1, no
-    references. Immutable and comparable with ``==``."""
+    module docstring): the world frame's extent; per part name, the reference log-scale
+    of its placements (three floats; a part missing from it has reference 0: scale 1);
+    and how a flat part's frame is measured (``flat_by_size``: see :func:`frame_of`). A
+    program written before units existed has ``Units()``: extent 1, no references, the
+    old absolute floor, so it samples as it was learned. Not to be changed once made
+    (it is shared by copies of a program); comparable with ``==``."""
 
     world_extent: float = 1.0
     part_log_scales: dict = {}
+    flat_by_size: bool = False
+
+    def frame_of(self, world, local_lo, local_hi) -> "Frame":
+        """:func:`frame_of` with this program's convention for flat parts."""
+        return frame_of(world, local_lo, local_hi, self.flat_by_size)
 
     def world_frame(self) -> Frame:
         """The frame the roots are placed in."""
@@ -102,20 +109,30 @@ def decompose(m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return rot, s, m[:3, 3].copy()
 
 
-# A frame's extent along an axis is at least this fraction of its largest: a flat part (a
-# quad has no thickness) measures its children's offsets off its plane in its own size.
-# (An absolute floor of 1e-6 world units made a child 0.5 above a pane sit at 500,000
-# extents in metres and 100x that in centimetres.)
-FLAT_EXTENT = 1e-3
+# A part thinner than this fraction of its size along an axis is flat along it (a quad,
+# a decal, a pane: no thickness at all, or the rounding of one).
+FLAT = 1e-3
+LEGACY_FLOOR = 1e-6  # the absolute floor (world units) of programs learned before Units
 
 
-def frame_of(world, local_lo, local_hi) -> Frame:
-    """The frame of a part placed by ``world`` whose local box is [lo, hi]."""
+def frame_of(world, local_lo, local_hi, flat_by_size: bool = True) -> Frame:
+    """The frame of a part placed by ``world`` whose local box is [lo, hi].
+
+    Along an axis where the part is flat (under :data:`FLAT` of its largest extent) the
+    extent is its largest: the children's offsets off a pane's plane are measured in the
+    pane's size. The old floor of 1e-6 world units (``flat_by_size=False``, kept for
+    programs learned with it) put a knob 0.5 above a pane at 500,000 extents in metres and
+    100x that in centimetres, far past the translation cap, and the learner split
+    abstractions to make up for it; a floor of 1e-3 of the size still gave 200 extents.
+    Thin parts that are not flat (a wing 3% of its span) keep their own extent."""
     rot, s, t = decompose(world)
     extent = np.abs(s) * (np.asarray(local_hi, dtype=np.float64) - np.asarray(local_lo, dtype=np.float64))
+    if not flat_by_size:
+        return Frame(rot, t, np.maximum(extent, LEGACY_FLOOR))
     largest = float(extent.max())
-    extent = np.maximum(extent, FLAT_EXTENT * largest if largest > 0 else 1.0)
-    return Frame(rot, t, extent)
+    if not largest > 0:
+        return Frame(rot, t, np.ones(3))
+    return Frame(rot, t, np.where(extent < FLAT * largest, largest, extent))
 
 
 def euler_of(rot: np.ndarray) -> np.ndarray:
