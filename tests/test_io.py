@@ -110,7 +110,8 @@ def test_a_key_given_twice_is_refused_not_silently_the_last(tmp_path):
     path.write_text('{"format": "procmod-examples/1", "parts": {"wing": {"box": [1, 1, 1]}, '
                     '"wing": {"box": [2, 1, 1]}}, "examples": [{"part": "wing", "transform": '
                     '[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "children": []}]}')
-    with pytest.raises(ExamplesError, match=r"examples.json: the key 'wing' appears twice in one object; keep one"):
+    with pytest.raises(ExamplesError, match=r"examples.json: the key 'wing' appears twice in one object "
+                       r"\(values \{\"box\": \[1, 1, 1\]\} and \{\"box\": \[2, 1, 1\]\}\); keep one"):
         read_examples(path)
     path.write_text('{"format": "procmod-x/1", "a": {"n": 1, "m": 2}, "b": [{"n": 1}, {"n": 2}]}')
     assert read_versioned_json(path, "procmod-x/1", Refused)["b"] == [{"n": 1}, {"n": 2}]  # same key, two objects

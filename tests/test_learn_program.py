@@ -486,15 +486,22 @@ def test_units_are_saved_with_the_program_and_older_programs_read_without_them(s
     (lambda u: u.update(world_extent="big"), "malformed program"),
     (lambda u: u["part_log_scales"].update(ghost=[0, 0, 0]), "units name part 'ghost'"),
     (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): [0, 1e9, 0]}),
-     r"part_log_scales\[.*\] must be three finite log-scales"),
+     r"part_log_scales\[.*\] must be three log-scales within"),
     # float() took these: true as 1, "100" as 100, "000" as three zeros
     (lambda u: u.update(world_extent=True), "units.world_extent must be a positive length"),
     (lambda u: u.update(world_extent="100"), "units.world_extent must be a positive length"),
     (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): "000"}),
-     r"part_log_scales\[.*\] must be three finite log-scales"),
+     r"part_log_scales\[.*\] must be three log-scales within"),
     (lambda u: u.update(part_log_scales=[["keep", [0, 0, 0]]]), "units must be an object"),
     (lambda u: u.clear(), "units must be an object"),
     (lambda u: ("replace", None), "units must be an object"),  # null was read as no units
+    # an OverflowError traceback; samples of NaN and 1e304s; an SVD that did not converge
+    (lambda u: u.update(world_extent=10 ** 400), "units.world_extent must be a positive length"),
+    (lambda u: u.update(world_extent=1e15), "units.world_extent must be a positive length"),
+    (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): [700, 700, 700]}),
+     r"part_log_scales\[.*\] must be three log-scales within"),
+    (lambda u: u["part_log_scales"].update({next(iter(u["part_log_scales"])): [-700, 0, 0]}),
+     r"part_log_scales\[.*\] must be three log-scales within"),
 ])
 def test_malformed_units(saved, tmp_path, damage, message):
     import shutil
@@ -540,3 +547,27 @@ def test_a_flat_parent_measures_its_children_in_the_examples_units(tmp_path):
     lo, hi = np.array([-1.0, 0, -1]), np.array([1.0, 0, 1])
     assert np.allclose(d.units.frame_of(pane, lo, hi).extent, [2, 2, 2])
     assert np.allclose(Units().frame_of(pane, lo, hi).extent, [2, 1e-6, 2])  # a program learned before units
+
+
+def test_a_rotation_axis_along_z_read_at_float32_precision_has_azimuth_0():
+    """Transforms that went through a tool's float32 (or a file's 7 digits) put a rotation
+    axis along z a few 1e-7 off it, and its azimuth was atan2 of two rounding errors:
+    anything in (-pi, pi], a spread the search split abstractions over (ornaments: 10
+    abstractions for 8)."""
+    from procmod.learn.examples import ExampleNode
+
+    s = load("ornaments", [0, 1, 2])
+
+    def turned(n, m):
+        w = np.array([[float(f"{v:.7g}") for v in row] for row in m @ np.asarray(n.transform)])
+        return ExampleNode(n.part, w, [turned(c, m) for c in n.children])
+
+    def Ry(a):  # each example turned its own way about the vertical (then rounded)
+        c, si = math.cos(a), math.sin(a)
+        return np.array([[c, 0, si, 0], [0, 1, 0, 0], [-si, 0, c, 0], [0, 0, 0, 1.0]])
+
+    examples = [turned(e, Ry(0.3 + 0.7 * i)) for i, e in enumerate(s.examples)]
+    d = preprocess(type(s)(s.parts, examples, s.base_dir))
+    axes = [n.sym for n in d.nodes if n.kind == "rot"]
+    assert axes and all(a[0] < 1e-3 for a in axes)  # the flowers turn about z
+    assert all(a[1] == 0.0 for a in axes)

@@ -140,9 +140,9 @@ def fingerprint(data: bytes | str) -> str:
 # ---- JSON --------------------------------------------------------------------------------------
 
 class _DuplicateKey(Exception):
-    def __init__(self, key: str):
+    def __init__(self, key: str, values: list):
         super().__init__(key)
-        self.key = key
+        self.key, self.values = key, values
 
 
 def _unique_keys(pairs: list) -> dict:
@@ -153,7 +153,7 @@ def _unique_keys(pairs: list) -> dict:
         seen = set()
         for key, _ in pairs:
             if key in seen:
-                raise _DuplicateKey(key)
+                raise _DuplicateKey(key, [v for k, v in pairs if k == key])
             seen.add(key)
     return out
 
@@ -165,8 +165,10 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
     try:
         return json.loads(text, object_pairs_hook=_unique_keys)
     except _DuplicateKey as exc:
-        raise error(f"{source}: the key {_cut(repr(exc.key), 80)} appears twice in one object; keep one of them "
-                    "(which one was meant is not clear, so neither is used)") from None
+        # the values say where: a file has many "part" keys, and the reader has no positions
+        shown = " and ".join(_cut(json.dumps(v), 40) for v in exc.values[:2])
+        raise error(f"{source}: the key {_cut(repr(exc.key), 80)} appears twice in one object (values {shown}); "
+                    "keep one of them (which one was meant is not clear, so neither is used)") from None
     except json.JSONDecodeError as exc:
         raise error(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except RecursionError:

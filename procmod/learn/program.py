@@ -58,6 +58,7 @@ from ..core import Bernoulli, Categorical, Model, Normal
 from ..core.errors import ProcmodError
 from ..core.paths import FileNames, UnsafePathError, named_file
 from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
+from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
 from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units,
@@ -427,8 +428,18 @@ _NO_UNITS = object()
 
 
 def _real(value) -> bool:
-    """A JSON number (not a bool, a string or null), finite."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    """A JSON number (not a bool, a string or null) that is an ordinary float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return abs(value) < 1e300 if isinstance(value, int) else math.isfinite(value)  # 10**400: no float
+
+
+# What a program's units may hold: lengths and scales within what examples may hold
+# (coordinates up to core.limits.MAX_COORDINATE: a diagonal or an axis's scale up to
+# sqrt(3) of it); a reference scale of e^700 sampled NaN and 1e304s, one of e^-700 an SVD
+# that did not converge.
+MAX_UNIT_LENGTH = 4 * MAX_COORDINATE
+MAX_LOG_SCALE = math.log(MAX_UNIT_LENGTH)
 
 
 def _units_from_json(data) -> Units:
@@ -442,12 +453,14 @@ def _units_from_json(data) -> Units:
     if not isinstance(data, dict) or not isinstance(data.get("part_log_scales"), dict):
         raise ValueError(f"units must be an object with world_extent and part_log_scales, got {data!r:.60}")
     extent = data.get("world_extent")
-    if not _real(extent) or not 0 < extent <= 1e15:
-        raise ValueError(f"units.world_extent must be a positive length, got {extent!r:.40}")
+    if not _real(extent) or not 0 < extent <= MAX_UNIT_LENGTH:
+        raise ValueError(f"units.world_extent must be a positive length up to {MAX_UNIT_LENGTH:g}, got {extent!r:.40}")
     logs = {}
     for part, values in data["part_log_scales"].items():
-        if not isinstance(values, list) or len(values) != 3 or not all(_real(v) and abs(v) <= 700 for v in values):
-            raise ValueError(f"units.part_log_scales[{part!r}] must be three finite log-scales, got {values!r:.60}")
+        if not isinstance(values, list) or len(values) != 3 or not all(_real(v) and abs(v) <= MAX_LOG_SCALE
+                                                                          for v in values):
+            raise ValueError(f"units.part_log_scales[{part!r}] must be three log-scales within +-{MAX_LOG_SCALE:.1f} "
+                             f"(scales of 1/{MAX_UNIT_LENGTH:g} to {MAX_UNIT_LENGTH:g}), got {values!r:.60}")
         logs[part] = tuple(float(v) for v in values)
     return Units(float(extent), logs, flat_by_size=True)
 

@@ -188,8 +188,10 @@ def canonical_direction(v: np.ndarray) -> tuple[np.ndarray, float]:
 # Below this distance of a unit direction from the z axis its azimuth is 0: at the pole
 # the azimuth is undefined, and atan2 of two rounding errors gave anything in (-pi, pi]
 # (ornaments' flowers, turned about z: their rotation axes' azimuths changed with the
-# units the set was exported in, and so did the program learned).
-POLE = 1e-9
+# units the set was exported in, and so did the program learned). Well above float32
+# rounding, as transforms that went through a tool's float32 or a file's 7 digits carry
+# (1e-9 let those through: 10 abstractions for 8); an axis 1e-4 off z is along z.
+POLE = 1e-4
 
 
 def direction_angles(n: np.ndarray) -> tuple[float, float]:
