@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from procmod.learn import examples_from_dict, preprocess
-from procmod.learn.transforms import (WORLD_FRAME, decompose, frame_of, sym_maps, sym_params, xform_matrix,
+from procmod.learn.transforms import (WORLD_FRAME, angles_direction, decompose, frame_of, sym_maps, sym_params, xform_matrix,
                                       xform_params)
 
 
@@ -78,7 +78,7 @@ def test_reflection_pairs_with_subtrees_become_one_symmetry_node():
     (slot, sym), = root.children
     assert sym.kind == "refl" and sym.count == 2
     polar, azimuth, offset = sym.sym
-    assert np.isclose(polar, math.pi / 2) and np.isclose(azimuth, 0) and np.isclose(offset, 0)
+    assert np.allclose(angles_direction(polar, azimuth), [1, 0, 0]) and np.isclose(offset, 0)  # the x = 0 plane
     arm = sym.children[0][1]
     assert arm.part == "arm" and arm.x[6] > 0  # member 0 is on the plane's positive side
     assert [c.part for _, c in arm.children] == ["cap"]

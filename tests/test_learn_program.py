@@ -477,7 +477,8 @@ def test_units_are_saved_with_the_program_and_older_programs_read_without_them(s
     del j["units"]  # written before units existed: learned with extent 1, no references
     (d / "program.json").write_text(json.dumps(j))
     old = read_program(d)
-    assert old.units == Units()
+    assert old.units == Units() and old.units.conventions == 1 and np.array_equal(old.units.pole(), np.eye(3))
+    assert p.units.conventions == 2 and again.units.conventions == 2
     assert run_forward(program_model(old, "old"), np.random.default_rng(0)).geometry()
 
 
@@ -495,6 +496,7 @@ def test_units_are_saved_with_the_program_and_older_programs_read_without_them(s
     (lambda u: u.update(part_log_scales=[["keep", [0, 0, 0]]]), "units must be an object"),
     (lambda u: u.clear(), "units must be an object"),
     (lambda u: ("replace", None), "units must be an object"),  # null was read as no units
+    (lambda u: u.update(conventions=3), "units.conventions must be 1 or 2"),
     # an OverflowError traceback; samples of NaN and 1e304s; an SVD that did not converge
     (lambda u: u.update(world_extent=10 ** 400), "units.world_extent must be a positive length"),
     (lambda u: u.update(world_extent=1e15), "units.world_extent must be a positive length"),
@@ -549,25 +551,34 @@ def test_a_flat_parent_measures_its_children_in_the_examples_units(tmp_path):
     assert np.allclose(Units().frame_of(pane, lo, hi).extent, [2, 1e-6, 2])  # a program learned before units
 
 
-def test_a_rotation_axis_along_z_read_at_float32_precision_has_azimuth_0():
-    """Transforms that went through a tool's float32 (or a file's 7 digits) put a rotation
-    axis along z a few 1e-7 off it, and its azimuth was atan2 of two rounding errors:
-    anything in (-pi, pi], a spread the search split abstractions over (ornaments: 10
-    abstractions for 8)."""
+@pytest.mark.parametrize("noise", [0.0, 1e-3])
+def test_rotation_axes_along_z_have_steady_angles_when_rounded_or_hand_placed(noise):
+    """The ornaments' flowers turn about z. With the pole of the direction angles on z,
+    an axis read through a tool's float32 (7 digits) had an azimuth of atan2 of two
+    rounding errors, and one hand-placed 1e-3 off an azimuth the noise set: anything in
+    (-pi, pi], a spread the search split abstractions over (10 and 12 abstractions for
+    8). About the diagonal pole every coordinate axis is well inside the sphere."""
     from procmod.learn.examples import ExampleNode
+    from procmod.learn.perturb import perturb_examples
 
     s = load("ornaments", [0, 1, 2])
-
-    def turned(n, m):
-        w = np.array([[float(f"{v:.7g}") for v in row] for row in m @ np.asarray(n.transform)])
-        return ExampleNode(n.part, w, [turned(c, m) for c in n.children])
+    if noise:
+        s = perturb_examples(s, noise, np.random.default_rng(3))
 
     def Ry(a):  # each example turned its own way about the vertical (then rounded)
         c, si = math.cos(a), math.sin(a)
         return np.array([[c, 0, si, 0], [0, 1, 0, 0], [-si, 0, c, 0], [0, 0, 0, 1.0]])
 
+    def turned(n, m):
+        w = np.array([[float(f"{v:.7g}") for v in row] for row in m @ np.asarray(n.transform)])
+        return ExampleNode(n.part, w, [turned(c, m) for c in n.children])
+
     examples = [turned(e, Ry(0.3 + 0.7 * i)) for i, e in enumerate(s.examples)]
     d = preprocess(type(s)(s.parts, examples, s.base_dir))
-    axes = [n.sym for n in d.nodes if n.kind == "rot"]
-    assert axes and all(a[0] < 1e-3 for a in axes)  # the flowers turn about z
-    assert all(a[1] == 0.0 for a in axes)
+    by_type = {}
+    for n in d.nodes:
+        if n.kind == "rot":
+            by_type.setdefault(n.type, []).append(n.sym[:2])
+    assert by_type
+    for angles in by_type.values():  # polar, azimuth: spread like the noise, not like a circle
+        assert np.ptp(np.array(angles), axis=0).max() < 50 * noise + 1e-5  # a circle's: up to 2 pi

@@ -33,7 +33,7 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
-from .transforms import Frame, Units, frame_of, sym_params, xform_params
+from .transforms import CURRENT, Frame, Units, frame_of, sym_params, xform_params
 
 OVERLAP_VOXELS = 40
 SLOT_SAMPLES = 64  # surface points per part for the Hausdorff distances of eq. 1
@@ -240,7 +240,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         generation = []
         for node in frontier:
             lo, hi = bounds[node.part]
-            frame = frame_of(node.transform, lo, hi)  # flat parts by their size (Units.flat_by_size)
+            frame = frame_of(node.transform, lo, hi)  # CURRENT conventions (Units), as sym_params'
             info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips))
             made[id(node)] = info
             generation.append(info)
@@ -314,7 +314,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
 
     world_extent = set_size(example_set)
     roots = [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
-    units = Units(world_extent, reference_log_scales(nodes), flat_by_size=True)
+    units = Units(world_extent, reference_log_scales(nodes), CURRENT)
     for n in nodes:
         if n.kind == "part":
             n.x[0:3] -= units.log_scale(n.part)

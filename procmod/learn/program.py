@@ -61,7 +61,7 @@ from ..core.io import load_tensors, read_versioned_json, save_tensors, write_tex
 from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
-from .transforms import (CATEGORY, COMPONENTS, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units,
+from .transforms import (CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units,
                          Frame, sym_maps, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
@@ -238,7 +238,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
                                                         program.sigma(float(p[f"{pre}.rs"][k]), cats[k]))))
     support = program.count_support[a.type]
     count = ctx.sample("count", Categorical(_softmax(p[f"{a_id}.count"]), labels=tuple(support)))
-    maps = sym_maps(a.kind, values, count, frame)
+    maps = sym_maps(a.kind, values, count, frame, program.units.pole())
     new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
     if ctx.depth < MAX_DEPTH:
         ctx.spawn("c", gen_node, program, a_id, 0, frame, new_copies)
@@ -319,7 +319,7 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                           "part_distribution": {a.type: 1.0} if a.kind == "part" else None,
                           "callees": a.callees} for a in sorted(program.abstractions.values(), key=lambda a: a.id)],
         "info": program.info,
-        "units": {"world_extent": program.units.world_extent,
+        "units": {"world_extent": program.units.world_extent, "conventions": program.units.conventions,
                   "part_log_scales": {k: [float(v) for v in program.units.part_log_scales[k]]
                                       for k in sorted(program.units.part_log_scales)}},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
@@ -462,7 +462,10 @@ def _units_from_json(data) -> Units:
             raise ValueError(f"units.part_log_scales[{part!r}] must be three log-scales within +-{MAX_LOG_SCALE:.1f} "
                              f"(scales of 1/{MAX_UNIT_LENGTH:g} to {MAX_UNIT_LENGTH:g}), got {values!r:.60}")
         logs[part] = tuple(float(v) for v in values)
-    return Units(float(extent), logs, flat_by_size=True)
+    conventions = data.get("conventions", CURRENT)  # units came with CURRENT
+    if conventions not in (LEGACY, CURRENT) or isinstance(conventions, bool):
+        raise ValueError(f"units.conventions must be {LEGACY} or {CURRENT}, got {conventions!r:.20}")
+    return Units(float(extent), logs, conventions)
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw

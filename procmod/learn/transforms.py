@@ -66,22 +66,33 @@ WORLD_FRAME = Frame(np.eye(3), np.zeros(3), np.ones(3))
 NO_LOG_SCALE = (0.0, 0.0, 0.0)
 
 
+# How components are measured (Units.conventions): LEGACY as programs learned before
+# units were (z pole, an absolute floor for flat parts), CURRENT as preprocess now does.
+LEGACY, CURRENT = 1, 2
+
+
 class Units(NamedTuple):
     """The lengths an example set's transform components are measured against (see the
     module docstring): the world frame's extent; per part name, the reference log-scale
     of its placements (three floats; a part missing from it has reference 0: scale 1);
-    and how a flat part's frame is measured (``flat_by_size``: see :func:`frame_of`). A
-    program written before units existed has ``Units()``: extent 1, no references, the
-    old absolute floor, so it samples as it was learned. Not to be changed once made
-    (it is shared by copies of a program); comparable with ``==``."""
+    and the ``conventions`` the components follow (flat parts' frames, :func:`frame_of`;
+    the pole of directions' angles, :data:`DIAGONAL_POLE`). A program written before
+    units existed has ``Units()``: extent 1, no references, :data:`LEGACY` conventions,
+    so it samples as it was learned. Not to be changed once made (it is shared by copies
+    of a program); comparable with ``==``."""
 
     world_extent: float = 1.0
     part_log_scales: dict = {}
-    flat_by_size: bool = False
+    conventions: int = LEGACY
 
     def frame_of(self, world, local_lo, local_hi) -> "Frame":
-        """:func:`frame_of` with this program's convention for flat parts."""
-        return frame_of(world, local_lo, local_hi, self.flat_by_size)
+        """:func:`frame_of` with these conventions for flat parts."""
+        return frame_of(world, local_lo, local_hi, self.conventions >= CURRENT)
+
+    def pole(self) -> np.ndarray:
+        """The basis directions' polar and azimuth angles are taken in (its third column is
+        the pole)."""
+        return DIAGONAL_POLE if self.conventions >= CURRENT else Z_POLE
 
     def world_frame(self) -> Frame:
         """The frame the roots are placed in."""
@@ -185,23 +196,37 @@ def canonical_direction(v: np.ndarray) -> tuple[np.ndarray, float]:
     return sign * v, sign
 
 
-# Below this distance of a unit direction from the z axis its azimuth is 0: at the pole
+# Below this distance of a unit direction from the pole its azimuth is 0: at the pole
 # the azimuth is undefined, and atan2 of two rounding errors gave anything in (-pi, pi]
-# (ornaments' flowers, turned about z: their rotation axes' azimuths changed with the
-# units the set was exported in, and so did the program learned). Well above float32
-# rounding, as transforms that went through a tool's float32 or a file's 7 digits carry
-# (1e-9 let those through: 10 abstractions for 8); an axis 1e-4 off z is along z.
+# (with the legacy z pole the ornaments' flowers, turned about z, had azimuths that
+# changed with the units the set was exported in, and so did the program learned). Well
+# above float32 rounding, as transforms that went through a tool's float32 or a file's 7
+# digits carry (1e-9 let those through: 10 abstractions for 8).
 POLE = 1e-4
 
 
-def direction_angles(n: np.ndarray) -> tuple[float, float]:
-    n = n / np.linalg.norm(n)
+# The pole of a direction's (polar, azimuth) angles. Mirror normals and rotation axes of
+# real objects lie along the coordinate axes far more often than anywhere else, and the
+# azimuth is ill-conditioned near the pole: a flower turned about z with its placements
+# 1e-3 off (hand-placed parts) had an azimuth the noise set anywhere in (-pi, pi], which
+# the search split abstractions over. About the body diagonal (1, 1, 1), every coordinate
+# axis is 54.7 degrees from the pole (x, y, z at azimuths 30, 150 and -90 degrees).
+Z_POLE = np.eye(3)  # the legacy convention (Units.conventions LEGACY)
+DIAGONAL_POLE = np.column_stack([np.array([1.0, -1.0, 0.0]) / math.sqrt(2), np.array([1.0, 1.0, -2.0]) / math.sqrt(6),
+                                 np.array([1.0, 1.0, 1.0]) / math.sqrt(3)])
+
+
+def direction_angles(n: np.ndarray, pole: np.ndarray = DIAGONAL_POLE) -> tuple[float, float]:
+    """(polar, azimuth) of direction ``n`` in the basis ``pole`` (third column the pole)."""
+    n = pole.T @ (n / np.linalg.norm(n))
     polar = math.acos(max(-1.0, min(1.0, n[2])))
     return polar, (math.atan2(n[1], n[0]) if math.hypot(n[0], n[1]) > POLE else 0.0)
 
 
-def angles_direction(polar: float, azimuth: float) -> np.ndarray:
-    return np.array([math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar)])
+def angles_direction(polar: float, azimuth: float, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
+    """Inverse of :func:`direction_angles`."""
+    return pole @ np.array([math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth),
+                            math.cos(polar)])
 
 
 def in_frame(g_world: np.ndarray, frame: Frame) -> np.ndarray:
@@ -215,18 +240,18 @@ def to_world(g_frame: np.ndarray, frame: Frame) -> np.ndarray:
     return f @ g_frame @ np.linalg.inv(f)
 
 
-def reflection_params(g_world: np.ndarray, frame: Frame) -> np.ndarray:
+def reflection_params(g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
     """(polar, azimuth, offset fraction) of the mirror plane n.x = d in the frame."""
     g = in_frame(g_world, frame)
     w, v = np.linalg.eigh(0.5 * (g[:3, :3] + g[:3, :3].T))
     n, sign = canonical_direction(v[:, int(np.argmin(w))])
     d = 0.5 * float(n @ g[:3, 3])  # translation of the reflection is 2 d n
-    polar, azimuth = direction_angles(n)
+    polar, azimuth = direction_angles(n, pole)
     return np.array([polar, azimuth, d / float(np.abs(n) @ frame.extent)])
 
 
-def reflection_map(p, frame: Frame) -> np.ndarray:
-    n = angles_direction(p[0], p[1])
+def reflection_map(p, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
+    n = angles_direction(p[0], p[1], pole)
     d = p[2] * float(np.abs(n) @ frame.extent)
     g = np.eye(4)
     g[:3, :3] -= 2 * np.outer(n, n)
@@ -255,18 +280,18 @@ def rotation_axis_angle(g_frame: np.ndarray) -> tuple[np.ndarray, float]:
     return axis, sign * angle
 
 
-def rotation_params(g_world: np.ndarray, frame: Frame) -> np.ndarray:
+def rotation_params(g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
     """(polar, azimuth, centre fractions x3, angle) of a rotation map about an axis."""
     g = in_frame(g_world, frame)
     axis, angle = rotation_axis_angle(g)
     centre, *_ = np.linalg.lstsq(np.eye(3) - g[:3, :3], g[:3, 3], rcond=None)
     centre = centre - (centre @ axis) * axis  # the axis point nearest the frame origin
-    polar, azimuth = direction_angles(axis)
+    polar, azimuth = direction_angles(axis, pole)
     return np.array([polar, azimuth, *(centre / frame.extent), angle])
 
 
-def rotation_map(p, frame: Frame) -> np.ndarray:
-    axis = angles_direction(p[0], p[1])
+def rotation_map(p, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
+    axis = angles_direction(p[0], p[1], pole)
     centre = np.asarray(p[2:5]) * frame.extent
     rot = Rotation.from_rotvec(axis * p[5]).as_matrix()
     g = np.eye(4)
@@ -275,15 +300,18 @@ def rotation_map(p, frame: Frame) -> np.ndarray:
     return to_world(g, frame)
 
 
-def sym_params(kind: str, g_world: np.ndarray, frame: Frame) -> np.ndarray:
-    return {"refl": reflection_params, "trans": translation_params, "rot": rotation_params}[kind](g_world, frame)
+def sym_params(kind: str, g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
+    """A symmetry map's parameters (:data:`SYM_PARAMS`); directions' angles about ``pole``."""
+    if kind == "trans":
+        return translation_params(g_world, frame)
+    return (reflection_params if kind == "refl" else rotation_params)(g_world, frame, pole)
 
 
-def sym_maps(kind: str, params, count: int, frame: Frame) -> list[np.ndarray]:
+def sym_maps(kind: str, params, count: int, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> list[np.ndarray]:
     """World maps of the members: identity first, then the group's generator powers."""
     if kind == "refl":
-        return [np.eye(4), reflection_map(params, frame)]
-    g = (translation_map if kind == "trans" else rotation_map)(params, frame)
+        return [np.eye(4), reflection_map(params, frame, pole)]
+    g = translation_map(params, frame) if kind == "trans" else rotation_map(params, frame, pole)
     maps = [np.eye(4)]
     for _ in range(count - 1):
         maps.append(g @ maps[-1])
