@@ -697,3 +697,49 @@ def test_a_terrain_read_as_a_volume_gets_a_note_and_a_closed_mesh_none(tmp_path,
                      "--particles", "2", "--out", str(tmp_path / f"out_{name}")])
         err = capsys.readouterr().err
         assert code == 0 and ("mostly an open sheet" in err) == noted, err
+
+
+def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, capsys):
+    """Advice a technical artist could follow: the suggested mesh_offset of a scan
+    123,456.7 from the origin was written 1.235e+05 (43 units off, and the note then
+    repeated the value given); a centimetre mesh's grid was refused as memory with
+    "use a larger voxel_size", a tiny one as "no inside" with "use a smaller voxel_size",
+    a grid beside the mesh as "an open sheet"; a view the mesh overfills scored
+    11054 with no word; a mesh given as --target was "not an image Pillow can read"."""
+    from procmod.cli import _model
+    from procmod.targets.placement import placement_note
+
+    ship = trimesh.util.concatenate([_box((1.0, 0.6, 3.0), (0, 0, 0)), _box((3.0, 0.2, 0.8), (0, 0, -0.5))])
+    _write_obj(tmp_path / "far.obj", ship.vertices + [123456.7, 0.0, 0.0], ship.faces)
+    model = _model("spaceship")
+    note = placement_note(model, load_volume_target(_volume_file(tmp_path, "far.obj")), np.random.default_rng(0))
+    at = note.index("\"mesh_offset\": ") + len("\"mesh_offset\": ")
+    offset = json.loads(note[at:note.index(" in the target file", at)])
+    assert offset[0] == pytest.approx(-123456.7, abs=1)  # was 43 off: 1.235e+05
+    assert placement_note(model, load_volume_target(_volume_file(tmp_path, "far.obj", mesh_offset=offset)),
+                          np.random.default_rng(0)) is None
+    # a mesh 21,000 units across at voxel size 0.5: memory, but said with its span and the units
+    from procmod.core import ProcmodError
+    _write_obj(tmp_path / "cm.obj", ship.vertices * 7000, ship.faces)
+    with pytest.raises(ProcmodError, match=r"the mesh spans 2.1e\+04 x 4.2e\+03 x 2.1e\+04: use a larger voxel_size, "
+                                           r"or, if the mesh was made in other units .*\"mesh_scale\""):
+        load_volume_target(_volume_file(tmp_path, "cm.obj", voxel_size=0.5))
+    # a mesh smaller than a voxel
+    _write_obj(tmp_path / "mm.obj", ship.vertices * 0.001, ship.faces)
+    with pytest.raises(TargetFileError, match=r"the mesh spans only .* under two voxels of 0.5.*\"mesh_scale\""):
+        load_volume_target(_volume_file(tmp_path, "mm.obj", voxel_size=0.5))
+    # a grid given in the file, beside the mesh
+    _write_obj(tmp_path / "m.obj", ship.vertices, ship.faces)
+    (tmp_path / "G.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "m.obj"}],
+                                                 "grid": {"origin": [100, 100, 100], "voxel_size": 0.5,
+                                                          "shape": [4, 4, 4]}}))
+    with pytest.raises(TargetFileError, match=r"does not cover the mesh, which spans .*: move grid.origin"):
+        load_volume_target(tmp_path / "G.json")
+    # a silhouette the mesh overfills: no outline to match
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [
+        {"mesh": "cm.obj", "camera": {"eye": [0, 20, 0.01], "look_at": [0, 0, 0], "width": 64, "height": 64}}]}))
+    assert "covers 100% of the view, so it has no outline" in placement_note(
+        model, load_target_file(tmp_path / "S.json"), np.random.default_rng(0))
+    # a mesh file as --target
+    assert main(["infer", "spaceship", "--target", str(tmp_path / "m.obj"), "--out", str(tmp_path / "run")]) == 2
+    assert "a mesh is a target through a target file" in capsys.readouterr().err

@@ -22,6 +22,7 @@ from ..core import InvalidArgumentError
 from ..core.lazy import lazy_getattr
 from ..core.paths import is_dir_quietly
 from ..targets import Circuit, ShapeMatch, TargetImage, load_target_file, load_target_image
+from ..targets.files import MESH_SUFFIXES, TargetFileError
 
 # Glyphs need fonts, Pillow's FreeType and scipy; a target picture needs none of them.
 _LAZY = {**dict.fromkeys(("DEFAULT_TYPEFACE", "TYPEFACES", "glyph_set", "glyph_target", "render_glyph"), "glyphs"),
@@ -81,6 +82,10 @@ def target_from_spec(spec: str):
         return load_target_file(path / "target.json")
     if path.suffix.lower() == ".json":
         return load_target_file(path)
+    if path.suffix.lower() in MESH_SUFFIXES:  # Pillow's "cannot identify image file" said nothing of this
+        raise TargetFileError(f"{spec}: a mesh is a target through a target file that says how to compare with it: "
+                              "a procmod-volume/1 file (its inside, on a voxel grid) or a procmod-silhouette/1 file "
+                              "(its outline, seen by cameras) whose layer or view names the mesh; README, \"Targets\"")
     return ShapeMatch(target_image(spec))
 
 

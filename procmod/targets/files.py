@@ -256,16 +256,27 @@ def check_grid(grid: VoxelGrid, where: str, advice: str) -> None:
                  count * BYTES_PER_VOXEL, advice)
 
 
+# Said when a mesh's grid is too large or the mesh too small for its voxels: most often
+# the mesh is in other units than the model (a Maya file in centimetres is 100x too large).
+OTHER_UNITS = ("if the mesh was made in other units than the model (Maya writes centimetres), give "
+               "\"mesh_scale\" first (0.01 for centimetres to metres, 0.001 for millimetres)")
+
+
+def _span(lo, hi) -> str:
+    return " x ".join(f"{float(h - l):.3g}" for l, h in zip(lo, hi))
+
+
 def grid_around(lo, hi, voxel_size: float, margin: float, where: str) -> VoxelGrid:
     """The grid of voxel edge ``voxel_size`` around [lo, hi] grown by ``margin``, refused
     (naming ``where``) when memory cannot hold it; its shape is counted in Python integers
     first, so that a tiny voxel size is refused instead of overflowing."""
+    span = _span(lo, hi)
     lo = np.asarray(lo, dtype=np.float64) - margin
     hi = np.asarray(hi, dtype=np.float64) + margin
     # at most 1e18 a side (a voxel size of 1e-300 is refused by the memory check, not an overflow)
     shape = tuple(max(1, math.ceil(min(float(hi[a] - lo[a]) / voxel_size, 1e18))) for a in range(3))
     grid = VoxelGrid(tuple(float(v) for v in lo), float(voxel_size), shape)
-    check_grid(grid, where, "use a larger voxel_size")
+    check_grid(grid, where, f"the mesh spans {span}: use a larger voxel_size, or, {OTHER_UNITS}")
     return grid
 
 
@@ -299,11 +310,30 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
 
     mask = inside_voxels(vertices, faces, grid, what=where)
     if not mask.any():
+        lo, hi = mesh_bounds(vertices, faces)
+        g_lo = np.asarray(grid.origin, dtype=np.float64)
+        g_hi = g_lo + grid.size * np.asarray(grid.shape, dtype=np.float64)
+        grid_is = f"the {'x'.join(map(str, grid.shape))} grid (voxel size {grid.size:g})"
+        if np.any(lo > g_hi) or np.any(hi < g_lo):  # a grid given in the file, beside the mesh
+            raise TargetFileError(
+                f"{where}: {grid_is} spans {_corner(g_lo)} to {_corner(g_hi)} and does not cover the mesh, which "
+                f"spans {_corner(lo)} to {_corner(hi)}: move grid.origin onto it (or leave \"grid\" out and give "
+                "\"voxel_size\": the grid then fits the meshes)")
+        if float(np.max(hi - lo)) < 2 * grid.size:  # the whole mesh within two voxels
+            raise TargetFileError(
+                f"{where}: the mesh spans only {_span(lo, hi)}, under two voxels of {grid.size:g}, so no voxel "
+                "centre lies inside it: if it was made in other units than the model, give \"mesh_scale\" to bring "
+                "it to them (1000 for a mesh in metres used with a model in millimetres); else use a smaller "
+                "voxel_size")
         raise TargetFileError(
-            f"{where}: no voxel centre of the {'x'.join(map(str, grid.shape))} grid (voxel size {grid.size:g}) lies "
-            "inside the mesh: an open sheet or a flat mesh has no inside, and parts thinner than a voxel fall "
-            "between voxel centres; use a smaller voxel_size, or close the mesh")
+            f"{where}: no voxel centre of {grid_is} lies inside the mesh: an open sheet or a flat mesh has no "
+            "inside, and parts thinner than a voxel fall between voxel centres; use a smaller voxel_size, or "
+            "close the mesh")
     return mask
+
+
+def _corner(point) -> str:
+    return "(" + ", ".join(f"{float(v):.4g}" for v in point) + ")"
 
 
 def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float = 0.1):
@@ -447,8 +477,8 @@ def load_volume_target(path: str | os.PathLike):
         grid = VoxelGrid(given[0], given[1], shape or given[2])
         check_grid(grid, f"{where}: grid", "use a larger grid.voxel_size")
     elif "voxel_size" not in spec:
-        raise TargetFileError(f"{where}: mesh layers need \"voxel_size\": the voxel edge, in the mesh's units "
-                              "(the grid then fits the meshes)")
+        raise TargetFileError(f"{where}: mesh layers need \"voxel_size\": the voxel edge, in the model's units "
+                              "(after \"mesh_scale\"; the grid then fits the meshes)")
     else:
         voxel_size = length(spec["voxel_size"], f"{where}: voxel_size")
         margin = number(spec.get("margin", 0.1), f"{where}: margin", minimum=0.0)
@@ -616,8 +646,10 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             covered = mesh_silhouette(*_placed(read_mesh(file, f"{at}.mesh", orient=False), placement), camera)
             if not covered.any():
                 raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"
-                                      f"{camera.height} view: point the camera at it (look_at its centre), or "
-                                      "give more pixels")
+                                      f"{camera.height} view: the camera (in the model's units, looking at the "
+                                      "model, which builds at its origin) should see the mesh where the model is to "
+                                      "be: place it there with \"mesh_offset\" and, for a mesh in other units, "
+                                      "\"mesh_scale\"; or give more pixels")
             weights = np.where(covered, hit, avoid)
         if not (weights > 0).any():
             raise TargetFileError(f"{at}: nothing to hit (no positive weight)")

@@ -72,17 +72,28 @@ def _size(lo, hi) -> float:
     return float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
 
 
-def _shown(vector) -> str:
-    return "(" + ", ".join(f"{v:.3g}" for v in vector) + ")"
+def _digits(v: float, resolution: float | None, least: int) -> str:
+    """``v`` with ``least`` significant digits, or as many as keep it within ``resolution``:
+    a mesh 123456.7 from the origin written as 1.235e+05 was 43 units off, several times
+    the model's size, and the note then repeated the value the user had already given."""
+    v = float(v)
+    digits = least
+    if resolution and resolution > 0 and v != 0 and math.isfinite(v):
+        digits = min(17, max(least, math.ceil(math.log10(abs(v) / resolution)) + 1))
+    return f"{v:.{digits}g}"
 
 
-def _listed(vector) -> str:
-    return "[" + ", ".join(f"{v:.4g}" for v in vector) + "]"
+def _shown(vector, resolution: float | None = None) -> str:
+    return "(" + ", ".join(_digits(v, resolution, 3) for v in vector) + ")"
 
 
-def _rescale_advice(target, factor: float) -> str:
+def _listed(vector, resolution: float | None = None) -> str:
+    return "[" + ", ".join(_digits(v, resolution, 4) for v in vector) + "]"
+
+
+def _rescale_advice(target, factor: float, resolution: float) -> str:
     """What to write in the target file to scale its shape by ``factor``, from what it holds
-    now (:attr:`placed_by`, set when the file was read)."""
+    now (:attr:`placed_by`, set when the file was read); positions to ``resolution``."""
     placed = getattr(target, "placed_by", None)
     if placed is None:  # built in Python: no file to edit
         return f"scale the target by about {factor:g}"
@@ -90,22 +101,22 @@ def _rescale_advice(target, factor: float) -> str:
     if kind == "grid":  # .npy layers lie on the file's grid: scale the grid itself
         grid = target.grid
         return (f"give grid.voxel_size {grid.size * factor:.4g} and grid.origin "
-                f"{_listed(np.asarray(grid.origin) * factor)} in the target file")
+                f"{_listed(np.asarray(grid.origin) * factor, resolution)} in the target file")
     advice = f"give \"mesh_scale\": {scale * factor:.4g}"
     if np.any(offset):
-        advice += f" and \"mesh_offset\": {_listed(np.asarray(offset) * factor)}"
+        advice += f" and \"mesh_offset\": {_listed(np.asarray(offset) * factor, resolution)}"
     return advice + " in the target file"
 
 
-def _move_advice(target, delta) -> str:
-    """What to write in the target file to move its shape by ``delta``."""
+def _move_advice(target, delta, resolution: float) -> str:
+    """What to write in the target file to move its shape by ``delta`` (to ``resolution``)."""
     placed = getattr(target, "placed_by", None)
     if placed is None:
-        return f"move the target by about {_listed(delta)}"
+        return f"move the target by about {_listed(delta, resolution)}"
     kind, _, offset = placed
     if kind == "grid":
-        return f"give grid.origin {_listed(np.asarray(target.grid.origin) + delta)} in the target file"
-    return f"give \"mesh_offset\": {_listed(np.asarray(offset) + delta)} in the target file"
+        return f"give grid.origin {_listed(np.asarray(target.grid.origin) + delta, resolution)} in the target file"
+    return f"give \"mesh_offset\": {_listed(np.asarray(offset) + delta, resolution)} in the target file"
 
 
 def _volume_note(target, lo, hi) -> str | None:
@@ -120,17 +131,22 @@ def _volume_note(target, lo, hi) -> str | None:
     if not 0 < ratio < math.inf:
         return None  # a fill of no size (or beyond float range): nothing to compare
     what = "the target's fill"
-    where = f"spans {_shown(t_lo)} to {_shown(t_hi)}"
+    where = f"spans {_shown(t_lo, 0.01 * t_size)} to {_shown(t_hi, 0.01 * t_size)}"
     model = f"about {_shown(lo)} to {_shown(hi)}"
+    resolution = 1e-3 * m_size  # advice to a thousandth of the model's size
     if ratio > SCALE_FACTOR or ratio < 1 / SCALE_FACTOR:
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
-                f"other units (Maya's default is centimetres), {_rescale_advice(target, factor)}")
+                f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}")
     if np.any(t_lo > hi) or np.any(t_hi < lo):
         delta = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
         return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): "
-                f"to move it onto them, {_move_advice(target, delta)}")
+                f"to move it onto them, {_move_advice(target, delta, resolution)}")
     return None
+
+
+MOST_OF_THE_VIEW = 0.95
+"""A silhouette view whose shape to hit covers more than this share of it gets a note."""
 
 
 def _silhouette_note(target, lo, hi) -> str | None:
@@ -139,6 +155,11 @@ def _silhouette_note(target, lo, hi) -> str | None:
         hit = np.argwhere(weights > 0)
         if not hit.size:
             continue
+        covered = len(hit) / weights.size
+        if covered > MOST_OF_THE_VIEW:  # no outline left to match: every derivation scores alike
+            return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
+                    "to match: if it is a mesh made in other units than the model (Maya writes centimetres), "
+                    "give \"mesh_scale\" (0.01 for centimetres to metres); else move the camera back")
         projected = camera.project(corners)
         behind = projected[:, 2] <= 0
         if behind.all():
