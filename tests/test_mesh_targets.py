@@ -743,3 +743,27 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     # a mesh file as --target
     assert main(["infer", "spaceship", "--target", str(tmp_path / "m.obj"), "--out", str(tmp_path / "run")]) == 2
     assert "a mesh is a target through a target file" in capsys.readouterr().err
+
+
+def test_a_mesh_from_a_z_up_tool_stands_up_with_mesh_up(tmp_path):
+    """procmod's models are y-up; an OBJ or STL from 3ds Max or a CAD tool is z-up and lay
+    on its side with no way to turn it. "mesh_up": "z" turns it as Blender's glTF exporter
+    does, (x, y, z) -> (x, z, -y), before mesh_scale and mesh_offset."""
+    box = _box((1.0, 3.0, 0.6), (0.5, 1.0, 0.3))  # y-up: 3 tall
+    _write_obj(tmp_path / "y.obj", box.vertices, box.faces)
+    zup = box.vertices[:, [0, 2, 1]] * [1, -1, 1]  # the same box as a z-up tool writes it: (x, -z, y)
+    _write_obj(tmp_path / "z.obj", zup * 100, box.faces)
+    want = load_volume_target(_volume_file(tmp_path, "y.obj"))
+    got = load_volume_target(_volume_file(tmp_path, "z.obj", mesh_up="z", mesh_scale=0.01))
+    assert got.grid.shape == want.grid.shape and np.allclose(got.grid.origin, want.grid.origin)
+    assert np.array_equal(got.combined, want.combined)
+    lying = load_volume_target(_volume_file(tmp_path, "z.obj", mesh_scale=0.01))
+    assert lying.grid.shape != want.grid.shape  # without it, on its side
+    with pytest.raises(TargetFileError, match=r"mesh_up is the mesh's up axis, one of 'y', 'z'"):
+        load_volume_target(_volume_file(tmp_path, "z.obj", mesh_up="up"))
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "mesh_up": "z", "mesh_scale": 0.01,
+                                                 "views": [{"mesh": "z.obj", "camera": {"eye": [0, 1, 8], "look_at": [0.5, 1, 0]}}]}))
+    (tmp_path / "R.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                 "views": [{"mesh": "y.obj", "camera": {"eye": [0, 1, 8], "look_at": [0.5, 1, 0]}}]}))
+    assert np.array_equal(load_target_file(tmp_path / "S.json").weights[0],
+                          load_target_file(tmp_path / "R.json").weights[0])

@@ -349,21 +349,44 @@ def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float
 
 # --- volume targets ------------------------------------------------------------------------
 
+# A mesh's up axis (its file's "mesh_up") -> the rotation that stands it up in procmod's
+# y-up frame, the least rotation taking that axis to +y: a z-up file (3ds Max, a CAD tool,
+# Blender's OBJ and STL exports with "Z up") turns as Blender's glTF exporter turns z-up
+# scenes, (x, y, z) -> (x, z, -y).
+UP_AXES = ("y", "z", "x", "-x", "-y", "-z")
+
+
+def up_rotation(up: str) -> np.ndarray:
+    """The 3x3 rotation taking the axis ``up`` (one of :data:`UP_AXES`) to +y."""
+    axis = np.zeros(3)
+    axis["xyz".index(up[-1])] = -1.0 if up.startswith("-") else 1.0
+    if axis[1] == -1.0:  # upside down: half a turn about x
+        return np.diag([1.0, -1.0, -1.0])
+    c = np.cross(axis, [0.0, 1.0, 0.0])  # sin of the angle times the axis of the turn
+    k = np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+    return np.eye(3) + k + k @ k / (1.0 + axis[1])  # Rodrigues, for unit vectors (axis . y = cos)
+
+
 def _mesh_placement(spec: dict, where: str):
-    """``(scale, offset)`` of a target file's ``"mesh_scale"`` (a positive number, default
-    1) and ``"mesh_offset"`` (three numbers, default 0): a mesh's point p is taken at
-    ``p * scale + offset``, in the model's frame (a mesh exported in centimetres for a model
-    in metres takes ``"mesh_scale": 0.01``)."""
+    """``(scale, offset, rotation)`` of a target file's ``"mesh_scale"`` (a positive number,
+    default 1), ``"mesh_offset"`` (three numbers, default 0) and ``"mesh_up"`` (the mesh's
+    up axis, default "y"): a mesh's point p is taken at ``rotation @ p * scale + offset``,
+    in the model's frame (a mesh exported in centimetres for a model in metres takes
+    ``"mesh_scale": 0.01``; one from a z-up tool ``"mesh_up": "z"``)."""
     scale = number(spec.get("mesh_scale", 1.0), f"{where}: mesh_scale", positive=True)
     offset = np.asarray(vector3(spec.get("mesh_offset", (0.0, 0.0, 0.0)), f"{where}: mesh_offset"))
     if not (1e-12 <= scale <= 1e12 and np.all(np.abs(offset) <= 1e12)):
         raise TargetFileError(f"{where}: mesh_scale must lie in 1e-12..1e12 and mesh_offset within +-1e12, got "
                               f"{scale:g} and {_shown(offset.tolist())}")
-    return scale, offset
+    up = spec.get("mesh_up", "y")
+    if up not in UP_AXES:
+        raise TargetFileError(f"{where}: mesh_up is the mesh's up axis, one of {', '.join(map(repr, UP_AXES))} "
+                              f"(procmod's models are y-up; \"z\" for a z-up tool's file), got {_shown(up)}")
+    return scale, offset, up_rotation(up)
 
 
 def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str) -> None:
-    given = [key for key in ("mesh_scale", "mesh_offset") if key in spec]
+    given = [key for key in ("mesh_scale", "mesh_offset", "mesh_up") if key in spec]
     if given and not has_meshes:
         raise TargetFileError(f"{where}: {' and '.join(given)} {'place' if len(given) > 1 else 'places'} mesh {what}s and this file has none (an .npy "
                               "grid or a picture is placed by its own grid or camera)")
@@ -372,10 +395,10 @@ def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str)
 def _placed(mesh, placement):
     """A mesh ``(vertices, faces)`` moved by a :func:`_mesh_placement`."""
     vertices, faces = mesh
-    scale, offset = placement
-    if scale == 1.0 and not offset.any():
+    scale, offset, rotation = placement
+    if scale == 1.0 and not offset.any() and np.array_equal(rotation, np.eye(3)):
         return mesh
-    return np.asarray(vertices, dtype=np.float64) * scale + offset, faces
+    return np.asarray(vertices, dtype=np.float64) @ rotation.T * scale + offset, faces
 
 
 def _given_grid(spec: dict, where: str):
@@ -405,6 +428,7 @@ def load_volume_target(path: str | os.PathLike):
          "grid": {"origin": [x, y, z], "voxel_size": h},   # needed with .npy layers
          "voxel_size": 0.25, "margin": 0.1,                # meshes only, without "grid"
          "mesh_scale": 1, "mesh_offset": [0, 0, 0],        # meshes only
+         "mesh_up": "y",                                   # meshes only: "z" for a z-up tool's
          "w_self": 0}
 
     Files are relative to the JSON file. All layers lie on one grid: the ``"grid"`` when
@@ -413,7 +437,7 @@ def load_volume_target(path: str | os.PathLike):
     mesh layer grown by ``margin`` (default 0.1). An .npy layer is a 3D array, nonzero
     inside. ``w_fill`` (default 1), ``w_avoid`` (default 0) and ``w_self`` (default 0, at
     least 0) are finite numbers; ``"score": "proxy"`` takes one layer. Mesh layers are
-    placed in the model's frame by ``mesh_scale`` and ``mesh_offset`` (:func:`_mesh_placement`)
+    placed in the model's frame by ``mesh_up``, ``mesh_scale`` and ``mesh_offset`` (:func:`_mesh_placement`)
     before anything else: ``grid``, ``voxel_size`` and ``margin`` are in the model's units.
     """
     path = Path(path)
@@ -508,7 +532,7 @@ def load_volume_target(path: str | os.PathLike):
     name = path.parent.name if path.name == "target.json" else path.stem
     target = ProxyVolume(grid, layers[0][0], name=name) if score == "proxy" else Volume(grid, layers, w_self, name=name)
     # how the file places its shape, for advice when it misses the model (targets.placement)
-    target.placed_by = ("grid" if arrays else "meshes", *placement)
+    target.placed_by = ("grid" if arrays else "meshes", *placement[:2])
     target.file_notes = notes  # said with the placement advice (targets.placement)
     return target
 
@@ -656,7 +680,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         out.append((weights, camera))
     name = path.parent.name if path.name == "target.json" else path.stem
     target = Silhouette(out, name=name)
-    target.placed_by = ("meshes", *placement)
+    target.placed_by = ("meshes", *placement[:2])
     return target
 
 
