@@ -479,6 +479,18 @@ def test_units_are_saved_with_the_program_and_older_programs_read_without_them(s
     old = read_program(d)
     assert old.units == Units() and old.units.conventions == 1 and np.array_equal(old.units.pole(), np.eye(3))
     assert p.units.conventions == 2 and again.units.conventions == 2
+    # sampling follows the program's conventions: the stations' rings, read about z
+    # (as a program learned before units was), are other rings
+    from procmod.learn.transforms import LEGACY
+    legacy = p.copy()
+    legacy.units = Units(p.units.world_extent, p.units.part_log_scales, LEGACY)
+    assert any(kind != "part" for kind in (a.kind for a in p.abstractions.values()))
+    differ = 0
+    for seed in range(6):
+        a = run_forward(program_model(p, "a"), np.random.default_rng(seed)).geometry()
+        b = run_forward(program_model(legacy, "b"), np.random.default_rng(seed)).geometry()
+        differ += len(a) != len(b) or any(not np.allclose(x.transform, y.transform) for x, y in zip(a, b))
+    assert differ
     assert run_forward(program_model(old, "old"), np.random.default_rng(0)).geometry()
 
 
@@ -497,6 +509,7 @@ def test_units_are_saved_with_the_program_and_older_programs_read_without_them(s
     (lambda u: u.clear(), "units must be an object"),
     (lambda u: ("replace", None), "units must be an object"),  # null was read as no units
     (lambda u: u.update(conventions=3), "units.conventions must be 1 or 2"),
+    (lambda u: u.pop("conventions"), "units.conventions must be 1 or 2"),  # a development step's programs
     # an OverflowError traceback; samples of NaN and 1e304s; an SVD that did not converge
     (lambda u: u.update(world_extent=10 ** 400), "units.world_extent must be a positive length"),
     (lambda u: u.update(world_extent=1e15), "units.world_extent must be a positive length"),

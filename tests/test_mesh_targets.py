@@ -733,13 +733,18 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     (tmp_path / "G.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "m.obj"}],
                                                  "grid": {"origin": [100, 100, 100], "voxel_size": 0.5,
                                                           "shape": [4, 4, 4]}}))
-    with pytest.raises(TargetFileError, match=r"does not cover the mesh, which spans .*: move grid.origin"):
+    with pytest.raises(TargetFileError, match=r"does not cover the mesh, which spans .*: the grid belongs where .*\"mesh_offset\""):
         load_volume_target(tmp_path / "G.json")
     # a silhouette the mesh overfills: no outline to match
     (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [
         {"mesh": "cm.obj", "camera": {"eye": [0, 20, 0.01], "look_at": [0, 0, 0], "width": 64, "height": 64}}]}))
     assert "covers 100% of the view, so it has no outline" in placement_note(
         model, load_target_file(tmp_path / "S.json"), np.random.default_rng(0))
+    # a close-up that fills 98% of the view but keeps an edge of its outline in it: no such note
+    near = load_target_file(tmp_path / "S.json")
+    near.weights[0][:, 0] = -1.0
+    assert (near.weights[0] > 0).mean() > 0.95
+    assert "no outline" not in (placement_note(model, near, np.random.default_rng(0)) or "")
     # a mesh file as --target
     assert main(["infer", "spaceship", "--target", str(tmp_path / "m.obj"), "--out", str(tmp_path / "run")]) == 2
     assert "a mesh is a target through a target file" in capsys.readouterr().err

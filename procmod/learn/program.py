@@ -462,7 +462,9 @@ def _units_from_json(data) -> Units:
             raise ValueError(f"units.part_log_scales[{part!r}] must be three log-scales within +-{MAX_LOG_SCALE:.1f} "
                              f"(scales of 1/{MAX_UNIT_LENGTH:g} to {MAX_UNIT_LENGTH:g}), got {values!r:.60}")
         logs[part] = tuple(float(v) for v in values)
-    conventions = data.get("conventions", CURRENT)  # units came with CURRENT
+    # required: units without it were written only by development commits of this change,
+    # whose programs took directions' angles about z (and are not CURRENT)
+    conventions = data.get("conventions")
     if conventions not in (LEGACY, CURRENT) or isinstance(conventions, bool):
         raise ValueError(f"units.conventions must be {LEGACY} or {CURRENT}, got {conventions!r:.20}")
     return Units(float(extent), logs, conventions)

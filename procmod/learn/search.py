@@ -46,8 +46,9 @@ from .program import ROOT, Program, program_from_json, program_to_json
 from ..parallel import InlineExecutor as _Inline
 from .structure import TAU_SNAP, initial_program, snap, split
 
-# /2: transform components measured in the examples' units (a /1 checkpoint's programs were not)
-CHECKPOINT_FORMAT = "procmod-learn-checkpoint/2"
+# /3: transform components measured in the examples' units, directions' angles about the
+# diagonal (a /1 checkpoint's programs were neither; /2 was a development step)
+CHECKPOINT_FORMAT = "procmod-learn-checkpoint/3"
 TAU_GAUSS = math.exp(-1)
 
 

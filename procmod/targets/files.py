@@ -317,8 +317,9 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
         if np.any(lo > g_hi) or np.any(hi < g_lo):  # a grid given in the file, beside the mesh
             raise TargetFileError(
                 f"{where}: {grid_is} spans {_corner(g_lo)} to {_corner(g_hi)} and does not cover the mesh, which "
-                f"spans {_corner(lo)} to {_corner(hi)}: move grid.origin onto it (or leave \"grid\" out and give "
-                "\"voxel_size\": the grid then fits the meshes)")
+                f"spans {_corner(lo)} to {_corner(hi)}: the grid belongs where the model builds (around its "
+                "origin); bring the mesh onto it with \"mesh_offset\" (and \"mesh_scale\" if it was made in "
+                "other units)")
         if float(np.max(hi - lo)) < 2 * grid.size:  # the whole mesh within two voxels
             raise TargetFileError(
                 f"{where}: the mesh spans only {_span(lo, hi)}, under two voxels of {grid.size:g}, so no voxel "

@@ -146,7 +146,8 @@ def _volume_note(target, lo, hi) -> str | None:
 
 
 MOST_OF_THE_VIEW = 0.95
-"""A silhouette view whose shape to hit covers more than this share of it gets a note."""
+"""A silhouette view whose shape to hit covers more than this share of it, its whole border
+included (so that no outline is left in view; a close-up may fill most of it), gets a note."""
 
 
 def _silhouette_note(target, lo, hi) -> str | None:
@@ -156,7 +157,8 @@ def _silhouette_note(target, lo, hi) -> str | None:
         if not hit.size:
             continue
         covered = len(hit) / weights.size
-        if covered > MOST_OF_THE_VIEW:  # no outline left to match: every derivation scores alike
+        border = np.concatenate([weights[0], weights[-1], weights[:, 0], weights[:, -1]])
+        if covered > MOST_OF_THE_VIEW and (border > 0).all():  # no outline in view: every derivation alike
             return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
                     "to match: if it is a mesh made in other units than the model (Maya writes centimetres), "
                     "give \"mesh_scale\" (0.01 for centimetres to metres); else move the camera back")
