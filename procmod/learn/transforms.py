@@ -24,7 +24,10 @@ placed in a world frame whose extent is the examples' size (the geometric mean o
 bounding-box diagonals) instead of one unit. Before, a set exported at 100x learned 45
 abstractions against 11 (the NADEs' hidden units saw log-scales shifted by log 100, and
 the roots' translations met the absolute sigma cap). With both, a set and its copy at
-any scale have the same components, so they learn the same program.
+any scale have the same components, so they learn the same program. A flat part's frame
+is measured in its size (:func:`frame_of`), and a symmetry's direction is a polar and an
+azimuth angle about the body diagonal (:data:`DIAGONAL_POLE`), where coordinate axes are
+well-conditioned; programs learned before all this keep their ``LEGACY`` conventions.
 """
 
 from __future__ import annotations
