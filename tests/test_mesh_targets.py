@@ -772,3 +772,27 @@ def test_a_mesh_from_a_z_up_tool_stands_up_with_mesh_up(tmp_path):
                                                  "views": [{"mesh": "y.obj", "camera": {"eye": [0, 1, 8], "look_at": [0.5, 1, 0]}}]}))
     assert np.array_equal(load_target_file(tmp_path / "S.json").weights[0],
                           load_target_file(tmp_path / "R.json").weights[0])
+
+
+def test_a_target_lying_on_its_side_is_told_mesh_up(tmp_path):
+    """A z-up tool's mesh of the model's shape read y-up lies on its side (it scored 32 of
+    336 with no word); the note names "mesh_up", and is silent once it is given or when the
+    mesh stands as the model does."""
+    from procmod.cli import _model
+    from procmod.targets.placement import model_box, placement_note
+
+    model = _model("spaceship")
+    lo, hi = model_box(model, np.random.default_rng(0))
+    size, centre = hi - lo, 0.5 * (lo + hi)
+    standing = _box(tuple(size), tuple(centre))
+    _write_obj(tmp_path / "y.obj", standing.vertices, standing.faces)
+    _write_obj(tmp_path / "z.obj", standing.vertices[:, [0, 2, 1]] * [1, -1, 1], standing.faces)  # as z-up
+
+    def note(mesh, **fields):
+        return placement_note(model, load_volume_target(_volume_file(tmp_path, mesh, voxel_size=0.1, **fields)),
+                              np.random.default_rng(0))
+
+    assert note("y.obj") is None
+    lying = note("z.obj")
+    assert lying is not None and "give \"mesh_up\": \"z\"" in lying, lying
+    assert note("z.obj", mesh_up="z") is None

@@ -534,6 +534,7 @@ def load_volume_target(path: str | os.PathLike):
     target = ProxyVolume(grid, layers[0][0], name=name) if score == "proxy" else Volume(grid, layers, w_self, name=name)
     # how the file places its shape, for advice when it misses the model (targets.placement)
     target.placed_by = ("grid" if arrays else "meshes", *placement[:2])
+    target.mesh_up = spec.get("mesh_up", "y")
     target.file_notes = notes  # said with the placement advice (targets.placement)
     return target
 

@@ -138,11 +138,47 @@ def _volume_note(target, lo, hi) -> str | None:
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
                 f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}")
+    up = _up_axis_advice(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo))
+    if up is not None:  # before the place: a lying target moved onto the model still lies
+        return (f"{what} {where} is {_extents(np.asarray(t_hi) - np.asarray(t_lo))} (x, y, z) where the model's "
+                f"samples are about {_extents(np.asarray(hi) - np.asarray(lo))}: if the mesh comes from a "
+                f"{up}-up tool (3ds Max, a CAD file, an OBJ or STL exported \"{up.upper()} up\"), give "
+                f"\"mesh_up\": \"{up}\" in the target file (procmod's models are y-up)")
     if np.any(t_lo > hi) or np.any(t_hi < lo):
         delta = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
         return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): "
                 f"to move it onto them, {_move_advice(target, delta, resolution)}")
     return None
+
+
+# A mesh target lying on its side: its box is unlike the model's samples' (some side off by
+# more than LYING), and stood up by a mesh_up of "z" or "x" like them (every side within
+# STANDING). Advice only, for meshes read with the default y up.
+LYING, STANDING = 2.5, 1.6
+
+
+def _extents(e) -> str:
+    return " x ".join(f"{float(v):.3g}" for v in e)
+
+
+def _up_axis_advice(target, t_ext, m_ext) -> str | None:
+    """The ``mesh_up`` ("z" or "x") under which a mesh target's box matches the model's
+    samples' and as read it does not, else None."""
+    placed = getattr(target, "placed_by", None)
+    if placed is None or placed[0] != "meshes" or getattr(target, "mesh_up", "y") != "y":
+        return None
+    floor = 1e-9 * float(max(t_ext.max(), m_ext.max()))
+    t_ext, m_ext = np.maximum(t_ext, floor), np.maximum(m_ext, floor)
+
+    def mismatch(e) -> float:
+        return float(np.abs(np.log(np.asarray(e) / m_ext)).max())
+
+    if mismatch(t_ext) <= math.log(LYING):
+        return None
+    # extents once stood up: "z" turns (x, y, z) to (x, z, -y), "x" turns x onto y
+    stood = {"z": t_ext[[0, 2, 1]], "x": t_ext[[1, 0, 2]]}
+    best = min(stood, key=lambda up: mismatch(stood[up]))
+    return best if mismatch(stood[best]) <= math.log(STANDING) else None
 
 
 MOST_OF_THE_VIEW = 0.95
