@@ -794,5 +794,17 @@ def test_a_target_lying_on_its_side_is_told_mesh_up(tmp_path):
 
     assert note("y.obj") is None
     lying = note("z.obj")
-    assert lying is not None and "give \"mesh_up\": \"z\"" in lying, lying
+    assert lying is not None and "give \"mesh_up\": \"z\" in the target file" in lying, lying
     assert note("z.obj", mesh_up="z") is None
+    # whatever its size (its proportions are what lie): 1.7x the samples' box
+    _write_obj(tmp_path / "z17.obj", standing.vertices[:, [0, 2, 1]] * [1.7, -1.7, 1.7], standing.faces)
+    assert "\"mesh_up\": \"z\"" in note("z17.obj")
+    # a file that moves its mesh with mesh_offset gets the offset that goes with the turn
+    _write_obj(tmp_path / "zfar.obj", standing.vertices[:, [0, 2, 1]] * [1, -1, 1] + [0, 40, 0], standing.faces)
+    moved = note("zfar.obj", mesh_offset=[0, -40, 0])
+    at = moved.index("\"mesh_offset\": ") + len("\"mesh_offset\": ")
+    offset = json.loads(moved[at:moved.index(" in the target file", at)])
+    assert note("zfar.obj", mesh_up="z", mesh_offset=offset) is None
+    # a narrow ship with tall fins stands as it is: no turn suggested
+    _write_obj(tmp_path / "fins.obj", _box((2.5, 7.0, 10.5), (0, 0, 0)).vertices, _box((2.5, 7.0, 10.5), (0, 0, 0)).faces)
+    assert "mesh_up" not in (note("fins.obj") or "")

@@ -138,12 +138,13 @@ def _volume_note(target, lo, hi) -> str | None:
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
                 f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}")
-    up = _up_axis_advice(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo))
-    if up is not None:  # before the place: a lying target moved onto the model still lies
-        return (f"{what} {where} is {_extents(np.asarray(t_hi) - np.asarray(t_lo))} (x, y, z) where the model's "
-                f"samples are about {_extents(np.asarray(hi) - np.asarray(lo))}: if the mesh comes from a "
-                f"{up}-up tool (3ds Max, a CAD file, an OBJ or STL exported \"{up.upper()} up\"), give "
-                f"\"mesh_up\": \"{up}\" in the target file (procmod's models are y-up)")
+    if _lying(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
+        # before the place: a lying target moved onto the model still lies
+        return (f"{what} is {_extents(np.asarray(t_hi) - np.asarray(t_lo))} (x, y, z), shaped like the model's "
+                f"samples ({_extents(np.asarray(hi) - np.asarray(lo))}) laid on their side: if the mesh comes "
+                "from a z-up tool (3ds Max, a CAD file, an OBJ or STL exported \"Z up\"), give \"mesh_up\": "
+                f"\"z\"{_offset_once_stood(target, t_lo, t_hi, lo, hi, resolution)} in the target file "
+                "(procmod's models are y-up)")
     if np.any(t_lo > hi) or np.any(t_hi < lo):
         delta = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
         return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): "
@@ -151,34 +152,46 @@ def _volume_note(target, lo, hi) -> str | None:
     return None
 
 
-# A mesh target lying on its side: its box is unlike the model's samples' (some side off by
-# more than LYING), and stood up by a mesh_up of "z" or "x" like them (every side within
-# STANDING). Advice only, for meshes read with the default y up.
-LYING, STANDING = 2.5, 1.6
+# A mesh target lying on its side (a z-up tool's file read y-up): its box's shape, its size
+# set aside, is unlike the model's samples' (some side's proportion off by more than LYING)
+# and, stood up from z, like it (every side within STANDING). Advice only, for volume
+# targets' meshes read with the default y up.
+LYING, STANDING = 2.0, 1.5
 
 
 def _extents(e) -> str:
     return " x ".join(f"{float(v):.3g}" for v in e)
 
 
-def _up_axis_advice(target, t_ext, m_ext) -> str | None:
-    """The ``mesh_up`` ("z" or "x") under which a mesh target's box matches the model's
-    samples' and as read it does not, else None."""
+def _lying(target, t_ext, m_ext) -> bool:
+    """Whether a mesh target's box is the model's samples' shape laid on its side (y and z
+    swapped), whatever its size: a z-up tool's file read y-up."""
     placed = getattr(target, "placed_by", None)
     if placed is None or placed[0] != "meshes" or getattr(target, "mesh_up", "y") != "y":
-        return None
+        return False
     floor = 1e-9 * float(max(t_ext.max(), m_ext.max()))
-    t_ext, m_ext = np.maximum(t_ext, floor), np.maximum(m_ext, floor)
 
-    def mismatch(e) -> float:
-        return float(np.abs(np.log(np.asarray(e) / m_ext)).max())
+    def shape(e):  # proportions: the extents over their geometric mean
+        logs = np.log(np.maximum(np.asarray(e, dtype=np.float64), floor))
+        return logs - logs.mean()
 
-    if mismatch(t_ext) <= math.log(LYING):
-        return None
-    # extents once stood up: "z" turns (x, y, z) to (x, z, -y), "x" turns x onto y
-    stood = {"z": t_ext[[0, 2, 1]], "x": t_ext[[1, 0, 2]]}
-    best = min(stood, key=lambda up: mismatch(stood[up]))
-    return best if mismatch(stood[best]) <= math.log(STANDING) else None
+    model = shape(m_ext)
+    as_read = float(np.abs(shape(t_ext) - model).max())
+    stood = float(np.abs(shape(t_ext[[0, 2, 1]]) - model).max())  # "z" turns (x, y, z) to (x, z, -y)
+    return as_read > math.log(LYING) and stood <= math.log(STANDING)
+
+
+def _offset_once_stood(target, t_lo, t_hi, lo, hi, resolution: float) -> str:
+    """With a file that gives a mesh_offset (added after the turn), the one that puts the
+    stood-up target's centre on the model's: the old one would move it off."""
+    _, scale, offset = target.placed_by
+    if not np.any(offset):
+        return ""
+    from .files import up_rotation
+
+    centre = (0.5 * (np.asarray(t_lo) + np.asarray(t_hi)) - offset) / scale  # in the mesh's own frame
+    new = 0.5 * (np.asarray(lo) + np.asarray(hi)) - up_rotation("z") @ centre * scale
+    return f" and \"mesh_offset\": {_listed(new, resolution)}"
 
 
 MOST_OF_THE_VIEW = 0.95
