@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import Bernoulli, Categorical, Model, Normal
+from ..core.distributions import _is_real  # a finite number: not a bool, a string or 10**400
 from ..core.errors import ProcmodError
 from ..core.paths import FileNames, UnsafePathError, named_file
 from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
@@ -427,13 +428,6 @@ def program_from_json(data: dict, parts: dict) -> Program:
 _NO_UNITS = object()
 
 
-def _real(value) -> bool:
-    """A JSON number (not a bool, a string or null) that is an ordinary float."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return False
-    return abs(value) < 1e300 if isinstance(value, int) else math.isfinite(value)  # 10**400: no float
-
-
 # What a program's units may hold: lengths and scales within what examples may hold
 # (coordinates up to core.limits.MAX_COORDINATE: a diagonal or an axis's scale up to
 # sqrt(3) of it); a reference scale of e^700 sampled NaN and 1e304s, one of e^-700 an SVD
@@ -453,11 +447,11 @@ def _units_from_json(data) -> Units:
     if not isinstance(data, dict) or not isinstance(data.get("part_log_scales"), dict):
         raise ValueError(f"units must be an object with world_extent and part_log_scales, got {data!r:.60}")
     extent = data.get("world_extent")
-    if not _real(extent) or not 0 < extent <= MAX_UNIT_LENGTH:
+    if not _is_real(extent) or not 0 < extent <= MAX_UNIT_LENGTH:
         raise ValueError(f"units.world_extent must be a positive length up to {MAX_UNIT_LENGTH:g}, got {extent!r:.40}")
     logs = {}
     for part, values in data["part_log_scales"].items():
-        if not isinstance(values, list) or len(values) != 3 or not all(_real(v) and abs(v) <= MAX_LOG_SCALE
+        if not isinstance(values, list) or len(values) != 3 or not all(_is_real(v) and abs(v) <= MAX_LOG_SCALE
                                                                           for v in values):
             raise ValueError(f"units.part_log_scales[{part!r}] must be three log-scales within +-{MAX_LOG_SCALE:.1f} "
                              f"(scales of 1/{MAX_UNIT_LENGTH:g} to {MAX_UNIT_LENGTH:g}), got {values!r:.60}")

@@ -159,12 +159,12 @@ def rot_of(angles) -> np.ndarray:
     return Rotation.from_euler("xyz", np.asarray(angles, dtype=np.float64)).as_matrix()
 
 
-def xform_params(world, frame: Frame, log_scale=NO_LOG_SCALE) -> tuple[np.ndarray, np.ndarray]:
-    """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``;
-    the log-scales relative to ``log_scale`` (the part's reference, :class:`Units`)."""
+def xform_params(world, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+    """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``
+    (absolute log-scales: ``preprocess`` takes the parts' references off once it has them)."""
     rot, s, t = decompose(world)
     x = np.empty(9)
-    x[0:3] = np.log(np.abs(s)) - log_scale
+    x[0:3] = np.log(np.abs(s))
     x[3:6] = euler_of(frame.rot.T @ rot)
     x[6:9] = (frame.rot.T @ (t - frame.t)) / frame.extent
     return x, s < 0

@@ -262,7 +262,8 @@ OTHER_UNITS = ("if the mesh was made in other units than the model (Maya writes 
                "\"mesh_scale\" first (0.01 for centimetres to metres, 0.001 for millimetres)")
 
 
-def _span(lo, hi) -> str:
+def span_text(lo, hi) -> str:
+    """A box's extents, ``"2 x 0.5 x 3"``."""
     return " x ".join(f"{float(h - l):.3g}" for l, h in zip(lo, hi))
 
 
@@ -270,7 +271,7 @@ def grid_around(lo, hi, voxel_size: float, margin: float, where: str) -> VoxelGr
     """The grid of voxel edge ``voxel_size`` around [lo, hi] grown by ``margin``, refused
     (naming ``where``) when memory cannot hold it; its shape is counted in Python integers
     first, so that a tiny voxel size is refused instead of overflowing."""
-    span = _span(lo, hi)
+    span = span_text(lo, hi)
     lo = np.asarray(lo, dtype=np.float64) - margin
     hi = np.asarray(hi, dtype=np.float64) + margin
     # at most 1e18 a side (a voxel size of 1e-300 is refused by the memory check, not an overflow)
@@ -322,7 +323,7 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
                 "other units)")
         if float(np.max(hi - lo)) < 2 * grid.size:  # the whole mesh within two voxels
             raise TargetFileError(
-                f"{where}: the mesh spans only {_span(lo, hi)}, under two voxels of {grid.size:g}, so no voxel "
+                f"{where}: the mesh spans only {span_text(lo, hi)}, under two voxels of {grid.size:g}, so no voxel "
                 "centre lies inside it: if it was made in other units than the model, give \"mesh_scale\" to bring "
                 "it to them (1000 for a mesh in metres used with a model in millimetres); else use a smaller "
                 "voxel_size")

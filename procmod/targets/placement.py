@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from ..core.runtime import run_forward
+from .files import span_text, up_rotation
 from .shape import ShapeMatch
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
@@ -140,8 +141,8 @@ def _volume_note(target, lo, hi) -> str | None:
                 f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}")
     if _lying(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
         # before the place: a lying target moved onto the model still lies
-        return (f"{what} is {_extents(np.asarray(t_hi) - np.asarray(t_lo))} (x, y, z), shaped like the model's "
-                f"samples ({_extents(np.asarray(hi) - np.asarray(lo))}) laid on their side: if the mesh comes "
+        return (f"{what} is {span_text(t_lo, t_hi)} (x, y, z), shaped like the model's "
+                f"samples ({span_text(lo, hi)}) laid on their side: if the mesh comes "
                 "from a z-up tool (3ds Max, a CAD file, an OBJ or STL exported \"Z up\"), give \"mesh_up\": "
                 f"\"z\"{_offset_once_stood(target, t_lo, t_hi, lo, hi, resolution)} in the target file "
                 "(procmod's models are y-up)")
@@ -157,10 +158,6 @@ def _volume_note(target, lo, hi) -> str | None:
 # and, stood up from z, like it (every side within STANDING). Advice only, for volume
 # targets' meshes read with the default y up.
 LYING, STANDING = 2.0, 1.5
-
-
-def _extents(e) -> str:
-    return " x ".join(f"{float(v):.3g}" for v in e)
 
 
 def _lying(target, t_ext, m_ext) -> bool:
@@ -187,8 +184,6 @@ def _offset_once_stood(target, t_lo, t_hi, lo, hi, resolution: float) -> str:
     _, scale, offset = target.placed_by
     if not np.any(offset):
         return ""
-    from .files import up_rotation
-
     centre = (0.5 * (np.asarray(t_lo) + np.asarray(t_hi)) - offset) / scale  # in the mesh's own frame
     new = 0.5 * (np.asarray(lo) + np.asarray(hi)) - up_rotation("z") @ centre * scale
     return f" and \"mesh_offset\": {_listed(new, resolution)}"
