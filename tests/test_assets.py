@@ -338,6 +338,28 @@ def test_file_lists(tmp_path):
         read_assets(tmp_path / "missing.glb")
 
 
+def test_other_tools_files_are_refused_with_the_way_to_convert_them(tmp_path):
+    """An FBX or Maya scene (what a Maya user has) is not read; the message says what to export."""
+    (tmp_path / "castle.fbx").write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00")
+    with pytest.raises(AssetError, match=r"castle.fbx: not an asset file .*Autodesk FBX file is not read by procmod; "
+                                         r"export it from its tool as glTF 2.0 \(.glb\), or import it into Blender"):
+        read_assets(tmp_path / "castle.fbx")
+    with pytest.raises(AssetError, match=r"holds no .gltf, .glb, .urdf file \(castle.fbx: an Autodesk FBX file"):
+        read_assets(tmp_path)
+    (tmp_path / "castle.obj").write_text("v 0 0 0\n")
+    with pytest.raises(AssetError, match="an OBJ file keeps no part hierarchy; export the parts as glTF 2.0"):
+        read_assets(tmp_path / "castle.obj")
+    (tmp_path / "castle.mb").write_bytes(b"FOR4")
+    with pytest.raises(AssetError, match=r"a Maya scene is not read by procmod; export it from its tool as glTF 2.0 "
+                                         r"\(.glb\)$"):
+        read_assets(tmp_path / "castle.mb")
+    # a file no 3D tool writes gets no advice
+    (tmp_path / "notes.txt").write_text("castle")
+    with pytest.raises(AssetError, match=r"notes.txt: not an asset file \(expected a name ending in .gltf, .glb, "
+                                         r"\.urdf\)$"):
+        read_assets(tmp_path / "notes.txt")
+
+
 def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, monkeypatch):
     """``package://`` meshes are looked for in the URDF folder's ancestors: given as a bare
     ``robot.urdf`` from its own folder, the path has no ancestors until resolved."""

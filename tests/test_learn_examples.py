@@ -100,6 +100,17 @@ def test_missing_file_and_bad_json(tmp_path):
         read_examples(bad)
 
 
+def test_a_part_mesh_in_a_tools_own_format_says_what_to_export(tmp_path):
+    (tmp_path / "wing.fbx").write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00")
+    (tmp_path / "examples.json").write_text(json.dumps({
+        "format": "procmod-examples/1", "parts": {"body": {"box": [1, 1, 1]}, "wing": {"mesh": "wing.fbx"}},
+        "examples": [{"part": "body", "children": [{"part": "wing", "transform": np.eye(4).ravel().tolist()}]}]}))
+    with pytest.raises(ProcmodError, match=r"parts.wing.mesh: cannot read .*wing.fbx as a triangle mesh .*; an "
+                                           r"Autodesk FBX file is not read by procmod; export it from its tool as "
+                                           r"glTF 2.0 \(.glb\) or OBJ"):
+        read_examples(tmp_path / "examples.json")
+
+
 def test_write_read_round_trip_rewrites_mesh_paths(tmp_path):
     s = read_examples(ROOT / "examples_sets/learn/spaceships/examples.json")
     out = tmp_path / "deep" / "copy.json"

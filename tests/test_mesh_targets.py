@@ -748,6 +748,16 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     # a mesh file as --target
     assert main(["infer", "spaceship", "--target", str(tmp_path / "m.obj"), "--out", str(tmp_path / "run")]) == 2
     assert "a mesh is a target through a target file" in capsys.readouterr().err
+    # a tool's own scene, named by a target file or given as --target: what to export instead
+    (tmp_path / "ship.fbx").write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00")
+    (tmp_path / "F.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "ship.fbx"}]}))
+    with pytest.raises(TargetFileError, match=r"layers\[0\].file: 'ship.fbx' is not a voxel grid .*; an Autodesk FBX "
+                                              r"file is not read by procmod; export it from its tool as glTF 2.0"):
+        load_target_file(tmp_path / "F.json")
+    assert main(["infer", "spaceship", "--target", str(tmp_path / "ship.fbx"), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "a mesh is a target through a target file" in err and "Autodesk FBX file is not read" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "run").exists()
 
 
 def test_a_mesh_from_a_z_up_tool_stands_up_with_mesh_up(tmp_path):

@@ -31,6 +31,7 @@ import re
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
 from .errors import ProcmodError
+from .file_formats import conversion_hint
 
 
 class UnsafePathError(ProcmodError):
@@ -171,8 +172,9 @@ def named_file(base_dir: str | os.PathLike, value, where: str, suffixes=None, ki
     path = Path(base_dir).joinpath(*parts)
     shown = _cut(str(path), 200)
     if suffixes is not None and path.suffix.lower() not in suffixes:
+        hint = conversion_hint(path)
         raise UnsafePathError(f"{where}: {_shown(value)} is not a {kind} file (expected a name ending in "
-                              f"{', '.join(sorted(suffixes))})")
+                              f"{', '.join(sorted(suffixes))})" + (f"; {hint}" if hint else ""))
     try:
         if path.is_dir():
             raise UnsafePathError(f"{where}: {shown} is a folder, not a {kind} file")

@@ -19,6 +19,7 @@ import re
 from pathlib import Path
 
 from ..core import InvalidArgumentError
+from ..core.file_formats import conversion_hint
 from ..core.lazy import lazy_getattr
 from ..core.paths import is_dir_quietly
 from ..targets import Circuit, ShapeMatch, TargetImage, load_target_file, load_target_image
@@ -82,10 +83,12 @@ def target_from_spec(spec: str):
         return load_target_file(path / "target.json")
     if path.suffix.lower() == ".json":
         return load_target_file(path)
-    if path.suffix.lower() in MESH_SUFFIXES:  # Pillow's "cannot identify image file" said nothing of this
+    hint = conversion_hint(path)
+    if path.suffix.lower() in MESH_SUFFIXES or hint:  # Pillow's "cannot identify image file" said nothing of this
         raise TargetFileError(f"{spec}: a mesh is a target through a target file that says how to compare with it: "
                               "a procmod-volume/1 file (its inside, on a voxel grid) or a procmod-silhouette/1 file "
-                              "(its outline, seen by cameras) whose layer or view names the mesh; README, \"Targets\"")
+                              "(its outline, seen by cameras) whose layer or view names the mesh; README, \"Targets\""
+                              + (f" ({hint})" if hint else ""))
     return ShapeMatch(target_image(spec))
 
 

@@ -55,8 +55,9 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import ProcmodError
+from ..core.file_formats import conversion_hint
 from ..core.paths import UnsafePathError, named_file
-from .mesh_files import declared_faces, gltf_header, load_mesh_file
+from .mesh_files import MESH_SUFFIXES, declared_faces, gltf_header, load_mesh_file
 from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
@@ -65,7 +66,6 @@ MAX_DEPTH = 256  # levels of a node hierarchy (asset files, and example files: p
 MAX_NODES = 10_000  # nodes (glTF) or links + visuals (URDF) of one file
 MAX_MESH_BYTES = 512 * 2 ** 20  # a URDF's mesh file
 ASSET_SUFFIXES = (".gltf", ".glb", ".urdf")
-MESH_SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf", ".dae"}
 _SAMPLES = 512
 _CHECK_VERTICES = 1024
 _DENSE = 8192
@@ -137,16 +137,22 @@ def asset_files(paths) -> list[Path]:
     out = []
     for p in map(Path, paths):
         if p.is_dir():
-            found = sorted(f for f in p.iterdir() if f.is_file() and is_asset_file(f))
+            files = sorted(f for f in p.iterdir() if f.is_file())
+            found = [f for f in files if is_asset_file(f)]
             if not found:
-                raise AssetError(f"folder {p} holds no {', '.join(ASSET_SUFFIXES)} file")
+                hints = [(f, conversion_hint(f, hierarchy=True)) for f in files]
+                other = next(((f, h) for f, h in hints if h), None)
+                raise AssetError(f"folder {p} holds no {', '.join(ASSET_SUFFIXES)} file"
+                                 + (f" ({other[0].name}: {other[1]})" if other else ""))
             out += found
         elif not p.exists():
             raise AssetError(f"asset file {p} does not exist")
         elif not p.is_file():
             raise AssetError(f"{p} is not a regular file")
         elif not is_asset_file(p):
-            raise AssetError(f"{p}: not an asset file (expected a name ending in {', '.join(ASSET_SUFFIXES)})")
+            hint = conversion_hint(p, hierarchy=True)
+            raise AssetError(f"{p}: not an asset file (expected a name ending in {', '.join(ASSET_SUFFIXES)})"
+                             + (f"; {hint}" if hint else ""))
         else:
             out.append(p)
     if not out:

@@ -52,6 +52,9 @@ import numpy as np
 
 from .gltf_accessors import decoded_gltf
 
+# the mesh files :func:`load_mesh_file` reads (trimesh's formats procmod checks and fixes)
+MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off", ".dae"})
+
 _INDEXED = ("f", "l", "p")  # statements that index vertices (v/vt/vn per field)
 _COUNTED = {"v": 0, "vt": 1, "vn": 2}
 _BOM = "\xef\xbb\xbf"  # UTF-8's byte-order mark, as latin-1 decodes it
@@ -382,4 +385,4 @@ def load_mesh_file(path: str | Path, **options):
         return trimesh.load(path, **options)
 
 
-__all__ = ["declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh"]
+__all__ = ["MESH_SUFFIXES", "declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh"]

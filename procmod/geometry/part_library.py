@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core.errors import ProcmodError
+from ..core.file_formats import conversion_hint
 from ..core.limits import MAX_COORDINATE, MIN_LENGTH
 from ..core.paths import UnsafePathError, named_file
 from .mesh_files import load_mesh_file
@@ -104,7 +105,9 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
     try:
         mesh = load_mesh_file(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
-        raise PartLibraryError(f"{where}.mesh: cannot read {path} as a triangle mesh ({exc})") from None
+        hint = conversion_hint(path)
+        raise PartLibraryError(f"{where}.mesh: cannot read {path} as a triangle mesh ({exc})"
+                               + (f"; {hint}" if hint else "")) from None
     if len(getattr(mesh, "faces", ())) == 0:
         raise PartLibraryError(f"{where}.mesh: {path} holds no triangles")
     points, indices = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)

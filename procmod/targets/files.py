@@ -29,13 +29,12 @@ from ..core.limits import MAX_COORDINATE, MIN_LENGTH, ResourceLimitError, check_
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
-from ..geometry.mesh_files import declared_faces, load_mesh_file, quiet_trimesh
+from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
 from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, meant_key, open_image
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
-MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off", ".dae"})
 # The largest mesh procmod reads as a target. Reading costs about BYTES_PER_FACE of memory
 # per face at its peak (trimesh's parser, the merged copy, the half-edge sort) and some
 # 10 s per million faces of OBJ; a voxel grid does not resolve more detail than this.
