@@ -151,7 +151,7 @@ CASES = [
      "traces.json: JSON nested too deeply"),
     ("params-size-huge", ["render", "{i}/size_huge.json", "--out", "{o}.png"], "size_huge.json: "),
     ("params-leaves-yes", ["render", "{i}/leaves_yes.json", "--out", "{o}.png"],
-     "leaves_yes.json: parameter leaves must be true or false, got 'yes'"),
+     "leaves_yes.json: parameter leaves must be true or false, got \"yes\""),
     ("params-start-nan", ["render", "{i}/start_nan.json", "--out", "{o}.png"],
      "start_nan.json: parameter start[0] must be a finite number"),
     ("guide-mixture-huge", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/bigmix", "--out", "{o}"],
@@ -209,7 +209,7 @@ CASES = [
 ] + [(f"silhouette-{name}", ["infer", "spaceship", "--target", f"{{i}}/sil_{name}.json", "--engine", "ga",
                              "--out", "{o}"], message) for name, message in [
     ("fov0", "views[0].camera.fov"), ("fov_persp", "views[0].camera.fov"), ("image_number", "views[0].image"),
-    ("hit_string", "views[0].hit must be a finite number, got 'lots'"), ("up_zero", "views[0].camera.up"),
+    ("hit_string", "views[0].hit must be a finite number, got \"lots\""), ("up_zero", "views[0].camera.up"),
     ("up_along", "views[0].camera.up"), ("eye_nan", "views[0].camera.eye[0] must be a finite number"),
     ("bomb", "views[0].image: the picture is 900 megapixels"), ("hit_huge", "views[0].hit must be between"), ("npy", "the weights are 1000000x1000000")]]
 

@@ -6,7 +6,7 @@ import pickle
 import numpy as np
 import pytest
 
-from procmod.core.errors import ProcmodError
+from procmod.core.errors import ProcmodError, shown_value
 from procmod.core.io import (load_tensors, open_atomic, read_versioned_json, save_tensors, write_bytes_atomic,
                              write_text_atomic)
 from procmod.core.random import resample
@@ -90,10 +90,17 @@ def test_read_versioned_json_names_the_file_and_the_format(tmp_path):
     path = tmp_path / "job.json"
     path.write_text('{"format": "procmod-x/1", "n": 2}')
     assert read_versioned_json(path, "procmod-x/1", Refused) == {"format": "procmod-x/1", "n": 2}
-    with pytest.raises(Refused, match=r"job.json: format is 'procmod-x/1', expected 'procmod-x/2'; rerun"):
+    with pytest.raises(Refused, match=r'job.json: format is "procmod-x/1", expected "procmod-x/2"; rerun$'):
         read_versioned_json(path, "procmod-x/2", Refused, advice="; rerun")
     path.write_text("[1, 2]")
-    with pytest.raises(Refused, match="not a JSON object"):
+    with pytest.raises(Refused, match=r'expected a JSON object with "format": "procmod-x/1", got \[1, 2\]$'):
+        read_versioned_json(path, "procmod-x/1", Refused)
+    # what the file says, as JSON (not Python's None or True), or that it says nothing
+    path.write_text('{"n": 2}')
+    with pytest.raises(Refused, match=r'job.json: has no "format", expected "procmod-x/1"$'):
+        read_versioned_json(path, "procmod-x/1", Refused)
+    path.write_text('{"format": true}')
+    with pytest.raises(Refused, match=r'job.json: format is true, expected "procmod-x/1"$'):
         read_versioned_json(path, "procmod-x/1", Refused)
     path.write_text("[" * 100_000)
     with pytest.raises(Refused, match=r"job.json: JSON nested too deeply .*; rerun$"):
@@ -158,3 +165,14 @@ def test_learns_resampler_gives_the_indices_it_gave_before():
         assert [p.objective for p in kept] == [objectives[i] for i in chosen]
         # both drew one uniform: the generators are left in the same state
         assert rng.random() == np.random.default_rng([seed, 1]).random(2)[1]
+
+
+def test_values_in_messages_read_as_the_user_wrote_them():
+    """A value from a file shows as JSON (``null``, ``true``, ``"x"``); anything else as its
+    repr; a long one cut, without dumping all of a huge list first."""
+    assert shown_value(None) == "null" and shown_value(True) == "true" and shown_value("wing") == '"wing"'
+    assert shown_value([1, 2.5, {"a": None}]) == '[1, 2.5, {"a": null}]'
+    assert shown_value(np.float32(0.5)) == "0.5" and shown_value(np.int64(3)) == "3"
+    assert shown_value(float("nan")) == "NaN" and shown_value(object).startswith("<class")
+    assert shown_value("x" * 100_000) == '"' + "x" * 56 + "..."
+    assert shown_value(list(range(10 ** 6)), 30) == "[0, 1, 2, 3, 4, 5, 6, 7, 8,..."

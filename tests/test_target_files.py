@@ -53,9 +53,13 @@ def _sil(view_change: dict, camera_change: dict | None = None, kind: str = "mesh
 # (id, spec, the message after "<id>.json: ")
 CASES = [
     ("voxel-size-0", _with(MESH, voxel_size=0), "voxel_size must be positive, got 0"),
-    ("voxel-size-nan", _with(MESH, voxel_size=float("nan")), "voxel_size must be a finite number, got nan"),
-    ("voxel-size-string", _with(MESH, voxel_size="fine"), "voxel_size must be a finite number, got 'fine'"),
+    ("voxel-size-nan", _with(MESH, voxel_size=float("nan")), "voxel_size must be a finite number, got NaN"),
+    ("voxel-size-string", _with(MESH, voxel_size="fine"), "voxel_size must be a finite number, got \"fine\""),
     ("voxel-size-missing", _with(MESH, voxel_size=_DROP), "mesh layers need \"voxel_size\""),
+    ("format-missing", _with(MESH, format=_DROP), "has no \"format\"; a 3D target file's is \"procmod-volume/1\" or "
+                                                  "\"procmod-silhouette/1\""),
+    ("format-other", _with(MESH, format="procmod-volume/2"), "\"format\" is \"procmod-volume/2\"; a 3D target file's "
+                                                            "is"),
     ("voxel-size-negative", _with(MESH, voxel_size=-0.5), "voxel_size must be positive, got -0.5"),
     ("voxel-size-tiny", _with(MESH, voxel_size=1e-4), "voxel_size 0.0001 around the mesh layers (12000x12000x12000"),
     ("grid-voxel-size-0", _with(NPY, grid__voxel_size=0), "grid.voxel_size must be positive, got 0"),
@@ -66,38 +70,38 @@ CASES = [
     ("voxel-size-1e300", _with(MESH, voxel_size=1e300), "voxel_size must lie in 1e-12..1e+12, got 1e+300"),
     ("origin-1e308", _with(NPY, grid__origin=[1e308, 0, 0]), "grid.origin must lie within +-1e+12, got [1e+308"),
     ("grid-voxel-size-nan", _with(NPY, grid__voxel_size=float("nan")), "grid.voxel_size must be a finite number"),
-    ("grid-voxel-size-string", _with(NPY, grid__voxel_size="1"), "grid.voxel_size must be a finite number, got '1'"),
+    ("grid-voxel-size-string", _with(NPY, grid__voxel_size="1"), "grid.voxel_size must be a finite number, got \"1\""),
     ("grid-voxel-size-missing", _with(NPY, grid__voxel_size=_DROP), "grid needs 'voxel_size'"),
     ("grid-missing", _with(NPY, grid=_DROP), "an .npy layer needs \"grid\""),
     ("grid-not-object", _with(NPY, grid=[0, 0, 0]), "grid must be a JSON object, got [0, 0, 0]"),
     ("origin-number", _with(NPY, grid__origin=5), "grid.origin must be three numbers, got 5"),
-    ("origin-nan", _with(NPY, grid__origin=[float("nan"), 0, 0]), "grid.origin[0] must be a finite number, got nan"),
+    ("origin-nan", _with(NPY, grid__origin=[float("nan"), 0, 0]), "grid.origin[0] must be a finite number, got NaN"),
     ("origin-two", _with(NPY, grid__origin=[0, 0]), "grid.origin must be three numbers, got [0, 0]"),
     ("grid-shape-mismatch", _with(NPY, grid__shape=[4, 4, 4]), "grid.shape [4, 4, 4] differs from the .npy layers'"),
     ("mesh-grid-without-shape", _with(MESH, voxel_size=_DROP, grid={"origin": [0, 0, 0], "voxel_size": 0.25}),
      "with only mesh layers, \"grid\" needs \"shape\""),
     ("voxel-sizes-disagree", _with(NPY, voxel_size=0.5), "voxel_size 0.5 and grid.voxel_size 0.25 disagree"),
-    ("w-self-string", _with(NPY, w_self="high"), "w_self must be a finite number, got 'high'"),
+    ("w-self-string", _with(NPY, w_self="high"), "w_self must be a finite number, got \"high\""),
     ("w-self-negative", _with(NPY, w_self=-1), "w_self must be at least 0, got -1"),
-    ("w-self-inf", _with(NPY, w_self=float("inf")), "w_self must be a finite number, got inf"),
-    ("w-fill-inf", _with(NPY, layers__0__w_fill=float("inf")), "layers[0].w_fill must be a finite number, got inf"),
-    ("w-fill-bool", _with(NPY, layers__0__w_fill=True), "layers[0].w_fill must be a finite number, got True"),
-    ("w-avoid-nan", _with(NPY, layers__0__w_avoid=float("nan")), "layers[0].w_avoid must be a finite number, got nan"),
-    ("score-unknown", _with(NPY, score="iou"), "score must be \"svol\" or \"proxy\", got 'iou'"),
+    ("w-self-inf", _with(NPY, w_self=float("inf")), "w_self must be a finite number, got Infinity"),
+    ("w-fill-inf", _with(NPY, layers__0__w_fill=float("inf")), "layers[0].w_fill must be a finite number, got Infinity"),
+    ("w-fill-bool", _with(NPY, layers__0__w_fill=True), "layers[0].w_fill must be a finite number, got true"),
+    ("w-avoid-nan", _with(NPY, layers__0__w_avoid=float("nan")), "layers[0].w_avoid must be a finite number, got NaN"),
+    ("score-unknown", _with(NPY, score="iou"), "score must be \"svol\" or \"proxy\", got \"iou\""),
     ("proxy-two-layers", _with(NPY, score="proxy", layers=[{"file": "v.npy"}, {"file": "v.npy"}]),
      "\"score\": \"proxy\" compares the ship with one target volume; layers has 2"),
     ("layers-missing", _with(NPY, layers=_DROP), "layers must be a non-empty list"),
     ("layers-string", _with(NPY, layers="v.npy"), "layers must be a non-empty list"),
-    ("layer-not-object", _with(NPY, layers=["v.npy"]), "layers[0] must be a JSON object, got 'v.npy'"),
+    ("layer-not-object", _with(NPY, layers=["v.npy"]), "layers[0] must be a JSON object, got \"v.npy\""),
     ("layer-no-file", _with(NPY, layers=[{"w_fill": 1}]), "layers[0] needs \"file\""),
     ("file-empty", _with(NPY, layers__0__file=""), "layers[0].file: expected a relative file path"),
-    ("file-dot", _with(NPY, layers__0__file="."), "layers[0].file: '.' names a folder, not a file"),
-    ("file-up", _with(NPY, layers__0__file="../.."), "layers[0].file: '../..' is not a voxel grid (.npy) or mesh file"),
-    ("file-absolute", _with(NPY, layers__0__file="/etc/hostname.npy"), "layers[0].file: '/etc/hostname.npy' is an "
+    ("file-dot", _with(NPY, layers__0__file="."), "layers[0].file: \".\" names a folder, not a file"),
+    ("file-up", _with(NPY, layers__0__file="../.."), "layers[0].file: \"../..\" is not a voxel grid (.npy) or mesh file"),
+    ("file-absolute", _with(NPY, layers__0__file="/etc/hostname.npy"), "layers[0].file: \"/etc/hostname.npy\" is an "
                                                                         "absolute path"),
     ("file-missing", _with(NPY, layers__0__file="nope.npy"), "layers[0].file: voxel grid (.npy) or mesh file "),
     ("file-folder", _with(NPY, layers__0__file="folder.npy"), "layers[0].file: "),
-    ("file-wrong-kind", _with(NPY, layers__0__file="notes.txt"), "layers[0].file: 'notes.txt' is not a voxel grid"),
+    ("file-wrong-kind", _with(NPY, layers__0__file="notes.txt"), "layers[0].file: \"notes.txt\" is not a voxel grid"),
     ("file-number", _with(NPY, layers__0__file=5), "layers[0].file: expected a relative file path (a non-empty "
                                                    "string), got 5"),
     ("npy-huge-header", _with(NPY, layers__0__file="huge.npy"), "layers[0].file: a voxel grid of shape (10000, 10000, "
@@ -138,17 +142,17 @@ CASES = [
     ("sil-fov-tiny-perspective", _sil({}, {"fov": 1e-300, "projection": "perspective"}),
      "views[0].camera.fov is the vertical field of view in degrees and must lie from 1e-06 to under 180"),
     ("sil-image-empty", _sil({}, kind="image", file=""), "views[0].image: expected a relative file path"),
-    ("sil-image-dot", _sil({}, kind="image", file="."), "views[0].image: '.' names a folder"),
+    ("sil-image-dot", _sil({}, kind="image", file="."), "views[0].image: \".\" names a folder"),
     ("sil-image-up", _sil({}, kind="image", file="../.."), "views[0].image: "),
-    ("sil-image-absolute", _sil({}, kind="image", file="/etc/hostname"), "views[0].image: '/etc/hostname' is an "
+    ("sil-image-absolute", _sil({}, kind="image", file="/etc/hostname"), "views[0].image: \"/etc/hostname\" is an "
                                                                         "absolute path"),
     ("sil-image-missing", _sil({}, kind="image", file="nope.png"), "views[0].image: picture file "),
     ("sil-image-not-image", _sil({}, kind="image", file="notes.txt"), "views[0].image: not an image Pillow can read"),
-    ("sil-weights-wrong-kind", _sil({}, kind="weights", file="sketch.png"), "views[0].weights: 'sketch.png' is not a "
+    ("sil-weights-wrong-kind", _sil({}, kind="weights", file="sketch.png"), "views[0].weights: \"sketch.png\" is not a "
                                                                             "weights file"),
     ("sil-weights-nan", _sil({}, kind="weights", file="nan2d.npy"), "views[0].weights: the weights holds NaN"),
     ("sil-mesh-missing", _sil({}, file="nope.obj"), "views[0].mesh: mesh file "),
-    ("sil-mesh-wrong-kind", _sil({}, file="notes.txt"), "views[0].mesh: 'notes.txt' is not a mesh file"),
+    ("sil-mesh-wrong-kind", _sil({}, file="notes.txt"), "views[0].mesh: \"notes.txt\" is not a mesh file"),
     ("sil-mesh-nan", _sil({}, file="nan.obj"), "views[0].mesh: 1 vertices of the mesh are not finite numbers"),
     ("sil-mesh-10M", _sil({}, file="huge.ply"), "views[0].mesh: "),
     ("sil-mesh-misses", _sil({}, {"eye": [50, 0, 10], "look_at": [50, 0, 0]}), "views[0].mesh: the mesh covers no "
@@ -161,7 +165,7 @@ CASES = [
     ("sil-two-kinds", _sil({"image": "sketch.png"}), "views[0] gives 'image' and 'mesh'; give one of them"),
     ("sil-image-width", _sil({}, {"width": 64}, kind="image", file="sketch.png"),
      "views[0].camera.width: a picture's or weights' size is its own"),
-    ("sil-hit-inf", _sil({"hit": float("inf")}), "views[0].hit must be a finite number, got inf"),
+    ("sil-hit-inf", _sil({"hit": float("inf")}), "views[0].hit must be a finite number, got Infinity"),
 ]
 
 # the size messages, beyond the field

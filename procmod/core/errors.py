@@ -12,10 +12,32 @@ and from the shell.
 """
 
 import contextlib
+import json
 from contextvars import ContextVar
 from types import MappingProxyType
 
 _SPELLING: ContextVar = ContextVar("procmod_argument_spelling", default=MappingProxyType({}))
+
+
+def cut_text(text: str, limit: int = 200) -> str:
+    """``text`` cut to ``limit`` characters for a message (an input may hold a 100 KB string)."""
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def shown_value(value, limit: int = 60) -> str:
+    """A value from an input file or argument as its user wrote it, for a message: JSON
+    where it is a JSON value (``null``, ``true``, ``"wing"``, ``[1, 2]``; a message about a
+    file shows what the file says, not Python's ``None``), else its ``repr``; cut to
+    ``limit`` characters."""
+    if hasattr(value, "item") and getattr(value, "ndim", None) == 0:
+        value = value.item()  # a numpy scalar: its number
+    if isinstance(value, (list, tuple)) and len(value) > limit:
+        value = list(value[:limit])  # the part that shows (cut below), not a huge dump
+    try:
+        text = json.dumps(value, ensure_ascii=False)
+    except (TypeError, ValueError, RecursionError):
+        text = repr(value)
+    return cut_text(text, limit)
 
 
 def argument(name: str) -> str:

@@ -31,7 +31,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from .errors import DerivationFormatError, ProcmodError
+from .errors import DerivationFormatError, ProcmodError, cut_text, shown_value
 
 
 def _current_umask() -> int:
@@ -42,10 +42,6 @@ def _current_umask() -> int:
 
 # Read once at import: os.umask can only be read by setting it, which is not thread-safe.
 _UMASK = _current_umask()
-
-
-def _cut(text: str, limit: int = 200) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 # ---- atomic writes -----------------------------------------------------------------------------
@@ -166,8 +162,8 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
         return json.loads(text, object_pairs_hook=_unique_keys)
     except _DuplicateKey as exc:
         # the values say where: a file has many "part" keys, and the reader has no positions
-        shown = " and ".join(_cut(json.dumps(v), 40) for v in exc.values[:2])
-        raise error(f"{source}: the key {_cut(repr(exc.key), 80)} appears twice in one object (values {shown}); "
+        shown = " and ".join(cut_text(json.dumps(v), 40) for v in exc.values[:2])
+        raise error(f"{source}: the key {cut_text(repr(exc.key), 80)} appears twice in one object (values {shown}); "
                     "keep one of them (which one was meant is not clear, so neither is used)") from None
     except json.JSONDecodeError as exc:
         raise error(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
@@ -175,7 +171,7 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
         raise error(f"{source}: JSON nested too deeply (procmod's files nest a few levels; this one nests "
                     "more than Python can read)") from None
     except ValueError as exc:  # e.g. an integer of more digits than Python converts (4300)
-        raise error(f"{source}: not valid JSON ({_cut(str(exc), 100)})") from None
+        raise error(f"{source}: not valid JSON ({cut_text(str(exc), 100)})") from None
 
 
 def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
@@ -185,25 +181,28 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
         raise error(f"{what} must be given as a path (a str or pathlib.Path), got {type(path).__name__} {path!r:.40}")
     try:
         if Path(path).exists() and not Path(path).is_file():  # a folder, a FIFO, /dev/zero: never ends or fits
-            raise error(f"{what} {_cut(str(path))} is not a regular file")
+            raise error(f"{what} {cut_text(str(path))} is not a regular file")
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise error(f"{what} {_cut(str(path))} does not exist") from None
+        raise error(f"{what} {cut_text(str(path))} does not exist") from None
     except UnicodeDecodeError:
-        raise error(f"{what} {_cut(str(path))} is not a JSON text file (its bytes are not UTF-8 text: a picture "
+        raise error(f"{what} {cut_text(str(path))} is not a JSON text file (its bytes are not UTF-8 text: a picture "
                     "or another binary file?)") from None
     except OSError as exc:
-        raise error(f"cannot read {what} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") from None
-    return parse_json(text, f"{what} {_cut(str(path))}" if what != "file" else _cut(str(path)), error)
+        raise error(f"cannot read {what} {cut_text(str(path))}: {getattr(exc, 'strerror', None) or exc}") from None
+    return parse_json(text, f"{what} {cut_text(str(path))}" if what != "file" else cut_text(str(path)), error)
 
 
 def check_format(data, fmt: str, source: str, error: type = DerivationFormatError, advice: str = "") -> dict:
-    """``data`` if it is a JSON object whose ``"format"`` is ``fmt``, else ``error``:
-    ``"{source}: format is X, expected fmt{advice}"`` (``advice`` starts with ``"; "``)."""
-    found = data.get("format") if isinstance(data, dict) else None
+    """``data`` if it is a JSON object whose ``"format"`` is ``fmt``, else ``error`` in one
+    line naming ``source``, what the file says (or that it says nothing) and ``fmt``
+    (``advice``, starting with ``"; "``, is appended)."""
+    if not isinstance(data, dict):
+        raise error(f"{source}: expected a JSON object with \"format\": \"{fmt}\", got {shown_value(data)}{advice}")
+    found = data.get("format")
     if found != fmt:
-        shown = _cut(repr(found), 80) if isinstance(data, dict) else "missing (not a JSON object)"
-        raise error(f"{source}: format is {shown}, expected {fmt!r}{advice}")
+        said = "has no \"format\"" if found is None else f"format is {shown_value(found, 80)}"
+        raise error(f"{source}: {said}, expected \"{fmt}\"{advice}")
     return data
 
 
@@ -215,7 +214,7 @@ def read_versioned_json(path: str | os.PathLike, fmt: str, error: type = Derivat
         data = read_json(path, error, what)
     except error as exc:
         raise error(f"{exc}{advice}") from None
-    return check_format(data, fmt, _cut(str(path)), error, advice)
+    return check_format(data, fmt, cut_text(str(path)), error, advice)
 
 
 # ---- tensors -----------------------------------------------------------------------------------
@@ -249,7 +248,7 @@ def load_tensors(path: str | os.PathLike, error: type = ProcmodError, what: str 
 
     import torch
 
-    source = _cut(str(path) if source is None else source)
+    source = cut_text(str(path) if source is None else source)
     try:
         with warnings.catch_warnings():  # torch warns (two lines) about a plain pickle before refusing it
             warnings.simplefilter("ignore")
@@ -260,9 +259,9 @@ def load_tensors(path: str | os.PathLike, error: type = ProcmodError, what: str 
             raise error(f"{source}: cannot read the {what} (not a file of tensors torch wrote: unsupported "
                         f"pickle operand {operand.group(1)}){advice}") from None
         found = re.search(r"GLOBAL [\w.]+", str(exc))  # the Python name the file would load
-        detail = f" ({_cut(found.group(0), 120)})" if found else ""
+        detail = f" ({cut_text(found.group(0), 120)})" if found else ""
         raise error(f"{source}: refused to load the {what}: the file holds Python objects, not only tensors"
                     f"{detail}; procmod never writes such a file and loading it could run its code{advice}") from None
     except Exception as exc:  # torch raises several types for truncated or foreign files
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise error(f"{source}: cannot read the {what} ({_cut(first, 160)}){advice}") from None
+        raise error(f"{source}: cannot read the {what} ({cut_text(first, 160)}){advice}") from None

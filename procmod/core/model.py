@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
-from .errors import InvalidArgumentError, ModelError
+from .errors import InvalidArgumentError, ModelError, shown_value
 
 
 @dataclass(frozen=True)
@@ -87,7 +87,7 @@ class Model:
         unknown = sorted(set(params) - set(self.params))
         if unknown:
             raise InvalidArgumentError(
-                f"model {self.name!r} has no parameter {_shown(unknown[0])}; "
+                f"model {self.name!r} has no parameter {shown_value(unknown[0])}; "
                 f"its parameters are: {', '.join(sorted(self.params)) or 'none'}")
         for name, value in params.items():
             _check_param(name, value, self.params[name], self.param_ranges.get(name))
@@ -115,11 +115,6 @@ class Model:
                          "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
 
 
-def _shown(value, limit: int = 60) -> str:
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
 def _like(value, default):
     """``value`` (checked by :func:`_check_param`) with the default's number types: an
     integer given for a real parameter (``direction=[0,-1]``) is stored as a float, so that
@@ -136,7 +131,7 @@ def _check_param(name: str, value, default, bounds=None) -> None:
     shape) and lies within ``bounds``; the message names the parameter (``size``,
     ``start[1]``)."""
     def fail(expected: str):
-        raise InvalidArgumentError(f"parameter {name} must be {expected}, got {_shown(value)}")
+        raise InvalidArgumentError(f"parameter {name} must be {expected}, got {shown_value(value)}")
 
     if isinstance(default, bool):
         if not isinstance(value, bool):

@@ -30,7 +30,7 @@ import os
 import re
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
-from .errors import ProcmodError
+from .errors import ProcmodError, cut_text, shown_value
 from .file_formats import conversion_hint
 
 
@@ -44,15 +44,6 @@ _PLAIN = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]*")
 MAX_STEM = 64
 # Device names Windows reserves, with or without an extension (``nul.obj`` is NUL too).
 _RESERVED = {"con", "prn", "aux", "nul", *(f"com{i}" for i in range(10)), *(f"lpt{i}" for i in range(10))}
-
-
-def _cut(text: str, limit: int) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _shown(value, limit: int = 80) -> str:
-    """``repr`` of a value cut to a readable length (an input may hold a 100 KB string)."""
-    return _cut(repr(value), limit)
 
 
 def is_plain_name(name: str) -> bool:
@@ -97,7 +88,7 @@ class FileNames:
         if name in self._by_name:
             return self._by_name[name]
         if not isinstance(name, str):
-            raise UnsafePathError(f"{self.source}: {self.field} must be a string, got {_shown(name)}")
+            raise UnsafePathError(f"{self.source}: {self.field} must be a string, got {shown_value(name)}")
         stem = name if is_plain_name(name) else _mapped_stem(name)
         file = stem + self.suffix
         if file.casefold() in self._taken:
@@ -105,8 +96,8 @@ class FileNames:
             # one gets its digest, which no plain name ends with a suffix-free collision on
             file = _mapped_stem(name) + self.suffix
         if file.casefold() in self._taken:
-            raise UnsafePathError(f"{self.source}: {self.field} {_shown(name)} and "
-                                  f"{_shown(self._taken[file.casefold()])} map to one file name {file!r}; "
+            raise UnsafePathError(f"{self.source}: {self.field} {shown_value(name)} and "
+                                  f"{shown_value(self._taken[file.casefold()])} map to one file name {file!r}; "
                                   "rename one of them")
         self._taken[file.casefold()] = name
         self._by_name[name] = file
@@ -116,16 +107,16 @@ class FileNames:
 def _relative_parts(value, where: str) -> tuple[str, ...]:
     """The components of a relative path from an input file, or UnsafePathError."""
     if not isinstance(value, str) or not value.strip():
-        raise UnsafePathError(f"{where}: expected a relative file path (a non-empty string), got {_shown(value)}")
+        raise UnsafePathError(f"{where}: expected a relative file path (a non-empty string), got {shown_value(value)}")
     if "\0" in value:
-        raise UnsafePathError(f"{where}: the path {_shown(value)} contains a NUL character")
+        raise UnsafePathError(f"{where}: the path {shown_value(value)} contains a NUL character")
     # absolute on any system: "/x", "\\x", "C:x", "C:\\x", "\\\\server\\share"
     if PurePosixPath(value).is_absolute() or PureWindowsPath(value).drive or PureWindowsPath(value).root:
-        raise UnsafePathError(f"{where}: {_shown(value)} is an absolute path; write it relative to "
+        raise UnsafePathError(f"{where}: {shown_value(value)} is an absolute path; write it relative to "
                               "the folder of the file that names it")
     parts = tuple(p for p in re.split(r"[/\\]", value) if p not in ("", "."))
     if not parts:
-        raise UnsafePathError(f"{where}: {_shown(value)} names a folder, not a file")
+        raise UnsafePathError(f"{where}: {shown_value(value)} names a folder, not a file")
     return parts
 
 
@@ -137,7 +128,7 @@ def contained_path(folder: str | os.PathLike, relative, where: str) -> Path:
     parts = _relative_parts(relative, where)
     if ".." in parts:
         # (``folder`` is not named: it is often a run's temporary folder, a name the user never gave)
-        raise UnsafePathError(f"{where}: {_shown(relative)} leads out of its folder, so it cannot be "
+        raise UnsafePathError(f"{where}: {shown_value(relative)} leads out of its folder, so it cannot be "
                               "reproduced inside the output folder; keep the file in (a subfolder of) the "
                               "folder of the file that names it")
     return Path(folder).joinpath(*parts)
@@ -168,12 +159,12 @@ def named_file(base_dir: str | os.PathLike, value, where: str, suffixes=None, ki
     """
     parts = _relative_parts(value, where)
     if same_folder and (len(parts) != 1 or parts[0] == ".."):
-        raise UnsafePathError(f"{where}: expected the name of a file beside it (no folders), got {_shown(value)}")
+        raise UnsafePathError(f"{where}: expected the name of a file beside it (no folders), got {shown_value(value)}")
     path = Path(base_dir).joinpath(*parts)
-    shown = _cut(str(path), 200)
+    shown = cut_text(str(path), 200)
     if suffixes is not None and path.suffix.lower() not in suffixes:
         hint = conversion_hint(path)
-        raise UnsafePathError(f"{where}: {_shown(value)} is not a {kind} file (expected a name ending in "
+        raise UnsafePathError(f"{where}: {shown_value(value)} is not a {kind} file (expected a name ending in "
                               f"{', '.join(sorted(suffixes))})" + (f"; {hint}" if hint else ""))
     try:
         if path.is_dir():
@@ -184,7 +175,7 @@ def named_file(base_dir: str | os.PathLike, value, where: str, suffixes=None, ki
         if not path.is_file():
             raise UnsafePathError(f"{where}: {shown} is not a regular file")
     except OSError as exc:  # a name too long for the file system, a folder we may not enter
-        raise UnsafePathError(f"{where}: cannot use {_shown(value)} as a {kind} file ({exc.strerror})") from None
+        raise UnsafePathError(f"{where}: cannot use {shown_value(value)} as a {kind} file ({exc.strerror})") from None
     _NAMED_FILES_READ.add(path)
     return path
 

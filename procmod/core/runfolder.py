@@ -45,16 +45,12 @@ from pathlib import Path
 from typing import Callable, Iterator
 from urllib.parse import unquote
 
-from .errors import InvalidArgumentError, argument
+from .errors import InvalidArgumentError, argument, cut_text
 from .paths import named_files_read
 
 
 class OutputLocationError(InvalidArgumentError):
     """An output location that cannot be written, or a folder that may not be replaced."""
-
-
-def _cut(text: str, limit: int = 120) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 @dataclass(frozen=True)
@@ -135,13 +131,13 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
     """Refuse unless a file can be created in ``folder`` (tried, then removed)."""
     option = argument(option)
     if not folder.is_dir():
-        raise OutputLocationError(f"cannot write {option} {_cut(str(out))}: {_cut(str(folder))} is not a folder")
+        raise OutputLocationError(f"cannot write {option} {cut_text(str(out))}: {cut_text(str(folder))} is not a folder")
     try:
         probe = tempfile.mkdtemp(prefix=".procmod-probe-", dir=folder)
         os.rmdir(probe)
     except OSError as exc:
-        raise OutputLocationError(f"cannot write {option} {_cut(str(out))}: cannot create files in "
-                                  f"{_cut(str(folder))} ({exc.strerror or exc})") from None
+        raise OutputLocationError(f"cannot write {option} {cut_text(str(out))}: cannot create files in "
+                                  f"{cut_text(str(folder))} ({exc.strerror or exc})") from None
 
 
 def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False,
@@ -157,18 +153,18 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
     try:
         is_dir = path.is_dir()
     except (OSError, ValueError) as exc:  # a name too long for the file system
-        raise OutputLocationError(f"cannot write {shown} {_cut(str(path))}: {getattr(exc, 'strerror', None) or exc}") \
+        raise OutputLocationError(f"cannot write {shown} {cut_text(str(path))}: {getattr(exc, 'strerror', None) or exc}") \
             from None
     if is_dir:
-        raise OutputLocationError(f"{shown} {_cut(str(path))} is a folder; give a file name")
+        raise OutputLocationError(f"{shown} {cut_text(str(path))} is a folder; give a file name")
     for item in [*inputs, *named_files_read()]:
         if item is not None and Path(item).exists() and path.exists() and _holds(Path(item), path):
-            raise OutputLocationError(f"{shown} {_cut(str(path))} would overwrite the input "
-                                      f"{_cut(str(item))}{'' if _holds(path, Path(item)) else ' (a file in it)'}; "
+            raise OutputLocationError(f"{shown} {cut_text(str(path))} would overwrite the input "
+                                      f"{cut_text(str(item))}{'' if _holds(path, Path(item)) else ' (a file in it)'}; "
                                       "give another file name")
     parent = path.parent
     if not parent.exists() and not make_parent:
-        raise OutputLocationError(f"cannot write {shown} {_cut(str(path))}: the folder {_cut(str(parent))} "
+        raise OutputLocationError(f"cannot write {shown} {cut_text(str(path))}: the folder {cut_text(str(parent))} "
                                   "does not exist; create it first")
     _probe_writable(_nearest_existing(parent), option, path)
     return path
@@ -213,7 +209,7 @@ class RunFolder:
         self.path = Path(path)
         self.kind = kind
         self.option = option = argument(option)
-        shown = _cut(str(self.path))
+        shown = cut_text(str(self.path))
         self._inputs = [item for item in inputs if item is not None]
         try:
             exists, is_dir = self.path.exists(), self.path.is_dir()
@@ -233,7 +229,7 @@ class RunFolder:
                         f"{argument('overwrite=True')} to start over")
                 example = kind.foreign(self.path) or sorted(p.name for p in self.path.iterdir())[0]
                 raise OutputLocationError(
-                    f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {_cut(example, 60)!r}); "
+                    f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {cut_text(example, 60)!r}); "
                     f"give a new or empty folder, or pass {argument('overwrite=True')} to replace it whole")
             # an earlier run a job resumes is kept: the files named by inputs are checked
             # when (and if) the folder is removed
@@ -242,7 +238,7 @@ class RunFolder:
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
 
     def _check_replaceable(self, named: bool = True) -> None:
-        shown = _cut(str(self.path))
+        shown = cut_text(str(self.path))
         for protected, what in ((Path.cwd(), "the current folder"), (Path.home(), "your home folder")):
             if _holds(self.path, protected):
                 raise OutputLocationError(f"{self.option} {shown} holds {what}; it cannot be replaced: give "
@@ -253,10 +249,10 @@ class RunFolder:
         """Refuse to remove a folder holding one of the command's inputs: those it was
         given, and (``named``) every file an input file has named so far
         (:func:`named_files_read`), which may have been read after the folder was first checked."""
-        shown = _cut(str(self.path))
+        shown = cut_text(str(self.path))
         for item in [*self._inputs, *(named_files_read() if named else ())]:
             if Path(item).exists() and _holds(self.path, Path(item)):
-                raise OutputLocationError(f"{self.option} {shown} holds the input {_cut(str(item))}; replacing "
+                raise OutputLocationError(f"{self.option} {shown} holds the input {cut_text(str(item))}; replacing "
                                           "the folder would delete it: give another folder")
 
     @contextlib.contextmanager

@@ -22,10 +22,10 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import DerivationFormatError, InvalidArgumentError, ProcmodError
+from .errors import DerivationFormatError, InvalidArgumentError, ProcmodError, cut_text
 # The file recipes live in .io; these names are kept here for the modules that import them
 # from serialize.
-from .io import _cut, check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
+from .io import check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
 from .model import Model
 from .runtime import Derivation, replay
 
@@ -89,7 +89,7 @@ def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
     try:
         write_text_atomic(path, text)
     except OSError as exc:  # no such folder, a folder of that name, no permission
-        raise InvalidArgumentError(f"cannot write the derivation to {_cut(str(path))}: "
+        raise InvalidArgumentError(f"cannot write the derivation to {cut_text(str(path))}: "
                                    f"{getattr(exc, 'strerror', None) or exc}") from None
 
 
@@ -135,7 +135,7 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
     except ProcmodError as exc:  # e.g. a parameter the model's rules refuse
         raise _fail(source, str(exc)) from None
     except MemoryError as exc:  # numpy refuses an absurd allocation at once (params.size 10^9)
-        raise _fail(source, f"replaying it under params {_cut(json.dumps(data['params']), 120)} needs more "
+        raise _fail(source, f"replaying it under params {cut_text(json.dumps(data['params']), 120)} needs more "
                             f"memory than this machine has ({exc})") from None
     if result.unused or result.log_fresh != 0.0 or result.derivation.order() != order:
         what = (f"{len(result.unused)} stored choices were not used" if result.unused
@@ -155,4 +155,4 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
 def load_derivation(path: str | os.PathLike, resolve_model: Callable[[str], Model]) -> Derivation:
     """Read a ``procmod-derivation/1`` file and replay it exactly."""
     data = read_json(path, DerivationFormatError, "derivation file")
-    return derivation_from_dict(data, resolve_model, source=_cut(str(path)))
+    return derivation_from_dict(data, resolve_model, source=cut_text(str(path)))

@@ -20,9 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.errors import cut_text, shown_value
 from ..core.distributions import Normal
 from ..core.limits import check_memory
-from ..core.io import fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
+from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from .fast import guided_draw, pack_site, site_outputs
 from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, check_same_size,
                        covered_pixels, heading_of, partial_pyramid)
@@ -34,19 +35,11 @@ MAX_FEATURES = 100_000  # inputs of one site network (the built-in models have u
 MAX_CATEGORIES = 100_000
 
 
-def _cut(text: str, limit: int) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _shown(value, limit: int = 60) -> str:
-    return _cut(repr(value), limit)
-
-
 def check_mixture(mixture, where: str = "mixture") -> int:
     """``mixture`` if it is an integer in [1, MAX_MIXTURE], else a GuideError naming ``where``."""
     if isinstance(mixture, bool) or not isinstance(mixture, int) or not 1 <= mixture <= MAX_MIXTURE:
         raise GuideError(f"{where} must be a whole number of Gaussian components from 1 to {MAX_MIXTURE}, "
-                         f"got {_shown(mixture)}")
+                         f"got {shown_value(mixture)}")
     return mixture
 
 
@@ -56,7 +49,7 @@ def _site_kind(kind, where: str) -> str:
     match = re.fullmatch(r"categorical:(\d{1,7})", kind) if isinstance(kind, str) else None
     if match is None or not 2 <= int(match.group(1)) <= MAX_CATEGORIES:
         raise GuideError(f"{where}.kind must be real, interval, bernoulli or categorical:K (2 <= K <= "
-                         f"{MAX_CATEGORIES}), got {_shown(kind)}")
+                         f"{MAX_CATEGORIES}), got {shown_value(kind)}")
     return kind
 
 
@@ -74,34 +67,32 @@ def check_metadata(data, source: str) -> dict:
     """The fields of a ``procmod-guide/1`` metadata object, each checked, or a GuideError
     in one line naming the file and the field. The networks' total size is checked
     against the machine's memory before any is built."""
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        found = data.get("format") if isinstance(data, dict) else None
-        raise GuideError(f"{source}: format is {_shown(found)}, expected {FORMAT!r}")
+    check_format(data, FORMAT, source, GuideError)
     if not isinstance(data.get("model"), str):
-        raise GuideError(f"{source}: model must be a model name, got {_shown(data.get('model'))}")
+        raise GuideError(f"{source}: model must be a model name, got {shown_value(data.get('model'))}")
     features = data.get("features")
     if (not isinstance(features, dict) or not {"local", "target", "partial"} <= set(features) <= set(SOURCES)
             or not all(isinstance(v, bool) for v in features.values())):
         raise GuideError(f"{source}: features must be {{\"local\": bool, \"target\": bool, \"partial\": bool}} "
-                         f"(and optionally \"progress\": bool), got {_shown(features)}")
+                         f"(and optionally \"progress\": bool), got {shown_value(features)}")
     mixture = check_mixture(data.get("mixture"), f"{source}: mixture")
     sites = data.get("sites")
     if not isinstance(sites, dict):
         raise GuideError(f"{source}: sites must be an object (site -> kind, n_in, n_out)")
     weights = 0
     for key, spec in sites.items():
-        where = f"{source}: sites[{_shown(key)}]"
+        where = f"{source}: sites[{shown_value(key)}]"
         if not isinstance(spec, dict) or ":" not in key:
             raise GuideError(f"{where} must be an object {{kind, n_in, n_out}} under a 'rule:choice' name")
         kind = _site_kind(spec.get("kind"), where)
         n_in = spec.get("n_in")
         if isinstance(n_in, bool) or not isinstance(n_in, int) or not 0 <= n_in <= MAX_FEATURES:
             raise GuideError(f"{where}.n_in must be a whole number of features from 0 to {MAX_FEATURES}, "
-                             f"got {_shown(n_in)}")
+                             f"got {shown_value(n_in)}")
         n_out = n_outputs(kind, mixture)
         if spec.get("n_out") != n_out:
             raise GuideError(f"{where}.n_out must be {n_out} for a {kind} site with mixture {mixture}, "
-                             f"got {_shown(spec.get('n_out'))}")
+                             f"got {shown_value(spec.get('n_out'))}")
         weights += sum(math.prod(shape) for shape in weight_shapes(n_in, n_out))
     check_memory(f"{source}: the guide's networks", 8.0 * weights * 3, "the metadata is not a guide procmod wrote")
     if data.get("info") is not None and not isinstance(data.get("info"), dict):
@@ -213,7 +204,7 @@ class Guide:
         except (RuntimeError, KeyError, TypeError, AttributeError) as exc:
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             raise GuideError(f"{weights}: the weights do not match {weights.with_suffix('.json').name} "
-                             f"({_cut(first, 160)}); keep the files that 'procmod guide train' wrote "
+                             f"({cut_text(first, 160)}); keep the files that 'procmod guide train' wrote "
                              "together") from None
         if not all(bool(p.isfinite().all()) for p in guide.nets.parameters()):
             raise GuideError(f"{weights}: the weights are not all finite numbers (a training that diverged); "

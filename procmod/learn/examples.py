@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import ProcmodError
-from ..core.io import read_json, write_text_atomic
+from ..core.io import check_format, read_json, write_text_atomic
 from ..core.limits import MAX_COORDINATE
 from ..geometry.assets import MAX_DEPTH  # one depth limit for example files and asset files
 from ..geometry.part_library import (PartLibraryError, PartShape, is_singular, read_part_library, read_transform,
@@ -131,10 +131,7 @@ def examples_from_dict(data, base_dir: str | os.PathLike = ".", source: str = "e
     ExamplesError
         Naming ``source`` and the JSON path of the first problem.
     """
-    if not isinstance(data, dict):
-        raise ExamplesError(f"{source}: expected a JSON object with 'format', 'parts' and 'examples'")
-    if data.get("format") != FORMAT:
-        raise ExamplesError(f"{source}: format is {data.get('format')!r}, expected {FORMAT!r}")
+    check_format(data, FORMAT, source, ExamplesError)
     unknown = sorted(map(str, set(data) - {"format", "parts", "examples"}))
     if unknown:
         raise ExamplesError(f"{source}: unknown field {unknown[0]!r} (the file has 'format', 'parts', 'examples')")

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.paths import contained_path, named_file
-from ..core.io import read_json, write_text_atomic
+from ..core.io import check_format, read_json, write_text_atomic
 from ..geometry.part_library import (PartLibraryError, part_library_to_json, read_part_library, read_transform,
                                      transform_to_json)
 from .codec import LETTERS, GraphError, check_graph
@@ -109,10 +109,7 @@ def read_shapes(path: str | os.PathLike) -> ShapeSet:
 
 def shapes_from_dict(data, base_dir, source: str = "shapes") -> ShapeSet:
     """A :class:`ShapeSet` from the parsed JSON of a shapes file."""
-    if not isinstance(data, dict):
-        raise ShapesFormatError(f"{source}: expected a JSON object with format, parts and shapes")
-    if data.get("format") != SHAPES_FORMAT:
-        raise ShapesFormatError(f"{source}: format is {data.get('format')!r}, expected {SHAPES_FORMAT!r}")
+    check_format(data, SHAPES_FORMAT, source, ShapesFormatError)
     try:
         library = read_part_library(data.get("parts"), base_dir)
     except PartLibraryError as exc:

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.errors import cut_text, shown_value
 from ..core.limits import MAX_COORDINATE, MIN_LENGTH, ResourceLimitError, check_memory, format_bytes
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
@@ -48,15 +49,6 @@ SCORES = ("svol", "proxy")
 DEFAULT_MESH_VIEW = 128  # pixels a side of a silhouette view drawn from a mesh, unless given
 
 
-def _cut(text: str, limit: int = 200) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _shown(value, limit: int = 60) -> str:
-    """``repr`` of a value from a file, cut to a readable length."""
-    return _cut(repr(value), limit)
-
-
 def read_target_json(path: str | os.PathLike):
     """The parsed JSON of a target description, or a TargetFileError saying why not."""
     return read_json(path, TargetFileError, "target file")  # one line also for absurdly deep JSON
@@ -67,7 +59,7 @@ def read_target_json(path: str | os.PathLike):
 def number(value, where: str, positive: bool = False, minimum: float | None = None) -> float:
     """A finite number from a file (not a bool), else TargetFileError naming ``where``."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise TargetFileError(f"{where} must be a finite number, got {_shown(value)}")
+        raise TargetFileError(f"{where} must be a finite number, got {shown_value(value)}")
     if positive and not value > 0:
         raise TargetFileError(f"{where} must be positive, got {value:g}")
     if minimum is not None and value < minimum:
@@ -94,10 +86,10 @@ def weight(value, where: str, minimum: float | None = None) -> float:
 def vector3(value, where: str) -> tuple:
     """Three finite numbers within +-:data:`MAX_COORDINATE` from a file."""
     if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise TargetFileError(f"{where} must be three numbers, got {_shown(value)}")
+        raise TargetFileError(f"{where} must be three numbers, got {shown_value(value)}")
     out = tuple(number(v, f"{where}[{i}]") for i, v in enumerate(value))
     if max(abs(v) for v in out) > MAX_COORDINATE:
-        raise TargetFileError(f"{where} must lie within +-{MAX_COORDINATE:g}, got {_shown(list(value))}")
+        raise TargetFileError(f"{where} must lie within +-{MAX_COORDINATE:g}, got {shown_value(list(value))}")
     return out
 
 
@@ -111,13 +103,13 @@ def length(value, where: str) -> float:
 
 def _count(value, where: str, largest: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= largest:
-        raise TargetFileError(f"{where} must be a whole number from 1 to {largest:,}, got {_shown(value)}")
+        raise TargetFileError(f"{where} must be a whole number from 1 to {largest:,}, got {shown_value(value)}")
     return value
 
 
 def _object(value, where: str) -> dict:
     if not isinstance(value, dict):
-        raise TargetFileError(f"{where} must be a JSON object, got {_shown(value)}")
+        raise TargetFileError(f"{where} must be a JSON object, got {shown_value(value)}")
     return value
 
 
@@ -139,7 +131,7 @@ def npy_header(file: Path, where: str, what: str):
             read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
             shape, _, dtype = read(handle)
     except (OSError, ValueError, TypeError, SyntaxError) as exc:
-        raise TargetFileError(f"{where}: cannot read the {what} ({_cut(str(exc), 120)})") from None
+        raise TargetFileError(f"{where}: cannot read the {what} ({cut_text(str(exc), 120)})") from None
     return tuple(int(n) for n in shape), dtype
 
 
@@ -148,7 +140,7 @@ def load_npy(file: Path, where: str, what: str) -> np.ndarray:
     try:
         array = np.load(file, allow_pickle=False)
     except (OSError, ValueError, TypeError, EOFError) as exc:
-        raise TargetFileError(f"{where}: cannot read the {what} ({_cut(str(exc), 120)})") from None
+        raise TargetFileError(f"{where}: cannot read the {what} ({cut_text(str(exc), 120)})") from None
     if array.dtype.kind == "f" and not np.isfinite(array).all():
         raise TargetFileError(f"{where}: the {what} holds NaN or infinity; it must hold finite numbers")
     return array
@@ -163,7 +155,7 @@ def _numeric(dtype, where: str, what: str) -> None:
 
 def _too_many_faces(where: str, file: Path, faces: int, exact: bool) -> ResourceLimitError:
     return ResourceLimitError(
-        f"{where}: {_cut(str(file), 120)} has {'' if exact else 'at least '}{faces:,} faces; procmod reads target "
+        f"{where}: {cut_text(str(file), 120)} has {'' if exact else 'at least '}{faces:,} faces; procmod reads target "
         f"meshes of up to {MAX_MESH_FACES:,} faces (reading this one would need about "
         f"{format_bytes(faces * BYTES_PER_FACE)} of memory, and a voxel or pixel grid does not resolve that much "
         "detail): decimate it first (e.g. Blender's Decimate modifier)")
@@ -186,13 +178,13 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     from ..geometry.inside import orient_faces, single_sided
 
     file = Path(file)
-    where = where or _cut(str(file))
+    where = where or cut_text(str(file))
     try:
         size = file.stat().st_size
     except OSError as exc:
-        raise TargetFileError(f"{where}: cannot read the mesh {_cut(str(file), 120)} ({exc.strerror})") from None
+        raise TargetFileError(f"{where}: cannot read the mesh {cut_text(str(file), 120)} ({exc.strerror})") from None
     if size == 0:
-        raise TargetFileError(f"{where}: {_cut(str(file), 120)} is empty")
+        raise TargetFileError(f"{where}: {cut_text(str(file), 120)} is empty")
     declared = declared_faces(file)
     if declared is not None and declared > MAX_MESH_FACES:
         raise _too_many_faces(where, file, declared, exact=file.suffix.lower() in (".stl", ".ply", ".off"))
@@ -201,9 +193,9 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     try:
         mesh = load_mesh_file(file, force="mesh", process=False)  # quiet: see quiet_trimesh
     except Exception as exc:  # noqa: BLE001 -- trimesh raises many types for unreadable files
-        raise TargetFileError(f"{where}: cannot read the mesh ({_cut(str(exc) or type(exc).__name__, 200)})") from None
+        raise TargetFileError(f"{where}: cannot read the mesh ({cut_text(str(exc) or type(exc).__name__, 200)})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise TargetFileError(f"{where}: {_cut(str(file), 120)} holds no triangle faces (nothing to take an "
+        raise TargetFileError(f"{where}: {cut_text(str(file), 120)} holds no triangle faces (nothing to take an "
                               "inside or a silhouette of; is it a mesh file?)")
     if len(mesh.faces) > MAX_MESH_FACES:
         raise _too_many_faces(where, file, len(mesh.faces), exact=True)
@@ -340,7 +332,7 @@ def _corner(point) -> str:
 def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float = 0.1):
     """``(grid, mask)``: a mesh file (any format :func:`read_mesh` takes) voxelized on the
     grid of edge ``voxel_size`` around it grown by ``margin``."""
-    where = _cut(str(path))
+    where = cut_text(str(path))
     voxel_size = length(voxel_size, f"{where}: voxel_size")
     margin = number(margin, f"{where}: margin", minimum=0.0)
     vertices, faces = read_mesh(path, where)
@@ -378,11 +370,11 @@ def _mesh_placement(spec: dict, where: str):
     offset = np.asarray(vector3(spec.get("mesh_offset", (0.0, 0.0, 0.0)), f"{where}: mesh_offset"))
     if not (1e-12 <= scale <= 1e12 and np.all(np.abs(offset) <= 1e12)):
         raise TargetFileError(f"{where}: mesh_scale must lie in 1e-12..1e12 and mesh_offset within +-1e12, got "
-                              f"{scale:g} and {_shown(offset.tolist())}")
+                              f"{scale:g} and {shown_value(offset.tolist())}")
     up = spec.get("mesh_up", "y")
     if up not in UP_AXES:
         raise TargetFileError(f"{where}: mesh_up is the mesh's up axis, one of {', '.join(map(repr, UP_AXES))} "
-                              f"(procmod's models are y-up; \"z\" for a z-up tool's file), got {_shown(up)}")
+                              f"(procmod's models are y-up; \"z\" for a z-up tool's file), got {shown_value(up)}")
     return scale, offset, up_rotation(up)
 
 
@@ -414,7 +406,7 @@ def _given_grid(spec: dict, where: str):
     shape = None
     if "shape" in g:
         if not isinstance(g["shape"], list) or len(g["shape"]) != 3:
-            raise TargetFileError(f"{where}: grid.shape must be three whole numbers, got {_shown(g['shape'])}")
+            raise TargetFileError(f"{where}: grid.shape must be three whole numbers, got {shown_value(g['shape'])}")
         shape = tuple(_count(n, f"{where}: grid.shape[{i}]", 10 ** 12) for i, n in enumerate(g["shape"]))
     return origin, size, shape
 
@@ -442,13 +434,13 @@ def load_volume_target(path: str | os.PathLike):
     before anything else: ``grid``, ``voxel_size`` and ``margin`` are in the model's units.
     """
     path = Path(path)
-    where = _cut(str(path))
+    where = cut_text(str(path))
     spec = read_target_json(path)
     if not isinstance(spec, dict) or spec.get("format") != "procmod-volume/1":
         raise TargetFileError(f"{where}: expected a JSON object with \"format\": \"procmod-volume/1\"")
     score = spec.get("score", "svol")
     if score not in SCORES:
-        raise TargetFileError(f"{where}: score must be \"svol\" or \"proxy\", got {_shown(score)}")
+        raise TargetFileError(f"{where}: score must be \"svol\" or \"proxy\", got {shown_value(score)}")
     layers_spec = spec.get("layers")
     if not isinstance(layers_spec, list) or not layers_spec:
         raise TargetFileError(f"{where}: layers must be a non-empty list of {{\"file\": ...}} objects")
@@ -473,8 +465,8 @@ def load_volume_target(path: str | os.PathLike):
     _placement_needs_meshes(spec, where, bool(meshes), "layer")
     given = _given_grid(spec, where) if "grid" in spec else None
     if given is not None and "voxel_size" in spec and spec["voxel_size"] != spec["grid"].get("voxel_size"):
-        raise TargetFileError(f"{where}: voxel_size {_shown(spec['voxel_size'])} and grid.voxel_size "
-                              f"{_shown(spec['grid'].get('voxel_size'))} disagree: give the voxel size once")
+        raise TargetFileError(f"{where}: voxel_size {shown_value(spec['voxel_size'])} and grid.voxel_size "
+                              f"{shown_value(spec['grid'].get('voxel_size'))} disagree: give the voxel size once")
     shape = None
     if arrays:
         if given is None:
@@ -553,7 +545,7 @@ def _camera(spec, where: str, sized: bool) -> Camera:
     up = vector3(spec.get("up", (0, 1, 0)), f"{where}.up")
     projection = spec.get("projection", "perspective")
     if projection not in ("perspective", "orthographic"):
-        raise TargetFileError(f"{where}.projection must be perspective or orthographic, got {_shown(projection)}")
+        raise TargetFileError(f"{where}.projection must be perspective or orthographic, got {shown_value(projection)}")
     fov = number(spec.get("fov", 40.0), f"{where}.fov")
     if projection == "perspective" and not 1e-6 <= fov < 180:
         raise TargetFileError(f"{where}.fov is the vertical field of view in degrees and must lie from 1e-06 "
@@ -631,7 +623,7 @@ def _misplaced_keys(spec: dict, known: tuple, at: str, inside: tuple | None = No
 def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     """Read a ``procmod-silhouette/1`` target (see :mod:`procmod.targets.silhouette`)."""
     path = Path(path)
-    where = _cut(str(path))
+    where = cut_text(str(path))
     spec = read_target_json(path)
     views = spec.get("views") if isinstance(spec, dict) else None
     if not isinstance(views, list) or not views:
@@ -695,8 +687,9 @@ def load_target_file(path: str | os.PathLike):
         return load_silhouette_target(path)
     if kind == "procmod-volume/1":
         return load_volume_target(path)
-    raise TargetFileError(f"{_cut(str(path))}: \"format\" must be procmod-volume/1 or procmod-silhouette/1, "
-                          f"got {_shown(kind)}")
+    said = "has no \"format\"" if kind is None else f"\"format\" is {shown_value(kind)}"
+    raise TargetFileError(f"{cut_text(str(path))}: {said}; a 3D target file's is \"procmod-volume/1\" or "
+                          "\"procmod-silhouette/1\" (README, \"Targets\")")
 
 
 __all__ = ["BYTES_PER_FACE", "BYTES_PER_VOXEL", "MAX_MESH_FACES", "MESH_SUFFIXES", "declared_faces",

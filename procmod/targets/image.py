@@ -18,6 +18,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from ..core import InvalidArgumentError, ProcmodError
+from ..core.errors import cut_text
 from ..core.serialize import read_json
 
 # The largest picture procmod reads as a target: Pillow's own decompression-bomb limit
@@ -30,17 +31,13 @@ class TargetFileError(ProcmodError):
     """A target image or its sidecar JSON cannot be used."""
 
 
-def _cut(text: str, limit: int = 200) -> str:
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
 def open_image(path: str | os.PathLike, where: str | None = None, square: bool = False) -> Image.Image:
     """A picture file, decoded, or a :class:`TargetFileError` in one line naming ``where``
     (default: the path). A picture over :data:`MAX_IMAGE_PIXELS` (a decompression bomb,
     or just too big) is refused from its header, before its pixels are decoded; with
     ``square``, so is one whose padding to a square (a target mask) would be."""
     path = Path(path)
-    where = where or _cut(str(path))
+    where = where or cut_text(str(path))
     try:
         with warnings.catch_warnings():
             # Pillow warns between its limit and twice it, and raises above: both are refused
@@ -63,11 +60,11 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
         raise TargetFileError(f"{where}: the picture is {size}; procmod reads pictures up to "
                               f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels (about 9500x9500): scale it down") from None
     except FileNotFoundError:
-        raise TargetFileError(f"{where}: image file {_cut(str(path))} does not exist") from None
+        raise TargetFileError(f"{where}: image file {cut_text(str(path))} does not exist") from None
     except IsADirectoryError:
-        raise TargetFileError(f"{where}: {_cut(str(path))} is a folder, not an image file") from None
+        raise TargetFileError(f"{where}: {cut_text(str(path))} is a folder, not an image file") from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
-        raise TargetFileError(f"{where}: not an image Pillow can read ({_cut(str(exc), 120)})") from None
+        raise TargetFileError(f"{where}: not an image Pillow can read ({cut_text(str(exc), 120)})") from None
 
 
 def _too_big(where: str, width: int, height: int) -> TargetFileError:
@@ -105,9 +102,9 @@ class TargetImage:
             mask = mask.astype(bool)  # a 0/1 array is a mask too
         if mask.dtype != bool:
             raise InvalidArgumentError(
-                f"TargetImage {_cut(str(self.name), 60)}: the mask must be a boolean (or 0/1) array, True = shape, "
+                f"TargetImage {cut_text(str(self.name), 60)}: the mask must be a boolean (or 0/1) array, True = shape, "
                 f"got {mask.dtype} values other than 0 and 1; for a picture use procmod.targets.load_target_image(path) or mask_from_image(image)")
-        object.__setattr__(self, "mask", check_mask(mask, f"TargetImage {_cut(str(self.name), 60)}"))
+        object.__setattr__(self, "mask", check_mask(mask, f"TargetImage {cut_text(str(self.name), 60)}"))
         for key, low, high in (("start", 0.0, 1.0), ("direction", -math.inf, math.inf)):
             value = getattr(self, key)
             try:
@@ -115,12 +112,12 @@ class TargetImage:
             except (TypeError, ValueError):
                 pair = ()
             if len(pair) != 2 or not all(math.isfinite(v) and low <= v <= high for v in pair):
-                raise InvalidArgumentError(f"TargetImage {_cut(str(self.name), 60)}: {key} must be two finite numbers"
+                raise InvalidArgumentError(f"TargetImage {cut_text(str(self.name), 60)}: {key} must be two finite numbers"
                                            + (" in [0, 1] (normalised image coordinates)" if key == "start" else "")
-                                           + f", got {_cut(repr(value), 60)}")
+                                           + f", got {cut_text(repr(value), 60)}")
             object.__setattr__(self, key, pair)
         if self.direction == (0.0, 0.0):
-            raise InvalidArgumentError(f"TargetImage {_cut(str(self.name), 60)}: direction must be a non-zero vector")
+            raise InvalidArgumentError(f"TargetImage {cut_text(str(self.name), 60)}: direction must be a non-zero vector")
 
     def mirrored(self) -> "TargetImage":
         """The horizontally mirrored target (start and direction mirrored too)."""
@@ -138,7 +135,7 @@ class TargetImage:
             rows, cols = np.flatnonzero(self.mask.any(axis=1)), np.flatnonzero(self.mask.any(axis=0))
             h, w = self.mask.shape
             raise TargetFileError(
-                f"target {_cut(self.name, 80)}: its shape ({cols[-1] - cols[0] + 1}x{rows[-1] - rows[0] + 1} "
+                f"target {cut_text(self.name, 80)}: its shape ({cols[-1] - cols[0] + 1}x{rows[-1] - rows[0] + 1} "
                 f"pixels of a {w}x{h} frame; a picture that is not square is padded to a square) vanishes "
                 f"when the frame is scaled to the model's {width}x{height} canvas; crop the picture "
                 "closer to the shape, or draw the shape thicker")
@@ -563,13 +560,13 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
         # tool's own notes: "name", "source") are not ours and are left alone
         meant = meant_key(key, SIDECAR_KEYS, cutoff=0.6)
         if meant:
-            raise TargetFileError(f"{sidecar}: unknown key {_cut(repr(key), 40)}; did you mean {meant!r}? A "
+            raise TargetFileError(f"{sidecar}: unknown key {cut_text(repr(key), 40)}; did you mean {meant!r}? A "
                                   "sidecar gives \"start\" and/or \"direction\" (normalised image coordinates, y down)")
     placement = {}
     for key, value in ((k, v) for k, v in data.items() if k in SIDECAR_KEYS):
         if (not isinstance(value, (list, tuple)) or len(value) != 2
                 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)):
-            raise TargetFileError(f"{sidecar}: {key!r} must be two finite numbers, got {_cut(repr(value), 60)}")
+            raise TargetFileError(f"{sidecar}: {key!r} must be two finite numbers, got {cut_text(repr(value), 60)}")
         placement[key] = (float(value[0]), float(value[1]))
     if "start" in placement:
         if not all(0.0 <= v <= 1.0 for v in placement["start"]):
@@ -592,12 +589,12 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     except (OSError, ValueError):  # a name too long to look up
         exists = False
     if not exists:
-        raise TargetFileError(f"target file {_cut(str(path))} does not exist") from None
+        raise TargetFileError(f"target file {cut_text(str(path))} does not exist") from None
     image = open_image(path, square=True)
     shape = (image.height, image.width)
     frames = image.info.get(FRAMES, 1)
     try:
-        mask = check_mask(mask_from_image(image), _cut(str(path)))
+        mask = check_mask(mask_from_image(image), cut_text(str(path)))
     except TargetFileError as exc:
         if frames > 1:  # say which frame was read: the drawing may be on another
             raise TargetFileError(f"{exc} (the file holds {frames} frames or pages; procmod reads the first: "
