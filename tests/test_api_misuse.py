@@ -138,7 +138,7 @@ def _model(root, root_args=lambda p: (), new_output=None):
 @pytest.mark.parametrize("root, root_args, new_output, message", [
     # each of these was an AttributeError or TypeError from inside procmod, some raised
     # while procmod built its own message
-    (_partial_root, None, None, r"rule 'functools.partial\(.*uses the name 'x' twice"),
+    (_partial_root, None, None, r"rule '_partial_root' .*uses the name 'x' twice"),
     (lambda ctx: ctx.spawn("c", 42), None, None, r"rule '<lambda>' at / spawns 42 at site 'c', which is not a rule"),
     (lambda ctx: ctx.sample("x", 3.0), None, None, r"rule '<lambda>' at / samples 'x' from 3.0, which is not a "
                                                    "distribution"),
@@ -183,21 +183,38 @@ def test_a_run_that_cannot_be_saved_writes_no_file(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize("emit, message", [
+@pytest.mark.parametrize("emit, message, drawn", [
     (lambda ctx: ctx.emit(__import__("procmod.geometry", fromlist=["Segment"]).Segment(0, 0, float("nan"), 1, 0.5)),
-     r"emitted Segment with x1 = nan: it must hold finite numbers"),
+     r"emitted Segment with x1 = nan: it must hold finite numbers", "its coordinates must be finite numbers"),
     (lambda ctx: ctx.emit(__import__("procmod.geometry", fromlist=["Disc"]).Disc(0, 0, -3)),
-     r"emitted Disc with radius = -3: a size must be finite and not negative"),
+     r"emitted Disc with radius = -3: a size must be finite and not negative", "its radius at least 0"),
 ])
-def test_geometry_a_file_cannot_hold_is_a_model_error_naming_the_rule(tmp_path, emit, message):
-    # the SVG was written with x2="nan" and r="-3"
+def test_geometry_a_file_cannot_hold_is_a_model_error_naming_the_rule(tmp_path, emit, message, drawn):
+    # the SVG was written with x2="nan" and r="-3"; the canvas refuses it when it is emitted
     from procmod.report import write_run
+    from toy_models import canvas
 
     def root(ctx):
         ctx.sample("x", Normal(0, 1))
         emit(ctx)
 
-    result = smc(_model(root), target_from_spec("glyph:a"), particles=2)
+    with pytest.raises(ProcmodError, match="rule 'root' at / emits .*which the model's output cannot draw: .*" + drawn):
+        smc(_model(root), target_from_spec("glyph:a"), particles=2)
+
+    class Permissive:  # a user's own output that draws anything: the report still refuses it
+        def __init__(self, params=None):
+            self.inner = canvas(params)
+
+        def add(self, geometry):
+            return 0
+
+        def copy(self):
+            return self
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+    result = smc(_model(root, new_output=Permissive), target_from_spec("glyph:a"), particles=2)
     with pytest.raises(ProcmodError, match="rule 'root' at / " + message):
         write_run(result, target_from_spec("glyph:a"), tmp_path / "run")
     assert not (tmp_path / "run").exists()
@@ -216,7 +233,7 @@ def test_a_part_of_nan_size_against_a_volume_names_the_rule_not_the_targets_scal
     grid = VoxelGrid((0.0, 0.0, 0.0), 0.5, (4, 4, 4))
     target = Volume(grid, [(np.ones(grid.shape, bool), 1.0, -1.0)])
     model = Model("nan3d", "a 3D bug", root, lambda p: (), get_model("spaceship").new_output_from)
-    with pytest.raises(ProcmodError, match=r"rule 'root' at / emits Box.*not finite .NaN or infinity."):
+    with pytest.raises(ProcmodError, match=r"rule 'root' at / emits Box.*size must be three sizes of at least 0"):
         smc(model, target, particles=2)
 
 

@@ -16,6 +16,9 @@ from typing import Any, Callable, Mapping
 from .errors import InvalidArgumentError, ModelError, shown_value
 
 
+LIMIT_CEILING = 10 ** 9  # of max_calls and max_depth: a guard that never trips is none
+
+
 @dataclass(frozen=True)
 class Model:
     """A procedural model that every engine can run.
@@ -57,6 +60,17 @@ class Model:
         ``parameter name -> (low, high)``: the inclusive range of a numeric parameter (of
         each number of a list parameter). :meth:`configure` refuses a value outside it,
         e.g. a canvas ``size`` whose pixels no machine holds.
+    max_calls : int
+        The most rule calls one derivation may make (default 100,000); a
+        derivation that goes past it raises a :class:`ModelError`, since a model that
+        never stops growing (a recursion without a depth limit or with a spawn chance that
+        keeps it alive) would otherwise run every engine until memory runs out. The
+        built-in models make a few hundred at most; raise it for a larger model.
+    max_depth : int
+        The deepest rule call (spawn sites from the root) one derivation may reach
+        (default 1,000), for the same reason: a call's address grows with its depth, so a
+        runaway recursion would slow every call and fill memory long before
+        ``max_calls``. The built-in models reach depth 40 at most.
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
@@ -74,6 +88,20 @@ class Model:
     arg_ranges: Mapping[str, tuple] = field(default_factory=dict)
     heading_rules: tuple = ()
     param_ranges: Mapping[str, tuple] = field(default_factory=dict)
+    max_calls: int = 100_000
+    max_depth: int = 1_000
+
+    def __post_init__(self):
+        # a model built wrong fails here, naming the field, not at its first run
+        for what in ("root", "root_args", "new_output_from"):
+            value = getattr(self, what)
+            if not callable(value):
+                raise ModelError(f"model {self.name!r}: {what} must be a function, got {value!r:.40}")
+        for what in ("max_calls", "max_depth"):
+            value = getattr(self, what)
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= LIMIT_CEILING:
+                raise ModelError(f"model {self.name!r}: {what} must be a whole number from 1 to "
+                                 f"{LIMIT_CEILING:,}, got {shown_value(value)}")
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.

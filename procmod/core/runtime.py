@@ -28,6 +28,8 @@ Design notes
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -43,9 +45,14 @@ from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
 
+MAX_CALL_EMITS = 10_000  # emits of one rule call (each resume re-runs the call's emits so far)
+
+
 def rule_name(rule) -> str:
-    """A rule's name for messages: its ``__name__``, or what it is (a ``functools.partial``,
-    a callable object)."""
+    """A rule's name, for messages and for the sites of neural guides: its ``__name__``
+    (a ``functools.partial``'s function's), or else what it is (a callable object)."""
+    while isinstance(rule, functools.partial):
+        rule = rule.func
     return getattr(rule, "__name__", None) or repr(rule)[:60]
 
 
@@ -229,11 +236,16 @@ class Context:
         self._emits = index + 1
         if index < self._skip:  # drawn before this call was paused
             return
+        if index >= MAX_CALL_EMITS:
+            raise self._misuse(f"emits more than {MAX_CALL_EMITS:,} times in one call; does a loop in it ever end? "
+                               "(a call is re-run from its start to resume after each emit, so emit a long run of "
+                               "parts from child calls, or one part that holds them)")
         state = self._state
         try:
             state.output.add(geometry)
         except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw
-            raise self._misuse(f"emits {geometry!r:.60}, which the model's output cannot draw: {exc}") from exc
+            shown = " ".join(repr(geometry).split())  # one line: a numpy array's repr has several
+            raise self._misuse(f"emits {shown:.60}, which the model's output cannot draw: {exc}") from exc
         state.n_emits += 1
         self._fresh_emit = True
         if self._pause:
@@ -241,6 +253,8 @@ class Context:
 
     def spawn(self, site: str, rule: Callable, *args) -> None:
         """Request the child call ``rule(ctx, *args)`` at spawn site ``site``."""
+        if self._armed:
+            raise _Pause()
         if self._sites is None:
             self._sites = set()
         if site in self._choices or site in self._sites:
@@ -547,8 +561,12 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
     if future.position is not None:
         state.position = future.position
     try:
-        future.rule(ctx, *future.args)
+        returned = future.rule(ctx, *future.args)
     except _Pause:
+        if not ctx._armed:  # raised by a context whose call has ended: not this call's own
+            raise ctx._misuse("used a context that is not its own (a ctx kept from another call, e.g. "
+                              "lambda c, j: rule(ctx, j) for lambda c, j: rule(c, j)); a rule must make its "
+                              "choices, emits and spawns with the ctx it is called with") from None
         state.active = (future, ctx._choices, ctx._emits)
         return True
     except TypeError as exc:
@@ -557,10 +575,24 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
             raise ModelError(f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
                              f" cannot be called with {len(future.args)} arguments: {exc}") from exc
         raise
+    finally:
+        ctx._armed = True  # the call has ended: a later use of this ctx is caught above
+    if returned is not None and (inspect.isgenerator(returned) or inspect.iscoroutine(returned)):
+        returned.close()  # never run: its body is not the rule's
+        raise ctx._misuse("returned a generator or coroutine (a def with yield, or async def), so its body never "
+                          "ran; a rule is a plain function that calls ctx.sample, ctx.emit and ctx.spawn")
     node = Node(future.address, future.rule, future.args, ctx._choices,
                 tuple(ctx._geometry), tuple(ctx._spawns))
     state._chain = (node, state._chain)
     state.n_nodes += 1
+    model = state.model
+    if state.n_nodes > model.max_calls or len(future.address) > model.max_depth:
+        what, limit = (("rule calls in one derivation", "max_calls") if state.n_nodes > model.max_calls
+                       else ("levels of spawns deep", "max_depth"))
+        raise ModelError(f"model {model.name!r} went more than {getattr(model, limit):,} {what} (rule "
+                         f"{rule_name(future.rule)!r}, call {state.n_nodes:,} at depth {len(future.address):,}); "
+                         "does it always stop growing? Give its recursion a depth limit or a spawn chance that "
+                         f"dies out, or raise Model({limit}=...) for a model this large")
     if state.stopped:
         state.pending.clear()
     else:

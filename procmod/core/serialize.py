@@ -15,6 +15,7 @@ that does not replay without fresh or left-over choices is rejected.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -48,12 +49,35 @@ def derivation_to_dict(derivation: Derivation) -> dict:
     return {
         "format": FORMAT,
         "model": derivation.model.name,
+        "root": root_rule_id(derivation.model),
         "params": dict(derivation.model.params),
         "log_prior": derivation.log_prior,
         "order": [list(node.address) for node in nodes],
         "choices": [[list(node.address), _json_name(node, name), _json_value(choice.value)]
                     for node in nodes for name, choice in node.choices.items()],
     }
+
+
+def root_rule_id(model: Model) -> str:
+    """``module:qualname`` of a model's root rule: which model a saved derivation came
+    from, beyond its name (a user's model may be named like a built-in one)."""
+    root = model.root
+    while isinstance(root, functools.partial):
+        root = root.func
+    return f"{getattr(root, '__module__', None) or '?'}:{getattr(root, '__qualname__', None) or type(root).__name__}"
+
+
+def _same_root(stored: str, model: Model) -> bool:
+    """Whether a derivation file's ``root`` can be ``model``'s root rule. A script's rules
+    are in ``__main__`` when it runs and in its module's name when another imports it, so
+    ``__main__`` matches another module's rule of the same qualified name, though never
+    procmod's own (a built-in model is never a user's script)."""
+    here = root_rule_id(model)
+    if stored == here:
+        return True
+    (module, _, name), (here_module, _, here_name) = stored.partition(":"), here.partition(":")
+    other = here_module if module == "__main__" else module if here_module == "__main__" else None
+    return name == here_name and other is not None and not other.startswith("procmod.")
 
 
 def _json_name(node, name):
@@ -112,6 +136,12 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         model = resolve_model(data["model"])
     except ProcmodError as exc:  # an unknown model: say which file names it (same kind of error)
         raise type(exc)(f"{source}: {exc}") from None
+    stored_root = data.get("root")
+    if isinstance(stored_root, str) and not _same_root(stored_root, model):
+        raise _fail(source, f"was made by a model named {model.name!r} whose root rule is {stored_root}, but the "
+                            f"model {model.name!r} here starts at {root_rule_id(model)}: another model of the same "
+                            "name (give a model of your own a name of its own); replay it with the model that made it, "
+                            "load_derivation(path, lambda name: that_model)")
     try:
         model = model.configure(**data["params"])
     except ProcmodError as exc:

@@ -12,7 +12,6 @@ would be, so thin branches do not vanish at low resolution.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -200,6 +199,10 @@ class Canvas:
         cls = type(geometry)
         if cls is Segment:
             x0, y0, x1, y1, w = geometry[:5]
+            # refused before the kernels see it: a NaN would draw nothing, or garbage (a
+            # comparison with NaN is false, so these tests also catch it)
+            if not (w >= 0.0 and -1e300 < x0 + y0 + x1 + y1 < 1e300):
+                raise ValueError(_BAD_NUMBERS.format("width"))
             r = 0.25 * w * (sx + sy)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
                                  (x0 - ox) * sx, (y0 - oy) * sy, (x1 - ox) * sx, (y1 - oy) * sy,
@@ -215,6 +218,8 @@ class Canvas:
                 by0, by1 = y1 - w, y0 + w
         elif cls is Disc:
             x, y, radius = geometry[:3]
+            if not (radius >= 0.0 and -1e300 < x + y < 1e300):
+                raise ValueError(_BAD_NUMBERS.format("radius"))
             r = 0.5 * radius * (sx + sy)
             px, py = (x - ox) * sx, (y - oy) * sy
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value, px, py, px, py,
@@ -222,6 +227,8 @@ class Canvas:
             bx0, bx1, by0, by1 = x - radius, x + radius, y - radius, y + radius
         elif cls is Ellipse:
             x, y, angle, length, width = geometry[:5]
+            if not (length >= 0.0 and width >= 0.0 and -1e300 < x + y + angle < 1e300):
+                raise ValueError(_BAD_NUMBERS.format("length and width"))
             s = 0.5 * (sx + sy)  # viewports are assumed to have square pixels here
             ha, hb = 0.5 * length, 0.5 * width
             a, b = ha * s, hb * s
@@ -236,6 +243,9 @@ class Canvas:
             pts = np.asarray(geometry.points, dtype=np.float64)
             if pts.ndim != 2 or pts.shape[0] < 3 or pts.shape[1] != 2:
                 raise ValueError("a Polygon needs at least three (x, y) points")
+            if not np.isfinite(pts).all():
+                raise ValueError("a Polygon's points must be finite numbers (not NaN or infinity); find the rule's "
+                                 "arithmetic that makes them")
             n, g = _draw_polygon(self.pixels, self.width, self.height, self.value,
                                  (pts[:, 0] - ox) * sx, (pts[:, 1] - oy) * sy, self.gain, self._changed)
             bx0, bx1, by0, by1 = bounds(geometry)
@@ -262,6 +272,10 @@ class Canvas:
         ex = (max(vp.xmin - x0, 0.0) + max(x1 - vp.xmax, 0.0)) / (vp.xmax - vp.xmin)
         ey = (max(vp.ymin - y0, 0.0) + max(y1 - vp.ymax, 0.0)) / (vp.ymax - vp.ymin)
         return ex, ey
+
+
+_BAD_NUMBERS = ("its coordinates must be finite numbers (not NaN or infinity) and its {} at least 0; find the "
+                "rule's arithmetic that makes it")
 
 
 @once_per_process

@@ -131,8 +131,14 @@ def part_triangles(part, segments: int = 24) -> np.ndarray:
         local[2 * segments + 1] = (0.0, 0.0, float(part.length))
     elif isinstance(part, Mesh):
         local, tris = np.asarray(part.vertices, dtype=np.float64), np.asarray(part.faces, dtype=np.int64)
+        if local.ndim != 2 or local.shape[1:] != (3,) or tris.ndim != 2 or tris.shape[1:] != (3,):
+            raise ValueError(f"a Mesh needs vertices ((x, y, z), ...) and faces ((i, j, k), ...), got arrays of "
+                             f"shapes {local.shape} and {tris.shape}")
+        if tris.size and (tris.min() < 0 or tris.max() >= len(local)):
+            bad = int(tris.max()) if tris.max() >= len(local) else int(tris.min())
+            raise ValueError(f"a Mesh's face refers to vertex {bad}, but it has vertices 0 to {len(local) - 1}")
     else:
-        raise TypeError(f"not a 3D part: {part!r}")
+        raise TypeError(_not_3d(part))
     m = matrix(part.transform)
     world = local @ m[:3, :3].T + m[:3, 3]
     return world[tris]
@@ -146,20 +152,28 @@ def part_bounds(part) -> tuple:
     """
     if isinstance(part, Mesh):
         tris = part_triangles(part)
-        return tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
-    t = part.transform
+        lo, hi = tris.reshape(-1, 3).min(0), tris.reshape(-1, 3).max(0)
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            raise ValueError(_NOT_FINITE)
+        return lo, hi
     if isinstance(part, Box):
+        t = _transform_of(part)
         sx, sy, sz = part.size
+        if not (sx >= 0 and sy >= 0 and sz >= 0):  # also NaN
+            raise ValueError(f"a Box's size must be three sizes of at least 0, got {part.size}")
         lo, hi = [], []
         for row in range(3):
             a, b, c, d = t[4 * row:4 * row + 4]
             half = 0.5 * (abs(a) * sx + abs(b) * sy + abs(c) * sz)
             lo.append(d - half)
             hi.append(d + half)
-        return np.array(lo), np.array(hi)
+        return _finite_bounds(lo, hi)
     if isinstance(part, Cylinder):
+        t = _transform_of(part)
         r0 = part.radius
         r1 = r0 if part.top_radius is None else part.top_radius
+        if not (r0 >= 0 and r1 >= 0):  # also NaN
+            raise ValueError(f"a Cylinder's radii must be at least 0, got {r0} and {r1}")
         lo, hi = [], []
         for row in range(3):
             a, b, c, d = t[4 * row:4 * row + 4]
@@ -167,8 +181,32 @@ def part_bounds(part) -> tuple:
             top = d + c * part.length
             lo.append(min(d - r0 * spread, top - r1 * spread))
             hi.append(max(d + r0 * spread, top + r1 * spread))
-        return np.array(lo), np.array(hi)
-    raise TypeError(f"not a 3D part: {part!r}")
+        return _finite_bounds(lo, hi)
+    raise TypeError(_not_3d(part))
+
+
+_NOT_FINITE = "the part's position or size is not finite (NaN or infinity); find the rule's arithmetic that makes it"
+
+
+def _finite_bounds(lo: list, hi: list) -> tuple:
+    """``lo``, ``hi`` as arrays; a ValueError when one is NaN or infinite (a sum of floats
+    is finite only when each one is: the cheap test of a hot path)."""
+    if not math.isfinite(lo[0] + lo[1] + lo[2] + hi[0] + hi[1] + hi[2]):
+        raise ValueError(_NOT_FINITE)
+    return np.array(lo), np.array(hi)
+
+
+def _transform_of(part):
+    t = part.transform
+    if len(t) != 16:
+        raise ValueError(f"a part's transform must be 16 numbers (a 4x4 matrix, row by row, as "
+                         f"procmod.geometry.solid.translation and compose make), got {len(t)}")
+    return t
+
+
+def _not_3d(part) -> str:
+    return (f"a 3D output draws Box, Cylinder and Mesh parts, not {type(part).__name__}"
+            + (" (a 2D primitive: is this rule from a 2D model?)" if hasattr(part, "_fields") else ""))
 
 
 class PartBounds:

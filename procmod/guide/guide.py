@@ -20,10 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import cut_text, shown_value
 from ..core.distributions import Normal
-from ..core.limits import check_memory
+from ..core.errors import cut_text, shown_value
 from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
+from ..core.limits import check_memory
+from ..core.runtime import rule_name
 from .fast import guided_draw, pack_site, site_outputs
 from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, check_same_size,
                        covered_pixels, heading_of, partial_pyramid)
@@ -436,15 +437,14 @@ class GuidedProposer:
         if site is False:  # first time this rule function makes this choice
             if len(self._by_rule) > 4096:  # a model that builds its rules afresh: don't grow forever
                 self._by_rule.clear()
-            site = self._by_rule[key] = self._sites.get((ctx.rule.__name__, name))
+            site = self._by_rule[key] = self._sites.get((rule_name(ctx.rule), name))
         if site is None:  # never seen in training: the prior
             value = dist.sample(rng)
             return value, dist.log_prob(value)
         kind = site[0]
         if type(dist) is not site[4]:
             if head_kind(dist) != kind:
-                rule_name = ctx.rule.__name__
-                raise GuideError(f"site {site_key(rule_name, name)} draws a {type(dist).__name__} now but the "
+                raise GuideError(f"site {site_key(rule_name(ctx.rule), name)} draws a {type(dist).__name__} now but the "
                                  f"guide learned a {kind} proposal for it; retrain the guide")
             if not kind.startswith("categorical"):  # categoricals: check the size every time
                 site[4] = type(dist)
@@ -498,9 +498,9 @@ class RecordingProposer:
                              "was it made by another version of the model?")
         value = self.choices[key]
         kind = head_kind(dist)
-        rule_name = ctx.rule.__name__
-        self.rows.append((site_key(rule_name, name), kind,
-                          self.extractor.features(ctx.derivation, rule_name, ctx.args),
+        rule = rule_name(ctx.rule)
+        self.rows.append((site_key(rule, name), kind,
+                          self.extractor.features(ctx.derivation, rule, ctx.args),
                           base_params(kind, dist), encode_value(kind, dist, value)))
         return value, 0.0
 

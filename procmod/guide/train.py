@@ -26,7 +26,6 @@ import hashlib
 import json
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -170,8 +169,11 @@ def build_dataset(model, traces: list, settings: FeatureSettings) -> tuple[dict,
     for t, trace in enumerate(traces):
         for key, kind, features, base, value in _checked_rows(model, trace, settings, masks):
             if kinds.setdefault(key, kind) != kind:
-                raise GuideError(f"site {key} draws both {kinds[key]} and {kind} choices; a guide needs "
-                                 "one distribution family per site (give the choices different names)")
+                raise GuideError(f"site {key} draws both {kinds[key]} and {kind} choices; a guide needs one "
+                                 "distribution family per site, and tells sites apart by rule and choice name, so "
+                                 "rules that share a name (closures of one factory, lambdas) share their sites: "
+                                 "give the rules distinct names (or set each one's __name__) or the choices "
+                                 "different names")
             rows, ids = per_site.setdefault(key, ([], []))
             rows.append((features, base, value))
             ids.append(t)

@@ -1,0 +1,194 @@
+"""A model author's likely mistakes end in one ModelError naming the rule, not in a hang,
+a raw AttributeError or a silently wrong result (an adversarial pass with hand-written
+models found each of these)."""
+
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from procmod.core import Categorical, Model, ModelError, Normal, load_derivation, run_forward, save_derivation
+from procmod.core import runtime
+from procmod.core.errors import DerivationFormatError
+from procmod.core.runtime import rule_name, start, step
+from procmod.data import target_from_spec
+from procmod.geometry import Canvas, Disc, Ellipse, Polygon, Segment
+from procmod.geometry.solid import Box, Cylinder, Mesh, new_part_bounds, translation
+from procmod.infer.smc import smc
+from procmod.models import get_model
+
+
+def _canvas(params):
+    return Canvas((-12, 12, -22, 2), 50)
+
+
+def _model(root, name="mine", output=_canvas, **limits):
+    return Model(name, "a user's model", root, root_args=lambda p: (), new_output_from=output, **limits)
+
+
+def _bush(ctx, x=0.0, y=0.0, angle=-math.pi / 2):
+    """Forgot a depth limit: 1.4 children a call, so it grows forever with probability ~0.8."""
+    angle = ctx.sample("angle", Normal(angle, 0.4))
+    x1, y1 = x + math.cos(angle), y + math.sin(angle)
+    ctx.emit(Segment(x, y, x1, y1, 0.3))
+    ctx.maybe("left", 0.7, _bush, x1, y1, angle + 0.5)
+    ctx.maybe("right", 0.7, _bush, x1, y1, angle - 0.5)
+
+
+def test_a_model_that_never_stops_growing_is_stopped_at_its_depth_limit():
+    bush = _model(_bush, "bush")
+    with pytest.raises(ModelError, match=r"model 'bush' went more than 1,000 levels of spawns deep \(rule '_bush'.*"
+                                         r"Model\(max_depth=...\)"):
+        run_forward(bush, np.random.default_rng(0))
+    # ... also under an engine (which would otherwise grow every particle until memory ran out)
+    with pytest.raises(ModelError, match="levels of spawns deep"):
+        smc(bush, target_from_spec("glyph:Y"), particles=4, seed=0)
+    # a deep model that is meant to be so raises the limit
+    def chain(ctx, i=0):
+        ctx.emit(Disc(0, -10, 0.5))
+        if i < 1500:
+            ctx.spawn("next", chain, i + 1)
+    with pytest.raises(ModelError, match="more than 1,000 levels"):
+        run_forward(_model(chain), np.random.default_rng(0))
+    assert run_forward(_model(chain, max_depth=2000), np.random.default_rng(0)).n_nodes == 1501
+
+
+def test_a_model_that_makes_too_many_calls_is_stopped_at_max_calls():
+    def fan(ctx):
+        for i in range(30):
+            ctx.spawn(f"leaf{i}", lambda c: c.emit(Disc(0, -10, 0.5)))
+    with pytest.raises(ModelError, match=r"more than 20 rule calls in one derivation .*Model\(max_calls=...\)"):
+        run_forward(_model(fan, max_calls=20), np.random.default_rng(0))
+    assert run_forward(_model(fan, max_calls=31), np.random.default_rng(0)).n_nodes == 31
+
+
+def test_emits_of_one_call_are_limited(monkeypatch):
+    def spiral(ctx):
+        i = 0
+        while True:  # a loop that never ends
+            ctx.emit(Disc(math.cos(i), -10 + math.sin(i), 0.3))
+            i += 1
+    monkeypatch.setattr(runtime, "MAX_CALL_EMITS", 50)
+    for run in (lambda m: run_forward(m, np.random.default_rng(0)),
+                lambda m: smc(m, target_from_spec("glyph:o"), particles=2, seed=0)):
+        with pytest.raises(ModelError, match=r"rule 'spiral' at / emits more than 50 times in one call"):
+            run(_model(spiral))
+
+
+def _stale(ctx, i=0):
+    ctx.emit(Disc(0, -10 + 2 * i, 1.0))
+    if i < 3:
+        ctx.maybe("n", 0.9, lambda c, j: _stale(ctx, j), i + 1)  # ctx, not c
+
+
+def test_a_context_used_outside_its_own_call_is_refused():
+    """It made SMC loop forever (each resume paused at once) and forward runs misreport a
+    duplicate name."""
+    model = _model(_stale)
+    message = r"rule '<lambda>' at /n used a context that is not its own"
+    with pytest.raises(ModelError, match=message):
+        run_forward(model, np.random.default_rng(0))
+    derivation, rng = start(model), np.random.default_rng(0)
+    with pytest.raises(ModelError, match=message):
+        for _ in range(10):  # one step draws the root's disc, the next would loop
+            step(derivation, rng)
+    with pytest.raises(ModelError, match=message):
+        smc(model, target_from_spec("glyph:l"), particles=4, seed=1)
+
+
+def test_a_generator_or_coroutine_rule_is_refused():
+    def generator(ctx):
+        ctx.emit(Disc(0, -10, 1.0))
+        yield 1
+
+    async def coroutine(ctx):
+        ctx.emit(Disc(0, -10, 1.0))
+    for rule in (generator, coroutine):
+        with pytest.raises(ModelError, match=f"rule '{rule.__name__}' at / returned a generator or coroutine"):
+            run_forward(_model(rule), np.random.default_rng(0))
+
+
+def test_a_model_built_wrong_is_refused_when_built():
+    with pytest.raises(ModelError, match="model 'mine': root must be a function, got 42"):
+        _model(42)
+    with pytest.raises(ModelError, match="model 'mine': max_calls must be a whole number from 1 to 1,000,000,000, "
+                                         "got 0"):
+        _model(_bush, max_calls=0)
+    with pytest.raises(ModelError, match="max_depth must be a whole number .*got true"):
+        _model(_bush, max_depth=True)
+
+
+@pytest.mark.parametrize("primitive, message", [
+    (Segment(0, -10, float("nan"), -5, 0.5), "its coordinates must be finite numbers .* and its width at least 0"),
+    (Segment(0, -10, 1, -5, -0.5), "its width at least 0"),
+    (Segment(0, -10, float("inf"), -5, 0.5), "finite numbers"),
+    (Disc(float("nan"), -10, 1.0), "its radius at least 0"),
+    (Disc(0, -10, -1.0), "its radius at least 0"),
+    (Ellipse(0, -10, float("nan"), 2.0, 1.0), "its length and width at least 0"),
+    (Polygon(((0, -10), (1, float("nan")), (0, -9))), "a Polygon's points must be finite numbers"),
+])
+def test_bad_numbers_on_a_2d_canvas_are_refused_at_the_emit(primitive, message):
+    """A NaN drew nothing (and a run's report was refused only at its very end)."""
+    with pytest.raises(ModelError, match=r"rule '<lambda>' at / emits .*which the model's output cannot draw: .*"
+                                         + message):
+        run_forward(_model(lambda ctx: ctx.emit(primitive)), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("part, message", [
+    (Disc(0, 0, 1), "a 3D output draws Box, Cylinder and Mesh parts, not Disc .a 2D primitive"),
+    (Box((1, 1, 1), translation(float("nan"), 0, 0)), "the part's position or size is not finite"),
+    (Box((-1, 1, 1), translation(0, 1, 0)), r"a Box's size must be three sizes of at least 0, got \(-1, 1, 1\)"),
+    (Box((1, 1, 1), (1, 2, 3)), "a part's transform must be 16 numbers .*got 3"),
+    (Cylinder(-1.0, 2.0, translation(0, 1, 0)), "a Cylinder's radii must be at least 0"),
+    (Mesh(np.zeros((3, 3)), np.array([[0, 1, 5]]), translation(0, 0, 0)),
+     "a Mesh's face refers to vertex 5, but it has vertices 0 to 2"),
+    (Mesh(np.zeros((3, 2)), np.array([[0, 1, 2]]), translation(0, 0, 0)), r"a Mesh needs vertices \(\(x, y, z\)"),
+])
+def test_parts_a_3d_output_cannot_draw_are_refused_at_the_emit(part, message):
+    with pytest.raises(ModelError, match=r"rule '<lambda>' at / emits .*which the model's output cannot draw: .*"
+                                         + message):
+        run_forward(_model(lambda ctx: ctx.emit(part), output=new_part_bounds), np.random.default_rng(0))
+
+
+def test_numpy_labels_round_trip(tmp_path):
+    def rule(ctx):
+        big = ctx.sample("big", Categorical([0.5, 0.5], labels=np.array([True, False])))
+        count = ctx.sample("count", Categorical([0.5, 0.5], labels=np.array([2, 3])))
+        ctx.emit(Disc(0, -10, (2.0 if big else 1.0) + 0.1 * count))
+    model = _model(rule)
+    for seed in range(4):
+        derivation = run_forward(model, np.random.default_rng(seed))
+        assert type(derivation.choice_map()[((), "big")]) is bool
+        save_derivation(derivation, tmp_path / "d.json")
+        again = load_derivation(tmp_path / "d.json", lambda name: model)
+        assert again.choice_map() == derivation.choice_map()
+
+
+def test_a_partial_rule_is_named_by_its_function():
+    """Guides name sites by rule; a functools.partial has no __name__ (training called its
+    traces damaged)."""
+    def piece(ctx, x, kind="thin"):
+        pass
+    assert rule_name(functools.partial(piece, kind="thick")) == "piece"
+    assert rule_name(functools.partial(functools.partial(piece), 1.0)) == "piece"
+
+
+def test_a_users_model_named_like_a_built_in_one_is_not_replayed_by_it(tmp_path):
+    """procmod render drew the built-in chain's picture from a user's 'chain' run."""
+    def chain(ctx, x=0.0, y=-2.0, angle=-math.pi / 2):  # the built-in's names, other geometry
+        angle = ctx.sample("angle", Normal(angle, math.pi / 8))
+        x1, y1 = x + 2 * math.cos(angle), y + 2 * math.sin(angle)
+        ctx.emit(Disc(x1, y1, 1.5))
+        ctx.maybe("next", 0.5, chain, x1, y1, angle)
+    mine = _model(chain, "chain")
+    save_derivation(run_forward(mine, np.random.default_rng(3)), tmp_path / "best.json")
+    with pytest.raises(DerivationFormatError, match=r"best.json: was made by a model named 'chain' whose root rule is "
+                                                  r"test_model_mistakes:.*chain, but the model 'chain' here starts "
+                                                  r"at procmod.models.chain:chain"):
+        load_derivation(tmp_path / "best.json", get_model)
+    assert load_derivation(tmp_path / "best.json", lambda name: mine).n_emits >= 1
+    # the same script's rule, run as __main__ when saved and imported when loaded
+    text = (tmp_path / "best.json").read_text()
+    (tmp_path / "main.json").write_text(text.replace('"test_model_mistakes:', '"__main__:'))
+    assert load_derivation(tmp_path / "main.json", lambda name: mine).n_emits >= 1
