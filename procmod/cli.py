@@ -393,11 +393,17 @@ CLI_SPELLING = {
 _COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render, "infer": _cmd_infer}
 
 
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
 def one_line(message: str, limit: int = 600) -> str:
     """An error message as one readable line: line breaks (a library's multi-line advice)
-    become spaces, and a message longer than ``limit`` keeps its start and its end (the
-    advice) around a cut."""
+    become spaces, other control characters escapes (``\\x1b``), and a message longer
+    than ``limit`` keeps its start and its end (the advice) around a cut."""
     text = re.sub(r"\s*\n\s*", " ", str(message)).strip()
+    # other control characters from an input (a terminal's escape codes, a CR that would
+    # overwrite the line) are shown as escapes, not acted on by the terminal
+    text = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
     if len(text) > limit:
         text = text[:limit // 2 - 3] + " ... " + text[-(limit // 2 - 3):]
     return text

@@ -92,6 +92,16 @@ def test_usage_errors_are_one_line(tmp_path, capsys):
     _bad(tmp_path, capsys, "frobnicate")
 
 
+def test_control_characters_from_an_input_are_shown_not_acted_on(capsys):
+    """A string's ESC [2J cleared the user's terminal; a CR overwrote the message's start."""
+    assert main(["strings", "decode", "CC\x1b[2J"]) == 2
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\\x1b[2J" in err and err.count("\n") == 1
+    assert main(["strings", "graph", "no\x1b[31mred\r.json", "--out", "x"]) == 2
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\r" not in err and "\\x1b[31mred\\r.json" in err
+
+
 def test_console_script_exit_code(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "procmod.cli", "sample", "nope", "--out", str(tmp_path / "o")],
                           capture_output=True, text=True)

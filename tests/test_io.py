@@ -176,3 +176,16 @@ def test_values_in_messages_read_as_the_user_wrote_them():
     assert shown_value(float("nan")) == "NaN" and shown_value(object).startswith("<class")
     assert shown_value("x" * 100_000) == '"' + "x" * 56 + "..."
     assert shown_value(list(range(10 ** 6)), 30) == "[0, 1, 2, 3, 4, 5, 6, 7, 8,..."
+
+
+def test_json_files_with_a_byte_order_mark_or_of_absurd_size(tmp_path, monkeypatch):
+    """A BOM (Windows editors) was "not valid JSON"; a huge file was read whole (a traceback
+    of MemoryError)."""
+    import procmod.core.io as io_module
+
+    path = tmp_path / "job.json"
+    path.write_bytes(b'\xef\xbb\xbf{"format": "procmod-x/1"}\r\n')
+    assert read_versioned_json(path, "procmod-x/1", Refused) == {"format": "procmod-x/1"}
+    monkeypatch.setattr(io_module, "MAX_JSON_BYTES", 10)
+    with pytest.raises(Refused, match=r"job.json is 30 B, more than procmod reads as JSON \(10 B\)"):
+        read_versioned_json(path, "procmod-x/1", Refused)

@@ -88,6 +88,31 @@ def test_encode_rejects_bad_graphs():
         encode(_graph(["AB"], []))
 
 
+def test_the_apis_likely_mistakes_are_one_procmod_error():
+    """Each was a raw ValueError, TypeError, AttributeError or NetworkX exception."""
+    from procmod.core.errors import InvalidArgumentError
+    from procmod.strings.codec import strings_of
+    from procmod.strings.grammar import Grammar
+
+    g = _graph("ABA", [(0, 1), (1, 2)])
+    for other, kind in ((nx.MultiGraph(g), "MultiGraph"), (nx.DiGraph(g), "DiGraph")):
+        with pytest.raises(GraphError, match=f"expected an undirected networkx.Graph .*got a networkx {kind}"):
+            encode(other)
+    with pytest.raises(GraphError, match="nodes must be the whole numbers 0 .. n-1"):
+        encode(nx.relabel_nodes(g, {0: 0.0, 1: 1.0, 2: 2.0}))
+    with pytest.raises(GraphError, match="got str 'C1CC1'; decode.text. reads a string"):
+        encode("C1CC1")
+    with pytest.raises(GraphError, match="violations takes a shape graph"):
+        Grammar({}).violations("ZZ")
+    with pytest.raises(StringSyntaxError, match="must be a str, got bytes"):
+        decode(b"CC")
+    for call in (lambda: encode(g, rng=0), lambda: strings_of(g, 3, 0)):
+        with pytest.raises(InvalidArgumentError, match="rng must be a numpy Generator"):
+            call()
+    # a line read from a CRLF file: the whitespace around a string is not part of it
+    assert nx.is_isomorphic(decode(" AB\r\n"), _graph("AB", [(0, 1)]))
+
+
 def test_many_rings_use_percent_labels():
     # A wheel with 30 spokes from the hub's far side keeps many rings open at once.
     n = 30

@@ -1,12 +1,14 @@
 import json
+import math
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
 import pytest
 import torch
 
 from procmod.core.errors import InvalidArgumentError
-from procmod.strings.codec import encode_with_order, parse, strings_of
+from procmod.strings.codec import decode, encode_with_order, parse, strings_of
 from procmod.strings.decoding import star_set
 from procmod.strings.categories import EdgeCategories
 from procmod.strings.tagger import (Tagger, TaggerConfig, TaggerModel, string_mask, string_structure, tagging_accuracy,
@@ -525,3 +527,21 @@ def test_graph_rounds_pass_messages_along_graph_edges(moonbase, categories):
     assert torch.equal(g[0, 1], h[0, 1])  # non-letters keep their string state
     with pytest.raises(InvalidArgumentError):
         Tagger(len(vocab), len(categories), TaggerConfig(tree=False, graph_rounds=1))
+
+
+def test_decoding_has_room_for_strings_as_long_as_the_training_ones(tmp_path):
+    """A fixed 320-character cap made most decodings of a 400-part shape's own encodings
+    come back invalid (None), with no word of why."""
+    g = nx.path_graph(300)
+    nx.set_node_attributes(g, {v: "AB"[v % 2] for v in g}, "type")
+    strings = strings_of(g, 3, np.random.default_rng(0))
+    longest = max(map(len, strings))  # 300 letters, and a branch's brackets
+    assert longest >= 300
+    config = VAEConfig(embed=8, hidden=16, latent=4, epochs=1, batch=16, kl_warmup=1)
+    model = train_vae(strings, Grammar.from_graphs([g]), tmp_path / "m", config, seed=0)
+    assert model.net.config.max_len == math.ceil(1.5 * longest) > 320
+    assert StringModel.load(tmp_path / "m").net.config.max_len == model.net.config.max_len
+    train_vae(strings, Grammar.from_graphs([g]), tmp_path / "m", config, seed=0)  # resumes: the same config
+    # short strings keep the default
+    short = train_vae(["AB", "BA"], Grammar.from_graphs([decode("AB")]), tmp_path / "s", config, seed=0)
+    assert short.net.config.max_len == 320

@@ -11,7 +11,7 @@ from procmod.strings.categories import EdgeCategories
 from procmod.strings.codec import parse
 from procmod.strings.frames import canonical_frame, local_frame, symmetry_group
 from procmod.strings.instantiate import instantiate_graph
-from procmod.core.errors import InvalidArgumentError
+from procmod.core.errors import InvalidArgumentError, ProcmodError
 from procmod.strings.sampling import (AugmentParams, SeenShapes, attempt, augment, docking_transforms,
                                      match_boundary, part_docks)
 from procmod.strings.contacts import boxes_touch, part_points, shape_graph
@@ -39,6 +39,26 @@ def test_box_contacts_exact_with_tolerance(tmp_path):
     assert sorted(g.edges) == [(0, 1), (1, 2), (2, 3)]
     g = shape_graph(ss, ss.shapes[0], tol=1e-5)
     assert sorted(g.edges) == [(0, 1)]
+    for bad in (-1.0, float("nan"), "0.1"):  # silently no contacts
+        with pytest.raises(ProcmodError, match="tol must be a distance of at least 0"):
+            shape_graph(ss, ss.shapes[0], tol=bad)
+
+
+def test_graph_and_shapes_files_are_given_as_paths_and_written_where_they_can_be(tmp_path):
+    from procmod.strings.shapes import read_graph, read_shapes, write_graph
+
+    data = _box_shapes([_at(0), _at(1.0)])
+    ss = shapes_from_dict(data, tmp_path)
+    g = shape_graph(ss, ss.shapes[0])
+    for call in (lambda: read_shapes(None), lambda: read_graph(3)):
+        with pytest.raises(ProcmodError, match="must be given as a path"):
+            call()
+    with pytest.raises(ProcmodError, match="is a folder; give a file name"):
+        write_graph(g, tmp_path)
+    with pytest.raises(ProcmodError, match="the folder .*missing.* does not exist"):
+        write_graph(g, tmp_path / "missing" / "g.json")
+    write_graph(g, tmp_path / "g.json")
+    assert sorted(read_graph(tmp_path / "g.json").edges) == [(0, 1)]
 
 
 def test_rotated_boxes_separating_axis():

@@ -32,6 +32,10 @@ from pathlib import Path
 from typing import Iterator
 
 from .errors import DerivationFormatError, ProcmodError, cut_text, shown_value
+from .limits import format_bytes
+
+
+MAX_JSON_BYTES = 10 ** 9  # a JSON file procmod reads (a .gltf with embedded buffers is the largest kind)
 
 
 def _current_umask() -> int:
@@ -170,6 +174,8 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
     except RecursionError:
         raise error(f"{source}: JSON nested too deeply (procmod's files nest a few levels; this one nests "
                     "more than Python can read)") from None
+    except MemoryError:
+        raise error(f"{source}: its JSON does not fit in this machine's memory") from None
     except ValueError as exc:  # e.g. an integer of more digits than Python converts (4300)
         raise error(f"{source}: not valid JSON ({cut_text(str(exc), 100)})") from None
 
@@ -182,7 +188,12 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
     try:
         if Path(path).exists() and not Path(path).is_file():  # a folder, a FIFO, /dev/zero: never ends or fits
             raise error(f"{what} {cut_text(str(path))} is not a regular file")
-        text = Path(path).read_text(encoding="utf-8")
+        size = os.path.getsize(path)
+        if size > MAX_JSON_BYTES:  # read whole, and parsed to several times its size
+            raise error(f"{what} {cut_text(str(path))} is {format_bytes(size)}, more than procmod reads as JSON "
+                        f"({format_bytes(MAX_JSON_BYTES)}); is it the file you meant?")
+        # utf-8-sig: a byte-order mark, which Windows editors write, is not part of the JSON
+        text = Path(path).read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise error(f"{what} {cut_text(str(path))} does not exist") from None
     except UnicodeDecodeError:

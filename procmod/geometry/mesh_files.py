@@ -50,6 +50,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
+from ..core.io import MAX_JSON_BYTES
 from .gltf_accessors import decoded_gltf
 
 # the mesh files :func:`load_mesh_file` reads (trimesh's formats procmod checks and fixes)
@@ -199,25 +200,27 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
     12-byte header 'glTF', version, length; then chunk length, type 'JSON', data).
 
     Raises OSError (unreadable) or ValueError (not glTF, damaged, or JSON of more than
-    ``limit`` bytes), with a message that continues the file's name ("is not a ...")."""
+    ``limit`` bytes, default :data:`procmod.core.io.MAX_JSON_BYTES`), with a message that
+    continues the file's name ("is not a ...")."""
     path = Path(path)
+    limit = MAX_JSON_BYTES if limit is None else limit
     with open(path, "rb") as handle:
         if path.suffix.lower() == ".glb":
             head = handle.read(20)
             if len(head) < 20 or head[:4] != b"glTF":
                 raise ValueError("is not a GLB file (no 'glTF' header); is it damaged or another format?")
             length, kind = struct.unpack("<I4s", head[12:20])
-            if limit is not None and length > limit:
+            if length > limit:
                 raise ValueError(f"has a JSON chunk of {length:,} bytes, more than {limit:,}")
             text = handle.read(length) if kind == b"JSON" else b""
             if len(text) < length or kind != b"JSON":
                 raise ValueError("is a damaged GLB file (its JSON chunk is missing or cut off)")
         else:
-            if limit is not None and os.path.getsize(path) > limit:
+            if os.path.getsize(path) > limit:
                 raise ValueError(f"is more than {limit:,} bytes of JSON")
             text = handle.read()
     try:
-        header = json.loads(text.decode("utf-8"))
+        header = json.loads(text.decode("utf-8-sig"))  # a byte-order mark is no part of the JSON
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise ValueError(f"is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
     if not isinstance(header, dict):

@@ -26,6 +26,9 @@ MAX_STRINGS_PER_SHAPE = 10_000
 MAX_VOTES = 10_000
 
 
+PATH_POINTS = 8  # of a --mode path walk
+
+
 def _at_most(value: int, flag: str, largest: int) -> None:
     if value > largest:
         raise InvalidArgumentError(f"{flag} must be at most {largest:,}, got {value:,}")
@@ -373,6 +376,12 @@ def _sample(args) -> None:
     else:
         anchors = vae.encode(train)
         decoded = []
+        distinct = len({tuple(a) for a in np.asarray(anchors).tolist()})
+        if args.mode == "path" and distinct < PATH_POINTS:
+            raise InvalidArgumentError(
+                f"--mode path walks a latent path of {PATH_POINTS} points through the model's training encodings, "
+                f"and this model has {distinct} distinct ones; train it on more shapes (procmod strings augment "
+                "makes more) or use --mode interpolate")
         for _ in range(args.n):
             i, j = (int(k) for k in rng.integers(len(train), size=2))
             if args.mode == "perturb":
@@ -381,7 +390,7 @@ def _sample(args) -> None:
                 found = interpolate(vae, anchors[i], anchors[j], 5, rng)
                 decoded.append(found[len(found) // 2] if found else None)
             else:
-                path = latent_path(anchors[i], anchors[j], anchors, 8)
+                path = latent_path(anchors[i], anchors[j], anchors, PATH_POINTS)
                 found = sample_path(vae, path, 2, rng)
                 decoded.append(found[int(rng.integers(len(found)))] if found else None)
     valid = [s for s in decoded if vae.is_valid(s)]

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
-from ..core.errors import ProcmodError
+from ..core.errors import InvalidArgumentError, ProcmodError
 from .canon import canonical_ranks
 
 LETTERS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz")
@@ -86,7 +86,9 @@ def parse(text: str) -> ParsedString:
         parenthesis, a branch or ring label with no atom before it, an empty branch, a ring
         label left open (dangling), a ring closing onto its own atom or duplicating an edge.
     """
-    if not isinstance(text, str) or not text:
+    if not isinstance(text, str):
+        raise StringSyntaxError(f"a shape-graph string must be a str, got {type(text).__name__} {text!r:.40}")
+    if not text:
         raise StringSyntaxError("empty string: a shape-graph string has at least one letter")
     g = nx.Graph()
     char_edges: list = [None] * len(text)
@@ -190,17 +192,30 @@ def parse(text: str) -> ParsedString:
     return ParsedString(text, g, tuple(char_edges), tuple(char_nodes))
 
 
+def _check_rng(rng) -> None:
+    if rng is not None and not isinstance(rng, np.random.Generator):
+        raise InvalidArgumentError(f"rng must be a numpy Generator (numpy.random.default_rng(seed)), got "
+                                   f"{type(rng).__name__} {rng!r:.40}")
+
+
 def decode(text: str) -> nx.Graph:
-    """The graph a string stands for (nodes numbered in string order, attribute ``type``)."""
-    return parse(text).graph
+    """The graph a string stands for (nodes numbered in string order, attribute ``type``).
+    Whitespace around it (a line read from a file, with its CR) is not part of it."""
+    return parse(text.strip() if isinstance(text, str) else text).graph
 
 
 def check_graph(g: nx.Graph) -> None:
     """Raise :class:`GraphError` unless ``g`` is a connected typed graph with nodes 0..n-1."""
+    if not isinstance(g, nx.Graph) or g.is_directed() or g.is_multigraph():
+        what = f"a networkx {type(g).__name__}" if isinstance(g, nx.Graph) else f"{type(g).__name__} {g!r:.40}"
+        raise GraphError(f"expected an undirected networkx.Graph (no DiGraph or MultiGraph), got {what}"
+                         + ("; decode(text) reads a string" if isinstance(g, str) else ""))
     if g.number_of_nodes() == 0:
         raise GraphError("the graph has no nodes")
-    if set(g.nodes) != set(range(g.number_of_nodes())):
-        raise GraphError("graph nodes must be numbered 0 .. n-1")
+    if (not all(type(v) is int or isinstance(v, np.integer) for v in g.nodes)
+            or set(g.nodes) != set(range(g.number_of_nodes()))):
+        raise GraphError("graph nodes must be the whole numbers 0 .. n-1 (nx.convert_node_labels_to_integers "
+                         "renumbers a graph)")
     for v, t in g.nodes(data="type"):
         if not isinstance(t, str) or len(t) != 1 or t not in LETTERS:
             raise GraphError(f"node {v} has type {t!r}; node types are single letters A-Z or a-z")
@@ -233,6 +248,7 @@ def encode_with_order(g: nx.Graph, root: int | None = None,
         otherwise in increasing canonical rank (no ``root``) or node number (a ``root``).
     """
     check_graph(g)
+    _check_rng(rng)
     key = None  # neighbour order: node number, or canonical rank for the canonical string
     if root is None:
         if rng is not None:
@@ -326,6 +342,7 @@ def encode_with_order(g: nx.Graph, root: int | None = None,
 def strings_of(g: nx.Graph, count: int, rng: np.random.Generator, canonical: bool = True) -> list[str]:
     """Up to ``count`` distinct strings of ``g``: the canonical one first (if asked), then
     random ones (random roots and neighbour orders); gives up after ``4 * count`` draws."""
+    _check_rng(rng)
     out = [encode(g)] if canonical else []
     seen = set(out)
     for _ in range(4 * count):

@@ -8,9 +8,12 @@ bounding-box pre-filter.
 
 from __future__ import annotations
 
+import math
+
 import networkx as nx
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from ..geometry.part_library import PartShape
 from .shapes import Shape, ShapeSet
 
@@ -140,6 +143,8 @@ def shape_graph(shape_set: ShapeSet, shape: Shape, tol: float | None = None) -> 
     """The shape graph: one node per part (``type`` = its letter, ``part`` = its name),
     an edge per pair of parts whose surfaces intersect within ``tol`` (default
     :func:`tolerance_for` the library)."""
+    if tol is not None and (isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < math.inf):
+        raise InvalidArgumentError(f"tol must be a distance of at least 0 (or None for the library's own), got {tol!r:.40}")
     tol = tolerance_for(shape_set.library) if tol is None else tol
     g = nx.Graph()
     for k, name in enumerate(shape.parts):

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import networkx as nx
 
+from .codec import GraphError
 from .contacts import shape_graph
 from .shapes import Shape, ShapeSet
 
@@ -155,6 +156,9 @@ class Grammar:
 
     def violations(self, g: nx.Graph, limit: int = 5) -> list[str]:
         """Why ``g`` breaks the grammar (empty when it is valid); at most ``limit`` reasons."""
+        if not isinstance(g, nx.Graph):
+            raise GraphError(f"violations takes a shape graph (a networkx.Graph), got {type(g).__name__} "
+                             f"{g!r:.40}" + ("; decode(text) reads a string" if isinstance(g, str) else ""))
         out = []
         if g.number_of_nodes() == 0:
             return ["the graph has no nodes"]

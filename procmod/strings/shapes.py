@@ -19,9 +19,10 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from ..core.errors import ProcmodError
+from ..core.errors import InvalidArgumentError, ProcmodError
 from ..core.paths import contained_path, named_file
 from ..core.io import check_format, read_json, write_text_atomic
+from ..core.runfolder import check_output_file
 from ..geometry.part_library import (PartLibraryError, part_library_to_json, read_part_library, read_transform,
                                      transform_to_json)
 from .codec import LETTERS, GraphError, check_graph
@@ -101,6 +102,7 @@ def read_shapes(path: str | os.PathLike) -> ShapeSet:
     ShapesFormatError
         Naming the JSON path of the problem (``shapes[2].nodes[5].part``).
     """
+    _check_path(path, "shapes file")
     path = Path(path)
     if not path.is_file():
         raise ShapesFormatError(f"shapes file {path} does not exist")
@@ -190,6 +192,8 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> N
     files (``base_dir`` None) are written as OBJ files at their ``parts/NAME.obj``."""
     import shutil
 
+    _check_path(path, "shapes file")
+    check_output_file(path, "path")
     path = Path(path)
     if shape_set.base_dir is None:  # meshes read from asset files: written out as they are held
         for shape in shape_set.library.values():
@@ -250,6 +254,7 @@ def graph_from_dict(data, source: str = "graph") -> nx.Graph:
 
 def read_graph(path: str | os.PathLike) -> nx.Graph:
     """Read a ``procmod-graph/1`` file."""
+    _check_path(path, "graph file")
     path = Path(path)
     if not path.exists():
         raise ShapesFormatError(f"graph file {path} does not exist")
@@ -260,7 +265,16 @@ def read_graph(path: str | os.PathLike) -> nx.Graph:
 
 
 def write_graph(g: nx.Graph, path: str | os.PathLike) -> None:
+    """Write ``g`` as a ``procmod-graph/1`` file, atomically."""
+    _check_path(path, "graph file")
+    check_output_file(path, "path")
     write_text_atomic(path, json.dumps(graph_to_dict(g)) + "\n")
+
+
+def _check_path(path, what: str) -> None:
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidArgumentError(f"{what} must be given as a path (a str or pathlib.Path), got "
+                                   f"{type(path).__name__} {path!r:.40}")
 
 
 def first_poses(shape_set: ShapeSet) -> dict[str, np.ndarray]:

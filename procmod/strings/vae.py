@@ -25,7 +25,7 @@ import json
 import math
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -61,18 +61,19 @@ class VAEConfig:
     epochs: int = 40
     batch: int = 64
     lr: float = 2e-3
-    max_len: int = 320
+    max_len: int = 320  # longest decoded string; training raises it to 1.5x its longest string
     word_dropout: float = 0.3  # decoder inputs replaced by padding (Bowman et al.'s trick)
 
     def check(self) -> None:
         if self.cell not in ("gru", "lstm"):
             raise InvalidArgumentError(f"cell must be 'gru' or 'lstm', got {self.cell!r}")
         check_sizes(self, CONFIG_LIMITS)
-        # written so that NaN fails each test (NaN compares false)
-        if not (0 <= self.kl_weight < math.inf and 0 <= self.kl_warmup and 0 < self.lr < math.inf
-                and 0 <= self.word_dropout < 1):
-            raise InvalidArgumentError(f"kl_weight must be a finite number >= 0 (got {self.kl_weight}), kl_warmup >= 0, "
-                                       f"lr a finite number > 0 (got {self.lr}), word_dropout in [0, 1)")
+        for name, fits, wanted in (("kl_weight", 0 <= self.kl_weight < math.inf, "a finite number >= 0"),
+                                   ("kl_warmup", 0 <= self.kl_warmup, "a whole number >= 0"),
+                                   ("lr", 0 < self.lr < math.inf, "a finite number > 0"),
+                                   ("word_dropout", 0 <= self.word_dropout < 1, "in [0, 1)")):
+            if not fits:  # written so that NaN fails (NaN compares false)
+                raise InvalidArgumentError(f"{name} must be {wanted}, got {getattr(self, name)}")
 
 
 # Largest sizes a string VAE or tagger may have: far beyond what these small nets need
@@ -392,6 +393,11 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
     folder = Path(folder)
     if not strings:
         raise InvalidArgumentError("no training strings")
+    # room to decode strings as long as the training ones: a fixed cap (320) made 18 of 20
+    # decodings of a 400-character shape's own encodings come back invalid
+    room = min(CONFIG_LIMITS["max_len"], math.ceil(1.5 * max(map(len, strings))))
+    if config.max_len < room:
+        config = replace(config, max_len=room)
     vocab = vocab_of(strings)
     data = fingerprint("\n".join(strings))
     resume = (folder / "vae.json").is_file() and (folder / "vae.pt").is_file()
