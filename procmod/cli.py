@@ -81,7 +81,8 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="set a model parameter (repeatable), e.g. --param leaves=false")
     infer.add_argument("--target", required=True,
                        help="glyph:CHAR, glyph:FACE/CHAR, scribble:N, circuit, an image file, or a "
-                            "3D target (a procmod-volume/1 JSON, or a folder holding target.json)")
+                            "3D target (a procmod-volume/1 or procmod-silhouette/1 JSON, or a folder "
+                            "holding target.json)")
     infer.add_argument("--engine", default="smc", help="smc, sosmc, mcmc, ga or forward (default smc)")
     infer.add_argument("--particles", type=_int_arg, help="particles (smc, sosmc, forward)")
     infer.add_argument("--population", type=_int_arg, help="population (ga)")

@@ -208,11 +208,11 @@ def test_ring_rule_is_checked_on_every_ring():
     assert any("ring of 10 parts" in v or ("share 3 contacts" in v and "10 long" in v) for v in grammar.violations(odd))
     eights = [{frozenset(e) for e in zip(c, c[1:] + c[:1])} for c in ([0, 1, 2, 3, 4, 5, 6, 7], [4, 5, 6, 7, 8, 9, 10, 11])]
     assert ring_rule_breaks(eights, 4) == ["rings of 8 and 8 parts share 3 contacts, so the ring around both is 10 "
-                                           "long; every ring of the input shapes is a multiple of 4 parts long"]
+                                           "long; every ring of the shapes the grammar was learned from is a multiple of 4 parts long"]
     assert ring_rule_breaks(eights, 2) == []
     six = nx.cycle_graph(6)
     nx.set_node_attributes(six, "A", "type")
-    assert grammar.violations(six) == ["a ring of 6 parts; every ring of the input shapes is a multiple of 4 parts long"]
+    assert grammar.violations(six) == ["a ring of 6 parts; every ring of the shapes the grammar was learned from is a multiple of 4 parts long"]
     back = Grammar.from_json(json.loads(json.dumps(grammar.to_json())))
     assert back == grammar and Grammar.from_json({"A": ["AA"]}).ring_multiple == 1  # saved before the rule
 

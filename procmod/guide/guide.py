@@ -132,6 +132,7 @@ class Guide:
         self.mixture = mixture
         self.sites = dict(sites)
         self.info = dict(info or {})
+        self.source = None  # the name or path Guide.load read it by
         self._seed = seed
         self._nets = None  # torch modules, built on first use (training, saving)
         self._numpy = None
@@ -196,6 +197,7 @@ class Guide:
         data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
+        guide.source = str(path)  # as the user named it: a run's settings record it
         guide._numpy = _numpy_weights(data, weights.with_suffix(".npz"))
         if guide._numpy is not None:
             return guide

@@ -322,7 +322,7 @@ def evaluate_all(executor, model: Model, target: Target, jobs: list) -> list:
         # not pickle
         raise InvalidArgumentError(f"the executor's processes cannot be sent the model {model.name!r} or its "
                                    f"target ({str(exc)[:160]}): a process pool needs the model's rules, root_args "
-                                   "and new_output, and the target, defined at module level (no lambdas or nested "
+                                   "and new_output_from, and the target, defined at module level (no lambdas or nested "
                                    "functions); define them so, or run without an executor") from exc
 
 

@@ -300,7 +300,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                   settings={"particles": particles, "seed": seed, "resampling": resampling,
                             "ess_threshold": ess_threshold, "order": order,
                             "budget": budget.describe() if budget is not None else "one run",
-                            "guide": None if guide is None else guide.settings.name, "workers": n_workers},
+                            "guide": None if guide is None else guide.source or "(in memory)",
+                            "guide_features": None if guide is None else guide.settings.name, "workers": n_workers},
                   log_weights=list(log_w), log_marginal_likelihood=log_z, notes=notes)
 
 

@@ -100,16 +100,15 @@ def ring_rule_breaks(cycles: list[set], multiple: int) -> list[str]:
     ``|A + B| = |A| + |B| - 2 |A & B|`` (further terms are multiples of 4), so every cycle is
     a multiple of 2 long iff every basis cycle is, and a multiple of 4 iff every basis cycle
     is and every two share an even number of edges."""
-    out = [f"a ring of {len(c)} parts; every ring of the input shapes is a multiple of {multiple} parts long"
-           for c in cycles if len(c) % multiple]
+    rule = f"every ring of the shapes the grammar was learned from is a multiple of {multiple} parts long"
+    out = [f"a ring of {len(c)} parts; {rule}" for c in cycles if len(c) % multiple]
     if multiple == 4 and not out:
         for i, a in enumerate(cycles):
             for b in cycles[i + 1:]:
                 k = len(a & b)
                 if k % 2:
                     out.append(f"rings of {len(a)} and {len(b)} parts share {k} contacts, so the ring around "
-                               f"both is {len(a) + len(b) - 2 * k} long; every ring of the input shapes is a "
-                               f"multiple of 4 parts long")
+                               f"both is {len(a) + len(b) - 2 * k} long; {rule}")
     return out
 
 
