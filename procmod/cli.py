@@ -25,6 +25,7 @@ from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forwa
 from .core.errors import UnknownModelError, spelled
 from .core.paths import is_dir_quietly
 from .models import MODELS, get_model
+from .models.from_file import is_model_file_spec, load_model_file
 
 
 class _Parser(argparse.ArgumentParser):
@@ -110,6 +111,8 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("derivation", metavar="DERIVATION.json")
     render.add_argument("--out", required=True, help="output file: .png or .svg (2D), .png, .obj or .glb (3D)")
     render.add_argument("--size", type=_int_arg, default=512, help="width in pixels (default 512)")
+    render.add_argument("--model", help="the model that made it, when it is not the built-in or learned program "
+                                        "its file names: a model of your own, FILE.py:NAME")
 
     # Command groups that live beside their subsystem; each parser sets ``handler``.
     from .guide.cli import register as register_guide
@@ -141,18 +144,16 @@ def _cmd_models(args) -> None:
 
 
 def _model(spec: str, params=()):
-    """A built-in model by name, or a learned program by path (program.json or its folder),
+    """A built-in model by name, a learned program by path (program.json or its folder), or
+    a model of the user's own Python file (``FILE.py:NAME``, :mod:`procmod.models.from_file`),
     with the ``--param NAME=VALUE`` settings applied (values read as JSON: ``false``, ``64``,
     ``[0.5, 0.9]``; anything else is a string)."""
     path = Path(spec)
     if spec not in MODELS and (path.suffix.lower() == ".json" or is_dir_quietly(path)):
         from .learn import load_program
         model = load_program(path)
-    elif spec not in MODELS and path.suffix.lower() == ".py":
-        raise UnknownModelError(f"{spec} is a Python file: the command line runs the built-in models ("
-                                f"{', '.join(sorted(MODELS))}) and learned programs (program.json or its folder); "
-                                "run a model written in Python from Python: procmod.infer.smc(model, target, ...), "
-                                "procmod.run_forward(model, rng), procmod.report.write_run(...)")
+    elif spec not in MODELS and is_model_file_spec(spec):
+        model = load_model_file(spec)
     else:
         model = get_model(spec)
     if not params:
@@ -254,7 +255,12 @@ def _cmd_render(args) -> None:
     check_format(args.out)
     check_output_file(args.out, inputs=[args.derivation])
     size = check_size(args.size)
-    derivation = load_derivation(args.derivation, _model)
+    try:
+        derivation = load_derivation(args.derivation, _model if args.model is None else lambda name: _model(args.model))
+    except UnknownModelError as exc:
+        if args.model is not None:
+            raise
+        raise UnknownModelError(f"{exc}; for a model of your own, give it: --model FILE.py:NAME") from None
     check_format(args.out, output_formats(derivation))
     write_derivation(derivation, args.out, size)
     print(f"wrote {args.out}")

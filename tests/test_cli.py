@@ -59,7 +59,7 @@ def _bad(tmp_path, capsys, *argv, out_name="out"):
 
 @pytest.mark.parametrize("argv,message", [
     (["sample", "teapot"], "unknown model"),
-    (["sample", "my_model.py"], "my_model.py is a Python file: the command line runs the built-in models"),
+    (["sample", "my_model.py"], "model file my_model.py does not exist"),
     (["sample", "vines", "-n", "-3"], "-n must be a positive"),
     (["sample", "vines", "-n", "0"], "-n must be a positive"),
     (["sample", "vines", "--seed", "-1"], "--seed"),

@@ -4,6 +4,7 @@ models found each of these)."""
 
 import functools
 import math
+import re
 
 import numpy as np
 import pytest
@@ -183,12 +184,79 @@ def test_a_users_model_named_like_a_built_in_one_is_not_replayed_by_it(tmp_path)
         ctx.maybe("next", 0.5, chain, x1, y1, angle)
     mine = _model(chain, "chain")
     save_derivation(run_forward(mine, np.random.default_rng(3)), tmp_path / "best.json")
-    with pytest.raises(DerivationFormatError, match=r"best.json: was made by a model named 'chain' whose root rule is "
-                                                  r"test_model_mistakes:.*chain, but the model 'chain' here starts "
-                                                  r"at procmod.models.chain:chain"):
+    with pytest.raises(DerivationFormatError, match=r"best.json: was made by model 'chain', whose root rule is "
+                                                  r"test_model_mistakes:.*chain, but the model here, 'chain', starts "
+                                                  r"at procmod.models.chain:chain: another model of the same name"):
         load_derivation(tmp_path / "best.json", get_model)
     assert load_derivation(tmp_path / "best.json", lambda name: mine).n_emits >= 1
     # the same script's rule, run as __main__ when saved and imported when loaded
     text = (tmp_path / "best.json").read_text()
     (tmp_path / "main.json").write_text(text.replace('"test_model_mistakes:', '"__main__:'))
     assert load_derivation(tmp_path / "main.json", lambda name: mine).n_emits >= 1
+
+
+MODEL_FILE = """
+import math
+from procmod import Model, Normal
+from procmod.geometry import Canvas, Segment
+
+def plant(ctx, x, y, angle, depth):
+    angle = ctx.sample("angle", Normal(angle, 0.3))
+    x1, y1 = x + 2 * math.cos(angle), y + 2 * math.sin(angle)
+    ctx.emit(Segment(x, y, x1, y1, 0.6))
+    if depth < 5:
+        ctx.maybe("left", 0.6, plant, x1, y1, angle + 0.4, depth + 1)
+        ctx.maybe("right", 0.6, plant, x1, y1, angle - 0.4, depth + 1)
+
+def root_args(p):
+    return (0.0, 0.0, -math.pi / 2, 0)
+
+def canvas(p):
+    return Canvas((-12, 12, -22, 2), 50)
+
+PLANT = Model("plant", "a plant", plant, root_args=root_args, new_output_from=canvas)
+
+if __name__ == "__main__":
+    raise SystemExit("the file's main block does not run")
+"""
+
+
+def test_the_command_line_runs_a_model_of_the_users_own_python_file(tmp_path, capsys):
+    """It refused FILE.py, so a model written as plain Python could not use the CLI."""
+    from procmod.cli import main
+
+    (tmp_path / "mymodels.py").write_text(MODEL_FILE)
+    spec = str(tmp_path / "mymodels.py") + ":PLANT"
+    assert main(["sample", spec, "-n", "3", "--out", str(tmp_path / "s")]) == 0
+    assert main(["infer", str(tmp_path / "mymodels.py"), "--target", "glyph:Y", "--particles", "20",
+                 "--out", str(tmp_path / "r")]) == 0
+    capsys.readouterr()
+    # render: the derivation names model 'plant', which only the file has
+    assert main(["render", str(tmp_path / "r" / "best.json"), "--out", str(tmp_path / "x.png")]) == 2
+    assert "for a model of your own, give it: --model FILE.py:NAME" in capsys.readouterr().err
+    assert main(["render", str(tmp_path / "r" / "best.json"), "--model", spec, "--out", str(tmp_path / "x.png")]) == 0
+    assert (tmp_path / "x.png").is_file()
+    # and from Python, with the file imported as a module of its own name
+    import importlib.util
+    module_spec = importlib.util.spec_from_file_location("mymodels", tmp_path / "mymodels.py")
+    module = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(module)
+    assert load_derivation(tmp_path / "r" / "best.json", lambda name: module.PLANT).n_emits >= 1
+
+
+@pytest.mark.parametrize("content, spec, message", [
+    (None, "missing.py", "model file .*missing.py does not exist"),
+    ("x = (\n", "m.py", r"m.py, line 1: '\(' was never closed; fix the model file"),
+    ("import math\nraise ValueError('no')\n", "m.py", r"m.py, line 2: running it raised ValueError: no"),
+    (MODEL_FILE, "m.py:NOPE", r"m.py has no 'NOPE' at its top level \(its Model objects: PLANT\)"),
+    (MODEL_FILE, "m.py:math", r"m.py:math is a module, not a procmod Model"),
+    ("x = 1\n", "m.py", r"m.py defines 0 Model objects at its top level \(none\); name one: .*m.py:NAME"),
+])
+def test_a_model_file_that_cannot_be_used_is_one_line(tmp_path, capsys, content, spec, message):
+    from procmod.cli import main
+
+    if content is not None:
+        (tmp_path / spec.split(":")[0]).write_text(content)
+    assert main(["sample", str(tmp_path / spec), "-n", "1", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err) and err.count("\n") == 1 and not (tmp_path / "s").exists(), err

@@ -69,15 +69,16 @@ def root_rule_id(model: Model) -> str:
 
 def _same_root(stored: str, model: Model) -> bool:
     """Whether a derivation file's ``root`` can be ``model``'s root rule. A script's rules
-    are in ``__main__`` when it runs and in its module's name when another imports it, so
-    ``__main__`` matches another module's rule of the same qualified name, though never
-    procmod's own (a built-in model is never a user's script)."""
+    are in ``__main__`` when it runs, in its module's name when another imports it, and in a
+    ``procmod_user_...`` module when the command line runs it (``FILE.py:NAME``), so these
+    match another module's rule of the same qualified name, though never procmod's own (a
+    built-in model is never a user's script)."""
     here = root_rule_id(model)
     if stored == here:
         return True
     (module, _, name), (here_module, _, here_name) = stored.partition(":"), here.partition(":")
-    other = here_module if module == "__main__" else module if here_module == "__main__" else None
-    return name == here_name and other is not None and not other.startswith("procmod.")
+    loose = [m.startswith(("__main__", "procmod_user_")) for m in (module, here_module)]
+    return name == here_name and any(loose) and not any(m.startswith("procmod.") for m in (module, here_module))
 
 
 def _json_name(node, name):
@@ -138,10 +139,11 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         raise type(exc)(f"{source}: {exc}") from None
     stored_root = data.get("root")
     if isinstance(stored_root, str) and not _same_root(stored_root, model):
-        raise _fail(source, f"was made by a model named {model.name!r} whose root rule is {stored_root}, but the "
-                            f"model {model.name!r} here starts at {root_rule_id(model)}: another model of the same "
-                            "name (give a model of your own a name of its own); replay it with the model that made it, "
-                            "load_derivation(path, lambda name: that_model)")
+        same = "another model of the same name (give a model of your own a name of its own); " \
+            if model.name == data["model"] else ""
+        raise _fail(source, f"was made by model {data['model']!r}, whose root rule is {stored_root}, but the model "
+                            f"here, {model.name!r}, starts at {root_rule_id(model)}: {same}replay it with the model "
+                            "that made it (load_derivation(path, lambda name: that_model); procmod render --model)")
     try:
         model = model.configure(**data["params"])
     except ProcmodError as exc:

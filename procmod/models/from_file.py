@@ -1,0 +1,86 @@
+"""A model written in a user's own Python file, for the command line: ``FILE.py:NAME``.
+
+``procmod infer mymodels.py:PLANT --target glyph:a`` runs the :class:`~procmod.core.Model`
+named ``PLANT`` at the top level of ``mymodels.py`` (``FILE.py`` alone: the file's one
+model). The file is run as a module, as ``python mymodels.py`` would run it minus its
+``if __name__ == "__main__":`` block: it is the user's own code, named on their own command
+line. It is registered in ``sys.modules`` under a name of its own, so that its rules pickle
+by reference to the worker processes SMC and MCMC fork (``--workers``).
+
+Every way the file can fail (missing, a syntax error, an exception while it runs, no such
+name, not a Model) is one :class:`UnknownModelError` line naming the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import re
+import sys
+import traceback
+from pathlib import Path
+
+from ..core import Model, UnknownModelError
+
+_SPEC = re.compile(r"^(?P<file>.+\.py)(?::(?P<name>[A-Za-z_][A-Za-z0-9_]*))?$", re.IGNORECASE)
+
+
+def is_model_file_spec(spec: str) -> bool:
+    """Whether ``spec`` names a Python file's model (``FILE.py`` or ``FILE.py:NAME``)."""
+    return isinstance(spec, str) and _SPEC.match(spec) is not None
+
+
+def load_model_file(spec: str) -> Model:
+    """The model ``spec`` (``FILE.py:NAME`` or ``FILE.py``) names; see the module docstring."""
+    match = _SPEC.match(spec)
+    if match is None:
+        raise UnknownModelError(f"{spec!r} is not FILE.py or FILE.py:NAME (NAME: a Model at the file's top level)")
+    path, name = Path(match["file"]), match["name"]
+    if not path.is_file():
+        raise UnknownModelError(f"model file {path} does not exist" if not path.exists()
+                                else f"model file {path} is not a regular file")
+    module = _run_module(path)
+    models = {key: value for key, value in vars(module).items() if isinstance(value, Model) and not key.startswith("_")}
+    if name is None:
+        if len(models) != 1:
+            found = ", ".join(sorted(models)) or "none"
+            raise UnknownModelError(f"{path} defines {len(models)} Model objects at its top level ({found}); name "
+                                    f"one: {path}:NAME")
+        return next(iter(models.values()))
+    value = getattr(module, name, None)
+    if value is None:
+        found = ", ".join(sorted(models)) or "none"
+        raise UnknownModelError(f"{path} has no {name!r} at its top level (its Model objects: {found})")
+    if not isinstance(value, Model):
+        raise UnknownModelError(f"{path}:{name} is a {type(value).__name__}, not a procmod Model (build one with "
+                                "procmod.Model(name, description, root_rule, root_args=..., new_output_from=...))")
+    return value
+
+
+def _run_module(path: Path):
+    """``path`` run as a module of its own (once per process and file)."""
+    resolved = path.resolve()
+    digest = hashlib.sha256(str(resolved).encode()).hexdigest()[:12]
+    module_name = f"procmod_user_{re.sub(r'[^0-9A-Za-z_]', '_', path.stem)}_{digest}"
+    if module_name in sys.modules:
+        return sys.modules[module_name]
+    spec = importlib.util.spec_from_file_location(module_name, resolved)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module  # before running it: its dataclasses and pickles look it up
+    try:
+        spec.loader.exec_module(module)
+    except SyntaxError as exc:
+        del sys.modules[module_name]
+        raise UnknownModelError(f"{path}, line {exc.lineno}: {exc.msg}; fix the model file") from None
+    except BaseException as exc:  # the user's code: anything it raises is its own error
+        del sys.modules[module_name]
+        if isinstance(exc, KeyboardInterrupt):
+            raise
+        frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() == resolved]
+        where = f", line {frames[-1].lineno}" if frames else ""
+        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}: {exc}; fix the model "
+                                "file") from None
+    return module
+
+
+__all__ = ["is_model_file_spec", "load_model_file"]
