@@ -131,7 +131,8 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
     """Refuse unless a file can be created in ``folder`` (tried, then removed)."""
     option = argument(option)
     if not folder.is_dir():
-        raise OutputLocationError(f"cannot write {option} {cut_text(str(out))}: {cut_text(str(folder))} is not a folder")
+        raise OutputLocationError(f"cannot write {option} {cut_text(str(out))}: {cut_text(str(folder))} "
+                                  "is not a folder")
     try:
         probe = tempfile.mkdtemp(prefix=".procmod-probe-", dir=folder)
         os.rmdir(probe)
@@ -153,7 +154,8 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
     try:
         is_dir = path.is_dir()
     except (OSError, ValueError) as exc:  # a name too long for the file system
-        raise OutputLocationError(f"cannot write {shown} {cut_text(str(path))}: {getattr(exc, 'strerror', None) or exc}") \
+        raise OutputLocationError(f"cannot write {shown} {cut_text(str(path))}: "
+                                  f"{getattr(exc, 'strerror', None) or exc}") \
             from None
     if is_dir:
         raise OutputLocationError(f"{shown} {cut_text(str(path))} is a folder; give a file name")

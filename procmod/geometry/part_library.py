@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..core.errors import ProcmodError
+from ..core.errors import ProcmodError, shown_value
 from ..core.file_formats import conversion_hint
 from ..core.limits import MAX_COORDINATE, MIN_LENGTH
 from ..core.paths import UnsafePathError, named_file
@@ -73,7 +73,7 @@ class PartShape(NamedTuple):
 
 def _finite_numbers(value, count: int, where: str) -> list[float]:
     if not isinstance(value, (list, tuple)) or len(value) != count:
-        raise PartLibraryError(f"{where}: expected a list of {count} numbers, got {value!r:.80}")
+        raise PartLibraryError(f"{where}: expected a list of {count} numbers, got {shown_value(value, 80)}")
     out = []
     for i, v in enumerate(value):
         try:
@@ -81,7 +81,7 @@ def _finite_numbers(value, count: int, where: str) -> list[float]:
         except OverflowError:  # an int too large for a float (10**400)
             ok = False
         if not ok:
-            raise PartLibraryError(f"{where}[{i}]: expected a finite number, got {v!r:.40}")
+            raise PartLibraryError(f"{where}[{i}]: expected a finite number, got {shown_value(v, 40)}")
         out.append(float(v))
     return out
 
@@ -89,7 +89,8 @@ def _finite_numbers(value, count: int, where: str) -> list[float]:
 def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) -> PartShape:
     """One library entry from its JSON value (``where`` is its JSON path, for errors)."""
     if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("box", "mesh"):
-        raise PartLibraryError(f'{where}: a part is {{"box": [sx, sy, sz]}} or {{"mesh": "path"}}, got {spec!r:.80}')
+        raise PartLibraryError(f'{where}: a part is {{"box": [sx, sy, sz]}} or {{"mesh": "path"}}, '
+                               f'got {shown_value(spec, 80)}')
     kind, value = next(iter(spec.items()))
     if kind == "box":
         size = _finite_numbers(value, 3, f"{where}.box")
@@ -126,11 +127,12 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
 def read_part_library(parts, base_dir: str | os.PathLike, where: str = "parts") -> dict[str, PartShape]:
     """The ``"parts"`` object of an examples or shapes file, as name -> :class:`PartShape`."""
     if not isinstance(parts, dict) or not parts:
-        raise PartLibraryError(f"{where}: expected an object mapping part names to shapes, got {parts!r:.80}")
+        raise PartLibraryError(f"{where}: expected an object mapping part names to shapes, "
+                               f"got {shown_value(parts, 80)}")
     library = {}
     for name, spec in parts.items():
         if not isinstance(name, str) or not name:
-            raise PartLibraryError(f"{where}: part names must be non-empty strings, got {name!r}")
+            raise PartLibraryError(f"{where}: part names must be non-empty strings, got {shown_value(name)}")
         library[name] = read_part_shape(name, spec, base_dir, f"{where}.{name}")
     return library
 
@@ -147,7 +149,7 @@ def read_transform(value, where: str) -> np.ndarray:
     (0, 0, 0, 1) (not affine), or whose linear part is singular (not invertible).
     """
     if not isinstance(value, (list, tuple)) or len(value) != 4:
-        raise PartLibraryError(f"{where}: expected a 4x4 matrix as 4 rows of 4 numbers, got {value!r:.80}")
+        raise PartLibraryError(f"{where}: expected a 4x4 matrix as 4 rows of 4 numbers, got {shown_value(value, 80)}")
     m = np.array([_finite_numbers(row, 4, f"{where}[{i}]") for i, row in enumerate(value)])
     if not np.allclose(m[3], (0, 0, 0, 1), atol=1e-9):
         raise PartLibraryError(f"{where}: not an affine transform (last row is {m[3].tolist()}, must be [0, 0, 0, 1])")

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import ProcmodError
+from ..core.errors import ProcmodError, shown_value
 from ..core.io import check_format, read_json, write_text_atomic
 from ..core.limits import MAX_COORDINATE
 from ..geometry.assets import MAX_DEPTH  # one depth limit for example files and asset files
@@ -92,7 +92,8 @@ def has_shear(m: np.ndarray) -> bool:
 
 def _read_node(value, parts: dict, where: str, depth: int, seen: set) -> ExampleNode:
     if not isinstance(value, dict):
-        raise ExamplesError(f"{where}: expected a node object with 'part' and 'transform', got {value!r:.60}")
+        raise ExamplesError(f"{where}: expected a node object with 'part' and 'transform', "
+                            f"got {shown_value(value, 60)}")
     if id(value) in seen:
         raise ExamplesError(f"{where}: this node contains itself (a cycle); example hierarchies must be trees")
     if depth > MAX_DEPTH:
@@ -102,7 +103,7 @@ def _read_node(value, parts: dict, where: str, depth: int, seen: set) -> Example
         raise ExamplesError(f"{where}: unknown field {unknown[0]!r} (a node has 'part', 'transform', 'children')")
     part = value.get("part")
     if not isinstance(part, str):
-        raise ExamplesError(f"{where}.part: expected a part name (a string), got {part!r:.60}")
+        raise ExamplesError(f"{where}.part: expected a part name (a string), got {shown_value(part, 60)}")
     if part not in parts:
         raise ExamplesError(f"{where}.part: unknown part {part!r}; the file's parts are: "
                             f"{', '.join(sorted(parts))}")
@@ -115,7 +116,7 @@ def _read_node(value, parts: dict, where: str, depth: int, seen: set) -> Example
                             "learn models rotation, scale and translation only")
     children_value = value.get("children", [])
     if not isinstance(children_value, list):
-        raise ExamplesError(f"{where}.children: expected a list of nodes, got {children_value!r:.60}")
+        raise ExamplesError(f"{where}.children: expected a list of nodes, got {shown_value(children_value, 60)}")
     seen.add(id(value))
     children = [_read_node(c, parts, f"{where}.children[{i}]", depth + 1, seen)
                 for i, c in enumerate(children_value)]

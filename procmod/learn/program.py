@@ -56,7 +56,7 @@ import numpy as np
 
 from ..core import Bernoulli, Categorical, Model, Normal
 from ..core.distributions import _is_real  # a finite number: not a bool, a string or 10**400
-from ..core.errors import ProcmodError
+from ..core.errors import ProcmodError, shown_value
 from ..core.paths import FileNames, UnsafePathError, named_file
 from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
 from ..core.limits import MAX_COORDINATE
@@ -403,7 +403,7 @@ def read_program(path: str | os.PathLike) -> Program:
 def _whole(value) -> int:
     """An id, slot or count from the JSON: a whole number (int() truncated callee 0.9 to 0)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
-        raise ValueError(f"expected a whole number, got {value!r:.40}")
+        raise ValueError(f"expected a whole number, got {shown_value(value, 40)}")
     return int(value)
 
 
@@ -445,22 +445,23 @@ def _units_from_json(data) -> Units:
     if data is _NO_UNITS:
         return Units()
     if not isinstance(data, dict) or not isinstance(data.get("part_log_scales"), dict):
-        raise ValueError(f"units must be an object with world_extent and part_log_scales, got {data!r:.60}")
+        raise ValueError(f"units must be an object with world_extent and part_log_scales, got {shown_value(data, 60)}")
     extent = data.get("world_extent")
     if not _is_real(extent) or not 0 < extent <= MAX_UNIT_LENGTH:
-        raise ValueError(f"units.world_extent must be a positive length up to {MAX_UNIT_LENGTH:g}, got {extent!r:.40}")
+        raise ValueError(f"units.world_extent must be a positive length up to {MAX_UNIT_LENGTH:g}, "
+                         f"got {shown_value(extent, 40)}")
     logs = {}
     for part, values in data["part_log_scales"].items():
         if not isinstance(values, list) or len(values) != 3 or not all(_is_real(v) and abs(v) <= MAX_LOG_SCALE
                                                                           for v in values):
             raise ValueError(f"units.part_log_scales[{part!r}] must be three log-scales within +-{MAX_LOG_SCALE:.1f} "
-                             f"(scales of 1/{MAX_UNIT_LENGTH:g} to {MAX_UNIT_LENGTH:g}), got {values!r:.60}")
+                             f"(scales of 1/{MAX_UNIT_LENGTH:g} to {MAX_UNIT_LENGTH:g}), got {shown_value(values, 60)}")
         logs[part] = tuple(float(v) for v in values)
     # required: units without it were written only by development commits of this change,
     # whose programs took directions' angles about z (and are not CURRENT)
     conventions = data.get("conventions")
     if conventions not in (LEGACY, CURRENT) or isinstance(conventions, bool):
-        raise ValueError(f"units.conventions must be {LEGACY} or {CURRENT}, got {conventions!r:.20}")
+        raise ValueError(f"units.conventions must be {LEGACY} or {CURRENT}, got {shown_value(conventions, 20)}")
     return Units(float(extent), logs, conventions)
 
 
@@ -512,7 +513,7 @@ def _check_references(program: Program, path) -> None:
             if not isinstance(support, list) or not support or not all(
                     isinstance(c, int) and not isinstance(c, bool) and 2 <= c <= MAX_COUNT for c in support):
                 raise _fail(path, f"count_support[{a.type!r}] must list member counts from 2 to {MAX_COUNT:,}, "
-                                  f"got {support!r:.60}")
+                                  f"got {shown_value(support, 60)}")
             need(f"{a.id}.count", len(support))
             need(f"{a.id}.sym.mu", len(SYM_PARAMS[a.kind]))
             need(f"{a.id}.sym.rs", len(SYM_PARAMS[a.kind]))
