@@ -342,7 +342,7 @@ def test_other_tools_files_are_refused_with_the_way_to_convert_them(tmp_path):
     """An FBX or Maya scene (what a Maya user has) is not read; the message says what to export."""
     (tmp_path / "castle.fbx").write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00")
     with pytest.raises(AssetError, match=r"castle.fbx: not an asset file .*Autodesk FBX file is not read by procmod; "
-                                         r"export it from its tool as glTF 2.0 \(.glb\), or import it into Blender"):
+                                         r"export glTF 2.0 \(.glb\) from its tool, or import it into Blender"):
         read_assets(tmp_path / "castle.fbx")
     with pytest.raises(AssetError, match=r"holds no .gltf, .glb, .urdf file \(castle.fbx: an Autodesk FBX file"):
         read_assets(tmp_path)
@@ -350,8 +350,9 @@ def test_other_tools_files_are_refused_with_the_way_to_convert_them(tmp_path):
     with pytest.raises(AssetError, match="an OBJ file keeps no part hierarchy; export the parts as glTF 2.0"):
         read_assets(tmp_path / "castle.obj")
     (tmp_path / "castle.mb").write_bytes(b"FOR4")
-    with pytest.raises(AssetError, match=r"a Maya scene is not read by procmod; export it from its tool as glTF 2.0 "
-                                         r"\(.glb\)$"):
+    # Maya exports glTF only through a plug-in: its route is FBX, then Blender
+    with pytest.raises(AssetError, match=r"a Maya scene is not read by procmod; export it as FBX, import that into "
+                                         r"Blender \(File > Import > FBX\) and export glTF 2.0 \(.glb\)$"):
         read_assets(tmp_path / "castle.mb")
     # a file no 3D tool writes gets no advice
     (tmp_path / "notes.txt").write_text("castle")

@@ -106,8 +106,8 @@ def test_a_part_mesh_in_a_tools_own_format_says_what_to_export(tmp_path):
         "format": "procmod-examples/1", "parts": {"body": {"box": [1, 1, 1]}, "wing": {"mesh": "wing.fbx"}},
         "examples": [{"part": "body", "children": [{"part": "wing", "transform": np.eye(4).ravel().tolist()}]}]}))
     with pytest.raises(ProcmodError, match=r"parts.wing.mesh: cannot read .*wing.fbx as a triangle mesh .*; an "
-                                           r"Autodesk FBX file is not read by procmod; export it from its tool as "
-                                           r"glTF 2.0 \(.glb\) or OBJ"):
+                                           r"Autodesk FBX file is not read by procmod; export glTF 2.0 \(.glb\) or "
+                                           r"OBJ from its tool"):
         read_examples(tmp_path / "examples.json")
 
 

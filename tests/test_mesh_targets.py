@@ -752,7 +752,8 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     (tmp_path / "ship.fbx").write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00")
     (tmp_path / "F.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "ship.fbx"}]}))
     with pytest.raises(TargetFileError, match=r'layers\[0\].file: "ship.fbx" is not a voxel grid .*; an Autodesk FBX '
-                                              r"file is not read by procmod; export it from its tool as glTF 2.0"):
+                                              r"file is not read by procmod; export glTF 2.0 \(.glb\) or OBJ from "
+                                              r"its tool"):
         load_target_file(tmp_path / "F.json")
     assert main(["infer", "spaceship", "--target", str(tmp_path / "ship.fbx"), "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err

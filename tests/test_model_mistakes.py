@@ -39,7 +39,7 @@ def _bush(ctx, x=0.0, y=0.0, angle=-math.pi / 2):
 
 def test_a_model_that_never_stops_growing_is_stopped_at_its_depth_limit():
     bush = _model(_bush, "bush")
-    with pytest.raises(ModelError, match=r"model 'bush' went more than 1,000 levels of spawns deep \(rule '_bush'.*"
+    with pytest.raises(ModelError, match=r"model 'bush' went more than 10,000 levels of spawns deep \(rule '_bush'.*"
                                          r"Model\(max_depth=...\)"):
         run_forward(bush, np.random.default_rng(0))
     # ... also under an engine (which would otherwise grow every particle until memory ran out)
@@ -51,8 +51,8 @@ def test_a_model_that_never_stops_growing_is_stopped_at_its_depth_limit():
         if i < 1500:
             ctx.spawn("next", chain, i + 1)
     with pytest.raises(ModelError, match="more than 1,000 levels"):
-        run_forward(_model(chain), np.random.default_rng(0))
-    assert run_forward(_model(chain, max_depth=2000), np.random.default_rng(0)).n_nodes == 1501
+        run_forward(_model(chain, max_depth=1000), np.random.default_rng(0))
+    assert run_forward(_model(chain), np.random.default_rng(0)).n_nodes == 1501  # the default is 10,000
 
 
 def test_a_model_that_makes_too_many_calls_is_stopped_at_max_calls():
@@ -64,17 +64,22 @@ def test_a_model_that_makes_too_many_calls_is_stopped_at_max_calls():
     assert run_forward(_model(fan, max_calls=31), np.random.default_rng(0)).n_nodes == 31
 
 
-def test_emits_of_one_call_are_limited(monkeypatch):
+def test_emits_of_one_call_are_limited():
     def spiral(ctx):
         i = 0
         while True:  # a loop that never ends
             ctx.emit(Disc(math.cos(i), -10 + math.sin(i), 0.3))
             i += 1
-    monkeypatch.setattr(runtime, "MAX_CALL_EMITS", 50)
     for run in (lambda m: run_forward(m, np.random.default_rng(0)),
                 lambda m: smc(m, target_from_spec("glyph:o"), particles=2, seed=0)):
-        with pytest.raises(ModelError, match=r"rule 'spiral' at / emits more than 50 times in one call"):
-            run(_model(spiral))
+        with pytest.raises(ModelError, match=r"rule 'spiral' at / emits more than 50 times in one call.*"
+                                             r"Model\(max_call_emits=...\)"):
+            run(_model(spiral, max_call_emits=50))
+
+    def stipple(ctx):  # a long loop that ends: 12,000 dots, under the default 20,000
+        for i in range(12_000):
+            ctx.emit(Disc(-5 + (i % 100) * 0.1, -20 + (i // 100) * 0.15, 0.05))
+    assert run_forward(_model(stipple), np.random.default_rng(0)).n_emits == 12_000
 
 
 def _stale(ctx, i=0):
@@ -166,6 +171,16 @@ def test_numpy_labels_round_trip(tmp_path):
         assert again.choice_map() == derivation.choice_map()
 
 
+def test_large_finite_coordinates_and_numpy_number_labels_are_kept():
+    """The checks refuse what is not finite, not what is merely far away; numpy number
+    labels keep their type (a float32 label's arithmetic stays float32)."""
+    far = _model(lambda ctx: [ctx.emit(Segment(1e300, 1e300, 1e300, 1e300, 0.5)), ctx.emit(Disc(1e300, 0, 1.0)),
+                              ctx.emit(Ellipse(0, 0, 1e301, 1.0, 1.0))])
+    assert run_forward(far, np.random.default_rng(0)).n_emits == 3
+    label = Categorical([1, 1], labels=np.array([0.1, 0.2], np.float32)).sample(np.random.default_rng(0))
+    assert type(label) is np.float32
+
+
 def test_a_partial_rule_is_named_by_its_function():
     """Guides name sites by rule; a functools.partial has no __name__ (training called its
     traces damaged)."""
@@ -193,6 +208,9 @@ def test_a_users_model_named_like_a_built_in_one_is_not_replayed_by_it(tmp_path)
     text = (tmp_path / "best.json").read_text()
     (tmp_path / "main.json").write_text(text.replace('"test_model_mistakes:', '"__main__:'))
     assert load_derivation(tmp_path / "main.json", lambda name: mine).n_emits >= 1
+    # ... or saved from a package's module and loaded from the module itself
+    (tmp_path / "pkg.json").write_text(text.replace('"test_model_mistakes:', '"pkg.mymodels:'))
+    assert load_derivation(tmp_path / "pkg.json", lambda name: mine).n_emits >= 1
 
 
 MODEL_FILE = """

@@ -40,8 +40,9 @@ def test_box_contacts_exact_with_tolerance(tmp_path):
     g = shape_graph(ss, ss.shapes[0], tol=1e-5)
     assert sorted(g.edges) == [(0, 1)]
     for bad in (-1.0, float("nan"), "0.1"):  # silently no contacts
-        with pytest.raises(ProcmodError, match="tol must be a distance of at least 0"):
+        with pytest.raises(ProcmodError, match="tol must be a finite distance of at least 0"):
             shape_graph(ss, ss.shapes[0], tol=bad)
+    assert sorted(shape_graph(ss, ss.shapes[0], tol=np.float32(1e-3)).edges) == [(0, 1), (1, 2), (2, 3)]
 
 
 def test_graph_and_shapes_files_are_given_as_paths_and_written_where_they_can_be(tmp_path):

@@ -259,9 +259,10 @@ class Categorical(Distribution):
         self.probs = tuple(p / total for p in probs)
         if labels is None:
             labels = tuple(range(len(probs)))
-        # numpy scalars as Python values: a numpy bool label read back from a saved run's
-        # JSON is a Python bool, so the replay must see one label type
-        labels = tuple(label.item() if isinstance(label, np.generic) else label for label in labels)
+        # numpy bools as Python bools: a saved run's JSON true must find its label again (it
+        # did not replay); numbers keep their numpy type, so a float32 label's arithmetic
+        # stays float32
+        labels = tuple(bool(label) if isinstance(label, np.bool_) else label for label in labels)
         if not all(isinstance(label, _LABEL_TYPES) and not (isinstance(label, (float, np.floating))
                                                               and not math.isfinite(label)) for label in labels):
             raise ModelError(f"Categorical labels must be strings, numbers or bools (they are saved as JSON), got "

@@ -3,9 +3,10 @@
 procmod reads meshes through trimesh (OBJ, STL, PLY, OFF, glTF / GLB, COLLADA) and part
 hierarchies from glTF / GLB and URDF. The tools' own scene formats (FBX, Maya, Blender,
 3ds Max, USD, Alembic, ...) have no maintained reader that installs with pip alone, so a
-file in one is refused, and the message says how to get a file procmod reads: every such
-tool exports glTF or OBJ, and Blender imports most of them (FBX, USD, Alembic, 3DS) and
-exports glTF 2.0.
+file in one is refused, and the message says how to get a file procmod reads: from the
+tool itself where it exports glTF or OBJ, else through Blender, which imports FBX, USD,
+Alembic and COLLADA and exports glTF 2.0 (Maya and 3ds Max export glTF only through
+plug-ins, so their route is FBX, then Blender; SketchUp's is COLLADA).
 """
 
 from __future__ import annotations
@@ -13,34 +14,36 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-# suffix -> what the file is, as its user would name it
+# suffix -> (what the file is, as its user would name it; how to get a file procmod reads)
+#   "blender": Blender imports it (File > Import) and exports glTF;
+#   "native": its tool exports glTF (and OBJ) itself;
+#   "via_fbx": its tool exports FBX, which Blender converts (Maya and 3ds Max export glTF
+#     only through plug-ins);
+#   "via_dae": its tool exports COLLADA, a mesh procmod reads, which Blender converts;
+#   "mesh_tool": a CAD or exchange format: a conversion in a tool that reads it.
 OTHER_TOOL_FORMATS = {
-    ".fbx": "an Autodesk FBX file",
-    ".ma": "a Maya scene",
-    ".mb": "a Maya scene",
-    ".blend": "a Blender file",
-    ".max": "a 3ds Max scene",
-    ".3ds": "a 3DS file",
-    ".c4d": "a Cinema 4D scene",
-    ".hip": "a Houdini scene",
-    ".hipnc": "a Houdini scene",
-    ".usd": "a USD file",
-    ".usda": "a USD file",
-    ".usdc": "a USD file",
-    ".usdz": "a USD file",
-    ".abc": "an Alembic file",
-    ".skp": "a SketchUp model",
-    ".3mf": "a 3MF file",
-    ".x3d": "an X3D file",
-    ".wrl": "a VRML file",
-    ".step": "a CAD (STEP) file",
-    ".stp": "a CAD (STEP) file",
-    ".iges": "a CAD (IGES) file",
-    ".igs": "a CAD (IGES) file",
+    ".fbx": ("an Autodesk FBX file", "blender"),
+    ".ma": ("a Maya scene", "via_fbx"),
+    ".mb": ("a Maya scene", "via_fbx"),
+    ".max": ("a 3ds Max scene", "via_fbx"),
+    ".blend": ("a Blender file", "native"),
+    ".c4d": ("a Cinema 4D scene", "native"),
+    ".hip": ("a Houdini scene", "native"),
+    ".hipnc": ("a Houdini scene", "native"),
+    ".usd": ("a USD file", "blender"),
+    ".usda": ("a USD file", "blender"),
+    ".usdc": ("a USD file", "blender"),
+    ".usdz": ("a USD file", "blender"),
+    ".abc": ("an Alembic file", "blender"),
+    ".skp": ("a SketchUp model", "via_dae"),
+    ".3ds": ("a 3DS file", "mesh_tool"),
+    ".x3d": ("an X3D file", "mesh_tool"),
+    ".wrl": ("a VRML file", "mesh_tool"),
+    ".step": ("a CAD (STEP) file", "mesh_tool"),
+    ".stp": ("a CAD (STEP) file", "mesh_tool"),
+    ".iges": ("a CAD (IGES) file", "mesh_tool"),
+    ".igs": ("a CAD (IGES) file", "mesh_tool"),
 }
-
-# what the user's tool does with each: Blender imports these itself
-_BLENDER_IMPORTS = {".fbx", ".3ds", ".usd", ".usda", ".usdc", ".usdz", ".abc", ".x3d", ".wrl", ".3mf"}
 
 # mesh files procmod reads as one mesh, which hold no parts' placements
 _FLAT_MESHES = {".obj": "an OBJ", ".stl": "an STL", ".ply": "a PLY", ".off": "an OFF"}
@@ -54,21 +57,26 @@ def conversion_hint(path: str | os.PathLike, hierarchy: bool = False) -> str:
     ``strings``), so the advice is glTF (an OBJ or STL keeps no part hierarchy).
     """
     suffix = Path(path).suffix.lower()
-    what = OTHER_TOOL_FORMATS.get(suffix)
-    wanted = "glTF 2.0 (.glb)" if hierarchy else "glTF 2.0 (.glb) or OBJ"
-    if what is None:
+    if suffix not in OTHER_TOOL_FORMATS:
         if hierarchy and suffix in _FLAT_MESHES:
             return (f"{_FLAT_MESHES[suffix]} file keeps no part hierarchy; export the parts as glTF 2.0 "
                     "(.glb), which keeps each part's transform")
         if hierarchy and suffix == ".dae":
-            return "parts and their placements are read from glTF and URDF; export the scene as glTF 2.0 (.glb)"
+            return ("parts and their placements are read from glTF and URDF; import the COLLADA file into Blender "
+                    "(File > Import) and export glTF 2.0 (.glb)")
         return ""
-    if suffix in _BLENDER_IMPORTS:
-        how = f"export it from its tool as {wanted}, or import it into Blender (File > Import) and export it from there"
-    elif suffix == ".blend":
-        how = f"in Blender, File > Export > {wanted}"
-    else:
-        how = f"export it from its tool as {wanted}"
+    what, route = OTHER_TOOL_FORMATS[suffix]
+    wanted = "glTF 2.0 (.glb)" if hierarchy else "glTF 2.0 (.glb) or OBJ"
+    how = {
+        "blender": f"export {wanted} from its tool, or import it into Blender (File > Import) and export {wanted} "
+                   "from there",
+        "native": f"export it from its tool as {wanted} (in Blender: File > Export)",
+        "via_fbx": ("export it as FBX, import that into Blender (File > Import > FBX) and export glTF 2.0 (.glb)"
+                    + ("" if hierarchy else ", or export a single mesh as OBJ")),
+        "via_dae": ("export it as COLLADA (.dae), import that into Blender and export glTF 2.0 (.glb)" if hierarchy
+                    else "export it from its tool as COLLADA (.dae) or OBJ"),
+        "mesh_tool": f"convert it to {wanted} in a 3D tool that reads it",
+    }[route]
     return f"{what} is not read by procmod; {how}"
 
 

@@ -16,7 +16,7 @@ from typing import Any, Callable, Mapping
 from .errors import InvalidArgumentError, ModelError, shown_value
 
 
-LIMIT_CEILING = 10 ** 9  # of max_calls and max_depth: a guard that never trips is none
+LIMIT_CEILING = 10 ** 9  # of max_calls, max_depth, max_call_emits: a guard that never trips is none
 
 
 @dataclass(frozen=True)
@@ -68,9 +68,13 @@ class Model:
         built-in models make a few hundred at most; raise it for a larger model.
     max_depth : int
         The deepest rule call (spawn sites from the root) one derivation may reach
-        (default 1,000), for the same reason: a call's address grows with its depth, so a
+        (default 10,000), for the same reason: a call's address grows with its depth, so a
         runaway recursion would slow every call and fill memory long before
-        ``max_calls``. The built-in models reach depth 40 at most.
+        ``max_calls``. The built-in models stay under depth 100 (chain's own bound).
+    max_call_emits : int
+        The most emits one rule call may make (default 20,000): engines that pause at
+        emits (SMC) re-run a call from its start to resume it, so a loop that never ends
+        would otherwise run for hours before anything said so.
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
@@ -89,7 +93,8 @@ class Model:
     heading_rules: tuple = ()
     param_ranges: Mapping[str, tuple] = field(default_factory=dict)
     max_calls: int = 100_000
-    max_depth: int = 1_000
+    max_depth: int = 10_000
+    max_call_emits: int = 20_000
 
     def __post_init__(self):
         # a model built wrong fails here, naming the field, not at its first run
@@ -97,7 +102,7 @@ class Model:
             value = getattr(self, what)
             if not callable(value):
                 raise ModelError(f"model {self.name!r}: {what} must be a function, got {value!r:.40}")
-        for what in ("max_calls", "max_depth"):
+        for what in ("max_calls", "max_depth", "max_call_emits"):
             value = getattr(self, what)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= LIMIT_CEILING:
                 raise ModelError(f"model {self.name!r}: {what} must be a whole number from 1 to "

@@ -45,9 +45,6 @@ from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
 
-MAX_CALL_EMITS = 10_000  # emits of one rule call (each resume re-runs the call's emits so far)
-
-
 def rule_name(rule) -> str:
     """A rule's name, for messages and for the sites of neural guides: its ``__name__``
     (a ``functools.partial``'s function's), or else what it is (a callable object)."""
@@ -236,11 +233,11 @@ class Context:
         self._emits = index + 1
         if index < self._skip:  # drawn before this call was paused
             return
-        if index >= MAX_CALL_EMITS:
-            raise self._misuse(f"emits more than {MAX_CALL_EMITS:,} times in one call; does a loop in it ever end? "
-                               "(a call is re-run from its start to resume after each emit, so emit a long run of "
-                               "parts from child calls, or one part that holds them)")
         state = self._state
+        if index >= state.model.max_call_emits:
+            raise self._misuse(f"emits more than {state.model.max_call_emits:,} times in one call; does a loop in it "
+                               "ever end? (SMC re-runs a call from its start to resume it after each emit, so emit a "
+                               "long run of parts from child calls, or raise Model(max_call_emits=...))")
         try:
             state.output.add(geometry)
         except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw

@@ -68,17 +68,15 @@ def root_rule_id(model: Model) -> str:
 
 
 def _same_root(stored: str, model: Model) -> bool:
-    """Whether a derivation file's ``root`` can be ``model``'s root rule. A script's rules
-    are in ``__main__`` when it runs, in its module's name when another imports it, and in a
-    ``procmod_user_...`` module when the command line runs it (``FILE.py:NAME``), so these
-    match another module's rule of the same qualified name, though never procmod's own (a
-    built-in model is never a user's script)."""
+    """Whether a derivation file's ``root`` can be ``model``'s root rule: refused only where
+    one of the two is a procmod model's own rule and the other is not that rule (a user's
+    model named like a built-in one). A user's own module may be imported under other
+    names (``__main__`` when run as a script, ``pkg.mymodels`` or ``mymodels``, a
+    ``procmod_user_...`` module when the command line runs ``FILE.py:NAME``), and a
+    replay that does not fit is refused by the replay itself."""
     here = root_rule_id(model)
-    if stored == here:
-        return True
-    (module, _, name), (here_module, _, here_name) = stored.partition(":"), here.partition(":")
-    loose = [m.startswith(("__main__", "procmod_user_")) for m in (module, here_module)]
-    return name == here_name and any(loose) and not any(m.startswith("procmod.") for m in (module, here_module))
+    own = [module.startswith("procmod.") for module in (stored.partition(":")[0], here.partition(":")[0])]
+    return stored == here or not any(own)
 
 
 def _json_name(node, name):

@@ -199,9 +199,11 @@ class Canvas:
         cls = type(geometry)
         if cls is Segment:
             x0, y0, x1, y1, w = geometry[:5]
-            # refused before the kernels see it: a NaN would draw nothing, or garbage (a
-            # comparison with NaN is false, so these tests also catch it)
-            if not (w >= 0.0 and -1e300 < x0 + y0 + x1 + y1 < 1e300):
+            # refused before the kernels see it: a NaN would draw nothing, or garbage. A sum
+            # is NaN or infinite when a term is, and t - t is 0 only for a finite t; a
+            # comparison with NaN is false, so w >= 0 also refuses a NaN width
+            total = x0 + y0 + x1 + y1
+            if not (w >= 0.0 and total - total == 0.0):
                 raise ValueError(_BAD_NUMBERS.format("width"))
             r = 0.25 * w * (sx + sy)
             n, g = _draw_capsule(self.pixels, self.width, self.height, self.value,
@@ -218,7 +220,8 @@ class Canvas:
                 by0, by1 = y1 - w, y0 + w
         elif cls is Disc:
             x, y, radius = geometry[:3]
-            if not (radius >= 0.0 and -1e300 < x + y < 1e300):
+            total = x + y
+            if not (radius >= 0.0 and total - total == 0.0):
                 raise ValueError(_BAD_NUMBERS.format("radius"))
             r = 0.5 * radius * (sx + sy)
             px, py = (x - ox) * sx, (y - oy) * sy
@@ -227,7 +230,8 @@ class Canvas:
             bx0, bx1, by0, by1 = x - radius, x + radius, y - radius, y + radius
         elif cls is Ellipse:
             x, y, angle, length, width = geometry[:5]
-            if not (length >= 0.0 and width >= 0.0 and -1e300 < x + y + angle < 1e300):
+            total = x + y + angle
+            if not (length >= 0.0 and width >= 0.0 and total - total == 0.0):
                 raise ValueError(_BAD_NUMBERS.format("length and width"))
             s = 0.5 * (sx + sy)  # viewports are assumed to have square pixels here
             ha, hb = 0.5 * length, 0.5 * width

@@ -143,9 +143,15 @@ def shape_graph(shape_set: ShapeSet, shape: Shape, tol: float | None = None) -> 
     """The shape graph: one node per part (``type`` = its letter, ``part`` = its name),
     an edge per pair of parts whose surfaces intersect within ``tol`` (default
     :func:`tolerance_for` the library)."""
-    if tol is not None and (isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < math.inf):
-        raise InvalidArgumentError(f"tol must be a distance of at least 0 (or None for the library's own), "
-                                   f"got {tol!r:.40}")
+    if tol is not None:
+        try:
+            value = float(tol)  # numpy numbers too
+        except (TypeError, ValueError):
+            value = math.nan
+        if isinstance(tol, (bool, str)) or not 0 <= value < math.inf:
+            raise InvalidArgumentError(f"tol must be a finite distance of at least 0 (or None for the library's "
+                                       f"own), got {tol!r:.40}")
+        tol = value
     tol = tolerance_for(shape_set.library) if tol is None else tol
     g = nx.Graph()
     for k, name in enumerate(shape.parts):
