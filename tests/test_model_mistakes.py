@@ -177,6 +177,9 @@ def test_large_finite_coordinates_and_numpy_number_labels_are_kept():
     far = _model(lambda ctx: [ctx.emit(Segment(1e300, 1e300, 1e300, 1e300, 0.5)), ctx.emit(Disc(1e300, 0, 1.0)),
                               ctx.emit(Ellipse(0, 0, 1e301, 1.0, 1.0))])
     assert run_forward(far, np.random.default_rng(0)).n_emits == 3
+    boxes = _model(lambda ctx: [ctx.emit(Box((1, 2, 3), np.eye(4))), ctx.emit(Cylinder(1.0, 2.0, np.eye(4)))],
+                   output=new_part_bounds)  # a 4x4 array as a transform, as matrix() reads it
+    assert run_forward(boxes, np.random.default_rng(0)).n_emits == 2
     label = Categorical([1, 1], labels=np.array([0.1, 0.2], np.float32)).sample(np.random.default_rng(0))
     assert type(label) is np.float32
 

@@ -199,6 +199,8 @@ def _finite_bounds(lo: list, hi: list) -> tuple:
 def _transform_of(part):
     t = part.transform
     if len(t) != 16:
+        if np.shape(t) == (4, 4):  # a 4x4 array, as matrix() reads it too
+            return np.asarray(t, dtype=np.float64).reshape(16)
         raise ValueError(f"a part's transform must be 16 numbers (a 4x4 matrix, row by row, as "
                          f"procmod.geometry.solid.translation and compose make), got {len(t)}")
     return t
