@@ -105,6 +105,14 @@ def _shear(p):
     p.write_text(json.dumps(data))
 
 
+def _empty_root(p):
+    # Blender's usual grouping: an empty holding the parts, none of them their parent
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])],
+                     [{"name": "Chair", "children": [1, 2]}, {"name": "a", "mesh": 0},
+                      {"name": "b", "mesh": 0, "translation": [2, 0, 0]}], [0])
+    p.write_text(json.dumps(data))
+
+
 def _cycle(p):
     data = gltf_json([("body", [box_mesh((1, 1, 1))])],
                      [{"name": "a", "mesh": 0}, {"name": "b", "children": [2]}, {"name": "c", "children": [1]}], [0])
@@ -144,7 +152,11 @@ def _urdf_two_parents(p):
     (_urdf_two_parents, ".urdf", "child of two joints"),
     (_huge, ".gltf", "more than procmod reads"),
     (_two_roots, ".gltf", "2 top-level parts"),
-    (_shear, ".gltf", "shears"),
+    # the culprit is the parent's scale: named, not the child's
+    (_shear, ".gltf", "node 'b': its world transform shears: its parent 'a' has a non-uniform scale (3, 1, 1) and "
+                      "'b' is turned relative to it; apply the scale of 'a'"),
+    (_empty_root, ".gltf", "2 top-level parts ('a', 'b'); they are under the empty 'Chair', which has no mesh and "
+                           "so is no part"),
 ])
 def test_bad_asset_files_are_one_line_errors_and_write_nothing(tmp_path, capsys, make, suffix, message):
     folder = tmp_path / "in"

@@ -30,7 +30,12 @@ the other to within ``GEOMETRY_TOLERANCE`` x the bounding-box diagonal, measured
 ways as the largest distance from points of one (512 area-weighted surface samples and
 up to 1024 vertices) to the other's surface. The alignment: principal axes of the
 area-weighted surface (every sign choice; about a degenerate axis, every 30 degrees),
-each refined by ICP (to 8192 samples of the other surface, then to their tangent planes). A mesh used by several nodes (glTF nodes sharing mesh
+each refined by ICP (to 8192 samples of the other surface, then to their tangent planes).
+A part with symmetries (a box, a cylinder: quarter and half turns about its own axes that
+map it onto itself) fits a geometry in several ways; each geometry takes the one that
+leaves the nodes placing it least turned in the world, so that a seat whose transforms
+were applied in the tool, or a top modelled turned and turned back, is not placed upside
+down (``_upright_symmetry``). A mesh used by several nodes (glTF nodes sharing mesh
 data; URDF visuals naming one file at one scale) is one geometry without any test. Boxes
 are one part when their extents agree up to a permutation (a quarter turn). A part is
 named after its geometry as the tool named it — the glTF mesh name, the URDF mesh file's
@@ -103,6 +108,7 @@ class Asset:
 
     path: Path
     roots: list  # of AssetNode
+    groups: tuple = ()  # names of top-level nodes without a mesh (empties) that held parts
 
     def nodes(self) -> list:
         return [n for r in self.roots for n in r.walk()]
@@ -869,9 +875,14 @@ def unused_name(base: str, taken: set, fold=None) -> str:
     return name
 
 
-def _library(geometries: list, tol: float, mirror: bool) -> tuple[dict, dict]:
-    """Part library and, per geometry key, (part name, M) with geometry = M(part)."""
-    classes = []  # [representative, surface, [(geometry, M: geometry = M(representative))]]
+def _library(geometries: list, tol: float, mirror: bool, worlds: dict | None = None) -> tuple[dict, dict]:
+    """Part library and, per geometry key, (part name, M) with geometry = M(part).
+
+    ``worlds``: per geometry key, the world transforms of the nodes that use it. A part
+    with symmetries (a box, a cylinder) maps onto a geometry in several ways; each
+    geometry takes the one that places its nodes nearest to unrotated in the world
+    (:func:`_upright_symmetry`)."""
+    classes = []  # [representative, surface, [(geometry, M: geometry = M(representative), surface)]]
     for g in geometries:
         placed = None
         surface = _Surface(g) if g.kind == "mesh" else None
@@ -881,16 +892,16 @@ def _library(geometries: list, tol: float, mirror: bool) -> tuple[dict, dict]:
                 continue
             m = (_box_map(g.size, rep.size, tol) if g.kind == "box" else _align(surface, cls[1], tol, mirror))
             if m is not None:
-                cls[2].append((g, m))
+                cls[2].append((g, m, surface))
                 placed = cls
                 break
         if placed is None:
-            classes.append([g, surface, [(g, np.eye(4))]])
+            classes.append([g, surface, [(g, np.eye(4), surface)]])
     parts, of_key, used = {}, {}, set()
     for rep, _, members in classes:
         # the part takes the shortest (then first in order) of its geometries' names, and
         # that geometry's local frame
-        canon, m_canon = min(members, key=lambda gm: (len(gm[0].name), gm[0].name))
+        canon, m_canon, canon_surface = min(members, key=lambda gm: (len(gm[0].name), gm[0].name))
         name = unused_name(canon.name or "part", used)
         if canon.kind == "box":
             parts[name] = PartShape(name, "box", size=tuple(float(s) for s in canon.size),
@@ -899,9 +910,68 @@ def _library(geometries: list, tol: float, mirror: bool) -> tuple[dict, dict]:
             parts[name] = PartShape(name, "mesh", vertices=tuple(map(tuple, canon.vertices.tolist())),
                                     faces=tuple(map(tuple, canon.faces.tolist())), source=None)
         inv = np.linalg.inv(m_canon)
-        for g, m in members:  # g = m(rep) and canon = m_canon(rep), so g = m m_canon^-1 (canon)
-            of_key[g.key] = (name, m @ inv)
+        symmetries = _symmetries(canon, canon_surface, tol)
+        for g, m, _ in members:  # g = m(rep) and canon = m_canon(rep), so g = m m_canon^-1 (canon)
+            of_key[g.key] = (name, _upright_symmetry(m @ inv, symmetries, (worlds or {}).get(g.key, ())))
     return parts, of_key
+
+
+def _symmetries(canon: _Geometry, surface, tol: float) -> list:
+    """The maps of a part onto itself among the quarter turns and half turns about its own
+    axes through its centre (proper signed permutations; the identity first): for a box,
+    those that only swap equal extents; for a mesh, those that keep it within ``tol`` of
+    its diagonal. A part modelled along its axes, as tools make them, has its symmetries
+    among these; a symmetry at other angles is not sought (the identity always fits)."""
+    import itertools
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            d = np.zeros((3, 3))
+            d[list(perm), range(3)] = signs  # axis j goes to axis perm[j], with a sign
+            if np.linalg.det(d) < 0:
+                continue
+            if canon.kind == "box":
+                size = np.asarray(canon.size, dtype=np.float64)
+                if np.abs(np.abs(d) @ size - size).max() > tol * float(np.linalg.norm(size)):
+                    continue
+                centre = np.zeros(3)
+            else:
+                centre = surface.centroid
+                moved = (surface.check - centre) @ d.T + centre
+                if np.abs(d - np.eye(3)).max() > 0 and surface.distance_to(moved) > tol * surface.diagonal:
+                    continue
+            m = np.eye(4)
+            m[:3, :3] = d
+            m[:3, 3] = centre - d @ centre
+            out.append(m)
+    out.sort(key=lambda m: -np.trace(m[:3, :3]))  # the identity first: kept on ties
+    return out
+
+
+def _upright_symmetry(m: np.ndarray, symmetries: list, worlds) -> np.ndarray:
+    """``m @ S`` for the symmetry ``S`` that turns the nodes placed by it (world transforms
+    ``worlds``) least: summed over them, the trace of the rotation of ``world @ m @ S``
+    (its orthogonal factor) is largest. Without it, a box-like part (a seat, a table top)
+    of an example whose transforms were applied in the tool, or whose mesh was modelled
+    turned, could take a half turn that fits the geometry as well, and the learned program
+    sampled whole chairs tipped over."""
+    if len(symmetries) < 2 or not len(worlds):
+        return m
+
+    def uprightness(candidate):
+        total = 0.0
+        for world in worlds:
+            u, _, vt = np.linalg.svd((world @ candidate)[:3, :3])
+            total += float(np.trace(u @ vt))
+        return total
+
+    best, best_score = m, uprightness(m)  # symmetries[0] is the identity
+    for sym in symmetries[1:]:
+        candidate = m @ sym
+        score = uprightness(candidate)
+        if score > best_score + 1e-6 * len(worlds):  # a real gain, not rounding between equals
+            best, best_score = candidate, score
+    return best
 
 
 def _place(raw: _Raw, of_key: dict) -> list:
@@ -936,8 +1006,17 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
     for path in files:
         reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
         forests.append(reader(path, geometries))
-    parts, of_key = _library(list(geometries.values()), tolerance, mirror)
-    assets = [Asset(path, [n for r in forest for n in _place(r, of_key)]) for path, forest in zip(files, forests)]
+    worlds = {}
+    stack = [raw for forest in forests for raw in forest]
+    while stack:  # the nodes that place each geometry, for _upright_symmetry
+        raw = stack.pop()
+        if raw.geometry is not None:
+            worlds.setdefault(raw.geometry, []).append(raw.world)
+        stack.extend(raw.children)
+    parts, of_key = _library(list(geometries.values()), tolerance, mirror, worlds)
+    assets = [Asset(path, [n for r in forest for n in _place(r, of_key)],
+                    tuple(r.name for r in forest if r.geometry is None and r.children))
+              for path, forest in zip(files, forests)]
     return AssetSet(parts, assets, tolerance)
 
 

@@ -153,7 +153,7 @@ def read_examples(path: str | os.PathLike) -> ExampleSet:
     return examples_from_dict(read_json(path, ExamplesError, "examples file"), path.parent, str(path))
 
 
-def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
+def _asset_node(node, path: Path, depth: int, up: np.ndarray, parent=None) -> ExampleNode:
     if depth > MAX_DEPTH:
         raise ExamplesError(f"{path}: hierarchy deeper than {MAX_DEPTH} levels")
     with np.errstate(all="ignore"):
@@ -167,11 +167,18 @@ def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
         raise ExamplesError(f"{where}: its world transform is singular (a scale of zero); procmod learn needs "
                             "every part to have a volume's worth of placement")
     if has_shear(m):
+        scales = None if parent is None else np.linalg.norm(np.asarray(parent.transform)[:3, :3], axis=0)
+        if scales is not None and scales.max() > 1.001 * scales.min():
+            # the usual cause: a part turned under a parent whose own scale is not uniform
+            raise ExamplesError(f"{where}: its world transform shears: its parent {parent.name!r} has a non-uniform "
+                                f"scale ({', '.join(f'{v:.3g}' for v in scales)}) and {node.name!r} is turned "
+                                f"relative to it; apply the scale of {parent.name!r} in the modelling tool (Blender: "
+                                "select it, Object > Apply > Scale) and export again")
         raise ExamplesError(f"{where}: its world transform shears (a non-uniform scale applied to a rotated part, "
-                            "or under a rotated parent); procmod learn models rotation, scale and translation only: apply the "
-                            "scale in the modelling tool (Blender: Object > Apply > Scale) and export again")
+                            "or under a rotated parent); procmod learn models rotation, scale and translation only: "
+                            "apply the scale in the modelling tool (Blender: Object > Apply > Scale) and export again")
     return ExampleNode(node.part, np.array(m, dtype=np.float64),
-                       [_asset_node(c, path, depth + 1, up) for c in node.children])
+                       [_asset_node(c, path, depth + 1, up, node) for c in node.children])
 
 
 def examples_from_assets(asset_set) -> ExampleSet:
@@ -192,10 +199,12 @@ def examples_from_assets(asset_set) -> ExampleSet:
     examples = []
     for asset in asset_set.assets:
         if len(asset.roots) != 1:
-            names = ", ".join(repr(r.name) for r in asset.roots[:5])
-            raise ExamplesError(f"{asset.path}: {len(asset.roots)} top-level parts ({names}{', ...' if len(asset.roots) > 5 else ''}); "
-                                "an example is one hierarchy: parent them under one part (the body), or, if "
-                                "they are several examples side by side, export each to a file of its own")
+            names = ", ".join(repr(r.name) for r in asset.roots[:5]) + (", ..." if len(asset.roots) > 5 else "")
+            under = (f"; they are under the empty {asset.groups[0]!r}, which has no mesh and so is no part"
+                     if len(asset.groups) == 1 else "")
+            raise ExamplesError(f"{asset.path}: {len(asset.roots)} top-level parts ({names}){under}; an example is "
+                                "one hierarchy: parent them under one part (the body), or, if they are several "
+                                "examples side by side, export each to a file of its own")
         up = Y_UP_TO_Z_UP.T if asset.path.suffix.lower() == ".urdf" else np.eye(4)
         examples.append(_asset_node(asset.roots[0], asset.path, 0, up))
     base = asset_set.assets[0].path.parent if asset_set.assets else Path(".")
@@ -255,7 +264,8 @@ def size_note(example_set: ExampleSet, labels: list | None = None) -> str | None
         if abs(math.log(ratio / factor)) > math.log(1.25):
             factor, units = ratio, None
         named = ", ".join(labels[i] for i in big[:4]) + (f" and {len(big) - 4} more" if len(big) > 4 else "")
-        return (f"{named} ({len(big)} of {len(sizes)} examples) are about {factor:.0f}x the size of the others"
+        return (f"{named} ({len(big)} of {len(sizes)} examples) {'is' if len(big) == 1 else 'are'} about "
+                f"{factor:.0f}x the size of the others"
                 + (f" ({units}?)" if units else "") + f": scale them by {1 / factor:.4g} (or the others by "
                 f"{factor:.4g}) to match; the program learns sizes from all of them")
     return (f"the examples differ in size up to {sizes[large] / sizes[small]:.0f}x ({labels[large]} is "
