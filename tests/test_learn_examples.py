@@ -243,7 +243,7 @@ def test_examples_of_very_different_sizes_get_a_note_naming_them():
     assert "castle_1.glb, castle_3.glb" in size_note(castles, [f"castle_{i}.glb" for i in range(10)])
     castles.examples = [scaled(e, 25.4) if i == 4 else e for i, e in enumerate(originals)]
     assert "examples[4] (1 of 10 examples) is about 25x the size of the others (millimetres among inches?): " \
-           "scale them by 0.03937" in size_note(castles)
+           "scale it by 0.03937" in size_note(castles)
     # a spread without a gap: no units named
     castles.examples = [scaled(e, 1.8 ** i) for i, e in enumerate(originals)]
     note = size_note(castles)

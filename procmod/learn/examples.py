@@ -266,7 +266,7 @@ def size_note(example_set: ExampleSet, labels: list | None = None) -> str | None
         named = ", ".join(labels[i] for i in big[:4]) + (f" and {len(big) - 4} more" if len(big) > 4 else "")
         return (f"{named} ({len(big)} of {len(sizes)} examples) {'is' if len(big) == 1 else 'are'} about "
                 f"{factor:.0f}x the size of the others"
-                + (f" ({units}?)" if units else "") + f": scale them by {1 / factor:.4g} (or the others by "
+                + (f" ({units}?)" if units else "") + f": scale {'it' if len(big) == 1 else 'them'} by {1 / factor:.4g} (or the others by "
                 f"{factor:.4g}) to match; the program learns sizes from all of them")
     return (f"the examples differ in size up to {sizes[large] / sizes[small]:.0f}x ({labels[large]} is "
             f"{sizes[large]:.3g} across, {labels[small]} {sizes[small]:.3g}): if some were exported in other "
