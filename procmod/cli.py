@@ -473,6 +473,15 @@ def main(argv=None) -> int:
         except (OSError, ValueError):
             pass
         return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
+    except Exception as exc:
+        # an error in a model file of the user's own (FILE.py:NAME): their code, one line
+        # naming where; anything else is procmod's bug and keeps its traceback
+        from .models.from_file import user_code_error
+        line = user_code_error(exc)
+        if line is None:
+            raise
+        print(f"procmod: error: {one_line(line)}", file=sys.stderr)
+        return 2
     return 0
 
 

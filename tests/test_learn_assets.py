@@ -105,6 +105,16 @@ def _shear(p):
     p.write_text(json.dumps(data))
 
 
+def _shear_below(p):
+    # the scale two levels up: the part in between has none of its own
+    c, s = math.cos(0.5), math.sin(0.5)
+    rot = [c, s, 0, 0, -s, c, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])],
+                     [{"name": "a", "mesh": 0, "scale": [1, 2, 1], "children": [1]},
+                      {"name": "b", "mesh": 0, "children": [2]}, {"name": "c", "mesh": 0, "matrix": rot}], [0])
+    p.write_text(json.dumps(data))
+
+
 def _empty_root(p):
     # Blender's usual grouping: an empty holding the parts, none of them their parent
     data = gltf_json([("body", [box_mesh((1, 1, 1))])],
@@ -153,8 +163,9 @@ def _urdf_two_parents(p):
     (_huge, ".gltf", "more than procmod reads"),
     (_two_roots, ".gltf", "2 top-level parts"),
     # the culprit is the parent's scale: named, not the child's
-    (_shear, ".gltf", "node 'b': its world transform shears: its parent 'a' has a non-uniform scale (3, 1, 1) and "
+    (_shear, ".gltf", "node 'b': its world transform shears: 'a' above it has a non-uniform scale (3, 1, 1) and "
                       "'b' is turned relative to it; apply the scale of 'a'"),
+    (_shear_below, ".gltf", "node 'c': its world transform shears: 'a' above it has a non-uniform scale (1, 2, 1)"),
     (_empty_root, ".gltf", "2 top-level parts ('a', 'b'); they are under the empty 'Chair', which has no mesh and "
                            "so is no part"),
 ])
@@ -202,3 +213,14 @@ def test_a_urdf_robot_stands_up_the_y_axis_like_a_gltf_example(tmp_path):
     assert np.allclose(extent, [0.6, 0.5, 0.3])  # height (0.05 + 0.45 leg reach) is now y
     legs = [n for n in robot.walk() if n.part != robot.part]
     assert all(n.transform[1][3] == pytest.approx(-0.25) for n in legs)  # the legs hang down y
+
+
+def test_an_empty_is_named_only_when_the_parts_are_under_it(tmp_path):
+    from procmod.learn.examples import ExamplesError
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])],
+                     [{"name": "Group", "children": [1, 2]}, {"name": "a", "mesh": 0},
+                      {"name": "b", "mesh": 0, "translation": [2, 0, 0]}, {"name": "loose", "mesh": 0}], [0, 3])
+    (tmp_path / "x.gltf").write_text(json.dumps(data))
+    with pytest.raises(ExamplesError, match="3 top-level parts") as info:
+        read_example_inputs([tmp_path / "x.gltf"])
+    assert "under the empty" not in str(info.value)

@@ -265,6 +265,43 @@ def test_the_command_line_runs_a_model_of_the_users_own_python_file(tmp_path, ca
     assert load_derivation(tmp_path / "r" / "best.json", lambda name: module.PLANT).n_emits >= 1
 
 
+def test_a_model_file_imports_its_neighbours_and_its_errors_are_one_line(tmp_path, capsys, monkeypatch):
+    """A model file importing a module beside it failed (its folder was not on sys.path);
+    an exception in its rules while they ran was a traceback."""
+    from procmod.cli import main
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    (folder / "helper.py").write_text("DEPTH = 5\n")
+    (folder / "plants.py").write_text(MODEL_FILE.replace("import math\n", "import math\nfrom helper import DEPTH\n", 1)
+                                      .replace("if depth < 5:", "if depth < DEPTH:"))
+    monkeypatch.chdir(tmp_path)  # not the file's folder
+    assert main(["sample", "models/plants.py:PLANT", "-n", "2", "--out", "s"]) == 0
+    (folder / "broken.py").write_text(MODEL_FILE.replace("x1, y1 = x + 2", "x1, y1 = 1 / 0 + x + 2"))
+    assert main(["infer", "models/broken.py", "--target", "glyph:Y", "--particles", "4", "--out", "r"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "broken.py, line 8, in plant: ZeroDivisionError: division by zero (an error " \
+        "in the model's own code)" in err, err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_derivation_is_not_replayed_by_another_model_of_the_users(tmp_path):
+    """render --model with the wrong model of the same file drew a picture, exit 0."""
+    def chain(ctx, x=0.0, y=-2.0, angle=-math.pi / 2):
+        angle = ctx.sample("angle", Normal(angle, 0.4))
+        ctx.emit(Disc(x + math.cos(angle), y, 1.0))
+        ctx.maybe("next", 0.5, chain, x + 1, y - 1, angle)
+
+    def blobs(ctx, x=0.0, y=-2.0, angle=-math.pi / 2):  # the same choice names, another rule
+        angle = ctx.sample("angle", Normal(angle, 0.4))
+        ctx.emit(Disc(x, y + angle, 2.0))
+        ctx.maybe("next", 0.5, blobs, x + 1, y - 1, angle)
+    save_derivation(run_forward(_model(chain, "a-model"), np.random.default_rng(1)), tmp_path / "d.json")
+    with pytest.raises(DerivationFormatError, match=r"was made by model 'a-model', whose root rule is .*chain, but "
+                                                  r"the model here, 'b-model', starts at .*blobs"):
+        load_derivation(tmp_path / "d.json", lambda name: _model(blobs, "b-model"))
+
+
 @pytest.mark.parametrize("content, spec, message", [
     (None, "missing.py", "model file .*missing.py does not exist"),
     ("x = (\n", "m.py", r"m.py, line 1: '\(' was never closed; fix the model file"),
@@ -272,6 +309,7 @@ def test_the_command_line_runs_a_model_of_the_users_own_python_file(tmp_path, ca
     (MODEL_FILE, "m.py:NOPE", r"m.py has no 'NOPE' at its top level \(its Model objects: PLANT\)"),
     (MODEL_FILE, "m.py:math", r"m.py:math is a module, not a procmod Model"),
     ("x = 1\n", "m.py", r"m.py defines 0 Model objects at its top level \(none\); name one: .*m.py:NAME"),
+    (MODEL_FILE, "m.py:bad-name", r"'bad-name' is not a Python name; give FILE.py:NAME"),
 ])
 def test_a_model_file_that_cannot_be_used_is_one_line(tmp_path, capsys, content, spec, message):
     from procmod.cli import main

@@ -68,15 +68,17 @@ def root_rule_id(model: Model) -> str:
 
 
 def _same_root(stored: str, model: Model) -> bool:
-    """Whether a derivation file's ``root`` can be ``model``'s root rule: refused only where
-    one of the two is a procmod model's own rule and the other is not that rule (a user's
-    model named like a built-in one). A user's own module may be imported under other
-    names (``__main__`` when run as a script, ``pkg.mymodels`` or ``mymodels``, a
-    ``procmod_user_...`` module when the command line runs ``FILE.py:NAME``), and a
-    replay that does not fit is refused by the replay itself."""
+    """Whether a derivation file's ``root`` can be ``model``'s root rule: the same rule
+    (qualified name), in a module of any name where neither is procmod's own. A user's
+    module may be imported under other names (``__main__`` when run as a script,
+    ``pkg.mymodels`` or ``mymodels``, a ``procmod_user_...`` module when the command line
+    runs ``FILE.py:NAME``); a procmod model's rule is only ever its own (a user's model
+    named like a built-in one is another model)."""
     here = root_rule_id(model)
-    own = [module.startswith("procmod.") for module in (stored.partition(":")[0], here.partition(":")[0])]
-    return stored == here or not any(own)
+    (module, _, name), (here_module, _, here_name) = stored.partition(":"), here.partition(":")
+    if stored == here:
+        return True
+    return name == here_name and not any(m.startswith("procmod.") for m in (module, here_module))
 
 
 def _json_name(node, name):

@@ -108,7 +108,7 @@ class Asset:
 
     path: Path
     roots: list  # of AssetNode
-    groups: tuple = ()  # names of top-level nodes without a mesh (empties) that held parts
+    groups: tuple = ()  # the name of the file's one top-level node when it has no mesh (an empty)
 
     def nodes(self) -> list:
         return [n for r in self.roots for n in r.walk()]
@@ -1015,7 +1015,7 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
         stack.extend(raw.children)
     parts, of_key = _library(list(geometries.values()), tolerance, mirror, worlds)
     assets = [Asset(path, [n for r in forest for n in _place(r, of_key)],
-                    tuple(r.name for r in forest if r.geometry is None and r.children))
+                    (forest[0].name,) if len(forest) == 1 and forest[0].geometry is None else ())
               for path, forest in zip(files, forests)]
     return AssetSet(parts, assets, tolerance)
 

@@ -202,7 +202,7 @@ class Canvas:
             # refused before the kernels see it: a NaN would draw nothing, or garbage. A sum
             # is NaN or infinite when a term is, and t - t is 0 only for a finite t; a
             # comparison with NaN is false, so w >= 0 also refuses a NaN width
-            total = x0 + y0 + x1 + y1
+            total = 0.25 * x0 + 0.25 * y0 + 0.25 * x1 + 0.25 * y1  # quarters: no overflow of finite ones
             if not (w >= 0.0 and total - total == 0.0):
                 raise ValueError(_BAD_NUMBERS.format("width"))
             r = 0.25 * w * (sx + sy)
@@ -220,7 +220,7 @@ class Canvas:
                 by0, by1 = y1 - w, y0 + w
         elif cls is Disc:
             x, y, radius = geometry[:3]
-            total = x + y
+            total = 0.5 * x + 0.5 * y
             if not (radius >= 0.0 and total - total == 0.0):
                 raise ValueError(_BAD_NUMBERS.format("radius"))
             r = 0.5 * radius * (sx + sy)
@@ -230,7 +230,7 @@ class Canvas:
             bx0, bx1, by0, by1 = x - radius, x + radius, y - radius, y + radius
         elif cls is Ellipse:
             x, y, angle, length, width = geometry[:5]
-            total = x + y + angle
+            total = 0.25 * x + 0.25 * y + 0.25 * angle
             if not (length >= 0.0 and width >= 0.0 and total - total == 0.0):
                 raise ValueError(_BAD_NUMBERS.format("length and width"))
             s = 0.5 * (sx + sy)  # viewports are assumed to have square pixels here

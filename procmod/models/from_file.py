@@ -22,7 +22,8 @@ from pathlib import Path
 
 from ..core import Model, UnknownModelError
 
-_SPEC = re.compile(r"^(?P<file>.+\.py)(?::(?P<name>[A-Za-z_][A-Za-z0-9_]*))?$", re.IGNORECASE)
+_SPEC = re.compile(r"^(?P<file>.+\.py)(?::(?P<name>[^:]*))?$", re.IGNORECASE)
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def is_model_file_spec(spec: str) -> bool:
@@ -36,6 +37,9 @@ def load_model_file(spec: str) -> Model:
     if match is None:
         raise UnknownModelError(f"{spec!r} is not FILE.py or FILE.py:NAME (NAME: a Model at the file's top level)")
     path, name = Path(match["file"]), match["name"]
+    if name is not None and not _NAME.match(name):
+        raise UnknownModelError(f"{spec!r}: {name!r} is not a Python name; give FILE.py:NAME, NAME a Model at the "
+                                "file's top level")
     if not path.is_file():
         raise UnknownModelError(f"model file {path} does not exist" if not path.exists()
                                 else f"model file {path} is not a regular file")
@@ -57,6 +61,22 @@ def load_model_file(spec: str) -> Model:
     return value
 
 
+_USER_FILES: set = set()  # resolved paths of the model files this process has run
+
+
+def user_code_error(exc: BaseException) -> str | None:
+    """One line for an exception raised in a user's model file while its model runs
+    (``FILE.py, line N, in RULE: Type: message``), or None when no frame of the traceback
+    lies in such a file (then it is procmod's own bug, and keeps its traceback)."""
+    frames = [f for f in traceback.extract_tb(exc.__traceback__)
+              if f.filename in _USER_FILES or str(Path(f.filename).resolve()) in _USER_FILES]
+    if not frames:
+        return None
+    last = frames[-1]
+    return (f"{Path(last.filename).name}, line {last.lineno}, in {last.name}: {type(exc).__name__}: {exc} "
+            "(an error in the model's own code)")
+
+
 def _run_module(path: Path):
     """``path`` run as a module of its own (once per process and file)."""
     resolved = path.resolve()
@@ -67,6 +87,9 @@ def _run_module(path: Path):
     spec = importlib.util.spec_from_file_location(module_name, resolved)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # before running it: its dataclasses and pickles look it up
+    if str(resolved.parent) not in sys.path:  # as python FILE.py does: it imports its neighbours
+        sys.path.insert(0, str(resolved.parent))
+    _USER_FILES.add(str(resolved))
     try:
         spec.loader.exec_module(module)
     except SyntaxError as exc:
@@ -83,4 +106,4 @@ def _run_module(path: Path):
     return module
 
 
-__all__ = ["is_model_file_spec", "load_model_file"]
+__all__ = ["is_model_file_spec", "load_model_file", "user_code_error"]

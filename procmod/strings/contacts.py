@@ -148,7 +148,7 @@ def shape_graph(shape_set: ShapeSet, shape: Shape, tol: float | None = None) -> 
             value = float(tol)  # numpy numbers too
         except (TypeError, ValueError):
             value = math.nan
-        if isinstance(tol, (bool, str)) or not 0 <= value < math.inf:
+        if isinstance(tol, (bool, np.bool_, str)) or not 0 <= value < math.inf:
             raise InvalidArgumentError(f"tol must be a finite distance of at least 0 (or None for the library's "
                                        f"own), got {tol!r:.40}")
         tol = value
