@@ -529,3 +529,40 @@ def test_a_symmetric_part_is_placed_unturned_when_its_geometry_allows_it(tmp_pat
     for asset in read.assets:
         for node in asset.nodes():
             assert np.allclose(np.asarray(node.transform)[:3, :3], np.eye(3), atol=1e-6), (asset.path, node.name)
+
+
+def _cube_chair(path, height: float, baked_legs: bool = False):
+    """A chair as Blender users make one: the default cube scaled into a seat, a back and
+    four legs, the scales left unapplied (``baked_legs``: the legs' scale applied, so their
+    mesh is a leg at its size under an unscaled node)."""
+    cube = box_mesh((1, 1, 1))
+    leg_size = (0.04, height, 0.04)
+    meshes = [("Cube", [cube]), ("Cube.001", [transformed(cube, np.diag([*leg_size, 1.0]))])]
+    nodes = [{"name": "Seat", "mesh": 0, "translation": [0, height, 0], "scale": [0.45, 0.04, 0.45],
+              "children": [1]},
+             {"name": "Back", "mesh": 0, "translation": [0, 0.22 / 0.04, -0.21 / 0.45],
+              "scale": [1.0, 0.4 / 0.04, 0.03 / 0.45]}]
+    for i, (x, z) in enumerate([(0.2, 0.2), (-0.2, 0.2), (0.2, -0.2), (-0.2, -0.2)]):
+        leg = {"name": f"Leg.{i:03d}", "mesh": 1 if baked_legs else 0, "translation": [x, height / 2, z]}
+        if not baked_legs:
+            leg["scale"] = list(leg_size)
+        nodes.append(leg)
+    write_glb(path, gltf_json(meshes, nodes, [0] + list(range(2, 6))))
+    return path
+
+
+def test_a_primitive_scaled_into_several_parts_is_several_parts(tmp_path):
+    """Six scaled cubes were one part type, "Cube", six times over (the learned program
+    sampled chairs of 1, 2 or 10 boxes), and a leg whose scale was applied was another part
+    than its twin whose scale was not."""
+    files = [_cube_chair(tmp_path / f"c{k}.glb", 0.45 + 0.03 * k, baked_legs=(k == 3)) for k in range(4)]
+    read = read_assets(files)
+    for asset in read.assets:
+        counts = {}
+        for node in asset.nodes():
+            counts[node.part] = counts.get(node.part, 0) + 1
+        assert counts == {"Seat": 1, "Back": 1, "Leg": 4}, (asset.path.name, counts)
+    # every part where the file puts it: the leg of chair 2 is 0.51 tall and 0.04 wide
+    leg = next(n for n in read.assets[2].nodes() if n.part == "Leg")
+    corners = part_triangles(read.parts["Leg"].part(leg.transform)).reshape(-1, 3)
+    assert np.allclose(np.ptp(corners, axis=0), (0.04, 0.51, 0.04), atol=1e-6)

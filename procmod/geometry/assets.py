@@ -24,6 +24,15 @@ it, and a link without visuals passes its children on like an empty. Cylinders a
 spheres become meshes (32 sections; an icosphere of 320 faces), boxes stay boxes; a
 shape of size zero (a marker some robots carry) is no part.
 
+**Scales** (:func:`_bake_scales`). A part is a mesh at the size and shape its node
+gives it: the nodes placing one mesh (or meshes that are one mesh scaled along its axes,
+as a tool's primitive is, its scale applied or not) are grouped by their scales, within
+:data:`SCALE_GROUP` of each other; a group far from the mesh's own size, or one of
+several, becomes a geometry of its own at the group's mean scale, its nodes keeping the
+rest. So six cubes scaled into a seat, a back and four legs are three parts, and a leg
+whose scale was applied is the leg whose scale was not. A node whose transform shears puts
+its whole linear map into its geometry.
+
 **Distinct geometry** (:data:`GEOMETRY_TOLERANCE`). Two meshes are one part when a rigid
 motion (and, with ``mirror=True``, a reflection: a left and a right wing) maps one onto
 the other to within ``GEOMETRY_TOLERANCE`` x the bounding-box diagonal, measured both
@@ -38,7 +47,9 @@ were applied in the tool, or a top modelled turned and turned back, is not place
 down (``_upright_symmetry``). A mesh used by several nodes (glTF nodes sharing mesh
 data; URDF visuals naming one file at one scale) is one geometry without any test. Boxes
 are one part when their extents agree up to a permutation (a quarter turn). A part is
-named after its geometry as the tool named it — the glTF mesh name, the URDF mesh file's
+named after its geometry as the tool named it — the glTF mesh name (a mesh without one,
+or with a name the tool gives its primitives, ``Cube.001``, is named after its first node,
+``Seat``), the URDF mesh file's
 stem, for a URDF box, cylinder or sphere its visual's name or else its link's — the
 shortest name among the geometries it merges (``arm`` for meshes ``arm`` and ``arm.001``); different geometries with one name
 get ``_2``, ``_3``, ... in the order they were read.
@@ -61,6 +72,7 @@ import numpy as np
 
 from ..core.errors import ProcmodError
 from ..core.file_formats import conversion_hint
+from ..core.io import fingerprint
 from ..core.paths import UnsafePathError, named_file
 from .mesh_files import MESH_SUFFIXES, declared_faces, gltf_header, load_mesh_file
 from .part_library import PartShape
@@ -196,6 +208,7 @@ class _Geometry:
     vertices: np.ndarray | None = None
     faces: np.ndarray | None = None
     size: np.ndarray | None = None
+    named_by_node: str = ""  # its mesh had no name of its own: "unnamed", or "default" (a tool's "Cube")
 
 
 @dataclass
@@ -367,8 +380,15 @@ def _read_gltf(path: Path, geometries: dict) -> list:
         key = ("gltf", str(path), tuple(parts))
         if key not in geometries:
             # an unnamed mesh is named after the first node that places it (trimesh's own
-            # name for it, "GLTF", "GLTF_1", means nothing to the user)
-            name = mesh_name if isinstance(mesh_name, str) and mesh_name else frame
+            # name for it, "GLTF", "GLTF_1", means nothing to the user), and so is one named
+            # as the tool names its primitives ("Cube.001": the user named the object "Seat")
+            by_node = ""
+            if not (isinstance(mesh_name, str) and mesh_name):
+                name, by_node = frame, "unnamed"
+            elif _NUMBERED.sub("", mesh_name).lower() in _DEFAULT_MESH_NAMES:
+                name, by_node = _NUMBERED.sub("", frame) or frame, "default"  # "Seat", not "Seat.001"
+            else:
+                name = mesh_name
             where = f"{path}: mesh {name!r}"
             pieces = [scene.geometry[g] for g in parts]
             if not all(hasattr(p, "faces") for p in pieces):
@@ -377,7 +397,7 @@ def _read_gltf(path: Path, geometries: dict) -> list:
             offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])
             f = np.concatenate([np.asarray(p.faces, dtype=np.int64) + o for p, o in zip(pieces, offsets)])
             v, f = _clean_mesh(v, f, where)
-            geometries[key] = _Geometry(key, name, where, "mesh", v, f)
+            geometries[key] = _Geometry(key, name, where, "mesh", v, f, named_by_node=by_node)
         return key
 
     def build(i: int) -> _Raw | None:
@@ -403,6 +423,119 @@ def _walk(raw: _Raw):
     for c in raw.children:
         yield from _walk(c)
 
+
+_NUMBERED = re.compile(r"[._ -]?\d+$")  # "Leg.001", "Leg2": the tool's numbering of copies
+# meshes as tools name their primitives (Blender, Maya, 3ds Max): a scaled one is named
+# after its node instead, which the user named for what it is ("Seat", "Leg")
+_DEFAULT_MESH_NAMES = {"cube", "cylinder", "sphere", "uv sphere", "icosphere", "cone", "plane", "torus", "circle",
+                       "grid", "monkey", "suzanne", "mesh", "box", "pcube", "pcylinder", "psphere", "pcone",
+                       "pplane", "ptorus", "teapot", "gltf"}
+
+
+def _bake_scales(forests: list, geometries: dict) -> None:
+    """Tell the parts a tool made of one mesh by scaling it apart, and give each its size.
+
+    Blender users scale primitives without applying the scale: a chair of six scaled
+    cubes was one part type, "Cube", six times over (seat, back and legs alike), and its
+    learned program sampled chairs of 1, 2 or 10 boxes. And an object whose scale was
+    applied in the tool was another part than its twin whose scale was not. So the nodes
+    that place one mesh are grouped by their axis scales (single linkage: scales within
+    :data:`SCALE_GROUP` of each other on every axis are one group). A mesh whose nodes
+    form one group with a scale within that factor of 1 keeps it on the nodes, as read
+    (a part whose size varies from example to example, the learner's to model). Otherwise
+    each group is a geometry of its own: the mesh with the group's mean scale put into it,
+    the nodes keeping what differs from that mean. A node that shears (a turned child
+    under a non-uniformly scaled parent) puts its whole linear map into a geometry of its
+    own and keeps its rotation-free place. A baked geometry keeps its mesh's name, but one
+    a tool gives its primitives (``Cube``, ``Cylinder.001``) says nothing of what the
+    scale made of it: it is named after its first node instead, without the tool's copy
+    numbering (``Leg.001`` is ``Leg``)."""
+    by_geometry = {}
+    stack = [raw for forest in forests for raw in forest]
+    while stack:
+        raw = stack.pop()
+        stack.extend(raw.children)
+        if raw.geometry is None or geometries[raw.geometry].kind != "mesh":
+            continue  # an empty, or a URDF box (its joints are rigid)
+        linear = raw.world[:3, :3]
+        norms = np.linalg.norm(linear, axis=0)
+        if not (norms > 1e-300).all():
+            continue  # singular: the learner says so
+        turn = linear / norms
+        if np.abs(turn.T @ turn - np.eye(3)).max() <= 1e-6:  # a rotation (or mirror) times axis scales
+            # meshes that are one mesh scaled along its axes (a tool's primitive, in several
+            # files, its scale applied in some) are grouped: each as its unit-extent shape,
+            # placed at the node's scale times its own extents
+            g = geometries[raw.geometry]
+            extents = np.ptp(g.vertices, axis=0)
+            if not (extents > 1e-12 * max(float(extents.max()), 1e-300)).all():
+                continue  # flat: no unit shape (it keeps its geometry as read)
+            unit = np.round(g.vertices / extents, 9)
+            same = fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes())
+            by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
+        else:  # shears: the whole linear map goes into a geometry of its own
+            _bake(raw, geometries, linear, np.eye(3), np.ones(3))
+    for placed in by_geometry.values():
+        sizes = np.log([norms * extents for _, _, norms, extents in placed])  # of the unit shape
+        scaled = np.log([norms for _, _, norms, _ in placed])
+        groups = _scale_groups(sizes)
+        if len(groups) == 1 and np.abs(scaled).max() <= math.log(SCALE_GROUP):
+            continue  # one part whose size varies: as read
+        for members in groups:
+            if np.abs(sizes[members] - sizes[members[0]]).max() <= 1e-9 and np.abs(scaled[members]).max() <= 1e-9:
+                continue  # one size, unscaled: as read
+            mean = np.exp(sizes[members].mean(0))
+            for k in members:
+                raw, turn, norms, extents = placed[k]
+                _bake(raw, geometries, np.diag(mean / extents), turn, norms * extents / mean)
+    used = {raw.geometry for forest in forests for top in forest for raw in _walk(top)}
+    for key in [k for k in geometries if k not in used]:  # read, but no node places it as read
+        del geometries[key]
+
+
+SCALE_GROUP = 3.0
+"""Nodes of one mesh whose axis scales are within this factor of each other are one part
+(:func:`_bake_scales`): a chair's legs, 0.45 to 0.54 tall, are one; its seat and back,
+scaled from the same cube, are others."""
+
+
+def _scale_groups(logs: np.ndarray) -> list:
+    """Single-linkage groups (lists of indices) of log-scale rows within log(SCALE_GROUP)
+    of each other on every axis, in order of their first member."""
+    limit = math.log(SCALE_GROUP)
+    group = list(range(len(logs)))
+
+    def root(i):
+        while group[i] != i:
+            group[i] = group[group[i]]
+            i = group[i]
+        return i
+
+    for i in range(len(logs)):
+        close = np.flatnonzero(np.abs(logs[i + 1:] - logs[i]).max(1) <= limit) + i + 1
+        for j in close:
+            group[root(int(j))] = root(i)
+    out = {}
+    for i in range(len(logs)):
+        out.setdefault(root(i), []).append(i)
+    return list(out.values())
+
+
+def _bake(raw: _Raw, geometries: dict, local: np.ndarray, turn: np.ndarray, residual: np.ndarray) -> None:
+    """Place ``raw`` by a geometry of its mesh mapped by ``local`` (3x3), its world then
+    ``turn`` times the axis scales ``residual``, its translation unchanged."""
+    g = geometries[raw.geometry]
+    key = ("baked", fingerprint(np.round(g.vertices, 9).tobytes() + np.asarray(g.faces).tobytes()),
+           tuple(np.round(local, 9).ravel().tolist()))
+    if key not in geometries:
+        faces = g.faces if np.linalg.det(local) > 0 else g.faces[:, ::-1]  # keep the winding outward
+        by_node = g.named_by_node or ("default" if _NUMBERED.sub("", g.name).lower() in _DEFAULT_MESH_NAMES else "")
+        name = {"": g.name, "unnamed": raw.name}.get(by_node) or _NUMBERED.sub("", raw.name) or raw.name
+        geometries[key] = _Geometry(key, name, f"{g.where} (node {raw.name!r}, its scale applied)", "mesh",
+                                    g.vertices @ local.T, faces, named_by_node=by_node)
+    world = np.eye(4)
+    world[:3, :3], world[:3, 3] = turn * residual, raw.world[:3, 3]
+    raw.geometry, raw.world = key, world
 
 # ---- URDF -------------------------------------------------------------------------------------
 
@@ -1006,6 +1139,7 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
     for path in files:
         reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
         forests.append(reader(path, geometries))
+    _bake_scales(forests, geometries)
     worlds = {}
     stack = [raw for forest in forests for raw in forest]
     while stack:  # the nodes that place each geometry, for _upright_symmetry

@@ -153,19 +153,7 @@ def read_examples(path: str | os.PathLike) -> ExampleSet:
     return examples_from_dict(read_json(path, ExamplesError, "examples file"), path.parent, str(path))
 
 
-def _scaled_ancestor(ancestors: list):
-    """The nearest of ``ancestors`` (asset nodes, root first) whose own transform, relative
-    to its parent's, scales its axes unequally, and those scales; (None, None) if none."""
-    for k in range(len(ancestors) - 1, -1, -1):
-        world = np.asarray(ancestors[k].transform, dtype=np.float64)
-        local = world if k == 0 else np.linalg.solve(np.asarray(ancestors[k - 1].transform, dtype=np.float64), world)
-        scales = np.linalg.norm(local[:3, :3], axis=0)
-        if scales.max() > 1.001 * scales.min():
-            return ancestors[k], scales
-    return None, None
-
-
-def _asset_node(node, path: Path, depth: int, up: np.ndarray, ancestors: tuple = ()) -> ExampleNode:
+def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
     if depth > MAX_DEPTH:
         raise ExamplesError(f"{path}: hierarchy deeper than {MAX_DEPTH} levels")
     with np.errstate(all="ignore"):
@@ -179,18 +167,12 @@ def _asset_node(node, path: Path, depth: int, up: np.ndarray, ancestors: tuple =
         raise ExamplesError(f"{where}: its world transform is singular (a scale of zero); procmod learn needs "
                             "every part to have a volume's worth of placement")
     if has_shear(m):
-        scaled, scales = _scaled_ancestor(list(ancestors))
-        if scaled is not None:
-            # the usual cause: a part turned under an ancestor whose own scale is not uniform
-            raise ExamplesError(f"{where}: its world transform shears: {scaled.name!r} above it has a non-uniform "
-                                f"scale ({', '.join(f'{v:.3g}' for v in scales)}) and {node.name!r} is turned "
-                                f"relative to it; apply the scale of {scaled.name!r} in the modelling tool (Blender: "
-                                "select it, Object > Apply > Scale) and export again")
+        # a guard: the asset reader puts a shearing node's map into its geometry
         raise ExamplesError(f"{where}: its world transform shears (a non-uniform scale applied to a rotated part, "
                             "or under a rotated parent); procmod learn models rotation, scale and translation only: "
                             "apply the scale in the modelling tool (Blender: Object > Apply > Scale) and export again")
     return ExampleNode(node.part, np.array(m, dtype=np.float64),
-                       [_asset_node(c, path, depth + 1, up, ancestors + (node,)) for c in node.children])
+                       [_asset_node(c, path, depth + 1, up) for c in node.children])
 
 
 def examples_from_assets(asset_set) -> ExampleSet:
