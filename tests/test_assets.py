@@ -566,3 +566,14 @@ def test_a_primitive_scaled_into_several_parts_is_several_parts(tmp_path):
     leg = next(n for n in read.assets[2].nodes() if n.part == "Leg")
     corners = part_triangles(read.parts["Leg"].part(leg.transform)).reshape(-1, 3)
     assert np.allclose(np.ptp(corners, axis=0), (0.04, 0.51, 0.04), atol=1e-6)
+
+
+def test_planes_scaled_into_panels_are_parts_of_their_own(tmp_path):
+    """A flat primitive (Blender's plane) has no extent across it: it is grouped by its other
+    two axes' scales like any other."""
+    plane = (np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=float), np.array([[0, 2, 1], [0, 3, 2]]))
+    nodes = [{"name": "Floor", "mesh": 0, "scale": [2.0, 1, 2.0], "children": [1]},
+             {"name": "Strip", "mesh": 0, "translation": [0, 0.5, 0], "scale": [0.05, 1, 0.5]}]
+    write_glb(tmp_path / "a.glb", gltf_json([("Plane", [plane])], nodes, [0]))
+    read = read_assets([tmp_path / "a.glb"])
+    assert sorted(n.part for n in read.assets[0].nodes()) == ["Floor", "Strip"]

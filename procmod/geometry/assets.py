@@ -468,8 +468,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             # placed at the node's scale times its own extents
             g = geometries[raw.geometry]
             extents = np.ptp(g.vertices, axis=0)
-            if not (extents > 1e-12 * max(float(extents.max()), 1e-300)).all():
-                continue  # flat: no unit shape (it keeps its geometry as read)
+            extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
             unit = np.round(g.vertices / extents, 9)
             same = fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes())
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
@@ -480,7 +479,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         scaled = np.log([norms for _, _, norms, _ in placed])
         groups = _scale_groups(sizes)
         if len(groups) == 1 and np.abs(scaled).max() <= math.log(SCALE_GROUP):
-            continue  # one part whose size varies: as read
+            continue  # one part whose size varies, its nodes near its own size: as read
         for members in groups:
             if np.abs(sizes[members] - sizes[members[0]]).max() <= 1e-9 and np.abs(scaled[members]).max() <= 1e-9:
                 continue  # one size, unscaled: as read
