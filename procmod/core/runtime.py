@@ -45,11 +45,17 @@ from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
 
+def rule_function(rule):
+    """The function a rule runs: ``rule`` itself, or a ``functools.partial``'s function."""
+    while isinstance(rule, functools.partial):
+        rule = rule.func
+    return rule
+
+
 def rule_name(rule) -> str:
     """A rule's name, for messages and for the sites of neural guides: its ``__name__``
     (a ``functools.partial``'s function's), or else what it is (a callable object)."""
-    while isinstance(rule, functools.partial):
-        rule = rule.func
+    rule = rule_function(rule)
     return getattr(rule, "__name__", None) or repr(rule)[:60]
 
 

@@ -15,7 +15,6 @@ that does not replay without fresh or left-over choices is rejected.
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 import os
@@ -28,7 +27,7 @@ from .errors import DerivationFormatError, InvalidArgumentError, ProcmodError, c
 # from serialize.
 from .io import check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
 from .model import Model
-from .runtime import Derivation, replay
+from .runtime import Derivation, replay, rule_function
 
 FORMAT = "procmod-derivation/1"
 
@@ -61,9 +60,7 @@ def derivation_to_dict(derivation: Derivation) -> dict:
 def root_rule_id(model: Model) -> str:
     """``module:qualname`` of a model's root rule: which model a saved derivation came
     from, beyond its name (a user's model may be named like a built-in one)."""
-    root = model.root
-    while isinstance(root, functools.partial):
-        root = root.func
+    root = rule_function(model.root)
     return f"{getattr(root, '__module__', None) or '?'}:{getattr(root, '__qualname__', None) or type(root).__name__}"
 
 

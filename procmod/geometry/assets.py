@@ -450,7 +450,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     a tool gives its primitives (``Cube``, ``Cylinder.001``) says nothing of what the
     scale made of it: it is named after its first node instead, without the tool's copy
     numbering (``Leg.001`` is ``Leg``)."""
-    by_geometry = {}
+    by_geometry, unit_of = {}, {}
     stack = [raw for forest in forests for raw in forest]
     while stack:
         raw = stack.pop()
@@ -466,11 +466,13 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             # meshes that are one mesh scaled along its axes (a tool's primitive, in several
             # files, its scale applied in some) are grouped: each as its unit-extent shape,
             # placed at the node's scale times its own extents
-            g = geometries[raw.geometry]
-            extents = np.ptp(g.vertices, axis=0)
-            extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
-            unit = np.round(g.vertices / extents, 9)
-            same = fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes())
+            if raw.geometry not in unit_of:  # once per mesh, however many nodes place it
+                g = geometries[raw.geometry]
+                extents = np.ptp(g.vertices, axis=0)
+                extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
+                unit = np.round(g.vertices / extents, 9)
+                unit_of[raw.geometry] = (fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()), extents)
+            same, extents = unit_of[raw.geometry]
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
             _bake(raw, geometries, linear, np.eye(3), np.ones(3))
@@ -524,8 +526,7 @@ def _bake(raw: _Raw, geometries: dict, local: np.ndarray, turn: np.ndarray, resi
     """Place ``raw`` by a geometry of its mesh mapped by ``local`` (3x3), its world then
     ``turn`` times the axis scales ``residual``, its translation unchanged."""
     g = geometries[raw.geometry]
-    key = ("baked", fingerprint(np.round(g.vertices, 9).tobytes() + np.asarray(g.faces).tobytes()),
-           tuple(np.round(local, 9).ravel().tolist()))
+    key = ("baked", raw.geometry, tuple(np.round(local, 9).ravel().tolist()))
     if key not in geometries:
         faces = g.faces if np.linalg.det(local) > 0 else g.faces[:, ::-1]  # keep the winding outward
         by_node = g.named_by_node or ("default" if _NUMBERED.sub("", g.name).lower() in _DEFAULT_MESH_NAMES else "")
