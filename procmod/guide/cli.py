@@ -15,7 +15,7 @@ def register(sub, int_arg) -> None:
     group.required = True
 
     traces = group.add_parser("traces", help="generate training traces with SMC (resumes an interrupted job)")
-    traces.add_argument("model", metavar="MODEL")
+    traces.add_argument("model", metavar="MODEL", help="a built-in model, or FILE.py:NAME (a model of your own file)")
     traces.add_argument("--targets", default="scribble", help="scribble (default) or circuit")
     traces.add_argument("--count", type=int_arg, required=True, help="number of traces")
     traces.add_argument("--particles", type=int_arg, default=600, help="SMC particles per trace (default 600)")
@@ -30,7 +30,7 @@ def register(sub, int_arg) -> None:
     traces.set_defaults(handler=_cmd_traces)
 
     train = group.add_parser("train", help="train a guide on traces (resumes from its checkpoint)")
-    train.add_argument("model", metavar="MODEL")
+    train.add_argument("model", metavar="MODEL", help="the traces' model: a built-in model, or FILE.py:NAME")
     train.add_argument("--traces", required=True, help="traces folder made by 'procmod guide traces'")
     train.add_argument("--out", required=True, help="guide path: writes OUT.pt + OUT.json")
     train.add_argument("--features", default="all",
@@ -102,11 +102,11 @@ def _check_replaces_a_guide(path) -> None:
 
 
 def _cmd_train(args) -> None:
-    from ..models import get_model
+    from ..models import model_from_spec
     from .features import FeatureSettings
     from .train import train_guide
 
-    model = get_model(args.model)
+    model = model_from_spec(args.model)
     settings = FeatureSettings.condition(args.features)
     from ..core.runfolder import check_output_file
     from .guide import guide_paths

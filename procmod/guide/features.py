@@ -382,7 +382,7 @@ class FeatureExtractor:
             if ranges is None:
                 raise GuideError(f"model {self.model.name!r} declares no argument ranges for rule "
                                  f"{rule_name!r}; give the Model arg_ranges={{{rule_name!r}: ((low, high), ...)}} "
-                                 "or use guide features without local state")
+                                 "or train the guide without local state (--features target+partial)")
             self._local[rule_name] = ranges
         return ranges
 

@@ -221,8 +221,8 @@ class Guide:
         if model.name != self.model_name:
             from ..models import MODELS
             advice = (f"train one with 'procmod guide train {model.name} ...'" if model.name in MODELS else
-                      "guides are trained for the built-in models only (procmod guide traces / train take their "
-                      "names); run this model without --guide")
+                      "train one for it with 'procmod guide traces FILE.py:NAME' then 'procmod guide train "
+                      "FILE.py:NAME' (README, \"Neural guides\"), or run it without --guide")
             raise GuideError(f"this guide was trained for model {self.model_name!r}, not {model.name!r}; {advice}")
 
     def numpy_weights(self) -> dict:

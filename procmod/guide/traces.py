@@ -52,17 +52,19 @@ def trace_target_spec(targets: str, seed: int, index: int, set_size: int = SCRIB
     raise InvalidArgumentError(f"{argument('targets')} must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
 
 
-def generate_trace(model_name: str, target_spec: str, particles: int, seed: int, index: int) -> dict:
+def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int, index: int) -> dict:
     """Run SMC on one target and keep one final particle, picked by weight.
 
-    Module-level and fed plain values, so process pools and dask workers can run it.
+    Module-level and fed plain values, so process pools and dask workers can run it
+    (``model_spec``: a built-in model's name, or a model file's absolute ``FILE.py:NAME``,
+    which a worker on another machine finds at the same path).
     """
     from ..data import target_from_spec
     from ..infer import smc
-    from ..models import get_model
+    from ..models import model_from_spec
 
     began = time.perf_counter()
-    model = get_model(model_name)
+    model = model_from_spec(model_spec)
     target = target_from_spec(target_spec)
     result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
     weights = np.asarray(result.log_weights, dtype=np.float64)
@@ -82,9 +84,12 @@ def trace_path(out: Path, index: int) -> Path:
     return out / f"trace_{index:05d}.json"
 
 
-def _job_settings(model_name, targets, particles, seed, set_size) -> dict:
-    return {"format": JOB_FORMAT, "model": model_name, "targets": targets, "particles": particles,
-            "seed": seed, "set_size": set_size}
+def _job_settings(model, model_file, targets, particles, seed, set_size) -> dict:
+    settings = {"format": JOB_FORMAT, "model": model.name, "targets": targets, "particles": particles,
+                "seed": seed, "set_size": set_size}
+    if model_file is not None:  # a model of the user's own file: which file (a job resumes only with it)
+        settings["model_file"] = model_file
+    return settings
 
 
 MAX_TRACES = 10_000_000  # a job's count: its trace files in one folder, its list of the missing ones
@@ -95,16 +100,23 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                     set_size: int = SCRIBBLE_SET_SIZE, progress=None, overwrite: bool = False) -> dict:
     """Make ``count`` traces in ``out`` (resuming a previous run of the same job).
 
+    ``model_name`` is a built-in model's name or a model of the user's own Python file
+    (``FILE.py:NAME``; workers import the file from its absolute path).
+
     Everything is checked before the folder is touched: the settings, that the training
     targets fit the model, and ``out`` (see :class:`procmod.core.runfolder.RunFolder`).
     Returns a summary: traces made now, already present, seconds, traces per hour.
     """
     from ..data import target_from_spec
     from ..infer.common import check_population
-    from ..models import get_model
+    from ..models import MODELS, model_from_spec
     from ..parallel import InlineExecutor
 
-    model = get_model(model_name)  # fail early on an unknown model
+    model = model_from_spec(model_name)  # fail early on an unknown model or a broken file
+    model_file = None
+    if model_name not in MODELS:
+        from ..models.from_file import absolute_spec
+        model_file = absolute_spec(model_name)
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
@@ -119,7 +131,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     check_population("particles", particles, empty)
     out = Path(out)
     folder = RunFolder(out, TRACES_JOB, overwrite)
-    settings = _job_settings(model_name, targets, particles, seed, set_size)
+    settings = _job_settings(model, model_file, targets, particles, seed, set_size)
     job_file = out / "traces.json"
     resume = False
     if TRACES_JOB.recognises(out):
@@ -152,7 +164,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             while queue and len(running) < in_flight:
                 i = queue.pop()
                 spec = trace_target_spec(targets, seed, i, set_size)
-                running[executor.submit(generate_trace, model_name, spec, particles, seed, i)] = i
+                running[executor.submit(generate_trace, model_file or model_name, spec, particles, seed, i)] = i
             finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
             for future in finished:
                 index = running.pop(future)

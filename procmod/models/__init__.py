@@ -24,4 +24,15 @@ def get_model(name: str) -> Model:
             "(run 'procmod models' to list them)") from None
 
 
-__all__ = ["MODELS", "get_model"]
+def model_from_spec(spec: str) -> Model:
+    """A built-in model by name, or a model of the user's own Python file (``FILE.py:NAME``
+    or ``FILE.py``, :mod:`procmod.models.from_file`): what ``procmod guide`` takes."""
+    if isinstance(spec, str) and spec not in MODELS:
+        from .from_file import is_model_file_spec, load_model_file
+
+        if is_model_file_spec(spec):
+            return load_model_file(spec)
+    return get_model(spec)
+
+
+__all__ = ["MODELS", "get_model", "model_from_spec"]

@@ -61,6 +61,16 @@ def load_model_file(spec: str) -> Model:
     return value
 
 
+def absolute_spec(spec: str) -> str:
+    """``spec`` (``FILE.py`` or ``FILE.py:NAME``) with the file's absolute path: the same
+    model from another working directory, or in a worker process started elsewhere."""
+    match = _SPEC.match(spec)
+    if match is None:
+        raise UnknownModelError(f"{spec!r} is not FILE.py or FILE.py:NAME (NAME: a Model at the file's top level)")
+    path = str(Path(match["file"]).resolve())
+    return path if match["name"] is None else f"{path}:{match['name']}"
+
+
 _USER_FILES: set = set()  # resolved paths of the model files this process has run
 
 
@@ -68,13 +78,19 @@ def user_code_error(exc: BaseException) -> str | None:
     """One line for an exception raised in a user's model file while its model runs
     (``FILE.py, line N, in RULE: Type: message``), or None when no frame of the traceback
     lies in such a file (then it is procmod's own bug, and keeps its traceback)."""
-    frames = [f for f in traceback.extract_tb(exc.__traceback__)
-              if f.filename in _USER_FILES or str(Path(f.filename).resolve()) in _USER_FILES]
+    frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(exc.__traceback__)]
+    remote = getattr(exc.__cause__, "tb", None)  # a process pool's worker: its traceback, as text
+    if isinstance(remote, str):
+        frames += [(m[1], int(m[2]), m[3]) for m in _FRAME_LINE.finditer(remote)]
+    frames = [f for f in frames if f[0] in _USER_FILES or str(Path(f[0]).resolve()) in _USER_FILES]
     if not frames:
         return None
-    last = frames[-1]
-    return (f"{Path(last.filename).name}, line {last.lineno}, in {last.name}: {type(exc).__name__}: {exc} "
+    filename, line, function = frames[-1]
+    return (f"{Path(filename).name}, line {line}, in {function}: {type(exc).__name__}: {exc} "
             "(an error in the model's own code)")
+
+
+_FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE)
 
 
 def _run_module(path: Path):
@@ -106,4 +122,4 @@ def _run_module(path: Path):
     return module
 
 
-__all__ = ["is_model_file_spec", "load_model_file", "user_code_error"]
+__all__ = ["absolute_spec", "is_model_file_spec", "load_model_file", "user_code_error"]

@@ -1,0 +1,80 @@
+"""Guides for a model of the user's own Python file: traces, training and guided SMC from
+the command line (they took built-in models' names only)."""
+
+import json
+
+from procmod.cli import main
+from procmod.guide.traces import generate_traces, load_traces
+from procmod.parallel import open_executor
+
+# A plant that reports where it grows (ctx.at) and declares its arguments' ranges, as a
+# model needs for the guide's local and image features (README, "Neural guides").
+PLANT_FILE = """
+import math
+from procmod import Model, Normal
+from procmod.geometry import Canvas, Segment
+
+def plant(ctx, x, y, angle, depth):
+    ctx.at((x, y, angle))
+    angle = ctx.sample("angle", Normal(angle, 0.3))
+    x1, y1 = x + 2 * math.cos(angle), y + 2 * math.sin(angle)
+    ctx.emit(Segment(x, y, x1, y1, 0.6))
+    ctx.at((x1, y1, angle))
+    if depth < 6:
+        ctx.maybe("left", 0.6, plant, x1, y1, angle + 0.4, depth + 1)
+        ctx.maybe("right", 0.6, plant, x1, y1, angle - 0.4, depth + 1)
+
+PLANT = Model("my-plant", "a plant", plant, root_args=lambda p: (0.0, 0.0, -math.pi / 2, 0),
+              new_output_from=lambda p: Canvas((-12, 12, -22, 2), 50),
+              arg_ranges={"plant": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, 6.0))},
+              heading_rules=("plant",))
+"""
+
+
+def test_a_guide_is_made_trained_and_used_for_a_model_of_the_users_own_file(tmp_path, monkeypatch, capsys):
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
+                 "--out", "traces"]) == 0, capsys.readouterr().err
+    job, traces = load_traces(tmp_path / "traces")
+    assert job["model"] == "my-plant" and job["model_file"] == str(tmp_path / "plants.py") + ":PLANT"
+    assert len(traces) == 3 and all(t["derivation"]["model"] == "my-plant" for t in traces)
+    assert main(["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", "g", "--iterations", "20"]) == 0, \
+        capsys.readouterr().err
+    assert json.loads((tmp_path / "g.json").read_text())["model"] == "my-plant"
+    assert main(["infer", "plants.py:PLANT", "--target", "scribble:3", "--particles", "4", "--guide", "g",
+                 "--out", "run"]) == 0, capsys.readouterr().err
+    assert json.loads((tmp_path / "run" / "settings.json").read_text())["engine"] == "smc+guide"
+    # a built-in model is refused the user's guide, with the way to train one
+    capsys.readouterr()
+    assert main(["infer", "vines", "--target", "scribble:3", "--particles", "4", "--guide", "g", "--out", "v"]) == 2
+    assert "trained for model 'my-plant', not 'vines'" in capsys.readouterr().err
+
+
+def test_worker_processes_import_the_model_file_from_its_absolute_path(tmp_path, monkeypatch):
+    """Workers get the file's absolute path: a job started with a relative FILE.py:NAME
+    makes the same traces inline and on a pool, and resumes from another directory."""
+    folder = tmp_path / "models"
+    folder.mkdir()
+    (folder / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(folder)
+    generate_traces("plants.py:PLANT", "scribble", 3, tmp_path / "inline", particles=6, seed=2)
+    with open_executor(workers=2) as executor:
+        generate_traces("plants.py:PLANT", "scribble", 3, tmp_path / "pool", particles=6, seed=2, executor=executor)
+
+    def derivations(name):
+        return [t["derivation"] for t in load_traces(tmp_path / name)[1]]
+    assert derivations("inline") == derivations("pool")
+    monkeypatch.chdir(tmp_path)
+    summary = generate_traces("models/plants.py:PLANT", "scribble", 4, tmp_path / "inline", particles=6, seed=2)
+    assert summary["present"] == 3 and summary["made"] == 1
+
+
+def test_an_error_in_the_model_file_on_a_worker_process_is_one_line(tmp_path, capsys):
+    """A rule's exception on a pool worker reached the command line as two tracebacks."""
+    (tmp_path / "broken.py").write_text(PLANT_FILE.replace("x1, y1 = x + 2", "x1, y1 = 1 / 0 + x + 2"))
+    assert main(["guide", "traces", str(tmp_path / "broken.py:PLANT"), "--count", "2", "--particles", "4",
+                 "--workers", "2", "--out", str(tmp_path / "t")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "broken.py, line 9, in plant: ZeroDivisionError: division by zero" in err, err
+    assert not (tmp_path / "t").exists()
