@@ -390,8 +390,9 @@ def _read_gltf(path: Path, geometries: dict) -> list:
             else:
                 name = mesh_name
             where = f"{path}: mesh {name!r}"
-            pieces = [scene.geometry[g] for g in parts]
-            if not all(hasattr(p, "faces") for p in pieces):
+            # a mesh's points and lines primitives (Blender's "loose edges") are no surface
+            pieces = [p for p in (scene.geometry[g] for g in parts) if len(getattr(p, "faces", ())) > 0]
+            if not pieces:
                 return None
             v = np.concatenate([np.asarray(p.vertices, dtype=np.float64) for p in pieces])
             offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])

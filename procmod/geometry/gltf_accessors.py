@@ -13,8 +13,9 @@ real exporters write came out wrong:
   replacements, and an accessor with no ``bufferView`` read as all zeros.
 
 :func:`decoded_gltf` rewrites each such accessor as plain ``FLOAT`` data in a buffer of
-its own (a ``data:`` URI) and returns the glTF JSON, which trimesh then reads as usual
-(the file is left as it is). Everything else — other buffers, images, the node tree — is
+its own (a ``data:`` URI), and each triangle fan as a triangle list (trimesh dropped
+fans), and returns the glTF JSON, which trimesh then reads as usual (the file is left as
+it is). Everything else — other buffers, images, the node tree — is
 as the file has it.
 """
 
@@ -65,6 +66,39 @@ def needs_decoding(header: dict) -> list[int]:
         if normalized or "sparse" in accessor:
             chosen.append(index)
     return chosen
+
+
+TRIANGLE_FAN = 6
+
+
+def fan_primitives(header: dict) -> list[tuple[int, int]]:
+    """``(mesh, primitive)`` of each TRIANGLE_FAN primitive (mode 6), which trimesh drops
+    without a word (a pyramid drawn as fans was missing from its mesh)."""
+    found = []
+    for m, mesh in enumerate(header.get("meshes") or ()):
+        for p, primitive in enumerate((mesh.get("primitives") or ()) if isinstance(mesh, dict) else ()):
+            if isinstance(primitive, dict) and primitive.get("mode") == TRIANGLE_FAN:
+                found.append((m, p))
+    return found
+
+
+def _fan_triangles(header: dict, buffers: list, primitive: dict, what: str) -> np.ndarray:
+    """The triangle-list indices of a fan primitive: (v0, vk, vk+1) for each k."""
+    if "indices" in primitive:
+        index = primitive["indices"]
+        if not isinstance(index, int) or not 0 <= index < len(header.get("accessors") or ()):
+            raise ValueError(f"{what} names indices accessor {index!r}, which the file does not have")
+        corners = accessor_values(header, buffers, index)[:, 0].astype(np.int64)
+    else:
+        position = (primitive.get("attributes") or {}).get("POSITION")
+        accessors = header.get("accessors") or []
+        if not isinstance(position, int) or not 0 <= position < len(accessors):
+            raise ValueError(f"{what} has no POSITION accessor")
+        corners = np.arange(int(accessors[position].get("count", 0)), dtype=np.int64)
+    if len(corners) < 3:
+        return np.zeros(0, dtype=np.uint32)
+    k = np.arange(1, len(corners) - 1)
+    return np.stack([np.full_like(k, corners[0]), corners[k], corners[k + 1]], axis=1).astype("<u4").ravel()
 
 
 def _view_bytes(header: dict, buffers: list, view_index, what: str) -> tuple[bytes, int]:
@@ -160,10 +194,13 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     there are none. ``header`` is the file's JSON (``gltf_header``); ``resolver.get(uri)``
     gives a buffer file's bytes.
 
+    Triangle-fan primitives become triangle lists (:func:`fan_primitives`).
+
     Raises ValueError for an accessor that reaches past its data."""
     path = Path(path)
     chosen = needs_decoding(header)
-    if not chosen:
+    fans = fan_primitives(header)
+    if not chosen and not fans:
         return None
     chunk = _binary_chunk(path.read_bytes()) if path.suffix.lower() == ".glb" else None
     buffers = []
@@ -189,6 +226,13 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
             accessor.update(min=values.min(axis=0).tolist(), max=values.max(axis=0).tolist())
         out["accessors"][index] = accessor
         blob += values.tobytes()
+    for m, p in fans:
+        triangles = _fan_triangles(header, buffers, header["meshes"][m]["primitives"][p], f"mesh {m} primitive {p}")
+        views.append({"buffer": len(buffers), "byteOffset": len(blob), "byteLength": triangles.nbytes})
+        out.setdefault("accessors", []).append({"bufferView": len(views) - 1, "componentType": 5125,
+                                                "count": len(triangles), "type": "SCALAR"})
+        out["meshes"][m]["primitives"][p].update(mode=4, indices=len(out["accessors"]) - 1)
+        blob += triangles.tobytes()
     out["buffers"] = [dict(b) for b in out.get("buffers") or ()]
     if chunk is not None and out["buffers"] and "uri" not in out["buffers"][0]:
         # read as a .gltf now: the binary chunk travels as a data URI
@@ -198,4 +242,4 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     return json.dumps(out).encode("utf-8")
 
 
-__all__ = ["accessor_values", "decoded_gltf", "needs_decoding"]
+__all__ = ["accessor_values", "decoded_gltf", "fan_primitives", "needs_decoding"]

@@ -31,8 +31,14 @@ do, rather than read as placeholder zeros, and so is one whose buffers are
 meshopt-compressed. Positions stored as normalized integers (``KHR_mesh_quantization``)
 or in sparse accessors, which trimesh reads wrongly, are decoded first
 (:mod:`procmod.geometry.gltf_accessors`). A ``.gltf`` whose buffer file is missing or
-shorter than it declares is refused naming that file. trimesh's log messages stay off procmod's one-line
-error channel.
+shorter than it declares is refused naming that file. Triangle fans are rewritten as
+triangle lists (trimesh dropped them), and a file drawn as GPU instances, or requiring an
+extension that could change its geometry, is refused. trimesh's log messages stay off
+procmod's one-line error channel.
+
+Concave polygon faces of an OBJ are split into triangles here (trimesh fans them from
+their first corner, covering more than the face); PLY and OFF files are read with their
+polygons by :mod:`procmod.geometry.polygon_files`.
 """
 
 from __future__ import annotations
@@ -63,13 +69,16 @@ _BOM = "\xef\xbb\xbf"  # UTF-8's byte-order mark, as latin-1 decodes it
 
 def normalised_obj(text: str) -> str | None:
     """``text`` (an OBJ file, decoded as latin-1) with relative indices made absolute,
-    each statement re-spaced and cut at a ``#``, a byte-order mark dropped and lines
-    ended by ``\\n``; None when nothing needed changing (trimesh reads the file as it is)."""
+    each statement re-spaced and cut at a ``#``, a byte-order mark dropped, lines ended by
+    ``\\n`` and concave faces split into triangles (:func:`_split_concave_faces`); None
+    when nothing needed changing (trimesh reads the file as it is)."""
     changed = text.startswith(_BOM) or bool(re.search(r"\r(?!\n)", text))
     text = text.removeprefix(_BOM)
     text = re.sub(r"\\\r?\n", " ", text)
     counts = [0, 0, 0]
     out = []
+    positions = []  # each v statement's x, y, z (None where they are not three numbers)
+    polygons = []  # (line in out, its fields) of each face of four or more corners
     for line in text.splitlines():  # splits at \n, \r\n and a lone \r alike
         fields = line.split()
         if not fields or fields[0].startswith("#"):
@@ -80,6 +89,11 @@ def normalised_obj(text: str) -> str | None:
             fields = line.split("#", 1)[0].split()  # a comment at the end of the statement
         if key in _COUNTED:
             counts[_COUNTED[key]] += 1
+            if key == "v":
+                try:
+                    positions.append((float(fields[1]), float(fields[2]), float(fields[3])))
+                except (IndexError, ValueError):
+                    positions.append(None)
         elif key in _INDEXED:
             for i in range(1, len(fields)):
                 refs = fields[i].split("/")
@@ -90,10 +104,40 @@ def normalised_obj(text: str) -> str | None:
                         except ValueError:  # not a number: trimesh decides what it makes of it
                             continue
                 fields[i] = "/".join(refs)
+            if key == "f" and len(fields) > 4:
+                polygons.append((len(out), fields))
         statement = " ".join(fields)
         changed = changed or statement != line
         out.append(statement)
+    changed = _split_concave_faces(out, positions, polygons) or changed
     return "\n".join(out) + "\n" if changed else None
+
+
+def _split_concave_faces(out: list, positions: list, polygons: list) -> bool:
+    """Replace each concave face statement in ``out`` by its triangles, each corner's
+    ``v/vt/vn`` reference kept (trimesh would fan it from its first corner, covering
+    more than the face: :mod:`procmod.geometry.polygons`). Faces whose corners are not all
+    read vertices stay for trimesh to judge. Returns whether any was replaced."""
+    from .polygons import convex_faces, polygon_triangles
+
+    by_size = {}
+    for line, fields in polygons:
+        try:
+            corners = [int(field.split("/", 1)[0]) - 1 for field in fields[1:]]
+        except ValueError:
+            continue
+        if all(0 <= c < len(positions) and positions[c] is not None for c in corners):
+            by_size.setdefault(len(corners), []).append((line, fields, corners))
+    replaced = False
+    for faces in by_size.values():
+        points = np.array([[positions[c] for c in corners] for _, _, corners in faces], dtype=np.float64)
+        for (line, fields, _), corners, convex in zip(faces, points, convex_faces(points)):
+            if not convex:
+                refs = fields[1:]
+                out[line] = "\n".join("f " + " ".join(refs[j] for j in triangle)
+                                      for triangle in polygon_triangles(corners))
+                replaced = True
+    return replaced
 
 
 # --- face counts, read without parsing ------------------------------------------------
@@ -193,6 +237,11 @@ def _gltf_faces(file: Path) -> int | None:
 
 DRACO = "KHR_draco_mesh_compression"
 MESHOPT = "EXT_meshopt_compression"
+INSTANCING = "EXT_mesh_gpu_instancing"
+# extensions a file may require that leave its geometry as trimesh reads it (materials,
+# textures, lights) or that procmod decodes itself (quantized positions, gltf_accessors)
+_HARMLESS = ("KHR_materials_", "KHR_texture_", "EXT_texture_", "KHR_lights_punctual", "KHR_mesh_quantization",
+             "KHR_xmp", "EXT_lights_")
 
 
 def gltf_header(path: Path, limit: int | None = None) -> dict:
@@ -244,6 +293,16 @@ def _check_gltf(path: Path) -> dict | None:
         raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
                          "it without compression (gltfpack without -c, or `gltf-transform copy` after "
                          "decompressing)")
+    if any(isinstance(names, list) and INSTANCING in names for names in named):
+        # trimesh reads an instanced node's mesh once, at the node: the other copies vanished
+        raise ValueError(f"it draws meshes as GPU instances ({INSTANCING}), which procmod does not expand; export "
+                         "it without them (Blender: glTF export > Data > Scene Graph > GPU Instances off; gltfpack "
+                         "without -mi)")
+    unknown = [name for name in required if isinstance(name, str) and not name.startswith(_HARMLESS)] \
+        if isinstance(required, list) else []
+    if unknown:
+        raise ValueError(f"it requires the glTF extension {unknown[0]}, which procmod does not read (so its "
+                         "geometry might be misread); export it without that extension")
     if path.suffix.lower() == ".gltf":
         _check_buffer_files(header, path)
     else:  # a GLB's header gives its whole length
@@ -377,6 +436,12 @@ def load_mesh_file(path: str | Path, **options):
             fixed = _repaired_stl(path.read_bytes())
             if fixed is not None:
                 return trimesh.load(io.BytesIO(fixed), file_type="stl", **options)
+        if suffix in (".ply", ".off"):  # polygon faces kept and triangulated right (polygon_files)
+            from .polygon_files import read_off, read_ply
+
+            vertices, faces = (read_ply if suffix == ".ply" else read_off)(path)
+            mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+            return trimesh.Scene(mesh) if options.get("force") == "scene" else mesh
         if suffix in (".gltf", ".glb"):
             header = _check_gltf(path)
             if header is not None:

@@ -1,0 +1,124 @@
+"""PLY and OFF files read with their polygon faces kept, then triangulated right.
+
+trimesh reads both, but not every file tools write: a binary PLY whose faces have
+different corner counts (Blender and MeshLab write triangles and quads, or n-gons, into
+one file) was refused as "unexpected length", an OFF file with a face of five or more
+corners failed inside numpy, and the n-gons it did read were fanned from their first
+corner, which covers more than a concave face. Here PLY goes through plyfile (the
+maintained PLY library: ASCII and both binary byte orders, any list types) and OFF
+through the few lines its format needs; the faces are triangulated by
+:func:`procmod.geometry.polygons.triangulate_faces`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .polygons import triangulate_faces
+
+# OFF's header keyword, with its optional prefixes: ST (texture coordinates), C (colours),
+# N (normals), 4 (homogeneous coordinates; read as x y z w and divided through)
+_OFF_PREFIXES = ("ST", "C", "N", "4")
+
+
+def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, triangles)`` of a PLY file (its ``vertex`` x, y, z and its ``face``
+    element's ``vertex_indices`` or ``vertex_index`` lists; a file without faces gives
+    no triangles). Raises ValueError (or plyfile's parse error) for what it cannot read."""
+    from plyfile import PlyData, PlyParseError
+
+    try:  # triangles only, the common case: a binary file's faces read as one array (~1000x faster)
+        data = PlyData.read(str(path), known_list_len={"face": {"vertex_indices": 3, "vertex_index": 3}})
+    except PlyParseError:  # some face is not a triangle (or the file is bad: read again, to say why)
+        data = PlyData.read(str(path))
+    names = [element.name for element in data.elements]
+    if "vertex" not in names:
+        raise ValueError("the PLY file has no vertex element")
+    vertex = data["vertex"]
+    missing = [axis for axis in "xyz" if axis not in vertex.data.dtype.names]
+    if missing:
+        raise ValueError(f"the PLY file's vertices have no {', '.join(missing)} property")
+    vertices = np.stack([np.asarray(vertex[axis], dtype=np.float64) for axis in "xyz"], axis=1)
+    if "face" not in names:
+        return vertices, np.zeros((0, 3), dtype=np.int64)
+    face = data["face"]
+    prop = next((p for p in ("vertex_indices", "vertex_index") if p in face.data.dtype.names), None)
+    if prop is None:
+        raise ValueError("the PLY file's faces have no vertex_indices (or vertex_index) list")
+    lists = face[prop]
+    return vertices, _triangles(vertices, lists)
+
+
+def _triangles(vertices: np.ndarray, lists) -> np.ndarray:
+    """Triangles of a column of face lists (an object array of index arrays, or a 2D
+    array when plyfile read fixed-length lists)."""
+    if isinstance(lists, np.ndarray) and lists.dtype != object and lists.ndim == 2:
+        faces = lists.astype(np.int64)
+        return triangulate_faces(vertices, faces) if faces.shape[1] != 3 else _checked(vertices, faces)
+    return triangulate_faces(vertices, [np.asarray(f, dtype=np.int64) for f in lists])
+
+
+def _checked(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
+        bad = int(faces.max() if faces.max() >= len(vertices) else faces.min())
+        raise ValueError(f"a face refers to vertex {bad} (counting from 0), but the file has {len(vertices)} vertices")
+    return faces
+
+
+def read_off(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, triangles)`` of an ASCII OFF file (header ``OFF`` with any of the
+    ST/C/N/4 prefixes, ``#`` comments, colours after a face's indices). Raises
+    ValueError, saying what is wrong, for what it cannot read."""
+    text = Path(path).read_bytes().decode("latin-1")
+    lines = [line.split("#", 1)[0].split() for line in text.splitlines()]
+    lines = [fields for fields in lines if fields]
+    if not lines:
+        raise ValueError("the file is empty")
+    head = lines[0][0].upper()
+    keyword = head
+    for prefix in _OFF_PREFIXES:
+        keyword = keyword.removeprefix(prefix)
+    if keyword != "OFF" and not head[:1].isdigit():
+        raise ValueError(f"an OFF file starts with OFF, not {lines[0][0][:20]!r}")
+    if len(lines[0]) > 1 and lines[0][1].upper() == "BINARY":
+        raise ValueError("binary OFF is not read; export ASCII OFF, OBJ or PLY")
+    homogeneous = keyword == "OFF" and "4" in head[:-3]
+    counts_line = lines[0][1:] if keyword == "OFF" and len(lines[0]) > 1 else None
+    rest = lines[1:] if keyword == "OFF" else lines
+    if counts_line is None:
+        if not rest:
+            raise ValueError("the OFF file has no vertex and face counts")
+        counts_line, rest = rest[0], rest[1:]
+    try:
+        n_vertices, n_faces = int(counts_line[0]), int(counts_line[1])
+    except (IndexError, ValueError):
+        raise ValueError(f"the OFF file's counts line reads {' '.join(counts_line)[:40]!r}, not "
+                         "'VERTICES FACES EDGES'") from None
+    if n_vertices < 0 or n_faces < 0 or len(rest) < n_vertices + n_faces:
+        raise ValueError(f"the OFF file declares {n_vertices} vertices and {n_faces} faces but holds "
+                         f"{len(rest)} lines of them")
+    width = 4 if homogeneous else 3
+    try:
+        vertices = np.array([[float(v) for v in fields[:width]] for fields in rest[:n_vertices]], dtype=np.float64)
+    except ValueError:
+        raise ValueError("a vertex line of the OFF file is not numbers") from None
+    if vertices.shape != (n_vertices, width):
+        raise ValueError(f"a vertex line of the OFF file has fewer than {width} numbers")
+    if homogeneous:
+        vertices = vertices[:, :3] / vertices[:, 3:]
+    faces = []
+    for k, fields in enumerate(rest[n_vertices:n_vertices + n_faces]):
+        try:
+            corners = int(fields[0])
+            face = [int(v) for v in fields[1:1 + corners]]
+        except ValueError:
+            raise ValueError(f"face {k} of the OFF file is not integers: {' '.join(fields)[:40]!r}") from None
+        if len(face) != corners:
+            raise ValueError(f"face {k} of the OFF file names {corners} corners but lists {len(face)}")
+        faces.append(face)
+    return vertices.reshape(-1, 3), triangulate_faces(vertices.reshape(-1, 3), faces)
+
+
+__all__ = ["read_off", "read_ply"]

@@ -1,0 +1,97 @@
+"""Triangles of a mesh file's polygon faces, right for concave ones.
+
+OBJ, PLY and OFF files hold faces of any number of corners, and tools write them so:
+Blender's and Maya's exporters keep n-gons unless told to triangulate. trimesh splits
+each into a fan from its first corner, which covers a convex face only: an L-shaped
+floor's six-cornered face gained a triangle across its inner corner (a silhouette target
+of an L-shaped prism had 1621 pixels to hit instead of 1280, with no word). Here a convex
+face keeps the fan (what trimesh made of it), and a concave one is ear-clipped (mapbox's
+earcut, the triangulation trimesh itself uses for 2D polygons) in its own plane.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def newell_normals(points: np.ndarray) -> np.ndarray:
+    """Newell's normals of polygons ``points`` (``(g, k, 3)``, corners in order): twice
+    the area vector of each, right for non-planar and concave polygons alike."""
+    following = np.roll(points, -1, axis=1)
+    return np.cross(points, following).sum(axis=1)
+
+
+def convex_faces(points: np.ndarray) -> np.ndarray:
+    """Whether each polygon of ``points`` (``(g, k, 3)``) turns the same way at every
+    corner (a straight corner counts as either), so that a fan from its first corner
+    covers it."""
+    normals = newell_normals(points)
+    edges = np.roll(points, -1, axis=1) - points
+    turns = np.einsum("gkc,gc->gk", np.cross(edges, np.roll(edges, -1, axis=1)), normals)
+    scale = (np.linalg.norm(edges, axis=2).max(axis=1) ** 2) * np.linalg.norm(normals, axis=1)
+    return (turns >= -1e-9 * scale[:, None]).all(axis=1)
+
+
+def fan(k: int) -> np.ndarray:
+    """The fan triangles of a ``k``-cornered polygon: ``(0, i, i + 1)``."""
+    i = np.arange(1, k - 1)
+    return np.stack([np.zeros_like(i), i, i + 1], axis=1)
+
+
+def polygon_triangles(points: np.ndarray) -> np.ndarray:
+    """Triangles (``(k - 2, 3)`` corner indices, wound as the polygon is) covering the
+    polygon ``points`` (``(k, 3)``, corners in order), ear-clipped in its plane; the fan
+    where the polygon has no area or crosses itself (earcut then covers less of it)."""
+    import mapbox_earcut
+
+    k = len(points)
+    normal = newell_normals(points[None])[0]
+    length = float(np.linalg.norm(normal))
+    if k == 3 or not length > 0:
+        return fan(k)
+    normal /= length
+    # a basis (u, v) of the plane with u x v = normal: counter-clockwise in (u, v) is the
+    # polygon's own winding
+    u = np.cross(normal, np.eye(3)[int(np.argmin(np.abs(normal)))])
+    u /= np.linalg.norm(u)
+    v = np.cross(normal, u)
+    flat = np.stack([points @ u, points @ v], axis=1)
+    flat -= flat.mean(axis=0)
+    triangles = np.asarray(mapbox_earcut.triangulate_float64(flat, np.array([k], dtype=np.uint32)),
+                           dtype=np.int64).reshape(-1, 3)
+    if len(triangles) != k - 2:
+        return fan(k)
+    a, b, c = (flat[triangles[:, j]] for j in range(3))
+    clockwise = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    triangles[clockwise] = triangles[clockwise][:, ::-1]
+    return triangles
+
+
+def triangulate_faces(vertices: np.ndarray, faces) -> np.ndarray:
+    """Triangles (``(m, 3)`` vertex indices) of ``faces``, a sequence of vertex-index
+    sequences of three or more corners (faces of fewer are left out): a convex face as a
+    fan from its first corner, a concave one ear-clipped (module docstring)."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    by_size = {}
+    for face in faces:
+        if len(face) >= 3:
+            by_size.setdefault(len(face), []).append(face)
+    out = []
+    for k, group in sorted(by_size.items()):
+        group = np.asarray(group, dtype=np.int64)
+        if group.min() < 0 or group.max() >= len(vertices):
+            bad = int(group.max() if group.max() >= len(vertices) else group.min())
+            raise ValueError(f"a face refers to vertex {bad} (counting from 0), but the file has "
+                             f"{len(vertices)} vertices")
+        if k == 3:
+            out.append(group)
+            continue
+        points = vertices[group]
+        convex = convex_faces(points)
+        out.append(group[convex][:, fan(k)].reshape(-1, 3))
+        for face, corners in zip(group[~convex], points[~convex]):
+            out.append(face[polygon_triangles(corners)])
+    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
+
+
+__all__ = ["convex_faces", "newell_normals", "polygon_triangles", "triangulate_faces"]

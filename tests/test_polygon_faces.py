@@ -1,0 +1,199 @@
+"""Mesh files with polygon faces and glTF primitives as exporters write them: concave
+n-gons (OBJ, PLY, OFF), binary PLY with faces of mixed corner counts, OFF n-gons, glTF
+triangle fans and loose-edge primitives, and glTF extensions procmod cannot honour."""
+
+import json
+
+import numpy as np
+import pytest
+
+from asset_writers import box_mesh, gltf_json, write_gltf
+from procmod.geometry.assets import AssetError, read_assets
+from procmod.geometry.mesh_files import load_mesh_file, normalised_obj
+from procmod.geometry.polygons import polygon_triangles, triangulate_faces
+
+# An L-shaped prism, 1 high: its top and bottom are one concave six-cornered face each
+# (as Blender's OBJ and PLY exporters keep them). Area 22, volume 5. A fan from the first
+# corner of each L covers the inner corner too (area 26).
+L_VERTICES = [(3, 0, 0), (3, 1, 0), (1, 1, 0), (1, 3, 0), (0, 3, 0), (0, 0, 0),
+              (3, 0, 1), (3, 1, 1), (1, 1, 1), (1, 3, 1), (0, 3, 1), (0, 0, 1)]
+L_FACES = [(6, 7, 8, 9, 10, 11), (5, 4, 3, 2, 1, 0), (0, 1, 7, 6), (1, 2, 8, 7), (2, 3, 9, 8), (3, 4, 10, 9),
+           (4, 5, 11, 10), (5, 0, 6, 11)]
+
+
+def _measures(mesh):
+    return round(float(mesh.area), 9), round(float(mesh.volume), 9)
+
+
+def _star(rng, k):
+    """A random star-shaped (mostly concave) polygon of k corners in a random plane."""
+    angles = (np.arange(k) + rng.uniform(0.1, 0.9, k)) * 2 * np.pi / k  # gaps under pi: the centre sees it all
+    radii = rng.uniform(0.2, 1.0, k)
+    flat = np.stack([radii * np.cos(angles), radii * np.sin(angles)], axis=1)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return flat @ q[:2] + rng.normal(size=3), flat
+
+
+def test_ear_clipping_covers_a_concave_polygon_exactly_and_keeps_its_winding():
+    rng = np.random.default_rng(0)
+    fanned_wrong = 0
+    for _ in range(200):
+        k = int(rng.integers(4, 12))
+        points, flat = _star(rng, k)
+        x, y = flat[:, 0], flat[:, 1]
+        area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+        triangles = polygon_triangles(points)
+        assert triangles.shape == (k - 2, 3)
+        a, b, c = (points[triangles[:, j]] for j in range(3))
+        crosses = np.cross(b - a, c - a)
+        normal = np.cross(points, np.roll(points, -1, axis=0)).sum(0)
+        assert (crosses @ normal > -1e-12).all()  # every triangle wound as the polygon
+        assert 0.5 * np.linalg.norm(crosses, axis=1).sum() == pytest.approx(area, rel=1e-9)
+        fan = np.array([[0, i, i + 1] for i in range(1, k - 1)])
+        fan_area = 0.5 * np.linalg.norm(np.cross(points[fan[:, 1]] - points[fan[:, 0]],
+                                                 points[fan[:, 2]] - points[fan[:, 0]]), axis=1).sum()
+        fanned_wrong += not np.isclose(fan_area, area, rtol=1e-9)
+    assert fanned_wrong > 50  # the case is one where a fan would be wrong
+
+
+def test_convex_faces_keep_the_fan_and_bad_indices_are_named():
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]])
+    assert triangulate_faces(square, [[0, 1, 2, 3]]).tolist() == [[0, 1, 2], [0, 2, 3]]
+    with pytest.raises(ValueError, match=r"a face refers to vertex 7 \(counting from 0\), but the file has 4"):
+        triangulate_faces(square, [[0, 1, 7]])
+
+
+def _obj_text(vertices, faces, form="{}"):
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices]
+    lines += ["f " + " ".join(form.format(i + 1) for i in face) for face in faces]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("form", ["{}", "{0}/{0}/{0}", "{0}//{0}"])
+def test_an_obj_with_concave_ngons_reads_as_its_shape(tmp_path, form):
+    """An L-shaped prism's six-cornered faces were fanned: area 26, not 22."""
+    (tmp_path / "l.obj").write_text(_obj_text(L_VERTICES, L_FACES, form)
+                                    + "".join(f"vt 0 0\nvn 0 0 1\n" for _ in L_VERTICES))
+    mesh = load_mesh_file(tmp_path / "l.obj", force="mesh", process=False)
+    assert _measures(mesh) == (22.0, 5.0) and mesh.is_watertight
+    # a file of convex faces only is read by trimesh as it is
+    assert normalised_obj(_obj_text(*box_mesh((1, 1, 1)))) is None
+    quads = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+    assert normalised_obj(quads) is None
+
+
+def _ply_bytes(vertices, faces, fmt):
+    """A PLY of float vertices and uchar-counted int faces (``fmt``: ascii or a binary order)."""
+    header = (f"ply\nformat {fmt} 1.0\nelement vertex {len(vertices)}\nproperty float x\nproperty float y\n"
+              f"property float z\nelement face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
+    if fmt == "ascii":
+        body = "".join(f"{x} {y} {z}\n" for x, y, z in vertices)
+        body += "".join(f"{len(f)} " + " ".join(map(str, f)) + "\n" for f in faces)
+        return (header + body).encode()
+    order = "<" if fmt == "binary_little_endian" else ">"
+    body = np.asarray(vertices, dtype=order + "f4").tobytes()
+    for f in faces:
+        body += np.uint8(len(f)).tobytes() + np.asarray(f, dtype=order + "i4").tobytes()
+    return header.encode() + body
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian", "binary_big_endian"])
+def test_ply_with_mixed_and_concave_faces_reads_as_its_shape(tmp_path, fmt):
+    """A binary PLY whose faces were not all one size was refused ('PLY is unexpected
+    length'), an ASCII one's concave faces were fanned."""
+    (tmp_path / "l.ply").write_bytes(_ply_bytes(L_VERTICES, L_FACES, fmt))
+    assert _measures(load_mesh_file(tmp_path / "l.ply", force="mesh", process=False)) == (22.0, 5.0)
+    v, f = box_mesh((1, 2, 3))
+    mixed = [tuple(t) for t in f[:2]] + [(4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    (tmp_path / "box.ply").write_bytes(_ply_bytes(v, mixed, fmt))
+    assert _measures(load_mesh_file(tmp_path / "box.ply", force="mesh", process=False)) == (22.0, 6.0)
+    (tmp_path / "tri.ply").write_bytes(_ply_bytes(v, f, fmt))  # triangles only: the fast path
+    assert _measures(load_mesh_file(tmp_path / "tri.ply", force="mesh", process=False)) == (22.0, 6.0)
+
+
+def test_off_with_ngons_reads_and_bad_off_is_told(tmp_path):
+    """An OFF face of five or more corners failed inside numpy."""
+    lines = ["OFF", "# an L prism", f"{len(L_VERTICES)} {len(L_FACES)} 0"]
+    lines += [f"{x} {y} {z}" for x, y, z in L_VERTICES]
+    lines += [f"{len(f)} " + " ".join(map(str, f)) + " 0.5 0.5 0.5" for f in L_FACES]  # colours after the corners
+    (tmp_path / "l.off").write_text("\n".join(lines) + "\n")
+    assert _measures(load_mesh_file(tmp_path / "l.off", force="mesh", process=False)) == (22.0, 5.0)
+    (tmp_path / "short.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n")
+    with pytest.raises(ValueError, match="declares 3 vertices and 1 faces but holds 2 lines"):
+        load_mesh_file(tmp_path / "short.off", force="mesh", process=False)
+    (tmp_path / "bad.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n")
+    with pytest.raises(ValueError, match="face 0 of the OFF file names 4 corners but lists 3"):
+        load_mesh_file(tmp_path / "bad.off", force="mesh", process=False)
+
+
+def _pyramid_fan_gltf(path, with_box: bool, lines: bool = False):
+    """A mesh whose pyramid is drawn as two triangle fans (mode 6): apex fan + base fan;
+    with a box as a triangle list beside it, and optionally a lines primitive."""
+    box_v, box_f = box_mesh((1, 1, 1), centre=(3, 0.5, 0.5))
+    data = gltf_json([("thing", [(box_v, box_f)] * (1 if with_box else 0) + [(np.zeros((3, 3)), [0, 1, 2])] * 2)],
+                     [{"name": "Thing", "mesh": 0}], (0,))
+    apex = [(0.5, 1, 0.5), (0, 0, 0), (0, 0, 1), (1, 0, 1), (1, 0, 0), (0, 0, 0)]  # apex, then the base ring
+    base = [(0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)]
+    import base64
+    blob = base64.b64decode(data["buffers"][0]["uri"].split(",", 1)[1])
+    prims = data["meshes"][0]["primitives"]
+    for prim, fan_points in zip(prims[-2:], (apex, base)):
+        v = np.asarray(fan_points, dtype=np.float32)
+        data["bufferViews"].append({"buffer": 0, "byteOffset": len(blob), "byteLength": v.nbytes})
+        blob += v.tobytes()
+        data["accessors"].append({"bufferView": len(data["bufferViews"]) - 1, "componentType": 5126,
+                                  "count": len(v), "type": "VEC3", "min": v.min(0).tolist(), "max": v.max(0).tolist()})
+        prim.clear()
+        prim.update(attributes={"POSITION": len(data["accessors"]) - 1}, mode=6)  # non-indexed fan
+    if lines:
+        prims.append({"attributes": {"POSITION": prims[0]["attributes"]["POSITION"]}, "mode": 1})
+    data["buffers"][0] = {"byteLength": len(blob),
+                          "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_gltf_triangle_fans_are_read(tmp_path):
+    """trimesh dropped TRIANGLE_FAN primitives: a pyramid of fans was missing from its mesh."""
+    mesh = load_mesh_file(_pyramid_fan_gltf(tmp_path / "pyr.gltf", with_box=False), force="mesh", process=False)
+    assert len(mesh.faces) == 6 and mesh.volume == pytest.approx(1 / 3)
+    both = load_mesh_file(_pyramid_fan_gltf(tmp_path / "both.gltf", with_box=True), force="mesh", process=False)
+    assert len(both.faces) == 18 and both.volume == pytest.approx(1 + 1 / 3)
+    parts = read_assets(tmp_path / "both.gltf").parts
+    assert len(parts["thing"].faces) == 18
+
+
+def test_a_mesh_with_a_lines_primitive_is_a_part(tmp_path):
+    """learn refused a mesh whose triangles came with a loose-edges (lines) primitive:
+    'holds no mesh'."""
+    path = _pyramid_fan_gltf(tmp_path / "edges.gltf", with_box=True, lines=True)
+    asset_set = read_assets(path)
+    assert len(asset_set.parts["thing"].faces) == 18 and asset_set.assets[0].roots[0].name == "Thing"
+
+
+@pytest.mark.parametrize("extension, used_only, message", [
+    ("EXT_mesh_gpu_instancing", True, "draws meshes as GPU instances"),
+    ("ACME_mesh_warp", False, "requires the glTF extension ACME_mesh_warp, which procmod does not read"),
+])
+def test_gltf_extensions_procmod_cannot_honour_are_refused(tmp_path, extension, used_only, message):
+    """Instanced copies vanished, and a required extension that changes geometry was ignored."""
+    data = gltf_json([("box", [box_mesh((1, 1, 1))])], [{"name": "Box", "mesh": 0}], (0,))
+    data["extensionsUsed"] = [extension]
+    if not used_only:
+        data["extensionsRequired"] = [extension]
+    (tmp_path / "x.gltf").write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=message):
+        load_mesh_file(tmp_path / "x.gltf", force="mesh", process=False)
+    with pytest.raises(AssetError, match=message):
+        read_assets(tmp_path / "x.gltf")
+    # an extension for materials changes no geometry: read as before
+    data["extensionsUsed"] = data["extensionsRequired"] = ["KHR_materials_unlit"]
+    write = tmp_path / "unlit.gltf"
+    write.write_text(json.dumps(data))
+    assert len(load_mesh_file(write, force="mesh", process=False).faces) == 12
+
+
+def test_write_gltf_helper_unchanged(tmp_path):
+    """The writer the other asset tests use still writes a plain triangle list."""
+    path = write_gltf(tmp_path / "b.gltf", [("box", [box_mesh((1, 1, 1))])], [{"name": "Box", "mesh": 0}])
+    assert len(load_mesh_file(path, force="mesh", process=False).faces) == 12
