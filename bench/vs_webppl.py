@@ -75,6 +75,7 @@ WEBPPL_VERSION = "0.9.15"
 WEBPPL_CACHE = HERE / ".cache" / f"webppl-{WEBPPL_VERSION}"
 PEER = HERE / "peers" / "webppl"
 SIZE = 50
+SETS = ("glyphs", "scribbles", "stix", "serif", "silhouettes")  # the built-in target sets
 BOTTOM_CENTRE, UP = (0.5, 0.9166), (0.0, -1.0)  # every original target's start (shared/seeds/vines.md)
 
 
@@ -123,17 +124,30 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         if not out["silhouettes"]:
             sys.exit("vs_webppl: the silhouettes set reads pybullet_data's assets: pip install pybullet")
     if targets_dir is not None:
-        files = sorted(p for p in targets_dir.iterdir()
-                       if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff"))
+        from PIL import Image
+
+        if not targets_dir.is_dir():
+            sys.exit(f"vs_webppl: --targets-dir {targets_dir} is not a folder of pictures")
+        pictures = set(Image.registered_extensions())  # every format procmod infer reads (Pillow's)
+        files = sorted(p for p in targets_dir.iterdir() if p.is_file())
+        left_out = [p.name for p in files if p.suffix.lower() not in pictures and p.suffix.lower() != ".json"]
+        if left_out:
+            print(f"vs_webppl: not pictures, left out: {', '.join(left_out[:5])}"
+                  + (f" and {len(left_out) - 5} more" if len(left_out) > 5 else ""), file=sys.stderr)
         loaded = []
-        for path in files:
+        for path in (p for p in files if p.suffix.lower() in pictures):
             try:
-                loaded.append(load_target_image(path))
+                target = load_target_image(path)
+                target.at_size(SIZE, SIZE)  # a shape that vanishes at the bench's size is refused here
+                loaded.append(target)
             except ProcmodError as error:  # a blank or unreadable picture: say so, bench the rest
                 print(f"vs_webppl: skipping {path.name}: {error}", file=sys.stderr)
         if not loaded:
             sys.exit(f"vs_webppl: no usable target pictures in {targets_dir}")
-        out[targets_dir.name] = loaded
+        name = targets_dir.resolve().name
+        if name in out or name in SETS or not name:  # never in place of a built-in set, never nameless
+            name = f"dir-{name or 'root'}"
+        out[name] = loaded
     return out
 
 
@@ -142,6 +156,8 @@ def write_targets(images: dict, folder: Path) -> dict:
 
     Returns ``set -> [(name, target label, png path, mask json path, 50x50 mask)]``.
     """
+    from procmod.targets import load_target_image
+
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     for set_name, targets in images.items():
@@ -150,7 +166,16 @@ def write_targets(images: dict, folder: Path) -> dict:
             mask = target.at_size(SIZE, SIZE)
             name = f"{set_name}_{k:02d}"
             png = folder / f"{name}.png"
-            Image.fromarray(np.where(mask, 0, 255).astype(np.uint8)).save(png)
+            # the shape opaque black on a transparent ground: procmod reads transparency as the
+            # shape's outline whatever the shape touches (a black-on-white mask whose shape ran
+            # along most of the border read inverted: the border colour is taken for the paper)
+            pixels = np.zeros(mask.shape + (4,), dtype=np.uint8)
+            pixels[..., 3] = np.where(mask, 255, 0)
+            Image.fromarray(pixels, "RGBA").save(png)
+            read = load_target_image(png).at_size(SIZE, SIZE)
+            if not np.array_equal(read, mask):  # procmod, WebPPL and the scorer must see one shape
+                sys.exit(f"vs_webppl: {target.name}: procmod reads {int((read != mask).sum())} pixels of the "
+                         "written target otherwise than the scorer; not benched")
             placement = {"start": [float(v) for v in target.start],
                          "direction": [float(v) for v in target.direction]}
             png.with_suffix(".json").write_text(json.dumps(placement))
@@ -508,7 +533,7 @@ def plot_mcmc(rows: list, path: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=("glyphs", "scribbles", "stix", "serif", "silhouettes"))
+    parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=SETS)
     parser.add_argument("--bottom-centre", action="store_true",
                         help="start every target at the bottom centre, growing up, as the original experiments' "
                              "targets all do (shared/seeds/vines.md), instead of the target's own start")

@@ -70,3 +70,33 @@ def test_fig5b_times_follow_the_measure_asked_for(bench):
     fig5 = bench.time_to_similarity(summary, "s", "webppl", "beyond_seconds_median", "similarity_target_mean")
     assert pooled[0.5] == 1.0 and pooled[0.6] == pytest.approx(1.5) and pooled[0.7] is None
     assert fig5[0.5] == pytest.approx(1.5) and fig5[0.6] == 2.0
+
+
+def test_the_bench_writes_targets_procmod_reads_as_the_scorer_does(bench, tmp_path, capsys):
+    """A shape cut out on a transparent ground and touching most of the border reached
+    procmod inverted (the bench wrote it black on white; procmod took the border's colour
+    for the paper); a picture that vanished at 50x50 stopped the bench with a traceback;
+    a folder named like a built-in set replaced it; .webp and .pgm were left out."""
+    from PIL import Image
+
+    from procmod.targets import load_target_image
+
+    folder = tmp_path / "glyphs"
+    folder.mkdir()
+    house = np.zeros((120, 100, 4), dtype=np.uint8)
+    house[10:, :, 3] = 255  # an opaque house filling the picture's width and bottom
+    house[:10, 30:70, 3] = 255
+    Image.fromarray(house, "RGBA").save(folder / "house.webp", lossless=True)
+    thin = np.full((400, 400), 255, dtype=np.uint8)
+    thin[100:300, 200] = 0  # a one-pixel line: gone at 50x50
+    Image.fromarray(thin).save(folder / "thin.pgm")
+    (folder / "notes.txt").write_text("not a picture")
+    images = bench.target_images([], 1, folder, 49)
+    assert list(images) == ["dir-glyphs"] and len(images["dir-glyphs"]) == 1
+    err = capsys.readouterr().err
+    assert "skipping thin.pgm" in err and "not pictures, left out: notes.txt" in err
+    written = bench.write_targets(images, tmp_path / "targets")
+    (name, label, png, mask_json, mask), = written["dir-glyphs"]
+    assert label == "house.webp" and mask.mean() > 0.6  # the house (padded to a square), not its complement
+    assert np.array_equal(load_target_image(png).at_size(bench.SIZE, bench.SIZE), mask)
+    assert json.loads(mask_json.read_text())["mask"] == mask.astype(int).ravel().tolist()
