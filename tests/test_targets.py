@@ -411,6 +411,10 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
             load_target_image(tmp_path / "vine.png")
     (tmp_path / "vine.json").write_text(json.dumps({"start": [0.2, 0.9], "source": "scan 12", "name": "vine"}))
     assert load_target_image(tmp_path / "vine.png").start == (0.2, 0.9)  # another tool's keys are its own
+    # ... even when they look a little like ours (a similarity ratio refused these as typos)
+    (tmp_path / "vine.json").write_text(json.dumps({"start": [0.2, 0.9], "description": "a vine", "state": "done",
+                                                    "resolution": 300, "section": "B", "stats": {}}))
+    assert load_target_image(tmp_path / "vine.png").start == (0.2, 0.9)
     (tmp_path / "vine.json").write_text(json.dumps({"format": "procmod-derivation/1", "params": {}}))
     passed_over = load_target_image(tmp_path / "vine.png")
     assert (passed_over.start, passed_over.direction) == (automatic.start, automatic.direction)

@@ -531,6 +531,32 @@ SIDECAR_KEYS = ("start", "direction")
 
 
 
+def typo_of(key, known) -> str | None:
+    """The key of ``known`` that ``key`` is a typing slip of (``"strat"``, ``"directon"``,
+    ``"Start"``): at most one letter added, dropped, changed or two swapped, two for a key
+    of eight letters or more; None otherwise. Tight on purpose, for files whose other keys
+    are a tool's own: a similarity ratio took ``"description"`` for ``"direction"`` and
+    ``"state"`` for ``"start"``."""
+    word = str(key).lower().replace("-", "_")
+    for candidate in known:
+        if _slips(word, candidate) <= (2 if len(candidate) >= 8 else 1):
+            return candidate
+    return None
+
+
+def _slips(a: str, b: str) -> int:
+    """Edit distance with swaps of neighbours (optimal string alignment)."""
+    previous2, previous = None, list(range(len(b) + 1))
+    for i in range(1, len(a) + 1):
+        row = [i] + [0] * len(b)
+        for j in range(1, len(b) + 1):
+            row[j] = min(previous[j] + 1, row[j - 1] + 1, previous[j - 1] + (a[i - 1] != b[j - 1]))
+            if i > 1 and j > 1 and a[i - 1] == b[j - 2] and a[i - 2] == b[j - 1]:
+                row[j] = min(row[j], previous2[j - 2] + 1)
+        previous2, previous = previous, row
+    return previous[len(b)]
+
+
 def meant_key(key, known, cutoff: float) -> str | None:
     """The key of ``known`` a file's unknown ``key`` is a near miss of (``"strat"``,
     ``"look-at"``), or None: a file's near misses are refused, its other keys (a tool's
@@ -558,7 +584,7 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     for key in sorted(set(data) - set(SIDECAR_KEYS)):
         # a misspelt key would silently leave the start to the picture; other keys (a
         # tool's own notes: "name", "source") are not ours and are left alone
-        meant = meant_key(key, SIDECAR_KEYS, cutoff=0.6)
+        meant = typo_of(key, SIDECAR_KEYS)
         if meant:
             raise TargetFileError(f"{sidecar}: unknown key {cut_text(repr(key), 40)}; did you mean {meant!r}? A "
                                   "sidecar gives \"start\" and/or \"direction\" (normalised image coordinates, y down)")
