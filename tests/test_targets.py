@@ -446,6 +446,18 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     assert "covers" in picture_note(target_from_spec(str(tmp_path / "framed.png")), model)
     assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
+    # a scanner lid's shadow along one edge, beside the drawing, was read as most of the
+    # shape and took the start, without a word
+    shadow = np.where(ink, 0, 250).astype(np.uint8)
+    shadow[:, -48:] = 60
+    Image.fromarray(shadow).save(tmp_path / "shadow.png")
+    assert "a band along the right edge of shadow.png" in picture_note(target_from_spec(str(tmp_path / "shadow.png")),
+                                                                         model)
+    # a shape cut tight to its picture touches the edges too, but is one part
+    tight = np.full((200, 120), 255, dtype=np.uint8)
+    tight[:, :30] = tight[-30:] = 0  # an L filling the picture's height and width
+    Image.fromarray(tight).save(tmp_path / "tight.png")
+    assert picture_note(target_from_spec(str(tmp_path / "tight.png")), model) is None
 
 
 def test_a_target_built_from_python_is_checked_like_a_file():
@@ -534,3 +546,21 @@ def test_a_noisy_blank_page_has_no_shape(tmp_path, size, sd, colour, jpeg):
         picture.save(tmp_path / "page.jpg", quality=70)
         picture = Image.open(tmp_path / "page.jpg")
     assert not mask_from_image(picture).any()
+
+
+def test_a_file_named_like_a_spec_and_a_faint_picture_are_told_what_to_do(tmp_path, monkeypatch):
+    """A file 'glyph:a.png' was refused as a glyph spec with no word of how to name the
+    file; a faint pencil drawing was told to use a colour that differs from the border,
+    which it does."""
+    from procmod.core import ProcmodError
+    from procmod.data import target_from_spec
+
+    monkeypatch.chdir(tmp_path)
+    Image.fromarray(np.where(_vine_ink(), 0, 255).astype(np.uint8)).save("glyph:a.png")
+    with pytest.raises(ProcmodError, match=r"a glyph is one character, got 'a.png' \(for the file 'glyph:a.png' "
+                                           r"give ./glyph:a.png\)"):
+        target_from_spec("glyph:a.png")
+    assert target_from_spec("./glyph:a.png").image.mask.any()
+    Image.fromarray(np.where(_vine_ink(), 240, 255).astype(np.uint8)).save("faint.png")
+    with pytest.raises(ProcmodError, match="no pixel differs from the border's colour by 24 of 255 grey levels"):
+        target_from_spec("faint.png")

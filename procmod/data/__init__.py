@@ -40,6 +40,22 @@ def _exists_quietly(spec: str) -> bool:
         return False
 
 
+def _built_in_target(spec: str) -> TargetImage:
+    """The target of a ``glyph:...`` or ``scribble:N`` spec."""
+    if spec.startswith("glyph:"):
+        rest = spec[len("glyph:"):]
+        from .glyphs import DEFAULT_TYPEFACE, glyph_target
+
+        typeface, char = rest.rsplit("/", 1) if "/" in rest[:-1] else (DEFAULT_TYPEFACE, rest)
+        return glyph_target(char, typeface)
+    number = spec[len("scribble:"):]
+    if not number.isdigit():
+        raise InvalidArgumentError(f"scribble:N needs a non-negative integer, got {spec!r}")
+    from .scribbles import scribble_target
+
+    return scribble_target(int(number))
+
+
 def target_image(spec: str) -> TargetImage:
     """The target image a spec names (see the module docstring)."""
     if not isinstance(spec, str) or not spec:
@@ -49,19 +65,13 @@ def target_image(spec: str) -> TargetImage:
                                    "mirrored copy)")
     if spec.endswith(MIRROR_SUFFIX):
         return target_image(spec[: -len(MIRROR_SUFFIX)]).mirrored()
-    if spec.startswith("glyph:"):
-        rest = spec[len("glyph:"):]
-        from .glyphs import DEFAULT_TYPEFACE, glyph_target
-
-        typeface, char = rest.rsplit("/", 1) if "/" in rest[:-1] else (DEFAULT_TYPEFACE, rest)
-        return glyph_target(char, typeface)
-    if spec.startswith("scribble:"):
-        number = spec[len("scribble:"):]
-        if not number.isdigit():
-            raise InvalidArgumentError(f"scribble:N needs a non-negative integer, got {spec!r}")
-        from .scribbles import scribble_target
-
-        return scribble_target(int(number))
+    if spec.startswith(("glyph:", "scribble:")):
+        try:
+            return _built_in_target(spec)
+        except InvalidArgumentError as exc:
+            if _exists_quietly(spec):  # a file named like a spec: say how to name the file
+                raise InvalidArgumentError(f"{exc} (for the file {spec!r} give ./{spec})") from None
+            raise
     if ":" in spec and not _exists_quietly(spec) and not re.match(r"^[A-Za-z]:[\\/]", spec):  # not C:\...
         shown = spec if len(spec) <= 60 else spec[:57] + "..."
         raise InvalidArgumentError(f"unknown target spec {shown!r}: a target is glyph:CHAR, glyph:FACE/CHAR, "

@@ -238,8 +238,10 @@ def check_mask(mask: np.ndarray, name: str) -> np.ndarray:
     if mask.ndim != 2 or mask.size == 0:
         raise TargetFileError(f"{name}: a target mask must be a 2D image")
     if not mask.any():
-        raise TargetFileError(f"{name}: the target mask is empty (no foreground pixels); "
-                              "draw the shape in a colour that differs from the border")
+        raise TargetFileError(f"{name}: the target mask is empty (no foreground pixels: in a picture, no pixel "
+                              f"differs from the border's colour by {MIN_CONTRAST:.0f} of 255 grey levels or more, "
+                              "as faint pencil may not); draw the shape darker, or in a colour further from the "
+                              "paper's")
     if mask.all():
         raise TargetFileError(f"{name}: the target mask fills the whole frame; "
                               "leave some background around the shape")

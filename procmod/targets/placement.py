@@ -11,8 +11,8 @@ block for a growing city) or lie beside the origin.
 
 For a picture (a 2D shape target) the same function says when what procmod read is
 probably not what the user drew: a mask covering most of the picture (a dark frame, a
-table or the paper itself taken for the shape), or strokes too thin to survive the
-model's canvas.
+table or the paper itself taken for the shape), a band along one edge beside the drawing
+(a scanner lid's shadow), or strokes too thin to survive the model's canvas.
 """
 
 from __future__ import annotations
@@ -235,6 +235,38 @@ MOST_OF_THE_PICTURE = 0.5
 VANISHED = 0.25
 """A note when more than this share of a picture's shape is lost at the model's canvas."""
 
+EDGE_BAND_LENGTH = 0.6
+EDGE_BAND_DEPTH = 0.25
+"""A part of a picture's shape that runs along one edge of the picture for more than
+:data:`EDGE_BAND_LENGTH` of it and reaches no further in than :data:`EDGE_BAND_DEPTH` of
+the picture, beside another part of the shape, gets a note (a scanner lid's shadow)."""
+
+
+def _edge_band(mask: np.ndarray) -> tuple[str, float] | None:
+    """``(side, share of the shape)`` of a thin band of the mask along one side of the
+    square frame, separate from the rest of the shape, or None (:data:`EDGE_BAND_LENGTH`).
+    A shape cut tight to the picture touches its edges too, but is all one part, or
+    reaches far in."""
+    from scipy import ndimage
+
+    labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
+    if count < 2:
+        return None
+    sizes = np.bincount(labels.ravel())[1:]
+    n = mask.shape[0]
+    sides = {"left": labels[:, 0], "right": labels[:, -1], "top": labels[0], "bottom": labels[-1]}
+    for side, line in sides.items():
+        found = np.bincount(line, minlength=count + 1)[1:]
+        part = int(np.argmax(found)) + 1
+        if found[part - 1] <= EDGE_BAND_LENGTH * n:
+            continue
+        rows, cols = np.nonzero(labels == part)
+        depth = {"left": cols.max() + 1, "right": n - cols.min(), "top": rows.max() + 1, "bottom": n - rows.min()}[side]
+        others = np.delete(sizes, part - 1)
+        if depth <= EDGE_BAND_DEPTH * n and others.max() >= 0.02 * sizes[part - 1]:  # beside a drawing, not dust
+            return side, float(sizes[part - 1]) / float(sizes.sum())
+    return None
+
 
 def picture_note(target: ShapeMatch, model) -> str | None:
     """One line when a picture target's mask is probably not the drawing (see the module
@@ -249,6 +281,11 @@ def picture_note(target: ShapeMatch, model) -> str | None:
         return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
                 "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
                 "a shape trimmed to its own edges needs some paper around it")
+    band = _edge_band(mask)
+    if band is not None:
+        return (f"a band along the {band[0]} edge of {target.name} ({band[1]:.0%} of the shape read) is taken as "
+                "part of the shape: if it is a scanner lid's shadow or a frame, crop it away or paint it the "
+                "paper's colour")
     canvas = model.new_output()
     width, height = getattr(canvas, "width", None), getattr(canvas, "height", None)
     if not width or not height or mask.shape == (height, width):
@@ -258,7 +295,7 @@ def picture_note(target: ShapeMatch, model) -> str | None:
     back = np.asarray(Image.fromarray(small.astype(np.uint8) * 255).resize(mask.shape[::-1], Image.NEAREST)) > 0
     lost = float((mask & ~back).sum()) / max(int(mask.sum()), 1)
     if lost > VANISHED:
-        return (f"{lost:.0%} of the shape read from {target.name} (thin strokes) vanishes at the model's "
+        return (f"{lost:.0%} of the shape read from {target.name} (thin strokes, small marks) vanishes at the model's "
                 f"{width}x{height} canvas, which scores against what is left: draw those strokes thicker, "
                 "or crop the picture closer to the shape")
     return None
