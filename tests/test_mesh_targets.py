@@ -724,6 +724,14 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     with pytest.raises(ProcmodError, match=r"the mesh spans 2.1e\+04 x 4.2e\+03 x 2.1e\+04: use a larger voxel_size, "
                                            r"or, if the mesh was made in other units .*\"mesh_scale\""):
         load_volume_target(_volume_file(tmp_path, "cm.obj", voxel_size=0.5))
+    # a stray triangle far from a ship of the right size: the grid is refused for it, and
+    # the message names it (it blamed the units and suggested a mesh_scale of 0.01)
+    stray = np.concatenate([ship.vertices, [[1000, 1000, 1000], [1000.1, 1000, 1000], [1000, 1000.1, 1000]]])
+    _write_obj(tmp_path / "stray.obj", stray, np.concatenate([ship.faces, [[len(ship.vertices) + k for k in range(3)]]]))
+    with pytest.raises(ProcmodError, match=r"memory.*; 1 face of the mesh lies far from the rest \(near \(1000, 1000, "
+                                           r"1000\), while the rest spans 3 x 0.6 x 3\): delete that stray piece") as error:
+        load_volume_target(_volume_file(tmp_path, "stray.obj", voxel_size=0.05))
+    assert "mesh_scale" not in str(error.value)
     # a mesh smaller than a voxel
     _write_obj(tmp_path / "mm.obj", ship.vertices * 0.001, ship.faces)
     with pytest.raises(TargetFileError, match=r"the mesh spans only .* under two voxels of 0.5.*\"mesh_scale\""):

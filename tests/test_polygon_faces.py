@@ -197,3 +197,14 @@ def test_write_gltf_helper_unchanged(tmp_path):
     """The writer the other asset tests use still writes a plain triangle list."""
     path = write_gltf(tmp_path / "b.gltf", [("box", [box_mesh((1, 1, 1))])], [{"name": "Box", "mesh": 0}])
     assert len(load_mesh_file(path, force="mesh", process=False).faces) == 12
+
+
+def test_obj_mistakes_are_said_plainly(tmp_path):
+    """trimesh said "index 98 is out of bounds for axis 0 with size 12" and "string or
+    file could not be read to its end due to unmatched data"."""
+    (tmp_path / "ref.obj").write_text(_obj_text(L_VERTICES, L_FACES + [(0, 1, 98)]))
+    with pytest.raises(ValueError, match="line 21 names vertex 99, but the file has 12 vertices"):
+        load_mesh_file(tmp_path / "ref.obj", force="mesh", process=False)
+    (tmp_path / "comma.obj").write_text("v 0,0 0,0 0,5\nv 1,0 0,0 0,0\nv 0,0 1,0 0,0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match=r"line 1 \('v 0,0 0,0 0,5'\) writes numbers with decimal commas"):
+        load_mesh_file(tmp_path / "comma.obj", force="mesh", process=False)

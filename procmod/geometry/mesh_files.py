@@ -79,7 +79,8 @@ def normalised_obj(text: str) -> str | None:
     out = []
     positions = []  # each v statement's x, y, z (None where they are not three numbers)
     polygons = []  # (line in out, its fields) of each face of four or more corners
-    for line in text.splitlines():  # splits at \n, \r\n and a lone \r alike
+    highest = (0, 0)  # the highest vertex a face statement names, and its line
+    for number, line in enumerate(text.splitlines(), 1):  # splits at \n, \r\n and a lone \r alike
         fields = line.split()
         if not fields or fields[0].startswith("#"):
             out.append(line)
@@ -93,6 +94,10 @@ def normalised_obj(text: str) -> str | None:
                 try:
                     positions.append((float(fields[1]), float(fields[2]), float(fields[3])))
                 except (IndexError, ValueError):
+                    if any("," in f for f in fields[1:4]):  # trimesh: "could not be read to its end"
+                        raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) writes numbers with decimal "
+                                         "commas; OBJ numbers take a point (1.5, not 1,5): export it again with "
+                                         "a point as the decimal mark") from None
                     positions.append(None)
         elif key in _INDEXED:
             for i in range(1, len(fields)):
@@ -103,12 +108,17 @@ def normalised_obj(text: str) -> str | None:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
                         except ValueError:  # not a number: trimesh decides what it makes of it
                             continue
+                if refs[0].isdigit() and int(refs[0]) > highest[0]:
+                    highest = (int(refs[0]), number)
                 fields[i] = "/".join(refs)
             if key == "f" and len(fields) > 4:
                 polygons.append((len(out), fields))
         statement = " ".join(fields)
         changed = changed or statement != line
         out.append(statement)
+    if highest[0] > counts[0]:  # trimesh: "index 98 is out of bounds for axis 0 with size 12"
+        raise ValueError(f"line {highest[1]} names vertex {highest[0]}, but the file has {counts[0]} vertices; "
+                         "export it again")
     changed = _split_concave_faces(out, positions, polygons) or changed
     return "\n".join(out) + "\n" if changed else None
 

@@ -258,18 +258,69 @@ def span_text(lo, hi) -> str:
     return " x ".join(f"{float(h - l):.3g}" for l, h in zip(lo, hi))
 
 
-def grid_around(lo, hi, voxel_size: float, margin: float, where: str) -> VoxelGrid:
+def grid_around(lo, hi, voxel_size: float, margin: float, where: str, meshes=()) -> VoxelGrid:
     """The grid of voxel edge ``voxel_size`` around [lo, hi] grown by ``margin``, refused
     (naming ``where``) when memory cannot hold it; its shape is counted in Python integers
-    first, so that a tiny voxel size is refused instead of overflowing."""
+    first, so that a tiny voxel size is refused instead of overflowing. A refusal names a
+    stray piece of ``meshes`` (``(vertices, faces)`` pairs) far from the rest, if any
+    (:func:`stray_piece_text`): that, not the units, is then what stretched the grid."""
     span = span_text(lo, hi)
     lo = np.asarray(lo, dtype=np.float64) - margin
     hi = np.asarray(hi, dtype=np.float64) + margin
     # at most 1e18 a side (a voxel size of 1e-300 is refused by the memory check, not an overflow)
     shape = tuple(max(1, math.ceil(min(float(hi[a] - lo[a]) / voxel_size, 1e18))) for a in range(3))
     grid = VoxelGrid(tuple(float(v) for v in lo), float(voxel_size), shape)
-    check_grid(grid, where, f"the mesh spans {span}: use a larger voxel_size, or, {OTHER_UNITS}")
+    try:
+        check_grid(grid, where, f"the mesh spans {span}: use a larger voxel_size, or, {OTHER_UNITS}")
+    except ResourceLimitError as exc:
+        stray = next(filter(None, (stray_piece_text(v, f) for v, f in meshes)), None)
+        if stray is None:
+            raise
+        raise type(exc)(f"{str(exc).split('; the mesh spans', 1)[0]}; {stray}") from None
     return grid
+
+
+STRAY_DISTANCE = 10.0
+"""A small piece of a mesh (:func:`stray_piece_text`) lying more than this many times the
+size of the mesh's largest piece away from it is a stray."""
+
+
+def stray_piece_text(vertices: np.ndarray, faces: np.ndarray) -> str | None:
+    """One clause naming the smaller pieces of a mesh (connected by shared vertices) that
+    lie far from its largest piece (a stray triangle left at 1000, 1000, 1000 by a
+    modelling slip), or None."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    if len(faces) < 2:
+        return None
+    n = len(vertices)
+    rows = np.concatenate([faces[:, 0], faces[:, 1]])
+    cols = np.concatenate([faces[:, 1], faces[:, 2]])
+    _, label = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n)), directed=False)
+    piece = label[faces[:, 0]]
+    sizes = np.bincount(piece)
+    main = int(np.argmax(sizes))
+    used = np.unique(faces[piece == main])
+    lo, hi = vertices[used].min(axis=0), vertices[used].max(axis=0)
+    reach = STRAY_DISTANCE * max(float(np.linalg.norm(hi - lo)), 1e-12)
+    strays, where = [], None
+    for p in np.flatnonzero(sizes):
+        if p == main or sizes[p] >= sizes[main]:
+            continue
+        points = vertices[np.unique(faces[piece == p])]
+        gap = np.maximum(np.maximum(lo - points, points - hi), 0.0)
+        if float(np.linalg.norm(gap, axis=1).min()) > reach:
+            strays.append(p)
+            where = where if where is not None else points.mean(axis=0)
+    if not strays:
+        return None
+    lo, hi = mesh_bounds(vertices, faces[~np.isin(piece, strays)])
+    strays = int(sizes[strays].sum())
+    return (f"{strays} face{'s' if strays > 1 else ''} of the mesh {'lie' if strays > 1 else 'lies'} far from the "
+            "rest (near "
+            f"({', '.join(f'{v:.4g}' for v in where)}), while the rest spans {span_text(lo, hi)}): delete that stray "
+            "piece in a modelling tool")
 
 
 # A mesh whose oriented faces' areas, added as vectors, keep more than half their total is
@@ -336,7 +387,8 @@ def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float
     voxel_size = length(voxel_size, f"{where}: voxel_size")
     margin = number(margin, f"{where}: margin", minimum=0.0)
     vertices, faces = read_mesh(path, where)
-    grid = grid_around(*mesh_bounds(vertices, faces), voxel_size, margin, f"{where}: voxel size {voxel_size:g}")
+    grid = grid_around(*mesh_bounds(vertices, faces), voxel_size, margin, f"{where}: voxel size {voxel_size:g}",
+                       [(vertices, faces)])
     return grid, mesh_inside(vertices, faces, grid, where)
 
 
@@ -508,7 +560,8 @@ def load_volume_target(path: str | os.PathLike):
         bounds = [mesh_bounds(*read[at]) for at, _, _, _ in meshes]
         lo = np.min([b[0] for b in bounds], axis=0)
         hi = np.max([b[1] for b in bounds], axis=0)
-        grid = grid_around(lo, hi, voxel_size, margin, f"{where}: voxel_size {voxel_size:g} around the mesh layers")
+        grid = grid_around(lo, hi, voxel_size, margin, f"{where}: voxel_size {voxel_size:g} around the mesh layers",
+                           [read[at] for at, _, _, _ in meshes])
     layers = []
     notes = []
     for at, file, w_fill, w_avoid in entries:
