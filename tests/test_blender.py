@@ -302,20 +302,73 @@ def _castles(count=4):
 
 def test_selected_hierarchies_become_examples_with_one_part_per_shared_mesh(context, tmp_path):
     from procmod.blender import scene
-    from procmod.learn import read_examples
+    from procmod.geometry.assets import read_assets
+    from procmod.learn.examples import examples_from_assets
     roots = _castles(3)
     _select(roots[0], roots[1], roots[2], *roots[1].children)  # children of a selected root are in it already
     chosen = scene.example_roots(context.selected_objects)
     assert chosen == roots
     examples, names = scene.write_examples(chosen, tmp_path)
-    example_set = read_examples(examples)  # procmod's own reader checks the file
-    assert sorted(example_set.parts) == ["Cube", "Cylinder"]
+    # the reader procmod learn uses on a user's own glTF export
+    example_set = examples_from_assets(read_assets(examples))
+    # meshes named as Blender names its primitives are named after their first object
+    assert sorted(example_set.parts) == ["keep", "tower0"]
     assert [e.size() for e in example_set.examples] == [3, 4, 5]
-    tower = example_set.examples[1].children[0]
+    part = example_set.parts["tower0"]
+    tower = next(c for c in example_set.examples[1].children
+                 if np.allclose(c.transform[:3, 3], list(scene.TO_PROCMOD @ bpy.data.objects["tower1_0"].location),
+                                atol=1e-5))
     blender_tower = bpy.data.objects["tower1_0"]
-    world = scene.TO_BLENDER @ Matrix(tower.transform.tolist())
-    assert np.allclose(np.array(world), np.array(blender_tower.matrix_world), atol=1e-6)
-    assert json.loads(names.read_text())["examples[1].children[0]"] == "tower1_0"
+    placed = np.asarray(part.vertices) @ tower.transform[:3, :3].T + tower.transform[:3, 3]
+    world = np.array([list(scene.TO_PROCMOD @ blender_tower.matrix_world @ v.co) for v in blender_tower.data.vertices])
+    # the part placed by its node covers the object's own mesh in the world (up to the part's own frame)
+    assert np.allclose(np.sort(placed, axis=0), np.sort(world[:, :3], axis=0), atol=1e-5)
+    assert json.loads(names.read_text()) == {f"example{i:03d}.glb": root.name for i, root in enumerate(roots)}
+    assert sorted(o.name for o in context.selected_objects) == sorted(
+        o.name for o in (*roots, *roots[1].children))  # the selection is left as it was
+
+
+def test_a_chair_of_scaled_cubes_learns_a_seat_a_back_and_legs(context, tmp_path):
+    """The add-on wrote its own examples file, where every cube of a chair scaled into a
+    seat, a back and legs (the scale not applied, as Blender users leave it) was one part
+    type: its program sampled chairs of 1, 2 or 10 boxes. The add-on now exports glTF
+    and reads it as procmod learn reads a user's export."""
+    from procmod.blender import scene
+    from procmod.geometry.assets import read_assets
+    roots = []
+    for e in range(3):
+        seat = _mesh_object(f"Seat.{e:03d}", location=(4 * e, 0, 0.5), scale=(0.5, 0.5, 0.05))
+        parts = [_mesh_object(f"Back.{e:03d}", location=(4 * e, 0.48, 0.9), scale=(0.5, 0.03, 0.4))]
+        for k, (x, y) in enumerate([(-0.45, -0.45), (0.45, -0.45), (-0.45, 0.45), (0.45, 0.45)]):
+            parts.append(_mesh_object(f"Leg.{4 * e + k:03d}", location=(4 * e + x, y, 0.25),
+                                      scale=(0.04, 0.04, 0.25 + 0.02 * e)))
+        for part in parts:
+            part.parent = seat
+            part.matrix_parent_inverse = seat.matrix_world.inverted()
+        roots.append(seat)
+    bpy.context.view_layer.update()
+    _select(*roots)
+    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
+    asset_set = read_assets(examples)
+    assert sorted(asset_set.parts) == ["Back", "Leg", "Seat"]
+    assert [sorted(n.part for n in a.nodes()) for a in asset_set.assets] == [["Back"] + ["Leg"] * 4 + ["Seat"]] * 3
+
+
+def test_an_example_the_learner_refuses_is_named_by_its_objects(context):
+    """The add-on's examples are its own temporary files: a message names the objects."""
+    settings = context.scene.procmod
+    roots = []
+    for e in range(2):
+        body = _mesh_object(f"Body{e}", location=(4 * e, 0, 0))
+        flat = _mesh_object(f"Flat{e}", location=(4 * e, 0, 2), scale=(1, 0, 1))  # scaled to nothing
+        flat.parent = body
+        flat.matrix_parent_inverse = body.matrix_world.inverted()
+        roots.append(body)
+    bpy.context.view_layer.update()
+    _select(*roots)
+    settings.count, settings.learn_particles = 1, 1
+    message = _one_line_error(lambda: bpy.ops.procmod.learn(), "Flat0")
+    assert "the hierarchy of 'Body0'" in message and "example000.glb" not in message, message
 
 
 def test_learning_needs_a_selection_of_hierarchies(context):
@@ -348,7 +401,7 @@ def test_learn_from_the_scene_then_sample_the_learned_program(context):
     learned = [c for c in bpy.data.collections if "learned sample" in c.name]
     assert len(learned) == 2
     meshes = {o.data.name for c in learned for o in c.objects if o.type == "MESH"}
-    assert meshes == {"procmod mesh Cube", "procmod mesh Cylinder"}  # alike parts share their mesh
+    assert meshes == {"procmod mesh keep", "procmod mesh tower0"}  # alike parts share their mesh
     settings.seed = 5
     assert bpy.ops.procmod.sample() == {"FINISHED"}
     assert sum("sample" in c.name for c in bpy.data.collections) == 4

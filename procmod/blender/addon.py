@@ -328,7 +328,7 @@ class PROCMOD_OT_infer(_JobOperator, bpy.types.Operator):
 
 class PROCMOD_OT_learn(_JobOperator, bpy.types.Operator):
     """Learn a program from the selected hierarchies (each selected root with its children is an
-    example; objects sharing mesh data are one part) and sample it into the scene"""
+    example; meshes alike up to a move, turn, mirror or scale are one part) and sample it into the scene"""
 
     bl_idname = "procmod.learn"
     bl_label = "Learn from selection"

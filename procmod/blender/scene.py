@@ -338,43 +338,41 @@ def example_roots(selected) -> list:
 
 
 def write_examples(roots, folder: Path) -> tuple:
-    """Write ``folder/examples.json`` (``procmod-examples/1``) + ``folder/parts/*.obj`` from
-    example hierarchies; returns ``(examples file, names file)``.
+    """Export each example hierarchy (a root with its descendants) as a GLB file with
+    Blender's own glTF exporter into ``folder/examples/``; returns ``(that folder, names
+    file)``. ``names.json`` maps each file's name to its root object, so that the
+    learner's messages can name the example.
 
-    A part type is a mesh: objects that share mesh data (linked duplicates) are one part, and
-    so are meshes with equal vertices and faces. Its shape is the mesh in its own frame
-    (modifiers left out); each object's world matrix places it. ``names.json`` maps each
-    node's JSON path to its object, so the learner's messages can name objects.
+    The files go through the reader ``procmod learn`` uses on exported glTF
+    (:mod:`procmod.geometry.assets`), so the add-on learns what a user's export would:
+    meshes that are one mesh moved, turned or mirrored are one part; a primitive scaled
+    into a seat, a back and legs is three parts, each with its size (an earlier add-on
+    wrote its own examples file, in which every unapplied-scale cube of a chair was one
+    part type); a symmetric part is placed the least turned way. Modifiers are left out,
+    as the exporter does without "Apply Modifiers"; hidden objects are not exported.
     """
-    (folder / "parts").mkdir(parents=True, exist_ok=True)
-    parts, by_data, by_shape, names = {}, {}, {}, {}
-
-    def part_name(obj) -> str:
-        mesh = obj.data
-        if mesh.name in by_data:
-            return by_data[mesh.name]
-        vertices, triangles = mesh_triangles(mesh)
-        if not triangles:
-            raise SceneError(f"the mesh of {describe(obj)} has no faces; an example part needs some")
-        shape = (tuple(tuple(round(c, 6) for c in v) for v in vertices), tuple(triangles))
-        name = by_shape.get(shape)
-        if name is None:
-            name = mesh.name
-            file = f"parts/part{len(parts)}.obj"
-            write_obj(folder / file, vertices, triangles)
-            parts[name] = {"mesh": file}
-            by_shape[shape] = name
-        by_data[mesh.name] = name
-        return name
-
-    def node(obj, path: str) -> dict:
-        names[path] = obj.name
-        children = [node(child, f"{path}.children[{i}]")
-                    for i, child in enumerate(sorted(_mesh_descendants(obj), key=lambda o: o.name))]
-        return {"part": part_name(obj), "transform": to_procmod_rows(obj.matrix_world), "children": children}
-
-    examples = [node(root, f"examples[{i}]") for i, root in enumerate(roots)]
-    data = {"format": "procmod-examples/1", "parts": parts, "examples": examples}
-    (folder / "examples.json").write_text(json.dumps(data), encoding="utf-8")
+    out = folder / "examples"
+    out.mkdir(parents=True, exist_ok=True)
+    layer = bpy.context.view_layer
+    selected, active = [o for o in layer.objects if o.select_get()], layer.objects.active
+    names = {}
+    try:
+        for i, root in enumerate(roots):
+            for obj in layer.objects:
+                obj.select_set(False)
+            for obj in (root, *root.children_recursive):
+                if obj.type in MESH_TYPES or obj.type == "EMPTY":  # no lights, cameras or curves as parts
+                    obj.select_set(True)
+            file = out / f"example{i:03d}.glb"
+            done = bpy.ops.export_scene.gltf(filepath=str(file), use_selection=True, export_format="GLB",
+                                             export_apply=False, export_yup=True, export_animations=False,
+                                             export_materials="NONE")
+            if "FINISHED" not in done or not file.is_file():
+                raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")
+            names[file.name] = root.name
+    finally:
+        for obj in layer.objects:
+            obj.select_set(obj in selected)
+        layer.objects.active = active
     (folder / "names.json").write_text(json.dumps(names), encoding="utf-8")
-    return folder / "examples.json", folder / "names.json"
+    return out, folder / "names.json"

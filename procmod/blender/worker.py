@@ -23,8 +23,9 @@ Commands (``job["command"]``), each with the library's own functions:
   ``silhouette``: a camera and a weight image written as ``procmod-silhouette/1``), then an engine runs and the run folder
   is written as ``procmod infer`` writes it (:func:`procmod.report.write_run`), its command
   line recorded so the CLI can repeat it;
-- ``learn``: :func:`procmod.learn.learn` on a ``procmod-examples/1`` file made from the
-  scene, then ``count`` samples of the learned program.
+- ``learn``: :func:`procmod.learn.learn` on the selected hierarchies, exported by the
+  add-on as GLB files (or a ``procmod-examples/1`` file), then ``count`` samples of the
+  learned program.
 
 Every result holds the parts of its derivations (``samples``) in the form
 :func:`derivation_parts` writes, for the add-on to build objects from.
@@ -339,11 +340,15 @@ SHEAR_FIX = ("in Blender, apply the scale of the object's parents (select them, 
 
 
 def _name_objects(message: str, names: dict, examples_file: Path | None = None) -> str:
-    """An examples error names a JSON path (``examples[2].children[0]``); say which object it is.
+    """An examples error names a JSON path (``examples[2].children[0]``) or one of the
+    job's GLB files (the add-on exports each selected hierarchy); say which object it is.
 
-    The examples file is the job's own temporary copy of the selection, which means nothing
-    to the user: its name is dropped, and the message names the scene object instead."""
+    The examples are the job's own temporary copy of the selection, which means nothing
+    to the user: their names are dropped, and the message names the scene object instead."""
     if examples_file is not None:
+        for file, root in names.items():
+            if file.endswith(".glb"):  # the hierarchy of root object ``root``
+                message = message.replace(str(examples_file / file), f"the hierarchy of {root!r}")
         message = message.replace(f"{examples_file}: ", "").replace(str(examples_file), "the selection")
     paths = re.findall(r"examples\[\d+\](?:\.children\[\d+\])*", message)
     for path in sorted(set(paths), key=len, reverse=True):
