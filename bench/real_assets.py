@@ -6,7 +6,7 @@ Meshes nobody here made — robots' links (STL, OBJ, COLLADA), objects (the Stan
 a duck, a teddy as a convex decomposition of overlapping pieces), the 1000 random URDF
 objects (a seeded sample of ``--random-urdfs``), planes, terrain, a cloth sheet — each copied
 into a folder of its own with a ``procmod-volume/1`` file naming it as the one layer,
-voxel size 1/``--voxels`` of its largest extent (trimesh's reading of it), and loaded as
+voxel size 1/``--voxels`` of its largest extent (as procmod's mesh reader reads it), and loaded as
 ``procmod infer`` would load it. Every file must either load with an inside or be refused
 by a :class:`procmod.core.ProcmodError` (one line); anything else is a bug. Files over 3 MB
 are left out (reading them is slow, not different). Then every URDF (the random objects'
@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 from procmod.core import ProcmodError  # noqa: E402
 from procmod.data import target_from_spec  # noqa: E402
 from procmod.geometry.assets import read_assets  # noqa: E402
+from procmod.geometry.mesh_files import load_mesh_file  # noqa: E402
 
 SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf", ".dae"}
 MAX_BYTES = 3 << 20
@@ -58,7 +59,6 @@ def main() -> None:
         import pybullet_data
     except ImportError:
         sys.exit("real_meshes: pip install pybullet (its pybullet_data holds the meshes)")
-    import trimesh
 
     root = Path(pybullet_data.getDataPath())
     rows = []
@@ -67,9 +67,9 @@ def main() -> None:
             folder = Path(work) / f"m{i}"
             folder.mkdir()
             shutil.copy(path, folder / path.name)
-            try:
-                extent = float(max(trimesh.load(str(path), force="mesh").extents))
-            except Exception:  # noqa: BLE001 -- whatever trimesh makes of it, procmod must say it in one line
+            try:  # procmod's reading: a COLLADA file in its declared units, its polygons right
+                extent = float(max(load_mesh_file(path, force="mesh", process=False).extents))
+            except Exception:  # noqa: BLE001 -- whatever the reader makes of it, procmod must say it in one line
                 extent = 1.0
             spec = {"format": "procmod-volume/1", "score": "svol",
                     "voxel_size": extent / args.voxels if extent > 0 else 1.0,

@@ -128,7 +128,9 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
 
         if not targets_dir.is_dir():
             sys.exit(f"vs_webppl: --targets-dir {targets_dir} is not a folder of pictures")
-        pictures = set(Image.registered_extensions())  # every format procmod infer reads (Pillow's)
+        Image.init()
+        # every format procmod infer reads: those Pillow opens (it only writes some, PDF)
+        pictures = {suffix for suffix, kind in Image.registered_extensions().items() if kind in Image.OPEN}
         files = sorted(p for p in targets_dir.iterdir() if p.is_file())
         left_out = [p.name for p in files if p.suffix.lower() not in pictures and p.suffix.lower() != ".json"]
         if left_out:

@@ -371,6 +371,38 @@ def test_an_example_the_learner_refuses_is_named_by_its_objects(context):
     assert "the hierarchy of 'Body0'" in message and "example000.glb" not in message, message
 
 
+def test_hidden_parts_are_in_their_example_and_excluded_ones_are_told(context, tmp_path):
+    """Exported by selection, a child hidden in the viewport or made unselectable was left
+    out of its example without a word; one in an excluded collection stopped the operator
+    with an internal error."""
+    from procmod.blender import scene
+    from procmod.geometry.assets import read_assets
+    roots = []
+    for e, how in enumerate(("hide", "hide_viewport", "hide_select")):
+        root = _mesh_object(f"Root{e}", location=(4 * e, 0, 0))
+        leaf = _mesh_object(f"Leaf{e}", location=(4 * e, 0, 3), scale=(0.5, 0.5, 0.5))
+        leaf.parent = root
+        leaf.matrix_parent_inverse = root.matrix_world.inverted()
+        if how == "hide":
+            leaf.hide_set(True)
+        else:
+            setattr(leaf, how, True)
+        roots.append(root)
+    bpy.context.view_layer.update()
+    _select(*roots)
+    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
+    assert [len(a.nodes()) for a in read_assets(examples).assets] == [2, 2, 2]
+    leaves = [bpy.data.objects[f"Leaf{e}"] for e in range(3)]
+    assert (leaves[0].hide_get(), leaves[1].hide_viewport, leaves[2].hide_select) == (True, True, True)  # as they were
+    excluded = bpy.data.collections.new("Excluded")
+    context.scene.collection.children.link(excluded)
+    context.scene.collection.objects.unlink(leaves[0])
+    excluded.objects.link(leaves[0])
+    context.view_layer.layer_collection.children["Excluded"].exclude = True
+    _select(*roots)
+    _one_line_error(lambda: bpy.ops.procmod.learn(), "'Leaf0' .*excluded from the view layer.*include the collection")
+
+
 def test_learning_needs_a_selection_of_hierarchies(context):
     _one_line_error(lambda: bpy.ops.procmod.learn(), "nothing is selected")
     empty = bpy.data.objects.new("group", None)

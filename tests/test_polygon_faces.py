@@ -73,7 +73,7 @@ def _obj_text(vertices, faces, form="{}"):
 def test_an_obj_with_concave_ngons_reads_as_its_shape(tmp_path, form):
     """An L-shaped prism's six-cornered faces were fanned: area 26, not 22."""
     (tmp_path / "l.obj").write_text(_obj_text(L_VERTICES, L_FACES, form)
-                                    + "".join(f"vt 0 0\nvn 0 0 1\n" for _ in L_VERTICES))
+                                    + "vt 0 0\nvn 0 0 1\n" * len(L_VERTICES))
     mesh = load_mesh_file(tmp_path / "l.obj", force="mesh", process=False)
     assert _measures(mesh) == (22.0, 5.0) and mesh.is_watertight
     # a file of convex faces only is read by trimesh as it is
@@ -186,8 +186,9 @@ def test_gltf_extensions_procmod_cannot_honour_are_refused(tmp_path, extension, 
         load_mesh_file(tmp_path / "x.gltf", force="mesh", process=False)
     with pytest.raises(AssetError, match=message):
         read_assets(tmp_path / "x.gltf")
-    # an extension for materials changes no geometry: read as before
-    data["extensionsUsed"] = data["extensionsRequired"] = ["KHR_materials_unlit"]
+    # extensions for materials, textures or metadata change no geometry: read as before
+    data["extensionsUsed"] = data["extensionsRequired"] = ["KHR_materials_unlit", "MSFT_texture_dds",
+                                                           "EXT_mesh_features"]
     write = tmp_path / "unlit.gltf"
     write.write_text(json.dumps(data))
     assert len(load_mesh_file(write, force="mesh", process=False).faces) == 12
@@ -208,3 +209,52 @@ def test_obj_mistakes_are_said_plainly(tmp_path):
     (tmp_path / "comma.obj").write_text("v 0,0 0,0 0,5\nv 1,0 0,0 0,0\nv 0,0 1,0 0,0\nf 1 2 3\n")
     with pytest.raises(ValueError, match=r"line 1 \('v 0,0 0,0 0,5'\) writes numbers with decimal commas"):
         load_mesh_file(tmp_path / "comma.obj", force="mesh", process=False)
+
+
+def test_review_cases_repeated_corners_lines_and_a_byte_order_mark(tmp_path):
+    """A face closed with its first corner again fell back to the fan; an OBJ whose loose
+    line named a missing vertex was refused (trimesh ignores lines); an OFF file with a
+    UTF-8 byte-order mark was refused; comma-separated numbers were called decimal commas."""
+    closed = [tuple(f) + (f[0],) if len(f) == 6 else f for f in L_FACES]  # the L's faces end where they began
+    (tmp_path / "closed.obj").write_text(_obj_text(L_VERTICES, closed) + "l 1 99\n")
+    assert _measures(load_mesh_file(tmp_path / "closed.obj", force="mesh", process=False)) == (22.0, 5.0)
+    lines = ["OFF", f"{len(L_VERTICES)} {len(L_FACES)} 0"] + [f"{x} {y} {z}" for x, y, z in L_VERTICES]
+    lines += [f"{len(f)} " + " ".join(map(str, f)) for f in L_FACES]
+    (tmp_path / "bom.off").write_bytes(b"\xef\xbb\xbf" + "\n".join(lines).encode())
+    assert _measures(load_mesh_file(tmp_path / "bom.off", force="mesh", process=False)) == (22.0, 5.0)
+    (tmp_path / "sep.obj").write_text("v 0.0, 0.0, 0.0\nv 1.0, 0.0, 0.0\nv 0.0, 1.0, 0.0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="separates its numbers with commas"):
+        load_mesh_file(tmp_path / "sep.obj", force="mesh", process=False)
+
+
+def _collada(unit: float, up: str) -> str:
+    """The L prism as one COLLADA polylist of six- and four-cornered polygons."""
+    points = " ".join(f"{x} {y} {z}" for x, y, z in L_VERTICES)
+    corners = " ".join(str(i) for f in L_FACES for i in f)
+    return f"""<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+<asset><unit name="u" meter="{unit}"/><up_axis>{up}</up_axis></asset>
+<library_geometries><geometry id="g" name="L"><mesh>
+<source id="p"><float_array id="pa" count="{3 * len(L_VERTICES)}">{points}</float_array>
+<technique_common><accessor source="#pa" count="{len(L_VERTICES)}" stride="3"><param name="X" type="float"/>
+<param name="Y" type="float"/><param name="Z" type="float"/></accessor></technique_common></source>
+<vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+<polylist count="{len(L_FACES)}"><input semantic="VERTEX" source="#v" offset="0"/>
+<vcount>{" ".join(str(len(f)) for f in L_FACES)}</vcount><p>{corners}</p></polylist>
+</mesh></geometry></library_geometries>
+<library_visual_scenes><visual_scene id="s"><node id="n" name="n"><instance_geometry url="#g"/></node>
+</visual_scene></library_visual_scenes><scene><instance_visual_scene url="#s"/></scene></COLLADA>
+"""
+
+
+def test_collada_polygons_units_and_up_axis_are_honoured(tmp_path):
+    """pycollada's fan (through trimesh) covered the L's inner corner, and a file's <unit>
+    and <up_axis> were ignored: Blender's export (z up) lay on its back beside its glTF."""
+    (tmp_path / "y.dae").write_text(_collada(1.0, "Y_UP"))
+    mesh = load_mesh_file(tmp_path / "y.dae", force="mesh", process=False)
+    assert _measures(mesh) == (22.0, 5.0) and np.allclose(mesh.bounds, [[0, 0, 0], [3, 3, 1]])
+    (tmp_path / "z.dae").write_text(_collada(0.01, "Z_UP"))  # centimetres, z up
+    mesh = load_mesh_file(tmp_path / "z.dae", force="mesh", process=False)
+    assert np.allclose(mesh.bounds, [[0, 0, -0.03], [0.03, 0.01, 0]])  # (x, y, z) -> (x, z, -y), in metres
+    robot = load_mesh_file(tmp_path / "z.dae", up="z", force="mesh", process=False)  # a URDF's links are z up
+    assert np.allclose(robot.bounds, [[0, 0, 0], [0.03, 0.03, 0.01]])

@@ -405,7 +405,8 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
     (tmp_path / "vine.json").write_text(json.dumps({"start": [0.5, 0.1]}))
     own_start = load_target_image(tmp_path / "vine.png")
     assert own_start.start == (0.5, 0.1) and own_start.direction == (0.0, -1.0)
-    for typo, meant in (("strat", "start"), ("Start", "start"), ("directon", "direction")):
+    for typo, meant in (("strat", "start"), ("Start", "start"), ("directon", "direction"), ("start_point", "start"),
+                        ("startPos", "start"), ("direction_vector", "direction")):
         (tmp_path / "vine.json").write_text(json.dumps({typo: [0.2, 0.9]}))
         with pytest.raises(TargetFileError, match=f"unknown key '{typo}'; did you mean '{meant}'"):
             load_target_image(tmp_path / "vine.png")
@@ -413,7 +414,8 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
     assert load_target_image(tmp_path / "vine.png").start == (0.2, 0.9)  # another tool's keys are its own
     # ... even when they look a little like ours (a similarity ratio refused these as typos)
     (tmp_path / "vine.json").write_text(json.dumps({"start": [0.2, 0.9], "description": "a vine", "state": "done",
-                                                    "resolution": 300, "section": "B", "stats": {}}))
+                                                    "resolution": 300, "section": "B", "stats": {},
+                                                    "detection": "edges", "startTime": 3}))
     assert load_target_image(tmp_path / "vine.png").start == (0.2, 0.9)
     (tmp_path / "vine.json").write_text(json.dumps({"format": "procmod-derivation/1", "params": {}}))
     passed_over = load_target_image(tmp_path / "vine.png")

@@ -349,20 +349,35 @@ def write_examples(roots, folder: Path) -> tuple:
     into a seat, a back and legs is three parts, each with its size (an earlier add-on
     wrote its own examples file, in which every unapplied-scale cube of a chair was one
     part type); a symmetric part is placed the least turned way. Modifiers are left out,
-    as the exporter does without "Apply Modifiers"; hidden objects are not exported.
+    as the exporter does without "Apply Modifiers". A part hidden in the viewport or made
+    unselectable is part of its example all the same (shown for the export, then hidden
+    again); one in a collection excluded from the view layer cannot be exported: that is
+    a :class:`SceneError` saying what to do.
     """
+    layer = bpy.context.view_layer
+    members = []
+    for root in roots:
+        objects = [o for o in (root, *root.children_recursive) if o.type in MESH_TYPES or o.type == "EMPTY"]
+        for obj in objects:  # no lights, cameras or curves as parts
+            if layer.objects.get(obj.name) is not obj:
+                raise SceneError(f"{describe(obj)}, a part of {describe(root)}'s hierarchy, is in a collection "
+                                 "excluded from the view layer, so it cannot be exported with it: include the "
+                                 "collection (its checkbox in the Outliner) or unparent the object")
+        members.append(objects)
     out = folder / "examples"
     out.mkdir(parents=True, exist_ok=True)
-    layer = bpy.context.view_layer
     selected, active = [o for o in layer.objects if o.select_get()], layer.objects.active
+    hidden = [(o, o.hide_get(), o.hide_viewport, o.hide_select) for objects in members for o in objects]
     names = {}
     try:
-        for i, root in enumerate(roots):
+        for obj, *_ in hidden:
+            obj.hide_viewport = obj.hide_select = False
+            obj.hide_set(False)
+        for i, (root, objects) in enumerate(zip(roots, members)):
             for obj in layer.objects:
                 obj.select_set(False)
-            for obj in (root, *root.children_recursive):
-                if obj.type in MESH_TYPES or obj.type == "EMPTY":  # no lights, cameras or curves as parts
-                    obj.select_set(True)
+            for obj in objects:
+                obj.select_set(True)
             file = out / f"example{i:03d}.glb"
             done = bpy.ops.export_scene.gltf(filepath=str(file), use_selection=True, export_format="GLB",
                                              export_apply=False, export_yup=True, export_animations=False,
@@ -371,6 +386,9 @@ def write_examples(roots, folder: Path) -> tuple:
                 raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")
             names[file.name] = root.name
     finally:
+        for obj, hide, viewport, select in hidden:
+            obj.hide_viewport, obj.hide_select = viewport, select
+            obj.hide_set(hide)
         for obj in layer.objects:
             obj.select_set(obj in selected)
         layer.objects.active = active

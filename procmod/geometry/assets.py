@@ -579,7 +579,8 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
         raise AssetError(f"{where}: {path} declares {declared:,} triangles, more than procmod reads "
                          f"({MAX_FACES:,}); decimate it")
     try:
-        mesh = load_mesh_file(path, force="mesh", process=False, skip_materials=True)
+        # a URDF's link frames are z up (ROS): a COLLADA mesh is turned to z up from its own axis
+        mesh = load_mesh_file(path, up="z", force="mesh", process=False, skip_materials=True)
     except Exception as exc:
         raise AssetError(f"{where}: cannot read {path} as a triangle mesh ({type(exc).__name__}: "
                          f"{str(exc)[:100]})") from None

@@ -57,6 +57,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..core.io import MAX_JSON_BYTES
+from ..core.limits import relaxed_gc
 from .gltf_accessors import decoded_gltf
 
 # the mesh files :func:`load_mesh_file` reads (trimesh's formats procmod checks and fixes)
@@ -72,15 +73,19 @@ def normalised_obj(text: str) -> str | None:
     each statement re-spaced and cut at a ``#``, a byte-order mark dropped, lines ended by
     ``\\n`` and concave faces split into triangles (:func:`_split_concave_faces`); None
     when nothing needed changing (trimesh reads the file as it is)."""
+    with relaxed_gc():  # a million lines' lists: the collector scanned them over and over
+        return _normalised_obj(text)
+
+
+def _normalised_obj(text: str) -> str | None:
     changed = text.startswith(_BOM) or bool(re.search(r"\r(?!\n)", text))
     text = text.removeprefix(_BOM)
     text = re.sub(r"\\\r?\n", " ", text)
     counts = [0, 0, 0]
     out = []
-    positions = []  # each v statement's x, y, z (None where they are not three numbers)
-    polygons = []  # (line in out, its fields) of each face of four or more corners
-    highest = (0, 0)  # the highest vertex a face statement names, and its line
-    for number, line in enumerate(text.splitlines(), 1):  # splits at \n, \r\n and a lone \r alike
+    positions = []  # the line in out of each v statement (read only if there are polygons)
+    polygons = {}  # corners -> ([line in out], [its vertex numbers, space-separated]) of faces of 4+ corners
+    for line in text.splitlines():  # splits at \n, \r\n and a lone \r alike
         fields = line.split()
         if not fields or fields[0].startswith("#"):
             out.append(line)
@@ -91,15 +96,10 @@ def normalised_obj(text: str) -> str | None:
         if key in _COUNTED:
             counts[_COUNTED[key]] += 1
             if key == "v":
-                try:
-                    positions.append((float(fields[1]), float(fields[2]), float(fields[3])))
-                except (IndexError, ValueError):
-                    if any("," in f for f in fields[1:4]):  # trimesh: "could not be read to its end"
-                        raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) writes numbers with decimal "
-                                         "commas; OBJ numbers take a point (1.5, not 1,5): export it again with "
-                                         "a point as the decimal mark") from None
-                    positions.append(None)
+                positions.append(len(out))
         elif key in _INDEXED:
+            polygon = key == "f" and len(fields) > 4
+            numbers = []
             for i in range(1, len(fields)):
                 refs = fields[i].split("/")
                 for slot, ref in enumerate(refs[:3]):
@@ -108,46 +108,93 @@ def normalised_obj(text: str) -> str | None:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
                         except ValueError:  # not a number: trimesh decides what it makes of it
                             continue
-                if refs[0].isdigit() and int(refs[0]) > highest[0]:
-                    highest = (int(refs[0]), number)
+                if polygon:
+                    numbers.append(refs[0])
                 fields[i] = "/".join(refs)
-            if key == "f" and len(fields) > 4:
-                polygons.append((len(out), fields))
+            if polygon:  # kept small: a million faces' field lists cost more than reading them
+                lines, corners = polygons.setdefault(len(fields) - 1, ([], []))
+                lines.append(len(out))
+                corners.append(" ".join(numbers))
         statement = " ".join(fields)
         changed = changed or statement != line
         out.append(statement)
-    if highest[0] > counts[0]:  # trimesh: "index 98 is out of bounds for axis 0 with size 12"
-        raise ValueError(f"line {highest[1]} names vertex {highest[0]}, but the file has {counts[0]} vertices; "
-                         "export it again")
     changed = _split_concave_faces(out, positions, polygons) or changed
     return "\n".join(out) + "\n" if changed else None
 
 
-def _split_concave_faces(out: list, positions: list, polygons: list) -> bool:
-    """Replace each concave face statement in ``out`` by its triangles, each corner's
+def _split_concave_faces(out: list, positions: list, polygons: dict) -> bool:
+    """Replace each concave face statement in ``out`` (``positions``: the lines of its
+    vertices; ``polygons``: corner count -> faces) by its triangles, each corner's
     ``v/vt/vn`` reference kept (trimesh would fan it from its first corner, covering
-    more than the face: :mod:`procmod.geometry.polygons`). Faces whose corners are not all
-    read vertices stay for trimesh to judge. Returns whether any was replaced."""
+    more than the face: :mod:`procmod.geometry.polygons`). The convex ones, nearly all,
+    are told apart in one vectorised test per corner count. Faces whose corners are not
+    all numbered vertices stay for trimesh to judge. Returns whether any was replaced."""
     from .polygons import convex_faces, polygon_triangles
 
-    by_size = {}
-    for line, fields in polygons:
+    if not polygons:
+        return False
+    table = _numbers(" ".join(out[line][2:] for line in positions), np.float64, len(positions), 3)  # less "v "
+    if table is None:  # other than three numbers a vertex (colours, w): one by one
         try:
-            corners = [int(field.split("/", 1)[0]) - 1 for field in fields[1:]]
-        except ValueError:
-            continue
-        if all(0 <= c < len(positions) and positions[c] is not None for c in corners):
-            by_size.setdefault(len(corners), []).append((line, fields, corners))
+            table = np.array([out[line].split()[1:4] for line in positions], dtype=np.float64)
+        except ValueError:  # a vertex that is not three numbers: trimesh says what it makes of the file
+            return False
     replaced = False
-    for faces in by_size.values():
-        points = np.array([[positions[c] for c in corners] for _, _, corners in faces], dtype=np.float64)
-        for (line, fields, _), corners, convex in zip(faces, points, convex_faces(points)):
-            if not convex:
-                refs = fields[1:]
-                out[line] = "\n".join("f " + " ".join(refs[j] for j in triangle)
-                                      for triangle in polygon_triangles(corners))
-                replaced = True
+    for k, (lines, numbers) in polygons.items():
+        corners = _numbers(" ".join(numbers), np.int64, len(lines), k)
+        if corners is None:
+            continue
+        corners -= 1
+        valid = ((corners >= 0) & (corners < len(table))).all(axis=1)
+        points = table[np.where(valid[:, None], corners, 0)]
+        concave = valid & ~convex_faces(points)
+        for face in np.flatnonzero(concave):
+            refs = out[lines[face]].split()[1:]
+            out[lines[face]] = "\n".join("f " + " ".join(refs[j] for j in triangle)
+                                         for triangle in polygon_triangles(points[face]))
+            replaced = True
     return replaced
+
+
+def _numbers(text: str, dtype, rows: int, width: int) -> np.ndarray | None:
+    """The whitespace-separated numbers of ``text`` as ``rows`` rows of ``width`` (numpy's
+    text parser: ~10x a split and convert), or None unless it is just that."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy warns where a token is not a number, and stops there
+        try:
+            values = np.fromstring(text, dtype=dtype, sep=" ")
+        except (ValueError, DeprecationWarning):
+            return None
+    return values.reshape(rows, width) if values.size == rows * width else None
+
+
+def obj_problem(text: str) -> str | None:
+    """What trimesh could not read in an OBJ file, said plainly (it raised "index 98 is
+    out of bounds for axis 0 with size 12", "could not be read to its end due to
+    unmatched data"), or None: a face naming a vertex the file lacks, numbers written
+    with decimal commas or separated by commas. Looked for only after trimesh failed."""
+    vertices, highest = 0, (0, 0)
+    for number, line in enumerate(text.splitlines(), 1):
+        fields = line.split("#", 1)[0].split()
+        if not fields:
+            continue
+        if fields[0] == "v":
+            vertices += 1
+            numbers = fields[1:4]
+            if any(re.fullmatch(r"[-+]?\d*,\d+", f) for f in numbers):
+                return (f"line {number} ({' '.join(fields)[:40]!r}) writes numbers with decimal commas; OBJ numbers "
+                        "take a point (1.5, not 1,5): export it again with a point as the decimal mark")
+            if any(f.endswith(",") for f in numbers):
+                return (f"line {number} ({' '.join(fields)[:40]!r}) separates its numbers with commas; OBJ "
+                        "separates them with spaces")
+        elif fields[0] == "f":
+            for field in fields[1:]:
+                ref = field.split("/", 1)[0]
+                if ref.isdigit() and int(ref) > highest[0]:
+                    highest = (int(ref), number)
+    if highest[0] > vertices:
+        return f"line {highest[1]} names vertex {highest[0]}, but the file has {vertices} vertices; export it again"
+    return None
 
 
 # --- face counts, read without parsing ------------------------------------------------
@@ -248,10 +295,11 @@ def _gltf_faces(file: Path) -> int | None:
 DRACO = "KHR_draco_mesh_compression"
 MESHOPT = "EXT_meshopt_compression"
 INSTANCING = "EXT_mesh_gpu_instancing"
-# extensions a file may require that leave its geometry as trimesh reads it (materials,
-# textures, lights) or that procmod decodes itself (quantized positions, gltf_accessors)
-_HARMLESS = ("KHR_materials_", "KHR_texture_", "EXT_texture_", "KHR_lights_punctual", "KHR_mesh_quantization",
-             "KHR_xmp", "EXT_lights_")
+# words in the names of extensions a file may require that leave its geometry as trimesh
+# reads it (materials, textures, lights, metadata: KHR_materials_*, MSFT_texture_dds,
+# EXT_mesh_features) or that procmod decodes itself (KHR_mesh_quantization, gltf_accessors)
+_HARMLESS = ("material", "texture", "light", "xmp", "metadata", "features", "animation", "camera", "audio",
+             "variants", "emissive", "quantization", "lod")
 
 
 def gltf_header(path: Path, limit: int | None = None) -> dict:
@@ -308,7 +356,8 @@ def _check_gltf(path: Path) -> dict | None:
         raise ValueError(f"it draws meshes as GPU instances ({INSTANCING}), which procmod does not expand; export "
                          "it without them (Blender: glTF export > Data > Scene Graph > GPU Instances off; gltfpack "
                          "without -mi)")
-    unknown = [name for name in required if isinstance(name, str) and not name.startswith(_HARMLESS)] \
+    unknown = [name for name in required
+               if isinstance(name, str) and not any(word in name.lower() for word in _HARMLESS)] \
         if isinstance(required, list) else []
     if unknown:
         raise ValueError(f"it requires the glTF extension {unknown[0]}, which procmod does not read (so its "
@@ -427,10 +476,12 @@ def quiet_trimesh():
         logger.setLevel(level)
 
 
-def load_mesh_file(path: str | Path, **options):
+def load_mesh_file(path: str | Path, up: str = "y", **options):
     """``trimesh.load(path, **options)`` (a mesh or, with ``force="scene"``, a scene):
     OBJ read through :func:`normalised_obj` (materials and other files it names are still
-    found beside it), glTF with procmod's rules for the files it names (module docstring)."""
+    found beside it), glTF with procmod's rules for the files it names (module docstring),
+    PLY, OFF and COLLADA by :mod:`procmod.geometry.polygon_files` (a COLLADA file turned
+    from its own up axis to ``up``, ``"y"`` or ``"z"``)."""
     import trimesh
 
     path = Path(path)
@@ -438,18 +489,27 @@ def load_mesh_file(path: str | Path, **options):
     with quiet_trimesh():
         if suffix == ".obj":
             # latin-1 maps every byte to one character and back: names in other encodings survive
-            fixed = normalised_obj(path.read_bytes().decode("latin-1"))
-            if fixed is not None:
-                return trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj",
-                                    resolver=trimesh.resolvers.FilePathResolver(str(path)), **options)
+            text = path.read_bytes().decode("latin-1")
+            fixed = normalised_obj(text)
+            try:
+                if fixed is not None:
+                    return trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj",
+                                        resolver=trimesh.resolvers.FilePathResolver(str(path)), **options)
+                return trimesh.load(path, **options)
+            except Exception:
+                problem = obj_problem(text)
+                if problem is None:
+                    raise
+                raise ValueError(problem) from None
         if suffix == ".stl":
             fixed = _repaired_stl(path.read_bytes())
             if fixed is not None:
                 return trimesh.load(io.BytesIO(fixed), file_type="stl", **options)
-        if suffix in (".ply", ".off"):  # polygon faces kept and triangulated right (polygon_files)
-            from .polygon_files import read_off, read_ply
+        if suffix in (".ply", ".off", ".dae"):  # polygon faces kept and triangulated right (polygon_files)
+            from .polygon_files import read_collada, read_off, read_ply
 
-            vertices, faces = (read_ply if suffix == ".ply" else read_off)(path)
+            vertices, faces = read_collada(path, up) if suffix == ".dae" else \
+                (read_ply if suffix == ".ply" else read_off)(path)
             mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
             return trimesh.Scene(mesh) if options.get("force") == "scene" else mesh
         if suffix in (".gltf", ".glb"):

@@ -1,4 +1,4 @@
-"""PLY and OFF files read with their polygon faces kept, then triangulated right.
+"""PLY, OFF and COLLADA files read with their polygon faces kept, then triangulated right.
 
 trimesh reads both, but not every file tools write: a binary PLY whose faces have
 different corner counts (Blender and MeshLab write triangles and quads, or n-gons, into
@@ -6,8 +6,9 @@ one file) was refused as "unexpected length", an OFF file with a face of five or
 corners failed inside numpy, and the n-gons it did read were fanned from their first
 corner, which covers more than a concave face. Here PLY goes through plyfile (the
 maintained PLY library: ASCII and both binary byte orders, any list types) and OFF
-through the few lines its format needs; the faces are triangulated by
-:func:`procmod.geometry.polygons.triangulate_faces`.
+through the few lines its format needs; COLLADA through pycollada (trimesh's own
+reader) with its polygons, units and up axis (:func:`read_collada`). The faces are
+triangulated by :func:`procmod.geometry.polygons.triangulate_faces`.
 """
 
 from __future__ import annotations
@@ -29,9 +30,15 @@ def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     no triangles). Raises ValueError (or plyfile's parse error) for what it cannot read."""
     from plyfile import PlyData, PlyParseError
 
-    try:  # triangles only, the common case: a binary file's faces read as one array (~1000x faster)
-        data = PlyData.read(str(path), known_list_len={"face": {"vertex_indices": 3, "vertex_index": 3}})
-    except PlyParseError:  # some face is not a triangle (or the file is bad: read again, to say why)
+    data = None
+    for corners in (3, 4):  # all triangles or all quads: a binary file's faces read as one array (~100x faster)
+        try:
+            data = PlyData.read(str(path), known_list_len={"face": {"vertex_indices": corners,
+                                                                     "vertex_index": corners}})
+            break
+        except PlyParseError:  # faces of other sizes (or a bad file: read once more, to say why)
+            continue
+    if data is None:
         data = PlyData.read(str(path))
     names = [element.name for element in data.elements]
     if "vertex" not in names:
@@ -57,7 +64,11 @@ def _triangles(vertices: np.ndarray, lists) -> np.ndarray:
     if isinstance(lists, np.ndarray) and lists.dtype != object and lists.ndim == 2:
         faces = lists.astype(np.int64)
         return triangulate_faces(vertices, faces) if faces.shape[1] != 3 else _checked(vertices, faces)
-    return triangulate_faces(vertices, [np.asarray(f, dtype=np.int64) for f in lists])
+    lists = np.asarray(lists, dtype=object)
+    sizes = np.fromiter((len(face) for face in lists), dtype=np.int64, count=len(lists))
+    groups = [np.stack(lists[sizes == k]).astype(np.int64) for k in np.unique(sizes) if k >= 3]
+    out = [triangulate_faces(vertices, group) for group in groups]
+    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
 
 
 def _checked(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -71,7 +82,7 @@ def read_off(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """``(vertices, triangles)`` of an ASCII OFF file (header ``OFF`` with any of the
     ST/C/N/4 prefixes, ``#`` comments, colours after a face's indices). Raises
     ValueError, saying what is wrong, for what it cannot read."""
-    text = Path(path).read_bytes().decode("latin-1")
+    text = Path(path).read_bytes().decode("latin-1").removeprefix("\xef\xbb\xbf")  # a UTF-8 byte-order mark
     lines = [line.split("#", 1)[0].split() for line in text.splitlines()]
     lines = [fields for fields in lines if fields]
     if not lines:
@@ -121,4 +132,59 @@ def read_off(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return vertices.reshape(-1, 3), triangulate_faces(vertices.reshape(-1, 3), faces)
 
 
-__all__ = ["read_off", "read_ply"]
+# turns taking a COLLADA file's <up_axis> to the reader's up: y for procmod's targets and
+# parts (glTF's convention), z for a URDF robot's links (ROS's; Bullet's COLLADA loader
+# turns its meshes so too)
+_TO_UP = {("Z_UP", "y"): np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),  # (x, y, z) -> (x, z, -y)
+          ("X_UP", "y"): np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]),  # (x, y, z) -> (-y, x, z)
+          ("Y_UP", "z"): np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),  # (x, y, z) -> (x, -z, y)
+          ("X_UP", "z"): np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])}  # (x, y, z) -> (-z, y, x)
+
+
+def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, triangles)`` of a COLLADA file's scene (pycollada; each geometry placed
+    by its nodes), its polygons triangulated right, in metres and with ``up`` (``"y"`` or
+    ``"z"``) up as its ``<unit>`` and ``<up_axis>`` declare them. trimesh fanned its
+    polygons and left its units and axis as they were: Blender's export (z up) came in
+    lying on its back beside the same object exported as glTF, SketchUp's (inches) 39x too
+    large. Lines are left out."""
+    import collada
+    from collada.polylist import BoundPolylist
+    from collada.triangleset import BoundTriangleSet
+
+    document = collada.Collada(str(path), ignore=[collada.common.DaeUnsupportedError,
+                                                  collada.common.DaeBrokenRefError])
+    if document.scene is not None:
+        bound = list(document.scene.objects("geometry"))
+    else:  # no scene: the library's geometries where they are
+        bound = [g.bind(np.eye(4), {}) for g in document.geometries]
+    vertices, triangles, count = [], [], 0
+    for geometry in bound:
+        for primitive in geometry.primitives():
+            if isinstance(primitive, BoundTriangleSet):
+                faces = np.asarray(primitive.vertex_index, dtype=np.int64).reshape(-1, 3)
+            elif isinstance(primitive, BoundPolylist):  # <polylist> and <polygons>
+                corners = np.asarray(primitive.original.vertex_index, dtype=np.int64).reshape(-1)
+                ends = np.cumsum(np.asarray(primitive.original.vcounts, dtype=np.int64))
+                points = np.asarray(primitive.vertex, dtype=np.float64).reshape(-1, 3)
+                faces = triangulate_faces(points, np.split(corners, ends[:-1]) if len(ends) else [])
+            else:
+                continue  # lines
+            points = np.asarray(primitive.vertex, dtype=np.float64).reshape(-1, 3)
+            if len(faces) == 0:
+                continue
+            vertices.append(points)
+            triangles.append(_checked(points, faces) + count)
+            count += len(points)
+    if not triangles:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    vertices = np.concatenate(vertices)
+    info = document.assetInfo
+    metre = float(info.unitmeter) if info is not None and info.unitmeter else 1.0
+    turn = _TO_UP.get((str(info.upaxis).upper() if info is not None else "Y_UP", up))
+    if turn is not None:
+        vertices = vertices @ turn.T
+    return vertices * metre, np.concatenate(triangles)
+
+
+__all__ = ["read_collada", "read_off", "read_ply"]

@@ -21,15 +21,22 @@ def newell_normals(points: np.ndarray) -> np.ndarray:
     return np.cross(points, following).sum(axis=1)
 
 
+CONCAVE_TURN = 1e-3
+"""A corner turns against its polygon (is concave) when the sine of its turn, scaled by
+its edges' share of the polygon's longest edge, is below minus this: ~0.06 degrees
+between equal edges. Corners straight to within that (a grid's hexagon on a gently
+curved surface, not quite planar) keep the fan, as trimesh made it."""
+
+
 def convex_faces(points: np.ndarray) -> np.ndarray:
     """Whether each polygon of ``points`` (``(g, k, 3)``) turns the same way at every
-    corner (a straight corner counts as either), so that a fan from its first corner
-    covers it."""
+    corner (a straight corner counts as either, :data:`CONCAVE_TURN`), so that a fan from
+    its first corner covers it."""
     normals = newell_normals(points)
     edges = np.roll(points, -1, axis=1) - points
     turns = np.einsum("gkc,gc->gk", np.cross(edges, np.roll(edges, -1, axis=1)), normals)
     scale = (np.linalg.norm(edges, axis=2).max(axis=1) ** 2) * np.linalg.norm(normals, axis=1)
-    return (turns >= -1e-9 * scale[:, None]).all(axis=1)
+    return (turns >= -CONCAVE_TURN * scale[:, None]).all(axis=1)
 
 
 def fan(k: int) -> np.ndarray:
@@ -39,9 +46,19 @@ def fan(k: int) -> np.ndarray:
 
 
 def polygon_triangles(points: np.ndarray) -> np.ndarray:
-    """Triangles (``(k - 2, 3)`` corner indices, wound as the polygon is) covering the
-    polygon ``points`` (``(k, 3)``, corners in order), ear-clipped in its plane; the fan
-    where the polygon has no area or crosses itself (earcut then covers less of it)."""
+    """Triangles (corner indices, wound as the polygon is) covering the polygon ``points``
+    (``(k, 3)``, corners in order), ear-clipped in its plane: ``k - 2`` of them, fewer
+    where a corner repeats the one before it (as some exporters close a face with its
+    first corner again); the fan where the polygon has no area or crosses itself (earcut
+    then covers less of it)."""
+    repeated = np.all(points == np.roll(points, 1, axis=0), axis=1)
+    if repeated.any() and not repeated.all():
+        kept = np.flatnonzero(~repeated)
+        return kept[polygon_triangles(points[kept])] if len(kept) >= 3 else np.zeros((0, 3), dtype=np.int64)
+    return _ear_clipped(points)
+
+
+def _ear_clipped(points: np.ndarray) -> np.ndarray:
     import mapbox_earcut
 
     k = len(points)
@@ -72,10 +89,13 @@ def triangulate_faces(vertices: np.ndarray, faces) -> np.ndarray:
     sequences of three or more corners (faces of fewer are left out): a convex face as a
     fan from its first corner, a concave one ear-clipped (module docstring)."""
     vertices = np.asarray(vertices, dtype=np.float64)
-    by_size = {}
-    for face in faces:
-        if len(face) >= 3:
-            by_size.setdefault(len(face), []).append(face)
+    if isinstance(faces, np.ndarray) and faces.dtype != object and faces.ndim == 2:
+        by_size = {faces.shape[1]: faces} if faces.shape[1] >= 3 else {}  # one size: no grouping
+    else:
+        by_size = {}
+        for face in faces:
+            if len(face) >= 3:
+                by_size.setdefault(len(face), []).append(face)
     out = []
     for k, group in sorted(by_size.items()):
         group = np.asarray(group, dtype=np.int64)

@@ -13,9 +13,7 @@ one individual for the GA, one proposal for MCMC, one forward sample for ``forwa
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import gc
 import math
 import numbers
 import pickle
@@ -387,18 +385,3 @@ def log_mean_exp(values) -> float:
     return float(top + math.log(np.mean(np.exp(values - top))))
 
 
-@contextlib.contextmanager
-def relaxed_gc(threshold: int = 100_000):
-    """Run the cyclic garbage collector rarely while an engine runs.
-
-    Engines allocate and drop many small acyclic objects (contexts, nodes, copies) that
-    reference counting frees at once; the default collector thresholds would scan the
-    whole, growing heap of live particles over and over for nothing (a third of an SMC
-    run's time). Collection still happens, just every ``threshold`` allocations.
-    """
-    old = gc.get_threshold()
-    gc.set_threshold(threshold, old[1], old[2])
-    try:
-        yield
-    finally:
-        gc.set_threshold(*old)

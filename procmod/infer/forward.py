@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import Model
+from ..core.limits import relaxed_gc
 from ..core.protocols import Target
 from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, evaluate_all,
-                     log_mean_exp, new_seed, relaxed_gc)
+                     log_mean_exp, new_seed)
 
 
 def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, budget: Budget | None = None,

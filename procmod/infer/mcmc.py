@@ -96,9 +96,10 @@ import numpy as np
 
 from ..core import InvalidArgumentError, Model, is_within
 from ..core.protocols import Target
+from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
-                     evaluate_all, new_seed, relaxed_gc)
+                     evaluate_all, new_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace

@@ -22,11 +22,12 @@ from array import array
 import numpy as np
 
 from ..core import InvalidArgumentError, Model, random_order
+from ..core.limits import relaxed_gc
 from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
-from .common import Budget, Result, Tracker, check_population, check_positive, check_run, log_mean_exp, relaxed_gc
+from .common import Budget, Result, Tracker, check_population, check_positive, check_run, log_mean_exp
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up

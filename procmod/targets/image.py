@@ -534,16 +534,23 @@ SIDECAR_KEYS = ("start", "direction")
 
 
 def typo_of(key, known) -> str | None:
-    """The key of ``known`` that ``key`` is a typing slip of (``"strat"``, ``"directon"``,
-    ``"Start"``): at most one letter added, dropped, changed or two swapped, two for a key
-    of eight letters or more; None otherwise. Tight on purpose, for files whose other keys
-    are a tool's own: a similarity ratio took ``"description"`` for ``"direction"`` and
-    ``"state"`` for ``"start"``."""
-    word = str(key).lower().replace("-", "_")
+    """The key of ``known`` that ``key`` is meant to be, or None: one typing slip from it
+    (a letter added, dropped, changed, or two swapped: ``"strat"``, ``"directon"``,
+    ``"Start"``), or it with a word that says the same (``"start_point"``, ``"startPos"``,
+    ``"direction_vector"``). Tight on purpose, for files whose other keys are a tool's
+    own: a similarity ratio took ``"description"`` for ``"direction"`` and ``"state"`` for
+    ``"start"``, and ``"startTime"`` is no start."""
+    word = re.sub(r"[\s_\-]", "", str(key)).lower()
     for candidate in known:
-        if _slips(word, candidate) <= (2 if len(candidate) >= 8 else 1):
+        if word.startswith(candidate) and word[len(candidate):] in _SAME_THING:
+            return candidate
+        if _slips(word, candidate) <= 1:
             return candidate
     return None
+
+
+# what a key may add to start or direction and still mean it
+_SAME_THING = {"", "s", "ing", "point", "pt", "pos", "position", "xy", "coord", "coords", "vector", "vec"}
 
 
 def _slips(a: str, b: str) -> int:

@@ -8,7 +8,8 @@ import numpy as np
 
 from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target
-from ..common import Budget, Result, Tracker, check_population, check_positive, check_run, new_seed, relaxed_gc
+from ...core.limits import relaxed_gc
+from ..common import Budget, Result, Tracker, check_population, check_positive, check_run, new_seed
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
