@@ -54,28 +54,7 @@ def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     prop = next((p for p in ("vertex_indices", "vertex_index") if p in face.data.dtype.names), None)
     if prop is None:
         raise ValueError("the PLY file's faces have no vertex_indices (or vertex_index) list")
-    lists = face[prop]
-    return vertices, _triangles(vertices, lists)
-
-
-def _triangles(vertices: np.ndarray, lists) -> np.ndarray:
-    """Triangles of a column of face lists (an object array of index arrays, or a 2D
-    array when plyfile read fixed-length lists)."""
-    if isinstance(lists, np.ndarray) and lists.dtype != object and lists.ndim == 2:
-        faces = lists.astype(np.int64)
-        return triangulate_faces(vertices, faces) if faces.shape[1] != 3 else _checked(vertices, faces)
-    lists = np.asarray(lists, dtype=object)
-    sizes = np.fromiter((len(face) for face in lists), dtype=np.int64, count=len(lists))
-    groups = [np.stack(lists[sizes == k]).astype(np.int64) for k in np.unique(sizes) if k >= 3]
-    out = [triangulate_faces(vertices, group) for group in groups]
-    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
-
-
-def _checked(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
-        bad = int(faces.max() if faces.max() >= len(vertices) else faces.min())
-        raise ValueError(f"a face refers to vertex {bad} (counting from 0), but the file has {len(vertices)} vertices")
-    return faces
+    return vertices, triangulate_faces(vertices, face[prop])
 
 
 def read_off(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -161,20 +140,19 @@ def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarra
     vertices, triangles, count = [], [], 0
     for geometry in bound:
         for primitive in geometry.primitives():
-            if isinstance(primitive, BoundTriangleSet):
-                faces = np.asarray(primitive.vertex_index, dtype=np.int64).reshape(-1, 3)
-            elif isinstance(primitive, BoundPolylist):  # <polylist> and <polygons>
-                corners = np.asarray(primitive.original.vertex_index, dtype=np.int64).reshape(-1)
-                ends = np.cumsum(np.asarray(primitive.original.vcounts, dtype=np.int64))
-                points = np.asarray(primitive.vertex, dtype=np.float64).reshape(-1, 3)
-                faces = triangulate_faces(points, np.split(corners, ends[:-1]) if len(ends) else [])
-            else:
+            if not isinstance(primitive, (BoundTriangleSet, BoundPolylist)):
                 continue  # lines
             points = np.asarray(primitive.vertex, dtype=np.float64).reshape(-1, 3)
+            if isinstance(primitive, BoundTriangleSet):
+                faces = triangulate_faces(points, np.asarray(primitive.vertex_index, dtype=np.int64).reshape(-1, 3))
+            else:  # <polylist> and <polygons>
+                corners = np.asarray(primitive.original.vertex_index, dtype=np.int64).reshape(-1)
+                ends = np.cumsum(np.asarray(primitive.original.vcounts, dtype=np.int64))
+                faces = triangulate_faces(points, np.split(corners, ends[:-1]) if len(ends) else [])
             if len(faces) == 0:
                 continue
             vertices.append(points)
-            triangles.append(_checked(points, faces) + count)
+            triangles.append(faces + count)
             count += len(points)
     if not triangles:
         return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)

@@ -86,11 +86,16 @@ def _ear_clipped(points: np.ndarray) -> np.ndarray:
 
 def triangulate_faces(vertices: np.ndarray, faces) -> np.ndarray:
     """Triangles (``(m, 3)`` vertex indices) of ``faces``, a sequence of vertex-index
-    sequences of three or more corners (faces of fewer are left out): a convex face as a
-    fan from its first corner, a concave one ear-clipped (module docstring)."""
+    sequences of three or more corners (faces of fewer are left out; a 2D array for faces
+    of one size, an object array of index arrays for mixed ones): a convex face as a fan
+    from its first corner, a concave one ear-clipped (module docstring). Raises
+    ValueError for a face naming a vertex that ``vertices`` lacks."""
     vertices = np.asarray(vertices, dtype=np.float64)
     if isinstance(faces, np.ndarray) and faces.dtype != object and faces.ndim == 2:
         by_size = {faces.shape[1]: faces} if faces.shape[1] >= 3 else {}  # one size: no grouping
+    elif isinstance(faces, np.ndarray):  # an object array of index arrays (plyfile's faces of mixed sizes)
+        sizes = np.fromiter((len(face) for face in faces), dtype=np.int64, count=len(faces))
+        by_size = {int(k): np.stack(faces[sizes == k]) for k in np.unique(sizes) if k >= 3}
     else:
         by_size = {}
         for face in faces:
@@ -99,6 +104,8 @@ def triangulate_faces(vertices: np.ndarray, faces) -> np.ndarray:
     out = []
     for k, group in sorted(by_size.items()):
         group = np.asarray(group, dtype=np.int64)
+        if len(group) == 0:
+            continue
         if group.min() < 0 or group.max() >= len(vertices):
             bad = int(group.max() if group.max() >= len(vertices) else group.min())
             raise ValueError(f"a face refers to vertex {bad} (counting from 0), but the file has "
