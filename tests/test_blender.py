@@ -371,6 +371,29 @@ def test_an_example_the_learner_refuses_is_named_by_its_objects(context):
     assert "the hierarchy of 'Body0'" in message and "example000.glb" not in message, message
 
 
+def test_a_part_is_learned_as_the_viewport_shows_it(context, tmp_path):
+    """Modifiers were left out: a half modelled with a Mirror modifier was learned as half."""
+    from procmod.blender import scene
+    from procmod.geometry.assets import read_assets
+    roots = []
+    for e in range(2):
+        root = _mesh_object(f"Body{e}", location=(10 * e, 0, 0))
+        wing = _mesh_object(f"Wing{e}", location=(10 * e, 0, 0))
+        for vertex in wing.data.vertices:
+            vertex.co.x += 2.0  # the half at x 1..3 of its own frame
+        wing.modifiers.new("mirror", "MIRROR")  # and its mirror image at x -3..-1
+        wing.parent = root
+        wing.matrix_parent_inverse = root.matrix_world.inverted()
+        roots.append(root)
+    bpy.context.view_layer.update()
+    _select(*roots)
+    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
+    asset_set = read_assets(examples)
+    wing = next(n for n in asset_set.assets[0].nodes() if n.name == "Wing0")
+    part = asset_set.parts[wing.part]
+    assert len(part.faces) == 24 and np.ptp(np.asarray(part.vertices), axis=0).max() == pytest.approx(6.0)
+
+
 def test_hidden_parts_are_in_their_example_and_excluded_ones_are_told(context, tmp_path):
     """Exported by selection, a child hidden in the viewport or made unselectable was left
     out of its example without a word; one in an excluded collection stopped the operator

@@ -3,6 +3,7 @@ n-gons (OBJ, PLY, OFF), binary PLY with faces of mixed corner counts, OFF n-gons
 triangle fans and loose-edge primitives, and glTF extensions procmod cannot honour."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -227,7 +228,22 @@ def test_review_cases_repeated_corners_lines_and_a_byte_order_mark(tmp_path):
         load_mesh_file(tmp_path / "sep.obj", force="mesh", process=False)
 
 
-def _collada(unit: float, up: str) -> str:
+def test_a_notch_of_short_edges_in_a_long_face_is_concave(tmp_path):
+    """Corners were judged against the face's longest edge: a letter's inner curve (7.5
+    degrees a corner on short edges) or a V notch in a long strip read as convex, and the
+    fan covered the notch (a silhouette of an arch had its notch filled)."""
+    notch = [(0, 0, 0), (10, 0, 0), (10, 1, 0), (5.1, 1, 0), (5, 0.8, 0), (4.9, 1, 0), (0, 1, 0)]
+    (tmp_path / "v.obj").write_text(_obj_text(notch, [range(7)]))
+    assert load_mesh_file(tmp_path / "v.obj", force="mesh", process=False).area == pytest.approx(9.98)
+    arch = [(-2, 0, 0), (-1, 0, 0)] + [(-math.cos(a), math.sin(a), 0) for a in np.linspace(0, math.pi, 25)[1:-1]] \
+        + [(1, 0, 0), (2, 0, 0), (2, 2, 0), (-2, 2, 0)]
+    (tmp_path / "arch.obj").write_text(_obj_text(arch, [range(len(arch))]))
+    area = load_mesh_file(tmp_path / "arch.obj", force="mesh", process=False).area
+    segment = 0.5 * 24 * math.sin(math.pi / 24)  # the notch: a half 48-gon of radius 1
+    assert area == pytest.approx(8 - segment)
+
+
+def _collada(unit: float, up: str, matrix: str = "") -> str:
     """The L prism as one COLLADA polylist of six- and four-cornered polygons."""
     points = " ".join(f"{x} {y} {z}" for x, y, z in L_VERTICES)
     corners = " ".join(str(i) for f in L_FACES for i in f)
@@ -242,7 +258,7 @@ def _collada(unit: float, up: str) -> str:
 <polylist count="{len(L_FACES)}"><input semantic="VERTEX" source="#v" offset="0"/>
 <vcount>{" ".join(str(len(f)) for f in L_FACES)}</vcount><p>{corners}</p></polylist>
 </mesh></geometry></library_geometries>
-<library_visual_scenes><visual_scene id="s"><node id="n" name="n"><instance_geometry url="#g"/></node>
+<library_visual_scenes><visual_scene id="s"><node id="n" name="n">{matrix}<instance_geometry url="#g"/></node>
 </visual_scene></library_visual_scenes><scene><instance_visual_scene url="#s"/></scene></COLLADA>
 """
 
@@ -258,3 +274,6 @@ def test_collada_polygons_units_and_up_axis_are_honoured(tmp_path):
     assert np.allclose(mesh.bounds, [[0, 0, -0.03], [0.03, 0.01, 0]])  # (x, y, z) -> (x, z, -y), in metres
     robot = load_mesh_file(tmp_path / "z.dae", up="z", force="mesh", process=False)  # a URDF's links are z up
     assert np.allclose(robot.bounds, [[0, 0, 0], [0.03, 0.03, 0.01]])
+    # a node mirrored by a negative scale came in inside out (signed volume -5)
+    (tmp_path / "m.dae").write_text(_collada(1.0, "Y_UP", "<matrix>-1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</matrix>"))
+    assert load_mesh_file(tmp_path / "m.dae", force="mesh", process=False).volume == pytest.approx(5.0)

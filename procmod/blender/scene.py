@@ -348,8 +348,10 @@ def write_examples(roots, folder: Path) -> tuple:
     meshes that are one mesh moved, turned or mirrored are one part; a primitive scaled
     into a seat, a back and legs is three parts, each with its size (an earlier add-on
     wrote its own examples file, in which every unapplied-scale cube of a chair was one
-    part type); a symmetric part is placed the least turned way. Modifiers are left out,
-    as the exporter does without "Apply Modifiers". A part hidden in the viewport or made
+    part type); a symmetric part is placed the least turned way. Modifiers are applied
+    (the exporter's "Apply Modifiers"): a part is learned as the viewport shows it, a
+    mirrored half with its Mirror modifier whole (the add-on's own file left modifiers
+    out). A part hidden in the viewport or made
     unselectable is part of its example all the same (shown for the export, then hidden
     again); one in a collection excluded from the view layer cannot be exported: that is
     a :class:`SceneError` saying what to do.
@@ -380,7 +382,7 @@ def write_examples(roots, folder: Path) -> tuple:
                 obj.select_set(True)
             file = out / f"example{i:03d}.glb"
             done = bpy.ops.export_scene.gltf(filepath=str(file), use_selection=True, export_format="GLB",
-                                             export_apply=False, export_yup=True, export_animations=False,
+                                             export_apply=True, export_yup=True, export_animations=False,
                                              export_materials="NONE")
             if "FINISHED" not in done or not file.is_file():
                 raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")

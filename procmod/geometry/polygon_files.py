@@ -139,6 +139,8 @@ def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarra
         bound = [g.bind(np.eye(4), {}) for g in document.geometries]
     vertices, triangles, count = [], [], 0
     for geometry in bound:
+        # a node that mirrors (a negative scale) turns its faces inside out: wind them back
+        mirrored = np.linalg.det(np.asarray(geometry.matrix, dtype=np.float64)[:3, :3]) < 0
         for primitive in geometry.primitives():
             if not isinstance(primitive, (BoundTriangleSet, BoundPolylist)):
                 continue  # lines
@@ -151,6 +153,8 @@ def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarra
                 faces = triangulate_faces(points, np.split(corners, ends[:-1]) if len(ends) else [])
             if len(faces) == 0:
                 continue
+            if mirrored:
+                faces = faces[:, ::-1]
             vertices.append(points)
             triangles.append(faces + count)
             count += len(points)

@@ -22,21 +22,25 @@ def newell_normals(points: np.ndarray) -> np.ndarray:
 
 
 CONCAVE_TURN = 1e-3
-"""A corner turns against its polygon (is concave) when the sine of its turn, scaled by
-its edges' share of the polygon's longest edge, is below minus this: ~0.06 degrees
-between equal edges. Corners straight to within that (a grid's hexagon on a gently
-curved surface, not quite planar) keep the fan, as trimesh made it."""
+"""A corner turns against its polygon (is concave) when the sine of its turn, measured
+against the polygon's normal, is below minus this: ~0.06 degrees. Corners straight to
+within that (a grid's hexagon on a gently curved surface, not quite planar) keep the
+fan, as trimesh made it."""
 
 
 def convex_faces(points: np.ndarray) -> np.ndarray:
     """Whether each polygon of ``points`` (``(g, k, 3)``) turns the same way at every
     corner (a straight corner counts as either, :data:`CONCAVE_TURN`), so that a fan from
-    its first corner covers it."""
+    its first corner covers it. Each corner is judged by its own angle: a notch of short
+    edges in a long face (a letter's inner curve, 7.5 degrees a corner) is concave however
+    long the face's other edges are."""
     normals = newell_normals(points)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
     edges = np.roll(points, -1, axis=1) - points
-    turns = np.einsum("gkc,gc->gk", np.cross(edges, np.roll(edges, -1, axis=1)), normals)
-    scale = (np.linalg.norm(edges, axis=2).max(axis=1) ** 2) * np.linalg.norm(normals, axis=1)
-    return (turns >= -CONCAVE_TURN * scale[:, None]).all(axis=1)
+    following = np.roll(edges, -1, axis=1)
+    turns = np.einsum("gkc,gc->gk", np.cross(edges, following), normals)
+    lengths = np.linalg.norm(edges, axis=2) * np.linalg.norm(following, axis=2)
+    return (turns >= -CONCAVE_TURN * lengths).all(axis=1)
 
 
 def fan(k: int) -> np.ndarray:
