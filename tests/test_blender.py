@@ -424,6 +424,13 @@ def test_hidden_parts_are_in_their_example_and_excluded_ones_are_told(context, t
     context.view_layer.layer_collection.children["Excluded"].exclude = True
     _select(*roots)
     _one_line_error(lambda: bpy.ops.procmod.learn(), "'Leaf0' .*excluded from the view layer.*include the collection")
+    # a collection disabled in viewports (the monitor icon): the exporter left its part out, silently
+    context.view_layer.layer_collection.children["Excluded"].exclude = False
+    excluded.hide_viewport = True
+    before = (leaves[0].hide_get(), leaves[0].hide_viewport, leaves[0].hide_select)
+    _one_line_error(lambda: bpy.ops.procmod.learn(), "'Leaf0' .*disabled in viewports.*enable the collection")
+    assert excluded.hide_viewport and (leaves[0].hide_get(), leaves[0].hide_viewport,
+                                       leaves[0].hide_select) == before  # left as it was
 
 
 def test_learning_needs_a_selection_of_hierarchies(context):

@@ -277,3 +277,25 @@ def test_collada_polygons_units_and_up_axis_are_honoured(tmp_path):
     # a node mirrored by a negative scale came in inside out (signed volume -5)
     (tmp_path / "m.dae").write_text(_collada(1.0, "Y_UP", "<matrix>-1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</matrix>"))
     assert load_mesh_file(tmp_path / "m.dae", force="mesh", process=False).volume == pytest.approx(5.0)
+
+
+def test_second_review_cases(tmp_path):
+    """A concave face whose reflex corner is written twice was fanned (the turn across
+    the repeat was never measured); a spike that earcut leaves out (a zero-area triangle)
+    made the face fall back to the fan; an OBJ of faces and no vertices said nothing."""
+    ell = np.array([(2, 0, 0), (2, 1, 0), (1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0)], dtype=float)
+
+    def covered(points, triangles):
+        a, b, c = (points[triangles[:, j]] for j in range(3))
+        return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+    twice = np.insert(ell, 3, ell[2], axis=0)  # the reflex corner (1, 1) twice
+    assert covered(twice, triangulate_faces(twice, [np.arange(7)])) == pytest.approx(3.0)
+    (tmp_path / "unwelded.obj").write_text("v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 1 1 0\n"
+                                           "f 2 3 4 7 5 6 1\n")  # 4 and 7 at one place
+    assert load_mesh_file(tmp_path / "unwelded.obj", force="mesh", process=False).area == pytest.approx(3.0)
+    spike = np.insert(ell, 3, [(1.5, 1.5, 0), (1, 1, 0)], axis=0)  # out into the notch and back
+    triangles = triangulate_faces(spike, [np.arange(8)])
+    assert covered(spike, triangles) == pytest.approx(3.0)
+    (tmp_path / "faces.obj").write_text("f 1 2 3 4\n")
+    with pytest.raises(ValueError, match="line 1 names vertex 4, but the file has 0 vertices"):
+        load_mesh_file(tmp_path / "faces.obj", force="mesh", process=False)

@@ -353,15 +353,16 @@ def write_examples(roots, folder: Path) -> tuple:
     mirrored half with its Mirror modifier whole (the add-on's own file left modifiers
     out). A part hidden in the viewport or made
     unselectable is part of its example all the same (shown for the export, then hidden
-    again); one in a collection excluded from the view layer cannot be exported: that is
-    a :class:`SceneError` saying what to do.
+    again); one in a collection excluded from the view layer or disabled in viewports
+    cannot be exported: that is a :class:`SceneError` saying what to do.
     """
     layer = bpy.context.view_layer
+    in_layer = set(layer.objects)  # by identity: a linked object may share a local one's name
     members = []
     for root in roots:
         objects = [o for o in (root, *root.children_recursive) if o.type in MESH_TYPES or o.type == "EMPTY"]
         for obj in objects:  # no lights, cameras or curves as parts
-            if layer.objects.get(obj.name) is not obj:
+            if obj not in in_layer:
                 raise SceneError(f"{describe(obj)}, a part of {describe(root)}'s hierarchy, is in a collection "
                                  "excluded from the view layer, so it cannot be exported with it: include the "
                                  "collection (its checkbox in the Outliner) or unparent the object")
@@ -375,6 +376,11 @@ def write_examples(roots, folder: Path) -> tuple:
         for obj, *_ in hidden:
             obj.hide_viewport = obj.hide_select = False
             obj.hide_set(False)
+        for obj, *_ in hidden:
+            if not obj.visible_get():  # a collection disabled in viewports (the monitor icon): not exported
+                raise SceneError(f"{describe(obj)}, a part of an example, is in a collection disabled in viewports, "
+                                 "so it cannot be exported with its hierarchy: enable the collection (its monitor "
+                                 "icon in the Outliner) or unparent the object")
         for i, (root, objects) in enumerate(zip(roots, members)):
             for obj in layer.objects:
                 obj.select_set(False)

@@ -129,7 +129,7 @@ def _split_concave_faces(out: list, positions: list, polygons: dict) -> bool:
     more than the face: :mod:`procmod.geometry.polygons`). The convex ones, nearly all,
     are told apart in one vectorised test per corner count. Faces whose corners are not
     all numbered vertices stay for trimesh to judge. Returns whether any was replaced."""
-    from .polygons import convex_faces, polygon_triangles
+    from .polygons import fan_covers, polygon_triangles
 
     if not polygons:
         return False
@@ -146,8 +146,11 @@ def _split_concave_faces(out: list, positions: list, polygons: dict) -> bool:
             continue
         corners -= 1
         valid = ((corners >= 0) & (corners < len(table))).all(axis=1)
-        points = table[np.where(valid[:, None], corners, 0)]
-        concave = valid & ~convex_faces(points)
+        if not valid.any():
+            continue
+        corners, lines = corners[valid], [line for line, ok in zip(lines, valid) if ok]
+        points = table[corners]
+        concave = ~fan_covers(points)
         for face in np.flatnonzero(concave):
             refs = out[lines[face]].split()[1:]
             out[lines[face]] = "\n".join("f " + " ".join(refs[j] for j in triangle)
@@ -174,7 +177,7 @@ def obj_problem(text: str) -> str | None:
     unmatched data"), or None: a face naming a vertex the file lacks, numbers written
     with decimal commas or separated by commas. Looked for only after trimesh failed."""
     vertices, highest = 0, (0, 0)
-    for number, line in enumerate(text.splitlines(), 1):
+    for number, line in enumerate(text.removeprefix(_BOM).splitlines(), 1):
         fields = line.split("#", 1)[0].split()
         if not fields:
             continue
@@ -493,14 +496,18 @@ def load_mesh_file(path: str | Path, up: str = "y", **options):
             fixed = normalised_obj(text)
             try:
                 if fixed is not None:
-                    return trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj",
+                    mesh = trimesh.load(io.BytesIO(fixed.encode("latin-1")), file_type="obj",
                                         resolver=trimesh.resolvers.FilePathResolver(str(path)), **options)
-                return trimesh.load(path, **options)
+                else:
+                    mesh = trimesh.load(path, **options)
             except Exception:
                 problem = obj_problem(text)
                 if problem is None:
                     raise
                 raise ValueError(problem) from None
+            if len(getattr(mesh, "faces", ())) == 0 and (problem := obj_problem(text)) is not None:
+                raise ValueError(problem)  # trimesh read nothing, without a word
+            return mesh
         if suffix == ".stl":
             fixed = _repaired_stl(path.read_bytes())
             if fixed is not None:

@@ -43,6 +43,14 @@ def convex_faces(points: np.ndarray) -> np.ndarray:
     return (turns >= -CONCAVE_TURN * lengths).all(axis=1)
 
 
+def fan_covers(points: np.ndarray) -> np.ndarray:
+    """Whether a fan from its first corner covers each polygon of ``points`` (``(g, k,
+    3)``): it is convex and writes no corner twice in a row (a repeated corner hides the
+    turn across it, so such a face takes the full path, :func:`polygon_triangles`)."""
+    repeats = (points == np.roll(points, 1, axis=1)).all(axis=2).any(axis=1)
+    return convex_faces(points) & ~repeats
+
+
 def fan(k: int) -> np.ndarray:
     """The fan triangles of a ``k``-cornered polygon: ``(0, i, i + 1)``."""
     i = np.arange(1, k - 1)
@@ -80,12 +88,17 @@ def _ear_clipped(points: np.ndarray) -> np.ndarray:
     flat -= flat.mean(axis=0)
     triangles = np.asarray(mapbox_earcut.triangulate_float64(flat, np.array([k], dtype=np.uint32)),
                            dtype=np.int64).reshape(-1, 3)
-    if len(triangles) != k - 2:
-        return fan(k)
+    if len(triangles) != k - 2 and not np.isclose(_area(points, triangles), 0.5 * length, rtol=1e-9):
+        return fan(k)  # earcut covered less than the polygon (it crosses itself); a spike's empty triangle is no loss
     a, b, c = (flat[triangles[:, j]] for j in range(3))
     clockwise = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
     triangles[clockwise] = triangles[clockwise][:, ::-1]
     return triangles
+
+
+def _area(points: np.ndarray, triangles: np.ndarray) -> float:
+    a, b, c = (points[triangles[:, j]] for j in range(3))
+    return 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
 
 
 def triangulate_faces(vertices: np.ndarray, faces) -> np.ndarray:
@@ -118,11 +131,11 @@ def triangulate_faces(vertices: np.ndarray, faces) -> np.ndarray:
             out.append(group)
             continue
         points = vertices[group]
-        convex = convex_faces(points)
+        convex = fan_covers(points)
         out.append(group[convex][:, fan(k)].reshape(-1, 3))
         for face, corners in zip(group[~convex], points[~convex]):
             out.append(face[polygon_triangles(corners)])
     return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
 
 
-__all__ = ["convex_faces", "newell_normals", "polygon_triangles", "triangulate_faces"]
+__all__ = ["convex_faces", "fan_covers", "newell_normals", "polygon_triangles", "triangulate_faces"]
