@@ -75,6 +75,22 @@ def _select(*objects):
         obj.select_set(True)
 
 
+def _parent(child, parent):
+    """Parent keeping the child where it is in the world (as Ctrl+P does)."""
+    child.parent = parent
+    child.matrix_parent_inverse = parent.matrix_world.inverted()
+
+
+def _exported(context, roots, folder):
+    """The example hierarchies of ``roots`` as the add-on exports them, read by procmod's
+    asset reader (the one procmod learn uses)."""
+    from procmod.blender import scene
+    from procmod.geometry.assets import read_assets
+    _select(*roots)
+    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), folder)
+    return read_assets(examples)
+
+
 def _world_vertices(obj):
     return np.array([tuple(obj.matrix_world @ v.co) for v in obj.data.vertices])
 
@@ -333,8 +349,6 @@ def test_a_chair_of_scaled_cubes_learns_a_seat_a_back_and_legs(context, tmp_path
     seat, a back and legs (the scale not applied, as Blender users leave it) was one part
     type: its program sampled chairs of 1, 2 or 10 boxes. The add-on now exports glTF
     and reads it as procmod learn reads a user's export."""
-    from procmod.blender import scene
-    from procmod.geometry.assets import read_assets
     roots = []
     for e in range(3):
         seat = _mesh_object(f"Seat.{e:03d}", location=(4 * e, 0, 0.5), scale=(0.5, 0.5, 0.05))
@@ -343,13 +357,10 @@ def test_a_chair_of_scaled_cubes_learns_a_seat_a_back_and_legs(context, tmp_path
             parts.append(_mesh_object(f"Leg.{4 * e + k:03d}", location=(4 * e + x, y, 0.25),
                                       scale=(0.04, 0.04, 0.25 + 0.02 * e)))
         for part in parts:
-            part.parent = seat
-            part.matrix_parent_inverse = seat.matrix_world.inverted()
+            _parent(part, seat)
         roots.append(seat)
     bpy.context.view_layer.update()
-    _select(*roots)
-    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
-    asset_set = read_assets(examples)
+    asset_set = _exported(context, roots, tmp_path)
     assert sorted(asset_set.parts) == ["Back", "Leg", "Seat"]
     assert [sorted(n.part for n in a.nodes()) for a in asset_set.assets] == [["Back"] + ["Leg"] * 4 + ["Seat"]] * 3
 
@@ -360,9 +371,7 @@ def test_an_example_the_learner_refuses_is_named_by_its_objects(context):
     roots = []
     for e in range(2):
         body = _mesh_object(f"Body{e}", location=(4 * e, 0, 0))
-        flat = _mesh_object(f"Flat{e}", location=(4 * e, 0, 2), scale=(1, 0, 1))  # scaled to nothing
-        flat.parent = body
-        flat.matrix_parent_inverse = body.matrix_world.inverted()
+        _parent(_mesh_object(f"Flat{e}", location=(4 * e, 0, 2), scale=(1, 0, 1)), body)  # scaled to nothing
         roots.append(body)
     bpy.context.view_layer.update()
     _select(*roots)
@@ -373,8 +382,6 @@ def test_an_example_the_learner_refuses_is_named_by_its_objects(context):
 
 def test_a_part_is_learned_as_the_viewport_shows_it(context, tmp_path):
     """Modifiers were left out: a half modelled with a Mirror modifier was learned as half."""
-    from procmod.blender import scene
-    from procmod.geometry.assets import read_assets
     roots = []
     for e in range(2):
         root = _mesh_object(f"Body{e}", location=(10 * e, 0, 0))
@@ -382,13 +389,10 @@ def test_a_part_is_learned_as_the_viewport_shows_it(context, tmp_path):
         for vertex in wing.data.vertices:
             vertex.co.x += 2.0  # the half at x 1..3 of its own frame
         wing.modifiers.new("mirror", "MIRROR")  # and its mirror image at x -3..-1
-        wing.parent = root
-        wing.matrix_parent_inverse = root.matrix_world.inverted()
+        _parent(wing, root)
         roots.append(root)
     bpy.context.view_layer.update()
-    _select(*roots)
-    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
-    asset_set = read_assets(examples)
+    asset_set = _exported(context, roots, tmp_path)
     wing = next(n for n in asset_set.assets[0].nodes() if n.name == "Wing0")
     part = asset_set.parts[wing.part]
     assert len(part.faces) == 24 and np.ptp(np.asarray(part.vertices), axis=0).max() == pytest.approx(6.0)
@@ -398,23 +402,18 @@ def test_hidden_parts_are_in_their_example_and_excluded_ones_are_told(context, t
     """Exported by selection, a child hidden in the viewport or made unselectable was left
     out of its example without a word; one in an excluded collection stopped the operator
     with an internal error."""
-    from procmod.blender import scene
-    from procmod.geometry.assets import read_assets
     roots = []
     for e, how in enumerate(("hide", "hide_viewport", "hide_select")):
         root = _mesh_object(f"Root{e}", location=(4 * e, 0, 0))
         leaf = _mesh_object(f"Leaf{e}", location=(4 * e, 0, 3), scale=(0.5, 0.5, 0.5))
-        leaf.parent = root
-        leaf.matrix_parent_inverse = root.matrix_world.inverted()
+        _parent(leaf, root)
         if how == "hide":
             leaf.hide_set(True)
         else:
             setattr(leaf, how, True)
         roots.append(root)
     bpy.context.view_layer.update()
-    _select(*roots)
-    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
-    assert [len(a.nodes()) for a in read_assets(examples).assets] == [2, 2, 2]
+    assert [len(a.nodes()) for a in _exported(context, roots, tmp_path).assets] == [2, 2, 2]
     leaves = [bpy.data.objects[f"Leaf{e}"] for e in range(3)]
     assert (leaves[0].hide_get(), leaves[1].hide_viewport, leaves[2].hide_select) == (True, True, True)  # as they were
     excluded = bpy.data.collections.new("Excluded")
