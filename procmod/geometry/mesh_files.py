@@ -37,8 +37,9 @@ extension that could change its geometry, is refused. trimesh's log messages sta
 procmod's one-line error channel.
 
 Concave polygon faces of an OBJ are split into triangles here (trimesh fans them from
-their first corner, covering more than the face); PLY and OFF files are read with their
-polygons by :mod:`procmod.geometry.polygon_files`.
+their first corner, covering more than the face); PLY, OFF and COLLADA files are read
+with their polygons by :mod:`procmod.geometry.polygon_files`, a COLLADA file in its
+declared units and up axis.
 """
 
 from __future__ import annotations
