@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+import trimesh
 from scipy.spatial.transform import Rotation
 
 from procmod.geometry import assets
@@ -566,6 +567,35 @@ def test_a_primitive_scaled_into_several_parts_is_several_parts(tmp_path):
     leg = next(n for n in read.assets[2].nodes() if n.part == "Leg")
     corners = part_triangles(read.parts["Leg"].part(leg.transform)).reshape(-1, 3)
     assert np.allclose(np.ptp(corners, axis=0), (0.04, 0.51, 0.04), atol=1e-6)
+
+
+def test_a_primitive_added_at_other_sizes_is_one_part_whose_size_varies(tmp_path):
+    """A pole added at five depths (or scaled with the scale applied, in every example)
+    was five part types, Pole to Pole_5, and a sample drew none or two of them; a table top
+    whose location was applied (its mesh moved off its origin) in some files was a part of
+    its own, and their samples floated or sank."""
+    cylinder = trimesh.creation.cylinder(radius=0.06, height=1.0, sections=12)
+    turn = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1.0]])  # its axis up (y)
+    files = []
+    for k, height in enumerate((4.0, 4.5, 3.8, 5.0, 4.2)):
+        pole = transformed((cylinder.vertices, cylinder.faces), turn @ np.diag([1, 1, height, 1.0]))
+        base = box_mesh((0.5, 0.3, 0.5))
+        pole_node = {"name": "Pole", "mesh": 1, "translation": [0, 0.15 + height / 2, 0]}
+        base_node = {"name": "Base", "mesh": 0, "translation": [0, 0.15, 0], "children": [1]}
+        if k < 2:  # "Apply Location" on the pole: its mesh sits where the node was, the node at the parent
+            pole = transformed(pole, np.array([[1, 0, 0, 0], [0, 1, 0, 0.15 + height / 2], [0, 0, 1, 0],
+                                               [0, 0, 0, 1.0]]))
+            pole_node.pop("translation")
+        files.append(write_glb(tmp_path / f"p{k}.glb",
+                               gltf_json([("Base", [base]), (f"Cylinder.{k:03d}", [pole])], [base_node, pole_node],
+                                         [0])))
+    read = read_assets(files)
+    assert sorted(read.parts) == ["Base", "Pole"]
+    for asset, height in zip(read.assets, (4.0, 4.5, 3.8, 5.0, 4.2)):  # each where and as long as its file has it
+        pole = next(n for n in asset.nodes() if n.part == "Pole")
+        corners = part_triangles(read.parts["Pole"].part(pole.transform)).reshape(-1, 3)
+        assert np.allclose(np.ptp(corners, axis=0)[1], height, atol=1e-6)
+        assert np.isclose(corners[:, 1].min(), 0.3, atol=1e-6)  # on the base
 
 
 def test_planes_scaled_into_panels_are_parts_of_their_own(tmp_path):

@@ -440,12 +440,15 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     cubes was one part type, "Cube", six times over (seat, back and legs alike), and its
     learned program sampled chairs of 1, 2 or 10 boxes. And an object whose scale was
     applied in the tool was another part than its twin whose scale was not. So the nodes
-    that place one mesh are grouped by their axis scales (single linkage: scales within
-    :data:`SCALE_GROUP` of each other on every axis are one group). A mesh whose nodes
-    form one group with a scale within that factor of 1 keeps it on the nodes, as read
-    (a part whose size varies from example to example, the learner's to model). Otherwise
-    each group is a geometry of its own: the mesh with the group's mean scale put into it,
-    the nodes keeping what differs from that mean. A node that shears (a turned child
+    that place one mesh, or meshes that are one mesh moved and scaled along its axes (a
+    primitive added at other sizes, or its scale or location applied), are grouped by
+    their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
+    are one group). One mesh whose nodes form one group with a scale within that factor
+    of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
+    the learner's to model). Otherwise each group is a geometry of its own: the mesh with
+    the group's mean size put into it, the nodes keeping what differs from that mean (a
+    pole added at five depths, its scale applied in every example, was five part types,
+    and a sample drew none or two of them). A node that shears (a turned child
     under a non-uniformly scaled parent) puts its whole linear map into a geometry of its
     own and keeps its rotation-free place. A baked geometry keeps its mesh's name, but one
     a tool gives its primitives (``Cube``, ``Cylinder.001``) says nothing of what the
@@ -471,7 +474,8 @@ def _bake_scales(forests: list, geometries: dict) -> None:
                 g = geometries[raw.geometry]
                 extents = np.ptp(g.vertices, axis=0)
                 extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
-                unit = np.round(g.vertices / extents, 9)
+                # from the mesh's own corner: a mesh whose location was applied (moved off its origin) is alike
+                unit = np.round((g.vertices - g.vertices.min(axis=0)) / extents, 9)
                 unit_of[raw.geometry] = (fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()), extents)
             same, extents = unit_of[raw.geometry]
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
@@ -481,8 +485,9 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         sizes = np.log([norms * extents for _, _, norms, extents in placed])  # of the unit shape
         scaled = np.log([norms for _, _, norms, _ in placed])
         groups = _scale_groups(sizes)
-        if len(groups) == 1 and np.abs(scaled).max() <= math.log(SCALE_GROUP):
-            continue  # one part whose size varies, its nodes near its own size: as read
+        meshes = {raw.geometry for raw, *_ in placed}
+        if len(groups) == 1 and np.abs(scaled).max() <= math.log(SCALE_GROUP) and len(meshes) == 1:
+            continue  # one mesh whose nodes' sizes vary, near its own size: as read
         for members in groups:
             if np.abs(sizes[members] - sizes[members[0]]).max() <= 1e-9 and np.abs(scaled[members]).max() <= 1e-9:
                 continue  # one size, unscaled: as read
