@@ -249,3 +249,27 @@ def test_examples_of_very_different_sizes_get_a_note_naming_them():
     note = size_note(castles)
     assert note.startswith("the examples differ in size up to ") and "castle_9.glb is" in size_note(
         castles, [f"castle_{i}.glb" for i in range(10)])
+
+
+def test_an_example_standing_turned_from_the_others_gets_a_note():
+    """One table of five left lying down: samples leaned anywhere from 1 to 83 degrees,
+    without a word (a spin about the up axis is no tilt, and examples with other root
+    parts are not compared)."""
+    import dataclasses
+
+    from procmod.learn.examples import orientation_note
+
+    castles = read_examples(ROOT / "examples_sets/learn/castles/examples.json")
+    assert orientation_note(castles) is None
+
+    def turned(example, axis):
+        c, s = 0.0, 1.0  # a quarter turn
+        turn = {"x": [[1, 0, 0], [0, c, -s], [0, s, c]], "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]]}[axis]
+        m = np.array(example.transform, dtype=np.float64)
+        m[:3, :3] = np.array(turn) @ m[:3, :3]
+        return dataclasses.replace(example, transform=m)
+    spun = dataclasses.replace(castles, examples=[turned(castles.examples[0], "y"), *castles.examples[1:]])
+    assert orientation_note(spun) is None
+    lying = dataclasses.replace(castles, examples=[turned(castles.examples[0], "x"), *castles.examples[1:]])
+    assert orientation_note(lying, ["k0.glb"] + [f"k{i}.glb" for i in range(1, len(castles.examples))]).startswith(
+        f"k0.glb (1 of {len(castles.examples)} examples) stands turned up to 90 degrees from how the others stand")

@@ -268,6 +268,49 @@ def size_note(example_set: ExampleSet, labels: list | None = None) -> str | None
             "units, scale them to match; the program learns sizes from all of them")
 
 
+TURNED = 45.0
+"""Degrees an example's root may stand turned from most of the others before it gets a
+note (:func:`orientation_note`)."""
+
+
+def orientation_note(example_set: ExampleSet, labels: list | None = None) -> str | None:
+    """One line when some examples stand turned (tilted, not merely spun about the up
+    axis) by more than :data:`TURNED` degrees from the way most examples with the same
+    root part stand: one example left lying down, or exported from a z-up tool. The
+    program would learn tilts anywhere between (an adversarial pass's tables, one of five
+    lying down: samples leaned by 1 to 83 degrees). None otherwise; examples whose root
+    parts differ are not compared (their frames are unrelated). ``labels`` name them."""
+    labels = labels or [f"examples[{i}]" for i in range(len(example_set.examples))]
+    by_root = {}
+    for i, root in enumerate(example_set.examples):
+        by_root.setdefault(root.part, []).append(i)
+    turned, worst = [], 0.0
+    for members in by_root.values():
+        if len(members) < 3:
+            continue
+        # world up (y) in each root part's own frame: the same for examples that stand
+        # alike, however each is spun about the up axis
+        ups = np.array([np.linalg.solve(np.asarray(example_set.examples[i].transform, dtype=np.float64)[:3, :3],
+                                        [0.0, 1.0, 0.0]) for i in members])
+        ups /= np.linalg.norm(ups, axis=1)[:, None]
+        angles = np.degrees(np.arccos(np.clip(ups @ ups.T, -1.0, 1.0)))
+        alike = (angles <= 20.0).sum(axis=1)
+        most = int(np.argmax(alike))
+        if alike[most] * 2 <= len(members):  # no majority stands one way: none is the odd one
+            continue
+        for k, i in enumerate(members):
+            if angles[most, k] > TURNED:
+                turned.append(i)
+                worst = max(worst, float(angles[most, k]))
+    if not turned:
+        return None
+    turned.sort()
+    named = ", ".join(labels[i] for i in turned[:4]) + (f" and {len(turned) - 4} more" if len(turned) > 4 else "")
+    return (f"{named} ({len(turned)} of {len(labels)} examples) {'stands' if len(turned) == 1 else 'stand'} turned "
+            f"up to {worst:.0f} degrees from how the others stand (lying down, or from a z-up tool?): the program "
+            "learns tilts anywhere between; stand it as the others stand, or leave it out")
+
+
 # ratios of one unit of length to another over MIXED_SIZES, as a size note names them
 UNIT_FACTORS = ((100.0, "centimetres among metres"), (1000.0, "millimetres among metres"),
                 (25.4, "millimetres among inches"), (39.37, "inches among metres"),
@@ -373,5 +416,5 @@ def example_parts(node: ExampleNode, parts: dict) -> list:
 
 
 __all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
-           "read_example_inputs", "centred_examples", "size_note", "examples_from_assets", "example_set_digest",
+           "read_example_inputs", "centred_examples", "size_note", "orientation_note", "examples_from_assets", "example_set_digest",
            "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]
