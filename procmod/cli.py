@@ -24,8 +24,7 @@ from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
 from .core.errors import UnknownModelError, spelled
 from .core.paths import is_dir_quietly
-from .models import MODELS, get_model
-from .models.from_file import is_model_file_spec, load_model_file
+from .models import MODELS, model_from_spec
 
 
 class _Parser(argparse.ArgumentParser):
@@ -152,10 +151,8 @@ def _model(spec: str, params=()):
     if spec not in MODELS and (path.suffix.lower() == ".json" or is_dir_quietly(path)):
         from .learn import load_program
         model = load_program(path)
-    elif spec not in MODELS and is_model_file_spec(spec):
-        model = load_model_file(spec)
     else:
-        model = get_model(spec)
+        model = model_from_spec(spec)  # a built-in model, or FILE.py:NAME
     if not params:
         return model
     import json
