@@ -457,9 +457,23 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
                                                                          model)
     # a shape cut tight to its picture touches the edges too, but is one part
     tight = np.full((200, 120), 255, dtype=np.uint8)
-    tight[:, :30] = tight[-30:] = 0  # an L filling the picture's height and width
+    tight[40:, :30] = tight[-30:, :80] = 0  # an L along most of the left edge and part of the bottom
     Image.fromarray(tight).save(tmp_path / "tight.png")
     assert picture_note(target_from_spec(str(tmp_path / "tight.png")), model) is None
+    # a portrait scan (an A4 page) is padded to a square: its own edges, not the square's,
+    # are where a lid's shadow lies, and its own area is what a page read as shape covers
+    page = np.full((400, 300), 245, dtype=np.uint8)
+    page[100:380, 140:160] = 0
+    page[:, :12] = 60
+    Image.fromarray(page).save(tmp_path / "portrait_shadow.png")
+    portrait = target_from_spec(str(tmp_path / "portrait_shadow.png"))
+    assert "a band along the left edge of portrait_shadow.png" in picture_note(portrait, model)
+    assert "a band along the right edge" in picture_note(ShapeMatch(portrait.image.mirrored()), model)
+    page[:, :12] = 245
+    page[:, :] = np.where(np.arange(300) < 8, 60, page)  # the same page photographed on a dark table
+    page[:8], page[-8:], page[:, -8:] = 60, 60, 60
+    Image.fromarray(page).save(tmp_path / "portrait_on_table.png")
+    assert "covers 86% of the picture" in picture_note(target_from_spec(str(tmp_path / "portrait_on_table.png")), model)
 
 
 def test_a_target_built_from_python_is_checked_like_a_file():

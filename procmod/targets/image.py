@@ -87,12 +87,18 @@ class TargetImage:
         Start point in normalised image coordinates (x right, y down, both in [0, 1]).
     direction : tuple
         Start direction (x right, y down), e.g. ``(0, -1)`` grows up the image.
+    picture : tuple or None
+        ``(top, left, height, width)`` of the picture a file held inside the square mask
+        it was padded to (:func:`mask_from_image`); None: the whole mask is the picture.
+        Only the picture's own edges are edges of the paper (a scanner lid's shadow lies
+        along them, not along the padding's).
     """
 
     name: str
     mask: np.ndarray = field(repr=False)
     start: tuple = (0.5, 0.9166)
     direction: tuple = (0.0, -1.0)
+    picture: tuple | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         # built from Python as well as read from files: the checks a sidecar and a picture
@@ -121,9 +127,13 @@ class TargetImage:
 
     def mirrored(self) -> "TargetImage":
         """The horizontally mirrored target (start and direction mirrored too)."""
+        picture = self.picture
+        if picture is not None:
+            top, left, height, width = picture
+            picture = (top, self.mask.shape[1] - left - width, height, width)
         return replace(self, name=f"{self.name}:mirrored", mask=self.mask[:, ::-1].copy(),
                        start=(1.0 - self.start[0], self.start[1]),
-                       direction=(-self.direction[0], self.direction[1]))
+                       direction=(-self.direction[0], self.direction[1]), picture=picture)
 
     def at_size(self, width: int, height: int) -> np.ndarray:
         """The mask resampled to ``height x width`` (area average, then threshold 1/2).
@@ -522,11 +532,17 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
         on_border[0] = on_border[-1] = on_border[:, 0] = on_border[:, -1] = True
         mask = _ink(colours, np.median(colours[on_border], axis=0), lighting=True, paper_at=on_border)
     h, w = mask.shape
-    side = max(h, w)
-    square = np.zeros((side, side), dtype=bool)
-    top, left = (side - h) // 2, (side - w) // 2
+    top, left, _, _ = picture_in_square(h, w)
+    square = np.zeros((max(h, w), max(h, w)), dtype=bool)
     square[top:top + h, left:left + w] = mask
     return square
+
+
+def picture_in_square(height: int, width: int) -> tuple:
+    """``(top, left, height, width)`` of a ``height x width`` picture in the square frame
+    :func:`mask_from_image` pads it to (centred)."""
+    side = max(height, width)
+    return (side - height) // 2, (side - width) // 2, height, width
 
 
 SIDECAR_KEYS = ("start", "direction")
@@ -641,7 +657,8 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         placement = {"start": start, "direction": direction, **placement}
     elif "direction" not in placement:  # a start of the user's own: grow up the picture from it
         placement["direction"] = (0.0, -1.0)
-    return TargetImage(path.name, mask, tuple(placement["start"]), tuple(placement["direction"]))
+    return TargetImage(path.name, mask, tuple(placement["start"]), tuple(placement["direction"]),
+                       picture=picture_in_square(*shape))
 
 
 def place_model(model, image: TargetImage):

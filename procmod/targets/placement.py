@@ -242,28 +242,35 @@ EDGE_BAND_DEPTH = 0.25
 the picture, beside another part of the shape, gets a note (a scanner lid's shadow)."""
 
 
-def _edge_band(mask: np.ndarray) -> tuple[str, float] | None:
-    """``(side, share of the shape)`` of a thin band of the mask along one side of the
-    square frame, separate from the rest of the shape, or None (:data:`EDGE_BAND_LENGTH`).
-    A shape cut tight to the picture touches its edges too, but is all one part, or
-    reaches far in."""
+def _edge_band(mask: np.ndarray, picture: tuple | None = None) -> tuple[str, float] | None:
+    """``(side, share of the shape)`` of a thin band of the mask along one edge of the
+    picture, separate from the rest of the shape, or None (:data:`EDGE_BAND_LENGTH`).
+    ``picture``: where the picture lies in the mask (:attr:`TargetImage.picture`; a
+    portrait scan is padded to a square, and its edges are inside the frame). A shape
+    cut tight to the picture touches its edges too, but is all one part, or reaches far in."""
     from scipy import ndimage
 
+    if picture is not None:
+        top, left, height, width = picture
+        mask = mask[top:top + height, left:left + width]
     labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
     if count < 2:
         return None
     sizes = np.bincount(labels.ravel())[1:]
-    n = mask.shape[0]
-    sides = {"left": labels[:, 0], "right": labels[:, -1], "top": labels[0], "bottom": labels[-1]}
-    for side, line in sides.items():
+    height, width = mask.shape
+    # each side: its pixels, its length, and the picture's extent across it
+    sides = {"left": (labels[:, 0], height, width), "right": (labels[:, -1], height, width),
+             "top": (labels[0], width, height), "bottom": (labels[-1], width, height)}
+    for side, (line, length, across) in sides.items():
         found = np.bincount(line, minlength=count + 1)[1:]
         part = int(np.argmax(found)) + 1
-        if found[part - 1] <= EDGE_BAND_LENGTH * n:
+        if found[part - 1] <= EDGE_BAND_LENGTH * length:
             continue
         rows, cols = np.nonzero(labels == part)
-        depth = {"left": cols.max() + 1, "right": n - cols.min(), "top": rows.max() + 1, "bottom": n - rows.min()}[side]
+        depth = {"left": cols.max() + 1, "right": width - cols.min(), "top": rows.max() + 1,
+                 "bottom": height - rows.min()}[side]
         others = np.delete(sizes, part - 1)
-        if depth <= EDGE_BAND_DEPTH * n and others.max() >= 0.02 * sizes[part - 1]:  # beside a drawing, not dust
+        if depth <= EDGE_BAND_DEPTH * across and others.max() >= 0.02 * sizes[part - 1]:  # beside a drawing, not dust
             return side, float(sizes[part - 1]) / float(sizes.sum())
     return None
 
@@ -274,14 +281,19 @@ def picture_note(target: ShapeMatch, model) -> str | None:
     from .image import _fills_its_box
 
     mask = target.image.mask
-    fill = float(mask.mean())
+    picture = target.image.picture
+    if picture is not None:  # the picture's own area, not the square it was padded to
+        top, left, height, width = picture
+        fill = float(mask[top:top + height, left:left + width].mean())
+    else:
+        fill = float(mask.mean())
     # a page read as the shape is a near rectangle; a filled silhouette (a mountain, a disc)
     # covering as much is not
     if fill > MOST_OF_THE_PICTURE and _fills_its_box(mask, 0.85):
         return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
                 "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
                 "a shape trimmed to its own edges needs some paper around it")
-    band = _edge_band(mask)
+    band = _edge_band(mask, picture)
     if band is not None:
         return (f"a band along the {band[0]} edge of {target.name} ({band[1]:.0%} of the shape read) is taken as "
                 "part of the shape: if it is a scanner lid's shadow or a frame, crop it away or paint it the "
