@@ -607,3 +607,22 @@ def test_planes_scaled_into_panels_are_parts_of_their_own(tmp_path):
     write_glb(tmp_path / "a.glb", gltf_json([("Plane", [plane])], nodes, [0]))
     read = read_assets([tmp_path / "a.glb"])
     assert sorted(n.part for n in read.assets[0].nodes()) == ["Floor", "Strip"]
+
+
+def test_meshes_the_user_named_apart_stay_apart_whatever_their_shape(tmp_path):
+    """A column (a box 1x1x3) and a wall (a box 3x1x2), cubes with their scales applied
+    under names of their own, were grouped as one cube at several sizes: one part type
+    named "wall", and strings named the column "wall" and the wall "wall_2"."""
+    nodes, meshes = [], []
+    for k, (name, size) in enumerate((("column", (1.0, 3.0, 1.0)), ("wall", (3.0, 2.0, 1.0)))):
+        meshes.append((name, [box_mesh(size)]))
+    for k in range(4):
+        nodes.append({"name": f"piece{k}", "mesh": k % 2, "translation": [2.0 * k, 1.0, 0]})
+    write_glb(tmp_path / "row.glb", gltf_json(meshes, nodes, list(range(4))))
+    read = read_assets([tmp_path / "row.glb"])
+    assert sorted(read.parts) == ["column", "wall"]
+    for node in read.assets[0].nodes():  # each at its own size
+        corners = part_triangles(read.parts[node.part].part(node.transform)).reshape(-1, 3)
+        assert np.allclose(np.ptp(corners, axis=0), (1, 3, 1) if node.part == "column" else (3, 2, 1), atol=1e-6)
+    from procmod.strings.assets import shapes_from_assets
+    assert sorted(shapes_from_assets([tmp_path / "row.glb"]).library) == ["column", "wall"]

@@ -433,6 +433,17 @@ _DEFAULT_MESH_NAMES = {"cube", "cylinder", "sphere", "uv sphere", "icosphere", "
                        "pplane", "ptorus", "teapot", "gltf"}
 
 
+def _given_name(g: _Geometry) -> str | None:
+    """The name the user gave a mesh, without the tool's numbering of copies (``Pole``
+    for ``Pole.001``), or None for a mesh named as the tool names its primitives or not
+    at all (named after its node: the sizes tell its parts apart, :func:`_bake_scales`),
+    as a URDF's cylinders and spheres are (named after their links)."""
+    if g.named_by_node or g.key[0] in ("cylinder", "sphere"):
+        return None
+    base = _NUMBERED.sub("", g.name).lower()
+    return None if base in _DEFAULT_MESH_NAMES else base
+
+
 def _bake_scales(forests: list, geometries: dict) -> None:
     """Tell the parts a tool made of one mesh by scaling it apart, and give each its size.
 
@@ -441,7 +452,9 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     learned program sampled chairs of 1, 2 or 10 boxes. And an object whose scale was
     applied in the tool was another part than its twin whose scale was not. So the nodes
     that place one mesh, or meshes that are one mesh moved and scaled along its axes (a
-    primitive added at other sizes, or its scale or location applied), are grouped by
+    primitive added at other sizes, or its scale or location applied) under one name
+    (the tool's copies ``Pole``, ``Pole.001``, or a primitive's name such as ``Cube``;
+    meshes the user named apart, ``column`` and ``wall``, stay apart), are grouped by
     their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
     are one group). One mesh whose nodes form one group with a scale within that factor
     of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
@@ -476,7 +489,8 @@ def _bake_scales(forests: list, geometries: dict) -> None:
                 extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
                 # from the mesh's own corner: a mesh whose location was applied (moved off its origin) is alike
                 unit = np.round((g.vertices - g.vertices.min(axis=0)) / extents, 9)
-                unit_of[raw.geometry] = (fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()), extents)
+                unit_of[raw.geometry] = ((fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()),
+                                          _given_name(g)), extents)
             same, extents = unit_of[raw.geometry]
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
