@@ -595,3 +595,52 @@ def test_rotation_axes_along_z_have_steady_angles_when_rounded_or_hand_placed(no
     assert by_type
     for angles in by_type.values():  # polar, azimuth: spread like the noise, not like a circle
         assert np.ptp(np.array(angles), axis=0).max() < 50 * noise + 1e-5  # a circle's: up to 2 pi
+
+
+def test_samples_name_their_program_relative_to_themselves(saved, tmp_path, capsys):
+    """A sample's derivation named its learned program by absolute path: moving the
+    program and its samples together broke `procmod render` (and a relative name was
+    resolved from the current folder, not from the file's)."""
+    import shutil
+
+    from procmod.cli import main
+    out, _ = saved
+    project = tmp_path / "project"
+    shutil.copytree(out, project / "L")
+    assert main(["sample", str(project / "L"), "-n", "2", "--out", str(project / "S")]) == 0
+    stored = json.loads((project / "S" / "sample_000.json").read_text())["model"]
+    assert stored == "../L/program.json"
+    moved = tmp_path / "elsewhere" / "project"
+    shutil.move(str(project), str(moved))
+    elsewhere = tmp_path / "elsewhere"
+    capsys.readouterr()
+    assert main(["render", str(moved / "S" / "sample_001.json"), "--out", str(elsewhere / "again.obj")]) == 0
+    assert (elsewhere / "again.obj").read_bytes() == (moved / "S" / "sample_001.obj").read_bytes()
+    # an absolute name, as earlier versions wrote it, still reads
+    data = json.loads((moved / "S" / "sample_000.json").read_text())
+    data["model"] = str((moved / "L" / "program.json").resolve())
+    (elsewhere / "old.json").write_text(json.dumps(data))
+    assert main(["render", str(elsewhere / "old.json"), "--out", str(elsewhere / "old.obj")]) == 0
+
+
+def test_finite_tensors_whose_transforms_overflow_are_one_line(saved, tmp_path):
+    """Log-scale means of 1e6 pass the load check (biases are in the examples' units) but
+    overflowed numpy while sampling: two RuntimeWarnings on stderr, then a message that
+    blamed the user's arithmetic in procmod's own rule."""
+    import shutil
+    import warnings
+
+    import torch
+    out, _ = saved
+    d = tmp_path / "p"
+    shutil.copytree(out, d)
+    state = torch.load(d / "program.pt", weights_only=True)
+    for key in state:
+        if key.endswith(("xf.bm", "xf.c")):
+            state[key] = torch.full_like(state[key], 1e6)
+    torch.save(state, d / "program.pt")
+    model = load_program(d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no numpy warning on the way
+        with pytest.raises(ProcmodError, match=r"transform at root\.s0 .* is not finite .*learn it again"):
+            run_forward(model, np.random.default_rng(0))

@@ -55,7 +55,13 @@ def _saved(tmp_path):
     (lambda d: d["choices"].append([[], "bogus", 1.0]), "does not replay"),
     (lambda d: d["choices"].pop(0), "does not replay"),
     (lambda d: d["choices"].__setitem__(0, ["x", 1]), r"choices\[0\]"),
-    (lambda d: d.update(log_prior=d["log_prior"] + 1.0), "log_prior"),
+    (lambda d: d.update(log_prior=d["log_prior"] + 1.0), "its choices were edited, or the model has changed"),
+    # a choice given twice: one silently won over the other
+    (lambda d: d["choices"].insert(0, [d["choices"][0][0], d["choices"][0][1], 0.5]),
+     r"choices\[1\] gives choice 'angle' at \[\] again \(choices\[0\] gave it first\)"),
+    # a value the distribution cannot take: the message names the choice
+    (lambda d: d["choices"][1].__setitem__(2, "sideways"),
+     r"choices\[1\], 'leaf' at \[\] = \"sideways\", is a value its distribution there cannot take"),
     (lambda d: d.update(params={"colour": "red"}), "no parameter"),
 ])
 def test_malformed_derivations_are_rejected(tmp_path, mutate, message):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -107,7 +108,9 @@ def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
         raise InvalidArgumentError(f"derivation must be a procmod Derivation, got {type(derivation).__name__}")
     if not isinstance(path, (str, os.PathLike)):
         raise InvalidArgumentError(f"path must be a str or pathlib.Path, got {type(path).__name__}")
-    text = derivation_json(derivation_to_dict(derivation))
+    data = derivation_to_dict(derivation)
+    data["model"] = _program_reference(data["model"], Path(path).parent)
+    text = derivation_json(data)
     try:
         write_text_atomic(path, text)
     except OSError as exc:  # no such folder, a folder of that name, no permission
@@ -115,14 +118,36 @@ def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
                                    f"{getattr(exc, 'strerror', None) or exc}") from None
 
 
+def _names_program(name: str) -> bool:
+    """Whether a derivation's model name is a learned program's ``program.json`` (its
+    path) rather than a model's name."""
+    return name.lower().endswith(".json")
+
+
+def _program_reference(name: str, folder: Path) -> str:
+    """A learned program's model name (the absolute path of its ``program.json``) written
+    relative to the derivation's ``folder``, as every file procmod writes names another
+    (README, "Files that name other files"): a run folder and the program it sampled
+    keep working when they are moved together. Other names are kept."""
+    if not (_names_program(name) and os.path.isabs(name)):
+        return name
+    try:
+        return Path(os.path.relpath(name, os.path.abspath(folder))).as_posix()
+    except ValueError:  # on another drive (Windows): only the absolute path reaches it
+        return name
+
+
 def _fail(source: str, problem: str) -> DerivationFormatError:
     return DerivationFormatError(f"{source}: {problem}")
 
 
-def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: str = "derivation") -> Derivation:
+def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: str = "derivation",
+                         folder: str | os.PathLike | None = None) -> Derivation:
     """Rebuild a derivation from its dict by replaying its model exactly.
 
-    ``resolve_model(name)`` returns the model registered under ``name``.
+    ``resolve_model(name)`` returns the model registered under ``name``. ``folder``: where
+    the file lay; a learned program named by a relative path (as :func:`save_derivation`
+    writes it) is found from there.
     """
     if not isinstance(data, dict):
         raise _fail(source, "expected a JSON object")
@@ -130,8 +155,11 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
     for key, kind in (("model", str), ("params", dict), ("order", list), ("choices", list)):
         if not isinstance(data.get(key), kind):
             raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
+    name = data["model"]
+    if folder is not None and _names_program(name) and not os.path.isabs(name):
+        name = os.path.join(folder, name)
     try:
-        model = resolve_model(data["model"])
+        model = resolve_model(name)
     except ProcmodError as exc:  # an unknown model: say which file names it (same kind of error)
         raise type(exc)(f"{source}: {exc}") from None
     stored_root = data.get("root")
@@ -145,13 +173,18 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         model = model.configure(**data["params"])
     except ProcmodError as exc:
         raise _fail(source, str(exc)) from exc
-    choices = {}
+    choices, index = {}, {}
     for i, entry in enumerate(data["choices"]):
         if (not isinstance(entry, list) or len(entry) != 3 or not isinstance(entry[0], list)
                 or not all(isinstance(s, str) for s in entry[0]) or not isinstance(entry[1], str)
                 or not isinstance(entry[2], (bool, int, float, str))):
             raise _fail(source, f"choices[{i}] must be [[site, ...], name, value]")
-        choices[(tuple(entry[0]), entry[1])] = entry[2]
+        key = (tuple(entry[0]), entry[1])
+        if key in choices:  # one would silently win over the other
+            raise _fail(source, f"choices[{i}] gives choice {cut_text(entry[1], 60)!r} at "
+                                f"{cut_text(json.dumps(entry[0]), 80)} again (choices[{index[key]}] gave it first); "
+                                "keep one of the two")
+        choices[key], index[key] = entry[2], i
     order = []
     for i, address in enumerate(data["order"]):
         if not isinstance(address, list) or not all(isinstance(s, str) for s in address):
@@ -167,21 +200,27 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         raise _fail(source, f"replaying it under params {cut_text(json.dumps(data['params']), 120)} needs more "
                             f"memory than this machine has ({exc})") from None
     if result.unused or result.log_fresh != 0.0 or result.derivation.order() != order:
-        what = (f"{len(result.unused)} stored choices were not used" if result.unused
-                else "choices were missing" if result.log_fresh != 0.0 or
-                len(result.derivation.choice_map()) != len(choices)
-                else "the calls ran in another order")
-        raise _fail(source, f"does not replay under model {model.name!r} ({what}); "
-                            "was it saved by another version of the model?")
+        if result.unused:
+            first = min(result.unused, key=index.__getitem__)  # the first in the file
+            what = (f"{len(result.unused)} stored choices were not used; the first, choices[{index[first]}], "
+                    f"{cut_text(first[1], 60)!r} at {cut_text(json.dumps(list(first[0])), 80)} = "
+                    f"{cut_text(json.dumps(choices[first]), 40)}, is a value its distribution there cannot take "
+                    "(outside its range, not a number, another type) or a choice the model does not make")
+        else:
+            what = ("choices were missing" if result.log_fresh != 0.0 or
+                    len(result.derivation.choice_map()) != len(choices) else "the calls ran in another order")
+        raise _fail(source, f"does not replay under model {model.name!r} ({what}); was the file edited, or saved by "
+                            "another version of the model?")
     stored = data.get("log_prior")
     if isinstance(stored, (int, float)) and not math.isclose(stored, result.derivation.log_prior,
                                                              rel_tol=1e-9, abs_tol=1e-9):
-        raise _fail(source, f"stored log_prior {stored} differs from the replayed "
-                            f"{result.derivation.log_prior}; the model has changed since it was saved")
+        raise _fail(source, f"stored log_prior {stored} differs from the replayed {result.derivation.log_prior}: "
+                            "its choices were edited, or the model has changed since it was saved; to replay "
+                            "edited choices, delete the file's \"log_prior\"")
     return result.derivation
 
 
 def load_derivation(path: str | os.PathLike, resolve_model: Callable[[str], Model]) -> Derivation:
     """Read a ``procmod-derivation/1`` file and replay it exactly."""
     data = read_json(path, DerivationFormatError, "derivation file")
-    return derivation_from_dict(data, resolve_model, source=cut_text(str(path)))
+    return derivation_from_dict(data, resolve_model, source=cut_text(str(path)), folder=Path(path).parent)

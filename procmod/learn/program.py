@@ -203,7 +203,14 @@ def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame, p
         bit = ctx.sample(f"x.sg{i}", Bernoulli(prob))
         signs[i] = bit
         a = a + sW[:, i] * float(bit)
-    return xform_matrix(x, signs, frame, program.units.log_scale(part))
+    with np.errstate(over="ignore", invalid="ignore"):  # said below, in a line of its own
+        world = xform_matrix(x, signs, frame, program.units.log_scale(part))
+    if not np.isfinite(world).all():
+        # finite tensors (the load check) can still overflow: a log-scale of 1e6
+        raise ProgramError(f"the learned program's transform at {pre} for a {part!r} is not finite (log-scales "
+                           f"{', '.join(f'{v:.3g}' for v in x[:3])}): its tensors were not written by 'procmod "
+                           "learn' (learn it again)")
+    return world
 
 
 def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies: tuple):
