@@ -13,8 +13,8 @@ from procmod.strings.assets import Y_UP_TO_Z_UP, read_shape_inputs, shapes_from_
 from procmod.strings.contacts import part_points, shape_graph
 from procmod.strings.shapes import ShapesFormatError, read_shapes, shapes_from_dict
 
-from asset_writers import (box_mesh, column_major, gltf_json, transformed, write_empty_gltf, write_glb, write_huge_gltf,
-                           write_unreadable, write_zero_area_gltf)
+from asset_writers import (box_mesh, column_major, gltf_json, transformed, wedge_mesh, write_empty_gltf, write_glb,
+                           write_huge_gltf, write_unreadable, write_zero_area_gltf)
 
 Z_TO_Y = np.linalg.inv(Y_UP_TO_Z_UP)
 
@@ -231,3 +231,34 @@ def test_mesh_names_become_safe_part_file_names(tmp_path):
     assert len(sources) == 2 and all(s.startswith("parts/") and s.endswith(".obj") for s in sources)
     assert all(is_plain_name(s[len("parts/"):-len(".obj")]) for s in sources), sources
     assert "parts/CON.obj" not in sources
+
+
+def _row_of_blocks(path, mesh, scales):
+    """A y-up GLB of one mesh ``blk`` placed in a row along x, node k with x-scale
+    ``scales[k]`` (-1: the mesh mirrored)."""
+    nodes = [{"name": "row", "children": list(range(1, len(scales) + 1))}]
+    for k, sx in enumerate(scales):
+        nodes.append({"name": f"b{k}", "mesh": 0, "matrix": column_major(
+            np.diag([sx, 1.0, 1.0, 1.0]) + np.array([[0, 0, 0, 1.2 * k]] + [[0] * 4] * 3))})
+    return write_glb(path, gltf_json([("blk", [mesh])], nodes, [0]))
+
+
+@pytest.mark.parametrize("mesh, parts", [
+    (box_mesh((1.0, 0.5, 0.3), centre=(0.2, 0.1, 0.0)), ["blk"]),  # a box's mirror image is the box, turned
+    (transformed(wedge_mesh(1.0), np.eye(4)), ["blk", "blk_2"]),    # a wedge's is not (left and right)
+])
+def test_a_mirrored_copy_is_another_part_only_when_no_turn_makes_it(tmp_path, mesh, parts):
+    # a cube placed with x-scale -1 was a second part type ('blk_2') though turned it is the cube
+    path = _row_of_blocks(tmp_path / "row.glb", mesh, [1.0, -1.0, 1.0, -1.0])
+    ss = shapes_from_assets([path])
+    assert sorted(ss.library) == parts
+    shape = ss.shapes[0]
+    if len(parts) == 2:
+        assert list(shape.parts) == ["blk", "blk_2", "blk", "blk_2"]
+    for k, (part, t) in enumerate(zip(shape.parts, shape.transforms)):
+        assert np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9) and np.linalg.det(t[:3, :3]) > 0
+        # each placed part covers the box the file's node covers (within the parts' tolerance)
+        node = Y_UP_TO_Z_UP @ np.diag([(1.0, -1.0)[k % 2], 1.0, 1.0, 1.0])
+        node[:3, 3] = Y_UP_TO_Z_UP[:3, :3] @ [1.2 * k, 0, 0]
+        want, got = transformed(mesh, node)[0], part_points(ss.library, part, t)
+        assert np.allclose(got.min(0), want.min(0), atol=5e-3) and np.allclose(got.max(0), want.max(0), atol=5e-3)

@@ -8,7 +8,9 @@ files or folders of them, **one shape per file**. They are read by
   graph comes from contacts, so the hierarchy itself is not kept);
 * the meshes become the **part library**, one part per distinct geometry up to a rigid
   motion (proper: a mirror image is another part, since a string's parts are placed by
-  rotations) within :data:`~procmod.geometry.assets.GEOMETRY_TOLERANCE` of the
+  rotations; but a node that mirrors a mesh whose mirror image is the mesh turned, a box
+  or any mirror-symmetric mesh, places the part itself, turned: :func:`_unmirrored`) within
+  :data:`~procmod.geometry.assets.GEOMETRY_TOLERANCE` of the
   geometry's bounding-box diagonal, named after its mesh data (the glTF mesh name);
 * glTF is y-up (its specification), procmod strings is z-up (the whole-shape turns of
   :mod:`.frames` are about z): a glTF scene is turned +90 degrees about x as it is read,
@@ -68,6 +70,36 @@ def _scaled_part(shape: PartShape, name: str, s: np.ndarray) -> PartShape:
     return PartShape(name, "mesh", vertices=tuple(map(tuple, v.tolist())), faces=tuple(map(tuple, f.tolist())))
 
 
+def _mesh_arrays(shape: PartShape) -> tuple[np.ndarray, np.ndarray]:
+    """A part's local geometry as vertices and triangles (a box as its 12 triangles)."""
+    if shape.kind == "box":
+        v, f = np.unique(shape.local_triangles().reshape(-1, 3), axis=0, return_inverse=True)
+        return v, f.reshape(-1, 3)
+    return np.asarray(shape.vertices, dtype=np.float64), np.asarray(shape.faces, dtype=np.int64)
+
+
+def _unmirrored(shape: PartShape, s: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """For a scale ``s`` that mirrors: ``(s_pos, T)`` with ``s(shape) = T(s_pos(shape))``,
+    ``s_pos`` the scale without the mirror and ``T`` a proper rigid motion (4x4), when the
+    mirrored geometry is the geometry turned (a box, a cylinder, any mirror-symmetric mesh:
+    within ``tolerance`` x its diagonal, as parts are told apart); None when it is chiral
+    (a left and a right bracket are two parts)."""
+    from types import SimpleNamespace
+
+    from ..geometry.assets import _align, _Surface
+
+    w, vecs = np.linalg.eigh((s + s.T) / 2)
+    s_pos = vecs @ np.diag(np.abs(w)) @ vecs.T
+    surfaces = []
+    for linear in (s, s_pos):
+        v, f = _mesh_arrays(shape)
+        surfaces.append(_Surface(SimpleNamespace(vertices=v @ linear.T, faces=f)))
+    t = _align(surfaces[0], surfaces[1], tolerance, mirror=False)  # t(s_pos geometry) = s geometry
+    if t is None or np.linalg.det(t[:3, :3]) < 0:
+        return None
+    return s_pos, t
+
+
 def _scale_index(known: list, s: np.ndarray) -> int:
     """The position in ``known`` of the first scale that ``s`` agrees with (entries within
     :data:`SCALE_TOLERANCE` times the known scale's largest entry, or 1), ``s`` appended
@@ -87,6 +119,7 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
     placed = []  # per file: [(part, rigid 4x4, index of its scale in scales[part])]
     # one part per (geometry, scale): the scales each geometry is placed at, in reading order
     scales: dict[str, list] = {}
+    unmirrored: dict[tuple, tuple | None] = {}  # (part, mirroring scale) -> _unmirrored's answer
     for asset in asset_set.assets:
         up = Y_UP_TO_Z_UP if asset.path.suffix.lower() in (".gltf", ".glb") else np.eye(4)
         rows = []
@@ -98,6 +131,13 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
                                  "give it a size or remove it")
             rigid = np.eye(4)
             rigid[:3, :3], rigid[:3, 3] = r, m[:3, 3]
+            if np.linalg.det(s) < 0:  # a mirrored placement: the part itself, turned, if that is the same
+                key = (node.part, tuple(np.round(s, 9).reshape(-1).tolist()))
+                if key not in unmirrored:
+                    unmirrored[key] = _unmirrored(asset_set.parts[node.part], s, tolerance)
+                if unmirrored[key] is not None:
+                    s, turn = unmirrored[key]
+                    rigid = rigid @ turn
             rows.append((node.part, rigid, _scale_index(scales.setdefault(node.part, []), s)))
         placed.append(rows)
     names_taken = set(asset_set.parts)

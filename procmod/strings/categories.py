@@ -8,7 +8,8 @@ tagger learns (:func:`shape_labelings`).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import math
+from dataclasses import asdict, dataclass, fields
 
 import networkx as nx
 import numpy as np
@@ -235,14 +236,87 @@ class EdgeCategories:
 
     @staticmethod
     def from_json(data) -> "EdgeCategories":
-        centres = {tuple(k.split("|")): np.asarray(v) for k, v in data["centres"].items()}
-        examples = {int(k): [np.asarray(m) for m in v] for k, v in data["examples"].items()}
+        """The inverse of :meth:`to_json`. Content of the wrong shape (a file cut short or
+        edited by hand) is a ValueError saying what is wrong, never categories that fail later."""
+        if not isinstance(data, dict):
+            raise ValueError(f"edge categories must be a JSON object, got {type(data).__name__}")
+        missing = [k for k in ("names", "centres", "examples", "length", "params") if k not in data]
+        if missing:
+            raise ValueError(f"edge categories lack {', '.join(repr(k) for k in missing)}")
+        names = data["names"]
+        if not isinstance(names, list) or not names or names[0] is not None or not all(
+                isinstance(n, list) and len(n) == 3 and all(isinstance(x, str) for x in n) for n in names[1:]):
+            raise ValueError(f"edge categories' names must be a list of null then [type, type, key] triples, got "
+                             f"{names!r:.60}")
+        pairs = {(a, b) for a, b, _ in names[1:]}
+        centres = {_type_pair(k, "centres"): _finite(v, "centres", (None, 12))
+                   for k, v in _object(data, "centres").items()}
+        if not pairs <= set(centres):
+            raise ValueError(f"edge categories have no centres for the type pair(s) "
+                             f"{', '.join('|'.join(p) for p in sorted(pairs - set(centres)))}")
+        examples = {}
+        for k, v in _object(data, "examples").items():
+            if not (k.isdigit() and 1 <= int(k) < len(names)) or not isinstance(v, list):
+                raise ValueError(f"edge categories' examples must map a category number (1 to {len(names) - 1}) to "
+                                 f"a list of examples, got {k!r:.20}: {v!r:.40}")
+            # each a stack of B's pose in A's frame, A's in B's and (since symmetries) A's turn
+            examples[int(k)] = [_finite(m, f"examples[{k}]", (None, 4, 4)) for m in v]
+            if any(len(m) < 2 for m in examples[int(k)]):
+                raise ValueError(f"edge categories' examples[{k}] must each stack at least two 4x4 poses")
+        length = data["length"]
+        if isinstance(length, bool) or not isinstance(length, (int, float)) or not (math.isfinite(length)
+                                                                                     and length > 0):
+            raise ValueError(f"edge categories' length must be a positive number, got {length!r:.40}")
+        params = data["params"]
+        known = {f.name for f in fields(CategoryParams)}
+        if not isinstance(params, dict) or not set(params) <= known or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in params.values()):
+            raise ValueError(f"edge categories' params must be an object of numbers ({', '.join(sorted(known))}), "
+                             f"got {params!r:.60}")
         clearance = data.get("clearance")  # absent in categories fitted before it was kept
         if clearance is not None:
-            clearance = {tuple(k.split("|")): float(d) for k, d in clearance.items()}
+            clearance = {_type_pair(k, "clearance"): _number(d, "clearance") for k, d in
+                         _object(data, "clearance").items()}
         symmetries = data.get("symmetries")  # absent in categories fitted before they were estimated
-        return EdgeCategories(data["names"], centres, examples, data["length"], CategoryParams(**data["params"]),
+        if symmetries is not None:
+            if not isinstance(symmetries, list) or not symmetries:
+                raise ValueError(f"edge categories' symmetries must be a list of 4x4 matrices, got {symmetries!r:.40}")
+            symmetries = [_finite(m, "symmetries", (4, 4)) for m in symmetries]
+        return EdgeCategories(names, centres, examples, float(length), CategoryParams(**params),
                               clearance, symmetries)
+
+
+def _object(data: dict, key: str) -> dict:
+    value = data[key]
+    if not isinstance(value, dict):
+        raise ValueError(f"edge categories' {key} must be a JSON object, got {value!r:.40}")
+    return value
+
+
+def _type_pair(key: str, where: str) -> tuple:
+    pair = tuple(key.split("|"))
+    if len(pair) != 2 or not all(pair):
+        raise ValueError(f"edge categories' {where} must be keyed by type pairs 'A|B', got {key!r:.40}")
+    return pair
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"edge categories' {where} must hold finite numbers, got {value!r:.40}")
+    return float(value)
+
+
+def _finite(value, where: str, shape: tuple) -> np.ndarray:
+    """``value`` as a float array of ``shape`` (None: any length), every entry finite."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.ndim != len(shape) or any(w is not None and n != w for n, w in zip(array.shape, shape)) \
+            or not np.isfinite(array).all():
+        want = "x".join("n" if w is None else str(w) for w in shape)
+        raise ValueError(f"edge categories' {where} must hold {want} arrays of finite numbers, got {value!r:.40}")
+    return array
 
 
 def part_clearances(shape_set: ShapeSet, shapes, graphs) -> dict[tuple[str, str], float]:

@@ -160,12 +160,13 @@ def _graph(args) -> None:
     from .contacts import loose_parts, shape_graph
     from .assets import read_shape_inputs
     from .grammar import Grammar, ring_rule_note
+    from ..core.paths import output_path
     from .shapes import write_graph
 
     shape_set = read_shape_inputs(args.shapes)
     if args.tolerance is not None and not (math.isfinite(args.tolerance) and args.tolerance >= 0):
         raise InvalidArgumentError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
-    out = Path(args.out)
+    out = output_path(args.out)
     folder = RunFolder(out, GRAPHS_FOLDER, args.overwrite, inputs=args.shapes)
     graphs = [shape_graph(shape_set, s, args.tolerance) for s in shape_set.shapes]
     with folder.writing() as tmp:
@@ -249,6 +250,7 @@ def _augment(args) -> None:
     from .pipeline import write_collection
     from .assets import read_shape_inputs
     from .sampling import AugmentParams, augment
+    from ..core.paths import output_path
 
     shape_set = read_shape_inputs(args.shapes)
     if args.count < 1 or args.parallel < 1 or args.rounds < 1:
@@ -264,7 +266,8 @@ def _augment(args) -> None:
     if args.scheduler is not None:
         check_scheduler(args.scheduler)
     _seed(args.seed)
-    folder = RunFolder(args.out, COLLECTION, args.overwrite, inputs=args.shapes)
+    out = output_path(args.out)
+    folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
     from .contacts import loose_parts, shape_graph
@@ -277,7 +280,6 @@ def _augment(args) -> None:
                                        "shape: move the parts to touch")
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
-    out = Path(args.out)
     bar = progress_bar(total=args.count, unit=" shapes")
     bar.update(len(shape_set.shapes))
 
@@ -307,6 +309,7 @@ def _train(args) -> None:
 
     from .tagger import TaggerConfig
     from .pipeline import train_model
+    from ..core.paths import output_path
     from .vae import VAEConfig
 
     if not 0 <= args.held_out < 1:
@@ -337,7 +340,8 @@ def _train(args) -> None:
         raise InvalidArgumentError("--strings-per-shape and --tagger-strings-per-shape must be positive integers")
     _at_most(args.strings_per_shape, "--strings-per-shape", MAX_STRINGS_PER_SHAPE)
     _at_most(args.tagger_strings_per_shape, "--tagger-strings-per-shape", MAX_STRINGS_PER_SHAPE)
-    meta = train_model(args.collection, args.out, vae, tagger, args.strings_per_shape, args.held_out,
+    out = output_path(args.out)
+    meta = train_model(args.collection, out, vae, tagger, args.strings_per_shape, args.held_out,
                        _seed(args.seed), progress, tagger_strings_per_shape=args.tagger_strings_per_shape,
                        device=args.device, overwrite=args.overwrite)
     for bar in bars.values():
@@ -345,7 +349,7 @@ def _train(args) -> None:
     acc = meta.get("tagger_held_out_accuracy")
     print(f"trained on {meta['training_strings']} strings of {meta['train_shapes']} shapes; "
           f"{meta['categories']} edge categories; tagger accuracy on held-out strings: "
-          f"{'n/a' if acc is None else f'{100 * acc:.1f}%'}; model in {args.out}/")
+          f"{'n/a' if acc is None else f'{100 * acc:.1f}%'}; model in {out}/")
 
 
 def _sample(args) -> None:
@@ -354,6 +358,7 @@ def _sample(args) -> None:
     from .latent import GraphIndex, interpolate, latent_path, perturb, sample_path
     from .pipeline import TrainedModel
     from .render import write_shape_mesh, write_shape_png, write_sheet
+    from ..core.paths import output_path
     from .shapes import graph_to_dict
 
     from ..core.limits import check_memory
@@ -363,11 +368,11 @@ def _sample(args) -> None:
         raise InvalidArgumentError(f"-n must be a positive number of samples, got {args.n}")
     model = TrainedModel(args.model)
     rng = np.random.default_rng(_seed(args.seed))
-    folder = RunFolder(args.out, STRING_SAMPLES, args.overwrite, inputs=[args.model])
+    out = output_path(args.out)
+    folder = RunFolder(out, STRING_SAMPLES, args.overwrite, inputs=[args.model])
     # the latent points and their decoded strings are held together: a lower bound per point
     check_memory(f"-n {args.n:,} latent points", 8.0 * args.n * (model.vae.net.config.latent + 64),
                  "ask for fewer")
-    out = Path(args.out)
     train = model.training_strings
     vae = model.vae
     if args.mode == "prior":
@@ -427,18 +432,22 @@ def _sample(args) -> None:
 
 
 def _instantiate(args) -> None:
+    from ..core.runfolder import check_output_file
     from .pipeline import InstantiationError, TrainedModel
     from .render import write_shape_mesh
+    from ..core.paths import output_path
 
-    out = Path(args.out)
+    out = output_path(args.out)
     if out.suffix.lower() not in (".glb", ".obj"):
         raise InvalidArgumentError(f"--out must end in .glb or .obj, got {out.name!r}")
     if args.votes < 1:
         raise InvalidArgumentError(f"--votes must be a positive integer, got {args.votes}")
     _at_most(args.votes, "--votes", MAX_VOTES)
-    from ..core.runfolder import check_output_file
-    check_output_file(out, make_parent=True)
+    # --out may not be the model folder, a file in it (its part meshes) or a file its files
+    # name: checked now, and again once the model is read (the files it names) and before writing
+    check_output_file(out, make_parent=True, inputs=[args.model])
     model = TrainedModel(args.model)
+    check_output_file(out, make_parent=True, inputs=[args.model])
     result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes,
                                soft_vote=not args.majority_vote)
     if not result.success:
@@ -446,6 +455,7 @@ def _instantiate(args) -> None:
                 "shapes never show); sample another string" if "every candidate pose tried" in result.reason
                 else "try another --seed")
         raise InstantiationError(f"could not build {args.string!r}: {result.reason}; {hint}")
+    check_output_file(out, make_parent=True, inputs=[args.model])
     out.parent.mkdir(parents=True, exist_ok=True)
     write_shape_mesh(model.shape_set, result.shape, out)
     print(f"wrote {out} ({len(result.shape)} parts, {result.fallbacks} Monte Carlo fallbacks)")

@@ -195,7 +195,14 @@ class Grammar:
 
     @staticmethod
     def from_json(data) -> "Grammar":
-        """The inverse of :meth:`to_json` (grammars saved before the ring rule have none)."""
+        """The inverse of :meth:`to_json` (grammars saved before the ring rule have none).
+        Content of another shape (an edited model file) is a ValueError saying what is wrong."""
+        if not isinstance(data, dict):
+            raise ValueError(f"a grammar must be a JSON object of node types, got {type(data).__name__}")
+        for t, keys in data.items():
+            if t != RING_MULTIPLE_KEY and (not isinstance(keys, list) or not all(isinstance(k, str) for k in keys)):
+                raise ValueError(f"the grammar's rule for {t!r:.20} must be a list of neighbour keys (strings), got "
+                                 f"{keys!r:.40}")
         rules = {t: frozenset(keys) for t, keys in data.items() if t != RING_MULTIPLE_KEY}
         multiple = data.get(RING_MULTIPLE_KEY, 1)
         if isinstance(multiple, bool) or not isinstance(multiple, int) or not 1 <= multiple <= 1_000_000:

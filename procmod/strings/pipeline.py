@@ -29,8 +29,8 @@ import networkx as nx
 import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError, argument, spelled
-from ..core.io import read_versioned_json, write_text_atomic
-from ..core.paths import is_dir_quietly
+from ..core.io import read_json, read_versioned_json, write_text_atomic
+from ..core.paths import is_dir_quietly, output_path
 from ..core.runfolder import STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
@@ -116,7 +116,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     vae_config.check()
     tagger_config.check()
     shape_set = read_collection(collection)
-    out = Path(out)
+    out = output_path(out)  # '..' resolved: no stray folders made on the way to it
     folder = RunFolder(out, STRINGS_MODEL, overwrite, inputs=[collection])
     # what the collection's shapes can refuse (a loose part) is found before the folder is made
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
@@ -130,7 +130,13 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
     fresh = not is_dir_quietly(out) or not any(out.iterdir())
     folder.prepare_in_place(keep=True)
-    if not (out / "collection.json").is_file():
+    if (out / "collection.json").is_file():  # a resume: what it holds is read by every later command
+        try:
+            read_shapes(out / "collection.json")
+        except ProcmodError as exc:  # bad JSON, a part mesh missing or damaged (it marks the folder: kept)
+            raise ModelFileError(f"{exc}; restore it, or pass {argument('overwrite=True')} to train the model again "
+                                 "from the start") from None
+    else:
         try:
             write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
         except BaseException:
@@ -146,7 +152,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     if len(vae_history(out)) < vae_config.epochs:
         return {}
     cats_path = out / "categories.json"
-    categories = EdgeCategories.from_json(json.loads(cats_path.read_text())) if cats_path.is_file() else None
+    categories = read_categories(cats_path) if cats_path.is_file() else None
     upgrade = categories is not None and categories.clearance is None
     categories, examples, trng = tagger_training_set(shape_set, graphs, train_idx, tagger_strings_per_shape, seed,
                                                      categories)
@@ -172,6 +178,24 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     write_text_atomic(out / "model.json", json.dumps(meta, indent=1) + "\n")
     write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
     return meta
+
+
+def _rebuilt() -> str:
+    """What to do with a damaged model file that training writes again from the
+    collection when it is missing."""
+    return (f"delete it (training writes it again from the collection) or pass {argument('overwrite=True')} to "
+            "train the model again from the start")
+
+
+def read_categories(path: Path) -> EdgeCategories:
+    """The edge categories of a model folder's ``categories.json``; a file that does not
+    read, or holds content of the wrong shape, is one :class:`ModelFileError` line naming it."""
+    try:
+        data = read_json(path, ModelFileError, "edge categories file")
+    except ModelFileError as exc:
+        raise ModelFileError(f"{exc}; {_rebuilt()}") from None
+    with reading_model_file(str(path), advice=f"; {_rebuilt()}"):
+        return EdgeCategories.from_json(data)
 
 
 def _held_out_labels(tagger: TaggerModel, held: list, shape_set: ShapeSet, report) -> list:

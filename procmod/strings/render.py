@@ -1,11 +1,21 @@
-"""Pictures and meshes of shapes: shaded PNG previews, contact sheets, GLB/OBJ export."""
+"""Pictures and meshes of shapes: shaded PNG previews, contact sheets, GLB/OBJ export.
+
+Shapes are z-up (procmod strings' frame). A GLB is written in glTF's own frame, y-up (the
+shape turned -90 degrees about x, the inverse of the turn a glTF input gets as it is read:
+:data:`~procmod.geometry.assets.Y_UP_TO_Z_UP`), so a y-up scene read in comes back out
+standing as it stood, and as procmod's other GLB writers (``infer``, ``learn``) write them.
+An OBJ is written in the shapes' own frame, z-up: the frame of a ``procmod-shapes/1``
+file's transforms."""
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
+import numpy as np
 from PIL import Image
 
+from ..geometry.assets import Y_UP_TO_Z_UP
 from ..geometry.export import colour_of, contact_sheet, save_image_atomic, shaded_preview
 from ..geometry.mesh_export import export_mesh
 from .shapes import Shape, ShapeSet
@@ -36,8 +46,14 @@ def write_shape_png(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike, 
     save_image_atomic(shape_image(shape_set, shape, size), path)
 
 
+Z_UP_TO_Y_UP = Y_UP_TO_Z_UP.T  # the turn a shape gets as it is written to GLB
+
+
 def write_shape_mesh(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike) -> None:
-    """Write a shape as ``.glb`` or ``.obj`` (by suffix), one colour per part name."""
+    """Write a shape as ``.glb`` (y-up, glTF's frame) or ``.obj`` (z-up, the shapes' own
+    frame), by suffix, one colour per part name (see the module docstring)."""
+    if Path(path).suffix.lower() == ".glb":
+        shape = Shape.of(list(shape.parts), [Z_UP_TO_Y_UP @ np.asarray(t, dtype=np.float64) for t in shape.transforms])
     export_mesh(shape_parts(shape_set, shape), path, colours_for(shape_set))
 
 

@@ -29,7 +29,7 @@ from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement
 from .shapes import ShapeSet, first_poses
 from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, reading_model_file, save_weights,
-                          torch_threads, training_device)
+                          torch_threads, training_device, training_state)
 from .vae import Vocab, _characters, check_sizes
 
 
@@ -496,8 +496,9 @@ class TaggerModel:
             # taggers saved before structured decoding existed have no stars (rings are still checked)
             stars = [(t, tuple(ks)) for t, ks in meta["stars"]] if "stars" in meta else None
             model = TaggerModel(net, vocab, cats, stars)
+            state = training_state(meta.get("train"), f"{where}: train")
         if with_optimizer:
-            return model, meta["train"], payload.get("optimizer")
+            return model, state, payload.get("optimizer")
         return model
 
 

@@ -79,6 +79,26 @@ def config_from_json(cls, data, where: str):
     return config
 
 
+def training_state(value, where: str) -> dict:
+    """A checkpoint's training state from its model file (``{"epoch", "history", "data"}``:
+    epochs done, one row per epoch, the training data's fingerprint or None), checked, so
+    that an edited file is one line here rather than a traceback where training resumes."""
+    if not isinstance(value, dict):
+        raise ModelFileError(f"{where} must be an object with the epochs trained, got {value!r:.40}")
+    epoch, history, data = value.get("epoch"), value.get("history"), value.get("data")
+    if isinstance(epoch, bool) or not isinstance(epoch, int) or epoch < 0:
+        raise ModelFileError(f"{where}.epoch must be a whole number of epochs >= 0, got {epoch!r:.40}")
+    if not isinstance(history, list) or not all(isinstance(row, dict) for row in history):
+        raise ModelFileError(f"{where}.history must be a list of one object per epoch, got {history!r:.40}")
+    if data is not None and not isinstance(data, str):
+        raise ModelFileError(f"{where}.data must be the training data's fingerprint (a string), got {data!r:.40}")
+    unknown = sorted(set(value) - {"epoch", "history", "data"})
+    if unknown:
+        raise ModelFileError(f"{where} has a field {unknown[0]!r:.40} that procmod does not know; it was not written "
+                             "by this version of 'procmod strings train'")
+    return value
+
+
 def check_finite_weights(net, where: str) -> None:
     """Refuse weights that are NaN or infinite (a run that diverged; a damaged file)."""
     for name, value in net.state_dict().items():

@@ -38,7 +38,7 @@ from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
 from .grammar import Grammar
 from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, reading_model_file, save_weights,
-                          torch_threads, training_device)
+                          torch_threads, training_device, training_state)
 
 PAD, SOS, EOS = 0, 1, 2
 NODE_BUDGET = 1.25  # constrained decoding stops adding letters at 1.25 x the largest training graph (nodes)
@@ -349,7 +349,8 @@ class StringModel:
                                           or max_nodes < 1):
                 raise ModelFileError(f"{where}: max_nodes must be a positive whole number, got {max_nodes!r:.40}")
             model = StringModel(net, vocab, Grammar.from_json(meta["grammar"]), max_nodes)
-            state = TrainState(**meta["train"]) if meta.get("train") else TrainState()
+            state = TrainState(**training_state(meta["train"], f"{where}: train")) if meta.get("train") \
+                else TrainState()
         if with_optimizer:
             return model, state, payload.get("optimizer")
         return model
