@@ -23,7 +23,7 @@ import numpy as np
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
 from .core.errors import UnknownModelError, spelled
-from .core.paths import is_dir_quietly
+from .core.paths import is_dir_quietly, output_path
 from .models import MODELS, model_from_spec
 
 
@@ -199,7 +199,7 @@ def _cmd_sample(args) -> None:
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
     size = check_size(args.size)
-    out = Path(args.out)
+    out = output_path(args.out)
     inputs = _model_inputs(args.model)
 
     def sample(i: int):
@@ -250,7 +250,7 @@ def _cmd_render(args) -> None:
     from .render import check_format, check_size, output_formats, write_derivation
 
     check_format(args.out)
-    check_output_file(args.out, inputs=[args.derivation])
+    out = check_output_file(args.out, inputs=[args.derivation])
     size = check_size(args.size)
     try:
         derivation = load_derivation(args.derivation, _model if args.model is None else lambda name: _model(args.model))
@@ -259,8 +259,8 @@ def _cmd_render(args) -> None:
             raise
         raise UnknownModelError(f"{exc}; for a model of your own, give it: --model FILE.py:NAME") from None
     check_format(args.out, output_formats(derivation))
-    write_derivation(derivation, args.out, size)
-    print(f"wrote {args.out}")
+    write_derivation(derivation, out, size)
+    print(f"wrote {out}")
 
 
 _POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "particles",

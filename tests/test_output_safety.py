@@ -211,3 +211,15 @@ def test_render_never_writes_over_its_input_and_a_guide_never_over_a_users_json(
     code, _, err = _run(capsys, "guide", "train", "vines", "--traces", tmp_path / "s", "--iterations", 1,
                         "--out", tmp_path / "mytarget")
     assert code == 2 and "which is not part of a guide" in err and mine.read_text() == '{"format": "procmod-volume/1"}'
+
+
+def test_dot_dot_in_out_makes_no_folders_outside_it(tmp_path, capsys, monkeypatch):
+    """--out a/b/../../R wrote R and left empty folders a/b beside it: the parents were
+    made on the path as given, before the system resolved its '..'."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["sample", "chain", "-n", "1", "--out", "a/b/../../S"]) == 0
+    assert main(["render", "S/sample_000.json", "--out", "c/d/../../r.png"]) == 0
+    assert main(["sample", "chain", "-n", "1", "--out", "e/f/../../S", "--overwrite"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["S", "r.png"]
+    folder = RunFolder(tmp_path / "g" / ".." / "T", LEARN_RUN)
+    assert folder.path == tmp_path / "T"

@@ -195,6 +195,22 @@ __all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_pla
            "named_files_read"]
 
 
+def output_path(path: str | os.PathLike) -> Path:
+    """An output path (``out``) with its ``..`` components resolved as the system resolves
+    them (symbolic links before a ``..`` followed, missing folders dropped with their
+    ``..``), relative when it was given relative: ``r1/r2/../../R`` is ``R``. The folders
+    made for ``R`` are then ``R``'s own, never a stray ``r1/r2`` left outside it; a path
+    without ``..`` is returned as it is."""
+    path = Path(path)
+    if ".." not in path.parts:
+        return path
+    last = len(path.parts) - 1 - path.parts[::-1].index("..")
+    head = os.path.realpath(Path(*path.parts[:last + 1]))
+    if not path.is_absolute():
+        head = os.path.relpath(head, os.getcwd())
+    return Path(head, *path.parts[last + 1:])
+
+
 def is_dir_quietly(path: Path) -> bool:
     """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
     try:

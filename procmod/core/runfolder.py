@@ -46,7 +46,7 @@ from typing import Callable, Iterator
 from urllib.parse import unquote
 
 from .errors import InvalidArgumentError, argument, cut_text
-from .paths import named_files_read
+from .paths import named_files_read, output_path
 
 
 class OutputLocationError(InvalidArgumentError):
@@ -147,9 +147,10 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
     one of the command's ``inputs`` or a file an input names, nor an existing file inside
     an input folder (a new file there is fine), and its folder must exist
     (or, with ``make_parent``, be creatable: the command makes it when it writes) and be
-    writable. Checks only, creates nothing; returns the path. ``option`` is the API
+    writable. Checks only, creates nothing; returns the path, its ``..`` resolved
+    (:func:`~procmod.core.paths.output_path`). ``option`` is the API
     argument the path was given as, for messages."""
-    path = Path(path)
+    path = output_path(path)  # the caller writes where this returns (see output_path)
     shown = argument(option)
     try:
         is_dir = path.is_dir()
@@ -208,7 +209,7 @@ class RunFolder:
 
     def __init__(self, path: str | os.PathLike, kind: RunKind, overwrite: bool = False, inputs=(),
                  option: str = "out"):
-        self.path = Path(path)
+        self.path = output_path(path)  # "a/b/../../R" is R: no folders a/b made on the way
         self.kind = kind
         self.option = option = argument(option)
         shown = cut_text(str(self.path))

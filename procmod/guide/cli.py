@@ -108,8 +108,10 @@ def _cmd_train(args) -> None:
 
     model = model_from_spec(args.model)
     settings = FeatureSettings.condition(args.features)
+    from ..core.paths import output_path
     from ..core.runfolder import check_output_file
     from .guide import guide_paths
+    args.out = str(output_path(args.out))  # "a/b/../../G": no folders a/b made on the way
     if str(args.out).endswith(("/", "\\")) or Path(args.out).is_dir():
         from ..core.runfolder import OutputLocationError
         raise OutputLocationError(f"--out {args.out} is a folder; a guide is files OUT.pt, OUT.npz and OUT.json: "
