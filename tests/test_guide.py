@@ -442,6 +442,8 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
          "would replace " + str(tmp_path / "data.npz") + ", which is not part of a guide"),
         (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path) + "/"],
          "is a folder; a guide is files"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "new") + "/"],
+         "is a folder; a guide is files"),  # a folder name, not yet made
     ]:
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()

@@ -621,6 +621,11 @@ def test_samples_name_their_program_relative_to_themselves(saved, tmp_path, caps
     data["model"] = str((moved / "L" / "program.json").resolve())
     (elsewhere / "old.json").write_text(json.dumps(data))
     assert main(["render", str(elsewhere / "old.json"), "--out", str(elsewhere / "old.obj")]) == 0
+    # written through a symbolic link to its folder: the path climbs the real tree
+    (tmp_path / "real" / "deep").mkdir(parents=True)
+    (tmp_path / "link").symlink_to(tmp_path / "real" / "deep")
+    assert main(["sample", str(moved / "L"), "-n", "1", "--out", str(tmp_path / "link" / "R")]) == 0
+    assert main(["render", str(tmp_path / "link" / "R" / "sample_000.json"), "--out", str(elsewhere / "l.obj")]) == 0
 
 
 def test_finite_tensors_whose_transforms_overflow_are_one_line(saved, tmp_path):

@@ -95,3 +95,15 @@ def test_partial_derivations_cannot_be_saved(tmp_path):
     with pytest.raises(DerivationFormatError, match="complete"):
         save_derivation(state, tmp_path / "p.json")
     assert not (tmp_path / "p.json").exists()
+
+
+def test_a_model_of_ones_own_named_like_a_file_reaches_its_resolver_unchanged(tmp_path):
+    """Only a learned program's program.json is named relative to the derivation file; a
+    model of one's own called "chain.json" was looked up as a path beside the file."""
+    from dataclasses import replace
+    model = replace(get_model("chain"), name="chain.json")
+    d = run_forward(model, np.random.default_rng(2))
+    save_derivation(d, tmp_path / "d.json")
+    asked = []
+    loaded = load_derivation(tmp_path / "d.json", lambda name: asked.append(name) or model)
+    assert asked == ["chain.json"] and loaded.geometry() == d.geometry()

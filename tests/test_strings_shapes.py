@@ -60,6 +60,9 @@ def test_graph_and_shapes_files_are_given_as_paths_and_written_where_they_can_be
         write_graph(g, tmp_path / "missing" / "g.json")
     write_graph(g, tmp_path / "g.json")
     assert sorted(read_graph(tmp_path / "g.json").edges) == [(0, 1)]
+    # written where check_output_file resolved it ("missing/.." is the folder itself)
+    write_graph(g, tmp_path / "missing" / ".." / "h.json")
+    assert sorted(read_graph(tmp_path / "h.json").edges) == [(0, 1)] and not (tmp_path / "missing").exists()
 
 
 def test_rotated_boxes_separating_axis():

@@ -132,7 +132,8 @@ def _program_reference(name: str, folder: Path) -> str:
     if not (_names_program(name) and os.path.isabs(name)):
         return name
     try:
-        return Path(os.path.relpath(name, os.path.abspath(folder))).as_posix()
+        # from the folder's real path: the program's is resolved, and '..' climbs the real tree
+        return Path(os.path.relpath(name, os.path.realpath(folder))).as_posix()
     except ValueError:  # on another drive (Windows): only the absolute path reaches it
         return name
 
@@ -156,8 +157,9 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         if not isinstance(data.get(key), kind):
             raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
     name = data["model"]
-    if folder is not None and _names_program(name) and not os.path.isabs(name):
-        name = os.path.join(folder, name)
+    if folder is not None and _names_program(name) and not os.path.isabs(name) \
+            and os.path.isfile(os.path.join(folder, name)):  # else a model's own name: as it is
+        name = os.path.realpath(os.path.join(folder, name))  # '..' climbs the real tree, as it was written
     try:
         model = resolve_model(name)
     except ProcmodError as exc:  # an unknown model: say which file names it (same kind of error)

@@ -111,11 +111,11 @@ def _cmd_train(args) -> None:
     from ..core.paths import output_path
     from ..core.runfolder import check_output_file
     from .guide import guide_paths
-    args.out = str(output_path(args.out))  # "a/b/../../G": no folders a/b made on the way
     if str(args.out).endswith(("/", "\\")) or Path(args.out).is_dir():
         from ..core.runfolder import OutputLocationError
         raise OutputLocationError(f"--out {args.out} is a folder; a guide is files OUT.pt, OUT.npz and OUT.json: "
                                   f"give a name such as {Path(args.out) / 'guide'}")
+    args.out = str(output_path(args.out))  # "a/b/../../G": no folders a/b made on the way
     for path in guide_paths(args.out, for_writing=True):  # checked now, written after the training
         check_output_file(path, make_parent=True, inputs=[args.traces])
         _check_replaces_a_guide(path)

@@ -193,8 +193,7 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> N
     import shutil
 
     _check_path(path, "shapes file")
-    check_output_file(path, "path")
-    path = Path(path)
+    path = check_output_file(path, "path")  # its '..' resolved: written there
     if shape_set.base_dir is None:  # meshes read from asset files: written out as they are held
         for shape in shape_set.library.values():
             if shape.kind == "mesh":
@@ -267,7 +266,7 @@ def read_graph(path: str | os.PathLike) -> nx.Graph:
 def write_graph(g: nx.Graph, path: str | os.PathLike) -> None:
     """Write ``g`` as a ``procmod-graph/1`` file, atomically."""
     _check_path(path, "graph file")
-    check_output_file(path, "path")
+    path = check_output_file(path, "path")  # its '..' resolved: written there
     write_text_atomic(path, json.dumps(graph_to_dict(g)) + "\n")
 
 
