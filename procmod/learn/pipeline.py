@@ -22,7 +22,7 @@ from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
-from .examples import ExampleSet, example_parts, orientation_note, read_example_inputs, size_note
+from .examples import ExampleSet, duplicate_note, example_parts, orientation_note, read_example_inputs, size_note
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -120,8 +120,9 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
         Search constants (``particles`` and ``seed`` here override its fields).
     note : callable, optional
         Called with a line of advice about the examples before the search (examples of
-        very different sizes, or standing turned from the others:
-        :func:`procmod.learn.examples.size_note`, :func:`~procmod.learn.examples.orientation_note`).
+        very different sizes, standing turned from the others, or holding a part twice at
+        one place: :func:`procmod.learn.examples.size_note`,
+        :func:`~procmod.learn.examples.orientation_note`, :func:`~procmod.learn.examples.duplicate_note`).
 
     Returns
     -------
@@ -143,7 +144,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     if workers:  # refused before the folder is made
         check_worker_limit(workers)
     labels = _example_labels(inputs, len(example_set.examples))
-    for advice in (size_note(example_set, labels), orientation_note(example_set, labels)):
+    for advice in (size_note(example_set, labels), orientation_note(example_set, labels),
+                   duplicate_note(example_set, labels)):
         if advice is not None and note is not None:
             note(advice)
     folder.prepare_in_place(keep=True)
