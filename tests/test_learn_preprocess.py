@@ -151,3 +151,46 @@ def test_real_sets_preprocess():
     assert [sorted(seg[i] for i in g) for g in d.groups["segment"]] == [
         ["engine", "refl(engine)", "segment", "trans(engine)"]]
     assert any("segment" in [body[i] for i in g] and "engine" in [body[i] for i in g] for g in d.groups["body"])
+
+
+def test_slots_of_which_each_node_fills_exactly_one_are_one_group():
+    """A lamp's shade sits on its pole or on an arm, never both, never neither: two slots
+    that do not overlap. Drawn independently, half the samples had no shade or two."""
+    parts = {"pole": {"box": [0.1, 2, 0.1]}, "shade": {"box": [0.6, 0.4, 0.6]}, "arm": {"box": [1, 0.1, 0.1]}}
+    on_pole = node("shade", T(0, 1.2, 0))
+    on_arm = node("arm", T(0.55, 0.8, 0), [node("shade", T(1.1, 0.6, 0))])
+    ex = [node("pole", np.eye(4), [on_pole if k % 2 else on_arm]) for k in range(5)]
+    d = dataset(ex, parts)
+    assert d.groups["pole"] == [[0, 1]]
+    # used together or apart in some nodes: no such constraint, the overlap rule alone
+    ex[0] = node("pole", np.eye(4), [on_pole, on_arm])
+    assert sorted(map(len, dataset(ex, parts).groups["pole"])) == [1, 1]
+
+
+def test_a_learned_lamp_keeps_exactly_one_shade(tmp_path):
+    """End to end: learned from six lamps (shade on the pole or on an arm), 200 samples.
+    With the two slots drawn independently about half the samples have one shade
+    (binomial(200, 1/2): 100 +- 7); grouped, the NADE learns the constraint up to its
+    smoothing (194 of 200 in an adversarial pass's set). 160 lies 8 standard deviations
+    above the independent case."""
+    import json
+
+    from procmod.cli import main
+    parts = {"pole": {"box": [0.1, 2, 0.1]}, "shade": {"box": [0.6, 0.4, 0.6]}, "arm": {"box": [1, 0.1, 0.1]}}
+    examples = []
+    for k in range(6):
+        h = 0.05 * k  # the arm low, the pole's own shade at its top: the two never overlap
+        child = (node("shade", T(0, 1.2 + h, 0)) if k % 2 else
+                 node("arm", T(0.55, 0.4 + h, 0), [node("shade", T(1.1, 0.2 + h, 0))]))
+        examples.append(node("pole", T(0, 0, 0), [child]))
+    (tmp_path / "lamps.json").write_text(json.dumps({"format": "procmod-examples/1", "parts": parts,
+                                                     "examples": examples}))
+    assert main(["learn", str(tmp_path / "lamps.json"), "--out", str(tmp_path / "L"), "--particles", "1",
+                 "--workers", "1"]) == 0
+    assert main(["sample", str(tmp_path / "L"), "-n", "200", "--format", "examples", "--out",
+                 str(tmp_path / "s.json")]) == 0
+
+    def shades(n):
+        return (n["part"] == "shade") + sum(shades(c) for c in n["children"])
+    counts = [shades(e) for e in json.loads((tmp_path / "s.json").read_text())["examples"]]
+    assert sum(c == 1 for c in counts) >= 160, sorted(counts)

@@ -181,8 +181,22 @@ def _assign_slots(parents: list, child_type: str, samples: dict) -> tuple[int, f
     return m, f
 
 
+def _one_of(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two slots' use over a part type's (at least three) nodes says "exactly one
+    of them": every node fills one and not the other, and each is filled by some node.
+
+    Design change (seed 000 groups slots by overlap only, and leaves other dependencies
+    to the author's annotations): such slots are grouped too, so the group's NADE can
+    learn the constraint. Every lamp of a set had one shade, on its pole or on an arm
+    (two slots of the pole that do not overlap); drawn independently, 100 of 200
+    samples had none or two (an adversarial pass); grouped, 6 of 200. The authored sets
+    and the quadrupeds get the same groups as before."""
+    return bool(len(a) >= 3 and (a ^ b).all() and a.any() and b.any())
+
+
 def _slot_groups(parent_type: str, parents: list, slot_types: list, offsets: dict, parts: dict) -> list:
-    """Connected components of the slot-overlap graph (voxel test in the parent's frame)."""
+    """Connected components of the graph of slots that overlap (voxel test in the parent's
+    frame) or of which each node fills exactly one (:func:`_one_of`)."""
     n = len(slot_types)
     if n <= 1:
         return [list(range(n))]
@@ -207,8 +221,14 @@ def _slot_groups(parent_type: str, parents: list, slot_types: list, offsets: dic
             i = parent_of[i]
         return i
 
+    used = np.zeros((len(parents), n), dtype=bool)  # which slots each parent fills
+    for k, info in enumerate(parents):
+        for u in info.units:
+            used[k, offsets[u.type] + info.slot_of[id(u)]] = True
     for i, j in itertools.combinations(range(n), 2):
         if occupied[i] is not None and occupied[j] is not None and (occupied[i] & occupied[j]).any():
+            parent_of[find(i)] = find(j)
+        elif _one_of(used[:, i], used[:, j]):
             parent_of[find(i)] = find(j)
     groups = {}
     for i in range(n):
