@@ -299,3 +299,12 @@ def test_a_part_copied_in_place_gets_a_note():
     note = duplicate_note(with_copy([1e-3 * size, 0, 0]), ["k0.glb"] + [f"k{i}" for i in range(1, 10)])
     assert note.startswith(f"k0.glb has 1 more {child.part!r} at the same place as another")
     assert duplicate_note(with_copy([0.05 * size, 0, 0])) is None
+    # each pair judged by its own size: a part also placed ten times larger, listed first,
+    # made two small ones 3% apart "the same place" (and hid a doubled large one)
+    big = np.array(child.transform, dtype=np.float64)
+    big[:3, :3] *= 10.0
+    big[:3, 3] += [1000.0, 0, 0]
+    first_big = dataclasses.replace(first, children=[ExampleNode(child.part, big, []), *first.children])
+    moved = with_copy([0.03 * size, 0, 0])
+    assert duplicate_note(dataclasses.replace(moved, examples=[dataclasses.replace(
+        first_big, children=[*first_big.children, moved.examples[0].children[-1]]), *castles.examples[1:]])) is None

@@ -336,11 +336,13 @@ def duplicate_note(example_set: ExampleSet, labels: list | None = None) -> str |
             lo, hi = example_set.parts[part].local_bounds()
             corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                                 for z in (lo[2], hi[2])])
-            placed = np.array([(t @ corners.T).T[:, :3].ravel() for t in transforms])
-            # the eight corners together within the tolerance (so each one is)
-            scale = max(float(np.linalg.norm(placed[0][:3] - placed[0][-3:])), 1e-300)
-            pairs = cKDTree(placed).query_pairs(SAME_PLACE * scale)
-            copies = len({max(a, b) for a, b in pairs})
+            placed = np.array([(t @ corners.T).T[:, :3] for t in transforms])  # (nodes, 8, 3)
+            sizes = np.linalg.norm(placed[:, 0] - placed[:, -1], axis=1)  # each node's diagonal
+            # candidates by centre (a corner's distance bounds the centres'), then each pair
+            # by its own corners against the smaller of its two sizes
+            near = cKDTree(placed.mean(axis=1)).query_pairs(SAME_PLACE * float(sizes.max()))
+            copies = len({max(a, b) for a, b in near
+                          if np.linalg.norm(placed[a] - placed[b], axis=1).max() <= SAME_PLACE * min(sizes[a], sizes[b])})
             if copies:
                 found.append((i, part, copies))
     if not found:

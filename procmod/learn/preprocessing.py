@@ -181,8 +181,14 @@ def _assign_slots(parents: list, child_type: str, samples: dict) -> tuple[int, f
     return m, f
 
 
+ONE_OF_NODES = 5
+"""Nodes of a part type needed before "exactly one of two slots" is taken as a constraint
+(:func:`_one_of`): two independent slots each filled half the time look so by chance in
+1 of 8 sets of three nodes, 1 of 32 of five."""
+
+
 def _one_of(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether two slots' use over a part type's (at least three) nodes says "exactly one
+    """Whether two slots' use over a part type's (at least :data:`ONE_OF_NODES`) nodes says "exactly one
     of them": every node fills one and not the other, and each is filled by some node.
 
     Design change (seed 000 groups slots by overlap only, and leaves other dependencies
@@ -191,7 +197,7 @@ def _one_of(a: np.ndarray, b: np.ndarray) -> bool:
     (two slots of the pole that do not overlap); drawn independently, 100 of 200
     samples had none or two (an adversarial pass); grouped, 6 of 200. The authored sets
     and the quadrupeds get the same groups as before."""
-    return bool(len(a) >= 3 and (a ^ b).all() and a.any() and b.any())
+    return bool(len(a) >= ONE_OF_NODES and (a ^ b).all() and a.any() and b.any())
 
 
 def _slot_groups(parent_type: str, parents: list, slot_types: list, offsets: dict, parts: dict) -> list:
@@ -260,8 +266,11 @@ def _regroup_by_consensus(generation: list, corners: dict, tolerance: float, fli
         parts = [u.representative().node.part for u in info.units]
         if len(parts) == len(set(parts)):
             continue  # no two units of one part: nothing left to group
+        fewer = {a for a in held[info.node.part] if len(a) < len(info.units)}
+        if not fewer:
+            continue  # no node to take as evidence: not worth the grouping (scattered rocks cost 2.5x)
         loose = group_children(info.node.children, info.frame, corners, CONSENSUS_LOOSENING * tolerance, flips)
-        if len(loose) < len(info.units) and _arrangement(loose) in held[info.node.part] - {_arrangement(info.units)}:
+        if _arrangement(loose) in fewer:
             info.units = loose
 
 
