@@ -324,6 +324,8 @@ def duplicate_note(example_set: ExampleSet, labels: list | None = None) -> str |
     20 samples (an adversarial pass). None otherwise; ``labels`` name the examples."""
     from scipy.spatial import cKDTree
 
+    from .symmetry import box_corners  # (symmetry imports this module)
+
     labels = labels or [f"examples[{i}]" for i in range(len(example_set.examples))]
     found = []  # (example, part, copies)
     for i, root in enumerate(example_set.examples):
@@ -333,10 +335,8 @@ def duplicate_note(example_set: ExampleSet, labels: list | None = None) -> str |
         for part, transforms in by_part.items():
             if len(transforms) < 2:
                 continue
-            lo, hi = example_set.parts[part].local_bounds()
-            corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                                for z in (lo[2], hi[2])])
-            placed = np.array([(t @ corners.T).T[:, :3] for t in transforms])  # (nodes, 8, 3)
+            corners = box_corners(*example_set.parts[part].local_bounds())
+            placed = np.array([corners @ t[:3, :3].T + t[:3, 3] for t in transforms])  # (nodes, 8, 3)
             sizes = np.linalg.norm(placed[:, 0] - placed[:, -1], axis=1)  # each node's diagonal
             # candidates by centre (a corner's distance bounds the centres'), then each pair
             # by its own corners against the smaller of its two sizes

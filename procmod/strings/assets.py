@@ -58,12 +58,7 @@ def _scaled_part(shape: PartShape, name: str, s: np.ndarray) -> PartShape:
     if shape.kind == "box" and np.allclose(s, np.diag(np.diag(s)), atol=1e-12) and (np.diag(s) > 0).all():
         size = tuple(float(a * b) for a, b in zip(shape.size, np.diag(s)))
         return PartShape(name, "box", size=size, source=list(size))
-    triangles = shape.local_triangles().reshape(-1, 3) if shape.kind == "box" else None
-    if triangles is not None:
-        v, f = np.unique(triangles, axis=0, return_inverse=True)
-        f = f.reshape(-1, 3)
-    else:
-        v, f = np.asarray(shape.vertices, dtype=np.float64), np.asarray(shape.faces, dtype=np.int64)
+    v, f = _mesh_arrays(shape)
     v = v @ s.T
     if np.linalg.det(s) < 0:
         f = f[:, ::-1]  # keep the winding outward
