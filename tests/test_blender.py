@@ -134,9 +134,34 @@ def test_samples_become_collections_of_parts_placed_as_procmod_places_them(conte
             assert np.allclose(got.min(0), expected.min(0), atol=1e-4)
             assert np.allclose(got.max(0), expected.max(0), atol=1e-4)
         assert all(o.parent is not None for o in parts)  # under the root or their call's parent part
-    hulls = {o.data.name for c in collections for o in c.objects if o.get("procmod_tag") == "hull"
-             and len(o.data.vertices) == 8}
-    assert len(hulls) == 1  # every box hull of both samples shares one mesh
+    # alike parts (same shape and size) share one mesh; a part's size is in its mesh, not its object
+    meshes = {}
+    objects = [o for c in collections for o in c.objects if o.type == "MESH"]
+    for obj in objects:
+        size = tuple(np.round(np.ptp([tuple(v.co) for v in obj.data.vertices], axis=0), 6))
+        meshes.setdefault((obj["procmod_tag"], len(obj.data.vertices), size), set()).add(obj.data.name)
+        assert np.allclose(obj.matrix_world.to_scale(), 1.0)
+    assert all(len(names) == 1 for names in meshes.values()) and len(meshes) < 0.7 * len(objects)
+
+
+def test_a_sampled_tree_exports_to_gltf_as_it_shows(context, tmp_path):
+    """Parts held their size as their objects' scale, so a box or a branch scaled unevenly
+    skewed every turned child in its frame; Blender's glTF exporter, whose nodes hold
+    translation, rotation and scale only, wrote a sampled tree's branches ~1,500 times too
+    far out (and the add-on's Learn read its own samples that way)."""
+    import trimesh
+
+    settings = context.scene.procmod
+    settings.model, settings.seed, settings.count = "tree", 1, 1
+    assert bpy.ops.procmod.sample() == {"FINISHED"}
+    context.view_layer.update()
+    parts = [o for o in bpy.data.objects if o.type == "MESH"]
+    assert any(o.parent is not None and o.parent.type == "MESH" for o in parts)  # the calls' nesting is kept
+    world = np.concatenate([_world_vertices(o) for o in parts]) @ np.array(Matrix(((1, 0, 0), (0, 0, 1), (0, -1, 0)))).T
+    bpy.ops.object.select_all(action="SELECT")
+    bpy.ops.export_scene.gltf(filepath=str(tmp_path / "tree.glb"), export_format="GLB", use_selection=True)
+    exported = trimesh.load(tmp_path / "tree.glb", force="mesh").bounds
+    assert np.allclose(exported, [world.min(0), world.max(0)], atol=1e-3), (exported, world.min(0), world.max(0))
 
 
 def test_a_learned_model_needs_its_program(context):
@@ -344,6 +369,33 @@ def test_selected_hierarchies_become_examples_with_one_part_per_shared_mesh(cont
         o.name for o in (*roots, *roots[1].children))  # the selection is left as it was
 
 
+def test_a_part_turned_under_an_unevenly_scaled_parent_is_refused_naming_both(context, tmp_path):
+    """A leg turned 20 degrees under a seat scaled flat (Ctrl+P with the seat's scale not
+    applied) is skewed in the seat's frame: the glTF exporter wrote it elsewhere at another
+    shape (0.2 x 0.8 x 5.9 instead of 0.2 x 1.0 x 0.5) and it was learned so, silently."""
+    seat = _mesh_object("Seat", location=(0, 0, 1), scale=(1, 1, 0.1))
+    leg = _mesh_object("Leg", location=(0.8, 0.8, 0.5), scale=(0.1, 0.1, 0.5))
+    leg.rotation_euler = (math.radians(20), 0, 0)
+    context.view_layer.update()
+    _parent(leg, seat)
+    context.view_layer.update()
+    from procmod.blender import scene
+    with pytest.raises(scene.SceneError, match="'Leg' \\(mesh\\) is turned under 'Seat'.*apply the scale of 'Seat'"):
+        scene.write_examples([seat], tmp_path)
+    leg.rotation_euler = (0, 0, 0)  # upright, its axes stay square in the seat's frame: exported as it shows
+    context.view_layer.update()
+    _parent(leg, seat)
+    context.view_layer.update()
+    asset_set = _exported(context, [seat], tmp_path / "upright")
+    assert sorted(asset_set.parts) == ["Leg", "Seat"]
+
+
+def test_the_addons_skew_limit_is_the_learners():
+    from procmod.blender import scene
+    from procmod.learn import examples
+    assert scene.SHEAR_TOLERANCE == examples.SHEAR_TOLERANCE
+
+
 def test_a_chair_of_scaled_cubes_learns_a_seat_a_back_and_legs(context, tmp_path):
     """The add-on wrote its own examples file, where every cube of a chair scaled into a
     seat, a back and legs (the scale not applied, as Blender users leave it) was one part
@@ -498,6 +550,81 @@ def test_a_script_that_leaves_the_addon_registered_still_exits():
     except subprocess.TimeoutExpired:
         pytest.fail("python did not exit with the add-on registered")
     assert run.returncode == 0 and "registered" in run.stdout, run.stderr[-2000:]
+
+
+def test_two_meshes_added_with_fill_are_one_target_both_to_fill(context):
+    """Each Fill mesh was a layer of its own (1 inside, -1 outside): inside either one
+    scored 1 - 1 = 0, so the target had nothing to gain and control ran without a word."""
+    settings = context.scene.procmod
+    cubes = [_mesh_object(f"Blob{i}", location=(0, 0, z), scale=(1.5, 1.5, 1.5)) for i, z in enumerate((1.0, 5.0))]
+    _select(*cubes)
+    assert bpy.ops.procmod.add_layers(role="FILL") == {"FINISHED"}
+    settings.engine, settings.population, settings.budget, settings.voxel_size = "ga", 4, "1gens", 0.5
+    assert bpy.ops.procmod.infer() == {"FINISHED"}
+    report = Path(context.window_manager.procmod_status.report)
+    target = load_target_file(Path(str(report.parent) + ".target") / "target.json")
+    # two cubes of 3 units at voxel size 0.5: 6 x 6 x 6 voxels each, every one of them gaining 1
+    assert (target.combined == 1).sum() == 2 * 6 ** 3 and target.combined.max() == 1
+    assert target.best_attainable == 2 * 6 ** 3
+
+
+def test_a_geometry_nodes_scatter_is_the_target_the_viewport_shows(context):
+    """A mesh whose Geometry Nodes make instances (Instance on Points) has no faces of its
+    own: it was refused as "has no faces" though the viewport shows eight cubes."""
+    settings = context.scene.procmod
+    base = _mesh_object("Scatter")  # a 2-unit cube: its 8 corners get a 1-unit cube each
+    tree = bpy.data.node_groups.new("scatter", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    given, result = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    points, instance, cube = (tree.nodes.new(t) for t in ("GeometryNodeMeshToPoints", "GeometryNodeInstanceOnPoints",
+                                                          "GeometryNodeMeshCube"))
+    tree.links.new(given.outputs[0], points.inputs[0])
+    tree.links.new(points.outputs[0], instance.inputs[0])
+    tree.links.new(cube.outputs[0], instance.inputs["Instance"])
+    tree.links.new(instance.outputs[0], result.inputs[0])
+    base.modifiers.new("scatter", "NODES").node_group = tree
+    _select(base)
+    assert bpy.ops.procmod.add_layers(role="FILL") == {"FINISHED"}
+    settings.engine, settings.population, settings.budget, settings.voxel_size = "ga", 4, "1gens", 0.5
+    assert bpy.ops.procmod.infer() == {"FINISHED"}
+    report = Path(context.window_manager.procmod_status.report)
+    target = load_target_file(Path(str(report.parent) + ".target") / "target.json")
+    assert (target.combined == 1).sum() == 8 * 2 ** 3  # eight 1-unit cubes, 2 x 2 x 2 voxels each
+
+
+def test_a_runs_folder_that_cannot_be_made_is_a_one_line_report(context, tmp_path):
+    """A file in the Runs field's place was an internal error (NotADirectoryError) pointing
+    at a traceback in the job's temporary folder."""
+    settings = context.scene.procmod
+    (tmp_path / "taken").write_text("x")
+    settings.output_dir = str(tmp_path / "taken")
+    _select(_mesh_object("Slab", scale=(1.5, 1.5, 0.6)))
+    assert bpy.ops.procmod.add_layers(role="FILL") == {"FINISHED"}
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "cannot use .*taken' as the Runs folder \\(it or a folder above "
+                                                      "it is a file\\): choose another folder")
+    settings.output_dir = str(tmp_path / "taken" / "runs")
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "as the Runs folder")
+
+
+def test_a_job_ended_by_a_user_error_leaves_no_temporary_folder(context, monkeypatch, tmp_path):
+    """A job refused for the user's input kept its temporary folder (a copy of the target
+    meshes) each time: only a failure whose worker.log may explain it keeps one."""
+    from procmod.blender import jobs
+    made = []
+    job_folder = jobs.Job.__init__
+
+    def recording(self, *args, **kwargs):
+        job_folder(self, *args, **kwargs)
+        made.append(self.folder)
+
+    monkeypatch.setattr(jobs.Job, "__init__", recording)
+    settings = context.scene.procmod
+    _select(_mesh_object("Slab", scale=(1.5, 1.5, 0.6)))
+    assert bpy.ops.procmod.add_layers(role="FILL") == {"FINISHED"}
+    settings.budget = "lots"
+    _one_line_error(lambda: bpy.ops.procmod.infer(), "cannot read budget 'lots'")
+    assert made and not any(folder.exists() for folder in made)
 
 
 def test_a_relative_runs_folder_is_blenders_working_folder(context, tmp_path, monkeypatch):

@@ -82,6 +82,20 @@ def test_volume_layers_share_one_grid_and_load_as_the_cli_loads_them(tmp_path):
     assert (target.combined == -3).sum() == 24 * 8 * 4 - 128
 
 
+def test_layers_of_the_same_weights_are_one_layer_and_messages_name_their_objects(tmp_path):
+    _box_obj(tmp_path / "a.obj", [0, 0, 0], [1, 1, 1])
+    _box_obj(tmp_path / "b.obj", [0.5, 0, 0], [1.5, 1, 1])  # overlapping a by half
+    _box_obj(tmp_path / "c.obj", [3, 0, 0], [4, 1, 1])
+    spec = {"layers": [{"mesh": "a.obj", "object": "A", "w_fill": 1, "w_avoid": -1},
+                       {"mesh": "c.obj", "object": "C", "w_fill": -2, "w_avoid": 0},
+                       {"mesh": "b.obj", "object": "B", "w_fill": 1, "w_avoid": -1}], "voxel_size": 0.25}
+    target = load_target_file(worker.build_volume_target(spec, tmp_path, tmp_path / "t"))
+    # the union of a and b (1.5 x 1 x 1 units) gains 1 a voxel, overlap included; c costs 2 + 1
+    assert (target.combined == 1).sum() == 6 * 4 * 4 and (target.combined == -3).sum() == 4 * 4 * 4
+    assert worker._name_layers("layers[0].file: no inside", spec).startswith("target layers 'A', 'B'")
+    assert worker._name_layers("layers[1].file: no inside", spec).startswith("target layer 'C'")
+
+
 def test_a_cube_on_the_lattice_gets_every_voxel(tmp_path):
     # a 2-unit cube at the origin: at voxel size 0.25 its faces' diagonals pass through the
     # centres of 64 of its 512 voxels (plain ray parity lost them)

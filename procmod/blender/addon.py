@@ -124,12 +124,22 @@ def _python(context) -> str:
 
 
 def _output_dir(settings) -> Path:
+    """The panel's Runs folder, made if it is not there (a SceneError if it cannot be)."""
     text = settings.output_dir or "//procmod"
     if text.startswith("//") and not bpy.data.filepath:
-        return Path(tempfile.gettempdir()) / "procmod" / text[2:]
-    # made absolute here: a path relative to Blender's working folder ("my_runs") was taken
-    # relative to the job's temporary folder by the worker, and removed with it
-    return Path(bpy.path.abspath(text)).resolve()
+        folder = Path(tempfile.gettempdir()) / "procmod" / text[2:]
+    else:
+        # made absolute here: a path relative to Blender's working folder ("my_runs") was taken
+        # relative to the job's temporary folder by the worker, and removed with it
+        folder = Path(bpy.path.abspath(text)).resolve()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a file of that name, a folder one may not write, a read-only disk
+        reason = ("it or a folder above it is a file" if isinstance(exc, (FileExistsError, NotADirectoryError))
+                  else exc.strerror or type(exc).__name__)
+        raise SceneError(f"cannot use {str(folder)!r} as the Runs folder ({reason}): choose another folder in the "
+                         "panel's Runs field") from None
+    return folder
 
 
 def _next_folder(base: Path, stem: str) -> Path:
@@ -178,11 +188,14 @@ class Runner:
         status.running, status.fraction = False, 0.0
         if not result.get("ok"):
             status.message = result.get("error", "failed")
+            if result.get("user_error") or result.get("cancelled"):
+                self.job.cleanup()  # kept only when its worker.log may explain a failure
             operator.report({"WARNING"} if result.get("cancelled") else {"ERROR"}, status.message)
             return {"CANCELLED"}
         try:
             message = self.on_result(context, result)
         except SceneError as exc:
+            self.job.cleanup()
             operator.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self.job.cleanup()

@@ -23,6 +23,7 @@ TO_BLENDER = Matrix(((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1)))
 TO_PROCMOD = TO_BLENDER.inverted()
 CYLINDER_SEGMENTS = 24
 MESH_TYPES = {"MESH"}
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}  # what an instance may be that has a mesh
 
 
 class SceneError(Exception):
@@ -93,31 +94,57 @@ def _unit_cylinder(top: float, segments: int = CYLINDER_SEGMENTS):
 
 
 def _part_mesh(part: dict, sample: dict, cache: dict, colours: dict) -> tuple:
-    """The (shared) mesh data and the local matrix (procmod frame) of a part."""
+    """The (shared) mesh data and the matrix (procmod frame) of a part's object.
+
+    A box's size and a cylinder's radius and length are in the mesh data, not in the
+    object's scale: an object scaled non-uniformly skews every rotated child it holds, and
+    Blender's glTF exporter, whose nodes hold translation, rotation and scale only, then
+    writes the children elsewhere (a sampled tree came out a hundred times its size)."""
     kind, tag = part["kind"], part["tag"]
-    transform = _matrix16(part["transform"])
     if kind == "box":
-        key, build = ("box", tag), _unit_box
-        local = Matrix.Diagonal((*part["size"], 1.0))
+        scale = tuple(float(v) for v in part["size"])
+        key, build = ("box", tag, scale), _unit_box
     elif kind == "cylinder":
-        radius, length = part["radius"], part["length"]
+        radius, length = float(part["radius"]), float(part["length"])
         top = 1.0 if part.get("top_radius") is None else part["top_radius"] / radius
-        key, build = ("cylinder", tag, round(top, 6)), (lambda: _unit_cylinder(top))
-        local = Matrix.Diagonal((radius, radius, length, 1.0))
+        scale = (radius, radius, length)
+        key, build = ("cylinder", tag, round(top, 6), scale), (lambda: _unit_cylinder(top))
     else:
         entry = sample["meshes"][part["mesh"]]
         key = ("mesh", tag, hashlib.sha1(json.dumps(entry).encode()).hexdigest())  # alike across samples
-        build, local = (lambda: (entry["vertices"], entry["faces"])), Matrix.Identity(4)
-    mesh = cache.get(key)
+        scale, build = (1.0, 1.0, 1.0), (lambda: (entry["vertices"], entry["faces"]))
+    mesh = cache.get(key)  # alike parts (same shape and size) share their mesh
     if mesh is None:
         vertices, faces = build()
         mesh = bpy.data.meshes.new(f"procmod {kind} {tag}")
-        mesh.from_pydata([tuple(v) for v in vertices], [], [tuple(f) for f in faces])
+        mesh.from_pydata([tuple(c * s for c, s in zip(v, scale)) for v in vertices], [], [tuple(f) for f in faces])
         mesh.validate()
         mesh.update()
         mesh.materials.append(material_for(tag, colours.get(tag, (128, 128, 128))))
         cache[key] = mesh
-    return mesh, transform @ local
+    return mesh, _matrix16(part["transform"])
+
+
+# How far from square two axes of an object's matrix may be (the sine of the angle) and still
+# be written as translation, rotation and scale: procmod.learn.examples.SHEAR_TOLERANCE, the
+# learner's own limit (this module holds no library code: the add-on ships without it).
+SHEAR_TOLERANCE = 2e-3
+
+
+def _square_axes(matrix: Matrix, tolerance: float = SHEAR_TOLERANCE) -> bool:
+    """True when the axes (columns) of ``matrix``'s 3x3 part are at right angles: it is a
+    rotation (or mirror) times a scale along each axis, as a glTF node holds."""
+    columns = [matrix.col[i].to_3d() for i in range(3)]
+    return all(abs(columns[i].dot(columns[j])) <= tolerance * columns[i].length * columns[j].length
+               for i, j in ((0, 1), (0, 2), (1, 2)))
+
+
+def _unskewed(matrix: Matrix, tolerance: float = 1e-6) -> bool:
+    """True when ``matrix``'s 3x3 part is a rotation (or mirror) times one scale: any child,
+    however turned, keeps square axes in its frame."""
+    lengths = [matrix.col[i].to_3d().length for i in range(3)]
+    top = max(lengths)
+    return top > 0.0 and all(abs(n - top) <= tolerance * top for n in lengths) and _square_axes(matrix, tolerance)
 
 
 def build_sample(context, sample: dict, name: str, origin=(0.0, 0.0, 0.0), cache=None):
@@ -133,7 +160,7 @@ def build_sample(context, sample: dict, name: str, origin=(0.0, 0.0, 0.0), cache
     root["procmod_sample"] = sample.get("label", name)
     collection.objects.link(root)
     root_world = Matrix.Translation(Vector(origin))
-    objects, worlds = [], []
+    objects, worlds, holders = [], [], []
     for part in sample["parts"]:
         mesh, local = _part_mesh(part, sample, cache, sample.get("colours", {}))
         obj = bpy.data.objects.new(f"{part['tag']}", mesh)
@@ -141,13 +168,16 @@ def build_sample(context, sample: dict, name: str, origin=(0.0, 0.0, 0.0), cache
         obj["procmod_part"] = len(objects)  # the part's index in its derivation's geometry
         collection.objects.link(obj)
         world = root_world @ TO_BLENDER @ local
-        parent, parent_world = (root, root_world) if part.get("parent") is None else \
-            (objects[part["parent"]], worlds[part["parent"]])
+        # under the part of the call that made it, or that part's nearest holder whose frame is
+        # not skewed (a learned part scaled unevenly cannot hold turned children: see _part_mesh)
+        holder = None if part.get("parent") is None else holders[part["parent"]]
+        parent, parent_world = (root, root_world) if holder is None else (objects[holder], worlds[holder])
         obj.parent = parent
         # Keep-transform parenting: the inverse of the parent's world matrix goes in the
-        # parent-inverse slot, so a non-uniformly scaled parent (a box) does not shear its children.
+        # parent-inverse slot, so the object's own matrix is its world matrix.
         obj.matrix_parent_inverse = parent_world.inverted()
         obj.matrix_basis = world
+        holders.append(len(objects) if _unskewed(world) else holder)
         objects.append(obj)
         worlds.append(world)
     return collection
@@ -204,23 +234,41 @@ def mesh_triangles(mesh) -> tuple:
     return vertices, triangles
 
 
-def write_world_mesh(context, obj, path: Path) -> None:
-    """An object's evaluated mesh (modifiers applied) in procmod's world frame, as OBJ."""
-    evaluated = obj.evaluated_get(context.evaluated_depsgraph_get())
+def _world_triangles(evaluated, matrix, vertices: list, triangles: list) -> None:
+    """Append an evaluated object's mesh, placed by ``matrix`` into procmod's frame."""
     mesh = evaluated.to_mesh()
     try:
-        vertices, triangles = mesh_triangles(mesh)
-        if not triangles:
-            raise SceneError(f"the mesh of {describe(obj)} has no faces")
-        m = TO_PROCMOD @ evaluated.matrix_world
-        vertices = [tuple(m @ Vector(v)) for v in vertices]
-        extent = np.ptp(np.asarray(vertices), axis=0)
-        if extent.min() <= 1e-9 * max(extent.max(), 1e-300):
-            raise SceneError(f"target layer {describe(obj)} is flat, so it has no inside to fill or avoid: give it "
-                             "thickness (Solidify) or use another object")
-        write_obj(path, vertices, triangles)
+        local, faces = mesh_triangles(mesh)
+        offset = len(vertices)
+        m = TO_PROCMOD @ matrix
+        vertices.extend(tuple(m @ Vector(v)) for v in local)
+        triangles.extend((a + offset, b + offset, c + offset) for a, b, c in faces)
     finally:
         evaluated.to_mesh_clear()
+
+
+def write_world_mesh(context, obj, path: Path) -> None:
+    """An object's evaluated mesh (modifiers applied) in procmod's world frame, as OBJ,
+    with the instances it shows (a Geometry Nodes "Instance on Points", instancing by
+    vertices or faces): the target is what the viewport shows."""
+    depsgraph = context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    vertices, triangles = [], []
+    instanced = False
+    for inst in depsgraph.object_instances:  # an instance's object is valid during its step only
+        if inst.is_instance and inst.parent is not None and inst.parent.original == obj:
+            instanced = True
+            if inst.object.type in GEOMETRY_TYPES:
+                _world_triangles(inst.object, inst.matrix_world, vertices, triangles)
+    if not instanced or obj.show_instancer_for_viewport:
+        _world_triangles(evaluated, evaluated.matrix_world, vertices, triangles)
+    if not triangles:
+        raise SceneError(f"the mesh of {describe(obj)} has no faces")
+    extent = np.ptp(np.asarray(vertices), axis=0)
+    if extent.min() <= 1e-9 * max(extent.max(), 1e-300):
+        raise SceneError(f"target layer {describe(obj)} is flat, so it has no inside to fill or avoid: give it "
+                         "thickness (Solidify) or use another object")
+    write_obj(path, vertices, triangles)
 
 
 def camera_spec(context, camera_obj, width: int, height: int, look_distance: float | None = None) -> dict:
@@ -367,6 +415,14 @@ def write_examples(roots, folder: Path) -> tuple:
                                  "excluded from the view layer, so it cannot be exported with it: include the "
                                  "collection (its checkbox in the Outliner) or unparent the object")
         members.append(objects)
+    for objects in members:
+        for obj in objects[1:]:  # a root is written in the world frame; its descendants in their parents'
+            local = obj.parent.matrix_world.inverted_safe() @ obj.matrix_world
+            if not _square_axes(local):
+                raise SceneError(f"{describe(obj)} is turned under {describe(obj.parent)}, whose scale is uneven: "
+                                 "in its parent's frame its shape is skewed, which a glTF node cannot hold, so the "
+                                 f"example would be learned wrong; apply the scale of {obj.parent.name!r} (select "
+                                 "it, Object > Apply > Scale) or unparent the object")
     out = folder / "examples"
     out.mkdir(parents=True, exist_ok=True)
     selected, active = [o for o in layer.objects if o.select_get()], layer.objects.active

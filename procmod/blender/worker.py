@@ -198,22 +198,43 @@ def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
                                    f"(at most {MAX_VOXELS:,}); give a larger voxel size")
     out.mkdir(parents=True, exist_ok=True)
     files = []
-    for i, layer in enumerate(layers):
-        shutil.copy(job_folder / layer["mesh"], out / f"layer{i}.obj")
-        files.append({"file": f"layer{i}.obj", "w_fill": float(layer.get("w_fill", 1.0)),
-                      "w_avoid": float(layer.get("w_avoid", 0.0))})
+    for i, ((w_fill, w_avoid), group) in enumerate(_layer_groups(layers)):
+        if len(group) == 1:
+            shutil.copy(job_folder / group[0]["mesh"], out / f"layer{i}.obj")
+        else:  # one layer: the union of the meshes (winding numbers add up where they overlap)
+            meshes = [trimesh.load(job_folder / layer["mesh"], force="mesh", process=False) for layer in group]
+            trimesh.util.concatenate(meshes).export(out / f"layer{i}.obj", file_type="obj", include_normals=False,
+                                                    include_texture=False)
+        files.append({"file": f"layer{i}.obj", "w_fill": w_fill, "w_avoid": w_avoid})
     target = {"format": "procmod-volume/1", "score": "svol", "voxel_size": size, "margin": margin, "layers": files,
               "w_self": float(spec.get("w_self", 0.0))}
     write_json_atomic(out / "target.json", target)
     return out / "target.json"
 
 
+def _layer_groups(layers: list) -> list:
+    """The panel's layers grouped by their weights: ``[((w_fill, w_avoid), [layer, ...])]``
+    in the order of first use. A group is one layer of the target file, the union of its
+    meshes: seed 002's s_vol adds every layer's avoid weight outside it, so two meshes added
+    with "Fill" as two layers (1 inside, -1 outside each) cancelled each other, 1 - 1 = 0
+    inside either, and the model had nothing to fill."""
+    groups = {}
+    for layer in layers:
+        weights = (float(layer.get("w_fill", 1.0)), float(layer.get("w_avoid", 0.0)))
+        groups.setdefault(weights, []).append(layer)
+    return list(groups.items())
+
+
 def _name_layers(message: str, spec: dict) -> str:
-    """A target file's message names ``layers[i]``; say which scene object that is."""
-    names = [layer.get("object") for layer in spec.get("layers") or ()]
+    """A target file's message names ``layers[i]``; say which scene objects that is."""
+    groups = _layer_groups(spec.get("layers") or [])
     found = re.search(r"layers\[(\d+)\]", message)
-    if found and int(found.group(1)) < len(names) and names[int(found.group(1))]:
-        return f"target layer {names[int(found.group(1))]!r}: {message}"
+    if found and int(found.group(1)) < len(groups):
+        names = [layer.get("object") for layer in groups[int(found.group(1))][1]]
+        if all(names):
+            if len(names) == 1:
+                return f"target layer {names[0]!r}: {message}"
+            return f"target layers {', '.join(map(repr, names))} (one layer: their weights are the same): {message}"
     return message
 
 
@@ -415,7 +436,8 @@ def run_job(folder: str | os.PathLike) -> int:
         result = {"ok": True, **COMMANDS[job["command"]](job, folder, progress)}
         status = 0
     except ProcmodError as exc:
-        result, status = {"ok": False, "error": one_line(exc)}, 2
+        # the user's error: the one line is all there is to it (the add-on removes the job's folder)
+        result, status = {"ok": False, "error": one_line(exc), "user_error": True}, 2
     except Exception as exc:  # a bug: the one line says where the details are
         traceback.print_exc()
         result = {"ok": False, "error": f"internal error ({type(exc).__name__}: {one_line(exc, 200)}); "
