@@ -17,7 +17,8 @@ from procmod.infer.mcmc import propose, temperature_ladder
 from procmod.models import get_model
 from procmod.targets import ShapeMatch, TargetImage
 
-from toy_models import TREE
+from procmod.core import Target
+from toy_models import MIX, TREE, SumOutput, SumTarget
 
 
 def _bar_target():
@@ -95,7 +96,7 @@ def test_ga_elite_individuals_are_in_the_next_population():
 
 
 def test_all_zero_likelihood_is_reported_not_nan():
-    class Impossible:
+    class Impossible(Target):
         name = "impossible"
 
         def configure(self, model):
@@ -114,6 +115,81 @@ def test_all_zero_likelihood_is_reported_not_nan():
     assert result.log_marginal_likelihood == -math.inf
     assert result.notes and "zero likelihood" in result.notes[0]
     assert not any(math.isnan(w) for w in result.log_weights)
+
+
+class _Misbehaving(Target):
+    """SumTarget's model with a target whose log-likelihood (or score) is ``bad`` for half
+    the outputs: a user's bug."""
+
+    name = "misbehaving"
+
+    def __init__(self, bad, method="log_likelihood"):
+        self.bad, self.method = bad, method
+
+    def configure(self, model):
+        return model
+
+    def new_output(self, model):
+        return SumOutput()
+
+    def _value(self, output, method):
+        return self.bad if method == self.method and output.total > 0 else 0.0
+
+    def log_likelihood(self, output):
+        return self._value(output, "log_likelihood")
+
+    def score(self, output):
+        return self._value(output, "score")
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, None, "0.5", np.array([0.0, 1.0])])
+@pytest.mark.parametrize("method", ["log_likelihood", "score"])
+@pytest.mark.parametrize("engine", sorted(ENGINES))
+def test_a_target_value_that_is_no_real_number_is_one_line_naming_the_method(engine, method, bad):
+    """A NaN log-likelihood collapsed every SMC particle onto the outputs that gave it (log
+    Z NaN, no best, no word); None or a string ended in a TypeError of procmod's internals."""
+    kwargs = {"smc": {"particles": 20}, "sosmc": {"particles": 20}, "forward": {"particles": 20},
+              "mcmc": {"chains": 4, "budget": Budget(generations=3)},
+              "ga": {"population": 8, "budget": Budget(generations=2)}}[engine]
+    model = MIX
+    with pytest.raises(InvalidArgumentError, match=rf"the target's {method}\(\) returned .*: it must return a real "
+                                                   rf"number .*check _Misbehaving\.{method}$"):
+        ENGINES[engine](model, _Misbehaving(bad, method), seed=0, **kwargs)
+    ENGINES[engine](model, _Misbehaving(np.float32(-1.5), method), seed=0, **kwargs)  # numpy's numbers are fine
+    ENGINES[engine](model, _Misbehaving(-math.inf, method), seed=0, **kwargs)  # so is an impossible output
+
+
+@pytest.mark.parametrize("engine", sorted(ENGINES))
+def test_every_engine_refuses_a_target_that_declares_too_little_or_configures_to_nothing(engine):
+    class Undeclared:  # duck-typed: the methods, no capabilities (the GA alone refused it)
+        name = "undeclared"
+
+        def configure(self, model):
+            return model
+
+        def new_output(self, model):
+            return SumOutput()
+
+        def log_likelihood(self, output):
+            return 0.0
+
+        def score(self, output):
+            return 0.0
+
+    class ConfiguresToNothing(SumTarget):
+        def configure(self, model):
+            model.name  # a user forgot the return
+    model = MIX
+    with pytest.raises(InvalidArgumentError, match="the target \\(Undeclared\\) does not declare exact_removal"):
+        ENGINES[engine](model, Undeclared(), seed=0)
+    with pytest.raises(InvalidArgumentError, match="the target's configure\\(model\\) returned None, not a procmod Model"):
+        ENGINES[engine](model, ConfiguresToNothing(0.0, 1.0), seed=0)
+
+
+def test_counts_may_be_numpys_integers():
+    model = MIX
+    result = ENGINES["smc"](model, SumTarget(0.0, 1.0), particles=np.int64(10), seed=np.int64(0))
+    assert len(result.samples) == 10
 
 
 def test_smc_resampling_options():

@@ -82,6 +82,34 @@ def test_emits_of_one_call_are_limited():
     assert run_forward(_model(stipple), np.random.default_rng(0)).n_emits == 12_000
 
 
+def test_choices_of_one_call_are_limited():
+    """A loop of choices that never ends ran every engine, its budget unread, until memory
+    ran out (~30 MB a second)."""
+    def waiting(ctx):
+        i = 0
+        while not ctx.sample(f"stop{i}", Categorical([1.0, 0.0])):  # a coin that never comes up
+            i += 1
+        ctx.emit(Disc(0, -10, 1))
+    for run in (lambda m: run_forward(m, np.random.default_rng(0)),
+                lambda m: smc(m, target_from_spec("glyph:o"), particles=2, seed=0)):
+        with pytest.raises(ModelError, match=r"rule 'waiting' at / makes more than 50 random choices in one call.*"
+                                             r"Model\(max_call_choices=...\)"):
+            run(_model(waiting, max_call_choices=50))
+
+    def many(ctx):  # a long loop that ends: 30,000 choices, under the default 100,000
+        ctx.emit(Disc(0, -10, 1 + sum(ctx.sample(f"c{i}", Normal(0, 1e-6)) for i in range(30_000))))
+    assert len(run_forward(_model(many), np.random.default_rng(0)).choice_map().raw) == 30_000
+
+
+def test_a_resolver_that_knows_no_model_is_named(tmp_path):
+    chain = get_model("chain")
+    path = tmp_path / "d.json"
+    save_derivation(run_forward(chain, np.random.default_rng(0)), path)
+    with pytest.raises(DerivationFormatError, match=r"resolve_model\('chain'\) returned NoneType, not a procmod "
+                                                    "Model"):
+        load_derivation(path, {}.get)
+
+
 def _stale(ctx, i=0):
     ctx.emit(Disc(0, -10 + 2 * i, 1.0))
     if i < 3:

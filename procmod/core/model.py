@@ -16,7 +16,7 @@ from typing import Any, Callable, Mapping
 from .errors import InvalidArgumentError, ModelError, shown_value
 
 
-LIMIT_CEILING = 10 ** 9  # of max_calls, max_depth, max_call_emits: a guard that never trips is none
+LIMIT_CEILING = 10 ** 9  # of max_calls, max_depth, max_call_emits, max_call_choices: a guard that never trips is none
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,10 @@ class Model:
         The most emits one rule call may make (default 20,000): engines that pause at
         emits (SMC) re-run a call from its start to resume it, so a loop that never ends
         would otherwise run for hours before anything said so.
+    max_call_choices : int
+        The most random choices one rule call may make (default 100,000): a loop of
+        choices that never ends (``while not ctx.sample(...)`` with a coin that never
+        comes up) ran every engine, its budget unread, until memory ran out.
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
@@ -95,6 +99,7 @@ class Model:
     max_calls: int = 100_000
     max_depth: int = 10_000
     max_call_emits: int = 20_000
+    max_call_choices: int = 100_000
 
     def __post_init__(self):
         # a model built wrong fails here, naming the field, not at its first run
@@ -102,7 +107,7 @@ class Model:
             value = getattr(self, what)
             if not callable(value):
                 raise ModelError(f"model {self.name!r}: {what} must be a function, got {value!r:.40}")
-        for what in ("max_calls", "max_depth", "max_call_emits"):
+        for what in ("max_calls", "max_depth", "max_call_emits", "max_call_choices"):
             value = getattr(self, what)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= LIMIT_CEILING:
                 raise ModelError(f"model {self.name!r}: {what} must be a whole number from 1 to "

@@ -214,6 +214,9 @@ class Context:
                 choices[name] = old
                 return old[0]
         state = self._state
+        if len(choices) >= state.model.max_call_choices:
+            raise self._misuse(f"makes more than {state.model.max_call_choices:,} random choices in one call; does a "
+                               "loop in it ever end? (raise Model(max_call_choices=...) if it should make more)")
         policy = state.policy
         if policy is None:  # the prior, inline
             try:

@@ -164,6 +164,9 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
         model = resolve_model(name)
     except ProcmodError as exc:  # an unknown model: say which file names it (same kind of error)
         raise type(exc)(f"{source}: {exc}") from None
+    if not isinstance(model, Model):  # e.g. a dict's .get() that does not know the name
+        raise _fail(source, f"resolve_model({name!r}) returned {type(model).__name__}, not a procmod Model: give "
+                            "load_derivation a resolver that returns the model that made the file")
     stored_root = data.get("root")
     if isinstance(stored_root, str) and not _same_root(stored_root, model):
         same = "another model of the same name (give a model of your own a name of its own); " \

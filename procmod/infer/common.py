@@ -293,6 +293,37 @@ class Scored:
         return cls(ev.derivation, ev.derivation.log_prior, ev.log_likelihood, ev.score)
 
 
+def checked_value(value, target, method: str) -> float:
+    """``value``, what ``target.<method>(output)`` returned, as a float: a real number, or
+    -inf for an output that cannot be. Anything else (NaN, +inf, None, a string, an array)
+    is an InvalidArgumentError naming the target's method: a NaN weight used to collapse
+    every SMC particle onto the outputs that gave it, without a word."""
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        value = float(value)
+        if value == value and value != math.inf:
+            return value
+    shown = " ".join(repr(value).split())[:60]
+    raise InvalidArgumentError(f"the target's {method}() returned {shown}: it must return a real number (or -inf for "
+                               f"an output that cannot be); check {type(target).__name__}.{method}")
+
+
+def scored(target: Target, output) -> tuple[float, float]:
+    """``(target.log_likelihood(output), target.score(output))``, each checked by
+    :func:`checked_value`."""
+    return (checked_value(target.log_likelihood(output), target, "log_likelihood"),
+            checked_value(target.score(output), target, "score"))
+
+
+def configured_model(target: Target, model: Model) -> Model:
+    """``target.configure(model)``, refused in one line unless it is a procmod Model."""
+    configured = target.configure(model)
+    if not isinstance(configured, Model):
+        shown = " ".join(repr(configured).split())[:60]
+        raise InvalidArgumentError(f"the target's configure(model) returned {shown}, not a procmod Model: it must "
+                                   f"return the model (or a configured copy); check {type(target).__name__}.configure")
+    return configured
+
+
 def evaluate(model: Model, target: Target, job) -> Evaluation:
     """Replay ``job = (choices, seed, maybe_default)`` into the target's output and score it.
 
@@ -304,8 +335,7 @@ def evaluate(model: Model, target: Target, job) -> Evaluation:
         output.use_part_cache()
     result = replay(model, choices, LazyGenerator(seed), output=output, maybe_default=maybe_default)
     d = result.derivation
-    return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
-                      result.log_reused, result.log_fresh, result.unused)
+    return Evaluation(d, *scored(target, d.output), result.log_reused, result.log_fresh, result.unused)
 
 
 def evaluate_all(executor, model: Model, target: Target, jobs: list) -> list:
@@ -367,13 +397,14 @@ def check_target(target) -> None:
             f"target must be a procmod Target (with {', '.join(_TARGET_METHODS)}), got {type(target).__name__} "
             f"without {', '.join(lacking)}; make one with procmod.data.target_from_spec('glyph:a') or a class of "
             "procmod.targets (ShapeMatch(image), Volume, Silhouette, ...)")
+    check_declared(target, Target, "the target")  # every engine, as the GA did alone
 
 
 def check_positive(name: str, value) -> int:
     """``value`` if it is a positive integer, else an InvalidArgumentError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
         raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
-    return value
+    return int(value)  # numpy's integers too
 
 
 def log_mean_exp(values) -> float:

@@ -7,8 +7,8 @@ import numpy as np
 from ..core import Model
 from ..core.limits import relaxed_gc
 from ..core.protocols import Target
-from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, evaluate_all,
-                     log_mean_exp, new_seed)
+from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, configured_model,
+                     evaluate_all, log_mean_exp, new_seed)
 
 
 def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, budget: Budget | None = None,
@@ -22,7 +22,7 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
     """
     check_positive("particles", particles)
     check_run(model, target, seed, budget)
-    model = target.configure(model)
+    model = configured_model(target, model)
     check_population("particles", particles, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)

@@ -99,7 +99,7 @@ from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
-                     evaluate_all, new_seed)
+                     configured_model, evaluate_all, new_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
@@ -624,7 +624,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                                    f"each choice's scale), got {step_scale!r}")
     budget = budget or Budget(generations=1600)
     check_run(model, target, seed, budget)
-    unconfigured, model = model, target.configure(model)
+    unconfigured, model = model, configured_model(target, model)
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
     check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)

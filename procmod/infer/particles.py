@@ -31,6 +31,7 @@ import pickle
 import signal
 
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
+from .common import checked_value
 
 _ATOMS = (int, float, str, bytes, bool, type(None))
 
@@ -91,6 +92,8 @@ class ParticleShard:
             stepped += 1
             step(state, rng, pick)
             new = log_likelihood(state.output)
+            if type(new) is not float or new != new or new == math.inf:  # NaN, +inf, not a float
+                new = checked_value(new, target, "log_likelihood")
             old = log_lik[i]
             if new == -math.inf or old == -math.inf:
                 # zero likelihood stays zero weight (-inf - -inf would be NaN); a particle left
@@ -105,7 +108,7 @@ class ParticleShard:
                 log_ratio[i] = ratio
             if state.done:
                 finished[i] = True
-                offer(state, target.score(state.output))
+                offer(state, checked_value(target.score(state.output), target, "score"))
             else:
                 active += 1
         return log_w, finished, stepped, active
@@ -161,8 +164,8 @@ class ParticleShard:
 
     def score_sum(self) -> float:
         """Sum of the target's score over the shard's particles (for history rows)."""
-        score = self.target.score
-        return float(sum(score(s.output) for s in self.states))
+        target = self.target
+        return sum(checked_value(target.score(s.output), target, "score") for s in self.states)
 
     def packed_states(self) -> list:
         """Every particle packed with the history held here (for the coordinator)."""

@@ -27,7 +27,8 @@ from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
-from .common import Budget, Result, Tracker, check_population, check_positive, check_run, log_mean_exp
+from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, checked_value,
+                     configured_model, log_mean_exp)
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
@@ -256,7 +257,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         raise InvalidArgumentError(f"order must be 'program' or 'random', got {order!r}")
     pick = None if order == "program" else random_order
     check_run(model, target, seed, budget)
-    model = target.configure(model)
+    model = configured_model(target, model)
     template = target.new_output(model)  # every particle starts from a copy of it
     check_population("particles", particles, template)  # refuse what memory cannot hold
     proposer = None
@@ -287,7 +288,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                 states, log_w, log_z = _run_once(local, remote, particles, rng, resampling, ess_threshold,
                                                  tracker)
                 tracker.generations += 1
-                tracker.record(float(np.mean([target.score(s.output) for s in states])))
+                tracker.record(float(np.mean([checked_value(target.score(s.output), target, "score")
+                                              for s in states])))
                 if log_z == -math.inf:
                     notes.append("every particle reached zero likelihood; the log marginal-likelihood is -inf")
                 if budget is None or tracker.spent():

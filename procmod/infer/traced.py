@@ -30,7 +30,7 @@ import math
 from typing import NamedTuple
 
 from ..core.runtime import Derivation, Future, ReplayPolicy, _execute, _map_agrees, same_args, start
-from .common import Scored, output_bytes
+from .common import Scored, output_bytes, scored
 
 _MISSING = object()
 DROP = _MISSING  # an override that drops a choice: the replay samples it afresh
@@ -261,8 +261,7 @@ def replay_traced(model, target, previous: Traced | None, choices, rng, edited: 
     state.stopped = stopped
     pending.clear()
     state.policy = None
-    traced = Traced(state, state.log_prior, target.log_likelihood(output), target.score(output),
-                    nodes, marks, stride, (cum_d, cum_m, cum_k))
+    traced = Traced(state, state.log_prior, *scored(target, output), nodes, marks, stride, (cum_d, cum_m, cum_k))
     return TracedReplay(traced, ran, policy.reused, j)
 
 

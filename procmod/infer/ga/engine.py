@@ -9,7 +9,7 @@ import numpy as np
 from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
-from ..common import Budget, Result, Tracker, check_population, check_positive, check_run, new_seed
+from ..common import Budget, Result, Tracker, check_population, check_positive, check_run, configured_model, new_seed
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
@@ -58,7 +58,7 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
         raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
     budget = budget or Budget(generations=50)
     check_run(model, target, seed, budget)
-    model = target.configure(model)
+    model = configured_model(target, model)
     check_population("population", population, target.new_output(model))  # refuse what memory cannot hold
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)

@@ -23,7 +23,7 @@ import numpy as np
 from ...core import Model
 from ...core.protocols import Target, check_declared
 from ...core.runtime import replay_reusing
-from ..common import Evaluation, Scored, Tracker, evaluate_all
+from ..common import Evaluation, Scored, Tracker, evaluate_all, scored
 from .genome import Genome, Offspring
 
 
@@ -60,8 +60,7 @@ def evaluate_from(model: Model, target: Target, parent, choices, seed: int, chan
     result = replay_reusing(model, parent, choices, LazyRng(seed), parent.output.copy(),
                             maybe_default=False, changed=changed, unused=False, index=genome.index())
     d = result.derivation
-    return Evaluation(d, target.log_likelihood(d.output), target.score(d.output),
-                      result.log_reused, result.log_fresh, result.unused)
+    return Evaluation(d, *scored(target, d.output), result.log_reused, result.log_fresh, result.unused)
 
 
 def reusable(parent) -> bool:
