@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import math
 import os
 import re
@@ -22,7 +23,7 @@ import numpy as np
 
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
-from .core.errors import UnknownModelError, spelled
+from .core.errors import UnknownModelError, cut_text, spelled
 from .core.paths import is_dir_quietly, output_path
 from .models import MODELS, model_from_spec
 
@@ -472,9 +473,14 @@ def main(argv=None) -> int:
         return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
     except Exception as exc:
         # an error in a model file of the user's own (FILE.py:NAME): their code, one line
-        # naming where; anything else is procmod's bug and keeps its traceback
+        # naming where; a name too long for the file system, the user's too (every check of
+        # a path given on the command line would otherwise have to expect it); anything else
+        # is procmod's bug and keeps its traceback
         from .models.from_file import user_code_error
         line = user_code_error(exc)
+        if line is None and isinstance(exc, OSError) and exc.errno == errno.ENAMETOOLONG:
+            line = (f"a file name is too long for the file system ({cut_text(str(exc.filename), 80)}); give a "
+                    "shorter path")
         if line is None:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)

@@ -12,7 +12,7 @@ import torch
 from scipy import ndimage
 
 from procmod.cli import main
-from procmod.core import Bernoulli, Categorical, Normal, TruncatedNormal, Uniform, run_forward
+from procmod.core import Bernoulli, Categorical, InvalidArgumentError, Normal, TruncatedNormal, Uniform, run_forward
 from procmod.guide import FeatureExtractor, FeatureSettings, Guide, GuideError, new_guide_for
 from procmod.guide.features import Pyramid
 from procmod.guide.network import head_kind, base_params, encode_value, n_outputs, propose
@@ -659,3 +659,45 @@ def test_a_guide_of_non_finite_weights_is_refused_at_load(tmp_path):
     torch.save(state, tmp_path / "nan.pt")  # no .npz beside it: the .pt is read
     with pytest.raises(GuideError, match="not all finite"):
         Guide.load(tmp_path / "nan")
+
+
+@pytest.mark.parametrize("given", ["", ".", "/", ".."])
+def test_a_guide_named_by_a_folder_is_one_line(given, tmp_path, monkeypatch, capsys):
+    """`--guide "$GUIDE"` with the variable unset ended in a ValueError traceback."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(GuideError, match="is not a guide's name or path"):
+        Guide.load(given)
+    assert main(["infer", "vines", "--target", "glyph:a", "--particles", "2", "--guide", given, "--out", "r"]) == 2
+    assert "is not a guide's name or path" in capsys.readouterr().err and not (tmp_path / "r").exists()
+
+
+def test_a_name_too_long_for_the_file_system_is_one_line(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    long = "a" * 300
+    for command in (["infer", "vines", "--target", "glyph:a", "--particles", "2", "--guide", long, "--out", "r"],
+                    ["guide", "train", "vines", "--traces", long, "--out", "g"],
+                    ["guide", "traces", f"{long}.py:M", "--count", "1", "--out", "t"]):
+        assert main(command) == 2, command
+        err = capsys.readouterr().err
+        assert "too long" in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+def test_the_training_api_refuses_what_it_cannot_use_in_one_line(tmp_path):
+    model = get_model("vines")
+    generate_traces("vines", "scribble", 1, tmp_path / "tr", particles=3)
+    for kwargs, message in (({"traces": []}, "traces must be a non-empty list"),
+                            ({"traces": [{}]}, "traces must be a non-empty list"),
+                            ({"settings": "local"}, "settings must be a FeatureSettings"),
+                            ({"checkpoint_every": 0}, "checkpoint_every must be a positive integer"),
+                            ({"out": None}, "out must be the guide's path")):
+        arguments = {"model": model, "traces_dir": tmp_path / "tr", "out": tmp_path / "g", "iterations": 2, **kwargs}
+        with pytest.raises(GuideError, match=message):
+            train_guide(**arguments)
+    with pytest.raises(GuideError, match="model must be a procmod Model"):
+        train_guide(3, tmp_path / "tr", tmp_path / "g", iterations=2)
+    train_guide("vines", tmp_path / "tr", tmp_path / "g", iterations=2)  # a model's name, as the command line's
+    with pytest.raises(GuideError, match="limit must be a positive whole number"):
+        load_traces(tmp_path / "tr", limit=-1)  # it read all traces but the last
+    for seed in (-1, 1.5):
+        with pytest.raises(InvalidArgumentError, match="seed must be a whole number"):
+            generate_traces("vines", "scribble", 1, tmp_path / "other", particles=3, seed=seed)

@@ -78,3 +78,42 @@ def test_an_error_in_the_model_file_on_a_worker_process_is_one_line(tmp_path, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "broken.py, line 9, in plant: ZeroDivisionError: division by zero" in err, err
     assert not (tmp_path / "t").exists()
+
+
+def test_overwrite_never_deletes_the_folder_holding_the_users_model_file(tmp_path, monkeypatch, capsys):
+    """`guide traces proj/plants.py:PLANT --out proj --overwrite` read the model, wiped proj
+    (the model file and the user's notes with it), then failed: the file was gone."""
+    project = tmp_path / "proj"
+    project.mkdir()
+    (project / "plants.py").write_text(PLANT_FILE)
+    (project / "notes.txt").write_text("mine")
+    monkeypatch.chdir(tmp_path)
+    for command in (["guide", "traces", "proj/plants.py:PLANT", "--count", "1", "--particles", "4", "--workers", "1"],
+                    ["infer", "proj/plants.py:PLANT", "--target", "scribble:3", "--particles", "4"]):
+        capsys.readouterr()
+        assert main([*command, "--out", "proj", "--overwrite"]) == 2
+        err = capsys.readouterr().err
+        assert "holds the input" in err and "plants.py" in err and err.count("\n") == 1, err
+        assert sorted(p.name for p in project.iterdir()) == ["notes.txt", "plants.py"]
+
+
+def test_a_traces_folder_resumes_past_the_users_files_and_overwrite_removes_its_own_only(tmp_path, monkeypatch,
+                                                                                        capsys):
+    """A guide trained into its traces folder (allowed: a new file in an input folder) and a
+    notes file stopped the job from resuming, and the advice, --overwrite, deleted the guide
+    with every trace."""
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    traces = ["guide", "traces", "plants.py:PLANT", "--particles", "4", "--workers", "1", "--out", "tr"]
+    assert main([*traces, "--count", "2"]) == 0, capsys.readouterr().err
+    assert main(["guide", "train", "plants.py:PLANT", "--traces", "tr", "--out", "tr/g", "--iterations", "5"]) == 0
+    (tmp_path / "tr" / "notes.txt").write_text("mine")
+    first = (tmp_path / "tr" / "trace_00000.json").read_bytes()
+    capsys.readouterr()
+    assert main([*traces, "--count", "3"]) == 0, capsys.readouterr().err  # resumed: one more trace
+    assert "1 traces made, 2 already there" in capsys.readouterr().out
+    assert (tmp_path / "tr" / "trace_00000.json").read_bytes() == first
+    assert main([*traces, "--count", "2", "--seed", "5", "--overwrite"]) == 0  # another job: its files replaced
+    names = sorted(p.name for p in (tmp_path / "tr").iterdir())
+    assert names == ["g.json", "g.npz", "g.pt", "notes.txt", "trace_00000.json", "trace_00001.json", "traces.json"]
+    assert json.loads((tmp_path / "tr" / "traces.json").read_text())["seed"] == 5

@@ -187,12 +187,19 @@ _NAMED_FILES_READ: set = set()
 
 
 def named_files_read() -> list:
-    """The files :func:`named_file` has resolved in this process (that still exist)."""
+    """The files :func:`named_file` has resolved in this process, and those
+    :func:`remember_file_read` was told of (that still exist)."""
     return [p for p in list(_NAMED_FILES_READ) if p.exists()]
 
 
+def remember_file_read(path: str | os.PathLike) -> None:
+    """Protect ``path``, a file this process has read as an input (a user's model file),
+    as :func:`named_file`'s are: no output folder that holds it is replaced."""
+    _NAMED_FILES_READ.add(Path(path).resolve())
+
+
 __all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file",
-           "named_files_read"]
+           "named_files_read", "remember_file_read"]
 
 
 def output_path(path: str | os.PathLike) -> Path:

@@ -78,10 +78,13 @@ class RunKind:
     """Entries a run of the kind lists in its own files (``listed(folder)``: names), also
     allowed: e.g. the mesh folders a collection's shapes file names."""
     resumes: bool = False
-    """A job of this kind resumes an earlier run in its folder instead of replacing it."""
+    """A job of this kind resumes an earlier run in its folder instead of replacing it.
+    Its folder may hold other files too (a guide trained beside its traces, a notes file):
+    the job neither reads nor removes them."""
 
     def recognises(self, folder: str | os.PathLike) -> bool:
-        """True when ``folder`` holds an earlier run of this kind and nothing else."""
+        """True when ``folder`` holds an earlier run of this kind and nothing else (for a
+        job that resumes: nothing else that it would write)."""
         folder = Path(folder)
         try:
             names = [p.name for p in folder.iterdir()]
@@ -89,6 +92,8 @@ class RunKind:
             return False
         if self.marker not in names:
             return False
+        if self.resumes:
+            names = [name for name in names if self.owns(name)]
         # (a link is foreign: a run writes none, and resuming must not write through one)
         if self.foreign(folder, names) is not None:
             return False
@@ -108,6 +113,10 @@ class RunKind:
         except OSError:
             return False
         return self.marker in names and self.foreign(folder, names) is None and not self.recognises(folder)
+
+    def owns(self, name: str) -> bool:
+        """Whether a run of this kind writes entries called ``name``."""
+        return any(re.fullmatch(p, name) for p in self.patterns)
 
     def foreign(self, folder: Path, names=None) -> str | None:
         """The first entry of ``folder`` (sorted) that no run of this kind writes, or None."""
@@ -282,10 +291,15 @@ class RunFolder:
         """For a resumable job: the folder, created, written into directly. An earlier run
         is kept to resume when ``keep``; anything else there (allowed by ``--overwrite``)
         is removed first."""
-        if self.replaces and not (keep and self.kind.recognises(self.path)):
+        recognised = self.replaces and self.kind.recognises(self.path)
+        if self.replaces and not (keep and recognised):
             self._check_inputs()
             if self.path.is_symlink():  # replace the link, never what it points to
                 self.path.unlink()
+            elif recognised:  # an earlier job with other settings (--overwrite): its own files only
+                for entry in self.path.iterdir():
+                    if self.kind.owns(entry.name):
+                        shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
             else:
                 shutil.rmtree(self.path)
         self.path.mkdir(parents=True, exist_ok=True)

@@ -295,6 +295,9 @@ def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Pat
     (``for_writing``) is always the path as given: a bare shipped name writes into the
     current folder, never over the guides shipped inside the package."""
     path = Path(path)
+    if path.name in ("", ".", ".."):  # '', '.', '/', '..': a folder, no file name to add .pt to
+        raise GuideError(f"{shown_value(str(path))} is not a guide's name or path: give NAME, NAME.pt or NAME.json "
+                         "(the pair 'procmod guide train' writes), or a shipped guide's name")
     if not for_writing and path.name in pretrained_guides() \
             and not path.with_name(path.name + ".json").exists() and len(path.parts) == 1:
         path = PRETRAINED / path.name

@@ -119,7 +119,9 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
         model_file = absolute_spec(model_name)
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
+            raise InvalidArgumentError(f"{argument(name)} must be a positive integer, got {value!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
+        raise InvalidArgumentError(f"{argument('seed')} must be a whole number from 0 to 2**63-1, got {seed!r}")
     if count > MAX_TRACES:
         raise InvalidArgumentError(f"{argument('count')} {count:,} traces is more than one job makes (at most "
                                    f"{MAX_TRACES:,}; seed 004 trains on 10,000); split it into jobs")
@@ -188,6 +190,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
 
 def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[dict, list]:
     """The job settings and the traces of a folder (sorted by index; the first ``limit``)."""
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
+        raise GuideError(f"limit must be a positive whole number (the first traces to read), got {limit!r}")
     folder = Path(folder)
     job_file = folder / "traces.json"
     if not job_file.is_file():

@@ -25,12 +25,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import time
 
 import numpy as np
 import torch
 
-from ..core import start
+from ..core import Model, start
 from ..core.errors import argument
 from ..core.runtime import finish
 from ..core.io import load_tensors, save_tensors, write_text_atomic
@@ -204,8 +205,23 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     the loss curve (mean negative log-likelihood per trace, every 100 steps), and the paths
     written. ``traces`` (already loaded) skips reading the folder.
     """
-    settings = settings or FeatureSettings()
-    for name, value in (("iterations", iterations), ("batch", batch), ("mixture", mixture)):
+    if isinstance(model, str):  # a model's name, or FILE.py:NAME, as the command line takes it
+        from ..models import model_from_spec
+        model = model_from_spec(model)
+    if not isinstance(model, Model):
+        raise GuideError(f"model must be a procmod Model or a model's name, got {type(model).__name__}")
+    settings = FeatureSettings() if settings is None else settings
+    if not isinstance(settings, FeatureSettings):
+        raise GuideError(f"settings must be a FeatureSettings (e.g. FeatureSettings(partial=False)), got "
+                         f"{type(settings).__name__} {settings!r:.40}")
+    if not isinstance(out, (str, os.PathLike)):
+        raise GuideError(f"out must be the guide's path (NAME, NAME.pt or NAME.json), got {type(out).__name__}")
+    if traces is not None and (not isinstance(traces, list) or not traces
+                               or not all(isinstance(t, dict) and "target" in t for t in traces)):
+        raise GuideError("traces must be a non-empty list of traces as load_traces reads them (each a dict with "
+                         "its target and choices); or leave it out to read traces_dir")
+    for name, value in (("iterations", iterations), ("batch", batch), ("mixture", mixture),
+                        ("checkpoint_every", checkpoint_every)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise GuideError(f"{name} must be a positive integer, got {value!r}")
     check_mixture(mixture)

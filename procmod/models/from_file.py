@@ -21,6 +21,7 @@ import traceback
 from pathlib import Path
 
 from ..core import Model, UnknownModelError
+from ..core.paths import remember_file_read
 
 _SPEC = re.compile(r"^(?P<file>.+\.py)(?::(?P<name>[^:]*))?$", re.IGNORECASE)
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -106,6 +107,7 @@ def _run_module(path: Path):
     if str(resolved.parent) not in sys.path:  # as python FILE.py does: it imports its neighbours
         sys.path.insert(0, str(resolved.parent))
     _USER_FILES.add(str(resolved))
+    remember_file_read(resolved)  # an output folder that holds it is never replaced (--overwrite)
     try:
         spec.loader.exec_module(module)
     except SyntaxError as exc:
