@@ -260,6 +260,10 @@ def test_parse_budget():
     for bad in ("", "fast", "-3s", "0evals"):
         with pytest.raises(InvalidArgumentError):
             parse_budget(bad)
+    assert parse_budget("10.0gens") == Budget(generations=10)
+    for bad in ("0.5evals", "2.7evals", "1.5gens"):  # read as 0 ("got 0") and 2, 1 before
+        with pytest.raises(InvalidArgumentError, match=f"cannot read budget '{bad}': a count of .* is a whole number"):
+            parse_budget(bad)
 
 
 def test_engines_run_through_a_process_pool_with_the_same_results():

@@ -827,3 +827,34 @@ def test_a_target_lying_on_its_side_is_told_mesh_up(tmp_path):
     # a narrow ship with tall fins stands as it is: no turn suggested
     _write_obj(tmp_path / "fins.obj", _box((2.5, 7.0, 10.5), (0, 0, 0)).vertices, _box((2.5, 7.0, 10.5), (0, 0, 0)).faces)
     assert "mesh_up" not in (note("fins.obj") or "")
+
+
+def test_a_white_on_black_mask_gets_a_note_and_a_camera_far_out_is_no_coincidence(tmp_path):
+    """A white object on black (a mask or alpha pass) was read inverted without a word: the
+    whole border to hit, the object to avoid. And a camera 30 units from its look_at, a
+    million units out, was refused as coinciding with it (allclose's tolerance grows with
+    the coordinates)."""
+    from PIL import Image
+
+    from procmod.models import get_model
+    from procmod.targets.placement import placement_note
+
+    mask = np.zeros((64, 64), np.uint8)
+    mask[20:44, 24:40] = 255  # the object, white
+    Image.fromarray(mask).save(tmp_path / "mask.png")
+    camera = {"eye": [0, 2, 30], "look_at": [0, 2, 0], "projection": "orthographic", "fov": 16}
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                 "views": [{"image": "mask.png", "camera": camera}]}))
+    note = placement_note(get_model("spaceship"), load_target_file(tmp_path / "S.json"), np.random.default_rng(0))
+    assert note is not None and "surrounds the rest of the view" in note and "invert the picture" in note
+    Image.fromarray(255 - mask).save(tmp_path / "mask.png")  # black on white, as documented: no such note
+    note = placement_note(get_model("spaceship"), load_target_file(tmp_path / "S.json"), np.random.default_rng(0))
+    assert "invert" not in (note or "")
+    far = {"eye": [1e6, 5e5, -2999970.0], "look_at": [1e6, 5e5, -3e6], "projection": "orthographic", "fov": 16}
+    (tmp_path / "F.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                 "views": [{"image": "mask.png", "camera": far}]}))
+    assert isinstance(load_target_file(tmp_path / "F.json"), Silhouette)
+    (tmp_path / "F.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [
+        {"image": "mask.png", "camera": dict(far, eye=far["look_at"])}]}))
+    with pytest.raises(TargetFileError, match="the camera's eye and look_at coincide"):
+        load_target_file(tmp_path / "F.json")

@@ -166,6 +166,20 @@ CASES = [
     ("sil-image-width", _sil({}, {"width": 64}, kind="image", file="sketch.png"),
      "views[0].camera.width: a picture's or weights' size is its own"),
     ("sil-hit-inf", _sil({"hit": float("inf")}), "views[0].hit must be a finite number, got Infinity"),
+    # near misses outside a silhouette's views, ignored without a word: a target placed otherwise
+    ("vol-mesh-scle", _with(MESH, mesh_scle=0.5), "the file has 'mesh_scle', which procmod does not read; did you "
+                                                  "mean 'mesh_scale'?"),
+    ("vol-margin", _with(MESH, marign=0.5), "the file has 'marign', which procmod does not read; did you mean "
+                                            "'margin'?"),
+    ("vol-origin-outside-grid", _with(NPY, origin=[0, 0, 0]), "the file.origin belongs inside its \"grid\" object"),
+    ("vol-grid-shap", _with(NPY, grid__shap=[8, 8, 8]), "grid has 'shap', which procmod does not read; did you mean "
+                                                        "'shape'?"),
+    ("vol-layer-w-avod", _with(NPY, layers__0__w_avod=-5), "layers[0] has 'w_avod', which procmod does not read; did "
+                                                           "you mean 'w_avoid'?"),
+    ("sil-mesh-scael", dict(_sil({}), mesh_scael=0.5), "the file has 'mesh_scael', which procmod does not read; did "
+                                                       "you mean 'mesh_scale'?"),
+    ("sil-image-grey", _sil({}, kind="image", file="grey.png"), "views[0].image: no pixel is dark enough to hit "
+                                                                "(under 85 of 255; the darkest is 100)"),
 ]
 
 # the size messages, beyond the field
@@ -212,6 +226,7 @@ def inputs(tmp_path_factory):
     sketch = np.full((16, 16), 255, np.uint8)
     sketch[4:12, 4:12] = 0
     Image.fromarray(sketch).save(d / "sketch.png")
+    Image.fromarray(np.where(sketch == 0, 100, 160).astype(np.uint8)).save(d / "grey.png")  # a pencil on grey paper
     box = trimesh.creation.box((1.0, 1.0, 1.0))
     _obj(d / "box.obj", box.vertices, box.faces)
     (d / "garbage.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")

@@ -86,10 +86,15 @@ def parse_budget(text: str) -> Budget:
             seconds = value
         elif unit in ("m", "min"):
             seconds = 60 * value
-        elif unit.startswith("eval"):
-            evaluations = int(value)
         else:
-            generations = int(value)
+            what = "evaluations" if unit.startswith("eval") else "generations"
+            if not value.is_integer():  # int() made 0.5evals "got 0", 2.7evals 2
+                raise InvalidArgumentError(f"cannot read budget {text!r}: a count of {what} is a whole number "
+                                           "(e.g. 5000evals or 100gens)")
+            if what == "evaluations":
+                evaluations = int(value)
+            else:
+                generations = int(value)
     return Budget(seconds, evaluations, generations)
 
 

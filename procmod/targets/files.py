@@ -449,6 +449,7 @@ def _placed(mesh, placement):
 def _given_grid(spec: dict, where: str):
     """``(origin, voxel size, shape or None)`` of a volume file's ``"grid"``."""
     g = _object(spec["grid"], f"{where}: grid")
+    _misplaced_keys(g, _GRID_KEYS, f"{where}: grid")
     for key in ("origin", "voxel_size"):
         if key not in g:
             raise TargetFileError(f"{where}: grid needs {key!r} "
@@ -490,6 +491,7 @@ def load_volume_target(path: str | os.PathLike):
     spec = read_target_json(path)
     if not isinstance(spec, dict) or spec.get("format") != "procmod-volume/1":
         raise TargetFileError(f"{where}: expected a JSON object with \"format\": \"procmod-volume/1\"")
+    _misplaced_keys(spec, _VOLUME_KEYS, f"{where}: the file", inside=("grid", _GRID_KEYS))
     score = spec.get("score", "svol")
     if score not in SCORES:
         raise TargetFileError(f"{where}: score must be \"svol\" or \"proxy\", got {shown_value(score)}")
@@ -506,6 +508,7 @@ def load_volume_target(path: str | os.PathLike):
     for i, layer in enumerate(layers_spec):
         at = f"{where}: layers[{i}]"
         _object(layer, at)
+        _misplaced_keys(layer, _LAYER_KEYS, at)
         if "file" not in layer:
             raise TargetFileError(f"{at} needs \"file\" (an .npy voxel grid or a mesh file)")
         file = _file(path, layer["file"], f"{at}.file", MESH_SUFFIXES | {".npy"}, "voxel grid (.npy) or mesh")
@@ -523,7 +526,7 @@ def load_volume_target(path: str | os.PathLike):
     if arrays:
         if given is None:
             raise TargetFileError(f"{where}: an .npy layer needs \"grid\": {{\"origin\": [x, y, z], "
-                                  "\"voxel_size\": h}} (where its voxel [0, 0, 0] lies, and the voxel edge)")
+                                  "\"voxel_size\": h} (where its voxel [0, 0, 0] lies, and the voxel edge)")
         for at, file, _, _ in arrays:
             layer_shape, dtype = npy_header(file, f"{at}.file", "voxel grid")
             if len(layer_shape) != 3:
@@ -607,7 +610,9 @@ def _camera(spec, where: str, sized: bool) -> Camera:
         raise TargetFileError(f"{where}.fov is the height of the view in world units and must lie in "
                               f"{MIN_LENGTH:g}..{MAX_COORDINATE:g}, got {fov:g}")
     forward = np.subtract(look_at, eye)
-    if np.allclose(eye, look_at):
+    # on the distance itself: allclose's tolerance grows with the coordinates (a camera 30
+    # units from its look_at, a million units from the origin, "coincided")
+    if not np.linalg.norm(forward) > 1e-9 * max(1.0, float(np.abs(eye).max()), float(np.abs(look_at).max())):
         raise TargetFileError(f"{where}: the camera's eye and look_at coincide")
     length = np.linalg.norm(up)
     if length == 0 or np.linalg.norm(np.cross(forward / np.linalg.norm(forward), np.divide(up, length))) < 1e-9:
@@ -653,6 +658,12 @@ def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
     return out.image(0)
 
 
+HIT_BELOW, AVOID_ABOVE = 85, 170  # a silhouette picture's grey levels: darker is to hit, lighter to avoid
+_PLACEMENT_KEYS = ("mesh_scale", "mesh_offset", "mesh_up")
+_VOLUME_KEYS = ("format", "score", "layers", "grid", "voxel_size", "margin", "w_self") + _PLACEMENT_KEYS
+_GRID_KEYS = ("origin", "voxel_size", "shape")
+_LAYER_KEYS = ("file", "w_fill", "w_avoid")
+_SILHOUETTE_KEYS = ("format", "views") + _PLACEMENT_KEYS
 _VIEW_KEYS = ("weights", "image", "mesh", "camera", "hit", "avoid")
 _CAMERA_KEYS = ("eye", "look_at", "up", "projection", "fov", "width", "height")
 
@@ -681,6 +692,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     views = spec.get("views") if isinstance(spec, dict) else None
     if not isinstance(views, list) or not views:
         raise TargetFileError(f"{where}: \"views\" must be a non-empty list")
+    _misplaced_keys(spec, _SILHOUETTE_KEYS, f"{where}: the file")
     placement = _mesh_placement(spec, where)
     parsed = []
     for i, view in enumerate(views):
@@ -712,7 +724,11 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             weights = _load_weights(file, f"{at}.weights")
         elif kind == "image":
             grey = grey_levels(open_image(file, f"{at}.image"))
-            weights = np.where(grey < 85, hit, np.where(grey > 170, avoid, 0.0))
+            weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
+            if hit > 0 and not (grey < HIT_BELOW).any():  # a pencil sketch on grey paper
+                raise TargetFileError(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255; the "
+                                      f"darkest is {int(grey.min())}): darken the shape (black to hit, white to avoid, "
+                                      "grey between: either), or give the view's weights as an .npy (\"weights\")")
         else:
             covered = mesh_silhouette(*_placed(read_mesh(file, f"{at}.mesh", orient=False), placement), camera)
             if not covered.any():

@@ -206,6 +206,10 @@ def _silhouette_note(target, lo, hi) -> str | None:
             return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
                     "to match: if it is a mesh made in other units than the model (Maya writes centimetres), "
                     "give \"mesh_scale\" (0.01 for centimetres to metres); else move the camera back")
+        if covered > MOST_OF_THE_PICTURE and (border > 0).all() and (weights < 0).any():
+            return (f"views[{i}]: the shape to hit surrounds the rest of the view ({100 * covered:.0f}% of it, its "
+                    "whole border): a picture's dark pixels are the ones to hit; if its shape is the light part (a "
+                    "white-on-black mask, an alpha pass), invert the picture")
         projected = camera.project(corners)
         behind = projected[:, 2] <= 0
         if behind.all():
