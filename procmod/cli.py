@@ -479,8 +479,8 @@ def main(argv=None) -> int:
         from .models.from_file import user_code_error
         line = user_code_error(exc)
         if line is None and isinstance(exc, OSError) and exc.errno == errno.ENAMETOOLONG:
-            line = (f"a file name is too long for the file system ({cut_text(str(exc.filename), 80)}); give a "
-                    "shorter path")
+            named = f" ({cut_text(str(exc.filename), 80)})" if exc.filename else ""
+            line = f"a file name is too long for the file system{named}; give a shorter path"
         if line is None:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)

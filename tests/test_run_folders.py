@@ -230,3 +230,24 @@ def test_strings_graph_into_a_folder_of_more_graphs_replaces_it(tmp_path, capsys
     made = _names(out)
     assert made == [f"shape_{i:03d}.json" for i in range(len(made))] and len(made) < 5
     assert all(json.loads((out / n).read_text()).get("format") == "procmod-graph/1" for n in made)
+
+
+def test_only_a_traces_folder_is_resumed_past_files_it_does_not_write(tmp_path):
+    """A traces job resumes past the user's files beside its traces; a learn or strings
+    folder, whose marker is a bare name (a TensorFlow folder holds a `checkpoint` file, an
+    API export a `collection.json`), is still someone else's folder when it holds more."""
+    from procmod.core.runfolder import LEARN_RUN, STRINGS_MODEL, TRACES_JOB
+
+    for kind, marker, text in ((LEARN_RUN, "checkpoint", 'model_checkpoint_path: "model.ckpt-1000"\n'),
+                               (STRINGS_MODEL, "collection.json", '{"item": []}'),
+                               (TRACES_JOB, "traces.json", '{"format": "procmod-traces/1"}')):
+        folder = tmp_path / marker
+        folder.mkdir()
+        (folder / marker).write_text(text)
+        (folder / "notes.txt").write_text("mine")
+        assert kind.recognises(folder) == (kind is TRACES_JOB)
+        if kind is not TRACES_JOB:
+            with pytest.raises(OutputLocationError, match="is not empty and not an earlier"):
+                RunFolder(folder, kind)
+            RunFolder(folder, kind, overwrite=True).prepare_in_place(keep=True)  # --overwrite: replaced whole
+            assert list(folder.iterdir()) == []

@@ -42,7 +42,8 @@ def test_bad_silhouette_files(tmp_path):
     cam = {"eye": [0, 0, 5], "look_at": [0, 0, 0]}
     cases = [
         ({"format": "procmod-silhouette/1", "views": []}, "non-empty"),
-        ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": cam}]}, "nothing to hit"),
+        ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": cam}]},
+         "no pixel is dark enough to hit"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "none.png", "camera": cam}]},
          "views\\[0\\].image: picture file .* does not exist"),
         ({"format": "procmod-silhouette/1", "views": [{"image": "white.png", "camera": {"eye": [0, 0, 0],

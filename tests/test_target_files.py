@@ -171,7 +171,7 @@ CASES = [
                                                   "mean 'mesh_scale'?"),
     ("vol-margin", _with(MESH, marign=0.5), "the file has 'marign', which procmod does not read; did you mean "
                                             "'margin'?"),
-    ("vol-origin-outside-grid", _with(NPY, origin=[0, 0, 0]), "the file.origin belongs inside its \"grid\" object"),
+    ("vol-origin-outside-grid", _with(NPY, origin=[0, 0, 0]), "origin belongs inside its \"grid\" object"),
     ("vol-grid-shap", _with(NPY, grid__shap=[8, 8, 8]), "grid has 'shap', which procmod does not read; did you mean "
                                                         "'shape'?"),
     ("vol-layer-w-avod", _with(NPY, layers__0__w_avod=-5), "layers[0] has 'w_avod', which procmod does not read; did "

@@ -78,13 +78,16 @@ class RunKind:
     """Entries a run of the kind lists in its own files (``listed(folder)``: names), also
     allowed: e.g. the mesh folders a collection's shapes file names."""
     resumes: bool = False
-    """A job of this kind resumes an earlier run in its folder instead of replacing it.
-    Its folder may hold other files too (a guide trained beside its traces, a notes file):
-    the job neither reads nor removes them."""
+    """A job of this kind resumes an earlier run in its folder instead of replacing it."""
+    shares_folder: bool = False
+    """A resumable job whose folder may hold the user's files beside its own (a guide
+    trained beside its traces, a notes file): it neither reads nor removes them. Only for
+    a kind whose marker is checked (``marker_key``): a folder of another tool's that
+    happens to hold a file of the marker's name must not be taken for a run."""
 
     def recognises(self, folder: str | os.PathLike) -> bool:
         """True when ``folder`` holds an earlier run of this kind and nothing else (for a
-        job that resumes: nothing else that it would write)."""
+        kind that :attr:`shares_folder`: nothing else of the names it writes)."""
         folder = Path(folder)
         try:
             names = [p.name for p in folder.iterdir()]
@@ -92,7 +95,7 @@ class RunKind:
             return False
         if self.marker not in names:
             return False
-        if self.resumes:
+        if self.shares_folder:
             names = [name for name in names if self.owns(name)]
         # (a link is foreign: a run writes none, and resuming must not write through one)
         if self.foreign(folder, names) is not None:
@@ -346,7 +349,7 @@ INFER_RUN = RunKind("procmod infer run", "settings.json",
                      r"samples\.png", r"settings\.json", r"report\.html"), marker_key="engine")
 TRACES_JOB = RunKind("procmod guide traces folder", "traces.json",
                      (r"traces\.json", r"trace_\d+\.json", r"\.trace_\d+\.json\..*", r"\.traces\.json\..*"),
-                     marker_key="format", resumes=True)
+                     marker_key="format", resumes=True, shares_folder=True)
 GRAPHS_FOLDER = RunKind("procmod strings graph folder", "shape_000.json", (r"shape_\d+\.json",))
 
 

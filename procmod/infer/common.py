@@ -303,7 +303,7 @@ def checked_value(value, target, method: str) -> float:
     -inf for an output that cannot be. Anything else (NaN, +inf, None, a string, an array)
     is an InvalidArgumentError naming the target's method: a NaN weight used to collapse
     every SMC particle onto the outputs that gave it, without a word."""
-    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+    if isinstance(value, float) or (isinstance(value, numbers.Real) and not isinstance(value, bool)):
         value = float(value)
         if value == value and value != math.inf:
             return value

@@ -92,7 +92,7 @@ class ParticleShard:
             stepped += 1
             step(state, rng, pick)
             new = log_likelihood(state.output)
-            if type(new) is not float or new != new or new == math.inf:  # NaN, +inf, not a float
+            if not isinstance(new, float) or new != new or new == math.inf:  # NaN, +inf, not a float
                 new = checked_value(new, target, "log_likelihood")
             old = log_lik[i]
             if new == -math.inf or old == -math.inf:
@@ -108,7 +108,10 @@ class ParticleShard:
                 log_ratio[i] = ratio
             if state.done:
                 finished[i] = True
-                offer(state, checked_value(target.score(state.output), target, "score"))
+                score = target.score(state.output)
+                if not isinstance(score, float) or score != score or score == math.inf:
+                    score = checked_value(score, target, "score")
+                offer(state, score)
             else:
                 active += 1
         return log_w, finished, stepped, active
