@@ -88,8 +88,9 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--particles", type=_int_arg, help="particles (smc, sosmc, forward)")
     infer.add_argument("--population", type=_int_arg, help="population (ga)")
     infer.add_argument("--chains", type=_int_arg, help="chains (mcmc)")
-    infer.add_argument("--budget", help="30s, 2m, 5000evals or 100gens (default: one SMC run, "
-                                        "one forward batch, 1600 MCMC sweeps, 50 GA generations)")
+    infer.add_argument("--budget", help="30s, 2m, 5000evals or 100gens, or several joined with + (100gens+30s: "
+                                        "the first reached ends the run) (default: one SMC run, one forward batch, "
+                                        "1600 MCMC sweeps, 50 GA generations)")
     infer.add_argument("--seed", type=_int_arg, default=0)
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
     infer.add_argument("--workers", type=_int_arg,
@@ -318,9 +319,13 @@ def _cmd_infer(args) -> None:
         if args.engine not in ("smc", "sosmc"):
             raise InvalidArgumentError(f"--guide works with --engine smc or sosmc, not {args.engine}")
         from .guide import Guide
+        from .guide.guide import shadowing_note
         guide = Guide.load(args.guide)
         guide.check_model(model)
         kwargs["guide"] = guide
+        shadowed = shadowing_note(args.guide)
+        if shadowed is not None:
+            print(f"note: {shadowed}", file=sys.stderr)
     from .data import target_from_spec
 
     target = target_from_spec(args.target)

@@ -539,6 +539,9 @@ print("objects", len(bpy.data.objects))
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
     assert re.search(r"objects \d+", run.stdout)
     assert list((tmp_path / "user").rglob("procmod_blender/default_python.txt"))
+    # unregistered by the exit hook and by Blender's add-on shutdown: once, no traceback at exit
+    # (bpy's own import prints a NumPy-1.x module's traceback: not ours)
+    assert "unregister" not in run.stderr and "procmod_status" not in run.stderr, run.stderr[-3000:]
 
 
 def test_a_script_that_leaves_the_addon_registered_still_exits():

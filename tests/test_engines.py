@@ -1,6 +1,7 @@
 """Engine contract and MCMC proposals on the built-in models (the GA's operators: tests/test_ga_*.py)."""
 
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -261,6 +262,9 @@ def test_parse_budget():
         with pytest.raises(InvalidArgumentError):
             parse_budget(bad)
     assert parse_budget("10.0gens") == Budget(generations=10)
+    for twice in ("5gens+5gens", "0.02m+0.5s", "10evals+3eval"):  # the last one given won, silently
+        with pytest.raises(InvalidArgumentError, match=f"cannot read budget '{re.escape(twice)}': it limits the .* twice"):
+            parse_budget(twice)
     for bad in ("0.5evals", "2.7evals", "1.5gens"):  # read as 0 ("got 0") and 2, 1 before
         with pytest.raises(InvalidArgumentError, match=f"cannot read budget '{bad}': a count of .* is a whole number"):
             parse_budget(bad)

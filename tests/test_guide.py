@@ -701,3 +701,20 @@ def test_the_training_api_refuses_what_it_cannot_use_in_one_line(tmp_path):
     for seed in (-1, 1.5):
         with pytest.raises(InvalidArgumentError, match="seed must be a whole number"):
             generate_traces("vines", "scribble", 1, tmp_path / "other", particles=3, seed=seed)
+
+
+def test_a_guide_of_this_folder_named_like_a_shipped_one_gets_a_note(tmp_path, monkeypatch, capsys):
+    """`guide train --out vines-scribbles` writes here, as documented; `--guide vines-scribbles`
+    then read it, not the shipped guide, without a word (0.03 here, 0.78 one folder down)."""
+    from procmod.guide.guide import PRETRAINED
+    monkeypatch.chdir(tmp_path)
+    command = ["infer", "vines", "--target", "glyph:a", "--particles", "2", "--out"]
+    assert main([*command, "r0", "--guide", "vines-scribbles"]) == 0
+    assert "note: --guide" not in capsys.readouterr().err  # the shipped one
+    for suffix in (".json", ".pt", ".npz"):
+        shutil.copy(PRETRAINED / f"vines-scribbles{suffix}", tmp_path / f"vines-scribbles{suffix}")
+    assert main([*command, "r1", "--guide", "vines-scribbles"]) == 0
+    err = capsys.readouterr().err
+    assert "note: --guide vines-scribbles reads vines-scribbles.json of this folder" in err, err
+    assert main([*command, "r2", "--guide", "./vines-scribbles"]) == 0
+    assert "note: --guide" not in capsys.readouterr().err  # said so

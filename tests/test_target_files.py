@@ -178,6 +178,14 @@ CASES = [
                                                            "you mean 'w_avoid'?"),
     ("sil-mesh-scael", dict(_sil({}), mesh_scael=0.5), "the file has 'mesh_scael', which procmod does not read; did "
                                                        "you mean 'mesh_scale'?"),
+    ("sil-view-mesh-scale", _sil({"mesh_scale": 0.05}), "views[0].mesh_scale belongs at the file's top level, where "
+                                                        "it applies to every mesh of the file"),
+    ("sil-view-mesh-scle", _sil({"mesh_scle": 2}), "views[0].mesh_scle (did you mean 'mesh_scale'?) belongs at the "
+                                                   "file's top level"),
+    ("vol-layer-mesh-scale", _with(MESH, layers__0__mesh_scale=100), "layers[0].mesh_scale belongs at the file's top "
+                                                                     "level"),
+    ("vol-layer-voxel-size", _with(MESH, layers__0__voxel_size=0.5), "layers[0].voxel_size belongs at the file's top "
+                                                                     "level"),
     ("sil-image-grey", _sil({}, kind="image", file="grey.png"), "views[0].image: no pixel is dark enough to hit "
                                                                 "(under 85 of 255; the darkest is 100)"),
 ]

@@ -551,6 +551,10 @@ def _unregister_at_exit() -> None:
 
 
 def unregister() -> None:
+    # once only: a script that enabled the zip with addon_utils has it unregistered both by
+    # the exit hook above and by Blender's add-on shutdown (a traceback at every exit)
+    if not hasattr(bpy.types.WindowManager, "procmod_status"):
+        return
     runner = Runner.active
     if runner is not None:
         runner.job.kill()

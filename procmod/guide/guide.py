@@ -289,6 +289,22 @@ def target_mask_for(target, model) -> np.ndarray | None:
     return target.mask(canvas.width, canvas.height)
 
 
+def shadowing_note(path: str | os.PathLike) -> str | None:
+    """A note when ``path``, a shipped guide's bare name, reads a guide of the current
+    folder instead (one trained with ``--out`` that name, as the README's recipe to
+    retrain a shipped guide does): the same command gave another result in another folder."""
+    if str(path).startswith(("./", ".\\")):  # the folder's guide, said so (pathlib drops the "./")
+        return None
+    path = Path(path)
+    if len(path.parts) != 1 or path.name not in pretrained_guides():
+        return None
+    weights, meta = guide_paths(path)
+    if meta.parent == PRETRAINED:
+        return None
+    return (f"--guide {path.name} reads {meta.name} of this folder, a guide trained here, not the shipped guide of "
+            f"that name (give ./{path.name} to say so; rename it to use the shipped one here)")
+
+
 def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Path, Path]:
     """(weights .pt, metadata .json) for a guide path given with or without a suffix, or,
     to read, the name of a shipped guide (e.g. ``vines-scribbles``). A path to write

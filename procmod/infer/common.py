@@ -73,15 +73,26 @@ class Budget:
 _BUDGET = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*(s|sec|seconds|m|min|evals?|evaluations|gens?|generations)\s*$")
 
 
+_BUDGET_KINDS = {"time": "time", "eva": "evaluations", "gen": "generations"}
+
+
 def parse_budget(text: str) -> Budget:
-    """Parse ``30s``, ``2m``, ``5000evals`` or ``100gens`` (joined with ``+`` for several)."""
+    """Parse ``30s``, ``2m``, ``5000evals`` or ``100gens``; several limits joined with
+    ``+`` (``100gens+30s``) end the run at whichever is reached first."""
     seconds = evaluations = generations = None
+    given = set()
     for part in str(text).split("+"):
         match = _BUDGET.match(part.lower())
         if not match:
             raise InvalidArgumentError(
                 f"cannot read budget {text!r}: use e.g. 30s, 2m, 5000evals or 100gens")
         value, unit = float(match.group(1)), match.group(2)
+        kind = "time" if unit in ("s", "sec", "seconds", "m", "min") else unit[:3]
+        if kind in given:  # "5gens+5gens" read as 5gens, "0.02m+0.5s" as 0.5s
+            raise InvalidArgumentError(f"cannot read budget {text!r}: it limits the {_BUDGET_KINDS[kind]} twice; "
+                                       "limits joined with + end the run at the first one reached, so give each "
+                                       "kind once (e.g. 100gens+30s)")
+        given.add(kind)
         if unit in ("s", "sec", "seconds"):
             seconds = value
         elif unit in ("m", "min"):

@@ -508,7 +508,7 @@ def load_volume_target(path: str | os.PathLike):
     for i, layer in enumerate(layers_spec):
         at = f"{where}: layers[{i}]"
         _object(layer, at)
-        _misplaced_keys(layer, _LAYER_KEYS, at, cutoff=_STRICT)
+        _misplaced_keys(layer, _LAYER_KEYS, at, cutoff=_STRICT, top=_VOLUME_WIDE)
         if "file" not in layer:
             raise TargetFileError(f"{at} needs \"file\" (an .npy voxel grid or a mesh file)")
         file = _file(path, layer["file"], f"{at}.file", MESH_SUFFIXES | {".npy"}, "voxel grid (.npy) or mesh")
@@ -660,7 +660,8 @@ def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
 
 HIT_BELOW, AVOID_ABOVE = 85, 170  # a silhouette picture's grey levels: darker is to hit, lighter to avoid
 _PLACEMENT_KEYS = ("mesh_scale", "mesh_offset", "mesh_up")
-_VOLUME_KEYS = ("format", "score", "layers", "grid", "voxel_size", "margin", "w_self") + _PLACEMENT_KEYS
+_VOLUME_WIDE = ("grid", "voxel_size", "margin", "w_self") + _PLACEMENT_KEYS  # the file's, for every layer
+_VOLUME_KEYS = ("format", "score", "layers") + _VOLUME_WIDE
 _GRID_KEYS = ("origin", "voxel_size", "shape")
 _LAYER_KEYS = ("file", "w_fill", "w_avoid")
 _SILHOUETTE_KEYS = ("format", "views") + _PLACEMENT_KEYS
@@ -679,18 +680,25 @@ def _at_top_level(spec: dict, known: tuple, where: str, inside: tuple | None = N
 _CAMERA_KEYS = ("eye", "look_at", "up", "projection", "fov", "width", "height")
 
 
-def _misplaced_keys(spec: dict, known: tuple, at: str, inside: tuple | None = None, cutoff: float = 0.75) -> None:
-    """Refuse a key that is a near miss of one of ``known`` (``"look-at"``, ``"hits"``)
-    or, with ``inside = (name, keys)``, one that belongs in the object ``name`` (a view's
-    ``"width"`` is its camera's): silently ignored, it left the file meaning something
-    else. Other keys (a tool's own notes) are left alone. ``at`` names the object by its
-    path in the file (``views[0]``), or is None for the file's top level."""
+def _misplaced_keys(spec: dict, known: tuple, at: str, inside: tuple | None = None, cutoff: float = 0.75,
+                    top: tuple = ()) -> None:
+    """Refuse a key that is a near miss of one of ``known`` (``"look-at"``, ``"hits"``),
+    one that belongs in the object ``name`` of ``inside = (name, keys)`` (a view's
+    ``"width"`` is its camera's), or one of ``top``, which belong at the file's top level
+    (a view's ``"mesh_scale"``), or a near miss of those: silently ignored, it left the
+    file meaning something else. Other keys (a tool's own notes) are left alone. ``at``
+    names the object by its path in the file (``views[0]``), or is None for the top level."""
     for key in spec:
         if not isinstance(key, str) or key in known:
             continue
         if inside is not None and key in inside[1]:
             raise TargetFileError(f"{key if at is None else f'{at}.{key}'} belongs inside its \"{inside[0]}\" object "
                                   f"(\"{inside[0]}\": {{..., \"{key}\": ...}})")
+        meant = key if key in top else meant_key(key, top, cutoff=cutoff)
+        if meant:
+            said = "" if meant == key else f" (did you mean {meant!r}?)"
+            raise TargetFileError(f"{at}.{key}{said} belongs at the file's top level, where it applies to every mesh "
+                                  f"of the file ({{\"{meant}\": ..., ...}}); here it would be ignored")
         meant = meant_key(key, known, cutoff=cutoff)
         if meant:
             raise TargetFileError(f"{'the file' if at is None else at} has {key!r}, which procmod does not read; did "
@@ -720,7 +728,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         kind = kinds[0]
         # a picture's or weights' size is its own: width and height are a mesh view's only
         camera_keys = _CAMERA_KEYS if kind == "mesh" else tuple(k for k in _CAMERA_KEYS if k not in ("width", "height"))
-        _misplaced_keys(view, _VIEW_KEYS, at, inside=("camera", camera_keys))
+        _misplaced_keys(view, _VIEW_KEYS, at, inside=("camera", camera_keys), top=_PLACEMENT_KEYS)
         if isinstance(view.get("camera"), dict):
             _misplaced_keys(view["camera"], _CAMERA_KEYS, f"{at}.camera")
         camera = _camera(view.get("camera"), at, sized=kind == "mesh")
