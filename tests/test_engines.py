@@ -1,5 +1,6 @@
 """Engine contract and MCMC proposals on the built-in models (the GA's operators: tests/test_ga_*.py)."""
 
+import json
 import math
 import re
 import subprocess
@@ -187,10 +188,13 @@ def test_every_engine_refuses_a_target_that_declares_too_little_or_configures_to
         ENGINES[engine](model, ConfiguresToNothing(0.0, 1.0), seed=0)
 
 
-def test_counts_may_be_numpys_integers():
-    model = MIX
-    result = ENGINES["smc"](model, SumTarget(0.0, 1.0), particles=np.int64(10), seed=np.int64(0))
-    assert len(result.samples) == 10
+@pytest.mark.parametrize("engine,count", [("forward", "particles"), ("smc", "particles"), ("sosmc", "particles"),
+                                          ("mcmc", "chains"), ("ga", "population")])
+def test_counts_may_be_numpys_integers_and_settings_stay_json(engine, count):
+    budget = {"mcmc": Budget(generations=3), "ga": Budget(generations=2)}.get(engine)
+    result = ENGINES[engine](MIX, SumTarget(0.0, 1.0), seed=np.int64(0), budget=budget, **{count: np.int64(6)})
+    assert len(result.samples) == 6
+    json.dumps(result.settings)  # numpy's int64 is no JSON number
 
 
 def test_smc_resampling_options():

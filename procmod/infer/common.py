@@ -404,6 +404,19 @@ def check_run(model, target, seed, budget) -> None:
                                    "budget=None for the engine's default")
 
 
+def recorded_seed(seed):
+    """``seed`` as a run's settings record it, in JSON's terms: numpy's integers as ints, a
+    sequence of them as a list, a SeedSequence by its entropy (settings.json, reports)."""
+    if isinstance(seed, np.random.SeedSequence):
+        return recorded_seed(seed.entropy)
+    if isinstance(seed, numbers.Integral):
+        return int(seed)
+    try:
+        return [recorded_seed(s) for s in seed]
+    except TypeError:
+        return seed
+
+
 def check_target(target) -> None:
     """Refuse, in one line, what is not a target (a picture, a spec string, a mask):
     engines take a :class:`procmod.core.protocols.Target`."""

@@ -8,7 +8,7 @@ from ..core import Model
 from ..core.limits import relaxed_gc
 from ..core.protocols import Target
 from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, configured_model,
-                     evaluate_all, log_mean_exp, new_seed)
+                     evaluate_all, log_mean_exp, new_seed, recorded_seed)
 
 
 def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, budget: Budget | None = None,
@@ -20,7 +20,7 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
     (the log-likelihoods); ``log_marginal_likelihood`` is the usual importance-sampling
     estimate over every sample drawn. Samples are evaluated through ``executor``.
     """
-    check_positive("particles", particles)
+    particles = check_positive("particles", particles)  # a plain int: numpy's too, for settings.json
     check_run(model, target, seed, budget)
     model = configured_model(target, model)
     check_population("particles", particles, target.new_output(model))  # refuse what memory cannot hold
@@ -41,7 +41,7 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
                 break
     return Result("forward", tracker.best, tracker.best_score, [ev.derivation for ev in batch],
                   tracker.rows, tracker.seconds, tracker.evaluations,
-                  settings={"particles": particles, "seed": seed,
+                  settings={"particles": particles, "seed": recorded_seed(seed),
                             "budget": budget.describe() if budget is not None else "one batch"},
                   log_weights=[ev.log_likelihood for ev in batch],
                   log_marginal_likelihood=log_mean_exp(all_log_weights))

@@ -99,7 +99,7 @@ from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
 from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
-                     configured_model, evaluate_all, new_seed)
+                     configured_model, evaluate_all, new_seed, recorded_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
@@ -609,7 +609,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
         workers = 1  # groups are forked processes; elsewhere the run stays in this one
     if chains is None:
         chains = workers
-    check_positive("chains", chains)
+    chains = check_positive("chains", chains)  # a plain int: numpy's too, for settings.json
     if not 0.0 <= p_diffusion <= 1.0:
         raise InvalidArgumentError(f"p_diffusion must be in [0, 1], got {p_diffusion!r}")
     if not 0.0 <= p_resample <= 1.0 - p_diffusion:
@@ -618,7 +618,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
         incremental = executor is None and not delayed_rejection
     if annealing is not None and not 1.0 <= annealing < math.inf:
         raise InvalidArgumentError(f"annealing must be a finite number >= 1 (or None), got {annealing!r}")
-    check_positive("anneal_every", anneal_every)
+    anneal_every = check_positive("anneal_every", anneal_every)
     if isinstance(step_scale, bool) or not isinstance(step_scale, numbers.Real) or not 0 < step_scale < math.inf:
         raise InvalidArgumentError(f"step_scale must be a positive finite number (the random walk's step, times "
                                    f"each choice's scale), got {step_scale!r}")
@@ -628,7 +628,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     # refuse what memory cannot hold: an incremental chain holds its state's output, the
     # first of its checkpoints (procmod.infer.traced) and a proposal's output, at least
     check_population("chains", chains, target.new_output(model), copies=3 if incremental else 1)
-    settings = {"chains": chains, "seed": seed, "budget": budget.describe(),
+    settings = {"chains": chains, "seed": recorded_seed(seed), "budget": budget.describe(),
                 "p_diffusion": p_diffusion, "step_scale": step_scale,
                 "tempering": tempering, "annealing": annealing,
                 "anneal_every": anneal_every, "delayed_rejection": delayed_rejection,

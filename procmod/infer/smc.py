@@ -28,7 +28,7 @@ from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
 from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, checked_value,
-                     configured_model, log_mean_exp)
+                     configured_model, log_mean_exp, recorded_seed)
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
@@ -249,7 +249,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         ``log_weights`` are the final particles' normalised-to-the-run log-weights;
         ``log_marginal_likelihood`` is the last run's estimate of log Z.
     """
-    check_positive("particles", particles)
+    particles = check_positive("particles", particles)  # a plain int: numpy's too, for settings.json
     if resampling not in RESAMPLING:
         raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {resampling!r}")
     ess_threshold = resolve_ess_threshold(ess_threshold, guide is not None)
@@ -300,7 +300,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     engine = ("smc" if order == "program" else "sosmc") + ("+guide" if guide is not None else "")
     return Result(engine, tracker.best, tracker.best_score, states, tracker.rows, tracker.seconds,
                   tracker.evaluations,
-                  settings={"particles": particles, "seed": seed, "resampling": resampling,
+                  settings={"particles": particles, "seed": recorded_seed(seed), "resampling": resampling,
                             "ess_threshold": ess_threshold, "order": order,
                             "budget": budget.describe() if budget is not None else "one run",
                             "guide": None if guide is None else guide.source or "(in memory)",

@@ -9,7 +9,8 @@ import numpy as np
 from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
-from ..common import Budget, Result, Tracker, check_population, check_positive, check_run, configured_model, new_seed
+from ..common import (Budget, Result, Tracker, check_population, check_positive, check_run, configured_model, new_seed,
+                      recorded_seed)
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
@@ -46,9 +47,9 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     executor : concurrent.futures.Executor, optional
         Evaluates offspring (default: in-process, incrementally where the target allows).
     """
-    check_positive("population", population)
-    check_positive("tournament", tournament)
-    check_positive("max_retries", max_retries)
+    population = check_positive("population", population)  # a plain int: numpy's too, for settings.json
+    tournament = check_positive("tournament", tournament)
+    max_retries = check_positive("max_retries", max_retries)
     if not 0.0 <= mutation <= 1.0:
         raise InvalidArgumentError(f"mutation must be in [0, 1], got {mutation!r}")
     split = _check_split(split)
@@ -68,7 +69,7 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     with relaxed_gc():
         if initial_size is None:
             initial_size = default_initial_size(evaluate, rng)
-        check_positive("initial_size", initial_size)
+        initial_size = check_positive("initial_size", initial_size)
         pop = initial_population(evaluate, population, initial_size, rng, tracker)
         n_elite = elite_count(elitism, population)
         while not tracker.spent():
@@ -82,7 +83,7 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     pop.sort(key=lambda ind: ind.score, reverse=True)
     return Result("ga", tracker.best, tracker.best_score, [ind.derivation for ind in pop],
                   tracker.rows, tracker.seconds, tracker.evaluations,
-                  settings={"population": population, "seed": seed, "budget": budget.describe(),
+                  settings={"population": population, "seed": recorded_seed(seed), "budget": budget.describe(),
                             "mutation": mutation, "split": list(split), "elitism": elitism,
                             "tournament": tournament, "initial_size": initial_size, "nudge_step": nudge_step,
                             "incremental": evaluate.incremental},
