@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.distributions import Normal
+from ..core.distributions import Normal, TruncatedNormal
 from ..core.errors import cut_text, shown_value
 from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from ..core.limits import check_memory
@@ -465,9 +465,12 @@ class GuidedProposer:
         kind = site[0]
         if type(dist) is not site[4]:
             if head_kind(dist) != kind:
+                article = "an" if kind[0] in "aeiou" else "a"
                 raise GuideError(f"site {site_key(rule_name(ctx.rule), name)} draws a {type(dist).__name__} now but the "
-                                 f"guide learned a {kind} proposal for it; retrain the guide")
-            if not kind.startswith("categorical"):  # categoricals: check the size every time
+                                 f"guide learned {article} {kind} proposal for it; retrain the guide")
+            # the class settles the kind, except a categorical's size and a truncated normal's
+            # bounds (finite: interval; half-open: real): those are checked every time
+            if not kind.startswith("categorical") and type(dist) is not TruncatedNormal:
                 site[4] = type(dist)
         if kind == "real":
             mu0, s0 = (dist.mu, dist.sigma) if type(dist) is Normal else base_params(kind, dist)

@@ -104,7 +104,12 @@ class ParticleShard:
             log_lik[i] = new
             if log_ratio is not None:  # guided: weigh by prior / proposal of this step's choices
                 ratio = state.log_prior - state.policy.log_proposal  # the GuidedPolicy reset() installed
-                log_w[i] += ratio - log_ratio[i]
+                if ratio == -math.inf or log_ratio[i] == -math.inf:
+                    # a proposal outside the prior's support (a real head on a half-normal): zero
+                    # weight for good; -inf - -inf at its next step was NaN, and log Z with it
+                    log_w[i] = -math.inf
+                else:
+                    log_w[i] += ratio - log_ratio[i]
                 log_ratio[i] = ratio
             if state.done:
                 finished[i] = True
