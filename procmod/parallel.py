@@ -26,6 +26,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import ctypes
+import multiprocessing
 import os
 import re
 import signal
@@ -38,6 +39,20 @@ from .core.errors import InvalidArgumentError, ProcmodError, argument
 
 class SchedulerError(ProcmodError):
     """A dask scheduler that cannot be reached or used."""
+
+
+class WorkerError(ProcmodError):
+    """Worker processes that cannot be started, or one that ended before its work did
+    (killed by the system when memory ran out, or from outside): the machine's doing,
+    not the command's; one line says so and what to try."""
+
+
+def lost_worker_error(what: str, exitcode) -> WorkerError:
+    """The one line for a worker process ``what`` that ended with ``exitcode`` mid-job."""
+    how = ("" if not isinstance(exitcode, int) else
+           f"killed by signal {-exitcode}: " if exitcode < 0 else f"exit code {exitcode}: ")
+    return WorkerError(f"{what} ended unexpectedly ({how}killed from outside, or by the system when memory ran "
+                       "out); rerun, with fewer workers (or workers=1, in one process) if it happens again")
 
 
 class InlineExecutor(concurrent.futures.Executor):
@@ -193,6 +208,11 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
                                  "check the address and that `dask scheduler` is running") from exc
         try:
             yield client.get_executor(pure=False)
+        except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:
+            if client.status == "running":  # the scheduler is there: not its loss
+                raise
+            raise SchedulerError(f"lost the dask scheduler at {scheduler!r} mid-job ({type(exc).__name__}); start "
+                                 "it again and rerun: a resumable job keeps what it finished") from None
         finally:
             client.close()
         return
@@ -203,16 +223,45 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     if workers is None or workers <= 1:
         yield InlineExecutor()
         return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
-                                                initargs=(os.getpid(),)) as pool:
+    before = set(multiprocessing.active_children())
+    pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
+                                                  initargs=(os.getpid(),))
+    try:
         # start the workers now, from this thread: the kernel's parent-death signal follows
         # the thread that forked a worker, and this one outlives the pool
         pool.submit(_ready).result()
+    except (OSError, concurrent.futures.process.BrokenProcessPool) as exc:
+        # a process limit (ulimit -u, a container's pids.max): the workers that did start
+        # waited for work forever, and the command with them. A broken pool has already
+        # forgotten its processes: the new children are its workers.
+        _end_broken_pool(pool, before)
+        raise WorkerError(f"cannot start {workers} worker processes ({getattr(exc, 'strerror', None) or exc}); the "
+                          "machine limits its processes: give fewer workers, or workers=1") from None
+    with pool:
         try:
             yield pool
+        except concurrent.futures.process.BrokenProcessPool:
+            workers_of_pool = set((pool._processes or {}).values()) | (set(multiprocessing.active_children()) - before)
+            # the one that died: not one the pool's own clean-up terminated (SIGTERM) before this
+            lost = next((p.exitcode for p in workers_of_pool if p.exitcode not in (None, 0, -signal.SIGTERM)), None)
+            _end_broken_pool(pool, before)
+            raise lost_worker_error("a worker process", lost) from None
         except BaseException:
             _stop_now(pool)
             raise
+
+
+def _end_broken_pool(pool: concurrent.futures.ProcessPoolExecutor, before: set) -> None:
+    """Stop a broken pool and terminate this process's children that ``before`` did not
+    hold: the pool's workers, which a broken pool has already forgotten, and the one its
+    thread may still fork to replace a worker that died (CPython does so even under fork)."""
+    thread = getattr(pool, "_executor_manager_thread", None)  # shutdown() forgets it
+    _stop_now(pool)
+    if thread is not None:
+        thread.join(timeout=5)
+    for process in set(multiprocessing.active_children()) - before:
+        process.terminate()
+        process.join(timeout=5)
 
 
 def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:

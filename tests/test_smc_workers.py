@@ -13,6 +13,7 @@ from procmod.infer import smc, sosmc
 from procmod.infer.particles import fork_available, plan_offspring
 from procmod.infer.smc import worker_count
 from procmod.models import get_model
+from procmod.parallel import WorkerError
 from procmod.targets import ShapeMatch
 from procmod.data import scribble_set
 
@@ -188,7 +189,8 @@ def _failing_rule(ctx, depth, how):
 
 @pytest.mark.parametrize("how,error,message", [
     ("raise", ModelError, "this rule is broken"),
-    ("die", RuntimeError, "ended unexpectedly.*exit code 3"),
+    ("die", WorkerError, "SMC worker process 1 ended unexpectedly \\(exit code 3: killed from outside, or by "
+                         "the system when memory ran out\\); rerun"),  # a ProcmodError: one line
 ])
 def test_a_failure_in_a_worker_is_raised_in_the_caller(how, error, message):
     failing = Model("failing", "a rule that fails in a worker", _failing_rule, lambda p: (0, how),

@@ -29,6 +29,7 @@ import multiprocessing
 import os
 
 from .common import Budget, HistoryRow, Result, evaluate
+from ..parallel import lost_worker_error
 from .particles import _pin, split_evenly
 
 
@@ -51,9 +52,7 @@ class _Group:
                 self._reply = self.conn.recv()
             except (EOFError, ConnectionResetError, OSError):
                 self.process.join(timeout=1)
-                self._reply = ("error", RuntimeError(
-                    f"MCMC worker process {self.index} ended unexpectedly (exit code {self.process.exitcode}); "
-                    "rerun with workers=1 to run in one process"))
+                self._reply = ("error", lost_worker_error(f"MCMC worker process {self.index}", self.process.exitcode))
         return self._reply
 
     def failed(self) -> bool:

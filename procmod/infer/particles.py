@@ -32,6 +32,7 @@ import signal
 
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
 from .common import checked_value
+from ..parallel import lost_worker_error
 
 _ATOMS = (int, float, str, bytes, bool, type(None))
 
@@ -320,8 +321,7 @@ class WorkerShard:
             data = self.conn.recv_bytes()
         except (EOFError, ConnectionResetError) as exc:
             self.process.join(timeout=1)
-            raise RuntimeError(f"SMC worker process {self.index} ended unexpectedly (exit code "
-                               f"{self.process.exitcode}); rerun with workers=1 to run in one process") from exc
+            raise lost_worker_error(f"SMC worker process {self.index}", self.process.exitcode) from exc
         status, reply = self.shared.loads(data)
         if status == "error":
             raise reply

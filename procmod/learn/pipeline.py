@@ -148,8 +148,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
                    duplicate_note(example_set, labels)):
         if advice is not None and note is not None:
             note(advice)
-    folder.prepare_in_place(keep=True)
-    with open_executor(workers, scheduler) as executor:
+    with open_executor(workers, scheduler) as executor:  # an unreachable scheduler: before --out is made
+        folder.prepare_in_place(keep=True)
         result = run_search(example_set, options, executor, out / "checkpoint", digest, progress)
     program = result.program
     program.info["examples"] = shown

@@ -81,8 +81,10 @@ def user_code_error(exc: BaseException) -> str | None:
     lies in such a file (then it is procmod's own bug, and keeps its traceback)."""
     frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(exc.__traceback__)]
     remote = getattr(exc.__cause__, "tb", None)  # a process pool's worker: its traceback, as text
-    if isinstance(remote, str):
-        frames += [(m[1], int(m[2]), m[3]) for m in _FRAME_LINE.finditer(remote)]
+    # an SMC or MCMC worker's: in a note (procmod.parallel.note_worker_traceback)
+    notes = [n for n in getattr(exc, "__notes__", ()) if isinstance(n, str)]
+    for text in ([remote] if isinstance(remote, str) else []) + notes:
+        frames += [(m[1], int(m[2]), m[3]) for m in _FRAME_LINE.finditer(text)]
     frames = [f for f in frames if f[0] in _USER_FILES or str(Path(f[0]).resolve()) in _USER_FILES]
     if not frames:
         return None

@@ -1,0 +1,90 @@
+"""Worker processes the machine will not start or takes away, and user errors raised on a
+worker: one line each, never a hang (an adversarial pass with a process limit, kill -9
+and a user's rule that fails only on a worker found each)."""
+
+import concurrent.futures
+import multiprocessing
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from procmod import parallel
+from procmod.parallel import WorkerError, open_executor
+
+
+def _fail_to_start(parent):
+    raise RuntimeError("can't start new thread")  # what a worker's initializer met under pids.max
+
+
+def _die():
+    os._exit(9)
+
+
+def test_workers_that_cannot_start_are_one_line_not_a_hang(monkeypatch):
+    """Under a process limit some workers started and waited for work forever, and the
+    command with them, after a traceback (BlockingIOError)."""
+    monkeypatch.setattr(parallel, "_exit_with_parent", _fail_to_start)
+    with pytest.raises(WorkerError, match="cannot start 2 worker processes .*give fewer workers, or workers=1"):
+        with open_executor(2):
+            pass
+    assert not multiprocessing.active_children()
+
+
+def test_a_worker_killed_mid_job_is_one_line():
+    with pytest.raises(WorkerError, match="a worker process ended unexpectedly \\((exit code 9: )?killed from outside"):
+        with open_executor(2) as pool:
+            pool.submit(_die).result()
+    assert not multiprocessing.active_children()
+
+
+@pytest.mark.parametrize("engine", ["smc", "mcmc"])
+def test_a_users_rule_failing_on_an_engine_worker_is_one_line_naming_it(engine, tmp_path):
+    """The worker's traceback travels in a note; the one line read only a process pool's."""
+    (tmp_path / "mine.py").write_text(textwrap.dedent("""
+        import math, multiprocessing
+        from procmod import Model, Normal
+        from procmod.geometry import Canvas, Segment
+
+        def chain(ctx, x, y, angle):
+            angle = ctx.sample("angle", Normal(angle, math.pi / 8))
+            if multiprocessing.current_process().name != "MainProcess":
+                raise ValueError("boom only in a worker")
+            x1, y1 = x + 2 * math.cos(angle), y + 2 * math.sin(angle)
+            ctx.emit(Segment(x, y, x1, y1, 0.6))
+            ctx.maybe("next", 0.7, chain, x1, y1, angle)
+
+        M = Model("my-chain", "a chain", chain, root_args=lambda p: (0.0, 0.0, -math.pi / 2),
+                  new_output_from=lambda p: Canvas((-12, 12, -22, 2), 50))
+        """))
+    options = ["--particles", "8"] if engine == "smc" else ["--engine", "mcmc", "--budget", "40evals",
+                                                            "--init-particles", "0"]
+    run = subprocess.run([sys.executable, "-m", "procmod.cli", "infer", "mine.py:M", "--target", "glyph:a",
+                          *options, "--workers", "2", "--out", "run"], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 2, run.stderr[-2000:]
+    assert run.stderr.strip() == ("procmod: error: mine.py, line 9, in chain: ValueError: boom only in a worker (an "
+                                  "error in the model's own code)"), run.stderr[-2000:]
+
+
+def _slow(seconds):
+    import time
+    time.sleep(seconds)
+    return seconds
+
+
+def test_a_dask_scheduler_lost_mid_job_is_one_line():
+    """A cluster that went away mid-job ended in a CancelledError traceback."""
+    distributed = pytest.importorskip("distributed")
+    from procmod.parallel import SchedulerError
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    try:
+        with pytest.raises(SchedulerError, match="lost the dask scheduler at .* mid-job .*rerun"):
+            with open_executor(scheduler=cluster.scheduler_address) as executor:
+                future = executor.submit(_slow, 3)
+                cluster.close()
+                future.result()
+    finally:
+        cluster.close()
