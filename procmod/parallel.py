@@ -26,7 +26,6 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import ctypes
-import multiprocessing
 import os
 import re
 import signal
@@ -48,11 +47,16 @@ class WorkerError(ProcmodError):
 
 
 def lost_worker_error(what: str, exitcode) -> WorkerError:
-    """The one line for a worker process ``what`` that ended with ``exitcode`` mid-job."""
-    how = ("" if not isinstance(exitcode, int) else
-           f"killed by signal {-exitcode}: " if exitcode < 0 else f"exit code {exitcode}: ")
-    return WorkerError(f"{what} ended unexpectedly ({how}killed from outside, or by the system when memory ran "
-                       "out); rerun, with fewer workers (or workers=1, in one process) if it happens again")
+    """The one line for a worker process ``what`` that ended with ``exitcode`` mid-job
+    (None: not known). Only SIGKILL is blamed on the outside or on memory (the OOM
+    killer's signal); a crash or an exit of its own is said as it is."""
+    if exitcode == -signal.SIGKILL or exitcode is None:
+        how = " (killed from outside, or by the system when memory ran out)" if exitcode is None else \
+            f" (killed by signal {signal.SIGKILL}: from outside, or by the system when memory ran out)"
+    else:
+        how = f" (killed by signal {-exitcode})" if exitcode < 0 else f" (exit code {exitcode})"
+    return WorkerError(f"{what} ended unexpectedly{how}; rerun, with fewer workers, or with workers=1 (in one "
+                       "process, where a crash shows its cause)")
 
 
 class InlineExecutor(concurrent.futures.Executor):
@@ -120,6 +124,25 @@ def note_worker_traceback(exc: BaseException, where: str) -> BaseException:
         text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)).rstrip()
         exc.add_note(f"--- raised in {where}:\n{text}")
     return exc
+
+
+def portable_error(exc: BaseException, where: str) -> BaseException:
+    """``exc``, raised in worker process ``where``, made ready to send to the coordinator:
+    its traceback as a note (:func:`note_worker_traceback`), and, if it would not come
+    back through pickle (an exception class whose ``__init__`` takes other arguments
+    than its ``args``: the coordinator's unpickling raised a TypeError of its own), a
+    RuntimeError naming it that carries the same notes."""
+    import pickle
+
+    note_worker_traceback(exc, where)
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:  # noqa: BLE001 - whatever the user's class does on the way
+        stand_in = RuntimeError(f"{type(exc).__name__}: {exc}")
+        for note in getattr(exc, "__notes__", ()):
+            stand_in.add_note(note)
+        return stand_in
 
 
 def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
@@ -223,45 +246,43 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     if workers is None or workers <= 1:
         yield InlineExecutor()
         return
-    before = set(multiprocessing.active_children())
     pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
                                                   initargs=(os.getpid(),))
     try:
         # start the workers now, from this thread: the kernel's parent-death signal follows
         # the thread that forked a worker, and this one outlives the pool
         pool.submit(_ready).result()
+        started = list((pool._processes or {}).values())  # a broken pool forgets them
     except (OSError, concurrent.futures.process.BrokenProcessPool) as exc:
-        # a process limit (ulimit -u, a container's pids.max): the workers that did start
-        # waited for work forever, and the command with them. A broken pool has already
-        # forgotten its processes: the new children are its workers.
-        _end_broken_pool(pool, before)
-        raise WorkerError(f"cannot start {workers} worker processes ({getattr(exc, 'strerror', None) or exc}); the "
-                          "machine limits its processes: give fewer workers, or workers=1") from None
+        # under a process limit (ulimit -u, a container's pids.max) the workers that did
+        # start waited for work forever, and the command with them
+        _end_broken_pool(pool)
+        raise WorkerError(f"cannot start {workers} worker processes ({getattr(exc, 'strerror', None) or exc}); if "
+                          "the machine limits its processes (ulimit -u, a container's pids limit), give fewer "
+                          "workers, or workers=1") from None
     with pool:
         try:
             yield pool
-        except concurrent.futures.process.BrokenProcessPool:
-            workers_of_pool = set((pool._processes or {}).values()) | (set(multiprocessing.active_children()) - before)
+        except concurrent.futures.process.BrokenProcessPool as exc:
+            if exc.__cause__ is not None:  # the pool's own failure (a result it could not unpickle): nothing died
+                _end_broken_pool(pool)
+                raise
             # the one that died: not one the pool's own clean-up terminated (SIGTERM) before this
-            lost = next((p.exitcode for p in workers_of_pool if p.exitcode not in (None, 0, -signal.SIGTERM)), None)
-            _end_broken_pool(pool, before)
+            lost = next((p.exitcode for p in started if p.exitcode not in (None, 0, -signal.SIGTERM)), None)
+            _end_broken_pool(pool)
             raise lost_worker_error("a worker process", lost) from None
         except BaseException:
             _stop_now(pool)
             raise
 
 
-def _end_broken_pool(pool: concurrent.futures.ProcessPoolExecutor, before: set) -> None:
-    """Stop a broken pool and terminate this process's children that ``before`` did not
-    hold: the pool's workers, which a broken pool has already forgotten, and the one its
-    thread may still fork to replace a worker that died (CPython does so even under fork)."""
+def _end_broken_pool(pool: concurrent.futures.ProcessPoolExecutor) -> None:
+    """Stop a broken pool and wait for its thread, which terminates and joins the workers
+    a broken pool has already forgotten (returning before it did left them running)."""
     thread = getattr(pool, "_executor_manager_thread", None)  # shutdown() forgets it
     _stop_now(pool)
     if thread is not None:
         thread.join(timeout=5)
-    for process in set(multiprocessing.active_children()) - before:
-        process.terminate()
-        process.join(timeout=5)
 
 
 def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:

@@ -5,6 +5,7 @@ and a user's rule that fails only on a worker found each)."""
 import concurrent.futures
 import multiprocessing
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -20,7 +21,16 @@ def _fail_to_start(parent):
 
 
 def _die():
-    os._exit(9)
+    os.kill(os.getpid(), signal.SIGKILL)  # what the OOM killer sends
+
+
+class _TwoArgumentError(Exception):
+    def __init__(self, angle, limit):  # args is (message,): pickle cannot rebuild it
+        super().__init__(f"angle {angle} beyond {limit}")
+
+
+def _raise_two_argument_error():
+    raise _TwoArgumentError(1.5, 0)
 
 
 def test_workers_that_cannot_start_are_one_line_not_a_hang(monkeypatch):
@@ -34,9 +44,20 @@ def test_workers_that_cannot_start_are_one_line_not_a_hang(monkeypatch):
 
 
 def test_a_worker_killed_mid_job_is_one_line():
-    with pytest.raises(WorkerError, match="a worker process ended unexpectedly \\((exit code 9: )?killed from outside"):
+    with pytest.raises(WorkerError, match="a worker process ended unexpectedly \\((killed by signal 9: from|killed from) outside, "
+                                          "or by the system when memory ran out\\); rerun, with fewer workers"):
         with open_executor(2) as pool:
             pool.submit(_die).result()
+    assert not multiprocessing.active_children()
+
+
+def test_a_result_the_caller_cannot_unpickle_is_not_a_lost_worker():
+    """A pool that cannot rebuild a task's exception is 'broken' too, though nothing died:
+    it was reported as a worker killed by the system."""
+    with pytest.raises(concurrent.futures.process.BrokenProcessPool) as raised:
+        with open_executor(2) as pool:
+            pool.submit(_raise_two_argument_error).result()
+    assert "_TwoArgumentError" in repr(raised.value.__cause__) or "angle" in str(raised.value.__cause__)
     assert not multiprocessing.active_children()
 
 
@@ -48,10 +69,14 @@ def test_a_users_rule_failing_on_an_engine_worker_is_one_line_naming_it(engine, 
         from procmod import Model, Normal
         from procmod.geometry import Canvas, Segment
 
+        class AngleError(Exception):
+            def __init__(self, angle, limit):
+                super().__init__("boom only in a worker")
+
         def chain(ctx, x, y, angle):
             angle = ctx.sample("angle", Normal(angle, math.pi / 8))
             if multiprocessing.current_process().name != "MainProcess":
-                raise ValueError("boom only in a worker")
+                raise AngleError(angle, 0)  # its __init__ takes two: it does not come back through pickle
             x1, y1 = x + 2 * math.cos(angle), y + 2 * math.sin(angle)
             ctx.emit(Segment(x, y, x1, y1, 0.6))
             ctx.maybe("next", 0.7, chain, x1, y1, angle)
@@ -65,8 +90,8 @@ def test_a_users_rule_failing_on_an_engine_worker_is_one_line_naming_it(engine, 
                           *options, "--workers", "2", "--out", "run"], cwd=tmp_path, capture_output=True,
                          text=True, timeout=300)
     assert run.returncode == 2, run.stderr[-2000:]
-    assert run.stderr.strip() == ("procmod: error: mine.py, line 9, in chain: ValueError: boom only in a worker (an "
-                                  "error in the model's own code)"), run.stderr[-2000:]
+    assert run.stderr.strip() == ("procmod: error: mine.py, line 13, in chain: RuntimeError: AngleError: boom only in "
+                                  "a worker (an error in the model's own code)"), run.stderr[-2000:]
 
 
 def _slow(seconds):

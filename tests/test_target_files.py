@@ -291,3 +291,12 @@ def test_declared_face_counts(tmp_path):
     assert declared_faces(tmp_path / "b.obj") == 12
     (tmp_path / "a.stl").write_text(box.export(file_type="stl_ascii"))
     assert declared_faces(tmp_path / "a.stl") == 12
+
+
+def test_a_tools_own_keys_are_left_alone(inputs):
+    """Only near misses are refused: a tool's keys that merely look alike stay readable."""
+    from procmod.targets import load_target_file
+    for spec in (dict(_sil({"mesh_source": "maya", "mesh_path": "/x"}), mesh_source="maya"),
+                 _with(MESH, layers__0__mesh_url="http://x", voxels="fine", mesh_source="maya")):
+        (inputs / "tool.json").write_text(json.dumps(spec))
+        load_target_file(inputs / "tool.json")

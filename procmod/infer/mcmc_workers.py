@@ -77,14 +77,14 @@ class _Group:
 
 
 def _group_main(conn, index: int, run, parent: int) -> None:
-    from ..parallel import _exit_with_parent, note_worker_traceback
+    from ..parallel import _exit_with_parent, portable_error
 
     _exit_with_parent(parent)
     _pin(index)  # a core of its own (see procmod.infer.particles._pin)
     try:
         reply = ("ok", _packed(run()))
     except BaseException as exc:  # noqa: BLE001 - every failure goes back to the caller
-        reply = ("error", note_worker_traceback(exc, f"MCMC worker process {index}"))
+        reply = ("error", portable_error(exc, f"MCMC worker process {index}"))
     try:
         conn.send(reply)
     except Exception as exc:  # e.g. an exception that cannot be pickled

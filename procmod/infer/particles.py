@@ -224,7 +224,7 @@ def shared_objects(model, target, template, proposer) -> _SharedObjects:
 
 
 def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int) -> None:
-    from ..parallel import _exit_with_parent, note_worker_traceback
+    from ..parallel import _exit_with_parent, portable_error
 
     _exit_with_parent(parent)
     # the coordinator answers Ctrl-C (a terminal sends it to the whole process group) and
@@ -272,7 +272,7 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
                 raise ValueError(f"unknown command {command!r}")
             message = ("ok", reply)
         except BaseException as exc:  # raised again in the coordinator at its next answer
-            message = ("error", note_worker_traceback(exc, f"SMC worker process {shard.index}"))
+            message = ("error", portable_error(exc, f"SMC worker process {shard.index}"))
         try:
             conn.send_bytes(shared.dumps(message))
         except (pickle.PicklingError, TypeError, AttributeError):

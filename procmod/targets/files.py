@@ -666,9 +666,10 @@ _GRID_KEYS = ("origin", "voxel_size", "shape")
 _LAYER_KEYS = ("file", "w_fill", "w_avoid")
 _SILHOUETTE_KEYS = ("format", "views") + _PLACEMENT_KEYS
 _VIEW_KEYS = ("weights", "image", "mesh", "camera", "hit", "avoid")
-# outside a view, a tool's own keys are likelier ("mesh_source" is 0.76 like "mesh_scale"):
-# only closer misses are refused ("marign" 0.83, "w_avod" 0.92, "mesh_scle" 0.95)
-_STRICT = 0.8
+# outside a view, and for the file-wide keys, a tool's own keys are likelier ("mesh_source" is
+# 0.76 like "mesh_scale", "mesh_url" 0.8 like "mesh_up"): only closer misses are refused
+# ("marign" 0.83, "mesh-up" 0.86, "w_avod" 0.92, "mesh_scle" 0.95)
+_STRICT = 0.82
 
 
 def _at_top_level(spec: dict, known: tuple, where: str, inside: tuple | None = None) -> None:
@@ -694,7 +695,7 @@ def _misplaced_keys(spec: dict, known: tuple, at: str, inside: tuple | None = No
         if inside is not None and key in inside[1]:
             raise TargetFileError(f"{key if at is None else f'{at}.{key}'} belongs inside its \"{inside[0]}\" object "
                                   f"(\"{inside[0]}\": {{..., \"{key}\": ...}})")
-        meant = key if key in top else meant_key(key, top, cutoff=cutoff)
+        meant = key if key in top else meant_key(key, top, cutoff=max(cutoff, _STRICT))  # mesh_source: no mesh_scale
         if meant:
             said = "" if meant == key else f" (did you mean {meant!r}?)"
             raise TargetFileError(f"{at}.{key}{said} belongs at the file's top level, where it applies to every mesh "
