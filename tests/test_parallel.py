@@ -60,7 +60,7 @@ def test_a_result_the_caller_cannot_unpickle_is_not_a_lost_worker():
         with open_executor(2) as pool:
             pool.submit(_raise_two_argument_error).result()
     assert not isinstance(raised.value, WorkerError)
-    assert "angle 1.5 beyond 0" in f"{raised.value} {raised.value.__cause__}"
+    assert "_TwoArgumentError" in f"{type(raised.value).__name__} {raised.value.__cause__}"
     assert not multiprocessing.active_children()
 
 
