@@ -256,7 +256,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     except (OSError, concurrent.futures.process.BrokenProcessPool) as exc:
         # under a process limit (ulimit -u, a container's pids.max) the workers that did
         # start waited for work forever, and the command with them
-        _end_broken_pool(pool)
+        _stop_now(pool)
         raise WorkerError(f"cannot start {workers} worker processes ({getattr(exc, 'strerror', None) or exc}); if "
                           "the machine limits its processes (ulimit -u, a container's pids limit), give fewer "
                           "workers, or workers=1") from None
@@ -265,24 +265,15 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
             yield pool
         except concurrent.futures.process.BrokenProcessPool as exc:
             if exc.__cause__ is not None:  # the pool's own failure (a result it could not unpickle): nothing died
-                _end_broken_pool(pool)
+                _stop_now(pool)
                 raise
             # the one that died: not one the pool's own clean-up terminated (SIGTERM) before this
             lost = next((p.exitcode for p in started if p.exitcode not in (None, 0, -signal.SIGTERM)), None)
-            _end_broken_pool(pool)
+            _stop_now(pool)
             raise lost_worker_error("a worker process", lost) from None
         except BaseException:
             _stop_now(pool)
             raise
-
-
-def _end_broken_pool(pool: concurrent.futures.ProcessPoolExecutor) -> None:
-    """Stop a broken pool and wait for its thread, which terminates and joins the workers
-    a broken pool has already forgotten (returning before it did left them running)."""
-    thread = getattr(pool, "_executor_manager_thread", None)  # shutdown() forgets it
-    _stop_now(pool)
-    if thread is not None:
-        thread.join(timeout=5)
 
 
 def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:
@@ -293,7 +284,9 @@ def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:
     3.11 raises (and prints, from the pool's thread) for a future already cancelled, as a
     caller's clean-up may have done: such a work item gets a fresh future of its own to
     be marked instead (the pool's thread still looks the item up, so it stays)."""
-    processes = list((pool._processes or {}).values())  # shutdown() forgets them
+    workers = pool._processes or {}  # shutdown() forgets them, and the pool's thread
+    thread = getattr(pool, "_executor_manager_thread", None)
+    processes = list(workers.values())
     pool.shutdown(wait=False, cancel_futures=False)
     pending = getattr(pool, "_pending_work_items", None)
     if isinstance(pending, dict):
@@ -304,3 +297,12 @@ def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:
         process.terminate()
     for process in processes:
         process.join(timeout=5)
+    # The pool's thread ends a broken pool's workers itself, and may fork a replacement for
+    # one that died (CPython does so even under fork) before it sees the shutdown: wait for
+    # it, then end what it left.
+    if thread is not None:
+        thread.join(timeout=5)
+    for process in list(workers.values()):
+        if process.is_alive():
+            process.terminate()
+            process.join(timeout=5)

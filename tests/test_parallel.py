@@ -116,3 +116,17 @@ def test_a_dask_scheduler_lost_mid_job_is_one_line():
                 future.result()
     finally:
         cluster.close()
+
+
+def _raise_value_error():
+    raise ValueError("a task's own error")
+
+
+def test_a_tasks_error_leaves_no_worker_behind():
+    """The workers were terminated but the pool's thread could fork a replacement for one
+    of them before it saw the shutdown, left running after the block."""
+    for _ in range(5):
+        with pytest.raises(ValueError, match="a task's own error"):
+            with open_executor(2) as pool:
+                pool.submit(_raise_value_error).result()
+        assert not multiprocessing.active_children()
