@@ -50,11 +50,14 @@ def lost_worker_error(what: str, exitcode) -> WorkerError:
     """The one line for a worker process ``what`` that ended with ``exitcode`` mid-job
     (None: not known). Only SIGKILL is blamed on the outside or on memory (the OOM
     killer's signal); a crash or an exit of its own is said as it is."""
-    if exitcode == -signal.SIGKILL or exitcode is None:
-        how = " (killed from outside, or by the system when memory ran out)" if exitcode is None else \
-            f" (killed by signal {signal.SIGKILL}: from outside, or by the system when memory ran out)"
+    if exitcode is None:
+        how = " (killed from outside, or by the system when memory ran out)"
+    elif exitcode == -signal.SIGKILL:
+        how = f" (killed by signal {signal.SIGKILL}: from outside, or by the system when memory ran out)"
+    elif exitcode < 0:
+        how = f" (killed by signal {-exitcode})"
     else:
-        how = f" (killed by signal {-exitcode})" if exitcode < 0 else f" (exit code {exitcode})"
+        how = f" (exit code {exitcode})"
     return WorkerError(f"{what} ended unexpectedly{how}; rerun, with fewer workers, or with workers=1 (in one "
                        "process, where a crash shows its cause)")
 
