@@ -110,6 +110,14 @@ def test_console_script_exit_code(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_python_dash_m_procmod_is_the_command_line(tmp_path):
+    ok = subprocess.run([sys.executable, "-m", "procmod", "models"], capture_output=True, text=True)
+    assert ok.returncode == 0 and "vines" in ok.stdout
+    bad = subprocess.run([sys.executable, "-m", "procmod", "sample", "nope", "--out", str(tmp_path / "o")],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and bad.stderr.startswith("procmod: error:") and bad.stderr.count("\n") == 1
+
+
 def test_infer_writes_a_report(tmp_path, capsys):
     out = tmp_path / "run"
     code, stdout, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--engine", "smc",

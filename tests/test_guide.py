@@ -419,6 +419,11 @@ def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path,
 def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
     (tmp_path / "mine.pt").write_bytes(b"a user's torch model")  # files a guide's --out would replace
     np.savez(tmp_path / "data.npz", x=np.zeros(3))
+    nameless = tmp_path / "nameless"  # a traces folder whose traces.json lost its model's name
+    shutil.copytree(few_traces, nameless)
+    job = json.loads((nameless / "traces.json").read_text())
+    del job["model"]
+    (nameless / "traces.json").write_text(json.dumps(job))
     assert main(["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "g"),
                  "--iterations", "30"]) == 0
     assert main(["infer", "vines", "--target", "glyph:a", "--engine", "smc", "--particles", "10",
@@ -431,6 +436,10 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
         (["infer", "chain", "--target", "glyph:a", "--guide", str(tmp_path / "g"), "--out", str(tmp_path / "x")],
          "trained for model 'vines'"),
         (["guide", "train", "vines", "--traces", str(tmp_path), "--out", str(tmp_path / "h")], "not a traces folder"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
+          "--iterations", "99999999999999999999"], "iterations must be at most 10,000,000"),
+        (["guide", "train", "vines", "--traces", str(nameless), "--out", str(tmp_path / "h")],
+         "traces.json names no model"),
         (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
           "--features", "pixels"], "unknown feature condition"),
         (["guide", "traces", "vines", "--count", "2", "--targets", "glyphs", "--out", str(tmp_path / "t")],

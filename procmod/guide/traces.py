@@ -197,6 +197,9 @@ def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[di
     if not job_file.is_file():
         raise GuideError(f"{folder} is not a traces folder (no traces.json); make one with 'procmod guide traces'")
     settings = read_versioned_json(job_file, JOB_FORMAT, GuideError)
+    if not isinstance(settings.get("model"), str) or not settings["model"]:
+        raise GuideError(f"{job_file} names no model (its \"model\" is missing or not a name): it was edited or "
+                         "not written by 'procmod guide traces'; put the model's name back, or make the traces again")
     names = sorted((int(m.group(1)), p) for p in folder.iterdir() if (m := _TRACE_NAME.match(p.name)))
     if limit is not None:
         names = names[:limit]

@@ -42,6 +42,9 @@ from .nets import log_q_torch
 from .traces import load_traces
 
 MAX_BATCH = 100_000  # traces a step: far beyond any useful minibatch, small enough to hold
+# Adam steps: 500x the papers' 20,000 (days of training); a mistyped count beyond it
+# would run for ever with no word
+MAX_ITERATIONS = 10_000_000
 ADAM_BETAS = (0.75, 0.75)  # seed 003 5.2: "alpha = beta = 0.75"
 SCHEDULES = ("cosine", "constant")
 # how an error message names the local-only feature setting (the command line spells it
@@ -229,6 +232,9 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
         raise GuideError(f"seed must be an integer from 0 to 2**63-1, got {seed!r}")
     if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
         raise GuideError(f"limit must be a positive integer (the first traces to train on) or None, got {limit!r}")
+    if iterations > MAX_ITERATIONS:
+        raise GuideError(f"iterations must be at most {MAX_ITERATIONS:,} Adam steps (the papers train for 20,000), "
+                         f"got {iterations:,}")
     if batch > MAX_BATCH:
         raise GuideError(f"batch must be at most {MAX_BATCH:,} traces a step, got {batch:,}")
     if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
