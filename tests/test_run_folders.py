@@ -102,6 +102,68 @@ def test_a_failure_while_writing_leaves_the_earlier_run_and_no_temporary_folder(
     assert _names(tmp_path) == ["s"]
 
 
+def _read_only(monkeypatch, folder):
+    """Make ``folder`` act read-only to procmod.core.runfolder, as it does to a user who
+    is not root (tests may run as root, whom chmod does not stop)."""
+    import procmod.core.runfolder as runfolder
+
+    folder = Path(folder).resolve()
+    real_mkdtemp, real_rename = runfolder.tempfile.mkdtemp, runfolder.os.rename
+
+    def inside(path):
+        return path is not None and Path(path).resolve().is_relative_to(folder)
+
+    def mkdtemp(*args, dir=None, **kwargs):
+        if inside(dir):
+            raise PermissionError(13, "Permission denied")
+        return real_mkdtemp(*args, dir=dir, **kwargs)
+
+    def rename(src, dst):
+        if Path(src).resolve() == folder:  # moving a folder to another parent rewrites its ".."
+            raise PermissionError(13, "Permission denied")
+        return real_rename(src, dst)
+
+    monkeypatch.setattr(runfolder.tempfile, "mkdtemp", mkdtemp)
+    monkeypatch.setattr(runfolder.os, "rename", rename)
+
+
+@pytest.mark.parametrize("command", [["sample", "chain", "-n", "2", "--size", "16"],
+                                     ["infer", "chain", "--target", "glyph:a", "--particles", "5", "--size", "16"]])
+def test_a_read_only_out_folder_is_refused_before_the_work(tmp_path, capsys, monkeypatch, command):
+    out = tmp_path / "earlier"
+    assert _run(capsys, *command, "--out", out)[0] == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    _read_only(monkeypatch, out)
+    ran = []
+    monkeypatch.setitem(procmod.infer.ENGINES, "smc", lambda *a, **k: ran.append(1))  # infer's default
+    code, _, err = _run(capsys, *command, "--out", out)
+    assert code == 2 and err.count("\n") == 1 and f"cannot create files in {out}" in err and "writable" in err
+    assert not ran  # refused at the start, not after the engine ran
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert _names(tmp_path) == ["earlier"]  # no hidden .old or .tmp folder left
+
+
+def test_a_folder_made_read_only_during_the_run_is_one_error_leaving_it_whole(tmp_path, monkeypatch):
+    out = tmp_path / "run"
+    with RunFolder(out, SAMPLE_RUN).writing() as tmp:
+        (tmp / "contact_sheet.png").write_bytes(b"x")
+    folder = RunFolder(out, SAMPLE_RUN)
+    import procmod.core.runfolder as runfolder
+
+    real_rename = runfolder.os.rename
+
+    def rename(src, dst):
+        if Path(src).resolve() == out.resolve():
+            raise PermissionError(13, "Permission denied")
+        return real_rename(src, dst)
+
+    monkeypatch.setattr(runfolder.os, "rename", rename)
+    with pytest.raises(OutputLocationError, match="cannot replace .*Permission denied; make it writable"):
+        with folder.writing() as tmp:
+            (tmp / "contact_sheet.png").write_bytes(b"y")
+    assert (out / "contact_sheet.png").read_bytes() == b"x" and _names(tmp_path) == ["run"]
+
+
 def test_run_folder_replacement_is_whole_and_parents_are_made(tmp_path):
     target = tmp_path / "a" / "b" / "run"
     folder = RunFolder(target, SAMPLE_RUN)

@@ -150,7 +150,8 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
         os.rmdir(probe)
     except OSError as exc:
         raise OutputLocationError(f"cannot write {option} {cut_text(str(out))}: cannot create files in "
-                                  f"{cut_text(str(folder))} ({exc.strerror or exc})") from None
+                                  f"{cut_text(str(folder))} ({exc.strerror or exc}); make it writable or give "
+                                  "another folder") from None
 
 
 def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False,
@@ -251,6 +252,12 @@ class RunFolder:
             self._check_replaceable(named=not (kind.resumes and kind.recognises(self.path)))
         self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
+        if exists and not self.in_place:
+            # an existing folder is written into (resumable jobs) or moved aside and deleted
+            # when the new run replaces it: both need it writable, and moving a folder to
+            # another parent needs that too (its ".." changes). Found out only at the end,
+            # a whole run was lost to a read-only earlier run.
+            _probe_writable(self.path, option, self.path)
 
     def _check_replaceable(self, named: bool = True) -> None:
         shown = cut_text(str(self.path))
@@ -324,7 +331,12 @@ class RunFolder:
             os.rename(tmp, self.path)
             return
         old = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".old", dir=self.path.parent))
-        os.rename(self.path, old / "run")
+        try:
+            os.rename(self.path, old / "run")
+        except OSError as exc:  # made read-only since the check at the start
+            old.rmdir()
+            raise OutputLocationError(f"cannot replace {self.option} {cut_text(str(self.path))}: "
+                                      f"{exc.strerror or exc}; make it writable or give another folder") from None
         try:
             os.rename(tmp, self.path)
         except BaseException:
