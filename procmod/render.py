@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .core import Derivation, InvalidArgumentError, write_text_atomic
-from .core.errors import argument
+from .core.errors import argument, shown_value, whole_number
 from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic, shaded_preview
 
 MIN_SIZE, MAX_SIZE = 8, 4096
@@ -19,10 +19,11 @@ FORMATS = FORMATS_2D + FORMATS_3D[1:]
 
 def check_size(size: int) -> int:
     """Validate a display size in pixels."""
-    if isinstance(size, bool) or not isinstance(size, int) or not MIN_SIZE <= size <= MAX_SIZE:
-        raise InvalidArgumentError(f"{argument('size')} must be between {MIN_SIZE} and {MAX_SIZE} pixels, "
-                                   f"got {size!r}")
-    return size
+    pixels = whole_number(size)
+    if pixels is None or not MIN_SIZE <= pixels <= MAX_SIZE:
+        raise InvalidArgumentError(f"{argument('size')} must be between {MIN_SIZE} and {MAX_SIZE} pixels (a whole "
+                                   f"number), got {shown_value(size)}")
+    return pixels
 
 
 def is_2d(derivation: Derivation) -> bool:

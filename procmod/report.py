@@ -88,6 +88,14 @@ def _mask_image(mask, width: int) -> Image.Image:
     return Image.fromarray(grey).resize((width, width), Image.NEAREST).convert("RGB")
 
 
+def _json_setting(value):
+    """A setting json cannot write as it is: a numpy number as the number (a user's
+    ``elitism=np.float32(0.2)``), anything else as its text."""
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
 def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, command: str = "") -> Path:
     """Write every file of an inference run into ``out`` and return the report's path.
 
@@ -141,7 +149,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
         "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,
         "settings": result.settings, "notes": result.notes, "command": command,
     }
-    write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=str) + "\n")
+    write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=_json_setting) + "\n")
     caption = target_caption if (out / "target.png").exists() else None
     viewer = run_viewer_html(out / "best.glb", target) if ".glb" in extra else ""
     write_text_atomic(out / "report.html", _report_html(summary, caption, extra, mean_meaning(result.engine),

@@ -1,6 +1,7 @@
 """The Python API's likely mistakes are one ProcmodError line, not a TypeError or an
 AttributeError from deep inside (an adversarial pass found each of these)."""
 
+import json
 import tempfile
 from pathlib import Path
 
@@ -63,6 +64,44 @@ def test_mcmc_options(vines, kwargs, message):
 def test_every_seed_numpy_takes_is_taken(vines, seed):
     model, target = vines
     assert smc(model, target, particles=2, workers=1, seed=seed).best is not None
+
+
+def _strict_json(text):
+    def refuse(constant):
+        raise ValueError(f"{constant} is not JSON")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_numpy_numbers_are_taken_as_arguments_and_recorded_as_json_numbers(tmp_path):
+    """Counts, sizes and settings that come out of numpy (a grid search, np.arange) are
+    taken as the numbers they are, and settings.json records them as numbers: workers,
+    init_particles and size were refused ("must be a positive integer, got 1"), numpy
+    floats were written as strings, and an np.float32 step size made the choices it moved
+    numpy floats that could not be saved."""
+    from procmod.infer import ENGINES
+    from procmod.report import write_run
+
+    model = get_model("vines").configure(size=np.int64(32), start=np.array([0.5, 0.9]), leaves=np.bool_(False))
+    assert model.params["size"] == 32 and type(model.params["size"]) is int and model.params["start"] == [0.5, 0.9]
+    target = target_from_spec("glyph:a")
+    i64, f32 = np.int64, np.float32
+    runs = {"smc": dict(particles=i64(4), workers=i64(1)),
+            "mcmc": dict(budget=Budget(evaluations=40), workers=i64(1), init_particles=i64(2), step_scale=f32(0.3),
+                         p_diffusion=f32(0.9), p_resample=f32(0.05), annealing=f32(1.2)),
+            "ga": dict(population=i64(6), budget=Budget(generations=2), elitism=f32(0.2), mutation=f32(0.3),
+                       nudge_step=f32(0.1))}
+    for engine, kwargs in runs.items():
+        result = ENGINES[engine](model, target, seed=i64(3), **kwargs)
+        out = tmp_path / engine
+        write_run(result, target, out, size=i64(48))
+        settings = _strict_json((out / "settings.json").read_text())["settings"]
+        for name, value in kwargs.items():
+            if name != "budget":
+                assert isinstance(settings[name], (int, float)) and settings[name] == pytest.approx(float(value)), name
+        _strict_json((out / "best.json").read_text())
+        assert load_derivation(out / "best.json", model).choice_map() == result.best.choice_map()
+    with pytest.raises(ProcmodError, match="nudge_step must be a positive finite number"):
+        ENGINES["ga"](model, target, population=4, budget=Budget(generations=1), nudge_step=float("inf"))
 
 
 def test_a_models_name_or_a_guides_name(vines):
@@ -259,3 +298,15 @@ def test_what_float_takes_and_what_drew_before_is_still_accepted():
     model = _model(pointing_down, lambda p: np.array([]), get_model("spaceship").new_output_from)  # any iterable
     write_derivation(run_forward(model, np.random.default_rng(0)), Path(tempfile.mkdtemp()) / "down.obj", 64)
 
+
+
+def test_load_derivation_takes_the_model_itself(tmp_path):
+    vines = get_model("vines")
+    path = tmp_path / "d.json"
+    made = run_forward(vines, np.random.default_rng(2))
+    save_derivation(made, path)
+    assert load_derivation(path, vines).choice_map() == made.choice_map()  # was "'Model' object is not callable"
+    with pytest.raises(ProcmodError, match="a derivation of model 'vines', not 'chain'"):
+        load_derivation(path, get_model("chain"))
+    with pytest.raises(ProcmodError, match="resolve_model must be the Model or a function"):
+        load_derivation(path, "vines")

@@ -13,6 +13,7 @@ and from the shell.
 
 import contextlib
 import json
+import numbers
 from contextvars import ContextVar
 from types import MappingProxyType
 
@@ -22,6 +23,15 @@ _SPELLING: ContextVar = ContextVar("procmod_argument_spelling", default=MappingP
 def cut_text(text: str, limit: int = 200) -> str:
     """``text`` cut to ``limit`` characters for a message (an input may hold a 100 KB string)."""
     return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def whole_number(value) -> int | None:
+    """``value`` as a plain ``int`` when it is a whole number of an integer type (numpy's
+    too, e.g. from ``np.arange``; never a bool), else None. Argument checks take their
+    counts and seeds through it, so that what they record (settings.json) is plain JSON."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        return None
+    return int(value)
 
 
 def shown_value(value, limit: int = 60) -> str:

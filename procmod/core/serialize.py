@@ -51,7 +51,7 @@ def derivation_to_dict(derivation: Derivation) -> dict:
         "model": derivation.model.name,
         "root": root_rule_id(derivation.model),
         "params": dict(derivation.model.params),
-        "log_prior": derivation.log_prior,
+        "log_prior": float(derivation.log_prior),  # a model's numpy densities sum to a numpy float
         "order": [list(node.address) for node in nodes],
         "choices": [[list(node.address), _json_name(node, name), _json_value(choice.value)]
                     for node in nodes for name, choice in node.choices.items()],
@@ -142,11 +142,12 @@ def _fail(source: str, problem: str) -> DerivationFormatError:
     return DerivationFormatError(f"{source}: {problem}")
 
 
-def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: str = "derivation",
+def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], source: str = "derivation",
                          folder: str | os.PathLike | None = None) -> Derivation:
     """Rebuild a derivation from its dict by replaying its model exactly.
 
-    ``resolve_model(name)`` returns the model registered under ``name``. ``folder``: where
+    ``resolve_model`` is the model that made it, or a function of a model's name that
+    returns the model registered under it (``procmod.models.get_model``). ``folder``: where
     the file lay; a learned program named by a relative path (as :func:`save_derivation`
     writes it) is found from there.
     """
@@ -160,6 +161,13 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
     if folder is not None and _names_program(name) and not os.path.isabs(name) \
             and os.path.isfile(os.path.join(folder, name)):  # else a model's own name: as it is
         name = os.path.realpath(os.path.join(folder, name))  # '..' climbs the real tree, as it was written
+    if isinstance(resolve_model, Model):  # the model itself: it must be the one the file names
+        if not _names_program(name) and name != resolve_model.name:
+            raise _fail(source, f"it is a derivation of model {name!r}, not {resolve_model.name!r}: give its model")
+        resolve_model = _itself(resolve_model)
+    elif not callable(resolve_model):
+        raise InvalidArgumentError(f"resolve_model must be the Model or a function from a model's name to its Model "
+                                   f"(e.g. procmod.models.get_model), got {type(resolve_model).__name__}")
     try:
         model = resolve_model(name)
     except ProcmodError as exc:  # an unknown model: say which file names it (same kind of error)
@@ -225,7 +233,12 @@ def derivation_from_dict(data, resolve_model: Callable[[str], Model], source: st
     return result.derivation
 
 
-def load_derivation(path: str | os.PathLike, resolve_model: Callable[[str], Model]) -> Derivation:
-    """Read a ``procmod-derivation/1`` file and replay it exactly."""
+def _itself(model: Model) -> Callable[[str], Model]:
+    return lambda name: model
+
+
+def load_derivation(path: str | os.PathLike, resolve_model: Model | Callable[[str], Model]) -> Derivation:
+    """Read a ``procmod-derivation/1`` file and replay it exactly (``resolve_model``: see
+    :func:`derivation_from_dict`)."""
     data = read_json(path, DerivationFormatError, "derivation file")
     return derivation_from_dict(data, resolve_model, source=cut_text(str(path)), folder=Path(path).parent)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.distributions import Normal, TruncatedNormal
-from ..core.errors import cut_text, shown_value
+from ..core.errors import cut_text, shown_value, whole_number
 from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from ..core.limits import check_memory
 from ..core.runtime import rule_name
@@ -38,10 +38,11 @@ MAX_CATEGORIES = 100_000
 
 def check_mixture(mixture, where: str = "mixture") -> int:
     """``mixture`` if it is an integer in [1, MAX_MIXTURE], else a GuideError naming ``where``."""
-    if isinstance(mixture, bool) or not isinstance(mixture, int) or not 1 <= mixture <= MAX_MIXTURE:
+    components = whole_number(mixture)
+    if components is None or not 1 <= components <= MAX_MIXTURE:
         raise GuideError(f"{where} must be a whole number of Gaussian components from 1 to {MAX_MIXTURE}, "
                          f"got {shown_value(mixture)}")
-    return mixture
+    return components
 
 
 def _site_kind(kind, where: str) -> str:

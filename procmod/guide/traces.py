@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import InvalidArgumentError, ProcmodError
-from ..core.errors import argument
+from ..core.errors import argument, shown_value, whole_number
 from ..core.runfolder import TRACES_JOB, RunFolder
 from ..core.io import read_json, read_versioned_json, write_text_atomic
 from ..core.serialize import derivation_to_dict
@@ -118,10 +118,12 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
         from ..models.from_file import absolute_spec
         model_file = absolute_spec(model_name)
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise InvalidArgumentError(f"{argument(name)} must be a positive integer, got {value!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
-        raise InvalidArgumentError(f"{argument('seed')} must be a whole number from 0 to 2**63-1, got {seed!r}")
+        if whole_number(value) is None or value < 1:
+            raise InvalidArgumentError(f"{argument(name)} must be a positive integer, got {shown_value(value)}")
+    if whole_number(seed) is None or not 0 <= seed < 2 ** 63:
+        raise InvalidArgumentError(f"{argument('seed')} must be a whole number from 0 to 2**63-1, got "
+                                   f"{shown_value(seed)}")
+    count, particles, set_size, seed = int(count), int(particles), int(set_size), int(seed)  # numpy's: plain
     if count > MAX_TRACES:
         raise InvalidArgumentError(f"{argument('count')} {count:,} traces is more than one job makes (at most "
                                    f"{MAX_TRACES:,}; seed 004 trains on 10,000); split it into jobs")
@@ -190,8 +192,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
 
 def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[dict, list]:
     """The job settings and the traces of a folder (sorted by index; the first ``limit``)."""
-    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
-        raise GuideError(f"limit must be a positive whole number (the first traces to read), got {limit!r}")
+    if limit is not None and (whole_number(limit) is None or limit < 1):
+        raise GuideError(f"limit must be a positive whole number (the first traces to read), got {shown_value(limit)}")
     folder = Path(folder)
     job_file = folder / "traces.json"
     if not job_file.is_file():

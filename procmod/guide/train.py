@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from ..core import Model, start
-from ..core.errors import argument
+from ..core.errors import argument, shown_value, whole_number
 from ..core.runtime import finish
 from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, GuideError
@@ -225,13 +225,18 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                          "its target and choices); or leave it out to read traces_dir")
     for name, value in (("iterations", iterations), ("batch", batch), ("mixture", mixture),
                         ("checkpoint_every", checkpoint_every)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise GuideError(f"{name} must be a positive integer, got {value!r}")
+        if whole_number(value) is None or value < 1:
+            raise GuideError(f"{name} must be a positive integer, got {shown_value(value)}")
     check_mixture(mixture)
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
-        raise GuideError(f"seed must be an integer from 0 to 2**63-1, got {seed!r}")
-    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
-        raise GuideError(f"limit must be a positive integer (the first traces to train on) or None, got {limit!r}")
+    if whole_number(seed) is None or not 0 <= seed < 2 ** 63:
+        raise GuideError(f"seed must be an integer from 0 to 2**63-1, got {shown_value(seed)}")
+    if limit is not None and (whole_number(limit) is None or limit < 1):
+        raise GuideError(f"limit must be a positive integer (the first traces to train on) or None, got "
+                         f"{shown_value(limit)}")
+    # numpy's integers as plain ones: they go into the guide's JSON and torch's seeding
+    iterations, batch, mixture, checkpoint_every, seed = (int(v) for v in (iterations, batch, mixture,
+                                                                           checkpoint_every, seed))
+    limit = None if limit is None else int(limit)
     if iterations > MAX_ITERATIONS:
         raise GuideError(f"iterations must be at most {MAX_ITERATIONS:,} Adam steps (the papers train for 20,000), "
                          f"got {iterations:,}")

@@ -25,6 +25,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..core import Derivation, InvalidArgumentError, Model, replay
+from ..core.errors import shown_value, whole_number
 from ..core.protocols import Output, Target, check_declared
 from ..core.random import LazyGenerator
 from ..parallel import InlineExecutor
@@ -431,9 +432,20 @@ def check_target(target) -> None:
 
 def check_positive(name: str, value) -> int:
     """``value`` if it is a positive integer, else an InvalidArgumentError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise InvalidArgumentError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)  # numpy's integers too
+    count = whole_number(value)  # numpy's integers too, as a plain int
+    if count is None or count < 1:
+        raise InvalidArgumentError(f"{name} must be a positive integer, got {shown_value(value)}")
+    return count
+
+
+def check_real(name: str, value, expected: str, holds: Callable[[float], bool]) -> float:
+    """``value`` as a plain float if it is a real number (numpy's too) for which
+    ``holds`` is true, else an InvalidArgumentError "``name`` must be ``expected``".
+    A numpy float kept as given would turn up in settings.json (and, as a step size,
+    make the choices it moves numpy floats)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not holds(float(value)):
+        raise InvalidArgumentError(f"{name} must be {expected}, got {shown_value(value)}")
+    return float(value)
 
 
 def log_mean_exp(values) -> float:

@@ -86,7 +86,6 @@ same from any start. ``init_particles=0`` keeps the forward start.
 from __future__ import annotations
 
 import math
-import numbers
 import time
 from bisect import bisect_right
 from dataclasses import dataclass
@@ -95,11 +94,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core import InvalidArgumentError, Model, is_within
+from ..core.errors import shown_value, whole_number
 from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
-from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
-                     configured_model, evaluate_all, new_seed, recorded_seed)
+from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_real,
+                     check_run, configured_model, evaluate_all, new_seed, recorded_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
@@ -599,29 +599,27 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
         one: worth it where the cores are idle. The first group is the chain a one-process
         run would make; each worker's group is seeded from ``(seed, worker)``.
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InvalidArgumentError(f"workers must be a positive integer, got {workers!r}")
+    workers = check_positive("workers", workers)
     from ..parallel import check_worker_limit
     check_worker_limit(workers)
-    if isinstance(init_particles, bool) or not isinstance(init_particles, int) or init_particles < 0:
-        raise InvalidArgumentError(f"init_particles must be a non-negative integer, got {init_particles!r}")
+    if whole_number(init_particles) is None or init_particles < 0:
+        raise InvalidArgumentError(f"init_particles must be a non-negative integer, got {shown_value(init_particles)}")
+    init_particles = int(init_particles)
     if not fork_available():
         workers = 1  # groups are forked processes; elsewhere the run stays in this one
     if chains is None:
         chains = workers
     chains = check_positive("chains", chains)  # a plain int: numpy's too, for settings.json
-    if not 0.0 <= p_diffusion <= 1.0:
-        raise InvalidArgumentError(f"p_diffusion must be in [0, 1], got {p_diffusion!r}")
-    if not 0.0 <= p_resample <= 1.0 - p_diffusion:
-        raise InvalidArgumentError(f"p_resample must be in [0, 1 - p_diffusion], got {p_resample!r}")
+    p_diffusion = check_real("p_diffusion", p_diffusion, "in [0, 1]", lambda v: 0.0 <= v <= 1.0)
+    p_resample = check_real("p_resample", p_resample, "in [0, 1 - p_diffusion]",
+                            lambda v: 0.0 <= v <= 1.0 - p_diffusion)
     if incremental is None:
         incremental = executor is None and not delayed_rejection
-    if annealing is not None and not 1.0 <= annealing < math.inf:
-        raise InvalidArgumentError(f"annealing must be a finite number >= 1 (or None), got {annealing!r}")
+    if annealing is not None:
+        annealing = check_real("annealing", annealing, "a finite number >= 1 (or None)", lambda v: 1.0 <= v < math.inf)
     anneal_every = check_positive("anneal_every", anneal_every)
-    if isinstance(step_scale, bool) or not isinstance(step_scale, numbers.Real) or not 0 < step_scale < math.inf:
-        raise InvalidArgumentError(f"step_scale must be a positive finite number (the random walk's step, times "
-                                   f"each choice's scale), got {step_scale!r}")
+    step_scale = check_real("step_scale", step_scale, "a positive finite number (the random walk's step, times "
+                            "each choice's scale)", lambda v: 0.0 < v < math.inf)
     budget = budget or Budget(generations=1600)
     check_run(model, target, seed, budget)
     unconfigured, model = model, configured_model(target, model)

@@ -22,6 +22,7 @@ from array import array
 import numpy as np
 
 from ..core import InvalidArgumentError, Model, random_order
+from ..core.errors import shown_value, whole_number
 from ..core.limits import relaxed_gc
 from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
@@ -44,8 +45,10 @@ def worker_count(workers: int | None, particles: int) -> int:
 
     if workers is None:
         workers = min(default_workers(), max(1, particles // PARTICLES_PER_WORKER))
-    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InvalidArgumentError(f"workers must be a positive integer or None (automatic), got {workers!r}")
+    elif whole_number(workers) is None or workers < 1:
+        raise InvalidArgumentError(f"workers must be a positive integer or None (automatic), got "
+                                   f"{shown_value(workers)}")
+    workers = int(workers)
     check_worker_limit(workers)
     if workers > 1 and not fork_available():
         return 1  # worker shards are forked; elsewhere the run stays in this process

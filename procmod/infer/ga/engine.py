@@ -9,8 +9,8 @@ import numpy as np
 from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
-from ..common import (Budget, Result, Tracker, check_population, check_positive, check_run, configured_model, new_seed,
-                      recorded_seed)
+from ..common import (Budget, Result, Tracker, check_population, check_positive, check_real, check_run,
+                      configured_model, new_seed, recorded_seed)
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
@@ -50,13 +50,11 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     population = check_positive("population", population)  # a plain int: numpy's too, for settings.json
     tournament = check_positive("tournament", tournament)
     max_retries = check_positive("max_retries", max_retries)
-    if not 0.0 <= mutation <= 1.0:
-        raise InvalidArgumentError(f"mutation must be in [0, 1], got {mutation!r}")
+    mutation = check_real("mutation", mutation, "in [0, 1]", lambda v: 0.0 <= v <= 1.0)
     split = _check_split(split)
-    if not nudge_step > 0:
-        raise InvalidArgumentError(f"nudge_step must be positive, got {nudge_step!r}")
-    if not 0.0 <= elitism < 1.0:
-        raise InvalidArgumentError(f"elitism must be in [0, 1), got {elitism!r}")
+    nudge_step = check_real("nudge_step", nudge_step, "a positive finite number (a fraction of each choice's "
+                            "scale)", lambda v: 0.0 < v < math.inf)
+    elitism = check_real("elitism", elitism, "in [0, 1)", lambda v: 0.0 <= v < 1.0)
     budget = budget or Budget(generations=50)
     check_run(model, target, seed, budget)
     model = configured_model(target, model)
