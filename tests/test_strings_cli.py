@@ -10,6 +10,7 @@ import torch
 
 import procmod.strings.pipeline as pipeline
 from procmod.cli import main
+from procmod.core import InvalidArgumentError
 from procmod.strings.codec import parse
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
@@ -135,8 +136,12 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     from procmod.strings.tagger import TaggerConfig
     from procmod.strings.vae import VAEConfig
     stages = []
-    meta = train_model(col, model, VAEConfig(hidden=16, latent=4, epochs=1), TaggerConfig(epochs=1), 4,
-                       tagger_strings_per_shape=4, progress=lambda stage, row: stages.append((stage, row)))
+    # numpy's numbers as a grid search gives them: the same run as the command line's (an
+    # int64 seed failed in torch's seeding, an int64 count after all the training)
+    meta = train_model(col, model, VAEConfig(hidden=np.int64(16), latent=4, epochs=np.int64(1)), TaggerConfig(epochs=1),
+                       np.int64(4), held_out=np.float32(0.2), seed=np.int64(0), tagger_strings_per_shape=np.int64(4),
+                       progress=lambda stage, row: stages.append((stage, row)))
+    assert json.loads((model / "model.json").read_text()) == meta
     held = [row for stage, row in stages if stage == "held-out"]
     assert held and held[-1]["done"] == held[-1]["total"] > 0
     # the accuracy is that of the held-out strings, counted here character by character
@@ -146,6 +151,9 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     summary = json.loads((tmp_path / "s" / "summary.json").read_text())
     # what the prior mode decodes, drawn here from the same seed (the CLI's default, 0)
     trained = pipeline.TrainedModel(model)
+    for votes in (0, np.float32(4)):  # were a ValueError from max() and a TypeError
+        with pytest.raises(InvalidArgumentError, match="votes must be a whole number 1 or more"):
+            trained.instantiate("DMCMD", np.random.default_rng(0), votes=votes)
     rng = np.random.default_rng(0)
     decoded = trained.vae.decode(rng.standard_normal((12, trained.vae.net.config.latent)), rng=rng)
     valid = [s for s in decoded if s is not None and trained.grammar.is_valid(parse(s).graph)]
@@ -335,3 +343,26 @@ def test_train_leaves_no_folder_when_it_fails_and_keeps_no_training_past_what_wa
     code, _, err = _run(capsys, "strings", "train", col, "--out", tmp_path / "m", "--epochs", 1, *small)
     assert code == 2 and "holds a VAE trained 2 epochs, more than the 1 asked" in err, err
 
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"seed": -1}, "seed must be a whole number from 0"),
+    ({"held_out": float("nan")}, r"held_out must be a fraction in \[0, 1\), got NaN"),
+    ({"held_out": 1.5}, r"held_out must be a fraction in \[0, 1\)"),
+    ({"strings_per_shape": 2.5}, "strings_per_shape must be a whole number 1 or more"),
+    ({"stop_after": 0}, "stop_after must be a whole number 1 or more"),
+])
+def test_train_model_refuses_bad_numbers_before_any_work(tmp_path, kwargs, message):
+    with pytest.raises(InvalidArgumentError, match=message):
+        pipeline.train_model(SETS / "moonbase.json", tmp_path / "m", **kwargs)
+    assert not (tmp_path / "m").exists()
+
+
+@pytest.mark.parametrize("kwargs, message", [({"seed": -1}, "seed must be a whole number 0 or more"),
+                                             ({"parallel": 0}, "parallel must be a whole number 1 or more"),
+                                             ({"count": 2.5}, "count must be a whole number 1 or more")])
+def test_augment_refuses_bad_numbers(kwargs, message):
+    from procmod.strings import read_shapes
+    from procmod.strings.sampling import augment
+    with pytest.raises(InvalidArgumentError, match=message):
+        augment(read_shapes(SETS / "moonbase.json"), **{"count": 4, **kwargs})

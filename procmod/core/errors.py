@@ -34,6 +34,16 @@ def whole_number(value) -> int | None:
     return int(value)
 
 
+def checked_count(name: str, value, least: int = 1, most: int | None = None) -> int:
+    """``value`` as a plain int if it is a whole number (numpy's too) from ``least`` to
+    ``most``, else an InvalidArgumentError naming the argument ``name``."""
+    count = whole_number(value)
+    if count is None or count < least or (most is not None and count > most):
+        span = f"from {least:,} to {most:,}" if most is not None else f"{least:,} or more"
+        raise InvalidArgumentError(f"{argument(name)} must be a whole number {span}, got {shown_value(value)}")
+    return count
+
+
 def shown_value(value, limit: int = 60) -> str:
     """A value from an input file or argument as its user wrote it, for a message: JSON
     where it is a JSON value (``null``, ``true``, ``"wing"``, ``[1, 2]``; a message about a

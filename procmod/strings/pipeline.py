@@ -20,6 +20,7 @@ again on the same folder resumes where the last one stopped.
 from __future__ import annotations
 
 import json
+import numbers
 import os
 import shutil
 from dataclasses import asdict
@@ -28,7 +29,7 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, ProcmodError, argument, spelled
+from ..core.errors import InvalidArgumentError, ProcmodError, argument, checked_count, shown_value, spelled
 from ..core.io import read_json, read_versioned_json, write_text_atomic
 from ..core.paths import is_dir_quietly, output_path
 from ..core.runfolder import STRINGS_MODEL, RunFolder
@@ -113,6 +114,15 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     used for the tagger's held-out accuracy. Returns the model's ``model.json`` content.
     """
     training_device(device)  # a device this machine lacks fails before anything is written
+    # numpy's numbers as Python's: they are recorded in model.json, and seed torch
+    strings_per_shape = checked_count("strings_per_shape", strings_per_shape)
+    tagger_strings_per_shape = checked_count("tagger_strings_per_shape", tagger_strings_per_shape)
+    seed = checked_count("seed", seed, least=0, most=2 ** 63 - 1)
+    if stop_after is not None:
+        stop_after = checked_count("stop_after", stop_after)
+    if isinstance(held_out, bool) or not isinstance(held_out, numbers.Real) or not 0 <= held_out < 1:
+        raise InvalidArgumentError(f"{argument('held_out')} must be a fraction in [0, 1), got {shown_value(held_out)}")
+    held_out = float(held_out)
     vae_config.check()
     tagger_config.check()
     shape_set = read_collection(collection)
@@ -297,6 +307,8 @@ class TrainedModel:
         that goes wrong early rarely recovers (novel prior samples of the bench's three
         models, 30 each: 55 of 90 built at 1000 x 8 against 52 at 4000 x 2, in the same
         time; 40000 x 1 built 1 more of 10 castle failures, docs/strings.md)."""
+        votes, attempts, budget = (checked_count(name, value) for name, value in
+                                   (("votes", votes), ("attempts", attempts), ("budget", budget)))
         g = self.check_string(text)
         cats = self.tagger.vote(g, votes, rng, self.shape_set, ranked=True, soft=soft_vote)
         result = InstantiateResult(None, False, reason="no attempt")

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from ..core.errors import InvalidArgumentError
+from ..core.errors import InvalidArgumentError, checked_count
 from .contacts import centroids, contact_pairs, part_points, shape_graph, tolerance_for
 from .grammar import Grammar
 from .shapes import Shape, ShapeSet, type_histogram
@@ -335,6 +335,9 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
     """
     from ..parallel import InlineExecutor
 
+    count, parallel, max_rounds = (checked_count(name, value) for name, value in
+                                   (("count", count), ("parallel", parallel), ("max_rounds", max_rounds)))
+    seed = checked_count("seed", seed, least=0)
     executor = executor or InlineExecutor()
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)
