@@ -9,6 +9,7 @@ import numpy as np
 
 from .core import Derivation, InvalidArgumentError, write_text_atomic
 from .core.errors import argument, shown_value, whole_number
+from .core.limits import MAX_COORDINATE
 from .geometry import colour_of, contact_sheet, render_image, render_svg, save_image_atomic, shaded_preview
 
 MIN_SIZE, MAX_SIZE = 8, 4096
@@ -94,23 +95,33 @@ def derivation_images(derivations, size: int, underlay=None, supersample: int = 
 _SIZE_FIELDS = ("width", "radius", "length", "size", "top_radius")
 
 
-def _bad_number(value, size: bool) -> bool:
+def _bad_number(value, size: bool, solid: bool) -> str | None:
+    """What is wrong with a primitive's field ``value`` (a size when ``size``; of a 3D
+    part when ``solid``), or None."""
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        return False  # not numbers (a tag, a mesh's faces are checked by their readers)
-    return bool(not np.isfinite(array).all() or (size and (array < 0).any()))
+        return None  # not numbers (a tag, a mesh's faces are checked by their readers)
+    if not np.isfinite(array).all() or (size and (array < 0).any()):
+        return "a size must be finite and not negative" if size else "it must hold finite numbers"
+    if solid and array.size and np.abs(array).max() > MAX_COORDINATE:
+        # a mesh file's triangles' arithmetic overflows (inf vertices in a GLB, from a
+        # hand-edited log-scale of 100); a 2D picture draws a far line as it is
+        return f"it is beyond +-{MAX_COORDINATE:g}, more than any scene holds"
+    return None
 
 
 def check_geometry(derivation: Derivation) -> None:
     """Refuse a derivation whose geometry holds a NaN or an infinity, or a negative size:
     the canvas draws such a primitive as nothing (or a dot), an SVG or a mesh file would
-    hold ``nan`` or a negative radius. Names the rule that emitted it."""
+    hold ``nan`` or a negative radius; or a 3D part beyond +-:data:`MAX_COORDINATE`. Names
+    the rule that emitted it, and the call's choices (an edited file's)."""
     from .core.choicemap import format_address
     from .core.errors import ModelError
     from .core.runtime import rule_name
     from .geometry.solid import Cylinder
 
+    solid = not is_2d(derivation)
     for node in derivation.nodes():
         for part in node.geometry:
             fields = getattr(part, "_fields", ())
@@ -120,12 +131,14 @@ def check_geometry(derivation: Derivation) -> None:
                 value = getattr(part, name)
                 # a cylinder of negative length points along -z, and draws so
                 size = name in _SIZE_FIELDS and not (name == "length" and isinstance(part, Cylinder))
-                if value is not None and _bad_number(value, size):
+                wrong = None if value is None else _bad_number(value, size, solid)
+                if wrong is not None:
+                    made_of = ", ".join(f"{choice} = {shown_value(made.value, 12)}"
+                                        for choice, made in list(node.choices.items())[:4])
                     raise ModelError(f"rule {rule_name(node.rule)!r} at {format_address(node.address)} emitted "
-                                     f"{type(part).__name__} with {name} = {value!r:.60}: "
-                                     + ("a size must be finite and not negative" if size
-                                        else "it must hold finite numbers")
-                                     + "; find the rule's arithmetic that makes it")
+                                     f"{type(part).__name__} with {name} = {value!r:.60}: {wrong}; find the "
+                                     "rule's arithmetic that makes it"
+                                     + (f", or the call's choices ({made_of}) in an edited file" if made_of else ""))
 
 
 def write_derivation(derivation: Derivation, path: str | os.PathLike, size: int) -> None:

@@ -259,6 +259,26 @@ def test_geometry_a_file_cannot_hold_is_a_model_error_naming_the_rule(tmp_path, 
     assert not (tmp_path / "run").exists()
 
 
+def test_a_3d_part_beyond_any_scene_is_refused_naming_the_calls_choices(tmp_path):
+    """A hand-edited log-scale of 100 made a learned part 1e43 wide: written to a GLB as
+    inf vertices (exit 0, trimesh's overflow warnings). A 2D picture draws a far line."""
+    from procmod.geometry import Segment
+    from procmod.geometry.solid import Box, new_part_bounds, translation
+    from procmod.render import write_derivation
+
+    def root(ctx, solid):
+        reach = ctx.sample("reach", Normal(0, 1))
+        ctx.emit(Box((1, 1, 1), translation(1e13 + reach, 0, 0)) if solid else Segment(0, 0, 1e13 + reach, 1, 0.5))
+
+    made = {solid: run_forward(_model(root, lambda p, s=solid: (s,), new_part_bounds if solid else None),
+                               np.random.default_rng(0)) for solid in (True, False)}
+    with pytest.raises(ProcmodError, match=r"rule 'root' at / emitted Box with transform = .*: it is beyond "
+                                           r"\+-1e\+12.*or the call's choices \(reach = "):
+        write_derivation(made[True], tmp_path / "far.glb", 64)
+    assert not (tmp_path / "far.glb").exists()
+    write_derivation(made[False], tmp_path / "far.svg", 64)
+
+
 def test_a_part_of_nan_size_against_a_volume_names_the_rule_not_the_targets_scale():
     from procmod.core import Model
     from procmod.geometry.solid import Box

@@ -647,5 +647,5 @@ def test_finite_tensors_whose_transforms_overflow_are_one_line(saved, tmp_path):
     model = load_program(d)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no numpy warning on the way
-        with pytest.raises(ProcmodError, match=r"transform at root\.s0 .* is not finite .*learn it again"):
+        with pytest.raises(ProcmodError, match=r"transform at root\.s0 .* is not finite .*choices x\.ls0 = .*learn it again"):
             run_forward(model, np.random.default_rng(0))

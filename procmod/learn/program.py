@@ -207,9 +207,10 @@ def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame, p
         world = xform_matrix(x, signs, frame, program.units.log_scale(part))
     if not np.isfinite(world).all():
         # finite tensors (the load check) can still overflow: a log-scale of 1e6
-        raise ProgramError(f"the learned program's transform at {pre} for a {part!r} is not finite (log-scales "
-                           f"{', '.join(f'{v:.3g}' for v in x[:3])}): its tensors were not written by 'procmod "
-                           "learn' (learn it again)")
+        raise ProgramError(f"the learned program's transform at {pre} for a {part!r} is not finite (its choices "
+                           f"{', '.join(f'x.{COMPONENTS[d]} = {x[d]:.3g}' for d in range(3))}): a derivation edited to "
+                           "such log-scales cannot be built (put them back); the program's own samples never reach "
+                           "them unless its tensors were not written by 'procmod learn' (then learn it again)")
     return world
 
 
