@@ -324,9 +324,17 @@ def _damage_tensor(folder, value):
     (lambda j, d: _damage_tensor(d, 1e300), "holds NaN, infinity or values beyond 1e15"),
     (lambda j, d: j["parts"].update({next(iter(j["parts"])): {"box": [1e300, 1, 1]}}), "must lie in 1e-12..1e12"),
     # references that only sampling found (KeyError tracebacks), or nonsense it sampled
-    (lambda j, d: [a for a in j["abstractions"] if a["kind"] == "part" and not a["callees"]][0].update(type="ghost"),
+    (lambda j, d: [a for a in j["abstractions"] if a["kind"] == "part" and not a["callees"]][0].update(
+        type="ghost", part_distribution={"ghost": 1.0}),
      "draws part 'ghost', which the program's parts do not hold"),
     (lambda j, d: j["orders"].pop("root"), r"orders\['root'\] is missing"),
+    # the one probability a user sees in the file was read by nothing: edits did nothing
+    (lambda j, d: [a for a in j["abstractions"] if a["kind"] == "part"][0]["part_distribution"].update(ghost=0.5),
+     "part_distribution is .*an abstraction always draws its one part"),
+    (lambda j, d: [a for a in j["abstractions"] if a["kind"] != "part"][0].update(part_distribution={"x": 1})
+     if any(a["kind"] != "part" for a in j["abstractions"]) else
+     [a for a in j["abstractions"] if a["kind"] == "part"][0].update(part_distribution=float("nan")),
+     "part_distribution is .*always draws its one part"),
     (lambda j, d: j.update(root_callees=[c + 0.9 for c in j["root_callees"]]), "expected a whole number"),
     (lambda j, d: j["groups"].update({t: [[0, 0]] for t in j["slots"] if j["slots"][t]}),
      "must name each of the type's slots at most once"),

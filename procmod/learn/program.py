@@ -421,6 +421,15 @@ def program_from_json(data: dict, parts: dict) -> Program:
     for entry in data["abstractions"]:
         a = Abstraction(_whole(entry["id"]), str(entry["kind"]), str(entry["type"]),
                         [[_whole(i) for i in c] for c in entry["callees"]])
+        # written for the reader's sake: an abstraction draws its one part type (seed 000's
+        # programs learn no mixture of parts), so an edit of it would be ignored without a word
+        drawn = entry.get("part_distribution")
+        if drawn is not None and not (a.kind == "part" and isinstance(drawn, dict) and list(drawn) == [a.type]
+                                      and drawn[a.type] == 1):
+            raise ProgramError(f"abstraction {a.id}'s part_distribution is {shown_value(drawn)}, but an abstraction "
+                               f"always draws its one part, its type {a.type!r}: a learned program has no mixture of "
+                               "parts to edit (to draw another part, change both its 'type' and its part_distribution "
+                               "to that part)")
         abstractions[a.id] = a
     return Program(parts=parts, slots={k: list(v) for k, v in data["slots"].items()},
                    groups={k: [list(map(_whole, g)) for g in v] for k, v in data["groups"].items()},
