@@ -243,3 +243,21 @@ def test_a_turned_part_under_a_scaled_parent_is_its_sheared_shape(tmp_path, make
         assert not np.linalg.det(np.asarray(node.transform)[:3, :3]) == 0
     example_set, _ = read_example_inputs([tmp_path / "x.gltf"])  # and it learns
     assert len(example_set.examples) == 1
+
+
+def test_learn_overwrite_replaces_an_earlier_run_of_other_options(tmp_path, monkeypatch, capsys):
+    """--overwrite refused an earlier learn run of another seed ("delete the checkpoint"),
+    and deleting it left a folder that was no longer a learn run."""
+    import procmod.learn.search
+    monkeypatch.setattr(procmod.learn.search, "SearchOptions", _QuickOptions)
+    fleet(tmp_path / "ships", 2)
+    out = tmp_path / "run"
+    argv = ["learn", str(tmp_path / "ships"), "--out", str(out), "--particles", "1", "--workers", "1", "--samples", "1"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(argv + ["--seed", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "other examples or options; pass --overwrite to start afresh" in err
+    assert main(argv + ["--seed", "1", "--overwrite"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["options"]["seed"] == 1 and report["resumed"] is False

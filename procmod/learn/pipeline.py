@@ -150,7 +150,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
             note(advice)
     with open_executor(workers, scheduler) as executor:  # an unreachable scheduler: before --out is made
         folder.prepare_in_place(keep=True)
-        result = run_search(example_set, options, executor, out / "checkpoint", digest, progress)
+        result = run_search(example_set, options, executor, out / "checkpoint", digest, progress,
+                            replace_other=overwrite)
     program = result.program
     program.info["examples"] = shown
     json_path = save_program(program, out)

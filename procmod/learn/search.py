@@ -29,6 +29,7 @@ import functools
 import hashlib
 import json
 import math
+import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -431,7 +432,7 @@ def _resample(particles: list, rng: np.random.Generator) -> tuple[list, list]:
 
 
 def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkpoint: Path | None = None,
-               fingerprint: str = "", progress=None) -> LearnResult:
+               fingerprint: str = "", progress=None, replace_other: bool = False) -> LearnResult:
     """Preprocess the examples and run the particle-filtered structure search.
 
     Parameters
@@ -440,7 +441,7 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
         Runs the per-particle tasks (see :func:`procmod.parallel.open_executor`).
     checkpoint : Path, optional
         Folder for checkpoints; an existing checkpoint with the same ``fingerprint`` is
-        resumed.
+        resumed. One of another run is refused, or deleted when ``replace_other``.
     progress : callable, optional
         Called with a one-line status after every round.
     """
@@ -450,8 +451,12 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     state = load_checkpoint(checkpoint, data.parts) if checkpoint is not None else None
     resumed = state is not None
     if state is not None and (state.get("fingerprint") != fingerprint or state.get("options") != asdict(options)):
-        raise LearnError(f"{checkpoint} holds a run with other examples or options; delete it to start afresh, "
-                         "or rerun with the same examples and options to resume")
+        if not replace_other:
+            raise LearnError(f"{checkpoint} holds a run with other examples or options; pass "
+                             f"{argument('overwrite=True')} to start afresh, or rerun with the same examples and "
+                             "options to resume")
+        shutil.rmtree(checkpoint)  # the user asked to replace the earlier run (overwrite)
+        state, resumed = None, False
     rng = np.random.default_rng(_seed(options.seed, "resample"))
     # tasks with identical inputs give identical results with the exact estimator (its
     # fits use no random numbers), so they run once; VI's fits depend on their seeds
