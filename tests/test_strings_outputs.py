@@ -72,6 +72,11 @@ def test_instantiate_never_overwrites_the_model_it_reads(fence_model, tmp_path, 
     for out in (model / "parts" / "post.obj", model / "parts" / "rail.obj"):
         code, _, err = _run(capsys, "strings", "instantiate", model, text, "--out", out)
         _one_line_error(code, err, "would overwrite the input")
+    # a new file in the model folder: 'strings train' into it no longer resumed, and the
+    # --overwrite it advised deleted the trained model
+    for out in (model / "castle.glb", model / "shapes" / "one.obj"):
+        code, _, err = _run(capsys, "strings", "instantiate", model, text, "--out", out)
+        _one_line_error(code, err, "is inside the model folder")
     assert {p: p.read_bytes() for p in model.rglob("*") if p.is_file()} == before
     code, _, err = _run(capsys, "strings", "instantiate", model, text, "--out", tmp_path / "elsewhere.glb")
     assert code == 0, err

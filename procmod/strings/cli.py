@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidArgumentError
+from ..core.errors import InvalidArgumentError, cut_text
 
 
 SHAPES_HELP = ("a procmod-shapes/1 JSON file, or asset files (.gltf, .glb, .urdf) and folders of them: one shape "
@@ -446,6 +446,13 @@ def _instantiate(args) -> None:
     # --out may not be the model folder, a file in it (its part meshes) or a file its files
     # name: checked now, and again once the model is read (the files it names) and before writing
     check_output_file(out, make_parent=True, inputs=[args.model])
+    model_folder = Path(args.model).resolve()
+    if model_folder.is_dir() and out.resolve().is_relative_to(model_folder):
+        # a file of the user's in a model folder stops 'strings train' resuming into it, and
+        # the --overwrite it advises would delete the trained model
+        raise InvalidArgumentError(f"--out {cut_text(str(out))} is inside the model folder {cut_text(str(args.model))}; write "
+                                   "the shape elsewhere (training again into that folder must find only its own "
+                                   "files)")
     model = TrainedModel(args.model)
     check_output_file(out, make_parent=True, inputs=[args.model])
     result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes,
