@@ -154,3 +154,18 @@ def test_damaged_model_files_are_one_line_when_read(fence_model, tmp_path, capsy
     code, _, err = _run(capsys, "strings", "sample", model, "-n", 1, "--no-meshes", "--out", tmp_path / "s")
     _one_line_error(code, err, *words)
     assert not (tmp_path / "s").exists()
+
+
+def test_sample_reads_an_edited_strings_file_and_names_a_bad_line(fence_model, tmp_path, capsys):
+    """A BOM and CRLF ends (an editor's save) failed 'strings sample' with "unknown
+    character '\\ufeff'", and a bad line with a message that named no file."""
+    model = _copy(fence_model, tmp_path)
+    text = (model / "strings.txt").read_text()
+    (model / "strings.txt").write_bytes(("\ufeff" + text.replace("\n", "\r\n")).encode())
+    code, _, err = _run(capsys, "strings", "sample", model, "-n", 2, "--no-meshes", "--out", tmp_path / "s")
+    assert code == 0, err
+    lines = len(text.split())
+    (model / "strings.txt").write_text(text + "C1CC\n")
+    code, _, err = _run(capsys, "strings", "sample", model, "-n", 2, "--no-meshes", "--out", tmp_path / "t")
+    _one_line_error(code, err, f"strings.txt, string {lines + 1}: dangling ring label")
+    assert not (tmp_path / "t").exists()

@@ -373,7 +373,7 @@ def _sample(args) -> None:
     # the latent points and their decoded strings are held together: a lower bound per point
     check_memory(f"-n {args.n:,} latent points", 8.0 * args.n * (model.vae.net.config.latent + 64),
                  "ask for fewer")
-    train = model.training_strings
+    train = model.check_training_strings()
     vae = model.vae
     if args.mode == "prior":
         z = rng.standard_normal((args.n, vae.net.config.latent))

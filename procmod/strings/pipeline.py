@@ -283,10 +283,22 @@ class TrainedModel:
             self.vae.grammar = self.grammar  # one grammar per model folder: model.json's
             self.start_pose = {t: _pose(m) for t, m in self.meta["start_pose"].items()}
         self.shape_set = read_shapes(folder / "collection.json")
-        try:
-            self.training_strings = (folder / "strings.txt").read_text().split()
+        try:  # a BOM and CRLF line ends from an editor are read through
+            self.training_strings = (folder / "strings.txt").read_text(encoding="utf-8-sig").split()
         except (OSError, UnicodeDecodeError) as exc:
             raise ModelFileError(f"{folder / 'strings.txt'} cannot be read ({exc}); train the model again") from None
+        self._strings_file = folder / "strings.txt"
+
+    def check_training_strings(self) -> list[str]:
+        """The training strings, each checked to be a string (what sampling encodes and
+        compares with); a bad one is a ModelFileError naming the file and its line."""
+        for line, text in enumerate(self.training_strings, 1):
+            try:
+                parse(text)
+            except ProcmodError as exc:
+                raise ModelFileError(f"{self._strings_file}, string {line}: {exc}; restore the file (training "
+                                     "the model again writes it)") from None
+        return self.training_strings
 
     def check_string(self, text: str):
         """The graph of ``text``; raises if it is not a string or breaks the grammar."""
