@@ -250,7 +250,12 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
             # a ZeroDivisionError traceback before
             (edit("model.json", lambda d: d["grammar"].update(ring_length_multiple=0)),
              "ring_length_multiple must be a whole number from 1"),
-            (nan_weights, "holds NaN or infinity")]):
+            (nan_weights, "holds NaN or infinity"),
+            # another file's weights were blamed on vae.json ("vae.json is malformed")
+            (lambda folder: shutil.copy(folder / "tagger.pt", folder / "vae.pt"),
+             "vae.pt holds weights of another network than vae.json describes"),
+            (lambda folder: (folder / "tagger.pt").write_bytes((folder / "tagger.pt").read_bytes()[:3000]),
+             "tagger.pt: cannot read the edge-category tagger's weights: the file is damaged")]):
         bad = tmp_path / f"bad{k}"
         shutil.copytree(model, bad)
         damage(bad)

@@ -275,4 +275,5 @@ def load_tensors(path: str | os.PathLike, error: type = ProcmodError, what: str 
                     f"{detail}; procmod never writes such a file and loading it could run its code{advice}") from None
     except Exception as exc:  # torch raises several types for truncated or foreign files
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise error(f"{source}: cannot read the {what} ({cut_text(first, 160)}){advice}") from None
+        raise error(f"{source}: cannot read the {what}: the file is damaged (cut short?) or not one torch wrote "
+                    f"({cut_text(first, 160)}){advice}") from None

@@ -28,8 +28,8 @@ from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement
 from .shapes import ShapeSet, first_poses
-from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, reading_model_file, save_weights,
-                          torch_threads, training_device, training_state)
+from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, load_weights, reading_model_file,
+                          save_weights, torch_threads, training_device, training_state)
 from .vae import Vocab, _characters, check_sizes
 
 
@@ -491,7 +491,7 @@ class TaggerModel:
             cats = EdgeCategories.from_json(meta["categories"])
             vocab = Vocab(_characters(meta["vocab"], f"{where}: vocab"))
             net = Tagger(len(vocab), len(cats), config)
-            net.load_state_dict(payload["model"])
+            load_weights(net, payload["model"], folder / "tagger.pt", where)
             check_finite_weights(net, str(folder / "tagger.pt"))
             # taggers saved before structured decoding existed have no stars (rings are still checked)
             stars = [(t, tuple(ks)) for t, ks in meta["stars"]] if "stars" in meta else None

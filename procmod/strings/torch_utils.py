@@ -8,7 +8,7 @@ from pathlib import Path
 
 import torch
 
-from ..core.errors import InvalidArgumentError, ProcmodError, argument
+from ..core.errors import InvalidArgumentError, ProcmodError, argument, cut_text
 from ..core.io import save_tensors
 
 # how an error message names training on the CPU (the command line: --device cpu)
@@ -51,6 +51,19 @@ def reading_model_file(where: str, advice: str = "; train it again with 'procmod
     except MALFORMED as exc:
         text = str(exc).splitlines()[0] if str(exc) else ""
         raise ModelFileError(f"{where} is malformed ({type(exc).__name__}: {text[:160]}){advice}") from None
+
+
+def load_weights(net, weights, weights_path, meta_path, advice: str = "; train it again with 'procmod strings train'"):
+    """``net.load_state_dict(weights)``; weights of another network (another model's
+    file copied over, another configuration) are one ModelFileError naming the weights'
+    file, not the metadata that described the network."""
+    try:
+        net.load_state_dict(weights)
+    except (RuntimeError, KeyError, TypeError, ValueError) as exc:
+        text = str(exc).strip().splitlines()
+        detail = text[1].strip() if len(text) > 1 else (text[0] if text else type(exc).__name__)
+        raise ModelFileError(f"{weights_path} holds weights of another network than {Path(meta_path).name} describes "
+                             f"({cut_text(detail, 160)}): it belongs to another model or was replaced{advice}") from None
 
 
 def config_from_json(cls, data, where: str):

@@ -37,8 +37,8 @@ from ..core.io import fingerprint, load_tensors, read_versioned_json, write_text
 from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
 from .grammar import Grammar
-from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, reading_model_file, save_weights,
-                          torch_threads, training_device, training_state)
+from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, load_weights, reading_model_file,
+                          save_weights, torch_threads, training_device, training_state)
 
 PAD, SOS, EOS = 0, 1, 2
 NODE_BUDGET = 1.25  # constrained decoding stops adding letters at 1.25 x the largest training graph (nodes)
@@ -346,7 +346,7 @@ class StringModel:
         with reading_model_file(where):
             vocab = Vocab(_characters(meta["vocab"], f"{where}: vocab"))
             net = StringVAE(len(vocab), config)
-            net.load_state_dict(payload["model"])
+            load_weights(net, payload["model"], folder / "vae.pt", where)
             check_finite_weights(net, str(folder / "vae.pt"))
             max_nodes = meta.get("max_nodes")
             if max_nodes is not None and (isinstance(max_nodes, bool) or not isinstance(max_nodes, int)
