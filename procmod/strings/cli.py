@@ -201,6 +201,7 @@ def _encode(args) -> None:
         return
     if args.random < 1:
         raise InvalidArgumentError(f"--random must be a positive number of strings, got {args.random}")
+    _at_most(args.random, "--random", MAX_STRINGS_PER_SHAPE)  # 10^12 ran for ever, its memory growing
     for s in random_strings(g, args.random, np.random.default_rng(_seed(args.seed))):
         print(s)
 
