@@ -347,7 +347,8 @@ def _cmd_infer(args) -> None:
     with _progress_bar(budget) as progress:
         result = ENGINES[args.engine](model, target, seed=args.seed, budget=budget, progress=progress, **kwargs)
     if result.best is None:
-        raise InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
+        from .infer.common import no_result_error
+        raise no_result_error(result)
     if note is not None:
         result.notes.append(note)  # in the report too, beside the result it explains
     with folder.writing() as tmp:

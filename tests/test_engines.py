@@ -117,6 +117,12 @@ def test_all_zero_likelihood_is_reported_not_nan():
     assert result.log_marginal_likelihood == -math.inf
     assert result.notes and "zero likelihood" in result.notes[0]
     assert not any(math.isnan(w) for w in result.log_weights)
+    # the command line said "give it more" (budget), which does not help here
+    from procmod.infer.common import no_result_error
+    assert result.best is None
+    assert "every particle reached zero likelihood before a derivation was complete" in str(no_result_error(result))
+    result.notes.clear()  # a run that only ran out of budget
+    assert "give it more" in str(no_result_error(result))
 
 
 class _Misbehaving(Target):

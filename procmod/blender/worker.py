@@ -333,7 +333,8 @@ def cmd_infer(job: dict, folder: Path, progress: Progress) -> dict:
 
     result = ENGINES[engine](model, target, seed=seed, budget=budget, progress=report, **kwargs)
     if result.best is None:
-        raise InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
+        from ..infer.common import no_result_error
+        raise no_result_error(result)
     argv = ["infer", job["model"], "--target", str(target_folder), "--engine", engine]
     if option in kwargs:
         argv += [f"--{option}", str(kwargs[option])]

@@ -438,6 +438,22 @@ def check_positive(name: str, value) -> int:
     return count
 
 
+# SMC's note when every particle's likelihood went to zero (its log Z is -inf)
+ZERO_LIKELIHOOD_NOTE = "every particle reached zero likelihood; the log marginal-likelihood is -inf"
+
+
+def no_result_error(result: Result) -> InvalidArgumentError:
+    """The error for a run that returned no complete derivation: too small a budget, or
+    (SMC) every particle ruled out by the target before one was complete, which more of
+    the same rarely mends."""
+    if ZERO_LIKELIHOOD_NOTE in result.notes:
+        return InvalidArgumentError(
+            "every particle reached zero likelihood before a derivation was complete: the target rules out what the "
+            "model makes at some step (e.g. parts that intersect, which a proxy target forbids), so more particles or "
+            "budget rarely help; check the target, or use an engine that searches on from such states (mcmc, ga)")
+    return InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
+
+
 def check_real(name: str, value, expected: str, holds: Callable[[float], bool]) -> float:
     """``value`` as a plain float if it is a real number (numpy's too) for which
     ``holds`` is true, else an InvalidArgumentError "``name`` must be ``expected``".

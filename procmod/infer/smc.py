@@ -28,8 +28,8 @@ from ..core.protocols import Target
 from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
-from .common import (Budget, Result, Tracker, check_population, check_positive, check_run, checked_value,
-                     configured_model, log_mean_exp, recorded_seed)
+from .common import (ZERO_LIKELIHOOD_NOTE, Budget, Result, Tracker, check_population, check_positive, check_run,
+                     checked_value, configured_model, log_mean_exp, recorded_seed)
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
@@ -294,7 +294,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                 tracker.record(float(np.mean([checked_value(target.score(s.output), target, "score")
                                               for s in states])))
                 if log_z == -math.inf:
-                    notes.append("every particle reached zero likelihood; the log marginal-likelihood is -inf")
+                    notes.append(ZERO_LIKELIHOOD_NOTE)
                 if budget is None or tracker.spent():
                     break
         finally:
