@@ -54,6 +54,10 @@ def _saved(tmp_path):
     (lambda d: d.pop("choices"), "choices"),
     (lambda d: d["choices"].append([[], "bogus", 1.0]), "does not replay"),
     (lambda d: d["choices"].pop(0), "does not replay"),
+    # a deleted choice is named, with where to put it back ("choices were missing" before)
+    (lambda d: [d.pop("log_prior"), d["choices"].pop(1)],
+     r"1 choice the model makes is missing; the first, 'leaf' at \[\], is not in its choices: add it as "
+     r"\[\[\], \"leaf\", VALUE\]"),
     (lambda d: d["choices"].__setitem__(0, ["x", 1]), r"choices\[0\]"),
     (lambda d: d.update(log_prior=d["log_prior"] + 1.0), "its choices were edited, or the model has changed"),
     # a choice given twice: one silently won over the other

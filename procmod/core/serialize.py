@@ -220,8 +220,17 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
                     f"{cut_text(json.dumps(choices[first]), 40)}, is a value its distribution there cannot take "
                     "(outside its range, not a number, another type) or a choice the model does not make")
         else:
-            what = ("choices were missing" if result.log_fresh != 0.0 or
-                    len(result.derivation.choice_map()) != len(choices) else "the calls ran in another order")
+            missing = [(node.address, name, made.value) for node in result.derivation.nodes()
+                       for name, made in node.choices.items() if (node.address, name) not in choices]
+            if missing:  # drawn afresh in the replay: name the first, where the file should hold it
+                address, name, value = missing[0]
+                what = (f"{len(missing)} choice{'s' if len(missing) > 1 else ''} the model makes "
+                        f"{'are' if len(missing) > 1 else 'is'} missing; the first, {cut_text(name, 60)!r} at "
+                        f"{cut_text(json.dumps(list(address)), 80)}, is not in its choices: add it as "
+                        f"[{cut_text(json.dumps(list(address)), 80)}, {json.dumps(name)}, VALUE]")
+            else:
+                what = ("choices were missing" if result.log_fresh != 0.0 or
+                        len(result.derivation.choice_map()) != len(choices) else "the calls ran in another order")
         raise _fail(source, f"does not replay under model {model.name!r} ({what}); was the file edited, or saved by "
                             "another version of the model?")
     stored = data.get("log_prior")
