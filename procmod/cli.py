@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
+import json
 import math
 import os
 import re
@@ -157,18 +158,44 @@ def _model(spec: str, params=()):
         model = model_from_spec(spec)  # a built-in model, or FILE.py:NAME
     if not params:
         return model
-    import json
-
     settings = {}
     for item in params:
         name, sep, text = item.partition("=")
         if not sep or not name:
             raise InvalidArgumentError(f"--param takes NAME=VALUE, got {_shown(item)}")
         try:
-            settings[name] = json.loads(text)
+            value = json.loads(text)
         except ValueError:  # not JSON (also an integer of more than 4300 digits)
-            settings[name] = text
+            value = text
+        settings[name] = _as_param(value, text, model.params.get(name))
     return model.configure(**settings)
+
+
+_TRUE, _FALSE = ("true", "1"), ("false", "0")  # any case: Python's True, JSON's true
+
+
+def _as_param(value, text: str, default):
+    """A ``--param`` value read the way its parameter's default is typed, where a shell
+    user's spelling leaves no doubt: ``leaves=False`` or ``0`` for a flag, ``size=50.0``
+    for a count, ``start=0.5,0.9`` for a pair. Anything else goes to the model's own check,
+    whose message names what the parameter takes."""
+    if isinstance(default, bool):
+        word = text.strip().lower()
+        return True if word in _TRUE else False if word in _FALSE else value
+    if isinstance(default, int) and isinstance(value, float) and value.is_integer():
+        return int(value)
+    if isinstance(default, (list, tuple)) and not isinstance(value, list):
+        items = [t for t in re.split(r"[,\s]+", text.strip().strip("()[]")) if t]
+        try:
+            return [json.loads(t) for t in items]
+        except ValueError:
+            return value
+    return value
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 sample``, ``2 samples``."""
+    return f"{n:,} {noun}" + ("" if n == 1 else "s")
 
 
 CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact sheet
@@ -220,7 +247,7 @@ def _cmd_sample(args) -> None:
                      "ask for fewer samples")
         with spelled({"path": "--out"}):  # write_examples names its file argument
             write_examples(model, [first] + [sample(i) for i in range(1, args.n)], out)
-        print(f"wrote {args.n} samples of {model.name} to {out} (procmod-examples/1)")
+        print(f"wrote {_count(args.n, 'sample')} of {model.name} to {out} (procmod-examples/1)")
         return
     folder = RunFolder(out, SAMPLE_RUN, args.overwrite, inputs=inputs)
     digits = max(3, len(str(args.n - 1)))
@@ -242,9 +269,10 @@ def _cmd_sample(args) -> None:
         if not is_2d(shown[0]):  # 3D: also a page of samples to turn in a browser
             write_contact_page(shown, tmp / "contact_sheet.html", labels=[str(i) for i in range(len(shown))],
                                links=[f"sample_{i:0{digits}d}.glb" for i in range(len(shown))],
-                               title=f"{model.name}: {args.n} samples, seed {args.seed}")
+                               title=f"{model.name}: {_count(args.n, 'sample')}, seed {args.seed}"
+                               + (f" (the first {len(shown)} shown)" if len(shown) < args.n else ""))
     more = f"; the first {len(shown)} on" if len(shown) < args.n else "; contact sheet:"
-    print(f"wrote {args.n} samples of {model.name} to {out}/{more} {out / 'contact_sheet.png'}")
+    print(f"wrote {_count(args.n, 'sample')} of {model.name} to {out}/{more} {out / 'contact_sheet.png'}")
 
 
 def _cmd_render(args) -> None:

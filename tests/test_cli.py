@@ -233,7 +233,13 @@ def test_param_sets_model_parameters(tmp_path, capsys):
                 "--out", str(out), "--size", "64")[0] == 0
     params = json.loads((out / "sample_000.json").read_text())["params"]
     assert params["leaves"] is False and params["size"] == 64
-    for bad, words in (("leaves=yes", "leaves"), ("colour=red", "colour"), ("nonsense", "NAME=VALUE")):
+    # a shell user's spellings of a flag, a count and a pair (refused before, "must be true or false")
+    assert _run(capsys, "sample", "vines", "-n", "1", "--param", "leaves=False", "--param", "size=48.0",
+                "--param", "start=0.25,0.75", "--out", str(tmp_path / "t"), "--size", "16")[0] == 0
+    params = json.loads((tmp_path / "t" / "sample_000.json").read_text())["params"]
+    assert params["leaves"] is False and params["size"] == 48 and params["start"] == [0.25, 0.75]
+    for bad, words in (("leaves=yes", "leaves"), ("colour=red", "colour"), ("nonsense", "NAME=VALUE"),
+                       ("start=a,b", "start must be a list of 2 items, e.g. [0.5, 0.9166]"), ("size=48.5", "integer")):
         code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--param", bad, "--out", str(tmp_path / "x"))
         assert code == 2 and words in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
@@ -246,8 +252,18 @@ def test_sample_of_a_3d_model_writes_a_page_to_turn_in_a_browser(tmp_path, capsy
     assert page.count("sample_0") >= 2 and "<script" in page  # one view per sample, the viewer inline
     assert _run(capsys, "sample", "spaceship", "-n", "2", "--out", str(out), "--size", "32")[0] == 0  # a rerun replaces it
     two_d = tmp_path / "vines"
-    assert _run(capsys, "sample", "vines", "-n", "1", "--out", str(two_d), "--size", "32")[0] == 0
+    code, out_text, _ = _run(capsys, "sample", "vines", "-n", "1", "--out", str(two_d), "--size", "32")
+    assert code == 0 and out_text.startswith("wrote 1 sample of vines")  # not "1 samples"
     assert not (two_d / "contact_sheet.html").exists()
+
+
+def test_a_contact_page_of_more_samples_than_it_shows_says_so(tmp_path, capsys, monkeypatch):
+    """The page's title said "70 samples" over 64 views."""
+    import procmod.cli
+    monkeypatch.setattr(procmod.cli, "CONTACT_SHEET_TILES", 2)
+    out = tmp_path / "ships"
+    assert _run(capsys, "sample", "spaceship", "-n", "3", "--out", str(out), "--size", "16")[0] == 0
+    assert "spaceship: 3 samples, seed 0 (the first 2 shown)" in (out / "contact_sheet.html").read_text()
 
 
 def test_an_integer_for_a_real_parameter_takes_a_later_real_change(tmp_path, capsys):

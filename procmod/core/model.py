@@ -203,7 +203,7 @@ def _check_param(name: str, value, default, bounds=None) -> None:
         return
     if isinstance(default, (list, tuple)):
         if not isinstance(value, (list, tuple)) or len(value) != len(default):
-            fail(f"a list of {len(default)} items")
+            fail(f"a list of {len(default)} items, e.g. {shown_value(list(default))}")
         for i, (item, item_default) in enumerate(zip(value, default)):
             _check_param(f"{name}[{i}]", item, item_default, bounds)
 
