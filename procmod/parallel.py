@@ -204,6 +204,14 @@ def _ready() -> int:
     return os.getpid()
 
 
+def shared_memory_error(exc: OSError) -> WorkerError:
+    """The error for worker processes whose locks cannot be made: Python's multiprocessing
+    keeps its semaphores in /dev/shm, which a container may mount read-only or tiny."""
+    return WorkerError(f"cannot set up worker processes: their locks cannot be made ({exc.strerror or exc}); "
+                       "Python's multiprocessing needs a writable /dev/shm (a container may mount it read-only or "
+                       "too small): mount it writable, or use workers=1")
+
+
 @contextlib.contextmanager
 def open_executor(workers: int | None = None, scheduler: str | None = None,
                   connect_timeout: float = 10.0) -> Iterator[concurrent.futures.Executor]:
@@ -249,8 +257,11 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     if workers is None or workers <= 1:
         yield InlineExecutor()
         return
-    pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
-                                                  initargs=(os.getpid(),))
+    try:
+        pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers, initializer=_exit_with_parent,
+                                                      initargs=(os.getpid(),))
+    except OSError as exc:  # its queues' semaphores live in /dev/shm
+        raise shared_memory_error(exc) from None
     try:
         # start the workers now, from this thread: the kernel's parent-death signal follows
         # the thread that forked a worker, and this one outlives the pool

@@ -130,3 +130,24 @@ def test_a_tasks_error_leaves_no_worker_behind():
             with open_executor(2) as pool:
                 pool.submit(_raise_value_error).result()
         assert not multiprocessing.active_children()
+
+
+@pytest.mark.parametrize("engine", ["pool", "mcmc"])
+def test_a_read_only_dev_shm_is_one_line(engine, monkeypatch):
+    """multiprocessing's locks live in /dev/shm; a container that mounts it read-only made
+    --workers a traceback (mcmc, guide traces, learn)."""
+    import multiprocessing.synchronize
+
+    def refuse(self, *args, **kwargs):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(multiprocessing.synchronize.SemLock, "__init__", refuse)
+    with pytest.raises(WorkerError, match=r"their locks cannot be made \(Read-only file system\).*writable /dev/shm"):
+        if engine == "pool":
+            with open_executor(2):
+                pass
+        else:
+            from procmod.data import target_from_spec
+            from procmod.infer import Budget, mcmc
+            from procmod.models import get_model
+            mcmc(get_model("chain"), target_from_spec("glyph:a"), workers=2, budget=Budget(evaluations=20))

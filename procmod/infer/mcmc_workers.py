@@ -29,7 +29,7 @@ import multiprocessing
 import os
 
 from .common import Budget, HistoryRow, Result, evaluate
-from ..parallel import lost_worker_error
+from ..parallel import lost_worker_error, shared_memory_error
 from .particles import _pin, split_evenly
 
 
@@ -148,7 +148,10 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
     Returns ``(best derivation, best score, samples, log-weights, history, evaluations,
     move counts, evaluations of the SMC starts, notes)`` over all groups."""
     sizes = split_evenly(chains, workers)
-    stop = multiprocessing.get_context("fork").Event()
+    try:
+        stop = multiprocessing.get_context("fork").Event()
+    except OSError as exc:  # a read-only /dev/shm: a traceback before
+        raise shared_memory_error(exc) from None
     remote = []
 
     def follow(tracker):  # the workers' progress callback: only listens for a stop
