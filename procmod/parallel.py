@@ -204,6 +204,14 @@ def _ready() -> int:
     return os.getpid()
 
 
+def _has_workers(client) -> bool:
+    """Whether a dask client's scheduler has a worker now (True when it cannot tell)."""
+    try:
+        return bool(client.scheduler_info().get("workers"))
+    except Exception:  # noqa: BLE001 - a note's check must never fail the job
+        return True
+
+
 def shared_memory_error(exc: OSError) -> WorkerError:
     """The error for worker processes whose locks cannot be made: Python's multiprocessing
     keeps its semaphores in /dev/shm, which a container may mount read-only or tiny."""
@@ -214,7 +222,7 @@ def shared_memory_error(exc: OSError) -> WorkerError:
 
 @contextlib.contextmanager
 def open_executor(workers: int | None = None, scheduler: str | None = None,
-                  connect_timeout: float = 10.0) -> Iterator[concurrent.futures.Executor]:
+                  connect_timeout: float = 10.0, note=None) -> Iterator[concurrent.futures.Executor]:
     """Open an executor for the duration of a ``with`` block.
 
     Parameters
@@ -226,6 +234,9 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         ``workers``.
     connect_timeout : float
         Seconds to wait for the scheduler before giving up with a :class:`SchedulerError`.
+    note : callable, optional
+        ``note(text)`` is told when the scheduler has no workers yet (the job then waits
+        for one to join, however long: an adaptive cluster starts them for the work).
     """
     if workers is not None and workers < 0:
         raise InvalidArgumentError(f"workers must be >= 0, got {workers}; use 0 for one per core")
@@ -240,6 +251,9 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         except (OSError, TimeoutError, ValueError) as exc:
             raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({str(exc)[:200]}); "
                                  "check the address and that `dask scheduler` is running") from exc
+        if note is not None and not _has_workers(client):
+            note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins (start one "
+                 f"with `dask worker {scheduler}`)")
         try:
             yield client.get_executor(pure=False)
         except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:

@@ -151,3 +151,21 @@ def test_a_read_only_dev_shm_is_one_line(engine, monkeypatch):
             from procmod.infer import Budget, mcmc
             from procmod.models import get_model
             mcmc(get_model("chain"), target_from_spec("glyph:a"), workers=2, budget=Budget(evaluations=20))
+
+
+def test_a_dask_scheduler_without_workers_is_noted():
+    """A job sent to a scheduler with no workers waited for ever, without a word."""
+    distributed = pytest.importorskip("distributed")
+    notes = []
+    cluster = distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None)
+    try:
+        with open_executor(scheduler=cluster.scheduler_address, note=notes.append):
+            pass
+        assert len(notes) == 1 and "has no workers yet: the job waits until one joins" in notes[0]
+        cluster.scale(1)
+        cluster.wait_for_workers(1)
+        with open_executor(scheduler=cluster.scheduler_address, note=notes.append) as executor:
+            assert executor.submit(abs, -3).result() == 3
+        assert len(notes) == 1  # a worker there: no note
+    finally:
+        cluster.close()

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..core import InvalidArgumentError
@@ -69,7 +70,8 @@ def _cmd_traces(args) -> None:
             bar.n = done
             bar.refresh()
 
-        with open_executor(workers=workers, scheduler=args.scheduler) as executor:
+        with open_executor(workers=workers, scheduler=args.scheduler,
+                           note=lambda text: print(f"note: {text}", file=sys.stderr)) as executor:
             summary = generate_traces(args.model, args.targets, args.count, args.out, args.particles,
                                       args.seed, executor, progress=progress, overwrite=args.overwrite)
     finally:

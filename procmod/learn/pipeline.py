@@ -148,7 +148,7 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
                    duplicate_note(example_set, labels)):
         if advice is not None and note is not None:
             note(advice)
-    with open_executor(workers, scheduler) as executor:  # an unreachable scheduler: before --out is made
+    with open_executor(workers, scheduler, note=note) as executor:  # an unreachable scheduler: before --out is made
         folder.prepare_in_place(keep=True)
         result = run_search(example_set, options, executor, out / "checkpoint", digest, progress,
                             replace_other=overwrite)

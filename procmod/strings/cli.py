@@ -289,7 +289,8 @@ def _augment(args) -> None:
         bar.refresh()
 
     params = AugmentParams(rotate=not args.translations_only, distinct=args.distinct)
-    with open_executor(args.workers, args.scheduler) as executor:
+    with open_executor(args.workers, args.scheduler,
+                       note=lambda text: print(f"note: {text}", file=sys.stderr)) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,
                          max_rounds=args.rounds, executor=executor, params=params,
                          progress=progress, seconds=args.seconds)
