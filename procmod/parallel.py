@@ -26,6 +26,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import ctypes
+import logging
 import os
 import re
 import signal
@@ -204,6 +205,21 @@ def _ready() -> int:
     return os.getpid()
 
 
+@contextlib.contextmanager
+def _quiet_distributed():
+    """distributed logs ERROR lines of its own (a lost scheduler, a closed connection)
+    above the one line procmod prints for the same event: quiet while a job runs."""
+    loggers = [logging.getLogger(name) for name in ("distributed", "distributed.client", "distributed.comm")]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
+
+
 def _has_workers(client) -> bool:
     """Whether a dask client's scheduler has a worker now (True when it cannot tell)."""
     try:
@@ -246,23 +262,24 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
             from distributed import Client
         except ImportError as exc:  # pragma: no cover - dask is a dependency
             raise SchedulerError("dask.distributed is not installed; pip install 'dask[distributed]'") from exc
-        try:
-            client = Client(scheduler, timeout=connect_timeout)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({str(exc)[:200]}); "
-                                 "check the address and that `dask scheduler` is running") from exc
-        if note is not None and not _has_workers(client):
-            note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins (start one "
-                 f"with `dask worker {scheduler}`)")
-        try:
-            yield client.get_executor(pure=False)
-        except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:
-            if client.status == "running":  # the scheduler is there: not its loss
-                raise
-            raise SchedulerError(f"lost the dask scheduler at {scheduler!r} mid-job ({type(exc).__name__}); start "
-                                 "it again and rerun: a resumable job keeps what it finished") from None
-        finally:
-            client.close()
+        with _quiet_distributed():
+            try:
+                client = Client(scheduler, timeout=connect_timeout)
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({str(exc)[:200]}); "
+                                     "check the address and that `dask scheduler` is running") from exc
+            if note is not None and not _has_workers(client):
+                note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins (start "
+                     f"one with `dask worker {scheduler}`)")
+            try:
+                yield client.get_executor(pure=False)
+            except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:
+                if client.status == "running":  # the scheduler is there: not its loss
+                    raise
+                raise SchedulerError(f"lost the dask scheduler at {scheduler!r} mid-job ({type(exc).__name__}); "
+                                     "start it again and rerun: a resumable job keeps what it finished") from None
+            finally:
+                client.close()
         return
     if workers is not None:
         check_worker_limit(workers)

@@ -3,6 +3,7 @@ worker: one line each, never a hang (an adversarial pass with a process limit, k
 and a user's rule that fails only on a worker found each)."""
 
 import concurrent.futures
+import logging
 import multiprocessing
 import os
 import signal
@@ -103,8 +104,9 @@ def _slow(seconds):
     return seconds
 
 
-def test_a_dask_scheduler_lost_mid_job_is_one_line():
-    """A cluster that went away mid-job ended in a CancelledError traceback."""
+def test_a_dask_scheduler_lost_mid_job_is_one_line(capfd, caplog):
+    """A cluster that went away mid-job ended in a CancelledError traceback, and then in
+    distributed's own ERROR lines (a traceback of its own) above procmod's one line."""
     distributed = pytest.importorskip("distributed")
     from procmod.parallel import SchedulerError
     cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
@@ -116,6 +118,9 @@ def test_a_dask_scheduler_lost_mid_job_is_one_line():
                 future.result()
     finally:
         cluster.close()
+    err = capfd.readouterr().err
+    assert "ERROR" not in err and "Traceback" not in err, err
+    assert not [r for r in caplog.records if r.name.startswith("distributed") and r.levelno >= logging.ERROR]
 
 
 def _raise_value_error():
