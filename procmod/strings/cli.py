@@ -24,6 +24,7 @@ SHAPES_HELP = ("a procmod-shapes/1 JSON file, or asset files (.gltf, .glb, .urdf
 MAX_PARALLEL = 10_000
 MAX_STRINGS_PER_SHAPE = 10_000
 MAX_VOTES = 10_000
+MAX_RANDOM_STRINGS = 1_000_000  # strings encode --random: ~100 MB of strings held to keep them distinct
 
 
 PATH_POINTS = 8  # of a --mode path walk
@@ -201,9 +202,11 @@ def _encode(args) -> None:
         return
     if args.random < 1:
         raise InvalidArgumentError(f"--random must be a positive number of strings, got {args.random}")
-    _at_most(args.random, "--random", MAX_STRINGS_PER_SHAPE)  # 10^12 ran for ever, its memory growing
+    # "up to N": a graph with few strings stops early (PATIENCE); one with billions would
+    # hold every string found in memory, so N has a ceiling, and each prints when found
+    _at_most(args.random, "--random", MAX_RANDOM_STRINGS)
     for s in random_strings(g, args.random, np.random.default_rng(_seed(args.seed))):
-        print(s)
+        print(s, flush=True)
 
 
 # ``strings encode --random N`` stops drawing once this many draws in a row (and at least
@@ -212,8 +215,8 @@ def _encode(args) -> None:
 PATIENCE = 1000
 
 
-def random_strings(g, count: int, rng: np.random.Generator) -> list[str]:
-    """Up to ``count`` distinct random strings of ``g``, drawn as
+def random_strings(g, count: int, rng: np.random.Generator):
+    """Up to ``count`` distinct random strings of ``g``, yielded as found, drawn as
     :func:`~procmod.strings.codec.strings_of` draws them (``canonical=False``: same
     generator, same order, same strings), but giving up after ``max(PATIENCE, strings
     found)`` draws in a row without a new one, not only after ``4 * count`` draws.
@@ -222,18 +225,17 @@ def random_strings(g, count: int, rng: np.random.Generator) -> list[str]:
     row is rarer than one in about ``PATIENCE`` draws."""
     from .codec import encode
 
-    out, seen, stale = [], set(), 0
+    seen, stale = set(), 0
     for _ in range(4 * count):
-        if len(out) >= count or stale >= max(PATIENCE, len(out)):
+        if len(seen) >= count or stale >= max(PATIENCE, len(seen)):
             break
         s = encode(g, rng=rng)
         if s in seen:
             stale += 1
             continue
         seen.add(s)
-        out.append(s)
         stale = 0
-    return out
+        yield s
 
 
 def _decode(args) -> None:
