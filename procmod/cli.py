@@ -163,33 +163,48 @@ def _model(spec: str, params=()):
         name, sep, text = item.partition("=")
         if not sep or not name:
             raise InvalidArgumentError(f"--param takes NAME=VALUE, got {_shown(item)}")
-        try:
-            value = json.loads(text)
-        except ValueError:  # not JSON (also an integer of more than 4300 digits)
-            value = text
-        settings[name] = _as_param(value, text, model.params.get(name))
+        settings[name] = _as_param(_read_param(text), text, model.params.get(name))
     return model.configure(**settings)
 
 
 _TRUE, _FALSE = ("true", "1"), ("false", "0")  # any case: Python's True, JSON's true
 
 
+def _read_param(text: str):
+    """A ``--param`` value as JSON (``false``, ``64``, ``[0.5, 0.9]``), else as a number
+    Python reads (``.5``), else the text itself."""
+    try:
+        return json.loads(text)
+    except ValueError:  # not JSON (also an integer of more than 4300 digits)
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def _as_param(value, text: str, default):
     """A ``--param`` value read the way its parameter's default is typed, where a shell
     user's spelling leaves no doubt: ``leaves=False`` or ``0`` for a flag, ``size=50.0``
-    for a count, ``start=0.5,0.9`` for a pair. Anything else goes to the model's own check,
-    whose message names what the parameter takes."""
+    for a count, ``start=0.5,0.9`` or ``.5 .9`` for a pair, ``label=1`` for a string.
+    Anything else goes to the model's own check, whose message names what the parameter
+    takes."""
     if isinstance(default, bool):
         word = text.strip().lower()
         return True if word in _TRUE else False if word in _FALSE else value
+    if isinstance(default, str):
+        return value if isinstance(value, str) else text
     if isinstance(default, int) and isinstance(value, float) and value.is_integer():
         return int(value)
-    if isinstance(default, (list, tuple)) and not isinstance(value, list):
-        items = [t for t in re.split(r"[,\s]+", text.strip().strip("()[]")) if t]
-        try:
-            return [json.loads(t) for t in items]
-        except ValueError:
-            return value
+    if isinstance(default, (list, tuple)):
+        if isinstance(value, list):
+            texts = [json.dumps(item) for item in value]
+        else:
+            texts = [t for t in re.split(r"[,\s]+", text.strip().strip("()[]")) if t]
+            value = [_read_param(t) for t in texts]
+        if len(value) != len(default):
+            return value  # the model's check names the length it takes
+        return [_as_param(item, t, d) for item, t, d in zip(value, texts, default)]
     return value
 
 

@@ -235,11 +235,12 @@ def test_param_sets_model_parameters(tmp_path, capsys):
     assert params["leaves"] is False and params["size"] == 64
     # a shell user's spellings of a flag, a count and a pair (refused before, "must be true or false")
     assert _run(capsys, "sample", "vines", "-n", "1", "--param", "leaves=False", "--param", "size=48.0",
-                "--param", "start=0.25,0.75", "--out", str(tmp_path / "t"), "--size", "16")[0] == 0
+                "--param", "start=.25 .75", "--out", str(tmp_path / "t"), "--size", "16")[0] == 0
     params = json.loads((tmp_path / "t" / "sample_000.json").read_text())["params"]
     assert params["leaves"] is False and params["size"] == 48 and params["start"] == [0.25, 0.75]
     for bad, words in (("leaves=yes", "leaves"), ("colour=red", "colour"), ("nonsense", "NAME=VALUE"),
-                       ("start=a,b", "start must be a list of 2 items, e.g. [0.5, 0.9166]"), ("size=48.5", "integer")):
+                       ("start=a,b", "start[0] must be a number, got \"a\""),
+                       ("start=1", "start must be a list of 2 items, e.g. [0.5, 0.9166]"), ("size=48.5", "integer")):
         code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--param", bad, "--out", str(tmp_path / "x"))
         assert code == 2 and words in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
@@ -283,3 +284,15 @@ def test_a_reader_that_closes_stdout_ends_the_command_quietly():
     run.stdout.close()
     err = run.stderr.read().decode()
     assert run.wait(timeout=120) == 141 and err == "", err
+
+
+def test_param_values_are_read_as_their_parameters_default_is_typed():
+    from procmod.cli import _as_param, _read_param
+
+    def read(text, default):
+        return _as_param(_read_param(text), text, default)
+
+    assert read("1", "a") == "1" and read("true", "a") == "true" and read('"x"', "a") == "x"  # a string parameter
+    assert read("True,0", [False, True]) == [True, False] and read("3.0,4", [1, 2]) == [3, 4]
+    assert read(".5 .9", [0.5, 0.9]) == [0.5, 0.9] and read("p,q", ["a", "b"]) == ["p", "q"]
+    assert read("c,d", "label") == "c,d"  # a string parameter is never split

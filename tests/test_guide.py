@@ -266,6 +266,14 @@ def few_traces(tmp_path_factory):
     return out
 
 
+def test_train_guide_takes_numpy_numbers(few_traces, tmp_path):
+    """lr=np.float32(0.01) was refused ("must be a finite positive number, got 0.01")."""
+    guide, _ = train_guide(VINES, few_traces, tmp_path / "g", iterations=np.int64(5), lr=np.float32(0.01),
+                           seed=np.int64(2), mixture=np.int64(2))
+    info = json.loads((tmp_path / "g.json").read_text())["info"]
+    assert info["iterations"] == 5 and info["lr"] == pytest.approx(0.01) and type(info["lr"]) is float
+
+
 def test_traces_are_smc_particles_that_replay(few_traces):
     settings, traces = load_traces(few_traces)
     assert settings["particles"] == 40 and len(traces) == 6

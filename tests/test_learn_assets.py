@@ -261,3 +261,15 @@ def test_learn_overwrite_replaces_an_earlier_run_of_other_options(tmp_path, monk
     assert main(argv + ["--seed", "1", "--overwrite"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["options"]["seed"] == 1 and report["resumed"] is False
+
+
+def test_learn_takes_numpy_numbers(tmp_path, monkeypatch):
+    """particles=np.int64(1) failed writing the checkpoint (an int64 is not JSON), leaving it half made."""
+    import procmod.learn.search
+    from procmod.learn.pipeline import learn
+    monkeypatch.setattr(procmod.learn.search, "SearchOptions", _QuickOptions)
+    fleet(tmp_path / "ships", 2)
+    learn(tmp_path / "ships", tmp_path / "run", particles=np.int64(1), seed=np.int64(3), workers=1,
+          samples=np.int64(1), options=_QuickOptions())
+    options = json.loads((tmp_path / "run" / "report.json").read_text())["options"]
+    assert options["particles"] == 1 and options["seed"] == 3 and (tmp_path / "run" / "program.json").is_file()

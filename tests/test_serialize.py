@@ -56,7 +56,7 @@ def _saved(tmp_path):
     (lambda d: d["choices"].pop(0), "does not replay"),
     # a deleted choice is named, with where to put it back ("choices were missing" before)
     (lambda d: [d.pop("log_prior"), d["choices"].pop(1)],
-     r"1 choice the model makes is missing; the first, 'leaf' at \[\], is not in its choices: add it as "
+     r"a choice the model makes is missing: the first, 'leaf' at \[\], is not in its choices; add it as "
      r"\[\[\], \"leaf\", VALUE\]"),
     (lambda d: d["choices"].__setitem__(0, ["x", 1]), r"choices\[0\]"),
     (lambda d: d.update(log_prior=d["log_prior"] + 1.0), "its choices were edited, or the model has changed"),
@@ -111,3 +111,15 @@ def test_a_model_of_ones_own_named_like_a_file_reaches_its_resolver_unchanged(tm
     asked = []
     loaded = load_derivation(tmp_path / "d.json", lambda name: asked.append(name) or model)
     assert asked == ["chain.json"] and loaded.geometry() == d.geometry()
+
+
+def test_a_deleted_maybe_coin_is_named_not_the_choices_it_leaves_unused(tmp_path):
+    chain = get_model("chain")
+    made = next(d for d in (run_forward(chain, np.random.default_rng(seed)) for seed in range(50)) if d.n_nodes >= 4)
+    data = derivation_to_dict(made)
+    data.pop("log_prior")
+    data["choices"] = [c for c in data["choices"] if c[:2] != [[], "next"]]
+    (tmp_path / "d.json").write_text(json.dumps(data))
+    with pytest.raises(DerivationFormatError, match=r"a choice the model makes is missing: the first, 'next' at "
+                                                      r"\[\], is not in its choices"):
+        load_derivation(tmp_path / "d.json", get_model)

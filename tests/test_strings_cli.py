@@ -365,7 +365,7 @@ def test_train_model_refuses_bad_numbers_before_any_work(tmp_path, kwargs, messa
     assert not (tmp_path / "m").exists()
 
 
-@pytest.mark.parametrize("kwargs, message", [({"seed": -1}, "seed must be a whole number 0 or more"),
+@pytest.mark.parametrize("kwargs, message", [({"seed": -1}, "seed must be a non-negative whole number"),
                                              ({"parallel": 0}, "parallel must be a whole number 1 or more"),
                                              ({"count": 2.5}, "count must be a whole number 1 or more")])
 def test_augment_refuses_bad_numbers(kwargs, message):
@@ -373,3 +373,18 @@ def test_augment_refuses_bad_numbers(kwargs, message):
     from procmod.strings.sampling import augment
     with pytest.raises(InvalidArgumentError, match=message):
         augment(read_shapes(SETS / "moonbase.json"), **{"count": 4, **kwargs})
+
+
+def test_augment_takes_any_seed_numpy_takes():
+    from procmod.strings import read_shapes
+    from procmod.strings.sampling import augment
+    result = augment(read_shapes(SETS / "moonbase.json"), 4, seed=[1, 2], parallel=2, max_rounds=3)
+    assert len(result.shapes) >= 1
+
+
+def test_train_takes_a_large_seed(tmp_path, capsys):
+    """A seed past ~9e13 overflowed torch's per-epoch seed (a traceback after the folder
+    was made)."""
+    code, _, err = _run(capsys, "strings", "train", SETS / "moonbase.json", "--out", tmp_path / "m", "--epochs", 1,
+                        "--tagger-epochs", 1, "--hidden", 8, "--latent", 2, "--seed", 2 ** 50)
+    assert code == 0, err

@@ -19,6 +19,20 @@ import numpy as np
 from .errors import InvalidArgumentError
 
 
+def check_seed(seed, name: str = "seed") -> None:
+    """Refuse, in one line, a seed numpy's generators do not take: they take a
+    non-negative whole number, a sequence or array of them (a worker's ``(seed, index)``)
+    and a SeedSequence."""
+    if isinstance(seed, np.random.SeedSequence):
+        return
+    try:
+        np.random.SeedSequence(seed)  # a 0-d array is refused: smc's workers index the seed
+    except (TypeError, ValueError):
+        shown = " ".join(repr(seed).split())[:40]
+        raise InvalidArgumentError(f"{name} must be a non-negative whole number (or a sequence of them), got "
+                                   f"{type(seed).__name__} {shown}") from None
+
+
 class BlockGenerator:
     """``generator`` with block-buffered scalar ``random()`` and ``standard_normal()``."""
 

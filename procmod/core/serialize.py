@@ -213,24 +213,24 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
         raise _fail(source, f"replaying it under params {cut_text(json.dumps(data['params']), 120)} needs more "
                             f"memory than this machine has ({exc})") from None
     if result.unused or result.log_fresh != 0.0 or result.derivation.order() != order:
-        if result.unused:
+        # choices the file lacks (a deleted 'maybe' coin too: the calls after it then leave
+        # stored choices unused, which would be named instead of the cause)
+        missing = [(node.address, name) for node in result.derivation.nodes()
+                   for name in node.choices if (node.address, name) not in choices]
+        if missing:  # drawn afresh in the replay: name the first, where the file should hold it
+            address, name = missing[0]
+            shown = cut_text(json.dumps(list(address)), 80)
+            what = (f"a choice the model makes is missing: the first, {cut_text(name, 60)!r} at {shown}, is not in its "
+                    f"choices; add it as [{shown}, {json.dumps(name)}, VALUE]")
+        elif result.unused:
             first = min(result.unused, key=index.__getitem__)  # the first in the file
             what = (f"{len(result.unused)} stored choices were not used; the first, choices[{index[first]}], "
                     f"{cut_text(first[1], 60)!r} at {cut_text(json.dumps(list(first[0])), 80)} = "
                     f"{cut_text(json.dumps(choices[first]), 40)}, is a value its distribution there cannot take "
                     "(outside its range, not a number, another type) or a choice the model does not make")
         else:
-            missing = [(node.address, name, made.value) for node in result.derivation.nodes()
-                       for name, made in node.choices.items() if (node.address, name) not in choices]
-            if missing:  # drawn afresh in the replay: name the first, where the file should hold it
-                address, name, value = missing[0]
-                what = (f"{len(missing)} choice{'s' if len(missing) > 1 else ''} the model makes "
-                        f"{'are' if len(missing) > 1 else 'is'} missing; the first, {cut_text(name, 60)!r} at "
-                        f"{cut_text(json.dumps(list(address)), 80)}, is not in its choices: add it as "
-                        f"[{cut_text(json.dumps(list(address)), 80)}, {json.dumps(name)}, VALUE]")
-            else:
-                what = ("choices were missing" if result.log_fresh != 0.0 or
-                        len(result.derivation.choice_map()) != len(choices) else "the calls ran in another order")
+            what = ("choices were missing" if result.log_fresh != 0.0 or
+                    len(result.derivation.choice_map()) != len(choices) else "the calls ran in another order")
         raise _fail(source, f"does not replay under model {model.name!r} ({what}); was the file edited, or saved by "
                             "another version of the model?")
     stored = data.get("log_prior")

@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import numbers
 import os
 import time
 
@@ -242,8 +243,9 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                          f"got {iterations:,}")
     if batch > MAX_BATCH:
         raise GuideError(f"batch must be at most {MAX_BATCH:,} traces a step, got {batch:,}")
-    if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
-        raise GuideError(f"the learning rate must be a finite positive number, got {lr!r}")
+    if isinstance(lr, bool) or not isinstance(lr, numbers.Real) or not (math.isfinite(lr) and lr > 0):
+        raise GuideError(f"the learning rate must be a finite positive number, got {shown_value(lr)}")
+    lr = float(lr)  # numpy's too: it is recorded in the guide's JSON
     if schedule not in SCHEDULES:
         raise GuideError(f"the step-size schedule must be one of {', '.join(SCHEDULES)}, got {schedule!r}")
     job = None

@@ -27,7 +27,7 @@ import numpy as np
 from ..core import Derivation, InvalidArgumentError, Model, replay
 from ..core.errors import shown_value, whole_number
 from ..core.protocols import Output, Target, check_declared
-from ..core.random import LazyGenerator
+from ..core.random import LazyGenerator, check_seed
 from ..parallel import InlineExecutor
 
 
@@ -388,15 +388,7 @@ def check_run(model, target, seed, budget) -> None:
 
     check_model(model)
     check_target(target)
-    # what numpy takes: a whole number, a sequence or array of them (a worker's (seed,
-    # index)), a SeedSequence
-    if not isinstance(seed, np.random.SeedSequence):
-        try:
-            np.random.SeedSequence(seed)  # a 0-d array is refused: smc's workers index the seed
-        except (TypeError, ValueError):
-            shown = " ".join(repr(seed).split())[:40]
-            raise InvalidArgumentError(f"seed must be a non-negative whole number (or a sequence of them), got "
-                                       f"{type(seed).__name__} {shown}") from None
+    check_seed(seed)
     if budget is not None and not isinstance(budget, Budget):
         raise InvalidArgumentError(f"budget must be a Budget (e.g. Budget(seconds=30), or "
                                    f"procmod.infer.parse_budget('30s')) or None, got {budget!r:.40}")
@@ -459,9 +451,15 @@ def check_real(name: str, value, expected: str, holds: Callable[[float], bool]) 
     ``holds`` is true, else an InvalidArgumentError "``name`` must be ``expected``".
     A numpy float kept as given would turn up in settings.json (and, as a step size,
     make the choices it moves numpy floats)."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not holds(float(value)):
-        raise InvalidArgumentError(f"{name} must be {expected}, got {shown_value(value)}")
-    return float(value)
+    try:  # a Python or numpy number, a 0-d array, a Decimal: what float() reads as a number
+        number = None if isinstance(value, (bool, str, bytes)) else float(value)
+    except (TypeError, ValueError):
+        number = None
+    if number is None or not holds(number):
+        shown = shown_value(value) if number is None or isinstance(value, numbers.Real) else \
+            f"{type(value).__name__} {shown_value(value)}"
+        raise InvalidArgumentError(f"{name} must be {expected}, got {shown}")
+    return number
 
 
 def log_mean_exp(values) -> float:

@@ -91,6 +91,9 @@ class SearchOptions:
     share_fits: bool = True
 
     def check(self) -> "SearchOptions":
+        for name, value in vars(self).items():  # numpy's numbers as Python's: options go into JSON
+            if isinstance(value, np.generic):
+                setattr(self, name, value.item())
         if self.particles < 1:
             raise InvalidArgumentError(f"{argument('particles')} must be at least 1, got {self.particles}")
         if self.particles > MAX_SEARCH_PARTICLES:

@@ -29,6 +29,7 @@ import networkx as nx
 import numpy as np
 
 from ..core.errors import InvalidArgumentError, checked_count
+from ..core.random import check_seed
 from .contacts import centroids, contact_pairs, part_points, shape_graph, tolerance_for
 from .grammar import Grammar
 from .shapes import Shape, ShapeSet, type_histogram
@@ -337,7 +338,7 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
 
     count, parallel, max_rounds = (checked_count(name, value) for name, value in
                                    (("count", count), ("parallel", parallel), ("max_rounds", max_rounds)))
-    seed = checked_count("seed", seed, least=0)
+    check_seed(seed)  # what numpy takes, as the engines do: a list seeds too
     executor = executor or InlineExecutor()
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)

@@ -565,7 +565,7 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
             # a plain float: the optimizer state is saved and loaded with weights_only=True
             scale = config.lr_final + (1 - config.lr_final) * 0.5 * (1 + np.cos(np.pi * progress_))
             group["lr"] = float(config.lr * scale)
-        gen = torch.Generator().manual_seed(seed * 7919 + state["epoch"])
+        gen = torch.Generator().manual_seed((seed * 7919 + state["epoch"]) % 2 ** 63)  # see vae.train_vae
         order = torch.randperm(len(examples), generator=gen).tolist()
         # length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding)
         chunk = 8 * config.batch

@@ -442,7 +442,8 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
     net.config = config  # more epochs than a checkpoint was trained for: train on
     while state.epoch < config.epochs:
         epoch = state.epoch
-        gen = torch.Generator().manual_seed(seed * 100003 + epoch)
+        # modulo 2**63: a seed past ~9e13 overflowed torch's seed (the same streams below it)
+        gen = torch.Generator().manual_seed((seed * 100003 + epoch) % 2 ** 63)
         order = torch.randperm(len(strings), generator=gen).tolist()
         # Length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding).
         chunk = 8 * config.batch
