@@ -389,6 +389,31 @@ def test_what_a_person_sees_drawn_is_the_mask(tmp_path, case):
     assert np.array_equal(mask_from_image(picture), ink)
 
 
+@pytest.mark.parametrize("table, ink_grey", [(90, 60), (40, 0), (128, 110), (170, 60)])
+def test_a_page_photographed_on_a_darker_table_gives_its_drawing(tmp_path, table, ink_grey):
+    """A page covering 37% of a photo, on a desk darker than it: the whole page was read as
+    the shape (the drawing as holes in it), without a note. Its drawing is the mask now; a
+    light shape on a dark ground with nothing drawn on it stays the shape."""
+    from procmod.targets.image import mask_from_image
+
+    rng = np.random.default_rng(1)
+    photo = np.full((600, 800), float(table))
+    page = np.full((420, 420), 235.0)
+    page[60:360, 205:215] = ink_grey  # a stem
+    page[150:160, 100:320] = ink_grey  # a branch
+    photo[90:510, 190:610] = page
+    photo += rng.normal(0, 3, photo.shape)  # sensor noise, then JPEG's
+    Image.fromarray(np.clip(photo, 0, 255).astype(np.uint8)).save(tmp_path / "desk.jpg", quality=90)
+    mask = mask_from_image(Image.open(tmp_path / "desk.jpg"))
+    drawn = np.zeros((800, 800), dtype=bool)
+    drawn[100 + 90 + 60:100 + 90 + 360, 190 + 205:190 + 215] = True  # padded to a square: 100 rows above
+    drawn[100 + 90 + 150:100 + 90 + 160, 190 + 100:190 + 320] = True
+    assert (mask & drawn).sum() >= 0.95 * drawn.sum() and (mask & ~drawn).sum() <= 0.02 * drawn.sum()
+    silhouette = np.zeros((300, 300), dtype=np.uint8)
+    silhouette[50:250, 80:220] = 255  # a white rectangle on black: an inverted mask export
+    assert mask_from_image(Image.fromarray(silhouette))[50:250, 80:220].all()
+
+
 def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
     """A sidecar with only "direction" put the start at a fixed default (in empty space);
     a typo ("strat") was ignored; a run's best.json beside its best.png (a run used as a
@@ -445,7 +470,19 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     Image.fromarray(pens).save(tmp_path / "pens.png")
     Image.fromarray(np.where(ink, 0, 255).astype(np.uint8)).save(tmp_path / "clean.png")
     model = _model("vines")
-    assert "covers" in picture_note(target_from_spec(str(tmp_path / "framed.png")), model)
+    # the page inside the frame is read as paper and the drawing on it as the shape (the
+    # whole page was the shape, with a note that said so)
+    framed_target = target_from_spec(str(tmp_path / "framed.png"))
+    visible = ink.copy()
+    visible[:, :30] = visible[:, -30:] = visible[:30] = visible[-30:] = False
+    read = framed_target.image.mask
+    assert not (read & ~visible).any() and (read & visible).sum() >= 0.9 * visible.sum()
+    assert picture_note(framed_target, model) is None
+    # nothing drawn on the page: a light square is the shape, and the note says it covers most
+    blank = np.full((400, 400), 240, dtype=np.uint8)
+    blank[:, :30] = blank[:, -30:] = blank[:30] = blank[-30:] = 10
+    Image.fromarray(blank).save(tmp_path / "blank_framed.png")
+    assert "covers" in picture_note(target_from_spec(str(tmp_path / "blank_framed.png")), model)
     assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
     # a scanner lid's shadow along one edge, beside the drawing, was read as most of the
@@ -473,7 +510,12 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     page[:, :] = np.where(np.arange(300) < 8, 60, page)  # the same page photographed on a dark table
     page[:8], page[-8:], page[:, -8:] = 60, 60, 60
     Image.fromarray(page).save(tmp_path / "portrait_on_table.png")
-    assert "covers 86% of the picture" in picture_note(target_from_spec(str(tmp_path / "portrait_on_table.png")), model)
+    # its drawing is read on the page (the page was the shape, with a note: "covers 86%")
+    on_table = target_from_spec(str(tmp_path / "portrait_on_table.png"))
+    top, left, _, _ = on_table.image.picture
+    bar = np.zeros_like(on_table.image.mask)
+    bar[top + 100:top + 380, left + 140:left + 160] = True
+    assert np.array_equal(on_table.image.mask, bar) and picture_note(on_table, model) is None
 
 
 def test_a_target_built_from_python_is_checked_like_a_file():

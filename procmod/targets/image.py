@@ -498,6 +498,72 @@ def _fills_its_box(mask: np.ndarray, share: float) -> bool:
     return mask.sum() >= share * box
 
 
+PAGE_SHARE = 0.08
+"""A light region read as the shape is taken for a page (with the drawing on it) when it
+covers at least this share of the picture, as well as nearly all of its bounding box."""
+
+PAGE_BOX_FILL = 0.8  # a page turned up to ~7 degrees in the photo still fills this much of its box
+
+
+def _spans(region: np.ndarray) -> np.ndarray:
+    """``region`` with each row and each column filled between its first and last pixel:
+    a convex page with the drawing's strokes as notches in it (a stroke that meets the
+    page's edge is no hole) filled whole, and nothing outside its convex hull."""
+    def along_rows(r):
+        any_ = r.any(axis=1)
+        first = np.where(any_, r.argmax(axis=1), r.shape[1])
+        last = np.where(any_, r.shape[1] - 1 - r[:, ::-1].argmax(axis=1), -1)
+        cols = np.arange(r.shape[1])
+        return (cols[None, :] >= first[:, None]) & (cols[None, :] <= last[:, None])
+    return along_rows(region) | along_rows(region.T).T
+
+
+_PAGE_GRID = 512  # the page is found on a copy of at most this many pixels a side
+
+
+def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarray) -> np.ndarray | None:
+    """The drawing on a page photographed on a darker surface (a desk), or None.
+
+    The picture's border is then the desk, and the page, lighter than it, was read as the
+    shape with the drawing as holes and notches in it. A page is the largest region of
+    that mask, filled (:func:`_spans`), when it is lighter than the border, covers
+    :data:`PAGE_SHARE` of the picture and :data:`PAGE_BOX_FILL` of its bounding box; what
+    is drawn on its inside (its edge, where the desk's shadow falls, left out) is read as
+    a picture on that page's paper. A light shape on a dark ground with nothing drawn on
+    it (a white silhouette, a mask exported inverted) stays the shape."""
+    from scipy import ndimage
+
+    if not mask.any():
+        return None
+    h, w = mask.shape
+    step = max(1, math.ceil(max(h, w) / _PAGE_GRID))
+    small = mask[::step, ::step]
+    labels, _ = ndimage.label(small, structure=np.ones((3, 3)))
+    largest = 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+    # with every light piece within its bounding box: strokes that meet the page's edges cut
+    # pockets of it off (a trunk and a branch from the edges, the corner between them)
+    rows, cols = np.nonzero(labels == largest)
+    boxed = np.zeros_like(small)
+    boxed[rows.min():rows.max() + 1, cols.min():cols.max() + 1] = \
+        small[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
+    page = ndimage.binary_fill_holes(_spans(boxed))  # where strokes cross, both spans miss
+    if page.mean() < PAGE_SHARE or not _fills_its_box(page, PAGE_BOX_FILL):
+        return None
+    luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA.astype(colours.dtype)
+    surround_luma = float(surround[0]) if colours.shape[2] == 1 else float(surround @ _LUMA)
+    inside = ndimage.binary_erosion(page, iterations=max(1, round(0.015 * max(page.shape))))
+    inside = np.repeat(np.repeat(inside, step, axis=0), step, axis=1)[:h, :w]  # back to the picture's pixels
+    if inside.sum() < 64 or float(np.median(luma[inside])) <= surround_luma:
+        return None
+    paper = np.median(colours[inside], axis=0)
+    drawn = _ink(colours, paper, where=inside)
+    paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
+    # a drawing: darker than its page, and a small part of it (not the page's own texture)
+    if not drawn.any() or float(np.mean(luma[drawn])) >= paper_luma or drawn.sum() > 0.5 * inside.sum():
+        return None
+    return drawn
+
+
 def mask_from_image(image: Image.Image) -> np.ndarray:
     """Binary mask of a picture: foreground = pixels unlike the paper.
 
@@ -508,7 +574,8 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     underexposed photos.) With transparency the opaque part is the shape, unless it is a
     page (most of the picture, and nearly all of its own bounding box: a window with a
     transparent margin) with something drawn on it: then that is, read as above with the
-    page's median colour as the paper. Non-square
+    page's median colour as the paper. So is an opaque picture of a page lying on a darker
+    surface (:func:`_drawing_on_a_page`). Non-square
     pictures are padded with background to a square, centred, because the built-in models'
     viewport is square.
     """
@@ -530,7 +597,11 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     else:
         on_border = np.zeros(colours.shape[:2], dtype=bool)
         on_border[0] = on_border[-1] = on_border[:, 0] = on_border[:, -1] = True
-        mask = _ink(colours, np.median(colours[on_border], axis=0), lighting=True, paper_at=on_border)
+        surround = np.median(colours[on_border], axis=0)
+        mask = _ink(colours, surround, lighting=True, paper_at=on_border)
+        drawn = _drawing_on_a_page(colours, mask, surround)
+        if drawn is not None:
+            mask = drawn
     h, w = mask.shape
     top, left, _, _ = picture_in_square(h, w)
     square = np.zeros((max(h, w), max(h, w)), dtype=bool)
