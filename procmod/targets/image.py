@@ -538,6 +538,8 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     h, w = mask.shape
     step = max(1, math.ceil(max(h, w) / _PAGE_GRID))
     small = mask[::step, ::step]
+    if not small.any():  # thin strokes the coarse copy steps over: no page
+        return None
     labels, _ = ndimage.label(small, structure=np.ones((3, 3)))
     largest = 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
     # with every light piece within its bounding box: strokes that meet the page's edges cut
