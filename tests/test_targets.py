@@ -180,8 +180,9 @@ def test_scribbles_are_deterministic_and_varied():
     fills = [scribble_target(i).mask.mean() for i in range(20)]
     assert all(0.06 <= f <= 0.35 for f in fills)
     assert len({round(f, 4) for f in fills}) == 20
-    with pytest.raises(InvalidArgumentError):
-        target_image("scribble:x")
+    for spec in ("scribble:x", "scribble:\u00b2"):  # a superscript two (an AZERTY key) was a ValueError traceback
+        with pytest.raises(InvalidArgumentError, match="scribble:N needs a non-negative integer"):
+            target_image(spec)
 
 
 def test_target_specs_and_mirroring():

@@ -49,7 +49,7 @@ def _built_in_target(spec: str) -> TargetImage:
         typeface, char = rest.rsplit("/", 1) if "/" in rest[:-1] else (DEFAULT_TYPEFACE, rest)
         return glyph_target(char, typeface)
     number = spec[len("scribble:"):]
-    if not number.isdigit():
+    if not number.isdecimal():  # isdigit() takes "²", which int() refuses
         raise InvalidArgumentError(f"scribble:N needs a non-negative integer, got {spec!r}")
     from .scribbles import scribble_target
 
