@@ -60,3 +60,19 @@ def test_bad_silhouette_files(tmp_path):
         (tmp_path / "t.json").write_text(json.dumps(spec))
         with pytest.raises(TargetFileError, match=message):
             load_target_file(tmp_path / "t.json")
+
+
+def test_a_transparent_picture_is_read_as_it_shows_on_a_page(tmp_path):
+    """A shape exported as a transparent PNG (drawn in its alpha channel, its transparent
+    pixels black) was "hit" over the whole view."""
+    rgba = np.zeros((32, 32, 4), dtype=np.uint8)
+    rgba[8:24, 12:20, 3] = 255  # the shape: opaque black; the rest: transparent black
+    Image.fromarray(rgba).save(tmp_path / "shape.png")
+    cam = {"eye": [0, 0, 20], "look_at": [0, 0, 0], "projection": "orthographic", "fov": 8}
+    (tmp_path / "target.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                      "views": [{"image": "shape.png", "camera": cam}]}))
+    weights = load_target_file(tmp_path / "target.json").weights[0]
+    assert (weights[8:24, 12:20] > 0).all()
+    outside = np.ones((32, 32), dtype=bool)
+    outside[8:24, 12:20] = False
+    assert (weights[outside] < 0).all()

@@ -658,6 +658,18 @@ def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
     return out.image(0)
 
 
+def _transparent_as_white(picture, grey: np.ndarray) -> np.ndarray:
+    """``grey`` with a picture's transparent pixels white (to avoid), as the picture shows
+    on a page: a shape exported as a transparent PNG (drawn in its alpha channel, its
+    transparent pixels black) was read as "hit" everywhere."""
+    if picture.mode not in ("RGBA", "LA", "PA") and "transparency" not in picture.info:
+        return grey
+    alpha = np.asarray(picture.convert("RGBA"))[:, :, 3].astype(np.float64)
+    if alpha.min() >= 0.5 * alpha.max():  # no real transparency
+        return grey
+    return np.where(alpha >= 0.5 * alpha.max(), grey, 255.0)
+
+
 HIT_BELOW, AVOID_ABOVE = 85, 170  # a silhouette picture's grey levels: darker is to hit, lighter to avoid
 _PLACEMENT_KEYS = ("mesh_scale", "mesh_offset", "mesh_up")
 _VOLUME_WIDE = ("grid", "voxel_size", "margin", "w_self") + _PLACEMENT_KEYS  # the file's, for every layer
@@ -745,7 +757,8 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         if kind == "weights":
             weights = _load_weights(file, f"{at}.weights")
         elif kind == "image":
-            grey = grey_levels(open_image(file, f"{at}.image"))
+            picture = open_image(file, f"{at}.image")
+            grey = _transparent_as_white(picture, grey_levels(picture))
             weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
             if hit > 0 and not (grey < HIT_BELOW).any():  # a pencil sketch on grey paper
                 raise TargetFileError(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255; the "
