@@ -454,9 +454,9 @@ def _instantiate(args) -> None:
     if model_folder.is_dir() and out.resolve().is_relative_to(model_folder):
         # a file of the user's in a model folder stops 'strings train' resuming into it, and
         # the --overwrite it advises would delete the trained model
-        raise InvalidArgumentError(f"--out {cut_text(str(out))} is inside the model folder {cut_text(str(args.model))}; write "
-                                   "the shape elsewhere (training again into that folder must find only its own "
-                                   "files)")
+        raise InvalidArgumentError(f"--out {cut_text(str(out))} is inside the model folder "
+                                   f"{cut_text(str(args.model))}; write the shape elsewhere (training again into "
+                                   "that folder must find only its own files)")
     model = TrainedModel(args.model)
     check_output_file(out, make_parent=True, inputs=[args.model])
     result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes,

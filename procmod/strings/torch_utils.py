@@ -62,8 +62,9 @@ def load_weights(net, weights, weights_path, meta_path, advice: str = "; train i
     except (RuntimeError, KeyError, TypeError, ValueError) as exc:
         text = str(exc).strip().splitlines()
         detail = text[1].strip() if len(text) > 1 else (text[0] if text else type(exc).__name__)
-        raise ModelFileError(f"{weights_path} holds weights of another network than {Path(meta_path).name} describes "
-                             f"({cut_text(detail, 160)}): it belongs to another model or was replaced{advice}") from None
+        raise ModelFileError(f"{weights_path} holds weights of another network than {Path(meta_path).name} "
+                             f"describes ({cut_text(detail, 160)}): it belongs to another model or was replaced"
+                             f"{advice}") from None
 
 
 def config_from_json(cls, data, where: str):
