@@ -530,7 +530,11 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     :data:`PAGE_SHARE` of the picture and :data:`PAGE_BOX_FILL` of its bounding box; what
     is drawn on its inside (its edge, where the desk's shadow falls, left out) is read as
     a picture on that page's paper. A light shape on a dark ground with nothing drawn on
-    it (a white silhouette, a mask exported inverted) stays the shape."""
+    it (a white silhouette, a mask exported inverted) stays the shape, and so does one whose
+    holes and notches are the ground's colour (a white letter, a silhouette with a hole): a
+    drawing must differ from the ground by :data:`MIN_CONTRAST`. A page in a near-black
+    frame drawn in black is therefore not told from them (the "covers" note of
+    :func:`procmod.targets.placement.picture_note` says what to crop)."""
     from scipy import ndimage
 
     if not mask.any():
@@ -562,6 +566,11 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
     # a drawing: darker than its page, and a small part of it (not the page's own texture)
     if not drawn.any() or float(np.mean(luma[drawn])) >= paper_luma or drawn.sum() > 0.5 * inside.sum():
+        return None
+    # and unlike the border: the holes and notches of a light shape on a dark ground (a
+    # white silhouette with a hole, a bold letter, an inverted mask) are the ground's own
+    # colour, and that light shape is the shape
+    if float(np.abs(np.median(colours[drawn], axis=0) - surround).max()) < MIN_CONTRAST:
         return None
     return drawn
 
