@@ -151,7 +151,8 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
         if tracker.due():
             total = local.score_sum() + sum(worker.call("scores") for worker in workers)
             tracker.record(total / particles)
-    return _collect(local, workers, tracker), np.array(log_w), log_z + log_mean_exp(list(log_w))
+    weights = np.array(log_w)
+    return _collect(local, workers, tracker), weights, log_z + log_mean_exp(weights)
 
 
 def _regroup(local: ParticleShard, workers: list, ancestors: list, sizes: list, finished: list) -> list:
@@ -290,8 +291,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                 states, log_w, log_z = _run_once(local, remote, particles, rng, resampling, ess_threshold,
                                                  tracker)
                 tracker.generations += 1
-                scores = [checked_value(target.score(s.output), target, "score") for s in states]
-                tracker.record(math.fsum(scores) / len(scores))
+                tracker.record(float(np.mean([checked_value(target.score(s.output), target, "score")
+                                              for s in states])))
                 if log_z == -math.inf:
                     notes.append(ZERO_LIKELIHOOD_NOTE)
                 if budget is None or tracker.spent():
