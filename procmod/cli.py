@@ -199,8 +199,9 @@ def _as_param(value, text: str, default):
     if isinstance(default, (list, tuple)):
         if isinstance(value, list):
             texts = [json.dumps(item) for item in value]
-        else:
-            texts = [t for t in re.split(r"[,\s]+", text.strip().strip("()[]")) if t]
+        else:  # 0.5,0.9 or "0.5 0.9" or (0.5; 0.9): the text within its quotes or brackets
+            inner = value if isinstance(value, str) else text
+            texts = [t for t in re.split(r"[,;\s]+", inner.strip().strip("()[]")) if t]
             value = [_read_param(t) for t in texts]
         if len(value) != len(default):
             return value  # the model's check names the length it takes

@@ -296,3 +296,4 @@ def test_param_values_are_read_as_their_parameters_default_is_typed():
     assert read("True,0", [False, True]) == [True, False] and read("3.0,4", [1, 2]) == [3, 4]
     assert read(".5 .9", [0.5, 0.9]) == [0.5, 0.9] and read("p,q", ["a", "b"]) == ["p", "q"]
     assert read("c,d", "label") == "c,d"  # a string parameter is never split
+    assert read('"0.5,0.9"', [0.5, 0.9]) == [0.5, 0.9] and read("0.5;0.9", [0.5, 0.9]) == [0.5, 0.9]

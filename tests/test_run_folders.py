@@ -143,6 +143,21 @@ def test_a_read_only_out_folder_is_refused_before_the_work(tmp_path, capsys, mon
     assert _names(tmp_path) == ["earlier"]  # no hidden .old or .tmp folder left
 
 
+def test_a_link_to_a_read_only_earlier_job_that_resumes_through_it_is_refused(tmp_path, monkeypatch):
+    """A link --out is replaced, not its target; but a resumable job writes through a link
+    to its earlier run, so that target must be writable."""
+    from procmod.core.runfolder import TRACES_JOB
+
+    earlier = tmp_path / "traces"
+    earlier.mkdir()
+    (earlier / "traces.json").write_text(json.dumps({"format": "procmod-traces/1", "model": "vines"}))
+    (tmp_path / "link").symlink_to(earlier)
+    _read_only(monkeypatch, earlier)
+    with pytest.raises(OutputLocationError, match="cannot create files in"):
+        RunFolder(tmp_path / "link", TRACES_JOB)
+    RunFolder(tmp_path / "other_link_target_free", TRACES_JOB)  # a new folder: nothing to probe through
+
+
 def test_a_folder_made_read_only_during_the_run_is_one_error_leaving_it_whole(tmp_path, monkeypatch):
     out = tmp_path / "run"
     with RunFolder(out, SAMPLE_RUN).writing() as tmp:

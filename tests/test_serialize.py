@@ -63,6 +63,10 @@ def _saved(tmp_path):
     # a choice given twice: one silently won over the other
     (lambda d: d["choices"].insert(0, [d["choices"][0][0], d["choices"][0][1], 0.5]),
      r"choices\[1\] gives choice 'angle' at \[\] again \(choices\[0\] gave it first\)"),
+    # a coin stored as 5: named, though its fresh draw may send the replay to calls whose
+    # choices the file lacks
+    (lambda d: [d.pop("log_prior"), d["choices"][4].__setitem__(2, 5)],
+     r"choices\[4\], 'terminate' at \[\] = 5, is a value its distribution there cannot take"),
     # a value the distribution cannot take: the message names the choice
     (lambda d: d["choices"][1].__setitem__(2, "sideways"),
      r"choices\[1\], 'leaf' at \[\] = \"sideways\", is a value its distribution there cannot take"),

@@ -367,7 +367,8 @@ def test_train_model_refuses_bad_numbers_before_any_work(tmp_path, kwargs, messa
 
 @pytest.mark.parametrize("kwargs, message", [({"seed": -1}, "seed must be a non-negative whole number"),
                                              ({"parallel": 0}, "parallel must be a whole number 1 or more"),
-                                             ({"count": 2.5}, "count must be a whole number 1 or more")])
+                                             ({"count": 2.5}, "count must be a whole number 1 or more"),
+                                             ({"seed": np.random.SeedSequence(1)}, "not a SeedSequence")])
 def test_augment_refuses_bad_numbers(kwargs, message):
     from procmod.strings import read_shapes
     from procmod.strings.sampling import augment

@@ -413,6 +413,21 @@ def test_a_page_photographed_on_a_darker_table_gives_its_drawing(tmp_path, table
 
 
 
+def test_a_drawn_frame_on_paper_lighter_in_its_middle_keeps_its_frame():
+    """A dark rectangle drawn around a circle, on paper a few grey levels lighter in the
+    middle than at its edges (a scan, a photo): the page reading took the drawn frame for
+    a page and kept only the circle."""
+    from procmod.targets.image import mask_from_image
+
+    yy, xx = np.mgrid[0:300, 0:300]
+    paper = 252.0 - 6.0 * (((xx - 150) ** 2 + (yy - 150) ** 2) / 22500.0)
+    drawn = np.zeros((300, 300), dtype=bool)
+    drawn[40:260, 40:44] = drawn[40:260, 256:260] = drawn[40:44, 40:260] = drawn[256:260, 40:260] = True
+    drawn |= np.abs(np.hypot(xx - 150, yy - 150) - 60) < 2
+    picture = np.where(drawn, 0.0, paper).astype(np.uint8)
+    assert np.array_equal(mask_from_image(Image.fromarray(picture)), drawn)
+
+
 @pytest.mark.parametrize("shape", ["rectangle", "square_with_a_hole", "letter_H", "arch"])
 def test_a_white_shape_on_black_stays_the_shape(shape):
     """An inverted mask export, a bold letter, a shape with a hole: its holes and notches

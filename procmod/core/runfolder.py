@@ -252,7 +252,9 @@ class RunFolder:
             self._check_replaceable(named=not (kind.resumes and kind.recognises(self.path)))
         self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
-        if exists and not self.in_place and not self.path.is_symlink():  # a link is replaced, not its target
+        # a link is replaced, not its target, unless a resumable job writes through it
+        through_link = self.path.is_symlink() and kind.resumes and kind.recognises(self.path)
+        if exists and not self.in_place and (through_link or not self.path.is_symlink()):
             # an existing folder is written into (resumable jobs) or moved aside and deleted
             # when the new run replaces it: both need it writable, and moving a folder to
             # another parent needs that too (its ".." changes). Found out only at the end,

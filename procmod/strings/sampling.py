@@ -339,6 +339,9 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
     count, parallel, max_rounds = (checked_count(name, value) for name, value in
                                    (("count", count), ("parallel", parallel), ("max_rounds", max_rounds)))
     check_seed(seed)  # what numpy takes, as the engines do: a list seeds too
+    if isinstance(seed, np.random.SeedSequence):  # each round's draws are seeded from [seed, round, k]
+        raise InvalidArgumentError("seed must be a whole number or a sequence of them for augment, not a "
+                                   "SeedSequence (give its entropy)")
     executor = executor or InlineExecutor()
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)

@@ -557,6 +557,10 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
         return None
     luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA.astype(colours.dtype)
     surround_luma = float(surround[0]) if colours.shape[2] == 1 else float(surround @ _LUMA)
+    # the region read as the shape is the light page itself, not dark ink on paper whose
+    # middle is a little lighter than its edges (a drawn frame, which spans fill as well)
+    if float(np.median(luma[mask])) < surround_luma + MIN_CONTRAST:
+        return None
     inside = ndimage.binary_erosion(page, iterations=max(1, round(0.015 * max(page.shape))))
     inside = np.repeat(np.repeat(inside, step, axis=0), step, axis=1)[:h, :w]  # back to the picture's pixels
     if inside.sum() < 64 or float(np.median(luma[inside])) <= surround_luma:
