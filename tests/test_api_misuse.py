@@ -1,6 +1,7 @@
 """The Python API's likely mistakes are one ProcmodError line, not a TypeError or an
 AttributeError from deep inside (an adversarial pass found each of these)."""
 
+import collections
 import json
 import tempfile
 from pathlib import Path
@@ -102,6 +103,10 @@ def test_numpy_numbers_are_taken_as_arguments_and_recorded_as_json_numbers(tmp_p
         assert load_derivation(out / "best.json", model).choice_map() == result.best.choice_map()
     with pytest.raises(ProcmodError, match="nudge_step must be a positive finite number"):
         ENGINES["ga"](model, target, population=4, budget=Budget(generations=1), nudge_step=float("inf"))
+    with pytest.raises(ProcmodError, match=r"mutation must be in \[0, 1\]"):  # was an OverflowError
+        ENGINES["ga"](model, target, population=4, budget=Budget(generations=1), mutation=10 ** 400)
+    pair = collections.namedtuple("Pair", "x y")  # failed in the copy to the default's type
+    assert model.configure(start=pair(0.25, 0.75)).params["start"] == [0.25, 0.75]
 
 
 def test_a_models_name_or_a_guides_name(vines):

@@ -162,8 +162,8 @@ def _plain(value):
     Parameters are JSON values: they are saved with every derivation."""
     if type(value).__module__ == "numpy" and callable(getattr(value, "tolist", None)):
         return value.tolist()
-    if isinstance(value, (list, tuple)):  # list(np.array(...)): numpy numbers in a list
-        return type(value)(_plain(item) for item in value)
+    if isinstance(value, (list, tuple)):  # list(np.array(...)), a namedtuple: a JSON list of plain numbers
+        return [_plain(item) for item in value]
     return value
 
 

@@ -453,7 +453,7 @@ def check_real(name: str, value, expected: str, holds: Callable[[float], bool]) 
     make the choices it moves numpy floats)."""
     try:  # a Python or numpy number, a 0-d array, a Decimal: what float() reads as a number
         number = None if isinstance(value, (bool, str, bytes)) else float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # 10**400 is past any float
         number = None
     if number is None or not holds(number):
         shown = shown_value(value) if number is None or isinstance(value, numbers.Real) else \
