@@ -413,38 +413,6 @@ def test_a_page_photographed_on_a_darker_table_gives_its_drawing(tmp_path, table
 
 
 
-@pytest.mark.parametrize("degrees", [1, 3, 5])
-def test_a_page_turned_in_the_photo_leaves_out_the_desk_along_the_edges(tmp_path, degrees):
-    """A page filling a photo, turned a few degrees: the desk showed as thin wedges along
-    the edges, read as shape; one took the start (out of the picture's corner)."""
-    from PIL import ImageDraw
-
-    from procmod.targets.image import load_target_image
-
-    page = Image.new("L", (600, 600), 240)
-    draw = ImageDraw.Draw(page)
-    draw.line([(300, 510), (300, 240)], fill=40, width=14)
-    draw.line([(300, 360), (420, 270)], fill=40, width=14)
-    page.convert("RGB").rotate(degrees, resample=Image.BICUBIC, fillcolor=(120, 115, 100)).save(
-        tmp_path / "turned.jpg", quality=90)
-    target = load_target_image(tmp_path / "turned.jpg")
-    drawn = np.asarray(page) < 128
-    assert abs(int(target.mask.sum()) - int(drawn.sum())) <= 0.03 * drawn.sum()
-    assert abs(target.start[0] - 0.5) < 0.05 and abs(target.start[1] - 0.85) < 0.02  # the stem's foot
-
-
-def test_one_wedge_along_an_edge_is_a_drawing_not_a_desk():
-    """A wedge is taken for desk only beside another: one alone is what was drawn."""
-    from procmod.targets.image import mask_from_image
-
-    picture = np.full((300, 300), 245, dtype=np.uint8)
-    yy, xx = np.mgrid[0:300, 0:300]
-    wedge = (yy < 15) & (xx < 280 - 18 * yy)
-    picture[wedge] = 20
-    picture[100:250, 140:150] = 20
-    assert np.array_equal(mask_from_image(Image.fromarray(picture)), picture < 128)
-
-
 def test_a_drawn_frame_on_paper_lighter_in_its_middle_keeps_its_frame():
     """A dark rectangle drawn around a circle, on paper a few grey levels lighter in the
     middle than at its edges (a scan, a photo): the page reading took the drawn frame for

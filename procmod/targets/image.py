@@ -579,46 +579,6 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     return drawn
 
 
-SLIVER_DEPTH = 0.06  # of the picture's side: how far a wedge of desk reaches in from an edge
-SLIVER_LENGTH = 0.25  # of the side: how far at least it runs along it
-
-
-def _without_desk_slivers(mask: np.ndarray) -> np.ndarray:
-    """``mask`` without the wedges of desk a turned page leaves along the picture's edges.
-
-    A page filling a photo but turned a few degrees in it shows the desk as thin right
-    triangles, each running along an edge from a corner (its legs: the edge, and the
-    page's edge); read as shape they took the start and the score. Two or more border
-    parts each within :data:`SLIVER_DEPTH` of one edge, along :data:`SLIVER_LENGTH` of it,
-    and about half the box they fill (a triangle; a scanner lid's band fills all of its
-    box, a hill or a corner blob more than half) are such wedges and are left out, unless
-    nothing else is drawn."""
-    from scipy import ndimage
-
-    h, w = mask.shape
-    if h < 16 or w < 16:
-        return mask
-    labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
-    slivers = []
-    for index, box in enumerate(ndimage.find_objects(labels), 1):
-        rows, cols = box
-        tall, wide = rows.stop - rows.start, cols.stop - cols.start
-        along = []  # (length along an edge it touches, depth in from that edge, the side's length)
-        if rows.start == 0 or rows.stop == h:
-            along.append((wide, tall, w, h))
-        if cols.start == 0 or cols.stop == w:
-            along.append((tall, wide, h, w))
-        area = int((labels[box] == index).sum())
-        if any(depth <= SLIVER_DEPTH * across and length >= SLIVER_LENGTH * side
-               and 0.35 * length * depth <= area <= 0.7 * length * depth
-               for length, depth, side, across in along):
-            slivers.append(index)
-    if len(slivers) < 2:
-        return mask
-    kept = mask & ~np.isin(labels, slivers)
-    return kept if kept.any() else mask
-
-
 def mask_from_image(image: Image.Image) -> np.ndarray:
     """Binary mask of a picture: foreground = pixels unlike the paper.
 
@@ -655,7 +615,8 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
         surround = np.median(colours[on_border], axis=0)
         mask = _ink(colours, surround, lighting=True, paper_at=on_border)
         drawn = _drawing_on_a_page(colours, mask, surround)
-        mask = drawn if drawn is not None else _without_desk_slivers(mask)
+        if drawn is not None:
+            mask = drawn
     h, w = mask.shape
     top, left, _, _ = picture_in_square(h, w)
     square = np.zeros((max(h, w), max(h, w)), dtype=bool)
