@@ -517,6 +517,8 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     assert picture_note(framed_target, model) is None
     assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
+    # a built-in glyph that covers most of its square (a dot scaled up) has no border to crop
+    assert picture_note(target_from_spec("glyph:."), model) is None
     # a scanner lid's shadow along one edge, beside the drawing, was read as most of the
     # shape and took the start, without a word
     shadow = np.where(ink, 0, 250).astype(np.uint8)

@@ -293,11 +293,14 @@ def picture_note(target: ShapeMatch, model) -> str | None:
         fill = float(mask.mean())
     # a page read as the shape is a near rectangle; a filled silhouette (a mountain, a disc)
     # covering as much is not
-    if fill > MOST_OF_THE_PICTURE and _fills_its_box(mask, 0.85):
+    # a built-in target (glyph:, scribble:) is drawn by procmod, with no paper or border
+    # of a user's to crop: its advice is for pictures
+    built_in = target.name.startswith(("glyph:", "scribble:"))
+    if fill > MOST_OF_THE_PICTURE and _fills_its_box(mask, 0.85) and not built_in:
         return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
                 "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
                 "a shape trimmed to its own edges needs some paper around it")
-    band = _edge_band(mask, picture)
+    band = None if built_in else _edge_band(mask, picture)
     if band is not None:
         return (f"a band along the {band[0]} edge of {target.name} ({band[1]:.0%} of the shape read) is taken as "
                 "part of the shape: if it is a scanner lid's shadow or a frame, crop it away or paint it the "
