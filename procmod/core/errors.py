@@ -16,6 +16,7 @@ import json
 import numbers
 from contextvars import ContextVar
 from types import MappingProxyType
+from typing import Callable
 
 _SPELLING: ContextVar = ContextVar("procmod_argument_spelling", default=MappingProxyType({}))
 
@@ -42,6 +43,41 @@ def checked_count(name: str, value, least: int = 1, most: int | None = None) -> 
         span = f"from {least:,} to {most:,}" if most is not None else f"{least:,} or more"
         raise InvalidArgumentError(f"{argument(name)} must be a whole number {span}, got {shown_value(value)}")
     return count
+
+
+def check_real(name: str, value, expected: str, holds: Callable[[float], bool]) -> float:
+    """``value`` as a plain float if it is a real number (numpy's too) for which
+    ``holds`` is true, else an InvalidArgumentError "``name`` must be ``expected``".
+    A numpy float kept as given would turn up in settings.json (and, as a step size,
+    make the choices it moves numpy floats)."""
+    try:  # a Python or numpy number, a 0-d array, a Decimal: what float() reads as a number
+        number = None if isinstance(value, (bool, str, bytes)) else float(value)
+    except (TypeError, ValueError, OverflowError):  # 10**400 is past any float
+        number = None
+    if number is None or not holds(number):
+        shown = shown_value(value) if number is None or isinstance(value, numbers.Real) else \
+            f"{type(value).__name__} {shown_value(value)}"
+        raise InvalidArgumentError(f"{name} must be {expected}, got {shown}")
+    return number
+
+
+def plain_value(value):
+    """A numpy number or array as the Python number or list it holds, and a list or tuple
+    (a namedtuple too) as a list of such; anything else as it is. What the API records
+    (settings, parameters, configs) is JSON."""
+    if type(value).__module__ == "numpy" and callable(getattr(value, "tolist", None)):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [plain_value(item) for item in value]
+    return value
+
+
+def plain_fields(config) -> None:
+    """Each numpy number in a dataclass ``config``'s fields as the Python one (a grid
+    search's ``epochs=np.int64(8)``), in place."""
+    for name, value in vars(config).items():
+        if type(value).__module__ == "numpy":
+            setattr(config, name, plain_value(value))
 
 
 def shown_value(value, limit: int = 60) -> str:

@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping
 
-from .errors import InvalidArgumentError, ModelError, shown_value
+from .errors import InvalidArgumentError, ModelError, plain_value, shown_value
 
 
 LIMIT_CEILING = 10 ** 9  # of max_calls, max_depth, max_call_emits, max_call_choices: a guard that never trips is none
@@ -127,7 +127,7 @@ class Model:
             raise InvalidArgumentError(
                 f"model {self.name!r} has no parameter {shown_value(unknown[0])}; "
                 f"its parameters are: {', '.join(sorted(self.params)) or 'none'}")
-        params = {name: _plain(value) for name, value in params.items()}
+        params = {name: plain_value(value) for name, value in params.items()}  # JSON values: saved with derivations
         for name, value in params.items():
             _check_param(name, value, self.params[name], self.param_ranges.get(name))
         merged = dict(self.params)
@@ -154,17 +154,6 @@ class Model:
                 pass
         raise ModelError(f"model {self.name!r}: root_args returned {args!r:.40}, not a tuple of the root "
                          "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
-
-
-def _plain(value):
-    """A numpy number or array given for a parameter as the Python number or list it
-    holds (``size=np.int64(64)``, ``start=np.array([0.5, 0.9])``); anything else as it is.
-    Parameters are JSON values: they are saved with every derivation."""
-    if type(value).__module__ == "numpy" and callable(getattr(value, "tolist", None)):
-        return value.tolist()
-    if isinstance(value, (list, tuple)):  # list(np.array(...)), a namedtuple: a JSON list of plain numbers
-        return [_plain(item) for item in value]
-    return value
 
 
 def _like(value, default):

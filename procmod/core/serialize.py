@@ -215,12 +215,11 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
     if result.unused or result.log_fresh != 0.0 or result.derivation.order() != order:
         # choices the file lacks (a deleted 'maybe' coin too: the calls after it then leave
         # stored choices unused, which would be named instead of the cause)
-        made = {(node.address, name) for node in result.derivation.nodes() for name in node.choices}
-        missing = [(node.address, name) for node in result.derivation.nodes()
-                   for name in node.choices if (node.address, name) not in choices]
+        made = [(node.address, name) for node in result.derivation.nodes() for name in node.choices]
+        missing = [key for key in made if key not in choices]
         # a stored value its distribution cannot take is drawn afresh at its own address,
         # and may send the replay elsewhere: that value is the cause, not what went missing
-        unusable = any(key in made for key in result.unused)
+        unusable = not set(made).isdisjoint(result.unused)
         if missing and not unusable:  # drawn afresh in the replay: name the first, where the file should hold it
             address, name = missing[0]
             shown = cut_text(json.dumps(list(address)), 80)

@@ -446,22 +446,6 @@ def no_result_error(result: Result) -> InvalidArgumentError:
     return InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
 
 
-def check_real(name: str, value, expected: str, holds: Callable[[float], bool]) -> float:
-    """``value`` as a plain float if it is a real number (numpy's too) for which
-    ``holds`` is true, else an InvalidArgumentError "``name`` must be ``expected``".
-    A numpy float kept as given would turn up in settings.json (and, as a step size,
-    make the choices it moves numpy floats)."""
-    try:  # a Python or numpy number, a 0-d array, a Decimal: what float() reads as a number
-        number = None if isinstance(value, (bool, str, bytes)) else float(value)
-    except (TypeError, ValueError, OverflowError):  # 10**400 is past any float
-        number = None
-    if number is None or not holds(number):
-        shown = shown_value(value) if number is None or isinstance(value, numbers.Real) else \
-            f"{type(value).__name__} {shown_value(value)}"
-        raise InvalidArgumentError(f"{name} must be {expected}, got {shown}")
-    return number
-
-
 def log_mean_exp(values) -> float:
     """log(mean(exp(values))) computed stably; -inf when every value is -inf."""
     values = np.asarray(values, dtype=np.float64)

@@ -94,12 +94,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core import InvalidArgumentError, Model, is_within
-from ..core.errors import shown_value, whole_number
+from ..core.errors import check_real, shown_value, whole_number
 from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
-from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_real,
-                     check_run, configured_model, evaluate_all, new_seed, recorded_seed)
+from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
+                     configured_model, evaluate_all, new_seed, recorded_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace

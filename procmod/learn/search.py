@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, ProcmodError, argument
+from ..core.errors import InvalidArgumentError, ProcmodError, argument, plain_fields
 from ..core.io import load_tensors, read_versioned_json, save_tensors, write_text_atomic
 from ..core.paths import named_file
 from ..core.random import resample
@@ -91,9 +91,7 @@ class SearchOptions:
     share_fits: bool = True
 
     def check(self) -> "SearchOptions":
-        for name, value in vars(self).items():  # numpy's numbers as Python's: options go into JSON
-            if isinstance(value, np.generic):
-                setattr(self, name, value.item())
+        plain_fields(self)  # numpy's numbers as Python's: options go into JSON
         if self.particles < 1:
             raise InvalidArgumentError(f"{argument('particles')} must be at least 1, got {self.particles}")
         if self.particles > MAX_SEARCH_PARTICLES:

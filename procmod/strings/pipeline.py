@@ -20,7 +20,6 @@ again on the same folder resumes where the last one stopped.
 from __future__ import annotations
 
 import json
-import numbers
 import os
 import shutil
 from dataclasses import asdict
@@ -29,7 +28,7 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, ProcmodError, argument, checked_count, shown_value, spelled
+from ..core.errors import InvalidArgumentError, ProcmodError, argument, check_real, checked_count, spelled
 from ..core.io import read_json, read_versioned_json, write_text_atomic
 from ..core.paths import is_dir_quietly, output_path
 from ..core.runfolder import STRINGS_MODEL, RunFolder
@@ -120,9 +119,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     seed = checked_count("seed", seed, least=0, most=2 ** 63 - 1)
     if stop_after is not None:
         stop_after = checked_count("stop_after", stop_after)
-    if isinstance(held_out, bool) or not isinstance(held_out, numbers.Real) or not 0 <= held_out < 1:
-        raise InvalidArgumentError(f"{argument('held_out')} must be a fraction in [0, 1), got {shown_value(held_out)}")
-    held_out = float(held_out)
+    held_out = check_real(argument("held_out"), held_out, "a fraction in [0, 1)", lambda v: 0 <= v < 1)
     vae_config.check()
     tagger_config.check()
     shape_set = read_collection(collection)

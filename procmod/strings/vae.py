@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..core.errors import InvalidArgumentError, argument, shown_value, whole_number
+from ..core.errors import InvalidArgumentError, argument, plain_fields, shown_value, whole_number
 from ..core.io import fingerprint, load_tensors, read_versioned_json, write_text_atomic
 from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
@@ -85,9 +85,7 @@ CONFIG_LIMITS = {"embed": 4096, "hidden": 4096, "layers": 16, "latent": 4096, "e
 def check_sizes(config, limits: dict) -> None:
     """Each of ``limits``' fields of ``config`` a whole number from 1 to its limit; a
     numpy number in any field becomes the Python number (configs are saved as JSON)."""
-    for name, value in vars(config).items():
-        if isinstance(value, np.generic):  # e.g. epochs=np.int64(8) from a grid search
-            setattr(config, name, value.item())
+    plain_fields(config)
     for name, largest in limits.items():
         value = getattr(config, name, None)
         if value is None:

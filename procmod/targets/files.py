@@ -32,7 +32,7 @@ from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
-from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, meant_key, open_image
+from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, meant_key, opaque_part, open_image
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -662,12 +662,8 @@ def _transparent_as_white(picture, grey: np.ndarray) -> np.ndarray:
     """``grey`` with a picture's transparent pixels white (to avoid), as the picture shows
     on a page: a shape exported as a transparent PNG (drawn in its alpha channel, its
     transparent pixels black) was read as "hit" everywhere."""
-    if picture.mode not in ("RGBA", "LA", "PA") and "transparency" not in picture.info:
-        return grey
-    alpha = np.asarray(picture.convert("RGBA"))[:, :, 3].astype(np.float64)
-    if alpha.min() >= 0.5 * alpha.max():  # no real transparency
-        return grey
-    return np.where(alpha >= 0.5 * alpha.max(), grey, 255.0)
+    opaque = opaque_part(picture)
+    return grey if opaque is None else np.where(opaque, grey, 255.0)
 
 
 HIT_BELOW, AVOID_ABOVE = 85, 170  # a silhouette picture's grey levels: darker is to hit, lighter to avoid

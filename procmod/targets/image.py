@@ -362,6 +362,24 @@ below it the differences are paper texture, sensor noise or JPEG artefacts."""
 _LUMA = np.array([0.299, 0.587, 0.114])  # ITU-R 601, as Pillow's convert("L")
 
 
+def opaque_part(image: Image.Image) -> np.ndarray | None:
+    """Where a picture with real transparency is opaque (a layer at partial opacity is
+    opaque where it is most), or None for a picture without any."""
+    if image.mode not in ("RGBA", "LA", "PA") and "transparency" not in image.info:
+        return None
+    alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
+    if alpha.min() >= 0.5 * alpha.max():  # an alpha channel, but nothing see-through
+        return None
+    return alpha >= 0.5 * alpha.max()
+
+
+def _luma(colours: np.ndarray) -> np.ndarray:
+    """The brightness of :func:`_colours`'s pixels, or of one colour (its last axis)."""
+    if colours.shape[-1] == 1:
+        return colours[..., 0]
+    return colours @ (_LUMA if colours.ndim == 1 else _LUMA.astype(colours.dtype))  # one colour: in float64
+
+
 def _colours(image: Image.Image) -> np.ndarray:
     """The picture as floats 0..255, ``(height, width, channels)``: one channel for grey
     pictures (of any bit depth, :func:`grey_levels`), three for everything else."""
@@ -472,8 +490,7 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     nothing = np.zeros(colours.shape[:2], dtype=bool)
     if not where.any():
         return nothing
-    luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA.astype(colours.dtype)
-    paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
+    luma, paper_luma = _luma(colours), float(_luma(paper))
     light_paper = paper_luma >= 128
     plane = _lighting(luma) if lighting else None
     if plane is not None:
@@ -555,8 +572,7 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     page = ndimage.binary_fill_holes(_spans(boxed))  # where strokes cross, both spans miss
     if page.mean() < PAGE_SHARE or not _fills_its_box(page, PAGE_BOX_FILL):
         return None
-    luma = colours[:, :, 0] if colours.shape[2] == 1 else colours @ _LUMA.astype(colours.dtype)
-    surround_luma = float(surround[0]) if colours.shape[2] == 1 else float(surround @ _LUMA)
+    luma, surround_luma = _luma(colours), float(_luma(surround))
     # the region read as the shape is the light page itself, not dark ink on paper whose
     # middle is a little lighter than its edges (a drawn frame, which spans fill as well)
     if float(np.median(luma[mask])) < surround_luma + MIN_CONTRAST:
@@ -567,7 +583,7 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
         return None
     paper = np.median(colours[inside], axis=0)
     drawn = _ink(colours, paper, where=inside)
-    paper_luma = float(paper[0]) if colours.shape[2] == 1 else float(paper @ _LUMA)
+    paper_luma = float(_luma(paper))
     # a drawing: darker than its page, and a small part of it (not the page's own texture)
     if not drawn.any() or float(np.mean(luma[drawn])) >= paper_luma or drawn.sum() > 0.5 * inside.sum():
         return None
@@ -594,12 +610,9 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     pictures are padded with background to a square, centred, because the built-in models'
     viewport is square.
     """
-    alpha = None
-    if image.mode in ("RGBA", "LA", "PA") or "transparency" in image.info:
-        alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
+    opaque = opaque_part(image)
     colours = _colours(image)
-    if alpha is not None and alpha.min() < 0.5 * alpha.max():  # real transparency
-        opaque = alpha >= 0.5 * alpha.max()  # a layer at partial opacity is opaque where it is most
+    if opaque is not None:
         mask = opaque
         if opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
             rgb = np.asarray(image.convert("RGB"), dtype=np.float32)

@@ -9,8 +9,9 @@ import numpy as np
 from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
-from ..common import (Budget, Result, Tracker, check_population, check_positive, check_real, check_run,
-                      configured_model, new_seed, recorded_seed)
+from ...core.errors import check_real
+from ..common import (Budget, Result, Tracker, check_population, check_positive, check_run, configured_model,
+                      new_seed, recorded_seed)
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
