@@ -245,6 +245,38 @@ def test_a_turned_part_under_a_scaled_parent_is_its_sheared_shape(tmp_path, make
     assert len(example_set.examples) == 1
 
 
+def test_a_part_turned_by_eye_under_a_scaled_parent_stays_one_part(tmp_path):
+    """A shear too small to change the shape (a half tabletop turned under 1 degree under
+    its twin, scaled 1.3-1.7x along x for each table's width): one part, placed where the
+    file puts it to within the geometry tolerance. The whole sheared map went into the
+    geometry, so every table's half was a part type of its own (its size baked in too)."""
+    from procmod.geometry.assets import GEOMETRY_TOLERANCE, read_assets
+    from procmod.geometry.solid import part_triangles
+    import trimesh
+
+    rng = np.random.default_rng(5)
+    paths = []
+    for k in range(4):
+        turn = math.radians(rng.uniform(-1.0, 1.0))
+        c, s = math.cos(turn), math.sin(turn)
+        rot = [c, s, 0, 0, -s, c, 0, 0, 0, 0, 1, 0, 0.6, 0, 0, 1]
+        data = gltf_json([("top", [box_mesh((0.6, 0.05, 0.8))])],
+                         [{"name": "left", "mesh": 0, "scale": [rng.uniform(1.3, 1.7), 1, 1], "children": [1]},
+                          {"name": "right", "mesh": 0, "matrix": rot}], [0])
+        paths.append(tmp_path / f"table_{k}.gltf")
+        paths[-1].write_text(json.dumps(data))
+    read = read_assets(paths)
+    assert sorted(read.parts) == ["top"]
+    for path, asset in zip(paths, read.assets):
+        scene = trimesh.load(path, force="scene")
+        for node in asset.nodes():
+            mesh = scene.geometry[scene.graph[node.name][1]]
+            want = trimesh.transform_points(mesh.vertices, scene.graph[node.name][0])
+            got = part_triangles(read.parts[node.part].part(node.transform)).reshape(-1, 3)
+            far = max(np.linalg.norm(got - w, axis=1).min() for w in want)
+            assert far <= GEOMETRY_TOLERANCE * np.linalg.norm(np.ptp(want, axis=0)), (path.name, node.name)
+
+
 def test_learn_overwrite_replaces_an_earlier_run_of_other_options(tmp_path, monkeypatch, capsys):
     """--overwrite refused an earlier learn run of another seed ("delete the checkpoint"),
     and deleting it left a folder that was no longer a learn run."""

@@ -31,7 +31,8 @@ as a tool's primitive is, its scale applied or not) are grouped by their scales,
 several, becomes a geometry of its own at the group's mean scale, its nodes keeping the
 rest. So six cubes scaled into a seat, a back and four legs are three parts, and a leg
 whose scale was applied is the leg whose scale was not. A node whose transform shears puts
-its whole linear map into its geometry.
+its whole linear map into its geometry, unless dropping the shear moves no vertex beyond
+the geometry tolerance (below): a part turned by eye under a non-uniformly scaled parent.
 
 **Distinct geometry** (:data:`GEOMETRY_TOLERANCE`). Two meshes are one part when a rigid
 motion (and, with ``mirror=True``, a reflection: a left and a right wing) maps one onto
@@ -466,7 +467,8 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     own and keeps its rotation-free place. A baked geometry keeps its mesh's name, but one
     a tool gives its primitives (``Cube``, ``Cylinder.001``) says nothing of what the
     scale made of it: it is named after its first node instead, without the tool's copy
-    numbering (``Leg.001`` is ``Leg``)."""
+    numbering (``Leg.001`` is ``Leg``). A shear within the geometry tolerance is dropped
+    (:func:`_without_small_shear`)."""
     by_geometry, unit_of = {}, {}
     stack = [raw for forest in forests for raw in forest]
     while stack:
@@ -479,6 +481,14 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         if not (norms > 1e-300).all():
             continue  # singular: the learner says so
         turn = linear / norms
+        if np.abs(turn.T @ turn - np.eye(3)).max() > 1e-6:
+            # a shear too small to change the part's shape (a part turned by eye under a
+            # non-uniformly scaled parent) is dropped, as the geometry test would
+            unsheared = _without_small_shear(raw, geometries[raw.geometry].vertices)
+            if unsheared is not None:
+                linear = unsheared
+                norms = np.linalg.norm(linear, axis=0)
+                turn = linear / norms
         if np.abs(turn.T @ turn - np.eye(3)).max() <= 1e-6:  # a rotation (or mirror) times axis scales
             # meshes that are one mesh scaled along its axes (a tool's primitive, in several
             # files, its scale applied in some) are grouped: each as its unit-extent shape,
@@ -512,6 +522,30 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     used = {raw.geometry for forest in forests for top in forest for raw in _walk(top)}
     for key in [k for k in geometries if k not in used]:  # read, but no node places it as read
         del geometries[key]
+
+
+def _without_small_shear(raw: _Raw, vertices: np.ndarray) -> np.ndarray | None:
+    """The rotation times axis scales nearest ``raw``'s shearing world map (the polar
+    decomposition's rotation times its stretch's diagonal), put on ``raw`` with its
+    translation moved so the mesh's middle stays, when that moves no vertex further than
+    :data:`GEOMETRY_TOLERANCE` x the placed mesh's diagonal: the distance within which two
+    meshes are one part anyway. None (``raw`` untouched) for a larger shear: a shape of
+    its own. Without this a part turned 1 degree under a parent scaled 1.5x along one
+    axis was a part type of its own in every example."""
+    linear = raw.world[:3, :3]
+    u, sigma, vt = np.linalg.svd(linear)
+    stretch = (vt.T * sigma) @ vt  # linear = (u @ vt) @ stretch
+    nearest = (u @ vt) * np.diag(stretch)  # its columns: the rotation's, each scaled
+    middle = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    moved = float(np.linalg.norm((vertices - middle) @ (linear - nearest).T, axis=1).max())
+    diagonal = float(np.linalg.norm(np.ptp(vertices @ linear.T, axis=0)))
+    if not moved <= GEOMETRY_TOLERANCE * diagonal:
+        return None
+    world = raw.world.copy()
+    world[:3, :3] = nearest
+    world[:3, 3] += (linear - nearest) @ middle
+    raw.world = world
+    return nearest
 
 
 SCALE_GROUP = 3.0
