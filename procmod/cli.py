@@ -299,7 +299,8 @@ def _cmd_render(args) -> None:
     out = check_output_file(args.out, inputs=[args.derivation])
     size = check_size(args.size)
     try:
-        derivation = load_derivation(args.derivation, _model if args.model is None else lambda name: _model(args.model))
+        derivation = load_derivation(args.derivation, _model_a_file_names if args.model is None
+                                     else lambda name: _model(args.model))
     except UnknownModelError as exc:
         if args.model is not None:
             raise
@@ -307,6 +308,19 @@ def _cmd_render(args) -> None:
     check_format(args.out, output_formats(derivation))
     write_derivation(derivation, out, size)
     print(f"wrote {out}")
+
+
+def _model_a_file_names(name: str):
+    """The model a derivation file names: a built-in model or a learned program, never a
+    Python file's (``FILE.py:NAME``): a file read is data, and running code it names would
+    let a downloaded derivation run anything. procmod writes a model of the user's own
+    file under its model's name, which ``--model FILE.py:NAME`` then gives."""
+    from .models.from_file import is_model_file_spec
+
+    if name not in MODELS and is_model_file_spec(name):
+        raise UnknownModelError(f"it names the Python file {cut_text(name, 120)!r} as its model; procmod does not "
+                                "run code a file names (procmod never writes one there)")
+    return _model(name)
 
 
 _POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "particles",

@@ -288,3 +288,25 @@ def test_read_only_out_folder_is_refused_up_front(tmp_path, capsys):
         assert code == 2 and "cannot write --out" in capsys.readouterr().err
     finally:
         locked.chmod(0o700)
+
+
+@pytest.mark.parametrize("spec", ["{file}", "{file}:PLANT", "evil.py"])
+def test_render_never_runs_a_python_file_a_derivation_names(tmp_path, capsys, monkeypatch, spec):
+    """A derivation file is data: a "model" naming a Python file (which procmod never
+    writes there) is refused before the file is run, however it is spelled."""
+    monkeypatch.chdir(tmp_path)
+    ran = tmp_path / "ran"
+    code = tmp_path / "evil.py"
+    code.write_text(f"open({str(ran)!r}, 'w').write('ran')\nfrom procmod.models.vines import MODEL as PLANT\n")
+    assert main(["sample", "vines", "-n", "1", "--size", "32", "--out", str(tmp_path / "s")]) == 0
+    data = json.loads((tmp_path / "s" / "sample_000.json").read_text())
+    data["model"] = spec.format(file=code)
+    (tmp_path / "d.json").write_text(json.dumps(data))
+    capsys.readouterr()
+    assert main(["render", str(tmp_path / "d.json"), "--size", "32", "--out", str(tmp_path / "r.png")]) == 2
+    err = capsys.readouterr().err
+    assert not ran.exists() and not (tmp_path / "r.png").exists()
+    assert len(err.strip().splitlines()) == 1 and "does not run code a file names" in err and "--model" in err
+    # given on the command line, the same file is the user's own choice
+    assert main(["render", str(tmp_path / "d.json"), "--model", f"{code}:PLANT", "--size", "32",
+                 "--out", str(tmp_path / "r.png")]) == 0 and ran.exists()
