@@ -218,16 +218,43 @@ CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact
 
 
 def _model_inputs(name: str) -> list:
-    """The file a model argument names: a learned program's ``program.json`` (its tensors
-    and meshes are files it names, protected as such: core.paths.named_files_read);
-    nothing for a built-in model's name."""
+    """The files a model argument names: a learned program's ``program.json`` (its tensors
+    and meshes are files it names, protected as such: core.paths.named_files_read) and
+    the examples it was learned from, which ``sample --format examples --out`` could
+    otherwise write over; nothing for a built-in model's name."""
     path = Path(name)
     try:
         if path.is_dir():
             path = path / "program.json"
-        return [path] if path.is_file() else []
+        if not path.is_file():
+            return []
     except (OSError, ValueError):
         return []
+    return [path, *_learned_from(path)]
+
+
+def _learned_from(program_json: Path) -> list:
+    """The example files or folders a learned program records it was learned from
+    (``info.example_files``; a program of an earlier version: its ``info.examples`` where
+    that is one existing path), as far as they exist; nothing from a file that says
+    otherwise."""
+    try:
+        info = json.loads(program_json.read_text(encoding="utf-8")).get("info")
+    except (OSError, ValueError, AttributeError):
+        return []
+    if not isinstance(info, dict):
+        return []
+    named = info.get("example_files")
+    if not isinstance(named, list):
+        named = [info.get("examples")]
+    found = []
+    for item in named:
+        try:
+            if isinstance(item, str) and item and Path(item).exists():
+                found.append(Path(item))
+        except (OSError, ValueError):
+            continue
+    return found
 
 
 def _cmd_sample(args) -> None:

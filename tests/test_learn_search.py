@@ -130,6 +130,11 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     assert main(["sample", str(out / "program.json"), "-n", "5", "--seed", "2", "--out", str(samples),
                  "--format", "examples"]) == 0
     assert len(read_examples(samples).examples) == 5
+    # never over the examples the program was learned from (one sample replaced them)
+    before = ex.read_bytes()
+    capsys.readouterr()
+    assert main(["sample", str(out), "-n", "1", "--out", str(ex), "--format", "examples"]) == 2
+    assert "would overwrite the input" in capsys.readouterr().err and ex.read_bytes() == before
     # same arguments, another folder: the same program, byte for byte
     other = tmp_path / "run2"
     assert main(["learn", str(ex), "--out", str(other), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0

@@ -154,6 +154,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
                             replace_other=overwrite)
     program = result.program
     program.info["examples"] = shown
+    # where they are, so that commands writing beside the program never overwrite them
+    program.info["example_files"] = [str(p.resolve()) for p in inputs]
     json_path = save_program(program, out)
     name = str(json_path.resolve())
     derivations = sample_program(program, name, samples, seed)
