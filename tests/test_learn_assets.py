@@ -152,7 +152,28 @@ def _urdf_two_parents(p):
                       [("x", "a", "c", (0, 0, 0), (0, 0, 0)), ("y", "b", "c", (0, 0, 0), (0, 0, 0))]))
 
 
+def _box_data(edit):
+    data = gltf_json([("body", [box_mesh((1, 1, 1))])], [{"name": "a", "mesh": 0}], [0])
+    edit(data)
+    return data
+
+
+def _no_uri(p):  # a GLB's JSON saved alone as .gltf: trimesh said KeyError: 'uri'
+    p.write_text(json.dumps(_box_data(lambda d: d["buffers"][0].pop("uri"))))
+
+
+def _view_past_buffer(p):  # trimesh said AssertionError with no text
+    write_glb(p, _box_data(lambda d: d["bufferViews"][0].update(byteOffset=10 ** 12)))
+
+
+def _accessor_past_view(p):  # trimesh said it cannot reshape an array into (10^12, 3)
+    write_glb(p, _box_data(lambda d: d["accessors"][0].update(count=10 ** 12)))
+
+
 @pytest.mark.parametrize("make, suffix, message", [
+    (_no_uri, ".gltf", 'buffers[0] names no file ("uri")'),
+    (_view_past_buffer, ".glb", "bufferViews[0] reaches byte 1,000,000,000,096 of buffer 0, which holds 240"),
+    (_accessor_past_view, ".glb", "accessors[0] needs 12,000,000,000,000 bytes of bufferViews[0]"),
     (_unreadable, ".glb", "not a GLB file"),
     (_unreadable, ".gltf", "not a glTF file"),
     (_empty, ".gltf", "no mesh"),

@@ -348,8 +348,9 @@ def _read_gltf(path: Path, geometries: dict) -> list:
                          "decimate the meshes (Blender: Decimate modifier) before exporting")
     try:
         scene = load_mesh_file(path, force="scene", process=False)
-    except Exception as exc:  # trimesh raises many types for unreadable files
-        raise AssetError(f"cannot read {path} as glTF ({type(exc).__name__}: {str(exc)[:200]})") from None
+    except Exception as exc:  # trimesh raises many types for unreadable files; procmod's checks say ValueError
+        said = str(exc)[:300] if type(exc) is ValueError and str(exc) else f"{type(exc).__name__}: {str(exc)[:200]}"
+        raise AssetError(f"cannot read {path} as glTF ({said})") from None
     nodes = header.get("nodes", [])
     # trimesh names a node as its loader does: the file's name made unique, in index order
     names, taken, counts = {}, {}, {}

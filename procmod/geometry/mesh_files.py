@@ -375,7 +375,65 @@ def _check_gltf(path: Path) -> dict | None:
         if actual < declared:
             raise ValueError(f"a cut-off GLB file: its header says {declared:,} bytes but the file holds {actual:,}; "
                              "export or copy it again")
+    _check_buffer_layout(header, path.suffix.lower() == ".glb")
     return header
+
+
+_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+
+
+def _whole(value, default=None):
+    """``value`` if it is a non-negative int (not a bool), else ``default``."""
+    return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else default
+
+
+def _check_buffer_layout(header: dict, glb: bool) -> None:
+    """Refuse buffers, buffer views and accessors that do not fit each other, naming the
+    field (trimesh failed on them with an empty AssertionError, ``KeyError: 'uri'`` or a
+    reshape of 10^12 rows): a ``.gltf`` buffer without a file (a GLB's JSON saved alone),
+    a view reaching past its buffer, an accessor reaching past its view. Fields of other
+    types are left to the reader."""
+    buffers = header.get("buffers") if isinstance(header.get("buffers"), list) else []
+    lengths = []
+    for i, buffer in enumerate(buffers):
+        buffer = buffer if isinstance(buffer, dict) else {}
+        if not isinstance(buffer.get("uri"), str) and not (glb and i == 0):
+            raise ValueError(f"buffers[{i}] names no file (\"uri\"): a .gltf keeps its buffers in files beside it "
+                             "(this looks like a GLB's JSON saved alone); export a .glb, or the .gltf with its .bin"
+                             if not glb else f"buffers[{i}] names no file (\"uri\"), and only the first buffer of "
+                             "a GLB is its binary chunk; export the file again")
+        lengths.append(_whole(buffer.get("byteLength")))
+    views = header.get("bufferViews") if isinstance(header.get("bufferViews"), list) else []
+    view_lengths = []
+    for j, view in enumerate(views):
+        view = view if isinstance(view, dict) else {}
+        b, offset, length = _whole(view.get("buffer")), _whole(view.get("byteOffset"), 0), _whole(view.get("byteLength"))
+        view_lengths.append(length)
+        if b is None or length is None:
+            continue
+        if b >= len(buffers):
+            raise ValueError(f"bufferViews[{j}] refers to buffer {b}, which the file does not have; export it again")
+        if lengths[b] is not None and offset + length > lengths[b]:
+            raise ValueError(f"bufferViews[{j}] reaches byte {offset + length:,} of buffer {b}, which holds "
+                             f"{lengths[b]:,}: the file is damaged; export it again")
+    accessors = header.get("accessors") if isinstance(header.get("accessors"), list) else []
+    for k, accessor in enumerate(accessors):
+        accessor = accessor if isinstance(accessor, dict) else {}
+        v, count = _whole(accessor.get("bufferView")), _whole(accessor.get("count"))
+        size = _COMPONENT_BYTES.get(accessor.get("componentType"))
+        components = _TYPE_COMPONENTS.get(accessor.get("type"))
+        if v is None or count is None or size is None or components is None:
+            continue
+        if v >= len(views):
+            raise ValueError(f"accessors[{k}] refers to bufferView {v}, which the file does not have; export it again")
+        have = view_lengths[v]
+        stride = _whole(views[v].get("byteStride"), 0) if isinstance(views[v], dict) else 0
+        need = _whole(accessor.get("byteOffset"), 0) + (
+            (count - 1) * max(stride, size * components) + size * components if count else 0)
+        if have is not None and need > have:
+            raise ValueError(f"accessors[{k}] needs {need:,} bytes of bufferViews[{v}], which holds {have:,} "
+                             f"({count:,} {accessor['type']} values): the file is damaged; export it again")
 
 
 def _check_buffer_files(header: dict, path: Path) -> None:
