@@ -398,6 +398,11 @@ def _check_buffer_layout(header: dict, glb: bool) -> None:
     lengths = []
     for i, buffer in enumerate(buffers):
         buffer = buffer if isinstance(buffer, dict) else {}
+        extensions = buffer.get("extensions") if isinstance(buffer.get("extensions"), dict) else {}
+        if isinstance(extensions.get(MESHOPT), dict) and extensions[MESHOPT].get("fallback"):
+            # a meshopt file's fallback buffer holds no data, by design
+            raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
+                             "it without compression")
         if not isinstance(buffer.get("uri"), str) and not (glb and i == 0):
             raise ValueError(f"buffers[{i}] names no file (\"uri\"): a .gltf keeps its buffers in files beside it "
                              "(this looks like a GLB's JSON saved alone); export a .glb, or the .gltf with its .bin"
