@@ -390,6 +390,56 @@ def test_what_a_person_sees_drawn_is_the_mask(tmp_path, case):
     assert np.array_equal(mask_from_image(picture), ink)
 
 
+def _outlined_disc(inside, paper=(255, 255, 255), size=120, radius=40, line=6, rims=False):
+    """A black circle ``line`` px wide around a disc coloured ``inside`` (a callable of the
+    pixel grid, or an RGB), on ``paper``; with the disc (outline included), and its middle
+    (2 px clear of the line)."""
+    yy, xx = np.mgrid[0:size, 0:size]
+    r = np.hypot(xx - size / 2, yy - size / 2)
+    rgb = np.empty((size, size, 3))
+    rgb[:] = paper
+    disc = r <= radius
+    rgb[disc] = inside(xx, yy)[disc] if callable(inside) else inside
+    rgb[(r > radius - line) & disc] = 0
+    if rims:  # grey soft edges either side of the line, as anti-aliasing leaves
+        rgb[(r > radius - line - 1) & (r <= radius - line)] = 128
+        rgb[(r > radius) & (r <= radius + 1)] = 128
+    return Image.fromarray(rgb.astype(np.uint8)), disc, r <= radius - line - 2
+
+
+@pytest.mark.parametrize("fill", [(255, 240, 80), (150, 200, 240), (170, 170, 170), (255, 150, 200)])
+def test_a_shape_outlined_and_coloured_in_is_the_whole_shape(fill):
+    """A colouring book's or clip art's fill lighter than half way to the black outline
+    was left out: the mask was the outline's ring (IoU 0.07)."""
+    from procmod.targets.image import mask_from_image
+
+    picture, disc, _ = _outlined_disc(fill, rims=True)
+    mask = mask_from_image(picture)
+    assert mask[disc].all()
+    assert (mask & ~disc).sum() <= 2 * np.pi * 41  # the outer rim at most
+
+
+@pytest.mark.parametrize("case", ["paper", "lighter", "ruled", "small_counter"])
+def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
+    """Paper inside a drawn outline (a letter's counter), the lighter middle of a
+    vignetted photo, ruled paper, and a counter too small to have a middle of its own
+    (anti-aliased rims only) are no fill."""
+    from procmod.targets.image import mask_from_image
+
+    if case == "paper":
+        picture, disc, middle = _outlined_disc((255, 255, 255))
+    elif case == "lighter":  # border paper at 190, the middle lit to 250
+        picture, disc, middle = _outlined_disc((250, 250, 250), paper=(190, 190, 190))
+    elif case == "ruled":
+        picture, disc, middle = _outlined_disc(
+            lambda xx, yy: np.where((yy % 8 == 0)[:, :, None], (150, 190, 235), 255))
+    else:
+        picture, disc, middle = _outlined_disc((255, 255, 255), radius=7, line=2, rims=True)
+        middle = np.hypot(*(np.mgrid[0:120, 0:120] - 60)) <= 3.5  # the counter, its rim left out
+    mask = mask_from_image(picture)
+    assert mask[disc & ~middle].any() and not mask[middle].any()
+
+
 @pytest.mark.parametrize("table, ink_grey", [(90, 60), (40, 0), (128, 60), (170, 60)])
 def test_a_page_photographed_on_a_darker_table_gives_its_drawing(tmp_path, table, ink_grey):
     """A page covering 37% of a photo, on a desk darker than it: the whole page was read as

@@ -495,14 +495,75 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     plane = _lighting(luma) if lighting else None
     if plane is not None:
         luma, paper_luma = luma - plane, 0.0
-    ink = _beyond_half(luma, paper_luma, luma[where], _noise(luma, paper_at), light_paper)
+    noise = _noise(luma, paper_at)
+    ink = _beyond_half(luma, paper_luma, luma[where], noise, light_paper)
     if ink is None and colours.shape[2] > 1:
         distance = np.abs(colours - paper.astype(colours.dtype)).max(axis=2)
         # the noise of the noisiest channel: the largest of three noisy differences is
         # further from zero than any one
         noise = max(_noise(colours[:, :, c], paper_at) for c in range(colours.shape[2]))
         ink = _beyond_half(distance, 0.0, distance[where], noise)
-    return nothing if ink is None else ink & where
+    if ink is None:
+        return nothing
+    return _filled_in(ink & where, colours, luma, paper, paper_luma, where, noise)
+
+
+FILL_CONTRAST = 2 * MIN_CONTRAST
+"""A region the ink encloses is filled in (part of the shape) when the middle of it differs
+from the paper by this many grey levels toward the ink's side, or by colour
+(:func:`_filled_in`)."""
+
+_FILL_RIM = 2  # pixels of an enclosed region next to the ink left out of its colour: the strokes' soft edges
+
+
+def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, paper: np.ndarray, paper_luma: float,
+               where: np.ndarray, noise: float) -> np.ndarray:
+    """``ink`` with the regions it encloses that are coloured in, not paper: a shape
+    outlined in black and filled with yellow, light blue or grey (a colouring book, clip
+    art, a highlighter) read as its outline alone, the fill being nearer the paper than half
+    way to the black. A region is filled when the median of its pixels away from the ink
+    (:data:`_FILL_RIM`) differs from the paper by :data:`FILL_CONTRAST` (and
+    :data:`NOISE_MARGIN` x the paper's ``noise``) on the ink's side of its brightness (a
+    region lighter than dark ink's paper is light falling on the page) or in colour
+    (hue, not brightness). A letter's counter, paper inside a drawn frame, or a gap too
+    small to have a middle stay out."""
+    from scipy import ndimage
+
+    if not ink.any():
+        return ink
+    luma_of_ink = luma[ink].mean()
+    # what the ink encloses: the regions of the rest that reach no edge of the picture (a
+    # labelling, one pass: binary_fill_holes' flood took ~0.2 s on a page's photo)
+    labels, count = ndimage.label(~ink)
+    enclosed = np.ones(count + 1, dtype=bool)  # by label (a table: np.isin took 0.26 s on an A4 scan)
+    enclosed[0] = False
+    enclosed[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = False
+    labels[~(enclosed[labels] & where)] = 0
+    if not labels.any():
+        return ink
+    rows, cols = np.flatnonzero(labels.any(axis=1)), np.flatnonzero(labels.any(axis=0))
+    box = slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)  # the work: where they are
+    ink, labels, colours, luma = ink.copy(), labels[box], colours[box], luma[box]
+    core = ndimage.binary_erosion(labels > 0, iterations=_FILL_RIM)
+    if not core.any():
+        return ink
+    at = np.where(core, labels, 0)
+    present = np.unique(at[at > 0])
+    dark_ink = float(luma_of_ink) < paper_luma
+    toward_ink = (paper_luma - luma) if dark_ink else (luma - paper_luma)
+    least = max(FILL_CONTRAST, NOISE_MARGIN * noise)
+    filled = np.asarray(ndimage.median(toward_ink, at, present)) >= least
+    if colours.shape[2] > 1:
+        paper_hue = paper.astype(np.float64) - float(_luma(paper))
+        # from the picture's own brightness (``luma`` may have the fall of light taken out)
+        hue = np.abs(colours - _luma(colours)[:, :, None] - paper_hue.astype(colours.dtype)).max(axis=2)
+        filled |= np.asarray(ndimage.median(hue, at, present)) >= least
+    if not filled.any():
+        return ink
+    chosen = np.zeros(count + 1, dtype=bool)
+    chosen[present[filled]] = True
+    ink[box] |= chosen[labels]
+    return ink
 
 
 def _fills_its_box(mask: np.ndarray, share: float) -> bool:
