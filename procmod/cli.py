@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import errno
 import json
 import math
@@ -337,6 +338,24 @@ def _cmd_render(args) -> None:
     print(f"wrote {out}")
 
 
+def _placed_by_params(target, model, params):
+    """``target`` with the start and direction given as ``--param start=X,Y`` /
+    ``direction=DX,DY`` where it places the model (a picture: it sets them, from its
+    sidecar or its drawing): the user's word wins over the picture's guess, as a sidecar's
+    does (a start alone grows up the picture). They were silently replaced."""
+    from .targets import TargetImage
+
+    given = {item.partition("=")[0] for item in params or ()} & {"start", "direction"}
+    image = getattr(target, "image", None)
+    if not given or not isinstance(image, TargetImage) or not given <= set(model.params):
+        return target
+    placed = {name: tuple(float(v) for v in model.params[name]) for name in given}
+    if "direction" not in placed:
+        placed["direction"] = (0.0, -1.0)
+    target.image = dataclasses.replace(image, **placed)
+    return target
+
+
 def _model_a_file_names(name: str):
     """The model a derivation file names: a built-in model or a learned program, never a
     Python file's (``FILE.py:NAME``): a file read is data, and running code it names would
@@ -413,7 +432,7 @@ def _cmd_infer(args) -> None:
             print(f"note: {shadowed}", file=sys.stderr)
     from .data import target_from_spec
 
-    target = target_from_spec(args.target)
+    target = _placed_by_params(target_from_spec(args.target), model, args.param)
     inputs = [args.target, *_model_inputs(args.model)]
     if args.guide is not None:
         from .guide import guide_paths

@@ -267,6 +267,21 @@ def test_a_contact_page_of_more_samples_than_it_shows_says_so(tmp_path, capsys, 
     assert "spaceship: 3 samples, seed 0 (the first 2 shown)" in (out / "contact_sheet.html").read_text()
 
 
+@pytest.mark.parametrize("given, placed", [
+    (["start=0.1,0.2", "direction=1,0"], {"start": [0.1, 0.2], "direction": [1.0, 0.0]}),
+    (["start=0.3,0.6"], {"start": [0.3, 0.6], "direction": [0.0, -1.0]}),  # as a sidecar's start alone
+])
+def test_param_start_and_direction_place_the_model_on_a_picture_target(tmp_path, capsys, given, placed):
+    """A picture target places the model itself (its sidecar, or its drawing's lowest
+    point); the start and direction given on the command line were silently replaced."""
+    argv = ["infer", "vines", "--target", "glyph:a", "--particles", "3", "--seed", "1", "--out", str(tmp_path / "r")]
+    for item in given:
+        argv += ["--param", item]
+    assert main(argv) == 0
+    params = json.loads((tmp_path / "r" / "best.json").read_text())["params"]
+    assert {key: params[key] for key in placed} == placed
+
+
 def test_an_integer_for_a_real_parameter_takes_a_later_real_change(tmp_path, capsys):
     """``--param direction=[0,-1]`` (what the message for [0,0] suggests) was stored as
     integers, so the target's real start was then refused as "must be an integer"."""
