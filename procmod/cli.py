@@ -26,7 +26,7 @@ import numpy as np
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
 from .core.errors import UnknownModelError, cut_text, spelled
-from .core.paths import is_dir_quietly, output_path
+from .core.paths import is_dir_quietly, is_file_quietly, output_path
 from .models import MODELS, model_from_spec
 
 
@@ -156,7 +156,12 @@ def _model(spec: str, params=()):
         from .learn import load_program
         model = load_program(path)
     else:
-        model = model_from_spec(spec)  # a built-in model, or FILE.py:NAME
+        try:
+            model = model_from_spec(spec)  # a built-in model, or FILE.py:NAME
+        except UnknownModelError as exc:
+            if isinstance(spec, str) and not spec.endswith(".py") and is_file_quietly(Path(spec + ".py")):
+                raise UnknownModelError(f"{exc}; for the model in {spec}.py give {spec}.py") from None
+            raise
     if not params:
         return model
     settings = {}

@@ -336,7 +336,7 @@ def test_a_derivation_is_not_replayed_by_another_model_of_the_users(tmp_path):
     ("import math\nraise ValueError('no')\n", "m.py", r"m.py, line 2: running it raised ValueError: no"),
     (MODEL_FILE, "m.py:NOPE", r"m.py has no 'NOPE' at its top level \(its Model objects: PLANT\)"),
     (MODEL_FILE, "m.py:math", r"m.py:math is a module, not a procmod Model"),
-    ("x = 1\n", "m.py", r"m.py defines 0 Model objects at its top level \(none\); name one: .*m.py:NAME"),
+    ("x = 1\n", "m.py", r"m.py defines no Model at its top level \(a name bound to a procmod Model, e.g. MODEL = .*\); add one$"),
     (MODEL_FILE, "m.py:bad-name", r"'bad-name' is not a Python name; give FILE.py:NAME"),
 ])
 def test_a_model_file_that_cannot_be_used_is_one_line(tmp_path, capsys, content, spec, message):
@@ -347,3 +347,14 @@ def test_a_model_file_that_cannot_be_used_is_one_line(tmp_path, capsys, content,
     assert main(["sample", str(tmp_path / spec), "-n", "1", "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
     assert re.search(message, err) and err.count("\n") == 1 and not (tmp_path / "s").exists(), err
+
+
+def test_a_model_name_whose_file_is_here_is_pointed_to_it(tmp_path, monkeypatch, capsys):
+    """'procmod sample mine' beside mine.py: the name is no built-in model, and the file
+    it meant is named in the message."""
+    from procmod.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.py").write_text("x = 1\n")
+    assert main(["sample", "mine", "--out", str(tmp_path / "o")]) == 2
+    assert "unknown model 'mine'" in (err := capsys.readouterr().err) and "give mine.py" in err

@@ -706,3 +706,11 @@ def test_a_file_named_like_a_spec_and_a_faint_picture_are_told_what_to_do(tmp_pa
     Image.fromarray(np.where(_vine_ink(), 240, 255).astype(np.uint8)).save("faint.png")
     with pytest.raises(ProcmodError, match="no pixel differs from the border's colour by 24 of 255 grey levels"):
         target_from_spec("faint.png")
+
+
+def test_a_misspelt_mirrored_suffix_is_named():
+    from procmod.core import InvalidArgumentError
+    from procmod.data import target_from_spec
+
+    with pytest.raises(InvalidArgumentError, match="a spec ends in :mirrored for its mirrored copy"):
+        target_from_spec("glyph:a:mirror")

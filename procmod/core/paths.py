@@ -199,7 +199,7 @@ def remember_file_read(path: str | os.PathLike) -> None:
 
 
 __all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file",
-           "named_files_read", "remember_file_read"]
+           "named_files_read", "remember_file_read", "is_file_quietly"]
 
 
 def output_path(path: str | os.PathLike) -> Path:
@@ -222,5 +222,13 @@ def is_dir_quietly(path: Path) -> bool:
     """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
     try:
         return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
+def is_file_quietly(path: Path) -> bool:
+    """``path.is_file()``, False for a name the system cannot even look up (too long)."""
+    try:
+        return path.is_file()
     except (OSError, ValueError):
         return False

@@ -71,6 +71,9 @@ def target_image(spec: str) -> TargetImage:
         except InvalidArgumentError as exc:
             if _exists_quietly(spec):  # a file named like a spec: say how to name the file
                 raise InvalidArgumentError(f"{exc} (for the file {spec!r} give ./{spec})") from None
+            if spec.count(":") > 1:  # glyph:a:mirror -- a suffix misspelt, read as part of the glyph
+                raise InvalidArgumentError(f"{exc}; a spec ends in {MIRROR_SUFFIX} for its mirrored copy "
+                                           f"({spec.split(':')[0]}:...{MIRROR_SUFFIX})") from None
             raise
     if ":" in spec and not _exists_quietly(spec) and not re.match(r"^[A-Za-z]:[\\/]", spec):  # not C:\...
         shown = spec if len(spec) <= 60 else spec[:57] + "..."

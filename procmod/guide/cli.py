@@ -33,7 +33,8 @@ def register(sub, int_arg) -> None:
     train = group.add_parser("train", help="train a guide on traces (resumes from its checkpoint)")
     train.add_argument("model", metavar="MODEL", help="the traces' model: a built-in model, or FILE.py:NAME")
     train.add_argument("--traces", required=True, help="traces folder made by 'procmod guide traces'")
-    train.add_argument("--out", required=True, help="guide path: writes OUT.pt + OUT.json")
+    train.add_argument("--out", required=True, help="guide path: writes OUT.pt + OUT.json + OUT.npz (the weights inference reads "
+                       "without torch)")
     train.add_argument("--features", default="all",
                        help="constant, local, local+target or all (default; seed 004 Figure 5), or any "
                             "'+'-joined set of local, target, partial and progress (circuit: local+partial; "
@@ -136,4 +137,5 @@ def _cmd_train(args) -> None:
         bar.close()
     print(f"trained {len(guide.sites)} site networks on {report['traces']} traces "
           f"({report['choices']} choices) in {report['seconds']:.1f} s; "
-          f"mean negative log-likelihood per trace {report['final_nll']:.2f}; wrote {report['weights']} + {report['metadata']}")
+          f"mean negative log-likelihood per trace {report['final_nll']:.2f}; wrote {report['weights']} + {report['metadata']} "
+          f"+ {Path(report['weights']).with_suffix('.npz')} (keep the three together)")

@@ -47,10 +47,12 @@ def load_model_file(spec: str) -> Model:
     module = _run_module(path)
     models = {key: value for key, value in vars(module).items() if isinstance(value, Model) and not key.startswith("_")}
     if name is None:
+        if not models:
+            raise UnknownModelError(f"{path} defines no Model at its top level (a name bound to a procmod Model, "
+                                    "e.g. MODEL = Model('mine', root)); add one")
         if len(models) != 1:
-            found = ", ".join(sorted(models)) or "none"
-            raise UnknownModelError(f"{path} defines {len(models)} Model objects at its top level ({found}); name "
-                                    f"one: {path}:NAME")
+            raise UnknownModelError(f"{path} defines {len(models)} Model objects at its top level "
+                                    f"({', '.join(sorted(models))}); name one: {path}:NAME")
         return next(iter(models.values()))
     value = getattr(module, name, None)
     if value is None:
