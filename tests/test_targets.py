@@ -1,6 +1,8 @@
 import json
 import math
 
+import re
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -714,3 +716,22 @@ def test_a_misspelt_mirrored_suffix_is_named():
 
     with pytest.raises(InvalidArgumentError, match="a spec ends in :mirrored for its mirrored copy"):
         target_from_spec("glyph:a:mirror")
+
+
+@pytest.mark.parametrize("name, make, says", [
+    ("drawing.svg", lambda p: p.write_text('<svg xmlns="http://www.w3.org/2000/svg"><path d="M0 0L9 9"/></svg>'),
+     "a vector drawing (SVG), which procmod does not read; export it as a PNG"),
+    ("drawing.png", lambda p: p.write_text('<?xml version="1.0"?>\n<svg xmlns="http://www.w3.org/2000/svg"/>'),
+     "a vector drawing (SVG)"),  # named as a PNG
+    ("clear.png", lambda p: Image.new("RGBA", (40, 40), (0, 0, 0, 0)).save(p),
+     "the picture is fully transparent (every pixel's alpha is 0)"),
+])
+def test_pictures_that_hold_no_pixels_to_read_say_why(tmp_path, name, make, says):
+    """An SVG was "not an image Pillow can read (cannot identify image file ...)"; a fully
+    transparent picture was told to draw its shape darker."""
+    from procmod.targets import load_target_image
+    from procmod.targets.image import TargetFileError
+
+    make(tmp_path / name)
+    with pytest.raises(TargetFileError, match=re.escape(says)):
+        load_target_image(tmp_path / name)

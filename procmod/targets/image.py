@@ -64,7 +64,22 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
     except IsADirectoryError:
         raise TargetFileError(f"{where}: {cut_text(str(path))} is a folder, not an image file") from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        if _is_svg(path):
+            raise TargetFileError(f"{where}: a vector drawing (SVG), which procmod does not read; export it as a "
+                                  "PNG (Inkscape: File > Export; a browser's screenshot does too)") from None
         raise TargetFileError(f"{where}: not an image Pillow can read ({cut_text(str(exc), 120)})") from None
+
+
+def _is_svg(path: Path) -> bool:
+    """Whether ``path`` is an SVG file, by its name or its first bytes."""
+    if path.suffix.lower() in (".svg", ".svgz"):
+        return True
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(512).lstrip(b"\xef\xbb\xbf \t\r\n").lower()
+    except OSError:
+        return False
+    return head.startswith(b"<svg") or (head.startswith(b"<?xml") and b"<svg" in head)
 
 
 def _too_big(where: str, width: int, height: int) -> TargetFileError:
@@ -371,6 +386,13 @@ def opaque_part(image: Image.Image) -> np.ndarray | None:
     if alpha.min() >= 0.5 * alpha.max():  # an alpha channel, but nothing see-through
         return None
     return alpha >= 0.5 * alpha.max()
+
+
+def _fully_transparent(image: Image.Image) -> bool:
+    """Whether every pixel of a picture with transparency is see-through."""
+    if image.mode not in ("RGBA", "LA", "PA") and "transparency" not in image.info:
+        return False
+    return not np.asarray(image.convert("RGBA"))[:, :, 3].any()
 
 
 def _luma(colours: np.ndarray) -> np.ndarray:
@@ -807,6 +829,9 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     try:
         mask = check_mask(mask_from_image(image), cut_text(str(path)))
     except TargetFileError as exc:
+        if _fully_transparent(image):  # (its colours, read instead, were blank too)
+            raise TargetFileError(f"{cut_text(str(path))}: the picture is fully transparent (every pixel's alpha is "
+                                  "0), so nothing is drawn; export it with the drawing's layer visible") from None
         if frames > 1:  # say which frame was read: the drawing may be on another
             raise TargetFileError(f"{exc} (the file holds {frames} frames or pages; procmod reads the first: "
                                   "save the one with the drawing on its own)") from None
