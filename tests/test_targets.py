@@ -1,6 +1,5 @@
 import json
 import math
-
 import re
 
 import numpy as np
