@@ -14,7 +14,7 @@ from procmod.learn.examples import read_example_inputs
 from procmod.learn.search import SearchOptions
 
 from asset_writers import (box_mesh, column_major, gltf_json, transformed, urdf, wedge_mesh, write_empty_gltf, write_glb,
-                           write_gltf, write_huge_gltf, write_unreadable, write_zero_area_gltf)
+                           write_huge_gltf, write_unreadable, write_zero_area_gltf)
 
 MX = np.diag([-1.0, 1, 1, 1])
 

@@ -1,7 +1,6 @@
 """Structure search: splits that capture distinct modes, determinism, checkpoint/resume, CLI."""
 
 import json
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,7 +8,7 @@ import pytest
 
 from procmod.cli import main
 from procmod.core import run_forward
-from procmod.learn import examples_from_dict, load_program, read_examples
+from procmod.learn import examples_from_dict, read_examples
 from procmod.learn.program import derivation_hierarchies, program_model
 from procmod.learn.search import LearnError, SearchOptions, run_search
 from procmod.parallel import InlineExecutor, open_executor

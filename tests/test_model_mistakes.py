@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from procmod.core import Categorical, Model, ModelError, Normal, load_derivation, run_forward, save_derivation
-from procmod.core import runtime
 from procmod.core.errors import DerivationFormatError
 from procmod.core.runtime import rule_name, start, step
 from procmod.data import target_from_spec

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from procmod.core import InvalidArgumentError, run_forward, start, step
+from procmod.core import InvalidArgumentError, start, step
 from procmod.data import glyph_set, render_glyph, scribble_target, target_image
 from procmod.geometry import Canvas, Disc, Segment
 from procmod.models import get_model
