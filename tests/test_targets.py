@@ -420,11 +420,13 @@ def test_a_shape_outlined_and_coloured_in_is_the_whole_shape(fill):
     assert (mask & ~disc).sum() <= 2 * np.pi * 41  # the outer rim at most
 
 
-@pytest.mark.parametrize("case", ["paper", "lighter", "ruled", "small_counter"])
+@pytest.mark.parametrize("case", ["paper", "lighter", "ruled", "small_counter", "shadow", "desk"])
 def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
     """Paper inside a drawn outline (a letter's counter), the lighter middle of a
-    vignetted photo, ruled paper, and a counter too small to have a middle of its own
-    (anti-aliased rims only) are no fill."""
+    vignetted photo, ruled paper, a counter too small to have a middle of its own
+    (anti-aliased rims only), paper under a shadow falling across the outline, and a page
+    on a wooden desk (the border's colour) are no fill: the fill is judged against the
+    paper around it (a review found the last two filled against the border's)."""
     from procmod.targets.image import mask_from_image
 
     if case == "paper":
@@ -434,9 +436,19 @@ def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
     elif case == "ruled":
         picture, disc, middle = _outlined_disc(
             lambda xx, yy: np.where((yy % 8 == 0)[:, :, None], (150, 190, 235), 255))
-    else:
+    elif case == "small_counter":
         picture, disc, middle = _outlined_disc((255, 255, 255), radius=7, line=2, rims=True)
         middle = np.hypot(*(np.mgrid[0:120, 0:120] - 60)) <= 3.5  # the counter, its rim left out
+    elif case == "shadow":  # a phone's shadow over the lower right, 30% darker, inside and out
+        picture, disc, middle = _outlined_disc((255, 255, 255))
+        rgb = np.asarray(picture, dtype=np.float64)
+        rgb[40:, 15:] *= 0.7  # over most of the disc, but under half the border
+        picture = Image.fromarray(rgb.astype(np.uint8))
+    else:  # a white page on an oak desk, the outline drawn on the page
+        picture, disc, middle = _outlined_disc((255, 255, 255))
+        rgb = np.asarray(picture).copy()
+        rgb[:8], rgb[-8:], rgb[:, :8], rgb[:, -8:] = (176, 122, 70), (176, 122, 70), (176, 122, 70), (176, 122, 70)
+        picture = Image.fromarray(rgb)
     mask = mask_from_image(picture)
     assert mask[disc & ~middle].any() and not mask[middle].any()
 

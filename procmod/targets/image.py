@@ -527,65 +527,105 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
         ink = _beyond_half(distance, 0.0, distance[where], noise)
     if ink is None:
         return nothing
-    return _filled_in(ink & where, colours, luma, paper, paper_luma, where, noise)
+    return _filled_in(ink & where, colours, luma, where, noise)
 
 
 FILL_CONTRAST = 2 * MIN_CONTRAST
-"""A region the ink encloses is filled in (part of the shape) when the middle of it differs
-from the paper by this many grey levels toward the ink's side, or by colour
+"""A region the ink encloses is filled in (part of the shape) when its middle differs from
+the paper around it by this many grey levels toward the ink's side, or in hue
 (:func:`_filled_in`)."""
 
 _FILL_RIM = 2  # pixels of an enclosed region next to the ink left out of its colour: the strokes' soft edges
+_PAPER_BLOCKS = 64  # the paper's colour near each region is read on a grid of at most this many blocks a side
 
 
-def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, paper: np.ndarray, paper_luma: float,
-               where: np.ndarray, noise: float) -> np.ndarray:
+def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray,
+               noise: float) -> np.ndarray:
     """``ink`` with the regions it encloses that are coloured in, not paper: a shape
     outlined in black and filled with yellow, light blue or grey (a colouring book, clip
     art, a highlighter) read as its outline alone, the fill being nearer the paper than half
-    way to the black. A region is filled when the median of its pixels away from the ink
-    (:data:`_FILL_RIM`) differs from the paper by :data:`FILL_CONTRAST` (and
-    :data:`NOISE_MARGIN` x the paper's ``noise``) on the ink's side of its brightness (a
-    region lighter than dark ink's paper is light falling on the page) or in colour
-    (hue, not brightness). A letter's counter, paper inside a drawn frame, or a gap too
-    small to have a middle stay out."""
+    way to the black. A region is filled when its pixels away from the ink
+    (:data:`_FILL_RIM`) differ on average from the paper *around it* (:func:`_paper_near`:
+    a shadow or a dim middle falls on both; the page, not the desk it lies on) by
+    :data:`FILL_CONTRAST` (and :data:`NOISE_MARGIN` x the paper's ``noise``) toward the
+    ink's side of its brightness, or in hue (colour less brightness). A letter's counter,
+    paper inside a drawn outline or frame, and a gap too small to have a middle stay out.
+    ``luma`` is the brightness the ink was read from (the fall of light taken out)."""
     from scipy import ndimage
 
     if not ink.any():
         return ink
-    luma_of_ink = luma[ink].mean()
+    dark_ink = float(luma[ink].mean()) < float(luma[~ink].mean()) if (~ink).any() else True
     # what the ink encloses: the regions of the rest that reach no edge of the picture (a
     # labelling, one pass: binary_fill_holes' flood took ~0.2 s on a page's photo)
     labels, count = ndimage.label(~ink)
     enclosed = np.ones(count + 1, dtype=bool)  # by label (a table: np.isin took 0.26 s on an A4 scan)
     enclosed[0] = False
     enclosed[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = False
+    outside = ~ink & ~enclosed[labels] & where
     labels[~(enclosed[labels] & where)] = 0
-    if not labels.any():
+    if not labels.any() or not outside.any():
         return ink
-    rows, cols = np.flatnonzero(labels.any(axis=1)), np.flatnonzero(labels.any(axis=0))
-    box = slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)  # the work: where they are
-    ink, labels, colours, luma = ink.copy(), labels[box], colours[box], luma[box]
     core = ndimage.binary_erosion(labels > 0, iterations=_FILL_RIM)
-    if not core.any():
+    outside = ndimage.binary_erosion(outside, iterations=_FILL_RIM, border_value=1)  # the paper clear of the rims
+    if not core.any() or not outside.any():
         return ink
-    at = np.where(core, labels, 0)
-    present = np.unique(at[at > 0])
-    dark_ink = float(luma_of_ink) < paper_luma
-    toward_ink = (paper_luma - luma) if dark_ink else (luma - paper_luma)
+    rows, cols = np.nonzero(core)
+    region = labels[rows, cols]
+    here = _brightness_and_hue(colours[rows, cols], luma[rows, cols])
+    paper = _paper_near(colours, luma, outside, rows, cols)  # (core pixels, channels)
+    n = np.bincount(region, minlength=count + 1)
+    present = np.flatnonzero(n)
+    mean = np.stack([np.bincount(region, weights=here[:, c], minlength=count + 1) for c in range(here.shape[1])], 1)
+    around = np.stack([np.bincount(region, weights=paper[:, c], minlength=count + 1)
+                       for c in range(here.shape[1])], 1)
+    mean, around = mean[present] / n[present, None], around[present] / n[present, None]
+    toward_ink = (around[:, 0] - mean[:, 0]) if dark_ink else (mean[:, 0] - around[:, 0])
     least = max(FILL_CONTRAST, NOISE_MARGIN * noise)
-    filled = np.asarray(ndimage.median(toward_ink, at, present)) >= least
-    if colours.shape[2] > 1:
-        paper_hue = paper.astype(np.float64) - float(_luma(paper))
-        # from the picture's own brightness (``luma`` may have the fall of light taken out)
-        hue = np.abs(colours - _luma(colours)[:, :, None] - paper_hue.astype(colours.dtype)).max(axis=2)
-        filled |= np.asarray(ndimage.median(hue, at, present)) >= least
+    filled = toward_ink >= least
+    if here.shape[1] > 1:
+        filled |= np.abs(mean[:, 1:] - around[:, 1:]).max(axis=1) >= least
     if not filled.any():
         return ink
     chosen = np.zeros(count + 1, dtype=bool)
     chosen[present[filled]] = True
-    ink[box] |= chosen[labels]
-    return ink
+    return ink | chosen[labels]
+
+
+def _brightness_and_hue(colours: np.ndarray, luma: np.ndarray) -> np.ndarray:
+    """(pixels, 1 + channels): each pixel's ``luma``, then its colour less its own
+    brightness (its hue; nothing for a grey picture)."""
+    if colours.shape[-1] == 1:
+        return luma[:, None].astype(np.float64)
+    return np.concatenate([luma[:, None], colours - _luma(colours)[:, None]], axis=1).astype(np.float64)
+
+
+def _paper_near(colours: np.ndarray, luma: np.ndarray, outside: np.ndarray, rows: np.ndarray,
+                cols: np.ndarray) -> np.ndarray:
+    """The paper's brightness and hue (:func:`_brightness_and_hue`) near each pixel
+    (``rows``, ``cols``): the mean over the ``outside`` pixels (the paper beyond the ink)
+    of each block of a coarse grid (:data:`_PAPER_BLOCKS` a side), read from an even
+    sample of them, a block with too few taking its nearest block's."""
+    from scipy import ndimage
+
+    h, w = outside.shape
+    step = max(1, math.ceil(max(h, w) / _PAPER_BLOCKS))
+    every = max(1, step // 4)  # about 16 samples a block side: a mean, not every pixel
+    gh, gw = -(-h // step), -(-w // step)
+    sample = outside[::every, ::every]
+    r, c = np.nonzero(sample)
+    ids = (r * every // step) * gw + (c * every // step)
+    values = _brightness_and_hue(colours[::every, ::every][r, c], luma[::every, ::every][r, c])
+    count = np.bincount(ids, minlength=gh * gw)
+    known = count >= max(1, (step // every) ** 2 // 8)
+    if not known.any():
+        known = count > 0
+    means = np.stack([np.bincount(ids, weights=values[:, k], minlength=gh * gw)
+                      for k in range(values.shape[1])], 1) / np.maximum(count, 1)[:, None]
+    if not known.all():
+        _, (iy, ix) = ndimage.distance_transform_edt(~known.reshape(gh, gw), return_indices=True)
+        means = means.reshape(gh, gw, -1)[iy, ix].reshape(gh * gw, -1)
+    return means[(rows // step) * gw + cols // step]
 
 
 def _fills_its_box(mask: np.ndarray, share: float) -> bool:
