@@ -146,11 +146,12 @@ def _cmd_models(args) -> None:
 
 
 
-def _model(spec: str, params=()):
+def _model(spec: str, params=(), typed: bool = True):
     """A built-in model by name, a learned program by path (program.json or its folder), or
     a model of the user's own Python file (``FILE.py:NAME``, :mod:`procmod.models.from_file`),
     with the ``--param NAME=VALUE`` settings applied (values read as JSON: ``false``, ``64``,
-    ``[0.5, 0.9]``; anything else is a string)."""
+    ``[0.5, 0.9]``; anything else is a string). ``typed``: the user typed ``spec`` (it may
+    be a file's stem: ``mine`` for ``mine.py``), not a file named it."""
     path = Path(spec)
     if spec not in MODELS and (path.suffix.lower() == ".json" or is_dir_quietly(path)):
         from .learn import load_program
@@ -159,7 +160,7 @@ def _model(spec: str, params=()):
         try:
             model = model_from_spec(spec)  # a built-in model, or FILE.py:NAME
         except UnknownModelError as exc:
-            if isinstance(spec, str) and not spec.endswith(".py") and is_file_quietly(Path(spec + ".py")):
+            if typed and isinstance(spec, str) and not spec.endswith(".py") and is_file_quietly(Path(spec + ".py")):
                 raise UnknownModelError(f"{exc}; for the model in {spec}.py give {spec}.py") from None
             raise
     if not params:
@@ -241,9 +242,9 @@ def _model_inputs(name: str) -> list:
 
 def _learned_from(program_json: Path) -> list:
     """The example files or folders a learned program records it was learned from
-    (``info.example_files``; a program of an earlier version: its ``info.examples`` where
-    that is one existing path), as far as they exist; nothing from a file that says
-    otherwise."""
+    (``info.example_files``, relative to its folder; a program of an earlier version: its
+    ``info.examples`` where that is one existing path), as far as they exist; nothing from
+    a file that says otherwise."""
     try:
         info = json.loads(program_json.read_text(encoding="utf-8")).get("info")
     except (OSError, ValueError, AttributeError):
@@ -251,13 +252,15 @@ def _learned_from(program_json: Path) -> list:
     if not isinstance(info, dict):
         return []
     named = info.get("example_files")
-    if not isinstance(named, list):
-        named = [info.get("examples")]
+    if isinstance(named, list):
+        named = [program_json.parent / item for item in named if isinstance(item, str) and item]
+    else:
+        named = [Path(info["examples"])] if isinstance(info.get("examples"), str) and info["examples"] else []
     found = []
     for item in named:
         try:
-            if isinstance(item, str) and item and Path(item).exists():
-                found.append(Path(item))
+            if item.exists():
+                found.append(item)
         except (OSError, ValueError):
             continue
     return found
@@ -371,7 +374,7 @@ def _model_a_file_names(name: str):
     if name not in MODELS and is_model_file_spec(name):
         raise UnknownModelError(f"it names the Python file {cut_text(name, 120)!r} as its model; procmod does not "
                                 "run code a file names (procmod never writes one there)")
-    return _model(name)
+    return _model(name, typed=False)
 
 
 _POPULATION_OPTION = {"smc": "particles", "sosmc": "particles", "forward": "particles",

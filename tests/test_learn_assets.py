@@ -162,6 +162,28 @@ def _no_uri(p):  # a GLB's JSON saved alone as .gltf: trimesh said KeyError: 'ur
     p.write_text(json.dumps(_box_data(lambda d: d["buffers"][0].pop("uri"))))
 
 
+def _meshopt_fallback(data, with_data: bool):
+    data["extensionsUsed"] = ["EXT_meshopt_compression"]
+    data["buffers"][0]["extensions"] = {"EXT_meshopt_compression": {"fallback": True}}
+    if not with_data:
+        data["buffers"][0].pop("uri")
+
+
+def _meshopt_without_fallback_data(p):
+    p.write_text(json.dumps(_box_data(lambda d: _meshopt_fallback(d, False))))
+
+
+def test_a_meshopt_fallback_buffer_with_its_data_is_read(tmp_path):
+    """gltfpack -cf writes the uncompressed data into a fallback buffer with a file of its
+    own and uses the extension optionally: a loader without meshopt reads that (a review
+    found it refused as compressed)."""
+    from procmod.geometry.assets import read_assets
+
+    (tmp_path / "x.gltf").write_text(json.dumps(_box_data(lambda d: _meshopt_fallback(d, True))))
+    read = read_assets([tmp_path / "x.gltf"])
+    assert sorted(read.parts) == ["body"]
+
+
 def _view_past_buffer(p):  # trimesh said AssertionError with no text
     write_glb(p, _box_data(lambda d: d["bufferViews"][0].update(byteOffset=10 ** 12)))
 
@@ -172,6 +194,7 @@ def _accessor_past_view(p):  # trimesh said it cannot reshape an array into (10^
 
 @pytest.mark.parametrize("make, suffix, message", [
     (_no_uri, ".gltf", 'buffers[0] names no file ("uri")'),
+    (_meshopt_without_fallback_data, ".gltf", "meshopt-compressed"),
     (_view_past_buffer, ".glb", "bufferViews[0] reaches byte 1,000,000,000,096 of buffer 0, which holds 240"),
     (_accessor_past_view, ".glb", "accessors[0] needs 12,000,000,000,000 bytes of bufferViews[0]"),
     (_unreadable, ".glb", "not a GLB file"),

@@ -3,6 +3,7 @@ a raw AttributeError or a silently wrong result (an adversarial pass with hand-w
 models found each of these)."""
 
 import functools
+import json
 import math
 import re
 
@@ -357,3 +358,11 @@ def test_a_model_name_whose_file_is_here_is_pointed_to_it(tmp_path, monkeypatch,
     (tmp_path / "mine.py").write_text("x = 1\n")
     assert main(["sample", "mine", "--out", str(tmp_path / "o")]) == 2
     assert "unknown model 'mine'" in (err := capsys.readouterr().err) and "give mine.py" in err
+    # a derivation naming that model is rendered with --model mine.py:NAME, which it says
+    assert main(["sample", "vines", "-n", "1", "--size", "32", "--out", str(tmp_path / "s")]) == 0
+    data = json.loads((tmp_path / "s" / "sample_000.json").read_text())
+    (tmp_path / "d.json").write_text(json.dumps({**data, "model": "mine"}))
+    capsys.readouterr()
+    assert main(["render", str(tmp_path / "d.json"), "--out", str(tmp_path / "r.png")]) == 2
+    err = capsys.readouterr().err
+    assert "give mine.py" not in err and "--model FILE.py:NAME" in err

@@ -399,8 +399,9 @@ def _check_buffer_layout(header: dict, glb: bool) -> None:
     for i, buffer in enumerate(buffers):
         buffer = buffer if isinstance(buffer, dict) else {}
         extensions = buffer.get("extensions") if isinstance(buffer.get("extensions"), dict) else {}
-        if isinstance(extensions.get(MESHOPT), dict) and extensions[MESHOPT].get("fallback"):
-            # a meshopt file's fallback buffer holds no data, by design
+        if isinstance(extensions.get(MESHOPT), dict) and extensions[MESHOPT].get("fallback") \
+                and not isinstance(buffer.get("uri"), str):
+            # a fallback buffer without a file holds no data, by design (gltfpack -cf's has one: read)
             raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
                              "it without compression")
         if not isinstance(buffer.get("uri"), str) and not (glb and i == 0):

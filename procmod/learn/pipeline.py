@@ -154,8 +154,10 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
                             replace_other=overwrite)
     program = result.program
     program.info["examples"] = shown
-    # where they are, so that commands writing beside the program never overwrite them
-    program.info["example_files"] = [str(p.resolve()) for p in inputs]
+    # where they are, relative to the program's folder (which may move with them, and whose
+    # file should not hold the user's folder layout), so that commands writing beside the
+    # program never overwrite them (cli._learned_from)
+    program.info["example_files"] = [os.path.relpath(p.resolve(), out.resolve()) for p in inputs]
     json_path = save_program(program, out)
     name = str(json_path.resolve())
     derivations = sample_program(program, name, samples, seed)
