@@ -408,7 +408,8 @@ def _outlined_disc(inside, paper=(255, 255, 255), size=120, radius=40, line=6, r
     return Image.fromarray(rgb.astype(np.uint8)), disc, r <= radius - line - 2
 
 
-@pytest.mark.parametrize("fill", [(255, 240, 80), (150, 200, 240), (170, 170, 170), (255, 150, 200)])
+@pytest.mark.parametrize("fill", [(255, 240, 80), (150, 200, 240), (170, 170, 170), (255, 150, 200),
+                                  (173, 216, 230), (255, 192, 203), (200, 225, 250)])  # and pastels
 def test_a_shape_outlined_and_coloured_in_is_the_whole_shape(fill):
     """A colouring book's or clip art's fill lighter than half way to the black outline
     was left out: the mask was the outline's ring (IoU 0.07)."""
@@ -420,7 +421,7 @@ def test_a_shape_outlined_and_coloured_in_is_the_whole_shape(fill):
     assert (mask & ~disc).sum() <= 2 * np.pi * 41  # the outer rim at most
 
 
-@pytest.mark.parametrize("case", ["paper", "lighter", "ruled", "small_counter", "shadow", "desk"])
+@pytest.mark.parametrize("case", ["paper", "lighter", "ruled", "small_counter", "shadow", "desk", "phone_shadow"])
 def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
     """Paper inside a drawn outline (a letter's counter), the lighter middle of a
     vignetted photo, ruled paper, a counter too small to have a middle of its own
@@ -444,6 +445,12 @@ def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
         rgb = np.asarray(picture, dtype=np.float64)
         rgb[40:, 15:] *= 0.7  # over most of the disc, but under half the border
         picture = Image.fromarray(rgb.astype(np.uint8))
+    elif case == "phone_shadow":  # 35% deep over two thirds of the inside, the paper beyond lit
+        picture, disc, middle = _outlined_disc((255, 255, 255))
+        rgb = np.asarray(picture, dtype=np.float64)
+        rgb[35:85, 35:85] *= 0.65
+        picture = Image.fromarray(rgb.astype(np.uint8))
+        middle = middle & ~np.pad(np.ones((50, 50), dtype=bool), 35)[:120, :120]
     else:  # a white page on an oak desk, the outline drawn on the page
         picture, disc, middle = _outlined_disc((255, 255, 255))
         rgb = np.asarray(picture).copy()

@@ -530,102 +530,87 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     return _filled_in(ink & where, colours, luma, where, noise)
 
 
-FILL_CONTRAST = 2 * MIN_CONTRAST
-"""A region the ink encloses is filled in (part of the shape) when its middle differs from
-the paper around it by this many grey levels toward the ink's side, or in hue
-(:func:`_filled_in`)."""
+FILL_CONTRAST = MIN_CONTRAST
+"""A region the ink encloses is filled in (part of the shape) when nearly all of it
+(:data:`FILL_SHARE`) differs from the paper around it by what ink must differ by, toward
+the ink's side of brightness or in hue (:func:`_filled_in`)."""
+
+FILL_SHARE = 0.9
+"""The share of an enclosed region's cells that must differ from the paper around them for
+it to be filled: a flat fill does everywhere; a shadow or a dim middle that falls on
+part of it, with the paper beyond its outline lit, does not."""
 
 _FILL_RIM = 2  # pixels of an enclosed region next to the ink left out of its colour: the strokes' soft edges
-_PAPER_BLOCKS = 64  # the paper's colour near each region is read on a grid of at most this many blocks a side
+_FILL_CELLS = 256  # a region's colour is read as the means of cells on a grid of at most this many a side
 
 
 def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray,
                noise: float) -> np.ndarray:
     """``ink`` with the regions it encloses that are coloured in, not paper: a shape
-    outlined in black and filled with yellow, light blue or grey (a colouring book, clip
-    art, a highlighter) read as its outline alone, the fill being nearer the paper than half
-    way to the black. A region is filled when its pixels away from the ink
-    (:data:`_FILL_RIM`) differ on average from the paper *around it* (:func:`_paper_near`:
-    a shadow or a dim middle falls on both; the page, not the desk it lies on) by
-    :data:`FILL_CONTRAST` (and :data:`NOISE_MARGIN` x the paper's ``noise``) toward the
-    ink's side of its brightness, or in hue (colour less brightness). A letter's counter,
-    paper inside a drawn outline or frame, and a gap too small to have a middle stay out.
-    ``luma`` is the brightness the ink was read from (the fall of light taken out)."""
+    outlined in black and filled with yellow, light blue, pink or grey (a colouring book,
+    clip art, a highlighter) read as its outline alone, the fill being nearer the paper than
+    half way to the black.
+
+    The picture is read as the mean colours of cells (:data:`_FILL_CELLS` a side: a
+    crayon's texture averages out, and the work does not grow with the megapixels). A
+    region's cells are those wholly inside it, :data:`_FILL_RIM` pixels clear of the ink;
+    each is compared with the paper around it: the nearest cell wholly of the paper
+    beyond the ink (a shadow or a dim middle falls on both; a page's paper is not the desk
+    it lies on). The region is filled when :data:`FILL_SHARE` of its cells differ from that
+    by :data:`FILL_CONTRAST` (and :data:`NOISE_MARGIN` x the paper's ``noise``) toward the
+    ink's side of brightness, or in hue (colour less brightness). A letter's counter, paper
+    inside a drawn outline or frame, a region under a shadow that falls on part of it,
+    and a region too small for a whole cell stay out. ``luma`` is the brightness the ink
+    was read from (the fall of light taken out)."""
     from scipy import ndimage
 
-    if not ink.any():
+    if not ink.any() or ink.all():
         return ink
-    dark_ink = float(luma[ink].mean()) < float(luma[~ink].mean()) if (~ink).any() else True
+    dark_ink = float(luma[ink].mean()) < float(luma[~ink].mean())
     # what the ink encloses: the regions of the rest that reach no edge of the picture (a
     # labelling, one pass: binary_fill_holes' flood took ~0.2 s on a page's photo)
     labels, count = ndimage.label(~ink)
     enclosed = np.ones(count + 1, dtype=bool)  # by label (a table: np.isin took 0.26 s on an A4 scan)
     enclosed[0] = False
     enclosed[np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])] = False
-    outside = ~ink & ~enclosed[labels] & where
-    labels[~(enclosed[labels] & where)] = 0
-    if not labels.any() or not outside.any():
+    inside = enclosed[labels] & where
+    if not inside.any():
         return ink
-    core = ndimage.binary_erosion(labels > 0, iterations=_FILL_RIM)
-    outside = ndimage.binary_erosion(outside, iterations=_FILL_RIM, border_value=1)  # the paper clear of the rims
-    if not core.any() or not outside.any():
+    paper = ~ink & ~inside & where
+    cell = max(1, math.ceil(max(ink.shape) / _FILL_CELLS))
+    down, across = ink.shape[0] // cell, ink.shape[1] // cell  # whole cells (a ragged last row or column left out)
+
+    def cell_mean(values):  # per cell, through a view of the picture split into cells
+        return values[:down * cell, :across * cell].reshape(down, cell, across, cell).mean(axis=(1, 3),
+                                                                                         dtype=np.float64)
+
+    if cell > _FILL_RIM:  # the cells next to another kind hold the rims: left out, a cell at a time
+        in_core = ndimage.binary_erosion(cell_mean(inside) == 1.0)
+        in_paper = ndimage.binary_erosion(cell_mean(paper) == 1.0, border_value=1)
+    else:
+        in_core = cell_mean(ndimage.binary_erosion(inside, iterations=_FILL_RIM)) == 1.0
+        in_paper = cell_mean(ndimage.binary_erosion(paper, iterations=_FILL_RIM, border_value=1)) == 1.0
+    if not in_core.any() or not in_paper.any():
         return ink
-    rows, cols = np.nonzero(core)
-    region = labels[rows, cols]
-    here = _brightness_and_hue(colours[rows, cols], luma[rows, cols])
-    paper = _paper_near(colours, luma, outside, rows, cols)  # (core pixels, channels)
-    n = np.bincount(region, minlength=count + 1)
-    present = np.flatnonzero(n)
-    mean = np.stack([np.bincount(region, weights=here[:, c], minlength=count + 1) for c in range(here.shape[1])], 1)
-    around = np.stack([np.bincount(region, weights=paper[:, c], minlength=count + 1)
-                       for c in range(here.shape[1])], 1)
-    mean, around = mean[present] / n[present, None], around[present] / n[present, None]
-    toward_ink = (around[:, 0] - mean[:, 0]) if dark_ink else (mean[:, 0] - around[:, 0])
-    least = max(FILL_CONTRAST, NOISE_MARGIN * noise)
-    filled = toward_ink >= least
-    if here.shape[1] > 1:
-        filled |= np.abs(mean[:, 1:] - around[:, 1:]).max(axis=1) >= least
-    if not filled.any():
+    channels = [luma] + ([colours[:, :, c] for c in range(colours.shape[2])] if colours.shape[2] > 1 else [])
+    means = np.stack([cell_mean(v) for v in channels], axis=-1)
+    if colours.shape[2] > 1:  # hue: colour less its own brightness (from the colours, not ``luma``)
+        means[..., 1:] -= (means[..., 1:] @ _LUMA)[..., None]
+    # each cell's nearest cell of paper
+    _, (iy, ix) = ndimage.distance_transform_edt(~in_paper, return_indices=True)
+    around = means[iy, ix]
+    differs = ((around[..., 0] - means[..., 0]) if dark_ink else (means[..., 0] - around[..., 0])) \
+        >= max(FILL_CONTRAST, NOISE_MARGIN * noise)
+    if colours.shape[2] > 1:
+        differs |= np.abs(means[..., 1:] - around[..., 1:]).max(axis=-1) >= max(FILL_CONTRAST, NOISE_MARGIN * noise)
+    # each whole cell's region: the label at its first pixel (a whole cell lies in one region)
+    region = labels[:down * cell:cell, :across * cell:cell][in_core]
+    cells = np.bincount(region, minlength=count + 1)
+    share = np.bincount(region, weights=differs[in_core], minlength=count + 1) / np.maximum(cells, 1)
+    chosen = (cells > 0) & (share >= FILL_SHARE)
+    if not chosen.any():
         return ink
-    chosen = np.zeros(count + 1, dtype=bool)
-    chosen[present[filled]] = True
     return ink | chosen[labels]
-
-
-def _brightness_and_hue(colours: np.ndarray, luma: np.ndarray) -> np.ndarray:
-    """(pixels, 1 + channels): each pixel's ``luma``, then its colour less its own
-    brightness (its hue; nothing for a grey picture)."""
-    if colours.shape[-1] == 1:
-        return luma[:, None].astype(np.float64)
-    return np.concatenate([luma[:, None], colours - _luma(colours)[:, None]], axis=1).astype(np.float64)
-
-
-def _paper_near(colours: np.ndarray, luma: np.ndarray, outside: np.ndarray, rows: np.ndarray,
-                cols: np.ndarray) -> np.ndarray:
-    """The paper's brightness and hue (:func:`_brightness_and_hue`) near each pixel
-    (``rows``, ``cols``): the mean over the ``outside`` pixels (the paper beyond the ink)
-    of each block of a coarse grid (:data:`_PAPER_BLOCKS` a side), read from an even
-    sample of them, a block with too few taking its nearest block's."""
-    from scipy import ndimage
-
-    h, w = outside.shape
-    step = max(1, math.ceil(max(h, w) / _PAPER_BLOCKS))
-    every = max(1, step // 4)  # about 16 samples a block side: a mean, not every pixel
-    gh, gw = -(-h // step), -(-w // step)
-    sample = outside[::every, ::every]
-    r, c = np.nonzero(sample)
-    ids = (r * every // step) * gw + (c * every // step)
-    values = _brightness_and_hue(colours[::every, ::every][r, c], luma[::every, ::every][r, c])
-    count = np.bincount(ids, minlength=gh * gw)
-    known = count >= max(1, (step // every) ** 2 // 8)
-    if not known.any():
-        known = count > 0
-    means = np.stack([np.bincount(ids, weights=values[:, k], minlength=gh * gw)
-                      for k in range(values.shape[1])], 1) / np.maximum(count, 1)[:, None]
-    if not known.all():
-        _, (iy, ix) = ndimage.distance_transform_edt(~known.reshape(gh, gw), return_indices=True)
-        means = means.reshape(gh, gw, -1)[iy, ix].reshape(gh * gw, -1)
-    return means[(rows // step) * gw + cols // step]
 
 
 def _fills_its_box(mask: np.ndarray, share: float) -> bool:
