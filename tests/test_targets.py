@@ -460,6 +460,29 @@ def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
     assert mask[disc & ~middle].any() and not mask[middle].any()
 
 
+def test_a_drawing_on_a_framed_surface_darker_than_the_wall_is_no_fill():
+    """A whiteboard in its dark frame, photographed on a lighter wall: the board is 40
+    grey levels darker than the wall, as a fill would be, but it holds a drawing (a house
+    with a window), so it is the surface drawn on; and the window, inside it, is judged
+    against the board, not the wall (a review found the board filled solid)."""
+    from procmod.targets.image import mask_from_image
+
+    rgb = np.full((160, 200, 3), 250, dtype=np.uint8)
+    rgb[20:140, 20:180] = 20  # the frame
+    rgb[26:134, 26:174] = 210  # the board
+    house = np.zeros((160, 200), dtype=bool)
+    house[60:120, 70:130] = True
+    house[64:116, 74:126] = False  # the house's walls, 4 px
+    house[80:96, 90:110] = True
+    house[83:93, 93:107] = False  # a window
+    rgb[house] = 30
+    mask = mask_from_image(Image.fromarray(rgb))[20:180]  # the picture padded to a square: its rows
+    board = np.zeros((160, 200), dtype=bool)
+    board[30:130, 30:170] = True
+    assert mask[house].all()
+    assert not mask[board & ~house].any()  # the board, the house's inside, the window's inside
+
+
 @pytest.mark.parametrize("table, ink_grey", [(90, 60), (40, 0), (128, 60), (170, 60)])
 def test_a_page_photographed_on_a_darker_table_gives_its_drawing(tmp_path, table, ink_grey):
     """A page covering 37% of a photo, on a desk darker than it: the whole page was read as

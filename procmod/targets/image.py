@@ -541,6 +541,7 @@ it to be filled: a flat fill does everywhere; a shadow or a dim middle that fall
 part of it, with the paper beyond its outline lit, does not."""
 
 _FILL_RIM = 2  # pixels of an enclosed region next to the ink left out of its colour: the strokes' soft edges
+_HELD_INK, _HELD_SHARE = 16, 0.002  # ink inside a region, beyond specks: a drawing on it (pixels; share of it)
 _FILL_CELLS = 256  # a region's colour is read as the means of cells on a grid of at most this many a side
 
 
@@ -560,8 +561,10 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     by :data:`FILL_CONTRAST` (and :data:`NOISE_MARGIN` x the paper's ``noise``) toward the
     ink's side of brightness, or in hue (colour less brightness). A letter's counter, paper
     inside a drawn outline or frame, a region under a shadow that falls on part of it,
-    and a region too small for a whole cell stay out. ``luma`` is the brightness the ink
-    was read from (the fall of light taken out)."""
+    and a region too small for a whole cell stay out, and so does a region with ink inside
+    it (a drawing on a whiteboard in its frame: a surface, not a fill; an outline's fill
+    around a drawn detail is lost with it). ``luma`` is the brightness the ink was read
+    from (the fall of light taken out)."""
     from scipy import ndimage
 
     if not ink.any() or ink.all():
@@ -596,20 +599,37 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     means = np.stack([cell_mean(v) for v in channels], axis=-1)
     if colours.shape[2] > 1:  # hue: colour less its own brightness (from the colours, not ``luma``)
         means[..., 1:] -= (means[..., 1:] @ _LUMA)[..., None]
-    # each cell's nearest cell of paper
-    _, (iy, ix) = ndimage.distance_transform_edt(~in_paper, return_indices=True)
-    around = means[iy, ix]
-    differs = ((around[..., 0] - means[..., 0]) if dark_ink else (means[..., 0] - around[..., 0])) \
-        >= max(FILL_CONTRAST, NOISE_MARGIN * noise)
-    if colours.shape[2] > 1:
-        differs |= np.abs(means[..., 1:] - around[..., 1:]).max(axis=-1) >= max(FILL_CONTRAST, NOISE_MARGIN * noise)
-    # each whole cell's region: the label at its first pixel (a whole cell lies in one region)
-    region = labels[:down * cell:cell, :across * cell:cell][in_core]
+    least = max(FILL_CONTRAST, NOISE_MARGIN * noise)
+    cell_region = labels[:down * cell:cell, :across * cell:cell]  # a whole cell lies in one region: its first pixel's
+    region = cell_region[in_core]
     cells = np.bincount(region, minlength=count + 1)
-    share = np.bincount(region, weights=differs[in_core], minlength=count + 1) / np.maximum(cells, 1)
-    chosen = (cells > 0) & (share >= FILL_SHARE)
+
+    def coloured(paper_cells):  # by label: the regions whose cells differ from their nearest paper cell
+        _, (iy, ix) = ndimage.distance_transform_edt(~paper_cells, return_indices=True)
+        around = means[iy, ix]
+        differs = ((around[..., 0] - means[..., 0]) if dark_ink else (means[..., 0] - around[..., 0])) >= least
+        if colours.shape[2] > 1:
+            differs |= np.abs(means[..., 1:] - around[..., 1:]).max(axis=-1) >= least
+        share = np.bincount(region, weights=differs[in_core], minlength=count + 1) / np.maximum(cells, 1)
+        return (cells > 0) & (share >= FILL_SHARE)
+
+    chosen = coloured(in_paper)
     if not chosen.any():
         return ink
+    # a region holding a drawing of its own is a surface it was drawn on, not a fill: a
+    # whiteboard in its frame, a tablet in its bezel, a framed picture, a page on a
+    # clipboard, photographed against a lighter wall or desk (a review found them filled solid)
+    boxes = ndimage.find_objects(labels)
+    for k in np.flatnonzero(chosen):
+        box = boxes[k - 1]
+        solid = ndimage.binary_fill_holes(labels[box] == k)
+        if (solid & ink[box]).sum() >= max(_HELD_INK, _HELD_SHARE * solid.sum()):
+            chosen[k] = False
+    # the regions left out are paper too: one inside a surface (a house's window drawn on the
+    # whiteboard) is judged again against that surface, not the wall beyond its frame
+    more_paper = in_paper | (in_core & ~chosen[cell_region])
+    if chosen.any() and not np.array_equal(more_paper, in_paper):
+        chosen &= coloured(more_paper)
     return ink | chosen[labels]
 
 
