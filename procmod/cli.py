@@ -461,6 +461,13 @@ def _cmd_infer(args) -> None:
     if result.best is None:
         from .infer.common import no_result_error
         raise no_result_error(result)
+    used = result.settings.get("workers")
+    if args.workers is not None and isinstance(used, int) and used < args.workers:
+        # a worker per particle or chain at most: the rest would have had nothing to step
+        shared = kwargs.get(wanted)
+        why = (f": a worker steps {wanted} of its own, and there {'was' if shared == 1 else 'were'} {shared}"
+               if isinstance(shared, int) and shared <= used else "")
+        print(f"note: --workers {args.workers} ran on {used}{why}", file=sys.stderr)
     if note is not None:
         result.notes.append(note)  # in the report too, beside the result it explains
     with folder.writing() as tmp:

@@ -191,3 +191,17 @@ def test_the_addon_zip_holds_the_blender_side_and_its_python(tmp_path):
                                                           "default_python.txt")}
         assert archive.read("procmod_blender/default_python.txt").decode().strip() == "/opt/env/bin/python"
         assert "bl_info" in archive.read("procmod_blender/__init__.py").decode()
+
+
+@pytest.mark.parametrize("out, says", [("addon.tar", "--out must be a .zip file"), ("none/x/addon.zip", "cannot write")])
+def test_the_addon_packager_refuses_in_one_line(tmp_path, capsys, out, says):
+    """A zip named .tar (Blender's installer wants a .zip), and a place it cannot write,
+    are one line and exit 2 (they wrote a zip named .tar, and a traceback)."""
+    from procmod.blender.package import main
+
+    target = tmp_path / out
+    if "none" in out:
+        (tmp_path / "none").write_text("a file where a folder should be")
+    assert main(["--out", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert says in err and err.count("\n") == 1 and not target.exists()

@@ -312,3 +312,10 @@ def test_param_values_are_read_as_their_parameters_default_is_typed():
     assert read(".5 .9", [0.5, 0.9]) == [0.5, 0.9] and read("p,q", ["a", "b"]) == ["p", "q"]
     assert read("c,d", "label") == "c,d"  # a string parameter is never split
     assert read('"0.5,0.9"', [0.5, 0.9]) == [0.5, 0.9] and read("0.5;0.9", [0.5, 0.9]) == [0.5, 0.9]
+
+
+def test_fewer_workers_than_asked_is_said(tmp_path, capsys):
+    """--particles 1 --workers 2 ran on one process without a word (settings.json only)."""
+    assert main(["infer", "vines", "--target", "glyph:a", "--particles", "1", "--workers", "2",
+                 "--out", str(tmp_path / "r")]) == 0
+    assert "note: --workers 2 ran on 1: a worker steps particles of its own, and there was 1" in capsys.readouterr().err

@@ -41,7 +41,15 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="procmod_blender.zip", help="the zip to write (default procmod_blender.zip)")
     parser.add_argument("--python", help="the Python jobs run with (default: the one running this command)")
     args = parser.parse_args(argv)
-    path = write_addon_zip(args.out, args.python)
+    if Path(args.out).suffix.lower() != ".zip":  # Blender installs add-ons from a zip, whatever it is named
+        print(f"procmod.blender.package: error: --out must be a .zip file (Blender installs add-ons from a zip), "
+              f"got {args.out!r}", file=sys.stderr)
+        return 2
+    try:
+        path = write_addon_zip(args.out, args.python)
+    except OSError as exc:
+        print(f"procmod.blender.package: error: cannot write {args.out}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     print(f"wrote {path}: in Blender, Preferences > Add-ons > Install from Disk..., then enable 'procmod'")
     return 0
 
