@@ -460,6 +460,26 @@ def test_what_an_outline_encloses_stays_out_unless_coloured_in(case):
     assert mask[disc & ~middle].any() and not mask[middle].any()
 
 
+@pytest.mark.parametrize("char", ["O", "6"])
+def test_a_blurred_yellow_letters_counter_stays_open(char):
+    """The halo of a blurred yellow stroke tints the paper next to it (39 in hue 3 px out):
+    taken as the paper around the counter, it made the white counter a fill (a sweep of
+    1,998 pictures found it); the paper of a band around the counter decides as well."""
+    from matplotlib import font_manager
+    from PIL import ImageDraw, ImageFilter, ImageFont
+
+    from procmod.targets.image import mask_from_image
+
+    font = ImageFont.truetype(font_manager.findfont("DejaVu Sans"), 200)
+    left, top, right, bottom = font.getbbox(char)
+    pad = 60
+    picture = Image.new("RGB", (right - left + 2 * pad, bottom - top + 2 * pad), (255, 255, 255))
+    ImageDraw.Draw(picture).text((pad - left, pad - top), char, font=font, fill=(255, 225, 0))
+    plain = mask_from_image(picture)
+    blurred = mask_from_image(picture.filter(ImageFilter.GaussianBlur(3)))
+    assert blurred.sum() <= 1.15 * plain.sum()  # the letter, its soft edge: not its counter too
+
+
 def test_a_drawing_on_a_framed_surface_darker_than_the_wall_is_no_fill():
     """A whiteboard in its dark frame, photographed on a lighter wall: the board is 40
     grey levels darker than the wall, as a fill would be, but it holds a drawing (a house

@@ -567,9 +567,10 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     from (the fall of light taken out)."""
     from scipy import ndimage
 
-    if not ink.any() or ink.all():
+    if not ink.any() or ink.all() or float(luma[ink].mean()) >= float(luma[~ink].mean()):
+        # light ink on a dark ground: a blackboard, or a light page read on a dark desk,
+        # whose drawing is what it encloses (procmod.targets.image._drawing_on_a_page)
         return ink
-    dark_ink = float(luma[ink].mean()) < float(luma[~ink].mean())
     # what the ink encloses: the regions of the rest that reach no edge of the picture (a
     # labelling, one pass: binary_fill_holes' flood took ~0.2 s on a page's photo)
     labels, count = ndimage.label(~ink)
@@ -604,13 +605,16 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     region = cell_region[in_core]
     cells = np.bincount(region, minlength=count + 1)
 
+    def differs(values, around):  # per cell: unlike the paper ``around`` it, darker (toward the ink) or in hue
+        unlike = (around[..., 0] - values[..., 0]) >= least
+        if colours.shape[2] > 1:
+            unlike |= np.abs(values[..., 1:] - around[..., 1:]).max(axis=-1) >= least
+        return unlike
+
     def coloured(paper_cells):  # by label: the regions whose cells differ from their nearest paper cell
         _, (iy, ix) = ndimage.distance_transform_edt(~paper_cells, return_indices=True)
-        around = means[iy, ix]
-        differs = ((around[..., 0] - means[..., 0]) if dark_ink else (means[..., 0] - around[..., 0])) >= least
-        if colours.shape[2] > 1:
-            differs |= np.abs(means[..., 1:] - around[..., 1:]).max(axis=-1) >= least
-        share = np.bincount(region, weights=differs[in_core], minlength=count + 1) / np.maximum(cells, 1)
+        unlike = differs(means, means[iy, ix])[in_core]
+        share = np.bincount(region, weights=unlike, minlength=count + 1) / np.maximum(cells, 1)
         return (cells > 0) & (share >= FILL_SHARE)
 
     chosen = coloured(in_paper)
@@ -627,9 +631,21 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
             chosen[k] = False
     # the regions left out are paper too: one inside a surface (a house's window drawn on the
     # whiteboard) is judged again against that surface, not the wall beyond its frame
-    more_paper = in_paper | (in_core & ~chosen[cell_region])
-    if chosen.any() and not np.array_equal(more_paper, in_paper):
-        chosen &= coloured(more_paper)
+    paper_cells = in_paper | (in_core & ~chosen[cell_region])
+    if chosen.any() and not np.array_equal(paper_cells, in_paper):
+        chosen &= coloured(paper_cells)
+    # and against the paper of a band around it, its median: the nearest paper cell may lie
+    # in the soft halo of a blurred stroke (a yellow letter's, tinted 39 in hue 3 px out,
+    # made its white counter a fill, a sweep found)
+    cell_boxes = ndimage.find_objects(np.where(in_core, cell_region, 0), max_label=count)
+    for k in np.flatnonzero(chosen):
+        rows, cols = cell_boxes[k - 1]
+        margin = max(3, (rows.stop - rows.start + cols.stop - cols.start) // 4)
+        box = slice(max(rows.start - margin, 0), rows.stop + margin), slice(max(cols.start - margin, 0), cols.stop + margin)
+        band = means[box][paper_cells[box]]
+        own = in_core[box] & (cell_region[box] == k)
+        if len(band) and differs(means[box][own], np.median(band, axis=0)).mean() < FILL_SHARE:
+            chosen[k] = False  # (no paper in the band, as on a page coloured all over: the nearest cells decide)
     return ink | chosen[labels]
 
 
