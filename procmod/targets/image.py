@@ -559,7 +559,9 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     beyond the ink (a shadow or a dim middle falls on both; a page's paper is not the desk
     it lies on). The region is filled when :data:`FILL_SHARE` of its cells differ from that
     by :data:`FILL_CONTRAST` (and :data:`NOISE_MARGIN` x the paper's ``noise``) toward the
-    ink's side of brightness, or in hue (colour less brightness). A letter's counter, paper
+    ink's side of brightness, or in hue (colour less brightness), and as many differ from
+    the median paper cell of a band around the region (the nearest may lie in a blurred
+    stroke's tinted halo). Only dark ink's regions are filled. A letter's counter, paper
     inside a drawn outline or frame, a region under a shadow that falls on part of it,
     and a region too small for a whole cell stay out, and so does a region with ink inside
     it (a drawing on a whiteboard in its frame: a surface, not a fill; an outline's fill
@@ -641,7 +643,8 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     for k in np.flatnonzero(chosen):
         rows, cols = cell_boxes[k - 1]
         margin = max(3, (rows.stop - rows.start + cols.stop - cols.start) // 4)
-        box = slice(max(rows.start - margin, 0), rows.stop + margin), slice(max(cols.start - margin, 0), cols.stop + margin)
+        box = (slice(max(rows.start - margin, 0), rows.stop + margin),
+               slice(max(cols.start - margin, 0), cols.stop + margin))
         band = means[box][paper_cells[box]]
         own = in_core[box] & (cell_region[box] == k)
         if len(band) and differs(means[box][own], np.median(band, axis=0)).mean() < FILL_SHARE:
