@@ -321,10 +321,21 @@ def _cmd_sample(args) -> None:
         if not is_2d(shown[0]):  # 3D: also a page of samples to turn in a browser
             write_contact_page(shown, tmp / "contact_sheet.html", labels=[str(i) for i in range(len(shown))],
                                links=[f"sample_{i:0{digits}d}.glb" for i in range(len(shown))],
-                               title=f"{model.name}: {_count(args.n, 'sample')}, seed {args.seed}"
+                               title=f"{_page_name(model.name)}: {_count(args.n, 'sample')}, seed {args.seed}"
                                + (f" (the first {len(shown)} shown)" if len(shown) < args.n else ""))
     more = f"; the first {len(shown)} on" if len(shown) < args.n else "; contact sheet:"
-    print(f"wrote {_count(args.n, 'sample')} of {model.name} to {out}/{more} {out / 'contact_sheet.png'}")
+    page = "" if is_2d(shown[0]) else f" and {out / 'contact_sheet.html'} (turn them in a browser)"
+    print(f"wrote {_count(args.n, 'sample')} of {model.name} to {out}/{more} {out / 'contact_sheet.png'}{page}")
+
+
+def _page_name(name: str) -> str:
+    """A model's name as a page shows it: a learned program by its folder and file
+    (``castles/program.json``), not the absolute path it is known by, which a page sent
+    to someone would show them."""
+    path = Path(name)
+    if name in MODELS or path.suffix.lower() != ".json" or not path.is_absolute():
+        return name
+    return f"{path.parent.name}/{path.name}" if path.parent.name else path.name
 
 
 def _cmd_render(args) -> None:

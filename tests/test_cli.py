@@ -319,3 +319,14 @@ def test_fewer_workers_than_asked_is_said(tmp_path, capsys):
     assert main(["infer", "vines", "--target", "glyph:a", "--particles", "1", "--workers", "2",
                  "--out", str(tmp_path / "r")]) == 0
     assert "note: --workers 2 ran on 1: a worker steps particles of its own, and there was 1" in capsys.readouterr().err
+
+
+def test_sample_of_a_3d_model_names_its_page_and_a_programs_page_hides_its_path(tmp_path, capsys):
+    """The 3D contact page was written but never named; a learned program's page title
+    held the program's absolute path."""
+    from procmod.cli import _page_name
+
+    assert main(["sample", "spaceship", "-n", "1", "--size", "32", "--out", str(tmp_path / "s")]) == 0
+    assert f"{tmp_path / 's' / 'contact_sheet.html'} (turn them in a browser)" in capsys.readouterr().out
+    assert _page_name(str(tmp_path / "castles" / "program.json")) == "castles/program.json"
+    assert _page_name("spaceship") == "spaceship"

@@ -77,6 +77,80 @@ def test_the_contact_page_of_3d_samples_draws_every_sample(tmp_path):
         assert browser.drawn_fraction(image, view["rect"]) > 0.02
 
 
+_WHEEL_PROBE = """<script>
+function probe() {
+  if (document.documentElement.dataset.procmodViewer !== 'drawn') { setTimeout(probe, 50); return; }
+  const view = document.querySelector('[data-procmod-view]');
+  const wheel = () => {
+    const event = new WheelEvent('wheel', { deltaY: 120, bubbles: true, cancelable: true });
+    view.dispatchEvent(event);
+    return event.defaultPrevented;  // taken for zooming: the page does not scroll
+  };
+  const before = wheel();
+  view.dispatchEvent(new PointerEvent('pointerdown', { bubbles: true, pointerType: 'mouse', button: 0 }));
+  view.dispatchEvent(new PointerEvent('pointerup', { bubbles: true, pointerType: 'mouse', button: 0 }));
+  const pressed = wheel();
+  view.dispatchEvent(new PointerEvent('pointerleave'));
+  document.body.dataset.probe = [before, pressed, wheel()].join(',');
+}
+probe();
+</script>"""
+
+
+@needs_chromium
+def test_the_wheel_scrolls_a_contact_page_until_a_view_is_pressed(tmp_path):
+    """The tiles cover a contact page, and each zoomed under the wheel: the page could be
+    scrolled only in the gaps between them (a review found). A view takes the wheel once
+    pressed, until the pointer leaves it; a page's only view (a report) takes it at once."""
+    model = get_model("spaceship")
+    samples = [run_forward(model, np.random.default_rng([0, i])) for i in range(2)]
+    page = tmp_path / "contact_sheet.html"
+    write_contact_page(samples, page, links=[f"sample_{i:03d}.glb" for i in range(2)])
+    page.write_text(page.read_text().replace("</body>", _WHEEL_PROBE + "</body>"))
+    dom, _ = browser.load(page, width=900, height=600)
+    assert 'data-probe="false,true,false"' in dom, dom[-1500:]
+    report = _run("spaceship", "spaceship_volume", tmp_path / "run")
+    report.write_text(report.read_text().replace("</body>", _WHEEL_PROBE + "</body>"))
+    dom, _ = browser.load(report)
+    assert 'data-probe="true,true,true"' in dom, dom[-1500:]
+
+
+_CAMERA_PROBE = """<script>
+const seen = [];
+window.addEventListener('error', (event) => seen.push(String(event.message)));
+function press() {
+  if (document.documentElement.dataset.procmodViewer !== 'drawn') { setTimeout(press, 50); return; }
+  const buttons = [...document.querySelectorAll('.procmod-view-buttons button')];
+  buttons.find((b) => b.textContent === 'target camera 1').click();
+  buttons.find((b) => b.textContent === 'reset view').click();
+  setTimeout(() => { document.body.dataset.errors = String(seen.length); }, 200);
+}
+press();
+</script>"""
+
+
+def test_a_target_camera_carries_its_pictures_aspect():
+    """The view fits a target camera's whole picture: the skyline's 128x48 sketch was cut to
+    its middle in a 720x480 view, the fov fitted to its height only."""
+    from procmod.viewer.layers import target_view_parts
+
+    target = load_target_file(ROOT / "scenes" / "city_skyline" / "target.json")
+    _, _, cameras = target_view_parts(target)
+    assert [round(c["aspect"], 3) for c in cameras] == [round(128 / 48, 3)]
+
+
+@needs_chromium
+def test_a_target_camera_and_back_leave_the_view_drawn(tmp_path):
+    """Each target camera gets controls of its own, made for its up (a camera looking down
+    could not be orbited after its button); switching to it and back raises nothing."""
+    page = _run("tree", "tree_heart", tmp_path / "run")
+    page.write_text(page.read_text().replace("</body>", _CAMERA_PROBE + "</body>"))
+    dom, image = browser.load(page)
+    (view,) = browser.views(dom)
+    assert 'data-errors="0"' in dom and view["status"] == "drawn", dom[-1500:]
+    assert browser.drawn_fraction(image, view["rect"], LEGEND_ROWS) > 0.05
+
+
 @needs_chromium
 def test_control_a_view_with_nothing_to_draw_stays_background(tmp_path):
     page = tmp_path / "empty.html"

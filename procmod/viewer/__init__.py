@@ -72,7 +72,8 @@ class View:
         ``(lo xyz, hi xyz)`` of a box drawn as grey lines (a volume target's grid).
     cameras : tuple of dict
         Target cameras (``eye``, ``look_at``, ``up``, ``projection``, ``fov`` as in
-        ``procmod-silhouette/1``); each gets a button that views the scene through it.
+        ``procmod-silhouette/1``, and ``aspect``, their pictures' width over height); each
+        gets a button that views the scene through it.
     """
 
     layers: tuple
@@ -92,7 +93,8 @@ class View:
 VIEWER_CSS = """
 .procmod-canvas { position: fixed; left: 0; top: 0; width: 100%; height: 100%; z-index: -1; display: block; }
 .procmod-views { display: grid; gap: 10px; margin: 1em 0; }
-.procmod-view { position: relative; border: 1px solid #ccc; touch-action: none; cursor: grab; overflow: hidden; }
+.procmod-view { position: relative; border: 1px solid #ccc; touch-action: none; cursor: grab; overflow: hidden;
+  user-select: none; -webkit-user-select: none; }
 .procmod-legend { position: absolute; left: 6px; top: 6px; font: 12px sans-serif; background: rgba(255,255,255,0.8);
   padding: 3px 6px; border-radius: 3px; }
 .procmod-legend label { display: block; white-space: nowrap; cursor: pointer; }

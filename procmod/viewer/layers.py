@@ -130,10 +130,15 @@ def silhouette_layer(name: str, image, camera, colour: str, visible: bool = True
     return Layer(name, mesh_glb(vertices, faces), TARGET_OPACITY + 0.12, colour, visible, frame=False)
 
 
-def camera_json(camera) -> dict:
-    """A camera as ``procmod-silhouette/1`` writes it (for the viewer's target-camera buttons)."""
-    return {"eye": [float(v) for v in camera.eye], "look_at": [float(v) for v in camera.look_at],
-            "up": [float(v) for v in camera.up], "projection": camera.projection, "fov": float(camera.fov)}
+def camera_json(camera, shape=None) -> dict:
+    """A camera as ``procmod-silhouette/1`` writes it (for the viewer's target-camera
+    buttons), with ``aspect``, the width over the height of its picture of ``shape``
+    (rows, columns), so that the view shows all of a wide picture."""
+    out = {"eye": [float(v) for v in camera.eye], "look_at": [float(v) for v in camera.look_at],
+           "up": [float(v) for v in camera.up], "projection": camera.projection, "fov": float(camera.fov)}
+    if shape is not None:
+        out["aspect"] = float(shape[1]) / float(shape[0])
+    return out
 
 
 def target_view_parts(target) -> tuple:
@@ -157,7 +162,8 @@ def target_view_parts(target) -> tuple:
             layers.append(silhouette_layer(f"target view {i + 1}: hit", weights > 0, camera, GAIN_COLOUR))
             layers.append(silhouette_layer(f"target view {i + 1}: avoid", weights < 0, camera, AVOID_COLOUR,
                                            visible=False))
-        return [x for x in layers if x is not None], None, tuple(camera_json(c) for c in target.cameras)
+        return ([x for x in layers if x is not None], None,
+                tuple(camera_json(c, np.shape(w)) for w, c in zip(target.weights, target.cameras)))
     return [], None, ()
 
 

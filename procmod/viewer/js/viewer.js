@@ -15,7 +15,8 @@
 // data-status="drawn" and data-rect="left,top,width,height" (CSS pixels), which the tests read.
 
 import {
-  AmbientLight, Box3, BufferAttribute, Box3Helper, Color, DirectionalLight, DoubleSide, Group, HemisphereLight,
+  AmbientLight, Box3, BufferAttribute, Box3Helper, Color, DirectionalLight, DoubleSide, FrontSide, Group,
+  HemisphereLight,
   MeshStandardMaterial, PerspectiveCamera, Scene, Vector3, WebGLRenderer,
 } from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -43,7 +44,7 @@ function material(layer, hasColours) {
     transparent: translucent,
     opacity: layer.opacity,
     depthWrite: !translucent,
-    side: translucent ? DoubleSide : layer.double_sided ? DoubleSide : undefined,
+    side: translucent || layer.double_sided ? DoubleSide : FrontSide,
   });
 }
 
@@ -112,19 +113,24 @@ function frame(camera, controls, box, direction) {
 
 function viewFromTargetCamera(camera, controls, spec) {
   // A target's camera (a silhouette view): perspective cameras as they are; orthographic ones
-  // approximated from far away with the fov that shows the same height at look_at.
+  // approximated from far away with the fov that shows the same height at look_at. The
+  // camera's whole picture is shown: a picture wider than the view (a 128x48 skyline) gets
+  // the taller fov that fits its width. ``controls`` must have been made for ``spec.up``.
   const eye = new Vector3(...spec.eye);
   const lookAt = new Vector3(...spec.look_at);
-  camera.up.set(...spec.up);
+  let fov;
   if (spec.projection === 'orthographic') {
     const forward = lookAt.clone().sub(eye).normalize();
     const distance = spec.fov * 20;
-    camera.fov = 2 * Math.atan(spec.fov / 2 / distance) * 180 / Math.PI;
+    fov = 2 * Math.atan(spec.fov / 2 / distance);
     camera.position.copy(lookAt).addScaledVector(forward, -distance);
   } else {
-    camera.fov = spec.fov;
+    fov = spec.fov * Math.PI / 180;
     camera.position.copy(eye);
   }
+  const wider = (spec.aspect || 1) / (camera.aspect || 1);
+  if (wider > 1) fov = 2 * Math.atan(Math.tan(fov / 2) * wider);
+  camera.fov = fov * 180 / Math.PI;
   camera.near = camera.position.distanceTo(lookAt) / 100;
   camera.far = camera.position.distanceTo(lookAt) * 100;
   camera.updateProjectionMatrix();
@@ -222,14 +228,32 @@ async function start() {
           0x9a9a9a);
         content.add(helper);
       }
-      const controls = new OrbitControls(camera, element);
-      controls.addEventListener('change', redraw);
+      // Orbiting turns about camera.up as it was when the controls were made: a target
+      // camera looking down (its up not y) gets controls of its own, or dragging did nothing.
+      // On a page of several views the wheel scrolls the page until a view is pressed (it
+      // zoomed whichever tile lay under the pointer, and tiles cover the page).
+      const zoomAtOnce = elements.length === 1;
+      let controls = null;
+      const orbitAbout = (up) => {
+        if (controls) controls.dispose();
+        camera.up.set(...up);
+        controls = new OrbitControls(camera, element);
+        controls.enableZoom = zoomAtOnce;
+        controls.addEventListener('change', redraw);
+        view.controls = controls;
+      };
+      const view = { element, scene, camera, controls };
+      if (!zoomAtOnce) {
+        element.addEventListener('pointerdown', () => { controls.enableZoom = true; });
+        element.addEventListener('pointerleave', () => { controls.enableZoom = false; });
+      }
+      orbitAbout([0, 1, 0]);
       const box = new Box3();
       roots.forEach((root, i) => { if (spec.layers[i].frame !== false) box.expandByObject(root); });
       if (box.isEmpty()) box.setFromObject(content);
       if (box.isEmpty()) box.set(new Vector3(-1, -1, -1), new Vector3(1, 1, 1));
       const direction = new Vector3(...(spec.direction || [1.0, 0.7, 1.4]));
-      const home = () => { camera.up.set(0, 1, 0); camera.fov = 35; frame(camera, controls, box, direction); redraw(); };
+      const home = () => { orbitAbout([0, 1, 0]); camera.fov = 35; frame(camera, controls, box, direction); redraw(); };
       home();
       element.addEventListener('dblclick', home);
       legend(element, spec.layers, roots, redraw);
@@ -250,11 +274,15 @@ async function start() {
         const button = document.createElement('button');
         button.type = 'button';
         button.textContent = `target camera ${i + 1}`;
-        button.addEventListener('click', () => { viewFromTargetCamera(camera, controls, cameraSpec); redraw(); });
+        button.addEventListener('click', () => {
+          orbitAbout(cameraSpec.up);
+          viewFromTargetCamera(camera, controls, cameraSpec);
+          redraw();
+        });
         buttons.append(button);
       });
       element.append(buttons);
-      views.push({ element, scene, camera, controls });
+      views.push(view);
     }
   } catch (error) {
     fail('The 3D view could not be built: ' + error);
