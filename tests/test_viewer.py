@@ -90,8 +90,10 @@ function probe() {
   view.dispatchEvent(new PointerEvent('pointerdown', { bubbles: true, pointerType: 'mouse', button: 0 }));
   view.dispatchEvent(new PointerEvent('pointerup', { bubbles: true, pointerType: 'mouse', button: 0 }));
   const pressed = wheel();
+  view.dispatchEvent(new MouseEvent('dblclick', { bubbles: true }));  // reset: the view is still pressed
+  const reset = wheel();
   view.dispatchEvent(new PointerEvent('pointerleave'));
-  document.body.dataset.probe = [before, pressed, wheel()].join(',');
+  document.body.dataset.probe = [before, pressed, reset, wheel()].join(',');
 }
 probe();
 </script>"""
@@ -101,18 +103,19 @@ probe();
 def test_the_wheel_scrolls_a_contact_page_until_a_view_is_pressed(tmp_path):
     """The tiles cover a contact page, and each zoomed under the wheel: the page could be
     scrolled only in the gaps between them (a review found). A view takes the wheel once
-    pressed, until the pointer leaves it; a page's only view (a report) takes it at once."""
+    pressed, until the pointer leaves it (a double-click's reset keeps it); a page's only
+    view (a report) takes it at once."""
     model = get_model("spaceship")
     samples = [run_forward(model, np.random.default_rng([0, i])) for i in range(2)]
     page = tmp_path / "contact_sheet.html"
     write_contact_page(samples, page, links=[f"sample_{i:03d}.glb" for i in range(2)])
     page.write_text(page.read_text().replace("</body>", _WHEEL_PROBE + "</body>"))
     dom, _ = browser.load(page, width=900, height=600)
-    assert 'data-probe="false,true,false"' in dom, dom[-1500:]
+    assert 'data-probe="false,true,true,false"' in dom, dom[-1500:]
     report = _run("spaceship", "spaceship_volume", tmp_path / "run")
     report.write_text(report.read_text().replace("</body>", _WHEEL_PROBE + "</body>"))
     dom, _ = browser.load(report)
-    assert 'data-probe="true,true,true"' in dom, dom[-1500:]
+    assert 'data-probe="true,true,true,true"' in dom, dom[-1500:]
 
 
 _CAMERA_PROBE = """<script>
@@ -121,6 +124,13 @@ window.addEventListener('error', (event) => seen.push(String(event.message)));
 function press() {
   if (document.documentElement.dataset.procmodViewer !== 'drawn') { setTimeout(press, 50); return; }
   const buttons = [...document.querySelectorAll('.procmod-view-buttons button')];
+  // a mouse press on a button or a checkbox stays there (the view's controls captured it)
+  let reached = 0;
+  document.querySelector('[data-procmod-view]').addEventListener('pointerdown', () => { reached += 1; });
+  for (const pressed of [buttons[0], document.querySelector('.procmod-legend input')]) {
+    pressed.dispatchEvent(new PointerEvent('pointerdown', { bubbles: true, pointerType: 'mouse', button: 0 }));
+  }
+  document.body.dataset.reached = String(reached);
   buttons.find((b) => b.textContent === 'target camera 1').click();
   buttons.find((b) => b.textContent === 'reset view').click();
   setTimeout(() => { document.body.dataset.errors = String(seen.length); }, 200);
@@ -142,12 +152,15 @@ def test_a_target_camera_carries_its_pictures_aspect():
 @needs_chromium
 def test_a_target_camera_and_back_leave_the_view_drawn(tmp_path):
     """Each target camera gets controls of its own, made for its up (a camera looking down
-    could not be orbited after its button); switching to it and back raises nothing."""
+    could not be orbited after its button); switching to it and back raises nothing; and a
+    mouse press on a button or a legend checkbox stays with it (the view's controls
+    captured it, so a real click did nothing, a review found)."""
     page = _run("tree", "tree_heart", tmp_path / "run")
     page.write_text(page.read_text().replace("</body>", _CAMERA_PROBE + "</body>"))
     dom, image = browser.load(page)
     (view,) = browser.views(dom)
     assert 'data-errors="0"' in dom and view["status"] == "drawn", dom[-1500:]
+    assert 'data-reached="0"' in dom  # the presses on a button and a checkbox did not reach the view
     assert browser.drawn_fraction(image, view["rect"], LEGEND_ROWS) > 0.05
 
 

@@ -44,7 +44,8 @@ body {{ font-family: sans-serif; margin: 2em; color: #222; }}
 .procmod-legend, .procmod-view-buttons {{ display: none; }}
 </style></head><body>
 <h1>{html.escape(title)}</h1>
-{note_html}<p>Drag a view to turn it, scroll to zoom, right-drag to pan, double-click to reset.</p>
+{note_html}<p>Drag a view to turn it, right-drag to pan, double-click to reset; click a view, then scroll to zoom it
+(elsewhere the wheel scrolls the page).</p>
 <div class="grid">{''.join(cells)}</div>
 {more}{viewer_scripts(views)}</body></html>
 """

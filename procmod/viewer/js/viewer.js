@@ -95,8 +95,15 @@ function legend(element, layers, roots, redraw) {
     label.append(check, swatch, document.createTextNode(' ' + layer.name));
     box.append(label);
   });
+  keepPointer(box);
   element.append(box);
   return box;
+}
+
+function keepPointer(element) {
+  // The view's orbit controls capture the pointer on pointerdown: a mouse click on a button
+  // or a checkbox inside the view went to the view instead (touch and keys worked).
+  element.addEventListener('pointerdown', (event) => event.stopPropagation());
 }
 
 function frame(camera, controls, box, direction) {
@@ -233,19 +240,20 @@ async function start() {
       // On a page of several views the wheel scrolls the page until a view is pressed (it
       // zoomed whichever tile lay under the pointer, and tiles cover the page).
       const zoomAtOnce = elements.length === 1;
+      let pressed = false;  // since the pointer last entered the view
       let controls = null;
       const orbitAbout = (up) => {
         if (controls) controls.dispose();
         camera.up.set(...up);
         controls = new OrbitControls(camera, element);
-        controls.enableZoom = zoomAtOnce;
+        controls.enableZoom = zoomAtOnce || pressed;
         controls.addEventListener('change', redraw);
         view.controls = controls;
       };
       const view = { element, scene, camera, controls };
       if (!zoomAtOnce) {
-        element.addEventListener('pointerdown', () => { controls.enableZoom = true; });
-        element.addEventListener('pointerleave', () => { controls.enableZoom = false; });
+        element.addEventListener('pointerdown', () => { pressed = true; controls.enableZoom = true; });
+        element.addEventListener('pointerleave', () => { pressed = false; controls.enableZoom = false; });
       }
       orbitAbout([0, 1, 0]);
       const box = new Box3();
@@ -281,6 +289,7 @@ async function start() {
         });
         buttons.append(button);
       });
+      keepPointer(buttons);
       element.append(buttons);
       views.push(view);
     }
