@@ -308,6 +308,9 @@ def test_a_shape_in_two_pieces_is_named_by_graph_and_refused_by_augment(tmp_path
     code = main(["strings", "augment", str(tmp_path / "gap.glb"), "--count", "3", "--out", str(tmp_path / "a")])
     out, err = capsys.readouterr()
     assert code == 2 and err.count("\n") == 1 and "Cap touches no other part" in err, err
+    # within what: a gap a part placed by eye leaves (the tolerance was not said, and
+    # augment takes no --tolerance)
+    assert "no other part within 0.00" in err and "the contact tolerance: 0.001 x the median part's size" in err
     assert not (tmp_path / "a").exists()
     # a folder of shapes: the message names the file of the shape in pieces
     (tmp_path / "set").mkdir()

@@ -158,7 +158,7 @@ def _shape_sources(paths, count: int) -> list | None:
 
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .contacts import loose_parts, shape_graph
+    from .contacts import loose_parts, shape_graph, tolerance_for
     from .assets import read_shape_inputs
     from .grammar import Grammar, ring_rule_note
     from ..core.paths import output_path
@@ -169,7 +169,8 @@ def _graph(args) -> None:
         raise InvalidArgumentError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     out = output_path(args.out)
     folder = RunFolder(out, GRAPHS_FOLDER, args.overwrite, inputs=args.shapes)
-    graphs = [shape_graph(shape_set, s, args.tolerance) for s in shape_set.shapes]
+    tolerance = tolerance_for(shape_set.library) if args.tolerance is None else args.tolerance
+    graphs = [shape_graph(shape_set, s, tolerance) for s in shape_set.shapes]
     with folder.writing() as tmp:
         for i, g in enumerate(graphs):
             write_graph(g, tmp / f"shape_{i:03d}.json")
@@ -183,8 +184,8 @@ def _graph(args) -> None:
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
         if len(pieces) > 1:
             named = _shape_sources(args.shapes, len(graphs))
-            print(f"note: {loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
-                  "shape, so 'strings augment' refuses it: move the parts to touch", file=sys.stderr)
+            print(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string encodes one "
+                  "connected shape, so 'strings augment' refuses it: move the parts to touch", file=sys.stderr)
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                 for t, keys in sorted(grammar.rules.items())))
@@ -273,14 +274,18 @@ def _augment(args) -> None:
     folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
-    from .contacts import loose_parts, shape_graph
+    from .contacts import DEFAULT_TOLERANCE, loose_parts, shape_graph, tolerance_for
     named = _shape_sources(args.shapes, len(shape_set.shapes))
+    tolerance = tolerance_for(shape_set.library)
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
-        g = shape_graph(shape_set, shape)
+        g = shape_graph(shape_set, shape, tolerance)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
-            raise InvalidArgumentError(f"{loose_parts(g, pieces, i, named, shape_set.letters)}; a string encodes one connected "
-                                       "shape: move the parts to touch")
+            raise InvalidArgumentError(
+                f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance)} (the contact tolerance: "
+                f"{DEFAULT_TOLERANCE:g} x the median part's size); a string encodes one connected shape: move the "
+                "parts to touch ('strings graph --tolerance' shows what a larger gap would join, but augment and "
+                "train take contacts within this one only)")
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     bar = progress_bar(total=args.count, unit=" shapes")

@@ -165,11 +165,14 @@ def centroids(shape_set: ShapeSet, shape: Shape) -> np.ndarray:
     return np.array([part_points(shape_set.library, p, t).mean(0) for p, t in zip(shape.parts, shape.transforms)])
 
 
-def loose_parts(g, pieces, index: int, inputs, letters: dict) -> str:
+def loose_parts(g, pieces, index: int, inputs, letters: dict, tolerance: float | None = None) -> str:
     """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
-    ``letters``: part name -> type letter)."""
+    ``letters``: part name -> type letter), and within what ``tolerance`` (a gap a part
+    placed by eye leaves is found only within it)."""
     name_of = {letter: name for name, letter in letters.items()}
     loose = sorted(name_of.get(g.nodes[v]["type"], g.nodes[v]["type"]) for piece in pieces[1:] for v in piece)
     shown = ", ".join(loose[:8]) + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
     source = f" ({inputs[index]})" if inputs else ""
-    return f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} no other part"
+    within = f" within {tolerance:.3g}" if tolerance is not None else ""
+    return (f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} no other "
+            f"part{within}")
