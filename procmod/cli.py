@@ -472,6 +472,8 @@ def _cmd_infer(args) -> None:
     if result.best is None:
         from .infer.common import no_result_error
         raise no_result_error(result)
+    for engine_note in result.notes:  # what the engine says of its run (in the report too)
+        print(f"note: {one_line(engine_note)}", file=sys.stderr)
     used = result.settings.get("workers")
     if args.workers is not None and isinstance(used, int) and used < args.workers:
         # a worker per particle or chain at most: the rest would have had nothing to step

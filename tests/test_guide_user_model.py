@@ -51,6 +51,32 @@ def test_a_guide_is_made_trained_and_used_for_a_model_of_the_users_own_file(tmp_
     assert "trained for model 'my-plant', not 'vines'" in capsys.readouterr().err
 
 
+def test_a_guide_for_a_rule_since_renamed_says_so(tmp_path, monkeypatch, capsys):
+    """The model's rule renamed after the guide was trained: a guide with local features
+    blamed missing argument ranges and advised training without local state; one without
+    them matched no choice and ran on the prior, silently, as "smc+guide"."""
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
+                 "--out", "traces"]) == 0
+    for features, stem in (("all", "g"), ("target+partial", "g_image")):
+        assert main(["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", stem, "--iterations", "20",
+                     "--features", features]) == 0
+    renamed = PLANT_FILE.replace("def plant(", "def shoot(").replace(", plant, x1", ", shoot, x1")
+    renamed = renamed.replace('"a plant", plant,', '"a plant", shoot,').replace('{"plant":', '{"shoot":')
+    # (another file: this process has the first one loaded)
+    (tmp_path / "shoots.py").write_text(renamed.replace('heading_rules=("plant",)', 'heading_rules=("shoot",)'))
+    capsys.readouterr()
+    argv = ["infer", "shoots.py:PLANT", "--target", "scribble:3", "--particles", "4"]
+    assert main(argv + ["--guide", "g", "--out", "run"]) == 2
+    assert "declares argument ranges for rule 'shoot' but not 'plant'" in capsys.readouterr().err
+    assert main(argv + ["--guide", "g_image", "--out", "run"]) == 0
+    err = capsys.readouterr().err
+    assert "note: the guide proposed none of this run's choices" in err and "plant:angle" in err, err
+    notes = json.loads((tmp_path / "run" / "settings.json").read_text())["notes"]
+    assert any("proposed none" in note for note in notes)
+
+
 def test_worker_processes_import_the_model_file_from_its_absolute_path(tmp_path, monkeypatch):
     """Workers get the file's absolute path: a job started with a relative FILE.py:NAME
     makes the same traces inline and on a pool, and resumes from another directory."""

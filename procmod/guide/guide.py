@@ -493,6 +493,20 @@ class GuidedProposer:
         index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, ctx.args))
         return dist.labels[int(index)], lq
 
+    def unmatched_note(self) -> str | None:
+        """A note when the guide proposed none of the choices the model made: none of its
+        sites is a choice of the model's rules (a rule renamed since it was trained), so
+        every choice came from the prior and the run was unguided in all but name; None
+        otherwise (or before any choice)."""
+        if not self._by_rule or any(site is not None for site in self._by_rule.values()):
+            return None
+        made = sorted({site_key(rule_name(rule), name) for rule, name in self._by_rule})
+        known = sorted(self.guide.sites)
+        return (f"the guide proposed none of this run's choices: its sites ({', '.join(known[:4])}"
+                f"{', ...' if len(known) > 4 else ''}) are none of the model's ({', '.join(made[:4])}"
+                f"{', ...' if len(made) > 4 else ''}), so every choice came from the prior; retrain the guide "
+                "on this model")
+
     def _draws(self, rng) -> tuple[float, float]:
         """A uniform and a standard normal from ``rng``, drawn in blocks: two generator
         calls per choice cost about as much as the network. Deterministic given the

@@ -300,6 +300,9 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         finally:
             for worker in remote:
                 worker.close()
+    unmatched = proposer.unmatched_note() if proposer is not None else None
+    if unmatched is not None:
+        notes.append(unmatched)
     engine = ("smc" if order == "program" else "sosmc") + ("+guide" if guide is not None else "")
     return Result(engine, tracker.best, tracker.best_score, states, tracker.rows, tracker.seconds,
                   tracker.evaluations,
