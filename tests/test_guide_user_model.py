@@ -143,3 +143,20 @@ def test_a_traces_folder_resumes_past_the_users_files_and_overwrite_removes_its_
     names = sorted(p.name for p in (tmp_path / "tr").iterdir())
     assert names == ["g.json", "g.npz", "g.pt", "notes.txt", "trace_00000.json", "trace_00001.json", "traces.json"]
     assert json.loads((tmp_path / "tr" / "traces.json").read_text())["seed"] == 5
+
+
+def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):
+    """The .npz is what inference reads without torch; a guide copied without its .pt was
+    refused for the .pt. Without a matching .npz the .pt is still required, and named."""
+    import shutil
+
+    from procmod.guide.guide import PRETRAINED
+
+    for suffix in (".json", ".npz"):
+        shutil.copy(PRETRAINED / f"vines-scribbles{suffix}", tmp_path / f"g{suffix}")
+    argv = ["infer", "vines", "--target", "glyph:a", "--particles", "3", "--out", str(tmp_path / "run")]
+    assert main(argv + ["--guide", str(tmp_path / "g")]) == 0, capsys.readouterr().err
+    (tmp_path / "g.npz").write_bytes(b"not the weights")
+    capsys.readouterr()
+    assert main(argv + ["--guide", str(tmp_path / "g"), "--overwrite"]) == 2
+    assert "g.pt does not exist" in capsys.readouterr().err

@@ -187,7 +187,8 @@ class Guide:
         if not isinstance(path, (str, os.PathLike)):
             raise GuideError(f"a guide is given by its name or path, got {type(path).__name__} {path!r:.40}")
         weights, meta = guide_paths(path)
-        for p in (weights, meta):
+
+        def check_file(p: Path) -> None:
             if p.exists() and not p.is_file():
                 raise GuideError(f"guide file {p} is not a regular file (a folder, a device or a pipe); a guide is "
                                  "a .pt + .json pair written by 'procmod guide train'")
@@ -195,6 +196,10 @@ class Guide:
                 shipped = ", ".join(pretrained_guides()) or "none"
                 raise GuideError(f"guide file {p} does not exist (a guide is a .pt + .json pair "
                                  f"written by 'procmod guide train', or a shipped guide: {shipped})")
+
+        check_file(meta)
+        if weights.exists() or not weights.with_suffix(".npz").is_file():
+            check_file(weights)  # (a matching .npz alone is enough to run the guide; the .pt: to train on)
         data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
@@ -202,6 +207,7 @@ class Guide:
         guide._numpy = _numpy_weights(data, weights.with_suffix(".npz"))
         if guide._numpy is not None:
             return guide
+        check_file(weights)  # the .npz does not match this .json: only the .pt can say
         state = load_tensors(weights, GuideError, "guide's weights", "; use a guide written by 'procmod guide train'")
         try:  # no matching .npz: the .pt (torch)
             guide.nets.load_state_dict(state)
