@@ -160,3 +160,26 @@ def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):
     capsys.readouterr()
     assert main(argv + ["--guide", str(tmp_path / "g"), "--overwrite"]) == 2
     assert "g.pt does not exist" in capsys.readouterr().err
+
+
+def test_a_guides_json_beside_another_guides_weights_is_refused(tmp_path, monkeypatch, capsys):
+    """Two guides of the same shapes: one's .json beside the other's .pt and .npz ran with
+    the other's weights (the .npz digest caught it, then the .pt was read unchecked)."""
+    import shutil
+
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
+                 "--out", "traces"]) == 0
+    for stem, seed in (("a", "0"), ("b", "1")):
+        assert main(["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", stem, "--iterations", "20",
+                     "--seed", seed]) == 0
+    (tmp_path / "mix").mkdir()
+    shutil.copy(tmp_path / "a.json", tmp_path / "mix" / "g.json")
+    for suffix in (".pt", ".npz"):
+        shutil.copy(tmp_path / f"b{suffix}", tmp_path / "mix" / f"g{suffix}")
+    capsys.readouterr()
+    argv = ["infer", "plants.py:PLANT", "--target", "scribble:3", "--particles", "4", "--out", "run", "--guide"]
+    assert main(argv + ["mix/g"]) == 2
+    assert "g.pt is not the weights written with g.json" in capsys.readouterr().err
+    assert main(argv + ["a"]) == 0  # the guide as written

@@ -6,7 +6,8 @@ for, its feature settings, mixture size and sites, and how it was trained; ``NAM
 holds the same weights as plain arrays (``numpy.load`` without pickles), its digest in
 the metadata (``numpy_weights``), so that running a guide needs no torch: importing torch
 takes seconds, longer than a 10-particle guided run. A guide without it (or whose
-``.npz`` does not match its digest) is read from the ``.pt``.
+``.npz`` does not match its digest) is read from the ``.pt``, which must match its own
+digest (``torch_weights``) where the metadata records one.
 """
 
 from __future__ import annotations
@@ -178,6 +179,7 @@ class Guide:
         write_bytes_atomic(weights.with_suffix(".npz"), arrays)
         data = self.metadata()
         data["numpy_weights"] = {"sha256_16": fingerprint(arrays)}  # of STEM.npz
+        data["torch_weights"] = {"sha256_16": fingerprint(weights.read_bytes())}  # of STEM.pt
         write_text_atomic(meta, json.dumps(data, indent=1) + "\n")
         return weights, meta
 
@@ -208,6 +210,10 @@ class Guide:
         if guide._numpy is not None:
             return guide
         check_file(weights)  # the .npz does not match this .json: only the .pt can say
+        recorded = data.get("torch_weights")  # (guides saved before it was recorded: unchecked)
+        if isinstance(recorded, dict) and recorded.get("sha256_16") != fingerprint(weights.read_bytes()):
+            raise GuideError(f"{weights} is not the weights written with {meta.name} (another guide's, or changed "
+                             "since); keep the files that 'procmod guide train' wrote together")
         state = load_tensors(weights, GuideError, "guide's weights", "; use a guide written by 'procmod guide train'")
         try:  # no matching .npz: the .pt (torch)
             guide.nets.load_state_dict(state)
