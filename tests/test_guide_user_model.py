@@ -51,14 +51,19 @@ def test_a_guide_is_made_trained_and_used_for_a_model_of_the_users_own_file(tmp_
     assert "trained for model 'my-plant', not 'vines'" in capsys.readouterr().err
 
 
+def _three_traces(folder, monkeypatch):
+    """The plant's file in ``folder`` (made the current folder) and 3 traces of it in ``traces``."""
+    (folder / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(folder)
+    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
+                 "--out", "traces"]) == 0
+
+
 def test_a_guide_for_a_rule_since_renamed_says_so(tmp_path, monkeypatch, capsys):
     """The model's rule renamed after the guide was trained: a guide with local features
     blamed missing argument ranges and advised training without local state; one without
     them matched no choice and ran on the prior, silently, as "smc+guide"."""
-    (tmp_path / "plants.py").write_text(PLANT_FILE)
-    monkeypatch.chdir(tmp_path)
-    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
-                 "--out", "traces"]) == 0
+    _three_traces(tmp_path, monkeypatch)
     for features, stem in (("all", "g"), ("target+partial", "g_image")):
         assert main(["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", stem, "--iterations", "20",
                      "--features", features]) == 0
@@ -167,10 +172,7 @@ def test_a_guides_json_beside_another_guides_weights_is_refused(tmp_path, monkey
     the other's weights (the .npz digest caught it, then the .pt was read unchecked)."""
     import shutil
 
-    (tmp_path / "plants.py").write_text(PLANT_FILE)
-    monkeypatch.chdir(tmp_path)
-    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
-                 "--out", "traces"]) == 0
+    _three_traces(tmp_path, monkeypatch)
     for stem, seed in (("a", "0"), ("b", "1")):
         assert main(["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", stem, "--iterations", "20",
                      "--seed", seed]) == 0
