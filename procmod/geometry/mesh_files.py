@@ -57,6 +57,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
+from ..core.errors import whole_number
 from ..core.io import MAX_JSON_BYTES
 from ..core.limits import relaxed_gc
 from .gltf_accessors import decoded_gltf
@@ -384,8 +385,10 @@ _TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MA
 
 
 def _whole(value, default=None):
-    """``value`` if it is a non-negative int (not a bool), else ``default``."""
-    return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else default
+    """``value`` if it is a whole number of 0 or more (:func:`~procmod.core.errors.whole_number`),
+    else ``default``."""
+    number = whole_number(value)
+    return number if number is not None and number >= 0 else default
 
 
 def _check_buffer_layout(header: dict, glb: bool) -> None:
