@@ -255,6 +255,26 @@ def test_small_population_resampling_picks_what_numpy_picks():
         assert all(relative[a] > 0 for a in expected)  # never a zero-weight ancestor
 
 
+def test_small_log_mean_exp_is_numpys_on_python_floats():
+    """Short lists (a small SMC population's final weights) take a Python-float path; it
+    gives numpy's value, -inf when every weight is -inf, and is no different for -inf
+    entries among finite ones."""
+    from procmod.infer.common import SMALL_LOG_MEAN_EXP, log_mean_exp
+    gen = np.random.default_rng(5)
+    for trial in range(300):
+        n = int(gen.integers(1, SMALL_LOG_MEAN_EXP + 1))
+        values = gen.normal(0, 30, n) - 700  # far below exp's range: the top must be taken out
+        values[gen.random(n) < 0.3] = -np.inf
+        as_list = values.tolist()
+        if not np.isfinite(values).any():
+            assert log_mean_exp(as_list) == -math.inf
+            continue
+        top = values.max()
+        reference = top + math.log(np.mean(np.exp(values - top)))
+        assert abs(log_mean_exp(as_list) - reference) <= 1e-12 * max(1.0, abs(reference))
+        assert abs(log_mean_exp(values) - reference) <= 1e-12 * max(1.0, abs(reference))
+
+
 def test_temperature_ladder_matches_seed_002():
     betas = temperature_ladder(5)
     assert betas[0] == 1.0

@@ -530,11 +530,15 @@ def test_incremental_pyramid_updates_equal_a_rebuild():
     from procmod.guide.features import partial_pyramid
     from procmod.core import start, step
     checked = 0
+    canvas = VINES.new_output()
+    # a run's shared empty pyramid (the proposer's), and one of another size, which must not be used
+    empties = [None, Pyramid.empty(canvas.height, canvas.width), Pyramid.empty(canvas.height, canvas.width + 3)]
     for seed in range(21, 41):  # several vines, so that many emits are checked
         state = start(VINES, VINES.new_output())
         rng = np.random.default_rng(seed)
+        empty = empties[seed % 3]
         while step(state, rng):
-            incremental = partial_pyramid(state)
+            incremental = partial_pyramid(state, empty)
             scratch = Pyramid(state.output.pixels.reshape(state.output.height, state.output.width))
             np.testing.assert_allclose(incremental.flat, scratch.flat, atol=1e-12)
             checked += 1

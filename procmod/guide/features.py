@@ -439,14 +439,21 @@ class FeatureExtractor:
         return (position[0] - frame[0]) * frame[2], (position[1] - frame[1]) * frame[3]
 
 
-def partial_pyramid(state) -> Pyramid:
+def partial_pyramid(state, empty: Pyramid | None = None) -> Pyramid:
     """The pyramid of what ``state`` has drawn, updated only after a new emit and only
-    where the emit changed pixels."""
+    where the emit changed pixels. ``empty``, an empty pyramid made beforehand (the
+    target's size, shared by every particle of a run), starts a derivation's first pyramid
+    when its raster has that size."""
     cached = state.guide_cache
     if cached is not None and cached[0] == state.n_emits:
         return cached[1]
     canvas = state.output
-    previous = cached[1] if cached is not None else Pyramid.empty(canvas.height, canvas.width)
+    if cached is not None:
+        previous = cached[1]
+    elif empty is not None and empty.layout[0, 1] == canvas.height and empty.layout[0, 2] == canvas.width:
+        previous = empty  # never changed: updated() writes a new array
+    else:
+        previous = Pyramid.empty(canvas.height, canvas.width)
     pyramid = previous.updated(canvas.pixels)
     state.guide_cache = (state.n_emits, pyramid)
     return pyramid

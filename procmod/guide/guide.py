@@ -349,6 +349,10 @@ class GuidedProposer:
         self._use_local, self._use_target, self._use_partial = settings.local, settings.target, settings.partial
         self._target_flat = extractor.target_pyramid.flat if settings.target else np.zeros(1)
         self._layout = extractor.target_pyramid.layout if settings.target else np.zeros((4, 3), dtype=np.int64)
+        # every particle's first partial-output pyramid, made before the engine's clock starts
+        # (its layout is the target's own object: _inputs then skips the size comparison)
+        self._empty_partial = (Pyramid(flat=np.zeros_like(self._target_flat), layout=self._layout)
+                               if settings.target else None)
         self._no_local = np.zeros(0)
         # progress features (features.py): the pending calls, and the target's covered fraction
         self._n_progress = n_progress = extractor.n_progress()
@@ -432,7 +436,7 @@ class GuidedProposer:
             self._raw_of = (args, raw)
         pyramid = None
         if self._use_partial or n_progress == 2:
-            pyramid = partial_pyramid(state)
+            pyramid = partial_pyramid(state, self._empty_partial)
             if self._use_target and pyramid.layout is not self._layout:
                 # the kernels read both pyramids by the target's layout: sizes must agree
                 check_same_size(self._layout, pyramid.layout)

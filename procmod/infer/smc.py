@@ -151,8 +151,8 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
         if tracker.due():
             total = local.score_sum() + sum(worker.call("scores") for worker in workers)
             tracker.record(total / particles)
-    weights = np.array(log_w)
-    return _collect(local, workers, tracker), weights, log_z + log_mean_exp(weights)
+    # log_w is a list: log_mean_exp sums a short one in Python floats
+    return _collect(local, workers, tracker), np.array(log_w), log_z + log_mean_exp(log_w)
 
 
 def _regroup(local: ParticleShard, workers: list, ancestors: list, sizes: list, finished: list) -> list:
@@ -291,8 +291,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                 states, log_w, log_z = _run_once(local, remote, particles, rng, resampling, ess_threshold,
                                                  tracker)
                 tracker.generations += 1
-                tracker.record(float(np.mean([checked_value(target.score(s.output), target, "score")
-                                              for s in states])))
+                scores = [checked_value(target.score(s.output), target, "score") for s in states]
+                tracker.record(math.fsum(scores) / len(scores))  # a list's mean without numpy's call overhead
                 if log_z == -math.inf:
                     notes.append(ZERO_LIKELIHOOD_NOTE)
                 if budget is None or tracker.spent():
