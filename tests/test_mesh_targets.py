@@ -545,6 +545,32 @@ def test_binary_stl_counts_that_disagree_with_the_size(tmp_path):
         load_volume_target(tmp_path / "v.json")
 
 
+def test_ascii_stl_as_tools_write_it_and_files_named_for_another_format(tmp_path):
+    """ASCII STL with a byte-order mark, without its solid line, or with tabs is read (it
+    was taken for a binary STL of 10^8-10^9 triangles: "decimate it first"); a binary glTF
+    named .gltf is read as the GLB it is; OBJ text named .stl is refused naming OBJ."""
+    from procmod.targets.files import declared_faces
+    box = _box(*BOX)
+    text = trimesh.exchange.stl.export_stl_ascii(box)
+    cases = {"bom": b"\xef\xbb\xbf" + text.encode(),
+             "no_solid": text.split("\n", 1)[1].rsplit("endsolid", 1)[0].encode(),
+             "tabs": text.replace("  ", "\t").replace(" ", "\t").encode()}
+    for name, data in cases.items():
+        (tmp_path / f"{name}.stl").write_bytes(data)
+        assert declared_faces(tmp_path / f"{name}.stl") == 12, name
+        grid, mask = voxelize_mesh_file(tmp_path / f"{name}.stl", H)
+        assert np.array_equal(mask, _in_boxes(grid, [BOX])), name
+    (tmp_path / "named.gltf").write_bytes(box.export(file_type="glb"))
+    assert declared_faces(tmp_path / "named.gltf") == 12
+    grid, mask = voxelize_mesh_file(tmp_path / "named.gltf", H)
+    assert np.array_equal(mask, _in_boxes(grid, [BOX]))
+    (tmp_path / "obj.stl").write_text(box.export(file_type="obj"))
+    (tmp_path / "v.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": H,
+                                                 "layers": [{"file": "obj.stl", "w_fill": 1}]}))
+    with pytest.raises(TargetFileError, match=r"cannot read the mesh \(it holds OBJ text, not STL; rename it"):
+        load_volume_target(tmp_path / "v.json")
+
+
 def _gltf_box(folder: Path, normalized=False, uri="box.bin", cut=0):
     box = _box(*BOX)
     if normalized:

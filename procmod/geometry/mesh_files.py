@@ -20,8 +20,12 @@ trimesh 4 misreads, in memory (the file is left as it is):
 
 Binary STL files whose header count disagrees with their size are read by their size
 where that is unambiguous (bytes left over after the last triangle; a count of zero);
-a file cut off inside its triangles is refused saying so. An ASCII STL without its
-closing ``endsolid`` gets one.
+a file cut off inside its triangles is refused saying so. An ASCII STL is read as
+exporters write it: without its closing ``endsolid`` or its opening ``solid`` line, with a
+UTF-8 byte-order mark, or with tabs between its numbers (each was taken for a binary STL
+of 10^8-10^9 triangles). A file whose bytes are plainly another format than its suffix
+says is read as what it is where procmod can tell (a binary glTF named ``.gltf``) or
+refused naming its format (OBJ text named ``.stl``).
 
 For glTF, the files a ``.gltf`` names (buffers, images) are found as procmod finds named
 files (README, "Files that name other files"): relative to the ``.gltf``, ``..`` allowed,
@@ -226,9 +230,13 @@ def declared_faces(file: Path) -> int | None:
         if suffix == ".stl":
             with open(file, "rb") as handle:
                 head = handle.read(84)
-            if len(head) == 84 and not head.lstrip().lower().startswith(b"solid"):
+            with open(file, "rb") as handle:
+                start = handle.read(1 << 16)
+            if _ascii_stl(start) or _other_format(start) is not None:
+                return _scan_count(file, b"endfacet")  # (0 for another format: read, then named)
+            if len(head) == 84:
                 return struct.unpack("<I", head[80:84])[0]
-            return _scan_count(file, b"endfacet")
+            return None
         if suffix == ".ply":
             with open(file, "rb") as handle:
                 header = handle.read(1 << 16).split(b"end_header", 1)[0]
@@ -317,7 +325,8 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
     path = Path(path)
     limit = MAX_JSON_BYTES if limit is None else limit
     with open(path, "rb") as handle:
-        if path.suffix.lower() == ".glb":
+        if path.suffix.lower() == ".glb" or handle.read(4) == b"glTF":  # a GLB under a .gltf name too
+            handle.seek(0)
             head = handle.read(20)
             if len(head) < 20 or head[:4] != b"glTF":
                 raise ValueError("is not a GLB file (no 'glTF' header); is it damaged or another format?")
@@ -330,6 +339,7 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
         else:
             if os.path.getsize(path) > limit:
                 raise ValueError(f"is more than {limit:,} bytes of JSON")
+            handle.seek(0)
             text = handle.read()
     try:
         header = json.loads(text.decode("utf-8-sig"))  # a byte-order mark is no part of the JSON
@@ -367,7 +377,8 @@ def _check_gltf(path: Path) -> dict | None:
     if unknown:
         raise ValueError(f"it requires the glTF extension {unknown[0]}, which procmod does not read (so its "
                          "geometry might be misread); export it without that extension")
-    if path.suffix.lower() == ".gltf":
+    glb = path.suffix.lower() == ".glb" or _first_bytes(path, 4) == b"glTF"  # a GLB under a .gltf name too
+    if not glb:
         _check_buffer_files(header, path)
     else:  # a GLB's header gives its whole length
         with open(path, "rb") as handle:
@@ -376,7 +387,7 @@ def _check_gltf(path: Path) -> dict | None:
         if actual < declared:
             raise ValueError(f"a cut-off GLB file: its header says {declared:,} bytes but the file holds {actual:,}; "
                              "export or copy it again")
-    _check_buffer_layout(header, path.suffix.lower() == ".glb")
+    _check_buffer_layout(header, glb)
     return header
 
 
@@ -466,17 +477,40 @@ def _check_buffer_files(header: dict, path: Path) -> None:
                              "file is cut off; copy it again or export the model again")
 
 
+_FACET = re.compile(rb"facet\s+normal", re.IGNORECASE)
+_UTF8_BOM = b"\xef\xbb\xbf"  # _BOM is the decoded one
+
+
+def _ascii_stl(head: bytes) -> bool:
+    """Whether the first bytes of an STL are ASCII STL text: a facet in text without NUL
+    bytes, its ``solid`` line there or not (some exporters leave it out), a UTF-8
+    byte-order mark or tabs or not. (A binary file's 80-byte header may start ``solid``
+    too; its triangles hold NUL bytes unless they are all but impossible numbers.)"""
+    head = head[:1 << 20]
+    return _FACET.search(head) is not None and b"\0" not in head
+
+
+def _stl_binary_fits(data: bytes) -> bool:
+    """Whether ``data`` is a binary STL whose triangle count fits its size exactly."""
+    return len(data) >= 84 and 84 + 50 * struct.unpack("<I", data[80:84])[0] == len(data)
+
+
 def _repaired_stl(data: bytes) -> bytes | None:
     """A binary STL whose header count disagrees with its size, read by its size where
-    that is unambiguous, or an ASCII STL given its missing ``endsolid``; None when the
-    file needs nothing. Raises ValueError for a binary STL cut off inside its triangles."""
-    head = data[:1 << 20].lstrip().lower()
-    # ASCII: 'solid' and then a facet (a binary header may start 'solid' too; a solid's
-    # name may run to thousands of characters before its first facet)
-    if head.startswith(b"solid") and b"facet normal" in head:
-        if len(data) >= 84 and 84 + 50 * struct.unpack("<I", data[80:84])[0] == len(data):
-            return None  # a binary file after all: its count fits its size exactly
-        return None if b"endsolid" in data[-(1 << 20):].lower() else data + b"\nendsolid\n"
+    that is unambiguous, or an ASCII STL made what trimesh reads: its byte-order mark
+    dropped, tabs made spaces, its ``solid`` and ``endsolid`` lines added where missing;
+    None when the file needs nothing. Raises ValueError for a binary STL cut off inside
+    its triangles, and names the format of another kind of file given an ``.stl`` name."""
+    if _ascii_stl(data) and not _stl_binary_fits(data):
+        text = data[len(_UTF8_BOM):] if data.startswith(_UTF8_BOM) else data
+        text = text.replace(b"\t", b" ")
+        if not text.lstrip().lower().startswith(b"solid"):
+            text = b"solid\n" + text
+        if b"endsolid" not in text[-(1 << 20):].lower():
+            text += b"\nendsolid\n"
+        return None if text == data else text
+    if not _stl_binary_fits(data) and (kind := _other_format(data)) is not None:
+        raise ValueError(f"it holds {kind}, not STL; rename it to its format's suffix")
     if len(data) < 84:
         return None  # the loader says what is wrong with it
     count = struct.unpack("<I", data[80:84])[0]
@@ -490,6 +524,22 @@ def _repaired_stl(data: bytes) -> bytes | None:
     if count > records:
         raise ValueError(f"a cut-off binary STL: its header says {count:,} triangles but the file holds "
                          f"{records:,}; export or copy it again")
+    return None
+
+
+def _other_format(head: bytes) -> str | None:
+    """The format of a mesh file's first bytes when it is plainly another than its suffix
+    says (a glTF binary, a PLY, an OFF, OBJ text), or None."""
+    if head.startswith(b"glTF"):
+        return "a binary glTF (GLB)"
+    text = head[len(_UTF8_BOM):] if head.startswith(_UTF8_BOM) else head
+    if text.startswith(b"ply"):
+        return "a PLY mesh"
+    if re.match(rb"\s*[CN]?OFF\b", text):
+        return "an OFF mesh"
+    if b"\0" not in text[:1 << 16] and re.search(rb"(^|\n)\s*v\s", text[:1 << 16]) \
+            and re.search(rb"(^|\n)\s*f\s", text[:1 << 16]):
+        return "OBJ text"
     return None
 
 
@@ -557,6 +607,9 @@ def load_mesh_file(path: str | Path, up: str = "y", **options):
 
     path = Path(path)
     suffix = path.suffix.lower()
+    file_type = None
+    if suffix == ".gltf" and _first_bytes(path, 4) == b"glTF":
+        suffix, file_type = ".glb", "glb"  # a binary glTF under a .gltf name: read as what it is
     with quiet_trimesh():
         if suffix == ".obj":
             # latin-1 maps every byte to one character and back: names in other encodings survive
@@ -595,7 +648,19 @@ def load_mesh_file(path: str | Path, up: str = "y", **options):
                     return trimesh.load(io.BytesIO(decoded), file_type="gltf", resolver=_resolver(path), **options)
             if suffix == ".gltf":
                 return trimesh.load(path, resolver=_resolver(path), **options)
+        if file_type is not None:
+            return trimesh.load(path, file_type=file_type, **options)
         return trimesh.load(path, **options)
+
+
+def _first_bytes(path: Path, count: int) -> bytes:
+    """The first ``count`` bytes of a file (fewer if it is shorter; none if unreadable:
+    the loader then says what is wrong)."""
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(count)
+    except OSError:
+        return b""
 
 
 __all__ = ["MESH_SUFFIXES", "declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh"]
