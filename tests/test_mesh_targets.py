@@ -415,6 +415,36 @@ def test_mesh_placement_in_a_file_without_meshes_is_refused(tmp_path):
         load_volume_target(tmp_path / "T.json")
 
 
+def test_a_units_note_followed_to_the_letter_places_the_target_and_a_stray_piece_is_named(tmp_path):
+    """A mesh in centimetres with a voxel size picked in its own units: the note gives the
+    voxel size in the model's units too (with the mesh_scale alone the mesh fell within
+    two voxels, and that refusal pointed back to mesh_scale); the refusal names a voxel
+    size to give. A small piece left far off is named, not taken for other units."""
+    from procmod.cli import _model
+    from procmod.targets.placement import placement_note
+
+    ship = trimesh.util.concatenate([_box((1.0, 0.6, 3.0), (0, 0, 0)), _box((3.0, 0.2, 0.8), (0, 0, -0.5))])
+    _write_obj(tmp_path / "cm.obj", ship.vertices * 100, ship.faces)
+    model = _model("spaceship")
+
+    def note(mesh, **fields):
+        return placement_note(model, load_volume_target(_volume_file(tmp_path, mesh, **fields)),
+                              np.random.default_rng(0))
+
+    advice = note("cm.obj", voxel_size=25)
+    fields = json.loads("{" + advice[advice.index("give ") + 5:advice.index(" in the target file")]
+                        .replace(" and ", ", ") + "}")
+    assert fields == {"mesh_scale": 0.01, "voxel_size": 0.25}
+    assert note("cm.obj", **fields) is None  # followed to the letter: placed
+    with pytest.raises(TargetFileError, match=r"under two voxels of 25.*give a voxel_size in them, such as 0\.09"):
+        load_volume_target(_volume_file(tmp_path, "cm.obj", voxel_size=25, mesh_scale=0.01))
+    stray = trimesh.util.concatenate([ship, _box((0.3, 0.3, 0.3), (300.0, 0.0, 0.0))])
+    _write_obj(tmp_path / "stray.obj", stray.vertices, stray.faces)
+    text = note("stray.obj")
+    assert "1 voxel of the target's fill lies far from the rest (near (300, " in text and "mesh_scale" not in text, text
+    assert "while the rest spans 3 x 0.75 x 3" in text, text  # the voxels of the ship
+
+
 def test_a_target_in_other_units_or_elsewhere_gets_a_note_saying_how_to_place_it(tmp_path, capsys):
     """A spaceship target exported in centimetres (Maya's default) or left 500 units from the
     origin scored 0 with no word why; the note names the field and the value that fix it,

@@ -364,11 +364,14 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
                 "origin); bring the mesh onto it with \"mesh_offset\" (and \"mesh_scale\" if it was made in "
                 "other units)")
         if float(np.max(hi - lo)) < 2 * grid.size:  # the whole mesh within two voxels
+            # (after a "mesh_scale" the note advised, the voxel size chosen for the mesh's old
+            # units is what is left too large: the value to give is named)
             raise TargetFileError(
                 f"{where}: the mesh spans only {span_text(lo, hi)}, under two voxels of {grid.size:g}, so no voxel "
                 "centre lies inside it: if it was made in other units than the model, give \"mesh_scale\" to bring "
-                "it to them (1000 for a mesh in metres used with a model in millimetres); else use a smaller "
-                "voxel_size")
+                "it to them (1000 for a mesh in metres used with a model in millimetres); if it is in the model's "
+                f"units (\"mesh_scale\" given), give a voxel_size in them, such as {float(np.max(hi - lo)) / 32:.3g} "
+                "(32 voxels along its longest side)")
         raise TargetFileError(
             f"{where}: no voxel centre of {grid_is} lies inside the mesh: an open sheet or a flat mesh has no "
             "inside, and parts thinner than a voxel fall between voxel centres; use a smaller voxel_size, or "

@@ -69,6 +69,37 @@ def _volume_box(target):
     return origin + grid.size * index.min(axis=0), origin + grid.size * (index.max(axis=0) + 1)
 
 
+def _stray_fill(target):
+    """``(lo, hi, voxels, near)`` when small pieces of a volume target's fill lie far from
+    its largest piece (:data:`procmod.targets.files.STRAY_DISTANCE` times that piece's
+    size): the largest piece's box in world units, the strays' voxel count and a point
+    near them; else None. A helper object or a stray face left far off in the exported
+    scene stretches the fill's box, which a note must not take for other units."""
+    from scipy import ndimage
+
+    from .files import STRAY_DISTANCE
+
+    gain = getattr(target, "combined", None)
+    inside = gain > 0 if gain is not None else np.asarray(target.mask)
+    labels, count = ndimage.label(inside)
+    if count < 2:
+        return None
+    sizes = np.bincount(labels.ravel())[1:]
+    main = int(np.argmax(sizes))
+    boxes = [(np.array([s.start for s in box]), np.array([s.stop for s in box]))
+             for box in ndimage.find_objects(labels)]
+    m_lo, m_hi = boxes[main]
+    reach = STRAY_DISTANCE * float(np.linalg.norm(m_hi - m_lo))
+    strays = [k for k, (lo, hi) in enumerate(boxes) if k != main and sizes[k] < sizes[main]
+              and float(np.linalg.norm(np.maximum(np.maximum(m_lo - hi, lo - m_hi), 0))) > reach]
+    if not strays:
+        return None
+    grid = target.grid
+    origin = np.asarray(grid.origin, dtype=np.float64)
+    near = origin + grid.size * 0.5 * (boxes[strays[0]][0] + boxes[strays[0]][1])
+    return origin + grid.size * m_lo, origin + grid.size * m_hi, int(sizes[strays].sum()), near
+
+
 def _size(lo, hi) -> float:
     return float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
 
@@ -106,7 +137,17 @@ def _rescale_advice(target, factor: float, resolution: float) -> str:
     advice = f"give \"mesh_scale\": {scale * factor:.4g}"
     if np.any(offset):
         advice += f" and \"mesh_offset\": {_listed(np.asarray(offset) * factor, resolution)}"
+    grid = getattr(target, "grid", None)
+    if grid is not None and not VOXELS_ACROSS[0] <= max(grid.shape) * factor <= VOXELS_ACROSS[1]:
+        # a voxel_size chosen for the mesh as it was read: scaled with it, the grid keeps its
+        # voxels (kept as it is, a mesh 100x smaller fell within two voxels and was refused)
+        advice += f" and \"voxel_size\": {grid.size * factor:.4g}"
     return advice + " in the target file"
+
+
+# Voxels along a volume target's longest side, after the scale a note advises, outside
+# which the note advises scaling the voxel size too.
+VOXELS_ACROSS = (8, 1000)
 
 
 def _move_advice(target, delta, resolution: float) -> str:
@@ -136,6 +177,14 @@ def _volume_note(target, lo, hi) -> str | None:
     model = f"about {_shown(lo)} to {_shown(hi)}"
     resolution = 1e-3 * m_size  # advice to a thousandth of the model's size
     if ratio > SCALE_FACTOR or ratio < 1 / SCALE_FACTOR:
+        stray = _stray_fill(target)
+        if stray is not None:
+            s_lo, s_hi, voxels, near = stray
+            return (f"{voxels} voxel{'s' if voxels > 1 else ''} of the target's fill {'lie' if voxels > 1 else 'lies'} "
+                    "far from the rest (near "
+                    f"{_shown(near, 0.01 * t_size)}), while the rest spans {span_text(s_lo, s_hi)}: delete that "
+                    "stray piece (a helper object, a stray face) in a modelling tool; the fill's box, stretched by "
+                    "it, is not the shape's")
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
                 f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}")
