@@ -280,6 +280,30 @@ def test_infer_on_a_seam_split_obj(tmp_path, capsys):
     assert np.array_equal(loaded.combined > 0, expected)
 
 
+def test_a_plan_view_without_up_looks_down_with_minus_z_at_the_top(tmp_path):
+    """A camera straight above the scene with no "up" was refused quoting an up of
+    [0, 1, 0] the file never gave; it now takes -z as the picture's top (+z looking up),
+    as Blender's top and bottom views do, and draws the footprint."""
+    box = _box((2.0, 1.0, 1.0), (0.0, 0.0, -0.5))  # 2 wide in x, 1 deep in z, all on the -z side
+    _write_obj(tmp_path / "box.obj", box.vertices, box.faces)
+    views = [{"mesh": "box.obj", "camera": {"eye": [0, y, 0], "look_at": [0, 0, 0], "projection": "orthographic",
+                                            "fov": 4, "width": 40, "height": 40}} for y in (10, -10)]
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": views}))
+    target = load_target_file(tmp_path / "S.json")
+    assert target.cameras[0].up == (0.0, 0.0, -1.0) and target.cameras[1].up == (0.0, 0.0, 1.0)
+    hit = [np.argwhere(w > 0) for w in target.weights]
+    # 10 pixels a unit: x from -1 to 1 is columns 10..29 in both; z from -1 to 0 the top half
+    # of the rows looking down (-z up), the bottom half looking up
+    for rows in hit:
+        assert rows[:, 1].min() == 10 and rows[:, 1].max() == 29
+    assert hit[0][:, 0].min() == 10 and hit[0][:, 0].max() == 19
+    assert hit[1][:, 0].min() == 20 and hit[1][:, 0].max() == 29
+    views[0]["camera"]["up"] = [0, 1, 0]  # given along the view: still refused, quoting what was given
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": views}))
+    with pytest.raises(TargetFileError, match=r"views\[0\]\.camera\.up must be a non-zero vector not along"):
+        load_target_file(tmp_path / "S.json")
+
+
 def test_silhouette_view_of_a_mesh(tmp_path, capsys):
     box = _box((2.0, 1.0, 1.0), (0.0, 0.0, 0.0))
     _write_obj(tmp_path / "box.obj", box.vertices, box.faces, split_seams=True)

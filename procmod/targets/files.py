@@ -592,6 +592,16 @@ def load_volume_target(path: str | os.PathLike):
 
 # --- silhouette targets --------------------------------------------------------------------
 
+def default_up(forward) -> tuple:
+    """A camera's up when its file gives none: y, except for a view straight down (a plan)
+    or up, along y itself, where the picture's top is -z (down) or +z (up), as in
+    Blender's top and bottom views of the same scene."""
+    direction = np.asarray(forward, dtype=np.float64) / np.linalg.norm(forward)
+    if np.linalg.norm(np.cross(direction, (0.0, 1.0, 0.0))) >= 1e-6:
+        return (0.0, 1.0, 0.0)
+    return (0.0, 0.0, -1.0) if direction[1] < 0 else (0.0, 0.0, 1.0)
+
+
 def _camera(spec, where: str, sized: bool) -> Camera:
     """A view's camera; ``sized``: it may give ``width`` and ``height`` (a mesh view's pixels)."""
     if not isinstance(spec, dict):
@@ -601,7 +611,7 @@ def _camera(spec, where: str, sized: bool) -> Camera:
         if key not in spec:
             raise TargetFileError(f"{where} needs {key!r} (three numbers)")
     eye, look_at = vector3(spec["eye"], f"{where}.eye"), vector3(spec["look_at"], f"{where}.look_at")
-    up = vector3(spec.get("up", (0, 1, 0)), f"{where}.up")
+    up = vector3(spec["up"], f"{where}.up") if "up" in spec else None
     projection = spec.get("projection", "perspective")
     if projection not in ("perspective", "orthographic"):
         raise TargetFileError(f"{where}.projection must be perspective or orthographic, got {shown_value(projection)}")
@@ -617,6 +627,8 @@ def _camera(spec, where: str, sized: bool) -> Camera:
     # units from its look_at, a million units from the origin, "coincided")
     if not np.linalg.norm(forward) > 1e-9 * max(1.0, float(np.abs(eye).max()), float(np.abs(look_at).max())):
         raise TargetFileError(f"{where}: the camera's eye and look_at coincide")
+    if up is None:
+        up = default_up(forward)
     length = np.linalg.norm(up)
     if length == 0 or np.linalg.norm(np.cross(forward / np.linalg.norm(forward), np.divide(up, length))) < 1e-9:
         raise TargetFileError(f"{where}.up must be a non-zero vector not along the view direction "
