@@ -304,6 +304,37 @@ def test_a_plan_view_without_up_looks_down_with_minus_z_at_the_top(tmp_path):
         load_target_file(tmp_path / "S.json")
 
 
+def test_a_mesh_running_under_a_perspective_camera_is_cut_at_the_near_plane(tmp_path):
+    """A long wall passing under the camera: its 12 big triangles each have a corner behind
+    the camera and were all skipped (16 pixels to hit against 918 for the same solid
+    subdivided); cut at the near plane, both meshes draw the same silhouette."""
+    from procmod.geometry.camera import Camera, clip_to_near
+    wall = _box((4.0, 1.0, 40.0), (0.0, 0.5, 10.0))  # z from -10 to 30; the camera at z = 20
+    fine = wall.copy()
+    for _ in range(5):
+        fine = fine.subdivide()
+    camera = {"eye": [0, 4, 20], "look_at": [0, 2, 0], "projection": "perspective", "fov": 60,
+              "width": 64, "height": 64}
+    hit = []
+    for name, mesh in (("coarse", wall), ("fine", fine)):
+        _write_obj(tmp_path / f"{name}.obj", mesh.vertices, mesh.faces)
+        (tmp_path / f"{name}.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                           "views": [{"mesh": f"{name}.obj", "camera": camera}]}))
+        hit.append(load_target_file(tmp_path / f"{name}.json").weights[0] > 0)
+    assert hit[0].sum() > 800 and hit[0][-1].sum() > 40  # the wall reaches the bottom of the view
+    assert (hit[0] != hit[1]).sum() <= 0.02 * hit[1].sum()  # the subdivided mesh's pixel centres differ at edges only
+    # the cut keeps what lies in front: corners in front stay, the new ones lie on the plane
+    cam = Camera(tuple(camera["eye"]), tuple(camera["look_at"]), projection="perspective")
+    tris = np.asarray(wall.triangles)
+    cut = clip_to_near(tris, cam)
+    eye, _, _, forward = cam.basis()
+    depth = (cut - eye) @ forward
+    near = 1e-4 * np.linalg.norm(np.subtract(cam.look_at, cam.eye))
+    assert depth.min() >= near - 1e-9
+    in_front = (tris - eye) @ forward >= near
+    assert len(cut) >= in_front.any(axis=1).sum()  # each triangle with a corner in front leaves one or two
+
+
 def test_silhouette_view_of_a_mesh(tmp_path, capsys):
     box = _box((2.0, 1.0, 1.0), (0.0, 0.0, 0.0))
     _write_obj(tmp_path / "box.obj", box.vertices, box.faces, split_seams=True)

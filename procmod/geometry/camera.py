@@ -86,6 +86,58 @@ def _linear_projection(camera: Camera) -> np.ndarray:
     return np.hstack([rows, -(rows @ eye)[:, None]])
 
 
+NEAR = 1e-4
+"""A perspective camera's near plane, as a fraction of its eye's distance to look_at."""
+
+
+def clip_to_near(tris: np.ndarray, camera: Camera) -> np.ndarray:
+    """World triangles ``(n, 3, 3)`` cut at a perspective camera's near plane (depth
+    :data:`NEAR` x the eye's distance to look_at): those wholly in front as they are, those
+    wholly behind dropped, and those across it as the one or two triangles of their part
+    in front. (Skipping every triangle with a corner behind the camera lost most of a
+    coarse mesh running under it: 16 pixels of a wall's 918.)"""
+    eye, _, _, forward = camera.basis()
+    near = NEAR * float(np.linalg.norm(np.subtract(camera.look_at, camera.eye)))
+    depth = (tris - eye) @ forward - near  # per corner: >= 0 in front
+    front = depth >= 0
+    count = front.sum(axis=1)
+    if count.min() == 3:
+        return tris
+    out = [tris[count == 3]]
+    for inside, cut in ((1, _clip_one_in_front), (2, _clip_two_in_front)):
+        chosen = count == inside
+        if chosen.any():
+            out.append(cut(tris[chosen], depth[chosen], front[chosen]))
+    return np.concatenate(out)
+
+
+def _rolled(tris, depth, first):
+    """Each triangle's corners turned cyclically so that corner ``first[i]`` comes first
+    (the winding is kept)."""
+    order = (first[:, None] + np.arange(3)) % 3
+    rows = np.arange(len(tris))[:, None]
+    return tris[rows, order], depth[rows, order]
+
+
+def _on_plane(a, b, da, db):
+    """The point where edge a-b crosses the plane (signed distances da >= 0 > db)."""
+    t = (da / (da - db))[:, None]
+    return a + t * (b - a)
+
+
+def _clip_one_in_front(tris, depth, front):
+    t, d = _rolled(tris, depth, np.argmax(front, axis=1))  # the corner in front first
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    return np.stack([a, _on_plane(a, b, d[:, 0], d[:, 1]), _on_plane(a, c, d[:, 0], d[:, 2])], axis=1)
+
+
+def _clip_two_in_front(tris, depth, front):
+    t, d = _rolled(tris, depth, (np.argmin(front, axis=1) + 1) % 3)  # the corner behind last
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    bc, ac = _on_plane(b, c, d[:, 1], d[:, 2]), _on_plane(a, c, d[:, 0], d[:, 2])
+    return np.concatenate([np.stack([a, b, bc], axis=1), np.stack([a, bc, ac], axis=1)])
+
+
 @numba.njit(cache=True, inline="always")
 def _pixel_box(ax, ay, bx, by, cx, cy, width, height):
     """Pixel index range (i0, i1, j0, j1) of a triangle's bounding box, clipped to the image."""
@@ -168,8 +220,8 @@ class Silhouettes:
     many parts cover the pixel; 0 = empty); ``gains[c]`` an optional per-pixel gain;
     ``gain_total`` sums the gains of covered pixels over all views. Because pixels are
     counted, :meth:`remove` is the exact inverse of :meth:`add` (until a count saturates,
-    see ``saturated``). Triangles with a vertex behind a perspective camera are skipped
-    (keep the scene in front of the cameras). With :meth:`use_part_cache`, the pixels a
+    see ``saturated``). Triangles across a perspective camera's near plane are cut there
+    (:func:`clip_to_near`); what lies behind it is not seen. With :meth:`use_part_cache`, the pixels a
     part covers are looked up by value instead of projected and rasterised again (full
     replays re-add mostly the same parts).
     """
@@ -224,10 +276,9 @@ class Silhouettes:
         state = self._state
         entry = [] if cache else None
         for camera, pixels, gain, (mark, out) in zip(self.cameras, self.pixels, self.gains, self._scratch):
-            projected = camera.project(tris)
-            visible = projected[:, :, 2].min(axis=1) > 1e-6 if camera.projection == "perspective" else slice(None)
+            projected = camera.project(clip_to_near(tris, camera) if camera.projection == "perspective" else tris)
             n = _raster_part(pixels, mark, camera.width, camera.height,
-                             np.ascontiguousarray(projected[visible][:, :, :2]), gain, state, out)
+                             np.ascontiguousarray(projected[:, :, :2]), gain, state, out)
             if entry is not None:
                 entry.append(out[:n].copy())
         return entry
