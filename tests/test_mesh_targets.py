@@ -298,6 +298,9 @@ def test_a_plan_view_without_up_looks_down_with_minus_z_at_the_top(tmp_path):
         assert rows[:, 1].min() == 10 and rows[:, 1].max() == 29
     assert hit[0][:, 0].min() == 10 and hit[0][:, 0].max() == 19
     assert hit[1][:, 0].min() == 20 and hit[1][:, 0].max() == 29
+    views[1]["camera"]["eye"] = [0, -10, 1e-5]  # barely off vertical: y is an up for it, as before
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": views}))
+    assert load_target_file(tmp_path / "S.json").cameras[1].up == (0.0, 1.0, 0.0)
     views[0]["camera"]["up"] = [0, 1, 0]  # given along the view: still refused, quoting what was given
     (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": views}))
     with pytest.raises(TargetFileError, match=r"views\[0\]\.camera\.up must be a non-zero vector not along"):
@@ -493,6 +496,18 @@ def test_a_units_note_followed_to_the_letter_places_the_target_and_a_stray_piece
     assert note("cm.obj", **fields) is None  # followed to the letter: placed
     with pytest.raises(TargetFileError, match=r"under two voxels of 25.*give a voxel_size in them, such as 0\.09"):
         load_volume_target(_volume_file(tmp_path, "cm.obj", voxel_size=25, mesh_scale=0.01))
+    # with a "grid" given (in the model's units), the grid is the file's: no voxel_size advice
+    (tmp_path / "G.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "cm.obj"}],
+                                                 "grid": {"origin": [-160, -40, -160], "voxel_size": 10,
+                                                          "shape": [32, 8, 32]}}))
+    advice = placement_note(model, load_volume_target(tmp_path / "G.json"), np.random.default_rng(0))
+    assert "\"mesh_scale\": 0.01 in the target file" in advice and "voxel_size" not in advice, advice
+    # a stray beside a piece itself in other units: the units from the piece, and the stray named
+    far = trimesh.util.concatenate([_box((100.0, 60.0, 300.0), (0, 0, 0)), _box((30.0, 30.0, 30.0), (40000.0, 0, 0))])
+    _write_obj(tmp_path / "far.obj", far.vertices, far.faces)
+    text = note("far.obj", voxel_size=10)
+    assert "26.5x the size" in text and "\"mesh_scale\": 0.1 in" in text, text  # not 0.0001, as for the whole box
+    assert "27 voxels of the target's fill lie far from the rest (near (4" in text, text
     stray = trimesh.util.concatenate([ship, _box((0.3, 0.3, 0.3), (300.0, 0.0, 0.0))])
     _write_obj(tmp_path / "stray.obj", stray.vertices, stray.faces)
     text = note("stray.obj")
@@ -640,6 +655,17 @@ def test_ascii_stl_as_tools_write_it_and_files_named_for_another_format(tmp_path
     cases = {"bom": b"\xef\xbb\xbf" + text.encode(),
              "no_solid": text.split("\n", 1)[1].rsplit("endsolid", 1)[0].encode(),
              "tabs": text.replace("  ", "\t").replace(" ", "\t").encode()}
+    for name, data in cases.items():
+        (tmp_path / f"{name}.stl").write_bytes(data)
+        assert declared_faces(tmp_path / f"{name}.stl") == 12, name
+        grid, mask = voxelize_mesh_file(tmp_path / f"{name}.stl", H)
+        assert np.array_equal(mask, _in_boxes(grid, [BOX])), name
+    # and what read before still reads: NUL bytes in ASCII (padding, a C string's end), a
+    # solid's name past 64 KiB, a binary STL whose free-text header starts 'ply', padded
+    cases = {"nul_padded": text.encode() + b"\0" * 300, "nul_name": text.replace("\n", "\0\n", 1).encode(),
+             "long_name": text.replace("solid", "solid " + "n" * 70_000, 1).encode()}
+    binary = trimesh.exchange.stl.export_stl(box)
+    cases["ply_header"] = b"plywood shelf".ljust(80, b" ") + binary[80:] + b"\0" * 7
     for name, data in cases.items():
         (tmp_path / f"{name}.stl").write_bytes(data)
         assert declared_faces(tmp_path / f"{name}.stl") == 12, name

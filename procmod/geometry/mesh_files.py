@@ -229,14 +229,15 @@ def declared_faces(file: Path) -> int | None:
     try:
         if suffix == ".stl":
             with open(file, "rb") as handle:
-                head = handle.read(84)
-            with open(file, "rb") as handle:
-                start = handle.read(1 << 16)
-            if _ascii_stl(start) or _other_format(start) is not None:
-                return _scan_count(file, b"endfacet")  # (0 for another format: read, then named)
-            if len(head) == 84:
-                return struct.unpack("<I", head[80:84])[0]
-            return None
+                start = handle.read(STL_SNIFF)
+            if _ascii_stl(start):
+                return _scan_count(file, b"endfacet")
+            if len(start) < 84:
+                return None
+            count = struct.unpack("<I", start[80:84])[0]
+            if 84 + 50 * count != file.stat().st_size and _other_format(start) is not None:
+                return 0  # not an STL at all: read, then named (the loader says what it holds)
+            return count
         if suffix == ".ply":
             with open(file, "rb") as handle:
                 header = handle.read(1 << 16).split(b"end_header", 1)[0]
@@ -477,17 +478,17 @@ def _check_buffer_files(header: dict, path: Path) -> None:
                              "file is cut off; copy it again or export the model again")
 
 
-_FACET = re.compile(rb"facet\s+normal", re.IGNORECASE)
+STL_SNIFF = 1 << 20  # bytes of an STL looked at to tell ASCII from binary (a solid's name may be long)
+_ASCII_VERTEX = re.compile(rb"vertex[ \t]+[-+0-9.]", re.IGNORECASE)
 _UTF8_BOM = b"\xef\xbb\xbf"  # _BOM is the decoded one
 
 
 def _ascii_stl(head: bytes) -> bool:
-    """Whether the first bytes of an STL are ASCII STL text: a facet in text without NUL
-    bytes, its ``solid`` line there or not (some exporters leave it out), a UTF-8
-    byte-order mark or tabs or not. (A binary file's 80-byte header may start ``solid``
-    too; its triangles hold NUL bytes unless they are all but impossible numbers.)"""
-    head = head[:1 << 20]
-    return _FACET.search(head) is not None and b"\0" not in head
+    """Whether the first bytes of an STL are ASCII STL text: a ``vertex`` and its first
+    number past the 84 bytes of a binary file's header and count, where a binary file holds
+    its packed triangles; with its ``solid`` line or without (some exporters leave it out),
+    a UTF-8 byte-order mark, tabs, NUL bytes (padding, a C string's end) or not."""
+    return _ASCII_VERTEX.search(head, 84, STL_SNIFF) is not None
 
 
 def _stl_binary_fits(data: bytes) -> bool:
@@ -503,14 +504,12 @@ def _repaired_stl(data: bytes) -> bytes | None:
     its triangles, and names the format of another kind of file given an ``.stl`` name."""
     if _ascii_stl(data) and not _stl_binary_fits(data):
         text = data[len(_UTF8_BOM):] if data.startswith(_UTF8_BOM) else data
-        text = text.replace(b"\t", b" ")
+        text = text.replace(b"\t", b" ").replace(b"\0", b" ")
         if not text.lstrip().lower().startswith(b"solid"):
             text = b"solid\n" + text
         if b"endsolid" not in text[-(1 << 20):].lower():
             text += b"\nendsolid\n"
         return None if text == data else text
-    if not _stl_binary_fits(data) and (kind := _other_format(data)) is not None:
-        raise ValueError(f"it holds {kind}, not STL; rename it to its format's suffix")
     if len(data) < 84:
         return None  # the loader says what is wrong with it
     count = struct.unpack("<I", data[80:84])[0]
@@ -521,6 +520,8 @@ def _repaired_stl(data: bytes) -> bytes | None:
         return data[:80] + struct.pack("<I", records) + data[84:]  # an exporter that left the count out
     if 0 < count <= records:
         return data[:84 + 50 * count]  # bytes after the last triangle (padding, a tool's trailer)
+    if (kind := _other_format(data)) is not None:  # no binary STL either way: say what it is
+        raise ValueError(f"it holds {kind}, not STL; rename it to its format's suffix")
     if count > records:
         raise ValueError(f"a cut-off binary STL: its header says {count:,} triangles but the file holds "
                          f"{records:,}; export or copy it again")
@@ -528,17 +529,21 @@ def _repaired_stl(data: bytes) -> bytes | None:
 
 
 def _other_format(head: bytes) -> str | None:
-    """The format of a mesh file's first bytes when it is plainly another than its suffix
-    says (a glTF binary, a PLY, an OFF, OBJ text), or None."""
-    if head.startswith(b"glTF"):
+    """The format of a mesh file's first bytes when they are plainly another format's
+    start (a GLB's header, a PLY's or an OFF's first lines, OBJ statements), or None. For
+    files that are no binary STL either (their count does not fit their size): an STL's
+    80-byte header is free text and may start with any of these words."""
+    if head.startswith(b"glTF") and len(head) >= 12 and struct.unpack("<I", head[4:8])[0] == 2:
         return "a binary glTF (GLB)"
     text = head[len(_UTF8_BOM):] if head.startswith(_UTF8_BOM) else head
-    if text.startswith(b"ply"):
+    if re.match(rb"ply\r?\n\s*format\s", text):
         return "a PLY mesh"
-    if re.match(rb"\s*[CN]?OFF\b", text):
+    sample = text[:1 << 16]
+    if b"\0" in sample:
+        return None  # OFF and OBJ files are text
+    if re.match(rb"\s*[CN]?OFF\s*\r?\n", sample):
         return "an OFF mesh"
-    if b"\0" not in text[:1 << 16] and re.search(rb"(^|\n)\s*v\s", text[:1 << 16]) \
-            and re.search(rb"(^|\n)\s*f\s", text[:1 << 16]):
+    if re.search(rb"(^|\n)\s*v\s", sample) and re.search(rb"(^|\n)\s*f\s", sample):
         return "OBJ text"
     return None
 

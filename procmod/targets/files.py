@@ -585,6 +585,7 @@ def load_volume_target(path: str | os.PathLike):
     target = ProxyVolume(grid, layers[0][0], name=name) if score == "proxy" else Volume(grid, layers, w_self, name=name)
     # how the file places its shape, for advice when it misses the model (targets.placement)
     target.placed_by = ("grid" if arrays else "meshes", *placement[:2])
+    target.grid_from_voxel_size = given is None  # the grid fits the meshes at "voxel_size" (not a "grid" given)
     target.mesh_up = spec.get("mesh_up", "y")
     target.file_notes = notes  # said with the placement advice (targets.placement)
     return target
@@ -592,12 +593,16 @@ def load_volume_target(path: str | os.PathLike):
 
 # --- silhouette targets --------------------------------------------------------------------
 
+VERTICAL = 1e-9
+"""A camera's up may be no closer to its view direction than this (the sine between them)."""
+
+
 def default_up(forward) -> tuple:
     """A camera's up when its file gives none: y, except for a view straight down (a plan)
     or up, along y itself, where the picture's top is -z (down) or +z (up), as in
     Blender's top and bottom views of the same scene."""
     direction = np.asarray(forward, dtype=np.float64) / np.linalg.norm(forward)
-    if np.linalg.norm(np.cross(direction, (0.0, 1.0, 0.0))) >= 1e-6:
+    if np.linalg.norm(np.cross(direction, (0.0, 1.0, 0.0))) >= VERTICAL:  # y is an up for it (as before)
         return (0.0, 1.0, 0.0)
     return (0.0, 0.0, -1.0) if direction[1] < 0 else (0.0, 0.0, 1.0)
 
@@ -630,7 +635,7 @@ def _camera(spec, where: str, sized: bool) -> Camera:
     if up is None:
         up = default_up(forward)
     length = np.linalg.norm(up)
-    if length == 0 or np.linalg.norm(np.cross(forward / np.linalg.norm(forward), np.divide(up, length))) < 1e-9:
+    if length == 0 or np.linalg.norm(np.cross(forward / np.linalg.norm(forward), np.divide(up, length))) < VERTICAL:
         raise TargetFileError(f"{where}.up must be a non-zero vector not along the view direction "
                               f"(look_at - eye), got {list(up)}")
     size = {}

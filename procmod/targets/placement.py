@@ -69,6 +69,11 @@ def _volume_box(target):
     return origin + grid.size * index.min(axis=0), origin + grid.size * (index.max(axis=0) + 1)
 
 
+STRAY_SHARE = 0.02
+"""Far pieces of a volume target's fill (:func:`_stray_fill`) are called stray only when
+they hold at most this share of its voxels."""
+
+
 def _stray_fill(target):
     """``(lo, hi, voxels, near)`` when small pieces of a volume target's fill lie far from
     its largest piece (:data:`procmod.targets.files.STRAY_DISTANCE` times that piece's
@@ -92,7 +97,8 @@ def _stray_fill(target):
     reach = STRAY_DISTANCE * float(np.linalg.norm(m_hi - m_lo))
     strays = [k for k, (lo, hi) in enumerate(boxes) if k != main and sizes[k] < sizes[main]
               and float(np.linalg.norm(np.maximum(np.maximum(m_lo - hi, lo - m_hi), 0))) > reach]
-    if not strays:
+    # small beside the rest: separate buildings of a sparse settlement are not strays
+    if not strays or sizes[strays].sum() > STRAY_SHARE * sizes.sum():
         return None
     grid = target.grid
     origin = np.asarray(grid.origin, dtype=np.float64)
@@ -138,7 +144,8 @@ def _rescale_advice(target, factor: float, resolution: float) -> str:
     if np.any(offset):
         advice += f" and \"mesh_offset\": {_listed(np.asarray(offset) * factor, resolution)}"
     grid = getattr(target, "grid", None)
-    if grid is not None and not VOXELS_ACROSS[0] <= max(grid.shape) * factor <= VOXELS_ACROSS[1]:
+    if getattr(target, "grid_from_voxel_size", False) \
+            and not VOXELS_ACROSS[0] <= max(grid.shape) * factor <= VOXELS_ACROSS[1]:
         # a voxel_size chosen for the mesh as it was read: scaled with it, the grid keeps its
         # voxels (kept as it is, a mesh 100x smaller fell within two voxels and was refused)
         advice += f" and \"voxel_size\": {grid.size * factor:.4g}"
@@ -178,16 +185,22 @@ def _volume_note(target, lo, hi) -> str | None:
     resolution = 1e-3 * m_size  # advice to a thousandth of the model's size
     if ratio > SCALE_FACTOR or ratio < 1 / SCALE_FACTOR:
         stray = _stray_fill(target)
+        also = ""
         if stray is not None:
             s_lo, s_hi, voxels, near = stray
-            return (f"{voxels} voxel{'s' if voxels > 1 else ''} of the target's fill {'lie' if voxels > 1 else 'lies'} "
-                    "far from the rest (near "
-                    f"{_shown(near, 0.01 * t_size)}), while the rest spans {span_text(s_lo, s_hi)}: delete that "
-                    "stray piece (a helper object, a stray face) in a modelling tool; the fill's box, stretched by "
-                    "it, is not the shape's")
+            gone = (f"{voxels} voxel{'s' if voxels > 1 else ''} of the target's fill {'lie' if voxels > 1 else 'lies'} "
+                    f"far from the rest (near {_shown(near, 0.01 * t_size)})")
+            rest = _size(s_lo, s_hi) / m_size
+            if 1 / SCALE_FACTOR <= rest <= SCALE_FACTOR:
+                # the rest alone is the model's size: the stray, not the units, stretched the box
+                return (f"{gone}, while the rest spans {span_text(s_lo, s_hi)}: delete that stray geometry (a "
+                        "helper object, a stray face) in a modelling tool; the fill's box, stretched by it, is not "
+                        "the shape's")
+            ratio, also = rest, f"; and {gone}: delete that stray geometry"  # the units from the rest alone
+            where = f"spans {_shown(s_lo, 0.01 * t_size)} to {_shown(s_hi, 0.01 * t_size)} (less a stray piece)"
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
-                f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}")
+                f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}{also}")
     if _lying(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
         # before the place: a lying target moved onto the model still lies
         return (f"{what} is {span_text(t_lo, t_hi)} (x, y, z), shaped like the model's "
