@@ -308,9 +308,9 @@ def test_a_shape_in_two_pieces_is_named_by_graph_and_refused_by_augment(tmp_path
     code = main(["strings", "augment", str(tmp_path / "gap.glb"), "--count", "3", "--out", str(tmp_path / "a")])
     out, err = capsys.readouterr()
     assert code == 2 and err.count("\n") == 1 and "Cap touches no other part" in err, err
-    # within what: a gap a part placed by eye leaves (the tolerance was not said, and
-    # augment takes no --tolerance)
+    # within what: a gap a part placed by eye leaves (the tolerance was not said), and how to join it
     assert "no other part within 0.00" in err and "the contact tolerance: 0.001 x the median part's size" in err
+    assert "or give --tolerance in world units" in err
     assert not (tmp_path / "a").exists()
     # a folder of shapes: the message names the file of the shape in pieces
     (tmp_path / "set").mkdir()
@@ -320,6 +320,42 @@ def test_a_shape_in_two_pieces_is_named_by_graph_and_refused_by_augment(tmp_path
     code = main(["strings", "augment", str(tmp_path / "set"), "--count", "3", "--out", str(tmp_path / "a")])
     out, err = capsys.readouterr()
     assert code == 2 and f"shape 1 ({tmp_path / 'set' / 'b_gap.glb'}) is in 2 pieces" in err, err
+
+
+def test_a_hand_placed_gap_joins_with_augments_tolerance_kept_through_the_collection(tmp_path, capsys):
+    """Parts placed by eye 3% of the body's size apart: augment refused them (its contact
+    tolerance was fixed at 0.001 x the parts' size). With --tolerance the gap is a contact;
+    the collection's shapes file keeps the tolerance (so graph, train and a trained model's
+    sampling use it), and a shapes file may give it itself."""
+    from asset_writers import box_mesh, gltf_json, write_glb
+    from procmod.strings.contacts import contact_tolerance
+    from procmod.strings.shapes import read_shapes, shapes_to_dict
+
+    meshes = [("Body", [box_mesh((2.0, 1.0, 1.0))]), ("Cap", [box_mesh((0.5, 0.5, 0.5))])]
+    nodes = [{"name": "Body", "mesh": 0, "children": [1]}, {"name": "Cap", "mesh": 1, "translation": [1.31, 0, 0]}]
+    write_glb(tmp_path / "gap.glb", gltf_json(meshes, nodes, (0,)))
+    code, _, err = _run(capsys, "strings", "augment", tmp_path / "gap.glb", "--count", "2", "--out", tmp_path / "a")
+    assert code == 2 and "Cap touches no other part" in err, err
+    code, out, err = _run(capsys, "strings", "augment", tmp_path / "gap.glb", "--count", "2", "--out", tmp_path / "a",
+                          "--tolerance", "0.1", "--rounds", "2")
+    assert code == 0, err
+    collection = json.loads((tmp_path / "a" / "shapes.json").read_text())
+    assert collection["contact_tolerance"] == 0.1
+    assert contact_tolerance(pipeline.read_collection(tmp_path / "a")) == 0.1
+    graph = json.loads(next((tmp_path / "a" / "graphs").glob("*.json")).read_text())
+    assert len(graph["edges"]) == 1  # Body-Cap, across the gap
+    code, out, err = _run(capsys, "strings", "graph", tmp_path / "a" / "shapes.json", "--out", tmp_path / "g")
+    assert code == 0 and "shape 0: 2 parts, 1 contacts" in out, (out, err)  # the file's tolerance, unasked
+    # what a trained model's folder is written with keeps it too
+    assert shapes_to_dict(read_shapes(tmp_path / "a" / "shapes.json"))["contact_tolerance"] == 0.1
+    for bad in ("-1", "nan"):
+        code, _, err = _run(capsys, "strings", "augment", tmp_path / "gap.glb", "--count", "2", "--out",
+                            tmp_path / "b", "--tolerance", bad)
+        assert code == 2 and "--tolerance must be a finite number >= 0" in err, err
+    collection["contact_tolerance"] = "big"
+    (tmp_path / "a" / "shapes.json").write_text(json.dumps(collection))
+    code, _, err = _run(capsys, "strings", "graph", tmp_path / "a" / "shapes.json", "--out", tmp_path / "g2")
+    assert code == 2 and "contact_tolerance must be a finite number >= 0" in err, err
 
 
 def test_training_constants_that_are_not_numbers_are_refused_before_training(tmp_path, capsys):

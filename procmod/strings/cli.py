@@ -48,8 +48,7 @@ def register(sub, int_arg) -> None:
                                         "one shape per file): one procmod-graph/1 JSON per shape")
     p.add_argument("shapes", metavar="SHAPES", nargs="+", help=SHAPES_HELP)
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--tolerance", type=float, help="contact tolerance in world units (default: 0.001 x the "
-                                                   "median part diagonal)")
+    p.add_argument("--tolerance", type=float, help=TOLERANCE_HELP)
     _add_overwrite(p)
     p.set_defaults(handler=_graph)
 
@@ -79,6 +78,8 @@ def register(sub, int_arg) -> None:
                    help="dock by translations only, so every variant keeps the inputs' orientation (default: keep "
                         "the rotation docking computes, at whatever angle the parts are)")
     p.add_argument("--rotate", action="store_true", help=argparse.SUPPRESS)  # the default now; kept for old scripts
+    p.add_argument("--tolerance", type=float, help=TOLERANCE_HELP + "; kept in the collection, so that train and "
+                                                                    "sample use it too")
     p.add_argument("--distinct", choices=("histogram", "graph"), default="histogram",
                    help="which variants are duplicates: 'histogram' (default, seed 001's conservative rule: "
                         "a node-type histogram seen before) or 'graph' (a shape graph isomorphic to one seen)")
@@ -156,20 +157,32 @@ def _shape_sources(paths, count: int) -> list | None:
     return [str(f) for f in files] if len(files) == count > 1 else None
 
 
+TOLERANCE_HELP = ("contact tolerance in world units: parts this close count as touching (default: a shapes file's "
+                  "\"contact_tolerance\", else 0.001 x the median part diagonal)")
+
+
+def _take_tolerance(shape_set, tolerance) -> None:
+    """A --tolerance given on the command line, checked, as the set's contact tolerance."""
+    if tolerance is None:
+        return
+    from .shapes import checked_tolerance
+
+    shape_set.tolerance = checked_tolerance(tolerance, "--tolerance")
+
+
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .contacts import loose_parts, shape_graph, tolerance_for
+    from .contacts import contact_tolerance, loose_parts, shape_graph
     from .assets import read_shape_inputs
     from .grammar import Grammar, ring_rule_note
     from ..core.paths import output_path
     from .shapes import write_graph
 
     shape_set = read_shape_inputs(args.shapes)
-    if args.tolerance is not None and not (math.isfinite(args.tolerance) and args.tolerance >= 0):
-        raise InvalidArgumentError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
+    _take_tolerance(shape_set, args.tolerance)
     out = output_path(args.out)
     folder = RunFolder(out, GRAPHS_FOLDER, args.overwrite, inputs=args.shapes)
-    tolerance = tolerance_for(shape_set.library) if args.tolerance is None else args.tolerance
+    tolerance = contact_tolerance(shape_set)
     graphs = [shape_graph(shape_set, s, tolerance) for s in shape_set.shapes]
     with folder.writing() as tmp:
         for i, g in enumerate(graphs):
@@ -257,6 +270,7 @@ def _augment(args) -> None:
     from ..core.paths import output_path
 
     shape_set = read_shape_inputs(args.shapes)
+    _take_tolerance(shape_set, args.tolerance)
     if args.count < 1 or args.parallel < 1 or args.rounds < 1:
         raise InvalidArgumentError("--count, --parallel and --rounds must be positive integers")
     if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
@@ -274,18 +288,19 @@ def _augment(args) -> None:
     folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
-    from .contacts import DEFAULT_TOLERANCE, loose_parts, shape_graph, tolerance_for
+    from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, shape_graph
     named = _shape_sources(args.shapes, len(shape_set.shapes))
-    tolerance = tolerance_for(shape_set.library)
+    tolerance = contact_tolerance(shape_set)
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
         g = shape_graph(shape_set, shape, tolerance)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
+            given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"
+                     if shape_set.tolerance is not None else f"{DEFAULT_TOLERANCE:g} x the median part's size")
             raise InvalidArgumentError(
-                f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance)} (the contact tolerance: "
-                f"{DEFAULT_TOLERANCE:g} x the median part's size); a string encodes one connected shape: move the "
-                "parts to touch ('strings graph --tolerance' shows what a larger gap would join, but augment and "
-                "train take contacts within this one only)")
+                f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance)} (the contact tolerance: {given}); "
+                "a string encodes one connected shape: move the parts to touch, or give --tolerance in world units "
+                "to count gaps up to it as contacts ('strings graph --tolerance' shows what it joins)")
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     bar = progress_bar(total=args.count, unit=" shapes")

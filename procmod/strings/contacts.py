@@ -92,6 +92,12 @@ def meshes_touch(obj_a, obj_b, tol: float) -> bool:
     return fcl.distance(obj_a, obj_b, fcl.DistanceRequest(), fcl.DistanceResult()) <= tol
 
 
+def contact_tolerance(shape_set: ShapeSet) -> float:
+    """The set's contact tolerance: the one it was given (``ShapeSet.tolerance``), else
+    :func:`tolerance_for` its library."""
+    return shape_set.tolerance if shape_set.tolerance is not None else tolerance_for(shape_set.library)
+
+
 def tolerance_for(library: dict) -> float:
     """The default contact tolerance: :data:`DEFAULT_TOLERANCE` times the median part diagonal."""
     diagonals = [float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in library.values()]
@@ -152,7 +158,7 @@ def shape_graph(shape_set: ShapeSet, shape: Shape, tol: float | None = None) -> 
             raise InvalidArgumentError(f"tol must be a finite distance of at least 0 (or None for the library's "
                                        f"own), got {tol!r:.40}")
         tol = value
-    tol = tolerance_for(shape_set.library) if tol is None else tol
+    tol = contact_tolerance(shape_set) if tol is None else tol
     g = nx.Graph()
     for k, name in enumerate(shape.parts):
         g.add_node(k, type=shape_set.letters[name], part=name)

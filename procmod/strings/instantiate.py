@@ -21,7 +21,7 @@ import numpy as np
 from ..core.errors import InvalidArgumentError
 from .categories import EdgeCategories
 from .frames import canonical_frame
-from .contacts import contact_pairs, part_points, shape_graph, tolerance_for
+from .contacts import contact_pairs, contact_tolerance, part_points, shape_graph
 from .shapes import Shape, ShapeSet
 
 
@@ -88,7 +88,7 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
     if budget < 1:
         raise InvalidArgumentError(f"budget must be at least 1 (got {budget})")
     lib = shape_set.library
-    tol = tolerance_for(lib)
+    tol = contact_tolerance(shape_set)
     n = g.number_of_nodes()
     types = [g.nodes[v]["type"] for v in range(n)]
     parts = [part_of[t] for t in types]

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError, checked_count
 from ..core.random import check_seed
-from .contacts import centroids, contact_pairs, part_points, shape_graph, tolerance_for
+from .contacts import centroids, contact_pairs, contact_tolerance, part_points, shape_graph, tolerance_for
 from .grammar import Grammar
 from .shapes import Shape, ShapeSet, type_histogram
 
@@ -183,8 +183,11 @@ def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Gramma
     into ``shape_b``; the first merged shape that validates and its (recomputed) shape
     graph, or None. Module-level and picklable, for executors."""
     rng = np.random.default_rng(seed)
-    tol = tolerance_for(shape_set.library)
-    scale = tol / 1e-3 if tol > 0 else 1.0
+    tol = contact_tolerance(shape_set)
+    # the docking distances scale with the parts' size (the default tolerance), not with a
+    # user's larger contact tolerance
+    default = tolerance_for(shape_set.library)
+    scale = default / 1e-3 if default > 0 else 1.0
     dtol = params.distance_tol * scale
     ga, gb = shape_graph(shape_set, shape_a, tol), shape_graph(shape_set, shape_b, tol)
     ta, tb = shape_set.types(shape_a), shape_set.types(shape_b)

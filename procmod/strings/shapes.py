@@ -12,6 +12,7 @@ Each part name gets a one-letter node type (:func:`type_letters`). A shape graph
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,6 +59,9 @@ class ShapeSet:
     shapes: list  # of Shape
     letters: dict  # part name -> one-letter type
     base_dir: Path | None = None  # where mesh paths are relative to (None: meshes from asset files, held here)
+    # the contact tolerance in world units (a shapes file's "contact_tolerance", augment's
+    # --tolerance); None: contacts.tolerance_for the library
+    tolerance: float | None = None
 
     @property
     def part_of_letter(self) -> dict:
@@ -139,15 +143,30 @@ def shapes_from_dict(data, base_dir, source: str = "shapes") -> ShapeSet:
                 raise ShapesFormatError(f"{source}: {exc}") from None
             names.append(name)
         shapes.append(Shape.of(names, transforms))
-    return ShapeSet(library, shapes, type_letters(library), Path(base_dir))
+    return ShapeSet(library, shapes, type_letters(library), Path(base_dir),
+                    checked_tolerance(data.get("contact_tolerance"), f"{source}: contact_tolerance", ShapesFormatError))
+
+
+def checked_tolerance(value, where: str, error=InvalidArgumentError) -> float | None:
+    """A contact tolerance (world units): None, or a finite number >= 0; else ``error``
+    naming ``where``."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise error(f"{where} must be a finite number >= 0 (world units: gaps up to it count as contacts), "
+                    f"got {value!r:.40}")
+    return float(value)
 
 
 def shapes_to_dict(shape_set: ShapeSet, shapes=None) -> dict:
     """The JSON object of a shapes file for ``shapes`` (default: the set's own)."""
     shapes = shape_set.shapes if shapes is None else shapes
-    return {"format": SHAPES_FORMAT, "parts": part_library_to_json(shape_set.library),
+    data = {"format": SHAPES_FORMAT, "parts": part_library_to_json(shape_set.library),
             "shapes": [{"nodes": [{"part": p, "transform": transform_to_json(t)}
                                   for p, t in zip(s.parts, s.transforms)]} for s in shapes]}
+    if shape_set.tolerance is not None:  # the collection and a model trained on it keep the user's
+        data["contact_tolerance"] = shape_set.tolerance
+    return data
 
 
 def mesh_obj_text(vertices, faces) -> str:
