@@ -115,3 +115,27 @@ def test_pictures_cover_what_the_scoring_raster_covers():
         raster = canvas.pixels.reshape(200, 200) != 0
         union, both = (picture | raster).sum(), (picture & raster).sum()
         assert union > 0 and both / union > 0.85, (shape, both / union)
+
+
+def test_huge_finite_coordinates_draw_what_lies_on_the_canvas_without_crashing():
+    """A segment or polygon reaching 1e19-1e200 world units (a growth factor typed 1.9 for
+    0.9) overflowed the kernels' int64 pixel bounds: a segfault, or a loop SIGTERM could
+    not stop. Run in a child process, so that a crash fails this test, not the suite."""
+    import subprocess
+    import sys
+    code = """
+from procmod.geometry import Canvas, Polygon, Segment
+from procmod.geometry.camera import Camera, Silhouettes
+from procmod.geometry.solid import Box
+import numpy as np
+far = Canvas((-12, 12, -22, 2), 50)
+near = Canvas((-12, 12, -22, 2), 50)
+print(far.add(Segment(0, -10, 1e19, -10, 0.5)) == near.add(Segment(0, -10, 12, -10, 0.5)))
+print(Canvas((-12, 12, -22, 2), 50).add(Segment(0, -10, 0, 1e200, 0.5)) > 0)
+print(Canvas((-12, 12, -22, 2), 50).add(Polygon(((0, -10), (1e19, -5), (3, -8)))) > 0)
+views = Silhouettes([Camera((0, 0, 10), (0, 0, 0), projection="orthographic", fov=4, width=20, height=20)])
+print(views.add(Box((1e20, 1.0, 1.0))) > 0)
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["True"] * 4, done.stdout

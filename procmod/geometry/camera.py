@@ -141,8 +141,13 @@ def _clip_two_in_front(tris, depth, front):
 @numba.njit(cache=True, inline="always")
 def _pixel_box(ax, ay, bx, by, cx, cy, width, height):
     """Pixel index range (i0, i1, j0, j1) of a triangle's bounding box, clipped to the image."""
-    return (max(int(np.floor(min(ax, bx, cx))), 0), min(int(np.ceil(max(ax, bx, cx))), width - 1),
-            max(int(np.floor(min(ay, by, cy))), 0), min(int(np.ceil(max(ay, by, cy))), height - 1))
+    # clipped before the conversion to int: a coordinate past 9.2e18 pixels overflows int64
+    # (a part flung far by a model's typo, or a corner just in front of the near plane)
+    i0, i1 = max(np.floor(min(ax, bx, cx)), 0.0), min(np.ceil(max(ax, bx, cx)), width - 1.0)
+    j0, j1 = max(np.floor(min(ay, by, cy)), 0.0), min(np.ceil(max(ay, by, cy)), height - 1.0)
+    if not (i0 <= i1 and j0 <= j1):  # off the image (or NaN)
+        return 0, -1, 0, -1
+    return int(i0), int(i1), int(j0), int(j1)
 
 
 @numba.njit(cache=True)

@@ -33,28 +33,47 @@ def _cover(pixels, k, value, gain, changed, n_new, gain_sum):
     return n_new, gain_sum
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _pixel_range(lo, hi, n):
+    """Pixel indices floor(lo) .. ceil(hi) clipped to 0 .. n - 1, as (first, last); last <
+    first when none. Clipped before the conversion to int: a finite coordinate past 9.2e18
+    pixels (a growth factor typed 1.9 for 0.9) overflowed int64, and the loops then ran
+    out of bounds (a segfault) or for ever (SIGTERM unheeded)."""
+    first = max(np.floor(lo), 0.0)
+    last = min(np.ceil(hi), n - 1.0)
+    if not first <= last:  # also NaN
+        return 0, -1
+    return int(first), int(last)
+
+
 @numba.njit(cache=True, nogil=True)
 def _draw_capsule(pixels, width, height, value, x0, y0, x1, y1, r, gain, changed):
     n_new = 0
     gain_sum = 0.0
-    i_lo = max(int(np.floor(min(x0, x1) - r)), 0)
-    i_hi = min(int(np.ceil(max(x0, x1) + r)), width - 1)
-    j_lo = max(int(np.floor(min(y0, y1) - r)), 0)
-    j_hi = min(int(np.ceil(max(y0, y1) + r)), height - 1)
+    i_lo, i_hi = _pixel_range(min(x0, x1) - r, max(x0, x1) + r, width)
+    j_lo, j_hi = _pixel_range(min(y0, y1) - r, max(y0, y1) + r, height)
     dx = x1 - x0
     dy = y1 - y0
     length2 = dx * dx + dy * dy
     r2 = r * r
+    if length2 == np.inf:  # a segment past 1e154 pixels: its squared length overflows, so
+        length = np.hypot(dx, dy)  # project on the unit direction (along it, in pixels) instead
+        ux, uy = dx / length, dy / length
     for j in range(j_lo, j_hi + 1):
         py = j + 0.5
         for i in range(i_lo, i_hi + 1):
             px = i + 0.5
             t = 0.0
-            if length2 > 0.0:
-                t = ((px - x0) * dx + (py - y0) * dy) / length2
-                t = min(1.0, max(0.0, t))
-            ex = px - (x0 + t * dx)
-            ey = py - (y0 + t * dy)
+            if length2 == np.inf:
+                along = min(length, max(0.0, (px - x0) * ux + (py - y0) * uy))
+                ex = px - (x0 + along * ux)
+                ey = py - (y0 + along * uy)
+            else:
+                if length2 > 0.0:
+                    t = ((px - x0) * dx + (py - y0) * dy) / length2
+                    t = min(1.0, max(0.0, t))
+                ex = px - (x0 + t * dx)
+                ey = py - (y0 + t * dy)
             if ex * ex + ey * ey <= r2:
                 n_new, gain_sum = _cover(pixels, j * width + i, value, gain, changed, n_new, gain_sum)
     return n_new, gain_sum
@@ -67,10 +86,8 @@ def _draw_ellipse(pixels, width, height, value, cx, cy, ux, uy, a, b, gain, chan
     gain_sum = 0.0
     hx = np.sqrt((a * ux) ** 2 + (b * uy) ** 2)
     hy = np.sqrt((a * uy) ** 2 + (b * ux) ** 2)
-    i_lo = max(int(np.floor(cx - hx)), 0)
-    i_hi = min(int(np.ceil(cx + hx)), width - 1)
-    j_lo = max(int(np.floor(cy - hy)), 0)
-    j_hi = min(int(np.ceil(cy + hy)), height - 1)
+    i_lo, i_hi = _pixel_range(cx - hx, cx + hx, width)
+    j_lo, j_hi = _pixel_range(cy - hy, cy + hy, height)
     ia2 = 1.0 / (a * a)
     ib2 = 1.0 / (b * b)
     for j in range(j_lo, j_hi + 1):
@@ -89,10 +106,8 @@ def _draw_polygon(pixels, width, height, value, xs, ys, gain, changed):
     n_new = 0
     gain_sum = 0.0
     n = xs.shape[0]
-    i_lo = max(int(np.floor(xs.min())), 0)
-    i_hi = min(int(np.ceil(xs.max())), width - 1)
-    j_lo = max(int(np.floor(ys.min())), 0)
-    j_hi = min(int(np.ceil(ys.max())), height - 1)
+    i_lo, i_hi = _pixel_range(xs.min(), xs.max(), width)
+    j_lo, j_hi = _pixel_range(ys.min(), ys.max(), height)
     for j in range(j_lo, j_hi + 1):
         py = j + 0.5
         for i in range(i_lo, i_hi + 1):
