@@ -213,3 +213,57 @@ def test_infer_with_workers_from_the_cli(tmp_path, capsys):
     settings = json.loads((out / "settings.json").read_text())
     assert settings["settings"]["workers"] == 2
     assert (out / "best.json").exists() and (out / "report.html").exists()
+
+
+def _closure_tree():
+    """A model whose rules a user wrote as a closure (a rule factory) and as a bound
+    method: plain pickle cannot send either in a moved particle's pending calls."""
+    import math as m
+
+    from procmod.geometry import Canvas, Disc, Segment
+
+    def make_branch(decay):
+        def branch(ctx, x, y, a, w):
+            a = ctx.sample("a", Normal(a, 0.3))
+            x1, y1 = x + 1.5 * m.cos(a), y + 1.5 * m.sin(a)
+            ctx.emit(Segment(x, y, x1, y1, w))
+            if w > 0.15:
+                ctx.maybe("l", 0.7, branch, x1, y1, a - 0.4, w * decay)
+                ctx.maybe("r", 0.7, branch, x1, y1, a + 0.4, w * decay)
+        return branch
+
+    class Grower:
+        def __init__(self, decay):
+            self.branch = make_branch(decay)
+
+        def root(self, ctx, x, y):
+            ctx.emit(Disc(x, y, 0.5))
+            ctx.spawn("trunk", self.branch, x, y, -m.pi / 2, 0.8)
+
+    grower = Grower(0.8)
+    return Model("closure-tree", "closures and a method", lambda ctx, x, y: ctx.spawn("g", grower.root, x, y),
+                 root_args=lambda p: (0.0, -4.0), new_output_from=lambda p: Canvas((-12, 12, -22, 2), 50))
+
+
+@pytest.mark.parametrize("engine", [smc, sosmc])
+def test_workers_take_rules_that_are_closures_and_methods(engine, monkeypatch, tmp_path):
+    """README: forked workers 'take any model'. A particle moved between shards whose
+    pending call is a closure or a bound method failed with a traceback ('Can't pickle
+    local object'); it now goes by value (cloudpickle), the same seed giving the same run."""
+    from procmod.infer import particles
+    log = tmp_path / "picklers.txt"  # appended to by the coordinator and the forked workers
+    real = particles._SharedObjects._dumps
+
+    def recording(self, message, pickler_class):
+        with open(log, "a") as handle:
+            handle.write(pickler_class.__module__ + "\n")
+        return real(self, message, pickler_class)
+
+    monkeypatch.setattr(particles._SharedObjects, "_dumps", recording)
+    from procmod.data import target_from_spec
+    model, target = _closure_tree(), target_from_spec("glyph:Y")
+    first = engine(model, target, particles=40, seed=2, workers=2)
+    assert "cloudpickle.cloudpickle" in log.read_text().split()  # a particle with such a call did move
+    again = engine(model, target, particles=40, seed=2, workers=2)
+    assert first.best_score == again.best_score
+    assert first.best.choice_map() == again.best.choice_map()

@@ -30,6 +30,7 @@ import os
 import pickle
 import signal
 
+from ..core.errors import ModelError, ProcmodError
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
 from .common import checked_value
 from ..parallel import lost_worker_error
@@ -197,8 +198,26 @@ class _SharedObjects:
                 self.by_id[id(obj)] = obj
 
     def dumps(self, message) -> bytes:
+        """``message`` pickled, shared objects by reference. What plain pickle cannot send
+        (a rule that is a closure, a lambda or a bound method, in a moved particle's
+        pending calls) goes by value through cloudpickle (a dask dependency): the worker is
+        a fork of this process, so the code it rebuilds is the same."""
+        try:
+            return self._dumps(message, pickle.Pickler)
+        except (pickle.PicklingError, TypeError, AttributeError):
+            pass
+        import cloudpickle
+
+        try:
+            return self._dumps(message, cloudpickle.CloudPickler)
+        except Exception as exc:  # noqa: BLE001 -- whatever the object's own pickling raises
+            raise ModelError(f"a particle's state cannot be sent between --workers processes ({type(exc).__name__}: "
+                             f"{str(exc)[:120]}); keep the model's rules and their arguments to plain functions and "
+                             "values, or run without --workers") from None
+
+    def _dumps(self, message, pickler_class) -> bytes:
         buffer = io.BytesIO()
-        pickler = pickle.Pickler(buffer, protocol=pickle.HIGHEST_PROTOCOL)
+        pickler = pickler_class(buffer, protocol=pickle.HIGHEST_PROTOCOL)
         by_id = self.by_id
         pickler.persistent_id = lambda obj: id(obj) if id(obj) in by_id else None
         pickler.dump(message)
@@ -214,6 +233,8 @@ def shared_objects(model, target, template, proposer) -> _SharedObjects:
     """What a forked worker already has: model, rules, target, proposer, the root call's
     arguments, and the parts of an output that its copies share (e.g. a canvas's gains)."""
     objects = [model, target, proposer, model.root, *model.rules, *model.initial_args()]
+    # a rule that is a bound method is a new object at each look-up; its instance is not
+    objects += [getattr(rule, "__self__", None) for rule in (model.root, *model.rules)]
     copy = template.copy()
     names = getattr(type(template), "__slots__", ()) or tuple(getattr(template, "__dict__", {}))
     for name in names:
@@ -275,6 +296,8 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
             message = ("error", portable_error(exc, f"SMC worker process {shard.index}"))
         try:
             conn.send_bytes(shared.dumps(message))
+        except ProcmodError as exc:  # a reply that cannot be sent (dumps says what): said in the coordinator
+            conn.send_bytes(shared.dumps(("error", exc)))
         except (pickle.PicklingError, TypeError, AttributeError):
             error = message[1]
             conn.send_bytes(shared.dumps(("error", RuntimeError(f"{type(error).__name__}: {error}"))))
