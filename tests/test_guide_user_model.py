@@ -185,3 +185,33 @@ def test_a_guides_json_beside_another_guides_weights_is_refused(tmp_path, monkey
     assert main(argv + ["mix/g"]) == 2
     assert "g.pt is not the weights written with g.json" in capsys.readouterr().err
     assert main(argv + ["a"]) == 0  # the guide as written
+
+
+def test_a_rule_whose_call_leaves_an_argument_to_its_default(tmp_path, monkeypatch, capsys):
+    """``def plant(ctx, x, y, angle, depth=0)`` started without ``depth``: training called
+    its traces damaged ('tuple index out of range', the same again after remaking them),
+    and a guide trained with the argument given broke inside procmod's feature code, blamed
+    on the model's own line. The features take the default, as the call does."""
+    import numpy as np
+
+    (tmp_path / "plants.py").write_text(PLANT_FILE.replace("def plant(ctx, x, y, angle, depth):",
+                                                           "def plant(ctx, x, y, angle, depth=0):")
+                                        .replace("(0.0, 0.0, -math.pi / 2, 0)", "(0.0, 0.0, -math.pi / 2)"))
+    monkeypatch.chdir(tmp_path)
+    for argv in (["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
+                  "--out", "traces"],
+                 ["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", "g", "--iterations", "20"],
+                 ["infer", "plants.py:PLANT", "--target", "scribble:3", "--particles", "4", "--guide", "g",
+                  "--out", "run"]):
+        assert main(argv) == 0, capsys.readouterr().err
+    from procmod.core import start
+    from procmod.guide.features import FeatureExtractor, FeatureSettings, with_defaults
+    from procmod.models import model_from_spec
+
+    model = model_from_spec("plants.py:PLANT")
+    assert with_defaults(model.root, (1.0, 2.0, 0.5)) == (1.0, 2.0, 0.5, 0)
+    assert with_defaults(model.root, (1.0, 2.0, 0.5, 3)) == (1.0, 2.0, 0.5, 3)
+    extractor = FeatureExtractor(model, FeatureSettings.condition("local"), None)
+    state = start(model, model.new_output())
+    np.testing.assert_array_equal(extractor.features(state, "plant", with_defaults(model.root, (1.0, 2.0, 0.5))),
+                                  extractor.features(state, "plant", (1.0, 2.0, 0.5, 0)))

@@ -33,6 +33,7 @@ networks keep their learned first layer, which mixes the window values freely.
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass
 
@@ -232,6 +233,32 @@ class Pyramid:
 
 ANGLE = "angle"  # an arg_ranges entry for a direction in radians
 HEADING = -1  # the local-state entry of the heading a rule reports with ctx.at
+
+
+_DEFAULTS: dict = {}  # rule function -> the defaults of its arguments after ctx (None: none)
+
+
+def with_defaults(rule, args: tuple) -> tuple:
+    """A call's arguments completed with the rule's defaults for those it left out (``def
+    stem(ctx, x, y, angle, width, depth=0)`` spawned with four): local features read
+    arguments by position, and a missing one was an IndexError blamed on a trace file."""
+    defaults = _DEFAULTS.get(rule, False)
+    if defaults is False:
+        try:
+            parameters = list(inspect.signature(rule).parameters.values())[1:]  # after ctx
+        except (TypeError, ValueError):  # a builtin or a callable without a signature
+            parameters = []
+        defaults = tuple(p.default for p in parameters
+                         if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD))
+        if len(_DEFAULTS) > 4096:  # a model that builds its rules afresh: don't grow forever
+            _DEFAULTS.clear()
+        _DEFAULTS[rule] = defaults
+    if len(args) >= len(defaults):
+        return args
+    missing = defaults[len(args):]
+    if any(d is inspect.Parameter.empty for d in missing):
+        return args  # a call short of a required argument: the rule's own call says so
+    return tuple(args) + missing
 
 
 def local_ranges(model, rule_name: str) -> tuple | None:

@@ -28,7 +28,7 @@ from ..core.limits import check_memory
 from ..core.runtime import rule_name
 from .fast import guided_draw, pack_site, site_outputs
 from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, check_same_size,
-                       covered_pixels, heading_of, partial_pyramid)
+                       covered_pixels, heading_of, partial_pyramid, with_defaults)
 from .network import base_params, encode_value, head_kind, initial_bias, n_outputs, propose
 
 FORMAT = "procmod-guide/1"
@@ -378,8 +378,10 @@ class GuidedProposer:
             raw = raws.setdefault(rule_name, np.zeros(len(lows)))
             # [kind, packed ranges + network (fast.pack_site), argument indices, prefix length
             #  (None: gather by index), distribution class last checked against the kind
-            #  (None: not yet), whether the heading follows the arguments, the rule's raw values]
-            self._sites[(rule_name, choice)] = [spec["kind"], params, arg_idx, prefix, None, heading, raw]
+            #  (None: not yet), whether the heading follows the arguments, the rule's raw values,
+            #  how many arguments the features read (a call with fewer takes the rule's defaults)]
+            needed = int(max(arg_idx)) + 1 if len(arg_idx) else 0
+            self._sites[(rule_name, choice)] = [spec["kind"], params, arg_idx, prefix, None, heading, raw, needed]
         self._by_rule = {}  # (rule function, choice) -> its site (or None): the hot path's lookup
         self._bases = {}  # shared discrete distributions -> their base parameters
         self._raw_of = (None, None)  # (call arguments, the raw-values array they were written into)
@@ -480,6 +482,9 @@ class GuidedProposer:
             value = dist.sample(rng)
             return value, dist.log_prob(value)
         kind = site[0]
+        args = ctx.args
+        if len(args) < site[7]:  # a call that leaves arguments to the rule's defaults
+            args = with_defaults(ctx.rule, args)
         if type(dist) is not site[4]:
             if head_kind(dist) != kind:
                 article = "an" if kind[0] in "aeiou" else "a"
@@ -493,9 +498,9 @@ class GuidedProposer:
             mu0, s0 = (dist.mu, dist.sigma) if type(dist) is Normal else base_params(kind, dist)
             u, z = self._draws(rng)
             return guided_draw(0, self.mixture, mu0, s0, self._no_local, u, z,
-                               *self._inputs(ctx.derivation, site, ctx.args))
+                               *self._inputs(ctx.derivation, site, args))
         if kind == "interval":
-            out = self.outputs(ctx.derivation, site, ctx.args)
+            out = self.outputs(ctx.derivation, site, args)
             return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
         base = self._bases.get(dist)
         if base is None:
@@ -504,9 +509,9 @@ class GuidedProposer:
             base = self._bases[dist] = np.array(base_params(kind, dist), dtype=np.float64)
         u = self._draws(rng)[0]
         if kind == "bernoulli":
-            value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, ctx.args))
+            value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, args))
             return value == 1.0, lq
-        index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, ctx.args))
+        index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, args))
         return dist.labels[int(index)], lq
 
     def unmatched_note(self) -> str | None:
@@ -555,7 +560,7 @@ class RecordingProposer:
         kind = head_kind(dist)
         rule = rule_name(ctx.rule)
         self.rows.append((site_key(rule, name), kind,
-                          self.extractor.features(ctx.derivation, rule, ctx.args),
+                          self.extractor.features(ctx.derivation, rule, with_defaults(ctx.rule, ctx.args)),
                           base_params(kind, dist), encode_value(kind, dist, value)))
         return value, 0.0
 
