@@ -282,6 +282,46 @@ def test_param_start_and_direction_place_the_model_on_a_picture_target(tmp_path,
     assert {key: params[key] for key in placed} == placed
 
 
+USER_START_MODEL = """
+import math
+from procmod import Model, Normal
+from procmod.geometry import Canvas, Segment
+
+def grow(ctx, x, y, angle, n):
+    angle = ctx.sample("angle", Normal(angle, 0.3))
+    x1, y1 = x + 2 * math.cos(angle), y + 2 * math.sin(angle)
+    ctx.emit(Segment(x, y, x1, y1, 0.6))
+    if n < 5:
+        ctx.spawn("next", grow, x1, y1, angle, n + 1)
+
+def root_args(p):
+    x, y = p["start"]
+    heading = p["direction"] if isinstance(p["direction"], float) else math.atan2(*p["direction"][::-1])
+    return (float(x), float(y), heading, 0)
+
+M = Model("mine", "grows from its own start", grow, root_args, lambda p: Canvas((-12, 12, -22, 2), 50),
+          params={"start": START, "direction": DIRECTION})
+"""
+
+
+@pytest.mark.parametrize("start, direction, placed", [
+    ("[0, -2]", "-1.5707963", False),  # a world point and a heading in radians: the model's own
+    ("[0.0, -2.0]", "[0.0, 1.0]", False),  # a world point: its direction (a world vector) kept too
+    ("[0.5, 0.9]", "[0.0, -1.0]", True),  # normalised image coordinates, as the built-in models take
+])
+def test_a_users_start_and_direction_are_its_own_unless_they_are_the_pictures_kind(tmp_path, capsys, start,
+                                                                                  direction, placed):
+    """A picture target wrote its placement over any model's ``start``/``direction``: a
+    world start [0, -2] was refused ('start[0] must be an integer, got 0.505', a value the
+    user never gave) or silently moved to the picture's normalised coordinates."""
+    (tmp_path / "mine.py").write_text(USER_START_MODEL.replace("START", start).replace("DIRECTION", direction))
+    code = main(["infer", str(tmp_path / "mine.py"), "--target", "glyph:Y", "--particles", "3", "--out",
+                 str(tmp_path / "r")])
+    assert code == 0, capsys.readouterr().err
+    params = json.loads((tmp_path / "r" / "best.json").read_text())["params"]
+    assert (params["start"] != json.loads(start)) == placed, params
+
+
 def test_an_integer_for_a_real_parameter_takes_a_later_real_change(tmp_path, capsys):
     """``--param direction=[0,-1]`` (what the message for [0,0] suggests) was stored as
     integers, so the target's real start was then refused as "must be an integer"."""
