@@ -16,7 +16,7 @@ from procmod.core.runtime import rule_name, start, step
 from procmod.data import target_from_spec
 from procmod.geometry import Canvas, Disc, Ellipse, Polygon, Segment
 from procmod.geometry.solid import Box, Cylinder, Mesh, new_part_bounds, translation
-from procmod.infer.smc import smc
+from procmod.infer.smc import smc, sosmc
 from procmod.models import get_model
 
 
@@ -80,6 +80,25 @@ def test_emits_of_one_call_are_limited():
         for i in range(12_000):
             ctx.emit(Disc(-5 + (i % 100) * 0.1, -20 + (i // 100) * 0.15, 0.05))
     assert run_forward(_model(stipple), np.random.default_rng(0)).n_emits == 12_000
+
+
+def test_emits_of_one_call_under_smc_are_limited_before_the_reruns_take_hours():
+    """SMC re-runs a call from its start after each of its emits: a loop that never ends
+    took 142 s for 2 particles to reach max_call_emits (20,000), hours at the default 600.
+    Under SMC a call may emit max_resumed_emits times (default 500); straight through,
+    max_call_emits; a model that means a long loop raises the first."""
+    def stipple(ctx):  # 1,500 dots in one call
+        for i in range(1_500):
+            ctx.emit(Disc(-5 + (i % 50) * 0.2, -20 + (i // 50) * 0.5, 0.05))
+    assert run_forward(_model(stipple), np.random.default_rng(0)).n_emits == 1_500
+    for engine in (smc, sosmc):
+        with pytest.raises(ModelError, match=r"rule 'stipple' at / emits more than 500 times in one call under "
+                                             r"SMC.*Model\(max_resumed_emits=...\)"):
+            engine(_model(stipple), target_from_spec("glyph:o"), particles=2, seed=0)
+    result = smc(_model(stipple, max_resumed_emits=2_000), target_from_spec("glyph:o"), particles=2, seed=0)
+    assert result.best.n_emits == 1_500
+    with pytest.raises(ModelError, match="max_resumed_emits must be a whole number from 1"):
+        _model(stipple, max_resumed_emits=0)
 
 
 def test_choices_of_one_call_are_limited():

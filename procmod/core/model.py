@@ -72,9 +72,15 @@ class Model:
         runaway recursion would slow every call and fill memory long before
         ``max_calls``. The built-in models stay under depth 100 (chain's own bound).
     max_call_emits : int
-        The most emits one rule call may make (default 20,000): engines that pause at
-        emits (SMC) re-run a call from its start to resume it, so a loop that never ends
-        would otherwise run for hours before anything said so.
+        The most emits one rule call may make (default 20,000): a loop that never ends
+        would otherwise draw until memory ran out.
+    max_resumed_emits : int
+        The most emits one rule call may make under engines that pause at emits (SMC,
+        SOSMC; default 500, and never more than ``max_call_emits``): they re-run a call
+        from its start to resume it after each of its emits, about n^2 / 2 emits for n,
+        so a loop of 20,000 emits ran for hours a particle before ``max_call_emits``
+        said so. A long run of parts is better emitted from child calls; raise this for
+        one meant to be a single call.
     max_call_choices : int
         The most random choices one rule call may make (default 100,000): a loop of
         choices that never ends (``while not ctx.sample(...)`` with a coin that never
@@ -100,6 +106,7 @@ class Model:
     max_depth: int = 10_000
     max_call_emits: int = 20_000
     max_call_choices: int = 100_000
+    max_resumed_emits: int = 500
 
     def __post_init__(self):
         # a model built wrong fails here, naming the field, not at its first run
@@ -107,7 +114,7 @@ class Model:
             value = getattr(self, what)
             if not callable(value):
                 raise ModelError(f"model {self.name!r}: {what} must be a function, got {value!r:.40}")
-        for what in ("max_calls", "max_depth", "max_call_emits", "max_call_choices"):
+        for what in ("max_calls", "max_depth", "max_call_emits", "max_call_choices", "max_resumed_emits"):
             value = getattr(self, what)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= LIMIT_CEILING:
                 raise ModelError(f"model {self.name!r}: {what} must be a whole number from 1 to "

@@ -243,10 +243,16 @@ class Context:
         if index < self._skip:  # drawn before this call was paused
             return
         state = self._state
-        if index >= state.model.max_call_emits:
-            raise self._misuse(f"emits more than {state.model.max_call_emits:,} times in one call; does a loop in it "
-                               "ever end? (SMC re-runs a call from its start to resume it after each emit, so emit a "
-                               "long run of parts from child calls, or raise Model(max_call_emits=...))")
+        model = state.model
+        if index >= model.max_call_emits:
+            raise self._misuse(f"emits more than {model.max_call_emits:,} times in one call; does a loop in it "
+                               "ever end? (emit a long run of parts from child calls, or raise "
+                               "Model(max_call_emits=...))")
+        if self._pause and index >= model.max_resumed_emits:
+            raise self._misuse(f"emits more than {model.max_resumed_emits:,} times in one call under SMC, which "
+                               "re-runs a call from its start to resume it after each emit (n^2 / 2 emits for n: "
+                               "hours for a loop of thousands); does the loop end? Emit a long run of parts from "
+                               "child calls, use --engine mcmc or ga, or raise Model(max_resumed_emits=...)")
         try:
             state.output.add(geometry)
         except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw
