@@ -139,3 +139,11 @@ print(views.add(Box((1e20, 1.0, 1.0))) > 0)
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split() == ["True"] * 4, done.stdout
+
+
+def test_a_reversed_or_empty_viewport_is_refused():
+    """Canvas((12, -12, -22, 2), 50), x reversed, drew nothing at all, without a word."""
+    for viewport in ((12, -12, -22, 2), (-12, 12, 2, -22), (0, 0, -22, 2), (-12, 12, -22, float("inf"))):
+        with pytest.raises(ValueError, match="viewport is \\(xmin, xmax, ymin, ymax\\) with xmin < xmax"):
+            Canvas(viewport, 50)
+    assert Canvas((-12, 12, -22, 2), 50).add(Disc(0, -10, 1)) > 0

@@ -156,6 +156,11 @@ class Canvas:
         self.height = int(width if height is None else height)
         if self.width < 1 or self.height < 1:
             raise ValueError(f"canvas size must be positive, got {self.width}x{self.height}")
+        vp = self.viewport
+        if not (np.isfinite(vp).all() and vp.xmin < vp.xmax and vp.ymin < vp.ymax):
+            # (12, -12, ...) drew nothing at all, without a word: every part fell "outside"
+            raise ValueError(f"the canvas viewport is (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, "
+                             f"finite; got {tuple(float(v) for v in vp)}")
         self.pixels = np.zeros(self.width * self.height, dtype=np.uint8)
         self.gain = _NO_GAIN if gain is None else np.ascontiguousarray(gain, dtype=np.float64).ravel()
         if self.gain.shape[0] not in (0, self.pixels.shape[0]):
