@@ -215,3 +215,21 @@ def test_a_rule_whose_call_leaves_an_argument_to_its_default(tmp_path, monkeypat
     state = start(model, model.new_output())
     np.testing.assert_array_equal(extractor.features(state, "plant", with_defaults(model.root, (1.0, 2.0, 0.5))),
                                   extractor.features(state, "plant", (1.0, 2.0, 0.5, 0)))
+
+
+def test_defaults_of_a_rule_that_is_an_unhashable_callable():
+    """A rule may be a callable dataclass instance (unhashable): looking its defaults up in
+    a cache raised TypeError for every recorded training choice."""
+    import dataclasses
+
+    from procmod.guide.features import with_defaults
+
+    @dataclasses.dataclass
+    class Chain:
+        step: float = 2.0
+
+        def __call__(self, ctx, x, y, angle=0.5):
+            pass
+
+    assert with_defaults(Chain(), (1.0, 2.0)) == (1.0, 2.0, 0.5)
+    assert with_defaults(Chain(), (1.0, 2.0, 0.1)) == (1.0, 2.0, 0.1)

@@ -657,3 +657,44 @@ def test_finite_tensors_whose_transforms_overflow_are_one_line(saved, tmp_path):
         warnings.simplefilter("error")  # no numpy warning on the way
         with pytest.raises(ProcmodError, match=r"transform at root\.s0 .* is not finite .*choices x\.ls0 = .*learn it again"):
             run_forward(model, np.random.default_rng(0))
+
+
+def test_a_program_drawing_hundreds_of_copies_in_one_call_runs_under_smc():
+    """A node emits every copy of its symmetry groups in one call (a row of 520 caps);
+    SMC's limit on a call's resumed emits (500, against loops that never end) refused the
+    program, whose counts are its own and checked when it is read."""
+    from procmod.core import Target
+    from procmod.infer import smc
+
+    def at(x):
+        m = np.eye(4)
+        m[0, 3], m[1, 3] = x, 1.0
+        return m.tolist()
+
+    examples = {"format": "procmod-examples/1", "parts": {"base": {"box": [2, 1, 2]}, "cap": {"box": [0.3, 0.3, 0.3]}},
+                "examples": [{"part": "base", "transform": np.eye(4).tolist(),
+                              "children": [{"part": "cap", "transform": at(0.5 * k), "children": []}
+                                           for k in range(520)]}]}
+    program = initial_program(preprocess(examples_from_dict(examples)), np.random.default_rng(0))
+    assert max(max(support) for support in program.count_support.values()) == 520
+
+    class Anything(Target):
+        name = "anything"
+
+        def configure(self, model):
+            return model
+
+        def new_output(self, model):
+            return model.new_output()
+
+        def score(self, output):
+            return 0.0
+
+        def log_likelihood(self, output):
+            return 0.0
+
+    model = program_model(program, "row")
+    assert model.max_resumed_emits == model.max_call_emits
+    # 12 particles: some draw over 500 copies (with 8, none did at this seed)
+    result = smc(model, Anything(), particles=12, seed=0)  # refused: "emits more than 500 times in one call"
+    assert result.best is not None

@@ -348,6 +348,10 @@ def test_a_hand_placed_gap_joins_with_augments_tolerance_kept_through_the_collec
     assert code == 0 and "shape 0: 2 parts, 1 contacts" in out, (out, err)  # the file's tolerance, unasked
     # what a trained model's folder is written with keeps it too
     assert shapes_to_dict(read_shapes(tmp_path / "a" / "shapes.json"))["contact_tolerance"] == 0.1
+    # a tolerance past a tenth of the parts' size joins parts that merely sit near: a note
+    code, _, err = _run(capsys, "strings", "augment", tmp_path / "gap.glb", "--count", "2", "--out", tmp_path / "c",
+                        "--tolerance", "5", "--rounds", "1")
+    assert "note: the contact tolerance 5 is" in err and "of the median part's size" in err, err
     for bad in ("-1", "nan"):
         code, _, err = _run(capsys, "strings", "augment", tmp_path / "gap.glb", "--count", "2", "--out",
                             tmp_path / "b", "--tolerance", bad)

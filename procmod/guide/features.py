@@ -242,7 +242,10 @@ def with_defaults(rule, args: tuple) -> tuple:
     """A call's arguments completed with the rule's defaults for those it left out (``def
     stem(ctx, x, y, angle, width, depth=0)`` spawned with four): local features read
     arguments by position, and a missing one was an IndexError blamed on a trace file."""
-    defaults = _DEFAULTS.get(rule, False)
+    try:
+        defaults = _DEFAULTS.get(rule, False)
+    except TypeError:  # an unhashable callable (a dataclass instance with __call__): not cached
+        defaults = False
     if defaults is False:
         try:
             parameters = list(inspect.signature(rule).parameters.values())[1:]  # after ctx
@@ -252,7 +255,10 @@ def with_defaults(rule, args: tuple) -> tuple:
                          if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD))
         if len(_DEFAULTS) > 4096:  # a model that builds its rules afresh: don't grow forever
             _DEFAULTS.clear()
-        _DEFAULTS[rule] = defaults
+        try:
+            _DEFAULTS[rule] = defaults
+        except TypeError:
+            pass
     if len(args) >= len(defaults):
         return args
     missing = defaults[len(args):]

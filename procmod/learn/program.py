@@ -270,7 +270,11 @@ def program_model(program: Program, name: str) -> Model:
     return Model(name=name, description=f"learned program ({len(program.abstractions)} abstractions)",
                  root=gen_node, root_args=partial(program_root_args, program),
                  new_output_from=new_part_bounds, params={}, rules=(gen_node,),
-                 choices_doc=__doc__)
+                 choices_doc=__doc__,
+                 # a node emits every copy of its symmetry groups in one call (25 x 25
+                 # windows: 625); their counts are the program's own, checked when it is
+                 # read, so SMC's guard against emit loops that never end does not apply
+                 max_resumed_emits=Model.max_call_emits)
 
 
 # ---- derivations -> example hierarchies -----------------------------------------------------

@@ -161,6 +161,9 @@ TOLERANCE_HELP = ("contact tolerance in world units: parts this close count as t
                   "\"contact_tolerance\", else 0.001 x the median part diagonal)")
 
 
+LARGE_TOLERANCE = 0.1  # of the median part's size: a contact tolerance above it gets a note
+
+
 def _take_tolerance(shape_set, tolerance) -> None:
     """A --tolerance given on the command line, checked, as the set's contact tolerance."""
     if tolerance is None:
@@ -288,9 +291,17 @@ def _augment(args) -> None:
     folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
-    from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, shape_graph
+    from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, shape_graph, tolerance_for
     named = _shape_sources(args.shapes, len(shape_set.shapes))
     tolerance = contact_tolerance(shape_set)
+    part_size = tolerance_for(shape_set.library) / DEFAULT_TOLERANCE
+    if tolerance > LARGE_TOLERANCE * part_size:
+        # every part then touches its neighbours' neighbours: the grammar learns that, and
+        # sampling finds few shapes (or none: --tolerance 1e6 ran to --rounds silently)
+        print(f"note: the contact tolerance {tolerance:.3g} is {tolerance / part_size:.0%} of the median part's "
+              f"size ({part_size:.3g}): parts that far apart count as touching, so the shape graphs hold contacts "
+              "the shapes do not have and few new shapes may be found; give the gap the parts were placed with",
+              file=sys.stderr)
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
         g = shape_graph(shape_set, shape, tolerance)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
