@@ -698,3 +698,66 @@ def test_a_program_drawing_hundreds_of_copies_in_one_call_runs_under_smc():
     # 12 particles: some draw over 500 copies (with 8, none did at this seed)
     result = smc(model, Anything(), particles=12, seed=0)  # refused: "emits more than 500 times in one call"
     assert result.best is not None
+
+
+def _wheels(counts=(8, 6, 8, 7, 6)):
+    """Hubs with a closed ring of spokes, 360/n apart, n varying between examples."""
+    def turned(angle):
+        m = np.eye(4)
+        m[:2, :2] = [[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]]
+        return m
+
+    offset = np.eye(4)
+    offset[1, 3] = 0.45
+    examples = [{"part": "hub", "transform": np.eye(4).tolist(),
+                 "children": [{"part": "spoke", "transform": (turned(2 * math.pi * k / n) @ offset).tolist(),
+                               "children": []} for k in range(n)]} for n in counts]
+    return {"format": "procmod-examples/1", "parts": {"hub": {"box": [0.3, 0.3, 0.1]},
+                                                      "spoke": {"box": [0.04, 0.6, 0.04]}},
+            "examples": examples}
+
+
+def test_rings_closed_in_every_example_are_drawn_closed_whatever_their_count():
+    """Every example's spokes close a ring (6, 7 or 8 at 360/n); the program drew the count
+    and the angle apart, so 18 of 40 samples had a hole (6 spokes at the 8-spoke step) or
+    ran past the first spoke. A type that closes in every example is now a full ring, drawn
+    at 2 pi / count, and the program file keeps it."""
+    program = initial_program(preprocess(examples_from_dict(_wheels())), np.random.default_rng(0))
+    assert len(program.full_rings) == 1 and program.full_rings[0].startswith("rot(")
+    model = program_model(program, "wheels")
+    rng = np.random.default_rng(1)
+    counts = set()
+    for _ in range(30):
+        spokes = [np.asarray(g.transform).reshape(4, 4) for g in run_forward(model, rng).geometry()
+                  if g.tag == "spoke"]
+        # members are the powers of one turn applied to the first, in order: the map from
+        # each to the next, the last to the first included, turns a full circle's n-th
+        for a, b in zip(spokes, spokes[1:] + spokes[:1]):
+            turn = math.acos(min(1.0, max(-1.0, (np.trace((b @ np.linalg.inv(a))[:3, :3]) - 1) / 2)))
+            assert abs(turn - 2 * math.pi / len(spokes)) < 1e-6, (len(spokes), math.degrees(turn))
+        counts.add(len(spokes))
+    assert len(counts) > 1  # the count varies: the spacing follows it
+    # an open arc (a row of 3 turned 30 degrees apart) is no full ring
+    arcs = _wheels(())
+    for n in (3, 4):
+        arcs["examples"].append({"part": "hub", "transform": np.eye(4).tolist(), "children": [
+            {"part": "spoke", "transform": (np.array([[math.cos(a), -math.sin(a), 0, -0.45 * math.sin(a)],
+                                                       [math.sin(a), math.cos(a), 0, 0.45 * math.cos(a)],
+                                                       [0, 0, 1, 0], [0, 0, 0, 1]])).tolist(), "children": []}
+            for a in np.radians(30) * np.arange(n)]})
+    assert initial_program(preprocess(examples_from_dict(arcs)), np.random.default_rng(0)).full_rings == []
+
+
+def test_full_rings_are_saved_with_the_program_and_checked_when_read(tmp_path):
+    from procmod.learn.program import ProgramError
+    program = initial_program(preprocess(examples_from_dict(_wheels())), np.random.default_rng(0))
+    save_program(program, tmp_path)
+    assert read_program(tmp_path / "program.json").full_rings == program.full_rings
+    data = json.loads((tmp_path / "program.json").read_text())
+    del data["full_rings"]  # a program learned before full rings: none
+    (tmp_path / "program.json").write_text(json.dumps(data))
+    assert read_program(tmp_path / "program.json").full_rings == []
+    data["full_rings"] = ["trans(spoke)"]
+    (tmp_path / "program.json").write_text(json.dumps(data))
+    with pytest.raises(ProgramError, match="full_rings must list rotational symmetry types of the program"):
+        read_program(tmp_path / "program.json")

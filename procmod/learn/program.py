@@ -116,6 +116,11 @@ class Program:
     info: dict = field(default_factory=dict)
     parts_json: dict = field(default_factory=dict)
     units: Units = Units()  # what the transform components are measured against
+    # rotational symmetry types every example closes into a full circle: their members
+    # are spaced 2 pi / count, whatever count is drawn (angle and count drawn apart left
+    # holes and overlaps: 6 spokes at the 8-spoke step); the sampled angle is kept as a
+    # choice (the likelihood is unchanged) but not used
+    full_rings: list = field(default_factory=list)
 
     # ---- structure helpers -----------------------------------------------------------
 
@@ -247,6 +252,8 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
                                                         program.sigma(float(p[f"{pre}.rs"][k]), cats[k]))))
     support = program.count_support[a.type]
     count = ctx.sample("count", Categorical(_softmax(p[f"{a_id}.count"]), labels=tuple(support)))
+    if a.type in program.full_rings:  # (rings: the canonical rotation angle is positive)
+        values[-1] = 2.0 * math.pi / count
     maps = sym_maps(a.kind, values, count, frame, program.units.pole())
     new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
     if ctx.depth < MAX_DEPTH:
@@ -324,6 +331,7 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
         "groups": program.groups,
         "sym_inner": program.sym_inner,
         "count_support": program.count_support,
+        "full_rings": list(program.full_rings),
         "orders": {k: list(map(int, v)) for k, v in program.orders.items()},
         "sigma_mode": program.sigma_mode,
         "next_id": program.next_id,
@@ -439,6 +447,7 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    groups={k: [list(map(_whole, g)) for g in v] for k, v in data["groups"].items()},
                    sym_inner=dict(data["sym_inner"]),
                    count_support={k: list(map(_whole, v)) for k, v in data["count_support"].items()},
+                   full_rings=_full_rings_from_json(data.get("full_rings", []), data),
                    orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
                    sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
@@ -447,6 +456,17 @@ def program_from_json(data: dict, parts: dict) -> Program:
 
 
 _NO_UNITS = object()
+
+
+def _full_rings_from_json(value, data) -> list:
+    """A program file's ``full_rings`` (absent in programs learned before it: none),
+    checked: rotational symmetry types of its own."""
+    rot_types = sorted(t for t in data.get("count_support", {}) if str(t).startswith("rot("))
+    if not isinstance(value, list) or not all(isinstance(t, str) and t in rot_types for t in value):
+        known = ", ".join(rot_types) or "none"
+        raise ProgramError(f"full_rings must list rotational symmetry types of the program ({known}), got "
+                           f"{shown_value(value, 60)}")
+    return list(value)
 
 
 # What a program's units may hold: lengths and scales within what examples may hold

@@ -87,6 +87,22 @@ def _init_xform(params: dict, pre: str, x: np.ndarray, signs: np.ndarray, order:
     params[f"{pre}.sg.b"] = np.array([_logit(f) for f in signs.mean(0)])
 
 
+RING_CLOSURE = 1e-3
+"""Radians by which a ring's members' angles times their count may miss a full turn for
+the ring to count as closed (preprocessing snaps a ring that nearly closes to 2 pi / n)."""
+
+
+def full_rings(data: Dataset) -> list:
+    """The rotational symmetry types that close into a full circle in every example
+    (:attr:`Program.full_rings`)."""
+    closes = {}
+    for n in data.nodes:
+        if n.kind == "rot":
+            turn = abs(math.remainder(float(n.sym[-1]), 2.0 * math.pi)) * n.count  # the angle's 2 pi wraps set aside
+            closes[n.type] = closes.get(n.type, True) and abs(turn - 2.0 * math.pi) < RING_CLOSURE
+    return sorted(t for t, full in closes.items() if full)
+
+
 def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
     """P0 (see the module docstring), parameters initialised from the data."""
     part_types = sorted({n.type for n in data.nodes if n.kind == "part"})
@@ -94,7 +110,7 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
     orders = {key: nade_order(x) for key, (x, _) in stats.items()}
     program = Program(parts=data.parts, slots=data.slots, groups=data.groups, sym_inner=data.sym_inner,
                       count_support={t: list(range(2, m + 1)) for t, m in data.max_count.items()},
-                      orders=orders, units=data.units)
+                      orders=orders, units=data.units, full_rings=full_rings(data))
     ids = {}
     for t in part_types:
         ids[t] = program.next_id
