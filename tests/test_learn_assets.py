@@ -63,9 +63,16 @@ def test_learn_a_folder_of_gltf_and_glb_files(tmp_path, monkeypatch, capsys):
     import procmod.learn.search
     monkeypatch.setattr(procmod.learn.search, "SearchOptions", _QuickOptions)
     files = fleet(tmp_path / "ships")
+    # a flat mesh and a text file beside the scenes: the mesh is named as left out (it was
+    # skipped without a word), the text file is nobody's business
+    (tmp_path / "ships" / "ship_flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "ships" / "notes.txt").write_text("my ships\n")
     out = tmp_path / "run"
     assert main(["learn", str(tmp_path / "ships"), "--out", str(out), "--particles", "1", "--workers", "1",
                  "--samples", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "note: left out ship_flat.obj, not read as examples (ship_flat.obj: an OBJ file keeps no part" in err, err
+    assert "notes.txt" not in err
     program = json.loads((out / "program.json").read_text())
     assert sorted(program["parts"]) == ["body", "gun", "wing"]  # wing.001 is the mirrored wing
     # the wings of every ship, noisy and from two meshes, are one mirror pair of one part

@@ -179,6 +179,22 @@ def asset_files(paths) -> list[Path]:
     return out
 
 
+def left_out_note(paths) -> str | None:
+    """A note naming the 3D files in the given folders that are not asset files and so were
+    left out (an OBJ beside the glTF scenes keeps no part hierarchy), with what to export;
+    None when there are none. Files no 3D tool writes (a README, a .txt) are not named."""
+    skipped = []
+    for p in map(Path, [paths] if isinstance(paths, (str, os.PathLike)) else paths):
+        if p.is_dir():
+            skipped += [(f, conversion_hint(f, hierarchy=True)) for f in sorted(p.iterdir())
+                        if f.is_file() and not is_asset_file(f)]
+    skipped = [(f, hint) for f, hint in skipped if hint]
+    if not skipped:
+        return None
+    names = ", ".join(f.name for f, _ in skipped[:4]) + (f" and {len(skipped) - 4} more" if len(skipped) > 4 else "")
+    return f"left out {names}, not read as examples ({skipped[0][0].name}: {skipped[0][1]})"
+
+
 def json_or_assets(paths, what: str, json_format: str) -> tuple[Path | None, list[Path]]:
     """Split a command's inputs: ``(json_file, [])`` for one ``json_format`` JSON file
     given on its own, else ``(None, paths)`` for asset files and folders of them.
