@@ -357,6 +357,15 @@ def _cmd_render(args) -> None:
     print(f"wrote {out}")
 
 
+def _target_inputs(spec: str) -> list:
+    """The file a target spec reads, for --out's protection of its inputs, also under its
+    ``:mirrored`` suffix (as given, that spec names no file, so the folder holding the
+    picture was replaced, the picture with it). (A sidecar lies beside its picture.)"""
+    from .data import MIRROR_SUFFIX
+
+    return [spec[: -len(MIRROR_SUFFIX)] if spec.endswith(MIRROR_SUFFIX) else spec]
+
+
 def _placed_by_params(target, model, params):
     """``target`` with the start and direction given as ``--param start=X,Y`` /
     ``direction=DX,DY`` where it places the model (a picture: it sets them, from its
@@ -371,6 +380,13 @@ def _placed_by_params(target, model, params):
     placed = {name: tuple(float(v) for v in model.params[name]) for name in given}
     if "direction" not in placed:
         placed["direction"] = (0.0, -1.0)
+    if "start" in placed and image.picture is not None:
+        # normalised coordinates of the picture, as a sidecar's: mapped into the square it is
+        # padded to (a 400 x 200 picture's bottom middle was the padding below it)
+        top, left, height, width = image.picture
+        side = max(image.mask.shape)
+        x, y = placed["start"]
+        placed["start"] = ((left + x * width) / side, (top + y * height) / side)
     target.image = dataclasses.replace(image, **placed)
     return target
 
@@ -452,7 +468,7 @@ def _cmd_infer(args) -> None:
     from .data import target_from_spec
 
     target = _placed_by_params(target_from_spec(args.target), model, args.param)
-    inputs = [args.target, *_model_inputs(args.model)]
+    inputs = [*_target_inputs(args.target), *_model_inputs(args.model)]
     if args.guide is not None:
         from .guide import guide_paths
         inputs += guide_paths(args.guide)  # a guide given as a stem is its .pt and .json
@@ -525,7 +541,7 @@ class _progress_bar:
 CLI_SPELLING = {
     "out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler", "seed": "--seed",
     "particles": "--particles", "targets": "--targets", "device": "--device", "workers": "--workers",
-    "count": "--count", "samples": "--samples", "size": "--size",
+    "count": "--count", "samples": "--samples", "size": "--size", "population": "--population",
     "strings_per_shape": "--strings-per-shape", "tagger_strings_per_shape": "--tagger-strings-per-shape",
     "held_out": "--held-out",
     "settings=FeatureSettings.condition('local')": "--features local",

@@ -282,6 +282,24 @@ def test_param_start_and_direction_place_the_model_on_a_picture_target(tmp_path,
     assert {key: params[key] for key in placed} == placed
 
 
+def test_param_start_is_in_the_pictures_coordinates_as_a_sidecars_is(tmp_path, capsys):
+    """On a 400 x 200 picture a sidecar's start [0.5, 1.0] (the bottom middle) was mapped
+    into the square the picture is padded to, 0.75, but --param start=0.5,1.0 was used as
+    given: the vine started in the padding below the drawing."""
+    from PIL import Image, ImageDraw
+    picture = Image.new("RGB", (400, 200), "white")
+    ImageDraw.Draw(picture).line([(200, 195), (200, 20)], fill="black", width=20)
+    for name in ("side", "flag"):
+        picture.save(tmp_path / f"{name}.png")
+    (tmp_path / "side.json").write_text('{"start": [0.5, 1.0]}')
+    starts = []
+    for name, extra in (("side", []), ("flag", ["--param", "start=0.5,1.0"])):
+        assert main(["infer", "vines", "--target", str(tmp_path / f"{name}.png"), "--particles", "2",
+                     "--out", str(tmp_path / f"r_{name}"), *extra]) == 0, capsys.readouterr().err
+        starts.append(json.loads((tmp_path / f"r_{name}" / "best.json").read_text())["params"]["start"])
+    assert starts[0] == starts[1] == [0.5, 0.75]
+
+
 USER_START_MODEL = """
 import math
 from procmod import Model, Normal

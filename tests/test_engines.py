@@ -422,3 +422,15 @@ def test_an_engine_refuses_what_is_not_a_target_in_one_line(engine):
     for wrong in ("glyph:a", target_image("glyph:a")):
         with pytest.raises(InvalidArgumentError, match="must be a procmod Target.*target_from_spec"):
             ENGINES[engine](get_model("vines"), wrong)
+
+
+def test_a_ga_whose_elites_are_its_whole_population_is_refused():
+    """--population 1 (elitism 0.2 keeps ceil(0.2) = 1): no offspring were ever made, and a
+    budget in evaluations ran for ever."""
+    from procmod.data import target_from_spec
+    from procmod.infer import ga
+    for population, elitism in ((1, 0.2), (4, 0.8)):
+        with pytest.raises(InvalidArgumentError, match="keeps every individual as an elite"):
+            ga(get_model("vines"), target_from_spec("glyph:a"), population=population, elitism=elitism,
+               budget=Budget(seconds=5, evaluations=50))  # (the seconds: so that the bug fails, not hangs)
+    assert ga(get_model("vines"), target_from_spec("glyph:a"), population=2, budget=Budget(evaluations=30)).best

@@ -87,6 +87,50 @@ def test_overwrite_never_deletes_an_input_or_the_current_folder(tmp_path, capsys
     assert (scene / "target.json").exists()
 
 
+def test_a_mirrored_picture_is_an_input_overwrite_keeps(tmp_path, capsys):
+    """``--target drawings/cat.png:mirrored --out drawings --overwrite`` deleted the
+    picture (the spec, as given, names no file) and everything beside it."""
+    from PIL import Image, ImageDraw
+    drawings = tmp_path / "drawings"
+    drawings.mkdir()
+    picture = Image.new("RGB", (120, 120), "white")
+    ImageDraw.Draw(picture).line([(60, 115), (55, 20)], fill="black", width=16)
+    picture.save(drawings / "cat.png")
+    for target in (drawings / "cat.png", f"{drawings / 'cat.png'}:mirrored"):
+        code, _, err = _run(capsys, "infer", "vines", "--target", target, "--particles", "2", "--out", drawings,
+                            "--overwrite")
+        assert code == 2 and "holds the input" in err and (drawings / "cat.png").exists(), err
+
+
+def test_a_dangling_link_as_out_is_refused_before_the_work(tmp_path, capsys):
+    """A symbolic link to nothing passed the checks, then the run's last rename failed on
+    it with a traceback, the whole run lost."""
+    (tmp_path / "run").symlink_to(tmp_path / "nowhere")
+    code, _, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--particles", "2", "--out",
+                        tmp_path / "run")
+    assert code == 2 and err.count("\n") == 1 and "is a symbolic link to" in err and "does not exist" in err, err
+
+
+def test_a_run_in_the_current_folder_interrupted_leaves_nothing_and_a_full_one_says_what_works(tmp_path, capsys,
+                                                                                               monkeypatch):
+    """--out . was written into directly: Ctrl-C while writing left a half-written run, and
+    the refusal of a second run then advised --overwrite, which is refused for the current
+    folder."""
+    monkeypatch.chdir(tmp_path)
+    folder = RunFolder(".", INFER_RUN)
+    with pytest.raises(KeyboardInterrupt):
+        with folder.writing() as out:
+            (out / "best.json").write_text("{}")
+            raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+    with RunFolder(".", INFER_RUN).writing() as out:
+        (out / "best.json").write_text("{}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["best.json"]
+    code, _, err = _run(capsys, "sample", "chain", "-n", "1", "--out", ".")
+    assert code == 2 and "holds the current folder, which cannot be replaced: give a new folder" in err, err
+    assert "--overwrite" not in err
+
+
 def test_a_failure_while_writing_leaves_the_earlier_run_and_no_temporary_folder(tmp_path, capsys, monkeypatch):
     out = tmp_path / "s"
     assert _run(capsys, "sample", "chain", "-n", "3", "--size", "16", "--out", out)[0] == 0

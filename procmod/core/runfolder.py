@@ -234,6 +234,9 @@ class RunFolder:
                 from None
         if exists and not is_dir:
             raise OutputLocationError(f"{option} {shown} exists and is not a folder")
+        if not exists and self.path.is_symlink():  # a link to nothing: the run's last rename failed on it
+            raise OutputLocationError(f"{option} {shown} is a symbolic link to {cut_text(os.readlink(self.path), 80)}, "
+                                      "which does not exist; remove the link, make its folder, or give another folder")
         self.replaces = is_dir and any(self.path.iterdir())
         if self.replaces:
             if not (overwrite or kind.recognises(self.path)):
@@ -244,6 +247,11 @@ class RunFolder:
                         f"restore it{' to resume' if kind.resumes else ''}, or pass "
                         f"{argument('overwrite=True')} to start over")
                 example = kind.foreign(self.path) or sorted(p.name for p in self.path.iterdir())[0]
+                if _holds(self.path, Path.cwd()):  # --overwrite cannot replace it: say only what works
+                    raise OutputLocationError(
+                        f"{option} {shown} is not empty and not an earlier {kind.name} (it holds "
+                        f"{cut_text(example, 60)!r}), and it holds the current folder, which cannot be replaced: "
+                        "give a new folder")
                 raise OutputLocationError(
                     f"{option} {shown} is not empty and not an earlier {kind.name} (it holds {cut_text(example, 60)!r}); "
                     f"give a new or empty folder, or pass {argument('overwrite=True')} to replace it whole")
@@ -283,8 +291,21 @@ class RunFolder:
     def writing(self) -> Iterator[Path]:
         """A new, empty folder to write every file into; it becomes ``path`` (replacing what
         was there) when the block ends without an exception, and is removed otherwise."""
-        if self.in_place:  # --out is (or holds) the current folder, so it is empty: write there
-            yield self.path
+        if self.in_place:  # --out is (or holds) the current folder: written in a hidden folder there,
+            # its files moved out at the end (an interrupted run had left its first files behind)
+            tmp = Path(tempfile.mkdtemp(prefix=".procmod.", suffix=".tmp", dir=self.path))
+            try:
+                os.chmod(tmp, 0o777 & ~_umask())
+                yield tmp
+                for entry in sorted(tmp.iterdir()):
+                    target = self.path / entry.name
+                    if target.is_dir() and not target.is_symlink():  # an earlier run's folder of the same name
+                        shutil.rmtree(target)
+                    os.replace(entry, target)
+                tmp.rmdir()
+            except BaseException:
+                shutil.rmtree(tmp, ignore_errors=True)
+                raise
             return
         created = self._make_parents()
         tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent))

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ...core import InvalidArgumentError, Model
+from ...core.errors import argument
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
 from ...core.errors import check_real
@@ -56,6 +57,13 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     nudge_step = check_real("nudge_step", nudge_step, "a positive finite number (a fraction of each choice's "
                             "scale)", lambda v: 0.0 < v < math.inf)
     elitism = check_real("elitism", elitism, "in [0, 1)", lambda v: 0.0 <= v < 1.0)
+    if elite_count(elitism, population) >= population:
+        # (population 1 with any elitism: its one individual was kept every generation, no
+        # offspring was ever made, and a budget in evaluations was never reached)
+        raise InvalidArgumentError(f"{argument('population')} {population} with elitism {elitism:g} keeps every "
+                                   f"individual as an elite ({elite_count(elitism, population)}), so no offspring are "
+                                   f"ever made; give a larger {argument('population')} (2 or more) or a smaller "
+                                   "elitism")
     budget = budget or Budget(generations=50)
     check_run(model, target, seed, budget)
     model = configured_model(target, model)
