@@ -380,9 +380,10 @@ def _placed_by_params(target, model, params):
     placed = {name: tuple(float(v) for v in model.params[name]) for name in given}
     if "direction" not in placed:
         placed["direction"] = (0.0, -1.0)
-    if "start" in placed and image.picture is not None:
+    if "start" in placed and image.picture is not None and image.picture[2:] != image.mask.shape:
         # normalised coordinates of the picture, as a sidecar's: mapped into the square it is
-        # padded to (a 400 x 200 picture's bottom middle was the padding below it)
+        # padded to (a 400 x 200 picture's bottom middle was the padding below it); a square
+        # picture is its own square, its start kept exactly
         top, left, height, width = image.picture
         side = max(image.mask.shape)
         x, y = placed["start"]

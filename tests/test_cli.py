@@ -298,6 +298,13 @@ def test_param_start_is_in_the_pictures_coordinates_as_a_sidecars_is(tmp_path, c
                      "--out", str(tmp_path / f"r_{name}"), *extra]) == 0, capsys.readouterr().err
         starts.append(json.loads((tmp_path / f"r_{name}" / "best.json").read_text())["params"]["start"])
     assert starts[0] == starts[1] == [0.5, 0.75]
+    # a square picture is its own square: the start is kept exactly (0.9166 became 0.9166000000000001)
+    square = Image.new("RGB", (300, 300), "white")
+    ImageDraw.Draw(square).line([(150, 290), (150, 20)], fill="black", width=20)
+    square.save(tmp_path / "square.png")
+    assert main(["infer", "vines", "--target", str(tmp_path / "square.png"), "--particles", "2", "--param",
+                 "start=0.5,0.9166", "--out", str(tmp_path / "r_square")]) == 0
+    assert json.loads((tmp_path / "r_square" / "best.json").read_text())["params"]["start"] == [0.5, 0.9166]
 
 
 USER_START_MODEL = """

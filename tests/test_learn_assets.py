@@ -73,6 +73,13 @@ def test_learn_a_folder_of_gltf_and_glb_files(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "note: left out ship_flat.obj, not read as examples (ship_flat.obj: an OBJ file keeps no part" in err, err
     assert "notes.txt" not in err
+    # a URDF's meshes lie beside it: not named as left out
+    from procmod.geometry.assets import left_out_note
+    robot = tmp_path / "robot"
+    robot.mkdir()
+    (robot / "arm.urdf").write_text("<robot name='arm'/>")
+    (robot / "arm.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert left_out_note([robot]) is None and left_out_note([tmp_path / "ships"]) is not None
     program = json.loads((out / "program.json").read_text())
     assert sorted(program["parts"]) == ["body", "gun", "wing"]  # wing.001 is the mirrored wing
     # the wings of every ship, noisy and from two meshes, are one mirror pair of one part

@@ -761,3 +761,18 @@ def test_full_rings_are_saved_with_the_program_and_checked_when_read(tmp_path):
     (tmp_path / "program.json").write_text(json.dumps(data))
     with pytest.raises(ProgramError, match="full_rings must list rotational symmetry types of the program"):
         read_program(tmp_path / "program.json")
+
+
+def test_a_ring_found_at_a_whole_number_of_turns_is_full_when_it_visits_every_member():
+    """Stations' 5-spoke rings are found at 144 degrees (two turns over 5 members): every
+    member is visited once, so it is a full ring; 4 members at 180 degrees are not."""
+    from types import SimpleNamespace
+
+    from procmod.learn.structure import full_rings
+
+    def ring(name, degrees, count):
+        return SimpleNamespace(kind="rot", type=name, count=count, sym=np.array([0, 0, 0, 0, 0, math.radians(degrees)]))
+
+    data = SimpleNamespace(nodes=[ring("rot(a)", 144, 5), ring("rot(a)", 90, 4), ring("rot(a)", -240, 3),
+                                  ring("rot(b)", 180, 4), ring("rot(c)", 30, 3), ring("rot(d)", 72, 5)])
+    assert full_rings(data) == ["rot(a)", "rot(d)"]

@@ -372,3 +372,24 @@ def test_only_a_traces_folder_is_resumed_past_files_it_does_not_write(tmp_path):
                 RunFolder(folder, kind)
             RunFolder(folder, kind, overwrite=True).prepare_in_place(keep=True)  # --overwrite: replaced whole
             assert list(folder.iterdir()) == []
+
+
+def test_a_learned_programs_samples_written_in_the_current_folder_name_the_program_rightly(tmp_path, capsys,
+                                                                                            monkeypatch):
+    """A derivation names its learned program relative to its own folder: written in place,
+    it must be written where it stays (a hidden folder one level down had put a '../' too
+    many in every reference)."""
+    examples = {"format": "procmod-examples/1", "parts": {"base": {"box": [1, 1, 1]}, "cap": {"box": [0.5, 0.2, 0.5]}},
+                "examples": [{"part": "base", "transform": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+                              "children": [{"part": "cap", "transform": [[1, 0, 0, 0], [0, 1, 0, h], [0, 0, 1, 0],
+                                                                          [0, 0, 0, 1]], "children": []}]}
+                             for h in (0.6, 0.7, 0.65)]}
+    (tmp_path / "examples.json").write_text(json.dumps(examples))
+    assert _run(capsys, "learn", tmp_path / "examples.json", "--out", tmp_path / "program", "--particles", "1",
+                "--workers", "1", "--samples", "1")[0] == 0
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    assert _run(capsys, "sample", tmp_path / "program", "-n", "1", "--out", ".")[0] == 0
+    code, _, err = _run(capsys, "render", "sample_000.json", "--out", "again.png")
+    assert code == 0, err

@@ -291,20 +291,20 @@ class RunFolder:
     def writing(self) -> Iterator[Path]:
         """A new, empty folder to write every file into; it becomes ``path`` (replacing what
         was there) when the block ends without an exception, and is removed otherwise."""
-        if self.in_place:  # --out is (or holds) the current folder: written in a hidden folder there,
-            # its files moved out at the end (an interrupted run had left its first files behind)
-            tmp = Path(tempfile.mkdtemp(prefix=".procmod.", suffix=".tmp", dir=self.path))
+        if self.in_place:  # --out is (or holds) the current folder: written there directly (files
+            # that name others relatively, a learned program's derivations, are written where they
+            # stay), and what the run added is removed if it fails (Ctrl-C had left a half run)
+            before = set(os.listdir(self.path))
             try:
-                os.chmod(tmp, 0o777 & ~_umask())
-                yield tmp
-                for entry in sorted(tmp.iterdir()):
-                    target = self.path / entry.name
-                    if target.is_dir() and not target.is_symlink():  # an earlier run's folder of the same name
-                        shutil.rmtree(target)
-                    os.replace(entry, target)
-                tmp.rmdir()
+                yield self.path
             except BaseException:
-                shutil.rmtree(tmp, ignore_errors=True)
+                for name in set(os.listdir(self.path)) - before:
+                    entry = self.path / name
+                    if entry.is_dir() and not entry.is_symlink():
+                        shutil.rmtree(entry, ignore_errors=True)
+                    else:
+                        with contextlib.suppress(OSError):
+                            entry.unlink()
                 raise
             return
         created = self._make_parents()

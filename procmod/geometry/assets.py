@@ -185,7 +185,7 @@ def left_out_note(paths) -> str | None:
     None when there are none. Files no 3D tool writes (a README, a .txt) are not named."""
     skipped = []
     for p in map(Path, [paths] if isinstance(paths, (str, os.PathLike)) else paths):
-        if p.is_dir():
+        if p.is_dir() and not any(f.suffix.lower() == ".urdf" for f in p.iterdir()):  # (a URDF's meshes lie beside it)
             skipped += [(f, conversion_hint(f, hierarchy=True)) for f in sorted(p.iterdir())
                         if f.is_file() and not is_asset_file(f)]
     skipped = [(f, hint) for f, hint in skipped if hint]

@@ -447,7 +447,7 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    groups={k: [list(map(_whole, g)) for g in v] for k, v in data["groups"].items()},
                    sym_inner=dict(data["sym_inner"]),
                    count_support={k: list(map(_whole, v)) for k, v in data["count_support"].items()},
-                   full_rings=_full_rings_from_json(data.get("full_rings", []), data),
+                   full_rings=_full_rings_from_json(data.get("full_rings") or [], data),
                    orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
                    sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),

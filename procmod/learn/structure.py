@@ -98,8 +98,12 @@ def full_rings(data: Dataset) -> list:
     closes = {}
     for n in data.nodes:
         if n.kind == "rot":
-            turn = abs(math.remainder(float(n.sym[-1]), 2.0 * math.pi)) * n.count  # the angle's 2 pi wraps set aside
-            closes[n.type] = closes.get(n.type, True) and abs(turn - 2.0 * math.pi) < RING_CLOSURE
+            # the angle's 2 pi wraps set aside; k whole turns with k and the count coprime visit
+            # every member of the ring once (5 spokes found at 144 degrees: two turns)
+            turns = abs(math.remainder(float(n.sym[-1]), 2.0 * math.pi)) * n.count / (2.0 * math.pi)
+            k = round(turns)
+            full = k >= 1 and abs(turns - k) * 2.0 * math.pi < RING_CLOSURE and math.gcd(k, n.count) == 1
+            closes[n.type] = closes.get(n.type, True) and full
     return sorted(t for t, full in closes.items() if full)
 
 

@@ -62,8 +62,8 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
         # offspring was ever made, and a budget in evaluations was never reached)
         raise InvalidArgumentError(f"{argument('population')} {population} with elitism {elitism:g} keeps every "
                                    f"individual as an elite ({elite_count(elitism, population)}), so no offspring are "
-                                   f"ever made; give a larger {argument('population')} (2 or more) or a smaller "
-                                   "elitism")
+                                   f"ever made; give a larger {argument('population')} (2 or more"
+                                   + (", or a smaller elitism)" if argument("population") == "population" else ")"))
     budget = budget or Budget(generations=50)
     check_run(model, target, seed, budget)
     model = configured_model(target, model)
