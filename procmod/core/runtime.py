@@ -252,7 +252,7 @@ class Context:
             raise self._misuse(f"emits more than {model.max_resumed_emits:,} times in one call under SMC, which "
                                "re-runs a call from its start to resume it after each emit (n^2 / 2 emits for n: "
                                "hours for a loop of thousands); does the loop end? Emit a long run of parts from "
-                               "child calls, use --engine mcmc or ga, or raise Model(max_resumed_emits=...)")
+                               "child calls, use the mcmc or ga engine, or raise Model(max_resumed_emits=...)")
         try:
             state.output.add(geometry)
         except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw
