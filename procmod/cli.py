@@ -384,10 +384,8 @@ def _placed_by_params(target, model, params):
         # normalised coordinates of the picture, as a sidecar's: mapped into the square it is
         # padded to (a 400 x 200 picture's bottom middle was the padding below it); a square
         # picture is its own square, its start kept exactly
-        top, left, height, width = image.picture
-        side = max(image.mask.shape)
-        x, y = placed["start"]
-        placed["start"] = ((left + x * width) / side, (top + y * height) / side)
+        from .targets.image import point_in_square
+        placed["start"] = point_in_square(placed["start"], *image.picture[2:])
     target.image = dataclasses.replace(image, **placed)
     return target
 

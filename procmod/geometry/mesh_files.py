@@ -480,7 +480,7 @@ def _check_buffer_files(header: dict, path: Path) -> None:
 
 STL_SNIFF = 1 << 20  # bytes of an STL looked at to tell ASCII from binary (a solid's name may be long)
 _ASCII_VERTEX = re.compile(rb"vertex[ \t]+[-+0-9.]", re.IGNORECASE)
-_UTF8_BOM = b"\xef\xbb\xbf"  # _BOM is the decoded one
+_UTF8_BOM = _BOM.encode("latin-1")  # the mark's bytes, as an STL holds them
 
 
 def _ascii_stl(head: bytes) -> bool:

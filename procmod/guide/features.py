@@ -235,7 +235,7 @@ ANGLE = "angle"  # an arg_ranges entry for a direction in radians
 HEADING = -1  # the local-state entry of the heading a rule reports with ctx.at
 
 
-_DEFAULTS: dict = {}  # rule function -> the defaults of its arguments after ctx (None: none)
+_DEFAULTS: dict = {}  # rule function -> the defaults of its positional arguments after ctx
 
 
 def with_defaults(rule, args: tuple) -> tuple:

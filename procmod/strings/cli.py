@@ -291,10 +291,10 @@ def _augment(args) -> None:
     folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
-    from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, shape_graph, tolerance_for
+    from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, median_part_size, shape_graph
     named = _shape_sources(args.shapes, len(shape_set.shapes))
     tolerance = contact_tolerance(shape_set)
-    part_size = tolerance_for(shape_set.library) / DEFAULT_TOLERANCE
+    part_size = median_part_size(shape_set.library)
     if tolerance > LARGE_TOLERANCE * part_size:
         # every part then touches its neighbours' neighbours: the grammar learns that, and
         # sampling finds few shapes (or none: --tolerance 1e6 ran to --rounds silently)

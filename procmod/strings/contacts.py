@@ -98,10 +98,14 @@ def contact_tolerance(shape_set: ShapeSet) -> float:
     return shape_set.tolerance if shape_set.tolerance is not None else tolerance_for(shape_set.library)
 
 
+def median_part_size(library: dict) -> float:
+    """The median of the library's parts' bounding-box diagonals."""
+    return float(np.median([float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in library.values()]))
+
+
 def tolerance_for(library: dict) -> float:
     """The default contact tolerance: :data:`DEFAULT_TOLERANCE` times the median part diagonal."""
-    diagonals = [float(np.linalg.norm(np.subtract(*s.local_bounds()[::-1]))) for s in library.values()]
-    return DEFAULT_TOLERANCE * float(np.median(diagonals))
+    return DEFAULT_TOLERANCE * median_part_size(library)
 
 
 def contact_pairs(library: dict, parts, transforms, tol: float, pairs_of=None) -> list[tuple[int, int]]:

@@ -791,6 +791,15 @@ def picture_in_square(height: int, width: int) -> tuple:
     return (side - height) // 2, (side - width) // 2, height, width
 
 
+def point_in_square(point, height: int, width: int) -> tuple:
+    """A point in a ``height x width`` picture's normalised coordinates, in those of the
+    square :func:`mask_from_image` pads it to."""
+    top, left, _, _ = picture_in_square(height, width)
+    side = max(height, width)
+    x, y = point
+    return (x * width + left) / side, (y * height + top) / side
+
+
 SIDECAR_KEYS = ("start", "direction")
 
 
@@ -869,10 +878,7 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
         if not all(0.0 <= v <= 1.0 for v in placement["start"]):
             raise TargetFileError(f"{sidecar}: 'start' is in normalised image coordinates and must lie in [0, 1]")
         # The sidecar refers to the original picture; map it into the padded square.
-        (h, w) = shape_padding
-        side = max(h, w)
-        x, y = placement["start"]
-        placement["start"] = ((x * w + (side - w) // 2) / side, (y * h + (side - h) // 2) / side)
+        placement["start"] = point_in_square(placement["start"], *shape_padding)
     if placement.get("direction") == (0.0, 0.0):
         raise TargetFileError(f"{sidecar}: 'direction' must be a non-zero vector")
     return placement

@@ -57,10 +57,15 @@ def _corners(lo, hi) -> np.ndarray:
     return np.array([[(lo, hi)[i >> a & 1][a] for a in range(3)] for i in range(8)], dtype=np.float64)
 
 
+def _fill(target) -> np.ndarray:
+    """The voxels where a volume target gains (a proxy target: its mask)."""
+    gain = getattr(target, "combined", None)
+    return gain > 0 if gain is not None else np.asarray(target.mask)
+
+
 def _volume_box(target):
     """The box of the voxels where the target gains (its fill), in world units."""
-    gain = getattr(target, "combined", None)
-    inside = gain > 0 if gain is not None else np.asarray(target.mask)
+    inside = _fill(target)
     if not inside.any():
         return None
     index = np.argwhere(inside)
@@ -84,9 +89,7 @@ def _stray_fill(target):
 
     from .files import STRAY_DISTANCE
 
-    gain = getattr(target, "combined", None)
-    inside = gain > 0 if gain is not None else np.asarray(target.mask)
-    labels, count = ndimage.label(inside)
+    labels, count = ndimage.label(_fill(target))
     if count < 2:
         return None
     sizes = np.bincount(labels.ravel())[1:]
