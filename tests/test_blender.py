@@ -390,6 +390,22 @@ def test_a_part_turned_under_an_unevenly_scaled_parent_is_refused_naming_both(co
     assert sorted(asset_set.parts) == ["Leg", "Seat"]
 
 
+def test_the_addons_weight_limit_is_the_target_files():
+    from procmod.blender import addon
+    from procmod.targets import files
+    assert addon.MAX_WEIGHT == files.MAX_WEIGHT
+
+
+def test_a_runs_folder_under_home_is_the_users_home(context, tmp_path, monkeypatch):
+    """"~/runs" made a folder named "~" in Blender's working folder."""
+    from procmod.blender import addon
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(tmp_path)
+    context.scene.procmod.output_dir = "~/runs"
+    assert addon._output_dir(context.scene.procmod) == tmp_path / "home" / "runs"
+    assert not (tmp_path / "~").exists()
+
+
 def test_the_addons_skew_limit_is_the_learners():
     from procmod.blender import scene
     from procmod.learn import examples
@@ -504,7 +520,7 @@ def test_learning_needs_a_selection_of_hierarchies(context):
 
 # In the default suite (about 10 s): as a slow test it was skipped, and "Learn from
 # selection" failed for every user for a sitting (procmod.learn.learn lacked `note`)
-def test_learn_from_the_scene_then_sample_the_learned_program(context):
+def test_learn_from_the_scene_then_sample_the_learned_program(context, monkeypatch):
     settings = context.scene.procmod
     roots = _castles(4)
     _select(*roots)
@@ -518,6 +534,13 @@ def test_learn_from_the_scene_then_sample_the_learned_program(context):
     settings.seed = 5
     assert bpy.ops.procmod.sample() == {"FINISHED"}
     assert sum("sample" in c.name for c in bpy.data.collections) == 4
+    # the program's folder, typed relative to Blender's working folder: it was checked there
+    # and opened from the job's temporary folder ("program file ... does not exist")
+    program = Path(settings.program)
+    monkeypatch.chdir(program.parent.parent)
+    settings.program, settings.count = program.parent.name, 1
+    assert bpy.ops.procmod.sample() == {"FINISHED"}
+    assert any(c.name.startswith(f"procmod {program.parent.name} sample") for c in bpy.data.collections)
 
 
 # ---- the add-on zip in Blender -----------------------------------------------------------------------------

@@ -119,7 +119,7 @@ def test_a_target_layer_without_an_inside_is_named_by_its_object(tmp_path):
 
 def test_a_grid_too_large_is_refused_before_voxelizing(tmp_path):
     _box_obj(tmp_path / "big.obj", [0, 0, 0], [100, 100, 100])
-    with pytest.raises(Exception, match="larger voxel size"):
+    with pytest.raises(Exception, match="larger Voxel size in the panel"):
         worker.build_volume_target({"layers": [{"mesh": "big.obj"}], "voxel_size": 0.1}, tmp_path, tmp_path / "t")
 
 
@@ -205,3 +205,84 @@ def test_the_addon_packager_refuses_in_one_line(tmp_path, capsys, out, says):
     assert main(["--out", str(target)]) == 2
     err = capsys.readouterr().err
     assert says in err and err.count("\n") == 1 and not target.exists()
+
+
+def test_automatic_voxel_size_counts_the_margin_and_resolves_every_layer(tmp_path):
+    """Voxel size 0 aimed at 40,000 voxels by the layers' box alone: a 100 x 100 floor 5 mm
+    thick got a size whose two-voxel margin made 4.35 million voxels, refused with advice
+    about a value the user never set; and a 2-unit cube on a 200-unit ground slab got a
+    size of 1.27, so no voxel centre fell inside the cube."""
+    _box_obj(tmp_path / "floor.obj", [-50, -50, 0], [50, 50, 0.005])
+    spec = {"layers": [{"mesh": "floor.obj", "object": "Floor"}], "voxel_size": 0}
+    written = json.loads(worker.build_volume_target(spec, tmp_path, tmp_path / "t1").read_text())
+    lo, hi = np.array([-50, -50, 0]), np.array([50, 50, 0.005])
+    count = worker._grid_voxels(written["voxel_size"], lo, hi)
+    assert 0.5 * worker.AUTO_VOXELS <= count <= worker.AUTO_VOXELS  # about the aim, margin counted
+
+    _box_obj(tmp_path / "ground.obj", [-100, -100, -1], [100, 100, 0])
+    _box_obj(tmp_path / "cube.obj", [-1, -1, 0], [1, 1, 2])
+    spec = {"layers": [{"mesh": "ground.obj", "object": "Ground", "w_fill": -1, "w_avoid": 0},
+                       {"mesh": "cube.obj", "object": "Cube", "w_fill": 1, "w_avoid": 0}], "voxel_size": 0}
+    target = load_target_file(worker.build_volume_target(spec, tmp_path, tmp_path / "t2"))
+    # as fine as the voxel limit allows (8 across the cube would need ~10 million)
+    assert target.grid.size == pytest.approx(worker._size_for(worker.MAX_VOXELS, [-100, -100, -1], [100, 100, 2]))
+    assert (target.combined > 0).sum() >= 4 ** 3  # the cube is in the grid
+
+
+def test_a_layer_under_two_voxels_is_told_in_the_panels_terms(tmp_path):
+    _box_obj(tmp_path / "big.obj", [0, 0, 0], [10, 10, 10])
+    _box_obj(tmp_path / "small.obj", [10.5, 0, 0], [11.3, 0.8, 0.8])
+    spec = {"layers": [{"mesh": "big.obj", "object": "Big"}, {"mesh": "small.obj", "object": "Pebble"}],
+            "voxel_size": 0.5}
+    with pytest.raises(Exception) as info:
+        worker.build_volume_target(spec, tmp_path, tmp_path / "t")
+    message = str(info.value)
+    assert "target layer 'Pebble'" in message and "Voxel size of 0.1 in the panel" in message
+    assert "mesh_scale" not in message and "target.json" not in message
+
+
+def test_a_target_files_message_names_the_layers_object_and_the_panels_field():
+    spec = {"layers": [{"mesh": "a.obj", "object": "A", "w_fill": 1, "w_avoid": -1}]}
+    said = worker._name_layers("/tmp/j/infer-ga-009.target/target.json: layers[0].file: no voxel centre of the grid "
+                               "lies inside the mesh; use a smaller voxel_size, or close the mesh", spec)
+    assert said == ("target layer 'A': no voxel centre of the grid lies inside the mesh; use a smaller Voxel size "
+                    "(in the panel), or close the mesh")
+    said = worker._name_layers("/tmp/j/t.target/target.json: layers[0].w_fill must be between -1e+06 and 1e+06", spec)
+    assert said == "target layer 'A': its Inside weight must be between -1e+06 and 1e+06"
+
+
+def test_one_sample_is_one_sample(tmp_path):
+    status, result = _job(tmp_path, command="sample", model="spaceship", count=1)
+    assert status == 0 and result["message"].startswith("1 sample of spaceship ")
+
+
+def test_a_relative_or_home_python_is_made_absolute_for_the_workers_folder(tmp_path, monkeypatch):
+    """A relative path was resolved from the job's temporary folder, where the worker starts:
+    'cannot start the procmod worker with rel/python (No such file or directory)'."""
+    (tmp_path / "rel").mkdir()
+    (tmp_path / "rel" / "python").write_text(f"#!/bin/sh\nexec {sys.executable} \"$@\"\n")  # a link loses the venv
+    (tmp_path / "rel" / "python").chmod(0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert jobs.find_python("rel/python") == str(tmp_path / "rel" / "python")
+    assert jobs.find_python("~/rel/python") == str(tmp_path / "rel" / "python")
+    assert jobs.find_python("python3") == "python3"  # a bare name: the system's search path
+    result = jobs.Job("sample", {"model": "spaceship", "count": 1}, jobs.find_python("rel/python"),
+                      folder=tmp_path / "j").start().wait(timeout=120)
+    assert result["ok"], result
+
+
+def test_the_packager_stores_an_absolute_python_and_refuses_one_that_is_not_there(tmp_path, capsys, monkeypatch):
+    import zipfile
+
+    from procmod.blender.package import main
+    (tmp_path / "rel").mkdir()
+    (tmp_path / "rel" / "python").symlink_to(sys.executable)
+    monkeypatch.chdir(tmp_path)
+    assert main(["--out", "a.zip", "--python", "rel/python"]) == 0
+    with zipfile.ZipFile(tmp_path / "a.zip") as archive:
+        assert archive.read("procmod_blender/default_python.txt").decode().strip() == str(tmp_path / "rel" / "python")
+    capsys.readouterr()
+    assert main(["--out", "b.zip", "--python", "/nonexistent/python"]) == 2
+    err = capsys.readouterr().err
+    assert "is not a program" in err and err.count("\n") == 1 and not (tmp_path / "b.zip").exists()

@@ -74,14 +74,45 @@ def test_a_chain_grows_its_initial_population_in_a_bounded_number_of_replays():
     counted = []
 
     class Counting(Evaluator):
-        def __call__(self, jobs):
+        def __call__(self, jobs, **kwargs):
             counted.append(len(jobs))
-            return super().__call__(jobs)
+            return super().__call__(jobs, **kwargs)
 
     evaluate = Counting(target.configure(chain), target, None, tracker)
     pop = initial_population(evaluate, 4, 600, np.random.default_rng(0), tracker)
     assert len(counted) == 1 + engine.MAX_GROW_ROUNDS  # the minimal derivations, then the rounds
     assert all(ind.derivation.n_nodes == 1 + engine.MAX_GROW_ROUNDS for ind in pop)  # the goals are far above
+
+
+@pytest.mark.parametrize("when", ["initial population", "generation"])
+def test_a_stop_ends_the_ga_between_evaluations_not_generations(when, monkeypatch):
+    # Blender's Stop button requests a stop from the progress callback; a generation on a
+    # large volume target takes minutes, and the worker was killed (its run lost) before the
+    # GA reached the end of the generation it was in.
+    import importlib
+    engine = importlib.import_module("procmod.infer.ga.engine")
+
+    class EveryCall(Tracker):  # the progress callback at every check, not every 0.1 s
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **{**kwargs, "progress_interval": 0.0})
+
+    monkeypatch.setattr(engine, "Tracker", EveryCall)
+    seen = {}
+
+    def progress(tracker):
+        if when == "generation":
+            if tracker.generations < 1:
+                return
+            seen.setdefault("from", tracker.evaluations)  # the second generation starts here
+        else:
+            seen.setdefault("from", 20)  # default_initial_size's 20 samples come first
+        if tracker.evaluations >= seen["from"] + 5:
+            tracker.request_stop()
+
+    result = ga(get_model("lightning"), _bar_target(), population=100, budget=Budget(generations=3), seed=0,
+                progress=progress)
+    assert result.evaluations == seen["from"] + 5  # no evaluation starts after the stop
+    assert result.best is not None and len(result.samples) == (5 if when == "initial population" else 100)
 
 
 @pytest.mark.parametrize("mutation", [0.0, 1.0])

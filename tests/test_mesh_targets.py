@@ -885,6 +885,12 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
         {"mesh": "cm.obj", "camera": {"eye": [0, 20, 0.01], "look_at": [0, 0, 0], "width": 64, "height": 64}}]}))
     assert "covers 100% of the view, so it has no outline" in placement_note(
         model, load_target_file(tmp_path / "S.json"), np.random.default_rng(0))
+    # the same for a painted mask (Blender's panel, all black): no mesh, so no units to give
+    np.save(tmp_path / "black.npy", np.ones((64, 64)))
+    (tmp_path / "M.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [
+        {"weights": "black.npy", "camera": {"eye": [0, 20, 0.01], "look_at": [0, 0, 0]}}]}))
+    note = placement_note(model, load_target_file(tmp_path / "M.json"), np.random.default_rng(0))
+    assert "covers 100% of the view, so it has no outline" in note and "mesh_scale" not in note
     # a close-up that fills 98% of the view but keeps an edge of its outline in it: no such note
     near = load_target_file(tmp_path / "S.json")
     near.weights[0][:, 0] = -1.0

@@ -30,6 +30,9 @@ MODELS = (("spaceship", "Spaceship", "seed 002's spaceship generator"),
           ("tree", "Tree", "seed 002's tree generator"),
           ("city", "City", "seed 002's city generator"),
           ("PROGRAM", "Learned program", "a program made by 'Learn' or 'procmod learn' (program.json)"))
+# The target files' limit on a weight (procmod.targets.files.MAX_WEIGHT: the zip holds no
+# library code; a test holds them equal). Blender clamps a field to it, an "inf" typed too.
+MAX_WEIGHT = 1e6
 ENGINES = (("ga", "GA", "genetic algorithm over derivation trees"), ("smc", "SMC", "sequential Monte Carlo"),
            ("sosmc", "SOSMC", "stochastically-ordered SMC"), ("mcmc", "MCMC", "reversible-jump MCMC, tempered"),
            ("forward", "Forward", "importance sampling from the prior"))
@@ -57,8 +60,8 @@ class PROCMOD_PG_layer(bpy.types.PropertyGroup):
 
     object: PointerProperty(name="Object", type=bpy.types.Object, poll=_is_mesh,
                             description="a mesh whose inside is the layer (holes and overlaps are fine)")
-    w_fill: FloatProperty(name="Inside", default=1.0, description="score per voxel the model covers inside the mesh")
-    w_avoid: FloatProperty(name="Outside", default=-1.0,
+    w_fill: FloatProperty(name="Inside", default=1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT, description="score per voxel the model covers inside the mesh")
+    w_avoid: FloatProperty(name="Outside", default=-1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT,
                            description="score per voxel the model covers outside the mesh")
 
 
@@ -77,14 +80,14 @@ class PROCMOD_PG_settings(bpy.types.PropertyGroup):
     layer_index: IntProperty()
     voxel_size: FloatProperty(name="Voxel size", default=0.0, min=0.0, precision=3,
                               description="edge of the target's voxels (0: about 40,000 voxels around the layers)")
-    w_self: FloatProperty(name="Self-intersection", default=0.0, min=0.0,
+    w_self: FloatProperty(name="Self-intersection", default=0.0, min=0.0, max=MAX_WEIGHT,
                           description="score lost per extra hit of a voxel the model covers twice")
     camera: PointerProperty(name="Camera", type=bpy.types.Object, poll=_is_camera,
                             description="the silhouette target's camera (empty: the scene's camera)")
     mask: PointerProperty(name="Mask", type=bpy.types.Image,
                           description="black: where the model should be; white: where it should not; grey: either")
-    hit: FloatProperty(name="Hit", default=1.0, description="score per covered black pixel")
-    avoid: FloatProperty(name="Avoid", default=-1.0, description="score per covered white pixel")
+    hit: FloatProperty(name="Hit", default=1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT, description="score per covered black pixel")
+    avoid: FloatProperty(name="Avoid", default=-1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT, description="score per covered white pixel")
     engine: EnumProperty(name="Engine", items=ENGINES, default="ga")
     population: IntProperty(name="Population", default=0, min=0,
                             description="particles, population or chains (0: the engine's default)")
@@ -115,12 +118,17 @@ class PROCMOD_AP_preferences(bpy.types.AddonPreferences):
 
     def draw(self, context):
         self.layout.prop(self, "python")
-        self.layout.label(text=f"Jobs run with: {jobs.find_python(self.python)}")
+        self.layout.label(text=f"Jobs run with: {_find_python(self.python)}")
+
+
+def _find_python(preference: str) -> str:
+    # the file browser writes "//..." (relative to the .blend) for a file path
+    return jobs.find_python(bpy.path.abspath(preference.strip()) if preference.strip() else "")
 
 
 def _python(context) -> str:
     addon = context.preferences.addons.get(ADDON)
-    return jobs.find_python(addon.preferences.python if addon is not None else "")
+    return _find_python(addon.preferences.python if addon is not None else "")
 
 
 def _output_dir(settings) -> Path:
@@ -131,7 +139,7 @@ def _output_dir(settings) -> Path:
     else:
         # made absolute here: a path relative to Blender's working folder ("my_runs") was taken
         # relative to the job's temporary folder by the worker, and removed with it
-        folder = Path(bpy.path.abspath(text)).resolve()
+        folder = Path(bpy.path.abspath(text)).expanduser().resolve()
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # a file of that name, a folder one may not write, a read-only disk
@@ -154,9 +162,14 @@ def _model_spec(settings) -> str:
         return settings.model
     if not settings.program.strip():
         raise SceneError("choose the learned program (its program.json or folder), or a built-in model")
-    path = Path(bpy.path.abspath(settings.program))
+    # made absolute here, as the Runs folder is: the worker runs in the job's temporary folder
+    path = Path(bpy.path.abspath(settings.program.strip())).expanduser().resolve()
+    if path.is_dir():
+        path = path / "program.json"  # the collections are named after the program's folder
     if not path.exists():
-        raise SceneError(f"the learned program {str(path)!r} does not exist")
+        hint = (" (a path starting // is relative to the saved .blend file; save it, or give the full path)"
+                if settings.program.strip().startswith("//") and not bpy.data.filepath else "")
+        raise SceneError(f"the learned program {str(path)!r} does not exist{hint}")
     return str(path)
 
 

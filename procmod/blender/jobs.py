@@ -32,12 +32,21 @@ def find_python(preference: str = "") -> str:
     the one the installed add-on was packaged with, else this interpreter."""
     for candidate in (preference, os.environ.get("PROCMOD_PYTHON", "")):
         if candidate and candidate.strip():
-            return candidate.strip()
+            return _absolute(candidate.strip())
     if DEFAULT_PYTHON_FILE.exists():
         text = DEFAULT_PYTHON_FILE.read_text(encoding="utf-8").strip()
         if text:
-            return text
+            return _absolute(text)
     return sys.executable
+
+
+def _absolute(python: str) -> str:
+    """A path (``~/env/bin/python``, ``env/bin/python``) made absolute here: a worker starts
+    in its job's folder, where a relative one names nothing. A bare name (``python3``) is
+    left for the system's search path."""
+    if os.sep not in python and not python.startswith("~"):
+        return python
+    return os.path.abspath(os.path.expanduser(python))
 
 
 class Job:

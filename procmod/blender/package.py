@@ -13,6 +13,8 @@ Preferences > Add-ons > (the arrow at the top right) > Install from Disk..., the
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import sys
 import zipfile
 from pathlib import Path
@@ -41,6 +43,15 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="procmod_blender.zip", help="the zip to write (default procmod_blender.zip)")
     parser.add_argument("--python", help="the Python jobs run with (default: the one running this command)")
     args = parser.parse_args(argv)
+    if args.python is not None:
+        # stored absolute: the add-on starts its workers in a job's folder, where a relative
+        # path names nothing, and a typo would only show at the first job, inside Blender
+        found = shutil.which(os.path.expanduser(args.python))
+        if found is None:
+            print(f"procmod.blender.package: error: --python {args.python!r} is not a program this machine can run; "
+                  "give the path of the Python of procmod's environment (e.g. .venv/bin/python)", file=sys.stderr)
+            return 2
+        args.python = os.path.abspath(found)
     if Path(args.out).suffix.lower() != ".zip":  # Blender installs add-ons from a zip, whatever it is named
         print(f"procmod.blender.package: error: --out must be a .zip file (Blender installs add-ons from a zip), "
               f"got {args.out!r}", file=sys.stderr)

@@ -158,9 +158,34 @@ def resolve_model(spec: str):
     return model
 
 
-def _auto_voxel_size(lo, hi) -> float:
-    volume = float(np.prod(np.maximum(hi - lo, 1e-6)))
-    return (volume / AUTO_VOXELS) ** (1 / 3)
+MIN_VOXELS_ACROSS = 8  # an automatic voxel size puts at least this many along each layer's longest side
+
+
+def _grid_voxels(size: float, lo, hi) -> int:
+    """Voxels of the grid around ``lo``..``hi`` with edge ``size`` and a two-voxel margin."""
+    return math.prod(max(1, math.ceil((h - l + 4 * size) / size)) for l, h in zip(lo, hi))
+
+
+def _size_for(voxels: int, lo, hi) -> float:
+    """The smallest voxel size whose grid (margin counted) has at most ``voxels`` voxels."""
+    small, large = 1e-12, 2.0 * float(np.max(np.subtract(hi, lo))) + 1.0  # large: 5 voxels an axis at most
+    for _ in range(100):  # bisection in the log: the count only falls as the size grows
+        middle = math.sqrt(small * large)
+        if _grid_voxels(middle, lo, hi) > voxels:
+            small = middle
+        else:
+            large = middle
+    return large
+
+
+def _auto_voxel_size(lo, hi, layer_bounds) -> float:
+    """Voxel size 0 in the panel: about :data:`AUTO_VOXELS` voxels around the layers
+    (margin counted: a large flat layer was refused for going over :data:`MAX_VOXELS`), but
+    fine enough that every layer has :data:`MIN_VOXELS_ACROSS` voxels along its longest side
+    (a 2 m cube on a 200 m ground slab fell between voxel centres), within :data:`MAX_VOXELS`."""
+    smallest = min(float(np.max(b[1] - b[0])) for b in layer_bounds)
+    size = min(_size_for(AUTO_VOXELS, lo, hi), smallest / MIN_VOXELS_ACROSS)
+    return max(size, _size_for(MAX_VOXELS, lo, hi))
 
 
 def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
@@ -188,14 +213,27 @@ def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
         bounds.append(mesh.bounds)
     lo = np.min([b[0] for b in bounds], axis=0)
     hi = np.max([b[1] for b in bounds], axis=0)
-    size = float(spec.get("voxel_size") or 0) or _auto_voxel_size(lo, hi)
+    automatic = not float(spec.get("voxel_size") or 0)
+    size = _auto_voxel_size(lo, hi, bounds) if automatic else float(spec["voxel_size"])
     if not (math.isfinite(size) and size > 0):
         raise InvalidArgumentError(f"the voxel size must be a positive number, got {size!r}")
+    chosen = f"Voxel size {size:.4g}" + (" (0 in the panel: chosen for the whole scene)" if automatic else "")
     margin = 2 * size
-    count = math.prod(max(1, math.ceil((h - l + 2 * margin) / size)) for l, h in zip(lo, hi))
+    count = _grid_voxels(size, lo, hi)
     if count > MAX_VOXELS:
-        raise InvalidArgumentError(f"a voxel size of {size:g} gives {count:,} voxels around the target layers "
-                                   f"(at most {MAX_VOXELS:,}); give a larger voxel size")
+        raise InvalidArgumentError(f"a {chosen} gives {count:,} voxels around the target layers "
+                                   f"(at most {MAX_VOXELS:,}); give a larger Voxel size in the panel")
+    for layer, (b_lo, b_hi) in zip(layers, bounds):
+        # the library's message for this speaks of a target file's fields (mesh_scale)
+        across = float(np.max(b_hi - b_lo))
+        if across < 2 * size:
+            limit = _size_for(MAX_VOXELS, lo, hi)
+            fix = (f"give a Voxel size of {across / MIN_VOXELS_ACROSS:.3g} in the panel" if
+                   across / MIN_VOXELS_ACROSS >= limit else
+                   f"the layers span {float(np.max(hi - lo)):.4g} across, so no Voxel size fits both within "
+                   f"{MAX_VOXELS:,} voxels: make the layer larger, or leave out the layers far from it")
+            raise InvalidArgumentError(f"target layer {layer.get('object', layer['mesh'])!r} is {across:.3g} "
+                                       f"across, under two voxels of the {chosen}, so no voxel lies inside it; {fix}")
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for i, ((w_fill, w_avoid), group) in enumerate(_layer_groups(layers)):
@@ -225,6 +263,9 @@ def _layer_groups(layers: list) -> list:
     return list(groups.items())
 
 
+PANEL_FIELDS = {"w_fill": "its Inside weight ", "w_avoid": "its Outside weight "}  # a layer's fields, as the panel names them
+
+
 def _name_layers(message: str, spec: dict) -> str:
     """A target file's message names ``layers[i]``; say which scene objects that is."""
     groups = _layer_groups(spec.get("layers") or [])
@@ -232,6 +273,11 @@ def _name_layers(message: str, spec: dict) -> str:
     if found and int(found.group(1)) < len(groups):
         names = [layer.get("object") for layer in groups[int(found.group(1))][1]]
         if all(names):
+            # the target file the message starts with is the job's, removed with it: the
+            # scene's objects and the panel's fields say it to a Blender user
+            message = re.sub(r"^.*?target\.json: layers\[\d+\](?:\.(\w+))?:? ",
+                             lambda m: PANEL_FIELDS.get(m.group(1), ""), message)
+            message = message.replace("voxel_size", "Voxel size (in the panel)")
             if len(names) == 1:
                 return f"target layer {names[0]!r}: {message}"
             return f"target layers {', '.join(map(repr, names))} (one layer: their weights are the same): {message}"
@@ -270,7 +316,8 @@ def cmd_sample(job: dict, folder: Path, progress: Progress) -> dict:
     for i in range(count):
         progress(i / count, f"sampling {model.name}: {i} of {count}")
         samples.append({"label": f"sample {i} (seed {seed})", **derivation_parts(_sample_one(model, seed, i))})
-    return {"samples": samples, "message": f"{count} samples of {_short(model.name)} from seed {seed}"}
+    return {"samples": samples, "message": f"{count} sample{'s' if count != 1 else ''} of {_short(model.name)} "
+                                           f"from seed {seed}"}
 
 
 def _sample_one(model, seed: int, i: int):

@@ -1,7 +1,7 @@
 """Engines that control a model toward a target, all on one contract (see ``common``)."""
 
-from .common import (Budget, HistoryRow, InlineExecutor, Result, Scored, Tracker, evaluate,
-                     evaluate_all, parse_budget)
+from ..parallel import InlineExecutor
+from .common import Budget, HistoryRow, Result, Scored, Tracker, evaluate, evaluate_all, parse_budget
 from .forward import forward
 from .ga import ga
 from .mcmc import mcmc, temperature_ladder

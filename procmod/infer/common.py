@@ -28,7 +28,6 @@ from ..core import Derivation, InvalidArgumentError, Model, replay
 from ..core.errors import shown_value, whole_number
 from ..core.protocols import Output, Target, check_declared
 from ..core.random import LazyGenerator, check_seed
-from ..parallel import InlineExecutor
 
 
 @dataclass(frozen=True)
@@ -171,6 +170,13 @@ class Tracker:
                 or (b.seconds is not None and self.seconds >= b.seconds)
                 or (b.evaluations is not None and self.evaluations >= b.evaluations)
                 or (b.generations is not None and self.generations >= b.generations))
+
+    def out_of_time(self) -> bool:
+        """True once the budget's seconds are used up or a stop was requested: the limits an
+        engine also checks inside a unit of work (a GA generation can take minutes on a large
+        volume target, and a Stop button must not wait for it)."""
+        b = self.budget
+        return self.stop_requested or (b.seconds is not None and self.seconds >= b.seconds)
 
     def fraction(self) -> float:
         """How much of the budget is used, in [0, 1] (for progress bars)."""
@@ -355,12 +361,22 @@ def evaluate(model: Model, target: Target, job) -> Evaluation:
     return Evaluation(d, *scored(target, d.output), result.log_reused, result.log_fresh, result.unused)
 
 
-def evaluate_all(executor, model: Model, target: Target, jobs: list) -> list:
-    """Evaluate jobs through ``executor`` (in order)."""
+def evaluate_all(executor, model: Model, target: Target, jobs: list, lazy: bool = False):
+    """Evaluate jobs through ``executor`` (in order): a list, or with ``lazy`` a generator
+    whose ``close()`` leaves the rest unevaluated."""
+    results = _evaluations(executor, model, target, jobs)
+    return results if lazy else list(results)
+
+
+def _evaluations(executor, model: Model, target: Target, jobs: list):
+    if executor is None:  # one at a time (an Executor's map submits every job at once)
+        for job in jobs:
+            yield evaluate(model, target, job)
+        return
     try:
-        return list((executor or InlineExecutor()).map(functools.partial(evaluate, model, target), jobs))
+        yield from executor.map(functools.partial(evaluate, model, target), jobs)
     except (pickle.PicklingError, AttributeError, TypeError) as exc:
-        if executor is None or "pickle" not in str(exc).lower():
+        if "pickle" not in str(exc).lower():
             raise
         # a process pool sends the model, the target and the derivations (which name the
         # rules) to its workers by pickling: lambdas and functions defined inside others do

@@ -795,6 +795,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     name = path.parent.name if path.name == "target.json" else path.stem
     target = Silhouette(out, name=name)
     target.placed_by = ("meshes", *placement[:2])
+    target.view_kinds = [entry[1] for entry in parsed]  # "mesh", "image" or "weights": for the notes' advice
     return target
 
 

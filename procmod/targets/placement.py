@@ -261,6 +261,7 @@ included (so that no outline is left in view; a close-up may fill most of it), g
 
 def _silhouette_note(target, lo, hi) -> str | None:
     corners = _corners(lo, hi)
+    kinds = getattr(target, "view_kinds", None) or ["mesh"] * len(target.cameras)  # a file's: what each view gave
     for i, (camera, weights) in enumerate(zip(target.cameras, target.weights)):
         hit = np.argwhere(weights > 0)
         if not hit.size:
@@ -268,6 +269,9 @@ def _silhouette_note(target, lo, hi) -> str | None:
         covered = len(hit) / weights.size
         border = np.concatenate([weights[0], weights[-1], weights[:, 0], weights[:, -1]])
         if covered > MOST_OF_THE_VIEW and (border > 0).all():  # no outline in view: every derivation alike
+            if kinds[i] != "mesh":  # a painted mask or a picture: no units to give
+                return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
+                        "to match: mark only the shape to hit (black) and leave the rest white")
             return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
                     "to match: if it is a mesh made in other units than the model (Maya writes centimetres), "
                     "give \"mesh_scale\" (0.01 for centimetres to metres); else move the camera back")
@@ -289,8 +293,9 @@ def _silhouette_note(target, lo, hi) -> str | None:
         if m_size > 0 and not 1 / SCALE_FACTOR <= t_size / m_size <= SCALE_FACTOR:
             return (f"{view}: the shape to hit spans {t_size:.0f} pixels on screen, the model's samples about "
                     f"{m_size:.3g} ({t_size / m_size:.3g}x): move the camera so the model (which builds at its "
-                    f"origin, about {_shown(lo)} to {_shown(hi)}) fills the view as the target should (a mesh in "
-                    "other units: \"mesh_scale\", with the camera in the model's units)")
+                    f"origin, about {_shown(lo)} to {_shown(hi)}) fills the view as the target should"
+                    + (" (a mesh in other units: \"mesh_scale\", with the camera in the model's units)"
+                       if kinds[i] == "mesh" else ""))
         if np.all(p_hi < 0) or np.all(p_lo > (camera.width, camera.height)) or np.any(p_hi < t_lo) \
                 or np.any(p_lo > t_hi):
             return (f"{view}: the model's samples (at its origin, about {_shown(lo)} to {_shown(hi)}) fall "

@@ -83,7 +83,12 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
             pop.sort(key=lambda ind: ind.score, reverse=True)
             kept, jobs = breed(pop, genomes, rng, n_elite=n_elite, k=tournament, mutation=mutation, split=split,
                                nudge_step=nudge_step, max_retries=max_retries)
-            pop = (kept + evaluate(jobs))[:population]
+            offspring = [ind for ind in evaluate(jobs, until_out_of_time=True) if ind is not None]
+            # a generation cut short by the clock or a stop is topped up from the last one
+            if len(kept) + len(offspring) < population:
+                kept_ids = {id(ind) for ind in kept}
+                offspring += [ind for ind in pop if id(ind) not in kept_ids]
+            pop = (kept + offspring)[:population]
             genomes.keep(ind.derivation for ind in pop)
             tracker.generations += 1
             _record(tracker, pop)
@@ -131,9 +136,10 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
     :data:`MAX_GROW_ROUNDS` rounds, leaving such individuals shorter than their goal (the
     generations' mutations, drawn from the prior, make them longer); the built-in models
     reach their goals in at most 8 rounds."""
-    pop = evaluate([({}, new_seed(rng), False) for _ in range(population)])
+    pop = [ind for ind in evaluate([({}, new_seed(rng), False) for _ in range(population)], until_out_of_time=True)
+           if ind is not None]  # fewer only when the time ran out or a stop came
     goals = rng.integers(1, initial_size + 1, size=population)
-    growing = [i for i in range(population) if pop[i].derivation.n_nodes < goals[i]]
+    growing = [i for i in range(len(pop)) if pop[i].derivation.n_nodes < goals[i]]
     rounds = 0
     while growing and not tracker.spent() and rounds < MAX_GROW_ROUNDS:
         rounds += 1
@@ -144,8 +150,9 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
             if child is not None:
                 jobs.append((child, new_seed(rng), False))
                 owners.append(i)
-        for i, ind in zip(owners, evaluate(jobs)):
-            pop[i] = ind
+        for i, ind in zip(owners, evaluate(jobs, until_out_of_time=True)):
+            if ind is not None:
+                pop[i] = ind
         growing = [i for i in owners if pop[i].derivation.n_nodes < goals[i]]
         if tracker.due():
             _record(tracker, pop)
@@ -184,4 +191,5 @@ def breed(pop: list, genomes: Genomes, rng, *, n_elite: int, k: int, mutation: f
 
 
 def _record(tracker: Tracker, pop: list) -> None:
-    tracker.record(float(np.mean([ind.score for ind in pop])))
+    if pop:  # empty when a stop came before the first individual was scored
+        tracker.record(float(np.mean([ind.score for ind in pop])))

@@ -83,22 +83,45 @@ class Evaluator:
         self.model, self.target, self.executor, self.tracker = model, target, executor, tracker
         self.incremental = executor is None and bool(target.exact_removal)
 
-    def __call__(self, jobs: list) -> list[Scored]:
-        model, target = self.model, self.target
+    def __call__(self, jobs: list, until_out_of_time: bool = False) -> list:
+        """The jobs' :class:`Scored` individuals, in order.
+
+        ``until_out_of_time``: stop evaluating once the budget's time is up or a stop was
+        requested (:meth:`Tracker.out_of_time`, checked between evaluations, which also keep
+        the progress callback called); the jobs not evaluated are ``None`` in the list.
+        """
+        model, target, tracker = self.model, self.target, self.tracker
         evaluations = [None] * len(jobs)
+
+        def stopping() -> bool:
+            if not until_out_of_time:
+                return False
+            tracker.due()  # calls the progress callback (a Stop button is read there)
+            return tracker.out_of_time()
+
         if self.incremental:
             for i, (choices, seed, maybe_default) in enumerate(jobs):
                 if isinstance(choices, Offspring) and maybe_default is False and reusable(choices.base.d):
-                    evaluations[i] = evaluate_from(model, target, choices.base, choices, seed, choices.changed)
+                    if stopping():
+                        break
+                    evaluations[i] = self._scored(evaluate_from(model, target, choices.base, choices, seed,
+                                                                choices.changed))
         rest = [i for i, ev in enumerate(evaluations) if ev is None]
         full_jobs = [(_materialize(jobs[i][0]),) + tuple(jobs[i][1:]) for i in rest]
-        for i, ev in zip(rest, evaluate_all(self.executor, model, target, full_jobs)):
-            evaluations[i] = ev
-        out = [Scored.from_evaluation(ev) for ev in evaluations]
-        self.tracker.evaluations += len(out)
-        for ind in out:
-            self.tracker.offer(ind.derivation, ind.score)
-        return out
+        if not (rest and stopping()):
+            results = evaluate_all(self.executor, model, target, full_jobs, lazy=until_out_of_time)
+            for i, ev in zip(rest, results):
+                evaluations[i] = self._scored(ev)
+                if stopping():
+                    results.close()  # a pool's jobs not yet started are cancelled
+                    break
+        return evaluations
+
+    def _scored(self, evaluation) -> Scored:
+        ind = Scored.from_evaluation(evaluation)
+        self.tracker.evaluations += 1
+        self.tracker.offer(ind.derivation, ind.score)
+        return ind
 
 
 def _materialize(choices) -> dict:
