@@ -125,6 +125,68 @@ def test_all_zero_likelihood_is_reported_not_nan():
     assert "give it more" in str(no_result_error(result))
 
 
+class _Capped(Target):
+    """MIX's sum as the score (higher is better), but a sum above ``cap`` ruled out
+    (log-likelihood -inf), as a proxy target rules out a ship whose parts intersect while
+    its score, the agreement of voxels, does not see them."""
+
+    name = "capped"
+
+    def __init__(self, cap):
+        self.cap = cap
+
+    def configure(self, model):
+        return model
+
+    def new_output(self, model):
+        return SumOutput()
+
+    def log_likelihood(self, output):
+        return -math.inf if output.total > self.cap else -0.5 * output.total ** 2
+
+    def score(self, output):
+        return output.total
+
+
+_CAPPED_RUNS = {"ga": {"population": 20, "budget": Budget(generations=3)},
+                "mcmc": {"chains": 4, "budget": Budget(evaluations=200), "init_particles": 0},
+                "forward": {"particles": 50}, "smc": {"particles": 50}, "sosmc": {"particles": 50}}
+
+
+@pytest.mark.parametrize("engine", sorted(ENGINES))
+def test_a_best_the_target_rules_out_loses_to_any_it_allows(engine):
+    # the GA and MCMC returned a proxy target's best-scoring ship though its parts
+    # intersected (log-likelihood -inf), and the GA bred from it and kept it as an elite
+    from procmod.infer.common import RULED_OUT_NOTE
+    result = ENGINES[engine](MIX, _Capped(0.5), seed=0, **_CAPPED_RUNS[engine])
+    assert result.best is not None and result.best.output.total <= 0.5 and RULED_OUT_NOTE not in result.notes
+    if engine != "ga":
+        return
+    assert all(s.output.total <= 0.5 for s in result.samples[:8])  # the elites (ranked first) are all allowed
+    # nothing allowed: the best scoring one, said to be ruled out
+    result = ENGINES[engine](MIX, _Capped(-math.inf), seed=0, **_CAPPED_RUNS[engine])
+    assert result.best is not None and RULED_OUT_NOTE in result.notes
+
+
+@pytest.mark.parametrize("engine", ["mcmc", "forward"])
+def test_a_run_that_finds_only_ruled_out_derivations_says_so(engine):
+    from procmod.infer.common import RULED_OUT_NOTE
+    result = ENGINES[engine](MIX, _Capped(-math.inf), seed=0, **_CAPPED_RUNS[engine])
+    assert result.best is not None and RULED_OUT_NOTE in result.notes
+
+
+def test_the_tracker_takes_an_allowed_best_over_a_higher_scoring_ruled_out_one():
+    from procmod.infer import Tracker
+    tracker = Tracker(Budget(evaluations=1))
+    tracker.offer("ruled out", 0.9, -math.inf)
+    assert tracker.best == "ruled out" and tracker.notes()
+    tracker.offer("allowed", 0.5, -3.0)
+    tracker.offer("ruled out, higher", 0.95, -math.inf)
+    assert tracker.best == "allowed" and tracker.best_score == 0.5 and not tracker.notes()
+    tracker.offer("allowed, higher", 0.6)
+    assert tracker.best == "allowed, higher"
+
+
 class _Misbehaving(Target):
     """SumTarget's model with a target whose log-likelihood (or score) is ``bad`` for half
     the outputs: a user's bug."""

@@ -150,6 +150,7 @@ class Tracker:
         self.generations = 0
         self.best = None
         self.best_score = -math.inf
+        self.best_ruled_out = True  # (until a best is found) see offer()
         self.rows: list[HistoryRow] = []
         self._next_row = 1  # evaluations at which the next row is due
         self._last_progress = -math.inf
@@ -190,11 +191,21 @@ class Tracker:
             parts.append(self.generations / b.generations)
         return min(1.0, max(parts))
 
-    def offer(self, derivation: Derivation, score: float) -> None:
-        """Consider a complete derivation for ``best``."""
-        if score > self.best_score:
-            self.best_score = score
-            self.best = derivation
+    def offer(self, derivation: Derivation, score: float, log_likelihood: float = 0.0) -> None:
+        """Consider a complete derivation for ``best``: the highest score, except that one
+        the target rules out (``log_likelihood`` -inf: parts that intersect, which a proxy
+        target's score does not see) is best only while no other has been found."""
+        if self.better(score, log_likelihood):
+            self.best_score, self.best = score, derivation
+            self.best_ruled_out = log_likelihood == -math.inf
+
+    def better(self, score: float, log_likelihood: float = 0.0) -> bool:
+        """Whether :meth:`offer` would take a derivation of this score and log-likelihood."""
+        return (log_likelihood != -math.inf, score) > (not self.best_ruled_out, self.best_score)
+
+    def notes(self) -> list:
+        """What a result should say of its best (:data:`RULED_OUT_NOTE`)."""
+        return [RULED_OUT_NOTE] if self.best is not None and self.best_ruled_out else []
 
     def due(self) -> bool:
         """Whether a history row is due (cheap; engines compute mean scores only then)."""
@@ -445,6 +456,11 @@ def check_positive(name: str, value) -> int:
         raise InvalidArgumentError(f"{name} must be a positive integer, got {shown_value(value)}")
     return count
 
+
+# The note of a run whose best derivation the target rules out (no other was found)
+RULED_OUT_NOTE = ("the best derivation found is one the target rules out (zero likelihood: e.g. parts that "
+                  "intersect, which a proxy target forbids, though its score does not count them); no derivation it "
+                  "allows was found: give the engine more budget, or check the target")
 
 # SMC's note when every particle's likelihood went to zero (its log Z is -inf)
 ZERO_LIKELIHOOD_NOTE = "every particle reached zero likelihood; the log marginal-likelihood is -inf"

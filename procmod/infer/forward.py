@@ -34,7 +34,7 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
             tracker.evaluations += len(batch)
             tracker.generations += 1
             for ev in batch:
-                tracker.offer(ev.derivation, ev.score)
+                tracker.offer(ev.derivation, ev.score, ev.log_likelihood)
                 all_log_weights.append(ev.log_likelihood)
             tracker.record(float(np.mean([ev.score for ev in batch])))
             if budget is None or tracker.spent():
@@ -44,4 +44,4 @@ def forward(model: Model, target: Target, particles: int = 100, seed: int = 0, b
                   settings={"particles": particles, "seed": recorded_seed(seed),
                             "budget": budget.describe() if budget is not None else "one batch"},
                   log_weights=[ev.log_likelihood for ev in batch],
-                  log_marginal_likelihood=log_mean_exp(all_log_weights))
+                  log_marginal_likelihood=log_mean_exp(all_log_weights), notes=tracker.notes())

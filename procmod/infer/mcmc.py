@@ -98,8 +98,8 @@ from ..core.errors import check_real, shown_value, whole_number
 from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
-from .common import (Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive, check_run,
-                     configured_model, evaluate_all, new_seed, recorded_seed)
+from .common import (RULED_OUT_NOTE, Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
+                     check_run, configured_model, evaluate_all, new_seed, recorded_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
@@ -478,7 +478,7 @@ class Chains:
                 self.accepted[p.kind] += 1
                 continue
             new = replayed.state
-            tracker.offer(new.derivation, new.score)
+            tracker.offer(new.derivation, new.score, new.log_likelihood)
             if self._accept(log_acceptance_traced(s, p, replayed, betas[c])):
                 states[c] = new
                 self.accepted[p.kind] += 1
@@ -501,7 +501,7 @@ class Chains:
                 accepted[p.kind] += 1
                 continue
             ev = next(evaluations)
-            tracker.offer(ev.derivation, ev.score)
+            tracker.offer(ev.derivation, ev.score, ev.log_likelihood)
             if self._accept(log_acceptance(s, p, ev, betas[c])):
                 states[c] = Scored.from_evaluation(ev)
                 accepted[p.kind] += 1
@@ -511,7 +511,7 @@ class Chains:
             retries = self._evaluate([p.choices for _, p, _ in second])
             for (c, p, ev1), ev2 in zip(second, retries):
                 proposed["delayed"] += 1
-                tracker.offer(ev2.derivation, ev2.score)
+                tracker.offer(ev2.derivation, ev2.score, ev2.log_likelihood)
                 y1, y2 = Scored.from_evaluation(ev1), Scored.from_evaluation(ev2)
                 if self._accept(delayed_rejection_log_alpha(states[c], y1, y2, p.address, betas[c],
                                                             self.p_diffusion, self.p_resample)):
@@ -652,7 +652,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                       evaluate_all(executor, model, target, [(starts[c], new_seed(rng), None) for c in range(chains)])]
         tracker.evaluations += chains
         for s in states:
-            tracker.offer(s.derivation, s.score)
+            tracker.offer(s.derivation, s.score, s.log_likelihood)
         run = Chains(model, target, states, betas, rng, p_diffusion, step_scale, tempering,
                      delayed_rejection, executor, tracker, p_resample, incremental)
         while not tracker.spent():
@@ -668,7 +668,7 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={**settings, "workers": 1, "acceptance_rates": run.acceptance_rates(), "moves": moves,
                             "init_evaluations": init_evaluations},
-                  log_weights=[s.log_likelihood for s in run.states])
+                  log_weights=[s.log_likelihood for s in run.states], notes=tracker.notes())
 
 
 def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: Tracker) -> tuple:
@@ -684,7 +684,7 @@ def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: 
     result = smc(model, target, particles=particles, seed=seed)
     if result.best is None:
         return [{}] * chains, result.evaluations
-    tracker.offer(result.best, result.best_score)
+    tracker.offer(result.best, result.best_score, -math.inf if RULED_OUT_NOTE in result.notes else 0.0)
     score = target.score
     # complete particles only (a run where every particle reached zero likelihood ends early)
     ranked = [result.best] + sorted((s for s in result.samples if s.done), key=lambda s: -score(s.output))

@@ -118,7 +118,7 @@ class ParticleShard:
                 score = target.score(state.output)
                 if not isinstance(score, float) or score != score or score == math.inf:
                     score = checked_value(score, target, "score")
-                offer(state, score)
+                offer(state, score, new)
             else:
                 active += 1
         return log_w, finished, stepped, active
@@ -252,11 +252,12 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
     # closes the shards; a shard that also raised KeyboardInterrupt printed its traceback
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _pin(shard.index)
-    best = [-math.inf, None]
+    best = [-math.inf, None, False]  # score, derivation, whether the target allows it (Tracker.offer)
 
-    def offer(derivation, score):
-        if score > best[0]:
-            best[0], best[1] = score, derivation
+    def offer(derivation, score, log_likelihood=0.0):
+        allowed = log_likelihood != -math.inf
+        if (allowed, score) > (best[2], best[0]):
+            best[:] = [score, derivation, allowed]
 
     shard.offer = offer
     while True:
@@ -273,12 +274,12 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
                 continue
             if command == "reset":
                 shard.reset(*args)
-                best[:] = [-math.inf, None]
+                best[:] = [-math.inf, None, False]
                 continue
             if command == "step":
                 log_w, finished, stepped, active = shard.step()
                 # flat arrays: one object each for the pickler, not one per particle
-                reply = (array("d", log_w), bytes(finished), stepped, active, best[0])
+                reply = (array("d", log_w), bytes(finished), stepped, active, (best[0], best[2]))
             elif command == "export":
                 reply = shard.export(*args)
             elif command == "histories":

@@ -121,8 +121,10 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
                 finished += map(bool, w_finished)
                 stepped += w_stepped
                 active += w_active
-                if w_best > tracker.best_score:
-                    tracker.offer(_RemoteBest(worker), w_best)
+                score, allowed = w_best
+                log_likelihood = 0.0 if allowed else -math.inf
+                if tracker.better(score, log_likelihood):
+                    tracker.offer(_RemoteBest(worker), score, log_likelihood)
         tracker.evaluations += stepped
         if active == 0:
             break
@@ -303,6 +305,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     unmatched = proposer.unmatched_note() if proposer is not None else None
     if unmatched is not None:
         notes.append(unmatched)
+    notes += tracker.notes()
     engine = ("smc" if order == "program" else "sosmc") + ("+guide" if guide is not None else "")
     return Result(engine, tracker.best, tracker.best_score, states, tracker.rows, tracker.seconds,
                   tracker.evaluations,

@@ -11,7 +11,7 @@ from ...core.errors import argument
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
 from ...core.errors import check_real
-from ..common import (Budget, Result, Tracker, check_population, check_positive, check_run, configured_model,
+from ..common import (Budget, Result, Scored, Tracker, check_population, check_positive, check_run, configured_model,
                       new_seed, recorded_seed)
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
@@ -80,7 +80,7 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
         pop = initial_population(evaluate, population, initial_size, rng, tracker)
         n_elite = elite_count(elitism, population)
         while not tracker.spent():
-            pop.sort(key=lambda ind: ind.score, reverse=True)
+            pop.sort(key=_rank, reverse=True)
             kept, jobs = breed(pop, genomes, rng, n_elite=n_elite, k=tournament, mutation=mutation, split=split,
                                nudge_step=nudge_step, max_retries=max_retries)
             offspring = [ind for ind in evaluate(jobs, until_out_of_time=True) if ind is not None]
@@ -92,14 +92,14 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
             genomes.keep(ind.derivation for ind in pop)
             tracker.generations += 1
             _record(tracker, pop)
-    pop.sort(key=lambda ind: ind.score, reverse=True)
+    pop.sort(key=_rank, reverse=True)
     return Result("ga", tracker.best, tracker.best_score, [ind.derivation for ind in pop],
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={"population": population, "seed": recorded_seed(seed), "budget": budget.describe(),
                             "mutation": mutation, "split": list(split), "elitism": elitism,
                             "tournament": tournament, "initial_size": initial_size, "nudge_step": nudge_step,
                             "incremental": evaluate.incremental},
-                  log_weights=[ind.log_likelihood for ind in pop])
+                  log_weights=[ind.log_likelihood for ind in pop], notes=tracker.notes())
 
 
 def _check_split(split) -> tuple:
@@ -170,7 +170,8 @@ def breed(pop: list, genomes: Genomes, rng, *, n_elite: int, k: int, mutation: f
     Each pair of parents is one roulette pick and one k-tournament pick; with probability
     ``mutation`` both are mutated (:func:`mutate`), otherwise crossed over."""
     size = len(pop)
-    wheel = roulette_wheel([ind.score for ind in pop])
+    # an individual the target rules out (a proxy target's intersecting ship) gets no share
+    wheel = roulette_wheel([ind.score if ind.log_likelihood != -math.inf else -math.inf for ind in pop])
     kept, jobs = list(pop[:n_elite]), []
     while len(kept) + len(jobs) < size:
         p1, p2 = pop[roulette(wheel, rng)], pop[tournament(size, k, rng)]
@@ -188,6 +189,13 @@ def breed(pop: list, genomes: Genomes, rng, *, n_elite: int, k: int, mutation: f
             else:
                 jobs.extend((child, new_seed(rng), False) for child in children)
     return kept, jobs
+
+
+def _rank(ind: Scored) -> tuple:
+    """Best first by score, after every individual the target allows: one it rules out
+    (log-likelihood -inf: parts that intersect, which a proxy target's score does not see)
+    is never an elite, nor the best-ranked entrant of a tournament."""
+    return (ind.log_likelihood != -math.inf, ind.score)
 
 
 def _record(tracker: Tracker, pop: list) -> None:

@@ -120,7 +120,7 @@ class Evaluator:
     def _scored(self, evaluation) -> Scored:
         ind = Scored.from_evaluation(evaluation)
         self.tracker.evaluations += 1
-        self.tracker.offer(ind.derivation, ind.score)
+        self.tracker.offer(ind.derivation, ind.score, ind.log_likelihood)
         return ind
 
 
