@@ -144,6 +144,16 @@ class _Solid:
 _I3, _ZERO = np.eye(3), np.zeros(3)
 
 
+def _solid_of(part) -> _Solid:
+    """:func:`_solid`, cached where the part can be (a Mesh of numpy arrays cannot)."""
+    try:
+        return _solid(part)
+    except TypeError as exc:
+        if "unhashable" not in str(exc):
+            raise
+        return _solid.__wrapped__(part)
+
+
 @lru_cache(maxsize=4096)
 def _solid(part) -> _Solid:
     """The fcl form of a part (cached: parts are immutable values)."""
@@ -239,7 +249,7 @@ def parts_intersect(a, b, rel_tol: float = REL_TOL, bounds_a=None, bounds_b=None
             return True  # such boxes are their bounding boxes: the broad phase was exact
         return _sat_depth(a, b) > tol
     import fcl
-    sa, sb = _solid(a), _solid(b)
+    sa, sb = _solid_of(a), _solid_of(b)
     result = fcl.CollisionResult()
     request = fcl.CollisionRequest(num_max_contacts=1, enable_contact=True)
     if fcl.collide(sa.fcl_object(), sb.fcl_object(), request, result):

@@ -227,7 +227,10 @@ class PartCache:
         self.hits = self.misses = 0
 
     def get(self, part):
-        entry = self.entries.get(part)
+        try:
+            entry = self.entries.get(part)
+        except TypeError:  # a Mesh a model gave numpy arrays (unhashable): never stored
+            entry = None
         if entry is None:
             self.misses += 1
         else:
@@ -238,6 +241,10 @@ class PartCache:
         """Store ``entry`` for ``part``; ``size`` (default ``len(entry[0])``) counts
         towards ``max_voxels``."""
         size = len(entry[0]) if size is None else int(size)
+        try:
+            hash(part)
+        except TypeError:  # a Mesh of numpy arrays: voxelized each time instead
+            return
         if self.stored + size > self.max_voxels:
             self.entries.clear()
             self.stored = 0
