@@ -338,6 +338,26 @@ def test_a_mesh_running_under_a_perspective_camera_is_cut_at_the_near_plane(tmp_
     assert len(cut) >= in_front.any(axis=1).sum()  # each triangle with a corner in front leaves one or two
 
 
+def test_an_orthographic_camera_does_not_see_behind_its_eye():
+    """An orthographic camera looking away from the model scored exactly what one facing it
+    did, while the placement note said the model lay behind the camera."""
+    from procmod.geometry.camera import Camera, Silhouettes
+    from procmod.geometry.solid import Box, translation
+    away = Camera((0.0, 0.0, 5.0), (0.0, 0.0, 10.0), projection="orthographic", fov=4.0, width=32, height=32)
+    facing = Camera((0.0, 0.0, 5.0), (0.0, 0.0, 0.0), projection="orthographic", fov=4.0, width=32, height=32)
+    box = Box((1.0, 1.0, 1.0), translation(0.0, 0.0, 0.0))
+    seen = {}
+    for name, camera in (("away", away), ("facing", facing)):
+        out = Silhouettes([camera])
+        out.add(box)
+        seen[name] = out.image(0).sum()
+    assert seen["facing"] > 50 and seen["away"] == 0
+    # a part across the eye's plane shows its half in front
+    out = Silhouettes([away])
+    out.add(Box((1.0, 1.0, 4.0), translation(0.0, 0.0, 5.0)))
+    assert out.image(0).sum() == seen["facing"]
+
+
 def test_silhouette_view_of_a_mesh(tmp_path, capsys):
     box = _box((2.0, 1.0, 1.0), (0.0, 0.0, 0.0))
     _write_obj(tmp_path / "box.obj", box.vertices, box.faces, split_seams=True)

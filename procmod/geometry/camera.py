@@ -91,7 +91,7 @@ NEAR = 1e-4
 
 
 def clip_to_near(tris: np.ndarray, camera: Camera) -> np.ndarray:
-    """World triangles ``(n, 3, 3)`` cut at a perspective camera's near plane (depth
+    """World triangles ``(n, 3, 3)`` cut at a camera's near plane (depth
     :data:`NEAR` x the eye's distance to look_at): those wholly in front as they are, those
     wholly behind dropped, and those across it as the one or two triangles of their part
     in front. (Skipping every triangle with a corner behind the camera lost most of a
@@ -225,8 +225,10 @@ class Silhouettes:
     many parts cover the pixel; 0 = empty); ``gains[c]`` an optional per-pixel gain;
     ``gain_total`` sums the gains of covered pixels over all views. Because pixels are
     counted, :meth:`remove` is the exact inverse of :meth:`add` (until a count saturates,
-    see ``saturated``). Triangles across a perspective camera's near plane are cut there
-    (:func:`clip_to_near`); what lies behind it is not seen. With :meth:`use_part_cache`, the pixels a
+    see ``saturated``). Triangles across a camera's near plane are cut there
+    (:func:`clip_to_near`); what lies behind it is not seen, through an orthographic camera
+    too (as in Blender: it saw through its eye what lay behind it, which the placement note
+    called unseen). With :meth:`use_part_cache`, the pixels a
     part covers are looked up by value instead of projected and rasterised again (full
     replays re-add mostly the same parts).
     """
@@ -281,7 +283,7 @@ class Silhouettes:
         state = self._state
         entry = [] if cache else None
         for camera, pixels, gain, (mark, out) in zip(self.cameras, self.pixels, self.gains, self._scratch):
-            projected = camera.project(clip_to_near(tris, camera) if camera.projection == "perspective" else tris)
+            projected = camera.project(clip_to_near(tris, camera))
             n = _raster_part(pixels, mark, camera.width, camera.height,
                              np.ascontiguousarray(projected[:, :, :2]), gain, state, out)
             if entry is not None:
