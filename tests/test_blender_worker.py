@@ -286,3 +286,12 @@ def test_the_packager_stores_an_absolute_python_and_refuses_one_that_is_not_ther
     assert main(["--out", "b.zip", "--python", "/nonexistent/python"]) == 2
     err = capsys.readouterr().err
     assert "is not a program" in err and err.count("\n") == 1 and not (tmp_path / "b.zip").exists()
+
+
+def test_avoid_layers_alone_are_refused_in_the_panels_terms(tmp_path):
+    # the target file's refusal ("nothing to fill") would name the job's temporary file
+    _box_obj(tmp_path / "rock.obj", [0, 0, 0], [1, 1, 1])
+    spec = {"layers": [{"mesh": "rock.obj", "object": "Rock", "w_fill": -2, "w_avoid": 0}], "voxel_size": 0.25}
+    with pytest.raises(Exception, match=r"nothing to fill: no layer has a positive Inside or Outside weight \(Avoid "
+                                        r"layers only\); add a mesh as Fill"):
+        worker.build_volume_target(spec, tmp_path, tmp_path / "t")

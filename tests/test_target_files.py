@@ -90,6 +90,13 @@ CASES = [
     ("score-unknown", _with(NPY, score="iou"), "score must be \"svol\" or \"proxy\", got \"iou\""),
     ("proxy-two-layers", _with(NPY, score="proxy", layers=[{"file": "v.npy"}, {"file": "v.npy"}]),
      "\"score\": \"proxy\" compares the ship with one target volume; layers has 2"),
+    # weights a proxy score has no use for were dropped without a word
+    ("proxy-weights", _with(NPY, score="proxy", w_self=50, layers__0__w_fill=1000), "\"score\": \"proxy\" takes no "
+     "weights (it is the fraction of voxels where the ship and the target agree: w_fill 1, w_avoid -1, w_self 0), so "
+     "w_self, layers[0].w_fill would be left unused"),
+    # nothing to gain anywhere: every derivation scored 0 or less, and the temperature fell to 1e-9
+    ("nothing-to-fill", _with(NPY, layers__0__w_fill=-1, layers__0__w_avoid=-1), "nothing to fill: no voxel gains"),
+    ("all-zero-weights", _with(NPY, layers__0__w_fill=0, layers__0__w_avoid=0), "nothing to fill: no voxel gains"),
     ("layers-missing", _with(NPY, layers=_DROP), "layers must be a non-empty list"),
     ("layers-string", _with(NPY, layers="v.npy"), "layers must be a non-empty list"),
     ("layer-not-object", _with(NPY, layers=["v.npy"]), "layers[0] must be a JSON object, got \"v.npy\""),

@@ -201,6 +201,9 @@ def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
     layers = spec.get("layers") or []
     if not layers:
         raise InvalidArgumentError("the volume target has no layers: add the scene's meshes as fill or avoid layers")
+    if not any(float(layer.get("w_fill", 1.0)) > 0 or float(layer.get("w_avoid", 0.0)) > 0 for layer in layers):
+        raise InvalidArgumentError("the volume target has nothing to fill: no layer has a positive Inside or Outside "
+                                   "weight (Avoid layers only); add a mesh as Fill")
     bounds = []
     for layer in layers:
         name = layer.get("object", layer["mesh"])

@@ -504,6 +504,15 @@ def load_volume_target(path: str | os.PathLike):
     if score == "proxy" and len(layers_spec) != 1:
         raise TargetFileError(f"{where}: \"score\": \"proxy\" compares the ship with one target volume; "
                               f"layers has {len(layers_spec)}")
+    if score == "proxy":  # its score has no weights: others than its own were dropped without a word
+        layer = layers_spec[0] if isinstance(layers_spec[0], dict) else {}
+        weighted = [key for key in ("w_self",) if spec.get(key, 0.0) != 0.0] + [
+            f"layers[0].{key}" for key, own in (("w_fill", 1.0), ("w_avoid", -1.0)) if layer.get(key, own) != own]
+        if weighted:
+            raise TargetFileError(f"{where}: \"score\": \"proxy\" takes no weights (it is the fraction of voxels "
+                                  f"where the ship and the target agree: w_fill 1, w_avoid -1, w_self 0), so "
+                                  f"{', '.join(weighted)} would be left unused: remove them, or use \"score\": "
+                                  "\"svol\" to weigh the layers")
     w_self = weight(spec.get("w_self", 0.0), f"{where}: w_self", minimum=0.0)
     placement = _mesh_placement(spec, where)
     # every field first, then the files' headers, then the work
@@ -583,6 +592,9 @@ def load_volume_target(path: str | os.PathLike):
         layers.append((mask, w_fill, w_avoid))
     name = path.parent.name if path.name == "target.json" else path.stem
     target = ProxyVolume(grid, layers[0][0], name=name) if score == "proxy" else Volume(grid, layers, w_self, name=name)
+    if score == "svol" and target.best_attainable <= 0:  # every derivation would score 0 or less: nothing to steer to
+        raise TargetFileError(f"{where}: nothing to fill: no voxel gains from being covered (w_fill and w_avoid are 0 "
+                              "or less everywhere); give a layer a positive w_fill (inside it) or w_avoid (outside it)")
     # how the file places its shape, for advice when it misses the model (targets.placement)
     target.placed_by = ("grid" if arrays else "meshes", *placement[:2])
     target.grid_from_voxel_size = given is None  # the grid fits the meshes at "voxel_size" (not a "grid" given)
