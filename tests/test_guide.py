@@ -5,6 +5,7 @@ import shutil
 import subprocess
 import sys
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -446,6 +447,9 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
           "--out", str(tmp_path / "x")], "--guide works with --engine smc"),
         (["infer", "chain", "--target", "glyph:a", "--guide", str(tmp_path / "g"), "--out", str(tmp_path / "x")],
          "trained for model 'vines'"),
+        # a 3D model: the advice to train a guide for it could not be followed
+        (["infer", "spaceship", "--target", str(Path(__file__).resolve().parents[1] / "scenes" / "spaceship_volume"),
+          "--guide", str(tmp_path / "g"), "--out", str(tmp_path / "x")], "guides exist for 2D models only"),
         (["guide", "train", "vines", "--traces", str(tmp_path), "--out", str(tmp_path / "h")], "not a traces folder"),
         (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
           "--iterations", "99999999999999999999"], "iterations must be at most 10,000,000"),

@@ -233,6 +233,10 @@ class Guide:
         """Raise a :class:`GuideError` unless the guide was trained for ``model``."""
         if model.name != self.model_name:
             from ..models import MODELS
+            if getattr(model.new_output(), "dimension", 2) != 2:  # the advice below cannot be followed
+                raise GuideError(f"this guide was trained for model {self.model_name!r}, not {model.name!r}; and "
+                                 "guides exist for 2D models only (a guide reads windows of a target picture and of "
+                                 f"the partial drawing, seed 004): run {model.name!r} without --guide")
             advice = (f"train one with 'procmod guide train {model.name} ...'" if model.name in MODELS else
                       "train one for it with 'procmod guide traces FILE.py:NAME' then 'procmod guide train "
                       "FILE.py:NAME' (README, \"Neural guides\"), or run it without --guide")
