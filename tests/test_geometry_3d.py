@@ -86,6 +86,18 @@ def test_preview_and_mesh_export():
     assert np.allclose(mesh.bounds, [[-1, -0.5, -2], [1.4, 0.5, 3]], atol=1e-6)
 
 
+@pytest.mark.parametrize("suffix", [".obj", ".glb"])
+def test_a_derivation_with_no_parts_exports_a_file_that_reads_as_empty(tmp_path, suffix):
+    """trimesh wrote an empty mesh's OBJ as a "v" and an "f" line with no numbers, read back
+    as a point cloud of shape (1, 0)."""
+    import trimesh
+
+    from procmod.geometry.mesh_export import export_mesh
+    export_mesh([], tmp_path / f"empty{suffix}", colour_of)
+    loaded = trimesh.load(tmp_path / f"empty{suffix}")
+    assert len(getattr(loaded, "vertices", [])) == 0 and not isinstance(loaded, trimesh.PointCloud)
+
+
 _TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
 _TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 

@@ -34,5 +34,10 @@ def export_mesh(parts, path: str | os.PathLike, colour_of) -> None:
     if kind not in ("obj", "glb"):
         raise ValueError(f"mesh export writes .obj or .glb, not {path.suffix!r}")
     mesh = parts_to_trimesh(parts, colour_of)
+    if kind == "obj" and len(mesh.faces) == 0:
+        # trimesh writes "v" and "f" lines with no numbers for an empty mesh, which readers
+        # (trimesh itself: a point cloud of shape (1, 0)) take for a broken file
+        write_bytes_atomic(path, b"# procmod: a derivation with no parts (an empty mesh)\n")
+        return
     data = mesh.export(file_type=kind)
     write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)
