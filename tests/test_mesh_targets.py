@@ -919,6 +919,10 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     # a mesh file as --target
     assert main(["infer", "spaceship", "--target", str(tmp_path / "m.obj"), "--out", str(tmp_path / "run")]) == 2
     assert "a mesh is a target through a target file" in capsys.readouterr().err
+    # a voxel grid likewise (it was "not an image Pillow can read")
+    np.save(tmp_path / "grid.npy", np.ones((4, 4, 4)))
+    assert main(["infer", "spaceship", "--target", str(tmp_path / "grid.npy"), "--out", str(tmp_path / "run")]) == 2
+    assert "an .npy array is a target through a target file" in capsys.readouterr().err
     # a tool's own scene, named by a target file or given as --target: what to export instead
     (tmp_path / "ship.fbx").write_bytes(b"Kaydara FBX Binary  \x00\x1a\x00")
     (tmp_path / "F.json").write_text(json.dumps({"format": "procmod-volume/1", "layers": [{"file": "ship.fbx"}]}))

@@ -102,6 +102,11 @@ def target_from_spec(spec: str):
                               "a procmod-volume/1 file (its inside, on a voxel grid) or a procmod-silhouette/1 file "
                               "(its outline, seen by cameras) whose layer or view names the mesh; README, \"Targets\""
                               + (f" ({hint})" if hint else ""))
+    if path.suffix.lower() == ".npy":  # a voxel grid, or a silhouette view's weights: also named by a target file
+        raise TargetFileError(f"{spec}: an .npy array is a target through a target file that says what it is: a "
+                              "procmod-volume/1 file whose layer names it with the grid's \"origin\" and "
+                              "\"voxel_size\" (a 3D voxel grid), or a procmod-silhouette/1 file whose view names it as "
+                              "\"weights\" with a camera (a 2D array); README, \"Targets\"")
     return ShapeMatch(target_image(spec))
 
 
