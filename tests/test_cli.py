@@ -333,6 +333,10 @@ M = Model("mine", "grows from its own start", grow, root_args, lambda p: Canvas(
     ("[0, -2]", "-1.5707963", False),  # a world point and a heading in radians: the model's own
     ("[0.0, -2.0]", "[0.0, 1.0]", False),  # a world point: its direction (a world vector) kept too
     ("[0.5, 0.9]", "[0.0, -1.0]", True),  # normalised image coordinates, as the built-in models take
+    # the same written in whole numbers: typed as integers, the picture's point was refused
+    # ("direction[0] must be an integer, got -0.049")
+    ("[0.5, 1]", "[0, -1]", True),
+    ("[0, 1]", "[0, -1]", True),
 ])
 def test_a_users_start_and_direction_are_its_own_unless_they_are_the_pictures_kind(tmp_path, capsys, start,
                                                                                   direction, placed):
