@@ -225,9 +225,9 @@ CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact
 
 
 def _model_inputs(name: str) -> list:
-    """The files a model argument names: a learned program's ``program.json`` (its tensors
-    and meshes are files it names, protected as such: core.paths.named_files_read) and
-    the examples it was learned from, which ``sample --format examples --out`` could
+    """The files a model argument names: a learned program's ``program.json`` and its folder
+    (its tensors and meshes are files it names, protected as such: core.paths.named_files_read),
+    and the examples it was learned from, which ``sample --format examples --out`` could
     otherwise write over; nothing for a built-in model's name."""
     path = Path(name)
     try:
@@ -237,7 +237,8 @@ def _model_inputs(name: str) -> list:
             return []
     except (OSError, ValueError):
         return []
-    return [path, *_learned_from(path)]
+    # its folder too: an existing file in it (learn's report.json, its checkpoint) was written over
+    return [path, path.parent, *_learned_from(path)]
 
 
 def _learned_from(program_json: Path) -> list:

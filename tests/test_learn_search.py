@@ -134,6 +134,12 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert main(["sample", str(out), "-n", "1", "--out", str(ex), "--format", "examples"]) == 2
     assert "would overwrite the input" in capsys.readouterr().err and ex.read_bytes() == before
+    # nor over the learn folder's own files (its report and checkpoint were replaced)
+    for name in ("report.json", "checkpoint/state.json"):
+        if (out / name).exists():
+            kept = (out / name).read_bytes()
+            assert main(["sample", str(out), "-n", "1", "--out", str(out / name), "--format", "examples"]) == 2
+            assert "would overwrite the input" in capsys.readouterr().err and (out / name).read_bytes() == kept
     # same arguments, another folder: the same program, byte for byte
     other = tmp_path / "run2"
     assert main(["learn", str(ex), "--out", str(other), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0
