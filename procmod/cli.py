@@ -94,7 +94,8 @@ def _build_parser() -> argparse.ArgumentParser:
                                         "the first reached ends the run) (default: one SMC run, one forward batch, "
                                         "1600 MCMC sweeps, 50 GA generations)")
     infer.add_argument("--seed", type=_int_arg, default=0)
-    infer.add_argument("--guide", help="a trained neural guide (GUIDE.pt + GUIDE.json) for --engine smc or sosmc")
+    infer.add_argument("--guide", help="a trained neural guide (GUIDE.json with its GUIDE.npz or .pt) for --engine smc "
+                       "or sosmc")
     infer.add_argument("--workers", type=_int_arg,
                        help="processes that step the particles (smc, sosmc) or run the chains (mcmc: "
                             "one chain each unless --chains says otherwise); default 1: this one; more help "

@@ -626,6 +626,14 @@ def test_a_guide_whose_npz_does_not_match_is_read_from_its_pt(tmp_path):
     for key, weights in rebuilt.items():
         for a, b in zip(weights, slow.numpy_weights()[key]):
             np.testing.assert_array_equal(a, b)
+    # the changed .npz without its .pt, then the .json alone: the message named the .pt
+    # ("g.pt does not exist, a guide is a .pt + .json pair"), though a .json and its .npz run
+    (tmp_path / "g.pt").unlink()
+    with pytest.raises(GuideError, match=r"g.npz is not the weights written with g.json .*and there is no g.pt"):
+        Guide.load(tmp_path / "g")
+    (tmp_path / "g.npz").unlink()
+    with pytest.raises(GuideError, match=r"g.json has no weights beside it: neither g.npz nor g.pt is there"):
+        Guide.load(tmp_path / "g")
 
 
 def test_guide_messages_name_api_arguments_and_the_command_line_its_flags(tmp_path, capsys):

@@ -193,15 +193,20 @@ class Guide:
         def check_file(p: Path) -> None:
             if p.exists() and not p.is_file():
                 raise GuideError(f"guide file {p} is not a regular file (a folder, a device or a pipe); a guide is "
-                                 "a .pt + .json pair written by 'procmod guide train'")
+                                 "a .json with its .npz (or .pt), written by 'procmod guide train'")
             if not p.is_file():
                 shipped = ", ".join(pretrained_guides()) or "none"
-                raise GuideError(f"guide file {p} does not exist (a guide is a .pt + .json pair "
+                raise GuideError(f"guide file {p} does not exist (a guide is a .json with its .npz or .pt, "
                                  f"written by 'procmod guide train', or a shipped guide: {shipped})")
 
         check_file(meta)
-        if weights.exists() or not weights.with_suffix(".npz").is_file():
-            check_file(weights)  # (a matching .npz alone is enough to run the guide; the .pt: to train on)
+        npz = weights.with_suffix(".npz")
+        if not weights.exists() and not npz.exists():  # (a matching .npz alone runs the guide; the .pt: to train on)
+            raise GuideError(f"guide {meta} has no weights beside it: neither {npz.name} nor {weights.name} is there; "
+                             "a guide is its .json with the .npz (or .pt) that 'procmod guide train' wrote: keep them "
+                             "together")
+        if weights.exists():
+            check_file(weights)
         data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
@@ -209,6 +214,10 @@ class Guide:
         guide._numpy = _numpy_weights(data, weights.with_suffix(".npz"))
         if guide._numpy is not None:
             return guide
+        if not weights.exists():
+            raise GuideError(f"{npz} is not the weights written with {meta.name} (another guide's, or changed since), "
+                             f"and there is no {weights.name} to read instead; keep the files that 'procmod guide "
+                             "train' wrote together")
         check_file(weights)  # the .npz does not match this .json: only the .pt can say
         recorded = data.get("torch_weights")  # (guides saved before it was recorded: unchecked)
         if isinstance(recorded, dict) and recorded.get("sha256_16") != fingerprint(weights.read_bytes()):
