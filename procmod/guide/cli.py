@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from ..core import InvalidArgumentError
+from ..core.errors import spelled
 
 
 def register(sub, int_arg) -> None:
@@ -129,10 +130,11 @@ def _cmd_train(args) -> None:
             bar.set_postfix(nll=f"{loss:.2f}", refresh=False)
             bar.refresh()
 
-        guide, report = train_guide(model, args.traces, args.out, settings=settings, mixture=args.mixture,
-                                    iterations=args.iterations, batch=args.batch, lr=args.lr,
-                                    schedule=args.lr_schedule,
-                                    limit=args.limit, seed=args.seed, progress=progress)
+        with spelled({name: f"--{name}" for name in ("iterations", "batch", "mixture", "limit")}):
+            guide, report = train_guide(model, args.traces, args.out, settings=settings, mixture=args.mixture,
+                                        iterations=args.iterations, batch=args.batch, lr=args.lr,
+                                        schedule=args.lr_schedule,
+                                        limit=args.limit, seed=args.seed, progress=progress)
     finally:
         bar.close()
     print(f"trained {len(guide.sites)} site networks on {report['traces']} traces "

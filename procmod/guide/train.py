@@ -227,13 +227,13 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     for name, value in (("iterations", iterations), ("batch", batch), ("mixture", mixture),
                         ("checkpoint_every", checkpoint_every)):
         if whole_number(value) is None or value < 1:
-            raise GuideError(f"{name} must be a positive integer, got {shown_value(value)}")
+            raise GuideError(f"{argument(name)} must be a positive integer, got {shown_value(value)}")
     check_mixture(mixture)
     if whole_number(seed) is None or not 0 <= seed < 2 ** 63:
         raise GuideError(f"seed must be an integer from 0 to 2**63-1, got {shown_value(seed)}")
     if limit is not None and (whole_number(limit) is None or limit < 1):
-        raise GuideError(f"limit must be a positive integer (the first traces to train on) or None, got "
-                         f"{shown_value(limit)}")
+        raise GuideError(f"{argument('limit')} must be a positive integer (the first traces to train on)"
+                         + (" or None" if argument("limit") == "limit" else "") + f", got {shown_value(limit)}")
     # numpy's integers as plain ones: they go into the guide's JSON and torch's seeding
     iterations, batch, mixture, checkpoint_every, seed = (int(v) for v in (iterations, batch, mixture,
                                                                            checkpoint_every, seed))

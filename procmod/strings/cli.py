@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, cut_text
+from ..core.errors import InvalidArgumentError, cut_text, spelled
 
 
 SHAPES_HELP = ("a procmod-shapes/1 JSON file, or asset files (.gltf, .glb, .urdf) and folders of them: one shape "
@@ -351,7 +351,9 @@ def _train(args) -> None:
         raise InvalidArgumentError(f"--held-out must be in [0, 1), got {args.held_out}")
     vae = VAEConfig(cell=args.cell, hidden=args.hidden, layers=args.layers, latent=args.latent,
                     kl_weight=args.kl_weight, kl_warmup=args.kl_warmup, epochs=args.epochs)
-    vae.check()
+    with spelled({name: "--" + name.replace("_", "-") for name in ("hidden", "layers", "latent", "kl_weight",
+                                                                    "kl_warmup", "epochs")}):
+        vae.check()  # (its messages name the fields; a model file's are named so, with the file)
     tagger = TaggerConfig(epochs=args.tagger_epochs)
     if not 1 <= args.tagger_epochs <= 1_000_000:  # 0 or -3 trained nothing, without a word
         raise InvalidArgumentError(f"--tagger-epochs must be a whole number from 1 to 1,000,000, got "

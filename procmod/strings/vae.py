@@ -73,7 +73,7 @@ class VAEConfig:
                                    ("lr", 0 < self.lr < math.inf, "a finite number > 0"),
                                    ("word_dropout", 0 <= self.word_dropout < 1, "in [0, 1)")):
             if not fits:  # written so that NaN fails (NaN compares false)
-                raise InvalidArgumentError(f"{name} must be {wanted}, got {getattr(self, name)}")
+                raise InvalidArgumentError(f"{argument(name)} must be {wanted}, got {getattr(self, name)}")
 
 
 # Largest sizes a string VAE or tagger may have: far beyond what these small nets need
@@ -91,7 +91,8 @@ def check_sizes(config, limits: dict) -> None:
         if value is None:
             continue
         if whole_number(value) is None or not 1 <= value <= largest:
-            raise InvalidArgumentError(f"{name} must be a whole number from 1 to {largest:,}, got {shown_value(value)}")
+            raise InvalidArgumentError(f"{argument(name)} must be a whole number from 1 to {largest:,}, got "
+                                       f"{shown_value(value)}")
 
 
 class Vocab:
