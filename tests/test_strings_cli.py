@@ -432,3 +432,19 @@ def test_train_takes_a_large_seed(tmp_path, capsys):
     code, _, err = _run(capsys, "strings", "train", SETS / "moonbase.json", "--out", tmp_path / "m", "--epochs", 1,
                         "--tagger-epochs", 1, "--hidden", 8, "--latent", 2, "--seed", 2 ** 50)
     assert code == 0, err
+
+
+def test_a_mesh_the_shapes_file_reaches_with_dotdot_is_refused_naming_the_file(tmp_path, capsys):
+    # the message named "parts.post.mesh" alone, the one error about a file's field without its file
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "post.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n"
+                                                   "f 2 3 4\n")
+    (tmp_path / "sub").mkdir()
+    identity = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    lifted = [[1, 0, 0, 0], [0, 1, 0, 1], [0, 0, 1, 0], [0, 0, 0, 1]]
+    shapes = {"format": "procmod-shapes/1", "parts": {"post": {"mesh": "../meshes/post.obj"}, "cap": {"box": [1, 1, 1]}},
+              "shapes": [{"nodes": [{"part": "post", "transform": identity}, {"part": "cap", "transform": lifted}]}]}
+    (tmp_path / "sub" / "set.json").write_text(json.dumps(shapes))
+    code, _, err = _run(capsys, "strings", "augment", str(tmp_path / "sub" / "set.json"), "--count", "2", "--out",
+                        str(tmp_path / "a"))
+    assert code == 2 and f"{tmp_path / 'sub' / 'set.json'}: parts.post.mesh: \"../meshes/post.obj\" leads out" in err, err

@@ -33,8 +33,8 @@ class Model:
         The rule called first, as ``root(ctx, *root_args(params))``.
     root_args : callable
         Maps the parameter dict to the root rule's positional arguments.
-    new_output : callable
-        ``new_output(params) -> Output``: a fresh, empty output (e.g. a raster
+    new_output_from : callable
+        ``new_output_from(params) -> Output``: a fresh, empty output (e.g. a raster
         canvas) into which emitted geometry is drawn: ``add(geometry)``, a cheap
         ``copy()`` and declared capabilities (:class:`procmod.core.protocols.Output`).
     params : mapping

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import networkx as nx
@@ -62,6 +62,7 @@ class ShapeSet:
     # the contact tolerance in world units (a shapes file's "contact_tolerance", augment's
     # --tolerance); None: contacts.tolerance_for the library
     tolerance: float | None = None
+    source: str | None = field(default=None, compare=False)  # the file read, for messages about its fields
 
     @property
     def part_of_letter(self) -> dict:
@@ -144,7 +145,8 @@ def shapes_from_dict(data, base_dir, source: str = "shapes") -> ShapeSet:
             names.append(name)
         shapes.append(Shape.of(names, transforms))
     return ShapeSet(library, shapes, type_letters(library), Path(base_dir),
-                    checked_tolerance(data.get("contact_tolerance"), f"{source}: contact_tolerance", ShapesFormatError))
+                    checked_tolerance(data.get("contact_tolerance"), f"{source}: contact_tolerance", ShapesFormatError),
+                    source=source)
 
 
 def checked_tolerance(value, where: str, error=InvalidArgumentError) -> float | None:
@@ -223,11 +225,12 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> N
         for shape in shape_set.library.values():
             if shape.kind == "mesh":
                 # inside the new file's folder only (a mesh the shapes file reached with ".." is refused)
-                target = contained_path(path.parent, shape.source, f"parts.{shape.name}.mesh")
+                where = f"{shape_set.source + ': ' if shape_set.source else ''}parts.{shape.name}.mesh"
+                target = contained_path(path.parent, shape.source, where)
                 target.parent.mkdir(parents=True, exist_ok=True)
-                source = named_file(shape_set.base_dir, shape.source, f"parts.{shape.name}.mesh")
+                source = named_file(shape_set.base_dir, shape.source, where)
                 shutil.copyfile(source, target)
-                _copy_gltf_files(source, target, f"parts.{shape.name}.mesh")
+                _copy_gltf_files(source, target, where)
     write_text_atomic(path, json.dumps(shapes_to_dict(shape_set, shapes)) + "\n")
 
 
