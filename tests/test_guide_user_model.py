@@ -164,7 +164,7 @@ def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):
     (tmp_path / "g.npz").write_bytes(b"not the weights")
     capsys.readouterr()
     assert main(argv + ["--guide", str(tmp_path / "g"), "--overwrite"]) == 2
-    assert "g.pt does not exist" in capsys.readouterr().err
+    assert "g.npz is not the weights written with g.json" in (err := capsys.readouterr().err) and "no g.pt" in err
 
 
 def test_a_guides_json_beside_another_guides_weights_is_refused(tmp_path, monkeypatch, capsys):

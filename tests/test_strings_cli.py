@@ -367,7 +367,7 @@ def test_training_constants_that_are_not_numbers_are_refused_before_training(tmp
     weights and exited 0; sampling it then failed with a traceback."""
     code, _, err = _run(capsys, "strings", "train", SETS / "moonbase.json", "--out", tmp_path / "m",
                         "--kl-weight", "nan")
-    assert code == 2 and "kl_weight must be a finite number >= 0, got nan" in err
+    assert code == 2 and "--kl-weight must be a finite number >= 0, got nan" in err
     assert not (tmp_path / "m").exists()
 
 

@@ -60,7 +60,8 @@ class PROCMOD_PG_layer(bpy.types.PropertyGroup):
 
     object: PointerProperty(name="Object", type=bpy.types.Object, poll=_is_mesh,
                             description="a mesh whose inside is the layer (holes and overlaps are fine)")
-    w_fill: FloatProperty(name="Inside", default=1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT, description="score per voxel the model covers inside the mesh")
+    w_fill: FloatProperty(name="Inside", default=1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT,
+                          description="score per voxel the model covers inside the mesh")
     w_avoid: FloatProperty(name="Outside", default=-1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT,
                            description="score per voxel the model covers outside the mesh")
 
@@ -86,8 +87,10 @@ class PROCMOD_PG_settings(bpy.types.PropertyGroup):
                             description="the silhouette target's camera (empty: the scene's camera)")
     mask: PointerProperty(name="Mask", type=bpy.types.Image,
                           description="black: where the model should be; white: where it should not; grey: either")
-    hit: FloatProperty(name="Hit", default=1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT, description="score per covered black pixel")
-    avoid: FloatProperty(name="Avoid", default=-1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT, description="score per covered white pixel")
+    hit: FloatProperty(name="Hit", default=1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT,
+                       description="score per covered black pixel")
+    avoid: FloatProperty(name="Avoid", default=-1.0, min=-MAX_WEIGHT, max=MAX_WEIGHT,
+                         description="score per covered white pixel")
     engine: EnumProperty(name="Engine", items=ENGINES, default="ga")
     population: IntProperty(name="Population", default=0, min=0,
                             description="particles, population or chains (0: the engine's default)")

@@ -266,7 +266,8 @@ def _layer_groups(layers: list) -> list:
     return list(groups.items())
 
 
-PANEL_FIELDS = {"w_fill": "its Inside weight ", "w_avoid": "its Outside weight "}  # a layer's fields, as the panel names them
+# a layer's fields, as the panel names them
+PANEL_FIELDS = {"w_fill": "its Inside weight ", "w_avoid": "its Outside weight "}
 
 
 def _name_layers(message: str, spec: dict) -> str:
