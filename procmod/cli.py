@@ -226,9 +226,9 @@ CONTACT_SHEET_TILES = 64  # the first samples shown on a sample folder's contact
 
 
 def _model_inputs(name: str) -> list:
-    """The files a model argument names: a learned program's ``program.json`` and its folder
-    (its tensors and meshes are files it names, protected as such: core.paths.named_files_read),
-    and the examples it was learned from, which ``sample --format examples --out`` could
+    """The files a model argument names: a learned program's ``program.json`` and what learn
+    wrote beside it (its tensors and meshes are files it names, protected as such:
+    core.paths.named_files_read), and the examples it was learned from, which ``sample --format examples --out`` could
     otherwise write over; nothing for a built-in model's name."""
     path = Path(name)
     try:
@@ -238,8 +238,14 @@ def _model_inputs(name: str) -> list:
             return []
     except (OSError, ValueError):
         return []
-    # its folder too: an existing file in it (learn's report.json, its checkpoint) was written over
-    return [path, path.parent, *_learned_from(path)]
+    # and what learn wrote beside it (report.json, the checkpoint were written over); other
+    # files there (the user's own samples file) are not the program's
+    from .core.runfolder import LEARN_RUN
+    try:
+        written = [entry for entry in path.parent.iterdir() if LEARN_RUN.owns(entry.name)]
+    except OSError:
+        written = []
+    return [path, *written, *_learned_from(path)]
 
 
 def _learned_from(program_json: Path) -> list:
@@ -347,14 +353,18 @@ def _cmd_render(args) -> None:
     check_format(args.out)
     out = check_output_file(args.out, inputs=[args.derivation])
     size = check_size(args.size)
+    # --model is the model itself: a derivation of another model of the same root rule was
+    # drawn with it, where the library refuses it ("give its model")
+    given = None if args.model is None else _model(args.model)
     try:
-        derivation = load_derivation(args.derivation, _model_a_file_names if args.model is None
-                                     else lambda name: _model(args.model))
+        derivation = load_derivation(args.derivation, _model_a_file_names if given is None else given)
     except UnknownModelError as exc:
         if args.model is not None:
             raise
         raise UnknownModelError(f"{exc}; for a model of your own, give it: --model FILE.py:NAME") from None
     check_format(args.out, output_formats(derivation))
+    # the files of the program it names, read only now (a part's mesh was written over)
+    check_output_file(out, inputs=[args.derivation, *_model_inputs(derivation.model.name)])
     write_derivation(derivation, out, size)
     print(f"wrote {out}")
 

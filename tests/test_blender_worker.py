@@ -239,6 +239,13 @@ def test_a_layer_under_two_voxels_is_told_in_the_panels_terms(tmp_path):
     message = str(info.value)
     assert "target layer 'Pebble'" in message and "Voxel size of 0.1 in the panel" in message
     assert "mesh_scale" not in message and "target.json" not in message
+    # too small for its own 8 voxels within the limit, but automatic finds a size that holds it
+    _box_obj(tmp_path / "huge.obj", [0, 0, 0], [100, 100, 100])
+    _box_obj(tmp_path / "stone.obj", [101, 0, 0], [103, 2, 2])
+    spec = {"layers": [{"mesh": "huge.obj", "object": "Huge"}, {"mesh": "stone.obj", "object": "Stone"}],
+            "voxel_size": 1.5}
+    with pytest.raises(Exception, match=r"target layer 'Stone' .*give a Voxel size of 0 in the panel \(automatic"):
+        worker.build_volume_target(spec, tmp_path, tmp_path / "t2")
 
 
 def test_a_target_files_message_names_the_layers_object_and_the_panels_field():
@@ -249,6 +256,11 @@ def test_a_target_files_message_names_the_layers_object_and_the_panels_field():
                     "(in the panel), or close the mesh")
     said = worker._name_layers("/tmp/j/t.target/target.json: layers[0].w_fill must be between -1e+06 and 1e+06", spec)
     assert said == "target layer 'A': its Inside weight must be between -1e+06 and 1e+06"
+    # of the whole target (a Fill layer inside an Avoid one: nothing to fill)
+    said = worker._name_layers("/tmp/j/t.target/target.json: nothing to fill: no voxel gains from being covered "
+                               "(w_fill and w_avoid are 0 or less everywhere); give a layer a positive w_fill", spec)
+    assert said.startswith("nothing to fill") and "target.json" not in said and "w_fill" not in said
+    assert "Inside weight" in said
 
 
 def test_one_sample_is_one_sample(tmp_path):

@@ -349,6 +349,9 @@ def test_a_users_start_and_direction_are_its_own_unless_they_are_the_pictures_ki
     assert code == 0, capsys.readouterr().err
     params = json.loads((tmp_path / "r" / "best.json").read_text())["params"]
     assert (params["start"] != json.loads(start)) == placed, params
+    # and the run's derivation reads back (its real start had been refused against [0, 1]'s integers)
+    assert main(["render", str(tmp_path / "r" / "best.json"), "--model", f"{tmp_path / 'mine.py'}:M", "--out",
+                 str(tmp_path / "again.png")]) == 0, capsys.readouterr().err
 
 
 def test_an_integer_for_a_real_parameter_takes_a_later_real_change(tmp_path, capsys):

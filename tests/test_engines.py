@@ -160,6 +160,8 @@ def test_a_best_the_target_rules_out_loses_to_any_it_allows(engine):
     from procmod.infer.common import RULED_OUT_NOTE
     result = ENGINES[engine](MIX, _Capped(0.5), seed=0, **_CAPPED_RUNS[engine])
     assert result.best is not None and result.best.output.total <= 0.5 and RULED_OUT_NOTE not in result.notes
+    best = [row.best_score for row in result.history]  # the best so far never falls (a ruled-out best had counted)
+    assert best == sorted(best) and best[-1] == result.best_score
     if engine != "ga":
         return
     assert all(s.output.total <= 0.5 for s in result.samples[:8])  # the elites (ranked first) are all allowed
@@ -180,7 +182,11 @@ def test_the_tracker_takes_an_allowed_best_over_a_higher_scoring_ruled_out_one()
     tracker = Tracker(Budget(evaluations=1))
     tracker.offer("ruled out", 0.9, -math.inf)
     assert tracker.best == "ruled out" and tracker.notes()
+    tracker.record(0.0)
     tracker.offer("allowed", 0.5, -3.0)
+    tracker.record(0.0)
+    # the history's best so far is the best allowed: it had fallen from 0.9 to 0.5
+    assert [row.best_score for row in tracker.rows] == [-math.inf, 0.5]
     tracker.offer("ruled out, higher", 0.95, -math.inf)
     assert tracker.best == "allowed" and tracker.best_score == 0.5 and not tracker.notes()
     tracker.offer("allowed, higher", 0.6)

@@ -115,6 +115,22 @@ def test_a_stop_ends_the_ga_between_evaluations_not_generations(when, monkeypatc
     assert result.best is not None and len(result.samples) == (5 if when == "initial population" else 100)
 
 
+def test_a_stop_before_the_first_individual_still_leaves_a_population(monkeypatch):
+    # a Stop pressed while the target was built: no individual was scored, and writing the
+    # run failed ("a contact sheet needs at least one image")
+    import importlib
+    engine = importlib.import_module("procmod.infer.ga.engine")
+
+    class EveryCall(Tracker):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **{**kwargs, "progress_interval": 0.0})
+
+    monkeypatch.setattr(engine, "Tracker", EveryCall)
+    result = ga(get_model("lightning"), _bar_target(), population=50, budget=Budget(generations=3), seed=0,
+                progress=lambda tracker: tracker.request_stop())
+    assert result.evaluations == 20 + 1 and len(result.samples) == 1 and result.history
+
+
 @pytest.mark.parametrize("mutation", [0.0, 1.0])
 def test_breed_keeps_the_elite_and_fills_the_generation(mutation):
     model, target = get_model("lightning"), _bar_target()

@@ -21,6 +21,9 @@ def test_roulette_wheel_shares_are_fitness_shifted_to_be_non_negative():
     assert roulette_wheel([103.0, 101.0, 99.0, -math.inf]) == pytest.approx(wheel)
     assert roulette_wheel([2.0, 2.0, 2.0, 2.0]) == pytest.approx([0.25, 0.5, 0.75, 1.0])
     assert roulette_wheel([-math.inf, -math.inf]) == pytest.approx([0.5, 1.0])
+    # equal shares leave out what is not finite (a ruled-out individual's -inf took a share)
+    assert roulette_wheel([0.9, -math.inf, -math.inf, -math.inf]) == pytest.approx([1.0, 1.0, 1.0, 1.0])
+    assert roulette_wheel([2.0, -math.inf, 2.0]) == pytest.approx([0.5, 0.5, 1.0])
 
 
 def test_roulette_picks_in_proportion_to_shifted_fitness():

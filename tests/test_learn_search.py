@@ -140,6 +140,10 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
             kept = (out / name).read_bytes()
             assert main(["sample", str(out), "-n", "1", "--out", str(out / name), "--format", "examples"]) == 2
             assert "would overwrite the input" in capsys.readouterr().err and (out / name).read_bytes() == kept
+    # a samples file of the user's own beside them is theirs to write again
+    for _ in range(2):
+        assert main(["sample", str(out), "-n", "1", "--out", str(out / "mine.json"), "--format", "examples"]) == 0
+    (out / "mine.json").unlink()
     # same arguments, another folder: the same program, byte for byte
     other = tmp_path / "run2"
     assert main(["learn", str(ex), "--out", str(other), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0

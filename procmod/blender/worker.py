@@ -230,11 +230,14 @@ def build_volume_target(spec: dict, job_folder: Path, out: Path) -> Path:
         # the library's message for this speaks of a target file's fields (mesh_scale)
         across = float(np.max(b_hi - b_lo))
         if across < 2 * size:
-            limit = _size_for(MAX_VOXELS, lo, hi)
-            fix = (f"give a Voxel size of {across / MIN_VOXELS_ACROSS:.3g} in the panel" if
-                   across / MIN_VOXELS_ACROSS >= limit else
-                   f"the layers span {float(np.max(hi - lo)):.4g} across, so no Voxel size fits both within "
-                   f"{MAX_VOXELS:,} voxels: make the layer larger, or leave out the layers far from it")
+            limit = _size_for(MAX_VOXELS, lo, hi)  # the finest size within the voxel limit
+            if across / MIN_VOXELS_ACROSS >= limit:
+                fix = f"give a Voxel size of {across / MIN_VOXELS_ACROSS:.3g} in the panel"
+            elif across / 2 > limit:  # automatic picks the finest that fits, which resolves it
+                fix = f"give a Voxel size of 0 in the panel (automatic: it picks {limit:.3g}, the finest that fits)"
+            else:
+                fix = (f"the layers span {float(np.max(hi - lo)):.4g} across, so no Voxel size fits both within "
+                       f"{MAX_VOXELS:,} voxels: make the layer larger, or leave out the layers far from it")
             raise InvalidArgumentError(f"target layer {layer.get('object', layer['mesh'])!r} is {across:.3g} "
                                        f"across, under two voxels of the {chosen}, so no voxel lies inside it; {fix}")
     out.mkdir(parents=True, exist_ok=True)
@@ -273,6 +276,12 @@ PANEL_FIELDS = {"w_fill": "its Inside weight ", "w_avoid": "its Outside weight "
 def _name_layers(message: str, spec: dict) -> str:
     """A target file's message names ``layers[i]``; say which scene objects that is."""
     groups = _layer_groups(spec.get("layers") or [])
+    if re.match(r"^.*?target\.json: (?!layers\[)", message):  # of the whole target (nothing to fill)
+        message = re.sub(r"^.*?target\.json: ", "", message)
+        for field, shown in (("w_fill", "Inside weight"), ("w_avoid", "Outside weight"),
+                             ("voxel_size", "Voxel size (in the panel)")):
+            message = message.replace(field, shown)
+        return message
     found = re.search(r"layers\[(\d+)\]", message)
     if found and int(found.group(1)) < len(groups):
         names = [layer.get("object") for layer in groups[int(found.group(1))][1]]

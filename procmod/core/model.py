@@ -88,7 +88,8 @@ class Model:
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
-    number a finite number, a list a list of as many items, each checked the same way.
+    number a finite number, a list a list of as many items, each checked the same way
+    (but its numbers any numbers: ``[0, -1]`` is a direction, not two counts).
     """
 
     name: str
@@ -174,10 +175,11 @@ def _like(value, default):
     return value
 
 
-def _check_param(name: str, value, default, bounds=None) -> None:
+def _check_param(name: str, value, default, bounds=None, in_list: bool = False) -> None:
     """Refuse ``value`` for parameter ``name`` unless it has the default's JSON type (and
     shape) and lies within ``bounds``; the message names the parameter (``size``,
-    ``start[1]``)."""
+    ``start[1]``). A list's numbers are numbers, whole or not (``[0, -1]`` is a direction:
+    typed as integers, a picture target's heading and the runs that recorded it were refused)."""
     def fail(expected: str):
         raise InvalidArgumentError(f"parameter {name} must be {expected}, got {shown_value(value)}")
 
@@ -188,7 +190,7 @@ def _check_param(name: str, value, default, bounds=None) -> None:
     if isinstance(default, (int, float)):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             fail("an integer" if isinstance(default, int) else "a number")
-        if isinstance(default, int) and not isinstance(value, int):
+        if isinstance(default, int) and not isinstance(value, int) and not in_list:
             fail("an integer")
         if not math.isfinite(value):
             fail("a finite number")
@@ -203,7 +205,7 @@ def _check_param(name: str, value, default, bounds=None) -> None:
         if not isinstance(value, (list, tuple)) or len(value) != len(default):
             fail(f"a list of {len(default)} items, e.g. {shown_value(list(default))}")
         for i, (item, item_default) in enumerate(zip(value, default)):
-            _check_param(f"{name}[{i}]", item, item_default, bounds)
+            _check_param(f"{name}[{i}]", item, item_default, bounds, in_list=True)
 
 
 def check_model(model) -> None:

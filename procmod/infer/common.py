@@ -151,6 +151,7 @@ class Tracker:
         self.best = None
         self.best_score = -math.inf
         self.best_ruled_out = True  # (until a best is found) see offer()
+        self.best_allowed_score = -math.inf  # the history's best: one a later allowed best cannot undercut
         self.rows: list[HistoryRow] = []
         self._next_row = 1  # evaluations at which the next row is due
         self._last_progress = -math.inf
@@ -195,6 +196,8 @@ class Tracker:
         """Consider a complete derivation for ``best``: the highest score, except that one
         the target rules out (``log_likelihood`` -inf: parts that intersect, which a proxy
         target's score does not see) is best only while no other has been found."""
+        if log_likelihood != -math.inf and score > self.best_allowed_score:
+            self.best_allowed_score = score
         if self.better(score, log_likelihood):
             self.best_score, self.best = score, derivation
             self.best_ruled_out = log_likelihood == -math.inf
@@ -218,7 +221,9 @@ class Tracker:
 
     def record(self, mean_score: float) -> None:
         """Append a row now (the wall time goes in its ``seconds`` field only)."""
-        self.rows.append(HistoryRow(self.seconds, self.evaluations, self.best_score, float(mean_score)))
+        # the best the target allows: a ruled-out best replaced by a lower allowed one had
+        # made the best so far fall
+        self.rows.append(HistoryRow(self.seconds, self.evaluations, self.best_allowed_score, float(mean_score)))
         self._next_row = max(self.evaluations + 1, math.ceil(self.evaluations * self._ratio))
         if self.progress is not None:
             self._last_progress = time.perf_counter()

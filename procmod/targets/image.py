@@ -6,7 +6,6 @@ target is bound to a model, so one target serves any canvas size.
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import math
 import os
@@ -930,11 +929,7 @@ def place_model(model, image: TargetImage):
     params = {"start": [float(v) for v in image.start]}
     if _pair_of_numbers(model.params.get("direction")):
         params["direction"] = [float(v) for v in image.direction]
-    # a default written in whole numbers ([0, -1], [0, 1]) types its parameter as integers, and
-    # the picture's point and heading were refused as "must be an integer": they are numbers
-    as_numbers = {name: (tuple if isinstance(model.params[name], tuple) else list)(float(v) for v in model.params[name])
-                  for name in params}
-    return dataclasses.replace(model, params={**model.params, **as_numbers}).configure(**params)
+    return model.configure(**params)
 
 
 def _pair_of_numbers(value, within_unit: bool = False) -> bool:

@@ -136,8 +136,9 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
     :data:`MAX_GROW_ROUNDS` rounds, leaving such individuals shorter than their goal (the
     generations' mutations, drawn from the prior, make them longer); the built-in models
     reach their goals in at most 8 rounds."""
-    pop = [ind for ind in evaluate([({}, new_seed(rng), False) for _ in range(population)], until_out_of_time=True)
-           if ind is not None]  # fewer only when the time ran out or a stop came
+    # fewer only when the time ran out or a stop came; one at least, so that a run has a population
+    pop = [ind for ind in evaluate([({}, new_seed(rng), False) for _ in range(population)], until_out_of_time=True,
+                                   at_least=1) if ind is not None]
     goals = rng.integers(1, initial_size + 1, size=population)
     growing = [i for i in range(len(pop)) if pop[i].derivation.n_nodes < goals[i]]
     rounds = 0

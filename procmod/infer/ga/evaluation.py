@@ -83,18 +83,19 @@ class Evaluator:
         self.model, self.target, self.executor, self.tracker = model, target, executor, tracker
         self.incremental = executor is None and bool(target.exact_removal)
 
-    def __call__(self, jobs: list, until_out_of_time: bool = False) -> list:
+    def __call__(self, jobs: list, until_out_of_time: bool = False, at_least: int = 0) -> list:
         """The jobs' :class:`Scored` individuals, in order.
 
         ``until_out_of_time``: stop evaluating once the budget's time is up or a stop was
         requested (:meth:`Tracker.out_of_time`, checked between evaluations, which also keep
-        the progress callback called); the jobs not evaluated are ``None`` in the list.
+        the progress callback called), after ``at_least`` evaluations; the jobs not
+        evaluated are ``None`` in the list.
         """
         model, target, tracker = self.model, self.target, self.tracker
         evaluations = [None] * len(jobs)
 
         def stopping() -> bool:
-            if not until_out_of_time:
+            if not until_out_of_time or len(jobs) - evaluations.count(None) < at_least:
                 return False
             tracker.due()  # calls the progress callback (a Stop button is read there)
             return tracker.out_of_time()

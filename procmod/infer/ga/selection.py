@@ -16,13 +16,19 @@ def roulette_wheel(scores) -> np.ndarray:
     """The cumulative wheel of a population with these scores: individual i's share is
     its fitness, the score shifted to be non-negative (``score - min score``: similarities
     can be negative), over the total; individuals whose score is not finite get no share,
-    and when no fitness is positive every individual gets an equal one."""
+    and when no fitness is positive every other individual gets an equal one (every
+    individual, when none is finite)."""
     scores = np.asarray(scores, dtype=np.float64)
     finite = np.isfinite(scores)
     floor = scores[finite].min() if finite.any() else 0.0
     fitness = np.where(finite, scores, floor) - floor
     total = fitness.sum()
-    fitness = fitness / total if total > 0 else np.full(len(scores), 1.0 / len(scores))
+    if total > 0:
+        fitness = fitness / total
+    elif finite.any():  # equal shares, still none for a score that is not finite (a ruled-out one's -inf)
+        fitness = finite / finite.sum()
+    else:
+        fitness = np.full(len(scores), 1.0 / len(scores))
     return np.cumsum(fitness)
 
 
