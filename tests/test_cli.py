@@ -402,3 +402,30 @@ def test_sample_of_a_3d_model_names_its_page_and_a_programs_page_hides_its_path(
     assert f"{tmp_path / 's' / 'contact_sheet.html'} (turn them in a browser)" in capsys.readouterr().out
     assert _page_name(str(tmp_path / "castles" / "program.json")) == "castles/program.json"
     assert _page_name("spaceship") == "spaceship"
+
+
+TWO_MODELS = """
+import math
+from procmod import Model, Normal
+from procmod.geometry import Canvas, Segment
+
+def grow(ctx, n):
+    a = ctx.sample("a", Normal(0.0, 1.0))
+    ctx.emit(Segment(0.0, 0.0, math.cos(a), math.sin(a), 0.2))
+
+NARROW = Model("narrow", "one segment", grow, lambda p: (0,), lambda p: Canvas((-2, 2, -2, 2), 32))
+WIDE = Model("wide", "the same rule on a wider canvas", grow, lambda p: (0,), lambda p: Canvas((-9, 9, -9, 9), 32))
+"""
+
+
+def test_render_with_another_model_of_the_same_rule_is_refused(tmp_path, capsys):
+    """--model was a name lookup that ignored the name: a derivation of one model was drawn
+    with another built on the same root rule (another canvas), where the library refuses it."""
+    (tmp_path / "two.py").write_text(TWO_MODELS)
+    assert main(["sample", f"{tmp_path / 'two.py'}:NARROW", "-n", "1", "--size", "32", "--out", str(tmp_path / "s")]) == 0
+    capsys.readouterr()
+    sample = str(tmp_path / "s" / "sample_000.json")
+    assert main(["render", sample, "--model", f"{tmp_path / 'two.py'}:WIDE", "--out", str(tmp_path / "w.png")]) == 2
+    assert "it is a derivation of model 'narrow', not 'wide'" in capsys.readouterr().err
+    assert not (tmp_path / "w.png").exists()
+    assert main(["render", sample, "--model", f"{tmp_path / 'two.py'}:NARROW", "--out", str(tmp_path / "n.png")]) == 0

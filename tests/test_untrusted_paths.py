@@ -148,6 +148,24 @@ def test_cli_learn_with_hostile_part_names_writes_only_inside_out(tmp_path, caps
     assert len(list((out / "parts").iterdir())) == len(names)
     # the samples of the learned program still name the parts they place
     assert main(["sample", str(out), "-n", "1", "--out", str(tmp_path / "s.json"), "--format", "examples"]) == 0
+    # render never writes over the program's files, which it reads only once the derivation
+    # is read (a part's mesh was replaced by the whole sample)
+    assert main(["sample", str(out), "-n", "1", "--size", "32", "--out", str(tmp_path / "samples")]) == 0
+    derivation = tmp_path / "samples" / "sample_000.json"
+    import procmod.core.paths
+    for written in (sorted((out / "parts").iterdir())[0], out / "contact_sheet.png"):
+        monkeypatch.setattr(procmod.core.paths, "_NAMED_FILES_READ", set())  # as in a new process
+        kept = written.read_bytes()
+        capsys.readouterr()
+        assert main(["render", str(derivation), "--out", str(written)]) == 2
+        assert "would overwrite the input" in capsys.readouterr().err and written.read_bytes() == kept
+    # a derivation written on Windows names its program with backslashes
+    data = json.loads(derivation.read_text())
+    assert "/" in data["model"]
+    data["model"] = data["model"].replace("/", "\\")
+    (tmp_path / "samples" / "windows.json").write_text(json.dumps(data))
+    assert main(["render", str(tmp_path / "samples" / "windows.json"), "--size", "32", "--out",
+                 str(tmp_path / "w.png")]) == 0, capsys.readouterr().err
 
 
 # ---- reading: the mesh of an examples file -----------------------------------------------------
