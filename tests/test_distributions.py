@@ -98,6 +98,15 @@ def test_a_bool_label_is_only_itself():
     assert Categorical([1, 1], labels=(0, 1)).log_prob(True) == -math.inf
 
 
+def test_a_real_number_is_not_an_integer_label():
+    # 2.0 == 2: an edited derivation's 2.0 reached the rule as an index (a learned program's
+    # KeyError '2.0.g0.W', a user's "list indices must be integers")
+    three = Categorical([1, 1, 1])
+    assert three.log_prob(2.0) == -math.inf and three.log_prob(np.float64(1.0)) == -math.inf
+    assert three.log_prob(2) == pytest.approx(math.log(1 / 3)) and three.log_prob(np.int64(2)) == three.log_prob(2)
+    assert Categorical([1, 1], labels=(0.5, 2.0)).log_prob(2.0) == pytest.approx(math.log(0.5))
+
+
 @pytest.mark.parametrize("make", [
     lambda: Normal(0, 0), lambda: Uniform(1, 1), lambda: Bernoulli(1.2),
     lambda: Categorical([]), lambda: Categorical([1, -1]), lambda: TruncatedNormal(0, 1, 2, 1),

@@ -288,8 +288,11 @@ class Categorical(Distribution):
 
     def log_prob(self, value):
         i = self._index.get(value)
-        # True == 1 and False == 0 in Python: a bool is only its own label, never an int's
-        if i is None or isinstance(value, bool) != isinstance(self.labels[i], bool):
+        # True == 1 and False == 0 in Python: a bool is only its own label, never an int's;
+        # and 2.0 == 2: a real number is not an integer label (an edited file's 2.0 reached
+        # the rule as an index, a traceback in the model's code)
+        if i is None or isinstance(value, bool) != isinstance(self.labels[i], bool) or (
+                isinstance(value, (float, np.floating)) and isinstance(self.labels[i], (int, np.integer))):
             return -math.inf
         return self._log_probs[i]
 
