@@ -96,6 +96,17 @@ def test_a_killed_search_resumes_from_its_checkpoint(learned, tmp_path):
     assert resumed.table["O_Pstar"] == pytest.approx(r.table["O_Pstar"], abs=1e-6)
     with pytest.raises(LearnError, match="other examples or options"):
         run_search(s, SearchOptions(particles=3, **QUICK), InlineExecutor(), tmp_path / "ck", "fp")
+    # a checkpoint edited by hand is refused in one line, not a traceback mid-run
+    original = (tmp_path / "ck" / "state.json").read_text()
+    for edit, says in [("phase", "'phase' 'zzz' is none of"), ("rng", "'rng' is not a random generator's state"),
+                       ("programs", "'programs' is not an object"), ("particles", "holds no particles"),
+                       ("rounds", "'rounds' is not a list")]:
+        doc = json.loads(original)
+        doc[edit] = {"phase": "zzz", "rng": {"bit_generator": "PCG64", "state": 5}, "programs": [], "particles": [],
+                     "rounds": 5}[edit]
+        (tmp_path / "ck" / "state.json").write_text(json.dumps(doc))
+        with pytest.raises(LearnError, match=f"cannot resume from .*: its {says}|cannot resume from .*: it {says}"):
+            run_search(s, SearchOptions(particles=2, **QUICK), InlineExecutor(), tmp_path / "ck", "fp")
 
 
 @pytest.mark.slow

@@ -347,6 +347,7 @@ def load_checkpoint(folder: Path, parts: dict) -> dict | None:
         return None
     try:
         doc = read_versioned_json(path, CHECKPOINT_FORMAT, LearnError)
+        _check_state(doc)
         # written beside state.json by save_checkpoint; a name that leads elsewhere is refused
         tensors = load_tensors(named_file(folder, doc["tensors"], "tensors", {".pt"}, "tensors", same_folder=True),
                                LearnError)
@@ -357,10 +358,40 @@ def load_checkpoint(folder: Path, parts: dict) -> dict | None:
             particles.append(Particle(_program_from_state(p["program"], f"part{k}", tensors, parts),
                                       p["objective"], p["loglik"], {int(a): u for a, u in p["usage"].items()},
                                       list(p["queue"]), list(p["rejected"]), bool(p["done"]), list(p["trace"])))
-    except (OSError, ValueError, KeyError, TypeError, RuntimeError, ProcmodError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError, RuntimeError, ProcmodError) as exc:
         raise LearnError(f"cannot resume from {folder}: {exc}; delete that folder to start afresh") from None
     doc["programs"], doc["particles"] = programs, particles
     return doc
+
+
+_PHASES = ("discrete", "fixed", "free", "finished")
+
+
+def _check_state(doc: dict) -> None:
+    """The fields of a checkpoint the search reads, of the kinds save_checkpoint writes
+    (a hand-edited one ended in a traceback mid-run: KeyError 'zzz', max() of nothing, a
+    report written again and then a TypeError); a ValueError naming the first that is not."""
+    def kind(key, types, what):
+        if not isinstance(doc.get(key), types) or isinstance(doc.get(key), bool):
+            raise ValueError(f"its {key!r} is not {what}")
+
+    kind("phase", str, "a phase")
+    if doc["phase"] not in _PHASES:
+        raise ValueError(f"its 'phase' {doc['phase']!r:.40} is none of {', '.join(_PHASES)}")
+    kind("round", int, "a round number")
+    kind("rounds", list, "a list of rounds")
+    kind("programs", dict, "an object of programs")
+    kind("side_logliks", dict, "an object")
+    kind("particles", list, "a list of particles")
+    kind("elapsed", (int, float), "a number of seconds")
+    if not doc["particles"] or "p0" not in doc["programs"]:
+        raise ValueError("it holds no particles, or no initial program p0")
+    if not all(isinstance(row, dict) for row in doc["rounds"]):
+        raise ValueError("its 'rounds' are not all objects")
+    try:
+        np.random.default_rng().bit_generator.state = doc.get("rng")
+    except (TypeError, ValueError, KeyError) as exc:
+        raise ValueError(f"its 'rng' is not a random generator's state ({exc})") from None
 
 
 # ---- the driver --------------------------------------------------------------------------------
