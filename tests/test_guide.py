@@ -372,6 +372,7 @@ def test_a_checkpoint_resumes_only_on_its_own_traces_and_whole(few_traces, tmp_p
     (lambda t: t["derivation"].pop("params"), "trace_00001.json is damaged .it lacks 'params'"),
     (lambda t: t.__setitem__("derivation", [1, 2]), "trace_00001.json is damaged"),
     (lambda t: t["derivation"]["choices"][0].__setitem__(2, 10 ** 400), "trace_00001.json"),
+    (lambda t: t.pop("target"), "trace_00001.json is damaged .its \"target\" is missing"),  # was a KeyError traceback
 ])
 def test_a_damaged_trace_is_named_with_what_to_do(few_traces, tmp_path, edit, message):
     import json

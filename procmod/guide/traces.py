@@ -207,6 +207,10 @@ def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[di
         names = names[:limit]
     traces = [read_versioned_json(path, TRACE_FORMAT, GuideError, advice="; delete it and rerun the traces job")
               for _, path in names]
+    for (_, path), trace in zip(names, traces):
+        if not isinstance(trace.get("target"), str):  # training read it first: a KeyError traceback
+            raise GuideError(f"{path} is damaged (its \"target\" is missing or not a target's name); delete it and "
+                             "rerun the traces job")
     if not traces:
         raise GuideError(f"{folder} holds no traces yet; run 'procmod guide traces' first")
     return settings, traces
