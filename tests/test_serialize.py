@@ -71,6 +71,10 @@ def _saved(tmp_path):
     (lambda d: d["choices"][1].__setitem__(2, "sideways"),
      r"choices\[1\], 'leaf' at \[\] = \"sideways\", is a value its distribution there cannot take"),
     (lambda d: d.update(params={"colour": "red"}), "no parameter"),
+    # an edited order: its calls are named, not the choices it left unused
+    (lambda d: d.update(order=[["branch"]] + d["order"]), r"order\[0\] \[\"branch\"\] comes before the call that "
+                                                          "spawns it"),
+    (lambda d: d["order"].append(d["order"][-1]), r"order\[\d+\] .* is listed twice"),
 ])
 def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
     data = _saved(tmp_path)

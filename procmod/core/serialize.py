@@ -205,6 +205,14 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
         if not isinstance(address, list) or not all(isinstance(s, str) for s in address):
             raise _fail(source, f"order[{i}] must be a list of spawn-site names")
         order.append(tuple(address))
+    ran = set()  # calls run in an order where each comes after the call that spawned it
+    for i, address in enumerate(order):
+        if address in ran or (address and address[:-1] not in ran):
+            raise _fail(source, f"order[{i}] {cut_text(json.dumps(list(address)), 80)} "
+                                + ("is listed twice" if address in ran else "comes before the call that spawns it")
+                                + ": 'order' lists the calls as they ran (an edited order was blamed on the choices); "
+                                  "restore it as it was saved")
+        ran.add(address)
     # Replaying needs no randomness when the file matches; a fixed generator keeps any
     # mismatch reproducible while we report it.
     try:
