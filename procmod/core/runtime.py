@@ -839,9 +839,10 @@ _NO_OUTPUT = _NoOutput()
 
 
 def same_args(a: tuple, b: tuple) -> bool:
-    """Whether two rule calls' argument tuples are equal, so a call with ``b`` may be taken
-    for the call with ``a`` (:func:`replay_reusing`, the GA's crossover). Arguments that
-    cannot be compared to a plain bool (numpy arrays) are never equal."""
+    """Whether two rule calls' argument tuples (or emitted geometry) are equal, so a call
+    with ``b`` may be taken for the call with ``a`` (:func:`replay_reusing`, the GA's
+    crossover). Values that cannot be compared to a plain bool (numpy arrays, a part made
+    of them) are never equal."""
     if a is b:
         return True
     try:
@@ -963,7 +964,7 @@ def replay_reusing(model: Model, previous: Derivation, choices, rng: np.random.G
         _execute(state, future, rng, None, 0, False)
         chain = state._chain
         new = chain[0]
-        if node is not None and new.geometry == node.geometry:
+        if node is not None and same_args(new.geometry, node.geometry):  # (parts of numpy arrays: redrawn)
             still_drawn.add(id(node))  # the call is replaced, its geometry stays drawn
         else:
             drawn.extend(new.geometry)
