@@ -123,6 +123,9 @@ def test_all_zero_likelihood_is_reported_not_nan():
     assert "every particle reached zero likelihood before a derivation was complete" in str(no_result_error(result))
     result.notes.clear()  # a run that only ran out of budget
     assert "give it more" in str(no_result_error(result))
+    # several runs under a budget: said once (it was said once a run, thousands of times)
+    result = ENGINES["smc"](TREE, Impossible(), particles=10, seed=0, budget=Budget(generations=4))
+    assert result.notes.count(result.notes[0]) == 1 and "zero likelihood" in result.notes[0]
 
 
 class _Capped(Target):

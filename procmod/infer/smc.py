@@ -295,13 +295,13 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                 tracker.generations += 1
                 scores = [checked_value(target.score(s.output), target, "score") for s in states]
                 tracker.record(math.fsum(scores) / len(scores))  # a list's mean without numpy's call overhead
-                if log_z == -math.inf:
-                    notes.append(ZERO_LIKELIHOOD_NOTE)
                 if budget is None or tracker.spent():
                     break
         finally:
             for worker in remote:
                 worker.close()
+    if log_z == -math.inf:  # of the run returned (its states and log Z); once, not once a run
+        notes.append(ZERO_LIKELIHOOD_NOTE)
     unmatched = proposer.unmatched_note() if proposer is not None else None
     if unmatched is not None:
         notes.append(unmatched)
