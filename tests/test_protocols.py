@@ -141,3 +141,33 @@ def test_a_capability_without_its_methods_is_refused():
 
     with pytest.raises(InvalidArgumentError, match="declares has_overlay but has no overlay_image"):
         check_declared(Claims(), Target, "the target")
+
+
+@pytest.mark.parametrize("left_out", ["add", "copy"])
+def test_an_output_that_leaves_out_add_or_copy_is_refused(left_out):
+    # it inherited the protocol's empty body: a misnamed add dropped every emit without a
+    # word (SMC scored empty outputs), a missing copy failed later in the user's own score
+    class Partial(Output):
+        dimension = 0
+
+        def __init__(self):
+            self.total = 0.0
+
+        if left_out != "add":
+            def add(self, value):
+                self.total += float(value)
+
+        if left_out != "copy":
+            def copy(self):
+                other = Partial()
+                other.total = self.total
+                return other
+
+    class PartialTarget(SumTarget):
+        def new_output(self, model):
+            return Partial()
+
+    for engine in ENGINES:
+        with pytest.raises(InvalidArgumentError, match=rf"output \(Partial\) does not define {left_out} \(it would "
+                                                       r"inherit procmod.core.Output's, which does nothing\)"):
+            ENGINES[engine](MIX, PartialTarget(0.0, 1.0), seed=0)

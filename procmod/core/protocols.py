@@ -190,6 +190,13 @@ _PROMISES = {
     "has_mask": ("mask",),
     "has_overlay": ("overlay_image",),
 }
+# The methods every object of a protocol defines itself: a subclass that leaves one out
+# inherits the protocol's empty body, which returns None (a misnamed ``add`` dropped every
+# emit without a word; a missing ``copy`` failed later in the user's own score).
+_METHODS = {
+    Output: ("add", "copy"),
+    Target: ("configure", "new_output", "score", "log_likelihood"),
+}
 _MISSING = object()
 
 
@@ -216,6 +223,11 @@ def check_declared(obj, protocol, what: str) -> None:
             if lacking:
                 raise InvalidArgumentError(f"{what} ({name}) declares {capability} but has no "
                                            f"{', '.join(lacking)}")
+    empty = [m for m in _METHODS[protocol] if getattr(type(obj), m, None) is getattr(protocol, m)]
+    if empty:
+        raise InvalidArgumentError(f"{what} ({name}) does not define {', '.join(empty)} (it would inherit "
+                                   f"procmod.core.{protocol.__name__}'s, which does nothing); define "
+                                   f"{'it' if len(empty) == 1 else 'them'}")
 
 
 __all__ = ["MaskedTarget", "Output", "OverlayTarget", "PartCachingOutput", "Proposer", "RemovableOutput",
