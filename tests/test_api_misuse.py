@@ -335,3 +335,22 @@ def test_load_derivation_takes_the_model_itself(tmp_path):
         load_derivation(path, get_model("chain"))
     with pytest.raises(ProcmodError, match="resolve_model must be the Model or a function"):
         load_derivation(path, "vines")
+
+
+def test_numpy_defaults_of_a_models_parameters_are_plain_numbers(tmp_path):
+    # a saved derivation failed on np.int64 (not JSON), and a numpy default turned the type
+    # checks of configure off (n="abc" was taken)
+    from procmod.core import InvalidArgumentError, Model, Normal, run_forward, save_derivation
+    from procmod.geometry import Canvas, Segment
+
+    def rule(ctx, n, w):
+        x = ctx.sample("x", Normal(0.0, 1.0))
+        ctx.emit(Segment(x, 0.0, x, float(n), w[0]))
+
+    model = Model("np-params", "numpy defaults", rule, lambda p: (p["n"], p["w"]),
+                  lambda p: Canvas((-5, 5, -5, 5), 20), params={"n": np.int64(3), "w": (np.float32(0.5), 1.0)})
+    assert model.params == {"n": 3, "w": (0.5, 1.0)} and type(model.params["n"]) is int
+    assert type(model.params["w"][0]) is float
+    save_derivation(run_forward(model, np.random.default_rng(0)), tmp_path / "d.json")
+    with pytest.raises(InvalidArgumentError, match="parameter n must be an integer"):
+        model.configure(n="abc")

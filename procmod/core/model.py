@@ -120,6 +120,10 @@ class Model:
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= LIMIT_CEILING:
                 raise ModelError(f"model {self.name!r}: {what} must be a whole number from 1 to "
                                  f"{LIMIT_CEILING:,}, got {shown_value(value)}")
+        # numpy numbers in the defaults as Python's: a saved derivation's JSON failed on an
+        # np.int64, and a numpy default switched configure's checks of its type off
+        if any(_has_numpy(value) for value in self.params.values()):
+            object.__setattr__(self, "params", {name: _without_numpy(value) for name, value in self.params.items()})
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.
@@ -162,6 +166,20 @@ class Model:
                 pass
         raise ModelError(f"model {self.name!r}: root_args returned {args!r:.40}, not a tuple of the root "
                          "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
+
+
+def _has_numpy(value) -> bool:
+    if isinstance(value, (list, tuple)):
+        return any(_has_numpy(item) for item in value)
+    return type(value).__module__ == "numpy"
+
+
+def _without_numpy(value):
+    """``value`` with its numpy numbers (and arrays) as Python's; lists and tuples kept."""
+    if isinstance(value, (list, tuple)):
+        return type(value)(_without_numpy(item) for item in value) if type(value) in (list, tuple) else \
+            [_without_numpy(item) for item in value]
+    return plain_value(value)
 
 
 def _like(value, default):
