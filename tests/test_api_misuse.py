@@ -141,7 +141,16 @@ def test_runtime_and_files(vines, tmp_path):
         replay(model, None, rng)
     with pytest.raises(ProcmodError, match="derivation must be a procmod Derivation"):
         regenerate(model, None, (), rng)
+    from procmod.core import set_maybe  # checked as regenerate is (an AttributeError; a seed taken as the rng)
+    with pytest.raises(ProcmodError, match="derivation must be a procmod Derivation"):
+        set_maybe(model, None, (), "leaf", True, rng)
     d = run_forward(model, rng)
+    with pytest.raises(ProcmodError, match=r"rng must be a numpy Generator"):
+        set_maybe(model, d, (), "leaf", True, 42)
+    # a coin given as numpy's bool (an edited map: arr > 0) is the coin's value, not redrawn
+    coin = next(name for (address, name), value in d.choice_map().items() if isinstance(value, bool))
+    flipped = d.choice_map().with_value((), coin, np.bool_(not d.choice_map()[((), coin)]))
+    assert ((), coin) not in replay(model, flipped, np.random.default_rng(1)).unused
     with pytest.raises(ProcmodError, match="cannot write the derivation to .*No such file"):
         save_derivation(d, tmp_path / "nope" / "x.json")
     with pytest.raises(ProcmodError, match="cannot write the derivation to .*"):

@@ -389,6 +389,8 @@ class ReplayPolicy(ChoicePolicy):
         key = (ctx.address, name)
         value = self.constraints.get(key, _MISSING)
         if value is not _MISSING:
+            if type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0:
+                value = value.item()  # np.True_ from an edited map (arr > 0) was no coin's value: redrawn
             log_prob = dist.log_prob(value)
             if log_prob > -math.inf:
                 self.reused.add(key)
@@ -814,6 +816,7 @@ def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: s
         ``log_reused`` includes the new value of the site's Bernoulli choice; ``unused``
         lists the cut subtree's choices.
     """
+    _check_call(model, rng, derivation, needs_derivation=True)  # as regenerate checks them
     node_address = tuple(node_address)
     node = derivation.tree().get(node_address)
     if node is None:
