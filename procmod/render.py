@@ -56,6 +56,7 @@ def derivation_image(derivation: Derivation, size: int, underlay=None, supersamp
     2D renders are antialiased by drawing ``supersample`` x ``supersample`` pixels per
     output pixel (small tiles of a contact sheet need fewer than a full-size render)."""
     size = check_size(size)
+    check_renderable(derivation)
     geometry = derivation.geometry()
     if is_2d(derivation):
         return render_image(geometry, derivation.output.viewport, size, supersample=supersample, underlay=underlay)
@@ -111,6 +112,18 @@ def _bad_number(value, size: bool, solid: bool) -> str | None:
     return None
 
 
+def check_renderable(derivation: Derivation) -> None:
+    """Refuse a derivation whose output is neither 2D nor 3D (a model of one's own output,
+    a running sum): it was drawn as 3D parts, a TypeError deep in the mesh code."""
+    from .core.errors import InvalidArgumentError
+
+    dimension = getattr(derivation.output, "dimension", None)
+    if dimension not in (2, 3):
+        raise InvalidArgumentError(f"model {derivation.model.name!r} draws into an output of dimension "
+                                   f"{shown_value(dimension)}, which procmod cannot render (pictures are of "
+                                   "dimension 2, meshes of 3); score and save its derivations instead")
+
+
 def check_geometry(derivation: Derivation) -> None:
     """Refuse a derivation whose geometry holds a NaN or an infinity, or a negative size:
     the canvas draws such a primitive as nothing (or a dot), an SVG or a mesh file would
@@ -121,6 +134,7 @@ def check_geometry(derivation: Derivation) -> None:
     from .core.runtime import rule_name
     from .geometry.solid import Cylinder
 
+    check_renderable(derivation)
     solid = not is_2d(derivation)
     for node in derivation.nodes():
         for part in node.geometry:

@@ -171,3 +171,16 @@ def test_an_output_that_leaves_out_add_or_copy_is_refused(left_out):
         with pytest.raises(InvalidArgumentError, match=rf"output \(Partial\) does not define {left_out} \(it would "
                                                        r"inherit procmod.core.Output's, which does nothing\)"):
             ENGINES[engine](MIX, PartialTarget(0.0, 1.0), seed=0)
+
+
+def test_an_output_neither_2d_nor_3d_is_refused_by_the_renderers_before_any_file(tmp_path):
+    # it was drawn as 3D parts: "a 3D output draws Box, Cylinder and Mesh parts, not float",
+    # after write_run had made its folder
+    from procmod.render import derivation_image
+    from procmod.report import write_run
+    result = ENGINES["smc"](MIX, SumTarget(1.0, 2.0), particles=5, seed=0)
+    with pytest.raises(InvalidArgumentError, match="output of dimension 0, which procmod cannot render"):
+        write_run(result, SumTarget(1.0, 2.0), tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(InvalidArgumentError, match="cannot render"):
+        derivation_image(result.best, 64)
