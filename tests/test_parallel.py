@@ -174,3 +174,20 @@ def test_a_dask_scheduler_without_workers_is_noted():
         assert len(notes) == 1  # a worker there: no note
     finally:
         cluster.close()
+
+
+def test_overlapping_relaxed_gc_blocks_put_the_users_threshold_back():
+    # engines run in threads: a block that began inside another's saved the relaxed
+    # threshold as "the old one" and, ending last, left 100,000 for the rest of the process
+    import gc
+
+    from procmod.core.limits import relaxed_gc
+    before = gc.get_threshold()
+    first, second = relaxed_gc(), relaxed_gc()
+    first.__enter__()
+    second.__enter__()
+    assert gc.get_threshold()[0] == 100_000
+    first.__exit__(None, None, None)  # the first to begin ends first
+    assert gc.get_threshold()[0] == 100_000  # the other still runs
+    second.__exit__(None, None, None)
+    assert gc.get_threshold() == before

@@ -14,6 +14,7 @@ import contextlib
 import gc
 import os
 import shutil
+import threading
 
 from .errors import InvalidArgumentError
 
@@ -95,10 +96,26 @@ def relaxed_gc(threshold: int = 100_000):
     whole, growing heap of live particles over and over for nothing (a third of an SMC
     run's time; a third of reading a million-face OBJ's faces). Collection still happens,
     just every ``threshold`` allocations.
+
+    Nested and concurrent blocks (engines run in threads) share one relaxation: the
+    threshold the first block found is put back when the last one ends (each block put
+    back what it found, and a block that found another's left 100,000 for good).
     """
-    old = gc.get_threshold()
-    gc.set_threshold(threshold, old[1], old[2])
+    global _relaxed_count, _threshold_before
+    with _RELAXED_LOCK:
+        if _relaxed_count == 0:
+            _threshold_before = gc.get_threshold()
+            gc.set_threshold(threshold, _threshold_before[1], _threshold_before[2])
+        _relaxed_count += 1
     try:
         yield
     finally:
-        gc.set_threshold(*old)
+        with _RELAXED_LOCK:
+            _relaxed_count -= 1
+            if _relaxed_count == 0:
+                gc.set_threshold(*_threshold_before)
+
+
+_RELAXED_LOCK = threading.Lock()
+_relaxed_count = 0  # blocks of relaxed_gc running now, in any thread
+_threshold_before = gc.get_threshold()
