@@ -25,7 +25,7 @@ import numpy as np
 
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
-from .core.errors import UnknownModelError, cut_text, spelled
+from .core.errors import DerivationFormatError, UnknownModelError, cut_text, spelled
 from .core.paths import is_dir_quietly, is_file_quietly, output_path
 from .models import MODELS, model_from_spec
 
@@ -353,11 +353,19 @@ def _cmd_render(args) -> None:
     check_format(args.out)
     out = check_output_file(args.out, inputs=[args.derivation])
     size = check_size(args.size)
-    # --model is the model itself: a derivation of another model of the same root rule was
-    # drawn with it, where the library refuses it ("give its model")
+    # --model must be the model the file names: a derivation of another model of the same
+    # root rule was drawn with it, where the library refuses it ("give its model"); a file
+    # that names a Python file, or a learned program, is the user's to pair with --model
     given = None if args.model is None else _model(args.model)
+
+    def the_given_model(name: str):
+        from .models.from_file import is_model_file_spec
+        if name != given.name and not is_model_file_spec(name) and not name.lower().endswith(".json"):
+            raise DerivationFormatError(f"it is a derivation of model {name!r}, not {given.name!r}: give its model")
+        return given
+
     try:
-        derivation = load_derivation(args.derivation, _model_a_file_names if given is None else given)
+        derivation = load_derivation(args.derivation, _model_a_file_names if given is None else the_given_model)
     except UnknownModelError as exc:
         if args.model is not None:
             raise

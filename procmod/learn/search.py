@@ -347,10 +347,10 @@ def load_checkpoint(folder: Path, parts: dict) -> dict | None:
         return None
     try:
         doc = read_versioned_json(path, CHECKPOINT_FORMAT, LearnError)
-        _check_state(doc)
         # written beside state.json by save_checkpoint; a name that leads elsewhere is refused
         tensors = load_tensors(named_file(folder, doc["tensors"], "tensors", {".pt"}, "tensors", same_folder=True),
                                LearnError)
+        _check_state(doc)
         programs = {name: _program_from_state(s, f"prog.{name}", tensors, parts)
                     for name, s in doc["programs"].items()}
         particles = []
