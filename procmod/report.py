@@ -47,14 +47,20 @@ def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") 
     series = []
     engines = []
     for i, (label, result) in enumerate(results.items()):
-        rows = [r for r in result.history if np.isfinite(r.best_score)]
-        if not rows:
+        # each curve where it is finite: the best is -inf until a complete derivation the
+        # target allows is found (a proxy run that found none had no chart at all)
+        best = [r for r in result.history if np.isfinite(r.best_score)]
+        mean = [r for r in result.history if np.isfinite(r.mean_score)]
+        if not best and not mean:
             continue
         engines.append(result.engine)
         colour = COLOURS[i % len(COLOURS)]
-        x = [r.evaluations for r in rows]
-        series.append(Series(f"{label} best", x, [r.best_score for r in rows], colour, step=True))
-        series.append(Series(f"{label} mean", x, [r.mean_score for r in rows], colour, dashed=True, opacity=0.6))
+        if best:
+            series.append(Series(f"{label} best", [r.evaluations for r in best], [r.best_score for r in best], colour,
+                                 step=True))
+        if mean:
+            series.append(Series(f"{label} mean", [r.evaluations for r in mean], [r.mean_score for r in mean], colour,
+                                 dashed=True, opacity=0.6))
     notes = [textwrap.fill(n, 118) for n in dict.fromkeys(mean_meaning(e) for e in engines)]
     svg = line_chart_svg(series, title, "evaluations", "score", "\n".join(notes))
     write_text_atomic(path, svg)

@@ -363,3 +363,19 @@ def test_numpy_defaults_of_a_models_parameters_are_plain_numbers(tmp_path):
     save_derivation(run_forward(model, np.random.default_rng(0)), tmp_path / "d.json")
     with pytest.raises(InvalidArgumentError, match="parameter n must be an integer"):
         model.configure(n="abc")
+
+
+def test_whole_numbers_stay_whole_except_a_pictures_start_and_direction():
+    from procmod.core import InvalidArgumentError, Model
+    from procmod.geometry import Canvas
+
+    def rule(ctx, *args):
+        pass
+
+    canvas = lambda p: Canvas((-5, 5, -5, 5), 20)  # noqa: E731
+    counts = Model("counts", "", rule, lambda p: (), canvas, params={"counts": [3, 2]})
+    with pytest.raises(InvalidArgumentError, match=r"parameter counts\[0\] must be an integer, got 2.5"):
+        counts.configure(counts=[2.5, 2])  # (it reached range() in the model's code)
+    placed = Model("placed", "", rule, lambda p: (), canvas, params={"start": [0, 1], "direction": [0, -1]})
+    assert placed.params == {"start": [0.0, 1.0], "direction": [0.0, -1.0]}
+    assert placed.configure(start=[0.375, 0.9], direction=[-0.05, -1.0]).params["direction"] == [-0.05, -1.0]

@@ -88,8 +88,9 @@ class Model:
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
-    number a finite number, a list a list of as many items, each checked the same way
-    (but its numbers any numbers: ``[0, -1]`` is a direction, not two counts).
+    number a finite number, a list a list of as many items, each checked the same way.
+    The ``start`` and ``direction`` a picture target places (:func:`picture_placed`) are
+    real numbers however their defaults are written (``[0, 1]``, ``[0, -1]``).
     """
 
     name: str
@@ -124,6 +125,11 @@ class Model:
         # np.int64, and a numpy default switched configure's checks of its type off
         if any(_has_numpy(value) for value in self.params.values()):
             object.__setattr__(self, "params", {name: _without_numpy(value) for name, value in self.params.items()})
+        # typed as integers, a picture's point and heading, and the runs that recorded them, were refused
+        placed = picture_placed(self.params)
+        if any(isinstance(v, int) for name in placed for v in self.params[name]):
+            object.__setattr__(self, "params", {**self.params, **{
+                name: type(self.params[name])(float(v) for v in self.params[name]) for name in placed}})
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.
@@ -168,6 +174,25 @@ class Model:
                          "rule's arguments; return a tuple, e.g. lambda p: (p['x'],) or lambda p: ()")
 
 
+def picture_placed(params) -> tuple:
+    """The parameters a picture target sets, as the built-in models take them: ``start``
+    when it defaults to a point in normalised image coordinates (two numbers in [0, 1]),
+    then ``direction`` when it defaults to a 2D vector. A model's own ``start`` in world
+    units, or a heading in radians, is its own (:func:`procmod.targets.image.place_model`)."""
+    if not _pair_of_numbers(params.get("start"), within_unit=True):
+        return ()  # (a direction alone could be a world vector: y up, where the picture's is down)
+    return ("start", "direction") if _pair_of_numbers(params.get("direction")) else ("start",)
+
+
+def _pair_of_numbers(value, within_unit: bool = False) -> bool:
+    """Whether a parameter's default is two real numbers (each in [0, 1] if asked)."""
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        return False
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        return False
+    return not within_unit or all(0.0 <= float(v) <= 1.0 for v in value)
+
+
 def _has_numpy(value) -> bool:
     if isinstance(value, (list, tuple)):
         return any(_has_numpy(item) for item in value)
@@ -193,11 +218,10 @@ def _like(value, default):
     return value
 
 
-def _check_param(name: str, value, default, bounds=None, in_list: bool = False) -> None:
+def _check_param(name: str, value, default, bounds=None) -> None:
     """Refuse ``value`` for parameter ``name`` unless it has the default's JSON type (and
     shape) and lies within ``bounds``; the message names the parameter (``size``,
-    ``start[1]``). A list's numbers are numbers, whole or not (``[0, -1]`` is a direction:
-    typed as integers, a picture target's heading and the runs that recorded it were refused)."""
+    ``start[1]``)."""
     def fail(expected: str):
         raise InvalidArgumentError(f"parameter {name} must be {expected}, got {shown_value(value)}")
 
@@ -208,7 +232,7 @@ def _check_param(name: str, value, default, bounds=None, in_list: bool = False) 
     if isinstance(default, (int, float)):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             fail("an integer" if isinstance(default, int) else "a number")
-        if isinstance(default, int) and not isinstance(value, int) and not in_list:
+        if isinstance(default, int) and not isinstance(value, int):
             fail("an integer")
         if not math.isfinite(value):
             fail("a finite number")
@@ -223,7 +247,7 @@ def _check_param(name: str, value, default, bounds=None, in_list: bool = False) 
         if not isinstance(value, (list, tuple)) or len(value) != len(default):
             fail(f"a list of {len(default)} items, e.g. {shown_value(list(default))}")
         for i, (item, item_default) in enumerate(zip(value, default)):
-            _check_param(f"{name}[{i}]", item, item_default, bounds, in_list=True)
+            _check_param(f"{name}[{i}]", item, item_default, bounds)
 
 
 def check_model(model) -> None:

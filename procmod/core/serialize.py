@@ -158,7 +158,8 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
         if not isinstance(data.get(key), kind):
             raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
     name = data["model"]
-    if _names_program(name) and "\\" in name and os.sep == "/":
+    if _names_program(name) and "\\" in name and os.sep == "/" and not os.path.isfile(
+            name if folder is None else os.path.join(folder, name)):  # (a folder may have a \ in its name here)
         name = name.replace("\\", "/")  # written on Windows: names in files may use / or \ (README)
     if folder is not None and _names_program(name) and not os.path.isabs(name) \
             and os.path.isfile(os.path.join(folder, name)):  # else a model's own name: as it is

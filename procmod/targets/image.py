@@ -19,6 +19,7 @@ from PIL import Image, UnidentifiedImageError
 
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.errors import cut_text
+from ..core.model import picture_placed
 from ..core.serialize import read_json
 
 # The largest picture procmod reads as a target: Pillow's own decompression-bomb limit
@@ -924,21 +925,9 @@ def place_model(model, image: TargetImage):
     user's model may name its own parameters so (a start point in world units, a heading
     in radians): those are its own, and the picture's placement would have been written
     over them, silently or refused as a value of the wrong kind the user never gave."""
-    if not _pair_of_numbers(model.params.get("start"), within_unit=True):
-        return model  # (a direction alone could be a world vector: y up, where the picture's is down)
-    params = {"start": [float(v) for v in image.start]}
-    if _pair_of_numbers(model.params.get("direction")):
-        params["direction"] = [float(v) for v in image.direction]
-    return model.configure(**params)
-
-
-def _pair_of_numbers(value, within_unit: bool = False) -> bool:
-    """Whether a parameter's default is two real numbers (each in [0, 1] if asked)."""
-    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2:
-        return False
-    if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in value):
-        return False
-    return not within_unit or all(0.0 <= float(v) <= 1.0 for v in value)
+    placed = picture_placed(model.params)
+    values = {"start": image.start, "direction": image.direction}
+    return model.configure(**{name: [float(v) for v in values[name]] for name in placed}) if placed else model
 
 
 def out_of_bounds_penalty(canvas, oob_sigma: float | None) -> float:
