@@ -93,9 +93,10 @@ class Evaluator:
         """
         model, target, tracker = self.model, self.target, self.tracker
         evaluations = [None] * len(jobs)
+        first = tracker.evaluations  # _scored counts each evaluation there
 
         def stopping() -> bool:
-            if not until_out_of_time or len(jobs) - evaluations.count(None) < at_least:
+            if not until_out_of_time or tracker.evaluations - first < at_least:
                 return False
             tracker.due()  # calls the progress callback (a Stop button is read there)
             return tracker.out_of_time()
