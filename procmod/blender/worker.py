@@ -269,28 +269,30 @@ def _layer_groups(layers: list) -> list:
     return list(groups.items())
 
 
-# a layer's fields, as the panel names them
-PANEL_FIELDS = {"w_fill": "its Inside weight ", "w_avoid": "its Outside weight "}
+# a target file's fields, as the panel names them
+PANEL_FIELDS = {"w_fill": "Inside weight", "w_avoid": "Outside weight", "voxel_size": "Voxel size (in the panel)"}
+
+
+def _in_panel_terms(message: str) -> str:
+    for field, shown in PANEL_FIELDS.items():
+        message = message.replace(field, shown)
+    return message
 
 
 def _name_layers(message: str, spec: dict) -> str:
     """A target file's message names ``layers[i]``; say which scene objects that is."""
     groups = _layer_groups(spec.get("layers") or [])
     if re.match(r"^.*?target\.json: (?!layers\[)", message):  # of the whole target (nothing to fill)
-        message = re.sub(r"^.*?target\.json: ", "", message)
-        for field, shown in (("w_fill", "Inside weight"), ("w_avoid", "Outside weight"),
-                             ("voxel_size", "Voxel size (in the panel)")):
-            message = message.replace(field, shown)
-        return message
+        return _in_panel_terms(re.sub(r"^.*?target\.json: ", "", message))
     found = re.search(r"layers\[(\d+)\]", message)
     if found and int(found.group(1)) < len(groups):
         names = [layer.get("object") for layer in groups[int(found.group(1))][1]]
         if all(names):
             # the target file the message starts with is the job's, removed with it: the
             # scene's objects and the panel's fields say it to a Blender user
-            message = re.sub(r"^.*?target\.json: layers\[\d+\](?:\.(\w+))?:? ",
-                             lambda m: PANEL_FIELDS.get(m.group(1), ""), message)
-            message = message.replace("voxel_size", "Voxel size (in the panel)")
+            message = _in_panel_terms(re.sub(r"^.*?target\.json: layers\[\d+\](?:\.(\w+))?:? ",
+                                             lambda m: f"its {m.group(1)} " if m.group(1) in PANEL_FIELDS else "",
+                                             message))
             if len(names) == 1:
                 return f"target layer {names[0]!r}: {message}"
             return f"target layers {', '.join(map(repr, names))} (one layer: their weights are the same): {message}"
