@@ -422,7 +422,8 @@ def test_render_with_another_model_of_the_same_rule_is_refused(tmp_path, capsys)
     """--model was a name lookup that ignored the name: a derivation of one model was drawn
     with another built on the same root rule (another canvas), where the library refuses it."""
     (tmp_path / "two.py").write_text(TWO_MODELS)
-    assert main(["sample", f"{tmp_path / 'two.py'}:NARROW", "-n", "1", "--size", "32", "--out", str(tmp_path / "s")]) == 0
+    assert main(["sample", f"{tmp_path / 'two.py'}:NARROW", "-n", "1", "--size", "32", "--out",
+                 str(tmp_path / "s")]) == 0
     capsys.readouterr()
     sample = str(tmp_path / "s" / "sample_000.json")
     assert main(["render", sample, "--model", f"{tmp_path / 'two.py'}:WIDE", "--out", str(tmp_path / "w.png")]) == 2

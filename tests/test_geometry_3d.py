@@ -129,6 +129,7 @@ def test_a_mesh_of_numpy_arrays_is_a_part_under_every_engine(engine, score):
     fill[4:30, 4:8, 4:8] = True
     target = Volume(grid, [(fill, 1.0, -1.0)]) if score == "svol" else ProxyVolume(grid, fill)
     runs = {"ga": {"population": 6, "budget": Budget(generations=2)},
-            "mcmc": {"chains": 2, "budget": Budget(evaluations=30)}, "forward": {"particles": 6}, "smc": {"particles": 6}}
+            "mcmc": {"chains": 2, "budget": Budget(evaluations=30)},
+            "forward": {"particles": 6}, "smc": {"particles": 6}}
     result = ENGINES[engine](model, target, seed=0, **runs[engine])
     assert result.best is not None and all(isinstance(p, (Mesh, Box)) for p in result.best.geometry())

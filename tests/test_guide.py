@@ -451,24 +451,24 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
         # a 3D model: the advice to train a guide for it could not be followed
         (["infer", "spaceship", "--target", str(Path(__file__).resolve().parents[1] / "scenes" / "spaceship_volume"),
           "--guide", str(tmp_path / "g"), "--out", str(tmp_path / "x")], "guides exist for 2D models only"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(tmp_path), "--out", str(tmp_path / "h")], "not a traces folder"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
+        (["guide", "train", "vines", "--traces", str(tmp_path), "--out", str(tmp_path / "h")], "not a traces folder"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
           "--iterations", "99999999999999999999"], "iterations must be at most 10,000,000"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(nameless), "--out", str(tmp_path / "h")],
+        (["guide", "train", "vines", "--traces", str(nameless), "--out", str(tmp_path / "h")],
          "traces.json names no model"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "h"),
           "--features", "pixels"], "unknown feature condition"),
         (["guide", "traces", "vines", "--count", "2", "--targets", "glyphs", "--out", str(tmp_path / "t")],
          "--targets must be one of"),
         (["guide", "traces", "vines", "--count", "2", "--particles", "7", "--out", str(few_traces)],
          "holds traces of another job"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(few_traces), "--out", str(tmp_path / "mine")],
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "mine")],
          "would replace " + str(tmp_path / "mine.pt") + ", which is not part of a guide"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(few_traces), "--out", str(tmp_path / "data")],
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "data")],
          "would replace " + str(tmp_path / "data.npz") + ", which is not part of a guide"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(few_traces), "--out", str(tmp_path) + "/"],
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path) + "/"],
          "is a folder; a guide is files"),
-        (["guide", "train", "vines", "--traces", "nowhere", "--traces", str(few_traces), "--out", str(tmp_path / "new") + "/"],
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "new") + "/"],
          "is a folder; a guide is files"),  # a folder name, not yet made
     ]:
         assert main(argv) == 2, argv
@@ -805,12 +805,14 @@ def test_a_truncated_normal_whose_bounds_open_later_is_refused_by_an_interval_he
         smc(model, SumTarget(0.0, 1.0), particles=4, seed=0, guide=guide)
 
 
+_TRAIN = ["guide", "train", "vines", "--traces", "nowhere"]
+
+
 @pytest.mark.parametrize("argv, said", [
-    (["guide", "train", "vines", "--traces", "nowhere", "--iterations", "0"], "--iterations must be a positive integer, got 0"),
-    (["guide", "train", "vines", "--traces", "nowhere", "--batch", "0"], "--batch must be a positive integer"),
-    (["guide", "train", "vines", "--traces", "nowhere", "--mixture", "0"], "--mixture must be a positive integer"),
-    (["guide", "train", "vines", "--traces", "nowhere", "--limit", "0"], "--limit must be a positive integer (the first traces to train on), "
-                                                  "got 0"),
+    (_TRAIN + ["--iterations", "0"], "--iterations must be a positive integer, got 0"),
+    (_TRAIN + ["--batch", "0"], "--batch must be a positive integer"),
+    (_TRAIN + ["--mixture", "0"], "--mixture must be a positive integer"),
+    (_TRAIN + ["--limit", "0"], "--limit must be a positive integer (the first traces to train on), got 0"),
     (["strings", "train", "nowhere", "--epochs", "0"], "--epochs must be a whole number from 1"),
     (["strings", "train", "nowhere", "--kl-weight", "-1"], "--kl-weight must be a finite number >= 0"),
 ])

@@ -442,9 +442,11 @@ def test_a_mesh_the_shapes_file_reaches_with_dotdot_is_refused_naming_the_file(t
     (tmp_path / "sub").mkdir()
     identity = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
     lifted = [[1, 0, 0, 0], [0, 1, 0, 1], [0, 0, 1, 0], [0, 0, 0, 1]]
-    shapes = {"format": "procmod-shapes/1", "parts": {"post": {"mesh": "../meshes/post.obj"}, "cap": {"box": [1, 1, 1]}},
+    parts = {"post": {"mesh": "../meshes/post.obj"}, "cap": {"box": [1, 1, 1]}}
+    shapes = {"format": "procmod-shapes/1", "parts": parts,
               "shapes": [{"nodes": [{"part": "post", "transform": identity}, {"part": "cap", "transform": lifted}]}]}
     (tmp_path / "sub" / "set.json").write_text(json.dumps(shapes))
     code, _, err = _run(capsys, "strings", "augment", str(tmp_path / "sub" / "set.json"), "--count", "2", "--out",
                         str(tmp_path / "a"))
-    assert code == 2 and f"{tmp_path / 'sub' / 'set.json'}: parts.post.mesh: \"../meshes/post.obj\" leads out" in err, err
+    said = f"{tmp_path / 'sub' / 'set.json'}: parts.post.mesh: \"../meshes/post.obj\" leads out"
+    assert code == 2 and said in err, err
