@@ -376,6 +376,18 @@ def test_whole_numbers_stay_whole_except_a_pictures_start_and_direction():
     counts = Model("counts", "", rule, lambda p: (), canvas, params={"counts": [3, 2]})
     with pytest.raises(InvalidArgumentError, match=r"parameter counts\[0\] must be an integer, got 2.5"):
         counts.configure(counts=[2.5, 2])  # (it reached range() in the model's code)
+    # a start of [1, 1] may be a grid cell: kept as written (widened at construction, it
+    # reached the model's range() as floats)
     placed = Model("placed", "", rule, lambda p: (), canvas, params={"start": [0, 1], "direction": [0, -1]})
-    assert placed.params == {"start": [0.0, 1.0], "direction": [0.0, -1.0]}
-    assert placed.configure(start=[0.375, 0.9], direction=[-0.05, -1.0]).params["direction"] == [-0.05, -1.0]
+    assert placed.params == {"start": [0, 1], "direction": [0, -1]}
+    # a picture places it with real numbers (they were refused as "must be an integer")
+    from procmod.core.model import placed_by_picture
+    moved = placed_by_picture(placed).configure(start=[0.375, 0.9], direction=[-0.05, -1.0])
+    assert moved.params == {"start": [0.375, 0.9], "direction": [-0.05, -1.0]}
+    # a namedtuple start keeps its kind (building one from a generator raised)
+    import collections
+    point = collections.namedtuple("Point", "x y")
+    named = Model("named", "", rule, lambda p: (), canvas, params={"start": point(0, 1)})
+    assert placed_by_picture(named).params["start"] == point(0.0, 1.0)
+    assert Model("np-named", "", rule, lambda p: (), canvas,
+                 params={"start": point(np.float64(0.5), 1.0)}).params["start"] == point(0.5, 1.0)

@@ -191,3 +191,32 @@ def test_overlapping_relaxed_gc_blocks_put_the_users_threshold_back():
     assert gc.get_threshold()[0] == 100_000  # the other still runs
     second.__exit__(None, None, None)
     assert gc.get_threshold() == before
+
+
+def test_a_worker_forked_while_the_gc_lock_is_held_does_not_wait_for_it():
+    # another thread inside relaxed_gc when a worker was forked: the child inherited the lock
+    # held, and its first relaxed_gc waited forever (an MCMC worker group hung)
+    import time
+
+    import procmod.core.limits as limits
+    limits._RELAXED_LOCK.acquire()
+    try:
+        pid = os.fork()
+        if pid == 0:  # the child: as a forked worker starts
+            try:
+                with limits.relaxed_gc():
+                    pass
+            finally:
+                os._exit(0)
+    finally:
+        limits._RELAXED_LOCK.release()
+    for _ in range(200):
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        pytest.fail("the forked child still waited for the lock after 10 s")
+    assert os.WEXITSTATUS(status) == 0

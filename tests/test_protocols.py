@@ -184,3 +184,17 @@ def test_an_output_neither_2d_nor_3d_is_refused_by_the_renderers_before_any_file
     assert not (tmp_path / "run").exists()
     with pytest.raises(InvalidArgumentError, match="cannot render"):
         derivation_image(result.best, 64)
+
+
+def test_methods_an_object_sets_on_itself_are_its_own():
+    # a delegating wrapper (self.score = inner.score) was refused as inheriting the
+    # protocol's empty methods
+    class Wrapped(Target):
+        name = "wrapped"
+
+        def __init__(self, inner):
+            for method in ("configure", "new_output", "score", "log_likelihood"):
+                setattr(self, method, getattr(inner, method))
+
+    result = ENGINES["smc"](MIX, Wrapped(SumTarget(1.0, 2.0)), particles=5, seed=0)
+    assert result.best is not None

@@ -119,3 +119,13 @@ def relaxed_gc(threshold: int = 100_000):
 _RELAXED_LOCK = threading.Lock()
 _relaxed_count = 0  # blocks of relaxed_gc running now, in any thread
 _threshold_before = gc.get_threshold()
+
+
+def _new_lock_in_child() -> None:
+    # a worker forked while another thread held the lock inherited it held, and waited forever
+    global _RELAXED_LOCK
+    _RELAXED_LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_in_child)

@@ -89,8 +89,8 @@ class Model:
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
     number a finite number, a list a list of as many items, each checked the same way.
-    The ``start`` and ``direction`` a picture target places (:func:`picture_placed`) are
-    real numbers however their defaults are written (``[0, 1]``, ``[0, -1]``).
+    (A picture target places ``start`` and ``direction`` as real numbers however their
+    defaults are written, ``[0, 1]``, ``[0, -1]``: :func:`placed_by_picture`.)
     """
 
     name: str
@@ -125,11 +125,6 @@ class Model:
         # np.int64, and a numpy default switched configure's checks of its type off
         if any(_has_numpy(value) for value in self.params.values()):
             object.__setattr__(self, "params", {name: _without_numpy(value) for name, value in self.params.items()})
-        # typed as integers, a picture's point and heading, and the runs that recorded them, were refused
-        placed = picture_placed(self.params)
-        if any(isinstance(v, int) for name in placed for v in self.params[name]):
-            object.__setattr__(self, "params", {**self.params, **{
-                name: type(self.params[name])(float(v) for v in self.params[name]) for name in placed}})
 
     def configure(self, **params) -> "Model":
         """Return a copy of the model with some parameters changed.
@@ -184,6 +179,26 @@ def picture_placed(params) -> tuple:
     return ("start", "direction") if _pair_of_numbers(params.get("direction")) else ("start",)
 
 
+def placed_by_picture(model: "Model") -> "Model":
+    """``model`` with the defaults :func:`picture_placed` names as real numbers, so that a
+    picture's point and heading (and a run that recorded them, read back) fit them: written
+    in whole numbers (``[0, 1]``, ``[0, -1]``) they typed the parameters as integers, and
+    the picture's values were refused. Other uses of the model keep its defaults as written
+    (a ``start`` of [1, 1] may be a grid cell)."""
+    placed = [name for name in picture_placed(model.params) if any(isinstance(v, int) for v in model.params[name])]
+    if not placed:
+        return model
+    return replace(model, params={**model.params, **{
+        name: _same_container(model.params[name], [float(v) for v in model.params[name]]) for name in placed}})
+
+
+def _same_container(value, items: list):
+    """``items`` in a container of ``value``'s kind (a list, a tuple, a namedtuple)."""
+    if isinstance(value, tuple):
+        return type(value)(*items) if hasattr(value, "_fields") else tuple(items)
+    return list(items)
+
+
 def _pair_of_numbers(value, within_unit: bool = False) -> bool:
     """Whether a parameter's default is two real numbers (each in [0, 1] if asked)."""
     if not isinstance(value, (list, tuple)) or len(value) != 2:
@@ -202,8 +217,7 @@ def _has_numpy(value) -> bool:
 def _without_numpy(value):
     """``value`` with its numpy numbers (and arrays) as Python's; lists and tuples kept."""
     if isinstance(value, (list, tuple)):
-        return type(value)(_without_numpy(item) for item in value) if type(value) in (list, tuple) else \
-            [_without_numpy(item) for item in value]
+        return _same_container(value, [_without_numpy(item) for item in value])
     return plain_value(value)
 
 

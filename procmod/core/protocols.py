@@ -223,7 +223,10 @@ def check_declared(obj, protocol, what: str) -> None:
             if lacking:
                 raise InvalidArgumentError(f"{what} ({name}) declares {capability} but has no "
                                            f"{', '.join(lacking)}")
-    empty = [m for m in _METHODS[protocol] if getattr(type(obj), m, None) is getattr(protocol, m)]
+    # what the object resolves (a method set on the instance, a wrapper's __getattr__): the
+    # protocol's own empty function only when nothing overrides it
+    empty = [m for m in _METHODS[protocol]
+             if getattr(getattr(obj, m, None), "__func__", None) is getattr(protocol, m)]
     if empty:
         raise InvalidArgumentError(f"{what} ({name}) does not define {', '.join(empty)} (it would inherit "
                                    f"procmod.core.{protocol.__name__}'s, which does nothing); define "
