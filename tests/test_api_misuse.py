@@ -380,14 +380,12 @@ def test_whole_numbers_stay_whole_except_a_pictures_start_and_direction():
     # reached the model's range() as floats)
     placed = Model("placed", "", rule, lambda p: (), canvas, params={"start": [0, 1], "direction": [0, -1]})
     assert placed.params == {"start": [0, 1], "direction": [0, -1]}
-    # a picture places it with real numbers (they were refused as "must be an integer")
-    from procmod.core.model import placed_by_picture
-    moved = placed_by_picture(placed).configure(start=[0.375, 0.9], direction=[-0.05, -1.0])
+    # they take a picture's real numbers (refused as "must be an integer"), and whole ones stay whole
+    moved = placed.configure(start=[0.375, 0.9], direction=[-0.05, -1.0])
     assert moved.params == {"start": [0.375, 0.9], "direction": [-0.05, -1.0]}
-    # a namedtuple start keeps its kind (building one from a generator raised)
+    assert placed.configure(start=[1, 0]).params["start"] == [1, 0]
+    # a namedtuple keeps its kind when its numpy numbers become Python's
     import collections
     point = collections.namedtuple("Point", "x y")
-    named = Model("named", "", rule, lambda p: (), canvas, params={"start": point(0, 1)})
-    assert placed_by_picture(named).params["start"] == point(0.0, 1.0)
-    assert Model("np-named", "", rule, lambda p: (), canvas,
-                 params={"start": point(np.float64(0.5), 1.0)}).params["start"] == point(0.5, 1.0)
+    named = Model("np-named", "", rule, lambda p: (), canvas, params={"start": point(np.float64(0.5), 1.0)})
+    assert named.params["start"] == point(0.5, 1.0) and isinstance(named.params["start"], point)

@@ -88,9 +88,10 @@ class Model:
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
-    number a finite number, a list a list of as many items, each checked the same way.
-    (A picture target places ``start`` and ``direction`` as real numbers however their
-    defaults are written, ``[0, 1]``, ``[0, -1]``: :func:`placed_by_picture`.)
+    number a finite number, a list a list of as many items, each checked the same way;
+    but the ``start`` and ``direction`` a picture target places (:func:`picture_placed`)
+    take real numbers however their defaults are written (``[0, 1]``, ``[0, -1]``), and
+    the defaults themselves stay as written (a ``start`` of [1, 1] may be a grid cell).
     """
 
     name: str
@@ -141,8 +142,12 @@ class Model:
                 f"model {self.name!r} has no parameter {shown_value(unknown[0])}; "
                 f"its parameters are: {', '.join(sorted(self.params)) or 'none'}")
         params = {name: plain_value(value) for name, value in params.items()}  # JSON values: saved with derivations
+        placed = picture_placed(self.params)
         for name, value in params.items():
-            _check_param(name, value, self.params[name], self.param_ranges.get(name))
+            default = self.params[name]
+            if name in placed:  # a picture's point and heading: real numbers however the default is written
+                default = [float(v) for v in default]
+            _check_param(name, value, default, self.param_ranges.get(name))
         merged = dict(self.params)
         merged.update({name: _like(value, self.params[name]) for name, value in params.items()})
         return replace(self, params=merged)
@@ -177,19 +182,6 @@ def picture_placed(params) -> tuple:
     if not _pair_of_numbers(params.get("start"), within_unit=True):
         return ()  # (a direction alone could be a world vector: y up, where the picture's is down)
     return ("start", "direction") if _pair_of_numbers(params.get("direction")) else ("start",)
-
-
-def placed_by_picture(model: "Model") -> "Model":
-    """``model`` with the defaults :func:`picture_placed` names as real numbers, so that a
-    picture's point and heading (and a run that recorded them, read back) fit them: written
-    in whole numbers (``[0, 1]``, ``[0, -1]``) they typed the parameters as integers, and
-    the picture's values were refused. Other uses of the model keep its defaults as written
-    (a ``start`` of [1, 1] may be a grid cell)."""
-    placed = [name for name in picture_placed(model.params) if any(isinstance(v, int) for v in model.params[name])]
-    if not placed:
-        return model
-    return replace(model, params={**model.params, **{
-        name: _same_container(model.params[name], [float(v) for v in model.params[name]]) for name in placed}})
 
 
 def _same_container(value, items: list):

@@ -27,7 +27,7 @@ from .errors import DerivationFormatError, InvalidArgumentError, ProcmodError, c
 # The file recipes live in .io; these names are kept here for the modules that import them
 # from serialize.
 from .io import check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
-from .model import Model, picture_placed, placed_by_picture
+from .model import Model
 from .runtime import Derivation, replay, rule_function
 
 FORMAT = "procmod-derivation/1"
@@ -185,12 +185,8 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
         raise _fail(source, f"was made by model {data['model']!r}, whose root rule is {stored_root}, but the model "
                             f"here, {model.name!r}, starts at {root_rule_id(model)}: {same}replay it with the model "
                             "that made it (load_derivation(path, lambda name: that_model); procmod render --model)")
-    params = data["params"]
-    if any(isinstance(v, float) for name in picture_placed(model.params) if isinstance(params.get(name), list)
-           for v in params[name]):
-        model = placed_by_picture(model)  # a run a picture placed recorded real numbers there
     try:
-        model = model.configure(**params)
+        model = model.configure(**data["params"])
     except ProcmodError as exc:
         raise _fail(source, str(exc)) from exc
     choices, index = {}, {}

@@ -19,7 +19,7 @@ from PIL import Image, UnidentifiedImageError
 
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.errors import cut_text
-from ..core.model import picture_placed, placed_by_picture
+from ..core.model import picture_placed
 from ..core.serialize import read_json
 
 # The largest picture procmod reads as a target: Pillow's own decompression-bomb limit
@@ -927,8 +927,7 @@ def place_model(model, image: TargetImage):
     over them, silently or refused as a value of the wrong kind the user never gave."""
     placed = picture_placed(model.params)
     values = {"start": image.start, "direction": image.direction}
-    return placed_by_picture(model).configure(**{name: [float(v) for v in values[name]] for name in placed}) \
-        if placed else model
+    return model.configure(**{name: [float(v) for v in values[name]] for name in placed}) if placed else model
 
 
 def out_of_bounds_penalty(canvas, oob_sigma: float | None) -> float:
