@@ -616,9 +616,17 @@ def _sigterm_as_interrupt():
             signal.signal(signal.SIGTERM, previous)
 
 
+_FULL = {code for code in (getattr(errno, "ENOSPC", None), getattr(errno, "EDQUOT", None)) if code is not None}
+
+
 def main(argv=None) -> int:
     """Entry point of the ``procmod`` console script; returns the exit status."""
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    for stream in (sys.stdout, sys.stderr):  # a file name's non-UTF-8 bytes printed as they are, not a traceback
+        try:
+            stream.reconfigure(errors="surrogateescape")
+        except (AttributeError, ValueError, OSError):  # a stream that is no text file (a test's capture)
+            pass
     try:
         with _sigterm_as_interrupt():
             args = _build_parser().parse_args(argv)
@@ -654,6 +662,9 @@ def main(argv=None) -> int:
         if line is None and isinstance(exc, OSError) and exc.errno == errno.ENAMETOOLONG:
             named = f" ({cut_text(str(exc.filename), 80)})" if exc.filename else ""
             line = f"a file name is too long for the file system{named}; give a shorter path"
+        if line is None and isinstance(exc, OSError) and exc.errno in _FULL:  # the run folder is left as it was
+            named = f" {cut_text(str(exc.filename), 80)}" if exc.filename else ""
+            line = f"cannot write{named}: {exc.strerror or 'the disk is full'}; free some space, or give --out elsewhere"
         if line is None:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)

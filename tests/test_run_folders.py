@@ -393,3 +393,61 @@ def test_a_learned_programs_samples_written_in_the_current_folder_name_the_progr
     assert _run(capsys, "sample", tmp_path / "program", "-n", "1", "--out", ".")[0] == 0
     code, _, err = _run(capsys, "render", "sample_000.json", "--out", "again.png")
     assert code == 0, err
+
+
+def test_an_empty_out_or_one_under_a_link_to_nothing_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    # --out "$UNSET" wrote the samples into the current folder; an --out under a dangling
+    # link (or a loop of links) failed with a FileExistsError traceback after the work
+    monkeypatch.chdir(tmp_path)
+    code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--size", "32", "--out", "")
+    assert code == 2 and "--out is empty" in err and list(tmp_path.iterdir()) == []
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    (tmp_path / "loopA").symlink_to(tmp_path / "loopB")
+    (tmp_path / "loopB").symlink_to(tmp_path / "loopA")
+    for parent in ("dangling", "loopA"):
+        code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--size", "32", "--out", tmp_path / parent / "x")
+        assert code == 2 and "a symbolic link to" in err and "Traceback" not in err, err
+
+
+def test_a_deleted_current_folder_does_not_stop_replacing_a_run(tmp_path, capsys, monkeypatch):
+    # Path.cwd() raised FileNotFoundError (a traceback) once the folder the shell was in was removed
+    out = tmp_path / "run"
+    assert _run(capsys, "sample", "vines", "-n", "1", "--size", "32", "--out", out)[0] == 0
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    code, _, err = _run(capsys, "sample", "vines", "-n", "1", "--size", "32", "--out", out)
+    assert code == 0, err
+
+
+def test_a_full_disk_is_one_line(tmp_path, capsys, monkeypatch):
+    import errno
+
+    import procmod.report
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "run" / "report.html"))
+    monkeypatch.setattr(procmod.report, "write_text_atomic", full)
+    code, _, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--particles", "3", "--size", "32", "--out",
+                        tmp_path / "run")
+    assert code == 2 and "No space left on device; free some space" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_file_name_of_bytes_that_are_not_utf8_is_written_not_a_traceback(tmp_path):
+    # b"\xff" in a name reaches text as a lone surrogate: report.html, the printed summary and
+    # a user model's module name failed with UnicodeEncodeError
+    import os
+    import shutil
+    import subprocess
+    import sys
+    odd = b"r\xff"
+    example = Path(__file__).resolve().parents[1] / "examples" / "custom_model.py"
+    shutil.copy(example, os.path.join(os.fsencode(tmp_path), odd + b".py"))
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    for argv in ([b"infer", b"vines", b"--target", b"glyph:a", b"--particles", b"3", b"--size", b"32", b"--out", odd],
+                 [b"sample", odd + b".py", b"-n", b"1", b"--size", b"32", b"--out", b"m"]):
+        run = subprocess.run([os.fsencode(sys.executable), b"-m", b"procmod", *argv], cwd=tmp_path, env=env,
+                             capture_output=True, timeout=300)
+        assert run.returncode == 0, run.stderr.decode("utf-8", "replace")[-2000:]
+    assert os.path.isfile(os.path.join(os.fsencode(tmp_path), odd, b"report.html"))

@@ -74,7 +74,10 @@ def open_atomic(path: str | os.PathLike, mode: str = "wb", fsync: bool = False) 
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, mode, **({"encoding": "utf-8"} if mode == "w" else {})) as handle:
+        # a file name of bytes that are not UTF-8 (b"\xff") reaches text as a lone surrogate;
+        # written back as those bytes, not a UnicodeEncodeError traceback
+        text = {"encoding": "utf-8", "errors": "surrogateescape"}
+        with os.fdopen(fd, mode, **(text if mode == "w" else {})) as handle:
             yield handle
             if fsync:
                 handle.flush()

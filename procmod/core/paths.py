@@ -30,7 +30,7 @@ import os
 import re
 from pathlib import Path, PurePosixPath, PureWindowsPath
 
-from .errors import ProcmodError, cut_text, shown_value
+from .errors import ProcmodError, argument, cut_text, shown_value
 from .file_formats import conversion_hint
 
 
@@ -207,7 +207,10 @@ def output_path(path: str | os.PathLike) -> Path:
     them (symbolic links before a ``..`` followed, missing folders dropped with their
     ``..``), relative when it was given relative: ``r1/r2/../../R`` is ``R``. The folders
     made for ``R`` are then ``R``'s own, never a stray ``r1/r2`` left outside it; a path
-    without ``..`` is returned as it is."""
+    without ``..`` is returned as it is. An empty one (``--out "$UNSET"``, which wrote into the
+    current folder) is refused."""
+    if not str(path).strip():
+        raise UnsafePathError(f"{argument('out')} is empty; give the folder or file to write")
     path = Path(path)
     if ".." not in path.parts:
         return path

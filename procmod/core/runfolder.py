@@ -186,8 +186,18 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
     return path
 
 
-def _holds(folder: Path, path: Path) -> bool:
+def _cwd() -> Path | None:
+    """The current folder, or None when it was deleted under the process (nothing lies in it)."""
+    try:
+        return Path.cwd()
+    except OSError:
+        return None
+
+
+def _holds(folder: Path, path: Path | None) -> bool:
     """True when ``path`` is ``folder`` or lies inside it (both resolved)."""
+    if path is None:
+        return False
     try:
         path.resolve().relative_to(folder.resolve())
         return True
@@ -222,9 +232,9 @@ class RunFolder:
 
     def __init__(self, path: str | os.PathLike, kind: RunKind, overwrite: bool = False, inputs=(),
                  option: str = "out"):
+        self.option = option = argument(option)
         self.path = output_path(path)  # "a/b/../../R" is R: no folders a/b made on the way
         self.kind = kind
-        self.option = option = argument(option)
         shown = cut_text(str(self.path))
         self._inputs = [item for item in inputs if item is not None]
         try:
@@ -237,6 +247,13 @@ class RunFolder:
         if not exists and self.path.is_symlink():  # a link to nothing: the run's last rename failed on it
             raise OutputLocationError(f"{option} {shown} is a symbolic link to {cut_text(os.readlink(self.path), 80)}, "
                                       "which does not exist; remove the link, make its folder, or give another folder")
+        for parent in self.path.parents:  # a folder to make that is a link to nothing failed after the work
+            if parent.exists():
+                break
+            if parent.is_symlink():
+                raise OutputLocationError(f"{option} {shown} lies under {cut_text(str(parent), 80)}, a symbolic link to "
+                                          f"{cut_text(os.readlink(parent), 80)}, which does not exist (or a loop of "
+                                          "links); remove the link, make its folder, or give another folder")
         self.replaces = is_dir and any(self.path.iterdir())
         if self.replaces:
             if not (overwrite or kind.recognises(self.path)):
@@ -247,7 +264,7 @@ class RunFolder:
                         f"restore it{' to resume' if kind.resumes else ''}, or pass "
                         f"{argument('overwrite=True')} to start over")
                 example = kind.foreign(self.path) or sorted(p.name for p in self.path.iterdir())[0]
-                if _holds(self.path, Path.cwd()):  # --overwrite cannot replace it: say only what works
+                if _holds(self.path, _cwd()):  # --overwrite cannot replace it: say only what works
                     raise OutputLocationError(
                         f"{option} {shown} is not empty and not an earlier {kind.name} (it holds "
                         f"{cut_text(example, 60)!r}), and it holds the current folder, which cannot be replaced: "
@@ -258,7 +275,7 @@ class RunFolder:
             # an earlier run a job resumes is kept: the files named by inputs are checked
             # when (and if) the folder is removed
             self._check_replaceable(named=not (kind.resumes and kind.recognises(self.path)))
-        self.in_place = self.path.exists() and _holds(self.path, Path.cwd())
+        self.in_place = self.path.exists() and _holds(self.path, _cwd())
         _probe_writable(_nearest_existing(self.path if self.in_place else self.path.parent), option, self.path)
         # a link is replaced, not its target, unless a resumable job writes through it
         through_link = self.path.is_symlink() and kind.resumes and kind.recognises(self.path)
@@ -271,7 +288,7 @@ class RunFolder:
 
     def _check_replaceable(self, named: bool = True) -> None:
         shown = cut_text(str(self.path))
-        for protected, what in ((Path.cwd(), "the current folder"), (Path.home(), "your home folder")):
+        for protected, what in ((_cwd(), "the current folder"), (Path.home(), "your home folder")):
             if _holds(self.path, protected):
                 raise OutputLocationError(f"{self.option} {shown} holds {what}; it cannot be replaced: give "
                                           "a new or empty folder")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import os
 import re
 import sys
 import traceback
@@ -101,7 +102,7 @@ _FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE
 def _run_module(path: Path):
     """``path`` run as a module of its own (once per process and file)."""
     resolved = path.resolve()
-    digest = hashlib.sha256(str(resolved).encode()).hexdigest()[:12]
+    digest = hashlib.sha256(os.fsencode(resolved)).hexdigest()[:12]  # (a name's non-UTF-8 bytes too)
     module_name = f"procmod_user_{re.sub(r'[^0-9A-Za-z_]', '_', path.stem)}_{digest}"
     if module_name in sys.modules:
         return sys.modules[module_name]
