@@ -122,6 +122,14 @@ class HistoryRow(NamedTuple):
 ROWS_PER_DOUBLING = 16
 
 
+def best_first(score: float, log_likelihood: float) -> tuple:
+    """The key that ranks complete derivations, best last: by score, after every one the
+    target allows (one it rules out, log-likelihood -inf, such as a proxy target's ship
+    whose parts intersect, which its score does not see). Tracker.offer, the SMC worker
+    shards and the GA's ranking all rank so."""
+    return (log_likelihood != -math.inf, score)
+
+
 class Tracker:
     """Keeps time, counts evaluations, remembers the best complete derivation, and records
     the anytime history.
@@ -204,7 +212,7 @@ class Tracker:
 
     def better(self, score: float, log_likelihood: float = 0.0) -> bool:
         """Whether :meth:`offer` would take a derivation of this score and log-likelihood."""
-        return (log_likelihood != -math.inf, score) > (not self.best_ruled_out, self.best_score)
+        return best_first(score, log_likelihood) > (not self.best_ruled_out, self.best_score)
 
     def notes(self) -> list:
         """What a result should say of its best (:data:`RULED_OUT_NOTE`)."""

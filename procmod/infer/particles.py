@@ -32,7 +32,7 @@ import signal
 
 from ..core.errors import ModelError, ProcmodError
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
-from .common import checked_value
+from .common import best_first, checked_value
 from ..parallel import lost_worker_error
 
 _ATOMS = (int, float, str, bytes, bool, type(None))
@@ -255,8 +255,8 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
     best = [-math.inf, None, False]  # score, derivation, whether the target allows it (Tracker.offer)
 
     def offer(derivation, score, log_likelihood=0.0):
-        allowed = log_likelihood != -math.inf
-        if (allowed, score) > (best[2], best[0]):
+        allowed, _ = key = best_first(score, log_likelihood)
+        if key > (best[2], best[0]):
             best[:] = [score, derivation, allowed]
 
     shard.offer = offer

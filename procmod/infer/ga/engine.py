@@ -11,8 +11,8 @@ from ...core.errors import argument
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
 from ...core.errors import check_real
-from ..common import (Budget, Result, Scored, Tracker, check_population, check_positive, check_run, configured_model,
-                      new_seed, recorded_seed)
+from ..common import (Budget, Result, Scored, Tracker, best_first, check_population, check_positive, check_run,
+                      configured_model, new_seed, recorded_seed)
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
@@ -193,10 +193,9 @@ def breed(pop: list, genomes: Genomes, rng, *, n_elite: int, k: int, mutation: f
 
 
 def _rank(ind: Scored) -> tuple:
-    """Best first by score, after every individual the target allows: one it rules out
-    (log-likelihood -inf: parts that intersect, which a proxy target's score does not see)
-    is never an elite, nor the best-ranked entrant of a tournament."""
-    return (ind.log_likelihood != -math.inf, ind.score)
+    """:func:`best_first` of an individual: one the target rules out is never an elite, nor
+    the best-ranked entrant of a tournament."""
+    return best_first(ind.score, ind.log_likelihood)
 
 
 def _record(tracker: Tracker, pop: list) -> None:
