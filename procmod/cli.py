@@ -664,7 +664,13 @@ def main(argv=None) -> int:
             line = f"a file name is too long for the file system{named}; give a shorter path"
         if line is None and isinstance(exc, OSError) and exc.errno in _FULL:  # the run folder is left as it was
             named = f" {cut_text(str(exc.filename), 80)}" if exc.filename else ""
-            line = f"cannot write{named}: {exc.strerror or 'the disk is full'}; free some space, or give --out elsewhere"
+            gave_out = any(a == "--out" or a.startswith("--out=") for a in argv)
+            if exc.filename:  # a file of the run's
+                where = ", or give --out elsewhere" if gave_out else ""
+            else:  # a handle's write: a file of the run's, or what the command prints (> /dev/full)
+                where = (" where it is written (the --out folder, or where the printed output goes)" if gave_out
+                         else ", or send the printed output elsewhere")
+            line = f"cannot write{named}: {exc.strerror or 'the disk is full'}; free some space{where}"
         if line is None:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)

@@ -97,6 +97,12 @@ def inputs(tmp_path_factory):
                                    .replace('"size": 0', '"size": 1' + "0" * 5000))
     if hasattr(os, "mkfifo"):
         os.mkfifo(d / "pipe.json")
+    try:  # links round in a loop, and a link to nothing (Path.exists() says False to both)
+        os.symlink("loop_b.png", d / "loop_a.png")
+        os.symlink("loop_a.png", d / "loop_b.png")
+        os.symlink("nothing.png", d / "dangling.png")
+    except (OSError, NotImplementedError):  # no links here (Windows without the privilege)
+        pass
     shutil.copytree(SETS.parent / "learn" / "castles", d / "nan_castles")
     (d / "nan_castles" / "parts" / "tower.obj").write_text("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     (d / "traces").mkdir()
@@ -199,6 +205,10 @@ CASES = [
     ("target-spec-typo", ["infer", "vines", "--target", "glyh:a", "--out", "{o}"], "unknown target spec 'glyh:a'"),
     ("target-spec-long-with-colon", ["infer", "vines", "--target", "a" * 300 + ":x", "--out", "{o}"],
      "unknown target spec"),
+    ("target-link-loop", ["infer", "vines", "--target", "{i}/loop_a.png", "--out", "{o}"],
+     "loop_a.png is a symbolic link to nothing"),
+    ("target-link-dangling", ["infer", "vines", "--target", "{i}/dangling.png", "--out", "{o}"],
+     "dangling.png is a symbolic link to nothing"),
     ("target-circuit-mirrored", ["infer", "vines", "--target", "circuit:mirrored", "--out", "{o}"],
      "has no mirrored copy"),
     ("size-flag-named", ["infer", "vines", "--target", "glyph:a", "--size", "100000", "--out", "{o}"],
@@ -220,6 +230,8 @@ def test_refused_in_one_line_leaving_nothing(inputs, tmp_path, capsys, monkeypat
         pytest.skip("no /proc on this system")
     if any("pipe.json" in str(a) for a in argv) and not (inputs / "pipe.json").exists():
         pytest.skip("no FIFOs on this system")
+    if any("loop_a" in str(a) or "dangling" in str(a) for a in argv) and not (inputs / "loop_a.png").is_symlink():
+        pytest.skip("no symbolic links on this system")
 
     def engine_must_not_run(*args, **kwargs):
         raise AssertionError("the engine ran before the refusal")

@@ -2,6 +2,7 @@
 
 import os
 import pickle
+import shutil
 
 import numpy as np
 import pytest
@@ -189,3 +190,25 @@ def test_json_files_with_a_byte_order_mark_or_of_absurd_size(tmp_path, monkeypat
     monkeypatch.setattr(io_module, "MAX_JSON_BYTES", 10)
     with pytest.raises(Refused, match=r"job.json is 30 B, more than procmod reads as JSON \(10 B\)"):
         read_versioned_json(path, "procmod-x/1", Refused)
+
+
+def test_a_name_near_the_file_systems_limit_is_written_whole(tmp_path):
+    """The hidden temporary beside a file or run folder (``.NAME.XXXXXXXX.tmp``) is 14
+    bytes longer than NAME: a name the file system takes was refused because of it."""
+    from procmod.core.runfolder import SAMPLE_RUN, RunFolder
+
+    name_max = os.pathconf(tmp_path, "PC_NAME_MAX")
+    for name in ("a" * name_max, "é" * (name_max // 2)):  # bytes, not characters, are counted
+        path = tmp_path / name
+        write_text_atomic(path, "whole\n")
+        assert path.read_text() == "whole\n"
+        path.unlink()
+
+        folder = RunFolder(tmp_path / name[:-1], SAMPLE_RUN)
+        with folder.writing() as out:
+            (out / "summary.json").write_text("{}")
+        with RunFolder(tmp_path / name[:-1], SAMPLE_RUN, overwrite=True).writing() as out:  # replaced: .old
+            (out / "summary.json").write_text('{"again": 1}')
+        assert (tmp_path / name[:-1] / "summary.json").read_text() == '{"again": 1}'
+        assert sorted(p.name for p in tmp_path.iterdir()) == [name[:-1]]  # no temporary left
+        shutil.rmtree(tmp_path / name[:-1])

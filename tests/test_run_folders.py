@@ -2,6 +2,7 @@
 failure leaves nothing half-written (procmod.core.runfolder and the commands using it)."""
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -9,6 +10,8 @@ import pytest
 import procmod.infer
 from procmod.cli import main
 from procmod.core.runfolder import INFER_RUN, SAMPLE_RUN, OutputLocationError, RunFolder
+
+ROOT = Path(__file__).resolve().parents[1]
 
 SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 
@@ -430,8 +433,22 @@ def test_a_full_disk_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(procmod.report, "write_text_atomic", full)
     code, _, err = _run(capsys, "infer", "vines", "--target", "glyph:a", "--particles", "3", "--size", "32", "--out",
                         tmp_path / "run")
-    assert code == 2 and "No space left on device; free some space" in err and err.count("\n") == 1, err
-    assert not (tmp_path / "run").exists()
+    assert code == 2 and "No space left on device; free some space, or give --out elsewhere" in err, err
+    assert err.count("\n") == 1 and not (tmp_path / "run").exists()
+
+
+def test_a_full_printed_output_is_one_line_that_does_not_name_a_missing_option(tmp_path):
+    # procmod models > /dev/full: the advice had been to give --out elsewhere, an option it has not
+    import subprocess
+    import sys
+
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full on this system")
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-m", "procmod", "models"], stdout=full, stderr=subprocess.PIPE,
+                              text=True, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 2 and "--out" not in done.stderr and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.count("\n") == 1 and "send the printed output elsewhere" in done.stderr
 
 
 def test_a_file_name_of_bytes_that_are_not_utf8_is_written_not_a_traceback(tmp_path):

@@ -101,6 +101,16 @@ def test_circuit_is_incremental_and_prefers_half_fill():
     assert circuit.score(stripes) == pytest.approx(0.9) and circuit.score(solid) == 0.0
 
 
+def test_a_picture_named_like_a_built_in_target_is_named_as_a_path(tmp_path):
+    """settings.json and the report name a target by its name: a picture file named
+    ``circuit`` had been recorded as the built-in circuit target."""
+    mask = np.zeros((30, 30), np.uint8)
+    mask[5:25, 12:18] = 255
+    for name in ("circuit", "glyph:a", "bar.png"):
+        Image.fromarray(mask).save(tmp_path / name, format="PNG")
+        assert load_target_image(tmp_path / name).name == (name if name == "bar.png" else f"./{name}")
+
+
 def test_target_files_and_sidecars(tmp_path):
     mask = np.zeros((60, 40), bool)
     mask[10:50, 15:25] = True

@@ -50,6 +50,25 @@ _UMASK = _current_umask()
 
 # ---- atomic writes -----------------------------------------------------------------------------
 
+# what tempfile adds to a prefix: 8 random characters, then the suffix (".tmp", ".old")
+_TEMPORARY_EXTRA = 8 + len(".tmp")
+_NAME_MAX_FALLBACK = 255  # bytes a file name may hold on the common file systems
+
+
+def hidden_temporary_prefix(path: Path) -> str:
+    """The prefix of a hidden temporary beside ``path`` (``.NAME.``, for ``tempfile``'s
+    ``prefix=``), with NAME shortened where the whole temporary name would be longer
+    than the file system allows: a name a few characters under the limit is the user's
+    to give, and had been refused because of a file they never asked for."""
+    try:
+        name_max = os.pathconf(path.parent, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):  # a folder not made yet, or no pathconf (Windows)
+        name_max = _NAME_MAX_FALLBACK
+    room = name_max - len(b"..") - _TEMPORARY_EXTRA
+    # counted in bytes, as the file system counts; a cut through a character leaves bytes a
+    # file name may hold all the same (os.fsdecode keeps them as they are)
+    return f".{os.fsdecode(os.fsencode(path.name)[:max(room, 1)])}."
+
 @contextlib.contextmanager
 def open_atomic(path: str | os.PathLike, mode: str = "wb", fsync: bool = False) -> Iterator:
     """A file handle whose contents replace ``path`` when the ``with`` block ends.
@@ -72,7 +91,7 @@ def open_atomic(path: str | os.PathLike, mode: str = "wb", fsync: bool = False) 
     if mode not in ("wb", "w"):
         raise ValueError(f"open_atomic writes in mode 'wb' or 'w', not {mode!r}")
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=hidden_temporary_prefix(path), suffix=".tmp", dir=path.parent)
     try:
         # a file name of bytes that are not UTF-8 (b"\xff") reaches text as a lone surrogate;
         # written back as those bytes, not a UnicodeEncodeError traceback

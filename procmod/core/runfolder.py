@@ -46,6 +46,7 @@ from typing import Callable, Iterator
 from urllib.parse import unquote
 
 from .errors import InvalidArgumentError, argument, cut_text
+from .io import hidden_temporary_prefix
 from .paths import named_files_read, output_path
 
 
@@ -325,7 +326,7 @@ class RunFolder:
                 raise
             return
         created = self._make_parents()
-        tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent))
+        tmp = Path(tempfile.mkdtemp(prefix=hidden_temporary_prefix(self.path), suffix=".tmp", dir=self.path.parent))
         try:
             os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700 folders
             yield tmp
@@ -370,7 +371,7 @@ class RunFolder:
         if not self.path.exists():
             os.rename(tmp, self.path)
             return
-        old = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".old", dir=self.path.parent))
+        old = Path(tempfile.mkdtemp(prefix=hidden_temporary_prefix(self.path), suffix=".old", dir=self.path.parent))
         try:
             os.rename(self.path, old / "run")
         except OSError as exc:  # made read-only since the check at the start

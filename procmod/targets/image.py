@@ -893,6 +893,9 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     except (OSError, ValueError):  # a name too long to look up
         exists = False
     if not exists:
+        if _is_link_quietly(path):  # exists() follows links: a dangling link or a loop reads as missing
+            raise TargetFileError(f"target file {cut_text(str(path))} is a symbolic link to nothing (its target is "
+                                  "missing, or the links lead round in a loop); point it at the picture") from None
         raise TargetFileError(f"target file {cut_text(str(path))} does not exist") from None
     image = open_image(path, square=True)
     shape = (image.height, image.width)
@@ -913,8 +916,25 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         placement = {"start": start, "direction": direction, **placement}
     elif "direction" not in placement:  # a start of the user's own: grow up the picture from it
         placement["direction"] = (0.0, -1.0)
-    return TargetImage(path.name, mask, tuple(placement["start"]), tuple(placement["direction"]),
+    return TargetImage(_picture_name(path), mask, tuple(placement["start"]), tuple(placement["direction"]),
                        picture=picture_in_square(*shape))
+
+
+def _is_link_quietly(path: Path) -> bool:
+    try:
+        return path.is_symlink()
+    except (OSError, ValueError):
+        return False
+
+
+def _picture_name(path: Path) -> str:
+    """A picture's name in reports and ``settings.json``: its file name, written as a
+    path (``./circuit``) where the bare name is a built-in target's spec (a picture file
+    named ``circuit`` or ``glyph:a`` had been recorded as the built-in target)."""
+    name = path.name
+    if name == "circuit" or name.startswith(("circuit:", "glyph:", "scribble:")):
+        return f"./{name}"
+    return name
 
 
 def place_model(model, image: TargetImage):
