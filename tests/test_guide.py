@@ -368,7 +368,11 @@ def test_a_checkpoint_resumes_only_on_its_own_traces_and_whole(few_traces, tmp_p
 
 
 @pytest.mark.parametrize("edit, message", [
-    (lambda t: t["derivation"]["choices"][0].__setitem__(2, "abc"), "trace_00001.json is damaged"),
+    (lambda t: t["derivation"]["choices"][0].__setitem__(2, "abc"), "trace_00001.json: its choice 'angle' at / is "
+                                                                    "\"abc\", which its Normal cannot draw"),
+    # replayed, a NaN reached the geometry and was blamed on the rule's arithmetic
+    (lambda t: t["derivation"]["choices"][0].__setitem__(2, float("nan")), "trace_00001.json: its choice 'angle' at "
+                                                                           "/ is NaN, which its Normal cannot draw"),
     (lambda t: t["derivation"].pop("params"), "trace_00001.json is damaged .it lacks 'params'"),
     (lambda t: t.__setitem__("derivation", [1, 2]), "trace_00001.json is damaged"),
     (lambda t: t["derivation"]["choices"][0].__setitem__(2, 10 ** 400), "trace_00001.json"),

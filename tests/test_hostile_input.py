@@ -65,7 +65,7 @@ def inputs(tmp_path_factory):
     assert main(["sample", "vines", "-n", "1", "--size", "16", "--out", str(d / "s")]) == 0
     derivation = json.loads((d / "s" / "sample_000.json").read_text())
     for name, params in {"size_huge": {"size": 10 ** 9}, "leaves_yes": {"leaves": "yes"},
-                         "start_nan": {"start": [float("nan"), 0.5]}}.items():
+                         "start_nan": {"start": [float("nan"), 0.5]}, "start_huge": {"start": [1e308, 0.5]}}.items():
         (d / f"{name}.json").write_text(json.dumps(dict(derivation, params=dict(derivation["params"], **params))))
     _silhouette(d, "sil_fov0.json", camera_fov=0)
     _silhouette(d, "sil_fov_persp.json", camera_projection="perspective", camera_fov=180)
@@ -160,6 +160,8 @@ CASES = [
      "leaves_yes.json: parameter leaves must be true or false, got \"yes\""),
     ("params-start-nan", ["render", "{i}/start_nan.json", "--out", "{o}.png"],
      "start_nan.json: parameter start[0] must be a finite number"),
+    ("params-start-huge", ["render", "{i}/start_huge.json", "--out", "{o}.png"],  # was blamed on the rule
+     "start_huge.json: parameter start[0] must be between -10.0 and 10.0, got 1e+308"),
     ("guide-mixture-huge", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/bigmix", "--out", "{o}"],
      "bigmix.json: mixture must be"),
     ("guide-malicious", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/evil", "--out", "{o}"],

@@ -25,6 +25,7 @@ from ..core.distributions import Normal, TruncatedNormal
 from ..core.errors import cut_text, shown_value, whole_number
 from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from ..core.limits import check_memory
+from ..core.choicemap import format_address
 from ..core.runtime import rule_name
 from .fast import guided_draw, pack_site, site_outputs
 from .features import (HEADING, SOURCES, FeatureExtractor, FeatureSettings, GuideError, Pyramid, check_same_size,
@@ -567,9 +568,17 @@ class RecordingProposer:
     def propose(self, ctx, name, dist, rng):
         key = (ctx.address, name)
         if key not in self.choices:
-            raise GuideError(f"trace has no value for choice {name!r} at {ctx.address}; "
-                             "was it made by another version of the model?")
+            raise GuideError(f"it has no value for choice {cut_text(name, 60)!r} at {format_address(ctx.address)}: it "
+                             "was made by another version of the model, or edited")
         value = self.choices[key]
+        try:
+            takes = dist.log_prob(value) > -math.inf  # NaN: False
+        except (TypeError, ValueError, OverflowError):  # another type (a string for a Normal)
+            takes = False
+        if not takes:  # replayed, it reached the geometry, and was blamed on the rule's arithmetic
+            raise GuideError(f"its choice {cut_text(name, 60)!r} at {format_address(ctx.address)} is "
+                             f"{shown_value(value)}, which its {type(dist).__name__} cannot draw (not a number, "
+                             "outside its range, or another type): the trace was edited")
         kind = head_kind(dist)
         rule = rule_name(ctx.rule)
         self.rows.append((site_key(rule, name), kind,

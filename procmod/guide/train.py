@@ -70,7 +70,7 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     """Replay one trace and return its per-choice training rows."""
     d = trace["derivation"]
     if d.get("model") != model.name:
-        raise GuideError(f"trace {trace.get('index')} is of model {d.get('model')!r}, not {model.name!r}")
+        raise GuideError(f"{_trace_name(trace)} is of model {d.get('model')!r}, not {model.name!r}")
     configured = model.configure(**d["params"])
     choices = {(tuple(address), name): value for address, name, value in d["choices"]}
     spec = trace["target"]
@@ -84,11 +84,17 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     recorder = RecordingProposer(choices, extractor)
     state = start(configured)
     state.proposer = recorder
-    finish(state, np.random.default_rng(0))
+    try:
+        finish(state, np.random.default_rng(0))
+    except GuideError as exc:  # the recorder's: a choice the trace lacks, or holds a value it cannot take
+        raise GuideError(f"{_trace_name(trace)}: {exc}{_RERUN}") from None
     if len(recorder.rows) != len(choices) or not math.isclose(state.log_prior, d["log_prior"], abs_tol=1e-6):
-        raise GuideError(f"trace {trace.get('index')} does not replay under model {model.name!r}; "
-                         "was it made by another version of the model?")
+        raise GuideError(f"{_trace_name(trace)} does not replay under model {model.name!r}: it was made "
+                         f"by another version of the model, or edited{_RERUN}")
     return recorder.rows
+
+
+_RERUN = "; delete it and rerun the traces job (procmod guide traces makes it again)"
 
 
 def _trace_name(trace) -> str:
@@ -101,7 +107,7 @@ def _checked_rows(model, trace, settings: FeatureSettings, masks: dict) -> list:
     """:func:`trace_rows`, a damaged or edited trace named with what to do."""
     from ..core.errors import ProcmodError
 
-    advice = "; delete it and rerun the traces job (procmod guide traces makes it again)"
+    advice = _RERUN
     try:
         if not isinstance(trace.get("derivation"), dict):
             raise ValueError("its 'derivation' is not a JSON object")

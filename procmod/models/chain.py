@@ -25,7 +25,7 @@ import math
 
 from ..core import Model, Normal
 from ..geometry import Segment
-from .frame import SIZE_RANGES, heading, new_canvas, to_world
+from .frame import FRAME_RANGES, heading, new_canvas, to_world
 
 LENGTH = 2.0
 WIDTH = 0.6
@@ -57,7 +57,7 @@ MODEL = Model(
     root_args=_root_args,
     new_output_from=new_canvas,
     params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50},
-    param_ranges=SIZE_RANGES,
+    param_ranges=FRAME_RANGES,
     rules=(chain,),
     choices_doc=__doc__,
     arg_ranges={"chain": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, MAX_SEGMENTS))},

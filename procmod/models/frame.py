@@ -15,7 +15,11 @@ from ..geometry import Viewport
 VIEWPORT = Viewport(-12.0, 12.0, -22.0, 2.0)
 DEFAULT_SIZE = 50
 # Bounds Model.configure checks (a 10^9-pixel canvas is refused, not allocated).
-SIZE_RANGES = {"size": (1, 4096), "min_radius_px": (0.0, 10.0)}
+# the picture-frame models' parameters: a canvas's pixels a machine holds; a start in the
+# picture's normalised coordinates, allowed a few frames outside it (a vine growing in from
+# off the picture) but not so far that the world coordinates overflow (start 1e308 had been
+# blamed on the rule's arithmetic, as an infinite segment)
+FRAME_RANGES = {"size": (1, 4096), "min_radius_px": (0.0, 10.0), "start": (-10.0, 10.0)}
 
 
 def to_world(point) -> tuple:

@@ -22,7 +22,7 @@ import math
 
 from ..core import GaussianMixture, Model, Normal, TruncatedNormal
 from ..geometry import Segment
-from .frame import SIZE_RANGES, heading, new_canvas, to_world
+from .frame import FRAME_RANGES, heading, new_canvas, to_world
 
 INITIAL_WIDTH = 0.6
 WIDTH_DECAY = 0.97
@@ -72,7 +72,7 @@ MODEL = Model(
     root_args=_root_args,
     new_output_from=new_canvas,
     params={"start": [0.5, 0.04], "direction": [0.0, 1.0], "size": 50},
-    param_ranges=SIZE_RANGES,
+    param_ranges=FRAME_RANGES,
     rules=(bolt, fork),
     choices_doc=__doc__,
     arg_ranges={"bolt": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, INITIAL_WIDTH),

@@ -40,7 +40,7 @@ import math
 
 from ..core import Bernoulli, Categorical, Model, Normal
 from ..geometry import Disc, Segment, leaf
-from .frame import SIZE_RANGES, heading, new_canvas, to_world
+from .frame import FRAME_RANGES, heading, new_canvas, to_world
 
 LENGTH = 2.0
 INITIAL_WIDTH = 0.75
@@ -99,7 +99,7 @@ MODEL = Model(
     root_args=_root_args,
     new_output_from=new_canvas,
     params={"start": [0.5, 0.9166], "direction": [0.0, -1.0], "size": 50, "leaves": True, "min_radius_px": 0.0},
-    param_ranges=SIZE_RANGES,
+    param_ranges=FRAME_RANGES,
     rules=(branch, second_branch),
     choices_doc=__doc__,
     # x, y, parent_angle, spread, width, leaves: for the local-state features of guides
