@@ -515,7 +515,9 @@ def _cmd_infer(args) -> None:
         shared = kwargs.get(wanted)
         why = (f": a worker steps {wanted} of its own, and there {'was' if shared == 1 else 'were'} {shared}"
                if isinstance(shared, int) and shared <= used else "")
-        print(f"note: --workers {args.workers} ran on {used}{why}", file=sys.stderr)
+        workers_note = f"--workers {args.workers} ran on {used}{why}"
+        print(f"note: {workers_note}", file=sys.stderr)
+        result.notes.append(workers_note)  # in settings.json and the report, beside the command that asked more
     if note is not None:
         result.notes.append(note)  # in the report too, beside the result it explains
     with folder.writing() as tmp:

@@ -12,6 +12,7 @@ import numpy as np
 from PIL import Image
 
 from .core import save_derivation, write_text_atomic
+from .core.io import standard_json
 from .core.serialize import derivation_to_dict
 from .core.protocols import Target, check_declared
 from .chart import COLOURS, Series, line_chart_svg
@@ -155,7 +156,9 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
         "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,
         "settings": result.settings, "notes": result.notes, "command": command,
     }
-    write_text_atomic(out / "settings.json", json.dumps(summary, indent=1, default=_json_setting) + "\n")
+    # standard JSON (a -inf is null; the report's page and notes say what it was)
+    write_text_atomic(out / "settings.json", json.dumps(standard_json(summary), indent=1, default=_json_setting)
+                      + "\n")
     caption = target_caption if (out / "target.png").exists() else None
     viewer = run_viewer_html(out / "best.glb", target) if ".glb" in extra else ""
     write_text_atomic(out / "report.html", _report_html(summary, caption, extra, mean_meaning(result.engine),

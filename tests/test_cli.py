@@ -390,7 +390,10 @@ def test_fewer_workers_than_asked_is_said(tmp_path, capsys):
     """--particles 1 --workers 2 ran on one process without a word (settings.json only)."""
     assert main(["infer", "vines", "--target", "glyph:a", "--particles", "1", "--workers", "2",
                  "--out", str(tmp_path / "r")]) == 0
-    assert "note: --workers 2 ran on 1: a worker steps particles of its own, and there was 1" in capsys.readouterr().err
+    said = "--workers 2 ran on 1: a worker steps particles of its own, and there was 1"
+    assert f"note: {said}" in capsys.readouterr().err
+    # recorded too, beside the command line that asked for 2 (settings.json had only "workers": 1)
+    assert said in json.loads((tmp_path / "r" / "settings.json").read_text())["notes"]
 
 
 def test_sample_of_a_3d_model_names_its_page_and_a_programs_page_hides_its_path(tmp_path, capsys):

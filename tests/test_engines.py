@@ -186,6 +186,7 @@ def test_the_tracker_takes_an_allowed_best_over_a_higher_scoring_ruled_out_one()
     tracker.offer("ruled out", 0.9, -math.inf)
     assert tracker.best == "ruled out" and tracker.notes()
     tracker.record(0.0)
+    tracker.evaluations += 1  # (a row a count: a second record at the same count replaces the first)
     tracker.offer("allowed", 0.5, -3.0)
     tracker.record(0.0)
     # the history's best so far is the best allowed: it had fallen from 0.9 to 0.5
@@ -398,6 +399,42 @@ def test_a_requested_stop_ends_an_engine_at_its_next_budget_check():
     for engine, kw in (("ga", {"population": 10}), ("mcmc", {"chains": 2}), ("smc", {"particles": 10})):
         r = ENGINES[engine](model, target, seed=0, budget=Budget(generations=10 ** 6), progress=stop_at_once, **kw)
         assert r.best is not None and r.evaluations < 1000
+
+
+def test_smc_under_a_budget_pools_the_runs_and_returns_a_living_runs_samples(monkeypatch):
+    # A run whose every particle died, after one that lived, had made the whole result's
+    # log Z -inf, its note "every particle reached zero likelihood" and its samples dead.
+    import sys
+    smc_module = sys.modules["procmod.infer.smc"]
+    real_run_once = smc_module._run_once
+    runs = []
+
+    def second_run_dies(*args, **kwargs):
+        states, log_w, log_z = real_run_once(*args, **kwargs)
+        if len(runs) % 2 == 1:
+            log_w, log_z = np.full(len(log_w), -np.inf), -math.inf
+        runs.append((states, log_z))
+        return states, log_w, log_z
+
+    monkeypatch.setattr(smc_module, "_run_once", second_run_dies)
+    model, target = get_model("vines"), _bar_target()
+    r = ENGINES["smc"](model, target, particles=4, seed=0, budget=Budget(generations=2))
+    assert len(runs) == 2 and math.isfinite(runs[0][1])
+    assert r.samples == runs[0][0] and np.all(np.isfinite(r.log_weights))  # the run that lived
+    assert r.log_marginal_likelihood == pytest.approx(runs[0][1] + math.log(0.5))  # mean of Z and 0
+    assert not any("zero likelihood" in note for note in r.notes)
+    runs.clear()
+    r = ENGINES["smc"](model, target, particles=4, seed=0, budget=Budget(generations=3))  # alive, dead, alive
+    assert len(runs) == 3 and r.samples == runs[2][0]  # the last that lived
+    assert r.log_marginal_likelihood == pytest.approx(np.logaddexp(runs[0][1], runs[2][1]) - math.log(3))
+
+
+@pytest.mark.parametrize("engine, kw", [("mcmc", {"chains": 2}), ("smc", {"particles": 5}), ("ga", {"population": 6})])
+def test_history_has_one_row_an_evaluation_count(engine, kw):
+    # MCMC wrote its last row twice (history.csv: the same count and scores on two lines)
+    r = ENGINES[engine](get_model("vines"), _bar_target(), seed=0, budget=Budget(generations=1), **kw)
+    counts = [row.evaluations for row in r.history]
+    assert counts and counts == sorted(set(counts)), counts
 
 
 def test_once_per_process_runs_its_load_once_even_when_the_load_calls_it_again():

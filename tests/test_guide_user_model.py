@@ -150,6 +150,28 @@ def test_a_traces_folder_resumes_past_the_users_files_and_overwrite_removes_its_
     assert json.loads((tmp_path / "tr" / "traces.json").read_text())["seed"] == 5
 
 
+def test_a_traces_job_does_not_resume_on_an_edited_model(tmp_path, monkeypatch, capsys):
+    """Resumed after an edit of the model file, a job mixed the old traces with new ones, and
+    training refused them one by one. A job file of before the digest still resumes."""
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    traces = ["guide", "traces", "plants.py:PLANT", "--particles", "4", "--workers", "1", "--out", "tr"]
+    assert main([*traces, "--count", "2"]) == 0, capsys.readouterr().err
+    job = json.loads((tmp_path / "tr" / "traces.json").read_text())
+    (tmp_path / "plants.py").write_text(PLANT_FILE.replace("x1, y1 = x + 2", "x1, y1 = x + 2.5"))
+    capsys.readouterr()
+    assert main([*traces, "--count", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "as its code was before an edit" in err and "--overwrite" in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in (tmp_path / "tr").iterdir()) == ["trace_00000.json", "trace_00001.json",
+                                                                   "traces.json"]
+    (tmp_path / "plants.py").write_text(PLANT_FILE)  # the code it began with: resumes
+    assert main([*traces, "--count", "3"]) == 0 and "1 traces made, 2 already there" in capsys.readouterr().out
+    del job["model_code"]  # a job file written before jobs recorded their code
+    (tmp_path / "tr" / "traces.json").write_text(json.dumps(job))
+    assert main([*traces, "--count", "4"]) == 0 and "1 traces made, 3 already there" in capsys.readouterr().out
+
+
 def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):
     """The .npz is what inference reads without torch; a guide copied without its .pt was
     refused for the .pt. Without a matching .npz the .pt is still required, and named."""

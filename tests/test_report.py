@@ -46,3 +46,30 @@ def test_copies_share_one_picture_and_every_picture_is_the_one_drawn_alone():
     assert images[2] is not images[0]
     for derivation, image in zip(derivations, images):
         assert image.tobytes() == derivation_image(derivation, 64, supersample=2).tobytes()
+
+
+def test_settings_json_is_standard_json_when_log_z_is_minus_infinity(tmp_path):
+    # Python wrote -Infinity: JavaScript's JSON.parse failed on the file and jq read -1.8e308
+    import json
+
+    import numpy as np
+
+    from procmod.core.io import standard_json
+    from procmod.data import glyph_target
+    from procmod.infer import smc
+    from procmod.models import get_model
+    from procmod.report import write_run
+    from procmod.targets import ShapeMatch
+
+    result = smc(get_model("vines"), ShapeMatch(glyph_target("a")), particles=3, seed=0)
+    result.log_marginal_likelihood = -math.inf
+    write_run(result, ShapeMatch(glyph_target("a")), tmp_path / "run", size=64)
+
+    def refuse(constant):
+        raise ValueError(f"not JSON: {constant}")
+
+    settings = json.loads((tmp_path / "run" / "settings.json").read_text(), parse_constant=refuse)
+    assert settings["log_marginal_likelihood"] is None
+    assert "<td>-inf</td>" in (tmp_path / "run" / "report.html").read_text()  # the page says what it was
+    assert standard_json({"a": [np.float64("nan"), (1, np.inf)], "b": np.int64(3), "c": "x"}) == \
+        {"a": [None, [1, None]], "b": 3, "c": "x"}

@@ -26,6 +26,7 @@ import contextlib
 import hashlib
 import io
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -160,6 +161,23 @@ def fingerprint(data: bytes | str) -> str:
 
 
 # ---- JSON --------------------------------------------------------------------------------------
+
+def standard_json(value):
+    """``value`` with every infinite or NaN number as ``None`` (JSON's ``null``), for the
+    files people read with other tools: Python writes ``-Infinity``, which JSON has not,
+    so a run report's ``settings.json`` (log marginal-likelihood ``-inf``) failed in
+    JavaScript's ``JSON.parse`` and read as ``-1.8e308`` in ``jq``. Numpy scalars become
+    Python numbers; dicts, lists and tuples are walked; anything else is left as it is."""
+    if isinstance(value, dict):
+        return {key: standard_json(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [standard_json(item) for item in value]
+    if type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0:
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
 
 class _DuplicateKey(Exception):
     def __init__(self, key: str, values: list):

@@ -30,7 +30,7 @@ import numpy as np
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.errors import argument, shown_value, whole_number
 from ..core.runfolder import TRACES_JOB, RunFolder
-from ..core.io import read_json, read_versioned_json, write_text_atomic
+from ..core.io import fingerprint, read_json, read_versioned_json, write_text_atomic
 from ..core.serialize import derivation_to_dict
 from .features import GuideError
 
@@ -89,7 +89,41 @@ def _job_settings(model, model_file, targets, particles, seed, set_size) -> dict
                 "seed": seed, "set_size": set_size}
     if model_file is not None:  # a model of the user's own file: which file (a job resumes only with it)
         settings["model_file"] = model_file
+    settings["model_code"] = model_code_digest(model, model_file)
     return settings
+
+
+def model_code_digest(model, model_file: str | None = None) -> str:
+    """A digest of the source files of ``model``'s rules (and of its model file): a traces
+    job resumes only on the code it began with. A resumed job had mixed traces of an
+    edited model with new ones, which training then refused one by one."""
+    import inspect
+
+    files = set()
+    if model_file is not None:
+        files.add(str(Path(model_file.rsplit(":", 1)[0] if not model_file.endswith(".py") else model_file)))
+    for rule in (model.root, *model.rules):
+        try:
+            files.add(inspect.getsourcefile(inspect.unwrap(rule)))
+        except (TypeError, OSError):  # a rule with no Python source (a builtin, a C function)
+            pass
+    digest = []
+    for name in sorted(f for f in files if f):
+        try:
+            digest.append(fingerprint(Path(name).read_bytes()))
+        except OSError:
+            digest.append("unreadable")
+    return fingerprint(" ".join(digest))
+
+
+def _same_job(previous, settings: dict) -> bool:
+    """Whether a folder's job file is this job's. A job file written before jobs recorded
+    their model's code has no digest to compare: its settings decide."""
+    if not isinstance(previous, dict):
+        return False
+    if "model_code" not in previous:
+        return previous == {k: v for k, v in settings.items() if k != "model_code"}
+    return previous == settings
 
 
 MAX_TRACES = 10_000_000  # a job's count: its trace files in one folder, its list of the missing ones
@@ -140,8 +174,15 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     resume = False
     if TRACES_JOB.recognises(out):
         previous = read_json(job_file, GuideError, "traces job file")
-        resume = previous == settings
+        resume = _same_job(previous, settings)
         if not resume and not overwrite:
+            if isinstance(previous, dict) and "model_code" in previous and \
+                    {k: v for k, v in previous.items() if k != "model_code"} == \
+                    {k: v for k, v in settings.items() if k != "model_code"}:
+                raise GuideError(f"{out} holds traces of model {model.name!r} as its code was before an edit (its "
+                                 "rules' source has changed since the job began): they may not replay under it; "
+                                 f"pass {argument('overwrite=True')} to make them afresh, or give a new "
+                                 f"{argument('out')} folder")
             raise GuideError(f"{out} holds traces of another job ({str(previous)[:200]}); give a new "
                              f"{argument('out')} folder, the same settings to resume, or pass "
                              f"{argument('overwrite=True')} to replace it")

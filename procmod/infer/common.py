@@ -231,7 +231,11 @@ class Tracker:
         """Append a row now (the wall time goes in its ``seconds`` field only)."""
         # the best the target allows: a ruled-out best replaced by a lower allowed one had
         # made the best so far fall
-        self.rows.append(HistoryRow(self.seconds, self.evaluations, self.best_allowed_score, float(mean_score)))
+        row = HistoryRow(self.seconds, self.evaluations, self.best_allowed_score, float(mean_score))
+        if self.rows and self.rows[-1].evaluations == self.evaluations:
+            self.rows[-1] = row  # nothing evaluated since: one row a count (MCMC's final row came twice)
+        else:
+            self.rows.append(row)
         self._next_row = max(self.evaluations + 1, math.ceil(self.evaluations * self._ratio))
         if self.progress is not None:
             self._last_progress = time.perf_counter()

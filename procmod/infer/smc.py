@@ -227,7 +227,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     budget : Budget, optional
         Without one, a single run. With one, independent runs are repeated until it is
         spent (each run completes; the budget is checked between runs), and the best
-        derivation over all runs is returned; ``samples`` are the last run's particles.
+        derivation over all runs is returned; ``samples`` are the particles of the last
+        run that had any the target allows (of the last run where none had).
     resampling : {"systematic", "multinomial", "residual"}
     ess_threshold : float, None or "auto"
         Resample only when the effective sample size drops below ``ess_threshold *
@@ -252,7 +253,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     -------
     Result
         ``log_weights`` are the final particles' normalised-to-the-run log-weights;
-        ``log_marginal_likelihood`` is the last run's estimate of log Z.
+        ``log_marginal_likelihood`` is the estimate of log Z of all the runs together (the
+        log of the mean of their estimates of Z, each unbiased, so their mean is too).
     """
     particles = check_positive("particles", particles)  # a plain int: numpy's too, for settings.json
     if resampling not in RESAMPLING:
@@ -264,7 +266,8 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     check_run(model, target, seed, budget)
     model = configured_model(target, model)
     template = target.new_output(model)  # every particle starts from a copy of it
-    check_population("particles", particles, template)  # refuse what memory cannot hold
+    # under a budget a finished run's particles are kept while the next runs (see below)
+    check_population("particles", particles, template, copies=1 if budget is None else 2)
     proposer = None
     if isinstance(guide, (str, os.PathLike)):  # a guide's name or path, as the command line takes it
         from ..guide import Guide
@@ -289,9 +292,18 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                     shard_rng = BlockGenerator(np.random.default_rng([seed, w]))
                     remote.append(WorkerShard(ParticleShard(w, model, target, template, shard_rng, pick,
                                                             proposer, None), shared))
+            runs = 0
+            log_z_sum = -math.inf  # of the runs' estimates of Z
+            kept = None  # (states, log-weights, log Z) of the run whose particles are returned
             while True:
                 states, log_w, log_z = _run_once(local, remote, particles, rng, resampling, ess_threshold,
                                                  tracker)
+                runs += 1
+                log_z_sum = float(np.logaddexp(log_z_sum, log_z))
+                # the last run with a particle the target allows: a run that died after an
+                # earlier one lived had made the whole result's samples a dead run's
+                if kept is None or log_z > -math.inf or kept[2] == -math.inf:
+                    kept = (states, log_w, log_z)
                 tracker.generations += 1
                 scores = [checked_value(target.score(s.output), target, "score") for s in states]
                 tracker.record(math.fsum(scores) / len(scores))  # a list's mean without numpy's call overhead
@@ -300,7 +312,10 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         finally:
             for worker in remote:
                 worker.close()
-    if log_z == -math.inf:  # of the run returned (its states and log Z); once, not once a run
+    states, log_w, _ = kept
+    # each run's estimate of Z is unbiased, and so is their mean: the runs' estimates pooled
+    log_z = log_z_sum - math.log(runs)
+    if log_z == -math.inf:  # every run's every particle; once, not once a run
         notes.append(ZERO_LIKELIHOOD_NOTE)
     unmatched = proposer.unmatched_note() if proposer is not None else None
     if unmatched is not None:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import run_forward
+from ..core.io import standard_json
 from ..core.errors import InvalidArgumentError, argument
 from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
@@ -167,7 +168,7 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     report = {"format": "procmod-learn-report/1", "examples": shown, "table": result.table,
               "options": asdict(options), "trace": result.trace, "rounds": result.rounds,
               "resumed": result.resumed}
-    write_text_atomic(out / "report.json", json.dumps(report, indent=1) + "\n")
+    write_text_atomic(out / "report.json", json.dumps(standard_json(report), indent=1) + "\n")  # no -Infinity
     write_text_atomic(out / "report.html", _report_html(result.table, result.trace, shown, command))
     return {"table": result.table, "program": str(json_path), "report": str(out / "report.html"),
             "contact_sheet": str(out / "contact_sheet.png"), "result": result}
