@@ -464,7 +464,11 @@ def test_tagger_learning_rate_decay_resumes_and_loads(tmp_path, moonbase, catego
     with pytest.raises(ModelFileError, match=r"other strings.*other seed / tagger_strings_per_shape / held_out "
                                              r"than it was trained with; repeat those, or use a new folder$"):
         train_tagger(examples[1:], vocab, categories, tmp_path / "b", cfg)
-    train_tagger(examples, vocab, categories, tmp_path / "b", cfg)
+    resumed = train_tagger(examples, vocab, categories, tmp_path / "b", cfg)
+    # dropout's masks too: a resumed training had trained another tagger (the global
+    # generator was seeded once a start, not once an epoch)
+    a, b = _weights(straight), _weights(resumed)
+    assert cfg.dropout > 0 and all(torch.equal(a[k], b[k]) for k in a)
     meta = json.loads((tmp_path / "a" / "tagger.json").read_text())
     del meta["train"]["data"]  # a finished tagger saved before the fingerprint was kept
     (tmp_path / "a" / "tagger.json").write_text(json.dumps(meta))

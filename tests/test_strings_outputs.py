@@ -169,3 +169,29 @@ def test_sample_reads_an_edited_strings_file_and_names_a_bad_line(fence_model, t
     code, _, err = _run(capsys, "strings", "sample", model, "-n", 2, "--no-meshes", "--out", tmp_path / "t")
     _one_line_error(code, err, f"strings.txt, string {lines + 1}: dangling ring label")
     assert not (tmp_path / "t").exists()
+
+
+def test_overwrite_trains_afresh_over_a_model_of_another_training(fence_model, tmp_path, capsys):
+    """`strings train --overwrite` over a model folder of other settings was refused as without
+    it (the README: resumable jobs replace another job's folder whole with --overwrite), and
+    the refusal never named --overwrite."""
+    model = _copy(fence_model, tmp_path)
+    other = [str(a) for a in TINY]
+    other[other.index("--hidden") + 1] = "8"
+    code, _, err = _run(capsys, "strings", "train", fence_model / "col", "--out", model, *other)
+    _one_line_error(code, err, "another configuration", "pass --overwrite to train afresh")
+    code, _, err = _run(capsys, "strings", "train", fence_model / "col", "--out", model, *other, "--overwrite")
+    assert code == 0, err
+    assert json.loads((model / "model.json").read_text())["vae"]["hidden"] == 8
+    fewer = [*other[:other.index("--tagger-epochs")], *other[other.index("--tagger-epochs") + 2:]]
+    more_tagger = [*fewer, "--tagger-epochs", "2"]
+    assert _run(capsys, "strings", "train", fence_model / "col", "--out", model, *more_tagger)[0] == 0
+    code, _, err = _run(capsys, "strings", "train", fence_model / "col", "--out", model, *fewer, "--tagger-epochs",
+                        "1")  # a tagger trained 2 epochs: refused, then retrained alone with --overwrite
+    _one_line_error(code, err, "tagger trained 2 epochs", "--overwrite")
+    vae = (model / "vae.pt").read_bytes()
+    code, _, err = _run(capsys, "strings", "train", fence_model / "col", "--out", model, *fewer, "--tagger-epochs",
+                        "1", "--overwrite")
+    assert code == 0, err
+    assert (model / "vae.pt").read_bytes() == vae  # the VAE was this training's: kept
+    assert json.loads((model / "model.json").read_text())["tagger"]["epochs"] == 1

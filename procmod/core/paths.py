@@ -25,6 +25,7 @@ empty name, ``.``, a folder, a missing file, a file of another kind).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import re
@@ -198,8 +199,21 @@ def remember_file_read(path: str | os.PathLike) -> None:
     _NAMED_FILES_READ.add(Path(path).resolve())
 
 
+@contextlib.contextmanager
+def reading_an_outputs_own_files():
+    """Files named while the block runs are an output folder's own (an earlier run's, read
+    to decide whether to resume it or replace it), not the command's inputs: they are not
+    protected from that replacement (``strings train --overwrite`` refused to replace the
+    model folder whose own collection it had checked)."""
+    before = set(_NAMED_FILES_READ)
+    try:
+        yield
+    finally:
+        _NAMED_FILES_READ.intersection_update(before)
+
+
 __all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file",
-           "named_files_read", "remember_file_read", "is_file_quietly"]
+           "named_files_read", "reading_an_outputs_own_files", "remember_file_read", "is_file_quietly"]
 
 
 def output_path(path: str | os.PathLike) -> Path:

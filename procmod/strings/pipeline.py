@@ -19,6 +19,7 @@ again on the same folder resumes where the last one stopped.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -30,7 +31,7 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError, ProcmodError, argument, check_real, checked_count, spelled
 from ..core.io import read_json, read_versioned_json, write_text_atomic
-from ..core.paths import is_dir_quietly, output_path
+from ..core.paths import is_dir_quietly, output_path, reading_an_outputs_own_files
 from ..core.runfolder import STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import parse, strings_of
@@ -39,8 +40,8 @@ from .contacts import loose_parts, shape_graph
 from .grammar import Grammar
 from .shapes import ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, write_shapes
 from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
-from .torch_utils import ModelFileError, reading_model_file, training_device
-from .vae import StringModel, VAEConfig, train_vae
+from .torch_utils import ModelFileError, OtherTrainingError, reading_model_file, training_device
+from .vae import StringModel, VAEConfig, check_vae_resumable, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
 # how an error message says to train a model folder (the command line: procmod strings train)
@@ -136,10 +137,11 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     train_idx, test_idx = split_shapes(len(graphs), held_out, seed)
     strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
     fresh = not is_dir_quietly(out) or not any(out.iterdir())
-    folder.prepare_in_place(keep=True)
+    folder.prepare_in_place(keep=not (overwrite and _other_training(out, strings, grammar, vae_config)))
     if (out / "collection.json").is_file():  # a resume: what it holds is read by every later command
         try:
-            read_shapes(out / "collection.json")
+            with reading_an_outputs_own_files():
+                read_shapes(out / "collection.json")
         except ProcmodError as exc:  # bad JSON, a part mesh missing or damaged (it marks the folder: kept)
             raise ModelFileError(f"{exc}; restore it, or pass {argument('overwrite=True')} to train the model again "
                                  "from the start") from None
@@ -153,7 +155,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     report = progress or (lambda stage, row: None)
     # the trainings' messages name their folder: here it is this function's out
     names = {"folder": argument("out")}
-    with spelled(names):
+    with spelled(names), _with_overwrite_advice():
         vae = train_vae(strings, grammar, out, vae_config, seed, progress=lambda row: report("vae", row),
                         stop_after=stop_after, device=device)
     if len(vae_history(out)) < vae_config.epochs:
@@ -167,9 +169,18 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
         write_text_atomic(cats_path, json.dumps(categories.to_json()) + "\n")
     held = tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
                             categories, 4, trng, every_symmetry=True)
-    with spelled(names):
-        tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
-                              progress=lambda row: report("tagger", row), device=device)
+    with spelled(names), _with_overwrite_advice():
+        try:
+            tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
+                                  progress=lambda row: report("tagger", row), device=device)
+        except OtherTrainingError:
+            if not overwrite:
+                raise
+            # the VAE is this training's (checked above): only the tagger starts afresh
+            for name in ("tagger.json", "tagger.pt"):
+                (out / name).unlink(missing_ok=True)
+            tagger = train_tagger(examples, vae.vocab, categories, out, tagger_config, seed,
+                                  progress=lambda row: report("tagger", row), device=device)
     meta = {"format": MODEL_FORMAT, "grammar": grammar.to_json(), "seed": seed,
             "strings_per_shape": strings_per_shape, "tagger_strings_per_shape": tagger_strings_per_shape,
             "train_shapes": len(train_idx), "held_out_shapes": len(test_idx),
@@ -185,6 +196,32 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     write_text_atomic(out / "model.json", json.dumps(meta, indent=1) + "\n")
     write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
     return meta
+
+
+def _other_training(out: Path, strings: list, grammar, config: VAEConfig) -> bool:
+    """Whether ``out`` holds a model this training would not resume: a VAE checkpoint of
+    another configuration, vocabulary, tiling rules, training strings or more epochs than
+    asked, or a damaged collection or checkpoint. ``--overwrite`` then starts the folder
+    afresh (it had been refused, as without it)."""
+    if not is_dir_quietly(out):
+        return False
+    try:
+        with reading_an_outputs_own_files():  # its meshes are the folder's own, not inputs
+            if (out / "collection.json").is_file():
+                read_shapes(out / "collection.json")
+        check_vae_resumable(out, strings, grammar, config)
+    except ProcmodError:  # another training (OtherTrainingError), or damaged: replaced whole
+        return True
+    return False
+
+
+@contextlib.contextmanager
+def _with_overwrite_advice():
+    """A checkpoint of another training, refused: say how to replace it."""
+    try:
+        yield
+    except OtherTrainingError as exc:
+        raise OtherTrainingError(f"{exc}, or pass {argument('overwrite=True')} to train afresh there") from None
 
 
 def _rebuilt() -> str:

@@ -28,8 +28,8 @@ from .codec import encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement
 from .shapes import ShapeSet, first_poses
-from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, load_weights, reading_model_file,
-                          save_weights, torch_threads, training_device, training_state)
+from .torch_utils import (ModelFileError, OtherTrainingError, check_finite_weights, config_from_json, load_weights,
+                          reading_model_file, save_weights, torch_threads, training_device, training_state)
 from .vae import Vocab, _characters, check_sizes
 
 
@@ -528,15 +528,15 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
     if (folder / "tagger.json").is_file() and (folder / "tagger.pt").is_file():
         model, state, opt_state = TaggerModel.load(folder, with_optimizer=True)
         if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0}:
-            raise ModelFileError(f"{folder} holds a tagger of another configuration; use a new "
+            raise OtherTrainingError(f"{folder} holds a tagger of another configuration; use a new "
                                  f"{argument('folder')}")
         if state.get("data") not in (None, data):  # None: saved before the fingerprint was kept
-            raise ModelFileError(f"{folder} holds a tagger trained on other strings: another collection (or one "
+            raise OtherTrainingError(f"{folder} holds a tagger trained on other strings: another collection (or one "
                                  f"grown again), or other {argument('seed')} / {argument('tagger_strings_per_shape')} "
                                  f"/ {argument('held_out')} than it was trained with; repeat those, or use a new "
                                  f"{argument('folder')}")
         if state["epoch"] > config.epochs:  # it would be kept as it is, recorded as trained for fewer
-            raise ModelFileError(f"{folder} holds a tagger trained {state['epoch']} epochs, more than the "
+            raise OtherTrainingError(f"{folder} holds a tagger trained {state['epoch']} epochs, more than the "
                                  f"{config.epochs} asked: ask for at least {state['epoch']} to go on from it, or "
                                  f"use a new {argument('folder')}")
         adopt = state.get("data") is None  # saved before the fingerprint was kept: keep it from now on
@@ -566,6 +566,10 @@ def _train_tagger(examples, vocab, categories, folder, config, seed, progress, d
             scale = config.lr_final + (1 - config.lr_final) * 0.5 * (1 + np.cos(np.pi * progress_))
             group["lr"] = float(config.lr * scale)
         gen = torch.Generator().manual_seed((seed * 7919 + state["epoch"]) % 2 ** 63)  # see vae.train_vae
+        # dropout draws from torch's global generators: seeded by the epoch too, so a resumed
+        # training draws the masks an uninterrupted one would (seeded once at the start, a
+        # resume had trained another tagger)
+        torch.manual_seed((seed * 104729 + state["epoch"] + 1) % 2 ** 63)
         order = torch.randperm(len(examples), generator=gen).tolist()
         # length buckets: sort within chunks of 8 batches, then shuffle the batches (less padding)
         chunk = 8 * config.batch

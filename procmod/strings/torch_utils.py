@@ -35,6 +35,12 @@ class ModelFileError(ProcmodError):
     """A trained model folder or checkpoint that cannot be read."""
 
 
+class OtherTrainingError(ModelFileError):
+    """A folder's checkpoint is of another training (configuration, data, or more epochs
+    than asked): not to be resumed. Raised before the training writes anything, so a caller
+    that may replace the folder (``strings train --overwrite``) can start afresh."""
+
+
 # what a damaged or hand-edited model file raises while it is turned into nets (a missing
 # key, a field of the wrong type, weights of another size)
 MALFORMED = (KeyError, TypeError, ValueError, AttributeError, IndexError, RuntimeError)

@@ -37,8 +37,8 @@ from ..core.io import fingerprint, load_tensors, read_versioned_json, write_text
 from .automaton import Constraint, _Prefix
 from .codec import StringSyntaxError, parse
 from .grammar import Grammar
-from .torch_utils import (ModelFileError, check_finite_weights, config_from_json, load_weights, reading_model_file,
-                          save_weights, torch_threads, training_device, training_state)
+from .torch_utils import (ModelFileError, OtherTrainingError, check_finite_weights, config_from_json, load_weights,
+                          reading_model_file, save_weights, torch_threads, training_device, training_state)
 
 PAD, SOS, EOS = 0, 1, 2
 NODE_BUDGET = 1.25  # constrained decoding stops adding letters at 1.25 x the largest training graph (nodes)
@@ -384,6 +384,46 @@ def train_vae(strings: list[str], grammar: Grammar, folder: str | os.PathLike, c
     return model
 
 
+def _with_room(config: VAEConfig, strings: list) -> VAEConfig:
+    """``config`` with room to decode strings as long as the training ones: a fixed cap
+    (320) made 18 of 20 decodings of a 400-character shape's own encodings come back invalid."""
+    room = min(CONFIG_LIMITS["max_len"], math.ceil(1.5 * max(map(len, strings))))
+    return replace(config, max_len=room) if config.max_len < room else config
+
+
+def _check_same_training(folder: Path, model, state, config: VAEConfig, vocab, grammar, data: str) -> None:
+    """Refuse (:class:`OtherTrainingError`) a checkpoint this training would not resume."""
+    if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0} or \
+            model.vocab.chars != vocab.chars:
+        raise OtherTrainingError(f"{folder} holds a checkpoint of another configuration or data; use a new "
+                                 f"{argument('folder')} or delete it")
+    if model.grammar.rules != grammar.rules:
+        raise OtherTrainingError(f"{folder} holds a checkpoint trained on other shapes (other tiling rules); use a "
+                                 f"new {argument('folder')} or delete it")
+    if state.data not in (None, data):
+        raise OtherTrainingError(f"{folder} holds a VAE trained on other strings: another collection (or one grown "
+                                 f"again), or other {argument('seed')} / {argument('strings_per_shape')} / "
+                                 f"{argument('held_out')} than it was trained with; repeat those, or use a new "
+                                 f"{argument('folder')}")
+    if state.epoch > config.epochs:  # it would be kept as it is, recorded as trained for fewer
+        raise OtherTrainingError(f"{folder} holds a VAE trained {state.epoch} epochs, more than the {config.epochs} "
+                                 f"asked: ask for at least {state.epoch} to go on from it, or use a new "
+                                 f"{argument('folder')}")
+
+
+def check_vae_resumable(folder: str | os.PathLike, strings: list[str], grammar: Grammar,
+                        config: VAEConfig = VAEConfig()) -> None:
+    """Raise :class:`OtherTrainingError` when ``folder`` holds a VAE checkpoint that
+    :func:`train_vae` with these arguments would refuse to resume (a damaged one raises
+    its :class:`ModelFileError`); nothing when it would resume, or there is none."""
+    folder = Path(folder)
+    if not strings or not ((folder / "vae.json").is_file() and (folder / "vae.pt").is_file()):
+        return
+    model, state, _ = StringModel.load(folder, with_optimizer=True)
+    _check_same_training(folder, model, state, _with_room(config, strings), vocab_of(strings), grammar,
+                         fingerprint("\n".join(strings)))
+
+
 def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, device) -> StringModel:
     """Train (or resume training) a string VAE, checkpointing into ``folder`` every epoch.
 
@@ -397,34 +437,15 @@ def _train_vae(strings, grammar, folder, config, seed, progress, stop_after, dev
     folder = Path(folder)
     if not strings:
         raise InvalidArgumentError("no training strings")
-    # room to decode strings as long as the training ones: a fixed cap (320) made 18 of 20
-    # decodings of a 400-character shape's own encodings come back invalid
-    room = min(CONFIG_LIMITS["max_len"], math.ceil(1.5 * max(map(len, strings))))
-    if config.max_len < room:
-        config = replace(config, max_len=room)
+    config = _with_room(config, strings)
     vocab = vocab_of(strings)
     data = fingerprint("\n".join(strings))
     resume = (folder / "vae.json").is_file() and (folder / "vae.pt").is_file()
     torch.manual_seed(seed)
     if resume:
         model, state, opt_state = StringModel.load(folder, with_optimizer=True)
-        if {**asdict(model.net.config), "epochs": 0} != {**asdict(config), "epochs": 0} or \
-                model.vocab.chars != vocab.chars:
-            raise ModelFileError(f"{folder} holds a checkpoint of another configuration or data; use a new "
-                                 f"{argument('folder')} or delete it")
-        if model.grammar.rules != grammar.rules:
-            raise ModelFileError(f"{folder} holds a checkpoint trained on other shapes (other tiling rules); use a "
-                                 f"new {argument('folder')} or delete it")
+        _check_same_training(folder, model, state, config, vocab, grammar, data)
         model.grammar = grammar  # a checkpoint saved before the ring-length rule learns it here
-        if state.data not in (None, data):
-            raise ModelFileError(f"{folder} holds a VAE trained on other strings: another collection (or one grown "
-                                 f"again), or other {argument('seed')} / {argument('strings_per_shape')} / "
-                                 f"{argument('held_out')} than it was trained with; repeat those, or use a new "
-                                 f"{argument('folder')}")
-        if state.epoch > config.epochs:  # it would be kept as it is, recorded as trained for fewer
-            raise ModelFileError(f"{folder} holds a VAE trained {state.epoch} epochs, more than the {config.epochs} "
-                                 f"asked: ask for at least {state.epoch} to go on from it, or use a new "
-                                 f"{argument('folder')}")
         adopt = state.data is None  # saved before the fingerprint was kept: keep it from now on
         state.data = data
     else:
