@@ -125,6 +125,26 @@ def test_many_rings_use_percent_labels():
     assert "%" in s and _iso(decode(s), big)
 
 
+def test_a_part_touching_more_than_99_others_has_a_canonical_string():
+    """A floor ringed by 164 wall blocks (each touching the floor and its two neighbours):
+    the canonical walk followed the rim and left a ring open at the floor for every wall,
+    more than the syntax's 99 labels, so the shape could not be encoded at all."""
+    from procmod.strings.codec import RingLimitError, encode_with_order, strings_of
+
+    n = 164
+    wheel = _graph("F" + "W" * n, [(0, i) for i in range(1, n + 1)] + [(i, i % n + 1) for i in range(1, n + 1)])
+    s = encode(wheel)
+    assert _iso(decode(s), wheel) and _most_open_labels(s) <= 8  # a few, not one a wall
+    shuffled = nx.relabel_nodes(wheel, dict(zip(range(n + 1), np.random.default_rng(1).permutation(n + 1).tolist())))
+    assert encode(shuffled) == s  # still one string per graph
+    with pytest.raises(RingLimitError, match="along this walk"):  # a given root: the caller's to change
+        encode_with_order(wheel, root=1)
+    assert strings_of(wheel, 3, np.random.default_rng(0)) == [s]  # random walks that overflow are skipped
+    # a graph small enough keeps its canonical string as before (the fallback is for overflow only)
+    small = _graph("F" + "W" * 6, [(0, i) for i in range(1, 7)] + [(i, i % 6 + 1) for i in range(1, 7)])
+    assert _most_open_labels(encode(small)) >= 1 and _iso(decode(encode(small)), small)
+
+
 def _most_open_labels(text: str) -> int:
     return max((int(label.lstrip("%")) for label in re.findall(r"%\d\d|\d", text)), default=0)
 
@@ -304,3 +324,20 @@ def test_large_paths_stars_and_trees_encode(g):
     s = encode(g)
     assert nx.is_tree(decode(s)) and decode(s).number_of_nodes() == g.number_of_nodes()
     assert s == encode(_renumbered(g, np.random.default_rng(0)))
+
+
+def test_encode_random_says_when_no_walk_fits(tmp_path, capsys):
+    # every random walk of a floor ringed by 164 walls overflows: it printed nothing, exit 0
+    import json
+
+    from procmod.cli import main
+    from procmod.strings.shapes import graph_to_dict
+
+    n = 164
+    wheel = _graph("F" + "W" * n, [(0, i) for i in range(1, n + 1)] + [(i, i % n + 1) for i in range(1, n + 1)])
+    (tmp_path / "wheel.json").write_text(json.dumps(graph_to_dict(wheel)))
+    assert main(["strings", "encode", str(tmp_path / "wheel.json"), "--random", "3"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and "no random walk of this graph fits" in captured.err
+    assert main(["strings", "encode", str(tmp_path / "wheel.json")]) == 0
+    assert _iso(decode(capsys.readouterr().out), wheel)

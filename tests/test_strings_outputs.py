@@ -109,6 +109,15 @@ def _edit(name, change):
     return apply
 
 
+def _rename_part(old, new):
+    def rename(data):
+        data["parts"][new] = data["parts"].pop(old)
+        for shape in data["shapes"]:
+            for node in shape["nodes"]:
+                node["part"] = new if node["part"] == old else node["part"]
+    return rename
+
+
 def _write(name, text):
     return lambda folder: (folder / name).write_text(text)
 
@@ -147,7 +156,11 @@ def test_damaged_model_files_are_one_line_when_training_resumes(fence_model, tmp
     (_edit("model.json", lambda d: d["grammar"].update(P=5)), ["model.json is malformed", "rule for 'P'"]),
     (_edit("tagger.json", lambda d: d["categories"].update(symmetries=[[1]])), ["symmetries must hold 4x4"]),
     (_edit("vae.json", lambda d: d["train"].update(data=5)), ["train.data must be"]),
-], ids=["model-garbage", "model-grammar-list", "model-grammar-rule", "tagger-symmetries", "vae-data"])
+    # a part renamed in the collection: a KeyError traceback when a shape was built
+    (_edit("collection.json", _rename_part("rail", "beam")), ["collection.json lacks part types the model was "
+                                                             "trained on", "not the collection"]),
+], ids=["model-garbage", "model-grammar-list", "model-grammar-rule", "tagger-symmetries", "vae-data",
+        "collection-renamed-part"])
 def test_damaged_model_files_are_one_line_when_read(fence_model, tmp_path, capsys, damage, words):
     model = _copy(fence_model, tmp_path)
     damage(model)

@@ -210,7 +210,7 @@ def _graph(args) -> None:
 
 
 def _encode(args) -> None:
-    from .codec import encode
+    from .codec import GraphError, encode
     from .shapes import read_graph
 
     g = read_graph(args.graph)
@@ -222,8 +222,14 @@ def _encode(args) -> None:
     # "up to N": a graph with few strings stops early (PATIENCE); one with billions would
     # hold every string found in memory, so N has a ceiling, and each prints when found
     _at_most(args.random, "--random", MAX_RANDOM_STRINGS)
+    found = 0
     for s in random_strings(g, args.random, np.random.default_rng(_seed(args.seed))):
         print(s, flush=True)
+        found += 1
+    if not found:  # every walk drawn left more rings open than the syntax has labels
+        raise GraphError("no random walk of this graph fits the string syntax's ring labels (a part touching a "
+                         "hundred others leaves a ring open for each): its canonical string (strings encode without "
+                         "--random) is written another way")
 
 
 # ``strings encode --random N`` stops drawing once this many draws in a row (and at least
@@ -240,13 +246,17 @@ def random_strings(g, count: int, rng: np.random.Generator):
 
     Each draw is one root and neighbour order: a string missed by that many draws in a
     row is rarer than one in about ``PATIENCE`` draws."""
-    from .codec import encode
+    from .codec import RingLimitError, encode
 
     seen, stale = set(), 0
     for _ in range(4 * count):
         if len(seen) >= count or stale >= max(PATIENCE, len(seen)):
             break
-        s = encode(g, rng=rng)
+        try:
+            s = encode(g, rng=rng)
+        except RingLimitError:  # a walk leaving more rings open than there are labels: no string
+            stale += 1
+            continue
         if s in seen:
             stale += 1
             continue

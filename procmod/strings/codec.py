@@ -33,6 +33,8 @@ the numbering, not canonical.
 
 from __future__ import annotations
 
+import collections
+import heapq
 from dataclasses import dataclass
 
 import networkx as nx
@@ -285,6 +287,36 @@ def encode_with_order(g: nx.Graph, root: int | None = None,
                 break
         else:
             stack.pop()
+    try:
+        return _written(g, root, children, preorder)
+    except _TooManyRings:
+        if key is None:  # a given root or a random walk: the caller may try another
+            raise RingLimitError(f"more than {MAX_LABEL} rings open at once; the string syntax cannot write this "
+                                 "graph along this walk (root and order)") from None
+    # The canonical walk left more rings open than there are labels: a part touching 100 or
+    # more others (a floor ringed by walls) opens one for each contact the walk does not
+    # take. Its contacts as tree edges instead: still one string per graph.
+    children, preorder = _star_first_tree(g, root, key)
+    try:
+        return _written(g, root, children, preorder)
+    except _TooManyRings:
+        raise RingLimitError(f"more than {MAX_LABEL} rings open at once; the string syntax cannot write this graph "
+                             "(too many contacts that close no ring soon)") from None
+
+
+class _TooManyRings(Exception):
+    pass
+
+
+class RingLimitError(GraphError):
+    """A graph that a string along this walk would need more ring labels for than the
+    syntax has (:data:`MAX_LABEL` open at once); another walk (root, order) may not."""
+
+
+def _written(g: nx.Graph, root: int, children: dict, preorder: list) -> tuple[str, list[int]]:
+    """The string of ``g`` along a spanning tree (``children``: each node's, in writing
+    order; ``preorder``: the nodes in the order they are written), and the node of each
+    letter."""
     pos = {v: k for k, v in enumerate(preorder)}
     tree = {(min(v, u), max(v, u)) for v in children for u in children[v]}
     opens: dict[int, list[tuple[int, int]]] = {v: [] for v in g.nodes}
@@ -315,8 +347,7 @@ def encode_with_order(g: nx.Graph, root: int | None = None,
             released.append(label)
         for e in opens[v]:
             if not free:
-                raise GraphError(f"more than {MAX_LABEL} rings open at once; the string syntax cannot write "
-                                 "this graph from this root")
+                raise _TooManyRings()
             label = free.pop(0)
             label_of[e] = label
             out.append(_label_text(label))
@@ -340,6 +371,44 @@ def encode_with_order(g: nx.Graph, root: int | None = None,
                 todo.append(("node", child))
         actions.extend(reversed(todo))
     return "".join(out), written
+
+
+def _star_first_tree(g: nx.Graph, root: int, rank) -> tuple[dict, list]:
+    """The canonical string's tree where :func:`_closing_first_tree`'s needs more ring
+    labels than the syntax has: breadth first, each node takes every neighbour not yet in
+    the tree as its child (a hub's contacts become branches, not rings), ordered so that each next child
+    touches the most of the children before it (ties to the lowest rank): a ring of walls
+    around a floor is written wall after wall, each ring closing in the next branch.
+    Returns ``(children, preorder)``."""
+    children: dict[int, list[int]] = {v: [] for v in g.nodes}
+    seen = {root}
+    pending = collections.deque([root])  # breadth first: a hub near the root claims its contacts
+    while pending:
+        v = pending.popleft()
+        new = [u for u in g.neighbors(v) if u not in seen]
+        seen.update(new)
+        touches = dict.fromkeys(new, 0)
+        heap = [(0, rank(u), u) for u in new]
+        heapq.heapify(heap)
+        ordered = []
+        while heap:
+            count, _, u = heapq.heappop(heap)
+            if u not in touches or -count != touches[u]:  # placed already, or an outdated entry
+                continue
+            del touches[u]
+            ordered.append(u)
+            for w in g.neighbors(u):
+                if w in touches:
+                    touches[w] += 1
+                    heapq.heappush(heap, (-touches[w], rank(w), w))
+        children[v] = ordered
+        pending.extend(ordered)
+    preorder, stack = [], [root]
+    while stack:  # the order the writer writes them: a node, then its children's subtrees in turn
+        v = stack.pop()
+        preorder.append(v)
+        stack.extend(reversed(children[v]))
+    return children, preorder
 
 
 def _closing_first_tree(g: nx.Graph, root: int, rank, seen: set, preorder: list, children: dict) -> None:
@@ -379,7 +448,10 @@ def strings_of(g: nx.Graph, count: int, rng: np.random.Generator, canonical: boo
     for _ in range(4 * count):
         if len(out) >= count:
             break
-        s = encode(g, rng=rng)
+        try:
+            s = encode(g, rng=rng)
+        except RingLimitError:  # a walk that leaves too many rings open: another draw
+            continue
         if s not in seen:
             seen.add(s)
             out.append(s)

@@ -317,11 +317,27 @@ class TrainedModel:
             self.vae.grammar = self.grammar  # one grammar per model folder: model.json's
             self.start_pose = {t: _pose(m) for t, m in self.meta["start_pose"].items()}
         self.shape_set = read_shapes(folder / "collection.json")
+        self._check_collection_fits()
         try:  # a BOM and CRLF line ends from an editor are read through
             self.training_strings = (folder / "strings.txt").read_text(encoding="utf-8-sig").split()
         except (OSError, UnicodeDecodeError) as exc:
             raise ModelFileError(f"{folder / 'strings.txt'} cannot be read ({exc}); train the model again") from None
         self._strings_file = folder / "strings.txt"
+
+    def _check_collection_fits(self) -> None:
+        """Refuse a ``collection.json`` without the part types the VAE and the tagger were
+        trained on (copied from another model, a part renamed or removed by hand): it had
+        been a KeyError traceback when a shape was built."""
+        known = set(self.shape_set.letters.values())
+        trained = {c for c in self.vae.vocab.chars if c.isalpha()}
+        trained |= {letter for name in self.categories.names if name is not None for letter in name[:2]}
+        missing = sorted(trained - known)
+        if missing:
+            raise ModelFileError(f"{self.folder / 'collection.json'} lacks part types the model was trained on "
+                                 f"({', '.join(missing[:8])}{', ...' if len(missing) > 8 else ''}; it holds "
+                                 f"{', '.join(sorted(known)[:8])}{', ...' if len(known) > 8 else ''}): it is not the "
+                                 "collection this model was trained on; restore that one, or train the model again "
+                                 "on this one")
 
     def check_training_strings(self) -> list[str]:
         """The training strings, each checked to be a string (what sampling encodes and

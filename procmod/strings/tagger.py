@@ -24,7 +24,7 @@ from ..core.errors import InvalidArgumentError, argument
 from ..core.io import fingerprint, load_tensors, read_json, write_text_atomic
 from .automorphisms import type_automorphisms
 from .categories import EdgeCategories, shape_labelings
-from .codec import encode_with_order, parse
+from .codec import RingLimitError, encode_with_order, parse
 from .decoding import CategoryDecoder, star_set
 from .frames import canonical_frame, proper_placement
 from .shapes import ShapeSet, first_poses
@@ -262,6 +262,17 @@ def symmetric_targets(text: str, order: list[int], labelings: list[dict]) -> lis
     return [list(t) for t in sorted(out)]
 
 
+def drawn_string(g, k: int, rng: np.random.Generator) -> tuple[str, list[int]] | None:
+    """The ``k``-th string a tagger reads of graph ``g`` and its node order: the walk from
+    node 0 first, then random walks; None for a walk that leaves more rings open than the
+    syntax has labels (a part touching a hundred others), the walk from node 0 then
+    replaced by the canonical string, which never does."""
+    try:
+        return encode_with_order(g, None if k else 0, rng if k else None)
+    except RingLimitError:
+        return encode_with_order(g) if k == 0 else None
+
+
 def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCategories", per_shape: int,
                      rng: np.random.Generator, every_symmetry: bool = False,
                      automorphisms: int = 64) -> list[tuple[str, list]]:
@@ -279,7 +290,10 @@ def tagging_examples(shape_set: ShapeSet, shapes, graphs, categories: "EdgeCateg
         for k in range(4 * per_shape):
             if len(seen) >= per_shape:
                 break
-            text, order = encode_with_order(g, None if k else 0, rng if k else None)
+            drawn = drawn_string(g, k, rng)
+            if drawn is None:
+                continue
+            text, order = drawn
             if text in seen:
                 continue
             seen.add(text)
@@ -394,7 +408,7 @@ class TaggerModel:
         """
         texts, orders = [], []
         for k in range(strings):
-            text, order = encode_with_order(g, None if k else 0, rng if k else None)
+            text, order = drawn_string(g, k, rng) or encode_with_order(g)  # (the canonical one always fits)
             texts.append(text)
             orders.append(order)
         probs = self.predict(texts)
