@@ -70,6 +70,31 @@ def test_dp_equals_the_replayed_derivation_and_regenerates_the_example(name):
         free.remove(j)
 
 
+def test_a_program_regenerates_examples_deeper_than_its_default_depth():
+    """A chain of 60 parts: the program cut every derivation at 41 levels (its fixed depth
+    limit), learned without a word, and could not make its own examples."""
+    def chain(n, turn):
+        root = node = {"part": "seg", "transform": np.eye(4).tolist(), "children": []}
+        for k in range(1, n):
+            c, s_ = math.cos(turn * k), math.sin(turn * k)
+            child = {"part": "seg", "transform": [[c, 0, s_, 0], [0, 1, 0, float(k)], [-s_, 0, c, 0], [0, 0, 0, 1]],
+                     "children": []}
+            node["children"].append(child)
+            node = child
+        return root
+
+    examples = examples_from_dict({"format": "procmod-examples/1", "parts": {"seg": {"box": [0.3, 1, 0.3]}},
+                                   "examples": [chain(60, 0.1), chain(63, 0.11)]})
+    d = preprocess(examples)
+    p = initial_program(d, np.random.default_rng(0))
+    assert p.max_depth >= 63
+    model = program_model(p, "test")
+    assign = valid_assignment(p, d)
+    for k, root in enumerate(d.roots):
+        r = replay(model, example_choice_map(p, d, root, assign), np.random.default_rng(0))
+        assert not r.unused and len(_flatten(derivation_hierarchies(r.derivation)[0])) == (60, 63)[k]
+
+
 def test_dp_marginalises_over_latent_abstractions_exactly():
     s = load("spaceships", [0, 4])
     d = preprocess(s)
@@ -340,6 +365,7 @@ def _damage_tensor(folder, value):
      "must name each of the type's slots at most once"),
     (lambda j, d: j["count_support"].update({t: [-3, -2] for t in j["count_support"]}) if j["count_support"]
      else j.update(sym_inner=5), "count_support.*must list member counts from 2|malformed program"),
+    (lambda j, d: j.update(max_depth=10 ** 9), "max_depth must be a whole number from 40 to 5000"),
 ])
 def test_malformed_programs(saved, tmp_path, damage, message):
     import shutil

@@ -39,7 +39,8 @@ its transform (``x.ls0`` ... ``x.t2``, ``x.sg0..2``), emits its part once per co
 flips one ``maybe`` per slot (``s<slot>``, probability from the group's NADE given the
 earlier bits) whose child call it spawns; for a symmetry abstraction it samples
 ``sym.<param>`` and ``count`` and spawns its one child (site ``c``) with the copies
-multiplied by the group's maps. Calls deeper than :data:`MAX_DEPTH` spawn nothing.
+multiplied by the group's maps. Calls deeper than the program's ``max_depth`` (:data:`MAX_DEPTH` at
+least, and deeper than its deepest example) spawn nothing.
 """
 
 from __future__ import annotations
@@ -121,6 +122,10 @@ class Program:
     # holes and overlaps: 6 spokes at the 8-spoke step); the sampled angle is kept as a
     # choice (the likelihood is unchanged) but not used
     full_rings: list = field(default_factory=list)
+    # levels of calls a derivation may take (MAX_DEPTH at least): deep enough for the
+    # deepest example (structure.program_depth); a chain of 60 parts had been cut at 41,
+    # learned without a word, its program unable to make its own examples
+    max_depth: int = MAX_DEPTH
 
     # ---- structure helpers -----------------------------------------------------------
 
@@ -229,7 +234,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
         shape = program.parts[a.type]
         for g in copies:
             ctx.emit(shape.part(as_transform(np.asarray(g).reshape(4, 4) @ world)))
-        if ctx.depth >= MAX_DEPTH:
+        if ctx.depth >= program.max_depth:
             return
         lo, hi = shape.local_bounds()
         own = program.units.frame_of(world, lo, hi)
@@ -256,7 +261,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
         values[-1] = 2.0 * math.pi / count
     maps = sym_maps(a.kind, values, count, frame, program.units.pole())
     new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
-    if ctx.depth < MAX_DEPTH:
+    if ctx.depth < program.max_depth:
         ctx.spawn("c", gen_node, program, a_id, 0, frame, new_copies)
 
 
@@ -332,6 +337,7 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
         "sym_inner": program.sym_inner,
         "count_support": program.count_support,
         "full_rings": list(program.full_rings),
+        "max_depth": int(program.max_depth),
         "orders": {k: list(map(int, v)) for k, v in program.orders.items()},
         "sigma_mode": program.sigma_mode,
         "next_id": program.next_id,
@@ -448,6 +454,7 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    sym_inner=dict(data["sym_inner"]),
                    count_support={k: list(map(_whole, v)) for k, v in data["count_support"].items()},
                    full_rings=_full_rings_from_json(data.get("full_rings") or [], data),
+                   max_depth=_max_depth_from_json(data.get("max_depth", MAX_DEPTH)),
                    orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
                    sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
@@ -456,6 +463,17 @@ def program_from_json(data: dict, parts: dict) -> Program:
 
 
 _NO_UNITS = object()
+
+MAX_PROGRAM_DEPTH = 5000  # of a program file's max_depth: under the runtime's own limit (Model.max_depth)
+
+
+def _max_depth_from_json(value) -> int:
+    """A program's ``max_depth`` (files written before it was kept: :data:`MAX_DEPTH`)."""
+    depth = _whole(value)
+    if not MAX_DEPTH <= depth <= MAX_PROGRAM_DEPTH:
+        raise ProgramError(f"max_depth must be a whole number from {MAX_DEPTH} to {MAX_PROGRAM_DEPTH}, got "
+                           f"{shown_value(value)}")
+    return depth
 
 
 def _full_rings_from_json(value, data) -> list:

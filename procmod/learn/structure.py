@@ -29,7 +29,7 @@ import warnings
 import numpy as np
 
 from .preprocessing import Dataset
-from .program import ROOT, Abstraction, Program
+from .program import MAX_DEPTH, ROOT, Abstraction, Program
 from .transforms import CATEGORY, SIGMA_FLOOR, SYM_PARAMS
 
 TAU_SNAP = 0.02
@@ -107,6 +107,23 @@ def full_rings(data: Dataset) -> list:
     return sorted(t for t, full in closes.items() if full)
 
 
+DEPTH_HEADROOM = 1.5
+"""A learned program's calls may go this many times deeper than its deepest example (a
+chain learned from chains of 60 parts may grow a little longer, not without end)."""
+
+
+def program_depth(data: Dataset) -> int:
+    """:attr:`Program.max_depth` for the examples of ``data``: the levels of calls their
+    deepest derivation takes (a part or symmetry node a level, below the root's call),
+    with :data:`DEPTH_HEADROOM`, and never under :data:`~procmod.learn.program.MAX_DEPTH`."""
+    deepest, stack = 0, [(data.nodes[root], 1) for root in data.roots]
+    while stack:  # iterative: a hierarchy may be deeper than Python's recursion limit
+        node, depth = stack.pop()
+        deepest = max(deepest, depth)
+        stack.extend((child, depth + 1) for _, child in node.children)
+    return max(MAX_DEPTH, math.ceil(DEPTH_HEADROOM * (deepest + 1)))
+
+
 def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
     """P0 (see the module docstring), parameters initialised from the data."""
     part_types = sorted({n.type for n in data.nodes if n.kind == "part"})
@@ -114,7 +131,7 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
     orders = {key: nade_order(x) for key, (x, _) in stats.items()}
     program = Program(parts=data.parts, slots=data.slots, groups=data.groups, sym_inner=data.sym_inner,
                       count_support={t: list(range(2, m + 1)) for t, m in data.max_count.items()},
-                      orders=orders, units=data.units, full_rings=full_rings(data))
+                      orders=orders, units=data.units, full_rings=full_rings(data), max_depth=program_depth(data))
     ids = {}
     for t in part_types:
         ids[t] = program.next_id
