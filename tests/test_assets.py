@@ -532,6 +532,22 @@ def test_a_symmetric_part_is_placed_unturned_when_its_geometry_allows_it(tmp_pat
             assert np.allclose(np.asarray(node.transform)[:3, :3], np.eye(3), atol=1e-6), (asset.path, node.name)
 
 
+def test_a_mesh_whose_transforms_were_applied_gets_a_frame_at_its_middle(tmp_path):
+    """Geometry exported with its transforms applied lies in world coordinates about the
+    world's origin: a leg's part frame was 0.75 m from the leg, its placements encoded that
+    offset, and learned tables' legs strayed 0.3 m outside the top. A pivot on the geometry
+    (the unbaked chair's) stays where the artist put it."""
+    read = read_assets([_chair(tmp_path / "b.glb", True)])
+    leg = np.asarray(read.parts["Leg.baked"].vertices)
+    assert np.allclose((leg.min(0) + leg.max(0)) / 2, 0, atol=1e-6)  # the frame at the leg's middle
+    nodes = {node.name: node for node in read.assets[0].nodes()}
+    assert np.allclose(np.asarray(nodes["Leg"].transform)[:3, 3], (0.2, 0.225, 0.2), atol=1e-6)
+    want = transformed(box_mesh((0.04, 0.45, 0.04)), T(0.2, 0.225, 0.2))
+    assert same_surface(world_triangles(read, nodes["Leg"]).reshape(-1, 3), want[0][want[1]].reshape(-1, 3), 1e-6)
+    unbaked = read_assets([_chair(tmp_path / "a.glb", False)])
+    assert np.allclose(np.asarray(unbaked.parts["Leg"].vertices), box_mesh((0.04, 0.45, 0.04))[0])
+
+
 def _cube_chair(path, height: float, baked_legs: bool = False):
     """A chair as Blender users make one: the default cube scaled into a seat, a back and
     four legs, the scales left unapplied (``baked_legs``: the legs' scale applied, so their

@@ -1111,14 +1111,36 @@ def _library(geometries: list, tol: float, mirror: bool, worlds: dict | None = N
         if canon.kind == "box":
             parts[name] = PartShape(name, "box", size=tuple(float(s) for s in canon.size),
                                     source=[float(s) for s in canon.size])
-        else:
-            parts[name] = PartShape(name, "mesh", vertices=tuple(map(tuple, canon.vertices.tolist())),
+        shift = np.eye(4)
+        if canon.kind != "box":
+            shift[:3, 3] = _far_pivot_shift(canon.vertices)
+            parts[name] = PartShape(name, "mesh", vertices=tuple(map(tuple, (canon.vertices - shift[:3, 3]).tolist())),
                                     faces=tuple(map(tuple, canon.faces.tolist())), source=None)
         inv = np.linalg.inv(m_canon)
         symmetries = _symmetries(canon, canon_surface, tol)
         for g, m, _ in members:  # g = m(rep) and canon = m_canon(rep), so g = m m_canon^-1 (canon)
-            of_key[g.key] = (name, _upright_symmetry(m @ inv, symmetries, (worlds or {}).get(g.key, ())))
+            # (and canon = shift(part): the part's frame moved to its middle where its pivot was far off)
+            of_key[g.key] = (name, _upright_symmetry(m @ inv, symmetries, (worlds or {}).get(g.key, ())) @ shift)
     return parts, of_key
+
+
+FAR_PIVOT = 0.5
+"""A mesh whose own origin lies farther than this many bounding-box diagonals outside its
+bounding box gets a part frame at the box's centre (:func:`_far_pivot_shift`)."""
+
+
+def _far_pivot_shift(vertices: np.ndarray) -> np.ndarray:
+    """Where a part's frame moves to (in its mesh's coordinates): the bounding box's centre
+    when the mesh's origin lies far outside it, else nowhere (zero). A mesh exported with
+    its transforms applied (Blender's Apply All Transforms) has its geometry in world
+    coordinates about the world's origin: a table's leg turned about a point 0.75 m away,
+    and its placements encoded that offset, so learned legs strayed 0.3 m outside the top.
+    A pivot an artist placed (a hinge, a leg's top) lies on or near the geometry: kept."""
+    lo, hi = vertices.min(0), vertices.max(0)
+    outside = np.linalg.norm(np.maximum(lo, 0.0) + np.maximum(-hi, 0.0))  # the origin to the box
+    if outside <= FAR_PIVOT * np.linalg.norm(hi - lo):
+        return np.zeros(3)
+    return (lo + hi) / 2.0
 
 
 def _symmetries(canon: _Geometry, surface, tol: float) -> list:
