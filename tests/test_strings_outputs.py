@@ -80,6 +80,9 @@ def test_instantiate_never_overwrites_the_model_it_reads(fence_model, tmp_path, 
     assert {p: p.read_bytes() for p in model.rglob("*") if p.is_file()} == before
     code, _, err = _run(capsys, "strings", "instantiate", model, text, "--out", tmp_path / "elsewhere.glb")
     assert code == 0, err
+    # a string pasted with spaces around it, as 'strings decode' reads it (refused here)
+    code, _, err = _run(capsys, "strings", "instantiate", model, f" {text} ", "--out", tmp_path / "spaced.glb")
+    assert code == 0, err
 
 
 def test_dot_dot_in_out_leaves_no_stray_folders(fence_model, tmp_path, capsys, monkeypatch):

@@ -198,6 +198,10 @@ def test_ring_rule_is_learned_only_where_the_rings_support_it():
     assert many.ring_multiple == 4 and "chance 0.031" in ring_rule_note([grid] * 5, many)
     ten = parse("C1WCWCWCWCW1").graph
     assert two.is_valid(ten) and not many.is_valid(ten)
+    # shapes without a ring: what the types would make of one, not a claim about rings they have
+    chain = parse("CWCWC").graph
+    note = ring_rule_note([chain], Grammar.from_graphs([chain]))
+    assert "(0 rings)" in note and "any ring would be even" in note and "every ring is even" not in note
 
 
 def test_ring_rule_is_checked_on_every_ring():

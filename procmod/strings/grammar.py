@@ -82,7 +82,9 @@ def ring_rule_note(graphs, grammar: "Grammar") -> str:
     for n in lengths:
         g = math.gcd(g, n)
     top = math.gcd(g, 4) if g else 1
-    even = "; every ring is even: the types that touch alternate in two classes" if forced == 2 else ""
+    # (of rings the shapes lack, what the type rules would make of any)
+    even = (f"; {'every ring is' if lengths else 'any ring would be'} even: the types that touch alternate in two "
+            "classes") if forced == 2 else ""
     if m > 1:
         return (f"rings: every ring is a multiple of {m} parts long ({len(lengths)} rings, all multiples: chance "
                 f"{(forced / m) ** len(lengths):.2g} <= {RING_RULE_CHANCE} were it no rule)")

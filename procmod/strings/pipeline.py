@@ -34,7 +34,7 @@ from ..core.io import read_json, read_versioned_json, write_text_atomic
 from ..core.paths import is_dir_quietly, output_path, reading_an_outputs_own_files
 from ..core.runfolder import STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
-from .codec import parse, strings_of
+from .codec import decode, parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
 from .contacts import loose_parts, shape_graph
 from .grammar import Grammar
@@ -351,8 +351,9 @@ class TrainedModel:
         return self.training_strings
 
     def check_string(self, text: str):
-        """The graph of ``text``; raises if it is not a string or breaks the grammar."""
-        g = parse(text).graph
+        """The graph of ``text``; raises if it is not a string or breaks the grammar.
+        Whitespace around it is not part of it (as :func:`~procmod.strings.codec.decode` reads)."""
+        g = decode(text)
         problems = self.grammar.violations(g)
         if problems:
             raise InstantiationError(f"{text!r} breaks the tiling grammar: {'; '.join(problems)}")
