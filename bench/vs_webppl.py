@@ -29,7 +29,15 @@ the mean weighs every target's level. With ``--guide``, ``guided_similarity_diff
 holds guided procmod's per-target median minus WebPPL's, averaged over targets, on the
 same (target, seed) runs. Intervals are 95% bootstrap intervals (those of per-target
 means resample targets). Targets are 50x50 masks written once as PNG (+ sidecar
-start/direction) for procmod and as JSON for WebPPL: the same pixels for both.
+start/direction) for procmod and as JSON for WebPPL: the same pixels for both. A picture
+is left out, with the reason, when it cannot be read, when its shape covers fewer than 25
+of the 2,500 pixels at 50x50 (the normalised similarity of a dot is no measure) or more
+than 90% of the frame, or when procmod would read its written mask otherwise than the
+scorer; procmod's note on a picture it may have read wrongly (a page in a dark frame read
+as the shape) is printed. ``--targets-dir`` reads the folder's pictures, not its
+subfolders (named). With ``--work``, a run already in the folder is reused only when it
+was made with the same settings (leaves, start, repeats, workers, guide and its files)
+on the same mask.
 
 Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``, procmod's
 procedural scribbles from number 49 on (0-48 train the guides); ``stix`` (not in the
@@ -47,10 +55,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import json
 import math
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -132,18 +142,35 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         # every format procmod infer reads: those Pillow opens (it only writes some, PDF)
         pictures = {suffix for suffix, kind in Image.registered_extensions().items() if kind in Image.OPEN}
         files = sorted(p for p in targets_dir.iterdir() if p.is_file())
+        folders = sorted(p.name for p in targets_dir.iterdir() if p.is_dir())
+        if folders:  # read one folder deep only: say so, rather than pass over them without a word
+            print(f"vs_webppl: subfolders not read (give each as its own --targets-dir): {', '.join(folders[:5])}"
+                  + (f" and {len(folders) - 5} more" if len(folders) > 5 else ""), file=sys.stderr)
         left_out = [p.name for p in files if p.suffix.lower() not in pictures and p.suffix.lower() != ".json"]
         if left_out:
             print(f"vs_webppl: not pictures, left out: {', '.join(left_out[:5])}"
                   + (f" and {len(left_out) - 5} more" if len(left_out) > 5 else ""), file=sys.stderr)
+        from procmod.models import get_model
+        from procmod.targets import ShapeMatch
+        from procmod.targets.placement import picture_note
+
+        vines = get_model("vines")
         loaded = []
         for path in (p for p in files if p.suffix.lower() in pictures):
             try:
                 target = load_target_image(path)
-                target.at_size(SIZE, SIZE)  # a shape that vanishes at the bench's size is refused here
-                loaded.append(target)
+                mask = target.at_size(SIZE, SIZE)  # a shape that vanishes at the bench's size is refused here
             except ProcmodError as error:  # a blank or unreadable picture: say so, bench the rest
                 print(f"vs_webppl: skipping {path.name}: {error}", file=sys.stderr)
+                continue
+            problem = coverage_problem(mask)
+            if problem is not None:
+                print(f"vs_webppl: skipping {path.name}: {problem}", file=sys.stderr)
+                continue
+            doubt = picture_note(ShapeMatch(target), vines)  # what procmod infer says of it (a page read as the shape)
+            if doubt is not None:
+                print(f"vs_webppl: note: {doubt}", file=sys.stderr)
+            loaded.append(target)
         if not loaded:
             sys.exit(f"vs_webppl: no usable target pictures in {targets_dir}")
         name = targets_dir.resolve().name
@@ -153,10 +180,38 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
     return out
 
 
+MIN_SHAPE_PIXELS = 25  # of the 50x50 mask (1%)
+MAX_SHAPE_SHARE = 0.9
+
+
+def coverage_problem(mask: np.ndarray) -> str | None:
+    """Why a 50x50 target mask cannot be benched, or None. The scorer's similarity is
+    normalised by an empty canvas's: for a shape of a few pixels that is ~1 and the
+    score's scale explodes (one dot scored -8 and -9.5, moving the per-target mean by 0.3);
+    a shape filling the frame has no outline to grow along, and its picture, written back
+    opaque everywhere, reads as nothing."""
+    filled = int(mask.sum())
+    if filled < MIN_SHAPE_PIXELS:
+        return (f"the shape covers {filled} of the {mask.size} pixels at {SIZE}x{SIZE} (fewer than "
+                f"{MIN_SHAPE_PIXELS}): the similarity of so small a shape is not a measure")
+    if filled > MAX_SHAPE_SHARE * mask.size:
+        return (f"the shape covers {filled / mask.size:.0%} of the frame at {SIZE}x{SIZE}: nothing to grow into "
+                "(a picture read inverted? a dark frame around the page is read as the paper's colour)")
+    return None
+
+
+def target_digest(mask: np.ndarray, placement: dict) -> str:
+    """What a run on a target depends on: its mask and where the vine starts."""
+    return hashlib.sha256(np.packbits(mask).tobytes() + json.dumps(placement, sort_keys=True).encode()
+                          ).hexdigest()[:16]
+
+
 def write_targets(images: dict, folder: Path) -> dict:
     """Write each target as NAME.png + NAME.json (procmod) and NAME.mask.json (WebPPL).
 
-    Returns ``set -> [(name, target label, png path, mask json path, 50x50 mask)]``.
+    Returns ``set -> [(name, target label, png path, mask json path, 50x50 mask, digest)]``
+    (:func:`target_digest`); a target that cannot be written so that procmod reads the
+    scorer's mask is left out, with the reason, and the rest are benched.
     """
     from procmod.targets import load_target_image
 
@@ -166,6 +221,10 @@ def write_targets(images: dict, folder: Path) -> dict:
         rows = []
         for k, target in enumerate(targets):
             mask = target.at_size(SIZE, SIZE)
+            problem = coverage_problem(mask)
+            if problem is not None:
+                print(f"vs_webppl: skipping {target.name}: {problem}", file=sys.stderr)
+                continue
             name = f"{set_name}_{k:02d}"
             png = folder / f"{name}.png"
             # the shape opaque black on a transparent ground: procmod reads transparency as the
@@ -174,18 +233,27 @@ def write_targets(images: dict, folder: Path) -> dict:
             pixels = np.zeros(mask.shape + (4,), dtype=np.uint8)
             pixels[..., 3] = np.where(mask, 255, 0)
             Image.fromarray(pixels, "RGBA").save(png)
-            read = load_target_image(png).at_size(SIZE, SIZE)
+            try:
+                read = load_target_image(png).at_size(SIZE, SIZE)
+            except ProcmodError as error:
+                print(f"vs_webppl: skipping {target.name}: its mask, written for procmod, reads back as: {error}",
+                      file=sys.stderr)
+                continue
             if not np.array_equal(read, mask):  # procmod, WebPPL and the scorer must see one shape
-                sys.exit(f"vs_webppl: {target.name}: procmod reads {int((read != mask).sum())} pixels of the "
-                         "written target otherwise than the scorer; not benched")
+                print(f"vs_webppl: skipping {target.name}: procmod reads {int((read != mask).sum())} pixels of the "
+                      "written target otherwise than the scorer", file=sys.stderr)
+                continue
             placement = {"start": [float(v) for v in target.start],
                          "direction": [float(v) for v in target.direction]}
             png.with_suffix(".json").write_text(json.dumps(placement))
             spec = {"width": SIZE, "height": SIZE, "mask": mask.astype(int).ravel().tolist(), **placement}
             mask_json = folder / f"{name}.mask.json"
             mask_json.write_text(json.dumps(spec))
-            rows.append((name, target.name, png, mask_json, mask))
-        out[set_name] = rows
+            rows.append((name, target.name, png, mask_json, mask, target_digest(mask, placement)))
+        if rows:
+            out[set_name] = rows
+        else:
+            print(f"vs_webppl: set {set_name}: no target left to bench", file=sys.stderr)
     return out
 
 
@@ -533,6 +601,59 @@ def plot_mcmc(rows: list, path: Path) -> None:
 
 # ---- main -----------------------------------------------------------------------------
 
+def guide_files_digest(guide: str | None) -> str | None:
+    """A digest of a guide's own files: another guide of the same name is another run."""
+    if not guide:
+        return None
+    from procmod.guide import guide_paths
+    return hashlib.sha256(b"".join(p.read_bytes() for p in guide_paths(guide) if p.is_file())).hexdigest()[:16]
+
+
+def run_settings_digest(args, system: str, target: str, guide_digest: str | None, **more) -> str:
+    """What a run's result depends on beyond its (system, method, set, target name, n,
+    seed): its target's mask and start (:func:`target_digest`), the program (leaves), the
+    timing (repeats), procmod's workers and guide, and ``more``. A --work row measured
+    under other options, or on another picture of the same name, is not reused (it had
+    been, and labelled with the new options)."""
+    config = {"target": target, "leaves": args.leaves, "repeats": args.repeats, **more}
+    if system != "webppl":
+        config["workers"] = args.workers
+    if system == "procmod+guide":
+        config["guide"] = [args.guide, guide_digest]
+    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def check_arguments(parser: argparse.ArgumentParser, args) -> None:
+    """Refuse what would fail later, after minutes of runs (a 0-particle count failed after
+    its baseline run; an unknown guide after every unguided run of the first target; a
+    --name with a folder in it after the whole bench, at the results file)."""
+    for option, values in (("--particles", args.particles), ("--guided-particles", args.guided_particles),
+                           ("--mcmc-workers", args.mcmc_workers)):
+        if any(v < 1 for v in values):
+            parser.error(f"{option} takes positive counts, got {' '.join(map(str, values))}")
+    for option, value in (("--repeats", args.repeats), ("--seeds", args.seeds), ("--count", args.count),
+                          ("--mh-samples", args.mh_samples), ("--mcmc-targets", args.mcmc_targets)):
+        if value < 1:
+            parser.error(f"{option} must be 1 or more, got {value}")
+    if args.workers is not None and args.workers < 1:
+        parser.error(f"--workers must be 1 or more, got {args.workers}")
+    if args.scribble_first < 0:
+        parser.error(f"--scribble-first must be 0 or more, got {args.scribble_first}")
+    if not args.sets and args.targets_dir is None:
+        parser.error("nothing to bench: give --sets or --targets-dir")
+    if not re.fullmatch(r"[A-Za-z0-9_.-]+", args.name) or set(args.name) == {"."}:
+        parser.error(f"--name is a file stem in bench/results/ (letters, digits, _ . -), got {args.name!r}")
+    if "procmod+guide" in args.systems and not args.guide:
+        parser.error("--systems procmod+guide needs --guide")
+    if args.guide:
+        from procmod.core import ProcmodError
+        from procmod.guide import Guide
+        try:
+            Guide.load(args.guide)
+        except ProcmodError as error:
+            parser.error(f"--guide: {error}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sets", nargs="*", default=["glyphs", "scribbles"], choices=SETS)
@@ -564,10 +685,7 @@ def main() -> None:
     parser.add_argument("--name", default="vs_webppl", help="results file stem (default vs_webppl)")
     parser.add_argument("--work", type=Path, help="work folder (default: a temporary one)")
     args = parser.parse_args()
-    if args.repeats < 1:
-        parser.error(f"--repeats must be 1 or more, got {args.repeats}")
-    if "procmod+guide" in args.systems and not args.guide:
-        parser.error("--systems procmod+guide needs --guide")
+    check_arguments(parser, args)
 
     webppl = ensure_webppl() if "webppl" in args.systems else None
     work = args.work or Path(tempfile.mkdtemp(prefix="vs_webppl_"))
@@ -585,10 +703,16 @@ def main() -> None:
     log_path = work / "rows.jsonl"
     done = {}
     reused = 0  # rows read back from --work instead of measured
+    guide_digest = guide_files_digest(args.guide)
+
+    def run_config(system: str, digest: str, **more) -> str:
+        return run_settings_digest(args, system, digest, guide_digest, **more)
+
     if log_path.exists():
         for line in log_path.read_text().splitlines():
             row = json.loads(line)
-            done[(row["system"], row["method"], row["set"], row["target"], row["n"], row["seed"])] = row
+            done[(row["system"], row["method"], row["set"], row["target"], row["n"], row["seed"],
+                  row.get("config"))] = row
 
     def record(row):
         rows.append(row)
@@ -600,7 +724,7 @@ def main() -> None:
 
     # SMC at every particle count; a 1-particle run of each (system, target, seed) is the baseline.
     for set_name, items in targets.items():
-        for name, label, png, mask_json, mask in items:
+        for name, label, png, mask_json, mask, digest in items:
             for seed in range(args.seeds):
                 plans = []
                 if "procmod" in args.systems:
@@ -617,7 +741,8 @@ def main() -> None:
                                   lambda n: run_webppl(webppl, mask_json, mask, work, "SMC", n, seed, args.leaves,
                                                        repeats=args.repeats)))
                 for system, method, counts, run in plans:
-                    keys = [(system, method, set_name, label, n, seed) for n in counts]
+                    config = run_config(system, digest)
+                    keys = [(system, method, set_name, label, n, seed, config) for n in counts]
                     if all(k in done for k in keys):
                         rows.extend(done[k] for k in keys)
                         reused += len(keys)
@@ -626,7 +751,7 @@ def main() -> None:
                     for n in counts:
                         r = run(n)
                         record({"system": system, "method": method, "set": set_name, "target": label,
-                                "n": n, "seed": seed, **r, "baseline_seconds": base["seconds"],
+                                "n": n, "seed": seed, "config": config, **r, "baseline_seconds": base["seconds"],
                                 "beyond_seconds": r["seconds"] - base["seconds"],
                                 "baseline_infer_seconds": base.get("infer_seconds"),
                                 "baseline_steps": base.get("steps")})
@@ -637,28 +762,32 @@ def main() -> None:
     if mcmc_path.exists():
         for line in mcmc_path.read_text().splitlines():
             row = json.loads(line)
-            mcmc_done.setdefault((row["set"], row["target"], row["seed"]), []).append(row)
+            mcmc_done.setdefault((row["set"], row["target"], row["seed"], row.get("config")), []).append(row)
     if args.mcmc and webppl is not None and "procmod" in args.systems:
         for set_name, items in targets.items():
-            for name, label, png, mask_json, mask in items[: args.mcmc_targets]:
+            for name, label, png, mask_json, mask, digest in items[: args.mcmc_targets]:
+                config = run_config("mcmc", digest, mh_samples=args.mh_samples, mcmc_workers=args.mcmc_workers)
                 for seed in range(args.seeds):
-                    if (set_name, label, seed) in mcmc_done:
-                        mcmc_rows.extend(mcmc_done[(set_name, label, seed)])
-                        reused += len(mcmc_done[(set_name, label, seed)])
+                    key = (set_name, label, seed, config)
+                    if key in mcmc_done:
+                        mcmc_rows.extend(mcmc_done[key])
+                        reused += len(mcmc_done[key])
                         continue
                     first = len(mcmc_rows)
                     base_w = run_webppl(webppl, mask_json, mask, work, "MH", 1, seed, args.leaves)["seconds"]
                     r = run_webppl(webppl, mask_json, mask, work, "MH", args.mh_samples, seed, args.leaves)
                     budget = max(r["seconds"] - base_w, 0.05)
                     mcmc_rows.append({"system": "webppl", "method": "MH", "set": set_name, "target": label,
-                                      "seed": seed, "n": args.mh_samples, **r, "beyond_seconds": budget})
+                                      "seed": seed, "config": config, "n": args.mh_samples, **r,
+                                      "beyond_seconds": budget})
                     plans = [("mcmc" if w == 1 else f"mcmc-w{w}", "mcmc", w) for w in args.mcmc_workers]
                     plans += [("sosmc", "sosmc", None), ("ga", "ga", None)]
                     for method, engine, workers in plans:
                         p = run_procmod(png, mask, work, engine, None, seed, args.leaves, budget=f"{budget:.3f}s",
                                         workers=workers)
                         mcmc_rows.append({"system": "procmod", "method": method, "set": set_name, "target": label,
-                                          "seed": seed, "n": None, **p, "budget_seconds": budget})
+                                          "seed": seed, "config": config, "n": None, **p,
+                                          "budget_seconds": budget})
                     with mcmc_path.open("a") as handle:
                         handle.writelines(json.dumps(row) + "\n" for row in mcmc_rows[first:])
                     print(f"  mcmc {set_name} {label} seed {seed}: MH {r['similarity']:.3f} in {budget:.2f} s; "

@@ -96,7 +96,63 @@ def test_the_bench_writes_targets_procmod_reads_as_the_scorer_does(bench, tmp_pa
     err = capsys.readouterr().err
     assert "skipping thin.pgm" in err and "not pictures, left out: notes.txt" in err
     written = bench.write_targets(images, tmp_path / "targets")
-    (name, label, png, mask_json, mask), = written["dir-glyphs"]
+    (name, label, png, mask_json, mask, digest), = written["dir-glyphs"]
     assert label == "house.webp" and mask.mean() > 0.6  # the house (padded to a square), not its complement
     assert np.array_equal(load_target_image(png).at_size(bench.SIZE, bench.SIZE), mask)
     assert json.loads(mask_json.read_text())["mask"] == mask.astype(int).ravel().tolist()
+
+
+def test_the_bench_skips_what_it_cannot_measure_and_says_so(bench, tmp_path, capsys):
+    """A picture filling the frame at 50x50 stopped the whole bench with a traceback (its
+    mask, written opaque everywhere, read back empty); a dot of a few pixels was benched,
+    its normalised similarity near -9 swamping the per-target means; subfolders were
+    passed over without a word."""
+    from PIL import Image
+
+    folder = tmp_path / "mine"
+    (folder / "more").mkdir(parents=True)
+    page = np.full((200, 200), 255, dtype=np.uint8)
+    page[1:-1, 1:-1] = 0  # black to a 1-pixel white border: the whole frame at 50x50
+    Image.fromarray(page).save(folder / "full.png")
+    dot = np.full((200, 200), 255, dtype=np.uint8)
+    dot[100:104, 100:104] = 0
+    Image.fromarray(dot).save(folder / "dot.png")
+    bar = np.full((200, 200), 255, dtype=np.uint8)
+    bar[40:160, 90:110] = 0
+    Image.fromarray(bar).save(folder / "bar.png")
+    images = bench.target_images([], 1, folder, 49)
+    err = capsys.readouterr().err
+    assert [t.name for t in images["mine"]] == ["bar.png"]
+    assert "skipping dot.png: the shape covers" in err and "skipping full.png: the shape covers 100%" in err
+    assert "subfolders not read" in err and "more" in err
+    written = bench.write_targets(images, tmp_path / "targets")
+    assert len(written["mine"]) == 1
+
+
+def test_work_rows_are_reused_only_under_the_same_settings_and_pictures(bench):
+    import argparse
+
+    args = argparse.Namespace(leaves=True, repeats=1, workers=None, guide=None)
+    same = bench.run_settings_digest(args, "procmod", "t1", None)
+    assert same == bench.run_settings_digest(args, "procmod", "t1", None)
+    assert same != bench.run_settings_digest(args, "procmod", "t2", None)  # another picture, same name
+    assert same != bench.run_settings_digest(argparse.Namespace(**{**vars(args), "leaves": False}), "procmod", "t1",
+                                             None)
+    guided = argparse.Namespace(**{**vars(args), "guide": "vines-scribbles"})
+    assert bench.run_settings_digest(guided, "procmod+guide", "t1", "a") != \
+        bench.run_settings_digest(guided, "procmod+guide", "t1", "b")  # another guide's files
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--particles", "0"], "--particles takes positive counts"),
+    (["--seeds", "0"], "--seeds must be 1 or more"),
+    (["--name", "sub/x"], "--name is a file stem"),
+    (["--sets"], "nothing to bench"),
+    (["--guide", "no-such-guide"], "--guide: guide file no-such-guide.json does not exist"),
+])
+def test_arguments_that_would_fail_late_are_refused_first(bench, monkeypatch, capsys, argv, message):
+    monkeypatch.setattr("sys.argv", ["vs_webppl.py", *argv])
+    monkeypatch.setattr(bench, "ensure_webppl", lambda: pytest.fail("ran past the checks"))
+    with pytest.raises(SystemExit):
+        bench.main()
+    assert message in capsys.readouterr().err
