@@ -610,7 +610,8 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
 def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_path):
     """A drawing on paper inside a dark frame (a scanner bed's edge) ran with the paper as
     the shape; fine-pen strokes beside a marker vanished at the 50x50 canvas. Neither said
-    so; now a note does (and a clean drawing gets none)."""
+    so; now a note does (and a clean drawing gets none), and a framed drawing is read as
+    the drawing."""
     from procmod.cli import _model
     from procmod.data import target_from_spec
     from procmod.targets.placement import picture_note
@@ -626,18 +627,25 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     Image.fromarray(pens).save(tmp_path / "pens.png")
     Image.fromarray(np.where(ink, 0, 255).astype(np.uint8)).save(tmp_path / "clean.png")
     model = _model("vines")
-    # black ink in a near-black frame is not told from a white shape's holes: the page
-    # stays the shape, and the note says what to crop
-    assert "covers" in picture_note(target_from_spec(str(tmp_path / "framed.png")), model)
-    # in a frame of another colour than its ink, the drawing on the page is the shape
-    framed[:, :30] = framed[:, -30:] = framed[:30] = framed[-30:] = 90
-    Image.fromarray(framed).save(tmp_path / "grey_framed.png")
-    framed_target = target_from_spec(str(tmp_path / "grey_framed.png"))
+    # black ink in a near-black frame: its strokes are thin, not a white shape's holes, so
+    # the drawing on the page is the shape (the page had been, with a note saying what to
+    # crop); so it is in a frame of another colour than its ink
     visible = ink.copy()
     visible[:, :30] = visible[:, -30:] = visible[:30] = visible[-30:] = False
-    read = framed_target.image.mask
-    assert not (read & ~visible).any() and (read & visible).sum() >= 0.9 * visible.sum()
-    assert picture_note(framed_target, model) is None
+    for frame in (10, 90):
+        framed[:, :30] = framed[:, -30:] = framed[:30] = framed[-30:] = frame
+        Image.fromarray(framed).save(tmp_path / f"framed_{frame}.png")
+        framed_target = target_from_spec(str(tmp_path / f"framed_{frame}.png"))
+        read = framed_target.image.mask
+        assert not (read & ~visible).any() and (read & visible).sum() >= 0.9 * visible.sum(), frame
+        assert picture_note(framed_target, model) is None
+    # a page read as the shape still gets the note: a white card with a wide dark window
+    # in it, on a black ground (holes, not strokes: the card is the shape)
+    card = np.full((400, 400), 10, dtype=np.uint8)
+    card[40:360, 40:360] = 240
+    card[150:250, 150:250] = 10
+    Image.fromarray(card).save(tmp_path / "card.png")
+    assert "covers" in picture_note(target_from_spec(str(tmp_path / "card.png")), model)
     assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
     # a built-in glyph that covers most of its square (a dot scaled up) has no border to crop
@@ -806,3 +814,24 @@ def test_pictures_that_hold_no_pixels_to_read_say_why(tmp_path, name, make, says
     make(tmp_path / name)
     with pytest.raises(TargetFileError, match=re.escape(says)):
         load_target_image(tmp_path / name)
+
+
+def test_a_phone_photo_of_a_page_on_a_dark_desk_is_read_as_its_drawing(tmp_path):
+    """Dark ink on a page on a dark wooden desk: the ink is near the desk's colour, which
+    read as a light shape's holes once the photo's edges were softened and JPEG'd (the
+    page became the shape, the drawing its holes); pen strokes are thin, holes are not."""
+    from PIL import ImageFilter
+
+    from procmod.targets.image import mask_from_image
+
+    picture = np.zeros((300, 400, 3), dtype=np.uint8)
+    picture[:] = (45, 35, 30)  # the desk, dark wood
+    picture[25:280, 60:350] = (222, 216, 202)  # the page
+    ink = np.zeros((300, 400), dtype=bool)
+    ink[60:250, 200:208] = True  # a trunk and a branch, pen-wide
+    ink[120:128, 208:290] = True
+    picture[ink] = (25, 25, 25)  # black ink, within 24 grey levels of the desk
+    photo = Image.fromarray(picture).filter(ImageFilter.GaussianBlur(1))
+    photo.save(tmp_path / "photo.jpg", quality=70)
+    read = mask_from_image(Image.open(tmp_path / "photo.jpg"))[50:350]  # (padded to a square: rows 50..349)
+    assert read.sum() < 2 * ink.sum() and (read & ink).sum() >= 0.9 * ink.sum()

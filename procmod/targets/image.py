@@ -697,8 +697,9 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     a picture on that page's paper. A light shape on a dark ground with nothing drawn on
     it (a white silhouette, a mask exported inverted) stays the shape, and so does one whose
     holes and notches are the ground's colour (a white letter, a silhouette with a hole): a
-    drawing must differ from the ground by :data:`MIN_CONTRAST`. A page in a near-black
-    frame drawn in black is therefore not told from them (the "covers" note of
+    drawing must differ from the ground by :data:`MIN_CONTRAST`, or be thin strokes
+    (:func:`_thin_strokes`): black ink on a page in a black frame or on a dark desk is
+    then the drawing; a page whose drawing is neither stays the shape (the "covers" note of
     :func:`procmod.targets.placement.picture_note` says what to crop)."""
     from scipy import ndimage
 
@@ -737,10 +738,30 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
         return None
     # and unlike the border: the holes and notches of a light shape on a dark ground (a
     # white silhouette with a hole, a bold letter, an inverted mask) are the ground's own
-    # colour, and that light shape is the shape
-    if float(np.abs(np.median(colours[drawn], axis=0) - surround).max()) < MIN_CONTRAST:
+    # colour, and that light shape is the shape; unless what is drawn is pen strokes, not
+    # holes: dark ink on a page on a dark desk is the desk's colour too (a phone photo's
+    # softened edges and JPEG had read such a page as the shape, the drawing as its holes)
+    if float(np.abs(np.median(colours[drawn], axis=0) - surround).max()) < MIN_CONTRAST \
+            and not _thin_strokes(drawn[::step, ::step]):
         return None
     return drawn
+
+
+STROKE_WIDTH_SHARE = 0.015
+"""Pen strokes are at most twice this share of the picture's larger side wide
+(:func:`_thin_strokes`); the holes of a silhouette are wider."""
+
+
+def _thin_strokes(drawn: np.ndarray) -> bool:
+    """Whether ``drawn`` (at most :data:`_PAGE_GRID` pixels a side) is thin strokes, lines
+    an erosion by :data:`STROKE_WIDTH_SHARE` of the picture's side removes (nearly) all of,
+    rather than the wide holes and notches of a light shape on a dark ground."""
+    from scipy import ndimage
+
+    if not drawn.any():
+        return False
+    k = max(1, round(STROKE_WIDTH_SHARE * max(drawn.shape)))
+    return int(ndimage.binary_erosion(drawn, iterations=k).sum()) <= 0.1 * int(drawn.sum())
 
 
 def mask_from_image(image: Image.Image) -> np.ndarray:
