@@ -170,6 +170,14 @@ def test_a_traces_job_does_not_resume_on_an_edited_model(tmp_path, monkeypatch, 
     del job["model_code"]  # a job file written before jobs recorded their code
     (tmp_path / "tr" / "traces.json").write_text(json.dumps(job))
     assert main([*traces, "--count", "4"]) == 0 and "1 traces made, 3 already there" in capsys.readouterr().out
+    # an edit of a module beside the model file that it imports: its traces had been mixed too
+    (tmp_path / "steps.py").write_text("STEP = 2\n")
+    (tmp_path / "plants2.py").write_text("from steps import STEP\n" + PLANT_FILE.replace("x1, y1 = x + 2", "x1, y1 = x + STEP"))
+    helped = ["guide", "traces", "plants2.py:PLANT", "--particles", "4", "--workers", "1", "--out", "tr2"]
+    assert main([*helped, "--count", "1"]) == 0, capsys.readouterr().err
+    (tmp_path / "steps.py").write_text("STEP = 3\n")
+    capsys.readouterr()
+    assert main([*helped, "--count", "2"]) == 2 and "as its code was before an edit" in capsys.readouterr().err
 
 
 def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):

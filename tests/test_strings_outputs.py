@@ -211,3 +211,30 @@ def test_overwrite_trains_afresh_over_a_model_of_another_training(fence_model, t
     assert code == 0, err
     assert (model / "vae.pt").read_bytes() == vae  # the VAE was this training's: kept
     assert json.loads((model / "model.json").read_text())["tagger"]["epochs"] == 1
+
+
+def test_overwrite_with_another_collection_replaces_the_model_whole(fence_model, tmp_path, capsys):
+    """--overwrite over a fence model with another collection left the fence's copied meshes
+    (parts/) behind, and the folder then refused to resume as a stranger's; a folder killed
+    before its first checkpoint kept the fence's collection.json through --overwrite, and
+    the model trained on the other shapes could not be used with it."""
+    other = Path(__file__).resolve().parents[1] / "examples_sets" / "strings" / "moonbase.json"
+    model = _copy(fence_model, tmp_path)
+    assert (model / "parts").is_dir()
+    code, _, err = _run(capsys, "strings", "train", other, "--out", model, *TINY)
+    _one_line_error(code, err, "--overwrite")
+    code, _, err = _run(capsys, "strings", "train", other, "--out", model, *TINY, "--overwrite")
+    assert code == 0, err
+    assert not (model / "parts").exists()  # the fence's meshes went with the fence model
+    code, _, err = _run(capsys, "strings", "train", other, "--out", model, *TINY)  # the same job: resumes
+    assert code == 0, err
+    killed = tmp_path / "killed"
+    shutil.copytree(fence_model / "model", killed)
+    for name in ("vae.json", "vae.pt", "tagger.json", "tagger.pt", "model.json", "strings.txt", "categories.json"):
+        (killed / name).unlink(missing_ok=True)  # killed in the first VAE epoch: the collection alone
+    code, _, err = _run(capsys, "strings", "train", other, "--out", killed, *TINY)
+    _one_line_error(code, err, "holds a model of another collection")
+    code, _, err = _run(capsys, "strings", "train", other, "--out", killed, *TINY, "--overwrite")
+    assert code == 0, err
+    code, _, err = _run(capsys, "strings", "sample", killed, "-n", 1, "--out", tmp_path / "s")
+    assert code == 0, err

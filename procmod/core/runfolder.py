@@ -348,9 +348,12 @@ class RunFolder:
             if self.path.is_symlink():  # replace the link, never what it points to
                 self.path.unlink()
             elif recognised:  # an earlier job with other settings (--overwrite): its own files only
+                # (with the entries its own files list: a model's copied meshes had been left
+                # behind, and the folder then refused to resume as a stranger's)
+                listed = self.kind.listed(self.path) if self.kind.listed is not None else set()
                 for entry in self.path.iterdir():
-                    if self.kind.owns(entry.name):
-                        shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+                    if self.kind.owns(entry.name) or entry.name in listed:
+                        shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
             else:
                 shutil.rmtree(self.path)
         self.path.mkdir(parents=True, exist_ok=True)

@@ -94,9 +94,11 @@ def _job_settings(model, model_file, targets, particles, seed, set_size) -> dict
 
 
 def model_code_digest(model, model_file: str | None = None) -> str:
-    """A digest of the source files of ``model``'s rules (and of its model file): a traces
-    job resumes only on the code it began with. A resumed job had mixed traces of an
-    edited model with new ones, which training then refused one by one."""
+    """A digest of the source files of ``model``'s rules (and of its model file), with the
+    files beside them their import statements name (:func:`_imports_beside`): a traces job
+    resumes only on the code it began with. A resumed job had mixed traces of an edited
+    model with new ones, which training then refused one by one (or, after an edit of a
+    helper module the choices still replayed under, took in silently)."""
     import inspect
 
     files = set()
@@ -107,13 +109,46 @@ def model_code_digest(model, model_file: str | None = None) -> str:
             files.add(inspect.getsourcefile(inspect.unwrap(rule)))
         except (TypeError, OSError):  # a rule with no Python source (a builtin, a C function)
             pass
+    # and the modules beside them that they import (a helper module of constants, the
+    # built-in models' shared frame), read from their import statements: the modules a
+    # process happens to have loaded would make the digest depend on the process
+    pending = [Path(f).resolve() for f in files if f]
+    files = set()
+    while pending:
+        path = pending.pop()
+        if path in files:
+            continue
+        files.add(path)
+        pending.extend(_imports_beside(path))
     digest = []
-    for name in sorted(f for f in files if f):
+    for path in sorted(files):
         try:
-            digest.append(fingerprint(Path(name).read_bytes()))
+            digest.append(fingerprint(path.read_bytes()))
         except OSError:
             digest.append("unreadable")
     return fingerprint(" ".join(digest))
+
+
+def _imports_beside(path: Path) -> list:
+    """The ``.py`` files in ``path``'s own folder that its import statements name
+    (``import helper``, ``from helper import X``, ``from .frame import Y``,
+    ``from . import frame``); nothing for a file that does not parse."""
+    import ast
+
+    try:
+        tree = ast.parse(path.read_bytes())
+    except (OSError, SyntaxError, ValueError):
+        return []
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level <= 1:
+            if node.module:
+                names.add(node.module.split(".")[0])
+            elif node.level == 1:  # from . import frame, chain
+                names.update(alias.name for alias in node.names)
+    return [path.parent / f"{name}.py" for name in sorted(names) if (path.parent / f"{name}.py").is_file()]
 
 
 def _same_job(previous, settings: dict) -> bool:

@@ -38,7 +38,8 @@ from .codec import decode, parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
 from .contacts import loose_parts, shape_graph
 from .grammar import Grammar
-from .shapes import ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, write_shapes
+from .shapes import (ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shapes_to_dict,
+                     write_shapes)
 from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
 from .torch_utils import ModelFileError, OtherTrainingError, reading_model_file, training_device
 from .vae import StringModel, VAEConfig, check_vae_resumable, train_vae
@@ -137,17 +138,24 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     train_idx, test_idx = split_shapes(len(graphs), held_out, seed)
     strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
     fresh = not is_dir_quietly(out) or not any(out.iterdir())
-    folder.prepare_in_place(keep=not (overwrite and _other_training(out, strings, grammar, vae_config)))
+    train_shapes = [shape_set.shapes[i] for i in train_idx]
+    folder.prepare_in_place(keep=not (overwrite and _other_training(out, strings, grammar, vae_config, shape_set,
+                                                                    train_shapes)))
     if (out / "collection.json").is_file():  # a resume: what it holds is read by every later command
         try:
             with reading_an_outputs_own_files():
-                read_shapes(out / "collection.json")
+                kept = read_shapes(out / "collection.json")
         except ProcmodError as exc:  # bad JSON, a part mesh missing or damaged (it marks the folder: kept)
             raise ModelFileError(f"{exc}; restore it, or pass {argument('overwrite=True')} to train the model again "
                                  "from the start") from None
+        if not _same_collection(kept, shape_set, train_shapes):  # its training went on, on other shapes
+            raise OtherTrainingError(f"{out} holds a model of another collection (its collection.json is not these "
+                                     f"shapes, {argument('held_out')} and {argument('seed')}'s training part); use a "
+                                     f"new {argument('out')}, or pass {argument('overwrite=True')} to train afresh "
+                                     "there")
     else:
         try:
-            write_shapes(shape_set, out / "collection.json", [shape_set.shapes[i] for i in train_idx])
+            write_shapes(shape_set, out / "collection.json", train_shapes)
         except BaseException:
             if fresh:  # what it had copied (a mesh file) made the folder a stranger's to the retry
                 shutil.rmtree(out, ignore_errors=True)
@@ -198,21 +206,36 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     return meta
 
 
-def _other_training(out: Path, strings: list, grammar, config: VAEConfig) -> bool:
-    """Whether ``out`` holds a model this training would not resume: a VAE checkpoint of
-    another configuration, vocabulary, tiling rules, training strings or more epochs than
-    asked, or a damaged collection or checkpoint. ``--overwrite`` then starts the folder
-    afresh (it had been refused, as without it)."""
+def _other_training(out: Path, strings: list, grammar, config: VAEConfig, shape_set: ShapeSet,
+                    train_shapes: list) -> bool:
+    """Whether ``out`` holds a model this training would not resume: another collection
+    (or another training part of it), a VAE checkpoint of another configuration,
+    vocabulary, tiling rules, training strings or more epochs than asked, or a damaged
+    collection or checkpoint. ``--overwrite`` then starts the folder afresh (it had been
+    refused, as without it)."""
     if not is_dir_quietly(out):
         return False
     try:
         with reading_an_outputs_own_files():  # its meshes are the folder's own, not inputs
-            if (out / "collection.json").is_file():
-                read_shapes(out / "collection.json")
+            if (out / "collection.json").is_file() and \
+                    not _same_collection(read_shapes(out / "collection.json"), shape_set, train_shapes):
+                return True
         check_vae_resumable(out, strings, grammar, config)
     except ProcmodError:  # another training (OtherTrainingError), or damaged: replaced whole
         return True
     return False
+
+
+def _same_collection(kept: ShapeSet, shape_set: ShapeSet, train_shapes: list) -> bool:
+    """Whether a model folder's collection (``kept``) is ``train_shapes`` of ``shape_set``:
+    the same shapes (parts, transforms), part geometry and contact tolerance. A folder that
+    had no checkpoint yet kept another collection's file through ``--overwrite``, and the
+    model trained on these shapes could not be used with it."""
+    def geometry(library: dict) -> dict:
+        return {name: (p.kind, p.size, p.vertices, p.faces) for name, p in library.items()}
+
+    return (shapes_to_dict(kept)["shapes"] == shapes_to_dict(shape_set, train_shapes)["shapes"]
+            and geometry(kept.library) == geometry(shape_set.library) and kept.tolerance == shape_set.tolerance)
 
 
 @contextlib.contextmanager
