@@ -612,12 +612,15 @@ def guide_files_digest(guide: str | None) -> str | None:
 def run_settings_digest(args, system: str, target: str, guide_digest: str | None, **more) -> str:
     """What a run's result depends on beyond its (system, method, set, target name, n,
     seed): its target's mask and start (:func:`target_digest`), the program (leaves), the
-    timing (repeats), procmod's workers and guide, and ``more``. A --work row measured
+    timing (repeats), procmod's workers and guide (for SMC runs; ``system`` "mcmc": the
+    equal-time comparison's, which take neither), and ``more``. A --work row measured
     under other options, or on another picture of the same name, is not reused (it had
     been, and labelled with the new options)."""
-    config = {"target": target, "leaves": args.leaves, "repeats": args.repeats, **more}
-    if system != "webppl":
-        config["workers"] = args.workers
+    config = {"target": target, "leaves": args.leaves, **more}
+    if system != "mcmc":  # (the equal-time comparison takes neither: its runs are timed once, workers its own)
+        config["repeats"] = args.repeats
+        if system != "webppl":
+            config["workers"] = args.workers
     if system == "procmod+guide":
         config["guide"] = [args.guide, guide_digest]
     return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]

@@ -646,6 +646,14 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     card[150:250, 150:250] = 10
     Image.fromarray(card).save(tmp_path / "card.png")
     assert "covers" in picture_note(target_from_spec(str(tmp_path / "card.png")), model)
+    # nor do small round holes, which erode away like strokes: an inverted mask's dots
+    buttons = np.full((200, 200), 10, dtype=np.uint8)
+    buttons[20:180, 50:150] = 240
+    for y in (60, 100, 140):
+        buttons[y - 3:y + 3, 97:103] = 30  # (a photo's: 20 levels off the ground)
+    Image.fromarray(buttons).save(tmp_path / "buttons.png")
+    read = target_from_spec(str(tmp_path / "buttons.png")).image.mask
+    assert read.sum() > 0.3 * read.size  # the coat, not its three buttons
     assert "vanishes at the model's 50x50 canvas" in picture_note(target_from_spec(str(tmp_path / "pens.png")), model)
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
     # a built-in glyph that covers most of its square (a dot scaled up) has no border to crop

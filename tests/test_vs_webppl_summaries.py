@@ -141,6 +141,12 @@ def test_work_rows_are_reused_only_under_the_same_settings_and_pictures(bench):
     guided = argparse.Namespace(**{**vars(args), "guide": "vines-scribbles"})
     assert bench.run_settings_digest(guided, "procmod+guide", "t1", "a") != \
         bench.run_settings_digest(guided, "procmod+guide", "t1", "b")  # another guide's files
+    # the MCMC comparison takes neither --repeats nor --workers: changing them reran it
+    other = argparse.Namespace(**{**vars(args), "repeats": 3, "workers": 2})
+    assert bench.run_settings_digest(args, "mcmc", "t1", None, mh_samples=50) == \
+        bench.run_settings_digest(other, "mcmc", "t1", None, mh_samples=50)
+    assert bench.run_settings_digest(args, "mcmc", "t1", None, mh_samples=50) != \
+        bench.run_settings_digest(args, "mcmc", "t1", None, mh_samples=60)
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -130,25 +130,39 @@ def model_code_digest(model, model_file: str | None = None) -> str:
 
 
 def _imports_beside(path: Path) -> list:
-    """The ``.py`` files in ``path``'s own folder that its import statements name
-    (``import helper``, ``from helper import X``, ``from .frame import Y``,
-    ``from . import frame``); nothing for a file that does not parse."""
+    """The Python files in ``path``'s own folder that its import statements name: modules
+    (``import helper``, ``from helper import X``, ``from .frame import Y``, ``from . import
+    frame``) and packages with the submodules named (``from helpers.consts import X``:
+    ``helpers/__init__.py`` and ``helpers/consts.py``); nothing for a file that does not
+    parse."""
     import ast
 
     try:
         tree = ast.parse(path.read_bytes())
     except (OSError, SyntaxError, ValueError):
         return []
-    names = set()
+    dotted = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            names.update(alias.name.split(".")[0] for alias in node.names)
+            dotted.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.level <= 1:
-            if node.module:
-                names.add(node.module.split(".")[0])
-            elif node.level == 1:  # from . import frame, chain
-                names.update(alias.name for alias in node.names)
-    return [path.parent / f"{name}.py" for name in sorted(names) if (path.parent / f"{name}.py").is_file()]
+            base = node.module or ""
+            # a name imported from a package may be a submodule of it
+            dotted.update(f"{base}.{alias.name}" if base else alias.name for alias in node.names)
+            if base:
+                dotted.add(base)
+    found = []
+    for name in sorted(dotted):
+        folder = path.parent
+        for part in name.split("."):
+            if (folder / f"{part}.py").is_file():
+                found.append(folder / f"{part}.py")
+                break
+            if not (folder / part / "__init__.py").is_file():
+                break
+            found.append(folder / part / "__init__.py")
+            folder = folder / part
+    return found
 
 
 def _same_job(previous, settings: dict) -> bool:
