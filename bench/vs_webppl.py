@@ -213,6 +213,7 @@ def write_targets(images: dict, folder: Path) -> dict:
     (:func:`target_digest`); a target that cannot be written so that procmod reads the
     scorer's mask is left out, with the reason, and the rest are benched.
     """
+    from procmod.core import ProcmodError
     from procmod.targets import load_target_image
 
     folder.mkdir(parents=True, exist_ok=True)

@@ -162,3 +162,22 @@ def test_arguments_that_would_fail_late_are_refused_first(bench, monkeypatch, ca
     with pytest.raises(SystemExit):
         bench.main()
     assert message in capsys.readouterr().err
+
+
+def test_a_target_whose_written_mask_reads_back_wrong_is_left_out(bench, tmp_path, capsys, monkeypatch):
+    # the read-back refusal named an exception the bench had not imported (a NameError)
+    import procmod.targets
+    from procmod.targets import TargetFileError
+
+    images = {"glyphs": bench.target_images(["glyphs"], 2, None, 49)["glyphs"]}
+    real = procmod.targets.load_target_image
+
+    def first_fails(path):
+        if path.name.endswith("_00.png"):
+            raise TargetFileError(f"{path}: the target mask is empty")
+        return real(path)
+
+    monkeypatch.setattr(procmod.targets, "load_target_image", first_fails)
+    written = bench.write_targets(images, tmp_path / "targets")
+    assert [row[0] for row in written["glyphs"]] == ["glyphs_01"]
+    assert "reads back as" in capsys.readouterr().err

@@ -213,7 +213,8 @@ def reading_an_outputs_own_files():
 
 
 __all__ = ["FileNames", "MAX_STEM", "UnsafePathError", "contained_path", "is_plain_name", "named_file",
-           "named_files_read", "reading_an_outputs_own_files", "remember_file_read", "is_file_quietly"]
+           "named_files_read", "reading_an_outputs_own_files", "remember_file_read", "is_file_quietly",
+           "is_link_quietly"]
 
 
 def output_path(path: str | os.PathLike) -> Path:
@@ -239,6 +240,14 @@ def is_dir_quietly(path: Path) -> bool:
     """``path.is_dir()``, False for a name the system cannot even look up (too long)."""
     try:
         return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
+def is_link_quietly(path: Path) -> bool:
+    """``path.is_symlink()``, False for a name the system cannot even look up (too long)."""
+    try:
+        return path.is_symlink()
     except (OSError, ValueError):
         return False
 

@@ -20,6 +20,7 @@ from PIL import Image, UnidentifiedImageError
 from ..core import InvalidArgumentError, ProcmodError
 from ..core.errors import cut_text
 from ..core.model import picture_placed
+from ..core.paths import is_link_quietly
 from ..core.serialize import read_json
 
 # The largest picture procmod reads as a target: Pillow's own decompression-bomb limit
@@ -933,7 +934,7 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     except (OSError, ValueError):  # a name too long to look up
         exists = False
     if not exists:
-        if _is_link_quietly(path):  # exists() follows links: a dangling link or a loop reads as missing
+        if is_link_quietly(path):  # exists() follows links: a dangling link or a loop reads as missing
             raise TargetFileError(f"target file {cut_text(str(path))} is a symbolic link to nothing (its target is "
                                   "missing, or the links lead round in a loop); point it at the picture") from None
         raise TargetFileError(f"target file {cut_text(str(path))} does not exist") from None
@@ -958,13 +959,6 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         placement["direction"] = (0.0, -1.0)
     return TargetImage(_picture_name(path), mask, tuple(placement["start"]), tuple(placement["direction"]),
                        picture=picture_in_square(*shape))
-
-
-def _is_link_quietly(path: Path) -> bool:
-    try:
-        return path.is_symlink()
-    except (OSError, ValueError):
-        return False
 
 
 def _picture_name(path: Path) -> str:
