@@ -70,6 +70,7 @@ def hidden_temporary_prefix(path: Path) -> str:
     # file name may hold all the same (os.fsdecode keeps them as they are)
     return f".{os.fsdecode(os.fsencode(path.name)[:max(room, 1)])}."
 
+
 @contextlib.contextmanager
 def open_atomic(path: str | os.PathLike, mode: str = "wb", fsync: bool = False) -> Iterator:
     """A file handle whose contents replace ``path`` when the ``with`` block ends.

@@ -171,8 +171,12 @@ def _same_job(previous, settings: dict) -> bool:
     if not isinstance(previous, dict):
         return False
     if "model_code" not in previous:
-        return previous == {k: v for k, v in settings.items() if k != "model_code"}
+        return previous == _without_code(settings)
     return previous == settings
+
+
+def _without_code(settings: dict) -> dict:
+    return {key: value for key, value in settings.items() if key != "model_code"}
 
 
 MAX_TRACES = 10_000_000  # a job's count: its trace files in one folder, its list of the missing ones
@@ -226,8 +230,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
         resume = _same_job(previous, settings)
         if not resume and not overwrite:
             if isinstance(previous, dict) and "model_code" in previous and \
-                    {k: v for k, v in previous.items() if k != "model_code"} == \
-                    {k: v for k, v in settings.items() if k != "model_code"}:
+                    _without_code(previous) == _without_code(settings):
                 raise GuideError(f"{out} holds traces of model {model.name!r} as its code was before an edit (its "
                                  "rules' source has changed since the job began): they may not replay under it; "
                                  f"pass {argument('overwrite=True')} to make them afresh, or give a new "
