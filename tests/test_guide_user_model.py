@@ -3,6 +3,8 @@ the command line (they took built-in models' names only)."""
 
 import json
 
+import pytest
+
 from procmod.cli import main
 from procmod.guide.traces import generate_traces, load_traces
 from procmod.parallel import open_executor
@@ -263,3 +265,32 @@ def test_defaults_of_a_rule_that_is_an_unhashable_callable():
 
     assert with_defaults(Chain(), (1.0, 2.0)) == (1.0, 2.0, 0.5)
     assert with_defaults(Chain(), (1.0, 2.0, 0.1)) == (1.0, 2.0, 0.1)
+
+
+@pytest.mark.parametrize("files, edited", [
+    ({"model.py": "from helpers.consts import K\n", "helpers/__init__.py": "", "helpers/consts.py": "K = 1\n"},
+     "helpers/consts.py"),
+    ({"model.py": "from helpers.consts import K\n", "helpers/consts.py": "K = 1\n"}, "helpers/consts.py"),  # no __init__
+    ({"model.py": "from helpers.consts import K\n", "helpers/__init__.py": "",  # absolute, inside the package
+      "helpers/consts.py": "from helpers.util import J\nK = J\n", "helpers/util.py": "J = 1\n"}, "helpers/util.py"),
+    ({"model.py": "from helpers.sub.consts import K\n", "helpers/__init__.py": "", "helpers/sub/__init__.py": "",
+      "helpers/sub/consts.py": "from ..util import J\nK = J\n", "helpers/util.py": "J = 1\n"}, "helpers/util.py"),
+    ({"model.py": "from helpers.consts import K\n", "helpers.py": "X = 1\n",  # the package wins, as in Python
+      "helpers/__init__.py": "", "helpers/consts.py": "K = 1\n"}, "helpers/consts.py"),
+    ({"model.py": "import " + "a" * 300 + "\nimport helper\n", "helper.py": "K = 1\n"}, "helper.py"),  # too long a name
+])
+def test_a_traces_jobs_code_digest_follows_the_imports_python_would(tmp_path, files, edited):
+    """Edits of a package beside the model file (or of a module it imports in turn) had left
+    the digest as it was, and a traces job resumed on stale code."""
+    import types
+
+    from procmod.guide.traces import model_code_digest
+
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    model = types.SimpleNamespace(root=len, rules=())  # (rules without Python source: the model file alone)
+    before = model_code_digest(model, str(tmp_path / "model.py"))
+    assert model_code_digest(model, str(tmp_path / "model.py")) == before
+    (tmp_path / edited).write_text((tmp_path / edited).read_text() + "# edited\n")
+    assert model_code_digest(model, str(tmp_path / "model.py")) != before

@@ -112,14 +112,14 @@ def model_code_digest(model, model_file: str | None = None) -> str:
     # and the modules beside them that they import (a helper module of constants, the
     # built-in models' shared frame), read from their import statements: the modules a
     # process happens to have loaded would make the digest depend on the process
-    pending = [Path(f).resolve() for f in files if f]
+    pending = [(Path(f).resolve(), Path(f).resolve().parent) for f in files if f]
     files = set()
     while pending:
-        path = pending.pop()
+        path, root = pending.pop()
         if path in files:
             continue
         files.add(path)
-        pending.extend(_imports_beside(path))
+        pending.extend((found, root) for found in _imports_beside(path, root))
     digest = []
     for path in sorted(files):
         try:
@@ -129,40 +129,51 @@ def model_code_digest(model, model_file: str | None = None) -> str:
     return fingerprint(" ".join(digest))
 
 
-def _imports_beside(path: Path) -> list:
-    """The Python files in ``path``'s own folder that its import statements name: modules
-    (``import helper``, ``from helper import X``, ``from .frame import Y``, ``from . import
-    frame``) and packages with the submodules named (``from helpers.consts import X``:
-    ``helpers/__init__.py`` and ``helpers/consts.py``); nothing for a file that does not
-    parse."""
+def _imports_beside(path: Path, root: Path) -> list:
+    """The Python files under ``root`` (the folder of the model file or rule that began the
+    search) that ``path``'s import statements name, found as Python finds them: absolute
+    imports from ``root`` (``import helper``, ``from helpers.consts import X``), relative
+    ones from ``path``'s own folder (``from .frame import Y``, ``from ..util import Z``);
+    a package (with or without ``__init__.py``) before a module of its name, and the
+    submodules a ``from`` names. Nothing for a file that does not parse; files outside
+    ``root`` (procmod's own, the standard library) are not followed."""
     import ast
 
     try:
         tree = ast.parse(path.read_bytes())
     except (OSError, SyntaxError, ValueError):
         return []
-    dotted = set()
+    wanted = []  # (folder the name is looked up from, dotted name)
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            dotted.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.level <= 1:
-            base = node.module or ""
+            wanted += [(root, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = root if node.level == 0 else path.parents[node.level - 1] if node.level <= len(path.parents) \
+                else None
+            if base is None:
+                continue
+            module = node.module or ""
+            if module:
+                wanted.append((base, module))
             # a name imported from a package may be a submodule of it
-            dotted.update(f"{base}.{alias.name}" if base else alias.name for alias in node.names)
-            if base:
-                dotted.add(base)
+            wanted += [(base, f"{module}.{alias.name}" if module else alias.name) for alias in node.names
+                       if alias.name != "*"]
     found = []
-    for name in sorted(dotted):
-        folder = path.parent
+    for base, name in wanted:
+        folder = base
         for part in name.split("."):
-            if (folder / f"{part}.py").is_file():
-                found.append(folder / f"{part}.py")
-                break
-            if not (folder / part / "__init__.py").is_file():
-                break
-            found.append(folder / part / "__init__.py")
-            folder = folder / part
-    return found
+            try:
+                if (folder / part).is_dir():  # a package, as Python prefers it to a module of its name
+                    folder = folder / part
+                    if (folder / "__init__.py").is_file():
+                        found.append(folder / "__init__.py")
+                    continue
+                if (folder / f"{part}.py").is_file():
+                    found.append(folder / f"{part}.py")
+            except OSError:  # a name too long to look up, a folder that cannot be read
+                pass
+            break
+    return [f for f in found if f.is_relative_to(root)]  # (a link beside the model to a helper elsewhere: followed)
 
 
 def _same_job(previous, settings: dict) -> bool:

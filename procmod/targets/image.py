@@ -698,11 +698,10 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     a picture on that page's paper. A light shape on a dark ground with nothing drawn on
     it (a white silhouette, a mask exported inverted) stays the shape, and so does one whose
     holes and notches are the ground's colour (a white letter, a silhouette with a hole): a
-    drawing must differ from the ground by :data:`MIN_CONTRAST`, or by a third of it when
-    it is long thin strokes (:func:`_thin_strokes`): black ink on a page in a black frame
-    or on a dark desk is then the drawing; a page whose drawing is neither stays the shape
-    (the "covers" note of :func:`procmod.targets.placement.picture_note` says what to
-    crop)."""
+    drawing must differ from the ground by :data:`MIN_CONTRAST` (its strokes' cores, not
+    their blurred rims). A page in a near-black frame drawn in black is therefore not told
+    from them (the "covers" note of :func:`procmod.targets.placement.picture_note` says
+    what to crop)."""
     from scipy import ndimage
 
     if not mask.any():
@@ -740,48 +739,15 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
         return None
     # and unlike the border: the holes and notches of a light shape on a dark ground (a
     # white silhouette with a hole, a bold letter, an inverted mask) are the ground's own
-    # colour, and that light shape is the shape. Pen strokes (long and thin, not holes)
-    # may come nearer it: black ink on a page on a dark desk is near the desk's colour (a
-    # phone photo's softened edges and JPEG had read such a page as the shape, the drawing
-    # as its holes), but not of it: a third of the contrast is asked of them (a blurred
-    # 8-pixel stroke of black ink 20 levels under a dark desk kept 10 of them)
-    unlike = float(np.abs(np.median(colours[drawn], axis=0) - surround).max())
-    if unlike < MIN_CONTRAST and not (unlike >= MIN_CONTRAST / 3 and _thin_strokes(drawn[::step, ::step])):
+    # colour, and that light shape is the shape. Measured on the strokes' cores: their
+    # rims, blurred into the paper by a phone photo and its JPEG, had brought black ink on
+    # a page on a dark desk under the contrast asked (the page read as the shape, the
+    # drawing as its holes)
+    core = ndimage.binary_erosion(drawn)
+    measured = core if core.any() else drawn
+    if float(np.abs(np.median(colours[measured], axis=0) - surround).max()) < MIN_CONTRAST:
         return None
     return drawn
-
-
-STROKE_WIDTH_SHARE = 0.015
-"""Pen strokes are at most twice this share of the picture's larger side wide
-(:func:`_thin_strokes`); the holes of a silhouette are wider."""
-
-
-STROKE_ELONGATION = 4.0
-"""A stroke's bounding box's longer side squared over its pixels: a line L long and w
-wide gives L / w, a round or square hole about 1."""
-
-
-def _thin_strokes(drawn: np.ndarray) -> bool:
-    """Whether ``drawn`` (at most :data:`_PAGE_GRID` pixels a side) is pen strokes: lines an
-    erosion by :data:`STROKE_WIDTH_SHARE` of the picture's side removes (nearly) all of,
-    most of them in long pieces (:data:`STROKE_ELONGATION`), rather than the holes and
-    notches of a light shape on a dark ground (small round holes erode away too)."""
-    from scipy import ndimage
-
-    total = int(drawn.sum())
-    if not total:
-        return False
-    k = max(1, round(STROKE_WIDTH_SHARE * max(drawn.shape)))
-    if int(ndimage.binary_erosion(drawn, iterations=k).sum()) > 0.1 * total:
-        return False
-    labels, count = ndimage.label(drawn, structure=np.ones((3, 3)))
-    sizes = np.bincount(labels.ravel())[1:]
-    long_pixels = 0
-    for index, box in enumerate(ndimage.find_objects(labels)):
-        side = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
-        if side * side >= STROKE_ELONGATION * sizes[index]:
-            long_pixels += int(sizes[index])
-    return long_pixels >= 0.7 * total
 
 
 def mask_from_image(image: Image.Image) -> np.ndarray:
