@@ -133,3 +133,38 @@ def test_a_mesh_of_numpy_arrays_is_a_part_under_every_engine(engine, score):
             "forward": {"particles": 6}, "smc": {"particles": 6}}
     result = ENGINES[engine](model, target, seed=0, **runs[engine])
     assert result.best is not None and all(isinstance(p, (Mesh, Box)) for p in result.best.geometry())
+
+
+@pytest.mark.parametrize("part", [Box((1.0, 2.0, 0.5)), Cylinder(0.5, 2.0),
+                                  Mesh(((0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)),
+                                       ((0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)))])
+def test_a_mirrored_part_is_exported_facing_outward(part):
+    """A part placed by a mirror (a negative scale) was written with its faces turned
+    inward: three.js and game engines cull its outside, Blender shades it backwards."""
+    import trimesh
+
+    def volume(p):
+        tris = part_triangles(p)
+        return float(np.einsum("ij,ij->i", tris[:, 0], np.cross(tris[:, 1], tris[:, 2])).sum() / 6.0)
+
+    mirrored = part._replace(transform=compose(translation(3, 0, 0), scaling(-1, 1, 1)))
+    assert volume(part) > 0 and volume(mirrored) == pytest.approx(volume(part))
+    mesh = parts_to_trimesh([part, mirrored], colour_of)
+    assert mesh.volume > 0 and trimesh.Trimesh(mesh.vertices, mesh.faces).is_winding_consistent
+
+
+def test_a_part_mesh_wound_inward_is_read_facing_outward(tmp_path):
+    """The castles' tower and roof meshes (as shipped) are wound inward, and every sample of
+    a program learned from them was written inside out; a seam's split vertices do not stop
+    the turning, and the mesh's vertices and their order are kept."""
+    from procmod.geometry.part_library import read_part_library
+    from procmod.geometry.solid import Mesh as MeshPart
+
+    vertices = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 0)]  # vertex 4: a seam's copy of 1
+    inward = [(0, 1, 2), (0, 3, 4), (0, 2, 3), (4, 3, 2)]  # a tetrahedron, every face turned in
+    (tmp_path / "tet.obj").write_text("".join(f"v {x} {y} {z}\n" for x, y, z in vertices)
+                                      + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in inward))
+    shape = read_part_library({"tet": {"mesh": "tet.obj"}}, tmp_path)["tet"]
+    assert shape.vertices == tuple(tuple(float(c) for c in v) for v in vertices)
+    tris = part_triangles(MeshPart(shape.vertices, shape.faces))
+    assert float(np.einsum("ij,ij->i", tris[:, 0], np.cross(tris[:, 1], tris[:, 2])).sum()) > 0

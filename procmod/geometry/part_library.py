@@ -120,8 +120,26 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
     if np.ptp(points[np.unique(indices)], axis=0).max() == 0.0:
         raise PartLibraryError(f"{where}.mesh: {path} has no extent (every face's vertices are one point)")
     vertices = tuple(tuple(float(c) for c in v) for v in points)
-    faces = tuple(tuple(int(i) for i in f) for f in indices)
+    faces = tuple(tuple(int(i) for i in f) for f in _wound_outward(points, indices))
     return PartShape(name, "mesh", vertices=vertices, faces=faces, source=value)
+
+
+def _wound_outward(points: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """``indices`` with each face turned where :func:`procmod.geometry.inside.orient_faces`
+    turns it (consistently and outward per connected piece), on the mesh with its seams'
+    split vertices merged; the vertices, their order and the faces' order are kept. A part
+    mesh wound inward (the castles' towers and roofs as shipped) had been drawn inside out
+    in every sample's OBJ and GLB: culled by three.js and game engines, shaded backwards."""
+    from .inside import orient_faces
+
+    indices = np.asarray(indices, dtype=np.int64).reshape(-1, 3)
+    unique, merged = np.unique(points, axis=0, return_inverse=True)
+    joined = merged.reshape(-1)[indices]
+    oriented, _ = orient_faces(unique, joined)
+    turned = (oriented != joined).any(axis=1)
+    out = indices.copy()
+    out[turned] = out[turned][:, ::-1]
+    return out
 
 
 def read_part_library(parts, base_dir: str | os.PathLike, where: str = "parts") -> dict[str, PartShape]:

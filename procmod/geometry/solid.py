@@ -141,6 +141,11 @@ def part_triangles(part, segments: int = 24) -> np.ndarray:
         raise TypeError(_not_3d(part))
     m = matrix(part.transform)
     world = local @ m[:3, :3].T + m[:3, 3]
+    a = m[:3, :3]
+    det = (a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]) - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+           + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]))
+    if det < 0:  # a mirror turns the faces inward: each turned back (exports had mirrored parts inside out)
+        tris = tris[:, ::-1]
     return world[tris]
 
 
