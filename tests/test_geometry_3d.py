@@ -168,3 +168,24 @@ def test_a_part_mesh_wound_inward_is_read_facing_outward(tmp_path):
     assert shape.vertices == tuple(tuple(float(c) for c in v) for v in vertices)
     tris = part_triangles(MeshPart(shape.vertices, shape.faces))
     assert float(np.einsum("ij,ij->i", tris[:, 0], np.cross(tris[:, 1], tris[:, 2])).sum()) > 0
+
+
+def test_a_part_mesh_that_is_not_closed_keeps_its_authors_winding(tmp_path):
+    """Outward is no measure of an open sheet (a dish whose front is its hollow) nor of a
+    piece cut off by an edge of three faces (a fin on a body, a face repeated in place):
+    turning them had shown a dish's back and left holes in a box."""
+    from procmod.geometry.part_library import read_part_library
+
+    def obj(name, vertices, faces):
+        (tmp_path / name).write_text("".join(f"v {x} {y} {z}\n" for x, y, z in vertices)
+                                     + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+        return read_part_library({name: {"mesh": name}}, tmp_path)[name].faces
+
+    # a dish: a cone of four faces, its front (the winding's side) the inside of the cone
+    dish = [(0, 0, 0), (1, 0, 1), (0, 1, 1), (-1, 0, 1), (0, -1, 1)]
+    dish_faces = [(0, 1, 2), (0, 2, 3), (0, 3, 4), (0, 4, 1)]
+    assert obj("dish.obj", dish, dish_faces) == tuple(dish_faces)
+    # a tetrahedron wound inward with one face repeated: its edges are of three faces
+    tet = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    inward = [(0, 1, 2), (0, 3, 1), (0, 2, 3), (1, 3, 2), (1, 3, 2)]
+    assert obj("tet.obj", tet, inward) == tuple(inward)  # left whole, not turned in part

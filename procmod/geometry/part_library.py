@@ -125,18 +125,27 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
 
 
 def _wound_outward(points: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """``indices`` with each face turned where :func:`procmod.geometry.inside.orient_faces`
-    turns it (consistently and outward per connected piece), on the mesh with its seams'
-    split vertices merged; the vertices, their order and the faces' order are kept. A part
-    mesh wound inward (the castles' towers and roofs as shipped) had been drawn inside out
-    in every sample's OBJ and GLB: culled by three.js and game engines, shaded backwards."""
+    """``indices`` with the faces of each closed piece turned where
+    :func:`procmod.geometry.inside.orient_faces` turns them (consistently and outward), on
+    the mesh with its seams' split vertices merged; the vertices, their order and the
+    faces' order are kept. A part mesh wound inward (the castles' towers and roofs as
+    shipped) had been drawn inside out in every sample's OBJ and GLB: culled by three.js
+    and game engines, shaded backwards. A piece that is not closed (every edge of two of
+    its faces: an open sheet, a fin meeting a body along an edge of three faces, a face
+    repeated in place) keeps the winding its author gave it: outward is no measure there,
+    and a dish, or the inner band of a flanged ring, had been turned the wrong way."""
     from .inside import orient_faces
 
     indices = np.asarray(indices, dtype=np.int64).reshape(-1, 3)
     unique, merged = np.unique(points, axis=0, return_inverse=True)
     joined = merged.reshape(-1)[indices]
-    oriented, _ = orient_faces(unique, joined)
-    turned = (oriented != joined).any(axis=1)
+    oriented, piece = orient_faces(unique, joined)
+    edges = np.sort(joined[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, edge_id, uses = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    face_closed = (uses[edge_id.reshape(-1)] == 2).reshape(-1, 3).all(axis=1)
+    closed = np.ones(int(piece.max()) + 1 if len(piece) else 0, dtype=bool)
+    np.logical_and.at(closed, piece, face_closed)  # a piece is closed when every face of it is
+    turned = (oriented != joined).any(axis=1) & closed[piece]
     out = indices.copy()
     out[turned] = out[turned][:, ::-1]
     return out
