@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import json
 import math
 import os
@@ -202,8 +201,8 @@ def coverage_problem(mask: np.ndarray) -> str | None:
 
 def target_digest(mask: np.ndarray, placement: dict) -> str:
     """What a run on a target depends on: its mask and where the vine starts."""
-    return hashlib.sha256(np.packbits(mask).tobytes() + json.dumps(placement, sort_keys=True).encode()
-                          ).hexdigest()[:16]
+    from procmod.core.io import fingerprint
+    return fingerprint(np.packbits(mask).tobytes() + json.dumps(placement, sort_keys=True).encode())
 
 
 def write_targets(images: dict, folder: Path) -> dict:
@@ -607,7 +606,8 @@ def guide_files_digest(guide: str | None) -> str | None:
     if not guide:
         return None
     from procmod.guide import guide_paths
-    return hashlib.sha256(b"".join(p.read_bytes() for p in guide_paths(guide) if p.is_file())).hexdigest()[:16]
+    from procmod.core.io import fingerprint
+    return fingerprint(b"".join(p.read_bytes() for p in guide_paths(guide) if p.is_file()))
 
 
 def run_settings_digest(args, system: str, target: str, guide_digest: str | None, **more) -> str:
@@ -624,7 +624,8 @@ def run_settings_digest(args, system: str, target: str, guide_digest: str | None
             config["workers"] = args.workers
     if system == "procmod+guide":
         config["guide"] = [args.guide, guide_digest]
-    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:16]
+    from procmod.core.io import fingerprint
+    return fingerprint(json.dumps(config, sort_keys=True))
 
 
 def check_arguments(parser: argparse.ArgumentParser, args) -> None:
