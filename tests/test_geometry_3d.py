@@ -98,6 +98,42 @@ def test_a_derivation_with_no_parts_exports_a_file_that_reads_as_empty(tmp_path,
     assert len(getattr(loaded, "vertices", [])) == 0 and not isinstance(loaded, trimesh.PointCloud)
 
 
+def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_path):
+    """glTF's COLOR_0 is linear light; procmod's palette is sRGB. Written as the palette's
+    bytes, a GLB part showed washed out (a hull of sRGB 150 as sRGB ~202) in Blender's
+    importer and three.js next to best.png and the OBJ."""
+    import json
+    import struct
+
+    import trimesh
+
+    from procmod.geometry.mesh_export import export_mesh
+    from procmod.geometry.solid import Box
+
+    parts = [Box((1.0, 1.0, 1.0), tag="hull"), Box((0.5, 0.5, 0.5), tag="nose")]
+    export_mesh(parts, tmp_path / "ship.glb", colour_of)
+    data = (tmp_path / "ship.glb").read_bytes()  # GLB: a 12-byte header, a JSON chunk, a BIN chunk
+    json_length = struct.unpack_from("<I", data, 12)[0]
+    header = json.loads(data[20:20 + json_length])
+    blob = data[20 + json_length + 8:]
+    accessor = header["accessors"][header["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"]]
+    view = header["bufferViews"][accessor["bufferView"]]
+    assert accessor["componentType"] == 5121 and accessor["normalized"]  # UNSIGNED_BYTE, as colours
+    width = {"VEC3": 3, "VEC4": 4}[accessor["type"]]
+    raw = np.frombuffer(blob, np.uint8, accessor["count"] * width,
+                        view.get("byteOffset", 0) + accessor.get("byteOffset", 0))
+    linear = raw.reshape(-1, width)[:, :3] / 255.0
+    shown = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055) * 255
+    expected = {tuple(colour_of("hull")), tuple(colour_of("nose"))}
+    found = {tuple(int(round(v)) for v in row) for row in np.unique(np.round(shown), axis=0)}
+    assert len(found) == 2
+    for colour in found:  # uint8 linear steps: within 2 levels of the palette after the round trip
+        assert min(np.abs(np.subtract(colour, e)).max() for e in expected) <= 2, (colour, expected)
+    export_mesh(parts, tmp_path / "ship.obj", colour_of)
+    obj = trimesh.load(tmp_path / "ship.obj", process=False)
+    assert {tuple(c[:3]) for c in np.unique(obj.visual.vertex_colors, axis=0)} == expected
+
+
 _TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
 _TETRA_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 

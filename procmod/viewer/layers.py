@@ -32,9 +32,9 @@ def mesh_glb(vertices, faces) -> bytes:
 def parts_glb(parts) -> bytes:
     """A GLB file of 3D parts, one colour per part tag (as ``best.glb`` and ``sample_*.glb``)."""
     from ..geometry.export import colour_of
-    from ..geometry.mesh_export import parts_to_trimesh
+    from ..geometry.mesh_export import glb_bytes
 
-    return parts_to_trimesh(parts, colour_of).export(file_type="glb")
+    return glb_bytes(parts, colour_of)
 
 
 def voxel_surface(mask, origin, size: float):

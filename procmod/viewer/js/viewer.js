@@ -15,7 +15,7 @@
 // data-status="drawn" and data-rect="left,top,width,height" (CSS pixels), which the tests read.
 
 import {
-  AmbientLight, Box3, BufferAttribute, Box3Helper, Color, DirectionalLight, DoubleSide, FrontSide, Group,
+  AmbientLight, Box3, Box3Helper, Color, DirectionalLight, DoubleSide, FrontSide, Group,
   HemisphereLight,
   MeshStandardMaterial, PerspectiveCamera, Scene, Vector3, WebGLRenderer,
 } from 'three';
@@ -48,29 +48,11 @@ function material(layer, hasColours) {
   });
 }
 
-function srgbToLinear(c) {
-  return c <= 0.04045 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4);
-}
-
-function linearColours(geometry) {
-  // procmod writes the colours of its PNG pictures (sRGB) into the GLB's vertex colours, which
-  // glTF reads as linear: converted back, a part looks in the browser as it does in best.png.
-  const colour = geometry.attributes.color;
-  const out = new Float32Array(colour.count * 3);
-  for (let i = 0; i < colour.count; i++) {
-    out[3 * i] = srgbToLinear(colour.getX(i));
-    out[3 * i + 1] = srgbToLinear(colour.getY(i));
-    out[3 * i + 2] = srgbToLinear(colour.getZ(i));
-  }
-  geometry.setAttribute('color', new BufferAttribute(out, 3));
-}
-
 async function loadLayer(loader, layer) {
   const gltf = await loader.parseAsync(decodeBase64(layer.glb), '');
   const root = gltf.scene;
   root.traverse((node) => {
     if (node.isMesh) {
-      if ('color' in node.geometry.attributes) linearColours(node.geometry);
       node.material = material(layer, 'color' in node.geometry.attributes);
       node.renderOrder = layer.opacity < 1 ? 1 : 0;
     }
