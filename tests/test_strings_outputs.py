@@ -6,6 +6,7 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import trimesh
 
@@ -45,9 +46,10 @@ def _copy(fence_model, tmp_path, name="model"):
     return tmp_path / name
 
 
-def test_glb_output_is_y_up_as_the_glb_input_was(fence_model, tmp_path, capsys):
+def test_glb_and_obj_output_are_y_up_as_the_glb_input_was(fence_model, tmp_path, capsys):
     """A y-up glTF scene read in (turned z-up for strings) comes back out of instantiate as a
-    y-up GLB, standing: its posts (2.0 tall) along y, not lying along z."""
+    y-up GLB or OBJ, standing: its posts (2.0 tall) along y, not lying along z. (The OBJ had
+    been z-up, and lay on its side in Blender imported with its defaults.)"""
     stood = trimesh.load(fence_model / "fences" / "a_ring.glb", force="mesh").extents
     assert stood[1] == pytest.approx(2.0, abs=1e-4) and min(stood[0], stood[2]) > 4  # the input: y-up
     model = fence_model / "model"
@@ -58,11 +60,12 @@ def test_glb_output_is_y_up_as_the_glb_input_was(fence_model, tmp_path, capsys):
     assert code == 0, err
     extents = trimesh.load(tmp_path / "x.glb", force="mesh").extents
     assert extents[1] == pytest.approx(2.0, abs=1e-4) and min(extents[0], extents[2]) > 4, extents
-    # an OBJ stays in the shapes' own frame, z-up (the frame of a shapes file's transforms)
     code, out, err = _run(capsys, "strings", "instantiate", model, text, "--out", tmp_path / "x.obj")
     assert code == 0, err
-    extents = trimesh.load(tmp_path / "x.obj", force="mesh").extents
-    assert extents[2] == pytest.approx(2.0, abs=1e-4) and min(extents[0], extents[1]) > 4, extents
+    obj = trimesh.load(tmp_path / "x.obj", force="mesh")
+    assert obj.extents[1] == pytest.approx(2.0, abs=1e-4) and min(obj.extents[0], obj.extents[2]) > 4, obj.extents
+    glb = trimesh.load(tmp_path / "x.glb", force="mesh")
+    assert np.allclose(obj.bounds, glb.bounds, atol=1e-6)  # the same place, not only the same extents
 
 
 def test_instantiate_never_overwrites_the_model_it_reads(fence_model, tmp_path, capsys):

@@ -1,11 +1,13 @@
 """Pictures and meshes of shapes: shaded PNG previews, contact sheets, GLB/OBJ export.
 
-Shapes are z-up (procmod strings' frame). A GLB is written in glTF's own frame, y-up (the
-shape turned -90 degrees about x, the inverse of the turn a glTF input gets as it is read:
-:data:`~procmod.geometry.assets.Y_UP_TO_Z_UP`), so a y-up scene read in comes back out
-standing as it stood, and as procmod's other GLB writers (``infer``, ``learn``) write them.
-An OBJ is written in the shapes' own frame, z-up: the frame of a ``procmod-shapes/1``
-file's transforms."""
+Shapes are z-up (procmod strings' frame). A GLB or OBJ is written y-up: glTF's own frame,
+and the frame OBJ importers assume by default (Blender, Maya, three.js) and procmod's
+other mesh writers (``sample``, ``infer``, ``learn``) use. The shape is turned -90 degrees
+about x, the inverse of the turn a glTF input gets as it is read
+(:data:`~procmod.geometry.assets.Y_UP_TO_Z_UP`), so a y-up scene read in comes back out
+standing as it stood. (An OBJ had been written z-up, in the shapes' own frame, and lay
+on its side in Blender imported with its defaults.) Part meshes a shapes file names
+(``parts/NAME.obj``) are data, not results: they stay in the shapes' frame."""
 
 from __future__ import annotations
 
@@ -46,14 +48,13 @@ def write_shape_png(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike, 
     save_image_atomic(shape_image(shape_set, shape, size), path)
 
 
-Z_UP_TO_Y_UP = Y_UP_TO_Z_UP.T  # the turn a shape gets as it is written to GLB
+Z_UP_TO_Y_UP = Y_UP_TO_Z_UP.T  # the turn a shape gets as it is written to a mesh file
 
 
 def write_shape_mesh(shape_set: ShapeSet, shape: Shape, path: str | os.PathLike) -> None:
-    """Write a shape as ``.glb`` (y-up, glTF's frame) or ``.obj`` (z-up, the shapes' own
-    frame), by suffix, one colour per part name (see the module docstring)."""
-    if Path(path).suffix.lower() == ".glb":
-        shape = Shape.of(list(shape.parts), [Z_UP_TO_Y_UP @ np.asarray(t, dtype=np.float64) for t in shape.transforms])
+    """Write a shape as ``.glb`` or ``.obj`` (by suffix), y-up, one colour per part name
+    (see the module docstring)."""
+    shape = Shape.of(list(shape.parts), [Z_UP_TO_Y_UP @ np.asarray(t, dtype=np.float64) for t in shape.transforms])
     export_mesh(shape_parts(shape_set, shape), path, colours_for(shape_set))
 
 
