@@ -548,6 +548,38 @@ def test_a_mesh_whose_transforms_were_applied_gets_a_frame_at_its_middle(tmp_pat
     assert np.allclose(np.asarray(unbaked.parts["Leg"].vertices), box_mesh((0.04, 0.45, 0.04))[0])
 
 
+def _turned_baked_table(path, k: int):
+    """Table ``k`` of four: a top and four legs of its own sizes, the whole table turned
+    (about the vertical, and tipped a little) and every transform applied, as Blender's
+    Apply All Transforms leaves them: the meshes in world coordinates, the nodes identity."""
+    height, width, depth = 0.45 + 0.1 * k, 1.0 + 0.2 * k, 0.6 + 0.1 * k
+    turn = R([0.05 * k, (0.3, 1.1, -0.7, 2.0)[k], 0.0]) @ T(3.0 * k, 0, 0)
+    meshes = [("Top", [transformed(box_mesh((width, 0.05, depth), (0, height + 0.025, 0)), turn)])]
+    nodes = [{"name": "Top", "mesh": 0, "children": [1, 2, 3, 4]}]
+    for j, (sx, sz) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+        at = (sx * (width / 2 - 0.05), height / 2, sz * (depth / 2 - 0.05))
+        meshes.append(("Leg" + (f".{j:03d}" if j else ""), [transformed(box_mesh((0.05, height, 0.05), at), turn)]))
+        nodes.append({"name": f"Leg{j}", "mesh": j + 1})
+    write_glb(path, gltf_json(meshes, nodes, (0,)))
+    return path, meshes
+
+
+def test_copies_turned_and_scaled_with_their_transforms_applied_are_one_part(tmp_path):
+    """Four tables of different sizes, each turned and baked: a leg's shape along its own
+    axes differs from table to table, and the scale grouping had made each table's top
+    and legs part types of their own (8 for 2), so the learned program could not mix them.
+    Each node must still place its part where the file's vertices were."""
+    files = [_turned_baked_table(tmp_path / f"t{k}.glb", k) for k in range(4)]
+    read = read_assets([path for path, _ in files])
+    assert sorted(read.parts) == ["Leg", "Top"]
+    for asset, (_, meshes) in zip(read.assets, files):
+        for node, (_, [(vertices, faces)]) in zip(asset.nodes(), meshes):
+            assert same_surface(world_triangles(read, node).reshape(-1, 3), vertices[faces].reshape(-1, 3), 1e-5)
+    # the parts are upright boxes in their own frames (a leg: 0.05 x about 0.6 x 0.05)
+    leg = np.ptp(np.asarray(read.parts["Leg"].vertices), axis=0)
+    assert np.allclose(leg[[0, 2]], 0.05, atol=1e-4) and 0.45 - 1e-4 < leg[1] < 0.75, leg
+
+
 def _cube_chair(path, height: float, baked_legs: bool = False):
     """A chair as Blender users make one: the default cube scaled into a seat, a back and
     four legs, the scales left unapplied (``baked_legs``: the legs' scale applied, so their

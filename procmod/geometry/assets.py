@@ -30,7 +30,9 @@ as a tool's primitive is, its scale applied or not) are grouped by their scales,
 :data:`SCALE_GROUP` of each other; a group far from the mesh's own size, or one of
 several, becomes a geometry of its own at the group's mean scale, its nodes keeping the
 rest. So six cubes scaled into a seat, a back and four legs are three parts, and a leg
-whose scale was applied is the leg whose scale was not. A node whose transform shears puts
+whose scale was applied is the leg whose scale was not. Copies of one mesh turned and
+scaled with their transforms applied (tables of several sizes, each turned, then baked)
+are first put back as one mesh placed by their nodes (:func:`_unbake_turns`). A node whose transform shears puts
 its whole linear map into its geometry, unless dropping the shear moves no vertex beyond
 the geometry tolerance (below): a part turned by eye under a non-uniformly scaled parent.
 
@@ -246,12 +248,18 @@ def _clean_mesh(vertices, faces, where: str) -> tuple[np.ndarray, np.ndarray]:
         raise AssetError(f"{where} has non-finite vertex coordinates (NaN or infinity); fix or re-export it")
     if f.min() < 0 or f.max() >= len(v):
         raise AssetError(f"{where}: a triangle refers to a vertex that does not exist")
-    uniq, inverse = np.unique(v, axis=0, return_inverse=True)
-    f = inverse.reshape(-1)[f]
-    used = np.unique(f)
-    remap = np.full(len(uniq), -1)
-    remap[used] = np.arange(len(used))
-    v, f = uniq[used], remap[f]
+    # merged in the file's order (each vertex where it first occurs), not np.unique's sorted
+    # order: copies of one mesh turned apart keep one vertex order (_unbake_turns matches them
+    # vertex for vertex), and a part mesh is written back in its author's order
+    uniq, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(len(uniq), dtype=np.int64)
+    rank[order] = np.arange(len(uniq))
+    f = rank[inverse.reshape(-1)][f]
+    used = np.zeros(len(uniq), dtype=bool)
+    used[f.reshape(-1)] = True
+    remap = np.cumsum(used) - 1
+    v, f = uniq[order][used], remap[f]
     tri = v[f]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     if not area.sum() > 1e-12 * max(float(np.ptp(v, axis=0).max()), 1e-300) ** 2:
@@ -460,6 +468,110 @@ def _given_name(g: _Geometry) -> str | None:
         return None
     base = _NUMBERED.sub("", g.name).lower()
     return None if base in _DEFAULT_MESH_NAMES else base
+
+
+BAKED_TURN_FIT = 1e-4
+"""How closely (x a mesh's bounding-box diagonal, at every vertex) a mesh must be an affine
+image of another of its name and triangles to be taken for a copy of it turned and scaled
+with its transforms applied (:func:`_unbake_turns`): float32 coordinates, not a tolerance
+on shape."""
+_NATURAL_FRAME = 1e-3  # a mesh's own axes are its box's when its extents exceed its least box's by no more
+
+
+def _least_box_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """A mesh's least-volume box as ``(axes, centre)``: the box's axes as the columns of a
+    rotation, the least turned from the mesh's own axes (of the box's 24 proper signed
+    permutations), or None when the mesh's own axes are the box's already (within
+    :data:`_NATURAL_FRAME`) or the mesh is flat."""
+    import trimesh
+
+    own = np.ptp(vertices, axis=0)
+    if not own.min() > 1e-9 * float(np.linalg.norm(own)):
+        return None  # flat: an axis of no extent says nothing of a turn
+    to_origin, extents = trimesh.bounds.oriented_bounds(vertices, angle_digits=3)
+    if own.sum() <= (1.0 + _NATURAL_FRAME) * float(np.sum(extents)):
+        return None
+    box_to_mesh = np.linalg.inv(to_origin)
+    axes, centre = box_to_mesh[:3, :3], box_to_mesh[:3, 3]
+    best, best_trace = axes, -np.inf
+    for perm in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (0, 2, 1), (2, 1, 0), (1, 0, 2)):
+        for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1)):
+            candidate = axes[:, perm] * signs
+            if np.linalg.det(candidate) > 0 and np.trace(candidate) > best_trace + 1e-12:
+                best, best_trace = candidate, float(np.trace(candidate))
+    return best, centre
+
+
+def _unbake_turns(forests: list, geometries: dict) -> None:
+    """Meshes that are one mesh turned and scaled with the transforms applied, put back as
+    that mesh placed by their nodes (so that :func:`_bake_scales` groups them by size).
+
+    A tool's copies of one mesh (``Leg``, ``Leg.001``, ...: one given name, the same
+    triangles) turned in the scene and then exported with their transforms applied
+    (Blender's Apply All Transforms, exporters that bake) hold their geometry turned in
+    their own axes. Their shapes along those axes differ from table to table, so the scale
+    grouping, which compares shapes along a mesh's own axes, had made each table's legs
+    and top part types of their own: four turned tables were eight part types for two.
+    Here each such family gets one representative in its natural frame (its least box's
+    axes, :func:`_least_box_frame`; a mesh already along its axes keeps them); a member
+    that is, vertex for vertex, the representative scaled along those axes, turned and
+    moved (within :data:`BAKED_TURN_FIT`), is placed as it, the map folded into its nodes'
+    transforms. A family whose members share their shape along their own axes (copies
+    not turned) is left to :func:`_bake_scales` as read."""
+    placers = {}
+    for raw in (r for forest in forests for top in forest for r in _walk(top)):  # in file order
+        if raw.geometry is not None and geometries[raw.geometry].kind == "mesh":
+            placers.setdefault(raw.geometry, []).append(raw)
+    families = {}
+    for key in placers:  # in the order read (dicts keep it): the first read represents
+        g = geometries[key]
+        name = _given_name(g)
+        if name is not None:
+            families.setdefault((name, len(g.vertices), np.asarray(g.faces).tobytes()), []).append(key)
+    for keys in families.values():
+        if len(keys) < 2:
+            continue
+        shapes = set()
+        for key in keys:
+            v = geometries[key].vertices
+            extents = np.ptp(v, axis=0)
+            shapes.add(np.round((v - v.min(axis=0)) / np.where(extents > 0, extents, 1.0), 6).tobytes())
+        if len(shapes) < 2:
+            continue  # not turned apart: _bake_scales groups them along their own axes
+        _unbake_family(keys, geometries, placers)
+
+
+def _unbake_family(keys: list, geometries: dict, placers: dict) -> None:
+    """:func:`_unbake_turns` for one family of meshes (``keys``, the first read first)."""
+    frames = [(key, _least_box_frame(geometries[key].vertices)) for key in keys]
+    # the representative: the first mesh already in its natural frame, else the first, turned into it
+    rep_key, frame = next(((k, f) for k, f in frames if f is None), frames[0])
+    rep = geometries[rep_key]
+    vertices = rep.vertices if frame is None else (rep.vertices - frame[1]) @ frame[0]
+    # named as _library names a part its geometries merge into: the shortest name (Leg, not Leg.003)
+    name = min((geometries[k].name for k in keys), key=lambda n: (len(n), n))
+    rep = _Geometry(("unbaked", rep_key), name, rep.where, "mesh", vertices, rep.faces,
+                    named_by_node=rep.named_by_node)
+    homogeneous = np.hstack([rep.vertices, np.ones((len(rep.vertices), 1))])
+    maps, resized = {}, False
+    for key in keys:
+        v = geometries[key].vertices
+        solution, *_ = np.linalg.lstsq(homogeneous, v, rcond=None)  # v ~ rep @ m + t
+        m, t = solution[:3], solution[3]
+        if np.abs(homogeneous @ solution - v).max() > BAKED_TURN_FIT * float(np.linalg.norm(np.ptp(v, axis=0))):
+            continue  # not a copy of it (other vertices, or bent)
+        gram = m @ m.T  # m = diag(scales) @ turn exactly when this is diagonal: scaled along its own axes
+        scales = np.sqrt(np.diag(gram))
+        if not (scales > 0).all() or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > _NATURAL_FRAME:
+            continue  # sheared, or scaled along other axes: a shape of its own
+        maps[key] = np.vstack([np.column_stack([m.T, t]), [0.0, 0.0, 0.0, 1.0]])
+        resized |= bool(np.abs(scales - 1.0).max() > BAKED_TURN_FIT)
+    if len(maps) < 2 or not resized:
+        return  # copies of one size: one part by _library's rigid alignment, in their own frames
+    geometries[rep.key] = rep
+    for key, placed in maps.items():
+        for raw in placers[key]:
+            raw.geometry, raw.world = rep.key, raw.world @ placed
 
 
 def _bake_scales(forests: list, geometries: dict) -> None:
@@ -1233,6 +1345,7 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
     for path in files:
         reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
         forests.append(reader(path, geometries))
+    _unbake_turns(forests, geometries)
     _bake_scales(forests, geometries)
     worlds = {}
     stack = [raw for forest in forests for raw in forest]
