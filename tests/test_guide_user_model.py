@@ -294,3 +294,84 @@ def test_a_traces_jobs_code_digest_follows_the_imports_python_would(tmp_path, fi
     assert model_code_digest(model, str(tmp_path / "model.py")) == before
     (tmp_path / edited).write_text((tmp_path / edited).read_text() + "# edited\n")
     assert model_code_digest(model, str(tmp_path / "model.py")) != before
+
+
+def test_a_traces_job_resumes_under_another_name_for_the_same_model_and_names_what_differs(tmp_path, monkeypatch,
+                                                                                          capsys):
+    """`plants.py:PLANT` after `plants.py`, or the model's folder moved, had been refused as
+    "another job", with the job's settings dumped and the one that differed left unsaid."""
+    import shutil
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    traces = ["--particles", "4", "--workers", "1", "--out", "tr"]
+    assert main(["guide", "traces", "a/plants.py", *traces, "--count", "1"]) == 0, capsys.readouterr().err
+    assert main(["guide", "traces", "a/plants.py:PLANT", *traces, "--count", "2"]) == 0, capsys.readouterr().err
+    shutil.move(tmp_path / "a", tmp_path / "b")  # the folder moved, the code the same
+    assert main(["guide", "traces", "b/plants.py:PLANT", *traces, "--count", "3"]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "tr").glob("trace_*.json")) == [f"trace_0000{i}.json" for i in range(3)]
+    capsys.readouterr()
+    assert main(["guide", "traces", "b/plants.py:PLANT", "--particles", "5", "--workers", "1", "--out", "tr",
+                 "--count", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "another job (particles 4 there, 5 now)" in err and err.count("\n") == 1, err
+
+
+NO_CHOICES_FILE = """
+from procmod import Model
+from procmod.geometry import Canvas, Segment
+
+def line(ctx, n):
+    ctx.emit(Segment(0.0, -2.0 * n, 0.0, -2.0 * n - 2.0, 0.5))
+    if n < 3:
+        ctx.spawn("next", line, n + 1)
+
+LINE = Model("my-line", "a line, no choices", line, root_args=lambda p: (0,),
+             new_output_from=lambda p: Canvas((-12, 12, -22, 2), 50))
+"""
+
+
+def test_training_on_traces_without_choices_or_without_argument_ranges_says_what_to_do(tmp_path, monkeypatch, capsys):
+    """Traces of a model with no random choices ended in a traceback (the optimiser was
+    handed no parameters); a model without argument ranges under local features was blamed
+    on its first trace, with the advice to delete it and make it again (which changes
+    nothing)."""
+    (tmp_path / "line.py").write_text(NO_CHOICES_FILE)
+    (tmp_path / "plants.py").write_text(PLANT_FILE.replace("arg_ranges=", "_unused="))
+    (tmp_path / "plants.py").write_text((tmp_path / "plants.py").read_text().replace(
+        "              _unused={\"plant\": ((-12.0, 12.0), (-22.0, 2.0), \"angle\", (0.0, 6.0))},\n", ""))
+    monkeypatch.chdir(tmp_path)
+    for spec, folder in (("line.py", "tl"), ("plants.py:PLANT", "tp")):
+        assert main(["guide", "traces", spec, "--count", "1", "--particles", "4", "--workers", "1",
+                     "--out", folder]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert main(["guide", "train", "line.py", "--traces", "tl", "--iterations", "5", "--features", "target+partial",
+                 "--out", "g"]) == 2
+    err = capsys.readouterr().err
+    assert "hold no random choices" in err and err.count("\n") == 1 and "Traceback" not in err, err
+    assert main(["guide", "train", "plants.py:PLANT", "--traces", "tp", "--iterations", "5", "--out", "g"]) == 2
+    err = capsys.readouterr().err
+    assert "declares no argument ranges for rule 'plant'" in err and "--features target+partial" in err, err
+    assert "trace_00000" not in err and "delete it" not in err, err
+    assert not list(tmp_path.glob("g.*"))
+
+
+def test_training_flags_are_named_as_flags_and_a_guide_may_be_named_by_its_npz(tmp_path, capsys):
+    """--lr and --mixture errors read "the learning rate", "mixture"; --guide G.npz looked
+    for G.npz.json (the README names the weights GUIDE.npz)."""
+    import shutil
+
+    from procmod.guide.guide import PRETRAINED
+
+    capsys.readouterr()
+    for flag, value, said in (("--lr", "nan", "(--lr) must be a finite positive number"),
+                              ("--mixture", "1000", "--mixture must be a whole number")):
+        assert main(["guide", "train", "vines", "--traces", str(tmp_path / "none"), flag, value,
+                     "--out", str(tmp_path / "g")]) == 2
+        err = capsys.readouterr().err
+        assert said in err, err
+    for suffix in (".json", ".npz"):
+        shutil.copy(PRETRAINED / f"vines-scribbles{suffix}", tmp_path / f"g{suffix}")
+    assert main(["infer", "vines", "--target", "glyph:a", "--particles", "3", "--out", str(tmp_path / "run"),
+                 "--guide", str(tmp_path / "g.npz")]) == 0, capsys.readouterr().err

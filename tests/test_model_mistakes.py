@@ -188,6 +188,17 @@ def test_bad_numbers_on_a_2d_canvas_are_refused_at_the_emit(primitive, message):
         run_forward(_model(lambda ctx: ctx.emit(primitive)), np.random.default_rng(0))
 
 
+def test_the_refused_part_is_shown_with_its_value_at_fault_whole():
+    """Cut at 60 characters of the repr, a Disc with long coordinates was shown as
+    `Disc(x=12.803456789012345, y=-10.961234567890123, radius=-0.` (read as radius 0, next
+    to "its radius at least 0")."""
+    disc = Disc(12.803456789012345, -10.961234567890123, -0.0031234567)
+    with pytest.raises(ModelError) as caught:
+        run_forward(_model(lambda ctx: ctx.emit(disc)), np.random.default_rng(0))
+    assert "emits Disc(x=12.8035, y=-10.9612, radius=-0.00312346, tag='disc'), which" in str(caught.value), \
+        str(caught.value)
+
+
 @pytest.mark.parametrize("part, message", [
     (Disc(0, 0, 1), "a 3D output draws Box, Cylinder and Mesh parts, not Disc .a 2D primitive"),
     (Box((1, 1, 1), translation(float("nan"), 0, 0)), "the part's position or size is not finite"),

@@ -40,7 +40,7 @@ import numpy as np
 
 from .choicemap import ChoiceMap, format_address
 from .distributions import Bernoulli, Distribution
-from .errors import InvalidArgumentError, ModelError
+from .errors import InvalidArgumentError, ModelError, cut_text
 from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
@@ -50,6 +50,23 @@ def rule_function(rule):
     while isinstance(rule, functools.partial):
         rule = rule.func
     return rule
+
+
+def _geometry_text(geometry) -> str:
+    """A part for a message, on one line: a named tuple's fields with numbers to 6
+    significant digits (``Disc(x=12.8034, y=-10.9612, radius=-0.00312)``), anything else
+    its repr; cut to 160 characters. (Cut at 60 characters of the full repr, the value at
+    fault could end mid-number: ``radius=-0.``, read as a radius of zero.)"""
+    fields = getattr(geometry, "_fields", None)
+    if fields:
+        def shown(value):
+            if isinstance(value, float):
+                return f"{value:.6g}"
+            return " ".join(repr(value).split())  # one line: a numpy array's repr has several
+        text = f"{type(geometry).__name__}(" + ", ".join(f"{f}={shown(getattr(geometry, f))}" for f in fields) + ")"
+    else:
+        text = " ".join(repr(geometry).split())
+    return cut_text(text, 160)
 
 
 def rule_name(rule) -> str:
@@ -256,8 +273,8 @@ class Context:
         try:
             state.output.add(geometry)
         except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw
-            shown = " ".join(repr(geometry).split())  # one line: a numpy array's repr has several
-            raise self._misuse(f"emits {shown:.60}, which the model's output cannot draw: {exc}") from exc
+            raise self._misuse(f"emits {_geometry_text(geometry)}, which the model's output cannot draw: "
+                               f"{exc}") from exc
         state.n_emits += 1
         self._fresh_emit = True
         if self._pause:

@@ -130,7 +130,8 @@ def _cmd_train(args) -> None:
             bar.set_postfix(nll=f"{loss:.2f}", refresh=False)
             bar.refresh()
 
-        with spelled({name: f"--{name}" for name in ("iterations", "batch", "mixture", "limit")}):
+        with spelled({**{name: f"--{name}" for name in ("iterations", "batch", "mixture", "limit", "lr")},
+                      "schedule": "--lr-schedule"}):
             guide, report = train_guide(model, args.traces, args.out, settings=settings, mixture=args.mixture,
                                         iterations=args.iterations, batch=args.batch, lr=args.lr,
                                         schedule=args.lr_schedule,

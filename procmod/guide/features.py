@@ -51,6 +51,11 @@ class GuideError(ProcmodError):
     """A guide that does not fit its model, target or settings."""
 
 
+class FeatureSettingsError(GuideError):
+    """Features the model cannot give (local state of a rule without argument ranges): a
+    matter of the model and the settings, not of any one trace."""
+
+
 CONDITIONS = {
     # seed 004 Figure 5's conditions: name -> (local state, target image, partial output)
     "constant": (False, False, False),
@@ -415,12 +420,12 @@ class FeatureExtractor:
             if ranges is None:
                 declared = sorted(self.model.arg_ranges)
                 if declared:  # ranges for other rules: this one was likely renamed since the guide was trained
-                    raise GuideError(f"model {self.model.name!r} declares argument ranges for rule"
+                    raise FeatureSettingsError(f"model {self.model.name!r} declares argument ranges for rule"
                                      f"{'s' if len(declared) > 1 else ''} {', '.join(map(repr, declared[:4]))} but "
                                      f"not {rule_name!r}, whose choices the guide proposes: if the rule was renamed, "
                                      "retrain the guide on the model as it is; else give the Model "
                                      f"arg_ranges={{{rule_name!r}: ((low, high), ...)}}")
-                raise GuideError(f"model {self.model.name!r} declares no argument ranges for rule "
+                raise FeatureSettingsError(f"model {self.model.name!r} declares no argument ranges for rule "
                                  f"{rule_name!r}; give the Model arg_ranges={{{rule_name!r}: ((low, high), ...)}} "
                                  "or train the guide without local state (--features target+partial)")
             self._local[rule_name] = ranges

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.distributions import Normal, TruncatedNormal
-from ..core.errors import cut_text, shown_value, whole_number
+from ..core.errors import argument, cut_text, shown_value, whole_number
 from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from ..core.limits import check_memory
 from ..core.choicemap import format_address
@@ -42,7 +42,7 @@ def check_mixture(mixture, where: str = "mixture") -> int:
     """``mixture`` if it is an integer in [1, MAX_MIXTURE], else a GuideError naming ``where``."""
     components = whole_number(mixture)
     if components is None or not 1 <= components <= MAX_MIXTURE:
-        raise GuideError(f"{where} must be a whole number of Gaussian components from 1 to {MAX_MIXTURE}, "
+        raise GuideError(f"{argument(where)} must be a whole number of Gaussian components from 1 to {MAX_MIXTURE}, "
                          f"got {shown_value(mixture)}")
     return components
 
@@ -344,7 +344,7 @@ def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Pat
     if not for_writing and path.name in pretrained_guides() \
             and not path.with_name(path.name + ".json").exists() and len(path.parts) == 1:
         path = PRETRAINED / path.name
-    stem = path.with_suffix("") if path.suffix.lower() in (".pt", ".json") else path
+    stem = path.with_suffix("") if path.suffix.lower() in (".pt", ".json", ".npz") else path
     return stem.with_name(stem.name + ".pt"), stem.with_name(stem.name + ".json")
 
 
@@ -508,6 +508,9 @@ class GuidedProposer:
             # bounds (finite: interval; half-open: real): those are checked every time
             if not kind.startswith("categorical") and type(dist) is not TruncatedNormal:
                 site[4] = type(dist)
+        if kind == "real" and type(dist) is TruncatedNormal:  # one-sided: the mixture cut to its support
+            out = self.outputs(ctx.derivation, site, args)
+            return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
         if kind == "real":
             mu0, s0 = (dist.mu, dist.sigma) if type(dist) is Normal else base_params(kind, dist)
             u, z = self._draws(rng)

@@ -11,6 +11,8 @@ proposes roughly the prior and training learns corrections:
 - ``real`` (Normal, GaussianMixture priors): a mixture of K Gaussians, component k with
   weight softmax(a)_k, mean mu0 + s0 m_k and sd s0 exp(l_k), where mu0, s0 are the prior's
   mean and spread (the bounding transforms are softmax and exp);
+  a TruncatedNormal bounded on one side only gets the same mixture cut to its support
+  and renormalised (a rule never sees a value its prior cannot draw);
 - ``interval`` (Uniform, TruncatedNormal with finite bounds): the same mixture over the
   logit of the value's position in [low, high] (so proposals never leave the support),
   with the change-of-variables term in the density;
@@ -47,7 +49,7 @@ def head_kind(dist) -> str:
     if isinstance(dist, TruncatedNormal):
         if math.isfinite(dist.low) and math.isfinite(dist.high):
             return "interval"
-        return "real"  # half-bounded: proposals outside the support get weight zero
+        return "real"  # half-bounded: the mixture cut to the support (propose)
     raise GuideError(f"neural guides do not support {type(dist).__name__} choices yet")
 
 
@@ -123,6 +125,48 @@ def _mixture_log_density(x, log_w, centres, sds) -> float:
     return top + math.log(sum(math.exp(t - top) for t in terms)) - 0.5 * math.log(2 * math.pi)
 
 
+def _log_mass(alpha: float, beta: float) -> float:
+    """log P(alpha < Z < beta) for a standard normal Z, without cancellation in the tails."""
+    from scipy.special import log_ndtr
+
+    if alpha > 0.0:  # the upper tail: by symmetry, the lower one, where log_ndtr is exact
+        alpha, beta = -beta, -alpha
+    upper = float(log_ndtr(beta))
+    lower = float(log_ndtr(alpha))
+    return upper + math.log1p(-math.exp(lower - upper)) if lower < upper else -math.inf
+
+
+def truncated_mixture_draw(log_w, centres, sds, low: float, high: float, rng):
+    """Draw from a Gaussian mixture cut to [low, high] and renormalised; returns (x, log
+    density of x under the cut mixture), or None when the mixture puts no measurable mass
+    there (the caller falls back to the prior)."""
+    from scipy.special import ndtr, ndtri
+
+    k = len(log_w)
+    alphas = [(low - centres[j]) / sds[j] for j in range(k)]
+    betas = [(high - centres[j]) / sds[j] for j in range(k)]
+    terms = [log_w[j] + _log_mass(alphas[j], betas[j]) for j in range(k)]
+    top = max(terms)
+    if not top > -700.0:
+        return None
+    log_z = top + math.log(sum(math.exp(t - top) for t in terms))
+    u, chosen, acc = rng.random(), k - 1, 0.0
+    for j in range(k):
+        acc += math.exp(terms[j] - log_z)
+        if u < acc:
+            chosen = j
+            break
+    a, b, v = alphas[chosen], betas[chosen], rng.random()
+    if a > 0.0:  # in the upper tail: draw -Z from the mirrored lower one, where ndtr keeps its digits
+        lo, hi = float(ndtr(-b)), float(ndtr(-a))
+        z = -float(ndtri(lo + v * (hi - lo)))
+    else:
+        lo, hi = float(ndtr(a)), float(ndtr(b))
+        z = float(ndtri(lo + v * (hi - lo)))
+    x = min(max(centres[chosen] + sds[chosen] * min(max(z, a), b), low), high)
+    return x, _mixture_log_density(x, log_w, centres, sds) - log_z
+
+
 def propose(kind: str, mixture: int, out: np.ndarray, base: tuple, dist, rng: np.random.Generator):
     """Draw a value from the proposal the outputs set; returns (value, log q(value))."""
     if kind == "bernoulli":
@@ -148,6 +192,12 @@ def propose(kind: str, mixture: int, out: np.ndarray, base: tuple, dist, rng: np
         mu0, s0 = base
         centres = mu0 + s0 * out[k:2 * k]
         sds = s0 * np.exp(log_scales)
+        if isinstance(dist, TruncatedNormal):  # bounded on one side: never a value outside
+            drawn = truncated_mixture_draw(log_w, centres, sds, dist.low, dist.high, rng)
+            if drawn is None:  # the proposal misses the support altogether: the prior's draw
+                value = dist.sample(rng)
+                return value, dist.log_prob(value)
+            return drawn
         x = _sample_mixture(log_w, centres, sds, rng)
         return x, _mixture_log_density(x, log_w, centres, sds)
     low, high, c = base

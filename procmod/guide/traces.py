@@ -183,11 +183,25 @@ def _same_job(previous, settings: dict) -> bool:
         return False
     if "model_code" not in previous:
         return previous == _without_code(settings)
-    return previous == settings
+    return _without_file(previous) == _without_file(settings)
 
 
 def _without_code(settings: dict) -> dict:
     return {key: value for key, value in settings.items() if key != "model_code"}
+
+
+def _without_file(settings: dict) -> dict:
+    """A job's settings less the model file's path: with the model's name and its code's
+    digest, the same model named ``plant.py:PLANT`` rather than ``plant.py``, or its folder
+    moved, resumes the job (it had been refused as another job)."""
+    return {key: value for key, value in settings.items() if key != "model_file"}
+
+
+def _differences(previous: dict, settings: dict) -> str:
+    """What differs between a folder's job and this one, for a message."""
+    keys = [k for k in dict.fromkeys([*previous, *settings]) if previous.get(k) != settings.get(k)]
+    return "; ".join(f"{k} {shown_value(previous.get(k), 40)} there, {shown_value(settings.get(k), 40)} now"
+                     for k in keys[:4])
 
 
 MAX_TRACES = 10_000_000  # a job's count: its trace files in one folder, its list of the missing ones
@@ -246,7 +260,10 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                                  "rules' source has changed since the job began): they may not replay under it; "
                                  f"pass {argument('overwrite=True')} to make them afresh, or give a new "
                                  f"{argument('out')} folder")
-            raise GuideError(f"{out} holds traces of another job ({str(previous)[:200]}); give a new "
+            what = ("its job file is not a JSON object" if not isinstance(previous, dict) else
+                    _differences(_without_file(previous), _without_file(settings)) if "model_code" in previous else
+                    _differences(previous, _without_code(settings)))
+            raise GuideError(f"{out} holds traces of another job ({what}); give a new "
                              f"{argument('out')} folder, the same settings to resume, or pass "
                              f"{argument('overwrite=True')} to replace it")
     created = not out.exists()

@@ -36,7 +36,7 @@ from ..core import Model, start
 from ..core.errors import argument, shown_value, whole_number
 from ..core.runtime import finish
 from ..core.io import load_tensors, save_tensors, write_text_atomic
-from .features import FeatureExtractor, FeatureSettings, GuideError
+from .features import FeatureExtractor, FeatureSettings, FeatureSettingsError, GuideError
 from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_guide_for,
                     target_mask_for)
 from .nets import log_q_torch
@@ -86,6 +86,8 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     state.proposer = recorder
     try:
         finish(state, np.random.default_rng(0))
+    except FeatureSettingsError:  # the model's and the settings' matter: remaking the trace would not help
+        raise
     except GuideError as exc:  # the recorder's: a choice the trace lacks, or holds a value it cannot take
         raise GuideError(f"{_trace_name(trace)}: {exc}{_RERUN}") from None
     if len(recorder.rows) != len(choices) or not math.isclose(state.log_prior, d["log_prior"], abs_tol=1e-6):
@@ -189,6 +191,10 @@ def build_dataset(model, traces: list, settings: FeatureSettings) -> tuple[dict,
             rows.append((features, base, value))
             ids.append(t)
             n_choices += 1
+    if not kinds:  # the optimiser would be handed no parameters (a traceback)
+        raise GuideError(f"the {len(traces)} trace{'s' if len(traces) != 1 else ''} hold no random choices (model "
+                         f"{model.name!r} made none in them): there is nothing for a guide to propose; a model "
+                         "without ctx.sample needs no guide")
     data = {key: SiteData(kinds[key], rows, ids, len(traces)) for key, (rows, ids) in per_site.items()}
     return data, kinds, n_choices
 
@@ -245,15 +251,15 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                                                                            checkpoint_every, seed))
     limit = None if limit is None else int(limit)
     if iterations > MAX_ITERATIONS:
-        raise GuideError(f"iterations must be at most {MAX_ITERATIONS:,} Adam steps (the papers train for 20,000), "
+        raise GuideError(f"{argument('iterations')} must be at most {MAX_ITERATIONS:,} Adam steps (the papers train for 20,000), "
                          f"got {iterations:,}")
     if batch > MAX_BATCH:
-        raise GuideError(f"batch must be at most {MAX_BATCH:,} traces a step, got {batch:,}")
+        raise GuideError(f"{argument('batch')} must be at most {MAX_BATCH:,} traces a step, got {batch:,}")
     if isinstance(lr, bool) or not isinstance(lr, numbers.Real) or not (math.isfinite(lr) and lr > 0):
-        raise GuideError(f"the learning rate must be a finite positive number, got {shown_value(lr)}")
+        raise GuideError(f"the learning rate ({argument('lr')}) must be a finite positive number, got {shown_value(lr)}")
     lr = float(lr)  # numpy's too: it is recorded in the guide's JSON
     if schedule not in SCHEDULES:
-        raise GuideError(f"the step-size schedule must be one of {', '.join(SCHEDULES)}, got {schedule!r}")
+        raise GuideError(f"the step-size schedule ({argument('schedule')}) must be one of {', '.join(SCHEDULES)}, got {schedule!r}")
     job = None
     if traces is None:
         job, traces = load_traces(traces_dir, limit)

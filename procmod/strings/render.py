@@ -12,7 +12,6 @@ on its side in Blender imported with its defaults.) Part meshes a shapes file na
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 from PIL import Image
