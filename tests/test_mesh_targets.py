@@ -991,6 +991,9 @@ def test_a_target_lying_on_its_side_is_told_mesh_up(tmp_path):
     at = moved.index("\"mesh_offset\": ") + len("\"mesh_offset\": ")
     offset = json.loads(moved[at:moved.index(" in the target file", at)])
     assert note("zfar.obj", mesh_up="z", mesh_offset=offset) is None
+    # a y-up mesh given "mesh_up": "z" lies on its side: the note says the turn did it
+    turned = note("y.obj", mesh_up="z")
+    assert turned is not None and "\"mesh_up\": \"z\" turned it over; leave \"mesh_up\" out" in turned, turned
     # a narrow ship with tall fins stands as it is: no turn suggested
     _write_obj(tmp_path / "fins.obj", _box((2.5, 7.0, 10.5), (0, 0, 0)).vertices, _box((2.5, 7.0, 10.5), (0, 0, 0)).faces)
     assert "mesh_up" not in (note("fins.obj") or "")
@@ -1025,3 +1028,90 @@ def test_a_white_on_black_mask_gets_a_note_and_a_camera_far_out_is_no_coincidenc
         {"image": "mask.png", "camera": dict(far, eye=far["look_at"])}]}))
     with pytest.raises(TargetFileError, match="the camera's eye and look_at coincide"):
         load_target_file(tmp_path / "F.json")
+
+
+def test_a_collada_file_that_declares_its_up_axis_is_not_turned_twice(tmp_path):
+    """COLLADA says which axis is up, and procmod reads it standing by that; the README's
+    advice for a z-up tool ("mesh_up": "z") turned Blender's z-up export a second time,
+    and the ship stood on its tail without a word."""
+    box = _box((1.0, 3.0, 0.6), (0.5, 1.0, 0.3))
+    box.export(tmp_path / "y.dae")
+    text = (tmp_path / "y.dae").read_text()
+    assert "<up_axis>" in text  # trimesh writes Y_UP
+    with pytest.raises(TargetFileError, match=r"declares its up axis \(<up_axis>Y_UP</up_axis>\).*leave out "
+                                              r"\"mesh_up\""):
+        load_volume_target(_volume_file(tmp_path, "y.dae", mesh_up="z"))
+    (tmp_path / "bare.dae").write_text(text.replace("<up_axis>Y_UP</up_axis>", ""))  # undeclared: mesh_up turns it
+    stood = load_volume_target(_volume_file(tmp_path, "bare.dae", mesh_up="z"))
+    assert stood.grid.shape != load_volume_target(_volume_file(tmp_path, "y.dae")).grid.shape
+
+
+@pytest.mark.parametrize("key, meant", [("up_axis", "mesh_up"), ("upAxis", "mesh_up"), ("mesh_up_axis", "mesh_up"),
+                                        ("units", "mesh_scale"), ("mesh_units", "mesh_scale"), ("scale", "mesh_scale"),
+                                        ("translation", "mesh_offset"), ("offset", "mesh_offset"),
+                                        ("resolution", "voxel_size"), ("self_weight", "w_self"),
+                                        ("rotation", "turns a mesh only by"), ("mesh_rotate", "turns a mesh only by"),
+                                        ("mesh_translate", "mesh_offset"), ("z_up", "mesh_up")])
+def test_a_placement_said_in_other_words_is_refused(tmp_path, key, meant):
+    """These keys were read without a word and changed nothing: a z-up OBJ given
+    "mesh_up_axis": "z" was read y-up, and the note then advised what the user believed
+    they had written."""
+    box = _box((1.0, 3.0, 0.6), (0.5, 1.0, 0.3))
+    _write_obj(tmp_path / "m.obj", box.vertices, box.faces)
+    with pytest.raises(TargetFileError, match=meant):
+        load_volume_target(_volume_file(tmp_path, "m.obj", **{key: "z"}))
+    load_volume_target(_volume_file(tmp_path, "m.obj", mesh_source="maya", meshes=["m.obj"]))  # a tool's own: read
+
+
+def test_a_gltf_mesh_drawn_by_many_nodes_is_counted_once_per_node_before_reading(tmp_path, monkeypatch):
+    """A 1.5 MB glTF whose one mesh 1000 nodes draw filled 10 GB before it was refused: its
+    faces were counted once. Strips and fans count too."""
+    from procmod.core.errors import ProcmodError
+    from procmod.targets import files
+
+    ball = trimesh.creation.icosphere(subdivisions=2)  # 320 faces
+    ball.export(tmp_path / "one.gltf")
+    spec = json.loads((tmp_path / "one.gltf").read_text())
+    mesh = next(i for i, n in enumerate(spec["nodes"]) if "mesh" in n)
+    spec["nodes"] = [{"children": list(range(1, 51))}] + [{"mesh": spec["nodes"][mesh]["mesh"],
+                                                         "translation": [3.0 * k, 0, 0]} for k in range(50)]
+    spec["scenes"] = [{"nodes": [0]}]
+    spec["scene"] = 0
+    (tmp_path / "many.gltf").write_text(json.dumps(spec))
+    assert files.declared_faces(tmp_path / "many.gltf") == 50 * 320
+    assert len(trimesh.load(tmp_path / "many.gltf", force="mesh").faces) == 50 * 320  # what reading makes of it
+    monkeypatch.setattr(files, "MAX_MESH_FACES", 320 * 10)
+    monkeypatch.setattr(trimesh, "load", lambda *a, **k: pytest.fail("the mesh was read"))
+    with pytest.raises(ProcmodError, match="faces"):
+        files.read_mesh(tmp_path / "many.gltf")
+
+
+def test_obj_faces_after_a_tab_or_indent_and_uppercase_stl_facets_are_counted(tmp_path):
+    from procmod.targets import files
+
+    box = _box((1.0, 1.0, 1.0), (0, 0, 0))
+    lines = [f"v {x} {y} {z}" for x, y, z in box.vertices]
+    lines += [("f\t" if i % 3 == 0 else "  f " if i % 3 == 1 else "f ") + " ".join(str(v + 1) for v in f)
+              for i, f in enumerate(box.faces)]
+    (tmp_path / "t.obj").write_text("\n".join(lines))  # no newline at the end
+    assert files.declared_faces(tmp_path / "t.obj") == len(box.faces) == len(files.read_mesh(tmp_path / "t.obj")[1])
+    stl = trimesh.exchange.stl.export_stl_ascii(box).upper()
+    (tmp_path / "u.stl").write_text(stl)
+    assert files.declared_faces(tmp_path / "u.stl") == len(box.faces)
+
+
+def test_a_textured_mesh_target_decodes_no_texture(tmp_path, monkeypatch):
+    """A target needs the geometry only: with materials, trimesh decoded every texture and
+    packed them into one atlas (a GLB of 12 textures of 2048 x 2048: 20 s and 3.3 GB, the
+    same without textures 2 s)."""
+    from PIL import Image
+
+    ball = trimesh.creation.icosphere(subdivisions=2)
+    ball.visual = trimesh.visual.TextureVisuals(uv=np.random.default_rng(0).random((len(ball.vertices), 2)),
+                                                image=Image.new("RGB", (64, 64), (200, 30, 30)))
+    ball.export(tmp_path / "tex.glb")
+    opened = []
+    real_open = Image.open
+    monkeypatch.setattr(Image, "open", lambda *a, **k: opened.append(a) or real_open(*a, **k))
+    load_volume_target(_volume_file(tmp_path, "tex.glb"))
+    assert not opened, "a texture was decoded"

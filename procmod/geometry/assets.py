@@ -371,7 +371,7 @@ def _read_gltf(path: Path, geometries: dict) -> list:
         raise AssetError(f"{path} has {declared} triangles, more than procmod reads ({MAX_FACES}); "
                          "decimate the meshes (Blender: Decimate modifier) before exporting")
     try:
-        scene = load_mesh_file(path, force="scene", process=False)
+        scene = load_mesh_file(path, force="scene", process=False, skip_materials=True)  # geometry only: no textures decoded
     except Exception as exc:  # trimesh raises many types for unreadable files; procmod's checks say ValueError
         said = str(exc)[:300] if type(exc) is ValueError and str(exc) else f"{type(exc).__name__}: {str(exc)[:200]}"
         raise AssetError(f"cannot read {path} as glTF ({said})") from None

@@ -104,7 +104,7 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
     except UnsafePathError as exc:
         raise PartLibraryError(str(exc)) from None
     try:
-        mesh = load_mesh_file(path, force="mesh", process=False)
+        mesh = load_mesh_file(path, force="mesh", process=False, skip_materials=True)  # geometry only
     except Exception as exc:  # trimesh raises many types for unreadable files
         hint = conversion_hint(path)
         raise PartLibraryError(f"{where}.mesh: cannot read {path} as a triangle mesh ({exc})"

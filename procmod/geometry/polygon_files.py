@@ -13,6 +13,8 @@ triangulated by :func:`procmod.geometry.polygons.triangulate_faces`.
 
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +122,21 @@ _TO_UP = {("Z_UP", "y"): np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),  # (x, 
           ("X_UP", "z"): np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])}  # (x, y, z) -> (-z, y, x)
 
 
+_UP_AXIS = re.compile(rb"<up_axis>\s*([A-Za-z_]+)\s*</up_axis>")
+
+
+def collada_up_axis(path: str | Path) -> str | None:
+    """The ``<up_axis>`` a COLLADA file declares in its ``<asset>`` (``"Z_UP"``), or None
+    (then Y_UP, the format's default): read from the file's head, without parsing it."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(1 << 16)
+    except OSError:
+        return None
+    found = _UP_AXIS.search(head)
+    return found.group(1).decode("ascii").upper() if found else None
+
+
 def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarray]:
     """``(vertices, triangles)`` of a COLLADA file's scene (pycollada; each geometry placed
     by its nodes), its polygons triangulated right, in metres and with ``up`` (``"y"`` or
@@ -169,4 +186,4 @@ def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarra
     return vertices * metre, np.concatenate(triangles)
 
 
-__all__ = ["read_collada", "read_off", "read_ply"]
+__all__ = ["collada_up_axis", "read_collada", "read_off", "read_ply"]

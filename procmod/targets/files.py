@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -191,7 +192,9 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     if declared is not None:
         check_memory(f"{where}: reading {declared:,} faces", declared * BYTES_PER_FACE)
     try:
-        mesh = load_mesh_file(file, force="mesh", process=False)  # quiet: see quiet_trimesh
+        # skip_materials: a target needs the geometry only; with materials trimesh decoded every
+        # texture and packed them into one atlas (12 textures of 2048²: 20 s and 3.3 GB, not 2 s)
+        mesh = load_mesh_file(file, force="mesh", process=False, skip_materials=True)  # quiet: quiet_trimesh
     except Exception as exc:  # noqa: BLE001 -- trimesh raises many types for unreadable files
         raise TargetFileError(f"{where}: cannot read the mesh ({cut_text(str(exc) or type(exc).__name__, 200)})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -440,6 +443,23 @@ def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str)
                               "grid or a picture is placed by its own grid or camera)")
 
 
+def _check_up_once(file: Path, spec: dict, at: str) -> None:
+    """Refuse ``"mesh_up"`` for a COLLADA file that declares its own up axis: it is read
+    standing by that already, and ``mesh_up`` turned it a second time (Blender's z-up
+    export, given ``"mesh_up": "z"`` as the README says for a z-up tool, stood on its tail)."""
+    up = spec.get("mesh_up", "y")
+    if up == "y" or file.suffix.lower() != ".dae":
+        return
+    from ..geometry.polygon_files import collada_up_axis
+
+    declared = collada_up_axis(file)
+    if declared is not None:
+        raise TargetFileError(f"{at}: {cut_text(file.name, 80)} is COLLADA, which declares its up axis "
+                              f"(<up_axis>{declared}</up_axis>), and procmod reads it standing by that already; "
+                              f"leave out \"mesh_up\" (\"{up}\" would turn it a second time), or export the "
+                              "mesh as glTF or OBJ")
+
+
 def _placed(mesh, placement):
     """A mesh ``(vertices, faces)`` moved by a :func:`_mesh_placement`."""
     vertices, faces = mesh
@@ -570,6 +590,7 @@ def load_volume_target(path: str | os.PathLike):
             raise TargetFileError(f"{where}: margin must be at most {MAX_COORDINATE:g}, got {margin:g}")
     read = {}
     for at, file, _, _ in meshes:
+        _check_up_once(file, spec, f"{at}.file")
         read[at] = _placed(read_mesh(file, f"{at}.file"), placement)
     if grid is None:
         bounds = [mesh_bounds(*read[at]) for at, _, _, _ in meshes]
@@ -713,11 +734,48 @@ _STRICT = 0.82
 
 
 def _at_top_level(spec: dict, known: tuple, where: str, inside: tuple | None = None) -> None:
-    """:func:`_misplaced_keys` for a file's top level, the message naming the file."""
+    """:func:`_misplaced_keys` for a file's top level, the message naming the file, and
+    :func:`_placement_synonyms`."""
     try:
         _misplaced_keys(spec, known, None, inside, cutoff=_STRICT)
+        _placement_synonyms(spec, known)
     except TargetFileError as exc:
         raise TargetFileError(f"{where}: {exc}") from None
+
+
+# top-level keys that say what a placement key says, in words a user or another tool
+# uses (compared without case, spaces, "-" or "_"): ignored, they had left a z-up mesh
+# lying on its side, or a millimetre mesh 1000 times too large, without a word
+_SAYS = {"mesh_up": ("up", "upaxis", "axisup", "upvector", "upaxes", "yup", "zup", "meshupaxis", "meshaxis",
+                     "meshupvector", "upside"),
+         "mesh_scale": ("scale", "scalefactor", "units", "unit", "meshunits", "meshunit", "unitscale",
+                        "meshscalefactor"),
+         "mesh_offset": ("offset", "translation", "translate", "meshtranslation", "meshtranslate", "position",
+                         "meshposition", "shift", "meshshift", "move", "meshmove", "center", "centre"),
+         "voxel_size": ("resolution", "voxelresolution", "voxeledge", "gridsize", "cellsize"),
+         "w_self": ("selfweight", "weightself", "wself")}
+# turns other than the up axis: procmod takes none (a mesh is turned in its modelling tool)
+_TURNS = ("rotation", "rotate", "rotations", "orientation", "meshrotation", "meshrotate", "meshorientation",
+          "quaternion", "euler", "meshturn", "turn")
+
+
+def _placement_synonyms(spec: dict, known: tuple) -> None:
+    """Refuse a top-level key that means a placement key (or a turn, which procmod does
+    not take) in other words: ``up_axis`` or ``mesh_up_axis`` for ``mesh_up``, ``units``
+    for ``mesh_scale``, ``translation`` for ``mesh_offset``. A tool's own keys
+    (``mesh_source``, ``mesh_url``) are left alone."""
+    for key in spec:
+        if not isinstance(key, str) or key in known:
+            continue
+        word = re.sub(r"[\s_\-]", "", key).lower()
+        words = {word, word[len("mesh"):]} if word.startswith("mesh") else {word}  # mesh_units: units
+        meant = next((k for k, said in _SAYS.items() if words & set(said) and k in known), None)
+        if meant is not None:
+            raise TargetFileError(f"the file has {key!r}, which procmod does not read; did you mean {meant!r}?")
+        if words & set(_TURNS) and "mesh_up" in known:
+            raise TargetFileError(f"the file has {key!r}, which procmod does not read: it turns a mesh only by "
+                                  "\"mesh_up\" (the axis that is up in the mesh's tool); turn the mesh in the tool "
+                                  "otherwise")
 _CAMERA_KEYS = ("eye", "look_at", "up", "projection", "fov", "width", "height")
 
 
@@ -793,6 +851,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
                                       f"darkest is {int(grey.min())}): darken the shape (black to hit, white to avoid, "
                                       "grey between: either), or give the view's weights as an .npy (\"weights\")")
         else:
+            _check_up_once(file, spec, f"{at}.mesh")
             covered = mesh_silhouette(*_placed(read_mesh(file, f"{at}.mesh", orient=False), placement), camera)
             if not covered.any():
                 raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"

@@ -204,6 +204,12 @@ def _volume_note(target, lo, hi) -> str | None:
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
                 f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}{also}")
+    up = getattr(target, "mesh_up", "y")
+    if up != "y" and _turned_onto_its_side(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
+        return (f"{what} is {span_text(t_lo, t_hi)} (x, y, z), shaped like the model's samples "
+                f"({span_text(lo, hi)}) laid on their side, and stands as the file has it: the target file's "
+                f"\"mesh_up\": \"{up}\" turned it over; leave \"mesh_up\" out if the mesh is y-up (glTF is, "
+                "and so are OBJ files exported with a tool's defaults)")
     if _lying(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
         # before the place: a lying target moved onto the model still lies
         return (f"{what} is {span_text(t_lo, t_hi)} (x, y, z), shaped like the model's "
@@ -241,6 +247,25 @@ def _lying(target, t_ext, m_ext) -> bool:
     as_read = float(np.abs(shape(t_ext) - model).max())
     stood = float(np.abs(shape(t_ext[[0, 2, 1]]) - model).max())  # "z" turns (x, y, z) to (x, z, -y)
     return as_read > math.log(LYING) and stood <= math.log(STANDING)
+
+
+def _turned_onto_its_side(target, t_ext, m_ext) -> bool:
+    """Whether a mesh target read with a ``"mesh_up"`` other than y lies on its side next to
+    the model's samples and stood as its file has it (the turn undone): a y-up file given
+    ``"mesh_up": "z"``. The note for the default up said nothing here."""
+    placed = getattr(target, "placed_by", None)
+    if placed is None or placed[0] != "meshes":
+        return False
+    floor = 1e-9 * float(max(t_ext.max(), m_ext.max()))
+
+    def shape(e):
+        logs = np.log(np.maximum(np.asarray(e, dtype=np.float64), floor))
+        return logs - logs.mean()
+
+    model = shape(m_ext)
+    as_file = np.abs(up_rotation(target.mesh_up)).T @ t_ext  # the extents before the turn
+    return float(np.abs(shape(t_ext) - model).max()) > math.log(LYING) and \
+        float(np.abs(shape(as_file) - model).max()) <= math.log(STANDING)
 
 
 def _offset_once_stood(target, t_lo, t_hi, lo, hi, resolution: float) -> str:
