@@ -13,6 +13,7 @@ from PIL import Image
 
 from .core import save_derivation, write_text_atomic
 from .core.io import standard_json
+from .core.serialize import program_reference
 from .core.serialize import derivation_to_dict
 from .core.protocols import Target, check_declared
 from .chart import COLOURS, Series, line_chart_svg
@@ -150,7 +151,10 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     tiles = derivation_images(sample_of_final(result), 128, underlay=tile_underlay, supersample=2)
     save_image_atomic(contact_sheet(tiles), out / "samples.png")
     summary = {
-        "engine": result.engine, "target": target.name, "model": best.model.name,
+        # a learned program's model name is its program.json's absolute path: written, as in
+        # best.json, relative to the run folder (the page and settings.json had carried this
+        # machine's layout, stale once the two were moved together)
+        "engine": result.engine, "target": target.name, "model": program_reference(best.model.name, out),
         # the one timing field, to the microsecond: a short run takes a few milliseconds
         "best_score": result.best_score, "seconds": round(result.seconds, 6),
         "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,

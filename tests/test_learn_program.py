@@ -802,3 +802,21 @@ def test_a_ring_found_at_a_whole_number_of_turns_is_full_when_it_visits_every_me
     data = SimpleNamespace(nodes=[ring("rot(a)", 144, 5), ring("rot(a)", 90, 4), ring("rot(a)", -240, 3),
                                   ring("rot(b)", 180, 4), ring("rot(c)", 30, 3), ring("rot(d)", 72, 5)])
     assert full_rings(data) == ["rot(a)", "rot(d)"]
+
+
+def test_a_run_of_a_learned_program_names_it_relative_to_the_run_folder(saved, tmp_path, monkeypatch):
+    """best.json named the program relative to the run folder, but settings.json and the
+    report's title carried its absolute path: this machine's layout, stale once the program
+    and the run were moved together."""
+    from procmod.cli import main
+
+    out, _ = saved
+    monkeypatch.chdir(tmp_path)
+    scene = Path(__file__).resolve().parent.parent / "scenes" / "spaceship_volume"
+    assert main(["infer", str(out / "program.json"), "--target", str(scene), "--engine", "ga", "--population", "4",
+                 "--budget", "0.5s", "--size", "32", "--out", "run"]) == 0
+    settings = json.loads((tmp_path / "run" / "settings.json").read_text())
+    best = json.loads((tmp_path / "run" / "best.json").read_text())
+    assert settings["model"] == best["model"] and not Path(settings["model"]).is_absolute(), settings["model"]
+    assert (tmp_path / "run" / settings["model"]).resolve() == (out / "program.json").resolve()
+    assert str(out) not in (tmp_path / "run" / "report.html").read_text().split("<h1>", 1)[1].split("</h1>", 1)[0]

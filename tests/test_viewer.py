@@ -7,6 +7,7 @@ rectangle differ from the viewer's background (the legend's rows left out). A pa
 view has nothing to draw is the control: its rectangle stays background.
 """
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -183,10 +184,13 @@ def test_the_bundle_is_package_data_with_the_three_js_licence():
     assert "</script" not in text.lower()
 
 
-def test_data_cannot_close_the_script_that_holds_it():
-    html = viewer_scripts([View((Layer("</script><b>x", b"glb"),), "</script>")])
+def test_data_cannot_close_the_script_that_holds_it_and_stays_json():
+    """``<!--`` had been written ``<\\!--``, which is no JSON escape: JSON.parse refused the data."""
+    html = viewer_scripts([View((Layer("</script><b>x<!--y", b"glb"),), "</script>")])
     data = html.split('id="procmod-viewer-data">', 1)[1].split("</script>", 1)[0]
-    assert "<b>x" in data.replace("<\\/", "</")  # the label is all inside the data block
+    assert "<" not in data  # nothing in it can end the script or open a comment
+    parsed = json.loads(data)  # as the page reads it
+    assert "</script><b>x<!--y" in json.dumps(parsed, ensure_ascii=False)  # the label whole, inside the data
 
 
 def test_the_voxel_surface_is_closed_faces_out_and_encloses_the_voxels():

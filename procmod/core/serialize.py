@@ -109,7 +109,7 @@ def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
     if not isinstance(path, (str, os.PathLike)):
         raise InvalidArgumentError(f"path must be a str or pathlib.Path, got {type(path).__name__}")
     data = derivation_to_dict(derivation)
-    data["model"] = _program_reference(data["model"], Path(path).parent)
+    data["model"] = program_reference(data["model"], Path(path).parent)
     text = derivation_json(data)
     try:
         write_text_atomic(path, text)
@@ -124,7 +124,7 @@ def _names_program(name: str) -> bool:
     return name.lower().endswith(".json")
 
 
-def _program_reference(name: str, folder: Path) -> str:
+def program_reference(name: str, folder: Path) -> str:
     """A learned program's model name (the absolute path of its ``program.json``) written
     relative to the derivation's ``folder``, as every file procmod writes names another
     (README, "Files that name other files"): a run folder and the program it sampled

@@ -114,8 +114,10 @@ def bundle_text() -> str:
 
 
 def _script_safe(text: str) -> str:
-    """JSON text that cannot end the <script> element holding it."""
-    return text.replace("</", "<\\/").replace("<!--", "<\\!--")
+    """JSON text that cannot end the <script> element holding it, and stays JSON: every
+    ``<`` as ``\\u003c`` (``<\\!--``, the escape it had for ``<!--``, is no JSON escape, and
+    ``JSON.parse`` refused the page's data)."""
+    return text.replace("<", "\\u003c")
 
 
 def view_element(index: int, width: int, height: int) -> str:
