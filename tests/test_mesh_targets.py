@@ -1115,3 +1115,57 @@ def test_a_textured_mesh_target_decodes_no_texture(tmp_path, monkeypatch):
     monkeypatch.setattr(Image, "open", lambda *a, **k: opened.append(a) or real_open(*a, **k))
     load_volume_target(_volume_file(tmp_path, "tex.glb"))
     assert not opened, "a texture was decoded"
+
+
+def _with_arrays(spec: dict, arrays: list) -> list:
+    """Append float32 / uint8 arrays to a glTF's (data-URI) buffer 0; their accessor indices."""
+    import base64
+
+    uri = spec["buffers"][0]["uri"]
+    blob = base64.b64decode(uri.split(",", 1)[1])
+    found = []
+    for values, kind, component in arrays:
+        blob += b"\0" * (-len(blob) % 4)
+        spec["bufferViews"].append({"buffer": 0, "byteOffset": len(blob), "byteLength": values.nbytes})
+        blob += values.tobytes()
+        spec["accessors"].append({"bufferView": len(spec["bufferViews"]) - 1, "componentType": component,
+                                  "count": len(values), "type": kind})
+        found.append(len(spec["accessors"]) - 1)
+    spec["buffers"][0] = {"byteLength": len(blob),
+                          "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}
+    return found
+
+
+def test_a_gltf_mesh_is_read_as_its_morph_targets_and_skin_show_it(tmp_path):
+    """trimesh reads a mesh at rest: a cube pulled 4 m tall by a shape key Blender exported
+    set (a morph target of weight 1) was read as the cube, and a bar bent by a posed joint
+    (Blender's export with "Use Rest Position Armature" off) standing, while glTF viewers
+    and the tool's own OBJ export show them pulled and posed."""
+    from asset_writers import box_mesh, gltf_json
+
+    from procmod.targets.files import read_mesh
+
+    v, f = box_mesh((1.0, 1.0, 1.0), (0.0, 0.5, 0.0))
+    spec = gltf_json([("cube", [(v, f)])], [{"name": "cube", "mesh": 0}], (0,))
+    pulled = np.where(v[:, 1:2] > 0.5, [0.0, 4.0, 0.0], 0.0).astype(np.float32)
+    (delta,) = _with_arrays(spec, [(pulled, "VEC3", 5126)])
+    spec["meshes"][0]["primitives"][0]["targets"] = [{"POSITION": delta}]
+    spec["meshes"][0]["weights"] = [1.0]
+    (tmp_path / "pulled.gltf").write_text(json.dumps(spec))
+    assert read_mesh(tmp_path / "pulled.gltf")[0][:, 1].max() == pytest.approx(5.0, abs=1e-6)
+    spec["nodes"][0]["weights"] = [0.5]  # a node's weights are what it shows
+    (tmp_path / "half.gltf").write_text(json.dumps(spec))
+    assert read_mesh(tmp_path / "half.gltf")[0][:, 1].max() == pytest.approx(3.0, abs=1e-6)
+
+    v, f = box_mesh((0.2, 3.0, 0.2), (0.0, 1.5, 0.0))  # a bar up y, bound to one joint at the origin
+    spec = gltf_json([("bar", [(v, f)])], [{"name": "bar", "mesh": 0, "skin": 0, "children": []},
+                                           {"name": "bone", "rotation": [math.sin(math.pi / 4), 0, 0,
+                                                                         math.cos(math.pi / 4)]}], (0, 1))
+    joints, weights = _with_arrays(spec, [(np.zeros((len(v), 4), np.uint8), "VEC4", 5121),
+                                          (np.tile(np.float32([1, 0, 0, 0]), (len(v), 1)), "VEC4", 5126)])
+    spec["meshes"][0]["primitives"][0]["attributes"].update(JOINTS_0=joints, WEIGHTS_0=weights)
+    spec["skins"] = [{"joints": [1]}]
+    (tmp_path / "bent.gltf").write_text(json.dumps(spec))
+    vertices = read_mesh(tmp_path / "bent.gltf")[0]
+    assert np.allclose(vertices.min(0), [-0.1, -0.1, 0.0], atol=1e-5) and \
+        np.allclose(vertices.max(0), [0.1, 0.1, 3.0], atol=1e-5), (vertices.min(0), vertices.max(0))  # bent along z

@@ -35,7 +35,7 @@ from ..core.limits import check_memory
 COMPONENT_TYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 # what a normalized integer is divided by (signed ones are then clamped at -1)
 NORMALIZED_DIVISOR = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
-COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}  # MAT4: float, column-major
 SPARSE_INDEX_TYPES = (5121, 5123, 5125)
 
 
@@ -176,6 +176,133 @@ def accessor_values(header: dict, buffers: list, index: int) -> np.ndarray:
     return out
 
 
+# ---- morph targets and skins: the shape a viewer shows, not the mesh at rest -------------------
+
+def _drawing_nodes(header: dict) -> dict:
+    """mesh index -> the indices of the nodes that draw it."""
+    out = {}
+    for n, node in enumerate(header.get("nodes") or ()):
+        mesh = node.get("mesh") if isinstance(node, dict) else None
+        if isinstance(mesh, int) and not isinstance(mesh, bool):
+            out.setdefault(mesh, []).append(n)
+    return out
+
+
+def _morph_weights(header: dict, m: int, drawers: list) -> list:
+    """The weights mesh ``m``'s morph targets are shown at: its nodes' ``weights`` when they
+    agree (a node's override the mesh's), else the mesh's own (zero without them)."""
+    mesh = header["meshes"][m]
+    given = [header["nodes"][n].get("weights") for n in drawers if isinstance(header["nodes"][n], dict)]
+    given = [w for w in given if isinstance(w, list)]
+    weights = given[0] if given and all(w == given[0] for w in given) else mesh.get("weights")
+    return [float(w) for w in weights] if isinstance(weights, list) else []
+
+
+def morphed_primitives(header: dict) -> list[tuple[int, int, list]]:
+    """``(mesh, primitive, weights)`` of each primitive shown morphed: morph targets with
+    position offsets and a non-zero weight. trimesh reads a mesh's base shape, so a mesh
+    exported with Blender's shape keys set (a cube pulled 4 m tall) was read at rest."""
+    drawing, found = _drawing_nodes(header), []
+    for m, mesh in enumerate(header.get("meshes") or ()):
+        if not isinstance(mesh, dict):
+            continue
+        weights = _morph_weights(header, m, drawing.get(m, []))
+        for p, primitive in enumerate(mesh.get("primitives") or ()):
+            targets = primitive.get("targets") if isinstance(primitive, dict) else None
+            if isinstance(targets, list) and any(w != 0.0 and isinstance(t, dict) and "POSITION" in t
+                                                 for w, t in zip(weights, targets)):
+                found.append((m, p, weights))
+    return found
+
+
+def skinned_meshes(header: dict) -> list[tuple[int, int, int]]:
+    """``(node, mesh, skin)`` of each node that draws a skinned mesh no other node draws
+    (a mesh several skins pose would need copies: read at rest). trimesh reads a skinned
+    mesh at its bind pose, placed by its node; glTF shows it posed by its joints."""
+    drawing = _drawing_nodes(header)
+    found = []
+    for n, node in enumerate(header.get("nodes") or ()):
+        if not isinstance(node, dict):
+            continue
+        mesh, skin = node.get("mesh"), node.get("skin")
+        if isinstance(mesh, int) and isinstance(skin, int) and len(drawing.get(mesh, [])) == 1 \
+                and 0 <= skin < len(header.get("skins") or ()) and 0 <= mesh < len(header.get("meshes") or ()):
+            found.append((n, mesh, skin))
+    return found
+
+
+def _local_matrix(node: dict) -> np.ndarray:
+    """A node's transform (its ``matrix``, column-major, or translation, rotation, scale)."""
+    if isinstance(node.get("matrix"), list) and len(node["matrix"]) == 16:
+        return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
+    x, y, z, w = (np.asarray(node.get("rotation", (0.0, 0.0, 0.0, 1.0)), dtype=np.float64).tolist() + [0.0] * 4)[:4]
+    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    m = np.eye(4)
+    m[:3, :3] = rotation * np.asarray(node.get("scale", (1.0, 1.0, 1.0)), dtype=np.float64)
+    m[:3, 3] = node.get("translation", (0.0, 0.0, 0.0))
+    return m
+
+
+def _global_matrices(header: dict) -> list:
+    """Every node's world transform (its parents' times its own)."""
+    nodes = header.get("nodes") or []
+    parent = {}
+    for n, node in enumerate(nodes):
+        for child in (node.get("children") or ()) if isinstance(node, dict) else ():
+            if isinstance(child, int) and 0 <= child < len(nodes):
+                parent.setdefault(child, n)
+    out = [None] * len(nodes)
+
+    def world(n, depth=0):
+        if out[n] is None:
+            if depth > len(nodes):
+                raise ValueError("the node hierarchy has a cycle")
+            local = _local_matrix(nodes[n]) if isinstance(nodes[n], dict) else np.eye(4)
+            out[n] = local if n not in parent else world(parent[n], depth + 1) @ local
+        return out[n]
+
+    return [world(n) for n in range(len(nodes))]
+
+
+def _skinned(header: dict, buffers: list, node: int, skin: int, primitive: dict, positions: np.ndarray,
+             worlds: list) -> np.ndarray:
+    """``positions`` posed by the skin's joints (glTF: sum of weight x joint world x
+    inverse bind matrix), in the node's own frame again (trimesh places them by it)."""
+    spec = header["skins"][skin]
+    joints = [int(j) for j in spec.get("joints", [])]
+    if "inverseBindMatrices" in spec:
+        inverse_bind = accessor_values(header, buffers, spec["inverseBindMatrices"]).reshape(-1, 4, 4)
+        inverse_bind = np.transpose(inverse_bind, (0, 2, 1))  # column-major
+    else:
+        inverse_bind = np.tile(np.eye(4), (len(joints), 1, 1))
+    if len(inverse_bind) < len(joints):
+        raise ValueError(f"skin {skin} has fewer inverse bind matrices than joints")
+    matrices = np.stack([worlds[j] @ inverse_bind[k] for k, j in enumerate(joints)])
+    attributes = primitive.get("attributes") or {}
+    homogeneous = np.hstack([positions, np.ones((len(positions), 1))])
+    posed, total = np.zeros_like(homogeneous), np.zeros(len(positions))
+    for s in range(8):  # JOINTS_0/WEIGHTS_0, JOINTS_1/WEIGHTS_1, ...
+        if f"JOINTS_{s}" not in attributes or f"WEIGHTS_{s}" not in attributes:
+            break
+        which = accessor_values(header, buffers, attributes[f"JOINTS_{s}"]).astype(np.int64)
+        weights = accessor_values(header, buffers, attributes[f"WEIGHTS_{s}"])
+        if which.shape != (len(positions), 4) or weights.shape != (len(positions), 4) or \
+                which.min(initial=0) < 0 or which.max(initial=0) >= len(joints):
+            raise ValueError(f"skin {skin}: a vertex names a joint the skin does not have")
+        for c in range(4):
+            posed += weights[:, c, None] * np.einsum("vij,vj->vi", matrices[which[:, c]], homogeneous)
+            total += weights[:, c]
+    if not total.any():
+        return positions  # no weights: at rest
+    # weights should sum to 1 (glTF); a vertex with none keeps its place
+    unweighted = total <= 0
+    posed[~unweighted] /= total[~unweighted, None]
+    posed[unweighted] = homogeneous[unweighted] @ worlds[node].T  # where its node puts it
+    return (posed @ np.linalg.inv(worlds[node]).T)[:, :3]
+
+
 def _binary_chunk(data: bytes) -> bytes | None:
     """A GLB's BIN chunk (None without one); its JSON chunk is read by
     :func:`procmod.geometry.mesh_files.gltf_header`."""
@@ -194,13 +321,17 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     there are none. ``header`` is the file's JSON (``gltf_header``); ``resolver.get(uri)``
     gives a buffer file's bytes.
 
-    Triangle-fan primitives become triangle lists (:func:`fan_primitives`).
+    Triangle-fan primitives become triangle lists (:func:`fan_primitives`). A mesh shown
+    morphed (:func:`morphed_primitives`) or posed by a skin (:func:`skinned_meshes`) gets
+    the positions it is shown at.
 
     Raises ValueError for an accessor that reaches past its data."""
     path = Path(path)
     chosen = needs_decoding(header)
     fans = fan_primitives(header)
-    if not chosen and not fans:
+    morphs = morphed_primitives(header)
+    skins = skinned_meshes(header)
+    if not chosen and not fans and not morphs and not skins:
         return None
     chunk = _binary_chunk(path.read_bytes()) if path.suffix.lower() == ".glb" else None
     buffers = []
@@ -233,6 +364,38 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
                                                 "count": len(triangles), "type": "SCALAR"})
         out["meshes"][m]["primitives"][p].update(mode=4, indices=len(out["accessors"]) - 1)
         blob += triangles.tobytes()
+    # positions shown morphed and posed: each such primitive gets an accessor of its own (its
+    # base accessor may be shared), in the node's frame, its morph targets and skin dropped
+    shown = {}
+    for m, p, weights in morphs:
+        primitive = header["meshes"][m]["primitives"][p]
+        positions = accessor_values(header, buffers, primitive["attributes"]["POSITION"])
+        for w, target in zip(weights, primitive["targets"]):
+            if w != 0.0 and isinstance(target, dict) and "POSITION" in target:
+                positions = positions + w * accessor_values(header, buffers, target["POSITION"])
+        shown[(m, p)] = positions
+    worlds = _global_matrices(header) if skins else None
+    for n, m, k in skins:
+        for p, primitive in enumerate(header["meshes"][m].get("primitives") or ()):
+            if not isinstance(primitive, dict) or "POSITION" not in (primitive.get("attributes") or {}):
+                continue
+            positions = shown.get((m, p))
+            if positions is None:
+                positions = accessor_values(header, buffers, primitive["attributes"]["POSITION"])
+            shown[(m, p)] = _skinned(header, buffers, n, k, primitive, positions, worlds)
+    for (m, p), positions in shown.items():
+        values = positions.astype("<f4")
+        views.append({"buffer": len(buffers), "byteOffset": len(blob), "byteLength": values.nbytes})
+        accessor = {"bufferView": len(views) - 1, "componentType": 5126, "count": len(values), "type": "VEC3"}
+        if len(values):
+            accessor.update(min=values.min(axis=0).tolist(), max=values.max(axis=0).tolist())
+        out["accessors"].append(accessor)
+        target = out["meshes"][m]["primitives"][p]
+        target["attributes"] = {**target["attributes"], "POSITION": len(out["accessors"]) - 1}
+        target.pop("targets", None)
+        blob += values.tobytes()
+    for n, _, _ in skins:
+        out["nodes"][n].pop("skin", None)
     out["buffers"] = [dict(b) for b in out.get("buffers") or ()]
     if chunk is not None and out["buffers"] and "uri" not in out["buffers"][0]:
         # read as a .gltf now: the binary chunk travels as a data URI
@@ -242,4 +405,5 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     return json.dumps(out).encode("utf-8")
 
 
-__all__ = ["accessor_values", "decoded_gltf", "fan_primitives", "needs_decoding"]
+__all__ = ["accessor_values", "decoded_gltf", "fan_primitives", "morphed_primitives", "needs_decoding",
+           "skinned_meshes"]
