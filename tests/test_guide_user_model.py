@@ -298,8 +298,10 @@ def test_a_traces_jobs_code_digest_follows_the_imports_python_would(tmp_path, fi
 
 def test_a_traces_job_resumes_under_another_name_for_the_same_model_and_names_what_differs(tmp_path, monkeypatch,
                                                                                           capsys):
-    """`plants.py:PLANT` after `plants.py`, or the model's folder moved, had been refused as
-    "another job", with the job's settings dumped and the one that differed left unsaid."""
+    """`plants.py:PLANT` after `plants.py` (its one Model) had been refused as "another
+    job", with the job's settings dumped and the one that differed left unsaid. Another
+    Model of the file, even of the same name and code, or the folder moved (its data files
+    may differ), is another job."""
     import shutil
 
     (tmp_path / "a").mkdir()
@@ -308,14 +310,26 @@ def test_a_traces_job_resumes_under_another_name_for_the_same_model_and_names_wh
     traces = ["--particles", "4", "--workers", "1", "--out", "tr"]
     assert main(["guide", "traces", "a/plants.py", *traces, "--count", "1"]) == 0, capsys.readouterr().err
     assert main(["guide", "traces", "a/plants.py:PLANT", *traces, "--count", "2"]) == 0, capsys.readouterr().err
-    shutil.move(tmp_path / "a", tmp_path / "b")  # the folder moved, the code the same
-    assert main(["guide", "traces", "b/plants.py:PLANT", *traces, "--count", "3"]) == 0, capsys.readouterr().err
+    assert main(["guide", "traces", "a/plants.py", *traces, "--count", "3"]) == 0, capsys.readouterr().err
     assert sorted(p.name for p in (tmp_path / "tr").glob("trace_*.json")) == [f"trace_0000{i}.json" for i in range(3)]
     capsys.readouterr()
-    assert main(["guide", "traces", "b/plants.py:PLANT", "--particles", "5", "--workers", "1", "--out", "tr",
+    assert main(["guide", "traces", "a/plants.py", "--particles", "5", "--workers", "1", "--out", "tr",
                  "--count", "3"]) == 2
     err = capsys.readouterr().err
     assert "another job (particles 4 there, 5 now)" in err and err.count("\n") == 1, err
+    # a second Model of the same name and rules, placed elsewhere: not this job's traces
+    (tmp_path / "a" / "two.py").write_text(PLANT_FILE + "\nOTHER = Model('my-plant', 'a plant', plant, "
+                                           "root_args=lambda p: (5.0, 0.0, -math.pi / 2, 0), "
+                                           "new_output_from=PLANT.new_output_from, arg_ranges=PLANT.arg_ranges)\n")
+    assert main(["guide", "traces", "a/two.py:PLANT", "--particles", "4", "--workers", "1", "--out", "tr2",
+                 "--count", "1"]) == 0, capsys.readouterr().err
+    assert main(["guide", "traces", "a/two.py:OTHER", "--particles", "4", "--workers", "1", "--out", "tr2",
+                 "--count", "2"]) == 2
+    assert "another job (model_file" in capsys.readouterr().err
+    shutil.move(tmp_path / "a", tmp_path / "b")  # moved: another job (the data beside it may differ)
+    assert main(["guide", "traces", "b/two.py:PLANT", "--particles", "4", "--workers", "1", "--out", "tr2",
+                 "--count", "2"]) == 2
+    assert "another job (model_file" in capsys.readouterr().err
 
 
 NO_CHOICES_FILE = """
@@ -355,6 +369,13 @@ def test_training_on_traces_without_choices_or_without_argument_ranges_says_what
     assert "declares no argument ranges for rule 'plant'" in err and "--features target+partial" in err, err
     assert "trace_00000" not in err and "delete it" not in err, err
     assert not list(tmp_path.glob("g.*"))
+    # ranges the model declares wrongly: the model's matter too, not the first trace's
+    for name, ranges in (("bad", '((5.0, 1.0), None, None, None)'), ("long", '((-12, 12), (-22, 2), "angle", (0, 6), (0, 1))')):
+        (tmp_path / f"{name}.py").write_text(PLANT_FILE.replace(
+            'arg_ranges={"plant": ((-12.0, 12.0), (-22.0, 2.0), "angle", (0.0, 6.0))}', f'arg_ranges={{"plant": {ranges}}}'))
+        assert main(["guide", "train", f"{name}.py", "--traces", "tp", "--iterations", "5", "--out", "g"]) == 2
+        err = capsys.readouterr().err
+        assert "arg_ranges" in err and "trace_00000" not in err and "delete it" not in err, err
 
 
 def test_training_flags_are_named_as_flags_and_a_guide_may_be_named_by_its_npz(tmp_path, capsys):

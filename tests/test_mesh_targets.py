@@ -1033,17 +1033,26 @@ def test_a_white_on_black_mask_gets_a_note_and_a_camera_far_out_is_no_coincidenc
 def test_a_collada_file_that_declares_its_up_axis_is_not_turned_twice(tmp_path):
     """COLLADA says which axis is up, and procmod reads it standing by that; the README's
     advice for a z-up tool ("mesh_up": "z") turned Blender's z-up export a second time,
-    and the ship stood on its tail without a word."""
+    and the ship stood on its tail without a word. A file that says Y_UP (trimesh writes it
+    into every file) is read unturned, so "mesh_up" may still stand it up."""
     box = _box((1.0, 3.0, 0.6), (0.5, 1.0, 0.3))
     box.export(tmp_path / "y.dae")
     text = (tmp_path / "y.dae").read_text()
-    assert "<up_axis>" in text  # trimesh writes Y_UP
-    with pytest.raises(TargetFileError, match=r"declares its up axis \(<up_axis>Y_UP</up_axis>\).*leave out "
+    assert "<up_axis>Y_UP</up_axis>" in text
+    (tmp_path / "z.dae").write_text(text.replace("<up_axis>Y_UP</up_axis>", "<up_axis>Z_UP</up_axis>"))
+    with pytest.raises(TargetFileError, match=r"declares its up axis \(<up_axis>Z_UP</up_axis>\).*leave out "
                                               r"\"mesh_up\""):
-        load_volume_target(_volume_file(tmp_path, "y.dae", mesh_up="z"))
-    (tmp_path / "bare.dae").write_text(text.replace("<up_axis>Y_UP</up_axis>", ""))  # undeclared: mesh_up turns it
-    stood = load_volume_target(_volume_file(tmp_path, "bare.dae", mesh_up="z"))
-    assert stood.grid.shape != load_volume_target(_volume_file(tmp_path, "y.dae")).grid.shape
+        load_volume_target(_volume_file(tmp_path, "z.dae", mesh_up="z"))
+    as_read = load_volume_target(_volume_file(tmp_path, "y.dae")).grid.shape
+    assert load_volume_target(_volume_file(tmp_path, "y.dae", mesh_up="z")).grid.shape != as_read  # turned
+    # the up axis as the reader reads it: not one in a comment, and one after a long asset block
+    (tmp_path / "comment.dae").write_text(text.replace("<up_axis>Y_UP</up_axis>",
+                                                       "<!-- was <up_axis>Z_UP</up_axis> -->"))
+    assert load_volume_target(_volume_file(tmp_path, "comment.dae", mesh_up="z")).grid.shape != as_read
+    long = "<contributor><comments>" + "x" * 70_000 + "</comments></contributor>"
+    (tmp_path / "long.dae").write_text(text.replace("<up_axis>Y_UP</up_axis>", long + "<up_axis>Z_UP</up_axis>"))
+    with pytest.raises(TargetFileError, match="Z_UP"):
+        load_volume_target(_volume_file(tmp_path, "long.dae", mesh_up="z"))
 
 
 @pytest.mark.parametrize("key, meant", [("up_axis", "mesh_up"), ("upAxis", "mesh_up"), ("mesh_up_axis", "mesh_up"),
@@ -1061,6 +1070,11 @@ def test_a_placement_said_in_other_words_is_refused(tmp_path, key, meant):
     with pytest.raises(TargetFileError, match=meant):
         load_volume_target(_volume_file(tmp_path, "m.obj", **{key: "z"}))
     load_volume_target(_volume_file(tmp_path, "m.obj", mesh_source="maya", meshes=["m.obj"]))  # a tool's own: read
+    # a file with no mesh to place keeps a tool's own "scale" (it places nothing of procmod's)
+    np.save(tmp_path / "grid.npy", np.ones((4, 4, 4), dtype=np.float32))
+    (tmp_path / "G.json").write_text(json.dumps({"format": "procmod-volume/1", key: "z", "layers": [
+        {"file": "grid.npy", "w_fill": 1}], "grid": {"origin": [0, 0, 0], "voxel_size": 0.25}}))
+    load_volume_target(tmp_path / "G.json")
 
 
 def test_a_gltf_mesh_drawn_by_many_nodes_is_counted_once_per_node_before_reading(tmp_path, monkeypatch):

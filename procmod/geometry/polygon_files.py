@@ -13,8 +13,6 @@ triangulated by :func:`procmod.geometry.polygons.triangulate_faces`.
 
 from __future__ import annotations
 
-import re
-
 from pathlib import Path
 
 import numpy as np
@@ -122,19 +120,22 @@ _TO_UP = {("Z_UP", "y"): np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),  # (x, 
           ("X_UP", "z"): np.array([[0.0, 0, -1], [0, 1, 0], [1, 0, 0]])}  # (x, y, z) -> (-z, y, x)
 
 
-_UP_AXIS = re.compile(rb"<up_axis>\s*([A-Za-z_]+)\s*</up_axis>")
-
-
 def collada_up_axis(path: str | Path) -> str | None:
-    """The ``<up_axis>`` a COLLADA file declares in its ``<asset>`` (``"Z_UP"``), or None
-    (then Y_UP, the format's default): read from the file's head, without parsing it."""
+    """The ``<up_axis>`` of a COLLADA file's own ``<asset>`` (``"Z_UP"``), or None (then
+    Y_UP, the format's default): the XML read as a stream up to the end of that element, so
+    comments, and an asset block however long, read as the reader reads them."""
+    import xml.etree.ElementTree as ElementTree
+
     try:
-        with open(path, "rb") as handle:
-            head = handle.read(1 << 16)
-    except OSError:
-        return None
-    found = _UP_AXIS.search(head)
-    return found.group(1).decode("ascii").upper() if found else None
+        for _, element in ElementTree.iterparse(str(path), events=("end",)):
+            name = element.tag.rsplit("}", 1)[-1]
+            if name == "up_axis":
+                return (element.text or "").strip().upper() or None
+            if name == "asset":
+                return None  # the file's asset ended without one
+    except (OSError, ElementTree.ParseError):
+        return None  # unreadable: the reader says what is wrong
+    return None
 
 
 def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarray]:

@@ -289,7 +289,7 @@ def local_ranges(model, rule_name: str) -> tuple | None:
     for i, r in enumerate(ranges):
         if not (r is None or r == ANGLE or (isinstance(r, (tuple, list)) and len(r) == 2
                                            and all(isinstance(v, (int, float)) for v in r) and r[1] > r[0])):
-            raise GuideError(f"model {model.name!r}: arg_ranges[{rule_name!r}][{i}] is {r!r}; each entry must be "
+            raise FeatureSettingsError(f"model {model.name!r}: arg_ranges[{rule_name!r}][{i}] is {r!r}; each entry must be "
                              f"(low, high) with low < high, None (not a feature) or {ANGLE!r}")
     idx = [i for i, r in enumerate(ranges) if r is not None]
     angular = [ranges[i] == ANGLE for i in idx]
@@ -435,6 +435,10 @@ class FeatureExtractor:
         """A call's scalar arguments mapped to [-1, 1] by the declared ranges (clipped),
         angles and the reported ``heading`` as (cos, sin)."""
         idx, lows, spans, angular = self.ranges(rule_name)
+        if len(idx) and idx.max() >= len(args):  # the model's matter, not a trace's: say so once
+            raise FeatureSettingsError(f"model {self.model.name!r} declares {int(idx.max()) + 1} argument ranges for "
+                                       f"rule {rule_name!r}, which is called with {len(args)} arguments; give "
+                                       "arg_ranges one entry per argument (None for one that is no feature)")
         values = np.array([float(heading) if i == HEADING else float(args[i]) for i in idx])
         out = np.empty(len(idx) + int(angular.sum()))
         local_features(values, lows, spans, angular, out)  # the kernel inference uses

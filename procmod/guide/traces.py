@@ -182,19 +182,25 @@ def _same_job(previous, settings: dict) -> bool:
     if not isinstance(previous, dict):
         return False
     if "model_code" not in previous:
-        return previous == _without_code(settings)
-    return _without_file(previous) == _without_file(settings)
+        return _named(previous, settings) == _without_code(settings)
+    return _named(previous, settings) == settings
 
 
 def _without_code(settings: dict) -> dict:
     return {key: value for key, value in settings.items() if key != "model_code"}
 
 
-def _without_file(settings: dict) -> dict:
-    """A job's settings less the model file's path: with the model's name and its code's
-    digest, the same model named ``plant.py:PLANT`` rather than ``plant.py``, or its folder
-    moved, resumes the job (it had been refused as another job)."""
-    return {key: value for key, value in settings.items() if key != "model_file"}
+def _named(previous: dict, settings: dict) -> dict:
+    """A folder's job settings with its model file named as this job names it when the job
+    named the same file without a Model's name (``plant.py``, whose one Model this job
+    names, ``plant.py:PLANT``): one job however it was named (it had been refused as
+    another). Another file, or a moved folder, stays another job: the code's digest does
+    not cover the data files a model may read beside it."""
+    spec, named = previous.get("model_file"), settings.get("model_file")
+    if isinstance(spec, str) and isinstance(named, str) and ":" not in Path(spec).name \
+            and named.rsplit(":", 1)[0] == spec:
+        return {**previous, "model_file": named}
+    return previous
 
 
 def _differences(previous: dict, settings: dict) -> str:
@@ -227,8 +233,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     model = model_from_spec(model_name)  # fail early on an unknown model or a broken file
     model_file = None
     if model_name not in MODELS:
-        from ..models.from_file import absolute_spec
-        model_file = absolute_spec(model_name)
+        from ..models.from_file import named_spec
+        model_file = named_spec(model_name)  # plant.py:PLANT for plant.py: one job however it is named
     for name, value in (("count", count), ("particles", particles), ("set_size", set_size)):
         if whole_number(value) is None or value < 1:
             raise InvalidArgumentError(f"{argument(name)} must be a positive integer, got {shown_value(value)}")
@@ -261,8 +267,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                                  f"pass {argument('overwrite=True')} to make them afresh, or give a new "
                                  f"{argument('out')} folder")
             what = ("its job file is not a JSON object" if not isinstance(previous, dict) else
-                    _differences(_without_file(previous), _without_file(settings)) if "model_code" in previous else
-                    _differences(previous, _without_code(settings)))
+                    _differences(_named(previous, settings), settings) if "model_code" in previous else
+                    _differences(_named(previous, settings), _without_code(settings)))
             raise GuideError(f"{out} holds traces of another job ({what}); give a new "
                              f"{argument('out')} folder, the same settings to resume, or pass "
                              f"{argument('overwrite=True')} to replace it")

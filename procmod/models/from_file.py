@@ -75,6 +75,19 @@ def absolute_spec(spec: str) -> str:
     return path if match["name"] is None else f"{path}:{match['name']}"
 
 
+def named_spec(spec: str) -> str:
+    """``spec`` as :func:`absolute_spec` gives it, with the name of the Model it means
+    (``/abs/plant.py:PLANT`` for ``plant.py`` when PLANT is its one Model): two specs of
+    one model read the same (its file is run once a process)."""
+    spec = absolute_spec(spec)
+    if _SPEC.match(spec)["name"] is not None:
+        return spec
+    model = load_model_file(spec)
+    module = _run_module(Path(spec))
+    names = [key for key, value in vars(module).items() if value is model and not key.startswith("_")]
+    return f"{spec}:{names[0]}" if names else spec
+
+
 _USER_FILES: set = set()  # resolved paths of the model files this process has run
 
 

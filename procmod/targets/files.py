@@ -437,6 +437,14 @@ def _mesh_placement(spec: dict, where: str):
 
 
 def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str) -> None:
+    """Refuse a placement key in a file without meshes to place, and in one with meshes a
+    placement said in other words (:func:`_placement_synonyms`): a file of pictures or
+    grids may carry a tool's "scale" or "offset", which means nothing to procmod."""
+    if has_meshes:
+        try:
+            _placement_synonyms(spec, _VOLUME_KEYS if what == "layer" else _SILHOUETTE_KEYS)
+        except TargetFileError as exc:
+            raise TargetFileError(f"{where}: {exc}") from None
     given = [key for key in ("mesh_scale", "mesh_offset", "mesh_up") if key in spec]
     if given and not has_meshes:
         raise TargetFileError(f"{where}: {' and '.join(given)} {'place' if len(given) > 1 else 'places'} mesh {what}s and this file has none (an .npy "
@@ -444,16 +452,17 @@ def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str)
 
 
 def _check_up_once(file: Path, spec: dict, at: str) -> None:
-    """Refuse ``"mesh_up"`` for a COLLADA file that declares its own up axis: it is read
-    standing by that already, and ``mesh_up`` turned it a second time (Blender's z-up
-    export, given ``"mesh_up": "z"`` as the README says for a z-up tool, stood on its tail)."""
+    """Refuse ``"mesh_up"`` for a COLLADA file that declares an up axis other than y: it is
+    read standing by that already, and ``mesh_up`` turned it a second time (Blender's z-up
+    export, given ``"mesh_up": "z"`` as the README says for a z-up tool, stood on its tail).
+    A file that says Y_UP (trimesh writes it into every file) may still be turned."""
     up = spec.get("mesh_up", "y")
     if up == "y" or file.suffix.lower() != ".dae":
         return
     from ..geometry.polygon_files import collada_up_axis
 
     declared = collada_up_axis(file)
-    if declared is not None:
+    if declared not in (None, "Y_UP"):  # Y_UP (the default) is procmod's frame: read unturned
         raise TargetFileError(f"{at}: {cut_text(file.name, 80)} is COLLADA, which declares its up axis "
                               f"(<up_axis>{declared}</up_axis>), and procmod reads it standing by that already; "
                               f"leave out \"mesh_up\" (\"{up}\" would turn it a second time), or export the "
@@ -734,11 +743,9 @@ _STRICT = 0.82
 
 
 def _at_top_level(spec: dict, known: tuple, where: str, inside: tuple | None = None) -> None:
-    """:func:`_misplaced_keys` for a file's top level, the message naming the file, and
-    :func:`_placement_synonyms`."""
+    """:func:`_misplaced_keys` for a file's top level, the message naming the file."""
     try:
         _misplaced_keys(spec, known, None, inside, cutoff=_STRICT)
-        _placement_synonyms(spec, known)
     except TargetFileError as exc:
         raise TargetFileError(f"{where}: {exc}") from None
 
@@ -752,7 +759,7 @@ _SAYS = {"mesh_up": ("up", "upaxis", "axisup", "upvector", "upaxes", "yup", "zup
                         "meshscalefactor"),
          "mesh_offset": ("offset", "translation", "translate", "meshtranslation", "meshtranslate", "position",
                          "meshposition", "shift", "meshshift", "move", "meshmove", "center", "centre"),
-         "voxel_size": ("resolution", "voxelresolution", "voxeledge", "gridsize", "cellsize"),
+         "voxel_size": ("resolution", "voxelresolution", "voxeledge", "cellsize"),
          "w_self": ("selfweight", "weightself", "wself")}
 # turns other than the up axis: procmod takes none (a mesh is turned in its modelling tool)
 _TURNS = ("rotation", "rotate", "rotations", "orientation", "meshrotation", "meshrotate", "meshorientation",
@@ -770,6 +777,9 @@ def _placement_synonyms(spec: dict, known: tuple) -> None:
         word = re.sub(r"[\s_\-]", "", key).lower()
         words = {word, word[len("mesh"):]} if word.startswith("mesh") else {word}  # mesh_units: units
         meant = next((k for k, said in _SAYS.items() if words & set(said) and k in known), None)
+        if meant == "mesh_up" and word == "up" and "views" in known:  # a silhouette file: a camera's too
+            raise TargetFileError(f"the file has {key!r}, which procmod does not read at its top level; did you "
+                                  "mean \"mesh_up\" (the meshes' up axis) or a view's camera \"up\"?")
         if meant is not None:
             raise TargetFileError(f"the file has {key!r}, which procmod does not read; did you mean {meant!r}?")
         if words & set(_TURNS) and "mesh_up" in known:
