@@ -1094,6 +1094,9 @@ def test_a_gltf_mesh_drawn_by_many_nodes_is_counted_once_per_node_before_reading
     (tmp_path / "many.gltf").write_text(json.dumps(spec))
     assert files.declared_faces(tmp_path / "many.gltf") == 50 * 320
     assert len(trimesh.load(tmp_path / "many.gltf", force="mesh").faces) == 50 * 320  # what reading makes of it
+    unscened = {key: value for key, value in spec.items() if key not in ("scenes", "scene")}
+    (tmp_path / "unscened.gltf").write_text(json.dumps(unscened))  # no scene draws it: each mesh once, not 50x
+    assert files.declared_faces(tmp_path / "unscened.gltf") == 320
     monkeypatch.setattr(files, "MAX_MESH_FACES", 320 * 10)
     monkeypatch.setattr(trimesh, "load", lambda *a, **k: pytest.fail("the mesh was read"))
     with pytest.raises(ProcmodError, match="faces"):
@@ -1183,3 +1186,62 @@ def test_a_gltf_mesh_is_read_as_its_morph_targets_and_skin_show_it(tmp_path):
     vertices = read_mesh(tmp_path / "bent.gltf")[0]
     assert np.allclose(vertices.min(0), [-0.1, -0.1, 0.0], atol=1e-5) and \
         np.allclose(vertices.max(0), [0.1, 0.1, 3.0], atol=1e-5), (vertices.min(0), vertices.max(0))  # bent along z
+
+
+def test_face_lines_are_counted_across_blocks_and_a_file_without_newlines_in_little_memory(tmp_path, monkeypatch):
+    """The scan kept an unfinished line whole: a file with no newline (CR line ends) was
+    held in memory entire and joined again with every block (800 MB: 1.6 GB, 13 s)."""
+    from procmod.geometry import mesh_files
+
+    monkeypatch.setattr(mesh_files, "_SCAN_BLOCK", 7)  # lines and face prefixes split between blocks
+    lines = ["v 0 0 0", "v 1 0 0", "v 0 1 0", "f 1 2 3", "  f 1 3 2", "f\t1 2 3", "# f 1 2 3", "vf 1", "f" + " 1" * 40]
+    (tmp_path / "m.obj").write_text("\n".join(lines) + "\n")
+    assert mesh_files.declared_faces(tmp_path / "m.obj") == 4
+    (tmp_path / "cr.obj").write_bytes("\r".join(lines[3:] + lines[:3]).encode() * 2000)  # one "line", from "f 1 2 3"
+    seen = []
+    real = mesh_files._scan_lines
+
+    def watched(file, pattern):
+        import tracemalloc
+        tracemalloc.start()
+        try:
+            return real(file, pattern)
+        finally:
+            seen.append(tracemalloc.get_traced_memory()[1])
+            tracemalloc.stop()
+
+    monkeypatch.setattr(mesh_files, "_scan_lines", watched)
+    assert mesh_files.declared_faces(tmp_path / "cr.obj") == 1  # a lower bound: one line, a face line
+    assert seen[0] < 20_000, seen  # bytes: a line's start and a block, not the file (260 KB)
+
+
+def test_a_round_primitive_along_its_axes_keeps_them_and_a_turned_plane_is_left_quietly(tmp_path, recwarn):
+    """A 32-gon's least box lies half a facet off its axes: the unturned table's round top
+    had taken a turn of 16.9 degrees (and the others 16.9 more than theirs). Turned planes
+    had made trimesh warn of a division by zero."""
+    def round_table(path, k, turn):
+        top = trimesh.creation.cylinder(radius=0.5 + 0.2 * k, height=0.05, sections=32)
+        top.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))  # its axis up y
+        top.apply_transform(trimesh.transformations.rotation_matrix(turn, [0, 1, 0]))
+        write_glb(path, gltf_json([("Top", [(top.vertices, top.faces)])], [{"name": "Top", "mesh": 0}], (0,)))
+        return path
+
+    from asset_writers import gltf_json, write_glb
+
+    from procmod.geometry.assets import read_assets
+    from scipy.spatial.transform import Rotation
+
+    read = read_assets([round_table(tmp_path / f"r{k}.glb", k, turn) for k, turn in enumerate((0.0, 0.4, 1.0))])
+    assert sorted(read.parts) == ["Top"]
+    for asset, turn in zip(read.assets, (0.0, 0.4, 1.0)):
+        m = np.asarray(asset.nodes()[0].transform)[:3, :3]
+        angle = Rotation.from_matrix(m / np.linalg.norm(m, axis=0)).magnitude()
+        assert angle == pytest.approx(turn, abs=1e-6), (asset.path.name, angle)
+    planes = []
+    for k in range(3):
+        plane = trimesh.creation.box((1.0 + 0.5 * k, 0.0, 0.6))
+        plane.apply_transform(trimesh.transformations.rotation_matrix(0.3 + 0.2 * k, [1, 0.2, 0]))
+        planes.append(write_glb(tmp_path / f"p{k}.glb", gltf_json([("Panel", [(plane.vertices, plane.faces)])],
+                                                                 [{"name": "Panel", "mesh": 0}], (0,))))
+    read_assets(planes)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in recwarn]

@@ -481,14 +481,18 @@ _NATURAL_FRAME = 1e-3  # a mesh's own axes are its box's when its extents exceed
 def _least_box_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """A mesh's least-volume box as ``(axes, centre)``: the box's axes as the columns of a
     rotation, the least turned from the mesh's own axes (of the box's 24 proper signed
-    permutations), or None when the mesh's own axes are the box's already (within
-    :data:`_NATURAL_FRAME`) or the mesh is flat."""
+    permutations), or None when the mesh lies along its own axes already (its box is the
+    least within :data:`_NATURAL_FRAME`, or it is mirror-symmetric in them) or is flat."""
     import trimesh
 
     own = np.ptp(vertices, axis=0)
-    if not own.min() > 1e-9 * float(np.linalg.norm(own)):
-        return None  # flat: an axis of no extent says nothing of a turn
-    to_origin, extents = trimesh.bounds.oriented_bounds(vertices, angle_digits=3)
+    spread = np.linalg.svd(vertices - vertices.mean(axis=0), compute_uv=False)
+    if not spread.min() > 1e-9 * float(spread.max()):
+        return None  # flat (a plane, turned or not): a least box of it says nothing of a turn
+    if _mirrored_in_own_axes(vertices):
+        return None  # a tool's primitive along its axes: a round one's least box lies half a facet off them
+    with np.errstate(all="ignore"):
+        to_origin, extents = trimesh.bounds.oriented_bounds(vertices, angle_digits=3)
     if own.sum() <= (1.0 + _NATURAL_FRAME) * float(np.sum(extents)):
         return None
     box_to_mesh = np.linalg.inv(to_origin)
@@ -500,6 +504,24 @@ def _least_box_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
             if np.linalg.det(candidate) > 0 and np.trace(candidate) > best_trace + 1e-12:
                 best, best_trace = candidate, float(np.trace(candidate))
     return best, centre
+
+
+def _mirrored_in_own_axes(vertices: np.ndarray) -> bool:
+    """Whether a mesh's vertices map onto themselves (to 1e-6 of its diagonal) reflected
+    in each plane through its box's centre across one of its own axes: a box, a cylinder
+    or an n-gon with a vertex on an axis, modelled along the tool's axes. Turned, they are
+    not (but at a symmetry's angle, where turned and unturned are one shape)."""
+    from scipy.spatial import cKDTree
+
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    centre, diagonal = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+    tree = cKDTree(vertices)
+    for axis in range(3):
+        mirrored = vertices.copy()
+        mirrored[:, axis] = 2.0 * centre[axis] - mirrored[:, axis]
+        if tree.query(mirrored, distance_upper_bound=1e-6 * diagonal)[0].max() > 1e-6 * diagonal:
+            return False
+    return True
 
 
 def _unbake_turns(forests: list, geometries: dict) -> None:

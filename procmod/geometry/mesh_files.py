@@ -208,17 +208,26 @@ def obj_problem(text: str) -> str | None:
 
 # --- face counts, read without parsing ------------------------------------------------
 
+_LINE_START = 64  # bytes of a line the patterns look at
+_SCAN_BLOCK = 1 << 24
+
+
 def _scan_lines(file: Path, pattern: re.Pattern) -> int:
     """Lines of a file that ``pattern`` matches at their start, read in blocks (a lower
-    bound on a text mesh's faces)."""
-    count, tail = 0, b""
+    bound on a text mesh's faces). Of a line that runs on past a block only its start is
+    kept: a file with no newline at all (CR line ends) is read in constant memory."""
+    count, head = 0, b""  # the start of the line the last block left unfinished
     with open(file, "rb") as handle:
-        while block := handle.read(1 << 24):
-            data = tail + block
-            cut = data.rfind(b"\n") + 1  # whole lines now; the last, unfinished one with the next block
-            count += sum(1 for _ in pattern.finditer(data, 0, cut))
-            tail = data[cut:]
-    return count + (1 if pattern.match(tail) else 0)
+        while block := handle.read(_SCAN_BLOCK):
+            first = block.find(b"\n")
+            if first < 0:  # the unfinished line goes on
+                head += block[:max(_LINE_START - len(head), 0)]
+                continue
+            count += 1 if pattern.match(head + block[:_LINE_START]) else 0
+            last = block.rfind(b"\n") + 1
+            count += sum(1 for _ in pattern.finditer(block, first + 1, last))
+            head = block[last:last + _LINE_START]
+    return count + (1 if head and pattern.match(head) else 0)
 
 
 # an OBJ face line ("f 1 2 3", also after spaces or a tab, or "f\t1 2 3", as readers take
@@ -318,18 +327,16 @@ def _gltf_faces(file: Path) -> int | None:
 def _gltf_drawn_faces(spec: dict, per_mesh: list) -> int:
     """The faces a glTF's default scene draws: each node's mesh counted once per node that
     draws it (a mesh 1000 nodes draw is 1000 meshes once flattened: its faces had been
-    counted once, and a 1.5 MB file filled 10 GB before it was refused). Without nodes,
-    every mesh once."""
+    counted once, and a 1.5 MB file filled 10 GB before it was refused). Without nodes or
+    a scene, every mesh once."""
     nodes = spec.get("nodes") or []
     if not nodes:
         return sum(per_mesh)
     scenes = spec.get("scenes") or []
     default = spec.get("scene", 0)
-    if scenes and isinstance(default, int) and 0 <= default < len(scenes):
-        stack = list(scenes[default].get("nodes", []))
-    else:  # no scene: the nodes no other node names as a child
-        children = {c for node in nodes for c in node.get("children", [])}
-        stack = [i for i in range(len(nodes)) if i not in children]
+    if not (scenes and isinstance(default, int) and 0 <= default < len(scenes)):
+        return sum(per_mesh)  # no scene to draw: each mesh once (trimesh reads none of it, and says so)
+    stack = list(scenes[default].get("nodes", []))
     seen, total = set(), 0
     while stack:
         i = stack.pop()
