@@ -1245,3 +1245,63 @@ def test_a_round_primitive_along_its_axes_keeps_them_and_a_turned_plane_is_left_
                                                                  [{"name": "Panel", "mesh": 0}], (0,))))
     read_assets(planes)
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in recwarn]
+
+
+def test_odd_but_readable_skins_and_shared_morphed_meshes_read_as_viewers_show_them(tmp_path):
+    """Review cases: a joint index past the skin's joints in a slot of weight zero (some
+    exporters' padding) had refused the file; a skinned node scaled to nothing raised a
+    numpy error; a mesh two nodes draw, one with weights of its own, was morphed under both."""
+    from asset_writers import box_mesh, gltf_json
+
+    from procmod.targets.files import read_mesh
+
+    v, f = box_mesh((0.2, 3.0, 0.2), (0.0, 1.5, 0.0))
+    nodes = [{"name": "bar", "mesh": 0, "skin": 0},
+             {"name": "bone", "rotation": [math.sin(math.pi / 4), 0, 0, math.cos(math.pi / 4)]}]
+    spec = gltf_json([("bar", [(v, f)])], nodes, (0, 1))
+    padded = np.tile(np.uint8([0, 7, 7, 7]), (len(v), 1))
+    joints, weights = _with_arrays(spec, [(padded, "VEC4", 5121),
+                                          (np.tile(np.float32([1, 0, 0, 0]), (len(v), 1)), "VEC4", 5126)])
+    spec["meshes"][0]["primitives"][0]["attributes"].update(JOINTS_0=joints, WEIGHTS_0=weights)
+    spec["skins"] = [{"joints": [1]}]
+    (tmp_path / "padded.gltf").write_text(json.dumps(spec))
+    assert read_mesh(tmp_path / "padded.gltf")[0][:, 2].max() == pytest.approx(3.0, abs=1e-5)  # posed
+    spec["nodes"][0]["scale"] = [0, 0, 0]
+    (tmp_path / "flat.gltf").write_text(json.dumps(spec))
+    with pytest.raises(TargetFileError, match="zero area"):  # at rest, placed by a node of no size: said in words
+        read_mesh(tmp_path / "flat.gltf")
+
+    v, f = box_mesh((1.0, 1.0, 1.0), (0.0, 0.5, 0.0))
+    spec = gltf_json([("cube", [(v, f)])], [{"name": "root", "children": [1, 2]}, {"name": "a", "mesh": 0, "weights": [1.0]},
+                                            {"name": "b", "mesh": 0, "translation": [3, 0, 0]}], (0,))
+    (delta,) = _with_arrays(spec, [(np.where(v[:, 1:2] > 0.5, [0.0, 4.0, 0.0], 0.0).astype(np.float32), "VEC3", 5126)])
+    spec["meshes"][0]["primitives"][0]["targets"] = [{"POSITION": delta}]
+    spec["meshes"][0]["weights"] = [0.0]
+    (tmp_path / "two.gltf").write_text(json.dumps(spec))
+    vertices = read_mesh(tmp_path / "two.gltf")[0]
+    assert vertices[vertices[:, 0] > 2, 1].max() == pytest.approx(1.0, abs=1e-6)  # b shows the mesh's weights
+
+
+def test_a_collada_up_axis_written_with_spaces_or_in_lower_case_is_read_as_checked(tmp_path):
+    """pycollada takes only the exact words: "\\n  Z_UP\\n" was read as Y_UP (a z-up mesh lay
+    down) while the target file's check read Z_UP and refused the "mesh_up" that would
+    have stood it up."""
+    from procmod.targets.files import read_mesh
+
+    box = _box((1.0, 1.0, 4.0), (0.0, 0.0, 2.0))  # tall along z: a z-up tool's standing box
+    box.export(tmp_path / "b.dae")
+    text = (tmp_path / "b.dae").read_text()
+    for k, said in enumerate(("\n  Z_UP\n", "z_up")):
+        (tmp_path / f"z{k}.dae").write_text(text.replace("<up_axis>Y_UP</up_axis>", f"<up_axis>{said}</up_axis>"))
+        assert np.ptp(read_mesh(tmp_path / f"z{k}.dae")[0], axis=0) == pytest.approx([1.0, 4.0, 1.0], abs=1e-6)
+
+
+def test_a_top_level_up_in_a_silhouette_of_pictures_is_a_cameras(tmp_path):
+    from PIL import Image
+
+    Image.new("L", (20, 20), 255).save(tmp_path / "a.png")
+    camera = {"eye": [0, 0, 10], "look_at": [0, 0, 0]}
+    (tmp_path / "S.json").write_text(json.dumps({"format": "procmod-silhouette/1", "up": [0, 1, 0],
+                                                 "views": [{"image": "a.png", "camera": camera}]}))
+    with pytest.raises(TargetFileError, match="a view's camera \"up\""):
+        load_target_file(tmp_path / "S.json")

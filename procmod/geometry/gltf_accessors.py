@@ -189,13 +189,15 @@ def _drawing_nodes(header: dict) -> dict:
 
 
 def _morph_weights(header: dict, m: int, drawers: list) -> list:
-    """The weights mesh ``m``'s morph targets are shown at: its nodes' ``weights`` when they
-    agree (a node's override the mesh's), else the mesh's own (zero without them)."""
+    """The weights mesh ``m``'s morph targets are shown at: what its nodes show when they
+    agree (a node's ``weights``, else the mesh's), else the mesh's own (zero without them)."""
     mesh = header["meshes"][m]
-    given = [header["nodes"][n].get("weights") for n in drawers if isinstance(header["nodes"][n], dict)]
-    given = [w for w in given if isinstance(w, list)]
-    weights = given[0] if given and all(w == given[0] for w in given) else mesh.get("weights")
-    return [float(w) for w in weights] if isinstance(weights, list) else []
+    own = mesh.get("weights") if isinstance(mesh.get("weights"), list) else []
+    shown = [node.get("weights") if isinstance(node.get("weights"), list) else own
+             for node in (header["nodes"][n] for n in drawers) if isinstance(node, dict)]
+    # nodes that show it differently would need a copy each: the mesh's own weights then
+    weights = shown[0] if shown and all(w == shown[0] for w in shown) else own
+    return [float(w) for w in weights]
 
 
 def morphed_primitives(header: dict) -> list[tuple[int, int, list]]:
@@ -288,8 +290,10 @@ def _skinned(header: dict, buffers: list, node: int, skin: int, primitive: dict,
             break
         which = accessor_values(header, buffers, attributes[f"JOINTS_{s}"]).astype(np.int64)
         weights = accessor_values(header, buffers, attributes[f"WEIGHTS_{s}"])
-        if which.shape != (len(positions), 4) or weights.shape != (len(positions), 4) or \
-                which.min(initial=0) < 0 or which.max(initial=0) >= len(joints):
+        if which.shape != (len(positions), 4) or weights.shape != (len(positions), 4):
+            raise ValueError(f"skin {skin}: JOINTS_{s} or WEIGHTS_{s} is not one VEC4 a vertex")
+        which = np.where(weights != 0.0, which, 0)  # an unused slot's index is padding (some exporters')
+        if which.min(initial=0) < 0 or which.max(initial=0) >= len(joints):
             raise ValueError(f"skin {skin}: a vertex names a joint the skin does not have")
         for c in range(4):
             posed += weights[:, c, None] * np.einsum("vij,vj->vi", matrices[which[:, c]], homogeneous)
@@ -376,6 +380,8 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
         shown[(m, p)] = positions
     worlds = _global_matrices(header) if skins else None
     for n, m, k in skins:
+        if not abs(np.linalg.det(worlds[n][:3, :3])) > 1e-300:
+            continue  # a node scaled to nothing: its mesh's place cannot be undone; read at rest
         for p, primitive in enumerate(header["meshes"][m].get("primitives") or ()):
             if not isinstance(primitive, dict) or "POSITION" not in (primitive.get("attributes") or {}):
                 continue

@@ -181,7 +181,9 @@ def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarra
     vertices = np.concatenate(vertices)
     info = document.assetInfo
     metre = float(info.unitmeter) if info is not None and info.unitmeter else 1.0
-    turn = _TO_UP.get((str(info.upaxis).upper() if info is not None else "Y_UP", up))
+    # the up axis as collada_up_axis reads it (spaces and case aside: pycollada takes only the
+    # exact words, and read "\n  Z_UP\n" as Y_UP while the target file's check read Z_UP)
+    turn = _TO_UP.get((collada_up_axis(path) or "Y_UP", up))
     if turn is not None:
         vertices = vertices @ turn.T
     return vertices * metre, np.concatenate(triangles)

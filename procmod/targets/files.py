@@ -440,11 +440,14 @@ def _placement_needs_meshes(spec: dict, where: str, has_meshes: bool, what: str)
     """Refuse a placement key in a file without meshes to place, and in one with meshes a
     placement said in other words (:func:`_placement_synonyms`): a file of pictures or
     grids may carry a tool's "scale" or "offset", which means nothing to procmod."""
-    if has_meshes:
-        try:
+    try:
+        if has_meshes:
             _placement_synonyms(spec, _VOLUME_KEYS if what == "layer" else _SILHOUETTE_KEYS)
-        except TargetFileError as exc:
-            raise TargetFileError(f"{where}: {exc}") from None
+        elif what == "view" and "up" in spec:  # pictures only: a top-level "up" is a camera's, misplaced
+            raise TargetFileError("the file has 'up', which procmod does not read at its top level; did you mean "
+                                  "a view's camera \"up\" (\"camera\": {..., \"up\": [x, y, z]})?")
+    except TargetFileError as exc:
+        raise TargetFileError(f"{where}: {exc}") from None
     given = [key for key in ("mesh_scale", "mesh_offset", "mesh_up") if key in spec]
     if given and not has_meshes:
         raise TargetFileError(f"{where}: {' and '.join(given)} {'place' if len(given) > 1 else 'places'} mesh {what}s and this file has none (an .npy "
