@@ -32,9 +32,10 @@ several, becomes a geometry of its own at the group's mean scale, its nodes keep
 rest. So six cubes scaled into a seat, a back and four legs are three parts, and a leg
 whose scale was applied is the leg whose scale was not. Copies of one mesh turned and
 scaled with their transforms applied (tables of several sizes, each turned, then baked)
-are first put back as one mesh placed by their nodes (:func:`_unbake_turns`). A node whose transform shears puts
-its whole linear map into its geometry, unless dropping the shear moves no vertex beyond
-the geometry tolerance (below): a part turned by eye under a non-uniformly scaled parent.
+are first put back as one mesh placed by their nodes (:func:`_unbake_turns`). A node
+whose transform shears puts its whole linear map into its geometry, unless dropping the
+shear moves no vertex beyond the geometry tolerance (below): a part turned by eye under
+a non-uniformly scaled parent.
 
 **Distinct geometry** (:data:`GEOMETRY_TOLERANCE`). Two meshes are one part when a rigid
 motion (and, with ``mirror=True``, a reflection: a left and a right wing) maps one onto
@@ -65,6 +66,7 @@ parents), more than :data:`MAX_FACES` triangles or :data:`MAX_NODES` nodes.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
@@ -498,9 +500,9 @@ def _least_box_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray] | No
     box_to_mesh = np.linalg.inv(to_origin)
     axes, centre = box_to_mesh[:3, :3], box_to_mesh[:3, 3]
     best, best_trace = axes, -np.inf
-    for perm in ((0, 1, 2), (1, 2, 0), (2, 0, 1), (0, 2, 1), (2, 1, 0), (1, 0, 2)):
-        for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1)):
-            candidate = axes[:, perm] * signs
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            candidate = axes[:, list(perm)] * signs
             if np.linalg.det(candidate) > 0 and np.trace(candidate) > best_trace + 1e-12:
                 best, best_trace = candidate, float(np.trace(candidate))
     return best, centre
@@ -1187,7 +1189,6 @@ def _snap(m: np.ndarray, a: _Surface, b: _Surface) -> np.ndarray | None:
 
 def _box_map(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray | None:
     """A proper axis permutation M with M(box b) = box a (extents within tolerance)."""
-    import itertools
     limit = tol * max(float(np.linalg.norm(a)), float(np.linalg.norm(b)))
     for perm in itertools.permutations(range(3)):
         if np.abs(a[list(perm)] - b).max() <= limit:
@@ -1283,7 +1284,6 @@ def _symmetries(canon: _Geometry, surface, tol: float) -> list:
     those that only swap equal extents; for a mesh, those that keep it within ``tol`` of
     its diagonal. A part modelled along its axes, as tools make them, has its symmetries
     among these; a symmetry at other angles is not sought (the identity always fits)."""
-    import itertools
     out = []
     for perm in itertools.permutations(range(3)):
         for signs in itertools.product((1.0, -1.0), repeat=3):
