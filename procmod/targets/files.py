@@ -789,6 +789,8 @@ def _placement_synonyms(spec: dict, known: tuple) -> None:
             raise TargetFileError(f"the file has {key!r}, which procmod does not read: it turns a mesh only by "
                                   "\"mesh_up\" (the axis that is up in the mesh's tool); turn the mesh in the tool "
                                   "otherwise")
+
+
 _CAMERA_KEYS = ("eye", "look_at", "up", "projection", "fov", "width", "height")
 
 
