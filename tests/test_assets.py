@@ -548,18 +548,19 @@ def test_a_mesh_whose_transforms_were_applied_gets_a_frame_at_its_middle(tmp_pat
     assert np.allclose(np.asarray(unbaked.parts["Leg"].vertices), box_mesh((0.04, 0.45, 0.04))[0])
 
 
-def _turned_baked_table(path, k: int):
+def _turned_baked_table(path, k: int, mesh_names=("Top", "Leg")):
     """Table ``k`` of four: a top and four legs of its own sizes, the whole table turned
     (about the vertical, and tipped a little) and every transform applied, as Blender's
     Apply All Transforms leaves them: the meshes in world coordinates, the nodes identity."""
     height, width, depth = 0.45 + 0.1 * k, 1.0 + 0.2 * k, 0.6 + 0.1 * k
     turn = R([0.05 * k, (0.3, 1.1, -0.7, 2.0)[k], 0.0]) @ T(3.0 * k, 0, 0)
-    meshes = [("Top", [transformed(box_mesh((width, 0.05, depth), (0, height + 0.025, 0)), turn)])]
+    meshes = [(mesh_names[0], [transformed(box_mesh((width, 0.05, depth), (0, height + 0.025, 0)), turn)])]
     nodes = [{"name": "Top", "mesh": 0, "children": [1, 2, 3, 4]}]
     for j, (sx, sz) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
         at = (sx * (width / 2 - 0.05), height / 2, sz * (depth / 2 - 0.05))
-        meshes.append(("Leg" + (f".{j:03d}" if j else ""), [transformed(box_mesh((0.05, height, 0.05), at), turn)]))
-        nodes.append({"name": f"Leg{j}", "mesh": j + 1})
+        meshes.append((mesh_names[1] + (f".{j + 1:03d}" if mesh_names[1] == "Cube" else f".{j:03d}" if j else ""),
+                       [transformed(box_mesh((0.05, height, 0.05), at), turn)]))
+        nodes.append({"name": "Leg" + (f".{j:03d}" if j else ""), "mesh": j + 1})
     write_glb(path, gltf_json(meshes, nodes, (0,)))
     return path, meshes
 
@@ -575,9 +576,31 @@ def test_copies_turned_and_scaled_with_their_transforms_applied_are_one_part(tmp
     for asset, (_, meshes) in zip(read.assets, files):
         for node, (_, [(vertices, faces)]) in zip(asset.nodes(), meshes):
             assert same_surface(world_triangles(read, node).reshape(-1, 3), vertices[faces].reshape(-1, 3), 1e-5)
+    # meshes as Blender names its cubes ("Cube", "Cube.001"): the objects' names tell top from leg
+    files = [_turned_baked_table(tmp_path / f"c{k}.glb", k, ("Cube", "Cube")) for k in range(4)]
+    assert sorted(read_assets([path for path, _ in files]).parts) == ["Leg", "Top"]
     # the parts are upright boxes in their own frames (a leg: 0.05 x about 0.6 x 0.05)
     leg = np.ptp(np.asarray(read.parts["Leg"].vertices), axis=0)
     assert np.allclose(leg[[0, 2]], 0.05, atol=1e-4) and 0.45 - 1e-4 < leg[1] < 0.75, leg
+
+
+def test_objects_the_artist_named_apart_are_kinds_apart_though_one_primitive_made_them(tmp_path):
+    """A building's base and roof, both Blender cubes (mesh "Cube") within 3x of each other's
+    size, had been one part type: the roof was a base, and the learned program grew whole
+    buildings out of roofs (11 of 40 samples had no floor). Legs named one by one (LegFL,
+    LegFR, ...) stay one part type: the same geometry, merged as before."""
+    def building(path, k):
+        base = {"name": "Base", "mesh": 0, "scale": [4.0 + k, 0.25, 3.0]}
+        roof = {"name": "Roof", "mesh": 0, "scale": [4.2 + k, 0.2, 3.2], "translation": [0, 20.0, 0]}
+        legs = [{"name": f"Leg{c}", "mesh": 0, "scale": [0.2, 1.0, 0.2], "translation": [x, -1.0, z]}
+                for c, (x, z) in zip(("FL", "FR", "BL", "BR"), ((1, 1), (1, -1), (-1, 1), (-1, -1)))]
+        building = {"name": "Building", "children": [1, 2, 3, 4, 5, 6]}  # an empty holds them
+        return write_gltf(path, [("Cube", [box_mesh((2.0, 2.0, 2.0))])], [building, base, roof, *legs])
+
+    read = read_assets([building(tmp_path / f"b{k}.gltf", k) for k in range(3)])
+    assert len(read.parts) == 3, sorted(read.parts)  # base, roof, leg
+    kinds = {node.name: node.part for node in read.assets[0].nodes()}
+    assert kinds["Base"] != kinds["Roof"] and len({kinds[f"Leg{c}"] for c in ("FL", "FR", "BL", "BR")}) == 1, kinds
 
 
 def _cube_chair(path, height: float, baked_legs: bool = False):

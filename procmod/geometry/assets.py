@@ -549,7 +549,7 @@ def _unbake_turns(forests: list, geometries: dict) -> None:
     families = {}
     for key in placers:  # in the order read (dicts keep it): the first read represents
         g = geometries[key]
-        name = _given_name(g)
+        name = _kind_name(g, placers[key][0])  # a Blender cube baked as a "Top": the tops' family
         if name is not None:
             families.setdefault((name, len(g.vertices), np.asarray(g.faces).tobytes()), []).append(key)
     for keys in families.values():
@@ -598,6 +598,20 @@ def _unbake_family(keys: list, geometries: dict, placers: dict) -> None:
             raw.geometry, raw.world = rep.key, raw.world @ placed
 
 
+def _kind_name(g: _Geometry, raw: _Raw) -> str | None:
+    """What says which kind of part a node places: its mesh's given name
+    (:func:`_given_name`), else, for a tool's primitive or an unnamed mesh, the node's name
+    without the tool's copy numbering (``Roof`` and ``Base``, both Blender cubes, are two
+    kinds; ``Leg``, ``Leg.001`` one), else None (a node named ``Cube.003`` too). A roof and
+    a base slab within :data:`SCALE_GROUP` of each other had been one part type, so a
+    building's roof was a base, and its learned program grew buildings out of buildings."""
+    name = _given_name(g)
+    if name is not None or g.key[0] in ("cylinder", "sphere"):  # (a URDF's shapes: named by their links)
+        return name
+    base = _NUMBERED.sub("", raw.name).strip().lower()
+    return None if not base or base in _DEFAULT_MESH_NAMES else f"node {base}"
+
+
 def _bake_scales(forests: list, geometries: dict) -> None:
     """Tell the parts a tool made of one mesh by scaling it apart, and give each its size.
 
@@ -607,8 +621,9 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     applied in the tool was another part than its twin whose scale was not. So the nodes
     that place one mesh, or meshes that are one mesh moved and scaled along its axes (a
     primitive added at other sizes, or its scale or location applied) under one name
-    (the tool's copies ``Pole``, ``Pole.001``, or a primitive's name such as ``Cube``;
-    meshes the user named apart, ``column`` and ``wall``, stay apart), are grouped by
+    (the tool's copies ``Pole``, ``Pole.001``; a primitive's mesh, ``Cube``, by its
+    node's name, :func:`_kind_name`; meshes or objects the user named apart, ``column``
+    and ``wall``, stay apart), are grouped by
     their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
     are one group). One mesh whose nodes form one group with a scale within that factor
     of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
@@ -654,8 +669,9 @@ def _bake_scales(forests: list, geometries: dict) -> None:
                 unit = np.round((g.vertices - g.vertices.min(axis=0)) / extents, 9)
                 unit_of[raw.geometry] = ((fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()),
                                           _given_name(g)), extents)
-            same, extents = unit_of[raw.geometry]
-            by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
+            (shape, name), extents = unit_of[raw.geometry]
+            kind = name if name is not None else _kind_name(geometries[raw.geometry], raw)
+            by_geometry.setdefault((shape, kind), []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
             _bake(raw, geometries, linear, np.eye(3), np.ones(3))
     for placed in by_geometry.values():
