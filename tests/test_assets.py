@@ -602,6 +602,25 @@ def test_objects_the_artist_named_apart_are_kinds_apart_though_one_primitive_mad
     kinds = {node.name: node.part for node in read.assets[0].nodes()}
     assert kinds["Base"] != kinds["Roof"] and len({kinds[f"Leg{c}"] for c in ("FL", "FR", "BL", "BR")}) == 1, kinds
 
+    # names that never meet in one example say nothing of kinds: tables named per file
+    # (Table01_Top, Table02_Top), and legs named Blender's way in some files, one by one in
+    # others, of heights that differ from table to table (a review's sets: 12 part types for 2)
+    def table(path, k, names):
+        height = 0.45 + 0.08 * k
+        top = {"name": names[0], "mesh": 0, "scale": [0.6 + 0.1 * k, 0.025, 0.4], "translation": [0, height, 0]}
+        legs = [{"name": name, "mesh": 0, "scale": [0.025, height / 2, 0.025],
+                 "translation": [x * 0.5, height / 2, z * 0.3]}
+                for name, (x, z) in zip(names[1:], ((1, 1), (1, -1), (-1, 1), (-1, -1)))]
+        return write_gltf(path, [("Cube", [box_mesh((2.0, 2.0, 2.0))])],
+                          [{"name": "Table", "children": [1, 2, 3, 4, 5]}, top, *legs])
+
+    prefixed = [table(tmp_path / f"p{k}.gltf", k, [f"Table0{k}_Top"] + [f"Table0{k}_Leg" + (f".00{j}" if j else "")
+                                                                       for j in range(4)]) for k in range(4)]
+    mixed = [table(tmp_path / f"m{k}.gltf", k, ["Top"] + (["Leg", "Leg.001", "Leg.002", "Leg.003"] if k % 2 else
+                                                           ["Leg_FL", "Leg_FR", "Leg_BL", "Leg_BR"])) for k in range(4)]
+    for files in (prefixed, mixed):
+        assert len(read_assets(files).parts) == 2, sorted(read_assets(files).parts)
+
 
 def _cube_chair(path, height: float, baked_legs: bool = False):
     """A chair as Blender users make one: the default cube scaled into a seat, a back and
