@@ -584,27 +584,11 @@ def test_copies_turned_and_scaled_with_their_transforms_applied_are_one_part(tmp
     assert np.allclose(leg[[0, 2]], 0.05, atol=1e-4) and 0.45 - 1e-4 < leg[1] < 0.75, leg
 
 
-def test_objects_the_artist_named_apart_are_kinds_apart_though_one_primitive_made_them(tmp_path):
-    """A building's base and roof, both Blender cubes (mesh "Cube") within 3x of each other's
-    size, had been one part type: the roof was a base, and the learned program grew whole
-    buildings out of roofs (11 of 40 samples had no floor). Legs named one by one (LegFL,
-    LegFR, ...) stay one part type: the same geometry, merged as before."""
-    def building(path, k):
-        base = {"name": "Base", "mesh": 0, "scale": [4.0 + k, 0.25, 3.0]}
-        roof = {"name": "Roof", "mesh": 0, "scale": [4.2 + k, 0.2, 3.2], "translation": [0, 20.0, 0]}
-        legs = [{"name": f"Leg{c}", "mesh": 0, "scale": [0.2, 1.0, 0.2], "translation": [x, -1.0, z]}
-                for c, (x, z) in zip(("FL", "FR", "BL", "BR"), ((1, 1), (1, -1), (-1, 1), (-1, -1)))]
-        building = {"name": "Building", "children": [1, 2, 3, 4, 5, 6]}  # an empty holds them
-        return write_gltf(path, [("Cube", [box_mesh((2.0, 2.0, 2.0))])], [building, base, roof, *legs])
-
-    read = read_assets([building(tmp_path / f"b{k}.gltf", k) for k in range(3)])
-    assert len(read.parts) == 3, sorted(read.parts)  # base, roof, leg
-    kinds = {node.name: node.part for node in read.assets[0].nodes()}
-    assert kinds["Base"] != kinds["Roof"] and len({kinds[f"Leg{c}"] for c in ("FL", "FR", "BL", "BR")}) == 1, kinds
-
-    # names that never meet in one example say nothing of kinds: tables named per file
-    # (Table01_Top, Table02_Top), and legs named Blender's way in some files, one by one in
-    # others, of heights that differ from table to table (a review's sets: 12 part types for 2)
+def test_a_primitives_kinds_are_told_by_size_not_by_the_names_of_its_objects(tmp_path):
+    """A review's sets: a version that took object names for kinds split tables named per
+    file (Table01_Top, Table02_Top) into 12 part types for 2, legs named one way here and
+    another there, and books named by colour into one type each. Kinds of a tool's
+    primitive are told by size (SCALE_GROUP) and geometry, as before."""
     def table(path, k, names):
         height = 0.45 + 0.08 * k
         top = {"name": names[0], "mesh": 0, "scale": [0.6 + 0.1 * k, 0.025, 0.4], "translation": [0, height, 0]}

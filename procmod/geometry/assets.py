@@ -551,7 +551,7 @@ def _unbake_turns(forests: list, geometries: dict) -> None:
         g = geometries[key]
         name = _given_name(g)
         if name is None and g.key[0] not in ("cylinder", "sphere"):
-            name = ""  # a tool's primitive (Cube, Cube.001): one family; sizes and names part its kinds later
+            name = ""  # a tool's primitive (Cube, Cube.001): one family; _bake_scales parts it by size
         if name is not None:
             families.setdefault((name, len(g.vertices), np.asarray(g.faces).tobytes()), []).append(key)
     for keys in families.values():
@@ -600,54 +600,6 @@ def _unbake_family(keys: list, geometries: dict, placers: dict) -> None:
             raw.geometry, raw.world = rep.key, raw.world @ placed
 
 
-def _node_kind(raw: _Raw) -> str | None:
-    """A node's name without the tool's copy numbering (``Leg`` for ``Leg.001``), or None
-    for a name that says nothing (``Cube.003``, ``""``)."""
-    base = _NUMBERED.sub("", raw.name).strip().lower()
-    return None if not base or base in _DEFAULT_MESH_NAMES else base
-
-
-KIND_APART = 0.10
-"""Nodes of one primitive in one example, named apart by the artist, are kinds apart when
-their sizes differ by more than this fraction on some axis (:func:`_split_kinds`): a
-building's base and roof slab; legs named one by one (``LegFL``, ``LegFR``), the same
-size to a hand's jitter, are one kind."""
-
-
-def _split_kinds(members: list, names: list, files: list, sizes: np.ndarray) -> list:
-    """A size group of a tool's primitive (:func:`_bake_scales`) split by its nodes' names
-    where the names say two kinds: in some example, nodes of the two names differ in size
-    by more than :data:`KIND_APART`. Names never apart (one kind named per example,
-    ``Table01_Top`` and ``Table02_Top``; or named differently in different files, ``Leg``
-    and ``Leg_FL``) stay together, each with the kind nearest in size it may join. A
-    roof and a base slab within :data:`SCALE_GROUP` had been one part type, so a roof was a
-    base, and the learned program grew buildings out of roofs."""
-    kinds = list(dict.fromkeys(names[k] for k in members))
-    if len(kinds) < 2:
-        return [members]
-    limit = math.log(1.0 + KIND_APART)
-    apart = set()
-    for i, a in enumerate(members):
-        for b in members[i + 1:]:
-            if files[a] == files[b] and names[a] != names[b] and np.abs(sizes[a] - sizes[b]).max() > limit:
-                apart.add(frozenset((names[a], names[b])))
-    if not apart:
-        return [members]
-    mean = {kind: sizes[[k for k in members if names[k] == kind]].mean(0) for kind in kinds}
-    classes = {kind: {kind} for kind in kinds}
-    pairs = sorted(itertools.combinations(kinds, 2), key=lambda ab: float(np.abs(mean[ab[0]] - mean[ab[1]]).max()))
-    for a, b in pairs:  # the nearest in size first, never two kinds some example holds apart
-        ca, cb = classes[a], classes[b]
-        if ca is not cb and not any(frozenset((x, y)) in apart for x in ca for y in cb):
-            ca |= cb
-            for kind in cb:
-                classes[kind] = ca
-    out = {}
-    for k in members:
-        out.setdefault(id(classes[names[k]]), []).append(k)
-    return list(out.values())
-
-
 def _bake_scales(forests: list, geometries: dict) -> None:
     """Tell the parts a tool made of one mesh by scaling it apart, and give each its size.
 
@@ -662,8 +614,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
     are one group). One mesh whose nodes form one group with a scale within that factor
     of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
-    the learner's to model). A primitive's group is then split where its nodes' names
-    say two kinds in one example (:func:`_split_kinds`). Otherwise each group is a geometry of its own: the mesh with
+    the learner's to model). Otherwise each group is a geometry of its own: the mesh with
     the group's mean size put into it, the nodes keeping what differs from that mean (a
     pole added at five depths, its scale applied in every example, was five part types,
     and a sample drew none or two of them). A node that shears (a turned child
@@ -709,15 +660,10 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
             _bake(raw, geometries, linear, np.eye(3), np.ones(3))
-    file_of = {id(raw): i for i, forest in enumerate(forests) for top in forest for raw in _walk(top)}
-    for (_, given), placed in by_geometry.items():
+    for placed in by_geometry.values():
         sizes = np.log([norms * extents for _, _, norms, extents in placed])  # of the unit shape
         scaled = np.log([norms for _, _, norms, _ in placed])
         groups = _scale_groups(sizes)
-        if given is None:  # a tool's primitive: its nodes' names may tell kinds of one size apart
-            names = [_node_kind(raw) for raw, *_ in placed]
-            files = [file_of[id(raw)] for raw, *_ in placed]
-            groups = [kind for members in groups for kind in _split_kinds(members, names, files, sizes)]
         meshes = {raw.geometry for raw, *_ in placed}
         if len(groups) == 1 and np.abs(scaled).max() <= math.log(SCALE_GROUP) and len(meshes) == 1:
             continue  # one mesh whose nodes' sizes vary, near its own size: as read
