@@ -12,11 +12,14 @@ real exporters write came out wrong:
   one) with ``sparse.count`` of them replaced at ``sparse.indices``; trimesh ignored the
   replacements, and an accessor with no ``bufferView`` read as all zeros.
 
+And trimesh reads a mesh at rest, where viewers show it **morphed** (its morph targets at
+their weights: Blender's shape keys as set) and **posed** (a skinned mesh by its joints).
+
 :func:`decoded_gltf` rewrites each such accessor as plain ``FLOAT`` data in a buffer of
-its own (a ``data:`` URI), and each triangle fan as a triangle list (trimesh dropped
-fans), and returns the glTF JSON, which trimesh then reads as usual (the file is left as
-it is). Everything else — other buffers, images, the node tree — is
-as the file has it.
+its own (a ``data:`` URI), gives a morphed or posed primitive the positions shown, and
+each triangle fan as a triangle list (trimesh dropped fans), and returns the glTF JSON,
+which trimesh then reads as usual (the file is left as it is). Everything else — other
+buffers, images, the node tree — is as the file has it.
 """
 
 from __future__ import annotations
