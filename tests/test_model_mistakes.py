@@ -396,3 +396,29 @@ def test_a_model_name_whose_file_is_here_is_pointed_to_it(tmp_path, monkeypatch,
     assert main(["render", str(tmp_path / "d.json"), "--out", str(tmp_path / "r.png")]) == 2
     err = capsys.readouterr().err
     assert "give mine.py" not in err and "--model FILE.py:NAME" in err
+
+
+def test_a_part_whose_tag_is_no_string_is_refused_at_the_emit():
+    """A Categorical's index passed as a part's tag ran a whole inference and then ended in a
+    traceback while the outputs were written (colour_of: 'int' object has no attribute
+    'encode'), and nothing was written."""
+    with pytest.raises(ModelError, match=r"whose tag is 5 \(int\): a tag names the part's kind and must be a string"):
+        run_forward(_model(lambda ctx: ctx.emit(Box((1, 1, 1), translation(0, 0, 0), 5)), output=new_part_bounds),
+                    np.random.default_rng(0))
+    with pytest.raises(ModelError, match="must be a string"):
+        run_forward(_model(lambda ctx: ctx.emit(Disc(0, -10, 1.0, 3))), np.random.default_rng(0))
+
+
+def test_a_4x4_array_transform_is_read_by_volume_targets_as_by_everything_else(tmp_path):
+    """sample and silhouettes read a part placed by a 4x4 numpy array; a volume target took its
+    first 12 values as numbers ("not enough values to unpack (expected 12, got 4)")."""
+    from procmod.geometry.voxel import VoxelGrid, VoxelScene
+
+    placed = np.eye(4)
+    placed[0, 3] = 0.5
+    grid = VoxelGrid((-2.0, -2.0, -2.0), 0.25, (16, 16, 16))
+    as_array, as_tuple = VoxelScene(grid), VoxelScene(grid)
+    as_array.add(Box((1, 1, 1), placed))
+    as_tuple.add(Box((1, 1, 1), translation(0.5, 0, 0)))
+    assert as_array.counts.sum() == as_tuple.counts.sum() > 0
+    assert np.array_equal(as_array.counts, as_tuple.counts)

@@ -270,6 +270,11 @@ class Context:
                                "re-runs a call from its start to resume it after each emit (n^2 / 2 emits for n: "
                                "hours for a loop of thousands); does the loop end? Emit a long run of parts from "
                                "child calls, use the mcmc or ga engine, or raise Model(max_resumed_emits=...)")
+        tag = getattr(geometry, "tag", "")
+        if not isinstance(tag, str):  # (colours, OBJ groups and GLB names read it: a traceback at the end of a run)
+            raise self._misuse(f"emits {_geometry_text(geometry)}, whose tag is {tag!r} ({type(tag).__name__}): a tag "
+                               "names the part's kind and must be a string; give str(...) of it, or a Categorical "
+                               "with labels=[...]")
         try:
             state.output.add(geometry)
         except (TypeError, ValueError) as exc:  # the output's own word on what it cannot draw

@@ -162,7 +162,7 @@ def part_bounds(part) -> tuple:
             raise ValueError(_NOT_FINITE)
         return lo, hi
     if isinstance(part, Box):
-        t = _transform_of(part)
+        t = transform_values(part)
         sx, sy, sz = part.size
         if not (sx >= 0 and sy >= 0 and sz >= 0):  # also NaN
             raise ValueError(f"a Box's size must be three sizes of at least 0, got {part.size}")
@@ -174,7 +174,7 @@ def part_bounds(part) -> tuple:
             hi.append(d + half)
         return _finite_bounds(lo, hi)
     if isinstance(part, Cylinder):
-        t = _transform_of(part)
+        t = transform_values(part)
         r0 = part.radius
         r1 = r0 if part.top_radius is None else part.top_radius
         if not (r0 >= 0 and r1 >= 0):  # also NaN
@@ -201,7 +201,8 @@ def _finite_bounds(lo: list, hi: list) -> tuple:
     return np.array(lo), np.array(hi)
 
 
-def _transform_of(part):
+def transform_values(part):
+    """A part's transform as its 16 numbers, row by row: as given, or read from a 4x4 array."""
     t = part.transform
     if len(t) != 16:
         if np.shape(t) == (4, 4):  # a 4x4 array, as matrix() reads it too

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError
 from ..core.kernels import once_per_process
-from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles
+from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles, transform_values
 
 
 class VoxelGrid(NamedTuple):
@@ -199,7 +199,8 @@ def _inverse(t: tuple) -> np.ndarray:
     A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
     det = a * A + b * B + c * C
     if det == 0.0:
-        raise ValueError("a part's transform is singular")
+        raise ValueError("a part's transform is singular (scaled to zero along some axis): a volume target "
+                         "cannot tell what it covers; scale it by more than 0, or leave the part out")
     r = 1.0 / det
     m00, m01, m02 = A * r, -(b * i - c * h) * r, (b * f - c * e) * r
     m10, m11, m12 = B * r, (a * i - c * g) * r, -(a * f - c * d) * r
@@ -325,7 +326,7 @@ class VoxelScene:
         counts = self.counts if counts is None else counts
         h = self.grid.size
         if isinstance(part, (Box, Cylinder)):
-            inv = _inverse(part.transform)
+            inv = _inverse(transform_values(part))  # a 4x4 array too, as sampling and silhouettes read it
             if isinstance(part, Box):
                 kind, p = 0, [0.5 * float(s) for s in part.size]
             else:
