@@ -145,9 +145,33 @@ def _voxelize_solid(counts, shape, origin, h, inv, kind, p0, p1, p2, lo, hi, gai
                     _hit(counts, nx, ny, nz, i, j, k, gain, state, record)
 
 
+@numba.njit(cache=True, inline="always")
+def _edge(px, py, qx, qy, x, y):
+    """Which side of the line p -> q the point (x, y) lies (positive: to the left), computed
+    from the edge's lower endpoint (x, then y) whichever way the triangle runs it: the two
+    triangles sharing an edge get the same number, of opposite sign, to the last bit."""
+    if px < qx or (px == qx and py < qy):
+        return (qx - px) * (y - py) - (qy - py) * (x - px)
+    return -((px - qx) * (y - qy) - (py - qy) * (x - qx))
+
+
+@numba.njit(cache=True, inline="always")
+def _owns(e, dx, dy):
+    """Whether a triangle holds a point on its edge (edge function ``e`` zero) running
+    ``(dx, dy)`` counter-clockwise: of the two triangles sharing an edge, exactly one (the
+    edges run opposite ways)."""
+    return e > 0.0 or (e == 0.0 and (dy > 0.0 or (dy == 0.0 and dx > 0.0)))
+
+
 @numba.njit(cache=True)
 def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state, record):
-    """Ray parity along +z through every voxel column of the mesh's bounding box."""
+    """Ray parity along +z through every voxel column of the mesh's bounding box.
+
+    A ray through an edge or a vertex two triangles share is counted by exactly one of
+    them: each edge's side test is computed one way for both (:func:`_edge`) and a tie
+    goes to one side (:func:`_owns`). Barycentric weights computed in each triangle's own
+    vertex order had counted a ray along the diagonal of a grid-aligned cube's face twice
+    or not at all, so the column's parity flipped: a Mesh cube lost 4 columns of 100."""
     if _too_many_cells(lo, hi, h, state):
         return
     nx, ny, nz = shape[0], shape[1], shape[2]
@@ -165,16 +189,19 @@ def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state, record):
                 ax, ay, az = tris[t, 0, 0], tris[t, 0, 1], tris[t, 0, 2]
                 bx, by, bz = tris[t, 1, 0], tris[t, 1, 1], tris[t, 1, 2]
                 cx, cy, cz = tris[t, 2, 0], tris[t, 2, 1], tris[t, 2, 2]
-                d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+                d = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)  # twice the signed area seen from +z
                 if d == 0.0:
-                    continue
-                w0 = ((by - cy) * (x - cx) + (cx - bx) * (y - cy)) / d
-                w1 = ((cy - ay) * (x - cx) + (ax - cx) * (y - cy)) / d
-                w2 = 1.0 - w0 - w1
-                # Half-open edges so a ray through a shared edge counts it once.
-                if w0 >= 0.0 and w1 >= 0.0 and w2 > 0.0 or (w0 > 0.0 and w1 > 0.0 and w2 >= 0.0):
-                    zs[n] = w0 * az + w1 * bz + w2 * cz
-                    n += 1
+                    continue  # edge-on: its neighbours hold the ray
+                sign = 1.0 if d > 0.0 else -1.0  # counter-clockwise seen from +z, either way it faces
+                ea = sign * _edge(bx, by, cx, cy, x, y)  # the edge opposite a, b -> c
+                eb = sign * _edge(cx, cy, ax, ay, x, y)  # c -> a
+                ec = sign * _edge(ax, ay, bx, by, x, y)  # a -> b
+                if (_owns(ea, sign * (cx - bx), sign * (cy - by)) and _owns(eb, sign * (ax - cx), sign * (ay - cy))
+                        and _owns(ec, sign * (bx - ax), sign * (by - ay))):
+                    total = ea + eb + ec
+                    if total > 0.0:
+                        zs[n] = (ea * az + eb * bz + ec * cz) / total
+                        n += 1
             if n < 2:
                 continue
             zz = np.sort(zs[:n])
