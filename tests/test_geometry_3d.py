@@ -246,3 +246,16 @@ def test_a_part_mesh_that_is_not_closed_keeps_its_authors_winding(tmp_path):
     tet = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
     inward = [(0, 1, 2), (0, 3, 1), (0, 2, 3), (1, 3, 2), (1, 3, 2)]
     assert obj("tet.obj", tet, inward) == tuple(inward)  # left whole, not turned in part
+
+
+@pytest.mark.parametrize("scale", [1e-110, 1e-3, 1e102])
+def test_a_mesh_voxelizes_alike_at_any_scale(scale):
+    """The heights on the rays were once computed as (e_a z_a + ...) / sum e: the edge values
+    grow as the square of the coordinates, and the products overflowed past 1e102 (NaN
+    heights, no voxels) and underflowed below 1e-108."""
+    import trimesh
+
+    cube = trimesh.creation.box((6.0, 6.0, 6.0))
+    grid = VoxelGrid((-5.0 * scale, -5.0 * scale, -5.0 * scale), scale, (10, 10, 10))
+    mesh = Mesh(cube.vertices * scale, cube.faces, translation(0.013 * scale, 0.021 * scale, 0.0))
+    assert voxelize([mesh], grid).sum() == 216

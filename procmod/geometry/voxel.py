@@ -199,8 +199,8 @@ def _voxelize_mesh(counts, shape, origin, h, tris, lo, hi, gain, state, record):
                 if (_owns(ea, sign * (cx - bx), sign * (cy - by)) and _owns(eb, sign * (ax - cx), sign * (ay - cy))
                         and _owns(ec, sign * (bx - ax), sign * (by - ay))):
                     total = ea + eb + ec
-                    if total > 0.0:
-                        zs[n] = (ea * az + eb * bz + ec * cz) / total
+                    if total > 0.0:  # weights first: e * z would cube the coordinates (inf past 1e102)
+                        zs[n] = (ea / total) * az + (eb / total) * bz + (ec / total) * cz
                         n += 1
             if n < 2:
                 continue
