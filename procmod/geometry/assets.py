@@ -557,11 +557,7 @@ def _unbake_turns(forests: list, geometries: dict) -> None:
     for keys in families.values():
         if len(keys) < 2:
             continue
-        shapes = set()
-        for key in keys:
-            v = geometries[key].vertices
-            extents = np.ptp(v, axis=0)
-            shapes.add(np.round((v - v.min(axis=0)) / np.where(extents > 0, extents, 1.0), 6).tobytes())
+        shapes = {_unit_shape(geometries[key].vertices, 6)[0].tobytes() for key in keys}
         if len(shapes) < 2:
             continue  # not turned apart: _bake_scales groups them along their own axes
         _unbake_family(keys, geometries, placers)
@@ -598,6 +594,16 @@ def _unbake_family(keys: list, geometries: dict, placers: dict) -> None:
     for key, placed in maps.items():
         for raw in placers[key]:
             raw.geometry, raw.world = rep.key, raw.world @ placed
+
+
+def _unit_shape(vertices: np.ndarray, digits: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices scaled to unit extents from the mesh's own corner, rounded to digits;
+    the extents)``: a mesh moved and scaled along its axes has the unit shape of its
+    original (a location applied moves it off its origin alike). A flat axis keeps its
+    extent 1."""
+    extents = np.ptp(vertices, axis=0)
+    extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
+    return np.round((vertices - vertices.min(axis=0)) / extents, digits), extents
 
 
 def _bake_scales(forests: list, geometries: dict) -> None:
@@ -650,10 +656,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             # placed at the node's scale times its own extents
             if raw.geometry not in unit_of:  # once per mesh, however many nodes place it
                 g = geometries[raw.geometry]
-                extents = np.ptp(g.vertices, axis=0)
-                extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
-                # from the mesh's own corner: a mesh whose location was applied (moved off its origin) is alike
-                unit = np.round((g.vertices - g.vertices.min(axis=0)) / extents, 9)
+                unit, extents = _unit_shape(g.vertices, 9)
                 unit_of[raw.geometry] = ((fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()),
                                           _given_name(g)), extents)
             same, extents = unit_of[raw.geometry]

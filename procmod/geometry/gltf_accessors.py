@@ -240,10 +240,11 @@ def _local_matrix(node: dict) -> np.ndarray:
     """A node's transform (its ``matrix``, column-major, or translation, rotation, scale)."""
     if isinstance(node.get("matrix"), list) and len(node["matrix"]) == 16:
         return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
-    x, y, z, w = (np.asarray(node.get("rotation", (0.0, 0.0, 0.0, 1.0)), dtype=np.float64).tolist() + [0.0] * 4)[:4]
-    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    from scipy.spatial.transform import Rotation
+
+    quaternion = np.asarray(node.get("rotation", (0.0, 0.0, 0.0, 1.0)), dtype=np.float64)  # glTF's x, y, z, w
+    usable = quaternion.shape == (4,) and np.isfinite(quaternion).all() and quaternion.any()
+    rotation = Rotation.from_quat(quaternion).as_matrix() if usable else np.eye(3)  # (a broken one: unturned)
     m = np.eye(4)
     m[:3, :3] = rotation * np.asarray(node.get("scale", (1.0, 1.0, 1.0)), dtype=np.float64)
     m[:3, 3] = node.get("translation", (0.0, 0.0, 0.0))

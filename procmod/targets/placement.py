@@ -231,41 +231,41 @@ def _volume_note(target, lo, hi) -> str | None:
 LYING, STANDING = 2.0, 1.5
 
 
-def _lying(target, t_ext, m_ext) -> bool:
-    """Whether a mesh target's box is the model's samples' shape laid on its side (y and z
-    swapped), whatever its size: a z-up tool's file read y-up."""
-    placed = getattr(target, "placed_by", None)
-    if placed is None or placed[0] != "meshes" or getattr(target, "mesh_up", "y") != "y":
-        return False
-    floor = 1e-9 * float(max(t_ext.max(), m_ext.max()))
+def _lies_but_stands(t_ext, m_ext, stood_ext) -> bool:
+    """Whether a target's box (extents ``t_ext``) is unlike the model's samples' (``m_ext``)
+    in its proportions, whatever its size (some side off by more than :data:`LYING`), and
+    like them turned (``stood_ext``, every side within :data:`STANDING`)."""
+    floor = 1e-9 * float(max(np.max(t_ext), np.max(m_ext)))
 
     def shape(e):  # proportions: the extents over their geometric mean
         logs = np.log(np.maximum(np.asarray(e, dtype=np.float64), floor))
         return logs - logs.mean()
 
     model = shape(m_ext)
-    as_read = float(np.abs(shape(t_ext) - model).max())
-    stood = float(np.abs(shape(t_ext[[0, 2, 1]]) - model).max())  # "z" turns (x, y, z) to (x, z, -y)
-    return as_read > math.log(LYING) and stood <= math.log(STANDING)
+    return float(np.abs(shape(t_ext) - model).max()) > math.log(LYING) and \
+        float(np.abs(shape(stood_ext) - model).max()) <= math.log(STANDING)
+
+
+def _placed_by_meshes(target) -> bool:
+    placed = getattr(target, "placed_by", None)
+    return placed is not None and placed[0] == "meshes"
+
+
+def _lying(target, t_ext, m_ext) -> bool:
+    """Whether a mesh target's box is the model's samples' shape laid on its side (y and z
+    swapped), whatever its size: a z-up tool's file read y-up."""
+    if not _placed_by_meshes(target) or getattr(target, "mesh_up", "y") != "y":
+        return False
+    return _lies_but_stands(t_ext, m_ext, t_ext[[0, 2, 1]])  # "z" turns (x, y, z) to (x, z, -y)
 
 
 def _turned_onto_its_side(target, t_ext, m_ext) -> bool:
     """Whether a mesh target read with a ``"mesh_up"`` other than y lies on its side next to
     the model's samples and stood as its file has it (the turn undone): a y-up file given
     ``"mesh_up": "z"``. The note for the default up said nothing here."""
-    placed = getattr(target, "placed_by", None)
-    if placed is None or placed[0] != "meshes":
+    if not _placed_by_meshes(target):
         return False
-    floor = 1e-9 * float(max(t_ext.max(), m_ext.max()))
-
-    def shape(e):
-        logs = np.log(np.maximum(np.asarray(e, dtype=np.float64), floor))
-        return logs - logs.mean()
-
-    model = shape(m_ext)
-    as_file = np.abs(up_rotation(target.mesh_up)).T @ t_ext  # the extents before the turn
-    return float(np.abs(shape(t_ext) - model).max()) > math.log(LYING) and \
-        float(np.abs(shape(as_file) - model).max()) <= math.log(STANDING)
+    return _lies_but_stands(t_ext, m_ext, np.abs(up_rotation(target.mesh_up)).T @ t_ext)  # before the turn
 
 
 def _offset_once_stood(target, t_lo, t_hi, lo, hi, resolution: float) -> str:
