@@ -366,6 +366,9 @@ def _damage_tensor(folder, value):
     (lambda j, d: j["count_support"].update({t: [-3, -2] for t in j["count_support"]}) if j["count_support"]
      else j.update(sym_inner=5), "count_support.*must list member counts from 2|malformed program"),
     (lambda j, d: j.update(max_depth=10 ** 9), "max_depth must be a whole number from 40 to 5000"),
+    (lambda j, d: j.update(sigma_floor=[0.0, 1e-3, 1e-3]), "sigma_floor must be three positive standard deviations"),
+    (lambda j, d: j.update(sigma_floor=[1e-3, 1e-3]), "sigma_floor must be three positive standard deviations"),
+    (lambda j, d: j.update(sigma_floor="small"), "sigma_floor must be three positive standard deviations"),
 ])
 def test_malformed_programs(saved, tmp_path, damage, message):
     import shutil
@@ -787,6 +790,22 @@ def test_full_rings_are_saved_with_the_program_and_checked_when_read(tmp_path):
     (tmp_path / "program.json").write_text(json.dumps(data))
     with pytest.raises(ProgramError, match="full_rings must list rotational symmetry types of the program"):
         read_program(tmp_path / "program.json")
+
+
+def test_the_sigma_floor_is_saved_with_the_program_and_a_file_without_it_keeps_the_legacy_floor(tmp_path):
+    """A program's samples and likelihood depend on the floor it was learned with: a file
+    written before floors were stored was learned at the legacy floor and reads with it."""
+    from procmod.learn.transforms import LEGACY_SIGMA_FLOOR, SIGMA_FLOOR
+    program = initial_program(preprocess(examples_from_dict(_wheels())), np.random.default_rng(0))
+    assert program.sigma_floor == SIGMA_FLOOR != LEGACY_SIGMA_FLOOR
+    save_program(program, tmp_path)
+    assert read_program(tmp_path / "program.json").sigma_floor == SIGMA_FLOOR
+    data = json.loads((tmp_path / "program.json").read_text())
+    del data["sigma_floor"]
+    (tmp_path / "program.json").write_text(json.dumps(data))
+    legacy = read_program(tmp_path / "program.json")
+    assert legacy.sigma_floor == LEGACY_SIGMA_FLOOR
+    assert legacy.sigma(-50.0, 1) == pytest.approx(LEGACY_SIGMA_FLOOR[1])
 
 
 def test_a_ring_found_at_a_whole_number_of_turns_is_full_when_it_visits_every_member():

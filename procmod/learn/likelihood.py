@@ -31,7 +31,7 @@ import torch
 
 from .preprocessing import Dataset
 from .program import ROOT, Program, sym_sigma_categories
-from .transforms import CATEGORY, FIXED_SIGMA, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS
+from .transforms import CATEGORY, FIXED_SIGMA, SIGMA_MAX, SYM_PARAMS
 
 NEG = -1e30
 INVALID_CALL = -50.0
@@ -237,7 +237,7 @@ class Compiled:
                 sg[k].append(p.params[f"{pre}.sg.{k}"])
             order = p.orders[p.xform_key(a, s)]
             fixed[i] = [FIXED_SIGMA[CATEGORY[dim]] for dim in order]
-            floor[i] = [SIGMA_FLOOR[CATEGORY[dim]] for dim in order]
+            floor[i] = [p.sigma_floor[CATEGORY[dim]] for dim in order]
             cap[i] = [SIGMA_MAX[CATEGORY[dim]] for dim in order]
         self.xf_cap = _t(cap)
         self.xf = {k: self._leaf(f"xf.{k}", np.array(v)) for k, v in arrays.items()}
@@ -277,7 +277,7 @@ class Compiled:
             mu[i, :D], rs[i, :D], mask[i, :D] = p.params[f"{a}.sym.mu"], p.params[f"{a}.sym.rs"], 1
             cats = sym_sigma_categories(ab.kind)
             fixed[i, :D] = [FIXED_SIGMA[c] for c in cats]
-            floor[i, :D] = [SIGMA_FLOOR[c] for c in cats]
+            floor[i, :D] = [p.sigma_floor[c] for c in cats]
             cap[i, :D] = [SIGMA_MAX[c] for c in cats]
             for n in self.by_type.get(ab.type, []):
                 v = np.zeros(6)

@@ -63,7 +63,8 @@ from ..core.io import load_tensors, read_versioned_json, save_tensors, write_tex
 from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
-from .transforms import (CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units,
+from .transforms import (CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR, SIGMA_FLOOR, SIGMA_MAX,
+                         SYM_PARAMS, Units,
                          Frame, sym_maps, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
@@ -126,6 +127,10 @@ class Program:
     # deepest example (structure.program_depth); a chain of 60 parts had been cut at 41,
     # learned without a word, its program unable to make its own examples
     max_depth: int = MAX_DEPTH
+    # floors on the learned standard deviations, per category (log-scale, rotation,
+    # translation): what a variable the examples hold constant is sampled with
+    # (transforms.SIGMA_FLOOR; a file written before it was stored: the legacy floor)
+    sigma_floor: tuple = SIGMA_FLOOR
 
     # ---- structure helpers -----------------------------------------------------------
 
@@ -177,7 +182,7 @@ class Program:
     def sigma(self, raw: float, category: int) -> float:
         if self.sigma_mode == "fixed":
             return FIXED_SIGMA[category]
-        return min(SIGMA_FLOOR[category] + math.exp(min(raw, 50.0)), SIGMA_MAX[category])
+        return min(self.sigma_floor[category] + math.exp(min(raw, 50.0)), SIGMA_MAX[category])
 
     # ---- sampling helpers (plain numpy, one derivation at a time) --------------------
 
@@ -338,6 +343,7 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
         "count_support": program.count_support,
         "full_rings": list(program.full_rings),
         "max_depth": int(program.max_depth),
+        "sigma_floor": [float(v) for v in program.sigma_floor],
         "orders": {k: list(map(int, v)) for k, v in program.orders.items()},
         "sigma_mode": program.sigma_mode,
         "next_id": program.next_id,
@@ -455,6 +461,7 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    count_support={k: list(map(_whole, v)) for k, v in data["count_support"].items()},
                    full_rings=_full_rings_from_json(data.get("full_rings") or [], data),
                    max_depth=_max_depth_from_json(data.get("max_depth", MAX_DEPTH)),
+                   sigma_floor=_sigma_floor_from_json(data.get("sigma_floor", LEGACY_SIGMA_FLOOR)),
                    orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
                    sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
@@ -463,6 +470,17 @@ def program_from_json(data: dict, parts: dict) -> Program:
 
 
 _NO_UNITS = object()
+
+
+def _sigma_floor_from_json(value) -> tuple:
+    """A program file's ``sigma_floor`` (absent in programs learned before it was stored:
+    the legacy floor they were learned with), checked: three positive lengths, each under
+    its category's cap (a floor of 0 would make a constant variable's density infinite)."""
+    if (not isinstance(value, (list, tuple)) or len(value) != 3
+            or not all(_is_real(v) and 0 < v < cap for v, cap in zip(value, SIGMA_MAX))):
+        raise ValueError(f"sigma_floor must be three positive standard deviations (log-scale, rotation, "
+                         f"translation) under {', '.join(f'{c:g}' for c in SIGMA_MAX)}, got {shown_value(value, 60)}")
+    return tuple(float(v) for v in value)
 
 MAX_PROGRAM_DEPTH = 5000  # of a program file's max_depth: under the runtime's own limit (Model.max_depth)
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from .preprocessing import Dataset
 from .program import MAX_DEPTH, ROOT, Abstraction, Program
-from .transforms import CATEGORY, SIGMA_FLOOR, SYM_PARAMS
+from .transforms import CATEGORY, SYM_PARAMS
 
 TAU_SNAP = 0.02
 WARM_BIAS = 30.0
@@ -70,11 +70,12 @@ def nade_order(x: np.ndarray) -> list:
     return order
 
 
-def _init_xform(params: dict, pre: str, x: np.ndarray, signs: np.ndarray, order: list, rng) -> None:
+def _init_xform(params: dict, pre: str, x: np.ndarray, signs: np.ndarray, order: list, sigma_floor: tuple,
+                rng) -> None:
     xo = x[:, order]
     mean = xo.mean(0)
     std = xo.std(0) if len(xo) > 1 else np.zeros(9)
-    floor = np.array([SIGMA_FLOOR[CATEGORY[d]] for d in order])
+    floor = np.array([sigma_floor[CATEGORY[d]] for d in order])
     params[f"{pre}.xf.W"] = 0.1 * rng.standard_normal((9, 9))
     params[f"{pre}.xf.c"] = np.zeros(9)
     params[f"{pre}.xf.Vm"] = 0.01 * rng.standard_normal((9, 9))
@@ -170,7 +171,7 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
             D = len(SYM_PARAMS[a.kind])
             values = np.array([n.sym for n in own]).reshape(-1, D)
             cats = [c for _, c in SYM_PARAMS[a.kind]]
-            floor = np.array([SIGMA_FLOOR[c] for c in cats])
+            floor = np.array([program.sigma_floor[c] for c in cats])
             std = values.std(0) if len(values) > 1 else np.zeros(D)
             p[f"{a.id}.sym.mu"] = values.mean(0)
             p[f"{a.id}.sym.rs"] = np.log(np.maximum(std - floor, 1e-5))
@@ -182,10 +183,11 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
             if program.slot_is_part(program.slot_types(a)[s]):
                 key = program.xform_key(a.id, s)
                 x, signs = stats.get(key, (np.zeros((1, 9)), np.zeros((1, 3))))
-                _init_xform(p, f"{a.id}.s{s}", x, signs, orders.setdefault(key, list(range(9))), rng)
+                _init_xform(p, f"{a.id}.s{s}", x, signs, orders.setdefault(key, list(range(9))),
+                            program.sigma_floor, rng)
     p["root.s0.callee"] = np.zeros(len(program.root_callees))
     x, signs = stats["root"]
-    _init_xform(p, "root.s0", x, signs, orders["root"], rng)
+    _init_xform(p, "root.s0", x, signs, orders["root"], program.sigma_floor, rng)
     return program
 
 

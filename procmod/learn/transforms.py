@@ -44,8 +44,17 @@ CATEGORY = (0, 0, 0, 1, 1, 1, 2, 2, 2)  # 0 log-scale, 1 rotation, 2 translation
 # Phase-2 fixed standard deviations (seed 000 section 6.2): log-scale, rotation, translation.
 FIXED_SIGMA = (math.log(1.1), math.pi / 8, 0.2)
 # Floors on learned standard deviations (the final pass frees them): keeps densities finite
-# for variables that are constant across the examples.
-SIGMA_FLOOR = (0.01, 0.01, 0.01)
+# for variables that are constant across the examples, which seed 000's final pass lets
+# reach "no variation, if sigma ~ 0". A floor is what such a variable is sampled with, so
+# it must be below what an eye sees: at the legacy 0.01 every part the examples hold level
+# was sampled tilted by a median 1.2 degrees (0.01 rad a rotation component; a castle's
+# sampled walls all leaned, a wide floor's box grew 5% taller) and shifted by 1% of its
+# parent's box. 1e-3 (0.06 degrees; a millimetre on a metre) is invisible, and a density
+# of a variable at its floor stays finite (log sigma -6.9). Each program stores the floor
+# it was learned with (Program.sigma_floor); files written before that were learned with
+# LEGACY_SIGMA_FLOOR and keep it, so their likelihoods and samples are unchanged.
+SIGMA_FLOOR = (1e-3, 1e-3, 1e-3)
+LEGACY_SIGMA_FLOOR = (0.01, 0.01, 0.01)
 # Caps on learned standard deviations: a NADE's sigma output can explode for inputs
 # unlike its (few) training values, and a sample then lands kilometres away.
 SIGMA_MAX = (0.5, math.pi / 2, 1.0)
