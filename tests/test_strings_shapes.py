@@ -12,7 +12,7 @@ from procmod.strings.codec import parse
 from procmod.strings.frames import canonical_frame, local_frame, symmetry_group
 from procmod.strings.instantiate import instantiate_graph
 from procmod.core.errors import InvalidArgumentError, ProcmodError
-from procmod.strings.sampling import (AugmentParams, SeenShapes, attempt, augment, docking_transforms,
+from procmod.strings.sampling import (AugmentParams, SeenShapes, attempt, augment, docking_transforms, upright_docks,
                                      match_boundary, part_docks)
 from procmod.strings.contacts import boxes_touch, part_points, shape_graph
 from procmod.strings.grammar import Grammar, ring_multiple_of, ring_rule_breaks, ring_rule_note, validate_shape
@@ -301,6 +301,60 @@ def test_docking_keeps_its_rotations_so_shapes_at_other_angles_combine(tmp_path)
         yaws = {round(float(np.degrees(np.arctan2(t[1, 0], t[0, 0]))) % 90, 6) for t in shape.transforms}
         assert yaws == {38.0}  # all on shape 2's lattice (-52 = 38 mod 90): shape 1's pieces turned rigidly
     assert len(augment(ss, 6, seed=0, parallel=4, max_rounds=5).shapes) == 6
+
+
+def _fence_rings(scale, sides=(2, 3)):
+    """Square fences of ``sides`` x ``sides`` cells: posts 1 tall standing on the ground at
+    grid points 1 apart, a rail 0.8 long between neighbours at height 0.9; all x ``scale``."""
+    shapes = []
+    for n in sides:
+        corners = ([(i, 0) for i in range(n)] + [(n, j) for j in range(n)] + [(n - i, n) for i in range(n)]
+                   + [(0, n - j) for j in range(n)])
+        nodes = []
+        for k, (x, y) in enumerate(corners):
+            x2, y2 = corners[(k + 1) % len(corners)]
+            nodes.append({"part": "post", "transform": _at(scale * x, scale * y, scale * 0.5)})
+            nodes.append({"part": "rail", "transform": _at(scale * (x + x2) / 2, scale * (y + y2) / 2, scale * 0.9,
+                                                           0.0 if y2 == y else np.pi / 2)})
+        shapes.append({"nodes": nodes})
+    return {"format": "procmod-shapes/1", "shapes": shapes,
+            "parts": {"post": {"box": [0.2 * scale, 0.2 * scale, scale]}, "rail": {"box": [0.8 * scale, 0.1 * scale,
+                                                                                         0.1 * scale]}}}
+
+
+@pytest.mark.parametrize("scale, seed", [(0.3, 2), (1e-4, 1)])
+def test_docking_keeps_an_upright_set_upright_and_on_its_grid(tmp_path, scale, seed):
+    """procmod strings is z-up: a dock turns about the vertical only. Docks that half-turned
+    a fence piece about a horizontal axis landed its boundary post (symmetric under that
+    turn) and were kept: 10 of 12 variants (seed 2) had rails at the foot of their posts or
+    posts off the ground. And a line of boundary posts leaves a spin about the line free,
+    which the least-squares fit had filled with rounding error: at 1e-4 scale 6 parts were
+    kept tilted by 0.02 degrees (within the landing check), and edge categories doubled."""
+    ss = shapes_from_dict(_fence_rings(scale), tmp_path)
+    shapes = augment(ss, 12, seed=seed, parallel=8, max_rounds=25).shapes
+    assert len(shapes) >= 8
+    for shape in shapes:
+        for kind, height in (("post", 0.5), ("rail", 0.9)):
+            heights = [t[2, 3] / scale for p, t in zip(shape.parts, shape.transforms) if p == kind]
+            assert np.allclose(heights, height, atol=1e-6), (kind, heights)
+        for t in shape.transforms:  # the inputs' quarter turns about z, exactly
+            assert np.abs(t[:3, :3] - np.round(t[:3, :3])).max() <= 1e-9 and t[2, 2] == pytest.approx(1.0)
+
+
+def test_upright_docks_set_a_tilted_dock_upright_and_drop_one_that_must_tilt():
+    p = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    turn = np.array(_at(5.0, 1.0, 2.0, 0.6))
+    tilt = np.eye(4)
+    tilt[:3, :3] = [[1, 0, 0], [0, np.cos(2e-4), -np.sin(2e-4)], [0, np.sin(2e-4), np.cos(2e-4)]]
+    q = p @ turn[:3, :3].T + turn[:3, 3]
+    kept = upright_docks([turn @ tilt, turn], p, q, 1e-3)
+    assert len(kept) == 1 and np.allclose(kept[0], turn, atol=1e-12)  # the tilted one set upright (and merged)
+    over = np.diag([1.0, -1.0, -1.0, 1.0])  # a half turn about x: lands these points only turned over
+    assert upright_docks([over], p, p @ over[:3, :3].T, 1e-3) == []
+    # a line of points: the translation along it, not a least-squares spin about it
+    line = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    docks = docking_transforms(line, line + [0, 3, 0], 1e-6, fitted=False)
+    assert len(docks) == 1 and np.array_equal(docks[0][:3, :3], np.eye(3))
 
 
 def test_boundary_match_respects_types_and_distances(rng):

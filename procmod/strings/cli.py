@@ -77,6 +77,9 @@ def register(sub, int_arg) -> None:
     p.add_argument("--translations-only", action="store_true",
                    help="dock by translations only, so every variant keeps the inputs' orientation (default: keep "
                         "the rotation docking computes, at whatever angle the parts are)")
+    p.add_argument("--any-axis", action="store_true",
+                   help="let docking turn pieces about any axis, for a set with no up (default: about the vertical, "
+                        "z, only: a dock that tilts it turns pieces over)")
     p.add_argument("--rotate", action="store_true", help=argparse.SUPPRESS)  # the default now; kept for old scripts
     p.add_argument("--tolerance", type=float, help=TOLERANCE_HELP + "; kept in the collection, so that train and "
                                                                     "sample use it too")
@@ -331,7 +334,9 @@ def _augment(args) -> None:
         bar.n = row["shapes"]
         bar.refresh()
 
-    params = AugmentParams(rotate=not args.translations_only, distinct=args.distinct)
+    if args.any_axis and args.translations_only:
+        raise InvalidArgumentError("--any-axis lets docking turn pieces, --translations-only forbids turns: give one")
+    params = AugmentParams(rotate=not args.translations_only, upright=not args.any_axis, distinct=args.distinct)
     with open_executor(args.workers, args.scheduler,
                        note=lambda text: print(f"note: {text}", file=sys.stderr)) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,

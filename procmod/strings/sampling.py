@@ -7,11 +7,13 @@ Dock ``s`` by the least-squares rigid transform taking the centroids of ``B1`` o
 of ``B2`` (SVD of the 3x3 covariance), keeping the rotation it computes, at whatever
 angle (``AugmentParams(rotate=False)``: translations only); where the centroids leave a
 rotation free (one boundary node, or a line of them) the boundary part's own pose fixes it
-(:func:`part_docks`). The parts of shape 2 that collide with the docked
-``s`` go, together with their whole component of ``G2 - B2``; other components of
-``G2 - B2`` are kept or dropped as the grammar needs. The merged shape is kept only if its
-geometry validates (its recomputed shape graph is connected and obeys the tiling grammar)
-and it is not a duplicate: by default its node-type histogram is new (seed 001's
+(:func:`part_docks`), not the least-squares fit, whose spin about the line is rounding
+error. procmod strings is z-up, so a dock turns about the vertical only
+(:func:`upright_docks`; ``AugmentParams(upright=False)``: about any axis). The parts of
+shape 2 that collide with the docked ``s`` go, together with their whole component of
+``G2 - B2``; other components of ``G2 - B2`` are kept or dropped as the grammar needs. The
+merged shape is kept only if its geometry validates (its recomputed shape graph is
+connected and obeys the tiling grammar) and it is not a duplicate: by default its node-type histogram is new (seed 001's
 conservative rule); ``AugmentParams(distinct="graph")`` only asks for a new graph.
 
 A round runs ``p`` attempts through a :class:`concurrent.futures.Executor`; each attempt
@@ -89,7 +91,18 @@ def match_boundary(b1: list, types1: list, c1: np.ndarray, types2: list, c2: np.
     return list(assignment) if extend(0) else None
 
 
-def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float, part_docks=()) -> list[np.ndarray]:
+def _lands(m: np.ndarray, p: np.ndarray, q: np.ndarray, tol: float) -> bool:
+    """Whether the rigid motion ``m`` takes every point of ``p`` to within ``tol`` of its ``q``."""
+    return bool(np.linalg.norm(p @ m[:3, :3].T + m[:3, 3] - q, axis=1).max() <= tol)
+
+
+def _add_new(out: list, m: np.ndarray) -> None:
+    if not any(np.abs(m - o).max() <= 1e-9 for o in out):
+        out.append(m)
+
+
+def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float, part_docks=(),
+                       fitted: bool = True) -> list[np.ndarray]:
     """Rigid 4x4 transforms taking points ``p`` onto ``q``: the least-squares one (Kabsch:
     SVD of the covariance, with the reflection fix), then those of ``part_docks`` that also
     take every point of ``p`` to within ``tol`` of its ``q``.
@@ -98,21 +111,52 @@ def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float, part_docks=()) 
     the part's own symmetries (:func:`part_docks`). They matter where the points leave a
     rotation free (one point, or all on a line): the rotation is then read off the parts'
     own poses, whatever angle that is, instead of assumed (quarter turns, as before: a
-    property of grids).
+    property of grids). There ``fitted=False`` replaces the least-squares transform by the
+    translation of ``p``'s centroid onto ``q``'s (kept only where it lands every point): a
+    least-squares spin about a line of points is rounding error, and a fence docked by one
+    was kept tilted by 0.02-0.5 degrees (within the landing check's tolerance).
     """
     cp, cq = p.mean(0), q.mean(0)
-    x, y = p - cp, q - cq
-    u, _, vt = np.linalg.svd(x.T @ y)
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    r = np.eye(3)
+    if fitted:
+        x, y = p - cp, q - cq
+        u, _, vt = np.linalg.svd(x.T @ y)
+        d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+        r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
     t = np.eye(4)
     t[:3, :3] = r
     t[:3, 3] = cq - r @ cp
-    out = [t]
+    out = [t] if fitted or _lands(t, p, q, tol) else []
     for m in part_docks:
-        if np.linalg.norm(p @ m[:3, :3].T + m[:3, 3] - q, axis=1).max() <= tol and \
-                not any(np.abs(m - o).max() <= 1e-9 for o in out):
-            out.append(m)
+        if _lands(m, p, q, tol):
+            _add_new(out, m)
+    return out
+
+
+def upright_docks(docks: list, p: np.ndarray, q: np.ndarray, tol: float) -> list[np.ndarray]:
+    """``docks`` turned about the vertical (z) only: each rotation replaced by the nearest
+    turn about z (in the Frobenius norm: the turn by the angle of its upper 2x2 block's
+    rotation part), its translation refitted to the centroids of ``p`` and ``q``, and kept
+    where it still lands every point of ``p`` within ``tol`` of its ``q``.
+
+    procmod strings is z-up (its edge categories tell configurations apart in the world's
+    frame, up to turns about z). A dock that tilts the vertical lands the boundary parts
+    where a part's own symmetry allows it (a post or a rail half-turned about a horizontal
+    axis is the same post or rail) but turns the whole docked piece over: fences whose
+    rails hung at the foot of their posts, posts floating off the ground, twice the edge
+    categories. Docks that must tilt to land are dropped; a least-squares dock tilted by
+    noise in the centroids is set upright."""
+    cp, cq = p.mean(0), q.mean(0)
+    out = []
+    for m in docks:
+        r = m[:3, :3]
+        angle = np.arctan2(r[1, 0] - r[0, 1], r[0, 0] + r[1, 1])
+        turn = np.eye(4)
+        c, s = np.cos(angle), np.sin(angle)
+        turn[:2, :2] = [[c, -s], [s, c]]
+        turn[:3, 3] = cq - turn[:3, :3] @ cp
+        if _lands(turn, p, q, tol):
+            _add_new(out, turn)
     return out
 
 
@@ -166,6 +210,9 @@ class AugmentParams:
     # keep the rotations docking computes (False: translations only, every variant in the
     # inputs' orientation: what sampling did before off-grid sets, docs/strings.md)
     rotate: bool = True
+    # docks turn about the vertical (z) only (upright_docks); False: about any axis, for a
+    # set with no up (a molecule, a structure in orbit)
+    upright: bool = True
     # Which variants count as duplicates: "histogram" (seed 001: any shape whose node-type
     # histogram was seen, conservative) or "graph" (only a shape whose typed shape graph is
     # isomorphic to one seen). See SeenShapes and docs/strings.md ("Sampling").
@@ -204,10 +251,13 @@ def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Gramma
         if params.rotate:
             # where the boundary's centroids leave a rotation free, the parts' own poses fix it
             spread = np.linalg.svd(ca[b1] - ca[b1].mean(0), compute_uv=False)
-            extra = [] if len(b1) > 1 and spread[1] > dtol else \
-                part_docks(shape_set.library, shape_a.parts[b1[0]], shape_a.transforms[b1[0]],
-                           shape_b.transforms[b2[0]]) if shape_a.parts[b1[0]] == shape_b.parts[b2[0]] else []
-            docks = docking_transforms(ca[b1], cb[b2], dtol, extra)
+            free = len(b1) == 1 or spread[1] <= dtol
+            extra = part_docks(shape_set.library, shape_a.parts[b1[0]], shape_a.transforms[b1[0]],
+                               shape_b.transforms[b2[0]]) \
+                if free and shape_a.parts[b1[0]] == shape_b.parts[b2[0]] else []
+            docks = docking_transforms(ca[b1], cb[b2], dtol, extra, fitted=not free)
+            if params.upright:
+                docks = upright_docks(docks, ca[b1], cb[b2], dtol)
         else:
             docks = [d for d in docking_transforms(ca[b1], cb[b2], dtol)
                      if np.allclose(d[:3, :3], np.eye(3), atol=1e-6)]
