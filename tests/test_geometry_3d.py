@@ -137,13 +137,16 @@ def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_pa
     json_length = struct.unpack_from("<I", data, 12)[0]
     header = json.loads(data[20:20 + json_length])
     blob = data[20 + json_length + 8:]
-    accessor = header["accessors"][header["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"]]
-    view = header["bufferViews"][accessor["bufferView"]]
-    assert accessor["componentType"] == 5121 and accessor["normalized"]  # UNSIGNED_BYTE, as colours
-    width = {"VEC3": 3, "VEC4": 4}[accessor["type"]]
-    raw = np.frombuffer(blob, np.uint8, accessor["count"] * width,
-                        view.get("byteOffset", 0) + accessor.get("byteOffset", 0))
-    linear = raw.reshape(-1, width)[:, :3] / 255.0
+    rows = []
+    for mesh in header["meshes"]:
+        accessor = header["accessors"][mesh["primitives"][0]["attributes"]["COLOR_0"]]
+        view = header["bufferViews"][accessor["bufferView"]]
+        assert accessor["componentType"] == 5121 and accessor["normalized"]  # UNSIGNED_BYTE, as colours
+        width = {"VEC3": 3, "VEC4": 4}[accessor["type"]]
+        raw = np.frombuffer(blob, np.uint8, accessor["count"] * width,
+                            view.get("byteOffset", 0) + accessor.get("byteOffset", 0))
+        rows.append(raw.reshape(-1, width)[:, :3])
+    linear = np.concatenate(rows) / 255.0
     shown = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055) * 255
     expected = {tuple(colour_of("hull")), tuple(colour_of("nose"))}
     found = {tuple(int(round(v)) for v in row) for row in np.unique(np.round(shown), axis=0)}
@@ -153,6 +156,40 @@ def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_pa
     export_mesh(parts, tmp_path / "ship.obj", colour_of)
     obj = trimesh.load(tmp_path / "ship.obj", process=False)
     assert {tuple(c[:3]) for c in np.unique(obj.visual.vertex_colors, axis=0)} == expected
+
+
+def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its_parts(tmp_path):
+    """A GLB procmod writes is a modelling tool's scene: one object per part in Blender, and
+    its parts again where procmod reads a glTF's meshes as parts (strings graph, learn).
+    Merged into one mesh, a strings instantiation of 26 parts had read back as one part."""
+    import json
+    import struct
+
+    import trimesh
+
+    from procmod.geometry.mesh_export import export_mesh
+    from procmod.geometry.solid import Box
+    from procmod.strings.assets import shapes_from_assets
+
+    shear = (1.0, 0.5, 0.0, 3.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    parts = [Box((1.0, 2.0, 1.0), tag="post"), Box((1.0, 2.0, 1.0), shear, tag="post"),
+             Box((0.5, 0.5, 0.5), (1, 0, 0, 0, 0, 1, 0, 5, 0, 0, 1, 0, 0, 0, 0, 1), tag=None),
+             Box((0.5, 0.5, 0.5), (1, 0, 0, 9, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1), tag="post_1")]
+    export_mesh(parts, tmp_path / "s.glb", colour_of)
+    data = (tmp_path / "s.glb").read_bytes()
+    header = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
+    names = [node["name"] for node in header["nodes"] if "mesh" in node]
+    assert sorted(names) == ["part", "post", "post_1", "post_1_1"]  # unique, as a modelling tool's
+    assert all("matrix" not in node or node["matrix"] == list(np.eye(4).reshape(-1)) for node in header["nodes"])
+    scene = trimesh.load(tmp_path / "s.glb", force="scene", process=False)
+    merged = trimesh.util.concatenate([scene.geometry[g].copy().apply_transform(scene.graph[n][0])
+                                       for n, g in ((n, scene.graph[n][1]) for n in scene.graph.nodes_geometry)])
+    # the sheared post is where the OBJ (one merged mesh) puts it: world geometry, no node matrix
+    export_mesh(parts, tmp_path / "s.obj", colour_of)
+    obj = trimesh.load(tmp_path / "s.obj", process=False)
+    assert np.allclose(np.sort(merged.bounds, axis=0), np.sort(obj.bounds, axis=0))
+    shape_set = shapes_from_assets([tmp_path / "s.glb"])
+    assert len(shape_set.shapes[0].parts) == 4
 
 
 _TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)

@@ -5,6 +5,15 @@ are sRGB by custom (Blender's OBJ importer and exporter treat them so); a glTF's
 ``COLOR_0`` is linear by its specification, so a GLB gets the palette converted
 (:func:`srgb_bytes_to_linear`). Written as sRGB, every GLB had shown washed out in
 Blender's glTF importer and three.js next to ``best.png`` and the OBJ.
+
+Parts: a GLB written to a file (:func:`export_mesh`) holds one node and one mesh per part,
+both named after the part's tag, as a modelling tool's scene does, so that the file is
+one part per object in Blender and reads back as its parts in ``procmod learn`` and
+``procmod strings`` (which take a glTF's meshes for parts). Merged into one mesh, a
+sampled castle had read back as a single part. Each part's geometry is written in world
+coordinates under an identity node: a placement may shear, which a glTF node's matrix may
+not (it must decompose into translation, rotation and scale). The report's viewer keeps
+one merged mesh (:func:`glb_bytes`): one draw call, whatever the part count.
 """
 
 from __future__ import annotations
@@ -27,25 +36,54 @@ def srgb_bytes_to_linear(rgb) -> np.ndarray:
     return np.round(linear * 255.0).astype(np.uint8)
 
 
+def _part_mesh(part, colour_of, segments: int, linear_colours: bool) -> trimesh.Trimesh:
+    """A part's world-space mesh (vertices merged), its faces in its tag's colour."""
+    tris = part_triangles(part, segments)
+    mesh = trimesh.Trimesh(vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3), process=True)
+    rgb = np.asarray(colour_of(part.tag), dtype=np.uint8)
+    colour = np.append(srgb_bytes_to_linear(rgb) if linear_colours else rgb, 255)
+    mesh.visual.face_colors = np.tile(colour, (len(mesh.faces), 1))
+    return mesh
+
+
 def parts_to_trimesh(parts, colour_of, segments: int = 24, linear_colours: bool = False) -> trimesh.Trimesh:
     """One mesh of all parts (vertices merged per part), faces coloured by tag: the
     palette's sRGB bytes, or with ``linear_colours`` linear ones (what glTF files hold)."""
-    meshes = []
-    for part in parts:
-        tris = part_triangles(part, segments)
-        mesh = trimesh.Trimesh(vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3),
-                               process=True)
-        rgb = np.asarray(colour_of(part.tag), dtype=np.uint8)
-        colour = np.append(srgb_bytes_to_linear(rgb) if linear_colours else rgb, 255)
-        mesh.visual.face_colors = np.tile(colour, (len(mesh.faces), 1))
-        meshes.append(mesh)
+    meshes = [_part_mesh(part, colour_of, segments, linear_colours) for part in parts]
     if not meshes:
         return trimesh.Trimesh()
     return trimesh.util.concatenate(meshes)
 
 
+def part_name(tag) -> str:
+    """The node and mesh name of a part in a GLB: its tag (a part with none: ``part``)."""
+    return str(tag) if tag not in (None, "") else "part"
+
+
+def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
+    """A GLB file of 3D parts, one node and mesh per part named after its tag (see the
+    module docstring), coloured per tag in linear light."""
+    if not parts:
+        return parts_to_trimesh(parts, colour_of).export(file_type="glb")
+    scene = trimesh.Scene()
+    used, counts = set(), {}
+    for part in parts:
+        name = part_name(part.tag)
+        # names unique per file, as a modelling tool's (tower, tower_1, ...: trimesh would
+        # drop a node of a name it holds); readers that name parts after meshes take the
+        # shortest of the names they merge
+        unique = name
+        while unique in used:
+            counts[name] = counts.get(name, 0) + 1
+            unique = f"{name}_{counts[name]}"
+        used.add(unique)
+        scene.add_geometry(_part_mesh(part, colour_of, segments, True), geom_name=unique, node_name=unique)
+    return scene.export(file_type="glb")
+
+
 def glb_bytes(parts, colour_of) -> bytes:
-    """A GLB file of 3D parts, one colour per part tag (linear, as glTF defines ``COLOR_0``)."""
+    """A GLB file of 3D parts merged into one mesh (the report viewer's), one colour per part
+    tag (linear, as glTF defines ``COLOR_0``)."""
     return parts_to_trimesh(parts, colour_of, linear_colours=True).export(file_type="glb")
 
 
@@ -56,7 +94,7 @@ def export_mesh(parts, path: str | os.PathLike, colour_of) -> None:
     if kind not in ("obj", "glb"):
         raise ValueError(f"mesh export writes .obj or .glb, not {path.suffix!r}")
     if kind == "glb":
-        write_bytes_atomic(path, glb_bytes(parts, colour_of))
+        write_bytes_atomic(path, scene_glb_bytes(parts, colour_of))
         return
     mesh = parts_to_trimesh(parts, colour_of)
     if len(mesh.faces) == 0:
