@@ -839,3 +839,32 @@ def test_a_run_of_a_learned_program_names_it_relative_to_the_run_folder(saved, t
     assert settings["model"] == best["model"] and not Path(settings["model"]).is_absolute(), settings["model"]
     assert (tmp_path / "run" / settings["model"]).resolve() == (out / "program.json").resolve()
     assert str(out) not in (tmp_path / "run" / "report.html").read_text().split("<h1>", 1)[1].split("</h1>", 1)[0]
+
+
+def test_a_derivation_of_one_learned_program_is_refused_under_another(tmp_path, capsys):
+    """A derivation names the program that drew it; given another program of the same parts
+    (render --model, load_derivation's Model), it had replayed under the wrong program or
+    failed with 'does not replay' and no word of the program it names. A copy of its
+    program, or a program moved away from a file that names it, is still accepted."""
+    import shutil
+
+    from procmod.cli import main
+
+    data = preprocess(examples_from_dict(_wheels()))
+    for name, seed in (("A", 0), ("B", 1)):
+        save_program(initial_program(data, np.random.default_rng(seed)), tmp_path / name)
+    shutil.copytree(tmp_path / "A", tmp_path / "A copy")
+    drawn = run_forward(load_program(tmp_path / "A"), np.random.default_rng(3))
+    (tmp_path / "runs").mkdir()
+    save_derivation(drawn, tmp_path / "runs" / "d.json")
+    with pytest.raises(ProcmodError, match="derivation of the learned program .*A/program.json.*give its program"):
+        load_derivation(tmp_path / "runs" / "d.json", load_program(tmp_path / "B"))
+    assert main(["render", str(tmp_path / "runs" / "d.json"), "--model", str(tmp_path / "B"),
+                 "--out", str(tmp_path / "b.obj")]) == 2
+    assert "derivation of the learned program" in capsys.readouterr().err
+    assert not (tmp_path / "b.obj").exists()
+    copy = load_derivation(tmp_path / "runs" / "d.json", load_program(tmp_path / "A copy"))
+    assert copy.geometry() == drawn.geometry()
+    shutil.move(tmp_path / "A", tmp_path / "A moved")  # the program it names is gone: the user pairs it
+    assert main(["render", str(tmp_path / "runs" / "d.json"), "--model", str(tmp_path / "A moved"),
+                 "--out", str(tmp_path / "a.obj")]) == 0

@@ -450,3 +450,15 @@ def test_a_mesh_the_shapes_file_reaches_with_dotdot_is_refused_naming_the_file(t
                         str(tmp_path / "a"))
     said = f"{tmp_path / 'sub' / 'set.json'}: parts.post.mesh: \"../meshes/post.obj\" leads out"
     assert code == 2 and said in err, err
+
+
+def test_augment_grows_a_collection_folder_as_train_reads_it(tmp_path, capsys):
+    """'strings train COL' reads a collection folder; 'strings augment COL' had refused it
+    ("holds no .gltf, .glb, .urdf file"): a collection grows again from its shapes.json."""
+    assert main(["strings", "augment", str(SETS / "moonbase.json"), "--count", "6", "--rounds", "6",
+                 "--out", str(tmp_path / "col")]) == 0
+    assert main(["strings", "augment", str(tmp_path / "col"), "--count", "9", "--rounds", "6",
+                 "--out", str(tmp_path / "more")]) == 0
+    grown = json.loads((tmp_path / "more" / "shapes.json").read_text())["shapes"]
+    first = json.loads((tmp_path / "col" / "shapes.json").read_text())["shapes"]
+    assert len(grown) > len(first) and grown[:len(first)] == first

@@ -138,6 +138,31 @@ def program_reference(name: str, folder: Path) -> str:
         return name
 
 
+def _program_files(path: str) -> tuple:
+    """The bytes of a learned program's ``program.json`` and of the tensors file it names."""
+    data = Path(path).read_bytes()
+    tensors = json.loads(data).get("tensors", "program.pt")
+    return data, (Path(path).parent / str(tensors)).read_bytes()
+
+
+def other_program(named: str, given: str) -> bool:
+    """Whether a derivation that names the learned program ``named`` (its resolved path)
+    is given another program, ``given`` (a model's name): both name programs, the named
+    one exists, and it is neither the given file nor a copy of it (the same program.json
+    and tensors). A derivation whose program was moved or deleted is the user's to pair
+    with a program, as before; one whose program is there was drawn by that program, and
+    another of the same parts had replayed it under the wrong program, or failed with
+    'does not replay' and no word of the program the file names."""
+    if not (_names_program(named) and _names_program(given) and os.path.isfile(named)):
+        return False
+    if os.path.realpath(named) == os.path.realpath(given):
+        return False
+    try:
+        return _program_files(named) != _program_files(given)
+    except (OSError, ValueError, AttributeError):  # unreadable or not JSON: not that program
+        return True
+
+
 def _fail(source: str, problem: str) -> DerivationFormatError:
     return DerivationFormatError(f"{source}: {problem}")
 
@@ -167,6 +192,9 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
     if isinstance(resolve_model, Model):  # the model itself: it must be the one the file names
         if not _names_program(name) and name != resolve_model.name:
             raise _fail(source, f"it is a derivation of model {name!r}, not {resolve_model.name!r}: give its model")
+        if other_program(name, resolve_model.name):
+            raise _fail(source, f"it is a derivation of the learned program {name!r}, not {resolve_model.name!r}: "
+                                "give its program")
         resolve_model = _itself(resolve_model)
     elif not callable(resolve_model):
         raise InvalidArgumentError(f"resolve_model must be the Model or a function from a model's name to its Model "

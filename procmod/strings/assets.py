@@ -31,6 +31,9 @@ vertices, a hierarchy with a cycle, too many triangles (see that module).
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 
 from ..core.paths import FileNames
@@ -163,8 +166,9 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
 
 def read_shape_inputs(paths) -> ShapeSet:
     """The shapes of ``procmod strings graph|augment``'s inputs: one ``procmod-shapes/1``
-    JSON file, or asset files (``.gltf``, ``.glb``, ``.urdf``) and folders of them, one
-    shape per file (:func:`shapes_from_assets`).
+    JSON file, a collection folder (its ``shapes.json``, as ``strings train`` reads it: a
+    collection grows again), or asset files (``.gltf``, ``.glb``, ``.urdf``) and folders
+    of them, one shape per file (:func:`shapes_from_assets`).
 
     Raises
     ------
@@ -172,6 +176,9 @@ def read_shape_inputs(paths) -> ShapeSet:
         For a bad shapes file, a mix of JSON and asset files, or a bad asset file (the
         message names the file and the problem).
     """
+    given = [paths] if isinstance(paths, (str, os.PathLike)) else list(paths)
+    if len(given) == 1 and Path(given[0]).is_dir() and (Path(given[0]) / "shapes.json").is_file():
+        paths = [Path(given[0]) / "shapes.json"]  # a collection 'strings augment' wrote
     try:
         json_file, assets = json_or_assets(paths, "shapes", "procmod-shapes/1")
         if json_file is not None:
