@@ -3,6 +3,7 @@ per distinct mesh (named after its mesh data), y-up scenes turned z-up, scaled p
 made rigid, bad files as one-line errors (exit 2) that leave no output behind."""
 
 import json
+from pathlib import Path
 
 import networkx as nx
 import numpy as np
@@ -17,6 +18,9 @@ from asset_writers import (box_mesh, column_major, gltf_json, transformed, wedge
                            write_huge_gltf, write_unreadable, write_zero_area_gltf)
 
 Z_TO_Y = np.linalg.inv(Y_UP_TO_Z_UP)
+
+
+SETS = Path(__file__).resolve().parents[1] / "examples_sets" / "strings"
 
 
 def prism_mesh(sides=12, radius=0.25, height=2.0):
@@ -124,6 +128,48 @@ def test_a_mesh_placed_at_two_scales_is_two_parts(tmp_path):
     wide = part_points(ss.library, "rail_2", np.eye(4))
     assert sorted(np.round(np.ptp(wide, axis=0), 6).tolist()) == [0.3, 0.3, 1.6]  # the scale is in the part
     assert all(np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9) for t in ss.shapes[1].transforms)
+
+
+def test_a_shapes_files_scaled_placements_are_made_rigid_as_assets_are(tmp_path, capsys):
+    """A shapes file of unit parts scaled per placement (a fence of unit boxes; a prism
+    mesh at two heights) is read as asset inputs are: the scale goes into the part, one
+    part per size. Kept in the transforms, the fence's edge categories had been 32 for 4."""
+    from procmod.strings.categories import EdgeCategories
+
+    def at(x, y, z, sx, sy, sz):
+        return [[sx, 0, 0, x], [0, sy, 0, y], [0, 0, sz, z], [0, 0, 0, 1]]
+
+    v, f = prism_mesh()
+    (tmp_path / "prism.obj").write_text("".join(f"v {a} {b} {c}\n" for a, b, c in v)
+                                        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f))
+    shapes = []
+    for n in (3, 4):
+        nodes = []
+        for i in range(n):
+            nodes.append({"part": "unit", "transform": at(i, 0, 0.5, 0.2, 0.2, 1.0)})  # a post
+            if i < n - 1:
+                nodes.append({"part": "unit", "transform": at(i + 0.5, 0, 0.9, 0.8, 0.1, 0.1)})  # a rail
+        # a 12-sided prism lying along y on post 0 (its flat side down), half or whole length
+        lamp = at(0, 0, 1 + 0.25 * np.cos(np.pi / 12), 1, 0.5 if n == 3 else 1.0, 1)
+        nodes.append({"part": "lamp", "transform": lamp})
+        shapes.append({"nodes": nodes})
+    parts = {"unit": {"box": [1, 1, 1]}, "lamp": {"mesh": "prism.obj"}}
+    (tmp_path / "set.json").write_text(json.dumps({"format": "procmod-shapes/1", "shapes": shapes, "parts": parts}))
+    ss = read_shape_inputs(tmp_path / "set.json")
+    assert sorted(ss.library) == ["lamp", "lamp_2", "unit", "unit_2"]
+    assert {ss.library[k].size for k in ("unit", "unit_2")} == {(0.2, 0.2, 1.0), (0.8, 0.1, 0.1)}
+    assert all(np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-12) for s in ss.shapes for t in s.transforms)
+    graphs = [shape_graph(ss, s) for s in ss.shapes]
+    assert len(EdgeCategories.fit(ss, ss.shapes, graphs).names) - 1 <= 4
+    # a collection grown from it holds the scaled prism as a mesh of its own, and reads back
+    assert main(["strings", "augment", str(tmp_path / "set.json"), "--count", "3", "--rounds", "4",
+                 "--out", str(tmp_path / "coll")]) == 0
+    back = read_shapes(tmp_path / "coll" / "shapes.json")
+    assert sorted(back.library) == sorted(ss.library)
+    assert np.allclose(part_points(back.library, "lamp", np.eye(4)), part_points(ss.library, "lamp", np.eye(4)))
+    # a file whose placements are rigid is read as it is, its meshes where the file says
+    rigid = read_shape_inputs(SETS / "castle.json")
+    assert rigid.base_dir is not None and rigid.library == read_shapes(SETS / "castle.json").library
 
 
 def test_graph_and_augment_take_asset_folders(tmp_path, capsys):

@@ -87,7 +87,8 @@ def read_collection(path: str | os.PathLike) -> ShapeSet:
     if not path.is_file():
         raise ShapesFormatError(f"{path} does not exist; give a collection folder made by 'procmod strings augment' "
                                 "or a procmod-shapes/1 file")
-    return read_shapes(path)
+    from .assets import rigid_shape_set
+    return rigid_shape_set(read_shapes(path))
 
 
 def split_shapes(n: int, held_out: float, seed: int) -> tuple[list[int], list[int]]:
