@@ -296,3 +296,28 @@ def test_a_mesh_voxelizes_alike_at_any_scale(scale):
     grid = VoxelGrid((-5.0 * scale, -5.0 * scale, -5.0 * scale), scale, (10, 10, 10))
     mesh = Mesh(cube.vertices * scale, cube.faces, translation(0.013 * scale, 0.021 * scale, 0.0))
     assert voxelize([mesh], grid).sum() == 216
+
+
+def test_a_cylinder_of_negative_length_is_the_solid_it_draws_everywhere():
+    """A cylinder of negative length points along -z from its origin, as procmod draws it
+    (render.check_geometry accepts it so). Volume targets had voxelized it as nothing, so
+    a model drawing one scored as if the part were missing; exports turned its faces in."""
+    from procmod.geometry.collide import parts_intersect
+    from procmod.geometry.solid import Cylinder, part_triangles, with_positive_length
+    from procmod.geometry.voxel import VoxelGrid, voxelize
+
+    turn = (1.0, 0.0, 0.0, 0.3, 0.0, 0.0, -1.0, 0.1, 0.0, 1.0, 0.0, 0.2, 0.0, 0.0, 0.0, 1.0)  # +z -> -y
+    down = Cylinder(0.5, -2.0, turn, "post", top_radius=0.2)
+    moved = np.array(turn).reshape(4, 4)
+    moved[:3, 3] += moved[:3, 2] * -2.0
+    up = Cylinder(0.2, 2.0, tuple(moved.reshape(-1)), "post", top_radius=0.5)  # the same frustum, drawn upwards
+    flipped = with_positive_length(down)
+    assert flipped.radius == 0.2 and flipped.top_radius == 0.5 and np.allclose(flipped.transform, up.transform)
+    grid = VoxelGrid.around((-1.0, -1.0, -3.0), (1.5, 3.0, 1.0), 0.1)
+    occupied = voxelize([down], grid)
+    assert occupied.sum() > 100 and np.array_equal(occupied, voxelize([up], grid))
+    triangles = part_triangles(down)
+    signed = np.einsum("ij,ij->i", triangles[:, 0], np.cross(triangles[:, 1], triangles[:, 2])).sum() / 6
+    assert signed == pytest.approx(np.pi * 2.0 / 3 * (0.25 + 0.1 + 0.04), rel=0.05)  # outward: a positive volume
+    probe = Cylinder(0.1, 0.5, (1, 0, 0, 0.3, 0, 1, 0, 1.0, 0, 0, 1, 0.0, 0, 0, 0, 1))  # inside it, at y = 1
+    assert parts_intersect(down, probe) and parts_intersect(up, probe)

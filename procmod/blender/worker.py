@@ -97,7 +97,7 @@ def derivation_parts(derivation) -> dict:
     its parent's, as learned programs' copies do; otherwise under the first).
     """
     from ..geometry.export import colour_of
-    from ..geometry.solid import Box, Cylinder, Mesh, scene_bounds
+    from ..geometry.solid import Box, Cylinder, Mesh, scene_bounds, with_positive_length
 
     parts, meshes, mesh_index, calls = [], [], {}, {}
     for node in derivation.nodes():
@@ -110,6 +110,8 @@ def derivation_parts(derivation) -> dict:
                 break
         mine = []
         for i, part in enumerate(node.geometry):
+            if isinstance(part, Cylinder):
+                part = with_positive_length(part)  # built in Blender along +z, as everywhere else
             entry = {"tag": part.tag, "transform": [float(v) for v in part.transform], "parent": None}
             if parent_parts:
                 per = len(node.geometry) // len(parent_parts)

@@ -37,7 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .solid import Box, Cylinder, Mesh, matrix, part_bounds
+from .solid import Box, Cylinder, Mesh, matrix, part_bounds, with_positive_length
 
 SIDES = 64  # sides of the prism that stands for a frustum or a non-rigidly placed cylinder
 REL_TOL = 1e-6
@@ -167,6 +167,8 @@ def _solid(part) -> _Solid:
         bvh.addSubModel(np.ascontiguousarray(points), np.ascontiguousarray(faces, dtype=np.int32))
         bvh.endModel()
         return _Solid(bvh, _I3, _ZERO, bvh=True, triangles=points[faces], inner_point=points[0])
+    if isinstance(part, Cylinder):
+        part = with_positive_length(part)
     m = matrix(part.transform)
     linear, origin = m[:3, :3], m[:3, 3]
     rigid = _rigid(linear)

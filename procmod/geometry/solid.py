@@ -115,8 +115,25 @@ def _cylinder_topology(segments: int):
     return np.cos(a), np.sin(a), np.array(faces)
 
 
+def with_positive_length(part: Cylinder) -> Cylinder:
+    """The same solid as ``part`` with a length of at least 0. A cylinder of negative length
+    points along -z from its origin (procmod draws it so): it is the frustum from z =
+    ``length`` up to 0, i.e. one of length ``-length`` whose base is moved to z = ``length``,
+    radii swapped. Volume targets had voxelized it as nothing (a model drawing one scored
+    as if it were missing), and exports turned its faces inward."""
+    if not part.length < 0:
+        return part
+    m = matrix(part.transform)
+    m[:3, 3] += m[:3, 2] * float(part.length)
+    top = part.radius if part.top_radius is None else part.top_radius
+    return Cylinder(top, -part.length, tuple(m.reshape(-1).tolist()), part.tag,
+                    None if part.top_radius is None else part.radius)
+
+
 def part_triangles(part, segments: int = 24) -> np.ndarray:
     """World-space triangles ``(n, 3, 3)`` of a part (cylinders as ``segments``-gon prisms)."""
+    if isinstance(part, Cylinder):
+        part = with_positive_length(part)
     if isinstance(part, Box):
         local, tris = _BOX_CORNERS * np.asarray(part.size, dtype=np.float64), _BOX_FACES
     elif isinstance(part, Cylinder):

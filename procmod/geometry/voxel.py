@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.errors import InvalidArgumentError
 from ..core.kernels import once_per_process
-from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles, transform_values
+from .solid import Box, Cylinder, Mesh, part_bounds, part_triangles, transform_values, with_positive_length
 
 
 class VoxelGrid(NamedTuple):
@@ -353,6 +353,8 @@ class VoxelScene:
         counts = self.counts if counts is None else counts
         h = self.grid.size
         if isinstance(part, (Box, Cylinder)):
+            if isinstance(part, Cylinder):
+                part = with_positive_length(part)
             inv = _inverse(transform_values(part))  # a 4x4 array too, as sampling and silhouettes read it
             if isinstance(part, Box):
                 kind, p = 0, [0.5 * float(s) for s in part.size]
