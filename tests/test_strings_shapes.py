@@ -351,6 +351,9 @@ def test_upright_docks_set_a_tilted_dock_upright_and_drop_one_that_must_tilt():
     assert len(kept) == 1 and np.allclose(kept[0], turn, atol=1e-12)  # the tilted one set upright (and merged)
     over = np.diag([1.0, -1.0, -1.0, 1.0])  # a half turn about x: lands these points only turned over
     assert upright_docks([over], p, p @ over[:3, :3].T, 1e-3) == []
+    # turned over, one point lands at any turn about z: dropped, not turned by rounding errors
+    half = np.array(_at(0.0, 0.0, 0.0, 0.4)) @ over
+    assert upright_docks([half], p[:1], p[:1] @ half[:3, :3].T, 1e-3) == []
     # a line of points: the translation along it, not a least-squares spin about it
     line = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
     docks = docking_transforms(line, line + [0, 3, 0], 1e-6, fitted=False)

@@ -133,6 +133,10 @@ def docking_transforms(p: np.ndarray, q: np.ndarray, tol: float, part_docks=(),
     return out
 
 
+# A dock whose vertical moves by more than this (10 degrees) is dropped, not set upright.
+UPRIGHT_COS = float(np.cos(np.radians(10.0)))
+
+
 def upright_docks(docks: list, p: np.ndarray, q: np.ndarray, tol: float) -> list[np.ndarray]:
     """``docks`` turned about the vertical (z) only: each rotation replaced by the nearest
     turn about z (in the Frobenius norm: the turn by the angle of its upper 2x2 block's
@@ -144,12 +148,19 @@ def upright_docks(docks: list, p: np.ndarray, q: np.ndarray, tol: float) -> list
     where a part's own symmetry allows it (a post or a rail half-turned about a horizontal
     axis is the same post or rail) but turns the whole docked piece over: fences whose
     rails hung at the foot of their posts, posts floating off the ground, twice the edge
-    categories. Docks that must tilt to land are dropped; a least-squares dock tilted by
-    noise in the centroids is set upright."""
+    categories. Docks that must tilt to land, or that tilt by more than
+    :data:`UPRIGHT_COS` allows, are dropped; a least-squares dock tilted by noise in the
+    centroids is set upright."""
     cp, cq = p.mean(0), q.mean(0)
     out = []
     for m in docks:
         r = m[:3, :3]
+        if r[2, 2] < UPRIGHT_COS:
+            # tilted by more than noise tilts a fitted dock, or turned over: dropped. Turned
+            # over, its upper 2x2 block is a mirror, and the nearest turn about z an angle of
+            # rounding errors, which a round boundary post lands at any angle (a review's fence
+            # of 48-sided posts took rails at 155.8 and 114.1 degrees for the inputs' 17 and 38)
+            continue
         angle = np.arctan2(r[1, 0] - r[0, 1], r[0, 0] + r[1, 1])
         turn = np.eye(4)
         c, s = np.cos(angle), np.sin(angle)
