@@ -153,11 +153,13 @@ class TargetImage:
                        direction=(-self.direction[0], self.direction[1]), picture=picture)
 
     def at_size(self, width: int, height: int) -> np.ndarray:
-        """The mask resampled to ``height x width`` (area average, then threshold 1/2).
+        """The mask resampled to ``height x width`` (area average, then threshold 1/2), its
+        thin strokes widened where that would lose more than :data:`THIN_LOSS` of the shape
+        (:func:`stroke_preserving_mask`).
 
-        Raises a :class:`TargetFileError` when the shape vanishes at that size (too thin,
-        or too small in its frame): the remedy is the picture, not a render size."""
-        small = resample_mask(self.mask, width, height)
+        Raises a :class:`TargetFileError` when the shape vanishes at that size (too
+        small in its frame): the remedy is the picture, not a render size."""
+        small = stroke_preserving_mask(self.mask, width, height)
         if not small.any() and self.mask.any():
             rows, cols = np.flatnonzero(self.mask.any(axis=1)), np.flatnonzero(self.mask.any(axis=0))
             h, w = self.mask.shape
@@ -177,6 +179,73 @@ def resample_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
     image = Image.fromarray(mask.astype(np.uint8) * 255)
     small = np.asarray(image.resize((width, height), Image.BOX), dtype=np.float64)
     return small >= 127.5
+
+
+# The share of a shape a plain resampling may lose before its strokes are widened: a pen
+# line thinner than half a canvas pixel falls under the 1/2 threshold wherever it does not
+# cross a pixel's middle, and the drawing reads as dashes (a 200-pixel drawing in a 2-4
+# pixel pen lost 22-60% at the vines' 50 x 50, and SMC, procmod's and WebPPL's alike,
+# scored about 0 against the fragments). Shapes drawn thick enough lose their edges'
+# slivers only: at most 2% for the glyphs of four typefaces at 100 -> 50 pixels, 6.4% for
+# 120 scribbles; those read as before.
+THIN_LOSS = 0.15
+
+
+def lost_share(mask: np.ndarray, small: np.ndarray) -> float:
+    """The share of ``mask``'s shape that ``small`` (a resampling of it) does not cover,
+    ``small`` scaled back up pixel for pixel."""
+    mask = np.asarray(mask, dtype=bool)
+    back = np.asarray(Image.fromarray(small.astype(np.uint8) * 255).resize(mask.shape[::-1], Image.NEAREST)) > 0
+    return float((mask & ~back).sum()) / max(int(mask.sum()), 1)
+
+
+def stroke_width(mask: np.ndarray) -> float:
+    """A drawing's typical stroke width in pixels: twice its area over its boundary pixels
+    (a stroke of width w and length L has area w L and about 2 L boundary pixels; a stroke
+    one or two pixels wide is all boundary)."""
+    from scipy import ndimage
+    boundary = int((mask & ~ndimage.binary_erosion(mask)).sum())
+    return 2.0 * int(mask.sum()) / max(boundary, 1)
+
+
+# Strokes typically narrower than this many canvas pixels are thin: one a pixel wide,
+# off the pixel grid, half-covers two pixels along its length and falls under the 1/2
+# threshold in stretches (a 1-pixel pen line read as dashes, 22-27% lost).
+THIN_STROKE = 1.5
+
+
+def _thin_loss(mask: np.ndarray, width: int, height: int) -> float | None:
+    """The share of ``mask``'s shape a plain resampling loses, where its strokes are thin
+    (typically under :data:`THIN_STROKE` canvas pixels wide) and it loses more than
+    :data:`THIN_LOSS`; None otherwise. (A bar 2.5 canvas pixels wide, off the pixel grid,
+    loses 20% in edge slivers: it is not thin.)"""
+    if mask.shape == (height, width) or not mask.any():
+        return None
+    scale = max(mask.shape[0] / height, mask.shape[1] / width)
+    lost = lost_share(mask, resample_mask(mask, width, height))
+    return lost if lost > THIN_LOSS and stroke_width(mask) < THIN_STROKE * scale else None
+
+
+def stroke_preserving_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
+    """:func:`resample_mask`, unless the shape's strokes are thinner than a canvas pixel
+    and that loses more than :data:`THIN_LOSS` of it: then the shape is first widened by
+    half a canvas pixel on each side (a dilation by a disc of that radius in source
+    pixels), so each stroke reads as a line at least a canvas pixel wide, where it was
+    drawn. Shapes drawn thick enough read as before, bit for bit."""
+    mask = np.asarray(mask, dtype=bool)
+    if _thin_loss(mask, width, height) is None:
+        return resample_mask(mask, width, height)
+    from scipy import ndimage
+    radius = 0.5 * max(mask.shape[0] / height, mask.shape[1] / width)
+    # the background's distance to the shape (exact Euclidean): within the radius is widened
+    widened = ndimage.distance_transform_edt(~mask) <= radius
+    return resample_mask(widened, width, height)
+
+
+def widened_share(mask: np.ndarray, width: int, height: int) -> float | None:
+    """The share of ``mask``'s shape a plain resampling to ``height x width`` would lose,
+    where :func:`stroke_preserving_mask` widens it instead (None where it does not)."""
+    return _thin_loss(np.asarray(mask, dtype=bool), width, height)
 
 
 def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool = True) -> tuple:

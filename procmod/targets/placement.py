@@ -332,7 +332,8 @@ MOST_OF_THE_PICTURE = 0.5
 """A shape read as covering more than this share of its picture gets a note."""
 
 VANISHED = 0.25
-"""A note when more than this share of a picture's shape is lost at the model's canvas."""
+"""A note when more than this share of a picture's shape is lost at the model's canvas
+(after :func:`procmod.targets.image.stroke_preserving_mask` widened thin strokes)."""
 
 EDGE_BAND_LENGTH = 0.6
 EDGE_BAND_DEPTH = 0.25
@@ -404,14 +405,17 @@ def picture_note(target: ShapeMatch, model) -> str | None:
     width, height = getattr(canvas, "width", None), getattr(canvas, "height", None)
     if not width or not height or mask.shape == (height, width):
         return None
-    from PIL import Image
-    small = target.image.at_size(width, height)
-    back = np.asarray(Image.fromarray(small.astype(np.uint8) * 255).resize(mask.shape[::-1], Image.NEAREST)) > 0
-    lost = float((mask & ~back).sum()) / max(int(mask.sum()), 1)
+    from .image import lost_share, widened_share
+    widened = widened_share(mask, width, height)
+    lost = lost_share(mask, target.image.at_size(width, height))
     if lost > VANISHED:
         return (f"{lost:.0%} of the shape read from {target.name} (thin strokes, small marks) vanishes at the model's "
                 f"{width}x{height} canvas, which scores against what is left: draw those strokes thicker, "
                 "or crop the picture closer to the shape")
+    if widened is not None:
+        return (f"the strokes of {target.name} are thinner than half a pixel of the model's {width}x{height} "
+                f"canvas ({widened:.0%} of the shape would vanish there), so they were widened to a canvas "
+                "pixel, where they were drawn; draw them thicker to set their width yourself")
     return None
 
 
