@@ -190,6 +190,21 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
     assert np.allclose(np.sort(merged.bounds, axis=0), np.sort(obj.bounds, axis=0))
     shape_set = shapes_from_assets([tmp_path / "s.glb"])
     assert len(shape_set.shapes[0].parts) == 4
+    # a part tagged "world" (trimesh's name for the scene's root) is a part, not every part's parent
+    from procmod.geometry.mesh_export import MAX_PART_NODES
+    export_mesh([Box((1.0, 1.0, 1.0), tag="world"), parts[2]], tmp_path / "w.glb", colour_of)
+    data = (tmp_path / "w.glb").read_bytes()
+    header = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
+    assert sorted(n["name"] for n in header["nodes"] if "mesh" in n) == ["part", "world_1"]
+    assert not any(n.get("children") for n in header["nodes"] if "mesh" in n)
+    # past MAX_PART_NODES parts, one node per tag (Blender's import time grows with the
+    # square of the objects)
+    many = [Box((0.5, 0.5, 0.5), (1, 0, 0, i, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1), tag=("a", "b")[i % 2])
+            for i in range(MAX_PART_NODES + 1)]
+    export_mesh(many, tmp_path / "m.glb", colour_of)
+    scene = trimesh.load(tmp_path / "m.glb", force="scene", process=False)
+    assert sorted(scene.graph.nodes_geometry) == ["a", "b"]
+    assert sum(len(g.faces) for g in scene.geometry.values()) == 12 * len(many)
 
 
 _TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)

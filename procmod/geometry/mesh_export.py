@@ -8,12 +8,16 @@ Blender's glTF importer and three.js next to ``best.png`` and the OBJ.
 
 Parts: a GLB written to a file (:func:`export_mesh`) holds one node and one mesh per part,
 both named after the part's tag, as a modelling tool's scene does, so that the file is
-one part per object in Blender and reads back as its parts in ``procmod learn`` and
-``procmod strings`` (which take a glTF's meshes for parts). Merged into one mesh, a
-sampled castle had read back as a single part. Each part's geometry is written in world
-coordinates under an identity node: a placement may shear, which a glTF node's matrix may
-not (it must decompose into translation, rotation and scale). The report's viewer keeps
-one merged mesh (:func:`glb_bytes`): one draw call, whatever the part count.
+one part per object in Blender and reads back as its parts in ``procmod strings graph``
+(which takes a glTF's meshes for parts; merged into one mesh, a strings instantiation
+of 26 parts had read back as one part). ``procmod learn`` needs a hierarchy, which the
+flat file does not hold: ``procmod sample --format examples`` writes one. Each part's
+geometry is written in world coordinates under an identity node: a placement may shear,
+which a glTF node's matrix may not (it must decompose into translation, rotation and
+scale). Above :data:`MAX_PART_NODES` parts, the file holds one node per tag instead:
+Blender's importer takes time growing with the square of the objects (1,000 parts 5.6
+s, 2,000 29 s, 5,000 over 170 s; merged, 0.6 s). The report's viewer keeps one merged
+mesh (:func:`glb_bytes`): one draw call, whatever the part count.
 """
 
 from __future__ import annotations
@@ -60,15 +64,28 @@ def part_name(tag) -> str:
     return str(tag) if tag not in (None, "") else "part"
 
 
+MAX_PART_NODES = 500
+"""A GLB of more parts holds one node per tag (see the module docstring)."""
+
+
 def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
-    """A GLB file of 3D parts, one node and mesh per part named after its tag (see the
-    module docstring), coloured per tag in linear light."""
+    """A GLB file of 3D parts, one node and mesh per part named after its tag (above
+    :data:`MAX_PART_NODES` parts, one per tag; see the module docstring), coloured per tag
+    in linear light."""
     if not parts:
         return parts_to_trimesh(parts, colour_of).export(file_type="glb")
     scene = trimesh.Scene()
-    used, counts = set(), {}
-    for part in parts:
-        name = part_name(part.tag)
+    if len(parts) > MAX_PART_NODES:
+        by_tag: dict = {}
+        for part in parts:
+            by_tag.setdefault(part_name(part.tag), []).append(part)
+        groups = [(name, parts_to_trimesh(group, colour_of, segments, True)) for name, group in by_tag.items()]
+    else:
+        groups = [(part_name(part.tag), _part_mesh(part, colour_of, segments, True)) for part in parts]
+    # "world" is trimesh's name for the scene's root: a node of that name held every other
+    # part as its child (Blender imported them all parented to one part)
+    used, counts = {"world"}, {}
+    for name, mesh in groups:
         # names unique per file, as a modelling tool's (tower, tower_1, ...: trimesh would
         # drop a node of a name it holds); readers that name parts after meshes take the
         # shortest of the names they merge
@@ -77,7 +94,7 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
             counts[name] = counts.get(name, 0) + 1
             unique = f"{name}_{counts[name]}"
         used.add(unique)
-        scene.add_geometry(_part_mesh(part, colour_of, segments, True), geom_name=unique, node_name=unique)
+        scene.add_geometry(mesh, geom_name=unique, node_name=unique)
     return scene.export(file_type="glb")
 
 
