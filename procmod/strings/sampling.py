@@ -13,8 +13,9 @@ error. procmod strings is z-up, so a dock turns about the vertical only
 shape 2 that collide with the docked ``s`` go, together with their whole component of
 ``G2 - B2``; other components of ``G2 - B2`` are kept or dropped as the grammar needs. The
 merged shape is kept only if its geometry validates (its recomputed shape graph is
-connected and obeys the tiling grammar) and it is not a duplicate: by default its node-type histogram is new (seed 001's
-conservative rule); ``AugmentParams(distinct="graph")`` only asks for a new graph.
+connected and obeys the tiling grammar) and it is not a duplicate: by default its
+node-type histogram is new (seed 001's conservative rule); ``AugmentParams(distinct=
+"graph")`` only asks for a new graph.
 
 A round runs ``p`` attempts through a :class:`concurrent.futures.Executor`; each attempt
 is a module-level function with its own seed, so a round's result does not depend on
