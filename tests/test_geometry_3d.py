@@ -336,3 +336,10 @@ def test_a_cylinder_of_negative_length_is_the_solid_it_draws_everywhere():
     assert signed == pytest.approx(np.pi * 2.0 / 3 * (0.25 + 0.1 + 0.04), rel=0.05)  # outward: a positive volume
     probe = Cylinder(0.1, 0.5, (1, 0, 0, 0.3, 0, 1, 0, 1.0, 0, 0, 1, 0.0, 0, 0, 0, 1))  # inside it, at y = 1
     assert parts_intersect(down, probe) and parts_intersect(up, probe)
+    # a transform given as a 4x4 array is the caller's: read, never moved (a review's was
+    # moved by the length at every call)
+    placed = np.array(turn).reshape(4, 4)
+    array_down = Cylinder(0.5, -2.0, placed, "post", top_radius=0.2)
+    for _ in range(3):
+        assert np.allclose(part_triangles(array_down), triangles)
+    assert np.array_equal(placed, np.array(turn).reshape(4, 4))

@@ -660,7 +660,23 @@ def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_pa
     assert len(branches(resample_mask(pens_target.image.mask, 50, 50))) == 0
     rows = branches(pens_target.image.at_size(50, 50))
     assert 1 + int((np.diff(rows) > 1).sum()) == 11  # the eleven branches, each its own line
-    assert "were widened to a canvas pixel" in picture_note(pens_target, model)
+    assert "thin strokes were widened by half a canvas pixel" in picture_note(pens_target, model)
+    # widened, only the thin strokes grow: the marker trunk (3 canvas pixels) keeps its
+    # outline, and dust on the page stays out (a review's specks each became a blob)
+    dusty = pens.copy()
+    for y, x in np.random.default_rng(0).integers(20, 380, size=(25, 2)):
+        if not (pens[y - 4:y + 6, x - 4:x + 6] == 0).any():
+            dusty[y:y + 2, x:x + 2] = 0
+    Image.fromarray(dusty).save(tmp_path / "dusty.png")
+    dusty_small = target_from_spec(str(tmp_path / "dusty.png")).image.at_size(50, 50)
+    small = pens_target.image.at_size(50, 50)
+    assert np.array_equal(dusty_small, small)
+    # the trunk's sides below its lowest branch (rows 312-368 of 400; its square end, which
+    # a disc does not fill, may gain a corner pixel)
+    below = (slice(39, 46), slice(18, 32))
+    assert small[below].any() and np.array_equal(small[below], resample_mask(pens_target.image.mask, 50, 50)[below])
+    mirrored = pens_target.image.mirrored()  # its own resampling, not the original's
+    assert np.array_equal(mirrored.at_size(50, 50), small[:, ::-1])
     assert picture_note(target_from_spec(str(tmp_path / "clean.png")), model) is None
     # a built-in glyph that covers most of its square (a dot scaled up) has no border to crop
     assert picture_note(target_from_spec("glyph:."), model) is None

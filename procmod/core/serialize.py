@@ -158,7 +158,11 @@ def other_program(named: str, given: str) -> bool:
     if os.path.realpath(named) == os.path.realpath(given):
         return False
     try:
-        return _program_files(named) != _program_files(given)
+        named_files = _program_files(named)
+    except (OSError, ValueError, AttributeError):  # its tensors gone: a program no longer there
+        return False
+    try:
+        return named_files != _program_files(given)
     except (OSError, ValueError, AttributeError):  # unreadable or not JSON: not that program
         return True
 

@@ -123,7 +123,7 @@ def with_positive_length(part: Cylinder) -> Cylinder:
     as if it were missing), and exports turned its faces inward."""
     if not part.length < 0:
         return part
-    m = matrix(part.transform)
+    m = matrix(part.transform).copy()  # a view of a caller's 4x4 array: moved on every call
     m[:3, 3] += m[:3, 2] * float(part.length)
     top = part.radius if part.top_radius is None else part.top_radius
     return Cylinder(top, -part.length, tuple(m.reshape(-1).tolist()), part.tag,

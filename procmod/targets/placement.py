@@ -413,9 +413,9 @@ def picture_note(target: ShapeMatch, model) -> str | None:
                 f"{width}x{height} canvas, which scores against what is left: draw those strokes thicker, "
                 "or crop the picture closer to the shape")
     if widened is not None:
-        return (f"the strokes of {target.name} are thinner than half a pixel of the model's {width}x{height} "
-                f"canvas ({widened:.0%} of the shape would vanish there), so they were widened to a canvas "
-                "pixel, where they were drawn; draw them thicker to set their width yourself")
+        return (f"the strokes of {target.name} are under 1.5 pixels of the model's {width}x{height} canvas wide "
+                f"({widened:.0%} of the shape would break up there), so its thin strokes were widened by half a "
+                "canvas pixel on each side, where they were drawn; draw them thicker to set their width yourself")
     return None
 
 
