@@ -228,16 +228,28 @@ WORK_SCALE = 8
 def _working_mask(mask: np.ndarray, width: int, height: int) -> tuple:
     """``(mask, scale)``: the mask reduced by whole factors (a cell is set where any of its
     pixels is, so no stroke is lost) to at most :data:`WORK_SCALE` times the canvas, and
-    its pixels per canvas pixel. Specks under :data:`SPECK_SHARE` of the largest part are
-    left out: widened, dust on a scan had read as blobs of a canvas pixel each."""
-    from .components import without_specks  # numba: imported where a picture is resampled
+    its pixels per canvas pixel."""
     factor = max(1, int(min(mask.shape[0] / height, mask.shape[1] / width) // WORK_SCALE))
     if factor > 1:
         h, w = -(-mask.shape[0] // factor) * factor, -(-mask.shape[1] // factor) * factor
         padded = np.zeros((h, w), dtype=bool)
         padded[:mask.shape[0], :mask.shape[1]] = mask
         mask = padded.reshape(h // factor, factor, w // factor, factor).any(axis=(1, 3))
-    return without_specks(mask, SPECK_SHARE), max(mask.shape[0] / height, mask.shape[1] / width)
+    return mask, max(mask.shape[0] / height, mask.shape[1] / width)
+
+
+def _strokes(thin: np.ndarray, scale: float) -> np.ndarray:
+    """The parts of ``thin`` that reach at least a canvas pixel (``scale`` pixels) along
+    one axis: strokes, and the pieces of a stroke a scan broke. Smaller ones are dust on the
+    page, or bumps on a thick part's outline; widened, each had become a blob of a canvas
+    pixel (a review's dust), or a rim (a wobbly fill). Judged by area against the largest
+    part, as the start's specks are, a filled shape's long thin rays were cut out."""
+    from scipy import ndimage
+    labels, count = ndimage.label(thin, structure=np.ones((3, 3), dtype=bool))
+    keep = np.zeros(count + 1, dtype=bool)
+    for k, box in enumerate(ndimage.find_objects(labels), start=1):
+        keep[k] = max(box[0].stop - box[0].start, box[1].stop - box[1].start) >= scale
+    return keep[labels]
 
 
 def _thin_loss(mask: np.ndarray, width: int, height: int) -> float | None:
@@ -258,9 +270,10 @@ def stroke_preserving_mask(mask: np.ndarray, width: int, height: int) -> np.ndar
     """:func:`resample_mask`, unless the shape's strokes are thin (typically under
     :data:`THIN_STROKE` canvas pixels wide) and that loses more than :data:`THIN_LOSS` of
     it: then its thin parts (those a disc :data:`THIN_STROKE` canvas pixels across does not
-    fit in) are first widened by half a canvas pixel on each side, so each stroke reads as
-    a line where it was drawn; the thick parts keep their outline (a filled disc with thin
-    rays had grown a rim all round). Shapes drawn thick enough read as before, bit for bit."""
+    fit in, :func:`_strokes` of them) are first widened by half a canvas pixel on each
+    side, so each stroke reads as a line where it was drawn; the thick parts keep their
+    outline (a filled disc with thin rays had grown a rim all round), and nothing is taken
+    away. Shapes drawn thick enough read as before, bit for bit."""
     mask = np.asarray(mask, dtype=bool)
     if _thin_loss(mask, width, height) is None:
         return resample_mask(mask, width, height)
@@ -269,7 +282,7 @@ def stroke_preserving_mask(mask: np.ndarray, width: int, height: int) -> np.ndar
     inside = ndimage.distance_transform_edt(work)  # each shape pixel's distance to the ground
     core = inside > 0.5 * THIN_STROKE * scale
     thick = ndimage.distance_transform_edt(~core) <= 0.5 * THIN_STROKE * scale  # an opening
-    thin = work & ~thick
+    thin = _strokes(work & ~thick, scale)
     widened = work | (ndimage.distance_transform_edt(~thin) <= 0.5 * scale)
     return resample_mask(widened, width, height)
 
