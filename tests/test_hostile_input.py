@@ -55,7 +55,11 @@ def inputs(tmp_path_factory):
     wide = np.full((10, 10000), 255, np.uint8)
     wide[3:7, 100:9000] = 0
     Image.fromarray(wide).save(d / "wide.png")  # the 10000x10 target
-    Image.fromarray(wide[:, :5000]).save(d / "wide5k.png")
+    # a mark 40 pixels long in a frame padded to 5000 x 5000: under half a pixel at 50 x 50
+    # (a line across it is a stroke, read widened: targets.image.stroke_preserving_mask)
+    speck = np.full((10, 5000), 255, np.uint8)
+    speck[3:7, 100:140] = 0
+    Image.fromarray(speck).save(d / "wide5k.png")
     sketch = np.full((64, 64), 255, np.uint8)
     sketch[20:40, 20:40] = 0
     Image.fromarray(sketch).save(d / "sketch.png")

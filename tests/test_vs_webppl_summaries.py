@@ -88,7 +88,7 @@ def test_the_bench_writes_targets_procmod_reads_as_the_scorer_does(bench, tmp_pa
     house[:10, 30:70, 3] = 255
     Image.fromarray(house, "RGBA").save(folder / "house.webp", lossless=True)
     thin = np.full((400, 400), 255, dtype=np.uint8)
-    thin[100:300, 200] = 0  # a one-pixel line: gone at 50x50
+    thin[200:203, 200:203] = 0  # a dot under half a canvas pixel: gone at 50x50 (a line is widened)
     Image.fromarray(thin).save(folder / "thin.pgm")
     (folder / "notes.txt").write_text("not a picture")
     images = bench.target_images([], 1, folder, 49)
