@@ -196,9 +196,6 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
     if isinstance(resolve_model, Model):  # the model itself: it must be the one the file names
         if not _names_program(name) and name != resolve_model.name:
             raise _fail(source, f"it is a derivation of model {name!r}, not {resolve_model.name!r}: give its model")
-        if other_program(name, resolve_model.name):
-            raise _fail(source, f"it is a derivation of the learned program {name!r}, not {resolve_model.name!r}: "
-                                "give its program")
         resolve_model = _itself(resolve_model)
     elif not callable(resolve_model):
         raise InvalidArgumentError(f"resolve_model must be the Model or a function from a model's name to its Model "
@@ -210,6 +207,9 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
     if not isinstance(model, Model):  # e.g. a dict's .get() that does not know the name
         raise _fail(source, f"resolve_model({name!r}) returned {type(model).__name__}, not a procmod Model: give "
                             "load_derivation a resolver that returns the model that made the file")
+    if other_program(name, model.name):  # whichever way it was given: a Model, --model's resolver
+        raise _fail(source, f"it is a derivation of the learned program {name!r}, not {model.name!r}: give its "
+                            "program (procmod render: or leave out --model)")
     stored_root = data.get("root")
     if isinstance(stored_root, str) and not _same_root(stored_root, model):
         same = "another model of the same name (give a model of your own a name of its own); " \

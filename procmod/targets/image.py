@@ -121,7 +121,6 @@ class TargetImage:
     _sized: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "_sized", {})  # never a copy's: replace() passes no init=False field
         # built from Python as well as read from files: the checks a sidecar and a picture
         # get (a grey picture passed as the mask is refused, not read with its paper as shape)
         mask = np.asarray(self.mask)
@@ -252,18 +251,22 @@ def _strokes(thin: np.ndarray, scale: float) -> np.ndarray:
     return keep[labels]
 
 
-def _thin_loss(mask: np.ndarray, width: int, height: int) -> float | None:
-    """The share of ``mask``'s shape a plain resampling loses, where its strokes are thin
-    (typically under :data:`THIN_STROKE` canvas pixels wide) and it loses more than
-    :data:`THIN_LOSS`; None otherwise. (A bar 2.5 canvas pixels wide, off the pixel grid,
-    loses 20% in edge slivers: it is not thin.)"""
+def _thin_strokes(mask: np.ndarray, width: int, height: int) -> tuple:
+    """``(plain, lost, work, scale)``: ``mask`` resampled plainly; the share of its shape
+    that resampling loses where its strokes are thin (typically under :data:`THIN_STROKE` canvas
+    pixels wide) and that is more than :data:`THIN_LOSS`, else None (a bar 2.5 canvas
+    pixels wide, off the pixel grid, loses 20% in edge slivers: it is not thin); and, where
+    it is thin, :func:`_working_mask`'s mask and scale."""
+    plain = resample_mask(mask, width, height)
     if mask.shape == (height, width) or not mask.any():
-        return None
+        return plain, None, None, None
+    lost = lost_share(mask, plain)
+    if lost <= THIN_LOSS:
+        return plain, None, None, None
     work, scale = _working_mask(mask, width, height)
-    if not work.any():
-        return None
-    lost = lost_share(mask, resample_mask(mask, width, height))
-    return lost if lost > THIN_LOSS and stroke_width(work) < THIN_STROKE * scale else None
+    if stroke_width(work) >= THIN_STROKE * scale:
+        return plain, None, None, None
+    return plain, lost, work, scale
 
 
 def stroke_preserving_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -275,10 +278,10 @@ def stroke_preserving_mask(mask: np.ndarray, width: int, height: int) -> np.ndar
     outline (a filled disc with thin rays had grown a rim all round), and nothing is taken
     away. Shapes drawn thick enough read as before, bit for bit."""
     mask = np.asarray(mask, dtype=bool)
-    if _thin_loss(mask, width, height) is None:
-        return resample_mask(mask, width, height)
+    plain, lost, work, scale = _thin_strokes(mask, width, height)
+    if lost is None:
+        return plain
     from scipy import ndimage
-    work, scale = _working_mask(mask, width, height)
     inside = ndimage.distance_transform_edt(work)  # each shape pixel's distance to the ground
     core = inside > 0.5 * THIN_STROKE * scale
     thick = ndimage.distance_transform_edt(~core) <= 0.5 * THIN_STROKE * scale  # an opening
@@ -290,7 +293,7 @@ def stroke_preserving_mask(mask: np.ndarray, width: int, height: int) -> np.ndar
 def widened_share(mask: np.ndarray, width: int, height: int) -> float | None:
     """The share of ``mask``'s shape a plain resampling to ``height x width`` would lose,
     where :func:`stroke_preserving_mask` widens it instead (None where it does not)."""
-    return _thin_loss(np.asarray(mask, dtype=bool), width, height)
+    return _thin_strokes(np.asarray(mask, dtype=bool), width, height)[1]
 
 
 def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool = True) -> tuple:

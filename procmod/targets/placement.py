@@ -405,7 +405,7 @@ def picture_note(target: ShapeMatch, model) -> str | None:
     width, height = getattr(canvas, "width", None), getattr(canvas, "height", None)
     if not width or not height or mask.shape == (height, width):
         return None
-    from .image import lost_share, widened_share
+    from .image import THIN_STROKE, lost_share, widened_share
     widened = widened_share(mask, width, height)
     lost = lost_share(mask, target.image.at_size(width, height))
     if lost > VANISHED:
@@ -413,7 +413,8 @@ def picture_note(target: ShapeMatch, model) -> str | None:
                 f"{width}x{height} canvas, which scores against what is left: draw those strokes thicker, "
                 "or crop the picture closer to the shape")
     if widened is not None:
-        return (f"the strokes of {target.name} are under 1.5 pixels of the model's {width}x{height} canvas wide "
+        return (f"the strokes of {target.name} are under {THIN_STROKE:g} pixels of the model's {width}x{height} "
+                f"canvas wide "
                 f"({widened:.0%} of the shape would break up there), so its thin strokes were widened by half a "
                 "canvas pixel on each side, where they were drawn; draw them thicker to set their width yourself")
     return None
