@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
-# The versions the suite last passed with; `make lock` refreshes it (see README "Installing").
+# The versions the suite last passed with; `make lock` refreshes it (see README "Dependencies").
 LOCK   := constraints.txt
 
 .PHONY: install lock test test-slow demo bench clean
