@@ -227,7 +227,6 @@ def flat_mesh(data):
     (flat_mesh, "zero surface area"),
     (lambda d: d["nodes"][2].update(matrix=[float("nan")] * 16), "non-finite or malformed transform"),
     (lambda d: d["nodes"][2].update(children=[99]), "does not exist"),
-    (lambda d: d.update(scenes=[]), "no scene"),
     # trimesh's "No path from world->a!" traceback before
     (lambda d: d["nodes"][2].update(mesh=5), "refers to mesh 5, which the file does not have"),
     # refused after minutes of trimesh building the scene graph before

@@ -1305,3 +1305,80 @@ def test_a_top_level_up_in_a_silhouette_of_pictures_is_a_cameras(tmp_path):
                                                  "views": [{"image": "a.png", "camera": camera}]}))
     with pytest.raises(TargetFileError, match="a view's camera \"up\""):
         load_target_file(tmp_path / "S.json")
+
+
+def test_a_text_gltf_named_glb_and_a_gltf_without_a_scene_are_read(tmp_path):
+    """A text glTF saved under a .glb name is read as the text it is (it was refused with
+    "incorrect header on GLB file"), as a GLB named .gltf already was, and a byte-order
+    mark before a text glTF's JSON is passed over (it was "model.gltf" not found); a glTF
+    whose meshes hang in no scene (valid glTF: a library of objects) is read as its top
+    nodes (it was "holds no triangle faces")."""
+    from procmod.geometry.assets import read_assets
+    from procmod.targets.files import declared_faces
+    from asset_writers import box_mesh, gltf_json, write_glb
+    box = _box(*BOX)
+    text = box.export(file_type="gltf", embed_buffers=True)["model.gltf"]
+    (tmp_path / "text.glb").write_bytes(text)
+    (tmp_path / "marked.glb").write_bytes(b"\xef\xbb\xbf\n " + text)
+    (tmp_path / "marked.gltf").write_bytes(b"\xef\xbb\xbf" + text)
+    for name in ("text.glb", "marked.glb", "marked.gltf"):
+        assert declared_faces(tmp_path / name) == 12
+        grid, mask = voxelize_mesh_file(tmp_path / name, H)
+        assert np.array_equal(mask, _in_boxes(grid, [BOX]))
+    v, f = box_mesh(BOX[0], BOX[1])
+    library = gltf_json([("box", [(v, f)])], [{"name": "Box", "mesh": 0}], roots=(0,))
+    del library["scenes"], library["scene"]
+    for path in (tmp_path / "library.gltf", tmp_path / "library.glb"):
+        if path.suffix == ".gltf":
+            path.write_text(json.dumps(library))
+        else:
+            write_glb(path, library)
+        grid, mask = voxelize_mesh_file(path, H)
+        assert np.array_equal(mask, _in_boxes(grid, [BOX])), path.name
+        (node,) = read_assets(path).assets[0].roots
+        assert node.name == "Box"
+
+
+def test_leaf_cards_around_a_closed_trunk_are_left_out_of_the_volume(tmp_path, capsys):
+    """A tree as games and SpeedTree export it: a closed trunk and hundreds of single-quad
+    leaf cards facing every way. The cards enclose nothing, but each one's capped rim made
+    its winding number +-1/2 on both sides, so the crown filled voxels by the way each
+    card happened to face (216 voxels, 235 with the cards turned over, 56 in both, on a
+    user's tree). They are left out, with a note; an open piece that is not flat (a bowl)
+    is kept."""
+    from procmod.targets import load_volume_target
+    rng = np.random.default_rng(0)
+    trunk = _box((0.4, 2.0, 0.4), (0.0, 1.0, 0.0))
+    vertices, faces = [trunk.vertices], [trunk.faces]
+    offset = len(trunk.vertices)
+    for _ in range(300):
+        centre = rng.normal([0, 2.3, 0], 0.6)
+        u, v = (np.linalg.qr(rng.normal(size=(3, 3)))[0][:, :2] * 0.15).T
+        vertices.append(np.array([centre - u - v, centre + u - v, centre + u + v, centre - u + v]))
+        faces.append(np.array([[0, 1, 2], [0, 2, 3]]) + offset)
+        offset += 4
+    vertices, faces = np.concatenate(vertices), np.concatenate(faces)
+    cards = len(trunk.vertices) <= faces.min(axis=1)
+    flipped = faces.copy()
+    flipped[cards] = flipped[cards][:, ::-1]
+    masks = {}
+    for name, f in (("tree", faces), ("turned", flipped), ("trunk", trunk.faces)):
+        _write_obj(tmp_path / f"{name}.obj", vertices, f)
+        (tmp_path / f"{name}.json").write_text(json.dumps({
+            "format": "procmod-volume/1", "grid": {"origin": [-2, -1, -2], "voxel_size": 0.2, "shape": [20, 30, 20]},
+            "layers": [{"file": f"{name}.obj", "w_fill": 1}]}))
+        target = load_volume_target(tmp_path / f"{name}.json")
+        masks[name] = target.combined > 0
+        assert any("600 faces of open flat pieces" in note for note in target.file_notes) == (name != "trunk")
+    assert np.array_equal(masks["tree"], masks["trunk"]) and np.array_equal(masks["turned"], masks["trunk"])
+    # a bowl (an open hemisphere) beside the trunk is no flat piece: its inside is read as before
+    bowl = trimesh.creation.icosphere(subdivisions=3)
+    bowl.update_faces(bowl.triangles_center[:, 1] < 0)
+    bowl.remove_unreferenced_vertices()
+    bowl.apply_translation([1.2, 0.5, 0.0])
+    joined = trimesh.util.concatenate([trunk, bowl])
+    _write_obj(tmp_path / "bowl.obj", joined.vertices, joined.faces)
+    (tmp_path / "bowl.json").write_text(json.dumps({
+        "format": "procmod-volume/1", "grid": {"origin": [-2, -1, -2], "voxel_size": 0.2, "shape": [20, 30, 20]},
+        "layers": [{"file": "bowl.obj", "w_fill": 1}]}))
+    assert not load_volume_target(tmp_path / "bowl.json").file_notes

@@ -83,6 +83,7 @@ from ..core.file_formats import conversion_hint
 from ..core.io import fingerprint
 from ..core.paths import UnsafePathError, named_file
 from .mesh_files import MESH_SUFFIXES, declared_faces, gltf_header, load_mesh_file
+from .gltf_accessors import unplaced_roots
 from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
@@ -296,11 +297,12 @@ def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:
                          "that belong together before exporting")
     scenes = header.get("scenes", [])
     scene = header.get("scene", 0)
-    if not scenes:
-        raise AssetError(f"{path} holds no scene (and so no mesh)")
-    if not isinstance(scene, int) or not 0 <= scene < len(scenes) or not isinstance(scenes[scene], dict):
+    if not scenes:  # a library of objects: its top nodes, as the reader is given them (unplaced_roots)
+        roots = unplaced_roots(header) or []
+    elif not isinstance(scene, int) or not 0 <= scene < len(scenes) or not isinstance(scenes[scene], dict):
         raise AssetError(f"{path}: its default scene {scene!r} does not exist")
-    roots = scenes[scene].get("nodes", [])
+    else:
+        roots = scenes[scene].get("nodes", [])
 
     def index(i, where):
         if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < len(nodes):

@@ -323,6 +323,19 @@ def _binary_chunk(data: bytes) -> bytes | None:
     return None
 
 
+def unplaced_roots(header: dict) -> list | None:
+    """For a glTF with nodes but no scene (``scenes`` absent or empty: valid glTF, a
+    library of objects), the nodes no node lists as a child, in order: the scene it is
+    read as (viewers that show such a file show these; trimesh read nothing). None for a
+    file with a scene."""
+    nodes = header.get("nodes")
+    if header.get("scenes") or not isinstance(nodes, list) or not nodes:
+        return None
+    children = {c for n in nodes if isinstance(n, dict) for c in (n.get("children") or ())
+                if isinstance(c, int) and not isinstance(c, bool)}
+    return [k for k in range(len(nodes)) if k not in children]
+
+
 def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     """The glTF (JSON, buffers as ``data:`` URIs or the files the original names) with its
     misread POSITION accessors (:func:`needs_decoding`) rewritten as ``FLOAT``; None when
@@ -339,9 +352,11 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     fans = fan_primitives(header)
     morphs = morphed_primitives(header)
     skins = skinned_meshes(header)
-    if not chosen and not fans and not morphs and not skins:
+    roots = unplaced_roots(header)
+    if not chosen and not fans and not morphs and not skins and roots is None:
         return None
-    chunk = _binary_chunk(path.read_bytes()) if path.suffix.lower() == ".glb" else None
+    data = path.read_bytes()
+    chunk = _binary_chunk(data) if data[:4] == b"glTF" else None  # a GLB, whatever its suffix
     buffers = []
     for i, buffer in enumerate(header.get("buffers") or ()):
         uri = buffer.get("uri") if isinstance(buffer, dict) else None
@@ -406,6 +421,8 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
         blob += values.tobytes()
     for n, _, _ in skins:
         out["nodes"][n].pop("skin", None)
+    if roots is not None:
+        out["scenes"], out["scene"] = [{"nodes": roots}], 0
     out["buffers"] = [dict(b) for b in out.get("buffers") or ()]
     if chunk is not None and out["buffers"] and "uri" not in out["buffers"][0]:
         # read as a .gltf now: the binary chunk travels as a data URI
@@ -416,4 +433,4 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
 
 
 __all__ = ["accessor_values", "decoded_gltf", "fan_primitives", "morphed_primitives", "needs_decoding",
-           "skinned_meshes"]
+           "skinned_meshes", "unplaced_roots"]

@@ -380,8 +380,8 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
     path = Path(path)
     limit = MAX_JSON_BYTES if limit is None else limit
     with open(path, "rb") as handle:
-        if path.suffix.lower() == ".glb" or handle.read(4) == b"glTF":  # a GLB under a .gltf name too
-            handle.seek(0)
+        # each read as what it is: a GLB under a .gltf name, a text glTF under a .glb name
+        if is_binary_gltf(path) or (path.suffix.lower() == ".glb" and not _json_text(path)):
             head = handle.read(20)
             if len(head) < 20 or head[:4] != b"glTF":
                 raise ValueError("is not a GLB file (no 'glTF' header); is it damaged or another format?")
@@ -432,7 +432,7 @@ def _check_gltf(path: Path) -> dict | None:
     if unknown:
         raise ValueError(f"it requires the glTF extension {unknown[0]}, which procmod does not read (so its "
                          "geometry might be misread); export it without that extension")
-    glb = path.suffix.lower() == ".glb" or _first_bytes(path, 4) == b"glTF"  # a GLB under a .gltf name too
+    glb = is_binary_gltf(path)  # a GLB under a .gltf name too; a text glTF under a .glb name is text
     if not glb:
         _check_buffer_files(header, path)
     else:  # a GLB's header gives its whole length
@@ -667,8 +667,10 @@ def load_mesh_file(path: str | Path, up: str = "y", **options):
     path = Path(path)
     suffix = path.suffix.lower()
     file_type = None
-    if suffix == ".gltf" and _first_bytes(path, 4) == b"glTF":
+    if suffix == ".gltf" and is_binary_gltf(path):
         suffix, file_type = ".glb", "glb"  # a binary glTF under a .gltf name: read as what it is
+    elif suffix == ".glb" and not is_binary_gltf(path) and _json_text(path):
+        suffix, file_type = ".gltf", "gltf"  # a text glTF under a .glb name (a renamed export): likewise
     with quiet_trimesh():
         if suffix == ".obj":
             # latin-1 maps every byte to one character and back: names in other encodings survive
@@ -706,10 +708,26 @@ def load_mesh_file(path: str | Path, up: str = "y", **options):
                 if decoded is not None:  # positions trimesh would misread, rewritten as floats
                     return trimesh.load(io.BytesIO(decoded), file_type="gltf", resolver=_resolver(path), **options)
             if suffix == ".gltf":
-                return trimesh.load(path, resolver=_resolver(path), **options)
+                if _first_bytes(path, len(_UTF8_BOM)) == _UTF8_BOM:  # a Windows editor's mark: no part of the JSON
+                    return trimesh.load(io.BytesIO(path.read_bytes()[len(_UTF8_BOM):]), file_type="gltf",
+                                        resolver=_resolver(path), **options)
+                return trimesh.load(path, file_type="gltf", resolver=_resolver(path), **options)
         if file_type is not None:
             return trimesh.load(path, file_type=file_type, **options)
         return trimesh.load(path, **options)
+
+
+def is_binary_gltf(path: Path) -> bool:
+    """Whether a file starts as a GLB does (whatever its suffix)."""
+    return _first_bytes(Path(path), 4) == b"glTF"
+
+
+def _json_text(path: Path) -> bool:
+    """Whether a file starts as a JSON object does (after a byte-order mark and blanks):
+    a text glTF, whatever its suffix."""
+    head = _first_bytes(Path(path), 64)
+    head = head[len(_UTF8_BOM):] if head.startswith(_UTF8_BOM) else head
+    return head.lstrip(b" \t\r\n").startswith(b"{")
 
 
 def _first_bytes(path: Path, count: int) -> bytes:

@@ -349,6 +349,24 @@ def open_mesh_note(vertices, faces, where: str) -> str | None:
             "silhouette view of it")
 
 
+def without_flat_open_pieces(vertices, faces, where: str) -> tuple:
+    """``((vertices, faces), note)``: the mesh without its open flat pieces
+    (:func:`procmod.geometry.inside.flat_open_pieces`: leaf cards, decals), which have no
+    inside and whose winding number only adds noise to the rest's, and a note saying how
+    many were left out; the mesh as it is (and no note) when there are none, or when
+    nothing else would remain (a terrain, a wall: :func:`open_mesh_note` speaks of those)."""
+    from ..geometry.inside import flat_open_pieces
+
+    faces = np.asarray(faces)
+    flat = flat_open_pieces(vertices, faces)
+    if not flat.any() or flat.all():
+        return (vertices, faces), None
+    note = (f"{where}: {int(flat.sum()):,} faces of open flat pieces (leaf cards, planes, decals) enclose nothing "
+            f"and are left out of the volume; the inside is that of the other {int((~flat).sum()):,} faces (a "
+            "silhouette view keeps them)")
+    return (vertices, faces[~flat]), note
+
+
 def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
     """The voxels of ``grid`` inside a mesh from :func:`read_mesh` (generalised winding
     number >= 1/2), refused when none is."""
@@ -614,8 +632,10 @@ def load_volume_target(path: str | os.PathLike):
     notes = []
     for at, file, w_fill, w_avoid in entries:
         if at in read:
-            mask = mesh_inside(*read[at], grid, f"{at}.file")
-            note = open_mesh_note(*read[at], f"{at}.file")
+            solid, note = without_flat_open_pieces(*read[at], f"{at}.file")
+            notes += [note] if note is not None else []
+            mask = mesh_inside(*solid, grid, f"{at}.file")
+            note = open_mesh_note(*solid, f"{at}.file")
             if note is not None:
                 notes.append(note)
         else:
