@@ -23,7 +23,8 @@ from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
-from .examples import ExampleSet, duplicate_note, example_parts, orientation_note, read_example_inputs, size_note
+from .examples import (ExampleSet, duplicate_note, example_parts, orientation_note, read_example_inputs, size_note,
+                       stray_note)
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -123,7 +124,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
         Called with a line of advice about the examples before the search (examples of
         very different sizes, standing turned from the others, or holding a part twice at
         one place: :func:`procmod.learn.examples.size_note`,
-        :func:`~procmod.learn.examples.orientation_note`, :func:`~procmod.learn.examples.duplicate_note`).
+        :func:`~procmod.learn.examples.orientation_note`, :func:`~procmod.learn.examples.duplicate_note`,
+        :func:`~procmod.learn.examples.stray_note`).
 
     Returns
     -------
@@ -147,7 +149,7 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     labels = _example_labels(inputs, len(example_set.examples))
     from ..geometry.assets import left_out_note
     for advice in (left_out_note(inputs), size_note(example_set, labels), orientation_note(example_set, labels),
-                   duplicate_note(example_set, labels)):
+                   duplicate_note(example_set, labels), stray_note(example_set, labels)):
         if advice is not None and note is not None:
             note(advice)
     with open_executor(workers, scheduler, note=note) as executor:  # an unreachable scheduler: before --out is made

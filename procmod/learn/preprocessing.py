@@ -33,7 +33,8 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
-from .transforms import CURRENT, Frame, Units, frame_of, sym_params, xform_params
+from .transforms import (CURRENT, Frame, Units, angles_direction, direction_angles, frame_of, spread_pole, sym_params,
+                         xform_params)
 
 OVERLAP_VOXELS = 40
 SLOT_SAMPLES = 64  # surface points per part for the Hausdorff distances of eq. 1
@@ -378,12 +379,31 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
 
     world_extent = set_size(example_set)
     roots = [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
-    units = Units(world_extent, reference_log_scales(nodes), CURRENT)
+    units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes))
     for n in nodes:
         if n.kind == "part":
             n.x[0:3] -= units.log_scale(n.part)
+        elif n.type in units.sym_poles:
+            n.sym = n.sym.copy()
+            n.sym[0:2] = direction_angles(angles_direction(n.sym[0], n.sym[1]), units.pole(n.type))
     unwrap_angles(nodes)
     return Dataset(parts, slots, groups, nodes, roots, sym_inner, max_count, objective, units)
+
+
+def _spread_poles(nodes: list) -> dict:
+    """Per mirror or rotation type whose directions (mirror normals, rotation axes) are
+    spread over a circle, the pole to take their angles about (:func:`spread_pole`), as
+    :class:`Units` holds it. The nodes' angles were taken about the default pole."""
+    directions = {}
+    for n in nodes:
+        if n.kind in ("refl", "rot"):
+            directions.setdefault(n.type, []).append(angles_direction(n.sym[0], n.sym[1]))
+    poles = {}
+    for sym_type, found in sorted(directions.items()):
+        pole = spread_pole(np.array(found))
+        if pole is not None:
+            poles[sym_type] = tuple(tuple(float(v) for v in row) for row in pole)
+    return poles
 
 
 def set_size(example_set: ExampleSet) -> float:

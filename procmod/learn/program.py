@@ -264,7 +264,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
     count = ctx.sample("count", Categorical(_softmax(p[f"{a_id}.count"]), labels=tuple(support)))
     if a.type in program.full_rings:  # (rings: the canonical rotation angle is positive)
         values[-1] = 2.0 * math.pi / count
-    maps = sym_maps(a.kind, values, count, frame, program.units.pole())
+    maps = sym_maps(a.kind, values, count, frame, program.units.pole(a.type))
     new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
     if ctx.depth < program.max_depth:
         ctx.spawn("c", gen_node, program, a_id, 0, frame, new_copies)
@@ -354,7 +354,9 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
         "info": program.info,
         "units": {"world_extent": program.units.world_extent, "conventions": program.units.conventions,
                   "part_log_scales": {k: [float(v) for v in program.units.part_log_scales[k]]
-                                      for k in sorted(program.units.part_log_scales)}},
+                                      for k in sorted(program.units.part_log_scales)},
+                  **({"sym_poles": {k: [list(map(float, row)) for row in program.units.sym_poles[k]]
+                                    for k in sorted(program.units.sym_poles)}} if program.units.sym_poles else {})},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -539,7 +541,20 @@ def _units_from_json(data) -> Units:
     conventions = data.get("conventions")
     if conventions not in (LEGACY, CURRENT) or isinstance(conventions, bool):
         raise ValueError(f"units.conventions must be {LEGACY} or {CURRENT}, got {shown_value(conventions, 20)}")
-    return Units(float(extent), logs, conventions)
+    poles = {}
+    given = data.get("sym_poles", {})  # absent: every type takes the default pole
+    if not isinstance(given, dict):
+        raise ValueError(f"units.sym_poles must be an object of symmetry type -> 3x3 rotation, got "
+                         f"{shown_value(given, 60)}")
+    for sym_type, rows in given.items():
+        matrix = np.array(rows, dtype=np.float64) if isinstance(rows, list) and all(
+            isinstance(r, list) and len(r) == 3 and all(_is_real(v) for v in r) for r in rows) else None
+        if matrix is None or matrix.shape != (3, 3) or not np.allclose(matrix.T @ matrix, np.eye(3), atol=1e-9) \
+                or np.linalg.det(matrix) < 0:
+            raise ValueError(f"units.sym_poles[{sym_type!r}] must be a 3x3 rotation (three rows of three numbers), "
+                             f"got {shown_value(rows, 60)}")
+        poles[sym_type] = tuple(tuple(float(v) for v in row) for row in matrix)
+    return Units(float(extent), logs, conventions, poles)
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw

@@ -98,14 +98,21 @@ class Units(NamedTuple):
     world_extent: float = 1.0
     part_log_scales: dict = {}
     conventions: int = LEGACY
+    # per symmetry type, the pole its directions' angles are taken about when they are
+    # spread over a circle (:func:`spread_pole`), as a 3x3 tuple of rows; other types
+    # take :meth:`pole`'s
+    sym_poles: dict = {}
 
     def frame_of(self, world, local_lo, local_hi) -> "Frame":
         """:func:`frame_of` with these conventions for flat parts."""
         return frame_of(world, local_lo, local_hi, self.conventions >= CURRENT)
 
-    def pole(self) -> np.ndarray:
+    def pole(self, sym_type: str | None = None) -> np.ndarray:
         """The basis directions' polar and azimuth angles are taken in (its third column is
-        the pole)."""
+        the pole): that of symmetry type ``sym_type``."""
+        own = self.sym_poles.get(sym_type)
+        if own is not None:
+            return np.array(own, dtype=np.float64)
         return DIAGONAL_POLE if self.conventions >= CURRENT else Z_POLE
 
     def world_frame(self) -> Frame:
@@ -228,6 +235,39 @@ POLE = 1e-4
 Z_POLE = np.eye(3)  # the legacy convention (Units.conventions LEGACY)
 DIAGONAL_POLE = np.column_stack([np.array([1.0, -1.0, 0.0]) / math.sqrt(2), np.array([1.0, 1.0, -2.0]) / math.sqrt(6),
                                  np.array([1.0, 1.0, 1.0]) / math.sqrt(3)])
+
+
+# Directions of one symmetry type whose scatter has a second eigenvalue at least this (an
+# RMS spread of ~8 degrees off their main direction) are spread, not one direction and its
+# noise (:func:`spread_pole`).
+SPREAD = 0.02
+
+
+def spread_pole(directions: np.ndarray) -> np.ndarray | None:
+    """A pole for directions spread over (near) a circle, or None for directions that are
+    one direction up to noise (the default pole serves those).
+
+    The polar and azimuth angles are drawn independently (seed 000), so the directions a
+    program samples lie where those two Gaussians put them. Mirror normals of towers on a
+    ring are horizontal at every azimuth: about the default diagonal pole, a circle of
+    directions is a curve along which polar and azimuth vary together, and independent
+    draws left it, sampling mirrors tilted and towers leaning up to 65 degrees. About the
+    axis the directions are most nearly perpendicular to (the scatter's least
+    eigenvector), a circle is a constant polar angle of 90 degrees at varying azimuths.
+    The pole's basis: the pole third (largest component positive), the first the
+    coordinate axis least along it made perpendicular to it, the second their cross
+    product."""
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    if len(d) < 2:
+        return None
+    w, v = np.linalg.eigh(d.T @ d / len(d))
+    if w[1] < SPREAD:
+        return None
+    u, _ = canonical_direction(v[:, 0])
+    a = np.eye(3)[int(np.argmin(np.abs(u)))]
+    e1 = a - (a @ u) * u
+    e1 /= np.linalg.norm(e1)
+    return np.column_stack([e1, np.cross(u, e1), u])
 
 
 def direction_angles(n: np.ndarray, pole: np.ndarray = DIAGONAL_POLE) -> tuple[float, float]:
