@@ -527,6 +527,11 @@ def test_learn_from_the_scene_then_sample_the_learned_program(context, monkeypat
     settings.count, settings.learn_particles = 2, 1
     assert bpy.ops.procmod.learn() == {"FINISHED"}
     assert settings.model == "PROGRAM" and Path(settings.program).name == "program.json"
+    # the examples the program names outlive the job (they were its temporary folder's)
+    info = json.loads(Path(settings.program).read_text())["info"]
+    examples = Path(settings.program).parent / info["example_files"][0]
+    assert examples.resolve() == Path(f"{Path(settings.program).parent}.examples/examples").resolve()
+    assert len(list(examples.glob("*.glb"))) == 4
     learned = [c for c in bpy.data.collections if "learned sample" in c.name]
     assert len(learned) == 2
     meshes = {o.data.name for c in learned for o in c.objects if o.type == "MESH"}

@@ -155,7 +155,7 @@ def _output_dir(settings) -> Path:
 
 def _next_folder(base: Path, stem: str) -> Path:
     i = 1
-    while (base / f"{stem}-{i:03d}").exists() or (base / f"{stem}-{i:03d}.target").exists():
+    while any((base / f"{stem}-{i:03d}{kept}").exists() for kept in ("", ".target", ".examples")):
         i += 1
     return base / f"{stem}-{i:03d}"
 
@@ -367,9 +367,11 @@ class PROCMOD_OT_learn(_JobOperator, bpy.types.Operator):
     def prepare(self, context, folder):
         settings = context.scene.procmod
         roots = scene.example_roots(context.selected_objects)
-        examples, names = scene.write_examples(roots, folder)
         out = _next_folder(_output_dir(settings), "learn")
-        spec = {"examples": examples.name, "names": names.name, "n_examples": len(roots), "out": str(out),
+        # kept beside the learn folder, as an infer run's target is: the program names its
+        # examples (a job's temporary folder had been named, and deleted with the job)
+        examples, names = scene.write_examples(roots, Path(f"{out}.examples"))
+        spec = {"examples": str(examples), "names": str(names), "n_examples": len(roots), "out": str(out),
                 "particles": settings.learn_particles, "workers": 1, "seed": settings.seed, "count": settings.count}
 
         def on_result(context, result):
