@@ -144,6 +144,43 @@ def test_samples_become_collections_of_parts_placed_as_procmod_places_them(conte
     assert all(len(names) == 1 for names in meshes.values()) and len(meshes) < 0.7 * len(objects)
 
 
+def test_a_scene_in_centimetres_gets_models_and_targets_at_their_size(context, tmp_path):
+    """procmod's models are in metres. In a scene of Unit Scale 0.01 (centimetres) a
+    sampled ship came in 100x too small and a 200 cm cube was read as a 200 m target;
+    now the ship is in centimetres, the cube a 2 m target, and examples go to learn in
+    metres too (so its samples come back at the examples' size)."""
+    from procmod.blender import scene
+    context.scene.unit_settings.scale_length = 0.01
+    settings = context.scene.procmod
+    settings.model, settings.seed, settings.count = "spaceship", 3, 1
+    assert bpy.ops.procmod.sample() == {"FINISHED"}
+    context.view_layer.update()
+    (collection,) = bpy.data.collections
+    root = next(o for o in collection.objects if o.type == "EMPTY")
+    origin = np.array(root.matrix_world.translation)
+    parts = sorted((o for o in collection.objects if o.type == "MESH"), key=lambda o: o["procmod_part"])
+    geometry = run_forward(get_model("spaceship"), np.random.default_rng([3, 0])).geometry()
+    to_blender = np.array(((1, 0, 0), (0, 0, -1), (0, 1, 0)))
+    for obj, part in zip(parts, geometry):
+        expected = 100.0 * part_triangles(part, 24).reshape(-1, 3) @ to_blender.T + origin
+        got = _world_vertices(obj)
+        assert np.allclose(got.min(0), expected.min(0), atol=1e-3) and np.allclose(got.max(0), expected.max(0),
+                                                                                    atol=1e-3)
+    cube = _mesh_object("Cube", location=(0, 0, 100), scale=(100, 100, 100))  # 200 cm across
+    scene.write_world_mesh(context, cube, tmp_path / "cube.obj")
+    lines = (tmp_path / "cube.obj").read_text().splitlines()
+    vertices = np.array([[float(v) for v in line.split()[1:4]] for line in lines if line.startswith("v ")])
+    assert np.allclose(vertices.min(0), [-1, 0, -1]) and np.allclose(vertices.max(0), [1, 2, 1])
+    leg = _mesh_object("Leg", location=(0, 50, 30), scale=(5, 5, 30))
+    _parent(leg, cube)
+    context.view_layer.update()
+    (example,) = _exported(context, [cube], tmp_path / "examples").assets
+    (top,) = example.roots
+    assert np.allclose(top.transform[:3, 3], [0, 1, 0], atol=1e-6)  # 100 cm up, in metres, y-up
+    (child,) = top.children
+    assert np.allclose(child.transform[:3, 3], [0, 0.3, -0.5], atol=1e-6)
+
+
 def test_a_sampled_tree_exports_to_gltf_as_it_shows(context, tmp_path):
     """Parts held their size as their objects' scale, so a box or a branch scaled unevenly
     skewed every turned child in its frame; Blender's glTF exporter, whose nodes hold

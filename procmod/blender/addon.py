@@ -321,7 +321,8 @@ def _target_spec(context, settings, folder: Path) -> dict:
             scene.write_world_mesh(context, layer.object, folder / file)
             layers.append({"mesh": file, "object": layer.object.name, "w_fill": layer.w_fill,
                            "w_avoid": layer.w_avoid})
-        return {"kind": "volume", "layers": layers, "voxel_size": settings.voxel_size, "w_self": settings.w_self}
+        return {"kind": "volume", "layers": layers, "voxel_size": settings.voxel_size * scene.unit_scale(context),
+                "w_self": settings.w_self}
     camera = settings.camera or context.scene.camera
     weights = scene.mask_weights(settings.mask, settings.hit, settings.avoid)
     spec = scene.camera_spec(context, camera, weights.shape[1], weights.shape[0])

@@ -2,7 +2,10 @@
 
 procmod's models are y-up (the glTF convention), Blender is z-up: a procmod point (x, y, z)
 is the Blender point (x, -z, y), as Blender's glTF importer places it. Everything that
-crosses goes through :data:`TO_BLENDER` / :data:`TO_PROCMOD`.
+crosses goes through :data:`TO_BLENDER` / :data:`TO_PROCMOD`, and through the scene's Unit
+Scale (:func:`unit_scale`): procmod's models are in metres, so in a scene of centimetres
+(Unit Scale 0.01) a 9.5 m spaceship is 950 units long and a 200 cm cube a 2 m target (the
+scale had been ignored: the ship came in 9.5 cm long beside a target 100x too large).
 
 Errors the scene can cause (a non-mesh target, an empty selection, a mask of the wrong
 shape) raise :class:`SceneError` with one line for the operator to report.
@@ -34,14 +37,15 @@ def _matrix16(values) -> Matrix:
     return Matrix([values[0:4], values[4:8], values[8:12], values[12:16]])
 
 
-def to_procmod_rows(matrix: Matrix) -> list:
-    """A Blender world matrix as procmod's row-major 4x4 (y-up)."""
-    m = TO_PROCMOD @ matrix
-    return [[float(m[i][j]) for j in range(4)] for i in range(4)]
+def unit_scale(context=None) -> float:
+    """Metres per Blender unit: the scene's Unit Scale (Scene > Units; 1 by default)."""
+    scale = float((context or bpy.context).scene.unit_settings.scale_length)
+    return scale if math.isfinite(scale) and scale > 0 else 1.0
 
 
-def to_procmod_point(point) -> list:
-    return [float(v) for v in (TO_PROCMOD @ Vector(point))]
+def to_procmod_point(point, scale: float = 1.0) -> list:
+    """A Blender point in procmod's frame, ``scale`` metres per Blender unit."""
+    return [float(v) * scale for v in (TO_PROCMOD @ Vector(point))]
 
 
 def to_procmod_direction(direction) -> list:
@@ -160,6 +164,7 @@ def build_sample(context, sample: dict, name: str, origin=(0.0, 0.0, 0.0), cache
     root["procmod_sample"] = sample.get("label", name)
     collection.objects.link(root)
     root_world = Matrix.Translation(Vector(origin))
+    to_blender = Matrix.Scale(1.0 / unit_scale(context), 4) @ TO_BLENDER  # procmod's metres in the scene's units
     objects, worlds, holders = [], [], []
     for part in sample["parts"]:
         mesh, local = _part_mesh(part, sample, cache, sample.get("colours", {}))
@@ -167,7 +172,7 @@ def build_sample(context, sample: dict, name: str, origin=(0.0, 0.0, 0.0), cache
         obj["procmod_tag"] = part["tag"]
         obj["procmod_part"] = len(objects)  # the part's index in its derivation's geometry
         collection.objects.link(obj)
-        world = root_world @ TO_BLENDER @ local
+        world = root_world @ to_blender @ local
         # under the part of the call that made it, or that part's nearest holder whose frame is
         # not skewed (a learned part scaled unevenly cannot hold turned children: see _part_mesh)
         holder = None if part.get("parent") is None else holders[part["parent"]]
@@ -187,8 +192,9 @@ def build_samples(context, samples: list, prefix: str, start=None, gap: float = 
     """Collections for several samples, side by side along +x from ``start`` (the 3D cursor)."""
     start = Vector(context.scene.cursor.location) if start is None else Vector(start)
     cache, collections, x = {}, [], 0.0
+    scale = unit_scale(context)
     for i, sample in enumerate(samples):
-        lo, hi = sample.get("bounds", [[-1, -1, -1], [1, 1, 1]])
+        lo, hi = (np.asarray(b, dtype=np.float64) / scale for b in sample.get("bounds", [[-1, -1, -1], [1, 1, 1]]))
         if i > 0:
             x += -lo[0]  # the sample's left edge touches the gap after the previous one
         origin = start + Vector((x, 0.0, 0.0))
@@ -234,13 +240,14 @@ def mesh_triangles(mesh) -> tuple:
     return vertices, triangles
 
 
-def _world_triangles(evaluated, matrix, vertices: list, triangles: list) -> None:
-    """Append an evaluated object's mesh, placed by ``matrix`` into procmod's frame."""
+def _world_triangles(evaluated, matrix, vertices: list, triangles: list, scale: float = 1.0) -> None:
+    """Append an evaluated object's mesh, placed by ``matrix`` into procmod's frame
+    (``scale`` metres per Blender unit)."""
     mesh = evaluated.to_mesh()
     try:
         local, faces = mesh_triangles(mesh)
         offset = len(vertices)
-        m = TO_PROCMOD @ matrix
+        m = Matrix.Scale(scale, 4) @ TO_PROCMOD @ matrix
         vertices.extend(tuple(m @ Vector(v)) for v in local)
         triangles.extend((a + offset, b + offset, c + offset) for a, b, c in faces)
     finally:
@@ -255,13 +262,14 @@ def write_world_mesh(context, obj, path: Path) -> None:
     evaluated = obj.evaluated_get(depsgraph)
     vertices, triangles = [], []
     instanced = False
+    scale = unit_scale(context)
     for inst in depsgraph.object_instances:  # an instance's object is valid during its step only
         if inst.is_instance and inst.parent is not None and inst.parent.original == obj:
             instanced = True
             if inst.object.type in GEOMETRY_TYPES:
-                _world_triangles(inst.object, inst.matrix_world, vertices, triangles)
+                _world_triangles(inst.object, inst.matrix_world, vertices, triangles, scale)
     if not instanced or obj.show_instancer_for_viewport:
-        _world_triangles(evaluated, evaluated.matrix_world, vertices, triangles)
+        _world_triangles(evaluated, evaluated.matrix_world, vertices, triangles, scale)
     if not triangles:
         raise SceneError(f"the mesh of {describe(obj)} has no faces")
     extent = np.ptp(np.asarray(vertices), axis=0)
@@ -304,15 +312,17 @@ def camera_spec(context, camera_obj, width: int, height: int, look_distance: flo
     look_at = eye + forward * look_distance
     fit = cam.sensor_fit
     horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and aspect >= 1)
+    scale = unit_scale(context)
     if cam.type == "ORTHO":
-        fov = cam.ortho_scale / aspect if horizontal else cam.ortho_scale
+        fov = (cam.ortho_scale / aspect if horizontal else cam.ortho_scale) * scale  # a width, in metres
         projection = "orthographic"
     else:
         sensor = cam.sensor_height if fit == "VERTICAL" else cam.sensor_width
         half = sensor / (2 * cam.lens)  # tan of half the angle across the fitted side
         fov = math.degrees(2 * math.atan(half / aspect if horizontal else half))
         projection = "perspective"
-    return {"eye": to_procmod_point(eye), "look_at": to_procmod_point(look_at), "up": to_procmod_direction(up),
+    return {"eye": to_procmod_point(eye, scale), "look_at": to_procmod_point(look_at, scale),
+            "up": to_procmod_direction(up),
             "projection": projection, "fov": float(fov)}
 
 
@@ -385,6 +395,32 @@ def example_roots(selected) -> list:
     return roots
 
 
+def _scale_glb_roots(path: Path, scale: float) -> None:
+    """Scale a GLB's scene uniformly by ``scale`` about the origin, in place: each root
+    node's transform scaled (Blender's glTF exporter writes Blender units, whatever the
+    scene's Unit Scale; the examples then go to procmod in metres, as targets do, so that
+    the learned program samples back at the size the examples have in the scene)."""
+    if scale == 1.0:
+        return
+    import struct
+    data = path.read_bytes()
+    length = struct.unpack("<I", data[12:16])[0]
+    header = json.loads(data[20:20 + length])
+    rest = data[20 + length:]  # the binary chunk, as it was
+    scene = header.get("scenes", [{}])[header.get("scene", 0)]
+    for index in scene.get("nodes", []):
+        node = header["nodes"][index]
+        if "matrix" in node:  # column-major: a uniform scale about the origin scales every entry but the last row
+            node["matrix"] = [v * scale if k % 4 != 3 else v for k, v in enumerate(node["matrix"])]
+        else:  # T R S: a uniform scale commutes with the turn
+            node["translation"] = [v * scale for v in node.get("translation", [0.0, 0.0, 0.0])]
+            node["scale"] = [v * scale for v in node.get("scale", [1.0, 1.0, 1.0])]
+    text = json.dumps(header).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<I4s", len(text), b"JSON") + text + rest
+    path.write_bytes(struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body)
+
+
 def write_examples(roots, folder: Path) -> tuple:
     """Export each example hierarchy (a root with its descendants) as a GLB file with
     Blender's own glTF exporter into ``folder/examples/``; returns ``(that folder, names
@@ -448,6 +484,7 @@ def write_examples(roots, folder: Path) -> tuple:
                                              export_materials="NONE")
             if "FINISHED" not in done or not file.is_file():
                 raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")
+            _scale_glb_roots(file, unit_scale())
             names[file.name] = root.name
     finally:
         for obj, hide, viewport, select in hidden:
