@@ -1382,3 +1382,19 @@ def test_leaf_cards_around_a_closed_trunk_are_left_out_of_the_volume(tmp_path, c
         "format": "procmod-volume/1", "grid": {"origin": [-2, -1, -2], "voxel_size": 0.2, "shape": [20, 30, 20]},
         "layers": [{"file": "bowl.obj", "w_fill": 1}]}))
     assert not load_volume_target(tmp_path / "bowl.json").file_notes
+    # flat pieces that close a room together stay: six wall planes overlapping at the corners
+    # (no shared vertex) beside a closed cube; left out, the room had lost its inside (a review)
+    walls = []
+    for axis in range(3):
+        for side in (-1, 1):
+            c, u, v = np.zeros(3), np.zeros(3), np.zeros(3)
+            c[axis], u[(axis + 1) % 3], v[(axis + 2) % 3] = side, 1.02, 1.02
+            quad = trimesh.Trimesh([c - u - v, c + u - v, c + u + v, c - u + v], [[0, 1, 2], [0, 2, 3]], process=False)
+            walls.append(quad if side > 0 else trimesh.Trimesh(quad.vertices, quad.faces[:, ::-1], process=False))
+    cube = _box((0.3, 0.3, 0.3), (2.5, 0.0, 0.0))
+    room = trimesh.util.concatenate(walls + [cube])
+    _write_obj(tmp_path / "room.obj", room.vertices, room.faces)
+    (tmp_path / "room.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": 0.1,
+                                                    "layers": [{"file": "room.obj", "w_fill": 1}]}))
+    target = load_volume_target(tmp_path / "room.json")
+    assert (target.combined > 0).sum() == 8000 + 27 and not target.file_notes

@@ -64,6 +64,24 @@ def test_a_model_that_makes_too_many_calls_is_stopped_at_max_calls():
     assert run_forward(_model(fan, max_calls=31), np.random.default_rng(0)).n_nodes == 31
 
 
+def test_smc_refuses_a_call_queuing_more_calls_than_max_calls_at_once():
+    """SMC runs one call of each particle a step: a root queuing 5,001 children under
+    max_calls 5,000 was refused only after every particle had run 5,000 steps (79 s and
+    1 GB with the default particles; forward sampling took 1 s), whatever the budget.
+    The queued calls count: it is refused at the root's first step."""
+    def wide(ctx):
+        for i in range(5001):
+            ctx.spawn(f"leaf{i}", lambda c: c.emit(Disc(0, -10, 0.5)))
+    model = _model(wide, max_calls=5000)
+    target = target_from_spec("glyph:Y")
+    for engine in (smc, sosmc):
+        with pytest.raises(ModelError, match=r"more than 5,000 rule calls .*5,001 calls waiting after 1 made"):
+            engine(model, target, particles=20, seed=0)
+    wide_ok = _model(lambda ctx: [ctx.spawn(f"leaf{i}", lambda c: c.emit(Disc(0, -10, 0.5))) for i in range(4999)],
+                     max_calls=5000)
+    assert run_forward(wide_ok, np.random.default_rng(0)).n_nodes == 5000
+
+
 def test_emits_of_one_call_are_limited():
     def spiral(ctx):
         i = 0

@@ -639,6 +639,17 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
             if spawn.on:
                 position = None if positions is None else positions.get(spawn.site)
                 pending.append(Future(address + (spawn.site,), spawn.rule, spawn.args, position))
+        if state.n_nodes + len(pending) > model.max_calls:
+            # every queued call will run (unless the derivation stops): refused here, not once
+            # the last has run. SMC runs one call of each particle a step, so a call queuing
+            # 5,001 children under max_calls 5,000 was refused after 5,000 steps of every
+            # particle (79 s and 1 GB, where forward sampling took 1 s; past 10 minutes and
+            # 2 GB at the default limit), whatever the budget
+            raise ModelError(f"model {model.name!r} would make more than {model.max_calls:,} rule calls in one "
+                             f"derivation (rule {rule_name(future.rule)!r} at depth {len(future.address):,} left "
+                             f"{len(pending):,} calls waiting after {state.n_nodes:,} made); does it always stop "
+                             "growing? Give its recursion a depth limit or a spawn chance that dies out, or raise "
+                             "Model(max_calls=...) for a model this large")
     return ctx._fresh_emit
 
 

@@ -45,8 +45,8 @@ up to 1024 vertices) to the other's surface. The alignment: principal axes of th
 area-weighted surface (every sign choice; about a degenerate axis, every 30 degrees),
 each refined by ICP (to 8192 samples of the other surface, then to their tangent planes).
 Two meshes of the same triangles (a tool's copies, each with mesh data of its own, moved
-or turned with their transforms applied) are first matched vertex for vertex, which
-settles the same question exactly and costs a few array operations a pair.
+or turned with their transforms applied) are first matched vertex for vertex, a stricter
+test that costs a few array operations a pair; what it does not match the alignment decides.
 A part with symmetries (a box, a cylinder: quarter and half turns about its own axes that
 map it onto itself) fits a geometry in several ways; each geometry takes the one that
 leaves the nodes placing it least turned in the world, so that a seat whose transforms
@@ -1190,17 +1190,26 @@ def _vertex_map(a: _Geometry, b: _Geometry, tol: float) -> np.ndarray | None:
     transforms applied, as a tool's duplicates are exported), or None: then
     :func:`_align` decides.
 
-    Sound, not a guess: a point of a triangle is the same affine combination of its
-    vertices in both meshes, so when every vertex of M(b) lies within the limit of its
-    counterpart in a, every point of M(b) lies within it of a point of a, and back:
-    what :func:`_align`'s exact check asks. It costs a few array operations where
-    :func:`_align`'s point-to-surface queries cost ~40 ms a pair (a 5,000-part scene
-    of copies, each mesh data of its own, took minutes). The identity is taken exactly,
-    and a quarter turn up to rounding is rounded to it (as :func:`_snap` does)."""
+    A sufficient test, stricter than :func:`_align`'s: a point of a triangle is the same
+    affine combination of its vertices in both meshes, so when every vertex of M(b) lies
+    within the limit of its counterpart in a, every point of M(b) lies within it of a
+    point of a, and back, which is what :func:`_align`'s check asks; but a map that fits
+    the surfaces without pairing the vertices (a plate turned within its own plane) is
+    left to :func:`_align`. It costs a few array operations where :func:`_align`'s
+    point-to-surface queries cost ~40 ms a pair (a 5,000-part scene of copies, each mesh
+    data of its own, took minutes). The identity is taken exactly, and a quarter turn up
+    to rounding is rounded to it (as :func:`_snap` does) when the rounded turn still
+    fits vertex for vertex."""
     if a.vertices.shape != b.vertices.shape or not np.array_equal(a.faces, b.faces):
         return None
     limit = tol * max(float(np.linalg.norm(np.ptp(a.vertices, axis=0))),
                       float(np.linalg.norm(np.ptp(b.vertices, axis=0))))
+    # a rigid map keeps the vertices' RMS distance from their centroid, and moves it by at
+    # most the largest vertex error: meshes of one face list at other sizes (a sphere at
+    # ten sizes, ten parts) are told apart at this cost, before a fit
+    spread = [float(np.sqrt(((v - v.mean(0)) ** 2).sum(1).mean())) for v in (a.vertices, b.vertices)]
+    if abs(spread[0] - spread[1]) > limit:
+        return None
 
     def fits(m):
         moved = b.vertices @ m[:3, :3].T + m[:3, 3]

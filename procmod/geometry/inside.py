@@ -769,12 +769,14 @@ of one plane is flat (:func:`flat_open_pieces`)."""
 
 def flat_open_pieces(vertices, faces) -> np.ndarray:
     """Mask of the faces in open, flat edge-connected pieces (leaf cards, decals, a plane
-    for a window): pieces with a boundary edge whose vertices lie within
-    :data:`FLAT_PIECE` of their diagonal of one plane. Such a piece encloses nothing, but
-    with its rim capped its winding number is +-1/2 on both sides of it, and which side
-    reads as inside follows the way it happens to face: a tree of 8,000 leaf cards around a
-    closed trunk filled 216 voxels of crown, 235 with the cards turned over, 56 of them in
-    both. Faces with a repeated vertex are in no piece (False)."""
+    for a window or a wall): pieces with a boundary edge whose vertices lie within
+    :data:`FLAT_PIECE` of their diagonal of one plane. Alone, such a piece encloses
+    nothing, but with its rim capped its winding number is +-1/2 on both sides of it, and
+    which side reads as inside follows the way it happens to face: a tree of 8,000 leaf
+    cards around a closed trunk filled 216 voxels of crown, 235 with the cards turned
+    over, 56 of them in both. (Several such pieces may still bound a room together:
+    :func:`procmod.targets.files.mesh_inside` decides whether to leave them out.) All
+    False, at the cost of one edge count, for a mesh without boundary edges."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -783,36 +785,36 @@ def flat_open_pieces(vertices, faces) -> np.ndarray:
     n = len(faces)
     if n == 0:
         return np.zeros(0, dtype=bool)
-    closed = _closed_pieces(faces)
-    # the pieces themselves (across edges of exactly two faces), as _closed_pieces finds them
-    edges = np.sort(np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
-    _, edge_id, edge_count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
-    edge_id = edge_id.ravel()
-    owner = np.repeat(np.arange(n), 3)
-    order = np.argsort(edge_id, kind="stable")
-    pairs = order[edge_count[edge_id[order]] == 2].reshape(-1, 2)
-    graph = coo_matrix((np.ones(len(pairs)), (owner[pairs[:, 0]], owner[pairs[:, 1]])), shape=(n, n))
+    _, _, _, _, key, order = _half_edges(faces)
+    sorted_key = key[order]
+    first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    size = np.diff(np.r_[first, len(order)])
+    if not (size == 1).any():
+        return np.zeros(n, dtype=bool)  # no boundary edge: no open piece
+    # pieces across edges of exactly two faces (as orient_faces walks them); open ones hold an edge of one face
+    pair = first[size == 2]
+    graph = coo_matrix((np.ones(len(pair)), (order[pair] // 3, order[pair + 1] // 3)), shape=(n, n))
     count, label = connected_components(graph, directed=False)
+    open_piece = np.zeros(count, dtype=bool)
+    open_piece[label[order[first[size == 1]] // 3]] = True
     corner_label = np.repeat(label, 3)
     points = vertices[faces.ravel()]
     # per piece: the plane of least squares through its corners, and how far they lie from it
     weight = np.bincount(corner_label, minlength=count).astype(np.float64)
-    mean = np.stack([np.bincount(corner_label, points[:, k], minlength=count) for k in range(3)], axis=1) / weight[:, None]
-    centred = points - mean[corner_label]
+    mean = np.stack([np.bincount(corner_label, points[:, k], minlength=count) for k in range(3)], axis=1)
+    centred = points - (mean / weight[:, None])[corner_label]
     scatter = np.zeros((count, 3, 3))
     np.add.at(scatter, corner_label, centred[:, :, None] * centred[:, None, :])
     _, axes = np.linalg.eigh(scatter)
-    normal = axes[:, :, 0]  # the least direction of each piece
-    off = np.abs((centred * normal[corner_label]).sum(1))
+    off = np.abs((centred * axes[:, :, 0][corner_label]).sum(1))  # along each piece's least direction
     thickness = np.zeros(count)
     np.maximum.at(thickness, corner_label, off)
     lo = np.full((count, 3), np.inf)
     hi = np.full((count, 3), -np.inf)
     np.minimum.at(lo, corner_label, points)
     np.maximum.at(hi, corner_label, points)
-    flat = thickness <= FLAT_PIECE * np.linalg.norm(hi - lo, axis=1)
-    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
-    return flat[label] & ~closed & ~degenerate
+    flat = open_piece & (thickness <= FLAT_PIECE * np.linalg.norm(hi - lo, axis=1))
+    return flat[label]
 
 
 def orient_faces(vertices, faces) -> tuple[np.ndarray, np.ndarray]:

@@ -349,30 +349,57 @@ def open_mesh_note(vertices, faces, where: str) -> str | None:
             "silhouette view of it")
 
 
-def without_flat_open_pieces(vertices, faces, where: str) -> tuple:
-    """``((vertices, faces), note)``: the mesh without its open flat pieces
-    (:func:`procmod.geometry.inside.flat_open_pieces`: leaf cards, decals), which have no
-    inside and whose winding number only adds noise to the rest's, and a note saying how
-    many were left out; the mesh as it is (and no note) when there are none, or when
-    nothing else would remain (a terrain, a wall: :func:`open_mesh_note` speaks of those)."""
-    from ..geometry.inside import flat_open_pieces
+# Flat open pieces bound a room when, at most of the voxels leaving them out changes, their
+# own winding number is within this of a nonzero whole number: surfaces that close a region
+# (walls around a room, however they meet) wind a whole number of times around it, while
+# scattered fragments (leaf cards) sum to fractions (Jacobson et al. 2013)
+ENCLOSING = 0.15
+ENCLOSING_PROBES = 400  # voxels the test above looks at, at most
+
+
+def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None = None) -> np.ndarray:
+    """The voxels of ``grid`` inside a mesh from :func:`read_mesh` (generalised winding
+    number >= 1/2), refused when none is.
+
+    Open flat pieces (:func:`procmod.geometry.inside.flat_open_pieces`: leaf cards,
+    decals) are left out, with a line in ``notes``, when they enclose nothing: when, at
+    the voxels leaving them out changes, their own winding number is mostly not within
+    :data:`ENCLOSING` of a nonzero whole number (a room of separate wall planes keeps its
+    walls; leaf cards sum to fractions), or when the inside
+    with them cannot be computed within the work limit (100,000 leaf cards had been
+    refused) and the rest has an inside."""
+    from ..core.limits import ResourceLimitError
+    from ..geometry.inside import flat_open_pieces, inside_voxels, winding_numbers
 
     faces = np.asarray(faces)
     flat = flat_open_pieces(vertices, faces)
-    if not flat.any() or flat.all():
-        return (vertices, faces), None
-    note = (f"{where}: {int(flat.sum()):,} faces of open flat pieces (leaf cards, planes, decals) enclose nothing "
-            f"and are left out of the volume; the inside is that of the other {int((~flat).sum()):,} faces (a "
-            "silhouette view keeps them)")
-    return (vertices, faces[~flat]), note
-
-
-def mesh_inside(vertices, faces, grid: VoxelGrid, where: str) -> np.ndarray:
-    """The voxels of ``grid`` inside a mesh from :func:`read_mesh` (generalised winding
-    number >= 1/2), refused when none is."""
-    from ..geometry.inside import inside_voxels
-
-    mask = inside_voxels(vertices, faces, grid, what=where)
+    mask = None
+    if flat.any() and not flat.all():
+        solid = inside_voxels(vertices, faces[~flat], grid, what=where)
+        try:
+            whole = inside_voxels(vertices, faces, grid, what=where)
+        except ResourceLimitError:
+            if not solid.any():
+                raise
+            whole = None
+        changed = np.argwhere(solid != whole) if whole is not None else np.zeros((0, 3), dtype=np.int64)
+        if whole is not None and len(changed) == 0:
+            mask = whole
+        elif whole is not None:
+            probes = changed[np.random.default_rng(0).permutation(len(changed))[:ENCLOSING_PROBES]]
+            points = np.asarray(grid.origin, dtype=np.float64) + grid.size * (probes + 0.5)
+            w = winding_numbers(vertices, faces[flat], points)
+            whole_number = (np.abs(w - np.round(w)) <= ENCLOSING) & (np.round(w) != 0)
+            if whole_number.mean() >= 0.5:
+                mask = whole
+        if mask is None:
+            mask = solid
+            if notes is not None:
+                notes.append(f"{where}: {int(flat.sum()):,} faces of open flat pieces (leaf cards, planes, decals) "
+                             f"enclose nothing and are left out of the volume; the inside is that of the other "
+                             f"{int((~flat).sum()):,} faces (a silhouette view keeps them)")
+    if mask is None:
+        mask = inside_voxels(vertices, faces, grid, what=where)
     if not mask.any():
         lo, hi = mesh_bounds(vertices, faces)
         g_lo = np.asarray(grid.origin, dtype=np.float64)
@@ -632,10 +659,8 @@ def load_volume_target(path: str | os.PathLike):
     notes = []
     for at, file, w_fill, w_avoid in entries:
         if at in read:
-            solid, note = without_flat_open_pieces(*read[at], f"{at}.file")
-            notes += [note] if note is not None else []
-            mask = mesh_inside(*solid, grid, f"{at}.file")
-            note = open_mesh_note(*solid, f"{at}.file")
+            mask = mesh_inside(*read[at], grid, f"{at}.file", notes)
+            note = open_mesh_note(*read[at], f"{at}.file")
             if note is not None:
                 notes.append(note)
         else:
