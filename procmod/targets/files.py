@@ -367,13 +367,14 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None
     :data:`ENCLOSING` of a nonzero whole number (a room of separate wall planes keeps its
     walls; leaf cards sum to fractions), or when the inside
     with them cannot be computed within the work limit (100,000 leaf cards had been
-    refused) and the rest has an inside."""
+    refused) and the rest has an inside. ``notes`` also gets :func:`open_mesh_note`'s
+    line, of the faces whose inside the mask is."""
     from ..core.limits import ResourceLimitError
     from ..geometry.inside import flat_open_pieces, inside_voxels, winding_numbers
 
     faces = np.asarray(faces)
     flat = flat_open_pieces(vertices, faces)
-    mask = None
+    mask, used = None, faces
     if flat.any() and not flat.all():
         solid = inside_voxels(vertices, faces[~flat], grid, what=where)
         try:
@@ -393,13 +394,16 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None
             if whole_number.mean() >= 0.5:
                 mask = whole
         if mask is None:
-            mask = solid
+            mask, used = solid, faces[~flat]
             if notes is not None:
                 notes.append(f"{where}: {int(flat.sum()):,} faces of open flat pieces (leaf cards, planes, decals) "
                              f"enclose nothing and are left out of the volume; the inside is that of the other "
                              f"{int((~flat).sum()):,} faces (a silhouette view keeps them)")
     if mask is None:
         mask = inside_voxels(vertices, faces, grid, what=where)
+    sheet = open_mesh_note(vertices, used, where) if notes is not None else None
+    if sheet is not None:  # of the faces whose inside it is (left-out leaf cards all facing up are no sheet)
+        notes.append(sheet)
     if not mask.any():
         lo, hi = mesh_bounds(vertices, faces)
         g_lo = np.asarray(grid.origin, dtype=np.float64)
@@ -660,9 +664,6 @@ def load_volume_target(path: str | os.PathLike):
     for at, file, w_fill, w_avoid in entries:
         if at in read:
             mask = mesh_inside(*read[at], grid, f"{at}.file", notes)
-            note = open_mesh_note(*read[at], f"{at}.file")
-            if note is not None:
-                notes.append(note)
         else:
             mask = load_npy(file, f"{at}.file", "voxel grid") != 0
             if not mask.any():
