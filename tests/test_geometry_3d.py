@@ -159,9 +159,11 @@ def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_pa
 
 
 def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its_parts(tmp_path):
-    """A GLB procmod writes is a modelling tool's scene: one object per part in Blender, and
-    its parts again where procmod reads a glTF's meshes as parts (strings graph, learn).
-    Merged into one mesh, a strings instantiation of 26 parts had read back as one part."""
+    """A GLB procmod writes is a modelling tool's scene: one object per part in Blender, placed
+    by its node (every object had sat at the world origin, its geometry in world
+    coordinates), and its parts again where procmod reads a glTF's meshes as parts (strings
+    graph, learn). Merged into one mesh, a strings instantiation of 26 parts had read back
+    as one part."""
     import json
     import struct
 
@@ -180,7 +182,16 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
     header = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
     names = [node["name"] for node in header["nodes"] if "mesh" in node]
     assert sorted(names) == ["part", "post", "post_1", "post_1_1"]  # unique, as a modelling tool's
-    assert all("matrix" not in node or node["matrix"] == list(np.eye(4).reshape(-1)) for node in header["nodes"])
+    # each part's node holds its placement (an object with its own origin in Blender), its mesh
+    # the part in its own frame; the sheared post, which no node matrix may hold, is in world
+    # coordinates under the identity (glTF's matrices are column-major)
+    placed = {node["name"]: np.array(node.get("matrix", np.eye(4).reshape(-1))).reshape(4, 4).T
+              for node in header["nodes"] if "mesh" in node}
+    assert np.allclose(placed["part"][:3, 3], [0, 5, 0]) and np.allclose(placed["post_1_1"][:3, 3], [9, 0, 0])
+    assert sum(np.allclose(m, np.eye(4)) for m in placed.values()) == 2  # the plain post and the sheared one
+    for m in placed.values():  # a translation, a turn and scales: what glTF allows
+        gram = m[:3, :3].T @ m[:3, :3]
+        assert np.allclose(gram, np.diag(np.diag(gram)))
     scene = trimesh.load(tmp_path / "s.glb", force="scene", process=False)
     merged = trimesh.util.concatenate([scene.geometry[g].copy().apply_transform(scene.graph[n][0])
                                        for n, g in ((n, scene.graph[n][1]) for n in scene.graph.nodes_geometry)])

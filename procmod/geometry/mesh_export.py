@@ -11,10 +11,13 @@ both named after the part's tag, as a modelling tool's scene does, so that the f
 one part per object in Blender and reads back as its parts in ``procmod strings graph``
 (which takes a glTF's meshes for parts; merged into one mesh, a strings instantiation
 of 26 parts had read back as one part). ``procmod learn`` needs a hierarchy, which the
-flat file does not hold: ``procmod sample --format examples`` writes one. Each part's
-geometry is written in world coordinates under an identity node: a placement may shear,
-which a glTF node's matrix may not (it must decompose into translation, rotation and
-scale). Above :data:`MAX_PART_NODES` parts, the file holds one node per tag instead:
+flat file does not hold: ``procmod sample --format examples`` writes one. A part's node
+holds its placement and its mesh the part in its own frame, so that an artist gets each
+part as an object with its own origin and axes (written in world coordinates, every
+object had sat at the world origin, unturned); a placement that shears, which a glTF
+node's matrix may not (it must decompose into translation, rotation and scale), is
+written into the mesh under an identity node instead. Above :data:`MAX_PART_NODES`
+parts, the file holds one node per tag instead:
 Blender's importer takes time growing with the square of the objects (1,000 parts 5.6
 s, 2,000 29 s, 5,000 over 170 s; merged, 0.6 s). The report's viewer keeps one merged
 mesh (:func:`glb_bytes`): one draw call, whatever the part count.
@@ -29,7 +32,7 @@ import numpy as np
 import trimesh
 
 from ..core.io import write_bytes_atomic
-from .solid import part_triangles
+from .solid import IDENTITY, matrix, part_triangles
 
 
 def srgb_bytes_to_linear(rgb) -> np.ndarray:
@@ -81,11 +84,11 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
             by_tag.setdefault(part_name(part.tag), []).append(part)
         groups = [(name, parts_to_trimesh(group, colour_of, segments, True)) for name, group in by_tag.items()]
     else:
-        groups = [(part_name(part.tag), _part_mesh(part, colour_of, segments, True)) for part in parts]
+        groups = [(part_name(part.tag), *_placed_part_mesh(part, colour_of, segments)) for part in parts]
     # "world" is trimesh's name for the scene's root: a node of that name held every other
     # part as its child (Blender imported them all parented to one part)
     used, counts = {"world"}, {}
-    for name, mesh in groups:
+    for name, mesh, *placement in groups:
         # names unique per file, as a modelling tool's (tower, tower_1, ...: trimesh would
         # drop a node of a name it holds); readers that name parts after meshes take the
         # shortest of the names they merge
@@ -94,8 +97,23 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
             counts[name] = counts.get(name, 0) + 1
             unique = f"{name}_{counts[name]}"
         used.add(unique)
-        scene.add_geometry(mesh, geom_name=unique, node_name=unique)
+        scene.add_geometry(mesh, geom_name=unique, node_name=unique, transform=placement[0] if placement else None)
     return scene.export(file_type="glb")
+
+
+def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
+    """``(mesh, node matrix)`` of a part for a GLB node: the part in its own frame under
+    its placement, or, for a placement that shears (or is singular), its world-space mesh
+    under the identity."""
+    m = matrix(part.transform)
+    linear = m[:3, :3]
+    gram = linear.T @ linear
+    scales = np.sqrt(np.diag(gram))
+    if not np.isfinite(m).all() or not (scales > 1e-12 * max(float(scales.max()), 1e-300)).all() \
+            or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > 1e-9:
+        return _part_mesh(part, colour_of, segments, True), np.eye(4)
+    # a mirrored placement keeps the part's own winding: glTF turns the faces with the node's determinant
+    return _part_mesh(part._replace(transform=IDENTITY), colour_of, segments, True), m
 
 
 def glb_bytes(parts, colour_of) -> bytes:
