@@ -300,6 +300,14 @@ def test_a_part_left_far_from_the_rest_gets_a_note():
     note = stray_note(with_spare(3.0 * size), ["k0"] + ["k1.glb"] + [f"k{i}" for i in range(2, 10)])
     assert note is not None and note.startswith(f"k1.glb has a {child.part!r} ") and "from every other part" in note
     assert stray_note(with_spare(0.3 * size)) is None
+    # the root, or a part that holds others, is no leftover: a sun whose planet circles far off
+    far = np.array(child.transform, dtype=np.float64)
+    far[:3, 3] += [3.0 * size, 0.0, 0.0]
+    near = far.copy()
+    near[:3, 3] += [0.01 * size, 0.0, 0.0]
+    sun = ExampleNode(child.part, np.array(child.transform, dtype=np.float64),
+                      [ExampleNode(child.part, far, [ExampleNode(child.part, near, [])])])
+    assert stray_note(dataclasses.replace(castles, examples=[sun, *castles.examples[1:]])) is None
 
 
 def stray_bounds(example_set, root) -> tuple:

@@ -75,7 +75,7 @@ def test_smc_refuses_a_call_queuing_more_calls_than_max_calls_at_once():
     model = _model(wide, max_calls=5000)
     target = target_from_spec("glyph:Y")
     for engine in (smc, sosmc):
-        with pytest.raises(ModelError, match=r"more than 5,000 rule calls .*5,001 calls waiting after 1 made"):
+        with pytest.raises(ModelError, match=r"queued more than 5,000 rule calls .*5,001 calls waiting after 1 made"):
             engine(model, target, particles=20, seed=0)
     wide_ok = _model(lambda ctx: [ctx.spawn(f"leaf{i}", lambda c: c.emit(Disc(0, -10, 0.5))) for i in range(4999)],
                      max_calls=5000)

@@ -645,11 +645,12 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
             # 5,001 children under max_calls 5,000 was refused after 5,000 steps of every
             # particle (79 s and 1 GB, where forward sampling took 1 s; past 10 minutes and
             # 2 GB at the default limit), whatever the budget
-            raise ModelError(f"model {model.name!r} would make more than {model.max_calls:,} rule calls in one "
+            raise ModelError(f"model {model.name!r} queued more than {model.max_calls:,} rule calls in one "
                              f"derivation (rule {rule_name(future.rule)!r} at depth {len(future.address):,} left "
-                             f"{len(pending):,} calls waiting after {state.n_nodes:,} made); does it always stop "
-                             "growing? Give its recursion a depth limit or a spawn chance that dies out, or raise "
-                             "Model(max_calls=...) for a model this large")
+                             f"{len(pending):,} calls waiting after {state.n_nodes:,} made; queued calls count "
+                             "toward max_calls, even where ctx.stop() would end the derivation first); does it "
+                             "always stop growing? Give its recursion a depth limit or a spawn chance that dies out, "
+                             "or raise Model(max_calls=...) for a model this large")
     return ctx._fresh_emit
 
 

@@ -360,8 +360,9 @@ example from every other node's gets a note (:func:`stray_note`)."""
 
 def stray_note(example_set: ExampleSet, labels: list | None = None) -> str | None:
     """One line when an example holds a part far from all the rest (a leftover copy moved
-    out of the way, a part exported with the wrong scene): further from every other part
-    than :data:`STRAY` times the size of the rest of the example. The program learns it as
+    out of the way, a part exported with the wrong scene): a part holding no others, other
+    than the root, further from every other part than :data:`STRAY` times the size of the
+    rest of the example (a sun whose planets circle far off is no leftover). The program learns it as
     a placement like any other and samples draw it: one table of five with a spare leg
     4.5 m off gave a leg floating 5 m away in 30 of 100 samples (an adversarial pass).
     None otherwise; ``labels`` name the examples."""
@@ -380,6 +381,8 @@ def stray_note(example_set: ExampleSet, labels: list | None = None) -> str | Non
             boxes.append((placed.min(axis=0), placed.max(axis=0)))
         lo, hi = np.array([b[0] for b in boxes]), np.array([b[1] for b in boxes])
         for k, node in enumerate(nodes):
+            if k == 0 or node.children:  # the root, or a part holding others, is no leftover
+                continue
             rest = np.arange(len(nodes)) != k
             # the gap between boxes: how far apart they are along the axes where they do not overlap
             gaps = np.linalg.norm(np.maximum(0.0, np.maximum(lo[rest] - hi[k], lo[k] - hi[rest])), axis=1)
