@@ -308,3 +308,66 @@ def test_a_mirrored_copy_is_another_part_only_when_no_turn_makes_it(tmp_path, me
         node[:3, 3] = Y_UP_TO_Z_UP[:3, :3] @ [1.2 * k, 0, 0]
         want, got = transformed(mesh, node)[0], part_points(ss.library, part, t)
         assert np.allclose(got.min(0), want.min(0), atol=5e-3) and np.allclose(got.max(0), want.max(0), atol=5e-3)
+
+
+def test_augment_keeps_variants_as_large_as_the_inputs(tmp_path, capsys):
+    """Variants over a fixed 120 parts were dropped without a word: a 301-part fence grew
+    into fragments of 28-112 parts. The limit is now twice the largest input (at least
+    120; --max-parts sets it) and is recorded."""
+    cells = [(i, j) for i in range(25) for j in range(2)]
+    fence_file(tmp_path / "long.glb", fence(cells, 0.0, (0.0, 0.0, 0.0)))
+    out = tmp_path / "grown"
+    assert main(["strings", "augment", str(tmp_path / "long.glb"), "--count", "4", "--rounds", "6",
+                 "--out", str(out)]) == 0
+    shapes = json.loads((out / "shapes.json").read_text())["shapes"]
+    assert len(shapes[0]["nodes"]) == 123 and len(shapes) == 4
+    assert max(len(s["nodes"]) for s in shapes[1:]) > 120
+    assert json.loads((out / "growth.json").read_text())["settings"]["max_parts"] == 246
+    assert main(["strings", "augment", str(tmp_path / "long.glb"), "--count", "2", "--rounds", "3", "--max-parts",
+                 "130", "--out", str(tmp_path / "capped")]) == 0
+    capped = json.loads((tmp_path / "capped" / "shapes.json").read_text())["shapes"]
+    assert all(len(s["nodes"]) <= 130 for s in capped[1:])
+
+
+def test_augment_refuses_at_once_a_shape_no_string_can_write(tmp_path, capsys, monkeypatch):
+    """A 3D lattice of hubs and struts cannot be written as a string (more than 99 rings
+    open at once): augment ran for minutes on a user's 2,651-part station, then failed
+    writing its collection. It is refused before the first round, naming the shape."""
+    from procmod.strings import sampling
+    n = 7  # hubs a side: a 7 x 7 x 7 lattice of 1,225 parts, the smallest cube here that no string writes
+    turns = [np.eye(3), np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]]), np.array([[0, 0, -1], [0, 1, 0], [1, 0, 0.0]])]
+    nodes = []
+    for corner in np.ndindex(n, n, n):
+        at = 2.0 * np.array(corner)
+        nodes.append({"part": "hub", "transform": yaw(*at, 0.0).tolist()})
+        for axis in range(3):
+            if corner[axis] < n - 1:  # a strut (along x in its own frame) to the next hub along the axis
+                m = yaw(*(at + np.eye(3)[axis]), 0.0)
+                m[:3, :3] = turns[axis]
+                nodes.append({"part": "strut", "transform": m.tolist()})
+    (tmp_path / "grid.json").write_text(json.dumps({
+        "format": "procmod-shapes/1", "parts": {"hub": {"box": [0.6, 0.6, 0.6]}, "strut": {"box": [1.4, 0.2, 0.2]}},
+        "shapes": [{"nodes": nodes}]}))
+    rounds = []
+    real = sampling.augment
+    monkeypatch.setattr(sampling, "augment", lambda *a, **k: rounds.append(1) or real(*a, **k))
+    code = main(["strings", "augment", str(tmp_path / "grid.json"), "--count", "3", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and not rounds and "cannot be written as a string" in err and err.count("\n") == 1, err
+
+
+def test_pieces_of_several_parts_are_not_said_to_touch_nothing(tmp_path, capsys):
+    """Rails nudged a few millimetres off their posts split a fence into pieces of several
+    parts, and the note said 105 parts 'touch no other part': they touch each other, only
+    not the largest piece. graph's note also offers --tolerance."""
+    placements = fence([(i, 0) for i in range(6)], 0.0, (0.0, 0.0, 0.0))
+    # the third rail lifted off its posts: two pieces of 5 parts and the rail alone
+    rails = [k for k, (part, _) in enumerate(placements) if part == "rail"]
+    lifted = placements[rails[2]][1].copy()
+    lifted[2, 3] += 5.0
+    placements[rails[2]] = ("rail", lifted)
+    fence_file(tmp_path / "gap.glb", placements)
+    assert main(["strings", "graph", str(tmp_path / "gap.glb"), "--out", str(tmp_path / "g")]) == 0
+    err = capsys.readouterr().err
+    assert "is in 3 pieces of 5, 5, 1 parts" in err and "touch nothing of the largest piece" in err, err
+    assert "give --tolerance" in err

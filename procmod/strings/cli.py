@@ -80,6 +80,8 @@ def register(sub, int_arg) -> None:
     p.add_argument("--any-axis", action="store_true",
                    help="let docking turn pieces about any axis, for a set with no up (default: about the vertical, "
                         "z, only: a dock that tilts it turns pieces over)")
+    p.add_argument("--max-parts", type=int_arg,
+                   help="keep no variant of more parts than this (default: twice the largest input's, at least 120)")
     p.add_argument("--rotate", action="store_true", help=argparse.SUPPRESS)  # the default now; kept for old scripts
     p.add_argument("--tolerance", type=float, help=TOLERANCE_HELP + "; kept in the collection, so that train and "
                                                                     "sample use it too")
@@ -204,7 +206,8 @@ def _graph(args) -> None:
         if len(pieces) > 1:
             named = _shape_sources(args.shapes, len(graphs))
             print(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string encodes one "
-                  "connected shape, so 'strings augment' refuses it: move the parts to touch", file=sys.stderr)
+                  "connected shape, so 'strings augment' refuses it: move the parts to touch, or give --tolerance "
+                  "in world units to count gaps up to it as contacts", file=sys.stderr)
     print(f"types: {types}")
     print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                 for t, keys in sorted(grammar.rules.items())))
@@ -282,7 +285,7 @@ def _augment(args) -> None:
     from ..parallel import check_scheduler, open_executor
     from .pipeline import write_collection
     from .assets import read_shape_inputs
-    from .sampling import AugmentParams, augment
+    from .sampling import AugmentParams, augment, with_part_limit
     from ..core.paths import output_path
 
     shape_set = read_shape_inputs(args.shapes)
@@ -293,6 +296,8 @@ def _augment(args) -> None:
         raise InvalidArgumentError(f"--seconds must be a positive number of seconds, got {args.seconds}")
     if args.strings_per_shape < 1:
         raise InvalidArgumentError(f"--strings-per-shape must be a positive integer, got {args.strings_per_shape}")
+    if args.max_parts is not None and args.max_parts < 1:
+        raise InvalidArgumentError(f"--max-parts must be a positive integer, got {args.max_parts}")
     _at_most(args.parallel, "--parallel", MAX_PARALLEL)
     _at_most(args.strings_per_shape, "--strings-per-shape", MAX_STRINGS_PER_SHAPE)
     if args.workers is not None and args.workers < 0:
@@ -304,6 +309,7 @@ def _augment(args) -> None:
     folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
     import networkx as nx
 
+    from .codec import RingLimitError, encode
     from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, median_part_size, shape_graph
     named = _shape_sources(args.shapes, len(shape_set.shapes))
     tolerance = contact_tolerance(shape_set)
@@ -325,6 +331,12 @@ def _augment(args) -> None:
                 f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance)} (the contact tolerance: {given}); "
                 "a string encodes one connected shape: move the parts to touch, or give --tolerance in world units "
                 "to count gaps up to it as contacts ('strings graph --tolerance' shows what it joins)")
+        try:  # a shape no string can write: refused now (it ran for minutes, then failed writing the collection)
+            encode(g)
+        except RingLimitError as exc:
+            source = f" ({named[i]})" if named else ""
+            raise InvalidArgumentError(f"shape {i}{source} ({len(g)} parts, {g.number_of_edges()} contacts) cannot "
+                                       f"be written as a string: {exc}; a lattice this large is beyond strings") from None
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     bar = progress_bar(total=args.count, unit=" shapes")
@@ -336,7 +348,8 @@ def _augment(args) -> None:
 
     if args.any_axis and args.translations_only:
         raise InvalidArgumentError("--any-axis lets docking turn pieces, --translations-only forbids turns: give one")
-    params = AugmentParams(rotate=not args.translations_only, upright=not args.any_axis, distinct=args.distinct)
+    params = with_part_limit(AugmentParams(rotate=not args.translations_only, upright=not args.any_axis,
+                                           distinct=args.distinct, max_parts=args.max_parts), shape_set.shapes)
     with open_executor(args.workers, args.scheduler,
                        note=lambda text: print(f"note: {text}", file=sys.stderr)) as executor:
         result = augment(shape_set, args.count, seed=_seed(args.seed), parallel=args.parallel,

@@ -184,5 +184,10 @@ def loose_parts(g, pieces, index: int, inputs, letters: dict, tolerance: float |
     shown = ", ".join(loose[:8]) + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
     source = f" ({inputs[index]})" if inputs else ""
     within = f" within {tolerance:.3g}" if tolerance is not None else ""
-    return (f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} no other "
-            f"part{within}")
+    if all(len(piece) == 1 for piece in pieces[1:]):
+        return (f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} "
+                f"no other part{within}")
+    # pieces of several parts: those parts touch each other, only not the largest piece
+    sizes = ", ".join(str(len(piece)) for piece in pieces[:6]) + (", ..." if len(pieces) > 6 else "")
+    return (f"shape {index}{source} is in {len(pieces)} pieces of {sizes} parts: {shown} touch nothing of the "
+            f"largest piece{within}")

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import networkx as nx
 import numpy as np
@@ -208,6 +208,7 @@ def part_docks(library: dict, part: str, t_a: np.ndarray, t_b: np.ndarray) -> li
 
 
 DISTINCT_MODES = ("histogram", "graph")  # AugmentParams.distinct, see SeenShapes
+MIN_MAX_PARTS = 120  # AugmentParams.max_parts's least default
 
 
 @dataclass
@@ -218,7 +219,10 @@ class AugmentParams:
     max_boundary: int = 8  # larger boundaries are skipped (matching cost grows fast)
     distance_tol: float = 1e-3  # relative to the median part diagonal
     max_subsets: int = 16  # keep/drop choices tried per docking
-    max_parts: int = 120  # variants larger than this are not kept
+    # variants larger than this are not kept (docking grows shapes); None: twice the largest
+    # input's parts, at least MIN_MAX_PARTS (a fixed 120 had cut a 301-part fence's variants
+    # to fragments of 28-112 parts, without a word)
+    max_parts: int | None = None
     # keep the rotations docking computes (False: translations only, every variant in the
     # inputs' orientation: what sampling did before off-grid sets, docs/strings.md)
     rotate: bool = True
@@ -236,11 +240,20 @@ class AugmentParams:
                                        f"got {self.distinct!r}")
 
 
+def with_part_limit(params: AugmentParams, shapes) -> AugmentParams:
+    """``params`` with ``max_parts`` set: as given, else twice the largest of ``shapes``'
+    part counts, at least :data:`MIN_MAX_PARTS`."""
+    if params.max_parts is not None:
+        return params
+    return replace(params, max_parts=max(MIN_MAX_PARTS, 2 * max((len(s) for s in shapes), default=0)))
+
+
 def attempt(shape_set: ShapeSet, shape_a: Shape, shape_b: Shape, grammar: Grammar, seed,
             params: AugmentParams = AugmentParams()) -> tuple[Shape, nx.Graph] | None:
     """One sampling attempt: up to ``params.tries`` random subgraphs of ``shape_a`` docked
     into ``shape_b``; the first merged shape that validates and its (recomputed) shape
     graph, or None. Module-level and picklable, for executors."""
+    params = with_part_limit(params, shape_set.shapes)
     rng = np.random.default_rng(seed)
     tol = contact_tolerance(shape_set)
     # the docking distances scale with the parts' size (the default tolerance), not with a
@@ -408,6 +421,7 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
         raise InvalidArgumentError("seed must be a whole number or a sequence of them for augment, not a "
                                    "SeedSequence (give its entropy)")
     executor = executor or InlineExecutor()
+    params = with_part_limit(params, shape_set.shapes)
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     grammar = Grammar.from_graphs(graphs)
     shapes = list(shape_set.shapes)
