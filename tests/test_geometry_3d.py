@@ -128,6 +128,7 @@ def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_pa
 
     import trimesh
 
+    from procmod.geometry.assets import read_assets
     from procmod.geometry.mesh_export import export_mesh
     from procmod.geometry.solid import Box
 
@@ -169,6 +170,7 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
 
     import trimesh
 
+    from procmod.geometry.assets import read_assets
     from procmod.geometry.mesh_export import export_mesh
     from procmod.geometry.solid import Box
     from procmod.strings.assets import shapes_from_assets
@@ -189,6 +191,13 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
               for node in header["nodes"] if "mesh" in node}
     assert np.allclose(placed["part"][:3, 3], [0, 5, 0]) and np.allclose(placed["post_1_1"][:3, 3], [9, 0, 0])
     assert sum(np.allclose(m, np.eye(4)) for m in placed.values()) == 2  # the plain post and the sheared one
+    # parts alike (shape and tag) are nodes of one mesh, as a tool's linked duplicates
+    twins = [Box((0.5, 0.5, 0.5), (1, 0, 0, 3.0 * k, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1), tag="cap") for k in range(3)]
+    export_mesh(twins + [parts[2]], tmp_path / "twins.glb", colour_of)
+    data = (tmp_path / "twins.glb").read_bytes()
+    twin_header = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
+    assert len(twin_header["meshes"]) == 2 and sum("mesh" in n for n in twin_header["nodes"]) == 4
+    assert len(read_assets(tmp_path / "twins.glb").parts) == 1  # read back: one part, the boxes alike
     for m in placed.values():  # a translation, a turn and scales: what glTF allows
         gram = m[:3, :3].T @ m[:3, :3]
         assert np.allclose(gram, np.diag(np.diag(gram)))

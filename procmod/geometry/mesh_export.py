@@ -12,9 +12,10 @@ one part per object in Blender and reads back as its parts in ``procmod strings 
 (which takes a glTF's meshes for parts; merged into one mesh, a strings instantiation
 of 26 parts had read back as one part). ``procmod learn`` needs a hierarchy, which the
 flat file does not hold: ``procmod sample --format examples`` writes one. A part's node
-holds its placement and its mesh the part in its own frame, so that an artist gets each
-part as an object with its own origin and axes (written in world coordinates, every
-object had sat at the world origin, unturned); a placement that shears, which a glTF
+holds its placement and its mesh the part in its own frame, shared by the parts alike
+(linked data), so that an artist gets each part as an object with its own origin and
+axes (written in world coordinates, every object had sat at the world origin, unturned,
+a mesh of its own); a placement that shears, which a glTF
 node's matrix may not (it must decompose into translation, rotation and scale), is
 written into the mesh under an identity node instead. Above :data:`MAX_PART_NODES`
 parts, the file holds one node per tag instead:
@@ -87,7 +88,7 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
         groups = [(part_name(part.tag), *_placed_part_mesh(part, colour_of, segments)) for part in parts]
     # "world" is trimesh's name for the scene's root: a node of that name held every other
     # part as its child (Blender imported them all parented to one part)
-    used, counts = {"world"}, {}
+    used, counts, shared = {"world"}, {}, {}
     for name, mesh, *placement in groups:
         # names unique per file, as a modelling tool's (tower, tower_1, ...: trimesh would
         # drop a node of a name it holds); readers that name parts after meshes take the
@@ -97,23 +98,32 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
             counts[name] = counts.get(name, 0) + 1
             unique = f"{name}_{counts[name]}"
         used.add(unique)
-        scene.add_geometry(mesh, geom_name=unique, node_name=unique, transform=placement[0] if placement else None)
+        matrix_, same = placement if placement else (None, None)
+        if same is not None and same in shared:  # a copy: a node of the mesh written for the first (linked data)
+            scene.graph.update(frame_from=scene.graph.base_frame, frame_to=unique, matrix=matrix_,
+                               geometry=shared[same])
+            continue
+        scene.add_geometry(mesh, geom_name=unique, node_name=unique, transform=matrix_)
+        if same is not None:
+            shared[same] = unique
     return scene.export(file_type="glb")
 
 
 def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
-    """``(mesh, node matrix)`` of a part for a GLB node: the part in its own frame under
-    its placement, or, for a placement that shears (or is singular), its world-space mesh
-    under the identity."""
+    """``(mesh, node matrix, key)`` of a part for a GLB node: the part in its own frame
+    under its placement, ``key`` the part without it (parts of one key share a mesh, as a
+    tool's linked duplicates do); or, for a placement that shears (or is singular), its
+    world-space mesh under the identity, key None."""
     m = matrix(part.transform)
     linear = m[:3, :3]
     gram = linear.T @ linear
     scales = np.sqrt(np.diag(gram))
     if not np.isfinite(m).all() or not (scales > 1e-12 * max(float(scales.max()), 1e-300)).all() \
             or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > 1e-9:
-        return _part_mesh(part, colour_of, segments, True), np.eye(4)
+        return _part_mesh(part, colour_of, segments, True), np.eye(4), None
     # a mirrored placement keeps the part's own winding: glTF turns the faces with the node's determinant
-    return _part_mesh(part._replace(transform=IDENTITY), colour_of, segments, True), m
+    local = part._replace(transform=IDENTITY)
+    return _part_mesh(local, colour_of, segments, True), m, local
 
 
 def glb_bytes(parts, colour_of) -> bytes:
