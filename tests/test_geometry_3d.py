@@ -198,6 +198,22 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
     twin_header = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
     assert len(twin_header["meshes"]) == 2 and sum("mesh" in n for n in twin_header["nodes"]) == 4
     assert len(read_assets(tmp_path / "twins.glb").parts) == 1  # read back: one part, the boxes alike
+    # parts given as numpy arrays and lists (as a user's model may build them) are written too
+    # (keyed by the part itself, they had raised "unhashable type"), alike ones sharing a mesh
+    from procmod.geometry.solid import Mesh
+    tet = (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+           np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+    moved = (1, 0, 0, 5, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1)
+    odd = [Mesh(*tet, tag="tet"), Mesh(tet[0].tolist(), tet[1].tolist(), moved, tag="tet"),
+           Box(np.array([1.0, 2.0, 3.0]), tag="box"), Box([1, 2, 3], tag="box")]
+    # a last row other than 0 0 0 1 (ignored by the geometry) is no node matrix glTF allows: baked
+    odd.append(Box((1.0, 1.0, 1.0), (1, 0, 0, 2, 0, 1, 0, 0, 0, 0, 1, 0, 0.5, 0, 0, 1), tag="skewed"))
+    export_mesh(odd, tmp_path / "odd.glb", colour_of)
+    data = (tmp_path / "odd.glb").read_bytes()
+    odd_header = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
+    assert len(odd_header["meshes"]) == 3
+    (skewed,) = [n for n in odd_header["nodes"] if n.get("name") == "skewed"]
+    assert np.allclose(skewed.get("matrix", np.eye(4).reshape(-1)), np.eye(4).reshape(-1))
     for m in placed.values():  # a translation, a turn and scales: what glTF allows
         gram = m[:3, :3].T @ m[:3, :3]
         assert np.allclose(gram, np.diag(np.diag(gram)))

@@ -111,19 +111,22 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
 
 def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
     """``(mesh, node matrix, key)`` of a part for a GLB node: the part in its own frame
-    under its placement, ``key`` the part without it (parts of one key share a mesh, as a
-    tool's linked duplicates do); or, for a placement that shears (or is singular), its
-    world-space mesh under the identity, key None."""
+    under its placement, ``key`` its triangles and tag (parts of one key share a mesh, as a
+    tool's linked duplicates do); or, for a placement glTF cannot hold (one that shears, is
+    singular, or has a last row other than 0 0 0 1), its world-space mesh under the
+    identity, key None."""
     m = matrix(part.transform)
     linear = m[:3, :3]
     gram = linear.T @ linear
     scales = np.sqrt(np.diag(gram))
     if not np.isfinite(m).all() or not (scales > 1e-12 * max(float(scales.max()), 1e-300)).all() \
-            or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > 1e-9:
+            or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > 1e-9 or tuple(m[3]) != (0.0, 0.0, 0.0, 1.0):
         return _part_mesh(part, colour_of, segments, True), np.eye(4), None
     # a mirrored placement keeps the part's own winding: glTF turns the faces with the node's determinant
-    local = part._replace(transform=IDENTITY)
-    return _part_mesh(local, colour_of, segments, True), m, local
+    mesh = _part_mesh(part._replace(transform=IDENTITY), colour_of, segments, True)
+    # alike: the same triangles in the same colour (a part's fields may be arrays or lists: no key themselves)
+    key = (str(part.tag), np.asarray(mesh.vertices).tobytes(), np.asarray(mesh.faces).tobytes())
+    return mesh, m, key
 
 
 def glb_bytes(parts, colour_of) -> bytes:
