@@ -128,7 +128,6 @@ def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_pa
 
     import trimesh
 
-    from procmod.geometry.assets import read_assets
     from procmod.geometry.mesh_export import export_mesh
     from procmod.geometry.solid import Box
 
@@ -170,6 +169,7 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
 
     import trimesh
 
+    from procmod.geometry.assets import read_assets
     from procmod.geometry.assets import read_assets
     from procmod.geometry.mesh_export import export_mesh
     from procmod.geometry.solid import Box

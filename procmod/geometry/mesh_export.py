@@ -15,12 +15,11 @@ flat file does not hold: ``procmod sample --format examples`` writes one. A part
 holds its placement and its mesh the part in its own frame, shared by the parts alike
 (linked data), so that an artist gets each part as an object with its own origin and
 axes (written in world coordinates, every object had sat at the world origin, unturned,
-a mesh of its own); a placement that shears, which a glTF
-node's matrix may not (it must decompose into translation, rotation and scale), is
-written into the mesh under an identity node instead. Above :data:`MAX_PART_NODES`
-parts, the file holds one node per tag instead:
-Blender's importer takes time growing with the square of the objects (1,000 parts 5.6
-s, 2,000 29 s, 5,000 over 170 s; merged, 0.6 s). The report's viewer keeps one merged
+a mesh of its own); a placement that shears, which a glTF node's matrix may not (it must
+decompose into translation, rotation and scale), is written into the mesh under an
+identity node instead. Above :data:`MAX_PART_NODES` parts, the file holds one node per
+tag instead: Blender's importer takes time growing with the square of the objects (1,000
+parts 5.6 s, 2,000 29 s, 5,000 over 170 s; merged, 0.6 s). The report's viewer keeps one merged
 mesh (:func:`glb_bytes`): one draw call, whatever the part count.
 """
 
@@ -120,7 +119,8 @@ def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
     gram = linear.T @ linear
     scales = np.sqrt(np.diag(gram))
     if not np.isfinite(m).all() or not (scales > 1e-12 * max(float(scales.max()), 1e-300)).all() \
-            or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > 1e-9 or tuple(m[3]) != (0.0, 0.0, 0.0, 1.0):
+            or np.abs(gram / np.outer(scales, scales) - np.eye(3)).max() > 1e-9 \
+            or tuple(m[3]) != (0.0, 0.0, 0.0, 1.0):
         return _part_mesh(part, colour_of, segments, True), np.eye(4), None
     # a mirrored placement keeps the part's own winding: glTF turns the faces with the node's determinant
     mesh = _part_mesh(part._replace(transform=IDENTITY), colour_of, segments, True)

@@ -336,7 +336,8 @@ def _augment(args) -> None:
         except RingLimitError as exc:
             source = f" ({named[i]})" if named else ""
             raise InvalidArgumentError(f"shape {i}{source} ({len(g)} parts, {g.number_of_edges()} contacts) cannot "
-                                       f"be written as a string: {exc}; a lattice this large is beyond strings") from None
+                                       f"be written as a string: {exc}; a lattice this large is beyond "
+                                       "strings") from None
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     bar = progress_bar(total=args.count, unit=" shapes")

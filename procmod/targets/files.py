@@ -365,10 +365,10 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None
     decals) are left out, with a line in ``notes``, when they enclose nothing: when, at
     the voxels leaving them out changes, their own winding number is mostly not within
     :data:`ENCLOSING` of a nonzero whole number (a room of separate wall planes keeps its
-    walls; leaf cards sum to fractions), or when the inside
-    with them cannot be computed within the work limit (100,000 leaf cards had been
-    refused) and the rest has an inside. ``notes`` also gets :func:`open_mesh_note`'s
-    line, of the faces whose inside the mask is."""
+    walls; leaf cards sum to fractions), or when the inside with them cannot be computed
+    within the work limit (100,000 leaf cards had been refused) and the rest has an
+    inside. ``notes`` also gets :func:`open_mesh_note`'s line, of the faces whose inside
+    the mask is."""
     from ..core.limits import ResourceLimitError
     from ..geometry.inside import flat_open_pieces, inside_voxels, winding_numbers
 
@@ -383,16 +383,16 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None
             if not solid.any():
                 raise
             whole = None
-        changed = np.argwhere(solid != whole) if whole is not None else np.zeros((0, 3), dtype=np.int64)
-        if whole is not None and len(changed) == 0:
-            mask = whole
-        elif whole is not None:
-            probes = changed[np.random.default_rng(0).permutation(len(changed))[:ENCLOSING_PROBES]]
-            points = np.asarray(grid.origin, dtype=np.float64) + grid.size * (probes + 0.5)
-            w = winding_numbers(vertices, faces[flat], points)
-            whole_number = (np.abs(w - np.round(w)) <= ENCLOSING) & (np.round(w) != 0)
-            if whole_number.mean() >= 0.5:
+        if whole is not None:
+            changed = np.argwhere(solid != whole)
+            if len(changed) == 0:
                 mask = whole
+            else:
+                probes = changed[np.random.default_rng(0).permutation(len(changed))[:ENCLOSING_PROBES]]
+                points = np.asarray(grid.origin, dtype=np.float64) + grid.size * (probes + 0.5)
+                w = winding_numbers(vertices, faces[flat], points)
+                if ((np.abs(w - np.round(w)) <= ENCLOSING) & (np.round(w) != 0)).mean() >= 0.5:
+                    mask = whole  # they close a region: kept
         if mask is None:
             mask, used = solid, faces[~flat]
             if notes is not None:
