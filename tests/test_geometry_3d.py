@@ -170,7 +170,6 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
     import trimesh
 
     from procmod.geometry.assets import read_assets
-    from procmod.geometry.assets import read_assets
     from procmod.geometry.mesh_export import export_mesh
     from procmod.geometry.solid import Box
     from procmod.strings.assets import shapes_from_assets
