@@ -473,6 +473,7 @@ def _cmd_infer(args) -> None:
         kwargs["init_particles"] = args.init_particles
     size = check_size(args.size)
     budget = parse_budget(args.budget) if args.budget is not None else None
+    shadowed = None
     if args.guide is not None:
         if args.engine not in ("smc", "sosmc"):
             raise InvalidArgumentError(f"--guide works with --engine smc or sosmc, not {args.engine}")
@@ -520,6 +521,8 @@ def _cmd_infer(args) -> None:
         result.notes.append(workers_note)  # in settings.json and the report, beside the command that asked more
     if note is not None:
         result.notes.append(note)  # in the report too, beside the result it explains
+    if shadowed is not None:  # recorded: the same command gives another result in another folder
+        result.notes.append(shadowed)
     with folder.writing() as tmp:
         write_run(result, target, tmp, size, args.command_line)
     report = Path(args.out) / "report.html"

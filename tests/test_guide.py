@@ -758,6 +758,10 @@ def test_a_guide_of_this_folder_named_like_a_shipped_one_gets_a_note(tmp_path, m
     assert main([*command, "r1", "--guide", "vines-scribbles"]) == 0
     err = capsys.readouterr().err
     assert "note: --guide vines-scribbles reads vines-scribbles.json of this folder" in err, err
+    # and recorded: the run's settings.json and report had said nothing of which guide it was
+    notes = json.loads((tmp_path / "r1" / "settings.json").read_text())["notes"]
+    assert any("reads vines-scribbles.json of this folder" in n for n in notes), notes
+    assert "a guide trained here" in (tmp_path / "r1" / "report.html").read_text()
     assert main([*command, "r2", "--guide", "./vines-scribbles"]) == 0
     assert "note: --guide" not in capsys.readouterr().err  # said so
 

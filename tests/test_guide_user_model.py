@@ -396,3 +396,22 @@ def test_training_flags_are_named_as_flags_and_a_guide_may_be_named_by_its_npz(t
         shutil.copy(PRETRAINED / f"vines-scribbles{suffix}", tmp_path / f"g{suffix}")
     assert main(["infer", "vines", "--target", "glyph:a", "--particles", "3", "--out", str(tmp_path / "run"),
                  "--guide", str(tmp_path / "g.npz")]) == 0, capsys.readouterr().err
+
+
+def test_training_on_traces_of_a_model_edited_since_says_to_remake_them_all(tmp_path, monkeypatch, capsys):
+    """After an edit of the model, training named one stale trace and advised deleting it
+    and rerunning the traces job, which refuses to resume on the edited code: then the next
+    trace, one at a time. It now says the traces predate the edit and how to remake them;
+    an edit they still replay under (a comment) trains as before."""
+    _three_traces(tmp_path, monkeypatch)
+    train = ["guide", "train", "plants.py:PLANT", "--traces", "traces", "--iterations", "2", "--out"]
+    (tmp_path / "plants.py").write_text(PLANT_FILE + "# a comment\n")
+    assert main([*train, "g0"]) == 0, capsys.readouterr().err
+    edited = PLANT_FILE.replace("0.6, plant", "0.7, plant")
+    (tmp_path / "plants.py").write_text(edited)
+    (tmp_path / "plants2.py").write_text(edited)  # the edited rules (this process holds plants.py's as first read)
+    capsys.readouterr()
+    assert main(["guide", "train", "plants2.py:PLANT", *train[3:], "g1"]) == 2
+    err = capsys.readouterr().err
+    assert "made before its code was edited" in err and "--overwrite" in err and err.count("\n") == 1, err
+    assert "delete it and rerun" not in err

@@ -272,7 +272,18 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                          f"{argument(LOCAL_FEATURES)} (or 'constant')")
     began = time.perf_counter()
     torch.set_num_threads(1)  # tiny networks: threads cost more than they give
-    data, kinds, n_choices = build_dataset(model, traces, settings)
+    try:
+        data, kinds, n_choices = build_dataset(model, traces, settings)
+    except GuideError as exc:
+        from .traces import model_code_digest
+        if job is None or job.get("model_code") in (None, model_code_digest(model, job.get("model_file"))):
+            raise
+        # the model was edited since the job: every trace may be stale, and the job refuses to
+        # resume on the new code, so deleting the trace named and rerunning (the advice for a
+        # damaged trace) led nowhere, one trace at a time
+        raise GuideError(f"{traces_dir} holds traces of model {model.name!r} made before its code was edited, and "
+                         f"they do not replay under it ({str(exc).replace(_RERUN, '')}): make them afresh with "
+                         f"procmod guide traces and {argument('overwrite=True')}, or into a new folder") from None
     guide = new_guide_for(model, settings, mixture, kinds, seed)
     optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
     weights_path, meta_path = guide_paths(out, for_writing=True)
