@@ -7,6 +7,7 @@ import numpy as np
 import trimesh
 
 from procmod.core import run_forward
+from procmod.geometry.solid import matrix, rotation, translation
 from procmod.learn import examples_from_dict
 from procmod.learn.examples import read_example_inputs
 from procmod.learn.preprocessing import preprocess
@@ -18,15 +19,11 @@ QUICK = dict(init_iterations=80, split_iterations=40, warm_iterations=10, final_
 
 
 def T(x, y, z):
-    m = np.eye(4)
-    m[:3, 3] = (x, y, z)
-    return m
+    return matrix(translation(x, y, z))
 
 
 def turn_y(a):
-    m = np.eye(4)
-    m[[0, 0, 2, 2], [0, 2, 0, 2]] = (math.cos(a), math.sin(a), -math.sin(a), math.cos(a))
-    return m
+    return matrix(rotation("y", a))
 
 
 def lean(transform) -> float:

@@ -739,26 +739,36 @@ def single_sided(faces) -> np.ndarray:
     return faces[out] if len(out) else faces
 
 
-def _closed_pieces(faces: np.ndarray) -> np.ndarray:
-    """Mask of the faces in edge-connected pieces (across edges of exactly two faces)
-    that have no boundary edge (an edge of one face)."""
+def _pieces(faces: np.ndarray) -> tuple | None:
+    """``(count, label per face, open per piece)``: the edge-connected pieces across edges
+    of exactly two faces (as :func:`orient_faces` walks them), and which hold a boundary
+    edge (an edge of one face); None, at the cost of one edge count, for a mesh without a
+    boundary edge (every piece closed)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     n = len(faces)
-    edges = np.sort(np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
-    _, edge_id, edge_count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
-    edge_id = edge_id.ravel()
-    owner = np.repeat(np.arange(n), 3)
-    order = np.argsort(edge_id, kind="stable")
-    shared = edge_count[edge_id[order]] == 2
-    pairs = order[shared].reshape(-1, 2)  # the two faces of each edge of exactly two
-    graph = coo_matrix((np.ones(len(pairs)), (owner[pairs[:, 0]], owner[pairs[:, 1]])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    open_face = np.zeros(n, dtype=bool)
-    open_face[owner[edge_count[edge_id] == 1]] = True
-    open_piece = np.zeros(label.max() + 1, dtype=bool)
-    open_piece[label[open_face]] = True
+    _, _, _, _, key, order = _half_edges(faces)
+    sorted_key = key[order]
+    first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    size = np.diff(np.r_[first, len(order)])
+    if not (size == 1).any():
+        return None
+    pair = first[size == 2]
+    graph = coo_matrix((np.ones(len(pair)), (order[pair] // 3, order[pair + 1] // 3)), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    open_piece = np.zeros(count, dtype=bool)
+    open_piece[label[order[first[size == 1]] // 3]] = True
+    return count, label, open_piece
+
+
+def _closed_pieces(faces: np.ndarray) -> np.ndarray:
+    """Mask of the faces in edge-connected pieces (across edges of exactly two faces)
+    that have no boundary edge (an edge of one face)."""
+    pieces = _pieces(faces)
+    if pieces is None:
+        return np.ones(len(faces), dtype=bool)
+    _, label, open_piece = pieces
     return ~open_piece[label]
 
 
@@ -777,26 +787,15 @@ def flat_open_pieces(vertices, faces) -> np.ndarray:
     over, 56 of them in both. (Several such pieces may still bound a room together:
     :func:`procmod.targets.files.mesh_inside` decides whether to leave them out.) All
     False, at the cost of one edge count, for a mesh without boundary edges."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     n = len(faces)
     if n == 0:
         return np.zeros(0, dtype=bool)
-    _, _, _, _, key, order = _half_edges(faces)
-    sorted_key = key[order]
-    first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    size = np.diff(np.r_[first, len(order)])
-    if not (size == 1).any():
+    pieces = _pieces(faces)
+    if pieces is None:
         return np.zeros(n, dtype=bool)  # no boundary edge: no open piece
-    # pieces across edges of exactly two faces (as orient_faces walks them); open ones hold an edge of one face
-    pair = first[size == 2]
-    graph = coo_matrix((np.ones(len(pair)), (order[pair] // 3, order[pair + 1] // 3)), shape=(n, n))
-    count, label = connected_components(graph, directed=False)
-    open_piece = np.zeros(count, dtype=bool)
-    open_piece[label[order[first[size == 1]] // 3]] = True
+    count, label, open_piece = pieces
     corner_label = np.repeat(label, 3)
     points = vertices[faces.ravel()]
     # per piece: the plane of least squares through its corners, and how far they lie from it
