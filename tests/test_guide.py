@@ -899,3 +899,26 @@ def test_the_apis_messages_keep_its_argument_names(tmp_path):
         train_guide("vines", tmp_path, tmp_path / "g", iterations=0)
     with pytest.raises(GuideError, match=r"^limit must be a positive integer \(the first traces to train on\) or None"):
         train_guide("vines", tmp_path, tmp_path / "g", limit=0)
+
+
+def test_a_guide_records_its_drawings_and_targets_and_a_run_on_others_is_noted(few_traces, tmp_path):
+    """A guide trained on 50x50 scribbles ran at other drawing sizes, and a circuit guide
+    on a picture, without a word: its networks read windows by pixel and learned what its
+    training targets favour."""
+    from procmod.data import target_from_spec
+    from procmod.targets.circuit import Circuit
+
+    guide, _ = train_guide(VINES, few_traces, tmp_path / "g", iterations=5, mixture=2)
+    assert Guide.load(tmp_path / "g").info["trained_on"] == {"canvases": [[50, 50]], "targets": ["picture"]}
+    target = target_from_spec("scribble:3")
+    same = smc(VINES, target, particles=3, seed=0, guide=guide)
+    assert not any("trained on" in n for n in same.notes)
+    larger = smc(VINES.configure(size=64), target, particles=3, seed=0, guide=guide)
+    assert any("50x50-pixel drawings and this run draws at 64x64" in n for n in larger.notes)
+    local, _ = train_guide(VINES, few_traces, tmp_path / "local", FeatureSettings(target=False), iterations=5,
+                           mixture=2)
+    circuit = smc(VINES, Circuit(), particles=3, seed=0, guide=local)
+    assert any("trained on picture targets and this run's is a circuit" in n for n in circuit.notes)
+    shipped = Guide.load("vines-circuit")  # the shipped guides say what they were trained on too
+    assert any("trained on circuit targets" in n for n in smc(VINES, target, particles=3, seed=0,
+                                                                 guide=shipped).notes)

@@ -332,6 +332,49 @@ def shadowing_note(path: str | os.PathLike) -> str | None:
             f"that name (give ./{path.name} to say so; rename it to use the shipped one here)")
 
 
+def target_kind(target) -> str:
+    """What a guide records of the targets it was trained on, and compares with a run's:
+    ``picture`` (a target image), ``circuit``, or the target's class name."""
+    from ..targets.circuit import Circuit
+    from ..targets.shape import ShapeMatch
+
+    if isinstance(target, ShapeMatch):
+        return "picture"
+    if isinstance(target, Circuit):
+        return "circuit"
+    return type(target).__name__
+
+
+def output_size(output) -> list | None:
+    """``[width, height]`` of a raster output (a guide's features are windows of it), else None."""
+    width, height = getattr(output, "width", None), getattr(output, "height", None)
+    return [width, height] if isinstance(width, int) and isinstance(height, int) else None
+
+
+def fit_note(guide: "Guide", output, target) -> str | None:
+    """A note when a run's drawing size or kind of target is not what ``guide`` was
+    trained on (its ``info["trained_on"]``; guides trained before it was recorded: None).
+    The networks read windows of the target and of the drawing by pixel, and learned what
+    choices the training targets favour: the run is still correct (its weights are prior
+    over proposal), but the guide may steer it worse than the prior would."""
+    trained = guide.info.get("trained_on")
+    if not isinstance(trained, dict):
+        return None
+    said = []
+    sizes, size = trained.get("canvases"), output_size(output)
+    if isinstance(sizes, list) and sizes and size is not None and size not in sizes:
+        shown = ", ".join(f"{w}x{h}" for w, h in sizes[:3]) + (", ..." if len(sizes) > 3 else "")
+        said.append(f"it was trained on {shown}-pixel drawings and this run draws at {size[0]}x{size[1]} (its "
+                     "windows now cover other distances)")
+    kinds, kind = trained.get("targets"), target_kind(target)
+    if isinstance(kinds, list) and kinds and kind not in kinds:
+        said.append(f"it was trained on {' and '.join(map(str, kinds[:3]))} targets and this run's is a {kind}")
+    if not said:
+        return None
+    return (f"guide {guide.source or guide.model_name}: {'; '.join(said)}: it may steer worse than no guide; train "
+            "one on traces of this kind (procmod guide traces, then procmod guide train)")
+
+
 def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Path, Path]:
     """(weights .pt, metadata .json) for a guide path given with or without a suffix, or,
     to read, the name of a shipped guide (e.g. ``vines-scribbles``). A path to write

@@ -38,7 +38,7 @@ from ..core.runtime import finish
 from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, FeatureSettingsError, GuideError
 from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_guide_for,
-                    target_mask_for)
+                    output_size, target_kind, target_mask_for)
 from .nets import log_q_torch
 from .traces import load_traces
 
@@ -174,6 +174,33 @@ class SiteData:
         return self.x[idx], self.base[idx], self.value[idx]
 
 
+def trained_on(model, traces: list) -> dict:
+    """What a guide records of its traces' drawings and targets (``info["trained_on"]``):
+    the drawing sizes (``[width, height]`` each) and the kinds of target
+    (:func:`~procmod.guide.guide.target_kind`), so that a run on others is noted
+    (:func:`~procmod.guide.guide.fit_note`)."""
+    from ..core.errors import ProcmodError
+    from ..data import target_from_spec
+
+    sizes, kinds, seen = [], [], set()
+    for trace in traces:
+        params = trace["derivation"]["params"]
+        key = (json.dumps(params, sort_keys=True, default=str), trace["target"])
+        if key in seen:  # a job's traces share their params and a few dozen targets
+            continue
+        seen.add(key)
+        size = output_size(model.configure(**params).new_output())
+        if size is not None and size not in sizes:
+            sizes.append(size)
+        try:
+            kind = target_kind(target_from_spec(trace["target"]))
+        except ProcmodError:  # a picture moved since: a guide with local features only trains without it
+            continue
+        if kind not in kinds:
+            kinds.append(kind)
+    return {"canvases": sorted(sizes), "targets": sorted(kinds)}
+
+
 def build_dataset(model, traces: list, settings: FeatureSettings) -> tuple[dict, dict, int]:
     """Per-site training data; returns (site -> SiteData, site -> kind, number of choices)."""
     per_site, kinds = {}, {}
@@ -284,6 +311,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
         raise GuideError(f"{traces_dir} holds traces of model {model.name!r} made before its code was edited, and "
                          f"they do not replay under it ({str(exc).replace(_RERUN, '')}): make them afresh with "
                          f"procmod guide traces and {argument('overwrite=True')}, or into a new folder") from None
+    drawn = trained_on(model, traces)
     guide = new_guide_for(model, settings, mixture, kinds, seed)
     optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
     weights_path, meta_path = guide_paths(out, for_writing=True)
@@ -346,7 +374,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     guide.invalidate()
     guide.info = {"traces": n, "choices": n_choices, "iterations": iterations, "batch": batch, "lr": lr,
                   "schedule": schedule, "adam_betas": list(ADAM_BETAS), "seed": seed, "final_nll": final, "seconds": seconds,
-                  "trace_job": job, "curve": curve}
+                  "trace_job": job, "trained_on": drawn, "curve": curve}
     weights, meta = guide.save(out)
     for p in (ckpt, ckpt_meta):
         if p.exists():

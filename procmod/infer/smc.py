@@ -283,6 +283,11 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     tracker = Tracker(budget, progress)
     local = ParticleShard(0, model, target, template, rng, pick, proposer, tracker.offer)
     notes = []
+    if guide is not None:
+        from ..guide.guide import fit_note
+        misfit = fit_note(guide, template, target)
+        if misfit is not None:
+            notes.append(misfit)
     remote = []
     with relaxed_gc():
         try:
