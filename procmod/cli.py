@@ -278,6 +278,7 @@ def _cmd_sample(args) -> None:
     import json
 
     from .core.limits import check_disk, check_memory
+    from .core.random import global_draws_note, global_generator_states
     from .core.runfolder import SAMPLE_RUN, RunFolder, check_output_file
     from .core.serialize import derivation_to_dict
     from .render import check_size, is_2d, output_formats, write_contact_page, write_contact_sheet, write_derivation
@@ -291,9 +292,18 @@ def _cmd_sample(args) -> None:
     out = output_path(args.out)
     inputs = _model_inputs(args.model)
 
+    drew = []  # global_draws_note's, once
+
     def sample(i: int):
         # Sample i depends only on (seed, i), so asking for more samples keeps the first ones.
-        return run_forward(model, np.random.default_rng([args.seed, i]))
+        before = global_generator_states()
+        derivation = run_forward(model, np.random.default_rng([args.seed, i]))
+        if not drew:
+            note = global_draws_note(before, "the model's rules")
+            if note is not None:
+                drew.append(note)
+                print(f"note: {note}", file=sys.stderr)
+        return derivation
 
     if args.format == "examples":
         from .learn import NotALearnedProgramError, is_learned, write_examples

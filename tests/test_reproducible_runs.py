@@ -156,3 +156,46 @@ def test_the_report_says_what_target_and_curves_show(tmp_path, capsys):
     assert "most of them partial" in page and "complete derivations only" in page
     assert "score against\nevaluations" in page
     capsys.readouterr()
+
+
+def _drawing_root(ctx, draw):
+    from procmod.core import Normal
+    from toy_models import Value
+    ctx.emit(Value(ctx.sample("x", Normal(0.0, 1.0)) + {"random": _python_draw, "numpy": np.random.random,
+                                                         "none": float}[draw]()))
+    ctx.maybe("next", 0.5, _drawing_root, draw)
+
+
+def _python_draw():
+    import random
+    return random.random()
+
+
+@pytest.mark.parametrize("engine", ["forward", "smc", "sosmc", "mcmc", "ga"])
+@pytest.mark.parametrize("draw, named", [("random", "Python's random module"),
+                                         ("numpy", "numpy's global generator")])
+def test_a_run_whose_rules_draw_from_a_global_generator_says_so(engine, draw, named):
+    """A rule that draws from Python's random or np.random is not reproducible by seed and
+    its draws are not choices; it ran without a word."""
+    from procmod.core import Model
+    from procmod.infer import ENGINES
+    from toy_models import SumOutput, SumTarget
+
+    for chosen in (draw, "none"):
+        model = Model("global-draws", "", _drawing_root, root_args=lambda p, d=chosen: (d,),
+                      new_output_from=lambda p: SumOutput())
+        result = ENGINES[engine](model, SumTarget(0.0, 1.0), seed=0, budget=Budget(evaluations=200))
+        assert any(named in n for n in result.notes) == (chosen == draw), (chosen, result.notes)
+
+
+def test_sample_notes_a_model_that_draws_from_a_global_generator(tmp_path, monkeypatch, capsys):
+    (tmp_path / "m.py").write_text(
+        "import math, random\nfrom procmod.core import Model, Normal\nfrom procmod.geometry import Canvas, Segment\n"
+        "def chain(ctx, x):\n    y = ctx.sample('y', Normal(0, 1)) + random.random()\n"
+        "    ctx.emit(Segment(x, 0, x + 1, y, 0.5))\n"
+        "model = Model('c', 'c', chain, root_args=lambda p: (0.0,), new_output_from=lambda p: Canvas((-5, 5, -5, 5), 20))\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["sample", "m.py:model", "-n", "2", "--out", "s"]) == 0
+    assert "drew from Python's random module" in capsys.readouterr().err
+    assert main(["sample", "vines", "-n", "2", "--out", "v"]) == 0
+    assert "drew from" not in capsys.readouterr().err

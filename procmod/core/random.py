@@ -10,9 +10,14 @@ passed to the wrapped generator.
 
 :func:`resample` draws the ancestor indices of a particle population (systematic,
 multinomial or residual), for every particle method: SMC and learn's structure search.
+
+:func:`global_draws_note` says when a run moved Python's or numpy's global generators,
+which procmod never draws from: a model's rule did.
 """
 
 from __future__ import annotations
+
+import random
 
 import numpy as np
 
@@ -31,6 +36,35 @@ def check_seed(seed, name: str = "seed") -> None:
         shown = " ".join(repr(seed).split())[:40]
         raise InvalidArgumentError(f"{name} must be a non-negative whole number (or a sequence of them), got "
                                    f"{type(seed).__name__} {shown}") from None
+
+
+def global_generator_states() -> tuple:
+    """The states of Python's ``random`` module and of numpy's global (legacy) generator,
+    to compare before and after a run (:func:`global_draws_note`): procmod draws from
+    explicit generators only, so a change is a model's (or a user target's) doing."""
+    legacy = np.random.get_state()  # ("MT19937", keys, position, has_gauss, cached_gaussian)
+    return random.getstate(), legacy[1].tobytes(), legacy[2:]
+
+
+def global_draws_note(before: tuple, who: str = "the model's rules (or the target's score)") -> str | None:
+    """A note when Python's ``random`` or numpy's global generator has moved since
+    ``before`` (:func:`global_generator_states`), else None; ``who`` is what drew.
+
+    A rule that draws from them is not reproducible by seed, and its draws are not choices:
+    engines can neither steer nor replay them, and SMC re-runs a call from its start when it
+    resumes it after an emit, so it draws again and the geometry disagrees with the score.
+    Seen in the process that runs the engine (whose own share of the particles or chains
+    runs rules too); a rule that draws only in a worker process is not seen.
+    """
+    after = global_generator_states()
+    moved = [name for name, a, b in (("Python's random module", before[0], after[0]),
+                                     ("numpy's global generator (np.random.*)", before[1:], after[1:])) if a != b]
+    if not moved:
+        return None
+    return (f"{who} drew from {' and '.join(moved)} during this run: those draws "
+            "are not random choices, so the seed does not fix them, engines cannot steer them, and a call resumed "
+            "after an emit draws them again (its drawing then disagrees with its score); draw every random value "
+            "with ctx.sample")
 
 
 class BlockGenerator:

@@ -27,7 +27,7 @@ import numpy as np
 from ..core import Derivation, InvalidArgumentError, Model, replay
 from ..core.errors import shown_value, whole_number
 from ..core.protocols import Output, Target, check_declared
-from ..core.random import LazyGenerator, check_seed
+from ..core.random import LazyGenerator, check_seed, global_draws_note, global_generator_states
 
 
 @dataclass(frozen=True)
@@ -163,6 +163,7 @@ class Tracker:
         self.rows: list[HistoryRow] = []
         self._next_row = 1  # evaluations at which the next row is due
         self._last_progress = -math.inf
+        self._global_states = global_generator_states()  # see notes()
 
     @property
     def seconds(self) -> float:
@@ -215,8 +216,11 @@ class Tracker:
         return best_first(score, log_likelihood) > (not self.best_ruled_out, self.best_score)
 
     def notes(self) -> list:
-        """What a result should say of its best (:data:`RULED_OUT_NOTE`)."""
-        return [RULED_OUT_NOTE] if self.best is not None and self.best_ruled_out else []
+        """What a result should say of its best (:data:`RULED_OUT_NOTE`), and of draws from
+        the global generators since the tracker was made (:func:`global_draws_note`)."""
+        notes = [RULED_OUT_NOTE] if self.best is not None and self.best_ruled_out else []
+        drew = global_draws_note(self._global_states)
+        return notes + ([drew] if drew is not None else [])
 
     def due(self) -> bool:
         """Whether a history row is due (cheap; engines compute mean scores only then)."""
