@@ -48,6 +48,116 @@ def _saved(tmp_path):
     return derivation_to_dict(d)
 
 
+def _as_format_1(data: dict) -> dict:
+    """A format-2 dict as procmod wrote it before format 2: every call and choice by its
+    whole address."""
+    addresses = []
+    for parent, site in data["calls"]:
+        addresses.append([] if parent is None else addresses[parent] + [site])
+    old = {key: value for key, value in data.items() if key not in ("calls", "choices")}
+    return {**old, "format": "procmod-derivation/1", "order": addresses,
+            "choices": [[addresses[call], name, value] for call, name, value in data["choices"]]}
+
+
+def _saved_1(tmp_path):
+    return _as_format_1(_saved(tmp_path))
+
+
+@pytest.mark.parametrize("mutate,message", [
+    (lambda d: d.update(format="procmod-derivation/99"), "format"),
+    (lambda d: d.update(model=5), "model"),
+    (lambda d: d.pop("choices"), "choices"),
+    (lambda d: d.pop("calls"), "calls"),
+    (lambda d: d["choices"].append([0, "bogus", 1.0]), "does not replay"),
+    (lambda d: d["choices"].pop(0), "does not replay"),
+    # a deleted choice is named, with where to put it back
+    (lambda d: [d.pop("log_prior"), d["choices"].pop(1)],
+     r"a choice the model makes is missing: the first, 'leaf' at calls\[0\], is not in its choices; add it as "
+     r"\[0, \"leaf\", VALUE\]"),
+    (lambda d: d["choices"].__setitem__(0, ["x", 1]), r"choices\[0\] must be \[call, name, value\]"),
+    (lambda d: d["choices"].__setitem__(0, [len(d["calls"]), "angle", 0.1]), r"choices\[0\] must be"),
+    (lambda d: d["choices"].__setitem__(0, [True, "angle", 0.1]), r"choices\[0\] must be"),
+    (lambda d: d.update(log_prior=d["log_prior"] + 1.0), "its choices were edited, or the model has changed"),
+    (lambda d: d["choices"].insert(0, [d["choices"][0][0], d["choices"][0][1], 0.5]),
+     r"choices\[1\] gives choice 'angle' at calls\[0\] again \(choices\[0\] gave it first\)"),
+    (lambda d: [d.pop("log_prior"), d["choices"][4].__setitem__(2, 5)],
+     r"choices\[4\], 'terminate' at calls\[0\] = 5, is a value its distribution there cannot take"),
+    (lambda d: d["choices"][1].__setitem__(2, "sideways"),
+     r"choices\[1\], 'leaf' at calls\[0\] = \"sideways\", is a value its distribution there cannot take"),
+    (lambda d: d.update(params={"colour": "red"}), "no parameter"),
+])
+def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
+    data = _saved(tmp_path)
+    assert data["format"] == "procmod-derivation/2"
+    mutate(data)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(DerivationFormatError, match=message):
+        load_derivation(path, get_model)
+
+
+@pytest.mark.parametrize("mutate,message", [
+    (lambda d: d["calls"].__setitem__(0, [0, "branch"]), r"calls\[0\] must be the root call"),
+    (lambda d: d["calls"].__setitem__(1, [1, "branch"]), r"calls\[1\] names calls\[1\] as the call that spawned "
+                                                         "it, which does not come before it"),
+    (lambda d: d["calls"].__setitem__(1, [-1, "branch"]), r"calls\[1\] names calls\[-1\] .* which is no call"),
+    (lambda d: d["calls"].__setitem__(1, ["0", "branch"]), r"calls\[1\] must be"),
+    (lambda d: d["calls"].append(d["calls"][-1]), r"calls\[\d+\] is listed twice"),
+])
+def test_malformed_calls_are_rejected(tmp_path, mutate, message):
+    d = next(d for d in (run_forward(get_model("vines"), np.random.default_rng(seed)) for seed in range(50))
+             if d.n_nodes >= 3)
+    data = derivation_to_dict(d)
+    mutate(data)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(DerivationFormatError, match=message):
+        load_derivation(path, get_model)
+
+
+def test_format_1_files_are_still_read(tmp_path):
+    for seed in range(5):
+        d = run_forward(get_model("vines"), np.random.default_rng(seed))
+        (tmp_path / "d.json").write_text(json.dumps(_as_format_1(derivation_to_dict(d))))
+        loaded = load_derivation(tmp_path / "d.json", get_model)
+        assert loaded.order() == d.order() and loaded.geometry() == d.geometry()
+        assert loaded.log_prior == d.log_prior
+
+
+def test_a_deep_chain_is_written_in_space_linear_in_its_depth(tmp_path):
+    """Format 1 named every call by its whole address: a chain 5,000 calls deep wrote
+    200 MB (n^2 / 2 site names); format 2 names each call once."""
+    from procmod.core import Model, Normal
+
+    def link(ctx, n):
+        ctx.sample("a", Normal(0.0, 1.0))
+        ctx.emit(None)
+        if n > 0:
+            ctx.spawn("next", link, n - 1)
+
+    sizes = {}
+    for depth in (200, 800):
+        model = Model(f"chain{depth}", "", link, root_args=lambda p, n=depth: (n,), new_output_from=lambda p: _Sink())
+        d = run_forward(model, np.random.default_rng(0))
+        save_derivation(d, tmp_path / f"{depth}.json")
+        sizes[depth] = (tmp_path / f"{depth}.json").stat().st_size
+        loaded = load_derivation(tmp_path / f"{depth}.json", lambda name, m=model: m)
+        assert loaded.order() == d.order() and loaded.choice_map() == d.choice_map()
+    assert sizes[800] < 5 * sizes[200]  # linear: 4x; format 1 wrote ~14x
+
+
+class _Sink:
+    """An output that takes any emit and draws nothing."""
+
+    dimension = 0
+
+    def add(self, value):
+        pass
+
+    def copy(self):
+        return _Sink()
+
+
 @pytest.mark.parametrize("mutate,message", [
     (lambda d: d.update(format="procmod-derivation/99"), "format"),
     (lambda d: d.update(model=5), "model"),
@@ -76,8 +186,8 @@ def _saved(tmp_path):
                                                           "spawns it"),
     (lambda d: d["order"].append(d["order"][-1]), r"order\[\d+\] .* is listed twice"),
 ])
-def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
-    data = _saved(tmp_path)
+def test_malformed_format_1_derivations_are_rejected(tmp_path, mutate, message):
+    data = _saved_1(tmp_path)
     mutate(data)
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(data))
@@ -126,8 +236,8 @@ def test_a_deleted_maybe_coin_is_named_not_the_choices_it_leaves_unused(tmp_path
     made = next(d for d in (run_forward(chain, np.random.default_rng(seed)) for seed in range(50)) if d.n_nodes >= 4)
     data = derivation_to_dict(made)
     data.pop("log_prior")
-    data["choices"] = [c for c in data["choices"] if c[:2] != [[], "next"]]
+    data["choices"] = [c for c in data["choices"] if c[:2] != [0, "next"]]
     (tmp_path / "d.json").write_text(json.dumps(data))
     with pytest.raises(DerivationFormatError, match=r"a choice the model makes is missing: the first, 'next' at "
-                                                      r"\[\], is not in its choices"):
+                                                      r"calls\[0\], is not in its choices"):
         load_derivation(tmp_path / "d.json", get_model)

@@ -1,16 +1,22 @@
 """Save and load derivations as versioned JSON.
 
-Format ``procmod-derivation/1``::
+Format ``procmod-derivation/2``::
 
-    {"format": "procmod-derivation/1",
+    {"format": "procmod-derivation/2",
      "model": "vines", "params": {...},
      "log_prior": -12.3,
-     "order": [[], ["branch1"], ...],                # expansion order of the calls
-     "choices": [[["branch1"], "angle", 0.12], ...]} # node address, name, value
+     "calls": [[null, null], [0, "branch1"], ...],   # in the order they ran: [the call that
+                                                     #   spawned it (its index here), spawn site]
+     "choices": [[1, "angle", 0.12], ...]}           # call (its index in "calls"), name, value
 
 Loading replays the model under the stored choices in the stored order, so the loaded
 derivation is the saved one exactly (same tree, same geometry, same log-prior); a file
 that does not replay without fresh or left-over choices is rejected.
+
+``procmod-derivation/1`` files are still read. They named every call and choice by its
+whole address (``"order": [[], ["branch1"], ...]``, ``"choices": [[["branch1"], "angle",
+0.12], ...]``), so a chain of n calls wrote n^2 / 2 site names: 200 MB for a chain 5,000
+calls deep, which took 1.1 GB to write. Format 2 names each call once, by its spawner.
 """
 
 from __future__ import annotations
@@ -30,7 +36,8 @@ from .io import check_format, fingerprint, parse_json, read_json, write_text_ato
 from .model import Model
 from .runtime import Derivation, replay, rule_function
 
-FORMAT = "procmod-derivation/1"
+FORMAT = "procmod-derivation/2"
+FORMAT_1 = "procmod-derivation/1"  # read, no longer written (see the module docstring)
 
 
 def _json_value(value):
@@ -46,15 +53,21 @@ def derivation_to_dict(derivation: Derivation) -> dict:
     if not derivation.done:
         raise DerivationFormatError("only complete derivations can be saved; run it to the end first")
     nodes = derivation.nodes()
+    position = {}  # address -> index in "calls" (a call runs after the call that spawned it)
+    calls = []
+    for i, node in enumerate(nodes):
+        address = node.address
+        position[address] = i
+        calls.append([position[address[:-1]], address[-1]] if address else [None, None])
     return {
         "format": FORMAT,
         "model": derivation.model.name,
         "root": root_rule_id(derivation.model),
         "params": dict(derivation.model.params),
         "log_prior": float(derivation.log_prior),  # a model's numpy densities sum to a numpy float
-        "order": [list(node.address) for node in nodes],
-        "choices": [[list(node.address), _json_name(node, name), _json_value(choice.value)]
-                    for node in nodes for name, choice in node.choices.items()],
+        "calls": calls,
+        "choices": [[i, _json_name(node, name), _json_value(choice.value)]
+                    for i, node in enumerate(nodes) for name, choice in node.choices.items()],
     }
 
 
@@ -103,7 +116,7 @@ def derivation_json(data: dict) -> str:
 
 
 def save_derivation(derivation: Derivation, path: str | os.PathLike) -> None:
-    """Write a complete derivation to ``path`` as ``procmod-derivation/1`` JSON."""
+    """Write a complete derivation to ``path`` as ``procmod-derivation/2`` JSON."""
     if not isinstance(derivation, Derivation):
         raise InvalidArgumentError(f"derivation must be a procmod Derivation, got {type(derivation).__name__}")
     if not isinstance(path, (str, os.PathLike)):
@@ -171,6 +184,87 @@ def _fail(source: str, problem: str) -> DerivationFormatError:
     return DerivationFormatError(f"{source}: {problem}")
 
 
+def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, dict]:
+    """The calls and choices of a derivation's dict (format 2 or 1), checked:
+    ``(order, choices, index)`` with ``order`` the calls' addresses in the order they ran,
+    ``choices`` ``(address, name) -> value`` and ``index`` ``(address, name) -> the
+    choice's position in the file``; a file that does not hold them is a
+    :class:`DerivationFormatError` in one line naming ``source``."""
+    if isinstance(data, dict) and data.get("format") == FORMAT_1:
+        return _calls_1(data, source)
+    check_format(data, FORMAT, source)
+    calls, entries = data.get("calls"), data.get("choices")
+    for key, value in (("calls", calls), ("choices", entries)):
+        if not isinstance(value, list):
+            raise _fail(source, f"field {key!r} is missing or not a list")
+    order, seen = [], set()
+    for i, call in enumerate(calls):
+        if i == 0:
+            if call != [None, None]:
+                raise _fail(source, "calls[0] must be the root call, [null, null]")
+            order.append(())
+            seen.add(())
+            continue
+        if (not isinstance(call, list) or len(call) != 2 or isinstance(call[0], bool)
+                or not isinstance(call[0], int) or not isinstance(call[1], str)):
+            raise _fail(source, f"calls[{i}] must be [the index of the call that spawned it, spawn site]")
+        if not 0 <= call[0] < i:
+            raise _fail(source, f"calls[{i}] names calls[{call[0]}] as the call that spawned it, which "
+                                + ("does not come before it" if call[0] >= 0 else "is no call")
+                                + ": 'calls' lists the calls as they ran; restore it as it was saved")
+        address = order[call[0]] + (call[1],)
+        if address in seen:
+            raise _fail(source, f"calls[{i}] is listed twice (spawn site {cut_text(call[1], 60)!r} of "
+                                f"calls[{call[0]}]); restore 'calls' as it was saved")
+        seen.add(address)
+        order.append(address)
+    choices, index = {}, {}
+    for i, entry in enumerate(entries):
+        if (not isinstance(entry, list) or len(entry) != 3 or isinstance(entry[0], bool)
+                or not isinstance(entry[0], int) or not 0 <= entry[0] < len(order) or not isinstance(entry[1], str)
+                or not isinstance(entry[2], (bool, int, float, str))):
+            raise _fail(source, f"choices[{i}] must be [call, name, value], the call its index in 'calls' (0 to "
+                                f"{len(order) - 1})")
+        _add_choice(choices, index, (order[entry[0]], entry[1]), entry[2], i, source, f"calls[{entry[0]}]")
+    return order, choices, index
+
+
+def _add_choice(choices: dict, index: dict, key: tuple, value, i: int, source: str, where: str) -> None:
+    if key in choices:  # one would silently win over the other
+        raise _fail(source, f"choices[{i}] gives choice {cut_text(key[1], 60)!r} at {where} again "
+                            f"(choices[{index[key]}] gave it first); keep one of the two")
+    choices[key], index[key] = value, i
+
+
+def _calls_1(data: dict, source: str) -> tuple[list, dict, dict]:
+    """:func:`stored_calls` of a ``procmod-derivation/1`` dict (whole addresses)."""
+    for key in ("order", "choices"):
+        if not isinstance(data.get(key), list):
+            raise _fail(source, f"field {key!r} is missing or not a list")
+    choices, index = {}, {}
+    for i, entry in enumerate(data["choices"]):
+        if (not isinstance(entry, list) or len(entry) != 3 or not isinstance(entry[0], list)
+                or not all(isinstance(s, str) for s in entry[0]) or not isinstance(entry[1], str)
+                or not isinstance(entry[2], (bool, int, float, str))):
+            raise _fail(source, f"choices[{i}] must be [[site, ...], name, value]")
+        _add_choice(choices, index, (tuple(entry[0]), entry[1]), entry[2], i, source,
+                    cut_text(json.dumps(entry[0]), 80))
+    order = []
+    for i, address in enumerate(data["order"]):
+        if not isinstance(address, list) or not all(isinstance(s, str) for s in address):
+            raise _fail(source, f"order[{i}] must be a list of spawn-site names")
+        order.append(tuple(address))
+    ran = set()  # calls run in an order where each comes after the call that spawned it
+    for i, address in enumerate(order):
+        if address in ran or (address and address[:-1] not in ran):
+            raise _fail(source, f"order[{i}] {cut_text(json.dumps(list(address)), 80)} "
+                                + ("is listed twice" if address in ran else "comes before the call that spawns it")
+                                + ": 'order' lists the calls as they ran (an edited order was blamed on the choices); "
+                                  "restore it as it was saved")
+        ran.add(address)
+    return order, choices, index
+
+
 def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], source: str = "derivation",
                          folder: str | os.PathLike | None = None) -> Derivation:
     """Rebuild a derivation from its dict by replaying its model exactly.
@@ -182,10 +276,12 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
     """
     if not isinstance(data, dict):
         raise _fail(source, "expected a JSON object")
-    check_format(data, FORMAT, source)
-    for key, kind in (("model", str), ("params", dict), ("order", list), ("choices", list)):
+    if data.get("format") != FORMAT_1:
+        check_format(data, FORMAT, source)
+    for key, kind in (("model", str), ("params", dict)):
         if not isinstance(data.get(key), kind):
             raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
+    order, choices, index = stored_calls(data, source)  # the file's own faults before the model's
     name = data["model"]
     if _names_program(name) and "\\" in name and os.sep == "/" and not os.path.isfile(
             name if folder is None else os.path.join(folder, name)):  # (a folder may have a \ in its name here)
@@ -221,31 +317,6 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
         model = model.configure(**data["params"])
     except ProcmodError as exc:
         raise _fail(source, str(exc)) from exc
-    choices, index = {}, {}
-    for i, entry in enumerate(data["choices"]):
-        if (not isinstance(entry, list) or len(entry) != 3 or not isinstance(entry[0], list)
-                or not all(isinstance(s, str) for s in entry[0]) or not isinstance(entry[1], str)
-                or not isinstance(entry[2], (bool, int, float, str))):
-            raise _fail(source, f"choices[{i}] must be [[site, ...], name, value]")
-        key = (tuple(entry[0]), entry[1])
-        if key in choices:  # one would silently win over the other
-            raise _fail(source, f"choices[{i}] gives choice {cut_text(entry[1], 60)!r} at "
-                                f"{cut_text(json.dumps(entry[0]), 80)} again (choices[{index[key]}] gave it first); "
-                                "keep one of the two")
-        choices[key], index[key] = entry[2], i
-    order = []
-    for i, address in enumerate(data["order"]):
-        if not isinstance(address, list) or not all(isinstance(s, str) for s in address):
-            raise _fail(source, f"order[{i}] must be a list of spawn-site names")
-        order.append(tuple(address))
-    ran = set()  # calls run in an order where each comes after the call that spawned it
-    for i, address in enumerate(order):
-        if address in ran or (address and address[:-1] not in ran):
-            raise _fail(source, f"order[{i}] {cut_text(json.dumps(list(address)), 80)} "
-                                + ("is listed twice" if address in ran else "comes before the call that spawns it")
-                                + ": 'order' lists the calls as they ran (an edited order was blamed on the choices); "
-                                  "restore it as it was saved")
-        ran.add(address)
     # Replaying needs no randomness when the file matches; a fixed generator keeps any
     # mismatch reproducible while we report it.
     try:
@@ -263,15 +334,23 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
         # a stored value its distribution cannot take is drawn afresh at its own address,
         # and may send the replay elsewhere: that value is the cause, not what went missing
         unusable = not set(made).isdisjoint(result.unused)
+        calls = {address: i for i, address in enumerate(order)}
+
+        def where(address) -> tuple:  # (how the message names the call, how the file names it)
+            shown = cut_text(json.dumps(list(address)), 80)
+            if data.get("format") == FORMAT_1:
+                return shown, shown
+            return (f"calls[{calls[address]}]", str(calls[address])) if address in calls else (shown, "CALL")
+
         if missing and not unusable:  # drawn afresh in the replay: name the first, where the file should hold it
             address, name = missing[0]
-            shown = cut_text(json.dumps(list(address)), 80)
+            shown, written = where(address)
             what = (f"a choice the model makes is missing: the first, {cut_text(name, 60)!r} at {shown}, is not in its "
-                    f"choices; add it as [{shown}, {json.dumps(name)}, VALUE]")
+                    f"choices; add it as [{written}, {json.dumps(name)}, VALUE]")
         elif result.unused:
             first = min(result.unused, key=index.__getitem__)  # the first in the file
             what = (f"{len(result.unused)} stored choices were not used; the first, choices[{index[first]}], "
-                    f"{cut_text(first[1], 60)!r} at {cut_text(json.dumps(list(first[0])), 80)} = "
+                    f"{cut_text(first[1], 60)!r} at {where(first[0])[0]} = "
                     f"{cut_text(json.dumps(choices[first]), 40)}, is a value its distribution there cannot take "
                     "(outside its range, not a number, another type) or a choice the model does not make")
         else:
@@ -293,7 +372,7 @@ def _itself(model: Model) -> Callable[[str], Model]:
 
 
 def load_derivation(path: str | os.PathLike, resolve_model: Model | Callable[[str], Model]) -> Derivation:
-    """Read a ``procmod-derivation/1`` file and replay it exactly (``resolve_model``: see
+    """Read a ``procmod-derivation/2`` (or ``/1``) file and replay it exactly (``resolve_model``: see
     :func:`derivation_from_dict`)."""
     data = read_json(path, DerivationFormatError, "derivation file")
     return derivation_from_dict(data, resolve_model, source=cut_text(str(path)), folder=Path(path).parent)

@@ -3,7 +3,7 @@
 Each trace is one final particle of an SMC run (600 particles by default) on a target
 drawn from a training set (scribbles, or the circuit score), picked with probability
 proportional to its weight. A trace file (``procmod-trace/1``) holds the target spec and
-the particle's derivation (``procmod-derivation/1``): enough to recompute every feature
+the particle's derivation (``procmod-derivation/2``): enough to recompute every feature
 the networks are trained on.
 
 Generation is embarrassingly parallel and goes through a ``concurrent.futures.Executor``

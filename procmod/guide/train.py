@@ -35,6 +35,7 @@ import torch
 from ..core import Model, start
 from ..core.errors import argument, shown_value, whole_number
 from ..core.runtime import finish
+from ..core.serialize import stored_calls
 from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, FeatureSettingsError, GuideError
 from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_guide_for,
@@ -72,7 +73,7 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     if d.get("model") != model.name:
         raise GuideError(f"{_trace_name(trace)} is of model {d.get('model')!r}, not {model.name!r}")
     configured = model.configure(**d["params"])
-    choices = {(tuple(address), name): value for address, name, value in d["choices"]}
+    choices = stored_calls(d, "its derivation")[1]
     spec = trace["target"]
     if masks is not None and spec in masks:
         mask = masks[spec]
