@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from procmod.core import program_order
+from procmod.core import Bernoulli, program_order
 from procmod.infer import Budget, mcmc, smc, sosmc
 from procmod.infer.particles import ParticleShard
 
@@ -319,3 +319,44 @@ def test_delayed_rejection_keeps_the_posterior():
     for k, p in exact.items():
         freq = finals.count(k) / n
         assert abs(freq - p) < 5 * math.sqrt(p * (1 - p) / n) + 0.02, (k, freq, p)
+
+
+def _coin_then_stop(ctx):
+    from toy_models import Value
+    on = ctx.maybe("m", 0.5, _never)
+    ctx.stop()
+    ctx.emit(Value(1.0))
+    on_too = ctx.sample("y", Bernoulli(0.5))  # SMC pauses the call before it, and re-runs it to resume
+    if on:
+        ctx.emit(Value(2.0))
+    if on_too:
+        ctx.emit(Value(1.0))
+
+
+def _never(ctx):  # its spawn is cut by the stop
+    from toy_models import Value
+    ctx.emit(Value(100.0))
+
+
+@pytest.mark.parametrize("engine", ["smc", "sosmc"])
+def test_a_call_resumed_after_its_own_stop_replays_the_coins_it_made_before_it(engine):
+    """SMC re-runs a paused call from its start; its ctx.stop() (before the emit it paused
+    at) acted from the start of the re-run, so the maybe before it returned False without
+    its coin: the rule took the other branch (P(c) 0 where it is 1/2), and the coin's
+    log-probability stayed in log_prior with no coin in the choice map."""
+    from procmod.core import Model
+    from procmod.infer import ENGINES
+    from toy_models import FlatTarget, SumOutput
+
+    model = Model("coin-then-stop", "", _coin_then_stop, lambda p: (), lambda p: SumOutput(),
+                  rules=(_coin_then_stop, _never))
+    coins = []
+    for seed in range(4):
+        for d in ENGINES[engine](model, FlatTarget(), particles=400, seed=seed).samples:
+            coin = d.choice_map()[((), "m")]
+            assert (d.output.total >= 3) == coin
+            assert d.log_prior == pytest.approx(sum(d.choice_log_probs().values()))
+            coins.append(coin)
+    # a flat likelihood: resampling keeps every particle once, so the coins are independent
+    se = math.sqrt(0.25 / len(coins))
+    assert abs(np.mean(coins) - 0.5) < 5 * se

@@ -596,6 +596,15 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
     ctx = Context(state, rng, future, prefix, skip, pause)
     if future.position is not None:
         state.position = future.position
+    # A call resumed after an emit runs again from its start (prefix: its choices so far).
+    # Only the call running can have stopped the derivation, and a paused call is resumed
+    # before any other, so a stopped state here is this call's own ctx.stop(), made before
+    # its last emit: it takes effect again where the rule calls it again. Acting from the
+    # start, it had made a maybe before it return False unreplayed (the rule took the other
+    # branch, the coin's log-probability still counted) and dropped spawns made before it.
+    stopped_before = prefix is not None and state.stopped
+    if stopped_before:
+        state.stopped = False
     try:
         returned = future.rule(ctx, *future.args)
     except _Pause:
@@ -613,6 +622,8 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
         raise
     finally:
         ctx._armed = True  # the call has ended: a later use of this ctx is caught above
+        if stopped_before:  # (a rule that no longer calls stop is not deterministic: kept stopped)
+            state.stopped = True
     if returned is not None and (inspect.isgenerator(returned) or inspect.iscoroutine(returned)):
         returned.close()  # never run: its body is not the rule's
         raise ctx._misuse("returned a generator or coroutine (a def with yield, or async def), so its body never "

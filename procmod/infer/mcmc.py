@@ -57,6 +57,21 @@ which includes the dimension-matching terms of reversible jump (the prior of a g
 subtree cancels against its proposal density). ``P(move | new)`` is zero, and the move
 rejected, when the new state does not offer the reverse move.
 
+Two cases where a choice the map offered is not reused (:func:`support_log_factor`):
+
+* a choice that the new derivation makes, but whose offered value lies outside its new
+  support (``y ~ Uniform(0, x)`` after ``x`` moved below ``y``), is drawn afresh. The
+  reverse move offers that fresh value back, and reuses it unless it lies outside the old
+  support: then it too draws afresh and the ratio above holds; otherwise the reverse move
+  cannot return to the old value, so the move is rejected. (Counting such a redraw as a
+  plain fresh choice had halved E[x] in that two-choice model.) A diffusion step whose
+  own perturbed value leaves its support is rejected outright: the target density there
+  is zero;
+* a choice the new derivation no longer makes (``y`` is drawn only while ``x > 0``, and
+  the step took ``x`` below 0) simply drops out, like any choice a jump removes: the
+  reverse move draws it afresh. (Rejecting it as though the step had left ``y``'s
+  support had made P(x > 0) 0.74 where it is 0.5.)
+
 Parallel tempering uses seed 002's ladder: temperatures spaced geometrically so that a
 move accepted 70% of the time in the hottest chain is accepted 1% of the time in the
 coldest (likelihood ratio ``r`` with ``r^(1/T_hot) = 0.7`` and ``r^(1/T_cold) = 0.01``,
@@ -319,12 +334,42 @@ def _kept_log_prob(state: Scored, proposal: Proposal, ev: Evaluation) -> float:
     return sum(old[k] for k in proposal.choices if k not in unused and k in old)
 
 
+def support_log_factor(redrawn, perturbed, old_choice) -> float:
+    """0.0, or -inf when the move must be rejected because of choices the map offered
+    that the new derivation makes but drew afresh, their offered value outside their new
+    support (module docstring): ``redrawn`` yields ``(key, new value)``; ``old_choice(key)``
+    is the old state's :class:`~procmod.core.runtime.Choice` there (None if it had none)."""
+    for key, value in redrawn:
+        if key in perturbed:
+            return -math.inf  # a random-walk step left the choice's support: zero target density
+        old = old_choice(key)
+        if old is not None and old.dist.log_prob(value) > -math.inf:
+            return -math.inf  # the reverse move would keep the fresh value: it cannot return
+    return 0.0
+
+
+def _old_choice(derivation):
+    """``key -> Choice`` of ``derivation`` (None where it has none), its tree built on first use."""
+    tree = {}
+
+    def choice(key):
+        if not tree:
+            tree.update(derivation.tree())
+        node = tree.get(key[0])
+        return None if node is None else node.choices.get(key[1])
+    return choice
+
+
 def log_acceptance(state: Scored, proposal: Proposal, ev: Evaluation, beta: float) -> float:
     """The reversible-jump log acceptance ratio (see the module docstring)."""
     if ev.log_reused == -math.inf or ev.log_likelihood == -math.inf:
         return -math.inf
-    if proposal.perturbed and not set(proposal.perturbed).isdisjoint(ev.unused):
-        return -math.inf  # a random-walk step left the choice's support: zero target density
+    if ev.unused:  # offered values not reused: dropped out, or drawn afresh (support_log_factor)
+        made = ev.derivation.choice_map().raw
+        redrawn = [(key, made[key]) for key in ev.unused if key in made]
+        if redrawn and support_log_factor(redrawn, set(proposal.perturbed),
+                                          _old_choice(state.derivation)) == -math.inf:
+            return -math.inf
     log_back = log_select(move_counts(ev.derivation), proposal.kind, proposal.p_diffusion, proposal.p_resample)
     if log_back == -math.inf:
         return -math.inf  # the new state does not offer the reverse move
@@ -346,9 +391,17 @@ def log_acceptance_traced(state: Traced, proposal: Proposal, replayed: TracedRep
     if new.log_likelihood == -math.inf:
         return -math.inf
     reused, old_nodes, old_index = replayed.reused, state.nodes, state.index
-    for key in proposal.perturbed:
-        if key not in reused:
-            return -math.inf  # a random-walk step left the choice's support: zero target density
+    offered = EditedChoices(state, proposal.overrides, proposal.removed)
+    redrawn = [((node.address, name), c.value) for node in replayed.ran for name, c in node.choices.items()
+               if (node.address, name) not in reused and (node.address, name) in offered]
+    if redrawn:  # (support_log_factor)
+
+        def old_choice(key):
+            i = old_index.get(key[0])
+            return None if i is None else old_nodes[i].choices.get(key[1])
+
+        if support_log_factor(redrawn, set(proposal.perturbed), old_choice) == -math.inf:
+            return -math.inf
     log_prior = 0.0
     for node in replayed.ran:
         address = node.address
