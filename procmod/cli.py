@@ -115,6 +115,7 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("derivation", metavar="DERIVATION.json")
     render.add_argument("--out", required=True, help="output file: .png or .svg (2D), .png, .obj or .glb (3D)")
     render.add_argument("--size", type=_int_arg, default=512, help="width in pixels (default 512)")
+    render.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     render.add_argument("--model", help="the model that made it, when it is not the built-in or learned program "
                                         "its file names: a model of your own, FILE.py:NAME")
 
@@ -311,7 +312,7 @@ def _cmd_sample(args) -> None:
             raise NotALearnedProgramError(
                 f"model {model.name!r} is not a learned program; '--format examples' writes samples of "
                 "programs made by 'procmod learn' (give the program.json path or its folder)")
-        check_output_file(out, inputs=inputs)
+        check_output_file(out, inputs=inputs, overwrite=args.overwrite or _examples_file(out))
         first = sample(0)
         check_memory(f"-n {args.n:,} samples", args.n * len(json.dumps(derivation_to_dict(first))),
                      "ask for fewer samples")
@@ -356,12 +357,28 @@ def _page_name(name: str) -> str:
     return f"{path.parent.name}/{path.name}" if path.parent.name else path.name
 
 
+def _examples_file(path: Path) -> bool:
+    """Whether ``path`` is a samples file ``sample --format examples`` wrote (replaced
+    without ``--overwrite``, as an earlier run folder of the same command is)."""
+    from .core.io import read_json
+    from .core.errors import ProcmodError
+    from .learn.examples import FORMAT as EXAMPLES_FORMAT
+
+    if not path.is_file() or path.stat().st_size > (1 << 30):
+        return False
+    try:
+        data = read_json(path, ProcmodError, "file")
+    except ProcmodError:
+        return False
+    return isinstance(data, dict) and data.get("format") == EXAMPLES_FORMAT
+
+
 def _cmd_render(args) -> None:
     from .core.runfolder import check_output_file
     from .render import check_format, check_size, output_formats, write_derivation
 
     check_format(args.out)
-    out = check_output_file(args.out, inputs=[args.derivation])
+    out = check_output_file(args.out, inputs=[args.derivation])  # an existing file: once its inputs are known
     size = check_size(args.size)
     # --model must be the model the file names: a derivation of another model of the same
     # root rule was drawn with it, where the library refuses it ("give its model"); a file
@@ -382,7 +399,7 @@ def _cmd_render(args) -> None:
         raise UnknownModelError(f"{exc}; for a model of your own, give it: --model FILE.py:NAME") from None
     check_format(args.out, output_formats(derivation))
     # the files of the program it names, read only now (a part's mesh was written over)
-    check_output_file(out, inputs=[args.derivation, *_model_inputs(derivation.model.name)])
+    check_output_file(out, inputs=[args.derivation, *_model_inputs(derivation.model.name)], overwrite=args.overwrite)
     write_derivation(derivation, out, size)
     print(f"wrote {out}")
 
@@ -686,6 +703,11 @@ def main(argv=None) -> int:
                 where = (" where it is written (the --out folder, or where the printed output goes)" if gave_out
                          else ", or send the printed output elsewhere")
             line = f"cannot write{named}: {exc.strerror or 'the disk is full'}; free some space{where}"
+        if line is None and isinstance(exc, OSError) and exc.errno == getattr(errno, "EFBIG", None):
+            # a file-size limit (ulimit -f) or a file system's largest file (FAT32's 4 GiB)
+            named = f" {cut_text(str(exc.filename), 80)}" if exc.filename else ""
+            line = (f"cannot write{named}: {exc.strerror or 'file too large'} (a file-size limit, ulimit -f, or the "
+                    "file system's largest file); raise the limit, or give --out on another file system")
         if line is None:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)

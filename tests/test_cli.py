@@ -46,6 +46,12 @@ def test_render_png_and_svg(tmp_path, capsys):
     assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert _run(capsys, "render", str(src), "--out", str(tmp_path / "r.svg"))[0] == 0
     assert (tmp_path / "r.svg").read_text().startswith("<svg")
+    # an existing file is replaced only with --overwrite (h52: a photo of the user's was replaced)
+    kept = (tmp_path / "r.png").read_bytes()
+    code, _, err = _run(capsys, "render", str(src), "--size", "64", "--out", str(tmp_path / "r.png"))
+    assert code == 2 and "already exists; give --overwrite" in err and (tmp_path / "r.png").read_bytes() == kept
+    assert _run(capsys, "render", str(src), "--size", "64", "--out", str(tmp_path / "r.png"), "--overwrite")[0] == 0
+    assert (tmp_path / "r.png").read_bytes() != kept
 
 
 def _bad(tmp_path, capsys, *argv, out_name="out"):

@@ -178,6 +178,14 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     for _ in range(2):
         assert main(["sample", str(out), "-n", "1", "--out", str(out / "mine.json"), "--format", "examples"]) == 0
     (out / "mine.json").unlink()
+    # a file of the user's that is no samples file is kept unless --overwrite (h52: it was replaced)
+    notes = tmp_path / "notes.json"
+    notes.write_text("userdata")
+    capsys.readouterr()
+    assert main(["sample", str(out), "-n", "1", "--out", str(notes), "--format", "examples"]) == 2
+    assert "already exists; give --overwrite" in capsys.readouterr().err and notes.read_text() == "userdata"
+    assert main(["sample", str(out), "-n", "1", "--out", str(notes), "--format", "examples", "--overwrite"]) == 0
+    assert len(read_examples(notes).examples) == 1
     # same arguments, another folder: the same program, byte for byte
     other = tmp_path / "run2"
     assert main(["learn", str(ex), "--out", str(other), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0

@@ -437,6 +437,17 @@ def test_a_full_disk_is_one_line(tmp_path, capsys, monkeypatch):
     assert err.count("\n") == 1 and not (tmp_path / "run").exists()
 
 
+def test_a_file_over_the_size_limit_is_one_line(tmp_path):
+    """ulimit -f (or FAT32's 4 GiB) fails a write with EFBIG: a traceback from the mesh export."""
+    import subprocess
+    import sys
+
+    done = subprocess.run(["bash", "-c", f"ulimit -f 20; exec {sys.executable} -m procmod sample spaceship -n 3 --out u"],
+                          stderr=subprocess.PIPE, text=True, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 2 and "File too large" in done.stderr and done.stderr.count("\n") == 1, done.stderr
+    assert not (tmp_path / "u").exists()
+
+
 def test_a_full_printed_output_is_one_line_that_does_not_name_a_missing_option(tmp_path):
     # procmod models > /dev/full: the advice had been to give --out elsewhere, an option it has not
     import subprocess

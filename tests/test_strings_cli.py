@@ -186,6 +186,13 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
     assert code == 0, err
     assert glb.read_bytes()[:4] == b"glTF"
+    # an existing file is replaced only with --overwrite (h52: a file of the user's was replaced)
+    kept = glb.read_bytes()
+    glb.write_bytes(b"mine")
+    code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb)
+    assert code == 2 and "already exists; give --overwrite" in err and glb.read_bytes() == b"mine"
+    code, out, err = _run(capsys, "strings", "instantiate", model, "DMCMD", "--out", glb, "--overwrite")
+    assert code == 0 and glb.read_bytes() == kept, err
     from procmod.strings.tagger import TaggerModel
     vote, kinds = TaggerModel.vote, []
 

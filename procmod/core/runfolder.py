@@ -156,10 +156,12 @@ def _probe_writable(folder: Path, option: str, out: Path) -> None:
 
 
 def check_output_file(path: str | os.PathLike, option: str = "out", make_parent: bool = False,
-                      inputs=()) -> Path:
+                      inputs=(), overwrite: bool = True) -> Path:
     """A single output file (``render --out x.png``): the path must not be a folder, nor
     one of the command's ``inputs`` or a file an input names, nor an existing file inside
-    an input folder (a new file there is fine), and its folder must exist
+    an input folder (a new file there is fine), nor, unless ``overwrite``, an existing
+    file (a command's ``--out`` of a file of the user's had replaced it without a word),
+    and its folder must exist
     (or, with ``make_parent``, be creatable: the command makes it when it writes) and be
     writable. Checks only, creates nothing; returns the path, its ``..`` resolved
     (:func:`~procmod.core.paths.output_path`). ``option`` is the API
@@ -179,6 +181,9 @@ def check_output_file(path: str | os.PathLike, option: str = "out", make_parent:
             raise OutputLocationError(f"{shown} {cut_text(str(path))} would overwrite the input "
                                       f"{cut_text(str(item))}{'' if _holds(path, Path(item)) else ' (a file in it)'}; "
                                       "give another file name")
+    if not overwrite and (path.exists() or path.is_symlink()):
+        raise OutputLocationError(f"{shown} {cut_text(str(path))} already exists; give {argument('overwrite=True')} "
+                                  "to replace it, or another file name")
     parent = path.parent
     if not parent.exists() and not make_parent:
         raise OutputLocationError(f"cannot write {shown} {cut_text(str(path))}: the folder {cut_text(str(parent))} "

@@ -132,6 +132,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--votes", type=int_arg, default=8, help="strings of the graph the tagger votes over")
     p.add_argument("--majority-vote", action="store_true",
                    help="count each string's labels (seed 001) instead of averaging the tagger's probabilities")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     p.set_defaults(handler=_instantiate)
 
 
@@ -511,7 +512,7 @@ def _instantiate(args) -> None:
     _at_most(args.votes, "--votes", MAX_VOTES)
     # --out may not be the model folder, a file in it (its part meshes) or a file its files
     # name: checked now, and again once the model is read (the files it names) and before writing
-    check_output_file(out, make_parent=True, inputs=[args.model])
+    check_output_file(out, make_parent=True, inputs=[args.model], overwrite=args.overwrite)
     model_folder = Path(args.model).resolve()
     if model_folder.is_dir() and out.resolve().is_relative_to(model_folder):
         # a file of the user's in a model folder stops 'strings train' resuming into it, and
@@ -520,7 +521,7 @@ def _instantiate(args) -> None:
                                    f"{cut_text(str(args.model))}; write the shape elsewhere (training again into "
                                    "that folder must find only its own files)")
     model = TrainedModel(args.model)
-    check_output_file(out, make_parent=True, inputs=[args.model])
+    check_output_file(out, make_parent=True, inputs=[args.model], overwrite=args.overwrite)
     result = model.instantiate(args.string, np.random.default_rng(_seed(args.seed)), votes=args.votes,
                                soft_vote=not args.majority_vote)
     if not result.success:
@@ -528,7 +529,7 @@ def _instantiate(args) -> None:
                 "shapes never show); sample another string" if "every candidate pose tried" in result.reason
                 else "try another --seed")
         raise InstantiationError(f"could not build {args.string!r}: {result.reason}; {hint}")
-    check_output_file(out, make_parent=True, inputs=[args.model])
+    check_output_file(out, make_parent=True, inputs=[args.model], overwrite=args.overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_shape_mesh(model.shape_set, result.shape, out)
     print(f"wrote {out} ({len(result.shape)} parts, {result.fallbacks} Monte Carlo fallbacks)")
