@@ -145,7 +145,19 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         if folders:  # read one folder deep only: say so, rather than pass over them without a word
             print(f"vs_webppl: subfolders not read (give each as its own --targets-dir): {', '.join(folders[:5])}"
                   + (f" and {len(folders) - 5} more" if len(folders) > 5 else ""), file=sys.stderr)
-        left_out = [p.name for p in files if p.suffix.lower() not in pictures and p.suffix.lower() != ".json"]
+
+        def is_picture(path: Path) -> bool:  # by its suffix, or, without a known one, by what Pillow finds in it
+            if path.suffix.lower() in pictures:
+                return True
+            if path.suffix.lower() == ".json":  # a picture's sidecar
+                return False
+            try:
+                with Image.open(path):
+                    return True
+            except (OSError, ValueError, Image.DecompressionBombError):
+                return False
+
+        left_out = [p.name for p in files if not is_picture(p) and p.suffix.lower() != ".json"]
         if left_out:
             print(f"vs_webppl: not pictures, left out: {', '.join(left_out[:5])}"
                   + (f" and {len(left_out) - 5} more" if len(left_out) > 5 else ""), file=sys.stderr)
@@ -155,7 +167,7 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
 
         vines = get_model("vines")
         loaded = []
-        for path in (p for p in files if p.suffix.lower() in pictures):
+        for path in (p for p in files if is_picture(p)):
             try:
                 target = load_target_image(path)
                 mask = target.at_size(SIZE, SIZE)  # a shape that vanishes at the bench's size is refused here

@@ -1,6 +1,7 @@
 import json
 import math
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -299,6 +300,12 @@ def test_a_16_bit_or_real_valued_picture_keeps_its_greys(tmp_path):
     for name in ("deep.png", "real.tif"):
         mask = mask_from_image(open_image(tmp_path / name))
         assert mask.sum() == ink.sum(), name
+    # an infinite pixel is white (or black): scaling it had overflowed, a warning on stderr (h51)
+    real[0, 0], real[1, 1] = np.inf, -np.inf
+    Image.fromarray(real, mode="F").save(tmp_path / "inf.tif")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert mask_from_image(open_image(tmp_path / "inf.tif"))[1:, 2:].sum() == ink.sum()
 
 
 def test_a_16_bit_picture_is_scaled_by_the_white_its_file_declares(tmp_path):
@@ -894,3 +901,67 @@ def test_thin_strokes_beside_a_filled_shape_are_widened_not_cut_out():
     disc[110:191, 110:191] = (np.hypot(*np.mgrid[-40:41, -40:41]) <= 40)
     plain_disc = resample_mask(disc, 50, 50)
     assert small[plain_disc].all() and (small & ~plain_disc).sum() >= 18 * 8  # every ray, a line
+
+
+def _stroke_picture(size=200):
+    pixels = np.full((size, size), 255, dtype=np.uint8)
+    pixels[60:170, 97:103] = 0  # a stem
+    pixels[60:66, 100:150] = 0  # and a branch
+    return pixels
+
+
+@pytest.mark.parametrize("inset", [2, 12])
+def test_a_frame_drawn_around_a_picture_is_left_out_with_a_note(tmp_path, inset):
+    """A border line on all four sides was read as part of the shape: its bottom line took
+    the start and the vine grew along the frame (h51: best similarity -0.002, 0.8 without it)."""
+    from procmod.targets import load_target_image
+    from procmod.targets.placement import picture_note
+
+    pixels = _stroke_picture()
+    plain = load_target_image(_saved_picture(tmp_path, "plain.png", pixels))
+    far = 199 - inset
+    for rows, cols in (((inset, inset + 3), (inset, far + 1)), ((far - 2, far + 1), (inset, far + 1)),
+                       ((inset, far + 1), (inset, inset + 3)), ((inset, far + 1), (far - 2, far + 1))):
+        pixels[rows[0]:rows[1], cols[0]:cols[1]] = 0
+    framed = load_target_image(_saved_picture(tmp_path, "framed.png", pixels))
+    assert framed.start == pytest.approx(plain.start, abs=0.02) and np.array_equal(framed.mask, plain.mask)
+    assert "frame drawn around the picture was left out" in picture_note(ShapeMatch(framed), get_model("vines"))
+    # a rectangle with nothing inside is the shape itself
+    empty = np.full((200, 200), 255, dtype=np.uint8)
+    empty[20:23, 20:180] = empty[177:180, 20:180] = empty[20:180, 20:23] = empty[20:180, 177:180] = 0
+    box = load_target_image(_saved_picture(tmp_path, "box.png", empty))
+    assert box.mask.sum() > 0 and not box.notes
+
+
+def _saved_picture(tmp_path, name, pixels):
+    Image.fromarray(pixels).save(tmp_path / name)
+    return tmp_path / name
+
+
+def test_a_picture_of_several_frames_says_which_was_read(tmp_path):
+    from procmod.targets import load_target_image
+
+    first = Image.fromarray(_stroke_picture())
+    first.save(tmp_path / "anim.gif", save_all=True, append_images=[Image.fromarray(255 - _stroke_picture())])
+    assert any("holds 2 frames or pages and procmod read the first" in n
+               for n in load_target_image(tmp_path / "anim.gif").notes)
+
+
+def test_a_page_on_a_desk_as_dark_as_its_ink_is_named_when_read_as_the_shape(tmp_path):
+    """The page itself is read as the shape (its ink is within MIN_CONTRAST of the desk), and
+    said nothing where the page covered under half the photo (h51)."""
+    from procmod.targets import load_target_image
+    from procmod.targets.placement import picture_note
+
+    photo = np.full((300, 300), 45, dtype=np.uint8)  # a dark desk
+    page = np.where(_stroke_picture(180) < 128, 55, 215).astype(np.uint8)  # ink 10 levels off the desk
+    photo[60:240, 60:240] = page
+    target = load_target_image(_saved_picture(tmp_path, "desk.png", photo))
+    note = picture_note(ShapeMatch(target), get_model("vines"))
+    assert note is not None and "one light rectangle covering 36% of the picture" in note
+    # the drawing on white paper, or a lighter desk, is read as the drawing, with no such note
+    for name, desk in (("white.png", 215), ("light.png", 120)):
+        photo[:] = desk
+        photo[60:240, 60:240] = page
+        note = picture_note(ShapeMatch(load_target_image(_saved_picture(tmp_path, name, photo))), get_model("vines"))
+        assert note is None or "light rectangle" not in note, (name, note)

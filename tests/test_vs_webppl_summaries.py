@@ -91,12 +91,15 @@ def test_the_bench_writes_targets_procmod_reads_as_the_scorer_does(bench, tmp_pa
     thin[200:203, 200:203] = 0  # a dot under half a canvas pixel: gone at 50x50 (a line is widened)
     Image.fromarray(thin).save(folder / "thin.pgm")
     (folder / "notes.txt").write_text("not a picture")
+    # a picture whose name has no suffix, as procmod infer --target reads it (h51: left out)
+    Image.fromarray(house[..., 3]).save(folder / "IMG_0042", format="PNG")
     images = bench.target_images([], 1, folder, 49)
-    assert list(images) == ["dir-glyphs"] and len(images["dir-glyphs"]) == 1
+    assert list(images) == ["dir-glyphs"] and len(images["dir-glyphs"]) == 2
     err = capsys.readouterr().err
     assert "skipping thin.pgm" in err and "not pictures, left out: notes.txt" in err
     written = bench.write_targets(images, tmp_path / "targets")
-    (name, label, png, mask_json, mask, digest), = written["dir-glyphs"]
+    assert [row[1] for row in written["dir-glyphs"]] == ["IMG_0042", "house.webp"]
+    (name, label, png, mask_json, mask, digest) = written["dir-glyphs"][1]
     assert label == "house.webp" and mask.mean() > 0.6  # the house (padded to a square), not its complement
     assert np.array_equal(load_target_image(png).at_size(bench.SIZE, bench.SIZE), mask)
     assert json.loads(mask_json.read_text())["mask"] == mask.astype(int).ravel().tolist()
