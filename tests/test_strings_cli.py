@@ -104,6 +104,18 @@ def test_augment_distinct_graph_keeps_variants_with_a_seen_histogram(tmp_path, c
     assert settings["distinct"] == "graph" and settings["count"] == 24 and settings["seed"] == 0
 
 
+def test_augment_names_an_input_shape_given_twice(tmp_path, capsys):
+    """Identical input shapes were both kept without a word (they weigh that shape double)."""
+    data = json.loads((SETS / "colonnade.json").read_text())
+    data["shapes"].append(data["shapes"][0])
+    shutil.copytree(SETS / "parts", tmp_path / "parts")
+    (tmp_path / "twice.json").write_text(json.dumps(data))
+    code, _, err = _run(capsys, "strings", "augment", tmp_path / "twice.json", "--count", 3, "--out", tmp_path / "c")
+    assert code == 0, err
+    assert "input shape 2 has the same shape graph as an earlier one" in err
+    assert "input shape 1 " not in err and "input shape 0 " not in err
+
+
 def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     col = tmp_path / "col"
     code, out, _ = _run(capsys, "strings", "augment", SETS / "moonbase.json", "--count", 6, "--out", col,

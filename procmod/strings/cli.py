@@ -322,8 +322,15 @@ def _augment(args) -> None:
               f"size ({part_size:.3g}): parts that far apart count as touching, so the shape graphs hold contacts "
               "the shapes do not have and few new shapes may be found; give the gap the parts were placed with",
               file=sys.stderr)
+    from .sampling import SeenShapes
+    alike = SeenShapes(shape_set, "graph")  # inputs with the same shape graph (a file given twice)
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
         g = shape_graph(shape_set, shape, tolerance)
+        if not alike.add(shape, g):
+            source = f" ({named[i]})" if named else ""
+            print(f"note: input shape {i}{source} has the same shape graph as an earlier one (the same parts in the "
+                  "same contacts): it adds no strings the other does not, and weighs that shape double in the "
+                  "grammar", file=sys.stderr)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
             given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"
