@@ -359,7 +359,9 @@ def _page_name(name: str) -> str:
 
 def _examples_file(path: Path) -> bool:
     """Whether ``path`` is a samples file ``sample --format examples`` wrote (replaced
-    without ``--overwrite``, as an earlier run folder of the same command is)."""
+    without ``--overwrite``, as an earlier run folder of the same command is): one that
+    says which program it was ``sampled_from``; an example set of the user's (the same
+    format, the input of ``learn``) does not."""
     from .core.io import read_json
     from .core.errors import ProcmodError
     from .learn.examples import FORMAT as EXAMPLES_FORMAT
@@ -370,7 +372,7 @@ def _examples_file(path: Path) -> bool:
         data = read_json(path, ProcmodError, "file")
     except ProcmodError:
         return False
-    return isinstance(data, dict) and data.get("format") == EXAMPLES_FORMAT
+    return isinstance(data, dict) and data.get("format") == EXAMPLES_FORMAT and isinstance(data.get("sampled_from"), str)
 
 
 def _cmd_render(args) -> None:

@@ -178,12 +178,15 @@ def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     for _ in range(2):
         assert main(["sample", str(out), "-n", "1", "--out", str(out / "mine.json"), "--format", "examples"]) == 0
     (out / "mine.json").unlink()
-    # a file of the user's that is no samples file is kept unless --overwrite (h52: it was replaced)
+    # a file of the user's that is no samples file is kept unless --overwrite (h52: it was replaced),
+    # an example set of the user's too, though it is the same format (h54)
     notes = tmp_path / "notes.json"
-    notes.write_text("userdata")
-    capsys.readouterr()
-    assert main(["sample", str(out), "-n", "1", "--out", str(notes), "--format", "examples"]) == 2
-    assert "already exists; give --overwrite" in capsys.readouterr().err and notes.read_text() == "userdata"
+    for theirs in ("userdata", json.dumps({k: v for k, v in json.loads(samples.read_text()).items()
+                                           if k != "sampled_from"})):
+        notes.write_text(theirs)
+        capsys.readouterr()
+        assert main(["sample", str(out), "-n", "1", "--out", str(notes), "--format", "examples"]) == 2
+        assert "already exists; give --overwrite" in capsys.readouterr().err and notes.read_text() == theirs
     assert main(["sample", str(out), "-n", "1", "--out", str(notes), "--format", "examples", "--overwrite"]) == 0
     assert len(read_examples(notes).examples) == 1
     # same arguments, another folder: the same program, byte for byte

@@ -965,3 +965,25 @@ def test_a_page_on_a_desk_as_dark_as_its_ink_is_named_when_read_as_the_shape(tmp
         photo[60:240, 60:240] = page
         note = picture_note(ShapeMatch(load_target_image(_saved_picture(tmp_path, name, photo))), get_model("vines"))
         assert note is None or "light rectangle" not in note, (name, note)
+
+
+def test_a_rectangle_that_is_part_of_the_drawing_stays_and_letters_are_no_pages(tmp_path):
+    """h54: a window's outline (its cross touches it), a door smaller than the picture (its
+    knob inside) lost their outline as a "frame"; a bold letter got the page note."""
+    from procmod.targets import load_target_image
+    from procmod.targets.placement import picture_note
+
+    window = np.full((200, 200), 255, dtype=np.uint8)
+    window[5:8, 5:195] = window[192:195, 5:195] = window[5:195, 5:8] = window[5:195, 192:195] = 0
+    window[98:102, 5:195] = window[5:195, 98:102] = 0  # the cross meets the outline
+    door = np.full((200, 200), 255, dtype=np.uint8)
+    door[20:23, 50:150] = door[20:180, 50:53] = door[20:180, 147:150] = door[177:180, 50:150] = 0
+    door[100:106, 130:136] = 0  # a knob, apart from the outline
+    letter = np.pad(np.where(render_glyph("B"), 0, 255).astype(np.uint8), 10, constant_values=255)
+    for name, pixels in (("window.png", window), ("door.png", door), ("bold.png", letter),
+                         ("white_bold.png", 255 - letter)):
+        target = load_target_image(_saved_picture(tmp_path, name, pixels))
+        ink = pixels < 128 if name != "white_bold.png" else pixels > 128
+        assert target.mask.sum() == ink.sum() and not target.notes, (name, target.notes)
+        note = picture_note(ShapeMatch(target), get_model("vines"))
+        assert note is None or "rectangle" not in note, (name, note)

@@ -90,7 +90,10 @@ def write_examples(model: Model, derivations, path: str | os.PathLike) -> None:
         else:
             parts[name] = dict(spec)
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(path, json.dumps({"format": FORMAT, "parts": parts, "examples": examples}) + "\n")
+    # which program drew them: procmod sample replaces such a file of its own without --overwrite
+    sampled_from = Path(os.path.relpath(Path(model.name).resolve(), out_dir)).as_posix()
+    write_text_atomic(path, json.dumps({"format": FORMAT, "sampled_from": sampled_from, "parts": parts,
+                                        "examples": examples}) + "\n")
 
 
 def learn(examples, out, particles: int = 4, workers: int | None = None, scheduler: str | None = None,

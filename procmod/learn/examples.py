@@ -8,6 +8,11 @@ asset files (glTF, GLB, URDF: :func:`read_example_inputs`, :func:`examples_from_
      "examples": [{"part": "body", "transform": [[...4 rows of 4...]],
                    "children": [{"part": "wing", "transform": ..., "children": []}]}]}
 
+Samples of a learned program (:func:`procmod.learn.write_examples`) also say which program
+they were sampled from: ``"sampled_from": "../runs/castles/program.json"`` (relative to the
+file's folder), which ``procmod sample`` reads to replace its own earlier file, never a set
+of the user's, without ``--overwrite``.
+
 A part is a box (full extents, centred at its local origin) or a triangle mesh (a path
 relative to the JSON file's folder; see :mod:`procmod.core.paths`) in its own local
 frame. ``transform`` is the node's world-space 4x4 affine matrix (row-major). Children
@@ -133,9 +138,13 @@ def examples_from_dict(data, base_dir: str | os.PathLike = ".", source: str = "e
         Naming ``source`` and the JSON path of the first problem.
     """
     check_format(data, FORMAT, source, ExamplesError)
-    unknown = sorted(map(str, set(data) - {"format", "parts", "examples"}))
+    unknown = sorted(map(str, set(data) - {"format", "parts", "examples", "sampled_from"}))
     if unknown:
-        raise ExamplesError(f"{source}: unknown field {unknown[0]!r} (the file has 'format', 'parts', 'examples')")
+        raise ExamplesError(f"{source}: unknown field {unknown[0]!r} (the file has 'format', 'parts', 'examples', "
+                            "and, written by procmod sample, 'sampled_from')")
+    if "sampled_from" in data and not isinstance(data["sampled_from"], str):
+        raise ExamplesError(f"{source}: 'sampled_from' must be the path of the program the examples were sampled "
+                            "from (procmod sample writes it)")
     examples = data.get("examples")
     if not isinstance(examples, list) or not examples:
         raise ExamplesError(f"{source}: 'examples' must be a non-empty list of hierarchies")

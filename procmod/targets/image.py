@@ -1018,21 +1018,32 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
 FRAME_LINE = 0.9  # a row or column of a drawn frame's side covers this much of the shape's extent
 FRAME_RIM = 0.3  # ... and its anti-aliased rim rows at least this much
 FRAME_SIDE = 0.08  # a frame's side is at most this thick, of the shape's smaller extent
+FRAME_SPAN = 0.85  # and the frame spans this much of the picture's width and height
+FRAME_GAP = 2  # pixels between a frame and the drawing inside it
 
 
-def drawn_frame(mask: np.ndarray) -> np.ndarray | None:
+def drawn_frame(mask: np.ndarray, picture: tuple | None = None) -> np.ndarray | None:
     """The pixels of a rectangular frame drawn around a picture (a border line on all
-    four sides of the shape, spanning it), or None.
+    four sides of the shape, near the picture's edges, apart from the drawing inside), or
+    None. ``picture``: where the picture lies in the mask (:func:`picture_in_square`).
 
     A frame is read as part of the shape; its bottom line, the lowest ink, then takes the
     start, and a vine grows along the frame (h51: best similarity -0.002 where the same
     drawing without it reaches 0.8). Found as runs of rows (columns) at the top, bottom,
     left and right of the shape's bounding box that each cover :data:`FRAME_LINE` of its
     width (height), with their anti-aliased rims, each side at most :data:`FRAME_SIDE` of
-    the box thick, with a drawing inside (a lone rectangle is the shape itself). A frame
-    turned in a photo covers no row whole and is not found."""
+    the box thick, spanning :data:`FRAME_SPAN` of the picture both ways, with a drawing
+    inside that keeps :data:`FRAME_GAP` pixels from it. A rectangle that is part of the
+    drawing is left alone: alone in the picture, smaller than the picture (a door with its
+    knob), or touched by what is inside it (a window's cross). A frame turned in a photo
+    covers no row whole and is not found."""
+    from scipy import ndimage
+
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     if len(rows) < 8 or len(cols) < 8:
+        return None
+    height, width = mask.shape if picture is None else picture[2:]
+    if rows[-1] - rows[0] + 1 < FRAME_SPAN * height or cols[-1] - cols[0] + 1 < FRAME_SPAN * width:
         return None
     box = mask[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
     limit = max(1, int(FRAME_SIDE * min(box.shape)))
@@ -1055,9 +1066,44 @@ def drawn_frame(mask: np.ndarray) -> np.ndarray | None:
     inside = box & ~frame
     if inside.sum() < 0.02 * box.sum() or inside.sum() < 16:  # nothing drawn inside: the rectangle is the shape
         return None
+    if (inside & ndimage.binary_dilation(box & frame, iterations=FRAME_GAP)).any():  # the drawing meets it
+        return None
     out = np.zeros_like(mask)
     out[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = box & frame
     return out
+
+
+def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
+    """The share of the picture a page read as the shape covers, or None.
+
+    A page photographed on a desk about as dark as its ink stays the shape, its drawing
+    holes in it (:func:`_drawing_on_a_page` cannot tell that drawing from the ground's
+    colour showing through a light shape). Named when the shape read is lighter than the
+    picture's border by :data:`MIN_CONTRAST`, its largest part with its holes filled
+    covers :data:`PAGE_SHARE` of the picture and :data:`PAGE_BOX_FILL` of its bounding
+    box, and its holes are strokes (under a third of them is left after thinning by 2% of
+    the picture), not a letter's counters or a silhouette's gaps. ``mask``: the picture's
+    own, unpadded (:func:`mask_from_image`'s before its square)."""
+    from scipy import ndimage
+
+    if opaque_part(image) is not None or not mask.any():
+        return None
+    labels, _ = ndimage.label(mask, structure=np.ones((3, 3)))
+    part = labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+    filled = ndimage.binary_fill_holes(part)
+    holes = filled & ~part
+    if not holes.any() or filled.mean() < PAGE_SHARE or not _fills_its_box(filled, PAGE_BOX_FILL):
+        return None
+    thinned = ndimage.binary_erosion(holes, iterations=max(2, round(0.02 * max(mask.shape))))
+    if thinned.sum() >= holes.sum() / 3:  # wide holes: a letter's counters, a silhouette's gaps
+        return None
+    colours = _colours(image)
+    border = np.zeros(mask.shape, dtype=bool)
+    border[0] = border[-1] = border[:, 0] = border[:, -1] = True
+    surround = float(_luma(np.median(colours[border], axis=0)))
+    if float(np.median(_luma(colours[part]))) < surround + MIN_CONTRAST:  # dark ink on light paper
+        return None
+    return float(filled.mean())
 
 
 def load_target_image(path: str | os.PathLike) -> TargetImage:
@@ -1086,7 +1132,13 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
                                   "save the one with the drawing on its own)") from None
         raise
     notes = []
-    frame = drawn_frame(mask)
+    top, left, height, width = picture_in_square(*shape)
+    page = page_taken_for_shape(image, mask[top:top + height, left:left + width])
+    if page is not None:
+        notes.append(f"the shape read is one light rectangle covering {page:.0%} of the picture with the drawing as "
+                     "holes in it: a page photographed on a desk about as dark as its ink? Crop the photo to the "
+                     "page (or photograph it on a lighter surface)")
+    frame = drawn_frame(mask, (top, left, height, width))
     if frame is not None:
         mask = mask & ~frame
         notes.append("a rectangular frame drawn around the picture was left out of the shape (its lowest line had "

@@ -383,32 +383,6 @@ def picture_note(target: ShapeMatch, model) -> str | None:
     return "; ".join(said) if said else None
 
 
-PAGE_LIKE = 0.25  # a light rectangle with holes covering this share of the picture is taken for a page
-
-
-def _page_like(mask: np.ndarray) -> float | None:
-    """The share of the picture a page read as the shape covers, or None: one part that
-    fills :data:`~procmod.targets.image.PAGE_BOX_FILL` of its bounding box once its holes
-    are filled, those holes (the drawing) a small part of it, the box :data:`PAGE_LIKE` of
-    the picture at least. A page photographed on a desk about as dark as its ink is read
-    so (:func:`procmod.targets.image._drawing_on_a_page` cannot tell its drawing from holes
-    in a light shape); a filled rectangle with no hole, or a drawn outline, is not."""
-    from scipy import ndimage
-
-    from .image import PAGE_BOX_FILL, _fills_its_box
-
-    labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
-    if count == 0:
-        return None
-    part = labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
-    filled = ndimage.binary_fill_holes(part)
-    holes = float(filled.sum() - part.sum()) / float(filled.sum())
-    if not 0.005 <= holes <= 0.4 or not _fills_its_box(filled, PAGE_BOX_FILL):
-        return None
-    share = float(filled.sum()) / mask.size
-    return share if share >= PAGE_LIKE else None
-
-
 def _picture_advice(target: ShapeMatch, model) -> str | None:
     """:func:`picture_note`'s advice of its own."""
     from .image import _fills_its_box
@@ -429,13 +403,6 @@ def _picture_advice(target: ShapeMatch, model) -> str | None:
         return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
                 "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
                 "a shape trimmed to its own edges needs some paper around it")
-    page = None if built_in else _page_like(mask if picture is None else
-                                            mask[top:top + height, left:left + width])
-    if page is not None:
-        return (f"the shape read from {target.name} is one light rectangle covering {page:.0%} of the picture with "
-                "holes in it: if it is a page photographed on a desk about as dark as its ink, the page was taken for "
-                "the shape and the drawing for its holes; crop the photo to the page (or photograph it on a lighter "
-                "surface)")
     band = None if built_in else _edge_band(mask, picture)
     if band is not None:
         return (f"a band along the {band[0]} edge of {target.name} ({band[1]:.0%} of the shape read) is taken as "
