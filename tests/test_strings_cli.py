@@ -112,7 +112,7 @@ def test_augment_names_an_input_shape_given_twice(tmp_path, capsys):
     (tmp_path / "twice.json").write_text(json.dumps(data))
     code, _, err = _run(capsys, "strings", "augment", tmp_path / "twice.json", "--count", 3, "--out", tmp_path / "c")
     assert code == 0, err
-    assert "input shape 2 has the same shape graph as an earlier one" in err
+    assert "input shape 2 has the same shape graph as an earlier input shape" in err
     assert "input shape 1 " not in err and "input shape 0 " not in err
 
 

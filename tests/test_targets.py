@@ -926,6 +926,11 @@ def test_a_frame_drawn_around_a_picture_is_left_out_with_a_note(tmp_path, inset)
     framed = load_target_image(_saved_picture(tmp_path, "framed.png", pixels))
     assert framed.start == pytest.approx(plain.start, abs=0.02) and np.array_equal(framed.mask, plain.mask)
     assert "frame drawn around the picture was left out" in picture_note(ShapeMatch(framed), get_model("vines"))
+    # blurred, as a scan or photo has it: its inner corners rounded, which is no drawing meeting it (h56)
+    from PIL import ImageFilter
+    Image.fromarray(pixels).filter(ImageFilter.GaussianBlur(1.5)).save(tmp_path / "blurred.png")
+    blurred = load_target_image(tmp_path / "blurred.png")
+    assert blurred.notes and blurred.start == pytest.approx(plain.start, abs=0.03)
     # a rectangle with nothing inside is the shape itself
     empty = np.full((200, 200), 255, dtype=np.uint8)
     empty[20:23, 20:180] = empty[177:180, 20:180] = empty[20:180, 20:23] = empty[20:180, 177:180] = 0
@@ -959,6 +964,12 @@ def test_a_page_on_a_desk_as_dark_as_its_ink_is_named_when_read_as_the_shape(tmp
     target = load_target_image(_saved_picture(tmp_path, "desk.png", photo))
     note = picture_note(ShapeMatch(target), get_model("vines"))
     assert note is not None and "one light rectangle covering 36% of the picture" in note
+    # a filled drawing leaves wide holes, not strokes: the page is still a rectangle (h56)
+    filled = photo.copy()
+    filled[120:180, 120:180] = 55
+    note = picture_note(ShapeMatch(load_target_image(_saved_picture(tmp_path, "filled.png", filled))),
+                        get_model("vines"))
+    assert note is not None and "one light rectangle" in note
     # the drawing on white paper, or a lighter desk, is read as the drawing, with no such note
     for name, desk in (("white.png", 215), ("light.png", 120)):
         photo[:] = desk

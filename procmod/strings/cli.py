@@ -323,14 +323,14 @@ def _augment(args) -> None:
               "the shapes do not have and few new shapes may be found; give the gap the parts were placed with",
               file=sys.stderr)
     from .sampling import SeenShapes
-    alike = SeenShapes(shape_set, "graph")  # inputs with the same shape graph (a file given twice)
+    alike = SeenShapes(shape_set, "graph")  # inputs with the same shape graph (a shape given twice)
     for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
         g = shape_graph(shape_set, shape, tolerance)
         if not alike.add(shape, g):
             source = f" ({named[i]})" if named else ""
-            print(f"note: input shape {i}{source} has the same shape graph as an earlier one (the same parts in the "
-                  "same contacts): it adds no strings the other does not, and weighs that shape double in the "
-                  "grammar", file=sys.stderr)
+            print(f"note: input shape {i}{source} has the same shape graph as an earlier input shape (the same "
+                  "parts in the same contacts, wherever they are placed): its strings are that shape's, and the "
+                  "grammar counts them once more", file=sys.stderr)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
             given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"

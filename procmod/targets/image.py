@@ -1049,10 +1049,15 @@ def drawn_frame(mask: np.ndarray, picture: tuple | None = None) -> np.ndarray | 
     limit = max(1, int(FRAME_SIDE * min(box.shape)))
 
     def side(cover: np.ndarray) -> int:  # rows of a side from the box's edge inwards (0: none)
+        end = min(limit, len(cover))
         n = 0
-        while n < min(limit, len(cover)) and cover[n] >= FRAME_LINE:
+        while n < min(end, FRAME_GAP + 1) and cover[n] < FRAME_LINE:  # a blurred line's sparse outer rim
             n += 1
-        while n and n < min(limit, len(cover)) and cover[n] >= FRAME_RIM:
+        if n >= end or cover[n] < FRAME_LINE:
+            return 0
+        while n < end and cover[n] >= FRAME_LINE:
+            n += 1
+        while n < end and cover[n] >= FRAME_RIM:  # its anti-aliased inner rim
             n += 1
         return n if n < limit else 0  # as thick as the limit: a filled block (a page), not a line
 
@@ -1066,11 +1071,20 @@ def drawn_frame(mask: np.ndarray, picture: tuple | None = None) -> np.ndarray | 
     inside = box & ~frame
     if inside.sum() < 0.02 * box.sum() or inside.sum() < 16:  # nothing drawn inside: the rectangle is the shape
         return None
-    if (inside & ndimage.binary_dilation(box & frame, iterations=FRAME_GAP)).any():  # the drawing meets it
+    # the drawing meets it (a window's cross): ink next to the frame, away from its corners,
+    # where a blurred or rounded frame's inner fillet lies
+    meets = inside & ndimage.binary_dilation(box & frame, iterations=FRAME_GAP)
+    corner = 2 * max(top, bottom, left, right) + FRAME_GAP + 1
+    meets[:corner, :corner] = meets[:corner, -corner:] = meets[-corner:, :corner] = meets[-corner:, -corner:] = False
+    if meets.any():
         return None
     out = np.zeros_like(mask)
     out[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = box & frame
     return out
+
+
+PAGE_RECTANGLE = 0.95  # a shape filling this much of its bounding box is a rectangle (a page), not a letter
+PAGE_NOTE = "the shape read is one light rectangle"  # how load_target_image's page note begins
 
 
 def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
@@ -1082,7 +1096,8 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
     picture's border by :data:`MIN_CONTRAST`, its largest part with its holes filled
     covers :data:`PAGE_SHARE` of the picture and :data:`PAGE_BOX_FILL` of its bounding
     box, and its holes are strokes (under a third of them is left after thinning by 2% of
-    the picture), not a letter's counters or a silhouette's gaps. ``mask``: the picture's
+    the picture), not a letter's counters or a silhouette's gaps, unless it is a rectangle
+    (:data:`PAGE_RECTANGLE` of its box: a filled or bold drawing on a page). ``mask``: the picture's
     own, unpadded (:func:`mask_from_image`'s before its square)."""
     from scipy import ndimage
 
@@ -1095,8 +1110,8 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
     if not holes.any() or filled.mean() < PAGE_SHARE or not _fills_its_box(filled, PAGE_BOX_FILL):
         return None
     thinned = ndimage.binary_erosion(holes, iterations=max(2, round(0.02 * max(mask.shape))))
-    if thinned.sum() >= holes.sum() / 3:  # wide holes: a letter's counters, a silhouette's gaps
-        return None
+    if thinned.sum() >= holes.sum() / 3 and not _fills_its_box(filled, PAGE_RECTANGLE):
+        return None  # wide holes in a shape that is no rectangle: a letter's counters, a silhouette's gaps
     colours = _colours(image)
     border = np.zeros(mask.shape, dtype=bool)
     border[0] = border[-1] = border[:, 0] = border[:, -1] = True
@@ -1135,7 +1150,7 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     top, left, height, width = picture_in_square(*shape)
     page = page_taken_for_shape(image, mask[top:top + height, left:left + width])
     if page is not None:
-        notes.append(f"the shape read is one light rectangle covering {page:.0%} of the picture with the drawing as "
+        notes.append(f"{PAGE_NOTE} covering {page:.0%} of the picture with the drawing as "
                      "holes in it: a page photographed on a desk about as dark as its ink? Crop the photo to the "
                      "page (or photograph it on a lighter surface)")
     frame = drawn_frame(mask, (top, left, height, width))

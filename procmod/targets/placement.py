@@ -385,7 +385,7 @@ def picture_note(target: ShapeMatch, model) -> str | None:
 
 def _picture_advice(target: ShapeMatch, model) -> str | None:
     """:func:`picture_note`'s advice of its own."""
-    from .image import _fills_its_box
+    from .image import PAGE_NOTE, _fills_its_box
 
     mask = target.image.mask
     picture = target.image.picture
@@ -399,7 +399,8 @@ def _picture_advice(target: ShapeMatch, model) -> str | None:
     # a built-in target (glyph:, scribble:) is drawn by procmod, with no paper or border
     # of a user's to crop: its advice is for pictures
     built_in = target.name.startswith(("glyph:", "scribble:"))
-    if fill > MOST_OF_THE_PICTURE and _fills_its_box(mask, 0.85) and not built_in:
+    page_named = any(note.startswith(PAGE_NOTE) for note in target.image.notes)  # the same advice, said once
+    if fill > MOST_OF_THE_PICTURE and _fills_its_box(mask, 0.85) and not built_in and not page_named:
         return (f"the shape read from {target.name} covers {fill:.0%} of the picture: the border's colour was "
                 "taken for the paper, so if the paper is inside a dark frame or on a table, crop that away; "
                 "a shape trimmed to its own edges needs some paper around it")
