@@ -122,6 +122,12 @@ def check_renderable(derivation: Derivation) -> None:
         raise InvalidArgumentError(f"model {derivation.model.name!r} draws into an output of dimension "
                                    f"{shown_value(dimension)}, which procmod cannot render (pictures are of "
                                    "dimension 2, meshes of 3); score and save its derivations instead")
+    # a picture is drawn in the output's viewport: a Canvas's (or an object standing in for one)
+    if dimension == 2 and getattr(derivation.output, "viewport", None) is None:
+        raise InvalidArgumentError(f"model {derivation.model.name!r} draws into a {type(derivation.output).__name__} "
+                                   "of dimension 2, which procmod cannot render: dimension 2 is a procmod Canvas "
+                                   "(procmod.geometry.Canvas, a raster it draws pictures of); declare dimension 0 for "
+                                   "an output of your own, and score and save its derivations instead")
 
 
 def check_geometry(derivation: Derivation) -> None:

@@ -122,6 +122,9 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     """
     check_declared(target, Target, "the target")
     best = result.best
+    if best is None:  # nothing to write a report of (the command line says so before calling this)
+        from .infer.common import no_result_error
+        raise no_result_error(result)
     derivation_to_dict(best)  # refuses what cannot be saved before any file is written
     check_geometry(best)
     out = Path(out)
@@ -143,7 +146,8 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
         target_caption = ("target view 1: the best result's silhouette (green) over the image "
                           "(blue: hit, yellow: avoid)")
     write_text_atomic(out / "history.csv", result.history_csv())
-    convergence_figure({result.engine: result}, out / "convergence.svg", f"{result.engine} on {target.name}")
+    target_name = str(getattr(target, "name", None) or type(target).__name__)  # (a user's target may have none)
+    convergence_figure({result.engine: result}, out / "convergence.svg", f"{result.engine} on {target_name}")
     # 128 px tiles at 2x2 supersampling: the one part of the report whose cost grows with the
     # particles (up to 16 tiles), so kept cheap (~2 ms a vine tile here, each distinct
     # output drawn once: after the last resampling most particles are copies)
@@ -154,7 +158,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
         # a learned program's model name is its program.json's absolute path: written, as in
         # best.json, relative to the run folder (the page and settings.json had carried this
         # machine's layout, stale once the two were moved together)
-        "engine": result.engine, "target": target.name, "model": program_reference(best.model.name, out),
+        "engine": result.engine, "target": target_name, "model": program_reference(best.model.name, out),
         # the one timing field, to the microsecond: a short run takes a few milliseconds
         "best_score": result.best_score, "seconds": round(result.seconds, 6),
         "evaluations": result.evaluations, "log_marginal_likelihood": result.log_marginal_likelihood,

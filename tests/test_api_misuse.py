@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from procmod.core import (Bernoulli, Categorical, Normal, ProcmodError, load_derivation, regenerate, replay,
-                          run_forward, save_derivation)
+from procmod.core import (Bernoulli, Categorical, InvalidArgumentError, Normal, ProcmodError, load_derivation,
+                          regenerate, replay, run_forward, save_derivation)
 from procmod.data import target_from_spec
 from procmod.guide import Guide
 from procmod.infer import Budget
@@ -389,3 +389,133 @@ def test_whole_numbers_stay_whole_except_a_pictures_start_and_direction():
     point = collections.namedtuple("Point", "x y")
     named = Model("np-named", "", rule, lambda p: (), canvas, params={"start": point(np.float64(0.5), 1.0)})
     assert named.params["start"] == point(0.5, 1.0) and isinstance(named.params["start"], point)
+
+
+# ---- h57: a researcher's own proposer, GA parts, targets and outputs -----------------------
+
+def _sum_model():
+    from toy_models import MIX
+    return MIX
+
+
+class _FixedProposer:
+    """Draws from the prior and says log q is ``log_q`` (``"prior"``: the prior's own)."""
+
+    def __init__(self, log_q):
+        self.log_q = log_q
+
+    def propose(self, ctx, name, dist, rng):
+        value = dist.sample(rng)
+        return value, dist.log_prob(value) if self.log_q == "prior" else self.log_q
+
+
+@pytest.mark.parametrize("log_q", [float("nan"), float("inf"), -float("inf"), None, np.array([-1.0]), True])
+def test_a_proposer_of_ones_own_runs_and_its_bad_log_q_is_one_line(log_q):
+    """smc took only a Guide; a proposer's NaN log q made every weight NaN without a word,
+    +inf zeroed every weight (the note blamed the target), None was a TypeError inside."""
+    from toy_models import SumTarget
+
+    result = smc(_sum_model(), SumTarget(1.0, 1.0), particles=20, seed=0, guide=_FixedProposer("prior"))
+    assert result.engine == "smc+guide" and result.settings["guide"] == "_FixedProposer"
+    assert np.isfinite(result.log_marginal_likelihood)
+    with pytest.raises(InvalidArgumentError, match=r"_FixedProposer.propose returned log q"):
+        smc(_sum_model(), SumTarget(1.0, 1.0), particles=20, seed=0, guide=_FixedProposer(log_q))
+
+
+def test_the_ga_parts_refuse_what_they_cannot_use_in_one_line():
+    from procmod.core import run_forward
+    from procmod.infer.ga import crossover, grow, mutate, roulette_wheel, tournament
+    from procmod.infer.ga.genome import Genome
+
+    d = run_forward(get_model("tree"), np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    assert mutate(Genome(d), rng, (13.5, 13.5, 3.0)) is not None  # ga()'s own three weights (an IndexError)
+    for call, message in ((lambda: grow(d, rng), "grow takes a Genome"),
+                          (lambda: crossover(Genome(d), d, rng), "crossover takes a Genome"),
+                          (lambda: mutate(Genome(d), rng, (-1, 0, 0, 5)), "non-negative weights"),
+                          (lambda: roulette_wheel([]), "population of one or more"),
+                          (lambda: tournament(5, 0, rng), "entrants")):
+        with pytest.raises(InvalidArgumentError, match=message):
+            call()
+
+
+@pytest.mark.parametrize("engine", ["forward", "ga", "mcmc"])
+def test_an_executor_or_progress_of_the_wrong_kind_is_one_line(engine):
+    from procmod.infer import ENGINES
+    from toy_models import SumTarget
+
+    with pytest.raises(InvalidArgumentError, match="executor must be"):
+        ENGINES[engine](_sum_model(), SumTarget(1.0, 1.0), seed=0, budget=Budget(evaluations=20), executor=object())
+    with pytest.raises(InvalidArgumentError, match="progress must be a function"):
+        ENGINES[engine](_sum_model(), SumTarget(1.0, 1.0), seed=0, budget=Budget(evaluations=20), progress=3)
+
+
+@pytest.mark.parametrize("engine", ["forward", "ga", "mcmc"])
+def test_a_target_that_rules_out_everything_says_so_and_write_run_refuses_in_one_line(engine, tmp_path):
+    """best None and no note; write_run then failed with an AttributeError."""
+    from procmod.infer import ENGINES
+    from procmod.infer.common import NO_FINITE_SCORE_NOTE
+    from procmod.report import write_run
+    from toy_models import SumTarget
+
+    class Never(SumTarget):
+        def score(self, output):
+            return -float("inf")
+
+        def log_likelihood(self, output):
+            return -float("inf")
+
+    result = ENGINES[engine](_sum_model(), Never(0.0, 1.0), seed=0, budget=Budget(evaluations=30))
+    assert result.best is None and NO_FINITE_SCORE_NOTE in result.notes
+    with pytest.raises(InvalidArgumentError, match="scored -inf"):
+        write_run(result, Never(0.0, 1.0), tmp_path / "run")
+
+
+def test_write_run_takes_a_target_without_a_name_and_refuses_a_2d_output_that_is_no_canvas(tmp_path):
+    from procmod.core import Model, Output, Target
+    from procmod.geometry import Canvas, Segment
+    from procmod.infer import forward
+    from procmod.report import write_run
+
+    def line(ctx):
+        ctx.emit(Segment(-5.0, 0.0, ctx.sample("x", Normal(0.0, 1.0)), 5.0, 0.5))
+
+    class Unnamed(Target):  # the README's contract names no 'name'
+        def configure(self, model):
+            return model
+
+        def new_output(self, model):
+            return model.new_output()
+
+        def score(self, output):
+            return float(output.pixels.mean())
+
+        def log_likelihood(self, output):
+            return 0.0
+
+        def display_mask(self, width):
+            return None
+
+    model = Model("line", "", line, lambda p: (), lambda p: Canvas((-6, 6, -6, 6), 32))
+    result = forward(model, Unnamed(), particles=3, seed=0)
+    assert write_run(result, Unnamed(), tmp_path / "run", size=32).exists()
+
+    class Flat2D(Output):  # "2" for an output of one's own: renderers read a Canvas's viewport
+        dimension = 2
+
+        def add(self, geometry):
+            return 0
+
+        def copy(self):
+            return Flat2D()
+
+    class Anything(Unnamed):
+        def new_output(self, model):
+            return Flat2D()
+
+        def score(self, output):
+            return 0.0
+
+    flat = Model("flat", "", line, lambda p: (), lambda p: Flat2D())
+    with pytest.raises(InvalidArgumentError, match="cannot render: dimension 2 is a procmod Canvas"):
+        write_run(forward(flat, Anything(), particles=3, seed=0), Anything(), tmp_path / "flat", size=32)

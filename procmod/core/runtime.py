@@ -363,6 +363,25 @@ class ChoicePolicy:
         raise NotImplementedError
 
 
+def _proposal_error(proposer, name: str, what: str) -> InvalidArgumentError:
+    return InvalidArgumentError(
+        f"{type(proposer).__name__}.propose {what} for the choice {cut_text(repr(name), 60)}: a proposer returns "
+        "(value, log q), log q the finite log-density (or log-probability) of the value under its proposal "
+        "(procmod.core.protocols.Proposer)")
+
+
+def _checked_log_q(proposer, name: str, log_q) -> float:
+    """A proposer's log q as a float, or an InvalidArgumentError: a NaN had made every
+    weight and log Z NaN without a word, +inf every weight zero (the note blamed the
+    target), None a TypeError inside the runtime."""
+    if isinstance(log_q, (bool, np.bool_)) or not isinstance(log_q, (int, float, np.integer, np.floating)):
+        raise _proposal_error(proposer, name, f"returned log q {cut_text(repr(log_q), 60)}")
+    log_q = float(log_q)
+    if not -math.inf < log_q < math.inf:
+        raise _proposal_error(proposer, name, f"returned log q = {log_q}")
+    return log_q
+
+
 class GuidedPolicy(ChoicePolicy):
     """Fresh choices come from ``proposer`` (a neural guide; ``None``: the prior);
     ``log_proposal`` sums the log-densities of the values it gave."""
@@ -379,7 +398,13 @@ class GuidedPolicy(ChoicePolicy):
         if proposer is None:
             value = dist.sample(ctx._rng)
         else:  # engines weight by prior / proposal
-            value, log_q = proposer.propose(ctx, name, dist, ctx._rng)
+            proposed = proposer.propose(ctx, name, dist, ctx._rng)
+            try:
+                value, log_q = proposed
+            except (TypeError, ValueError):
+                raise _proposal_error(proposer, name, f"returned {cut_text(repr(proposed), 60)}") from None
+            if type(log_q) is not float or not -math.inf < log_q < math.inf:  # (a float: the shipped guides')
+                log_q = _checked_log_q(proposer, name, log_q)
             self.log_proposal += log_q
         return value, dist.log_prob(value)
 

@@ -150,6 +150,9 @@ class Tracker:
                  rows_per_doubling: int = ROWS_PER_DOUBLING, progress_interval: float = 0.1):
         self.budget = budget or Budget()
         self.stop_requested = False
+        if progress is not None and not callable(progress):
+            raise InvalidArgumentError(f"progress must be a function, called with the run's Tracker as it goes, or "
+                                       f"None, got {type(progress).__name__} {progress!r:.40}")
         self.progress = progress
         self.progress_interval = progress_interval
         self._ratio = 2.0 ** (1.0 / check_positive("rows_per_doubling", rows_per_doubling))
@@ -164,6 +167,7 @@ class Tracker:
         self._next_row = 1  # evaluations at which the next row is due
         self._last_progress = -math.inf
         self._global_states = global_generator_states()  # see notes()
+        self.offered = False  # whether any complete derivation was offered (a best of score -inf is none)
 
     @property
     def seconds(self) -> float:
@@ -205,6 +209,7 @@ class Tracker:
         """Consider a complete derivation for ``best``: the highest score, except that one
         the target rules out (``log_likelihood`` -inf: parts that intersect, which a proxy
         target's score does not see) is best only while no other has been found."""
+        self.offered = True
         if log_likelihood != -math.inf and score > self.best_allowed_score:
             self.best_allowed_score = score
         if self.better(score, log_likelihood):
@@ -219,6 +224,8 @@ class Tracker:
         """What a result should say of its best (:data:`RULED_OUT_NOTE`), and of draws from
         the global generators since the tracker was made (:func:`global_draws_note`)."""
         notes = [RULED_OUT_NOTE] if self.best is not None and self.best_ruled_out else []
+        if self.best is None and self.offered:
+            notes.append(NO_FINITE_SCORE_NOTE)
         drew = global_draws_note(self._global_states)
         return notes + ([drew] if drew is not None else [])
 
@@ -405,6 +412,9 @@ def _evaluations(executor, model: Model, target: Target, jobs: list):
         for job in jobs:
             yield evaluate(model, target, job)
         return
+    if not callable(getattr(executor, "map", None)):
+        raise InvalidArgumentError(f"executor must be a concurrent.futures.Executor (its map runs the evaluations) "
+                                   f"or None, got {type(executor).__name__}")
     try:
         yield from executor.map(functools.partial(evaluate, model, target), jobs)
     except (pickle.PicklingError, AttributeError, TypeError) as exc:
@@ -486,6 +496,11 @@ RULED_OUT_NOTE = ("the best derivation found is one the target rules out (zero l
 # SMC's note when every particle's likelihood went to zero (its log Z is -inf)
 ZERO_LIKELIHOOD_NOTE = "every particle reached zero likelihood; the log marginal-likelihood is -inf"
 
+# a run whose complete derivations all scored -inf: none can be its best
+NO_FINITE_SCORE_NOTE = ("every complete derivation the engine made scored -inf, so none is a best: the target rules "
+                        "out all that the model makes; check the target's score, or that the model can make what it "
+                        "asks for")
+
 
 def no_result_error(result: Result) -> InvalidArgumentError:
     """The error for a run that returned no complete derivation: too small a budget, or
@@ -496,6 +511,8 @@ def no_result_error(result: Result) -> InvalidArgumentError:
             "every particle reached zero likelihood before a derivation was complete: the target rules out what the "
             "model makes at some step (e.g. parts that intersect, which a proxy target forbids), so more particles or "
             "budget rarely help; check the target, or use an engine that searches on from such states (mcmc, ga)")
+    if NO_FINITE_SCORE_NOTE in result.notes:
+        return InvalidArgumentError(NO_FINITE_SCORE_NOTE)
     return InvalidArgumentError("the engine found no complete derivation within the budget; give it more")
 
 

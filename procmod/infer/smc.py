@@ -237,10 +237,12 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         :data:`GUIDED_ESS_THRESHOLD` with one.
     order : {"program", "random"}
         Which pending future runs next; "random" is SOSMC.
-    guide : procmod.guide.Guide, optional
+    guide : procmod.guide.Guide, its name or path, or a Proposer, optional
         Neurally-guided SMC (seeds 003/004): each fresh choice is drawn from the guide's
         proposal and particles are weighted by prior / proposal x likelihood, so the
-        estimate stays unbiased however poor the guide.
+        estimate stays unbiased however poor the guide. A proposer of one's own
+        (:class:`procmod.core.protocols.Proposer`: ``propose(ctx, name, dist, rng) ->
+        (value, log q)``) is used as it is.
     workers : int or None
         Processes that step the particles (default 1: this one). With ``W > 1`` the
         population is split into ``W`` shards stepped in parallel by forked worker
@@ -273,17 +275,21 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         from ..guide import Guide
         guide = Guide.load(guide)
     if guide is not None:
-        if not callable(getattr(guide, "proposer", None)):
-            raise InvalidArgumentError(f"guide must be a procmod Guide, its name or its path, got "
+        if callable(getattr(guide, "proposer", None)):  # a Guide: its proposer for this model and target
+            guide.check_model(model)
+            proposer = guide.proposer(model, target)
+        elif callable(getattr(guide, "propose", None)):  # a Proposer of the user's own
+            proposer = guide
+        else:
+            raise InvalidArgumentError(f"guide must be a procmod Guide, its name or its path, or a Proposer (an object "
+                                       f"with propose(ctx, name, dist, rng) -> (value, log q)), got "
                                        f"{type(guide).__name__}")
-        guide.check_model(model)
-        proposer = guide.proposer(model, target)
     n_workers = worker_count(workers, particles)
     rng = BlockGenerator(np.random.default_rng(seed))  # scalar draws from blocks: the hot loop
     tracker = Tracker(budget, progress)
     local = ParticleShard(0, model, target, template, rng, pick, proposer, tracker.offer)
     notes = []
-    if guide is not None:
+    if guide is not None and proposer is not guide:
         from ..guide.guide import fit_note
         misfit = fit_note(guide, template, target)
         if misfit is not None:
@@ -322,7 +328,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     log_z = log_z_sum - math.log(runs)
     if log_z == -math.inf:  # every run's every particle; once, not once a run
         notes.append(ZERO_LIKELIHOOD_NOTE)
-    unmatched = proposer.unmatched_note() if proposer is not None else None
+    unmatched = getattr(proposer, "unmatched_note", lambda: None)() if proposer is not None else None
     if unmatched is not None:
         notes.append(unmatched)
     notes += tracker.notes()
@@ -332,8 +338,10 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                   settings={"particles": particles, "seed": recorded_seed(seed), "resampling": resampling,
                             "ess_threshold": ess_threshold, "order": order,
                             "budget": budget.describe() if budget is not None else "one run",
-                            "guide": None if guide is None else guide.source or "(in memory)",
-                            "guide_features": None if guide is None else guide.settings.name, "workers": n_workers},
+                            "guide": None if guide is None else getattr(guide, "source", None) or (
+                                "(in memory)" if proposer is not guide else type(guide).__name__),
+                            "guide_features": None if guide is None or proposer is guide else guide.settings.name,
+                            "workers": n_workers},
                   log_weights=list(log_w), log_marginal_likelihood=log_z, notes=notes)
 
 

@@ -16,7 +16,7 @@ from ..common import (Budget, Result, Scored, Tracker, best_first, check_populat
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
-from .variation import COPIES, crossover, grow, mutate
+from .variation import COPIES, check_split, crossover, grow, mutate
 
 
 def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budget: Budget | None = None,
@@ -53,7 +53,7 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     tournament = check_positive("tournament", tournament)
     max_retries = check_positive("max_retries", max_retries)
     mutation = check_real("mutation", mutation, "in [0, 1]", lambda v: 0.0 <= v <= 1.0)
-    split = _check_split(split)
+    split = check_split(split)
     nudge_step = check_real("nudge_step", nudge_step, "a positive finite number (a fraction of each choice's "
                             "scale)", lambda v: 0.0 < v < math.inf)
     elitism = check_real("elitism", elitism, "in [0, 1)", lambda v: 0.0 <= v < 1.0)
@@ -100,19 +100,6 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
                             "tournament": tournament, "initial_size": initial_size, "nudge_step": nudge_step,
                             "incremental": evaluate.incremental},
                   log_weights=[ind.log_likelihood for ind in pop], notes=tracker.notes())
-
-
-def _check_split(split) -> tuple:
-    """``split`` as four weights (grow, cut, alter, nudge), or an InvalidArgumentError."""
-    try:
-        weights = [float(w) for w in split]
-    except (TypeError, ValueError):
-        weights = None
-    if (weights is None or len(weights) not in (3, 4) or not all(math.isfinite(w) and w >= 0 for w in weights)
-            or sum(weights) <= 0):
-        raise InvalidArgumentError("split must be three or four finite non-negative weights (grow, cut, alter"
-                                   f"[, nudge]) that are not all zero, got {split!r}")
-    return tuple(weights) + (0.0,) * (4 - len(weights))
 
 
 MAX_GROW_ROUNDS = 64  # replays that grow the initial population (see initial_population)

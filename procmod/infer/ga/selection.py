@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from ...core import InvalidArgumentError
+
 
 def roulette_wheel(scores) -> np.ndarray:
     """The cumulative wheel of a population with these scores: individual i's share is
@@ -19,6 +21,9 @@ def roulette_wheel(scores) -> np.ndarray:
     and when no fitness is positive every other individual gets an equal one (every
     individual, when none is finite)."""
     scores = np.asarray(scores, dtype=np.float64)
+    if scores.ndim != 1 or len(scores) == 0:
+        raise InvalidArgumentError(f"roulette_wheel takes the scores of a population of one or more, got "
+                                   f"{len(scores) if scores.ndim == 1 else scores.shape}")
     finite = np.isfinite(scores)
     floor = scores[finite].min() if finite.any() else 0.0
     fitness = np.where(finite, scores, floor) - floor
@@ -41,6 +46,9 @@ def roulette(wheel: np.ndarray, rng) -> int:
 def tournament(size: int, k: int, rng) -> int:
     """The winner of a k-tournament in a population of ``size`` ranked best first: ``k``
     entrants drawn uniformly (with replacement), the best-ranked one wins."""
+    if size < 1 or k < 1:
+        raise InvalidArgumentError(f"tournament needs a population (size) and entrants (k) of one or more, got "
+                                   f"size {size}, k {k}")
     return int(min(rng.integers(0, size, size=k)))
 
 

@@ -46,12 +46,37 @@ differ from the parent's.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from ...core import InvalidArgumentError
 from ...core.runtime import same_args
 from .genome import DROP, Genome, Offspring
 
 COPIES = "copies"  # what crossover returns when the swap changes nothing
+
+
+def _genome(g, operator: str) -> Genome:
+    """``g`` if it is a :class:`Genome`, else an InvalidArgumentError (a Derivation passed
+    as it is had raised an AttributeError inside the operator)."""
+    if not isinstance(g, Genome):
+        raise InvalidArgumentError(f"{operator} takes a Genome (procmod.infer.ga.genome.Genome(derivation): a "
+                                   f"derivation with what the operators read off it), got {type(g).__name__}")
+    return g
+
+
+def check_split(split) -> tuple:
+    """``split`` as four weights (grow, cut, alter, nudge), or an InvalidArgumentError."""
+    try:
+        weights = [float(w) for w in split]
+    except (TypeError, ValueError):
+        weights = None
+    if (weights is None or len(weights) not in (3, 4) or not all(math.isfinite(w) and w >= 0 for w in weights)
+            or sum(weights) <= 0):
+        raise InvalidArgumentError("split must be three or four finite non-negative weights (grow, cut, alter"
+                                   f"[, nudge]) that are not all zero, got {split!r}")
+    return tuple(weights) + (0.0,) * (4 - len(weights))
 
 
 def weighted_pick(items, weights, rng):
@@ -74,6 +99,7 @@ def grow(g: Genome, rng, count: int = 1) -> Offspring | None:
     to its spawn probability (None if there is none). ``count`` > 1 turns on that many at
     once (successive picks without replacement), used to build the initial population
     without one replay per added call."""
+    _genome(g, "grow")
     sites = g.grow_sites()
     if count == 1:
         picks = [weighted_pick(sites, [p for _, _, p in sites], rng)]
@@ -94,6 +120,7 @@ def grow(g: Genome, rng, count: int = 1) -> Offspring | None:
 def cut(g: Genome, rng) -> Offspring | None:
     """Turn off one expressed ``maybe`` child, picked with probability proportional to
     ``1 - p``, and drop its subtree (None if nothing can be cut)."""
+    _genome(g, "cut")
     sites = g.cut_sites()
     pick = weighted_pick(sites, [1.0 - p for _, _, p in sites], rng)
     if pick is None:
@@ -104,6 +131,7 @@ def cut(g: Genome, rng) -> Offspring | None:
 def alter(g: Genome, rng) -> Offspring | None:
     """Remove all parameters of one call, picked uniformly, so that replay redraws them
     from the prior (None if no call has parameters)."""
+    _genome(g, "alter")
     candidates = g.alter_sites()
     if not candidates:
         return None
@@ -124,6 +152,7 @@ def nudge(g: Genome, rng, step: float = 0.1) -> Offspring | None:
     """Move each continuous parameter of one call, picked uniformly, by a Gaussian step of
     ``step`` x its distribution's scale, reflected into its bounds (None if no call has
     continuous parameters)."""
+    _genome(g, "nudge")
     candidates = g.nudge_sites()
     if not candidates:
         return None
@@ -142,6 +171,7 @@ def mutate(g: Genome, rng, split, step: float = 0.1) -> Offspring | None:
     proportional to ``split`` (four weights, in that order); when the picked one has
     nothing to do, the others with a positive weight are tried in that order. None when
     none applies."""
+    split = check_split(split)  # (three weights, as ga() takes: no nudge)
     operators = (grow, cut, alter, lambda g, rng: nudge(g, rng, step))
     first = weighted_pick([0, 1, 2, 3], split, rng)
     for k in [first] + [k for k in (0, 1, 2, 3) if k != first and split[k] > 0]:
@@ -183,6 +213,8 @@ def crossover(g1: Genome, g2: Genome, rng, max_retries: int = 10):
     parent but below the swapped connection. :data:`COPIES` when the two subtrees are
     equal (the children would be the parents), None when ``max_retries`` random
     connections of ``g1`` found no match in ``g2``."""
+    _genome(g1, "crossover")
+    _genome(g2, "crossover")
     c1 = [(key, a) for key, addresses in g1.connections().items() for a in addresses]
     if not c1:
         return None
