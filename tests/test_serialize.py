@@ -48,6 +48,14 @@ def _saved(tmp_path):
     return derivation_to_dict(d)
 
 
+def _refused(tmp_path, data: dict, message: str) -> None:
+    """Loading ``data`` from a file is refused with ``message``."""
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(DerivationFormatError, match=message):
+        load_derivation(path, get_model)
+
+
 def _as_format_1(data: dict) -> dict:
     """A format-2 dict as procmod wrote it before format 2: every call and choice by its
     whole address."""
@@ -90,10 +98,7 @@ def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
     data = _saved(tmp_path)
     assert data["format"] == "procmod-derivation/2"
     mutate(data)
-    path = tmp_path / "bad.json"
-    path.write_text(json.dumps(data))
-    with pytest.raises(DerivationFormatError, match=message):
-        load_derivation(path, get_model)
+    _refused(tmp_path, data, message)
 
 
 @pytest.mark.parametrize("mutate,message", [
@@ -109,10 +114,7 @@ def test_malformed_calls_are_rejected(tmp_path, mutate, message):
              if d.n_nodes >= 3)
     data = derivation_to_dict(d)
     mutate(data)
-    path = tmp_path / "bad.json"
-    path.write_text(json.dumps(data))
-    with pytest.raises(DerivationFormatError, match=message):
-        load_derivation(path, get_model)
+    _refused(tmp_path, data, message)
 
 
 def test_format_1_files_are_still_read(tmp_path):
@@ -189,10 +191,7 @@ class _Sink:
 def test_malformed_format_1_derivations_are_rejected(tmp_path, mutate, message):
     data = _saved_1(tmp_path)
     mutate(data)
-    path = tmp_path / "bad.json"
-    path.write_text(json.dumps(data))
-    with pytest.raises(DerivationFormatError, match=message):
-        load_derivation(path, get_model)
+    _refused(tmp_path, data, message)
 
 
 def test_unreadable_files_are_rejected(tmp_path):
