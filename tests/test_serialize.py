@@ -103,6 +103,7 @@ def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
 
 @pytest.mark.parametrize("mutate,message", [
     (lambda d: d["calls"].__setitem__(0, [0, "branch"]), r"calls\[0\] must be the root call"),
+    (lambda d: d["calls"].clear(), r"'calls' is empty"),
     (lambda d: d["calls"].__setitem__(1, [1, "branch"]), r"calls\[1\] names calls\[1\] as the call that spawned "
                                                          "it, which does not come before it"),
     (lambda d: d["calls"].__setitem__(1, [-1, "branch"]), r"calls\[1\] names calls\[-1\] .* which is no call"),

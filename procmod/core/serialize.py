@@ -197,6 +197,8 @@ def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, di
     for key, value in (("calls", calls), ("choices", entries)):
         if not isinstance(value, list):
             raise _fail(source, f"field {key!r} is missing or not a list")
+    if not calls:
+        raise _fail(source, "'calls' is empty; it lists every call as it ran, the root call first, [null, null]")
     order, seen = [], set()
     for i, call in enumerate(calls):
         if i == 0:
