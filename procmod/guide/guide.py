@@ -362,7 +362,8 @@ def fit_note(guide: "Guide", output, target) -> str | None:
         return None
     said = []
     sizes, size = trained.get("canvases"), output_size(output)
-    if isinstance(sizes, list) and sizes and size is not None and size not in sizes:
+    sizes = [s for s in sizes if isinstance(s, list) and len(s) == 2] if isinstance(sizes, list) else []
+    if sizes and size is not None and size not in sizes:
         shown = ", ".join(f"{w}x{h}" for w, h in sizes[:3]) + (", ..." if len(sizes) > 3 else "")
         said.append(f"it was trained on {shown}-pixel drawings and this run draws at {size[0]}x{size[1]} (its "
                      "windows now cover other distances)")
