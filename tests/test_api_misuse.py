@@ -420,6 +420,8 @@ def test_a_proposer_of_ones_own_runs_and_its_bad_log_q_is_one_line(log_q):
     assert np.isfinite(result.log_marginal_likelihood)
     with pytest.raises(InvalidArgumentError, match=r"_FixedProposer.propose returned log q"):
         smc(_sum_model(), SumTarget(1.0, 1.0), particles=20, seed=0, guide=_FixedProposer(log_q))
+    with pytest.raises(InvalidArgumentError, match=r"the class _FixedProposer \(give an instance of it\)"):
+        smc(_sum_model(), SumTarget(1.0, 1.0), particles=20, seed=0, guide=_FixedProposer)
 
 
 def test_the_ga_parts_refuse_what_they_cannot_use_in_one_line():

@@ -28,7 +28,7 @@ import math
 import multiprocessing
 import os
 
-from .common import RULED_OUT_NOTE, Budget, HistoryRow, Result, evaluate
+from .common import NO_FINITE_SCORE_NOTE, RULED_OUT_NOTE, Budget, HistoryRow, Result, evaluate
 from ..parallel import lost_worker_error, shared_memory_error
 from .particles import _pin, split_evenly
 
@@ -180,8 +180,11 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
     def rebuilt(choices):
         return evaluate(configured, target, (choices, 0, None)).derivation
 
-    # a group's best the target rules out loses to any other (Tracker.offer)
-    best_group = max(range(workers), key=lambda g: (RULED_OUT_NOTE not in packs[g]["notes"], packs[g]["best_score"]))
+    # a group with a best before one without (it had outranked a ruled-out best, which was
+    # then lost); of those, a best the target allows before a ruled-out one (Tracker.offer)
+    has_best = [local.best is not None] + [pack["best"] is not None for pack in packs[1:]]
+    best_group = max(range(workers), key=lambda g: (has_best[g], RULED_OUT_NOTE not in packs[g]["notes"],
+                                                    packs[g]["best_score"]))
     best_score = packs[best_group]["best_score"]
     best = local.best if best_group == 0 else (
         None if packs[best_group]["best"] is None else rebuilt(packs[best_group]["best"]))
@@ -195,8 +198,11 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
         for kind, (accepted, proposed) in pack["moves"].items():
             a, p = moves.get(kind, (0, 0))
             moves[kind] = (a + accepted, p + proposed)
-    notes = list(dict.fromkeys(n for pack in packs for n in pack["notes"]
-                               if n != RULED_OUT_NOTE or RULED_OUT_NOTE in packs[best_group]["notes"]))
+    # what the group of the best says of its best holds for the whole result; that a group
+    # found no best does not, when another did
+    said_of_best = {RULED_OUT_NOTE: RULED_OUT_NOTE in packs[best_group]["notes"],
+                    NO_FINITE_SCORE_NOTE: not any(has_best)}
+    notes = list(dict.fromkeys(n for pack in packs for n in pack["notes"] if said_of_best.get(n, True)))
     evaluations = sum(pack["evaluations"] for pack in packs)
     init_evaluations = sum(pack["init_evaluations"] for pack in packs)
     if best_score == -math.inf:

@@ -278,12 +278,13 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         if callable(getattr(guide, "proposer", None)):  # a Guide: its proposer for this model and target
             guide.check_model(model)
             proposer = guide.proposer(model, target)
-        elif callable(getattr(guide, "propose", None)):  # a Proposer of the user's own
+        elif callable(getattr(guide, "propose", None)) and not isinstance(guide, type):  # a Proposer of one's own
             proposer = guide
         else:
+            what = f"the class {guide.__name__} (give an instance of it)" if isinstance(guide, type) else \
+                type(guide).__name__
             raise InvalidArgumentError(f"guide must be a procmod Guide, its name or its path, or a Proposer (an object "
-                                       f"with propose(ctx, name, dist, rng) -> (value, log q)), got "
-                                       f"{type(guide).__name__}")
+                                       f"with propose(ctx, name, dist, rng) -> (value, log q)), got {what}")
     n_workers = worker_count(workers, particles)
     rng = BlockGenerator(np.random.default_rng(seed))  # scalar draws from blocks: the hot loop
     tracker = Tracker(budget, progress)
