@@ -236,6 +236,43 @@ def shared_memory_error(exc: OSError) -> WorkerError:
                        "too small): mount it writable, or use workers=1")
 
 
+HANDSHAKE_GRACE = 5.0  # seconds beyond the connect timeout for the scheduler to answer dask's handshake
+
+
+def _connect(client_class, scheduler: str, timeout: float):
+    """A dask client of ``scheduler``, or a :class:`SchedulerError` in one line.
+
+    dask bounds the connection by ``timeout`` but not the handshake after it: a server that
+    accepts the connection and answers something else (``python -m http.server``) kept the
+    command waiting in silence for ever; one that answers with an error page had its reply
+    read as a frame length (a MemoryError for 3 EiB, a traceback). The client is made in a
+    thread of its own, given ``timeout`` + :data:`HANDSHAKE_GRACE` seconds."""
+    made = {}
+
+    def connect():
+        try:
+            made["client"] = client_class(scheduler, timeout=timeout)
+        except BaseException as exc:  # noqa: BLE001 - whatever the peer's reply made of dask: said below
+            made["error"] = exc
+
+    thread = threading.Thread(target=connect, name="procmod-dask-connect", daemon=True)
+    thread.start()
+    thread.join(timeout + HANDSHAKE_GRACE)
+    if thread.is_alive():
+        raise SchedulerError(f"the dask scheduler at {scheduler!r} did not answer dask's handshake within "
+                             f"{timeout + HANDSHAKE_GRACE:g} s: is a dask scheduler listening there (`dask scheduler`), "
+                             "or another server?")
+    exc = made.get("error")
+    if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+        raise exc
+    if exc is not None:
+        hint = ("check the address and that `dask scheduler` is running"
+                if isinstance(exc, (OSError, TimeoutError)) else "is a dask scheduler listening there, or another server?")
+        raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({type(exc).__name__}: "
+                             f"{str(exc)[:200]}); {hint}") from None
+    return made["client"]
+
+
 @contextlib.contextmanager
 def open_executor(workers: int | None = None, scheduler: str | None = None,
                   connect_timeout: float = 10.0, note=None) -> Iterator[concurrent.futures.Executor]:
@@ -263,11 +300,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         except ImportError as exc:  # pragma: no cover - dask is a dependency
             raise SchedulerError("dask.distributed is not installed; pip install 'dask[distributed]'") from exc
         with _quiet_distributed():
-            try:
-                client = Client(scheduler, timeout=connect_timeout)
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise SchedulerError(f"cannot reach the dask scheduler at {scheduler!r} ({str(exc)[:200]}); "
-                                     "check the address and that `dask scheduler` is running") from exc
+            client = _connect(Client, scheduler, connect_timeout)
             if note is not None and not _has_workers(client):
                 note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins (start "
                      f"one with `dask worker {scheduler}`)")

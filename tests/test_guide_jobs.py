@@ -9,6 +9,7 @@ import time
 
 import pytest
 
+from procmod.guide import GuideError
 from procmod.guide.traces import generate_traces, load_traces
 from procmod.parallel import open_executor
 
@@ -67,3 +68,58 @@ def test_unreachable_scheduler_is_a_clear_error():
     with pytest.raises(SchedulerError, match="cannot reach the dask scheduler"):
         with open_executor(scheduler="tcp://127.0.0.1:1", connect_timeout=1.0):
             pass
+
+
+@pytest.mark.parametrize("answer", [b"HTTP/1.1 400 Bad Request\r\nContent-Length: 11\r\n\r\nBad Request", None])
+def test_a_server_that_is_no_dask_scheduler_is_one_line_in_bounded_time(answer, monkeypatch):
+    """An error page was read as a frame length (a MemoryError traceback for 3 EiB); a
+    server that took the connection and answered nothing dask reads (python -m
+    http.server) kept the command waiting in silence for ever (h59)."""
+    import socket
+    import threading
+    import time
+
+    import procmod.parallel
+    from procmod.parallel import SchedulerError
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    held = []
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            held.append(conn)  # kept open: a silent server
+            if answer is not None:
+                conn.recv(4096)
+                conn.sendall(answer)
+
+    threading.Thread(target=serve, daemon=True).start()
+    monkeypatch.setattr(procmod.parallel, "HANDSHAKE_GRACE", 1.0)
+    began = time.perf_counter()
+    try:
+        with pytest.raises(SchedulerError, match="scheduler at 'tcp://127.0.0.1:.*(another server|handshake)"):
+            with open_executor(scheduler=f"tcp://127.0.0.1:{server.getsockname()[1]}", connect_timeout=1.0):
+                pass
+    finally:
+        server.close()
+        for conn in held:
+            conn.close()
+    assert time.perf_counter() - began < 20
+
+
+def test_a_worker_running_other_code_refuses_to_make_a_trace():
+    """A dask worker on an older checkout made traces unlike the job's, recorded under the
+    job's code digest without a word (h59)."""
+    from procmod.guide.traces import generate_trace, job_code
+    from procmod.models import get_model
+
+    ours = job_code(get_model("vines"), None)
+    made = generate_trace("vines", "scribble:3", 10, 0, 0, ours)
+    assert made["derivation"]["model"] == "vines"
+    with pytest.raises(GuideError, match="runs other code than this traces job"):
+        generate_trace("vines", "scribble:3", 10, 0, 0, (ours[0], "0" * 16))

@@ -18,6 +18,7 @@ whole; a job that fails before its first trace leaves nothing behind.
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import json
 import os
 import re
@@ -52,19 +53,42 @@ def trace_target_spec(targets: str, seed: int, index: int, set_size: int = SCRIB
     raise InvalidArgumentError(f"{argument('targets')} must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
 
 
-def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int, index: int) -> dict:
+@functools.lru_cache(maxsize=1)
+def procmod_code_digest() -> str:
+    """A digest of procmod's own source files (once a process): what a traces job's
+    workers must share with it besides the model's code."""
+    package = Path(__file__).resolve().parents[1]
+    return fingerprint(" ".join(f"{path.relative_to(package).as_posix()}={fingerprint(path.read_bytes())}"
+                                for path in sorted(package.rglob("*.py"))))
+
+
+def job_code(model, model_file: str | None) -> tuple:
+    """``(model code digest, procmod code digest)``: the code a trace is made with."""
+    return model_code_digest(model, model_file), procmod_code_digest()
+
+
+def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int, index: int,
+                   code: tuple | None = None) -> dict:
     """Run SMC on one target and keep one final particle, picked by weight.
 
     Module-level and fed plain values, so process pools and dask workers can run it
     (``model_spec``: a built-in model's name, or a model file's absolute ``FILE.py:NAME``,
-    which a worker on another machine finds at the same path).
+    which a worker on another machine finds at the same path). ``code``: the job's
+    :func:`job_code`; a worker that runs other code (another procmod, an edited model file)
+    refuses to make the trace: a dask worker of an older checkout had made traces unlike
+    the job's, recorded under the job's digest without a word.
     """
     from ..data import target_from_spec
     from ..infer import smc
-    from ..models import model_from_spec
+    from ..models import MODELS, model_from_spec
 
     began = time.perf_counter()
     model = model_from_spec(model_spec)
+    if code is not None and job_code(model, None if model_spec in MODELS else model_spec) != tuple(code):
+        import socket
+        raise GuideError(f"a worker (on {socket.gethostname()}, procmod at {Path(__file__).resolve().parents[1]}) "
+                         "runs other code than this traces job: another version of procmod or of the model's "
+                         "files; give the workers the same procmod and model files (their PYTHONPATH) and rerun")
     target = target_from_spec(target_spec)
     result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
     weights = np.asarray(result.log_weights, dtype=np.float64)
@@ -286,6 +310,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     # A bounded number of tasks in flight: finished traces are written while others run
     # (an inline executor runs a task as it is submitted, so it gets one at a time).
     in_flight = 1 if isinstance(executor, InlineExecutor) else 32
+    code = None if isinstance(executor, InlineExecutor) else job_code(model, model_file)  # (this process's own)
     began = time.perf_counter()
     queue = list(reversed(missing))
     running = {}
@@ -295,7 +320,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             while queue and len(running) < in_flight:
                 i = queue.pop()
                 spec = trace_target_spec(targets, seed, i, set_size)
-                running[executor.submit(generate_trace, model_file or model_name, spec, particles, seed, i)] = i
+                running[executor.submit(generate_trace, model_file or model_name, spec, particles, seed, i,
+                                        code)] = i
             finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
             for future in finished:
                 index = running.pop(future)
