@@ -123,3 +123,39 @@ def test_a_worker_running_other_code_refuses_to_make_a_trace():
     assert made["derivation"]["model"] == "vines"
     with pytest.raises(GuideError, match="runs other code than this traces job"):
         generate_trace("vines", "scribble:3", 10, 0, 0, (ours[0], "0" * 16))
+
+
+def test_a_worker_of_an_older_procmod_is_one_line_and_leaves_nothing(tmp_path):
+    """A worker whose generate_trace predates the code check takes five arguments: the
+    TypeError came back as a traceback (h61)."""
+    import concurrent.futures
+
+    def old_generate_trace(model_spec, target_spec, particles, seed, index):
+        return {}
+
+    class OlderWorkers(concurrent.futures.ThreadPoolExecutor):
+        def submit(self, fn, *args):
+            return super().submit(lambda: old_generate_trace(*args))
+
+    with OlderWorkers(1) as executor:
+        with pytest.raises(GuideError, match="a worker runs other code than this traces job .an older procmod"):
+            generate_traces("vines", "scribble", 2, tmp_path / "t", particles=10, seed=0, executor=executor)
+    assert not (tmp_path / "t").exists()
+
+
+def test_the_code_digest_passes_over_unreadable_and_editor_files(monkeypatch):
+    """An editor's lock file (.#parallel.py, a link to nothing) made the digest a traceback."""
+    from pathlib import Path
+
+    from procmod.guide.traces import procmod_code_digest
+
+    clean = procmod_code_digest.__wrapped__()
+    read_bytes = Path.read_bytes
+
+    def failing(path):
+        if path.name == "parallel.py":
+            raise OSError(13, "Permission denied")
+        return read_bytes(path)
+
+    monkeypatch.setattr(Path, "read_bytes", failing)
+    assert procmod_code_digest.__wrapped__() != clean  # said "unreadable", not a traceback

@@ -166,3 +166,19 @@ def test_merged_groups_keep_a_ruled_out_best_and_say_only_what_holds_of_the_resu
             assert RULED_OUT_NOTE in ruled_out.notes
         noted += some.best is not None
     assert kept >= 1 and noted >= 3  # the cases the bug showed in (seeds 0 and 5; 1-3)
+
+
+def test_a_best_of_score_minus_inf_the_target_allows_is_kept_as_on_one_worker():
+    """One worker kept it; two dropped it, with no note of why (h61)."""
+    from toy_models import MIX
+
+    class Unscored(SumTarget):
+        def score(self, output):
+            return -math.inf
+
+        def log_likelihood(self, output):
+            return 0.0
+
+    for workers in (1, 2):
+        result = mcmc(MIX, Unscored(3.0, 1.0), chains=2, workers=workers, seed=0, budget=Budget(evaluations=20))
+        assert result.best is not None, workers

@@ -58,8 +58,16 @@ def procmod_code_digest() -> str:
     """A digest of procmod's own source files (once a process): what a traces job's
     workers must share with it besides the model's code."""
     package = Path(__file__).resolve().parents[1]
-    return fingerprint(" ".join(f"{path.relative_to(package).as_posix()}={fingerprint(path.read_bytes())}"
-                                for path in sorted(package.rglob("*.py"))))
+    parts = []
+    for path in sorted(package.rglob("*.py")):
+        name = path.relative_to(package).as_posix()
+        if any(part.startswith(".") for part in path.relative_to(package).parts):
+            continue  # an editor's lock or backup file (.#parallel.py: a link to nothing), not procmod's code
+        try:
+            parts.append(f"{name}={fingerprint(path.read_bytes())}")
+        except OSError:
+            parts.append(f"{name}=unreadable")
+    return fingerprint(" ".join(parts))
 
 
 def job_code(model, model_file: str | None) -> tuple:
@@ -278,6 +286,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     out = Path(out)
     folder = RunFolder(out, TRACES_JOB, overwrite)
     settings = _job_settings(model, model_file, targets, particles, seed, set_size)
+    code = job_code(model, model_file)  # what the workers must run (before anything is written)
     job_file = out / "traces.json"
     resume = False
     if TRACES_JOB.recognises(out):
@@ -310,7 +319,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     # A bounded number of tasks in flight: finished traces are written while others run
     # (an inline executor runs a task as it is submitted, so it gets one at a time).
     in_flight = 1 if isinstance(executor, InlineExecutor) else 32
-    code = None if isinstance(executor, InlineExecutor) else job_code(model, model_file)  # (this process's own)
+    code = None if isinstance(executor, InlineExecutor) else code
     began = time.perf_counter()
     queue = list(reversed(missing))
     running = {}
@@ -325,7 +334,15 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
             for future in finished:
                 index = running.pop(future)
-                write_text_atomic(trace_path(out, index), json.dumps(future.result()) + "\n")
+                try:
+                    trace = future.result()
+                except TypeError as exc:  # a worker of a procmod before the code check: other arguments
+                    if "generate_trace()" not in str(exc):
+                        raise
+                    raise GuideError(f"a worker runs other code than this traces job (an older procmod: {exc}); "
+                                     "give the workers the same procmod and model files (their PYTHONPATH) and "
+                                     "rerun") from None
+                write_text_atomic(trace_path(out, index), json.dumps(trace) + "\n")
                 done += 1
                 if progress is not None:
                     progress(present + done, count)

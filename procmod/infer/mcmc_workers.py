@@ -24,7 +24,6 @@ maps into derivations (a complete map replays to the same derivation, no randomn
 
 from __future__ import annotations
 
-import math
 import multiprocessing
 import os
 
@@ -205,6 +204,6 @@ def run_groups(run_group, model, target, chains: int, workers: int, budget: Budg
     notes = list(dict.fromkeys(n for pack in packs for n in pack["notes"] if said_of_best.get(n, True)))
     evaluations = sum(pack["evaluations"] for pack in packs)
     init_evaluations = sum(pack["init_evaluations"] for pack in packs)
-    if best_score == -math.inf:
+    if not has_best[best_group]:
         best = None
     return best, best_score, samples, log_weights, history, evaluations, moves, init_evaluations, notes
