@@ -1,7 +1,6 @@
 """Trace-generation jobs: resuming after SIGKILL, and running on a real dask cluster."""
 
 import json
-import os
 import signal
 import subprocess
 import sys
