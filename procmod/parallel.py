@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import functools
 import ctypes
 import logging
 import os
@@ -32,6 +33,7 @@ import re
 import signal
 import sys
 import threading
+from pathlib import Path
 from typing import Iterator
 
 from .core.errors import InvalidArgumentError, ProcmodError, argument
@@ -236,6 +238,45 @@ def shared_memory_error(exc: OSError) -> WorkerError:
                        "too small): mount it writable, or use workers=1")
 
 
+@functools.lru_cache(maxsize=1)
+def procmod_code_digest() -> str:
+    """A digest of procmod's own source files (once a process): what the workers of a job
+    must share with it (:func:`open_executor` compares a dask cluster's at connect, and a
+    traces job each trace's, :func:`procmod.guide.traces.job_code`)."""
+    from .core.io import fingerprint
+
+    package = Path(__file__).resolve().parent
+    parts = []
+    for path in sorted(package.rglob("*.py")):
+        relative = path.relative_to(package)
+        if any(part.startswith(".") for part in relative.parts):
+            continue  # an editor's lock or backup file (.#parallel.py: a link to nothing), not procmod's code
+        try:
+            parts.append(f"{relative.as_posix()}={fingerprint(path.read_bytes())}")
+        except OSError:
+            parts.append(f"{relative.as_posix()}=unreadable")
+    return fingerprint(" ".join(parts))
+
+
+def _check_worker_code(client, scheduler: str) -> None:
+    """Refuse, in one line, a dask cluster whose workers run another procmod than this
+    process (an older checkout on their PYTHONPATH, or none): their results would be
+    another version's, without a word. Workers that join later are not seen here."""
+    try:
+        found = client.run(procmod_code_digest, on_error="return")
+    except Exception as exc:  # noqa: BLE001 - the cluster's own failure: said in one line
+        raise SchedulerError(f"cannot ask the dask workers at {scheduler!r} which procmod they run "
+                             f"({type(exc).__name__}: {str(exc)[:160]})") from None
+    ours = procmod_code_digest()
+    for worker, digest in sorted(found.items()):
+        if digest != ours:
+            what = (f"does not run this procmod: it cannot run its code check (another version, or no procmod: "
+                    f"{type(digest).__name__}: {str(digest)[:120]})"
+                    if isinstance(digest, BaseException) else "runs another version of procmod's code")
+            raise SchedulerError(f"dask worker {worker} of {scheduler!r} {what}; give the workers the procmod this "
+                                 "command runs (their PYTHONPATH or installed package) and rerun")
+
+
 HANDSHAKE_GRACE = 5.0  # seconds beyond the connect timeout for the scheduler to answer dask's handshake
 
 
@@ -301,9 +342,14 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
             raise SchedulerError("dask.distributed is not installed; pip install 'dask[distributed]'") from exc
         with _quiet_distributed():
             client = _connect(Client, scheduler, connect_timeout)
-            if note is not None and not _has_workers(client):
-                note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins (start "
-                     f"one with `dask worker {scheduler}`)")
+            try:
+                if note is not None and not _has_workers(client):
+                    note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins "
+                         f"(start one with `dask worker {scheduler}`)")
+                _check_worker_code(client, scheduler)
+            except BaseException:
+                client.close()
+                raise
             try:
                 yield client.get_executor(pure=False)
             except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:

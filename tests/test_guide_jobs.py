@@ -146,7 +146,7 @@ def test_the_code_digest_passes_over_unreadable_and_editor_files(monkeypatch):
     """An editor's lock file (.#parallel.py, a link to nothing) made the digest a traceback."""
     from pathlib import Path
 
-    from procmod.guide.traces import procmod_code_digest
+    from procmod.parallel import procmod_code_digest
 
     clean = procmod_code_digest.__wrapped__()
     read_bytes = Path.read_bytes
@@ -158,3 +158,23 @@ def test_the_code_digest_passes_over_unreadable_and_editor_files(monkeypatch):
 
     monkeypatch.setattr(Path, "read_bytes", failing)
     assert procmod_code_digest.__wrapped__() != clean  # said "unreadable", not a traceback
+
+
+def test_dask_workers_of_another_procmod_are_refused_at_connect():
+    """learn and strings augment ran on workers of an older checkout without a word (h59)."""
+    from procmod.parallel import SchedulerError, _check_worker_code, procmod_code_digest
+
+    class Cluster:
+        def __init__(self, answers):
+            self.answers = answers
+
+        def run(self, function, on_error="raise"):
+            assert function is procmod_code_digest
+            return self.answers
+
+    _check_worker_code(Cluster({"tcp://a:1": procmod_code_digest()}), "tcp://s:8786")  # the same code: fine
+    _check_worker_code(Cluster({}), "tcp://s:8786")  # no workers yet: none to ask
+    for answer, said in (("0" * 16, "runs another version of procmod's code"),
+                         (AttributeError("Can't get attribute 'procmod_code_digest'"), "cannot run its code check")):
+        with pytest.raises(SchedulerError, match=f"dask worker tcp://b:2 of 'tcp://s:8786' .*{said}"):
+            _check_worker_code(Cluster({"tcp://a:1": procmod_code_digest(), "tcp://b:2": answer}), "tcp://s:8786")

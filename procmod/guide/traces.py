@@ -18,7 +18,6 @@ whole; a job that fails before its first trace leaves nothing behind.
 from __future__ import annotations
 
 import concurrent.futures
-import functools
 import json
 import os
 import re
@@ -53,25 +52,10 @@ def trace_target_spec(targets: str, seed: int, index: int, set_size: int = SCRIB
     raise InvalidArgumentError(f"{argument('targets')} must be one of {', '.join(TARGET_SETS)}, got {targets!r}")
 
 
-@functools.lru_cache(maxsize=1)
-def procmod_code_digest() -> str:
-    """A digest of procmod's own source files (once a process): what a traces job's
-    workers must share with it besides the model's code."""
-    package = Path(__file__).resolve().parents[1]
-    parts = []
-    for path in sorted(package.rglob("*.py")):
-        name = path.relative_to(package).as_posix()
-        if any(part.startswith(".") for part in path.relative_to(package).parts):
-            continue  # an editor's lock or backup file (.#parallel.py: a link to nothing), not procmod's code
-        try:
-            parts.append(f"{name}={fingerprint(path.read_bytes())}")
-        except OSError:
-            parts.append(f"{name}=unreadable")
-    return fingerprint(" ".join(parts))
-
-
 def job_code(model, model_file: str | None) -> tuple:
     """``(model code digest, procmod code digest)``: the code a trace is made with."""
+    from ..parallel import procmod_code_digest
+
     return model_code_digest(model, model_file), procmod_code_digest()
 
 
