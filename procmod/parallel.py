@@ -239,23 +239,42 @@ def shared_memory_error(exc: OSError) -> WorkerError:
 
 
 @functools.lru_cache(maxsize=1)
-def procmod_code_digest() -> str:
-    """A digest of procmod's own source files (once a process): what the workers of a job
-    must share with it (:func:`open_executor` compares a dask cluster's at connect, and a
-    traces job each trace's, :func:`procmod.guide.traces.job_code`)."""
+def procmod_code_files() -> tuple:
+    """``(path within the package, digest)`` of each of procmod's own source files (once a
+    process): what the workers of a job must share with it (:func:`_check_worker_code`)."""
     from .core.io import fingerprint
 
     package = Path(__file__).resolve().parent
-    parts = []
+    files = []
     for path in sorted(package.rglob("*.py")):
         relative = path.relative_to(package)
         if any(part.startswith(".") for part in relative.parts):
             continue  # an editor's lock or backup file (.#parallel.py: a link to nothing), not procmod's code
         try:
-            parts.append(f"{relative.as_posix()}={fingerprint(path.read_bytes())}")
+            files.append((relative.as_posix(), fingerprint(path.read_bytes())))
         except OSError:
-            parts.append(f"{relative.as_posix()}=unreadable")
-    return fingerprint(" ".join(parts))
+            files.append((relative.as_posix(), "unreadable"))
+    return tuple(files)
+
+
+def procmod_code_digest() -> str:
+    """One digest of :func:`procmod_code_files` (a traces job compares each trace's:
+    :func:`procmod.guide.traces.job_code`)."""
+    from .core.io import fingerprint
+
+    return fingerprint(" ".join(f"{name}={digest}" for name, digest in procmod_code_files()))
+
+
+def _first_difference(ours: tuple, theirs: tuple) -> str:
+    """Which of procmod's files differ between two :func:`procmod_code_files`, in words."""
+    mine, other = dict(ours), dict(theirs)
+    for name in sorted(set(mine) | set(other)):
+        if mine.get(name) != other.get(name):
+            where = ("only here" if name not in other else "only on the worker" if name not in mine
+                     else "differs")
+            count = sum(mine.get(n) != other.get(n) for n in set(mine) | set(other))
+            return f"procmod/{name} {where}" + (f", and {count - 1} more" if count > 1 else "")
+    return "the same files"
 
 
 def _check_worker_code(client, scheduler: str) -> None:
@@ -263,18 +282,22 @@ def _check_worker_code(client, scheduler: str) -> None:
     process (an older checkout on their PYTHONPATH, or none): their results would be
     another version's, without a word. Workers that join later are not seen here."""
     try:
-        found = client.run(procmod_code_digest, on_error="return")
+        found = client.run(procmod_code_files, on_error="return")
     except Exception as exc:  # noqa: BLE001 - the cluster's own failure: said in one line
         raise SchedulerError(f"cannot ask the dask workers at {scheduler!r} which procmod they run "
                              f"({type(exc).__name__}: {str(exc)[:160]})") from None
-    ours = procmod_code_digest()
-    for worker, digest in sorted(found.items()):
-        if digest != ours:
-            what = (f"does not run this procmod: it cannot run its code check (another version, or no procmod: "
-                    f"{type(digest).__name__}: {str(digest)[:120]})"
-                    if isinstance(digest, BaseException) else "runs another version of procmod's code")
-            raise SchedulerError(f"dask worker {worker} of {scheduler!r} {what}; give the workers the procmod this "
-                                 "command runs (their PYTHONPATH or installed package) and rerun")
+    ours = procmod_code_files()
+    for worker, files in sorted(found.items()):
+        if isinstance(files, BaseException) or not isinstance(files, (tuple, list)):
+            raise SchedulerError(f"dask worker {worker} of {scheduler!r} does not run this procmod: it cannot run "
+                                 f"its code check (another version, or no procmod: {type(files).__name__}: "
+                                 f"{str(files)[:120]}); give the workers the procmod this command runs (their "
+                                 "PYTHONPATH or installed package) and rerun")
+        files = tuple(tuple(f) for f in files)
+        if files != ours:
+            raise SchedulerError(f"dask worker {worker} of {scheduler!r} runs another version of procmod's code "
+                                 f"({_first_difference(ours, files)}); give the workers the procmod this command "
+                                 "runs (their PYTHONPATH or installed package) and rerun")
 
 
 HANDSHAKE_GRACE = 5.0  # seconds beyond the connect timeout for the scheduler to answer dask's handshake

@@ -146,9 +146,9 @@ def test_the_code_digest_passes_over_unreadable_and_editor_files(monkeypatch):
     """An editor's lock file (.#parallel.py, a link to nothing) made the digest a traceback."""
     from pathlib import Path
 
-    from procmod.parallel import procmod_code_digest
+    from procmod.parallel import procmod_code_files
 
-    clean = procmod_code_digest.__wrapped__()
+    clean = procmod_code_files.__wrapped__()
     read_bytes = Path.read_bytes
 
     def failing(path):
@@ -157,24 +157,27 @@ def test_the_code_digest_passes_over_unreadable_and_editor_files(monkeypatch):
         return read_bytes(path)
 
     monkeypatch.setattr(Path, "read_bytes", failing)
-    assert procmod_code_digest.__wrapped__() != clean  # said "unreadable", not a traceback
+    assert procmod_code_files.__wrapped__() != clean  # said "unreadable", not a traceback
 
 
 def test_dask_workers_of_another_procmod_are_refused_at_connect():
     """learn and strings augment ran on workers of an older checkout without a word (h59)."""
-    from procmod.parallel import SchedulerError, _check_worker_code, procmod_code_digest
+    from procmod.parallel import SchedulerError, _check_worker_code, procmod_code_files
 
     class Cluster:
         def __init__(self, answers):
             self.answers = answers
 
         def run(self, function, on_error="raise"):
-            assert function is procmod_code_digest
+            assert function is procmod_code_files
             return self.answers
 
-    _check_worker_code(Cluster({"tcp://a:1": procmod_code_digest()}), "tcp://s:8786")  # the same code: fine
+    ours = procmod_code_files()
+    edited = tuple((name, "0" * 16 if name == "models/vines.py" else digest) for name, digest in ours)
+    _check_worker_code(Cluster({"tcp://a:1": ours}), "tcp://s:8786")  # the same code: fine
     _check_worker_code(Cluster({}), "tcp://s:8786")  # no workers yet: none to ask
-    for answer, said in (("0" * 16, "runs another version of procmod's code"),
-                         (AttributeError("Can't get attribute 'procmod_code_digest'"), "cannot run its code check")):
+    for answer, said in ((edited, r"runs another version of procmod's code \(procmod/models/vines.py differs\)"),
+                         (ours + (("scratch.py", "1" * 16),), r"procmod/scratch.py only on the worker"),
+                         (AttributeError("Can't get attribute 'procmod_code_files'"), "cannot run its code check")):
         with pytest.raises(SchedulerError, match=f"dask worker tcp://b:2 of 'tcp://s:8786' .*{said}"):
-            _check_worker_code(Cluster({"tcp://a:1": procmod_code_digest(), "tcp://b:2": answer}), "tcp://s:8786")
+            _check_worker_code(Cluster({"tcp://a:1": ours, "tcp://b:2": answer}), "tcp://s:8786")
