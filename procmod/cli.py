@@ -592,7 +592,7 @@ class _progress_bar:
 # imported, so that the command line loads no torch to start: guide.train.LOCAL_FEATURES,
 # strings.torch_utils.CPU_DEVICE and strings.pipeline.TRAIN_MODEL.
 CLI_SPELLING = {
-    "out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler", "seed": "--seed",
+    "out": "--out", "overwrite=True": "--overwrite", "scheduler": "--scheduler", "seed": "--seed", "workers=1": "--workers 1",
     "particles": "--particles", "targets": "--targets", "device": "--device", "workers": "--workers",
     "count": "--count", "samples": "--samples", "size": "--size", "population": "--population",
     "strings_per_shape": "--strings-per-shape", "tagger_strings_per_shape": "--tagger-strings-per-shape",

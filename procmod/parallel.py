@@ -61,8 +61,8 @@ def lost_worker_error(what: str, exitcode) -> WorkerError:
         how = f" (killed by signal {-exitcode})"
     else:
         how = f" (exit code {exitcode})"
-    return WorkerError(f"{what} ended unexpectedly{how}; rerun, with fewer workers, or with workers=1 (in one "
-                       "process, where a crash shows its cause)")
+    return WorkerError(f"{what} ended unexpectedly{how}; rerun, with fewer workers, or with "
+                       f"{argument('workers=1')} (in one process, where a crash shows its cause)")
 
 
 class InlineExecutor(concurrent.futures.Executor):
@@ -235,7 +235,7 @@ def shared_memory_error(exc: OSError) -> WorkerError:
     keeps its semaphores in /dev/shm, which a container may mount read-only or tiny."""
     return WorkerError(f"cannot set up worker processes: their locks cannot be made ({exc.strerror or exc}); "
                        "Python's multiprocessing needs a writable /dev/shm (a container may mount it read-only or "
-                       "too small): mount it writable, or use workers=1")
+                       f"too small): mount it writable, or use {argument('workers=1')}")
 
 
 @functools.lru_cache(maxsize=1)
@@ -298,6 +298,37 @@ def _check_worker_code(client, scheduler: str) -> None:
             raise SchedulerError(f"dask worker {worker} of {scheduler!r} runs another version of procmod's code "
                                  f"({_first_difference(ours, files)}); give the workers the procmod this command "
                                  "runs (their PYTHONPATH or installed package) and rerun")
+
+
+def _checked_call(expected: str, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` on a dask worker whose procmod is the client's (``expected``:
+    its :func:`procmod_code_digest`), else a :class:`SchedulerError` in one line: a worker
+    that joined after the connect's check (an adaptive cluster starts empty) is checked
+    by its first task."""
+    if procmod_code_digest() != expected:
+        import socket
+        raise SchedulerError(f"a dask worker (on {socket.gethostname()}, procmod at {Path(__file__).resolve().parent}) "
+                             "runs another version of procmod's code than this command; give the workers the "
+                             "procmod this command runs (their PYTHONPATH or installed package) and rerun")
+    return fn(*args, **kwargs)
+
+
+class CheckedExecutor(concurrent.futures.Executor):
+    """A dask cluster's executor whose every task first checks its worker's procmod
+    (:func:`_checked_call`)."""
+
+    def __init__(self, inner: concurrent.futures.Executor):
+        self.inner = inner
+        self.expected = procmod_code_digest()
+
+    def submit(self, fn, /, *args, **kwargs):
+        return self.inner.submit(_checked_call, self.expected, fn, *args, **kwargs)
+
+    def map(self, fn, *iterables, timeout=None, chunksize=1):
+        return self.inner.map(functools.partial(_checked_call, self.expected, fn), *iterables, timeout=timeout)
+
+    def shutdown(self, wait=True, *, cancel_futures=False):
+        self.inner.shutdown(wait=wait)
 
 
 HANDSHAKE_GRACE = 5.0  # seconds beyond the connect timeout for the scheduler to answer dask's handshake
@@ -374,7 +405,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
                 client.close()
                 raise
             try:
-                yield client.get_executor(pure=False)
+                yield CheckedExecutor(client.get_executor(pure=False))
             except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:
                 if client.status == "running":  # the scheduler is there: not its loss
                     raise
@@ -406,7 +437,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
         _stop_now(pool)
         raise WorkerError(f"cannot start {workers} worker processes ({getattr(exc, 'strerror', None) or exc}); if "
                           "the machine limits its processes (ulimit -u, a container's pids limit), give fewer "
-                          "workers, or workers=1") from None
+                          f"workers, or {argument('workers=1')}") from None
     with pool:
         try:
             yield pool

@@ -220,3 +220,29 @@ def test_a_worker_forked_while_the_gc_lock_is_held_does_not_wait_for_it():
         os.waitpid(pid, 0)
         pytest.fail("the forked child still waited for the lock after 10 s")
     assert os.WEXITSTATUS(status) == 0
+
+
+def test_every_task_of_a_dask_job_first_checks_its_workers_procmod():
+    """A worker that joined an adaptive cluster after the connect's check ran a learn or
+    strings job on another procmod without a word (h62)."""
+    import concurrent.futures
+
+    from procmod.parallel import CheckedExecutor, SchedulerError
+
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        checked = CheckedExecutor(pool)
+        assert checked.submit(pow, 2, 5).result() == 32 and list(checked.map(abs, [-1, 2])) == [1, 2]
+        checked.expected = "0" * 16  # as a worker of another version sees it
+        with pytest.raises(SchedulerError, match="runs another version of procmod's code than this command"):
+            checked.submit(pow, 2, 5).result()
+
+
+def test_a_lost_worker_is_said_with_the_command_lines_flags():
+    """The command line said 'workers=1', the API's spelling (h62)."""
+    from procmod.cli import CLI_SPELLING
+    from procmod.core.errors import spelled
+    from procmod.parallel import lost_worker_error
+
+    assert "workers=1" in str(lost_worker_error("SMC worker process 1", -9))
+    with spelled(CLI_SPELLING):
+        assert "--workers 1" in str(lost_worker_error("SMC worker process 1", -9))
