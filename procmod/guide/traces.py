@@ -244,7 +244,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     from ..data import target_from_spec
     from ..infer.common import check_population
     from ..models import MODELS, model_from_spec
-    from ..parallel import InlineExecutor
+    from ..parallel import InlineExecutor, procmod_code_digest
 
     model = model_from_spec(model_name)  # fail early on an unknown model or a broken file
     model_file = None
@@ -270,7 +270,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     out = Path(out)
     folder = RunFolder(out, TRACES_JOB, overwrite)
     settings = _job_settings(model, model_file, targets, particles, seed, set_size)
-    code = job_code(model, model_file)  # what the workers must run (before anything is written)
+    # what the workers must run (before anything is written): the job's model code and procmod's
+    code = settings["model_code"], procmod_code_digest()
     job_file = out / "traces.json"
     resume = False
     if TRACES_JOB.recognises(out):

@@ -873,6 +873,14 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     return drawn
 
 
+def _border_colour(colours: np.ndarray) -> tuple:
+    """``(the picture's border pixels as a mask, their median colour)``: the paper's colour
+    when nothing says otherwise (:func:`mask_from_image`)."""
+    on_border = np.zeros(colours.shape[:2], dtype=bool)
+    on_border[0] = on_border[-1] = on_border[:, 0] = on_border[:, -1] = True
+    return on_border, np.median(colours[on_border], axis=0)
+
+
 def mask_from_image(image: Image.Image) -> np.ndarray:
     """Binary mask of a picture: foreground = pixels unlike the paper.
 
@@ -901,9 +909,7 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
             if drawn.any() and float(np.mean(rgb[drawn] @ _LUMA)) < float(page @ _LUMA):
                 mask = drawn
     else:
-        on_border = np.zeros(colours.shape[:2], dtype=bool)
-        on_border[0] = on_border[-1] = on_border[:, 0] = on_border[:, -1] = True
-        surround = np.median(colours[on_border], axis=0)
+        on_border, surround = _border_colour(colours)
         mask = _ink(colours, surround, lighting=True, paper_at=on_border)
         drawn = _drawing_on_a_page(colours, mask, surround)
         if drawn is not None:
@@ -1113,9 +1119,7 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
     if thinned.sum() >= holes.sum() / 3 and not _fills_its_box(filled, PAGE_RECTANGLE):
         return None  # wide holes in a shape that is no rectangle: a letter's counters, a silhouette's gaps
     colours = _colours(image)
-    border = np.zeros(mask.shape, dtype=bool)
-    border[0] = border[-1] = border[:, 0] = border[:, -1] = True
-    surround = float(_luma(np.median(colours[border], axis=0)))
+    surround = float(_luma(_border_colour(colours)[1]))
     if float(np.median(_luma(colours[part]))) < surround + MIN_CONTRAST:  # dark ink on light paper
         return None
     return float(filled.mean())
