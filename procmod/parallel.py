@@ -277,27 +277,39 @@ def _first_difference(ours: tuple, theirs: tuple) -> str:
     return "the same files"
 
 
-def _check_worker_code(client, scheduler: str) -> None:
+def _worker_code_refusal(scheduler: str, found: dict, ours: tuple) -> SchedulerError | None:
+    """The refusal for the first of ``found`` (``client.run(procmod_code_files)``'s answer:
+    worker address -> its files, or the error it raised) that does not run ``ours``; None
+    when every worker runs it."""
+    for worker, files in sorted(found.items()):
+        if isinstance(files, BaseException) or not isinstance(files, (tuple, list)):
+            return SchedulerError(f"dask worker {worker} of {scheduler!r} does not run this procmod: it cannot run "
+                                  f"its code check (another version, or no procmod: {type(files).__name__}: "
+                                  f"{str(files)[:120]}); give the workers the procmod this command runs (their "
+                                  "PYTHONPATH or installed package) and rerun")
+        files = tuple(tuple(f) for f in files)
+        if files != ours:
+            return SchedulerError(f"dask worker {worker} of {scheduler!r} runs another version of procmod's code "
+                                  f"({_first_difference(ours, files)}); give the workers the procmod this command "
+                                  "runs (their PYTHONPATH or installed package) and rerun")
+    return None
+
+
+def _check_worker_code(client, scheduler: str) -> set:
     """Refuse, in one line, a dask cluster whose workers run another procmod than this
     process (an older checkout on their PYTHONPATH, or none): their results would be
-    another version's, without a word. Workers that join later are not seen here."""
+    another version's, without a word. Workers that join later are checked by
+    :class:`_WorkerWatch` and by each task (:func:`_checked_call`). Returns the workers
+    checked."""
     try:
         found = client.run(procmod_code_files, on_error="return")
     except Exception as exc:  # noqa: BLE001 - the cluster's own failure: said in one line
         raise SchedulerError(f"cannot ask the dask workers at {scheduler!r} which procmod they run "
                              f"({type(exc).__name__}: {str(exc)[:160]})") from None
-    ours = procmod_code_files()
-    for worker, files in sorted(found.items()):
-        if isinstance(files, BaseException) or not isinstance(files, (tuple, list)):
-            raise SchedulerError(f"dask worker {worker} of {scheduler!r} does not run this procmod: it cannot run "
-                                 f"its code check (another version, or no procmod: {type(files).__name__}: "
-                                 f"{str(files)[:120]}); give the workers the procmod this command runs (their "
-                                 "PYTHONPATH or installed package) and rerun")
-        files = tuple(tuple(f) for f in files)
-        if files != ours:
-            raise SchedulerError(f"dask worker {worker} of {scheduler!r} runs another version of procmod's code "
-                                 f"({_first_difference(ours, files)}); give the workers the procmod this command "
-                                 "runs (their PYTHONPATH or installed package) and rerun")
+    refusal = _worker_code_refusal(scheduler, found, procmod_code_files())
+    if refusal is not None:
+        raise refusal
+    return set(found)
 
 
 def _checked_call(expected: str, fn, *args, **kwargs):
@@ -320,6 +332,7 @@ class CheckedExecutor(concurrent.futures.Executor):
     def __init__(self, inner: concurrent.futures.Executor):
         self.inner = inner
         self.expected = procmod_code_digest()
+        self.refusal: SchedulerError | None = None  # set by _WorkerWatch when a late worker is refused
 
     def submit(self, fn, /, *args, **kwargs):
         return self.inner.submit(_checked_call, self.expected, fn, *args, **kwargs)
@@ -329,6 +342,107 @@ class CheckedExecutor(concurrent.futures.Executor):
 
     def shutdown(self, wait=True, *, cancel_futures=False):
         self.inner.shutdown(wait=wait)
+
+
+WORKER_WATCH_SECONDS = 2.0  # seconds between a dask job's looks at its cluster's workers
+
+
+class _WorkerWatch:
+    """Watches a dask job's workers from a thread of its own, while the job waits on them.
+
+    - A worker that joins after the connect's check runs the check too. A worker older
+      than :func:`_checked_call` cannot even read its tasks (dask logs an AttributeError on
+      the worker and the job waited, as with no workers): one of another procmod is
+      refused, the job's tasks cancelled, and ``executor.refusal`` says why.
+    - A cluster whose every worker has gone (killed, or an adaptive cluster scaled to
+      none) left the job waiting without a word: ``note`` says so, once each time, naming
+      the workers that closed before their check could run (an older procmod's close as
+      soon as they get a task, often between two looks: the scheduler's event log has them).
+    """
+
+    def __init__(self, client, scheduler: str, executor: CheckedExecutor, checked: set, note=None):
+        self.client, self.scheduler, self.executor, self.note = client, scheduler, executor, note
+        self.ours = procmod_code_files()
+        self.checked = set(checked)  # the workers the connect's check saw
+        self.unanswered: set = set()  # workers whose connection closed before their check answered
+        self.had_workers = bool(self.checked)
+        self.since = float("-inf")  # the scheduler's time of the last event seen (its own clock)
+        self._joined()
+        self.stopped = threading.Event()
+        self.thread = threading.Thread(target=self._run, name="procmod-dask-workers", daemon=True)
+
+    def __enter__(self):
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stopped.set()
+        self.thread.join(timeout=5)
+
+    def _workers(self) -> set | None:
+        try:
+            return set(self.client.scheduler_info().get("workers", {}))
+        except Exception:  # noqa: BLE001 - a look that fails (the scheduler going) is no finding
+            return None
+
+    def _joined(self) -> set:
+        """The workers that joined since the last look, from the scheduler's event log: one
+        that joins and closes between two looks (a worker of an older procmod, which
+        cannot read the job's tasks, closes at once) is not in the workers of either."""
+        try:
+            events = list(self.client.get_events("all"))
+        except Exception:  # noqa: BLE001 - a look that fails is no finding
+            return set()
+        fresh = [message for stamp, message in events if stamp > self.since]
+        self.since = max([self.since] + [stamp for stamp, _ in events])
+        return {message.get("worker") for message in fresh
+                if isinstance(message, dict) and message.get("action") == "add-worker"} - {None}
+
+    def look(self) -> None:
+        """One look at the workers (what the thread does every :data:`WORKER_WATCH_SECONDS`)."""
+        workers = self._workers()
+        if workers is None:
+            return
+        joined = self._joined()
+        if not workers:
+            if (self.had_workers or joined) and self.note is not None:
+                closed = sorted((self.unanswered | joined) - self.checked)
+                why = (f" ({', '.join(closed)} closed before its code check could run: a worker of an older procmod, "
+                       "which cannot read this job's tasks, closes so)" if closed else "")
+                self.note(f"the dask scheduler at {self.scheduler} has no workers left{why}: the job waits until one "
+                          f"joins (start one with `dask worker {self.scheduler}`), or stop it (Ctrl-C): a resumable "
+                          "job keeps what it finished")
+            self.had_workers = False
+            self.unanswered.clear()
+            return
+        self.had_workers = True
+        new = sorted(workers - self.checked)
+        if not new:
+            return
+        try:
+            found = self.client.run(procmod_code_files, workers=new, on_error="return")
+        except Exception:  # noqa: BLE001 - gone again before it answered: looked at again next time
+            return
+        # a worker whose connection closed (it left, or it could not read a task and closed
+        # itself) has said nothing of its procmod: looked at again while it stays
+        gone = {worker for worker, answer in found.items() if isinstance(answer, (OSError, TimeoutError))}
+        self.unanswered.update(gone)
+        found = {worker: answer for worker, answer in found.items() if worker not in gone}
+        self.checked.update(found)
+        refusal = _worker_code_refusal(self.scheduler, found, self.ours)
+        if refusal is not None and self.executor.refusal is None:
+            self.executor.refusal = refusal
+            futures = list(getattr(self.executor.inner, "_futures", ()))  # the dask futures of the job's tasks
+            try:
+                self.client.cancel(futures)  # their waiters then see a CancelledError: open_executor says why
+            except Exception:  # noqa: BLE001 - the scheduler going: said as its loss
+                pass
+
+    def _run(self) -> None:
+        while not self.stopped.wait(WORKER_WATCH_SECONDS):
+            self.look()
+            if self.executor.refusal is not None:
+                return
 
 
 HANDSHAKE_GRACE = 5.0  # seconds beyond the connect timeout for the scheduler to answer dask's handshake
@@ -383,8 +497,10 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
     connect_timeout : float
         Seconds to wait for the scheduler before giving up with a :class:`SchedulerError`.
     note : callable, optional
-        ``note(text)`` is told when the scheduler has no workers yet (the job then waits
-        for one to join, however long: an adaptive cluster starts them for the work).
+        ``note(text)`` is told when the scheduler has no workers yet, or none left mid-job
+        (the job then waits for one to join, however long: an adaptive cluster starts
+        them for the work). A worker that joins mid-job running another procmod ends the
+        job with a :class:`SchedulerError`.
     """
     if workers is not None and workers < 0:
         raise InvalidArgumentError(f"workers must be >= 0, got {workers}; use 0 for one per core")
@@ -400,13 +516,17 @@ def open_executor(workers: int | None = None, scheduler: str | None = None,
                 if note is not None and not _has_workers(client):
                     note(f"the dask scheduler at {scheduler} has no workers yet: the job waits until one joins "
                          f"(start one with `dask worker {scheduler}`)")
-                _check_worker_code(client, scheduler)
+                checked = _check_worker_code(client, scheduler)
             except BaseException:
                 client.close()
                 raise
+            executor = CheckedExecutor(client.get_executor(pure=False))
             try:
-                yield CheckedExecutor(client.get_executor(pure=False))
+                with _WorkerWatch(client, scheduler, executor, checked, note):
+                    yield executor
             except (concurrent.futures.CancelledError, OSError, TimeoutError) as exc:
+                if executor.refusal is not None:  # a worker that joined mid-job, of another procmod
+                    raise executor.refusal from None
                 if client.status == "running":  # the scheduler is there: not its loss
                     raise
                 raise SchedulerError(f"lost the dask scheduler at {scheduler!r} mid-job ({type(exc).__name__}); "

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 
 import pytest
 
@@ -246,3 +247,111 @@ def test_a_lost_worker_is_said_with_the_command_lines_flags():
     assert "workers=1" in str(lost_worker_error("SMC worker process 1", -9))
     with spelled(CLI_SPELLING):
         assert "--workers 1" in str(lost_worker_error("SMC worker process 1", -9))
+
+
+def _wait_for(condition, seconds=20.0):
+    import time
+    deadline = time.monotonic() + seconds
+    while not condition():
+        if time.monotonic() > deadline:
+            pytest.fail("the condition did not hold in time")
+        time.sleep(0.05)
+
+
+def test_a_dask_cluster_whose_workers_all_go_mid_job_is_noted(monkeypatch):
+    """A job whose dask workers all went (killed, or an adaptive cluster scaled to none)
+    waited without a word (h59); a worker that joins again finishes it."""
+    distributed = pytest.importorskip("distributed")
+    import procmod.parallel as parallel
+    monkeypatch.setattr(parallel, "WORKER_WATCH_SECONDS", 0.1)
+    notes = []
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    try:
+        with open_executor(scheduler=cluster.scheduler_address, note=notes.append) as executor:
+            assert executor.submit(abs, -2).result() == 2 and notes == []
+            cluster.scale(0)
+            _wait_for(lambda: notes)
+            assert len(notes) == 1 and "has no workers left: the job waits until one joins" in notes[0], notes
+            future = executor.submit(abs, -3)
+            cluster.scale(1)
+            assert future.result(timeout=30) == 3
+            assert len(notes) == 1  # one note each time the workers are gone
+    finally:
+        cluster.close()
+
+
+_STARTED = threading.Event()
+
+
+def _start_then_sleep(seconds):
+    _STARTED.set()  # an in-process worker: the test sees it
+    return _slow(seconds)
+
+
+def _another_procmod():
+    return (("parallel.py", "0" * 16),)
+
+
+def _no_code_check():
+    raise AttributeError("module 'procmod.parallel' has no attribute 'procmod_code_files'")
+
+
+@pytest.mark.parametrize("worker_files, message", [
+    (_another_procmod, r"runs another version of procmod's code \(procmod/\S+ only here, and \d+ more\)"),
+    (_no_code_check, r"does not run this procmod: it cannot run its code check \(another version, or no procmod: "
+                     "AttributeError"),
+])
+def test_a_worker_of_another_procmod_joining_mid_job_ends_it(monkeypatch, worker_files, message):
+    """A worker older than the per-task check that joined mid-job could not read its tasks
+    (dask logged an AttributeError on the worker) and the job waited for ever, as with no
+    workers (h59): the job's watch checks each worker that joins, and refuses it."""
+    distributed = pytest.importorskip("distributed")
+    import procmod.parallel as parallel
+    from procmod.parallel import SchedulerError
+    monkeypatch.setattr(parallel, "WORKER_WATCH_SECONDS", 0.1)
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    try:
+        _STARTED.clear()
+        with pytest.raises(SchedulerError, match=r"dask worker \S+://\S+ of '\S+' " + message):
+            with open_executor(scheduler=cluster.scheduler_address) as executor:
+                future = executor.submit(_start_then_sleep, 3)
+                assert _STARTED.wait(20)  # its worker's check passed: the task runs
+                # the worker that joins now answers the check as another procmod would
+                monkeypatch.setattr(parallel, "procmod_code_files", worker_files)
+                cluster.scale(2)
+                future.result(timeout=30)
+    finally:
+        cluster.close()
+
+
+class _ClusterSeen:
+    """A dask client as the job's watch sees it: its workers now and the scheduler's events."""
+
+    def __init__(self):
+        self.workers, self.events = {}, []
+
+    def scheduler_info(self):
+        return {"workers": dict(self.workers)}
+
+    def get_events(self, topic):
+        assert topic == "all"
+        return list(self.events)
+
+
+def test_a_worker_that_joins_and_closes_between_two_looks_is_named():
+    """A worker of a procmod older than the per-task check closes as soon as it gets a
+    task (it cannot read it), often between two of the watch's looks; the job then waited
+    with no word of it (h59)."""
+    from procmod.parallel import CheckedExecutor, _WorkerWatch
+
+    client, notes = _ClusterSeen(), []
+    client.events = [(1.0, {"action": "add-client", "client": "c"})]
+    watch = _WorkerWatch(client, "tcp://s:8786", CheckedExecutor(concurrent.futures.ThreadPoolExecutor(1)), set(),
+                         notes.append)
+    watch.look()
+    assert notes == []  # no workers yet, and none gone: the connect's note said so
+    client.events.append((2.0, {"action": "add-worker", "worker": "tcp://w:1"}))
+    watch.look()
+    assert len(notes) == 1 and "no workers left (tcp://w:1 closed before its code check could run" in notes[0], notes
+    watch.look()
+    assert len(notes) == 1  # said once
