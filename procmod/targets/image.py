@@ -1098,7 +1098,9 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
 
     A page photographed on a desk about as dark as its ink stays the shape, its drawing
     holes in it (:func:`_drawing_on_a_page` cannot tell that drawing from the ground's
-    colour showing through a light shape). Named when the shape read is lighter than the
+    colour showing through a light shape), or notches where a stroke reaches the page's
+    edge, or cuts where one crosses it (the page is the shape with gaps of a stroke's
+    width closed). Named when the shape read is lighter than the
     picture's border by :data:`MIN_CONTRAST`, its largest part with its holes filled
     covers :data:`PAGE_SHARE` of the picture and :data:`PAGE_BOX_FILL` of its bounding
     box, and its holes are strokes (under a third of them is left after thinning by 2% of
@@ -1109,13 +1111,18 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
 
     if opaque_part(image) is not None or not mask.any():
         return None
-    labels, _ = ndimage.label(mask, structure=np.ones((3, 3)))
-    part = labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
-    filled = ndimage.binary_fill_holes(part)
-    holes = filled & ~part
+    stroke = max(2, round(0.02 * max(mask.shape)))  # the widest stroke taken for the drawing's
+    # A stroke that reaches the page's edge is a notch in it, not a hole, and one across it
+    # cuts it in two: the page is the light shape with such gaps closed.
+    closed = ndimage.binary_closing(np.pad(mask, stroke), iterations=stroke)[stroke:-stroke, stroke:-stroke] | mask
+    labels, _ = ndimage.label(closed, structure=np.ones((3, 3)))
+    page = labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+    filled = ndimage.binary_fill_holes(page)
+    holes = filled & ~mask
+    part = filled & mask
     if not holes.any() or filled.mean() < PAGE_SHARE or not _fills_its_box(filled, PAGE_BOX_FILL):
         return None
-    thinned = ndimage.binary_erosion(holes, iterations=max(2, round(0.02 * max(mask.shape))))
+    thinned = ndimage.binary_erosion(holes, iterations=stroke)
     if thinned.sum() >= holes.sum() / 3 and not _fills_its_box(filled, PAGE_RECTANGLE):
         return None  # wide holes in a shape that is no rectangle: a letter's counters, a silhouette's gaps
     colours = _colours(image)
