@@ -464,6 +464,27 @@ def test_a_camera_or_light_beside_the_model_is_passed_over(tmp_path):
     assert [n.name for n in with_camera.assets[0].nodes()] == [n.name for n in plain.assets[0].nodes()]
 
 
+def test_a_model_parented_to_a_camera_is_read_where_the_camera_puts_it(tmp_path):
+    """Blender and three.js write an object parented to the camera as the camera node's
+    child; trimesh left the camera's node out of its scene and everything under it with it:
+    learn and strings ended in a traceback ('No path from world->Camera!') and a target
+    was refused (h63)."""
+    from procmod.geometry.mesh_files import load_mesh_file
+
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    data = json.loads(path.read_text())
+    data["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}]
+    data["nodes"].append({"name": "Camera", "camera": 0, "translation": [0, 2, 10], "children": [0]})
+    data["scenes"][0]["nodes"] = [5]
+    (tmp_path / "on_camera.gltf").write_text(json.dumps(data))
+    plain, on_camera = read_assets(path), read_assets(tmp_path / "on_camera.gltf")
+    moved = {n.name: n.transform for n in on_camera.assets[0].nodes()}
+    for node in plain.assets[0].nodes():
+        assert np.allclose(moved[node.name], T(0, 2, 10) @ node.transform, atol=1e-6), node.name
+    bounds = load_mesh_file(tmp_path / "on_camera.gltf", force="mesh").bounds
+    assert np.allclose(bounds, load_mesh_file(path, force="mesh").bounds + [0, 2, 10], atol=1e-5)
+
+
 def test_copies_of_a_coarse_round_part_turned_by_apply_rotation_are_one_part(tmp_path):
     """An icosphere of 80 faces (equal moments: its principal axes say nothing) copied
     with a random rotation baked into each copy's vertices: ICP's basin on a nearly round

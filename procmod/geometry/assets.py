@@ -441,7 +441,11 @@ def _read_gltf(path: Path, geometries: dict) -> list:
                 return None  # a leaf with nothing to place (trimesh leaves out a camera's node)
             raise AssetError(f"{path}: node {i} ({nodes[i].get('name', 'unnamed')!r}) is missing from the "
                              "scene trimesh read; the file may use a feature procmod cannot read")
-        world = np.asarray(graph.get(frame)[0], dtype=np.float64)
+        try:
+            world = np.asarray(graph.get(frame)[0], dtype=np.float64)
+        except ValueError:  # trimesh's "No path from world->...": a node its scene left unconnected
+            raise AssetError(f"{path}: node {i} ({nodes[i].get('name', 'unnamed')!r}) is not connected to the "
+                             "scene trimesh read; the file may use a feature procmod cannot read") from None
         if not np.isfinite(world).all():
             raise AssetError(f"{path}: node {frame!r} has a non-finite transform (NaN or infinity)")
         return _Raw(frame, geometry_of(i), world, [b for b in map(build, children[i]) if b is not None])

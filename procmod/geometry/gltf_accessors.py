@@ -336,13 +336,26 @@ def unplaced_roots(header: dict) -> list | None:
     return [k for k in range(len(nodes)) if k not in children]
 
 
+def camera_nodes_with_content(header: dict) -> list:
+    """The nodes that are a camera and also hold a mesh or children (an object parented to
+    the camera, as Blender and three.js write it): trimesh leaves a camera's node out of
+    its scene, and with it everything under it (a traceback, 'No path from world->...')."""
+    nodes = header.get("nodes")
+    if not isinstance(nodes, list):
+        return []
+    return [n for n, node in enumerate(nodes) if isinstance(node, dict) and "camera" in node
+            and ("mesh" in node or node.get("children"))]
+
+
 def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     """The glTF (JSON, buffers as ``data:`` URIs or the files the original names) with its
     misread POSITION accessors (:func:`needs_decoding`) rewritten as ``FLOAT``; None when
     there are none. ``header`` is the file's JSON (``gltf_header``); ``resolver.get(uri)``
     gives a buffer file's bytes.
 
-    Triangle-fan primitives become triangle lists (:func:`fan_primitives`). A mesh shown
+    Triangle-fan primitives become triangle lists (:func:`fan_primitives`); a camera's node
+    that holds a mesh or children is read as a plain node (:func:`camera_nodes_with_content`).
+    A mesh shown
     morphed (:func:`morphed_primitives`) or posed by a skin (:func:`skinned_meshes`) gets
     the positions it is shown at.
 
@@ -353,7 +366,8 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     morphs = morphed_primitives(header)
     skins = skinned_meshes(header)
     roots = unplaced_roots(header)
-    if not chosen and not fans and not morphs and not skins and roots is None:
+    cameras = camera_nodes_with_content(header)
+    if not chosen and not fans and not morphs and not skins and roots is None and not cameras:
         return None
     data = path.read_bytes()
     chunk = _binary_chunk(data) if data[:4] == b"glTF" else None  # a GLB, whatever its suffix
@@ -421,6 +435,8 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
         blob += values.tobytes()
     for n, _, _ in skins:
         out["nodes"][n].pop("skin", None)
+    for n in cameras:  # read as the plain node it also is: what it holds stays in the scene
+        out["nodes"][n].pop("camera", None)
     if roots is not None:
         out["scenes"], out["scene"] = [{"nodes": roots}], 0
     out["buffers"] = [dict(b) for b in out.get("buffers") or ()]
@@ -432,5 +448,5 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     return json.dumps(out).encode("utf-8")
 
 
-__all__ = ["accessor_values", "decoded_gltf", "fan_primitives", "morphed_primitives", "needs_decoding",
+__all__ = ["accessor_values", "camera_nodes_with_content", "decoded_gltf", "fan_primitives", "morphed_primitives", "needs_decoding",
            "skinned_meshes", "unplaced_roots"]
