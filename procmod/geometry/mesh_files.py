@@ -78,7 +78,11 @@ def normalised_obj(text: str) -> str | None:
     """``text`` (an OBJ file, decoded as latin-1) with relative indices made absolute,
     each statement re-spaced and cut at a ``#``, a byte-order mark dropped, lines ended by
     ``\\n`` and concave faces split into triangles (:func:`_split_concave_faces`); None
-    when nothing needed changing (trimesh reads the file as it is)."""
+    when nothing needed changing (trimesh reads the file as it is).
+
+    Raises ValueError for a face that names vertex 0: OBJ counts from 1, and trimesh read
+    a file counted from 0 (a script's own exporter) without a word, each 0 as the last
+    vertex."""
     with relaxed_gc():  # a million lines' lists: the collector scanned them over and over
         return _normalised_obj(text)
 
@@ -91,7 +95,7 @@ def _normalised_obj(text: str) -> str | None:
     out = []
     positions = []  # the line in out of each v statement (read only if there are polygons)
     polygons = {}  # corners -> ([line in out], [its vertex numbers, space-separated]) of faces of 4+ corners
-    for line in text.splitlines():  # splits at \n, \r\n and a lone \r alike
+    for number, line in enumerate(text.splitlines(), 1):  # splits at \n, \r\n and a lone \r alike
         fields = line.split()
         if not fields or fields[0].startswith("#"):
             out.append(line)
@@ -109,6 +113,10 @@ def _normalised_obj(text: str) -> str | None:
             for i in range(1, len(fields)):
                 refs = fields[i].split("/")
                 for slot, ref in enumerate(refs[:3]):
+                    if ref == "0":
+                        raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) names {_SLOT_NAMES[slot]} 0, "
+                                         "but OBJ numbers them from 1 (this file counts from 0, as some scripts' "
+                                         "exporters do); export it again with numbers from 1")
                     if ref.startswith("-"):
                         try:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
@@ -126,6 +134,9 @@ def _normalised_obj(text: str) -> str | None:
         out.append(statement)
     changed = _split_concave_faces(out, positions, polygons) or changed
     return "\n".join(out) + "\n" if changed else None
+
+
+_SLOT_NAMES = ("vertex", "texture coordinate", "normal")  # what the numbers of a v/vt/vn reference name
 
 
 def _split_concave_faces(out: list, positions: list, polygons: dict) -> bool:
