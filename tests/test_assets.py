@@ -392,10 +392,14 @@ def test_a_gltf_buffer_named_percent_encoded_or_up_a_folder_is_found(tmp_path):
     (tmp_path / "models").mkdir()
     data["buffers"][0]["uri"] = "../buffers/my%20ship.bin"
     (tmp_path / "models" / "my ship.gltf").write_text(json.dumps(data))
-    inline, external = read_assets(path), read_assets(tmp_path / "models" / "my ship.gltf")
-    assert list(inline.parts) == list(external.parts)
-    for x, y in zip(inline.assets[0].nodes(), external.assets[0].nodes()):
-        assert x.part == y.part and np.allclose(x.transform, y.transform)
+    data["buffers"][0]["uri"] = "..\\buffers\\my%20ship.bin"  # a Windows tool's separators (h63: "missing")
+    (tmp_path / "models" / "windows.gltf").write_text(json.dumps(data))
+    inline = read_assets(path)
+    for name in ("my ship.gltf", "windows.gltf"):
+        external = read_assets(tmp_path / "models" / name)
+        assert list(inline.parts) == list(external.parts)
+        for x, y in zip(inline.assets[0].nodes(), external.assets[0].nodes()):
+            assert x.part == y.part and np.allclose(x.transform, y.transform)
     data["buffers"][0]["uri"] = str(tmp_path / "buffers" / "my ship.bin")  # absolute: refused
     (tmp_path / "models" / "absolute.gltf").write_text(json.dumps(data))
     with pytest.raises(AssetError, match="absolute path"):

@@ -30,9 +30,9 @@ refused naming its format (OBJ text named ``.stl``).
 For glTF, the files a ``.gltf`` names (buffers, images) are found as procmod finds named
 files (README, "Files that name other files"): relative to the ``.gltf``, ``..`` allowed,
 absolute paths refused, and percent-encoded (``my%20ship.bin``, as the glTF spec writes a
-space) as well as plain. A file whose meshes are Draco-compressed is refused with what to
-do, rather than read as placeholder zeros, and so is one whose buffers are
-meshopt-compressed. Positions stored as normalized integers (``KHR_mesh_quantization``)
+space) as well as plain, ``\\`` or ``/`` between folders. A file whose meshes are
+Draco-compressed is refused with what to do, rather than read as placeholder zeros, and
+so is one whose buffers are meshopt-compressed. Positions stored as normalized integers (``KHR_mesh_quantization``)
 or in sparse accessors, which trimesh reads wrongly, are decoded first
 (:mod:`procmod.geometry.gltf_accessors`). A ``.gltf`` whose buffer file is missing or
 shorter than it declares is refused naming that file. Triangle fans are rewritten as
@@ -614,11 +614,13 @@ def _other_format(head: bytes) -> str | None:
 
 
 def _uri_names(uri: str) -> tuple[list[str], bool]:
-    """The names, relative to the ``.gltf``, a URI it holds may mean (as written and
-    percent-decoded), and whether it is absolute: an exporter's absolute path means the
+    """The names, relative to the ``.gltf``, a URI it holds may mean (as written,
+    percent-decoded and with ``\\`` read as ``/``), and whether it is absolute: an exporter's absolute path means the
     file of that name beside the ``.gltf``, as trimesh looks for it, and nothing
     elsewhere on the machine."""
-    names = list(dict.fromkeys([uri, unquote(uri)]))
+    plain = unquote(uri)
+    # a Windows tool's separator (buf\\data.bin), as procmod's own files may use it too
+    names = list(dict.fromkeys([uri, plain, plain.replace("\\", "/")]))
     if any(PurePosixPath(n).is_absolute() or PureWindowsPath(n).is_absolute() for n in names):
         return [PureWindowsPath(unquote(uri)).name], True
     return names, False
