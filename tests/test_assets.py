@@ -415,6 +415,50 @@ def test_a_draco_compressed_gltf_is_refused_with_what_to_do(tmp_path):
         read_assets(path)
 
 
+def test_a_draco_file_with_plain_data_beside_is_read_and_one_without_is_refused(tmp_path):
+    """A file that uses Draco without requiring it keeps plain accessors for readers
+    without Draco (gltf-pipeline's uncompressed fallback), and was refused all the same (h63)."""
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    data = json.loads(path.read_text())
+    data["extensionsUsed"] = ["KHR_draco_mesh_compression"]
+    for primitive in data["meshes"][0]["primitives"]:
+        primitive["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+    (tmp_path / "fallback.gltf").write_text(json.dumps(data))
+    plain, fallback = read_assets(path), read_assets(tmp_path / "fallback.gltf")
+    assert [(n.name, n.part) for n in fallback.assets[0].nodes()] == [(n.name, n.part) for n in plain.assets[0].nodes()]
+    position = data["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+    del data["accessors"][position]["bufferView"]  # compressed only: trimesh read placeholder zeros
+    (tmp_path / "compressed.gltf").write_text(json.dumps(data))
+    with pytest.raises(AssetError, match="Draco-compressed"):
+        read_assets(tmp_path / "compressed.gltf")
+
+
+@pytest.mark.parametrize("edit", ["version", "objects by id", "binary"])
+def test_a_gltf_1_file_is_refused_with_how_to_upgrade_it(tmp_path, edit):
+    """glTF 1.0 keeps its objects by id: learn and strings said "'nodes' is not a list of
+    node objects" (h63)."""
+    import struct
+
+    from procmod.geometry.mesh_files import load_mesh_file
+
+    path, _, _ = ship_gltf(tmp_path / "ship.gltf")
+    data = json.loads(path.read_text())
+    if edit == "version":
+        data["asset"]["version"] = "1.0"
+    elif edit == "objects by id":
+        del data["asset"]
+        data["nodes"] = {f"node_{i}": node for i, node in enumerate(data["nodes"])}
+    path.write_text(json.dumps(data))
+    if edit == "binary":  # a glTF 1.0 binary (KHR_binary_glTF): version 1 in the GLB header
+        text = json.dumps(data).encode()
+        path = tmp_path / "ship.glb"
+        path.write_bytes(struct.pack("<4sIIII", b"glTF", 1, 20 + len(text), len(text), 0) + text)
+    with pytest.raises(AssetError, match=r"is glTF 1.0, which procmod does not read .*gltf-pipeline"):
+        read_assets(path)
+    with pytest.raises(ValueError, match=r"is glTF 1.0, which procmod does not read"):
+        load_mesh_file(path, force="scene")
+
+
 def test_a_urdf_mesh_over_the_face_limit_is_refused_from_its_header(tmp_path, monkeypatch):
     """Read whole before: 12 s and 4.5 GB for a 10^7-face STL before the limit said no."""
     import struct

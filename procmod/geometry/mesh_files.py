@@ -396,6 +396,8 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
             head = handle.read(20)
             if len(head) < 20 or head[:4] != b"glTF":
                 raise ValueError("is not a GLB file (no 'glTF' header); is it damaged or another format?")
+            if struct.unpack("<I", head[4:8])[0] == 1:
+                raise ValueError(_GLTF_1)
             length, kind = struct.unpack("<I4s", head[12:20])
             if length > limit:
                 raise ValueError(f"has a JSON chunk of {length:,} bytes, more than {limit:,}")
@@ -413,7 +415,32 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
         raise ValueError(f"is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
     if not isinstance(header, dict):
         raise ValueError("is not a glTF file (its JSON is not an object)")
+    asset = header.get("asset")
+    version = asset.get("version") if isinstance(asset, dict) else None
+    if (isinstance(version, str) and version.strip().startswith("1")) or \
+            any(isinstance(header.get(key), dict) for key in ("nodes", "meshes", "accessors")):  # 1.0's objects by id
+        raise ValueError(_GLTF_1)
     return header
+
+
+_GLTF_1 = ("is glTF 1.0, which procmod does not read (glTF 2.0 only); convert it to glTF 2.0: "
+           "`npx gltf-pipeline -i OLD.gltf -o NEW.gltf` upgrades it")
+
+
+def _draco_without_fallback(header: dict) -> bool:
+    """Whether a file that uses Draco (not requires it) has a compressed primitive with
+    no plain positions beside it: the glTF spec lets a file keep uncompressed data for
+    readers without Draco, which is read then; without it trimesh read placeholder zeros."""
+    accessors = header.get("accessors") if isinstance(header.get("accessors"), list) else []
+    for mesh in header.get("meshes") or ():
+        for primitive in (mesh.get("primitives") or ()) if isinstance(mesh, dict) else ():
+            if not isinstance(primitive, dict) or DRACO not in (primitive.get("extensions") or {}):
+                continue
+            index = (primitive.get("attributes") or {}).get("POSITION")
+            accessor = accessors[index] if isinstance(index, int) and 0 <= index < len(accessors) else None
+            if not isinstance(accessor, dict) or ("bufferView" not in accessor and "sparse" not in accessor):
+                return True
+    return False
 
 
 def _check_gltf(path: Path) -> dict | None:
@@ -421,13 +448,17 @@ def _check_gltf(path: Path) -> dict | None:
     the loader says what is wrong with it)."""
     try:
         header = gltf_header(path, limit=64 * 2 ** 20)
-    except (OSError, ValueError):
+    except ValueError as exc:
+        if str(exc) == _GLTF_1:
+            raise
+        return None
+    except OSError:
         return None
     named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
-    if any(isinstance(names, list) and DRACO in names for names in named):
+    required = header.get("extensionsRequired")
+    if (isinstance(required, list) and DRACO in required) or _draco_without_fallback(header):
         raise ValueError(f"its meshes are Draco-compressed ({DRACO}), which procmod cannot decode; export "
                          "it without mesh compression")
-    required = header.get("extensionsRequired")
     if isinstance(required, list) and MESHOPT in required:
         raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
                          "it without compression (gltfpack without -c, or `gltf-transform copy` after "
