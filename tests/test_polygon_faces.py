@@ -119,6 +119,9 @@ def test_off_with_ngons_reads_and_bad_off_is_told(tmp_path):
     lines += [f"{len(f)} " + " ".join(map(str, f)) + " 0.5 0.5 0.5" for f in L_FACES]  # colours after the corners
     (tmp_path / "l.off").write_text("\n".join(lines) + "\n")
     assert _measures(load_mesh_file(tmp_path / "l.off", force="mesh", process=False)) == (22.0, 5.0)
+    # ModelNet's files run the vertex count on to the keyword ("OFF8 6 0"); they were refused (h63)
+    (tmp_path / "modelnet.off").write_text("\n".join([f"OFF{lines[2]}"] + lines[3:]) + "\n")
+    assert _measures(load_mesh_file(tmp_path / "modelnet.off", force="mesh", process=False)) == (22.0, 5.0)
     (tmp_path / "short.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n")
     with pytest.raises(ValueError, match="declares 3 vertices and 1 faces but holds 2 lines"):
         load_mesh_file(tmp_path / "short.off", force="mesh", process=False)

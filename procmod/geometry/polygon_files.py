@@ -13,6 +13,7 @@ triangulated by :func:`procmod.geometry.polygons.triangulate_faces`.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -59,13 +60,17 @@ def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 
 def read_off(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """``(vertices, triangles)`` of an ASCII OFF file (header ``OFF`` with any of the
-    ST/C/N/4 prefixes, ``#`` comments, colours after a face's indices). Raises
+    ST/C/N/4 prefixes, ``#`` comments, colours after a face's indices, the vertex count
+    run on to the keyword as ModelNet has it: ``OFF8 6 0``). Raises
     ValueError, saying what is wrong, for what it cannot read."""
     text = Path(path).read_bytes().decode("latin-1").removeprefix("\xef\xbb\xbf")  # a UTF-8 byte-order mark
     lines = [line.split("#", 1)[0].split() for line in text.splitlines()]
     lines = [fields for fields in lines if fields]
     if not lines:
         raise ValueError("the file is empty")
+    glued = re.fullmatch(r"((?:ST|C|N|4)*OFF)(\d+)", lines[0][0].upper())
+    if glued:  # "OFF8 6 0": the vertex count run on to the keyword, as many of ModelNet's files have it
+        lines[0] = [glued.group(1), glued.group(2)] + lines[0][1:]
     head = lines[0][0].upper()
     keyword = head
     for prefix in _OFF_PREFIXES:
