@@ -237,26 +237,31 @@ DIAGONAL_POLE = np.column_stack([np.array([1.0, -1.0, 0.0]) / math.sqrt(2), np.a
                                  np.array([1.0, 1.0, 1.0]) / math.sqrt(3)])
 
 
-# Directions of one symmetry type whose scatter has a second eigenvalue at least this (an
-# RMS spread of ~8 degrees off their main direction) are spread, not one direction and its
-# noise (:func:`spread_pole`).
-SPREAD = 0.02
+# Directions of one symmetry type whose scatter has a second eigenvalue under this (an
+# RMS spread of ~0.006 degrees: float32 rounding of a tool's transforms) are one
+# direction: its scatter's other eigenvectors are the noise's, and the default pole serves.
+SPREAD = 1e-8
 
 
 def spread_pole(directions: np.ndarray) -> np.ndarray | None:
-    """A pole for directions spread over (near) a circle, or None for directions that are
-    one direction up to noise (the default pole serves those).
+    """A pole for directions that vary from example to example, or None for directions
+    that are one (to rounding: the default pole serves those).
 
     The polar and azimuth angles are drawn independently (seed 000), so the directions a
-    program samples lie where those two Gaussians put them. Mirror normals of towers on a
-    ring are horizontal at every azimuth: about the default diagonal pole, a circle of
-    directions is a curve along which polar and azimuth vary together, and independent
-    draws left it, sampling mirrors tilted and towers leaning up to 65 degrees. About the
-    axis the directions are most nearly perpendicular to (the scatter's least
-    eigenvector), a circle is a constant polar angle of 90 degrees at varying azimuths.
-    The pole's basis: the pole third (largest component positive), the first the
-    coordinate axis least along it made perpendicular to it, the second their cross
-    product."""
+    program samples lie where those two Gaussians put them, and those are aligned with
+    the directions' own spread only about a pole the directions are perpendicular to.
+    Mirror normals of towers on a ring are horizontal at every azimuth: about the default
+    diagonal pole, a circle of directions is a curve along which polar and azimuth vary
+    together, and independent draws left it, sampling mirrors tilted and towers leaning
+    up to 65 degrees. So did a few degrees' spread: the legs of tables whose tops were
+    turned by hand were mirrored across planes turned a few degrees about the vertical,
+    and the program sampled mirrors tilted out of it too, legs leaning 9 degrees and
+    sunk 10 cm through the top where no example leans one over 3 (h64). About the axis
+    the directions are most nearly perpendicular to (the scatter's least eigenvector),
+    a circle, or an arc, is a constant polar angle of 90 degrees at varying azimuths, and
+    the spread across it, the polar's. The pole's basis: the pole third (largest
+    component positive), the first the coordinate axis least along it made perpendicular
+    to it, the second their cross product."""
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     if len(d) < 2:
         return None
