@@ -381,7 +381,11 @@ class _WorkerWatch:
 
     def _workers(self) -> set | None:
         try:
-            return set(self.client.scheduler_info().get("workers", {}))
+            try:  # every worker: distributed 2025.4 to 2026.6 listed 5 unless asked for all
+                info = self.client.scheduler_info(n_workers=-1)
+            except TypeError:  # a distributed before n_workers: it lists all
+                info = self.client.scheduler_info()
+            return set(info.get("workers", {}))
         except Exception:  # noqa: BLE001 - a look that fails (the scheduler going) is no finding
             return None
 
@@ -407,8 +411,8 @@ class _WorkerWatch:
         if not workers:
             if (self.had_workers or joined) and self.note is not None:
                 closed = sorted((self.unanswered | joined) - self.checked)
-                why = (f" ({', '.join(closed)} closed before its code check could run: a worker of an older procmod, "
-                       "which cannot read this job's tasks, closes so)" if closed else "")
+                why = (f" ({', '.join(closed)} joined and closed before its code check could run: stopped, or a worker "
+                       "of an older procmod, which closes as soon as it gets this job's tasks)" if closed else "")
                 self.note(f"the dask scheduler at {self.scheduler} has no workers left{why}: the job waits until one "
                           f"joins (start one with `dask worker {self.scheduler}`), or stop it (Ctrl-C): a resumable "
                           "job keeps what it finished")

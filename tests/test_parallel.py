@@ -352,6 +352,6 @@ def test_a_worker_that_joins_and_closes_between_two_looks_is_named():
     assert notes == []  # no workers yet, and none gone: the connect's note said so
     client.events.append((2.0, {"action": "add-worker", "worker": "tcp://w:1"}))
     watch.look()
-    assert len(notes) == 1 and "no workers left (tcp://w:1 closed before its code check could run" in notes[0], notes
+    assert len(notes) == 1 and "no workers left (tcp://w:1 joined and closed before its code check could run" in notes[0], notes
     watch.look()
     assert len(notes) == 1  # said once

@@ -215,15 +215,23 @@ def test_obj_mistakes_are_said_plainly(tmp_path):
         load_mesh_file(tmp_path / "comma.obj", force="mesh", process=False)
 
 
-@pytest.mark.parametrize("face, named", [("f 0 1 2", "vertex 0"), ("f 1/0 2/1 3/2", "texture coordinate 0"),
-                                         ("f 1//1 2//2 3//0", "normal 0")])
-def test_an_obj_counted_from_0_is_refused_not_read_with_its_0_as_the_last_vertex(tmp_path, face, named):
+@pytest.mark.parametrize("face", ["f 0 1 2", "f 00/1 1/2 2/3", "f -0 1 2"])
+def test_an_obj_counted_from_0_is_refused_not_read_with_its_0_as_the_last_vertex(tmp_path, face):
     """A script's own exporter writes OBJ faces counted from 0; trimesh read each 0 as
     the last vertex without a word, and a target voxelised to 37% of its volume (h63)."""
     (tmp_path / "zero.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\n"
-                                       "vn 0 0 1\nvn 0 0 1\nvn 0 0 1\nf 1 2 4\n" + face + "\n")
-    with pytest.raises(ValueError, match=f"line 12 .* names {named}, but OBJ numbers them from 1 .*counts from 0"):
+                                       "f 1 2 4\n" + face + "\n")
+    with pytest.raises(ValueError, match="line 9 .* names vertex 0, but OBJ numbers vertices from 1 .*counts from 0"):
         load_mesh_file(tmp_path / "zero.obj", force="mesh", process=False)
+
+
+def test_an_obj_whose_0_is_no_part_of_its_faces_geometry_is_read(tmp_path):
+    """A texture coordinate or normal 0 (in a file with none), or a line to vertex 0, is
+    no part of the geometry read: such files read right before the refusal of faces
+    counted from 0, and still do (h65)."""
+    (tmp_path / "zero.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1/0/0 2/0/0 3/0/0\n"
+                                       "f 1//0 2//0 4//0\nl 0 1\n")
+    assert len(load_mesh_file(tmp_path / "zero.obj", force="mesh", process=False).faces) == 2
 
 
 def test_review_cases_repeated_corners_lines_and_a_byte_order_mark(tmp_path):

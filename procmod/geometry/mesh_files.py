@@ -112,11 +112,13 @@ def _normalised_obj(text: str) -> str | None:
             numbers = []
             for i in range(1, len(fields)):
                 refs = fields[i].split("/")
+                # a face's vertex 0 (OBJ counts from 1): a 0 of a texture coordinate or normal,
+                # or in a line, is no part of the geometry read
+                if key == "f" and "0" in refs[0] and not refs[0].strip("+-0"):
+                    raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) names vertex 0, but OBJ numbers "
+                                     "vertices from 1 (this file counts from 0, as some scripts' exporters do); "
+                                     "export it again with numbers from 1")
                 for slot, ref in enumerate(refs[:3]):
-                    if ref == "0":
-                        raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) names {_SLOT_NAMES[slot]} 0, "
-                                         "but OBJ numbers them from 1 (this file counts from 0, as some scripts' "
-                                         "exporters do); export it again with numbers from 1")
                     if ref.startswith("-"):
                         try:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
@@ -134,9 +136,6 @@ def _normalised_obj(text: str) -> str | None:
         out.append(statement)
     changed = _split_concave_faces(out, positions, polygons) or changed
     return "\n".join(out) + "\n" if changed else None
-
-
-_SLOT_NAMES = ("vertex", "texture coordinate", "normal")  # what the numbers of a v/vt/vn reference name
 
 
 def _split_concave_faces(out: list, positions: list, polygons: dict) -> bool:
@@ -454,7 +453,6 @@ def _check_gltf(path: Path) -> dict | None:
         return None
     except OSError:
         return None
-    named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
     required = header.get("extensionsRequired")
     if (isinstance(required, list) and DRACO in required) or _draco_without_fallback(header):
         raise ValueError(f"its meshes are Draco-compressed ({DRACO}), which procmod cannot decode; export "
@@ -463,6 +461,7 @@ def _check_gltf(path: Path) -> dict | None:
         raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
                          "it without compression (gltfpack without -c, or `gltf-transform copy` after "
                          "decompressing)")
+    named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
     if any(isinstance(names, list) and INSTANCING in names for names in named):
         # trimesh reads an instanced node's mesh once, at the node: the other copies vanished
         raise ValueError(f"it draws meshes as GPU instances ({INSTANCING}), which procmod does not expand; export "

@@ -1098,38 +1098,65 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
 
     A page photographed on a desk about as dark as its ink stays the shape, its drawing
     holes in it (:func:`_drawing_on_a_page` cannot tell that drawing from the ground's
-    colour showing through a light shape), or notches where a stroke reaches the page's
-    edge, or cuts where one crosses it (the page is the shape with gaps of a stroke's
-    width closed). Named when the shape read is lighter than the
+    colour showing through a light shape). Named when the shape read is lighter than the
     picture's border by :data:`MIN_CONTRAST`, its largest part with its holes filled
     covers :data:`PAGE_SHARE` of the picture and :data:`PAGE_BOX_FILL` of its bounding
     box, and its holes are strokes (under a third of them is left after thinning by 2% of
     the picture), not a letter's counters or a silhouette's gaps, unless it is a rectangle
-    (:data:`PAGE_RECTANGLE` of its box: a filled or bold drawing on a page). ``mask``: the picture's
-    own, unpadded (:func:`mask_from_image`'s before its square)."""
+    (:data:`PAGE_RECTANGLE` of its box: a filled or bold drawing on a page).
+
+    A stroke that reaches the page's edge is a notch in it, not a hole, and one across it
+    cuts the page in two: failing the above, the page is the light shape with gaps of a
+    stroke's width closed, taken only when the light covers :data:`PAGE_PAPER` of it
+    (white strokes close together on dark ground, chalk writing or hatching, close into a
+    block as well, one about as dark as light). ``mask``: the picture's own, unpadded
+    (:func:`mask_from_image`'s before its square)."""
     from scipy import ndimage
 
     if opaque_part(image) is not None or not mask.any():
         return None
     stroke = max(2, round(0.02 * max(mask.shape)))  # the widest stroke taken for the drawing's
-    # A stroke that reaches the page's edge is a notch in it, not a hole, and one across it
-    # cuts it in two: the page is the light shape with such gaps closed.
-    closed = ndimage.binary_closing(np.pad(mask, stroke), iterations=stroke)[stroke:-stroke, stroke:-stroke] | mask
-    labels, _ = ndimage.label(closed, structure=np.ones((3, 3)))
-    page = labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
-    filled = ndimage.binary_fill_holes(page)
-    holes = filled & ~mask
-    part = filled & mask
+    part = _largest_part(mask)
+    page = _page_of(ndimage.binary_fill_holes(part), part, stroke)
+    if page is None:
+        closed = ndimage.binary_closing(np.pad(mask, stroke), iterations=stroke)[stroke:-stroke, stroke:-stroke]
+        filled = ndimage.binary_fill_holes(_largest_part(closed | mask))
+        part = filled & mask
+        if part.sum() < PAGE_PAPER * filled.sum():
+            return None
+        page = _page_of(filled, part, stroke)
+    if page is None:
+        return None
+    colours = _colours(image)
+    surround = float(_luma(_border_colour(colours)[1]))
+    if float(np.median(_luma(colours[part]))) < surround + MIN_CONTRAST:  # dark ink on light paper
+        return None
+    return float(page.mean())
+
+
+PAGE_PAPER = 0.75  # a page is mostly paper: its drawing's strokes cover under a quarter of it
+
+
+def _largest_part(mask: np.ndarray) -> np.ndarray:
+    """The largest 8-connected part of a non-empty mask."""
+    from scipy import ndimage
+
+    labels, _ = ndimage.label(mask, structure=np.ones((3, 3)))
+    return labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+
+
+def _page_of(filled: np.ndarray, part: np.ndarray, stroke: int) -> np.ndarray | None:
+    """``filled`` when it is a page (:func:`page_taken_for_shape`) whose light is ``part``
+    and whose drawing is ``filled & ~part``, else None."""
+    from scipy import ndimage
+
+    holes = filled & ~part
     if not holes.any() or filled.mean() < PAGE_SHARE or not _fills_its_box(filled, PAGE_BOX_FILL):
         return None
     thinned = ndimage.binary_erosion(holes, iterations=stroke)
     if thinned.sum() >= holes.sum() / 3 and not _fills_its_box(filled, PAGE_RECTANGLE):
         return None  # wide holes in a shape that is no rectangle: a letter's counters, a silhouette's gaps
-    colours = _colours(image)
-    surround = float(_luma(_border_colour(colours)[1]))
-    if float(np.median(_luma(colours[part]))) < surround + MIN_CONTRAST:  # dark ink on light paper
-        return None
-    return float(filled.mean())
+    return filled
 
 
 def load_target_image(path: str | os.PathLike) -> TargetImage:
