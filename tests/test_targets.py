@@ -976,9 +976,9 @@ def test_a_page_on_a_desk_as_dark_as_its_ink_is_named_when_read_as_the_shape(tmp
         assert note is not None and "one light rectangle covering 36% of the picture" in note, (name, note)
     # white strokes close together on dark ground (hatching, a white logo's bars) close into
     # a block too, but one as dark as light: no page (h65)
-    for name, step, width in (("hatch.png", 9, 3), ("bars.png", 12, 6)):
+    for name, spacing, width in (("hatch.png", 9, 3), ("bars.png", 12, 6)):
         strokes = np.full((300, 300), 20, dtype=np.uint8)
-        for row in range(40, 260, step):
+        for row in range(40, 260, spacing):
             strokes[row:row + width, 40:260] = 240
         note = picture_note(ShapeMatch(load_target_image(_saved_picture(tmp_path, name, strokes))), get_model("vines"))
         assert note is None or "light rectangle" not in note, (name, note)
