@@ -178,6 +178,13 @@ def test_a_job_killed_before_its_result_removes_the_run_folders_it_began(tmp_pat
     kept = jobs.Job("learn", {"out": str(tmp_path / "earlier")}, str(fake), folder=tmp_path / "k").start()
     kept.kill()
     assert (tmp_path / "earlier").is_dir()
+    # but the examples the operator exported for a learn job are removed with it (h66: left behind)
+    (tmp_path / "learn-002.examples" / "examples").mkdir(parents=True)
+    failed = jobs.Job("learn", {"out": str(tmp_path / "learn-002"),
+                                "prepared_folder": str(tmp_path / "learn-002.examples")},
+                      str(fake), folder=tmp_path / "p").start()
+    failed.kill()
+    assert not (tmp_path / "learn-002.examples").exists()
 
 
 def test_the_addon_zip_holds_the_blender_side_and_its_python(tmp_path):

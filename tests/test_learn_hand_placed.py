@@ -163,3 +163,26 @@ def test_legs_of_tables_whose_tops_were_turned_by_hand_stay_upright_and_level():
     heights = [np.ptp([leg[1, 3] for leg in legs]) for legs in tables]
     assert max(given) < 3.5 and max(leans) < 5.0, sorted(leans)[-5:]
     assert max(heights) < 0.03, sorted(heights)[-5:]
+
+
+def test_a_part_named_with_parentheses_is_learned_and_a_symmetrys_name_is_refused():
+    """Unity, Maya and SketchUp name copies "Leg (1)": its type was taken for a symmetry
+    of kind "Leg " and the learner failed deep inside (KeyError '0.s1.xf.W', h66)."""
+    import pytest
+
+    from procmod.learn.examples import ExamplesError
+
+    def tables(leg: str) -> dict:
+        examples = [{"part": "top", "transform": (T(0, 0.78, 0) @ np.diag([w, 1, 0.8, 1])).tolist(),
+                     "children": [{"part": leg, "children": [],
+                                   "transform": T(sx * (w / 2 - 0.05), 0.38, sz * 0.35).tolist()}
+                                  for sx in (-1, 1) for sz in (-1, 1)]}
+                    for w in (1.2, 1.3, 1.4)]
+        return {"format": "procmod-examples/1", "examples": examples,
+                "parts": {"top": {"box": [1.0, 0.05, 1.0]}, leg: {"box": [0.06, 0.7, 0.06]}}}
+
+    result = run_search(examples_from_dict(tables("Leg (1)")), SearchOptions(particles=1, **QUICK), InlineExecutor())
+    assert {a.type for a in result.program.abstractions.values()} >= {"Leg (1)", "refl(Leg (1))"}
+    assert len(sampled_leans(result.program, "Leg (1)", 5, seed=1)) == 20
+    with pytest.raises(ExamplesError, match="part name 'rot\\(leg\\)' reads as the name procmod gives a learned"):
+        preprocess(examples_from_dict(tables("rot(leg)")))

@@ -373,6 +373,7 @@ class PROCMOD_OT_learn(_JobOperator, bpy.types.Operator):
         # examples (a job's temporary folder had been named, and deleted with the job)
         examples, names = scene.write_examples(roots, Path(f"{out}.examples"))
         spec = {"examples": str(examples), "names": str(names), "n_examples": len(roots), "out": str(out),
+                "prepared_folder": f"{out}.examples",  # a learn that ends without a program removes it
                 "particles": settings.learn_particles, "workers": 1, "seed": settings.seed, "count": settings.count}
 
         def on_result(context, result):

@@ -23,6 +23,9 @@ JOB_FORMAT = "procmod-blender-job/1"
 DEFAULT_PYTHON_FILE = Path(__file__).with_name("default_python.txt")  # written by package.py
 KILL_AFTER_STOP = 20.0  # seconds a stopped worker may take to write its run before it is killed
 OUTPUT_KEYS = ("out", "target_folder")  # the spec's fields that name folders the worker makes
+# the spec's fields that name folders the operator made for this job's worker (a learn
+# job's exported examples): removed with its outputs when it ends without a result
+PREPARED_KEYS = ("prepared_folder",)
 
 _RUNNING: set = set()
 
@@ -85,6 +88,7 @@ class Job:
         # checkpoint is left for the next job to step around
         self._new_outputs = [Path(self.spec[key]) for key in OUTPUT_KEYS
                              if self.spec.get(key) and not Path(self.spec[key]).exists()]
+        self._new_outputs += [Path(self.spec[key]) for key in PREPARED_KEYS if self.spec.get(key)]
         data = {"format": JOB_FORMAT, "command": self.command, **self.spec}
         (self.folder / "job.json").write_text(json.dumps(data, indent=1), encoding="utf-8")
         log = open(self.folder / "worker.log", "w", encoding="utf-8")
@@ -95,8 +99,8 @@ class Job:
                                             env=env, cwd=str(self.folder))
         except OSError as exc:
             log.close()
-            self.result = {"ok": False, "error": f"cannot start the procmod worker with {self.python!r} "
-                                                 f"({exc.strerror or exc}); set the add-on's Python preference"}
+            self._set_result({"ok": False, "error": f"cannot start the procmod worker with {self.python!r} "
+                                                    f"({exc.strerror or exc}); set the add-on's Python preference"})
             return self
         finally:
             if self.process is not None:

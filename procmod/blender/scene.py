@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import shutil
 from pathlib import Path
 
 import bpy
@@ -460,6 +461,7 @@ def write_examples(roots, folder: Path) -> tuple:
                                  f"example would be learned wrong; apply the scale of {obj.parent.name!r} (select "
                                  "it, Object > Apply > Scale) or unparent the object")
     out = folder / "examples"
+    made = not folder.exists()  # a refusal below leaves no folder behind (it had pushed the next run's number up)
     out.mkdir(parents=True, exist_ok=True)
     selected, active = [o for o in layer.objects if o.select_get()], layer.objects.active
     hidden = [(o, o.hide_get(), o.hide_viewport, o.hide_select) for objects in members for o in objects]
@@ -486,6 +488,10 @@ def write_examples(roots, folder: Path) -> tuple:
                 raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")
             _scale_glb_roots(file, unit_scale())
             names[file.name] = root.name
+    except BaseException:
+        if made:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
     finally:
         for obj, hide, viewport, select in hidden:
             obj.hide_viewport, obj.hide_select = viewport, select

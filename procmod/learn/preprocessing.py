@@ -34,7 +34,7 @@ from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
 from .transforms import (CURRENT, Frame, Units, angles_direction, direction_angles, frame_of, spread_pole, sym_params,
-                         xform_params)
+                         SYM_KINDS, node_kind, reserved_name, xform_params)
 
 OVERLAP_VOXELS = 40
 SLOT_SAMPLES = 64  # surface points per part for the Hausdorff distances of eq. 1
@@ -96,7 +96,7 @@ class Dataset:
         return sorted({n.type for n in self.nodes})
 
     def kind_of(self, type_: str) -> str:
-        return type_.split("(", 1)[0] if "(" in type_ else "part"
+        return node_kind(type_)
 
 
 @dataclass
@@ -287,6 +287,10 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     exact symmetry and still form a group (:mod:`procmod.learn.symmetry`).
     """
     parts = example_set.parts
+    reserved = sorted(name for name in parts if reserved_name(name))
+    if reserved:
+        raise ExamplesError(f"part name {reserved[0]!r} reads as the name procmod gives a learned symmetry "
+                            f"({', '.join(SYM_KINDS)} of a part: KIND(PART)); rename the part")
     bounds = {name: shape.local_bounds() for name, shape in parts.items()}
     corners = {name: box_corners(lo, hi) for name, (lo, hi) in bounds.items()}
     samples = {name: surface_samples(shape, SLOT_SAMPLES) for name, shape in parts.items()}

@@ -64,7 +64,7 @@ from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
 from .transforms import (CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR, SIGMA_FLOOR, SIGMA_MAX,
-                         SYM_PARAMS, Units,
+                         SYM_PARAMS, Units, node_kind,
                          Frame, sym_maps, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
@@ -135,7 +135,7 @@ class Program:
     # ---- structure helpers -----------------------------------------------------------
 
     def kind_of_type(self, type_: str) -> str:
-        return type_.split("(", 1)[0] if "(" in type_ else "part"
+        return node_kind(type_)
 
     def slot_types(self, a: Abstraction) -> list:
         return self.slots.get(a.type, []) if a.kind == "part" else [self.sym_inner[a.type]]

@@ -30,7 +30,7 @@ import numpy as np
 
 from .preprocessing import Dataset
 from .program import MAX_DEPTH, ROOT, Abstraction, Program
-from .transforms import CATEGORY, SYM_PARAMS
+from .transforms import CATEGORY, SYM_PARAMS, node_kind
 
 TAU_SNAP = 0.02
 WARM_BIAS = 30.0
@@ -140,7 +140,7 @@ def initial_program(data: Dataset, rng: np.random.Generator) -> Program:
         program.next_id += 1
 
     def sym_chain(type_: str) -> int:
-        kind = type_.split("(", 1)[0]
+        kind = node_kind(type_)
         inner = data.sym_inner[type_]
         callee = ids[inner] if inner in ids else sym_chain(inner)
         a = program.next_id

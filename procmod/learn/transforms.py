@@ -202,6 +202,21 @@ def xform_matrix(x, signs, frame: Frame, log_scale=NO_LOG_SCALE) -> np.ndarray:
 # ---- symmetry maps -------------------------------------------------------------------
 
 SYM_KINDS = ("refl", "trans", "rot")
+
+
+def node_kind(type_: str) -> str:
+    """The kind of a node type: a symmetry's (``"refl"``, ``"trans"``, ``"rot"``: its type
+    is ``KIND(INNER)``) or ``"part"``. A part's type is the user's part name, which may
+    hold parentheses: ``Leg (1)``, as Unity, Maya and SketchUp name copies, was taken for
+    a symmetry of kind ``"Leg "`` (a KeyError deep in the learner); :func:`reserved_name`
+    says which part names cannot be told from a symmetry's type."""
+    head, bracket, _ = type_.partition("(")
+    return head if bracket and head in SYM_KINDS and type_.endswith(")") else "part"
+
+
+def reserved_name(name: str) -> bool:
+    """Whether a part name reads as a symmetry's node type (``rot(leg)``)."""
+    return node_kind(name) != "part"
 # Parameter names and categories (1 angle, 2 translation fraction) of each symmetry kind.
 SYM_PARAMS = {
     "refl": (("polar", 1), ("azimuth", 1), ("offset", 2)),
