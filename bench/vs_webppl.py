@@ -32,10 +32,16 @@ means resample targets). Targets are 50x50 masks written once as PNG (+ sidecar
 start/direction) for procmod and as JSON for WebPPL: the same pixels for both. A picture
 is left out, with the reason, when it cannot be read, when its shape covers fewer than 25
 of the 2,500 pixels at 50x50 (the normalised similarity of a dot is no measure) or more
-than 90% of the frame, or when procmod would read its written mask otherwise than the
-scorer; procmod's note on a picture it may have read wrongly (a page in a dark frame read
-as the shape) is printed. ``--targets-dir`` reads the folder's pictures, not its
-subfolders (named). With ``--work``, a run already in the folder is reused only when it
+than 90% of the frame, when procmod would read its written mask otherwise than the
+scorer, when procmod reads it as a light page with its drawing as holes (a page in a dark
+frame, or on a desk as dark as its ink: no target of the drawing's), or when it is the
+same target as a picture before it (a link or a copy, counted twice in the means);
+procmod's other notes on a picture (a frame left out, translucent strokes left out) are
+printed, each naming its file. ``--targets-dir`` reads the folder's pictures (HEIC, SVG
+and PDF files too, to say what each is and how to convert it), not its subfolders
+(named); links to nothing and JSON files that are no picture's sidecar are named.
+``--bottom-centre`` starts at the bottom centre of the picture itself, not of the square
+it is padded to. With ``--work``, a run already in the folder is reused only when it
 was made with the same settings (leaves, start, repeats, workers, guide and its files)
 on the same mask.
 
@@ -147,8 +153,8 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
                   + (f" and {len(folders) - 5} more" if len(folders) > 5 else ""), file=sys.stderr)
 
         def is_picture(path: Path) -> bool:  # by its suffix, or, without a known one, by what Pillow finds in it
-            if path.suffix.lower() in pictures:
-                return True
+            if path.suffix.lower() in pictures or path.suffix.lower() in PICTURES_NOT_READ:
+                return True  # (those Pillow cannot read: procmod's loader says what they are and what to do)
             if path.suffix.lower() == ".json":  # a picture's sidecar
                 return False
             try:
@@ -161,12 +167,22 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         if left_out:
             print(f"vs_webppl: not pictures, left out: {', '.join(left_out[:5])}"
                   + (f" and {len(left_out) - 5} more" if len(left_out) > 5 else ""), file=sys.stderr)
+        broken = sorted(p.name for p in targets_dir.iterdir() if p.is_symlink() and not p.exists())
+        if broken:  # neither a file nor a folder: they had vanished without a word
+            print(f"vs_webppl: links to nothing, left out: {', '.join(broken)}", file=sys.stderr)
+        from procmod.targets.image import sidecar_of
+        sidecars = {s for s in (sidecar_of(p) for p in files if is_picture(p)) if s is not None}
+        orphans = [p.name for p in files if p.suffix.lower() == ".json" and p not in sidecars]
+        if orphans:
+            print(f"vs_webppl: JSON files that are no picture's sidecar (NAME.json beside NAME.png), not read: "
+                  f"{', '.join(orphans)}", file=sys.stderr)
         from procmod.models import get_model
         from procmod.targets import ShapeMatch
+        from procmod.targets.image import PAGE_NOTE
         from procmod.targets.placement import picture_note
 
         vines = get_model("vines")
-        loaded = []
+        loaded, seen = [], {}
         for path in (p for p in files if is_picture(p)):
             try:
                 target = load_target_image(path)
@@ -179,8 +195,16 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
                 print(f"vs_webppl: skipping {path.name}: {problem}", file=sys.stderr)
                 continue
             doubt = picture_note(ShapeMatch(target), vines)  # what procmod infer says of it (a page read as the shape)
+            if doubt is not None and PAGE_NOTE in doubt:  # its drawing read as holes: no target of the drawing's
+                print(f"vs_webppl: skipping {path.name}: {doubt}", file=sys.stderr)
+                continue
             if doubt is not None:
-                print(f"vs_webppl: note: {doubt}", file=sys.stderr)
+                print(f"vs_webppl: note: {path.name}: {doubt}", file=sys.stderr)
+            digest = target_digest(mask, {"start": list(target.start), "direction": list(target.direction)})
+            if digest in seen:  # a link to another picture, or a copy: counted twice in the means
+                print(f"vs_webppl: skipping {path.name}: the same target as {seen[digest]}", file=sys.stderr)
+                continue
+            seen[digest] = path.name
             loaded.append(target)
         if not loaded:
             sys.exit(f"vs_webppl: no usable target pictures in {targets_dir}")
@@ -191,7 +215,22 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
     return out
 
 
+# pictures people have that Pillow does not read: sent to procmod's loader all the same,
+# which says what each is and how to convert it (they had been listed as "not pictures")
+PICTURES_NOT_READ = (".heic", ".heif", ".svg", ".svgz", ".pdf")
+
 MIN_SHAPE_PIXELS = 25  # of the 50x50 mask (1%)
+
+
+def bottom_centre(target) -> tuple:
+    """The original experiments' start (:data:`BOTTOM_CENTRE`) in the picture's own frame:
+    a picture that is not square is padded to the square mask, and the square's bottom
+    centre lay in the padding, below a wide picture's drawing."""
+    if target.picture is None:
+        return BOTTOM_CENTRE
+    top, left, height, width = target.picture
+    side = float(target.mask.shape[0])
+    return ((left + BOTTOM_CENTRE[0] * width) / side, (top + BOTTOM_CENTRE[1] * height) / side)
 MAX_SHAPE_SHARE = 0.9
 
 
@@ -709,7 +748,8 @@ def main() -> None:
     work.mkdir(parents=True, exist_ok=True)
     images = target_images(args.sets, args.count, args.targets_dir, args.scribble_first)
     if args.bottom_centre:
-        images = {k: [dataclasses.replace(t, start=BOTTOM_CENTRE, direction=UP) for t in v] for k, v in images.items()}
+        images = {k: [dataclasses.replace(t, start=bottom_centre(t), direction=UP) for t in v]
+                  for k, v in images.items()}
     targets = write_targets(images,
                             work / "targets")
     sets = list(targets)

@@ -184,3 +184,65 @@ def test_a_target_whose_written_mask_reads_back_wrong_is_left_out(bench, tmp_pat
     written = bench.write_targets(images, tmp_path / "targets")
     assert [row[0] for row in written["glyphs"]] == ["glyphs_01"]
     assert "reads back as" in capsys.readouterr().err
+
+
+def test_a_folder_of_peoples_pictures_is_read_as_procmod_would_and_each_note_names_its_file(bench, tmp_path, capsys):
+    """h67: notes named no picture (a folder of 40 could not be read back); a page read as
+    the shape, its drawing as holes, was benched; a link to another picture counted it
+    twice; a link to nothing, a sidecar of no picture and an iPhone's HEIC photo (listed
+    as "not pictures") vanished without the reason; --bottom-centre started a wide
+    picture's vine in the padding below it."""
+    import dataclasses
+
+    from PIL import Image
+
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    bar = np.full((200, 200), 255, dtype=np.uint8)
+    bar[40:160, 90:110] = 0
+    Image.fromarray(bar).save(folder / "bar.png")
+    (folder / "again.png").symlink_to(folder / "bar.png")
+    (folder / "gone.png").symlink_to(folder / "nothing.png")
+    (folder / "stray.json").write_text('{"start": [0.5, 0.5]}')
+    (folder / "IMG_0001.HEIC").write_bytes(b"\0\0\0\x18ftypheic\0\0\0\0mif1heic" + bytes(64))
+    framed = np.full((300, 300), 20, dtype=np.uint8)  # a page in a dark frame, its ink as dark as the frame
+    framed[15:285, 15:285] = 235
+    framed[80:220, 140:150] = 20
+    Image.fromarray(framed).save(folder / "panel.png")
+    wide = np.full((100, 300), 255, dtype=np.uint8)  # translucent strokes of a wide picture
+    wide[20:90, 140:160] = 0
+    rgba = np.zeros((100, 300, 4), dtype=np.uint8)
+    rgba[..., 3] = np.where(wide == 0, 255, 0)
+    rgba[20:30, 40:260, 3] = 70  # a light stroke: left out, with a note naming the file
+    Image.fromarray(rgba, "RGBA").save(folder / "wide.png")
+    images = bench.target_images([], 1, folder, 49)
+    err = capsys.readouterr().err
+    assert sorted(t.name for t in images["mine"]) == ["again.png", "wide.png"], err  # (the link comes first)
+    assert "skipping bar.png: the same target as again.png" in err
+    assert "links to nothing, left out: gone.png" in err and "no picture's sidecar" in err and "stray.json" in err
+    assert "skipping IMG_0001.HEIC: " in err and "HEIC/HEIF photo" in err and "convert it to JPEG or PNG" in err
+    assert "skipping panel.png: the shape read is one light rectangle" in err
+    assert "note: wide.png: translucent strokes" in err
+    target = next(t for t in images["mine"] if t.name == "wide.png")
+    x, y = bench.bottom_centre(target)
+    top, left, height, width = target.picture
+    assert x == pytest.approx(0.5) and top / 300 < y < (top + height) / 300  # in the picture, not the padding
+    assert dataclasses.replace(target, start=(x, y)).start[1] < 0.7
+
+
+def test_a_sidecar_is_found_in_another_case_or_after_the_pictures_own_suffix(tmp_path):
+    """NAME.JSON and NAME.png.json were passed over without a word: the start came from the
+    picture, not the user's file (h67)."""
+    from PIL import Image
+
+    from procmod.targets import load_target_image
+
+    bar = np.full((200, 200), 255, dtype=np.uint8)
+    bar[40:160, 90:110] = 0
+    for name, sidecar in (("upper.png", "upper.JSON"), ("double.png", "double.png.json"), ("plain.png", None)):
+        Image.fromarray(bar).save(tmp_path / name)
+        if sidecar:
+            (tmp_path / sidecar).write_text('{"start": [0.3, 0.2], "direction": [1, 0]}')
+        target = load_target_image(tmp_path / name)
+        expected = (0.3, 0.2) if sidecar else None
+        assert (target.start == pytest.approx(expected)) if expected else target.start[1] > 0.7, (name, target.start)

@@ -69,7 +69,27 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
         if _is_svg(path):
             raise TargetFileError(f"{where}: a vector drawing (SVG), which procmod does not read; export it as a "
                                   "PNG (Inkscape: File > Export; a browser's screenshot does too)") from None
+        other = _unread_format(path)
+        if other is not None:
+            raise TargetFileError(f"{where}: {other}") from None
         raise TargetFileError(f"{where}: not an image Pillow can read ({cut_text(str(exc), 120)})") from None
+
+
+def _unread_format(path: Path) -> str | None:
+    """What a file Pillow cannot open is, by its first bytes, with what to do, for the
+    formats people's pictures arrive in that Pillow does not read: an iPhone's HEIC, a
+    PDF; None for others."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(32)
+    except OSError:
+        return None
+    if head[4:8] == b"ftyp" and head[8:12] in (b"heic", b"heix", b"hevc", b"heim", b"heis", b"mif1", b"msf1"):
+        return ("an HEIC/HEIF photo (an iPhone's own format), which procmod does not read; convert it to JPEG or PNG "
+                "(macOS Preview: File > Export; iPhone: Settings > Camera > Formats > Most Compatible)")
+    if head.startswith(b"%PDF"):
+        return "a PDF document, which procmod does not read; export the page with the drawing as a PNG"
+    return None
 
 
 def _is_svg(path: Path) -> bool:
@@ -511,6 +531,25 @@ def opaque_part(image: Image.Image) -> np.ndarray | None:
     if alpha.min() >= 0.5 * alpha.max():  # an alpha channel, but nothing see-through
         return None
     return alpha >= 0.5 * alpha.max()
+
+
+TRANSLUCENT_NOTE = 0.1  # translucent strokes left out, as a share of the shape, that get a note
+
+
+def translucent_left_out(image: Image.Image) -> float:
+    """How much of a transparent picture's drawing :func:`opaque_part` leaves out, as a
+    share of what it keeps: pixels under half the strongest opacity (but not nearly clear)
+    more than 2 px from the opaque part, which its strokes' soft edges are not. A brush
+    whose opacity follows the pen's pressure (Procreate, Krita) draws so, and the light
+    end of a stroke was lost without a word."""
+    from scipy import ndimage
+
+    opaque = opaque_part(image)
+    if opaque is None or not opaque.any():
+        return 0.0
+    alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
+    faint = (alpha > 0.05 * alpha.max()) & ~ndimage.binary_dilation(opaque, iterations=2)
+    return float(faint.sum()) / float(opaque.sum())
 
 
 def _fully_transparent(image: Image.Image) -> bool:
@@ -981,6 +1020,21 @@ def meant_key(key, known, cutoff: float) -> str | None:
     found = difflib.get_close_matches(str(key).lower().replace("-", "_"), known, n=1, cutoff=cutoff)
     return found[0] if found else None
 
+def sidecar_of(path: Path) -> Path | None:
+    """A picture's sidecar: ``NAME.json`` beside ``NAME.png``, or ``NAME.png.json``, in any
+    case of its suffix (``NAME.JSON``: these had been passed over without a word, and the
+    start taken from the picture); None without one."""
+    candidates = [path.with_suffix(".json"), path.with_name(path.name + ".json")]
+    for candidate in candidates:
+        if candidate.exists():
+            return candidate
+    try:  # a suffix in another case, on a file system that tells cases apart
+        named = {p.name.lower(): p for p in path.parent.iterdir() if p.suffix.lower() == ".json"}
+    except OSError:
+        return None
+    return next((named[c.name.lower()] for c in candidates if c.name.lower() in named), None)
+
+
 def _read_sidecar(path: Path, shape_padding) -> dict | None:
     """The placement a picture's sidecar ``NAME.json`` gives, as ``{"start": (x, y),
     "direction": (dx, dy)}`` with either key absent when the file leaves it out (the
@@ -989,8 +1043,8 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     used as a target) and is passed over; a key close to ``start`` or ``direction`` is
     refused as a typo (it would otherwise be ignored); keys unlike both are a tool's own
     and left alone."""
-    sidecar = path.with_suffix(".json")
-    if not sidecar.exists():
+    sidecar = sidecar_of(path)
+    if sidecar is None:
         return None
     data = read_json(sidecar, TargetFileError, "sidecar JSON")
     if not isinstance(data, dict):
@@ -1196,6 +1250,11 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         mask = mask & ~frame
         notes.append("a rectangular frame drawn around the picture was left out of the shape (its lowest line had "
                      "taken the start); crop inside it to say so yourself")
+    faint = translucent_left_out(image)
+    if faint > TRANSLUCENT_NOTE:
+        notes.append(f"translucent strokes (under half the drawing's strongest opacity), {faint:.0%} as many pixels as "
+                     "the shape read, were left out of it: a brush whose opacity follows the pen's pressure? "
+                     "Export the drawing at full opacity to keep them")
     if frames > 1:  # the drawing may be on another
         notes.append(f"the file holds {frames} frames or pages and procmod read the first; save the one with the "
                      "drawing on its own if it is another")
