@@ -170,9 +170,14 @@ def target_images(sets: list, count: int, targets_dir: Path | None, scribble_fir
         broken = sorted(p.name for p in targets_dir.iterdir() if p.is_symlink() and not p.exists())
         if broken:  # neither a file nor a folder: they had vanished without a word
             print(f"vs_webppl: links to nothing, left out: {', '.join(broken)}", file=sys.stderr)
-        from procmod.targets.image import sidecar_of
-        sidecars = {s for s in (sidecar_of(p) for p in files if is_picture(p)) if s is not None}
-        orphans = [p.name for p in files if p.suffix.lower() == ".json" and p not in sidecars]
+        from procmod.targets.image import sidecar_files
+
+        def identity(path: Path) -> tuple:  # a file once, however a file system that ignores case spells it
+            info = path.stat()
+            return info.st_dev, info.st_ino
+
+        sidecars = {identity(s) for p in files if is_picture(p) for s in sidecar_files(p)}
+        orphans = [p.name for p in files if p.suffix.lower() == ".json" and identity(p) not in sidecars]
         if orphans:
             print(f"vs_webppl: JSON files that are no picture's sidecar (NAME.json beside NAME.png), not read: "
                   f"{', '.join(orphans)}", file=sys.stderr)

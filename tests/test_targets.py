@@ -982,6 +982,14 @@ def test_a_page_on_a_desk_as_dark_as_its_ink_is_named_when_read_as_the_shape(tmp
             strokes[row:row + width, 40:260] = 240
         note = picture_note(ShapeMatch(load_target_image(_saved_picture(tmp_path, name, strokes))), get_model("vines"))
         assert note is None or "light rectangle" not in note, (name, note)
+    # a light frame around a light glyph on dark ground is the frame, left out: no page (h68)
+    glyph = np.full((300, 300), 15, dtype=np.uint8)
+    glyph[20:280, 20:280] = 240
+    glyph[30:270, 30:270] = 15  # the frame, 10 px wide
+    glyph[80:240, 140:160] = glyph[80:100, 100:200] = glyph[150:165, 110:190] = 240  # a white sign inside
+    framed_glyph = load_target_image(_saved_picture(tmp_path, "framed_glyph.png", glyph))
+    assert any(n.startswith("a rectangular frame") for n in framed_glyph.notes), framed_glyph.notes
+    assert not any("light rectangle" in n for n in framed_glyph.notes), framed_glyph.notes
     # a filled drawing leaves wide holes, not strokes: the page is still a rectangle (h56)
     filled = photo.copy()
     filled[120:180, 120:180] = 55

@@ -230,12 +230,34 @@ def test_a_folder_of_peoples_pictures_is_read_as_procmod_would_and_each_note_nam
     assert dataclasses.replace(target, start=(x, y)).start[1] < 0.7
 
 
+def test_soft_edges_shadows_and_glows_get_no_translucent_note(tmp_path):
+    """h68: the translucent-strokes note fired on a soft brush's edge, a drop shadow and a
+    glow, and told the user to export them opaque, into the shape."""
+    from PIL import Image, ImageDraw, ImageFilter
+
+    from procmod.targets import load_target_image
+
+    layer = Image.new("L", (500, 500), 0)
+    ImageDraw.Draw(layer).line([(100, 400), (250, 100), (400, 380)], fill=255, width=14)
+    stroke = np.asarray(layer, dtype=float)
+    shadow = np.asarray(Image.fromarray(np.roll(stroke, 8, (0, 1)).astype(np.uint8)).filter(
+        ImageFilter.GaussianBlur(4)), dtype=float) * 0.4
+    glow = np.minimum(np.asarray(layer.filter(ImageFilter.GaussianBlur(8)), dtype=float) * 1.35, 110)
+    for name, alpha in (("soft.png", np.asarray(layer.filter(ImageFilter.GaussianBlur(3)), dtype=float)),
+                        ("shadow.png", np.maximum(stroke, shadow)), ("glow.png", np.maximum(stroke, glow))):
+        pixels = np.zeros((500, 500, 4), dtype=np.uint8)
+        pixels[..., 3] = np.clip(alpha, 0, 255).astype(np.uint8)
+        Image.fromarray(pixels, "RGBA").save(tmp_path / name)
+        notes = load_target_image(tmp_path / name).notes
+        assert not any(n.startswith("translucent") for n in notes), (name, notes)
+
+
 def test_a_sidecar_is_found_in_another_case_or_after_the_pictures_own_suffix(tmp_path):
     """NAME.JSON and NAME.png.json were passed over without a word: the start came from the
     picture, not the user's file (h67)."""
     from PIL import Image
 
-    from procmod.targets import load_target_image
+    from procmod.targets import TargetFileError, load_target_image
 
     bar = np.full((200, 200), 255, dtype=np.uint8)
     bar[40:160, 90:110] = 0
@@ -246,3 +268,13 @@ def test_a_sidecar_is_found_in_another_case_or_after_the_pictures_own_suffix(tmp
         target = load_target_image(tmp_path / name)
         expected = (0.3, 0.2) if sidecar else None
         assert (target.start == pytest.approx(expected)) if expected else target.start[1] > 0.7, (name, target.start)
+    # procmod's own best.json beside best.png is no sidecar and hides none (h68: the user's
+    # best.png.json was passed over); two sidecars of the user's are one too many
+    Image.fromarray(bar).save(tmp_path / "best.png")
+    (tmp_path / "best.json").write_text('{"format": "procmod-derivation/2"}')
+    (tmp_path / "best.png.json").write_text('{"start": [0.3, 0.2]}')
+    assert load_target_image(tmp_path / "best.png").start == pytest.approx((0.3, 0.2))
+    (tmp_path / "plain.json").write_text('{"start": [0.3, 0.2]}')
+    (tmp_path / "plain.png.json").write_text('{"start": [0.6, 0.2]}')
+    with pytest.raises(TargetFileError, match="has two sidecars, plain.json and plain.png.json"):
+        load_target_image(tmp_path / "plain.png")

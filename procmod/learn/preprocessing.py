@@ -290,7 +290,8 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     reserved = sorted(name for name in parts if reserved_name(name))
     if reserved:
         raise ExamplesError(f"part name {reserved[0]!r} reads as the name procmod gives a learned symmetry "
-                            f"({', '.join(SYM_KINDS)} of a part: KIND(PART)); rename the part")
+                            f"({', '.join(SYM_KINDS)} of a part: KIND(PART)); rename the part (in a glTF file or "
+                            "a Blender scene, its mesh)")
     bounds = {name: shape.local_bounds() for name, shape in parts.items()}
     corners = {name: box_corners(lo, hi) for name, (lo, hi) in bounds.items()}
     samples = {name: surface_samples(shape, SLOT_SAMPLES) for name, shape in parts.items()}

@@ -536,20 +536,28 @@ def opaque_part(image: Image.Image) -> np.ndarray | None:
 TRANSLUCENT_NOTE = 0.1  # translucent strokes left out, as a share of the shape, that get a note
 
 
+FRINGE = 0.05  # how far (of the picture's larger side, at least 8 px) a soft edge, shadow or glow reaches
+
+
 def translucent_left_out(image: Image.Image) -> float:
     """How much of a transparent picture's drawing :func:`opaque_part` leaves out, as a
     share of what it keeps: pixels under half the strongest opacity (but not nearly clear)
-    more than 2 px from the opaque part, which its strokes' soft edges are not. A brush
-    whose opacity follows the pen's pressure (Procreate, Krita) draws so, and the light
-    end of a stroke was lost without a word."""
+    farther from the opaque part than :data:`FRINGE`, which a soft brush's edge, a drop
+    shadow or a glow is not (h68: those had the note, which told the user to export them
+    opaque, into the shape). A brush whose opacity follows the pen's pressure (Procreate,
+    Krita) draws so, and the light end of a stroke was lost without a word."""
     from scipy import ndimage
 
     opaque = opaque_part(image)
     if opaque is None or not opaque.any():
         return 0.0
     alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
-    faint = (alpha > 0.05 * alpha.max()) & ~ndimage.binary_dilation(opaque, iterations=2)
-    return float(faint.sum()) / float(opaque.sum())
+    faint = (alpha > 0.05 * alpha.max()) & ~opaque
+    if not faint.any():
+        return 0.0
+    reach = max(8.0, FRINGE * max(opaque.shape))
+    far = faint & (ndimage.distance_transform_edt(~opaque) > reach)
+    return float(far.sum()) / float(opaque.sum())
 
 
 def _fully_transparent(image: Image.Image) -> bool:
@@ -1020,19 +1028,24 @@ def meant_key(key, known, cutoff: float) -> str | None:
     found = difflib.get_close_matches(str(key).lower().replace("-", "_"), known, n=1, cutoff=cutoff)
     return found[0] if found else None
 
-def sidecar_of(path: Path) -> Path | None:
-    """A picture's sidecar: ``NAME.json`` beside ``NAME.png``, or ``NAME.png.json``, in any
-    case of its suffix (``NAME.JSON``: these had been passed over without a word, and the
-    start taken from the picture); None without one."""
-    candidates = [path.with_suffix(".json"), path.with_name(path.name + ".json")]
-    for candidate in candidates:
-        if candidate.exists():
-            return candidate
-    try:  # a suffix in another case, on a file system that tells cases apart
-        named = {p.name.lower(): p for p in path.parent.iterdir() if p.suffix.lower() == ".json"}
-    except OSError:
-        return None
-    return next((named[c.name.lower()] for c in candidates if c.name.lower() in named), None)
+def sidecar_files(path: Path) -> list:
+    """The files beside a picture that may be its sidecar: ``NAME.json`` and
+    ``NAME.png.json``, their suffix in lower or upper case (``NAME.JSON``, as Windows
+    tools write it: these had been passed over without a word, and the start taken from
+    the picture). Each file once (a file system that ignores case finds one under both
+    spellings)."""
+    found, seen = [], set()
+    for stem in (path.with_suffix(""), path):
+        for suffix in (".json", ".JSON"):
+            candidate = stem.with_name(stem.name + suffix)
+            try:
+                info = candidate.stat()
+            except (OSError, ValueError):
+                continue
+            if (info.st_dev, info.st_ino) not in seen:
+                seen.add((info.st_dev, info.st_ino))
+                found.append(candidate)
+    return found
 
 
 def _read_sidecar(path: Path, shape_padding) -> dict | None:
@@ -1043,15 +1056,20 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     used as a target) and is passed over; a key close to ``start`` or ``direction`` is
     refused as a typo (it would otherwise be ignored); keys unlike both are a tool's own
     and left alone."""
-    sidecar = sidecar_of(path)
-    if sidecar is None:
+    own = []  # the sidecars that are no file of procmod's own
+    for candidate in sidecar_files(path):
+        data = read_json(candidate, TargetFileError, "sidecar JSON")
+        if not isinstance(data, dict):
+            raise TargetFileError(f"{candidate}: expected an object like "
+                                  '{"start": [0.5, 0.9166], "direction": [0, -1]}')
+        if "format" not in data:
+            own.append((candidate, data))
+    if len(own) > 1:
+        raise TargetFileError(f"{path} has two sidecars, {own[0][0].name} and {own[1][0].name}: keep the one that "
+                              "says where to start")
+    if not own:
         return None
-    data = read_json(sidecar, TargetFileError, "sidecar JSON")
-    if not isinstance(data, dict):
-        raise TargetFileError(f"{sidecar}: expected an object like "
-                              '{"start": [0.5, 0.9166], "direction": [0, -1]}')
-    if "format" in data:
-        return None
+    sidecar, data = own[0]
     for key in sorted(set(data) - set(SIDECAR_KEYS)):
         # a misspelt key would silently leave the start to the picture; other keys (a
         # tool's own notes: "name", "source") are not ours and are left alone
@@ -1240,12 +1258,14 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         raise
     notes = []
     top, left, height, width = picture_in_square(*shape)
-    page = page_taken_for_shape(image, mask[top:top + height, left:left + width])
+    frame = drawn_frame(mask, (top, left, height, width))
+    # a light frame around a light drawing on dark ground was read as a page with the
+    # drawing as holes too, and said so beside the frame's note: the frame is the light rectangle (h68)
+    page = None if frame is not None else page_taken_for_shape(image, mask[top:top + height, left:left + width])
     if page is not None:
         notes.append(f"{PAGE_NOTE} covering {page:.0%} of the picture with the drawing as "
                      "holes in it: a page photographed on a desk about as dark as its ink? Crop the photo to the "
                      "page (or photograph it on a lighter surface)")
-    frame = drawn_frame(mask, (top, left, height, width))
     if frame is not None:
         mask = mask & ~frame
         notes.append("a rectangular frame drawn around the picture was left out of the shape (its lowest line had "
