@@ -448,5 +448,5 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     return json.dumps(out).encode("utf-8")
 
 
-__all__ = ["accessor_values", "camera_nodes_with_content", "decoded_gltf", "fan_primitives", "morphed_primitives", "needs_decoding",
-           "skinned_meshes", "unplaced_roots"]
+__all__ = ["accessor_values", "camera_nodes_with_content", "decoded_gltf", "fan_primitives", "morphed_primitives",
+           "needs_decoding", "skinned_meshes", "unplaced_roots"]

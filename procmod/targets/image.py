@@ -534,8 +534,6 @@ def opaque_part(image: Image.Image) -> np.ndarray | None:
 
 
 TRANSLUCENT_NOTE = 0.1  # translucent strokes left out, as a share of the shape, that get a note
-
-
 FRINGE = 0.05  # how far (of the picture's larger side, at least 8 px) a soft edge, shadow or glow reaches
 
 
@@ -881,11 +879,9 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     small = mask[::step, ::step]
     if not small.any():  # thin strokes the coarse copy steps over: no page
         return None
-    labels, _ = ndimage.label(small, structure=np.ones((3, 3)))
-    largest = 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
     # with every light piece within its bounding box: strokes that meet the page's edges cut
     # pockets of it off (a trunk and a branch from the edges, the corner between them)
-    rows, cols = np.nonzero(labels == largest)
+    rows, cols = np.nonzero(_largest_part(small))
     boxed = np.zeros_like(small)
     boxed[rows.min():rows.max() + 1, cols.min():cols.max() + 1] = \
         small[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
@@ -1028,6 +1024,7 @@ def meant_key(key, known, cutoff: float) -> str | None:
     found = difflib.get_close_matches(str(key).lower().replace("-", "_"), known, n=1, cutoff=cutoff)
     return found[0] if found else None
 
+
 def sidecar_files(path: Path) -> list:
     """The files beside a picture that may be its sidecar: ``NAME.json`` and
     ``NAME.png.json``, their suffix in lower or upper case (``NAME.JSON``, as Windows
@@ -1053,7 +1050,8 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     "direction": (dx, dy)}`` with either key absent when the file leaves it out (the
     picture then decides it); None without a sidecar. A JSON file with a ``"format"`` is
     not a sidecar but one of procmod's own files (``best.json`` beside ``best.png``, a run
-    used as a target) and is passed over; a key close to ``start`` or ``direction`` is
+    used as a target) and is passed over; two sidecars of the user's
+    (:func:`sidecar_files`) are refused; a key close to ``start`` or ``direction`` is
     refused as a typo (it would otherwise be ignored); keys unlike both are a tool's own
     and left alone."""
     own = []  # the sidecars that are no file of procmod's own
