@@ -34,7 +34,8 @@ from procmod.strings.categories import shape_labelings  # noqa: E402
 from procmod.strings.tagger import TaggerConfig, tagging_accuracy, tagging_examples  # noqa: E402
 from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_graph, path_statistics,  # noqa: E402
                                    perturb, sample_path, search_graph)
-from procmod.strings.pipeline import TrainedModel, split_shapes, train_model, write_collection  # noqa: E402
+from procmod.strings.pipeline import (TrainedModel, collection_inputs, split_shapes, train_model,  # noqa: E402
+                                      write_collection)
 from procmod.strings.render import write_sheet  # noqa: E402
 from procmod.strings.sampling import DISTINCT_MODES, AugmentParams, augment  # noqa: E402
 from procmod.strings.contacts import shape_graph  # noqa: E402
@@ -59,7 +60,12 @@ def is_known(g, index) -> bool:
 
 def rates(model, strings, known_index):
     valid = [s for s in strings if model.vae.is_valid(s)]
-    unique = list(dict.fromkeys(valid))
+    unique, seen = [], GraphIndex()  # one graph however its string is written (until 2026-12-06: distinct strings)
+    for s in dict.fromkeys(valid):
+        graph = parse(s).graph
+        if graph not in seen:
+            seen.add(graph)
+            unique.append(s)
     novel = [s for s in unique if not is_known(parse(s).graph, known_index)]
     n = max(len(strings), 1)
     return {"decoded": len(strings), "valid": len(valid) / n, "unique": len(unique) / max(len(valid), 1),
@@ -164,7 +170,7 @@ def run_set(name: str, args, work: Path) -> dict:
     print(f"  trained in {row['training']['seconds']} s", flush=True)
     # Edge categories on held-out strings
     all_graphs = [shape_graph(shape_set, s) for s in grown.shapes]
-    _, test_idx = split_shapes(len(grown.shapes), 0.2, args.seed)
+    _, test_idx = split_shapes(len(grown.shapes), 0.2, args.seed, collection_inputs(coll, len(grown.shapes)))
     rng = np.random.default_rng(args.seed)
     held_shapes = [grown.shapes[i] for i in test_idx]
     held_graphs = [all_graphs[i] for i in test_idx]

@@ -40,8 +40,8 @@ from strings import SETS, edge_category_figures  # noqa: E402
 from procmod.parallel import open_executor  # noqa: E402
 from procmod.strings.categories import EdgeCategories  # noqa: E402
 from procmod.strings.tagger import TaggerConfig, train_tagger  # noqa: E402
-from procmod.strings.pipeline import (read_collection, split_shapes, tagger_training_set,  # noqa: E402
-                                      vae_training_strings, write_collection)
+from procmod.strings.pipeline import (collection_inputs, read_collection, split_shapes,  # noqa: E402
+                                      tagger_training_set, vae_training_strings, write_collection)
 from procmod.strings.sampling import DISTINCT_MODES, AugmentParams, augment  # noqa: E402
 from procmod.strings.contacts import shape_graph  # noqa: E402
 from procmod.strings.shapes import read_shapes  # noqa: E402
@@ -118,7 +118,8 @@ def main() -> None:
     else:
         shape_set, growth_seconds = grown_collection(args, work / "collection")
         graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
-        train_idx, test_idx = split_shapes(len(graphs), 0.2, args.seed)
+        train_idx, test_idx = split_shapes(len(graphs), 0.2, args.seed,
+                                           collection_inputs(work / "collection", len(graphs)))
         # as train_model: the tagger shares the VAE's vocabulary (8 strings a training shape)
         vocab = vocab_of(vae_training_strings(graphs, train_idx, 8, args.seed))
         categories, examples, _ = tagger_training_set(shape_set, graphs, train_idx, args.strings_per_shape,

@@ -28,7 +28,8 @@ def _held_out_accuracy(collection, model, strings_per_shape: int, seed: int = 0)
     edge characters (category > 0), against the closest of each string's target sequences."""
     shape_set = pipeline.read_collection(collection)
     graphs = [pipeline.shape_graph(shape_set, s) for s in shape_set.shapes]
-    train_idx, test_idx = pipeline.split_shapes(len(graphs), 0.2, seed)
+    train_idx, test_idx = pipeline.split_shapes(len(graphs), 0.2, seed,
+                                                pipeline.collection_inputs(collection, len(graphs)))
     trained = pipeline.TrainedModel(model)
     _, _, rng = pipeline.tagger_training_set(shape_set, graphs, train_idx, strings_per_shape, seed, trained.categories)
     held = pipeline.tagging_examples(shape_set, [shape_set.shapes[i] for i in test_idx], [graphs[i] for i in test_idx],
@@ -176,21 +177,22 @@ def test_augment_train_sample_instantiate(tmp_path, capsys, monkeypatch):
     assert written == list(dict.fromkeys(valid)) and summary["unique"] == len(written)
     assert [r["string"] for r in summary["samples"]] == written
     # a one-epoch model decodes next to nothing valid, so the counts are checked again on
-    # decoded strings given here: a training string twice, a new graph twice, one that
+    # decoded strings given here: a training string twice, a new graph twice and once
+    # written another way (h69: counted, written and built as another sample), one that
     # breaks the grammar, one that did not finish
     train = trained.training_strings
-    fake = [train[0], "DMCMD", train[0], "MMM", None, "DMCMD"]
+    fake = [train[0], "DMCMD", train[0], "MMM", None, "DMCMD", "C(MD)MD"]
     assert trained.vae.is_valid(train[0]) and trained.vae.is_valid("DMCMD") and not trained.vae.is_valid("MMM")
     same = lambda a, b: nx.is_isomorphic(a, b, node_match=lambda x, y: x["type"] == y["type"])  # noqa: E731
     assert not any(same(parse("DMCMD").graph, parse(t).graph) for t in train)  # a graph no training string has
     from procmod.strings.vae import StringModel
     monkeypatch.setattr(StringModel, "decode", lambda self, z, **kw: fake[:len(z)])
-    code, out, err = _run(capsys, "strings", "sample", model, "-n", 6, "--out", tmp_path / "f", "--no-meshes")
+    code, out, err = _run(capsys, "strings", "sample", model, "-n", 7, "--out", tmp_path / "f", "--no-meshes")
     assert code == 0, err
     monkeypatch.undo()
     summary = json.loads((tmp_path / "f" / "summary.json").read_text())
     assert {k: summary[k] for k in ("decoded", "valid", "unique", "novel")} == {
-        "decoded": 6, "valid": 4, "unique": 2, "novel": 1}
+        "decoded": 7, "valid": 5, "unique": 2, "novel": 1}
     assert [(r["string"], r["novel"]) for r in summary["samples"]] == [(train[0], False), ("DMCMD", True)]
     assert (tmp_path / "f" / "samples.txt").read_text().split() == [train[0], "DMCMD"]
     # a small tree: module with a dome, corridor, module with a dome
@@ -481,3 +483,21 @@ def test_augment_grows_a_collection_folder_as_train_reads_it(tmp_path, capsys):
     grown = json.loads((tmp_path / "more" / "shapes.json").read_text())["shapes"]
     first = json.loads((tmp_path / "col" / "shapes.json").read_text())["shapes"]
     assert len(grown) > len(first) and grown[:len(first)] == first
+
+
+def test_every_input_shape_of_a_collection_trains(tmp_path):
+    """A collection grown from six shapes held its sixth out of training (two inputs were
+    assumed): a table, the only shape with its part types, could never be sampled (h69)."""
+    import json as json_module
+
+    folder = tmp_path / "collection"
+    folder.mkdir()
+    (folder / "growth.json").write_text(json_module.dumps({"inputs": 6, "rounds": []}))
+    assert pipeline.collection_inputs(folder, 40) == 6
+    (folder / "growth.json").write_text(json_module.dumps({"rounds": [{"round": 1, "new": 1, "shapes": 7}]}))
+    assert pipeline.collection_inputs(folder, 40) == 6  # grown before the count was recorded
+    assert pipeline.collection_inputs(tmp_path / "shapes.json", 9) == 9  # a shapes file: all are inputs
+    for seed in range(20):
+        train, held = pipeline.split_shapes(40, 0.2, seed, 6)
+        assert set(range(6)) <= set(train) and len(held) == 7 and not set(train) & set(held)
+    assert pipeline.split_shapes(40, 0.2, 3) == pipeline.split_shapes(40, 0.2, 3, 2)  # two inputs: as before

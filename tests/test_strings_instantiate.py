@@ -65,3 +65,15 @@ def test_search_budget_is_checked(moonbase):
         instantiate_graph(graphs[0], {}, cats, ss, np.random.default_rng(0), budget=0)
     small = instantiate_graph(graphs[0], {}, cats, ss, np.random.default_rng(0), budget=3)
     assert not small.success and "budget" in small.reason and small.tries == 3
+
+
+def test_a_lone_part_is_posed_as_a_first_part_is(moonbase):
+    """A one-letter string was built at the identity, not at the first part's pose from the
+    collection: a board lay on its edge, off the ground (h69)."""
+    ss, _, cats = moonbase
+    letter = decode("M").nodes[0]["type"]
+    pose = np.eye(4)
+    pose[:3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]  # turned a quarter about x
+    pose[:3, 3] = [1.0, 2.0, 3.0]
+    result = instantiate_graph(decode("M"), {}, cats, ss, np.random.default_rng(0), start_pose={letter: pose})
+    assert result.success and np.allclose(result.shape.transforms[0], pose)

@@ -473,7 +473,14 @@ def _sample(args) -> None:
                 found = sample_path(vae, path, 2, rng)
                 decoded.append(found[int(rng.integers(len(found)))] if found else None)
     valid = [s for s in decoded if vae.is_valid(s)]
-    unique = list(dict.fromkeys(valid))
+    # one shape however its string is written: T(t(T)(T)(T)) and t(T)(T)(T)T are one table,
+    # which had been written, instantiated and counted as "unique" three times (h69)
+    unique, seen = [], GraphIndex()
+    for s in dict.fromkeys(valid):
+        graph = decode(s)
+        if graph not in seen:
+            seen.add(graph)
+            unique.append(s)
     known = GraphIndex(decode(s) for s in dict.fromkeys(train))
     novel = [s for s in unique if decode(s) not in known]  # a graph no training string has
     with folder.writing() as tmp:

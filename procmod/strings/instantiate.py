@@ -93,8 +93,9 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
     types = [g.nodes[v]["type"] for v in range(n)]
     parts = [part_of[t] for t in types]
     edges = sorted(g.edges)
-    if not edges:
-        return InstantiateResult(Shape.of(parts, [np.eye(4)]), True)
+    if not edges:  # a lone part: posed as a first part is (it had stood on its side, off the ground: h69)
+        pose = np.asarray((start_pose or {}).get(types[0], np.eye(4)), dtype=np.float64)
+        return InstantiateResult(Shape.of(parts, [pose]), True)
     reach = _centre_reach(categories, shape_set)
     # Placement order: breadth first, over the 2-core (the rings and what joins them) first,
     # then the trees hanging off it: a ring that cannot close is found before any branch is

@@ -72,7 +72,10 @@ def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds
         write_text_atomic(out / "graphs" / f"shape_{i:04d}.json", json.dumps(graph_to_dict(g)) + "\n")
         strings += strings_of(g, strings_per_shape, rng)
     write_text_atomic(out / "strings.txt", "\n".join(strings) + "\n")
-    growth = {"rounds": rounds or []} if settings is None else {"settings": settings, "rounds": rounds or []}
+    # the inputs come first: train keeps every one of them in training (collection_inputs)
+    growth = {"inputs": len(shape_set.shapes), "rounds": rounds or []}
+    if settings is not None:
+        growth = {"settings": settings, **growth}
     write_text_atomic(out / "growth.json", json.dumps(growth, indent=1) + "\n")
     if sheet:
         write_sheet(shape_set, shapes[:36], out / "contact_sheet.png", size=140, labels=[str(i) for i in range(36)])
@@ -91,12 +94,36 @@ def read_collection(path: str | os.PathLike) -> ShapeSet:
     return rigid_shape_set(read_shapes(path))
 
 
-def split_shapes(n: int, held_out: float, seed: int) -> tuple[list[int], list[int]]:
-    """Indices of training and held-out shapes (the input shapes always train)."""
+def collection_inputs(path: str | os.PathLike, count: int) -> int:
+    """How many of a collection's ``count`` shapes are its input shapes (they come first):
+    ``growth.json``'s ``inputs``; for a collection grown before it was recorded, its first
+    round's shapes less the new ones; every shape of a shapes file given directly."""
+    growth = Path(path) / "growth.json"
+    try:
+        data = json.loads(growth.read_text(encoding="utf-8")) if Path(path).is_dir() else None
+    except (OSError, ValueError):
+        data = None
+    if not isinstance(data, dict):
+        return count
+    inputs = data.get("inputs")
+    rounds = data.get("rounds")
+    if inputs is None and isinstance(rounds, list) and rounds and isinstance(rounds[0], dict):
+        inputs = rounds[0].get("shapes", 0) - rounds[0].get("new", 0)
+    if isinstance(inputs, int) and not isinstance(inputs, bool) and 0 < inputs <= count:
+        return inputs
+    return count
+
+
+def split_shapes(n: int, held_out: float, seed: int, inputs: int = 2) -> tuple[list[int], list[int]]:
+    """Indices of training and held-out shapes: the first ``inputs`` (a collection's input
+    shapes, :func:`collection_inputs`) always train, and ``held_out`` of the rest (the
+    variants augment grew) are held out. Two inputs had been assumed: a collection grown
+    from six held the sixth out, and a part type only it used could never be sampled (h69)."""
     rng = np.random.default_rng([seed, 2])
-    rest = [int(i) for i in rng.permutation(np.arange(2, n))] if n > 2 else []
+    first = min(n, inputs)
+    rest = [int(i) for i in rng.permutation(np.arange(first, n))] if n > first else []
     k = int(round(held_out * len(rest)))
-    return sorted(list(range(min(n, 2))) + rest[k:]), sorted(rest[:k])
+    return sorted(list(range(first)) + rest[k:]), sorted(rest[:k])
 
 
 def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_config: VAEConfig = VAEConfig(),
@@ -136,7 +163,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
             raise InvalidArgumentError(f"{loose_parts(g, pieces, i, None, shape_set.letters)} in {collection}; a "
                                        "string encodes one connected shape: move the parts to touch")
     grammar = Grammar.from_graphs(graphs)
-    train_idx, test_idx = split_shapes(len(graphs), held_out, seed)
+    train_idx, test_idx = split_shapes(len(graphs), held_out, seed, collection_inputs(collection, len(graphs)))
     strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
     fresh = not is_dir_quietly(out) or not any(out.iterdir())
     train_shapes = [shape_set.shapes[i] for i in train_idx]
