@@ -922,3 +922,33 @@ def test_a_guide_records_its_drawings_and_targets_and_a_run_on_others_is_noted(f
     shipped = Guide.load("vines-circuit")  # the shipped guides say what they were trained on too
     assert any("trained on circuit targets" in n for n in smc(VINES, target, particles=3, seed=0,
                                                                  guide=shipped).notes)
+
+
+def test_a_guide_of_a_model_file_edited_after_its_traces_is_noted(tmp_path):
+    """A categorical's labels reordered after training (the same model) steered the choices
+    to the wrong labels, worse than no guide, without a word (h70): the guide's traces
+    record the model file's code, and a run on other code now says so."""
+    from types import SimpleNamespace
+
+    from procmod.guide.guide import fit_note
+    from procmod.guide.traces import model_code_digest
+    from procmod.models.from_file import load_model_file
+
+    source = ("from procmod import Categorical, Model\n"
+              "from procmod.geometry import Canvas\n\n"
+              "def grow(ctx):\n"
+              "    ctx.sample('kind', Categorical([2, 1, 1], labels=('straight', 'fork', 'bud')))\n\n"
+              "PLANT = Model('plant', 'a plant', grow, root_args=lambda p: (),\n"
+              "              new_output_from=lambda p: Canvas((0, 1, 0, 1), 8))\n")
+    (tmp_path / "plant.py").write_text(source)
+    model = load_model_file(f"{tmp_path / 'plant.py'}:PLANT")
+    job = {"model_file": f"{tmp_path / 'plant.py'}:PLANT", "model_code": model_code_digest(model)}
+    guide = SimpleNamespace(info={"trace_job": job}, source="G", model_name="plant")
+    assert fit_note(guide, None, None, model) is None
+    (tmp_path / "plant.py").write_text(source.replace("[2, 1, 1], labels=('straight', 'fork', 'bud')",
+                                                      "[1, 1, 2], labels=('bud', 'fork', 'straight')"))
+    edited = load_model_file(f"{tmp_path / 'plant.py'}:PLANT")
+    note = fit_note(guide, None, None, edited)
+    assert note is not None and "its model's code was edited after its traces were made" in note, note
+    assert fit_note(SimpleNamespace(info={"trace_job": {"model": "vines"}}, source="G", model_name="vines"),
+                    None, None, edited) is None  # a built-in model's guide: no file of the user's to compare

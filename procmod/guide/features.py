@@ -363,8 +363,9 @@ class FeatureExtractor:
         self.model = model
         self.settings = settings
         if settings.target and target_mask is None:
-            raise GuideError("this guide looks at a target image, but the target has none "
-                             "(for image-free targets, train a guide with the feature condition local or constant)")
+            raise GuideError("this guide looks at a target image, but the target has none: run without --guide, "
+                             "with one whose features leave the target out (the shipped vines-circuit for vines), "
+                             "or train one with --features local, local+partial or constant")
         self.target_pyramid = Pyramid(target_mask.astype(np.float64)) if settings.target else None
         if self.target_pyramid is not None:
             level0 = self.target_pyramid.layout[0]

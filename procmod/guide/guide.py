@@ -351,16 +351,26 @@ def output_size(output) -> list | None:
     return [width, height] if isinstance(width, int) and isinstance(height, int) else None
 
 
-def fit_note(guide: "Guide", output, target) -> str | None:
+def fit_note(guide: "Guide", output, target, model=None) -> str | None:
     """A note when a run's drawing size or kind of target is not what ``guide`` was
-    trained on (its ``info["trained_on"]``; guides trained before it was recorded: None).
-    The networks read windows of the target and of the drawing by pixel, and learned what
-    choices the training targets favour: the run is still correct (its weights are prior
-    over proposal), but the guide may steer it worse than the prior would."""
+    trained on (its ``info["trained_on"]``; guides trained before it was recorded: None),
+    or when the code of ``model``, a model file of the user's, is not what the guide's
+    traces were made with (a categorical's labels reordered steered the choices to the
+    wrong labels without a word: worse than no guide, h70). The networks read windows of
+    the target and of the drawing by pixel, and learned what choices the training targets
+    favour: the run is still correct (its weights are prior over proposal), but the guide
+    may steer it worse than the prior would."""
+    said = []
+    job = guide.info.get("trace_job")
+    if model is not None and isinstance(job, dict) and job.get("model_file") and isinstance(job.get("model_code"), str):
+        from .traces import model_code_digest
+
+        if model_code_digest(model) != job["model_code"]:
+            said.append("its model's code was edited after its traces were made (a choice renamed, a categorical's "
+                        "labels reordered: the guide would steer them as they were)")
     trained = guide.info.get("trained_on")
     if not isinstance(trained, dict):
-        return None
-    said = []
+        trained = {}
     sizes, size = trained.get("canvases"), output_size(output)
     sizes = [s for s in sizes if isinstance(s, list) and len(s) == 2] if isinstance(sizes, list) else []
     if sizes and size is not None and size not in sizes:
@@ -373,7 +383,8 @@ def fit_note(guide: "Guide", output, target) -> str | None:
     if not said:
         return None
     return (f"guide {guide.source or guide.model_name}: {'; '.join(said)}: it may steer worse than no guide; train "
-            "one on traces of this kind (procmod guide traces, then procmod guide train)")
+            "one on traces of this kind (procmod guide traces, then procmod guide train; the traces are drawn at the "
+            "model's defaults, so for other --param values give a model file of your own those defaults)")
 
 
 def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Path, Path]:

@@ -292,7 +292,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     notes = []
     if guide is not None and proposer is not guide:
         from ..guide.guide import fit_note
-        misfit = fit_note(guide, template, target)
+        misfit = fit_note(guide, template, target, model)
         if misfit is not None:
             notes.append(misfit)
     remote = []
