@@ -941,14 +941,31 @@ def test_a_guide_of_a_model_file_edited_after_its_traces_is_noted(tmp_path):
               "PLANT = Model('plant', 'a plant', grow, root_args=lambda p: (),\n"
               "              new_output_from=lambda p: Canvas((0, 1, 0, 1), 8))\n")
     (tmp_path / "plant.py").write_text(source)
-    model = load_model_file(f"{tmp_path / 'plant.py'}:PLANT")
-    job = {"model_file": f"{tmp_path / 'plant.py'}:PLANT", "model_code": model_code_digest(model)}
+    spec = f"{tmp_path / 'plant.py'}:PLANT"
+    model = load_model_file(spec)
+    job = {"model_file": spec, "model_code": model_code_digest(model, spec)}  # as the traces job records it
     guide = SimpleNamespace(info={"trace_job": job}, source="G", model_name="plant")
     assert fit_note(guide, None, None, model) is None
+    # rules in a module beside the model file, and a file that only configures a built-in
+    # model, as the size note advises: unedited, no note (h71: one on every run)
+    (tmp_path / "rules.py").write_text(source.split("PLANT = ")[0])
+    (tmp_path / "plants.py").write_text("from procmod import Model\nfrom procmod.geometry import Canvas\n"
+                                        "from rules import grow\n\n"
+                                        "PLANT = Model('plant', 'a plant', grow, root_args=lambda p: (),\n"
+                                        "              new_output_from=lambda p: Canvas((0, 1, 0, 1), 8))\n")
+    (tmp_path / "vines100.py").write_text("from procmod.models import MODELS\n\n"
+                                          "VINES100 = MODELS['vines'].configure(size=100)\n")
+    for other in (f"{tmp_path / 'plants.py'}:PLANT", f"{tmp_path / 'vines100.py'}:VINES100"):
+        loaded = load_model_file(other)
+        traced = SimpleNamespace(info={"trace_job": {"model_file": other,
+                                                     "model_code": model_code_digest(loaded, other)}},
+                                 source="G", model_name=loaded.name)
+        assert fit_note(traced, None, None, loaded) is None, other
     (tmp_path / "plant.py").write_text(source.replace("[2, 1, 1], labels=('straight', 'fork', 'bud')",
                                                       "[1, 1, 2], labels=('bud', 'fork', 'straight')"))
     edited = load_model_file(f"{tmp_path / 'plant.py'}:PLANT")
     note = fit_note(guide, None, None, edited)
-    assert note is not None and "its model's code was edited after its traces were made" in note, note
+    assert note is not None and "its model's files changed after its traces were made" in note, note
+    assert "--param" not in note  # the size advice only with the size note
     assert fit_note(SimpleNamespace(info={"trace_job": {"model": "vines"}}, source="G", model_name="vines"),
                     None, None, edited) is None  # a built-in model's guide: no file of the user's to compare

@@ -496,8 +496,31 @@ def test_every_input_shape_of_a_collection_trains(tmp_path):
     assert pipeline.collection_inputs(folder, 40) == 6
     (folder / "growth.json").write_text(json_module.dumps({"rounds": [{"round": 1, "new": 1, "shapes": 7}]}))
     assert pipeline.collection_inputs(folder, 40) == 6  # grown before the count was recorded
-    assert pipeline.collection_inputs(tmp_path / "shapes.json", 9) == 9  # a shapes file: all are inputs
+    assert pipeline.collection_inputs(folder / "shapes.json", 40) == 6  # a collection's shapes file given directly
+    assert pipeline.collection_inputs(tmp_path / "shapes.json", 9) == 9  # a shapes file of the user's: all inputs
     for seed in range(20):
         train, held = pipeline.split_shapes(40, 0.2, seed, 6)
         assert set(range(6)) <= set(train) and len(held) == 7 and not set(train) & set(held)
     assert pipeline.split_shapes(40, 0.2, 3) == pipeline.split_shapes(40, 0.2, 3, 2)  # two inputs: as before
+
+
+def test_a_model_trained_when_two_inputs_were_assumed_says_so(tmp_path):
+    """A model folder trained before every input shape trained was refused as "a model of
+    another collection" when trained again: the same collection, --held-out and --seed (h71)."""
+    import json as json_module
+
+    from procmod.strings.shapes import read_shapes
+    from procmod.strings.tagger import TaggerConfig
+    from procmod.strings.vae import VAEConfig
+
+    shape_set = read_shapes(SETS / "moonbase.json")
+    col = tmp_path / "col"
+    pipeline.write_collection(shape_set, list(shape_set.shapes) * 3, col, sheet=False)  # 2 inputs recorded
+    small = dict(vae_config=VAEConfig(hidden=16, latent=4, epochs=2), tagger_config=TaggerConfig(epochs=1),
+                 strings_per_shape=2, tagger_strings_per_shape=2)
+    pipeline.train_model(col, tmp_path / "model", stop_after=1, **small)  # as before: 2 inputs, 1 of 4 held out
+    growth = json_module.loads((col / "growth.json").read_text())
+    (col / "growth.json").write_text(json_module.dumps({**growth, "inputs": 6}))  # all six are inputs now
+    with pytest.raises(pipeline.OtherTrainingError, match="trained before procmod kept every input shape in "
+                                                          "training .*1 more train now"):
+        pipeline.train_model(col, tmp_path / "model", **small)

@@ -361,13 +361,10 @@ def fit_note(guide: "Guide", output, target, model=None) -> str | None:
     favour: the run is still correct (its weights are prior over proposal), but the guide
     may steer it worse than the prior would."""
     said = []
-    job = guide.info.get("trace_job")
-    if model is not None and isinstance(job, dict) and job.get("model_file") and isinstance(job.get("model_code"), str):
-        from .traces import model_code_digest
-
-        if model_code_digest(model) != job["model_code"]:
-            said.append("its model's code was edited after its traces were made (a choice renamed, a categorical's "
-                        "labels reordered: the guide would steer them as they were)")
+    if model is not None and _model_file_changed(guide.info.get("trace_job"), model):
+        said.append("its model's files changed after its traces were made (if a choice was renamed or a "
+                    "categorical's labels reordered, the guide steers them as they were)")
+    sized = False
     trained = guide.info.get("trained_on")
     if not isinstance(trained, dict):
         trained = {}
@@ -377,14 +374,32 @@ def fit_note(guide: "Guide", output, target, model=None) -> str | None:
         shown = ", ".join(f"{w}x{h}" for w, h in sizes[:3]) + (", ..." if len(sizes) > 3 else "")
         said.append(f"it was trained on {shown}-pixel drawings and this run draws at {size[0]}x{size[1]} (its "
                      "windows now cover other distances)")
+        sized = True
     kinds, kind = trained.get("targets"), target_kind(target)
     if isinstance(kinds, list) and kinds and kind not in kinds:
         said.append(f"it was trained on {' and '.join(map(str, kinds[:3]))} targets and this run's is a {kind}")
     if not said:
         return None
     return (f"guide {guide.source or guide.model_name}: {'; '.join(said)}: it may steer worse than no guide; train "
-            "one on traces of this kind (procmod guide traces, then procmod guide train; the traces are drawn at the "
-            "model's defaults, so for other --param values give a model file of your own those defaults)")
+            "one on traces of this kind (procmod guide traces, then procmod guide train"
+            + ("; the traces are drawn at the model's defaults, so for other --param values give a model file of "
+               "your own those defaults)" if sized else ")"))
+
+
+def _model_file_changed(job, model) -> bool:
+    """Whether a guide's traces (``job``: its ``info["trace_job"]``) were made from a model
+    file of the user's whose code ``model`` no longer has. The job's digest covers the
+    model file and its rules' files: it is taken again both with the job's file (rules in
+    a module beside it) and without it (the file copied elsewhere, the rules in it); a file
+    gone since cannot be compared. Built-in models are not compared (not the user's to edit)."""
+    from .traces import model_code_digest
+
+    if not isinstance(job, dict) or not isinstance(job.get("model_code"), str) or not job.get("model_file"):
+        return False
+    spec = str(job["model_file"])
+    if not Path(spec.rsplit(":", 1)[0] if not spec.endswith(".py") else spec).is_file():
+        return model_code_digest(model) != job["model_code"]
+    return job["model_code"] not in (model_code_digest(model), model_code_digest(model, spec))
 
 
 def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Path, Path]:

@@ -105,7 +105,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--strings-per-shape", type=int_arg, default=8, help="VAE training strings per shape (default 8)")
     p.add_argument("--tagger-strings-per-shape", type=int_arg, default=16,
                    help="tagger training strings per shape (default 16)")
-    p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2)")
+    p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2; the input shapes always train)")
     p.add_argument("--device", default="cpu",
                    help="torch device to train on: cpu (default), cuda or cuda:N; the model is saved for the CPU")
     p.add_argument("--seed", type=int_arg, default=0)
@@ -421,6 +421,9 @@ def _train(args) -> None:
     for bar in bars.values():
         bar.close()
     acc = meta.get("tagger_held_out_accuracy")
+    if args.held_out > 0 and not meta.get("held_out_shapes"):
+        print(f"note: no shape held out: all {meta['train_shapes']} are input shapes, which always train "
+              f"(--held-out holds out variants 'procmod strings augment' grew)", file=sys.stderr)
     print(f"trained on {meta['training_strings']} strings of {meta['train_shapes']} shapes; "
           f"{meta['categories']} edge categories; tagger accuracy on held-out strings: "
           f"{'n/a' if acc is None else f'{100 * acc:.1f}%'}; model in {out}/")

@@ -96,11 +96,13 @@ def read_collection(path: str | os.PathLike) -> ShapeSet:
 
 def collection_inputs(path: str | os.PathLike, count: int) -> int:
     """How many of a collection's ``count`` shapes are its input shapes (they come first):
-    ``growth.json``'s ``inputs``; for a collection grown before it was recorded, its first
-    round's shapes less the new ones; every shape of a shapes file given directly."""
-    growth = Path(path) / "growth.json"
+    ``growth.json``'s ``inputs`` (the collection folder's, or the one beside its
+    ``shapes.json`` given directly); for a collection grown before it was recorded, its
+    first round's shapes less the new ones; every shape of a shapes file of the user's."""
+    path = Path(path)
+    growth = path / "growth.json" if path.is_dir() else path.with_name("growth.json")
     try:
-        data = json.loads(growth.read_text(encoding="utf-8")) if Path(path).is_dir() else None
+        data = json.loads(growth.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         data = None
     if not isinstance(data, dict):
@@ -177,6 +179,12 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
             raise ModelFileError(f"{exc}; restore it, or pass {argument('overwrite=True')} to train the model again "
                                  "from the start") from None
         if not _same_collection(kept, shape_set, train_shapes):  # its training went on, on other shapes
+            before, _ = split_shapes(len(graphs), held_out, seed)  # the split before every input trained
+            if _same_collection(kept, shape_set, [shape_set.shapes[i] for i in before]):
+                raise OtherTrainingError(
+                    f"{out} holds a model of this collection trained before procmod kept every input shape in "
+                    f"training (two were assumed: {len(shape_set.shapes) - len(before) - len(test_idx)} more train "
+                    f"now); pass {argument('overwrite=True')} to train it afresh, or give a new {argument('out')}")
             raise OtherTrainingError(f"{out} holds a model of another collection (its collection.json is not these "
                                      f"shapes, {argument('held_out')} and {argument('seed')}'s training part); use a "
                                      f"new {argument('out')}, or pass {argument('overwrite=True')} to train afresh "
