@@ -105,7 +105,8 @@ def register(sub, int_arg) -> None:
     p.add_argument("--strings-per-shape", type=int_arg, default=8, help="VAE training strings per shape (default 8)")
     p.add_argument("--tagger-strings-per-shape", type=int_arg, default=16,
                    help="tagger training strings per shape (default 16)")
-    p.add_argument("--held-out", type=float, default=0.2, help="fraction of variants held out (default 0.2; the input shapes always train)")
+    p.add_argument("--held-out", type=float, default=0.2,
+                   help="fraction of variants held out (default 0.2; the input shapes always train)")
     p.add_argument("--device", default="cpu",
                    help="torch device to train on: cpu (default), cuda or cuda:N; the model is saved for the CPU")
     p.add_argument("--seed", type=int_arg, default=0)
