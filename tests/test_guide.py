@@ -875,6 +875,18 @@ def test_a_truncated_normal_whose_bounds_open_later_is_refused_by_an_interval_he
         smc(model, SumTarget(0.0, 1.0), particles=4, seed=0, guide=guide)
 
 
+def test_a_categorical_that_gained_a_category_says_so():
+    """It said "draws a Categorical now but the guide learned a categorical:3 proposal": a
+    categorical still, of another size (h70)."""
+    def root(ctx):
+        ctx.emit(Value(float(ctx.sample("v", Categorical([1, 1, 1, 1])))))
+    model = Model("sized", "a categorical of four", root, lambda p: (), lambda p: SumOutput(), rules=(root,))
+    guide = new_guide_for(model, FeatureSettings.condition("constant"), 1, {"root:v": "categorical:3"}, seed=0)
+    with pytest.raises(GuideError, match="site root:v draws a Categorical of 4 categories now, of 3 when the guide "
+                                         "was trained; retrain"):
+        smc(model, SumTarget(0.0, 1.0), particles=4, seed=0, guide=guide)
+
+
 _TRAIN = ["guide", "train", "vines", "--traces", "nowhere"]
 
 

@@ -571,6 +571,11 @@ class GuidedProposer:
             args = with_defaults(ctx.rule, args)
         if type(dist) is not site[4]:
             if head_kind(dist) != kind:
+                now = head_kind(dist)
+                if now.startswith("categorical") and kind.startswith("categorical"):  # a category added or removed
+                    raise GuideError(f"site {site_key(rule_name(ctx.rule), name)} draws a Categorical of "
+                                     f"{now.split(':')[1]} categories now, of {kind.split(':')[1]} when the guide was "
+                                     "trained; retrain the guide")
                 article = "an" if kind[0] in "aeiou" else "a"
                 raise GuideError(f"site {site_key(rule_name(ctx.rule), name)} draws a {type(dist).__name__} now but the "
                                  f"guide learned {article} {kind} proposal for it; retrain the guide")
