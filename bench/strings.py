@@ -32,8 +32,8 @@ from procmod.parallel import open_executor  # noqa: E402
 from procmod.strings.codec import encode, parse  # noqa: E402
 from procmod.strings.categories import shape_labelings  # noqa: E402
 from procmod.strings.tagger import TaggerConfig, tagging_accuracy, tagging_examples  # noqa: E402
-from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_graph, path_statistics,  # noqa: E402
-                                   perturb, sample_path, search_graph)
+from procmod.strings.latent import (GraphIndex, interpolate, latent_path, naive_graph, one_per_graph,  # noqa: E402
+                                    path_statistics, perturb, sample_path, search_graph)
 from procmod.strings.pipeline import (TrainedModel, collection_inputs, split_shapes, train_model,  # noqa: E402
                                       write_collection)
 from procmod.strings.render import write_sheet  # noqa: E402
@@ -60,12 +60,7 @@ def is_known(g, index) -> bool:
 
 def rates(model, strings, known_index):
     valid = [s for s in strings if model.vae.is_valid(s)]
-    unique, seen = [], GraphIndex()  # one graph however its string is written (until 2026-12-06: distinct strings)
-    for s in dict.fromkeys(valid):
-        graph = parse(s).graph
-        if graph not in seen:
-            seen.add(graph)
-            unique.append(s)
+    unique = one_per_graph(valid, lambda s: parse(s).graph)  # (until 2026-12-06: distinct strings)
     novel = [s for s in unique if not is_known(parse(s).graph, known_index)]
     n = max(len(strings), 1)
     return {"decoded": len(strings), "valid": len(valid) / n, "unique": len(unique) / max(len(valid), 1),

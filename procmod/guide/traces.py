@@ -109,6 +109,11 @@ def _job_settings(model, model_file, targets, particles, seed, set_size) -> dict
     return settings
 
 
+def model_file_path(spec: str) -> Path:
+    """The file of a model file spec (``FILE.py:NAME`` or ``FILE.py``)."""
+    return Path(spec if spec.endswith(".py") else spec.rsplit(":", 1)[0])
+
+
 def model_code_digest(model, model_file: str | None = None) -> str:
     """A digest of the source files of ``model``'s rules (and of its model file), with the
     files beside them their import statements name (:func:`_imports_beside`): a traces job
@@ -119,7 +124,7 @@ def model_code_digest(model, model_file: str | None = None) -> str:
 
     files = set()
     if model_file is not None:
-        files.add(str(Path(model_file.rsplit(":", 1)[0] if not model_file.endswith(".py") else model_file)))
+        files.add(str(model_file_path(model_file)))
     for rule in (model.root, *model.rules):
         try:
             files.add(inspect.getsourcefile(inspect.unwrap(rule)))

@@ -433,7 +433,7 @@ def _train(args) -> None:
 def _sample(args) -> None:
     from ..core.serialize import write_text_atomic
     from .codec import decode
-    from .latent import GraphIndex, interpolate, latent_path, perturb, sample_path
+    from .latent import GraphIndex, interpolate, latent_path, one_per_graph, perturb, sample_path
     from .pipeline import TrainedModel
     from .render import write_shape_mesh, write_shape_png, write_sheet
     from ..core.paths import output_path
@@ -477,14 +477,8 @@ def _sample(args) -> None:
                 found = sample_path(vae, path, 2, rng)
                 decoded.append(found[int(rng.integers(len(found)))] if found else None)
     valid = [s for s in decoded if vae.is_valid(s)]
-    # one shape however its string is written: T(t(T)(T)(T)) and t(T)(T)(T)T are one table,
-    # which had been written, instantiated and counted as "unique" three times (h69)
-    unique, seen = [], GraphIndex()
-    for s in dict.fromkeys(valid):
-        graph = decode(s)
-        if graph not in seen:
-            seen.add(graph)
-            unique.append(s)
+    # one table written three ways had been written, instantiated and counted as "unique" three times (h69)
+    unique = one_per_graph(valid, decode)
     known = GraphIndex(decode(s) for s in dict.fromkeys(train))
     novel = [s for s in unique if decode(s) not in known]  # a graph no training string has
     with folder.writing() as tmp:

@@ -190,6 +190,18 @@ def path_statistics(g: nx.Graph, pairs: int, rng: np.random.Generator) -> dict:
             "max_weight": float(np.max(weights)) if weights else 0.0, "paths": len(weights)}
 
 
+def one_per_graph(strings, graph_of) -> list:
+    """The first of ``strings`` for each distinct typed graph (``graph_of(string)``): one
+    shape however its string is written (``T(t(T))`` and ``t(T)T``)."""
+    kept, seen = [], GraphIndex()
+    for s in dict.fromkeys(strings):
+        graph = graph_of(s)
+        if graph not in seen:
+            seen.add(graph)
+            kept.append(s)
+    return kept
+
+
 class GraphIndex:
     """Typed graphs indexed by Weisfeiler-Lehman hash, for "is this graph new?" checks
     (exact isomorphism with node types within a hash bucket)."""
