@@ -182,6 +182,56 @@ def test_a_traces_job_does_not_resume_on_an_edited_model(tmp_path, monkeypatch, 
     assert main([*helped, "--count", "2"]) == 2 and "as its code was before an edit" in capsys.readouterr().err
 
 
+def test_a_traces_job_resumes_after_an_edit_of_comments_only(tmp_path, monkeypatch, capsys):
+    """A comment added to the model file (or blank lines, trailing spaces) had stopped its
+    traces job resuming, and the advice, --overwrite, threw away every finished trace. A
+    job file of before, which recorded the files' bytes, still resumes on that code."""
+    from procmod.guide.traces import model_code_digests
+    from procmod.models import model_from_spec
+
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    monkeypatch.chdir(tmp_path)
+    traces = ["guide", "traces", "plants.py:PLANT", "--particles", "4", "--workers", "1", "--out", "tr"]
+    assert main([*traces, "--count", "1"]) == 0, capsys.readouterr().err
+    commented = PLANT_FILE.replace("* math.sin(angle)\n", "* math.sin(angle)  # one step   \n", 1)
+    assert commented != PLANT_FILE
+    (tmp_path / "plants.py").write_text("# my plant\n\n" + commented.replace("\n\n", "\n\n\n") + "\n# end\n")
+    capsys.readouterr()
+    assert main([*traces, "--count", "2"]) == 0, capsys.readouterr().err
+    assert "1 traces made, 1 already there" in capsys.readouterr().out
+    # a job file written when the digest was of the files' bytes
+    (tmp_path / "plants.py").write_text(PLANT_FILE)
+    job = json.loads((tmp_path / "tr" / "traces.json").read_text())
+    model = model_from_spec(str(tmp_path / "plants.py") + ":PLANT")
+    digest, byte_digest = model_code_digests(model, job["model_file"])
+    assert digest != byte_digest and job["model_code"] == digest
+    (tmp_path / "tr" / "traces.json").write_text(json.dumps({**job, "model_code": byte_digest}))
+    assert main([*traces, "--count", "3"]) == 0, capsys.readouterr().err
+    assert "1 traces made, 2 already there" in capsys.readouterr().out
+    # and an edit of the code itself is still one
+    (tmp_path / "plants.py").write_text(PLANT_FILE.replace("x1, y1 = x + 2", "x1, y1 = x + 2.5"))
+    assert main([*traces, "--count", "4"]) == 2 and "as its code was before an edit" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("before, after, same", [
+    ("x = 1\n", "x = 1  # one\n\n\n", True),
+    ("x = 1\n", "# head\nx = 1   \n", True),
+    ("x = 1\n", "x = 2\n", False),
+    ("def f():\n    return 1\n", "def f():\n  return 1\n", False),  # indentation is code
+    ('s = """a\n\nb"""\n', 's = """a\nb"""\n', False),  # a blank line inside a string is its value
+    ('s = """a  \nb"""\n', 's = """a\nb"""\n', False),  # and so are its spaces
+    ('s = "# not a comment"\n', 's = ""\n', False),
+    ("x = (1 +  # why\n     2)\n", "x = (1 +\n     2)\n", True),
+    ("x = 1\n", "x = 1\n\x0c\n", True),  # a form feed between functions
+    ("\ufeffx = 1  # \u00e9t\u00e9\n", "\ufeffx = 1\n", True),
+    ("x = (\n", "x = (  # c\n", False),  # no tokens: the bytes decide
+])
+def test_the_code_digest_leaves_out_comments_and_layout_only(before, after, same):
+    from procmod.guide.traces import code_text
+
+    assert (code_text(before.encode()) == code_text(after.encode())) == same
+
+
 def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):
     """The .npz is what inference reads without torch; a guide copied without its .pt was
     refused for the .pt. Without a matching .npz the .pt is still required, and named."""
@@ -292,7 +342,7 @@ def test_a_traces_jobs_code_digest_follows_the_imports_python_would(tmp_path, fi
     model = types.SimpleNamespace(root=len, rules=())  # (rules without Python source: the model file alone)
     before = model_code_digest(model, str(tmp_path / "model.py"))
     assert model_code_digest(model, str(tmp_path / "model.py")) == before
-    (tmp_path / edited).write_text((tmp_path / edited).read_text() + "# edited\n")
+    (tmp_path / edited).write_text((tmp_path / edited).read_text() + "EDITED = 1\n")
     assert model_code_digest(model, str(tmp_path / "model.py")) != before
 
 

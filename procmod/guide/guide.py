@@ -392,14 +392,14 @@ def _model_file_changed(job, model) -> bool:
     model file and its rules' files: it is taken again both with the job's file (rules in
     a module beside it) and without it (the file copied elsewhere, the rules in it); a file
     gone since cannot be compared. Built-in models are not compared (not the user's to edit)."""
-    from .traces import model_code_digest, model_file_path
+    from .traces import model_code_digests, model_file_path
 
     if not isinstance(job, dict) or not isinstance(job.get("model_code"), str) or not job.get("model_file"):
         return False
     spec = str(job["model_file"])
     if not model_file_path(spec).is_file():
-        return model_code_digest(model) != job["model_code"]
-    return job["model_code"] not in (model_code_digest(model), model_code_digest(model, spec))
+        return job["model_code"] not in model_code_digests(model)
+    return job["model_code"] not in (*model_code_digests(model), *model_code_digests(model, spec))
 
 
 def guide_paths(path: str | os.PathLike, for_writing: bool = False) -> tuple[Path, Path]:

@@ -115,11 +115,69 @@ def model_file_path(spec: str) -> Path:
 
 
 def model_code_digest(model, model_file: str | None = None) -> str:
-    """A digest of the source files of ``model``'s rules (and of its model file), with the
-    files beside them their import statements name (:func:`_imports_beside`): a traces job
+    """A digest of the code of ``model``'s rules (and of its model file), with the files
+    beside them their import statements name (:func:`_imports_beside`): a traces job
     resumes only on the code it began with. A resumed job had mixed traces of an edited
     model with new ones, which training then refused one by one (or, after an edit of a
-    helper module the choices still replayed under, took in silently)."""
+    helper module the choices still replayed under, took in silently). Comments, blank
+    lines and trailing spaces are not code (:func:`code_text`): a comment added to the
+    model file had stopped its job resuming, and the advice (``overwrite``) threw away
+    every finished trace."""
+    return _digest_of(_model_code_files(model, model_file), code_text)
+
+
+def model_code_digests(model, model_file: str | None = None) -> tuple[str, str]:
+    """``(digest, digest of the files' bytes)``: the second is the one jobs recorded
+    before comments were left out of it (their folders still resume, their guides still
+    compare)."""
+    files = _model_code_files(model, model_file)
+    return _digest_of(files, code_text), _digest_of(files, lambda data: data)
+
+
+def _digest_of(files: list, text_of) -> str:
+    digest = []
+    for path in files:
+        try:
+            digest.append(fingerprint(text_of(path.read_bytes())))
+        except OSError:
+            digest.append("unreadable")
+    return fingerprint(" ".join(digest))
+
+
+def code_text(source: bytes) -> bytes:
+    """``source`` without its comments, blank lines and trailing spaces: two files of one
+    program with other comments give one text. Lines inside a string are kept as they are
+    (they are the string's value). A file that does not tokenise is taken as it is."""
+    import io
+    import tokenize
+
+    try:
+        tokens = list(tokenize.tokenize(io.BytesIO(source).readline))
+    except (tokenize.TokenError, SyntaxError, ValueError):
+        return source
+    layout = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT,
+              tokenize.ENCODING, tokenize.ENDMARKER}
+    code_rows, comment_at, in_string = set(), {}, set()
+    for token in tokens:
+        if token.type == tokenize.COMMENT:
+            comment_at[token.start[0]] = token.start[1]
+        elif token.type not in layout:
+            code_rows.update(range(token.start[0], token.end[0] + 1))
+            in_string.update(range(token.start[0], token.end[0]))  # rows a string goes on past
+    lines = source.decode(tokens[0].string if tokens and tokens[0].type == tokenize.ENCODING else "utf-8",
+                          errors="replace").split("\n")  # rows as tokenize counts them
+    kept = []
+    for row in sorted(code_rows):
+        line = lines[row - 1] if row <= len(lines) else ""
+        if row in comment_at:  # token columns count characters of the decoded line
+            line = line[:comment_at[row]]
+        kept.append(line if row in in_string else line.rstrip())
+    return "\n".join(kept).encode()
+
+
+def _model_code_files(model, model_file: str | None) -> list:
+    """The source files of ``model``'s rules and model file, and the files beside them
+    that they import, sorted."""
     import inspect
 
     files = set()
@@ -141,13 +199,7 @@ def model_code_digest(model, model_file: str | None = None) -> str:
             continue
         files.add(path)
         pending.extend((found, root) for found in _imports_beside(path, root))
-    digest = []
-    for path in sorted(files):
-        try:
-            digest.append(fingerprint(path.read_bytes()))
-        except OSError:
-            digest.append("unreadable")
-    return fingerprint(" ".join(digest))
+    return sorted(files)
 
 
 def _imports_beside(path: Path, root: Path) -> list:
@@ -197,13 +249,16 @@ def _imports_beside(path: Path, root: Path) -> list:
     return [f for f in found if f.is_relative_to(root)]  # (a link beside the model to a helper elsewhere: followed)
 
 
-def _same_job(previous, settings: dict) -> bool:
+def _same_job(previous, settings: dict, byte_digest: str | None = None) -> bool:
     """Whether a folder's job file is this job's. A job file written before jobs recorded
-    their model's code has no digest to compare: its settings decide."""
+    their model's code has no digest to compare: its settings decide. One written before
+    comments were left out of the digest recorded the files' bytes (``byte_digest`` now)."""
     if not isinstance(previous, dict):
         return False
     if "model_code" not in previous:
         return _named(previous, settings) == _without_code(settings)
+    if byte_digest is not None and previous["model_code"] == byte_digest:
+        settings = {**settings, "model_code": byte_digest}
     return _named(previous, settings) == settings
 
 
@@ -275,13 +330,14 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     out = Path(out)
     folder = RunFolder(out, TRACES_JOB, overwrite)
     settings = _job_settings(model, model_file, targets, particles, seed, set_size)
+    byte_digest = model_code_digests(model, model_file)[1]
     # what the workers must run (before anything is written): the job's model code and procmod's
     code = settings["model_code"], procmod_code_digest()
     job_file = out / "traces.json"
     resume = False
     if TRACES_JOB.recognises(out):
         previous = read_json(job_file, GuideError, "traces job file")
-        resume = _same_job(previous, settings)
+        resume = _same_job(previous, settings, byte_digest)
         if not resume and not overwrite:
             if isinstance(previous, dict) and "model_code" in previous and \
                     _without_code(previous) == _without_code(settings):

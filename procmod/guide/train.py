@@ -303,8 +303,8 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     try:
         data, kinds, n_choices = build_dataset(model, traces, settings)
     except GuideError as exc:
-        from .traces import model_code_digest
-        if job is None or job.get("model_code") in (None, model_code_digest(model, job.get("model_file"))):
+        from .traces import model_code_digests
+        if job is None or job.get("model_code") in (None, *model_code_digests(model, job.get("model_file"))):
             raise
         # the model was edited since the job: every trace may be stale, and the job refuses to
         # resume on the new code, so deleting the trace named and rerunning (the advice for a
