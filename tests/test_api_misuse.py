@@ -521,3 +521,82 @@ def test_write_run_takes_a_target_without_a_name_and_refuses_a_2d_output_that_is
     flat = Model("flat", "", line, lambda p: (), lambda p: Flat2D())
     with pytest.raises(InvalidArgumentError, match="cannot render: dimension 2 is a procmod Canvas"):
         write_run(forward(flat, Anything(), particles=3, seed=0), Anything(), tmp_path / "flat", size=32)
+
+
+def _one_choice_model(name, dist_of=lambda: Normal(0.0, 1.0), site=None):
+    """A model of one call that makes the choice ``name`` (and spawns at ``site``)."""
+    from procmod import Model
+    from procmod.geometry import Canvas, Segment
+
+    def rule(ctx):
+        x = ctx.sample(name, dist_of())
+        ctx.emit(Segment(0.0, 0.0, float(x), 1.0, 0.5))
+        if site is not None:
+            ctx.spawn(site, leaf)
+
+    def leaf(ctx):
+        pass
+
+    return Model("one-choice", "one choice", rule, root_args=lambda p: (),
+                 new_output_from=lambda p: Canvas((-3, 3, -3, 3), 20), rules=(rule, leaf))
+
+
+@pytest.mark.parametrize("engine", ["forward", "ga", "mcmc"])
+def test_a_choice_or_site_that_is_no_string_is_refused_where_it_is_made(engine):
+    """An int choice name ran every engine and was refused only when the derivation was
+    saved: `procmod infer --engine ga` lost its whole budget's run to it."""
+    from procmod.core.errors import ModelError
+    from procmod.infer import ga, mcmc
+
+    target = target_from_spec("glyph:a")
+    for model, what in ((_one_choice_model(3), "names a choice 3 .int."),
+                        (_one_choice_model(("t", 1)), "names a choice .*tuple"),
+                        (_one_choice_model("x", site=7), "names a spawn site 7 .int.")):
+        with pytest.raises(ModelError, match=what):
+            if engine == "forward":
+                run_forward(model, np.random.default_rng(0))
+            elif engine == "ga":
+                ga(model, target, population=4, budget=Budget(generations=1), seed=0)
+            else:
+                mcmc(model, target, init_particles=0, budget=Budget(evaluations=5), seed=0)
+    run_forward(_one_choice_model(np.str_("x")), np.random.default_rng(0))  # a str all the same
+
+
+@pytest.mark.parametrize("engine", ["ga", "mcmc"])
+def test_a_choice_from_no_distribution_is_named_under_every_engine(engine):
+    """Forward sampling and SMC named it; GA and MCMC from forward samples replay under a
+    choice map, where it was an AttributeError blamed on the model's own code."""
+    from procmod.core.errors import ModelError
+    from procmod.infer import ga, mcmc
+
+    model, target = _one_choice_model("x", dist_of=lambda: 0.5), target_from_spec("glyph:a")
+    with pytest.raises(ModelError, match="samples 'x' from 0.5, which is not a distribution"):
+        if engine == "ga":
+            ga(model, target, population=4, budget=Budget(generations=1), seed=0)
+        else:
+            mcmc(model, target, init_particles=0, budget=Budget(evaluations=5), seed=0)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"name": None}, "a model's name must be a non-empty string"),
+    ({"name": 42}, "a model's name must be a non-empty string"),
+    ({"name": " "}, "a model's name must be a non-empty string"),
+    ({"params": [1, 2]}, "params must be a dict of parameter names"),
+    ({"params": {1: 2}}, "params must be a dict of parameter names"),
+])
+def test_a_model_with_no_name_or_params_that_are_no_dict_is_refused_when_made(kwargs, message):
+    """Model(name=None) ran every engine and failed saving its derivation with an
+    AttributeError; params=[1, 2] was an AttributeError when made."""
+    from procmod import Model
+    from procmod.core.errors import ModelError
+
+    fields = {"name": "m", "description": "", "root": lambda ctx: None, "root_args": lambda p: (),
+              "new_output_from": lambda p: None, **kwargs}
+    with pytest.raises(ModelError, match=message):
+        Model(**fields)
+
+
+def test_a_target_spec_may_be_a_path():
+    """target_from_spec(Path(...)) said a spec may be a file path, refusing one."""
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "tree_heart"
+    assert type(target_from_spec(scene)) is type(target_from_spec(str(scene)))

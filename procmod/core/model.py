@@ -113,6 +113,12 @@ class Model:
 
     def __post_init__(self):
         # a model built wrong fails here, naming the field, not at its first run
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ModelError(f"a model's name must be a non-empty string (it names the model in saved derivations, "
+                             f"guides and reports), got {shown_value(self.name)}")
+        if not isinstance(self.params, Mapping) or not all(isinstance(key, str) for key in self.params):
+            raise ModelError(f"model {self.name!r}: params must be a dict of parameter names (strings) to their "
+                             f"defaults, got {shown_value(self.params)}")
         for what in ("root", "root_args", "new_output_from"):
             value = getattr(self, what)
             if not callable(value):

@@ -217,6 +217,16 @@ class Context:
             f"(at {format_address(self.address)}); give each choice and spawn site of a call "
             "a distinct name")
 
+    def _not_a_distribution(self, name: str, dist) -> ModelError:
+        return self._misuse(f"samples {name!r} from {dist!r:.40}, which is not a distribution (give one of "
+                            "procmod.core's: Normal(mu, sigma), Uniform(low, high), ...)")
+
+    def _bad_name(self, what: str, name) -> ModelError:
+        # (a derivation is saved with its names as JSON keys: an int name was refused only
+        # then, after a whole run)
+        return self._misuse(f"names {what} {name!r:.40} ({type(name).__name__}); names of choices and spawn sites "
+                            f"must be strings: give str(...) of it, or an f-string such as f\"branch{{i}}\"")
+
     def sample(self, name: str, dist: Distribution):
         """Make the random choice ``name`` from ``dist`` and return its value."""
         if self._armed:
@@ -224,6 +234,8 @@ class Context:
         choices = self._choices
         if name in choices or (self._sites is not None and name in self._sites):
             raise self._duplicate(name)
+        if type(name) is not str and not isinstance(name, str):  # (the first test: quick)
+            raise self._bad_name("a choice", name)
         prefix = self._prefix
         if prefix is not None:
             old = prefix.get(name)
@@ -240,12 +252,16 @@ class Context:
                 value = dist.sample(self._rng)
             except AttributeError:
                 if not isinstance(dist, Distribution):
-                    raise self._misuse(f"samples {name!r} from {dist!r:.40}, which is not a distribution (give "
-                                       "one of procmod.core's: Normal(mu, sigma), Uniform(low, high), ...)") from None
+                    raise self._not_a_distribution(name, dist) from None
                 raise
             log_prob = dist.log_prob(value)
         else:  # replay under a choice map, or a guide's proposal
-            value, log_prob = policy.choose(self, name, dist)
+            try:
+                value, log_prob = policy.choose(self, name, dist)
+            except AttributeError:
+                if not isinstance(dist, Distribution):
+                    raise self._not_a_distribution(name, dist) from None
+                raise
         state.log_prior += log_prob
         choices[name] = _new_tuple(Choice, (value, log_prob, dist))
         return value
@@ -293,6 +309,8 @@ class Context:
             self._sites = set()
         if site in self._choices or site in self._sites:
             raise self._duplicate(site)
+        if not isinstance(site, str):
+            raise self._bad_name("a spawn site", site)
         if not callable(rule):
             raise self._misuse(f"spawns {rule!r:.40} at site {site!r}, which is not a rule (a function "
                                "rule(ctx, ...)); pass the function itself")

@@ -15,6 +15,7 @@ A target spec (:func:`target_from_spec`: ``procmod infer --target``, a guide tra
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -86,7 +87,11 @@ def target_image(spec: str) -> TargetImage:
 
 def target_from_spec(spec: str):
     """The target a target spec names (see the module docstring): the one parser of
-    ``procmod infer --target`` and of the targets guide traces were made on."""
+    ``procmod infer --target`` and of the targets guide traces were made on. A path
+    (``pathlib.Path``) is read as its file's spec."""
+    if isinstance(spec, os.PathLike):
+        spec = os.fspath(spec)
+        spec = spec if isinstance(spec, str) else os.fsdecode(spec)
     if not isinstance(spec, str) or not spec:
         return target_image(spec)  # refuses it, naming the forms a spec takes
     if spec == "circuit":
