@@ -3,6 +3,7 @@ and every kind of bad asset file as a one-line AssetError."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -825,3 +826,69 @@ def test_scale_groups_are_single_linkage_components_in_order_of_first_member():
     for i in range(len(rows)):
         want.setdefault(root(i), []).append(i)
     assert assets._scale_groups(rows) == list(want.values())
+
+
+def _fin_robot(folder, mesh_uri: str, robot_attrs: str = "") -> Path:
+    """A box base with one mesh link on top, named by ``mesh_uri``."""
+    return _write(folder / "r.urdf", f"""<?xml version="1.0"?>
+<robot name="r"{robot_attrs}><link name="base"><visual><geometry><box size="0.4 0.2 0.05"/></geometry></visual></link>
+<joint name="j" type="fixed"><parent link="base"/><child link="fin"/><origin xyz="0 0 0.025"/></joint>
+<link name="fin"><visual><geometry><mesh filename="{mesh_uri}"/></geometry></visual></link></robot>
+""")
+
+
+def _write(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def _fin_box(asset_set) -> tuple:
+    (base,) = asset_set.assets[0].roots
+    (fin,) = base.children
+    corners = world_triangles(asset_set, fin).reshape(-1, 3)
+    return tuple(np.round(corners.min(0), 6)), tuple(np.round(corners.max(0), 6))
+
+
+@pytest.mark.parametrize("up_axis", ["<up_axis>Y_UP</up_axis>", "<up_axis>Z_UP</up_axis>", ""])
+def test_a_urdfs_collada_mesh_keeps_its_axes_whatever_its_up_axis_says(tmp_path, up_axis):
+    """RViz and MoveIt take a URDF's COLLADA vertices in the link's frame as they are, and
+    ROS packages are drawn so; procmod turned a Y_UP or unmarked one (the COLLADA default)
+    on its side, unlike the same part as an STL. Its <unit> still counts."""
+    fin = trimesh.creation.box([0.4, 0.02, 0.2])
+    fin.apply_translation([0, 0, 0.1])  # upright on the base, z up
+    text = trimesh.exchange.dae.export_collada(fin).decode()
+    assert "<up_axis>Y_UP</up_axis>" in text
+    _write(tmp_path / "meshes" / "fin.dae", text.replace("<up_axis>Y_UP</up_axis>", up_axis))
+    fin.export(tmp_path / "meshes" / "fin.stl")
+    want = _fin_box(read_assets(_fin_robot(tmp_path / "stl", "../meshes/fin.stl")))
+    assert np.allclose(want, ((-0.2, -0.01, 0.025), (0.2, 0.01, 0.225)))
+    assert _fin_box(read_assets(_fin_robot(tmp_path / "dae", "../meshes/fin.dae"))) == want
+    unit = '<unit meter="0.01" name="centimeter"/>'
+    _write(tmp_path / "meshes" / "fin_cm.dae", text.replace("<up_axis>Y_UP</up_axis>", unit + up_axis))
+    low, high = _fin_box(read_assets(_fin_robot(tmp_path / "cm", "../meshes/fin_cm.dae")))
+    assert np.allclose(np.subtract(high, low), [0.004, 0.0002, 0.002])
+
+
+def test_a_urdf_mesh_named_by_an_absolute_file_uri_is_read(tmp_path):
+    """xacro's file://$(find pkg)/meshes/... expands to file:///abs/path: it was refused as
+    an absolute path; %-encoded spaces too."""
+    from urllib.parse import quote
+
+    (tmp_path / "my meshes").mkdir()
+    write_obj(tmp_path / "my meshes" / "leg 2.obj", wedge_mesh(0.2))
+    uri = "file://" + quote(str((tmp_path / "my meshes" / "leg 2.obj").resolve()))
+    assert "%20" in uri
+    for given in (uri, uri.replace("file://", "file://localhost")):
+        s = read_assets(_fin_robot(tmp_path / "urdf", given))
+        assert sorted(p.kind for p in s.parts.values()) == ["box", "mesh"]
+    with pytest.raises(AssetError, match="does not exist"):
+        read_assets(_fin_robot(tmp_path / "urdf", uri.replace("leg%202", "leg%203")))
+
+
+def test_a_urdf_in_a_default_xml_namespace_is_read(tmp_path):
+    """<robot xmlns="...">: ROS reads it; procmod said it held no link."""
+    write_obj(tmp_path / "fin.obj", wedge_mesh(0.2))
+    plain = read_assets(_fin_robot(tmp_path / "a", "../fin.obj"))
+    spaced = read_assets(_fin_robot(tmp_path / "b", "../fin.obj", ' xmlns="http://www.ros.org"'))
+    assert _fin_box(spaced) == _fin_box(plain)

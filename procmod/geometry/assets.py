@@ -69,6 +69,7 @@ parents), more than :data:`MAX_FACES` triangles or :data:`MAX_NODES` nodes.
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import os
@@ -763,20 +764,30 @@ def _bake(raw: _Raw, geometries: dict, local: np.ndarray, turn: np.ndarray, resi
 
 def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
     """A URDF mesh file name resolved against the URDF's folder: plain relative paths,
-    ``file://`` and ``package://PKG/rest`` (``rest`` or ``PKG/rest`` under the URDF's
-    folder or one of its ancestors, as a ROS workspace lays packages out)."""
+    ``file://`` (relative, or an absolute ``file:///...`` URI where it is) and
+    ``package://PKG/rest`` (``rest`` or ``PKG/rest`` under the URDF's folder or one of
+    its ancestors, as a ROS workspace lays packages out)."""
     base = urdf.parent
     name = filename
+    candidates = []
     if name.startswith("file://"):
         name = name[len("file://"):]
-    candidates = []
-    if name.startswith("package://"):
+        if name.startswith("localhost/"):
+            name = name[len("localhost"):]
+        if name.startswith("/"):
+            # an absolute file URI, %-encoded (xacro's file://$(find pkg)/meshes/... expands to
+            # one): it names the file wherever it is, as a ROS tool reads it
+            from urllib.parse import unquote
+
+            absolute = Path(unquote(name))
+            candidates.append((Path(absolute.anchor), str(absolute.relative_to(absolute.anchor))))
+    if not candidates and name.startswith("package://"):
         pkg, _, rest = name[len("package://"):].partition("/")
         # ancestors of the resolved folder: "robot.urdf" run from its own folder has a base
         # of "." whose .parents is empty, and the package lies above it
         for folder in [base, *base.resolve().parents]:
             candidates += [(folder, rest), (folder, f"{pkg}/{rest}")]
-    else:
+    elif not candidates:
         candidates.append((base, name))
     for folder, rel in candidates:
         try:
@@ -800,8 +811,11 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
         raise AssetError(f"{where}: {path} declares {declared:,} triangles, more than procmod reads "
                          f"({MAX_FACES:,}); decimate it")
     try:
-        # a URDF's link frames are z up (ROS): a COLLADA mesh is turned to z up from its own axis
-        mesh = load_mesh_file(path, up="z", force="mesh", process=False, skip_materials=True)
+        # a COLLADA mesh's vertices are taken in the link's frame as they are, its <up_axis>
+        # left out, as RViz and MoveIt read a URDF's meshes (they drop the root turn that
+        # Assimp makes of it), and ROS packages are drawn for them: a Y_UP (or unmarked, the
+        # COLLADA default) mesh had been turned on its side beside the same part as an STL
+        mesh = load_mesh_file(path, up=None, force="mesh", process=False, skip_materials=True)
     except Exception as exc:
         raise AssetError(f"{where}: cannot read {path} as a triangle mesh ({type(exc).__name__}: "
                          f"{str(exc)[:100]})") from None
@@ -828,14 +842,19 @@ def _read_urdf(path: Path, geometries: dict) -> list:
     try:  # strict XML first: yourdfpy recovers from broken XML and reads half a robot. The
         # declaration is left out of the check: robots ship with <?xml version="0.0" ?>
         body = re.sub(rb"^\s*<\?xml[^>]*\?>", b"", data, count=1)
-        etree.fromstring(body, etree.XMLParser(resolve_entities=False, no_network=True))
+        root = etree.fromstring(body, etree.XMLParser(resolve_entities=False, no_network=True))
     except etree.XMLSyntaxError as exc:
         raise AssetError(f"cannot read {path} as URDF (not well-formed XML: {str(exc)[:120]})") from None
+    source = str(path)
+    if isinstance(root.tag, str) and root.tag.startswith("{") and root.prefix is None:
+        # <robot xmlns="...">: ROS's parser reads its elements by their names and loads the
+        # robot; yourdfpy looked for un-namespaced ones and found no link. Read without it
+        source = io.BytesIO(re.sub(rb"(<robot\b[^>]*?)\s+xmlns\s*=\s*(\"[^\"]*\"|'[^']*')", rb"\1", data, count=1))
     quiet = logging.getLogger("yourdfpy")
     level = quiet.level
     quiet.setLevel(logging.CRITICAL)  # it logs the XML declaration it had to recover from
     try:
-        robot = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False,
+        robot = yourdfpy.URDF.load(source, build_scene_graph=False, load_meshes=False,
                                    build_collision_scene_graph=False, load_collision_meshes=False).robot
     except Exception as exc:
         raise AssetError(f"cannot read {path} as URDF ({type(exc).__name__}: {str(exc)[:120]})") from None

@@ -699,12 +699,12 @@ def quiet_trimesh():
         logger.setLevel(level)
 
 
-def load_mesh_file(path: str | Path, up: str = "y", **options):
+def load_mesh_file(path: str | Path, up: str | None = "y", **options):
     """``trimesh.load(path, **options)`` (a mesh or, with ``force="scene"``, a scene):
     OBJ read through :func:`normalised_obj` (materials and other files it names are still
     found beside it), glTF with procmod's rules for the files it names (module docstring),
     PLY, OFF and COLLADA by :mod:`procmod.geometry.polygon_files` (a COLLADA file turned
-    from its own up axis to ``up``, ``"y"`` or ``"z"``)."""
+    from its own up axis to ``up``, ``"y"`` or ``"z"``; ``None`` leaves its axes as they are)."""
     import trimesh
 
     path = Path(path)

@@ -143,10 +143,11 @@ def collada_up_axis(path: str | Path) -> str | None:
     return None
 
 
-def read_collada(path: str | Path, up: str = "y") -> tuple[np.ndarray, np.ndarray]:
+def read_collada(path: str | Path, up: str | None = "y") -> tuple[np.ndarray, np.ndarray]:
     """``(vertices, triangles)`` of a COLLADA file's scene (pycollada; each geometry placed
     by its nodes), its polygons triangulated right, in metres and with ``up`` (``"y"`` or
-    ``"z"``) up as its ``<unit>`` and ``<up_axis>`` declare them. trimesh fanned its
+    ``"z"``) up as its ``<unit>`` and ``<up_axis>`` declare them (``None``: its axes as
+    they are, as a URDF's meshes are read). trimesh fanned its
     polygons and left its units and axis as they were: Blender's export (z up) came in
     lying on its back beside the same object exported as glTF, SketchUp's (inches) 39x too
     large. Lines are left out."""
