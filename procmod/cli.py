@@ -653,9 +653,23 @@ def _sigterm_as_interrupt():
 _FULL = {code for code in (getattr(errno, "ENOSPC", None), getattr(errno, "EDQUOT", None)) if code is not None}
 
 
+def _negative_values_joined(argv: list) -> list:
+    """``--budget -1s`` as ``--budget=-1s``: argparse takes a value that starts with a minus
+    and is no plain number for an option of its own, and said "expected one argument",
+    where the option's own check says what is wrong with the value."""
+    out = []
+    for token in argv:
+        if out and re.match(r"-\.?\d", token) and out[-1].startswith("--") and "=" not in out[-1] \
+                and out[-1] != "--":
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def main(argv=None) -> int:
     """Entry point of the ``procmod`` console script; returns the exit status."""
-    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    argv = _negative_values_joined(sys.argv[1:] if argv is None else [str(a) for a in argv])
     for stream in (sys.stdout, sys.stderr):  # a file name's non-UTF-8 bytes printed as they are, not a traceback
         try:
             stream.reconfigure(errors="surrogateescape")

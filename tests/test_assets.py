@@ -220,6 +220,7 @@ def flat_mesh(data):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d["nodes"][2].update(children=[1]), "two parents"),  # body under the empty and the wing
+    (lambda d: d["nodes"][2].update(children=[2]), "node 2 .* lists itself among its children"),  # "two parents"
     (lambda d: d["nodes"].extend([{"name": "a", "children": [6]}, {"name": "b", "children": [5]}]), "cycle"),
     (lambda d: d["nodes"][3].update(children=[4]), "two parents"),  # gun under body and wing.001
     (lambda d: d.update(meshes=[], nodes=[{"name": "empty"}]), "no mesh"),

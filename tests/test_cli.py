@@ -171,6 +171,9 @@ def test_the_ess_threshold_reaches_the_engine(tmp_path, capsys, given, used):
     (["infer", "vines", "--target", "glyph:a", "--engine", "smc", "--population", "5"], "does not apply"),
     (["infer", "vines", "--target", "glyph:a", "--particles", "0"], "positive"),
     (["infer", "vines", "--target", "glyph:a", "--budget", "soon"], "cannot read budget"),
+    # argparse took "-1s" for an option: "expected one argument"
+    (["infer", "vines", "--target", "glyph:a", "--budget", "-1s"], "cannot read budget '-1s': a budget is positive"),
+    (["infer", "vines", "--target", "glyph:a", "--budget", "30s+-5evals"], "a budget is positive"),
     (["infer", "vines", "--target", "glyph:i"], "connected parts"),
     (["infer", "vines", "--target", "missing.png"], "does not exist"),
     (["infer", "teapot", "--target", "glyph:a"], "unknown model"),

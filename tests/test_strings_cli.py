@@ -524,3 +524,19 @@ def test_a_model_trained_when_two_inputs_were_assumed_says_so(tmp_path):
     with pytest.raises(pipeline.OtherTrainingError, match="trained before procmod kept every input shape in "
                                                           "training .*1 more train now"):
         pipeline.train_model(col, tmp_path / "model", **small)
+
+
+def test_a_shapes_file_that_is_a_folder_or_a_pipe_is_not_said_to_be_missing(tmp_path, capsys, monkeypatch):
+    """A folder, a FIFO or a link to a device named .json was "does not exist"."""
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "dir.json").mkdir()
+    os.mkfifo(tmp_path / "fifo.json")
+    (tmp_path / "zero.json").symlink_to("/dev/zero")
+    for name in ("dir.json", "fifo.json", "zero.json"):
+        for argv in (["strings", "graph", name, "--out", "g"], ["strings", "augment", name, "--count", "2",
+                                                                 "--out", "a"]):
+            code, out, err = _run(capsys, *argv)
+            assert code == 2 and f"shapes file {name} is not a regular file (a folder, a device or a pipe)" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.json", "fifo.json", "zero.json"]

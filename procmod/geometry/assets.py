@@ -326,6 +326,9 @@ def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:
     parent = {}
     for k, cs in enumerate(children):
         for c in cs:
+            if c == k:
+                raise AssetError(f"{path}: node {c} ({nodes[c].get('name', 'unnamed')!r}) lists itself among its "
+                                 "children; a glTF node hierarchy must be a tree")
             if c in parent or c in roots:
                 raise AssetError(f"{path}: node {c} ({nodes[c].get('name', 'unnamed')!r}) has two parents; a glTF "
                                  "node hierarchy must be a tree")

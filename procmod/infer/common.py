@@ -83,6 +83,9 @@ def parse_budget(text: str) -> Budget:
     given = set()
     for part in str(text).split("+"):
         match = _BUDGET.match(part.lower())
+        if not match and _BUDGET.match(part.lower().strip().lstrip("-")):
+            raise InvalidArgumentError(f"cannot read budget {text!r}: a budget is positive (e.g. 30s, 2m, 5000evals "
+                                       "or 100gens)")
         if not match:
             raise InvalidArgumentError(
                 f"cannot read budget {text!r}: use e.g. 30s, 2m, 5000evals or 100gens")

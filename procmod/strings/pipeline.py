@@ -88,8 +88,10 @@ def read_collection(path: str | os.PathLike) -> ShapeSet:
     if path.is_dir():
         path = path / "shapes.json"
     if not path.is_file():
-        raise ShapesFormatError(f"{path} does not exist; give a collection folder made by 'procmod strings augment' "
-                                "or a procmod-shapes/1 file")
+        raise ShapesFormatError(f"{path} " + ("is not a regular file (a folder, a device or a pipe)" if path.exists()
+                                              else "does not exist") +
+                                "; give a collection folder made by 'procmod strings augment' or a procmod-shapes/1 "
+                                "file")
     from .assets import rigid_shape_set
     return rigid_shape_set(read_shapes(path))
 

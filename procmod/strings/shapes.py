@@ -109,8 +109,11 @@ def read_shapes(path: str | os.PathLike) -> ShapeSet:
     """
     _check_path(path, "shapes file")
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ShapesFormatError(f"shapes file {path} does not exist")
+    if not path.is_file():
+        raise ShapesFormatError(f"shapes file {path} is not a regular file (a folder, a device or a pipe); give a "
+                                "procmod-shapes/1 file")
     return shapes_from_dict(read_json(path, ShapesFormatError, "shapes file"), path.parent, str(path))
 
 
