@@ -1280,6 +1280,8 @@ def test_odd_but_readable_skins_and_shared_morphed_meshes_read_as_viewers_show_t
     (tmp_path / "two.gltf").write_text(json.dumps(spec))
     vertices = read_mesh(tmp_path / "two.gltf")[0]
     assert vertices[vertices[:, 0] > 2, 1].max() == pytest.approx(1.0, abs=1e-6)  # b shows the mesh's weights
+    # and a its own (h73: it was read at the mesh's too, its shape key dropped without a word)
+    assert vertices[vertices[:, 0] < 2, 1].max() == pytest.approx(5.0, abs=1e-6)
 
 
 def test_a_collada_up_axis_written_with_spaces_or_in_lower_case_is_read_as_checked(tmp_path):

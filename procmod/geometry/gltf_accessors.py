@@ -193,14 +193,39 @@ def _drawing_nodes(header: dict) -> dict:
 
 def _morph_weights(header: dict, m: int, drawers: list) -> list:
     """The weights mesh ``m``'s morph targets are shown at: what its nodes show when they
-    agree (a node's ``weights``, else the mesh's), else the mesh's own (zero without them)."""
+    agree (a node's ``weights``, else the mesh's), else the mesh's own (zero without them;
+    :func:`morphs_split` gives nodes that disagree a copy of the mesh each first)."""
     mesh = header["meshes"][m]
     own = mesh.get("weights") if isinstance(mesh.get("weights"), list) else []
     shown = [node.get("weights") if isinstance(node.get("weights"), list) else own
              for node in (header["nodes"][n] for n in drawers) if isinstance(node, dict)]
-    # nodes that show it differently would need a copy each: the mesh's own weights then
     weights = shown[0] if shown and all(w == shown[0] for w in shown) else own
     return [float(w) for w in weights]
+
+
+def morphs_split(header: dict) -> dict | None:
+    """``header`` with a copy of a morphed mesh for each other set of weights its nodes show
+    it at (the copy's own ``weights`` those, the nodes drawing it), or None when no nodes
+    disagree. Four legs drawn by one mesh, one shown with its shape key at 1: all four were
+    read at the mesh's weights, that leg at half its height, without a word."""
+    drawing, out = _drawing_nodes(header), None
+    for m, drawers in sorted(drawing.items()):
+        meshes = header.get("meshes") or ()
+        if not 0 <= m < len(meshes) or not isinstance(meshes[m], dict):
+            continue
+        own = meshes[m].get("weights") if isinstance(meshes[m].get("weights"), list) else []
+        shown = {}
+        for n in drawers:
+            weights = header["nodes"][n].get("weights")
+            shown.setdefault(json.dumps(weights if isinstance(weights, list) else own), []).append(n)
+        if len(shown) < 2:
+            continue
+        out = out or copy.deepcopy(header)
+        for key, nodes in list(shown.items())[1:]:  # the first keeps the mesh
+            out["meshes"].append({**copy.deepcopy(out["meshes"][m]), "weights": json.loads(key)})
+            for n in nodes:
+                out["nodes"][n]["mesh"] = len(out["meshes"]) - 1
+    return out
 
 
 def morphed_primitives(header: dict) -> list[tuple[int, int, list]]:
@@ -361,13 +386,15 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
 
     Raises ValueError for an accessor that reaches past its data."""
     path = Path(path)
+    split = morphs_split(header)
+    header = header if split is None else split
     chosen = needs_decoding(header)
     fans = fan_primitives(header)
     morphs = morphed_primitives(header)
     skins = skinned_meshes(header)
     roots = unplaced_roots(header)
     cameras = camera_nodes_with_content(header)
-    if not chosen and not fans and not morphs and not skins and roots is None and not cameras:
+    if not chosen and not fans and not morphs and not skins and roots is None and not cameras and split is None:
         return None
     data = path.read_bytes()
     chunk = _binary_chunk(data) if data[:4] == b"glTF" else None  # a GLB, whatever its suffix
