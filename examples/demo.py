@@ -61,7 +61,7 @@ print()
 print("Forward samples:")
 for name in models:
     print(f"  {out / name / 'contact_sheet.png'}")
-print("vines controlled toward the glyph 'a' (8 s each):")
+print("vines controlled toward the glyph 'a' (a budget of 8 s each; SMC finishes the pass it is in):")
 for report in reports:
     print(f"  {report}")
 print(f"guided vs unguided SMC, 10 particles, glyphs (best similarity, seconds): {sheet}")

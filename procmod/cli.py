@@ -653,6 +653,19 @@ def _sigterm_as_interrupt():
 _FULL = {code for code in (getattr(errno, "ENOSPC", None), getattr(errno, "EDQUOT", None)) if code is not None}
 
 
+def _stopped_by(exc: BaseException):
+    """The Ctrl-C or SIGTERM an exception was raised while handling, if any: a library's
+    clean-up that failed as the stop passed through it (``torch.save``'s zip writer,
+    "unexpected pos") had printed a 40-line traceback in place of one line."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, (Terminated, KeyboardInterrupt)):
+            return exc
+        exc = exc.__context__
+    return None
+
+
 def _negative_values_joined(argv: list) -> list:
     """``--budget -1s`` as ``--budget=-1s``: argparse takes a value that starts with a minus
     and is no plain number for an option of its own, and said "expected one argument",
@@ -701,6 +714,10 @@ def main(argv=None) -> int:
             pass
         return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
     except Exception as exc:
+        stop = _stopped_by(exc)
+        if stop is not None:  # a library's clean-up failed on the way out of a stop (torch's zip writer)
+            print("procmod: terminated" if isinstance(stop, Terminated) else "procmod: interrupted", file=sys.stderr)
+            return 143 if isinstance(stop, Terminated) else 130
         # an error in a model file of the user's own (FILE.py:NAME): their code, one line
         # naming where; a name too long for the file system, the user's too (every check of
         # a path given on the command line would otherwise have to expect it); anything else

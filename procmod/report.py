@@ -75,15 +75,19 @@ def sample_of_final(result, count: int = SAMPLE_TILES) -> list:
     """At most ``count`` of the engine's final samples, for the report's contact sheet.
 
     A fixed-size sample, so writing the report costs the same at 10 or 10,000
-    particles. With final log-weights (SMC) the sample is drawn by weight (systematic,
-    a fixed seed: the report of a seeded run is reproducible); otherwise it is the first
-    ``count`` (GA population, MCMC chains: already ordered as the engine keeps them).
+    particles. With importance weights (SMC, SOSMC, forward sampling) the sample is drawn
+    by weight (systematic, a fixed seed: the report of a seeded run is reproducible);
+    otherwise it is the first ``count`` (GA population, MCMC chains: already ordered as
+    the engine keeps them). GA and MCMC give their states' log-likelihoods as
+    ``log_weights``, which are no importance weights: drawn by them, a GA report of a
+    population of 200 showed one or two individuals.
     """
     samples = list(result.samples)
     if len(samples) <= count:
         return samples
     weights = result.log_weights
-    if weights is None or len(weights) != len(samples) or not np.isfinite(np.max(weights)):
+    if weights is None or len(weights) != len(samples) or not np.isfinite(np.max(weights)) \
+            or str(result.engine).split("+")[0] in ("ga", "mcmc"):
         return samples[:count]
     from .core.random import resample
 

@@ -442,3 +442,26 @@ def test_render_with_another_model_of_the_same_rule_is_refused(tmp_path, capsys)
     assert "it is a derivation of model 'narrow', not 'wide'" in capsys.readouterr().err
     assert not (tmp_path / "w.png").exists()
     assert main(["render", sample, "--model", f"{tmp_path / 'two.py'}:NARROW", "--out", str(tmp_path / "n.png")]) == 0
+
+
+def test_a_stop_that_a_librarys_clean_up_fails_on_is_one_line(tmp_path, capsys, monkeypatch):
+    """SIGTERM during torch.save: its zip writer's clean-up raised RuntimeError ("unexpected
+    pos") as the stop passed through it, and a 40-line traceback was printed (h75)."""
+    import procmod.cli as cli
+
+    def stopped_while_saving(args):
+        try:
+            raise cli.Terminated()
+        finally:
+            raise RuntimeError("[enforce fail at inline_container.cc:672] . unexpected pos 3847104 vs 3846996")
+
+    monkeypatch.setitem(cli._COMMANDS, "sample", stopped_while_saving)
+    assert main(["sample", "vines", "--out", str(tmp_path / "s")]) == 143
+    assert capsys.readouterr().err == "procmod: terminated\n"
+
+    def broken(args):
+        raise RuntimeError("a bug of procmod's own")  # no stop behind it: the traceback stays
+
+    monkeypatch.setitem(cli._COMMANDS, "sample", broken)
+    with pytest.raises(RuntimeError, match="a bug of procmod's own"):
+        main(["sample", "vines", "--out", str(tmp_path / "s")])

@@ -6,8 +6,8 @@ from types import SimpleNamespace
 from procmod.report import SAMPLE_TILES, sample_of_final
 
 
-def _result(n, log_weights):
-    return SimpleNamespace(samples=[f"particle {i}" for i in range(n)], log_weights=log_weights)
+def _result(n, log_weights, engine="smc"):
+    return SimpleNamespace(samples=[f"particle {i}" for i in range(n)], log_weights=log_weights, engine=engine)
 
 
 def test_the_sample_does_not_grow_with_the_particles():
@@ -28,6 +28,15 @@ def test_the_sample_follows_the_weights():
 def test_without_weights_the_first_samples_are_shown():
     assert sample_of_final(_result(100, None)) == [f"particle {i}" for i in range(SAMPLE_TILES)]
     assert sample_of_final(_result(100, [-math.inf] * 100)) == [f"particle {i}" for i in range(SAMPLE_TILES)]
+
+
+def test_a_ga_population_or_mcmc_chains_are_shown_first_not_drawn_by_their_scores():
+    """GA and MCMC give their states' log-likelihoods as log_weights: drawn by them, the
+    report of a GA population of 200 showed one or two individuals (h75)."""
+    peaked = [0.0] + [-50.0] * 199
+    for engine in ("ga", "mcmc"):
+        assert sample_of_final(_result(200, peaked, engine)) == [f"particle {i}" for i in range(SAMPLE_TILES)]
+    assert sample_of_final(_result(200, peaked, "smc")) == ["particle 0"]  # importance weights: by weight
 
 
 def test_copies_share_one_picture_and_every_picture_is_the_one_drawn_alone():
