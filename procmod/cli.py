@@ -672,8 +672,10 @@ def _negative_values_joined(argv: list) -> list:
     where the option's own check says what is wrong with the value."""
     out = []
     for token in argv:
-        if out and re.match(r"-\.?\d", token) and out[-1].startswith("--") and "=" not in out[-1] \
-                and out[-1] != "--":
+        # a number with a unit (-1s, -2m+5evals): a plain negative number argparse reads itself
+        # (and may be a positional after a flag); nothing after "--" is an option's
+        if out and "--" not in out and re.match(r"-\.?\d[\d.]*[a-zA-Z+]", token) and out[-1].startswith("--") \
+                and "=" not in out[-1]:
             out[-1] = f"{out[-1]}={token}"
         else:
             out.append(token)

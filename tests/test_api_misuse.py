@@ -558,6 +558,7 @@ def test_a_choice_or_site_that_is_no_string_is_refused_where_it_is_made(engine):
     target = target_from_spec("glyph:a")
     for model, what in ((_one_choice_model(3), "names a choice 3 .int."),
                         (_one_choice_model(("t", 1)), "names a choice .*tuple"),
+                        (_one_choice_model(["a"]), "names a choice .*list"),  # unhashable: a TypeError (h76)
                         (_one_choice_model("x", site=7), "names a spawn site 7 .int.")):
         with pytest.raises(ModelError, match=what):
             if engine == "forward":

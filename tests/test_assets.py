@@ -893,3 +893,6 @@ def test_a_urdf_in_a_default_xml_namespace_is_read(tmp_path):
     plain = read_assets(_fin_robot(tmp_path / "a", "../fin.obj"))
     spaced = read_assets(_fin_robot(tmp_path / "b", "../fin.obj", ' xmlns="http://www.ros.org"'))
     assert _fin_box(spaced) == _fin_box(plain)
+    commented = _fin_robot(tmp_path / "c", "../fin.obj", ' xmlns="http://www.ros.org"')
+    commented.write_text(commented.read_text().replace("<robot", '<!-- <robot xmlns="old"> --><robot', 1))
+    assert _fin_box(read_assets(commented)) == _fin_box(plain)  # (h76: a regex took the comment's)

@@ -465,3 +465,13 @@ def test_a_stop_that_a_librarys_clean_up_fails_on_is_one_line(tmp_path, capsys, 
     monkeypatch.setitem(cli._COMMANDS, "sample", broken)
     with pytest.raises(RuntimeError, match="a bug of procmod's own"):
         main(["sample", "vines", "--out", str(tmp_path / "s")])
+
+
+def test_only_a_value_with_a_unit_is_joined_to_its_option():
+    """--budget -1s is joined (argparse took it for an option); a plain negative number is
+    argparse's own to read (a positional after a flag), and nothing after "--" (h76)."""
+    from procmod.cli import _negative_values_joined
+
+    assert _negative_values_joined(["infer", "--budget", "-1s"]) == ["infer", "--budget=-1s"]
+    assert _negative_values_joined(["learn", "x.json", "--overwrite", "-1"]) == ["learn", "x.json", "--overwrite", "-1"]
+    assert _negative_values_joined(["x", "--", "--a", "-1s"]) == ["x", "--", "--a", "-1s"]

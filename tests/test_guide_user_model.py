@@ -208,6 +208,8 @@ def test_a_traces_job_resumes_after_an_edit_of_comments_only(tmp_path, monkeypat
     (tmp_path / "tr" / "traces.json").write_text(json.dumps({**job, "model_code": byte_digest}))
     assert main([*traces, "--count", "3"]) == 0, capsys.readouterr().err
     assert "1 traces made, 2 already there" in capsys.readouterr().out
+    # and records today's digest, so a comment does not stop it next time (h76)
+    assert json.loads((tmp_path / "tr" / "traces.json").read_text())["model_code"] == digest
     # and an edit of the code itself is still one
     (tmp_path / "plants.py").write_text(PLANT_FILE.replace("x1, y1 = x + 2", "x1, y1 = x + 2.5"))
     assert main([*traces, "--count", "4"]) == 2 and "as its code was before an edit" in capsys.readouterr().err

@@ -216,3 +216,33 @@ def test_a_part_named_with_parentheses_is_learned_and_a_symmetrys_name_is_refuse
     assert len(sampled_leans(result.program, "Leg (1)", 5, seed=1)) == 20
     with pytest.raises(ExamplesError, match="part name 'rot\\(leg\\)' reads as the name procmod gives a learned"):
         preprocess(examples_from_dict(tables("rot(leg)")))
+
+
+def test_two_mirrors_at_an_angle_keep_the_inner_mirror_where_it_is():
+    """Exact tables whose inner mirror is 7 degrees off square to the outer one: their
+    four legs' centre lies on the outer mirror only, and moving the inner mirror through
+    it put every sampled table's legs 3 cm from where every example has them (h76)."""
+    def reflect(n):
+        n = np.asarray(n, float) / np.linalg.norm(n)
+        m = np.eye(4)
+        m[:3, :3] -= 2 * np.outer(n, n)
+        return m
+
+    rng, examples = np.random.default_rng(1), []
+    inner, outer = reflect([math.cos(math.radians(7)), 0, math.sin(math.radians(7))]), reflect([0, 0, 1])
+    for _ in range(6):
+        w, d = rng.uniform(1.0, 1.6), rng.uniform(0.6, 0.9)
+        a1 = T(w / 2 - 0.06, 0.37, d / 2 - 0.06)
+        legs = []
+        for m in (a1, inner @ a1, outer @ a1, outer @ inner @ a1):
+            m = m.copy()
+            if np.linalg.det(m[:3, :3]) < 0:
+                m[:3, 0] *= -1  # a proper placement of the (symmetric) leg
+            legs.append({"part": "leg", "children": [], "transform": m.tolist()})
+        examples.append({"part": "top", "transform": (T(0, 0.75, 0) @ np.diag([w / 1.2, 1, d / 0.8, 1])).tolist(),
+                         "children": legs})
+    data = preprocess(examples_from_dict({"format": "procmod-examples/1", "examples": examples,
+                                          "parts": {"top": {"box": [1.2, 0.05, 0.8]},
+                                                    "leg": {"box": [0.06, 0.72, 0.06]}}}))
+    offsets = [n.sym[2] for n in data.nodes if n.type == "refl(leg)"]
+    assert len(offsets) == 6 and np.abs(offsets).max() < 1e-6, offsets  # through the top's centre, as placed

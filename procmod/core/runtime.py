@@ -231,11 +231,11 @@ class Context:
         """Make the random choice ``name`` from ``dist`` and return its value."""
         if self._armed:
             raise _Pause()
+        if type(name) is not str and not isinstance(name, str):  # (the first test: quick)
+            raise self._bad_name("a choice", name)
         choices = self._choices
         if name in choices or (self._sites is not None and name in self._sites):
             raise self._duplicate(name)
-        if type(name) is not str and not isinstance(name, str):  # (the first test: quick)
-            raise self._bad_name("a choice", name)
         prefix = self._prefix
         if prefix is not None:
             old = prefix.get(name)
@@ -307,10 +307,10 @@ class Context:
             raise _Pause()
         if self._sites is None:
             self._sites = set()
-        if site in self._choices or site in self._sites:
-            raise self._duplicate(site)
         if not isinstance(site, str):
             raise self._bad_name("a spawn site", site)
+        if site in self._choices or site in self._sites:
+            raise self._duplicate(site)
         if not callable(rule):
             raise self._misuse(f"spawns {rule!r:.40} at site {site!r}, which is not a rule (a function "
                                "rule(ctx, ...)); pass the function itself")

@@ -852,7 +852,11 @@ def _read_urdf(path: Path, geometries: dict) -> list:
     if isinstance(root.tag, str) and root.tag.startswith("{") and root.prefix is None:
         # <robot xmlns="...">: ROS's parser reads its elements by their names and loads the
         # robot; yourdfpy looked for un-namespaced ones and found no link. Read without it
-        source = io.BytesIO(re.sub(rb"(<robot\b[^>]*?)\s+xmlns\s*=\s*(\"[^\"]*\"|'[^']*')", rb"\1", data, count=1))
+        for element in root.iter():
+            if isinstance(element.tag, str):  # (comments and processing instructions have none)
+                element.tag = etree.QName(element).localname
+        etree.cleanup_namespaces(root)
+        source = io.BytesIO(etree.tostring(root))
     quiet = logging.getLogger("yourdfpy")
     level = quiet.level
     quiet.setLevel(logging.CRITICAL)  # it logs the XML declaration it had to recover from

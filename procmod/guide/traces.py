@@ -357,7 +357,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     # behind (never a half-written trace): a resumed job clears them
     for stale in out.glob(".trace_*.json.*"):
         stale.unlink(missing_ok=True)
-    if not resume:
+    if not resume or previous.get("model_code") != settings["model_code"]:
+        # (a job file of the byte digest resumed: it records today's, so a comment does not stop it next time)
         write_text_atomic(job_file, json.dumps(settings, indent=1) + "\n")
     missing = [i for i in range(count) if not trace_path(out, i).exists()]
     present = count - len(missing)
