@@ -33,8 +33,9 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
-from .transforms import (CURRENT, Frame, Units, angles_direction, direction_angles, frame_of, spread_pole, sym_params,
-                         SYM_KINDS, node_kind, reserved_name, xform_params)
+from .transforms import (CURRENT, DIAGONAL_POLE, Frame, Units, angles_direction, direction_angles, frame_of, spread_pole,
+                         sym_params, symmetry_direction, turned_frame, SYM_KINDS, node_kind, reserved_name,
+                         xform_params)
 
 OVERLAP_VOXELS = 40
 SLOT_SAMPLES = 64  # surface points per part for the Hausdorff distances of eq. 1
@@ -345,6 +346,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         groups[parent_type] = _slot_groups(parent_type, parents, slot_types, offsets, parts) if slot_types else []
 
     nodes, sym_inner, max_count = [], {}, {}
+    turns = {}  # symmetry type -> the reference direction its nodes turn their child's frame from
 
     def add(pnode: PNode) -> PNode:
         pnode.id = len(nodes)
@@ -376,15 +378,28 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
                           count=len(unit.members)))
         sym_inner[unit.type] = unit.members[0].type
         max_count[unit.type] = max(max_count.get(unit.type, 0), len(unit.members))
-        child = convert_unit(unit.members[0], frame, example)
+        inner = frame
+        if unit.type in turns:
+            inner = turned_frame(frame, turns[unit.type], symmetry_direction(pnode.sym, DIAGONAL_POLE))
+        child = convert_unit(unit.members[0], inner, example)
         child.parent, child.parent_slot = pnode.id, 0
         pnode.children = [(0, child)]
         pnode.height = child.height + 1
         return pnode
 
     world_extent = set_size(example_set)
-    roots = [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
-    units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes))
+    # a symmetry holding another measures the inner one's parameters in its own turned
+    # frame (transforms.turned_frame) where its directions vary; the outer types' reference
+    # directions decide the inner types' frames, so they are found outside in, one level
+    # of nesting a pass
+    for _ in range(MAX_TURN_PASSES):
+        nodes.clear()
+        roots = [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
+        found = _turn_references(nodes)
+        if found == turns:
+            break
+        turns = found
+    units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes), turns)
     for n in nodes:
         if n.kind == "part":
             n.x[0:3] -= units.log_scale(n.part)
@@ -393,6 +408,31 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
             n.sym[0:2] = direction_angles(angles_direction(n.sym[0], n.sym[1]), units.pole(n.type))
     unwrap_angles(nodes)
     return Dataset(parts, slots, groups, nodes, roots, sym_inner, max_count, objective, units)
+
+
+# Passes of preprocess's conversion at most: one per level of symmetries nested in
+# symmetries whose directions vary (a grid of mirrored pairs is two)
+MAX_TURN_PASSES = 6
+
+
+def _turn_references(nodes: list) -> dict:
+    """Per mirror or rotation type that holds another symmetry and whose directions (in
+    the frames its nodes were converted in) vary (:func:`spread_pole`'s test), their mean
+    direction, as three floats: the reference a node turns its child's frame from."""
+    directions = {}
+    for n in nodes:
+        if n.kind in ("refl", "rot") and n.children and n.children[0][1].kind != "part":
+            direction = symmetry_direction(n.sym, DIAGONAL_POLE)
+            directions.setdefault(n.type, []).append(direction)
+    turns = {}
+    for sym_type, found in sorted(directions.items()):
+        found = np.array(found)
+        if spread_pole(found) is None:
+            continue  # one direction (rounding aside): nothing to follow
+        found = found * np.where(found @ found[0] < 0, -1.0, 1.0)[:, None]  # one hemisphere
+        mean = found.mean(axis=0)
+        turns[sym_type] = tuple(float(v) for v in mean / np.linalg.norm(mean))
+    return turns
 
 
 def _spread_poles(nodes: list) -> dict:

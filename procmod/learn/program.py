@@ -65,7 +65,7 @@ from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
 from .transforms import (CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR, SIGMA_FLOOR, SIGMA_MAX,
                          SYM_PARAMS, Units, node_kind,
-                         Frame, sym_maps, xform_matrix)
+                         Frame, sym_maps, symmetry_direction, turned_frame, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
 MAX_DEPTH = 40
@@ -264,8 +264,12 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
     count = ctx.sample("count", Categorical(_softmax(p[f"{a_id}.count"]), labels=tuple(support)))
     if a.type in program.full_rings:  # (rings: the canonical rotation angle is positive)
         values[-1] = 2.0 * math.pi / count
-    maps = sym_maps(a.kind, values, count, frame, program.units.pole(a.type))
+    pole = program.units.pole(a.type)
+    maps = sym_maps(a.kind, values, count, frame, pole)
     new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
+    reference = program.units.sym_turns.get(a.type)
+    if reference is not None:  # the symmetry it holds is measured from its direction (preprocess did so)
+        frame = turned_frame(frame, reference, symmetry_direction(values, pole))
     if ctx.depth < program.max_depth:
         ctx.spawn("c", gen_node, program, a_id, 0, frame, new_copies)
 
@@ -356,7 +360,9 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                   "part_log_scales": {k: [float(v) for v in program.units.part_log_scales[k]]
                                       for k in sorted(program.units.part_log_scales)},
                   **({"sym_poles": {k: [list(map(float, row)) for row in program.units.sym_poles[k]]
-                                    for k in sorted(program.units.sym_poles)}} if program.units.sym_poles else {})},
+                                    for k in sorted(program.units.sym_poles)}} if program.units.sym_poles else {}),
+                  **({"sym_turns": {k: list(map(float, program.units.sym_turns[k]))
+                                    for k in sorted(program.units.sym_turns)}} if program.units.sym_turns else {})},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -554,7 +560,18 @@ def _units_from_json(data) -> Units:
             raise ValueError(f"units.sym_poles[{sym_type!r}] must be a 3x3 rotation (three rows of three numbers), "
                              f"got {shown_value(rows, 60)}")
         poles[sym_type] = tuple(tuple(float(v) for v in row) for row in matrix)
-    return Units(float(extent), logs, conventions, poles)
+    turns = {}
+    given = data.get("sym_turns", {})  # absent: no symmetry turns the frame of the one it holds
+    if not isinstance(given, dict):
+        raise ValueError(f"units.sym_turns must be an object of symmetry type -> direction, got "
+                         f"{shown_value(given, 60)}")
+    for sym_type, direction in given.items():
+        if not isinstance(direction, list) or len(direction) != 3 or not all(_is_real(v) for v in direction) \
+                or not abs(float(np.linalg.norm(direction)) - 1.0) < 1e-6:
+            raise ValueError(f"units.sym_turns[{sym_type!r}] must be a unit direction (three numbers), got "
+                             f"{shown_value(direction, 60)}")
+        turns[sym_type] = tuple(float(v) for v in direction)
+    return Units(float(extent), logs, conventions, poles, turns)
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw

@@ -102,6 +102,10 @@ class Units(NamedTuple):
     # spread over a circle (:func:`spread_pole`), as a 3x3 tuple of rows; other types
     # take :meth:`pole`'s
     sym_poles: dict = {}
+    # per symmetry type whose directions vary and that holds another symmetry (a table's
+    # mirrored pair of leg pairs), the reference direction (three floats) from which a
+    # node of it turns the frame it hands that symmetry (:func:`turned_frame`)
+    sym_turns: dict = {}
 
     def frame_of(self, world, local_lo, local_hi) -> "Frame":
         """:func:`frame_of` with these conventions for flat parts."""
@@ -122,6 +126,33 @@ class Units(NamedTuple):
     def log_scale(self, part: str) -> tuple:
         """The reference log-scale of ``part``'s placements."""
         return self.part_log_scales.get(part, NO_LOG_SCALE)
+
+
+def turned_frame(frame: Frame, reference, direction) -> Frame:
+    """``frame`` turned by the least rotation that takes ``reference`` to ``direction``
+    (unit directions in ``frame``'s coordinates; a direction opposite the reference is
+    taken as its negative, as a mirror's normal is either): what a symmetry node hands the
+    symmetry it holds, so that the inner one's direction is measured from the outer's.
+
+    Seed 000 draws a symmetry's parameters independently of its parent's. A table's four
+    legs are a mirror pair of mirror pairs; turned by hand about the vertical, both
+    mirrors turn together, and independent draws of the two directions sampled pairs of
+    mirrors a degree or two from square, the legs' centre off the top's. Measured in the
+    outer mirror's turned frame, the inner's direction hardly varies."""
+    reference, direction = np.asarray(reference, dtype=np.float64), np.asarray(direction, dtype=np.float64)
+    if float(reference @ direction) < 0:
+        direction = -direction
+    axis = np.cross(reference, direction)
+    sine, cosine = float(np.linalg.norm(axis)), float(reference @ direction)
+    if sine < 1e-12:
+        return frame
+    turn = Rotation.from_rotvec(axis / sine * math.atan2(sine, cosine)).as_matrix()
+    return Frame(frame.rot @ turn, frame.t, frame.extent)
+
+
+def symmetry_direction(sym, pole: np.ndarray) -> np.ndarray:
+    """A mirror's normal or a rotation's axis from its parameters (angles about ``pole``)."""
+    return angles_direction(float(sym[0]), float(sym[1]), pole)
 
 
 def decompose(m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
