@@ -167,13 +167,19 @@ def _model(spec: str, params=(), typed: bool = True):
             raise
     if not params:
         return model
+    return model.configure(**param_settings(model, params))
+
+
+def param_settings(model, params) -> dict:
+    """The ``--param NAME=VALUE`` settings as ``model.configure`` takes them (each value read
+    as JSON, and the way its parameter's default is typed)."""
     settings = {}
     for item in params:
         name, sep, text = item.partition("=")
         if not sep or not name:
             raise InvalidArgumentError(f"--param takes NAME=VALUE, got {_shown(item)}")
         settings[name] = _as_param(_read_param(text), text, model.params.get(name))
-    return model.configure(**settings)
+    return settings
 
 
 _TRUE, _FALSE = ("true", "1"), ("false", "0")  # any case: Python's True, JSON's true

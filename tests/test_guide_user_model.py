@@ -234,6 +234,36 @@ def test_the_code_digest_leaves_out_comments_and_layout_only(before, after, same
     assert (code_text(before.encode()) == code_text(after.encode())) == same
 
 
+def test_traces_drawn_at_a_param_train_a_guide_for_runs_at_it(tmp_path, monkeypatch, capsys):
+    """guide traces took no --param: a guide for 64x64 runs could only be trained on 50x50
+    traces (the size note then advised what the command could not do)."""
+    from procmod.guide import Guide
+    from procmod.infer.smc import smc
+    from procmod.models import get_model
+    from procmod.data import target_from_spec
+
+    monkeypatch.chdir(tmp_path)
+    traces = ["guide", "traces", "vines", "--particles", "4", "--workers", "1", "--out", "tr", "--param", "size=64"]
+    assert main([*traces, "--count", "2"]) == 0, capsys.readouterr().err
+    assert json.loads((tmp_path / "tr" / "traces.json").read_text())["params"] == {"size": 64}
+    assert json.loads((tmp_path / "tr" / "trace_00000.json").read_text())["derivation"]["params"]["size"] == 64
+    assert main([*traces, "--count", "3"]) == 0 and "1 traces made, 2 already there" in capsys.readouterr().out
+    capsys.readouterr()
+    assert main([*traces[:-2], "--count", "3"]) == 2  # at the defaults: another job
+    assert "params {\"size\": 64} there, null now" in capsys.readouterr().err
+    assert main([*traces[:-1], "sizes=64", "--count", "3"]) == 2
+    assert "model 'vines' has no parameter \"sizes\"" in capsys.readouterr().err
+    assert main(["guide", "train", "vines", "--traces", "tr", "--out", "g", "--iterations", "3"]) == 0
+    guide = Guide.load(tmp_path / "g")
+    assert guide.info["trained_on"]["canvases"] == [[64, 64]]
+    vines = get_model("vines")
+    at_64 = smc(vines.configure(size=64), target_from_spec("scribble:3"), particles=3, seed=0, guide=guide)
+    assert not any("trained on" in n for n in at_64.notes)
+    at_50 = smc(vines, target_from_spec("scribble:3"), particles=3, seed=0, guide=guide)
+    (note,) = [n for n in at_50.notes if "trained on" in n]
+    assert "64x64-pixel drawings and this run draws at 50x50" in note and "guide traces this run's --param" in note
+
+
 def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):
     """The .npz is what inference reads without torch; a guide copied without its .pt was
     refused for the .pt. Without a matching .npz the .pt is still required, and named."""

@@ -22,6 +22,9 @@ def register(sub, int_arg) -> None:
     traces.add_argument("--count", type=int_arg, required=True, help="number of traces")
     traces.add_argument("--particles", type=int_arg, default=600, help="SMC particles per trace (default 600)")
     traces.add_argument("--seed", type=int_arg, default=0)
+    traces.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="set a model parameter for every trace (repeatable), e.g. --param size=100: make "
+                             "traces at the values the guide will run at")
     traces.add_argument("--out", required=True, help="traces folder (created; rerun to resume)")
     where = traces.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int_arg, help="local worker processes (default: one per core)")
@@ -63,6 +66,12 @@ def _cmd_traces(args) -> None:
 
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
+    params = {}
+    if args.param:
+        from ..cli import param_settings
+        from ..models import model_from_spec
+
+        params = param_settings(model_from_spec(args.model), args.param)
     if args.scheduler is not None:
         check_scheduler(args.scheduler)
     workers = 0 if args.workers is None and args.scheduler is None else args.workers
@@ -75,7 +84,8 @@ def _cmd_traces(args) -> None:
         with open_executor(workers=workers, scheduler=args.scheduler,
                            note=lambda text: print(f"note: {text}", file=sys.stderr)) as executor:
             summary = generate_traces(args.model, args.targets, args.count, args.out, args.particles,
-                                      args.seed, executor, progress=progress, overwrite=args.overwrite)
+                                      args.seed, executor, progress=progress, overwrite=args.overwrite,
+                                      params=params)
     finally:
         bar.close()
     rate = summary["traces_per_hour"]

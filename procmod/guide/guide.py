@@ -382,8 +382,7 @@ def fit_note(guide: "Guide", output, target, model=None) -> str | None:
         return None
     return (f"guide {guide.source or guide.model_name}: {'; '.join(said)}: it may steer worse than no guide; train "
             "one on traces of this kind (procmod guide traces, then procmod guide train"
-            + ("; the traces are drawn at the model's defaults, so for other --param values give a model file of "
-               "your own those defaults)" if sized else ")"))
+            + (", giving guide traces this run's --param values)" if sized else ")"))
 
 
 def _model_file_changed(job, model) -> bool:

@@ -60,12 +60,13 @@ def job_code(model, model_file: str | None) -> tuple:
 
 
 def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int, index: int,
-                   code: tuple | None = None) -> dict:
+                   code: tuple | None = None, params: dict | None = None) -> dict:
     """Run SMC on one target and keep one final particle, picked by weight.
 
     Module-level and fed plain values, so process pools and dask workers can run it
     (``model_spec``: a built-in model's name, or a model file's absolute ``FILE.py:NAME``,
-    which a worker on another machine finds at the same path). ``code``: the job's
+    which a worker on another machine finds at the same path; ``params``: the job's model
+    parameters, defaults where absent). ``code``: the job's
     :func:`job_code`; a worker that runs other code (another procmod, an edited model file)
     refuses to make the trace: a dask worker of an older checkout had made traces unlike
     the job's, recorded under the job's digest without a word.
@@ -81,6 +82,8 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
         raise GuideError(f"a worker (on {socket.gethostname()}, procmod at {Path(__file__).resolve().parents[1]}) "
                          "runs other code than this traces job: another version of procmod or of the model's "
                          "files; give the workers the same procmod and model files (their PYTHONPATH) and rerun")
+    if params:
+        model = model.configure(**params)
     target = target_from_spec(target_spec)
     result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
     weights = np.asarray(result.log_weights, dtype=np.float64)
@@ -100,9 +103,11 @@ def trace_path(out: Path, index: int) -> Path:
     return out / f"trace_{index:05d}.json"
 
 
-def _job_settings(model, model_file, targets, particles, seed, set_size) -> dict:
+def _job_settings(model, model_file, targets, particles, seed, set_size, params=None) -> dict:
     settings = {"format": JOB_FORMAT, "model": model.name, "targets": targets, "particles": particles,
                 "seed": seed, "set_size": set_size}
+    if params:  # (absent at the model's defaults: a job of before, which had none, is the same job)
+        settings["params"] = {name: params[name] for name in sorted(params)}
     if model_file is not None:  # a model of the user's own file: which file (a job resumes only with it)
         settings["model_file"] = model_file
     settings["model_code"] = model_code_digest(model, model_file)
@@ -291,11 +296,15 @@ MAX_TRACES = 10_000_000  # a job's count: its trace files in one folder, its lis
 
 def generate_traces(model_name: str, targets: str, count: int, out: str | os.PathLike, particles: int = 600,
                     seed: int = 0, executor: concurrent.futures.Executor | None = None,
-                    set_size: int = SCRIBBLE_SET_SIZE, progress=None, overwrite: bool = False) -> dict:
+                    set_size: int = SCRIBBLE_SET_SIZE, progress=None, overwrite: bool = False,
+                    params: dict | None = None) -> dict:
     """Make ``count`` traces in ``out`` (resuming a previous run of the same job).
 
     ``model_name`` is a built-in model's name or a model of the user's own Python file
-    (``FILE.py:NAME``; workers import the file from its absolute path).
+    (``FILE.py:NAME``; workers import the file from its absolute path). ``params``: model
+    parameters every trace is drawn at (``Model.configure``; the defaults where absent),
+    recorded in the job: a guide for runs at another drawing size trains on traces drawn
+    at it.
 
     Everything is checked before the folder is touched: the settings, that the training
     targets fit the model, and ``out`` (see :class:`procmod.core.runfolder.RunFolder`).
@@ -307,6 +316,12 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     from ..parallel import InlineExecutor, procmod_code_digest
 
     model = model_from_spec(model_name)  # fail early on an unknown model or a broken file
+    if params is not None and not isinstance(params, dict):
+        raise InvalidArgumentError(f"{argument('params')} must be a dict of model parameters, got "
+                                   f"{shown_value(params)}")
+    params = dict(params or {})
+    configured = model.configure(**params) if params else model  # (refuses an unknown name or a bad value)
+    params = {name: configured.params[name] for name in params}  # as configure took them (typed, plain)
     model_file = None
     if model_name not in MODELS:
         from ..models.from_file import named_spec
@@ -323,13 +338,13 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                                    f"{MAX_TRACES:,}; seed 004 trains on 10,000); split it into jobs")
     first = target_from_spec(trace_target_spec(targets, seed, 0, set_size))  # validates the target set
     try:
-        empty = first.new_output(first.configure(model))
+        empty = first.new_output(first.configure(configured))
     except ProcmodError as exc:
         raise GuideError(f"{argument('targets')} {targets!r} does not fit model {model_name!r}: {exc}") from None
     check_population("particles", particles, empty)
     out = Path(out)
     folder = RunFolder(out, TRACES_JOB, overwrite)
-    settings = _job_settings(model, model_file, targets, particles, seed, set_size)
+    settings = _job_settings(model, model_file, targets, particles, seed, set_size, params)
     byte_digest = model_code_digests(model, model_file)[1]
     # what the workers must run (before anything is written): the job's model code and procmod's
     code = settings["model_code"], procmod_code_digest()
@@ -376,8 +391,9 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             while queue and len(running) < in_flight:
                 i = queue.pop()
                 spec = trace_target_spec(targets, seed, i, set_size)
+                # (params only when given: a job at the defaults calls as before)
                 running[executor.submit(generate_trace, model_file or model_name, spec, particles, seed, i,
-                                        code)] = i
+                                        code, *((params,) if params else ()))] = i
             finished, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
             for future in finished:
                 index = running.pop(future)
