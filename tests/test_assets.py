@@ -896,3 +896,26 @@ def test_a_urdf_in_a_default_xml_namespace_is_read(tmp_path):
     commented = _fin_robot(tmp_path / "c", "../fin.obj", ' xmlns="http://www.ros.org"')
     commented.write_text(commented.read_text().replace("<robot", '<!-- <robot xmlns="old"> --><robot', 1))
     assert _fin_box(read_assets(commented)) == _fin_box(plain)  # (h76: a regex took the comment's)
+
+
+def test_a_robot_drawn_only_by_collision_geometry_is_read_from_it(tmp_path):
+    """Simulators' URDFs (pybullet's, MuJoCo exports) may have only <collision> elements:
+    refused as holding no visual geometry. Its collision shapes are its parts now; a robot
+    with visuals is read from them alone, as RViz shows it."""
+    path = _write(tmp_path / "r.urdf", """<?xml version="1.0"?>
+<robot name="r"><link name="base"><collision><geometry><box size="0.4 0.2 0.05"/></geometry></collision></link>
+<joint name="j" type="fixed"><parent link="base"/><child link="pole"/><origin xyz="0 0 0.3"/></joint>
+<link name="pole"><collision><geometry><cylinder radius="0.02" length="0.5"/></geometry></collision></link></robot>
+""")
+    s = read_assets(path)
+    (base,) = s.assets[0].roots
+    assert (base.part, [c.name for c in base.children]) == ("base", ["pole"])
+    assert np.allclose(base.children[0].transform[:3, 3], [0, 0, 0.3])
+    path.write_text(path.read_text().replace('<link name="pole">', '<link name="pole"><visual><geometry>'
+                                             '<sphere radius="0.1"/></geometry></visual>'))
+    (pole,) = read_assets(path).assets[0].roots  # visuals present: the collision-only base passes it on
+    assert pole.name == "pole" and read_assets(path).parts[pole.part].kind == "mesh"
+    path.write_text(path.read_text().replace("<collision>", "<!--").replace("</collision>", "-->")
+                    .replace("<visual>", "<!--").replace("</visual>", "-->"))
+    with pytest.raises(AssetError, match="holds no visual or collision geometry"):
+        read_assets(path)

@@ -870,7 +870,8 @@ def _read_urdf(path: Path, geometries: dict) -> list:
     links = {link.name: link for link in robot.links}
     if not links:
         raise AssetError(f"{path} holds no link")
-    if len(links) + sum(len(link.visuals) for link in robot.links) > MAX_NODES:
+    if len(links) + max(sum(len(link.visuals) for link in robot.links),
+                        sum(len(link.collisions) for link in robot.links)) > MAX_NODES:
         raise AssetError(f"{path} has more than {MAX_NODES} links and visuals, more than procmod reads")
     parent_joint, kids = {}, {name: [] for name in links}
     for j in robot.joints:
@@ -891,9 +892,9 @@ def _read_urdf(path: Path, geometries: dict) -> list:
             seen.add(k)
     faces_read = [0]
 
-    def geometry_of(visual, link: str, k: int):
+    def geometry_of(visual, link: str, k: int, kind: str = "visual"):
         g = visual.geometry
-        where = f"{path}: link {link!r} visual {k}"
+        where = f"{path}: link {link!r} {kind} {k}"
         if g is None:
             return None, np.eye(4)
         if g.box is not None:
@@ -939,16 +940,16 @@ def _read_urdf(path: Path, geometries: dict) -> list:
             return key, np.diag([*scale, 1.0])
         return None, np.eye(4)
 
-    def build(link_name: str, world: np.ndarray) -> list:
+    def build(link_name: str, world: np.ndarray, kind: str) -> list:
         link = links[link_name]
         below = []
         for child in kids[link_name]:
             j = parent_joint[child]
             origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
-            below += build(child, world @ origin)
+            below += build(child, world @ origin, kind)
         nodes = []
-        for k, visual in enumerate(link.visuals):
-            key, scale = geometry_of(visual, link_name, k)
+        for k, visual in enumerate(link.visuals if kind == "visual" else link.collisions):
+            key, scale = geometry_of(visual, link_name, k, kind)
             if key is None:
                 continue
             origin = np.eye(4) if visual.origin is None else np.asarray(visual.origin, dtype=np.float64)
@@ -961,9 +962,13 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         nodes[0].children = nodes[1:] + below
         return [nodes[0]]
 
-    forest = [n for root in links if root not in parent_joint for n in build(root, np.eye(4))]
+    forest = [n for root in links if root not in parent_joint for n in build(root, np.eye(4), "visual")]
     if not forest:
-        raise AssetError(f"{path} holds no visual geometry (nothing to use as a part)")
+        # a robot drawn only by its collision geometry (simulators' URDFs: pybullet's, MuJoCo
+        # exports): its collision shapes are its parts, as a simulator's view shows them
+        forest = [n for root in links if root not in parent_joint for n in build(root, np.eye(4), "collision")]
+    if not forest:
+        raise AssetError(f"{path} holds no visual or collision geometry (nothing to use as a part)")
     return forest
 
 
