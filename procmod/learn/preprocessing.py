@@ -374,13 +374,15 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     def convert_unit(unit: Unit, frame: Frame, example: int) -> PNode:
         if unit.kind == "node":
             return convert_part(by_node[id(unit.node)], frame, example)
-        pnode = add(PNode(0, unit.kind, unit.type, example, sym=sym_params(unit.kind, unit.g, frame),
+        measured = frame.for_symmetry()  # (turned by a symmetry holding it)
+        pnode = add(PNode(0, unit.kind, unit.type, example, sym=sym_params(unit.kind, unit.g, measured),
                           count=len(unit.members)))
         sym_inner[unit.type] = unit.members[0].type
         max_count[unit.type] = max(max_count.get(unit.type, 0), len(unit.members))
-        inner = frame
+        inner = frame._replace(measure=None)
         if unit.type in turns:
-            inner = turned_frame(frame, turns[unit.type], symmetry_direction(pnode.sym, DIAGONAL_POLE))
+            inner = frame._replace(measure=turned_frame(measured, turns[unit.type],
+                                                        symmetry_direction(pnode.sym, DIAGONAL_POLE)))
         child = convert_unit(unit.members[0], inner, example)
         child.parent, child.parent_slot = pnode.id, 0
         pnode.children = [(0, child)]
@@ -388,17 +390,34 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         return pnode
 
     world_extent = set_size(example_set)
-    # a symmetry holding another measures the inner one's parameters in its own turned
-    # frame (transforms.turned_frame) where its directions vary; the outer types' reference
-    # directions decide the inner types' frames, so they are found outside in, one level
-    # of nesting a pass
-    for _ in range(MAX_TURN_PASSES):
+
+    def convert_all(with_turns: dict) -> list:
         nodes.clear()
-        roots = [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
+        turns.clear()
+        turns.update(with_turns)
+        return [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
+
+    # a symmetry holding another has it measure its parameters in a frame turned from the
+    # outer's reference direction to its own (transforms.turned_frame), where its
+    # directions vary and the inner's follow them: the inner's directions then spread
+    # less. Where they vary apart (placement noise in both) they spread more that way, and
+    # independent draws of the two then added up (h77: posts at a box's corners, three
+    # mirrors deep, leaned twice as far), so a turn is kept only where it narrows the
+    # held symmetry's spread. Outer types' turns decide inner types' frames: outside in
+    accepted, refused = {}, set()
+    roots = convert_all(accepted)
+    for _ in range(MAX_TURN_PASSES):
         found = _turn_references(nodes)
-        if found == turns:
+        trial = {t: r for t, r in found.items() if t not in refused}
+        if trial == accepted:
             break
-        turns = found
+        for sym_type in sorted(set(trial) - set(accepted)):
+            before = _held_spread(nodes, sym_type)
+            convert_all({**{t: trial[t] for t in accepted if t in trial}, sym_type: trial[sym_type]})
+            if not _held_spread(nodes, sym_type) < before:
+                refused.add(sym_type)
+        accepted = {t: r for t, r in trial.items() if t not in refused}
+        roots = convert_all(accepted)
     units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes), turns)
     for n in nodes:
         if n.kind == "part":
@@ -413,6 +432,24 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
 # Passes of preprocess's conversion at most: one per level of symmetries nested in
 # symmetries whose directions vary (a grid of mirrored pairs is two)
 MAX_TURN_PASSES = 6
+
+
+def _held_spread(nodes: list, sym_type: str) -> float:
+    """How far the directions of the symmetries that ``sym_type``'s nodes hold spread (one
+    less the largest eigenvalue of their mean outer product: 0 when they all agree, up to
+    sign): mirror normals and rotation axes, and translations' steps."""
+    found = []
+    for n in nodes:
+        if n.type == sym_type and n.children:
+            held = n.children[0][1]
+            if held.kind in ("refl", "rot"):
+                found.append(symmetry_direction(held.sym, DIAGONAL_POLE))
+            elif held.kind == "trans" and np.linalg.norm(held.sym[:3]) > 0:
+                found.append(np.asarray(held.sym[:3], dtype=np.float64) / np.linalg.norm(held.sym[:3]))
+    if len(found) < 2:
+        return 0.0
+    found = np.array(found)
+    return float(1.0 - np.linalg.eigvalsh(found.T @ found / len(found))[-1])
 
 
 def _turn_references(nodes: list) -> dict:

@@ -265,11 +265,14 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
     if a.type in program.full_rings:  # (rings: the canonical rotation angle is positive)
         values[-1] = 2.0 * math.pi / count
     pole = program.units.pole(a.type)
-    maps = sym_maps(a.kind, values, count, frame, pole)
+    measured = frame.for_symmetry()  # its parameters' frame (turned by a symmetry holding it)
+    maps = sym_maps(a.kind, values, count, measured, pole)
     new_copies = tuple(as_transform(np.asarray(g).reshape(4, 4) @ m) for g in copies for m in maps)
     reference = program.units.sym_turns.get(a.type)
-    if reference is not None:  # the symmetry it holds is measured from its direction (preprocess did so)
-        frame = turned_frame(frame, reference, symmetry_direction(values, pole))
+    if reference is not None:  # a symmetry it holds is measured from its direction (preprocess did so)
+        frame = frame._replace(measure=turned_frame(measured, reference, symmetry_direction(values, pole)))
+    elif frame.measure is not None:
+        frame = frame._replace(measure=None)
     if ctx.depth < program.max_depth:
         ctx.spawn("c", gen_node, program, a_id, 0, frame, new_copies)
 

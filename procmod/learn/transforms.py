@@ -63,11 +63,18 @@ SIGMA_MAX = (0.5, math.pi / 2, 1.0)
 
 
 class Frame(NamedTuple):
-    """A part node's frame: proper rotation, translation, bounding-box extents."""
+    """A part node's frame: proper rotation, translation, bounding-box extents; and, handed
+    to a symmetry by the symmetry holding it, the frame its parameters are measured in
+    (``measure``: that frame turned, :func:`turned_frame`; None: this frame)."""
 
     rot: np.ndarray
     t: np.ndarray
     extent: np.ndarray
+    measure: "Frame | None" = None
+
+    def for_symmetry(self) -> "Frame":
+        """The frame a symmetry node handed this frame measures its parameters in."""
+        return self if self.measure is None else self.measure
 
     def matrix(self) -> np.ndarray:
         m = np.eye(4)
@@ -131,14 +138,16 @@ class Units(NamedTuple):
 def turned_frame(frame: Frame, reference, direction) -> Frame:
     """``frame`` turned by the least rotation that takes ``reference`` to ``direction``
     (unit directions in ``frame``'s coordinates; a direction opposite the reference is
-    taken as its negative, as a mirror's normal is either): what a symmetry node hands the
-    symmetry it holds, so that the inner one's direction is measured from the outer's.
+    taken as its negative, as a mirror's normal is either): the frame a symmetry node has
+    the symmetry it holds measure its parameters in (``Frame.measure``), so that the inner
+    one's direction is measured from the outer's.
 
     Seed 000 draws a symmetry's parameters independently of its parent's. A table's four
     legs are a mirror pair of mirror pairs; turned by hand about the vertical, both
     mirrors turn together, and independent draws of the two directions sampled pairs of
     mirrors a degree or two from square, the legs' centre off the top's. Measured in the
-    outer mirror's turned frame, the inner's direction hardly varies."""
+    outer mirror's turned frame, the inner's direction hardly varies. (Only the held
+    symmetry's parameters: the parts below keep their part ancestor's frame.)"""
     reference, direction = np.asarray(reference, dtype=np.float64), np.asarray(direction, dtype=np.float64)
     if float(reference @ direction) < 0:
         direction = -direction
