@@ -20,7 +20,8 @@ node, a node without one (an empty, a bone) passes its children to its nearest a
 with a mesh (world transforms lose nothing). A mesh with several primitives (one per
 material) is one part. URDF: the link tree of the joints, at the zero configuration
 (every joint at 0); a link's first visual is its node, further visuals are children of
-it, and a link without visuals passes its children on like an empty. Cylinders and
+it, and a link without visuals passes its children on like an empty (a robot with no
+visual at all is read from its collision elements the same way). Cylinders and
 spheres become meshes (32 sections; an icosphere of 320 faces), boxes stay boxes; a
 shape of size zero (a marker some robots carry) is no part.
 
