@@ -130,18 +130,6 @@ def test_a_mesh_placed_at_two_scales_is_two_parts(tmp_path):
     assert all(np.allclose(t[:3, :3] @ t[:3, :3].T, np.eye(3), atol=1e-9) for t in ss.shapes[1].transforms)
 
 
-def test_a_mesh_placed_by_eye_at_scales_a_few_thousandths_apart_is_one_part(tmp_path):
-    """Rails scaled 1.003 (2-3 mm on a metre-long part) had become a part type of their own,
-    where two meshes that close are one part (GEOMETRY_TOLERANCE, 0.5%): augment then grew
-    nothing new (h69). 1% apart they stay two."""
-    fence_file(tmp_path / "a.gltf", fence(RING, 0.3, (0, 0, 0)))
-    fence_file(tmp_path / "b.gltf", fence(RING, 0.3, (0, 0, 0)), scale_rails=1.003)
-    ss = shapes_from_assets([tmp_path / "a.gltf", tmp_path / "b.gltf"])
-    assert sorted(ss.library) == ["post", "rail"]
-    fence_file(tmp_path / "c.gltf", fence(RING, 0.3, (0, 0, 0)), scale_rails=1.01)
-    assert sorted(shapes_from_assets([tmp_path / "a.gltf", tmp_path / "c.gltf"]).library) == ["post", "rail", "rail_2"]
-
-
 def test_a_shapes_files_scaled_placements_are_made_rigid_as_assets_are(tmp_path, capsys):
     """A shapes file of unit parts scaled per placement (a fence of unit boxes; a prism
     mesh at two heights) is read as asset inputs are: the scale goes into the part, one

@@ -42,7 +42,7 @@ from ..geometry.assets import (GEOMETRY_TOLERANCE, Y_UP_TO_Z_UP, AssetError, ass
 from ..geometry.part_library import PartShape
 from .shapes import Shape, ShapeSet, ShapesFormatError, read_shapes, type_letters
 
-SCALE_TOLERANCE = 1e-5  # a placement is rigid when its linear map is a rotation within this
+SCALE_TOLERANCE = 1e-5  # two placements' scales agree within this fraction of the larger
 
 
 def _rotation_and_scale(linear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -98,15 +98,12 @@ def _unmirrored(shape: PartShape, s: np.ndarray, tolerance: float) -> tuple[np.n
     return s_pos, t
 
 
-def _scale_index(known: list, s: np.ndarray, tolerance: float) -> int:
-    """The position in ``known`` of the first scale that ``s`` agrees with, ``s`` appended
-    when none does. Two scales agree when they move the part's points apart by at most
-    ``tolerance`` (the tolerance parts are told apart by, a fraction of their size):
-    entries within ``tolerance`` times the known scale's largest. Legs placed by eye at
-    scales 0.1-0.5% apart (2-3 mm) had become a part type each, agreeing only within
-    1e-5, where two meshes that far apart are one part; augment then grew nothing new."""
+def _scale_index(known: list, s: np.ndarray) -> int:
+    """The position in ``known`` of the first scale that ``s`` agrees with (entries within
+    :data:`SCALE_TOLERANCE` times the known scale's largest entry, or 1), ``s`` appended
+    when none does."""
     for i, k in enumerate(known):
-        if np.abs(s - k).max() <= tolerance * float(np.abs(k).max()):
+        if np.abs(s - k).max() <= SCALE_TOLERANCE * max(float(np.abs(k).max()), 1.0):
             return i
     known.append(s)
     return len(known) - 1
@@ -138,7 +135,7 @@ def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -
                 if unmirrored[key] is not None:
                     s, turn = unmirrored[key]
                     rigid = rigid @ turn
-            rows.append((part, rigid, _scale_index(scales.setdefault(part, []), s, tolerance)))
+            rows.append((part, rigid, _scale_index(scales.setdefault(part, []), s)))
         rows_of.append(rows)
     names_taken = set(parts)
     library: dict[str, PartShape] = {}
@@ -147,7 +144,7 @@ def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -
         for k, s in enumerate(known):
             name = unused_name(part, names_taken) if k else part  # part is taken: part_2, part_3, ...
             shape = parts[part]
-            unit = np.abs(s - np.eye(3)).max() <= SCALE_TOLERANCE  # (else the first scale of its cluster)
+            unit = np.abs(s - np.eye(3)).max() <= SCALE_TOLERANCE
             library[name] = shape._replace(name=name) if unit else _scaled_part(shape, name, s)
             renamed[(part, k)] = name
     # the project's one rule for file names from untrusted names: plain ones kept, others
