@@ -290,7 +290,7 @@ def urdf_edit(tmp_path, links=None, joints=None):
      "does not exist"),
     (lambda p: urdf_edit(p, links={**ROBOT_LINKS, "leg_r": ['<geometry><mesh filename="meshes/missing.obj"/></geometry>']}),
      "does not exist"),
-    (lambda p: urdf_edit(p, links={"a": []}, joints=[]), "no visual geometry"),
+    (lambda p: urdf_edit(p, links={"a": []}, joints=[]), "holds no visual or collision geometry"),
     (lambda p: urdf_edit(p, links={**ROBOT_LINKS, "hip_l": ['<geometry><box size="0.1 -1 0.3"/></geometry>']}),
      "box size"),
 ])
@@ -898,7 +898,7 @@ def test_a_urdf_in_a_default_xml_namespace_is_read(tmp_path):
     assert _fin_box(read_assets(commented)) == _fin_box(plain)  # (h76: a regex took the comment's)
 
 
-def test_a_robot_drawn_only_by_collision_geometry_is_read_from_it(tmp_path):
+def test_a_robot_drawn_only_by_collision_geometry_is_read_from_it(tmp_path, monkeypatch):
     """Simulators' URDFs (pybullet's, MuJoCo exports) may have only <collision> elements:
     refused as holding no visual geometry. Its collision shapes are its parts now; a robot
     with visuals is read from them alone, as RViz shows it."""
@@ -918,4 +918,15 @@ def test_a_robot_drawn_only_by_collision_geometry_is_read_from_it(tmp_path):
     path.write_text(path.read_text().replace("<collision>", "<!--").replace("</collision>", "-->")
                     .replace("<visual>", "<!--").replace("</visual>", "-->"))
     with pytest.raises(AssetError, match="holds no visual or collision geometry"):
+        read_assets(path)
+    # collision elements count against the node limit only when they are read (h78: a robot
+    # of 2 visuals and a convex decomposition of 10,000 boxes had been refused)
+    monkeypatch.setattr(assets, "MAX_NODES", 6)
+    boxes = "".join('<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>' for _ in range(8))
+    path.write_text(f"""<?xml version="1.0"?>
+<robot name="r"><link name="base"><visual><geometry><box size="0.4 0.2 0.05"/></geometry></visual>{boxes}</link></robot>
+""")
+    assert [n.name for n in read_assets(path).assets[0].nodes()] == ["base"]
+    path.write_text(path.read_text().replace('<visual><geometry><box size="0.4 0.2 0.05"/></geometry></visual>', ""))
+    with pytest.raises(AssetError, match="no visual geometry and more than 6 links and collision elements"):
         read_assets(path)

@@ -261,7 +261,15 @@ def test_traces_drawn_at_a_param_train_a_guide_for_runs_at_it(tmp_path, monkeypa
     assert not any("trained on" in n for n in at_64.notes)
     at_50 = smc(vines, target_from_spec("scribble:3"), particles=3, seed=0, guide=guide)
     (note,) = [n for n in at_50.notes if "trained on" in n]
-    assert "64x64-pixel drawings and this run draws at 50x50" in note and "guide traces this run's --param" in note
+    assert "64x64-pixel drawings and this run draws at 50x50" in note and "guide traces takes --param, none" in note
+    # a default given is the default job (h78: refused as another); a picture's start cannot be given
+    assert main(["guide", "traces", "vines", "--particles", "4", "--workers", "1", "--out", "tr0", "--count", "1"]) == 0
+    capsys.readouterr()
+    assert main(["guide", "traces", "vines", "--particles", "4", "--workers", "1", "--out", "tr0", "--count", "1",
+                 "--param", "size=50"]) == 0, capsys.readouterr().err
+    assert "0 traces made, 1 already there" in capsys.readouterr().out
+    assert main([*traces[:-1], "start=0.5,0.9", "--count", "3"]) == 2
+    assert "--param start: each training scribble places the model" in capsys.readouterr().err
 
 
 def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):

@@ -871,8 +871,7 @@ def _read_urdf(path: Path, geometries: dict) -> list:
     links = {link.name: link for link in robot.links}
     if not links:
         raise AssetError(f"{path} holds no link")
-    if len(links) + max(sum(len(link.visuals) for link in robot.links),
-                        sum(len(link.collisions) for link in robot.links)) > MAX_NODES:
+    if len(links) + sum(len(link.visuals) for link in robot.links) > MAX_NODES:
         raise AssetError(f"{path} has more than {MAX_NODES} links and visuals, more than procmod reads")
     parent_joint, kids = {}, {name: [] for name in links}
     for j in robot.joints:
@@ -967,6 +966,9 @@ def _read_urdf(path: Path, geometries: dict) -> list:
     if not forest:
         # a robot drawn only by its collision geometry (simulators' URDFs: pybullet's, MuJoCo
         # exports): its collision shapes are its parts, as a simulator's view shows them
+        if len(links) + sum(len(link.collisions) for link in robot.links) > MAX_NODES:
+            raise AssetError(f"{path} has no visual geometry and more than {MAX_NODES} links and collision "
+                             "elements, more than procmod reads")
         forest = [n for root in links if root not in parent_joint for n in build(root, np.eye(4), "collision")]
     if not forest:
         raise AssetError(f"{path} holds no visual or collision geometry (nothing to use as a part)")

@@ -382,7 +382,8 @@ def fit_note(guide: "Guide", output, target, model=None) -> str | None:
         return None
     return (f"guide {guide.source or guide.model_name}: {'; '.join(said)}: it may steer worse than no guide; train "
             "one on traces of this kind (procmod guide traces, then procmod guide train"
-            + (", giving guide traces this run's --param values)" if sized else ")"))
+            + (" at this run's parameter values: guide traces takes --param, none for the defaults)" if sized
+               else ")"))
 
 
 def _model_file_changed(job, model) -> bool:

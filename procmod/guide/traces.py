@@ -321,7 +321,16 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                                    f"{shown_value(params)}")
     params = dict(params or {})
     configured = model.configure(**params) if params else model  # (refuses an unknown name or a bad value)
-    params = {name: configured.params[name] for name in params}  # as configure took them (typed, plain)
+    # as configure took them (typed, plain), the defaults left out: a default given is the default job
+    params = {name: configured.params[name] for name in params if configured.params[name] != model.params[name]}
+    from ..core.model import picture_placed
+    placed = sorted(set(params) & set(picture_placed(model.params))) if targets == "scribble" else []
+    if placed:
+        # (h78: recorded, and every trace drawn at its scribble's own start, without a word)
+        raise InvalidArgumentError(f"{argument('params')} {', '.join(placed)}: each training scribble places the "
+                                   "model (where its drawing starts and heads), so traces cannot be drawn at a "
+                                   "given one; leave it out (runs with a start of their own use the guide all the "
+                                   "same)")
     model_file = None
     if model_name not in MODELS:
         from ..models.from_file import named_spec
