@@ -128,15 +128,19 @@ def group_unit(kind: str, members: list, g: np.ndarray, tol: float = SYMMETRY_TO
 
 
 # Two mirrors of a mirrored mirror pair this far from square are not taken as square
-# (:func:`_share_inner_mirror`): what a hand places a few millimetres off in a metre.
+# (:func:`_share_inner_mirror`): what a hand places a few millimetres off in a metre; and
+# beyond the second angle they are at an angle by design, the inner mirror left as fitted.
 SQUARE_ANGLE = math.radians(1.0)
+SKEW_ANGLE = math.radians(5.0)
 
 
 def _share_inner_mirror(members: list, g: np.ndarray, tol: float) -> None:
     """For a mirrored mirror pair (a table's four legs: ``members`` two mirror pairs, ``g``
     a mirror about square to theirs), refit member 0's mirror, which the program samples
-    for both pairs, square to ``g`` and through the centre of all four members: the group's
-    centre lies on both mirrors.
+    for both pairs, through the centre of all four members, which lies on both mirrors
+    when they are square: its normal as fitted where snapping left it over
+    :data:`SQUARE_ANGLE` from square to ``g`` and the fit is squarer, and nothing changed
+    where it is then over :data:`SKEW_ANGLE` from square.
 
     Fitted to member 0's pair alone, it went through that pair's midpoint, and snapped to
     the parent's axes (:func:`_snap_direction`) where ``g`` was not. Thirty tables whose
@@ -159,7 +163,7 @@ def _share_inner_mirror(members: list, g: np.ndarray, tol: float) -> None:
         fitted = _mirror_normal(inner.unsnapped)  # snapped where g was not: as fitted, if squarer
         if abs(float(fitted @ outer)) < abs(float(n @ outer)):
             n = fitted if float(fitted @ n0) >= 0 else -fitted
-    if abs(float(n @ outer)) > math.sin(5 * SQUARE_ANGLE):
+    if abs(float(n @ outer)) > math.sin(SKEW_ANGLE):
         # mirrors at an angle by design: the group's centre lies on the outer one only, and
         # moving the inner through it moved every sampled table's legs 3 cm (h76, 7 degrees)
         return
