@@ -346,7 +346,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         groups[parent_type] = _slot_groups(parent_type, parents, slot_types, offsets, parts) if slot_types else []
 
     nodes, sym_inner, max_count = [], {}, {}
-    turns = {}  # symmetry type -> the reference direction its nodes turn their child's frame from
+    turns = {}  # symmetry type -> the reference direction its nodes turn the held symmetry's frame from
 
     def add(pnode: PNode) -> PNode:
         pnode.id = len(nodes)
@@ -455,7 +455,7 @@ def _held_spread(nodes: list, sym_type: str) -> float:
 def _turn_references(nodes: list) -> dict:
     """Per mirror or rotation type that holds another symmetry and whose directions (in
     the frames its nodes were converted in) vary (:func:`spread_pole`'s test), their mean
-    direction, as three floats: the reference a node turns its child's frame from."""
+    direction, as three floats: the reference a node turns the held symmetry's frame from."""
     directions = {}
     for n in nodes:
         if n.kind in ("refl", "rot") and n.children and n.children[0][1].kind != "part":
@@ -468,6 +468,8 @@ def _turn_references(nodes: list) -> dict:
             continue  # one direction (rounding aside): nothing to follow
         found = found * np.where(found @ found[0] < 0, -1.0, 1.0)[:, None]  # one hemisphere
         mean = found.mean(axis=0)
+        if np.linalg.norm(mean) < 1e-6:
+            continue  # spread all round: no direction to turn from
         turns[sym_type] = tuple(float(v) for v in mean / np.linalg.norm(mean))
     return turns
 
