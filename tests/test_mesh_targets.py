@@ -847,7 +847,12 @@ def test_a_terrain_read_as_a_volume_gets_a_note_and_a_closed_mesh_none(tmp_path,
     _write_obj(tmp_path / "terrain.obj", vertices, faces)
     box = _box(*BOX)
     _write_obj(tmp_path / "box.obj", box.vertices, box.faces)
-    for name, noted in (("terrain", True), ("box", False)):
+    # a closed box over a ground plane: the plane changes no voxel, so the inside is the box's
+    # and no guess (h79: "mostly an open sheet ... close it", of the plane)
+    ground = np.array([[-30, -2, -30], [30, -2, -30], [30, -2, 30], [-30, -2, 30]], dtype=float)
+    _write_obj(tmp_path / "grounded.obj", np.concatenate([box.vertices, ground]),
+               np.concatenate([box.faces, np.array([[0, 2, 1], [0, 3, 2]]) + len(box.vertices)]))
+    for name, noted in (("terrain", True), ("box", False), ("grounded", False)):
         (tmp_path / f"{name}.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": 0.25,
                                                            "layers": [{"file": f"{name}.obj", "w_fill": 1}]}))
         code = main(["infer", "spaceship", "--target", str(tmp_path / f"{name}.json"), "--engine", "smc",
@@ -1400,3 +1405,45 @@ def test_leaf_cards_around_a_closed_trunk_are_left_out_of_the_volume(tmp_path, c
                                                     "layers": [{"file": "room.obj", "w_fill": 1}]}))
     target = load_volume_target(tmp_path / "room.json")
     assert (target.combined > 0).sum() == 8000 + 27 and not target.file_notes
+
+
+def _silhouette_of_picture(tmp_path, name: str, picture) -> Path:
+    picture.save(tmp_path / f"{name}.png")
+    camera = {"eye": [0, 0, 10], "look_at": [0, 0, 0], "projection": "orthographic", "fov": 4}
+    path = tmp_path / f"{name}.json"
+    path.write_text(json.dumps({"format": "procmod-silhouette/1", "views": [{"image": f"{name}.png",
+                                                                             "camera": camera}]}))
+    return path
+
+
+def test_a_light_cut_out_is_read_from_its_alpha_channel_and_a_shaded_photo_gets_a_note(tmp_path):
+    """h79: a light-grey object on a transparent ground (a product cut-out), or a mask drawn
+    only in the alpha channel of a white picture, was refused as having no dark pixel; a
+    photo shaded from grey 170 to 40 had its lit half read as "either" without a word."""
+    from PIL import Image
+
+    from procmod.targets.files import load_target_file
+
+    inside = np.zeros((60, 80), dtype=bool)
+    inside[15:45, 20:60] = True
+    rgba = np.zeros((60, 80, 4), dtype=np.uint8)
+    rgba[..., :3], rgba[..., 3] = 210, np.where(inside, 255, 0)
+    for name, picture in (("cutout", Image.fromarray(rgba, "RGBA")),
+                          ("alpha_mask", Image.fromarray(np.dstack([np.full((60, 80, 3), 255, np.uint8),
+                                                                    np.where(inside, 255, 0).astype(np.uint8)]),
+                                                         "RGBA"))):
+        target = load_target_file(_silhouette_of_picture(tmp_path, name, picture))
+        weights = target.weights[0]
+        assert ((weights > 0) == inside).all(), name
+        assert any("read from the picture's alpha channel" in n for n in target.file_notes)
+    shaded = np.full((60, 80), 255, dtype=np.uint8)
+    shaded[15:45, 20:60] = np.linspace(170, 40, 30).astype(np.uint8)[:, None]  # lit from above
+    target = load_target_file(_silhouette_of_picture(tmp_path, "shaded", Image.fromarray(shaded, "L")))
+    assert any("of the shape's pixels are mid-grey" in n for n in target.file_notes), target.file_notes
+    # a black shape with smoothed edges, thin or not, is no shaded photo
+    for width in (3, 30):
+        drawn = np.full((60, 80), 255, dtype=np.uint8)
+        drawn[15:15 + width, 20:60] = 0
+        drawn[14, 20:60] = drawn[15 + width, 20:60] = 128  # a smoothed edge each side
+        target = load_target_file(_silhouette_of_picture(tmp_path, f"drawn{width}", Image.fromarray(drawn, "L")))
+        assert target.file_notes == [], (width, target.file_notes)

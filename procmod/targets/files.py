@@ -253,7 +253,7 @@ def check_grid(grid: VoxelGrid, where: str, advice: str) -> None:
 # Said when a mesh's grid is too large or the mesh too small for its voxels: most often
 # the mesh is in other units than the model (a Maya file in centimetres is 100x too large).
 OTHER_UNITS = ("if the mesh was made in other units than the model (Maya writes centimetres), give "
-               "\"mesh_scale\" first (0.01 for centimetres to metres, 0.001 for millimetres)")
+               "\"mesh_scale\" first (0.01 for centimetres to metres, 0.001 for millimetres, 0.0254 for inches)")
 
 
 def span_text(lo, hi) -> str:
@@ -386,7 +386,9 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None
         if whole is not None:
             changed = np.argwhere(solid != whole)
             if len(changed) == 0:
-                mask = whole
+                # they change nothing: the inside is the rest's (a ground plane under a closed
+                # ship had been called "mostly an open sheet", its inside "a guess")
+                mask, used = whole, faces[~flat]
             else:
                 probes = changed[np.random.default_rng(0).permutation(len(changed))[:ENCLOSING_PROBES]]
                 points = np.asarray(grid.origin, dtype=np.float64) + grid.size * (probes + 0.5)
@@ -769,6 +771,27 @@ def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
     return out.image(0)
 
 
+# A silhouette picture whose mid-grey pixels joined to its dark ones are at least this
+# share of the two gets a note: its shape is partly "either" (a shaded photo's lit side).
+GREY_BAND = 0.25
+
+
+def _grey_band_share(grey: np.ndarray) -> float | None:
+    """The share of mid-grey pixels among the shape's (the dark pixels and the mid-grey ones
+    joined to them), when it is at least :data:`GREY_BAND`; else None. A product photo
+    shaded from grey 170 to 40 had its upper half read as "either", and the run fitted
+    its lower half alone, no better than forward samples, without a word."""
+    from scipy import ndimage
+
+    dark = grey < HIT_BELOW
+    parts, _ = ndimage.label(grey <= AVOID_ABOVE)
+    joined = np.isin(parts, np.unique(parts[dark])) & (parts > 0)
+    # beyond two pixels of the dark ones: a drawing's smoothed edges are no band
+    band = int((joined & ~ndimage.binary_dilation(dark, iterations=2)).sum())
+    share = band / max(int(joined.sum()), 1)
+    return share if share >= GREY_BAND else None
+
+
 def _transparent_as_white(picture, grey: np.ndarray) -> np.ndarray:
     """``grey`` with a picture's transparent pixels white (to avoid), as the picture shows
     on a page: a shape exported as a transparent PNG (drawn in its alpha channel, its
@@ -899,7 +922,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
                                                                   "mesh": "mesh"}[kind])
         parsed.append((at, kind, file, camera, hit, avoid))
     _placement_needs_meshes(spec, where, any(entry[1] == "mesh" for entry in parsed), "view")
-    out = []
+    out, notes = [], []
     for at, kind, file, camera, hit, avoid in parsed:
         if kind == "weights":
             weights = _load_weights(file, f"{at}.weights")
@@ -907,7 +930,22 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             picture = open_image(file, f"{at}.image")
             grey = _transparent_as_white(picture, grey_levels(picture))
             weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
-            if hit > 0 and not (grey < HIT_BELOW).any():  # a pencil sketch on grey paper
+            opaque = opaque_part(picture)
+            if hit > 0 and not (grey < HIT_BELOW).any() and opaque is not None and opaque.any() \
+                    and not opaque.all():
+                # a light cut-out on a transparent ground, or a mask drawn in the alpha channel
+                # of a white picture: the file says where the shape is (it had been refused)
+                weights = np.where(opaque, hit, avoid)
+                notes.append(f"{at}.image: no pixel is dark enough to hit, so the shape is read from the picture's "
+                             "alpha channel (its opaque pixels to hit, the transparent ones to avoid)")
+            elif hit > 0:
+                band = _grey_band_share(grey)
+                if band is not None:
+                    notes.append(f"{at}.image: {100 * band:.0f}% of the shape's pixels are mid-grey (between "
+                                 f"{HIT_BELOW} and {AVOID_ABOVE} of 255), which counts as neither to hit nor to avoid: "
+                                 "if they are a shaded photo's lit side, make the whole shape dark (black to hit); "
+                                 "if \"either\" is meant there, nothing to do")
+            if hit > 0 and not (weights > 0).any():  # a pencil sketch on grey paper
                 raise TargetFileError(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255; the "
                                       f"darkest is {int(grey.min())}): darken the shape (black to hit, white to avoid, "
                                       "grey between: either), or give the view's weights as an .npy (\"weights\")")
@@ -926,6 +964,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         out.append((weights, camera))
     name = path.parent.name if path.name == "target.json" else path.stem
     target = Silhouette(out, name=name)
+    target.file_notes = notes  # said with the placement advice (targets.placement)
     target.placed_by = ("meshes", *placement[:2])
     target.view_kinds = [entry[1] for entry in parsed]  # "mesh", "image" or "weights": for the notes' advice
     return target
