@@ -1440,6 +1440,11 @@ def test_a_light_cut_out_is_read_from_its_alpha_channel_and_a_shaded_photo_gets_
     shaded[15:45, 20:60] = np.linspace(170, 40, 30).astype(np.uint8)[:, None]  # lit from above
     target = load_target_file(_silhouette_of_picture(tmp_path, "shaded", Image.fromarray(shaded, "L")))
     assert any("of the shape's pixels are mid-grey" in n for n in target.file_notes), target.file_notes
+    # one grey painted on is "either" meant (scenes/city_skyline's ground)
+    painted = np.full((60, 80), 255, dtype=np.uint8)
+    painted[15:30, 20:60], painted[30:45, 20:60] = 0, 128
+    target = load_target_file(_silhouette_of_picture(tmp_path, "painted", Image.fromarray(painted, "L")))
+    assert target.file_notes == []
     # a black shape with smoothed edges, thin or not, is no shaded photo
     for width in (3, 30):
         drawn = np.full((60, 80), 255, dtype=np.uint8)
@@ -1447,3 +1452,28 @@ def test_a_light_cut_out_is_read_from_its_alpha_channel_and_a_shaded_photo_gets_
         drawn[14, 20:60] = drawn[15 + width, 20:60] = 128  # a smoothed edge each side
         target = load_target_file(_silhouette_of_picture(tmp_path, f"drawn{width}", Image.fromarray(drawn, "L")))
         assert target.file_notes == [], (width, target.file_notes)
+
+
+def test_a_floor_exported_with_the_model_is_named(tmp_path):
+    """h79: a solid slab under a ship was 92% of the volume to fill, and a ground plane
+    filled a silhouette view (the note blamed the mesh's units), without saying what it
+    was. A closed slab is named in a volume; an open plane, left out of a volume, only in
+    a view; the ship alone in neither."""
+    from procmod.targets.files import load_target_file
+
+    ship = trimesh.util.concatenate([_box((1.0, 0.6, 3.0), (0, 0, 0)), _box((3.0, 0.2, 0.8), (0, 0, -0.5))])
+    slab = _box((60.0, 0.1, 60.0), (0, -0.8, 0))
+    plane = trimesh.Trimesh([[-30, -0.8, -30], [30, -0.8, -30], [30, -0.8, 30], [-30, -0.8, 30]],
+                            [[0, 2, 1], [0, 3, 2]], process=False)
+    camera = {"eye": [0, 6, 8], "look_at": [0, 0, 0], "width": 40, "height": 30}
+    for name, mesh, in_volume in (("slab", trimesh.util.concatenate([ship, slab]), True),
+                                  ("plane", trimesh.util.concatenate([ship, plane]), False),
+                                  ("ship", ship, False)):
+        _write_obj(tmp_path / f"{name}.obj", mesh.vertices, mesh.faces)
+        (tmp_path / f"{name}_v.json").write_text(json.dumps({"format": "procmod-volume/1", "voxel_size": 0.5,
+                                                             "layers": [{"file": f"{name}.obj", "w_fill": 1}]}))
+        (tmp_path / f"{name}_s.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                             "views": [{"mesh": f"{name}.obj", "camera": camera}]}))
+        said = [any("a separate flat piece 60 x 60 wide" in n for n in load_target_file(tmp_path / f"{name}_{k}.json")
+                    .file_notes) for k in ("v", "s")]
+        assert said == [in_volume, name != "ship"], (name, said)

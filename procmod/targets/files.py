@@ -349,6 +349,56 @@ def open_mesh_note(vertices, faces, where: str) -> str | None:
             "silhouette view of it")
 
 
+# A separate piece of a mesh this flat (thinnest extent over widest), at least this many
+# times as wide as the rest, and lying beyond it along its thin axis, is taken for a ground,
+# a floor or a backdrop the mesh was exported with (:func:`ground_piece_note`).
+GROUND_FLAT, GROUND_WIDE = 0.05, 3.0
+
+
+def ground_piece_note(vertices, faces, where: str, closed_only: bool = False) -> str | None:
+    """A line naming a separate flat piece far wider than the rest of the mesh and lying
+    under (or behind) it: a Blender scene's floor exported with the model. A solid slab
+    0.75 m under a ship was 92% of the volume to fill, and a ground plane filled a
+    silhouette view, whose note then blamed the mesh's units; neither said what it was.
+    ``closed_only``: only a closed piece (a volume's inside; an open plane is left out of
+    it, :func:`mesh_inside`)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    vertices, faces = np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+    if len(faces) == 0:
+        return None
+    n = len(vertices)
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    if count < 2:
+        return None
+    piece_of_face = label[faces[:, 0]]
+    for piece in np.unique(piece_of_face):
+        own = vertices[np.unique(faces[piece_of_face == piece])]
+        rest = vertices[np.unique(faces[piece_of_face != piece])]
+        lo, hi = own.min(axis=0), own.max(axis=0)
+        r_lo, r_hi = rest.min(axis=0), rest.max(axis=0)
+        extent, r_extent = hi - lo, r_hi - r_lo
+        thin = int(np.argmin(extent))
+        if extent[thin] > GROUND_FLAT * extent.max() or extent.max() < GROUND_WIDE * max(float(r_extent.max()), 1e-12):
+            continue
+        if not (hi[thin] <= r_lo[thin] + 0.5 * r_extent[thin] or lo[thin] >= r_hi[thin] - 0.5 * r_extent[thin]):
+            continue  # through the middle of the rest: a part of it (a wing, a deck)
+        if closed_only:
+            own_faces = np.sort(faces[piece_of_face == piece], axis=1)
+            _, uses = np.unique(np.concatenate([own_faces[:, [0, 1]], own_faces[:, [1, 2]], own_faces[:, [0, 2]]]),
+                                axis=0, return_counts=True)
+            if (uses != 2).any():
+                continue  # an open sheet: no inside of its own
+        size = " x ".join(f"{v:.3g}" for v in np.delete(extent, thin))
+        return (f"{where}: a separate flat piece {size} wide, {extent.max() / max(float(r_extent.max()), 1e-12):.0f}x "
+                "as wide as the rest of the mesh, lies beyond it (a ground, floor or backdrop exported with the "
+                "model?): it is part of the target; delete it in the modelling tool if the model is not to fill it")
+    return None
+
+
 # Flat open pieces bound a room when, at most of the voxels leaving them out changes, their
 # own winding number is within this of a nonzero whole number: surfaces that close a region
 # (walls around a room, however they meet) wind a whole number of times around it, while
@@ -666,6 +716,9 @@ def load_volume_target(path: str | os.PathLike):
     for at, file, w_fill, w_avoid in entries:
         if at in read:
             mask = mesh_inside(*read[at], grid, f"{at}.file", notes)
+            ground = ground_piece_note(*read[at], f"{at}.file", closed_only=True)
+            if ground is not None:
+                notes.append(ground)
         else:
             mask = load_npy(file, f"{at}.file", "voxel grid") != 0
             if not mask.any():
@@ -774,6 +827,7 @@ def mesh_silhouette(vertices, faces, camera: Camera) -> np.ndarray:
 # A silhouette picture whose mid-grey pixels joined to its dark ones are at least this
 # share of the two gets a note: its shape is partly "either" (a shaded photo's lit side).
 GREY_BAND = 0.25
+GREY_SHADED = 12.0  # and their grey levels spread this far (a standard deviation): shading, not one grey
 
 
 def _grey_band_share(grey: np.ndarray) -> float | None:
@@ -787,9 +841,11 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
     parts, _ = ndimage.label(grey <= AVOID_ABOVE)
     joined = np.isin(parts, np.unique(parts[dark])) & (parts > 0)
     # beyond two pixels of the dark ones: a drawing's smoothed edges are no band
-    band = int((joined & ~ndimage.binary_dilation(dark, iterations=2)).sum())
-    share = band / max(int(joined.sum()), 1)
-    return share if share >= GREY_BAND else None
+    band = joined & ~ndimage.binary_dilation(dark, iterations=2)
+    share = int(band.sum()) / max(int(joined.sum()), 1)
+    if share < GREY_BAND or float(np.std(grey[band])) < GREY_SHADED:
+        return None  # (one grey painted on: "either" meant, as scenes/city_skyline's ground)
+    return share
 
 
 def _transparent_as_white(picture, grey: np.ndarray) -> np.ndarray:
@@ -951,7 +1007,11 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
                                       "grey between: either), or give the view's weights as an .npy (\"weights\")")
         else:
             _check_up_once(file, spec, f"{at}.mesh")
-            covered = mesh_silhouette(*_placed(read_mesh(file, f"{at}.mesh", orient=False), placement), camera)
+            mesh = read_mesh(file, f"{at}.mesh", orient=False)
+            ground = ground_piece_note(*mesh, f"{at}.mesh")
+            if ground is not None:
+                notes.append(ground)
+            covered = mesh_silhouette(*_placed(mesh, placement), camera)
             if not covered.any():
                 raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"
                                       f"{camera.height} view: the camera (in the model's units, looking at the "
