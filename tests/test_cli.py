@@ -236,6 +236,18 @@ def test_help_and_models_import_nothing_heavy():
     assert out.strip() == "[]"
 
 
+def test_a_glyph_target_imports_neither_matplotlib_nor_scipy_ndimage():
+    """matplotlib (to find its fonts) and scipy.ndimage (to count a glyph's parts) took about
+    0.35 s of every `procmod infer --target glyph:X`: the fonts are found beside its
+    package, and the parts counted by procmod's own kernel."""
+    code = ("import sys\n"
+            "from procmod.data import target_from_spec\n"
+            "target_from_spec('glyph:a'); target_from_spec('glyph:stix/g')\n"
+            "print(sorted(m for m in ('matplotlib', 'scipy.ndimage') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
 def test_param_sets_model_parameters(tmp_path, capsys):
     out = tmp_path / "s"
     assert _run(capsys, "sample", "vines", "-n", "2", "--param", "leaves=false", "--param", "size=64",

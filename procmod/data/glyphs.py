@@ -13,13 +13,12 @@ import string
 from functools import lru_cache
 from pathlib import Path
 
-import matplotlib
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
-from scipy import ndimage
 
 from ..core import InvalidArgumentError
 from ..targets import TargetImage, lowest_point_start
+from ..targets.components import part_count
 
 RESOLUTION = 100
 MIN_FILL = 0.04
@@ -37,7 +36,7 @@ def font_path(typeface: str) -> Path:
     """The TrueType file of a typeface name."""
     if typeface not in TYPEFACES:
         raise InvalidArgumentError(f"unknown typeface {typeface!r}; choose one of {', '.join(TYPEFACES)}")
-    return Path(matplotlib.get_data_path()) / "fonts" / "ttf" / TYPEFACES[typeface]
+    return _matplotlib_data() / "fonts" / "ttf" / TYPEFACES[typeface]
 
 
 @lru_cache(maxsize=None)
@@ -58,9 +57,20 @@ def render_glyph(char: str, typeface: str = DEFAULT_TYPEFACE) -> np.ndarray:
     return np.asarray(square) >= 128
 
 
+@lru_cache(maxsize=1)
+def _matplotlib_data() -> Path:
+    """matplotlib's data folder (``matplotlib.get_data_path()``: ``mpl-data`` beside its
+    package), found without importing matplotlib: the import took 0.14 s of every
+    ``procmod infer --target glyph:X``, more than its SMC's inference at 200 particles."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("matplotlib")
+    return Path(spec.origin).parent / "mpl-data"
+
+
 def glyph_problem(mask: np.ndarray) -> str | None:
     """Why a glyph is left out of the set (None if it is kept)."""
-    _, components = ndimage.label(mask, structure=np.ones((3, 3)))
+    components = part_count(mask)
     if components != 1:
         return f"it has {components} connected parts (glyph targets need one)"
     if mask.mean() < MIN_FILL:
