@@ -1477,3 +1477,29 @@ def test_a_floor_exported_with_the_model_is_named(tmp_path):
         said = [any("a separate flat piece 60 x 60 wide" in n for n in load_target_file(tmp_path / f"{name}_{k}.json")
                     .file_notes) for k in ("v", "s")]
         assert said == [in_volume, name != "ship"], (name, said)
+
+
+def test_a_z_up_mesh_in_a_silhouette_view_is_said_to_lie_on_its_side(tmp_path):
+    """h79: a z-up STL seen from the side was a vertical bar the model could not match, with
+    no word, where the same mesh as a volume got the "mesh_up": "z" note."""
+    from procmod.cli import _model
+    from procmod.targets.files import load_target_file
+    from procmod.targets.placement import placement_note
+
+    ship = trimesh.util.concatenate([_box((7.0, 3.0, 9.0), (0, 1.5, 0)), _box((9.0, 0.5, 2.0), (0, 1.0, -1.0))])
+    lying = ship.vertices @ np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]).T  # (x, y, z) -> (x, -z, y): z up
+    _write_obj(tmp_path / "z.obj", lying, ship.faces)
+    _write_obj(tmp_path / "y.obj", ship.vertices, ship.faces)
+    camera = {"eye": [30, 2, 0], "look_at": [0, 2, 0], "width": 40, "height": 30}
+    model = _model("spaceship")
+
+    def note(mesh, **fields):
+        path = tmp_path / f"{mesh}_{len(fields)}.json"
+        path.write_text(json.dumps({"format": "procmod-silhouette/1", **fields,
+                                    "views": [{"mesh": f"{mesh}.obj", "camera": camera}]}))
+        return placement_note(model, load_target_file(path), np.random.default_rng(0)) or ""
+
+    assert "laid on their side" in note("z") and "\"mesh_up\": \"z\"" in note("z")
+    assert "laid on their side" not in note("z", mesh_up="z")
+    assert "laid on their side" not in note("y")
+    assert "turned it over" in note("y", mesh_up="z")

@@ -989,6 +989,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         parsed.append((at, kind, file, camera, hit, avoid))
     _placement_needs_meshes(spec, where, any(entry[1] == "mesh" for entry in parsed), "view")
     out, notes = [], []
+    mesh_boxes = [None] * len(parsed)  # a mesh view's placed box, for the notes on how it stands
     for at, kind, file, camera, hit, avoid in parsed:
         if kind == "weights":
             weights = _load_weights(file, f"{at}.weights")
@@ -1021,7 +1022,10 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             ground = ground_piece_note(*mesh, f"{at}.mesh")
             if ground is not None:
                 notes.append(ground)
-            covered = mesh_silhouette(*_placed(mesh, placement), camera)
+            placed = _placed(mesh, placement)
+            covered = mesh_silhouette(*placed, camera)
+            corners = np.asarray(placed[0], dtype=np.float64)[np.unique(np.asarray(placed[1]))]
+            mesh_boxes[len(out)] = (corners.min(axis=0), corners.max(axis=0))
             if not covered.any():
                 raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"
                                       f"{camera.height} view: the camera (in the model's units, looking at the "
@@ -1035,6 +1039,8 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     name = path.parent.name if path.name == "target.json" else path.stem
     target = Silhouette(out, name=name)
     target.file_notes = notes  # said with the placement advice (targets.placement)
+    target.mesh_boxes = mesh_boxes
+    target.mesh_up = spec.get("mesh_up", "y")
     target.placed_by = ("meshes", *placement[:2])
     target.view_kinds = [entry[1] for entry in parsed]  # "mesh", "image" or "weights": for the notes' advice
     return target

@@ -204,6 +204,20 @@ def _volume_note(target, lo, hi) -> str | None:
         factor = 10 ** round(math.log10(1 / ratio))
         return (f"{what} {where}, {ratio:.3g}x the size of the model's samples ({model}): if it was made in "
                 f"other units (Maya's default is centimetres), {_rescale_advice(target, factor, resolution)}{also}")
+    turned = _up_note(target, what, t_lo, t_hi, lo, hi, resolution)
+    if turned is not None:  # before the place: a lying target moved onto the model still lies
+        return turned
+    if np.any(t_lo > hi) or np.any(t_hi < lo):
+        delta = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
+        return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): "
+                f"to move it onto them, {_move_advice(target, delta, resolution)}")
+    return None
+
+
+def _up_note(target, what: str, t_lo, t_hi, lo, hi, resolution: float) -> str | None:
+    """The note for a mesh target (its box ``t_lo``..``t_hi``) lying on its side next to the
+    model's samples (``lo``..``hi``): turned over by its file's ``"mesh_up"``, or a z-up
+    tool's mesh read y-up; None when it stands."""
     up = getattr(target, "mesh_up", "y")
     if up != "y" and _turned_onto_its_side(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
         return (f"{what} is {span_text(t_lo, t_hi)} (x, y, z), shaped like the model's samples "
@@ -211,16 +225,11 @@ def _volume_note(target, lo, hi) -> str | None:
                 f"\"mesh_up\": \"{up}\" turned it over; leave \"mesh_up\" out if the mesh is y-up (glTF is, "
                 "and so are OBJ files exported with a tool's defaults)")
     if _lying(target, np.asarray(t_hi) - np.asarray(t_lo), np.asarray(hi) - np.asarray(lo)):
-        # before the place: a lying target moved onto the model still lies
         return (f"{what} is {span_text(t_lo, t_hi)} (x, y, z), shaped like the model's "
                 f"samples ({span_text(lo, hi)}) laid on their side: if the mesh comes "
                 "from a z-up tool (3ds Max, a CAD file, an OBJ or STL exported \"Z up\"), give \"mesh_up\": "
                 f"\"z\"{_offset_once_stood(target, t_lo, t_hi, lo, hi, resolution)} in the target file "
                 "(procmod's models are y-up)")
-    if np.any(t_lo > hi) or np.any(t_hi < lo):
-        delta = 0.5 * (np.asarray(lo) + np.asarray(hi)) - 0.5 * (t_lo + t_hi)
-        return (f"{what} {where} and does not meet the model's samples, which build at its origin ({model}): "
-                f"to move it onto them, {_move_advice(target, delta, resolution)}")
     return None
 
 
@@ -285,6 +294,11 @@ included (so that no outline is left in view; a close-up may fill most of it), g
 
 
 def _silhouette_note(target, lo, hi) -> str | None:
+    for i, box in enumerate(getattr(target, "mesh_boxes", ()) or ()):
+        if box is not None:  # a view of a mesh: it may lie on its side, as a volume's may (h79)
+            turned = _up_note(target, f"views[{i}]: the mesh", *box, lo, hi, 1e-3 * _size(lo, hi))
+            if turned is not None:
+                return turned
     corners = _corners(lo, hi)
     kinds = getattr(target, "view_kinds", None) or ["mesh"] * len(target.cameras)  # a file's: what each view gave
     for i, (camera, weights) in enumerate(zip(target.cameras, target.weights)):
