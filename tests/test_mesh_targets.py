@@ -996,6 +996,13 @@ def test_a_target_lying_on_its_side_is_told_mesh_up(tmp_path):
     at = moved.index("\"mesh_offset\": ") + len("\"mesh_offset\": ")
     offset = json.loads(moved[at:moved.index(" in the target file", at)])
     assert note("zfar.obj", mesh_up="z", mesh_offset=offset) is None
+    # a file without one whose mesh, stood up, would not meet the model gets it too (h79: a
+    # centimetre z-up mesh far from the origin took a run for each piece of advice)
+    alone = note("zfar.obj")
+    assert "give \"mesh_up\": \"z\" and \"mesh_offset\": " in alone, alone
+    at = alone.index("\"mesh_offset\": ") + len("\"mesh_offset\": ")
+    assert note("zfar.obj", mesh_up="z", mesh_offset=json.loads(alone[at:alone.index(" in the target file", at)])) \
+        is None
     # a y-up mesh given "mesh_up": "z" lies on its side: the note says the turn did it
     turned = note("y.obj", mesh_up="z")
     assert turned is not None and "\"mesh_up\": \"z\" turned it over; leave \"mesh_up\" out" in turned, turned

@@ -278,13 +278,18 @@ def _turned_onto_its_side(target, t_ext, m_ext) -> bool:
 
 
 def _offset_once_stood(target, t_lo, t_hi, lo, hi, resolution: float) -> str:
-    """With a file that gives a mesh_offset (added after the turn), the one that puts the
-    stood-up target's centre on the model's: the old one would move it off."""
+    """The mesh_offset (added after the turn) that puts the stood-up target's centre on the
+    model's: with a file that gives one (the old one would move it off), or when the target
+    stood up would not meet the model (a centimetre z-up mesh far from the origin took a
+    run for each piece of advice, h79)."""
     _, scale, offset = target.placed_by
-    if not np.any(offset):
-        return ""
     centre = (0.5 * (np.asarray(t_lo) + np.asarray(t_hi)) - offset) / scale  # in the mesh's own frame
     new = 0.5 * (np.asarray(lo) + np.asarray(hi)) - up_rotation("z") @ centre * scale
+    if not np.any(offset):
+        half = 0.5 * np.abs(up_rotation("z")) @ (np.asarray(t_hi) - np.asarray(t_lo))
+        stood = up_rotation("z") @ centre * scale  # the stood-up target's centre, not moved
+        if np.all(stood + half >= lo) and np.all(stood - half <= hi):
+            return ""  # stood up, it meets the model: no offset to give
     return f" and \"mesh_offset\": {_listed(new, resolution)}"
 
 
