@@ -1484,6 +1484,19 @@ def test_a_floor_exported_with_the_model_is_named(tmp_path):
         said = [any("a separate flat piece 60 x 60 wide" in n for n in load_target_file(tmp_path / f"{name}_{k}.json")
                     .file_notes) for k in ("v", "s")]
         assert said == [in_volume, name != "ship"], (name, said)
+    # the model's own flat top over a short column is no floor (h80); and a single flat piece
+    # with a sliver, whose vertices no kept face uses, is read (h80: a ValueError traceback)
+    from procmod.targets.files import ground_piece_note
+
+    table = trimesh.util.concatenate([_box((1.4, 0.04, 1.4), (0, 0.42, 0)), _box((0.1, 0.38, 0.1), (0, 0.2, 0))])
+    assert ground_piece_note(table.vertices, table.faces, "table") is None
+    plate = _box((2.0, 0.05, 2.0), (0, 0, 0))
+    vertices = np.concatenate([plate.vertices, [[5, 5, 5], [6, 6, 6], [7, 7, 7]]])  # a sliver's, its face dropped
+    assert ground_piece_note(vertices, plate.faces, "plate") is None
+    _write_obj(tmp_path / "sliver.obj", vertices, np.concatenate([plate.faces, [[8, 9, 10]]]))
+    (tmp_path / "sliver.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                      "views": [{"mesh": "sliver.obj", "camera": camera}]}))
+    load_target_file(tmp_path / "sliver.json")
 
 
 def test_a_z_up_mesh_in_a_silhouette_view_is_said_to_lie_on_its_side(tmp_path):

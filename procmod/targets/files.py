@@ -350,8 +350,8 @@ def open_mesh_note(vertices, faces, where: str) -> str | None:
 
 
 # A separate piece of a mesh this flat (thinnest extent over widest), at least this many
-# times as wide as the rest, and lying beyond it along its thin axis, is taken for a ground,
-# a floor or a backdrop the mesh was exported with (:func:`ground_piece_note`).
+# times as wide as the rest, and lying under it (or beside it, standing), is taken for a
+# ground, a floor or a backdrop the mesh was exported with (:func:`ground_piece_note`).
 GROUND_FLAT, GROUND_WIDE = 0.05, 3.0
 
 
@@ -372,10 +372,10 @@ def ground_piece_note(vertices, faces, where: str, closed_only: bool = False) ->
     edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
     graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
     count, label = connected_components(graph, directed=False)
-    if count < 2:
-        return None
     piece_of_face = label[faces[:, 0]]
     used = np.unique(faces)
+    if len(np.unique(label[used])) < 2:
+        return None  # one piece (vertices no face uses, a sliver's, are none: h80)
     # every piece's box at once (a mesh of 100,000 leaf cards is 100,000 pieces), then the
     # rest's box only for the few flat pieces as wide as the whole mesh
     lows = np.full((count, 3), np.inf)
@@ -394,8 +394,11 @@ def ground_piece_note(vertices, faces, where: str, closed_only: bool = False) ->
         thin = int(np.argmin(extent))
         if extent[thin] > GROUND_FLAT * extent.max() or extent.max() < GROUND_WIDE * max(float(r_extent.max()), 1e-12):
             continue
-        if not (hi[thin] <= r_lo[thin] + 0.5 * r_extent[thin] or lo[thin] >= r_hi[thin] - 0.5 * r_extent[thin]):
-            continue  # through the middle of the rest: a part of it (a wing, a deck)
+        below = hi[thin] <= r_lo[thin] + 0.5 * r_extent[thin]
+        if not (below or (thin != 1 and lo[thin] >= r_hi[thin] - 0.5 * r_extent[thin])):
+            # through the middle of the rest (a wing, a deck), or a flat piece over it (a
+            # table's top, a parasol: h80), which is the model's own; a backdrop stands either side
+            continue
         if closed_only:
             own_faces = np.sort(faces[piece_of_face == piece], axis=1)
             _, uses = np.unique(np.concatenate([own_faces[:, [0, 1]], own_faces[:, [1, 2]], own_faces[:, [0, 2]]]),
@@ -403,9 +406,9 @@ def ground_piece_note(vertices, faces, where: str, closed_only: bool = False) ->
             if (uses != 2).any():
                 continue  # an open sheet: no inside of its own
         size = " x ".join(f"{v:.3g}" for v in np.delete(extent, thin))
-        return (f"{where}: a separate flat piece {size} wide, {extent.max() / max(float(r_extent.max()), 1e-12):.0f}x "
-                "as wide as the rest of the mesh, lies beyond it (a ground, floor or backdrop exported with the "
-                "model?): it is part of the target; delete it in the modelling tool if the model is not to fill it")
+        return (f"{where}: a separate flat piece {size} wide, {extent.max() / max(float(r_extent.max()), 1e-12):.1f}x "
+                f"as wide as the rest of the mesh, lies {'under' if below and thin == 1 else 'beside'} it (a ground, "
+                "floor or backdrop exported with the model?): it is part of the target; delete it in the modelling tool if the model is not to fill it")
     return None
 
 
@@ -847,6 +850,10 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
     its lower half alone, no better than forward samples, without a word."""
     from scipy import ndimage
 
+    if not ((grey >= HIT_BELOW) & (grey <= AVOID_ABOVE)).any():
+        return None  # no mid-grey at all (a black-and-white mask)
+    step = max(1, math.ceil(math.sqrt(grey.size / 4e6)))
+    grey = grey[::step, ::step]  # a share: a picture of 81 MP took 4.4 s whole (h80), this about 4 MP
     dark = grey < HIT_BELOW
     parts, _ = ndimage.label(grey <= AVOID_ABOVE)
     joined = np.isin(parts, np.unique(parts[dark])) & (parts > 0)
@@ -1018,11 +1025,10 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
                                       "grey between: either), or give the view's weights as an .npy (\"weights\")")
         else:
             _check_up_once(file, spec, f"{at}.mesh")
-            mesh = read_mesh(file, f"{at}.mesh", orient=False)
-            ground = ground_piece_note(*mesh, f"{at}.mesh")
+            placed = _placed(read_mesh(file, f"{at}.mesh", orient=False), placement)  # y up, as the model
+            ground = ground_piece_note(*placed, f"{at}.mesh")
             if ground is not None:
                 notes.append(ground)
-            placed = _placed(mesh, placement)
             covered = mesh_silhouette(*placed, camera)
             corners = np.asarray(placed[0], dtype=np.float64)[np.unique(np.asarray(placed[1]))]
             mesh_boxes[len(out)] = (corners.min(axis=0), corners.max(axis=0))
