@@ -408,7 +408,8 @@ def ground_piece_note(vertices, faces, where: str, closed_only: bool = False) ->
         size = " x ".join(f"{v:.3g}" for v in np.delete(extent, thin))
         return (f"{where}: a separate flat piece {size} wide, {extent.max() / max(float(r_extent.max()), 1e-12):.1f}x "
                 f"as wide as the rest of the mesh, lies {'under' if below and thin == 1 else 'beside'} it (a ground, "
-                "floor or backdrop exported with the model?): it is part of the target; delete it in the modelling tool if the model is not to fill it")
+                "floor or backdrop exported with the model?): it is part of the target; delete it in the "
+                "modelling tool if the model is not to fill it")
     return None
 
 
