@@ -33,9 +33,9 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
-from .transforms import (CURRENT, DIAGONAL_POLE, Frame, Units, angles_direction, direction_angles, frame_of, spread_pole,
-                         sym_params, symmetry_direction, turned_frame, SYM_KINDS, node_kind, reserved_name,
-                         xform_params)
+from .transforms import (CURRENT, DIAGONAL_POLE, Frame, Units, angles_direction, direction_angles, frame_of,
+                         spread_pole, sym_params, symmetry_direction, turned_frame, SYM_KINDS, node_kind,
+                         reserved_name, xform_params)
 
 OVERLAP_VOXELS = 40
 SLOT_SAMPLES = 64  # surface points per part for the Hausdorff distances of eq. 1
