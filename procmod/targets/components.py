@@ -20,9 +20,10 @@ def _root(parent, i):
 
 
 @numba.njit(cache=True)
-def _without_specks(mask, share):
+def _union_parts(mask):
+    """Union-find over the pixels of ``mask``, 8-connected: each pixel's parent (a pixel's
+    part is its root), int32 (8 bytes a pixel in all: pictures may be large)."""
     h, w = mask.shape
-    # union-find over the pixels, int32 (8 bytes a pixel in all: pictures may be large)
     parent = np.arange(h * w, dtype=np.int32)
     for y in range(h):
         for x in range(w):
@@ -36,6 +37,13 @@ def _without_specks(mask, share):
                     a, b = _root(parent, i), _root(parent, yy * w + xx)
                     if a != b:
                         parent[max(a, b)] = min(a, b)
+    return parent
+
+
+@numba.njit(cache=True)
+def _without_specks(mask, share):
+    h, w = mask.shape
+    parent = _union_parts(mask)
     sizes = np.zeros(h * w, dtype=np.int32)  # by root
     largest = 0
     for y in range(h):
@@ -55,18 +63,7 @@ def _without_specks(mask, share):
 @numba.njit(cache=True)
 def _part_count(mask):
     h, w = mask.shape
-    parent = np.arange(h * w, dtype=np.int32)
-    for y in range(h):
-        for x in range(w):
-            if not mask[y, x]:
-                continue
-            i = y * w + x
-            for dy, dx in ((0, -1), (-1, -1), (-1, 0), (-1, 1)):
-                yy, xx = y + dy, x + dx
-                if 0 <= yy and 0 <= xx < w and mask[yy, xx]:
-                    a, b = _root(parent, i), _root(parent, yy * w + xx)
-                    if a != b:
-                        parent[max(a, b)] = min(a, b)
+    parent = _union_parts(mask)
     count = 0
     for y in range(h):
         for x in range(w):
