@@ -270,6 +270,15 @@ def test_traces_drawn_at_a_param_train_a_guide_for_runs_at_it(tmp_path, monkeypa
     assert "0 traces made, 1 already there" in capsys.readouterr().out
     assert main([*traces[:-1], "start=0.5,0.9", "--count", "3"]) == 2
     assert "--param start: each training scribble places the model" in capsys.readouterr().err
+    # a tuple default given as a list is the default too (h81: [0, -3] is not (0, -3) to Python)
+    (tmp_path / "world.py").write_text(PLANT_FILE.replace("root_args=lambda p: (0.0, 0.0, -math.pi / 2, 0)",
+                                                          "root_args=lambda p: (*p['start'], -math.pi / 2, 0)")
+                                       .replace("new_output_from=", "params={'start': (0.0, -3.0)}, new_output_from="))
+    world = ["guide", "traces", "world.py:PLANT", "--particles", "4", "--workers", "1", "--out", "w", "--count", "1"]
+    assert main(world) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert main([*world, "--param", "start=[0,-3]"]) == 0, capsys.readouterr().err
+    assert "0 traces made, 1 already there" in capsys.readouterr().out
 
 
 def test_a_guide_runs_from_its_json_and_npz_alone(tmp_path, capsys):

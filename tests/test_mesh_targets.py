@@ -1523,3 +1523,13 @@ def test_a_z_up_mesh_in_a_silhouette_view_is_said_to_lie_on_its_side(tmp_path):
     assert "laid on their side" not in note("z", mesh_up="z")
     assert "laid on their side" not in note("y")
     assert "turned it over" in note("y", mesh_up="z")
+    # in centimetres: the units first, as for a volume (h81: "mesh_up" alone, then nothing)
+    _write_obj(tmp_path / "zcm.obj", lying * 100, ship.faces)
+    assert "give \"mesh_scale\": 0.01" in note("zcm")
+    assert "\"mesh_up\": \"z\"" in note("zcm", mesh_scale=0.01)
+    # a backdrop behind a y-up ship: named, and no "mesh_up" from the box it stretches (h81)
+    backdrop = _box((40.0, 40.0, 0.3), (0, 0, -10))
+    _write_obj(tmp_path / "backed.obj", np.concatenate([ship.vertices, backdrop.vertices]),
+               np.concatenate([ship.faces, backdrop.faces + len(ship.vertices)]))
+    backed = note("backed")
+    assert "a separate flat piece" in backed and "mesh_up" not in backed, backed

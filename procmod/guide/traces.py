@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import InvalidArgumentError, ProcmodError
-from ..core.errors import argument, shown_value, whole_number
+from ..core.errors import argument, plain_value, shown_value, whole_number
 from ..core.runfolder import TRACES_JOB, RunFolder
 from ..core.io import fingerprint, read_json, read_versioned_json, write_text_atomic
 from ..core.serialize import derivation_to_dict
@@ -322,7 +322,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     params = dict(params or {})
     configured = model.configure(**params) if params else model  # (refuses an unknown name or a bad value)
     # as configure took them (typed, plain), the defaults left out: a default given is the default job
-    params = {name: configured.params[name] for name in params if configured.params[name] != model.params[name]}
+    params = {name: configured.params[name] for name in params
+              if plain_value(configured.params[name]) != plain_value(model.params[name])}  # ([0, -3] is (0, -3))
     from ..core.model import picture_placed
     placed = sorted(set(params) & set(picture_placed(model.params))) if targets == "scribble" else []
     if placed:

@@ -998,6 +998,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     _placement_needs_meshes(spec, where, any(entry[1] == "mesh" for entry in parsed), "view")
     out, notes = [], []
     mesh_boxes = [None] * len(parsed)  # a mesh view's placed box, for the notes on how it stands
+    grounded = set()  # views whose mesh has a floor or backdrop (ground_piece_note)
     for at, kind, file, camera, hit, avoid in parsed:
         if kind == "weights":
             weights = _load_weights(file, f"{at}.weights")
@@ -1028,11 +1029,13 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             _check_up_once(file, spec, f"{at}.mesh")
             placed = _placed(read_mesh(file, f"{at}.mesh", orient=False), placement)  # y up, as the model
             ground = ground_piece_note(*placed, f"{at}.mesh")
+            covered = mesh_silhouette(*placed, camera)
             if ground is not None:
                 notes.append(ground)
-            covered = mesh_silhouette(*placed, camera)
-            corners = np.asarray(placed[0], dtype=np.float64)[np.unique(np.asarray(placed[1]))]
-            mesh_boxes[len(out)] = (corners.min(axis=0), corners.max(axis=0))
+                grounded.add(len(out))  # its box is the floor's: no word on how the mesh stands (h81)
+            else:
+                corners = np.asarray(placed[0], dtype=np.float64)[np.unique(np.asarray(placed[1]))]
+                mesh_boxes[len(out)] = (corners.min(axis=0), corners.max(axis=0))
             if not covered.any():
                 raise TargetFileError(f"{at}.mesh: the mesh covers no pixel centre of the {camera.width}x"
                                       f"{camera.height} view: the camera (in the model's units, looking at the "
@@ -1047,6 +1050,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
     target = Silhouette(out, name=name)
     target.file_notes = notes  # said with the placement advice (targets.placement)
     target.mesh_boxes = mesh_boxes
+    target.grounded_views = grounded
     target.mesh_up = spec.get("mesh_up", "y")
     target.placed_by = ("meshes", *placement[:2])
     target.view_kinds = [entry[1] for entry in parsed]  # "mesh", "image" or "weights": for the notes' advice

@@ -299,11 +299,31 @@ included (so that no outline is left in view; a close-up may fill most of it), g
 
 
 def _silhouette_note(target, lo, hi) -> str | None:
+    return _view_note(target, lo, hi) or _mesh_view_note(target, lo, hi)
+
+
+def _mesh_view_note(target, lo, hi) -> str | None:
+    """For a view of a mesh that the views' own notes said nothing of: the mesh in other
+    units (a camera inside a centimetre mesh sees no outline to compare), or lying on its
+    side, as a volume's mesh may (h79: a z-up STL seen from the side, without a word)."""
     for i, box in enumerate(getattr(target, "mesh_boxes", ()) or ()):
-        if box is not None:  # a view of a mesh: it may lie on its side, as a volume's may (h79)
-            turned = _up_note(target, f"views[{i}]: the mesh", *box, lo, hi, 1e-3 * _size(lo, hi))
-            if turned is not None:
-                return turned
+        if box is None:
+            continue
+        ratio = _size(*box) / max(_size(lo, hi), 1e-300)
+        if ratio > SCALE_FACTOR or ratio < 1 / SCALE_FACTOR:
+            factor = 10 ** round(math.log10(1 / ratio))
+            return (f"views[{i}]: the mesh spans {span_text(*box)}, {ratio:.3g}x the size of the model's samples "
+                    f"(about {_shown(lo)} to {_shown(hi)}): if it was made in other units (Maya's default is "
+                    f"centimetres), {_rescale_advice(target, factor, 1e-3 * _size(lo, hi))}")
+        turned = _up_note(target, f"views[{i}]: the mesh", *box, lo, hi, 1e-3 * _size(lo, hi))
+        if turned is not None:
+            return turned
+    return None
+
+
+def _view_note(target, lo, hi) -> str | None:
+    """What each view shows against the model's samples seen by its camera."""
+    grounded = getattr(target, "grounded_views", set())
     corners = _corners(lo, hi)
     kinds = getattr(target, "view_kinds", None) or ["mesh"] * len(target.cameras)  # a file's: what each view gave
     for i, (camera, weights) in enumerate(zip(target.cameras, target.weights)):
@@ -316,6 +336,9 @@ def _silhouette_note(target, lo, hi) -> str | None:
             if kinds[i] != "mesh":  # a painted mask or a picture: no units to give
                 return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
                         "to match: mark only the shape to hit (black) and leave the rest white")
+            if i in grounded:  # the floor named above fills it, not the units (h81)
+                return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
+                        "to match: the flat piece named above fills it")
             return (f"views[{i}]: the shape to hit covers {100 * covered:.0f}% of the view, so it has no outline "
                     "to match: if it is a mesh made in other units than the model (Maya writes centimetres), "
                     "give \"mesh_scale\" (0.01 for centimetres to metres); else move the camera back")
