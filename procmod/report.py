@@ -71,6 +71,14 @@ def convergence_figure(results: dict, path: str | os.PathLike, title: str = "") 
 SAMPLE_TILES = 16
 
 
+def display_mask(target, width: int):
+    """The target's picture to draw results over (``Target.display_mask``), or None for a
+    target class that does not subclass Target and leaves it out, as the protocol's default
+    says (h82: the run's report had failed on it after every engine had run)."""
+    method = getattr(target, "display_mask", None)
+    return method(width) if callable(method) else None
+
+
 def sample_of_final(result, count: int = SAMPLE_TILES) -> list:
     """At most ``count`` of the engine's final samples, for the report's contact sheet.
 
@@ -133,7 +141,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     check_geometry(best)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    underlay = target.display_mask(size)
+    underlay = display_mask(target, size)
     target_caption = "target"
     save_image_atomic(derivation_image(best, size, underlay=underlay), out / "best.png")
     extra = [suffix for suffix in output_formats(best) if suffix != ".png"]
@@ -155,7 +163,7 @@ def write_run(result, target: Target, out: str | os.PathLike, size: int = 512, c
     # 128 px tiles at 2x2 supersampling: the one part of the report whose cost grows with the
     # particles (up to 16 tiles), so kept cheap (~2 ms a vine tile here, each distinct
     # output drawn once: after the last resampling most particles are copies)
-    tile_underlay = target.display_mask(128)
+    tile_underlay = display_mask(target, 128)
     tiles = derivation_images(sample_of_final(result), 128, underlay=tile_underlay, supersample=2)
     save_image_atomic(contact_sheet(tiles), out / "samples.png")
     summary = {

@@ -608,3 +608,109 @@ def test_a_target_spec_may_be_a_path():
     """target_from_spec(Path(...)) said a spec may be a file path, refusing one."""
     scene = Path(__file__).resolve().parents[1] / "scenes" / "tree_heart"
     assert type(target_from_spec(scene)) is type(target_from_spec(str(scene)))
+
+
+class _SumOutput:
+    """An Output of the protocol, no subclassing: the sum of what is emitted."""
+    dimension = 0
+    supports_removal = False
+    supports_part_cache = False
+
+    def __init__(self):
+        self.total = 0.0
+
+    def add(self, geometry):
+        self.total += float(geometry)
+
+    def copy(self):
+        other = type(self)()
+        other.total = self.total
+        return other
+
+
+class _SumTarget:
+    """A Target of the protocol, no subclassing, without display_mask (the protocol's
+    default says None)."""
+    name = "sum"
+    exact_removal = has_mask = has_overlay = False
+
+    def __init__(self, output=_SumOutput):
+        self.output = output
+
+    def configure(self, model):
+        return model
+
+    def new_output(self, model):
+        return self.output()
+
+    def score(self, output):
+        return -abs(output.total - 1.0)
+
+    def log_likelihood(self, output):
+        return -(output.total - 1.0) ** 2
+
+
+class _Value(float):
+    pass
+
+
+def _sum_model():
+    from procmod import Model, Uniform
+
+    def root(ctx):
+        ctx.emit(_Value(ctx.sample("u", Uniform(0.0, 1.0))))
+
+    return Model("sum", "one uniform", root, root_args=lambda p: (), new_output_from=lambda p: _SumOutput())
+
+
+def test_protocol_objects_of_ones_own_missing_a_method_are_named_or_defaulted(tmp_path):
+    """h82: an Output without copy() passed the declared-protocol check and every engine
+    ended in an AttributeError; a Target without display_mask() ran every engine, then the
+    report failed on it (the protocol's default is None)."""
+    from procmod.infer.ga import ga
+    from procmod.report import write_run
+
+    class NoCopy(_SumOutput):
+        copy = None
+
+    with pytest.raises(ProcmodError, match=r"\(NoCopy\) has no method copy that procmod.core.Output requires"):
+        smc(_sum_model(), _SumTarget(NoCopy), particles=3, seed=0)
+    class Cover:  # a 2D target of the protocol, no subclassing, without display_mask
+        name = "cover"
+        exact_removal = has_mask = has_overlay = False
+
+        def configure(self, model):
+            return model
+
+        def new_output(self, model):
+            return model.new_output()
+
+        def score(self, output):
+            return float(np.count_nonzero(output.pixels)) / output.pixels.size
+
+        def log_likelihood(self, output):
+            return 20.0 * self.score(output)
+
+    model = get_model("vines")
+    result = ga(model, Cover(), population=4, budget=Budget(generations=1), seed=0)
+    write_run(result, Cover(), tmp_path / "run")
+    assert (tmp_path / "run" / "report.html").is_file()
+
+
+def test_a_proposal_outside_its_choices_support_is_refused():
+    """h82: a proposer returning 5.0 for a Uniform(0, 1) choice made every particle weigh
+    nothing, and the note blamed the target."""
+    class OutOfSupport:
+        def propose(self, ctx, name, dist, rng):
+            return 5.0, 0.0
+
+    with pytest.raises(InvalidArgumentError, match="returned the value 5.0, outside the support of Uniform"):
+        smc(_sum_model(), _SumTarget(), particles=3, seed=0, guide=OutOfSupport())
+
+
+def test_a_json_path_with_a_nul_is_one_line_of_the_callers_error():
+    from procmod.core.io import read_json
+    from procmod.core.errors import DerivationFormatError
+
+    with pytest.raises(DerivationFormatError, match="has a NUL character in its name"):
+        read_json("a\0b.json")

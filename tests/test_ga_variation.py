@@ -180,6 +180,36 @@ def test_reflect_folds_into_the_interval():
     assert reflect(-0.25, 0.0, 1.0) == pytest.approx(0.25)
     assert reflect(2.25, 0.0, 1.0) == pytest.approx(0.25)
     assert reflect(3.0, 2.0, 2.0) == 2.0
+    # an infinite bound reflects nothing (h82: the fold of width infinity gave NaN or inf)
+    assert reflect(-0.5, 0.0, math.inf) == 0.5 and reflect(2.0, 0.0, math.inf) == 2.0
+    assert reflect(0.5, -math.inf, 0.0) == -0.5 and reflect(-3.0, -math.inf, 0.0) == -3.0
+    assert reflect(7.0, -math.inf, math.inf) == 7.0
+
+
+def test_a_nudge_keeps_half_bounded_choices_finite_in_their_support_and_refuses_a_bad_step():
+    """A TruncatedNormal with one infinite bound was nudged to NaN or inf every time, which
+    the replay redrew from the prior: nudge was alter for those choices, without a word."""
+    from procmod import Model, TruncatedNormal
+    from procmod.core import InvalidArgumentError
+    from procmod.geometry import Canvas, Segment
+
+    def rule(ctx):
+        pos = ctx.sample("pos", TruncatedNormal(0.0, 1.0, 0.0, math.inf))
+        neg = ctx.sample("neg", TruncatedNormal(0.0, 1.0, -math.inf, 0.0))
+        ctx.emit(Segment(pos, neg, 0.0, 0.0, 0.5))
+
+    model = Model("half", "half-bounded", rule, root_args=lambda p: (),
+                  new_output_from=lambda p: Canvas((-4, 4, -4, 4), 16))
+    rng = np.random.default_rng(3)
+    g = Genome(run_forward(model, rng))
+    for _ in range(300):
+        child = nudge(g, rng, step=1.0)
+        values = dict(((name, v) for (_, name), v in child.changes.items()))
+        assert math.isfinite(values["pos"]) and values["pos"] >= 0.0
+        assert math.isfinite(values["neg"]) and values["neg"] <= 0.0
+    for step in (-1.0, math.nan, "0.1"):
+        with pytest.raises(InvalidArgumentError, match="step"):
+            nudge(g, rng, step=step)
 
 
 def test_mutate_picks_operators_by_split_and_falls_back_when_one_has_nothing_to_do():

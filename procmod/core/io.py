@@ -226,6 +226,8 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
     with one line naming the file (see :func:`parse_json`)."""
     if not isinstance(path, (str, os.PathLike)):
         raise error(f"{what} must be given as a path (a str or pathlib.Path), got {type(path).__name__} {path!r:.40}")
+    if "\0" in os.fsdecode(os.fspath(path)):  # (Path.exists raised ValueError on it: h82)
+        raise error(f"{what} {cut_text(repr(os.fspath(path)))} has a NUL character in its name; give the file's path")
     try:
         if Path(path).exists() and not Path(path).is_file():  # a folder, a FIFO, /dev/zero: never ends or fits
             raise error(f"{what} {cut_text(str(path))} is not a regular file")

@@ -225,6 +225,11 @@ def check_declared(obj, protocol, what: str) -> None:
                                            f"{', '.join(lacking)}")
     # what the object resolves (a method set on the instance, a wrapper's __getattr__): the
     # protocol's own empty function only when nothing overrides it
+    absent = [m for m in _METHODS[protocol] if not callable(getattr(obj, m, None))]
+    if absent:  # (a class that does not subclass the protocol and leaves one out: h82, Output.copy)
+        raise InvalidArgumentError(f"{what} ({name}) has no method {', '.join(absent)} that "
+                                   f"procmod.core.{protocol.__name__} requires; define "
+                                   f"{'it' if len(absent) == 1 else 'them'}")
     empty = [m for m in _METHODS[protocol]
              if getattr(getattr(obj, m, None), "__func__", None) is getattr(protocol, m)]
     if empty:

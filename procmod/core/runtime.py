@@ -424,6 +424,11 @@ class GuidedPolicy(ChoicePolicy):
             if type(log_q) is not float or not -math.inf < log_q < math.inf:  # (a float: the shipped guides')
                 log_q = _checked_log_q(proposer, name, log_q)
             self.log_proposal += log_q
+            log_prior = dist.log_prob(value)
+            if log_prior == -math.inf:  # (h82: every particle then weighed nothing, and the note blamed the target)
+                raise _proposal_error(proposer, name, f"returned the value {cut_text(repr(value), 40)}, outside the "
+                                      f"support of {cut_text(repr(dist), 60)}")
+            return value, log_prior
         return value, dist.log_prob(value)
 
     def copy(self) -> "GuidedPolicy":

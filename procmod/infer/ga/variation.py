@@ -47,10 +47,12 @@ differ from the parent's.
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
 from ...core import InvalidArgumentError
+from ...core.errors import argument, shown_value
 from ...core.runtime import same_args
 from .genome import DROP, Genome, Offspring
 
@@ -140,7 +142,16 @@ def alter(g: Genome, rng) -> Offspring | None:
 
 
 def reflect(x: float, low: float, high: float) -> float:
-    """``x`` folded into ``[low, high]`` by reflection at the bounds."""
+    """``x`` folded into ``[low, high]`` by reflection at the bounds; an infinite bound
+    reflects nothing (a TruncatedNormal may have one: the fold of width infinity had made
+    every nudged value NaN or infinite, which the replay then redrew from the prior)."""
+    low_finite, high_finite = math.isfinite(low), math.isfinite(high)
+    if not low_finite and not high_finite:
+        return x
+    if not high_finite:
+        return low + abs(x - low)
+    if not low_finite:
+        return high - abs(high - x)
     width = high - low
     if width <= 0:
         return low
@@ -153,6 +164,9 @@ def nudge(g: Genome, rng, step: float = 0.1) -> Offspring | None:
     ``step`` x its distribution's scale, reflected into its bounds (None if no call has
     continuous parameters)."""
     _genome(g, "nudge")
+    if isinstance(step, bool) or not isinstance(step, numbers.Real) or not (math.isfinite(step) and step >= 0):
+        raise InvalidArgumentError(f"{argument('step')} of a nudge must be a finite number of scales, 0 or more, "
+                                   f"got {shown_value(step)}")
     candidates = g.nudge_sites()
     if not candidates:
         return None
