@@ -610,7 +610,7 @@ def test_a_target_spec_may_be_a_path():
     assert type(target_from_spec(scene)) is type(target_from_spec(str(scene)))
 
 
-class _SumOutput:
+class _TotalOutput:
     """An Output of the protocol, no subclassing: the sum of what is emitted."""
     dimension = 0
     supports_removal = False
@@ -628,13 +628,13 @@ class _SumOutput:
         return other
 
 
-class _SumTarget:
+class _TotalTarget:
     """A Target of the protocol, no subclassing, without display_mask (the protocol's
     default says None)."""
     name = "sum"
     exact_removal = has_mask = has_overlay = False
 
-    def __init__(self, output=_SumOutput):
+    def __init__(self, output=_TotalOutput):
         self.output = output
 
     def configure(self, model):
@@ -654,13 +654,13 @@ class _Value(float):
     pass
 
 
-def _sum_model():
+def _uniform_model():
     from procmod import Model, Uniform
 
     def root(ctx):
         ctx.emit(_Value(ctx.sample("u", Uniform(0.0, 1.0))))
 
-    return Model("sum", "one uniform", root, root_args=lambda p: (), new_output_from=lambda p: _SumOutput())
+    return Model("sum", "one uniform", root, root_args=lambda p: (), new_output_from=lambda p: _TotalOutput())
 
 
 def test_protocol_objects_of_ones_own_missing_a_method_are_named_or_defaulted(tmp_path):
@@ -670,11 +670,11 @@ def test_protocol_objects_of_ones_own_missing_a_method_are_named_or_defaulted(tm
     from procmod.infer.ga import ga
     from procmod.report import write_run
 
-    class NoCopy(_SumOutput):
+    class NoCopy(_TotalOutput):
         copy = None
 
     with pytest.raises(ProcmodError, match=r"\(NoCopy\) has no method copy that procmod.core.Output requires"):
-        smc(_sum_model(), _SumTarget(NoCopy), particles=3, seed=0)
+        smc(_uniform_model(), _TotalTarget(NoCopy), particles=3, seed=0)
     class Cover:  # a 2D target of the protocol, no subclassing, without display_mask
         name = "cover"
         exact_removal = has_mask = has_overlay = False
@@ -705,7 +705,7 @@ def test_a_proposal_outside_its_choices_support_is_refused():
             return 5.0, 0.0
 
     with pytest.raises(InvalidArgumentError, match="returned the value 5.0, outside the support of Uniform"):
-        smc(_sum_model(), _SumTarget(), particles=3, seed=0, guide=OutOfSupport())
+        smc(_uniform_model(), _TotalTarget(), particles=3, seed=0, guide=OutOfSupport())
 
 
 def test_a_json_path_with_a_nul_is_one_line_of_the_callers_error():
