@@ -714,3 +714,26 @@ def test_a_json_path_with_a_nul_is_one_line_of_the_callers_error():
 
     with pytest.raises(DerivationFormatError, match="has a NUL character in its name"):
         read_json("a\0b.json")
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda ga, rng: ga.tournament("5", 2, rng), "tournament needs a population"),
+    (lambda ga, rng: ga.tournament(5, 2.5, rng), "tournament needs a population"),
+    (lambda ga, rng: ga.roulette(np.array([]), rng), "roulette takes the wheel of a population of one or more"),
+    (lambda ga, rng: ga.roulette_wheel("abc"), "roulette_wheel takes the scores of a population"),
+    (lambda ga, rng: ga.elite_count(1.5, 10), "elitism is the fraction of the population kept"),
+    (lambda ga, rng: ga.grow(ga.Genome(run_forward(get_model("vines"), rng)), rng, count=-3), "grow turns on count"),
+    (lambda ga, rng: ga.Genome(None), "a Genome wraps a derivation"),
+])
+def test_the_ga_operators_name_their_misuse(call, message):
+    """h82: a string as a tournament's size, an empty wheel, grow(count=-3) or a Genome of
+    nothing was a raw TypeError, IndexError, ValueError or AttributeError; elitism 1.5 kept
+    15 of 10."""
+    from types import SimpleNamespace
+
+    from procmod.infer.ga import Genome, elite_count, grow, roulette, roulette_wheel, tournament
+
+    ga = SimpleNamespace(Genome=Genome, elite_count=elite_count, grow=grow, roulette=roulette,
+                         roulette_wheel=roulette_wheel, tournament=tournament)
+    with pytest.raises(InvalidArgumentError, match=message):
+        call(ga, np.random.default_rng(0))

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ...core import InvalidArgumentError, Model
-from ...core.errors import argument
+from ...core.errors import argument, shown_value, whole_number
 from ...core.protocols import Target
 from ...core.limits import relaxed_gc
 from ...core.errors import check_real
@@ -123,6 +123,9 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
     :data:`MAX_GROW_ROUNDS` rounds, leaving such individuals shorter than their goal (the
     generations' mutations, drawn from the prior, make them longer); the built-in models
     reach their goals in at most 8 rounds."""
+    for name, value in (("population", population), ("initial_size", initial_size)):
+        if whole_number(value) is None or value < 1:
+            raise InvalidArgumentError(f"initial_population takes a {name} of one or more, got {shown_value(value)}")
     # fewer only when the time ran out or a stop came; one at least, so that a run has a population
     pop = [ind for ind in evaluate([({}, new_seed(rng), False) for _ in range(population)], until_out_of_time=True,
                                    at_least=1) if ind is not None]

@@ -23,6 +23,12 @@ class Genome:
     __slots__ = ("d", "_nodes", "_raw", "_index", "_connections", "_grow", "_cut", "_alter", "_nudge")
 
     def __init__(self, d):
+        from ...core.runtime import Derivation
+
+        if not isinstance(d, Derivation):  # (h82: an AttributeError inside the first operator)
+            from ...core import InvalidArgumentError
+            raise InvalidArgumentError(f"a Genome wraps a derivation (procmod.core.Derivation), got "
+                                       f"{type(d).__name__}")
         self.d = d
         self._nodes = self._raw = self._index = self._connections = self._grow = self._cut = self._alter = None
         self._nudge = None

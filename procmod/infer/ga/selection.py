@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ...core import InvalidArgumentError
+from ...core.errors import cut_text, shown_value, whole_number
 
 
 def roulette_wheel(scores) -> np.ndarray:
@@ -20,7 +21,11 @@ def roulette_wheel(scores) -> np.ndarray:
     can be negative), over the total; individuals whose score is not finite get no share,
     and when no fitness is positive every other individual gets an equal one (every
     individual, when none is finite)."""
-    scores = np.asarray(scores, dtype=np.float64)
+    try:
+        scores = np.asarray(scores, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"roulette_wheel takes the scores of a population (numbers), got "
+                                   f"{cut_text(repr(scores), 40)}") from None
     if scores.ndim != 1 or len(scores) == 0:
         raise InvalidArgumentError(f"roulette_wheel takes the scores of a population of one or more, got "
                                    f"{len(scores) if scores.ndim == 1 else scores.shape}")
@@ -40,19 +45,27 @@ def roulette_wheel(scores) -> np.ndarray:
 def roulette(wheel: np.ndarray, rng) -> int:
     """The index of the individual the ball of one spin stops at: probability
     proportional to its share of :func:`roulette_wheel`."""
+    if len(wheel) == 0:
+        raise InvalidArgumentError("roulette takes the wheel of a population of one or more (roulette_wheel's), "
+                                   "got an empty one")
     return min(int(np.searchsorted(wheel, rng.random() * wheel[-1], side="right")), len(wheel) - 1)
 
 
 def tournament(size: int, k: int, rng) -> int:
     """The winner of a k-tournament in a population of ``size`` ranked best first: ``k``
     entrants drawn uniformly (with replacement), the best-ranked one wins."""
-    if size < 1 or k < 1:
+    if whole_number(size) is None or whole_number(k) is None or size < 1 or k < 1:
         raise InvalidArgumentError(f"tournament needs a population (size) and entrants (k) of one or more, got "
-                                   f"size {size}, k {k}")
+                                   f"size {shown_value(size)}, k {shown_value(k)}")
+    size, k = int(size), int(k)
     return int(min(rng.integers(0, size, size=k)))
 
 
 def elite_count(elitism: float, size: int) -> int:
     """How many of the best individuals elitism keeps: the fraction ``elitism`` of the
     population, rounded up."""
+    if isinstance(elitism, bool) or not isinstance(elitism, (int, float, np.integer, np.floating)) \
+            or not 0 <= elitism <= 1:
+        raise InvalidArgumentError(f"elitism is the fraction of the population kept, from 0 to 1, got "
+                                   f"{shown_value(elitism)}")
     return int(math.ceil(elitism * size)) if elitism > 0 else 0

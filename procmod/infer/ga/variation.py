@@ -52,7 +52,7 @@ import numbers
 import numpy as np
 
 from ...core import InvalidArgumentError
-from ...core.errors import argument, shown_value
+from ...core.errors import argument, shown_value, whole_number
 from ...core.runtime import same_args
 from .genome import DROP, Genome, Offspring
 
@@ -102,6 +102,9 @@ def grow(g: Genome, rng, count: int = 1) -> Offspring | None:
     once (successive picks without replacement), used to build the initial population
     without one replay per added call."""
     _genome(g, "grow")
+    if whole_number(count) is None or count < 1:
+        raise InvalidArgumentError(f"grow turns on {argument('count')} children, one or more, got {shown_value(count)}")
+    count = int(count)
     sites = g.grow_sites()
     if count == 1:
         picks = [weighted_pick(sites, [p for _, _, p in sites], rng)]
