@@ -866,11 +866,11 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
     return share
 
 
-def _transparent_as_white(picture, grey: np.ndarray) -> np.ndarray:
-    """``grey`` with a picture's transparent pixels white (to avoid), as the picture shows
-    on a page: a shape exported as a transparent PNG (drawn in its alpha channel, its
-    transparent pixels black) was read as "hit" everywhere."""
-    opaque = opaque_part(picture)
+def _transparent_as_white(grey: np.ndarray, opaque) -> np.ndarray:
+    """``grey`` with a picture's transparent pixels (outside ``opaque``, its
+    :func:`opaque_part`; None: none) white (to avoid), as the picture shows on a page: a
+    shape exported as a transparent PNG (drawn in its alpha channel, its transparent
+    pixels black) was read as "hit" everywhere."""
     return grey if opaque is None else np.where(opaque, grey, 255.0)
 
 
@@ -1004,9 +1004,9 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             weights = _load_weights(file, f"{at}.weights")
         elif kind == "image":
             picture = open_image(file, f"{at}.image")
-            grey = _transparent_as_white(picture, grey_levels(picture))
-            weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
             opaque = opaque_part(picture)
+            grey = _transparent_as_white(grey_levels(picture), opaque)
+            weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
             if hit > 0 and not (grey < HIT_BELOW).any() and opaque is not None and opaque.any() \
                     and not opaque.all():
                 # a light cut-out on a transparent ground, or a mask drawn in the alpha channel

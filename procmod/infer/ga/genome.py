@@ -10,6 +10,9 @@ edits, looked up lazily and materialized only for a full replay.
 
 from __future__ import annotations
 
+from ...core import InvalidArgumentError
+from ...core.runtime import Derivation
+
 DROP = object()  # an Offspring edit that removes a choice (replay draws it afresh)
 _MISSING = object()
 
@@ -23,10 +26,7 @@ class Genome:
     __slots__ = ("d", "_nodes", "_raw", "_index", "_connections", "_grow", "_cut", "_alter", "_nudge")
 
     def __init__(self, d):
-        from ...core.runtime import Derivation
-
         if not isinstance(d, Derivation):  # (h82: an AttributeError inside the first operator)
-            from ...core import InvalidArgumentError
             raise InvalidArgumentError(f"a Genome wraps a derivation (procmod.core.Derivation), got "
                                        f"{type(d).__name__}")
         self.d = d
