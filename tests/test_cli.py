@@ -248,6 +248,28 @@ def test_a_glyph_target_imports_neither_matplotlib_nor_scipy_ndimage():
     assert out.strip() == "[]"
 
 
+def test_a_drawing_on_a_transparent_ground_imports_no_scipy_ndimage(tmp_path):
+    """A picture on a transparent ground (as bench/vs_webppl.py writes its targets, and as
+    drawing apps export) needs none of scipy.ndimage's checks: its import (~0.13 s of
+    every run) now comes after the cheap tests that rule them out (a frame along all four
+    sides, a page, faint strokes, a band along an edge)."""
+    import numpy as np
+    from PIL import Image
+
+    pixels = np.zeros((50, 50, 4), dtype=np.uint8)
+    pixels[5:45, 22:27, 3] = 255  # a stem ...
+    pixels[20:24, 10:40, 3] = 255  # ... and a branch across it
+    Image.fromarray(pixels).save(tmp_path / "plant.png")
+    code = ("import sys, contextlib, io\n"
+            "from procmod.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            f"    assert main(['infer', 'vines', '--target', {str(tmp_path / 'plant.png')!r}, '--particles', '2',\n"
+            f"                 '--out', {str(tmp_path / 'run')!r}]) == 0\n"
+            "print('scipy.ndimage' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
+
+
 def test_param_sets_model_parameters(tmp_path, capsys):
     out = tmp_path / "s"
     assert _run(capsys, "sample", "vines", "-n", "2", "--param", "leaves=false", "--param", "size=64",

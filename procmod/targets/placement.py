@@ -390,16 +390,19 @@ def _edge_band(mask: np.ndarray, picture: tuple | None = None) -> tuple[str, flo
     ``picture``: where the picture lies in the mask (:attr:`TargetImage.picture`; a
     portrait scan is padded to a square, and its edges are inside the frame). A shape
     cut tight to the picture touches its edges too, but is all one part, or reaches far in."""
-    from scipy import ndimage
-
     if picture is not None:
         top, left, height, width = picture
         mask = mask[top:top + height, left:left + width]
+    height, width = mask.shape
+    if not any(line.sum() > EDGE_BAND_LENGTH * length for line, length in
+               ((mask[:, 0], height), (mask[:, -1], height), (mask[0], width), (mask[-1], width))):
+        return None  # no side has a band's length of shape (importing scipy.ndimage costs ~0.13 s)
+    from scipy import ndimage
+
     labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
     if count < 2:
         return None
     sizes = np.bincount(labels.ravel())[1:]
-    height, width = mask.shape
     # each side: its pixels, its length, and the picture's extent across it
     sides = {"left": (labels[:, 0], height, width), "right": (labels[:, -1], height, width),
              "top": (labels[0], width, height), "bottom": (labels[-1], width, height)}
