@@ -737,3 +737,40 @@ def test_the_ga_operators_name_their_misuse(call, message):
                          roulette_wheel=roulette_wheel, tournament=tournament)
     with pytest.raises(InvalidArgumentError, match=message):
         call(ga, np.random.default_rng(0))
+
+
+def test_the_ga_operators_name_a_missing_generator_and_plain_derivations():
+    """h82: an operator given rng=None (or a seed) raised an AttributeError wherever it first
+    drew; breed given derivations instead of scored individuals, and the Evaluator given
+    derivations instead of jobs, raised an AttributeError and a TypeError."""
+    from procmod.infer import Budget, Tracker
+    from procmod.infer.ga import (Evaluator, Genome, Genomes, alter, breed, crossover, cut, grow,
+                                  initial_population, mutate, nudge, roulette, roulette_wheel, tournament)
+    from procmod.targets import ShapeMatch, TargetImage
+
+    model, rng = get_model("vines"), np.random.default_rng(0)
+    derivation = run_forward(model, rng)
+    genome = Genome(derivation)
+    mask = np.zeros((50, 50), bool)
+    mask[10:45, 22:28] = True
+    target = ShapeMatch(TargetImage("bar", mask, (0.5, 0.9), (0, -1)))
+    evaluate = Evaluator(model, target, None, Tracker(Budget()))
+    # grow, cut and crossover of this vine return before drawing: the check is up front
+    for name, call in (("grow", lambda r: grow(genome, r)), ("cut", lambda r: cut(genome, r)),
+                       ("alter", lambda r: alter(genome, r)), ("nudge", lambda r: nudge(genome, r)),
+                       ("mutate", lambda r: mutate(genome, r, (1, 1, 1))),
+                       ("crossover", lambda r: crossover(genome, genome, r)),
+                       ("roulette", lambda r: roulette(roulette_wheel([1.0, 2.0]), r)),
+                       ("tournament", lambda r: tournament(5, 2, r)),
+                       ("initial_population", lambda r: initial_population(evaluate, 2, 2, r, Tracker(Budget())))):
+        for bad in (None, 7):
+            with pytest.raises(InvalidArgumentError, match=rf"^{name}: rng must be a numpy Generator"):
+                call(bad)
+    breeding = dict(n_elite=0, k=2, mutation=0.3, split=(1, 1, 1), nudge_step=0.1, max_retries=3)
+    with pytest.raises(InvalidArgumentError, match="breed takes the population as scored individuals"):
+        breed([derivation, derivation], Genomes(), rng, **breeding)
+    with pytest.raises(InvalidArgumentError, match="^breed: rng must be"):
+        breed(evaluate([({}, 1, False), ({}, 2, False)]), Genomes(), None, **breeding)
+    with pytest.raises(InvalidArgumentError, match=r"the Evaluator takes a list of jobs \(choices, seed"):
+        evaluate([derivation])
+    assert len(evaluate([[derivation.choice_map(), 3, False]])) == 1  # a job as a list is still a job

@@ -787,16 +787,24 @@ def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None
     return finish(start(model, output), rng, pick)
 
 
-def _check_call(model, rng, derivation=None, needs_derivation: bool = False) -> None:
-    """One-line errors for the public entry points' most likely mistakes: a model's name
-    for the model, a seed for the generator, no derivation."""
-    check_model(model)
+def check_rng(rng, operator: str | None = None) -> None:
+    """An InvalidArgumentError unless ``rng`` is a numpy Generator (or procmod's wrappers of
+    one, or an object with its ``random`` and ``standard_normal``): None or a seed given as
+    the generator had raised an AttributeError deep inside whatever drew first.
+    ``operator``: the public function the error names."""
     # looked up on the type: a LazyGenerator makes its generator at the first attribute
     # asked of it, which a replay that draws nothing never needs
     if not isinstance(rng, (np.random.Generator, LazyGenerator, BlockGenerator)) and not (
             callable(getattr(type(rng), "random", None)) and callable(getattr(type(rng), "standard_normal", None))):
-        raise InvalidArgumentError(f"rng must be a numpy Generator (np.random.default_rng(seed)), got "
-                                   f"{type(rng).__name__} {rng!r:.40}")
+        raise InvalidArgumentError(f"{operator + ': ' if operator else ''}rng must be a numpy Generator "
+                                   f"(np.random.default_rng(seed)), got {type(rng).__name__} {rng!r:.40}")
+
+
+def _check_call(model, rng, derivation=None, needs_derivation: bool = False) -> None:
+    """One-line errors for the public entry points' most likely mistakes: a model's name
+    for the model, a seed for the generator, no derivation."""
+    check_model(model)
+    check_rng(rng)
     if needs_derivation and not isinstance(derivation, Derivation):
         raise InvalidArgumentError(f"derivation must be a procmod Derivation, got {type(derivation).__name__}")
 

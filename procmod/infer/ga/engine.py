@@ -9,6 +9,7 @@ import numpy as np
 from ...core import InvalidArgumentError, Model
 from ...core.errors import argument, shown_value, whole_number
 from ...core.protocols import Target
+from ...core.runtime import check_rng
 from ...core.limits import relaxed_gc
 from ...core.errors import check_real
 from ..common import (Budget, Result, Scored, Tracker, best_first, check_population, check_positive, check_run,
@@ -126,6 +127,7 @@ def initial_population(evaluate: Evaluator, population: int, initial_size: int, 
     for name, value in (("population", population), ("initial_size", initial_size)):
         if whole_number(value) is None or value < 1:
             raise InvalidArgumentError(f"initial_population takes a {name} of one or more, got {shown_value(value)}")
+    check_rng(rng, "initial_population")
     # fewer only when the time ran out or a stop came; one at least, so that a run has a population
     pop = [ind for ind in evaluate([({}, new_seed(rng), False) for _ in range(population)], until_out_of_time=True,
                                    at_least=1) if ind is not None]
@@ -160,6 +162,11 @@ def breed(pop: list, genomes: Genomes, rng, *, n_elite: int, k: int, mutation: f
 
     Each pair of parents is one roulette pick and one k-tournament pick; with probability
     ``mutation`` both are mutated (:func:`mutate`), otherwise crossed over."""
+    check_rng(rng, "breed")
+    for ind in pop:
+        if not isinstance(ind, Scored):
+            raise InvalidArgumentError(f"breed takes the population as scored individuals, best first (what the "
+                                       f"Evaluator returns for jobs (choices, seed, False)), got {type(ind).__name__}")
     size = len(pop)
     # an individual the target rules out (a proxy target's intersecting ship) gets no share
     wheel = roulette_wheel([ind.score if ind.log_likelihood != -math.inf else -math.inf for ind in pop])

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...core import Model
+from ...core import InvalidArgumentError, Model
 from ...core.protocols import Target, check_declared
 from ...core.runtime import replay_reusing
 from ..common import Evaluation, Scored, Tracker, evaluate_all, scored
@@ -92,6 +92,12 @@ class Evaluator:
         evaluated are ``None`` in the list.
         """
         model, target, tracker = self.model, self.target, self.tracker
+        for job in jobs:
+            if not (isinstance(job, (tuple, list)) and len(job) == 3):
+                raise InvalidArgumentError(f"the Evaluator takes a list of jobs (choices, seed, maybe_default): "
+                                           f"choices a choice map (a derivation d's d.choice_map(), {{}} to sample "
+                                           f"afresh) or an Offspring, seed an int, maybe_default False; got "
+                                           f"{type(job).__name__} {job!r:.40}")
         evaluations = [None] * len(jobs)
         first = tracker.evaluations  # _scored counts each evaluation there
 

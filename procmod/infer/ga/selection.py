@@ -13,6 +13,7 @@ import numpy as np
 
 from ...core import InvalidArgumentError
 from ...core.errors import cut_text, shown_value, whole_number
+from ...core.runtime import check_rng
 
 
 def roulette_wheel(scores) -> np.ndarray:
@@ -48,6 +49,7 @@ def roulette(wheel: np.ndarray, rng) -> int:
     if len(wheel) == 0:
         raise InvalidArgumentError("roulette takes the wheel of a population of one or more (roulette_wheel's), "
                                    "got an empty one")
+    check_rng(rng, "roulette")
     return min(int(np.searchsorted(wheel, rng.random() * wheel[-1], side="right")), len(wheel) - 1)
 
 
@@ -57,6 +59,7 @@ def tournament(size: int, k: int, rng) -> int:
     if whole_number(size) is None or whole_number(k) is None or size < 1 or k < 1:
         raise InvalidArgumentError(f"tournament needs a population (size) and entrants (k) of one or more, got "
                                    f"size {shown_value(size)}, k {shown_value(k)}")
+    check_rng(rng, "tournament")
     size, k = int(size), int(k)
     return int(min(rng.integers(0, size, size=k)))
 

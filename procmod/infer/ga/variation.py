@@ -53,7 +53,7 @@ import numpy as np
 
 from ...core import InvalidArgumentError
 from ...core.errors import argument, shown_value, whole_number
-from ...core.runtime import same_args
+from ...core.runtime import check_rng, same_args
 from .genome import DROP, Genome, Offspring
 
 COPIES = "copies"  # what crossover returns when the swap changes nothing
@@ -102,6 +102,7 @@ def grow(g: Genome, rng, count: int = 1) -> Offspring | None:
     once (successive picks without replacement), used to build the initial population
     without one replay per added call."""
     _genome(g, "grow")
+    check_rng(rng, "grow")
     if whole_number(count) is None or count < 1:
         raise InvalidArgumentError(f"grow turns on {argument('count')} children, one or more, got {shown_value(count)}")
     count = int(count)
@@ -126,6 +127,7 @@ def cut(g: Genome, rng) -> Offspring | None:
     """Turn off one expressed ``maybe`` child, picked with probability proportional to
     ``1 - p``, and drop its subtree (None if nothing can be cut)."""
     _genome(g, "cut")
+    check_rng(rng, "cut")
     sites = g.cut_sites()
     pick = weighted_pick(sites, [1.0 - p for _, _, p in sites], rng)
     if pick is None:
@@ -137,6 +139,7 @@ def alter(g: Genome, rng) -> Offspring | None:
     """Remove all parameters of one call, picked uniformly, so that replay redraws them
     from the prior (None if no call has parameters)."""
     _genome(g, "alter")
+    check_rng(rng, "alter")
     candidates = g.alter_sites()
     if not candidates:
         return None
@@ -167,6 +170,7 @@ def nudge(g: Genome, rng, step: float = 0.1) -> Offspring | None:
     ``step`` x its distribution's scale, reflected into its bounds (None if no call has
     continuous parameters)."""
     _genome(g, "nudge")
+    check_rng(rng, "nudge")
     if isinstance(step, bool) or not isinstance(step, numbers.Real) or not (math.isfinite(step) and step >= 0):
         raise InvalidArgumentError(f"{argument('step')} of a nudge must be a finite number of scales, 0 or more, "
                                    f"got {shown_value(step)}")
@@ -188,6 +192,7 @@ def mutate(g: Genome, rng, split, step: float = 0.1) -> Offspring | None:
     proportional to ``split`` (four weights, in that order); when the picked one has
     nothing to do, the others with a positive weight are tried in that order. None when
     none applies."""
+    check_rng(rng, "mutate")
     split = check_split(split)  # (three weights, as ga() takes: no nudge)
     operators = (grow, cut, alter, lambda g, rng: nudge(g, rng, step))
     first = weighted_pick([0, 1, 2, 3], split, rng)
@@ -232,6 +237,7 @@ def crossover(g1: Genome, g2: Genome, rng, max_retries: int = 10):
     connections of ``g1`` found no match in ``g2``."""
     _genome(g1, "crossover")
     _genome(g2, "crossover")
+    check_rng(rng, "crossover")
     c1 = [(key, a) for key, addresses in g1.connections().items() for a in addresses]
     if not c1:
         return None
