@@ -119,12 +119,12 @@ def compile_timed_package() -> None:
     """Write the bytecode of the procmod package the runs time, as an install by pip
     does (or Python's first import, where it may write). With PYTHONDONTWRITEBYTECODE set
     (this machine's shell sets it) a checkout's modules were compiled from source in every
-    process: ~0.3-0.5 s of each run's start-up that a user's installed procmod never pays."""
-    import compileall
-
-    import procmod
-
-    compileall.compile_dir(str(Path(procmod.__file__).parent), quiet=1)
+    process: ~0.3-0.5 s of each run's start-up that a user's installed procmod never pays.
+    Done in a process started as the timed ones are (:func:`procmod_command`: the current
+    folder first on the path), so it finds the package they import, not this one's."""
+    code = ("import compileall, pathlib, procmod; "
+            "compileall.compile_dir(str(pathlib.Path(procmod.__file__).parent), quiet=1)")
+    subprocess.run([sys.executable, "-c", code], check=True)
 
 
 # ---- targets --------------------------------------------------------------------------

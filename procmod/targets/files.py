@@ -849,10 +849,10 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
     joined to them), when it is at least :data:`GREY_BAND`; else None. A product photo
     shaded from grey 170 to 40 had its upper half read as "either", and the run fitted
     its lower half alone, no better than forward samples, without a word."""
-    from scipy import ndimage
-
     if not ((grey >= HIT_BELOW) & (grey <= AVOID_ABOVE)).any():
         return None  # no mid-grey at all (a black-and-white mask)
+    from scipy import ndimage  # after the cheap check: importing it costs ~0.2 s of start-up
+
     step = max(1, math.ceil(math.sqrt(grey.size / 4e6)))
     grey = grey[::step, ::step]  # a share: a picture of 81 MP took 4.4 s whole (h80), this about 4 MP
     dark = grey < HIT_BELOW

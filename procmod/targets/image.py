@@ -737,12 +737,19 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     it (a drawing on a whiteboard in its frame: a surface, not a fill; an outline's fill
     around a drawn detail is lost with it). ``luma`` is the brightness the ink was read
     from (the fall of light taken out)."""
-    from scipy import ndimage
-
     if not ink.any() or ink.all() or float(luma[ink].mean()) >= float(luma[~ink].mean()):
         # light ink on a dark ground: a blackboard, or a light page read on a dark desk,
         # whose drawing is what it encloses (procmod.targets.image._drawing_on_a_page)
         return ink
+    rest = ~ink & where
+    least = max(FILL_CONTRAST, NOISE_MARGIN * noise)
+    if rest.any():
+        spread = float(np.ptp(luma[rest]))
+        if colours.shape[2] > 1:
+            spread = max(spread, 2.0 * float(np.ptp(colours[rest], axis=0).max()))
+        if spread + 1e-6 < least:  # (a margin for the cell means' rounding)
+            return ink  # no cell can differ from another by ``least``: nothing is filled
+    from scipy import ndimage  # after the cheap checks: importing it costs ~0.19 s of start-up
     # what the ink encloses: the regions of the rest that reach no edge of the picture (a
     # labelling, one pass: binary_fill_holes' flood took ~0.2 s on a page's photo)
     labels, count = ndimage.label(~ink)
@@ -870,10 +877,15 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
     their blurred rims). A page in a near-black frame drawn in black is therefore not told
     from them (the "covers" note of :func:`procmod.targets.placement.picture_note` says
     what to crop)."""
-    from scipy import ndimage
-
     if not mask.any():
         return None
+    luma, surround_luma = _luma(colours), float(_luma(surround))
+    # the region read as the shape is the light page itself, not dark ink on paper whose
+    # middle is a little lighter than its edges (a drawn frame, which spans fill as well)
+    if float(np.median(luma[mask])) < surround_luma + MIN_CONTRAST:
+        return None
+    from scipy import ndimage  # after the cheap checks: importing it costs ~0.19 s of start-up
+
     h, w = mask.shape
     step = max(1, math.ceil(max(h, w) / _PAGE_GRID))
     small = mask[::step, ::step]
@@ -887,11 +899,6 @@ def _drawing_on_a_page(colours: np.ndarray, mask: np.ndarray, surround: np.ndarr
         small[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
     page = ndimage.binary_fill_holes(_spans(boxed))  # where strokes cross, both spans miss
     if page.mean() < PAGE_SHARE or not _fills_its_box(page, PAGE_BOX_FILL):
-        return None
-    luma, surround_luma = _luma(colours), float(_luma(surround))
-    # the region read as the shape is the light page itself, not dark ink on paper whose
-    # middle is a little lighter than its edges (a drawn frame, which spans fill as well)
-    if float(np.median(luma[mask])) < surround_luma + MIN_CONTRAST:
         return None
     inside = ndimage.binary_erosion(page, iterations=max(1, round(0.015 * max(page.shape))))
     inside = np.repeat(np.repeat(inside, step, axis=0), step, axis=1)[:h, :w]  # back to the picture's pixels
@@ -1184,6 +1191,10 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
     (:func:`mask_from_image`'s before its square)."""
     if opaque_part(image) is not None or not mask.any():
         return None
+    colours = _colours(image)
+    surround = float(_luma(_border_colour(colours)[1]))
+    if float(_luma(colours[mask]).max()) < surround + MIN_CONTRAST:  # dark ink on light paper, whatever ``part``
+        return None
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.13 s of start-up
 
     stroke = max(2, round(0.02 * max(mask.shape)))  # the widest stroke taken for the drawing's
@@ -1198,8 +1209,6 @@ def page_taken_for_shape(image: Image.Image, mask: np.ndarray) -> float | None:
         page = _page_of(filled, part, stroke)
     if page is None:
         return None
-    colours = _colours(image)
-    surround = float(_luma(_border_colour(colours)[1]))
     if float(np.median(_luma(colours[part]))) < surround + MIN_CONTRAST:  # dark ink on light paper
         return None
     return float(page.mean())

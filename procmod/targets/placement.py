@@ -394,7 +394,7 @@ def _edge_band(mask: np.ndarray, picture: tuple | None = None) -> tuple[str, flo
         top, left, height, width = picture
         mask = mask[top:top + height, left:left + width]
     height, width = mask.shape
-    if not any(line.sum() > EDGE_BAND_LENGTH * length for line, length in
+    if mask.size == 0 or not any(line.sum() > EDGE_BAND_LENGTH * length for line, length in
                ((mask[:, 0], height), (mask[:, -1], height), (mask[0], width), (mask[-1], width))):
         return None  # no side has a band's length of shape (importing scipy.ndimage costs ~0.13 s)
     from scipy import ndimage
