@@ -956,6 +956,66 @@ def test_the_guide_fit_note_is_set_up_before_the_engine_clock(monkeypatch):
     assert order == ["note", "clock"], order
 
 
+def _plant_model(tmp_path, labels: str):
+    """A one-choice model file whose categorical lists ``labels`` (Python source)."""
+    from procmod.models.from_file import load_model_file
+
+    import hashlib
+
+    # a file per variant: a model file is run once a process (load_model_file), as an import is
+    path = tmp_path / f"plant_{hashlib.sha256(labels.encode()).hexdigest()[:8]}.py"
+    path.write_text(
+        "from procmod import Categorical, Model\n"
+        "from procmod.geometry import Canvas\n\n"
+        "def grow(ctx):\n"
+        f"    ctx.sample('kind', Categorical({labels}))\n\n"
+        "PLANT = Model('plant', 'a plant', grow, root_args=lambda p: (),\n"
+        "              new_output_from=lambda p: Canvas((0, 1, 0, 1), 8))\n")
+    return load_model_file(f"{path}:PLANT")
+
+
+def test_a_guide_proposes_a_reordered_categorical_by_its_labels(tmp_path):
+    """A categorical's labels reordered after training steered every choice to the label
+    now at the learned position, worse than no guide (h70). The guide records each
+    categorical site's labels as trained, and proposes each label with the probability it
+    learned for that label, in any order; other labels (renamed) are proposed by
+    position, with a note."""
+    from procmod.data import target_from_spec
+
+    trained = ("straight", "fork", "bud")
+    target = target_from_spec("scribble:3")
+
+    def proposal_by_label(guide, labels: str) -> tuple[dict, list]:
+        model = _plant_model(tmp_path, labels)
+        result = smc(model, target, particles=60, seed=0, guide=guide)
+        return {s.choice_map()[((), "kind")]: round(s.log_proposal, 9) for s in result.samples}, result.notes
+
+    def guide_favouring(label_codes_recorded: bool):
+        guide = new_guide_for(_plant_model(tmp_path, f"[2, 1, 1], labels={trained!r}"),
+                              FeatureSettings(local=False, target=False, partial=False), 1, {"grow:kind": "categorical:3"},
+                              seed=0, site_labels={"grow:kind": trained} if label_codes_recorded else None)
+        w1, b1, w2, _ = guide.numpy_weights()["grow:kind"]
+        guide.nets["grow:kind"].set_numpy_weights((w1, b1, w2, np.array([0.0, 0.0, 4.0])))  # learned: 'bud'
+        guide.invalidate()
+        return guide
+
+    guide = guide_favouring(True)
+    as_trained, _ = proposal_by_label(guide, f"[2, 1, 1], labels={trained!r}")
+    assert set(as_trained) == set(trained) and max(as_trained, key=as_trained.get) == "bud", as_trained
+    reordered, notes = proposal_by_label(guide, "[1, 1, 2], labels=('bud', 'fork', 'straight')")
+    assert reordered == as_trained and not any("other labels" in n for n in notes)
+    # saved and read back, the labels go with the guide
+    guide.save(tmp_path / "g")
+    assert proposal_by_label(Guide.load(tmp_path / "g"), "[1, 1, 2], labels=('bud', 'fork', 'straight')")[0] == \
+        as_trained
+    # a guide without recorded labels (trained before they were) proposes by position
+    old = proposal_by_label(guide_favouring(False), "[1, 1, 2], labels=('bud', 'fork', 'straight')")[0]
+    assert max(old, key=old.get) == "straight", old
+    renamed, notes = proposal_by_label(guide, "[2, 1, 1], labels=('tall', 'forked', 'budding')")
+    assert max(renamed, key=renamed.get) == "budding"
+    assert any("grow:kind draws among other labels than it was trained on" in n for n in notes), notes
+
+
 def test_a_guide_of_a_model_file_edited_after_its_traces_is_noted(tmp_path):
     """A categorical's labels reordered after training (the same model) steered the choices
     to the wrong labels, worse than no guide, without a word (h70): the guide's traces

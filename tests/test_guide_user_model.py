@@ -514,3 +514,24 @@ def test_training_on_traces_of_a_model_edited_since_says_to_remake_them_all(tmp_
     err = capsys.readouterr().err
     assert "made before its code was edited" in err and "--overwrite" in err and err.count("\n") == 1, err
     assert "delete it and rerun" not in err
+
+
+def test_a_guide_records_the_labels_its_categorical_sites_were_trained_on(tmp_path, monkeypatch, capsys):
+    """Each categorical site's labels go into the guide's metadata in the order its network
+    learned them (GuidedProposer then proposes a reordered categorical by label); a site
+    whose labels come from the rule's arguments, and so vary, records none."""
+    source = PLANT_FILE.replace("from procmod import Model, Normal", "from procmod import Categorical, Model, Normal")
+    source = source.replace('    ctx.emit(Segment(x, y, x1, y1, 0.6))\n',
+                            '    ctx.emit(Segment(x, y, x1, y1, 0.6))\n'
+                            '    ctx.sample("leaf", Categorical([1, 2], labels=("round", "long")))\n'
+                            '    ctx.sample("bud", Categorical([1, 1], labels=(depth, depth + 10)))\n')
+    (tmp_path / "plants.py").write_text(source)
+    monkeypatch.chdir(tmp_path)
+    assert main(["guide", "traces", "plants.py:PLANT", "--count", "3", "--particles", "8", "--workers", "1",
+                 "--out", "traces"]) == 0, capsys.readouterr().err
+    assert main(["guide", "train", "plants.py:PLANT", "--traces", "traces", "--out", "g", "--iterations", "5"]) == 0, \
+        capsys.readouterr().err
+    sites = json.loads((tmp_path / "g.json").read_text())["sites"]
+    assert sites["plant:leaf"]["labels"] == ["round", "long"]
+    assert sites["plant:bud"]["kind"] == "categorical:2" and "labels" not in sites["plant:bud"]
+    assert "labels" not in sites["plant:angle"]

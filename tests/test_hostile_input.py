@@ -94,6 +94,10 @@ def inputs(tmp_path_factory):
     meta = json.loads((PRETRAINED / "vines-scribbles.json").read_text())
     (d / "bigmix.json").write_text(json.dumps(dict(meta, mixture=10 ** 9)))
     shutil.copy(PRETRAINED / "vines-scribbles.pt", d / "bigmix.pt")
+    first = sorted(meta["sites"])[0]  # labels on a site that draws no categorical
+    (d / "badlabels.json").write_text(json.dumps(dict(meta, sites=dict(meta["sites"], **{
+        first: dict(meta["sites"][first], labels=["a", "b"])}))))
+    shutil.copy(PRETRAINED / "vines-scribbles.pt", d / "badlabels.pt")
     (d / "deepguide.json").write_text("[" * 100_000 + "]" * 100_000)
     shutil.copy(PRETRAINED / "vines-scribbles.pt", d / "deepguide.pt")
     # an integer of more digits than Python converts (4300), and a file that never ends
@@ -168,6 +172,8 @@ CASES = [
      "start_huge.json: parameter start[0] must be between -10.0 and 10.0, got 1e+308"),
     ("guide-mixture-huge", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/bigmix", "--out", "{o}"],
      "bigmix.json: mixture must be"),
+    ("guide-labels-bad", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/badlabels", "--out", "{o}"],
+     "labels must be a categorical site's"),
     ("guide-malicious", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/evil", "--out", "{o}"],
      "evil.pt: refused to load"),
     ("train-mixture-huge", ["guide", "train", "vines", "--traces", "{i}/traces", "--mixture", "1000000000",

@@ -97,6 +97,13 @@ def check_metadata(data, source: str) -> dict:
         if spec.get("n_out") != n_out:
             raise GuideError(f"{where}.n_out must be {n_out} for a {kind} site with mixture {mixture}, "
                              f"got {shown_value(spec.get('n_out'))}")
+        labels = spec.get("labels")
+        if labels is not None and not (
+                kind.startswith("categorical") and isinstance(labels, list) and len(labels) == n_out
+                and all(isinstance(v, (str, int, bool)) or (isinstance(v, float) and math.isfinite(v)) for v in labels)
+                and len(set(label_codes(labels))) == n_out):
+            raise GuideError(f"{where}.labels must be a categorical site's {n_out} distinct labels (strings, numbers "
+                             f"or bools), got {shown_value(labels)}")
         weights += sum(math.prod(shape) for shape in weight_shapes(n_in, n_out))
     check_memory(f"{source}: the guide's networks", 8.0 * weights * 3, "the metadata is not a guide procmod wrote")
     if data.get("info") is not None and not isinstance(data.get("info"), dict):
@@ -362,8 +369,8 @@ def fit_note(guide: "Guide", output, target, model=None) -> str | None:
     may steer it worse than the prior would."""
     said = []
     if model is not None and _model_file_changed(guide.info.get("trace_job"), model):
-        said.append("its model's files changed after its traces were made (if a choice was renamed or a "
-                    "categorical's labels reordered, the guide steers them as they were)")
+        said.append("its model's files changed after its traces were made (a choice renamed, or whose meaning "
+                    "changed, is steered as the guide learned it)")
     sized = False
     trained = guide.info.get("trained_on")
     if not isinstance(trained, dict):
@@ -463,11 +470,19 @@ class GuidedProposer:
             # [kind, packed ranges + network (fast.pack_site), argument indices, prefix length
             #  (None: gather by index), distribution class last checked against the kind
             #  (None: not yet), whether the heading follows the arguments, the rule's raw values,
-            #  how many arguments the features read (a call with fewer takes the rule's defaults)]
+            #  how many arguments the features read (a call with fewer takes the rule's defaults),
+            #  a categorical's labels as trained (label_codes; None: not recorded)]
             needed = int(max(arg_idx)) + 1 if len(arg_idx) else 0
-            self._sites[(rule_name, choice)] = [spec["kind"], params, arg_idx, prefix, None, heading, raw, needed]
+            labels = spec.get("labels")
+            self._sites[(rule_name, choice)] = [spec["kind"], params, arg_idx, prefix, None, heading, raw, needed,
+                                                None if labels is None else label_codes(labels)]
         self._by_rule = {}  # (rule function, choice) -> its site (or None): the hot path's lookup
         self._bases = {}  # shared discrete distributions -> their base parameters
+        # categoricals -> (their base parameters in the order the site's network learned,
+        # the index in the categorical's labels of each of the network's outputs, or None
+        # where the orders agree); see propose
+        self._categories = {}
+        self._relabelled = set()  # sites whose labels are not the ones they were trained on (see relabelled_note)
         self._raw_of = (None, None)  # (call arguments, the raw-values array they were written into)
         self._draws_of = self._uniforms = self._normals = None  # see _draws
         self._next_draw = DRAW_BLOCK
@@ -594,17 +609,45 @@ class GuidedProposer:
         if kind == "interval":
             out = self.outputs(ctx.derivation, site, args)
             return propose(kind, self.mixture, out, base_params(kind, dist), dist, rng)
-        base = self._bases.get(dist)
-        if base is None:
-            if len(self._bases) > 4096:  # a model that builds its coins afresh: don't grow forever
-                self._bases.clear()
-            base = self._bases[dist] = np.array(base_params(kind, dist), dtype=np.float64)
-        u = self._draws(rng)[0]
         if kind == "bernoulli":
+            base = self._bases.get(dist)
+            if base is None:
+                if len(self._bases) > 4096:  # a model that builds its coins afresh: don't grow forever
+                    self._bases.clear()
+                base = self._bases[dist] = np.array(base_params(kind, dist), dtype=np.float64)
+            u = self._draws(rng)[0]
             value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, args))
             return value == 1.0, lq
+        known = self._categories.get(dist)
+        if known is None:
+            if len(self._categories) > 4096:  # a model that builds its categoricals afresh: don't grow forever
+                self._categories.clear()
+            known = self._categories[dist] = self._category_order(ctx, name, site, dist)
+        base, order = known
+        u = self._draws(rng)[0]
         index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, args))
-        return dist.labels[int(index)], lq
+        return dist.labels[int(index) if order is None else order[int(index)]], lq
+
+    def _category_order(self, ctx, name, site, dist) -> tuple:
+        """``(base parameters, order)`` of a categorical at ``site``: a network's k-th output
+        is the k-th label it was trained on, so where the model lists the same labels in
+        another order now, its base parameters are put in the trained order and ``order[k]``
+        is the index of that label now (a reordering had steered every choice to the wrong
+        label, worse than no guide, h70). Other labels than the trained ones (renamed) are
+        proposed by position, and noted (:meth:`relabelled_note`)."""
+        base = np.array(base_params(site[0], dist), dtype=np.float64)
+        trained = site[8]
+        if trained is None:
+            return base, None
+        now = label_codes(dist.labels)
+        if now == trained:
+            return base, None
+        position = {code: i for i, code in enumerate(now)}
+        if set(position) != set(trained):
+            self._relabelled.add(site_key(rule_name(ctx.rule), name))
+            return base, None
+        order = [position[code] for code in trained]
+        return np.ascontiguousarray(base[order]), order
 
     def unmatched_note(self) -> str | None:
         """A note when the guide proposed none of the choices the model made: none of its
@@ -620,6 +663,17 @@ class GuidedProposer:
                 f"{', ...' if len(made) > 4 else ''}), so every choice came from the prior; retrain the guide "
                 "on this model")
 
+    def relabelled_note(self) -> str | None:
+        """A note when a categorical the guide proposed has other labels than the ones its
+        site was trained on (renamed, not reordered): proposed by position, which may no
+        longer be what it learned; None otherwise."""
+        if not self._relabelled:
+            return None
+        sites = sorted(self._relabelled)
+        return (f"the guide's site{'s' if len(sites) > 1 else ''} {', '.join(sites[:3])}"
+                f"{', ...' if len(sites) > 3 else ''} draw{'' if len(sites) > 1 else 's'} among other labels than "
+                "it was trained on, and proposed them by position: if a label's meaning moved, retrain the guide")
+
     def _draws(self, rng) -> tuple[float, float]:
         """A uniform and a standard normal from ``rng``, drawn in blocks: two generator
         calls per choice cost about as much as the network. Deterministic given the
@@ -634,6 +688,22 @@ class GuidedProposer:
         return self._uniforms[i], self._normals[i]
 
 
+def merge_labels(labels: dict, key: str, drawn) -> None:
+    """Record in ``labels`` (site key -> labels) that a choice of site ``key`` drew among
+    ``drawn``: a site whose labels differ between its choices (labels made from the rule's
+    arguments) records None, as no one order of them is what its network learned."""
+    if key not in labels:
+        labels[key] = tuple(drawn)
+    elif labels[key] is not None and label_codes(labels[key]) != label_codes(drawn):
+        labels[key] = None
+
+
+def label_codes(labels) -> tuple:
+    """Labels as JSON text, to compare them as the guide's metadata keeps them (1, 1.0 and
+    True are one label to Python's ==, three to a categorical's JSON)."""
+    return tuple(json.dumps(label) for label in labels)
+
+
 class RecordingProposer:
     """Replays a trace's choices (log q = 0) and records what training needs per choice:
     site, features, the prior's base parameters and the encoded value."""
@@ -642,6 +712,7 @@ class RecordingProposer:
         self.choices = choices
         self.extractor = extractor
         self.rows = []  # (site key, kind, features, base, value)
+        self.labels = {}  # categorical site key -> its labels (None: they varied between choices)
 
     def propose(self, ctx, name, dist, rng):
         key = (ctx.address, name)
@@ -659,17 +730,25 @@ class RecordingProposer:
                              "outside its range, or another type): the trace was edited")
         kind = head_kind(dist)
         rule = rule_name(ctx.rule)
+        if kind.startswith("categorical"):
+            merge_labels(self.labels, site_key(rule, name), dist.labels)
         self.rows.append((site_key(rule, name), kind,
                           self.extractor.features(ctx.derivation, rule, with_defaults(ctx.rule, ctx.args)),
                           base_params(kind, dist), encode_value(kind, dist, value)))
         return value, 0.0
 
 
-def new_guide_for(model, settings: FeatureSettings, mixture: int, site_kinds: dict, seed: int) -> Guide:
-    """A fresh guide with one network per site in ``site_kinds`` (key -> kind)."""
+def new_guide_for(model, settings: FeatureSettings, mixture: int, site_kinds: dict, seed: int,
+                  site_labels: dict | None = None) -> Guide:
+    """A fresh guide with one network per site in ``site_kinds`` (key -> kind);
+    ``site_labels`` (key -> labels) records the labels a categorical site was trained on,
+    in the order its network's outputs follow (see :meth:`GuidedProposer.propose`)."""
     extractor = FeatureExtractor(model, settings, np.zeros((1, 1)) if settings.target else None)
     sites = {}
     for key, kind in site_kinds.items():
         rule_name = key.split(":", 1)[0]
         sites[key] = {"kind": kind, "n_in": extractor.size(rule_name), "n_out": n_outputs(kind, mixture)}
+        labels = (site_labels or {}).get(key)
+        if labels is not None and kind.startswith("categorical"):
+            sites[key]["labels"] = list(labels)
     return Guide(model.name, settings, mixture, sites, seed)

@@ -38,7 +38,7 @@ from ..core.runtime import finish
 from ..core.serialize import stored_calls
 from ..core.io import load_tensors, save_tensors, write_text_atomic
 from .features import FeatureExtractor, FeatureSettings, FeatureSettingsError, GuideError
-from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, new_guide_for,
+from .guide import (Guide, RecordingProposer, check_mixture, guide_paths, merge_labels, new_guide_for,
                     output_size, target_kind, target_mask_for)
 from .nets import log_q_torch
 from .traces import load_traces
@@ -67,8 +67,10 @@ def _target_mask(spec: str, model):
     return target_mask_for(target_from_spec(spec), model)
 
 
-def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None = None) -> list:
-    """Replay one trace and return its per-choice training rows."""
+def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None = None,
+               labels: dict | None = None) -> list:
+    """Replay one trace and return its per-choice training rows; ``labels`` (site key ->
+    labels, :func:`~procmod.guide.guide.merge_labels`) gathers its categorical sites' labels."""
     d = trace["derivation"]
     if d.get("model") != model.name:
         raise GuideError(f"{_trace_name(trace)} is of model {d.get('model')!r}, not {model.name!r}")
@@ -94,6 +96,12 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
     if len(recorder.rows) != len(choices) or not math.isclose(state.log_prior, d["log_prior"], abs_tol=1e-6):
         raise GuideError(f"{_trace_name(trace)} does not replay under model {model.name!r}: it was made "
                          f"by another version of the model, or edited{_RERUN}")
+    if labels is not None:
+        for key, drawn in recorder.labels.items():
+            if drawn is None:
+                labels[key] = None
+            else:
+                merge_labels(labels, key, drawn)
     return recorder.rows
 
 
@@ -106,7 +114,7 @@ def _trace_name(trace) -> str:
         else "a trace"
 
 
-def _checked_rows(model, trace, settings: FeatureSettings, masks: dict) -> list:
+def _checked_rows(model, trace, settings: FeatureSettings, masks: dict, labels: dict | None = None) -> list:
     """:func:`trace_rows`, a damaged or edited trace named with what to do."""
     from ..core.errors import ProcmodError
 
@@ -114,7 +122,7 @@ def _checked_rows(model, trace, settings: FeatureSettings, masks: dict) -> list:
     try:
         if not isinstance(trace.get("derivation"), dict):
             raise ValueError("its 'derivation' is not a JSON object")
-        return trace_rows(model, trace, settings, masks)
+        return trace_rows(model, trace, settings, masks, labels)
     except GuideError:
         raise
     except ProcmodError as exc:
@@ -202,13 +210,15 @@ def trained_on(model, traces: list) -> dict:
     return {"canvases": sorted(sizes), "targets": sorted(kinds)}
 
 
-def build_dataset(model, traces: list, settings: FeatureSettings) -> tuple[dict, dict, int]:
-    """Per-site training data; returns (site -> SiteData, site -> kind, number of choices)."""
+def build_dataset(model, traces: list, settings: FeatureSettings,
+                  labels: dict | None = None) -> tuple[dict, dict, int]:
+    """Per-site training data; returns (site -> SiteData, site -> kind, number of choices).
+    ``labels`` gathers the categorical sites' labels (:func:`trace_rows`)."""
     per_site, kinds = {}, {}
     masks = {}
     n_choices = 0
     for t, trace in enumerate(traces):
-        for key, kind, features, base, value in _checked_rows(model, trace, settings, masks):
+        for key, kind, features, base, value in _checked_rows(model, trace, settings, masks, labels):
             if kinds.setdefault(key, kind) != kind:
                 raise GuideError(f"site {key} draws both {kinds[key]} and {kind} choices; a guide needs one "
                                  "distribution family per site, and tells sites apart by rule and choice name, so "
@@ -301,7 +311,8 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     began = time.perf_counter()
     torch.set_num_threads(1)  # tiny networks: threads cost more than they give
     try:
-        data, kinds, n_choices = build_dataset(model, traces, settings)
+        labels = {}
+        data, kinds, n_choices = build_dataset(model, traces, settings, labels)
     except GuideError as exc:
         from .traces import model_code_digests
         if job is None or job.get("model_code") in (None, *model_code_digests(model, job.get("model_file"))):
@@ -313,7 +324,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                          f"they do not replay under it ({str(exc).replace(_RERUN, '')}): make them afresh with "
                          f"procmod guide traces and {argument('overwrite=True')}, or into a new folder") from None
     drawn = trained_on(model, traces)
-    guide = new_guide_for(model, settings, mixture, kinds, seed)
+    guide = new_guide_for(model, settings, mixture, kinds, seed, labels)
     optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
     weights_path, meta_path = guide_paths(out, for_writing=True)
     ckpt, ckpt_meta = weights_path.with_suffix(".ckpt.pt"), weights_path.with_suffix(".ckpt.json")
@@ -343,7 +354,7 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
                 # was kept restarts it: its curve then differs from an uninterrupted run's)
                 running = saved.get("running")
             except (KeyError, RuntimeError, ValueError, TypeError):
-                guide = new_guide_for(model, settings, mixture, kinds, seed)  # a half-loaded state: start over
+                guide = new_guide_for(model, settings, mixture, kinds, seed, labels)  # a half-loaded state: start over
                 optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
     n = len(traces)
     while step < iterations:

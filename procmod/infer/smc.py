@@ -331,9 +331,10 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     log_z = log_z_sum - math.log(runs)
     if log_z == -math.inf:  # every run's every particle; once, not once a run
         notes.append(ZERO_LIKELIHOOD_NOTE)
-    unmatched = getattr(proposer, "unmatched_note", lambda: None)() if proposer is not None else None
-    if unmatched is not None:
-        notes.append(unmatched)
+    for note_of in ("unmatched_note", "relabelled_note"):  # a GuidedProposer's notes on the run's choices
+        said = getattr(proposer, note_of, lambda: None)() if proposer is not None else None
+        if said is not None:
+            notes.append(said)
     notes += tracker.notes()
     engine = ("smc" if order == "program" else "sosmc") + ("+guide" if guide is not None else "")
     return Result(engine, tracker.best, tracker.best_score, states, tracker.rows, tracker.seconds,
