@@ -930,3 +930,25 @@ def test_a_robot_drawn_only_by_collision_geometry_is_read_from_it(tmp_path, monk
     path.write_text(path.read_text().replace('<visual><geometry><box size="0.4 0.2 0.05"/></geometry></visual>', ""))
     with pytest.raises(AssetError, match="no visual geometry and more than 6 links and collision elements"):
         read_assets(path)
+
+
+@pytest.mark.parametrize("kind, offset", [("revolute", 0.5), ("prismatic", 0.03), ("revolute", 0.0)])
+def test_a_mimic_joints_offset_places_its_link_as_robot_state_publisher_does(tmp_path, kind, offset):
+    """A joint that mimics another is at multiplier x the other's value + offset (the URDF
+    specification): at the zero configuration, its offset. A gripper's second finger that
+    mimics the first with an offset had stood at zero (h73)."""
+    path = _write(tmp_path / "g.urdf", f"""<?xml version="1.0"?>
+<robot name="g"><link name="palm"><visual><geometry><box size="0.1 0.1 0.02"/></geometry></visual></link>
+<joint name="f1" type="{kind}"><parent link="palm"/><child link="finger1"/><origin xyz="0.03 0 0.05"/>
+  <axis xyz="0 0 2"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<link name="finger1"><visual><geometry><box size="0.01 0.02 0.08"/></geometry></visual></link>
+<joint name="f2" type="{kind}"><parent link="palm"/><child link="finger2"/><origin xyz="-0.03 0 0.05"/>
+  <axis xyz="0 0 2"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
+  <mimic joint="f1" multiplier="-1" offset="{offset}"/></joint>
+<link name="finger2"><visual><geometry><box size="0.01 0.02 0.08"/></geometry></visual></link></robot>
+""")
+    (palm,) = read_assets(path).assets[0].roots
+    fingers = {c.name: c.transform for c in palm.children}
+    assert np.allclose(fingers["finger1"], T(0.03, 0, 0.05))  # not mimicking: at its zero
+    motion = rpy(0, 0, offset) if kind == "revolute" else T(0, 0, offset)  # about / along the (unit) axis
+    assert np.allclose(fingers["finger2"], T(-0.03, 0, 0.05) @ motion)

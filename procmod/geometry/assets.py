@@ -832,6 +832,31 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
+def _mimic_motion(joint, path: Path) -> np.ndarray:
+    """The motion of a URDF joint in the robot's zero configuration: none, except for a
+    joint that mimics another (``<mimic joint= multiplier= offset=>``), whose value is
+    ``multiplier x the other's + offset`` (the URDF specification), so ``offset`` at the
+    other's zero, as robot_state_publisher (and RViz) place it. A gripper's second finger
+    that mimics the first with an offset had stood at zero, through the first."""
+    mimic = getattr(joint, "mimic", None)
+    offset = 0.0 if mimic is None or mimic.offset is None else float(mimic.offset)
+    if offset == 0.0 or joint.type not in ("revolute", "continuous", "prismatic"):
+        return np.eye(4)
+    axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, dtype=np.float64)
+    length = float(np.linalg.norm(axis)) if np.isfinite(axis).all() else 0.0
+    if not math.isfinite(offset) or length == 0.0:
+        raise AssetError(f"{path}: joint {joint.name!r} mimics another with offset {mimic.offset} about axis "
+                         f"{joint.axis}; the offset must be a number and the axis not zero")
+    axis = axis / length
+    motion = np.eye(4)
+    if joint.type == "prismatic":
+        motion[:3, 3] = offset * axis
+    else:  # a rotation by the offset about the axis (Rodrigues)
+        k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+        motion[:3, :3] = np.eye(3) + math.sin(offset) * k + (1.0 - math.cos(offset)) * (k @ k)
+    return motion
+
+
 def _read_urdf(path: Path, geometries: dict) -> list:
     import logging
 
@@ -946,7 +971,7 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         for child in kids[link_name]:
             j = parent_joint[child]
             origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
-            below += build(child, world @ origin, kind)
+            below += build(child, world @ origin @ _mimic_motion(j, path), kind)
         nodes = []
         for k, visual in enumerate(link.visuals if kind == "visual" else link.collisions):
             key, scale = geometry_of(visual, link_name, k, kind)
