@@ -1443,6 +1443,20 @@ def test_a_light_cut_out_is_read_from_its_alpha_channel_and_a_shaded_photo_gets_
         weights = target.weights[0]
         assert ((weights > 0) == inside).all(), name
         assert any("read from the picture's alpha channel" in n for n in target.file_notes)
+    # the cut-out with a dark logo printed on it: the logo alone had been the shape to hit
+    logo = rgba.copy()
+    logo[25:35, 35:45, :3] = 20
+    target = load_target_file(_silhouette_of_picture(tmp_path, "logo", Image.fromarray(logo, "RGBA")))
+    assert ((target.weights[0] > 0) == inside).all()
+    assert any("mostly light (to avoid, by its grey levels) with 8% of it dark" in n for n in target.file_notes), \
+        target.file_notes
+    # a shape drawn dark on a transparent ground keeps its grey levels (a light rim is no cut-out)
+    drawn = rgba.copy()
+    drawn[..., :3] = 0
+    drawn[15:45, 20:24, :3] = 230
+    target = load_target_file(_silhouette_of_picture(tmp_path, "drawn_rgba", Image.fromarray(drawn, "RGBA")))
+    assert (target.weights[0][15:45, 24:60] > 0).all() and (target.weights[0][15:45, 20:24] < 0).all()
+    assert target.file_notes == []
     shaded = np.full((60, 80), 255, dtype=np.uint8)
     shaded[15:45, 20:60] = np.linspace(170, 40, 30).astype(np.uint8)[:, None]  # lit from above
     target = load_target_file(_silhouette_of_picture(tmp_path, "shaded", Image.fromarray(shaded, "L")))

@@ -875,6 +875,7 @@ def _transparent_as_white(grey: np.ndarray, opaque) -> np.ndarray:
 
 
 HIT_BELOW, AVOID_ABOVE = 85, 170  # a silhouette picture's grey levels: darker is to hit, lighter to avoid
+CUT_OUT_LIGHT = 0.5  # a picture with transparency whose opaque part is this much light is a cut-out: the shape
 _PLACEMENT_KEYS = ("mesh_scale", "mesh_offset", "mesh_up")
 _VOLUME_WIDE = ("grid", "voxel_size", "margin", "w_self") + _PLACEMENT_KEYS  # the file's, for every layer
 _VOLUME_KEYS = ("format", "score", "layers") + _VOLUME_WIDE
@@ -1007,13 +1008,22 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             opaque = opaque_part(picture)
             grey = _transparent_as_white(grey_levels(picture), opaque)
             weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
-            if hit > 0 and not (grey < HIT_BELOW).any() and opaque is not None and opaque.any() \
-                    and not opaque.all():
+            cut_out = hit > 0 and opaque is not None and opaque.any() and not opaque.all()
+            if cut_out and not (grey < HIT_BELOW).any():
                 # a light cut-out on a transparent ground, or a mask drawn in the alpha channel
                 # of a white picture: the file says where the shape is (it had been refused)
                 weights = np.where(opaque, hit, avoid)
                 notes.append(f"{at}.image: no pixel is dark enough to hit, so the shape is read from the picture's "
                              "alpha channel (its opaque pixels to hit, the transparent ones to avoid)")
+            elif cut_out and float((grey[opaque] > AVOID_ABOVE).mean()) >= CUT_OUT_LIGHT:
+                # a light object cut out of a photo with a dark logo or print on it: its grey
+                # levels made the logo alone the shape to hit and the object itself to avoid (h79)
+                dark = float((grey[opaque] < HIT_BELOW).mean())
+                weights = np.where(opaque, hit, avoid)
+                notes.append(f"{at}.image: the picture's opaque part is mostly light (to avoid, by its grey levels) "
+                             f"with {100 * dark:.0f}% of it dark, as a cut-out with a print on it is, so the shape is "
+                             "read from its alpha channel (its opaque pixels to hit, the transparent ones to avoid); "
+                             "for the grey levels' meaning, give the picture without transparency")
             elif hit > 0:
                 band = _grey_band_share(grey)
                 if band is not None:
