@@ -1450,6 +1450,13 @@ def test_a_light_cut_out_is_read_from_its_alpha_channel_and_a_shaded_photo_gets_
     assert ((target.weights[0] > 0) == inside).all()
     assert any("mostly light (to avoid, by its grey levels) with 8% of it dark" in n for n in target.file_notes), \
         target.file_notes
+    # a red or yellow object photographed on white: no dark pixel, read by its colour (refused before)
+    for name, colour in (("red", (220, 30, 30)), ("yellow", (250, 220, 40))):
+        photo = np.full((60, 80, 3), 255, dtype=np.uint8)
+        photo[inside] = colour
+        target = load_target_file(_silhouette_of_picture(tmp_path, name, Image.fromarray(photo, "RGB")))
+        assert ((target.weights[0] > 0) == inside).all(), name
+        assert any("read from the picture's colours" in n for n in target.file_notes), target.file_notes
     # a shape drawn dark on a transparent ground keeps its grey levels (a light rim is no cut-out)
     drawn = rgba.copy()
     drawn[..., :3] = 0

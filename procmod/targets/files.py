@@ -33,7 +33,8 @@ from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
-from .image import MAX_IMAGE_PIXELS, TargetFileError, grey_levels, meant_key, opaque_part, open_image
+from .image import (MAX_IMAGE_PIXELS, TargetFileError, grey_levels, mask_from_image, meant_key, opaque_part,
+                    open_image, picture_in_square)
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -866,6 +867,18 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
     return share
 
 
+def _has_colour(picture) -> bool:
+    """Whether a picture has colour in it: a pixel whose channels differ by
+    :data:`COLOUR_SPREAD` or more (a grey picture saved as RGB has none)."""
+    if picture.mode in ("1", "L", "LA", "I", "F") or picture.mode.startswith("I;16"):
+        return False
+    rgb = np.asarray(picture.convert("RGB"), dtype=np.int16)
+    return bool(((rgb.max(axis=2) - rgb.min(axis=2)) >= COLOUR_SPREAD).any())
+
+
+COLOUR_SPREAD = 30  # of 255 between a pixel's channels: colour, not a grey's rounding or a scan's tint
+
+
 def _transparent_as_white(grey: np.ndarray, opaque) -> np.ndarray:
     """``grey`` with a picture's transparent pixels (outside ``opaque``, its
     :func:`opaque_part`; None: none) white (to avoid), as the picture shows on a page: a
@@ -1031,6 +1044,19 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
                                  f"{HIT_BELOW} and {AVOID_ABOVE} of 255), which counts as neither to hit nor to avoid: "
                                  "if they are a shaded photo's lit side, make the whole shape dark (black to hit); "
                                  "if \"either\" is meant there, nothing to do")
+            if hit > 0 and not (weights > 0).any() and _has_colour(picture):
+                # a red or yellow object photographed on white: nothing is dark, but it is plain
+                # to see; read as a 2D target picture is, by its unlikeness to the border's
+                # colour (it had been refused as having no dark pixel, h79)
+                h, w = grey.shape
+                top, left, _, _ = picture_in_square(h, w)
+                unlike = mask_from_image(picture)[top:top + h, left:left + w]
+                if unlike.any() and not unlike.all():
+                    weights = np.where(unlike, hit, avoid)
+                    notes.append(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255), so the "
+                                 "shape is read from the picture's colours, as the pixels unlike its border's colour "
+                                 "(as a 2D target picture is read); for the grey levels' meaning (black to hit, "
+                                 "white to avoid, grey between: either), give the picture in greys")
             if hit > 0 and not (weights > 0).any():  # a pencil sketch on grey paper
                 raise TargetFileError(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255; the "
                                       f"darkest is {int(grey.min())}): darken the shape (black to hit, white to avoid, "
