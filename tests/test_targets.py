@@ -1024,3 +1024,22 @@ def test_a_rectangle_that_is_part_of_the_drawing_stays_and_letters_are_no_pages(
         assert target.mask.sum() == ink.sum() and not target.notes, (name, target.notes)
         note = picture_note(ShapeMatch(target), get_model("vines"))
         assert note is None or "rectangle" not in note, (name, note)
+
+
+def test_a_start_off_the_drawing_gets_a_note(tmp_path):
+    """A sidecar's start in empty paper grew the vine across it before it reached the
+    drawing, without a word; one on the drawing, or none, gets no note."""
+    from procmod.models import get_model
+    from procmod.targets import ShapeMatch
+    from procmod.targets.image import load_target_image
+    from procmod.targets.placement import picture_note
+
+    ink = _vine_ink()
+    Image.fromarray(np.where(ink, 0, 255).astype(np.uint8)).save(tmp_path / "vine.png")
+    rows, cols = np.nonzero(ink)
+    on = ((cols[0] + 0.5) / ink.shape[1], (rows[0] + 0.5) / ink.shape[0])
+    for start, noted in ((None, False), (on, False), ((0.02, 0.02), True)):
+        if start is not None:
+            (tmp_path / "vine.json").write_text(json.dumps({"start": list(start)}))
+        note = picture_note(ShapeMatch(load_target_image(tmp_path / "vine.png")), get_model("vines")) or ""
+        assert ("from the nearest of its shape" in note) == noted, (start, note)

@@ -424,8 +424,35 @@ def picture_note(target: ShapeMatch, model) -> str | None:
     """One line when a picture target's mask is probably not the drawing (see the module
     docstring), or reading it guessed (:attr:`TargetImage.notes`), else None."""
     advice = _picture_advice(target, model)
-    said = [*target.image.notes, *([advice] if advice else [])]
+    start = _start_off_drawing(target)
+    said = [*target.image.notes, *([advice] if advice else []), *([start] if start else [])]
     return "; ".join(said) if said else None
+
+
+OFF_DRAWING = 0.1
+"""A picture target's start farther than this (of the picture's side) from every pixel of
+its shape gets a note: a sidecar's or ``--param start``'s start off the drawing grows the
+model across the paper before it can reach the shape."""
+
+
+def _start_off_drawing(target: ShapeMatch) -> str | None:
+    """A note when the start lies :data:`OFF_DRAWING` or farther from the shape (the start
+    the picture's drawing gives lies on it: only a sidecar's or the user's can be off)."""
+    image = target.image
+    mask = image.mask
+    if not mask.any() or image.start is None:
+        return None
+    side = max(mask.shape)
+    x, y = float(image.start[0]) * mask.shape[1], float(image.start[1]) * mask.shape[0]
+    step = max(1, side // 200)  # the shape's pixels on a grid of ~200 a side: a distance, not a fit
+    rows, cols = np.nonzero(mask[::step, ::step])
+    nearest = float(np.sqrt(((rows * step + 0.5 - y) ** 2 + (cols * step + 0.5 - x) ** 2).min())) / side
+    if nearest < OFF_DRAWING:
+        return None
+    return (f"the start lies {nearest:.0%} of the picture from the nearest of its shape: the "
+            "model grows from there across the paper before it reaches the shape; give a start on the drawing "
+            "(a sidecar's or --param start's, in the picture's coordinates, 0-1, y down), or none for its lowest "
+            "point")
 
 
 def _picture_advice(target: ShapeMatch, model) -> str | None:
