@@ -1038,8 +1038,8 @@ def test_a_start_off_the_drawing_gets_a_note(tmp_path):
     Image.fromarray(np.where(ink, 0, 255).astype(np.uint8)).save(tmp_path / "vine.png")
     rows, cols = np.nonzero(ink)
     on = ((cols[0] + 0.5) / ink.shape[1], (rows[0] + 0.5) / ink.shape[0])
-    for start, noted in ((None, False), (on, False), ((0.02, 0.02), True)):
-        if start is not None:
-            (tmp_path / "vine.json").write_text(json.dumps({"start": list(start)}))
+    for given, noted in ((None, False), (on, False), ((0.02, 0.02), True)):
+        if given is not None:
+            (tmp_path / "vine.json").write_text(json.dumps({"start": list(given)}))
         note = picture_note(ShapeMatch(load_target_image(tmp_path / "vine.png")), get_model("vines")) or ""
-        assert ("from the nearest of its shape" in note) == noted, (start, note)
+        assert ("from the nearest of its shape" in note) == noted, (given, note)
