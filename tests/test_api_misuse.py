@@ -774,3 +774,5 @@ def test_the_ga_operators_name_a_missing_generator_and_plain_derivations():
     with pytest.raises(InvalidArgumentError, match=r"the Evaluator takes a list of jobs \(choices, seed"):
         evaluate([derivation])
     assert len(evaluate([[derivation.choice_map(), 3, False]])) == 1  # a job as a list is still a job
+    from procmod.infer.ga import LazyRng  # the GA's own lazy generator passes (h86)
+    assert tournament(5, 2, LazyRng(3)) in range(5) and grow(genome, LazyRng(3)) is None

@@ -1016,6 +1016,43 @@ def test_a_guide_proposes_a_reordered_categorical_by_its_labels(tmp_path):
     assert any("grow:kind draws among other labels than it was trained on" in n for n in notes), notes
 
 
+def test_one_categorical_of_two_sites_is_proposed_by_each_sites_labels(tmp_path):
+    """Two choices drawing one shared Categorical object, whose sites learned its labels in
+    different orders: the reorder was kept per object, so the second site was steered by
+    the first's order (h86). Labels given as numpy numbers are kept as plain ones."""
+    from types import SimpleNamespace
+
+    from procmod.data import target_from_spec
+    from procmod.guide.guide import label_codes, plain_labels
+    from procmod.models.from_file import load_model_file
+
+    (tmp_path / "pq.py").write_text(
+        "from procmod import Categorical, Model\n"
+        "from procmod.geometry import Canvas\n\n"
+        "SHARED = Categorical([1, 1, 1], labels=('p', 'q', 'r'))\n\n"
+        "def grow(ctx):\n"
+        "    ctx.sample('x', SHARED)\n"
+        "    ctx.sample('y', SHARED)\n\n"
+        "PQ = Model('pq', 'two choices', grow, root_args=lambda p: (),\n"
+        "           new_output_from=lambda p: Canvas((0, 1, 0, 1), 8))\n")
+    model = load_model_file(f"{tmp_path / 'pq.py'}:PQ")
+    guide = new_guide_for(model, FeatureSettings(local=False, target=False, partial=False), 1,
+                          {"grow:x": "categorical:3", "grow:y": "categorical:3"}, seed=0,
+                          site_labels={"grow:x": ("p", "q", "r"), "grow:y": ("r", "q", "p")})
+    for key in ("grow:x", "grow:y"):  # each learned its first label: x 'p', y 'r'
+        w1, b1, w2, _ = guide.numpy_weights()[key]
+        guide.nets[key].set_numpy_weights((w1, b1, w2, np.array([5.0, 0.0, 0.0])))
+    guide.invalidate()
+    proposer = guide.proposer(model, target_from_spec("scribble:3"))
+    ctx = SimpleNamespace(rule=model.root, args=(), derivation=None)
+    rng = np.random.default_rng(0)
+    shared = model.root.__globals__["SHARED"]
+    drawn = {name: [proposer.propose(ctx, name, shared, rng)[0] for _ in range(300)] for name in ("x", "y")}
+    assert drawn["x"].count("p") > 250 and drawn["y"].count("r") > 250, {k: set(v) for k, v in drawn.items()}
+    assert plain_labels(np.array([1, 2], dtype=np.int64)) == [1, 2]
+    assert label_codes((np.float32(0.5), np.int64(3), "a")) == ("0.5", "3", '"a"')
+
+
 def test_a_guide_of_a_model_file_edited_after_its_traces_is_noted(tmp_path):
     """A categorical's labels reordered after training (the same model) steered the choices
     to the wrong labels, worse than no guide, without a word (h70): the guide's traces

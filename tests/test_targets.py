@@ -1043,3 +1043,26 @@ def test_a_start_off_the_drawing_gets_a_note(tmp_path):
             (tmp_path / "vine.json").write_text(json.dumps({"start": list(given)}))
         note = picture_note(ShapeMatch(load_target_image(tmp_path / "vine.png")), get_model("vines")) or ""
         assert ("from the nearest of its shape" in note) == noted, (given, note)
+
+
+def test_the_fill_checks_shortcut_decides_as_the_cells_do_at_the_threshold():
+    """_filled_in returns early when no two cells can differ by the fill contrast; its range
+    was taken in float32, whose rounding (~2e-6) decided otherwise than the cells' float64
+    means a contrast 2e-6 over the threshold (h86): a fill there was left out."""
+    from procmod.targets.image import FILL_CONTRAST, NOISE_MARGIN, _filled_in
+
+    f32 = np.float32
+    paper = f32(20.25)
+    for k in range(1, 200000):  # a fill whose float32 difference from the paper rounds down past it
+        fill = f32(np.nextafter(f32(-20.7), f32(0)) - f32(k) * f32(1e-6))
+        exact, rounded = float(paper) - float(fill), float(paper - fill)
+        if rounded + 1e-6 < exact - 1e-9 and exact >= FILL_CONTRAST:
+            break
+    noise = exact / NOISE_MARGIN  # the threshold: the exact contrast
+    luma = np.full((60, 60), paper, f32)
+    ink = np.zeros((60, 60), bool)
+    ink[10:50, 10:13] = ink[10:50, 47:50] = ink[10:13, 10:50] = ink[47:50, 10:50] = True
+    luma[ink] = f32(-100)
+    luma[13:47, 13:47] = fill
+    out = _filled_in(ink.copy(), luma[:, :, None].copy(), luma, np.ones((60, 60), bool), noise)
+    assert out[13:47, 13:47].all()

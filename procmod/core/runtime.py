@@ -792,10 +792,11 @@ def check_rng(rng, operator: str | None = None) -> None:
     one, or an object with its ``random`` and ``standard_normal``): None or a seed given as
     the generator had raised an AttributeError deep inside whatever drew first.
     ``operator``: the public function the error names."""
-    # looked up on the type: a LazyGenerator makes its generator at the first attribute
-    # asked of it, which a replay that draws nothing never needs
+    # procmod's own wrappers pass as they are: a LazyGenerator makes its generator at the
+    # first attribute asked of it, which a replay that draws nothing never needs; others
+    # (the GA's LazyRng, which forwards through __getattr__, h86) are asked for the methods
     if not isinstance(rng, (np.random.Generator, LazyGenerator, BlockGenerator)) and not (
-            callable(getattr(type(rng), "random", None)) and callable(getattr(type(rng), "standard_normal", None))):
+            callable(getattr(rng, "random", None)) and callable(getattr(rng, "standard_normal", None))):
         raise InvalidArgumentError(f"{operator + ': ' if operator else ''}rng must be a numpy Generator "
                                    f"(np.random.default_rng(seed)), got {type(rng).__name__} {rng!r:.40}")
 

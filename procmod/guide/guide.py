@@ -478,7 +478,7 @@ class GuidedProposer:
                                                 None if labels is None else label_codes(labels)]
         self._by_rule = {}  # (rule function, choice) -> its site (or None): the hot path's lookup
         self._bases = {}  # shared discrete distributions -> their base parameters
-        # categoricals -> (their base parameters in the order the site's network learned,
+        # (site, categorical) -> (its base parameters in the order the site's network learned,
         # the index in the categorical's labels of each of the network's outputs, or None
         # where the orders agree); see propose
         self._categories = {}
@@ -618,11 +618,11 @@ class GuidedProposer:
             u = self._draws(rng)[0]
             value, lq = guided_draw(1, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, args))
             return value == 1.0, lq
-        known = self._categories.get(dist)
+        known = self._categories.get((key, dist))  # by site too: one categorical may serve two sites (h86)
         if known is None:
             if len(self._categories) > 4096:  # a model that builds its categoricals afresh: don't grow forever
                 self._categories.clear()
-            known = self._categories[dist] = self._category_order(ctx, name, site, dist)
+            known = self._categories[(key, dist)] = self._category_order(ctx, name, site, dist)
         base, order = known
         u = self._draws(rng)[0]
         index, lq = guided_draw(2, 0, 0.0, 0.0, base, u, 0.0, *self._inputs(ctx.derivation, site, args))
@@ -698,10 +698,16 @@ def merge_labels(labels: dict, key: str, drawn) -> None:
         labels[key] = None
 
 
+def plain_labels(labels) -> list:
+    """A categorical's labels as plain Python values, as its JSON holds them (a Categorical
+    keeps numpy's ints and floats as given: json could not write them, h86)."""
+    return [label.item() if isinstance(label, np.generic) else label for label in labels]
+
+
 def label_codes(labels) -> tuple:
     """Labels as JSON text, to compare them as the guide's metadata keeps them (1, 1.0 and
     True are one label to Python's ==, three to a categorical's JSON)."""
-    return tuple(json.dumps(label) for label in labels)
+    return tuple(json.dumps(label) for label in plain_labels(labels))
 
 
 class RecordingProposer:
@@ -750,5 +756,5 @@ def new_guide_for(model, settings: FeatureSettings, mixture: int, site_kinds: di
         sites[key] = {"kind": kind, "n_in": extractor.size(rule_name), "n_out": n_outputs(kind, mixture)}
         labels = (site_labels or {}).get(key)
         if labels is not None and kind.startswith("categorical"):
-            sites[key]["labels"] = list(labels)
+            sites[key]["labels"] = plain_labels(labels)
     return Guide(model.name, settings, mixture, sites, seed)

@@ -744,9 +744,11 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     rest = ~ink & where
     least = max(FILL_CONTRAST, NOISE_MARGIN * noise)
     if rest.any():
-        spread = float(np.ptp(luma[rest]))
+        # in float64, as the cells' means are compared (float32's own rounding of a range
+        # is ~2e-6: at the threshold it had decided otherwise, h86)
+        spread = float(np.ptp(luma[rest].astype(np.float64)))
         if colours.shape[2] > 1:
-            spread = max(spread, 2.0 * float(np.ptp(colours[rest], axis=0).max()))
+            spread = max(spread, 2.0 * float(np.ptp(colours[rest].astype(np.float64), axis=0).max()))
         if spread + 1e-6 < least:  # (a margin for the cell means' rounding)
             return ink  # no cell can differ from another by ``least``: nothing is filled
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.19 s of start-up
