@@ -952,3 +952,14 @@ def test_a_mimic_joints_offset_places_its_link_as_robot_state_publisher_does(tmp
     assert np.allclose(fingers["finger1"], T(0.03, 0, 0.05))  # not mimicking: at its zero
     motion = rpy(0, 0, offset) if kind == "revolute" else T(0, 0, offset)  # about / along the (unit) axis
     assert np.allclose(fingers["finger2"], T(-0.03, 0, 0.05) @ motion)
+    # a mimic of a mimic: multiplier x the other's value (its own offset) + offset (h87)
+    path.write_text(path.read_text().replace("</robot>", f"""<joint name="f3" type="{kind}"><parent link="palm"/>
+  <child link="finger3"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
+  <mimic joint="f2" multiplier="2" offset="0.1"/></joint>
+<link name="finger3"><visual><geometry><box size="0.01 0.02 0.08"/></geometry></visual></link></robot>"""))
+    (palm,) = read_assets(path).assets[0].roots
+    third = {c.name: c.transform for c in palm.children}["finger3"]
+    assert np.allclose(third, rpy(0, 0, 2 * offset + 0.1) if kind == "revolute" else T(0, 0, 2 * offset + 0.1))
+    path.write_text(path.read_text().replace('<mimic joint="f1"', '<mimic joint="f3"'))  # f2 -> f3 -> f2
+    with pytest.raises(AssetError, match="joints 'f2', 'f3' mimic one another in a cycle"):
+        read_assets(path)

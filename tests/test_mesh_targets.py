@@ -1457,6 +1457,24 @@ def test_a_light_cut_out_is_read_from_its_alpha_channel_and_a_shaded_photo_gets_
         target = load_target_file(_silhouette_of_picture(tmp_path, name, Image.fromarray(photo, "RGB")))
         assert ((target.weights[0] > 0) == inside).all(), name
         assert any("read from the picture's colours" in n for n in target.file_notes), target.file_notes
+    # ... but not when what is read is most of the picture, or its border: an object filling the
+    # frame (it had been read inverted, h87); nor a grey picture with a coloured dot
+    photo = np.full((60, 80, 3), (250, 220, 40), dtype=np.uint8)
+    photo[:3], photo[-3:] = 255, 255
+    dotted = np.full((60, 80, 3), 200, dtype=np.uint8)
+    dotted[inside] = 120
+    dotted[30, 40] = (255, 0, 255)
+    for name, picture in (("filling", photo), ("dotted", dotted)):
+        with pytest.raises(TargetFileError, match="no pixel is dark enough to hit"):
+            load_target_file(_silhouette_of_picture(tmp_path, name, Image.fromarray(picture, "RGB")))
+    # a silhouette in greys on an opaque page with a transparent pixel or margin keeps its grey
+    # levels (its light page had been read as the shape to hit, h87)
+    page = np.zeros((60, 80, 4), dtype=np.uint8)
+    page[..., :3], page[..., 3] = 255, 255
+    page[inside, :3] = 0
+    page[0, 0, 3] = 0
+    target = load_target_file(_silhouette_of_picture(tmp_path, "page", Image.fromarray(page, "RGBA")))
+    assert ((target.weights[0] > 0) == inside).all() and target.file_notes == []
     # a shape drawn dark on a transparent ground keeps its grey levels (a light rim is no cut-out)
     drawn = rgba.copy()
     drawn[..., :3] = 0

@@ -1066,3 +1066,20 @@ def test_the_fill_checks_shortcut_decides_as_the_cells_do_at_the_threshold():
     luma[13:47, 13:47] = fill
     out = _filled_in(ink.copy(), luma[:, :, None].copy(), luma, np.ones((60, 60), bool), noise)
     assert out[13:47, 13:47].all()
+
+
+def test_the_off_drawing_note_finds_a_one_pixel_line_in_a_large_picture(tmp_path):
+    """The note's distance looked at every 5th pixel of a 1000-pixel picture: a 1-pixel
+    line between them left nothing to measure, and the run stopped with a traceback (h87)."""
+    from procmod.models import get_model
+    from procmod.targets import ShapeMatch
+    from procmod.targets.image import load_target_image
+    from procmod.targets.placement import picture_note
+
+    ink = np.zeros((1000, 1000), dtype=bool)
+    ink[502, 100:900] = ink[100:900, 503] = True
+    Image.fromarray(np.where(ink, 0, 255).astype(np.uint8)).save(tmp_path / "cross.png")
+    for given, noted in (((0.5035, 0.8), False), ((0.05, 0.05), True)):
+        (tmp_path / "cross.json").write_text(json.dumps({"start": list(given)}))
+        note = picture_note(ShapeMatch(load_target_image(tmp_path / "cross.png")), get_model("vines")) or ""
+        assert ("from the nearest of its shape" in note) == noted, (given, note)

@@ -832,28 +832,49 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
-def _mimic_motion(joint, path: Path) -> np.ndarray:
-    """The motion of a URDF joint in the robot's zero configuration: none, except for a
-    joint that mimics another (``<mimic joint= multiplier= offset=>``), whose value is
-    ``multiplier x the other's + offset`` (the URDF specification), so ``offset`` at the
-    other's zero, as robot_state_publisher (and RViz) place it. A gripper's second finger
-    that mimics the first with an offset had stood at zero, through the first."""
+def _mimic_value(joint, joints: dict, path: Path, seen: tuple = ()) -> float:
+    """A URDF joint's value in the robot's zero configuration: 0, except for a joint that
+    mimics another (``<mimic joint= multiplier= offset=>``), whose value is ``multiplier x
+    the other's + offset`` (the URDF specification), the other's own value resolved the
+    same way (a mimic of a mimic), as robot_state_publisher and MoveIt place it."""
     mimic = getattr(joint, "mimic", None)
-    offset = 0.0 if mimic is None or mimic.offset is None else float(mimic.offset)
-    if offset == 0.0 or joint.type not in ("revolute", "continuous", "prismatic"):
+    if mimic is None:
+        return 0.0
+    if joint.name in seen:
+        cycle = seen[seen.index(joint.name):]
+        said = (f"joint {cycle[0]!r} mimics itself" if len(cycle) == 1 else
+                f"joints {', '.join(repr(n) for n in cycle)} mimic one another in a cycle")
+        raise AssetError(f"{path}: {said}; a mimic joint must follow a joint that moves of its own")
+    other = joints.get(mimic.joint)
+    base = 0.0 if other is None else _mimic_value(other, joints, path, seen + (joint.name,))
+    multiplier = 1.0 if mimic.multiplier is None else float(mimic.multiplier)
+    offset = 0.0 if mimic.offset is None else float(mimic.offset)
+    value = multiplier * base + offset
+    if not math.isfinite(value):
+        raise AssetError(f"{path}: joint {joint.name!r} mimics another with multiplier {mimic.multiplier} and "
+                         f"offset {mimic.offset}; they must be numbers")
+    return value
+
+
+def _mimic_motion(joint, joints: dict, path: Path) -> np.ndarray:
+    """The motion of a URDF joint in the robot's zero configuration (:func:`_mimic_value`):
+    none, except for a joint that mimics another with an offset. A gripper's second finger
+    that mimics the first with an offset had stood at zero, through the first (h73)."""
+    value = _mimic_value(joint, joints, path)
+    if value == 0.0 or joint.type not in ("revolute", "continuous", "prismatic"):
         return np.eye(4)
     axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, dtype=np.float64)
-    length = float(np.linalg.norm(axis)) if np.isfinite(axis).all() else 0.0
-    if not math.isfinite(offset) or length == 0.0:
-        raise AssetError(f"{path}: joint {joint.name!r} mimics another with offset {mimic.offset} about axis "
-                         f"{joint.axis}; the offset must be a number and the axis not zero")
+    length = float(np.linalg.norm(axis)) if axis.shape == (3,) and np.isfinite(axis).all() else 0.0
+    if length == 0.0:
+        raise AssetError(f"{path}: joint {joint.name!r} mimics another, at {value:g} in the zero configuration, "
+                         f"about axis {joint.axis}; the axis must be three numbers, not all zero")
     axis = axis / length
     motion = np.eye(4)
     if joint.type == "prismatic":
-        motion[:3, 3] = offset * axis
-    else:  # a rotation by the offset about the axis (Rodrigues)
+        motion[:3, 3] = value * axis
+    else:  # a rotation by the value about the axis (Rodrigues)
         k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-        motion[:3, :3] = np.eye(3) + math.sin(offset) * k + (1.0 - math.cos(offset)) * (k @ k)
+        motion[:3, :3] = np.eye(3) + math.sin(value) * k + (1.0 - math.cos(value)) * (k @ k)
     return motion
 
 
@@ -899,6 +920,7 @@ def _read_urdf(path: Path, geometries: dict) -> list:
     if len(links) + sum(len(link.visuals) for link in robot.links) > MAX_NODES:
         raise AssetError(f"{path} has more than {MAX_NODES} links and visuals, more than procmod reads")
     parent_joint, kids = {}, {name: [] for name in links}
+    joints_by_name = {j.name: j for j in robot.joints}
     for j in robot.joints:
         for end in (j.parent, j.child):
             if end not in links:
@@ -971,7 +993,7 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         for child in kids[link_name]:
             j = parent_joint[child]
             origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
-            below += build(child, world @ origin @ _mimic_motion(j, path), kind)
+            below += build(child, world @ origin @ _mimic_motion(j, joints_by_name, path), kind)
         nodes = []
         for k, visual in enumerate(link.visuals if kind == "visual" else link.collisions):
             key, scale = geometry_of(visual, link_name, k, kind)

@@ -33,8 +33,8 @@ from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
-from .image import (MAX_IMAGE_PIXELS, TargetFileError, grey_levels, mask_from_image, meant_key, opaque_part,
-                    open_image, picture_in_square)
+from .image import (MAX_IMAGE_PIXELS, TargetFileError, _fills_its_box, grey_levels, mask_from_image, meant_key,
+                    opaque_part, open_image, picture_in_square)
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -868,15 +868,18 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
 
 
 def _has_colour(picture) -> bool:
-    """Whether a picture has colour in it: a pixel whose channels differ by
-    :data:`COLOUR_SPREAD` or more (a grey picture saved as RGB has none)."""
+    """Whether a picture is in colour: :data:`COLOUR_SHARE` of its pixels or more have
+    channels that differ by :data:`COLOUR_SPREAD` or more (a grey picture saved as RGB has
+    none; a grey one with a coloured dot is grey, h87)."""
     if picture.mode in ("1", "L", "LA", "I", "F") or picture.mode.startswith("I;16"):
         return False
     rgb = np.asarray(picture.convert("RGB"), dtype=np.int16)
-    return bool(((rgb.max(axis=2) - rgb.min(axis=2)) >= COLOUR_SPREAD).any())
+    return float(((rgb.max(axis=2) - rgb.min(axis=2)) >= COLOUR_SPREAD).mean()) >= COLOUR_SHARE
 
 
 COLOUR_SPREAD = 30  # of 255 between a pixel's channels: colour, not a grey's rounding or a scan's tint
+COLOUR_SHARE = 0.01  # of a picture's pixels in colour for it to be a colour picture
+COLOUR_BORDER = 0.25  # of a picture's border the shape read from its colours may cover (an object, not the ground)
 
 
 def _transparent_as_white(grey: np.ndarray, opaque) -> np.ndarray:
@@ -1028,7 +1031,10 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
                 weights = np.where(opaque, hit, avoid)
                 notes.append(f"{at}.image: no pixel is dark enough to hit, so the shape is read from the picture's "
                              "alpha channel (its opaque pixels to hit, the transparent ones to avoid)")
-            elif cut_out and float((grey[opaque] > AVOID_ABOVE).mean()) >= CUT_OUT_LIGHT:
+            elif cut_out and float((grey[opaque] > AVOID_ABOVE).mean()) >= CUT_OUT_LIGHT \
+                    and not (opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95)):
+                # (an opaque page, a transparent margin or pixel aside, is a silhouette drawn
+                # in greys on it: the grey levels hold, as a 2D target's page is read, h87)
                 # a light object cut out of a photo with a dark logo or print on it: its grey
                 # levels made the logo alone the shape to hit and the object itself to avoid (h79)
                 dark = float((grey[opaque] < HIT_BELOW).mean())
@@ -1047,11 +1053,14 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             if hit > 0 and not (weights > 0).any() and _has_colour(picture):
                 # a red or yellow object photographed on white: nothing is dark, but it is plain
                 # to see; read as a 2D target picture is, by its unlikeness to the border's
-                # colour (it had been refused as having no dark pixel, h79)
+                # colour (it had been refused as having no dark pixel, h79), when that reads an
+                # object on its ground: under half the picture, off most of its border (an object
+                # filling the frame had been read inverted, a two-tone ground as the shape, h87)
                 h, w = grey.shape
                 top, left, _, _ = picture_in_square(h, w)
                 unlike = mask_from_image(picture)[top:top + h, left:left + w]
-                if unlike.any() and not unlike.all():
+                border = np.concatenate([unlike[0], unlike[-1], unlike[:, 0], unlike[:, -1]])
+                if unlike.any() and unlike.mean() < 0.5 and border.mean() < COLOUR_BORDER:
                     weights = np.where(unlike, hit, avoid)
                     notes.append(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255), so the "
                                  "shape is read from the picture's colours, as the pixels unlike its border's colour "

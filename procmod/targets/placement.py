@@ -444,9 +444,16 @@ def _start_off_drawing(target: ShapeMatch) -> str | None:
         return None
     side = max(mask.shape)
     x, y = float(image.start[0]) * mask.shape[1], float(image.start[1]) * mask.shape[0]
-    step = max(1, side // 200)  # the shape's pixels on a grid of ~200 a side: a distance, not a fit
-    rows, cols = np.nonzero(mask[::step, ::step])
-    nearest = float(np.sqrt(((rows * step + 0.5 - y) ** 2 + (cols * step + 0.5 - x) ** 2).min())) / side
+    # the shape in blocks of ~1/200 of the picture (a block holding any of it counts: a
+    # stride passed over a 1-pixel line, h87), each at its centre: a distance, not a fit
+    step = max(1, side // 200)
+    h, w = -(-mask.shape[0] // step) * step, -(-mask.shape[1] // step) * step
+    blocks = np.pad(mask, ((0, h - mask.shape[0]), (0, w - mask.shape[1])))
+    blocks = blocks.reshape(h // step, step, w // step, step).any(axis=(1, 3))
+    rows, cols = np.nonzero(blocks)
+    centre = 0.5 * step
+    nearest = float(np.sqrt(((rows * step + centre - y) ** 2 + (cols * step + centre - x) ** 2).min()))
+    nearest = max(0.0, nearest - 0.71 * step) / side  # a block's centre is up to 0.71 of its side from its pixels
     if nearest < OFF_DRAWING:
         return None
     return (f"the start lies {nearest:.0%} of the picture from the nearest of its shape: the "
