@@ -239,3 +239,42 @@ def test_a_row_placed_by_eye_is_a_row_when_other_examples_hold_it_exactly():
     assert all(a != "rail[trans6(post[])]" for a in _arrangements(strict_only))  # the nudges split the row
     mixed = dataset([fence(False), fence(True)] * 3, parts)
     assert _arrangements(mixed) == ["rail[trans6(post[])]"] * 6
+
+
+def test_a_row_that_spans_its_parent_keeps_spanning_it_whatever_its_count(tmp_path):
+    """Fences: 4 to 7 posts along a 6 m rail, first and last at its ends, placed by eye.
+    Seed 000 draws the row's step and its count independently, and the step shrinks as the
+    count grows: about half the sampled fences had a post well past the rail's end (67
+    of 136 in h88's set). The row's span is what the examples hold, and is drawn instead
+    (units.trans_spans), the step following from the count: a post past the end by 15 cm
+    or more is then rare (the noise allows a few)."""
+    import json
+
+    from procmod.cli import main
+    from procmod.learn.examples import read_examples
+    from procmod.learn.preprocessing import preprocess
+
+    rng = np.random.default_rng(3)
+    parts = {"rail": {"box": [6.0, 0.1, 0.1]}, "post": {"box": [0.1, 1.0, 0.1]}}
+    examples = []
+    for k in range(9):
+        count = 4 + k % 4
+        posts = [node("post", T(-3.0 + 6.0 * i / (count - 1) + rng.normal(0, 0.003), -0.45, 0.06))
+                 for i in range(count)]
+        examples.append(node("rail", T(0, 1.0, 0), posts))
+    path = tmp_path / "fences.json"
+    path.write_text(json.dumps({"format": "procmod-examples/1", "parts": parts, "examples": examples}))
+    assert preprocess(read_examples(path)).units.trans_spans == ("trans(post)",)
+    assert main(["learn", str(path), "--out", str(tmp_path / "F"), "--particles", "1", "--workers", "1"]) == 0
+    assert main(["sample", str(tmp_path / "F"), "-n", "200", "--format", "examples", "--out",
+                 str(tmp_path / "s.json")]) == 0
+
+    def xs(n, world=np.eye(4)):
+        m = world @ np.array(n["transform"], dtype=float).reshape(4, 4)
+        return ([m[0, 3]] if n["part"] == "post" else []) + [x for c in n["children"] for x in xs(c, m)]
+    past = 0
+    for example in json.loads((tmp_path / "s.json").read_text())["examples"]:
+        rail = np.array(example["transform"], dtype=float).reshape(4, 4)
+        posts = xs(example)
+        past += bool(posts) and max(abs(x - rail[0, 3]) for x in posts) > 3.0 + 0.15
+    assert past < 10, past

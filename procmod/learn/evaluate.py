@@ -15,9 +15,6 @@
 
 from __future__ import annotations
 
-import json
-import math
-
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 

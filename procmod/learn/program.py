@@ -264,6 +264,8 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
     count = ctx.sample("count", Categorical(_softmax(p[f"{a_id}.count"]), labels=tuple(support)))
     if a.type in program.full_rings:  # (rings: the canonical rotation angle is positive)
         values[-1] = 2.0 * math.pi / count
+    if a.type in program.units.trans_spans:  # the row's span drawn: its step follows from the count
+        values[0:3] = [v / max(count - 1, 1) for v in values[0:3]]
     pole = program.units.pole(a.type)
     measured = frame.for_symmetry()  # its parameters' frame (turned by a symmetry holding it)
     maps = sym_maps(a.kind, values, count, measured, pole)
@@ -365,7 +367,8 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                   **({"sym_poles": {k: [list(map(float, row)) for row in program.units.sym_poles[k]]
                                     for k in sorted(program.units.sym_poles)}} if program.units.sym_poles else {}),
                   **({"sym_turns": {k: list(map(float, program.units.sym_turns[k]))
-                                    for k in sorted(program.units.sym_turns)}} if program.units.sym_turns else {})},
+                                    for k in sorted(program.units.sym_turns)}} if program.units.sym_turns else {}),
+                  **({"trans_spans": sorted(program.units.trans_spans)} if program.units.trans_spans else {})},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -574,7 +577,10 @@ def _units_from_json(data) -> Units:
             raise ValueError(f"units.sym_turns[{sym_type!r}] must be a unit direction (three numbers), got "
                              f"{shown_value(direction, 60)}")
         turns[sym_type] = tuple(float(v) for v in direction)
-    return Units(float(extent), logs, conventions, poles, turns)
+    spans = data.get("trans_spans", [])  # absent: every translation symmetry draws its step
+    if not isinstance(spans, list) or not all(isinstance(t, str) for t in spans):
+        raise ValueError(f"units.trans_spans must be a list of translation symmetry types, got {shown_value(spans, 60)}")
+    return Units(float(extent), logs, conventions, poles, turns, tuple(sorted(set(spans))))
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw

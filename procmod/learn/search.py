@@ -43,7 +43,7 @@ from ..core.random import resample
 from .examples import ExampleSet
 from .likelihood import Compiled, fit, log_likelihood, pooled_slot_target, sigmas_from_residuals
 from .preprocessing import Dataset, preprocess
-from .program import ROOT, Program, program_from_json, program_to_json
+from .program import Program, program_from_json, program_to_json
 from ..parallel import InlineExecutor as _Inline
 from .structure import TAU_SNAP, initial_program, snap, split
 

@@ -113,6 +113,11 @@ class Units(NamedTuple):
     # mirrored pair of leg pairs), the reference direction (three floats) from which a
     # node of it turns the frame it hands that symmetry (:func:`turned_frame`)
     sym_turns: dict = {}
+    # translation symmetry types whose parameters are the row's span (first to last member,
+    # step x (count - 1)), not its step: the count and the step are drawn independently,
+    # and where the span is what the examples hold (posts along a rail, shelves up a unit)
+    # the step follows from it (see procmod.learn.preprocessing.span_types)
+    trans_spans: tuple = ()
 
     def frame_of(self, world, local_lo, local_hi) -> "Frame":
         """:func:`frame_of` with these conventions for flat parts."""
