@@ -126,6 +126,7 @@ def test_a_models_name_or_a_guides_name(vines):
     (lambda: Budget(evaluations=1.5), "budget evaluations must be a whole number"),
     (lambda: Bernoulli("x"), "Bernoulli needs a number 0 <= p <= 1"),
     (lambda: Categorical([0.5, "a"]), "Categorical needs a list of numbers"),
+    (lambda: Categorical([1, 1], labels=(np.longdouble(0.1), 0.2)), "JSON, which has no numpy longdouble"),
 ])
 def test_constructors(make, message):
     with pytest.raises(ProcmodError, match=message):
@@ -776,3 +777,14 @@ def test_the_ga_operators_name_a_missing_generator_and_plain_derivations():
     assert len(evaluate([[derivation.choice_map(), 3, False]])) == 1  # a job as a list is still a job
     from procmod.infer.ga import LazyRng  # the GA's own lazy generator passes (h86)
     assert tournament(5, 2, LazyRng(3)) in range(5) and grow(genome, LazyRng(3)) is None
+
+
+def test_a_json_integer_of_more_digits_than_python_reads_is_named(tmp_path):
+    """h90: the message ended in Python's own advice, cut off ("use sys.set...")."""
+    from procmod.core.io import read_json
+    from procmod.core.serialize import DerivationFormatError
+
+    (tmp_path / "big.json").write_text('{"a": ' + "9" * 5000 + "}")
+    with pytest.raises(DerivationFormatError, match="an integer of more than 4300 digits") as info:
+        read_json(tmp_path / "big.json")
+    assert "sys." not in str(info.value)

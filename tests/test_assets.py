@@ -963,3 +963,39 @@ def test_a_mimic_joints_offset_places_its_link_as_robot_state_publisher_does(tmp
     path.write_text(path.read_text().replace('<mimic joint="f1"', '<mimic joint="f3"'))  # f2 -> f3 -> f2
     with pytest.raises(AssetError, match="joints 'f2', 'f3' mimic one another in a cycle"):
         read_assets(path)
+
+
+def test_a_long_mimic_chain_a_deep_link_chain_and_a_huge_axis(tmp_path):
+    """h90: 600 joints on one base, each mimicking the one before, exceeded Python's
+    recursion (a traceback); so did a chain of 500 links without mimics, now refused like a
+    glTF hierarchy deeper than MAX_DEPTH; an axis of 1e300s overflowed its length, and its
+    mimic offset was dropped with numpy's warnings."""
+    links = "".join(f'<link name="l{i}"><visual><geometry><box size="0.01 0.01 0.01"/></geometry></visual></link>'
+                    for i in range(601))
+    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l0"/><child link="l{i}"/><axis xyz="0 0 1"/>'
+                     f'<limit lower="-1" upper="1" effort="1" velocity="1"/>'
+                     + (f'<mimic joint="j{i - 1}" multiplier="1" offset="0.001"/>' if i > 1 else "") + "</joint>"
+                     for i in range(1, 601))
+    path = _write(tmp_path / "long.urdf", f'<?xml version="1.0"?><robot name="r">{links}{joints}</robot>')
+    (base,) = read_assets(path).assets[0].roots
+    last = {c.name: c.transform for c in base.children}["l600"]
+    assert np.allclose(last, rpy(0, 0, 0.599))  # 599 mimics of 0.001 each
+    deep = "".join(f'<joint name="j{i}" type="fixed"><parent link="l{i - 1}"/><child link="l{i}"/></joint>'
+                   for i in range(1, 601))
+    with pytest.raises(AssetError, match="the link hierarchy is deeper than 256 levels"):
+        read_assets(_write(tmp_path / "deep.urdf", f'<?xml version="1.0"?><robot name="r">{links}{deep}</robot>'))
+    huge = _write(tmp_path / "huge.urdf", """<?xml version="1.0"?><robot name="r">
+<link name="a"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>
+<link name="b"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>
+<link name="c"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>
+<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/>
+  <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+<joint name="j2" type="revolute"><parent link="a"/><child link="c"/><axis xyz="0 1e300 1e300"/>
+  <limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="j1" offset="0.5"/></joint></robot>""")
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's overflow warning is an error here
+        (a,) = read_assets(huge).assets[0].roots
+    c = {n.name: n.transform for n in a.children}["c"]
+    axis = np.array([0.0, 1.0, 1.0]) / math.sqrt(2.0)
+    assert np.allclose(c[:3, :3], Rotation.from_rotvec(0.5 * axis).as_matrix())

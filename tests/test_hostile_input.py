@@ -173,7 +173,7 @@ CASES = [
     ("guide-mixture-huge", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/bigmix", "--out", "{o}"],
      "bigmix.json: mixture must be"),
     ("guide-labels-bad", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/badlabels", "--out", "{o}"],
-     "labels must be a categorical site's"),
+     "which has no labels; remove its \"labels\""),
     ("guide-malicious", ["infer", "vines", "--target", "glyph:a", "--guide", "{i}/evil", "--out", "{o}"],
      "evil.pt: refused to load"),
     ("train-mixture-huge", ["guide", "train", "vines", "--traces", "{i}/traces", "--mixture", "1000000000",

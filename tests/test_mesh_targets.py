@@ -1572,3 +1572,29 @@ def test_a_z_up_mesh_in_a_silhouette_view_is_said_to_lie_on_its_side(tmp_path):
                np.concatenate([ship.faces, backdrop.faces + len(ship.vertices)]))
     backed = note("backed")
     assert "a separate flat piece" in backed and "mesh_up" not in backed, backed
+
+
+def test_a_silhouette_picture_that_shows_nothing_is_refused_and_frames_are_noted(tmp_path):
+    """h90: a fully transparent picture (black, alpha 0) was read black, the whole view to
+    hit; so was a float picture of NaNs; an animated GIF's other frames went unmentioned,
+    where a picture target says so."""
+    from PIL import Image
+
+    clear = Image.fromarray(np.zeros((20, 20, 4), dtype=np.uint8), "RGBA")
+    with pytest.raises(TargetFileError, match="the picture is fully transparent"):
+        load_target_file(_silhouette_of_picture(tmp_path, "clear", clear))
+    nans = Image.fromarray(np.full((20, 20), np.nan, dtype=np.float32), "F")
+    nans.save(tmp_path / "nans.tiff")
+    spec = json.loads(_silhouette_of_picture(tmp_path, "x", clear).read_text())
+    spec["views"][0]["image"] = "nans.tiff"
+    (tmp_path / "nans.json").write_text(json.dumps(spec))
+    with pytest.raises(TargetFileError, match="pixels are all NaN or infinite"):
+        load_target_file(tmp_path / "nans.json")
+    shape = np.full((20, 20), 255, dtype=np.uint8)
+    shape[5:15, 5:15] = 0
+    frames = [Image.fromarray(shape, "L"), Image.fromarray(255 - shape, "L")]
+    frames[0].save(tmp_path / "anim.gif", save_all=True, append_images=frames[1:])
+    spec["views"][0]["image"] = "anim.gif"
+    (tmp_path / "anim.json").write_text(json.dumps(spec))
+    assert any("holds 2 frames or pages and procmod read the first" in n
+               for n in load_target_file(tmp_path / "anim.json").file_notes)

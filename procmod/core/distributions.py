@@ -263,6 +263,9 @@ class Categorical(Distribution):
         # did not replay); numbers keep their numpy type, so a float32 label's arithmetic
         # stays float32
         labels = tuple(bool(label) if isinstance(label, np.bool_) else label for label in labels)
+        if any(isinstance(label, np.longdouble) for label in labels):  # (a traceback on saving, h90)
+            raise ModelError(f"Categorical labels are saved as JSON, which has no numpy longdouble, got "
+                             f"{labels!r:.80}; give them as floats (float(x))")
         if not all(isinstance(label, _LABEL_TYPES) and not (isinstance(label, (float, np.floating))
                                                               and not math.isfinite(label)) for label in labels):
             raise ModelError(f"Categorical labels must be strings, numbers or bools (they are saved as JSON), got "

@@ -218,6 +218,9 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
     except MemoryError:
         raise error(f"{source}: its JSON does not fit in this machine's memory") from None
     except ValueError as exc:  # e.g. an integer of more digits than Python converts (4300)
+        if "digits" in str(exc):  # Python's own advice (sys.set_int_max_str_digits) is not the user's to follow
+            raise error(f"{source}: not valid JSON for procmod: it holds an integer of more than 4300 digits, more "
+                        "than any of procmod's files needs; check the file") from None
         raise error(f"{source}: not valid JSON ({cut_text(str(exc), 100)})") from None
 
 

@@ -832,28 +832,36 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
-def _mimic_value(joint, joints: dict, path: Path, seen: tuple = ()) -> float:
+def _mimic_value(joint, joints: dict, path: Path) -> float:
     """A URDF joint's value in the robot's zero configuration: 0, except for a joint that
     mimics another (``<mimic joint= multiplier= offset=>``), whose value is ``multiplier x
     the other's + offset`` (the URDF specification), the other's own value resolved the
-    same way (a mimic of a mimic), as robot_state_publisher and MoveIt place it."""
-    mimic = getattr(joint, "mimic", None)
-    if mimic is None:
-        return 0.0
-    if joint.name in seen:
-        cycle = seen[seen.index(joint.name):]
-        said = (f"joint {cycle[0]!r} mimics itself" if len(cycle) == 1 else
-                f"joints {', '.join(repr(n) for n in cycle)} mimic one another in a cycle")
-        raise AssetError(f"{path}: {said}; a mimic joint must follow a joint that moves of its own")
-    other = joints.get(mimic.joint)
-    base = 0.0 if other is None else _mimic_value(other, joints, path, seen + (joint.name,))
-    multiplier = 1.0 if mimic.multiplier is None else float(mimic.multiplier)
-    offset = 0.0 if mimic.offset is None else float(mimic.offset)
-    value = multiplier * base + offset
-    if not math.isfinite(value):
-        raise AssetError(f"{path}: joint {joint.name!r} mimics another with multiplier {mimic.multiplier} and "
-                         f"offset {mimic.offset}; they must be numbers")
+    same way (a mimic of a mimic), as robot_state_publisher and MoveIt place it. Followed
+    in a loop: a chain of hundreds of mimics had exceeded Python's recursion (h90)."""
+    chain, seen = [], []
+    while getattr(joint, "mimic", None) is not None:
+        if joint.name in seen:
+            cycle = seen[seen.index(joint.name):]
+            said = (f"joint {cycle[0]!r} mimics itself" if len(cycle) == 1 else
+                    f"joints {', '.join(repr(n) for n in cycle)} mimic one another in a cycle")
+            raise AssetError(f"{path}: {said}; a mimic joint must follow a joint that moves of its own")
+        seen.append(joint.name)
+        chain.append(joint)
+        joint = joints.get(joint.mimic.joint)  # a joint not in the file: taken at its zero
+    value = 0.0
+    for mimicking in reversed(chain):
+        mimic = mimicking.mimic
+        multiplier = 1.0 if mimic.multiplier is None else float(mimic.multiplier)
+        offset = 0.0 if mimic.offset is None else float(mimic.offset)
+        value = multiplier * value + offset
+        if not (math.isfinite(value) and abs(value) <= MAX_MIMIC_VALUE):
+            raise AssetError(f"{path}: joint {mimicking.name!r} mimics another with multiplier {mimic.multiplier} and "
+                             f"offset {mimic.offset}, which place it at {value:g}; they must be numbers that place it "
+                             f"within {MAX_MIMIC_VALUE:g} (radians or metres)")
     return value
+
+
+MAX_MIMIC_VALUE = 1e6  # radians or metres a mimic joint may stand at: beyond, a file's error
 
 
 def _mimic_motion(joint, joints: dict, path: Path) -> np.ndarray:
@@ -864,7 +872,10 @@ def _mimic_motion(joint, joints: dict, path: Path) -> np.ndarray:
     if value == 0.0 or joint.type not in ("revolute", "continuous", "prismatic"):
         return np.eye(4)
     axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, dtype=np.float64)
-    length = float(np.linalg.norm(axis)) if axis.shape == (3,) and np.isfinite(axis).all() else 0.0
+    top = float(np.abs(axis).max()) if axis.shape == (3,) and np.isfinite(axis).all() else 0.0
+    if top > 0.0:
+        axis = axis / top  # first: the length of an axis of 1e300s overflowed (h90)
+    length = float(np.linalg.norm(axis)) if top > 0.0 else 0.0
     if length == 0.0:
         raise AssetError(f"{path}: joint {joint.name!r} mimics another, at {value:g} in the zero configuration, "
                          f"about axis {joint.axis}; the axis must be three numbers, not all zero")
@@ -937,6 +948,9 @@ def _read_urdf(path: Path, geometries: dict) -> list:
             if k in seen:
                 raise AssetError(f"{path}: the joints form a cycle (link {k!r} is its own ancestor)")
             seen.add(k)
+            if len(seen) > MAX_DEPTH:  # as a glTF file's: a chain of 500 links exceeded Python's recursion (h90)
+                raise AssetError(f"{path}: the link hierarchy is deeper than {MAX_DEPTH} levels (link {start!r}), "
+                                 "more than procmod reads")
     faces_read = [0]
 
     def geometry_of(visual, link: str, k: int, kind: str = "visual"):

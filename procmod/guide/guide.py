@@ -98,8 +98,11 @@ def check_metadata(data, source: str) -> dict:
             raise GuideError(f"{where}.n_out must be {n_out} for a {kind} site with mixture {mixture}, "
                              f"got {shown_value(spec.get('n_out'))}")
         labels = spec.get("labels")
+        if labels is not None and not kind.startswith("categorical"):
+            raise GuideError(f"{where} draws a {kind} choice, which has no labels; remove its \"labels\" (a "
+                             "categorical site's labels are the ones it was trained on)")
         if labels is not None and not (
-                kind.startswith("categorical") and isinstance(labels, list) and len(labels) == n_out
+                isinstance(labels, list) and len(labels) == n_out
                 and all(isinstance(v, (str, int, bool)) or (isinstance(v, float) and math.isfinite(v)) for v in labels)
                 and len(set(label_codes(labels))) == n_out):
             raise GuideError(f"{where}.labels must be a categorical site's {n_out} distinct labels (strings, numbers "
@@ -701,7 +704,9 @@ def merge_labels(labels: dict, key: str, drawn) -> None:
 def plain_labels(labels) -> list:
     """A categorical's labels as plain Python values, as its JSON holds them (a Categorical
     keeps numpy's ints and floats as given: json could not write them, h86)."""
-    return [label.item() if isinstance(label, np.generic) else label for label in labels]
+    return [bool(label) if isinstance(label, np.bool_) else int(label) if isinstance(label, np.integer)
+            else float(label) if isinstance(label, np.floating) else str(label) if isinstance(label, np.str_)
+            else label for label in labels]
 
 
 def label_codes(labels) -> tuple:

@@ -205,7 +205,9 @@ def _one_of_sets(used: np.ndarray) -> list:
     a slot outside a set that covers every node shares a node with one of it). The
     authored sets and the quadrupeds get the same groups as before."""
     nodes, n = used.shape
-    filled = [i for i in range(n) if used[:, i].any()]
+    # slots of one node alone say nothing of a choice (a part type whose examples each hold
+    # children of their own made every pick of one per node such a set: k^nodes of them, h89)
+    filled = [i for i in range(n) if used[:, i].sum() >= 2]
     if nodes < ONE_OF_NODES or len(filled) < 2:
         return []
     import networkx as nx
@@ -213,7 +215,16 @@ def _one_of_sets(used: np.ndarray) -> list:
     apart = nx.Graph()
     apart.add_nodes_from(filled)
     apart.add_edges_from((i, j) for i, j in itertools.combinations(filled, 2) if not (used[:, i] & used[:, j]).any())
-    return [sorted(c) for c in nx.find_cliques(apart) if len(c) >= 2 and (used[:, c].sum(axis=1) == 1).all()]
+    found = []
+    # finding such sets is exact cover (NP-complete): the maximal cliques are listed lazily,
+    # at most ONE_OF_CLIQUES of them (a few in any set seen), in networkx's fixed order
+    for clique in itertools.islice(nx.find_cliques(apart), ONE_OF_CLIQUES):
+        if len(clique) >= 2 and (used[:, clique].sum(axis=1) == 1).all():
+            found.append(sorted(clique))
+    return found
+
+
+ONE_OF_CLIQUES = 10_000  # maximal cliques :func:`_one_of_sets` looks at, at most
 
 
 def _slot_groups(parent_type: str, parents: list, slot_types: list, offsets: dict, parts: dict) -> list:
@@ -287,10 +298,10 @@ def span_types(nodes: list) -> tuple:
         if len(group) < 3 or len({n.count for n in group}) < 2:
             continue
         steps = np.array([n.sym[:3] for n in group], dtype=np.float64)
-        along = steps.mean(axis=0)
-        if not np.linalg.norm(along) > 0:
-            continue
-        steps = steps @ (along / np.linalg.norm(along))  # each row's step along the row
+        # each row's step along the rows' common axis, whichever way it points (a row's
+        # direction may flip between examples: their mean step then was near zero, h89)
+        axis = np.linalg.svd(steps, full_matrices=False)[2][0]
+        steps = np.abs(steps @ axis)
         spans = steps * np.array([n.count - 1 for n in group], dtype=np.float64)
 
         def spread(v: np.ndarray) -> float:

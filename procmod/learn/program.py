@@ -604,6 +604,11 @@ def _check_references(program: Program, path) -> None:
     unknown = sorted(set(program.units.part_log_scales) - set(program.parts))
     if unknown:
         raise _fail(path, f"units name part {unknown[0]!r}, which the program's parts do not hold")
+    rows = {a.type for a in program.abstractions.values() if a.kind == "trans"}
+    unknown = sorted(set(program.units.trans_spans) - rows)
+    if unknown:  # (another kind's parameters would be divided by its count, without a word: h90)
+        raise _fail(path, f"units.trans_spans names {unknown[0]!r}, which is no translation symmetry type of the "
+                          "program; it lists the types whose span is drawn (learn again)")
 
     def need(key: str, size: int | None = None) -> None:
         if key not in p:

@@ -33,8 +33,8 @@ from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
-from .image import (MAX_IMAGE_PIXELS, TargetFileError, _fills_its_box, grey_levels, mask_from_image, meant_key,
-                    opaque_part, open_image, picture_in_square)
+from .image import (FRAMES, MAX_IMAGE_PIXELS, TargetFileError, _fills_its_box, _fully_transparent, grey_levels,
+                    mask_from_image, meant_key, opaque_part, open_image, picture_in_square)
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -1021,8 +1021,18 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             weights = _load_weights(file, f"{at}.weights")
         elif kind == "image":
             picture = open_image(file, f"{at}.image")
+            if _fully_transparent(picture):  # (it had been read black: to hit everywhere, h90)
+                raise TargetFileError(f"{at}.image: the picture is fully transparent: it shows nothing to hit; "
+                                      "export it with the shape opaque")
+            if picture.mode == "F" and not np.isfinite(np.asarray(picture)).any():  # (read black: all to hit, h90)
+                raise TargetFileError(f"{at}.image: the picture's pixels are all NaN or infinite: it shows nothing; "
+                                      "export it as an 8-bit picture")
             opaque = opaque_part(picture)
             grey = _transparent_as_white(grey_levels(picture), opaque)
+            frames = picture.info.get(FRAMES, 1)
+            if frames > 1:  # the shape may be on another (as a picture target says, h90)
+                notes.append(f"{at}.image: the file holds {frames} frames or pages and procmod read the first; "
+                             "save the one with the shape on its own if it is another")
             weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
             cut_out = hit > 0 and opaque is not None and opaque.any() and not opaque.all()
             if cut_out and not (grey < HIT_BELOW).any():
