@@ -220,8 +220,8 @@ def _accessor_past_view(p):  # trimesh said it cannot reshape an array into (10^
     (_urdf_two_parents, ".urdf", "child of two joints"),
     (_huge, ".gltf", "more than procmod reads"),
     (_two_roots, ".gltf", "2 top-level parts"),
-    (_empty_root, ".gltf", "2 top-level parts ('a', 'b'); they are under the empty 'Chair', which has no mesh and "
-                           "so is no part"),
+    (_empty_root, ".gltf", "2 top-level parts ('a', 'b'); they are under 'Chair', which draws no faces (an empty, "
+                           "or a mesh without faces) and so is no part"),
 ])
 def test_bad_asset_files_are_one_line_errors_and_write_nothing(tmp_path, capsys, make, suffix, message):
     folder = tmp_path / "in"

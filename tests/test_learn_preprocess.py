@@ -188,6 +188,10 @@ def test_three_slots_of_which_each_node_fills_exactly_one_are_one_group():
     # a set, 3^14 maximal cliques listed (75 s, 1 GB, h89); a slot of one node alone is no choice
     own = np.kron(np.eye(14, dtype=bool), np.ones((1, 3), dtype=bool))
     assert _one_of_sets(own) == []
+    # ... but a layout seen in one lamp is a choice still (that filter had lost it, h92)
+    once = np.array([[1, 0, 0]] + [[0, 1, 0], [0, 0, 1]] * 3, dtype=bool)
+    assert _one_of_sets(once) == [[0, 1, 2]]
+    assert _one_of_sets(once[:, :2][once[:, 2] == 0].repeat(2, axis=0)) == [[0, 1]]
 
 
 def test_a_learned_lamp_keeps_exactly_one_shade(tmp_path):

@@ -1583,6 +1583,15 @@ def test_a_silhouette_picture_that_shows_nothing_is_refused_and_frames_are_noted
     clear = Image.fromarray(np.zeros((20, 20, 4), dtype=np.uint8), "RGBA")
     with pytest.raises(TargetFileError, match="the picture is fully transparent"):
         load_target_file(_silhouette_of_picture(tmp_path, "clear", clear))
+    # a 16-bit grey with a transparent value none of its pixels has: Pillow's RGBA of it is
+    # clear everywhere, and it had been refused as fully transparent (h92)
+    grey16 = np.full((20, 20), 40000, dtype=np.uint16)
+    grey16[5:15, 5:15] = 1000
+    Image.fromarray(grey16).save(tmp_path / "grey16.png", transparency=65535)
+    spec16 = json.loads(_silhouette_of_picture(tmp_path, "x16", clear).read_text())
+    spec16["views"][0]["image"] = "grey16.png"
+    (tmp_path / "grey16.json").write_text(json.dumps(spec16))
+    assert (load_target_file(tmp_path / "grey16.json").weights[0] > 0).sum() == 100
     nans = Image.fromarray(np.full((20, 20), np.nan, dtype=np.float32), "F")
     nans.save(tmp_path / "nans.tiff")
     spec = json.loads(_silhouette_of_picture(tmp_path, "x", clear).read_text())

@@ -317,10 +317,10 @@ def _target_spec(context, settings, folder: Path) -> dict:
         layers = []
         for i, layer in enumerate(settings.layers):
             scene.check_mesh_object(layer.object, f"target layer {i + 1}")
-            file = f"layer{i}.obj"
-            scene.write_world_mesh(context, layer.object, folder / file)
-            layers.append({"mesh": file, "object": layer.object.name, "w_fill": layer.w_fill,
+            layers.append({"mesh": f"layer{i}.obj", "object": layer.object.name, "w_fill": layer.w_fill,
                            "w_avoid": layer.w_avoid})
+        scene.write_world_meshes(context, [layer.object for layer in settings.layers],
+                                 [folder / entry["mesh"] for entry in layers])
         return {"kind": "volume", "layers": layers, "voxel_size": settings.voxel_size * scene.unit_scale(context),
                 "w_self": settings.w_self}
     camera = settings.camera or context.scene.camera

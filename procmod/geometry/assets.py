@@ -832,23 +832,25 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
-def _mimic_value(joint, joints: dict, path: Path) -> float:
+def _mimic_value(joint, joints: dict, path: Path, known: dict) -> float:
     """A URDF joint's value in the robot's zero configuration: 0, except for a joint that
     mimics another (``<mimic joint= multiplier= offset=>``), whose value is ``multiplier x
     the other's + offset`` (the URDF specification), the other's own value resolved the
     same way (a mimic of a mimic), as robot_state_publisher and MoveIt place it. Followed
-    in a loop: a chain of hundreds of mimics had exceeded Python's recursion (h90)."""
-    chain, seen = [], []
-    while getattr(joint, "mimic", None) is not None:
+    in a loop (a chain of hundreds of mimics had exceeded Python's recursion, h90), each
+    joint's value kept in ``known`` (name -> value) for the joints after it (re-walking
+    each chain took minutes for thousands, h92)."""
+    chain, seen = [], set()
+    while getattr(joint, "mimic", None) is not None and joint.name not in known:
         if joint.name in seen:
-            cycle = seen[seen.index(joint.name):]
+            cycle = [j.name for j in chain[[j.name for j in chain].index(joint.name):]]
             said = (f"joint {cycle[0]!r} mimics itself" if len(cycle) == 1 else
                     f"joints {', '.join(repr(n) for n in cycle)} mimic one another in a cycle")
             raise AssetError(f"{path}: {said}; a mimic joint must follow a joint that moves of its own")
-        seen.append(joint.name)
+        seen.add(joint.name)
         chain.append(joint)
         joint = joints.get(joint.mimic.joint)  # a joint not in the file: taken at its zero
-    value = 0.0
+    value = known.get(joint.name, 0.0) if joint is not None else 0.0
     for mimicking in reversed(chain):
         mimic = mimicking.mimic
         multiplier = 1.0 if mimic.multiplier is None else float(mimic.multiplier)
@@ -858,17 +860,18 @@ def _mimic_value(joint, joints: dict, path: Path) -> float:
             raise AssetError(f"{path}: joint {mimicking.name!r} mimics another with multiplier {mimic.multiplier} and "
                              f"offset {mimic.offset}, which place it at {value:g}; they must be numbers that place it "
                              f"within {MAX_MIMIC_VALUE:g} (radians or metres)")
+        known[mimicking.name] = value
     return value
 
 
 MAX_MIMIC_VALUE = 1e6  # radians or metres a mimic joint may stand at: beyond, a file's error
 
 
-def _mimic_motion(joint, joints: dict, path: Path) -> np.ndarray:
+def _mimic_motion(joint, joints: dict, path: Path, known: dict) -> np.ndarray:
     """The motion of a URDF joint in the robot's zero configuration (:func:`_mimic_value`):
     none, except for a joint that mimics another with an offset. A gripper's second finger
     that mimics the first with an offset had stood at zero, through the first (h73)."""
-    value = _mimic_value(joint, joints, path)
+    value = _mimic_value(joint, joints, path, known)
     if value == 0.0 or joint.type not in ("revolute", "continuous", "prismatic"):
         return np.eye(4)
     axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, dtype=np.float64)
@@ -932,6 +935,7 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         raise AssetError(f"{path} has more than {MAX_NODES} links and visuals, more than procmod reads")
     parent_joint, kids = {}, {name: [] for name in links}
     joints_by_name = {j.name: j for j in robot.joints}
+    mimic_values = {}  # joint name -> its value in the zero configuration (_mimic_value)
     for j in robot.joints:
         for end in (j.parent, j.child):
             if end not in links:
@@ -1007,7 +1011,7 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         for child in kids[link_name]:
             j = parent_joint[child]
             origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
-            below += build(child, world @ origin @ _mimic_motion(j, joints_by_name, path), kind)
+            below += build(child, world @ origin @ _mimic_motion(j, joints_by_name, path, mimic_values), kind)
         nodes = []
         for k, visual in enumerate(link.visuals if kind == "visual" else link.collisions):
             key, scale = geometry_of(visual, link_name, k, kind)

@@ -203,11 +203,12 @@ def examples_from_assets(asset_set) -> ExampleSet:
     for asset in asset_set.assets:
         if len(asset.roots) != 1:
             names = ", ".join(repr(r.name) for r in asset.roots[:5]) + (", ..." if len(asset.roots) > 5 else "")
-            under = (f"; they are under the empty {asset.groups[0]!r}, which has no mesh and so is no part"
-                     if len(asset.groups) == 1 else "")
+            # (a mesh object without faces is read as an empty too: "the empty" named it wrongly, h91)
+            under = (f"; they are under {asset.groups[0]!r}, which draws no faces (an empty, or a mesh without "
+                     "faces) and so is no part" if len(asset.groups) == 1 else "")
             raise ExamplesError(f"{asset.path}: {len(asset.roots)} top-level parts ({names}){under}; an example is "
                                 "one hierarchy: parent them under one part (the body), or, if they are several "
-                                "examples side by side, export each to a file of its own")
+                                "examples side by side, give each a file (in Blender, a root) of its own")
         up = Y_UP_TO_Z_UP.T if asset.path.suffix.lower() == ".urdf" else np.eye(4)
         examples.append(_asset_node(asset.roots[0], asset.path, 0, up))
     base = asset_set.assets[0].path.parent if asset_set.assets else Path(".")

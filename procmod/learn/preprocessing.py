@@ -205,21 +205,34 @@ def _one_of_sets(used: np.ndarray) -> list:
     a slot outside a set that covers every node shares a node with one of it). The
     authored sets and the quadrupeds get the same groups as before."""
     nodes, n = used.shape
-    # slots of one node alone say nothing of a choice (a part type whose examples each hold
-    # children of their own made every pick of one per node such a set: k^nodes of them, h89)
-    filled = [i for i in range(n) if used[:, i].sum() >= 2]
-    if nodes < ONE_OF_NODES or len(filled) < 2:
+    if nodes < ONE_OF_NODES:
         return []
+    counts = used.sum(axis=0)
+    filled = [i for i in range(n) if counts[i] > 0]
+    # pairs, every one of them (cheap; a layout seen in one lamp of six is one too)
+    found = [[i, j] for i, j in itertools.combinations(filled, 2) if (used[:, i] ^ used[:, j]).all()]
+    # larger sets: the slots only one node fills say nothing of a choice when that node
+    # fills several of them (examples each holding children of their own made every pick
+    # of one slot a node such a set, k^nodes of them, h89); one such slot of its node stays
+    # (a layout seen once, h92)
+    lone = {}
+    for i in filled:
+        if counts[i] == 1:
+            lone.setdefault(int(np.argmax(used[:, i])), []).append(i)
+    dropped = {i for slots in lone.values() if len(slots) > 1 for i in slots}
+    candidates = [i for i in filled if i not in dropped]
+    if len(candidates) < 3:
+        return found
     import networkx as nx
 
     apart = nx.Graph()
-    apart.add_nodes_from(filled)
-    apart.add_edges_from((i, j) for i, j in itertools.combinations(filled, 2) if not (used[:, i] & used[:, j]).any())
-    found = []
+    apart.add_nodes_from(candidates)
+    apart.add_edges_from((i, j) for i, j in itertools.combinations(candidates, 2)
+                         if not (used[:, i] & used[:, j]).any())
     # finding such sets is exact cover (NP-complete): the maximal cliques are listed lazily,
     # at most ONE_OF_CLIQUES of them (a few in any set seen), in networkx's fixed order
     for clique in itertools.islice(nx.find_cliques(apart), ONE_OF_CLIQUES):
-        if len(clique) >= 2 and (used[:, clique].sum(axis=1) == 1).all():
+        if len(clique) >= 3 and (used[:, clique].sum(axis=1) == 1).all():
             found.append(sorted(clique))
     return found
 

@@ -562,6 +562,11 @@ def _fully_transparent(image: Image.Image) -> bool:
     """Whether every pixel of a picture with transparency is see-through."""
     if image.mode not in ("RGBA", "LA", "PA") and "transparency" not in image.info:
         return False
+    if image.mode in ("I", "F") or image.mode.startswith("I;16"):
+        # Pillow's RGBA of a 16-bit grey with a transparent value is clear everywhere, whatever
+        # its pixels (h92): see-through are the pixels of that value
+        clear = image.info["transparency"]
+        return isinstance(clear, (int, float)) and bool((np.asarray(image) == clear).all())
     return not np.asarray(image.convert("RGBA"))[:, :, 3].any()
 
 
