@@ -999,3 +999,21 @@ def test_a_long_mimic_chain_a_deep_link_chain_and_a_huge_axis(tmp_path):
     c = {n.name: n.transform for n in a.children}["c"]
     axis = np.array([0.0, 1.0, 1.0]) / math.sqrt(2.0)
     assert np.allclose(c[:3, :3], Rotation.from_rotvec(0.5 * axis).as_matrix())
+
+
+def test_two_joints_of_one_name_are_refused_where_joints_mimic(tmp_path):
+    """A mimic names the joint it follows, and its value was kept by name: with two joints
+    of one name the second took the first's (h93). Such a file is refused where joints
+    mimic (ROS's parser refuses it always); without mimics it reads as before."""
+    text = """<?xml version="1.0"?><robot name="r">
+<link name="a"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>
+<link name="b"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>
+<link name="c"><visual><geometry><box size="0.1 0.1 0.1"/></geometry></visual></link>
+<joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint>
+<joint name="j" type="fixed"><parent link="a"/><child link="c"/></joint></robot>"""
+    assert len(read_assets(_write(tmp_path / "plain.urdf", text)).assets[0].roots[0].children) == 2
+    mimic = text.replace('<joint name="j" type="fixed"><parent link="a"/><child link="c"/></joint>',
+                         '<joint name="j" type="revolute"><parent link="a"/><child link="c"/><axis xyz="0 0 1"/>'
+                         '<limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="x" offset="0.3"/></joint>')
+    with pytest.raises(AssetError, match="two joints are named 'j', and joints mimic others by name"):
+        read_assets(_write(tmp_path / "mimic.urdf", mimic))

@@ -733,3 +733,33 @@ def test_many_target_layers_are_written_in_one_pass_with_their_instances(context
     corners = np.array([[float(v) for v in line.split()[1:4]] for line in
                         (tmp_path / "all1.obj").read_text().splitlines() if line.startswith("v ")])
     assert len(corners) == 4 * 8 + 4 and np.allclose(np.abs(corners).max(0)[[0, 2]], 3.2)  # four cubes and the plane
+
+
+def test_target_layers_of_one_name_from_linked_libraries_keep_their_own_instances(context, tmp_path):
+    """Objects of one name linked from two libraries are two objects: the one pass over the
+    scene's instances looked them up by name, and each got the other's (h93)."""
+    from procmod.blender import scene
+
+    for k, x in enumerate((0.0, 10.0)):
+        host = _mesh_object("Host", kind="plane", location=(x, 0, 0), scale=(3, 3, 3))
+        dot = _mesh_object("Dot", location=(x, 0, 0), scale=(0.2, 0.2, 0.2))
+        _parent(dot, host)
+        host.instance_type = "VERTS"
+        bpy.data.libraries.write(str(tmp_path / f"lib{k}.blend"), {host, dot, host.data, dot.data})
+        bpy.data.objects.remove(host)
+        bpy.data.objects.remove(dot)
+    linked = []
+    for k in range(2):
+        with bpy.data.libraries.load(str(tmp_path / f"lib{k}.blend"), link=True) as (_, into):
+            into.objects = ["Host", "Dot"]
+        for obj in into.objects:
+            context.scene.collection.objects.link(obj)
+        linked.append(next(o for o in into.objects if o.name == "Host"))
+    context.view_layer.update()
+    assert linked[0].name == linked[1].name and linked[0] != linked[1]
+    scene.write_world_meshes(context, linked, [tmp_path / "all0.obj", tmp_path / "all1.obj"])
+    for k, obj in enumerate(linked):
+        scene.write_world_mesh(context, obj, tmp_path / f"one{k}.obj")
+        assert (tmp_path / f"all{k}.obj").read_text() == (tmp_path / f"one{k}.obj").read_text()
+    xs = [float(line.split()[1]) for line in (tmp_path / "all1.obj").read_text().splitlines() if line.startswith("v ")]
+    assert min(xs) > 6.5  # the second library's host and its cubes, at x = 10

@@ -263,17 +263,17 @@ def write_world_meshes(context, objs: list, paths: list) -> None:
     target layers, Blender's UI frozen before the job's progress showed, h91)."""
     depsgraph = context.evaluated_depsgraph_get()
     scale = unit_scale(context)
-    found = {obj.name: ([], [], False) for obj in objs}  # name -> vertices, triangles, whether it instances
-    wanted = {obj.name: obj for obj in objs}
+    # by the object itself: objects of one name from linked libraries are others (h93)
+    found = {obj.as_pointer(): ([], [], False) for obj in objs}  # -> vertices, triangles, whether it instances
     for inst in depsgraph.object_instances:  # an instance's object is valid during its step only
-        if inst.is_instance and inst.parent is not None and wanted.get(inst.parent.original.name) == \
-                inst.parent.original:
-            vertices, triangles, _ = found[inst.parent.original.name]
-            found[inst.parent.original.name] = (vertices, triangles, True)
+        key = inst.parent.original.as_pointer() if inst.is_instance and inst.parent is not None else None
+        if key in found:
+            vertices, triangles, _ = found[key]
+            found[key] = (vertices, triangles, True)
             if inst.object.type in GEOMETRY_TYPES:
                 _world_triangles(inst.object, inst.matrix_world, vertices, triangles, scale)
     for obj, path in zip(objs, paths):
-        vertices, triangles, instanced = found[obj.name]
+        vertices, triangles, instanced = found[obj.as_pointer()]
         vertices, triangles = list(vertices), list(triangles)  # (an object in two layers: its own lists each)
         if not instanced or obj.show_instancer_for_viewport:
             evaluated = obj.evaluated_get(depsgraph)

@@ -935,6 +935,12 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         raise AssetError(f"{path} has more than {MAX_NODES} links and visuals, more than procmod reads")
     parent_joint, kids = {}, {name: [] for name in links}
     joints_by_name = {j.name: j for j in robot.joints}
+    if len(joints_by_name) < len(robot.joints) and any(j.mimic is not None for j in robot.joints):
+        # a mimic names the joint it follows, and its value is kept by name: which one? (h93;
+        # ROS's parser refuses any such file; files without mimics read as before)
+        twice = sorted(n for n in joints_by_name if sum(j.name == n for j in robot.joints) > 1)
+        raise AssetError(f"{path}: two joints are named {twice[0]!r}, and joints mimic others by name; a URDF's "
+                         "joint names must be unique")
     mimic_values = {}  # joint name -> its value in the zero configuration (_mimic_value)
     for j in robot.joints:
         for end in (j.parent, j.child):
