@@ -867,6 +867,74 @@ def _grey_band_share(grey: np.ndarray) -> float | None:
     return share
 
 
+def _picture_view_weights(file: Path, at: str, hit: float, avoid: float, notes: list) -> np.ndarray:
+    """A silhouette view's weights from its picture (``at``: where the file names it): grey
+    levels under :data:`HIT_BELOW` to hit, over :data:`AVOID_ABOVE` to avoid, transparent
+    pixels white; a light cut-out on a transparent ground from its alpha channel; a colour
+    picture with nothing dark by its colours. What reading it guessed goes into ``notes``."""
+    picture = open_image(file, f"{at}.image")
+    if _fully_transparent(picture):  # (it had been read black: to hit everywhere, h90)
+        raise TargetFileError(f"{at}.image: the picture is fully transparent: it shows nothing to hit; "
+                              "export it with the shape opaque")
+    if picture.mode == "F" and not np.isfinite(np.asarray(picture)).any():  # (read black: all to hit, h90)
+        raise TargetFileError(f"{at}.image: the picture's pixels are all NaN or infinite: it shows nothing; "
+                              "export it as an 8-bit picture")
+    opaque = opaque_part(picture)
+    grey = _transparent_as_white(grey_levels(picture), opaque)
+    frames = picture.info.get(FRAMES, 1)
+    if frames > 1:  # the shape may be on another (as a picture target says, h90)
+        notes.append(f"{at}.image: the file holds {frames} frames or pages and procmod read the first; "
+                     "save the one with the shape on its own if it is another")
+    weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
+    cut_out = hit > 0 and opaque is not None and opaque.any() and not opaque.all()
+    if cut_out and not (grey < HIT_BELOW).any():
+        # a light cut-out on a transparent ground, or a mask drawn in the alpha channel
+        # of a white picture: the file says where the shape is (it had been refused)
+        weights = np.where(opaque, hit, avoid)
+        notes.append(f"{at}.image: no pixel is dark enough to hit, so the shape is read from the picture's "
+                     "alpha channel (its opaque pixels to hit, the transparent ones to avoid)")
+    elif cut_out and float((grey[opaque] > AVOID_ABOVE).mean()) >= CUT_OUT_LIGHT \
+            and not (opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95)):
+        # (an opaque page, a transparent margin or pixel aside, is a silhouette drawn
+        # in greys on it: the grey levels hold, as a 2D target's page is read, h87)
+        # a light object cut out of a photo with a dark logo or print on it: its grey
+        # levels made the logo alone the shape to hit and the object itself to avoid (h79)
+        dark = float((grey[opaque] < HIT_BELOW).mean())
+        weights = np.where(opaque, hit, avoid)
+        notes.append(f"{at}.image: the picture's opaque part is mostly light (to avoid, by its grey levels) "
+                     f"with {100 * dark:.0f}% of it dark, as a cut-out with a print on it is, so the shape is "
+                     "read from its alpha channel (its opaque pixels to hit, the transparent ones to avoid); "
+                     "for the grey levels' meaning, give the picture without transparency")
+    elif hit > 0:
+        band = _grey_band_share(grey)
+        if band is not None:
+            notes.append(f"{at}.image: {100 * band:.0f}% of the shape's pixels are mid-grey (between "
+                         f"{HIT_BELOW} and {AVOID_ABOVE} of 255), which counts as neither to hit nor to avoid: "
+                         "if they are a shaded photo's lit side, make the whole shape dark (black to hit); "
+                         "if \"either\" is meant there, nothing to do")
+    if hit > 0 and not (weights > 0).any() and _has_colour(picture):
+        # a red or yellow object photographed on white: nothing is dark, but it is plain
+        # to see; read as a 2D target picture is, by its unlikeness to the border's
+        # colour (it had been refused as having no dark pixel, h79), when that reads an
+        # object on its ground: under half the picture, off most of its border (an object
+        # filling the frame had been read inverted, a two-tone ground as the shape, h87)
+        h, w = grey.shape
+        top, left, _, _ = picture_in_square(h, w)
+        unlike = mask_from_image(picture)[top:top + h, left:left + w]
+        border = np.concatenate([unlike[0], unlike[-1], unlike[:, 0], unlike[:, -1]])
+        if unlike.any() and unlike.mean() < 0.5 and border.mean() < COLOUR_BORDER:
+            weights = np.where(unlike, hit, avoid)
+            notes.append(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255), so the "
+                         "shape is read from the picture's colours, as the pixels unlike its border's colour "
+                         "(as a 2D target picture is read); for the grey levels' meaning (black to hit, "
+                         "white to avoid, grey between: either), give the picture in greys")
+    if hit > 0 and not (weights > 0).any():  # a pencil sketch on grey paper
+        raise TargetFileError(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255; the "
+                              f"darkest is {int(grey.min())}): darken the shape (black to hit, white to avoid, "
+                              "grey between: either), or give the view's weights as an .npy (\"weights\")")
+    return weights
+
+
 def _has_colour(picture) -> bool:
     """Whether a picture is in colour: :data:`COLOUR_SHARE` of its pixels or more have
     channels that differ by :data:`COLOUR_SPREAD` or more (a grey picture saved as RGB has
@@ -1020,66 +1088,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
         if kind == "weights":
             weights = _load_weights(file, f"{at}.weights")
         elif kind == "image":
-            picture = open_image(file, f"{at}.image")
-            if _fully_transparent(picture):  # (it had been read black: to hit everywhere, h90)
-                raise TargetFileError(f"{at}.image: the picture is fully transparent: it shows nothing to hit; "
-                                      "export it with the shape opaque")
-            if picture.mode == "F" and not np.isfinite(np.asarray(picture)).any():  # (read black: all to hit, h90)
-                raise TargetFileError(f"{at}.image: the picture's pixels are all NaN or infinite: it shows nothing; "
-                                      "export it as an 8-bit picture")
-            opaque = opaque_part(picture)
-            grey = _transparent_as_white(grey_levels(picture), opaque)
-            frames = picture.info.get(FRAMES, 1)
-            if frames > 1:  # the shape may be on another (as a picture target says, h90)
-                notes.append(f"{at}.image: the file holds {frames} frames or pages and procmod read the first; "
-                             "save the one with the shape on its own if it is another")
-            weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
-            cut_out = hit > 0 and opaque is not None and opaque.any() and not opaque.all()
-            if cut_out and not (grey < HIT_BELOW).any():
-                # a light cut-out on a transparent ground, or a mask drawn in the alpha channel
-                # of a white picture: the file says where the shape is (it had been refused)
-                weights = np.where(opaque, hit, avoid)
-                notes.append(f"{at}.image: no pixel is dark enough to hit, so the shape is read from the picture's "
-                             "alpha channel (its opaque pixels to hit, the transparent ones to avoid)")
-            elif cut_out and float((grey[opaque] > AVOID_ABOVE).mean()) >= CUT_OUT_LIGHT \
-                    and not (opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95)):
-                # (an opaque page, a transparent margin or pixel aside, is a silhouette drawn
-                # in greys on it: the grey levels hold, as a 2D target's page is read, h87)
-                # a light object cut out of a photo with a dark logo or print on it: its grey
-                # levels made the logo alone the shape to hit and the object itself to avoid (h79)
-                dark = float((grey[opaque] < HIT_BELOW).mean())
-                weights = np.where(opaque, hit, avoid)
-                notes.append(f"{at}.image: the picture's opaque part is mostly light (to avoid, by its grey levels) "
-                             f"with {100 * dark:.0f}% of it dark, as a cut-out with a print on it is, so the shape is "
-                             "read from its alpha channel (its opaque pixels to hit, the transparent ones to avoid); "
-                             "for the grey levels' meaning, give the picture without transparency")
-            elif hit > 0:
-                band = _grey_band_share(grey)
-                if band is not None:
-                    notes.append(f"{at}.image: {100 * band:.0f}% of the shape's pixels are mid-grey (between "
-                                 f"{HIT_BELOW} and {AVOID_ABOVE} of 255), which counts as neither to hit nor to avoid: "
-                                 "if they are a shaded photo's lit side, make the whole shape dark (black to hit); "
-                                 "if \"either\" is meant there, nothing to do")
-            if hit > 0 and not (weights > 0).any() and _has_colour(picture):
-                # a red or yellow object photographed on white: nothing is dark, but it is plain
-                # to see; read as a 2D target picture is, by its unlikeness to the border's
-                # colour (it had been refused as having no dark pixel, h79), when that reads an
-                # object on its ground: under half the picture, off most of its border (an object
-                # filling the frame had been read inverted, a two-tone ground as the shape, h87)
-                h, w = grey.shape
-                top, left, _, _ = picture_in_square(h, w)
-                unlike = mask_from_image(picture)[top:top + h, left:left + w]
-                border = np.concatenate([unlike[0], unlike[-1], unlike[:, 0], unlike[:, -1]])
-                if unlike.any() and unlike.mean() < 0.5 and border.mean() < COLOUR_BORDER:
-                    weights = np.where(unlike, hit, avoid)
-                    notes.append(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255), so the "
-                                 "shape is read from the picture's colours, as the pixels unlike its border's colour "
-                                 "(as a 2D target picture is read); for the grey levels' meaning (black to hit, "
-                                 "white to avoid, grey between: either), give the picture in greys")
-            if hit > 0 and not (weights > 0).any():  # a pencil sketch on grey paper
-                raise TargetFileError(f"{at}.image: no pixel is dark enough to hit (under {HIT_BELOW} of 255; the "
-                                      f"darkest is {int(grey.min())}): darken the shape (black to hit, white to avoid, "
-                                      "grey between: either), or give the view's weights as an .npy (\"weights\")")
+            weights = _picture_view_weights(file, at, hit, avoid, notes)
         else:
             _check_up_once(file, spec, f"{at}.mesh")
             placed = _placed(read_mesh(file, f"{at}.mesh", orient=False), placement)  # y up, as the model
