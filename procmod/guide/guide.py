@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.distributions import Normal, TruncatedNormal
-from ..core.errors import argument, cut_text, shown_value, whole_number
+from ..core.errors import argument, cut_text, plain_value, shown_value, whole_number
 from ..core.io import check_format, fingerprint, load_tensors, read_json, save_tensors, write_bytes_atomic, write_text_atomic
 from ..core.limits import check_memory
 from ..core.choicemap import format_address
@@ -693,9 +693,12 @@ class GuidedProposer:
 
 def merge_labels(labels: dict, key: str, drawn) -> None:
     """Record in ``labels`` (site key -> labels) that a choice of site ``key`` drew among
-    ``drawn``: a site whose labels differ between its choices (labels made from the rule's
-    arguments) records None, as no one order of them is what its network learned."""
-    if key not in labels:
+    ``drawn`` (None: among labels that varied already): a site whose labels differ between
+    its choices (labels made from the rule's arguments) records None, as no one order of
+    them is what its network learned."""
+    if drawn is None:
+        labels[key] = None
+    elif key not in labels:
         labels[key] = tuple(drawn)
     elif labels[key] is not None and label_codes(labels[key]) != label_codes(drawn):
         labels[key] = None
@@ -704,9 +707,7 @@ def merge_labels(labels: dict, key: str, drawn) -> None:
 def plain_labels(labels) -> list:
     """A categorical's labels as plain Python values, as its JSON holds them (a Categorical
     keeps numpy's ints and floats as given: json could not write them, h86)."""
-    return [bool(label) if isinstance(label, np.bool_) else int(label) if isinstance(label, np.integer)
-            else float(label) if isinstance(label, np.floating) else str(label) if isinstance(label, np.str_)
-            else label for label in labels]
+    return plain_value(list(labels))
 
 
 def label_codes(labels) -> tuple:

@@ -98,10 +98,7 @@ def trace_rows(model, trace: dict, settings: FeatureSettings, masks: dict | None
                          f"by another version of the model, or edited{_RERUN}")
     if labels is not None:
         for key, drawn in recorder.labels.items():
-            if drawn is None:
-                labels[key] = None
-            else:
-                merge_labels(labels, key, drawn)
+            merge_labels(labels, key, drawn)
     return recorder.rows
 
 
