@@ -988,7 +988,10 @@ def test_a_guide_proposes_a_reordered_categorical_by_its_labels(tmp_path):
     def proposal_by_label(guide, labels: str) -> tuple[dict, list]:
         model = _plant_model(tmp_path, labels)
         result = smc(model, target, particles=60, seed=0, guide=guide)
-        return {s.choice_map()[((), "kind")]: round(s.log_proposal, 9) for s in result.samples}, result.notes
+        return {s.choice_map()[((), "kind")]: s.log_proposal for s in result.samples}, result.notes
+
+    def same(a: dict, b: dict) -> bool:  # the base's order changes the kernel's sums' order: equal to rounding
+        return set(a) == set(b) and all(abs(a[k] - b[k]) < 1e-9 for k in a)
 
     def guide_favouring(label_codes_recorded: bool):
         guide = new_guide_for(_plant_model(tmp_path, f"[2, 1, 1], labels={trained!r}"),
@@ -1003,11 +1006,11 @@ def test_a_guide_proposes_a_reordered_categorical_by_its_labels(tmp_path):
     as_trained, _ = proposal_by_label(guide, f"[2, 1, 1], labels={trained!r}")
     assert set(as_trained) == set(trained) and max(as_trained, key=as_trained.get) == "bud", as_trained
     reordered, notes = proposal_by_label(guide, "[1, 1, 2], labels=('bud', 'fork', 'straight')")
-    assert reordered == as_trained and not any("other labels" in n for n in notes)
+    assert same(reordered, as_trained) and not any("other labels" in n for n in notes)
     # saved and read back, the labels go with the guide
     guide.save(tmp_path / "g")
-    assert proposal_by_label(Guide.load(tmp_path / "g"), "[1, 1, 2], labels=('bud', 'fork', 'straight')")[0] == \
-        as_trained
+    assert same(proposal_by_label(Guide.load(tmp_path / "g"), "[1, 1, 2], labels=('bud', 'fork', 'straight')")[0],
+                as_trained)
     # a guide without recorded labels (trained before they were) proposes by position
     old = proposal_by_label(guide_favouring(False), "[1, 1, 2], labels=('bud', 'fork', 'straight')")[0]
     assert max(old, key=old.get) == "straight", old
