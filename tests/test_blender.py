@@ -426,6 +426,30 @@ def test_a_part_turned_under_an_unevenly_scaled_parent_is_refused_naming_both(co
     assert sorted(asset_set.parts) == ["Leg", "Seat"]
 
 
+def test_a_part_without_faces_is_named_by_learns_note_not_dropped_silently(context, tmp_path):
+    """A wire (loose edges only) parented under a seat draws nothing, so it is no part;
+    Blender's exporter had written it as an empty node, so learn left it out with no word."""
+    from procmod.blender import scene
+    from procmod.geometry.assets import faceless_note
+    seat = _mesh_object("Seat", location=(0, 0, 1), scale=(1, 1, 0.1))
+    mesh = bpy.data.meshes.new("wire")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1), (1, 2)], [])
+    wire = bpy.data.objects.new("Wire", mesh)
+    context.scene.collection.objects.link(wire)
+    _parent(wire, seat)
+    context.view_layer.update()
+    _select(seat)
+    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
+    note = faceless_note([examples])
+    assert note is not None and "'Wire' in example000.glb draws no faces" in note, note
+    asset_set = _exported(context, [seat], tmp_path / "again")
+    assert sorted(asset_set.parts) == ["Seat"]  # read as before: the wire is no part
+    seat_only = _mesh_object("Stool")
+    _select(seat_only)
+    alone, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path / "stool")
+    assert faceless_note([alone]) is None
+
+
 def test_the_addons_weight_limit_is_the_target_files():
     from procmod.blender import addon
     from procmod.targets import files

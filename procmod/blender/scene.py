@@ -493,9 +493,12 @@ def write_examples(roots, folder: Path) -> tuple:
             for obj in objects:
                 obj.select_set(True)
             file = out / f"example{i:03d}.glb"
+            # loose edges and points exported (as lines and points primitives, which the
+            # reader leaves out): by default a mesh without faces became an empty in the
+            # file, dropped with no word; now procmod learn's note names it (faceless_note)
             done = bpy.ops.export_scene.gltf(filepath=str(file), use_selection=True, export_format="GLB",
                                              export_apply=True, export_yup=True, export_animations=False,
-                                             export_materials="NONE")
+                                             export_materials="NONE", use_mesh_edges=True, use_mesh_vertices=True)
             if "FINISHED" not in done or not file.is_file():
                 raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")
             _scale_glb_roots(file, unit_scale())

@@ -205,6 +205,37 @@ def left_out_note(paths) -> str | None:
     return f"left out {names}, not read as examples ({skipped[0][0].name}: {skipped[0][1]})"
 
 
+def faceless_note(paths) -> str | None:
+    """A note naming the glTF mesh nodes of the given files (or folders' files) that draw
+    no triangles (points or lines only: Blender's loose edges, a curve exported as a mesh):
+    they are no part and were read as empties; None when there are none."""
+    found = []
+    for p in map(Path, [paths] if isinstance(paths, (str, os.PathLike)) else paths):
+        files = sorted(f for f in p.iterdir() if f.is_file()) if p.is_dir() else [p]
+        for f in files:
+            if f.suffix.lower() not in (".gltf", ".glb"):
+                continue
+            try:
+                header = _gltf_json(f)
+            except AssetError:
+                continue  # the reader says what is wrong with the file
+            meshes = header.get("meshes")
+            for k, node in enumerate(header.get("nodes") or []):
+                mesh = node.get("mesh") if isinstance(node, dict) else None
+                if isinstance(mesh, bool) or not isinstance(mesh, int) or not isinstance(meshes, list) \
+                        or not 0 <= mesh < len(meshes) or not isinstance(meshes[mesh], dict):
+                    continue
+                modes = [q.get("mode", 4) for q in meshes[mesh].get("primitives") or [] if isinstance(q, dict)]
+                if modes and not any(m in (4, 5, 6) for m in modes):  # POINTS, LINES, LINE_LOOP, LINE_STRIP only
+                    found.append(f"{node.get('name', f'node {k}')!r} in {f.name}")
+    if not found:
+        return None
+    more = f" and {len(found) - 3} more" if len(found) > 3 else ""
+    return (f"{', '.join(found[:3])}{more} {'draws' if len(found) == 1 else 'draw'} no faces (points or lines "
+            "only), so not read as parts; give them faces (Blender: fill them, or convert a curve to a mesh "
+            "with a bevel) to learn them")
+
+
 def json_or_assets(paths, what: str, json_format: str) -> tuple[Path | None, list[Path]]:
     """Split a command's inputs: ``(json_file, [])`` for one ``json_format`` JSON file
     given on its own, else ``(None, paths)`` for asset files and folders of them.
@@ -1549,4 +1580,4 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
 
 
 __all__ = ["Y_UP_TO_Z_UP", "ASSET_SUFFIXES", "Asset", "AssetError", "AssetNode", "AssetSet", "GEOMETRY_TOLERANCE", "MAX_FACES",
-           "MAX_NODES", "asset_files", "is_asset_file", "read_assets"]
+           "MAX_NODES", "asset_files", "faceless_note", "is_asset_file", "read_assets"]
