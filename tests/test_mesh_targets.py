@@ -941,6 +941,32 @@ def test_meshes_in_other_units_or_far_away_are_told_how_to_fix_it(tmp_path, caps
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "run").exists()
 
 
+def test_a_small_cad_part_gets_a_margin_of_its_size_and_a_margin_heavy_grid_is_named(tmp_path, capsys):
+    """A 20 x 10 x 5 mm bracket from a CAD tool, in millimetres, for a model in metres at
+    0.2 mm voxels: 100 x 50 x 25 voxels, but the default margin of 0.1 on each side made
+    the grid 1100 x 1050 x 1025, refused as too fine a voxel size or the wrong units."""
+    trimesh.creation.box([20, 10, 5]).export(tmp_path / "bracket_mm.stl")
+    spec = {"format": "procmod-volume/1", "mesh_scale": 0.001, "voxel_size": 0.0002,
+            "layers": [{"file": "bracket_mm.stl"}]}
+    (tmp_path / "t.json").write_text(json.dumps(spec))
+    target = load_target_file(tmp_path / "t.json")
+    assert target.grid.shape == (150, 100, 75)  # a quarter of the 20 mm on each side
+    assert (target.combined > 0).sum() == 100 * 50 * 25
+    # a mesh of 0.4 units or more, or voxels of 0.05 or more: the margin stays 0.1
+    big = _box((1.0, 0.6, 0.8), (0.0, 0.0, 0.0))
+    big.export(tmp_path / "big.stl")
+    (tmp_path / "big.json").write_text(json.dumps(dict(spec, mesh_scale=1, voxel_size=0.05,
+                                                       layers=[{"file": "big.stl"}])))
+    assert load_target_file(tmp_path / "big.json").grid.origin == pytest.approx((-0.6, -0.4, -0.5))
+    # an explicit margin too wide for memory: the refusal says the margin, not the units
+    (tmp_path / "wide.json").write_text(json.dumps(dict(spec, voxel_size=0.00002, margin=0.1)))
+    assert main(["infer", "spaceship", "--target", str(tmp_path / "wide.json"), "--engine", "forward",
+                     "--out", str(tmp_path / "out")]) == 2
+    said = capsys.readouterr().err
+    assert "the grid is mostly its margin of 0.1 on each side: give a smaller \"margin\"" in said, said
+    assert "mesh_scale" not in said and not (tmp_path / "out").exists()
+
+
 def test_a_mesh_from_a_z_up_tool_stands_up_with_mesh_up(tmp_path):
     """procmod's models are y-up; an OBJ or STL from 3ds Max or a CAD tool is z-up and lay
     on its side with no way to turn it. "mesh_up": "z" turns it as Blender's glTF exporter

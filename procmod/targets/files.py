@@ -262,6 +262,24 @@ def span_text(lo, hi) -> str:
     return " x ".join(f"{float(h - l):.3g}" for l, h in zip(lo, hi))
 
 
+DEFAULT_MARGIN = 0.1
+"""A mesh-fitted grid's margin on each side (model units) when the file gives none..."""
+
+SMALL_MESH_MARGIN = 0.25
+"""...but at most this share of the meshes' largest extent (and at least two voxels): a
+20 mm part from a CAD tool, in metres, had been given 100 mm on each side, a grid of a
+billion voxels refused as if its voxel size were at fault."""
+
+
+def default_margin(lo, hi, voxel_size: float) -> float:
+    """The margin of a grid fitted to meshes spanning [lo, hi] when none is given:
+    :data:`DEFAULT_MARGIN`, or for a small mesh :data:`SMALL_MESH_MARGIN` of its largest
+    extent, but not under two voxels (so nothing changes for a mesh of 0.4 units or more,
+    or for voxels of 0.05 or more)."""
+    extent = float(np.max(np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64)))
+    return min(DEFAULT_MARGIN, max(SMALL_MESH_MARGIN * extent, 2.0 * voxel_size))
+
+
 def grid_around(lo, hi, voxel_size: float, margin: float, where: str, meshes=()) -> VoxelGrid:
     """The grid of voxel edge ``voxel_size`` around [lo, hi] grown by ``margin``, refused
     (naming ``where``) when memory cannot hold it; its shape is counted in Python integers
@@ -269,13 +287,18 @@ def grid_around(lo, hi, voxel_size: float, margin: float, where: str, meshes=())
     stray piece of ``meshes`` (``(vertices, faces)`` pairs) far from the rest, if any
     (:func:`stray_piece_text`): that, not the units, is then what stretched the grid."""
     span = span_text(lo, hi)
+    extent = float(np.max(np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64)))
+    # a margin larger than the mesh is what a refusal's grid is mostly made of: say so
+    advice = (f"the mesh spans {span} and the grid is mostly its margin of {margin:g} on each side: give a "
+              f"smaller \"margin\", or use a larger voxel_size" if margin > extent else
+              f"the mesh spans {span}: use a larger voxel_size, or, {OTHER_UNITS}")
     lo = np.asarray(lo, dtype=np.float64) - margin
     hi = np.asarray(hi, dtype=np.float64) + margin
     # at most 1e18 a side (a voxel size of 1e-300 is refused by the memory check, not an overflow)
     shape = tuple(max(1, math.ceil(min(float(hi[a] - lo[a]) / voxel_size, 1e18))) for a in range(3))
     grid = VoxelGrid(tuple(float(v) for v in lo), float(voxel_size), shape)
     try:
-        check_grid(grid, where, f"the mesh spans {span}: use a larger voxel_size, or, {OTHER_UNITS}")
+        check_grid(grid, where, advice)
     except ResourceLimitError as exc:
         stray = next(filter(None, (stray_piece_text(v, f) for v, f in meshes)), None)
         if stray is None:
@@ -502,14 +525,19 @@ def _corner(point) -> str:
     return "(" + ", ".join(f"{float(v):.4g}" for v in point) + ")"
 
 
-def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float = 0.1):
+def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float | None = None):
     """``(grid, mask)``: a mesh file (any format :func:`read_mesh` takes) voxelized on the
-    grid of edge ``voxel_size`` around it grown by ``margin``."""
+    grid of edge ``voxel_size`` around it grown by ``margin`` (default:
+    :func:`default_margin`, 0.1 but for small meshes)."""
     where = cut_text(str(path))
     voxel_size = length(voxel_size, f"{where}: voxel_size")
-    margin = number(margin, f"{where}: margin", minimum=0.0)
+    if margin is not None:
+        margin = number(margin, f"{where}: margin", minimum=0.0)
     vertices, faces = read_mesh(path, where)
-    grid = grid_around(*mesh_bounds(vertices, faces), voxel_size, margin, f"{where}: voxel size {voxel_size:g}",
+    bounds = mesh_bounds(vertices, faces)
+    if margin is None:
+        margin = default_margin(*bounds, voxel_size)
+    grid = grid_around(*bounds, voxel_size, margin, f"{where}: voxel size {voxel_size:g}",
                        [(vertices, faces)])
     return grid, mesh_inside(vertices, faces, grid, where)
 
@@ -631,7 +659,8 @@ def load_volume_target(path: str | os.PathLike):
     Files are relative to the JSON file. All layers lie on one grid: the ``"grid"`` when
     given (its shape that of the .npy layers, or ``"shape": [nx, ny, nz]`` with meshes
     only; meshes are voxelized on it), else the grid of edge ``voxel_size`` around every
-    mesh layer grown by ``margin`` (default 0.1). An .npy layer is a 3D array, nonzero
+    mesh layer grown by ``margin`` (default 0.1, less around a small mesh:
+    :func:`default_margin`). An .npy layer is a 3D array, nonzero
     inside. ``w_fill`` (default 1), ``w_avoid`` (default 0) and ``w_self`` (default 0, at
     least 0) are finite numbers; ``"score": "proxy"`` takes one layer. Mesh layers are
     placed in the model's frame by ``mesh_up``, ``mesh_scale`` and ``mesh_offset`` (:func:`_mesh_placement`)
@@ -713,8 +742,10 @@ def load_volume_target(path: str | os.PathLike):
                               "(after \"mesh_scale\"; the grid then fits the meshes)")
     else:
         voxel_size = length(spec["voxel_size"], f"{where}: voxel_size")
-        margin = number(spec.get("margin", 0.1), f"{where}: margin", minimum=0.0)
-        if margin > MAX_COORDINATE:
+        margin = spec.get("margin")  # None: default_margin, once the meshes' bounds are known
+        if margin is not None:
+            margin = number(margin, f"{where}: margin", minimum=0.0)
+        if margin is not None and margin > MAX_COORDINATE:
             raise TargetFileError(f"{where}: margin must be at most {MAX_COORDINATE:g}, got {margin:g}")
     read = {}
     for at, file, _, _ in meshes:
@@ -724,6 +755,8 @@ def load_volume_target(path: str | os.PathLike):
         bounds = [mesh_bounds(*read[at]) for at, _, _, _ in meshes]
         lo = np.min([b[0] for b in bounds], axis=0)
         hi = np.max([b[1] for b in bounds], axis=0)
+        if margin is None:
+            margin = default_margin(lo, hi, voxel_size)
         grid = grid_around(lo, hi, voxel_size, margin, f"{where}: voxel_size {voxel_size:g} around the mesh layers",
                            [read[at] for at, _, _, _ in meshes])
     layers = []
