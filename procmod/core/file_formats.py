@@ -20,7 +20,8 @@ from pathlib import Path
 #   "via_fbx": its tool exports FBX, which Blender converts (Maya and 3ds Max export glTF
 #     only through plug-ins);
 #   "via_dae": its tool exports COLLADA, a mesh procmod reads, which Blender converts;
-#   "mesh_tool": a CAD or exchange format: a conversion in a tool that reads it.
+#   "mesh_tool": a CAD or exchange format: a conversion in a tool that reads it;
+#   "xacro": a URDF with macros, which ROS's xacro expands.
 OTHER_TOOL_FORMATS = {
     ".fbx": ("an Autodesk FBX file", "blender"),
     ".ma": ("a Maya scene", "via_fbx"),
@@ -43,7 +44,12 @@ OTHER_TOOL_FORMATS = {
     ".stp": ("a CAD (STEP) file", "mesh_tool"),
     ".iges": ("a CAD (IGES) file", "mesh_tool"),
     ".igs": ("a CAD (IGES) file", "mesh_tool"),
+    ".3mf": ("a 3MF file (a slicer's or Fusion 360's)", "native"),
+    ".3dm": ("a Rhino model", "native"),
+    ".xacro": ("a xacro file (a URDF written with macros)", "xacro"),
 }
+
+XACRO_COMMAND = "ROS: xacro robot.urdf.xacro > robot.urdf"
 
 # mesh files procmod reads as one mesh, which hold no parts' placements
 _FLAT_MESHES = {".obj": "an OBJ", ".stl": "an STL", ".ply": "a PLY", ".off": "an OFF"}
@@ -76,8 +82,9 @@ def conversion_hint(path: str | os.PathLike, hierarchy: bool = False) -> str:
         "via_dae": ("export it as COLLADA (.dae), import that into Blender and export glTF 2.0 (.glb)" if hierarchy
                     else "export it from its tool as COLLADA (.dae) or OBJ"),
         "mesh_tool": f"convert it to {wanted} in a 3D tool that reads it",
+        "xacro": f"expand its macros into a URDF first ({XACRO_COMMAND}) and give the .urdf",
     }[route]
     return f"{what} is not read by procmod; {how}"
 
 
-__all__ = ["OTHER_TOOL_FORMATS", "conversion_hint"]
+__all__ = ["OTHER_TOOL_FORMATS", "XACRO_COMMAND", "conversion_hint"]

@@ -81,7 +81,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import ProcmodError
-from ..core.file_formats import conversion_hint
+from ..core.file_formats import XACRO_COMMAND, conversion_hint
 from ..core.io import fingerprint
 from ..core.paths import UnsafePathError, named_file
 from .mesh_files import MESH_SUFFIXES, declared_faces, gltf_header, load_mesh_file
@@ -817,11 +817,16 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
             absolute = Path(unquote(name))
             candidates.append((Path(absolute.anchor), str(absolute.relative_to(absolute.anchor))))
     if not candidates and name.startswith("package://"):
+        from urllib.parse import unquote
+
         pkg, _, rest = name[len("package://"):].partition("/")
+        # as written, and %-decoded as ROS's resource retriever reads a URI ("base%20link.stl")
+        spellings = [rest] + ([unquote(rest)] if unquote(rest) != rest else [])
         # ancestors of the resolved folder: "robot.urdf" run from its own folder has a base
         # of "." whose .parents is empty, and the package lies above it
         for folder in [base, *base.resolve().parents]:
-            candidates += [(folder, rest), (folder, f"{pkg}/{rest}")]
+            for spelt in spellings:
+                candidates += [(folder, spelt), (folder, f"{pkg}/{spelt}")]
     elif not candidates:
         candidates.append((base, name))
     for folder, rel in candidates:
@@ -923,6 +928,11 @@ def _mimic_motion(joint, joints: dict, path: Path, known: dict) -> np.ndarray:
     return motion
 
 
+# what a URDF written with xacro holds until xacro expands it: ${expressions}, $(find ...)
+# substitutions and <xacro:...> elements (its output may keep the xmlns:xacro declaration)
+_XACRO_LEFT = re.compile(rb"\$\{[^}\n]{0,40}|\$\((?:find|arg|eval|env|optenv|dirname)\b[^)\n]{0,40}|<\s*xacro:[\w-]+")
+
+
 def _read_urdf(path: Path, geometries: dict) -> list:
     import logging
 
@@ -934,6 +944,11 @@ def _read_urdf(path: Path, geometries: dict) -> list:
         data = path.read_bytes()
     except OSError as exc:
         raise AssetError(f"cannot read {path} ({exc.strerror})") from None
+    macro = _XACRO_LEFT.search(re.sub(rb"<!--.*?-->", b"", data, flags=re.DOTALL))
+    if macro is not None:  # it had failed on "${pi/2}" as a float, or on the xacro: prefix
+        said = macro.group(0).decode("utf-8", "replace")
+        raise AssetError(f"{path} still holds xacro macros ({said!r}...); expand them into a plain URDF first "
+                         f"({XACRO_COMMAND}) and give that file")
     try:  # strict XML first: yourdfpy recovers from broken XML and reads half a robot. The
         # declaration is left out of the check: robots ship with <?xml version="0.0" ?>
         body = re.sub(rb"^\s*<\?xml[^>]*\?>", b"", data, count=1)
