@@ -44,7 +44,7 @@ OTHER_TOOL_FORMATS = {
     ".stp": ("a CAD (STEP) file", "mesh_tool"),
     ".iges": ("a CAD (IGES) file", "mesh_tool"),
     ".igs": ("a CAD (IGES) file", "mesh_tool"),
-    ".3mf": ("a 3MF file (a slicer's or Fusion 360's)", "native"),
+    ".3mf": ("a 3MF file (a slicer's or Fusion 360's)", "mesh_tool"),
     ".3dm": ("a Rhino model", "native"),
     ".xacro": ("a xacro file (a URDF written with macros)", "xacro"),
 }
