@@ -788,3 +788,50 @@ def test_a_json_integer_of_more_digits_than_python_reads_is_named(tmp_path):
     with pytest.raises(DerivationFormatError, match="an integer of more than 4300 digits") as info:
         read_json(tmp_path / "big.json")
     assert "sys." not in str(info.value)
+
+
+def test_a_target_or_model_class_given_for_an_instance_and_other_slips_are_one_line():
+    """Forgetting the () of a target made every engine fail inside with "configure()
+    missing 1 required positional argument"; a Canvas's bad size or viewport was a raw
+    ValueError (a huge one numpy's MemoryError); set_maybe(on="no") grew the subtree; a
+    maybe's probability of 1.5 was refused without the rule or its address; mcmc's
+    workers=None read "got null"."""
+    from toy_models import SumTarget
+
+    from procmod.core import Model, set_maybe
+    from procmod.geometry import Canvas
+    from procmod.infer import forward, ga, mcmc
+
+    model = _sum_model()
+    for engine, kwargs in ((smc, {"particles": 4}), (forward, {"particles": 4}), (ga, {"population": 4}),
+                           (mcmc, {})):
+        with pytest.raises(InvalidArgumentError, match=r"got the class SumTarget \(give an instance of it: "
+                                                       r"SumTarget\(...\)\)"):
+            engine(model, SumTarget, **kwargs)
+    with pytest.raises(InvalidArgumentError, match=r"got the class Model \(give an instance of it"):
+        smc(Model, SumTarget(1.0, 1.0), particles=4)
+    with pytest.raises(InvalidArgumentError, match=r"workers must be a positive integer, got None$"):
+        mcmc(model, SumTarget(1.0, 1.0), workers=None)
+    with pytest.raises(InvalidArgumentError, match=r"canvas size must be positive, got 0x0"):
+        Canvas((-1, 1, -1, 1), 0)
+    with pytest.raises(InvalidArgumentError, match=r"the canvas viewport is \(xmin, xmax, ymin, ymax\) with xmin"):
+        Canvas((1, -1, 0, 2), 40)
+    with pytest.raises(ProcmodError, match=r"a 1000000x1000000 canvas would need at least"):
+        Canvas((-1, 1, -1, 1), 10**6)
+
+    def grow(ctx, depth=0):
+        ctx.maybe("more", 0.5, grow, depth + 1) if depth < 3 else None
+
+    tree = Model("grow", "x", grow, lambda params: (), lambda params: Canvas((-1, 1, -1, 1), 8))
+    derivation = run_forward(tree, np.random.default_rng(1))
+    with pytest.raises(InvalidArgumentError, match=r"on must be True \(grow the subtree\) or False \(cut it\), "
+                                                   r"got 'no'"):
+        set_maybe(tree, derivation, (), "more", "no", np.random.default_rng(0))
+
+    def unsure(ctx):
+        ctx.maybe("coin", 1.5, unsure)
+
+    bad = Model("unsure", "x", unsure, lambda params: (), lambda params: Canvas((-1, 1, -1, 1), 8))
+    with pytest.raises(ProcmodError, match=r"rule 'unsure' at .* calls maybe\('coin', 1.5, ...\): its probability "
+                                           r"must be a number from 0 to 1"):
+        run_forward(bad, np.random.default_rng(0))

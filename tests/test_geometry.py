@@ -4,6 +4,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
+from procmod.core import InvalidArgumentError
 from procmod.geometry import (Canvas, Disc, Polygon, Segment, contact_sheet, leaf_polygon,
                               rasterize, render_image, render_svg)
 
@@ -144,6 +145,6 @@ print(views.add(Box((1e20, 1.0, 1.0))) > 0)
 def test_a_reversed_or_empty_viewport_is_refused():
     """Canvas((12, -12, -22, 2), 50), x reversed, drew nothing at all, without a word."""
     for viewport in ((12, -12, -22, 2), (-12, 12, 2, -22), (0, 0, -22, 2), (-12, 12, -22, float("inf"))):
-        with pytest.raises(ValueError, match="viewport is \\(xmin, xmax, ymin, ymax\\) with xmin < xmax"):
+        with pytest.raises(InvalidArgumentError, match="viewport is \\(xmin, xmax, ymin, ymax\\) with xmin < xmax"):
             Canvas(viewport, 50)
     assert Canvas((-12, 12, -22, 2), 50).add(Disc(0, -10, 1)) > 0

@@ -265,6 +265,9 @@ def _check_param(name: str, value, default, bounds=None) -> None:
 def check_model(model) -> None:
     """Refuse, in one line, what is not a procmod :class:`Model` (most often a model's
     name given where the model is wanted)."""
+    if isinstance(model, type) and issubclass(model, Model):
+        raise InvalidArgumentError(f"model must be a procmod Model, got the class {model.__name__} (give an "
+                                   f"instance of it: {model.__name__}(...))")
     if not isinstance(model, Model):
         raise InvalidArgumentError(f"model must be a procmod Model, got {type(model).__name__} {model!r:.40}; "
                                    "get one with procmod.models.get_model(name) or procmod.learn.load_program(path)")

@@ -333,8 +333,13 @@ class Context:
         policy = state.policy
         if policy is not None:
             policy.before_maybe(self.address, site)
-        p = float(p)
-        on = self.sample(site, _bernoulli(p))
+        try:  # (zero-cost unless it raises)
+            p = float(p)
+            coin = _bernoulli(p)
+        except (ModelError, TypeError, ValueError):  # refused naming the rule and its address
+            raise self._misuse(f"calls maybe({site!r:.40}, {p!r:.40}, ...): its probability must be a number from 0 "
+                               "to 1") from None
+        on = self.sample(site, coin)
         self._spawns.append(_new_tuple(SpawnRecord, (site, rule, args, p, on)))
         if on and state.position is not None:
             self._remember_position(site, state.position)
@@ -919,6 +924,8 @@ def set_maybe(model: Model, derivation: Derivation, node_address: tuple, site: s
         lists the cut subtree's choices.
     """
     _check_call(model, rng, derivation, needs_derivation=True)  # as regenerate checks them
+    if not isinstance(on, (bool, np.bool_)):  # "no" is truthy: it had grown the subtree
+        raise InvalidArgumentError(f"on must be True (grow the subtree) or False (cut it), got {on!r:.40}")
     node_address = tuple(node_address)
     node = derivation.tree().get(node_address)
     if node is None:

@@ -16,7 +16,9 @@ import math
 import numba
 import numpy as np
 
+from ..core.errors import InvalidArgumentError
 from ..core.kernels import once_per_process
+from ..core.limits import check_memory
 from .primitives import Disc, Ellipse, Polygon, Segment, Viewport, bounds
 
 MIN_RADIUS_PX = 0.5
@@ -155,16 +157,20 @@ class Canvas:
         self.width = int(width)
         self.height = int(width if height is None else height)
         if self.width < 1 or self.height < 1:
-            raise ValueError(f"canvas size must be positive, got {self.width}x{self.height}")
+            raise InvalidArgumentError(f"canvas size must be positive, got {self.width}x{self.height}")
+        # pixels, scratch indices and a gain: refused before numpy's raw MemoryError
+        check_memory(f"a {self.width}x{self.height} canvas", self.width * self.height * 17.0,
+                     "use a smaller canvas size")
         vp = self.viewport
         if not (np.isfinite(vp).all() and vp.xmin < vp.xmax and vp.ymin < vp.ymax):
             # (12, -12, ...) drew nothing at all, without a word: every part fell "outside"
-            raise ValueError(f"the canvas viewport is (xmin, xmax, ymin, ymax) with xmin < xmax and ymin < ymax, "
-                             f"finite; got {tuple(float(v) for v in vp)}")
+            raise InvalidArgumentError(f"the canvas viewport is (xmin, xmax, ymin, ymax) with xmin < xmax and ymin "
+                                       f"< ymax, finite; got {tuple(float(v) for v in vp)}")
         self.pixels = np.zeros(self.width * self.height, dtype=np.uint8)
         self.gain = _NO_GAIN if gain is None else np.ascontiguousarray(gain, dtype=np.float64).ravel()
         if self.gain.shape[0] not in (0, self.pixels.shape[0]):
-            raise ValueError("gain must have one value per pixel")
+            raise InvalidArgumentError(f"gain must have one value per pixel ({self.pixels.shape[0]}), got "
+                                       f"{self.gain.shape[0]}")
         self.gain_total = 0.0
         self.extent = None
         vp = self.viewport

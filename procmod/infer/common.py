@@ -474,6 +474,9 @@ def recorded_seed(seed):
 def check_target(target) -> None:
     """Refuse, in one line, what is not a target (a picture, a spec string, a mask):
     engines take a :class:`procmod.core.protocols.Target`."""
+    if isinstance(target, type):  # the class's methods are there, unbound: configure(model) lacked self
+        raise InvalidArgumentError(f"target must be a procmod Target, got the class {target.__name__} (give an "
+                                   f"instance of it: {target.__name__}(...))")
     lacking = [m for m in _TARGET_METHODS if not callable(getattr(target, m, None))]
     if lacking:
         raise InvalidArgumentError(
@@ -487,7 +490,9 @@ def check_positive(name: str, value) -> int:
     """``value`` if it is a positive integer, else an InvalidArgumentError naming ``name``."""
     count = whole_number(value)  # numpy's integers too, as a plain int
     if count is None or count < 1:
-        raise InvalidArgumentError(f"{name} must be a positive integer, got {shown_value(value)}")
+        # an argument of the Python API: None as Python writes it, not as JSON's null
+        shown = repr(value) if value is None or isinstance(value, bool) else shown_value(value)
+        raise InvalidArgumentError(f"{name} must be a positive integer, got {shown}")
     return count
 
 

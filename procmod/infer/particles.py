@@ -30,7 +30,7 @@ import os
 import pickle
 import signal
 
-from ..core.errors import ModelError, ProcmodError
+from ..core.errors import ModelError, ProcmodError, argument
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
 from .common import best_first, checked_value
 from ..parallel import lost_worker_error
@@ -211,9 +211,9 @@ class _SharedObjects:
         try:
             return self._dumps(message, cloudpickle.CloudPickler)
         except Exception as exc:  # noqa: BLE001 -- whatever the object's own pickling raises
-            raise ModelError(f"a particle's state cannot be sent between --workers processes ({type(exc).__name__}: "
+            raise ModelError(f"a particle's state cannot be sent to the worker processes ({type(exc).__name__}: "
                              f"{str(exc)[:120]}); keep the model's rules and their arguments to plain functions and "
-                             "values, or run without --workers") from None
+                             f"values, or run in one process ({argument('workers')}=1)") from None
 
     def _dumps(self, message, pickler_class) -> bytes:
         buffer = io.BytesIO()
