@@ -9,6 +9,7 @@ folder with ``--overwrite``) or refused, never mixed.
 from __future__ import annotations
 
 import argparse
+import codecs
 import contextlib
 import dataclasses
 import errno
@@ -688,12 +689,33 @@ def _negative_values_joined(argv: list) -> list:
     return out
 
 
+def _printable(exc: UnicodeError):
+    """The terminal streams' encoding error handler: a file name's undecodable bytes
+    (Python's surrogate escapes, U+DC80-U+DCFF) printed as the bytes they were, anything
+    else the stream cannot encode as a backslash escape. ``surrogateescape`` alone failed
+    on a lone surrogate a JSON file spelled ("\\ud800" in a part name): the one-line
+    refusal quoting it became a traceback ("lost sys.stderr")."""
+    if not isinstance(exc, UnicodeEncodeError):
+        raise exc
+    out = bytearray()
+    for c in exc.object[exc.start:exc.end]:
+        code = ord(c)
+        if 0xDC80 <= code <= 0xDCFF:
+            out.append(code - 0xDC00)
+        else:
+            out += (f"\\u{code:04x}" if code <= 0xFFFF else f"\\U{code:08x}").encode("ascii")
+    return bytes(out), exc.end
+
+
+codecs.register_error("procmod-printable", _printable)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``procmod`` console script; returns the exit status."""
     argv = _negative_values_joined(sys.argv[1:] if argv is None else [str(a) for a in argv])
     for stream in (sys.stdout, sys.stderr):  # a file name's non-UTF-8 bytes printed as they are, not a traceback
         try:
-            stream.reconfigure(errors="surrogateescape")
+            stream.reconfigure(errors="procmod-printable")
         except (AttributeError, ValueError, OSError):  # a stream that is no text file (a test's capture)
             pass
     try:

@@ -334,3 +334,58 @@ def test_render_never_runs_a_python_file_a_derivation_names(tmp_path, capsys, mo
     # given on the command line, the same file is the user's own choice
     assert main(["render", str(tmp_path / "d.json"), "--model", f"{code}:PLANT", "--size", "32",
                  "--out", str(tmp_path / "r.png")]) == 0 and ran.exists()
+
+
+def test_a_lone_surrogate_in_a_json_or_gltf_name_is_one_line_and_the_terminal_prints_any_text(tmp_path, capsys):
+    """JSON may spell half of a UTF-16 pair alone ("\\ud800"), which is no text: a part
+    named so crashed learn after its whole search (the contact sheet's colour), strings
+    graph after writing its files (printing the types), a glTF node so named crashed
+    inside trimesh, and any refusal quoting such a value became a traceback ("lost
+    sys.stderr": surrogateescape prints only U+DC80-U+DCFF)."""
+    from procmod.geometry.export import colour_of
+
+    castle = (SETS / "castle.json").read_text().replace('"tower"', '"t\\ud800ower"')
+    assert "\\ud800" in castle
+    (tmp_path / "castle.json").write_text(castle)
+    (tmp_path / "parts").symlink_to(SETS / "parts")
+    _refused(capsys, tmp_path, ["strings", "graph", tmp_path / "castle.json", "--out", tmp_path / "g"],
+             "holds a lone UTF-16 surrogate escape (a \\uD800-\\uDFFF without its pair), which is no text")
+    (tmp_path / "bad.json").write_text('{"format": "x\\udc00"}')
+    _refused(capsys, tmp_path, ["render", tmp_path / "bad.json", "--out", tmp_path / "o.png"],
+             "bad.json: format holds a lone UTF-16 surrogate escape")
+    # a pair is text (an emoji), and keeps being read
+    from procmod.core.io import parse_json
+    assert parse_json('{"name": "\\ud83d\\ude00"}', "x") == {"name": "\U0001F600"}
+    # glTF, read by trimesh: refused before it
+    from asset_writers import box_mesh, write_gltf
+    path = write_gltf(tmp_path / "ship.gltf", [("hull", [box_mesh((1, 1, 2))])], [{"name": "wing\ud800", "mesh": 0}])
+    assert "wing\\ud800" in path.read_text()  # (json.dumps writes the lone half as its escape)
+    _refused(capsys, tmp_path, ["learn", path, "--out", tmp_path / "l", "--workers", "1"],
+             "is a glTF file whose nodes[0].name holds a lone UTF-16 surrogate escape")
+    # what a name can still hold on its way to a file or the terminal
+    assert colour_of("t\ud800ower") == colour_of("t\ud800ower")
+    assert "a\ud800b\udcffc".encode("utf-8", "procmod-printable") == b"a\\ud800b\xffc"
+
+
+def test_a_urdf_transform_of_1e999_is_refused_without_numpys_warnings(tmp_path):
+    import warnings
+
+    from asset_writers import urdf
+    from procmod.geometry.assets import AssetError, read_assets
+
+    (tmp_path / "r.urdf").write_text(urdf({"a": ['<geometry><box size="1 1 1"/></geometry>'],
+                                           "b": ['<geometry><box size="1 1 1"/></geometry>']},
+                                          [("j", "a", "b", (1e999, 0, 0), (0, 0, 0))]))
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        with pytest.raises(AssetError, match="link 'b' has a non-finite transform"):
+            read_assets(tmp_path / "r.urdf")
+    assert not [w for w in said if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in said]
+
+
+def test_a_missing_weights_file_is_said_to_be_missing_not_damaged(tmp_path):
+    from procmod.core import ProcmodError
+    from procmod.core.io import load_tensors
+
+    with pytest.raises(ProcmodError, match=r"vae.pt: cannot read the weights: the file does not exist$"):
+        load_tensors(tmp_path / "vae.pt", what="weights")

@@ -28,6 +28,7 @@ import io
 import json
 import math
 import os
+import re
 import tempfile
 from pathlib import Path
 from typing import Iterator
@@ -199,12 +200,50 @@ def _unique_keys(pairs: list) -> dict:
     return out
 
 
+# a \uD800-\uDFFF escape: JSON may spell half of a UTF-16 pair alone, which is no text
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F][0-9a-fA-F]{2}")
+
+
+def lone_surrogate_at(value, text: str, where: str = "") -> str | None:
+    """Where in parsed JSON ``value`` (``"nodes[3].name"``) a string or key holds a lone
+    UTF-16 surrogate (``"\\ud800"`` not followed by its low half), or None; ``text`` is
+    the JSON it was parsed from, looked at first (a file without such an escape is not
+    walked). Such a name cannot be written to a file or a terminal: procmod had printed a
+    traceback, or crashed after a whole learn search, on a part named so."""
+    if not _SURROGATE_ESCAPE.search(text):
+        return None
+    stack = [(value, where)]
+    while stack:
+        item, at = stack.pop()
+        if isinstance(item, str):
+            try:
+                item.encode("utf-8")
+            except UnicodeEncodeError:
+                return at or "the top level"
+        elif isinstance(item, dict):
+            for key, inner in item.items():
+                try:
+                    key.encode("utf-8")
+                except UnicodeEncodeError:
+                    return f"{at + '.' if at else ''}{key.encode('ascii', 'backslashreplace').decode()}"
+                stack.append((inner, f"{at}.{key}" if at else key))
+        elif isinstance(item, list):
+            stack.extend((inner, f"{at}[{i}]") for i, inner in enumerate(item))
+    return None
+
+
+def lone_surrogate_text(at: str) -> str:
+    """The end of a refusal of a file :func:`lone_surrogate_at` found at ``at``."""
+    return (f"{at} holds a lone UTF-16 surrogate escape (a \\uD800-\\uDFFF without its pair), which is no "
+            "text: re-save the file from its tool, or correct that name")
+
+
 def parse_json(text: str, source: str, error: type = DerivationFormatError):
     """``json.loads(text)``, with every way it fails (bad syntax, nesting deeper than
     Python's stack: a file of 100,000 ``[``, a key twice in one object) raised as
     ``error(f"{source}: ...")``, one line."""
     try:
-        return json.loads(text, object_pairs_hook=_unique_keys)
+        value = json.loads(text, object_pairs_hook=_unique_keys)
     except _DuplicateKey as exc:
         # the values say where: a file has many "part" keys, and the reader has no positions
         shown = " and ".join(cut_text(json.dumps(v), 40) for v in exc.values[:2])
@@ -222,6 +261,10 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
             raise error(f"{source}: not valid JSON for procmod: it holds an integer of more than 4300 digits, more "
                         "than any of procmod's files needs; check the file") from None
         raise error(f"{source}: not valid JSON ({cut_text(str(exc), 100)})") from None
+    lone = lone_surrogate_at(value, text)
+    if lone is not None:
+        raise error(f"{source}: {lone_surrogate_text(lone)}")
+    return value
 
 
 def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
@@ -319,6 +362,8 @@ def load_tensors(path: str | os.PathLike, error: type = ProcmodError, what: str 
         detail = f" ({cut_text(found.group(0), 120)})" if found else ""
         raise error(f"{source}: refused to load the {what}: the file holds Python objects, not only tensors"
                     f"{detail}; procmod never writes such a file and loading it could run its code{advice}") from None
+    except FileNotFoundError:  # (not "damaged": a model folder missing its weights, h95)
+        raise error(f"{source}: cannot read the {what}: the file does not exist{advice}") from None
     except Exception as exc:  # torch raises several types for truncated or foreign files
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise error(f"{source}: cannot read the {what}: the file is damaged (cut short?) or not one torch wrote "

@@ -1577,7 +1577,10 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
     geometries, forests = {}, []
     for path in files:
         reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
-        forests.append(reader(path, geometries))
+        # a transform of 1e999 is refused by its reader, in one line: without numpy's own
+        # warnings of it (trimesh's matrix products had printed four lines first)
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            forests.append(reader(path, geometries))
     _unbake_turns(forests, geometries)
     _bake_scales(forests, geometries)
     worlds = {}

@@ -44,7 +44,9 @@ def colour_of(tag: str) -> tuple:
     tag's name (so the parts of learned programs and shape sets get distinct colours)."""
     colour = PALETTE.get(tag)
     if colour is None:
-        colour = _EXTRA_COLOURS[zlib.crc32(tag.encode()) % len(_EXTRA_COLOURS)] if tag else DEFAULT_COLOUR
+        # surrogatepass: a lone surrogate a JSON file spelled ("\\ud800") is a colour too, not a traceback
+        colour = (_EXTRA_COLOURS[zlib.crc32(tag.encode("utf-8", "surrogatepass")) % len(_EXTRA_COLOURS)] if tag
+                  else DEFAULT_COLOUR)
     return colour
 
 

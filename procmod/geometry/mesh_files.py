@@ -62,7 +62,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from ..core.errors import whole_number
-from ..core.io import MAX_JSON_BYTES
+from ..core.io import MAX_JSON_BYTES, lone_surrogate_at, lone_surrogate_text
 from ..core.limits import relaxed_gc
 from .gltf_accessors import decoded_gltf
 
@@ -409,9 +409,13 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
             handle.seek(0)
             text = handle.read()
     try:
-        header = json.loads(text.decode("utf-8-sig"))  # a byte-order mark is no part of the JSON
+        text = text.decode("utf-8-sig")  # a byte-order mark is no part of the JSON
+        header = json.loads(text)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise ValueError(f"is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
+    lone = lone_surrogate_at(header, text)
+    if lone is not None:  # (trimesh's scene graph raised a traceback hashing such a node name)
+        raise ValueError(f"is a glTF file whose {lone_surrogate_text(lone)}")
     if not isinstance(header, dict):
         raise ValueError("is not a glTF file (its JSON is not an object)")
     asset = header.get("asset")
