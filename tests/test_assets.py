@@ -92,8 +92,13 @@ def test_mirror_images_are_separate_parts_with_mirror_false(tmp_path):
 
 def test_geometry_beyond_the_tolerance_is_its_own_part_and_names_stay_distinct(tmp_path):
     a, _, _ = ship_gltf(tmp_path / "a.gltf")
-    # b: the same names, but its wing 2% longer and its body a rigid motion of a's body
-    wing = wedge_mesh(1.5 * 1.02)
+    # b: the same names, but its wing's cut corner 3% further out (no scaling of a's wing:
+    # a wing only longer is a's wing at another size, _bake_scales) and its body a rigid
+    # motion of a's body
+    vertices, faces = wedge_mesh(1.5)
+    vertices = vertices.copy()
+    vertices[3, 0] += 0.03 * 1.5
+    wing = (vertices, faces)
     meshes = [("body", [transformed(box_mesh((2, 0.5, 3)), R([0, 0, math.pi / 2]))]), ("wing", [wing])]
     nodes = [{"name": "body", "mesh": 0, "children": [1]}, {"name": "wing", "mesh": 1, "translation": [1, 0, 0]}]
     b = write_gltf(tmp_path / "b.gltf", meshes, nodes)
@@ -101,6 +106,12 @@ def test_geometry_beyond_the_tolerance_is_its_own_part_and_names_stay_distinct(t
     assert sorted(s.parts) == ["body", "gun", "wing", "wing_2"]
     rb = s.assets[1].roots[0]
     assert rb.part == "body" and rb.children[0].part == "wing_2"
+    # a wing 2% longer in another file is a's wing at another size, whose mirrored twin in
+    # a (wing.001) stays a's wing
+    b = write_gltf(tmp_path / "b.gltf", [meshes[0], ("wing", [wedge_mesh(1.5 * 1.02)])], nodes)
+    s = read_assets([a, b])
+    assert sorted(s.parts) == ["body", "gun", "wing"]
+    assert sorted(n.part for n in s.assets[0].nodes()) == ["body", "gun", "wing", "wing"]
 
 
 def test_a_folder_reads_its_asset_files_in_name_order_and_glb_reads_like_gltf(tmp_path):
@@ -771,6 +782,28 @@ def test_a_primitive_added_at_other_sizes_is_one_part_whose_size_varies(tmp_path
         corners = part_triangles(read.parts["Pole"].part(pole.transform)).reshape(-1, 3)
         assert np.allclose(np.ptp(corners, axis=0)[1], height, atol=1e-6)
         assert np.isclose(corners[:, 1].min(), 0.3, atol=1e-6)  # on the base
+
+
+def test_a_round_primitive_applied_at_other_widths_in_float32_is_one_part(tmp_path):
+    """Candelabra plates (a 24-sided cylinder, Ctrl+A applied at radii 0.16-0.21) were
+    five part types for eight examples: their unit shapes, rounded to 9 digits, differed by
+    the float32 rounding of a scale across the axis (1.7e-8), and each sample copied one
+    example's layout."""
+    cylinder = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=24)
+    files = []
+    radii = (0.16, 0.18, 0.19, 0.2, 0.21)
+    for k, radius in enumerate(radii):
+        plate = transformed((cylinder.vertices, cylinder.faces), np.diag([radius, radius, 0.02, 1.0]))
+        nodes = [{"name": "Base", "mesh": 0, "children": [1]},
+                 {"name": f"Plate.{k:03d}", "mesh": 1, "translation": [0, 0.3, 0]}]
+        files.append(write_glb(tmp_path / f"c{k}.glb", gltf_json([("Base", [box_mesh((0.2, 0.2, 0.2))]),
+                                                                  (f"Cylinder.{k:03d}", [plate])], nodes, [0])))
+    read = read_assets(files)
+    assert sorted(read.parts) == ["Base", "Plate"]
+    for asset, radius in zip(read.assets, radii):  # each as wide as its file has it
+        plate = next(n for n in asset.nodes() if n.part == "Plate")
+        corners = part_triangles(read.parts["Plate"].part(plate.transform)).reshape(-1, 3)
+        assert np.allclose(sorted(np.ptp(corners, axis=0)), sorted((2 * radius, 2 * radius, 0.02)), atol=1e-5)
 
 
 def test_planes_scaled_into_panels_are_parts_of_their_own(tmp_path):

@@ -602,8 +602,8 @@ def _unbake_turns(forests: list, geometries: dict) -> None:
     for keys in families.values():
         if len(keys) < 2:
             continue
-        shapes = {_unit_shape(geometries[key].vertices, 6)[0].tobytes() for key in keys}
-        if len(shapes) < 2:
+        shapes = [_unit_shape(geometries[key].vertices)[0] for key in keys]
+        if all(np.abs(shape - shapes[0]).max() <= UNIT_SHAPE_TOLERANCE for shape in shapes[1:]):
             continue  # not turned apart: _bake_scales groups them along their own axes
         _unbake_family(keys, geometries, placers)
 
@@ -641,14 +641,19 @@ def _unbake_family(keys: list, geometries: dict, placers: dict) -> None:
             raw.geometry, raw.world = rep.key, raw.world @ placed
 
 
-def _unit_shape(vertices: np.ndarray, digits: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(vertices scaled to unit extents from the mesh's own corner, rounded to digits;
-    the extents)``: a mesh moved and scaled along its axes has the unit shape of its
-    original (a location applied moves it off its origin alike). A flat axis keeps its
-    extent 1."""
+UNIT_SHAPE_TOLERANCE = 1e-5
+"""Two meshes of one topology are one mesh moved and scaled along its axes when their unit
+shapes (:func:`_unit_shape`) agree within this, vertex by vertex: float32 vertices of a
+primitive scaled and applied at another size differ by ~1e-7."""
+
+
+def _unit_shape(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices scaled to unit extents from the mesh's own corner; the extents)``: a
+    mesh moved and scaled along its axes has the unit shape of its original (a location
+    applied moves it off its origin alike). A flat axis keeps its extent 1."""
     extents = np.ptp(vertices, axis=0)
     extents[extents <= 1e-12 * max(float(extents.max()), 1e-300)] = 1.0  # a flat mesh's flat axis
-    return np.round((vertices - vertices.min(axis=0)) / extents, digits), extents
+    return (vertices - vertices.min(axis=0)) / extents, extents
 
 
 def _bake_scales(forests: list, geometries: dict) -> None:
@@ -675,7 +680,8 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     scale made of it: it is named after its first node instead, without the tool's copy
     numbering (``Leg.001`` is ``Leg``). A shear within the geometry tolerance is dropped
     (:func:`_without_small_shear`)."""
-    by_geometry, unit_of = {}, {}
+    by_geometry, unit_of, unit_shapes = {}, {}, {}
+    read_order = {id(raw): k for k, raw in enumerate(r for forest in forests for top in forest for r in _walk(top))}
     stack = [raw for forest in forests for raw in forest]
     while stack:
         raw = stack.pop()
@@ -701,9 +707,19 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             # placed at the node's scale times its own extents
             if raw.geometry not in unit_of:  # once per mesh, however many nodes place it
                 g = geometries[raw.geometry]
-                unit, extents = _unit_shape(g.vertices, 9)
-                unit_of[raw.geometry] = ((fingerprint(unit.tobytes() + np.asarray(g.faces).tobytes()),
-                                          _given_name(g)), extents)
+                unit, extents = _unit_shape(g.vertices)
+                # one mesh when the faces are and the unit shapes agree within UNIT_SHAPE_TOLERANCE:
+                # an exact match of unit shapes rounded to 9 digits split float32 cylinders
+                # scaled across their axis (1.7e-8 apart), so applied plates and candles of
+                # other sizes were each a part type of their own (h98)
+                topology = (fingerprint(np.asarray(g.faces).tobytes() + str(unit.shape).encode()), _given_name(g))
+                shapes = unit_shapes.setdefault(topology, [])
+                index = next((k for k, other in enumerate(shapes)
+                              if np.abs(other - unit).max() <= UNIT_SHAPE_TOLERANCE), None)
+                if index is None:
+                    index = len(shapes)
+                    shapes.append(unit)
+                unit_of[raw.geometry] = ((topology, index), extents)
             same, extents = unit_of[raw.geometry]
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
@@ -718,7 +734,13 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         for members in groups:
             if np.abs(sizes[members] - sizes[members[0]]).max() <= 1e-9 and np.abs(scaled[members]).max() <= 1e-9:
                 continue  # one size, unscaled: as read
-            mean = np.exp(sizes[members].mean(0))
+            # the size the group's geometry is made at: that of its first node in file order
+            # that places its mesh as read (unscaled), so that a mesh kept as read still is
+            # the twin of its mirrored copy (a wing, and the same wing 2% longer in another
+            # file: the wing's mirror image stays the wing's); else the sizes' mean
+            unscaled = [k for k in members if np.abs(scaled[k]).max() <= 1e-9]
+            mean = (np.exp(sizes[min(unscaled, key=lambda k: read_order[id(placed[k][0])])]) if unscaled
+                    else np.exp(sizes[members].mean(0)))
             for k in members:
                 raw, turn, norms, extents = placed[k]
                 _bake(raw, geometries, np.diag(mean / extents), turn, norms * extents / mean)
