@@ -49,6 +49,26 @@ def test_transform_parameters_round_trip(rng):
         assert np.allclose(xform_matrix(x, signs, frame), world, atol=1e-9)
         rot, s, t = decompose(world)
         assert np.isclose(np.linalg.det(rot), 1.0)
+        # measured between points of the boxes (a parent and a child box off their origins)
+        frame = frame_of(parent, np.array([-1.0, 0.0, -0.5]), np.array([1.0, 2.0, 1.5]), part="base")
+        box = (np.array([-0.2, -1.0, 0.0]), np.array([0.4, 0.0, 0.3]))
+        anchor = ((1, -1), None, tuple(int(v) for v in rng.integers(-1, 2, 2)))
+        x_anchored, signs = xform_params(world, frame, box, anchor)
+        assert not np.allclose(x_anchored[6:9], xform_params(world, frame)[0][6:9])
+        assert np.allclose(x_anchored[[6 + 1]], xform_params(world, frame)[0][[6 + 1]])  # (None: the origins')
+        assert np.allclose(xform_matrix(x_anchored, signs, frame, child_box=box, anchor=anchor), world, atol=1e-9)
+
+
+def test_an_anchored_childs_offset_is_between_the_faces_that_touch():
+    """A child box standing on its parent's top face: measured from the parent's top face
+    (anchor a_p = 1) to the child's bottom face (a_c = -1), the offset along y is zero
+    whatever the two heights."""
+    for parent_h, child_h in ((0.2, 0.5), (0.3, 0.9), (1.0, 0.1)):
+        parent = np.diag([1.0, parent_h, 1.0, 1.0])
+        frame = frame_of(parent, -np.ones(3) / 2, np.ones(3) / 2, part="base")
+        child = T(0.1, parent_h / 2 + child_h / 2, 0) @ np.diag([0.5, child_h, 0.5, 1.0])
+        x, _ = xform_params(child, frame, (-np.ones(3) / 2, np.ones(3) / 2), (None, (1, -1), None))
+        assert np.isclose(x[7], 0.0, atol=1e-12) and np.isclose(x[6], 0.1)
 
 
 @pytest.mark.parametrize("kind, g, count", [

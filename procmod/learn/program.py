@@ -63,7 +63,8 @@ from ..core.io import load_tensors, read_versioned_json, save_tensors, write_tex
 from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
-from .transforms import (CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR, SIGMA_FLOOR, SIGMA_MAX,
+from .transforms import (ANCHOR_SIDES, CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR, SIGMA_FLOOR,
+                         SIGMA_MAX,
                          SYM_PARAMS, Units, node_kind,
                          Frame, sym_maps, symmetry_direction, turned_frame, xform_matrix)
 
@@ -219,7 +220,8 @@ def _sample_xform(ctx, program: Program, caller: int, slot: int, frame: Frame, p
         signs[i] = bit
         a = a + sW[:, i] * float(bit)
     with np.errstate(over="ignore", invalid="ignore"):  # said below, in a line of its own
-        world = xform_matrix(x, signs, frame, program.units.log_scale(part))
+        world = xform_matrix(x, signs, frame, program.units.log_scale(part), program.parts[part].local_bounds(),
+                             program.units.anchor(frame.part, part))
     if not np.isfinite(world).all():
         # finite tensors (the load check) can still overflow: a log-scale of 1e6
         raise ProgramError(f"the learned program's transform at {pre} for a {part!r} is not finite (its choices "
@@ -242,7 +244,7 @@ def gen_node(ctx, program: Program, caller: int, slot: int, frame: Frame, copies
         if ctx.depth >= program.max_depth:
             return
         lo, hi = shape.local_bounds()
-        own = program.units.frame_of(world, lo, hi)
+        own = program.units.frame_of(world, lo, hi, a.type)
         for g_index, group in enumerate(program.groups.get(a.type, [])):
             pre = f"{a_id}.g{g_index}"
             W, c, V, b = p[f"{pre}.W"], p[f"{pre}.c"], p[f"{pre}.V"], p[f"{pre}.b"]
@@ -368,7 +370,10 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                                     for k in sorted(program.units.sym_poles)}} if program.units.sym_poles else {}),
                   **({"sym_turns": {k: list(map(float, program.units.sym_turns[k]))
                                     for k in sorted(program.units.sym_turns)}} if program.units.sym_turns else {}),
-                  **({"trans_spans": sorted(program.units.trans_spans)} if program.units.trans_spans else {})},
+                  **({"trans_spans": sorted(program.units.trans_spans)} if program.units.trans_spans else {}),
+                  **({"anchors": {parent: {child: [None if a is None else list(map(int, a)) for a in axes]
+                                           for child, axes in sorted(program.units.anchors[parent].items())}
+                                  for parent in sorted(program.units.anchors)}} if program.units.anchors else {})},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -580,7 +585,21 @@ def _units_from_json(data) -> Units:
     spans = data.get("trans_spans", [])  # absent: every translation symmetry draws its step
     if not isinstance(spans, list) or not all(isinstance(t, str) for t in spans):
         raise ValueError(f"units.trans_spans must be a list of translation symmetry types, got {shown_value(spans, 60)}")
-    return Units(float(extent), logs, conventions, poles, turns, tuple(sorted(set(spans))))
+    anchors = {}
+    given = data.get("anchors", {})  # absent: every translation between the frames' origins
+    if not isinstance(given, dict) or not all(isinstance(v, dict) for v in given.values()):
+        raise ValueError(f"units.anchors must be an object of parent part -> child part -> three anchors, got "
+                         f"{shown_value(given, 60)}")
+    for parent, children in given.items():
+        for child, axes in children.items():
+            if not isinstance(axes, list) or len(axes) != 3 or not all(
+                    a is None or (isinstance(a, list) and len(a) == 2 and all(
+                        isinstance(v, int) and not isinstance(v, bool) and v in ANCHOR_SIDES for v in a))
+                    for a in axes):
+                raise ValueError(f"units.anchors[{parent!r}][{child!r}] must be three entries, each null or [a, b] "
+                                 f"with a and b -1, 0 or 1, got {shown_value(axes, 60)}")
+            anchors.setdefault(parent, {})[child] = tuple(None if a is None else (a[0], a[1]) for a in axes)
+    return Units(float(extent), logs, conventions, poles, turns, tuple(sorted(set(spans))), anchors)
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw
@@ -601,7 +620,8 @@ def _check_references(program: Program, path) -> None:
     when a sample reached the edit (a KeyError or IndexError traceback), or sampled
     nonsense (a count below 2, a slot calling an abstraction of another type)."""
     p = program.params
-    unknown = sorted(set(program.units.part_log_scales) - set(program.parts))
+    unknown = sorted((set(program.units.part_log_scales) | set(program.units.anchors)
+                      | {c for children in program.units.anchors.values() for c in children}) - set(program.parts))
     if unknown:
         raise _fail(path, f"units name part {unknown[0]!r}, which the program's parts do not hold")
     rows = {a.type for a in program.abstractions.values() if a.kind == "trans"}

@@ -65,12 +65,17 @@ SIGMA_MAX = (0.5, math.pi / 2, 1.0)
 class Frame(NamedTuple):
     """A part node's frame: proper rotation, translation, bounding-box extents; and, handed
     to a symmetry by the symmetry holding it, the frame its parameters are measured in
-    (``measure``: that frame turned, :func:`turned_frame`; None: this frame)."""
+    (``measure``: that frame turned, :func:`turned_frame`; None: this frame). ``part`` is
+    the part type placed in it and ``box`` its bounding box in the frame's axes (``(centre,
+    half extents)``, the centre from the frame's origin): a child's translation may be
+    measured from a face of that box (:data:`Units.anchors`); the world frame has neither."""
 
     rot: np.ndarray
     t: np.ndarray
     extent: np.ndarray
     measure: "Frame | None" = None
+    part: "str | None" = None
+    box: "tuple | None" = None
 
     def for_symmetry(self) -> "Frame":
         """The frame a symmetry node handed this frame measures its parameters in."""
@@ -118,10 +123,20 @@ class Units(NamedTuple):
     # and where the span is what the examples hold (posts along a rail, shelves up a unit)
     # the step follows from it (see procmod.learn.preprocessing.span_types)
     trans_spans: tuple = ()
+    # per parent part type, per child part type: the child's translation along each of the
+    # parent frame's axes measured between points of the two boxes instead of between their
+    # origins (None: origins; (a_p, a_c): the parent box's low side, middle or high side for
+    # a_p = -1, 0, 1, to the child box's alike), where that is what the examples hold fixed
+    # (see anchor_shift, procmod.learn.preprocessing.choose_anchors)
+    anchors: dict = {}
 
-    def frame_of(self, world, local_lo, local_hi) -> "Frame":
-        """:func:`frame_of` with these conventions for flat parts."""
-        return frame_of(world, local_lo, local_hi, self.conventions >= CURRENT)
+    def frame_of(self, world, local_lo, local_hi, part: str | None = None) -> "Frame":
+        """:func:`frame_of` with these conventions for flat parts (of a ``part`` placed by ``world``)."""
+        return frame_of(world, local_lo, local_hi, self.conventions >= CURRENT, part)
+
+    def anchor(self, parent: str | None, child: str) -> tuple | None:
+        """The anchors of ``child``'s translation in a ``parent``'s frame (None: origins)."""
+        return self.anchors.get(parent, {}).get(child) if parent is not None else None
 
     def pole(self, sym_type: str | None = None) -> np.ndarray:
         """The basis directions' polar and azimuth angles are taken in (its third column is
@@ -192,7 +207,7 @@ FLAT = 1e-3
 LEGACY_FLOOR = 1e-6  # the absolute floor (world units) of programs learned before Units
 
 
-def frame_of(world, local_lo, local_hi, flat_by_size: bool = True) -> Frame:
+def frame_of(world, local_lo, local_hi, flat_by_size: bool = True, part: str | None = None) -> Frame:
     """The frame of a part placed by ``world`` whose local box is [lo, hi].
 
     Along an axis where the part is flat (under :data:`FLAT` of its largest extent) the
@@ -203,13 +218,15 @@ def frame_of(world, local_lo, local_hi, flat_by_size: bool = True) -> Frame:
     abstractions to make up for it; a floor of 1e-3 of the size still gave 200 extents.
     Thin parts that are not flat (a wing 3% of its span) keep their own extent."""
     rot, s, t = decompose(world)
-    extent = np.abs(s) * (np.asarray(local_hi, dtype=np.float64) - np.asarray(local_lo, dtype=np.float64))
+    lo, hi = np.asarray(local_lo, dtype=np.float64), np.asarray(local_hi, dtype=np.float64)
+    extent = np.abs(s) * (hi - lo)
+    box = (s * (lo + hi) / 2.0, extent / 2.0)  # in the frame's axes: rot diag(s) is the placement
     if not flat_by_size:
-        return Frame(rot, t, np.maximum(extent, LEGACY_FLOOR))
+        return Frame(rot, t, np.maximum(extent, LEGACY_FLOOR), part=part, box=box)
     largest = float(extent.max())
     if not largest > 0:
-        return Frame(rot, t, np.ones(3))
-    return Frame(rot, t, np.where(extent < FLAT * largest, largest, extent))
+        return Frame(rot, t, np.ones(3), part=part, box=box)
+    return Frame(rot, t, np.where(extent < FLAT * largest, largest, extent), part=part, box=box)
 
 
 def euler_of(rot: np.ndarray) -> np.ndarray:
@@ -222,25 +239,59 @@ def rot_of(angles) -> np.ndarray:
     return Rotation.from_euler("xyz", np.asarray(angles, dtype=np.float64)).as_matrix()
 
 
-def xform_params(world, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+ANCHOR_SIDES = (-1, 0, 1)  # a box's low side, middle, high side along an axis
+
+
+def anchor_shift(turn: np.ndarray, s: np.ndarray, child_box, frame: Frame, anchor) -> np.ndarray:
+    """How far (in ``frame``'s axes) a child's anchor point lies from its origin, less how
+    far the parent's lies from the frame's origin, along each axis an ``anchor`` names:
+    the child's translation measured between the anchors is its translation between the
+    origins plus this (zero along an axis whose anchor is None).
+
+    ``turn`` is the child's rotation in the frame (``frame.rot.T @ rot``), ``s`` its
+    signed scales and ``child_box`` its part's local ``(lo, hi)``; its box in the frame's
+    axes is taken axis-aligned (a turned child's bounding box there). A table's leg hangs
+    from the top's underside by its own top face: from leg to leg and table to table the
+    offset between the two is zero, where the offset between their origins follows the
+    leg's length and the top's thickness, which seed 000's independent draws do not tie
+    (a sampled table stood on legs hanging short or through the floor)."""
+    shift = np.zeros(3)
+    if anchor is None or frame.box is None:
+        return shift
+    lo, hi = (np.asarray(v, dtype=np.float64) for v in child_box)
+    centre = turn @ (s * (lo + hi) / 2.0)
+    half = np.abs(turn) @ (np.abs(s) * (hi - lo) / 2.0)
+    parent_centre, parent_half = frame.box
+    for axis, sides in enumerate(anchor):
+        if sides is not None:
+            a_parent, a_child = sides
+            shift[axis] = (centre[axis] + a_child * half[axis]) - (parent_centre[axis] + a_parent * parent_half[axis])
+    return shift
+
+
+def xform_params(world, frame: Frame, child_box=None, anchor=None) -> tuple[np.ndarray, np.ndarray]:
     """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``
-    (absolute log-scales: ``preprocess`` takes the parts' references off once it has them)."""
+    (absolute log-scales: ``preprocess`` takes the parts' references off once it has them);
+    translations between the boxes' ``anchor`` points where it names them
+    (:func:`anchor_shift`; ``child_box``: the child part's local ``(lo, hi)``)."""
     rot, s, t = decompose(world)
     x = np.empty(9)
     x[0:3] = np.log(np.abs(s))
-    x[3:6] = euler_of(frame.rot.T @ rot)
-    x[6:9] = (frame.rot.T @ (t - frame.t)) / frame.extent
+    turn = frame.rot.T @ rot
+    x[3:6] = euler_of(turn)
+    x[6:9] = (frame.rot.T @ (t - frame.t) + anchor_shift(turn, s, child_box, frame, anchor)) / frame.extent
     return x, s < 0
 
 
-def xform_matrix(x, signs, frame: Frame, log_scale=NO_LOG_SCALE) -> np.ndarray:
+def xform_matrix(x, signs, frame: Frame, log_scale=NO_LOG_SCALE, child_box=None, anchor=None) -> np.ndarray:
     """Inverse of :func:`xform_params`: the world 4x4 of a child."""
     x = np.asarray(x, dtype=np.float64)
     s = np.exp(x[0:3] + log_scale) * np.where(np.asarray(signs, dtype=bool), -1.0, 1.0)
-    rot = frame.rot @ rot_of(x[3:6])
+    turn = rot_of(x[3:6])
+    rot = frame.rot @ turn
     m = np.eye(4)
     m[:3, :3] = rot * s
-    m[:3, 3] = frame.t + frame.rot @ (x[6:9] * frame.extent)
+    m[:3, 3] = frame.t + frame.rot @ (x[6:9] * frame.extent - anchor_shift(turn, s, child_box, frame, anchor))
     return m
 
 
