@@ -233,6 +233,24 @@ def test_copies_of_a_symmetric_part_moved_apart_are_a_mirror_pair_and_pairs_pair
     assert sym_types(preprocess(s)) == Counter()
 
 
+def test_a_ring_of_unturned_round_parts_is_a_rotation_group_and_four_at_a_squares_corners_stay_pairs():
+    """Candles on a candelabra's plate, each a copy of the first moved round the ring (not
+    turned: a round part's turn does not show). Two of them are related by a translation,
+    which is no row, so rings of 3, 5 and 6 were loose candles and mirror pairs, and
+    samples spaced their candles anyhow (h98: 98 of 200 off even by 10 degrees or more).
+    Four at a square's corners stay a mirrored mirror pair, as an oblong table's legs are
+    read, so square and oblong tables of one set keep one structure."""
+    parts = {"plate": {"box": [0.4, 0.02, 0.4]}, "candle": {"box": [0.024, 0.2, 0.024]}}
+    for count in (3, 5, 6):
+        ring = [node("candle", T(0.15 * math.cos(2 * math.pi * k / count + 0.3), 0.11,
+                                 0.15 * math.sin(2 * math.pi * k / count + 0.3))) for k in range(count)]
+        found = sym_types(preprocess(example_set([node("plate", np.eye(4), ring)], parts)))
+        assert found == Counter({"rot(candle)": 1}), (count, found)
+    square = [node("candle", T(0.15 * x, 0.11, 0.15 * z)) for x in (-1, 1) for z in (-1, 1)]
+    found = sym_types(preprocess(example_set([node("plate", np.eye(4), square)], parts)))
+    assert found == Counter({"refl(refl(candle))": 1, "refl(candle)": 1}), found
+
+
 def test_a_constant_half_turn_is_one_angle_not_plus_and_minus_pi():
     # arms turned half round (about z), off by +-1e-4 rad as noise leaves them: scipy
     # writes the yaw +pi or -pi; the learner must see one value, not the widest spread

@@ -332,6 +332,8 @@ def _fit_chain(kind: str, chain: list, units: list, g: np.ndarray, angle: float 
     """(map, deviation) of ``chain`` as one group of ``kind``: members paired under
     ``g``, the map fitted, the pairing redone under the fitted map and the map refitted
     (the first pairing may be off when ``g`` came from noisy first parts); or None."""
+    if kind == "ring":
+        return _fit_ring(chain, units, g, angle, direction)
     size = max(units[k].size for k in chain)
     for _ in range(2):
         members = _aligned(chain, units, g)
@@ -509,6 +511,81 @@ def _relate_once(memo: dict | None, a: Unit, b: Unit, kinds: tuple, tol: float, 
     return memo[key][2]
 
 
+def _fit_ring(chain: list, units: list, g: np.ndarray, angle: float | None = None,
+              direction: np.ndarray | None = None):
+    """:func:`_fit_chain` of a ring of round parts (kind ``"ring"``, a rotation group whose
+    members do not show its turn: :func:`_ring_relation`): the turn fitted to the members'
+    centres, not to their corners, whose own turn says nothing (their Kabsch fit had taken
+    two unturned candles a third of a ring apart for a half turn about their midpoint).
+    The axis is ``g``'s (or ``direction``); the centre the circle through the centres
+    (``g``'s for two); the angle their mean step (or ``angle``)."""
+    size = max(units[k].size for k in chain)
+    rotvec = Rotation.from_matrix(g[:3, :3]).as_rotvec()
+    if float(np.linalg.norm(rotvec)) < 1e-9:
+        return None
+    axis = rotvec / np.linalg.norm(rotvec) if direction is None else np.asarray(direction, dtype=np.float64)
+    centre, *_ = np.linalg.lstsq(np.eye(3) - g[:3, :3], g[:3, 3], rcond=None)
+    points = np.array([units[k].corners.reshape(-1, 3).mean(0) for k in chain])
+    u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    flat = np.stack([(points - centre) @ u, (points - centre) @ v], axis=1)
+    if len(chain) >= 3:  # the circle through them (least squares): x^2 + y^2 = 2 a x + 2 b y + c
+        lhs = np.column_stack([2 * flat, np.ones(len(flat))])
+        (a, b, _), *_ = np.linalg.lstsq(lhs, (flat ** 2).sum(1), rcond=None)
+        flat = flat - [a, b]
+        centre = centre + a * u + b * v
+    centre = centre + float(np.mean((points - centre) @ axis)) * axis  # at the members' height
+    if angle is None:
+        steps = np.arctan2(flat[:-1, 0] * flat[1:, 1] - flat[:-1, 1] * flat[1:, 0], (flat[:-1] * flat[1:]).sum(1))
+        angle = float(steps.mean())
+    if abs(angle) < 1e-9:
+        return None
+    fitted = np.eye(4)
+    fitted[:3, :3] = Rotation.from_rotvec(axis * angle).as_matrix()
+    fitted[:3, 3] = centre - fitted[:3, :3] @ centre
+    # the members are copies of the first moved, not turned (within the tolerance: their
+    # turn does not show), and their centres lie where the turns take the first's
+    first = units[chain[0]]
+    if any(relate(first, units[k], ("trans",), SYMMETRY_TOLERANCE) is None for k in chain[1:]):
+        return None
+    placed, off = points[0], 0.0
+    for k in range(1, len(chain)):
+        placed = fitted[:3, :3] @ placed + fitted[:3, 3]
+        off = max(off, float(np.linalg.norm(placed - points[k])))
+    return fitted, off / size
+
+
+def _ring_relation(a: Unit, b: Unit, frame: Frame, tol: float):
+    """``("rot", map, deviation)``: the turn about an axis of the parent's frame (through
+    its origin, or its box's centre) that takes unit ``a`` to ``b``, where both lie at one
+    height along that axis and one distance from it, and the turn fits within ``tol``; or
+    None. :func:`relate` tries a rotation only where the two are turned apart, and a ring
+    of round parts placed unturned (or turned about their own axis, which does not show)
+    is related by a translation: rings of 3, 5 or 6 candles had been read as loose
+    candles and mirror pairs, and sampled rings spaced anyhow (h98)."""
+    pa, pb = a.corners.reshape(-1, 3).mean(0), b.corners.reshape(-1, 3).mean(0)
+    reach = tol * max(a.size, b.size)
+    centres = [frame.t] + ([frame.t + frame.rot @ frame.box[0]] if frame.box is not None else [])
+    for centre in centres:
+        for k in range(3):
+            axis = frame.rot[:, k]
+            da, db = pa - centre, pb - centre
+            ra, rb = da - (da @ axis) * axis, db - (db @ axis) * axis
+            radius = float(np.linalg.norm(ra))
+            if abs(float((da - db) @ axis)) > reach or abs(radius - float(np.linalg.norm(rb))) > reach \
+                    or radius <= reach:
+                continue
+            angle = math.atan2(float(axis @ np.cross(ra, rb)), float(ra @ rb))
+            g = np.eye(4)
+            g[:3, :3] = Rotation.from_rotvec(axis * angle).as_matrix()
+            g[:3, 3] = centre - g[:3, :3] @ centre
+            fitted = _fit_ring([0, 1], [a, b], g)
+            if fitted is not None and fitted[1] <= tol and _nontrivial(fitted[0], a, tol):
+                return "ring", fitted[0], fitted[1]
+    return None
+
+
 def _chains(units: list, frame: Frame, tol: float, memo: dict | None = None) -> list:
     free = set(range(len(units)))
     groups = []
@@ -536,16 +613,28 @@ def _chains(units: list, frame: Frame, tol: float, memo: dict | None = None) -> 
                     continue
                 if (i, j) not in grown:
                     grown[(i, j)] = _grow(related[(i, j)], i, j, units, free, tol, positions)
+                    if grown[(i, j)][2] == "trans" and len(grown[(i, j)][0]) < MIN_CHAIN:
+                        # thin round parts (candles, posts) turned about their own axis look
+                        # alike: a translation relates two of a ring, which is no row; the
+                        # turn about the ring's axis that takes one to the other may be a ring
+                        ring = _ring_relation(units[i], units[j], frame, tol)
+                        if ring is not None:
+                            around = _grow(ring, i, j, units, free, tol, positions)
+                            # four at a square's corners stay two mirror pairs, as a
+                            # rectangle's are (the only reading of its legs): square and
+                            # oblong tables of one set keep one structure
+                            if len(around[0]) >= MIN_CHAIN and len(around[0]) != 4:
+                                grown[(i, j)] = around
                 chain, g, kind, _ = grown[(i, j)]
                 if best is None or len(chain) > len(best[0]):  # ties: the first found
                     best = (chain, g, kind)
         if best is None or len(best[0]) < MIN_CHAIN:
             break
         chain, g, kind = best
-        if kind == "rot":
-            g = _snap_direction(kind, chain, units, _snap_circle(chain, units, g, tol), frame, tol)
+        if kind in ("rot", "ring"):
+            g = _snap_direction(kind, chain, units, _snap_circle(chain, units, g, tol, kind), frame, tol)
         free -= set(chain)
-        groups.append((chain, g, kind))
+        groups.append((chain, g, "rot" if kind == "ring" else kind))
         # a chain grows through the first free unit that continues it at each step, so
         # taking units away changes only the growths that took one of them
         grown = {pair: value for pair, value in grown.items() if free.issuperset(value[3])}
@@ -603,14 +692,14 @@ def _snap_direction(kind: str, chain: list, units: list, g: np.ndarray, frame: F
     return g
 
 
-def _snap_circle(chain: list, units: list, g: np.ndarray, tol: float) -> np.ndarray:
+def _snap_circle(chain: list, units: list, g: np.ndarray, tol: float, kind: str = "rot") -> np.ndarray:
     """``g`` with its angle set to exactly 2 pi / n when the chain of n nearly closes a
     circle and the snapped map still fits within the tolerance."""
     n = len(chain)
     angle = abs(rotation_axis_angle(g)[1])
     if abs(n * angle - 2 * np.pi) > 0.5 * angle:
         return g
-    fitted = _fit_chain("rot", chain, units, g, angle=2 * np.pi / n)
+    fitted = _fit_chain(kind, chain, units, g, angle=2 * np.pi / n)  # (a ring: about g's own turn direction)
     if fitted is not None and fitted[1] <= tol:
         return fitted[0]
     return g
