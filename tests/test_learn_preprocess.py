@@ -52,7 +52,7 @@ def test_transform_parameters_round_trip(rng):
         # measured between points of the boxes (a parent and a child box off their origins)
         frame = frame_of(parent, np.array([-1.0, 0.0, -0.5]), np.array([1.0, 2.0, 1.5]), part="base")
         box = (np.array([-0.2, -1.0, 0.0]), np.array([0.4, 0.0, 0.3]))
-        anchor = ((1, -1), None, tuple(int(v) for v in rng.integers(-1, 2, 2)))
+        anchor = ((1, -1), None, tuple(int(v) for v in rng.integers(-1, 2, 2)) + ((1,) if rng.random() < 0.5 else ()))
         x_anchored, signs = xform_params(world, frame, box, anchor)
         assert not np.allclose(x_anchored[6:9], xform_params(world, frame)[0][6:9])
         assert np.allclose(x_anchored[[6 + 1]], xform_params(world, frame)[0][[6 + 1]])  # (None: the origins')

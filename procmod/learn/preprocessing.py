@@ -33,7 +33,7 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
-from .transforms import (ANCHOR_SIDES, CURRENT, DIAGONAL_POLE, Frame, Units, anchor_shift, angles_direction,
+from .transforms import (ANCHOR_SIDES, CURRENT, DIAGONAL_POLE, Frame, Units, anchor_terms, angles_direction,
                          decompose, direction_angles, frame_of, spread_pole, sym_params, symmetry_direction,
                          turned_frame, SYM_KINDS, node_kind, reserved_name, xform_params)
 
@@ -340,7 +340,7 @@ def choose_anchors(nodes: list, bounds: dict) -> dict:
     of box points (:data:`~procmod.learn.transforms.ANCHOR_SIDES`, parent's and child's)
     between which the examples' translations of that child spread least, where that is
     under :data:`ANCHOR_GAIN` of the spread between the origins; None where the origins
-    keep (see :func:`procmod.learn.transforms.anchor_shift`).
+    keep (see :func:`procmod.learn.transforms.anchor_terms`).
 
     Design change (seed 000 measures a child's translation between the frames' origins,
     as fractions of the parent's box, and draws it apart from the child's scale and from
@@ -352,8 +352,13 @@ def choose_anchors(nodes: list, bounds: dict) -> dict:
     touch, the offset is the same in every example, and the samples keep it."""
     by_id = {n.id: n for n in nodes}
     found = {}  # (parent type, child type) -> [(offset from each option, extent) per placement]
+    # measured in the parent's extent, then in the child's: (a_p, a_c) and (a_p, a_c, 1).
+    # In the parent's, a_p only adds a constant (half its extent): what it picks is the
+    # child's side. In the child's, the parent's side counts: a sill a metre above the
+    # bottom of facades of any height, a window a metre in from their edges
     options = [(a, c) for a in ANCHOR_SIDES for c in ANCHOR_SIDES]
-    options.sort(key=lambda o: (abs(o[0]) + abs(o[1]), o))  # the plainest first, among equals
+    options += [(a, c, 1) for a in ANCHOR_SIDES for c in ANCHOR_SIDES]
+    options.sort(key=lambda o: (len(o), abs(o[0]) + abs(o[1]), o))  # the plainest first, among equals
     for n in nodes:
         if n.kind != "part" or n.parent < 0:  # (a root: placed in the world frame)
             continue
@@ -364,18 +369,25 @@ def choose_anchors(nodes: list, bounds: dict) -> dict:
         rot, s, t = decompose(n.world)
         turn = frame.rot.T @ rot
         base = frame.rot.T @ (t - frame.t)
-        rows = [base] + [base + anchor_shift(turn, s, bounds[n.part], frame, [option] * 3) for option in options]
-        found.setdefault((parent.part, n.part), []).append((np.array(rows) / frame.extent, n))
+        rows, lengths = [base / frame.extent], [np.array(frame.extent, dtype=np.float64)]
+        for option in options:
+            shift, measure = anchor_terms(turn, s, bounds[n.part], frame, [option] * 3)
+            rows.append((base + shift) / measure)
+            lengths.append(measure)
+        found.setdefault((parent.part, n.part), []).append((np.array(rows), np.array(lengths), n))
     anchors = {}
     for (parent_type, child_type), placements in sorted(found.items()):
         if len(placements) < 2:
             continue
-        values = np.array([rows for rows, _ in placements])  # placements x (1 + options) x axes
-        spread = values.var(axis=0)
+        values = np.array([rows for rows, _, _ in placements])  # placements x (1 + options) x axes
+        # each option's spread as a length (its values' variance in the lengths it measures
+        # in, at their mean): options measured in the parent's extent and in the child's
+        # compare; among the parent's, this orders them as their values' variance does
+        spread = values.var(axis=0) * np.array([lengths for _, lengths, _ in placements]).mean(axis=0) ** 2
         chosen = [None, None, None]
         for axis in range(3):
             origins = float(spread[0, axis])
-            if not origins > ANCHOR_SPREAD ** 2:
+            if not float(values[:, 0, axis].var()) > ANCHOR_SPREAD ** 2:
                 continue
             best = min(range(len(options)), key=lambda k: float(spread[1 + k, axis]))
             least = float(spread[1 + best, axis])
@@ -385,7 +397,7 @@ def choose_anchors(nodes: list, bounds: dict) -> dict:
                 chosen[axis] = options[best]
         if any(c is not None for c in chosen):
             anchors.setdefault(parent_type, {})[child_type] = tuple(chosen)
-            for rows, n in placements:  # its translation from here on is the anchors'
+            for rows, _, n in placements:  # its translation from here on is the anchors'
                 for axis, option in enumerate(chosen):
                     if option is not None:
                         n.x[6 + axis] = rows[1 + options.index(option), axis]

@@ -126,8 +126,9 @@ class Units(NamedTuple):
     # per parent part type, per child part type: the child's translation along each of the
     # parent frame's axes measured between points of the two boxes instead of between their
     # origins (None: origins; (a_p, a_c): the parent box's low side, middle or high side for
-    # a_p = -1, 0, 1, to the child box's alike), where that is what the examples hold fixed
-    # (see anchor_shift, procmod.learn.preprocessing.choose_anchors)
+    # a_p = -1, 0, 1, to the child box's alike; (a_p, a_c, 1): measured in the child's
+    # extent, not the parent's), where that is what the examples hold fixed (see
+    # anchor_terms, procmod.learn.preprocessing.choose_anchors)
     anchors: dict = {}
 
     def frame_of(self, world, local_lo, local_hi, part: str | None = None) -> "Frame":
@@ -242,44 +243,54 @@ def rot_of(angles) -> np.ndarray:
 ANCHOR_SIDES = (-1, 0, 1)  # a box's low side, middle, high side along an axis
 
 
-def anchor_shift(turn: np.ndarray, s: np.ndarray, child_box, frame: Frame, anchor) -> np.ndarray:
-    """How far (in ``frame``'s axes) a child's anchor point lies from its origin, less how
-    far the parent's lies from the frame's origin, along each axis an ``anchor`` names:
-    the child's translation measured between the anchors is its translation between the
-    origins plus this (zero along an axis whose anchor is None).
+def anchor_terms(turn: np.ndarray, s: np.ndarray, child_box, frame: Frame, anchor) -> tuple[np.ndarray, np.ndarray]:
+    """``(shift, measure)`` per axis of ``frame``: how far a child's anchor point lies
+    from its origin less how far the parent's lies from the frame's origin (the child's
+    translation between the anchors is its translation between the origins plus this),
+    and the length that translation is measured in. Along an axis whose anchor is None:
+    0 and the parent's extent, as seed 000 measures. An anchor ``(a_p, a_c)`` names the
+    parent box's and the child box's sides (-1, 0, 1: low, middle, high), measured in the
+    parent's extent; ``(a_p, a_c, 1)`` the same, measured in the child's own extent along
+    that axis (a window a metre in from the edge of facades of any width).
 
     ``turn`` is the child's rotation in the frame (``frame.rot.T @ rot``), ``s`` its
     signed scales and ``child_box`` its part's local ``(lo, hi)``; its box in the frame's
-    axes is taken axis-aligned (a turned child's bounding box there). A table's leg hangs
-    from the top's underside by its own top face: from leg to leg and table to table the
-    offset between the two is zero, where the offset between their origins follows the
-    leg's length and the top's thickness, which seed 000's independent draws do not tie
-    (a sampled table stood on legs hanging short or through the floor)."""
-    shift = np.zeros(3)
+    axes is taken axis-aligned (a turned child's bounding box there). A leg hanging from a
+    table top by its top face, a stem standing on a base: from example to example the
+    offset between the faces is zero, where the offset between the origins follows both
+    parts' sizes, which seed 000's independent draws do not tie (sampled stems floated over
+    their bases, legs hung off robots' torsos)."""
+    shift, measure = np.zeros(3), np.array(frame.extent, dtype=np.float64)
     if anchor is None or frame.box is None:
-        return shift
+        return shift, measure
     lo, hi = (np.asarray(v, dtype=np.float64) for v in child_box)
     centre = turn @ (s * (lo + hi) / 2.0)
     half = np.abs(turn) @ (np.abs(s) * (hi - lo) / 2.0)
+    # the child's extent as a length to measure in: a flat axis takes its largest (frame_of)
+    own = 2.0 * half
+    own = np.where(own < FLAT * max(float(own.max()), 1e-300), max(float(own.max()), 1e-300), own)
     parent_centre, parent_half = frame.box
     for axis, sides in enumerate(anchor):
         if sides is not None:
-            a_parent, a_child = sides
+            a_parent, a_child = sides[0], sides[1]
             shift[axis] = (centre[axis] + a_child * half[axis]) - (parent_centre[axis] + a_parent * parent_half[axis])
-    return shift
+            if len(sides) > 2 and sides[2]:
+                measure[axis] = own[axis]
+    return shift, measure
 
 
 def xform_params(world, frame: Frame, child_box=None, anchor=None) -> tuple[np.ndarray, np.ndarray]:
     """The 9 continuous components and 3 sign bits of ``world`` relative to ``frame``
     (absolute log-scales: ``preprocess`` takes the parts' references off once it has them);
     translations between the boxes' ``anchor`` points where it names them
-    (:func:`anchor_shift`; ``child_box``: the child part's local ``(lo, hi)``)."""
+    (:func:`anchor_terms`; ``child_box``: the child part's local ``(lo, hi)``)."""
     rot, s, t = decompose(world)
     x = np.empty(9)
     x[0:3] = np.log(np.abs(s))
     turn = frame.rot.T @ rot
     x[3:6] = euler_of(turn)
-    x[6:9] = (frame.rot.T @ (t - frame.t) + anchor_shift(turn, s, child_box, frame, anchor)) / frame.extent
+    shift, measure = anchor_terms(turn, s, child_box, frame, anchor)
+    x[6:9] = (frame.rot.T @ (t - frame.t) + shift) / measure
     return x, s < 0
 
 
@@ -291,7 +302,8 @@ def xform_matrix(x, signs, frame: Frame, log_scale=NO_LOG_SCALE, child_box=None,
     rot = frame.rot @ turn
     m = np.eye(4)
     m[:3, :3] = rot * s
-    m[:3, 3] = frame.t + frame.rot @ (x[6:9] * frame.extent - anchor_shift(turn, s, child_box, frame, anchor))
+    shift, measure = anchor_terms(turn, s, child_box, frame, anchor)
+    m[:3, 3] = frame.t + frame.rot @ (x[6:9] * measure - shift)
     return m
 
 
