@@ -239,16 +239,38 @@ def test_a_ring_of_unturned_round_parts_is_a_rotation_group_and_four_at_a_square
     which is no row, so rings of 3, 5 and 6 were loose candles and mirror pairs, and
     samples spaced their candles anyhow (h98: 98 of 200 off even by 10 degrees or more).
     Four at a square's corners stay a mirrored mirror pair, as an oblong table's legs are
-    read, so square and oblong tables of one set keep one structure."""
+    read, so square and oblong tables of one set keep one structure. Flat slats so placed
+    are no ring (a reviewer's hexagon: its samples turned every slat by 60 degrees), nor
+    are three rocks half a turn apart on a circle."""
+    import trimesh
+
+    def with_mesh(example_set, name, mesh):
+        example_set.parts[name] = PartShape(name, "mesh", vertices=tuple(map(tuple, mesh.vertices.tolist())),
+                                            faces=tuple(map(tuple, mesh.faces.tolist())), source=f"{name}.obj")
+        return example_set
+
+    cylinder = trimesh.creation.cylinder(radius=0.012, height=0.2, sections=12)
+    cylinder.apply_transform(trimesh.transformations.rotation_matrix(-math.pi / 2, [1, 0, 0]))  # its axis up (y)
     parts = {"plate": {"box": [0.4, 0.02, 0.4]}, "candle": {"box": [0.024, 0.2, 0.024]}}
+
+    def ring_at(count, radius=0.15, start=0.3):
+        return [node("candle", T(radius * math.cos(2 * math.pi * k / count + start), 0.11,
+                                 radius * math.sin(2 * math.pi * k / count + start))) for k in range(count)]
+
     for count in (3, 5, 6):
-        ring = [node("candle", T(0.15 * math.cos(2 * math.pi * k / count + 0.3), 0.11,
-                                 0.15 * math.sin(2 * math.pi * k / count + 0.3))) for k in range(count)]
-        found = sym_types(preprocess(example_set([node("plate", np.eye(4), ring)], parts)))
-        assert found == Counter({"rot(candle)": 1}), (count, found)
+        s = with_mesh(example_set([node("plate", np.eye(4), ring_at(count))], parts), "candle", cylinder)
+        assert sym_types(preprocess(s)) == Counter({"rot(candle)": 1}), count
     square = [node("candle", T(0.15 * x, 0.11, 0.15 * z)) for x in (-1, 1) for z in (-1, 1)]
-    found = sym_types(preprocess(example_set([node("plate", np.eye(4), square)], parts)))
+    found = sym_types(preprocess(with_mesh(example_set([node("plate", np.eye(4), square)], parts), "candle",
+                                           cylinder)))
     assert found == Counter({"refl(refl(candle))": 1, "refl(candle)": 1}), found
+    slat = trimesh.creation.box([0.12, 0.3, 0.01])
+    for count in (3, 5, 6):
+        s = with_mesh(example_set([node("plate", np.eye(4), ring_at(count, 0.4))], parts), "candle", slat)
+        assert "rot(candle)" not in sym_types(preprocess(s)), count
+    rocks = [node("candle", T(0.15 * math.cos(a), 0.11, 0.15 * math.sin(a))) for a in (0.2, 3.3, 6.4)]
+    s = with_mesh(example_set([node("plate", np.eye(4), rocks)], parts), "candle", cylinder)
+    assert "rot(candle)" not in sym_types(preprocess(s))
 
 
 def test_a_constant_half_turn_is_one_angle_not_plus_and_minus_pi():

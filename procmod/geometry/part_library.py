@@ -265,6 +265,39 @@ def flip_deviations(shape: PartShape, count: int = 256, exact_below: float = 0.1
     return out
 
 
+ROUND_TEST_ANGLES = (0.43, 1.05, 1.91)  # radians (about 25, 60, 110 degrees): no polygon's steps
+
+
+def round_axes(shape: PartShape, tolerance: float, count: int = 256) -> tuple:
+    """The local axes (0, 1, 2) about which the shape, turned by any angle about the line
+    through its bounding-box centre, stays within ``tolerance`` of its bounding-box
+    diagonal of itself (a cylinder or a cone about its axis, a sphere about all three; a
+    box about none): tried at :data:`ROUND_TEST_ANGLES`, measured as
+    :func:`flip_deviations` measures."""
+    if shape.kind == "box":
+        return ()
+    from scipy.spatial import cKDTree
+    from scipy.spatial.transform import Rotation
+
+    lo, hi = shape.local_bounds()
+    centre, diag = 0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 1e-300)
+    local = surface_samples(shape, count) - centre
+    tree = None
+    found = []
+    for axis in range(3):
+        turned = [local @ Rotation.from_rotvec(np.eye(3)[axis] * a).as_matrix().T + centre for a in ROUND_TEST_ANGLES]
+        tree = tree or cKDTree(surface_samples(shape, 4096))
+        if max(float(tree.query(p)[0].max()) for p in turned) / diag > tolerance:
+            continue
+        from trimesh import Trimesh
+        from trimesh.proximity import closest_point
+        mesh = Trimesh(np.asarray(shape.vertices, dtype=np.float64), np.asarray(shape.faces), process=False)
+        points = np.concatenate(turned)
+        if float(np.linalg.norm(np.asarray(closest_point(mesh, points)[0]) - points, axis=1).max()) / diag <= tolerance:
+            found.append(axis)
+    return tuple(found)
+
+
 def world_bounds(shape: PartShape, transform) -> tuple[np.ndarray, np.ndarray]:
     """World-space axis-aligned bounds of ``shape`` placed by ``transform``."""
     lo, hi = shape.local_bounds()

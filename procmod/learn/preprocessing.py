@@ -28,7 +28,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-from ..geometry.part_library import flip_deviations, surface_samples
+from ..geometry.part_library import flip_deviations, round_axes, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .perturb import example_diagonal
@@ -409,7 +409,7 @@ CONSENSUS_LOOSENING = 3.0
 within the tolerance itself (:func:`_regroup_by_consensus`)."""
 
 
-def _regroup_by_consensus(generation: list, corners: dict, tolerance: float, flips: dict) -> None:
+def _regroup_by_consensus(generation: list, corners: dict, tolerance: float, flips: dict, rounds: dict) -> None:
     """Group the children of a part node again, within :data:`CONSENSUS_LOOSENING` times
     the tolerance, where that gives fewer units arranged exactly as another node of the
     same part type has its children within the tolerance itself.
@@ -431,7 +431,8 @@ def _regroup_by_consensus(generation: list, corners: dict, tolerance: float, fli
         fewer = {a for a in held[info.node.part] if len(a) < len(info.units)}
         if not fewer:
             continue  # no node to take as evidence: not worth the grouping (scattered rocks cost 2.5x)
-        loose = group_children(info.node.children, info.frame, corners, CONSENSUS_LOOSENING * tolerance, flips)
+        loose = group_children(info.node.children, info.frame, corners, CONSENSUS_LOOSENING * tolerance, flips,
+                               rounds)
         if _arrangement(loose) in fewer:
             info.units = loose
 
@@ -460,6 +461,8 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     # symmetry tolerance): a placement turned over may then be a mirror image
     flips = {name: tuple(int(m) for m in np.flatnonzero(flip_deviations(shape) <= tolerance))
              for name, shape in parts.items()}
+    # the axes a part is round about: a ring of its copies, moved but not turned, is a ring
+    rounds = {name: round_axes(shape, tolerance) for name, shape in parts.items()}
     # generation by generation (roots, then the representatives of their units, ...), so
     # that the rings of one type, wherever they are, start at corresponding members
     # before their first members are looked into
@@ -471,10 +474,10 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         for node in frontier:
             lo, hi = bounds[node.part]
             frame = frame_of(node.transform, lo, hi)  # CURRENT conventions (Units), as sym_params'
-            info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips))
+            info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips, rounds))
             made[id(node)] = info
             generation.append(info)
-        _regroup_by_consensus(generation, corners, tolerance, flips)
+        _regroup_by_consensus(generation, corners, tolerance, flips, rounds)
         align_ring_starts([(u, info.frame) for info in generation for u in info.units], consensus)
         frontier = [u.representative().node for info in generation for u in info.units]
     infos = []  # every part node that is a unit representative or a root, depth first

@@ -595,7 +595,7 @@ def _units_from_json(data) -> Units:
             if not isinstance(axes, list) or len(axes) != 3 or not all(
                     a is None or (isinstance(a, list) and len(a) in (2, 3) and all(
                         isinstance(v, int) and not isinstance(v, bool) and v in ANCHOR_SIDES for v in a[:2])
-                        and (len(a) == 2 or (a[2] == 1 and not isinstance(a[2], bool))))
+                        and (len(a) == 2 or (type(a[2]) is int and a[2] == 1)))
                     for a in axes):
                 raise ValueError(f"units.anchors[{parent!r}][{child!r}] must be three entries, each null, [a, b] or "
                                  f"[a, b, 1] with a and b -1, 0 or 1, got {shown_value(axes, 60)}")

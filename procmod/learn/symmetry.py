@@ -83,6 +83,7 @@ class Unit:
     names: list = field(default_factory=list)
     size: float = 0.0
     flips: dict = field(default_factory=dict)  # part name -> its self-symmetries (corner XOR masks)
+    rounds: dict = field(default_factory=dict)  # part name -> local axes it is round about (round_axes)
     unsnapped: np.ndarray | None = None  # a mirror pair's map as fitted, before _snap_direction
 
     def top_parts(self) -> list:
@@ -109,13 +110,13 @@ def _finish(unit: Unit, names: list, corners: np.ndarray) -> Unit:
     return unit
 
 
-def leaf_unit(node: ExampleNode, corners: dict, flips: dict | None = None) -> Unit:
+def leaf_unit(node: ExampleNode, corners: dict, flips: dict | None = None, rounds: dict | None = None) -> Unit:
     """A unit of one node and its subtree; ``corners[part]`` is the part's local (8, 3) box,
     ``flips[part]`` the corner masks of its self-symmetries (flips of its axes about its
     box centre it looks the same under; bits 4, 2, 1: x, y, z, as corner k = 4x + 2y + z)."""
     nodes = list(node.walk())
     world = np.stack([corners[n.part] @ n.transform[:3, :3].T + n.transform[:3, 3] for n in nodes])
-    unit = Unit("node", node=node, sig=_raw_signature(node), type=node.part, flips=flips or {})
+    unit = Unit("node", node=node, sig=_raw_signature(node), type=node.part, flips=flips or {}, rounds=rounds or {})
     return _finish(unit, [n.part for n in nodes], world)
 
 
@@ -123,7 +124,8 @@ def group_unit(kind: str, members: list, g: np.ndarray, tol: float = SYMMETRY_TO
                unsnapped: np.ndarray | None = None) -> Unit:
     _share_inner_mirror(members, g, tol)
     unit = Unit(kind, members=members, g=g, sig=f"{kind}{len(members)}({members[0].sig})",
-                type=f"{kind}({members[0].type})", flips=members[0].flips, unsnapped=unsnapped)
+                type=f"{kind}({members[0].type})", flips=members[0].flips, rounds=members[0].rounds,
+                unsnapped=unsnapped)
     return _finish(unit, [n for m in members for n in m.names], np.concatenate([m.corners for m in members]))
 
 
@@ -544,16 +546,48 @@ def _fit_ring(chain: list, units: list, g: np.ndarray, angle: float | None = Non
     fitted = np.eye(4)
     fitted[:3, :3] = Rotation.from_rotvec(axis * angle).as_matrix()
     fitted[:3, 3] = centre - fitted[:3, :3] @ centre
-    # the members are copies of the first moved, not turned (within the tolerance: their
-    # turn does not show), and their centres lie where the turns take the first's
+    # at most one turn round (three rocks half a turn apart are no ring), the members
+    # copies of the first moved (not turned), and their centres where the turns take the
+    # first's
+    if len(chain) * abs(angle) > 2 * np.pi + 0.5 * abs(angle):  # (a closed ring: n x angle = 2 pi, _snap_circle)
+        return None
     first = units[chain[0]]
     if any(relate(first, units[k], ("trans",), SYMMETRY_TOLERANCE) is None for k in chain[1:]):
+        return None
+    # and round about the ring's axis: every part of the first, turned by any angle about
+    # the line through its centre along that axis, looks the same (a candle and its flame;
+    # not a slat or a panel, which the group's samples would turn by each step)
+    if not _round_about(first, axis):
         return None
     placed, off = points[0], 0.0
     for k in range(1, len(chain)):
         placed = fitted[:3, :3] @ placed + fitted[:3, 3]
         off = max(off, float(np.linalg.norm(placed - points[k])))
     return fitted, off / size
+
+
+ROUND_AXIS_COS = math.cos(math.radians(2.0))  # a part's round axis this near the ring's is along it
+
+
+def _round_about(unit: Unit, axis: np.ndarray) -> bool:
+    """Whether each part of a unit of one node and its subtree is round about the line
+    along ``axis`` (world) through the centre of the unit's first part: its round axis
+    (:data:`Unit.rounds`) along ``axis`` and its box centre on that line, within the
+    symmetry tolerance of the unit's size."""
+    if unit.kind != "node":
+        return False
+    centres = unit.corners.mean(axis=1)  # each node's box centre (world)
+    line = centres[0]
+    for node, centre in zip(unit.node.walk(), centres):
+        linear = np.asarray(node.transform, dtype=np.float64)[:3, :3]
+        local = linear.T @ axis  # the axis in the node's local frame (scale aside)
+        local /= max(float(np.linalg.norm(local)), 1e-300)
+        if not any(abs(float(local[k])) >= ROUND_AXIS_COS for k in unit.rounds.get(node.part, ())):
+            return False
+        offset = centre - line
+        if float(np.linalg.norm(offset - (offset @ axis) * axis)) > SYMMETRY_TOLERANCE * unit.size:
+            return False
+    return True
 
 
 def _ring_relation(a: Unit, b: Unit, frame: Frame, tol: float):
@@ -574,7 +608,7 @@ def _ring_relation(a: Unit, b: Unit, frame: Frame, tol: float):
             ra, rb = da - (da @ axis) * axis, db - (db @ axis) * axis
             radius = float(np.linalg.norm(ra))
             if abs(float((da - db) @ axis)) > reach or abs(radius - float(np.linalg.norm(rb))) > reach \
-                    or radius <= reach:
+                    or radius <= reach or not _round_about(a, axis):  # (the cheap tests first)
                 continue
             angle = math.atan2(float(axis @ np.cross(ra, rb)), float(ra @ rb))
             g = np.eye(4)
@@ -795,13 +829,16 @@ def align_ring_starts(units: list, consensus: dict) -> None:
 
 
 def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE,
-                   flips: dict | None = None) -> list:
+                   flips: dict | None = None, rounds: dict | None = None) -> list:
     """Symmetry groups among sibling nodes (a list of :class:`Unit`).
 
     ``corners[part]``: the part's local bounding-box corners (:func:`box_corners`);
-    ``flips[part]``: its self-symmetries (see :func:`leaf_unit`; none when omitted).
+    ``flips[part]``: its self-symmetries (see :func:`leaf_unit`; none when omitted);
+    ``rounds[part]``: the local axes it is round about
+    (:func:`procmod.geometry.part_library.round_axes`; none when omitted: no ring of
+    unturned copies is found, :func:`_ring_relation`).
     """
-    units = [leaf_unit(c, corners, flips) for c in children]
+    units = [leaf_unit(c, corners, flips, rounds) for c in children]
     memo = {}  # relate() of pairs of units, across the passes
     units = _pair_reflections(units, frame, tol, memo=memo)
     units = _chains(units, frame, tol, memo)
