@@ -375,15 +375,22 @@ def test_other_tools_files_are_refused_with_the_way_to_convert_them(tmp_path):
         read_assets(tmp_path / "notes.txt")
 
 
+def ros_package(tmp_path, link: str, mesh_file: str, uri_name: str) -> Path:
+    """A ROS workspace's package ``my_robot`` holding ``meshes/mesh_file`` and
+    ``urdf/robot.urdf``, whose link ``link`` names it ``package://my_robot/meshes/uri_name``."""
+    package = tmp_path / "ws" / "src" / "my_robot"
+    (package / "meshes").mkdir(parents=True)
+    write_obj(package / "meshes" / mesh_file, wedge_mesh(0.2))
+    (package / "urdf").mkdir()
+    links = {link: [f'<geometry><mesh filename="package://my_robot/meshes/{uri_name}"/></geometry>']}
+    (package / "urdf" / "robot.urdf").write_text(urdf(links, []))
+    return package
+
+
 def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, monkeypatch):
     """``package://`` meshes are looked for in the URDF folder's ancestors: given as a bare
     ``robot.urdf`` from its own folder, the path has no ancestors until resolved."""
-    package = tmp_path / "ws" / "src" / "my_robot"
-    (package / "meshes").mkdir(parents=True)
-    write_obj(package / "meshes" / "leg.obj", wedge_mesh(0.2))
-    (package / "urdf").mkdir()
-    links = {"leg": ['<geometry><mesh filename="package://my_robot/meshes/leg.obj"/></geometry>']}
-    (package / "urdf" / "robot.urdf").write_text(urdf(links, []))
+    package = ros_package(tmp_path, "leg", "leg.obj", "leg.obj")
     monkeypatch.chdir(package / "urdf")
     s = read_assets("robot.urdf")
     assert s.parts["leg"].kind == "mesh"
@@ -398,12 +405,7 @@ def test_a_package_mesh_named_percent_encoded_is_found_and_a_xacro_left_is_named
     """A URI-escaping exporter writes a space as %20 in a package:// URI, as ROS decodes it;
     a URDF saved from its .xacro without running xacro failed on "${pi/2}" as a float, or
     on the xacro: prefix, with no word of xacro."""
-    package = tmp_path / "ws" / "src" / "my_robot"
-    (package / "meshes").mkdir(parents=True)
-    write_obj(package / "meshes" / "base link.obj", wedge_mesh(0.2))
-    (package / "urdf").mkdir()
-    links = {"base": ['<geometry><mesh filename="package://my_robot/meshes/base%20link.obj"/></geometry>']}
-    (package / "urdf" / "robot.urdf").write_text(urdf(links, []))
+    package = ros_package(tmp_path, "base", "base link.obj", "base%20link.obj")
     assert read_assets(package / "urdf" / "robot.urdf").parts["base link"].kind == "mesh"
     plain = urdf({"base": ['<geometry><box size="1 1 1"/></geometry>']}, [])
     for left, said in ((plain.replace('<geometry>', '<origin rpy="0 0 ${pi/2}"/><geometry>'), "${pi/2"),
