@@ -63,9 +63,8 @@ from ..core.io import load_tensors, read_versioned_json, save_tensors, write_tex
 from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
-from .transforms import (ANCHOR_SIDES, CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR, SIGMA_FLOOR,
-                         SIGMA_MAX,
-                         SYM_PARAMS, Units, node_kind,
+from .transforms import (ANCHOR_SIDES, CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR,
+                         SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units, node_kind,
                          Frame, sym_maps, symmetry_direction, turned_frame, xform_matrix)
 
 PROGRAM_FORMAT = "procmod-program/1"
