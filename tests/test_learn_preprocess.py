@@ -356,3 +356,26 @@ def test_turns_placed_by_eye_near_square_are_squared_and_a_lean_of_its_own_is_ke
     loose = dataset([example(0.0, 5.0) for _ in range(6)])
     arms = np.array([n.x[3:6] for n in loose.nodes if n.kind == "part" and n.part == "arm"])
     assert np.degrees(arms[:, 2]).std() > 1.0  # some example 3 degrees or more off: as placed
+
+
+def test_a_part_on_its_side_under_a_parent_tilted_a_degree_is_not_spun_by_squaring():
+    """A plank on its side (turned 90 degrees about y) under a box tilted 1 degree about x
+    and y: in the squared box's frame its turn reads 135, 88.6, 135 degrees, each angle
+    "nearest" a quarter turn of its own, and rounding them had spun the plank by 90
+    degrees (h101). An angle over the limit in the squared frame is left."""
+    from scipy.spatial.transform import Rotation
+
+    from procmod.learn.preprocessing import squared_examples
+
+    def box_and_plank(tilt_deg):
+        box = np.eye(4)
+        box[:3, :3] = Rotation.from_euler("xyz", [tilt_deg, tilt_deg, 0], degrees=True).as_matrix()
+        return node("base", box, [node("arm", box @ T(0.5, 0.2, 0) @ Ry(math.pi / 2))])
+
+    examples = [box_and_plank(1.0), box_and_plank(0.0)]
+    example_set = examples_from_dict({"format": "procmod-examples/1", "examples": examples,
+                                      "parts": {"base": {"box": [2, 1, 2]}, "arm": {"box": [1, 0.2, 0.2]}}})
+    squared = squared_examples(example_set)
+    before = np.asarray(example_set.examples[0].children[0].transform)[:3, :3]
+    after = np.asarray(squared.examples[0].children[0].transform)[:3, :3]
+    assert Rotation.from_matrix(after.T @ before).magnitude() < math.radians(3.0)

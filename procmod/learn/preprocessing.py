@@ -22,11 +22,13 @@
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
+from scipy.spatial.transform import Rotation
 
 from ..geometry.part_library import flip_deviations, round_axes, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
@@ -731,12 +733,19 @@ def squared_examples(example_set: ExampleSet) -> ExampleSet:
         flags = square[(parent_part, node.part)]
         m = np.array(node.transform, dtype=np.float64)
         e = euler_of(parent_rot.T @ rot) if flags.any() else None
-        if e is not None and (np.abs(_wrap(e - np.round(e / quarter) * quarter))[flags] > 1e-9).any():
+        off = np.abs(_wrap(e - np.round(e / quarter) * quarter)) if e is not None else None
+        # measured again in the squared parent's frame: an angle now over the limit is left
+        # (a part on its side under a parent tilted by a degree reads, once the parent is
+        # squared, angles of 135 degrees about two axes, each "nearest" a quarter turn of its
+        # own: rounded, the part had spun by 90 degrees, h101)
+        snap = flags & (off <= SQUARE_TURN) if off is not None else None
+        if snap is not None and (off[snap] > 1e-9).any():
             # (a placement already square is kept bit for bit: the authored sets are exact)
-            rot = parent_rot @ rot_of(np.where(flags, np.round(e / quarter) * quarter, e))
-            m[:3, :3] = rot * scale
-        else:
-            rot = decompose(m)[0]  # its children are squared in its own frame
+            squared_rot = parent_rot @ rot_of(np.where(snap, np.round(e / quarter) * quarter, e))
+            moved = Rotation.from_matrix(squared_rot.T @ rot).magnitude()
+            if moved <= math.sqrt(3.0) * SQUARE_TURN:  # (each angle within the limit: at most this in all)
+                rot = squared_rot
+                m[:3, :3] = rot * scale
         return ExampleNode(node.part, m, [squared(c, rot, node.part) for c in node.children])
 
     return ExampleSet(example_set.parts, [squared(e, np.eye(3), None) for e in example_set.examples],
