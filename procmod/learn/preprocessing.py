@@ -721,31 +721,31 @@ def squared_examples(example_set: ExampleSet) -> ExampleSet:
 
     for example in example_set.examples:
         collect(example, np.eye(3), None)
-    square = {}
-    for key, values in angles.items():
-        e = np.array(values)
-        square[key] = (np.abs(_wrap(e - np.round(e / quarter) * quarter)) <= SQUARE_TURN).all(axis=0)
+    def off_square(e: np.ndarray) -> np.ndarray:  # each angle's distance to its nearest quarter turn
+        return np.abs(_wrap(e - np.round(e / quarter) * quarter))
+
+    square = {key: (off_square(np.array(values)) <= SQUARE_TURN).all(axis=0) for key, values in angles.items()}
     if not any(flags.any() for flags in square.values()):
         return example_set
 
     def squared(node: ExampleNode, parent_rot: np.ndarray, parent_part) -> ExampleNode:
-        rot, scale, t = decompose(node.transform)
+        rot, scale, _ = decompose(node.transform)
         flags = square[(parent_part, node.part)]
         m = np.array(node.transform, dtype=np.float64)
-        e = euler_of(parent_rot.T @ rot) if flags.any() else None
-        off = np.abs(_wrap(e - np.round(e / quarter) * quarter)) if e is not None else None
-        # measured again in the squared parent's frame: an angle now over the limit is left
-        # (a part on its side under a parent tilted by a degree reads, once the parent is
-        # squared, angles of 135 degrees about two axes, each "nearest" a quarter turn of its
-        # own: rounded, the part had spun by 90 degrees, h101)
-        snap = flags & (off <= SQUARE_TURN) if off is not None else None
-        if snap is not None and (off[snap] > 1e-9).any():
-            # (a placement already square is kept bit for bit: the authored sets are exact)
-            squared_rot = parent_rot @ rot_of(np.where(snap, np.round(e / quarter) * quarter, e))
-            moved = Rotation.from_matrix(squared_rot.T @ rot).magnitude()
-            if moved <= math.sqrt(3.0) * SQUARE_TURN:  # (each angle within the limit: at most this in all)
-                rot = squared_rot
-                m[:3, :3] = rot * scale
+        if flags.any():
+            e = euler_of(parent_rot.T @ rot)
+            off = off_square(e)
+            # measured again in the squared parent's frame: an angle now over the limit is
+            # left (a part on its side under a parent tilted by a degree reads, once the
+            # parent is squared, angles of 135 degrees about two axes, each "nearest" a
+            # quarter turn of its own: rounded, the part had spun by 90 degrees, h101)
+            snap = flags & (off <= SQUARE_TURN)
+            if (off[snap] > 1e-9).any():  # (a placement already square is kept bit for bit)
+                squared_rot = parent_rot @ rot_of(np.where(snap, np.round(e / quarter) * quarter, e))
+                # (each angle within the limit: at most sqrt(3) times it in all)
+                if Rotation.from_matrix(squared_rot.T @ rot).magnitude() <= math.sqrt(3.0) * SQUARE_TURN:
+                    rot = squared_rot
+                    m[:3, :3] = rot * scale
         return ExampleNode(node.part, m, [squared(c, rot, node.part) for c in node.children])
 
     return ExampleSet(example_set.parts, [squared(e, np.eye(3), None) for e in example_set.examples],

@@ -591,7 +591,7 @@ def _round_about(unit: Unit, axis: np.ndarray) -> bool:
 
 
 def _ring_relation(a: Unit, b: Unit, frame: Frame, tol: float):
-    """``("rot", map, deviation)``: the turn about an axis of the parent's frame (through
+    """``("ring", map, deviation)``: the turn about an axis of the parent's frame (through
     its origin, or its box's centre) that takes unit ``a`` to ``b``, where both lie at one
     height along that axis and one distance from it, and the turn fits within ``tol``; or
     None. :func:`relate` tries a rotation only where the two are turned apart, and a ring
