@@ -757,6 +757,53 @@ def test_a_filled_silhouette_on_the_bottom_edge_is_not_taken_for_uneven_light():
     assert np.array_equal(mask_from_image(picture)[100:300], sky)
 
 
+def test_pencil_on_a_notebooks_blue_ruling_is_read_without_the_ruling(tmp_path):
+    """Pencil (grey 125) on ruled paper (blue lines, luma 176, and a pink margin line): the
+    lines lay past half way from the paper to the pencil and every one was read as a
+    stroke (h102: 7x the drawing's pixels). They are dropped, not where the pencil
+    crosses them; a blue band coloured in and one blue line drawn across stay."""
+    from procmod.targets.image import mask_from_image
+
+    h, w = 400, 300
+    drawing = np.zeros((h, w), dtype=bool)
+    drawing[80:330, 140:146] = True  # a stem, crossing eight lines
+    drawing[150:156, 146:240] = True
+    page = np.full((h, w, 3), (250.0, 250.0, 245.0))
+    for top in range(20, h, 32):
+        page[top:top + 2] = (150, 180, 230)
+    page[:, 40:42] = (230, 120, 130)
+    picture = np.where(drawing[..., None], page * np.array([125, 125, 130]) / 250.0, page)
+    Image.fromarray(picture.astype(np.uint8)).save(tmp_path / "ruled.jpg", quality=90)
+    read = mask_from_image(Image.open(tmp_path / "ruled.jpg"))[:, 50:350]  # (padded to a square: columns 50..349)
+    assert (read & drawing).sum() >= 0.95 * drawing.sum() and (read & ~drawing).sum() <= 0.05 * drawing.sum()
+    # a coloured band and a single line of the drawing's own, on plain paper, stay ink
+    plain = np.full((h, w, 3), 250.0)
+    plain[drawing] = 125
+    plain[300:340, 20:280] = (90, 130, 220)  # a band coloured in (a lake)
+    plain[60:62, 10:290] = (90, 130, 220)  # one line drawn across
+    read = mask_from_image(Image.fromarray(plain.astype(np.uint8)))[:, 50:350]
+    assert read[300:340, 20:280].all() and read[60:62, 10:290].all()
+
+
+@pytest.mark.parametrize("ground", [0.6, 0.8])
+def test_a_dark_shape_reaching_most_of_the_edges_is_read_on_its_light_paper(ground):
+    """Black mountains along three edges of a white picture: with more than half the
+    border black, the border's median was black, and the white sky was read as the shape
+    (h102: no pixel right). The light ground holding a third of the border or more is the
+    paper; a white drawing on black (the border all black) stays light ink."""
+    from procmod.targets.image import mask_from_image
+
+    yy, xx = np.mgrid[:300, :300]
+    mountains = yy > 300 * (1 - ground) + 30 * np.sin(xx / 30)
+    border = np.concatenate([mountains[0], mountains[-1], mountains[1:-1, 0], mountains[1:-1, -1]])
+    assert 0.5 < border.mean() < 1 - 1 / 3  # over half the border black, a third or more white
+    read = mask_from_image(Image.fromarray(np.where(mountains, 10, 250).astype(np.uint8)))
+    assert np.array_equal(read, mountains)
+    stars = np.zeros((300, 300), dtype=bool)
+    stars[100:140, 60:240] = stars[60:200, 130:170] = True
+    assert np.array_equal(mask_from_image(Image.fromarray(np.where(stars, 250, 10).astype(np.uint8))), stars)
+
+
 @pytest.mark.parametrize("case", ["noisy_blank_page", "tiny_drawing", "chalkboard_with_smudges", "page_on_a_table",
                                   "icon_with_a_light_dot"])
 def test_pictures_whose_reading_turns_on_noise_size_or_which_side_is_ink(case):
