@@ -85,6 +85,13 @@ class Model:
         The most random choices one rule call may make (default 100,000): a loop of
         choices that never ends (``while not ctx.sample(...)`` with a coin that never
         comes up) ran every engine, its budget unread, until memory ran out.
+    settle : callable or None
+        ``settle(derivation) -> derivation``: what :func:`procmod.core.run_forward` does
+        to a complete forward sample before returning it (default None: nothing). It
+        must return a derivation of the model (e.g. one replayed with a choice moved), so
+        that a saved sample replays to the same output; engines running toward a target
+        never call it. Learned programs whose examples stand on one ground set their
+        samples on it (:mod:`procmod.learn.ground`).
 
     :meth:`configure` also checks each value against the parameter's default: a bool
     stays a bool (``"yes"`` is refused, not read as true), an integer an integer, a
@@ -110,6 +117,7 @@ class Model:
     max_call_emits: int = 20_000
     max_call_choices: int = 100_000
     max_resumed_emits: int = 500
+    settle: Callable | None = None
 
     def __post_init__(self):
         # a model built wrong fails here, naming the field, not at its first run
@@ -123,6 +131,9 @@ class Model:
             value = getattr(self, what)
             if not callable(value):
                 raise ModelError(f"model {self.name!r}: {what} must be a function, got {value!r:.40}")
+        if self.settle is not None and not callable(self.settle):
+            raise ModelError(f"model {self.name!r}: settle must be a function of a complete derivation or None, "
+                             f"got {self.settle!r:.40}")
         for what in ("max_calls", "max_depth", "max_call_emits", "max_call_choices", "max_resumed_emits"):
             value = getattr(self, what)
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= LIMIT_CEILING:

@@ -787,9 +787,15 @@ def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None
     Derivation
         Complete. Its ``log_prior`` is the log-weight of this run: the total
         log-probability of every choice made, i.e. ``log p(derivation)`` under the model.
+        A model with a ``settle`` step returns what it makes of the run (learned
+        programs: the sample set on its examples' ground, :mod:`procmod.learn.ground`);
+        with ``output`` given, the run is returned as it ran.
     """
     _check_call(model, rng)
-    return finish(start(model, output), rng, pick)
+    derivation = finish(start(model, output), rng, pick)
+    if model.settle is not None and output is None:
+        derivation = model.settle(derivation)
+    return derivation
 
 
 def check_rng(rng, operator: str | None = None) -> None:

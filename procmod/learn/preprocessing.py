@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 from ..geometry.part_library import flip_deviations, round_axes, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
+from .ground import examples_ground
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
 from .transforms import (ANCHOR_SIDES, CURRENT, DIAGONAL_POLE, Frame, Units, anchor_terms, angles_direction,
@@ -585,7 +586,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         roots = convert_all(accepted)
     anchors = choose_anchors(nodes, bounds)
     units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes), turns, span_types(nodes),
-                  anchors)
+                  anchors, examples_ground(example_set))
     for n in nodes:
         if n.kind == "part":
             n.x[0:3] -= units.log_scale(n.part)

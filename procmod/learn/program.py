@@ -63,6 +63,7 @@ from ..core.io import load_tensors, read_versioned_json, save_tensors, write_tex
 from ..core.limits import MAX_COORDINATE
 from ..geometry.part_library import read_part_library
 from ..geometry.solid import as_transform, new_part_bounds
+from .ground import settle_on_ground
 from .transforms import (ANCHOR_SIDES, CATEGORY, COMPONENTS, CURRENT, FIXED_SIGMA, LEGACY, LEGACY_SIGMA_FLOOR,
                          SIGMA_FLOOR, SIGMA_MAX, SYM_PARAMS, Units, node_kind,
                          Frame, sym_maps, symmetry_direction, turned_frame, xform_matrix)
@@ -301,7 +302,9 @@ def program_model(program: Program, name: str) -> Model:
                  # a node emits every copy of its symmetry groups in one call (25 x 25
                  # windows: 625); their counts are the program's own, checked when it is
                  # read, so SMC's guard against emit loops that never end does not apply
-                 max_resumed_emits=Model.max_call_emits)
+                 max_resumed_emits=Model.max_call_emits,
+                 # samples set on the ground the examples stand on, where they share one
+                 settle=None if program.units.ground is None else partial(settle_on_ground, program.units.ground))
 
 
 # ---- derivations -> example hierarchies -----------------------------------------------------
@@ -372,7 +375,8 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                   **({"trans_spans": sorted(program.units.trans_spans)} if program.units.trans_spans else {}),
                   **({"anchors": {parent: {child: [None if a is None else list(map(int, a)) for a in axes]
                                            for child, axes in sorted(program.units.anchors[parent].items())}
-                                  for parent in sorted(program.units.anchors)}} if program.units.anchors else {})},
+                                  for parent in sorted(program.units.anchors)}} if program.units.anchors else {}),
+                  **({"ground": float(program.units.ground)} if program.units.ground is not None else {})},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -599,7 +603,12 @@ def _units_from_json(data) -> Units:
                 raise ValueError(f"units.anchors[{parent!r}][{child!r}] must be three entries, each null, [a, b] or "
                                  f"[a, b, 1] with a and b -1, 0 or 1, got {shown_value(axes, 60)}")
             anchors.setdefault(parent, {})[child] = tuple(None if a is None else tuple(a) for a in axes)
-    return Units(float(extent), logs, conventions, poles, turns, tuple(sorted(set(spans))), anchors)
+    ground = data.get("ground")  # absent: the examples share no ground (or predate it)
+    if ground is not None and not (_is_real(ground) and abs(ground) <= MAX_UNIT_LENGTH):
+        raise ValueError(f"units.ground must be a height within +-{MAX_UNIT_LENGTH:g} or absent, got "
+                         f"{shown_value(ground, 40)}")
+    return Units(float(extent), logs, conventions, poles, turns, tuple(sorted(set(spans))), anchors,
+                 None if ground is None else float(ground))
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw

@@ -130,6 +130,9 @@ class Units(NamedTuple):
     # extent, not the parent's), where that is what the examples hold fixed (see
     # anchor_terms, procmod.learn.preprocessing.choose_anchors)
     anchors: dict = {}
+    # the height every example's lowest point is at, where they share one (None: they do
+    # not); a forward sample is set on it (see procmod.learn.ground)
+    ground: float | None = None
 
     def frame_of(self, world, local_lo, local_hi, part: str | None = None) -> "Frame":
         """:func:`frame_of` with these conventions for flat parts (of a ``part`` placed by ``world``)."""
