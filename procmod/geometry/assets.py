@@ -517,6 +517,78 @@ def _given_name(g: _Geometry) -> str | None:
     return None if base in _DEFAULT_MESH_NAMES else base
 
 
+# words of node names that say nothing of what a part is: a tool's names for primitives and
+# nodes, and where a copy sits (Leg_FL, LeftArm, Wing.R are legs, arms and wings)
+_GENERIC_NAME_WORDS = _DEFAULT_MESH_NAMES | {
+    "link", "joint", "node", "object", "part", "geom", "geometry", "group", "body", "shape", "model", "obj",
+    "default", "untitled", "poly", "surface", "transform", "empty", "instance", "copy", "mirror", "mirrored"}
+_PLACE_WORDS = {"left", "right", "front", "back", "rear", "top", "bottom", "upper", "lower", "inner", "outer",
+                "middle", "mid", "center", "centre", "side", "north", "south", "east", "west"}
+
+
+def _name_words(name: str) -> set:
+    """The words of a node's name that may say what its part is, lower case: camel case and
+    separators split (``UpperArm``: upper, arm), the tool's copy numbering, words under
+    three letters (``L``, ``FR``) and :data:`_PLACE_WORDS` left out."""
+    words = {w.lower() for w in re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+", _NUMBERED.sub("", name or ""))}
+    return {w for w in words if len(w) >= 3 and w not in _PLACE_WORDS}
+
+
+def _named_apart(names: list) -> list | None:
+    """The nodes (indices into ``names``) that their names tell apart, as groups in order of
+    their first node: nodes whose names share a word are one group (``Leg`` and
+    ``Leg.001``, ``Leg_FL`` and ``FrontLeftLeg``); ``Head``, ``Torso`` and ``Forearm`` are
+    three. None where any node's name is only a tool's (``Cube.003``, ``pCube1``, ``link_2``):
+    the user did not name it, and its sizes alone tell its part (:func:`_bake_scales`)."""
+    words = [_name_words(n) - _GENERIC_NAME_WORDS for n in names]
+    if not all(words):
+        return None
+    owner, groups = {}, []  # word -> group index; groups as (indices, words), merged as words are shared
+    for k, ws in enumerate(words):
+        joined = sorted({owner[w] for w in ws if w in owner})
+        if not joined:
+            groups.append(([k], set(ws)))
+            target = len(groups) - 1
+        else:
+            target = joined[0]
+            for other in joined[1:]:  # this name links groups apart so far: one group
+                groups[target][0].extend(groups[other][0])
+                groups[target][1].update(groups[other][1])
+                for w in groups[other][1]:
+                    owner[w] = target
+                groups[other] = ([], set())
+            groups[target][0].append(k)
+            groups[target][1].update(ws)
+        for w in ws:
+            owner[w] = target
+    return [sorted(indices) for indices, _ in groups if indices]
+
+
+def _apart_in_size(groups: list, sizes: np.ndarray) -> list:
+    """``groups`` (of indices into ``sizes``, log-extents of nodes) joined where their names
+    alone tell them apart: two name groups stay apart only where, along some axis, every
+    node of one is smaller than every node of the other (a torso and a head, a top and its
+    legs). Books named by their colours (``Red``, ``Blue``), of sizes that overlap, are one
+    part, told apart by size as before (a review found a version that took names alone
+    making each colour a part type)."""
+    boxes = [(sizes[g].min(axis=0), sizes[g].max(axis=0)) for g in groups]
+    parent = list(range(len(groups)))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for i, j in itertools.combinations(range(len(groups)), 2):
+        (lo_i, hi_i), (lo_j, hi_j) = boxes[i], boxes[j]
+        if not ((hi_i < lo_j) | (hi_j < lo_i)).any():  # overlapping along every axis: not told apart
+            parent[root(j)] = root(i)
+    joined = {}
+    for i, group in enumerate(groups):
+        joined.setdefault(root(i), []).extend(group)
+    return sorted((sorted(group) for group in joined.values()), key=lambda group: group[0])
+
+
 BAKED_TURN_FIT = 1e-4
 """How closely (x a mesh's bounding-box diagonal, at every vertex) a mesh must be an affine
 image of another of its name and triangles to be taken for a copy of it turned and scaled
@@ -668,7 +740,9 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     (the tool's copies ``Pole``, ``Pole.001``, or a primitive's name such as ``Cube``;
     meshes the user named apart, ``column`` and ``wall``, stay apart), are grouped by
     their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
-    are one group). One mesh whose nodes form one group with a scale within that factor
+    are one group), within the kinds their objects' names tell apart where the sizes
+    agree (:func:`_named_apart`, :func:`_apart_in_size`: a robot's Torso, Head and
+    Forearm cubes). One mesh whose nodes form one group with a scale within that factor
     of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
     the learner's to model). Otherwise each group is a geometry of its own: the mesh with
     the group's mean size put into it, the nodes keeping what differs from that mean (a
@@ -724,10 +798,16 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
             _bake(raw, geometries, linear, np.eye(3), np.ones(3))
-    for placed in by_geometry.values():
+    for (topology, _), placed in by_geometry.items():
         sizes = np.log([norms * extents for _, _, norms, extents in placed])  # of the unit shape
         scaled = np.log([norms for _, _, norms, _ in placed])
-        groups = _scale_groups(sizes)
+        # a tool's primitive the user named per node (Torso, Head, Forearm: three cubes
+        # within 3x of each other, h98's robots) is a part per name, then per size
+        named = _named_apart([raw.name for raw, *_ in placed]) if topology[1] is None else None
+        if named is not None:
+            named = _apart_in_size(named, sizes)
+        groups = sorted(([members[k] for k in group] for members in (named or [list(range(len(placed)))])
+                         for group in _scale_groups(sizes[members])), key=lambda group: group[0])
         meshes = {raw.geometry for raw, *_ in placed}
         if len(groups) == 1 and np.abs(scaled).max() <= math.log(SCALE_GROUP) and len(meshes) == 1:
             continue  # one mesh whose nodes' sizes vary, near its own size: as read
