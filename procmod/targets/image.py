@@ -706,51 +706,86 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     return _filled_in(ink, colours, luma, where, noise)
 
 
-RULING_SPAN = 0.5
+RULING_SPAN = 0.8
 """The least share of a row (column) of the picture a coloured line must cross to be a
 line of a ruled page's ruling (:func:`_without_ruling`)."""
 
-RULING_LINES = 3  # the fewest such lines a ruled page has (one line across a drawing is drawn)
+RULING_LINES = 6  # the fewest lines, one way, evenly spaced, a ruled page shows
+RULING_EVEN = 0.2  # how far (a share of their median) the spaces between its lines may differ
+RULING_THIN = 0.004  # a ruling line's widest (a share of the picture's side; at least 3 pixels)
+RULING_COVER = 0.7  # the least share of the picture's side from its first line to its last (hatching's is its shape's)
+
+
+def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool = True) -> np.ndarray | None:
+    """Rows (or columns) that are a page's ruling, from ``counts`` of coloured ink along
+    each and the pixels ``across`` each: :data:`RULING_LINES` or more thin runs of rows
+    each crossed for :data:`RULING_SPAN` of its length, the spaces between them even
+    within :data:`RULING_EVEN`, from first to last over :data:`RULING_COVER` of the
+    picture; None otherwise. ``ruled=False`` (on a page ruled the
+    other way): any such run, a margin line."""
+    crossed = counts >= RULING_SPAN * np.maximum(across, 1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], crossed.astype(np.int8), [0]])))
+    runs = [(start, stop) for start, stop in zip(edges[::2], edges[1::2]) if stop - start <= thin]
+    if not runs or (ruled and len(runs) < RULING_LINES):
+        return None
+    if ruled:
+        centres = [0.5 * (start + stop) for start, stop in runs]
+        spaces = np.diff(centres)
+        if np.abs(spaces - np.median(spaces)).max() > RULING_EVEN * np.median(spaces) or \
+                centres[-1] - centres[0] < RULING_COVER * len(counts):
+            return None  # not a page's ruling: a drawing's own lines (stripes, hatching, a staff, rails)
+    lines = np.zeros_like(crossed)
+    for start, stop in runs:
+        lines[start:stop] = True
+    return lines
 
 
 def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray) -> np.ndarray:
     """``ink`` less a ruled page's coloured ruling, where the drawing is in a plainer colour:
     pencil (grey 125) on a notebook's blue lines (luma 176) put the lines past half way
     from the paper to the pencil, and every line was read as a stroke (h102: 69,062
-    pixels read against 9,861 drawn). A ruling line is a thin run of rows (or columns)
-    whose pixels are mostly ink more colourful than the picture's darkest ink by
-    :data:`MIN_CONTRAST`, across :data:`RULING_SPAN` of the picture; with
-    :data:`RULING_LINES` of them, such lines are dropped in both directions (a margin line
-    too), but not where the drawing crosses them (pixels darker than the ruling by
-    :data:`MIN_CONTRAST`). A coloured fill (a thick band) and one coloured line drawn
-    across the page stay; so does a drawing whose ink is as colourful as its ruling (blue
-    pen on blue lines), read as before."""
+    pixels read against 9,861 drawn). A ruling is :data:`RULING_LINES` or more evenly
+    spaced thin lines one way (:func:`_ruling_lines`) of ink more colourful than the
+    picture's darkest ink by :data:`MIN_CONTRAST`, each across :data:`RULING_SPAN` of the
+    picture; with one, the pixels of such lines both ways (a margin line too) that are of
+    the ruling's colour are dropped, but not where the drawing crosses them (darker than
+    the ruling by :data:`MIN_CONTRAST`) or is of a colour of its own (a green leaf over a
+    blue line). A drawing's own straight lines (a striped shirt, hatching, a fence's
+    rails, a staff, stems: few, uneven, thick, or short of the picture's width) stay, and
+    so does a drawing whose ink is as colourful as its ruling (blue pen on blue lines)."""
     if colours.shape[2] < 3 or not ink.any():
         return ink
-    chroma = colours.max(axis=2) - colours.min(axis=2)
-    darkest = ink & (luma <= _far(luma[ink], 10))
-    coloured = ink & (chroma >= float(np.median(chroma[darkest])) + MIN_CONTRAST)
+    ys, xs = np.nonzero(ink)  # at the ink's pixels only: a 12-megapixel photo's whole chroma took ~1 s
+    own = colours[ys, xs].astype(np.float64)
+    chroma = own.max(axis=1) - own.min(axis=1)
+    ink_luma = luma[ys, xs]
+    darkest = ink_luma <= _far(ink_luma, 10)
+    coloured = chroma >= float(np.median(chroma[darkest])) + MIN_CONTRAST
     if not coloured.any():
         return ink
     h, w = ink.shape
-
-    def lines(axis: int) -> np.ndarray:  # rows (axis 1) or columns (axis 0) that are ruling lines
-        crossed = coloured.sum(axis=axis) >= RULING_SPAN * np.maximum(where.sum(axis=axis), 1)
-        thin = max(3, round(0.01 * (h if axis == 1 else w)))  # a coloured fill's band is no line
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], crossed.astype(np.int8), [0]])))
-        keep = np.zeros_like(crossed)
-        for start, stop in zip(edges[::2], edges[1::2]):
-            if stop - start <= thin:
-                keep[start:stop] = True
-        return keep
-
-    rows, cols = lines(1), lines(0)
-    count = sum(int((np.diff(np.concatenate([[0], k.astype(np.int8)])) == 1).sum()) for k in (rows, cols))
-    if count < RULING_LINES:
+    thin = max(3, round(RULING_THIN * max(h, w)))
+    along = {"rows": (ys, h, where.sum(axis=1)), "columns": (xs, w, where.sum(axis=0))}
+    lines = {way: _ruling_lines(np.bincount(at[coloured], minlength=size), across, thin)
+             for way, (at, size, across) in along.items()}
+    if all(found is None for found in lines.values()):
         return ink
-    ruled = coloured & (rows[:, None] | cols[None, :])
-    ruling_luma = float(np.median(luma[ruled]))
-    return ink & ~(ruled & (luma > ruling_luma - MIN_CONTRAST))
+    for way, (at, size, across) in along.items():  # a page ruled one way: its margin line the other way
+        if lines[way] is None:
+            lines[way] = _ruling_lines(np.bincount(at[coloured], minlength=size), across, thin, ruled=False)
+    dropped = np.zeros(len(ys), dtype=bool)
+    for way, (at, _, _) in along.items():
+        if lines[way] is None:
+            continue
+        ruled = coloured & lines[way][at]
+        if not ruled.any():
+            continue
+        # the lines' own colour (a margin's pink is not the ruling's blue), not the drawing's
+        ruling, ruling_luma = np.median(own[ruled], axis=0), float(np.median(ink_luma[ruled]))
+        dropped |= ruled & (ink_luma > ruling_luma - MIN_CONTRAST) & (np.abs(own - ruling).max(axis=1) < MIN_CONTRAST)
+    out = ink.copy()
+    out[ys[dropped], xs[dropped]] = False
+    return out
 
 
 FILL_CONTRAST = MIN_CONTRAST
@@ -799,14 +834,14 @@ def _filled_in(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np
     if rest.any():
         # subtracted in float64, as the cells' means are compared (float32's own rounding of
         # a range is ~2e-6: at the threshold it had decided otherwise, h86); the extremes
-        # themselves are float32 values, read without a float64 copy of the picture (a
-        # 24-megapixel photo spent 1.7 s here)
+        # themselves are float32 values, read a channel at a time without a float64 copy of
+        # the picture (a 24-megapixel photo spent 1.7 s here)
         def extent(values) -> np.ndarray:
             return values.max(axis=0).astype(np.float64) - values.min(axis=0).astype(np.float64)
 
         spread = float(extent(luma[rest]))
         if colours.shape[2] > 1:
-            spread = max(spread, 2.0 * float(extent(colours[rest]).max()))
+            spread = max(spread, 2.0 * max(float(extent(colours[:, :, c][rest])) for c in range(colours.shape[2])))
         if spread + 1e-6 < least:  # (a margin for the cell means' rounding)
             return ink  # no cell can differ from another by ``least``: nothing is filled
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.19 s of start-up
@@ -991,38 +1026,6 @@ def _border_colour(colours: np.ndarray) -> tuple:
     return on_border, np.median(colours[on_border], axis=0)
 
 
-SPLIT_BORDER = 1 / 3
-"""The least share of the border a light ground must hold, beside a dark one holding the
-rest, for the light one to be taken as the paper (:func:`_dark_shape_on_the_edges`)."""
-
-
-def _dark_shape_on_the_edges(colours: np.ndarray, mask: np.ndarray, on_border: np.ndarray,
-                             surround: np.ndarray) -> np.ndarray:
-    """``mask`` (read against the border's median colour, ``surround``), or, where that
-    colour is dark and the light "ink" read against it holds :data:`SPLIT_BORDER` of the
-    border or more, the picture read against the light ground instead: a dark shape drawn
-    on light paper, reaching most of the picture's edges (a mountain range along three of
-    them: 55% of the border black), had the median border pixel black and was read
-    inverted, its sky the shape. People draw dark on light; a light page on a dark desk
-    (with a drawing on it) is :func:`_drawing_on_a_page`'s, read before this, and a light
-    drawing on a dark ground touches little of the border."""
-    if float(_luma(surround)) >= 128 or not mask.any():
-        return mask
-    light_border = on_border & mask
-    if light_border.sum() < SPLIT_BORDER * on_border.sum():
-        return mask
-    paper = np.median(colours[light_border], axis=0)
-    if float(_luma(paper)) < 128:
-        return mask
-    dark = _ink(colours, paper, lighting=True, paper_at=light_border)
-    # the shape read against the light ground must be the dark ground's pixels, not a
-    # light one's texture: it covers most of what the first reading left out
-    rest = ~mask
-    if not dark.any() or (dark & rest).sum() < 0.5 * rest.sum():
-        return mask
-    return dark
-
-
 def mask_from_image(image: Image.Image) -> np.ndarray:
     """Binary mask of a picture: foreground = pixels unlike the paper.
 
@@ -1056,8 +1059,6 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
         drawn = _drawing_on_a_page(colours, mask, surround)
         if drawn is not None:
             mask = drawn
-        else:
-            mask = _dark_shape_on_the_edges(colours, mask, on_border, surround)
     h, w = mask.shape
     top, left, _, _ = picture_in_square(h, w)
     square = np.zeros((max(h, w), max(h, w)), dtype=bool)
