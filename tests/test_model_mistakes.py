@@ -440,3 +440,21 @@ def test_a_4x4_array_transform_is_read_by_volume_targets_as_by_everything_else(t
     as_tuple.add(Box((1, 1, 1), translation(0.5, 0, 0)))
     assert as_array.counts.sum() == as_tuple.counts.sum() > 0
     assert np.array_equal(as_array.counts, as_tuple.counts)
+
+
+def test_a_settle_step_that_returns_no_derivation_of_the_model_is_refused_naming_it():
+    """``Model.settle`` (what run_forward does to a finished sample: learned programs set
+    it on their examples' ground) must give back a complete derivation of the model: a
+    step returning None, or another model's derivation, failed later in whatever read it."""
+    def root(ctx):
+        ctx.emit(Segment(0.0, 0.0, ctx.sample("x", Normal(0.0, 1.0)), 1.0, 0.3))
+
+    other = _model(root, name="other")
+    with pytest.raises(ModelError, match="settle must be a function"):
+        _model(root, settle="ground")
+    for settle, says in ((lambda d: None, "got NoneType"),
+                         (lambda d: run_forward(other, np.random.default_rng(0)), "of model 'other'")):
+        with pytest.raises(ModelError, match=f"model 'mine': settle must return a complete derivation.*{says}"):
+            run_forward(_model(root, settle=settle), np.random.default_rng(0))
+    kept = run_forward(_model(root, settle=lambda d: d), np.random.default_rng(0))
+    assert kept.done and len(kept.geometry()) == 1

@@ -794,7 +794,16 @@ def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None
     _check_call(model, rng)
     derivation = finish(start(model, output), rng, pick)
     if model.settle is not None and output is None:
-        derivation = model.settle(derivation)
+        settled = model.settle(derivation)
+        # a model's own settle step is checked where it is used: anything but a complete
+        # derivation of this model would fail later, far from the step that made it
+        if not isinstance(settled, Derivation) or settled.model is not model or not settled.done:
+            got = (f"a derivation of model {settled.model.name!r}" if isinstance(settled, Derivation) and
+                   settled.model is not model else "an incomplete derivation" if isinstance(settled, Derivation)
+                   else f"{type(settled).__name__} {settled!r:.40}")
+            raise ModelError(f"model {model.name!r}: settle must return a complete derivation of the model (the "
+                             f"one it is given, or one replayed from it), got {got}")
+        derivation = settled
     return derivation
 
 
