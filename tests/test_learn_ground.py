@@ -23,22 +23,22 @@ def T(x, y, z):
     return matrix(translation(x, y, z))
 
 
-def tables(count: int, seed: int, floor_noise: float = 0.003, sunk: float = 0.0) -> dict:
-    """Tables of several heights modelled by eye on a floor at y = 0: the top's height and
-    the legs' length vary together, each leg's foot within ``floor_noise`` of the floor;
-    the last table's feet ``sunk`` below it."""
+def tables(count: int, seed: int, floor_noise: float = 0.003, sunk: float = 0.0, floor: float = 0.0) -> dict:
+    """Tables of several heights modelled by eye on a floor at y = ``floor``: the top's
+    height and the legs' length vary together, each leg's foot within ``floor_noise`` of
+    the floor; the last table's feet ``sunk`` below it."""
     rng = np.random.default_rng(seed)
     examples = []
     for k in range(count):
         h = rng.uniform(0.6, 0.85)  # the top's underside
         w, d = rng.uniform(1.0, 1.4), rng.uniform(0.6, 0.9)
-        top = T(0, h + 0.025, 0) @ np.diag([w / 1.2, 1, d / 0.8, 1])
+        top = T(0, floor + h + 0.025, 0) @ np.diag([w / 1.2, 1, d / 0.8, 1])
         legs = []
         for sx, sz in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
             foot = rng.uniform(-floor_noise, floor_noise) - (sunk if k == count - 1 else 0.0)
             length = h - foot
             legs.append({"part": "leg", "children": [],
-                         "transform": (T(sx * (w / 2 - 0.05), foot + length / 2, sz * (d / 2 - 0.05))
+                         "transform": (T(sx * (w / 2 - 0.05), floor + foot + length / 2, sz * (d / 2 - 0.05))
                                        @ np.diag([1, length / 0.72, 1, 1])).tolist()})
         examples.append({"part": "top", "transform": top.tolist(), "children": legs})
     return {"format": "procmod-examples/1", "examples": examples, "parts": PARTS}
@@ -114,3 +114,15 @@ def test_a_run_toward_a_target_output_is_not_moved(learned):
     model = program_model(learned, "tables")
     given = run_forward(model, np.random.default_rng([7, 3]), output=model.new_output())
     assert lowest(given) == lowest(finish(start(model), np.random.default_rng([7, 3]), None))
+
+
+def test_tables_on_a_floor_far_from_the_origin_are_set_on_it():
+    """h104: on a floor 1e8 times the tables' size from y = 0, a sample off it by 6 cm was
+    taken for one already there (the check allowed 1e-9 of the floor's height), and from
+    1e7 up some moves missed by rounding and were dropped: samples off by up to 25 cm."""
+    example_set = examples_from_dict(tables(6, seed=4, floor=1e8))
+    program = run_search(example_set, SearchOptions(particles=1, **QUICK), InlineExecutor()).program
+    assert abs(program.units.ground - 1e8) <= 0.003
+    model = program_model(program, "far tables")
+    off = [abs(lowest(run_forward(model, np.random.default_rng([7, i]))) - program.units.ground) for i in range(20)]
+    assert max(off) < 1e-6, max(off)

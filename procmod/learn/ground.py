@@ -66,7 +66,7 @@ def lowest_point(derivation) -> tuple:
     return float(lo[1]), float(np.linalg.norm(hi - lo))
 
 
-def settle_on_ground(ground: float, derivation):
+def settle_on_ground(ground: float, derivation, slope: float | None = None):
     """``derivation`` (a complete forward sample of a learned program) with its root part's
     height choice moved so that its lowest point is at ``ground``, replayed; the derivation
     itself where it already is (to 1e-9 of its size), has no parts, or where moving that
@@ -74,8 +74,12 @@ def settle_on_ground(ground: float, derivation):
 
     The root part's placement is the shallowest call that draws a height (a root that is a
     symmetry of parts has it in its member's call); every other part is placed from it, so
-    the lowest point moves with that choice in a straight line. Its slope is measured by
-    one replay rather than worked out, so whatever the root's frame is, the move is exact.
+    the lowest point moves with that choice in a straight line: by ``slope`` (world units
+    per unit of the choice: a root part's is the program's world extent) when given, else
+    measured by a replay. A move that does not land within 1e-6 of the sample's size (far
+    from the origin, rounding: a floor at 1e8 times the examples' size) is corrected from
+    the two points it gives, up to :data:`SETTLE_STEPS` replays in all; the closest rigid
+    move is kept, and none that changes the sample's extent.
     """
     if not derivation.done or derivation.stopped:
         return derivation
@@ -83,8 +87,8 @@ def settle_on_ground(ground: float, derivation):
     if measured is None:
         return derivation
     low, size = measured
-    tolerance = 1e-9 * max(size, abs(ground), 1e-12)
-    if abs(low - ground) <= tolerance:
+    # there to 1e-9 of its size, or to what floats resolve that far from the origin
+    if abs(low - ground) <= max(1e-9 * size, 8 * np.finfo(float).eps * abs(ground)):
         return derivation
     placing = [node for node in derivation.nodes() if ROOT_HEIGHT in node.choices]
     if not placing:
@@ -94,19 +98,43 @@ def settle_on_ground(ground: float, derivation):
     order = derivation.order()
     model = derivation.model
     rng = np.random.default_rng(0)  # every choice is in the map: nothing is drawn
+    extent = _extent(derivation)
 
     def replayed(height: float):
+        """(the derivation with the root's height choice at ``height``, its lowest point),
+        or None where it is not the sample moved whole (other calls, or another extent)."""
         run = replay(model, {**choices, key: height}, rng, order)
-        return run.derivation if not run.unused else None
+        point = lowest_point(run.derivation) if not run.unused else None
+        if point is None or np.abs(_extent(run.derivation) - extent).max() > 1e-6 * size:
+            return None
+        return run.derivation, point[0]
 
-    height = float(choices[key])
-    moved = replayed(height + 1.0)
-    after = lowest_point(moved) if moved is not None else None
-    slope = after[0] - low if after is not None else 0.0
-    if not (math.isfinite(slope) and abs(slope) > 1e-12 * max(size, 1.0)):
-        return derivation
-    settled = replayed(height + (ground - low) / slope)
-    result = lowest_point(settled) if settled is not None else None
-    if result is None or abs(result[0] - ground) > 1e-6 * max(size, 1e-12):
-        return derivation  # not a straight move of the whole sample: left as drawn
-    return settled
+    height, at = float(choices[key]), low
+    if slope is None:
+        probe = replayed(height + 1.0)
+        if probe is None:
+            return derivation
+        slope = probe[1] - low
+    best, best_error = derivation, abs(low - ground)
+    for _ in range(SETTLE_STEPS):
+        if not (math.isfinite(slope) and abs(slope) > 1e-12 * max(size, 1.0)):
+            break
+        moved_to = height + (ground - at) / slope
+        moved = replayed(moved_to)
+        if moved is None:
+            break
+        settled, lands = moved
+        if abs(lands - ground) < best_error:
+            best, best_error = settled, abs(lands - ground)
+        if best_error <= 1e-6 * max(size, 1e-12) or moved_to == height:
+            break
+        slope, height, at = (lands - at) / (moved_to - height), moved_to, lands
+    return best
+
+
+SETTLE_STEPS = 3
+
+
+def _extent(derivation) -> np.ndarray:
+    lo, hi = scene_bounds(derivation.geometry())
+    return hi - lo

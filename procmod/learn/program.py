@@ -304,7 +304,8 @@ def program_model(program: Program, name: str) -> Model:
                  # read, so SMC's guard against emit loops that never end does not apply
                  max_resumed_emits=Model.max_call_emits,
                  # samples set on the ground the examples stand on, where they share one
-                 settle=None if program.units.ground is None else partial(settle_on_ground, program.units.ground))
+                 settle=None if program.units.ground is None else partial(settle_on_ground, program.units.ground,
+                                                                          slope=program.units.world_extent))
 
 
 # ---- derivations -> example hierarchies -----------------------------------------------------
