@@ -245,6 +245,38 @@ def test_the_start_direction_runs_along_a_thin_bowl_and_up_a_thick_one():
     assert dy < -0.9
 
 
+def test_a_start_in_the_middle_of_an_s_heads_into_its_body_not_its_tail():
+    """At the bottom of an "S" both ways run along the stroke; the centroid's rule took the
+    short tail (h103: 0.03 of similarity, against 0.68 the other way). The start turns into
+    the branch with the larger part of the shape beyond it. A ring (one branch, entered
+    both ways) and a spiral's inner turn crossing near the start do not turn it."""
+    from PIL import ImageDraw
+
+    from procmod.targets.image import lowest_point_start
+
+    def drawn(points, width):  # a pen's stroke: round joints and round ends
+        picture = Image.new("L", (200, 200), 255)
+        pen, points = ImageDraw.Draw(picture), [(float(x), float(y)) for x, y in points]
+        pen.line(points, fill=0, width=width, joint="curve")
+        for x, y in (points[0], points[-1]):
+            pen.ellipse([x - width / 2, y - width / 2, x + width / 2, y + width / 2], fill=0)
+        return np.asarray(picture) < 128
+
+    upper, lower = np.linspace(-0.2 * np.pi, -1.5 * np.pi, 150), np.linspace(-0.5 * np.pi, 0.8 * np.pi, 150)
+    s = drawn(list(zip(100 + 38 * np.cos(upper), 60 + 38 * np.sin(upper)))
+              + list(zip(100 + 38 * np.cos(lower), 136 + 38 * np.sin(lower))), 16)
+    _, before = lowest_point_start(s, branches=False)
+    _, after = lowest_point_start(s)
+    assert before[0] < -0.5 and after[0] > 0.5  # into the tail before; along the body, to the right, now
+    turn = np.linspace(0, 2 * np.pi, 400)
+    ring = drawn(list(zip(100 + 60 * np.cos(turn), 100 + 60 * np.sin(turn))), 8)
+    assert lowest_point_start(ring) == lowest_point_start(ring, branches=False)
+    coil = np.linspace(0, 5 * np.pi, 800)  # a spiral whose inner turn passes 19 px above its start
+    spiral = drawn(list(zip(100 + (20 + 3 * coil) * np.sin(coil), 100 + (20 + 3 * coil) * np.cos(coil))), 5)
+    (sx, sy), (dx, dy) = lowest_point_start(spiral)
+    assert abs(dy) < 0.5  # along the outer turn, not up across the gap to an inner one
+
+
 def test_ray_runs_measure_how_far_a_ray_stays_in_the_shape():
     from procmod.targets.image import ray_runs
     mask = np.zeros((20, 40), bool)

@@ -321,7 +321,8 @@ def widened_share(mask: np.ndarray, width: int, height: int) -> float | None:
     return _thin_strokes(np.asarray(mask, dtype=bool), width, height)[1]
 
 
-def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool = True) -> tuple:
+def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool = True,
+                       branches: bool = True) -> tuple:
     """Start at the lowest foreground pixel, heading along the shape.
 
     The start is the median foreground column of the lowest row: the middle of its run
@@ -365,7 +366,69 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool =
         # the closest to the centroid's; of two as close, the one that runs further
         angle = toward + offsets[chosen[np.lexsort((-runs[chosen], np.abs(offsets[chosen])))[0]]]
         direction = (math.cos(angle), math.sin(angle))
+    if along_shape and branches:
+        direction = _larger_branch(mask, col, row, direction)
     return ((col + 0.5) / w, (row + 0.5) / h), direction
+
+
+BRANCH_DOMINANCE = 2.0
+"""How many times the shape beyond the start's other branch must outweigh (in pixels) the
+branch the start heads into for the start to turn to it (:func:`_larger_branch`)."""
+
+
+def _larger_branch(mask: np.ndarray, col: int, row: int, direction: tuple) -> tuple:
+    """``direction``, or the way into the larger part of the shape where the start lies in
+    the middle of a stroke whose two sides differ: at the bottom of an "S" both ways run
+    along the stroke, and the centroid's rule took the short tail (a helper's S: 0.03 of
+    similarity against 0.68 the other way, both systems alike). The shape less a disc
+    about the start (three stroke widths, at most a tenth of the picture) falls into
+    branches; the ring just outside the disc holds each branch's entrances. When the way
+    ``direction`` enters is one branch and another is :data:`BRANCH_DOMINANCE` times its
+    size, the start heads to that one's entrance (of several, the closest in angle). A
+    filled shape, a ring (one branch, two entrances) and a stroke starting at its end
+    keep ``direction``."""
+    from scipy import ndimage
+
+    h, w = mask.shape
+    radius = min(max(3.0, 3.0 * stroke_width(mask)), 0.1 * max(h, w))
+    top, bottom = max(0, int(row - 2 * radius) - 1), min(h, int(row + 2 * radius) + 2)
+    left, right = max(0, int(col - 2 * radius) - 1), min(w, int(col + 2 * radius) + 2)
+    yy, xx = np.mgrid[top:bottom, left:right]
+    near = np.hypot(yy + 0.5 - (row + 0.5), xx + 0.5 - (col + 0.5))
+    beyond = mask.copy()
+    beyond[top:bottom, left:right] &= near >= radius
+    branches, count = ndimage.label(beyond, structure=np.ones((3, 3)))
+    if count < 2:
+        return direction
+    # the ring's pieces that the start's own stroke runs into (within the outer circle): a
+    # spiral's inner turn crossing the ring is no way out of the start
+    around = mask[top:bottom, left:right] & (near < 2 * radius)
+    pieces = ndimage.label(around, structure=np.ones((3, 3)))[0]
+    own = pieces[row - top, col - left]
+    ring = around & (near >= radius) & (pieces == own) if own else np.zeros_like(around)
+    entrances, n = ndimage.label(ring, structure=np.ones((3, 3)))
+    if n < 2:
+        return direction
+    sizes = np.bincount(branches.ravel(), minlength=count + 1)
+    local = branches[top:bottom, left:right]
+    doors = []  # (branch, its size, the entrance's direction)
+    for k in range(1, n + 1):
+        at = entrances == k
+        branch = int(np.bincount(local[at]).argmax())
+        dy, dx = float(yy[at].mean() + 0.5 - (row + 0.5)), float(xx[at].mean() + 0.5 - (col + 0.5))
+        norm = math.hypot(dx, dy)
+        if branch and norm > 0:
+            doors.append((branch, int(sizes[branch]), (dx / norm, dy / norm)))
+    if len({branch for branch, _, _ in doors}) < 2:
+        return direction
+    # the branch the current direction enters: the entrance closest to it in angle
+    heading = max(doors, key=lambda door: door[2][0] * direction[0] + door[2][1] * direction[1])
+    largest = max(size for _, size, _ in doors)
+    if heading[1] * BRANCH_DOMINANCE > largest:
+        return direction
+    best = max((door for door in doors if door[1] == largest),
+               key=lambda door: door[2][0] * direction[0] + door[2][1] * direction[1])
+    return best[2]
 
 
 # Parts this much smaller than the largest are noise (dust on a scan, a stray pixel);
