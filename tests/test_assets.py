@@ -722,25 +722,28 @@ def test_a_primitives_kinds_are_told_by_size_not_by_the_names_of_its_objects(tmp
 
 
 def test_cubes_the_user_named_torso_head_and_forearm_are_three_parts(tmp_path):
-    """h98's robots: a torso, a head and two forearms, each a Blender cube with its scale
-    applied (meshes Cube, Cube.001, Cube.002), within 3x of each other on every axis, were
-    one part type: the learned program's robots drew 2-5 of them anywhere (55 of 200
-    samples). Their objects' names, and sizes that the names keep apart, make them three.
-    Books named by colour, of sizes that overlap, stay one part."""
+    """h98's robots: a torso, a head and two forearms (under the upper arms), each a
+    Blender cube with its scale applied (meshes Cube, Cube.001, Cube.002), within 3x of
+    each other on every axis, were one part type: the learned program's robots drew 2-5
+    of them anywhere (55 of 200 samples). Their objects' names, where they hang in
+    different places and sizes keep them apart, make them three. Parts hanging side by
+    side, however named (books by colour or title), and roots named per file stay one."""
     rng = np.random.default_rng(2)
 
     def robot(path, k):
         torso = (0.36 + 0.02 * k, 0.5, 0.25)
         meshes = [("Cube", [box_mesh(torso)]), ("Cube.001", [box_mesh((0.22 + 0.01 * k,) * 3)]),
-                  ("Cube.002", [box_mesh((0.1, 0.3 + 0.01 * k, 0.1))])]
+                  ("Cube.002", [box_mesh((0.1, 0.3 + 0.01 * k, 0.1))]), ("Arm", [wedge_mesh(0.25)])]
         nodes = [{"name": "Torso", "mesh": 0, "children": [1, 2, 3]},
                  {"name": "Head", "mesh": 1, "translation": [0, 0.4, 0]},
-                 {"name": "Forearm", "mesh": 2, "translation": [0.3, -0.1, 0]},
-                 {"name": "Forearm.001", "mesh": 2, "translation": [-0.3, -0.1, 0]}]
+                 {"name": "UpperArm", "mesh": 3, "translation": [0.3, 0.1, 0], "children": [4]},
+                 {"name": "UpperArm.001", "mesh": 3, "translation": [-0.3, 0.1, 0], "children": [5]},
+                 {"name": "Forearm", "mesh": 2, "translation": [0, -0.3, 0]},
+                 {"name": "Forearm.001", "mesh": 2, "translation": [0, -0.3, 0]}]
         return write_gltf(path, meshes, nodes)
 
     read = read_assets([robot(tmp_path / f"r{k}.gltf", k) for k in range(4)])
-    assert sorted(read.parts) == ["Forearm", "Head", "Torso"]
+    assert sorted(read.parts) == ["Arm", "Forearm", "Head", "Torso"]
 
     def shelf(path):
         books = [{"name": colour, "mesh": 1, "translation": [0.1 * j - 0.2, 0.15, 0],
@@ -750,6 +753,28 @@ def test_cubes_the_user_named_torso_head_and_forearm_are_three_parts(tmp_path):
                           [{"name": "Shelf", "mesh": 0, "children": [1, 2, 3, 4, 5]}, *books])
 
     read = read_assets([shelf(tmp_path / f"s{k}.gltf") for k in range(4)])
+    assert len(read.parts) == 2, sorted(read.parts)
+
+    # h106: names alone split parts that hang side by side (books by title, one node each,
+    # each title apart in size from the next) and roots named per file (tops by wood)
+    def titled(path, k):
+        titles = [("Dune", "Emma", "Ulysses"), ("Hamlet", "Walden", "Beloved")][k]
+        books = [{"name": title, "mesh": 1, "translation": [0.1 * j - 0.1, 0.15, 0],
+                  "scale": [0.02 + 0.012 * j, 0.2 + 0.03 * j, 0.14]} for j, title in enumerate(titles)]
+        return write_gltf(path, [("Plank", [box_mesh((0.6, 0.02, 0.2))]), ("Cube", [box_mesh((1, 1, 1))])],
+                          [{"name": "Shelf", "mesh": 0, "children": [1, 2, 3]}, *books])
+
+    assert len(read_assets([titled(tmp_path / f"t{k}.gltf", k) for k in range(2)]).parts) == 2
+
+    def wooden(path, k):
+        wood = ("Oak", "Walnut", "Pine", "Birch")[k]
+        legs = [{"name": f"{wood}_Leg" + (f".{j:03d}" if j else ""), "mesh": 1, "translation": [x, -0.35, z]}
+                for j, (x, z) in enumerate(((0.4, 0.3), (-0.4, 0.3), (0.4, -0.3), (-0.4, -0.3)))]
+        return write_gltf(path, [("Cube", [box_mesh((1, 1, 1))]), ("Cylinder", [box_mesh((0.05, 0.7, 0.05))])],
+                          [{"name": f"{wood}_Top", "mesh": 0, "scale": [1.0 + 0.1 * k, 0.04, 0.7],
+                            "translation": [0, 0.72, 0], "children": [1, 2, 3, 4]}, *legs])
+
+    read = read_assets([wooden(tmp_path / f"w{k}.gltf", k) for k in range(4)])
     assert len(read.parts) == 2, sorted(read.parts)
 
 

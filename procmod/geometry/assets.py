@@ -521,7 +521,8 @@ def _given_name(g: _Geometry) -> str | None:
 # nodes, and where a copy sits (Leg_FL, LeftArm, Wing.R are legs, arms and wings)
 _GENERIC_NAME_WORDS = _DEFAULT_MESH_NAMES | {
     "link", "joint", "node", "object", "part", "geom", "geometry", "group", "body", "shape", "model", "obj",
-    "default", "untitled", "poly", "surface", "transform", "empty", "instance", "copy", "mirror", "mirrored"}
+    "default", "untitled", "poly", "surface", "transform", "empty", "instance", "copy", "mirror", "mirrored",
+    "geo", "grp", "lod", "proxy", "low", "high", "ctrl"}
 _PLACE_WORDS = {"left", "right", "front", "back", "rear", "top", "bottom", "upper", "lower", "inner", "outer",
                 "middle", "mid", "center", "centre", "side", "north", "south", "east", "west"}
 
@@ -564,14 +565,31 @@ def _named_apart(names: list) -> list | None:
     return [sorted(indices) for indices, _ in groups if indices]
 
 
-def _apart_in_size(groups: list, sizes: np.ndarray) -> list:
+def _hangs_under(raw, parent_of: dict, unit_of: dict):
+    """The kind of part ``raw`` hangs under: its nearest ancestor that draws something, as
+    its mesh's unit shape (the part kind before sizes, :func:`_bake_scales`) or its
+    geometry; None for a root."""
+    node = parent_of.get(id(raw))
+    while node is not None and node.geometry is None:  # an empty (a group) between them
+        node = parent_of.get(id(node))
+    if node is None:
+        return None
+    return unit_of[node.geometry][0] if node.geometry in unit_of else node.geometry
+
+
+def _apart_in_size(groups: list, sizes: np.ndarray, positions: list) -> list:
     """``groups`` (of indices into ``sizes``, log-extents of nodes) joined where their names
-    alone tell them apart: two name groups stay apart only where, along some axis, every
-    node of one is smaller than every node of the other (a torso and a head, a top and its
-    legs). Books named by their colours (``Red``, ``Blue``), of sizes that overlap, are one
-    part, told apart by size as before (a review found a version that took names alone
-    making each colour a part type)."""
+    alone tell them apart. Two name groups stay apart only where they hang in different
+    places (``positions``: per node, the kind of part it hangs under, or None for a root;
+    no parent kind in common) and, along some axis, every node of one is smaller than
+    every node of the other: a robot's torso (a root), head (under the torso) and forearms
+    (under the upper arms). Parts hanging side by side under one kind of parent are one
+    kind to names, however named (books named by colour or title, steps called Step in
+    some files and Tread in others, tops named per file: each had become a part type of
+    its own, h106), and so are groups whose sizes overlap along every axis; sizes then
+    tell them apart, as before."""
     boxes = [(sizes[g].min(axis=0), sizes[g].max(axis=0)) for g in groups]
+    places = [{positions[k] for k in g} for g in groups]
     parent = list(range(len(groups)))
 
     def root(i: int) -> int:
@@ -581,7 +599,7 @@ def _apart_in_size(groups: list, sizes: np.ndarray) -> list:
 
     for i, j in itertools.combinations(range(len(groups)), 2):
         (lo_i, hi_i), (lo_j, hi_j) = boxes[i], boxes[j]
-        if not ((hi_i < lo_j) | (hi_j < lo_i)).any():  # overlapping along every axis: not told apart
+        if places[i] & places[j] or not ((hi_i < lo_j) | (hi_j < lo_i)).any():
             parent[root(j)] = root(i)
     joined = {}
     for i, group in enumerate(groups):
@@ -740,9 +758,9 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     (the tool's copies ``Pole``, ``Pole.001``, or a primitive's name such as ``Cube``;
     meshes the user named apart, ``column`` and ``wall``, stay apart), are grouped by
     their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
-    are one group), within the kinds their objects' names tell apart where the sizes
-    agree (:func:`_named_apart`, :func:`_apart_in_size`: a robot's Torso, Head and
-    Forearm cubes). One mesh whose nodes form one group with a scale within that factor
+    are one group), within the kinds their objects' names tell apart where they hang in
+    different places and their sizes agree (:func:`_named_apart`, :func:`_apart_in_size`:
+    a robot's Torso, Head and Forearm cubes). One mesh whose nodes form one group with a scale within that factor
     of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
     the learner's to model). Otherwise each group is a geometry of its own: the mesh with
     the group's mean size put into it, the nodes keeping what differs from that mean (a
@@ -757,9 +775,12 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     by_geometry, unit_of, unit_shapes = {}, {}, {}
     read_order = {id(raw): k for k, raw in enumerate(r for forest in forests for top in forest for r in _walk(top))}
     stack = [raw for forest in forests for raw in forest]
+    parent_of = {}  # id(node) -> its parent node
     while stack:
         raw = stack.pop()
         stack.extend(raw.children)
+        for child in raw.children:
+            parent_of[id(child)] = raw
         if raw.geometry is None or geometries[raw.geometry].kind != "mesh":
             continue  # an empty, or a URDF box (its joints are rigid)
         linear = raw.world[:3, :3]
@@ -805,7 +826,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         # within 3x of each other, h98's robots) is a part per name, then per size
         named = _named_apart([raw.name for raw, *_ in placed]) if topology[1] is None else None
         if named is not None:
-            named = _apart_in_size(named, sizes)
+            named = _apart_in_size(named, sizes, [_hangs_under(raw, parent_of, unit_of) for raw, *_ in placed])
         groups = sorted(([members[k] for k in group] for members in (named or [list(range(len(placed)))])
                          for group in _scale_groups(sizes[members])), key=lambda group: group[0])
         meshes = {raw.geometry for raw, *_ in placed}
