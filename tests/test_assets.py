@@ -777,6 +777,20 @@ def test_cubes_the_user_named_torso_head_and_forearm_are_three_parts(tmp_path):
     read = read_assets([wooden(tmp_path / f"w{k}.gltf", k) for k in range(4)])
     assert len(read.parts) == 2, sorted(read.parts)
 
+    # h108: names given per file, under a parent of its own in each (a car's wheels called
+    # Wheel, Tyre and Tire, under three bodies): each file's wheels had been a part type
+    def car(path, k):
+        word = ("Wheel", "Tyre", "Tire")[k]
+        wheels = [{"name": f"{word}_{corner}", "mesh": 1, "translation": [x, -0.3, z],
+                   "scale": [0.3 + 0.04 * k, 0.3 + 0.04 * k, 0.2]}
+                  for corner, (x, z) in zip(("FL", "FR", "RL", "RR"), ((1, 0.8), (1, -0.8), (-1, 0.8), (-1, -0.8)))]
+        return write_gltf(path, [(f"Body{k}", [box_mesh((3.0 + 0.5 * k, 1.0 + 0.3 * k, 1.6))]),
+                                 ("Cylinder", [box_mesh((1, 1, 1))])],
+                          [{"name": "Body", "mesh": 0, "children": [1, 2, 3, 4]}, *wheels])
+
+    read = read_assets([car(tmp_path / f"c{k}.gltf", k) for k in range(3)])
+    assert len(read.parts) == 2, sorted(read.parts)  # a body, a wheel
+
 
 def _cube_chair(path, height: float, baked_legs: bool = False):
     """A chair as Blender users make one: the default cube scaled into a seat, a back and

@@ -565,6 +565,16 @@ def _named_apart(names: list) -> list | None:
     return [sorted(indices) for indices, _ in groups if indices]
 
 
+def _recurring(groups: list, files: list, count: int) -> bool:
+    """Whether every name group (indices into ``files``, each node's file) recurs across
+    the ``count`` files as a kind does: in two files or more and in at least half of them
+    (a robot's Torso, Head and Forearm in every file). Names given per file (books by
+    title, a car's wheels called Wheel in one file, Tyre and Tire in others, under a body
+    of its own each: h108) are no kinds: each file's became a part type of its own."""
+    least = max(2, math.ceil(count / 2))
+    return all(len({files[k] for k in group}) >= least for group in groups)
+
+
 def _hangs_under(raw, parent_of: dict, unit_of: dict):
     """The kind of part ``raw`` hangs under: its nearest ancestor that draws something, as
     its mesh's unit shape (the part kind before sizes, :func:`_bake_scales`) or its
@@ -774,6 +784,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     (:func:`_without_small_shear`)."""
     by_geometry, unit_of, unit_shapes = {}, {}, {}
     read_order = {id(raw): k for k, raw in enumerate(r for forest in forests for top in forest for r in _walk(top))}
+    file_of = {id(raw): f for f, forest in enumerate(forests) for top in forest for raw in _walk(top)}
     stack = [raw for forest in forests for raw in forest]
     parent_of = {}  # id(node) -> its parent node
     while stack:
@@ -825,6 +836,8 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         # a tool's primitive the user named per node (Torso, Head, Forearm: three cubes
         # within 3x of each other, h98's robots) is a part per name, then per size
         named = _named_apart([raw.name for raw, *_ in placed]) if topology[1] is None else None
+        if named is not None and not _recurring(named, [file_of[id(raw)] for raw, *_ in placed], len(forests)):
+            named = None  # names the user gave per file (titles, synonyms): no kinds
         if named is not None:
             named = _apart_in_size(named, sizes, [_hangs_under(raw, parent_of, unit_of) for raw, *_ in placed])
         groups = sorted(([members[k] for k in group] for members in (named or [list(range(len(placed)))])
