@@ -768,10 +768,11 @@ def _bake_scales(forests: list, geometries: dict) -> None:
     (the tool's copies ``Pole``, ``Pole.001``, or a primitive's name such as ``Cube``;
     meshes the user named apart, ``column`` and ``wall``, stay apart), are grouped by
     their sizes (single linkage: within :data:`SCALE_GROUP` of each other on every axis
-    are one group), within the kinds their objects' names tell apart where they hang in
-    different places and their sizes agree (:func:`_named_apart`, :func:`_apart_in_size`:
-    a robot's Torso, Head and Forearm cubes). One mesh whose nodes form one group with a scale within that factor
-    of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
+    are one group), within the kinds their objects' names tell apart where the names
+    recur across the files, hang in different places and their sizes agree
+    (:func:`_named_apart`, :func:`_recurring`, :func:`_apart_in_size`: a robot's Torso,
+    Head and Forearm cubes). One mesh whose nodes form one group with a scale within that
+    factor of 1 keeps it on the nodes, as read (a part whose size varies from example to example,
     the learner's to model). Otherwise each group is a geometry of its own: the mesh with
     the group's mean size put into it, the nodes keeping what differs from that mean (a
     pole added at five depths, its scale applied in every example, was five part types,

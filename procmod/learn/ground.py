@@ -35,6 +35,7 @@ are a few millimetres off it (a helper's tables: +-3 mm on 1.2 m), a set with no
 (spaceships of several sizes, centred on their body) differs by a sizeable fraction."""
 
 ROOT_HEIGHT = "x.t1"  # the choice a part's translation along its frame's y axis is drawn as
+SETTLE_STEPS = 3  # the most replays that move a sample (each corrects the last one's miss)
 
 
 def examples_ground(example_set: ExampleSet) -> float | None:
@@ -132,9 +133,7 @@ def settle_on_ground(ground: float, derivation, slope: float | None = None):
     return best
 
 
-SETTLE_STEPS = 3
-
-
 def _extent(derivation) -> np.ndarray:
+    """The size of a derivation's parts' bounding box along each axis."""
     lo, hi = scene_bounds(derivation.geometry())
     return hi - lo

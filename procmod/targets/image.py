@@ -372,10 +372,11 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool =
 
 
 BRANCH_DOMINANCE = 2.0
-BRANCH_SIDE = 1024  # the largest side _larger_branch reads a mask at (pixels; a 6000-pixel one took 0.3 s more)
-ONE_PIECE = 0.8  # the least share of the shape the start's piece holds for it to turn (an "i"'s dot aside)
 """How many times the shape beyond the start's other branch must outweigh (in pixels) the
 branch the start heads into for the start to turn to it (:func:`_larger_branch`)."""
+
+BRANCH_SIDE = 1024  # the largest side _larger_branch reads a mask at (pixels; a 6000-pixel one took 0.3 s more)
+ONE_PIECE = 0.8  # the least share of the shape the start's piece holds for it to turn (an "i"'s dot aside)
 
 
 def _larger_branch(mask: np.ndarray, col: int, row: int, direction: tuple) -> tuple:
@@ -811,8 +812,8 @@ def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool
     each and the pixels ``across`` each: :data:`RULING_LINES` or more thin runs of rows
     each crossed for :data:`RULING_SPAN` of its length, the spaces between them even
     within :data:`RULING_EVEN`, from first to last over :data:`RULING_COVER` of the
-    picture; None otherwise. ``ruled=False`` (on a page ruled the
-    other way): any such run, a margin line."""
+    picture; None otherwise. ``ruled=False`` (on a page ruled the other way): any such
+    run, a margin line."""
     crossed = counts >= RULING_SPAN * np.maximum(across, 1)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], crossed.astype(np.int8), [0]])))
     runs = [(start, stop) for start, stop in zip(edges[::2], edges[1::2]) if stop - start <= thin]
