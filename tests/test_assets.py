@@ -777,10 +777,11 @@ def test_cubes_the_user_named_torso_head_and_forearm_are_three_parts(tmp_path):
     read = read_assets([wooden(tmp_path / f"w{k}.gltf", k) for k in range(4)])
     assert len(read.parts) == 2, sorted(read.parts)
 
-    # h108: names given per file, under a parent of its own in each (a car's wheels called
-    # Wheel, Tyre and Tire, under three bodies): each file's wheels had been a part type
-    def car(path, k):
-        word = ("Wheel", "Tyre", "Tire")[k]
+    # h108, h109: names given per file, under a parent of its own in each (a car's wheels
+    # called Wheel, Tyre and Tire under three bodies; Wheel by one author, Tire by another,
+    # whose wheels are bigger): each file's, or each author's, wheels had been a part type
+    def car(path, k, words=("Wheel", "Tyre", "Tire")):
+        word = words[k]
         wheels = [{"name": f"{word}_{corner}", "mesh": 1, "translation": [x, -0.3, z],
                    "scale": [0.3 + 0.04 * k, 0.3 + 0.04 * k, 0.2]}
                   for corner, (x, z) in zip(("FL", "FR", "RL", "RR"), ((1, 0.8), (1, -0.8), (-1, 0.8), (-1, -0.8)))]
@@ -790,6 +791,8 @@ def test_cubes_the_user_named_torso_head_and_forearm_are_three_parts(tmp_path):
 
     read = read_assets([car(tmp_path / f"c{k}.gltf", k) for k in range(3)])
     assert len(read.parts) == 2, sorted(read.parts)  # a body, a wheel
+    read = read_assets([car(tmp_path / f"a{k}.gltf", k, ("Wheel", "Wheel", "Tire", "Tire")) for k in range(4)])
+    assert len(read.parts) == 2, sorted(read.parts)
 
 
 def _cube_chair(path, height: float, baked_legs: bool = False):

@@ -587,19 +587,23 @@ def _hangs_under(raw, parent_of: dict, unit_of: dict):
     return unit_of[node.geometry][0] if node.geometry in unit_of else node.geometry
 
 
-def _apart_in_size(groups: list, sizes: np.ndarray, positions: list) -> list:
+def _apart_in_size(groups: list, sizes: np.ndarray, positions: list, files: list) -> list:
     """``groups`` (of indices into ``sizes``, log-extents of nodes) joined where their names
-    alone tell them apart. Two name groups stay apart only where they hang in different
-    places (``positions``: per node, the kind of part it hangs under, or None for a root;
-    no parent kind in common) and, along some axis, every node of one is smaller than
-    every node of the other: a robot's torso (a root), head (under the torso) and forearms
-    (under the upper arms). Parts hanging side by side under one kind of parent are one
-    kind to names, however named (books named by colour or title, steps called Step in
-    some files and Tread in others, tops named per file: each had become a part type of
-    its own, h106), and so are groups whose sizes overlap along every axis; sizes then
-    tell them apart, as before."""
+    alone tell them apart. Two name groups stay apart only where they are found together
+    (``files``: each node's file; in at least half the files either is in), hang in
+    different places (``positions``: per node, the kind of part it hangs under, or None
+    for a root; no parent kind in common) and, along some axis, every node of one is
+    smaller than every node of the other: a robot's torso (a root), head (under the
+    torso) and forearms (under the upper arms), in every file. Parts hanging side by side
+    under one kind of parent are one kind to names, however named (books named by colour
+    or title, steps called Step in some files and Tread in others, tops named per file:
+    each had become a part type of its own, h106); so are names that take each other's
+    place from file to file (wheels called Wheel by one author and Tire by another, under
+    bodies of their own: h109), and groups whose sizes overlap along every axis; sizes
+    then tell them apart, as before."""
     boxes = [(sizes[g].min(axis=0), sizes[g].max(axis=0)) for g in groups]
     places = [{positions[k] for k in g} for g in groups]
+    found = [{files[k] for k in g} for g in groups]
     parent = list(range(len(groups)))
 
     def root(i: int) -> int:
@@ -609,7 +613,8 @@ def _apart_in_size(groups: list, sizes: np.ndarray, positions: list) -> list:
 
     for i, j in itertools.combinations(range(len(groups)), 2):
         (lo_i, hi_i), (lo_j, hi_j) = boxes[i], boxes[j]
-        if places[i] & places[j] or not ((hi_i < lo_j) | (hi_j < lo_i)).any():
+        together = len(found[i] & found[j]) >= 0.5 * len(found[i] | found[j])
+        if not together or places[i] & places[j] or not ((hi_i < lo_j) | (hi_j < lo_i)).any():
             parent[root(j)] = root(i)
     joined = {}
     for i, group in enumerate(groups):
@@ -837,10 +842,11 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         # a tool's primitive the user named per node (Torso, Head, Forearm: three cubes
         # within 3x of each other, h98's robots) is a part per name, then per size
         named = _named_apart([raw.name for raw, *_ in placed]) if topology[1] is None else None
-        if named is not None and not _recurring(named, [file_of[id(raw)] for raw, *_ in placed], len(forests)):
+        files = [file_of[id(raw)] for raw, *_ in placed]
+        if named is not None and not _recurring(named, files, len(forests)):
             named = None  # names the user gave per file (titles, synonyms): no kinds
         if named is not None:
-            named = _apart_in_size(named, sizes, [_hangs_under(raw, parent_of, unit_of) for raw, *_ in placed])
+            named = _apart_in_size(named, sizes, [_hangs_under(raw, parent_of, unit_of) for raw, *_ in placed], files)
         groups = sorted(([members[k] for k in group] for members in (named or [list(range(len(placed)))])
                          for group in _scale_groups(sizes[members])), key=lambda group: group[0])
         meshes = {raw.geometry for raw, *_ in placed}
