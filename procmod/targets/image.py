@@ -233,9 +233,18 @@ def lost_share(mask: np.ndarray, small: np.ndarray) -> float:
 def stroke_width(mask: np.ndarray) -> float:
     """A drawing's typical stroke width in pixels: twice its area over its boundary pixels
     (a stroke of width w and length L has area w L and about 2 L boundary pixels; a stroke
-    one or two pixels wide is all boundary)."""
-    from scipy import ndimage
-    boundary = int((mask & ~ndimage.binary_erosion(mask)).sum())
+    one or two pixels wide is all boundary). A boundary pixel is one with a 4-neighbour
+    off the mask or off the picture (``scipy.ndimage.binary_erosion``'s, without
+    importing scipy.ndimage: a target's start is read at every ``procmod infer``)."""
+    mask = np.asarray(mask, dtype=bool)
+    inner = mask.copy()
+    inner[1:] &= mask[:-1]
+    inner[:-1] &= mask[1:]
+    inner[:, 1:] &= mask[:, :-1]
+    inner[:, :-1] &= mask[:, 1:]
+    inner[[0, -1]] = False
+    inner[:, [0, -1]] = False
+    boundary = int((mask & ~inner).sum())
     return 2.0 * int(mask.sum()) / max(boundary, 1)
 
 
@@ -392,7 +401,7 @@ def _larger_branch(mask: np.ndarray, col: int, row: int, direction: tuple) -> tu
     keep ``direction``, and so does a start on one of several pieces (a word's letters:
     the rest of the word may lie past the short side, h107's "Quizzes" 0.36 -> 0.07).
     Read on the mask reduced to at most :data:`BRANCH_SIDE` pixels a side."""
-    from scipy import ndimage
+    from .components import labels as parts  # numba: no scipy.ndimage to import at every start
 
     h, w = mask.shape
     factor = math.ceil(max(h, w) / BRANCH_SIDE)
@@ -401,9 +410,9 @@ def _larger_branch(mask: np.ndarray, col: int, row: int, direction: tuple) -> tu
         padded[:h, :w] = mask
         mask = padded.reshape(padded.shape[0] // factor, factor, padded.shape[1] // factor, factor).any(axis=(1, 3))
         col, row, h, w = col // factor, row // factor, mask.shape[0], mask.shape[1]
-    labels, _ = ndimage.label(mask, structure=np.ones((3, 3)))
-    piece_sizes = np.bincount(labels.ravel())
-    if not labels[row, col] or piece_sizes[labels[row, col]] < ONE_PIECE * piece_sizes[1:].sum():
+    pieces, _ = parts(mask)
+    piece_sizes = np.bincount(pieces.ravel())
+    if not pieces[row, col] or piece_sizes[pieces[row, col]] < ONE_PIECE * piece_sizes[1:].sum():
         return direction
     radius = min(max(3.0, 3.0 * stroke_width(mask)), 0.1 * max(h, w))
     top, bottom = max(0, int(row - 2 * radius) - 1), min(h, int(row + 2 * radius) + 2)
@@ -412,16 +421,16 @@ def _larger_branch(mask: np.ndarray, col: int, row: int, direction: tuple) -> tu
     near = np.hypot(yy + 0.5 - (row + 0.5), xx + 0.5 - (col + 0.5))
     beyond = mask.copy()
     beyond[top:bottom, left:right] &= near >= radius
-    branches, count = ndimage.label(beyond, structure=np.ones((3, 3)))
+    branches, count = parts(beyond)
     if count < 2:
         return direction
     # the ring's pieces that the start's own stroke runs into (within the outer circle): a
     # spiral's inner turn crossing the ring is no way out of the start
     around = mask[top:bottom, left:right] & (near < 2 * radius)
-    pieces = ndimage.label(around, structure=np.ones((3, 3)))[0]
-    own = pieces[row - top, col - left]
-    ring = around & (near >= radius) & (pieces == own) if own else np.zeros_like(around)
-    entrances, n = ndimage.label(ring, structure=np.ones((3, 3)))
+    stroke = parts(around)[0]
+    own = stroke[row - top, col - left]
+    ring = around & (near >= radius) & (stroke == own) if own else np.zeros_like(around)
+    entrances, n = parts(ring)
     if n < 2:
         return direction
     sizes = np.bincount(branches.ravel(), minlength=count + 1)
