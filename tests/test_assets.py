@@ -745,6 +745,31 @@ def test_cubes_the_user_named_torso_head_and_forearm_are_three_parts(tmp_path):
     read = read_assets([robot(tmp_path / f"r{k}.gltf", k) for k in range(4)])
     assert sorted(read.parts) == ["Arm", "Forearm", "Head", "Torso"]
 
+    # h110: the head on a neck and the forearms on upper arms, necks and arms scaled from
+    # one cylinder: where each hangs is read before any mesh is baked (the split had turned
+    # on the order of the root's children), and by its parent's name too
+    def necked(path, k, stand_first):
+        cylinder, cube = box_mesh((1, 1, 1)), box_mesh((1, 1, 1))
+        meshes = [("Cube", [cube]), ("Cylinder", [cylinder])]
+        nodes = [{"name": "Robot", "children": [2, 1] if stand_first else [1, 2]},
+                 {"name": "Torso", "mesh": 0, "scale": [0.36 + 0.02 * k, 0.5, 0.25], "children": [3, 4, 5]},
+                 {"name": "Stand", "mesh": 1, "scale": [0.6, 0.05, 0.6], "translation": [0, -1, 0]},
+                 {"name": "Neck", "mesh": 1, "scale": [0.3, 0.1, 0.4], "translation": [0, 0.6, 0], "children": [6]},
+                 {"name": "UpperArm", "mesh": 1, "scale": [0.25, 0.6, 0.4], "translation": [0.8, 0, 0],
+                  "children": [7]},
+                 {"name": "UpperArm.001", "mesh": 1, "scale": [0.25, 0.6, 0.4], "translation": [-0.8, 0, 0],
+                  "children": [8]},
+                 {"name": "Head", "mesh": 0, "scale": [2.2 + 0.1 * k, 2.2, 1.8], "translation": [0, 3, 0]},
+                 {"name": "Forearm", "mesh": 0, "scale": [1.2, 0.6 + 0.01 * k, 0.9], "translation": [0, -1.2, 0]},
+                 {"name": "Forearm.001", "mesh": 0, "scale": [1.2, 0.6 + 0.01 * k, 0.9], "translation": [0, -1.2, 0]}]
+        return write_gltf(path, meshes, nodes)
+
+    for stand_first in (False, True):
+        read = read_assets([necked(tmp_path / f"n{k}{stand_first}.gltf", k, stand_first) for k in range(4)])
+        kinds = {asset.path.name: sorted({n.part for n in asset.nodes() if n.name.startswith(("Head", "Forearm"))})
+                 for asset in read.assets}
+        assert all(len(parts) == 2 for parts in kinds.values()), (stand_first, kinds)
+
     def shelf(path):
         books = [{"name": colour, "mesh": 1, "translation": [0.1 * j - 0.2, 0.15, 0],
                   "scale": [rng.uniform(0.02, 0.05), rng.uniform(0.18, 0.26), rng.uniform(0.12, 0.16)]}

@@ -576,23 +576,26 @@ def _recurring(groups: list, files: list, count: int) -> bool:
 
 
 def _hangs_under(raw, parent_of: dict, unit_of: dict):
-    """The kind of part ``raw`` hangs under: its nearest ancestor that draws something, as
-    its mesh's unit shape (the part kind before sizes, :func:`_bake_scales`) or its
-    geometry; None for a root."""
+    """Where ``raw`` hangs: its nearest ancestor that draws something, as that one's mesh's
+    unit shape (the part kind before sizes, :func:`_bake_scales`) or its geometry, with
+    the words of its name (a robot made of cubes: a head under the Torso, forearms under
+    the UpperArms); None for a root. Read before any mesh is baked, so that it does not
+    depend on the order the meshes are baked in (h110)."""
     node = parent_of.get(id(raw))
     while node is not None and node.geometry is None:  # an empty (a group) between them
         node = parent_of.get(id(node))
     if node is None:
         return None
-    return unit_of[node.geometry][0] if node.geometry in unit_of else node.geometry
+    kind = unit_of[node.geometry][0] if node.geometry in unit_of else node.geometry
+    return kind, frozenset(_name_words(node.name) - _GENERIC_NAME_WORDS)
 
 
 def _apart_in_size(groups: list, sizes: np.ndarray, positions: list, files: list) -> list:
     """``groups`` (of indices into ``sizes``, log-extents of nodes) joined where their names
     alone tell them apart. Two name groups stay apart only where they are found together
     (``files``: each node's file; in at least half the files either is in), hang in
-    different places (``positions``: per node, the kind of part it hangs under, or None
-    for a root; no parent kind in common) and, along some axis, every node of one is
+    different places (``positions``: per node, where it hangs, :func:`_hangs_under`, None
+    for a root; no place in common) and, along some axis, every node of one is
     smaller than every node of the other: a robot's torso (a root), head (under the
     torso) and forearms (under the upper arms), in every file. Parts hanging side by side
     under one kind of parent are one kind to names, however named (books named by colour
@@ -836,6 +839,8 @@ def _bake_scales(forests: list, geometries: dict) -> None:
             by_geometry.setdefault(same, []).append((raw, turn, norms, extents))
         else:  # shears: the whole linear map goes into a geometry of its own
             _bake(raw, geometries, linear, np.eye(3), np.ones(3))
+    # where each node hangs, before any baking renames its parent's geometry
+    hangs = {id(raw): _hangs_under(raw, parent_of, unit_of) for placed in by_geometry.values() for raw, *_ in placed}
     for (topology, _), placed in by_geometry.items():
         sizes = np.log([norms * extents for _, _, norms, extents in placed])  # of the unit shape
         scaled = np.log([norms for _, _, norms, _ in placed])
@@ -846,7 +851,7 @@ def _bake_scales(forests: list, geometries: dict) -> None:
         if named is not None and not _recurring(named, files, len(forests)):
             named = None  # names the user gave per file (titles, synonyms): no kinds
         if named is not None:
-            named = _apart_in_size(named, sizes, [_hangs_under(raw, parent_of, unit_of) for raw, *_ in placed], files)
+            named = _apart_in_size(named, sizes, [hangs[id(raw)] for raw, *_ in placed], files)
         groups = sorted(([members[k] for k in group] for members in (named or [list(range(len(placed)))])
                          for group in _scale_groups(sizes[members])), key=lambda group: group[0])
         meshes = {raw.geometry for raw, *_ in placed}
