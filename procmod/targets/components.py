@@ -41,6 +41,26 @@ def _union_parts(mask):
 
 
 @numba.njit(cache=True)
+def _without_specks(mask, share):
+    h, w = mask.shape
+    parent = _union_parts(mask)
+    sizes = np.zeros(h * w, dtype=np.int32)  # by root
+    largest = 0
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                r = _root(parent, y * w + x)
+                sizes[r] += 1
+                largest = max(largest, sizes[r])
+    keep = np.zeros((h, w), dtype=np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                keep[y, x] = sizes[_root(parent, y * w + x)] >= share * largest
+    return keep
+
+
+@numba.njit(cache=True)
 def _part_count(mask):
     h, w = mask.shape
     parent = _union_parts(mask)
@@ -56,6 +76,17 @@ def part_count(mask: np.ndarray) -> int:
     """How many 8-connected parts ``mask`` has (``scipy.ndimage.label``'s count with a 3x3
     structure, without importing scipy.ndimage)."""
     return int(_part_count(np.ascontiguousarray(np.asarray(mask, dtype=np.bool_))))
+
+
+def without_specks(mask: np.ndarray, share: float) -> np.ndarray:
+    """``mask`` without its 8-connected parts smaller than ``share`` of the largest."""
+    mask = np.asarray(mask, dtype=np.bool_)
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    out = np.zeros(mask.shape, dtype=np.bool_)
+    if len(rows):  # only the box around the foreground is labelled: a drawing rarely fills its page
+        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        out[box] = _without_specks(np.ascontiguousarray(mask[box]), float(share))
+    return out
 
 
 @numba.njit(cache=True)
@@ -82,18 +113,3 @@ def labels(mask: np.ndarray) -> tuple:
     3x3 structure, without importing scipy.ndimage)."""
     out, count = _labels(np.ascontiguousarray(np.asarray(mask, dtype=np.bool_)))
     return out, int(count)
-
-
-def without_specks(mask: np.ndarray, share: float) -> np.ndarray:
-    """``mask`` without its 8-connected parts smaller than ``share`` of the largest."""
-    mask = np.asarray(mask, dtype=np.bool_)
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    out = np.zeros(mask.shape, dtype=np.bool_)
-    if len(rows):  # only the box around the foreground is labelled: a drawing rarely fills its page
-        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-        parts, _ = _labels(np.ascontiguousarray(mask[box]))
-        sizes = np.bincount(parts.ravel())
-        sizes[0] = 0  # off the mask
-        out[box] = sizes[parts] >= float(share) * sizes.max()
-        out[box] &= mask[box]
-    return out
