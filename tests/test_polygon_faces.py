@@ -321,3 +321,26 @@ def test_second_review_cases(tmp_path):
     (tmp_path / "faces.obj").write_text("f 1 2 3 4\n")
     with pytest.raises(ValueError, match="line 1 names vertex 4, but the file has 0 vertices"):
         load_mesh_file(tmp_path / "faces.obj", force="mesh", process=False)
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_a_ply_of_triangle_strips_reads_as_its_shape(tmp_path, fmt):
+    """The Stanford scanning repository's older models and range-scan tools write faces as
+    a `tristrips` element (strips separated by -1, every other triangle turned the other
+    way); trimesh reads none, and procmod refused such a file as holding no triangle
+    faces. A unit cube in two strips, with a stitch between them, reads as a closed cube
+    facing out."""
+    from plyfile import PlyData, PlyElement
+
+    corners = np.array([(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float32)
+    # the four sides round the cube, then the top and the bottom: two strips in one row
+    sides = [0, 4, 1, 5, 3, 7, 2, 6, 0, 4]
+    ends = [4, 6, 5, 7, -1, 0, 1, 2, 3]
+    vertex = np.array([tuple(c) for c in corners], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    strips = np.array([(np.array(sides + [-1] + ends, dtype=np.int32),)], dtype=[("vertex_indices", "O")])
+    PlyData([PlyElement.describe(vertex, "vertex"), PlyElement.describe(strips, "tristrips",
+                                                                        val_types={"vertex_indices": "i4"})],
+            text=(fmt == "ascii"), byte_order="<").write(str(tmp_path / "cube.ply"))
+    mesh = load_mesh_file(tmp_path / "cube.ply")
+    assert len(mesh.faces) == 12 and mesh.is_watertight and mesh.is_winding_consistent
+    assert mesh.volume == pytest.approx(1.0) and mesh.area == pytest.approx(6.0)  # facing out, every side once

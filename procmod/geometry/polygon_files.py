@@ -49,6 +49,8 @@ def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if missing:
         raise ValueError(f"the PLY file's vertices have no {', '.join(missing)} property")
     vertices = np.stack([np.asarray(vertex[axis], dtype=np.float64) for axis in "xyz"], axis=1)
+    if "face" not in names and "tristrips" in names:
+        return vertices, strip_triangles(data["tristrips"], len(vertices))
     if "face" not in names:
         return vertices, np.zeros((0, 3), dtype=np.int64)
     face = data["face"]
@@ -56,6 +58,36 @@ def read_ply(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if prop is None:
         raise ValueError("the PLY file's faces have no vertex_indices (or vertex_index) list")
     return vertices, triangulate_faces(vertices, face[prop])
+
+
+def strip_triangles(tristrips, vertex_count: int) -> np.ndarray:
+    """The triangles of a PLY ``tristrips`` element (the Stanford scanning repository's
+    older models, and range-scan tools, write their faces so; trimesh reads none of them
+    and procmod had refused such a file as holding no triangle faces): each row's
+    ``vertex_indices`` list is one or more strips separated by -1, a strip of n vertices
+    being n - 2 triangles whose turning alternates. Triangles that repeat a vertex (the
+    stitches between strips) are dropped. Raises ValueError for an index out of range."""
+    prop = next((p for p in ("vertex_indices", "vertex_index") if p in tristrips.data.dtype.names), None)
+    if prop is None:
+        raise ValueError("the PLY file's tristrips have no vertex_indices list")
+    triangles = []
+    for row in tristrips[prop]:
+        row = np.asarray(row, dtype=np.int64)
+        if row.size and (row.max() >= vertex_count or row.min() < -1):
+            bad = int(row.max() if row.max() >= vertex_count else row.min())
+            raise ValueError(f"the PLY file's tristrips name vertex {bad}, but it has {vertex_count} vertices")
+        for strip in np.split(row, np.flatnonzero(row == -1)):
+            strip = strip[strip != -1]
+            if len(strip) < 3:
+                continue
+            a, b, c = strip[:-2], strip[1:-1], strip[2:]
+            odd = np.arange(len(a)) % 2 == 1  # every other triangle turns the other way: swap two corners
+            triangles.append(np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1))
+    if not triangles:
+        return np.zeros((0, 3), dtype=np.int64)
+    out = np.concatenate(triangles)
+    keep = (out[:, 0] != out[:, 1]) & (out[:, 1] != out[:, 2]) & (out[:, 0] != out[:, 2])
+    return out[keep]
 
 
 def read_off(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
