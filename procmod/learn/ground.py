@@ -58,13 +58,14 @@ def examples_ground(example_set: ExampleSet) -> float | None:
     return float(np.median(lows))
 
 
-def lowest_point(derivation) -> tuple:
-    """``(lowest height, bounding-box diagonal)`` of a derivation's parts; None without parts."""
+def _bounds(derivation) -> tuple | None:
+    """``(lowest height, extent along each axis)`` of a derivation's parts' bounding box;
+    None without parts."""
     geometry = derivation.geometry()
     if not geometry:
         return None
     lo, hi = scene_bounds(geometry)
-    return float(lo[1]), float(np.linalg.norm(hi - lo))
+    return float(lo[1]), hi - lo
 
 
 def settle_on_ground(ground: float, derivation, slope: float | None = None):
@@ -84,10 +85,11 @@ def settle_on_ground(ground: float, derivation, slope: float | None = None):
     """
     if not derivation.done or derivation.stopped:
         return derivation
-    measured = lowest_point(derivation)
+    measured = _bounds(derivation)
     if measured is None:
         return derivation
-    low, size = measured
+    low, extent = measured
+    size = float(np.linalg.norm(extent))
     # there to 1e-9 of its size, or to what floats resolve that far from the origin
     if abs(low - ground) <= max(1e-9 * size, 8 * np.finfo(float).eps * abs(ground)):
         return derivation
@@ -99,16 +101,15 @@ def settle_on_ground(ground: float, derivation, slope: float | None = None):
     order = derivation.order()
     model = derivation.model
     rng = np.random.default_rng(0)  # every choice is in the map: nothing is drawn
-    extent = _extent(derivation)
 
     def replayed(height: float):
         """(the derivation with the root's height choice at ``height``, its lowest point),
         or None where it is not the sample moved whole (other calls, or another extent)."""
         run = replay(model, {**choices, key: height}, rng, order)
-        point = lowest_point(run.derivation) if not run.unused else None
-        if point is None or np.abs(_extent(run.derivation) - extent).max() > 1e-6 * size:
+        moved = _bounds(run.derivation) if not run.unused else None
+        if moved is None or np.abs(moved[1] - extent).max() > 1e-6 * size:
             return None
-        return run.derivation, point[0]
+        return run.derivation, moved[0]
 
     height, at = float(choices[key]), low
     if slope is None:
@@ -131,9 +132,3 @@ def settle_on_ground(ground: float, derivation, slope: float | None = None):
             break
         slope, height, at = (lands - at) / (moved_to - height), moved_to, lands
     return best
-
-
-def _extent(derivation) -> np.ndarray:
-    """The size of a derivation's parts' bounding box along each axis."""
-    lo, hi = scene_bounds(derivation.geometry())
-    return hi - lo

@@ -722,6 +722,7 @@ def squared_examples(example_set: ExampleSet) -> ExampleSet:
 
     for example in example_set.examples:
         collect(example, np.eye(3), None)
+
     def off_square(e: np.ndarray) -> np.ndarray:  # each angle's distance to its nearest quarter turn
         return np.abs(_wrap(e - np.round(e / quarter) * quarter))
 

@@ -865,14 +865,14 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
         return ink
     h, w = ink.shape
     thin = max(3, round(RULING_THIN * max(h, w)))
-    along = {"rows": (ys, h, where.sum(axis=1)), "columns": (xs, w, where.sum(axis=0))}
-    lines = {way: _ruling_lines(np.bincount(at[coloured], minlength=size), across, thin)
-             for way, (at, size, across) in along.items()}
+    along = {"rows": (ys, np.bincount(ys[coloured], minlength=h), where.sum(axis=1)),
+             "columns": (xs, np.bincount(xs[coloured], minlength=w), where.sum(axis=0))}
+    lines = {way: _ruling_lines(counts, across, thin) for way, (_, counts, across) in along.items()}
     if all(found is None for found in lines.values()):
         return ink
-    for way, (at, size, across) in along.items():  # a page ruled one way: its margin line the other way
+    for way, (_, counts, across) in along.items():  # a page ruled one way: its margin line the other way
         if lines[way] is None:
-            lines[way] = _ruling_lines(np.bincount(at[coloured], minlength=size), across, thin, ruled=False)
+            lines[way] = _ruling_lines(counts, across, thin, ruled=False)
     dropped = np.zeros(len(ys), dtype=bool)
     for way, (at, _, _) in along.items():
         if lines[way] is None:
