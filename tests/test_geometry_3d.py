@@ -117,6 +117,12 @@ def test_a_derivation_with_no_parts_exports_a_file_that_reads_as_empty(tmp_path,
     export_mesh([], tmp_path / f"empty{suffix}", colour_of)
     loaded = trimesh.load(tmp_path / f"empty{suffix}")
     assert len(getattr(loaded, "vertices", [])) == 0 and not isinstance(loaded, trimesh.PointCloud)
+    if suffix == ".glb":  # one chunk, JSON: a zero-length BIN chunk without a buffer is against glTF 2.0
+        import struct
+        data = (tmp_path / "empty.glb").read_bytes()
+        magic, version, length, json_length, kind = struct.unpack_from("<IIIII", data)
+        assert (magic, version, length, kind) == (0x46546C67, 2, len(data), 0x4E4F534A)
+        assert 20 + json_length == len(data) and json_length % 4 == 0
 
 
 def test_glb_colours_are_linear_as_gltf_defines_and_obj_colours_stay_srgb(tmp_path):

@@ -25,7 +25,9 @@ mesh (:func:`glb_bytes`): one draw call, whatever the part count.
 
 from __future__ import annotations
 
+import json
 import os
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -76,7 +78,7 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
     :data:`MAX_PART_NODES` parts, one per tag; see the module docstring), coloured per tag
     in linear light."""
     if not parts:
-        return parts_to_trimesh(parts, colour_of).export(file_type="glb")
+        return empty_glb_bytes()
     scene = trimesh.Scene()
     if len(parts) > MAX_PART_NODES:
         by_tag: dict = {}
@@ -129,9 +131,22 @@ def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
     return mesh, m, key
 
 
+def empty_glb_bytes() -> bytes:
+    """A GLB of one empty scene and no binary chunk. trimesh wrote an empty mesh with a
+    zero-length BIN chunk and no buffer, which glTF 2.0 says a file should not hold (strict
+    readers refuse it)."""
+    header = json.dumps({"asset": {"version": "2.0", "generator": "procmod"}, "scene": 0, "scenes": [{}]},
+                        separators=(",", ":")).encode()
+    header += b" " * (-len(header) % 4)  # the JSON chunk is padded with spaces to 4 bytes
+    chunk = struct.pack("<II", len(header), 0x4E4F534A) + header
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(chunk)) + chunk
+
+
 def glb_bytes(parts, colour_of) -> bytes:
     """A GLB file of 3D parts merged into one mesh (the report viewer's), one colour per part
     tag (linear, as glTF defines ``COLOR_0``)."""
+    if not parts:
+        return empty_glb_bytes()
     return parts_to_trimesh(parts, colour_of, linear_colours=True).export(file_type="glb")
 
 
