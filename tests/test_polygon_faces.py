@@ -4,6 +4,7 @@ triangle fans and loose-edge primitives, and glTF extensions procmod cannot hono
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -213,6 +214,23 @@ def test_obj_mistakes_are_said_plainly(tmp_path):
     (tmp_path / "comma.obj").write_text("v 0,0 0,0 0,5\nv 1,0 0,0 0,0\nv 0,0 1,0 0,0\nf 1 2 3\n")
     with pytest.raises(ValueError, match=r"line 1 \('v 0,0 0,0 0,5'\) writes numbers with decimal commas"):
         load_mesh_file(tmp_path / "comma.obj", force="mesh", process=False)
+
+
+def test_an_obj_vertex_of_two_numbers_is_refused_and_whole_float_indices_are_read(tmp_path):
+    """One stray "v 5 5" line made trimesh read every vertex of the file as two numbers,
+    and reading the mesh failed with numpy's "axis 1 is out of bounds" (exit 1); faces
+    indexed "1.0 2.0 3.0" (a script's exporter) were refused in trimesh's words (h112)."""
+    box = _obj_text(*box_mesh((1, 1, 1)))
+    (tmp_path / "two.obj").write_text(box + "v 5 5\n")
+    with pytest.raises(ValueError, match=r"line 21 \('v 5 5'\) gives a vertex 2 coordinates, but an OBJ vertex "
+                                         r"takes three \(x y z\)"):
+        load_mesh_file(tmp_path / "two.obj", force="mesh", process=False)
+    whole = "\n".join(re.sub(r"(?<=[ /])(\d+)(?=[ /]|$)", r"\1.0", line) if line.startswith("f ") else line
+                      for line in box.splitlines()) + "\n"
+    assert "f 1.0 " in whole
+    (tmp_path / "whole.obj").write_text(whole)
+    mesh = load_mesh_file(tmp_path / "whole.obj", force="mesh", process=False)
+    assert len(mesh.faces) == 12 and mesh.volume == pytest.approx(1.0)
 
 
 @pytest.mark.parametrize("face", ["f 0 1 2", "f 00/1 1/2 2/3", "f -0 1 2"])

@@ -1006,7 +1006,7 @@ def _load_mesh_file(path: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
         mesh = load_mesh_file(path, up=None, force="mesh", process=False, skip_materials=True)
     except Exception as exc:
         raise AssetError(f"{where}: cannot read {path} as a triangle mesh ({type(exc).__name__}: "
-                         f"{str(exc)[:100]})") from None
+                         f"{str(exc)[:240]})") from None
     faces = getattr(mesh, "faces", None)
     if faces is None or len(faces) == 0:
         raise AssetError(f"{where}: {path} holds no triangles")

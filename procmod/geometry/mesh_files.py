@@ -107,6 +107,10 @@ def _normalised_obj(text: str) -> str | None:
             counts[_COUNTED[key]] += 1
             if key == "v":
                 positions.append(len(out))
+                if len(fields) < 4:  # trimesh read every vertex of the file as that many numbers
+                    raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) gives a vertex "
+                                     f"{len(fields) - 1} coordinate{'s' * (len(fields) != 2)}, but an OBJ vertex "
+                                     "takes three (x y z): export the file again in 3D")
         elif key in _INDEXED:
             polygon = key == "f" and len(fields) > 4
             numbers = []
@@ -119,6 +123,8 @@ def _normalised_obj(text: str) -> str | None:
                                      "vertices from 1 (this file counts from 0, as some scripts' exporters do); "
                                      "export it again with numbers from 1")
                 for slot, ref in enumerate(refs[:3]):
+                    if "." in ref and re.fullmatch(r"[-+]?\d+\.0*", ref):  # 3.0: a script's exporter's float
+                        ref = refs[slot] = ref.split(".", 1)[0]
                     if ref.startswith("-"):
                         try:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
