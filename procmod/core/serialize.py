@@ -184,6 +184,13 @@ def _fail(source: str, problem: str) -> DerivationFormatError:
     return DerivationFormatError(f"{source}: {problem}")
 
 
+MAX_ADDRESS_PARTS = 50_005_000
+"""The most levels a derivation file's calls may nest, summed over its calls: each call's
+address holds the spawn sites of every call above it, so a chain of calls costs memory and
+time growing with the square of its length (a 0.5 MB file of one chain 30,000 deep took
+3.7 GB; h113). A chain 10,000 deep (``Model.max_depth``'s default) is 50,005,000."""
+
+
 def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, dict]:
     """The calls and choices of a derivation's dict (format 2 or 1), checked:
     ``(order, choices, index)`` with ``order`` the calls' addresses in the order they ran,
@@ -199,13 +206,12 @@ def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, di
             raise _fail(source, f"field {key!r} is missing or not a list")
     if not calls:
         raise _fail(source, "'calls' is empty; it lists every call as it ran, the root call first, [null, null]")
-    order, seen = [], set()
+    depths = []  # each call's depth, checked before any address (a tuple as long as it) is built
     for i, call in enumerate(calls):
         if i == 0:
             if call != [None, None]:
                 raise _fail(source, "calls[0] must be the root call, [null, null]")
-            order.append(())
-            seen.add(())
+            depths.append(0)
             continue
         if (not isinstance(call, list) or len(call) != 2 or isinstance(call[0], bool)
                 or not isinstance(call[0], int) or not isinstance(call[1], str)):
@@ -214,6 +220,13 @@ def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, di
             raise _fail(source, f"calls[{i}] names calls[{call[0]}] as the call that spawned it, which "
                                 + ("does not come before it" if call[0] >= 0 else "is no call")
                                 + ": 'calls' lists the calls as they ran; restore it as it was saved")
+        depths.append(depths[call[0]] + 1)
+    if sum(depths) > MAX_ADDRESS_PARTS:
+        raise _fail(source, f"its {len(calls):,} calls nest up to {max(depths):,} deep, {sum(depths):,} levels in all, "
+                            f"more than procmod replays ({MAX_ADDRESS_PARTS:,}: a chain as deep as a model's "
+                            "default max_depth, 10,000); is it the file that was saved?")
+    order, seen = [()], {()}
+    for i, call in enumerate(calls[1:], 1):
         address = order[call[0]] + (call[1],)
         if address in seen:
             raise _fail(source, f"calls[{i}] is listed twice (spawn site {cut_text(call[1], 60)!r} of "
