@@ -26,7 +26,7 @@ import numpy as np
 
 from . import __version__
 from .core import InvalidArgumentError, ProcmodError, load_derivation, run_forward, save_derivation
-from .core.errors import DerivationFormatError, UnknownModelError, cut_text, spelled
+from .core.errors import DerivationFormatError, UnknownModelError, cut_text, printable, spelled
 from .core.paths import is_dir_quietly, is_file_quietly, output_path
 from .models import MODELS, model_from_spec
 
@@ -612,9 +612,6 @@ CLI_SPELLING = {
 _COMMANDS = {"models": _cmd_models, "sample": _cmd_sample, "render": _cmd_render, "infer": _cmd_infer}
 
 
-_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
-
-
 def one_line(message: str, limit: int = 600) -> str:
     """An error message as one readable line: line breaks (a library's multi-line advice)
     become spaces, other control characters escapes (``\\x1b``), and a message longer
@@ -622,7 +619,7 @@ def one_line(message: str, limit: int = 600) -> str:
     text = re.sub(r"\s*\n\s*", " ", str(message)).strip()
     # other control characters from an input (a terminal's escape codes, a CR that would
     # overwrite the line) are shown as escapes, not acted on by the terminal
-    text = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
+    text = printable(text)
     if len(text) > limit:
         text = text[:limit // 2 - 3] + " ... " + text[-(limit // 2 - 3):]
     return text

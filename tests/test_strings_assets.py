@@ -371,3 +371,18 @@ def test_pieces_of_several_parts_are_not_said_to_touch_nothing(tmp_path, capsys)
     err = capsys.readouterr().err
     assert "is in 3 pieces of 5, 5, 1 parts" in err and "touch nothing of the largest piece" in err, err
     assert "give --tolerance" in err
+
+
+def test_part_names_with_line_breaks_print_on_one_line(tmp_path, capsys):
+    """A mesh named "a\nb" in a glTF split the "types:" line of 'strings graph' in two
+    (error messages escaped it; h113)."""
+    shapes = {"format": "procmod-shapes/1",
+              "parts": {"po\nst": {"box": [0.4, 0.4, 2.0]}, "rail\x1b[31m": {"box": [1.6, 0.2, 0.3]}},
+              "shapes": [{"nodes": [{"part": {"post": "po\nst", "rail": "rail\x1b[31m"}[p], "transform": m.tolist()}
+                                    for p, m in fence(RING, 0.0, (0.0, 0.0, 0.0))]}]}
+    (tmp_path / "named.json").write_text(json.dumps(shapes))
+    assert main(["strings", "graph", str(tmp_path / "named.json"), "--out", str(tmp_path / "graphs")]) == 0
+    out = capsys.readouterr().out
+    types = [line for line in out.splitlines() if line.startswith("types: ")]
+    assert len(types) == 1 and "po\\nst=" in types[0] and "rail\\x1b[31m=" in types[0], out
+    assert "\x1b" not in out and not any(line.startswith("st=") for line in out.splitlines())

@@ -14,6 +14,7 @@ and from the shell.
 import contextlib
 import json
 import numbers
+import re
 from contextvars import ContextVar
 from types import MappingProxyType
 from typing import Callable
@@ -24,6 +25,16 @@ _SPELLING: ContextVar = ContextVar("procmod_argument_spelling", default=MappingP
 def cut_text(text: str, limit: int = 200) -> str:
     """``text`` cut to ``limit`` characters for a message (an input may hold a 100 KB string)."""
     return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def printable(text: str) -> str:
+    """``text`` with control characters (a line break, a terminal's escape codes, a CR
+    that would overwrite the line) shown as escapes (``\\n``, ``\\x1b``): names from
+    input files printed on one line of output stay one line."""
+    return _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), str(text))
 
 
 def whole_number(value) -> int | None:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidArgumentError, cut_text, spelled
+from ..core.errors import InvalidArgumentError, cut_text, printable, spelled
 
 
 SHAPES_HELP = ("a procmod-shapes/1 JSON file, or asset files (.gltf, .glb, .urdf) and folders of them: one shape "
@@ -207,13 +207,13 @@ def _graph(args) -> None:
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
         if len(pieces) > 1:
             named = _shape_sources(args.shapes, len(graphs))
-            print(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string encodes one "
-                  "connected shape, so 'strings augment' refuses it: move the parts to touch, or give --tolerance "
-                  "in world units to count gaps up to it as contacts", file=sys.stderr)
-    print(f"types: {types}")
-    print("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
-                                for t, keys in sorted(grammar.rules.items())))
-    print(ring_rule_note(graphs, grammar))
+            print(printable(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string "
+                            "encodes one connected shape, so 'strings augment' refuses it: move the parts to touch, "
+                            "or give --tolerance in world units to count gaps up to it as contacts"), file=sys.stderr)
+    print(printable(f"types: {types}"))  # part names from the input files: one line each, whatever they hold
+    print(printable("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
+                                          for t, keys in sorted(grammar.rules.items()))))
+    print(printable(ring_rule_note(graphs, grammar)))
     print(f"wrote {len(graphs)} graphs to {out}/")
 
 
@@ -329,9 +329,9 @@ def _augment(args) -> None:
         g = shape_graph(shape_set, shape, tolerance)
         if not alike.add(shape, g):
             source = f" ({named[i]})" if named else ""
-            print(f"note: input shape {i}{source} has the same shape graph as an earlier input shape (the same "
-                  "parts in the same contacts, wherever they are placed): its strings are that shape's, and the "
-                  "grammar counts them once more", file=sys.stderr)
+            print(printable(f"note: input shape {i}{source} has the same shape graph as an earlier input shape (the "
+                            "same parts in the same contacts, wherever they are placed): its strings are that "
+                            "shape's, and the grammar counts them once more"), file=sys.stderr)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
             given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"
