@@ -30,7 +30,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -78,6 +78,8 @@ class ExampleSet:
     parts: dict  # name -> PartShape
     examples: list  # of ExampleNode
     base_dir: Path = Path(".")
+    # parts moved down to the part they touch (procmod.learn.hanging): (example, type, from, to)
+    rehung: tuple = ()
 
 
 def shear_degrees(m: np.ndarray) -> float:
@@ -419,9 +421,11 @@ def read_example_inputs(paths) -> tuple[ExampleSet, str]:
 
     ``paths``: one ``procmod-examples/1`` JSON file, or asset files and folders of them
     (glTF, GLB, URDF: one example per file; see :mod:`procmod.geometry.assets`). Each
-    example is then moved over the origin (:func:`centred_examples`). The digest covers
-    the file (JSON) or the part library and every transform (assets), so a checkpoint made
-    from other inputs is refused.
+    example is then moved over the origin (:func:`centred_examples`), and a part hung
+    higher up than other examples hang its kind is moved down to the part it touches
+    (:func:`procmod.learn.hanging.consistent_hanging`; the moves are the set's ``rehung``).
+    The digest covers the file (JSON) or the part library and every transform and
+    hierarchy (assets), so a checkpoint made from other inputs is refused.
     """
     from ..core.serialize import fingerprint
     from ..geometry.assets import AssetError, asset_files, json_or_assets, read_assets
@@ -430,18 +434,23 @@ def read_example_inputs(paths) -> tuple[ExampleSet, str]:
         json_file, assets = json_or_assets(paths, "examples", "procmod-examples/1")
     except AssetError as exc:
         raise ExamplesError(str(exc)) from None
+    from .hanging import consistent_hanging
+
     if json_file is not None:
         read = read_examples(json_file)
         example_set = centred_examples(read)
         moved = any(a is not b for a, b in zip(read.examples, example_set.examples))
-        # a checkpoint of a run from before examples were centred learned them where they
-        # stood: moved examples must not resume it
-        return example_set, fingerprint((b"centred\0" if moved else b"") + json_file.read_bytes())
+        example_set, rehung = consistent_hanging(example_set)
+        # a checkpoint of a run from before examples were centred (or parts rehung) learned
+        # them as they stood: changed examples must not resume it
+        mark = (b"centred\0" if moved else b"") + (b"rehung\0" if rehung else b"")
+        return replace(example_set, rehung=tuple(rehung)), fingerprint(mark + json_file.read_bytes())
     try:
         example_set = centred_examples(examples_from_assets(read_assets(asset_files(assets))))
     except AssetError as exc:
         raise ExamplesError(str(exc)) from None
-    return example_set, example_set_digest(example_set)
+    example_set, rehung = consistent_hanging(example_set)
+    return replace(example_set, rehung=tuple(rehung)), example_set_digest(example_set)
 
 
 def example_set_digest(example_set: ExampleSet) -> str:

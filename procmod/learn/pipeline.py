@@ -148,7 +148,9 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
         check_worker_limit(workers)
     labels = _example_labels(inputs, len(example_set.examples))
     from ..geometry.assets import faceless_note, left_out_note
-    for advice in (left_out_note(inputs), faceless_note(inputs), size_note(example_set, labels),
+    from .hanging import hanging_note
+    for advice in (left_out_note(inputs), faceless_note(inputs), hanging_note(list(example_set.rehung), labels),
+                   size_note(example_set, labels),
                    orientation_note(example_set, labels),
                    duplicate_note(example_set, labels), stray_note(example_set, labels)):
         if advice is not None and note is not None:

@@ -1,0 +1,112 @@
+"""Examples that hang one kind of part under different parents (procmod.learn.hanging):
+a part hung higher up than other files hang its kind is moved down to the part it touches."""
+
+import json
+
+import numpy as np
+
+from procmod.geometry.solid import matrix, rotation, translation
+from procmod.learn import examples_from_dict
+from procmod.learn.examples import read_example_inputs
+from procmod.learn.hanging import consistent_hanging, hanging_note
+from procmod.learn.pipeline import learn
+from procmod.learn.search import SearchOptions
+
+QUICK = dict(init_iterations=80, split_iterations=40, warm_iterations=10, final_iterations=300)
+PARTS = {"tower": {"box": [1.0, 20.0, 1.0]}, "nacelle": {"box": [1.4, 1.4, 4.0]},
+         "hub": {"box": [1.2, 1.2, 1.2]}, "blade": {"box": [0.4, 8.0, 0.2]}}
+
+
+def node(part, m, children=()):
+    return {"part": part, "transform": np.asarray(m).tolist(), "children": list(children)}
+
+
+def turbine(height: float, phase: float, flat: bool) -> dict:
+    """A wind turbine: tower, nacelle on top, hub at its front, three blades on the hub.
+    ``flat``: every part straight under the tower (an "everything under the root" file)."""
+    tower = matrix(translation(0, 10, 0)) @ np.diag([1, height / 20, 1, 1])
+    nacelle = matrix(translation(0, height + 0.7, 1.0))
+    hub_at = np.array([0, height + 0.7, 3.6])
+    hub = matrix(translation(*hub_at))
+    blades = [matrix(translation(*hub_at)) @ matrix(rotation("z", phase + k * 2 * np.pi / 3))
+              @ matrix(translation(0, 4.6, 0)) for k in range(3)]
+    blade_nodes = [node("blade", b) for b in blades]
+    if flat:
+        return node("tower", tower, [node("nacelle", nacelle), node("hub", hub)] + blade_nodes)
+    return node("tower", tower, [node("nacelle", nacelle, [node("hub", hub, blade_nodes)])])
+
+
+def turbines(flat: tuple) -> dict:
+    examples = [turbine(18 + k, 0.3 * k, k in flat) for k in range(5)]
+    return {"format": "procmod-examples/1", "examples": examples, "parts": PARTS}
+
+
+def shape(root) -> list:
+    """Each node's part and depth, depth first."""
+    out = []
+
+    def visit(n, depth):
+        out.append((depth, n.part))
+        for child in n.children:
+            visit(child, depth + 1)
+    visit(root, 0)
+    return sorted(out)
+
+
+def test_parts_hung_under_the_root_in_some_files_move_down_to_the_part_they_touch():
+    """Two of five turbines hang hub and blades straight under the tower; the rest hang
+    blades under the hub under the nacelle. Learned as given, the two styles became slots
+    drawn apart: sampled turbines had no rotor in 16 of 100 and six blades in 26 (h114)."""
+    example_set = examples_from_dict(turbines(flat=(1, 3)))
+    moved, moves = consistent_hanging(example_set)
+    deep = shape(moved.examples[0])
+    assert deep == [(0, "tower"), (1, "nacelle"), (2, "hub"), (3, "blade"), (3, "blade"), (3, "blade")]
+    assert all(shape(example) == deep for example in moved.examples)
+    assert sorted({m[1:] for m in moves}) == [("blade", "tower", "hub"), ("hub", "tower", "nacelle")]
+    assert sorted({m[0] for m in moves}) == [1, 3]
+    # nothing is placed differently: only which part holds which
+    for before, after in zip(example_set.examples, moved.examples):
+        placed = sorted((n.part, tuple(np.round(np.asarray(n.transform).ravel(), 9))) for n in before.walk())
+        assert placed == sorted((n.part, tuple(np.round(np.asarray(n.transform).ravel(), 9))) for n in after.walk())
+    note = hanging_note(moves, [f"t{i}" for i in range(5)])
+    assert "2 example(s) (t1, t3)" in note and "6 blade from under tower to under hub" in note
+
+
+def test_a_set_hung_one_way_throughout_is_left_as_it_is():
+    for flat in ((), (0, 1, 2, 3, 4)):
+        example_set = examples_from_dict(turbines(flat=flat))
+        moved, moves = consistent_hanging(example_set)
+        assert moves == [] and moved is example_set
+
+
+def test_a_part_touching_the_part_holding_it_stays_there():
+    """A crown on top of the trunk, touching a branch too, stays under the trunk where
+    other files hang crowns under branches: only a part apart from its holder moves."""
+    parts = {"trunk": {"box": [0.3, 3.0, 0.3]}, "branch": {"box": [0.1, 1.0, 0.1]},
+             "crown": {"box": [0.6, 0.6, 0.6]}}
+    trunk = matrix(translation(0, 1.5, 0))
+    branch = matrix(translation(0.45, 2.9, 0)) @ matrix(rotation("z", -np.pi / 2.2))  # from the trunk's top
+    tip = node("crown", matrix(translation(1.2, 3.0, 0)))  # on the branch's far end, 0.9 from the trunk
+    top = node("crown", matrix(translation(0, 3.3, 0)))  # on the trunk's top, touching the branch too
+    deep = node("trunk", trunk, [node("branch", branch, [tip]), top])
+    flat = node("trunk", trunk, [node("branch", branch), tip, top])
+    example_set = examples_from_dict({"format": "procmod-examples/1", "examples": [deep, deep, flat],
+                                      "parts": parts})
+    moved, moves = consistent_hanging(example_set)
+    assert moves == [(2, "crown", "trunk", "branch")]
+    assert shape(moved.examples[2]) == shape(moved.examples[0])
+
+
+def test_learn_says_what_it_moved_and_the_digest_follows_the_moves(tmp_path):
+    path = tmp_path / "turbines.json"
+    path.write_text(json.dumps(turbines(flat=(2,))))
+    example_set, digest = read_example_inputs([path])
+    assert {m[0] for m in example_set.rehung} == {2}
+    path_even = tmp_path / "even.json"
+    path_even.write_text(json.dumps(turbines(flat=())))
+    even, even_digest = read_example_inputs([path_even])
+    assert even.rehung == () and even_digest != digest
+    notes = []
+    learn(path, tmp_path / "run", particles=1, options=SearchOptions(**QUICK), samples=1, note=notes.append)
+    said = [n for n in notes if "moved down to the part they touch" in n]
+    assert len(said) == 1 and "(examples[2])" in said[0] and "3 blade from under tower to under hub" in said[0]
