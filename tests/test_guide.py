@@ -641,6 +641,16 @@ def test_a_guide_whose_npz_does_not_match_is_read_from_its_pt(tmp_path):
         Guide.load(tmp_path / "g")
 
 
+def test_a_folder_or_an_empty_file_given_as_a_guide_is_named_as_such(tmp_path):
+    """``--guide /tmp`` said "guide file /tmp.json does not exist" and an empty g.json
+    that g.json had no weights beside it (h113)."""
+    with pytest.raises(GuideError, match=r"is a folder, not a guide: give the guide's NAME.json"):
+        Guide.load(tmp_path)
+    (tmp_path / "g.json").write_text("")
+    with pytest.raises(GuideError, match=r"guide metadata .*g.json is empty"):
+        Guide.load(tmp_path / "g.json")
+
+
 def test_guide_messages_name_api_arguments_and_the_command_line_its_flags(tmp_path, capsys):
     """Issue 27.6: the traces and training checks read ``targets``, ``out``,
     ``overwrite=True`` and ``settings=...`` from Python, and the flags from the shell."""

@@ -361,6 +361,9 @@ def _damage_tensor(folder, value):
      [a for a in j["abstractions"] if a["kind"] == "part"][0].update(part_distribution=float("nan")),
      "part_distribution is .*always draws its one part"),
     (lambda j, d: j.update(root_callees=[c + 0.9 for c in j["root_callees"]]), "expected a whole number"),
+    # callees flat, not per slot: "malformed program (TypeError: 'int' object is not iterable)" (h113)
+    (lambda j, d: [a.update(callees=[a["id"]]) for a in j["abstractions"]],
+     r"abstraction 0's callees are \[0\], but they are a list per slot"),
     (lambda j, d: j["groups"].update({t: [[0, 0]] for t in j["slots"] if j["slots"][t]}),
      "must name each of the type's slots at most once"),
     (lambda j, d: j["count_support"].update({t: [-3, -2] for t in j["count_support"]}) if j["count_support"]

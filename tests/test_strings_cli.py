@@ -58,6 +58,12 @@ def test_graph_encode_decode(tmp_path, capsys):
     code, out, _ = _run(capsys, "strings", "decode", canonical.strip())
     back = json.loads(out)
     assert sorted(back["types"]) == sorted(data["types"]) and len(back["edges"]) == len(data["edges"])
+    # a graph the syntax cannot write (every part touching 59 others): the message names the file (h113)
+    k60 = tmp_path / "k60.json"
+    k60.write_text(json.dumps({"format": "procmod-graph/1", "types": ["A"] * 60,
+                               "edges": [[i, j] for i in range(60) for j in range(i + 1, 60)]}))
+    code, out, err = _run(capsys, "strings", "encode", k60)
+    assert code == 2 and f"{k60}: more than 99 rings open at once" in err and not out
 
 
 @pytest.mark.parametrize("argv, words", [

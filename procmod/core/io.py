@@ -283,6 +283,8 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
                         f"({format_bytes(MAX_JSON_BYTES)}); is it the file you meant?")
         # utf-8-sig: a byte-order mark, which Windows editors write, is not part of the JSON
         text = Path(path).read_text(encoding="utf-8-sig")
+        if not text.strip():  # (json says "Expecting value at line 1")
+            raise error(f"{what} {cut_text(str(path))} is empty; was it written to the end?")
     except FileNotFoundError:
         raise error(f"{what} {cut_text(str(path))} does not exist") from None
     except UnicodeDecodeError:

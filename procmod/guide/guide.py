@@ -200,6 +200,10 @@ class Guide:
         if not isinstance(path, (str, os.PathLike)):
             raise GuideError(f"a guide is given by its name or path, got {type(path).__name__} {path!r:.40}")
         weights, meta = guide_paths(path)
+        if Path(path).is_dir() and not meta.is_file():  # it would be read as the guide FOLDER.json
+            raise GuideError(f"{shown_value(str(path))} is a folder, not a guide: give the guide's NAME.json (with "
+                             "its .npz or .pt beside it, as 'procmod guide train' wrote them), or a shipped guide's "
+                             f"name ({', '.join(pretrained_guides()) or 'none'})")
 
         def check_file(p: Path) -> None:
             if p.exists() and not p.is_file():
@@ -211,6 +215,7 @@ class Guide:
                                  f"written by 'procmod guide train', or a shipped guide: {shipped})")
 
         check_file(meta)
+        metadata = read_json(meta, GuideError, "guide metadata")  # an empty or broken .json: said first
         npz = weights.with_suffix(".npz")
         if not weights.exists() and not npz.exists():  # (a matching .npz alone runs the guide; the .pt: to train on)
             raise GuideError(f"guide {meta} has no weights beside it: neither {npz.name} nor {weights.name} is there; "
@@ -218,7 +223,7 @@ class Guide:
                              "together")
         if weights.exists():
             check_file(weights)
-        data = check_metadata(read_json(meta, GuideError, "guide metadata"), str(meta))
+        data = check_metadata(metadata, str(meta))
         settings = FeatureSettings(**data["features"])
         guide = cls(data["model"], settings, data["mixture"], data["sites"], 0, data.get("info"))
         guide.source = str(path)  # as the user named it: a run's settings record it

@@ -466,6 +466,11 @@ def program_from_json(data: dict, parts: dict) -> Program:
     """The structure of a program from its JSON (parameters are filled in separately)."""
     abstractions = {}
     for entry in data["abstractions"]:
+        callees = entry["callees"]
+        if not isinstance(callees, list) or not all(isinstance(c, list) for c in callees):
+            raise ProgramError(f"abstraction {shown_value(entry.get('id'), 20)}'s callees are {shown_value(callees)}, "
+                               "but they are a list per slot of the abstractions it may call ([[3, 4], [5]]); "
+                               "rewrite it with 'procmod learn'")
         a = Abstraction(_whole(entry["id"]), str(entry["kind"]), str(entry["type"]),
                         [[_whole(i) for i in c] for c in entry["callees"]])
         # written for the reader's sake: an abstraction draws its one part type (seed 000's

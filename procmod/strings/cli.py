@@ -218,6 +218,15 @@ def _graph(args) -> None:
 
 
 def _encode(args) -> None:
+    from .codec import GraphError
+
+    try:
+        _encode_graph(args)
+    except GraphError as exc:  # a graph the syntax cannot write: the message names the file, as read errors do
+        raise type(exc)(f"{cut_text(str(args.graph))}: {exc}") from None
+
+
+def _encode_graph(args) -> None:
     from .codec import GraphError, encode
     from .shapes import read_graph
 
