@@ -231,6 +231,13 @@ def test_an_obj_vertex_of_two_numbers_is_refused_and_whole_float_indices_are_rea
     (tmp_path / "whole.obj").write_text(whole)
     mesh = load_mesh_file(tmp_path / "whole.obj", force="mesh", process=False)
     assert len(mesh.faces) == 12 and mesh.volume == pytest.approx(1.0)
+    # counted from 0 in floats: refused as counted from 0 (the float check had let "0.0" through, h117)
+    (tmp_path / "zero.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0.0 1.0 2.0\n")
+    with pytest.raises(ValueError, match=r"line 4 .* names vertex 0, but OBJ numbers vertices from 1"):
+        load_mesh_file(tmp_path / "zero.obj", force="mesh", process=False)
+    (tmp_path / "commas.obj").write_text("v 0,0,0\nv 1,0,0\nv 0,1,0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match=r"line 1 \('v 0,0,0'\) separates its numbers with commas"):
+        load_mesh_file(tmp_path / "commas.obj", force="mesh", process=False)
 
 
 @pytest.mark.parametrize("face", ["f 0 1 2", "f 00/1 1/2 2/3", "f -0 1 2"])

@@ -1,9 +1,10 @@
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from procmod.core import (DerivationFormatError, UnknownModelError, derivation_to_dict,
+from procmod.core import (DerivationFormatError, UnknownModelError, derivation_from_dict, derivation_to_dict,
                           load_derivation, random_order, run_forward, save_derivation, start, step)
 from procmod.models import get_model
 
@@ -110,9 +111,9 @@ def test_malformed_derivations_are_rejected(tmp_path, mutate, message):
     (lambda d: d["calls"].__setitem__(1, ["0", "branch"]), r"calls\[1\] must be"),
     (lambda d: d["calls"].append(d["calls"][-1]), r"calls\[\d+\] is listed twice"),
     # a chain of calls 30,000 deep (a 0.5 MB file): its addresses took 3.7 GB and 13 s before
-    # the refusal (h113); a chain 10,000 deep, a model's default max_depth, is still read
+    # the refusal (h113)
     (lambda d: d["calls"].extend([i, "branch"] for i in range(len(d["calls"]) - 1, len(d["calls"]) + 29_999)),
-     r"its [\d,]+ calls nest up to [\d,]+ deep, [\d,]+ levels in all, more than procmod replays \(50,005,000"),
+     r"its [\d,]+ calls nest up to [\d,]+ deep, but its model allows 100,000 calls at most 10,000 deep"),
 ])
 def test_malformed_calls_are_rejected(tmp_path, mutate, message):
     d = next(d for d in (run_forward(get_model("vines"), np.random.default_rng(seed)) for seed in range(50))
@@ -120,6 +121,23 @@ def test_malformed_calls_are_rejected(tmp_path, mutate, message):
     data = derivation_to_dict(d)
     mutate(data)
     _refused(tmp_path, data, message)
+
+
+def test_deeply_nested_calls_are_checked_against_the_models_limits(tmp_path, monkeypatch):
+    """Deep files are held to their model's max_depth and max_calls before any address is
+    built; a file the model made within them still loads (a first check refused a stem
+    9,000 deep with a leaf a level, which procmod itself had saved; h117)."""
+    import procmod.core.serialize as serialize
+
+    model = get_model("vines")
+    d = max((run_forward(model, np.random.default_rng(seed)) for seed in range(30)), key=lambda d: d.n_nodes)
+    data = derivation_to_dict(d)
+    levels = sum(len(address) for address in d.order())
+    monkeypatch.setattr(serialize, "MAX_ADDRESS_PARTS", levels - 1)  # as deep as a file past the check
+    assert derivation_from_dict(data, get_model).order() == d.order()
+    shallow = dataclasses.replace(model, max_depth=max(len(a) for a in d.order()) - 1)
+    with pytest.raises(DerivationFormatError, match=r"but its model allows [\d,]+ calls at most \d+ deep"):
+        derivation_from_dict(data, shallow)
 
 
 def test_format_1_files_are_still_read(tmp_path):

@@ -33,6 +33,7 @@ from .errors import DerivationFormatError, InvalidArgumentError, ProcmodError, c
 # The file recipes live in .io; these names are kept here for the modules that import them
 # from serialize.
 from .io import check_format, fingerprint, parse_json, read_json, write_text_atomic  # noqa: F401
+from .limits import check_memory
 from .model import Model
 from .runtime import Derivation, replay, rule_function
 
@@ -185,18 +186,24 @@ def _fail(source: str, problem: str) -> DerivationFormatError:
 
 
 MAX_ADDRESS_PARTS = 50_005_000
-"""The most levels a derivation file's calls may nest, summed over its calls: each call's
-address holds the spawn sites of every call above it, so a chain of calls costs memory and
-time growing with the square of its length (a 0.5 MB file of one chain 30,000 deep took
-3.7 GB; h113). A chain 10,000 deep (``Model.max_depth``'s default) is 50,005,000."""
+"""Levels of nesting summed over a derivation file's calls above which its model's limits
+are checked before any address is built: each call's address holds the spawn sites of
+every call above it, so a chain of calls costs memory and time growing with the square of
+its length (a 0.5 MB file of one chain 30,000 deep took 3.7 GB and 13 s before it was
+refused; h113). A chain 10,000 deep (``Model.max_depth``'s default) is 50,005,000."""
 
 
-def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, dict]:
+def stored_calls(data: dict, source: str = "derivation", limits=None) -> tuple[list, dict, dict]:
     """The calls and choices of a derivation's dict (format 2 or 1), checked:
     ``(order, choices, index)`` with ``order`` the calls' addresses in the order they ran,
     ``choices`` ``(address, name) -> value`` and ``index`` ``(address, name) -> the
     choice's position in the file``; a file that does not hold them is a
-    :class:`DerivationFormatError` in one line naming ``source``."""
+    :class:`DerivationFormatError` in one line naming ``source``.
+
+    Calls nesting past :data:`MAX_ADDRESS_PARTS` levels in all must keep within the
+    model's ``max_depth`` and ``max_calls`` (``limits()`` returns them; by default a
+    :class:`Model`'s defaults) and the machine's memory, checked before the addresses
+    are built."""
     if isinstance(data, dict) and data.get("format") == FORMAT_1:
         return _calls_1(data, source)
     check_format(data, FORMAT, source)
@@ -222,9 +229,7 @@ def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, di
                                 + ": 'calls' lists the calls as they ran; restore it as it was saved")
         depths.append(depths[call[0]] + 1)
     if sum(depths) > MAX_ADDRESS_PARTS:
-        raise _fail(source, f"its {len(calls):,} calls nest up to {max(depths):,} deep, {sum(depths):,} levels in all, "
-                            f"more than procmod replays ({MAX_ADDRESS_PARTS:,}: a chain as deep as a model's "
-                            "default max_depth, 10,000); is it the file that was saved?")
+        _check_nesting(depths, limits() if limits is not None else (Model.max_depth, Model.max_calls), source)
     order, seen = [()], {()}
     for i, call in enumerate(calls[1:], 1):
         address = order[call[0]] + (call[1],)
@@ -242,6 +247,20 @@ def stored_calls(data: dict, source: str = "derivation") -> tuple[list, dict, di
                                 f"{len(order) - 1})")
         _add_choice(choices, index, (order[entry[0]], entry[1]), entry[2], i, source, f"calls[{entry[0]}]")
     return order, choices, index
+
+
+def _check_nesting(depths: list, limits: tuple, source: str) -> None:
+    """Refuse calls deeper or more than the model allows, or whose addresses would not fit
+    in memory (:func:`stored_calls`)."""
+    max_depth, max_calls = limits
+    deepest, levels = max(depths), sum(depths)
+    if deepest > max_depth or len(depths) - 1 > max_calls:
+        raise _fail(source, f"its {len(depths):,} calls nest up to {deepest:,} deep, but its model allows "
+                            f"{max_calls:,} calls at most {max_depth:,} deep (max_calls, max_depth): the model "
+                            "cannot have made it; is it the file that was saved?")
+    # an address of n spawn sites: a tuple of 56 + 8n bytes
+    check_memory(f"{source}: replaying its {len(depths):,} calls ({levels:,} levels of nesting in all)",
+                 8.0 * levels + 56.0 * len(depths), "is it the file that was saved?")
 
 
 def _add_choice(choices: dict, index: dict, key: tuple, value, i: int, source: str, where: str) -> None:
@@ -280,23 +299,8 @@ def _calls_1(data: dict, source: str) -> tuple[list, dict, dict]:
     return order, choices, index
 
 
-def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], source: str = "derivation",
-                         folder: str | os.PathLike | None = None) -> Derivation:
-    """Rebuild a derivation from its dict by replaying its model exactly.
-
-    ``resolve_model`` is the model that made it, or a function of a model's name that
-    returns the model registered under it (``procmod.models.get_model``). ``folder``: where
-    the file lay; a learned program named by a relative path (as :func:`save_derivation`
-    writes it) is found from there.
-    """
-    if not isinstance(data, dict):
-        raise _fail(source, "expected a JSON object")
-    if data.get("format") != FORMAT_1:
-        check_format(data, FORMAT, source)
-    for key, kind in (("model", str), ("params", dict)):
-        if not isinstance(data.get(key), kind):
-            raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
-    order, choices, index = stored_calls(data, source)  # the file's own faults before the model's
+def _file_model(data: dict, resolve_model, source: str, folder) -> Model:
+    """The model a derivation's dict names, resolved (:func:`derivation_from_dict`)."""
     name = data["model"]
     if _names_program(name) and "\\" in name and os.sep == "/" and not os.path.isfile(
             name if folder is None else os.path.join(folder, name)):  # (a folder may have a \ in its name here)
@@ -321,6 +325,35 @@ def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], so
     if other_program(name, model.name):  # whichever way it was given: a Model, --model's resolver
         raise _fail(source, f"it is a derivation of the learned program {name!r}, not {model.name!r}: give its "
                             "program (procmod render: or leave out --model)")
+    return model
+
+
+def derivation_from_dict(data, resolve_model: Model | Callable[[str], Model], source: str = "derivation",
+                         folder: str | os.PathLike | None = None) -> Derivation:
+    """Rebuild a derivation from its dict by replaying its model exactly.
+
+    ``resolve_model`` is the model that made it, or a function of a model's name that
+    returns the model registered under it (``procmod.models.get_model``). ``folder``: where
+    the file lay; a learned program named by a relative path (as :func:`save_derivation`
+    writes it) is found from there.
+    """
+    if not isinstance(data, dict):
+        raise _fail(source, "expected a JSON object")
+    if data.get("format") != FORMAT_1:
+        check_format(data, FORMAT, source)
+    for key, kind in (("model", str), ("params", dict)):
+        if not isinstance(data.get(key), kind):
+            raise _fail(source, f"field {key!r} is missing or not a {kind.__name__}")
+    resolved = []  # the model, resolved once: the calls' check asks for its limits only when they nest deep
+
+    def model_of_file() -> Model:
+        if not resolved:
+            resolved.append(_file_model(data, resolve_model, source, folder))
+        return resolved[0]
+
+    # the file's own faults before the model's
+    order, choices, index = stored_calls(data, source, lambda: (model_of_file().max_depth, model_of_file().max_calls))
+    model = model_of_file()
     stored_root = data.get("root")
     if isinstance(stored_root, str) and not _same_root(stored_root, model):
         same = "another model of the same name (give a model of your own a name of its own); " \

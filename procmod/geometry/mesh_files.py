@@ -107,6 +107,9 @@ def _normalised_obj(text: str) -> str | None:
             counts[_COUNTED[key]] += 1
             if key == "v":
                 positions.append(len(out))
+                if len(fields) < 4 and "," in line:
+                    raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) separates its numbers with commas; "
+                                     "OBJ separates them with spaces")
                 if len(fields) < 4:  # trimesh read every vertex of the file as that many numbers
                     raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) gives a vertex "
                                      f"{len(fields) - 1} coordinate{'s' * (len(fields) != 2)}, but an OBJ vertex "
@@ -116,6 +119,9 @@ def _normalised_obj(text: str) -> str | None:
             numbers = []
             for i in range(1, len(fields)):
                 refs = fields[i].split("/")
+                for slot, ref in enumerate(refs[:3]):
+                    if "." in ref and re.fullmatch(r"[-+]?\d+\.0*", ref):  # 3.0: a script's exporter's float
+                        refs[slot] = ref.split(".", 1)[0]
                 # a face's vertex 0 (OBJ counts from 1): a 0 of a texture coordinate or normal,
                 # or in a line, is no part of the geometry read
                 if key == "f" and "0" in refs[0] and not refs[0].strip("+-0"):
@@ -123,8 +129,6 @@ def _normalised_obj(text: str) -> str | None:
                                      "vertices from 1 (this file counts from 0, as some scripts' exporters do); "
                                      "export it again with numbers from 1")
                 for slot, ref in enumerate(refs[:3]):
-                    if "." in ref and re.fullmatch(r"[-+]?\d+\.0*", ref):  # 3.0: a script's exporter's float
-                        ref = refs[slot] = ref.split(".", 1)[0]
                     if ref.startswith("-"):
                         try:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
