@@ -13,14 +13,18 @@ The rule moves a part only down its own file's hierarchy, and only where the set
 says so: a part of type ``C`` hanging under a part ``P`` is moved under a part ``A``
 below ``P`` when
 
-- other examples hang parts of type ``C`` under parts of ``A``'s type (the file's own
-  evidence; a set hung one way throughout is left as it is);
+- examples hang parts of type ``C`` under parts of ``A``'s type (the set's own evidence:
+  parts of a type that every example hangs under parts of one type never move);
 - every example is rooted at a part of one type (a set rooted at a chair's pole in some
   files and at its seat in others is left as it is);
 - it touches ``A`` and does not touch ``P`` (a crown on top of the trunk, touching a
-  branch too, stays under the trunk). Touching is a gap of at most 2% of the example's
-  size (hand placement leaves millimetres to centimetres), or of as much as the examples'
-  own ``C`` parts sit from their ``A`` parents (times 1.5), up to 10%.
+  branch too, stays under the trunk; a floor lamp standing on the floor stays there).
+  Two parts touch when the gap between their surfaces is at most :data:`TOUCH` of the
+  smaller one's size (hand placement leaves millimetres to centimetres; a measure of the
+  whole example let a city's windows a metre above the ground "touch" it).
+
+Of several ``A`` parts touching it, the largest takes it (a twig sharing its base with
+other twigs hangs under the branch they grow from, not under one of them).
 
 Transforms are world transforms (:class:`procmod.learn.examples.ExampleNode`), so a
 move changes no part's placement, only which part holds it.
@@ -28,49 +32,47 @@ move changes no part's placement, only which part holds it.
 
 from __future__ import annotations
 
-from collections import Counter, defaultdict
+from collections import Counter, defaultdict, deque
 from dataclasses import replace
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .examples import ExampleNode, ExampleSet
 
+TOUCH = 0.1
+"""Two parts touch when the gap between their surfaces is at most this fraction of the
+smaller one's diagonal."""
+
 SAMPLES_PER_EDGE = 12
-"""The most points a triangle's longest edge gets when a part's surface is sampled for gaps."""
+"""The most points a triangle's longest edge gets when a part's surface is sampled."""
 
-ATTACH_SLACK = 0.02
-"""Gaps up to this fraction of the example's size count as touching, whatever the examples'
-own gaps (hand placement leaves millimetres)."""
+MAX_SURFACE_POINTS = 4_000
+"""About the most grid points a part's surface gets (a finely meshed part has its corners)."""
 
-MAX_TOUCH = 0.1
-"""Gaps over this fraction of the example's size never count as touching (however far the
-examples' own attached parts sit from their parents)."""
+_PAIRS = 1 << 20  # point-triangle pairs measured at once (memory: a few tens of MB)
 
 
 def consistent_hanging(example_set: ExampleSet) -> tuple[ExampleSet, list]:
-    """``example_set`` with parts moved down to the part they are attached to, where other
-    examples hang parts of their type there (module docstring), and the moves as
-    ``(example index, part type, from part type, to part type)``. The set is returned as
-    it is when nothing moves."""
-    parent_types = defaultdict(Counter)  # child type -> parent type -> count
+    """``example_set`` with parts moved down to the part they touch, where other examples
+    hang parts of their type there (module docstring), and the moves as ``(example index,
+    part type, from part type, to part type)``. The set is returned as it is when nothing
+    moves."""
+    parent_types = defaultdict(set)  # child type -> the types of the parts it hangs under
     for root in example_set.examples:
         for node in root.walk():
             for child in node.children:
-                parent_types[child.part][node.part] += 1
-    mixed = {child: set(kinds) for child, kinds in parent_types.items() if len(kinds) > 1}
+                parent_types[child.part].add(node.part)
+    mixed = {child: kinds for child, kinds in parent_types.items() if len(kinds) > 1}
     # files rooted at different parts (a chair at its pole here, at its seat there) hang
     # everything differently: moving parts within each made h114's chairs' leg rings worse
     # (5 legs in 37 of 100 samples, against 75), so such sets are left as they are
     if not mixed or len({root.part for root in example_set.examples}) > 1:
         return example_set, []
-    surfaces = _Surfaces(example_set)
-    attach = _attach_gaps(example_set, mixed, surfaces)
+    surfaces = _Surfaces(example_set.parts)
     examples, moves = [], []
     for index, root in enumerate(example_set.examples):
         copy = _copied(root)
-        size = surfaces.example_size(copy)
-        moved = _rehang(copy, mixed, attach, surfaces, size)
+        moved = _rehang(copy, mixed, surfaces)
         moves += [(index, *move) for move in moved]
         examples.append(copy if moved else root)
     if not moves:
@@ -89,9 +91,9 @@ def hanging_note(moves: list, labels: list | None = None) -> str | None:
     said = "; ".join(f"{count} {part} from under {before} to under {after}"
                      for (part, before, after), count in kinds.most_common(4))
     shown = ", ".join(labels[i] for i in files[:3]) + (", ..." if len(files) > 3 else "")
-    return (f"parts hung higher up in {len(files)} example(s) ({shown}) than in others were moved down to the "
-            f"part they touch, as the other examples hang them ({said}); parent them so in the files to keep "
-            "this from being needed")
+    return (f"parts hung higher up in {len(files)} example(s) ({shown}) than other examples hang their kind were "
+            f"moved down to the part they touch ({said}); parent them so in the files to keep this from being "
+            "needed")
 
 
 def _copied(node: ExampleNode) -> ExampleNode:
@@ -99,117 +101,184 @@ def _copied(node: ExampleNode) -> ExampleNode:
     return ExampleNode(node.part, node.transform, [_copied(child) for child in node.children])
 
 
-def _rehang(root: ExampleNode, mixed: dict, attach: dict, surfaces: "_Surfaces", size: float) -> list:
-    """Move the parts of one example (``size``: its diagonal) down, in place; the moves as
-    (type, from, to)."""
-    slack = ATTACH_SLACK * size
+def _rehang(root: ExampleNode, mixed: dict, surfaces: "_Surfaces") -> list:
+    """Move the parts of one example down, in place; the moves as (type, from, to). Each
+    part is looked at under each part that holds it (once, and again after a move: it may
+    go further down)."""
     moves = []
-    changed = True
-    while changed:  # a move goes strictly deeper, so this ends
-        changed = False
-        for parent in list(root.walk()):
-            for child in list(parent.children):
-                if child.part not in mixed:
-                    continue
-                others = mixed[child.part] - {parent.part}
-                inside = set(map(id, child.walk()))
-                below = [n for n in parent.walk() if n is not parent and n.part in others and id(n) not in inside]
-                if not below:
-                    continue
-                touch = {n.part: min(max(attach.get((child.part, n.part), 0.0), slack), MAX_TOUCH * size)
-                         for n in below}
-                # the boxes' gap is at most the parts': only the parts whose boxes are near are measured
-                near = [n for n in below if surfaces.box_gap(child, n) <= touch[n.part]]
-                if not near:
-                    continue
-                gaps = [surfaces.gap(child, n) for n in near]
-                best = int(np.argmin(gaps))
-                target = near[best]
-                # touching the part below, and not the one holding it
-                if gaps[best] <= touch[target.part] < surfaces.gap(child, parent):
-                    parent.children = [c for c in parent.children if c is not child]
-                    target.children.append(child)
-                    moves.append((child.part, parent.part, target.part))
-                    changed = True
+    below = {}  # (id of a part, types) -> the parts of those types in its subtree; moves down keep it
+    gone = defaultdict(set)  # id of a part -> ids of the children moved away (dropped at the end: one pass)
+    queue = deque((parent, child) for parent in root.walk() for child in parent.children if child.part in mixed)
+    while queue:
+        parent, child = queue.popleft()
+        others = frozenset(mixed[child.part] - {parent.part})
+        key = (id(parent), others)
+        if key not in below:
+            below[key] = [n for n in _walk(parent, gone) if n is not parent and n.part in others]
+        if not below[key]:
+            continue
+        inside = set(map(id, _walk(child, gone)))
+        near = [n for n in surfaces.touching(child, below[key], key) if id(n) not in inside]
+        if not near or surfaces.touches(child, parent):
+            continue
+        target = max(near, key=lambda n: surfaces.diagonal(n))  # the largest: what the others grow from
+        gone[id(parent)].add(id(child))
+        target.children.append(child)
+        moves.append((child.part, parent.part, target.part))
+        queue.append((target, child))
+    for node in root.walk():
+        if gone.get(id(node)):
+            node.children = [c for c in node.children if id(c) not in gone[id(node)]]
+    surfaces.forget()
     return moves
 
 
-def _attach_gaps(example_set: ExampleSet, mixed: dict, surfaces: "_Surfaces") -> dict:
-    """(child type, parent type) -> the largest gap between such a child and its parent
-    in the examples as given, times 1.5: how far apart the examples' own attached parts sit."""
-    gaps = defaultdict(float)
-    for root in example_set.examples:
-        for node in root.walk():
-            for child in node.children:
-                if child.part in mixed:
-                    key = (child.part, node.part)
-                    gaps[key] = max(gaps[key], 1.5 * surfaces.gap(child, node))
-    return gaps
+def _walk(node: ExampleNode, gone: dict):
+    """A part and its descendants, depth first, leaving out the children moved away."""
+    yield node
+    for child in node.children:
+        if id(child) not in gone.get(id(node), ()):
+            yield from _walk(child, gone)
 
 
 class _Surfaces:
-    """Points on each placed part's surface (cached per node) and the gaps between parts."""
+    """The placed parts' boxes, surface points and triangles, and whether two parts touch."""
 
-    def __init__(self, example_set: ExampleSet):
-        self.parts = example_set.parts
-        self.local = {}  # part type -> points on its surface, in its own frame
-        self.placed = {}  # id(node) -> (points, KD-tree); ("box", id(node)) -> its box
-        self.held = []  # every node measured, kept alive so that its id is never reused by another
+    def __init__(self, parts: dict):
+        self.parts = parts
+        self.local = {}  # part type -> (surface points, triangles, box corners, vertices), in its own frame
+        self.boxes = {}  # id(node) -> (node, its box): one example's, until forget()
+        self.stacked = {}  # a key -> the boxes of a list of nodes as arrays (lows, highs, diagonals)
 
-    def _local_points(self, part: str) -> np.ndarray:
+    def forget(self) -> None:
+        """Drop the boxes of the example measured (their ids may be reused by another's)."""
+        self.boxes.clear()
+        self.stacked.clear()
+
+    def _local(self, part: str):
         if part not in self.local:
-            triangles = self.parts[part].local_triangles()
-            self.local[part] = surface_points(triangles)
+            triangles = np.asarray(self.parts[part].local_triangles(), dtype=np.float64)
+            lo, hi = self.parts[part].local_bounds()
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            vertices = np.unique(triangles.reshape(-1, 3), axis=0)
+            self.local[part] = (surface_points(triangles), triangles, corners, vertices)
         return self.local[part]
 
-    def _tree(self, node: ExampleNode):
-        key = id(node)
-        if key not in self.placed:
-            m = np.asarray(node.transform, dtype=np.float64)
-            points = self._local_points(node.part) @ m[:3, :3].T + m[:3, 3]
-            self.placed[key] = (points, cKDTree(points))
-            self.held.append(node)
-        return self.placed[key]
+    @staticmethod
+    def _placed(points: np.ndarray, node: ExampleNode) -> np.ndarray:
+        m = np.asarray(node.transform, dtype=np.float64)
+        return points @ m[:3, :3].T + m[:3, 3]
 
     def box(self, node: ExampleNode) -> tuple:
         """A box around a placed part (its local box's corners placed)."""
-        key = ("box", id(node))
-        if key not in self.placed:
-            lo, hi = self.parts[node.part].local_bounds()
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-            m = np.asarray(node.transform, dtype=np.float64)
-            placed = corners @ m[:3, :3].T + m[:3, 3]
-            self.placed[key] = (placed.min(axis=0), placed.max(axis=0))
-            self.held.append(node)
-        return self.placed[key]
+        if id(node) not in self.boxes:
+            corners = self._placed(self._local(node.part)[2], node)
+            self.boxes[id(node)] = (node, (corners.min(axis=0), corners.max(axis=0)))
+        return self.boxes[id(node)][1]
 
-    def box_gap(self, a: ExampleNode, b: ExampleNode) -> float:
-        """The gap between two parts' boxes: at most the gap between the parts."""
-        (alo, ahi), (blo, bhi) = self.box(a), self.box(b)
-        return float(np.linalg.norm(np.maximum(0.0, np.maximum(alo - bhi, blo - ahi))))
+    def diagonal(self, node: ExampleNode) -> float:
+        lo, hi = self.box(node)
+        return float(np.linalg.norm(hi - lo))
 
-    def gap(self, a: ExampleNode, b: ExampleNode) -> float:
-        """The least distance between points on two parts' surfaces (0 where they overlap
-        closely; accurate to the sampling, a few per cent of a part)."""
-        points, _ = self._tree(a)
-        _, tree = self._tree(b)
-        return float(tree.query(points, k=1)[0].min())
+    def touching(self, child: ExampleNode, nodes: list, key) -> list:
+        """The nodes whose parts touch ``child``'s (their boxes tested first, all at once;
+        ``key`` names the list, whose boxes are kept)."""
+        if key not in self.stacked:
+            boxes = [self.box(n) for n in nodes]
+            los, his = np.array([b[0] for b in boxes]), np.array([b[1] for b in boxes])
+            self.stacked[key] = (los, his, np.linalg.norm(his - los, axis=1))
+        los, his, diagonals = self.stacked[key]
+        lo, hi = self.box(child)
+        box_gaps = np.linalg.norm(np.maximum(0.0, np.maximum(los - hi, lo - his)), axis=1)
+        limits = TOUCH * np.minimum(diagonals, np.linalg.norm(hi - lo))
+        return [nodes[i] for i in np.flatnonzero(box_gaps <= limits)
+                if self.gap(child, nodes[i], limits[i]) <= limits[i]]
 
-    def example_size(self, root: ExampleNode) -> float:
-        """The diagonal of an example's points' bounding box."""
-        points = np.concatenate([self._tree(node)[0] for node in root.walk()])
-        return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    def touches(self, a: ExampleNode, b: ExampleNode) -> bool:
+        limit = TOUCH * min(self.diagonal(a), self.diagonal(b))
+        return self.gap(a, b, limit) <= limit
+
+    def _surface(self, node: ExampleNode) -> tuple:
+        """A placed part's corners and surface points, and its triangles (:class:`_Triangles`),
+        kept for the example."""
+        key = ("surface", id(node))
+        if key not in self.boxes:
+            points, triangles, _, vertices = self._local(node.part)
+            corners = self._placed(vertices, node)
+            self.boxes[key] = (node, ((corners, self._placed(points, node)), _Triangles(self._placed(triangles, node))))
+        return self.boxes[key][1]
+
+    def gap(self, a: ExampleNode, b: ExampleNode, limit: float) -> float:
+        """The gap between two placed parts' surfaces where it is at most ``limit`` (each
+        one's surface points against the other's triangles, exactly); above it, a number
+        above ``limit``."""
+        (corners_a, points_a), triangles_a = self._surface(a)
+        (corners_b, points_b), triangles_b = self._surface(b)
+        best = np.inf
+        # the corners first: parts that touch mostly touch at one (a window's on its wall)
+        for points, triangles in ((corners_a, triangles_b), (corners_b, triangles_a),
+                                  (points_a, triangles_b), (points_b, triangles_a)):
+            best = min(best, triangles.distance(points, limit))
+            if best <= limit:
+                break
+        return best
 
 
-MAX_SURFACE_POINTS = 20_000
-"""About the most grid points a part's surface gets (a finely meshed part has its corners)."""
+class _Triangles:
+    """Placed triangles with what a point's distance to them needs, worked out once."""
+
+    def __init__(self, triangles: np.ndarray):
+        self.corners = triangles
+        self.lo, self.hi = triangles.min(axis=1), triangles.max(axis=1)
+        self.all_lo, self.all_hi = triangles.min(axis=(0, 1)), triangles.max(axis=(0, 1))
+        a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+        normal = np.cross(b - a, c - a)
+        length = np.linalg.norm(normal, axis=1)
+        self.flat = length > 0
+        self.unit = np.divide(normal, length[:, None], out=np.zeros_like(normal), where=self.flat[:, None])
+        # each edge: its start, direction, squared length, and the in-plane normal pointing inwards
+        self.edges = []
+        for u, v in ((a, b), (b, c), (c, a)):
+            d = v - u
+            self.edges.append((u, d, np.maximum(np.einsum("td,td->t", d, d), 1e-300), np.cross(self.unit, d)))
+
+    def distance(self, points: np.ndarray, limit: float) -> float:
+        """The least distance from ``points`` to the triangles, looking only at the points
+        and triangles within ``limit`` of each other's box; ``inf`` when none are."""
+        points = points[((points >= self.all_lo - limit) & (points <= self.all_hi + limit)).all(axis=1)]
+        if len(points) == 0:
+            return np.inf
+        keep = ((self.hi >= points.min(axis=0) - limit) & (self.lo <= points.max(axis=0) + limit)).all(axis=1)
+        chosen = np.flatnonzero(keep)
+        if len(chosen) == 0:
+            return np.inf
+        step = max(1, _PAIRS // len(chosen))
+        return min(float(self._distances(points[i:i + step], chosen).min()) for i in range(0, len(points), step))
+
+    def _distances(self, points: np.ndarray, chosen: np.ndarray) -> np.ndarray:
+        """Distances (p, t) from each point to each chosen triangle: to its plane where the
+        point lies over the triangle, else to its nearest edge."""
+        p = points[:, None, :]
+        unit = self.unit[chosen]
+        height = np.einsum("ptd,td->pt", p - self.corners[chosen, 0], unit)
+        over = np.broadcast_to(self.flat[chosen], height.shape)
+        edges = np.full(height.shape, np.inf)
+        for u, d, squared, inward in self.edges:
+            u, d, squared, inward = u[chosen], d[chosen], squared[chosen], inward[chosen]
+            offset = p - u
+            over = over & (np.einsum("ptd,td->pt", offset, inward) >= 0)  # on the triangle's side of the edge
+            t = np.clip(np.einsum("ptd,td->pt", offset, d) / squared, 0.0, 1.0)
+            edges = np.minimum(edges, np.linalg.norm(offset - t[..., None] * d, axis=2))
+        return np.where(over, np.abs(height), edges)
 
 
 def surface_points(triangles: np.ndarray) -> np.ndarray:
     """Points covering triangles (n, 3, 3): each triangle's corners and a barycentric grid
     whose spacing is a twelfth of the shape's longest triangle edge (coarser where that
-    would make over :data:`MAX_SURFACE_POINTS`), at most :data:`SAMPLES_PER_EDGE` a side,
-    so that a large flat face (a box's) is covered, not only its corners."""
+    would make over :data:`MAX_SURFACE_POINTS`), at most :data:`SAMPLES_PER_EDGE` a side.
+    Measured against the other part's triangles exactly, they find a gap between two
+    faces, edges or corners (the least distance between two shapes lies at a corner of
+    one of them or between two edges, which the grid's edge points follow)."""
     triangles = np.asarray(triangles, dtype=np.float64)
     if len(triangles) == 0:
         return np.zeros((0, 3))
@@ -226,7 +295,7 @@ def surface_points(triangles: np.ndarray) -> np.ndarray:
         weights = np.stack([i[keep], j[keep], k - i[keep] - j[keep]], axis=1) / k  # (m, 3)
         chosen = triangles[steps == k]  # (t, 3, 3)
         points.append(np.einsum("mc,tcd->tmd", weights, chosen).reshape(-1, 3))
-    return np.concatenate(points)
+    return np.unique(np.concatenate(points), axis=0)
 
 
 __all__ = ["consistent_hanging", "hanging_note", "surface_points"]
