@@ -23,8 +23,11 @@ below ``P`` when
   smaller one's size (hand placement leaves millimetres to centimetres; a measure of the
   whole example let a city's windows a metre above the ground "touch" it).
 
-Of several ``A`` parts touching it, the largest takes it (a twig sharing its base with
-other twigs hangs under the branch they grow from, not under one of them).
+Of several ``A`` parts touching it, it goes under the one it sits on as the examples'
+``C`` parts sit on their ``A`` holders (its position in the holder's frame nearest one of
+theirs: a crate under the crate it rests on, not the one beside it), and of those about
+as good, the largest (a twig touching the other twigs at its base goes under the branch
+they grow from).
 
 Transforms are world transforms (:class:`procmod.learn.examples.ExampleNode`), so a
 move changes no part's placement, only which part holds it.
@@ -36,6 +39,7 @@ from collections import Counter, defaultdict, deque
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .examples import ExampleNode, ExampleSet
 
@@ -49,7 +53,18 @@ SAMPLES_PER_EDGE = 12
 MAX_SURFACE_POINTS = 4_000
 """About the most grid points a part's surface gets (a finely meshed part has its corners)."""
 
-_PAIRS = 1 << 20  # point-triangle pairs measured at once (memory: a few tens of MB)
+TIE = 0.05
+"""Holders where a part would sit within this fraction of their size of the best fit to
+the examples fit about as well: the largest of them holds it."""
+
+DENSE = 2_000
+"""Triangles near the points above which a mesh is measured around each point's nearest
+corners only."""
+
+NEAREST_CORNERS = 12
+"""The corners nearest a point whose triangles a dense mesh is measured against."""
+
+_PAIRS = 1 << 18  # point-triangle pairs measured at once (memory: tens of MB of gathered arrays)
 
 
 def consistent_hanging(example_set: ExampleSet) -> tuple[ExampleSet, list]:
@@ -69,10 +84,11 @@ def consistent_hanging(example_set: ExampleSet) -> tuple[ExampleSet, list]:
     if not mixed or len({root.part for root in example_set.examples}) > 1:
         return example_set, []
     surfaces = _Surfaces(example_set.parts)
+    offsets = _offsets(example_set, mixed)
     examples, moves = [], []
     for index, root in enumerate(example_set.examples):
         copy = _copied(root)
-        moved = _rehang(copy, mixed, surfaces)
+        moved = _rehang(copy, mixed, offsets, surfaces)
         moves += [(index, *move) for move in moved]
         examples.append(copy if moved else root)
     if not moves:
@@ -101,7 +117,7 @@ def _copied(node: ExampleNode) -> ExampleNode:
     return ExampleNode(node.part, node.transform, [_copied(child) for child in node.children])
 
 
-def _rehang(root: ExampleNode, mixed: dict, surfaces: "_Surfaces") -> list:
+def _rehang(root: ExampleNode, mixed: dict, offsets: dict, surfaces: "_Surfaces") -> list:
     """Move the parts of one example down, in place; the moves as (type, from, to). Each
     part is looked at under each part that holds it (once, and again after a move: it may
     go further down)."""
@@ -121,7 +137,7 @@ def _rehang(root: ExampleNode, mixed: dict, surfaces: "_Surfaces") -> list:
         near = [n for n in surfaces.touching(child, below[key], key) if id(n) not in inside]
         if not near or surfaces.touches(child, parent):
             continue
-        target = max(near, key=lambda n: surfaces.diagonal(n))  # the largest: what the others grow from
+        target = _holder(child, near, offsets, surfaces)
         gone[id(parent)].add(id(child))
         target.children.append(child)
         moves.append((child.part, parent.part, target.part))
@@ -131,6 +147,38 @@ def _rehang(root: ExampleNode, mixed: dict, surfaces: "_Surfaces") -> list:
             node.children = [c for c in node.children if id(c) not in gone[id(node)]]
     surfaces.forget()
     return moves
+
+
+def _holder(child: ExampleNode, near: list, offsets: dict, surfaces: "_Surfaces") -> ExampleNode:
+    """Of the parts ``near`` that ``child`` touches, the one to hang it under: the one it
+    sits on as the examples' parts of its type sit on their holders (its position in the
+    holder's frame nearest one of theirs, for the holder's size: a crate on the one below
+    it, not beside it), and of those about as good, the largest (a twig touching the other
+    twigs at its base goes under the branch they grow from)."""
+    at = np.append(np.asarray(child.transform, dtype=np.float64)[:3, 3], 1.0)
+    misfit = []
+    for n in near:
+        seen = offsets[(child.part, n.part)]
+        where = np.linalg.solve(np.asarray(n.transform, dtype=np.float64), at)[:3]  # in the holder's frame
+        misfit.append(float(np.linalg.norm(seen - where, axis=1).min()) / surfaces.local_diagonal(n.part))
+    best = min(misfit)
+    return max((n for n, m in zip(near, misfit) if m <= best + TIE), key=surfaces.diagonal)
+
+
+def _offsets(example_set: ExampleSet, mixed: dict) -> dict:
+    """(child type, holder type) -> where the examples' children of that type sit in
+    their holders' frames (n, 3), for the mixed child types."""
+    found = defaultdict(list)
+    for root in example_set.examples:
+        for node in root.walk():
+            inverse = None
+            for child in node.children:
+                if child.part in mixed:
+                    if inverse is None:
+                        inverse = np.linalg.inv(np.asarray(node.transform, dtype=np.float64))
+                    found[(child.part, node.part)].append(inverse[:3, :3] @ np.asarray(child.transform)[:3, 3]
+                                                          + inverse[:3, 3])
+    return {key: np.array(points) for key, points in found.items()}
 
 
 def _walk(node: ExampleNode, gone: dict):
@@ -176,6 +224,11 @@ class _Surfaces:
             self.boxes[id(node)] = (node, (corners.min(axis=0), corners.max(axis=0)))
         return self.boxes[id(node)][1]
 
+    def local_diagonal(self, part: str) -> float:
+        """The diagonal of a part type's own box (its frame's measure)."""
+        corners = self._local(part)[2]
+        return max(float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0))), 1e-300)
+
     def diagonal(self, node: ExampleNode) -> float:
         lo, hi = self.box(node)
         return float(np.linalg.norm(hi - lo))
@@ -209,9 +262,9 @@ class _Surfaces:
         return self.boxes[key][1]
 
     def gap(self, a: ExampleNode, b: ExampleNode, limit: float) -> float:
-        """The gap between two placed parts' surfaces where it is at most ``limit`` (each
-        one's surface points against the other's triangles, exactly); above it, a number
-        above ``limit``."""
+        """A gap between two placed parts' surfaces (each one's surface points against the
+        other's triangles) of at most ``limit`` if there is one (the first found: enough to
+        say that they touch); else a number above ``limit``."""
         (corners_a, points_a), triangles_a = self._surface(a)
         (corners_b, points_b), triangles_b = self._surface(b)
         best = np.inf
@@ -229,6 +282,9 @@ class _Triangles:
 
     def __init__(self, triangles: np.ndarray):
         self.corners = triangles
+        self.longest = float(np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max()) \
+            if len(triangles) else 0.0
+        self.tree = None  # a KD-tree of the corners, made when first needed
         self.lo, self.hi = triangles.min(axis=1), triangles.max(axis=1)
         self.all_lo, self.all_hi = triangles.min(axis=(0, 1)), triangles.max(axis=(0, 1))
         a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
@@ -242,33 +298,64 @@ class _Triangles:
             d = v - u
             self.edges.append((u, d, np.maximum(np.einsum("td,td->t", d, d), 1e-300), np.cross(self.unit, d)))
 
-    def distance(self, points: np.ndarray, limit: float) -> float:
-        """The least distance from ``points`` to the triangles, looking only at the points
-        and triangles within ``limit`` of each other's box; ``inf`` when none are."""
+    def distance(self, points: np.ndarray, limit: float, stop: float | None = None) -> float:
+        """The least distance from ``points`` to the triangles where it may be at most
+        ``limit``; else a number above ``limit``. Exact against up to :data:`DENSE`
+        triangles near the points (within ``limit`` of their box; for more, those with a
+        corner within ``limit`` plus the longest edge of a point); a denser mesh is
+        measured against the triangles around each point's nearest corners, to within
+        about its longest edge. Stops at the first chunk of
+        points that finds one within ``stop`` (by default ``limit``)."""
+        stop = limit if stop is None else stop
+        if len(points) == 0 or len(self.corners) == 0:
+            return np.inf
+        # only the points and triangles within limit of each other's box
         points = points[((points >= self.all_lo - limit) & (points <= self.all_hi + limit)).all(axis=1)]
         if len(points) == 0:
             return np.inf
-        keep = ((self.hi >= points.min(axis=0) - limit) & (self.lo <= points.max(axis=0) + limit)).all(axis=1)
-        chosen = np.flatnonzero(keep)
+        chosen = np.flatnonzero(((self.hi >= points.min(axis=0) - limit)
+                                 & (self.lo <= points.max(axis=0) + limit)).all(axis=1))
+        if len(chosen) > DENSE:  # fewer still: those with a corner within limit plus an edge of a point
+            if self.tree is None:
+                self.tree = cKDTree(self.corners.reshape(-1, 3))
+            reach = limit + self.longest
+            nearest, _ = self.tree.query(points, distance_upper_bound=reach)
+            points = points[np.isfinite(nearest)]
+            if len(points) == 0:
+                return np.inf
+            near, _ = cKDTree(points).query(self.corners.reshape(-1, 3), distance_upper_bound=reach)
+            chosen = np.unique(np.flatnonzero(np.isfinite(near)) // 3)
         if len(chosen) == 0:
             return np.inf
-        step = max(1, _PAIRS // len(chosen))
-        return min(float(self._distances(points[i:i + step], chosen).min()) for i in range(0, len(points), step))
+        if len(chosen) > DENSE:  # the triangles around each point's nearest corners
+            _, corners = self.tree.query(points, k=min(NEAREST_CORNERS, 3 * len(self.corners)))
+            pairs, step = corners.reshape(len(points), -1) // 3, max(1, _PAIRS // NEAREST_CORNERS)
+        else:
+            pairs, step = None, max(1, _PAIRS // len(chosen))
+        best = np.inf
+        for i in range(0, len(points), step):
+            chunk = points[i:i + step]
+            index = pairs[i:i + step] if pairs is not None else chosen
+            best = min(best, float(self._distances(chunk, index).min()))
+            if best <= stop:
+                break
+        return best
 
-    def _distances(self, points: np.ndarray, chosen: np.ndarray) -> np.ndarray:
-        """Distances (p, t) from each point to each chosen triangle: to its plane where the
-        point lies over the triangle, else to its nearest edge."""
+    def _distances(self, points: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """Distances from each point to the triangles ``index`` (t,) (all the points to the
+        same ones: an array (p, t)) or ``index[p]`` (p, k) (each point to its own: (p, k)):
+        to its plane where the point lies over the triangle, else to its nearest edge."""
         p = points[:, None, :]
-        unit = self.unit[chosen]
-        height = np.einsum("ptd,td->pt", p - self.corners[chosen, 0], unit)
-        over = np.broadcast_to(self.flat[chosen], height.shape)
+        unit = self.unit[index]
+        height = np.einsum("...d,...d->...", p - self.corners[index, 0], unit)
+        over = np.broadcast_to(self.flat[index], height.shape)
         edges = np.full(height.shape, np.inf)
         for u, d, squared, inward in self.edges:
-            u, d, squared, inward = u[chosen], d[chosen], squared[chosen], inward[chosen]
+            u, d, squared, inward = u[index], d[index], squared[index], inward[index]
             offset = p - u
-            over = over & (np.einsum("ptd,td->pt", offset, inward) >= 0)  # on the triangle's side of the edge
-            t = np.clip(np.einsum("ptd,td->pt", offset, d) / squared, 0.0, 1.0)
-            edges = np.minimum(edges, np.linalg.norm(offset - t[..., None] * d, axis=2))
+            over = over & (np.einsum("...d,...d->...", offset, inward) >= 0)  # on the triangle's side of the edge
+            t = np.clip(np.einsum("...d,...d->...", offset, d) / squared, 0.0, 1.0)
+            edges = np.minimum(edges, np.linalg.norm(offset - t[..., None] * d, axis=-1))
         return np.where(over, np.abs(height), edges)
 
 
