@@ -183,30 +183,60 @@ def test_twigs_sharing_a_base_hang_under_the_branch_they_grow_from():
         assert shape(deep_set) == [(0, "trunk"), (1, "branch"), (2, "branch"), (2, "branch"), (2, "branch")]
 
 
-def test_a_stacked_crate_hangs_under_the_crate_it_rests_on_not_its_neighbour():
+@pytest.mark.parametrize("turned", [False, True])
+def test_a_stacked_crate_hangs_under_the_crate_it_rests_on_not_its_neighbour(turned):
     """Crates side by side touch one another; of equal sizes, the first listed took every
-    top crate (15 of 80 parents wrong; samples with all 8 crates 67 of 100, h118). The
-    holder is the one the part sits on as the examples' crates sit on theirs."""
+    top crate (15 of 80 parents wrong; samples with all 8 crates 67 of 100, h118). Judged
+    in the holder's own frame, crates turned upside down (a half turn leaves a crate
+    looking the same) put a middle crate under the one on top of it (h120). The holder
+    is the one the part sits on as the examples' crates sit on theirs, in the world's up."""
     parts = {"pallet": {"box": [1.2, 0.1, 1.0]}, "crate": {"box": [0.5, 0.4, 0.4]}}
     pallet = matrix(translation(0, 0.05, 0))
     spots = [(-0.25, -0.2), (0.25, -0.2), (-0.25, 0.2), (0.25, 0.2)]
-    bottoms = [matrix(translation(x, 0.3, z)) for x, z in spots]
-    tops = [matrix(translation(x, 0.7, z)) for x, z in spots]
+    half_turn = matrix(rotation("x", np.pi))
+    def crates(turns: bool) -> list:
+        return [[matrix(translation(x, 0.3 + 0.4 * level, z)) @ (half_turn if turns and (i + level) % 2 else np.eye(4))
+                 for i, (x, z) in enumerate(spots)] for level in range(3)]
 
-    def deep(order=1):
-        return node("pallet", pallet, [node("crate", b, [node("crate", t)]) for b, t in zip(bottoms, tops)][::order])
+    def deep():
+        return node("pallet", pallet, [node("crate", a, [node("crate", b, [node("crate", c)])])
+                                       for a, b, c in zip(*crates(False))])
 
-    def flat(order=1):
-        return node("pallet", pallet, ([node("crate", b) for b in bottoms] + [node("crate", t) for t in tops])[::order])
+    def flat(order=1):  # (the deep files' crates stand as modelled; some of these were turned)
+        return node("pallet", pallet, [node("crate", m) for layer in crates(turned) for m in layer][::order])
 
     for order in (1, -1):
         example_set = examples_from_dict({"format": "procmod-examples/1", "parts": parts,
                                           "examples": [deep(), deep(), flat(order)]})
         moved, moves = consistent_hanging(example_set)
-        assert len(moves) == 4
+        assert len(moves) == 8
         for bottom in moved.examples[2].children:
-            (top,) = bottom.children
-            assert np.allclose(np.asarray(top.transform)[[0, 2], 3], np.asarray(bottom.transform)[[0, 2], 3])
+            (middle,) = bottom.children
+            (top,) = middle.children
+            heights = [np.asarray(n.transform)[1, 3] for n in (bottom, middle, top)]
+            assert heights == pytest.approx([0.3, 0.7, 1.1])
+            for upper in (middle, top):
+                assert np.allclose(np.asarray(upper.transform)[[0, 2], 3], np.asarray(bottom.transform)[[0, 2], 3])
+
+
+def test_a_part_resting_on_a_long_triangle_beside_a_fine_patch_touches_it():
+    """Measured against the triangles of each point's 12 nearest corners, a plank resting
+    on a long strip of a tray (gap 1 mm) missed it for the fine patch's corners beside it,
+    and was moved to a block it leant on (h120): points are now measured against every
+    triangle whose box is near them."""
+    from procmod.learn.hanging import DENSE, _Triangles
+
+    n = 40  # a fine patch of 2 n^2 triangles on [0, 0.3]^2, and a strip of two long ones on x in [0.3, 5]
+    grid = np.linspace(0.0, 0.3, n + 1)
+    cells = [((grid[i], 0, grid[j]), (grid[i + 1], 0, grid[j]), (grid[i + 1], 0, grid[j + 1]),
+              (grid[i], 0, grid[j + 1])) for i in range(n) for j in range(n)]
+    triangles = [tri for a, b, c, d in cells for tri in ((a, b, c), (a, c, d))]
+    triangles += [((0.3, 0, 0), (5, 0, 0), (5, 0, 0.3)), ((0.3, 0, 0), (5, 0, 0.3), (0.3, 0, 0.3))]
+    tray = _Triangles(np.array(triangles, dtype=np.float64))
+    assert len(triangles) > DENSE
+    # a plank resting on the strip 0.6 from the patch, and over the patch 4 cm above it
+    points = np.array([[x, 0.001 if x >= 0.9 else 0.04, z] for x in np.linspace(0.05, 1.0, 20) for z in (0.02, 0.28)])
+    assert tray.distance(points, 0.05, stop=-np.inf) == pytest.approx(0.001)
 
 
 def test_point_to_triangle_distances_are_exact_on_few_and_on_dense_meshes():

@@ -24,10 +24,10 @@ below ``P`` when
   whole example let a city's windows a metre above the ground "touch" it).
 
 Of several ``A`` parts touching it, it goes under the one it sits on as the examples'
-``C`` parts sit on their ``A`` holders (its position in the holder's frame nearest one of
-theirs: a crate under the crate it rests on, not the one beside it), and of those about
-as good, the largest (a twig touching the other twigs at its base goes under the branch
-they grow from).
+``C`` parts sit on their ``A`` holders (how far out and how far up from the holder,
+for its size, nearest one of theirs: a crate under the crate it rests on, not the one
+beside or above it), and of those about as good, the largest (a twig touching the other
+twigs at its base goes under the branch they grow from).
 
 Transforms are world transforms (:class:`procmod.learn.examples.ExampleNode`), so a
 move changes no part's placement, only which part holds it.
@@ -39,7 +39,7 @@ from collections import Counter, defaultdict, deque
 from dataclasses import replace
 
 import numpy as np
-from scipy.spatial import cKDTree
+import trimesh
 
 from .examples import ExampleNode, ExampleSet
 
@@ -58,11 +58,10 @@ TIE = 0.05
 the examples fit about as well: the largest of them holds it."""
 
 DENSE = 2_000
-"""Triangles near the points above which a mesh is measured around each point's nearest
-corners only."""
+"""Triangles near the points above which each point is measured only against the
+triangles near it (an R-tree of their boxes)."""
 
-NEAREST_CORNERS = 12
-"""The corners nearest a point whose triangles a dense mesh is measured against."""
+_POINTS_A_CHUNK = 512  # points whose nearby triangles are measured at once
 
 _PAIRS = 1 << 18  # point-triangle pairs measured at once (memory: tens of MB of gathered arrays)
 
@@ -84,7 +83,7 @@ def consistent_hanging(example_set: ExampleSet) -> tuple[ExampleSet, list]:
     if not mixed or len({root.part for root in example_set.examples}) > 1:
         return example_set, []
     surfaces = _Surfaces(example_set.parts)
-    offsets = _offsets(example_set, mixed)
+    offsets = _offsets(example_set, mixed, surfaces)
     examples, moves = [], []
     for index, root in enumerate(example_set.examples):
         copy = _copied(root)
@@ -151,33 +150,39 @@ def _rehang(root: ExampleNode, mixed: dict, offsets: dict, surfaces: "_Surfaces"
 
 def _holder(child: ExampleNode, near: list, offsets: dict, surfaces: "_Surfaces") -> ExampleNode:
     """Of the parts ``near`` that ``child`` touches, the one to hang it under: the one it
-    sits on as the examples' parts of its type sit on their holders (its position in the
-    holder's frame nearest one of theirs, for the holder's size: a crate on the one below
-    it, not beside it), and of those about as good, the largest (a twig touching the other
-    twigs at its base goes under the branch they grow from)."""
-    at = np.append(np.asarray(child.transform, dtype=np.float64)[:3, 3], 1.0)
-    misfit = []
-    for n in near:
-        seen = offsets[(child.part, n.part)]
-        where = np.linalg.solve(np.asarray(n.transform, dtype=np.float64), at)[:3]  # in the holder's frame
-        misfit.append(float(np.linalg.norm(seen - where, axis=1).min()) / surfaces.local_diagonal(n.part))
+    sits on as the examples' parts of its type sit on their holders (:func:`_placement`
+    nearest one of theirs: a crate under the crate below it, not the one beside or above
+    it), and of those about as good, the largest (a twig touching the other twigs at its
+    base goes under the branch they grow from)."""
+    if len(near) == 1:
+        return near[0]
+    misfit = [float(np.linalg.norm(offsets[(child.part, n.part)] - _placement(child, n, surfaces), axis=1).min())
+              for n in near]
     best = min(misfit)
     return max((n for n, m in zip(near, misfit) if m <= best + TIE), key=surfaces.diagonal)
 
 
-def _offsets(example_set: ExampleSet, mixed: dict) -> dict:
-    """(child type, holder type) -> where the examples' children of that type sit in
-    their holders' frames (n, 3), for the mixed child types."""
+def _placement(child: ExampleNode, holder: ExampleNode, surfaces: "_Surfaces") -> np.ndarray:
+    """Where a part sits from a holder, for the holder's size: how far out sideways and
+    how far up (y) its centre is from the holder's. In the world's axes, not the holder's:
+    users turn symmetric parts by quarter and half turns that leave them looking the same,
+    and "on top" then lies along any of a crate's own axes; and about the vertical alike
+    (a branch's twig sits as far out and up wherever the branch points)."""
+    (lo, hi), (hlo, hhi) = surfaces.box(child), surfaces.box(holder)
+    shift = (lo + hi - hlo - hhi) / 2
+    return np.array([np.hypot(shift[0], shift[2]), shift[1]]) / max(float(np.linalg.norm(hhi - hlo)), 1e-300)
+
+
+def _offsets(example_set: ExampleSet, mixed: dict, surfaces: "_Surfaces") -> dict:
+    """(child type, holder type) -> the examples' :func:`_placement` of children of the
+    mixed types in their holders (n, 2)."""
     found = defaultdict(list)
     for root in example_set.examples:
         for node in root.walk():
-            inverse = None
             for child in node.children:
                 if child.part in mixed:
-                    if inverse is None:
-                        inverse = np.linalg.inv(np.asarray(node.transform, dtype=np.float64))
-                    found[(child.part, node.part)].append(inverse[:3, :3] @ np.asarray(child.transform)[:3, 3]
-                                                          + inverse[:3, 3])
+                    found[(child.part, node.part)].append(_placement(child, node, surfaces))
+        surfaces.forget()
     return {key: np.array(points) for key, points in found.items()}
 
 
@@ -223,11 +228,6 @@ class _Surfaces:
             corners = self._placed(self._local(node.part)[2], node)
             self.boxes[id(node)] = (node, (corners.min(axis=0), corners.max(axis=0)))
         return self.boxes[id(node)][1]
-
-    def local_diagonal(self, part: str) -> float:
-        """The diagonal of a part type's own box (its frame's measure)."""
-        corners = self._local(part)[2]
-        return max(float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0))), 1e-300)
 
     def diagonal(self, node: ExampleNode) -> float:
         lo, hi = self.box(node)
@@ -282,9 +282,7 @@ class _Triangles:
 
     def __init__(self, triangles: np.ndarray):
         self.corners = triangles
-        self.longest = float(np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max()) \
-            if len(triangles) else 0.0
-        self.tree = None  # a KD-tree of the corners, made when first needed
+        self.tree = None  # an R-tree of the triangles' boxes, made when first needed
         self.lo, self.hi = triangles.min(axis=1), triangles.max(axis=1)
         self.all_lo, self.all_hi = triangles.min(axis=(0, 1)), triangles.max(axis=(0, 1))
         a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
@@ -300,43 +298,40 @@ class _Triangles:
 
     def distance(self, points: np.ndarray, limit: float, stop: float | None = None) -> float:
         """The least distance from ``points`` to the triangles where it may be at most
-        ``limit``; else a number above ``limit``. Exact against up to :data:`DENSE`
-        triangles near the points (within ``limit`` of their box; for more, those with a
-        corner within ``limit`` plus the longest edge of a point); a denser mesh is
-        measured against the triangles around each point's nearest corners, to within
-        about its longest edge. Stops at the first chunk of
-        points that finds one within ``stop`` (by default ``limit``)."""
+        ``limit``; else a number above ``limit``. Exact: each point is measured against
+        the triangles within ``limit`` of the points' box (up to :data:`DENSE` of them;
+        for more, those whose own box is within ``limit`` of the point, found in an R-tree).
+        Stops at the first chunk of points that finds one within ``stop`` (by default
+        ``limit``)."""
         stop = limit if stop is None else stop
         if len(points) == 0 or len(self.corners) == 0:
             return np.inf
-        # only the points and triangles within limit of each other's box
         points = points[((points >= self.all_lo - limit) & (points <= self.all_hi + limit)).all(axis=1)]
         if len(points) == 0:
             return np.inf
         chosen = np.flatnonzero(((self.hi >= points.min(axis=0) - limit)
                                  & (self.lo <= points.max(axis=0) + limit)).all(axis=1))
-        if len(chosen) > DENSE:  # fewer still: those with a corner within limit plus an edge of a point
-            if self.tree is None:
-                self.tree = cKDTree(self.corners.reshape(-1, 3))
-            reach = limit + self.longest
-            nearest, _ = self.tree.query(points, distance_upper_bound=reach)
-            points = points[np.isfinite(nearest)]
-            if len(points) == 0:
-                return np.inf
-            near, _ = cKDTree(points).query(self.corners.reshape(-1, 3), distance_upper_bound=reach)
-            chosen = np.unique(np.flatnonzero(np.isfinite(near)) // 3)
         if len(chosen) == 0:
             return np.inf
-        if len(chosen) > DENSE:  # the triangles around each point's nearest corners
-            _, corners = self.tree.query(points, k=min(NEAREST_CORNERS, 3 * len(self.corners)))
-            pairs, step = corners.reshape(len(points), -1) // 3, max(1, _PAIRS // NEAREST_CORNERS)
-        else:
-            pairs, step = None, max(1, _PAIRS // len(chosen))
         best = np.inf
-        for i in range(0, len(points), step):
-            chunk = points[i:i + step]
-            index = pairs[i:i + step] if pairs is not None else chosen
-            best = min(best, float(self._distances(chunk, index).min()))
+        if len(chosen) <= DENSE:  # every point against every triangle near them
+            step = max(1, _PAIRS // len(chosen))
+            for i in range(0, len(points), step):
+                best = min(best, float(self._distances(points[i:i + step], chosen).min()))
+                if best <= stop:
+                    break
+            return best
+        if self.tree is None:
+            self.tree = trimesh.util.bounds_tree(np.column_stack([self.lo, self.hi]))
+        for i in range(0, len(points), _POINTS_A_CHUNK):  # each point against the triangles near it
+            chunk = points[i:i + _POINTS_A_CHUNK]
+            hits = [np.fromiter(self.tree.intersection(np.concatenate([q - limit, q + limit])), dtype=np.int64)
+                    for q in chunk]
+            counts = np.array([len(h) for h in hits])
+            if counts.sum() == 0:
+                continue
+            which = np.repeat(np.arange(len(chunk)), counts)
+            best = min(best, float(self._distances(chunk[which], np.concatenate(hits)[:, None]).min()))
             if best <= stop:
                 break
         return best
