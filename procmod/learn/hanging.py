@@ -26,8 +26,10 @@ below ``P`` when
 Of several ``A`` parts touching it, it goes under the one it sits on as the examples'
 ``C`` parts sit on their ``A`` holders (how far out and how far up from the holder,
 for its size, nearest one of theirs: a crate under the crate it rests on, not the one
-beside or above it), and of those about as good, the largest (a twig touching the other
-twigs at its base goes under the branch they grow from).
+beside or above it); of those about as good, the one it sits on in the same direction
+as theirs (a beam across two posts under the post the examples hang it from); then the
+largest (a twig touching the other twigs at its base goes under the branch they grow
+from).
 
 Transforms are world transforms (:class:`procmod.learn.examples.ExampleNode`), so a
 move changes no part's placement, only which part holds it.
@@ -152,38 +154,46 @@ def _holder(child: ExampleNode, near: list, offsets: dict, surfaces: "_Surfaces"
     """Of the parts ``near`` that ``child`` touches, the one to hang it under: the one it
     sits on as the examples' parts of its type sit on their holders (:func:`_placement`
     nearest one of theirs: a crate under the crate below it, not the one beside or above
-    it), and of those about as good, the largest (a twig touching the other twigs at its
-    base goes under the branch they grow from)."""
+    it); of those about as good, the one where it sits in the same direction as theirs
+    (a beam across two posts under the post the examples hang it from, whichever the file
+    lists first); then the largest (a twig touching the other twigs at its base goes
+    under the branch they grow from)."""
     if len(near) == 1:
         return near[0]
-    misfit = [float(np.linalg.norm(offsets[(child.part, n.part)] - _placement(child, n, surfaces), axis=1).min())
-              for n in near]
-    best = min(misfit)
-    return max((n for n, m in zip(near, misfit) if m <= best + TIE), key=surfaces.diagonal)
+    for turned in (True, False):
+        misfit = []
+        for n in near:
+            seen = offsets[(child.part, n.part)][turned]
+            misfit.append(float(np.linalg.norm(seen - _placement(child, n, surfaces, turned), axis=1).min()))
+        best = min(misfit)
+        near = [n for n, m in zip(near, misfit) if m <= best + TIE]
+    return max(near, key=surfaces.diagonal)
 
 
-def _placement(child: ExampleNode, holder: ExampleNode, surfaces: "_Surfaces") -> np.ndarray:
-    """Where a part sits from a holder, for the holder's size: how far out sideways and
-    how far up (y) its centre is from the holder's. In the world's axes, not the holder's:
-    users turn symmetric parts by quarter and half turns that leave them looking the same,
-    and "on top" then lies along any of a crate's own axes; and about the vertical alike
-    (a branch's twig sits as far out and up wherever the branch points)."""
+def _placement(child: ExampleNode, holder: ExampleNode, surfaces: "_Surfaces", turned: bool) -> np.ndarray:
+    """Where a part's centre sits from a holder's, for the holder's size, in the world's
+    axes: ``turned``, how far out sideways and how far up (y), the same wherever about the
+    vertical it lies (a branch's twig sits as far out and up wherever the branch points);
+    else the offset itself (x, y, z). Not in the holder's own axes: users turn symmetric
+    parts by quarter and half turns that leave them looking the same, and "on top" then
+    lies along any of a crate's own axes."""
     (lo, hi), (hlo, hhi) = surfaces.box(child), surfaces.box(holder)
-    shift = (lo + hi - hlo - hhi) / 2
-    return np.array([np.hypot(shift[0], shift[2]), shift[1]]) / max(float(np.linalg.norm(hhi - hlo)), 1e-300)
+    shift = (lo + hi - hlo - hhi) / 2 / max(float(np.linalg.norm(hhi - hlo)), 1e-300)
+    return np.array([np.hypot(shift[0], shift[2]), shift[1]]) if turned else shift
 
 
 def _offsets(example_set: ExampleSet, mixed: dict, surfaces: "_Surfaces") -> dict:
-    """(child type, holder type) -> the examples' :func:`_placement` of children of the
-    mixed types in their holders (n, 2)."""
-    found = defaultdict(list)
+    """(child type, holder type) -> {turned: the examples' :func:`_placement` of children
+    of the mixed types in their holders}, for turned True (n, 2) and False (n, 3)."""
+    found = defaultdict(lambda: {True: [], False: []})
     for root in example_set.examples:
         for node in root.walk():
             for child in node.children:
                 if child.part in mixed:
-                    found[(child.part, node.part)].append(_placement(child, node, surfaces))
+                    for turned in (True, False):
+                        found[(child.part, node.part)][turned].append(_placement(child, node, surfaces, turned))
         surfaces.forget()
-    return {key: np.array(points) for key, points in found.items()}
+    return {key: {turned: np.array(points) for turned, points in both.items()} for key, both in found.items()}
 
 
 def _walk(node: ExampleNode, gone: dict):
