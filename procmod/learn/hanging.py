@@ -44,6 +44,7 @@ import numpy as np
 import trimesh
 
 from .examples import ExampleNode, ExampleSet
+from .symmetry import box_corners
 
 TOUCH = 0.1
 """Two parts touch when the gap between their surfaces is at most this fraction of the
@@ -210,19 +211,21 @@ class _Surfaces:
     def __init__(self, parts: dict):
         self.parts = parts
         self.local = {}  # part type -> (surface points, triangles, box corners, vertices), in its own frame
-        self.boxes = {}  # id(node) -> (node, its box): one example's, until forget()
+        # one example's, until forget(); each entry keeps its node, so that no id is reused meanwhile
+        self.boxes = {}  # id(node) -> (node, its box)
+        self.surfaces = {}  # id(node) -> (node, ((corners, surface points), _Triangles))
         self.stacked = {}  # a key -> the boxes of a list of nodes as arrays (lows, highs, diagonals)
 
     def forget(self) -> None:
-        """Drop the boxes of the example measured (their ids may be reused by another's)."""
+        """Drop what was measured of one example (its ids may be reused by another's)."""
         self.boxes.clear()
+        self.surfaces.clear()
         self.stacked.clear()
 
     def _local(self, part: str):
         if part not in self.local:
             triangles = np.asarray(self.parts[part].local_triangles(), dtype=np.float64)
-            lo, hi = self.parts[part].local_bounds()
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            corners = box_corners(*self.parts[part].local_bounds())
             vertices = np.unique(triangles.reshape(-1, 3), axis=0)
             self.local[part] = (surface_points(triangles), triangles, corners, vertices)
         return self.local[part]
@@ -264,12 +267,11 @@ class _Surfaces:
     def _surface(self, node: ExampleNode) -> tuple:
         """A placed part's corners and surface points, and its triangles (:class:`_Triangles`),
         kept for the example."""
-        key = ("surface", id(node))
-        if key not in self.boxes:
+        if id(node) not in self.surfaces:
             points, triangles, _, vertices = self._local(node.part)
-            corners = self._placed(vertices, node)
-            self.boxes[key] = (node, ((corners, self._placed(points, node)), _Triangles(self._placed(triangles, node))))
-        return self.boxes[key][1]
+            placed = (self._placed(vertices, node), self._placed(points, node))
+            self.surfaces[id(node)] = (node, (placed, _Triangles(self._placed(triangles, node))))
+        return self.surfaces[id(node)][1]
 
     def gap(self, a: ExampleNode, b: ExampleNode, limit: float) -> float:
         """A gap between two placed parts' surfaces (each one's surface points against the
