@@ -20,7 +20,8 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
 
 @dataclass(frozen=True)
 class Series:
-    """One curve: ``step`` draws a post-step (held until the next x), ``dashed`` a dashed line."""
+    """One curve: ``step`` draws a post-step (held until the next x), ``dashed`` a dashed
+    line, ``markers`` a dot at each point (a curve of one point is seen)."""
 
     label: str
     x: list
@@ -29,6 +30,7 @@ class Series:
     dashed: bool = False
     step: bool = False
     opacity: float = 1.0
+    markers: bool = False
 
 
 def nice_ticks(low: float, high: float, count: int = 5) -> list:
@@ -122,6 +124,8 @@ def line_chart_svg(series: list, title: str = "", xlabel: str = "", ylabel: str 
         dash = ' stroke-dasharray="6 3"' if s.dashed else ""
         out.append(f'<polyline points="{" ".join(coords)}" fill="none" stroke="{s.colour}" stroke-width="1.5"'
                    f' stroke-opacity="{s.opacity:g}"{dash}/>')
+        if s.markers:
+            out.extend(f'<circle cx="{px(x):.1f}" cy="{py(y):.1f}" r="2.5" fill="{s.colour}"/>' for x, y in pts)
     labelled = [s for s in series if s.label]
     if labelled:
         # lower right: score curves rise to the upper right

@@ -1,6 +1,8 @@
 """Structure search: splits that capture distinct modes, determinism, checkpoint/resume, CLI."""
 
 import json
+import sys
+from xml.etree import ElementTree
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,14 +153,21 @@ class _QuickOptions(SearchOptions):
 def test_cli_learn_sample_and_errors(tmp_path, capsys, monkeypatch):
     import procmod.learn.search
     monkeypatch.setattr(procmod.learn.search, "SearchOptions", _QuickOptions)  # a fast search
+    # no matplotlib: importing it cost ~0.6 s a run and wrote a font cache under the user's home
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
     ex = tmp_path / "tiny.json"
     ex.write_text(json.dumps(tiny_set(4)))
     out = tmp_path / "run"
     assert main(["learn", str(ex), "--out", str(out), "--particles", "1", "--samples", "3", "--workers", "1"]) == 0
-    for name in ("program.json", "program.pt", "contact_sheet.png", "report.html", "report.json", "search.png"):
+    for name in ("program.json", "program.pt", "contact_sheet.png", "report.html", "report.json", "search.svg"):
         assert (out / name).exists(), name
     report = json.loads((out / "report.json").read_text())
     assert report["table"]["A0"] >= 3 and report["trace"]
+    # the search plot: a dot per round of each phase, as the report's rounds say
+    steps = [r for r in report["rounds"] if r["event"] == "step"]
+    chart = ElementTree.parse(out / "search.svg").getroot()
+    assert len(chart.findall("{http://www.w3.org/2000/svg}circle")) == len(steps) > 0
+    assert 'src="search.svg"' in (out / "report.html").read_text()
     samples = tmp_path / "samples.json"
     assert main(["sample", str(out / "program.json"), "-n", "5", "--seed", "2", "--out", str(samples),
                  "--format", "examples"]) == 0

@@ -460,7 +460,8 @@ STRINGS_MODEL = RunKind("procmod strings train folder", "collection.json",
                          r"(vae|tagger)\.(json|pt)", _ATOMIC_TEMPORARY), listed=_mesh_entries("collection.json"),
                         resumes=True)
 LEARN_RUN = RunKind("procmod learn folder", "checkpoint",
-                    (r"program\.(json|pt)", r"parts", r"checkpoint", r"contact_sheet\.png", r"search\.png",
+                    (r"program\.(json|pt)", r"parts", r"checkpoint", r"contact_sheet\.png",
+                     r"search\.(svg|png)",  # png: an earlier version's search plot
                      r"report\.(json|html)", _ATOMIC_TEMPORARY), resumes=True)
 STRING_SAMPLES = RunKind("procmod strings sample folder", "summary.json",
                          (r"samples\.txt", r"summary\.json", r"contact_sheet\.png",

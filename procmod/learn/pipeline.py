@@ -3,7 +3,7 @@
 ``DIR/program.json`` + ``DIR/program.pt`` (the program; meshes copied to ``DIR/parts/``),
 ``DIR/contact_sheet.png`` (the examples, then samples of the program), ``DIR/report.json``
 and ``DIR/report.html`` (Table-1 figures, the search trace, an objective-per-round plot
-``DIR/search.png``), and ``DIR/checkpoint/`` (resumes a killed run).
+``DIR/search.svg``), and ``DIR/checkpoint/`` (resumes a killed run).
 """
 
 from __future__ import annotations
@@ -16,12 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..chart import COLOURS, Series, line_chart_svg
 from ..core import run_forward
 from ..core.io import standard_json
 from ..core.errors import InvalidArgumentError, argument
 from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
-from ..geometry import contact_sheet, save_figure_atomic, save_image_atomic
+from ..geometry import contact_sheet, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
 from .examples import (ExampleSet, duplicate_note, example_parts, orientation_note, read_example_inputs, size_note,
                        stray_note)
@@ -49,21 +50,15 @@ def sample_program(program, name: str, n: int, seed: int) -> list:
 
 
 def _search_plot(rounds, path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
-    for ax, phase in zip(axes, ("discrete", "fixed")):
+    """Best O_D per round of each phase, as an SVG chart (:mod:`procmod.chart`: importing
+    matplotlib and drawing with it cost ~0.6 s of every run, and it wrote its font cache under the user's home)."""
+    series = []
+    for colour, phase, label in zip(COLOURS, ("discrete", "fixed"), ("phase 1 (discrete)", "phase 2 (fixed sigmas)")):
         rows = [r for r in rounds if r["phase"] == phase and r["event"] == "step"]
         if rows:
-            ax.plot([r["round"] for r in rows], [max(r["objectives"]) for r in rows], "o-", ms=3)
-        ax.set_title(f"phase {'1 (discrete)' if phase == 'discrete' else '2 (fixed sigmas)'}")
-        ax.set_xlabel("round")
-        ax.set_ylabel("best O_D")
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    save_figure_atomic(fig, path, dpi=100)
-    plt.close(fig)
+            series.append(Series(label, [r["round"] for r in rows], [max(r["objectives"]) for r in rows], colour,
+                                 markers=True))
+    write_text_atomic(path, line_chart_svg(series, "structure search", "round", "best O_D"))
 
 
 def _report_html(table: dict, trace: list, examples_path: str, command: str) -> str:
@@ -80,7 +75,7 @@ tr:nth-child(even){{background:#f2f2f2}}</style></head><body>
 <p><code>{html.escape(command)}</code></p>
 <h2>Examples (top) and samples</h2><img src="contact_sheet.png" style="max-width:100%">
 <h2>Summary (seed 000 Table 1)</h2><table>{rows}</table>
-<h2>Structure search</h2><img src="search.png">
+<h2>Structure search</h2><img src="search.svg">
 <table><tr><th>phase</th><th>split</th><th>accepted</th><th>O_D proposed</th><th>O_D</th><th>|A|</th><th>C(P)</th><th>s</th></tr>
 {trace_rows}</table></body></html>
 """
@@ -169,7 +164,7 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     name = str(json_path.resolve())
     derivations = sample_program(program, name, samples, seed)
     examples_and_samples_sheet(example_set, derivations, out / "contact_sheet.png")
-    _search_plot(result.rounds, out / "search.png")
+    _search_plot(result.rounds, out / "search.svg")
     report = {"format": "procmod-learn-report/1", "examples": shown, "table": result.table,
               "options": asdict(options), "trace": result.trace, "rounds": result.rounds,
               "resumed": result.resumed}
