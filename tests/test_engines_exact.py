@@ -37,17 +37,31 @@ def _posterior_from_smc(result):
     return out
 
 
-@pytest.mark.parametrize("engine", [smc, sosmc])
-def test_smc_posterior_marginals_match_exact(engine):
-    _, exact = mix_exact(OBS, S)
-    runs = 40
-    estimates = [_posterior_from_smc(engine(MIX, SumTarget(OBS, S), particles=300, seed=100 + i))
-                 for i in range(runs)]
+def assert_posterior_matches(results, exact: dict, limit: float = 4.5) -> None:
+    """The runs' posterior P(k, child) of MIX against ``exact``, each run's estimate weighted
+    by its estimate of Z: the mean of Z-hat x (Z-hat-normalised estimate) is unbiased
+    at any particle count (seed 004's SMC; Del Moral), so their ratio is consistent over
+    runs with no O(1/N) bias. The plain mean of the runs' normalised estimates is biased
+    (by ~6/N on MIX under sd 0.5, heavy-tailed besides): a fixed allowance for it
+    passed or failed by the seeds (a change of random streams found it). Needs a
+    likelihood under which Z-hat has a finite variance (``Z_CHECK_S``)."""
+    log_z = np.array([r.log_marginal_likelihood for r in results])
+    z_hat = np.exp(log_z - log_z.max())
+    estimates = [_posterior_from_smc(r) for r in results]
     for key, p in exact.items():
         values = np.array([e.get(key, 0.0) for e in estimates])
-        se = values.std(ddof=1) / math.sqrt(runs)
-        # 5 standard errors plus an allowance for SMC's O(1/N) bias in ratio estimates.
-        assert abs(values.mean() - p) < 5 * se + 2.0 / 300, (key, values.mean(), p, se)
+        ratio = float((z_hat * values).sum() / z_hat.sum())
+        se = math.sqrt(float(((z_hat * (values - ratio)) ** 2).sum())) / z_hat.sum()  # delta method
+        assert abs(ratio - p) < limit * se, (key, ratio, p, se)
+        # the check has power: the prior's P(0, *) = 0.15 against the posterior's 0.114
+        assert limit * se < 0.03, (key, se)
+
+
+@pytest.mark.parametrize("engine", [smc, sosmc])
+def test_smc_posterior_marginals_match_exact(engine):
+    _, exact = mix_exact(OBS, Z_CHECK_S)
+    results = [engine(MIX, SumTarget(OBS, Z_CHECK_S), particles=300, seed=100 + i) for i in range(40)]
+    assert_posterior_matches(results, exact)
 
 
 # SOSMC where the order of the futures matters. On MIX at most one future is ever pending,
@@ -80,17 +94,20 @@ def _count_resampling(monkeypatch):
 
 def test_smc_resampling_below_an_ess_threshold_matches_exact(monkeypatch):
     # COUNT emits up to five times. Resampling only when the effective sample size falls
-    # below half the particles carries weights over the emits it skips (the default of
-    # guided runs); the weighted particles must still show the exact posterior over the
+    # below a share of the particles carries weights over the emits it skips (half is the
+    # default of guided runs); the weighted particles must still show the exact posterior over the
     # number of calls and an unbiased Z, and skips must happen, or this is the every-emit
     # test again. The likelihood is ORDER's gentle one (above): a sharp one of the first
     # partial sum starves the longer derivations' states at 200 particles, every emit or not.
+    # Under it the ESS stays near half the particles, so at the guided default (0.5) 40 runs
+    # resampled 0-2 times in all (as the random streams fell): 0.6 resamples at about a third
+    # of the emits, and skips the rest.
     counts = _count_resampling(monkeypatch)
     exact, z = count_exact(ORDER_OBS, ORDER_S), count_evidence(ORDER_OBS, ORDER_S)
     runs, particles = 40, 200
     estimates, zs = [], []
     for i in range(runs):
-        result = smc(COUNT, SumTarget(ORDER_OBS, ORDER_S), particles=particles, seed=700 + i, ess_threshold=0.5)
+        result = smc(COUNT, SumTarget(ORDER_OBS, ORDER_S), particles=particles, seed=700 + i, ess_threshold=0.6)
         zs.append(math.exp(result.log_marginal_likelihood))
         w = np.exp(np.array(result.log_weights) - max(result.log_weights))
         w /= w.sum()

@@ -315,7 +315,8 @@ def _numpy_weights(data: dict, path: Path) -> dict | None:
 
 
 PRETRAINED = Path(__file__).resolve().parent / "pretrained"
-DRAW_BLOCK = 256  # random numbers a proposer draws from the run's generator at a time
+DRAW_BLOCK = 256  # random numbers a proposer draws from the run's generator at a time (at most)
+FIRST_DRAWS = 32  # ... and in its first block from a generator (see GuidedProposer._draws)
 
 
 def pretrained_guides() -> list[str]:
@@ -492,8 +493,9 @@ class GuidedProposer:
         self._categories = {}
         self._relabelled = set()  # sites whose labels are not the ones they were trained on (see relabelled_note)
         self._raw_of = (None, None)  # (call arguments, the raw-values array they were written into)
-        self._draws_of = self._uniforms = self._normals = None  # see _draws
-        self._next_draw = DRAW_BLOCK
+        self._draws_of = None  # see _draws
+        self._uniforms = self._normals = ()
+        self._next_draw = 0
         self._load_kernels()
 
     def _load_kernels(self) -> None:
@@ -685,11 +687,14 @@ class GuidedProposer:
     def _draws(self, rng) -> tuple[float, float]:
         """A uniform and a standard normal from ``rng``, drawn in blocks: two generator
         calls per choice cost about as much as the network. Deterministic given the
-        generator's seed, like single draws."""
+        generator's seed, like single draws. A generator's first block is
+        :data:`FIRST_DRAWS`, and each next one twice the last, up to :data:`DRAW_BLOCK`:
+        a guided 1-particle run makes a few dozen choices."""
         i = self._next_draw
-        if i == DRAW_BLOCK or rng is not self._draws_of:
-            self._uniforms = rng.random(DRAW_BLOCK).tolist()
-            self._normals = rng.standard_normal(DRAW_BLOCK).tolist()
+        if i == len(self._uniforms) or rng is not self._draws_of:
+            size = min(2 * i, DRAW_BLOCK) if rng is self._draws_of else FIRST_DRAWS
+            self._uniforms = rng.random(size).tolist()
+            self._normals = rng.standard_normal(size).tolist()
             self._draws_of = rng
             i = 0
         self._next_draw = i + 1
