@@ -458,3 +458,40 @@ def test_a_settle_step_that_returns_no_derivation_of_the_model_is_refused_naming
             run_forward(_model(root, settle=settle), np.random.default_rng(0))
     kept = run_forward(_model(root, settle=lambda d: d), np.random.default_rng(0))
     assert kept.done and len(kept.geometry()) == 1
+
+
+def _bad_sigma(ctx):
+    ctx.emit(Disc(ctx.sample("x", Normal(0.0, -1.0)), 0.0, 1.0))
+
+
+def _spawns_bad_sigma(ctx):
+    ctx.spawn("kid", _bad_sigma)
+
+
+def test_a_distribution_with_bad_parameters_names_the_rule_its_address_and_its_line():
+    """A Normal with sigma -1 said only what was wrong (h123): in a model of dozens of
+    Normal(...) calls, not where."""
+    with pytest.raises(ModelError) as caught:
+        run_forward(_model(_spawns_bad_sigma), np.random.default_rng(0))
+    line = _bad_sigma.__code__.co_firstlineno + 1
+    assert str(caught.value).startswith(f"rule '_bad_sigma' at /kid (test_model_mistakes.py, line {line}): "
+                                        "Normal needs a finite number mu and a finite number sigma > 0")
+
+
+def _spawns_with_a_keyword(ctx):
+    ctx.spawn("kid", _bush, 0.0, 0.0, angle=1.0)
+
+
+def _spawns_with_too_many(ctx):
+    ctx.maybe("kid", 1.0, _bad_sigma, 1, 2)
+
+
+def test_a_keyword_to_spawn_and_a_wrong_argument_count_say_what_to_do():
+    """A keyword argument to ctx.spawn was a raw TypeError; a wrong count said "2 arguments"
+    beside Python's "3 were given" (h123)."""
+    with pytest.raises(ModelError, match=r"rule '_spawns_with_a_keyword' at / passes the keyword argument 'angle' "
+                       r"to ctx\.spawn, which passes a rule's arguments by position \(ctx\.spawn\(site, rule, a, b\)\)"):
+        run_forward(_model(_spawns_with_a_keyword), np.random.default_rng(0))
+    with pytest.raises(ModelError, match=r"rule '_bad_sigma' at /kid was called with 2 arguments after ctx, which it "
+                       r"does not take \(.*3 were given: Python counts ctx too\)"):
+        run_forward(_model(_spawns_with_too_many), np.random.default_rng(0))

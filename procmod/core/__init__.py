@@ -7,7 +7,7 @@ This package imports nothing else of procmod.
 from .choicemap import ChoiceMap, format_address, is_within
 from .distributions import (Bernoulli, Categorical, Distribution, GaussianMixture, Normal,
                             TruncatedNormal, Uniform)
-from .errors import (DerivationFormatError, InvalidArgumentError, ModelError, ProcmodError,
+from .errors import (DerivationFormatError, DistributionError, InvalidArgumentError, ModelError, ProcmodError,
                      UnknownModelError)
 from .model import Model
 from .protocols import (MaskedTarget, Output, OverlayTarget, PartCachingOutput, Proposer, RemovableOutput,

@@ -16,7 +16,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from .errors import ModelError
+from .errors import DistributionError
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 _STANDARD_NORMAL = NormalDist()
@@ -107,7 +107,7 @@ class Normal(Distribution):
                 return
         except (TypeError, ValueError):
             pass
-        raise ModelError(f"Normal needs a finite number mu and a finite number sigma > 0, got mu={mu!r:.40}, "
+        raise DistributionError(f"Normal needs a finite number mu and a finite number sigma > 0, got mu={mu!r:.40}, "
                          f"sigma={sigma!r:.40}")
 
     def sample(self, rng):
@@ -137,15 +137,15 @@ class TruncatedNormal(Distribution):
         except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
-            raise ModelError(f"TruncatedNormal needs a finite mu and a finite sigma > 0, got mu={mu!r:.40}, "
+            raise DistributionError(f"TruncatedNormal needs a finite mu and a finite sigma > 0, got mu={mu!r:.40}, "
                              f"sigma={sigma!r:.40}")
         if not low < high:
-            raise ModelError(f"TruncatedNormal needs low < high, got [{low!r}, {high!r}]")
+            raise DistributionError(f"TruncatedNormal needs low < high, got [{low!r}, {high!r}]")
         self.mu, self.sigma, self.low, self.high = float(mu), float(sigma), float(low), float(high)
         self._cdf_low = _STANDARD_NORMAL.cdf((self.low - self.mu) / self.sigma)
         self._mass = _STANDARD_NORMAL.cdf((self.high - self.mu) / self.sigma) - self._cdf_low
         if not self._mass > 1e-300:
-            raise ModelError(
+            raise DistributionError(
                 f"TruncatedNormal({mu}, {sigma}, {low}, {high}) has no probability mass in its"
                 " interval; move the interval towards mu or widen sigma")
         self._log_mass = math.log(self._mass)
@@ -187,7 +187,7 @@ class Uniform(Distribution):
         except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
-            raise ModelError(f"Uniform needs finite numbers low < high, got [{low!r:.40}, {high!r:.40}]")
+            raise DistributionError(f"Uniform needs finite numbers low < high, got [{low!r:.40}, {high!r:.40}]")
         self.low, self.high = float(low), float(high)
         self._log_width = math.log(self.high - self.low)
 
@@ -219,7 +219,7 @@ class Bernoulli(Distribution):
         except TypeError:
             valid = False
         if not valid:
-            raise ModelError(f"Bernoulli needs a number 0 <= p <= 1, got {p!r:.40}")
+            raise DistributionError(f"Bernoulli needs a number 0 <= p <= 1, got {p!r:.40}")
         self.p = float(p)
         self._log_p = math.log(p) if p > 0 else -math.inf
         self._log_q = math.log1p(-p) if p < 1 else -math.inf
@@ -252,9 +252,9 @@ class Categorical(Distribution):
         try:
             probs = [float(p) for p in probs]
         except (TypeError, ValueError):
-            raise ModelError(f"Categorical needs a list of numbers, got {probs!r:.60}") from None
+            raise DistributionError(f"Categorical needs a list of numbers, got {probs!r:.60}") from None
         if not probs or any(not (p >= 0.0 and math.isfinite(p)) for p in probs) or sum(probs) <= 0:
-            raise ModelError(f"Categorical needs non-negative probabilities with a positive sum, got {probs!r}")
+            raise DistributionError(f"Categorical needs non-negative probabilities with a positive sum, got {probs!r}")
         total = sum(probs)
         self.probs = tuple(p / total for p in probs)
         if labels is None:
@@ -264,14 +264,14 @@ class Categorical(Distribution):
         # stays float32
         labels = tuple(bool(label) if isinstance(label, np.bool_) else label for label in labels)
         if any(isinstance(label, np.longdouble) for label in labels):  # (a traceback on saving, h90)
-            raise ModelError(f"Categorical labels are saved as JSON, which has no numpy longdouble, got "
+            raise DistributionError(f"Categorical labels are saved as JSON, which has no numpy longdouble, got "
                              f"{labels!r:.80}; give them as floats (float(x))")
         if not all(isinstance(label, _LABEL_TYPES) and not (isinstance(label, (float, np.floating))
                                                               and not math.isfinite(label)) for label in labels):
-            raise ModelError(f"Categorical labels must be strings, numbers or bools (they are saved as JSON), got "
+            raise DistributionError(f"Categorical labels must be strings, numbers or bools (they are saved as JSON), got "
                              f"{labels!r:.80}; label by index and look the value up in the rule")
         if len(labels) != len(probs) or len(set(labels)) != len(labels):
-            raise ModelError(f"Categorical needs one distinct label per probability, got {labels!r}")
+            raise DistributionError(f"Categorical needs one distinct label per probability, got {labels!r}")
         self.labels = labels
         self._index = {label: i for i, label in enumerate(labels)}
         acc, cumulative = 0.0, []
@@ -311,9 +311,9 @@ class GaussianMixture(Distribution):
     def __init__(self, weights, means, sigmas):
         weights, means, sigmas = list(weights), list(means), list(sigmas)
         if not (len(weights) == len(means) == len(sigmas) >= 1):
-            raise ModelError("GaussianMixture needs equally many weights, means and sigmas (at least one)")
+            raise DistributionError("GaussianMixture needs equally many weights, means and sigmas (at least one)")
         if not (_finite(*means, *sigmas) and all(s > 0 for s in sigmas)):
-            raise ModelError(f"GaussianMixture needs finite means and finite sigmas > 0, got means={means!r:.60}, "
+            raise DistributionError(f"GaussianMixture needs finite means and finite sigmas > 0, got means={means!r:.60}, "
                              f"sigmas={sigmas!r:.60}")
         self._component = Categorical(weights)
         self.weights = self._component.probs

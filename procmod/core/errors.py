@@ -134,6 +134,11 @@ class ModelError(ProcmodError):
     """A model (its rules) broke a rule of the runtime, e.g. reused a choice name."""
 
 
+class DistributionError(ModelError):
+    """A distribution built with parameters it cannot take (a Normal's sigma <= 0, a
+    Bernoulli's p > 1); raised out of a rule, it names the rule, its address and the line."""
+
+
 class UnknownModelError(ProcmodError):
     """A model name that no registry knows."""
 

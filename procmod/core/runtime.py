@@ -31,6 +31,8 @@ from __future__ import annotations
 import functools
 import inspect
 import math
+import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -40,7 +42,7 @@ import numpy as np
 
 from .choicemap import ChoiceMap, format_address
 from .distributions import Bernoulli, Distribution
-from .errors import InvalidArgumentError, ModelError, cut_text
+from .errors import DistributionError, InvalidArgumentError, ModelError, cut_text
 from .model import Model, check_model
 from .random import BlockGenerator, LazyGenerator
 
@@ -644,6 +646,25 @@ def random_order(pending: list, rng: np.random.Generator) -> int:
     return int(rng.random() * len(pending))
 
 
+_KEYWORD_TO_CONTEXT = re.compile(r"Context\.(spawn|maybe)\(\) got an unexpected keyword argument '([^']*)'")
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # procmod's own files
+
+
+def where_built(future: Future, exc: BaseException) -> str:
+    """``rule 'r' at /a/b`` and, where the rule is the user's own code, its file and line
+    (the last frame of ``exc``'s traceback outside procmod's package)."""
+    where = f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
+    frame = None
+    tb = exc.__traceback__
+    while tb is not None:
+        if not os.path.abspath(tb.tb_frame.f_code.co_filename).startswith(_PACKAGE + os.sep):
+            frame = tb
+        tb = tb.tb_next
+    if frame is not None:
+        where += f" ({os.path.basename(frame.tb_frame.f_code.co_filename)}, line {frame.tb_lineno})"
+    return where
+
+
 def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> bool:
     """Run (or resume) one call. Returns True if it drew a new emit."""
     ctx = Context(state, rng, future, prefix, skip, pause)
@@ -669,10 +690,19 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
         return True
     except TypeError as exc:
         # A wrong argument count is a model bug worth a clear message; other TypeErrors pass.
+        where = f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
         if exc.__traceback__ is not None and exc.__traceback__.tb_next is None:
-            raise ModelError(f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
-                             f" cannot be called with {len(future.args)} arguments: {exc}") from exc
+            n = len(future.args)
+            raise ModelError(f"{where} was called with {n} argument{'' if n == 1 else 's'} after ctx, which it "
+                             f"does not take ({exc}: Python counts ctx too)") from exc
+        keyword = _KEYWORD_TO_CONTEXT.search(str(exc))
+        if keyword is not None:  # ctx.spawn(site, rule, x, scale=0.5): a rule's arguments are positional
+            form = "ctx.spawn(site, rule, a, b)" if keyword[1] == "spawn" else "ctx.maybe(site, p, rule, a, b)"
+            raise ModelError(f"{where} passes the keyword argument {keyword[2]!r} to ctx.{keyword[1]}, which "
+                             f"passes a rule's arguments by position ({form}): give it by position") from None
         raise
+    except DistributionError as exc:  # a Normal(0, -1) the rule built: say which rule, and where
+        raise DistributionError(f"{where_built(future, exc)}: {exc}") from exc
     finally:
         ctx._armed = True  # the call has ended: a later use of this ctx is caught above
         if stopped_before:  # (a rule that no longer calls stop is not deterministic: kept stopped)
