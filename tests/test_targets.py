@@ -840,6 +840,39 @@ def test_pencil_on_a_notebooks_blue_ruling_is_read_without_the_ruling(tmp_path):
     assert read[300:340, 20:280].all() and read[60:62, 10:290].all()
 
 
+@pytest.mark.parametrize("case", ["many_lines", "blurred", "blurred_jpeg"])
+def test_a_notebooks_ruling_is_dropped_when_it_outnumbers_the_pencil_or_is_blurred(tmp_path, case):
+    """Textured pencil (grey 115 at 60-100% cover) on a notebook whose 3-pixel blue lines
+    hold six times the drawing's pixels (h124): the lines, all of one grey level, filled
+    the ink's darkest tenth, were taken for the drawing's colour, and every one was read
+    as a stroke. Blurred (a scan, a phone photo), a line's middle row lay further from the
+    lines' median colour (mostly their soft edges) than ink may, and stayed a line."""
+    from PIL import ImageFilter
+
+    from procmod.targets.image import mask_from_image
+
+    rng = np.random.default_rng(3)
+    h = w = 360
+    drawing = np.zeros((h, w), dtype=bool)
+    drawing[60:330, 176:182] = True  # a stem crossing the lines, and three branches
+    for top, left, right in ((120, 100, 176), (190, 182, 280), (260, 120, 176)):
+        drawing[top:top + 5, left:right] = True
+    page = np.full((h, w, 3), (245.0, 243.0, 238.0))
+    for top in range(30, h, 16):
+        page[top:top + 3] = (110, 150, 210)
+    cover = np.where(drawing, rng.uniform(0.6, 1.0, (h, w)), 0.0)[..., None]
+    picture = Image.fromarray((page * (1 - cover) + np.array([115.0, 115.0, 120.0]) * cover).round().astype(np.uint8))
+    if case != "many_lines":
+        picture = picture.filter(ImageFilter.GaussianBlur(0.8))
+    if case == "blurred_jpeg":
+        picture.save(tmp_path / "page.jpg", quality=60)
+        picture = Image.open(tmp_path / "page.jpg")
+    read = mask_from_image(picture)
+    # textured pencil's faintest pixels may fall short of half way: most of it, and no line
+    assert (read & drawing).sum() >= 0.85 * drawing.sum(), (read & drawing).sum() / drawing.sum()
+    assert (read & ~drawing).sum() <= 0.1 * drawing.sum(), (read & ~drawing).sum() / drawing.sum()
+
+
 @pytest.mark.parametrize("case", ["hatching", "staff", "stripes"])
 def test_a_drawings_own_coloured_lines_beside_black_ink_are_no_ruling(case):
     """A first version took any three thin coloured lines across half the picture for a

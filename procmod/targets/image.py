@@ -802,7 +802,7 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
         ink = _beyond_half(distance, 0.0, distance[where], noise)
     if ink is None:
         return nothing
-    ink = _without_ruling(ink & where, colours, luma, where)
+    ink = _without_ruling(ink & where, colours, luma, where, paper)
     return _filled_in(ink, colours, luma, where, noise)
 
 
@@ -831,7 +831,10 @@ def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool
     if ruled:
         centres = [0.5 * (start + stop) for start, stop in runs]
         spaces = np.diff(centres)
-        if np.abs(spaces - np.median(spaces)).max() > RULING_EVEN * np.median(spaces) or \
+        # a line the drawing covers for more than a fifth of its length is not crossed:
+        # the space over it is two (or more) of the others (h124: a branch along a line)
+        step = np.median(spaces)
+        if np.abs(spaces - step * np.maximum(np.round(spaces / step), 1)).max() > RULING_EVEN * step or \
                 centres[-1] - centres[0] < RULING_COVER * len(counts):
             return None  # not a page's ruling: a drawing's own lines (stripes, hatching, a staff, rails)
     lines = np.zeros_like(crossed)
@@ -840,7 +843,8 @@ def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool
     return lines
 
 
-def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray) -> np.ndarray:
+def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray,
+                    paper: np.ndarray) -> np.ndarray:
     """``ink`` less a ruled page's coloured ruling, where the drawing is in a plainer colour:
     pencil (grey 125) on a notebook's blue lines (luma 176) put the lines past half way
     from the paper to the pencil, and every line was read as a stroke (h102: 69,062
@@ -859,30 +863,53 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
     own = colours[ys, xs].astype(np.float64)
     chroma = own.max(axis=1) - own.min(axis=1)
     ink_luma = luma[ys, xs]
-    darkest = ink_luma <= _far(ink_luma, 10)
+    h, w = ink.shape
+    thin = max(3, round(RULING_THIN * max(h, w)))
+    # the drawing's colour: its darkest ink off the rows and columns that look like a
+    # ruling whatever their colour. Over all the ink, a ruling of one grey level (a
+    # notebook's lines outnumbering a pencil sketch's pixels six to one, h124) filled the
+    # darkest tenth, and the ruling was taken for the drawing's colour
+    off = np.ones(len(ys), dtype=bool)
+    shaped = {}  # way -> the rows (columns) that look like a ruling, or None
+    for way, at, across in (("rows", ys, where.sum(axis=1)), ("columns", xs, where.sum(axis=0))):
+        shaped[way] = _ruling_lines(np.bincount(at, minlength=len(across)), across, thin)
+        if shaped[way] is not None:
+            off &= ~shaped[way][at]
+    drawn = ink_luma[off] if off.any() else ink_luma
+    darkest = (ink_luma <= _far(drawn, 10)) & (off if off.any() else True)
     coloured = chroma >= float(np.median(chroma[darkest])) + MIN_CONTRAST
     if not coloured.any():
         return ink
-    h, w = ink.shape
-    thin = max(3, round(RULING_THIN * max(h, w)))
     along = {"rows": (ys, np.bincount(ys[coloured], minlength=h), where.sum(axis=1)),
              "columns": (xs, np.bincount(xs[coloured], minlength=w), where.sum(axis=0))}
     lines = {way: _ruling_lines(counts, across, thin) for way, (_, counts, across) in along.items()}
     if all(found is None for found in lines.values()):
         return ink
+    for way, found in lines.items():  # with the lines a drawing covers for over a fifth of their length
+        if found is not None and shaped[way] is not None:
+            lines[way] = found | shaped[way]
     for way, (_, counts, across) in along.items():  # a page ruled one way: its margin line the other way
         if lines[way] is None:
             lines[way] = _ruling_lines(counts, across, thin, ruled=False)
     dropped = np.zeros(len(ys), dtype=bool)
+    halo = max(1, thin // 3)  # a blurred line's soft edge, beside the rows it fills
+    paper = np.asarray(paper, dtype=np.float64).reshape(-1)[:3]
     for way, (at, _, _) in along.items():
         if lines[way] is None:
             continue
         ruled = coloured & lines[way][at]
         if not ruled.any():
             continue
-        # the lines' own colour (a margin's pink is not the ruling's blue), not the drawing's
-        ruling, ruling_luma = np.median(own[ruled], axis=0), float(np.median(ink_luma[ruled]))
-        dropped |= ruled & (ink_luma > ruling_luma - MIN_CONTRAST) & (np.abs(own - ruling).max(axis=1) < MIN_CONTRAST)
+        # the lines' own colour (a margin's pink is not the ruling's blue), not the
+        # drawing's: their fullest, and blends of it with the paper (a blurred or
+        # photographed line's edge rows, and its middle where most rows are edge, h124)
+        full = ruled & (ink_luma <= np.percentile(ink_luma[ruled], 25))
+        ruling, ruling_luma = np.median(own[full], axis=0), float(np.median(ink_luma[full]))
+        span = ruling - paper
+        share = np.clip((own - paper) @ span / max(float(span @ span), 1e-9), 0.0, 1.0)
+        blend = np.abs(own - (paper + share[:, None] * span)).max(axis=1) < MIN_CONTRAST
+        near = np.convolve(lines[way], np.ones(2 * halo + 1), mode="same") > 0
+        dropped |= near[at] & blend & (ink_luma > ruling_luma - MIN_CONTRAST)
     out = ink.copy()
     out[ys[dropped], xs[dropped]] = False
     return out
