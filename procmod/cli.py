@@ -94,7 +94,7 @@ def _build_parser() -> argparse.ArgumentParser:
     infer.add_argument("--budget", help="30s, 2m, 5000evals or 100gens, or several joined with + (100gens+30s: "
                                         "the first reached ends the run) (default: one SMC run, one forward batch, "
                                         "1600 MCMC sweeps, 50 GA generations)")
-    infer.add_argument("--seed", type=_int_arg, default=0)
+    infer.add_argument("--seed", type=_int_arg, default=0, help="random seed (default 0)")
     infer.add_argument("--guide", help="a trained neural guide (GUIDE.json with its GUIDE.npz or .pt) for --engine smc "
                        "or sosmc")
     infer.add_argument("--workers", type=_int_arg,

@@ -21,7 +21,7 @@ def register(sub, int_arg) -> None:
     traces.add_argument("--targets", default="scribble", help="scribble (default) or circuit")
     traces.add_argument("--count", type=int_arg, required=True, help="number of traces")
     traces.add_argument("--particles", type=int_arg, default=600, help="SMC particles per trace (default 600)")
-    traces.add_argument("--seed", type=int_arg, default=0)
+    traces.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     traces.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="set a model parameter for every trace (repeatable), e.g. --param size=100: make "
                              "traces at the values the guide will run at")
@@ -51,7 +51,7 @@ def register(sub, int_arg) -> None:
                        help="cosine (default): the step size anneals to zero over the run; "
                             "constant: the papers' setting")
     train.add_argument("--limit", type=int_arg, help="use only the first N traces")
-    train.add_argument("--seed", type=int_arg, default=0)
+    train.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     train.set_defaults(handler=_cmd_train)
 
 

@@ -56,7 +56,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("graph", metavar="GRAPH.json")
     p.add_argument("--random", type=int_arg, metavar="N", help="N distinct random strings instead (fewer if the "
                                                                "graph has fewer)")
-    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     p.set_defaults(handler=_encode)
 
     p = leaves.add_parser("decode", help="the procmod-graph/1 JSON of a string, to stdout")
@@ -67,13 +67,14 @@ def register(sub, int_arg) -> None:
     p.add_argument("shapes", metavar="SHAPES", nargs="+", help=SHAPES_HELP)
     p.add_argument("--count", type=int_arg, required=True, help="shapes in the collection (inputs included)")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     p.add_argument("--parallel", type=int_arg, default=8, help="random subgraphs per round (default 8)")
     p.add_argument("--rounds", type=int_arg, default=200, help="at most this many rounds (default 200)")
     p.add_argument("--seconds", type=float, help="stop after this many seconds")
     p.add_argument("--workers", type=int_arg, help="local worker processes (0: one per core; default inline)")
     p.add_argument("--scheduler", help="dask scheduler address tcp://host:8786 (overrides --workers)")
-    p.add_argument("--strings-per-shape", type=int_arg, default=8)
+    p.add_argument("--strings-per-shape", type=int_arg, default=8,
+                   help="random strings of each shape written to strings.txt (default 8)")
     p.add_argument("--translations-only", action="store_true",
                    help="dock by translations only, so every variant keeps the inputs' orientation (default: keep "
                         "the rotation docking computes, at whatever angle the parts are)")
@@ -96,10 +97,10 @@ def register(sub, int_arg) -> None:
     p.add_argument("--out", required=True, help="model folder (an interrupted training resumes from it)")
     p.add_argument("--epochs", type=int_arg, default=40, help="VAE epochs (default 40)")
     p.add_argument("--tagger-epochs", type=int_arg, default=24, help="tagger epochs (default 24)")
-    p.add_argument("--latent", type=int_arg, default=24)
-    p.add_argument("--hidden", type=int_arg, default=128)
-    p.add_argument("--layers", type=int_arg, default=1)
-    p.add_argument("--cell", choices=("gru", "lstm"), default="gru")
+    p.add_argument("--latent", type=int_arg, default=24, help="the VAE's latent dimensions (default 24)")
+    p.add_argument("--hidden", type=int_arg, default=128, help="recurrent units a layer (default 128)")
+    p.add_argument("--layers", type=int_arg, default=1, help="recurrent layers (default 1)")
+    p.add_argument("--cell", choices=("gru", "lstm"), default="gru", help="recurrent cell (default gru)")
     p.add_argument("--kl-weight", type=float, default=0.1, help="final KL weight beta (default 0.1)")
     p.add_argument("--kl-warmup", type=int_arg, default=10, help="epochs of linear beta warm-up (default 10)")
     p.add_argument("--strings-per-shape", type=int_arg, default=8, help="VAE training strings per shape (default 8)")
@@ -109,7 +110,7 @@ def register(sub, int_arg) -> None:
                    help="fraction of variants held out (default 0.2; the input shapes always train)")
     p.add_argument("--device", default="cpu",
                    help="torch device to train on: cpu (default), cuda or cuda:N; the model is saved for the CPU")
-    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     _add_overwrite(p)
     p.set_defaults(handler=_train)
 
@@ -119,7 +120,7 @@ def register(sub, int_arg) -> None:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--mode", choices=("prior", "perturb", "interpolate", "path"), default="prior",
                    help="prior: z ~ N(0, I); perturb / interpolate / path: seed 001 section 5.2")
-    p.add_argument("--seed", type=int_arg, default=0)
+    p.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
     p.add_argument("--unconstrained", action="store_true", help="decode without grammar masks (checked after)")
     p.add_argument("--no-meshes", action="store_true", help="do not instantiate the valid samples")
     _add_overwrite(p)
@@ -129,8 +130,8 @@ def register(sub, int_arg) -> None:
     p.add_argument("model", metavar="MODEL")
     p.add_argument("string", metavar="STRING")
     p.add_argument("--out", required=True, metavar="FILE.glb")
-    p.add_argument("--seed", type=int_arg, default=0)
-    p.add_argument("--votes", type=int_arg, default=8, help="strings of the graph the tagger votes over")
+    p.add_argument("--seed", type=int_arg, default=0, help="random seed (default 0)")
+    p.add_argument("--votes", type=int_arg, default=8, help="strings of the graph the tagger votes over (default 8)")
     p.add_argument("--majority-vote", action="store_true",
                    help="count each string's labels (seed 001) instead of averaging the tagger's probabilities")
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
