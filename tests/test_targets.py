@@ -873,6 +873,60 @@ def test_a_notebooks_ruling_is_dropped_when_it_outnumbers_the_pencil_or_is_blurr
     assert (read & ~drawing).sum() <= 0.1 * drawing.sum(), (read & ~drawing).sum() / drawing.sum()
 
 
+@pytest.mark.parametrize("gap", [2, 3])
+def test_staves_whose_gap_is_a_whole_number_of_spaces_are_no_ruling(gap):
+    """Staves of five thin reddish lines with pencil notes, the gap between staves two or
+    three line spaces: a ruling may skip a line the drawing covers (the space over it is two
+    of the others), but not a line that is not there at all (h125: every staff line was
+    dropped, IoU 1.0 -> 0.07)."""
+    from PIL import ImageDraw
+
+    from procmod.targets.image import mask_from_image
+
+    w, h, space = 1000, 800, 14
+    rows, top = [], 60
+    while top + 4 * space < 760:
+        rows += [top + i * space for i in range(5)]
+        top += (4 + gap) * space
+    picture = Image.new("RGB", (w, h), (250, 250, 246))
+    draw = ImageDraw.Draw(picture)
+    for y in rows:
+        draw.rectangle([60, y, 940, y + 1], fill=(200, 120, 120))
+    for k in range(20):
+        x, y = 100 + 40 * k, rows[(3 * k) % len(rows)]
+        draw.ellipse([x, y - 6, x + 14, y + 6], fill=(118, 118, 120))
+        draw.rectangle([x + 12, y - 40, x + 14, y], fill=(118, 118, 120))
+    read = mask_from_image(picture)[100:900]  # (padded to a square: rows 100..899)
+    staff = np.zeros((h, w), dtype=bool)
+    for y in rows:
+        staff[y:y + 2, 60:941] = True
+    assert (read & staff).sum() >= 0.95 * staff.sum()
+
+
+def test_colouring_in_the_rulings_blue_is_cut_no_wider_than_the_lines():
+    """A sky coloured in a blue a little darker than the ruling, over its lines: the lines'
+    rows are cut out of it (their colour cannot be told from the sky's), but the rows beside
+    them, where a blurred line's soft edge is dropped, keep what is not lighter than the line
+    (h125: the cuts had doubled, IoU 0.94 -> 0.88)."""
+    from procmod.targets.image import mask_from_image
+
+    h, w = 800, 1000
+    page = np.full((h, w, 3), (250.0, 250.0, 246.0))
+    for top in range(90, h - 10, 32):
+        page[top:top + 2] = (150, 190, 235)
+    drawing = np.zeros((h, w), dtype=bool)
+    drawing[110:201, 400:601] = True  # the sky, over three lines
+    page[drawing] = (140, 182, 232)
+    for top, bottom, left, right in ((350, 358, 300, 600), (592, 600, 300, 600), (350, 600, 300, 308),
+                                     (350, 600, 592, 600)):  # a pencil house
+        page[top:bottom, left:right] = (118, 118, 120)
+        drawing[top:bottom, left:right] = True
+    read = mask_from_image(Image.fromarray(page.astype(np.uint8)))[100:900]
+    lines_in_sky = sum(2 * 201 for top in range(90, h - 10, 32) if 110 <= top and top + 2 <= 201)
+    assert (read & ~drawing).sum() <= 0.01 * drawing.sum()  # the ruling is dropped
+    assert (drawing & ~read).sum() <= lines_in_sky + 0.01 * drawing.sum()
+
+
 @pytest.mark.parametrize("case", ["hatching", "staff", "stripes"])
 def test_a_drawings_own_coloured_lines_beside_black_ink_are_no_ruling(case):
     """A first version took any three thin coloured lines across half the picture for a

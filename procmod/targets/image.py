@@ -816,13 +816,17 @@ RULING_THIN = 0.004  # a ruling line's widest (a share of the picture's side; at
 RULING_COVER = 0.7  # the least share of the picture's side from its first line to its last (hatching's is its shape's)
 
 
-def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool = True) -> np.ndarray | None:
+def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool = True,
+                  covered: np.ndarray | None = None) -> np.ndarray | None:
     """Rows (or columns) that are a page's ruling, from ``counts`` of coloured ink along
     each and the pixels ``across`` each: :data:`RULING_LINES` or more thin runs of rows
     each crossed for :data:`RULING_SPAN` of its length, the spaces between them even
     within :data:`RULING_EVEN`, from first to last over :data:`RULING_COVER` of the
     picture; None otherwise. ``ruled=False`` (on a page ruled the other way): any such
-    run, a margin line."""
+    run, a margin line. ``covered``: rows all the ink crosses (a line the drawing covers
+    for more than a fifth of its length, h124: a branch along a line); a space of two or
+    more of the others counts as even where such rows fill in the lines it skips, not
+    where nothing is drawn (a staff's gap between staves, h125)."""
     crossed = counts >= RULING_SPAN * np.maximum(across, 1)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], crossed.astype(np.int8), [0]])))
     runs = [(start, stop) for start, stop in zip(edges[::2], edges[1::2]) if stop - start <= thin]
@@ -831,12 +835,16 @@ def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool
     if ruled:
         centres = [0.5 * (start + stop) for start, stop in runs]
         spaces = np.diff(centres)
-        # a line the drawing covers for more than a fifth of its length is not crossed:
-        # the space over it is two (or more) of the others (h124: a branch along a line)
-        step = np.median(spaces)
-        if np.abs(spaces - step * np.maximum(np.round(spaces / step), 1)).max() > RULING_EVEN * step or \
+        step = float(np.median(spaces))
+        skips = np.maximum(np.round(spaces / step), 1)
+        if np.abs(spaces - step * skips).max() > RULING_EVEN * step or \
                 centres[-1] - centres[0] < RULING_COVER * len(counts):
             return None  # not a page's ruling: a drawing's own lines (stripes, hatching, a staff, rails)
+        for i in np.flatnonzero(skips > 1):
+            for j in range(1, int(skips[i])):
+                at = int(round(centres[i] + j * spaces[i] / skips[i]))
+                if covered is None or not covered[max(0, at - thin):at + thin + 1].any():
+                    return None
     lines = np.zeros_like(crossed)
     for start, stop in runs:
         lines[start:stop] = True
@@ -870,9 +878,11 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
     # notebook's lines outnumbering a pencil sketch's pixels six to one, h124) filled the
     # darkest tenth, and the ruling was taken for the drawing's colour
     off = np.ones(len(ys), dtype=bool)
-    shaped = {}  # way -> the rows (columns) that look like a ruling, or None
+    shaped, covered = {}, {}  # way -> the rows (columns) that look like a ruling (or None); that all ink crosses
     for way, at, across in (("rows", ys, where.sum(axis=1)), ("columns", xs, where.sum(axis=0))):
-        shaped[way] = _ruling_lines(np.bincount(at, minlength=len(across)), across, thin)
+        counts = np.bincount(at, minlength=len(across))
+        covered[way] = counts >= RULING_SPAN * np.maximum(across, 1)
+        shaped[way] = _ruling_lines(counts, across, thin)
         if shaped[way] is not None:
             off &= ~shaped[way][at]
     drawn = ink_luma[off] if off.any() else ink_luma
@@ -882,7 +892,8 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
         return ink
     along = {"rows": (ys, np.bincount(ys[coloured], minlength=h), where.sum(axis=1)),
              "columns": (xs, np.bincount(xs[coloured], minlength=w), where.sum(axis=0))}
-    lines = {way: _ruling_lines(counts, across, thin) for way, (_, counts, across) in along.items()}
+    lines = {way: _ruling_lines(counts, across, thin, covered=covered[way])
+             for way, (_, counts, across) in along.items()}
     if all(found is None for found in lines.values()):
         return ink
     for way, found in lines.items():  # with the lines a drawing covers for over a fifth of their length
@@ -908,8 +919,11 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
         span = ruling - paper
         share = np.clip((own - paper) @ span / max(float(span @ span), 1e-9), 0.0, 1.0)
         blend = np.abs(own - (paper + share[:, None] * span)).max(axis=1) < MIN_CONTRAST
-        near = np.convolve(lines[way], np.ones(2 * halo + 1), mode="same") > 0
-        dropped |= near[at] & blend & (ink_luma > ruling_luma - MIN_CONTRAST)
+        on = lines[way][at]
+        # beside the lines only what is lighter than their full colour: a soft edge, not
+        # a colouring-in of the ruling's blue (cut along the lines as before, no wider, h125)
+        beside = (np.convolve(lines[way], np.ones(2 * halo + 1), mode="same") > 0)[at] & ~on
+        dropped |= blend & ((on & (ink_luma > ruling_luma - MIN_CONTRAST)) | (beside & (ink_luma > ruling_luma)))
     out = ink.copy()
     out[ys[dropped], xs[dropped]] = False
     return out
