@@ -669,6 +669,35 @@ def test_a_sidecar_gives_what_it_gives_and_nothing_else(tmp_path, capsys):
         load_target_image(tmp_path / "pages.gif")
 
 
+def test_a_start_on_a_small_part_at_the_pictures_edge_gets_a_note(tmp_path):
+    """A photo's shadow in a corner, read as a sliver of shape apart from the drawing, held
+    the shape's lowest point: the start went there and the vine grew in the corner, without
+    a word (h124). A drawing standing on the bottom edge, or with a small part of its own
+    inside the picture, gets no note."""
+    from procmod.cli import _model
+    from procmod.data import target_from_spec
+    from procmod.targets.placement import picture_note
+
+    model = _model("vines")
+    page = np.full((300, 400), 250, dtype=np.uint8)
+    page[60:240, 188:202] = page[100:112, 120:280] = 0  # a cross
+    shadow = page.copy()
+    for row in range(280, 300):  # the corner's shadow: a wedge along the bottom and right edges
+        shadow[row, 400 - 2 * (row - 275):] = 40
+    Image.fromarray(shadow).save(tmp_path / "shadow.png")
+    note = picture_note(target_from_spec(str(tmp_path / "shadow.png")), model)
+    assert note is not None and "the start lies on a small part of shadow.png's shape at the picture's" in note
+    standing = page.copy()
+    standing[60:300, 188:202] = 0  # the cross's stem reaches the bottom edge: one part
+    standing[280:290, 40:60] = 0  # and a pebble of its own, inside the picture
+    Image.fromarray(standing).save(tmp_path / "standing.png")
+    assert picture_note(target_from_spec(str(tmp_path / "standing.png")), model) is None
+    pebble = page.copy()
+    pebble[285:295, 40:60] = 0  # a small part below the cross, not at the edge, takes the start
+    Image.fromarray(pebble).save(tmp_path / "pebble.png")
+    assert picture_note(target_from_spec(str(tmp_path / "pebble.png")), model) is None
+
+
 def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_path):
     """A drawing on paper inside a dark frame (a scanner bed's edge) ran with the paper as
     the shape; fine-pen strokes beside a marker vanished at the 50x50 canvas. Neither said

@@ -420,6 +420,44 @@ def _edge_band(mask: np.ndarray, picture: tuple | None = None) -> tuple[str, flo
     return None
 
 
+EDGE_SCRAP_SHARE = 0.25
+"""A start on a part of the shape that touches the picture's edge and holds less than
+this share of the shape, beside a larger part, gets a note (a photo's shadow in a corner,
+h124: the lowest point of the shape lay on it, and the model grew there)."""
+
+
+def _start_on_edge_scrap(mask: np.ndarray, picture: tuple | None, start) -> tuple[str, float] | None:
+    """``(side, share of the shape)`` of the part of the mask the start lies on, where that
+    part touches an edge of the picture and is small beside another (:data:`EDGE_SCRAP_SHARE`),
+    or None."""
+    if start is None or not mask.any():
+        return None
+    height, width = mask.shape
+    col = min(width - 1, int(float(start[0]) * width))
+    row = min(height - 1, int(float(start[1]) * height))
+    if not mask[row, col]:
+        return None
+    top, left, h, w = picture if picture is not None else (0, 0, height, width)
+    edges = {"left": (slice(top, top + h), left), "right": (slice(top, top + h), left + w - 1),
+             "top": (top, slice(left, left + w)), "bottom": (top + h - 1, slice(left, left + w))}
+    if not any(mask[at].any() for at in edges.values()):
+        return None  # nothing touches an edge (importing scipy.ndimage costs ~0.13 s)
+    from scipy import ndimage
+
+    labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
+    if count < 2:
+        return None
+    sizes = np.bincount(labels.ravel())[1:]
+    part = labels[row, col]
+    share = float(sizes[part - 1]) / float(sizes.sum())
+    if share >= EDGE_SCRAP_SHARE or sizes[part - 1] >= sizes.max():
+        return None
+    for side, at in edges.items():
+        if (labels[at] == part).any():
+            return side, share
+    return None
+
+
 def picture_note(target: ShapeMatch, model) -> str | None:
     """One line when a picture target's mask is probably not the drawing (see the module
     docstring), or reading it guessed (:attr:`TargetImage.notes`), else None."""
@@ -488,6 +526,12 @@ def _picture_advice(target: ShapeMatch, model) -> str | None:
         return (f"a band along the {band[0]} edge of {target.name} ({band[1]:.0%} of the shape read) is taken as "
                 "part of the shape: if it is a scanner lid's shadow or a frame, crop it away or paint it the "
                 "paper's colour")
+    scrap = None if built_in else _start_on_edge_scrap(mask, picture, target.image.start)
+    if scrap is not None:
+        return (f"the start lies on a small part of {target.name}'s shape at the picture's {scrap[0]} edge "
+                f"({scrap[1]:.0%} of the shape read), apart from the drawing: if it is a shadow or the paper's "
+                "edge, crop it away or paint it the paper's colour, or give a start on the drawing (a sidecar's "
+                "or --param start's)")
     canvas = model.new_output()
     width, height = getattr(canvas, "width", None), getattr(canvas, "height", None)
     if not width or not height or mask.shape == (height, width):
