@@ -574,3 +574,29 @@ def test_walls_of_bricks_placed_by_eye_grow_with_augments_tolerance(tmp_path, ca
     assert code == 0, err
     new = int(out.split("(")[1].split(" new")[0])
     assert new >= 1, out
+
+
+def test_an_augment_that_grows_nothing_says_why(tmp_path, capsys, monkeypatch):
+    """Walls of bricks placed by eye grew no variant in 200 rounds, and the command said
+    only "0 new" (h119): a run that grows nothing says whether its attempts docked nothing
+    (the contact tolerance) or made only shapes it had (the duplicate rule)."""
+    def node(part, z):
+        m = np.eye(4)
+        m[2, 3] = z
+        return {"part": part, "transform": m.tolist()}
+
+    shapes = tmp_path / "two.json"  # a box on a box: every shape docking makes is the same two parts
+    shapes.write_text(json.dumps({"format": "procmod-shapes/1",
+                                  "parts": {"a": {"box": [1, 1, 1]}, "b": {"box": [0.5, 0.5, 0.5]}},
+                                  "shapes": [{"nodes": [node("a", 0.5), node("b", 1.25)]}]}))
+    code, out, err = _run(capsys, "strings", "augment", shapes, "--count", "5", "--rounds", "3", "--out",
+                          tmp_path / "c")
+    assert code == 0 and "(0 new)" in out
+    assert "note: no new shape in 3 rounds: the 24 shapes made (of 24 attempts) were all alike to shapes held " \
+           "already by their node-type histograms: --distinct graph" in err
+    import procmod.strings.sampling
+    monkeypatch.setattr(procmod.strings.sampling, "attempt", lambda *args: None)  # no dock matches anywhere
+    code, out, err = _run(capsys, "strings", "augment", shapes, "--count", "5", "--rounds", "3", "--out",
+                          tmp_path / "d")
+    assert code == 0 and "note: no new shape in 3 rounds: none of the 24 attempts docked a piece" in err
+    assert "give --tolerance with the largest gap" in err

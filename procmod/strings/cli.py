@@ -383,8 +383,27 @@ def _augment(args) -> None:
         strings = write_collection(shape_set, result.shapes, tmp, result.rounds, args.strings_per_shape, args.seed,
                                    settings=settings)
     seconds = result.rounds[-1]["seconds"] if result.rounds else 0.0
+    grown = len(result.shapes) - len(shape_set.shapes)
+    if grown == 0 and result.rounds:
+        print(f"note: {_no_growth(result.rounds, args)}", file=sys.stderr)
     print(f"{len(result.shapes)} shapes ({len(result.shapes) - len(shape_set.shapes)} new) after "
           f"{len(result.rounds)} rounds in {seconds:.1f} s; {len(strings)} strings; wrote {out}/")
+
+
+def _no_growth(rounds: list, args) -> str:
+    """Why an augment grew no shape, as far as its rounds tell (h119: walls of bricks placed
+    by eye, 0.5 mm off, grew none in 200 rounds without a word)."""
+    attempts, valid = sum(r["attempts"] for r in rounds), sum(r["valid"] for r in rounds)
+    if valid == 0:
+        widen = ("a larger --tolerance" if args.tolerance is not None else
+                 "--tolerance with the largest gap or overlap between touching parts (in world units)")
+        return (f"no new shape in {len(rounds)} rounds: none of the {attempts:,} attempts docked a piece where its "
+                "boundary matches; parts placed by hand a little apart or overlapping dock only within the contact "
+                f"tolerance: give {widen}, or --any-axis for a set with no up")
+    return (f"no new shape in {len(rounds)} rounds: the {valid:,} shapes made (of {attempts:,} attempts) were all "
+            "alike to shapes held already" + (" by their node-type histograms: --distinct graph counts shapes of "
+                                              "other contacts as new" if args.distinct == "histogram" else "")
+            + "; more --rounds may find others")
 
 
 def _train(args) -> None:

@@ -439,18 +439,20 @@ def augment(shape_set: ShapeSet, count: int, seed: int = 0, parallel: int = 8, m
         pairs = [(int(rng.integers(len(shapes))), int(rng.integers(len(shapes)))) for _ in range(parallel)]
         futures = [executor.submit(attempt, shape_set, shapes[a], shapes[b], grammar, [seed, round_, k], params)
                    for k, (a, b) in enumerate(pairs)]
-        new = 0
+        new = valid = 0
         for f in futures:
             found = f.result()
             if found is None or len(shapes) >= count:
                 continue
+            valid += 1
             shape, graph = found
             if not seen.add(shape, graph):
                 continue
             shapes.append(shape)
             new += 1
-        result.rounds.append({"round": round_ + 1, "attempts": parallel, "new": new, "shapes": len(shapes),
-                              "seconds": round(time.perf_counter() - start, 3)})
+        # valid: attempts that made a shape (new or a duplicate); the rest found no valid dock
+        result.rounds.append({"round": round_ + 1, "attempts": parallel, "valid": valid, "new": new,
+                              "shapes": len(shapes), "seconds": round(time.perf_counter() - start, 3)})
         if progress is not None:
             progress(result.rounds[-1])
     return result
