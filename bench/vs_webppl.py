@@ -43,7 +43,8 @@ and PDF files too, to say what each is and how to convert it), not its subfolder
 ``--bottom-centre`` starts at the bottom centre of the picture itself, not of the square
 it is padded to. With ``--work``, a run already in the folder is reused only when it
 was made with the same settings (leaves, start, repeats, workers, guide and its files)
-on the same mask.
+on the same mask; without it the runs go to a temporary folder, removed at exit.
+``bench/results/NAME.json`` is replaced at the end (said at the start).
 
 Sets: ``glyphs``, the first lower-case glyphs of DejaVu Sans Bold; ``scribbles``, procmod's
 procedural scribbles from number 49 on (0-48 train the guides); ``stix`` (not in the
@@ -60,6 +61,7 @@ Results:
 from __future__ import annotations
 
 import argparse
+import atexit
 import dataclasses
 import json
 import math
@@ -714,6 +716,8 @@ def check_arguments(parser: argparse.ArgumentParser, args) -> None:
         parser.error(f"--scribble-first must be 0 or more, got {args.scribble_first}")
     if not args.sets and args.targets_dir is None:
         parser.error("nothing to bench: give --sets or --targets-dir")
+    if args.targets_dir is not None and not args.targets_dir.is_dir():  # before WebPPL's check and a work folder
+        parser.error(f"--targets-dir {args.targets_dir} is not a folder of pictures")
     if not re.fullmatch(r"[A-Za-z0-9_.-]+", args.name) or set(args.name) == {"."}:
         parser.error(f"--name is a file stem in bench/results/ (letters, digits, _ . -), got {args.name!r}")
     if "procmod+guide" in args.systems and not args.guide:
@@ -751,8 +755,8 @@ def main() -> None:
                              "reported as method mcmc-wW: W chains on W cores in the same wall time")
     parser.add_argument("--guide", help="also guided procmod SMC with this guide (name or GUIDE.pt)")
     parser.add_argument("--guided-particles", type=int, nargs="*", default=[1, 5, 10, 20])
-    parser.add_argument("--workers", type=int, help="procmod's --workers for SMC (default: the CLI's, one "
-                                                     "per 100 particles up to the cores)")
+    parser.add_argument("--workers", type=int, help="procmod's --workers for SMC (default: the CLI's, 1: one "
+                                                     "process, as WebPPL's)")
     parser.add_argument("--repeats", type=int, default=1,
                         help="SMC runs: time each command this many times and keep the least (default 1)")
     parser.add_argument("--name", default="vs_webppl", help="results file stem (default vs_webppl)")
@@ -763,7 +767,14 @@ def main() -> None:
     webppl = ensure_webppl() if "webppl" in args.systems else None
     if "procmod" in args.systems or "procmod+guide" in args.systems:
         compile_timed_package()
-    work = args.work or Path(tempfile.mkdtemp(prefix="vs_webppl_"))
+    results = RESULTS / f"{args.name}.json"
+    if results.exists():  # replaced at the end: said now, while the run can still be stopped
+        print(f"vs_webppl: {results} exists and will be replaced (another --name keeps it)", file=sys.stderr)
+    if args.work is None:  # a temporary one, removed at exit: without --work a run cannot be resumed anyway
+        work = Path(tempfile.mkdtemp(prefix="vs_webppl_"))
+        atexit.register(shutil.rmtree, work, True)
+    else:
+        work = args.work
     work.mkdir(parents=True, exist_ok=True)
     images = target_images(args.sets, args.count, args.targets_dir, args.scribble_first)
     if args.bottom_centre:
@@ -889,7 +900,7 @@ def main() -> None:
         "mcmc_summary": summarise(mcmc_rows, ("system", "method", "set")) if mcmc_rows else [],
         "mcmc_runs": mcmc_rows,
     }
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=1) + "\n")
+    results.write_text(json.dumps(result, indent=1) + "\n")
     title = f"vines {'with' if args.leaves else 'without'} leaves and flowers: procmod vs WebPPL {WEBPPL_VERSION}"
     if summary:  # (`--particles` with no counts: the MCMC comparison alone)
         plot(summary, sets, RESULTS / f"{args.name}.png", title)
