@@ -24,6 +24,7 @@ from procmod.guide.train import build_dataset, train_guide
 from procmod.infer import smc
 from procmod.models import get_model
 
+from test_engines_exact import assert_posterior_matches
 from toy_models import MIX, Z_CHECK_S, SumOutput, SumTarget, Value, mix_exact
 
 VINES = get_model("vines")
@@ -211,7 +212,7 @@ def _poor_guide():
 @pytest.mark.parametrize("ess_threshold", ["auto", None])  # guided default (adaptive), every emit
 def test_guided_smc_stays_unbiased_with_a_poor_guide(ess_threshold):
     # Z under toy_models.Z_CHECK_S, a likelihood wider than the guide's proposals: its variance is finite there
-    obs, s = 2.3, 0.5
+    obs = 2.3
     z = mix_exact(obs, Z_CHECK_S)[0]
     guide = _poor_guide()
     runs = 400
@@ -221,27 +222,13 @@ def test_guided_smc_stays_unbiased_with_a_poor_guide(ess_threshold):
     se = estimates.std(ddof=1) / math.sqrt(runs)
     assert abs(estimates.mean() - z) < 4.5 * se, (estimates.mean(), z, se)
     assert se < 0.1 * z
-    # the posterior over (k, child) too, under the sharper likelihood (weights normalised
-    # within a run are bounded: no such tail)
-    exact = mix_exact(obs, s)[1]
-    runs, particles = 30, 300
-    sums = {key: [] for key in exact}
-    for i in range(runs):
-        r = smc(MIX, SumTarget(obs, s), particles=particles, seed=1000 + i, guide=guide,
-                ess_threshold=ess_threshold)
-        w = np.exp(np.array(r.log_weights) - max(r.log_weights))
-        w /= w.sum()
-        got = {}
-        for weight, d in zip(w, r.samples):
-            cm = d.choice_map()
-            key = (cm[((), "k")], cm[((), "child")])
-            got[key] = got.get(key, 0.0) + weight
-        for key in exact:
-            sums[key].append(got.get(key, 0.0))
-    for key, p in exact.items():
-        values = np.array(sums[key])
-        se = values.std(ddof=1) / math.sqrt(runs)
-        assert abs(values.mean() - p) < 5 * se + 2.0 / particles, (key, values.mean(), p, se)
+    # the posterior over (k, child) too, each run weighted by its Z estimate (no O(1/N) bias:
+    # the plain mean of the runs' estimates under sd 0.5 was biased by ~8/N against an
+    # allowance of 2/N, and failed for some seeds, h127); a guide whose weights were ignored
+    # would show its own proposals: k = 0 in 74% of particles, against the posterior's 23%
+    results = [smc(MIX, SumTarget(obs, Z_CHECK_S), particles=300, seed=1000 + i, guide=guide,
+                   ess_threshold=ess_threshold) for i in range(40)]
+    assert_posterior_matches(results, mix_exact(obs, Z_CHECK_S)[1], power=0.1)
 
 
 def test_a_guide_changes_what_smc_proposes():

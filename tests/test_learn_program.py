@@ -289,7 +289,7 @@ def test_engines_control_a_learned_program():
     score must be the score of the derivation it returns, recomputed here from its boxes
     (a voxel is covered when its centre lies in a box; the weights are +1 inside the target
     box, -0.5 elsewhere in the grid, 0 outside it), and GA and SMC must land in the top
-    decile of the program's prior scores (200 forward samples)."""
+    decile of the program's prior scores (1000 forward samples: the quantile of 200 moved from 217 to 255 between seeds, h127)."""
     from procmod.geometry.solid import Box, matrix
     from procmod.geometry.voxel import VoxelGrid
     from procmod.infer import Budget, ga, mcmc, smc
@@ -314,7 +314,7 @@ def test_engines_control_a_learned_program():
             covered |= (np.abs(local[:, :3]) <= np.asarray(part.size) / 2).all(axis=1)
         return float(weights.ravel()[covered].sum())
 
-    prior = np.array([reference(run_forward(model, np.random.default_rng([9, i]))) for i in range(200)])
+    prior = np.array([reference(run_forward(model, np.random.default_rng([9, i]))) for i in range(1000)])
     top_decile = np.quantile(prior, 0.9)
     runs = {"ga": ga(model, target, population=12, budget=Budget(generations=3), seed=0),
             "smc": smc(model, target, particles=60, seed=0),

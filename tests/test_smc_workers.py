@@ -17,7 +17,7 @@ from procmod.parallel import WorkerError
 from procmod.targets import ShapeMatch
 from procmod.data import scribble_set
 
-from test_engines_exact import ORDER_OBS, ORDER_S, _count_resampling, assert_posterior_matches
+from test_engines_exact import ORDER_OBS, ORDER_S, _count_resampling, assert_posterior_matches, assert_z_unbiased
 from toy_models import COUNT, MIX, Z_CHECK_S, SumOutput, SumTarget, Value, count_evidence, mix_exact
 
 pytestmark = pytest.mark.skipif(not fork_available(), reason="worker shards are forked processes")
@@ -152,13 +152,12 @@ def test_workers_resampling_below_an_ess_threshold_estimate_z_without_bias(monke
     # default of guided runs); COUNT emits up to five times, so skips happen.
     counts = _count_resampling(monkeypatch)
     z = count_evidence(ORDER_OBS, ORDER_S)
-    runs = 150
+    runs = 500  # 150 left the check without power for a fifth of other seeds (h127)
     target = _OffsetTarget(ORDER_OBS, ORDER_S)
     estimates = np.array([math.exp(smc(COUNT, target, particles=16, seed=i, workers=2, ess_threshold=0.5)
                                    .log_marginal_likelihood - target.OFFSET) for i in range(runs)])
     assert 0 < counts["resamples"] < 0.8 * counts["steps"], counts
-    se = estimates.std(ddof=1) / math.sqrt(runs)
-    assert abs(estimates.mean() - z) < 4.5 * se and 4.5 * se < 0.1 * z, (estimates.mean(), z, se)
+    assert_z_unbiased(estimates, z)
 
 
 def test_workers_give_the_exact_posterior():
