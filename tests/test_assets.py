@@ -235,6 +235,9 @@ def flat_mesh(data):
     (lambda d: d["nodes"][2].update(children=[2]), "node 2 .* lists itself among its children"),  # "two parents"
     (lambda d: d["nodes"].extend([{"name": "a", "children": [6]}, {"name": "b", "children": [5]}]), "cycle"),
     (lambda d: d["nodes"][3].update(children=[4]), "two parents"),  # gun under body and wing.001
+    # one parent listing a child twice was said as "two parents" (h128)
+    (lambda d: next(n for n in d["nodes"] if n.get("children"))["children"].append(
+        next(n for n in d["nodes"] if n.get("children"))["children"][0]), "is listed twice among the children of node"),
     (lambda d: d.update(meshes=[], nodes=[{"name": "empty"}]), "no mesh"),
     (lambda d: d["accessors"][1].update(count=3 * 10 ** 7), "has 10000\\d+ triangles"),
     (nan_wing, "non-finite vertex"),
@@ -358,7 +361,8 @@ def test_other_tools_files_are_refused_with_the_way_to_convert_them(tmp_path):
     with pytest.raises(AssetError, match=r"castle.fbx: not an asset file .*Autodesk FBX file is not read by procmod; "
                                          r"export glTF 2.0 \(.glb\) from its tool, or import it into Blender"):
         read_assets(tmp_path / "castle.fbx")
-    with pytest.raises(AssetError, match=r"holds no .gltf, .glb, .urdf file \(castle.fbx: an Autodesk FBX file"):
+    with pytest.raises(AssetError, match=r"holds no .gltf, .glb, .urdf file, nor do its subfolders \(castle.fbx: an "
+                                         r"Autodesk FBX file"):
         read_assets(tmp_path)
     (tmp_path / "castle.obj").write_text("v 0 0 0\n")
     with pytest.raises(AssetError, match="an OBJ file keeps no part hierarchy; export the parts as glTF 2.0"):

@@ -95,6 +95,44 @@ def test_learn_a_folder_of_gltf_and_glb_files(tmp_path, monkeypatch, capsys):
     assert "holds a run with other examples" not in capsys.readouterr().err
 
 
+def test_a_folder_of_asset_folders_is_read_and_subfolders_beside_files_are_named(tmp_path):
+    """Assets kept one a folder (with their textures) were refused as "holds no .gltf"; a
+    later batch in a subfolder beside the folder's own files was left out without a word,
+    half the set (h128)."""
+    from procmod.geometry.assets import asset_files, left_out_note
+    rng = np.random.default_rng(7)
+    nested = tmp_path / "nested"
+    for k in range(4):
+        (nested / f"ship_{k}").mkdir(parents=True)
+        ship_file(nested / f"ship_{k}" / f"ship_{k}.glb", k, rng)
+        (nested / f"ship_{k}" / "texture.png").write_bytes(b"")  # beside it, not 3D: nobody's business
+    assert [f.name for f in asset_files([nested])] == [f"ship_{k}.glb" for k in range(4)]
+    example_set, _ = read_example_inputs([nested])
+    assert len(example_set.examples) == 4 and left_out_note([nested]) is None
+    batches = tmp_path / "batches"
+    fleet(batches, 2)
+    (batches / "v2").mkdir()
+    for k in (2, 3):
+        ship_file(batches / "v2" / f"ship_{k}.glb", k, rng)
+    example_set, _ = read_example_inputs([batches])
+    assert len(example_set.examples) == 2  # the folder's own files, as before
+    assert left_out_note([batches]) == (f"2 asset files in the subfolder v2/ were not read (a folder's own files are, "
+                                        f"not its subfolders' beside them): give it too, e.g. {batches / 'v2'}")
+    example_set, _ = read_example_inputs([batches, batches / "v2"])
+    assert len(example_set.examples) == 4
+
+
+def test_a_part_scaled_to_zero_is_refused_with_what_to_do(tmp_path):
+    """A hidden helper scaled to zero (how some artists hide a mesh) was refused without a
+    way out (h128)."""
+    from procmod.learn.examples import ExamplesError
+    nodes = [{"name": "Top", "mesh": 0, "children": [1]}, {"name": "Hidden", "mesh": 0, "scale": [0, 0, 0]}]
+    write_glb(tmp_path / "table.glb", gltf_json([("top", [box_mesh((1, 0.1, 1))])], nodes, [0]))
+    with pytest.raises(ExamplesError, match=r"node 'Hidden': its world transform is singular .*: delete the part "
+                                            r"\(a hidden helper\) or give it and its parents non-zero scales"):
+        read_example_inputs([tmp_path / "table.glb"])
+
+
 def test_read_example_inputs_refuses_mixed_inputs(tmp_path, capsys):
     files = fleet(tmp_path / "ships", 2)
     ex = tmp_path / "examples.json"

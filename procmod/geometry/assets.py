@@ -159,19 +159,39 @@ def is_asset_file(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() in ASSET_SUFFIXES
 
 
+def _folder_assets(folder: Path) -> tuple[list, list]:
+    """``(asset files read, subfolders left out)`` of a folder: its own asset files, or,
+    where it has none, those of its subfolders one level down (an asset kept in a folder
+    of its own with its textures, h128); the subfolders holding asset files beside a
+    folder's own are left out, as ``(subfolder, its asset files)``."""
+    own = sorted(f for f in folder.iterdir() if f.is_file() and is_asset_file(f))
+    nested = []
+    for sub in sorted(d for d in folder.iterdir() if d.is_dir()):
+        try:
+            files = sorted(f for f in sub.iterdir() if f.is_file() and is_asset_file(f))
+        except OSError:  # a subfolder that cannot be listed holds nothing of the set
+            continue
+        if files:
+            nested.append((sub, files))
+    if own:
+        return own, nested
+    return [f for _, files in nested for f in files], []
+
+
 def asset_files(paths) -> list[Path]:
-    """The asset files named by ``paths`` (files, or folders: their asset files, sorted)."""
+    """The asset files named by ``paths``: files, or folders (their asset files, sorted; a
+    folder with none of its own: those of its subfolders, one level down)."""
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
     out = []
     for p in map(Path, paths):
         if p.is_dir():
-            files = sorted(f for f in p.iterdir() if f.is_file())
-            found = [f for f in files if is_asset_file(f)]
+            found, _ = _folder_assets(p)
             if not found:
+                files = sorted(f for f in p.iterdir() if f.is_file())
                 hints = [(f, conversion_hint(f, hierarchy=True)) for f in files]
                 other = next(((f, h) for f, h in hints if h), None)
-                raise AssetError(f"folder {p} holds no {', '.join(ASSET_SUFFIXES)} file"
+                raise AssetError(f"folder {p} holds no {', '.join(ASSET_SUFFIXES)} file, nor do its subfolders"
                                  + (f" ({other[0].name}: {other[1]})" if other else ""))
             out += found
         elif not p.exists():
@@ -190,19 +210,36 @@ def asset_files(paths) -> list[Path]:
 
 
 def left_out_note(paths) -> str | None:
-    """A note naming the 3D files in the given folders that are not asset files and so were
-    left out (an OBJ beside the glTF scenes keeps no part hierarchy), with what to export;
-    None when there are none. Files no 3D tool writes (a README, a .txt) are not named."""
-    skipped = []
+    """A note naming what the given folders hold and was not read: 3D files that are not
+    asset files (an OBJ beside the glTF scenes keeps no part hierarchy), with what to
+    export, and subfolders of asset files beside a folder's own (a later batch in ``v2/``,
+    h128: half a set had been left out without a word); None when there is nothing.
+    Files no 3D tool writes (a README, a .txt) are not named."""
+    skipped, subfolders = [], []
     for p in map(Path, [paths] if isinstance(paths, (str, os.PathLike)) else paths):
-        if p.is_dir() and not any(f.suffix.lower() == ".urdf" for f in p.iterdir()):  # (a URDF's meshes lie beside it)
-            skipped += [(f, conversion_hint(f, hierarchy=True)) for f in sorted(p.iterdir())
-                        if f.is_file() and not is_asset_file(f)]
+        if not p.is_dir():
+            continue
+        read, nested = _folder_assets(p)
+        subfolders += nested
+        for folder in sorted({f.parent for f in read}):
+            if not any(f.suffix.lower() == ".urdf" for f in folder.iterdir()):  # (a URDF's meshes lie beside it)
+                skipped += [(f, conversion_hint(f, hierarchy=True)) for f in sorted(folder.iterdir())
+                            if f.is_file() and not is_asset_file(f)]
     skipped = [(f, hint) for f, hint in skipped if hint]
-    if not skipped:
-        return None
-    names = ", ".join(f.name for f, _ in skipped[:4]) + (f" and {len(skipped) - 4} more" if len(skipped) > 4 else "")
-    return f"left out {names}, not read as examples ({skipped[0][0].name}: {skipped[0][1]})"
+    said = []
+    if skipped:
+        names = ", ".join(f.name for f, _ in skipped[:4]) + (f" and {len(skipped) - 4} more" if len(skipped) > 4
+                                                             else "")
+        said.append(f"left out {names}, not read as examples ({skipped[0][0].name}: {skipped[0][1]})")
+    if subfolders:
+        count = sum(len(files) for _, files in subfolders)
+        names = ", ".join(f"{sub.name}/" for sub, _ in subfolders[:3]) + (
+            f" and {len(subfolders) - 3} more" if len(subfolders) > 3 else "")
+        said.append(f"{count} asset file{'s' if count > 1 else ''} in the subfolder{'s' if len(subfolders) > 1 else ''}"
+                    f" {names} {'were' if count > 1 else 'was'} not read (a folder's own files are, not its "
+                    f"subfolders' beside them): give {'them' if len(subfolders) > 1 else 'it'} too, e.g. "
+                    f"{subfolders[0][0]}")
+    return "; ".join(said) if said else None
 
 
 def faceless_note(paths) -> str | None:
@@ -211,7 +248,7 @@ def faceless_note(paths) -> str | None:
     they are no part and were read as empties; None when there are none."""
     found = []
     for p in map(Path, [paths] if isinstance(paths, (str, os.PathLike)) else paths):
-        files = sorted(f for f in p.iterdir() if f.is_file()) if p.is_dir() else [p]
+        files = _folder_assets(p)[0] if p.is_dir() else [p]
         for f in files:
             if f.suffix.lower() not in (".gltf", ".glb"):
                 continue
@@ -361,6 +398,10 @@ def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:
             if c == k:
                 raise AssetError(f"{path}: node {c} ({nodes[c].get('name', 'unnamed')!r}) lists itself among its "
                                  "children; a glTF node hierarchy must be a tree")
+            if c in parent and parent[c] == k:  # one parent listing it twice (h128: said as "two parents")
+                raise AssetError(f"{path}: node {c} ({nodes[c].get('name', 'unnamed')!r}) is listed twice among the "
+                                 f"children of node {k} ({nodes[k].get('name', 'unnamed')!r}); a glTF node's "
+                                 "children must be distinct: list it once")
             if c in parent or c in roots:
                 raise AssetError(f"{path}: node {c} ({nodes[c].get('name', 'unnamed')!r}) has two parents; a glTF "
                                  "node hierarchy must be a tree")

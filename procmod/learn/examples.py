@@ -175,8 +175,9 @@ def _asset_node(node, path: Path, depth: int, up: np.ndarray) -> ExampleNode:
         raise ExamplesError(f"{where}: its world transform holds a number beyond {MAX_COORDINATE:g} (or not finite); "
                             "placements and scales must be ordinary lengths: check the file's units")
     if is_singular(m[:3, :3]):
-        raise ExamplesError(f"{where}: its world transform is singular (a scale of zero); procmod learn needs "
-                            "every part to have a volume's worth of placement")
+        raise ExamplesError(f"{where}: its world transform is singular (a scale of zero, or a parent's); procmod "
+                            "learn needs every part to have a volume's worth of placement: delete the part (a "
+                            "hidden helper) or give it and its parents non-zero scales")
     if has_shear(m):
         # a guard: the asset reader puts a shearing node's map into its geometry
         raise ExamplesError(f"{where}: its world transform shears (a non-uniform scale applied to a rotated part, "
