@@ -122,6 +122,31 @@ def test_a_folder_of_asset_folders_is_read_and_subfolders_beside_files_are_named
     assert len(example_set.examples) == 4
 
 
+def test_a_robots_meshes_and_a_link_back_up_are_no_examples(tmp_path):
+    """A ROS robot folder (urdf/ beside meshes/ of .glb files) read one level down took its
+    link meshes for examples; a URDF with its .glb meshes beside it had them named as
+    subfolders to read too; a link back up to the folder named its own files again (h129)."""
+    from procmod.geometry.assets import asset_files, left_out_note
+    ros = tmp_path / "my_robot"
+    (ros / "urdf").mkdir(parents=True)
+    (ros / "meshes").mkdir()
+    (ros / "urdf" / "robot.urdf").write_text("<robot name='r'/>")
+    for name in ("arm.glb", "base.glb"):
+        (ros / "meshes" / name).write_bytes(b"")
+    assert asset_files([ros]) == [ros / "urdf" / "robot.urdf"] and left_out_note([ros]) is None
+    beside = tmp_path / "beside"
+    (beside / "meshes").mkdir(parents=True)
+    (beside / "robot.urdf").write_text("<robot name='r'/>")
+    (beside / "wheel.glb").write_bytes(b"")
+    (beside / "meshes" / "arm.glb").write_bytes(b"")
+    assert asset_files([beside]) == [beside / "robot.urdf"] and left_out_note([beside]) is None
+    looped = tmp_path / "looped"
+    looped.mkdir()
+    ship_file(looped / "ship.gltf", 0, np.random.default_rng(0))
+    (looped / "loop").symlink_to(looped)
+    assert asset_files([looped]) == [looped / "ship.gltf"] and left_out_note([looped]) is None
+
+
 def test_a_part_scaled_to_zero_is_refused_with_what_to_do(tmp_path):
     """A hidden helper scaled to zero (how some artists hide a mesh) was refused without a
     way out (h128)."""

@@ -486,12 +486,23 @@ def _spawns_with_too_many(ctx):
     ctx.maybe("kid", 1.0, _bad_sigma, 1, 2)
 
 
+class RenderContext:
+    def spawn(self, count):
+        return count
+
+
+def _calls_its_own_spawn(ctx):
+    RenderContext().spawn(1, scale=2)  # a TypeError of the user's own, naming a class ending in Context
+
+
 def test_a_keyword_to_spawn_and_a_wrong_argument_count_say_what_to_do():
     """A keyword argument to ctx.spawn was a raw TypeError; a wrong count said "2 arguments"
     beside Python's "3 were given" (h123)."""
     with pytest.raises(ModelError, match=r"rule '_spawns_with_a_keyword' at / passes the keyword argument 'angle' "
                        r"to ctx\.spawn, which passes a rule's arguments by position \(ctx\.spawn\(site, rule, a, b\)\)"):
         run_forward(_model(_spawns_with_a_keyword), np.random.default_rng(0))
+    with pytest.raises(TypeError, match=r"^RenderContext\.spawn\(\) got an unexpected keyword"):  # a user's own: as it is
+        run_forward(_model(_calls_its_own_spawn), np.random.default_rng(0))
     with pytest.raises(ModelError, match=r"rule '_bad_sigma' at /kid was called with 2 arguments after ctx, which it "
                        r"does not take \(.*3 were given: Python counts ctx too\)"):
         run_forward(_model(_spawns_with_too_many), np.random.default_rng(0))

@@ -646,7 +646,7 @@ def random_order(pending: list, rng: np.random.Generator) -> int:
     return int(rng.random() * len(pending))
 
 
-_KEYWORD_TO_CONTEXT = re.compile(r"Context\.(spawn|maybe)\(\) got an unexpected keyword argument '([^']*)'")
+_KEYWORD_TO_CONTEXT = re.compile(r"^Context\.(spawn|maybe)\(\) got an unexpected keyword argument '([^']*)'$")
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # procmod's own files
 
 
@@ -699,7 +699,7 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
         if keyword is not None:  # ctx.spawn(site, rule, x, scale=0.5): a rule's arguments are positional
             form = "ctx.spawn(site, rule, a, b)" if keyword[1] == "spawn" else "ctx.maybe(site, p, rule, a, b)"
             raise ModelError(f"{where} passes the keyword argument {keyword[2]!r} to ctx.{keyword[1]}, which "
-                             f"passes a rule's arguments by position ({form}): give it by position") from None
+                             f"passes a rule's arguments by position ({form}): give it by position") from exc
         raise
     except DistributionError as exc:  # a Normal(0, -1) the rule built: say which rule, and where
         raise DistributionError(f"{where_built(future, exc)}: {exc}") from exc

@@ -164,18 +164,34 @@ def _folder_assets(folder: Path) -> tuple[list, list]:
     where it has none, those of its subfolders one level down (an asset kept in a folder
     of its own with its textures, h128); the subfolders holding asset files beside a
     folder's own are left out, as ``(subfolder, its asset files)``."""
-    own = sorted(f for f in folder.iterdir() if f.is_file() and is_asset_file(f))
+    own = _assets_in(folder)
+    if any(f.suffix.lower() == ".urdf" for f in own):
+        return own, []  # its subfolders hold the robot's meshes (ROS's meshes/)
     nested = []
+    here = folder.resolve()
     for sub in sorted(d for d in folder.iterdir() if d.is_dir()):
+        if sub.resolve() in (here, *here.parents):  # a link back up: the same files again
+            continue
         try:
-            files = sorted(f for f in sub.iterdir() if f.is_file() and is_asset_file(f))
+            files = _assets_in(sub)
         except OSError:  # a subfolder that cannot be listed holds nothing of the set
             continue
         if files:
             nested.append((sub, files))
     if own:
         return own, nested
+    if any(f.suffix.lower() == ".urdf" for _, files in nested for f in files):
+        # a robot's urdf/ beside its meshes/ (ROS's layout): the robots, not their meshes
+        return [f for _, files in nested for f in files if f.suffix.lower() == ".urdf"], []
     return [f for _, files in nested for f in files], []
+
+
+def _assets_in(folder: Path) -> list:
+    """A folder's own asset files, sorted; beside a URDF only the URDFs (the .glb or .gltf
+    files there are its meshes)."""
+    files = sorted(f for f in folder.iterdir() if f.is_file() and is_asset_file(f))
+    robots = [f for f in files if f.suffix.lower() == ".urdf"]
+    return robots or files
 
 
 def asset_files(paths) -> list[Path]:
