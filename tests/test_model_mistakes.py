@@ -501,7 +501,8 @@ def test_a_keyword_to_spawn_and_a_wrong_argument_count_say_what_to_do():
     with pytest.raises(ModelError, match=r"rule '_spawns_with_a_keyword' at / passes the keyword argument 'angle' "
                        r"to ctx\.spawn, which passes a rule's arguments by position \(ctx\.spawn\(site, rule, a, b\)\)"):
         run_forward(_model(_spawns_with_a_keyword), np.random.default_rng(0))
-    with pytest.raises(TypeError, match=r"^RenderContext\.spawn\(\) got an unexpected keyword"):  # a user's own: as it is
+    # a TypeError of the user's own, as it is
+    with pytest.raises(TypeError, match=r"^RenderContext\.spawn\(\) got an unexpected keyword"):
         run_forward(_model(_calls_its_own_spawn), np.random.default_rng(0))
     with pytest.raises(ModelError, match=r"rule '_bad_sigma' at /kid was called with 2 arguments after ctx, which it "
                        r"does not take \(.*3 were given: Python counts ctx too\)"):
