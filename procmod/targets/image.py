@@ -802,7 +802,7 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
         ink = _beyond_half(distance, 0.0, distance[where], noise)
     if ink is None:
         return nothing
-    ink = _without_ruling(ink & where, colours, luma, where, paper)
+    ink = _without_ruling(ink & where, colours, luma, where, paper, plane)
     return _filled_in(ink, colours, luma, where, noise)
 
 
@@ -813,6 +813,7 @@ line of a ruled page's ruling (:func:`_without_ruling`)."""
 RULING_LINES = 6  # the fewest lines, one way, evenly spaced, a ruled page shows
 RULING_EVEN = 0.2  # how far (a share of their median) the spaces between its lines may differ
 RULING_THIN = 0.004  # a ruling line's widest (a share of the picture's side; at least 3 pixels)
+RULING_PARTLY = 0.3  # a coloured line of ink across this share of a row: its faint marks are counted too
 RULING_COVER = 0.7  # the least share of the picture's side from its first line to its last (hatching's is its shape's)
 
 
@@ -851,8 +852,31 @@ def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool
     return lines
 
 
+def _as_lit_evenly(colours: np.ndarray, ys: np.ndarray, xs: np.ndarray, paper: np.ndarray,
+                   plane: np.ndarray | None) -> np.ndarray:
+    """Pixels' colours (float64) as they would be under the paper's light where the paper
+    is its median colour: scaled by the paper's brightness over the fitted fall of light
+    (:func:`_lighting`; ``plane``), so that one ruling reads one colour across a photo lit
+    from one side (its lit end had been no blend of the ruling's colour, and stayed, h125)."""
+    colours = colours.astype(np.float64)
+    if plane is None or colours.shape[1] < 3:
+        return colours
+    scale = float(_luma(np.asarray(paper, dtype=np.float64).reshape(-1)[:colours.shape[1]])) / \
+        np.maximum(plane[ys, xs].astype(np.float64), 1.0)
+    return colours * scale[:, None]
+
+
+def _middles(lines: np.ndarray) -> np.ndarray:
+    """The middle row (two for an even run) of each run of True in ``lines``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], lines.astype(np.int8), [0]])))
+    out = np.zeros_like(lines)
+    for start, stop in zip(edges[::2], edges[1::2]):
+        out[(start + stop - 1) // 2:(start + stop) // 2 + 1] = True
+    return out
+
+
 def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray,
-                    paper: np.ndarray) -> np.ndarray:
+                    paper: np.ndarray, plane: np.ndarray | None = None) -> np.ndarray:
     """``ink`` less a ruled page's coloured ruling, where the drawing is in a plainer colour:
     pencil (grey 125) on a notebook's blue lines (luma 176) put the lines past half way
     from the paper to the pencil, and every line was read as a stroke (h102: 69,062
@@ -868,7 +892,7 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
     if colours.shape[2] < 3 or not ink.any():
         return ink
     ys, xs = np.nonzero(ink)  # at the ink's pixels only: a 12-megapixel photo's whole chroma took ~1 s
-    own = colours[ys, xs].astype(np.float64)
+    own = _as_lit_evenly(colours[ys, xs], ys, xs, paper, plane)
     chroma = own.max(axis=1) - own.min(axis=1)
     ink_luma = luma[ys, xs]
     h, w = ink.shape
@@ -894,6 +918,23 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
              "columns": (xs, np.bincount(xs[coloured], minlength=w), where.sum(axis=0))}
     lines = {way: _ruling_lines(counts, across, thin, covered=covered[way])
              for way, (_, counts, across) in along.items()}
+    marks = None  # (colours, brightness, {way: positions}) of the lines' marks that are not ink
+    if all(found is None for found in lines.values()) and any(
+            (counts >= RULING_PARTLY * np.maximum(across, 1)).any() for _, counts, across in along.values()):
+        # lines only partly read as ink (pale lines near the half-way mark, noise or a
+        # photo's light tipping each pixel either way, h125): counted with their marks that
+        # fell short of it, visibly off the paper and as colourful
+        faint_y, faint_x = np.nonzero(where & ~ink & (np.abs(colours - paper.reshape(1, 1, -1)[..., :colours.shape[2]])
+                                                      .max(axis=2) >= MIN_CONTRAST))
+        faint = _as_lit_evenly(colours[faint_y, faint_x], faint_y, faint_x, paper, plane)
+        keep = faint.max(axis=1) - faint.min(axis=1) >= float(np.median(chroma[darkest])) + MIN_CONTRAST
+        marks = (faint[keep], luma[faint_y[keep], faint_x[keep]], {"rows": faint_y[keep], "columns": faint_x[keep]})
+        for way, at, extra in (("rows", ys, faint_y[keep]), ("columns", xs, faint_x[keep])):
+            _, counts, across = along[way]
+            along[way] = (at, counts + np.bincount(extra, minlength=len(counts)), across)
+            covered[way] = covered[way] | (along[way][1] >= RULING_SPAN * np.maximum(across, 1))
+        lines = {way: _ruling_lines(counts, across, thin, covered=covered[way])
+                 for way, (_, counts, across) in along.items()}
     if all(found is None for found in lines.values()):
         return ink
     for way, found in lines.items():  # with the lines a drawing covers for over a fifth of their length
@@ -912,10 +953,20 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
         if not ruled.any():
             continue
         # the lines' own colour (a margin's pink is not the ruling's blue), not the
-        # drawing's: their fullest, and blends of it with the paper (a blurred or
-        # photographed line's edge rows, and its middle where most rows are edge, h124)
-        full = ruled & (ink_luma <= np.percentile(ink_luma[ruled], 25))
-        ruling, ruling_luma = np.median(own[full], axis=0), float(np.median(ink_luma[full]))
+        # drawing's: that of their middle rows (a blurred or photographed line's edge rows
+        # are most of it, h124; a darkest share was a green drawing's across graph paper),
+        # and blends of it with the paper
+        middle = _middles(lines[way])
+        core = ruled & middle[at]
+        if marks is not None:
+            mark = middle[marks[2][way]]
+            core_colours, core_luma = np.concatenate([own[core], marks[0][mark]]), \
+                np.concatenate([ink_luma[core], marks[1][mark]])
+        else:
+            core_colours, core_luma = own[core], ink_luma[core]
+        if not len(core_colours):
+            continue
+        ruling, ruling_luma = np.median(core_colours, axis=0), float(np.median(core_luma))
         span = ruling - paper
         share = np.clip((own - paper) @ span / max(float(span @ span), 1e-9), 0.0, 1.0)
         blend = np.abs(own - (paper + share[:, None] * span)).max(axis=1) < MIN_CONTRAST
