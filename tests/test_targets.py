@@ -930,6 +930,30 @@ def test_a_pale_ruling_near_the_half_way_mark_is_dropped_in_a_photographed_light
     assert (read & ~drawing).sum() <= 0.1 * drawing.sum(), (read & ~drawing).sum() / drawing.sum()
 
 
+def test_a_striped_drawing_on_tinted_paper_lit_from_one_side_keeps_its_stripes():
+    """Ten thin red stripes over 60% of the width of a cream page lit from one side: the
+    page's own tint, dimmer on one side than its median, counted as the stripes' faint marks,
+    topped their rows up to a ruling's, and every stripe was dropped (h130: IoU 1.0 -> 0.2).
+    Faint marks are read under the fitted fall of light."""
+    from PIL import ImageDraw
+
+    from procmod.targets.image import mask_from_image
+
+    w, h = 1000, 800
+    picture = Image.new("RGB", (w, h), (248, 240, 205))
+    truth = Image.new("L", (w, h), 0)
+    for canvas, red, grey in ((ImageDraw.Draw(picture), (210, 50, 50), (40, 40, 40)),
+                              (ImageDraw.Draw(truth), 255, 255)):
+        for i in range(10):
+            canvas.rectangle([200, 60 + 70 * i, 800, 62 + 70 * i], fill=red)
+        canvas.rectangle([192, 40, 197, 760], fill=grey)  # the flag's pole
+    light = 1 - 0.3 * (1 - np.arange(w)[None, :] / w) - 0.1 * np.arange(h)[:, None] / h  # dimmer to the left
+    picture = Image.fromarray((np.asarray(picture, dtype=np.float64) * light[..., None]).astype(np.uint8))
+    read = mask_from_image(picture)[100:900]
+    drawing = np.asarray(truth) > 0
+    assert (read & drawing).sum() >= 0.95 * drawing.sum(), (read & drawing).sum() / drawing.sum()
+
+
 def test_a_colour_drawing_across_graph_paper_keeps_its_colour():
     """A green and black drawing on graph paper whose pale blue grid falls short of the ink:
     found as a ruling by its faint marks, the lines' colour was read as the darkest of what
