@@ -71,9 +71,9 @@ class BlockGenerator:
     """``generator`` with block-buffered scalar ``random()`` and ``standard_normal()``.
 
     Blocks start at ``first`` numbers and double at each refill up to ``block``: a short
-    run (a guided 1-particle SMC run makes a few dozen draws in about a millisecond) does
-    not pay for thousands it never uses (two 4096-number blocks cost ~0.1-0.15 ms), and a
-    long run's draws still come in full blocks.
+    run (an unguided 1-particle SMC run makes a few dozen draws in ~0.2 ms) does not pay
+    for thousands it never uses (two 4096-number blocks cost ~0.1-0.15 ms), and a long
+    run's draws still come in full blocks.
     """
 
     __slots__ = ("generator", "block", "_uniforms", "_normals", "_next_sizes")

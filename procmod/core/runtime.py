@@ -650,10 +650,15 @@ _KEYWORD_TO_CONTEXT = re.compile(r"^Context\.(spawn|maybe)\(\) got an unexpected
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # procmod's own files
 
 
+def _call_name(future: Future) -> str:
+    """``rule 'r' at /a/b``: a call as messages name it."""
+    return f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
+
+
 def where_built(future: Future, exc: BaseException) -> str:
     """``rule 'r' at /a/b`` and, where the rule is the user's own code, its file and line
     (the last frame of ``exc``'s traceback outside procmod's package)."""
-    where = f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
+    where = _call_name(future)
     frame = None
     tb = exc.__traceback__
     while tb is not None:
@@ -690,7 +695,7 @@ def _execute(state: Derivation, future: Future, rng, prefix, skip, pause) -> boo
         return True
     except TypeError as exc:
         # A wrong argument count is a model bug worth a clear message; other TypeErrors pass.
-        where = f"rule {rule_name(future.rule)!r} at {format_address(future.address)}"
+        where = _call_name(future)
         if exc.__traceback__ is not None and exc.__traceback__.tb_next is None:
             n = len(future.args)
             raise ModelError(f"{where} was called with {n} argument{'' if n == 1 else 's'} after ctx, which it "

@@ -829,8 +829,7 @@ def _ruling_lines(counts: np.ndarray, across: np.ndarray, thin: int, ruled: bool
     more of the others counts as even where such rows fill in the lines it skips, not
     where nothing is drawn (a staff's gap between staves, h125)."""
     crossed = counts >= RULING_SPAN * np.maximum(across, 1)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], crossed.astype(np.int8), [0]])))
-    runs = [(start, stop) for start, stop in zip(edges[::2], edges[1::2]) if stop - start <= thin]
+    runs = [(start, stop) for start, stop in _runs(crossed) if stop - start <= thin]
     if not runs or (ruled and len(runs) < RULING_LINES):
         return None
     if ruled:
@@ -866,11 +865,16 @@ def _as_lit_evenly(colours: np.ndarray, ys: np.ndarray, xs: np.ndarray, paper: n
     return colours * scale[:, None]
 
 
+def _runs(rows: np.ndarray) -> list:
+    """``(start, stop)`` of each run of True in a boolean row (column) profile."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], rows.astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
 def _thin_runs(rows: np.ndarray, thin: int) -> np.ndarray:
     """``rows`` less its runs of True longer than ``thin`` (a filled band is no line)."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], rows.astype(np.int8), [0]])))
     out = np.zeros_like(rows)
-    for start, stop in zip(edges[::2], edges[1::2]):
+    for start, stop in _runs(rows):
         if stop - start <= thin:
             out[start:stop] = True
     return out
@@ -878,11 +882,45 @@ def _thin_runs(rows: np.ndarray, thin: int) -> np.ndarray:
 
 def _middles(lines: np.ndarray) -> np.ndarray:
     """The middle row (two for an even run) of each run of True in ``lines``."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], lines.astype(np.int8), [0]])))
     out = np.zeros_like(lines)
-    for start, stop in zip(edges[::2], edges[1::2]):
+    for start, stop in _runs(lines):
         out[(start + stop - 1) // 2:(start + stop) // 2 + 1] = True
     return out
+
+
+def _faint_marks(colours: np.ndarray, ink: np.ndarray, where: np.ndarray, paper: np.ndarray,
+                 plane: np.ndarray | None, along: dict, least_chroma: float, widest: int) -> tuple:
+    """``(y, x, colours)`` of a ruling's marks that fell short of the ink's half-way mark
+    (pale lines near it, noise or a photo's light tipping each pixel either way, h125):
+    pixels off the ink, visibly off the paper (:data:`MIN_CONTRAST`) under the fitted fall
+    of light (a tinted page lit from one side was marks, h130) and as colourful as the
+    ruling's ink (``least_chroma``). Looked for on the thin runs (up to ``widest``) of rows
+    and columns that a sample of every ``step``-th pixel, with the coloured ink ``along``
+    them, finds half marked: the whole picture cost ~1 s at 12 MP (h130)."""
+    h, w = ink.shape
+    step = max(1, max(h, w) // 128)
+    paper = np.asarray(paper, dtype=np.float64).reshape(-1)[:colours.shape[2]]
+
+    def marked(at_y, at_x) -> tuple:
+        c = _as_lit_evenly(colours[at_y, at_x], at_y, at_x, paper, plane)
+        return (np.abs(c - paper).max(axis=1) >= MIN_CONTRAST) & (c.max(axis=1) - c.min(axis=1) >= least_chroma), c
+
+    partly = {}
+    for way, sample in (("rows", (slice(None), slice(None, None, step))),
+                        ("columns", (slice(None, None, step), slice(None)))):
+        grid_y, grid_x = np.nonzero(np.ones(where[sample].shape, dtype=bool))
+        at_y, at_x = np.arange(h)[sample[0]][grid_y], np.arange(w)[sample[1]][grid_x]
+        seen = where[at_y, at_x] & ~ink[at_y, at_x]
+        hit = np.zeros(len(at_y), dtype=bool)
+        hit[seen] = marked(at_y[seen], at_x[seen])[0]
+        at, size = (at_y, h) if way == "rows" else (at_x, w)
+        _, counts, across = along[way]
+        share = np.bincount(at[hit], minlength=size) / np.maximum(np.bincount(at[seen | ink[at_y, at_x]],
+                                                                              minlength=size), 1)
+        partly[way] = _thin_runs(share + counts / np.maximum(across, 1) >= 0.5, widest)
+    faint_y, faint_x = np.nonzero(where & ~ink & (partly["rows"][:, None] | partly["columns"][None, :]))
+    keep, faint = marked(faint_y, faint_x)
+    return faint_y[keep], faint_x[keep], faint[keep]
 
 
 def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, where: np.ndarray,
@@ -896,9 +934,14 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
     picture; with one, the pixels of such lines both ways (a margin line too) that are of
     the ruling's colour are dropped, but not where the drawing crosses them (darker than
     the ruling by :data:`MIN_CONTRAST`) or is of a colour of its own (a green leaf over a
-    blue line). A drawing's own straight lines (a striped shirt, hatching, a fence's
-    rails, a staff, stems: few, uneven, thick, or short of the picture's width) stay, and
-    so does a drawing whose ink is as colourful as its ruling (blue pen on blue lines)."""
+    blue line). The drawing's colour is its darkest ink off ruling-like rows; pale lines
+    read as ink in stretches only count their faint marks too (:func:`_faint_marks`); the
+    ruling's colour is its lines' middle rows', colours read under the fitted fall of
+    light (:func:`_as_lit_evenly`), and its blends with the paper go too (a blurred line's
+    edges; beside the lines only what is lighter than the line). A drawing's own straight
+    lines (a striped shirt, hatching, a fence's rails, a staff, stems: few, uneven, thick,
+    or short of the picture's width) stay, and so does a drawing whose ink is as colourful
+    as its ruling (blue pen on blue lines)."""
     if colours.shape[2] < 3 or not ink.any():
         return ink
     ys, xs = np.nonzero(ink)  # at the ink's pixels only: a 12-megapixel photo's whole chroma took ~1 s
@@ -921,7 +964,8 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
             off &= ~shaped[way][at]
     drawn = ink_luma[off] if off.any() else ink_luma
     darkest = (ink_luma <= _far(drawn, 10)) & (off if off.any() else True)
-    coloured = chroma >= float(np.median(chroma[darkest])) + MIN_CONTRAST
+    least_chroma = float(np.median(chroma[darkest])) + MIN_CONTRAST
+    coloured = chroma >= least_chroma
     if not coloured.any():
         return ink
     along = {"rows": (ys, np.bincount(ys[coloured], minlength=h), where.sum(axis=1)),
@@ -930,40 +974,13 @@ def _without_ruling(ink: np.ndarray, colours: np.ndarray, luma: np.ndarray, wher
              for way, (_, counts, across) in along.items()}
     marks = None  # (colours, brightness, {way: positions}) of the lines' marks that are not ink
     halo = max(1, thin // 3)  # a blurred line's soft edge, beside the rows it fills
-    least_chroma = float(np.median(chroma[darkest])) + MIN_CONTRAST
     if all(found is None for found in lines.values()) and any(
             (counts >= RULING_PARTLY * np.maximum(across, 1)).any() for _, counts, across in along.values()):
-        # lines only partly read as ink, or not at all beside a margin line that is (pale
-        # lines near the half-way mark, noise or a photo's light tipping each pixel either
-        # way, h125): counted with their marks that fell short of it, visibly off the paper
-        # under the fitted fall of light (a tinted page lit from one side was marks, h130)
-        # and as colourful. Looked for on the rows and columns that a sample of every
-        # ``step``-th pixel finds half marked: the whole picture cost ~1 s at 12 MP (h130)
-        step = max(1, max(h, w) // 128)
-        paper_colour = np.asarray(paper, dtype=np.float64).reshape(-1)[:colours.shape[2]]
-
-        def marked(c, at_y, at_x):  # faint marks among pixels (colours ``c`` at at_y, at_x)
-            c = _as_lit_evenly(c, at_y, at_x, paper, plane)
-            return (np.abs(c - paper_colour).max(axis=1) >= MIN_CONTRAST) & (c.max(axis=1) - c.min(axis=1)
-                                                                              >= least_chroma), c
-        partly = {}
-        for way, sample in (("rows", (slice(None), slice(None, None, step))),
-                            ("columns", (slice(None, None, step), slice(None)))):
-            grid_y, grid_x = np.nonzero(np.ones(where[sample].shape, dtype=bool))
-            at_y = np.arange(h)[sample[0]][grid_y]
-            at_x = np.arange(w)[sample[1]][grid_x]
-            seen = where[at_y, at_x] & ~ink[at_y, at_x]
-            hit = np.zeros(len(at_y), dtype=bool)
-            hit[seen] = marked(colours[at_y[seen], at_x[seen]], at_y[seen], at_x[seen])[0]
-            at, size = (at_y, h) if way == "rows" else (at_x, w)
-            _, counts, across = along[way]
-            share = np.bincount(at[hit], minlength=size) / np.maximum(np.bincount(at[where[at_y, at_x]],
-                                                                                  minlength=size), 1)
-            partly[way] = _thin_runs(share + counts / np.maximum(across, 1) >= 0.5, thin + 2 * halo)
-        faint_y, faint_x = np.nonzero(where & ~ink & (partly["rows"][:, None] | partly["columns"][None, :]))
-        keep, faint = marked(colours[faint_y, faint_x], faint_y, faint_x)
-        marks = (faint[keep], luma[faint_y[keep], faint_x[keep]], {"rows": faint_y[keep], "columns": faint_x[keep]})
-        for way, at, extra in (("rows", ys, faint_y[keep]), ("columns", xs, faint_x[keep])):
+        # lines only partly read as ink, or not at all beside a margin line that is
+        faint_y, faint_x, faint = _faint_marks(colours, ink, where, paper, plane, along, least_chroma,
+                                               thin + 2 * halo)
+        marks = (faint, luma[faint_y, faint_x], {"rows": faint_y, "columns": faint_x})
+        for way, at, extra in (("rows", ys, faint_y), ("columns", xs, faint_x)):
             _, counts, across = along[way]
             along[way] = (at, counts + np.bincount(extra, minlength=len(counts)), across)
             covered[way] = covered[way] | (along[way][1] >= RULING_SPAN * np.maximum(across, 1))
