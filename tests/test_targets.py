@@ -1164,6 +1164,10 @@ def test_a_misspelt_mirrored_suffix_is_named():
      "a vector drawing (SVG)"),  # named as a PNG
     ("clear.png", lambda p: Image.new("RGBA", (40, 40), (0, 0, 0, 0)).save(p),
      "the picture is fully transparent (every pixel's alpha is 0)"),
+    # said only "not an image Pillow can read", with no way out (h124)
+    ("empty.png", lambda p: p.write_bytes(b""), "empty.png: an empty file (0 bytes), no picture; save the picture"),
+    ("notes.png", lambda p: p.write_text("my drawing\n"), "not an image Pillow can read (cannot identify image file"),
+    ("notes.jpg", lambda p: p.write_text("my drawing\n"), "); save it as a PNG or JPEG"),
 ])
 def test_pictures_that_hold_no_pixels_to_read_say_why(tmp_path, name, make, says):
     """An SVG was "not an image Pillow can read (cannot identify image file ...)"; a fully
