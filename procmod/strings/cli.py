@@ -386,7 +386,7 @@ def _augment(args) -> None:
     grown = len(result.shapes) - len(shape_set.shapes)
     if grown == 0 and result.rounds:
         print(f"note: {_no_growth(result.rounds, args)}", file=sys.stderr)
-    print(f"{len(result.shapes)} shapes ({len(result.shapes) - len(shape_set.shapes)} new) after "
+    print(f"{len(result.shapes)} shapes ({grown} new) after "
           f"{len(result.rounds)} rounds in {seconds:.1f} s; {len(strings)} strings; wrote {out}/")
 
 
