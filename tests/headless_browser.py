@@ -29,8 +29,31 @@ def chromium() -> str | None:
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def load(page: Path, width: int = 1200, height: int = 1000, budget_ms: int = 20000):
-    """``(dom, screenshot as an (h, w, 3) uint8 array)`` of ``page`` after its scripts ran."""
+def load(page: Path, width: int = 1200, height: int = 1000, budget_ms: int = 20000, tries: int = 3):
+    """``(dom, screenshot as an (h, w, 3) uint8 array)`` of ``page`` after its scripts ran.
+
+    A viewer page says it has finished on its root element (``data-procmod-viewer`` is
+    ``drawn`` or ``error``). Chromium dumps the page when its virtual-time budget runs out,
+    whether or not the page finished; on a loaded machine that can come before the first
+    frame (CI once caught all four views of a contact page undrawn). A viewer page that has
+    not finished is loaded again with twice the budget, up to ``tries`` loads in all.
+    """
+    for attempt in range(tries):
+        dom, image = _load_once(page, width, height, budget_ms * 2 ** attempt)
+        if not _viewer_unfinished(dom):
+            break
+    return dom, image
+
+
+def _viewer_unfinished(dom: str) -> bool:
+    """True for a page with viewer data whose root element does not yet say drawn or error."""
+    if 'id="procmod-viewer-data"' not in dom:
+        return False
+    root = re.search(r"<html[^>]*>", dom)
+    return not (root and re.search(r'data-procmod-viewer="(drawn|error)"', root.group(0)))
+
+
+def _load_once(page: Path, width: int, height: int, budget_ms: int):
     exe = chromium()
     with tempfile.TemporaryDirectory(prefix="procmod-chromium-") as scratch:
         shot = Path(scratch) / "shot.png"
@@ -52,6 +75,14 @@ def views(dom: str) -> list[dict]:
         out.append({"status": status.group(1) if status else None,
                     "rect": tuple(int(v) for v in rect.group(1).split(",")) if rect else None})
     return out
+
+
+def explain(dom: str) -> str:
+    """What a failed check needs to see of a viewer page: its root element, its view elements
+    and any error note the viewer wrote (the end of the DOM is only the inlined bundle)."""
+    parts = re.findall(r"<html[^>]*>", dom)[:1] + re.findall(r"<div[^>]*data-procmod-view=[^>]*>", dom)
+    parts += re.findall(r'<p class="procmod-view-error">[^<]*</p>', dom)
+    return "\n".join(parts) or dom[:2000]
 
 
 def drawn_fraction(image: np.ndarray, rect, skip_top: int = 0, tolerance: int = 12) -> float:

@@ -49,7 +49,7 @@ def test_a_volume_run_report_draws_the_best_result_and_the_target(tmp_path):
     assert "<script src" not in text and "<link" not in text  # everything inline
     dom, image = browser.load(page)
     (view,) = browser.views(dom)
-    assert view["status"] == "drawn", dom[-2000:]
+    assert view["status"] == "drawn", browser.explain(dom)
     # the ship and the translucent target fill about a fifth of the view; lines alone < 1%
     assert browser.drawn_fraction(image, view["rect"], LEGEND_ROWS) > 0.05
     assert "target: covering gains" in dom
@@ -60,7 +60,7 @@ def test_a_silhouette_run_report_draws_the_cut_out_and_offers_the_target_camera(
     page = _run("tree", "tree_heart", tmp_path / "run")
     dom, image = browser.load(page)
     (view,) = browser.views(dom)
-    assert view["status"] == "drawn", dom[-2000:]
+    assert view["status"] == "drawn", browser.explain(dom)
     assert browser.drawn_fraction(image, view["rect"], LEGEND_ROWS) > 0.05
     assert "target camera 1" in dom and "target view 1: hit" in dom
 
@@ -73,7 +73,7 @@ def test_the_contact_page_of_3d_samples_draws_every_sample(tmp_path):
     write_contact_page(samples, page, links=[f"sample_{i:03d}.glb" for i in range(4)])
     dom, image = browser.load(page, width=1300, height=800)
     found = browser.views(dom)
-    assert [v["status"] for v in found] == ["drawn"] * 4, dom[-2000:]
+    assert [v["status"] for v in found] == ["drawn"] * 4, browser.explain(dom)
     for view in found:
         assert browser.drawn_fraction(image, view["rect"]) > 0.02
 
