@@ -130,8 +130,9 @@ CASES = [
     ("mesh-no-faces", _with(MESH, layers__0__file="points.obj"), "layers[0].file: "),
     ("mesh-zero-area", _with(MESH, layers__0__file="lines.obj"), "layers[0].file: every face of the mesh has zero "
                                                                  "area"),
-    ("mesh-nan", _with(MESH, layers__0__file="nan.obj"), "layers[0].file: 1 vertices of the mesh are not finite "
-                                                         "numbers (NaN or infinity), e.g. vertex 0 = [nan, 0.0, 0.0]"),
+    ("mesh-nan", _with(MESH, layers__0__file="nan.obj"), "layers[0].file: every face of the mesh is on a vertex that "
+                                                         "is not a finite number (NaN or infinity), e.g. vertex 0 = "
+                                                         "[nan, -0.5, -0.5]"),
     ("mesh-10M-ply", _with(MESH, layers__0__file="huge.ply"), "layers[0].file: "),
     ("mesh-10M-stl", _with(MESH, layers__0__file="huge.stl"), "layers[0].file: "),
     ("mesh-sheet", _with(MESH, layers__0__file="sheet.obj"), "layers[0].file: no voxel centre of the"),
@@ -160,7 +161,7 @@ CASES = [
     ("sil-weights-nan", _sil({}, kind="weights", file="nan2d.npy"), "views[0].weights: the weights holds NaN"),
     ("sil-mesh-missing", _sil({}, file="nope.obj"), "views[0].mesh: mesh file "),
     ("sil-mesh-wrong-kind", _sil({}, file="notes.txt"), "views[0].mesh: \"notes.txt\" is not a mesh file"),
-    ("sil-mesh-nan", _sil({}, file="nan.obj"), "views[0].mesh: 1 vertices of the mesh are not finite numbers"),
+    ("sil-mesh-nan", _sil({}, file="nan.obj"), "views[0].mesh: every face of the mesh is on a vertex that is not"),
     ("sil-mesh-10M", _sil({}, file="huge.ply"), "views[0].mesh: "),
     ("sil-mesh-misses", _sil({}, {"eye": [50, 0, 10], "look_at": [50, 0, 0]}), "views[0].mesh: the mesh covers no "
                                                                                   "pixel centre of the 128x128 view"),
@@ -249,7 +250,7 @@ def inputs(tmp_path_factory):
     (d / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     _obj(d / "lines.obj", [[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], [[0, 1, 2], [1, 2, 3]])
     nan_box = box.vertices.copy()
-    nan_box[0, :] = [np.nan, 0.0, 0.0]
+    nan_box[:, 0] = np.nan  # every vertex: a box with one is read without the faces on it
     _obj(d / "nan.obj", nan_box, box.faces)
     (d / "huge.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 5000000\nproperty float x\n"
                                  b"property float y\nproperty float z\nelement face 10000000\n"
@@ -307,3 +308,32 @@ def test_a_tools_own_keys_are_left_alone(inputs):
                  _with(MESH, layers__0__mesh_url="http://x", voxels="fine", mesh_source="maya")):
         (inputs / "tool.json").write_text(json.dumps(spec))
         load_target_file(inputs / "tool.json")
+
+
+def test_a_scan_with_a_nan_vertex_is_read_without_the_faces_on_it(tmp_path):
+    """A scanner's dropout (one NaN vertex that faces use) refused the whole mesh (h132);
+    its faces are left out now, with a note, and the hole they leave is bridged like any
+    other: the target is the clean mesh's but for a few voxels at the hole."""
+    from procmod.targets import load_target_file
+
+    sphere = trimesh.creation.icosphere(2, radius=0.4)
+    sphere.apply_translation((1.6, 0.5, 0.3))
+    broken = sphere.vertices.copy()
+    broken[3] = np.nan
+    _obj(tmp_path / "clean.obj", sphere.vertices, sphere.faces)
+    _obj(tmp_path / "scan.obj", broken, sphere.faces)
+    on_it = int((sphere.faces == 3).any(axis=1).sum())
+    masks = {}
+    for name in ("clean", "scan"):
+        (tmp_path / f"{name}.json").write_text(json.dumps(
+            {"format": "procmod-volume/1", "voxel_size": 0.1, "layers": [{"file": f"{name}.obj"}]}))
+        target = load_target_file(tmp_path / f"{name}.json")
+        masks[name] = target.combined > 0
+        notes = target.file_notes
+    assert any(f"1 vertex is not a finite number (NaN or infinity); the {on_it} faces on them were left out" in n
+               for n in notes), notes
+    assert masks["clean"].sum() > 200 and (masks["clean"] != masks["scan"]).sum() <= 3
+    view = {"mesh": "scan.obj", "camera": {"eye": [1.6, 0.5, 5.0], "look_at": [1.6, 0.5, 0.3], "fov": 20,
+                                           "width": 32, "height": 32}}
+    (tmp_path / "sil.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [view]}))
+    assert any("1 vertex is not a finite number" in n for n in load_target_file(tmp_path / "sil.json").file_notes)

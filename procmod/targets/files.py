@@ -163,7 +163,7 @@ def _too_many_faces(where: str, file: Path, faces: int, exact: bool) -> Resource
         "detail): decimate it first (e.g. Blender's Decimate modifier)")
 
 
-def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = True):
+def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = True, notes: list | None = None):
     """``(vertices (n, 3) float64, faces (m, 3) int64)`` of a mesh file, ready for
     :func:`procmod.geometry.inside.inside_voxels`.
 
@@ -208,15 +208,19 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise TargetFileError(f"{where}: a face refers to a vertex the mesh does not have")
     finite = np.isfinite(vertices).all(axis=1)
-    bad = np.zeros(0, dtype=np.int64)
     if not finite.all():  # a vertex no face uses may be anything
-        used = np.zeros(len(vertices), dtype=bool)
-        used[faces.ravel()] = True
-        bad = np.flatnonzero(used & ~finite)
-    if len(bad):
-        raise TargetFileError(f"{where}: {len(bad):,} vertices of the mesh are not finite numbers (NaN or "
-                              f"infinity), e.g. vertex {int(bad[0])} = {vertices[bad[0]].tolist()}; fix or delete "
-                              "them in a modelling tool")
+        on_bad = ~finite[faces].all(axis=1)
+        if on_bad.all():
+            bad = int(np.flatnonzero(~finite)[0])
+            raise TargetFileError(f"{where}: every face of the mesh is on a vertex that is not a finite number (NaN or "
+                                  f"infinity), e.g. vertex {bad} = {vertices[bad].tolist()}; fix the vertices in a "
+                                  "modelling tool, or export the mesh again")
+        if on_bad.any() and notes is not None:
+            count = int(np.unique(faces[on_bad][~finite[faces[on_bad]]]).size)
+            notes.append(f"{where}: {count:,} {'vertex is' if count == 1 else 'vertices are'} not a finite number "
+                         f"(NaN or infinity); the {int(on_bad.sum()):,} faces on them were left out, a hole the "
+                         "inside test bridges (fix them in a modelling tool if the shape is wrong there)")
+        faces = faces[~on_bad]
     with quiet_trimesh():
         # split seams: vertices at one place that differ only in UV or normal become one
         mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
@@ -747,10 +751,10 @@ def load_volume_target(path: str | os.PathLike):
             margin = number(margin, f"{where}: margin", minimum=0.0)
         if margin is not None and margin > MAX_COORDINATE:
             raise TargetFileError(f"{where}: margin must be at most {MAX_COORDINATE:g}, got {margin:g}")
-    read = {}
+    read, mesh_notes = {}, []
     for at, file, _, _ in meshes:
         _check_up_once(file, spec, f"{at}.file")
-        read[at] = _placed(read_mesh(file, f"{at}.file"), placement)
+        read[at] = _placed(read_mesh(file, f"{at}.file", notes=mesh_notes), placement)
     if grid is None:
         bounds = [mesh_bounds(*read[at]) for at, _, _, _ in meshes]
         lo = np.min([b[0] for b in bounds], axis=0)
@@ -760,7 +764,7 @@ def load_volume_target(path: str | os.PathLike):
         grid = grid_around(lo, hi, voxel_size, margin, f"{where}: voxel_size {voxel_size:g} around the mesh layers",
                            [read[at] for at, _, _, _ in meshes])
     layers = []
-    notes = []
+    notes = mesh_notes
     for at, file, w_fill, w_avoid in entries:
         if at in read:
             mask = mesh_inside(*read[at], grid, f"{at}.file", notes)
@@ -1124,7 +1128,7 @@ def load_silhouette_target(path: str | os.PathLike) -> Silhouette:
             weights = _picture_view_weights(file, at, hit, avoid, notes)
         else:
             _check_up_once(file, spec, f"{at}.mesh")
-            placed = _placed(read_mesh(file, f"{at}.mesh", orient=False), placement)  # y up, as the model
+            placed = _placed(read_mesh(file, f"{at}.mesh", orient=False, notes=notes), placement)  # y up
             ground = ground_piece_note(*placed, f"{at}.mesh")
             covered = mesh_silhouette(*placed, camera)
             if ground is not None:
