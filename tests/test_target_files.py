@@ -330,7 +330,7 @@ def test_a_scan_with_a_nan_vertex_is_read_without_the_faces_on_it(tmp_path):
         target = load_target_file(tmp_path / f"{name}.json")
         masks[name] = target.combined > 0
         notes = target.file_notes
-    assert any(f"1 vertex is not a finite number (NaN or infinity); the {on_it} faces on them were left out" in n
+    assert any(f"1 vertex is not a finite number (NaN or infinity); the {on_it} faces on it were left out" in n
                for n in notes), notes
     assert masks["clean"].sum() > 200 and (masks["clean"] != masks["scan"]).sum() <= 3
     view = {"mesh": "scan.obj", "camera": {"eye": [1.6, 0.5, 5.0], "look_at": [1.6, 0.5, 0.3], "fov": 20,

@@ -217,9 +217,11 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
                                   "modelling tool, or export the mesh again")
         if on_bad.any() and notes is not None:
             count = int(np.unique(faces[on_bad][~finite[faces[on_bad]]]).size)
-            notes.append(f"{where}: {count:,} {'vertex is' if count == 1 else 'vertices are'} not a finite number "
-                         f"(NaN or infinity); the {int(on_bad.sum()):,} faces on them were left out, a hole the "
-                         "inside test bridges (fix them in a modelling tool if the shape is wrong there)")
+            one = count == 1
+            notes.append(f"{where}: {count:,} {'vertex is' if one else 'vertices are'} not a finite number (NaN or "
+                         f"infinity); the {int(on_bad.sum()):,} faces on {'it' if one else 'them'} were left out, a "
+                         f"hole the inside test bridges (fix {'it' if one else 'them'} in a modelling tool if the "
+                         "shape is wrong there)")
         faces = faces[~on_bad]
     with quiet_trimesh():
         # split seams: vertices at one place that differ only in UV or normal become one
