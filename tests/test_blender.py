@@ -787,3 +787,70 @@ def test_target_layers_of_one_name_from_linked_libraries_keep_their_own_instance
         assert (tmp_path / f"all{k}.obj").read_text() == (tmp_path / f"one{k}.obj").read_text()
     xs = [float(line.split()[1]) for line in (tmp_path / "all1.obj").read_text().splitlines() if line.startswith("v ")]
     assert min(xs) > 6.5  # the second library's host and its cubes, at x = 10
+
+
+def test_examples_are_exported_at_the_frame_shown_and_edit_mode_is_kept(context, tmp_path):
+    """Blender's glTF exporter went to frame 0 before writing (an animated leg was learned
+    where frame 0 had it) and left edit mode for object mode without coming back (h134)."""
+    from procmod.blender import scene
+    from procmod.geometry.assets import read_assets
+    from procmod.learn.examples import examples_from_assets
+    seat = _mesh_object("Seat", location=(0, 0, 1), scale=(1, 1, 0.1))
+    leg = _mesh_object("Leg", location=(0.8, 0.8, 0.5), scale=(0.1, 0.1, 0.5))
+    _parent(leg, seat)
+    for frame, x in ((0, 0.8), (10, -0.8)):
+        leg.location.x = x
+        leg.keyframe_insert("location", index=0, frame=frame)
+    context.scene.frame_set(10)
+    context.view_layer.update()
+    _select(seat)
+    context.view_layer.objects.active = seat
+    bpy.ops.object.mode_set(mode="EDIT")
+    examples, _ = scene.write_examples(scene.example_roots(context.selected_objects), tmp_path)
+    assert seat.mode == "EDIT" and context.scene.frame_current == 10
+    bpy.ops.object.mode_set(mode="OBJECT")
+    (example,) = examples_from_assets(read_assets(examples)).examples
+    (placed,) = example.children
+    # Blender x is procmod x: the leg stands where frame 10 has it, not frame 0's +0.8
+    assert placed.transform[0, 3] == pytest.approx(-0.8, abs=1e-4)
+
+
+def test_repeat_last_does_not_run_a_job_that_would_freeze_blender(context, registered, monkeypatch):
+    """Shift+R (Repeat Last) calls execute, which waits for the whole job with Blender frozen."""
+    monkeypatch.setattr(registered, "_repeated", lambda operator: True)
+    assert bpy.ops.procmod.sample() == {"CANCELLED"}
+    assert registered.Runner.active is None and not bpy.data.collections
+
+
+def test_a_job_whose_modal_run_blender_cancelled_stops_and_frees_the_panel(context, registered):
+    """Opening a file removes every modal handler: with no cancel() the job stayed 'running',
+    read by no one, and every later job was refused until Blender restarted (h134)."""
+    from procmod.blender import jobs
+    settings = context.scene.procmod
+    job = jobs.Job("sample", {"model": "spaceship", "count": 50, "seed": 0}, sys.executable).start()
+    registered.Runner.active = registered.Runner(job, lambda context, result: "")
+
+    class Cancelled:  # what Blender passes cancel(): the operator, its timer already gone with the file
+        _timer = None
+
+    registered._JobOperator.cancel(Cancelled(), context)
+    assert registered.Runner.active is None and job.done and job.result.get("cancelled")
+    assert not job.folder.exists()
+    settings.model, settings.count = "spaceship", 1
+    assert bpy.ops.procmod.sample() == {"FINISHED"}  # the panel runs jobs again
+
+
+def test_learning_with_the_gltf_exporter_disabled_says_to_enable_it(context, tmp_path):
+    """It had ended in 'internal error' (Blender's ops have no export_scene.gltf then)."""
+    import addon_utils
+    from procmod.blender import scene
+    seat = _mesh_object("Seat")
+    addon_utils.disable("io_scene_gltf2")
+    try:
+        with pytest.raises(scene.SceneError, match="enable 'glTF 2.0 format' in Edit > Preferences > Add-ons"):
+            scene.write_examples([seat], tmp_path / "out")
+    finally:
+        addon_utils.enable("io_scene_gltf2")
+    assert not (tmp_path / "out").exists()
+    examples, _ = scene.write_examples([seat], tmp_path / "out")
+    assert (examples / "example000.glb").is_file()

@@ -222,6 +222,13 @@ class Runner:
         return {"FINISHED"}
 
 
+def _repeated(operator) -> bool:
+    """Whether Blender runs ``operator`` again: Repeat Last (Shift+R) and Repeat History call
+    execute, which waits for the job, so Blender would be frozen for the whole run with no
+    progress and no Stop."""
+    return operator.is_repeat()
+
+
 class _JobOperator:
     """Shared by the operators that run a worker: :meth:`prepare` writes the job's files and
     returns ``(spec, on_result)``."""
@@ -230,7 +237,8 @@ class _JobOperator:
     _timer = None
 
     def _start(self, context):
-        if Runner.active is not None and not Runner.active.job.done:
+        # poll, not done: a job no timer reads any more (its operator cancelled) may have ended
+        if Runner.active is not None and not Runner.active.job.poll():
             self.report({"ERROR"}, "a procmod job is running: wait for it or stop it first")
             return None
         job = jobs.Job(self.command, {}, _python(context))
@@ -261,6 +269,10 @@ class _JobOperator:
         return Runner.active
 
     def execute(self, context):
+        if _repeated(self):
+            self.report({"WARNING"}, f"procmod: press '{self.bl_label}' in the procmod panel to run it again (a "
+                                     "repeated run would freeze Blender until it ended)")
+            return {"CANCELLED"}
         runner = self._start(context)
         if runner is None:
             return {"CANCELLED"}
@@ -287,6 +299,33 @@ class _JobOperator:
             return {"PASS_THROUGH"}
         context.window_manager.event_timer_remove(self._timer)
         return runner.finish(context, self)
+
+    def cancel(self, context):
+        """Blender ends the modal run without a result: a file was opened or a new one made (their
+        load removes every modal handler), or the window closed. Without this the job was read by
+        no one and stayed 'running': every later job was refused until Blender restarted. A
+        control run is stopped (the engine still writes its run, with its best so far, to the Runs
+        folder); sampling and learning end at once."""
+        if self._timer is not None:
+            try:
+                context.window_manager.event_timer_remove(self._timer)
+            except (ReferenceError, RuntimeError, AttributeError):
+                pass  # the window manager went with the old file
+            self._timer = None
+        runner, Runner.active = Runner.active, None
+        if runner is None:
+            return
+        if runner.job.command == "infer":
+            runner.job.stop()
+        else:
+            runner.job.kill()
+            runner.job.cleanup()
+        try:
+            status = context.window_manager.procmod_status
+            status.running, status.fraction = False, 0.0
+            status.message = f"{runner.job.command}: cancelled (a file was opened or the window closed)"
+        except (ReferenceError, AttributeError):
+            pass
 
 
 class PROCMOD_OT_sample(_JobOperator, bpy.types.Operator):
@@ -377,6 +416,9 @@ class PROCMOD_OT_learn(_JobOperator, bpy.types.Operator):
                 "particles": settings.learn_particles, "workers": 1, "seed": settings.seed, "count": settings.count}
 
         def on_result(context, result):
+            # the scene's settings read again, not the ones above: an undo while the job ran
+            # re-reads the scene, and a kept reference to its data then points at freed memory
+            settings = context.scene.procmod
             settings.program = result["program"]
             settings.model = "PROGRAM"
             scene.build_samples(context, result["samples"], f"procmod {out.name}")

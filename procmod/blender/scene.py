@@ -472,10 +472,15 @@ def write_examples(roots, folder: Path) -> tuple:
                                  "in its parent's frame its shape is skewed, which a glTF node cannot hold, so the "
                                  f"example would be learned wrong; apply the scale of {obj.parent.name!r} (select "
                                  "it, Object > Apply > Scale) or unparent the object")
+    if "gltf" not in dir(bpy.ops.export_scene):
+        raise SceneError("Blender's glTF 2.0 exporter is disabled, and learning reads the examples through it: "
+                         "enable 'glTF 2.0 format' in Edit > Preferences > Add-ons")
     out = folder / "examples"
     made = not folder.exists()  # a refusal below leaves no folder behind (it had pushed the next run's number up)
     out.mkdir(parents=True, exist_ok=True)
     selected, active = [o for o in layer.objects if o.select_get()], layer.objects.active
+    # the exporter leaves edit (or any other) mode for object mode and does not come back
+    mode = active.mode if active is not None else "OBJECT"
     hidden = [(o, o.hide_get(), o.hide_viewport, o.hide_select) for objects in members for o in objects]
     names = {}
     try:
@@ -498,7 +503,10 @@ def write_examples(roots, folder: Path) -> tuple:
             # file, dropped with no word; now procmod learn's note names it (faceless_note)
             done = bpy.ops.export_scene.gltf(filepath=str(file), use_selection=True, export_format="GLB",
                                              export_apply=True, export_yup=True, export_animations=False,
-                                             export_materials="NONE", use_mesh_edges=True, use_mesh_vertices=True)
+                                             export_materials="NONE", use_mesh_edges=True, use_mesh_vertices=True,
+                                             # as the viewport shows them: by default the exporter went to
+                                             # frame 0 first (animated or driven parts learned there)
+                                             export_current_frame=True)
             if "FINISHED" not in done or not file.is_file():
                 raise SceneError(f"Blender's glTF exporter could not write {describe(root)}'s hierarchy")
             _scale_glb_roots(file, unit_scale())
@@ -514,5 +522,10 @@ def write_examples(roots, folder: Path) -> tuple:
         for obj in layer.objects:
             obj.select_set(obj in selected)
         layer.objects.active = active
+        if active is not None and active.mode != mode:
+            try:
+                bpy.ops.object.mode_set(mode=mode)
+            except RuntimeError:
+                pass  # the mode cannot be entered here (nothing to edit): object mode it stays
     (folder / "names.json").write_text(json.dumps(names), encoding="utf-8")
     return out, folder / "names.json"
