@@ -282,7 +282,11 @@ def test_unreadable_glb(tmp_path, content, message):
 
 
 @pytest.mark.parametrize("text, message", [("{not json", "does not parse"), ("[1, 2]", "not an object"),
-                                           ("", "does not parse")])
+                                           ("", "does not parse"),
+                                           # Python's own message had been cut mid-word (h131)
+                                           ('{"x": ' + "[" * 100_000 + "]" * 100_000 + "}",
+                                            r"its JSON nests more deeply than Python can read; a glTF file nests "
+                                            r"a few levels\)$")])
 def test_unreadable_gltf(tmp_path, text, message):
     path = tmp_path / "bad.gltf"
     path.write_text(text)

@@ -386,3 +386,16 @@ def test_part_names_with_line_breaks_print_on_one_line(tmp_path, capsys):
     types = [line for line in out.splitlines() if line.startswith("types: ")]
     assert len(types) == 1 and "po\\nst=" in types[0] and "rail\\x1b[31m=" in types[0], out
     assert "\x1b" not in out and not any(line.startswith("st=") for line in out.splitlines())
+
+
+def test_a_very_long_part_name_is_cut_on_the_types_line(tmp_path, capsys):
+    """A 5,000-character mesh name printed in full, twice over the screen (h131)."""
+    long_name = "post" + "x" * 5000
+    shapes = {"format": "procmod-shapes/1",
+              "parts": {long_name: {"box": [0.4, 0.4, 2.0]}, "rail": {"box": [1.6, 0.2, 0.3]}},
+              "shapes": [{"nodes": [{"part": {"post": long_name, "rail": "rail"}[p], "transform": m.tolist()}
+                                    for p, m in fence(RING, 0.0, (0.0, 0.0, 0.0))]}]}
+    (tmp_path / "named.json").write_text(json.dumps(shapes))
+    assert main(["strings", "graph", str(tmp_path / "named.json"), "--out", str(tmp_path / "graphs")]) == 0
+    (types,) = [line for line in capsys.readouterr().out.splitlines() if line.startswith("types: ")]
+    assert "postxxx" in types and "rail=" in types and len(types) < 200, types

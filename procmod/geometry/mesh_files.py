@@ -61,7 +61,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from ..core.errors import whole_number
+from ..core.errors import cut_text, whole_number
 from ..core.io import MAX_JSON_BYTES, lone_surrogate_at, lone_surrogate_text
 from ..core.limits import relaxed_gc
 from .gltf_accessors import decoded_gltf
@@ -421,8 +421,11 @@ def gltf_header(path: Path, limit: int | None = None) -> dict:
     try:
         text = text.decode("utf-8-sig")  # a byte-order mark is no part of the JSON
         header = json.loads(text)
-    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise ValueError(f"is not a glTF file (its JSON does not parse: {str(exc)[:80]})") from None
+    except RecursionError:
+        raise ValueError("is not a glTF file (its JSON nests more deeply than Python can read; a glTF file "
+                         "nests a few levels)") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise ValueError(f"is not a glTF file (its JSON does not parse: {cut_text(str(exc), 80)})") from None
     lone = lone_surrogate_at(header, text)
     if lone is not None:  # (trimesh's scene graph raised a traceback hashing such a node name)
         raise ValueError(f"is a glTF file whose {lone_surrogate_text(lone)}")

@@ -199,7 +199,8 @@ def _graph(args) -> None:
         for i, g in enumerate(graphs):
             write_graph(g, tmp / f"shape_{i:03d}.json")
     grammar = Grammar.from_graphs(graphs)
-    types = ", ".join(f"{name}={letter}" for name, letter in sorted(shape_set.letters.items()))
+    # a name is cut as messages cut them (a 5,000-character node name had filled the screen)
+    types = ", ".join(f"{cut_text(name, 80)}={letter}" for name, letter in sorted(shape_set.letters.items()))
     import networkx as nx
 
     for i, g in enumerate(graphs):
