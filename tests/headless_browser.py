@@ -29,18 +29,21 @@ def chromium() -> str | None:
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def load(page: Path, width: int = 1200, height: int = 1000, budget_ms: int = 20000, tries: int = 3):
+def load(page: Path, width: int = 1200, height: int = 1000, budget_ms: int = 20000, tries: int = 3,
+         finished: str | None = None):
     """``(dom, screenshot as an (h, w, 3) uint8 array)`` of ``page`` after its scripts ran.
 
     A viewer page says it has finished on its root element (``data-procmod-viewer`` is
     ``drawn`` or ``error``). Chromium dumps the page when its virtual-time budget runs out,
     whether or not the page finished; on a loaded machine that can come before the first
     frame (CI once caught all four views of a contact page undrawn). A viewer page that has
-    not finished is loaded again with twice the budget, up to ``tries`` loads in all.
+    not finished is loaded again with twice the budget, up to ``tries`` loads in all. A test
+    whose own script marks the page later gives that mark as ``finished`` (text the DOM
+    holds once the script is done): a page without it is loaded again too.
     """
     for attempt in range(tries):
         dom, image = _load_once(page, width, height, budget_ms * 2 ** attempt)
-        if not _viewer_unfinished(dom):
+        if not _viewer_unfinished(dom) and (finished is None or finished in dom):
             break
     return dom, image
 

@@ -111,11 +111,11 @@ def test_the_wheel_scrolls_a_contact_page_until_a_view_is_pressed(tmp_path):
     page = tmp_path / "contact_sheet.html"
     write_contact_page(samples, page, links=[f"sample_{i:03d}.glb" for i in range(2)])
     page.write_text(page.read_text().replace("</body>", _WHEEL_PROBE + "</body>"))
-    dom, _ = browser.load(page, width=900, height=600)
+    dom, _ = browser.load(page, width=900, height=600, finished="data-probe=")
     assert 'data-probe="false,true,true,false"' in dom, dom[-1500:]
     report = _run("spaceship", "spaceship_volume", tmp_path / "run")
     report.write_text(report.read_text().replace("</body>", _WHEEL_PROBE + "</body>"))
-    dom, _ = browser.load(report)
+    dom, _ = browser.load(report, finished="data-probe=")
     assert 'data-probe="true,true,true,true"' in dom, dom[-1500:]
 
 
@@ -158,7 +158,7 @@ def test_a_target_camera_and_back_leave_the_view_drawn(tmp_path):
     captured it, so a real click did nothing, a review found)."""
     page = _run("tree", "tree_heart", tmp_path / "run")
     page.write_text(page.read_text().replace("</body>", _CAMERA_PROBE + "</body>"))
-    dom, image = browser.load(page)
+    dom, image = browser.load(page, finished="data-errors=")
     (view,) = browser.views(dom)
     assert 'data-errors="0"' in dom and view["status"] == "drawn", dom[-1500:]
     assert 'data-reached="0"' in dom  # the presses on a button and a checkbox did not reach the view
