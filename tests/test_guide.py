@@ -422,6 +422,10 @@ def test_guide_files_round_trip_and_refuse_the_wrong_model(few_traces, tmp_path,
 
 def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
     (tmp_path / "mine.pt").write_bytes(b"a user's torch model")  # files a guide's --out would replace
+    # a user's own checkpoints, of the names training writes its own to (deleted without a word, h135)
+    (tmp_path / "ck.ckpt.json").write_text('{"mine": 1}')
+    (tmp_path / "ck.ckpt.pt").write_bytes(b"precious")
+    torch.save({"epoch": 3}, tmp_path / "pt.ckpt.pt")
     np.savez(tmp_path / "data.npz", x=np.zeros(3))
     nameless = tmp_path / "nameless"  # a traces folder whose traces.json lost its model's name
     shutil.copytree(few_traces, nameless)
@@ -457,6 +461,10 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
          "would replace " + str(tmp_path / "mine.pt") + ", which is not part of a guide"),
         (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "data")],
          "would replace " + str(tmp_path / "data.npz") + ", which is not part of a guide"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "ck")],
+         str(tmp_path / "ck.ckpt.json") + " is not a procmod training checkpoint"),
+        (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "pt")],
+         str(tmp_path / "pt.ckpt.pt") + " is not a procmod training checkpoint"),
         (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path) + "/"],
          "is a folder; a guide is files"),
         (["guide", "train", "vines", "--traces", str(few_traces), "--out", str(tmp_path / "new") + "/"],
@@ -466,6 +474,8 @@ def test_cli_guided_infer_and_errors(few_traces, tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and message in err, (argv, err)
     assert not (tmp_path / "x").exists() and not (tmp_path / "h.pt").exists()
+    assert (tmp_path / "ck.ckpt.pt").read_bytes() == b"precious" and (tmp_path / "pt.ckpt.pt").exists()
+    assert not any((tmp_path / f"{stem}.pt").exists() for stem in ("ck", "pt"))
 
 
 @pytest.mark.parametrize("settings", [FeatureSettings(), FeatureSettings(progress=True),
@@ -1098,3 +1108,33 @@ def test_a_guide_of_a_model_file_edited_after_its_traces_is_noted(tmp_path):
     assert "--param" not in note  # the size advice only with the size note
     assert fit_note(SimpleNamespace(info={"trace_job": {"model": "vines"}}, source="G", model_name="vines"),
                     None, None, edited) is None  # a built-in model's guide: no file of the user's to compare
+
+
+def test_a_trace_folder_with_damaged_or_foreign_files_is_named_right_and_remade(tmp_path, capsys):
+    """h135: a damaged trace counted as made on resume (training failed on it later); a
+    lightning trace copied in under trace 4's name was blamed on trace_00000.json (the
+    index inside it), so the advice deleted a good trace; a guide written into the traces
+    folder under a trace's name was taken for a trace."""
+    traces = tmp_path / "T"
+    generate_traces("vines", "scribble", 4, traces, particles=4)
+    good = {i: (traces / f"trace_{i:05d}.json").read_text() for i in range(4)}
+    (traces / "trace_00001.json").write_text(good[1][:100])  # damaged outside procmod
+    summary = generate_traces("vines", "scribble", 5, traces, particles=4)
+    assert summary["remade"] == [1] and summary["made"] == 2 and summary["present"] == 3
+    def timeless(text):
+        return {k: v for k, v in json.loads(text).items() if k != "seconds"}
+
+    assert timeless((traces / "trace_00001.json").read_text()) == timeless(good[1])  # made again, as it was
+    lightning = tmp_path / "L"
+    generate_traces("lightning", "scribble", 1, lightning, particles=4)
+    (traces / "trace_00004.json").write_text((lightning / "trace_00000.json").read_text())
+    with pytest.raises(GuideError, match=r"T/trace_00004\.json holds trace 0 \(its \"index\"\), not trace 4"):
+        train_guide(VINES, traces, tmp_path / "g", iterations=2)
+    (traces / "trace_00004.json").unlink()
+    assert main(["guide", "train", "vines", "--traces", str(traces), "--out", str(traces / "trace_00009"),
+                 "--iterations", "2"]) == 2
+    assert "under a trace's name" in capsys.readouterr().err and not (traces / "trace_00009.json").exists()
+    (traces / "trace_00002.json").write_text('{"format": "procmod-guide/1"}')
+    with pytest.raises(GuideError, match=r"trace_00002\.json is not a trace \(its format is \"procmod-guide/1\"\)"):
+        generate_traces("vines", "scribble", 5, traces, particles=4)
+    assert (traces / "trace_00002.json").read_text() == '{"format": "procmod-guide/1"}'

@@ -62,7 +62,7 @@ def _progress(total, unit):
 
 def _cmd_traces(args) -> None:
     from ..parallel import check_scheduler, open_executor
-    from .traces import generate_traces
+    from .traces import generate_traces, trace_path
 
     if args.seed < 0:
         raise InvalidArgumentError(f"--seed must be a non-negative integer, got {args.seed}")
@@ -89,6 +89,12 @@ def _cmd_traces(args) -> None:
     finally:
         bar.close()
     rate = summary["traces_per_hour"]
+    if summary.get("remade"):
+        shown = ", ".join(str(trace_path(Path(args.out), i)) for i in summary["remade"][:3])
+        one = len(summary["remade"]) == 1
+        print(f"note: {len(summary['remade'])} trace {'file was' if one else 'files were'} damaged or not "
+              f"{'its' if one else 'their'} number's trace ({shown}"
+              f"{', ...' if len(summary['remade']) > 3 else ''}) and were made again", file=sys.stderr)
     print(f"{summary['made']} traces made, {summary['present']} already there, in {summary['seconds']:.1f} s"
           + (f" ({rate:.0f} traces/hour)" if rate else "") + f"; folder: {args.out}")
 
@@ -115,6 +121,18 @@ def _check_replaces_a_guide(path) -> None:
                                   "another --out, or move that file")
 
 
+def _check_not_a_trace_name(out: Path, traces: Path) -> None:
+    """Refuse a guide named as a trace inside the traces folder: the traces job took its
+    ``.json`` for a trace it had made, and training then failed on it (h135)."""
+    from ..core.runfolder import OutputLocationError
+    from .traces import is_trace_name
+
+    stem = out.with_suffix("") if out.suffix.lower() in (".pt", ".json", ".npz") else out
+    if is_trace_name(stem.name + ".json") and stem.parent.resolve() == traces.resolve():
+        raise OutputLocationError(f"--out {out} would put the guide's {stem.name}.json among the traces, under a "
+                                  "trace's name; give another --out (a name outside the traces folder)")
+
+
 def _cmd_train(args) -> None:
     from ..models import model_from_spec
     from .features import FeatureSettings
@@ -130,6 +148,7 @@ def _cmd_train(args) -> None:
         raise OutputLocationError(f"--out {args.out} is a folder; a guide is files OUT.pt, OUT.npz and OUT.json: "
                                   f"give a name such as {Path(args.out) / 'guide'}")
     args.out = str(output_path(args.out))  # "a/b/../../G": no folders a/b made on the way
+    _check_not_a_trace_name(Path(args.out), Path(args.traces))
     for path in guide_paths(args.out, for_writing=True):  # checked now, written after the training
         check_output_file(path, make_parent=True, inputs=[args.traces])
         _check_replaces_a_guide(path)

@@ -99,8 +99,43 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
             "seconds": time.perf_counter() - began, "derivation": derivation_to_dict(particle)}
 
 
+def is_trace_name(name: str) -> bool:
+    """Whether a file name is a trace's (``trace_00042.json``)."""
+    return _TRACE_NAME.match(name) is not None
+
+
 def trace_path(out: Path, index: int) -> Path:
     return out / f"trace_{index:05d}.json"
+
+
+def _finished_traces(out: Path, count: int) -> tuple[set, list]:
+    """``(indices of the whole traces in out, indices of damaged ones)`` for a resumed job.
+
+    Traces are written whole (atomically), so a trace file that does not parse, or is not
+    the trace of its number, was damaged or copied in from outside: a resumed job makes it
+    again (it had counted any file of a trace's name as done, and training failed on it
+    later). A JSON file of another format under a trace's name (a guide written there) is
+    the user's: refused, naming it."""
+    whole, damaged = set(), []
+    for i in range(count):
+        path = trace_path(out, i)
+        if not path.exists():
+            continue
+        try:
+            trace = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError, RecursionError):
+            damaged.append(i)
+            continue
+        found = trace.get("format") if isinstance(trace, dict) else None
+        if isinstance(found, str) and found != TRACE_FORMAT:
+            raise GuideError(f"{path} is not a trace (its format is {shown_value(found)}) but has a trace's name, "
+                             "so the job cannot make that trace: move the file out of the traces folder and rerun")
+        if found == TRACE_FORMAT and trace.get("index") == i and isinstance(trace.get("target"), str) \
+                and isinstance(trace.get("derivation"), dict):
+            whole.add(i)
+        else:
+            damaged.append(i)
+    return whole, damaged
 
 
 def _job_settings(model, model_file, targets, particles, seed, set_size, params=None) -> dict:
@@ -376,6 +411,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
             raise GuideError(f"{out} holds traces of another job ({what}); give a new "
                              f"{argument('out')} folder, the same settings to resume, or pass "
                              f"{argument('overwrite=True')} to replace it")
+    present_ok, remade = _finished_traces(out, count) if resume else (set(), [])
     created = not out.exists()
     folder.prepare_in_place(keep=resume)
     # a job killed (SIGKILL) while writing a trace leaves write_text_atomic's temporary file
@@ -385,7 +421,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     if not resume or previous.get("model_code") != settings["model_code"]:
         # (a job file of the byte digest resumed: it records today's, so a comment does not stop it next time)
         write_text_atomic(job_file, json.dumps(settings, indent=1) + "\n")
-    missing = [i for i in range(count) if not trace_path(out, i).exists()]
+    missing = [i for i in range(count) if i not in present_ok]
     present = count - len(missing)
     executor = executor or InlineExecutor()
     # A bounded number of tasks in flight: finished traces are written while others run
@@ -429,7 +465,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                 job_file.unlink(missing_ok=True)
         raise
     seconds = time.perf_counter() - began
-    return {"made": done, "present": present, "seconds": seconds,
+    return {"made": done, "present": present, "remade": remade, "seconds": seconds,
             "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None}
 
 
@@ -450,10 +486,14 @@ def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[di
         names = names[:limit]
     traces = [read_versioned_json(path, TRACE_FORMAT, GuideError, advice="; delete it and rerun the traces job")
               for _, path in names]
-    for (_, path), trace in zip(names, traces):
+    for (number, path), trace in zip(names, traces):
         if not isinstance(trace.get("target"), str):  # training read it first: a KeyError traceback
             raise GuideError(f"{path} is damaged (its \"target\" is missing or not a target's name); delete it and "
                              "rerun the traces job")
+        if trace.get("index") != number:  # training's messages name a trace by its index: it must be its file's
+            raise GuideError(f"{path} holds trace {shown_value(trace.get('index'))} (its \"index\"), not trace "
+                             f"{number}: it was copied or renamed from another trace; delete it and rerun the traces "
+                             "job (procmod guide traces makes it again)")
     if not traces:
         raise GuideError(f"{folder} holds no traces yet; run 'procmod guide traces' first")
     return settings, traces

@@ -246,6 +246,34 @@ def _nll(guide: Guide, data: dict, traces: np.ndarray) -> torch.Tensor:
     return total / len(traces)
 
 
+def _refuse_foreign_checkpoint(ckpt: Path, ckpt_meta: Path) -> None:
+    """Refuse to train where ``OUT.ckpt.pt`` / ``OUT.ckpt.json`` exist and are not a training
+    checkpoint of procmod's: they are written during training and deleted at its end, and
+    a user's own PyTorch checkpoint of that name had been deleted without a word (h135). A
+    weights file alone is procmod's when it holds what :func:`train_guide` saves in it (a run
+    killed between writing it and its metadata leaves one)."""
+    for path in (ckpt_meta, ckpt):
+        if not path.exists():
+            continue
+        if path == ckpt_meta:
+            try:
+                saved = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError, RecursionError):
+                saved = None
+            ours = isinstance(saved, dict) and isinstance(saved.get("fingerprint"), dict) and "step" in saved
+        elif ckpt_meta.exists():
+            continue  # its metadata is ours (checked above): a damaged one is started over
+        else:
+            try:
+                state = load_tensors(path, GuideError, "training checkpoint")
+            except GuideError:
+                state = None
+            ours = isinstance(state, dict) and {"nets", "optimiser", "step"} <= set(state)
+        if not ours:
+            raise GuideError(f"{path} is not a procmod training checkpoint, and training writes its checkpoint "
+                             "there (and deletes it at the end): move that file, or give another output name")
+
+
 def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None, mixture: int = 4,
                 iterations: int = 20000, batch: int = 1, lr: float = 0.01, schedule: str = "cosine",
                 limit: int | None = None,
@@ -295,6 +323,9 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     lr = float(lr)  # numpy's too: it is recorded in the guide's JSON
     if schedule not in SCHEDULES:
         raise GuideError(f"the step-size schedule ({argument('schedule')}) must be one of {', '.join(SCHEDULES)}, got {schedule!r}")
+    weights_path, _ = guide_paths(out, for_writing=True)
+    ckpt, ckpt_meta = weights_path.with_suffix(".ckpt.pt"), weights_path.with_suffix(".ckpt.json")
+    _refuse_foreign_checkpoint(ckpt, ckpt_meta)
     job = None
     if traces is None:
         job, traces = load_traces(traces_dir, limit)
@@ -323,8 +354,6 @@ def train_guide(model, traces_dir, out, settings: FeatureSettings | None = None,
     drawn = trained_on(model, traces)
     guide = new_guide_for(model, settings, mixture, kinds, seed, labels)
     optimiser = torch.optim.Adam(guide.nets.parameters(), lr=lr, betas=ADAM_BETAS)
-    weights_path, meta_path = guide_paths(out, for_writing=True)
-    ckpt, ckpt_meta = weights_path.with_suffix(".ckpt.pt"), weights_path.with_suffix(".ckpt.json")
     fingerprint = {"model": model.name, "features": settings.to_json(), "mixture": mixture, "batch": batch,
                    "lr": lr, "schedule": schedule, "seed": seed, "iterations": iterations, "traces": len(traces),
                    "sites": sorted(kinds), "traces_sha256": traces_digest(traces)}
