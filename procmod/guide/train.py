@@ -28,6 +28,7 @@ import math
 import numbers
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
