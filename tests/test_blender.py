@@ -816,10 +816,19 @@ def test_examples_are_exported_at_the_frame_shown_and_edit_mode_is_kept(context,
 
 
 def test_repeat_last_does_not_run_a_job_that_would_freeze_blender(context, registered, monkeypatch):
-    """Shift+R (Repeat Last) calls execute, which waits for the whole job with Blender frozen."""
-    monkeypatch.setattr(registered, "_repeated", lambda operator: True)
+    """Shift+R (Repeat Last) calls execute, which waits for the whole job with Blender frozen:
+    the job operators are not registered (so not repeated), and refuse a repeat besides; a
+    script's call after a panel's press (a registered run) is no repeat (h137)."""
+    settings = context.scene.procmod
+    settings.model, settings.count = "spaceship", 1
+    for operator in (registered.PROCMOD_OT_sample, registered.PROCMOD_OT_infer, registered.PROCMOD_OT_learn):
+        assert "REGISTER" not in operator.bl_options
+    assert bpy.ops.procmod.sample("EXEC_DEFAULT", True) == {"FINISHED"}  # as a press, with its undo step
+    assert bpy.ops.procmod.sample() == {"FINISHED"}
+    monkeypatch.setattr(registered, "_repeated", lambda operator, context: True)
+    count = len(bpy.data.collections)
     assert bpy.ops.procmod.sample() == {"CANCELLED"}
-    assert registered.Runner.active is None and not bpy.data.collections
+    assert registered.Runner.active is None and len(bpy.data.collections) == count
 
 
 def test_a_job_whose_modal_run_blender_cancelled_stops_and_frees_the_panel(context, registered):
@@ -828,14 +837,29 @@ def test_a_job_whose_modal_run_blender_cancelled_stops_and_frees_the_panel(conte
     from procmod.blender import jobs
     settings = context.scene.procmod
     job = jobs.Job("sample", {"model": "spaceship", "count": 50, "seed": 0}, sys.executable).start()
-    registered.Runner.active = registered.Runner(job, lambda context, result: "")
+    runner = registered.Runner.active = registered.Runner(job, lambda context, result: "")
 
     class Cancelled:  # what Blender passes cancel(): the operator, its timer already gone with the file
-        _timer = None
+        _timer, _runner = None, runner
 
     registered._JobOperator.cancel(Cancelled(), context)
     assert registered.Runner.active is None and job.done and job.result.get("cancelled")
     assert not job.folder.exists()
+    # an operator's cancel or finish leaves another operator's job alone (h137: a job that
+    # ended before its timer read it let a second start, and the first's timer finished it)
+    other = jobs.Job("sample", {"model": "spaceship", "count": 50, "seed": 0}, sys.executable).start()
+    registered.Runner.active = registered.Runner(other, lambda context, result: "")
+    registered._JobOperator.cancel(Cancelled(), context)
+
+    class Reporter:
+        def report(self, kind, message):
+            pass
+
+    runner.finish(context, Reporter())
+    assert registered.Runner.active.job is other and not other.done
+    other.kill()
+    other.cleanup()
+    registered.Runner.active = None
     settings.model, settings.count = "spaceship", 1
     assert bpy.ops.procmod.sample() == {"FINISHED"}  # the panel runs jobs again
 

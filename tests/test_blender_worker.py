@@ -314,3 +314,20 @@ def test_avoid_layers_alone_are_refused_in_the_panels_terms(tmp_path):
     with pytest.raises(Exception, match=r"nothing to fill: no layer has a positive Inside or Outside weight \(Avoid "
                                         r"layers only\); add a mesh as Fill"):
         worker.build_volume_target(spec, tmp_path, tmp_path / "t")
+
+
+def test_killing_a_job_whose_worker_had_ended_keeps_its_result_and_run(tmp_path):
+    """A stopped Control run that no operator read any more (a file was opened) was killed
+    at Blender's exit as if cancelled, deleting the run folder it had written (h137)."""
+    stand_in = tmp_path / "python"  # stands in for "python -m procmod.blender.worker FOLDER"
+    stand_in.write_text('#!/bin/sh\nfolder="$3"\nout=$(sed -n \'s/.*"out": "\\(.*\\)".*/\\1/p\' "$folder/job.json")\n'
+                        'mkdir -p "$out" && echo best > "$out/best.json"\n'
+                        'echo \'{"ok": true, "message": "stopped", "samples": []}\' > "$folder/result.json"\n')
+    stand_in.chmod(0o755)
+    out = tmp_path / "runs" / "infer-ga-001"
+    job = jobs.Job("infer", {"out": str(out)}, str(stand_in)).start()
+    job.process.wait(timeout=60)
+    jobs._kill_running()  # what Blender's exit does to every job still listed
+    assert job.result == {"ok": True, "message": "stopped", "samples": []}
+    assert (out / "best.json").read_text() == "best\n"
+    job.cleanup()

@@ -1125,6 +1125,10 @@ def test_a_trace_folder_with_damaged_or_foreign_files_is_named_right_and_remade(
         return {k: v for k, v in json.loads(text).items() if k != "seconds"}
 
     assert timeless((traces / "trace_00001.json").read_text()) == timeless(good[1])  # made again, as it was
+    (traces / "trace_00000.json").write_text("{")
+    assert main(["guide", "traces", "vines", "--count", "5", "--particles", "4", "--targets", "scribble",
+                 "--out", str(traces)]) == 0
+    assert "note: 1 trace file was damaged or not its number's trace (" in capsys.readouterr().err
     lightning = tmp_path / "L"
     generate_traces("lightning", "scribble", 1, lightning, particles=4)
     (traces / "trace_00004.json").write_text((lightning / "trace_00000.json").read_text())

@@ -198,7 +198,8 @@ class Runner:
 
     def finish(self, context, operator) -> set:
         """Put the result into the scene and report one line."""
-        Runner.active = None
+        if Runner.active is self:
+            Runner.active = None
         result = self.job.result or {"ok": False, "error": "no result"}
         status = context.window_manager.procmod_status
         status.running, status.fraction = False, 0.0
@@ -222,11 +223,30 @@ class Runner:
         return {"FINISHED"}
 
 
-def _repeated(operator) -> bool:
+def _repeated(operator, context) -> bool:
     """Whether Blender runs ``operator`` again: Repeat Last (Shift+R) and Repeat History call
     execute, which waits for the job, so Blender would be frozen for the whole run with no
-    progress and no Stop."""
-    return operator.is_repeat()
+    progress and no Stop. ``is_repeat`` alone also holds for a script's call after a panel
+    press of the same operator (Blender compares the type with the last registered
+    operator's; h137): a repeat runs the registered operator itself. (The job operators are
+    not registered, so neither can happen; this guards a change of that.)"""
+    if not operator.is_repeat():
+        return False
+    pointer = operator.as_pointer()
+    return any(done.as_pointer() == pointer for done in context.window_manager.operators)
+
+
+def _end_unread(job: jobs.Job) -> None:
+    """Poll a stopped job no operator reads any more until it ends (killing it if it outlasts
+    :data:`~procmod.blender.jobs.KILL_AFTER_STOP`), then remove its temporary folder: a
+    persistent timer, which outlives the file load that cancelled the operator."""
+    def poll():
+        if not job.poll():
+            return 0.5
+        job.cleanup()
+        return None
+
+    bpy.app.timers.register(poll, first_interval=0.5, persistent=True)
 
 
 class _JobOperator:
@@ -235,10 +255,10 @@ class _JobOperator:
 
     command = ""
     _timer = None
+    _runner = None  # this operator's job: its timer reads only it (another may be active)
 
     def _start(self, context):
-        # poll, not done: a job no timer reads any more (its operator cancelled) may have ended
-        if Runner.active is not None and not Runner.active.job.poll():
+        if Runner.active is not None and not Runner.active.job.done:
             self.report({"ERROR"}, "a procmod job is running: wait for it or stop it first")
             return None
         job = jobs.Job(self.command, {}, _python(context))
@@ -263,13 +283,13 @@ class _JobOperator:
             return None
         job.spec.update(spec)
         job.start()
-        Runner.active = Runner(job, on_result)
+        Runner.active = self._runner = Runner(job, on_result)
         status = context.window_manager.procmod_status
         status.running, status.fraction, status.message = True, 0.0, f"{self.command}: starting"
         return Runner.active
 
     def execute(self, context):
-        if _repeated(self):
+        if _repeated(self, context):
             self.report({"WARNING"}, f"procmod: press '{self.bl_label}' in the procmod panel to run it again (a "
                                      "repeated run would freeze Blender until it ended)")
             return {"CANCELLED"}
@@ -294,7 +314,7 @@ class _JobOperator:
     def modal(self, context, event):
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
-        runner = Runner.active
+        runner = self._runner
         if runner is None or not runner.tick(context):
             return {"PASS_THROUGH"}
         context.window_manager.event_timer_remove(self._timer)
@@ -312,11 +332,14 @@ class _JobOperator:
             except (ReferenceError, RuntimeError, AttributeError):
                 pass  # the window manager went with the old file
             self._timer = None
-        runner, Runner.active = Runner.active, None
-        if runner is None:
+        runner, self._runner = self._runner, None
+        if runner is None or runner.job.done:
             return
+        if Runner.active is runner:
+            Runner.active = None
         if runner.job.command == "infer":
             runner.job.stop()
+            _end_unread(runner.job)
         else:
             runner.job.kill()
             runner.job.cleanup()
@@ -333,7 +356,7 @@ class PROCMOD_OT_sample(_JobOperator, bpy.types.Operator):
 
     bl_idname = "procmod.sample"
     bl_label = "Sample"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"UNDO"}  # not REGISTER: Repeat Last would rerun it frozen
     command = "sample"
 
     def prepare(self, context, folder):
@@ -375,7 +398,7 @@ class PROCMOD_OT_infer(_JobOperator, bpy.types.Operator):
 
     bl_idname = "procmod.infer"
     bl_label = "Control"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"UNDO"}  # not REGISTER: Repeat Last would rerun it frozen
     command = "infer"
 
     def prepare(self, context, folder):
@@ -401,7 +424,7 @@ class PROCMOD_OT_learn(_JobOperator, bpy.types.Operator):
 
     bl_idname = "procmod.learn"
     bl_label = "Learn from selection"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"UNDO"}  # not REGISTER: Repeat Last would rerun it frozen
     command = "learn"
 
     def prepare(self, context, folder):

@@ -174,13 +174,17 @@ class Job:
         self._stop_time = time.monotonic()
 
     def kill(self) -> None:
-        """End the worker now; the job ends without a result."""
-        if self.process is not None and self.process.poll() is None:
+        """End the worker now; the job ends without a result. A worker that had already
+        ended keeps the result it wrote (a stopped Control run read by no one since, whose
+        run folder had been deleted as a cancelled job's when Blender quit; h137)."""
+        code = self.process.poll() if self.process is not None else None
+        if self.process is not None and code is None:
             self.process.kill()
             self.process.wait()
         _RUNNING.discard(self)
         if self.result is None:
-            self._set_result({"ok": False, "error": f"{self.command} cancelled", "cancelled": True})
+            self._set_result(self._read_result(code) if code is not None else
+                             {"ok": False, "error": f"{self.command} cancelled", "cancelled": True})
 
     def wait(self, timeout: float | None = None, interval: float = 0.1, on_progress=None) -> dict:
         """Poll until the job ends (killing it after ``timeout`` seconds); returns the result."""

@@ -94,7 +94,8 @@ def _cmd_traces(args) -> None:
         one = len(summary["remade"]) == 1
         print(f"note: {len(summary['remade'])} trace {'file was' if one else 'files were'} damaged or not "
               f"{'its' if one else 'their'} number's trace ({shown}"
-              f"{', ...' if len(summary['remade']) > 3 else ''}) and were made again", file=sys.stderr)
+              f"{', ...' if len(summary['remade']) > 3 else ''}) and {'was' if one else 'were'} made again",
+              file=sys.stderr)
     print(f"{summary['made']} traces made, {summary['present']} already there, in {summary['seconds']:.1f} s"
           + (f" ({rate:.0f} traces/hour)" if rate else "") + f"; folder: {args.out}")
 
