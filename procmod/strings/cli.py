@@ -183,7 +183,8 @@ def _take_tolerance(shape_set, tolerance) -> None:
 
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .contacts import contact_tolerance, loose_parts, shape_graph
+    from .contacts import (contact_kinds, contact_tolerance, gaps_to_close, joining_text, loose_parts, near_miss_note,
+                           shape_graph)
     from .assets import read_shape_inputs
     from .grammar import Grammar, ring_rule_note
     from ..core.paths import output_path
@@ -203,15 +204,27 @@ def _graph(args) -> None:
     types = ", ".join(f"{cut_text(name, 80)}={letter}" for name, letter in sorted(shape_set.letters.items()))
     import networkx as nx
 
+    named = _shape_sources(args.shapes, len(graphs))
+    needs = []  # per shape with gaps, the tolerance that closes them
+    kinds = contact_kinds(graphs)
     for i, g in enumerate(graphs):
         pieces = sorted(nx.connected_components(g), key=len, reverse=True) if len(g) else []
         cycles = g.number_of_edges() - g.number_of_nodes() + len(pieces)
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
+        join, misses = gaps_to_close(shape_set, shape_set.shapes[i], g, tolerance, kinds)
         if len(pieces) > 1:
-            named = _shape_sources(args.shapes, len(graphs))
             print(printable(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string "
                             "encodes one connected shape, so 'strings augment' refuses it: move the parts to touch, "
-                            "or give --tolerance in world units to count gaps up to it as contacts"), file=sys.stderr)
+                            f"or give --tolerance in world units to count gaps up to it as contacts ({joining_text(join)}"
+                            + (", with near misses left at it" if misses else "") + ")"), file=sys.stderr)
+        elif misses:
+            print(printable(f"note: {near_miss_note(shape_set.shapes[i], misses, tolerance, i, named)}"),
+                  file=sys.stderr)
+        if join is not None or misses:
+            needs.append(max([join or 0.0] + [t for *_, t in misses]))
+    if len(needs) > 1:
+        print(f"note: --tolerance {max(needs):.2g} closes every gap named above ({len(needs)} shapes); a tolerance "
+              "far past the gaps a hand leaves joins parts that only stand near each other", file=sys.stderr)
     print(printable(f"types: {types}"))  # part names from the input files: one line each, whatever they hold
     print(printable("rules: " + "; ".join(f"{t}: {' | '.join(sorted(k or '-' for k in keys))}"
                                           for t, keys in sorted(grammar.rules.items()))))
@@ -323,7 +336,8 @@ def _augment(args) -> None:
     import networkx as nx
 
     from .codec import RingLimitError, encode
-    from .contacts import DEFAULT_TOLERANCE, contact_tolerance, loose_parts, median_part_size, shape_graph
+    from .contacts import (DEFAULT_TOLERANCE, contact_kinds, contact_tolerance, gaps_to_close, joining_text,
+                           loose_parts, median_part_size, near_miss_note, shape_graph)
     named = _shape_sources(args.shapes, len(shape_set.shapes))
     tolerance = contact_tolerance(shape_set)
     part_size = median_part_size(shape_set.library)
@@ -336,21 +350,26 @@ def _augment(args) -> None:
               file=sys.stderr)
     from .sampling import SeenShapes
     alike = SeenShapes(shape_set, "graph")  # inputs with the same shape graph (a shape given twice)
-    for i, shape in enumerate(shape_set.shapes):  # refused now, not after the first round
-        g = shape_graph(shape_set, shape, tolerance)
+    graphs = [shape_graph(shape_set, shape, tolerance) for shape in shape_set.shapes]
+    kinds = contact_kinds(graphs)
+    for i, (shape, g) in enumerate(zip(shape_set.shapes, graphs)):  # refused now, not after the first round
         if not alike.add(shape, g):
             source = f" ({named[i]})" if named else ""
             print(printable(f"note: input shape {i}{source} has the same shape graph as an earlier input shape (the "
                             "same parts in the same contacts, wherever they are placed): its strings are that "
                             "shape's, and the grammar counts them once more"), file=sys.stderr)
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
+        join, misses = gaps_to_close(shape_set, shape, g, tolerance, kinds)
         if len(pieces) > 1:
             given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"
                      if shape_set.tolerance is not None else f"{DEFAULT_TOLERANCE:g} x the median part's size")
             raise InvalidArgumentError(
                 f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance)} (the contact tolerance: {given}); "
                 "a string encodes one connected shape: move the parts to touch, or give --tolerance in world units "
-                "to count gaps up to it as contacts ('strings graph --tolerance' shows what it joins)")
+                f"to count gaps up to it as contacts ({joining_text(join)}; 'strings graph --tolerance' shows what "
+                "it joins)")
+        if misses:
+            print(printable(f"note: {near_miss_note(shape, misses, tolerance, i, named)}"), file=sys.stderr)
         try:  # a shape no string can write: refused now (it ran for minutes, then failed writing the collection)
             encode(g)
         except RingLimitError as exc:

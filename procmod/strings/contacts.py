@@ -175,6 +175,111 @@ def centroids(shape_set: ShapeSet, shape: Shape) -> np.ndarray:
     return np.array([part_points(shape_set.library, p, t).mean(0) for p, t in zip(shape.parts, shape.transforms)])
 
 
+NEAR_MISS = 0.02
+"""Two parts apart by less than this share of the median part's size (or 4x the contact
+tolerance, if more) without touching within the tolerance are named in a note
+(:func:`near_misses`): a wall placed by eye 15 mm short of its tower dropped that one
+contact without a word, the grammar learned that a wall may hang from one tower, and
+augment built shapes with walls hanging off one (4 of 14; h139)."""
+
+JOIN_REACH = 0.25
+"""The largest contact tolerance, as a share of the median part's size, that
+:func:`joining_tolerance` tries: past it parts touch their neighbours' neighbours."""
+
+
+def _least_touching(library: dict, shape: Shape, lo: float, hi: float, touches) -> float | None:
+    """The least contact tolerance in ``(lo, hi]`` at which ``touches(pairs)`` holds of the
+    contacts found there (bisected to within 5%, then rounded up to two significant
+    digits), or None where it does not hold at ``hi``."""
+    def holds(tol):
+        return touches(contact_pairs(library, shape.parts, shape.transforms, tol))
+
+    if not holds(hi):
+        return None
+    for _ in range(40):
+        if hi - lo <= 0.05 * hi:
+            break
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if holds(mid) else (mid, hi)
+    digits = 10.0 ** (math.floor(math.log10(hi)) - 1)
+    return math.ceil(hi / digits - 1e-9) * digits
+
+
+def joining_tolerance(shape_set: ShapeSet, shape: Shape, tol: float) -> float | None:
+    """The contact tolerance (up to :data:`JOIN_REACH` of the median part's size) at which a
+    shape in pieces becomes one: what ``--tolerance`` to give for gaps left by hand. None
+    when no tolerance in reach joins it (its pieces are apart, not placed by eye)."""
+    count = len(shape.parts)
+
+    def one_piece(pairs):
+        g = nx.Graph()
+        g.add_nodes_from(range(count))
+        g.add_edges_from(pairs)
+        return nx.is_connected(g)
+
+    reach = JOIN_REACH * median_part_size(shape_set.library)
+    return _least_touching(shape_set.library, shape, tol, reach, one_piece) if reach > tol else None
+
+
+def joining_text(join: float | None) -> str:
+    """What to say of a shape in pieces, given its :func:`joining_tolerance`: the
+    ``--tolerance`` that joins them, or that none near a part's size does."""
+    if join is None:
+        return (f"no tolerance up to {JOIN_REACH:.0%} of a part's size joins them (they are apart, not left "
+                "short by hand)")
+    return f"--tolerance {join:.2g} joins them"
+
+
+def gaps_to_close(shape_set: ShapeSet, shape: Shape, g, tol: float, kinds: set | None = None) -> tuple:
+    """``(joining tolerance or None, near misses)`` of a shape whose graph at ``tol`` is
+    ``g``: for a shape in pieces, the tolerance that joins them (:func:`joining_tolerance`)
+    and the near misses left at it; for one in one piece, None and its near misses
+    (``kinds``: :func:`near_misses`)."""
+    if len(g) == 0 or nx.is_connected(g):
+        return None, near_misses(shape_set, shape, g, tol, kinds)
+    join = joining_tolerance(shape_set, shape, tol)
+    if join is None:
+        return None, []
+    return join, near_misses(shape_set, shape, shape_graph(shape_set, shape, join), join, kinds)
+
+
+def contact_kinds(graphs) -> set:
+    """The pairs of part types (frozensets of part names) that touch somewhere in ``graphs``."""
+    return {frozenset((g.nodes[i]["part"], g.nodes[j]["part"])) for g in graphs for i, j in g.edges}
+
+
+def near_misses(shape_set: ShapeSet, shape: Shape, g, tol: float, kinds: set | None = None) -> list:
+    """``(i, j, tolerance at which they touch)`` for the pairs of parts of ``shape`` nearer
+    than :data:`NEAR_MISS` of the median part's size (or 4x ``tol``) that do not touch in
+    its shape graph ``g``: gaps a hand may have left between parts meant to touch. Only
+    pairs of types that touch somewhere in the set (``kinds``, :func:`contact_kinds`; all
+    when None) and that share no neighbour: two beams ending 3 cm apart on the column both
+    rest on are built so (the shipped colonnade), not a wall left short of its tower."""
+    reach = max(4.0 * tol, NEAR_MISS * median_part_size(shape_set.library))
+    near = [(i, j) for i, j in contact_pairs(shape_set.library, shape.parts, shape.transforms, reach)
+            if not g.has_edge(i, j) and not set(g.neighbors(i)) & set(g.neighbors(j))
+            and (kinds is None or frozenset((shape.parts[i], shape.parts[j])) in kinds)]
+    out = []
+    for i, j in near:
+        need = _least_touching(shape_set.library, Shape.of([shape.parts[i], shape.parts[j]],
+                                                            [shape.transforms[i], shape.transforms[j]]),
+                               tol, reach, bool)
+        if need is not None:
+            out.append((i, j, need))
+    return out
+
+
+def near_miss_note(shape: Shape, misses: list, tol: float, index: int, inputs) -> str:
+    """One line naming the near misses (:func:`near_misses`) of shape ``index``."""
+    names = [f"{shape.parts[i]} #{i} and {shape.parts[j]} #{j}" for i, j, _ in misses[:3]]
+    more = f" and {len(misses) - 3} more pairs" if len(misses) > 3 else ""
+    need = max(t for _, _, t in misses)
+    source = f" ({inputs[index]})" if inputs else ""
+    return (f"shape {index}{source}: {'; '.join(names)}{more} are nearer than {NEAR_MISS:.0%} of a part's size "
+            f"but do not touch within the contact tolerance {tol:.3g}, so no contact joins them; if they were placed "
+            f"by eye to touch, give --tolerance {need:.2g} (new shapes otherwise take each such part as free there)")
+
+
 def loose_parts(g, pieces, index: int, inputs, letters: dict, tolerance: float | None = None) -> str:
     """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
     ``letters``: part name -> type letter), and within what ``tolerance`` (a gap a part
