@@ -215,8 +215,9 @@ def _graph(args) -> None:
         if len(pieces) > 1:
             print(printable(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string "
                             "encodes one connected shape, so 'strings augment' refuses it: move the parts to touch, "
-                            f"or give --tolerance in world units to count gaps up to it as contacts ({joining_text(join)}"
-                            + (", with near misses left at it" if misses else "") + ")"), file=sys.stderr)
+                            "or give --tolerance in world units to count gaps up to it as contacts ("
+                            f"{joining_text(join)}" + (", with near misses left at it" if misses else "") + ")"),
+                  file=sys.stderr)
         elif misses:
             print(printable(f"note: {near_miss_note(shape_set.shapes[i], misses, tolerance, i, named)}"),
                   file=sys.stderr)
