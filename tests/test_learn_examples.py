@@ -221,15 +221,14 @@ def test_examples_laid_out_side_by_side_are_learned_where_they_stand_over_the_or
 
 def test_examples_turned_about_the_up_axis_are_learned_facing_one_way(tmp_path):
     """Which way an example faces is not part of its shape either. Fences turned every way
-    in the scene were learned by their roots' Euler angles, where a spin past 90 degrees
-    is (180, 180 - a, 180), and with a hand's tilt of a degree or two on both sides of the
-    wrap: 54 of 60 sampled fences leaned over 10 degrees (h136). Each example is now spun
-    back about the vertical through its root: a spun copy reads as the original, and a
-    tilted one keeps only its tilt."""
+    in the scene had their roots' turns learned as a Gaussian spanning 0 to 180 degrees
+    about the vertical: 54 of 60 sampled fences leaned over 10 degrees (h136). Each example
+    is spun about the vertical through its root to face the way most examples face: a
+    spun copy reads as the original turned that way, a tilted one keeps its tilt; a set
+    turned as one keeps its turn (h138); a z-up root faces 0, not 360 degrees (h138)."""
     from scipy.spatial.transform import Rotation
 
-    from procmod.learn.examples import read_example_inputs
-    from procmod.learn.transforms import decompose, euler_of
+    from procmod.learn.examples import centred_examples, facing_angle, read_example_inputs
 
     root = Path(__file__).resolve().parent.parent / "examples_sets/learn/castles"
     data = json.loads((root / "examples.json").read_text())
@@ -250,17 +249,36 @@ def test_examples_turned_about_the_up_axis_are_learned_facing_one_way(tmp_path):
     (tmp_path / "examples.json").write_text(json.dumps(turned))
     original, _ = read_example_inputs([root / "examples.json"])
     read, _ = read_example_inputs([tmp_path / "examples.json"])
+    reference = facing_angle(read.examples[0].transform)
+    facing = np.eye(4)
+    facing[:3, :3] = Rotation.from_euler("y", reference).as_matrix()
     for i, (a, b) in enumerate(zip(original.examples, read.examples)):
-        if i % 2 == 0:  # spun only: the original, node for node
+        assert abs(facing_angle(b.transform) - reference) < 1e-9, i  # every example faces one way
+        if i % 2 == 0:  # spun only: the original turned that way, node for node
             for n, m in zip(a.walk(), b.walk()):
-                assert np.allclose(n.transform, m.transform, atol=1e-9), i
-        angles = np.degrees(euler_of(decompose(b.transform)[0]))
-        assert np.abs(angles).max() < 2.5, (i, angles)  # its tilt, no wrap to +-180
+                assert np.allclose(facing @ np.asarray(n.transform), m.transform, atol=1e-9), i
+        turn = np.linalg.inv(facing[:3, :3]) @ decompose(b.transform)[0]
+        assert np.degrees(np.arccos(np.clip((np.trace(turn) - 1) / 2, -1, 1))) < 2.5, i  # its tilt alone
         # the example's shape is kept: every part where it was relative to the root
         inverse = np.linalg.inv(np.asarray(b.transform))
         before = np.linalg.inv(np.asarray(turned["examples"][i]["transform"]))
         for n, node in zip(b.walk(), _walk(turned["examples"][i])):
             assert np.allclose(inverse @ np.asarray(n.transform), before @ np.asarray(node["transform"]), atol=1e-9)
+    # a set turned as one, and a set of z-up roots, are left as they stand
+    for turn in (Rotation.from_euler("y", 90, degrees=True), Rotation.from_euler("x", -90, degrees=True)):
+        m = np.eye(4)
+        m[:3, :3] = turn.as_matrix()
+        as_one = copy.deepcopy(data)
+        for example in as_one["examples"]:
+            place(example, m)
+        (tmp_path / "as_one.json").write_text(json.dumps(as_one))
+        before = read_examples(tmp_path / "as_one.json")
+        after = centred_examples(before)
+        for x, y in zip(before.examples, after.examples):  # moved over the origin, if at all, but not turned
+            assert np.array_equal(np.asarray(x.transform)[:3, :3], np.asarray(y.transform)[:3, :3])
+
+
+from procmod.learn.transforms import decompose  # noqa: E402
 
 
 def _walk(node):

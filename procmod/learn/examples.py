@@ -224,45 +224,66 @@ under this, as a quaternion's length) that which way it faces is not well define
 an example keeps its spin (:func:`centred_examples`)."""
 
 
-def facing_angle(world) -> float:
-    """The spin about the up axis (y; radians) of a node's world transform: the twist about
-    world y of its rotation (the rotation ``Ry(angle) @ swing``, ``swing`` turning about no
-    vertical axis). Examples that stand alike but face other ways differ by it alone; their
-    rotations' Euler angles did not: a spin past 90 degrees is (180, 180 - a, 180) there.
-    0 for a root standing near upside down (:data:`FACING_CONDITION`)."""
+def facing_angle(world) -> float | None:
+    """The spin about the up axis (y; radians in (-pi, pi]) of a node's world transform:
+    the twist about world y of its rotation (the rotation is ``Ry(angle) @ swing``, the
+    swing turning about no vertical axis). Examples that stand alike but face other ways
+    differ by it alone. None for a root standing near upside down
+    (:data:`FACING_CONDITION`)."""
     from scipy.spatial.transform import Rotation
 
     from .transforms import decompose
 
     rot = decompose(world)[0]
     x, y, z, w = Rotation.from_matrix(rot).as_quat()
+    if w < 0:  # q and -q are one rotation: the one with w >= 0 gives an angle within +-pi
+        y, w = -y, -w
     if math.hypot(y, w) < FACING_CONDITION:
-        return 0.0
-    return 2.0 * math.atan2(y, w)
+        return None
+    angle = 2.0 * math.atan2(y, w)
+    return 0.0 if abs(angle) < 1e-12 else angle
+
+
+def _turn_between(a: float, b: float) -> float:
+    """The turn from angle ``b`` to angle ``a``, within +-pi."""
+    return math.remainder(a - b, 2.0 * math.pi)
+
+
+def reference_facing(angles: list) -> float | None:
+    """The way most examples face: of their facings (:func:`facing_angle`; None left out),
+    the one nearest all the others (the least summed turn to them; the first on a tie)."""
+    known = [a for a in angles if a is not None]
+    if not known:
+        return None
+    return min(known, key=lambda a: sum(abs(_turn_between(b, a)) for b in known))
 
 
 def centred_examples(example_set: ExampleSet) -> ExampleSet:
     """The example set with each example moved, rigidly, so that its root part stands over
-    the origin facing one way: the root's x and z (procmod is y-up) become 0, its height is
-    kept, and its spin about the up axis (:func:`facing_angle`) is turned back to 0.
+    the origin facing the way most examples face: the root's x and z (procmod is y-up)
+    become 0, its height is kept, and it is spun about the vertical through it by its
+    turn from the set's :func:`reference_facing`.
 
     Where an example stands in the world is not part of its shape. Examples modelled side
     by side in one scene (the only way to see them all at once; Blender's "Learn from
     selection" and glTF exports keep world positions) otherwise made the root's placement
     a wide Gaussian the learner had to explain: on the castles spread 25 units apart the
     search ran 10x longer and kept 39 abstractions, one per example, against 11. Nor is
-    which way it faces: fences turned every way in the scene, learned by the Euler angles
-    of their roots (0 or 180 degrees about x and z for a spin past 90, both sides of the
-    wrap with a hand's tilt), sampled 54 of 60 fences leaning over 10 degrees (median 42;
-    h136), against none for the same fences all facing one way."""
+    which way one faces: fences turned every way in the scene had their roots' turns
+    learned as a Gaussian spanning 0 to 180 degrees about the vertical, and 54 of 60
+    sampled fences leaned over 10 degrees (median 42; h136), against none for the same
+    fences facing one way. The way the set faces is kept: a set turned as one samples as
+    it stands (h138)."""
     def moved(node: ExampleNode, turn: np.ndarray) -> ExampleNode:
         return ExampleNode(node.part, turn @ np.asarray(node.transform, dtype=np.float64),
                            [moved(c, turn) for c in node.children])
 
+    facings = [facing_angle(np.asarray(root.transform, dtype=np.float64)) for root in example_set.examples]
+    reference = reference_facing(facings)
     examples = []
-    for root in example_set.examples:
+    for root, facing in zip(example_set.examples, facings):
         world = np.asarray(root.transform, dtype=np.float64)
-        angle = facing_angle(world)
+        angle = 0.0 if facing is None else _turn_between(facing, reference)
         if world[0, 3] == 0.0 and world[2, 3] == 0.0 and angle == 0.0:
             examples.append(root)
             continue

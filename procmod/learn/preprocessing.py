@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from ..geometry.part_library import flip_deviations, round_axes, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
-from .examples import ExampleNode, ExampleSet, ExamplesError
+from .examples import ExampleNode, ExampleSet, ExamplesError, facing_angle, reference_facing
 from .ground import examples_ground
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
@@ -556,12 +556,14 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         return pnode
 
     world_extent = set_size(example_set)
+    facing = reference_facing([facing_angle(root.transform) for root in example_set.examples]) or 0.0
+    roots_frame = Units(world_extent, facing=facing).world_frame()
 
     def convert_all(with_turns: dict) -> list:
         nodes.clear()
         turns.clear()
         turns.update(with_turns)
-        return [convert_part(info, Units(world_extent).world_frame(), k).id for k, info in enumerate(root_infos)]
+        return [convert_part(info, roots_frame, k).id for k, info in enumerate(root_infos)]
 
     # a symmetry holding another has it measure its parameters in a frame turned from the
     # outer's reference direction to its own (transforms.turned_frame), where its
@@ -586,7 +588,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         roots = convert_all(accepted)
     anchors = choose_anchors(nodes, bounds)
     units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes), turns, span_types(nodes),
-                  anchors, examples_ground(example_set))
+                  anchors, examples_ground(example_set), facing)
     for n in nodes:
         if n.kind == "part":
             n.x[0:3] -= units.log_scale(n.part)

@@ -377,7 +377,8 @@ def program_to_json(program: Program, tensors_name: str) -> dict:
                   **({"anchors": {parent: {child: [None if a is None else list(map(int, a)) for a in axes]
                                            for child, axes in sorted(program.units.anchors[parent].items())}
                                   for parent in sorted(program.units.anchors)}} if program.units.anchors else {}),
-                  **({"ground": float(program.units.ground)} if program.units.ground is not None else {})},
+                  **({"ground": float(program.units.ground)} if program.units.ground is not None else {}),
+                  **({"facing": float(program.units.facing)} if program.units.facing else {})},
         "param_shapes": {k: list(v.shape) for k, v in sorted(program.params.items())},
     }
 
@@ -613,8 +614,12 @@ def _units_from_json(data) -> Units:
     if ground is not None and not (_is_real(ground) and abs(ground) <= MAX_UNIT_LENGTH):
         raise ValueError(f"units.ground must be a height within +-{MAX_UNIT_LENGTH:g} or absent, got "
                          f"{shown_value(ground, 40)}")
+    facing = data.get("facing", 0.0)  # absent: learned facing the world's axes (or before facing was kept)
+    if not (_is_real(facing) and abs(facing) <= math.pi + 1e-9):
+        raise ValueError(f"units.facing must be an angle within +-pi (radians about the up axis) or absent, got "
+                         f"{shown_value(facing, 40)}")
     return Units(float(extent), logs, conventions, poles, turns, tuple(sorted(set(spans))), anchors,
-                 None if ground is None else float(ground))
+                 None if ground is None else float(ground), float(facing))
 
 
 MAX_COUNT = 10_000  # members of one symmetry group a program may draw
