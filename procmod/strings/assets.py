@@ -158,6 +158,47 @@ def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -
     return library, shapes
 
 
+NEAR_SIZE = 0.05
+"""Two parts of one geometry whose sizes differ by at most this share (along any axis) are
+named in a note (:func:`resized_note`): likely one part resized a little by hand."""
+
+
+def _resized(library: dict, original: dict) -> tuple:
+    """``(name, base name, largest relative size difference)`` for each part
+    :func:`_rigid_placements` made of a geometry placed at another scale (``rail_2`` of
+    ``rail``) whose size is within :data:`NEAR_SIZE` of the part of that geometry first
+    placed: parts of two sizes are two types, which a user who resized a copy by 0.3% did
+    not mean (its shapes then never combine with the others; h139)."""
+    out = []
+    for name, shape in library.items():
+        if name in original:
+            continue
+        base = next((b for b in library if b in original and name.startswith(b + "_")
+                     and name[len(b) + 1:].isdigit()), None)
+        if base is None or library[base].kind != shape.kind:
+            continue
+        lo, hi = (np.asarray(v, dtype=np.float64) for v in library[base].local_bounds())
+        lo2, hi2 = (np.asarray(v, dtype=np.float64) for v in shape.local_bounds())
+        extent, extent2 = np.sort(hi - lo), np.sort(hi2 - lo2)
+        if (extent <= 0).any():
+            continue
+        difference = float(np.abs(extent2 / extent - 1.0).max())
+        if difference <= NEAR_SIZE:
+            out.append((name, base, difference))
+    return tuple(out)
+
+
+def resized_note(shape_set: ShapeSet) -> str | None:
+    """One line naming the parts that are another part resized by under :data:`NEAR_SIZE`
+    (:attr:`ShapeSet.resized`), or None."""
+    if not shape_set.resized:
+        return None
+    named = ", ".join(f"{name} is {base} {100 * d:.2g}% off its size" for name, base, d in shape_set.resized[:4])
+    more = f" and {len(shape_set.resized) - 4} more" if len(shape_set.resized) > 4 else ""
+    return (f"{named}{more}: parts of two sizes are two types, so shapes built with one never combine with shapes "
+            "built with the other; if that is a copy resized by hand, give it the size of the first")
+
+
 def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet:
     """A :class:`ShapeSet` from asset files (or folders of them), one shape per file (see
     the module docstring). Raises :class:`AssetError` for a file that cannot be used."""
@@ -174,7 +215,7 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
                           "or remove it")
 
     library, shapes = _rigid_placements(asset_set.parts, placed, tolerance, flat)
-    return ShapeSet(library, shapes, type_letters(library), None)
+    return ShapeSet(library, shapes, type_letters(library), None, resized=_resized(library, asset_set.parts))
 
 
 def rigid_shape_set(shape_set: ShapeSet) -> ShapeSet:
@@ -198,7 +239,8 @@ def rigid_shape_set(shape_set: ShapeSet) -> ShapeSet:
 
     library, shapes = _rigid_placements(shape_set.library, placed, GEOMETRY_TOLERANCE, flat)
     # held in memory, as an asset set's meshes: written as parts/NAME.obj with the collection
-    return ShapeSet(library, shapes, type_letters(library), None, shape_set.tolerance, source=shape_set.source)
+    return ShapeSet(library, shapes, type_letters(library), None, shape_set.tolerance, source=shape_set.source,
+                    resized=_resized(library, shape_set.library))
 
 
 def read_shape_inputs(paths) -> ShapeSet:

@@ -63,6 +63,8 @@ class ShapeSet:
     # --tolerance); None: contacts.tolerance_for the library
     tolerance: float | None = None
     source: str | None = field(default=None, compare=False)  # the file read, for messages about its fields
+    # (name, base name, size difference) of parts that are another resized a little (strings.assets)
+    resized: tuple = field(default=(), compare=False)
 
     @property
     def part_of_letter(self) -> dict:
