@@ -845,6 +845,16 @@ def test_a_job_whose_modal_run_blender_cancelled_stops_and_frees_the_panel(conte
     registered._JobOperator.cancel(Cancelled(), context)
     assert registered.Runner.active is None and job.done and job.result.get("cancelled")
     assert not job.folder.exists()
+    # a job Stop had ended, not yet read by the timer when the file was opened: the panel
+    # stayed "stopping..." and the job's folder was left (h138)
+    stopped = jobs.Job("sample", {"model": "spaceship", "count": 50, "seed": 0}, sys.executable).start()
+    Cancelled._runner = registered.Runner.active = registered.Runner(stopped, lambda context, result: "")
+    context.window_manager.procmod_status.running = True
+    stopped.kill()  # what Stop does to a sampling job
+    registered._JobOperator.cancel(Cancelled(), context)
+    assert registered.Runner.active is None and not context.window_manager.procmod_status.running
+    assert not stopped.folder.exists()
+    Cancelled._runner = runner
     # an operator's cancel or finish leaves another operator's job alone (h137: a job that
     # ended before its timer read it let a second start, and the first's timer finished it)
     other = jobs.Job("sample", {"model": "spaceship", "count": 50, "seed": 0}, sys.executable).start()

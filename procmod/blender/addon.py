@@ -333,15 +333,17 @@ class _JobOperator:
                 pass  # the window manager went with the old file
             self._timer = None
         runner, self._runner = self._runner, None
-        if runner is None or runner.job.done:
+        if runner is None:
             return
         if Runner.active is runner:
             Runner.active = None
-        if runner.job.command == "infer":
-            runner.job.stop()
-            _end_unread(runner.job)
-        else:
-            runner.job.kill()
+        if not runner.job.done:  # (a job Stop ended, not yet read by the timer, only needs its folder removed)
+            if runner.job.command == "infer":
+                runner.job.stop()
+                _end_unread(runner.job)
+            else:
+                runner.job.kill()
+        if runner.job.done:
             runner.job.cleanup()
         try:
             status = context.window_manager.procmod_status
