@@ -423,6 +423,50 @@ def duplicate_note(example_set: ExampleSet, labels: list | None = None) -> str |
             "draw it; delete the copy")
 
 
+NEAR_TWIN = 0.05
+"""A part whose mesh is another's (the same triangles) resized by at most this share along
+any axis, and edited by at most this share of its size, gets a note (:func:`near_twin_note`)."""
+
+
+def near_twin_note(example_set: ExampleSet, labels: list | None = None) -> str | None:
+    """One line naming parts that are another part's mesh a little resized or edited (a
+    copy made with Ctrl+D, then scaled 2% with the scale applied and a vertex moved): the
+    asset reader makes one part of two meshes only within 0.5% of their size, so such a
+    copy is a part type of its own, which the program samples where the examples have it
+    and elsewhere in place of the original (a table of eight with one such leg: 10 of 60
+    samples drew it, one with three legs; h136). None otherwise."""
+    labels = labels or [f"examples[{i}]" for i in range(len(example_set.examples))]
+    uses = {}
+    for i, root in enumerate(example_set.examples):
+        for node in root.walk():
+            uses.setdefault(node.part, []).append(i)
+    meshes = [(name, shape) for name, shape in example_set.parts.items() if shape.kind == "mesh" and name in uses]
+    found = []
+    for k, (name_a, a) in enumerate(meshes):
+        for name_b, b in meshes[k + 1:]:
+            if len(a.vertices) != len(b.vertices) or tuple(a.faces) != tuple(b.faces):
+                continue
+            va, vb = np.asarray(a.vertices, dtype=np.float64), np.asarray(b.vertices, dtype=np.float64)
+            size = float(np.linalg.norm(np.ptp(va, axis=0)))
+            if not size > 0:
+                continue
+            homogeneous = np.hstack([va, np.ones((len(va), 1))])
+            solution, *_ = np.linalg.lstsq(homogeneous, vb, rcond=None)  # vb ~ va @ m + t
+            stretch = np.linalg.svd(solution[:3], compute_uv=False)
+            edit = float(np.abs(homogeneous @ solution - vb).max())
+            if np.abs(stretch - 1.0).max() <= NEAR_TWIN and edit <= NEAR_TWIN * size:
+                # the one the examples use less is the copy
+                copy, original = (name_b, name_a) if len(uses[name_b]) <= len(uses[name_a]) else (name_a, name_b)
+                found.append((copy, original, float(np.abs(stretch - 1.0).max()), uses[copy][0]))
+    if not found:
+        return None
+    shown = "; ".join(f"{copy!r} (in {labels[i]}) is {original!r} resized by {100 * d:.2g}% or edited a little"
+                      for copy, original, d, i in found[:3])
+    more = f" (and {len(found) - 3} more)" if len(found) > 3 else ""
+    return (f"{shown}{more}: a copy made and changed by hand? it is learned as a part type of its own, which "
+            "samples may draw in place of the other; give it the other's mesh if it is meant as one")
+
+
 STRAY = 1.0
 """A node whose bounding box lies farther than this many diagonals of the rest of its
 example from every other node's gets a note (:func:`stray_note`)."""
@@ -581,5 +625,6 @@ def example_parts(node: ExampleNode, parts: dict) -> list:
 
 
 __all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
-           "read_example_inputs", "centred_examples", "size_note", "orientation_note", "duplicate_note", "examples_from_assets", "example_set_digest",
+           "read_example_inputs", "centred_examples", "size_note", "orientation_note", "duplicate_note",
+           "near_twin_note", "examples_from_assets", "example_set_digest",
            "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]

@@ -24,8 +24,8 @@ from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
-from .examples import (ExampleSet, duplicate_note, example_parts, orientation_note, read_example_inputs, size_note,
-                       stray_note)
+from .examples import (ExampleSet, duplicate_note, example_parts, near_twin_note, orientation_note, read_example_inputs,
+                       size_note, stray_note)
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -147,7 +147,8 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
     for advice in (left_out_note(inputs), faceless_note(inputs), hanging_note(list(example_set.rehung), labels),
                    size_note(example_set, labels),
                    orientation_note(example_set, labels),
-                   duplicate_note(example_set, labels), stray_note(example_set, labels)):
+                   duplicate_note(example_set, labels), stray_note(example_set, labels),
+                   near_twin_note(example_set, labels)):
         if advice is not None and note is not None:
             note(advice)
     with open_executor(workers, scheduler, note=note) as executor:  # an unreachable scheduler: before --out is made
