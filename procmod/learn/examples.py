@@ -80,6 +80,9 @@ class ExampleSet:
     base_dir: Path = Path(".")
     # parts moved down to the part they touch (procmod.learn.hanging): (example, type, from, to)
     rehung: tuple = ()
+    # the way the examples faced (radians about the up axis y) before :func:`centred_examples`
+    # turned each to face the world's axes: a learned program's roots face it (Units.facing)
+    facing: float = 0.0
 
 
 def shear_degrees(m: np.ndarray) -> float:
@@ -251,18 +254,28 @@ def _turn_between(a: float, b: float) -> float:
 
 def reference_facing(angles: list) -> float | None:
     """The way most examples face: of their facings (:func:`facing_angle`; None left out),
-    the one nearest all the others (the least summed turn to them; the first on a tie)."""
+    the one nearest all the others (the least summed turn to them; the first on a tie),
+    set to the nearest quarter turn when within :data:`FACING_SQUARE` of it."""
     known = [a for a in angles if a is not None]
     if not known:
         return None
-    return min(known, key=lambda a: sum(abs(_turn_between(b, a)) for b in known))
+    facing = min(known, key=lambda a: sum(abs(_turn_between(b, a)) for b in known))
+    square = round(facing / (0.5 * math.pi)) * 0.5 * math.pi
+    return math.remainder(square, 2.0 * math.pi) if abs(facing - square) <= FACING_SQUARE else facing
+
+
+FACING_SQUARE = math.radians(3.0)
+"""A set facing within this of a quarter turn faces the quarter turn (a hand's yaw of a
+degree: samples had faced 0.9 degrees off the axes; h140); as parts' turns are squared
+(procmod.learn.preprocessing.SQUARE_TURN)."""
 
 
 def centred_examples(example_set: ExampleSet) -> ExampleSet:
     """The example set with each example moved, rigidly, so that its root part stands over
-    the origin facing the way most examples face: the root's x and z (procmod is y-up)
-    become 0, its height is kept, and it is spun about the vertical through it by its
-    turn from the set's :func:`reference_facing`.
+    the origin facing the world's axes: the root's x and z (procmod is y-up) become 0, its
+    height is kept, and it is spun about the vertical through it by its root's
+    :func:`facing_angle`. The way most examples faced (:func:`reference_facing`) is kept as
+    :attr:`ExampleSet.facing`: the learned program's roots face it.
 
     Where an example stands in the world is not part of its shape. Examples modelled side
     by side in one scene (the only way to see them all at once; Blender's "Learn from
@@ -272,18 +285,19 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
     which way one faces: fences turned every way in the scene had their roots' turns
     learned as a Gaussian spanning 0 to 180 degrees about the vertical, and 54 of 60
     sampled fences leaned over 10 degrees (median 42; h136), against none for the same
-    fences facing one way. The way the set faces is kept: a set turned as one samples as
-    it stands (h138)."""
+    fences facing one way. Learned facing the world's axes, a hand's tilt is read near
+    Euler angle 0, squared where it is within a few degrees, and the set's size is its
+    own, not its bounding box's as it stands turned (h140: a set facing 90 degrees, learned
+    so, sampled tables leaning 2 degrees); a set turned as one samples as it stood (h138)."""
     def moved(node: ExampleNode, turn: np.ndarray) -> ExampleNode:
         return ExampleNode(node.part, turn @ np.asarray(node.transform, dtype=np.float64),
                            [moved(c, turn) for c in node.children])
 
     facings = [facing_angle(np.asarray(root.transform, dtype=np.float64)) for root in example_set.examples]
-    reference = reference_facing(facings)
     examples = []
     for root, facing in zip(example_set.examples, facings):
         world = np.asarray(root.transform, dtype=np.float64)
-        angle = 0.0 if facing is None else _turn_between(facing, reference)
+        angle = facing or 0.0
         if world[0, 3] == 0.0 and world[2, 3] == 0.0 and angle == 0.0:
             examples.append(root)
             continue
@@ -293,7 +307,7 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
         c, s = math.cos(angle), math.sin(angle)
         spin = np.array([[c, 0.0, -s, 0.0], [0.0, 1.0, 0.0, 0.0], [s, 0.0, c, 0.0], [0.0, 0.0, 0.0, 1.0]])  # Ry(-a)
         examples.append(moved(root, spin @ shift))
-    return ExampleSet(example_set.parts, examples, example_set.base_dir)
+    return replace(example_set, examples=examples, facing=reference_facing(facings) or 0.0)
 
 
 MIXED_SIZES = 10.0
@@ -546,7 +560,8 @@ def read_example_inputs(paths) -> tuple[ExampleSet, str]:
         # a checkpoint of a run from before examples were centred (or parts rehung) learned
         # them as they stood: changed examples must not resume it
         # (and one from before they were turned to face one way: "faced")
-        mark = (b"centred\0faced\0" if moved else b"") + (b"rehung\0" if rehung else b"")
+        mark = (b"centred\0faced\0" + repr(example_set.facing).encode() + b"\0" if moved else b"") \
+            + (b"rehung\0" if rehung else b"")
         return replace(example_set, rehung=tuple(rehung)), fingerprint(mark + json_file.read_bytes())
     try:
         example_set = centred_examples(examples_from_assets(read_assets(asset_files(assets))))
@@ -578,6 +593,8 @@ def example_set_digest(example_set: ExampleSet) -> str:
 
     for e in example_set.examples:
         visit(e)
+    if example_set.facing:  # (a set facing the axes digests as before facing was kept)
+        h.update(f"facing\0{example_set.facing!r}".encode())
     return h.hexdigest()[:16]
 
 

@@ -15,6 +15,8 @@ The result is still rotation x scale x translation (no shear), so it reads back 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -45,4 +47,4 @@ def perturb_examples(example_set: ExampleSet, relative: float, rng: np.random.Ge
     example's bounding-box diagonal on every transform (see the module docstring)."""
     examples = [_perturb(e, relative * example_diagonal(e, example_set.parts), relative, rng)
                 for e in example_set.examples]
-    return ExampleSet(example_set.parts, examples, example_set.base_dir)
+    return replace(example_set, examples=examples)

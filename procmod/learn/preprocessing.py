@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from ..geometry.part_library import flip_deviations, round_axes, surface_samples
 from ..geometry.voxel import VoxelGrid, voxelize
-from .examples import ExampleNode, ExampleSet, ExamplesError, facing_angle, reference_facing
+from .examples import ExampleNode, ExampleSet, ExamplesError
 from .ground import examples_ground
 from .perturb import example_diagonal
 from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
@@ -556,8 +556,9 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         return pnode
 
     world_extent = set_size(example_set)
-    facing = reference_facing([facing_angle(root.transform) for root in example_set.examples]) or 0.0
-    roots_frame = Units(world_extent, facing=facing).world_frame()
+    # (the roots measured facing the world's axes, as centred_examples turned them; the
+    # program's roots face example_set.facing when sampled: Units.world_frame)
+    roots_frame = Units(world_extent).world_frame()
 
     def convert_all(with_turns: dict) -> list:
         nodes.clear()
@@ -588,7 +589,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         roots = convert_all(accepted)
     anchors = choose_anchors(nodes, bounds)
     units = Units(world_extent, reference_log_scales(nodes), CURRENT, _spread_poles(nodes), turns, span_types(nodes),
-                  anchors, examples_ground(example_set), facing)
+                  anchors, examples_ground(example_set), example_set.facing)
     for n in nodes:
         if n.kind == "part":
             n.x[0:3] -= units.log_scale(n.part)
@@ -752,8 +753,7 @@ def squared_examples(example_set: ExampleSet) -> ExampleSet:
                     m[:3, :3] = rot * scale
         return ExampleNode(node.part, m, [squared(c, rot, node.part) for c in node.children])
 
-    return ExampleSet(example_set.parts, [squared(e, np.eye(3), None) for e in example_set.examples],
-                      example_set.base_dir)
+    return replace(example_set, examples=[squared(e, np.eye(3), None) for e in example_set.examples])
 
 
 def unwrap_angles(nodes: list) -> None:
