@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT))
 
 from procmod.core import run_forward  # noqa: E402
 from procmod.learn import read_examples  # noqa: E402
-from procmod.learn.examples import read_example_inputs  # noqa: E402
+from procmod.learn.examples import facing_examples, read_example_inputs  # noqa: E402
 from procmod.learn.perturb import perturb_examples  # noqa: E402
 from procmod.learn.evaluate import hierarchy_from_dict, table2  # noqa: E402
 from procmod.learn.likelihood import fit, log_likelihood  # noqa: E402
@@ -187,7 +187,7 @@ def main(argv=None):
         wall = time.perf_counter() - t0
         samples = samples_of(r.program, args.samples, seed)
         sample_h = [hierarchy_from_dict(h) for d in samples for h in derivation_hierarchies(d)]
-        t2 = table2(example_set.examples, sample_h[:40], example_set.parts)
+        t2 = table2(facing_examples(example_set), sample_h[:40], example_set.parts)  # as the samples face
         # % new structures over all samples (cheap); the pairwise tables use 40 of them
         from procmod.learn.evaluate import signature
         sigs = {signature(e) for e in example_set.examples}

@@ -460,3 +460,38 @@ def test_a_part_copied_in_place_gets_a_note():
     moved = with_copy([0.03 * size, 0, 0])
     assert duplicate_note(dataclasses.replace(moved, examples=[dataclasses.replace(
         first_big, children=[*first_big.children, moved.examples[0].children[-1]]), *castles.examples[1:]])) is None
+
+
+def test_the_report_draws_the_examples_facing_as_the_samples_do(tmp_path, monkeypatch):
+    """Read, the examples face the world's axes; the program's samples face the way the set
+    faced. The report's contact sheet drew the examples as read, so its rows of examples and
+    samples stood 42 degrees apart (h141): the examples are drawn turned as they were given."""
+    from scipy.spatial.transform import Rotation
+
+    import procmod.learn.pipeline as pipeline
+    from procmod.learn.examples import centred_examples
+
+    root = Path(__file__).resolve().parent.parent / "examples_sets/learn/castles"
+    data = json.loads((root / "examples.json").read_text())
+    turn = np.eye(4)
+    turn[:3, :3] = Rotation.from_euler("y", 37.0, degrees=True).as_matrix()
+
+    def place(node):
+        node["transform"] = (turn @ np.asarray(node["transform"], dtype=np.float64)).tolist()
+        for child in node["children"]:
+            place(child)
+
+    for example in data["examples"]:
+        place(example)
+    (tmp_path / "parts").symlink_to(root / "parts")
+    (tmp_path / "examples.json").write_text(json.dumps(data))
+    given = read_examples(tmp_path / "examples.json")
+    drawn = []
+    monkeypatch.setattr(pipeline, "render_parts", lambda parts, tile: drawn.append(parts) or np.zeros((4, 4, 3)))
+    monkeypatch.setattr(pipeline, "contact_sheet", lambda images, **kwargs: None)
+    monkeypatch.setattr(pipeline, "save_image_atomic", lambda image, path: None)
+    pipeline.examples_and_samples_sheet(centred_examples(given), [], tmp_path / "sheet.png")
+    assert len(drawn) == len(given.examples) == 10
+    for example, parts in zip(given.examples, drawn):
+        for node, part in zip(example.walk(), parts):
+            assert np.allclose(np.reshape(part.transform, (4, 4)), node.transform, atol=1e-9)

@@ -289,6 +289,8 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
     Euler angle 0, squared where it is within a few degrees, and the set's size is its
     own, not its bounding box's as it stands turned (h140: a set facing 90 degrees, learned
     so, sampled tables leaning 2 degrees); a set turned as one samples as it stood (h138)."""
+    from .transforms import turn_about_up
+
     def moved(node: ExampleNode, turn: np.ndarray) -> ExampleNode:
         return ExampleNode(node.part, turn @ np.asarray(node.transform, dtype=np.float64),
                            [moved(c, turn) for c in node.children])
@@ -304,8 +306,8 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
         # the root's x and z to 0, then the example spun back about the vertical through it
         shift = np.eye(4)
         shift[0, 3], shift[2, 3] = -world[0, 3], -world[2, 3]
-        c, s = math.cos(angle), math.sin(angle)
-        spin = np.array([[c, 0.0, -s, 0.0], [0.0, 1.0, 0.0, 0.0], [s, 0.0, c, 0.0], [0.0, 0.0, 0.0, 1.0]])  # Ry(-a)
+        spin = np.eye(4)
+        spin[:3, :3] = turn_about_up(-angle)
         examples.append(moved(root, spin @ shift))
     return replace(example_set, examples=examples, facing=reference_facing(facings) or 0.0)
 
@@ -641,7 +643,27 @@ def example_parts(node: ExampleNode, parts: dict) -> list:
     return [parts[n.part].part(n.transform) for n in node.walk()]
 
 
+def facing_examples(example_set: ExampleSet) -> list:
+    """The examples turned to face the way the set faced (:attr:`ExampleSet.facing`), as a
+    learned program's samples stand: read (:func:`centred_examples`), they face the world's
+    axes. For pictures and measures that set examples beside samples (h141: a report's
+    rows of examples and samples had stood 42 degrees apart)."""
+    from .transforms import turn_about_up
+
+    if not example_set.facing:
+        return list(example_set.examples)
+    turn = np.eye(4)
+    turn[:3, :3] = turn_about_up(example_set.facing)
+
+    def turned(node: ExampleNode) -> ExampleNode:
+        return ExampleNode(node.part, turn @ np.asarray(node.transform, dtype=np.float64),
+                           [turned(c) for c in node.children])
+
+    return [turned(e) for e in example_set.examples]
+
+
 __all__ = ["FORMAT", "ExamplesError", "ExampleNode", "ExampleSet", "PartShape", "read_examples",
            "read_example_inputs", "centred_examples", "size_note", "orientation_note", "duplicate_note",
            "near_twin_note", "examples_from_assets", "example_set_digest",
-           "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "has_shear"]
+           "examples_from_dict", "examples_to_dict", "write_examples_file", "example_parts", "facing_examples",
+           "has_shear"]

@@ -24,8 +24,8 @@ from ..core.runfolder import LEARN_RUN, RunFolder
 from ..core.serialize import write_text_atomic
 from ..geometry import contact_sheet, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
-from .examples import (ExampleSet, duplicate_note, example_parts, near_twin_note, orientation_note, read_example_inputs,
-                       size_note, stray_note)
+from .examples import (ExampleSet, duplicate_note, example_parts, facing_examples, near_twin_note, orientation_note,
+                       read_example_inputs, size_note, stray_note)
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -36,8 +36,10 @@ def render_parts(parts, size: int = 160):
 
 
 def examples_and_samples_sheet(example_set: ExampleSet, derivations, path, tile: int = 160) -> None:
-    """One contact sheet: every example, then every sample."""
-    images = [render_parts(example_parts(e, example_set.parts), tile) for e in example_set.examples]
+    """One contact sheet: every example, then every sample. The examples are drawn facing
+    the way the set faced (:attr:`ExampleSet.facing`), as the samples stand: read, they
+    face the world's axes (h141: the rows had stood 42 degrees apart)."""
+    images = [render_parts(example_parts(e, example_set.parts), tile) for e in facing_examples(example_set)]
     labels = [f"example {i}" for i in range(len(images))]
     images += [render_parts(d.geometry(), tile) for d in derivations]
     labels += [f"sample {i}" for i in range(len(derivations))]

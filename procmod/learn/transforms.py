@@ -89,6 +89,14 @@ class Frame(NamedTuple):
 
 
 WORLD_FRAME = Frame(np.eye(3), np.zeros(3), np.ones(3))
+
+
+def turn_about_up(angle: float) -> np.ndarray:
+    """The 3x3 turn by ``angle`` radians about the up axis y (the identity for 0)."""
+    if not angle:
+        return np.eye(3)
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 NO_LOG_SCALE = (0.0, 0.0, 0.0)
 
 
@@ -158,9 +166,7 @@ class Units(NamedTuple):
 
     def world_frame(self) -> Frame:
         """The frame the roots are placed in: turned by :attr:`facing` about the up axis."""
-        c, s = math.cos(self.facing), math.sin(self.facing)
-        turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) if self.facing else np.eye(3)  # Ry(facing)
-        return Frame(turn, np.zeros(3), np.full(3, float(self.world_extent)))
+        return Frame(turn_about_up(self.facing), np.zeros(3), np.full(3, float(self.world_extent)))
 
     def log_scale(self, part: str) -> tuple:
         """The reference log-scale of ``part``'s placements."""
