@@ -171,9 +171,11 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     normal seams split are merged (``merge_vertices(merge_tex=True, merge_norm=True)``);
     faces with a repeated vertex or zero area are dropped; with ``orient``, repeated and
     double-sided faces are resolved (:func:`procmod.geometry.inside.single_sided`) and faces
-    are wound consistently and outward (:func:`procmod.geometry.inside.orient_faces`). Refused in one
-    line naming ``where``: a file trimesh cannot read, no faces, vertices that are NaN or
-    infinite, every face of zero area, more than :data:`MAX_MESH_FACES` faces.
+    are wound consistently and outward (:func:`procmod.geometry.inside.orient_faces`).
+    Faces on a vertex that is NaN or infinite (a scanner's dropout) are left out, with a
+    line in ``notes``: the hole they leave is bridged like any other. Refused in one line
+    naming ``where``: a file trimesh cannot read, no faces, every face on a non-finite
+    vertex, every face of zero area, more than :data:`MAX_MESH_FACES` faces.
     """
     import trimesh
 
@@ -218,10 +220,12 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
         if on_bad.any() and notes is not None:
             count = int(np.unique(faces[on_bad][~finite[faces[on_bad]]]).size)
             one = count == 1
+            dropped = int(on_bad.sum())
+            faces_text = "the face on" if dropped == 1 else f"the {dropped:,} faces on"
             notes.append(f"{where}: {count:,} {'vertex is' if one else 'vertices are'} not a finite number (NaN or "
-                         f"infinity); the {int(on_bad.sum()):,} faces on {'it' if one else 'them'} were left out, a "
-                         f"hole the inside test bridges (fix {'it' if one else 'them'} in a modelling tool if the "
-                         "shape is wrong there)")
+                         f"infinity); {faces_text} {'it' if one else 'them'} {'was' if dropped == 1 else 'were'} left "
+                         f"out, a hole the inside test bridges (fix {'it' if one else 'them'} in a modelling tool if "
+                         "the shape is wrong there)")
         faces = faces[~on_bad]
     with quiet_trimesh():
         # split seams: vertices at one place that differ only in UV or normal become one
