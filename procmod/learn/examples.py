@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..core.errors import ProcmodError, shown_value
 from ..core.io import check_format, read_json, write_text_atomic
@@ -41,6 +42,7 @@ from ..core.limits import MAX_COORDINATE
 from ..geometry.assets import MAX_DEPTH  # one depth limit for example files and asset files
 from ..geometry.part_library import (PartLibraryError, PartShape, is_singular, read_part_library, read_transform,
                                      transform_to_json)
+from .transforms import decompose, turn_about_up
 
 FORMAT = "procmod-examples/1"
 # The cosine between two columns of a transform's 3x3 part above which it shears: 2e-3 is
@@ -233,10 +235,6 @@ def facing_angle(world) -> float | None:
     swing turning about no vertical axis). Examples that stand alike but face other ways
     differ by it alone. None for a root standing near upside down
     (:data:`FACING_CONDITION`)."""
-    from scipy.spatial.transform import Rotation
-
-    from .transforms import decompose
-
     rot = decompose(world)[0]
     x, y, z, w = Rotation.from_matrix(rot).as_quat()
     if w < 0:  # q and -q are one rotation: the one with w >= 0 gives an angle within +-pi
@@ -289,8 +287,6 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
     Euler angle 0, squared where it is within a few degrees, and the set's size is its
     own, not its bounding box's as it stands turned (h140: a set facing 90 degrees, learned
     so, sampled tables leaning 2 degrees); a set turned as one samples as it stood (h138)."""
-    from .transforms import turn_about_up
-
     def moved(node: ExampleNode, turn: np.ndarray) -> ExampleNode:
         return ExampleNode(node.part, turn @ np.asarray(node.transform, dtype=np.float64),
                            [moved(c, turn) for c in node.children])
@@ -397,6 +393,11 @@ def orientation_note(example_set: ExampleSet, labels: list | None = None) -> str
             "learns tilts anywhere between; stand it as the others stand, or leave it out")
 
 
+def _first_three(phrases: list) -> str:
+    """Up to three phrases joined by "; ", and how many more there are: a note's list."""
+    return "; ".join(phrases[:3]) + (f" (and {len(phrases) - 3} more)" if len(phrases) > 3 else "")
+
+
 SAME_PLACE = 0.01
 """Two nodes of one part whose bounding-box corners all lie within this fraction of the
 part's diagonal of each other are at the same place (:func:`duplicate_note`)."""
@@ -433,9 +434,8 @@ def duplicate_note(example_set: ExampleSet, labels: list | None = None) -> str |
                 found.append((i, part, copies))
     if not found:
         return None
-    shown = "; ".join(f"{labels[i]} has {n} more {part!r} at the same place as another" for i, part, n in found[:3])
-    more = f" (and {len(found) - 3} more)" if len(found) > 3 else ""
-    return (f"{shown}{more}: a copy left where it was made? the program learns it as a part of its own and samples "
+    shown = _first_three([f"{labels[i]} has {n} more {part!r} at the same place as another" for i, part, n in found])
+    return (f"{shown}: a copy left where it was made? the program learns it as a part of its own and samples "
             "draw it; delete the copy")
 
 
@@ -476,10 +476,9 @@ def near_twin_note(example_set: ExampleSet, labels: list | None = None) -> str |
                 found.append((copy, original, float(np.abs(stretch - 1.0).max()), uses[copy][0]))
     if not found:
         return None
-    shown = "; ".join(f"{copy!r} (in {labels[i]}) is {original!r} resized by {100 * d:.2g}% or edited a little"
-                      for copy, original, d, i in found[:3])
-    more = f" (and {len(found) - 3} more)" if len(found) > 3 else ""
-    return (f"{shown}{more}: a copy made and changed by hand? it is learned as a part type of its own, which "
+    shown = _first_three([f"{copy!r} (in {labels[i]}) is {original!r} resized by {100 * d:.2g}% or edited a little"
+                          for copy, original, d, i in found])
+    return (f"{shown}: a copy made and changed by hand? it is learned as a part type of its own, which "
             "samples may draw in place of the other; give it the other's mesh if it is meant as one")
 
 
@@ -521,10 +520,9 @@ def stray_note(example_set: ExampleSet, labels: list | None = None) -> str | Non
                 found.append((i, node.part, float(gaps.min()), size))
     if not found:
         return None
-    shown = "; ".join(f"{labels[i]} has a {part!r} {gap:.3g} from every other part (the rest is {size:.3g} across)"
-                      for i, part, gap, size in found[:3])
-    more = f" (and {len(found) - 3} more)" if len(found) > 3 else ""
-    return (f"{shown}{more}: a leftover moved out of the way? the program learns it as a placement like any other "
+    shown = _first_three([f"{labels[i]} has a {part!r} {gap:.3g} from every other part (the rest is {size:.3g} "
+                          "across)" for i, part, gap, size in found])
+    return (f"{shown}: a leftover moved out of the way? the program learns it as a placement like any other "
             "and samples draw it; delete it if it is not part of the model")
 
 
@@ -648,8 +646,6 @@ def facing_examples(example_set: ExampleSet) -> list:
     learned program's samples stand: read (:func:`centred_examples`), they face the world's
     axes. For pictures and measures that set examples beside samples (h141: a report's
     rows of examples and samples had stood 42 degrees apart)."""
-    from .transforms import turn_about_up
-
     if not example_set.facing:
         return list(example_set.examples)
     turn = np.eye(4)

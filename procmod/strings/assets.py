@@ -109,13 +109,14 @@ def _scale_index(known: list, s: np.ndarray) -> int:
     return len(known) - 1
 
 
-def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -> tuple[dict, list]:
+def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -> tuple[dict, list, tuple]:
     """Every placement made rigid: ``placed`` holds per shape ``[(part, 4x4, label)]``; each
     placement is split into a rotation and a scale (polar decomposition) and the scale goes
     into the part, one part per (geometry, scale) (``part``, ``part_2``, ...), a mirror
     into the part turned where that is the same geometry (:func:`_unmirrored`). Returns
-    the library (mesh parts with a ``parts/NAME.obj`` source, held in memory) and the
-    shapes. ``flat_error(label)`` is the error for a placement that scales to nothing."""
+    the library (mesh parts with a ``parts/NAME.obj`` source, held in memory), the shapes
+    and the parts resized a little (:func:`_resized`). ``flat_error(label)`` is the error
+    for a placement that scales to nothing."""
     rows_of = []  # per shape: [(part, rigid 4x4, index of its scale in scales[part])]
     # one part per (geometry, scale): the scales each geometry is placed at, in reading order
     scales: dict[str, list] = {}
@@ -155,7 +156,9 @@ def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -
             library[name] = shape._replace(source=f"parts/{files.name_for(name)}")
     shapes = [Shape.of([renamed[(part, k)] for part, _, k in rows], [rigid for _, rigid, _ in rows])
               for rows in rows_of]
-    return library, shapes
+    other_sizes = [(renamed[(part, k)], renamed[(part, 0)]) for part, known in scales.items()
+                   for k in range(1, len(known))]
+    return library, shapes, _resized(library, other_sizes)
 
 
 NEAR_SIZE = 0.05
@@ -163,22 +166,17 @@ NEAR_SIZE = 0.05
 named in a note (:func:`resized_note`): likely one part resized a little by hand."""
 
 
-def _resized(library: dict, original: dict) -> tuple:
-    """``(name, base name, largest relative size difference)`` for each part
-    :func:`_rigid_placements` made of a geometry placed at another scale (``rail_2`` of
-    ``rail``) whose size is within :data:`NEAR_SIZE` of the part of that geometry first
-    placed: parts of two sizes are two types, which a user who resized a copy by 0.3% did
-    not mean (its shapes then never combine with the others; h139)."""
+def _resized(library: dict, other_sizes: list) -> tuple:
+    """``(name, base name, largest relative size difference)`` for each part of
+    ``other_sizes`` (``(name, base name)``: a geometry placed at another scale, ``rail_2``
+    of ``rail``, :func:`_rigid_placements`) whose size is within :data:`NEAR_SIZE` of the
+    part of that geometry first placed: parts of two sizes are two types, which a user who
+    resized a copy by 0.3% did not mean (its shapes then never combine with the others;
+    h139)."""
     out = []
-    for name, shape in library.items():
-        if name in original:
-            continue
-        base = next((b for b in library if b in original and name.startswith(b + "_")
-                     and name[len(b) + 1:].isdigit()), None)
-        if base is None or library[base].kind != shape.kind:
-            continue
+    for name, base in other_sizes:
         lo, hi = (np.asarray(v, dtype=np.float64) for v in library[base].local_bounds())
-        lo2, hi2 = (np.asarray(v, dtype=np.float64) for v in shape.local_bounds())
+        lo2, hi2 = (np.asarray(v, dtype=np.float64) for v in library[name].local_bounds())
         extent, extent2 = np.sort(hi - lo), np.sort(hi2 - lo2)
         if (extent <= 0).any():
             continue
@@ -214,8 +212,8 @@ def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet
         return AssetError(f"{label[0]}: node {label[1]!r} has a scale of zero (a flat placement); give it a size "
                           "or remove it")
 
-    library, shapes = _rigid_placements(asset_set.parts, placed, tolerance, flat)
-    return ShapeSet(library, shapes, type_letters(library), None, resized=_resized(library, asset_set.parts))
+    library, shapes, resized = _rigid_placements(asset_set.parts, placed, tolerance, flat)
+    return ShapeSet(library, shapes, type_letters(library), None, resized=resized)
 
 
 def rigid_shape_set(shape_set: ShapeSet) -> ShapeSet:
@@ -237,10 +235,10 @@ def rigid_shape_set(shape_set: ShapeSet) -> ShapeSet:
         return ShapesFormatError(f"{where}: shapes[{label[0]}].nodes[{label[1]}].transform scales its part to "
                                  "nothing (a flat placement); give it a size or remove it")
 
-    library, shapes = _rigid_placements(shape_set.library, placed, GEOMETRY_TOLERANCE, flat)
+    library, shapes, resized = _rigid_placements(shape_set.library, placed, GEOMETRY_TOLERANCE, flat)
     # held in memory, as an asset set's meshes: written as parts/NAME.obj with the collection
     return ShapeSet(library, shapes, type_letters(library), None, shape_set.tolerance, source=shape_set.source,
-                    resized=_resized(library, shape_set.library))
+                    resized=resized)
 
 
 def read_shape_inputs(paths) -> ShapeSet:

@@ -223,8 +223,9 @@ def _graph(args) -> None:
                   file=sys.stderr)
         if join is not None or misses:
             needs.append(max([join or 0.0] + [t for *_, t in misses]))
-    if resized_note(shape_set) is not None:
-        print(printable(f"note: {resized_note(shape_set)}"), file=sys.stderr)
+    resized = resized_note(shape_set)
+    if resized is not None:
+        print(printable(f"note: {resized}"), file=sys.stderr)
     if len(needs) > 1:
         print(f"note: --tolerance {max(needs):.2g} closes every gap named above ({len(needs)} shapes); a tolerance "
               "far past the gaps a hand leaves joins parts that only stand near each other", file=sys.stderr)
@@ -380,8 +381,9 @@ def _augment(args) -> None:
             raise InvalidArgumentError(f"shape {i}{source} ({len(g)} parts, {g.number_of_edges()} contacts) cannot "
                                        f"be written as a string: {exc}; a lattice this large is beyond "
                                        "strings") from None
-    if resized_note(shape_set) is not None:
-        print(printable(f"note: {resized_note(shape_set)}"), file=sys.stderr)
+    resized = resized_note(shape_set)
+    if resized is not None:
+        print(printable(f"note: {resized}"), file=sys.stderr)
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     bar = progress_bar(total=args.count, unit=" shapes")
