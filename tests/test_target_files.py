@@ -337,3 +337,8 @@ def test_a_scan_with_a_nan_vertex_is_read_without_the_faces_on_it(tmp_path):
                                            "width": 32, "height": 32}}
     (tmp_path / "sil.json").write_text(json.dumps({"format": "procmod-silhouette/1", "views": [view]}))
     assert any("1 vertex is not a finite number" in n for n in load_target_file(tmp_path / "sil.json").file_notes)
+    # the library's own voxelizer says so too, where it is given a list for its notes
+    from procmod.targets import voxelize_mesh_file
+    notes = []
+    _, mask = voxelize_mesh_file(tmp_path / "scan.obj", 0.1, notes=notes)
+    assert mask.sum() > 200 and any("1 vertex is not a finite number" in n for n in notes), notes

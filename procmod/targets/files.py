@@ -535,21 +535,25 @@ def _corner(point) -> str:
     return "(" + ", ".join(f"{float(v):.4g}" for v in point) + ")"
 
 
-def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float | None = None):
+def voxelize_mesh_file(path: str | os.PathLike, voxel_size: float, margin: float | None = None,
+                       notes: list | None = None):
     """``(grid, mask)``: a mesh file (any format :func:`read_mesh` takes) voxelized on the
     grid of edge ``voxel_size`` around it grown by ``margin`` (default:
-    :func:`default_margin`, 0.1 but for small meshes)."""
+    :func:`default_margin`, 0.1 but for small meshes). ``notes`` gets a line for each
+    part of the file left out or read in a way to check (:func:`read_mesh`'s faces on
+    NaN vertices, :func:`mesh_inside`'s open flat pieces and open surfaces), as the CLI
+    prints them."""
     where = cut_text(str(path))
     voxel_size = length(voxel_size, f"{where}: voxel_size")
     if margin is not None:
         margin = number(margin, f"{where}: margin", minimum=0.0)
-    vertices, faces = read_mesh(path, where)
+    vertices, faces = read_mesh(path, where, notes=notes)
     bounds = mesh_bounds(vertices, faces)
     if margin is None:
         margin = default_margin(*bounds, voxel_size)
     grid = grid_around(*bounds, voxel_size, margin, f"{where}: voxel size {voxel_size:g}",
                        [(vertices, faces)])
-    return grid, mesh_inside(vertices, faces, grid, where)
+    return grid, mesh_inside(vertices, faces, grid, where, notes)
 
 
 # --- volume targets ------------------------------------------------------------------------
