@@ -409,6 +409,32 @@ def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, mo
         read_assets("robot.urdf")
 
 
+def test_a_package_mesh_is_read_from_its_own_package_not_another_holding_the_same_name(tmp_path):
+    """Many ROS packages hold a ``meshes/base_link.stl``: a cart's URDF naming its own and
+    an arm package's read the cart's file for both (the first ancestor holding the bare
+    name won, h144). The package's own folder comes first now; with the arm's package
+    gone, the cart's file is not taken for it, and the message says whose it is."""
+    src = tmp_path / "ws" / "src"
+    for name, size in (("cart", 0.5), ("arm_description", 0.1)):
+        (src / name / "meshes").mkdir(parents=True)
+        (src / name / "package.xml").write_text(f"<package format='2'><name> {name} </name></package>")
+        write_obj(src / name / "meshes" / "base_link.obj", wedge_mesh(size))
+    (src / "cart" / "urdf").mkdir()
+    links = {"base": ['<geometry><mesh filename="package://cart/meshes/base_link.obj"/></geometry>'],
+             "arm": ['<geometry><mesh filename="package://arm_description/meshes/base_link.obj"/></geometry>']}
+    robot = src / "cart" / "urdf" / "robot.urdf"
+    robot.write_text(urdf(links, [("mount", "base", "arm", (0, 0, 0.1), (0, 0, 0))]))
+    s = read_assets(robot)
+    extents = sorted(tuple(np.round(np.ptp(np.asarray(p.vertices), axis=0), 6)) for p in s.parts.values())
+    assert extents == sorted(tuple(np.round(np.ptp(wedge_mesh(size)[0], axis=0), 6)) for size in (0.5, 0.1))
+    import shutil
+
+    shutil.rmtree(src / "arm_description")
+    with pytest.raises(AssetError, match=r"holds a 'meshes/base_link.obj' but is the package 'cart', not "
+                                         r"'arm_description'\); copy the package's meshes there"):
+        read_assets(robot)
+
+
 def test_a_package_mesh_named_percent_encoded_is_found_and_a_xacro_left_is_named(tmp_path):
     """A URI-escaping exporter writes a space as %20 in a package:// URI, as ROS decodes it;
     a URDF saved from its .xacro without running xacro failed on "${pi/2}" as a float, or
