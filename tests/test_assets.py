@@ -733,6 +733,21 @@ def test_copies_turned_and_scaled_with_their_transforms_applied_are_one_part(tmp
     assert np.allclose(leg[[0, 2]], 0.05, atol=1e-4) and 0.45 - 1e-4 < leg[1] < 0.75, leg
 
 
+def test_a_child_named_after_a_mesh_of_several_primitives_is_not_merged_into_it(tmp_path):
+    """trimesh places a mesh of several primitives (Blender: an object with two material
+    slots) as frames NODE_<id> under its node's; the node's own children named NODE_...
+    (a child "gun_sight" of "gun", trimesh's "gun_1" for a second "gun") had been merged
+    into its mesh as well as read as their own parts (h144)."""
+    gun = [box_mesh((0.1, 0.1, 0.5)), box_mesh((0.2, 0.2, 0.1), (0, 0, 0.3))]
+    meshes = [("gun", gun), ("sight", [box_mesh((0.05, 0.05, 0.05))]), ("stock", [box_mesh((0.3, 0.1, 0.1))])]
+    nodes = [{"name": "gun", "mesh": 0, "children": [1, 2]},
+             {"name": "gun_sight", "mesh": 1, "translation": [0, 0.2, 0]},
+             {"name": "gun", "mesh": 2, "translation": [0, 0, -0.4]}]  # trimesh names it "gun_1"
+    s = read_assets(write_gltf(tmp_path / "gun.gltf", meshes, nodes))
+    assert sorted(s.parts) == ["gun", "sight", "stock"]
+    assert len(s.parts["gun"].faces) == 24 and len(s.parts["sight"].faces) == 12
+
+
 def test_a_primitives_kinds_are_told_by_size_not_by_the_names_of_its_objects(tmp_path):
     """A review's sets: a version that took object names for kinds split tables named per
     file (Table01_Top, Table02_Top) into 12 part types for 2, legs named one way here and

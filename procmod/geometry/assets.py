@@ -488,15 +488,21 @@ def _read_gltf(path: Path, geometries: dict) -> list:
     data = graph.transforms.node_data
     meshes = header.get("meshes", [])
 
+    node_frames = set(names.values())
+
     def geometry_of(i: int):
         node = nodes[i]
         if "mesh" not in node:
             return None
         frame = names[i]
         own = data.get(frame, {}).get("geometry")
+        # a mesh of several primitives (materials) is placed by trimesh as frames under the
+        # node's, named NODE_<random id>: the node's own children may be named NODE_... too
+        # (a child "wing_tip" of "wing", trimesh's "Wing_1" for a second "Wing"), and had
+        # been merged into its mesh (h144)
         parts = [own] if own is not None else sorted(
             data[c]["geometry"] for c in graph.transforms.children.get(frame, [])
-            if c.startswith(frame + "_") and data.get(c, {}).get("geometry") is not None)
+            if c.startswith(frame + "_") and c not in node_frames and data.get(c, {}).get("geometry") is not None)
         if not parts:
             return None  # a mesh of points or lines only: nothing to place
         mesh_index = node["mesh"]
