@@ -1321,6 +1321,21 @@ def test_odd_but_readable_skins_and_shared_morphed_meshes_read_as_viewers_show_t
     # and a its own (h73: it was read at the mesh's too, its shape key dropped without a word)
     assert vertices[vertices[:, 0] < 2, 1].max() == pytest.approx(5.0, abs=1e-6)
 
+    # one skinned mesh drawn by two nodes under two skins (cloned characters sharing the
+    # geometry): each is posed by its own skin's joints, not both read at rest (h144)
+    v, f = box_mesh((2.0, 0.2, 1.0), (1.0, 0.0, 0.0))  # a wing from x 0 to 2, bound to one joint
+    nodes = [{"name": "root", "children": [1, 2, 3, 4]}, {"name": "bone.L", "translation": [2, 0, 0]},
+             {"name": "bone.R", "translation": [-4, 0, 0]}, {"name": "wing.L", "mesh": 0, "skin": 0},
+             {"name": "wing.R", "mesh": 0, "skin": 1}]
+    spec = gltf_json([("wing", [(v, f)])], nodes, (0,))
+    joints, weights = _with_arrays(spec, [(np.zeros((len(v), 4), np.uint8), "VEC4", 5121),
+                                          (np.tile(np.float32([1, 0, 0, 0]), (len(v), 1)), "VEC4", 5126)])
+    spec["meshes"][0]["primitives"][0]["attributes"].update(JOINTS_0=joints, WEIGHTS_0=weights)
+    spec["skins"] = [{"joints": [1]}, {"joints": [2]}]
+    (tmp_path / "clones.gltf").write_text(json.dumps(spec))
+    vertices = read_mesh(tmp_path / "clones.gltf")[0]
+    assert sorted(np.unique(np.round(vertices[:, 0], 5))) == [-4.0, -2.0, 2.0, 4.0]
+
 
 def test_a_collada_up_axis_written_with_spaces_or_in_lower_case_is_read_as_checked(tmp_path):
     """pycollada takes only the exact words: "\\n  Z_UP\\n" was read as Y_UP (a z-up mesh lay

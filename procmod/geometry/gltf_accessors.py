@@ -245,9 +245,28 @@ def morphed_primitives(header: dict) -> list[tuple[int, int, list]]:
     return found
 
 
+def skins_split(header: dict) -> dict | None:
+    """``header`` with a copy of each mesh that a node with a skin draws and other nodes
+    draw too, for each of those skinned nodes; None when there is none. Each skin poses
+    its node's copy (:func:`skinned_meshes`): a wing mesh shared by two cloned
+    characters' skeletons (three.js's SkeletonUtils.clone) had both wings read at rest,
+    on top of each other, without a word (h144)."""
+    out = None
+    for m, drawers in sorted(_drawing_nodes(header).items()):
+        meshes = header.get("meshes") or ()
+        if len(drawers) < 2 or not 0 <= m < len(meshes) or not isinstance(meshes[m], dict):
+            continue
+        skinned = [n for n in drawers if isinstance(header["nodes"][n].get("skin"), int)]
+        for n in skinned[1:] if skinned == drawers else skinned:  # the first keeps the mesh if all are skinned
+            out = out or copy.deepcopy(header)
+            out["meshes"].append(copy.deepcopy(out["meshes"][m]))
+            out["nodes"][n]["mesh"] = len(out["meshes"]) - 1
+    return out
+
+
 def skinned_meshes(header: dict) -> list[tuple[int, int, int]]:
     """``(node, mesh, skin)`` of each node that draws a skinned mesh no other node draws
-    (a mesh several skins pose would need copies: read at rest). trimesh reads a skinned
+    (:func:`skins_split` gives each such node a copy first). trimesh reads a skinned
     mesh at its bind pose, placed by its node; glTF shows it posed by its joints."""
     drawing = _drawing_nodes(header)
     found = []
@@ -382,12 +401,16 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     that holds a mesh or children is read as a plain node (:func:`camera_nodes_with_content`).
     A mesh shown
     morphed (:func:`morphed_primitives`) or posed by a skin (:func:`skinned_meshes`) gets
-    the positions it is shown at.
+    the positions it is shown at; nodes that show one mesh at other weights or under
+    other skins get a copy each (:func:`morphs_split`, :func:`skins_split`).
 
     Raises ValueError for an accessor that reaches past its data."""
     path = Path(path)
     split = morphs_split(header)
     header = header if split is None else split
+    posed = skins_split(header)
+    if posed is not None:
+        header = split = posed
     chosen = needs_decoding(header)
     fans = fan_primitives(header)
     morphs = morphed_primitives(header)
