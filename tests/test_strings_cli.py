@@ -648,3 +648,25 @@ def test_a_part_resized_a_little_by_hand_is_named(tmp_path, capsys):
         code, out, err = _run(capsys, "strings", command, tmp_path / "resized.json", "--out", tmp_path / command,
                               *(("--count", "2", "--rounds", "1") if command == "augment" else ()))
         assert "note: wall_2 is wall 0.3% off its size: parts of two sizes are two types" in err, (command, err)
+
+
+def test_a_mirror_image_of_a_chiral_part_is_not_named_as_resized(tmp_path, capsys):
+    """A wedge wing and its mirror image (node scale -1 along x) are two types, as they
+    should be; the resized-part note had named the mirror "0% off its size" (h144). A
+    mirror that is also resized a little is named, as a mirror."""
+    from asset_writers import box_mesh, column_major, gltf_json, wedge_mesh
+
+    for name, stretch in (("mirror", 1.0), ("stretched", 1.003)):
+        meshes = [("body", [box_mesh((2.0, 0.5, 1.0))]), ("wing", [wedge_mesh(1.5)])]
+        right, left = np.eye(4), np.diag([-stretch, 1.0, 1.0, 1.0])
+        right[0, 3], left[0, 3] = 1.0, -1.0
+        nodes = [{"name": "body", "mesh": 0, "children": [1, 2]},
+                 {"name": "wing", "mesh": 1, "matrix": column_major(right)},
+                 {"name": "wing.001", "mesh": 1, "matrix": column_major(left)}]
+        (tmp_path / f"{name}.gltf").write_text(json.dumps(gltf_json(meshes, nodes, (0,))))
+        code, out, err = _run(capsys, "strings", "graph", tmp_path / f"{name}.gltf", "--out", tmp_path / name)
+        assert code == 0 and "types: body=B, wing=W, wing_2=w" in out, (out, err)
+        if stretch == 1.0:
+            assert "off its size" not in err, err
+        else:
+            assert "note: wing_2 is wing mirrored and 0.3% off its size" in err, err

@@ -156,10 +156,14 @@ def _rigid_placements(parts: dict, placed: list, tolerance: float, flat_error) -
             library[name] = shape._replace(source=f"parts/{files.name_for(name)}")
     shapes = [Shape.of([renamed[(part, k)] for part, _, k in rows], [rigid for _, rigid, _ in rows])
               for rows in rows_of]
-    other_sizes = [(renamed[(part, k)], renamed[(part, 0)]) for part, known in scales.items()
-                   for k in range(1, len(known))]
+    other_sizes = [(renamed[(part, k)], renamed[(part, 0)], np.linalg.det(known[k]) * np.linalg.det(known[0]) < 0)
+                   for part, known in scales.items() for k in range(1, len(known))]
     return library, shapes, _resized(library, other_sizes)
 
+
+SAME_SIZE = 1e-4
+"""Two parts whose sizes differ by at most this share are the same size (a mirror image
+read back from a file written in single precision)."""
 
 NEAR_SIZE = 0.05
 """Two parts of one geometry whose sizes differ by at most this share (along any axis) are
@@ -167,22 +171,24 @@ named in a note (:func:`resized_note`): likely one part resized a little by hand
 
 
 def _resized(library: dict, other_sizes: list) -> tuple:
-    """``(name, base name, largest relative size difference)`` for each part of
-    ``other_sizes`` (``(name, base name)``: a geometry placed at another scale, ``rail_2``
-    of ``rail``, :func:`_rigid_placements`) whose size is within :data:`NEAR_SIZE` of the
-    part of that geometry first placed: parts of two sizes are two types, which a user who
-    resized a copy by 0.3% did not mean (its shapes then never combine with the others;
-    h139)."""
+    """``(name, base name, largest relative size difference, mirrored)`` for each part of
+    ``other_sizes`` (``(name, base name, mirrored)``: a geometry placed at another scale,
+    ``rail_2`` of ``rail``, :func:`_rigid_placements`; mirrored: the one's scale mirrors
+    the other's) whose size is within :data:`NEAR_SIZE` of the part of that geometry
+    first placed: parts of two sizes are two types, which a user who resized a copy by
+    0.3% did not mean (its shapes then never combine with the others; h139). A mirror
+    image of the same size is not named: a chiral part's mirror (a left and a right
+    wing) is another type, as it should be (h144)."""
     out = []
-    for name, base in other_sizes:
+    for name, base, mirrored in other_sizes:
         lo, hi = (np.asarray(v, dtype=np.float64) for v in library[base].local_bounds())
         lo2, hi2 = (np.asarray(v, dtype=np.float64) for v in library[name].local_bounds())
         extent, extent2 = np.sort(hi - lo), np.sort(hi2 - lo2)
         if (extent <= 0).any():
             continue
         difference = float(np.abs(extent2 / extent - 1.0).max())
-        if difference <= NEAR_SIZE:
-            out.append((name, base, difference))
+        if (not mirrored or difference > SAME_SIZE) and difference <= NEAR_SIZE:
+            out.append((name, base, difference, mirrored))
     return tuple(out)
 
 
@@ -191,7 +197,8 @@ def resized_note(shape_set: ShapeSet) -> str | None:
     (:attr:`ShapeSet.resized`), or None."""
     if not shape_set.resized:
         return None
-    named = ", ".join(f"{name} is {base} {100 * d:.2g}% off its size" for name, base, d in shape_set.resized[:4])
+    named = ", ".join(f"{name} is {base}{' mirrored and' if mirrored else ''} {100 * d:.2g}% off its size"
+                      for name, base, d, mirrored in shape_set.resized[:4])
     more = f" and {len(shape_set.resized) - 4} more" if len(shape_set.resized) > 4 else ""
     return (f"{named}{more}: parts of two sizes are two types, so shapes built with one never combine with shapes "
             "built with the other; if that is a copy resized by hand, give it the size of the first")

@@ -63,7 +63,7 @@ class ShapeSet:
     # --tolerance); None: contacts.tolerance_for the library
     tolerance: float | None = None
     source: str | None = field(default=None, compare=False)  # the file read, for messages about its fields
-    # (name, base name, size difference) of parts that are another resized a little (strings.assets)
+    # (name, base name, size difference, mirrored) of parts that are another resized a little (strings.assets)
     resized: tuple = field(default=(), compare=False)
 
     @property
