@@ -650,6 +650,23 @@ def test_a_part_resized_a_little_by_hand_is_named(tmp_path, capsys):
         assert "note: wall_2 is wall 0.3% off its size: parts of two sizes are two types" in err, (command, err)
 
 
+def test_a_shape_exported_in_other_units_is_named(tmp_path, capsys):
+    """A castle exported in centimetres among castles in metres: its parts are other types
+    at 100x the size, so it never combined with the others, and strings said nothing where
+    learn names it (h144)."""
+    data = json.loads((SETS / "castle.json").read_text())
+    for node in data["shapes"][1]["nodes"]:
+        for row in range(3):
+            node["transform"][row] = [100.0 * v for v in node["transform"][row]]
+    (tmp_path / "parts").symlink_to(SETS / "parts")
+    (tmp_path / "units.json").write_text(json.dumps(data))
+    for command in ("graph", "augment"):
+        code, out, err = _run(capsys, "strings", command, tmp_path / "units.json", "--out", tmp_path / command,
+                              *(("--count", "2", "--rounds", "1") if command == "augment" else ()))
+        assert (f"note: shape 1 (1 of {len(data['shapes'])} shapes) is about 100x the size of the others (centimetres "
+                "among metres?): scale it by 0.01") in err, (command, err)
+
+
 def test_a_mirror_image_of_a_chiral_part_is_not_named_as_resized(tmp_path, capsys):
     """A wedge wing and its mirror image (node scale -1 along x) are two types, as they
     should be; the resized-part note had named the mirror "0% off its size" (h144). A

@@ -40,6 +40,7 @@ from ..core.errors import ProcmodError, shown_value
 from ..core.io import check_format, read_json, write_text_atomic
 from ..core.limits import MAX_COORDINATE
 from ..geometry.assets import MAX_DEPTH  # one depth limit for example files and asset files
+from ..geometry.units import mixed_sizes_note
 from ..geometry.part_library import (PartLibraryError, PartShape, is_singular, read_part_library, read_transform,
                                      transform_to_json)
 from .transforms import decompose, turn_about_up
@@ -308,46 +309,19 @@ def centred_examples(example_set: ExampleSet) -> ExampleSet:
     return replace(example_set, examples=examples, facing=reference_facing(facings) or 0.0)
 
 
-MIXED_SIZES = 10.0
-"""Examples whose sizes differ by more than this factor get a note (:func:`size_note`)."""
-
-
 def size_note(example_set: ExampleSet, labels: list | None = None) -> str | None:
-    """One line when the largest example is over :data:`MIXED_SIZES` times the size (world
-    bounding-box diagonal) of the smallest: likely some exported in other units (cm and m),
-    which the program would learn as variation and sample at both scales. When the sizes
-    fall into two groups that far apart, the line names the larger group and, where their
-    ratio is a units factor (100: centimetres and metres, ...), the units and the scale that
-    makes them match. ``labels`` name the examples (default ``examples[i]``). None otherwise."""
+    """One line when the largest example is over :data:`~procmod.geometry.units.MIXED_SIZES`
+    times the size (world bounding-box diagonal) of the smallest: likely some exported in
+    other units (cm and m), which the program would learn as variation and sample at both
+    scales (:func:`procmod.geometry.units.mixed_sizes_note`). ``labels`` name the examples
+    (default ``examples[i]``). None otherwise."""
     if len(example_set.examples) < 2:
         return None
     from .perturb import example_diagonal  # (perturb imports this module)
 
-    sizes = np.array([example_diagonal(root, example_set.parts) for root in example_set.examples])
-    small, large = int(np.argmin(sizes)), int(np.argmax(sizes))
-    if not sizes[small] > 0 or sizes[large] / sizes[small] <= MIXED_SIZES:
-        return None
-    labels = labels or [f"examples[{i}]" for i in range(len(sizes))]
-    logs = np.log(sizes)
-    order = np.argsort(logs)
-    gaps = np.diff(logs[order])
-    cut = int(np.argmax(gaps))
-    if np.exp(gaps[cut]) > MIXED_SIZES:  # two groups: some examples in other units
-        big = sorted(order[cut + 1:].tolist())
-        ratio = float(np.exp(np.median(logs[order[cut + 1:]]) - np.median(logs[order[:cut + 1]])))
-        # the nearest units factor, within the examples' own spread of sizes (a quarter)
-        factor, units = min(UNIT_FACTORS, key=lambda fu: abs(math.log(ratio / fu[0])))
-        if abs(math.log(ratio / factor)) > math.log(1.25):
-            factor, units = ratio, None
-        named = ", ".join(labels[i] for i in big[:4]) + (f" and {len(big) - 4} more" if len(big) > 4 else "")
-        return (f"{named} ({len(big)} of {len(sizes)} examples) {'is' if len(big) == 1 else 'are'} about "
-                f"{factor:.0f}x the size of the others"
-                + (f" ({units}?)" if units else "")
-                + f": scale {'it' if len(big) == 1 else 'them'} by {1 / factor:.4g} (or the others by "
-                f"{factor:.4g}) to match; the program learns sizes from all of them")
-    return (f"the examples differ in size up to {sizes[large] / sizes[small]:.0f}x ({labels[large]} is "
-            f"{sizes[large]:.3g} across, {labels[small]} {sizes[small]:.3g}): if some were exported in other "
-            "units, scale them to match; the program learns sizes from all of them")
+    sizes = [example_diagonal(root, example_set.parts) for root in example_set.examples]
+    return mixed_sizes_note(sizes, labels or [f"examples[{i}]" for i in range(len(sizes))], "examples",
+                            "the program learns sizes from all of them")
 
 
 TURNED = 45.0
@@ -524,12 +498,6 @@ def stray_note(example_set: ExampleSet, labels: list | None = None) -> str | Non
                           "across)" for i, part, gap, size in found])
     return (f"{shown}: a leftover moved out of the way? the program learns it as a placement like any other "
             "and samples draw it; delete it if it is not part of the model")
-
-
-# ratios of one unit of length to another over MIXED_SIZES, as a size note names them
-UNIT_FACTORS = ((100.0, "centimetres among metres"), (1000.0, "millimetres among metres"),
-                (25.4, "millimetres among inches"), (39.37, "inches among metres"),
-                (30.48, "centimetres among feet"), (12.0, "inches among feet"), (304.8, "millimetres among feet"))
 
 
 def read_example_inputs(paths) -> tuple[ExampleSet, str]:

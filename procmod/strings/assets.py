@@ -40,6 +40,7 @@ from ..core.paths import FileNames
 from ..geometry.assets import (GEOMETRY_TOLERANCE, Y_UP_TO_Z_UP, AssetError, asset_files, json_or_assets,
                                read_assets, unused_name)
 from ..geometry.part_library import PartShape
+from ..geometry.units import mixed_sizes_note
 from .shapes import Shape, ShapeSet, ShapesFormatError, read_shapes, type_letters
 
 SCALE_TOLERANCE = 1e-5  # two placements' scales agree within this fraction of the larger
@@ -202,6 +203,31 @@ def resized_note(shape_set: ShapeSet) -> str | None:
     more = f" and {len(shape_set.resized) - 4} more" if len(shape_set.resized) > 4 else ""
     return (f"{named}{more}: parts of two sizes are two types, so shapes built with one never combine with shapes "
             "built with the other; if that is a copy resized by hand, give it the size of the first")
+
+
+def size_note(shape_set: ShapeSet, labels: list | None = None) -> str | None:
+    """One line when some shapes are over :data:`~procmod.geometry.units.MIXED_SIZES`
+    times the size (world bounding-box diagonal) of others: likely exported in other units
+    (a Maya file in centimetres among metres), whose parts are then other types, at 100x
+    the size (:func:`procmod.geometry.units.mixed_sizes_note`); ``labels`` name the shapes
+    (default ``shape i``). None otherwise. ``procmod learn`` says the same of its examples;
+    strings had said nothing (h144)."""
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
+    boxes = {}  # part -> its local box's 8 corners
+    sizes = []
+    for shape in shape_set.shapes:
+        points = []
+        for name, t in zip(shape.parts, shape.transforms):
+            if name not in boxes:
+                lo, hi = (np.asarray(v, dtype=np.float64) for v in shape_set.library[name].local_bounds())
+                boxes[name] = lo + corners * (hi - lo)
+            t = np.asarray(t, dtype=np.float64)
+            points.append(boxes[name] @ t[:3, :3].T + t[:3, 3])
+        points = np.concatenate(points) if points else np.zeros((1, 3))
+        sizes.append(float(np.linalg.norm(np.ptp(points, axis=0))))
+    labels = labels or [f"shape {i}" for i in range(len(sizes))]
+    return mixed_sizes_note(sizes, labels, "shapes", "parts of two sizes are two types (parts are rigid), so shapes "
+                            "of one size never combine with shapes of the other")
 
 
 def shapes_from_assets(paths, tolerance: float = GEOMETRY_TOLERANCE) -> ShapeSet:

@@ -185,7 +185,7 @@ def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
     from .contacts import (contact_kinds, contact_tolerance, gaps_to_close, joining_text, loose_parts, near_miss_note,
                            shape_graph)
-    from .assets import read_shape_inputs, resized_note
+    from .assets import read_shape_inputs, resized_note, size_note
     from .grammar import Grammar, ring_rule_note
     from ..core.paths import output_path
     from .shapes import write_graph
@@ -223,9 +223,9 @@ def _graph(args) -> None:
                   file=sys.stderr)
         if join is not None or misses:
             needs.append(max([join or 0.0] + [t for *_, t in misses]))
-    resized = resized_note(shape_set)
-    if resized is not None:
-        print(printable(f"note: {resized}"), file=sys.stderr)
+    for note in (size_note(shape_set, named), resized_note(shape_set)):
+        if note is not None:
+            print(printable(f"note: {note}"), file=sys.stderr)
     if len(needs) > 1:
         print(f"note: --tolerance {max(needs):.2g} closes every gap named above ({len(needs)} shapes); a tolerance "
               "far past the gaps a hand leaves joins parts that only stand near each other", file=sys.stderr)
@@ -314,7 +314,7 @@ def _augment(args) -> None:
     from ..core.runfolder import COLLECTION, RunFolder
     from ..parallel import check_scheduler, open_executor
     from .pipeline import write_collection
-    from .assets import read_shape_inputs, resized_note
+    from .assets import read_shape_inputs, resized_note, size_note
     from .sampling import AugmentParams, augment, with_part_limit
     from ..core.paths import output_path
 
@@ -381,9 +381,9 @@ def _augment(args) -> None:
             raise InvalidArgumentError(f"shape {i}{source} ({len(g)} parts, {g.number_of_edges()} contacts) cannot "
                                        f"be written as a string: {exc}; a lattice this large is beyond "
                                        "strings") from None
-    resized = resized_note(shape_set)
-    if resized is not None:
-        print(printable(f"note: {resized}"), file=sys.stderr)
+    for note in (size_note(shape_set, named), resized_note(shape_set)):
+        if note is not None:
+            print(printable(f"note: {note}"), file=sys.stderr)
     if len(shape_set.shapes) > 2:
         print(f"note: {len(shape_set.shapes)} input shapes; seed 001 uses one or two", file=sys.stderr)
     bar = progress_bar(total=args.count, unit=" shapes")
