@@ -772,6 +772,16 @@ def main(argv=None) -> int:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)
         return 2
+    except BaseException as exc:
+        # sys.exit() (or GeneratorExit, or an exception class of its own on BaseException)
+        # raised in a model file's rule: the user's code, one line; argparse's own exits and
+        # anything else go on as they are
+        from .models.from_file import user_code_error
+        line = user_code_error(exc)
+        if line is None:
+            raise
+        print(f"procmod: error: {one_line(line)}", file=sys.stderr)
+        return 2
     return 0
 
 

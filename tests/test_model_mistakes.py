@@ -361,6 +361,55 @@ def test_a_model_file_imports_its_neighbours_and_its_errors_are_one_line(tmp_pat
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.parametrize("engine", ["forward", "smc"])
+@pytest.mark.parametrize("line, said", [
+    ("import sys; sys.exit(0)", "the model called sys.exit(0) while it ran; a model cannot end procmod's run"),
+    ("import sys; sys.exit(5)", "the model called sys.exit(5) while it ran"),
+    ("next(iter([]))", "StopIteration (an error in the model's own code)"),
+    ("raise type('Done', (BaseException,), {})()", "Done (an error in the model's own code)"),
+    ("raise type('Odd', (Exception,), {'__str__': lambda self: 1 / 0})()",
+     "Odd: (its message could not be shown: its __str__ raised an error)"),
+])
+def test_a_rule_that_exits_or_raises_oddly_is_one_line_naming_it(tmp_path, capsys, line, said, engine):
+    """A rule calling sys.exit(0) ended every engine with status 0, no word and no output;
+    a StopIteration (PEP 479 made it a RuntimeError in the forward and GA engines'
+    generators), an exception on BaseException of the user's own, and one whose __str__
+    fails were tracebacks (h145)."""
+    from procmod.cli import main
+
+    (tmp_path / "m.py").write_text(MODEL_FILE.replace("    if depth < 5:", f"    {line}\n    if depth < 5:"))
+    code = main(["infer", str(tmp_path / "m.py"), "--target", "glyph:Y", "--engine", engine, "--budget", "20evals",
+                 "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "m.py, line 10, in plant: " in err and said in err, err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_model_file_of_any_suffix_loads_and_leaves_its_folder_last_on_the_path(tmp_path, capsys):
+    """A model file named Plant.PY was an AttributeError traceback (no loader is found for
+    the suffix); the file's folder stayed first on sys.path for the whole process, so a
+    file beside it named like a module imported later (cmath.py: numba's) stood in for it
+    (h145). It is last once the file has run; a neighbour imported by a rule still loads."""
+    import sys
+
+    from procmod.cli import main
+
+    folder = tmp_path / "models"
+    folder.mkdir()
+    (folder / "late_helper_h145.py").write_text("SPREAD = 0.4\n")
+    text = MODEL_FILE.replace("        ctx.maybe(\"left\", 0.6, plant, x1, y1, angle + 0.4",
+                              "        from late_helper_h145 import SPREAD\n"
+                              "        ctx.maybe(\"left\", 0.6, plant, x1, y1, angle + SPREAD")
+    assert "SPREAD" in text
+    (folder / "Plant.PY").write_text(text)
+    try:
+        assert main(["sample", str(folder / "Plant.PY"), "-n", "2", "--seed", "1", "--out", str(tmp_path / "s")]) == 0
+        assert sys.path[-1] == str(folder.resolve()) and str(folder.resolve()) not in sys.path[:-1]
+    finally:
+        sys.path[:] = [p for p in sys.path if p != str(folder.resolve())]
+        sys.modules.pop("late_helper_h145", None)
+
+
 def test_a_derivation_is_not_replayed_by_another_model_of_the_users(tmp_path):
     """render --model with the wrong model of the same file drew a picture, exit 0."""
     def chain(ctx, x=0.0, y=-2.0, angle=-math.pi / 2):

@@ -14,6 +14,7 @@ name, not a Model) is one :class:`UnknownModelError` line naming the file.
 from __future__ import annotations
 
 import hashlib
+import importlib.machinery
 import importlib.util
 import os
 import re
@@ -95,6 +96,11 @@ def user_code_error(exc: BaseException) -> str | None:
     """One line for an exception raised in a user's model file while its model runs
     (``FILE.py, line N, in RULE: Type: message``), or None when no frame of the traceback
     lies in such a file (then it is procmod's own bug, and keeps its traceback)."""
+    if (isinstance(exc, RuntimeError) and isinstance(exc.__cause__, StopIteration)
+            and "raised StopIteration" in str(exc.args[:1])):
+        # PEP 479: a StopIteration from the user's rule, turned into a RuntimeError by the
+        # engine's generator it passed through; the user's frames are the cause's
+        exc = exc.__cause__
     frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(exc.__traceback__)]
     remote = getattr(exc.__cause__, "tb", None)  # a process pool's worker: its traceback, as text
     # an SMC or MCMC worker's: in a note (procmod.parallel.note_worker_traceback)
@@ -105,8 +111,21 @@ def user_code_error(exc: BaseException) -> str | None:
     if not frames:
         return None
     filename, line, function = frames[-1]
-    return (f"{Path(filename).name}, line {line}, in {function}: {type(exc).__name__}: {exc} "
-            "(an error in the model's own code)")
+    if isinstance(exc, SystemExit):  # sys.exit() in a rule had ended the run with no word, with its status
+        return (f"{Path(filename).name}, line {line}, in {function}: the model called sys.exit({exc.code!r}) while it "
+                "ran; a model cannot end procmod's run: raise an exception for an error (an error in the model's own "
+                "code)")
+    message = _message(exc)
+    return (f"{Path(filename).name}, line {line}, in {function}: {type(exc).__name__}"
+            f"{': ' + message if message else ''} (an error in the model's own code)")
+
+
+def _message(exc: BaseException) -> str:
+    """``str(exc)``, or a stand-in where the exception's own ``__str__`` fails."""
+    try:
+        return str(exc)
+    except Exception:  # the user's __str__ raised: the error is still theirs, say what there is
+        return "(its message could not be shown: its __str__ raised an error)"
 
 
 _FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE)
@@ -119,26 +138,39 @@ def _run_module(path: Path):
     module_name = f"procmod_user_{re.sub(r'[^0-9A-Za-z_]', '_', path.stem)}_{digest}"
     if module_name in sys.modules:
         return sys.modules[module_name]
-    spec = importlib.util.spec_from_file_location(module_name, resolved)
+    # read as Python source whatever its suffix ("Plant.PY": no loader is found for it by name)
+    loader = importlib.machinery.SourceFileLoader(module_name, str(resolved))
+    spec = importlib.util.spec_from_file_location(module_name, resolved, loader=loader)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # before running it: its dataclasses and pickles look it up
-    if str(resolved.parent) not in sys.path:  # as python FILE.py does: it imports its neighbours
-        sys.path.insert(0, str(resolved.parent))
+    folder = str(resolved.parent)
+    added = folder not in sys.path
+    if added:  # as python FILE.py does: it imports its neighbours
+        sys.path.insert(0, folder)
     _USER_FILES.add(str(resolved))
     remember_file_read(resolved)  # an output folder that holds it is never replaced (--overwrite)
     try:
-        spec.loader.exec_module(module)
+        try:
+            spec.loader.exec_module(module)
+        finally:
+            if added and folder in sys.path:
+                # last on the path once the file has run: a neighbour it imports later still
+                # loads, but a file beside it named like a module procmod or its libraries
+                # import later (cmath.py, numba's) no longer stands in for that module
+                sys.path.remove(folder)
+                sys.path.append(folder)
     except SyntaxError as exc:
         del sys.modules[module_name]
-        raise UnknownModelError(f"{path}, line {exc.lineno}: {exc.msg}; fix the model file") from None
+        where = f", line {exc.lineno}" if exc.lineno is not None else ""  # (a NUL byte in the file: no line)
+        raise UnknownModelError(f"{path}{where}: {exc.msg}; fix the model file") from None
     except BaseException as exc:  # the user's code: anything it raises is its own error
         del sys.modules[module_name]
         if isinstance(exc, KeyboardInterrupt):
             raise
         frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() == resolved]
         where = f", line {frames[-1].lineno}" if frames else ""
-        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}: {exc}; fix the model "
-                                "file") from None
+        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}: {_message(exc)}; fix the "
+                                "model file") from None
     return module
 
 
