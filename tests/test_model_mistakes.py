@@ -465,6 +465,26 @@ def test_a_model_name_whose_file_is_here_is_pointed_to_it(tmp_path, monkeypatch,
     assert "give mine.py" not in err and "--model FILE.py:NAME" in err
 
 
+def test_a_part_edited_by_its_rule_after_the_emit_is_kept_as_emitted():
+    """A rule that emitted Polygon(points) and then went on editing its list (a point
+    appended, a vertex moved) changed the part kept in the derivation after the canvas had
+    drawn and scored it: best.svg showed a four-point shape scored as the triangle (h145)."""
+    def blob(ctx):
+        s = ctx.sample("s", Normal(3.0, 0.5))
+        points = [[0.0, -1.0], [s, -1.0], [s, -1.0 - s]]
+        ctx.emit(Polygon(points))
+        array = np.array(points)
+        points.append([0.0, -1.0 - s])
+        points[1][0] = 3 * s
+        ctx.emit(Polygon(array))  # an array, edited in place after its emit
+        array[1, 0] = 3 * s
+
+    d = run_forward(_model(blob), np.random.default_rng(0))
+    first, second = d.geometry()
+    assert len(first.points) == 3 and first.points == second.points, (first, second)
+    assert all(type(p) is tuple for p in first.points + second.points)
+
+
 def test_a_part_whose_tag_is_no_string_is_refused_at_the_emit():
     """A Categorical's index passed as a part's tag ran a whole inference and then ended in a
     traceback while the outputs were written (colour_of: 'int' object has no attribute

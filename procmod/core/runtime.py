@@ -71,6 +71,52 @@ def _geometry_text(geometry) -> str:
     return cut_text(text, 160)
 
 
+_SEQUENCE_FIELDS: dict = {}  # part class -> the indices of its fields declared as tuples (see _frozen)
+
+
+def _frozen(geometry):
+    """``geometry`` with the fields its class declares as tuples (a Polygon's points, a
+    Mesh's vertices, a Box's transform) made tuples of tuples where the rule gave lists or
+    arrays: a part is kept in the derivation as emitted, and a rule that went on editing
+    its list after the emit (a point appended, a vertex moved) had changed the kept part
+    after the canvas drew and scored it, so the saved files showed another shape than
+    the score was of (h145). Parts of plain numbers (a Segment) cost one lookup."""
+    kind = type(geometry)
+    fields = _SEQUENCE_FIELDS.get(kind)
+    if fields is None:
+        hints = getattr(kind, "__annotations__", {})
+        names = getattr(kind, "_fields", ())
+        # (a module with postponed annotations declares ForwardRef('tuple'))
+        declared = [getattr(hints.get(name), "__forward_arg__", hints.get(name)) for name in names]
+        fields = _SEQUENCE_FIELDS[kind] = tuple(i for i, hint in enumerate(declared) if hint in (tuple, "tuple"))
+    if not fields:
+        return geometry
+    values = list(geometry)
+    changed = False
+    for i in fields:
+        value = values[i]
+        first = value[0] if type(value) is tuple and value else None
+        if type(value) is tuple and (first is None or type(first) is not list and not isinstance(first, np.ndarray)):
+            continue  # already a tuple, of numbers or of tuples (checked by its first item: cheap)
+        if isinstance(value, np.ndarray):
+            values[i] = _as_tuples(value.tolist())
+        elif isinstance(value, (list, tuple)):
+            values[i] = _as_tuples(value)
+        else:
+            continue
+        changed = True
+    return kind(*values) if changed else geometry
+
+
+def _as_tuples(value):
+    """Lists and arrays in ``value``, at any depth, as tuples."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return tuple(_as_tuples(v) for v in value)
+    return value
+
+
 def rule_name(rule) -> str:
     """A rule's name, for messages and for the sites of neural guides: its ``__name__``
     (a ``functools.partial``'s function's), or else what it is (a callable object)."""
@@ -272,6 +318,7 @@ class Context:
         """Draw ``geometry`` into the output; engines may score and resample after it."""
         if self._armed:
             raise _Pause()
+        geometry = _frozen(geometry)
         self._geometry.append(geometry)
         index = self._emits
         self._emits = index + 1
