@@ -103,6 +103,24 @@ def test_worker_processes_import_the_model_file_from_its_absolute_path(tmp_path,
     assert summary["present"] == 3 and summary["made"] == 1
 
 
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_traces_of_a_model_drawing_from_pythons_random_get_the_note(tmp_path, capsys, workers):
+    """infer and sample say when a model draws from Python's random (the seed then fixes
+    nothing); guide traces made such traces, different at every run of one seed, without
+    a word (h145). The note is said once, and not written into the traces."""
+    (tmp_path / "loose.py").write_text(PLANT_FILE.replace("import math\n", "import math, random\n", 1)
+                                       .replace("x1, y1 = x + 2", "x1, y1 = x + random.uniform(1.5, 2.5)"))
+    assert main(["guide", "traces", str(tmp_path / "loose.py:PLANT"), "--count", "3", "--particles", "4",
+                 "--workers", workers, "--out", str(tmp_path / "t")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("note: the model's rules drew from Python's random module") == 1, err
+    assert not any("_global" in f.read_text() for f in (tmp_path / "t").glob("trace_*.json"))
+    (tmp_path / "steady.py").write_text(PLANT_FILE)
+    assert main(["guide", "traces", str(tmp_path / "steady.py:PLANT"), "--count", "2", "--particles", "4",
+                 "--workers", workers, "--out", str(tmp_path / "s")]) == 0
+    assert "note:" not in capsys.readouterr().err
+
+
 def test_an_error_in_the_model_file_on_a_worker_process_is_one_line(tmp_path, capsys):
     """A rule's exception on a pool worker reached the command line as two tracebacks."""
     (tmp_path / "broken.py").write_text(PLANT_FILE.replace("x1, y1 = x + 2", "x1, y1 = 1 / 0 + x + 2"))

@@ -89,6 +89,8 @@ def _cmd_traces(args) -> None:
     finally:
         bar.close()
     rate = summary["traces_per_hour"]
+    for note in summary.get("notes", ()):
+        print(f"note: {note}", file=sys.stderr)
     if summary.get("remade"):
         shown = ", ".join(str(trace_path(Path(args.out), i)) for i in summary["remade"][:3])
         one = len(summary["remade"]) == 1

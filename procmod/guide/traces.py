@@ -85,7 +85,13 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
     if params:
         model = model.configure(**params)
     target = target_from_spec(target_spec)
+    from ..core.random import global_draws_note, global_generator_states
+
+    before = global_generator_states()
     result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
+    # a model drawing from Python's or numpy's global generators makes traces the job's
+    # seed does not fix (h145): said once by the job (generate_traces takes the key out)
+    drew = global_draws_note(before, "the model's rules")
     weights = np.asarray(result.log_weights, dtype=np.float64)
     rng = np.random.default_rng([seed, index, 1])
     if np.all(weights == -np.inf):
@@ -96,7 +102,13 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
     particle = result.samples[chosen]
     return {"format": TRACE_FORMAT, "index": index, "target": target_spec, "particles": particles,
             "seed": seed, "score": float(target.score(particle.output)),
-            "seconds": time.perf_counter() - began, "derivation": derivation_to_dict(particle)}
+            "seconds": time.perf_counter() - began, "derivation": derivation_to_dict(particle),
+            **({GLOBAL_DRAWS_KEY: drew} if drew else {})}
+
+
+GLOBAL_DRAWS_KEY = "_global_draws"
+"""The key of :func:`generate_trace`'s result that carries its global-draws note back to
+the job (never written into the trace file)."""
 
 
 def is_trace_name(name: str) -> bool:
@@ -343,7 +355,8 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
 
     Everything is checked before the folder is touched: the settings, that the training
     targets fit the model, and ``out`` (see :class:`procmod.core.runfolder.RunFolder`).
-    Returns a summary: traces made now, already present, seconds, traces per hour.
+    Returns a summary: traces made now, already present, seconds, traces per hour, and
+    notes (a model that drew from the global generators, whose traces the seed does not fix).
     """
     from ..data import target_from_spec
     from ..infer.common import check_population
@@ -432,6 +445,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
     queue = list(reversed(missing))
     running = {}
     done = 0
+    notes = []  # what the traces' makers found (a model drawing from the global generators), once
     try:
         while queue or running:
             while queue and len(running) < in_flight:
@@ -451,6 +465,9 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
                     raise GuideError(f"a worker runs other code than this traces job (an older procmod: {exc}); "
                                      "give the workers the same procmod and model files (their PYTHONPATH) and "
                                      "rerun") from None
+                drew = trace.pop(GLOBAL_DRAWS_KEY, None)
+                if drew and not notes:
+                    notes.append(drew)
                 write_text_atomic(trace_path(out, index), json.dumps(trace) + "\n")
                 done += 1
                 if progress is not None:
@@ -466,7 +483,7 @@ def generate_traces(model_name: str, targets: str, count: int, out: str | os.Pat
         raise
     seconds = time.perf_counter() - began
     return {"made": done, "present": present, "remade": remade, "seconds": seconds,
-            "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None}
+            "traces_per_hour": 3600.0 * done / seconds if done and seconds > 0 else None, "notes": notes}
 
 
 def load_traces(folder: str | os.PathLike, limit: int | None = None) -> tuple[dict, list]:
