@@ -149,6 +149,15 @@ def test_sets_are_made_by_their_script(tmp_path):
         assert_json_close(made, stored)  # to 1e-9 relative: another CPU may change last digits
 
 
+def test_the_novelty_bound_script_reads_the_shipped_spaceships_as_its_generators_output():
+    """docs/learn.md's novelty bound script refused the shipped file as "not the
+    generator's output": it compared the generator's floats with the file's, which
+    make_sets rounds to 12 digits (h143)."""
+    done = subprocess.run([sys.executable, "examples_sets/learn/novelty_bound.py", "--draws", "1", "--samples", "20"],
+                          cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 0 and "shipped spaceship examples (10 distinct structures)" in done.stdout, done.stderr
+
+
 def test_regenerated_sets_are_compared_to_a_tolerance_that_sees_real_changes():
     stored = json.loads((ROOT / "examples_sets/learn/ornaments/examples.json").read_text())
     moved = copy.deepcopy(stored)
