@@ -145,7 +145,9 @@ def portable_error(exc: BaseException, where: str) -> BaseException:
         pickle.loads(pickle.dumps(exc))
         return exc
     except Exception:  # noqa: BLE001 - whatever the user's class does on the way
-        stand_in = RuntimeError(f"{type(exc).__name__}: {exc}")
+        from .core.errors import exception_message
+
+        stand_in = RuntimeError(f"{type(exc).__name__}: {exception_message(exc)}")
         for note in getattr(exc, "__notes__", ()):
             stand_in.add_note(note)
         return stand_in

@@ -412,27 +412,47 @@ def test_a_package_mesh_resolves_the_same_from_the_urdfs_own_folder(tmp_path, mo
 def test_a_package_mesh_is_read_from_its_own_package_not_another_holding_the_same_name(tmp_path):
     """Many ROS packages hold a ``meshes/base_link.stl``: a cart's URDF naming its own and
     an arm package's read the cart's file for both (the first ancestor holding the bare
-    name won, h144). The package's own folder comes first now; with the arm's package
-    gone, the cart's file is not taken for it, and the message says whose it is."""
+    name won, h144). The package's own folder comes first now, found by its folder's name
+    or its package.xml (a commented-out name in it left aside); meshes copied beside a
+    URDF in a package of the user's own are still read (h146)."""
     src = tmp_path / "ws" / "src"
     for name, size in (("cart", 0.5), ("arm_description", 0.1)):
         (src / name / "meshes").mkdir(parents=True)
-        (src / name / "package.xml").write_text(f"<package format='2'><name> {name} </name></package>")
         write_obj(src / name / "meshes" / "base_link.obj", wedge_mesh(size))
+    (src / "cart" / "package.xml").write_text("<package format='2'><name> cart </name></package>")
+    (src / "arm_description" / "package.xml").write_text("<package><name>arm_description</name></package>")
     (src / "cart" / "urdf").mkdir()
     links = {"base": ['<geometry><mesh filename="package://cart/meshes/base_link.obj"/></geometry>'],
              "arm": ['<geometry><mesh filename="package://arm_description/meshes/base_link.obj"/></geometry>']}
     robot = src / "cart" / "urdf" / "robot.urdf"
     robot.write_text(urdf(links, [("mount", "base", "arm", (0, 0, 0.1), (0, 0, 0))]))
-    s = read_assets(robot)
-    extents = sorted(tuple(np.round(np.ptp(np.asarray(p.vertices), axis=0), 6)) for p in s.parts.values())
-    assert extents == sorted(tuple(np.round(np.ptp(wedge_mesh(size)[0], axis=0), 6)) for size in (0.5, 0.1))
-    import shutil
+    expected = sorted(tuple(np.round(np.ptp(wedge_mesh(size)[0], axis=0), 6)) for size in (0.5, 0.1))
 
-    shutil.rmtree(src / "arm_description")
-    with pytest.raises(AssetError, match=r"holds a 'meshes/base_link.obj' but is the package 'cart', not "
-                                         r"'arm_description'\); copy the package's meshes there"):
-        read_assets(robot)
+    def extents(path):
+        s = read_assets(path)
+        return sorted(tuple(np.round(np.ptp(np.asarray(p.vertices), axis=0), 6)) for p in s.parts.values())
+
+    assert extents(robot) == expected
+    (src / "arm_description" / "package.xml").write_text("<package><name>arm_v2</name></package>")
+    assert extents(robot) == expected  # by its folder's name (a package renamed since)
+    # a URDF inside a package whose folder has another name (a download's "-main") is in
+    # it by its package.xml, whose commented-out template name is left aside
+    repo = tmp_path / "robot_description-main"
+    (repo / "meshes").mkdir(parents=True)
+    (repo / "urdf").mkdir()
+    (repo / "package.xml").write_text("<package><!-- <name>my_package</name> --><name>robot_description</name>"
+                                      "</package>")
+    write_obj(repo / "meshes" / "base_link.obj", wedge_mesh(0.2))
+    (repo / "urdf" / "robot.urdf").write_text(urdf(
+        {"base": ['<geometry><mesh filename="package://robot_description/meshes/base_link.obj"/></geometry>']}, []))
+    assert extents(repo / "urdf" / "robot.urdf") == [tuple(np.round(np.ptp(wedge_mesh(0.2)[0], axis=0), 6))]
+    # a robot's URDF and meshes copied into the user's own package
+    own = tmp_path / "my_sim"
+    (own / "meshes").mkdir(parents=True)
+    (own / "package.xml").write_text("<package><name>my_sim</name></package>")
+    write_obj(own / "meshes" / "base_link.obj", wedge_mesh(0.3))
+    (own / "robot.urdf").write_text(urdf({"arm": links["arm"]}, []))
+    assert extents(own / "robot.urdf") == [tuple(np.round(np.ptp(wedge_mesh(0.3)[0], axis=0), 6))]
 
 
 def test_a_package_mesh_named_percent_encoded_is_found_and_a_xacro_left_is_named(tmp_path):

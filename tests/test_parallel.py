@@ -66,10 +66,12 @@ def test_a_result_the_caller_cannot_unpickle_is_not_a_lost_worker():
     assert not multiprocessing.active_children()
 
 
-@pytest.mark.parametrize("engine", ["smc", "mcmc"])
-def test_a_users_rule_failing_on_an_engine_worker_is_one_line_naming_it(engine, tmp_path):
-    """The worker's traceback travels in a note; the one line read only a process pool's."""
-    (tmp_path / "mine.py").write_text(textwrap.dedent("""
+@pytest.mark.parametrize("engine, str_fails", [("smc", False), ("mcmc", False), ("smc", True)])
+def test_a_users_rule_failing_on_an_engine_worker_is_one_line_naming_it(engine, str_fails, tmp_path):
+    """The worker's traceback travels in a note; the one line read only a process pool's.
+    An exception whose own __str__ fails had its stand-in's making raise in the worker,
+    which printed a 57-line traceback before the one line (h146)."""
+    source = textwrap.dedent("""
         import math, multiprocessing
         from procmod import Model, Normal
         from procmod.geometry import Canvas, Segment
@@ -88,15 +90,23 @@ def test_a_users_rule_failing_on_an_engine_worker_is_one_line_naming_it(engine, 
 
         M = Model("my-chain", "a chain", chain, root_args=lambda p: (0.0, 0.0, -math.pi / 2),
                   new_output_from=lambda p: Canvas((-12, 12, -22, 2), 50))
-        """))
+        """)
+    if str_fails:  # (its __str__ reads what its __init__ never set)
+        source = source.replace('        super().__init__("boom only in a worker")',
+                                '        super().__init__("boom only in a worker")\n\n'
+                                '    def __str__(self):\n        return self.missing')
+        assert "self.missing" in source
+    (tmp_path / "mine.py").write_text(source)
     options = ["--particles", "8"] if engine == "smc" else ["--engine", "mcmc", "--budget", "40evals",
                                                             "--init-particles", "0"]
     run = subprocess.run([sys.executable, "-m", "procmod.cli", "infer", "mine.py:M", "--target", "glyph:a",
                           *options, "--workers", "2", "--out", "run"], cwd=tmp_path, capture_output=True,
                          text=True, timeout=300)
     assert run.returncode == 2, run.stderr[-2000:]
-    assert run.stderr.strip() == ("procmod: error: mine.py, line 13, in chain: RuntimeError: AngleError: boom only in "
-                                  "a worker (an error in the model's own code)"), run.stderr[-2000:]
+    line = 16 if str_fails else 13
+    message = "(its message could not be shown: its __str__ raised an error)" if str_fails else "boom only in a worker"
+    assert run.stderr.strip() == (f"procmod: error: mine.py, line {line}, in chain: RuntimeError: AngleError: "
+                                  f"{message} (an error in the model's own code)"), run.stderr[-2000:]
 
 
 def _slow(seconds):

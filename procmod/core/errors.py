@@ -91,6 +91,15 @@ def plain_fields(config) -> None:
             setattr(config, name, plain_value(value))
 
 
+def exception_message(exc: BaseException) -> str:
+    """``str(exc)``, or a stand-in where the exception's own ``__str__`` fails (a user's
+    exception class may)."""
+    try:
+        return str(exc)
+    except Exception:  # noqa: BLE001 - whatever the user's class does
+        return "(its message could not be shown: its __str__ raised an error)"
+
+
 def shown_value(value, limit: int = 60) -> str:
     """A value from an input file or argument as its user wrote it, for a message: JSON
     where it is a JSON value (``null``, ``true``, ``"wing"``, ``[1, 2]``; a message about a

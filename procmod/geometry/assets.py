@@ -1015,6 +1015,7 @@ def _ros_package_name(folder: Path) -> str | None:
         text = (folder / "package.xml").read_text(encoding="utf-8", errors="replace")[:65536]
     except OSError:
         return None
+    text = re.sub(r"<!--.*?-->", "", text, flags=re.DOTALL)  # a template's commented-out <name>
     found = re.search(r"<name>\s*([^<\s]+)\s*</name>", text)
     return found.group(1) if found else None
 
@@ -1025,10 +1026,10 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
     ``package://PKG/rest``: ``rest`` in the package's folder, looked for as a ROS
     workspace lays packages out (the URDF's folder or an ancestor that is the package, by
     its name or its ``package.xml``, or holds a ``PKG`` folder), and failing that a bare
-    ``rest`` under the URDF's folder or an ancestor (a robot's meshes copied beside it)
-    that is no other package. Package folders come first: many packages hold a
-    ``meshes/base_link.stl``, and the first ancestor holding one had been taken for any
-    package's."""
+    ``rest`` under the URDF's folder or an ancestor (a robot's meshes copied beside it,
+    into a package of the user's own too). Package folders come first: many packages hold
+    a ``meshes/base_link.stl``, and the first ancestor holding one had been taken for any
+    package's (h144)."""
     base = urdf.parent
     name = filename
     candidates = []
@@ -1054,15 +1055,13 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
         folders = [base, *base.resolve().parents]
         names = {folder: _ros_package_name(folder) for folder in folders}
         for folder in folders:  # the package's own folder first, wherever it is
-            is_package = names[folder] == pkg or (names[folder] is None and folder.resolve().name == pkg)
+            # (by its package.xml, or by its folder's name: a package renamed, or a template's
+            # package.xml naming another, is still found where its URDF says)
+            is_package = pkg in (names[folder], folder.resolve().name)
             for spelt in spellings:
                 candidates += ([(folder, spelt)] if is_package else []) + [(folder, f"{pkg}/{spelt}")]
-        others = []  # other packages that hold a file of that name (said when nothing else is found)
-        for folder in folders:  # then meshes copied beside the URDF, but never another package's
-            if names[folder] in (None, pkg):
-                candidates += [(folder, spelt) for spelt in spellings]
-            elif any((folder / spelt).is_file() for spelt in spellings):
-                others.append(folder)
+        for folder in folders:  # then meshes copied beside the URDF
+            candidates += [(folder, spelt) for spelt in spellings]
     elif not candidates:
         candidates.append((base, name))
     for folder, rel in candidates:
@@ -1072,10 +1071,8 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
             last = exc
     if len(candidates) > 1 and "does not exist" in str(last):
         # the last folder tried is the file system's root: name the URI and where it was sought
-        elsewhere = (f" ({others[0]} holds a {rest!r} but is the package {names[others[0]]!r}, not {pkg!r})"
-                     if others else "")
         raise AssetError(f"{where} {filename!r} is neither {rest!r} nor {pkg + '/' + rest!r} under the URDF's "
-                         f"folder {base} or a folder above it{elsewhere}; copy the package's meshes there") from None
+                         f"folder {base} or a folder above it; copy the package's meshes there") from None
     raise AssetError(str(last)) from None
 
 

@@ -22,6 +22,7 @@ import json
 import os
 import re
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -90,8 +91,10 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
     before = global_generator_states()
     result = smc(model, target, particles=particles, seed=int(np.random.SeedSequence([seed, index]).generate_state(1)[0]))
     # a model drawing from Python's or numpy's global generators makes traces the job's
-    # seed does not fix (h145): said once by the job (generate_traces takes the key out)
-    drew = global_draws_note(before, "the model's rules")
+    # seed does not fix (h145): said once by the job (generate_traces takes the key out).
+    # Not on a dask worker: its own threads draw from Python's random while the trace runs
+    # (every trace of the built-in chain model got the note, h146)
+    drew = None if _on_dask_worker() else global_draws_note(before, "the model's rules")
     weights = np.asarray(result.log_weights, dtype=np.float64)
     rng = np.random.default_rng([seed, index, 1])
     if np.all(weights == -np.inf):
@@ -104,6 +107,18 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
             "seed": seed, "score": float(target.score(particle.output)),
             "seconds": time.perf_counter() - began, "derivation": derivation_to_dict(particle),
             **({GLOBAL_DRAWS_KEY: drew} if drew else {})}
+
+
+def _on_dask_worker() -> bool:
+    """Whether this process is a dask.distributed worker (running a task)."""
+    distributed = sys.modules.get("distributed")  # (never imported for it: a worker has it already)
+    if distributed is None:
+        return False
+    try:
+        distributed.get_worker()
+    except (ValueError, AttributeError):
+        return False
+    return True
 
 
 GLOBAL_DRAWS_KEY = "_global_draws"

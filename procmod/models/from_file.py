@@ -23,6 +23,7 @@ import traceback
 from pathlib import Path
 
 from ..core import Model, UnknownModelError
+from ..core.errors import exception_message
 from ..core.paths import remember_file_read
 
 _SPEC = re.compile(r"^(?P<file>.+\.py)(?::(?P<name>[^:]*))?$", re.IGNORECASE)
@@ -115,17 +116,9 @@ def user_code_error(exc: BaseException) -> str | None:
         return (f"{Path(filename).name}, line {line}, in {function}: the model called sys.exit({exc.code!r}) while it "
                 "ran; a model cannot end procmod's run: raise an exception for an error (an error in the model's own "
                 "code)")
-    message = _message(exc)
+    message = exception_message(exc)
     return (f"{Path(filename).name}, line {line}, in {function}: {type(exc).__name__}"
             f"{': ' + message if message else ''} (an error in the model's own code)")
-
-
-def _message(exc: BaseException) -> str:
-    """``str(exc)``, or a stand-in where the exception's own ``__str__`` fails."""
-    try:
-        return str(exc)
-    except Exception:  # the user's __str__ raised: the error is still theirs, say what there is
-        return "(its message could not be shown: its __str__ raised an error)"
 
 
 _FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE)
@@ -143,22 +136,12 @@ def _run_module(path: Path):
     spec = importlib.util.spec_from_file_location(module_name, resolved, loader=loader)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # before running it: its dataclasses and pickles look it up
-    folder = str(resolved.parent)
-    added = folder not in sys.path
-    if added:  # as python FILE.py does: it imports its neighbours
-        sys.path.insert(0, folder)
+    if str(resolved.parent) not in sys.path:  # as python FILE.py does: it imports its neighbours
+        sys.path.insert(0, str(resolved.parent))
     _USER_FILES.add(str(resolved))
     remember_file_read(resolved)  # an output folder that holds it is never replaced (--overwrite)
     try:
-        try:
-            spec.loader.exec_module(module)
-        finally:
-            if added and folder in sys.path:
-                # last on the path once the file has run: a neighbour it imports later still
-                # loads, but a file beside it named like a module procmod or its libraries
-                # import later (cmath.py, numba's) no longer stands in for that module
-                sys.path.remove(folder)
-                sys.path.append(folder)
+        spec.loader.exec_module(module)
     except SyntaxError as exc:
         del sys.modules[module_name]
         where = f", line {exc.lineno}" if exc.lineno is not None else ""  # (a NUL byte in the file: no line)
@@ -169,8 +152,8 @@ def _run_module(path: Path):
             raise
         frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() == resolved]
         where = f", line {frames[-1].lineno}" if frames else ""
-        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}: {_message(exc)}; fix the "
-                                "model file") from None
+        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}: "
+                                f"{exception_message(exc)}; fix the model file") from None
     return module
 
 
