@@ -542,3 +542,101 @@ def test_a_ga_whose_elites_are_its_whole_population_is_refused():
             ga(get_model("vines"), target_from_spec("glyph:a"), population=population, elitism=elitism,
                budget=Budget(seconds=5, evaluations=50))  # (the seconds: so that the bug fails, not hangs)
     assert ga(get_model("vines"), target_from_spec("glyph:a"), population=2, budget=Budget(evaluations=30)).best
+
+
+class _SlowBar(Target):
+    """The bar target, 3 ms a log-likelihood: a target slow to score (a large volume)."""
+
+    def __init__(self):
+        self.bar = _bar_target()
+
+    def configure(self, model):
+        return self.bar.configure(model)
+
+    def new_output(self, model):
+        return self.bar.new_output(model)
+
+    def log_likelihood(self, output):
+        import time
+        time.sleep(0.003)
+        return self.bar.log_likelihood(output)
+
+    def score(self, output):
+        return self.bar.score(output)
+
+
+@pytest.mark.parametrize("engine, kwargs", [("forward", {"particles": 1000}), ("mcmc", {"init_particles": 100})])
+def test_a_time_budget_holds_on_a_target_slow_to_score(engine, kwargs):
+    """A forward batch of 1,000 slow evaluations had run to its end past a 0.2 s budget
+    (3.6 s of a 0.3 s one, h149), and MCMC's SMC start past the whole budget (24 s of
+    0.5 s). Without the fix each run takes several seconds; the bound leaves room for a
+    loaded machine."""
+    result = ENGINES[engine](get_model("vines"), _SlowBar(), seed=0, budget=Budget(seconds=0.2), **kwargs)
+    assert result.seconds < 1.5, result.seconds
+
+
+def test_a_forward_budget_of_evaluations_ends_its_batch_there():
+    """--budget 5evals drew a whole batch of 100."""
+    result = ENGINES["forward"](get_model("vines"), _bar_target(), particles=100, seed=0, budget=Budget(evaluations=5))
+    assert result.evaluations == 5 and len(result.samples) == 5 == len(result.log_weights)
+
+
+class _SelfCopy(SumOutput):
+    def copy(self):
+        return self
+
+
+class _OneOutputTarget(SumTarget):
+    """A target whose outputs are one object: new_output caches it, or copy() returns it."""
+
+    def __init__(self, cached: bool):
+        super().__init__(1.0, 1.0)
+        self.cached, self.output = cached, None
+
+    def new_output(self, model):
+        if not self.cached:
+            return _SelfCopy()
+        self.output = self.output or SumOutput()
+        return self.output
+
+
+@pytest.mark.parametrize("engine", ["forward", "smc", "mcmc", "ga"])
+def test_outputs_that_are_one_object_are_refused(engine):
+    """A new_output that returns one cached canvas (forward, GA), or a copy() that returns
+    the output itself (every engine), had every member draw into one canvas: the best
+    reported scored otherwise on its replay, without a word (h149)."""
+    for cached in ((True, False) if engine in ("forward", "ga") else (False,)):
+        message = "new_output\\(\\) returned the same" if cached else "copy\\(\\) returned the output itself"
+        with pytest.raises(InvalidArgumentError, match=message):
+            ENGINES[engine](MIX, _OneOutputTarget(cached), seed=0, budget=Budget(evaluations=20))
+
+
+def test_a_score_of_minus_infinity_is_no_best_and_extreme_scores_do_not_overflow():
+    """A target whose score is -inf where its likelihood is finite had its first derivation
+    kept as the best with no note; a score of -sys.float_info.max (a "ruled out" sentinel)
+    raised OverflowError in the history's mean, and the GA's roulette gave every spin to
+    the worst individual (h149)."""
+    from procmod.infer.common import NO_FINITE_SCORE_NOTE
+    from procmod.infer.ga.selection import roulette_wheel
+
+    class Failing(SumTarget):
+        def score(self, output):
+            return -math.inf
+
+    result = ENGINES["forward"](MIX, Failing(0.0, 1.0), particles=10, seed=0)
+    assert result.best is None and NO_FINITE_SCORE_NOTE in result.notes
+
+    class Sentinel(SumTarget):
+        def score(self, output):
+            return -sys.float_info.max if output.total < 0 else -abs(output.total - self.obs)
+
+    for engine in ("smc", "forward", "ga"):
+        result = ENGINES[engine](MIX, Sentinel(1.0, 1.0), seed=0, budget=Budget(evaluations=60))
+        assert all(math.isfinite(row.mean_score) for row in result.history), engine
+    # a Python int past the float range is refused in one line (an OverflowError had ended the run)
+    from procmod.infer.common import checked_value
+    with pytest.raises(InvalidArgumentError, match="must return a real number"):
+        checked_value(-10 ** 400, Sentinel(1.0, 1.0), "log_likelihood")
+    # beside the sentinel, 1, 2 and 3 are equally far from it: equal shares, none for it
+    wheel = roulette_wheel([-sys.float_info.max, 1.0, 2.0, 3.0])
+    assert np.allclose(np.diff(wheel, prepend=0.0), [0.0, 1 / 3, 1 / 3, 1 / 3], atol=1e-12)

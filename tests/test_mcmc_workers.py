@@ -168,8 +168,11 @@ def test_merged_groups_keep_a_ruled_out_best_and_say_only_what_holds_of_the_resu
     assert kept >= 1 and noted >= 3  # the cases the bug showed in (seeds 0 and 5; 1-3)
 
 
-def test_a_best_of_score_minus_inf_the_target_allows_is_kept_as_on_one_worker():
-    """One worker kept it; two dropped it, with no note of why (h61)."""
+def test_a_best_of_score_minus_inf_the_target_allows_is_none_on_one_worker_as_on_two():
+    """One worker kept it; two dropped it, with no note of why (h61). A score of -inf is no
+    best on any engine now (h149: the first such derivation had been kept as the best), so
+    both say none is, and why."""
+    from procmod.infer.common import NO_FINITE_SCORE_NOTE
     from toy_models import MIX
 
     class Unscored(SumTarget):
@@ -181,4 +184,4 @@ def test_a_best_of_score_minus_inf_the_target_allows_is_kept_as_on_one_worker():
 
     for workers in (1, 2):
         result = mcmc(MIX, Unscored(3.0, 1.0), chains=2, workers=workers, seed=0, budget=Budget(evaluations=20))
-        assert result.best is not None, workers
+        assert result.best is None and NO_FINITE_SCORE_NOTE in result.notes, workers

@@ -217,7 +217,10 @@ class Tracker:
         self.offered = True
         if log_likelihood != -math.inf and score > self.best_allowed_score:
             self.best_allowed_score = score
-        if self.better(score, log_likelihood):
+        # a score of -inf is no best, whatever the log-likelihood (a target whose score
+        # failed where its likelihood did not had its first derivation kept as "best"
+        # without a word, h149): none, and the result says why (NO_FINITE_SCORE_NOTE)
+        if score != -math.inf and self.better(score, log_likelihood):
             self.best_score, self.best = score, derivation
             self.best_ruled_out = log_likelihood == -math.inf
 
@@ -281,9 +284,15 @@ def output_bytes(output: Output) -> int:
     return total
 
 
-def check_population(option: str, count, output: Output, copies: int = 1) -> int:
+def check_population(option: str, count, output: Output, copies: int = 1, another: Output | None = None) -> int:
     """Refuse a population (``particles``, ``population``, ``chains``) that cannot
     fit in memory, before an engine allocates it; returns ``count``.
+
+    Refused too, in one line: an output whose ``copy()`` is the output itself, and a
+    target whose ``new_output`` gave ``another`` (a second call's output, where the
+    engine draws each member from ``new_output``) as the same object: every member would
+    draw into one canvas, and the engines had reported as best a derivation whose replay
+    scored otherwise, without a word (h149).
 
     ``output`` is an empty output of the configured model (``target.new_output(model)``):
     each member holds ``copies`` copies of it at least (incremental MCMC: a chain's state,
@@ -296,6 +305,13 @@ def check_population(option: str, count, output: Output, copies: int = 1) -> int
 
     check_positive(option, count)
     check_declared(output, Output, "the target's output")
+    if another is output:
+        raise InvalidArgumentError(f"the target's new_output() returned the same {type(output).__name__} object twice: "
+                                   "every member of the population would draw into it; return a new, empty output "
+                                   "each call")
+    if output.copy() is output:
+        raise InvalidArgumentError(f"{type(output).__name__}.copy() returned the output itself: a copy must be a new "
+                                   "output that later drawing into either leaves the other as it was")
     per_member = copies * output_bytes(output) + MEMBER_OVERHEAD
     check_memory(f"{option} {count:,}", float(count) * per_member,
                  f"each of them holds at least {per_member:,} bytes; use fewer")
@@ -366,12 +382,31 @@ def checked_value(value, target, method: str) -> float:
     is an InvalidArgumentError naming the target's method: a NaN weight used to collapse
     every SMC particle onto the outputs that gave it, without a word."""
     if isinstance(value, float) or (isinstance(value, numbers.Real) and not isinstance(value, bool)):
-        value = float(value)
-        if value == value and value != math.inf:
-            return value
+        try:
+            number = float(value)
+        except OverflowError:  # a Python int past the float range (10**400): a traceback had ended the run
+            number = math.nan
+        if number == number and number != math.inf:
+            return number
     shown = " ".join(repr(value).split())[:60]
     raise InvalidArgumentError(f"the target's {method}() returned {shown}: it must return a real number (or -inf for "
                                f"an output that cannot be); check {type(target).__name__}.{method}")
+
+
+def mean_of(scores) -> float:
+    """The mean of a population's scores (real numbers or -inf) for its history row:
+    ``math.fsum`` (no numpy call overhead on a short list), or, where scores near the end
+    of the float range overflow the sum (a target's ``-sys.float_info.max`` for "ruled
+    out"), the sum of each over the count (``fsum`` had raised an OverflowError, and
+    numpy's mean of such finite scores read -inf)."""
+    count = len(scores)
+    try:
+        return math.fsum(scores) / count
+    except OverflowError:  # measured against the largest magnitude, the sum stays in range
+        if -math.inf in scores:
+            return -math.inf
+        scale = max(abs(score) for score in scores)
+        return scale * (math.fsum(score / scale for score in scores) / count)
 
 
 def scored(target: Target, output) -> tuple[float, float]:

@@ -117,7 +117,7 @@ from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
 from .common import (RULED_OUT_NOTE, Budget, Evaluation, Result, Scored, Tracker, check_population, check_positive,
-                     check_run, configured_model, evaluate_all, new_seed, recorded_seed)
+                     check_run, configured_model, evaluate_all, mean_of, new_seed, recorded_seed)
 from .mcmc_workers import run_groups
 from .particles import fork_available
 from .traced import DROP, EditedChoices, Traced, TracedReplay, node_counts, replay_traced, trace
@@ -754,8 +754,8 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
             if annealing is not None and tracker.generations % anneal_every == 0:
                 run.betas = run.betas * annealing
             if tracker.due():
-                tracker.record(float(np.mean([s.score for s in run.states])))
-        tracker.record(float(np.mean([s.score for s in run.states])))
+                tracker.record(mean_of([s.score for s in run.states]))
+        tracker.record(mean_of([s.score for s in run.states]))
     moves = {kind: (run.accepted[kind], run.proposed[kind]) for kind in run.accepted}
     return Result("mcmc", tracker.best, tracker.best_score, [s.derivation for s in run.states],
                   tracker.rows, tracker.seconds, tracker.evaluations,
@@ -767,14 +767,20 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
 def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: Tracker) -> tuple:
     """``(choice maps, evaluations)``: the maps ``chains`` chains start from, the best
     complete derivations of one SMC run of ``particles`` particles, best first, repeated if
-    there are fewer distinct ones than chains; and the particle-steps the run took.
+    there are fewer distinct ones than chains; and the particle-steps the run took. The run
+    ends where the tracker's time budget does.
 
     Its best is offered to ``tracker``; its evaluations are not counted there, because an
     MCMC evaluation is one proposal (a budget in evaluations is one in moves); its time
     is, as every second of the run is."""
     from .smc import smc  # (smc imports nothing of mcmc; imported here to keep start-up light)
 
-    result = smc(model, target, particles=particles, seed=seed)
+    # under a time budget the start stops with it: a slow target's start had run 24 s of a
+    # 0.5 s budget (h149); a start stopped before any particle was complete starts the
+    # chains from the prior, as init_particles=0 does
+    seconds = tracker.budget.seconds if tracker.budget is not None else None
+    result = smc(model, target, particles=particles, seed=seed,
+                 deadline=None if seconds is None else tracker.t0 + seconds)
     if result.best is None:
         return [{}] * chains, result.evaluations
     tracker.offer(result.best, result.best_score, -math.inf if RULED_OUT_NOTE in result.notes else 0.0)

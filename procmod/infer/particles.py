@@ -32,7 +32,7 @@ import signal
 
 from ..core.errors import ModelError, ProcmodError, argument
 from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
-from .common import best_first, checked_value
+from .common import best_first, checked_value, mean_of
 from ..parallel import lost_worker_error
 
 _ATOMS = (int, float, str, bytes, bool, type(None))
@@ -172,10 +172,13 @@ class ParticleShard:
         """The exported histories under ``keys``: ``(nodes oldest first, tail)`` each."""
         return [self.exported[k] for k in keys]
 
-    def score_sum(self) -> float:
-        """Sum of the target's score over the shard's particles (for history rows)."""
+    def score_mean(self) -> tuple[float, int]:
+        """``(mean, count)`` of the target's score over the shard's particles (for history
+        rows; a mean, not a sum: scores near the end of the float range, a target's
+        -sys.float_info.max, had summed to -inf)."""
         target = self.target
-        return sum(checked_value(target.score(s.output), target, "score") for s in self.states)
+        scores = [checked_value(target.score(s.output), target, "score") for s in self.states]
+        return (mean_of(scores), len(scores)) if scores else (0.0, 0)
 
     def packed_states(self) -> list:
         """Every particle packed with the history held here (for the coordinator)."""
@@ -285,7 +288,7 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
             elif command == "histories":
                 reply = shard.histories(*args)
             elif command == "scores":
-                reply = shard.score_sum()
+                reply = shard.score_mean()
             elif command == "collect":
                 reply = shard.packed_states()
             elif command == "best":

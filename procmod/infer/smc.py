@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import numbers
 import os
+import time
 from array import array
 
 import numpy as np
@@ -29,7 +30,7 @@ from ..core.runtime import graft_history, history, unpack_particle
 # the resampler lives in core so that other particle methods (learn's search) share it
 from ..core.random import RESAMPLING, BlockGenerator, normalised_weights, resample, systematic_small  # noqa: F401
 from .common import (ZERO_LIKELIHOOD_NOTE, Budget, Result, Tracker, check_population, check_positive, check_run,
-                     checked_value, configured_model, log_mean_exp, recorded_seed)
+                     checked_value, configured_model, log_mean_exp, mean_of, recorded_seed)
 from .particles import ParticleShard, WorkerShard, fork_available, plan_offspring, shared_objects, split_evenly
 
 # Automatic worker count (``workers=None``): one more process per this many particles, up
@@ -91,6 +92,11 @@ def resolve_ess_threshold(ess_threshold, guided: bool) -> float | None:
 SMALL_POPULATION = 32
 
 
+# the note of a run abandoned at its deadline (smc's ``deadline``)
+DEADLINE_NOTE = ("a run was stopped at its deadline before its particles were complete: the best is the best complete "
+                 "derivation found before it, if any")
+
+
 class _RemoteBest:
     """Stands in the tracker for a best derivation a worker shard holds (fetched at the end
     of the run)."""
@@ -102,8 +108,9 @@ class _RemoteBest:
 
 
 def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampling, ess_threshold,
-              tracker) -> tuple:
-    """One SMC run over the shards; returns (states, final log-weights, log Z estimate)."""
+              tracker, deadline: float | None = None) -> tuple:
+    """One SMC run over the shards; returns (states, final log-weights, log Z estimate),
+    the estimate None for a run abandoned at ``deadline`` (see :func:`smc`)."""
     sizes = split_evenly(particles, 1 + len(workers))
     for worker, size in zip(workers, sizes[1:]):
         worker.send("reset", size)
@@ -128,6 +135,8 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
         tracker.evaluations += stepped
         if active == 0:
             break
+        if deadline is not None and time.perf_counter() >= deadline:
+            return _collect(local, workers, tracker), np.array(log_w), None
         ancestors = None
         if particles <= SMALL_POPULATION and resampling == "systematic":  # Python floats (above)
             top = max(log_w)
@@ -151,8 +160,9 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
             else:
                 local.regroup(ancestors, ())
         if tracker.due():
-            total = local.score_sum() + sum(worker.call("scores") for worker in workers)
-            tracker.record(total / particles)
+            parts = [local.score_mean()] + [worker.call("scores") for worker in workers]
+            # the shards' means weighted by their share: no sum of scores overflows
+            tracker.record(math.fsum(mean * (count / particles) for mean, count in parts if count))
     # log_w is a list: log_mean_exp sums a short one in Python floats
     return _collect(local, workers, tracker), np.array(log_w), log_z + log_mean_exp(log_w)
 
@@ -217,7 +227,8 @@ def _graft(states: list, local: ParticleShard, workers: list) -> None:
 
 def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budget: Budget | None = None,
         resampling: str = "systematic", ess_threshold: float | str | None = "auto",
-        order: str = "program", progress=None, guide=None, workers: int | None = 1) -> "Result":
+        order: str = "program", progress=None, guide=None, workers: int | None = 1, *,
+        deadline: float | None = None) -> "Result":
     """Sequential Monte Carlo, resampling at every emit (guided: when the ESS falls below half).
 
     Parameters
@@ -250,6 +261,13 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         ``None`` picks one per :data:`PARTICLES_PER_WORKER` particles, up to the cores
         available. A seeded run is reproducible for a given ``workers``; different
         worker counts draw different random numbers.
+    deadline : float, optional
+        A ``time.perf_counter()`` value at which a run still in progress is abandoned
+        (unlike ``budget``, which each run completes): the result keeps the complete
+        derivations found before it (``best`` may be None), its samples are the
+        abandoned run's particles, complete or not, and a note says so. MCMC's start
+        (:func:`procmod.infer.mcmc.mcmc`'s ``init_particles``) runs under its own time
+        budget so: on a slow target the start had run past the whole budget (h149).
 
     Returns
     -------
@@ -309,9 +327,14 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
             runs = 0
             log_z_sum = -math.inf  # of the runs' estimates of Z
             kept = None  # (states, log-weights, log Z) of the run whose particles are returned
+            stopped = False  # whether a run was abandoned at the deadline
             while True:
                 states, log_w, log_z = _run_once(local, remote, particles, rng, resampling, ess_threshold,
-                                                 tracker)
+                                                 tracker, deadline)
+                if log_z is None:
+                    stopped = True
+                    kept = kept or (states, log_w, -math.inf)
+                    break
                 runs += 1
                 log_z_sum = float(np.logaddexp(log_z_sum, log_z))
                 # the last run with a particle the target allows: a run that died after an
@@ -320,7 +343,7 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
                     kept = (states, log_w, log_z)
                 tracker.generations += 1
                 scores = [checked_value(target.score(s.output), target, "score") for s in states]
-                tracker.record(math.fsum(scores) / len(scores))  # a list's mean without numpy's call overhead
+                tracker.record(mean_of(scores))
                 if budget is None or tracker.spent():
                     break
         finally:
@@ -331,8 +354,10 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     seconds = tracker.seconds
     states, log_w, _ = kept
     # each run's estimate of Z is unbiased, and so is their mean: the runs' estimates pooled
-    log_z = log_z_sum - math.log(runs)
-    if log_z == -math.inf:  # every run's every particle; once, not once a run
+    log_z = log_z_sum - math.log(runs) if runs else -math.inf
+    if stopped:
+        notes.append(DEADLINE_NOTE)
+    elif log_z == -math.inf:  # every run's every particle; once, not once a run
         notes.append(ZERO_LIKELIHOOD_NOTE)
     for note_of in ("unmatched_note", "relabelled_note"):  # a GuidedProposer's notes on the run's choices
         said = getattr(proposer, note_of, lambda: None)() if proposer is not None else None

@@ -13,7 +13,7 @@ from ...core.runtime import check_rng
 from ...core.limits import relaxed_gc
 from ...core.errors import check_real
 from ..common import (Budget, Result, Scored, Tracker, best_first, check_population, check_positive, check_run,
-                      configured_model, new_seed, recorded_seed)
+                      configured_model, mean_of, new_seed, recorded_seed)
 from .evaluation import Evaluator
 from .genome import Genome, Genomes
 from .selection import elite_count, roulette, roulette_wheel, tournament
@@ -68,7 +68,8 @@ def ga(model: Model, target: Target, population: int = 200, seed: int = 0, budge
     budget = budget or Budget(generations=50)
     check_run(model, target, seed, budget)
     model = configured_model(target, model)
-    check_population("population", population, target.new_output(model))  # refuse what memory cannot hold
+    check_population("population", population, target.new_output(model),  # refuse what memory cannot hold
+                     another=target.new_output(model))
     rng = np.random.default_rng(seed)
     tracker = Tracker(budget, progress)
     evaluate = Evaluator(model, target, executor, tracker)
@@ -197,4 +198,4 @@ def _rank(ind: Scored) -> tuple:
 
 def _record(tracker: Tracker, pop: list) -> None:
     if pop:  # empty when a stop came before the first individual was scored
-        tracker.record(float(np.mean([ind.score for ind in pop])))
+        tracker.record(mean_of([ind.score for ind in pop]))

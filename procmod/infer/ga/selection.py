@@ -32,8 +32,17 @@ def roulette_wheel(scores) -> np.ndarray:
                                    f"{len(scores) if scores.ndim == 1 else scores.shape}")
     finite = np.isfinite(scores)
     floor = scores[finite].min() if finite.any() else 0.0
-    fitness = np.where(finite, scores, floor) - floor
-    total = fitness.sum()
+    with np.errstate(over="ignore"):
+        fitness = np.where(finite, scores, floor) - floor
+        total = fitness.sum()
+    if not np.isfinite(total):
+        # scores spanning more than the float range (a target's -sys.float_info.max for
+        # "ruled out"): the shifts overflowed to inf (or their sum did), and the wheel had
+        # given every spin to the worst; the same shares, measured in halves and against
+        # the largest (halving is exact, so no share moves but by rounding)
+        half = np.where(finite, scores, floor) * 0.5 - floor * 0.5
+        fitness = half / half.max()
+        total = fitness.sum()
     if total > 0:
         fitness = fitness / total
     elif finite.any():  # equal shares, still none for a score that is not finite (a ruled-out one's -inf)
