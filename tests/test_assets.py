@@ -453,6 +453,14 @@ def test_a_package_mesh_is_read_from_its_own_package_not_another_holding_the_sam
     write_obj(own / "meshes" / "base_link.obj", wedge_mesh(0.3))
     (own / "robot.urdf").write_text(urdf({"arm": links["arm"]}, []))
     assert extents(own / "robot.urdf") == [tuple(np.round(np.ptp(wedge_mesh(0.3)[0], axis=0), 6))]
+    # a package.xml that is no regular file (a FIFO) is passed over, not read (it had blocked)
+    import os
+
+    os.mkfifo(tmp_path / "package.xml")
+    assert extents(own / "robot.urdf") == [tuple(np.round(np.ptp(wedge_mesh(0.3)[0], axis=0), 6))]
+    (own / "bare.urdf").write_text(urdf({"arm": ['<geometry><mesh filename="package://my_sim"/></geometry>']}, []))
+    with pytest.raises(AssetError, match=r"'package://my_sim' names a package but no file in it"):
+        read_assets(own / "bare.urdf")
 
 
 def test_a_package_mesh_named_percent_encoded_is_found_and_a_xacro_left_is_named(tmp_path):

@@ -71,57 +71,6 @@ def _geometry_text(geometry) -> str:
     return cut_text(text, 160)
 
 
-_SEQUENCE_FIELDS: dict = {}  # part class -> the indices of its fields declared as tuples (see _frozen)
-
-
-def _frozen(geometry):
-    """``geometry`` with the lists and arrays in the fields its class declares as tuples (a
-    Polygon's points, a Mesh's vertices, a Box's transform) made immutable: lists become
-    tuples and arrays read-only copies (a copy is a memcpy: a mesh's 2,562 vertices cost
-    microseconds, where tuples of them had cost milliseconds at every SMC resume). A part
-    is kept in the derivation as emitted, and a rule that went on editing its list after
-    the emit (a point appended, a vertex moved) had changed the kept part after the canvas
-    drew and scored it, so the saved files showed another shape than the score was of
-    (h145). Tuples, and the user's own objects inside (a NamedTuple point), are kept as
-    they are. Parts of plain numbers (a Segment) cost one lookup."""
-    kind = type(geometry)
-    fields = _SEQUENCE_FIELDS.get(kind)
-    if fields is None:
-        hints = getattr(kind, "__annotations__", {})
-        names = getattr(kind, "_fields", ())
-        # (a module with postponed annotations declares ForwardRef('tuple'))
-        declared = [getattr(hints.get(name), "__forward_arg__", hints.get(name)) for name in names]
-        fields = _SEQUENCE_FIELDS[kind] = tuple(i for i, hint in enumerate(declared) if hint in (tuple, "tuple"))
-    if not fields:
-        return geometry
-    values = None
-    for i in fields:
-        value = geometry[i]
-        if type(value) is tuple:
-            # a tuple of numbers or of tuples stays (told by its first item: cheap); one
-            # holding lists or arrays has them made immutable
-            if not value or not (type(value[0]) is list or isinstance(value[0], np.ndarray)):
-                continue
-        elif type(value) is not list and not isinstance(value, np.ndarray):
-            continue
-        values = values or list(geometry)
-        values[i] = _immutable(value)
-    return geometry if values is None else kind(*values)
-
-
-def _immutable(value):
-    """Lists in ``value`` (at any depth) as tuples, arrays as read-only copies; anything
-    else (numbers, tuples, a user's point objects) as it is."""
-    kind = type(value)
-    if kind is list or kind is tuple:
-        return tuple(v if type(v) in (float, int) else _immutable(v) for v in value)
-    if isinstance(value, np.ndarray):
-        copy = np.array(value)
-        copy.setflags(write=False)
-        return copy
-    return value
-
-
 def rule_name(rule) -> str:
     """A rule's name, for messages and for the sites of neural guides: its ``__name__``
     (a ``functools.partial``'s function's), or else what it is (a callable object)."""
@@ -323,7 +272,6 @@ class Context:
         """Draw ``geometry`` into the output; engines may score and resample after it."""
         if self._armed:
             raise _Pause()
-        geometry = _frozen(geometry)
         self._geometry.append(geometry)
         index = self._emits
         self._emits = index + 1

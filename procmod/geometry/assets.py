@@ -1011,8 +1011,12 @@ def _bake(raw: _Raw, geometries: dict, local: np.ndarray, turn: np.ndarray, resi
 def _ros_package_name(folder: Path) -> str | None:
     """The package a ROS package folder's ``package.xml`` names, or None (no such file,
     or none readable)."""
+    path = folder / "package.xml"
     try:
-        text = (folder / "package.xml").read_text(encoding="utf-8", errors="replace")[:65536]
+        if not path.is_file():  # (a FIFO or a device under that name had blocked or read without end)
+            return None
+        with open(path, "rb") as handle:  # a package.xml is a few KB: its start is enough
+            text = handle.read(65536).decode("utf-8", errors="replace")
     except OSError:
         return None
     text = re.sub(r"<!--.*?-->", "", text, flags=re.DOTALL)  # a template's commented-out <name>
@@ -1048,6 +1052,9 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
         from urllib.parse import unquote
 
         pkg, _, rest = name[len("package://"):].partition("/")
+        if not rest.strip("/"):
+            raise AssetError(f"{where} {filename!r} names a package but no file in it; give the mesh's path in the "
+                             "package (package://PKG/meshes/part.stl)")
         # as written, and %-decoded as ROS's resource retriever reads a URI ("base%20link.stl")
         spellings = [rest] + ([unquote(rest)] if unquote(rest) != rest else [])
         # ancestors of the resolved folder: "robot.urdf" run from its own folder has a base

@@ -113,12 +113,20 @@ def user_code_error(exc: BaseException) -> str | None:
         return None
     filename, line, function = frames[-1]
     if isinstance(exc, SystemExit):  # sys.exit() in a rule had ended the run with no word, with its status
-        return (f"{Path(filename).name}, line {line}, in {function}: the model called sys.exit({exc.code!r}) while it "
-                "ran; a model cannot end procmod's run: raise an exception for an error (an error in the model's own "
-                "code)")
+        return (f"{Path(filename).name}, line {line}, in {function}: the model called sys.exit({_shown(exc.code)}) "
+                "while it ran; a model cannot end procmod's run: raise an exception for an error (an error in the "
+                "model's own code)")
     message = exception_message(exc)
     return (f"{Path(filename).name}, line {line}, in {function}: {type(exc).__name__}"
             f"{': ' + message if message else ''} (an error in the model's own code)")
+
+
+def _shown(value) -> str:
+    """``repr(value)``, or its type's name where the value's own ``__repr__`` fails."""
+    try:
+        return repr(value)
+    except Exception:  # noqa: BLE001 - the user's class
+        return f"<a {type(value).__name__}>"
 
 
 _FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE)
@@ -152,8 +160,9 @@ def _run_module(path: Path):
             raise
         frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() == resolved]
         where = f", line {frames[-1].lineno}" if frames else ""
-        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}: "
-                                f"{exception_message(exc)}; fix the model file") from None
+        message = exception_message(exc)
+        raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}"
+                                f"{': ' + message if message else ''}; fix the model file") from None
     return module
 
 
