@@ -259,3 +259,39 @@ def test_workers_take_rules_that_are_closures_and_methods(engine, monkeypatch, t
     again = engine(model, target, particles=40, seed=2, workers=2)
     assert first.best_score == again.best_score
     assert first.best.choice_map() == again.best.choice_map()
+
+
+def _positive_or_child(ctx):
+    x = ctx.sample("x", Normal(0.0, 1.0))
+    ctx.emit(x)
+    if x < 0:
+        ctx.spawn("child", _minus_ten)
+
+
+def _minus_ten(ctx):
+    ctx.emit(-10.0)
+
+
+class _RuledOutOrUnscored(SumTarget):
+    """A positive sum is ruled out (log-likelihood -inf) with a finite score; any other is
+    allowed with a score of -inf."""
+
+    def log_likelihood(self, output):
+        return -math.inf if output.total > 0 else 0.0
+
+    def score(self, output):
+        return output.total if output.total > 0 else -math.inf
+
+
+@pytest.mark.skipif(not fork_available(), reason="SMC's workers are forked")
+def test_a_workers_best_is_the_derivation_its_score_describes():
+    """A worker shard took an allowed derivation of score -inf over its ruled-out best after
+    the coordinator had taken that best: the result's best_score and note described one
+    derivation, its best was the other (h150)."""
+    model = Model("twostep", "x, then a child when x < 0", _positive_or_child, root_args=lambda p: (),
+                  new_output_from=lambda p: SumOutput(), rules=(_positive_or_child, _minus_ten))
+    target = _RuledOutOrUnscored(0.0, 1.0)
+    for seed in range(6):
+        result = smc(model, target, particles=8, seed=seed, workers=2)
+        if result.best is not None:
+            assert target.score(result.best.output) == result.best_score, seed

@@ -259,7 +259,7 @@ def _worker_main(conn, shard: ParticleShard, shared: _SharedObjects, parent: int
 
     def offer(derivation, score, log_likelihood=0.0):
         allowed, _ = key = best_first(score, log_likelihood)
-        if key > (best[2], best[0]):
+        if score != -math.inf and key > (best[2], best[0]):  # a score of -inf is no best, as Tracker.offer has it
             best[:] = [score, derivation, allowed]
 
     shard.offer = offer

@@ -264,8 +264,9 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
     deadline : float, optional
         A ``time.perf_counter()`` value at which a run still in progress is abandoned
         (unlike ``budget``, which each run completes): the result keeps the complete
-        derivations found before it (``best`` may be None), its samples are the
-        abandoned run's particles, complete or not, and a note says so. MCMC's start
+        derivations found before it (``best`` may be None), its samples are the last
+        complete run's particles or, where none completed, the abandoned run's, complete
+        or not, and a note says so. MCMC's start
         (:func:`procmod.infer.mcmc.mcmc`'s ``init_particles``) runs under its own time
         budget so: on a slow target the start had run past the whole budget (h149).
 
@@ -277,6 +278,9 @@ def smc(model: Model, target: Target, particles: int = 600, seed: int = 0, budge
         log of the mean of their estimates of Z, each unbiased, so their mean is too).
     """
     particles = check_positive("particles", particles)  # a plain int: numpy's too, for settings.json
+    if deadline is not None and (isinstance(deadline, bool) or not isinstance(deadline, numbers.Real)
+                                 or deadline != deadline):
+        raise InvalidArgumentError(f"deadline must be a time.perf_counter() value or None, got {deadline!r}")
     if resampling not in RESAMPLING:
         raise InvalidArgumentError(f"resampling must be one of {', '.join(RESAMPLING)}, got {resampling!r}")
     ess_threshold = resolve_ess_threshold(ess_threshold, guide is not None)
