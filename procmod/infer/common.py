@@ -397,8 +397,9 @@ def mean_of(scores) -> float:
     """The mean of a population's scores (real numbers or -inf) for its history row:
     ``math.fsum`` (no numpy call overhead on a short list), or, where scores near the end
     of the float range overflow the sum (a target's ``-sys.float_info.max`` for "ruled
-    out"), the sum of each over the count (``fsum`` had raised an OverflowError, and
-    numpy's mean of such finite scores read -inf)."""
+    out"), the mean of the scores measured against the largest of them, scaled back
+    (``fsum`` had raised an OverflowError, and numpy's mean of such finite scores read
+    -inf)."""
     count = len(scores)
     try:
         return math.fsum(scores) / count
