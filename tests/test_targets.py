@@ -337,7 +337,11 @@ def test_a_speck_below_the_shape_does_not_take_the_start():
     clean = lowest_point_start(mask)
     mask[95, 10] = mask[96, 10] = True  # dust near the bottom of a scan
     assert lowest_point_start(mask) == clean and clean[0][1] == pytest.approx(79.5 / 100)
-    mask[85:95, 70:80] = True  # a part a sixth of the bar's size is shape, not noise
+    # a part a sixth of the bar's size below it is shape, not noise, but no start: a
+    # signature under a drawing had taken the start, and the vine grew on it (h151)
+    mask[85:95, 70:80] = True
+    assert lowest_point_start(mask)[0][1] == pytest.approx(79.5 / 100)
+    mask[85:95, 70:90] = True  # a third of the bar's size: a piece of the drawing, and its lowest point
     assert lowest_point_start(mask)[0][1] == pytest.approx(94.5 / 100)
 
 
@@ -682,11 +686,18 @@ def test_a_start_on_a_small_part_at_the_pictures_edge_gets_a_note(tmp_path):
     page = np.full((300, 400), 250, dtype=np.uint8)
     page[60:240, 188:202] = page[100:112, 120:280] = 0  # a cross
     shadow = page.copy()
-    for row in range(280, 300):  # the corner's shadow: a wedge along the bottom and right edges
-        shadow[row, 400 - 2 * (row - 275):] = 40
+    for row in range(275, 300):  # the corner's shadow: a wedge along the bottom and right edges
+        shadow[row, 400 - 2 * (row - 262):] = 40
     Image.fromarray(shadow).save(tmp_path / "shadow.png")
     note = picture_note(target_from_spec(str(tmp_path / "shadow.png")), model)
     assert note is not None and "the start lies on a small part of shadow.png's shape at the picture's" in note
+    # a smaller shadow (under a quarter of the drawing) no longer takes the start (h151)
+    small = page.copy()
+    for row in range(280, 300):
+        small[row, 400 - 2 * (row - 275):] = 40
+    Image.fromarray(small).save(tmp_path / "small.png")
+    target = target_from_spec(str(tmp_path / "small.png"))
+    assert target.image.start[1] < 240 / 300 and picture_note(target, model) is None
     standing = page.copy()
     standing[60:300, 188:202] = 0  # the cross's stem reaches the bottom edge: one part
     standing[280:290, 40:60] = 0  # and a pebble of its own, inside the picture

@@ -341,7 +341,8 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool =
     when the row has one (a row across two serif feet gives an inner edge of one).
 
     Parts of the mask under :data:`SPECK_SHARE` of its largest 8-connected part are
-    left out: specks of noise, not the shape.
+    left out: specks of noise, not the shape. The start lies on a part of at least
+    :data:`START_SHARE` of the largest (a signature under a drawing is none).
 
     The direction points from the start to the centroid of the foreground within
     ``reach`` (a fraction of the image size) of it, so a model starting at the bottom of
@@ -357,9 +358,13 @@ def lowest_point_start(mask: np.ndarray, reach: float = 0.2, along_shape: bool =
     from .components import without_specks  # numba: imported where a start is derived
 
     mask = without_specks(mask, SPECK_SHARE)  # a stray pixel below the shape is no start
-    rows = np.flatnonzero(mask.any(axis=1))
+    # the start lies on a piece of the drawing's size: a signature or a scrap under it (a
+    # few percent of its pixels, more than a speck) had taken the start, and the vine grew
+    # on the signature (h151); a word's letters, an "i"'s stem, stay starts
+    starts = without_specks(mask, START_SHARE)
+    rows = np.flatnonzero(starts.any(axis=1))
     row = rows[-1]
-    cols = np.flatnonzero(mask[row])
+    cols = np.flatnonzero(starts[row])
     col = cols[len(cols) // 2]
     h, w = mask.shape
     ys, xs = np.nonzero(mask)
@@ -474,6 +479,9 @@ def _larger_branch(mask: np.ndarray, col: int, row: int, direction: tuple) -> tu
 # Parts this much smaller than the largest are noise (dust on a scan, a stray pixel);
 # the dot of an "i" is about a tenth of its stem.
 SPECK_SHARE = 0.02
+# Parts under this share of the largest are no start (a signature, a scrap under the
+# drawing); a word's letters and an "i"'s stem (about half of an "m") are over it.
+START_SHARE = 0.25
 # The centroid's direction is kept unless its ray runs under EARLY_EXIT of the longest;
 # then a direction "stays in the shape" when its ray runs RUN_SHARE of the longest.
 EARLY_EXIT = 0.5
