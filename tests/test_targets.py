@@ -709,6 +709,23 @@ def test_a_start_on_a_small_part_at_the_pictures_edge_gets_a_note(tmp_path):
     assert picture_note(target_from_spec(str(tmp_path / "pebble.png")), model) is None
 
 
+def test_a_small_doodle_on_a_full_page_is_advised_to_be_cropped(tmp_path):
+    """A doodle a twelfth of a scanned page's height became a blob at the model's canvas,
+    and the advice was to draw thicker, which would not help (h151)."""
+    from procmod.cli import _model
+    from procmod.data import target_from_spec
+    from procmod.targets.placement import picture_note
+
+    page = np.full((1400, 1000), 250, dtype=np.uint8)
+    page[600:720, 500:503] = page[640:643, 460:540] = 0  # a stick figure's body and arms, 3 px pens
+    Image.fromarray(page).save(tmp_path / "page.png")
+    note = picture_note(target_from_spec(str(tmp_path / "page.png")), _model("vines"))
+    assert note is not None and "crop the picture closer to the drawing" in note, note
+    Image.fromarray(page[560:760, 400:600]).save(tmp_path / "cropped.png")
+    note = picture_note(target_from_spec(str(tmp_path / "cropped.png")), _model("vines"))
+    assert note is None or "crop" not in note, note
+
+
 def test_a_picture_read_as_mostly_shape_or_losing_its_strokes_gets_a_note(tmp_path):
     """A drawing on paper inside a dark frame (a scanner bed's edge) ran with the paper as
     the shape; fine-pen strokes beside a marker vanished at the 50x50 canvas. Neither said

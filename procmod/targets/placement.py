@@ -420,6 +420,10 @@ def _edge_band(mask: np.ndarray, picture: tuple | None = None) -> tuple[str, flo
     return None
 
 
+SMALL_DRAWING = 0.3
+"""A drawing whose thin strokes were widened and which spans less than this share of the
+model's canvas is advised to be cropped closer (:func:`_picture_advice`)."""
+
 EDGE_SCRAP_SHARE = 0.25
 """A start on a part of the shape that touches the picture's edge and holds less than
 this share of the shape, beside a larger part, gets a note (a photo's shadow in a corner,
@@ -543,6 +547,15 @@ def _picture_advice(target: ShapeMatch, model) -> str | None:
         return (f"{lost:.0%} of the shape read from {target.name} (thin strokes, small marks) vanishes at the model's "
                 f"{width}x{height} canvas, which scores against what is left: draw those strokes thicker, "
                 "or crop the picture closer to the shape")
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    side = max(mask.shape)  # the square the picture was padded to: the canvas's
+    across = (max(rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1) / side * max(width, height)) if len(rows) else 0.0
+    if widened is not None and not built_in and len(rows) and across < SMALL_DRAWING * max(width, height):
+        # a doodle on a full page: drawing thicker would not help, the page around it is
+        # what makes it small (h151: a 12-pixel blob, and the advice was to draw thicker)
+        return (f"the shape read from {target.name} spans about {across:.0f} pixels of the model's "
+                f"{width}x{height} canvas, the rest of the picture being paper, so its strokes merge there: crop "
+                "the picture closer to the drawing")
     if widened is not None:
         return (f"the strokes of {target.name} are under {THIN_STROKE:g} pixels of the model's {width}x{height} "
                 f"canvas wide "
