@@ -1196,6 +1196,9 @@ def test_a_misspelt_mirrored_suffix_is_named():
     ("empty.png", lambda p: p.write_bytes(b""), "empty.png: an empty file (0 bytes), no picture; save the picture"),
     ("notes.png", lambda p: p.write_text("my drawing\n"), "not an image Pillow can read (cannot identify image file"),
     ("notes.jpg", lambda p: p.write_text("my drawing\n"), "); save it as a PNG or JPEG"),
+    # a JPEG cut short was told to save it as a JPEG (h151)
+    ("cut.jpg", lambda p: (Image.new("L", (64, 64), 200).save(p), p.write_bytes(p.read_bytes()[:-40])),
+     "the picture file is cut short (image file is truncated"),
 ])
 def test_pictures_that_hold_no_pixels_to_read_say_why(tmp_path, name, make, says):
     """An SVG was "not an image Pillow can read (cannot identify image file ...)"; a fully

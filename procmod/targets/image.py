@@ -73,9 +73,13 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
         if other is not None:
             raise TargetFileError(f"{where}: {other}") from None
         empty = path.is_file() and path.stat().st_size == 0
-        raise TargetFileError(f"{where}: " + ("an empty file (0 bytes), no picture; save the picture again" if empty
-                                              else f"not an image Pillow can read ({cut_text(str(exc), 120)}); save "
-                                                   "it as a PNG or JPEG")) from None
+        if empty:
+            raise TargetFileError(f"{where}: an empty file (0 bytes), no picture; save the picture again") from None
+        if "truncated" in str(exc).lower():  # a download or copy cut short: its format is fine
+            raise TargetFileError(f"{where}: the picture file is cut short ({cut_text(str(exc), 120)}): an "
+                                  "interrupted download or copy; copy or save it again") from None
+        raise TargetFileError(f"{where}: not an image Pillow can read ({cut_text(str(exc), 120)}); save it as a PNG "
+                              "or JPEG") from None
 
 
 def _unread_format(path: Path) -> str | None:
