@@ -603,7 +603,7 @@ CLI_SPELLING = {
     "particles": "--particles", "targets": "--targets", "device": "--device", "workers": "--workers",
     "count": "--count", "samples": "--samples", "size": "--size", "population": "--population",
     "strings_per_shape": "--strings-per-shape", "tagger_strings_per_shape": "--tagger-strings-per-shape",
-    "held_out": "--held-out", "params": "--param",
+    "held_out": "--held-out", "params": "--param", "init_particles": "--init-particles",
     "settings=FeatureSettings.condition('local')": "--features local",
     "device='cpu'": "--device cpu",
     "train_model(COLLECTION, out=MODEL)": "'procmod strings train COLLECTION --out MODEL'",

@@ -573,6 +573,9 @@ def test_a_time_budget_holds_on_a_target_slow_to_score(engine, kwargs):
     loaded machine."""
     result = ENGINES[engine](get_model("vines"), _SlowBar(), seed=0, budget=Budget(seconds=0.2), **kwargs)
     assert result.seconds < 1.5, result.seconds
+    if engine == "mcmc":  # and says that its start was cut
+        from procmod.infer.mcmc import START_CUT_NOTE
+        assert any(note.startswith(START_CUT_NOTE) for note in result.notes), result.notes
 
 
 def test_a_forward_budget_of_evaluations_ends_its_batch_there():

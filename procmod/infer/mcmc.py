@@ -112,7 +112,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core import InvalidArgumentError, Model, is_within
-from ..core.errors import check_real, shown_value, whole_number
+from ..core.errors import argument, check_real, shown_value, whole_number
 from ..core.protocols import Target
 from ..core.limits import relaxed_gc
 from ..core.random import LazyGenerator
@@ -736,8 +736,9 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
     tracker = Tracker(budget, progress)
     betas = temperature_ladder(chains) if tempering else np.ones(chains)
     with relaxed_gc():
-        starts, init_evaluations = (([{}] * chains, 0) if not init_particles else
-                                    _smc_starts(unconfigured, target, init_particles, new_seed(rng), chains, tracker))
+        starts, init_evaluations, start_cut = (([{}] * chains, 0, False) if not init_particles else
+                                               _smc_starts(unconfigured, target, init_particles, new_seed(rng), chains,
+                                                           tracker))
         if incremental:  # the same initial states as evaluate_all's runs
             states = [trace(model, target, starts[c], np.random.default_rng(new_seed(rng))) for c in range(chains)]
         else:
@@ -761,14 +762,21 @@ def mcmc(model: Model, target: Target, chains: int | None = None, seed: int = 0,
                   tracker.rows, tracker.seconds, tracker.evaluations,
                   settings={**settings, "workers": 1, "acceptance_rates": run.acceptance_rates(), "moves": moves,
                             "init_evaluations": init_evaluations},
-                  log_weights=[s.log_likelihood for s in run.states], notes=tracker.notes())
+                  log_weights=[s.log_likelihood for s in run.states],
+                  notes=([f"{START_CUT_NOTE}; give a longer budget or a smaller {argument('init_particles')}"]
+                         if start_cut else []) + tracker.notes())
+
+
+# MCMC's note when its SMC start was stopped by the time budget (smc's deadline)
+START_CUT_NOTE = ("the SMC start was stopped by the time budget before it was complete: the chains began from what "
+                  "it had completed, or from the prior")
 
 
 def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: Tracker) -> tuple:
-    """``(choice maps, evaluations)``: the maps ``chains`` chains start from, the best
+    """``(choice maps, evaluations, cut)``: the maps ``chains`` chains start from, the best
     complete derivations of one SMC run of ``particles`` particles, best first, repeated if
-    there are fewer distinct ones than chains; and the particle-steps the run took. The run
-    ends where the tracker's time budget does.
+    there are fewer distinct ones than chains; the particle-steps the run took; and whether
+    the run was cut: it ends where the tracker's time budget does.
 
     Its best is offered to ``tracker``; its evaluations are not counted there, because an
     MCMC evaluation is one proposal (a budget in evaluations is one in moves); its time
@@ -781,8 +789,11 @@ def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: 
     seconds = tracker.budget.seconds if tracker.budget is not None else None
     result = smc(model, target, particles=particles, seed=seed,
                  deadline=None if seconds is None else tracker.t0 + seconds)
+    from .smc import DEADLINE_NOTE
+
+    cut = DEADLINE_NOTE in result.notes
     if result.best is None:
-        return [{}] * chains, result.evaluations
+        return [{}] * chains, result.evaluations, cut
     tracker.offer(result.best, result.best_score, -math.inf if RULED_OUT_NOTE in result.notes else 0.0)
     score = target.score
     # complete particles only (a run where every particle reached zero likelihood ends early)
@@ -796,7 +807,7 @@ def _smc_starts(model, target, particles: int, seed: int, chains: int, tracker: 
             maps.append(choices)
         if len(maps) == chains:
             break
-    return [maps[c % len(maps)] for c in range(chains)], result.evaluations
+    return [maps[c % len(maps)] for c in range(chains)], result.evaluations, cut
 
 
 def _mcmc_on_workers(model, target, chains: int, workers: int, seed, budget: Budget, settings: dict,
