@@ -740,15 +740,16 @@ def main(argv=None) -> int:
         except (OSError, ValueError):
             pass
         return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
-    except Exception as exc:
+    except BaseException as exc:  # (a model's rule may raise sys.exit() or its own BaseException: its error too)
         stop = _stopped_by(exc)
         if stop is not None:  # a library's clean-up failed on the way out of a stop (torch's zip writer)
             print("procmod: terminated" if isinstance(stop, Terminated) else "procmod: interrupted", file=sys.stderr)
             return 143 if isinstance(stop, Terminated) else 130
         # an error in a model file of the user's own (FILE.py:NAME): their code, one line
-        # naming where; a name too long for the file system, the user's too (every check of
+        # naming where (sys.exit() in a rule included: it had ended every engine with status
+        # 0 and no word); a name too long for the file system, the user's too (every check of
         # a path given on the command line would otherwise have to expect it); anything else
-        # is procmod's bug and keeps its traceback
+        # is procmod's bug, or argparse's own exit, and goes on as it is
         from .models.from_file import user_code_error
         line = user_code_error(exc)
         if line is None and isinstance(exc, OSError) and exc.errno == errno.ENAMETOOLONG:
@@ -768,16 +769,6 @@ def main(argv=None) -> int:
             named = f" {cut_text(str(exc.filename), 80)}" if exc.filename else ""
             line = (f"cannot write{named}: {exc.strerror or 'file too large'} (a file-size limit, ulimit -f, or the "
                     "file system's largest file); raise the limit, or give --out on another file system")
-        if line is None:
-            raise
-        print(f"procmod: error: {one_line(line)}", file=sys.stderr)
-        return 2
-    except BaseException as exc:
-        # sys.exit() (or GeneratorExit, or an exception class of its own on BaseException)
-        # raised in a model file's rule: the user's code, one line; argparse's own exits and
-        # anything else go on as they are
-        from .models.from_file import user_code_error
-        line = user_code_error(exc)
         if line is None:
             raise
         print(f"procmod: error: {one_line(line)}", file=sys.stderr)
