@@ -569,10 +569,10 @@ class _SlowBar(Target):
 def test_a_time_budget_holds_on_a_target_slow_to_score(engine, kwargs):
     """A forward batch of 1,000 slow evaluations had run to its end past a 0.2 s budget
     (3.6 s of a 0.3 s one, h149), and MCMC's SMC start past the whole budget (24 s of
-    0.5 s). Without the fix each run takes several seconds; the bound leaves room for a
-    loaded machine."""
+    0.5 s). Without the fix each run takes 3 s or more (the sleeps alone); the bound
+    leaves room for a loaded machine (a budget overshoots by a generation at most)."""
     result = ENGINES[engine](get_model("vines"), _SlowBar(), seed=0, budget=Budget(seconds=0.2), **kwargs)
-    assert result.seconds < 1.5, result.seconds
+    assert result.seconds < 2.5, result.seconds
     if engine == "mcmc":  # and says that its start was cut
         from procmod.infer.mcmc import START_CUT_NOTE
         assert any(note.startswith(START_CUT_NOTE) for note in result.notes), result.notes
