@@ -75,6 +75,7 @@ import itertools
 import math
 import os
 import re
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -1008,6 +1009,26 @@ def _bake(raw: _Raw, geometries: dict, local: np.ndarray, turn: np.ndarray, resi
 
 # ---- URDF -------------------------------------------------------------------------------------
 
+# a package:// URI's package not among the URDF's ancestors is looked for as rospack finds
+# one, by the package.xml files of a workspace's folders: below the URDF's folder and its
+# nearest ancestors (the home folder the highest, the file system's root never), to a depth,
+# within a budget of folder entries read in one read_assets run
+PACKAGE_CRAWL_ANCESTORS = 5  # the URDF's folder and 4 above it: ws/src/REPO/PKG/urdf/robot.urdf reaches src
+PACKAGE_CRAWL_DEPTH = 3  # ws/src/PKG, src/REPO/PKG, src/ORG/REPO/PKG
+PACKAGE_CRAWL_ENTRIES = 20000
+_CRAWL_IGNORE = ("CATKIN_IGNORE", "COLCON_IGNORE", "AMENT_IGNORE")  # catkin, colcon and ament pass over these
+_crawl_runs = threading.local()  # each thread's read_assets run its own: a dask worker runs tasks in threads
+
+
+def _crawled() -> dict:
+    """This thread's read_assets run's folders read and packages found (see
+    :func:`_ros_package_folders`)."""
+    state = getattr(_crawl_runs, "state", None)
+    if state is None:
+        state = _crawl_runs.state = {}
+    return state
+
+
 def _ros_package_name(folder: Path) -> str | None:
     """The package a ROS package folder's ``package.xml`` names, or None (no such file,
     or none readable)."""
@@ -1024,19 +1045,125 @@ def _ros_package_name(folder: Path) -> str | None:
     return found.group(1) if found else None
 
 
+def _crawl_name(folder: Path) -> str | None:
+    """:func:`_ros_package_name` of a folder met in a crawl (None where it holds an ignore
+    marker), read once a run."""
+    names = _crawled().setdefault("names", {})
+    if folder not in names:
+        name = _ros_package_name(folder)
+        if name is not None and any(os.path.lexists(folder / marker) for marker in _CRAWL_IGNORE):
+            name = None
+        names[folder] = name
+    return names[folder]
+
+
+def _crawl_subfolders(folder: Path) -> list:
+    """The subfolders of ``folder`` as ``((device, inode), path)`` by name, hidden ones left
+    out (none where it holds an ignore marker); linked folders are followed (workspaces link
+    packages into ``src``). Listed once a run, its entries counted against the run's
+    :data:`PACKAGE_CRAWL_ENTRIES`: past them, nothing more is listed."""
+    state = _crawled()
+    listed = state.setdefault("listed", {})
+    if folder not in listed:
+        found = []
+        try:
+            with os.scandir(folder) as entries:
+                for entry in entries:
+                    state["entries"] = state.get("entries", 0) + 1
+                    if entry.name in _CRAWL_IGNORE:
+                        found = []
+                        break
+                    if state["entries"] > PACKAGE_CRAWL_ENTRIES:
+                        break
+                    if entry.name.startswith("."):
+                        continue
+                    try:
+                        if entry.is_dir():
+                            st = entry.stat()
+                            found.append((entry.name, (st.st_dev, st.st_ino), Path(entry.path)))
+                    except OSError:  # a dangling link, a folder we may not enter
+                        continue
+        except OSError:
+            pass
+        listed[folder] = [(key, path) for _, key, path in sorted(found)]
+    return listed[folder]
+
+
+def _crawl_packages(root: Path) -> list:
+    """The ROS packages below ``root`` as ``(name, folder)``, breadth first to
+    :data:`PACKAGE_CRAWL_DEPTH` folders down; as rospack, no package is looked for inside
+    another, and each folder is entered once (a link to a folder above it loops no more)."""
+    roots = _crawled().setdefault("roots", {})
+    if root not in roots:
+        found = []
+        try:
+            st = os.stat(root)
+            seen = {(st.st_dev, st.st_ino)}
+        except OSError:
+            seen = set()
+        level = [root]
+        for depth in range(1, PACKAGE_CRAWL_DEPTH + 1):
+            below = []
+            for folder in level:
+                for key, sub in _crawl_subfolders(folder):
+                    if key in seen:
+                        continue
+                    seen.add(key)
+                    name = _crawl_name(sub)
+                    if name is not None:
+                        found.append((name, sub))
+                    elif depth < PACKAGE_CRAWL_DEPTH:
+                        below.append(sub)
+            level = below
+        roots[root] = found
+    return roots[root]
+
+
+def _ros_package_folders(pkg: str, urdf_folder: Path) -> list:
+    """The folders of the ROS packages whose ``package.xml`` names ``pkg``, nearest first,
+    as rospack and ament find a package not among the URDF's ancestors (a sibling in a
+    workspace's ``src``, its folder named as a download names it: ``ur_description-main``):
+    below the URDF's folder and its :data:`PACKAGE_CRAWL_ANCESTORS` - 1 nearest ancestors (not
+    above the home folder; never the file system's root), then below the folders of
+    ``ROS_PACKAGE_PATH`` and in ``share/pkg`` of those of ``AMENT_PREFIX_PATH``. The folders
+    read are kept for the rest of the read_assets run (a URDF names many meshes)."""
+    here = urdf_folder.resolve()
+    try:
+        home = Path.home().resolve()
+    except (RuntimeError, OSError):  # no home folder known
+        home = None
+    roots = []
+    for folder in [here, *here.parents][:PACKAGE_CRAWL_ANCESTORS]:
+        if folder.parent == folder:  # the file system's root: the whole disk
+            break
+        roots.append(folder)
+        if folder == home:
+            break
+    env = [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p.strip()]
+    out = [root for root in env if _crawl_name(root) == pkg]  # a ROS_PACKAGE_PATH folder that is the package
+    for root in roots + env:
+        out += [sub for name, sub in _crawl_packages(root) if name == pkg]
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix.strip() and _crawl_name(Path(prefix) / "share" / pkg) == pkg:
+            out.append(Path(prefix) / "share" / pkg)
+    return list(dict.fromkeys(out))
+
+
 def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
     """A URDF mesh file name resolved against the URDF's folder: plain relative paths,
     ``file://`` (relative, or an absolute ``file:///...`` URI where it is) and
     ``package://PKG/rest``: ``rest`` in the package's folder, looked for as a ROS
     workspace lays packages out (the URDF's folder or an ancestor that is the package, by
-    its name or its ``package.xml``, or holds a ``PKG`` folder), and failing that a bare
-    ``rest`` under the URDF's folder or an ancestor (a robot's meshes copied beside it,
-    into a package of the user's own too). Package folders come first: many packages hold
-    a ``meshes/base_link.stl``, and the first ancestor holding one had been taken for any
-    package's (h144)."""
+    its name or its ``package.xml``, or holds a ``PKG`` folder; then a folder nearby whose
+    ``package.xml`` names PKG, found as rospack crawls a workspace: :func:`_ros_package_folders`),
+    and failing that a bare ``rest`` under the URDF's folder or an ancestor (a robot's meshes
+    copied beside it, into a package of the user's own too). Package folders come first: many
+    packages hold a ``meshes/base_link.stl``, and the first ancestor holding one had been taken
+    for any package's (h144), the URDF's own package's for a sibling package's whose folder
+    has another name (``ur_description-main``, h156)."""
     base = urdf.parent
     name = filename
-    candidates = []
+    candidates, later = [], None
     if name.startswith("file://"):
         name = name[len("file://"):]
         if name.startswith("localhost/"):
@@ -1067,19 +1194,25 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
             is_package = pkg in (names[folder], folder.resolve().name)
             for spelt in spellings:
                 candidates += ([(folder, spelt)] if is_package else []) + [(folder, f"{pkg}/{spelt}")]
-        for folder in folders:  # then meshes copied beside the URDF
-            candidates += [(folder, spelt) for spelt in spellings]
+
+        def nearby():  # then a package nearby, by its package.xml; then meshes copied beside the URDF
+            yield from ((folder, spelt) for folder in _ros_package_folders(pkg, base) for spelt in spellings)
+            yield from ((folder, spelt) for folder in folders for spelt in spellings)
+
+        later = nearby()
     elif not candidates:
         candidates.append((base, name))
-    for folder, rel in candidates:
+    # the crawl only where the package's own folder holds no such file: it lists folders
+    for folder, rel in itertools.chain(candidates, later or ()):
         try:
             return named_file(folder, rel, where, suffixes=MESH_SUFFIXES, kind="mesh")
         except UnsafePathError as exc:
             last = exc
-    if len(candidates) > 1 and "does not exist" in str(last):
+    if later is not None and "does not exist" in str(last):
         # the last folder tried is the file system's root: name the URI and where it was sought
         raise AssetError(f"{where} {filename!r} is neither {rest!r} nor {pkg + '/' + rest!r} under the URDF's "
-                         f"folder {base} or a folder above it; copy the package's meshes there") from None
+                         f"folder {base} or a folder above it, nor in a package folder nearby whose package.xml "
+                         f"names {pkg!r}; copy the package's meshes there") from None
     raise AssetError(str(last)) from None
 
 
@@ -1817,12 +1950,16 @@ def read_assets(paths, tolerance: float = GEOMETRY_TOLERANCE, mirror: bool = Tru
     """
     files = asset_files(paths)
     geometries, forests = {}, []
-    for path in files:
-        reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
-        # a transform of 1e999 is refused by its reader, in one line: without numpy's own
-        # warnings of it (trimesh's matrix products had printed four lines first)
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            forests.append(reader(path, geometries))
+    _crawled().clear()  # the folders a URDF's packages were looked for in: read once a run, afresh the next
+    try:
+        for path in files:
+            reader = _read_urdf if path.suffix.lower() == ".urdf" else _read_gltf
+            # a transform of 1e999 is refused by its reader, in one line: without numpy's own
+            # warnings of it (trimesh's matrix products had printed four lines first)
+            with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+                forests.append(reader(path, geometries))
+    finally:
+        _crawled().clear()
     _unbake_turns(forests, geometries)
     _bake_scales(forests, geometries)
     worlds = {}
