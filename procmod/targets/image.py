@@ -573,12 +573,18 @@ def _white_level(image: Image.Image) -> int | None:
     """The value of white in a 32-bit integer ("I") picture, from what its file declares:
     Pillow decodes 16-bit PGM/PPM (any maxval above 255, rescaled to 65535) and, in some
     versions, 16-bit PNG to "I"; an unsigned TIFF of up to 16 bits states its bits per
-    sample (a 32-bit one's range is guessed from its values, as where nothing is declared).
-    Without it a dark 16-bit picture (every value under 256) would pass for an 8-bit one
-    and read bright."""
+    sample (a 32-bit one's range is guessed from its values, as where nothing is declared);
+    a 16-bit PNG's white is that of the 10, 12 or 14 bits its values use, where they use
+    no more (a scanner's 12 bits stored in 16). Without it a dark 16-bit picture (every value
+    under 256) would pass for an 8-bit one and read bright."""
+    if image.format == "PNG" and (image.mode == "I" or image.mode.startswith("I;16")):
+        # a 16-bit PNG holding a 10-, 12- or 14-bit scan (every value under 1024, 4096 or
+        # 16384, some above 255): white is that depth's, or the drawing read as near black was refused
+        top = int(np.asarray(image).max()) if image.width and image.height else 0
+        return next((2 ** bits - 1 for bits in (10, 12, 14) if 255 < top < 2 ** bits), 65535)
     if image.mode != "I":
         return None
-    if image.format in ("PPM", "PNG"):
+    if image.format == "PPM":
         return 65535
     if image.format == "TIFF":  # unsigned integers of up to 16 bits only: Pillow writes its
         # own "I" pictures as signed 32-bit TIFF, whatever range their values use
@@ -604,10 +610,10 @@ def grey_levels(image: Image.Image) -> np.ndarray:
     finite = values[np.isfinite(values)]
     top = float(finite.max()) if finite.size else 0.0
     declared = image.info.get(WHITE_LEVEL)
-    if image.mode.startswith("I;16"):
-        scale = 255.0 / 65535.0
-    elif isinstance(declared, int) and declared > 0:
+    if isinstance(declared, int) and declared > 0:
         scale = 255.0 / declared
+    elif image.mode.startswith("I;16"):
+        scale = 255.0 / 65535.0
     elif image.mode == "F" and top <= 1.0:
         scale = 255.0
     elif top <= 255.0:
@@ -649,6 +655,7 @@ def opaque_part(image: Image.Image) -> np.ndarray | None:
 
 
 TRANSLUCENT_NOTE = 0.1  # translucent strokes left out, as a share of the shape, that get a note
+FAINT_LAYER = 0.9  # faint pixels over this share of what is not opaque are a faint layer over the canvas
 FRINGE = 0.05  # how far (of the picture's larger side, at least 8 px) a soft edge, shadow or glow reaches
 
 
@@ -664,8 +671,8 @@ def translucent_left_out(image: Image.Image) -> float:
         return 0.0
     alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
     faint = (alpha > 0.05 * alpha.max()) & ~opaque
-    if not faint.any():
-        return 0.0
+    if not faint.any() or faint.sum() >= FAINT_LAYER * (~opaque).sum():
+        return 0.0  # (faint nearly everywhere off the drawing: a faint background layer, no strokes)
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.13 s of start-up
 
     reach = max(8.0, FRINGE * max(opaque.shape))
@@ -784,6 +791,64 @@ def _lighting(luma: np.ndarray) -> np.ndarray | None:
     return down[:, None] + across[None, :]
 
 
+VIGNETTE_DEGREE = 4  # the degree of the smooth surface :func:`_vignette` fits to the paper (r^2 and r^4 terms)
+_VIGNETTE_CELLS = 64  # ... on the means of cells of a grid of at most this many a side
+
+
+def _vignette(luma: np.ndarray) -> np.ndarray | None:
+    """The paper's brightness across a photo whose light falls off unevenly, towards its
+    corners (a phone's vignetting), where no plane explains it (:func:`_lighting`): a
+    polynomial surface of degree :data:`VIGNETTE_DEGREE` fitted to the picture's cells
+    (:data:`_VIGNETTE_CELLS` a side), outliers (the ink) dropped. Corners darkened to the
+    pencil's grey had been read as shape, or, darker, as the only shape (the drawing lost).
+    None -- the paper is one brightness -- unless the surface fits the cells it kept
+    closely (within a few grey levels), kept half the cells and three quarters of each
+    side of the border, and changes by more than :data:`MIN_CONTRAST` over the picture and
+    by half the ink's difference from it (less did not mislead the read): a clean scan, a
+    page on a desk (the desk's edge is no smooth surface), a shape filling a side, dark ink
+    on a page a little darker at its corners, all give None."""
+    h, w = luma.shape
+    step = max(1, math.ceil(max(h, w) / _VIGNETTE_CELLS))
+    down, across = h // step, w // step
+    if down < 8 or across < 8:
+        return None
+    cells = luma[:down * step, :across * step].reshape(down, step, across, step).mean(axis=(1, 3), dtype=np.float64)
+    ys = ((np.arange(down) + 0.5) * step / h) * 2 - 1  # cell centres, -1..1 from the picture's middle
+    xs = ((np.arange(across) + 0.5) * step / w) * 2 - 1
+    powers = [(i, j) for i in range(VIGNETTE_DEGREE + 1) for j in range(VIGNETTE_DEGREE + 1 - i)]
+    design = np.stack([np.outer(ys ** i, xs ** j).ravel() for i, j in powers], axis=1)
+    values = cells.ravel()
+    keep = np.ones(len(values), dtype=bool)
+    for _ in range(6):  # (the normal equations: lstsq's threaded SVD of 4096 x 15 took ~30 ms a pass)
+        if keep.sum() < 2 * len(powers):
+            return None
+        used = design[keep]
+        coef = np.linalg.solve(used.T @ used, used.T @ values[keep])
+        residual = values - design @ coef
+        spread = 1.4826 * float(np.median(np.abs(residual[keep])))
+        keep = np.abs(residual) <= max(3 * spread, 4.0)
+    kept = keep.reshape(down, across)
+    sides = (kept[0], kept[-1], kept[:, 0], kept[:, -1])
+    surface = (design @ coef).reshape(down, across)
+    if (spread > 4.0 or kept.mean() < 0.5 or min(side.mean() for side in sides) < 0.75
+            or float(surface.max() - surface.min()) < MIN_CONTRAST):
+        return None
+    # at every pixel: the surface's rows times its columns' powers (no picture-sized design matrix)
+    table = np.zeros((VIGNETTE_DEGREE + 1, VIGNETTE_DEGREE + 1))
+    for (i, j), c in zip(powers, coef):
+        table[i, j] = c
+    y = (np.arange(h) + 0.5) / h * 2 - 1
+    x = (np.arange(w) + 0.5) / w * 2 - 1
+    exponents = np.arange(VIGNETTE_DEGREE + 1)
+    paper = ((y[:, None] ** exponents) @ table @ (x[:, None] ** exponents).T).astype(np.float32)
+    # only where the fall of light reaches half way to the ink, as the read would have been
+    # misled by it: bold ink on a scan lit a little unevenly reads as before, bit for bit
+    off = luma - paper
+    if float(surface.max() - surface.min()) < 0.5 * max(-_far(off, INK_PERCENTILE), _far(off, 100 - INK_PERCENTILE)):
+        return None
+    return paper
+
+
 def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None,
          lighting: bool = False, paper_at: np.ndarray | None = None) -> np.ndarray:
     """Pixels that differ from the ``paper`` colour as the picture's ink does.
@@ -805,6 +870,8 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     luma, paper_luma = _luma(colours), float(_luma(paper))
     light_paper = paper_luma >= 128
     plane = _lighting(luma) if lighting else None
+    if lighting and plane is None:
+        plane = _vignette(luma)
     if plane is not None:
         luma, paper_luma = luma - plane, 0.0
     noise = _noise(luma, paper_at)
@@ -1302,10 +1369,13 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     colours = _colours(image)
     if opaque is not None:
         mask = opaque
-        if opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
+        if opaque.mean() > PAGE_SHARE and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
             rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
             page = np.median(rgb[opaque], axis=0)
-            drawn = _ink(rgb, page, where=opaque)
+            # under half the canvas, a light one only (a white card placed on it, 36%, had read as a
+            # filled square): a coloured rectangle with its dark outline is a shape
+            paper_like = opaque.mean() > 0.5 or float(page @ _LUMA) >= 128
+            drawn = _ink(rgb, page, where=opaque) if paper_like else np.zeros_like(opaque)
             # ink darker than its page is a drawing on it; a light detail on a dark badge
             # (an icon's white dot) is part of the shape
             if drawn.any() and float(np.mean(rgb[drawn] @ _LUMA)) < float(page @ _LUMA):

@@ -1,0 +1,105 @@
+"""Pictures an adversarial sweep found read wrong: a phone photo's dark corners, a card on
+a transparent canvas, a faint layer under the whole drawing, a 12-bit scan in a 16-bit PNG."""
+
+import numpy as np
+import pytest
+from PIL import Image, ImageDraw
+
+from procmod.targets.image import load_target_image
+
+
+def _drawing(width, height, pen=5):
+    """A stem, a loop and a branch: thin strokes covering about 1% of the picture."""
+    picture = Image.new("L", (width, height), 0)
+    draw = ImageDraw.Draw(picture)
+    draw.line([(width * 0.5, height * 0.85), (width * 0.5, height * 0.3)], fill=255, width=pen)
+    draw.arc([width * 0.3, height * 0.15, width * 0.7, height * 0.45], 0, 300, fill=255, width=pen)
+    draw.line([(width * 0.5, height * 0.6), (width * 0.35, height * 0.45)], fill=255, width=pen)
+    return np.asarray(picture) > 127
+
+
+def _unpadded(target, height, width):
+    top, left, _, _ = target.picture
+    return target.mask[top:top + height, left:left + width]
+
+
+@pytest.mark.parametrize("corner", [150, 110, 70])
+@pytest.mark.parametrize("suffix", [".png", ".jpg"])
+def test_a_phone_photos_dark_corners_are_no_shape(tmp_path, corner, suffix):
+    """Pencil (grey 150) on paper (235) whose corners darken to the pencil's grey or
+    darker (a phone's vignetting): the corners were read as shape, or, darker, as the
+    only shape, the drawing lost."""
+    rng = np.random.default_rng(1)
+    h, w = 400, 300
+    ink = _drawing(w, h, 4)
+    yy, xx = np.mgrid[:h, :w]
+    falloff = ((((xx - w / 2) / (w / 2)) ** 2 + ((yy - h / 2) / (h / 2)) ** 2) / 2) ** 1.5
+    grey = np.where(ink, 150.0, 235 - (235 - corner) * falloff) + rng.normal(0, 2, (h, w))
+    Image.fromarray(np.clip(grey, 0, 255).astype(np.uint8)).save(tmp_path / f"photo{suffix}", quality=90)
+    read = _unpadded(load_target_image(tmp_path / f"photo{suffix}"), h, w)
+    assert (read & ink).sum() >= 0.9 * ink.sum()
+    assert (read & ~ink).sum() <= 0.1 * ink.sum()
+
+
+@pytest.mark.parametrize("share", [0.25, 0.36, 0.64])
+def test_a_white_card_on_a_transparent_canvas_gives_its_drawing(tmp_path, share):
+    """A card covering 36% of the canvas read as a filled square (at 64% as its drawing)."""
+    side = 200
+    card = int(side * share ** 0.5)
+    top = (side - card) // 2
+    ink = _drawing(card, card, 4)
+    rgba = np.zeros((side, side, 4), dtype=np.uint8)
+    rgba[top:top + card, top:top + card, :3] = np.where(ink[..., None], 0, 255)
+    rgba[top:top + card, top:top + card, 3] = 255
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "card.png")
+    read = load_target_image(tmp_path / "card.png").mask
+    assert np.array_equal(read[top:top + card, top:top + card], ink) and read.sum() == ink.sum()
+
+
+def test_a_dark_rectangle_with_an_outline_under_half_the_canvas_stays_the_shape(tmp_path):
+    """Only a light card is a page: a coloured badge with a darker outline is the shape."""
+    rgba = np.zeros((200, 200, 4), dtype=np.uint8)
+    rgba[60:140, 60:140] = (40, 60, 160, 255)
+    rgba[60:63, 60:140] = rgba[137:140, 60:140] = (0, 0, 0, 255)
+    read = load_target_image(_save(rgba, tmp_path / "badge.png")).mask
+    assert read[60:140, 60:140].all() and read.sum() == 80 * 80
+
+
+def _save(rgba, path):
+    Image.fromarray(rgba, "RGBA").save(path)
+    return path
+
+
+@pytest.mark.parametrize("colour", [0, 255])
+def test_a_faint_layer_over_the_whole_canvas_is_not_called_translucent_strokes(tmp_path, colour):
+    """Every pixel at alpha 40, the strokes opaque: the mask was right, but the note said
+    the faint layer was translucent strokes left out (34 times the shape)."""
+    ink = _drawing(200, 200, 5)
+    rgba = np.zeros((200, 200, 4), dtype=np.uint8)
+    rgba[..., :3] = colour
+    rgba[ink, :3] = 0
+    rgba[..., 3] = np.where(ink, 255, 40)
+    target = load_target_image(_save(rgba, tmp_path / "layer.png"))
+    assert np.array_equal(target.mask, ink)
+    assert not any("translucent" in note for note in target.notes)
+
+
+def test_a_faint_stroke_is_still_named(tmp_path):
+    """A pressure brush's faint stroke, off the opaque drawing, keeps its note."""
+    rgba = np.zeros((200, 200, 4), dtype=np.uint8)
+    rgba[20:180, 40:46] = (0, 0, 0, 255)
+    rgba[20:180, 140:146] = (0, 0, 0, 60)
+    notes = load_target_image(_save(rgba, tmp_path / "brush.png")).notes
+    assert any("translucent strokes" in note for note in notes)
+
+
+@pytest.mark.parametrize("bits", [10, 12, 14])
+def test_a_scan_of_fewer_bits_in_a_16_bit_png_is_read(tmp_path, bits):
+    """A 12-bit scan stored in a 16-bit PNG (values 0..4095) read as near black and was
+    refused with "draw the shape darker"."""
+    rng = np.random.default_rng(2)
+    ink = _drawing(160, 160, 5)
+    white = 2 ** bits - 1
+    values = np.where(ink, 0.08 * white, 0.95 * white) + rng.uniform(0, 0.01 * white, ink.shape)
+    Image.fromarray(values.astype(np.uint16)).save(tmp_path / "scan.png")
+    assert np.array_equal(load_target_image(tmp_path / "scan.png").mask, ink)
