@@ -153,6 +153,29 @@ def portable_error(exc: BaseException, where: str) -> BaseException:
         return stand_in
 
 
+def portable_model_error(exc: BaseException, where: str) -> BaseException:
+    """``exc``, raised in worker process ``where`` by a task that runs a model of the user's
+    own file (a traces job's), made ready to send back: as :func:`portable_error` makes it,
+    except that one pickle would not bring back, raised by the model file's own code, becomes
+    a :class:`~procmod.core.errors.ModelCodeError` holding the one line a run in one process
+    gives (``FILE.py, line N, in RULE: Type: message``). A process pool's coordinator that
+    could not rebuild it had ended in a BrokenProcessPool traceback, and a worker that could
+    not pickle it (an exception holding a lambda) in a PicklingError's."""
+    from .core.errors import ModelCodeError
+    from .models.from_file import user_code_error
+
+    portable = portable_error(exc, where)
+    if portable is exc:
+        return exc
+    line = user_code_error(exc)  # (this worker ran the model file: its frames are known as the user's)
+    if line is None:  # procmod's own code raised it: the stand-in, with the worker's traceback
+        return portable
+    error = ModelCodeError(line)
+    for note in getattr(exc, "__notes__", ()):
+        error.add_note(note)
+    return error
+
+
 def _exit_with_parent(parent: int, use_prctl: bool = True) -> None:
     """Pool worker initializer: end this worker as soon as process ``parent`` (the one
     that opened the pool) is gone.

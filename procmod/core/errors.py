@@ -148,6 +148,13 @@ class DistributionError(ModelError):
     Bernoulli's p > 1); raised out of a rule, it names the rule, its address and the line."""
 
 
+class ModelCodeError(ProcmodError):
+    """An exception a model file's own code raised on a worker process that pickle could
+    not send back as it was (a class whose ``__init__`` takes other arguments than its
+    ``args``, one holding a lambda): the one line a run in one process gives for it
+    (``FILE.py, line N, in RULE: Type: message``; :func:`procmod.parallel.portable_model_error`)."""
+
+
 class UnknownModelError(ProcmodError):
     """A model name that no registry knows."""
 

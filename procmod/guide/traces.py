@@ -70,8 +70,31 @@ def generate_trace(model_spec: str, target_spec: str, particles: int, seed: int,
     parameters, defaults where absent). ``code``: the job's
     :func:`job_code`; a worker that runs other code (another procmod, an edited model file)
     refuses to make the trace: a dask worker of an older checkout had made traces unlike
-    the job's, recorded under the job's digest without a word.
+    the job's, recorded under the job's digest without a word. ``code`` is given only where
+    the trace is made in another process than the job's: there an exception the model's own
+    code raised that pickle cannot send back (its class's ``__init__`` takes other arguments,
+    it holds a lambda) comes back as the one line a run in one process gives for it
+    (:func:`procmod.parallel.portable_model_error`); it had ended the job in a
+    BrokenProcessPool or PicklingError traceback.
     """
+    try:
+        return _generate_trace(model_spec, target_spec, particles, seed, index, code, params)
+    except BaseException as exc:
+        if code is None:  # made in the job's own process: its error as it is
+            raise
+        from ..parallel import portable_model_error
+
+        portable = portable_model_error(exc, f"the worker making trace {index}")
+        if portable is exc:
+            raise
+    # raised here, not in the except block: with no context, which a pickler of exceptions'
+    # contexts (tblib's, as dask installs it for the classes defined then) would send along
+    raise portable
+
+
+def _generate_trace(model_spec: str, target_spec: str, particles: int, seed: int, index: int,
+                    code: tuple | None, params: dict | None) -> dict:
+    """:func:`generate_trace`'s work."""
     from ..data import target_from_spec
     from ..infer import smc
     from ..models import MODELS, model_from_spec

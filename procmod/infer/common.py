@@ -232,6 +232,8 @@ class Tracker:
         """What a result should say of its best (:data:`RULED_OUT_NOTE`), and of draws from
         the global generators since the tracker was made (:func:`global_draws_note`)."""
         notes = [RULED_OUT_NOTE] if self.best is not None and self.best_ruled_out else []
+        if notes and far_outside(getattr(self.best, "output", None)):
+            notes.append(FAR_OUTSIDE_NOTE)
         if self.best is None and self.offered:
             notes.append(NO_FINITE_SCORE_NOTE)
         drew = global_draws_note(self._global_states)
@@ -536,8 +538,16 @@ def check_positive(name: str, value) -> int:
 
 # The note of a run whose best derivation the target rules out (no other was found)
 RULED_OUT_NOTE = ("the best derivation found is one the target rules out (zero likelihood: e.g. parts that "
-                  "intersect, which a proxy target forbids, though its score does not count them); no derivation it "
-                  "allows was found: give the engine more budget, or check the target")
+                  "intersect, which a proxy target forbids, though its score does not count them, or parts so far "
+                  "outside an image target's canvas that its out-of-bounds penalty is infinite); no derivation it "
+                  "allows was found: give the engine more budget, or check the target and the model")
+
+# Said with RULED_OUT_NOTE when the best's parts lie so far outside its canvas that the
+# out-of-bounds penalty is infinite (:func:`far_outside`): which of its causes it is (a
+# model drawing at 1e300 was told of intersecting parts and a proxy target)
+FAR_OUTSIDE_NOTE = ("the best derivation draws parts so far outside the canvas (beyond about 1e150 times its size, "
+                    "e.g. a coordinate of 1e300) that the target's out-of-bounds penalty is infinite: its likelihood "
+                    "is zero; find the rule's arithmetic that places them there")
 
 # SMC's note when every particle's likelihood went to zero (its log Z is -inf)
 ZERO_LIKELIHOOD_NOTE = "every particle reached zero likelihood; the log marginal-likelihood is -inf"
@@ -548,6 +558,20 @@ NO_FINITE_SCORE_NOTE = ("every complete derivation the engine made scored -inf, 
                         "asks for")
 
 
+def far_outside(output) -> bool:
+    """Whether ``output`` (a canvas: its ``out_of_bounds()``) draws so far beyond its
+    viewport that the square of that distance, and so any out-of-bounds penalty of it,
+    is infinite (a part at 1e300): a likelihood of zero the geometry alone causes."""
+    out_of_bounds = getattr(output, "out_of_bounds", None)
+    if not callable(out_of_bounds):  # (a volume's scene: no viewport)
+        return False
+    try:
+        ex, ey = (float(e) for e in out_of_bounds())
+    except Exception:  # noqa: BLE001 - a note's check must never fail the run
+        return False
+    return not math.isfinite(ex * ex + ey * ey)
+
+
 def no_result_error(result: Result) -> InvalidArgumentError:
     """The error for a run that returned no complete derivation: too small a budget, or
     (SMC) every particle ruled out by the target before one was complete, which more of
@@ -555,8 +579,10 @@ def no_result_error(result: Result) -> InvalidArgumentError:
     if ZERO_LIKELIHOOD_NOTE in result.notes:
         return InvalidArgumentError(
             "every particle reached zero likelihood before a derivation was complete: the target rules out what the "
-            "model makes at some step (e.g. parts that intersect, which a proxy target forbids), so more particles or "
-            "budget rarely help; check the target, or use an engine that searches on from such states (mcmc, ga)")
+            "model makes at some step (e.g. parts that intersect, which a proxy target forbids, or parts so far "
+            "outside an image target's canvas that its out-of-bounds penalty is infinite, as coordinates like 1e300 "
+            "are), so more particles or budget rarely help; check the target and the model's arithmetic, or use an "
+            "engine that searches on from such states (mcmc, ga)")
     if NO_FINITE_SCORE_NOTE in result.notes:
         return InvalidArgumentError(NO_FINITE_SCORE_NOTE)
     return InvalidArgumentError("the engine found no complete derivation within the budget; give it more")

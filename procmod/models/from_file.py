@@ -19,6 +19,7 @@ import importlib.util
 import os
 import re
 import sys
+import threading
 import traceback
 from pathlib import Path
 
@@ -132,8 +133,21 @@ def _shown(value) -> str:
 _FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE)
 
 
+# Held while a model file is looked up and run: a dask worker runs tasks in threads, and
+# two tasks of one job loading one file at once had the second take the module the first
+# had registered but not yet run (no Model in it: "defines no Model at its top level"), or
+# lose it when the first's run failed. Reentrant: a model file may load another.
+_LOADING = threading.RLock()
+
+
 def _run_module(path: Path):
-    """``path`` run as a module of its own (once per process and file)."""
+    """``path`` run as a module of its own (once per process and file; one thread at a
+    time, :data:`_LOADING`)."""
+    with _LOADING:
+        return _run_module_locked(path)
+
+
+def _run_module_locked(path: Path):
     resolved = path.resolve()
     digest = hashlib.sha256(os.fsencode(resolved)).hexdigest()[:12]  # (a name's non-UTF-8 bytes too)
     module_name = f"procmod_user_{re.sub(r'[^0-9A-Za-z_]', '_', path.stem)}_{digest}"
