@@ -183,8 +183,8 @@ def _take_tolerance(shape_set, tolerance) -> None:
 
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .contacts import (contact_kinds, contact_tolerance, gaps_to_close, joining_text, loose_parts, near_miss_note,
-                           shape_graph)
+    from .contacts import (ENCLOSED_ADVICE, contact_kinds, contact_tolerance, enclosing_parts, gaps_to_close,
+                           joining_text, loose_parts, near_miss_note, only_enclosed, shape_graph)
     from .assets import read_shape_inputs, resized_note, size_note
     from .grammar import Grammar, ring_rule_note
     from ..core.paths import output_path
@@ -213,10 +213,12 @@ def _graph(args) -> None:
         print(f"shape {i}: {g.number_of_nodes()} parts, {g.number_of_edges()} contacts, {cycles} independent cycles")
         join, misses = gaps_to_close(shape_set, shape_set.shapes[i], g, tolerance, kinds)
         if len(pieces) > 1:
-            print(printable(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance)}; a string "
-                            "encodes one connected shape, so 'strings augment' refuses it: move the parts to touch, "
-                            "or give --tolerance in world units to count gaps up to it as contacts ("
-                            f"{joining_text(join)}" + (", with near misses left at it" if misses else "") + ")"),
+            enclosed = enclosing_parts(shape_set, shape_set.shapes[i], pieces)
+            fix = (ENCLOSED_ADVICE if only_enclosed(pieces, enclosed) else
+                   "move the parts to touch, or give --tolerance in world units to count gaps up to it as contacts ("
+                   f"{joining_text(join)}" + (", with near misses left at it" if misses else "") + ")")
+            print(printable(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance, enclosed)}; a "
+                            f"string encodes one connected shape, so 'strings augment' refuses it: {fix}"),
                   file=sys.stderr)
         elif misses:
             print(printable(f"note: {near_miss_note(shape_set.shapes[i], misses, tolerance, i, named)}"),
@@ -340,8 +342,9 @@ def _augment(args) -> None:
     import networkx as nx
 
     from .codec import RingLimitError, encode
-    from .contacts import (DEFAULT_TOLERANCE, contact_kinds, contact_tolerance, gaps_to_close, joining_text,
-                           loose_parts, median_part_size, near_miss_note, shape_graph)
+    from .contacts import (DEFAULT_TOLERANCE, ENCLOSED_ADVICE, contact_kinds, contact_tolerance, enclosing_parts,
+                           gaps_to_close, joining_text, loose_parts, median_part_size, near_miss_note, only_enclosed,
+                           shape_graph)
     named = _shape_sources(args.shapes, len(shape_set.shapes))
     tolerance = contact_tolerance(shape_set)
     part_size = median_part_size(shape_set.library)
@@ -367,11 +370,13 @@ def _augment(args) -> None:
         if len(pieces) > 1:
             given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"
                      if shape_set.tolerance is not None else f"{DEFAULT_TOLERANCE:g} x the median part's size")
+            enclosed = enclosing_parts(shape_set, shape, pieces)
+            fix = (ENCLOSED_ADVICE if only_enclosed(pieces, enclosed) else
+                   "move the parts to touch, or give --tolerance in world units to count gaps up to it as contacts "
+                   f"({joining_text(join)}; 'strings graph --tolerance' shows what it joins)")
             raise InvalidArgumentError(
-                f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance)} (the contact tolerance: {given}); "
-                "a string encodes one connected shape: move the parts to touch, or give --tolerance in world units "
-                f"to count gaps up to it as contacts ({joining_text(join)}; 'strings graph --tolerance' shows what "
-                "it joins)")
+                f"{loose_parts(g, pieces, i, named, shape_set.letters, tolerance, enclosed)} (the contact tolerance: "
+                f"{given}); a string encodes one connected shape: {fix}")
         if misses:
             print(printable(f"note: {near_miss_note(shape, misses, tolerance, i, named)}"), file=sys.stderr)
         try:  # a shape no string can write: refused now (it ran for minutes, then failed writing the collection)

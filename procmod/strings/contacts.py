@@ -280,19 +280,88 @@ def near_miss_note(shape: Shape, misses: list, tol: float, index: int, inputs) -
             f"by eye to touch, give --tolerance {need:.2g} (new shapes otherwise take each such part as free there)")
 
 
-def loose_parts(g, pieces, index: int, inputs, letters: dict, tolerance: float | None = None) -> str:
+def _solid_holds(library: dict, name: str, transform: np.ndarray, points: np.ndarray) -> bool:
+    """Do all ``points`` lie inside the solid of part ``name`` placed by ``transform`` (a box's
+    parallelepiped; a mesh's inside by its generalised winding number, either winding)?"""
+    shape: PartShape = library[name]
+    t = np.asarray(transform, dtype=np.float64)
+    if shape.kind == "box":
+        local = np.linalg.solve(t[:3, :3], (points - t[:3, 3]).T).T
+        return bool(np.all(np.abs(local) <= 0.5 * np.asarray(shape.size) * (1 + 1e-9)))
+    from ..geometry.inside import winding_numbers
+    return bool(np.all(np.abs(winding_numbers(part_points(library, name, t), np.asarray(shape.faces), points)) >= 0.5))
+
+
+def enclosing_parts(shape_set: ShapeSet, shape: Shape, pieces) -> dict:
+    """``{part: (other part, True when it lies inside the other / False when it holds the
+    other inside it)}`` for the parts outside the largest of ``pieces`` (the connected
+    components of the shape's graph, largest first) that lie wholly inside a part of another
+    piece, or hold one wholly inside them. One of the two is a mesh part: a mesh part touches
+    another only where their surfaces meet (a box inside a box touches it), so such a part
+    touches nothing there however near (h154: a part inside another was called apart, with
+    advice about the contact tolerance, which bridges gaps between parts side by side)."""
+    library = shape_set.library
+    piece_of = {v: k for k, piece in enumerate(pieces) for v in piece}
+    points = [part_points(library, p, t) for p, t in zip(shape.parts, shape.transforms)]
+    lo, hi = [q.min(0) for q in points], [q.max(0) for q in points]
+
+    def inside(a: int, b: int) -> bool:  # part a wholly inside part b (a sample of a's vertices)
+        if not (np.all(lo[b] <= lo[a]) and np.all(hi[a] <= hi[b])):
+            return False
+        sample = points[a][::max(1, len(points[a]) // 64)]
+        return _solid_holds(library, shape.parts[b], shape.transforms[b], sample)
+
+    out = {}
+    for v in sorted(v for piece in pieces[1:] for v in piece):
+        for u in range(len(shape.parts)):
+            boxes = library[shape.parts[u]].kind == library[shape.parts[v]].kind == "box"
+            if piece_of.get(u) == piece_of[v] or boxes:
+                continue
+            if inside(v, u) or inside(u, v):
+                out[v] = (u, inside(v, u))
+                break
+    return out
+
+
+ENCLOSED_ADVICE = ("move a part that lies inside another out until their surfaces meet, or leave it out (a contact "
+                   "tolerance is no fix: it bridges gaps between parts placed side by side)")
+"""What to do about parts :func:`enclosing_parts` finds."""
+
+
+def only_enclosed(pieces, enclosed: dict) -> bool:
+    """Is every part outside the largest of ``pieces`` one that lies inside another part or
+    holds one (``enclosed``: :func:`enclosing_parts`)? Then no contact tolerance is the fix."""
+    return bool(enclosed) and all(v in enclosed for piece in pieces[1:] for v in piece)
+
+
+def loose_parts(g, pieces, index: int, inputs, letters: dict, tolerance: float | None = None,
+                enclosed: dict | None = None) -> str:
     """Which parts of shape ``index`` touch nothing of its largest piece (for messages;
     ``letters``: part name -> type letter), and within what ``tolerance`` (a gap a part
-    placed by eye leaves is found only within it)."""
+    placed by eye leaves is found only within it); ``enclosed`` (:func:`enclosing_parts`)
+    names those that lie inside another part or hold one, rather than apart from it."""
     name_of = {letter: name for name, letter in letters.items()}
-    loose = sorted(name_of.get(g.nodes[v]["type"], g.nodes[v]["type"]) for piece in pieces[1:] for v in piece)
+
+    def name(v):
+        return name_of.get(g.nodes[v]["type"], g.nodes[v]["type"])
+
+    loose = sorted(name(v) for piece in pieces[1:] for v in piece)
     shown = ", ".join(loose[:8]) + (f" and {len(loose) - 8} more" if len(loose) > 8 else "")
     source = f" ({inputs[index]})" if inputs else ""
     within = f" within {tolerance:.3g}" if tolerance is not None else ""
+    if enclosed:
+        said = [f"{name(v)} #{v} lies inside {name(u)} #{u}" if is_in else f"{name(v)} #{v} holds {name(u)} #{u} "
+                "inside it" for v, (u, is_in) in sorted(enclosed.items())]
+        held = ("; ".join(said[:3]) + (f" and {len(said) - 3} more" if len(said) > 3 else "")
+                + ", touching none of its surface (a mesh part touches another only where their surfaces meet, "
+                "not inside it)")
+        if only_enclosed(pieces, enclosed):
+            return f"shape {index}{source} is in {len(pieces)} pieces: {held}"
     if all(len(piece) == 1 for piece in pieces[1:]):
-        return (f"shape {index}{source} is in {len(pieces)} pieces: {shown} touch{'es' if len(loose) == 1 else ''} "
-                f"no other part{within}")
-    # pieces of several parts: those parts touch each other, only not the largest piece
-    sizes = ", ".join(str(len(piece)) for piece in pieces[:6]) + (", ..." if len(pieces) > 6 else "")
-    return (f"shape {index}{source} is in {len(pieces)} pieces of {sizes} parts: {shown} touch nothing of the "
-            f"largest piece{within}")
+        text = (f"shape {index}{source} is in {len(pieces)} pieces: {shown} "
+                f"touch{'es' if len(loose) == 1 else ''} no other part{within}")
+    else:  # pieces of several parts: those parts touch each other, only not the largest piece
+        sizes = ", ".join(str(len(piece)) for piece in pieces[:6]) + (", ..." if len(pieces) > 6 else "")
+        text = (f"shape {index}{source} is in {len(pieces)} pieces of {sizes} parts: {shown} touch nothing of the "
+                f"largest piece{within}")
+    return text + (f" ({held})" if enclosed else "")

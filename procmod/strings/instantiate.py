@@ -55,6 +55,49 @@ def _centre_reach(categories: EdgeCategories, shape_set: ShapeSet) -> dict:
     return reach
 
 
+def _first_pose(categories: EdgeCategories, shape_set: ShapeSet, voted, t: str, given: np.ndarray) -> np.ndarray:
+    """The pose of the first part placed, of type ``t``, whose start edge was voted ``voted``
+    (a category, a ranked list of them, or None): ``given`` (its type's start pose: its
+    first instance in the inputs), unless no example of the voted category shows the part
+    turned so, up to its own symmetry and the whole-shape turns. Then it is turned as an
+    example shows it (the turn closest to ``given``'s), its vertex mean over ``given``'s and
+    its lowest point at ``given``'s height. A part type seen both square to the axes and
+    turned 45 degrees about x had every shape started from that type's first instance's
+    turn, and a flat shape started from the turned one came out tilted by 45 degrees."""
+    k = voted if voted is None or isinstance(voted, (int, np.integer)) else next(iter(voted), None)
+    name = categories.names[k] if k is not None and 0 < k < len(categories.names) else None
+    if name is None or t not in name[:2]:
+        return given
+    lib, part_of = shape_set.library, shape_set.part_of_letter
+    turns = []
+    for rel in categories.examples.get(k, []):
+        if len(rel) < 3:  # categories saved before the A part's turn was kept
+            continue
+        if t == name[0]:
+            turns.append(rel[2][:3, :3])
+        if t == name[1]:  # B's turn: its pose in A's canonical frame, that frame at A's turn
+            turns.append((canonical_frame(lib, part_of[name[0]], rel[2], categories.groups) @ rel[0])[:3, :3])
+    turns = [g[:3, :3] @ r for g in categories.symmetries if np.linalg.det(g[:3, :3]) > 0 for r in turns]
+    if not turns:
+        return given
+    part = part_of[t]
+
+    def frame_turn(r: np.ndarray) -> np.ndarray:  # the canonical frame's turn: one per placement
+        m = np.eye(4)
+        m[:3, :3] = r
+        return canonical_frame(lib, part, m, categories.groups)[:3, :3]
+
+    have = frame_turn(given[:3, :3])
+    if any(np.abs(frame_turn(r) - have).max() <= 1e-4 for r in turns):
+        return given
+    best = max(turns, key=lambda r: float(np.trace(given[:3, :3].T @ r)))
+    pose = np.eye(4)
+    pose[:3, :3] = best
+    q, was = part_points(lib, part, pose), part_points(lib, part, given)
+    pose[:3, 3] = [*(was.mean(0)[:2] - q.mean(0)[:2]), was[:, 2].min() - q[:, 2].min()]
+    return pose
+
+
 def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, shape_set: ShapeSet,
                       rng: np.random.Generator, start_pose: dict | None = None,
                       tries_per_edge: int = 24, debug: list | None = None, budget: int = 4000) -> InstantiateResult:
@@ -63,7 +106,9 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
     ``edge_cats`` maps ``(min, max)`` node pairs to a category, or to a list of categories
     best first (from the tagger's vote, ``ranked=True``);
     ``shape_set`` supplies the part library; ``start_pose`` maps a type to the 4x4 pose of
-    the first part (default: identity). Success means the recomputed shape graph is ``g``.
+    the first part (default: identity; a given pose is turned as its start edge's category
+    shows the part where that category never shows it turned so: :func:`_first_pose`).
+    Success means the recomputed shape graph is ``g``.
 
     Parts are placed in breadth-first order from a random edge, rings first. Each part's
     candidate poses are the example edges of its voted category, then those of the other
@@ -102,7 +147,7 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
     # placed, so backtracking does not re-place branches that have nothing to do with it.
     core = set(nx.k_core(g, 2).nodes) if g.number_of_edges() >= g.number_of_nodes() else set()
     starts = [e for e in edges if e[0] in core] or edges
-    u0, _ = starts[int(rng.integers(len(starts)))]
+    u0, v0 = starts[int(rng.integers(len(starts)))]
     order, parent = [u0], {u0: None}
     for inner in (True, False):
         k = 0
@@ -215,7 +260,9 @@ def instantiate_graph(g: nx.Graph, edge_cats: dict, categories: EdgeCategories, 
     # the previous part in the order (which on a tree is usually unrelated), and that part
     # takes its next candidate. Complete: if it ends without a shape, no choice of the
     # example poses realises the graph.
-    place(u0, np.asarray((start_pose or {}).get(types[u0], np.eye(4)), dtype=np.float64))
+    first = np.asarray((start_pose or {}).get(types[u0], np.eye(4)), dtype=np.float64)
+    place(u0, first if start_pose is None or types[u0] not in start_pose
+          else _first_pose(categories, shape_set, edge_cats.get((min(u0, v0), max(u0, v0))), types[u0], first))
     pos_of = {v: i for i, v in enumerate(order)}
     cands: list = [None] * n
     ptr = [0] * n

@@ -36,7 +36,7 @@ from ..core.runfolder import STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import decode, parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
-from .contacts import loose_parts, shape_graph
+from .contacts import ENCLOSED_ADVICE, enclosing_parts, loose_parts, only_enclosed, shape_graph
 from .grammar import Grammar
 from .shapes import (ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shapes_to_dict,
                      write_shapes)
@@ -164,8 +164,10 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     for i, g in enumerate(graphs):
         pieces = sorted(nx.connected_components(g), key=len, reverse=True)
         if len(pieces) > 1:
-            raise InvalidArgumentError(f"{loose_parts(g, pieces, i, None, shape_set.letters)} in {collection}; a "
-                                       "string encodes one connected shape: move the parts to touch")
+            enclosed = enclosing_parts(shape_set, shape_set.shapes[i], pieces)
+            fix = ENCLOSED_ADVICE if only_enclosed(pieces, enclosed) else "move the parts to touch"
+            raise InvalidArgumentError(f"{loose_parts(g, pieces, i, None, shape_set.letters, None, enclosed)} in "
+                                       f"{collection}; a string encodes one connected shape: {fix}")
     grammar = Grammar.from_graphs(graphs)
     train_idx, test_idx = split_shapes(len(graphs), held_out, seed, collection_inputs(collection, len(graphs)))
     strings = vae_training_strings(graphs, train_idx, strings_per_shape, seed)
