@@ -41,6 +41,35 @@ def test_a_phone_photos_dark_corners_are_no_shape(tmp_path, corner, suffix):
     assert (read & ~ink).sum() <= 0.1 * ink.sum()
 
 
+@pytest.mark.parametrize("hill_grey, drop", [(199, 0), (182, 31)])
+def test_a_light_shape_along_a_side_is_no_fall_of_light(tmp_path, hill_grey, drop):
+    """A pale hill filling the bottom of the picture, on even paper or paper lit from one
+    side: a surface of any shape fitted to the paper had bent through it as light, and
+    only a sliver along its top was left of the shape (h157); the fall-off a photo's
+    corners have is radial."""
+    rng = np.random.default_rng(3)
+    h, w = 240, 320
+    yy, xx = np.mgrid[:h, :w]
+    hill = yy > h * 0.56 + 10 * np.sin(xx / 40)
+    paper = 240 - drop * (yy / h)
+    grey = np.where(hill, hill_grey, paper) + rng.normal(0, 3, (h, w))
+    Image.fromarray(np.clip(grey, 0, 255).astype(np.uint8)).save(tmp_path / "hill.png")
+    read = _unpadded(load_target_image(tmp_path / "hill.png"), h, w)
+    assert (read & hill).sum() >= 0.98 * hill.sum() and (read & ~hill).sum() <= 0.02 * hill.sum()
+
+
+@pytest.mark.parametrize("fill", [(255, 230, 80), (200, 230, 255), (255, 200, 220)])
+def test_a_coloured_sticker_with_an_outline_stays_the_shape(tmp_path, fill):
+    """A yellow, pastel or pink box with a dark outline on a transparent canvas (clip art)
+    is the shape, not a card whose drawing is its outline (h157)."""
+    rgba = np.zeros((300, 300, 4), dtype=np.uint8)
+    rgba[90:210, 90:210] = (*fill, 255)
+    for edge in (np.s_[90:96, 90:210], np.s_[204:210, 90:210], np.s_[90:210, 90:96], np.s_[90:210, 204:210]):
+        rgba[edge] = (20, 20, 20, 255)
+    read = load_target_image(_save(rgba, tmp_path / "sticker.png")).mask
+    assert read.sum() == 120 * 120
+
+
 @pytest.mark.parametrize("share", [0.25, 0.36, 0.64])
 def test_a_white_card_on_a_transparent_canvas_gives_its_drawing(tmp_path, share):
     """A card covering 36% of the canvas read as a filled square (at 64% as its drawing)."""
@@ -91,6 +120,18 @@ def test_a_faint_stroke_is_still_named(tmp_path):
     rgba[20:180, 140:146] = (0, 0, 0, 60)
     notes = load_target_image(_save(rgba, tmp_path / "brush.png")).notes
     assert any("translucent strokes" in note for note in notes)
+
+
+def test_pressure_strokes_over_a_faint_layer_are_still_named(tmp_path):
+    """A faint layer over the canvas (alpha 40) under an opaque stem and a pressure brush's
+    stroke (alpha 110): the stroke, left out of the shape, is named; the layer is not (h157:
+    both had gone without a word)."""
+    rgba = np.zeros((200, 200, 4), dtype=np.uint8)
+    rgba[...] = (255, 255, 255, 40)
+    rgba[20:180, 95:101] = (0, 0, 0, 255)
+    rgba[30:170, 140:150] = (0, 0, 0, 110)
+    notes = load_target_image(_save(rgba, tmp_path / "layer_and_brush.png")).notes
+    assert any("translucent strokes" in note and "146% as many pixels" in note for note in notes), notes
 
 
 @pytest.mark.parametrize("bits", [10, 12, 14])

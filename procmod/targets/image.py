@@ -670,9 +670,15 @@ def translucent_left_out(image: Image.Image) -> float:
     if opaque is None or not opaque.any():
         return 0.0
     alpha = np.asarray(image.convert("RGBA"))[:, :, 3].astype(np.float64)
-    faint = (alpha > 0.05 * alpha.max()) & ~opaque
-    if not faint.any() or faint.sum() >= FAINT_LAYER * (~opaque).sum():
-        return 0.0  # (faint nearly everywhere off the drawing: a faint background layer, no strokes)
+    floor = 0.05 * alpha.max()
+    faint = (alpha > floor) & ~opaque
+    if faint.any() and faint.sum() >= FAINT_LAYER * (~opaque).sum():
+        # faint nearly everywhere off the drawing: a faint layer over the canvas, which is no
+        # strokes (its note had called it 3435% of the shape); strokes are what is more opaque
+        # than it, as a pressure brush's over it are (h157)
+        faint &= alpha > np.median(alpha[faint]) + floor
+    if not faint.any():
+        return 0.0
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.13 s of start-up
 
     reach = max(8.0, FRINGE * max(opaque.shape))
@@ -791,36 +797,46 @@ def _lighting(luma: np.ndarray) -> np.ndarray | None:
     return down[:, None] + across[None, :]
 
 
-VIGNETTE_DEGREE = 4  # the degree of the smooth surface :func:`_vignette` fits to the paper (r^2 and r^4 terms)
-_VIGNETTE_CELLS = 64  # ... on the means of cells of a grid of at most this many a side
+_VIGNETTE_CELLS = 64  # :func:`_vignette` fits the means of cells of a grid of at most this many a side
 
 
 def _vignette(luma: np.ndarray) -> np.ndarray | None:
-    """The paper's brightness across a photo whose light falls off unevenly, towards its
-    corners (a phone's vignetting), where no plane explains it (:func:`_lighting`): a
-    polynomial surface of degree :data:`VIGNETTE_DEGREE` fitted to the picture's cells
-    (:data:`_VIGNETTE_CELLS` a side), outliers (the ink) dropped. Corners darkened to the
-    pencil's grey had been read as shape, or, darker, as the only shape (the drawing lost).
-    None -- the paper is one brightness -- unless the surface fits the cells it kept
-    closely (within a few grey levels), kept half the cells and three quarters of each
-    side of the border, and changes by more than :data:`MIN_CONTRAST` over the picture and
-    by half the ink's difference from it (less did not mislead the read): a clean scan, a
-    page on a desk (the desk's edge is no smooth surface), a shape filling a side, dark ink
-    on a page a little darker at its corners, all give None."""
+    """The paper's brightness across a photo whose light falls off towards its corners (a
+    phone's vignetting), where no plane explains it (:func:`_lighting`): a radial surface,
+    ``a + b x + c y + d r^2 + e r^4`` (r from the picture's middle, x in units of its half
+    width, y of its half height; the plane terms move the centre a cropped photo's fall-off
+    has), fitted to the
+    picture's cells (:data:`_VIGNETTE_CELLS` a side) with the ink dropped as outliers.
+    Corners darkened to the pencil's grey had been read as shape, or, darker, as the only
+    shape (the drawing lost). Radial only: a surface of any shape (degree 4 in x and y) had
+    bent through a light shape along a side (a shaded hill, a sea) and read it as light
+    (h157). None -- the paper is one brightness -- unless the surface darkens outwards,
+    fits the cells it kept closely (within a few grey levels), kept half the cells and three
+    quarters of each side of the border, and changes by more than :data:`MIN_CONTRAST` over
+    the picture and by half the ink's difference from it (less did not mislead the read): a
+    clean scan, a page on a desk, a shape filling a side, dark ink on a page a little darker
+    at its corners, all give None."""
     h, w = luma.shape
     step = max(1, math.ceil(max(h, w) / _VIGNETTE_CELLS))
     down, across = h // step, w // step
     if down < 8 or across < 8:
         return None
     cells = luma[:down * step, :across * step].reshape(down, step, across, step).mean(axis=(1, 3), dtype=np.float64)
-    ys = ((np.arange(down) + 0.5) * step / h) * 2 - 1  # cell centres, -1..1 from the picture's middle
-    xs = ((np.arange(across) + 0.5) * step / w) * 2 - 1
-    powers = [(i, j) for i in range(VIGNETTE_DEGREE + 1) for j in range(VIGNETTE_DEGREE + 1 - i)]
-    design = np.stack([np.outer(ys ** i, xs ** j).ravel() for i, j in powers], axis=1)
+    # r from the middle in units of the half width across and the half height down: a
+    # fall-off elliptical as the frame (as photo apps' vignettes are), circular on a square
+
+    def terms(ys: np.ndarray, xs: np.ndarray) -> list:  # the surface's terms on a grid, rows ys, columns xs
+        r2 = ys[:, None] ** 2 + xs[None, :] ** 2
+        return [np.ones_like(r2), np.broadcast_to(xs[None, :], r2.shape), np.broadcast_to(ys[:, None], r2.shape),
+                r2, r2 * r2]
+
+    ys = ((np.arange(down) + 0.5) * step - h / 2) / (h / 2)  # cell centres
+    xs = ((np.arange(across) + 0.5) * step - w / 2) / (w / 2)
+    design = np.stack([t.ravel() for t in terms(ys, xs)], axis=1)
     values = cells.ravel()
     keep = np.ones(len(values), dtype=bool)
-    for _ in range(6):  # (the normal equations: lstsq's threaded SVD of 4096 x 15 took ~30 ms a pass)
-        if keep.sum() < 2 * len(powers):
+    for _ in range(6):  # (the normal equations: lstsq's threaded SVD took ~30 ms a pass)
+        if keep.sum() < 4 * design.shape[1]:
             return None
         used = design[keep]
         coef = np.linalg.solve(used.T @ used, used.T @ values[keep])
@@ -830,17 +846,13 @@ def _vignette(luma: np.ndarray) -> np.ndarray | None:
     kept = keep.reshape(down, across)
     sides = (kept[0], kept[-1], kept[:, 0], kept[:, -1])
     surface = (design @ coef).reshape(down, across)
-    if (spread > 4.0 or kept.mean() < 0.5 or min(side.mean() for side in sides) < 0.75
+    darkens = 2 * coef[3] + 4 * coef[4] < 0  # at the corners (r^2 = 2) against the middle
+    if (not darkens or spread > 4.0 or kept.mean() < 0.5 or min(side.mean() for side in sides) < 0.75
             or float(surface.max() - surface.min()) < MIN_CONTRAST):
         return None
-    # at every pixel: the surface's rows times its columns' powers (no picture-sized design matrix)
-    table = np.zeros((VIGNETTE_DEGREE + 1, VIGNETTE_DEGREE + 1))
-    for (i, j), c in zip(powers, coef):
-        table[i, j] = c
-    y = (np.arange(h) + 0.5) / h * 2 - 1
-    x = (np.arange(w) + 0.5) / w * 2 - 1
-    exponents = np.arange(VIGNETTE_DEGREE + 1)
-    paper = ((y[:, None] ** exponents) @ table @ (x[:, None] ** exponents).T).astype(np.float32)
+    y = ((np.arange(h) + 0.5) - h / 2) / (h / 2)
+    x = ((np.arange(w) + 0.5) - w / 2) / (w / 2)
+    paper = sum(c * t for c, t in zip(coef, terms(y.astype(np.float32), x.astype(np.float32)))).astype(np.float32)
     # only where the fall of light reaches half way to the ink, as the read would have been
     # misled by it: bold ink on a scan lit a little unevenly reads as before, bit for bit
     off = luma - paper
@@ -1261,6 +1273,7 @@ def _fills_its_box(mask: np.ndarray, share: float) -> bool:
 PAGE_SHARE = 0.08
 """A light region read as the shape is taken for a page (with the drawing on it) when it
 covers at least this share of the picture, as well as nearly all of its bounding box."""
+CARD_TINT = 48  # the most a card's colour channels differ (paper, cream, a grey card; not a yellow sticker)
 
 PAGE_BOX_FILL = 0.8  # a page turned up to ~7 degrees in the photo still fills this much of its box
 
@@ -1372,9 +1385,10 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
         if opaque.mean() > PAGE_SHARE and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
             rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
             page = np.median(rgb[opaque], axis=0)
-            # under half the canvas, a light one only (a white card placed on it, 36%, had read as a
-            # filled square): a coloured rectangle with its dark outline is a shape
-            paper_like = opaque.mean() > 0.5 or float(page @ _LUMA) >= 128
+            # under half the canvas, a light grey one only, as paper is (a white card placed on it,
+            # 36%, had read as a filled square): a coloured rectangle with a darker outline or text
+            # on it (a yellow sticker, a pastel label) is a shape (h157)
+            paper_like = opaque.mean() > 0.5 or (float(page @ _LUMA) >= 160 and np.ptp(page) <= CARD_TINT)
             drawn = _ink(rgb, page, where=opaque) if paper_like else np.zeros_like(opaque)
             # ink darker than its page is a drawing on it; a light detail on a dark badge
             # (an icon's white dot) is part of the shape
