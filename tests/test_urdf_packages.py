@@ -149,3 +149,20 @@ def test_the_package_crawl_is_bounded_in_depth_folders_and_links(tmp_path, liste
                                                    'base.stl"/></geometry>']}, []))
     assert sizes(home / "robot.urdf") == {"arm": 0.2}
     assert listed and all(p.resolve().is_relative_to(home.resolve()) for p in listed)
+
+
+def test_meshes_copied_beside_a_urdf_outside_any_package_come_before_a_package_nearby(tmp_path):
+    """A CAD exporter's two robots in one folder, both naming ``robot_description``: armA's
+    meshes copied beside its URDF (no package.xml), armB a real package of that name. armA
+    had been given armB's mesh, found by the crawl (h157); a URDF inside a package of
+    another name still takes a sibling package's file over its own (h156, above)."""
+    write_stl(tmp_path / "armA" / "meshes" / "base_link.stl", 0.5)
+    (tmp_path / "armA" / "urdf").mkdir()
+    path = tmp_path / "armA" / "urdf" / "armA.urdf"
+    path.write_text(urdf({"base": ['<geometry><mesh filename="package://robot_description/meshes/base_link.stl"/>'
+                                   '</geometry>']}, []))
+    package(tmp_path / "armB", "robot_description", (("base_link.stl", 0.1),))
+    assert sizes(path) == {"base": 0.5}
+    # the same folder made a package of another name: its file is that package's, not a copy
+    (tmp_path / "armA" / "package.xml").write_text("<package><name>arm_a</name></package>")
+    assert sizes(path) == {"base": 0.1}

@@ -1157,10 +1157,11 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
     its name or its ``package.xml``, or holds a ``PKG`` folder; then a folder nearby whose
     ``package.xml`` names PKG, found as rospack crawls a workspace: :func:`_ros_package_folders`),
     and failing that a bare ``rest`` under the URDF's folder or an ancestor (a robot's meshes
-    copied beside it, into a package of the user's own too). Package folders come first: many
-    packages hold a ``meshes/base_link.stl``, and the first ancestor holding one had been taken
-    for any package's (h144), the URDF's own package's for a sibling package's whose folder
-    has another name (``ur_description-main``, h156)."""
+    copied beside it, into a package of the user's own too; where no package of another name
+    holds that folder, before the crawl). Package folders come first: many packages hold a
+    ``meshes/base_link.stl``, and the first ancestor holding one had been taken for any
+    package's (h144), the URDF's own package's for a sibling package's whose folder has
+    another name (``ur_description-main``, h156)."""
     base = urdf.parent
     name = filename
     candidates, later = [], None
@@ -1195,9 +1196,16 @@ def _urdf_mesh_path(filename: str, urdf: Path, where: str) -> Path:
             for spelt in spellings:
                 candidates += ([(folder, spelt)] if is_package else []) + [(folder, f"{pkg}/{spelt}")]
 
-        def nearby():  # then a package nearby, by its package.xml; then meshes copied beside the URDF
+        # a bare path in a folder that no package of another name holds is a robot's meshes
+        # copied beside its URDF (a CAD exporter's "robot_description" folder): taken before a
+        # package of that name the crawl finds nearby, another robot's (h157); one in the URDF's
+        # own package is that package's file, taken only where no package nearby is PKG (h156)
+        in_other = [any(names[above] not in (None, pkg) for above in folders[i:]) for i in range(len(folders))]
+
+        def nearby():  # meshes copied beside the URDF; a package nearby, by its package.xml; the rest
+            yield from ((folder, spelt) for folder, other in zip(folders, in_other) if not other for spelt in spellings)
             yield from ((folder, spelt) for folder in _ros_package_folders(pkg, base) for spelt in spellings)
-            yield from ((folder, spelt) for folder in folders for spelt in spellings)
+            yield from ((folder, spelt) for folder, other in zip(folders, in_other) if other for spelt in spellings)
 
         later = nearby()
     elif not candidates:
