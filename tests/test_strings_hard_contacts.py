@@ -101,3 +101,25 @@ def test_a_part_apart_and_one_inside_are_told_apart(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "in 3 pieces: small, small touch no other part" in err and "small #2 lies inside big #0" in err, err
     assert "no tolerance up to 25% of a part's size joins them" in err, err
+
+
+def test_a_part_inside_near_the_wall_keeps_the_tolerance_that_joins_it(tmp_path, capsys):
+    """A part inside a mesh part 0.05 from its wall is joined by a contact tolerance of 0.06,
+    as any gap is: the advice names that tolerance, not that none would do (h159)."""
+    path = _inside_set(tmp_path, [("small", 0.75)])
+    assert main(["strings", "graph", str(path), "--out", str(tmp_path / "g")]) == 0
+    err = capsys.readouterr().err
+    assert "small #2 lies inside big #0" in err and "--tolerance 0.051 joins them" in err, err
+    assert main(["strings", "graph", str(path), "--out", str(tmp_path / "g2"), "--tolerance", "0.06"]) == 0
+    assert "pieces" not in capsys.readouterr().err
+
+
+def test_a_part_inside_a_part_that_is_itself_apart_is_apart(tmp_path, capsys):
+    """A mesh part far off with a part inside it: both are apart from the shape, and moving
+    the inner one to its holder's surface would not join them (h159: only the inner part
+    was named, as lying inside)."""
+    path = _inside_set(tmp_path, [("big", 4.0), ("big", 20.0), ("small", 20.0)])
+    assert main(["strings", "graph", str(path), "--out", str(tmp_path / "g")]) == 0
+    err = capsys.readouterr().err
+    assert "in 3 pieces: big, small touch no other part" in err and "lies inside" not in err, err
+    assert "no tolerance up to 25% of a part's size joins them" in err, err

@@ -183,7 +183,7 @@ def _take_tolerance(shape_set, tolerance) -> None:
 
 def _graph(args) -> None:
     from ..core.runfolder import GRAPHS_FOLDER, RunFolder
-    from .contacts import (ENCLOSED_ADVICE, contact_kinds, contact_tolerance, enclosing_parts, gaps_to_close,
+    from .contacts import (contact_kinds, contact_tolerance, enclosed_advice, enclosing_parts, gaps_to_close,
                            joining_text, loose_parts, near_miss_note, only_enclosed, shape_graph)
     from .assets import read_shape_inputs, resized_note, size_note
     from .grammar import Grammar, ring_rule_note
@@ -214,7 +214,7 @@ def _graph(args) -> None:
         join, misses = gaps_to_close(shape_set, shape_set.shapes[i], g, tolerance, kinds)
         if len(pieces) > 1:
             enclosed = enclosing_parts(shape_set, shape_set.shapes[i], pieces)
-            fix = (ENCLOSED_ADVICE if only_enclosed(pieces, enclosed) else
+            fix = (only_enclosed(pieces, enclosed) and enclosed_advice(join) or
                    "move the parts to touch, or give --tolerance in world units to count gaps up to it as contacts ("
                    f"{joining_text(join)}" + (", with near misses left at it" if misses else "") + ")")
             print(printable(f"note: {loose_parts(g, pieces, i, named, shape_set.letters, tolerance, enclosed)}; a "
@@ -342,7 +342,7 @@ def _augment(args) -> None:
     import networkx as nx
 
     from .codec import RingLimitError, encode
-    from .contacts import (DEFAULT_TOLERANCE, ENCLOSED_ADVICE, contact_kinds, contact_tolerance, enclosing_parts,
+    from .contacts import (DEFAULT_TOLERANCE, contact_kinds, contact_tolerance, enclosed_advice, enclosing_parts,
                            gaps_to_close, joining_text, loose_parts, median_part_size, near_miss_note, only_enclosed,
                            shape_graph)
     named = _shape_sources(args.shapes, len(shape_set.shapes))
@@ -371,7 +371,7 @@ def _augment(args) -> None:
             given = ("the --tolerance given" if args.tolerance is not None else "the shapes file's contact_tolerance"
                      if shape_set.tolerance is not None else f"{DEFAULT_TOLERANCE:g} x the median part's size")
             enclosed = enclosing_parts(shape_set, shape, pieces)
-            fix = (ENCLOSED_ADVICE if only_enclosed(pieces, enclosed) else
+            fix = (only_enclosed(pieces, enclosed) and enclosed_advice(join) or
                    "move the parts to touch, or give --tolerance in world units to count gaps up to it as contacts "
                    f"({joining_text(join)}; 'strings graph --tolerance' shows what it joins)")
             raise InvalidArgumentError(

@@ -295,13 +295,12 @@ def _solid_holds(library: dict, name: str, transform: np.ndarray, points: np.nda
 def enclosing_parts(shape_set: ShapeSet, shape: Shape, pieces) -> dict:
     """``{part: (other part, True when it lies inside the other / False when it holds the
     other inside it)}`` for the parts outside the largest of ``pieces`` (the connected
-    components of the shape's graph, largest first) that lie wholly inside a part of another
-    piece, or hold one wholly inside them. One of the two is a mesh part: a mesh part touches
+    components of the shape's graph, largest first) that lie wholly inside a part of the
+    largest piece, or hold one wholly inside them. One of the two is a mesh part: a mesh part touches
     another only where their surfaces meet (a box inside a box touches it), so such a part
     touches nothing there however near (h154: a part inside another was called apart, with
     advice about the contact tolerance, which bridges gaps between parts side by side)."""
     library = shape_set.library
-    piece_of = {v: k for k, piece in enumerate(pieces) for v in piece}
     points = [part_points(library, p, t) for p, t in zip(shape.parts, shape.transforms)]
     lo, hi = [q.min(0) for q in points], [q.max(0) for q in points]
 
@@ -313,9 +312,11 @@ def enclosing_parts(shape_set: ShapeSet, shape: Shape, pieces) -> dict:
 
     out = {}
     for v in sorted(v for piece in pieces[1:] for v in piece):
-        for u in range(len(shape.parts)):
+        # the other part in the largest piece: a part inside one that is itself apart from the
+        # shape is apart too, and moving it out to its holder's surface would not join it (h159)
+        for u in sorted(pieces[0]):
             boxes = library[shape.parts[u]].kind == library[shape.parts[v]].kind == "box"
-            if piece_of.get(u) == piece_of[v] or boxes:
+            if boxes:
                 continue
             if inside(v, u) or inside(u, v):
                 out[v] = (u, inside(v, u))
@@ -323,9 +324,19 @@ def enclosing_parts(shape_set: ShapeSet, shape: Shape, pieces) -> dict:
     return out
 
 
-ENCLOSED_ADVICE = ("move a part that lies inside another out until their surfaces meet, or leave it out (a contact "
-                   "tolerance is no fix: it bridges gaps between parts placed side by side)")
-"""What to do about parts :func:`enclosing_parts` finds."""
+ENCLOSED_ADVICE = "move a part that lies inside another out until their surfaces meet, or leave it out"
+"""What to do about parts :func:`enclosing_parts` finds (where no contact tolerance within
+reach joins them: :func:`enclosed_advice`)."""
+
+
+def enclosed_advice(join: float | None) -> str | None:
+    """The advice for a shape whose loose parts all lie inside another part or hold one,
+    given the tolerance that joins its pieces (:func:`gaps_to_close`): None where one within
+    reach does (a part near the inside of a wall is joined by it as any gap is, h159), so
+    the tolerance advice stands."""
+    if join is not None:
+        return None
+    return f"{ENCLOSED_ADVICE} (no contact tolerance up to {JOIN_REACH:.0%} of a part's size reaches its surface)"
 
 
 def only_enclosed(pieces, enclosed: dict) -> bool:
