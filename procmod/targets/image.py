@@ -798,6 +798,7 @@ def _lighting(luma: np.ndarray) -> np.ndarray | None:
 
 
 _VIGNETTE_CELLS = 64  # :func:`_vignette` fits the means of cells of a grid of at most this many a side
+VIGNETTE_DEEPEST = 0.25  # the darkest a vignette leaves the paper, of its brightest
 
 
 def _vignette(luma: np.ndarray) -> np.ndarray | None:
@@ -847,16 +848,22 @@ def _vignette(luma: np.ndarray) -> np.ndarray | None:
     sides = (kept[0], kept[-1], kept[:, 0], kept[:, -1])
     surface = (design @ coef).reshape(down, across)
     darkens = 2 * coef[3] + 4 * coef[4] < 0  # at the corners (r^2 = 2) against the middle
+    fall = float(surface.max() - surface.min())
+    # a lens dims the corners by a half, two thirds: a bright middle over a dark ground (a
+    # glow, a sun, an orb) is a shape, though a radial surface fits it (h160)
     if (not darkens or spread > 4.0 or kept.mean() < 0.5 or min(side.mean() for side in sides) < 0.75
-            or float(surface.max() - surface.min()) < MIN_CONTRAST):
+            or fall < MIN_CONTRAST or float(surface.min()) < VIGNETTE_DEEPEST * float(surface.max())):
         return None
     y = ((np.arange(h) + 0.5) - h / 2) / (h / 2)
     x = ((np.arange(w) + 0.5) - w / 2) / (w / 2)
     paper = sum(c * t for c, t in zip(coef, terms(y.astype(np.float32), x.astype(np.float32)))).astype(np.float32)
-    # only where the fall of light reaches half way to the ink, as the read would have been
-    # misled by it: bold ink on a scan lit a little unevenly reads as before, bit for bit
-    off = luma - paper
-    if float(surface.max() - surface.min()) < 0.5 * max(-_far(off, INK_PERCENTILE), _far(off, 100 - INK_PERCENTILE)):
+    paper = np.maximum(paper, np.float32(VIGNETTE_DEEPEST * float(surface.max())))  # (the corner pixels past the cells)
+    # only where there is ink besides the paper's noise, and the fall of light reaches half way
+    # to it, as the read would have been misled by it: bold ink on a scan lit a little
+    # unevenly reads as before, bit for bit; ink as the lens dims it, over the paper's
+    off = (luma / paper - 1) * float(paper.max())
+    ink = max(-_far(off, INK_PERCENTILE), _far(off, 100 - INK_PERCENTILE))
+    if ink < MIN_CONTRAST or fall < 0.5 * ink:
         return None
     return paper
 
@@ -882,10 +889,12 @@ def _ink(colours: np.ndarray, paper: np.ndarray, where: np.ndarray | None = None
     luma, paper_luma = _luma(colours), float(_luma(paper))
     light_paper = paper_luma >= 128
     plane = _lighting(luma) if lighting else None
-    if lighting and plane is None:
-        plane = _vignette(luma)
     if plane is not None:
         luma, paper_luma = luma - plane, 0.0
+    elif lighting and light_paper:  # (a glow over a dark ground falls off as a lens's light does, h160)
+        plane = _vignette(luma)
+        if plane is not None:  # a lens's fall of light dims ink and paper alike: divided out (h160)
+            luma, paper_luma = (luma / plane - 1) * float(plane.max()), 0.0
     noise = _noise(luma, paper_at)
     ink = _beyond_half(luma, paper_luma, luma[where], noise, light_paper)
     if ink is None and colours.shape[2] > 1:
@@ -1275,6 +1284,27 @@ PAGE_SHARE = 0.08
 covers at least this share of the picture, as well as nearly all of its bounding box."""
 CARD_TINT = 48  # the most a card's colour channels differ (paper, cream, a grey card; not a yellow sticker)
 
+
+def card_read_as_shape(image: Image.Image, mask: np.ndarray) -> float | None:
+    """The share of the canvas of a light grey rectangle, opaque on a transparent canvas,
+    with darker marks on it, where that rectangle was read as the shape (under half the
+    canvas it is, :func:`mask_from_image`); None otherwise. Such a picture is a card with
+    a drawing placed on the canvas, or a sticker, button or label meant as the shape (h157:
+    either reading misreads the other, pixel for pixel), so a note says which was taken."""
+    opaque = opaque_part(image)
+    if opaque is None or not PAGE_SHARE < opaque.mean() <= 0.5 or not _fills_its_box(opaque, 0.95):
+        return None
+    if not np.array_equal(mask, opaque):
+        return None
+    rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
+    page = np.median(rgb[opaque], axis=0)
+    if float(page @ _LUMA) < 160 or np.ptp(page) > CARD_TINT:
+        return None
+    drawn = _ink(rgb, page, where=opaque)
+    if not drawn.any() or float(np.mean(rgb[drawn] @ _LUMA)) >= float(page @ _LUMA):
+        return None
+    return float(opaque.mean())
+
 PAGE_BOX_FILL = 0.8  # a page turned up to ~7 degrees in the photo still fills this much of its box
 
 
@@ -1382,14 +1412,10 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     colours = _colours(image)
     if opaque is not None:
         mask = opaque
-        if opaque.mean() > PAGE_SHARE and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
+        if opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
             rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
             page = np.median(rgb[opaque], axis=0)
-            # under half the canvas, a light grey one only, as paper is (a white card placed on it,
-            # 36%, had read as a filled square): a coloured rectangle with a darker outline or text
-            # on it (a yellow sticker, a pastel label) is a shape (h157)
-            paper_like = opaque.mean() > 0.5 or (float(page @ _LUMA) >= 160 and np.ptp(page) <= CARD_TINT)
-            drawn = _ink(rgb, page, where=opaque) if paper_like else np.zeros_like(opaque)
+            drawn = _ink(rgb, page, where=opaque)
             # ink darker than its page is a drawing on it; a light detail on a dark badge
             # (an icon's white dot) is part of the shape
             if drawn.any() and float(np.mean(rgb[drawn] @ _LUMA)) < float(page @ _LUMA):
@@ -1714,6 +1740,11 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
         mask = mask & ~frame
         notes.append("a rectangular frame drawn around the picture was left out of the shape (its lowest line had "
                      "taken the start); crop inside it to say so yourself")
+    card = card_read_as_shape(image, mask[top:top + height, left:left + width]) if frame is None else None
+    if card is not None:
+        notes.append(f"the opaque part, a light rectangle covering {card:.0%} of the canvas with marks on it, was read "
+                     "as the shape; if it is a card or page with the drawing on it, crop the picture to the card (or "
+                     "flatten it onto white) to read the drawing")
     faint = translucent_left_out(image)
     if faint > TRANSLUCENT_NOTE:
         notes.append(f"translucent strokes (under half the drawing's strongest opacity), {faint:.0%} as many pixels as "
