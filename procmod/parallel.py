@@ -172,7 +172,8 @@ def portable_model_error(exc: BaseException, where: str) -> BaseException:
         return portable
     error = ModelCodeError(line)
     for note in getattr(exc, "__notes__", ()):
-        error.add_note(note)
+        if isinstance(note, str):  # (add_note takes strings only: another note had made a TypeError the line, h158)
+            error.add_note(note)
     return error
 
 

@@ -9,6 +9,7 @@
 
 import concurrent.futures
 import sys
+import time
 
 import pytest
 
@@ -101,6 +102,61 @@ def test_threads_loading_one_model_file_at_once_all_get_its_model(tmp_path):
         assert sys.path.count(str(folder.resolve())) == 1
 
 
+def test_a_model_file_whose_import_loads_another_in_a_thread_does_not_hang(tmp_path):
+    """One lock for every model file held while one ran: a file whose import started a
+    thread that loaded another model file and waited for it waited for ever (h158)."""
+    import threading
+
+    from procmod.models.from_file import load_model_file
+
+    (tmp_path / "other.py").write_text(SLOW_MODEL)
+    other = str(tmp_path / "other.py")
+    (tmp_path / "threaded.py").write_text(
+        "import threading\nfrom procmod.models.from_file import load_model_file\nbox = {}\n"
+        f"t = threading.Thread(target=lambda: box.setdefault('m', load_model_file({other!r})))\n"
+        "t.start()\nt.join()\nMODEL = box['m']\n")
+    found = {}
+    loader = threading.Thread(target=lambda: found.setdefault("m", load_model_file(str(tmp_path / "threaded.py"))),
+                              daemon=True)
+    loader.start()
+    loader.join(20)
+    assert not loader.is_alive() and found["m"].name == "slow-loading"
+
+
+def test_a_process_forked_while_another_thread_loads_a_model_file_can_load_one(tmp_path):
+    """A child forked while a thread of its parent held the loading lock inherited it held,
+    by a thread it does not have: its first model file waited for ever (h158)."""
+    import multiprocessing
+    import threading
+
+    from procmod.models.from_file import load_model_file
+
+    (tmp_path / "slow.py").write_text(SLOW_MODEL.replace("time.sleep(0.05)", "time.sleep(1.5)"))
+    (tmp_path / "other.py").write_text(SLOW_MODEL)
+    loading = threading.Thread(target=load_model_file, args=(str(tmp_path / "slow.py"),), daemon=True)
+    loading.start()
+    for _ in range(500):  # until the thread runs slow.py (registered before it runs), holding its lock
+        if any(name.startswith("procmod_user_slow_") for name in list(sys.modules)):
+            break
+        time.sleep(0.01)
+    context = multiprocessing.get_context("fork")
+    names = context.Queue()
+    child = context.Process(target=_put_model_name, args=(str(tmp_path / "other.py"), names))
+    child.start()
+    child.join(30)
+    hung = child.is_alive()
+    if hung:
+        child.terminate()
+    loading.join(30)
+    assert not hung and names.get(timeout=10) == "slow-loading"
+
+
+def _put_model_name(path: str, names) -> None:
+    from procmod.models.from_file import load_model_file
+
+    names.put(load_model_file(path).name)
+
+
 def _far_root(ctx, x, y):
     from procmod import Normal
     from procmod.geometry import Segment
@@ -145,6 +201,14 @@ def test_parts_beyond_a_canvas_by_a_finite_penalty_get_no_such_note():
     assert not far_outside(canvas)
     canvas.add(Segment(0.0, 0.0, 1e300, 0.0, 0.6))
     assert far_outside(canvas)
+    # where the default penalty (the square over 0.001^2) turns infinite: not only where the square does (h158)
+    from procmod.data import target_from_spec
+
+    target = target_from_spec("glyph:a")
+    for reach in (1e150, 1e151, 1.3e151, 1.4e151, 1e153, 1e155):
+        canvas = Canvas((-12, 12, -22, 2), 50)
+        canvas.add(Segment(0.0, 0.0, reach, 0.0, 0.6))
+        assert far_outside(canvas) == (target.log_likelihood(canvas) == float("-inf")), reach
 
 
 def test_a_worker_error_of_procmods_own_code_keeps_its_stand_in():

@@ -545,7 +545,7 @@ RULED_OUT_NOTE = ("the best derivation found is one the target rules out (zero l
 # Said with RULED_OUT_NOTE when the best's parts lie so far outside its canvas that the
 # out-of-bounds penalty is infinite (:func:`far_outside`): which of its causes it is (a
 # model drawing at 1e300 was told of intersecting parts and a proxy target)
-FAR_OUTSIDE_NOTE = ("the best derivation draws parts so far outside the canvas (beyond about 1e150 times its size, "
+FAR_OUTSIDE_NOTE = ("the best derivation draws parts so far outside the canvas (beyond about 1e151 times its size, "
                     "e.g. a coordinate of 1e300) that the target's out-of-bounds penalty is infinite: its likelihood "
                     "is zero; find the rule's arithmetic that places them there")
 
@@ -558,10 +558,16 @@ NO_FINITE_SCORE_NOTE = ("every complete derivation the engine made scored -inf, 
                         "asks for")
 
 
+# the squared distance beyond a canvas from which ShapeMatch's out-of-bounds penalty, that
+# square over oob_sigma^2 (0.001^2 by default), is infinite: about 1.3e151
+FAR_OUTSIDE_SQUARED = 1.7976931348623157e308 * 1e-6
+
+
 def far_outside(output) -> bool:
     """Whether ``output`` (a canvas: its ``out_of_bounds()``) draws so far beyond its
-    viewport that the square of that distance, and so any out-of-bounds penalty of it,
-    is infinite (a part at 1e300): a likelihood of zero the geometry alone causes."""
+    viewport that the out-of-bounds penalty is infinite (a part at 1e300; from about
+    1.3e151 at the default oob_sigma, :data:`FAR_OUTSIDE_SQUARED`): a likelihood of zero
+    the geometry alone causes."""
     out_of_bounds = getattr(output, "out_of_bounds", None)
     if not callable(out_of_bounds):  # (a volume's scene: no viewport)
         return False
@@ -569,7 +575,8 @@ def far_outside(output) -> bool:
         ex, ey = (float(e) for e in out_of_bounds())
     except Exception:  # noqa: BLE001 - a note's check must never fail the run
         return False
-    return not math.isfinite(ex * ex + ey * ey)
+    # (the penalty divides the square by oob_sigma^2: infinite well before the square is, h158)
+    return not ex * ex + ey * ey <= FAR_OUTSIDE_SQUARED
 
 
 def no_result_error(result: Result) -> InvalidArgumentError:

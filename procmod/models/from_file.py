@@ -133,17 +133,36 @@ def _shown(value) -> str:
 _FRAME_LINE = re.compile(r'^\s*File "(.+)", line (\d+), in (\S+)$', re.MULTILINE)
 
 
-# Held while a model file is looked up and run: a dask worker runs tasks in threads, and
-# two tasks of one job loading one file at once had the second take the module the first
-# had registered but not yet run (no Model in it: "defines no Model at its top level"), or
-# lose it when the first's run failed. Reentrant: a model file may load another.
-_LOADING = threading.RLock()
+# A lock per model file, held while it is looked up and run: a dask worker runs tasks in
+# threads, and two tasks of one job loading one file at once had the second take the
+# module the first had registered but not yet run (no Model in it: "defines no Model at
+# its top level"), or lose it when the first's run failed. One lock per file, not one for
+# all: a model file whose import starts a thread that loads another file and waits for it
+# would wait for ever (h158). Reentrant: a model file may load itself.
+_FILE_LOCKS: dict = {}
+_FILE_LOCKS_GUARD = threading.Lock()  # over _FILE_LOCKS and sys.path's edits; never held while user code runs
+
+
+def _forget_locks_after_fork() -> None:
+    """A child forked while another thread held a lock holds it for ever (no thread of its
+    own will let go of it): a process pool's worker then hung at its first model file
+    (h158). The child starts with none."""
+    global _FILE_LOCKS_GUARD
+    _FILE_LOCKS.clear()
+    _FILE_LOCKS_GUARD = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_locks_after_fork)
 
 
 def _run_module(path: Path):
     """``path`` run as a module of its own (once per process and file; one thread at a
-    time, :data:`_LOADING`)."""
-    with _LOADING:
+    time per file, :data:`_FILE_LOCKS`)."""
+    resolved = path.resolve()
+    with _FILE_LOCKS_GUARD:
+        lock = _FILE_LOCKS.setdefault(resolved, threading.RLock())
+    with lock:
         return _run_module_locked(path)
 
 
@@ -158,8 +177,9 @@ def _run_module_locked(path: Path):
     spec = importlib.util.spec_from_file_location(module_name, resolved, loader=loader)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # before running it: its dataclasses and pickles look it up
-    if str(resolved.parent) not in sys.path:  # as python FILE.py does: it imports its neighbours
-        sys.path.insert(0, str(resolved.parent))
+    with _FILE_LOCKS_GUARD:
+        if str(resolved.parent) not in sys.path:  # as python FILE.py does: it imports its neighbours
+            sys.path.insert(0, str(resolved.parent))
     _USER_FILES.add(str(resolved))
     remember_file_read(resolved)  # an output folder that holds it is never replaced (--overwrite)
     try:
