@@ -122,6 +122,20 @@ def test_a_folder_of_asset_folders_is_read_and_subfolders_beside_files_are_named
     assert len(example_set.examples) == 4
 
 
+def test_a_file_given_twice_is_one_example_and_said(tmp_path, monkeypatch):
+    """``learn a.glb a.glb b.glb``, or a folder and a file in it, had counted the file as two
+    examples without a word (h162)."""
+    from procmod.geometry.assets import asset_files, left_out_note
+
+    ships = fleet(tmp_path / "ships", 3)
+    monkeypatch.chdir(tmp_path)
+    given = [ships[0], ships[0], tmp_path / "ships", "ships/../ships/" + ships[2].name]
+    assert [f.name for f in asset_files(given)] == [ships[0].name, ships[1].name, ships[2].name]
+    assert len(read_example_inputs(given)[0].examples) == 3
+    assert left_out_note(given) == f"{ships[0].name}, {ships[2].name} were given more than once and read once"
+    assert left_out_note(ships) is None
+
+
 def test_a_robots_meshes_and_a_link_back_up_are_no_examples(tmp_path):
     """A ROS robot folder (urdf/ beside meshes/ of .glb files) read one level down took its
     link meshes for examples; a URDF with its .glb meshes beside it had them named as

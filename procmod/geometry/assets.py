@@ -223,7 +223,28 @@ def asset_files(paths) -> list[Path]:
             out.append(p)
     if not out:
         raise AssetError("no asset files given")
-    return out
+    return list({_same_file(f): f for f in reversed(out)}.values())[::-1]  # each file once, where first given
+
+
+def _same_file(path: Path):
+    """What two spellings of one file share (its resolved path; the spelling where that fails)."""
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError):
+        return path
+
+
+def repeated_files(paths) -> list:
+    """The asset files ``paths`` name more than once (``learn a.glb a.glb``, a folder and a
+    file in it), each read once (:func:`asset_files`; h162: it had counted as two examples)."""
+    seen, repeated = set(), []
+    for p in map(Path, [paths] if isinstance(paths, (str, os.PathLike)) else paths):
+        for f in (_folder_assets(p)[0] if p.is_dir() else [p]):
+            key = _same_file(f)
+            if key in seen and f not in repeated:
+                repeated.append(f)
+            seen.add(key)
+    return repeated
 
 
 def left_out_note(paths) -> str | None:
@@ -244,6 +265,10 @@ def left_out_note(paths) -> str | None:
                             if f.is_file() and not is_asset_file(f)]
     skipped = [(f, hint) for f, hint in skipped if hint]
     said = []
+    repeated = repeated_files(paths)
+    if repeated:
+        said.append(f"{', '.join(f.name for f in repeated[:3])}{' and more' if len(repeated) > 3 else ''} "
+                    f"{'was' if len(repeated) == 1 else 'were'} given more than once and read once")
     if skipped:
         names = ", ".join(f.name for f, _ in skipped[:4]) + (f" and {len(skipped) - 4} more" if len(skipped) > 4
                                                              else "")

@@ -16,7 +16,8 @@ tolerance, not by comparing matrices:
 * The group then stores the fitted exact map, so the learner models (and regenerates) an
   exact symmetry; the examples' deviations from it are the noise it ignores.
 
-Passes, in order: reflection pairs (each unit with its first partner in order), then translation and
+Passes, in order: reflection pairs (each unit with the partner across the squarest plane,
+or in order where that groups more: :data:`PAIRING_RULES`), then translation and
 rotation chains of at least :data:`MIN_CHAIN` units with one constant ``G`` (longest
 chain first, refitting ``G`` to the whole chain as it grows), then reflection pairs again
 (mirrored rows; also pairs that are mirror images only through their parts' own
@@ -396,12 +397,14 @@ def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE, any_
 # ---- passes -------------------------------------------------------------------------------
 
 def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: bool = False,
-                      memo: dict | None = None) -> list:
-    """Reflection pairs: each unit, in order, with the first later free unit it mirrors
-    within the tolerance. Order, not the smallest deviation, decides between several
-    partners (a row of mirrored pairs also mirrors along the row): deviations of exact
-    copies differ only by rounding, and noise within the tolerance must not change the
-    pairing. With ``any_handedness`` (the last pass) a pair whose placements are proper
+                      memo: dict | None = None, rule: str = "square", choices: list | None = None) -> list:
+    """Reflection pairs: each unit, in order, with a later free unit it mirrors within the
+    tolerance: among several (``rule`` "square"), the first whose plane is square to the
+    parent frame's first axis it can be (:func:`_plane_rank`), or (``rule`` "order") the
+    first; not the smallest deviation (a row of mirrored pairs also mirrors along the
+    row): deviations of exact copies differ only by rounding, and noise within the
+    tolerance must not change the pairing. ``choices`` collects the units that had several
+    partners. With ``any_handedness`` (the last pass) a pair whose placements are proper
     (no mirror in their matrices) is a mirror pair too, when the parts' own symmetries
     make it one: a left hip that is the right one turned over, and two copies of a
     symmetric part moved apart (a table's two legs, duplicated and moved across: a pair
@@ -410,14 +413,21 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
     for i, a in enumerate(units):
         if i in used:
             continue
+        partners = []  # (rank of the plane, j, relation) of the first few later free units it mirrors
         for j in range(i + 1, len(units)):
             if j in used:
                 continue
             r = _relate_once(memo, a, units[j], ("refl",), tol)
             if r is None and any_handedness:
                 r = _relate_once(memo, a, units[j], ("refl",), tol, any_handedness=True)
-            if r is None:
-                continue
+            if r is not None:
+                partners.append((_plane_rank(r[1], frame), j, r))
+                if len(partners) == PARTNERS_WEIGHED:
+                    break
+        if partners:
+            if len(partners) > 1 and choices is not None:
+                choices.append(i)  # another rule may pair otherwise
+            _, j, r = min(partners, key=lambda p: (p[1],) if rule == "order" else p[:2])
             b, g = units[j], _snap_direction("refl", [i, j], units, r[1], frame, tol)
             unsnapped = r[1]
             used.update((i, j))
@@ -429,10 +439,29 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
             pa = np.linalg.inv(frame.matrix()) @ a.first()
             members = [a, b] if float(n @ pa[:3, 3]) - d >= 0 else [b, a]
             out.append(group_unit("refl", members, g, tol, unsnapped))
-            break
         else:
             out.append(a)
     return out
+
+
+# A unit mirrors several siblings (a table's leg the one beside it, the one behind it and
+# the one across the diagonal): the partner is the one whose mirror plane is square to the
+# parent frame's first axis it can be (x, then y, then z; a slanted plane last), the first
+# in order among those. By order alone, the order a file lists siblings in (glTF's, which
+# Blender's export varies) had paired the legs across one plane in one example and across
+# the diagonal in another, and the program learned legs off the table's corners (h162). Not
+# the nearest partner: where the examples' proportions vary about square (posts at a box's
+# corners, 0.5-0.8 high and 0.6-0.9 deep), that pairs across one plane here, another there.
+PARTNERS_WEIGHED = 8  # partners looked at for each unit, at most: a grid of studs has many
+AXIS_ALIGNED = 0.98  # |cos| of a mirror normal with an axis of the parent's frame, to count as square to it
+
+
+def _plane_rank(g: np.ndarray, frame: Frame) -> int:
+    """0, 1 or 2 for a mirror map ``g`` (world) whose plane is square to the parent frame's
+    x, y or z axis; 3 for a slanted plane (:func:`_pair_reflections`)."""
+    n = np.abs(_mirror_normal(in_frame(g, frame)))
+    axis = int(np.argmax(n))
+    return axis if n[axis] >= AXIS_ALIGNED * float(np.linalg.norm(n)) else 3
 
 
 class _Positions:
@@ -856,12 +885,32 @@ def group_children(children: list, frame: Frame, corners: dict, tol: float = SYM
     (:func:`procmod.geometry.part_library.round_axes`; none when omitted: no ring of
     unturned copies is found, :func:`_ring_relation`).
     """
-    units = [leaf_unit(c, corners, flips, rounds) for c in children]
-    memo = {}  # relate() of pairs of units, across the passes
-    units = _pair_reflections(units, frame, tol, memo=memo)
+    leaves = [leaf_unit(c, corners, flips, rounds) for c in children]
+    memo = {}  # relate() of pairs of units, across the passes and the rules
+    choices = []
+    best = _grouped(leaves, frame, tol, memo, PAIRING_RULES[0], choices)
+    if choices:  # a unit mirrored several siblings: the rule that groups the most (the first of those)
+        for rule in PAIRING_RULES[1:]:
+            other = _grouped(leaves, frame, tol, memo, rule)
+            if len(other) < len(best):
+                best = other
+    return best
+
+
+# How a unit that mirrors several siblings picks its partner (:func:`_pair_reflections`),
+# in the order they are tried: the squarest plane; the first in the file's order.
+# group_children keeps the first rule's groups unless the other groups more: mirrors at an
+# angle by design nest one way only, and the squarest plane may be the other way.
+PAIRING_RULES = ("square", "order")
+
+
+def _grouped(units: list, frame: Frame, tol: float, memo: dict, rule: str, choices: list | None = None) -> list:
+    """:func:`group_children`'s passes over sibling ``units`` with one pairing ``rule``."""
+    units = _pair_reflections(units, frame, tol, memo=memo, rule=rule, choices=choices)
     units = _chains(units, frame, tol, memo)
     while True:  # groups of groups: a grid's rows in a row, four legs at a table's corners
-        grouped = _pair_reflections(_chains(units, frame, tol, memo), frame, tol, any_handedness=True, memo=memo)
+        grouped = _pair_reflections(_chains(units, frame, tol, memo), frame, tol, any_handedness=True, memo=memo,
+                                    rule=rule, choices=choices)
         if len(grouped) == len(units):
             return grouped
         units = grouped
