@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import Counter
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -35,7 +36,8 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .ground import examples_ground
 from .perturb import example_diagonal
-from .symmetry import SYMMETRY_TOLERANCE, Unit, align_ring_starts, box_corners, group_children
+from .symmetry import (PAIRING_RULES, SYMMETRY_TOLERANCE, Unit, align_ring_starts, arrangement_shape, box_corners,
+                       group_children)
 from .transforms import (ANCHOR_SIDES, CURRENT, DIAGONAL_POLE, Frame, Units, anchor_terms, angles_direction,
                          decompose, direction_angles, euler_of, frame_of, rot_of, spread_pole, sym_params,
                          symmetry_direction, turned_frame, SYM_KINDS, node_kind, reserved_name, xform_params)
@@ -109,6 +111,8 @@ class _PartInfo:
     frame: Frame
     units: list
     slot_of: dict = field(default_factory=dict)  # id(unit) -> slot index
+    pairing_choices: bool = False  # whether a child unit mirrored several siblings (group_children's choices)
+    rule: str = PAIRING_RULES[0]  # the pairing rule its children were grouped by
 
 
 def _placed(local: np.ndarray, m: np.ndarray) -> np.ndarray:
@@ -434,9 +438,38 @@ def _regroup_by_consensus(generation: list, corners: dict, tolerance: float, fli
         if not fewer:
             continue  # no node to take as evidence: not worth the grouping (scattered rocks cost 2.5x)
         loose = group_children(info.node.children, info.frame, corners, CONSENSUS_LOOSENING * tolerance, flips,
-                               rounds)
+                               rounds, rule=info.rule)
         if _arrangement(loose) in fewer:
             info.units = loose
+
+
+def _pair_by_agreement(generation: list, corners: dict, tolerance: float, flips: dict, rounds: dict) -> None:
+    """Group the children of the part nodes of a type again by each other pairing rule
+    (:data:`~procmod.learn.symmetry.PAIRING_RULES`) where one of them had a unit mirror
+    several siblings, and keep the rule under which the most nodes of the type are grouped
+    alike (:func:`~procmod.learn.symmetry.arrangement_shape`; the file's order where no
+    other does better). The first partner in the file's order is what authored sets are
+    consistent in, but glTF's sibling order is the exporter's: six Blender tables whose
+    legs were listed in varying order had paired them across the width in some and the
+    diagonal in others, and half the sampled tables had a leg off the top (h162)."""
+    by_type = {}
+    for info in generation:
+        by_type.setdefault(info.node.part, []).append(info)
+    for infos in by_type.values():
+        if not any(info.pairing_choices for info in infos):
+            continue
+        best, agreeing = None, 0
+        for rule in PAIRING_RULES:
+            units = [info.units if rule == info.rule else
+                     group_children(info.node.children, info.frame, corners, tolerance, flips, rounds, rule=rule)
+                     for info in infos]
+            shapes = Counter(arrangement_shape(u, info.frame) for u, info in zip(units, infos))
+            most = shapes.most_common(1)[0][1]
+            if most > agreeing:
+                best, agreeing = (rule, units), most
+        rule, units = best
+        for info, grouped in zip(infos, units):
+            info.rule, info.units = rule, grouped
 
 
 def _arrangement(units: list) -> tuple:
@@ -477,9 +510,12 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         for node in frontier:
             lo, hi = bounds[node.part]
             frame = frame_of(node.transform, lo, hi)  # CURRENT conventions (Units), as sym_params'
-            info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips, rounds))
+            choices = []
+            info = _PartInfo(node, frame, group_children(node.children, frame, corners, tolerance, flips, rounds,
+                                                         choices=choices), pairing_choices=bool(choices))
             made[id(node)] = info
             generation.append(info)
+        _pair_by_agreement(generation, corners, tolerance, flips, rounds)
         _regroup_by_consensus(generation, corners, tolerance, flips, rounds)
         align_ring_starts([(u, info.frame) for info in generation for u in info.units], consensus)
         frontier = [u.representative().node for info in generation for u in info.units]

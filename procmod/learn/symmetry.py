@@ -16,8 +16,8 @@ tolerance, not by comparing matrices:
 * The group then stores the fitted exact map, so the learner models (and regenerates) an
   exact symmetry; the examples' deviations from it are the noise it ignores.
 
-Passes, in order: reflection pairs (each unit with the partner across the squarest plane,
-or in order where that groups more: :data:`PAIRING_RULES`), then translation and
+Passes, in order: reflection pairs (each unit with its first partner in order, or across
+the squarest plane where a part type's examples agree more so: :data:`PAIRING_RULES`), then translation and
 rotation chains of at least :data:`MIN_CHAIN` units with one constant ``G`` (longest
 chain first, refitting ``G`` to the whole chain as it grows), then reflection pairs again
 (mirrored rows; also pairs that are mirror images only through their parts' own
@@ -397,7 +397,7 @@ def relate(a: Unit, b: Unit, kinds: tuple, tol: float = SYMMETRY_TOLERANCE, any_
 # ---- passes -------------------------------------------------------------------------------
 
 def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: bool = False,
-                      memo: dict | None = None, rule: str = "square", choices: list | None = None) -> list:
+                      memo: dict | None = None, rule: str = "order", choices: list | None = None) -> list:
     """Reflection pairs: each unit, in order, with a later free unit it mirrors within the
     tolerance: among several (``rule`` "square"), the first whose plane is square to the
     parent frame's first axis it can be (:func:`_plane_rank`), or (``rule`` "order") the
@@ -445,15 +445,38 @@ def _pair_reflections(units: list, frame: Frame, tol: float, any_handedness: boo
 
 
 # A unit mirrors several siblings (a table's leg the one beside it, the one behind it and
-# the one across the diagonal): the partner is the one whose mirror plane is square to the
-# parent frame's first axis it can be (x, then y, then z; a slanted plane last), the first
-# in order among those. By order alone, the order a file lists siblings in (glTF's, which
-# Blender's export varies) had paired the legs across one plane in one example and across
-# the diagonal in another, and the program learned legs off the table's corners (h162). Not
-# the nearest partner: where the examples' proportions vary about square (posts at a box's
-# corners, 0.5-0.8 high and 0.6-0.9 deep), that pairs across one plane here, another there.
+# the one across the diagonal): by the file's order ("order", the first partner), or by
+# its plane ("square": the one square to the parent frame's first axis it can be, x, then
+# y, then z, a slanted plane last, the first in order among those). Neither is right
+# everywhere -- glTF's sibling order is the exporter's (Blender tables listed in varying
+# order paired their legs across the width in one example and the diagonal in another,
+# h162), and a ring of mirrored pairs or legs turned ten degrees in their top's frame pair
+# by their planes one way here, another there (h163) -- so preprocessing takes for each
+# part type the rule under which its examples agree most (procmod.learn.preprocessing).
+PAIRING_RULES = ("order", "square")
 PARTNERS_WEIGHED = 8  # partners looked at for each unit, at most: a grid of studs has many
 AXIS_ALIGNED = 0.98  # |cos| of a mirror normal with an axis of the parent's frame, to count as square to it
+
+
+def arrangement_shape(units: list, frame: Frame) -> tuple:
+    """How a node's children are grouped, with the direction of each group's map: per unit
+    (sorted) its kind, member count and the axis of the parent's frame its mirror normal,
+    step or rotation axis lies most along, and its first member's the same way. Two
+    examples whose legs pair across the width in one and the diagonal in the other have
+    one signature and two shapes."""
+    def shape(u: Unit) -> tuple:
+        if u.kind == "node":
+            return (u.sig,)
+        g = in_frame(u.g, frame)
+        if u.kind == "refl":
+            direction = _mirror_normal(g)
+        elif u.kind == "trans":
+            direction = g[:3, 3]
+        else:
+            direction = rotation_axis_angle(g)[0]
+        return (u.kind, len(u.members), int(np.argmax(np.abs(direction))), shape(u.members[0]))
+
+    return tuple(sorted(map(shape, units)))
 
 
 def _plane_rank(g: np.ndarray, frame: Frame) -> int:
@@ -876,8 +899,12 @@ def align_ring_starts(units: list, consensus: dict) -> None:
 
 
 def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE,
-                   flips: dict | None = None, rounds: dict | None = None) -> list:
+                   flips: dict | None = None, rounds: dict | None = None, rule: str = "order",
+                   choices: list | None = None) -> list:
     """Symmetry groups among sibling nodes (a list of :class:`Unit`).
+
+    ``rule``: how a unit that mirrors several siblings picks its partner
+    (:data:`PAIRING_RULES`); ``choices``, where given, collects the units that had several.
 
     ``corners[part]``: the part's local bounding-box corners (:func:`box_corners`);
     ``flips[part]``: its self-symmetries (see :func:`leaf_unit`; none when omitted);
@@ -885,27 +912,8 @@ def group_children(children: list, frame: Frame, corners: dict, tol: float = SYM
     (:func:`procmod.geometry.part_library.round_axes`; none when omitted: no ring of
     unturned copies is found, :func:`_ring_relation`).
     """
-    leaves = [leaf_unit(c, corners, flips, rounds) for c in children]
-    memo = {}  # relate() of pairs of units, across the passes and the rules
-    choices = []
-    best = _grouped(leaves, frame, tol, memo, PAIRING_RULES[0], choices)
-    if choices:  # a unit mirrored several siblings: the rule that groups the most (the first of those)
-        for rule in PAIRING_RULES[1:]:
-            other = _grouped(leaves, frame, tol, memo, rule)
-            if len(other) < len(best):
-                best = other
-    return best
-
-
-# How a unit that mirrors several siblings picks its partner (:func:`_pair_reflections`),
-# in the order they are tried: the squarest plane; the first in the file's order.
-# group_children keeps the first rule's groups unless the other groups more: mirrors at an
-# angle by design nest one way only, and the squarest plane may be the other way.
-PAIRING_RULES = ("square", "order")
-
-
-def _grouped(units: list, frame: Frame, tol: float, memo: dict, rule: str, choices: list | None = None) -> list:
-    """:func:`group_children`'s passes over sibling ``units`` with one pairing ``rule``."""
+    units = [leaf_unit(c, corners, flips, rounds) for c in children]
+    memo = {}  # relate() of pairs of units, across the passes
     units = _pair_reflections(units, frame, tol, memo=memo, rule=rule, choices=choices)
     units = _chains(units, frame, tol, memo)
     while True:  # groups of groups: a grid's rows in a row, four legs at a table's corners
