@@ -260,6 +260,30 @@ def test_a_tables_legs_pair_alike_in_whatever_order_the_file_lists_them(depth):
     assert mirrors([table((0, 1, 2, 3))] * 4) == {("refl(leg)", -1.57), ("refl(refl(leg))", 0.52)}
 
 
+@pytest.mark.parametrize("shuffled", [(0, 3), tuple(range(6))])
+def test_a_ring_of_mirrored_pairs_keeps_its_ring_when_files_list_them_otherwise(shuffled):
+    """A tower's six walls, each with a mirrored window pair; some files list the windows
+    in shuffled order. Paired by their planes alone, all six examples agree on three
+    mirrored mirror pairs, which two shuffled files' agreement had preferred to the ring of
+    pairs four files have (h164: no sample kept the six-fold ring). The more compact
+    arrangement half the examples share is kept; all shuffled, the examples agree by the
+    planes, as the file's order leaves them in pieces."""
+    rng, examples = np.random.default_rng(1), []
+    for i in range(6):
+        r, off, h = rng.uniform(1.0, 1.5), rng.uniform(0.2, 0.3), rng.uniform(0.8, 1.5)
+        windows = [node("win", Ry(k * math.pi / 3) @ m @ T(off, h, r)) for k in range(6) for m in (np.eye(4), MX)]
+        if i in shuffled:
+            windows = [windows[j] for j in np.random.default_rng(800 + i).permutation(len(windows))]
+        examples.append(node("tower", np.diag([r, 1, r, 1]), windows))
+    data = preprocess(example_set(examples, {"tower": {"box": [2, 3, 2]}, "win": {"box": [0.3, 0.5, 0.05]}}))
+    tops = Counter(tuple(sorted(n.type for n in data.nodes if n.kind != "part" and n.example == e
+                                and data.nodes[n.parent].kind == "part")) for e in range(6))
+    if len(shuffled) == 2:
+        assert tops[("rot(refl(win))",)] == 4, tops
+    else:
+        assert len(tops) == 1, tops
+
+
 def test_a_ring_of_unturned_round_parts_is_a_rotation_group_and_four_at_a_squares_corners_stay_pairs():
     """Candles on a candelabra's plate, each a copy of the first moved round the ring (not
     turned: a round part's turn does not show). Two of them are related by a translation,

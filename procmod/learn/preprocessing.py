@@ -446,9 +446,11 @@ def _regroup_by_consensus(generation: list, corners: dict, tolerance: float, fli
 def _pair_by_agreement(generation: list, corners: dict, tolerance: float, flips: dict, rounds: dict) -> None:
     """Group the children of the part nodes of a type again by each other pairing rule
     (:data:`~procmod.learn.symmetry.PAIRING_RULES`) where one of them had a unit mirror
-    several siblings, and keep the rule under which the most nodes of the type are grouped
-    alike (:func:`~procmod.learn.symmetry.arrangement_shape`; the file's order where no
-    other does better). The first partner in the file's order is what authored sets are
+    several siblings, and keep the rule whose most common arrangement
+    (:func:`~procmod.learn.symmetry.arrangement_shape`) half the nodes share, is the most
+    compact, then the one the most nodes share (the file's order where no other does
+    better). The
+    first partner in the file's order is what authored sets are
     consistent in, but glTF's sibling order is the exporter's: six Blender tables whose
     legs were listed in varying order had paired them across the width in some and the
     diagonal in others, and half the sampled tables had a leg off the top (h162)."""
@@ -458,18 +460,29 @@ def _pair_by_agreement(generation: list, corners: dict, tolerance: float, flips:
     for infos in by_type.values():
         if not any(info.pairing_choices for info in infos):
             continue
-        best, agreeing = None, 0
+        best, score = None, None
         for rule in PAIRING_RULES:
             units = [info.units if rule == info.rule else
                      group_children(info.node.children, info.frame, corners, tolerance, flips, rounds, rule=rule)
                      for info in infos]
             shapes = Counter(arrangement_shape(u, info.frame) for u, info in zip(units, infos))
-            most = shapes.most_common(1)[0][1]
-            if most > agreeing:
-                best, agreeing = (rule, units), most
+            shape, agreeing = shapes.most_common(1)[0]
+            # among rules whose most common arrangement at least half the nodes share, the one
+            # whose arrangement is the most compact (fewest units, then least nesting: a ring
+            # of six mirrored pairs, rot(refl), over three mirrored mirror pairs, which two
+            # shuffled files' worth of agreement had preferred, h164), then the one more
+            # nodes share
+            mine = (2 * agreeing < len(infos), len(shape), max(map(_nesting, shape), default=0), -agreeing)
+            if score is None or mine < score:
+                best, score = (rule, units), mine
         rule, units = best
         for info, grouped in zip(infos, units):
             info.rule, info.units = rule, grouped
+
+
+def _nesting(shape: tuple) -> int:
+    """How deep one unit's :func:`~procmod.learn.symmetry.arrangement_shape` nests groups."""
+    return 0 if len(shape) == 1 else 1 + _nesting(shape[3])
 
 
 def _arrangement(units: list) -> tuple:
