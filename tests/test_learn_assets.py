@@ -134,6 +134,7 @@ def test_a_file_given_twice_is_one_example_and_said(tmp_path, monkeypatch):
     assert len(read_example_inputs(given)[0].examples) == 3
     assert left_out_note(given) == f"{ships[0].name}, {ships[2].name} were given more than once and read once"
     assert left_out_note(ships) is None
+    assert asset_files([ships[1], ships[0], ships[1]]) == [ships[1], ships[0]]  # in the order first given
 
 
 def test_a_robots_meshes_and_a_link_back_up_are_no_examples(tmp_path):

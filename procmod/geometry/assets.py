@@ -223,7 +223,10 @@ def asset_files(paths) -> list[Path]:
             out.append(p)
     if not out:
         raise AssetError("no asset files given")
-    return list({_same_file(f): f for f in reversed(out)}.values())[::-1]  # each file once, where first given
+    once = {}
+    for f in out:  # each file once, where first given
+        once.setdefault(_same_file(f), f)
+    return list(once.values())
 
 
 def _same_file(path: Path):
