@@ -449,11 +449,10 @@ def _pair_by_agreement(generation: list, corners: dict, tolerance: float, flips:
     several siblings, and keep the rule whose most common arrangement
     (:func:`~procmod.learn.symmetry.arrangement_shape`) half the nodes share, is the most
     compact, then the one the most nodes share (the file's order where no other does
-    better). The
-    first partner in the file's order is what authored sets are
-    consistent in, but glTF's sibling order is the exporter's: six Blender tables whose
-    legs were listed in varying order had paired them across the width in some and the
-    diagonal in others, and half the sampled tables had a leg off the top (h162)."""
+    better). The first partner in the file's order is what authored sets are consistent
+    in, but glTF's sibling order is the exporter's: six Blender tables whose legs were
+    listed in varying order had paired them across the width in some and the diagonal in
+    others, and half the sampled tables had a leg off the top (h162)."""
     by_type = {}
     for info in generation:
         by_type.setdefault(info.node.part, []).append(info)
