@@ -1296,14 +1296,23 @@ def card_read_as_shape(image: Image.Image, mask: np.ndarray) -> float | None:
         return None
     if not np.array_equal(mask, opaque):
         return None
-    rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
-    page = np.median(rgb[opaque], axis=0)
-    if float(page @ _LUMA) < 160 or np.ptp(page) > CARD_TINT:
-        return None
-    drawn = _ink(rgb, page, where=opaque)
-    if not drawn.any() or float(np.mean(rgb[drawn] @ _LUMA)) >= float(page @ _LUMA):
+    drawn, page = _drawing_on_opaque(image, opaque)
+    if drawn is None or float(page @ _LUMA) < 160 or np.ptp(page) > CARD_TINT:
         return None
     return float(opaque.mean())
+
+
+def _drawing_on_opaque(image: Image.Image, opaque: np.ndarray) -> tuple:
+    """``(drawing, page colour)`` of the ``opaque`` part of a transparent picture taken as
+    a page: its ink (:func:`_ink`, the page's median colour as the paper), or None where
+    there is none darker than the page (a light detail on a dark badge, an icon's white
+    dot, is part of the shape)."""
+    rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
+    page = np.median(rgb[opaque], axis=0)
+    drawn = _ink(rgb, page, where=opaque)
+    if drawn.any() and float(np.mean(rgb[drawn] @ _LUMA)) < float(page @ _LUMA):
+        return drawn, page
+    return None, page
 
 PAGE_BOX_FILL = 0.8  # a page turned up to ~7 degrees in the photo still fills this much of its box
 
@@ -1413,12 +1422,8 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
     if opaque is not None:
         mask = opaque
         if opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
-            rgb = np.asarray(image.convert("RGB"), dtype=np.float32)
-            page = np.median(rgb[opaque], axis=0)
-            drawn = _ink(rgb, page, where=opaque)
-            # ink darker than its page is a drawing on it; a light detail on a dark badge
-            # (an icon's white dot) is part of the shape
-            if drawn.any() and float(np.mean(rgb[drawn] @ _LUMA)) < float(page @ _LUMA):
+            drawn, _ = _drawing_on_opaque(image, opaque)
+            if drawn is not None:
                 mask = drawn
     else:
         on_border, surround = _border_colour(colours)
