@@ -160,12 +160,15 @@ def portable_model_error(exc: BaseException, where: str) -> BaseException:
     a :class:`~procmod.core.errors.ModelCodeError` holding the one line a run in one process
     gives (``FILE.py, line N, in RULE: Type: message``). A process pool's coordinator that
     could not rebuild it had ended in a BrokenProcessPool traceback, and a worker that could
-    not pickle it (an exception holding a lambda) in a PicklingError's."""
+    not pickle it (an exception holding a lambda) in a PicklingError's. So does a
+    ``sys.exit()`` or a ``KeyboardInterrupt`` the model's code raised: pickle sends them, but
+    a dask worker whose task raises one dies (a KilledWorker traceback once dask had tried
+    four)."""
     from .core.errors import ModelCodeError
     from .models.from_file import user_code_error
 
     portable = portable_error(exc, where)
-    if portable is exc:
+    if portable is exc and isinstance(exc, Exception):
         return exc
     line = user_code_error(exc)  # (this worker ran the model file: its frames are known as the user's)
     if line is None:  # procmod's own code raised it: the stand-in, with the worker's traceback

@@ -227,3 +227,32 @@ def test_a_worker_error_of_procmods_own_code_keeps_its_stand_in():
     assert type(error) is RuntimeError and "Unpicklable: procmod's own" in str(error)
     ok = ValueError("picklable")
     assert portable_model_error(ok, "a test") is ok
+
+
+@pytest.mark.parametrize("raise_line, expected", [
+    ("raise SystemExit(3)", "the model called sys.exit(3) while it ran; a model cannot end procmod's run: raise an "
+                            "exception for an error (an error in the model's own code)"),
+    ("raise KeyboardInterrupt", "KeyboardInterrupt (an error in the model's own code)"),
+])
+def test_a_model_ending_the_run_on_a_dask_worker_is_the_inline_line(raise_line, expected, tmp_path, capsys):
+    """sys.exit() or a KeyboardInterrupt in a rule killed the dask worker that ran it, and
+    the job ended in a KilledWorker traceback after dask had tried four (h158). sys.exit()
+    is one process's line; a KeyboardInterrupt in one process is taken for Ctrl-C
+    ("procmod: interrupted"), on a worker for the model's error."""
+    distributed = pytest.importorskip("distributed")
+    source = RAISING_MODEL.format(error_class="", raise_line=raise_line)
+    (tmp_path / "raising.py").write_text(source)
+    line = source.splitlines().index(f"    {raise_line}") + 1
+    inline = f"procmod: error: raising.py, line {line}, in root: {expected}"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        runs = [["--scheduler", cluster.scheduler_address]]
+        if "SystemExit" in raise_line:
+            runs.append(["--workers", "1"])
+        for k, where in enumerate(runs):
+            out = tmp_path / f"traces{k}"
+            code = main(["guide", "traces", str(tmp_path / "raising.py"), "--count", "2", "--particles", "4",
+                         "--out", str(out), *where])
+            err = capsys.readouterr().err
+            assert (code, err.strip().splitlines()[-1:]) == (2, [inline]), err[-3000:]
+            assert not out.exists()
