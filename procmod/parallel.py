@@ -618,6 +618,7 @@ def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:
     workers = pool._processes or {}  # shutdown() forgets them, and the pool's thread
     thread = getattr(pool, "_executor_manager_thread", None)
     processes = list(workers.values())
+    results = getattr(pool, "_result_queue", None)  # shutdown() forgets it too
     pool.shutdown(wait=False, cancel_futures=False)
     pending = getattr(pool, "_pending_work_items", None)
     if isinstance(pending, dict):
@@ -628,6 +629,13 @@ def _stop_now(pool: concurrent.futures.ProcessPoolExecutor) -> None:
         process.terminate()
     for process in processes:
         process.join(timeout=5)
+    # A worker ended while it wrote a large result (a model's error with a message of
+    # megabytes) left the pool's thread waiting for the rest for ever, and the command hung
+    # at exit, which joins that thread. With the workers gone, this process's copy of the
+    # results pipe's writing end is the last: closed, the thread reads an end of file.
+    writer = getattr(results, "_writer", None)
+    if writer is not None:
+        writer.close()
     # The pool's thread ends a broken pool's workers itself, and may fork a replacement for
     # one that died (CPython does so even under fork) before it sees the shutdown: wait for
     # it, then end what it left.

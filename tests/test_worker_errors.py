@@ -256,3 +256,26 @@ def test_a_model_ending_the_run_on_a_dask_worker_is_the_inline_line(raise_line, 
             err = capsys.readouterr().err
             assert (code, err.strip().splitlines()[-1:]) == (2, [inline]), err[-3000:]
             assert not out.exists()
+
+
+def test_a_model_error_of_megabytes_from_pool_workers_ends_the_command(tmp_path):
+    """Two workers raising an error of 16 MB each: the first ended the job, and the other,
+    ended while it wrote its own, left the pool's thread waiting for the rest for ever,
+    and the command hung at exit after printing its line (h158)."""
+    import subprocess
+
+    raise_line = 'raise ValueError("x" * 16_000_000)'
+    source = RAISING_MODEL.format(error_class="", raise_line=raise_line)
+    (tmp_path / "raising.py").write_text(source)
+    line = source.splitlines().index(f"    {raise_line}") + 1
+    argv = [sys.executable, "-m", "procmod", "guide", "traces", str(tmp_path / "raising.py"), "--count", "2",
+            "--particles", "4", "--out", str(tmp_path / "traces"), "--workers", "2"]
+    try:
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=90)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the command did not end within 90 s")
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-2000:]
+    assert lines[0].startswith(f"procmod: error: raising.py, line {line}, in root: ValueError: xxx")
+    assert len(lines[0]) < 1000  # cut for the terminal
+    assert not (tmp_path / "traces").exists()
