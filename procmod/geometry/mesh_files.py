@@ -134,6 +134,12 @@ def _normalised_obj(text: str) -> str | None:
                             refs[slot] = str(counts[slot] + 1 + int(ref))
                         except ValueError:  # not a number: trimesh decides what it makes of it
                             continue
+                        if key == "f" and slot == 0 and int(refs[0]) < 1:
+                            # left negative, trimesh counted it back from the file's end: a face on
+                            # another object's vertex, without a word
+                            raise ValueError(f"line {number} ({' '.join(line.split())[:40]!r}) names vertex {ref}, "
+                                             f"{-int(ref)} back, but only {counts[0]} vertices come before it; "
+                                             "export it again")
                 if polygon:
                     numbers.append(refs[0])
                 fields[i] = "/".join(refs)

@@ -235,9 +235,14 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     faces = np.asarray(mesh.faces, dtype=np.int64)
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
     tris = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-    extent = float(np.ptp(tris.reshape(-1, 3), axis=0).max()) if len(tris) else 0.0
-    nonzero = area > 1e-14 * extent * extent
+    with np.errstate(over="ignore", invalid="ignore"):  # coordinates near 1e300: not a warning on the error channel
+        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+        # zero area up to rounding, judged by the face's own size: against the whole mesh's
+        # extent, one stray face 1e6 units off (a marker left in the scene) made every face of
+        # a model of faces 0.05 wide "zero area", dropped, and the model refused as off the grid
+        longest = np.maximum.reduce([np.einsum("ij,ij->i", d, d) for d in (
+            tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 1], tris[:, 0] - tris[:, 2])]) if len(tris) else np.zeros(0)
+        nonzero = area > 1e-14 * longest
     if not nonzero.any():
         raise TargetFileError(f"{where}: every face of the mesh has zero area (its triangles are points or lines), "
                               "so it has neither an inside nor a silhouette")
@@ -493,6 +498,16 @@ def mesh_inside(vertices, faces, grid: VoxelGrid, where: str, notes: list | None
                 w = winding_numbers(vertices, faces[flat], points)
                 if ((np.abs(w - np.round(w)) <= ENCLOSING) & (np.round(w) != 0)).mean() >= 0.5:
                     mask = whole  # they close a region: kept
+                else:
+                    # or they close one with the other pieces: a floor and a roof plane over walls
+                    # folded into one open piece (the planes alone enclose nothing) had been left
+                    # out, the room's inside the open walls' guess; leaf cards around a closed
+                    # trunk still sum to fractions (at most 2e7 solid angles: well under a second)
+                    probes = probes[:max(16, min(len(probes), int(2e7 // len(faces))))]
+                    points = points[:len(probes)]
+                    w = winding_numbers(vertices, faces, points)
+                    if (np.abs(w - np.round(w)) <= ENCLOSING).mean() >= 0.5:
+                        mask = whole
         if mask is None:
             mask, used = solid, faces[~flat]
             if notes is not None:
