@@ -22,6 +22,7 @@ This module imports nothing of procmod but :mod:`procmod.core.errors`.
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import hashlib
 import io
@@ -267,6 +268,12 @@ def parse_json(text: str, source: str, error: type = DerivationFormatError):
     return value
 
 
+# byte-order marks of the wider Unicode encodings, UTF-32's first (its little-endian mark
+# begins with UTF-16's); Python's codecs named here drop the mark
+_WIDE_BOMS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"),
+              (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
+
+
 def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what: str = "file"):
     """The parsed JSON of ``path``; a missing, unreadable or malformed file is ``error``
     with one line naming the file (see :func:`parse_json`)."""
@@ -281,8 +288,11 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
         if size > MAX_JSON_BYTES:  # read whole, and parsed to several times its size
             raise error(f"{what} {cut_text(str(path))} is {format_bytes(size)}, more than procmod reads as JSON "
                         f"({format_bytes(MAX_JSON_BYTES)}); is it the file you meant?")
-        # utf-8-sig: a byte-order mark, which Windows editors write, is not part of the JSON
-        text = Path(path).read_text(encoding="utf-8-sig")
+        # utf-8-sig: a byte-order mark, which Windows editors write, is not part of the JSON;
+        # one of UTF-16 or UTF-32 says the file's encoding (Windows PowerShell's `>` and
+        # Out-File write UTF-16: such a sidecar had been refused as "a picture or another binary file?")
+        raw = Path(path).read_bytes()
+        text = raw.decode(next((name for bom, name in _WIDE_BOMS if raw.startswith(bom)), "utf-8-sig"))
         if not text.strip():  # (json says "Expecting value at line 1")
             raise error(f"{what} {cut_text(str(path))} is empty; was it written to the end?")
     except FileNotFoundError:

@@ -19,6 +19,7 @@ that are not numbers) or when it is too large (more than :data:`MAX_MESH_FACES` 
 
 from __future__ import annotations
 
+import glob
 import math
 import os
 import re
@@ -33,8 +34,8 @@ from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
 from ..geometry.voxel import VoxelGrid
-from .image import (FRAMES, MAX_IMAGE_PIXELS, TargetFileError, _fills_its_box, _fully_transparent, grey_levels,
-                    mask_from_image, meant_key, opaque_part, open_image, picture_in_square)
+from .image import (FRAMES, MAX_IMAGE_PIXELS, SIDECAR_KEYS, TargetFileError, _fills_its_box, _fully_transparent,
+                    grey_levels, mask_from_image, meant_key, opaque_part, open_image, picture_in_square)
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -1192,6 +1193,17 @@ def load_target_file(path: str | os.PathLike):
         return load_silhouette_target(path)
     if kind == "procmod-volume/1":
         return load_volume_target(path)
+    if kind is None and isinstance(spec, dict) and any(key in spec for key in SIDECAR_KEYS):
+        # a picture's sidecar given in the picture's place: told it needs a "format", the user
+        # of a 2D picture was sent to the 3D targets
+        stem = path.with_suffix("")  # NAME.png.json's picture is NAME.png
+        pictures = [stem.name] if stem.is_file() else sorted(
+            p.name for p in path.parent.glob(f"{glob.escape(stem.name)}.*")
+            if p.suffix.lower() != ".json" and p.is_file())
+        picture = cut_text(pictures[0] if pictures else f"{stem.name}.png", 60)
+        raise TargetFileError(f"{cut_text(str(path))}: a picture's sidecar (its \"start\" and \"direction\"), not "
+                              f"a target: give the picture beside it as --target ({picture}), which reads this file "
+                              "with it")
     said = "has no \"format\"" if kind is None else f"\"format\" is {shown_value(kind)}"
     raise TargetFileError(f"{cut_text(str(path))}: {said}; a 3D target file's is \"procmod-volume/1\" or "
                           "\"procmod-silhouette/1\" (README, \"Targets\")")

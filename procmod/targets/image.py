@@ -555,7 +555,10 @@ def _as_shown(image: Image.Image) -> Image.Image:
     white = _white_level(image)
     if white is not None:
         out.info[WHITE_LEVEL] = white
-    out.info[FRAMES] = int(getattr(image, "n_frames", 1) or 1)
+    # a JPEG's MP Format images after the first (a phone's preview or HDR gain map, a stereo
+    # camera's other eye) are no pages of their own: every such photo had got the note to
+    # save the frame with the drawing on its own
+    out.info[FRAMES] = 1 if image.format == "MPO" else int(getattr(image, "n_frames", 1) or 1)
     return out
 
 
@@ -597,16 +600,28 @@ def _white_level(image: Image.Image) -> int | None:
     return None
 
 
+OVERSHOOT = 0.01
+"""A real-valued picture with at most this share of its pixels above 1 is read as 0..1, those
+pixels as white (:func:`grey_levels`)."""
+
+
 def grey_levels(image: Image.Image) -> np.ndarray:
     """The brightness of a picture, 0 (black) to 255 (white), as floats, whatever its bit
     depth: 16-bit and 32-bit integer pictures are scaled from the white level their file
     declares (:data:`WHITE_LEVEL`) or, where it does not, from their range (65535, or their
     own maximum above it; under 256, taken as 8-bit values), and real-valued ones from 0..1
-    when they lie in it. (Pillow's ``convert("L")`` clips such pictures at 255 instead, so
-    every grey above 255 became white.)"""
-    if image.mode not in ("I", "F") and not image.mode.startswith("I;16"):
+    when they lie in it, all but :data:`OVERSHOOT` of their pixels. (Pillow's ``convert("L")``
+    clips such pictures at 255 instead, so every grey above 255 became white.) A grey
+    picture of whole numbers 0 and 1 only is a label mask: its 1s read as white."""
+    if image.mode not in ("L", "I", "F") and not image.mode.startswith("I;16"):
         return np.asarray(image.convert("L"), dtype=np.float64)
     values = np.asarray(image, dtype=np.float64)
+    if image.mode != "F" and values.size and values.min() == 0 and values.max() == 1:
+        # whole numbers 0 and 1 only: a label mask (a segmentation's, numpy's bool array
+        # saved as is), 1 the shape; read as 0 and 255 it was refused as empty ("draw darker")
+        return values * 255.0
+    if image.mode == "L":
+        return values
     finite = values[np.isfinite(values)]
     top = float(finite.max()) if finite.size else 0.0
     declared = image.info.get(WHITE_LEVEL)
@@ -614,7 +629,10 @@ def grey_levels(image: Image.Image) -> np.ndarray:
         scale = 255.0 / declared
     elif image.mode.startswith("I;16"):
         scale = 255.0 / 65535.0
-    elif image.mode == "F" and top <= 1.0:
+    elif image.mode == "F" and (top <= 1.0 or float(np.mean(finite > 1.0)) <= OVERSHOOT):
+        # a 0..1 picture with a few highlights past 1 (a float render's or HDR export's
+        # overshoot) is still a 0..1 picture: one pixel at 1.02 had made the rest black
+        # and the mask empty ("draw the shape darker")
         scale = 255.0
     elif top <= 255.0:
         scale = 1.0
@@ -1552,7 +1570,9 @@ def _read_sidecar(path: Path, shape_padding) -> dict | None:
     placement = {}
     for key, value in ((k, v) for k, v in data.items() if k in SIDECAR_KEYS):
         if (not isinstance(value, (list, tuple)) or len(value) != 2
-                or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)):
+                # (JSON's true is no coordinate: Python's bool is an int, and it was read as 1)
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                           for v in value)):
             raise TargetFileError(f"{sidecar}: {key!r} must be two finite numbers, got {cut_text(repr(value), 60)}")
         placement[key] = (float(value[0]), float(value[1]))
     if "start" in placement:
