@@ -26,6 +26,7 @@ from ..geometry import contact_sheet, save_image_atomic
 from ..geometry.export import colour_of, shaded_preview
 from .examples import (ExampleSet, duplicate_note, example_parts, facing_examples, near_twin_note, orientation_note,
                        read_example_inputs, size_note, stray_note)
+from .preprocessing import check_part_names
 from .program import program_model, save_program
 from .search import SearchOptions, run_search
 
@@ -138,6 +139,7 @@ def learn(examples, out: str | os.PathLike, particles: int = 4, workers: int | N
         raise InvalidArgumentError(f"{argument('samples')} must be from 1 to {MAX_SHEET_SAMPLES} (the contact "
                                    f"sheet's), got {samples:,}")
     example_set, digest = read_example_inputs(inputs)  # everything is read and checked before out is made
+    check_part_names(example_set.parts)
     options = options or SearchOptions()
     options.particles, options.seed = particles, seed
     options.check()

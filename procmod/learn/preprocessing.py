@@ -36,8 +36,8 @@ from ..geometry.voxel import VoxelGrid, voxelize
 from .examples import ExampleNode, ExampleSet, ExamplesError
 from .ground import examples_ground
 from .perturb import example_diagonal
-from .symmetry import (PAIRING_RULES, SYMMETRY_TOLERANCE, Unit, align_ring_starts, arrangement_shape, box_corners,
-                       group_children)
+from .symmetry import (PAIRING_RULES, SYMMETRY_TOLERANCE, Unit, align_mirror_sides, align_ring_starts,
+                       arrangement_shape, box_corners, group_children)
 from .transforms import (ANCHOR_SIDES, CURRENT, DIAGONAL_POLE, Frame, Units, anchor_terms, angles_direction,
                          decompose, direction_angles, euler_of, frame_of, rot_of, spread_pole, sym_params,
                          symmetry_direction, turned_frame, SYM_KINDS, node_kind, reserved_name, xform_params)
@@ -489,6 +489,17 @@ def _arrangement(units: list) -> tuple:
     return tuple(sorted(u.sig for u in units))
 
 
+def check_part_names(parts) -> None:
+    """Refuse a part name that reads as the name procmod gives a learned symmetry
+    (``rot(leg)``); ``procmod learn`` checks it before its output folder is made (it had
+    left an empty one behind)."""
+    reserved = sorted(name for name in parts if reserved_name(name))
+    if reserved:
+        raise ExamplesError(f"part name {reserved[0]!r} reads as the name procmod gives a learned symmetry "
+                            f"({', '.join(SYM_KINDS)} of a part: KIND(PART)); rename the part (in a glTF file or "
+                            "a Blender scene, its mesh)")
+
+
 def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -> Dataset:
     """Symmetry groups, slots and slot groups of an example set (seed 000 section 4).
 
@@ -497,11 +508,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     """
     example_set = squared_examples(example_set)
     parts = example_set.parts
-    reserved = sorted(name for name in parts if reserved_name(name))
-    if reserved:
-        raise ExamplesError(f"part name {reserved[0]!r} reads as the name procmod gives a learned symmetry "
-                            f"({', '.join(SYM_KINDS)} of a part: KIND(PART)); rename the part (in a glTF file or "
-                            "a Blender scene, its mesh)")
+    check_part_names(parts)
     bounds = {name: shape.local_bounds() for name, shape in parts.items()}
     corners = {name: box_corners(lo, hi) for name, (lo, hi) in bounds.items()}
     samples = {name: surface_samples(shape, SLOT_SAMPLES) for name, shape in parts.items()}
@@ -516,7 +523,7 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
     # before their first members are looked into
     made = {}
     frontier = list(example_set.examples)
-    consensus = {}
+    consensus, mirror_sides = {}, {}
     while frontier:
         generation = []
         for node in frontier:
@@ -530,6 +537,8 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         _pair_by_agreement(generation, corners, tolerance, flips, rounds)
         _regroup_by_consensus(generation, corners, tolerance, flips, rounds)
         align_ring_starts([(u, info.frame) for info in generation for u in info.units], consensus)
+        align_mirror_sides([(u, info.frame, info.node.part) for info in generation for u in info.units],
+                           mirror_sides)
         frontier = [u.representative().node for info in generation for u in info.units]
     infos = []  # every part node that is a unit representative or a root, depth first
 
@@ -589,8 +598,8 @@ def preprocess(example_set: ExampleSet, tolerance: float = SYMMETRY_TOLERANCE) -
         if unit.kind == "node":
             return convert_part(by_node[id(unit.node)], frame, example)
         measured = frame.for_symmetry()  # (turned by a symmetry holding it)
-        pnode = add(PNode(0, unit.kind, unit.type, example, sym=sym_params(unit.kind, unit.g, measured),
-                          count=len(unit.members)))
+        pnode = add(PNode(0, unit.kind, unit.type, example,
+                          sym=sym_params(unit.kind, unit.g, measured, towards=unit.normal), count=len(unit.members)))
         sym_inner[unit.type] = unit.members[0].type
         max_count[unit.type] = max(max_count.get(unit.type, 0), len(unit.members))
         inner = frame._replace(measure=None)

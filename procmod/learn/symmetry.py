@@ -28,7 +28,8 @@ come close to closing a circle is snapped to ``2 pi / n`` when the snapped map s
 within the tolerance. Groups are canonicalised in the parent's frame: mirror normals,
 translation steps and rotation axes point along their largest component, rotation angles
 are positive, and the full circles of one type start at corresponding members across all
-examples (:func:`align_ring_starts`).
+examples (:func:`align_ring_starts`), as mirror pairs of one type whose planes agree take
+their normals, and first members, on one side (:func:`align_mirror_sides`).
 """
 
 from __future__ import annotations
@@ -86,6 +87,9 @@ class Unit:
     flips: dict = field(default_factory=dict)  # part name -> its self-symmetries (corner XOR masks)
     rounds: dict = field(default_factory=dict)  # part name -> local axes it is round about (round_axes)
     unsnapped: np.ndarray | None = None  # a mirror pair's map as fitted, before _snap_direction
+    # a mirror pair's normal (world) as its type's pairs agree on it, member 0 on its positive
+    # side (align_mirror_sides); None: the canonical one (canonical_direction in the parent's frame)
+    normal: np.ndarray | None = None
 
     def top_parts(self) -> list:
         """(part, world) of the unit's own parts (all members, not their descendants)."""
@@ -896,6 +900,61 @@ def align_ring_starts(units: list, consensus: dict) -> None:
         for ring, angles in rings:
             start = int(np.argmin(np.abs((c - angles + np.pi) % (2 * np.pi) - np.pi)))
             ring.members = ring.members[start:] + ring.members[:start]
+
+
+MIRRORS_AGREE = math.cos(math.radians(30.0))
+"""Mirror pairs of one type whose normals (in their parents' frames) all lie within 30
+degrees of one line take one side of it (:func:`align_mirror_sides`); a type mirrored
+across planes of every direction (towers round a keep) keeps each normal canonical."""
+
+
+def _mirror_normal(g: np.ndarray) -> np.ndarray:
+    """The unit normal (world, either sign) of a mirror map ``g``."""
+    w, v = np.linalg.eigh(0.5 * (g[:3, :3] + g[:3, :3].T))
+    return v[:, int(np.argmin(w))]
+
+
+def align_mirror_sides(units: list, consensus: dict) -> None:
+    """Let the mirror pairs of one type at one place take their normals on one side of the
+    line their planes' normals agree on, with their first members on that side.
+
+    Which member of a pair comes first decides what the learner models (member 0's
+    transform, and the normal's angles), and the canonical normal (its largest component
+    positive, in the parent's frame) flips where two components tie: the legs of stools
+    with their four legs on the seat's axes (mirrored across the diagonals), placed by eye,
+    had their inner mirror's normal half a turn apart in 4 of 8 stools, and member 0 the
+    other leg, and sampled stools drew legs off the seat. Here the pairs of a type at one
+    place (the parent's part type and the groups above the pair) whose normals lie within
+    :data:`MIRRORS_AGREE` of one line (its direction, canonical, kept in ``consensus`` for
+    pairs found later) take the normal on its side (:attr:`Unit.normal`). ``units``:
+    (unit, parent frame, parent part type) triples; the first members of groups are looked
+    into, outside in, as the learner looks into them."""
+    level = [(u, frame, (part,)) for u, frame, part in units if u.kind != "node"]
+    while level:
+        found = {}
+        for unit, frame, place in level:
+            if unit.kind == "refl":
+                n = frame.rot.T @ _mirror_normal(unit.g)
+                found.setdefault(place + (unit.type,), []).append((unit, frame, n))
+        for key, pairs in found.items():
+            normals = np.array([n for _, _, n in pairs])
+            if key not in consensus:
+                w, v = np.linalg.eigh(normals.T @ normals)
+                line, _ = canonical_direction(v[:, -1])
+                consensus[key] = line if np.abs(normals @ line).min() >= MIRRORS_AGREE else None
+            line = consensus[key]
+            if line is None:
+                continue
+            for unit, frame, n in pairs:
+                if abs(float(n @ line)) < MIRRORS_AGREE:
+                    continue  # a pair found later off the line: canonical, as before
+                n = n if float(n @ line) >= 0 else -n
+                gf = in_frame(unit.g, frame)
+                first = np.linalg.inv(frame.matrix()) @ unit.members[0].first()
+                if float(n @ first[:3, 3]) < 0.5 * float(n @ gf[:3, 3]):  # member 0 on the other side
+                    unit.members = unit.members[::-1]
+                unit.normal = frame.rot @ n
+        level = [(u.members[0], frame, place + (u.type,)) for u, frame, place in level if u.members[0].kind != "node"]
 
 
 def group_children(children: list, frame: Frame, corners: dict, tol: float = SYMMETRY_TOLERANCE,

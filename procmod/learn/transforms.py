@@ -439,11 +439,16 @@ def to_world(g_frame: np.ndarray, frame: Frame) -> np.ndarray:
     return f @ g_frame @ np.linalg.inv(f)
 
 
-def reflection_params(g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
-    """(polar, azimuth, offset fraction) of the mirror plane n.x = d in the frame."""
+def reflection_params(g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE,
+                      towards: np.ndarray | None = None) -> np.ndarray:
+    """(polar, azimuth, offset fraction) of the mirror plane n.x = d in the frame: n
+    canonical (:func:`canonical_direction`), or on the side of ``towards`` (a world
+    direction: the normal the mirror pairs of its type agree on, symmetry.align_mirror_sides)."""
     g = in_frame(g_world, frame)
     w, v = np.linalg.eigh(0.5 * (g[:3, :3] + g[:3, :3].T))
     n, sign = canonical_direction(v[:, int(np.argmin(w))])
+    if towards is not None and float((frame.rot @ n) @ towards) < 0:
+        n = -n
     d = 0.5 * float(n @ g[:3, 3])  # translation of the reflection is 2 d n
     polar, azimuth = direction_angles(n, pole)
     return np.array([polar, azimuth, d / float(np.abs(n) @ frame.extent)])
@@ -499,11 +504,15 @@ def rotation_map(p, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarra
     return to_world(g, frame)
 
 
-def sym_params(kind: str, g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> np.ndarray:
-    """A symmetry map's parameters (:data:`SYM_PARAMS`); directions' angles about ``pole``."""
+def sym_params(kind: str, g_world: np.ndarray, frame: Frame, pole: np.ndarray = DIAGONAL_POLE,
+               towards: np.ndarray | None = None) -> np.ndarray:
+    """A symmetry map's parameters (:data:`SYM_PARAMS`); directions' angles about ``pole``
+    (a mirror's normal on the side of ``towards``, where given: :func:`reflection_params`)."""
     if kind == "trans":
         return translation_params(g_world, frame)
-    return (reflection_params if kind == "refl" else rotation_params)(g_world, frame, pole)
+    if kind == "refl":
+        return reflection_params(g_world, frame, pole, towards)
+    return rotation_params(g_world, frame, pole)
 
 
 def sym_maps(kind: str, params, count: int, frame: Frame, pole: np.ndarray = DIAGONAL_POLE) -> list[np.ndarray]:
