@@ -37,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import posixpath
 import re
 import shutil
 import tempfile
@@ -431,7 +432,9 @@ def _mesh_entries_of(shapes: Path) -> set:
     for mesh in meshes:  # a .gltf is copied with the buffers and images it names
         if mesh.lower().endswith(".gltf"):
             folder = re.split(r"[\\/]", mesh)[:-1]
-            paths += ["/".join(folder + [unquote(uri)]) for uri in _gltf_uris(shapes.parent / mesh)]
+            # normalised: meshes/m.gltf naming ../textures/wood.png is copied to textures/wood.png
+            paths += [posixpath.normpath("/".join(folder + [unquote(uri).replace("\\", "/")]))
+                      for uri in _gltf_uris(shapes.parent / mesh)]
     return {_first_component(p) for p in paths} - {"", ".."}
 
 

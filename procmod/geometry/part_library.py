@@ -112,6 +112,10 @@ def read_part_shape(name: str, spec, base_dir: str | os.PathLike, where: str) ->
     if len(getattr(mesh, "faces", ())) == 0:
         raise PartLibraryError(f"{where}.mesh: {path} holds no triangles")
     points, indices = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    if indices.min() < 0 or indices.max() >= len(points):  # a glTF's index buffer is not checked by trimesh
+        raise PartLibraryError(f"{where}.mesh: {path}: a triangle refers to a vertex that does not exist (index "
+                               f"{int(indices.max() if indices.max() >= len(points) else indices.min())}, of "
+                               f"{len(points)} vertices); fix or re-export the mesh")
     if not np.isfinite(points).all():
         raise PartLibraryError(f"{where}.mesh: {path} has vertices that are not finite numbers (nan or inf); "
                                "fix or re-export the mesh")

@@ -38,13 +38,16 @@ from .codec import decode, parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
 from .contacts import ENCLOSED_ADVICE, enclosing_parts, loose_parts, only_enclosed, shape_graph
 from .grammar import Grammar
-from .shapes import (ShapeSet, ShapesFormatError, first_poses, graph_to_dict, read_shapes, shapes_to_dict,
-                     write_shapes)
+from .shapes import (ShapeSet, ShapesFormatError, check_copies, first_poses, graph_to_dict, read_shapes,
+                     shapes_to_dict, write_shapes)
 from .tagger import TaggerConfig, TaggerModel, tagging_accuracy, tagging_examples, train_tagger
 from .torch_utils import ModelFileError, OtherTrainingError, reading_model_file, training_device
 from .vae import StringModel, VAEConfig, check_vae_resumable, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
+# the files a collection folder holds beside its shapes.json (relative paths, as regular
+# expressions): a mesh file or glTF buffer the shapes name is never copied onto one of them
+COLLECTION_FILES = (r"graphs(/shape_\d+\.json)?", r"strings\.txt", r"growth\.json", r"contact_sheet\.png")
 # how an error message says to train a model folder (the command line: procmod strings train)
 TRAIN_MODEL = "train_model(COLLECTION, out=MODEL)"
 
@@ -64,7 +67,7 @@ def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds
     if out.exists() and not out.is_dir():
         raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
     (out / "graphs").mkdir(parents=True, exist_ok=True)
-    write_shapes(shape_set, out / "shapes.json", shapes)
+    write_shapes(shape_set, out / "shapes.json", shapes, COLLECTION_FILES)
     rng = np.random.default_rng([seed, 1])
     strings = []
     for i, shape in enumerate(shapes):
@@ -159,6 +162,8 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
     shape_set = read_collection(collection)
     out = output_path(out)  # '..' resolved: no stray folders made on the way to it
     folder = RunFolder(out, STRINGS_MODEL, overwrite, inputs=[collection])
+    # a part's file copied where the model's own files go would be replaced by one: refused before the folder is made
+    check_copies(shape_set, out / "collection.json", STRINGS_MODEL.patterns)
     # what the collection's shapes can refuse (a loose part) is found before the folder is made
     graphs = [shape_graph(shape_set, s) for s in shape_set.shapes]
     for i, g in enumerate(graphs):
@@ -195,7 +200,7 @@ def train_model(collection: str | os.PathLike, out: str | os.PathLike, vae_confi
                                      "there")
     else:
         try:
-            write_shapes(shape_set, out / "collection.json", train_shapes)
+            write_shapes(shape_set, out / "collection.json", train_shapes, STRINGS_MODEL.patterns)
         except BaseException:
             if fresh:  # what it had copied (a mesh file) made the folder a stranger's to the retry
                 shutil.rmtree(out, ignore_errors=True)

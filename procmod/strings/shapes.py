@@ -184,7 +184,23 @@ def mesh_obj_text(vertices, faces) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _copy_gltf_files(source: Path, target: Path, where: str) -> None:
+def _gltf_file_copy(folder: Path, target: Path, name: str, where: str) -> Path:
+    """Where the file a ``.gltf`` copied to ``target`` names (``name``, relative to it) is
+    copied: at the same relative place, which must lie inside ``folder`` (the new shapes
+    file's), not only inside the glTF's own folder: ``meshes/m.gltf`` naming
+    ``../textures/wood.png`` is copied (it had been refused), ``../x.bin`` at the top is not."""
+    import posixpath
+    import re
+
+    if ".." in re.split(r"[/\\]", name) and not posixpath.isabs(name.replace("\\", "/")):
+        inside = target.parent.relative_to(folder).as_posix()
+        joined = posixpath.normpath(posixpath.join(inside, name.replace("\\", "/")))
+        if joined != ".." and not joined.startswith("../"):
+            return contained_path(folder, joined, where)
+    return contained_path(target.parent, name, where)  # refused there with the name as written
+
+
+def _copy_gltf_files(source: Path, target: Path, where: str, folder: Path) -> None:
     """The files a copied ``.gltf`` names (external buffers, images), copied beside the
     copy at the same relative places: without them the copy cannot be read."""
     import shutil
@@ -207,19 +223,79 @@ def _copy_gltf_files(source: Path, target: Path, where: str) -> None:
             found = source.parent / name
             if kind == "images" and not found.is_file():
                 continue  # the mesh reads without its textures (trimesh skips a missing one)
-            copy = contained_path(target.parent, name, f"{where}: {source.name}: {kind} {uri!r}")
+            copy = _gltf_file_copy(folder, target, name, f"{where}: {source.name}: {kind} {uri!r}")
             copy.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(named_file(source.parent, name, f"{where}: {source.name}", kind=kind[:-1]), copy)
 
 
-def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> None:
+def _copied_files(shape_set: ShapeSet, folder: Path):
+    """``(relative path, where)`` of each file :func:`write_shapes` copies into ``folder``
+    (mesh files and the buffers and images a ``.gltf`` names): none when the set is written
+    in its own folder or its meshes are written out (``base_dir`` None)."""
+    from urllib.parse import unquote
+
+    from ..core.paths import UnsafePathError
+    from ..geometry.mesh_files import gltf_header
+
+    if shape_set.base_dir is None or folder.resolve() == Path(shape_set.base_dir).resolve():
+        return
+    for shape in shape_set.library.values():
+        if shape.kind != "mesh":
+            continue
+        where = f"{shape_set.source + ': ' if shape_set.source else ''}parts.{shape.name}.mesh"
+        try:
+            target = contained_path(folder, shape.source, where)
+        except UnsafePathError:
+            continue  # write_shapes refuses it with its own message
+        yield target.relative_to(folder).as_posix(), where
+        source = Path(shape_set.base_dir) / target.relative_to(folder)  # a path written with backslashes too
+        if source.suffix.lower() != ".gltf":
+            continue
+        try:
+            header = gltf_header(source)
+        except (OSError, ValueError):
+            continue
+        for kind in ("buffers", "images"):
+            for item in header.get(kind) or []:
+                uri = item.get("uri") if isinstance(item, dict) else None
+                if isinstance(uri, str) and not uri.startswith("data:"):
+                    try:
+                        copy = _gltf_file_copy(folder, target, unquote(uri), where)
+                    except UnsafePathError:
+                        continue
+                    yield copy.relative_to(folder).as_posix(), f"{where}: {source.name}: {kind} {uri!r}"
+
+
+def check_copies(shape_set: ShapeSet, path: str | os.PathLike, own_files: tuple = ()) -> None:
+    """ShapesFormatError when a file :func:`write_shapes` would copy beside the shapes file
+    ``path`` would land on the shapes file itself or on a file the caller writes there
+    (``own_files``: regular expressions of paths relative to its folder): the caller's file
+    would replace the copy (a glTF buffer named ``strings.txt`` in a collection), leaving
+    the written set unreadable."""
+    import re
+
+    path = Path(path)
+    mine = (re.escape(path.name), *own_files)
+    for relative, where in _copied_files(shape_set, path.parent):
+        if any(re.fullmatch(pattern, relative, re.IGNORECASE) for pattern in mine):
+            raise ShapesFormatError(f"{where}: the file {relative!r} would be copied where procmod writes a file of "
+                                    "its own (the written shapes could not read it back); rename it (and the "
+                                    "name that gives it)")
+
+
+def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None, own_files: tuple = ()) -> None:
     """Write a shapes file atomically. Mesh paths are written as they were read; mesh files
     are copied beside the new file when it goes to another folder; meshes read from asset
-    files (``base_dir`` None) are written as OBJ files at their ``parts/NAME.obj``."""
+    files (``base_dir`` None) are written as OBJ files at their ``parts/NAME.obj``.
+
+    ``own_files``: regular expressions of the paths (relative to the new file's folder,
+    with ``/``) of the files the caller writes beside it; a copied file at one of them is
+    refused (see :func:`check_copies`)."""
     import shutil
 
     _check_path(path, "shapes file")
     path = check_output_file(path, "path")  # its '..' resolved: written there
+    check_copies(shape_set, path, own_files)
     if shape_set.base_dir is None:  # meshes read from asset files: written out as they are held
         for shape in shape_set.library.values():
             if shape.kind == "mesh":
@@ -235,7 +311,7 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None) -> N
                 target.parent.mkdir(parents=True, exist_ok=True)
                 source = named_file(shape_set.base_dir, shape.source, where)
                 shutil.copyfile(source, target)
-                _copy_gltf_files(source, target, where)
+                _copy_gltf_files(source, target, where, path.parent)
     write_text_atomic(path, json.dumps(shapes_to_dict(shape_set, shapes)) + "\n")
 
 

@@ -33,12 +33,23 @@ class TargetFileError(ProcmodError):
     """A target image or its sidecar JSON cannot be used."""
 
 
+def _is_special_file(path: Path) -> bool:
+    """Whether ``path`` is there but neither a regular file nor a folder (a pipe, a device)."""
+    try:
+        return path.exists() and not path.is_file() and not path.is_dir()
+    except (OSError, ValueError):  # a name too long to look up: opening it says so
+        return False
+
+
 def open_image(path: str | os.PathLike, where: str | None = None, square: bool = False) -> Image.Image:
     """A picture file, decoded, or a :class:`TargetFileError` in one line naming ``where``
     (default: the path). A picture over :data:`MAX_IMAGE_PIXELS` (a decompression bomb,
     or just too big) is refused from its header, before its pixels are decoded; with
     ``square``, so is one whose padding to a square (a target mask) would be."""
     path = Path(path)
+    if _is_special_file(path):  # Pillow would wait on a pipe (a FIFO named like a picture) for ever
+        raise TargetFileError(f"{where + ': ' if where else ''}{cut_text(str(path))} is not a regular file (a device "
+                              "or a pipe); give a picture file")
     where = where or cut_text(str(path))
     try:
         with warnings.catch_warnings():
