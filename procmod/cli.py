@@ -20,6 +20,8 @@ import re
 import shlex
 import signal
 import sys
+import threading
+import _thread
 from pathlib import Path
 
 import numpy as np
@@ -631,27 +633,67 @@ class Terminated(KeyboardInterrupt):
     half-written left (killed outright, a run left its hidden ``.OUT.*.tmp`` folder)."""
 
 
+# The stops (Terminated, KeyboardInterrupt) the signal handlers below raised during the
+# command. One raised inside a ctypes callback is printed and dropped by ctypes ("Exception
+# ignored on calling ctypes callback function"), as when it came while numba compiled a
+# kernel (a first run, no cached machine code): the command went on to the end of its
+# budget, or numba's compile failed with a RuntimeError of its own ("no compiled object
+# yet"), a 60-line traceback and status 1 for a Ctrl-C. Such a stop is raised again.
+_RAISED_STOPS: list = []
+
+
 def _terminate(signum, frame):
-    raise Terminated()
+    _RAISED_STOPS.append(Terminated())
+    raise _RAISED_STOPS[-1]
+
+
+def _interrupt(signum, frame):
+    """Python's own Ctrl-C handler, noting the interrupt in :data:`_RAISED_STOPS`."""
+    _RAISED_STOPS.append(KeyboardInterrupt())
+    raise _RAISED_STOPS[-1]
 
 
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
-    """Install :func:`_terminate` for SIGTERM while a command runs, where nobody else
-    handles SIGTERM (an application that embeds procmod keeps its own handler)."""
-    try:
-        previous = signal.getsignal(signal.SIGTERM)
-        if previous != signal.SIG_DFL:
-            previous = None
-        else:
-            signal.signal(signal.SIGTERM, _terminate)
-    except ValueError:  # not the main thread
-        previous = None
+    """Install :func:`_terminate` for SIGTERM and :func:`_interrupt` for SIGINT while a
+    command runs, where nobody else handles them (an application that embeds procmod keeps
+    its own handlers)."""
+    _RAISED_STOPS.clear()
+    previous = {}
+    for signum, ours, default in ((signal.SIGTERM, _terminate, signal.SIG_DFL),
+                                  (signal.SIGINT, _interrupt, signal.default_int_handler)):
+        try:
+            if signal.getsignal(signum) == default:
+                signal.signal(signum, ours)
+                previous[signum] = default
+        except ValueError:  # not the main thread
+            pass
+    unraisable_hook = sys.unraisablehook
+    again = []
+
+    def dropped(unraisable):
+        stop = next((stop for stop in _RAISED_STOPS if unraisable.exc_value is stop), None)
+        if stop is None:
+            unraisable_hook(unraisable)
+            return
+        # a stop of ours that a library dropped: signalled again a moment later, from another
+        # thread (signalled now, it would be raised in this hook, and dropped again), once the
+        # main thread has left the callback; said once, by main
+        timer = threading.Timer(0.05, _thread.interrupt_main,
+                                (signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT,))
+        timer.daemon = True
+        again.append(timer)
+        timer.start()
+
+    sys.unraisablehook = dropped
     try:
         yield
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        sys.unraisablehook = unraisable_hook
+        for timer in again:  # the command ended first (a library's error that followed the stop)
+            timer.cancel()
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 _FULL = {code for code in (getattr(errno, "ENOSPC", None), getattr(errno, "EDQUOT", None)) if code is not None}
@@ -741,7 +783,7 @@ def main(argv=None) -> int:
             pass
         return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
     except BaseException as exc:  # (a model's rule may raise sys.exit() or its own BaseException: its error too)
-        stop = _stopped_by(exc)
+        stop = _stopped_by(exc) or (_RAISED_STOPS[-1] if _RAISED_STOPS else None)  # (one a library dropped)
         if stop is not None:  # a library's clean-up failed on the way out of a stop (torch's zip writer)
             print("procmod: terminated" if isinstance(stop, Terminated) else "procmod: interrupted", file=sys.stderr)
             return 143 if isinstance(stop, Terminated) else 130
