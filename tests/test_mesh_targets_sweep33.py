@@ -105,3 +105,35 @@ def test_a_relative_index_before_the_first_vertex_is_refused(tmp_path):
                                       "f -1 -2 -9\nf 1 2 4\nf 2 3 4\nf 3 1 4\n")
     with pytest.raises(TargetFileError, match=r"line 5 .*names vertex -9, 9 back, but only 4 vertices"):
         read_mesh(tmp_path / "cut.obj")
+
+
+FAR_STRAY = """
+import sys
+import numpy as np
+import trimesh
+from procmod.geometry.inside import closed_winding
+from procmod.geometry.voxel import VoxelGrid
+grid = VoxelGrid((-1.0, -1.0, -1.0), 0.2, (10, 10, 10))
+box = trimesh.creation.box(extents=[1, 1, 1])
+x = float(sys.argv[1])
+stray = np.array([[[x, 0, 0], [x + 1, 0, 0], [x, 1, 0]]])
+for tris in (box.vertices[box.faces], np.concatenate([box.vertices[box.faces], stray])):
+    print((closed_winding(tris, np.ones(len(tris), dtype=np.int64), grid) > 0.5).sum())
+"""
+
+
+@pytest.mark.parametrize("x", ["1e19", "3.4e38", "-1e19", "inf"])
+def test_a_stray_face_beyond_2_to_the_63_voxels_leaves_the_box_and_ends(x):
+    """A stray face at 1e19 (or FLT_MAX, an exporter's "unset"): its column index passed
+    2^63, numba's int() of it is -2^63, and the column loop counted up from there for ever,
+    deaf to Ctrl-C. It crosses no column: the box alone is the inside."""
+    import subprocess
+    import sys
+
+    try:
+        done = subprocess.run([sys.executable, "-c", FAR_STRAY, x], capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        pytest.fail("closed_winding did not end within 120 s")
+    assert done.returncode == 0, done.stderr
+    alone, with_stray = done.stdout.split()
+    assert alone == with_stray and int(alone) > 0

@@ -119,3 +119,53 @@ def test_a_phone_jpeg_with_an_mp_format_preview_gets_no_frames_note(tmp_path):
         assert opened.format == "MPO" and opened.n_frames == 2
     target = load_target_image(tmp_path / "photo.jpg")
     assert target.mask.any() and not any("frames" in note for note in target.notes)
+
+
+def test_a_bright_thin_drawing_on_a_dark_0_to_1_ground_of_a_0_to_255_float_picture(tmp_path):
+    # a 0..255 float picture whose bright line covers under 1% (0.6%) on a ground of 0..1
+    # noise had been read as a 0..1 picture with highlights: the noise filled 0..255 and the
+    # mask was empty, or the ground itself (review h171)
+    from PIL import Image
+
+    from procmod.targets import load_target_image
+
+    rng = np.random.default_rng(1)
+    ink = np.zeros((100, 100), dtype=bool)
+    ink[20:80, 50] = True
+    for ground in (rng.random((100, 100)), np.round(rng.random((100, 100)))):
+        picture = np.where(ink, 200.0, ground).astype(np.float32)
+        Image.fromarray(picture, mode="F").save(tmp_path / "line.tif")
+        mask = load_target_image(tmp_path / "line.tif").mask
+        assert mask.sum() == ink.sum() and (mask & ink).sum() == ink.sum()
+
+
+def test_a_label_mask_as_a_silhouette_view_hits_its_1s(tmp_path):
+    # 1 the object, 0 the rest: read as white on black, the object was to be avoided and the
+    # rest hit, without a word (review h171); a silhouette view's dark pixels are its hits
+    import json
+
+    from PIL import Image
+
+    from procmod.targets.files import load_target_file
+
+    labels = np.zeros((60, 80), dtype=np.uint8)
+    labels[15:45, 30:50] = 1
+    Image.fromarray(labels).save(tmp_path / "mask.png")
+    camera = {"eye": [0, 0, 10], "look_at": [0, 0, 0], "projection": "orthographic", "fov": 4}
+    (tmp_path / "t.json").write_text(json.dumps({"format": "procmod-silhouette/1",
+                                                 "views": [{"image": "mask.png", "camera": camera}]}))
+    weights = np.asarray(load_target_file(tmp_path / "t.json").weights[0])
+    shape = labels.astype(bool)
+    assert (weights[shape] > 0).all() and (weights[~shape] < 0).all()
+
+
+def test_a_json_file_with_cr_line_ends_says_the_right_line(tmp_path):
+    # read as bytes (for UTF-16's mark), a CR-only file's lines were one: "at line 1" for an
+    # error on line 4 (review h171)
+    import pytest
+
+    from procmod.core.io import read_json
+
+    (tmp_path / "cr.json").write_bytes(b'{\r  "a": 1,\r  "b": 2\r  "c": 3\r}\r')
+    with pytest.raises(Exception, match="at line 4"):
+        read_json(tmp_path / "cr.json")

@@ -293,6 +293,9 @@ def read_json(path: str | os.PathLike, error: type = DerivationFormatError, what
         # Out-File write UTF-16: such a sidecar had been refused as "a picture or another binary file?")
         raw = Path(path).read_bytes()
         text = raw.decode(next((name for bom, name in _WIDE_BOMS if raw.startswith(bom)), "utf-8-sig"))
+        # line ends as read_text read them (json counts lines by "\n": a CR-only file's
+        # errors had all been "at line 1")
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
         if not text.strip():  # (json says "Expecting value at line 1")
             raise error(f"{what} {cut_text(str(path))} is empty; was it written to the end?")
     except FileNotFoundError:

@@ -172,10 +172,16 @@ def _triangle_columns(tris, weights, ox, oy, h, nx, ny, counts, col, zs, ss, fil
         cx, cy, cz = tris[t, 2, 0], tris[t, 2, 1], tris[t, 2, 2]
         x0, x1 = min(ax, bx, cx), max(ax, bx, cx)
         y0, y1 = min(ay, by, cy), max(ay, by, cy)
-        i0 = max(int(math.ceil((x0 - ox) / h - 0.5)), 0)
-        i1 = min(int(math.floor((x1 - ox) / h - 0.5)), nx - 1)
-        j0 = max(int(math.ceil((y0 - oy) / h - 0.5)), 0)
-        j1 = min(int(math.floor((y1 - oy) / h - 0.5)), ny - 1)
+        fi0, fi1 = (x0 - ox) / h - 0.5, (x1 - ox) / h - 0.5  # the columns' indices it spans, as reals
+        fj0, fj1 = (y0 - oy) / h - 0.5, (y1 - oy) / h - 0.5
+        if not (fi1 > -1.0 and fi0 < nx and fj1 > -1.0 and fj0 < ny):
+            continue  # clear of the grid's columns (or not finite): it crosses none
+        # clamped before the int: past 2^63 (a stray face at 1e19) numba's int() is -2^63,
+        # from which the loops below had counted up for ever
+        i0 = max(int(math.ceil(max(fi0, -1.0))), 0)
+        i1 = min(int(math.floor(min(fi1, float(nx)))), nx - 1)
+        j0 = max(int(math.ceil(max(fj0, -1.0))), 0)
+        j1 = min(int(math.floor(min(fj1, float(ny)))), ny - 1)
         # the division rounds: a column whose centre (computed as below) lies on the triangle's
         # bounds could be skipped (ox -2.7, h 0.2: centre 3 is at x = -2.0, but (-2.0 - ox) / h
         # - 0.5 is 3.000000000000001), losing the crossing its perturbed line makes there and

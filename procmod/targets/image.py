@@ -612,8 +612,11 @@ def _white_level(image: Image.Image) -> int | None:
 
 
 OVERSHOOT = 0.01
-"""A real-valued picture with at most this share of its pixels above 1 is read as 0..1, those
-pixels as white (:func:`grey_levels`)."""
+OVERSHOOT_TOP = 2.0
+"""A real-valued picture with at most :data:`OVERSHOOT` of its pixels above 1, and none above
+:data:`OVERSHOOT_TOP`, is read as 0..1, those pixels as white (:func:`grey_levels`): a render's
+highlights. One whose values pass 2 is a 0..255 picture, however few its bright pixels (a thin
+light drawing on a dark ground of 0..1 noise covers under 1%)."""
 
 
 def grey_levels(image: Image.Image) -> np.ndarray:
@@ -621,16 +624,18 @@ def grey_levels(image: Image.Image) -> np.ndarray:
     depth: 16-bit and 32-bit integer pictures are scaled from the white level their file
     declares (:data:`WHITE_LEVEL`) or, where it does not, from their range (65535, or their
     own maximum above it; under 256, taken as 8-bit values), and real-valued ones from 0..1
-    when they lie in it, all but :data:`OVERSHOOT` of their pixels. (Pillow's ``convert("L")``
+    when they lie in it, all but a few highlights (:data:`OVERSHOOT`). (Pillow's ``convert("L")``
     clips such pictures at 255 instead, so every grey above 255 became white.) A grey
-    picture of whole numbers 0 and 1 only is a label mask: its 1s read as white."""
+    picture of whole numbers 0 and 1 only is a label mask: its 1s, the shape, read as black
+    on white (a silhouette view's dark pixels are its hits)."""
     if image.mode not in ("L", "I", "F") and not image.mode.startswith("I;16"):
         return np.asarray(image.convert("L"), dtype=np.float64)
     values = np.asarray(image, dtype=np.float64)
     if image.mode != "F" and values.size and values.min() == 0 and values.max() == 1:
         # whole numbers 0 and 1 only: a label mask (a segmentation's, numpy's bool array
-        # saved as is), 1 the shape; read as 0 and 255 it was refused as empty ("draw darker")
-        return values * 255.0
+        # saved as is), 1 the shape; read as 0 and 1 of 255 it was refused as empty ("draw
+        # darker"), or, as a silhouette view, all to hit
+        return 255.0 - values * 255.0
     if image.mode == "L":
         return values
     finite = values[np.isfinite(values)]
@@ -640,7 +645,8 @@ def grey_levels(image: Image.Image) -> np.ndarray:
         scale = 255.0 / declared
     elif image.mode.startswith("I;16"):
         scale = 255.0 / 65535.0
-    elif image.mode == "F" and (top <= 1.0 or float(np.mean(finite > 1.0)) <= OVERSHOOT):
+    elif image.mode == "F" and (top <= 1.0 or (
+            top <= OVERSHOOT_TOP and float(np.mean(finite > 1.0)) <= OVERSHOOT)):
         # a 0..1 picture with a few highlights past 1 (a float render's or HDR export's
         # overshoot) is still a 0..1 picture: one pixel at 1.02 had made the rest black
         # and the mask empty ("draw the shape darker")
