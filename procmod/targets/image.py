@@ -34,11 +34,44 @@ class TargetFileError(ProcmodError):
 
 
 def _is_special_file(path: Path) -> bool:
-    """Whether ``path`` is there but neither a regular file nor a folder (a pipe, a device)."""
+    """Whether ``path`` is there but neither a regular file, a folder nor a pipe (a device,
+    a socket)."""
     try:
-        return path.exists() and not path.is_file() and not path.is_dir()
+        return path.exists() and not path.is_file() and not path.is_dir() and not path.is_fifo()
     except (OSError, ValueError):  # a name too long to look up: opening it says so
         return False
+
+
+MAX_PIPED_BYTES = 1 << 30
+"""The most procmod reads from a pipe given as a picture (``--target /dev/stdin``)."""
+
+
+def _piped_bytes(path: Path, where: str):
+    """The bytes a pipe given as a picture holds (``cat a.png | procmod ... --target
+    /dev/stdin``), or None where ``path`` is no pipe. Opened without waiting: a named pipe
+    nothing writes to reads as empty (Pillow had waited on it for ever), one being written
+    to as it is written."""
+    import io
+    import stat
+
+    try:
+        if not stat.S_ISFIFO(os.stat(path).st_mode):
+            return None
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except (OSError, ValueError):  # opening it as a file says what is wrong
+        return None
+    try:
+        os.set_blocking(fd, True)  # (opened without waiting for a writer; read as they write)
+        chunks, size = [], 0
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+            size += len(chunk)
+            if size > MAX_PIPED_BYTES:
+                raise TargetFileError(f"{where}: the pipe holds more than {MAX_PIPED_BYTES >> 20} MB; give a "
+                                      "picture file")
+    finally:
+        os.close(fd)
+    return io.BytesIO(b"".join(chunks))
 
 
 def open_image(path: str | os.PathLike, where: str | None = None, square: bool = False) -> Image.Image:
@@ -47,15 +80,17 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
     or just too big) is refused from its header, before its pixels are decoded; with
     ``square``, so is one whose padding to a square (a target mask) would be."""
     path = Path(path)
-    if _is_special_file(path):  # Pillow would wait on a pipe (a FIFO named like a picture) for ever
+    if _is_special_file(path):  # Pillow would read a device (/dev/zero) for ever
         raise TargetFileError(f"{where + ': ' if where else ''}{cut_text(str(path))} is not a regular file (a device "
-                              "or a pipe); give a picture file")
+                              "or a socket); give a picture file")
     where = where or cut_text(str(path))
+    piped = _piped_bytes(path, where)
+    source = path if piped is None else piped
     try:
         with warnings.catch_warnings():
             # Pillow warns between its limit and twice it, and raises above: both are refused
             warnings.simplefilter("error", Image.DecompressionBombWarning)
-            with Image.open(path) as image:
+            with Image.open(source) as image:
                 if image.width * image.height > MAX_IMAGE_PIXELS:
                     raise _too_big(where, image.width, image.height)
                 side = max(image.width, image.height)
@@ -77,13 +112,17 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
     except IsADirectoryError:
         raise TargetFileError(f"{where}: {cut_text(str(path))} is a folder, not an image file") from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
-        if _is_svg(path):
+        head = None if piped is None else piped.getvalue()[:512]  # (a pipe is read once)
+        if _is_svg(path, head):
             raise TargetFileError(f"{where}: a vector drawing (SVG), which procmod does not read; export it as a "
                                   "PNG (Inkscape: File > Export; a browser's screenshot does too)") from None
-        other = _unread_format(path)
+        other = _unread_format(path, head)
         if other is not None:
             raise TargetFileError(f"{where}: {other}") from None
-        empty = path.is_file() and path.stat().st_size == 0
+        if head == b"":  # (a named pipe nobody wrote to had been waited on for ever)
+            raise TargetFileError(f"{where}: a pipe with no picture written to it; give a picture file, or write "
+                                  "one to the pipe as procmod reads it") from None
+        empty = piped is None and path.is_file() and path.stat().st_size == 0
         if empty:
             raise TargetFileError(f"{where}: an empty file (0 bytes), no picture; save the picture again") from None
         if "truncated" in str(exc).lower():  # a download or copy cut short: its format is fine
@@ -93,14 +132,24 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
                               "or JPEG") from None
 
 
-def _unread_format(path: Path) -> str | None:
-    """What a file Pillow cannot open is, by its first bytes, with what to do, for the
-    formats people's pictures arrive in that Pillow does not read: an iPhone's HEIC, a
-    PDF; None for others."""
+def _first_bytes(path: Path, head: bytes | None, count: int) -> bytes | None:
+    """The first ``count`` bytes of ``path``, or of ``head`` where given (a pipe's, read
+    already: opened again it would wait for a writer); None where it cannot be read."""
+    if head is not None:
+        return head[:count]
     try:
         with open(path, "rb") as handle:
-            head = handle.read(32)
+            return handle.read(count)
     except OSError:
+        return None
+
+
+def _unread_format(path: Path, head: bytes | None = None) -> str | None:
+    """What a file Pillow cannot open is, by its first bytes (``head``, where read
+    already), with what to do, for the formats people's pictures arrive in that Pillow does
+    not read: an iPhone's HEIC, a PDF; None for others."""
+    head = _first_bytes(path, head, 32)
+    if head is None:
         return None
     if head[4:8] == b"ftyp" and head[8:12] in (b"heic", b"heix", b"hevc", b"heim", b"heis", b"mif1", b"msf1"):
         return ("an HEIC/HEIF photo (an iPhone's own format), which procmod does not read; convert it to JPEG or PNG "
@@ -110,15 +159,15 @@ def _unread_format(path: Path) -> str | None:
     return None
 
 
-def _is_svg(path: Path) -> bool:
-    """Whether ``path`` is an SVG file, by its name or its first bytes."""
+def _is_svg(path: Path, head: bytes | None = None) -> bool:
+    """Whether ``path`` is an SVG file, by its name or its first bytes (``head``, where
+    read already)."""
     if path.suffix.lower() in (".svg", ".svgz"):
         return True
-    try:
-        with open(path, "rb") as handle:
-            head = handle.read(512).lstrip(b"\xef\xbb\xbf \t\r\n").lower()
-    except OSError:
+    head = _first_bytes(path, head, 512)
+    if head is None:
         return False
+    head = head.lstrip(b"\xef\xbb\xbf \t\r\n").lower()
     return head.startswith(b"<svg") or (head.startswith(b"<?xml") and b"<svg" in head)
 
 
