@@ -657,7 +657,11 @@ def _interrupt(signum, frame):
 def _sigterm_as_interrupt():
     """Install :func:`_terminate` for SIGTERM and :func:`_interrupt` for SIGINT while a
     command runs, where nobody else handles them (an application that embeds procmod keeps
-    its own handlers)."""
+    its own handlers). Only on the main thread, which signals reach: a command run in another
+    thread changes nothing global (two overlapping had left one's hook installed)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     _RAISED_STOPS.clear()
     previous = {}
     for signum, ours, default in ((signal.SIGTERM, _terminate, signal.SIG_DFL),
@@ -666,7 +670,7 @@ def _sigterm_as_interrupt():
             if signal.getsignal(signum) == default:
                 signal.signal(signum, ours)
                 previous[signum] = default
-        except ValueError:  # not the main thread
+        except ValueError:  # (an interpreter's other than the main one)
             pass
     unraisable_hook = sys.unraisablehook
     again = []
@@ -783,7 +787,9 @@ def main(argv=None) -> int:
             pass
         return 141  # 128 + SIGPIPE, what a shell reports for a filter ended by it
     except BaseException as exc:  # (a model's rule may raise sys.exit() or its own BaseException: its error too)
-        stop = _stopped_by(exc) or (_RAISED_STOPS[-1] if _RAISED_STOPS else None)  # (one a library dropped)
+        dropped = _RAISED_STOPS[-1] if _RAISED_STOPS and threading.current_thread() is threading.main_thread() \
+            else None  # (one a library dropped; recorded for the main thread's command only)
+        stop = _stopped_by(exc) or dropped
         if stop is not None:  # a library's clean-up failed on the way out of a stop (torch's zip writer)
             print("procmod: terminated" if isinstance(stop, Terminated) else "procmod: interrupted", file=sys.stderr)
             return 143 if isinstance(stop, Terminated) else 130

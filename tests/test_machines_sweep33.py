@@ -95,3 +95,26 @@ def test_a_ctrl_c_that_a_library_dropped_still_stops_the_command(tmp_path, monke
         signal.signal(signal.SIGINT, before)
     out, err = capsys.readouterr()
     assert code == 130 and err == "procmod: interrupted\n" and "finished" not in out, (code, out, err)
+
+
+def test_commands_in_threads_leave_the_unraisable_hook_alone(tmp_path, monkeypatch):
+    """Two commands run in threads, overlapping: each had put back the hook it found, and
+    the later left the earlier's installed for good (review h174). Signals reach the main
+    thread only: a command in another changes nothing global."""
+    import threading
+    import time
+
+    import procmod.cli as cli
+
+    monkeypatch.setitem(cli._COMMANDS, "sample", lambda args: time.sleep(float(args.out.rsplit("_", 1)[1])))
+    hook = sys.unraisablehook
+    seen = []
+    first = threading.Thread(target=lambda: seen.append(cli.main(["sample", "chain", "--out", f"{tmp_path}/a_0.6"])))
+    second = threading.Thread(target=lambda: seen.append(cli.main(["sample", "chain", "--out", f"{tmp_path}/b_1.0"])))
+    first.start()
+    time.sleep(0.2)
+    assert sys.unraisablehook is hook  # (not even while they run)
+    second.start()
+    first.join()
+    second.join()
+    assert seen == [0, 0] and sys.unraisablehook is hook
