@@ -157,7 +157,8 @@ def test_a_target_picture_piped_in_is_read(tmp_path):
     Image.fromarray(square).save(tmp_path / "square.png")
     with open(tmp_path / "square.png", "rb") as picture:
         run = subprocess.run([sys.executable, "-m", "procmod", "infer", "chain", "--target", "/dev/stdin",
-                              "--engine", "forward", "--particles", "4", "--size", "32", "--out", str(tmp_path / "run")],
+                              "--engine", "forward", "--particles", "4", "--size", "32",
+                              "--out", str(tmp_path / "run")],
                              input=picture.read(), capture_output=True, timeout=120,
                              env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
     assert run.returncode == 0, run.stderr

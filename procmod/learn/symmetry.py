@@ -908,12 +908,6 @@ degrees of one line take one side of it (:func:`align_mirror_sides`); a type mir
 across planes of every direction (towers round a keep) keeps each normal canonical."""
 
 
-def _mirror_normal(g: np.ndarray) -> np.ndarray:
-    """The unit normal (world, either sign) of a mirror map ``g``."""
-    w, v = np.linalg.eigh(0.5 * (g[:3, :3] + g[:3, :3].T))
-    return v[:, int(np.argmin(w))]
-
-
 def align_mirror_sides(units: list, consensus: dict) -> None:
     """Let the mirror pairs of one type at one place take their normals on one side of the
     line their planes' normals agree on, with their first members on that side.
