@@ -169,3 +169,36 @@ def test_a_json_file_with_cr_line_ends_says_the_right_line(tmp_path):
     (tmp_path / "cr.json").write_bytes(b'{\r  "a": 1,\r  "b": 2\r  "c": 3\r}\r')
     with pytest.raises(Exception, match="at line 4"):
         read_json(tmp_path / "cr.json")
+
+
+def test_a_0_to_1_render_with_a_glint_past_2_is_still_read_as_0_to_1(tmp_path):
+    # one specular pixel at 2.5 (or 12) in a 0..1 float render: a cap at 2 on highlights had
+    # read the whole picture as 0..255, all black, and refused it as empty (review h175)
+    from PIL import Image
+
+    from procmod.targets.image import mask_from_image, open_image
+
+    ink = np.zeros((60, 60), dtype=bool)
+    ink[20:40, 10:50] = True
+    for glint in (2.5, 12.0):
+        real = np.where(ink, 0.1, 0.9).astype(np.float32)
+        real[0, 0] = glint
+        Image.fromarray(real, mode="F").save(tmp_path / "render.tif")
+        assert mask_from_image(open_image(tmp_path / "render.tif")).sum() == ink.sum()
+
+
+def test_a_piped_non_picture_is_named_by_its_path(tmp_path):
+    # Pillow names what it opened: a pipe read into memory was "<_io.BytesIO object at 0x...>"
+    # in the one line (review h175)
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    run = subprocess.run([sys.executable, "-m", "procmod", "infer", "chain", "--target", "/dev/stdin",
+                          "--out", str(tmp_path / "run")], input=b"some notes, not a picture\n",
+                         capture_output=True, timeout=120,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+    err = run.stderr.decode()
+    assert run.returncode == 2 and len(err.strip().splitlines()) == 1, err
+    assert "BytesIO" not in err and "/dev/stdin" in err

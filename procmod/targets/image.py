@@ -125,10 +125,11 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
         empty = piped is None and path.is_file() and path.stat().st_size == 0
         if empty:
             raise TargetFileError(f"{where}: an empty file (0 bytes), no picture; save the picture again") from None
-        if "truncated" in str(exc).lower():  # a download or copy cut short: its format is fine
-            raise TargetFileError(f"{where}: the picture file is cut short ({cut_text(str(exc), 120)}): an "
+        said = str(exc) if piped is None else str(exc).replace(repr(piped), str(path))  # (not "<_io.BytesIO ...>")
+        if "truncated" in said.lower():  # a download or copy cut short: its format is fine
+            raise TargetFileError(f"{where}: the picture file is cut short ({cut_text(said, 120)}): an "
                                   "interrupted download or copy; copy or save it again") from None
-        raise TargetFileError(f"{where}: not an image Pillow can read ({cut_text(str(exc), 120)}); save it as a PNG "
+        raise TargetFileError(f"{where}: not an image Pillow can read ({cut_text(said, 120)}); save it as a PNG "
                               "or JPEG") from None
 
 
@@ -661,11 +662,13 @@ def _white_level(image: Image.Image) -> int | None:
 
 
 OVERSHOOT = 0.01
-OVERSHOOT_TOP = 2.0
+OVERSHOOT_TOP = 16.0
 """A real-valued picture with at most :data:`OVERSHOOT` of its pixels above 1, and none above
 :data:`OVERSHOOT_TOP`, is read as 0..1, those pixels as white (:func:`grey_levels`): a render's
-highlights. One whose values pass 2 is a 0..255 picture, however few its bright pixels (a thin
-light drawing on a dark ground of 0..1 noise covers under 1%)."""
+highlights, up to 4 stops over white (a specular glint at 2.5 had made the rest black). One
+with values past 16 is a 0..255 picture, however few its bright pixels (a thin light drawing,
+under 1% of a dark ground of 0..1 noise); between, a 0..255 picture's drawing would be all but
+black."""
 
 
 def grey_levels(image: Image.Image) -> np.ndarray:
