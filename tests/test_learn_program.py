@@ -373,6 +373,8 @@ def _damage_tensor(folder, value):
     (lambda j, d: j.update(sigma_floor=[0.0, 1e-3, 1e-3]), "sigma_floor must be three positive standard deviations"),
     (lambda j, d: j.update(sigma_floor=[1e-3, 1e-3]), "sigma_floor must be three positive standard deviations"),
     (lambda j, d: j.update(sigma_floor="small"), "sigma_floor must be three positive standard deviations"),
+    # anything but "fixed" had been taken for "free" without a word (h167)
+    (lambda j, d: j.update(sigma_mode="weird"), "sigma_mode is \"weird\", but it is one of 'free', 'fixed'"),
 ])
 def test_malformed_programs(saved, tmp_path, damage, message):
     import shutil

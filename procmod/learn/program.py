@@ -493,12 +493,25 @@ def program_from_json(data: dict, parts: dict) -> Program:
                    sigma_floor=_sigma_floor_from_json(data.get("sigma_floor", LEGACY_SIGMA_FLOOR)),
                    orders={k: list(map(_whole, v)) for k, v in data["orders"].items()},
                    abstractions=abstractions, root_callees=[_whole(i) for i in data["root_callees"]],
-                   sigma_mode=str(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
+                   sigma_mode=_sigma_mode_from_json(data.get("sigma_mode", "free")), next_id=_whole(data["next_id"]),
                    info=dict(data.get("info", {})), parts_json=data.get("parts", {}),
                    units=_units_from_json(data.get("units", _NO_UNITS)))
 
 
 _NO_UNITS = object()
+
+
+SIGMA_MODES = ("free", "fixed")
+
+
+def _sigma_mode_from_json(value) -> str:
+    """A program file's ``sigma_mode``: "free" or "fixed" (anything else had been taken
+    for "free" without a word, a hand edit meant to fix the spreads silently ignored)."""
+    if value not in SIGMA_MODES:
+        raise ProgramError(f"sigma_mode is {shown_value(value)}, but it is one of {', '.join(map(repr, SIGMA_MODES))} "
+                           "(\"fixed\": every spread at its fixed value); correct it or rewrite it with 'procmod "
+                           "learn'")
+    return value
 
 
 def _sigma_floor_from_json(value) -> tuple:
