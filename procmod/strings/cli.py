@@ -315,7 +315,7 @@ def _augment(args) -> None:
 
     from ..core.runfolder import COLLECTION, RunFolder
     from ..parallel import check_scheduler, open_executor
-    from .pipeline import COLLECTION_FILES, write_collection
+    from .pipeline import write_collection
     from .shapes import check_copies
     from .assets import read_shape_inputs, resized_note, size_note
     from .sampling import AugmentParams, augment, with_part_limit
@@ -340,7 +340,7 @@ def _augment(args) -> None:
     _seed(args.seed)
     out = output_path(args.out)
     folder = RunFolder(out, COLLECTION, args.overwrite, inputs=args.shapes)
-    check_copies(shape_set, out / "shapes.json", COLLECTION_FILES)  # refused now, not after the rounds
+    check_copies(shape_set, out / "shapes.json", COLLECTION.patterns)  # refused now, not after the rounds
     import networkx as nx
 
     from .codec import RingLimitError, encode

@@ -32,7 +32,7 @@ import numpy as np
 from ..core.errors import InvalidArgumentError, ProcmodError, argument, check_real, checked_count, spelled
 from ..core.io import read_json, read_versioned_json, write_text_atomic
 from ..core.paths import is_dir_quietly, output_path, reading_an_outputs_own_files
-from ..core.runfolder import STRINGS_MODEL, RunFolder
+from ..core.runfolder import COLLECTION, STRINGS_MODEL, RunFolder
 from .categories import CategoryParams, EdgeCategories, part_clearances
 from .codec import decode, parse, strings_of
 from .instantiate import InstantiateResult, instantiate_graph
@@ -45,9 +45,6 @@ from .torch_utils import ModelFileError, OtherTrainingError, reading_model_file,
 from .vae import StringModel, VAEConfig, check_vae_resumable, train_vae
 
 MODEL_FORMAT = "procmod-string-model/1"
-# the files a collection folder holds beside its shapes.json (relative paths, as regular
-# expressions): a mesh file or glTF buffer the shapes name is never copied onto one of them
-COLLECTION_FILES = (r"graphs(/shape_\d+\.json)?", r"strings\.txt", r"growth\.json", r"contact_sheet\.png")
 # how an error message says to train a model folder (the command line: procmod strings train)
 TRAIN_MODEL = "train_model(COLLECTION, out=MODEL)"
 
@@ -67,7 +64,7 @@ def write_collection(shape_set: ShapeSet, shapes, out: str | os.PathLike, rounds
     if out.exists() and not out.is_dir():
         raise InvalidArgumentError(f"{argument('out')} {out} exists and is not a folder")
     (out / "graphs").mkdir(parents=True, exist_ok=True)
-    write_shapes(shape_set, out / "shapes.json", shapes, COLLECTION_FILES)
+    write_shapes(shape_set, out / "shapes.json", shapes, COLLECTION.patterns)
     rng = np.random.default_rng([seed, 1])
     strings = []
     for i, shape in enumerate(shapes):

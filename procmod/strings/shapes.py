@@ -14,6 +14,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import posixpath
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -189,9 +191,6 @@ def _gltf_file_copy(folder: Path, target: Path, name: str, where: str) -> Path:
     copied: at the same relative place, which must lie inside ``folder`` (the new shapes
     file's), not only inside the glTF's own folder: ``meshes/m.gltf`` naming
     ``../textures/wood.png`` is copied (it had been refused), ``../x.bin`` at the top is not."""
-    import posixpath
-    import re
-
     if ".." in re.split(r"[/\\]", name) and not posixpath.isabs(name.replace("\\", "/")):
         inside = target.parent.relative_to(folder).as_posix()
         joined = posixpath.normpath(posixpath.join(inside, name.replace("\\", "/")))
@@ -268,16 +267,16 @@ def _copied_files(shape_set: ShapeSet, folder: Path):
 
 def check_copies(shape_set: ShapeSet, path: str | os.PathLike, own_files: tuple = ()) -> None:
     """ShapesFormatError when a file :func:`write_shapes` would copy beside the shapes file
-    ``path`` would land on the shapes file itself or on a file the caller writes there
-    (``own_files``: regular expressions of paths relative to its folder): the caller's file
-    would replace the copy (a glTF buffer named ``strings.txt`` in a collection), leaving
-    the written set unreadable."""
-    import re
-
+    ``path`` would land on the shapes file itself or on an entry the caller writes there
+    (``own_files``: regular expressions of the folder's top-level names, a run folder's
+    :attr:`~procmod.core.runfolder.RunKind.patterns`): the caller's file would replace the
+    copy (a glTF buffer named ``strings.txt`` in a collection), leaving the written set
+    unreadable."""
     path = Path(path)
     mine = (re.escape(path.name), *own_files)
     for relative, where in _copied_files(shape_set, path.parent):
-        if any(re.fullmatch(pattern, relative, re.IGNORECASE) for pattern in mine):
+        top = relative.split("/")[0]  # (a file in the caller's folder, graphs/, is the caller's too)
+        if any(re.fullmatch(pattern, top, re.IGNORECASE) for pattern in mine):
             raise ShapesFormatError(f"{where}: the file {relative!r} would be copied where procmod writes a file of "
                                     "its own (the written shapes could not read it back); rename it (and the "
                                     "name that gives it)")
@@ -288,9 +287,9 @@ def write_shapes(shape_set: ShapeSet, path: str | os.PathLike, shapes=None, own_
     are copied beside the new file when it goes to another folder; meshes read from asset
     files (``base_dir`` None) are written as OBJ files at their ``parts/NAME.obj``.
 
-    ``own_files``: regular expressions of the paths (relative to the new file's folder,
-    with ``/``) of the files the caller writes beside it; a copied file at one of them is
-    refused (see :func:`check_copies`)."""
+    ``own_files``: regular expressions of the top-level names the caller writes beside it
+    (a run folder's patterns); a copied file at one of them is refused (see
+    :func:`check_copies`)."""
     import shutil
 
     _check_path(path, "shapes file")

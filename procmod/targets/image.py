@@ -7,9 +7,11 @@ target is bound to a model, so one target serves any canvas size.
 from __future__ import annotations
 
 import difflib
+import io
 import math
 import os
 import re
+import stat
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -51,9 +53,6 @@ def _piped_bytes(path: Path, where: str):
     /dev/stdin``), or None where ``path`` is no pipe. Opened without waiting: a named pipe
     nothing writes to reads as empty (Pillow had waited on it for ever), one being written
     to as it is written."""
-    import io
-    import stat
-
     try:
         if not stat.S_ISFIFO(os.stat(path).st_mode):
             return None
