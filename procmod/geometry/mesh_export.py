@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..core.errors import InvalidArgumentError, cut_text, shown_value
 from ..core.io import write_bytes_atomic
 from .solid import IDENTITY, matrix, part_triangles
 
@@ -45,10 +46,54 @@ def srgb_bytes_to_linear(rgb) -> np.ndarray:
     return np.round(linear * 255.0).astype(np.uint8)
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""The largest coordinate a glTF file holds: its positions are 32-bit floats."""
+
+
+def check_storable(points, what: str) -> None:
+    """Refuse coordinates a mesh file cannot hold: NaN, infinities, or beyond +-:data:`FLOAT32_MAX`
+    (glTF's 32-bit floats; most OBJ readers read 32-bit floats too). trimesh wrote them as they
+    were: a part beyond became ``Infinity`` in the GLB's JSON (no reader opens the file), and a
+    NaN part was dropped without a word (an empty node), or failed with trimesh's AssertionError."""
+    points = np.asarray(points, dtype=np.float64)
+    fits = np.abs(points) <= FLOAT32_MAX  # NaN compares False: it does not fit either
+    if not fits.all():
+        bad = points[~fits]
+        raise InvalidArgumentError(f"{what} has a coordinate of {shown_value(float(bad.flat[0]))}, which a mesh file "
+                                   f"cannot hold (finite numbers within +-{FLOAT32_MAX:.3g}); check its size and "
+                                   "transform")
+
+
+MERGE_DIGITS = 8
+"""trimesh merges vertices on a grid of ``10 ** -MERGE_DIGITS`` (its ``tol.merge``, 1e-8)."""
+
+
+def merge_digits(points) -> int:
+    """The digits of the grid on which to merge the vertices of ``points`` (finite): trimesh's
+    :data:`MERGE_DIGITS`, coarser where a coordinate times ``10 ** digits`` would pass int64.
+    trimesh rounds ``coordinate * 1e8`` to int64 as it merges: past ~9.2e10 the product
+    overflowed, every such vertex fell in one cell, and a part that far out collapsed (a
+    1 x 2 x 3 box at x = 1e11 came out 4 vertices, 0 wide, in OBJ files and merged GLBs)."""
+    largest = float(np.abs(points).max()) if np.size(points) else 0.0
+    if largest * 10.0 ** MERGE_DIGITS < 2.0 ** 62:
+        return MERGE_DIGITS
+    return int(np.floor(np.log10(2.0 ** 62 / largest)))
+
+
+def _part_text(part) -> str:
+    """A part as an error message names it: its type and tag."""
+    return f"a {type(part).__name__} part tagged {cut_text(repr(getattr(part, 'tag', None)), 60)}"
+
+
 def _part_mesh(part, colour_of, segments: int, linear_colours: bool) -> trimesh.Trimesh:
     """A part's world-space mesh (vertices merged), its faces in its tag's colour."""
     tris = part_triangles(part, segments)
-    mesh = trimesh.Trimesh(vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3), process=True)
+    check_storable(tris, _part_text(part))
+    digits = merge_digits(tris)
+    mesh = trimesh.Trimesh(vertices=tris.reshape(-1, 3), faces=np.arange(len(tris) * 3).reshape(-1, 3),
+                           process=digits == MERGE_DIGITS)
+    if digits != MERGE_DIGITS:
+        mesh.merge_vertices(digits_vertex=digits)
     rgb = np.asarray(colour_of(part.tag), dtype=np.uint8)
     colour = np.append(srgb_bytes_to_linear(rgb) if linear_colours else rgb, 255)
     mesh.visual.face_colors = np.tile(colour, (len(mesh.faces), 1))
@@ -117,6 +162,8 @@ def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
     singular, or has a last row other than 0 0 0 1), its world-space mesh under the
     identity, key None."""
     m = matrix(part.transform)
+    # the mesh below is in the part's own frame: its world coordinates are checked here
+    check_storable(part_triangles(part, segments), _part_text(part))
     linear = m[:3, :3]
     gram = linear.T @ linear
     scales = np.sqrt(np.diag(gram))

@@ -21,12 +21,17 @@ MAX_TRIANGLES = 400_000  # per layer: a larger voxel surface is shown on coarser
 
 
 def mesh_glb(vertices, faces) -> bytes:
-    """A GLB file of one uncoloured triangle mesh."""
+    """A GLB file of one uncoloured triangle mesh (no faces: a GLB of an empty scene)."""
     import trimesh
 
-    mesh = trimesh.Trimesh(vertices=np.asarray(vertices, dtype=np.float64),
-                           faces=np.asarray(faces, dtype=np.int64), process=False)
-    return mesh.export(file_type="glb")
+    from ..geometry.mesh_export import check_storable, empty_glb_bytes
+
+    vertices, faces = np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+    if faces.size == 0:
+        # trimesh wrote an empty node and a zero-length BIN chunk, which strict readers refuse
+        return empty_glb_bytes()
+    check_storable(vertices, "a viewer layer's mesh")
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False).export(file_type="glb")
 
 
 def parts_glb(parts) -> bytes:
