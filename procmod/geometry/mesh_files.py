@@ -54,6 +54,7 @@ import json
 import logging
 import os
 import re
+import stat
 import struct
 import warnings
 from pathlib import Path, PurePosixPath, PureWindowsPath
@@ -90,7 +91,7 @@ def normalised_obj(text: str) -> str | None:
 def _normalised_obj(text: str) -> str | None:
     changed = text.startswith(_BOM) or bool(re.search(r"\r(?!\n)", text))
     text = text.removeprefix(_BOM)
-    text = re.sub(r"\\\r?\n", " ", text)
+    text, line_of = _joined_statements(text)
     counts = [0, 0, 0]
     out = []
     positions = []  # the line in out of each v statement (read only if there are polygons)
@@ -108,13 +109,16 @@ def _normalised_obj(text: str) -> str | None:
             if key == "v":
                 positions.append(len(out))
                 if len(fields) < 4 and "," in line:
-                    raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) separates its numbers with commas; "
-                                     "OBJ separates them with spaces")
+                    raise ValueError(f"line {line_of(number)} ({' '.join(fields)[:40]!r}) separates its numbers "
+                                     "with commas; OBJ separates them with spaces")
                 if len(fields) < 4:  # trimesh read every vertex of the file as that many numbers
-                    raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) gives a vertex "
+                    raise ValueError(f"line {line_of(number)} ({' '.join(fields)[:40]!r}) gives a vertex "
                                      f"{len(fields) - 1} coordinate{'s' * (len(fields) != 2)}, but an OBJ vertex "
                                      "takes three (x y z): export the file again in 3D")
         elif key in _INDEXED:
+            if key == "f" and "," in line and "," in "".join(fields):  # (f 1,2,3 had been dropped without a word)
+                raise ValueError(f"line {line_of(number)} ({' '.join(fields)[:40]!r}) separates its vertex numbers "
+                                 "with commas; OBJ separates them with spaces")
             polygon = key == "f" and len(fields) > 4
             numbers = []
             for i in range(1, len(fields)):
@@ -125,9 +129,9 @@ def _normalised_obj(text: str) -> str | None:
                 # a face's vertex 0 (OBJ counts from 1): a 0 of a texture coordinate or normal,
                 # or in a line, is no part of the geometry read
                 if key == "f" and "0" in refs[0] and not refs[0].strip("+-0"):
-                    raise ValueError(f"line {number} ({' '.join(fields)[:40]!r}) names vertex 0, but OBJ numbers "
-                                     "vertices from 1 (this file counts from 0, as some scripts' exporters do); "
-                                     "export it again with numbers from 1")
+                    raise ValueError(f"line {line_of(number)} ({' '.join(fields)[:40]!r}) names vertex 0, but OBJ "
+                                     "numbers vertices from 1 (this file counts from 0, as some scripts' exporters "
+                                     "do); export it again with numbers from 1")
                 for slot, ref in enumerate(refs[:3]):
                     if ref.startswith("-"):
                         try:
@@ -137,9 +141,9 @@ def _normalised_obj(text: str) -> str | None:
                         if key == "f" and slot == 0 and int(refs[0]) < 1:
                             # left negative, trimesh counted it back from the file's end: a face on
                             # another object's vertex, without a word
-                            raise ValueError(f"line {number} ({' '.join(line.split())[:40]!r}) names vertex {ref}, "
-                                             f"{-int(ref)} back, but only {counts[0]} vertices come before it; "
-                                             "export it again")
+                            raise ValueError(f"line {line_of(number)} ({' '.join(line.split())[:40]!r}) names "
+                                             f"vertex {ref}, {-int(ref)} back, but only {counts[0]} vertices come "
+                                             "before it; export it again")
                 if polygon:
                     numbers.append(refs[0])
                 fields[i] = "/".join(refs)
@@ -152,6 +156,29 @@ def _normalised_obj(text: str) -> str | None:
         out.append(statement)
     changed = _split_concave_faces(out, positions, polygons) or changed
     return "\n".join(out) + "\n" if changed else None
+
+
+_CONTINUATION = re.compile(r"\\\r?\n")  # a backslash that ends a line: the statement goes on
+
+
+def _joined_statements(text: str) -> tuple:
+    """``(text with line continuations joined, line_of)``: ``line_of(n)`` is the line of
+    the file where the ``n``-th line of the joined text starts, for messages (a continued
+    vertex had put every later line's number off by one)."""
+    joined = _CONTINUATION.sub(" ", text)
+    if len(joined) == len(text):
+        return text, lambda number: number
+
+    def line_of(number: int) -> int:
+        line, statement = 1, 1
+        for raw in text.splitlines(keepends=True):
+            if statement == number:
+                return line
+            line += 1
+            statement += not (raw.endswith("\\\n") or raw.endswith("\\\r\n"))
+        return line
+
+    return joined, line_of
 
 
 def _split_concave_faces(out: list, positions: list, polygons: dict) -> bool:
@@ -206,10 +233,12 @@ def _numbers(text: str, dtype, rows: int, width: int) -> np.ndarray | None:
 def obj_problem(text: str) -> str | None:
     """What trimesh could not read in an OBJ file, said plainly (it raised "index 98 is
     out of bounds for axis 0 with size 12", "could not be read to its end due to
-    unmatched data"), or None: a face naming a vertex the file lacks, numbers written
-    with decimal commas or separated by commas. Looked for only after trimesh failed."""
+    unmatched data"), or None: a face corner that is no vertex number (``f a b c``), a face
+    naming a vertex the file lacks, numbers written with decimal commas or separated by
+    commas. Looked for only after trimesh failed."""
     vertices, highest = 0, (0, 0)
-    for number, line in enumerate(text.removeprefix(_BOM).splitlines(), 1):
+    text, line_of = _joined_statements(text.removeprefix(_BOM))
+    for number, line in enumerate(text.splitlines(), 1):
         fields = line.split("#", 1)[0].split()
         if not fields:
             continue
@@ -217,18 +246,23 @@ def obj_problem(text: str) -> str | None:
             vertices += 1
             numbers = fields[1:4]
             if any(re.fullmatch(r"[-+]?\d*,\d+", f) for f in numbers):
-                return (f"line {number} ({' '.join(fields)[:40]!r}) writes numbers with decimal commas; OBJ numbers "
-                        "take a point (1.5, not 1,5): export it again with a point as the decimal mark")
+                return (f"line {line_of(number)} ({' '.join(fields)[:40]!r}) writes numbers with decimal commas; "
+                        "OBJ numbers take a point (1.5, not 1,5): export it again with a point as the decimal mark")
             if any(f.endswith(",") for f in numbers):
-                return (f"line {number} ({' '.join(fields)[:40]!r}) separates its numbers with commas; OBJ "
+                return (f"line {line_of(number)} ({' '.join(fields)[:40]!r}) separates its numbers with commas; OBJ "
                         "separates them with spaces")
         elif fields[0] == "f":
             for field in fields[1:]:
                 ref = field.split("/", 1)[0]
+                if not re.fullmatch(r"[-+]?\d+(\.0*)?", ref, re.ASCII):  # (1.0: read as 1, normalised_obj)
+                    return (f"line {line_of(number)} ({' '.join(fields)[:40]!r}) has {cut_text(field, 20)!r} "
+                            "where a face names a vertex: a face line is 'f' and three or more vertex numbers "
+                            "(counted from 1), each alone or as v/vt, v/vt/vn or v//vn; export it again")
                 if ref.isdigit() and int(ref) > highest[0]:
                     highest = (int(ref), number)
     if highest[0] > vertices:
-        return f"line {highest[1]} names vertex {highest[0]}, but the file has {vertices} vertices; export it again"
+        return (f"line {line_of(highest[1])} names vertex {highest[0]}, but the file has {vertices} vertices; "
+                "export it again")
     return None
 
 
@@ -497,9 +531,8 @@ def _check_gltf(path: Path) -> dict | None:
         raise ValueError(f"it requires the glTF extension {unknown[0]}, which procmod does not read (so its "
                          "geometry might be misread); export it without that extension")
     glb = is_binary_gltf(path)  # a GLB under a .gltf name too; a text glTF under a .glb name is text
-    if not glb:
-        _check_buffer_files(header, path)
-    else:  # a GLB's header gives its whole length
+    _check_buffer_files(header, path, glb)  # (a GLB's buffers after its binary chunk may name files too)
+    if glb:  # a GLB's header gives its whole length
         with open(path, "rb") as handle:
             declared = struct.unpack("<I", handle.read(12)[8:12])[0]
         actual = os.path.getsize(path)
@@ -575,18 +608,23 @@ def _check_buffer_layout(header: dict, glb: bool) -> None:
                              f"({count:,} {accessor['type']} values): the file is damaged; export it again")
 
 
-def _check_buffer_files(header: dict, path: Path) -> None:
-    """Refuse a ``.gltf`` whose buffer file (found as :func:`_resolver` finds it) is
-    missing or shorter than the ``byteLength`` the file gives it."""
+def _check_buffer_files(header: dict, path: Path, glb: bool = False) -> None:
+    """Refuse a glTF whose buffer file (found as :func:`_resolver` finds it) is missing,
+    no regular file (a named pipe: reading it waits for ever) or shorter than the
+    ``byteLength`` the file gives it. A GLB's first buffer is its binary chunk."""
     buffers = header.get("buffers")
-    for buffer in buffers if isinstance(buffers, list) else ():
+    for i, buffer in enumerate(buffers if isinstance(buffers, list) else ()):
         uri = buffer.get("uri") if isinstance(buffer, dict) else None
-        if not isinstance(uri, str) or uri.startswith("data:"):
+        if not isinstance(uri, str) or uri.startswith("data:") or (glb and i == 0):
             continue
         names, absolute = _uri_names(uri)
         sizes = [os.path.getsize(path.parent / n) for n in names if (path.parent / n).is_file()]
         if not sizes and absolute:
             raise _absolute_uri_error(uri)
+        kind = next(filter(None, (special_file_kind(path.parent / n) for n in names if n)), None)
+        if not sizes and kind is not None:  # (a named pipe had been called missing; reading it waits for ever)
+            raise ValueError(f"the buffer file {uri!r} it names is {kind}, not a file; put the buffer's file "
+                             f"itself beside {path.name}, or export a .glb, which holds its buffers")
         if not sizes:
             raise ValueError(f"the buffer file {uri!r} it names is missing (looked for beside {path.name}); copy "
                              "it along, or export a .glb, which holds its buffers")
@@ -594,6 +632,20 @@ def _check_buffer_files(header: dict, path: Path) -> None:
         if isinstance(declared, int) and not isinstance(declared, bool) and sizes[0] < declared:
             raise ValueError(f"its buffer file {uri!r} is {sizes[0]:,} bytes but the glTF says {declared:,}: the "
                              "file is cut off; copy it again or export the model again")
+
+
+def special_file_kind(path: Path) -> str | None:
+    """What ``path`` is when it is there but no regular file: ``"a named pipe (FIFO)"``,
+    ``"a folder"``, ``"a device"`` or ``"a socket"``; None for a regular file, or a name
+    that is not there or cannot be looked up (opening it says what is wrong)."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    return ("a named pipe (FIFO)" if stat.S_ISFIFO(mode) else "a folder" if stat.S_ISDIR(mode) else
+            "a socket" if stat.S_ISSOCK(mode) else "a device")
 
 
 STL_SNIFF = 1 << 20  # bytes of an STL looked at to tell ASCII from binary (a solid's name may be long)
@@ -806,4 +858,5 @@ def _first_bytes(path: Path, count: int) -> bytes:
         return b""
 
 
-__all__ = ["MESH_SUFFIXES", "declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh"]
+__all__ = ["MESH_SUFFIXES", "declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh",
+           "special_file_kind"]

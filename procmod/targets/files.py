@@ -32,7 +32,7 @@ from ..core.limits import MAX_COORDINATE, MIN_LENGTH, ResourceLimitError, check_
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
-from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh
+from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh, special_file_kind
 from ..geometry.voxel import VoxelGrid
 from .image import (FRAMES, MAX_IMAGE_PIXELS, SIDECAR_KEYS, TargetFileError, _fills_its_box, _fully_transparent,
                     grey_levels, mask_from_image, meant_key, opaque_part, open_image, picture_in_square)
@@ -169,7 +169,8 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     :func:`procmod.geometry.inside.inside_voxels`.
 
     trimesh reads it (a scene is flattened with its transforms); vertices that UV or
-    normal seams split are merged (``merge_vertices(merge_tex=True, merge_norm=True)``);
+    normal seams split are merged (:func:`merged_seams`, to a tolerance relative to the
+    mesh's size: the same mesh in metres, kilometres or micrometres reads the same);
     faces with a repeated vertex or zero area are dropped; with ``orient``, repeated and
     double-sided faces are resolved (:func:`procmod.geometry.inside.single_sided`) and faces
     are wound consistently and outward (:func:`procmod.geometry.inside.orient_faces`).
@@ -184,6 +185,10 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
 
     file = Path(file)
     where = where or cut_text(str(file))
+    kind = special_file_kind(file)
+    if kind is not None:  # (a named pipe had been called empty; reading one waits for a writer)
+        raise TargetFileError(f"{where}: {cut_text(str(file), 120)} is {kind}, not a mesh file; give the mesh "
+                              "file itself (save what a pipe carries to a file first)")
     try:
         size = file.stat().st_size
     except OSError as exc:
@@ -228,12 +233,7 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
                          f"out, a hole the inside test bridges (fix {'it' if one else 'them'} in a modelling tool if "
                          "the shape is wrong there)")
         faces = faces[~on_bad]
-    with quiet_trimesh():
-        # split seams: vertices at one place that differ only in UV or normal become one
-        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-        mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    faces = np.asarray(mesh.faces, dtype=np.int64)
+    vertices, faces = merged_seams(vertices, faces)
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
     tris = vertices[faces]
     with np.errstate(over="ignore", invalid="ignore"):  # coordinates near 1e300: not a warning on the error channel
@@ -251,6 +251,55 @@ def read_mesh(file: str | os.PathLike, where: str | None = None, orient: bool = 
     if orient:
         faces, _ = orient_faces(vertices, single_sided(faces))
     return vertices, faces
+
+
+# Seam vertices merge when they agree on a grid of 10^(floor(log10(edge)) - MERGE_DIGITS), edge
+# the mesh's median edge length: 1e-8 for edges of 0.1 to 1 units, as trimesh's fixed merge
+# tolerance, and in proportion for a mesh of any other size. The median edge, not the
+# extent: one stray face far off (a marker left in the scene) stretches the extent, and a
+# grid coarse enough for it had merged a whole model into a few points
+MERGE_DIGITS = 7
+
+
+def merged_seams(vertices: np.ndarray, faces: np.ndarray) -> tuple:
+    """``(vertices, faces)`` with the vertices the faces use merged where they agree to
+    :data:`MERGE_DIGITS` digits of the mesh's median edge length (UV and normal seams split
+    one vertex into copies at one place), each kept where it first occurs; vertices no face
+    uses are dropped. trimesh's ``merge_vertices`` rounds to a fixed 1e-8 in int64: a
+    sphere of radius 1e-8 (a part in metres from a chip) collapsed into a few faces, and
+    a mesh at +-1e30 overflowed into one vertex and was refused as of zero area."""
+    referenced = np.zeros(len(vertices), dtype=bool)
+    referenced[faces] = True
+    used = np.flatnonzero(referenced)
+    points = vertices[used]
+    if len(points) == 0:
+        return vertices[:0], faces
+    sample = faces[::max(1, len(faces) // 100_000)]  # (a median needs no million faces)
+    with np.errstate(over="ignore", invalid="ignore"):
+        edges = np.linalg.norm(vertices[sample] - vertices[np.roll(sample, 1, axis=1)], axis=2).ravel()
+    edges = edges[np.isfinite(edges) & (edges > 0)]
+    edge = float(np.median(edges)) if len(edges) else 0.0
+    # the grid's step as a power of ten (a mesh scaled by 1000 rounds alike), coarsened where
+    # the largest coordinate over the step would pass 1e300 (a speck far off: it then rounds
+    # below its own float spacing, which is as exact as its file holds it)
+    reach = float(np.abs(points).max())
+    digits = MERGE_DIGITS - math.floor(math.log10(edge)) if edge > 0 else 0
+    if reach > 0:
+        digits = min(digits, 300 - math.ceil(math.log10(reach)))
+    digits = max(digits, -300)
+    keys = np.round(points * float(10 ** digits) if digits >= 0 else points / float(10 ** -digits)) + 0.0  # no -0
+    index = np.empty(len(vertices), dtype=np.int64)
+    if np.abs(keys).max() < 2.0 ** 53:  # whole numbers a float holds exactly: trimesh's hashing (4x a float sort)
+        from trimesh.grouping import unique_rows
+
+        kept, index[used] = unique_rows(keys.astype(np.int64), keep_order=True)  # each where it first occurs
+    else:  # a speck far off its origin: rows compared as floats
+        _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        order = np.argsort(first, kind="stable")  # the file's order, as trimesh kept it
+        rank = np.empty(len(first), dtype=np.int64)
+        rank[order] = np.arange(len(first))
+        kept, index[used] = first[order], rank[inverse.reshape(-1)]
+    return np.ascontiguousarray(points[kept], dtype=np.float64), index[faces]
 
 
 def mesh_bounds(vertices: np.ndarray, faces: np.ndarray) -> tuple:
@@ -1210,5 +1259,5 @@ def load_target_file(path: str | os.PathLike):
 
 
 __all__ = ["BYTES_PER_FACE", "BYTES_PER_VOXEL", "MAX_MESH_FACES", "MESH_SUFFIXES", "declared_faces",
-           "load_silhouette_target", "load_target_file", "load_volume_target", "mesh_inside", "mesh_silhouette",
-           "read_mesh", "read_target_json", "voxelize_mesh_file"]
+           "load_silhouette_target", "load_target_file", "load_volume_target", "merged_seams", "mesh_inside",
+           "mesh_silhouette", "read_mesh", "read_target_json", "voxelize_mesh_file"]
