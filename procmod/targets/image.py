@@ -98,8 +98,9 @@ def open_image(path: str | os.PathLike, where: str | None = None, square: bool =
                         f"{where}: the picture is {image.width}x{image.height} pixels; padded to the square frame "
                         f"the models draw in it would be {side}x{side} ({side * side / 1e6:.0f} megapixels, more "
                         f"than the {MAX_IMAGE_PIXELS / 1e6:.0f} procmod reads): crop or scale it down")
+                tile = list(image.tile)  # (what load() empties: a 16-bit PNG's is decoded again at full depth)
                 image.load()
-                return _as_shown(image)
+                return _non_finite_as_clear(_as_shown(image, _full_depth_png(image, tile, source)))
     except (Image.DecompressionBombError, Image.DecompressionBombWarning) as exc:
         # Pillow refuses before we see the size; its message holds the pixel count
         found = re.search(r"\((\d+) pixels\)", str(exc))
@@ -599,17 +600,18 @@ _TURNS = {2: (Image.Transpose.FLIP_LEFT_RIGHT,), 3: (Image.Transpose.ROTATE_180,
           6: (Image.Transpose.ROTATE_270,), 7: (Image.Transpose.TRANSVERSE,), 8: (Image.Transpose.ROTATE_90,)}
 
 
-def _as_shown(image: Image.Image) -> Image.Image:
-    """A copy of a decoded picture turned the way its EXIF orientation says it is shown (a
-    phone photo stores its pixels sideways): the mask must be what the user sees. Only the
-    pixels are turned (Pillow's exif_transpose also rewrites the EXIF, and fails on tags it
-    cannot write back); an unreadable orientation leaves the picture as stored."""
+def _as_shown(image: Image.Image, pixels: Image.Image | None = None) -> Image.Image:
+    """A copy of a decoded picture (or of ``pixels`` decoded from it another way) turned the
+    way its EXIF orientation says it is shown (a phone photo stores its pixels sideways): the
+    mask must be what the user sees. Only the pixels are turned (Pillow's exif_transpose also
+    rewrites the EXIF, and fails on tags it cannot write back); an unreadable orientation
+    leaves the picture as stored."""
     try:
         orientation = image.getexif().get(_EXIF_ORIENTATION, 1)
     except Exception:  # noqa: BLE001 -- a malformed EXIF block: keep the stored pixels
         orientation = 1
     turns = _TURNS.get(orientation, ()) if isinstance(orientation, int) else ()
-    out = image.copy()
+    out = (image if pixels is None else pixels).copy()
     for turn in turns:
         out = out.transpose(turn)
     white = _white_level(image)
@@ -622,6 +624,86 @@ def _as_shown(image: Image.Image) -> Image.Image:
     return out
 
 
+# Pillow's raw modes for a 16-bit colour PNG, which it decodes to 8 bits a channel, each
+# channel's high byte; and the raw mode that decodes the same rows to each channel's low byte
+# (Pillow's unpacker of little-endian samples takes the odd bytes), or None where one decode
+# into RGBA's four bytes a pixel holds both bytes of grey and alpha
+_LOW_BYTES = {"RGB;16B": "RGB;16L", "RGBA;16B": "RGBA;16L", "LA;16B": None}
+
+
+def _full_depth_png(image: Image.Image, tile: list, source) -> Image.Image | None:
+    """A 16-bit colour PNG (RGB, RGBA, grey with alpha) whose values use only 10, 12 or 14
+    bits (a scanner's or camera's, stored in 16), as 8 bits a channel scaled from that depth's
+    white; None for other pictures. Pillow keeps each channel's high byte only, 0..15 of a
+    12-bit scan, and the drawing read near black (refused as empty). Decoded again by
+    Pillow's own PNG decoder (its filters and interlacing) with the raw mode that keeps the
+    low bytes. The white is chosen as :func:`_white_level` chooses a 16-bit grey PNG's; a
+    picture that uses all 16 bits (or one whose values are all under 256, as dark in 16 bits
+    as a grey one reads) is left as Pillow read it: its high bytes are its 8 bits."""
+    if image.format != "PNG" or len(tile) != 1 or tile[0].args not in _LOW_BYTES or image.mode not in ("RGB", "RGBA"):
+        return None
+    high = np.asarray(image)
+    colour = high[:, :, :1] if tile[0].args == "LA;16B" else high[:, :, :3]
+    if not colour.size or not 0 < int(colour.max()) < 64:  # (values of 256..16383: 9 to 14 bits)
+        return None
+    try:
+        if hasattr(source, "seek"):
+            source.seek(0)
+        with Image.open(source) as again:
+            low_mode = _LOW_BYTES[tile[0].args]
+            again.tile = [tile[0]._replace(args=low_mode or "RGBA")]
+            again.load()
+            low = np.asarray(again)
+    except (OSError, ValueError, SyntaxError):  # (read once already: keep what Pillow read then)
+        return None
+    if low_mode is None:  # RGBA's four bytes: grey's high and low byte, alpha's high and low byte
+        pairs = low.reshape(low.shape[0], low.shape[1], 2, 2).astype(np.uint16)
+        values = pairs[:, :, :, 0] << 8 | pairs[:, :, :, 1]
+    else:
+        values = high.astype(np.uint16) << 8 | low
+    channels = values.shape[2] - (image.mode == "RGBA")
+    white = _depth_white(int(values[:, :, :channels].max()))
+
+    def eight_bits(samples: np.ndarray, top: int) -> np.ndarray:  # (a table: a 48-megapixel scan in floats took GBs)
+        table = np.clip(np.round(np.arange(65536) * (255.0 / top)), 0, 255).astype(np.uint8)
+        return table[samples]
+
+    out = eight_bits(values[:, :, :channels], white)
+    if channels == 1:
+        out = np.repeat(out, 3, axis=2)
+    alpha = None
+    if image.mode == "RGBA":
+        alpha = values[:, :, -1]
+        alpha = eight_bits(alpha, white if int(alpha.max()) <= white else 65535)
+    clear = image.info.get("transparency")
+    if alpha is None and isinstance(clear, tuple) and len(clear) == 3:
+        # tRNS's colour, in 16 bits as the pixels are: see-through where a pixel has it
+        alpha = np.where((values == np.array(clear, dtype=np.uint16)).all(axis=2), 0, 255).astype(np.uint8)
+    if alpha is not None:
+        out = np.concatenate([out, alpha[:, :, None]], axis=2)
+    pixels = Image.fromarray(out, "RGB" if alpha is None else "RGBA")
+    pixels.info.update({key: value for key, value in image.info.items() if key != "transparency"})
+    return pixels
+
+
+def _non_finite_as_clear(image: Image.Image) -> Image.Image:
+    """A real-valued picture some of whose pixels are NaN or infinite (a render's or a
+    scientific export's background, a depth map's misses) as a grey picture with alpha
+    (:func:`grey_levels`'s greys, rounded), those pixels see-through: they are no part of the
+    picture, as a transparent ground is none (NaN had read black and infinity as its white,
+    and the drawing was lost against them or refused as empty). Others, and one with no
+    finite pixel (it shows nothing, and is refused as such), are returned as they are."""
+    if image.mode != "F":
+        return image
+    finite = np.isfinite(np.asarray(image))
+    if finite.all() or not finite.any():
+        return image
+    grey = np.where(finite, np.round(grey_levels(image)), 255.0).astype(np.uint8)
+    clear = Image.fromarray(np.stack([grey, np.where(finite, 255, 0).astype(np.uint8)], axis=2), "LA")
+    clear.info.update(image.info)
+    return clear
+
+
 FRAMES = "procmod_frames"
 """The key in a decoded picture's ``info`` of how many frames or pages its file holds
 (an animated GIF, a multi-page TIFF): procmod reads the first."""
@@ -632,19 +714,28 @@ WHITE_LEVEL = "procmod_white_level"
 says it (:func:`_white_level`); :func:`grey_levels` scales by it."""
 
 
+def _depth_white(top: float) -> int:
+    """The white of a 16-bit sample whose largest value is ``top``: that of the 10, 12 or 14
+    bits its values use, where they use no more and some exceed 255 (a scanner's or camera's
+    12 bits stored in 16: read as 16 bits, the drawing was near black and refused as empty);
+    else 65535 (a 16-bit picture every value of which is under 256 is a dark one)."""
+    return next((2 ** bits - 1 for bits in (10, 12, 14) if 255 < top < 2 ** bits), 65535)
+
+
 def _white_level(image: Image.Image) -> int | None:
-    """The value of white in a 32-bit integer ("I") picture, from what its file declares:
+    """The value of white in a 16- or 32-bit integer picture, from what its file declares:
     Pillow decodes 16-bit PGM/PPM (any maxval above 255, rescaled to 65535) and, in some
     versions, 16-bit PNG to "I"; an unsigned TIFF of up to 16 bits states its bits per
-    sample (a 32-bit one's range is guessed from its values, as where nothing is declared);
-    a 16-bit PNG's white is that of the 10, 12 or 14 bits its values use, where they use
-    no more (a scanner's 12 bits stored in 16). Without it a dark 16-bit picture (every value
+    sample (a 32-bit one's range is guessed from its values, as where nothing is declared).
+    A 16-bit PNG's or TIFF's white is that of the 10, 12 or 14 bits its values use, where
+    they use no more (:func:`_depth_white`). Without it a dark 16-bit picture (every value
     under 256) would pass for an 8-bit one and read bright."""
-    if image.format == "PNG" and (image.mode == "I" or image.mode.startswith("I;16")):
-        # a 16-bit PNG holding a 10-, 12- or 14-bit scan (every value under 1024, 4096 or
-        # 16384, some above 255): white is that depth's, or the drawing read as near black was refused
+    sixteen = image.mode.startswith("I;16")
+    if image.format == "PNG" and (image.mode == "I" or sixteen):
         top = int(np.asarray(image).max()) if image.width and image.height else 0
-        return next((2 ** bits - 1 for bits in (10, 12, 14) if 255 < top < 2 ** bits), 65535)
+        return _depth_white(top)
+    if image.format == "TIFF" and sixteen:  # Pillow's mode for an unsigned 16-bit TIFF: as a 16-bit PNG
+        return _depth_white(int(np.asarray(image).max()) if image.width and image.height else 0)
     if image.mode != "I":
         return None
     if image.format == "PPM":
@@ -656,6 +747,8 @@ def _white_level(image: Image.Image) -> int | None:
         bits = bits[0] if isinstance(bits, tuple) and bits else bits
         sample_format = sample_format[0] if isinstance(sample_format, tuple) and sample_format else sample_format
         if isinstance(bits, int) and 8 < bits <= 16 and sample_format == 1:
+            if bits == 16:
+                return _depth_white(int(np.asarray(image).max()) if image.width and image.height else 0)
             return 2 ** bits - 1
     return None
 
@@ -673,9 +766,10 @@ black."""
 def grey_levels(image: Image.Image) -> np.ndarray:
     """The brightness of a picture, 0 (black) to 255 (white), as floats, whatever its bit
     depth: 16-bit and 32-bit integer pictures are scaled from the white level their file
-    declares (:data:`WHITE_LEVEL`) or, where it does not, from their range (65535, or their
-    own maximum above it; under 256, taken as 8-bit values), and real-valued ones from 0..1
-    when they lie in it, all but a few highlights (:data:`OVERSHOOT`). (Pillow's ``convert("L")``
+    declares (:data:`WHITE_LEVEL`) or, where it does not, from their range (the white of the
+    10, 12, 14 or 16 bits their values use, :func:`_depth_white`, or their own maximum above
+    65535; under 256, taken as 8-bit values), and real-valued ones so too, or from 0..1 when
+    they lie in it, all but a few highlights (:data:`OVERSHOOT`). (Pillow's ``convert("L")``
     clips such pictures at 255 instead, so every grey above 255 became white.) A grey
     picture of whole numbers 0 and 1 only is a label mask: its 1s, the shape, read as black
     on white (a silhouette view's dark pixels are its hits)."""
@@ -705,7 +799,11 @@ def grey_levels(image: Image.Image) -> np.ndarray:
     elif top <= 255.0:
         scale = 1.0
     else:
-        scale = 255.0 / (65535.0 if top <= 65535.0 else top)
+        # no white declared (a real-valued or 32-bit integer TIFF): that of the 10, 12, 14 or
+        # 16 bits its values use, as a 16-bit PNG's; past 16 bits, its own maximum. Scaled
+        # from 65535 always, a picture of 0..1000 (a scientific camera's, a float export's)
+        # had read as black, its drawing refused as empty
+        scale = 255.0 / (_depth_white(top) if top <= 65535.0 else top)
     # an infinite pixel as the white level or black (nan_to_num's 1.8e308 overflowed the scaling)
     return np.clip(np.nan_to_num(values, nan=0.0, posinf=top, neginf=0.0) * scale, 0.0, 255.0)
 
@@ -1400,6 +1498,41 @@ def _drawing_on_opaque(image: Image.Image, opaque: np.ndarray) -> tuple:
         return drawn, page
     return None, page
 
+def _see_through_drawing(image: Image.Image, opaque: np.ndarray) -> np.ndarray:
+    """The see-through strokes drawn on an opaque page, where the ``opaque`` part of a
+    transparent picture is such a page, else ``opaque`` (the shape, as ever): a drawing
+    whose ink is the file's transparent colour (a GIF or palette PNG whose tool made the
+    ink's palette index the transparent one; a stencil), which had been read inverted, the
+    page around it as the shape. The page is the opaque part with the see-through parts
+    inside its bounding box filled in, but for those reaching past it (a margin, a notch
+    from its edge) or into its corners (a rounded or turned page's): it must cover half the
+    picture and 95% of its bounding box, be mostly paper (:data:`PAGE_PAPER`),
+    have nothing drawn on it (:func:`_drawing_on_opaque`), and what it holds see-through
+    must be strokes, thinned away by 2% of the picture as :func:`page_taken_for_shape`'s
+    holes are: a window's panes, a ring's or a letter's hollow, are no drawing."""
+    from scipy import ndimage  # after the cheap checks: importing it costs ~0.13 s of start-up
+
+    rows, cols = np.flatnonzero(opaque.any(axis=1)), np.flatnonzero(opaque.any(axis=0))
+    labels, count = ndimage.label(~opaque, structure=np.ones((3, 3), dtype=bool))
+    inside = np.zeros_like(opaque)
+    inside[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = True
+    out = np.zeros(count + 1, dtype=bool)
+    out[np.unique(labels[~inside])] = True
+    out[[labels[r, c] for r in (rows[0], rows[-1]) for c in (cols[0], cols[-1])]] = True
+    out[0] = True  # (the opaque pixels)
+    holes = ~out[labels]
+    page = opaque | holes
+    if (not holes.any() or page.mean() <= 0.5 or not _fills_its_box(page, 0.95)
+            or opaque.sum() < PAGE_PAPER * page.sum()):
+        return opaque
+    stroke = max(2, round(0.02 * max(opaque.shape)))
+    if ndimage.binary_erosion(holes, iterations=stroke).sum() >= holes.sum() / 3:
+        return opaque  # wide: a window's panes, a hollow
+    if _drawing_on_opaque(image, opaque)[0] is not None:
+        return opaque
+    return holes
+
+
 PAGE_BOX_FILL = 0.8  # a page turned up to ~7 degrees in the photo still fills this much of its box
 
 
@@ -1511,6 +1644,10 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
             drawn, _ = _drawing_on_opaque(image, opaque)
             if drawn is not None:
                 mask = drawn
+            else:  # nothing drawn on it: the drawing may be see-through
+                mask = _see_through_drawing(image, opaque)
+        elif opaque.mean() > 0.5 * PAGE_PAPER:  # a page whose see-through drawing leaves under 95% of it opaque
+            mask = _see_through_drawing(image, opaque)
     else:
         on_border, surround = _border_colour(colours)
         mask = _ink(colours, surround, lighting=True, paper_at=on_border)
@@ -1812,6 +1949,9 @@ def load_target_image(path: str | os.PathLike) -> TargetImage:
     try:
         mask = check_mask(mask_from_image(image), cut_text(str(path)))
     except TargetFileError as exc:
+        if image.mode == "F" and not np.isfinite(np.asarray(image)).any():  # (read as black: "draw darker")
+            raise TargetFileError(f"{cut_text(str(path))}: the picture's pixels are all NaN or infinite, so nothing "
+                                  "is drawn; export the render with the drawing's values") from None
         if _fully_transparent(image):  # (its colours, read instead, were blank too)
             raise TargetFileError(f"{cut_text(str(path))}: the picture is fully transparent (every pixel's alpha is "
                                   "0), so nothing is drawn; export it with the drawing's layer visible") from None
