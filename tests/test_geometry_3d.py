@@ -225,10 +225,14 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
     scene = trimesh.load(tmp_path / "s.glb", force="scene", process=False)
     merged = trimesh.util.concatenate([scene.geometry[g].copy().apply_transform(scene.graph[n][0])
                                        for n, g in ((n, scene.graph[n][1]) for n in scene.graph.nodes_geometry)])
-    # the sheared post is where the OBJ (one merged mesh) puts it: world geometry, no node matrix
+    # the sheared post is where the OBJ puts it: world geometry, no node matrix
     export_mesh(parts, tmp_path / "s.obj", colour_of)
     obj = trimesh.load(tmp_path / "s.obj", process=False)
     assert np.allclose(np.sort(merged.bounds, axis=0), np.sort(obj.bounds, axis=0))
+    # one OBJ object per part, named as the GLB's nodes (merged into one mesh, an artist's
+    # importer had made the whole result one object)
+    objects = [line[2:] for line in (tmp_path / "s.obj").read_text().splitlines() if line.startswith("o ")]
+    assert sorted(objects) == sorted(names)
     shape_set = shapes_from_assets([tmp_path / "s.glb"])
     assert len(shape_set.shapes[0].parts) == 4
     # a part tagged "world" (trimesh's name for the scene's root) is a part, not every part's parent
@@ -246,6 +250,8 @@ def test_a_glb_holds_one_node_per_part_named_after_its_tag_and_reads_back_as_its
     scene = trimesh.load(tmp_path / "m.glb", force="scene", process=False)
     assert sorted(scene.graph.nodes_geometry) == ["a", "b"]
     assert sum(len(g.faces) for g in scene.geometry.values()) == 12 * len(many)
+    export_mesh(many, tmp_path / "m.obj", colour_of)  # and one OBJ object per tag
+    assert [line for line in (tmp_path / "m.obj").read_text().splitlines() if line.startswith("o ")] == ["o a", "o b"]
 
 
 _TETRA_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)

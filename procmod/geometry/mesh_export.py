@@ -20,7 +20,10 @@ decompose into translation, rotation and scale), is written into the mesh under 
 identity node instead. Above :data:`MAX_PART_NODES` parts, the file holds one node per
 tag instead: Blender's importer takes time growing with the square of the objects (1,000
 parts 5.6 s, 2,000 29 s, 5,000 over 170 s; merged, 0.6 s). The report's viewer keeps one merged
-mesh (:func:`glb_bytes`): one draw call, whatever the part count.
+mesh (:func:`glb_bytes`): one draw call, whatever the part count. An OBJ file holds one
+object (``o``) per part named so too, each in world coordinates (OBJ has no placements),
+or one per tag above :data:`MAX_PART_NODES` parts: merged into one mesh, an artist's
+importer had made the whole result one object.
 """
 
 from __future__ import annotations
@@ -132,18 +135,8 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
         groups = [(name, parts_to_trimesh(group, colour_of, segments, True)) for name, group in by_tag.items()]
     else:
         groups = [(part_name(part.tag), *_placed_part_mesh(part, colour_of, segments)) for part in parts]
-    # "world" is trimesh's name for the scene's root: a node of that name held every other
-    # part as its child (Blender imported them all parented to one part)
-    used, counts, shared = {"world"}, {}, {}
-    for name, mesh, *placement in groups:
-        # names unique per file, as a modelling tool's (tower, tower_1, ...: trimesh would
-        # drop a node of a name it holds); readers that name parts after meshes take the
-        # shortest of the names they merge
-        unique = name
-        while unique in used:
-            counts[name] = counts.get(name, 0) + 1
-            unique = f"{name}_{counts[name]}"
-        used.add(unique)
+    shared = {}
+    for unique, (name, mesh, *placement) in zip(unique_names(name for name, *_ in groups), groups):
         matrix_, same = placement if placement else (None, None)
         if same is not None and same in shared:  # a copy: a node of the mesh written for the first (linked data)
             scene.graph.update(frame_from=scene.graph.base_frame, frame_to=unique, matrix=matrix_,
@@ -153,6 +146,41 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
         if same is not None:
             shared[same] = unique
     return scene.export(file_type="glb")
+
+
+def unique_names(names) -> list:
+    """The names made unique within one file, as a modelling tool's are (tower, tower_1,
+    ...: trimesh drops a node of a name it already holds; readers that name parts after
+    meshes take the shortest of the names they merge). "world" is trimesh's name for the
+    scene's root: a node of that name had held every other part as its child (Blender
+    imported them all parented to one part)."""
+    used, counts, out = {"world"}, {}, []
+    for name in names:
+        unique = name
+        while unique in used:
+            counts[name] = counts.get(name, 0) + 1
+            unique = f"{name}_{counts[name]}"
+        used.add(unique)
+        out.append(unique)
+    return out
+
+
+def scene_obj_text(parts, colour_of, segments: int = 24) -> str:
+    """An OBJ file of 3D parts, one object per part named after its tag (above
+    :data:`MAX_PART_NODES` parts, one per tag), in world coordinates, with the palette's
+    sRGB bytes as vertex colours (see the module docstring)."""
+    if len(parts) > MAX_PART_NODES:
+        by_tag: dict = {}
+        for part in parts:
+            by_tag.setdefault(part_name(part.tag), []).append(part)
+        groups = [(name, parts_to_trimesh(group, colour_of, segments)) for name, group in by_tag.items()]
+    else:
+        groups = [(part_name(part.tag), _part_mesh(part, colour_of, segments, False)) for part in parts]
+    scene = trimesh.Scene()
+    for unique, (_, mesh) in zip(unique_names(name for name, _ in groups), groups):
+        if len(mesh.faces):  # (a part of zero size merges to no face: no empty object)
+            scene.add_geometry(mesh, geom_name=unique, node_name=unique)
+    return scene.export(file_type="obj")
 
 
 def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
@@ -206,11 +234,10 @@ def export_mesh(parts, path: str | os.PathLike, colour_of) -> None:
     if kind == "glb":
         write_bytes_atomic(path, scene_glb_bytes(parts, colour_of))
         return
-    mesh = parts_to_trimesh(parts, colour_of)
-    if len(mesh.faces) == 0:
+    text = scene_obj_text(parts, colour_of) if parts else ""
+    if "\nf " not in text:
         # trimesh writes "v" and "f" lines with no numbers for an empty mesh, which readers
         # (trimesh itself: a point cloud of shape (1, 0)) take for a broken file
         write_bytes_atomic(path, b"# procmod: a derivation with no parts (an empty mesh)\n")
         return
-    data = mesh.export(file_type="obj")
-    write_bytes_atomic(path, data.encode() if isinstance(data, str) else data)
+    write_bytes_atomic(path, text.encode())
