@@ -105,6 +105,50 @@ class Dataset:
         return node_kind(type_)
 
 
+def run_steps(data: Dataset, mine, slot: int) -> dict | None:
+    """Node id -> its step (1, 2, ...) along the runs that the nodes marked in ``mine``
+    (a boolean per node) make through ``slot``: a run starts at a marked node whose parent
+    is unmarked or holds it in another slot, and goes on through each node's child in
+    ``slot``. None when a marked node's child in that slot is unmarked (not one run)."""
+    steps = {}
+    for n in data.nodes:
+        if not mine[n.id]:
+            continue
+        if n.parent >= 0 and mine[n.parent] and n.parent_slot == slot:
+            continue  # numbered from its run's start
+        k, node = 1, n
+        while True:
+            steps[node.id] = k
+            nxt = [c for s, c in node.children if s == slot]
+            if not nxt:
+                break
+            if not mine[nxt[0].id]:
+                return None
+            node, k = nxt[0], k + 1
+    return steps
+
+
+def fixed_runs(data: Dataset) -> dict:
+    """Part type -> (slot, L) for each type that holds itself in exactly one slot and whose
+    runs through it are all L >= 2 long: a count every example agrees on (a snake of five
+    links, each under the one before). A type that holds itself in two slots branches
+    (a tree), and a run of varying length (the castles' walls of 2-5 segments) is left to
+    the paper's recursion."""
+    out = {}
+    for t, slot_types in sorted(data.slots.items()):
+        own = [s for s, st in enumerate(slot_types) if st == t]
+        if len(own) != 1:
+            continue
+        mine = [n.kind == "part" and n.type == t for n in data.nodes]
+        steps = run_steps(data, mine, own[0])
+        if not steps:
+            continue
+        ends = [k for i, k in steps.items() if not any(s == own[0] for s, _ in data.nodes[i].children)]
+        if len(set(ends)) == 1 and ends[0] >= 2:
+            out[t] = (own[0], ends[0])
+    return out
+
+
 @dataclass
 class _PartInfo:
     node: ExampleNode

@@ -42,10 +42,10 @@ from ..core.paths import named_file
 from ..core.random import resample
 from .examples import ExampleSet
 from .likelihood import Compiled, fit, log_likelihood, pooled_slot_target, sigmas_from_residuals
-from .preprocessing import Dataset, preprocess
+from .preprocessing import Dataset, fixed_runs, preprocess
 from .program import Program, program_from_json, program_to_json
 from ..parallel import InlineExecutor as _Inline
-from .structure import TAU_SNAP, initial_program, snap, split
+from .structure import TAU_SNAP, initial_program, snap, split, unroll
 
 # /3: transform components measured in the examples' units, directions' angles about the
 # diagonal (a /1 checkpoint's programs were neither; /2 was a development step)
@@ -220,26 +220,48 @@ def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: s
         particle.cpu = time.process_time() - cpu0
         return particle
     target, proposal, a2, bias = prepared
-    fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator,
-        slot_prior=options.slot_prior, slot_target=slot_target,
-        seed=seed, warm_bias=bias, warm_iterations=options.warm_iterations)
-    resp2, ids2 = _responsibilities(proposal, data, mode)
-    snapped = snap(proposal, data, resp2, ids2, options.tau_snap)
-    ll = log_likelihood(snapped, data, mode)
-    objective = _objective(ll, snapped, options.lam)
-    # a split that snapping undid (one of the copies dropped) changes no structure: it is
-    # only a refit of the current program, so it is not accepted (accepting it re-queued
-    # the same abstraction for another no-op round)
-    survived = target in snapped.abstractions and a2 in snapped.abstractions
-    accepted = survived and objective > particle.objective + 1e-9
+
+    def evaluate(proposal, copies, bias):
+        fit(proposal, data, mode, options.split_iterations, lr=options.lr, estimator=options.estimator,
+            slot_prior=options.slot_prior, slot_target=slot_target,
+            seed=seed, warm_bias=bias, warm_iterations=options.warm_iterations)
+        resp2, ids2 = _responsibilities(proposal, data, mode)
+        snapped = snap(proposal, data, resp2, ids2, options.tau_snap)
+        ll = log_likelihood(snapped, data, mode)
+        objective = _objective(ll, snapped, options.lam)
+        # a split that snapping undid (one of the copies dropped) changes no structure: it is
+        # only a refit of the current program, so it is not accepted (accepting it re-queued
+        # the same abstraction for another no-op round)
+        survived = all(a in snapped.abstractions for a in copies)
+        return snapped, ll, objective, survived, survived and objective > particle.objective + 1e-9
+
+    copies = [target, a2]
+    snapped, ll, objective, survived, accepted = evaluate(proposal, copies, bias)
+    unrolled = None
+    if not accepted and mode == "discrete" and fixed_runs(data):  # (else no unroll: nothing more is fitted)
+        # a run every example repeats the same number of times: try one copy per step
+        # (structure.unroll), which no sequence of two-way splits reaches uphill
+        resp, ids = _responsibilities(particle.program, data, mode)
+        made = unroll(particle.program, target, data, resp, ids)
+        if made is not None:
+            unrolled = made[1]
+            result = evaluate(*made)
+            unroll_proposed = round(result[2], 4)
+            if result[4]:
+                snapped, ll, objective, survived, accepted = result
+                copies = unrolled
     row = {"phase": mode, "split": target, "accepted": bool(accepted), "proposed": round(objective, 4),
            "loglik_proposed": round(ll, 4), "complexity_proposed": snapped.complexity(),
            "abstractions_proposed": len(snapped.abstractions), "split_survived": bool(survived), "seconds": round(time.perf_counter() - start, 3)}
+    if unrolled is not None:
+        row["unrolled"] = len(unrolled)
+        row["unroll_proposed"] = unroll_proposed
+        row["unroll_accepted"] = bool(accepted and copies is unrolled)
     if accepted:
         resp3, ids3 = _responsibilities(snapped, data, mode)
         particle.program, particle.objective, particle.loglik = snapped, objective, ll
         particle.usage = dict(zip(ids3, resp3.sum(0).tolist()))
-        new = [a for a in (target, a2) if a in snapped.abstractions]
+        new = [a for a in copies if a in snapped.abstractions]
         requeue = [b for b in particle.rejected if b in snapped.abstractions and
                    any(a in c for c in snapped.abstractions[b].callees for a in new)]
         particle.rejected = [b for b in particle.rejected if b not in requeue]

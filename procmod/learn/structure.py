@@ -28,7 +28,7 @@ import warnings
 
 import numpy as np
 
-from .preprocessing import Dataset
+from .preprocessing import Dataset, fixed_runs, run_steps
 from .program import MAX_DEPTH, ROOT, Abstraction, Program
 from .transforms import CATEGORY, SYM_PARAMS, node_kind
 
@@ -299,6 +299,71 @@ def split(program: Program, target: int, data: Dataset, resp: np.ndarray, ids: l
     for n, lab in zip(mine, labels):
         bias[n, c2 if lab == 0 else c1] = -WARM_BIAS
     return new, a2, bias
+
+
+MAX_UNROLL = 32
+"""Longest run of a self-calling abstraction that :func:`unroll` copies out (a chain of
+hundreds of links would make a program of hundreds of abstractions to fit, and the
+complexity term rejects it anyway)."""
+
+
+def unroll(program: Program, target: int, data: Dataset, resp: np.ndarray,
+           ids: list) -> tuple[Program, list, np.ndarray] | None:
+    """A copy of ``program`` in which the part abstraction ``target``, which calls itself
+    through one slot and only itself there, is unrolled into one copy per step of its runs,
+    when every run it generates (MAP assignment) has the same length L >= 2: copy k
+    generates the run's k-th node and calls copy k + 1 (a design addition to seed 000's
+    two-way split, see docs/learn.md). Returns ``(program, the copies' ids in run order,
+    warm-up bias)``, or None where ``target`` does not qualify.
+
+    Why: a chain that every example repeats exactly L times (a snake of five links) is a
+    geometric count under one self-calling abstraction; the per-step program scores
+    higher by O_D once a few examples agree, but every two-way split on the way there
+    scores lower, so the greedy search never reached it and samples had 1 to 25 links."""
+    ab = program.abstractions.get(target)
+    if ab is None or ab.kind != "part":
+        return None
+    own = [s for s, callees in enumerate(ab.callees) if target in callees]
+    if len(own) != 1 or ab.callees[own[0]] != [target]:
+        return None
+    slot = own[0]
+    if fixed_runs(data).get(ab.type, (None,))[0] != slot:
+        return None  # the examples' runs of this type vary in length: the paper's recursion
+    mine = resp[:, ids.index(target)] > 0.5
+    depth = run_steps(data, mine, slot)
+    if not depth or len(depth) != int(mine.sum()):
+        return None
+    lengths = [k for n, k in depth.items() if not any(s == slot for s, _ in data.nodes[n].children)]
+    length = lengths[0]
+    if length < 2 or length > MAX_UNROLL or any(k != length for k in lengths):
+        return None
+    new = program.copy()
+    chain = [target]
+    for _ in range(length - 1):
+        a = new.next_id
+        new.next_id += 1
+        new.abstractions[a] = Abstraction(a, ab.kind, ab.type, [list(c) for c in ab.callees])
+        for key in [k for k in program.params if k.startswith(f"{target}.")]:
+            new.params[f"{a}." + key.split(".", 1)[1]] = program.params[key].copy()
+        chain.append(a)
+    for a, b in zip(chain, chain[1:] + chain[-1:]):  # the last copy's slot is unused: itself
+        new.abstractions[a].callees[slot] = [b]
+        new.params[f"{a}.s{slot}.callee"] = np.zeros(1)
+    # each copy's slot-use biases start at its own step's frequencies, as P0's start at the
+    # data's (copied, every step would start at the run's mean and the last copy needs
+    # many more steps than a split's refit to learn that it stops)
+    for k, a in enumerate(chain, 1):
+        at = [data.nodes[n] for n, step in depth.items() if step == k]
+        for g, group in enumerate(data.groups.get(ab.type, [])):
+            used = np.array([n.used[group] for n in at], dtype=float).reshape(-1, len(group))
+            new.params[f"{a}.g{g}.b"] = np.array([_logit(f) for f in used.mean(0)])
+    new_ids = sorted(new.abstractions)
+    bias = np.zeros((len(data.nodes), len(new_ids)))
+    cols = [new_ids.index(a) for a in chain]
+    for n, k in depth.items():
+        bias[n, cols] = -WARM_BIAS
+        bias[n, cols[k - 1]] = 0.0
+    return new, chain, bias
 
 
 def snap(program: Program, data: Dataset, resp: np.ndarray, ids: list, tau: float = TAU_SNAP) -> Program:
