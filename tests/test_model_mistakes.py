@@ -412,6 +412,24 @@ def test_a_derivation_is_not_replayed_by_another_model_of_the_users(tmp_path):
         load_derivation(tmp_path / "d.json", lambda name: _model(blobs, "b-model"))
 
 
+def test_a_neighbour_file_hidden_by_a_standard_library_module_is_named(tmp_path, capsys):
+    """``from types import LENGTH`` with a ``types.py`` beside the model: Python imports its
+    own ``types``, and the error had blamed the model file without naming the neighbour."""
+    from procmod.cli import main
+
+    (tmp_path / "types.py").write_text("LENGTH = 3.0\n")
+    (tmp_path / "m.py").write_text("from types import LENGTH\n" + MODEL_FILE)
+    assert main(["sample", str(tmp_path / "m.py"), "-n", "1", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "line 1: running it raised ImportError" in err
+    assert "types.py beside it is hidden by Python's own module types: rename it" in err
+    # without the neighbour, the plain message
+    (tmp_path / "types.py").unlink()
+    assert main(["sample", str(tmp_path / "m.py"), "-n", "1", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert "is hidden by" not in err and err.rstrip().endswith("fix the model file")
+
+
 @pytest.mark.parametrize("content, spec, message", [
     (None, "missing.py", "model file .*missing.py does not exist"),
     ("x = (\n", "m.py", r"m.py, line 1: '\(' was never closed; fix the model file"),

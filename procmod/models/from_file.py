@@ -195,9 +195,28 @@ def _run_module_locked(path: Path):
         frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() == resolved]
         where = f", line {frames[-1].lineno}" if frames else ""
         message = exception_message(exc)
+        shadowed = _shadowed_neighbour(exc, resolved.parent)
+        fix = (f"{shadowed} beside it is hidden by Python's own module {shadowed.removesuffix('.py')}: rename it, "
+               "and the imports of it" if shadowed else "fix the model file")
         raise UnknownModelError(f"{path}{where}: running it raised {type(exc).__name__}"
-                                f"{': ' + message if message else ''}; fix the model file") from None
+                                f"{': ' + message if message else ''}; {fix}") from None
     return module
+
+
+def _shadowed_neighbour(exc: BaseException, folder: Path) -> str | None:
+    """The name of a file or package beside a model file that a failed import meant but
+    Python's standard library module of the same name hid (``from types import LENGTH`` with
+    a ``types.py`` beside the model: the standard library's ``types`` is imported, and had
+    been blamed without a word on the model file), or None."""
+    if not isinstance(exc, ImportError) or not isinstance(exc.name, str):
+        return None
+    top = exc.name.split(".", 1)[0]
+    if top not in getattr(sys, "stdlib_module_names", ()):
+        return None
+    for candidate in (f"{top}.py", top):
+        if (folder / candidate).exists():
+            return candidate
+    return None
 
 
 __all__ = ["absolute_spec", "is_model_file_spec", "load_model_file", "user_code_error"]
