@@ -1506,10 +1506,12 @@ def _see_through_drawing(image: Image.Image, opaque: np.ndarray) -> np.ndarray:
     page around it as the shape. The page is the opaque part with the see-through parts
     inside its bounding box filled in, but for those reaching past it (a margin, a notch
     from its edge) or into its corners (a rounded or turned page's): it must cover half the
-    picture and 95% of its bounding box, be mostly paper (:data:`PAGE_PAPER`),
-    have nothing drawn on it (:func:`_drawing_on_opaque`), and what it holds see-through
-    must be strokes, thinned away by 2% of the picture as :func:`page_taken_for_shape`'s
-    holes are: a window's panes, a ring's or a letter's hollow, are no drawing."""
+    picture and 95% of its bounding box, be mostly paper (:data:`PAGE_PAPER`) of a
+    paper's colour (light and untinted, as :func:`card_read_as_shape`'s card), have
+    nothing drawn on it (:func:`_drawing_on_opaque`), and what it holds see-through must be
+    strokes, thinned away by 2% of the picture as :func:`page_taken_for_shape`'s holes are
+    and long (:func:`_strokes_drawn`): a window's panes, a ring's or a letter's hollow, a
+    facade's small windows, a perforated plate's holes are no drawing."""
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.13 s of start-up
 
     rows, cols = np.flatnonzero(opaque.any(axis=1)), np.flatnonzero(opaque.any(axis=0))
@@ -1528,9 +1530,38 @@ def _see_through_drawing(image: Image.Image, opaque: np.ndarray) -> np.ndarray:
     stroke = max(2, round(0.02 * max(opaque.shape)))
     if ndimage.binary_erosion(holes, iterations=stroke).sum() >= holes.sum() / 3:
         return opaque  # wide: a window's panes, a hollow
-    if _drawing_on_opaque(image, opaque)[0] is not None:
+    if not _strokes_drawn(holes, labels):
+        return opaque  # small round or square holes: a facade's windows, a perforated plate, a calendar's days
+    drawn, page_colour = _drawing_on_opaque(image, opaque)
+    if drawn is not None or float(page_colour @ _LUMA) < PAPER_LUMA or np.ptp(page_colour) > CARD_TINT:
+        # a page is paper: a dark, grey or coloured opaque part (a building, a badge, a stencil's
+        # plate, a brick wall) with see-through gaps is the shape, as before
         return opaque
     return holes
+
+
+PAPER_LUMA = 160  # the least brightness of a page's paper (card_read_as_shape's light card)
+STROKE_LENGTH = 4  # a stroke is at least this many times as long as it is wide (a square window is 2, a dash 4)
+
+
+def _strokes_drawn(holes: np.ndarray, labels: np.ndarray) -> bool:
+    """Whether most of ``holes`` (labelled by ``labels``) lies in pieces drawn as strokes:
+    pieces at least :data:`STROKE_LENGTH` times as long (their bounding box's longer side)
+    as wide (:func:`stroke_width`'s measure, twice the area over the boundary). A pen's
+    lines are; the small square or round holes of a facade's windows, a perforated plate
+    or a calendar's day cells, which the 2% thinning also removes, are not."""
+    from scipy import ndimage
+
+    pieces = np.where(holes, labels, 0)
+    area = np.bincount(pieces.ravel())
+    boundary = np.bincount(pieces[holes & ~ndimage.binary_erosion(holes)], minlength=len(area))
+    long = 0
+    for piece, box in enumerate(ndimage.find_objects(pieces), 1):
+        if box is not None:
+            extent = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
+            if extent >= STROKE_LENGTH * 2.0 * area[piece] / max(int(boundary[piece]), 1):
+                long += int(area[piece])
+    return long >= 0.5 * int(holes.sum())
 
 
 PAGE_BOX_FILL = 0.8  # a page turned up to ~7 degrees in the photo still fills this much of its box
