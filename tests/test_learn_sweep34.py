@@ -67,3 +67,6 @@ def test_chains_of_varying_length_keep_the_papers_recursion():
     assert fixed_runs(preprocess(_snakes([5] * 3))) == {"link": (0, 5)}
     assert fixed_runs(preprocess(_snakes([4, 5, 6, 5]))) == {}
     assert fixed_runs(preprocess(_snakes([1, 1, 1]))) == {}
+    # one run alone (one robot's two chassis halves among ten robots) is no count examples agree on
+    assert fixed_runs(preprocess(_snakes([5]))) == {}
+    assert fixed_runs(preprocess(_snakes([5, 5]))) == {"link": (0, 5)}

@@ -130,8 +130,8 @@ def run_steps(data: Dataset, mine, slot: int) -> dict | None:
 
 def fixed_runs(data: Dataset) -> dict:
     """Part type -> (slot, L) for each type that holds itself in exactly one slot and whose
-    runs through it are all L >= 2 long: a count every example agrees on (a snake of five
-    links, each under the one before). A type that holds itself in two slots branches
+    runs through it are all L >= 2 long, in two examples or more: a count the examples agree
+    on (a snake of five links, each under the one before). A type that holds itself in two slots branches
     (a tree), and a run of varying length (the castles' walls of 2-5 segments) is left to
     the paper's recursion."""
     out = {}
@@ -144,7 +144,10 @@ def fixed_runs(data: Dataset) -> dict:
         if not steps:
             continue
         ends = [k for i, k in steps.items() if not any(s == own[0] for s, _ in data.nodes[i].children)]
-        if len(set(ends)) == 1 and ends[0] >= 2:
+        # runs in two examples at least: one run alone (one robot's two chassis halves among
+        # ten robots) says nothing of a count the examples agree on
+        examples = {data.nodes[i].example for i, k in steps.items() if k == 1}
+        if len(set(ends)) == 1 and ends[0] >= 2 and len(examples) >= 2:
             out[t] = (own[0], ends[0])
     return out
 
