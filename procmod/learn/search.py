@@ -66,7 +66,8 @@ class SearchOptions:
     start from the pre-split parameters, see docs/learn.md); ``warm_iterations`` of them
     carry the tie-breaking bias; ``final_iterations`` free the sigmas at the end.
     ``slot_prior`` is the pseudo-count of the prior that shrinks slot-use probabilities
-    towards P0's pooled ones (:func:`likelihood.fit`; 0: maximum likelihood, as the
+    towards the pooled ones, each part type's frequencies in the examples
+    (:func:`likelihood.fit`, :func:`likelihood.pooled_slot_target`; 0: maximum likelihood, as the
     paper); it enters only the final pass and the free-sigma fit of the phase-1 program,
     not the fits that decide splits.
     ``share_fits``: particles whose tasks have identical inputs (resampled
@@ -530,13 +531,14 @@ def run_search(example_set: ExampleSet, options: SearchOptions, executor, checkp
     else:
         rng.bit_generator.state = state["rng"]
         particles = state["particles"]
-    # the slot prior's target: P0's pooled slot-use probabilities (recomputed on resume).
+    # the slot prior's target: the pooled model's slot-use probabilities (per part type,
+    # the examples' frequencies; recomputed on resume).
     # It enters only the final pass (and the free fit of the phase-1 program, its
     # figure-6 counterpart): the splits are judged by the paper's maximum-likelihood fits
     # (with the prior, each split whose copies differ in slot use paid about alpha nats
     # per differing bit, an extra complexity charge that cost castles three abstractions),
     # and the program that is sampled does not memorise its abstractions' few nodes.
-    slot_target = pooled_slot_target(state["programs"]["p0"], data) if options.slot_prior > 0 else None
+    slot_target = pooled_slot_target(data) if options.slot_prior > 0 else None
     elapsed0 = state["elapsed"]
     t_resume, cpu_resume, cpu0 = time.perf_counter(), time.process_time(), state.get("cpu", 0.0)
     task_cpu = 0.0
