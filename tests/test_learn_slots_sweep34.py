@@ -1,15 +1,14 @@
 """Sweep 34: the slot prior keeps which slots of a group occur together (procmod.learn)."""
 
 import itertools
-import math
 
-import numpy as np
 import torch
 
-from procmod.learn import examples_from_dict
 from procmod.learn.likelihood import _bernoulli_nade
 from procmod.learn.search import SearchOptions, run_search
 from procmod.parallel import InlineExecutor
+
+from hand_placed_sets import stools
 
 # short fits, as the quick test settings: P0 (whose slot model the prior's target used to
 # be read from) is then far from converged
@@ -17,25 +16,9 @@ TINY = dict(init_iterations=80, split_iterations=20, warm_iterations=5, final_it
 
 
 def _stools(count=8, noise=0.02, seed=0):
-    """Stools placed by eye, alternating four legs (two mirrored pairs) and three (one leg
-    plus a mirrored pair): one slot group, whose only combinations are (1, 1, 0) and (0, 0, 1)."""
-    rng = np.random.default_rng(seed)
-    examples = []
-    for i in range(count):
-        legs_n = 3 if i % 2 else 4
-        h, r = 0.45 * (1 + rng.normal(0, noise)), 0.18 * (1 + rng.normal(0, noise))
-        legs = []
-        for k in range(legs_n):
-            a = 2 * math.pi * k / legs_n + rng.normal(0, noise)
-            m = np.diag([1.0, h / 0.45, 1.0, 1.0])
-            m[:3, 3] = (r * math.cos(a) * (1 + rng.normal(0, noise)), h / 2, r * math.sin(a))
-            legs.append({"part": "leg", "transform": m.tolist(), "children": []})
-        seat = np.eye(4)
-        seat[1, 3] = h + 0.02
-        examples.append({"part": "seat", "transform": seat.tolist(), "children": legs})
-    return examples_from_dict({"format": "procmod-examples/1",
-                               "parts": {"seat": {"box": [0.5, 0.04, 0.5]}, "leg": {"box": [0.04, 0.45, 0.04]}},
-                               "examples": examples})
+    """Stools alternating four legs (two mirrored pairs) and three (one leg plus a mirrored
+    pair): one slot group, whose only combinations are (1, 1, 0) and (0, 0, 1)."""
+    return stools(count, noise, seed, leg_counts=(4, 3))
 
 
 def _combination_probs(program, abstraction, group=0):

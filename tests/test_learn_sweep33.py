@@ -4,28 +4,15 @@ import math
 
 import numpy as np
 
-from procmod.learn import examples_from_dict, preprocess
+from procmod.learn import preprocess
+
+from hand_placed_sets import stools
 
 
 def _stools(count=8, noise=0.02, seed=0):
     """Stools whose four legs stand on the seat's axes (mirrored across its diagonals),
     placed by eye: lengths, radii and angles off by about 2%."""
-    rng = np.random.default_rng(seed)
-    examples = []
-    for _ in range(count):
-        h, r = 0.45 * (1 + rng.normal(0, noise)), 0.18 * (1 + rng.normal(0, noise))
-        legs = []
-        for k in range(4):
-            a = 2 * math.pi * k / 4 + rng.normal(0, noise)
-            m = np.diag([1.0, h / 0.45, 1.0, 1.0])
-            m[:3, 3] = (r * math.cos(a) * (1 + rng.normal(0, noise)), h / 2, r * math.sin(a))
-            legs.append({"part": "leg", "transform": m.tolist(), "children": []})
-        seat = np.eye(4)
-        seat[1, 3] = h + 0.02
-        examples.append({"part": "seat", "transform": seat.tolist(), "children": legs})
-    return examples_from_dict({"format": "procmod-examples/1",
-                               "parts": {"seat": {"box": [0.5, 0.04, 0.5]}, "leg": {"box": [0.04, 0.45, 0.04]}},
-                               "examples": examples})
+    return stools(count, noise, seed)
 
 
 def test_mirror_pairs_across_a_diagonal_take_one_side_in_every_example():

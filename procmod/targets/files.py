@@ -32,7 +32,7 @@ from ..core.limits import MAX_COORDINATE, MIN_LENGTH, ResourceLimitError, check_
 from ..core.paths import UnsafePathError, named_file
 from ..core.serialize import read_json
 from ..geometry.camera import Camera, Silhouettes
-from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, quiet_trimesh, special_file_kind
+from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, special_file_kind
 from ..geometry.voxel import VoxelGrid
 from .image import (FRAMES, MAX_IMAGE_PIXELS, SIDECAR_KEYS, TargetFileError, _fills_its_box, _fully_transparent,
                     grey_levels, mask_from_image, meant_key, opaque_part, open_image, picture_in_square)
