@@ -179,6 +179,27 @@ def test_ink_that_is_the_transparent_colour_is_the_drawing(tmp_path, suffix):
     assert np.array_equal(load_target_image(tmp_path / f"drawing.{suffix}").mask, ink)
 
 
+def test_a_silhouette_view_whose_ink_is_the_transparent_colour_hits_the_strokes(tmp_path):
+    """A silhouette view drawn as such a GIF hit its blank page and avoided its strokes (the
+    picture target reads it right, above); a blank page on a transparent ground stays the
+    shape to hit."""
+    from procmod.targets.files import _picture_view_weights
+
+    ink = _drawing(pen=4)
+    picture = Image.fromarray(np.where(ink, 0, 1).astype(np.uint8), "P")
+    picture.putpalette([0, 0, 0, 255, 255, 255] + [0] * 762)
+    picture.save(tmp_path / "view.gif", transparency=0)
+    notes = []
+    weights = _picture_view_weights(tmp_path / "view.gif", "views[0]", 1.0, -1.0, notes)
+    assert np.array_equal(weights > 0, ink) and np.array_equal(weights < 0, ~ink)
+    assert len(notes) == 1 and "see-through" in notes[0] and "\n" not in notes[0]
+    page = np.zeros((96, 96, 4), np.uint8)
+    page[8:88, 8:88] = 255
+    Image.fromarray(page, "RGBA").save(tmp_path / "page.png")
+    weights = _picture_view_weights(tmp_path / "page.png", "views[0]", 1.0, -1.0, [])
+    assert np.array_equal(weights > 0, page[:, :, 3] > 0)
+
+
 def test_see_through_strokes_on_a_page_inside_a_margin_are_the_drawing(tmp_path):
     ink = _drawing(160, pen=5)
     rgba = np.zeros((160, 160, 4), np.uint8)

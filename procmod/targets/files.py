@@ -35,7 +35,8 @@ from ..geometry.camera import Camera, Silhouettes
 from ..geometry.mesh_files import MESH_SUFFIXES, declared_faces, load_mesh_file, special_file_kind
 from ..geometry.voxel import VoxelGrid
 from .image import (FRAMES, MAX_IMAGE_PIXELS, SIDECAR_KEYS, TargetFileError, _fills_its_box, _fully_transparent,
-                    grey_levels, mask_from_image, meant_key, opaque_part, open_image, picture_in_square)
+                    _see_through_drawing, grey_levels, mask_from_image, meant_key, opaque_part, open_image,
+                    picture_in_square)
 from .silhouette import Silhouette
 from .volume import ProxyVolume, Volume
 
@@ -999,7 +1000,16 @@ def _picture_view_weights(file: Path, at: str, hit: float, avoid: float, notes: 
                      "save the one with the shape on its own if it is another")
     weights = np.where(grey < HIT_BELOW, hit, np.where(grey > AVOID_ABOVE, avoid, 0.0))
     cut_out = hit > 0 and opaque is not None and opaque.any() and not opaque.all()
-    if cut_out and not (grey < HIT_BELOW).any():
+    drawing = _see_through_drawing(picture, opaque) if cut_out and not (grey < HIT_BELOW).any() else None
+    if drawing is not None and drawing is not opaque:
+        # a page with the drawing cut out of it, its ink the file's transparent colour (a GIF
+        # whose tool made the ink's palette index the transparent one): read as a picture
+        # target reads it (its opaque page, to hit, had made the view inverted)
+        weights = np.where(drawing, hit, avoid)
+        notes.append(f"{at}.image: the picture is a blank opaque page with strokes drawn see-through, so the "
+                     "strokes are the shape to hit and the page is to avoid; give the shape dark on white if "
+                     "the page is the shape")
+    elif drawing is not None:
         # a light cut-out on a transparent ground, or a mask drawn in the alpha channel
         # of a white picture: the file says where the shape is (it had been refused)
         weights = np.where(opaque, hit, avoid)
