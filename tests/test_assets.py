@@ -761,6 +761,19 @@ def test_copies_turned_and_scaled_with_their_transforms_applied_are_one_part(tmp
     assert np.allclose(leg[[0, 2]], 0.05, atol=1e-4) and 0.45 - 1e-4 < leg[1] < 0.75, leg
 
 
+def test_parts_of_unnamed_nodes_take_their_meshes_tool_names(tmp_path):
+    """Nodes without names (a converter's export) placing meshes a tool named "Cube" and
+    "Cube.001": the parts had been named after trimesh's node indices ("1", "2"), which mean
+    nothing; they take the meshes' names, as named nodes give theirs."""
+    meshes = [("Cube.001", [box_mesh((0.2, 1.0, 0.2))]), ("Cube", [box_mesh((1.0, 0.1, 0.1))])]
+    nodes = [{"name": "Fence", "children": [1, 2, 3]}, {"mesh": 0, "translation": [0, 0.5, 0]},
+             {"mesh": 1, "translation": [0.6, 0.7, 0]}, {"mesh": 0, "translation": [1.2, 0.5, 0]}]
+    assert sorted(read_assets(write_gltf(tmp_path / "fence.gltf", meshes, nodes)).parts) == ["Cube", "Cube_2"]
+    for node in nodes[1:]:  # named nodes: their names, as before
+        node["name"] = "Post" if node["mesh"] == 0 else "Rail"
+    assert sorted(read_assets(write_gltf(tmp_path / "named.gltf", meshes, nodes)).parts) == ["Post", "Rail"]
+
+
 def test_a_child_named_after_a_mesh_of_several_primitives_is_not_merged_into_it(tmp_path):
     """trimesh places a mesh of several primitives (Blender: an object with two material
     slots) as frames NODE_<id> under its node's; the node's own children named NODE_...

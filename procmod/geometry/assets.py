@@ -547,7 +547,10 @@ def _read_gltf(path: Path, geometries: dict) -> list:
             if not (isinstance(mesh_name, str) and mesh_name):
                 name, by_node = frame, "unnamed"
             elif _NUMBERED.sub("", mesh_name).lower() in _DEFAULT_MESH_NAMES:
-                name, by_node = _NUMBERED.sub("", frame) or frame, "default"  # "Seat", not "Seat.001"
+                if isinstance(node.get("name"), str) and node["name"]:
+                    name, by_node = _NUMBERED.sub("", frame) or frame, "default"  # "Seat", not "Seat.001"
+                else:  # a node without a name: its frame is trimesh's index ("1", "2"); the tool's name then
+                    name = _NUMBERED.sub("", mesh_name) or mesh_name
             else:
                 name = mesh_name
             where = f"{path}: mesh {name!r}"
