@@ -215,8 +215,6 @@ def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
     singular, or has a last row other than 0 0 0 1), its world-space mesh under the
     identity, key None."""
     m = matrix(part.transform)
-    # the mesh below is in the part's own frame: its world coordinates are checked here
-    check_storable(part_triangles(part, segments), _part_text(part))
     linear = m[:3, :3]
     gram = linear.T @ linear
     scales = np.sqrt(np.diag(gram))
@@ -226,6 +224,8 @@ def _placed_part_mesh(part, colour_of, segments: int) -> tuple:
         return _part_mesh(part, colour_of, segments, True), np.eye(4), None
     # a mirrored placement keeps the part's own winding: glTF turns the faces with the node's determinant
     mesh = _part_mesh(part._replace(transform=IDENTITY), colour_of, segments, True)
+    # the mesh is in the part's own frame: its world coordinates, under the node, are checked here
+    check_storable(np.asarray(mesh.vertices) @ linear.T + m[:3, 3], _part_text(part))
     # alike: the same triangles in the same colour (a part's fields may be arrays or lists: no key themselves)
     key = (str(part.tag), np.asarray(mesh.vertices).tobytes(), np.asarray(mesh.faces).tobytes())
     return mesh, m, key
