@@ -714,12 +714,21 @@ WHITE_LEVEL = "procmod_white_level"
 says it (:func:`_white_level`); :func:`grey_levels` scales by it."""
 
 
-def _depth_white(top: float) -> int:
+WHITE_SLACK = 0.1
+"""A real-valued picture (or an integer one whose file declares no white) whose values go up
+to this share past a depth's white (255.5 or 256 after a resample's or a filter's overshoot,
+1.004 of a 0..1 render's paper) is read against that white: the next depth's (1023, or 255
+for 0..1) had read its paper as dark grey, its pencil as too faint to be a drawing."""
+
+
+def _depth_white(top: float, slack: float = 0.0) -> int:
     """The white of a 16-bit sample whose largest value is ``top``: that of the 10, 12 or 14
     bits its values use, where they use no more and some exceed 255 (a scanner's or camera's
     12 bits stored in 16: read as 16 bits, the drawing was near black and refused as empty);
-    else 65535 (a 16-bit picture every value of which is under 256 is a dark one)."""
-    return next((2 ** bits - 1 for bits in (10, 12, 14) if 255 < top < 2 ** bits), 65535)
+    else 65535 (a 16-bit picture every value of which is under 256 is a dark one). With
+    ``slack`` (:data:`WHITE_SLACK`, for values that are no integers of a stated depth) a
+    ``top`` up to that share past a white is read against it."""
+    return next((2 ** bits - 1 for bits in (10, 12, 14) if 255 < top <= (2 ** bits - 1) * (1 + slack)), 65535)
 
 
 def _white_level(image: Image.Image) -> int | None:
@@ -790,20 +799,20 @@ def grey_levels(image: Image.Image) -> np.ndarray:
         scale = 255.0 / declared
     elif image.mode.startswith("I;16"):
         scale = 255.0 / 65535.0
-    elif image.mode == "F" and (top <= 1.0 or (
+    elif image.mode == "F" and (top <= 1.0 + WHITE_SLACK or (
             top <= OVERSHOOT_TOP and float(np.mean(finite > 1.0)) <= OVERSHOOT)):
         # a 0..1 picture with a few highlights past 1 (a float render's or HDR export's
-        # overshoot) is still a 0..1 picture: one pixel at 1.02 had made the rest black
-        # and the mask empty ("draw the shape darker")
+        # overshoot), or all of its paper a little past 1, is still a 0..1 picture: one pixel
+        # at 1.02 had made the rest black and the mask empty ("draw the shape darker")
         scale = 255.0
-    elif top <= 255.0:
-        scale = 1.0
+    elif top <= 255.0 * (1 + WHITE_SLACK):
+        scale = 1.0  # (a 0..255 picture resampled: its paper at 255.5 or 256 had read against 1023)
     else:
         # no white declared (a real-valued or 32-bit integer TIFF): that of the 10, 12, 14 or
         # 16 bits its values use, as a 16-bit PNG's; past 16 bits, its own maximum. Scaled
         # from 65535 always, a picture of 0..1000 (a scientific camera's, a float export's)
         # had read as black, its drawing refused as empty
-        scale = 255.0 / (_depth_white(top) if top <= 65535.0 else top)
+        scale = 255.0 / (_depth_white(top, WHITE_SLACK) if top <= 65535.0 * (1 + WHITE_SLACK) else top)
     # an infinite pixel as the white level or black (nan_to_num's 1.8e308 overflowed the scaling)
     return np.clip(np.nan_to_num(values, nan=0.0, posinf=top, neginf=0.0) * scale, 0.0, 255.0)
 
@@ -1511,7 +1520,9 @@ def _see_through_drawing(image: Image.Image, opaque: np.ndarray) -> np.ndarray:
     nothing drawn on it (:func:`_drawing_on_opaque`), and what it holds see-through must be
     strokes, thinned away by 2% of the picture as :func:`page_taken_for_shape`'s holes are
     and long (:func:`_strokes_drawn`): a window's panes, a ring's or a letter's hollow, a
-    facade's small windows, a perforated plate's holes are no drawing."""
+    facade's small windows, a perforated plate's holes are no drawing. A see-through piece
+    the thinning leaves is a stroke still where it is long and bends or branches
+    (:func:`_bent_strokes`: a stencil cut with a fat brush), as no pane or hollow does."""
     from scipy import ndimage  # after the cheap checks: importing it costs ~0.13 s of start-up
 
     rows, cols = np.flatnonzero(opaque.any(axis=1)), np.flatnonzero(opaque.any(axis=0))
@@ -1528,20 +1539,84 @@ def _see_through_drawing(image: Image.Image, opaque: np.ndarray) -> np.ndarray:
             or opaque.sum() < PAGE_PAPER * page.sum()):
         return opaque
     stroke = max(2, round(0.02 * max(opaque.shape)))
-    if ndimage.binary_erosion(holes, iterations=stroke).sum() >= holes.sum() / 3:
+    wide = ndimage.binary_erosion(holes, iterations=stroke)
+    if wide.sum() >= holes.sum() / 3:
+        # a fat brush's strokes are wide too: only pieces that are no long, bent stroke count
+        wide &= ~_bent_strokes(holes, labels, np.unique(labels[wide]))[labels]
+    if wide.sum() >= holes.sum() / 3:
         return opaque  # wide: a window's panes, a hollow
     if not _strokes_drawn(holes, labels):
         return opaque  # small round or square holes: a facade's windows, a perforated plate, a calendar's days
     drawn, page_colour = _drawing_on_opaque(image, opaque)
-    if drawn is not None or float(page_colour @ _LUMA) < PAPER_LUMA or np.ptp(page_colour) > CARD_TINT:
+    edge = drawn is not None and _edge_of(drawn, holes)
+    if (drawn is not None and not edge) or float(page_colour @ _LUMA) < PAPER_LUMA or np.ptp(page_colour) > CARD_TINT:
         # a page is paper: a dark, grey or coloured opaque part (a building, a badge, a stencil's
         # plate, a brick wall) with see-through gaps is the shape, as before
         return opaque
-    return holes
+    return holes | drawn if edge else holes
+
+
+SOFT_EDGE = 3  # pixels: how far an anti-aliased edge reaches out from a see-through stroke
+
+
+def _edge_of(drawn: np.ndarray, holes: np.ndarray) -> bool:
+    """Whether what is drawn on a page (:func:`_drawing_on_opaque`) is the soft edge of its
+    see-through ``holes``: nearly all of it within :data:`SOFT_EDGE` pixels of them (a
+    float render's strokes of NaN, :func:`_non_finite_as_clear`, anti-aliased into the
+    paper by a grey rim, which alone had been read as the drawing, its middle left out)."""
+    from scipy import ndimage
+
+    near = ndimage.binary_dilation(holes, structure=np.ones((3, 3), dtype=bool), iterations=SOFT_EDGE)
+    return bool((drawn & near).sum() >= 0.9 * drawn.sum())
 
 
 PAPER_LUMA = 160  # the least brightness of a page's paper (card_read_as_shape's light card)
 STROKE_LENGTH = 4  # a stroke is at least this many times as long as it is wide (a square window is 2, a dash 4)
+
+
+STROKE_BENT = 0.8  # the most of its convex hull a bent stroke fills (a pane, a hollow, a disc: nearly all)
+
+
+def _piece_widths(holes: np.ndarray, labels: np.ndarray) -> tuple:
+    """``(area, width, boxes)`` of each piece of ``holes`` (labelled by ``labels``; index 0
+    none): its pixels, its width as :func:`stroke_width` measures it (twice the area over
+    the boundary) and its bounding box (None for a label with no piece in ``holes``)."""
+    from scipy import ndimage
+
+    pieces = np.where(holes, labels, 0)
+    area = np.bincount(pieces.ravel(), minlength=int(labels.max()) + 1)
+    boundary = np.bincount(pieces[holes & ~ndimage.binary_erosion(holes)], minlength=len(area))
+    width = 2.0 * area / np.maximum(boundary, 1)
+    boxes = [None] + list(ndimage.find_objects(pieces, max_label=len(area) - 1))
+    return area, width, boxes
+
+
+def _bent_strokes(holes: np.ndarray, labels: np.ndarray, which) -> np.ndarray:
+    """Which pieces of ``holes`` (by label, among the labels ``which``) are strokes however
+    wide: at least :data:`STROKE_LENGTH` times as long as wide (:func:`_strokes_drawn`'s
+    measure) and filling at most :data:`STROKE_BENT` of their convex hull, as a letter, a
+    curve or a scribble drawn with a fat brush does. A window's pane, a hollow, a round
+    or square hole is convex: it fills nearly all of its hull."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    area, width, boxes = _piece_widths(holes, labels)
+    bent = np.zeros(len(area), dtype=bool)
+    for piece in which:
+        box = boxes[piece] if 0 < piece < len(boxes) else None
+        if box is None:
+            continue
+        extent = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
+        if extent < STROKE_LENGTH * width[piece]:
+            continue
+        rows, cols = np.nonzero(labels[box] == piece)
+        # the corners of its pixels, whose hull holds them whole (their centres' hull misses half of each edge pixel)
+        corners = np.concatenate([np.stack([rows + dr, cols + dc], axis=1) for dr in (0, 1) for dc in (0, 1)])
+        try:
+            hull = ConvexHull(np.unique(corners, axis=0)).volume  # (in 2D, its area)
+        except (QhullError, ValueError):  # all in a line: a straight stroke, no bend
+            continue
+        bent[piece] = area[piece] <= STROKE_BENT * hull
+    return bent
 
 
 def _strokes_drawn(holes: np.ndarray, labels: np.ndarray) -> bool:
@@ -1550,16 +1625,12 @@ def _strokes_drawn(holes: np.ndarray, labels: np.ndarray) -> bool:
     as wide (:func:`stroke_width`'s measure, twice the area over the boundary). A pen's
     lines are; the small square or round holes of a facade's windows, a perforated plate
     or a calendar's day cells, which the 2% thinning also removes, are not."""
-    from scipy import ndimage
-
-    pieces = np.where(holes, labels, 0)
-    area = np.bincount(pieces.ravel())
-    boundary = np.bincount(pieces[holes & ~ndimage.binary_erosion(holes)], minlength=len(area))
+    area, width, boxes = _piece_widths(holes, labels)
     long = 0
-    for piece, box in enumerate(ndimage.find_objects(pieces), 1):
+    for piece, box in enumerate(boxes):
         if box is not None:
             extent = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
-            if extent >= STROKE_LENGTH * 2.0 * area[piece] / max(int(boundary[piece]), 1):
+            if extent >= STROKE_LENGTH * width[piece]:
                 long += int(area[piece])
     return long >= 0.5 * int(holes.sum())
 
@@ -1673,10 +1744,9 @@ def mask_from_image(image: Image.Image) -> np.ndarray:
         mask = opaque
         if opaque.mean() > 0.5 and _fills_its_box(opaque, 0.95):  # a page: read what is drawn on it
             drawn, _ = _drawing_on_opaque(image, opaque)
-            if drawn is not None:
-                mask = drawn
-            else:  # nothing drawn on it: the drawing may be see-through
-                mask = _see_through_drawing(image, opaque)
+            # nothing drawn on it, or only a soft edge around see-through strokes: the drawing may be see-through
+            seen = _see_through_drawing(image, opaque) if drawn is None or _edge_of(drawn, ~opaque) else opaque
+            mask = drawn if drawn is not None and seen is opaque else seen
         elif opaque.mean() > 0.5 * PAGE_PAPER:  # a page whose see-through drawing leaves under 95% of it opaque
             mask = _see_through_drawing(image, opaque)
     else:
