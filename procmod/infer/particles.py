@@ -31,7 +31,8 @@ import pickle
 import signal
 
 from ..core.errors import ModelError, ProcmodError, argument
-from ..core.runtime import HistoryRef, graft_history, history, pack_particle, start, step, unpack_particle
+from ..core.runtime import (HistoryRef, finish, graft_history, history, pack_particle, start, step,
+                            unpack_particle)
 from .common import best_first, checked_value, mean_of
 from ..parallel import lost_worker_error
 
@@ -84,44 +85,69 @@ class ParticleShard:
         Returns ``(log-weights since the last resampling, finished flags, particles
         stepped, particles still active)``.
         """
-        rng, pick, target, offer = self.rng, self.pick, self.target, self.offer
-        log_likelihood = target.log_likelihood
-        log_lik, log_w, log_ratio, finished = self.log_lik, self.log_w, self.log_ratio, self.finished
+        rng, pick, finished, reweigh = self.rng, self.pick, self.finished, self._reweigh
         active = stepped = 0
         for i, state in enumerate(self.states):
             if finished[i]:
                 continue
             stepped += 1
             step(state, rng, pick)
-            new = log_likelihood(state.output)
-            if not isinstance(new, float) or new != new or new == math.inf:  # NaN, +inf, not a float
-                new = checked_value(new, target, "log_likelihood")
-            old = log_lik[i]
-            if new == -math.inf or old == -math.inf:
-                # zero likelihood stays zero weight (-inf - -inf would be NaN); a particle left
-                # so by a skipped resampling (ess_threshold) must not poison the weights
+            if not reweigh(i, state):
+                active += 1
+        return self.log_w, finished, stepped, active
+
+    def run_through(self) -> int:
+        """Run every unfinished particle to its end without pausing at its emits, and
+        reweigh it once; returns the particle-steps that stepping it emit by emit would have
+        counted (each emit, plus the step that finds the derivation complete).
+
+        For a population that no resampling can change (one particle, or an ESS
+        threshold no population of this size can fall below; see :func:`procmod.infer.smc.smc`):
+        the same derivations, without re-running a call from its start after each emit."""
+        rng, pick, finished = self.rng, self.pick, self.finished
+        stepped = 0
+        for i, state in enumerate(self.states):
+            if finished[i]:
+                continue
+            emits = state.n_emits
+            finish(state, rng, pick)
+            stepped += state.n_emits - emits + 1
+            self._reweigh(i, state)
+        return stepped
+
+    def _reweigh(self, i: int, state) -> bool:
+        """Reweigh particle ``i`` after it ran (its likelihood now, and for a guided run its
+        prior / proposal); offer it if it is complete. Returns whether it is."""
+        target = self.target
+        new = target.log_likelihood(state.output)
+        if not isinstance(new, float) or new != new or new == math.inf:  # NaN, +inf, not a float
+            new = checked_value(new, target, "log_likelihood")
+        log_w, log_ratio = self.log_w, self.log_ratio
+        old = self.log_lik[i]
+        if new == -math.inf or old == -math.inf:
+            # zero likelihood stays zero weight (-inf - -inf would be NaN); a particle left
+            # so by a skipped resampling (ess_threshold) must not poison the weights
+            log_w[i] = -math.inf
+        else:
+            log_w[i] += new - old
+        self.log_lik[i] = new
+        if log_ratio is not None:  # guided: weigh by prior / proposal of this step's choices
+            ratio = state.log_prior - state.policy.log_proposal  # the GuidedPolicy reset() installed
+            if ratio == -math.inf or log_ratio[i] == -math.inf:
+                # a proposal outside the prior's support (a real head on a half-normal): zero
+                # weight for good; -inf - -inf at its next step was NaN, and log Z with it
                 log_w[i] = -math.inf
             else:
-                log_w[i] += new - old
-            log_lik[i] = new
-            if log_ratio is not None:  # guided: weigh by prior / proposal of this step's choices
-                ratio = state.log_prior - state.policy.log_proposal  # the GuidedPolicy reset() installed
-                if ratio == -math.inf or log_ratio[i] == -math.inf:
-                    # a proposal outside the prior's support (a real head on a half-normal): zero
-                    # weight for good; -inf - -inf at its next step was NaN, and log Z with it
-                    log_w[i] = -math.inf
-                else:
-                    log_w[i] += ratio - log_ratio[i]
-                log_ratio[i] = ratio
-            if state.done:
-                finished[i] = True
-                score = target.score(state.output)
-                if not isinstance(score, float) or score != score or score == math.inf:
-                    score = checked_value(score, target, "score")
-                offer(state, score, new)
-            else:
-                active += 1
-        return log_w, finished, stepped, active
+                log_w[i] += ratio - log_ratio[i]
+            log_ratio[i] = ratio
+        if not state.done:
+            return False
+        self.finished[i] = True
+        score = target.score(state.output)
+        if not isinstance(score, float) or score != score or score == math.inf:
+            score = checked_value(score, target, "score")
+        self.offer(state, score, new)
+        return True
 
     def regroup(self, keep: list, incoming: list) -> None:
         """The shard's particles after resampling: the particles at local indices ``keep``
