@@ -85,8 +85,8 @@ from ..core.errors import ProcmodError
 from ..core.file_formats import XACRO_COMMAND, conversion_hint
 from ..core.io import fingerprint
 from ..core.paths import UnsafePathError, named_file
-from .mesh_files import MESH_SUFFIXES, declared_faces, gltf_header, load_mesh_file
-from .gltf_accessors import unplaced_roots
+from .mesh_files import MESH_SUFFIXES, declared_faces, gltf_header, gltf_scene_header, load_mesh_file
+from .gltf_accessors import INSTANCING, instance_count, instanced_nodes, unplaced_roots
 from .part_library import PartShape
 
 GEOMETRY_TOLERANCE = 5e-3  # of a geometry's bounding-box diagonal (see the module docstring)
@@ -401,6 +401,29 @@ def _gltf_json(path: Path) -> dict:
         raise AssetError(f"{path} {exc}") from None
 
 
+def _gltf_instances_expanded(header: dict, path: Path) -> dict:
+    """``header`` with each node drawn as GPU instances (``EXT_mesh_gpu_instancing``) an
+    empty over a node per instance, as the reader reads the file
+    (:func:`~procmod.geometry.mesh_files.gltf_scene_header`): each instance a part node. More
+    nodes than :data:`MAX_NODES` so are refused before any is made."""
+    chosen = instanced_nodes(header) if isinstance(header.get("nodes"), list) \
+        and all(isinstance(n, dict) for n in header["nodes"]) else []
+    if not chosen:
+        return header
+    instances = sum(instance_count(header, n) for n in chosen)
+    expanded = len(header["nodes"]) + instances
+    if expanded > MAX_NODES:
+        raise AssetError(f"{path} draws {instances:,} GPU instances ({INSTANCING}), {expanded:,} nodes once expanded, "
+                         f"more than procmod reads ({MAX_NODES}); export fewer copies, or join "
+                         "copies that belong together into one mesh")
+    try:
+        return gltf_scene_header(path, header)
+    except OSError as exc:
+        raise AssetError(f"cannot read {path} ({exc.strerror or exc})") from None
+    except ValueError as exc:
+        raise AssetError(f"cannot read {path} as glTF ({str(exc)[:300]})") from None
+
+
 def _gltf_nodes(header: dict, path: Path) -> tuple[list, list]:
     """The default scene's root node indices and every node's children, checked: a tree
     (each node has one parent, none is its own ancestor), at most MAX_NODES nodes."""
@@ -493,7 +516,7 @@ def _read_gltf(path: Path, geometries: dict) -> list:
     """The forest of _Raw nodes of a glTF / GLB file; its geometries into ``geometries``."""
     from trimesh.util import unique_name
 
-    header = _gltf_json(path)
+    header = _gltf_instances_expanded(_gltf_json(path), path)
     roots, children = _gltf_nodes(header, path)
     declared = _gltf_triangles(header, path)
     if declared > MAX_FACES:

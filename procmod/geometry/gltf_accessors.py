@@ -12,6 +12,13 @@ real exporters write came out wrong:
   one) with ``sparse.count`` of them replaced at ``sparse.indices``; trimesh ignored the
   replacements, and an accessor with no ``bufferView`` read as all zeros.
 
+trimesh also reads a node drawn as **GPU instances** (``EXT_mesh_gpu_instancing``: Blender's
+"GPU Instances" export, ``gltfpack -mi``; a forest of one tree mesh) as its mesh once, at the
+node; the other copies vanished. Each instance becomes a node of its own under the
+instancing node (:func:`expanded_instances`), placed by its ``TRANSLATION``, ``ROTATION``
+and ``SCALE`` as the extension says (world = node's world x T x R x S), so that every
+reader of the file sees the copies as separate placed parts.
+
 And trimesh reads a mesh at rest, where viewers show it **morphed** (its morph targets at
 their weights: Blender's shape keys as set) and **posed** (a skinned mesh by its joints).
 
@@ -176,6 +183,136 @@ def accessor_values(header: dict, buffers: list, index: int) -> np.ndarray:
         out /= NORMALIZED_DIVISOR[kind]
         if dtype.kind == "i":
             np.maximum(out, -1.0, out=out)
+    return out
+
+
+# ---- GPU instances (EXT_mesh_gpu_instancing): one node per instance ---------------------------
+
+INSTANCING = "EXT_mesh_gpu_instancing"
+_INSTANCE_WIDTHS = {"TRANSLATION": 3, "ROTATION": 4, "SCALE": 3}
+BYTES_PER_INSTANCE = 4096
+"""Memory an expanded instance costs at least besides its mesh's copy: its node in the JSON and in
+trimesh's scene graph, its transform (measured: ~3-5 KB a node in trimesh 4-5)."""
+
+
+def _instancing(node) -> dict | None:
+    """A node's ``EXT_mesh_gpu_instancing`` object (None without one)."""
+    extensions = node.get("extensions") if isinstance(node, dict) else None
+    spec = extensions.get(INSTANCING) if isinstance(extensions, dict) else None
+    return spec if isinstance(spec, dict) else None
+
+
+def instanced_nodes(header: dict) -> list[int]:
+    """The nodes that draw their mesh as GPU instances (``EXT_mesh_gpu_instancing``)."""
+    return [n for n, node in enumerate(header.get("nodes") or ())
+            if _instancing(node) is not None and isinstance(node.get("mesh"), int)
+            and not isinstance(node.get("mesh"), bool)]
+
+
+def instance_count(header: dict, node: int) -> int:
+    """The instances node ``node`` draws, as its accessors' ``count`` says (read without
+    decoding; 1 for a node without the extension or whose count cannot be told)."""
+    spec = _instancing((header.get("nodes") or [])[node])
+    attributes = spec.get("attributes") if spec is not None else None
+    accessors = header.get("accessors") or []
+    for index in (attributes.values() if isinstance(attributes, dict) else ()):
+        if isinstance(index, int) and 0 <= index < len(accessors) and isinstance(accessors[index], dict):
+            count = accessors[index].get("count")
+            if isinstance(count, int) and not isinstance(count, bool) and count >= 0:
+                return count
+    return 1
+
+
+def instance_matrices(header: dict, buffers: list, node: int) -> np.ndarray:
+    """The ``(count, 4, 4)`` transforms of node ``node``'s GPU instances, each T x R x S of
+    its ``TRANSLATION``, ``ROTATION`` (a quaternion x, y, z, w; floats, or normalized
+    bytes or shorts as the extension allows) and ``SCALE``, each optional (identity, no
+    turn, unit scale without it), in the node's frame. Raises ValueError for accessors that
+    are missing, of another shape, of different counts or not finite."""
+    from scipy.spatial.transform import Rotation
+
+    attributes = _instancing(header["nodes"][node]).get("attributes")
+    attributes = attributes if isinstance(attributes, dict) else {}
+    accessors = header.get("accessors") or []
+    what = f"node {node}'s {INSTANCING}"
+    values = {}
+    for name, width in _INSTANCE_WIDTHS.items():
+        index = attributes.get(name)
+        if index is None:
+            continue
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(accessors) \
+                or not isinstance(accessors[index], dict):
+            raise ValueError(f"{what} {name} names accessor {index!r}, which the file does not have")
+        read = accessor_values(header, buffers, index)
+        if read.shape[1] != width:
+            raise ValueError(f"{what} {name} is accessor {index} of {read.shape[1]} numbers an instance, not {width}")
+        if not np.isfinite(read).all():
+            raise ValueError(f"{what} {name} holds a number that is not finite (NaN or infinity)")
+        values[name] = read
+    counts = {len(v) for v in values.values()}
+    if len(counts) > 1:
+        raise ValueError(f"{what} accessors give different instance counts ({', '.join(map(str, sorted(counts)))})")
+    count = counts.pop() if counts else instance_count(header, node)  # (only custom attributes: placed at the node)
+    out = np.tile(np.eye(4), (count, 1, 1))
+    if "ROTATION" in values:
+        quaternions = values["ROTATION"]
+        norms = np.linalg.norm(quaternions, axis=1)
+        turned = norms > 0  # a zero quaternion (a padding row) turns nothing
+        out[turned, :3, :3] = Rotation.from_quat(quaternions[turned] / norms[turned, None]).as_matrix()
+    if "SCALE" in values:
+        out[:, :3, :3] *= values["SCALE"][:, None, :]  # R x S: S scales R's columns
+    if "TRANSLATION" in values:
+        out[:, :3, 3] = values["TRANSLATION"]
+    return out
+
+
+def expanded_instances(header: dict, buffers: list, required: bool) -> dict:
+    """``header`` with each GPU-instanced node (:func:`instanced_nodes`) made an empty whose
+    children are its instances: a node each, drawing its mesh under the instance's
+    transform (:func:`instance_matrices`) and named after it with the tool's numbering of
+    copies (``Tree.001``, ``Tree.002``: an unnamed node's after its mesh). The extension is
+    gone from the copy. Instances that cannot be read raise ValueError where the file
+    requires the extension (``required``); otherwise the node draws its mesh once, as a
+    reader without the extension does. Refuses instances past the machine's memory
+    (:func:`~procmod.core.limits.check_memory`) before any is made."""
+    chosen = instanced_nodes(header)
+    total = sum(instance_count(header, n) for n in chosen)
+    meshes = header.get("meshes") or []
+    check_memory(f"expanding its {total:,} GPU instances ({INSTANCING})", total * BYTES_PER_INSTANCE,
+                 "export it with fewer instances")
+    out = copy.deepcopy(header)
+    for name in ("extensionsUsed", "extensionsRequired"):
+        if isinstance(out.get(name), list):
+            out[name] = [e for e in out[name] if e != INSTANCING]
+            if not out[name]:
+                del out[name]
+    nodes = out["nodes"]
+    for n, node in enumerate(nodes):
+        if _instancing(node) is not None:  # (on a node without a mesh it means nothing)
+            del node["extensions"][INSTANCING]
+    for n in chosen:
+        try:
+            matrices = instance_matrices(header, buffers, n)
+        except ValueError as exc:
+            if required:
+                raise ValueError(f"its GPU instances ({INSTANCING}, which it requires) cannot be read: {exc}; export "
+                                 "it again, or without GPU instances (Blender: glTF export > Data > Scene Graph > "
+                                 "GPU Instances off; gltfpack without -mi)") from None
+            continue  # drawn once, at the node, as a reader without the extension draws it
+        node = nodes[n]
+        mesh = node.pop("mesh")
+        given = node.get("name")
+        mesh_name = meshes[mesh].get("name") if 0 <= mesh < len(meshes) and isinstance(meshes[mesh], dict) else None
+        base = given if isinstance(given, str) and given else mesh_name if isinstance(mesh_name, str) else ""
+        shown = {key: node.pop(key) for key in ("weights", "skin") if key in node}  # the mesh's, drawn by the copies
+        first = len(nodes)
+        for k, m in enumerate(matrices):
+            copy_ = {"mesh": mesh, "matrix": m.T.reshape(16).tolist(), **shown}  # glTF: column-major
+            if base:
+                copy_["name"] = f"{base}.{k + 1:03d}"
+            nodes.append(copy_)
+        children = node.get("children")
+        node["children"] = list(range(first, len(nodes))) + (children if isinstance(children, list) else [])
     return out
 
 
@@ -391,36 +528,16 @@ def camera_nodes_with_content(header: dict) -> list:
             and ("mesh" in node or node.get("children"))]
 
 
-def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
-    """The glTF (JSON, buffers as ``data:`` URIs or the files the original names) with its
-    misread POSITION accessors (:func:`needs_decoding`) rewritten as ``FLOAT``; None when
-    there are none. ``header`` is the file's JSON (``gltf_header``); ``resolver.get(uri)``
-    gives a buffer file's bytes.
-
-    Triangle-fan primitives become triangle lists (:func:`fan_primitives`); a camera's node
-    that holds a mesh or children is read as a plain node (:func:`camera_nodes_with_content`).
-    A mesh shown
-    morphed (:func:`morphed_primitives`) or posed by a skin (:func:`skinned_meshes`) gets
-    the positions it is shown at; nodes that show one mesh at other weights or under
-    other skins get a copy each (:func:`morphs_split`, :func:`skins_split`).
-
-    Raises ValueError for an accessor that reaches past its data."""
-    path = Path(path)
-    split = morphs_split(header)
-    header = header if split is None else split
-    posed = skins_split(header)
-    if posed is not None:
-        header = split = posed
-    chosen = needs_decoding(header)
-    fans = fan_primitives(header)
-    morphs = morphed_primitives(header)
-    skins = skinned_meshes(header)
-    roots = unplaced_roots(header)
-    cameras = camera_nodes_with_content(header)
-    if not chosen and not fans and not morphs and not skins and roots is None and not cameras and split is None:
-        return None
+def _glb_chunk(path: Path) -> bytes | None:
+    """A GLB's binary chunk (whatever its suffix); None for a text glTF or a GLB without one."""
     data = path.read_bytes()
-    chunk = _binary_chunk(data) if data[:4] == b"glTF" else None  # a GLB, whatever its suffix
+    return _binary_chunk(data) if data[:4] == b"glTF" else None
+
+
+def _buffers(path: Path, header: dict, resolver, chunk: bytes | None = None) -> list:
+    """The bytes of each of a glTF's buffers: a ``data:`` URI's, a file's (``resolver``), a
+    GLB's binary chunk (``chunk``, read from ``path`` when not given)."""
+    chunk = _glb_chunk(path) if chunk is None else chunk
     buffers = []
     for i, buffer in enumerate(header.get("buffers") or ()):
         uri = buffer.get("uri") if isinstance(buffer, dict) else None
@@ -432,6 +549,59 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
             buffers.append(chunk)
         else:
             raise ValueError(f"buffer {i} has no data (no uri, and not a GLB's binary chunk)")
+    return buffers
+
+
+def expanded_header(path: Path, header: dict, resolver) -> dict:
+    """``header`` (a glTF's JSON) with its GPU instances expanded as :func:`decoded_gltf`
+    expands them (:func:`expanded_instances`): the node list a reader of the decoded file
+    sees; ``header`` itself for a file without them."""
+    if not instanced_nodes(header):
+        return header
+    required = header.get("extensionsRequired")
+    return expanded_instances(header, _buffers(Path(path), header, resolver),
+                              isinstance(required, list) and INSTANCING in required)
+
+
+def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
+    """The glTF (JSON, buffers as ``data:`` URIs or the files the original names) with its
+    misread POSITION accessors (:func:`needs_decoding`) rewritten as ``FLOAT``; None when
+    there are none. ``header`` is the file's JSON (``gltf_header``); ``resolver.get(uri)``
+    gives a buffer file's bytes.
+
+    A node drawn as GPU instances becomes a node per instance (:func:`expanded_instances`).
+    Triangle-fan primitives become triangle lists (:func:`fan_primitives`); a camera's node
+    that holds a mesh or children is read as a plain node (:func:`camera_nodes_with_content`).
+    A mesh shown
+    morphed (:func:`morphed_primitives`) or posed by a skin (:func:`skinned_meshes`) gets
+    the positions it is shown at; nodes that show one mesh at other weights or under
+    other skins get a copy each (:func:`morphs_split`, :func:`skins_split`).
+
+    Raises ValueError for an accessor that reaches past its data."""
+    path = Path(path)
+    buffers = chunk = expanded = None
+    if instanced_nodes(header):  # each instance a node first: the steps below see the copies as nodes
+        chunk = _glb_chunk(path)
+        buffers = _buffers(path, header, resolver, chunk)
+        required = header.get("extensionsRequired")
+        header = expanded = expanded_instances(header, buffers, isinstance(required, list) and INSTANCING in required)
+    split = morphs_split(header)
+    header = (header if split is None else split)
+    posed = skins_split(header)
+    if posed is not None:
+        header = split = posed
+    chosen = needs_decoding(header)
+    fans = fan_primitives(header)
+    morphs = morphed_primitives(header)
+    skins = skinned_meshes(header)
+    roots = unplaced_roots(header)
+    cameras = camera_nodes_with_content(header)
+    if not chosen and not fans and not morphs and not skins and roots is None and not cameras and split is None \
+            and expanded is None:
+        return None
+    if buffers is None:
+        chunk = _glb_chunk(path)
+        buffers = _buffers(path, header, resolver, chunk)
     decoded = {index: accessor_values(header, buffers, index).astype("<f4") for index in chosen}
     out = copy.deepcopy(header)
     blob, views = b"", out.setdefault("bufferViews", [])
@@ -498,5 +668,6 @@ def decoded_gltf(path: Path, header: dict, resolver) -> bytes | None:
     return json.dumps(out).encode("utf-8")
 
 
-__all__ = ["accessor_values", "camera_nodes_with_content", "decoded_gltf", "fan_primitives", "morphed_primitives",
-           "needs_decoding", "skinned_meshes", "unplaced_roots"]
+__all__ = ["INSTANCING", "accessor_values", "camera_nodes_with_content", "decoded_gltf", "expanded_header",
+           "expanded_instances", "fan_primitives", "instance_count", "instance_matrices", "instanced_nodes",
+           "morphed_primitives", "needs_decoding", "skinned_meshes", "unplaced_roots"]

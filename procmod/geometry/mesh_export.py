@@ -123,6 +123,30 @@ MAX_PART_NODES = 500
 """A GLB of more parts holds one node per tag (see the module docstring)."""
 
 
+ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
+
+
+def set_view_targets(tree: dict) -> None:
+    """Give each bufferView of a glTF tree (trimesh's, before it is written: its
+    ``tree_postprocessor``) the ``target`` its use says, in place: ``ARRAY_BUFFER`` for
+    vertex attributes (morph targets' too), ``ELEMENT_ARRAY_BUFFER`` for indices. trimesh
+    leaves it unset, which the Khronos validator hints at (BUFFER_VIEW_TARGET_MISSING); a
+    view used both ways, or otherwise (an image), keeps none."""
+    accessors = tree.get("accessors") or []
+    views = tree.get("bufferViews") or []
+    uses: dict = {}
+    for mesh in tree.get("meshes") or ():
+        for primitive in mesh.get("primitives") or ():
+            for attributes in [primitive.get("attributes") or {}] + list(primitive.get("targets") or ()):
+                for index in attributes.values():
+                    uses.setdefault(accessors[index].get("bufferView"), set()).add(ARRAY_BUFFER)
+            if "indices" in primitive:
+                uses.setdefault(accessors[primitive["indices"]].get("bufferView"), set()).add(ELEMENT_ARRAY_BUFFER)
+    for view, targets in uses.items():
+        if isinstance(view, int) and 0 <= view < len(views) and len(targets) == 1:
+            views[view]["target"] = targets.pop()
+
+
 def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
     """A GLB file of 3D parts, one node and mesh per part named after its tag (above
     :data:`MAX_PART_NODES` parts, one per tag; see the module docstring), coloured per tag
@@ -147,7 +171,7 @@ def scene_glb_bytes(parts, colour_of, segments: int = 24) -> bytes:
         scene.add_geometry(mesh, geom_name=unique, node_name=unique, transform=matrix_)
         if same is not None:
             shared[same] = unique
-    return scene.export(file_type="glb")
+    return scene.export(file_type="glb", tree_postprocessor=set_view_targets)
 
 
 def unique_names(names) -> list:
@@ -247,7 +271,8 @@ def glb_bytes(parts, colour_of) -> bytes:
     tag (linear, as glTF defines ``COLOR_0``)."""
     if not parts:
         return empty_glb_bytes()
-    return parts_to_trimesh(parts, colour_of, linear_colours=True).export(file_type="glb")
+    return parts_to_trimesh(parts, colour_of, linear_colours=True).export(file_type="glb",
+                                                                        tree_postprocessor=set_view_targets)
 
 
 def export_mesh(parts, path: str | os.PathLike, colour_of) -> None:

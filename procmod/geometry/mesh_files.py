@@ -36,9 +36,10 @@ so is one whose buffers are meshopt-compressed. Positions stored as normalized i
 or in sparse accessors, which trimesh reads wrongly, are decoded first
 (:mod:`procmod.geometry.gltf_accessors`). A ``.gltf`` whose buffer file is missing or
 shorter than it declares is refused naming that file. Triangle fans are rewritten as
-triangle lists (trimesh dropped them), and a file drawn as GPU instances, or requiring an
-extension that could change its geometry, is refused. trimesh's log messages stay off
-procmod's one-line error channel.
+triangle lists (trimesh dropped them), and a node drawn as GPU instances
+(``EXT_mesh_gpu_instancing``) as a node per instance (:func:`gltf_scene_header` gives the
+node list so read); a file requiring an extension that could change its geometry is refused.
+trimesh's log messages stay off procmod's one-line error channel.
 
 Concave polygon faces of an OBJ are split into triangles here (trimesh fans them from
 their first corner, covering more than the face); PLY, OFF and COLLADA files are read
@@ -65,7 +66,7 @@ import numpy as np
 from ..core.errors import cut_text, whole_number
 from ..core.io import MAX_JSON_BYTES, lone_surrogate_at, lone_surrogate_text
 from ..core.limits import relaxed_gc
-from .gltf_accessors import decoded_gltf
+from .gltf_accessors import INSTANCING, decoded_gltf, expanded_header
 
 # the mesh files :func:`load_mesh_file` reads (trimesh's formats procmod checks and fixes)
 MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off", ".dae"})
@@ -422,7 +423,6 @@ def _instance_count(spec: dict, attributes: dict) -> int:
 
 DRACO = "KHR_draco_mesh_compression"
 MESHOPT = "EXT_meshopt_compression"
-INSTANCING = "EXT_mesh_gpu_instancing"
 # words in the names of extensions a file may require that leave its geometry as trimesh
 # reads it (materials, textures, lights, metadata: KHR_materials_*, MSFT_texture_dds,
 # EXT_mesh_features) or that procmod decodes itself (KHR_mesh_quantization, gltf_accessors)
@@ -518,14 +518,9 @@ def _check_gltf(path: Path) -> dict | None:
         raise ValueError(f"its buffers are meshopt-compressed ({MESHOPT}), which procmod cannot decode; export "
                          "it without compression (gltfpack without -c, or `gltf-transform copy` after "
                          "decompressing)")
-    named = [header.get("extensionsRequired"), header.get("extensionsUsed")]
-    if any(isinstance(names, list) and INSTANCING in names for names in named):
-        # trimesh reads an instanced node's mesh once, at the node: the other copies vanished
-        raise ValueError(f"it draws meshes as GPU instances ({INSTANCING}), which procmod does not expand; export "
-                         "it without them (Blender: glTF export > Data > Scene Graph > GPU Instances off; gltfpack "
-                         "without -mi)")
-    unknown = [name for name in required
-               if isinstance(name, str) and not any(word in name.lower() for word in _HARMLESS)] \
+    # GPU instances are expanded into nodes (gltf_accessors.expanded_instances), not refused
+    unknown = [name for name in required if isinstance(name, str) and name != INSTANCING
+               and not any(word in name.lower() for word in _HARMLESS)] \
         if isinstance(required, list) else []
     if unknown:
         raise ValueError(f"it requires the glTF extension {unknown[0]}, which procmod does not read (so its "
@@ -835,6 +830,17 @@ def load_mesh_file(path: str | Path, up: str | None = "y", **options):
         return trimesh.load(path, **options)
 
 
+def gltf_scene_header(path: str | Path, header: dict) -> dict:
+    """The JSON of a glTF (``header``, :func:`gltf_header`'s) as :func:`load_mesh_file` reads
+    it: each node drawn as GPU instances an empty over a node per instance
+    (:func:`~procmod.geometry.gltf_accessors.expanded_instances`), so that a reader walking
+    the nodes finds the scene trimesh reads. Raises ValueError where those instances cannot
+    be read and the file requires them."""
+    path = Path(path)
+    with quiet_trimesh():
+        return expanded_header(path, header, _resolver(path))
+
+
 def is_binary_gltf(path: Path) -> bool:
     """Whether a file starts as a GLB does (whatever its suffix)."""
     return _first_bytes(Path(path), 4) == b"glTF"
@@ -858,5 +864,5 @@ def _first_bytes(path: Path, count: int) -> bytes:
         return b""
 
 
-__all__ = ["MESH_SUFFIXES", "declared_faces", "gltf_header", "load_mesh_file", "normalised_obj", "quiet_trimesh",
-           "special_file_kind"]
+__all__ = ["MESH_SUFFIXES", "declared_faces", "gltf_header", "gltf_scene_header", "load_mesh_file", "normalised_obj",
+           "quiet_trimesh", "special_file_kind"]

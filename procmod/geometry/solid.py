@@ -13,6 +13,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..core.errors import InvalidArgumentError, shown_value
+
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -130,6 +132,46 @@ def with_positive_length(part: Cylinder) -> Cylinder:
                     None if part.top_radius is None else part.radius)
 
 
+class MeshPartError(InvalidArgumentError, ValueError):
+    """A :class:`Mesh` part whose vertices or faces are not a triangle mesh (none, ragged, not
+    numbers, a face on a vertex it does not have). A ValueError too: an output refusing
+    the part at an emit names the rule that emitted it (:mod:`procmod.core.runtime`)."""
+
+
+def mesh_arrays(part: Mesh) -> tuple:
+    """A Mesh part's ``(vertices (n, 3) float64, faces (m, 3) int64)``, checked: at least
+    one face, three numbers a vertex, three whole vertex numbers a face, each naming a
+    vertex the mesh has. Raises :class:`MeshPartError` naming what is wrong (numpy's
+    "inhomogeneous shape", "cannot convert float NaN to integer" or a reduction over no
+    faces had reached the user as they were)."""
+    try:
+        vertices = np.asarray(part.vertices, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MeshPartError(f"a Mesh's vertices must be rows of three numbers ((x, y, z), ...), got "
+                            f"{shown_value(part.vertices)}") from None
+    try:
+        faces = np.asarray(part.faces)
+        if faces.dtype.kind not in "iu":  # floats (3.0 is vertex 3) or objects: whole numbers checked below
+            faces = faces.astype(np.float64)
+    except (TypeError, ValueError):
+        raise MeshPartError(f"a Mesh's faces must be rows of three vertex numbers ((i, j, k), ...), got "
+                            f"{shown_value(part.faces)}") from None
+    if vertices.size == 0 or faces.size == 0:
+        raise MeshPartError(f"a Mesh needs at least one face (i, j, k) on its vertices (x, y, z), got "
+                            f"{len(vertices) if vertices.ndim else 0} vertices and "
+                            f"{len(faces) if faces.ndim else 0} faces")
+    if vertices.ndim != 2 or vertices.shape[1:] != (3,) or faces.ndim != 2 or faces.shape[1:] != (3,):
+        raise MeshPartError(f"a Mesh needs vertices ((x, y, z), ...) and faces ((i, j, k), ...: triangles), got "
+                            f"arrays of shapes {vertices.shape} and {faces.shape}")
+    if faces.dtype.kind == "f" and not (np.isfinite(faces).all() and (faces == np.round(faces)).all()):
+        bad = faces[~(np.isfinite(faces) & (faces == np.round(faces)))][0]
+        raise MeshPartError(f"a Mesh's faces must hold whole vertex numbers, got {shown_value(float(bad))}")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        bad = int(faces.max()) if faces.max() >= len(vertices) else int(faces.min())
+        raise MeshPartError(f"a Mesh's face refers to vertex {bad}, but it has vertices 0 to {len(vertices) - 1}")
+    return vertices, faces.astype(np.int64)
+
+
 def part_triangles(part, segments: int = 24) -> np.ndarray:
     """World-space triangles ``(n, 3, 3)`` of a part (cylinders as ``segments``-gon prisms)."""
     if isinstance(part, Cylinder):
@@ -147,13 +189,7 @@ def part_triangles(part, segments: int = 24) -> np.ndarray:
         local[2 * segments] = (0.0, 0.0, 0.0)
         local[2 * segments + 1] = (0.0, 0.0, float(part.length))
     elif isinstance(part, Mesh):
-        local, tris = np.asarray(part.vertices, dtype=np.float64), np.asarray(part.faces, dtype=np.int64)
-        if local.ndim != 2 or local.shape[1:] != (3,) or tris.ndim != 2 or tris.shape[1:] != (3,):
-            raise ValueError(f"a Mesh needs vertices ((x, y, z), ...) and faces ((i, j, k), ...), got arrays of "
-                             f"shapes {local.shape} and {tris.shape}")
-        if tris.size and (tris.min() < 0 or tris.max() >= len(local)):
-            bad = int(tris.max()) if tris.max() >= len(local) else int(tris.min())
-            raise ValueError(f"a Mesh's face refers to vertex {bad}, but it has vertices 0 to {len(local) - 1}")
+        local, tris = mesh_arrays(part)
     else:
         raise TypeError(_not_3d(part))
     m = matrix(part.transform)

@@ -24,14 +24,15 @@ def mesh_glb(vertices, faces) -> bytes:
     """A GLB file of one uncoloured triangle mesh (no faces: a GLB of an empty scene)."""
     import trimesh
 
-    from ..geometry.mesh_export import check_storable, empty_glb_bytes
+    from ..geometry.mesh_export import check_storable, empty_glb_bytes, set_view_targets
 
     vertices, faces = np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
     if faces.size == 0:
         # trimesh wrote an empty node and a zero-length BIN chunk, which strict readers refuse
         return empty_glb_bytes()
     check_storable(vertices, "a viewer layer's mesh")
-    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False).export(file_type="glb")
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False).export(file_type="glb",
+                                                                          tree_postprocessor=set_view_targets)
 
 
 def parts_glb(parts) -> bytes:
