@@ -21,8 +21,9 @@ RUNS = []  # (address of each execution of a rule call): a call paused at an emi
 
 
 def _chain(ctx, depth):
-    """Two emits a call with a choice between them, then a coin for one more call: its last
-    act is a choice, so stepping and running through count the same particle-steps."""
+    """Two emits a call with a choice between them, then a coin for one more call (none at
+    depth 6: a derivation that reaches it ends on an emit, which stepping counts no extra
+    step for)."""
     RUNS.append(ctx.address)
     ctx.emit(Value(ctx.sample("a", Normal(0.0, 1.0))))
     ctx.emit(Value(ctx.sample("b", Normal(0.0, 0.5))))
@@ -35,11 +36,13 @@ CHAIN = Model("chain", "two emits a call, up to seven calls", _chain, lambda p: 
 
 
 def _stepped(model, target, seed):
-    """One particle stepped emit by emit with the engine's generator: (choice map, steps)."""
+    """One particle stepped emit by emit with the engine's generator, as the engine steps it
+    (until it is complete): (choice map, steps)."""
     rng = BlockGenerator(np.random.default_rng(seed))
     state = start(model, target.new_output(model))
-    steps = 1  # the last step, which finds the derivation complete (CHAIN's calls end on a coin)
-    while step(state, rng):
+    steps = 0
+    while not state.done:
+        step(state, rng)
         steps += 1
     return state.choice_map(), steps
 

@@ -283,7 +283,7 @@ class Context:
             raise self._misuse(f"emits more than {model.max_call_emits:,} times in one call; does a loop in it "
                                "ever end? (emit a long run of parts from child calls, or raise "
                                "Model(max_call_emits=...))")
-        if self._pause and index >= model.max_resumed_emits:
+        if self._pause is True and index >= model.max_resumed_emits:  # (a watch never re-runs a call)
             raise self._misuse(f"emits more than {model.max_resumed_emits:,} times in one call under SMC, which "
                                "re-runs a call from its start to resume it after each emit (n^2 / 2 emits for n: "
                                "hours for a loop of thousands); does the loop end? Emit a long run of parts from "
@@ -300,7 +300,8 @@ class Context:
                                f"{exc}") from exc
         state.n_emits += 1
         self._fresh_emit = True
-        if self._pause:
+        pause = self._pause
+        if pause is True or (pause and pause(self)):  # every emit (step), or where a watch says (run_until)
             self._armed = True
 
     def spawn(self, site: str, rule: Callable, *args) -> None:
@@ -811,6 +812,60 @@ def finish(state: Derivation, rng: np.random.Generator, pick: Pick | None = None
             future = _next_future(state, rng, pick)
             prefix, skip = None, 0
         _execute(state, future, rng, prefix, skip, False)
+
+
+class _Watch:
+    """:func:`run_until`'s look at each fresh emit: whether to pause there, and where the
+    last one fell (the call that drew it, the calls made, its choices and spawn sites)."""
+
+    __slots__ = ("stop", "fired", "ctx", "nodes", "acts")
+
+    def __init__(self, stop):
+        self.stop, self.fired, self.ctx, self.nodes, self.acts = stop, False, None, 0, 0
+
+    def __call__(self, ctx: Context) -> bool:
+        self.ctx, self.nodes, self.acts = ctx, ctx._state.n_nodes, _acts(ctx)
+        self.fired = bool(self.stop(ctx._state))
+        return self.fired
+
+
+def _acts(ctx: Context) -> int:
+    """The choices and spawn sites a call has made so far: each would pause it after an emit."""
+    return len(ctx._choices) + (len(ctx._sites) if ctx._sites else 0)
+
+
+def run_until(state: Derivation, rng: np.random.Generator, pick: Pick | None = None, stop=None) -> tuple:
+    """Run a partial derivation on in place as :func:`step` would, emit by emit, but without
+    pausing at each emit (so no call re-runs from its start), until ``stop(state)`` is true
+    after an emit or the derivation is complete.
+
+    Where ``stop`` fires, the derivation is left as :func:`step` leaves it after that emit
+    (the call paused just before its next choice, emit or spawn); the same random numbers
+    are drawn as by stepping it. Returns ``(stopped, steps)``: whether ``stop`` fired, and
+    the calls of :func:`step` that advancing it so would have taken (an emit each, plus the
+    step that finds it complete unless its last emit completed it): an SMC engine's
+    particle-steps.
+    """
+    watch = _Watch(stop or (lambda _: False))
+    emits = state.n_emits
+    while True:
+        if state.active is not None:
+            future, prefix, skip = state.active
+            state.active = None
+        elif state.stopped or not state.pending:
+            state.pending.clear()
+            break
+        else:
+            future = _next_future(state, rng, pick)
+            prefix, skip = None, 0
+        _execute(state, future, rng, prefix, skip, watch)
+        if watch.fired:
+            return True, state.n_emits - emits
+    drawn = state.n_emits - emits
+    # step() ends at an emit's call pausing at its next act, or completing; the derivation
+    # was complete then only if that call was the last to run and made nothing after the emit
+    ended_on_emit = drawn and state.n_nodes == watch.nodes + 1 and _acts(watch.ctx) == watch.acts
+    return False, drawn + (0 if ended_on_emit else 1)
 
 
 def run_forward(model: Model, rng: np.random.Generator, pick: Pick | None = None,

@@ -31,7 +31,7 @@ import pickle
 import signal
 
 from ..core.errors import ModelError, ProcmodError, argument
-from ..core.runtime import (HistoryRef, finish, graft_history, history, pack_particle, start, step,
+from ..core.runtime import (HistoryRef, graft_history, history, pack_particle, run_until, start, step,
                             unpack_particle)
 from .common import best_first, checked_value, mean_of
 from ..parallel import lost_worker_error
@@ -99,29 +99,68 @@ class ParticleShard:
     def run_through(self) -> int:
         """Run every unfinished particle to its end without pausing at its emits, and
         reweigh it once; returns the particle-steps that stepping it emit by emit would have
-        counted (each emit, plus the step that finds the derivation complete).
+        counted (:func:`procmod.core.runtime.run_until`).
 
         For a population that no resampling can change (one particle, or an ESS
         threshold no population of this size can fall below; see :func:`procmod.infer.smc.smc`):
-        the same derivations, without re-running a call from its start after each emit."""
-        rng, pick, finished = self.rng, self.pick, self.finished
+        the same derivations, without re-running a call from its start after each emit.
+        The likelihood is still looked at after each emit, as stepping does: a particle whose
+        weight becomes zero pauses there, and where every particle's has, the run ends
+        where stepping them together would have ended it (unfinished, as :meth:`step` leaves
+        them); otherwise the paused ones run on to their ends."""
+        rng, pick, states, finished, zero = self.rng, self.pick, self.states, self.finished, self._zero_weight
         stepped = 0
-        for i, state in enumerate(self.states):
+        paused = {}  # index -> steps taken, of particles paused where their weight became zero
+        last = 0  # the step at which the last particle's weight became zero (all have: see below)
+        alive = False
+        for i, state in enumerate(states):
             if finished[i]:
                 continue
-            emits = state.n_emits
-            finish(state, rng, pick)
-            stepped += state.n_emits - emits + 1
-            self._reweigh(i, state)
+            halted, steps = run_until(state, rng, pick, zero)
+            stepped += steps
+            if not self._reweigh(i, state) and halted:
+                paused[i] = steps
+            if self.log_w[i] != -math.inf:
+                alive = True
+            else:
+                last = max(last, steps)
+        for i, steps in paused.items():
+            state = states[i]
+            if alive:  # a particle the target allows keeps the run going: the others run to their ends
+                stepped += run_until(state, rng, pick)[1]
+                self._reweigh(i, state)
+                continue
+            # every weight is zero: stepped SMC stops once the last of them is (each particle
+            # stepped as far as that, or to its end)
+            while steps < last:
+                steps += 1
+                stepped += 1
+                step(state, rng, pick)
+                if self._reweigh(i, state):
+                    break
         return stepped
+
+    def _zero_weight(self, state) -> bool:
+        """Whether a particle's weight is zero for good (the target rules its output out, or a
+        guide proposed outside the prior's support); raises as :meth:`_reweigh` does on a
+        likelihood that is no number."""
+        if self._log_likelihood(state) == -math.inf:
+            return True
+        return self.log_ratio is not None and state.log_prior == -math.inf
+
+    def _log_likelihood(self, state) -> float:
+        """The target's log-likelihood of a particle's output, checked."""
+        target = self.target
+        new = target.log_likelihood(state.output)
+        if not isinstance(new, float) or new != new or new == math.inf:  # NaN, +inf, not a float
+            new = checked_value(new, target, "log_likelihood")
+        return new
 
     def _reweigh(self, i: int, state) -> bool:
         """Reweigh particle ``i`` after it ran (its likelihood now, and for a guided run its
         prior / proposal); offer it if it is complete. Returns whether it is."""
         target = self.target
-        new = target.log_likelihood(state.output)
-        if not isinstance(new, float) or new != new or new == math.inf:  # NaN, +inf, not a float
-            new = checked_value(new, target, "log_likelihood")
+        new = self._log_likelihood(state)
         log_w, log_ratio = self.log_w, self.log_ratio
         old = self.log_lik[i]
         if new == -math.inf or old == -math.inf:
