@@ -96,7 +96,7 @@ class ParticleShard:
                 active += 1
         return self.log_w, finished, stepped, active
 
-    def run_through(self) -> int:
+    def run_through(self, looked_at=None) -> int:
         """Run every unfinished particle to its end without pausing at its emits, and
         reweigh it once; returns the particle-steps that stepping it emit by emit would have
         counted (:func:`procmod.core.runtime.run_until`).
@@ -107,8 +107,19 @@ class ParticleShard:
         The likelihood is still looked at after each emit, as stepping does: a particle whose
         weight becomes zero pauses there, and where every particle's has, the run ends
         where stepping them together would have ended it (unfinished, as :meth:`step` leaves
-        them); otherwise the paused ones run on to their ends."""
+        them); otherwise the paused ones run on to their ends. ``looked_at(state)``, if
+        given, is called after each emit (the engine's history rows and progress, which
+        stepping updates between its steps)."""
         rng, pick, states, finished, zero = self.rng, self.pick, self.states, self.finished, self._zero_weight
+        go_on = None
+        if looked_at is not None:
+            def zero(state, zero_weight=zero):
+                looked_at(state)
+                return zero_weight(state)
+
+            def go_on(state):
+                looked_at(state)
+                return False
         stepped = 0
         paused = {}  # index -> steps taken, of particles paused where their weight became zero
         last = 0  # the step at which the last particle's weight became zero (all have: see below)
@@ -127,7 +138,7 @@ class ParticleShard:
         for i, steps in paused.items():
             state = states[i]
             if alive:  # a particle the target allows keeps the run going: the others run to their ends
-                stepped += run_until(state, rng, pick)[1]
+                stepped += run_until(state, rng, pick, go_on)[1]
                 self._reweigh(i, state)
                 continue
             # every weight is zero: stepped SMC stops once the last of them is (each particle

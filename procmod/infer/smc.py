@@ -127,7 +127,15 @@ def _run_once(local: ParticleShard, workers: list, particles: int, rng, resampli
         worker.send("reset", size)
     local.reset(sizes[0])
     if not workers and deadline is None and unchangeable_by_resampling(particles, ess_threshold):
-        tracker.evaluations += local.run_through()
+        counted = tracker.evaluations
+        target = local.target
+
+        def looked_at(state):  # after each emit: history rows (of the particle running) and progress
+            tracker.evaluations += 1
+            if tracker.due():
+                tracker.record(checked_value(target.score(state.output), target, "score"))
+
+        tracker.evaluations = counted + local.run_through(looked_at)
         if tracker.due():
             tracker.record(local.score_mean()[0])
         log_w = local.log_w
