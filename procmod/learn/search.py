@@ -239,16 +239,21 @@ def task_step(particle: Particle, data: Dataset, options: SearchOptions, mode: s
     copies = [target, a2]
     snapped, ll, objective, survived, accepted = evaluate(proposal, copies, bias)
     unrolled = None
-    if not accepted and mode == "discrete" and fixed_runs(data):  # (else no unroll: nothing more is fitted)
+    if mode == "discrete" and fixed_runs(data):  # (else no unroll: nothing more is fitted)
         # a run every example repeats the same number of times: try one copy per step
-        # (structure.unroll), which no sequence of two-way splits reaches uphill
+        # (structure.unroll), which no sequence of two-way splits reaches uphill, and keep
+        # the better of the two proposals. Tried only after a rejected split, it was never
+        # tried where the split itself rose (a body of 3 links each with a tail of 2: the
+        # split that separated the body's links scored higher than P0), and once the split
+        # was in, the abstraction no longer called only itself, so the body's count stayed
+        # a recursion (samples of 2-5 links)
         resp, ids = _responsibilities(particle.program, data, mode)
         made = unroll(particle.program, target, data, resp, ids)
         if made is not None:
             unrolled = made[1]
             result = evaluate(*made)
             unroll_proposed = round(result[2], 4)
-            if result[4]:
+            if result[4] and (not accepted or result[2] > objective + 1e-9):
                 snapped, ll, objective, survived, accepted = result
                 copies = unrolled
     row = {"phase": mode, "split": target, "accepted": bool(accepted), "proposed": round(objective, 4),

@@ -908,6 +908,49 @@ degrees of one line take one side of it (:func:`align_mirror_sides`); a type mir
 across planes of every direction (towers round a keep) keeps each normal canonical."""
 
 
+def _ring_mirrors(unit: Unit, frame: Frame) -> list:
+    """The maps that mirror a pair of full rings onto each other: ``unit.g`` followed by each
+    of the second ring's n turns (each a mirror across the plane turned k pi / n about the
+    rings' axis), or [] where ``unit`` is no mirrored pair of full rings or its plane does
+    not hold their axis (two rings side by side: then a turn after it is no mirror)."""
+    if unit.kind != "refl" or len(unit.members) != 2 or unit.members[1].kind != "rot" \
+            or _ring_angles(unit.members[1], frame) is None:
+        return []
+    ring = unit.members[1]
+    axis, _ = rotation_axis_angle(ring.g)
+    normal = _mirror_normal(unit.g)
+    centre, *_ = np.linalg.lstsq(np.eye(3) - ring.g[:3, :3], ring.g[:3, 3], rcond=None)  # a point of the axis
+    off_plane = float(normal @ centre) - 0.5 * float(normal @ unit.g[:3, 3])
+    if abs(float(normal @ axis)) > math.sin(SNAP_ANGLE) or abs(off_plane) > SYMMETRY_TOLERANCE * unit.size:
+        return []
+    out, g = [], unit.g
+    for _ in ring.members:
+        out.append(g)
+        g = ring.g @ g
+    return out
+
+
+def _agree_ring_mirrors(pairs: list) -> None:
+    """Let each mirrored pair of full rings (a star of five mirrored arms: a ring of five left
+    arms mirrored onto a ring of five right ones) take, of the n planes that mirror its rings
+    onto each other, the one that mirrors the first ring's first member onto the second's
+    (the rings' starts agree across examples, :func:`align_ring_starts`, so their planes
+    then agree too). Any of the n is a valid mirror, and the fit picks one at random: six
+    hand-placed stars had their planes 36 or 72 degrees apart, so the pairs' normals agreed
+    on no line, their first members were not put on one side (:func:`align_mirror_sides`),
+    and sampled stars had their arms' pairs 13 or 25 degrees apart where every example's
+    were 29. ``pairs``: (unit, frame, normal in the frame) triples, normals updated."""
+    for k, (unit, frame, n) in enumerate(pairs):
+        maps = _ring_mirrors(unit, frame)
+        if not maps:
+            continue
+        start = unit.members[0].members[0].corners.reshape(-1, 3).mean(0)
+        image = unit.members[1].members[0].corners.reshape(-1, 3).mean(0)
+        best = min(maps, key=lambda g: float(np.linalg.norm(_apply(g, start) - image)))
+        unit.g = best
+        pairs[k] = (unit, frame, frame.rot.T @ _mirror_normal(best))
+
+
 def align_mirror_sides(units: list, consensus: dict) -> None:
     """Let the mirror pairs of one type at one place take their normals on one side of the
     line their planes' normals agree on, with their first members on that side.
@@ -932,6 +975,14 @@ def align_mirror_sides(units: list, consensus: dict) -> None:
                 found.setdefault(place + (unit.type,), []).append((unit, frame, n))
         for key, pairs in found.items():
             normals = np.array([n for _, _, n in pairs])
+            # pairs of rings mirrored across one of several planes each, not agreeing on one
+            # (where they agree, as fitted, nothing changes)
+            agree = consensus.get(key)
+            if agree is None and key not in consensus:
+                agree = np.linalg.eigh(normals.T @ normals)[1][:, -1]
+            if agree is not None and np.abs(normals @ agree).min() < MIRRORS_AGREE:
+                _agree_ring_mirrors(pairs)
+                normals = np.array([n for _, _, n in pairs])
             if key not in consensus:
                 w, v = np.linalg.eigh(normals.T @ normals)
                 line, _ = canonical_direction(v[:, -1])
