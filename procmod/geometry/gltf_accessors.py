@@ -211,16 +211,19 @@ def instanced_nodes(header: dict) -> list[int]:
 
 def instance_count(header: dict, node: int) -> int:
     """The instances node ``node`` draws, as its accessors' ``count`` says (read without
-    decoding; 1 for a node without the extension or whose count cannot be told)."""
+    decoding; 1 for a node without the extension or whose count cannot be told): the
+    largest, an upper bound for the limits checked with it (the first had been taken, and a
+    custom ``_ID`` of 2 listed before a TRANSLATION of millions let those past them)."""
     spec = _instancing((header.get("nodes") or [])[node])
     attributes = spec.get("attributes") if spec is not None else None
     accessors = header.get("accessors") or []
+    counts = []
     for index in (attributes.values() if isinstance(attributes, dict) else ()):
         if isinstance(index, int) and 0 <= index < len(accessors) and isinstance(accessors[index], dict):
             count = accessors[index].get("count")
             if isinstance(count, int) and not isinstance(count, bool) and count >= 0:
-                return count
-    return 1
+                counts.append(count)
+    return max(counts) if counts else 1
 
 
 def instance_matrices(header: dict, buffers: list, node: int) -> np.ndarray:

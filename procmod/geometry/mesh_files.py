@@ -66,7 +66,7 @@ import numpy as np
 from ..core.errors import cut_text, whole_number
 from ..core.io import MAX_JSON_BYTES, lone_surrogate_at, lone_surrogate_text
 from ..core.limits import relaxed_gc
-from .gltf_accessors import INSTANCING, decoded_gltf, expanded_header
+from .gltf_accessors import INSTANCING, decoded_gltf, expanded_header, instance_count, instanced_nodes
 
 # the mesh files :func:`load_mesh_file` reads (trimesh's formats procmod checks and fixes)
 MESH_SUFFIXES = frozenset({".obj", ".glb", ".gltf", ".ply", ".stl", ".off", ".dae"})
@@ -407,18 +407,9 @@ def _gltf_drawn_faces(spec: dict, per_mesh: list) -> int:
         node = nodes[i]
         mesh = node.get("mesh")
         if isinstance(mesh, int) and 0 <= mesh < len(per_mesh):
-            instances = node.get("extensions", {}).get(INSTANCING, {}).get("attributes", {})
-            total += per_mesh[mesh] * max(1, _instance_count(spec, instances))
+            total += per_mesh[mesh] * max(1, instance_count(spec, i))  # GPU instances: a copy each
         stack.extend(node.get("children", []))
     return total
-
-
-def _instance_count(spec: dict, attributes: dict) -> int:
-    """The instances an ``EXT_mesh_gpu_instancing`` node draws (1 without the extension)."""
-    for index in attributes.values():
-        if isinstance(index, int) and 0 <= index < len(spec.get("accessors", [])):
-            return int(spec["accessors"][index].get("count", 1))
-    return 1
 
 
 DRACO = "KHR_draco_mesh_compression"
@@ -835,8 +826,15 @@ def gltf_scene_header(path: str | Path, header: dict) -> dict:
     it: each node drawn as GPU instances an empty over a node per instance
     (:func:`~procmod.geometry.gltf_accessors.expanded_instances`), so that a reader walking
     the nodes finds the scene trimesh reads. Raises ValueError where those instances cannot
-    be read and the file requires them."""
+    be read and the file requires them, and for what :func:`load_mesh_file` refuses before
+    reading any buffer (a buffer file missing, cut off or a named pipe, Draco)."""
     path = Path(path)
+    if not instanced_nodes(header):
+        return header
+    # the checks load_mesh_file makes before it reads a buffer, made here first: reading the
+    # instances' accessors had waited for ever on a buffer file that is a named pipe, and
+    # said only "(NAME.bin)" for one that is missing
+    _check_gltf(path)
     with quiet_trimesh():
         return expanded_header(path, header, _resolver(path))
 
