@@ -31,8 +31,7 @@ import pickle
 import signal
 
 from ..core.errors import ModelError, ProcmodError, argument
-from ..core.runtime import (HistoryRef, graft_history, history, pack_particle, run_until, start, step,
-                            unpack_particle)
+from ..core.runtime import HistoryRef, history, pack_particle, run_until, start, step, unpack_particle
 from .common import best_first, checked_value, mean_of
 from ..parallel import lost_worker_error
 
@@ -111,8 +110,9 @@ class ParticleShard:
         given, is called after each emit (the engine's history rows and progress, which
         stepping updates between its steps)."""
         rng, pick, states, finished, zero = self.rng, self.pick, self.states, self.finished, self._zero_weight
-        go_on = None
-        if looked_at is not None:
+        if looked_at is None:
+            go_on = None
+        else:
             def zero(state, zero_weight=zero):
                 looked_at(state)
                 return zero_weight(state)
