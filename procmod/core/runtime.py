@@ -769,6 +769,18 @@ def _next_future(state: Derivation, rng, pick):
     return pending.pop(index)
 
 
+def _next_call(state: Derivation, rng, pick) -> tuple | None:
+    """``(future, prefix, skip)`` of the call to run next (a paused call first, resumed), or
+    None when the derivation is complete (its pending calls cleared if it stopped)."""
+    if state.active is not None:
+        call, state.active = state.active, None
+        return call
+    if state.stopped or not state.pending:
+        state.pending.clear()
+        return None
+    return _next_future(state, rng, pick), None, 0
+
+
 def step(state: Derivation, rng: np.random.Generator, pick: Pick | None = None) -> bool:
     """Advance a partial derivation in place until its next emit has been drawn.
 
@@ -786,32 +798,20 @@ def step(state: Derivation, rng: np.random.Generator, pick: Pick | None = None) 
         the choices made in this step.
     """
     while True:
-        if state.active is not None:
-            future, prefix, skip = state.active
-            state.active = None
-        elif state.stopped or not state.pending:
-            state.pending.clear()
+        call = _next_call(state, rng, pick)
+        if call is None:
             return False
-        else:
-            future = _next_future(state, rng, pick)
-            prefix, skip = None, 0
-        if _execute(state, future, rng, prefix, skip, True):
+        if _execute(state, call[0], rng, call[1], call[2], True):
             return True
 
 
 def finish(state: Derivation, rng: np.random.Generator, pick: Pick | None = None) -> Derivation:
     """Run a partial derivation in place to completion, without pausing; returns it."""
     while True:
-        if state.active is not None:
-            future, prefix, skip = state.active
-            state.active = None
-        elif state.stopped or not state.pending:
-            state.pending.clear()
+        call = _next_call(state, rng, pick)
+        if call is None:
             return state
-        else:
-            future = _next_future(state, rng, pick)
-            prefix, skip = None, 0
-        _execute(state, future, rng, prefix, skip, False)
+        _execute(state, call[0], rng, call[1], call[2], False)
 
 
 class _Watch:
@@ -849,16 +849,10 @@ def run_until(state: Derivation, rng: np.random.Generator, pick: Pick | None = N
     watch = _Watch(stop or (lambda _: False))
     emits = state.n_emits
     while True:
-        if state.active is not None:
-            future, prefix, skip = state.active
-            state.active = None
-        elif state.stopped or not state.pending:
-            state.pending.clear()
+        call = _next_call(state, rng, pick)
+        if call is None:
             break
-        else:
-            future = _next_future(state, rng, pick)
-            prefix, skip = None, 0
-        _execute(state, future, rng, prefix, skip, watch)
+        _execute(state, call[0], rng, call[1], call[2], watch)
         if watch.fired:
             return True, state.n_emits - emits
     drawn = state.n_emits - emits
