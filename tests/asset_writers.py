@@ -44,16 +44,21 @@ def write_gltf(path, meshes, nodes, roots=(0,)):
 
 def write_glb(path, data: dict):
     """``data`` (from :func:`gltf_json`) as a GLB container: its buffer in the BIN chunk."""
-    import struct
     data = json.loads(json.dumps(data))
     uri = data["buffers"][0].pop("uri")
     blob = base64.b64decode(uri.split(",", 1)[1])
+    path.write_bytes(glb_container(data, blob))
+    return path
+
+
+def glb_container(data: dict, blob: bytes) -> bytes:
+    """A GLB file of glTF JSON ``data`` and its binary buffer ``blob`` (both chunks padded)."""
+    import struct
     text = json.dumps(data).encode()
     text += b" " * (-len(text) % 4)
     blob += b"\0" * (-len(blob) % 4)
     body = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
-    path.write_bytes(struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body)
-    return path
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
 
 
 def box_mesh(size, centre=(0, 0, 0)):

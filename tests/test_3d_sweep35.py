@@ -18,6 +18,8 @@ from procmod.targets.image import TargetFileError
 from procmod.targets.files import read_mesh
 from procmod.viewer.layers import mesh_glb
 
+from asset_writers import glb_container
+
 INSTANCING = "EXT_mesh_gpu_instancing"
 SIZE = (1.0, 2.0, 0.5)  # a post: no quarter turn maps it onto itself
 QUARTER_Z = (0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5))  # x, y, z, w: 90 degrees about +z
@@ -67,10 +69,7 @@ def _glb(path, translations=None, rotations=None, scales=None, node=None, rotati
             "extensionsUsed": [INSTANCING]}
     if required:
         data["extensionsRequired"] = [INSTANCING]
-    text = json.dumps(data).encode()
-    text += b" " * (-len(text) % 4)
-    body = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
-    path.write_bytes(struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body)
+    path.write_bytes(glb_container(data, blob))
     return path
 
 

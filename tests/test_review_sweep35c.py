@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 import threading
 
 import numpy as np
@@ -18,6 +17,8 @@ from procmod.geometry.gltf_accessors import instance_count
 from procmod.geometry.mesh_files import declared_faces, gltf_header
 from procmod.targets.files import read_mesh
 from procmod.targets.image import TargetFileError
+
+from asset_writers import glb_container
 
 INSTANCING = "EXT_mesh_gpu_instancing"
 
@@ -118,10 +119,7 @@ def _glb_with_custom_attribute_first(path, instances):
             "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
             "accessors": accessors, "bufferViews": views, "buffers": [{"byteLength": len(blob)}],
             "extensionsUsed": [INSTANCING]}
-    text = json.dumps(data).encode()
-    text += b" " * (-len(text) % 4)
-    body = struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(blob), b"BIN\0") + blob
-    path.write_bytes(struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body)
+    path.write_bytes(glb_container(data, blob))
     return path
 
 
